@@ -1,0 +1,58 @@
+# nbvkit: the README's two commands live here.
+#   make        set up everything on a fresh Debian 12 machine (as root) and run the main job
+#   make test   run the whole test suite (C++ GoogleTest + pytest)
+SHELL := /bin/bash
+PY_SYS := /usr/bin/python3
+VENV := .venv
+PY := $(VENV)/bin/python
+PIP_FLAGS := --no-build-isolation --no-index
+export MPLBACKEND := Agg
+
+APT_PACKAGES := build-essential cmake ninja-build pybind11-dev libeigen3-dev liboctomap-dev \
+  libpcl-dev libembree-dev libassimp-dev libtbb-dev libgtest-dev libbenchmark-dev \
+  python3-dev python3-venv python3-pip python3-setuptools python3-wheel python3-numpy \
+  python3-pytest python3-open3d python3-matplotlib python3-tqdm python3-yaml python3-scipy \
+  python3-nbformat python3-nbclient python3-ipykernel python3-nbconvert \
+  python3-dask python3-distributed xvfb
+
+.PHONY: all deps venv install demo test test-cpp test-py bench clean
+
+all: install demo
+
+# System packages (skipped when all are present already; needs root otherwise).
+deps:
+	@missing=$$(for p in $(APT_PACKAGES); do dpkg-query -W -f='$${Status}\n' $$p 2>/dev/null | grep -q "ok installed" || echo $$p; done); \
+	if [ -n "$$missing" ]; then \
+	  echo "installing system packages:" $$missing; \
+	  SUDO=$$( [ $$(id -u) -eq 0 ] || echo sudo ); \
+	  $$SUDO apt-get update -q && DEBIAN_FRONTEND=noninteractive $$SUDO apt-get install -y -q $$missing; \
+	else echo "system packages: all present"; fi
+
+$(VENV)/bin/python:
+	$(PY_SYS) -m venv --system-site-packages $(VENV)
+
+venv: deps $(VENV)/bin/python
+
+# Builds the extension with CMake (incremental: build/cmake-*) and installs nbvkit editable.
+install: venv
+	$(PY) -m pip install $(PIP_FLAGS) -q -e .
+	@$(PY) -c "import nbvkit, sys; print('nbvkit', nbvkit.__version__, 'installed in', sys.prefix)"
+
+demo:
+	$(VENV)/bin/nbvkit demo --out runs/demo
+
+test: install test-cpp test-py
+
+test-cpp:
+	cmake -S . -B build/tests -G Ninja -DCMAKE_BUILD_TYPE=Release -DNBV_BUILD_PYTHON=OFF -DNBV_BUILD_TESTS=ON >/dev/null
+	cmake --build build/tests -j 2
+	cd build/tests && ctest --output-on-failure
+
+test-py:
+	$(PY) -m pytest -q tests
+
+bench: install
+	$(PY) bench/run_all.py
+
+clean:
+	rm -rf build $(VENV) python/nbvkit/_core*.so

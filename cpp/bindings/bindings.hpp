@@ -1,0 +1,42 @@
+// Shared helpers of the pybind11 bindings: argument conversion with shape checks.
+#pragma once
+
+#include "nbv/common.hpp"
+
+#include <pybind11/eigen.h>
+#include <pybind11/numpy.h>
+#include <pybind11/pybind11.h>
+#include <pybind11/stl.h>
+
+#include <string>
+
+namespace nbv::bind {
+
+namespace py = pybind11;
+
+/// A C-contiguous float64 array holding an (N, 3) point set; `map()` views it without a copy.
+struct PointsArg {
+  py::array_t<double, py::array::c_style | py::array::forcecast> array;
+  Eigen::Map<const Points> map() const {
+    return {array.data(), static_cast<Eigen::Index>(array.shape(0)), 3};
+  }
+};
+
+/// Converts any array-like to (N, 3) float64, raising ValueError that names `what` otherwise.
+/// Non-finite values are rejected unless allow_nonfinite.
+PointsArg points_arg(const py::handle& obj, const char* what, bool allow_nonfinite = false);
+
+/// Converts a 4x4 array-like to a rigid transform (ValueError naming `what` if it is not one).
+Eigen::Isometry3d transform_arg(const py::handle& obj, const char* what);
+
+/// Converts (x, y, z, yaw) to a Pose (ValueError naming `what` if not 4 finite numbers).
+Pose pose_arg(const py::handle& obj, const char* what);
+
+void init_common(py::module_& m);
+void init_mesh(py::module_& m);
+void init_sensors(py::module_& m);
+void init_map(py::module_& m);
+void init_cloud(py::module_& m);
+void init_evaluation(py::module_& m);
+
+}  // namespace nbv::bind

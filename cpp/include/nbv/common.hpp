@@ -1,0 +1,56 @@
+// Common types of the nbvkit core: point arrays, vehicle poses, errors, threading.
+#pragma once
+
+#include <Eigen/Core>
+#include <Eigen/Geometry>
+
+#include <cstdint>
+#include <stdexcept>
+#include <string>
+
+namespace nbv {
+
+/// (N, 3) float64 row-major: points or directions, one per row.
+using Points = Eigen::Matrix<double, Eigen::Dynamic, 3, Eigen::RowMajor>;
+/// (M, 3) int32 row-major: triangle vertex indices.
+using Faces = Eigen::Matrix<std::int32_t, Eigen::Dynamic, 3, Eigen::RowMajor>;
+/// Read-only view of a row-major (N, 3) float64 array (maps numpy without a copy).
+using PointsRef = Eigen::Ref<const Points>;
+
+/// A vehicle pose: position in the world frame (metres) and yaw about world +z (radians).
+/// The body frame is x forward, y left, z up; it is the world frame rotated by `yaw` about z.
+struct Pose {
+  double x = 0, y = 0, z = 0, yaw = 0;
+};
+
+/// T_world_body of a vehicle pose.
+Eigen::Isometry3d pose_to_transform(const Pose& pose);
+
+/// A fixed sensor mount T_body_sensor from a translation (metres) and roll/pitch/yaw in degrees
+/// (REP-103: x forward, y left, z up; positive pitch tilts the sensor's +x axis DOWN).
+Eigen::Isometry3d mount_transform(const Eigen::Vector3d& xyz, double roll_deg, double pitch_deg,
+                                  double yaw_deg);
+
+/// Raised when a file does not exist; crosses into Python as FileNotFoundError.
+class FileNotFound : public std::runtime_error {
+ public:
+  explicit FileNotFound(const std::string& path)
+      : std::runtime_error("no such file: '" + path + "'"), path_(path) {}
+  const std::string& path() const { return path_; }
+
+ private:
+  std::string path_;
+};
+
+/// Throws std::invalid_argument (-> ValueError) naming `what` if any entry is NaN or inf.
+void require_finite(const PointsRef& points, const char* what);
+/// Converts a 4x4 homogeneous matrix to a rigid transform; throws std::invalid_argument naming
+/// `what` if it holds non-finite values, its rotation part is not a rotation, or its last row is
+/// not [0, 0, 0, 1].
+Eigen::Isometry3d to_rigid(const Eigen::Matrix4d& M, const char* what);
+
+/// Number of worker threads used by the core's parallel loops (0 = all hardware threads).
+void set_num_threads(int n);
+int get_num_threads();
+
+}  // namespace nbv

@@ -1,0 +1,114 @@
+// Simulated range sensors ray-cast against a mesh: a pinhole RGB-D (depth) camera and a single
+// layer 2D laser scanner. Defaults are the paper's Table 1.
+//
+// Frames: world z up. A sensor looks along its own +x, with y left and z up (REP-103). Its pose
+// is T_world_sensor = T_world_body * mount, where mount = T_body_sensor is fixed on the vehicle.
+#pragma once
+
+#include "nbv/common.hpp"
+#include "nbv/raycast.hpp"
+
+#include <atomic>
+#include <cstdint>
+#include <memory>
+
+namespace nbv {
+
+/// One sensor reading in the world frame.
+struct Scan {
+  Eigen::Vector3d origin = Eigen::Vector3d::Zero();  ///< sensor origin, world frame
+  Points hits;       ///< (N, 3) surface points hit within range, world frame
+  Points free_ends;  ///< (M, 3) ends (at max range) of rays that hit nothing within range
+  Eigen::VectorXi hit_rays;  ///< (N,) ray index of each hit (camera: v * width + u)
+  /// Camera: (H, W) depth along the optical axis in metres, inf where no valid return.
+  /// Laser: (1, R) range along each beam in metres, inf where no valid return.
+  Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor> depth;
+};
+
+struct DepthCameraOptions {
+  int width = 640;          ///< pixels
+  int height = 480;         ///< pixels
+  double hfov_deg = 60.0;   ///< horizontal field of view, degrees
+  double vfov_deg = 45.0;   ///< vertical field of view, degrees
+  double min_range = 0.5;   ///< metres, depth along the optical axis
+  double max_range = 8.0;   ///< metres, depth along the optical axis
+  double noise_k = 0.0;     ///< depth noise sigma = noise_k * z^2 (m); 0.0025 in the authors' setup
+  std::uint64_t seed = 0;   ///< noise seed
+  Eigen::Isometry3d mount = Eigen::Isometry3d::Identity();  ///< T_body_sensor
+
+  void validate() const;
+};
+
+/// Pinhole depth camera. Pixel (u, v) (u right, v down, centres at +0.5) looks along
+/// (1, -(u + 0.5 - W/2) / fx, -(v + 0.5 - H/2) / fy) in the sensor frame, fx = (W/2)/tan(hfov/2).
+class DepthCamera {
+ public:
+  DepthCamera(std::shared_ptr<const RaycastScene> scene, const DepthCameraOptions& options = {});
+
+  const DepthCameraOptions& options() const { return opt_; }
+  double fx() const { return fx_; }
+  double fy() const { return fy_; }
+  /// (H*W, 3) unit ray directions in the sensor frame, row v * W + u.
+  const Points& directions() const { return dirs_; }
+  /// Volume (m^3) of the view frustum between the near and far depth planes.
+  double frustum_volume() const;
+
+  /// Scans from a sensor pose. With noise on, each call draws the next frame of noise
+  /// (deterministic for a given seed and call sequence; see reset_noise).
+  Scan scan(const Eigen::Isometry3d& T_world_sensor) const;
+  Scan scan_pose(const Pose& vehicle) const { return scan(pose_to_transform(vehicle) * opt_.mount); }
+  void reset_noise(std::uint64_t seed);
+
+ private:
+  std::shared_ptr<const RaycastScene> scene_;
+  DepthCameraOptions opt_;
+  double fx_, fy_;
+  Points dirs_;            // pixel order
+  Points tile_dirs_;       // 4x4 tile order, for coherent packets
+  Eigen::VectorXi tile_to_pixel_;
+  Eigen::VectorXd tile_tfar_;
+  mutable std::atomic<std::uint64_t> frame_{0};
+};
+
+struct LaserScannerOptions {
+  double fov_deg = 180.0;        ///< horizontal field of view, degrees, centred on +x
+  double resolution_deg = 0.25;  ///< angle between beams, degrees
+  double min_range = 0.1;        ///< metres along the beam
+  double max_range = 30.0;       ///< metres along the beam
+  double noise_sigma = 0.0;      ///< range noise sigma, metres
+  std::uint64_t seed = 0;
+  /// T_body_sensor; default pitched 10 deg down (Table 1), at the body origin.
+  Eigen::Isometry3d mount = mount_transform(Eigen::Vector3d::Zero(), 0.0, 10.0, 0.0);
+
+  int num_beams() const;
+  void validate() const;
+};
+
+/// Single-layer laser scanner: beams in the sensor's x-y plane at angles -fov/2 ... +fov/2
+/// (counter-clockwise from +x toward +y), one every resolution_deg.
+class LaserScanner {
+ public:
+  LaserScanner(std::shared_ptr<const RaycastScene> scene, const LaserScannerOptions& options = {});
+
+  const LaserScannerOptions& options() const { return opt_; }
+  /// (R,) beam angles in radians; (R, 3) unit beam directions in the sensor frame.
+  const Eigen::VectorXd& angles() const { return angles_; }
+  const Points& directions() const { return dirs_; }
+
+  Scan scan(const Eigen::Isometry3d& T_world_sensor) const;
+  Scan scan_pose(const Pose& vehicle) const { return scan(pose_to_transform(vehicle) * opt_.mount); }
+  void reset_noise(std::uint64_t seed);
+
+ private:
+  std::shared_ptr<const RaycastScene> scene_;
+  LaserScannerOptions opt_;
+  Eigen::VectorXd angles_;
+  Points dirs_;
+  Eigen::VectorXd tfar_;
+  mutable std::atomic<std::uint64_t> frame_{0};
+};
+
+/// Standard normal variate from a counter (seed, frame, index): reproducible under any threading.
+double counter_normal(std::uint64_t seed, std::uint64_t frame, std::uint64_t index);
+
+}  // namespace nbv

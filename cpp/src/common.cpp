@@ -1,0 +1,76 @@
+#include "nbv/common.hpp"
+#include "nbv/parallel.hpp"
+
+#include <cmath>
+#include <memory>
+#include <mutex>
+
+namespace nbv {
+
+Eigen::Isometry3d pose_to_transform(const Pose& p) {
+  Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
+  T.linear() = Eigen::AngleAxisd(p.yaw, Eigen::Vector3d::UnitZ()).toRotationMatrix();
+  T.translation() = Eigen::Vector3d(p.x, p.y, p.z);
+  return T;
+}
+
+Eigen::Isometry3d mount_transform(const Eigen::Vector3d& xyz, double roll_deg, double pitch_deg,
+                                  double yaw_deg) {
+  const double d2r = M_PI / 180.0;
+  Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
+  // R = Rz(yaw) * Ry(pitch) * Rx(roll); Ry(+pitch) turns +x toward -z, i.e. pitch > 0 looks down.
+  T.linear() = (Eigen::AngleAxisd(yaw_deg * d2r, Eigen::Vector3d::UnitZ()) *
+                Eigen::AngleAxisd(pitch_deg * d2r, Eigen::Vector3d::UnitY()) *
+                Eigen::AngleAxisd(roll_deg * d2r, Eigen::Vector3d::UnitX()))
+                   .toRotationMatrix();
+  T.translation() = xyz;
+  return T;
+}
+
+void require_finite(const PointsRef& points, const char* what) {
+  if (!points.allFinite())
+    throw std::invalid_argument(std::string(what) + " contains NaN or infinite values");
+}
+
+Eigen::Isometry3d to_rigid(const Eigen::Matrix4d& M, const char* what) {
+  if (!M.allFinite())
+    throw std::invalid_argument(std::string(what) + " contains NaN or infinite values");
+  const Eigen::Matrix3d R = M.topLeftCorner<3, 3>();
+  if (!(R.transpose() * R).isApprox(Eigen::Matrix3d::Identity(), 1e-6) || R.determinant() < 0)
+    throw std::invalid_argument(std::string(what) + " is not a rigid transform (rotation part is not a rotation)");
+  if ((M.row(3) - Eigen::RowVector4d(0, 0, 0, 1)).cwiseAbs().maxCoeff() > 1e-9)
+    throw std::invalid_argument(std::string(what) + " last row must be [0, 0, 0, 1]");
+  Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
+  T.linear() = R;
+  T.translation() = M.topRightCorner<3, 1>();
+  return T;
+}
+
+namespace {
+std::mutex g_arena_mutex;
+int g_threads = 0;
+std::unique_ptr<tbb::task_arena> g_arena;
+}  // namespace
+
+void set_num_threads(int n) {
+  if (n < 0) throw std::invalid_argument("number of threads must be >= 0 (0 = all)");
+  std::lock_guard<std::mutex> lock(g_arena_mutex);
+  g_threads = n;
+  g_arena.reset();
+}
+
+int get_num_threads() {
+  return core_arena().max_concurrency();
+}
+
+tbb::task_arena& core_arena() {
+  std::lock_guard<std::mutex> lock(g_arena_mutex);
+  if (!g_arena) {
+    g_arena = g_threads > 0 ? std::make_unique<tbb::task_arena>(g_threads)
+                            : std::make_unique<tbb::task_arena>();
+    g_arena->initialize();
+  }
+  return *g_arena;
+}
+
+}  // namespace nbv

@@ -1,0 +1,140 @@
+#include "nbv/mesh.hpp"
+
+#include <assimp/Importer.hpp>
+#include <assimp/postprocess.h>
+#include <assimp/scene.h>
+
+#include <algorithm>
+#include <cmath>
+#include <filesystem>
+#include <random>
+#include <vector>
+
+namespace nbv {
+
+Mesh Mesh::from_arrays(const PointsRef& vertices, const Eigen::Ref<const Faces>& faces) {
+  Mesh m;
+  m.vertices = vertices;
+  m.faces = faces;
+  m.validate();
+  return m;
+}
+
+void Mesh::validate() const {
+  if (vertices.rows() == 0) throw std::invalid_argument("mesh has no vertices");
+  if (faces.rows() == 0) throw std::invalid_argument("mesh has no triangles");
+  require_finite(vertices, "mesh vertices");
+  const auto n = static_cast<std::int64_t>(vertices.rows());
+  const std::int64_t lo = faces.minCoeff(), hi = faces.maxCoeff();
+  if (lo < 0 || hi >= n)
+    throw std::invalid_argument("mesh face indices out of range: found [" + std::to_string(lo) +
+                                ", " + std::to_string(hi) + "] for " + std::to_string(n) +
+                                " vertices");
+}
+
+Eigen::VectorXd Mesh::triangle_areas() const {
+  Eigen::VectorXd a(faces.rows());
+  for (Eigen::Index i = 0; i < faces.rows(); ++i) {
+    const Eigen::Vector3d p0 = vertices.row(faces(i, 0)), p1 = vertices.row(faces(i, 1)),
+                          p2 = vertices.row(faces(i, 2));
+    a[i] = 0.5 * (p1 - p0).cross(p2 - p0).norm();
+  }
+  return a;
+}
+
+double Mesh::area() const { return triangle_areas().sum(); }
+
+Eigen::AlignedBox3d Mesh::bounds() const {
+  Eigen::AlignedBox3d box;
+  for (Eigen::Index i = 0; i < faces.rows(); ++i)
+    for (int k = 0; k < 3; ++k) box.extend(Eigen::Vector3d(vertices.row(faces(i, k))));
+  return box;
+}
+
+Points Mesh::sample_surface(std::size_t n, std::uint64_t seed, Eigen::VectorXi* face_ids) const {
+  const Eigen::VectorXd areas = triangle_areas();
+  std::vector<double> cdf(static_cast<std::size_t>(areas.size()));
+  double acc = 0;
+  for (Eigen::Index i = 0; i < areas.size(); ++i) cdf[i] = (acc += areas[i]);
+  if (!(acc > 0)) throw std::invalid_argument("cannot sample a mesh of zero surface area");
+  std::mt19937_64 rng(seed);
+  std::uniform_real_distribution<double> U(0.0, 1.0);
+  Points out(static_cast<Eigen::Index>(n), 3);
+  if (face_ids) face_ids->resize(static_cast<Eigen::Index>(n));
+  for (std::size_t s = 0; s < n; ++s) {
+    const double r = U(rng) * acc;
+    auto it = std::upper_bound(cdf.begin(), cdf.end(), r);
+    const auto f = static_cast<Eigen::Index>(std::min<std::ptrdiff_t>(
+        it - cdf.begin(), static_cast<std::ptrdiff_t>(cdf.size()) - 1));
+    const double u = U(rng), v = U(rng), su = std::sqrt(u);
+    const double b0 = 1 - su, b1 = su * (1 - v), b2 = su * v;
+    out.row(static_cast<Eigen::Index>(s)) = b0 * vertices.row(faces(f, 0)) +
+                                            b1 * vertices.row(faces(f, 1)) +
+                                            b2 * vertices.row(faces(f, 2));
+    if (face_ids) (*face_ids)[static_cast<Eigen::Index>(s)] = static_cast<int>(f);
+  }
+  return out;
+}
+
+Mesh load_mesh(const std::string& path, double scale, char up) {
+  if (!std::isfinite(scale) || scale <= 0)
+    throw std::invalid_argument("mesh scale must be a positive finite number, got " +
+                                std::to_string(scale));
+  if (up != 'z' && up != 'y' && up != 'Z' && up != 'Y')
+    throw std::invalid_argument(std::string("mesh up axis must be 'y' or 'z', got '") + up + "'");
+  namespace fs = std::filesystem;
+  std::error_code ec;
+  if (!fs::exists(path, ec)) throw FileNotFound(path);
+  if (fs::is_directory(path, ec))
+    throw std::invalid_argument("cannot read mesh '" + path + "': it is a directory");
+
+  Assimp::Importer importer;
+  // Keep the file's own axes: the caller says which way is up (also for Collada files).
+  importer.SetPropertyBool(AI_CONFIG_IMPORT_COLLADA_IGNORE_UP_DIRECTION, true);
+  importer.SetPropertyInteger(AI_CONFIG_PP_SBP_REMOVE, aiPrimitiveType_POINT | aiPrimitiveType_LINE);
+  const unsigned flags = aiProcess_Triangulate | aiProcess_PreTransformVertices |
+                         aiProcess_SortByPType | aiProcess_JoinIdenticalVertices;
+  const aiScene* scene = importer.ReadFile(path, flags);
+  if (!scene)
+    throw std::invalid_argument("cannot read mesh '" + path + "': " + importer.GetErrorString());
+
+  std::size_t nv = 0, nf = 0;
+  for (unsigned m = 0; m < scene->mNumMeshes; ++m) {
+    const aiMesh* mesh = scene->mMeshes[m];
+    if (!(mesh->mPrimitiveTypes & aiPrimitiveType_TRIANGLE)) continue;
+    nv += mesh->mNumVertices;
+    for (unsigned f = 0; f < mesh->mNumFaces; ++f) nf += mesh->mFaces[f].mNumIndices == 3;
+  }
+  if (nf == 0) throw std::invalid_argument("mesh file '" + path + "' contains no triangles");
+
+  Mesh out;
+  out.vertices.resize(static_cast<Eigen::Index>(nv), 3);
+  out.faces.resize(static_cast<Eigen::Index>(nf), 3);
+  const bool y_up = (up == 'y' || up == 'Y');
+  Eigen::Index vbase = 0, fi = 0;
+  for (unsigned m = 0; m < scene->mNumMeshes; ++m) {
+    const aiMesh* mesh = scene->mMeshes[m];
+    if (!(mesh->mPrimitiveTypes & aiPrimitiveType_TRIANGLE)) continue;
+    for (unsigned v = 0; v < mesh->mNumVertices; ++v) {
+      const aiVector3D& p = mesh->mVertices[v];
+      const Eigen::Vector3d q = y_up ? Eigen::Vector3d(p.x, -p.z, p.y) : Eigen::Vector3d(p.x, p.y, p.z);
+      out.vertices.row(vbase + v) = scale * q;
+    }
+    for (unsigned f = 0; f < mesh->mNumFaces; ++f) {
+      const aiFace& face = mesh->mFaces[f];
+      if (face.mNumIndices != 3) continue;
+      for (int k = 0; k < 3; ++k)
+        out.faces(fi, k) = static_cast<std::int32_t>(vbase + face.mIndices[k]);
+      ++fi;
+    }
+    vbase += mesh->mNumVertices;
+  }
+  try {
+    out.validate();
+  } catch (const std::invalid_argument& e) {
+    throw std::invalid_argument("mesh file '" + path + "': " + e.what());
+  }
+  return out;
+}
+
+}  // namespace nbv

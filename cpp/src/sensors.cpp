@@ -1,0 +1,222 @@
+#include "nbv/sensors.hpp"
+#include "nbv/parallel.hpp"
+
+#include <cmath>
+#include <limits>
+#include <string>
+#include <vector>
+
+namespace nbv {
+namespace {
+
+constexpr double kInf = std::numeric_limits<double>::infinity();
+
+std::uint64_t splitmix64(std::uint64_t x) {
+  x += 0x9E3779B97F4A7C15ull;
+  x = (x ^ (x >> 30)) * 0xBF58476D1CE4E5B9ull;
+  x = (x ^ (x >> 27)) * 0x94D049BB133111EBull;
+  return x ^ (x >> 31);
+}
+
+void require(bool ok, const std::string& msg) {
+  if (!ok) throw std::invalid_argument(msg);
+}
+
+void check_pose(const Eigen::Isometry3d& T) {
+  if (!T.matrix().allFinite())
+    throw std::invalid_argument("sensor pose T_world_sensor contains NaN or infinite values");
+}
+
+// Gathers rays flagged 1 (hit) or 2 (free) into a Scan, in ray order (deterministic).
+void compact(const std::vector<std::uint8_t>& state, const std::vector<Eigen::Vector3d>& pts,
+             Scan& out) {
+  Eigen::Index nh = 0, nf = 0;
+  for (auto s : state) nh += s == 1, nf += s == 2;
+  out.hits.resize(nh, 3);
+  out.free_ends.resize(nf, 3);
+  out.hit_rays.resize(nh);
+  Eigen::Index ih = 0, jf = 0;
+  for (std::size_t i = 0; i < state.size(); ++i) {
+    if (state[i] == 1) {
+      out.hits.row(ih) = pts[i];
+      out.hit_rays[ih++] = static_cast<int>(i);
+    } else if (state[i] == 2) {
+      out.free_ends.row(jf++) = pts[i];
+    }
+  }
+}
+
+}  // namespace
+
+double counter_normal(std::uint64_t seed, std::uint64_t frame, std::uint64_t index) {
+  const std::uint64_t a = splitmix64(seed ^ splitmix64(frame * 0xD1B54A32D192ED03ull + index));
+  const std::uint64_t b = splitmix64(a);
+  const double u1 = (static_cast<double>(a >> 11) + 0.5) * 0x1.0p-53;
+  const double u2 = static_cast<double>(b >> 11) * 0x1.0p-53;
+  return std::sqrt(-2.0 * std::log(u1)) * std::cos(2.0 * M_PI * u2);
+}
+
+// ---------------------------------------------------------------------------- camera
+
+void DepthCameraOptions::validate() const {
+  require(width > 0 && height > 0, "camera width and height must be positive");
+  require(std::isfinite(hfov_deg) && hfov_deg > 0 && hfov_deg < 180,
+          "camera hfov_deg must be in (0, 180)");
+  require(std::isfinite(vfov_deg) && vfov_deg > 0 && vfov_deg < 180,
+          "camera vfov_deg must be in (0, 180)");
+  require(std::isfinite(min_range) && min_range >= 0, "camera min_range must be >= 0");
+  require(std::isfinite(max_range) && max_range > min_range, "camera max_range must exceed min_range");
+  require(std::isfinite(noise_k) && noise_k >= 0, "camera noise_k must be >= 0");
+  require(mount.matrix().allFinite(), "camera mount contains NaN or infinite values");
+}
+
+DepthCamera::DepthCamera(std::shared_ptr<const RaycastScene> scene, const DepthCameraOptions& options)
+    : scene_(std::move(scene)), opt_(options) {
+  if (!scene_) throw std::invalid_argument("camera needs a scene");
+  opt_.validate();
+  const int W = opt_.width, H = opt_.height;
+  fx_ = (W / 2.0) / std::tan(opt_.hfov_deg * M_PI / 360.0);
+  fy_ = (H / 2.0) / std::tan(opt_.vfov_deg * M_PI / 360.0);
+  dirs_.resize(static_cast<Eigen::Index>(W) * H, 3);
+  for (int v = 0; v < H; ++v)
+    for (int u = 0; u < W; ++u) {
+      Eigen::Vector3d d(1.0, -(u + 0.5 - W / 2.0) / fx_, -(v + 0.5 - H / 2.0) / fy_);
+      dirs_.row(static_cast<Eigen::Index>(v) * W + u) = d.normalized();
+    }
+  // Reorder into 4x4 tiles: one Embree packet of 16 rays per tile.
+  tile_dirs_.resize(dirs_.rows(), 3);
+  tile_to_pixel_.resize(dirs_.rows());
+  tile_tfar_.resize(dirs_.rows());
+  Eigen::Index k = 0;
+  for (int tv = 0; tv < H; tv += 4)
+    for (int tu = 0; tu < W; tu += 4)
+      for (int v = tv; v < std::min(tv + 4, H); ++v)
+        for (int u = tu; u < std::min(tu + 4, W); ++u) {
+          const Eigen::Index p = static_cast<Eigen::Index>(v) * W + u;
+          tile_to_pixel_[k] = static_cast<int>(p);
+          tile_dirs_.row(k) = dirs_.row(p);
+          tile_tfar_[k] = opt_.max_range / dirs_(p, 0);  // depth limit -> distance along the ray
+          ++k;
+        }
+}
+
+double DepthCamera::frustum_volume() const {
+  const double a = 4.0 * std::tan(opt_.hfov_deg * M_PI / 360.0) * std::tan(opt_.vfov_deg * M_PI / 360.0);
+  return a / 3.0 * (std::pow(opt_.max_range, 3) - std::pow(opt_.min_range, 3));
+}
+
+void DepthCamera::reset_noise(std::uint64_t seed) {
+  opt_.seed = seed;
+  frame_ = 0;
+}
+
+Scan DepthCamera::scan(const Eigen::Isometry3d& T) const {
+  check_pose(T);
+  const int W = opt_.width, H = opt_.height;
+  const Eigen::Index n = static_cast<Eigen::Index>(W) * H;
+  const Eigen::Vector3d o = T.translation();
+  const Eigen::Matrix3d R = T.linear();
+  Eigen::VectorXd t;
+  Eigen::VectorXi prim;
+  scene_->intersect_coherent(o, R, tile_dirs_, tile_tfar_, t, prim);
+
+  const std::uint64_t frame = frame_++;
+  Scan out;
+  out.origin = o;
+  out.depth.setConstant(H, W, kInf);
+  std::vector<std::uint8_t> state(static_cast<std::size_t>(n), 0);
+  std::vector<Eigen::Vector3d> pts(static_cast<std::size_t>(n));
+  parallel_chunks(static_cast<std::size_t>(n), 4096, [&](std::size_t b, std::size_t e) {
+    for (std::size_t k = b; k < e; ++k) {
+      const Eigen::Index p = tile_to_pixel_[static_cast<Eigen::Index>(k)];
+      const double cx = dirs_(p, 0);  // cosine to the optical axis
+      const Eigen::Vector3d dw = R * dirs_.row(p).transpose();
+      const double tk = t[static_cast<Eigen::Index>(k)];
+      if (!std::isfinite(tk)) {  // nothing within max depth: free ray to the far plane
+        state[p] = 2;
+        pts[p] = o + dw * (opt_.max_range / cx);
+        continue;
+      }
+      double z = tk * cx;
+      if (opt_.noise_k > 0)
+        z += opt_.noise_k * z * z * counter_normal(opt_.seed, frame, static_cast<std::uint64_t>(p));
+      if (z < opt_.min_range || z > opt_.max_range) continue;  // no valid return
+      state[p] = 1;
+      pts[p] = o + dw * (z / cx);
+      out.depth(p / W, p % W) = z;
+    }
+  });
+  compact(state, pts, out);
+  return out;
+}
+
+// ---------------------------------------------------------------------------- laser
+
+int LaserScannerOptions::num_beams() const {
+  return static_cast<int>(std::floor(fov_deg / resolution_deg + 1e-9)) + 1;
+}
+
+void LaserScannerOptions::validate() const {
+  require(std::isfinite(fov_deg) && fov_deg > 0 && fov_deg <= 360, "laser fov_deg must be in (0, 360]");
+  require(std::isfinite(resolution_deg) && resolution_deg > 0 && resolution_deg <= fov_deg,
+          "laser resolution_deg must be in (0, fov_deg]");
+  require(std::isfinite(min_range) && min_range >= 0, "laser min_range must be >= 0");
+  require(std::isfinite(max_range) && max_range > min_range, "laser max_range must exceed min_range");
+  require(std::isfinite(noise_sigma) && noise_sigma >= 0, "laser noise_sigma must be >= 0");
+  require(mount.matrix().allFinite(), "laser mount contains NaN or infinite values");
+}
+
+LaserScanner::LaserScanner(std::shared_ptr<const RaycastScene> scene, const LaserScannerOptions& options)
+    : scene_(std::move(scene)), opt_(options) {
+  if (!scene_) throw std::invalid_argument("laser needs a scene");
+  opt_.validate();
+  const int nb = opt_.num_beams();
+  angles_.resize(nb);
+  dirs_.resize(nb, 3);
+  tfar_.setConstant(nb, opt_.max_range);
+  const double res = opt_.resolution_deg * M_PI / 180.0;
+  const double start = -opt_.fov_deg * M_PI / 360.0;
+  for (int i = 0; i < nb; ++i) {
+    angles_[i] = start + i * res;
+    dirs_.row(i) = Eigen::Vector3d(std::cos(angles_[i]), std::sin(angles_[i]), 0.0);
+  }
+}
+
+void LaserScanner::reset_noise(std::uint64_t seed) {
+  opt_.seed = seed;
+  frame_ = 0;
+}
+
+Scan LaserScanner::scan(const Eigen::Isometry3d& T) const {
+  check_pose(T);
+  const Eigen::Index n = dirs_.rows();
+  const Eigen::Vector3d o = T.translation();
+  const Eigen::Matrix3d R = T.linear();
+  Eigen::VectorXd t;
+  Eigen::VectorXi prim;
+  scene_->intersect_coherent(o, R, dirs_, tfar_, t, prim, /*parallel=*/false);
+  const std::uint64_t frame = frame_++;
+  Scan out;
+  out.origin = o;
+  out.depth.setConstant(1, n, kInf);
+  std::vector<std::uint8_t> state(static_cast<std::size_t>(n), 0);
+  std::vector<Eigen::Vector3d> pts(static_cast<std::size_t>(n));
+  for (Eigen::Index i = 0; i < n; ++i) {
+    const Eigen::Vector3d dw = R * dirs_.row(i).transpose();
+    if (!std::isfinite(t[i])) {
+      state[i] = 2;
+      pts[i] = o + dw * opt_.max_range;
+      continue;
+    }
+    double r = t[i];
+    if (opt_.noise_sigma > 0) r += opt_.noise_sigma * counter_normal(opt_.seed, frame, static_cast<std::uint64_t>(i));
+    if (r < opt_.min_range || r > opt_.max_range) continue;
+    state[i] = 1;
+    pts[i] = o + dw * r;
+    out.depth(0, i) = r;
+  }
+  compact(state, pts, out);
+  return out;
+}
+
+}  // namespace nbv

@@ -1,0 +1,37 @@
+"""nbvkit — next-best-view reconstruction of large structures by a simulated UAV.
+
+Frames: world z up. A vehicle pose is (x, y, z, yaw); its body frame is x forward, y left, z up,
+rotated by yaw about world z. Sensors look along their own +x; a sensor's mount is the fixed
+transform T_body_sensor, so T_world_sensor = T_world_body @ T_body_sensor. Arrays in are (N, 3)
+float64 (anything array-like is converted); arrays out are numpy.
+"""
+from ._core import (  # noqa: F401  (re-exported)
+    DepthCamera,
+    LaserScanner,
+    Mesh,
+    RaycastScene,
+    Scan,
+    get_num_threads,
+    mount_transform,
+    pose_to_transform,
+    set_num_threads,
+)
+from .mesh import default_mesh_path, load_mesh, mesh_from_open3d, mesh_to_open3d
+
+__version__ = "0.1.0"
+
+__all__ = [
+    "DepthCamera",
+    "LaserScanner",
+    "Mesh",
+    "RaycastScene",
+    "Scan",
+    "default_mesh_path",
+    "get_num_threads",
+    "load_mesh",
+    "mesh_from_open3d",
+    "mesh_to_open3d",
+    "mount_transform",
+    "pose_to_transform",
+    "set_num_threads",
+]

@@ -1,0 +1,42 @@
+"""The ``nbvkit`` command line: one subcommand per module in nbvkit.commands."""
+from __future__ import annotations
+
+import argparse
+import importlib
+import sys
+
+# name -> module in nbvkit.commands; each module defines register(subparsers) and run(args).
+COMMANDS = {
+    "scan": "scan",
+    "evaluate": "evaluate",
+    "demo": "demo",
+}
+
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(
+        prog="nbvkit",
+        description="Next-best-view reconstruction of large structures by a simulated UAV.",
+    )
+    sub = parser.add_subparsers(dest="command", metavar="COMMAND")
+    sub.required = True
+    for name, module in COMMANDS.items():
+        mod = importlib.import_module(f"nbvkit.commands.{module}")
+        p = mod.register(sub)
+        p.set_defaults(_run=mod.run)
+    return parser
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    try:
+        return int(args._run(args) or 0)
+    except (FileNotFoundError, ValueError, KeyError, RuntimeError) as e:
+        msg = e.args[0] if isinstance(e, KeyError) and e.args else e
+        print(f"nbvkit {args.command}: error: {msg}", file=sys.stderr)
+        return 2
+
+
+if __name__ == "__main__":
+    sys.exit(main())

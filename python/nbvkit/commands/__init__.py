@@ -1,0 +1,1 @@
+"""Subcommands of the nbvkit command line (see nbvkit.cli)."""

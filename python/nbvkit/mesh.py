@@ -1,0 +1,62 @@
+"""Mesh loading (assimp), conversion to and from open3d, and the shipped default structure."""
+from __future__ import annotations
+
+import os
+from pathlib import Path
+
+import numpy as np
+
+from . import _core
+from ._core import Mesh
+
+_UP = {"z": "z", "y": "y", "Z": "z", "Y": "y"}
+
+
+def load_mesh(path: str | os.PathLike, scale: float = 1.0, up: str = "z") -> Mesh:
+    """Load a mesh file (OBJ, STL, PLY, DAE, glTF/GLB, ...) with assimp as one triangle soup.
+
+    All parts of the file are merged, each node's transform applied. ``up`` is the file's up axis:
+    ``"z"`` keeps coordinates, ``"y"`` rotates file +y onto +z ((x, y, z) -> (x, -z, y)). ``scale``
+    multiplies coordinates (e.g. 0.001 for a millimetre file). Raises FileNotFoundError for a
+    missing path and ValueError naming the file for unreadable or triangle-less files.
+    """
+    if up not in _UP:
+        raise ValueError(f"mesh up axis must be 'y' or 'z', got {up!r}")
+    try:
+        scale = float(scale)
+    except (TypeError, ValueError):
+        raise ValueError(f"mesh scale must be a number, got {scale!r}") from None
+    p = Path(os.fspath(path)).expanduser()
+    if not p.exists():
+        raise FileNotFoundError(2, "No such file", str(p))
+    return _core._load_mesh(str(p), scale, _UP[up])
+
+
+def mesh_from_open3d(o3d_mesh) -> Mesh:
+    """Build a Mesh from an ``open3d.geometry.TriangleMesh``."""
+    v = np.asarray(o3d_mesh.vertices, dtype=np.float64)
+    f = np.asarray(o3d_mesh.triangles, dtype=np.int32)
+    return Mesh(v, f)
+
+
+def mesh_to_open3d(mesh: Mesh):
+    """An ``open3d.geometry.TriangleMesh`` of a Mesh (with vertex normals, for viewing)."""
+    import open3d as o3d
+
+    m = o3d.geometry.TriangleMesh(o3d.utility.Vector3dVector(mesh.vertices),
+                                  o3d.utility.Vector3iVector(mesh.faces))
+    m.compute_vertex_normals()
+    return m
+
+
+Mesh.from_open3d = staticmethod(mesh_from_open3d)
+Mesh.to_open3d = mesh_to_open3d
+
+
+def default_mesh_path() -> Path:
+    """Path of the shipped default structure: the generated airliner (meshes/airliner.obj)."""
+    here = Path(__file__).resolve().parent
+    for cand in (here / "data" / "airliner.obj", here.parent.parent / "meshes" / "airliner.obj"):
+        if cand.exists():
+            return cand
+    raise FileNotFoundError(2, "The default airliner mesh is not installed", str(here / "data" / "airliner.obj"))
