@@ -43,10 +43,13 @@ demo:
 
 test: install test-cpp test-py
 
-test-cpp:
-	cmake -S . -B build/tests -G Ninja -DCMAKE_BUILD_TYPE=Release -DNBV_BUILD_PYTHON=OFF -DNBV_BUILD_TESTS=ON >/dev/null
-	cmake --build build/tests -j 2
-	cd build/tests && ctest --output-on-failure
+# The GoogleTest binary is built in the extension's own build tree, sharing its objects.
+BUILD_DIR = build/cmake-$(shell $(PY) -c "import sysconfig; print(sysconfig.get_config_var('SOABI') or 'py')" 2>/dev/null)
+
+test-cpp: install
+	cmake -S . -B $(BUILD_DIR) -DNBV_BUILD_TESTS=ON >/dev/null
+	cmake --build $(BUILD_DIR) --target nbv_tests -j 2
+	cd $(BUILD_DIR) && ctest --output-on-failure
 
 test-py:
 	$(PY) -m pytest -q tests

@@ -36,8 +36,9 @@ class CMakeBuild(build_ext):
             f"-DCMAKE_BUILD_TYPE={os.environ.get('NBV_BUILD_TYPE', 'Release')}",
             f"-DPython3_EXECUTABLE={sys.executable}",
             f"-DNBV_EXTENSION_DIR={out.parent}",
-            "-DNBV_BUILD_TESTS=" + os.environ.get("NBV_BUILD_TESTS", "OFF"),
         ]
+        if "NBV_BUILD_TESTS" in os.environ:  # otherwise keep what the build tree has (make test-cpp)
+            cfg.append("-DNBV_BUILD_TESTS=" + os.environ["NBV_BUILD_TESTS"])
         subprocess.run(cfg, check=True)
         subprocess.run(["cmake", "--build", str(build_dir), "--target", "_core", "-j", jobs], check=True)
         built = out.parent / out.name

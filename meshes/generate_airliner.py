@@ -17,7 +17,7 @@ Conventions
 
 Every part is written as its own ``o`` group and is a closed, consistently
 outward-oriented triangle surface (each edge shared by exactly two triangles).
-Parts may intersect each other (e.g. the wing passes through the fuselage).
+Parts may intersect each other (e.g. the wing roots lie inside the fuselage).
 
 The output is deterministic: running the script again rewrites the OBJ file
 byte-identically.  Only numpy and the standard library are used.
@@ -53,7 +53,7 @@ FIN_TOP_Z = 7.5          # top of the vertical fin
 GROUND_CLEARANCE = 0.03  # lowest point of the tyres above z = 0
 
 N_AROUND = 64            # segments around the fuselage
-N_AROUND_SMALL = 48      # segments around nacelles / belly fairing
+N_AROUND_SMALL = 48      # segments around the nacelles
 N_AROUND_WHEEL = 36      # segments around the wheels
 N_AROUND_STRUT = 24      # segments around struts and axles
 N_CHORD = 40             # airfoil points per surface (upper / lower)
@@ -293,7 +293,7 @@ def vertical_section_ring(sec: Section, n: int) -> np.ndarray:
 
 
 def symmetric_wing(half_sections: list[Section], camber: float, n: int = N_CHORD):
-    """A wing lofted from tip to tip through y = 0.
+    """A horizontal lifting surface (the tailplane) lofted tip to tip through y = 0.
 
     ``half_sections`` describe the right half (span = |y| increasing from the
     centre line); the left half is their exact mirror.
@@ -358,22 +358,6 @@ def build_fuselage() -> Part:
     return make_part("fuselage", verts, faces)
 
 
-def build_belly_fairing() -> Part:
-    """Flattened ellipsoid under the wing root (wing-body fairing)."""
-    a, b, c = 7.0, 2.05, 0.85
-    centre = np.array([-0.5, 0.0, BELLY_Z + c - 0.12])
-    profile = [(a * math.cos(math.pi * k / 24), math.sin(math.pi * k / 24)) for k in range(25)]
-    profile[0] = (a, 0.0)
-    profile[-1] = (-a, 0.0)
-    cs, sn = symmetric_circle(N_AROUND_SMALL)
-    rings = []
-    for sx, f in profile[1:-1]:
-        ring = np.stack([np.full(N_AROUND_SMALL, sx), b * f * sn, c * f * cs], axis=1) + centre
-        rings.append(ring)
-    verts, faces = loft(rings, centre + [a, 0, 0], centre - [a, 0, 0])
-    return make_part("belly_fairing", verts, faces)
-
-
 WING_ROOT_Y = 1.0
 WING_KINK_Y = 5.5
 WING_TIP_Y = 15.0
@@ -402,15 +386,20 @@ def wing_planform(y: float) -> Section:
                    thickness=lerp(0.15, 0.11, f), twist_deg=lerp(2.0, -1.0, f))
 
 
-def build_wing() -> Part:
-    ys = [0.0, WING_ROOT_Y]
+def build_wing_right() -> Part:
+    """Right wing from its root (y = -1, inside the fuselage) to the tip."""
+    ys = [WING_ROOT_Y]
     ys += [lerp(WING_ROOT_Y, WING_KINK_Y, k / 10) for k in range(1, 11)]
     ys += [lerp(WING_KINK_Y, WING_TIP_Y, k / 24) for k in range(1, 25)]
-    verts, faces = symmetric_wing([wing_planform(y) for y in ys], camber=0.02)
-    return make_part("wing", verts, faces)
+    rings = [horizontal_section_ring(wing_planform(y), 0.02, N_CHORD) for y in ys]
+    for r, y in zip(rings, ys):
+        r[:, 1] = -y
+    verts, faces = loft(rings, "airfoil", "airfoil", n_chord=N_CHORD)
+    return make_part("wing_right", verts, faces)
 
 
 def build_horizontal_tail() -> Part:
+    """Swept tailplane, one body through the tail cone from tip to tip."""
     root_y, tip_y = 0.0, 5.6
     root_le, root_chord, tip_chord = -12.6, 3.4, 1.25
     sweep, dihedral, z0 = 32.0, 6.0, 4.72
@@ -426,6 +415,7 @@ def build_horizontal_tail() -> Part:
 
 
 def build_vertical_fin() -> Part:
+    """Swept vertical fin on y = 0, root buried in the tail cone, top at FIN_TOP_Z."""
     root_z, tip_z = 4.9, FIN_TOP_Z
     root_le, root_chord, tip_chord, sweep = -10.8, 5.5, 2.3, 40.0
     rings = []
@@ -552,7 +542,8 @@ def build_main_gear_right() -> list[Part]:
 
 def build_airliner() -> list[Part]:
     """All parts of the aircraft, in output order."""
-    parts = [build_fuselage(), build_belly_fairing(), build_wing(),
+    wing = build_wing_right()
+    parts = [build_fuselage(), wing, mirror_part(wing, "wing_left"),
              build_horizontal_tail(), build_vertical_fin()]
     nacelle, pylon = build_nacelle_right(), build_pylon_right()
     parts += [nacelle, mirror_part(nacelle, "nacelle_left"),

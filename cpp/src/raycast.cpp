@@ -107,7 +107,7 @@ void RaycastScene::intersect(const PointsRef& origins, const PointsRef& directio
       rtcIntersect1(scene_, &ctx, &rh);
       if (rh.hit.geomID != RTC_INVALID_GEOMETRY_ID) {
         const double tr = refine(o, d, static_cast<int>(rh.hit.primID), rh.ray.tfar);
-        if (tr >= t_near && tr <= t_far) {
+        if (tr >= t_near * (1.0 - 1e-9) && tr <= t_far * (1.0 + 1e-9)) {
           t[static_cast<Eigen::Index>(i)] = tr;
           prim[static_cast<Eigen::Index>(i)] = static_cast<int>(rh.hit.primID);
         }
@@ -160,7 +160,7 @@ void RaycastScene::intersect_coherent(const Eigen::Vector3d& o, const Eigen::Mat
         if (i >= n || rh.hit.geomID[k] == RTC_INVALID_GEOMETRY_ID) continue;
         const Eigen::Vector3d d = R * dirs_sensor.row(i).transpose();
         const double tr = refine(o, d, static_cast<int>(rh.hit.primID[k]), rh.ray.tfar[k]);
-        if (tr >= 0 && tr <= t_far[i]) {
+        if (tr >= 0 && tr <= t_far[i] * (1.0 + 1e-9)) {  // a hit at the limit is in range
           t[i] = tr;
           prim[i] = static_cast<int>(rh.hit.primID[k]);
         }

@@ -140,7 +140,9 @@ Scan DepthCamera::scan(const Eigen::Isometry3d& T) const {
       double z = tk * cx;
       if (opt_.noise_k > 0)
         z += opt_.noise_k * z * z * counter_normal(opt_.seed, frame, static_cast<std::uint64_t>(p));
-      if (z < opt_.min_range || z > opt_.max_range) continue;  // no valid return
+      // no valid return outside [min, max] depth (a relative 1e-9 tolerance keeps a surface
+      // exactly at a limit, whose depth rounds to a hair beyond it, in range)
+      if (z < opt_.min_range * (1 - 1e-9) || z > opt_.max_range * (1 + 1e-9)) continue;
       state[p] = 1;
       pts[p] = o + dw * (z / cx);
       out.depth(p / W, p % W) = z;
@@ -210,7 +212,7 @@ Scan LaserScanner::scan(const Eigen::Isometry3d& T) const {
     }
     double r = t[i];
     if (opt_.noise_sigma > 0) r += opt_.noise_sigma * counter_normal(opt_.seed, frame, static_cast<std::uint64_t>(i));
-    if (r < opt_.min_range || r > opt_.max_range) continue;
+    if (r < opt_.min_range * (1 - 1e-9) || r > opt_.max_range * (1 + 1e-9)) continue;
     state[i] = 1;
     pts[i] = o + dw * r;
     out.depth(0, i) = r;

@@ -1,0 +1,154 @@
+// Observed surface points: origin-anchored voxel keys, a voxel hash table, and the incremental
+// voxel-grid filtered cloud that accumulates a mission's sensor hits.
+#pragma once
+
+#include "nbv/common.hpp"
+
+#include <array>
+#include <cmath>
+#include <cstdint>
+#include <limits>
+#include <string>
+#include <vector>
+
+namespace nbv {
+
+// ---------------------------------------------------------------------------- voxel keys
+
+/// Integer voxel coordinates are limited to [-2^20, 2^20) per axis so that three of them pack
+/// into one 64-bit key (21 bits each): +-52 km at 0.05 m, +-21 km at 0.02 m.
+constexpr std::int64_t kVoxelCoordLimit = std::int64_t(1) << 20;
+/// A key no packed voxel can take (bit 63 is never set by pack_voxel).
+constexpr std::uint64_t kEmptyVoxelKey = ~std::uint64_t(0);
+
+/// Cell of `p` on the grid of cell size `size` anchored at the origin: floor(p / size) per axis
+/// (floor, not truncation: -0.01 at 0.05 m is cell -1). Throws std::invalid_argument if a
+/// coordinate falls outside [-2^20, 2^20) cells (a point too far from the origin for `size`).
+inline std::array<std::int64_t, 3> voxel_index(const Eigen::Vector3d& p, double size) {
+  std::array<std::int64_t, 3> out{};
+  for (int a = 0; a < 3; ++a) {
+    const double c = std::floor(p[a] / size);
+    if (!(c >= -double(kVoxelCoordLimit) && c < double(kVoxelCoordLimit)))
+      throw std::invalid_argument("point coordinate " + std::to_string(p[a]) +
+                                  " is too far from the origin for a grid of cell size " +
+                                  std::to_string(size) + " m (at most 2^20 cells per axis)");
+    out[a] = static_cast<std::int64_t>(c);
+  }
+  return out;
+}
+
+/// Packs voxel coordinates (each in [-2^20, 2^20)) into a 63-bit key; unpack_voxel inverts it.
+inline std::uint64_t pack_voxel(std::int64_t ix, std::int64_t iy, std::int64_t iz) {
+  const auto u = [](std::int64_t v) { return static_cast<std::uint64_t>(v + kVoxelCoordLimit); };
+  return (u(ix) << 42) | (u(iy) << 21) | u(iz);
+}
+inline std::array<std::int64_t, 3> unpack_voxel(std::uint64_t key) {
+  constexpr std::uint64_t m = (std::uint64_t(1) << 21) - 1;
+  return {static_cast<std::int64_t>((key >> 42) & m) - kVoxelCoordLimit,
+          static_cast<std::int64_t>((key >> 21) & m) - kVoxelCoordLimit,
+          static_cast<std::int64_t>(key & m) - kVoxelCoordLimit};
+}
+/// pack_voxel(voxel_index(p, size)).
+inline std::uint64_t voxel_key(const Eigen::Vector3d& p, double size) {
+  const auto i = voxel_index(p, size);
+  return pack_voxel(i[0], i[1], i[2]);
+}
+
+/// Open-addressing (linear probing) hash map from packed voxel keys to 32-bit values. Grows at a
+/// load factor of 1/2. Much faster than std::unordered_map for this use (no node allocation, one
+/// cache line per probe). Keys must not be kEmptyVoxelKey.
+class VoxelHashMap {
+ public:
+  static constexpr std::uint32_t kMissing = std::numeric_limits<std::uint32_t>::max();
+
+  explicit VoxelHashMap(std::size_t expected = 0) { reserve(expected); }
+
+  std::size_t size() const { return size_; }
+  void clear();
+  /// Makes room for `n` entries without rehashing.
+  void reserve(std::size_t n);
+  /// The value stored for `key`, or kMissing.
+  std::uint32_t find(std::uint64_t key) const {
+    if (keys_.empty()) return kMissing;
+    for (std::size_t i = slot(key);; i = (i + 1) & mask_) {
+      const std::uint64_t k = keys_[i];
+      if (k == key) return values_[i];
+      if (k == kEmptyVoxelKey) return kMissing;
+    }
+  }
+  bool contains(std::uint64_t key) const { return find(key) != kMissing; }
+  /// Inserts (key, value) if the key is absent. Returns the stored value and whether it inserted.
+  std::pair<std::uint32_t, bool> insert(std::uint64_t key, std::uint32_t value);
+
+ private:
+  std::size_t slot(std::uint64_t key) const {
+    key ^= key >> 33;  // murmur3 finaliser
+    key *= 0xff51afd7ed558ccdull;
+    key ^= key >> 33;
+    key *= 0xc4ceb9fe1a85ec53ull;
+    key ^= key >> 33;
+    return static_cast<std::size_t>(key) & mask_;
+  }
+  void rehash(std::size_t capacity);
+
+  std::vector<std::uint64_t> keys_;
+  std::vector<std::uint32_t> values_;
+  std::size_t mask_ = 0, size_ = 0;
+};
+
+// ---------------------------------------------------------------------------- surface cloud
+
+struct SurfaceCloudOptions {
+  /// Voxel-grid filter cell, metres: one point (the centroid) per cell. The authors used 0.02 m
+  /// for the RGB-D camera's cloud and 0.1 m for the laser's profile cloud; 0.02 is the default.
+  double voxel_size = 0.02;
+  /// Ground removal: points with z < min_z (metres, world frame) are not registered. -inf
+  /// disables it. 0.3 m as in the authors' code.
+  double min_z = 0.3;
+  /// Optional crop box (world frame, metres): points outside it are not registered.
+  bool crop = false;
+  Eigen::Vector3d crop_min = Eigen::Vector3d::Zero();
+  Eigen::Vector3d crop_max = Eigen::Vector3d::Zero();
+
+  void validate() const;
+};
+
+/// A cloud of observed surface points with an incremental voxel-grid filter.
+///
+/// Each voxel (cell = floor(p / voxel_size), anchored at the origin) holds the running centroid
+/// of every registered point that fell in it, so the result equals PCL's VoxelGrid over the
+/// union of everything added. Points are kept in the order their voxels were first seen, so the
+/// output is deterministic for a given sequence of add() calls.
+class SurfaceCloud {
+ public:
+  explicit SurfaceCloud(const SurfaceCloudOptions& options = {});
+
+  const SurfaceCloudOptions& options() const { return opt_; }
+  /// Registers points (N, 3), world frame. Returns the number of new voxels they created.
+  /// Throws std::invalid_argument (nothing registered) if any point is NaN or infinite.
+  std::size_t add(const PointsRef& points);
+  /// (K, 3) voxel centroids in voxel creation order.
+  Points points() const;
+  /// (K,) number of registered points that fell in each voxel.
+  Eigen::Matrix<std::int64_t, Eigen::Dynamic, 1> counts() const;
+  std::size_t size() const { return count_.size(); }
+  /// Total number of points registered (after ground removal and cropping).
+  std::uint64_t num_registered() const { return registered_; }
+  void clear();
+
+ private:
+  SurfaceCloudOptions opt_;
+  VoxelHashMap index_;
+  std::vector<Eigen::Vector3d> sum_;
+  std::vector<std::uint32_t> count_;
+  std::uint64_t registered_ = 0;
+};
+
+// ---------------------------------------------------------------------------- file helpers
+
+/// Decompresses an LZF block (the codec of PCD "binary_compressed" files, liblzf format) into
+/// exactly `out_size` bytes. Throws std::invalid_argument on corrupt input.
+std::vector<std::uint8_t> lzf_decompress(const std::uint8_t* in, std::size_t in_size,
+                                         std::size_t out_size);
+
+}  // namespace nbv

@@ -1,0 +1,176 @@
+#include "nbv/point_cloud.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <string>
+
+namespace nbv {
+
+// ---------------------------------------------------------------------------- VoxelHashMap
+
+void VoxelHashMap::clear() {
+  std::fill(keys_.begin(), keys_.end(), kEmptyVoxelKey);
+  size_ = 0;
+}
+
+void VoxelHashMap::reserve(std::size_t n) {
+  std::size_t cap = 16;
+  while (cap < 2 * n) cap <<= 1;
+  if (cap > keys_.size()) rehash(cap);
+}
+
+void VoxelHashMap::rehash(std::size_t capacity) {
+  std::vector<std::uint64_t> old_keys(capacity, kEmptyVoxelKey);
+  std::vector<std::uint32_t> old_values(capacity);
+  old_keys.swap(keys_);
+  old_values.swap(values_);
+  mask_ = capacity - 1;
+  for (std::size_t i = 0; i < old_keys.size(); ++i) {
+    const std::uint64_t k = old_keys[i];
+    if (k == kEmptyVoxelKey) continue;
+    std::size_t s = slot(k);
+    while (keys_[s] != kEmptyVoxelKey) s = (s + 1) & mask_;
+    keys_[s] = k;
+    values_[s] = old_values[i];
+  }
+}
+
+std::pair<std::uint32_t, bool> VoxelHashMap::insert(std::uint64_t key, std::uint32_t value) {
+  if (2 * (size_ + 1) > keys_.size()) rehash(std::max<std::size_t>(16, 2 * keys_.size()));
+  for (std::size_t i = slot(key);; i = (i + 1) & mask_) {
+    const std::uint64_t k = keys_[i];
+    if (k == key) return {values_[i], false};
+    if (k == kEmptyVoxelKey) {
+      keys_[i] = key;
+      values_[i] = value;
+      ++size_;
+      return {value, true};
+    }
+  }
+}
+
+// ---------------------------------------------------------------------------- SurfaceCloud
+
+void SurfaceCloudOptions::validate() const {
+  if (!(std::isfinite(voxel_size) && voxel_size > 0))
+    throw std::invalid_argument("voxel_size must be a positive number of metres, got " +
+                                std::to_string(voxel_size));
+  if (std::isnan(min_z) || min_z == std::numeric_limits<double>::infinity())
+    throw std::invalid_argument("min_z must be a number of metres or -inf (no ground removal), got " +
+                                std::to_string(min_z));
+  if (crop) {
+    if (!crop_min.allFinite() || !crop_max.allFinite())
+      throw std::invalid_argument("crop box contains NaN or infinite values");
+    if ((crop_max.array() < crop_min.array()).any())
+      throw std::invalid_argument("crop box max must be >= min on every axis");
+  }
+}
+
+SurfaceCloud::SurfaceCloud(const SurfaceCloudOptions& options) : opt_(options) { opt_.validate(); }
+
+std::size_t SurfaceCloud::add(const PointsRef& points) {
+  require_finite(points, "points");
+  const Eigen::Index n = points.rows();
+  const double s = opt_.voxel_size;
+  const double lim = static_cast<double>(kVoxelCoordLimit);
+  // Pass 1: keys (kEmptyVoxelKey = filtered out). Nothing is modified until all keys are valid.
+  std::vector<std::uint64_t> keys(static_cast<std::size_t>(n));
+  for (Eigen::Index i = 0; i < n; ++i) {
+    const double x = points(i, 0), y = points(i, 1), z = points(i, 2);
+    bool keep = z >= opt_.min_z;
+    if (keep && opt_.crop)
+      keep = x >= opt_.crop_min.x() && x <= opt_.crop_max.x() && y >= opt_.crop_min.y() &&
+             y <= opt_.crop_max.y() && z >= opt_.crop_min.z() && z <= opt_.crop_max.z();
+    if (!keep) {
+      keys[i] = kEmptyVoxelKey;
+      continue;
+    }
+    const double cx = std::floor(x / s), cy = std::floor(y / s), cz = std::floor(z / s);
+    if (!(cx >= -lim && cx < lim && cy >= -lim && cy < lim && cz >= -lim && cz < lim))
+      voxel_index(points.row(i).transpose(), s);  // throws with the offending coordinate
+    keys[i] = pack_voxel(static_cast<std::int64_t>(cx), static_cast<std::int64_t>(cy),
+                         static_cast<std::int64_t>(cz));
+  }
+  // Pass 2: accumulate. Consecutive sensor points often share a voxel: remember the last one.
+  const std::size_t before = count_.size();
+  std::uint64_t last_key = kEmptyVoxelKey;
+  std::uint32_t last = 0;
+  for (Eigen::Index i = 0; i < n; ++i) {
+    const std::uint64_t k = keys[i];
+    if (k == kEmptyVoxelKey) continue;
+    if (k != last_key) {
+      const auto next = static_cast<std::uint32_t>(count_.size());
+      const auto r = index_.insert(k, next);
+      if (r.second) {
+        sum_.emplace_back(Eigen::Vector3d::Zero());
+        count_.push_back(0);
+      }
+      last_key = k;
+      last = r.first;
+    }
+    sum_[last] += points.row(i).transpose();
+    ++count_[last];
+    ++registered_;
+  }
+  return count_.size() - before;
+}
+
+Points SurfaceCloud::points() const {
+  Points out(static_cast<Eigen::Index>(count_.size()), 3);
+  for (std::size_t i = 0; i < count_.size(); ++i)
+    out.row(static_cast<Eigen::Index>(i)) = (sum_[i] / static_cast<double>(count_[i])).transpose();
+  return out;
+}
+
+Eigen::Matrix<std::int64_t, Eigen::Dynamic, 1> SurfaceCloud::counts() const {
+  Eigen::Matrix<std::int64_t, Eigen::Dynamic, 1> out(static_cast<Eigen::Index>(count_.size()));
+  for (std::size_t i = 0; i < count_.size(); ++i) out[static_cast<Eigen::Index>(i)] = count_[i];
+  return out;
+}
+
+void SurfaceCloud::clear() {
+  index_ = VoxelHashMap();
+  sum_.clear();
+  sum_.shrink_to_fit();
+  count_.clear();
+  count_.shrink_to_fit();
+  registered_ = 0;
+}
+
+// ---------------------------------------------------------------------------- LZF
+
+std::vector<std::uint8_t> lzf_decompress(const std::uint8_t* in, std::size_t in_size,
+                                         std::size_t out_size) {
+  std::vector<std::uint8_t> out(out_size);
+  std::size_t ip = 0, op = 0;
+  const auto corrupt = [] { throw std::invalid_argument("corrupt LZF-compressed data"); };
+  while (ip < in_size) {
+    const unsigned ctrl = in[ip++];
+    if (ctrl < 32) {  // literal run of ctrl + 1 bytes
+      const std::size_t len = ctrl + 1;
+      if (ip + len > in_size || op + len > out_size) corrupt();
+      std::copy(in + ip, in + ip + len, out.begin() + static_cast<std::ptrdiff_t>(op));
+      ip += len;
+      op += len;
+    } else {  // back reference
+      std::size_t len = ctrl >> 5;
+      std::size_t back = (ctrl & 0x1f) << 8;
+      if (len == 7) {
+        if (ip >= in_size) corrupt();
+        len += in[ip++];
+      }
+      if (ip >= in_size) corrupt();
+      back += in[ip++];
+      len += 2;
+      if (back + 1 > op || op + len > out_size) corrupt();
+      std::size_t ref = op - back - 1;
+      for (std::size_t k = 0; k < len; ++k) out[op++] = out[ref++];  // may overlap
+    }
+  }
+  if (op != out_size)
+    throw std::invalid_argument("corrupt LZF-compressed data: decompressed " + std::to_string(op) +
+                                " bytes, expected " + std::to_string(out_size));
+  return out;
+}
+
+}  // namespace nbv

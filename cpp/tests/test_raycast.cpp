@@ -1,0 +1,130 @@
+// Edge cases of the mesh and ray-casting core.
+#include "nbv/mesh.hpp"
+#include "nbv/raycast.hpp"
+#include "nbv/sensors.hpp"
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <limits>
+
+using nbv::Mesh;
+using nbv::Points;
+
+namespace {
+
+Mesh wall(double x) {
+  Points v(4, 3);
+  v << x, -10, -10, x, 10, -10, x, 10, 10, x, -10, 10;
+  nbv::Faces f(2, 3);
+  f << 0, 1, 2, 0, 2, 3;
+  return Mesh::from_arrays(v, f);
+}
+
+}  // namespace
+
+TEST(Mesh, RejectsEmptyAndBadIndices) {
+  Points v(3, 3);
+  v << 0, 0, 0, 1, 0, 0, 0, 1, 0;
+  nbv::Faces none(0, 3);
+  EXPECT_THROW(Mesh::from_arrays(v, none), std::invalid_argument);
+  nbv::Faces bad(1, 3);
+  bad << 0, 1, 3;
+  EXPECT_THROW(Mesh::from_arrays(v, bad), std::invalid_argument);
+  v(1, 1) = std::numeric_limits<double>::quiet_NaN();
+  nbv::Faces ok(1, 3);
+  ok << 0, 1, 2;
+  EXPECT_THROW(Mesh::from_arrays(v, ok), std::invalid_argument);
+}
+
+TEST(Mesh, MissingFileThrowsFileNotFound) {
+  EXPECT_THROW(nbv::load_mesh("/nonexistent/never.obj"), nbv::FileNotFound);
+}
+
+TEST(Mesh, ZeroAreaMeshCannotBeSampled) {
+  Points v(3, 3);
+  v << 0, 0, 0, 1, 0, 0, 2, 0, 0;  // collinear: a degenerate triangle
+  nbv::Faces f(1, 3);
+  f << 0, 1, 2;
+  const Mesh m = Mesh::from_arrays(v, f);
+  EXPECT_DOUBLE_EQ(m.area(), 0.0);
+  EXPECT_THROW(m.sample_surface(10, 0), std::invalid_argument);
+}
+
+TEST(Raycast, DegenerateTriangleIsNeverHit) {
+  Points v(6, 3);
+  v << 2, 0, -1, 2, 0, 1, 2, 0, 0,  // zero-area sliver on the ray's path
+      5, -1, -1, 5, 1, -1, 5, 0, 1;  // a proper triangle behind it
+  nbv::Faces f(2, 3);
+  f << 0, 1, 2, 3, 4, 5;
+  nbv::RaycastScene scene(Mesh::from_arrays(v, f));
+  Points o = Points::Zero(1, 3), d(1, 3);
+  d << 1, 0, 0;
+  Eigen::VectorXd t;
+  Eigen::VectorXi prim;
+  scene.intersect(o, d, 0.0, 100.0, t, prim);
+  EXPECT_NEAR(t[0], 5.0, 1e-12);
+  EXPECT_EQ(prim[0], 1);
+}
+
+TEST(Raycast, RayThroughSharedEdgeHitsOnce) {
+  // The wall's diagonal edge runs through (x, 0, 0): a ray exactly along it must still hit.
+  nbv::RaycastScene scene(wall(3.0));
+  Points o = Points::Zero(1, 3), d(1, 3);
+  d << 1, 0, 0;
+  Eigen::VectorXd t;
+  Eigen::VectorXi prim;
+  scene.intersect(o, d, 0.0, 100.0, t, prim);
+  EXPECT_NEAR(t[0], 3.0, 1e-12);
+  EXPECT_GE(prim[0], 0);
+}
+
+TEST(Raycast, OriginOnTheSurfaceAndBehind) {
+  nbv::RaycastScene scene(wall(3.0));
+  Points o(1, 3), d(1, 3);
+  o << 4, 0, 0;  // behind the wall, looking away
+  d << 1, 0, 0;
+  Eigen::VectorXd t;
+  Eigen::VectorXi prim;
+  scene.intersect(o, d, 0.0, 100.0, t, prim);
+  EXPECT_TRUE(std::isinf(t[0]));
+  EXPECT_EQ(prim[0], -1);
+}
+
+TEST(Sensors, CounterNormalIsStandard) {
+  double s = 0, s2 = 0;
+  const int n = 200000;
+  for (int i = 0; i < n; ++i) {
+    const double x = nbv::counter_normal(5, 1, static_cast<std::uint64_t>(i));
+    s += x;
+    s2 += x * x;
+  }
+  EXPECT_NEAR(s / n, 0.0, 0.01);
+  EXPECT_NEAR(s2 / n, 1.0, 0.01);
+  EXPECT_EQ(nbv::counter_normal(1, 2, 3), nbv::counter_normal(1, 2, 3));
+}
+
+TEST(Sensors, LaserBeamCountForOddResolutions) {
+  nbv::LaserScannerOptions o;
+  EXPECT_EQ(o.num_beams(), 721);
+  o.fov_deg = 270;
+  o.resolution_deg = 0.5;
+  EXPECT_EQ(o.num_beams(), 541);
+  o.fov_deg = 1.0;
+  o.resolution_deg = 0.3;  // 0, 0.3, 0.6, 0.9
+  EXPECT_EQ(o.num_beams(), 4);
+}
+
+TEST(Sensors, CameraTileOrderCoversEveryPixelOnce) {
+  auto scene = std::make_shared<nbv::RaycastScene>(wall(4.0));
+  nbv::DepthCameraOptions o;
+  o.width = 13;  // not a multiple of the 4x4 tile
+  o.height = 7;
+  nbv::DepthCamera cam(scene, o);
+  const nbv::Scan s = cam.scan(Eigen::Isometry3d::Identity());
+  ASSERT_EQ(s.hits.rows(), 13 * 7);
+  std::vector<int> seen(13 * 7, 0);
+  for (Eigen::Index i = 0; i < s.hit_rays.size(); ++i) seen[s.hit_rays[i]]++;
+  for (int c : seen) EXPECT_EQ(c, 1);
+  for (Eigen::Index i = 0; i < s.hits.rows(); ++i) EXPECT_NEAR(s.hits(i, 0), 4.0, 1e-9);
+}

@@ -1,0 +1,47 @@
+"""Shared fixtures: small analytic meshes and the optional third-party meshes in ../shared."""
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+import nbvkit
+
+ROOT = Path(__file__).resolve().parent.parent
+SHARED_MESHES = ROOT.parent / "shared" / "meshes"
+
+
+def shared_mesh(name: str) -> Path:
+    """Path of a mesh in ../shared/meshes, or skip the test when the folder is absent."""
+    p = SHARED_MESHES / name
+    if not p.exists():
+        pytest.skip(f"{p} not available (../shared is absent on a user's fresh clone)")
+    return p
+
+
+def wall_mesh(x: float = 5.0, half: float = 50.0) -> nbvkit.Mesh:
+    """A square wall in the plane x = `x`, spanning +-half in y and z (two triangles)."""
+    v = np.array([[x, -half, -half], [x, half, -half], [x, half, half], [x, -half, half]], float)
+    f = np.array([[0, 1, 2], [0, 2, 3]], np.int32)
+    return nbvkit.Mesh(v, f)
+
+
+def box_mesh(lo, hi) -> nbvkit.Mesh:
+    """An axis-aligned box [lo, hi] as 12 outward-facing triangles."""
+    lo, hi = np.asarray(lo, float), np.asarray(hi, float)
+    c = np.array([[x, y, z] for z in (0, 1) for y in (0, 1) for x in (0, 1)], float)
+    v = lo + c * (hi - lo)
+    f = np.array([[0, 2, 1], [1, 2, 3], [4, 5, 6], [5, 7, 6], [0, 1, 4], [1, 5, 4],
+                  [2, 6, 3], [3, 6, 7], [0, 4, 2], [2, 4, 6], [1, 3, 5], [3, 7, 5]], np.int32)
+    return nbvkit.Mesh(v, f)
+
+
+@pytest.fixture
+def wall():
+    return wall_mesh()
+
+
+@pytest.fixture
+def unit_box():
+    return box_mesh((0, 0, 0), (1, 1, 1))

@@ -1,0 +1,190 @@
+"""Mesh loading through assimp (formats, merging, up axis, scale), sampling, and bad input."""
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+import nbvkit
+from conftest import box_mesh, shared_mesh
+
+TRI_OBJ = """# two parts
+o first
+v 0 0 0
+v 1 0 0
+v 0 1 0
+f 1 2 3
+o second
+v 0 0 2
+v 2 0 2
+v 0 2 2
+v 2 2 2
+f 4 5 6
+f 5 7 6
+"""
+
+# A Collada file with two instanced nodes: the same triangle translated by +10 m in x in the second.
+DAE = """<?xml version="1.0" encoding="utf-8"?>
+<COLLADA xmlns="http://www.collada.org/2005/11/COLLADASchema" version="1.4.1">
+  <asset><unit name="meter" meter="1"/><up_axis>Z_UP</up_axis></asset>
+  <library_geometries>
+    <geometry id="tri" name="tri"><mesh>
+      <source id="tri-pos"><float_array id="tri-pos-array" count="9">0 0 0 1 0 0 0 1 0</float_array>
+        <technique_common><accessor source="#tri-pos-array" count="3" stride="3">
+          <param name="X" type="float"/><param name="Y" type="float"/><param name="Z" type="float"/>
+        </accessor></technique_common></source>
+      <vertices id="tri-verts"><input semantic="POSITION" source="#tri-pos"/></vertices>
+      <triangles count="1"><input semantic="VERTEX" source="#tri-verts" offset="0"/><p>0 1 2</p></triangles>
+    </mesh></geometry>
+  </library_geometries>
+  <library_visual_scenes><visual_scene id="Scene">
+    <node id="a"><instance_geometry url="#tri"/></node>
+    <node id="b"><matrix>1 0 0 10 0 1 0 0 0 0 1 0 0 0 0 1</matrix><instance_geometry url="#tri"/></node>
+  </visual_scene></library_visual_scenes>
+  <scene><instance_visual_scene url="#Scene"/></scene>
+</COLLADA>
+"""
+
+
+def test_obj_parts_are_merged(tmp_path):
+    p = tmp_path / "parts.obj"
+    p.write_text(TRI_OBJ)
+    m = nbvkit.load_mesh(p)
+    assert m.num_triangles == 3
+    assert m.vertices.dtype == np.float64 and m.vertices.shape[1] == 3
+    assert m.faces.dtype == np.int32 and m.faces.shape == (3, 3)
+    assert m.area == pytest.approx(0.5 + 4.0)
+
+
+def test_collada_node_transforms_are_applied(tmp_path):
+    p = tmp_path / "two.dae"
+    p.write_text(DAE)
+    m = nbvkit.load_mesh(p)
+    assert m.num_triangles == 2
+    xs = np.sort(m.vertices[:, 0])
+    assert xs.min() == pytest.approx(0.0) and xs.max() == pytest.approx(11.0)
+
+
+# (.glb written by open3d 0.16 is rejected by assimp 5.2.5: "buffer view out of range")
+@pytest.mark.parametrize("ext", [".stl", ".ply", ".obj", ".gltf"])
+def test_formats_written_by_open3d(tmp_path, ext):
+    o3d = pytest.importorskip("open3d")
+    box = box_mesh((1, 2, 3), (2, 4, 7))
+    om = o3d.geometry.TriangleMesh(o3d.utility.Vector3dVector(box.vertices),
+                                   o3d.utility.Vector3iVector(box.faces))
+    om.compute_vertex_normals()
+    p = tmp_path / f"box{ext}"
+    assert o3d.io.write_triangle_mesh(str(p), om)
+    m = nbvkit.load_mesh(p)
+    assert m.num_triangles == 12
+    assert m.area == pytest.approx(box.area, rel=1e-5)
+    np.testing.assert_allclose(m.bounds, [[1, 2, 3], [2, 4, 7]], atol=1e-5)
+
+
+def test_up_axis_and_scale(tmp_path):
+    p = tmp_path / "tri.obj"
+    p.write_text("v 0 0 0\nv 1 0 0\nv 0 3 0\nf 1 2 3\n")  # extends along +y (up in a y-up file)
+    m = nbvkit.load_mesh(p, scale=2.0, up="y")
+    np.testing.assert_allclose(m.bounds, [[0, 0, 0], [2, 0, 6]], atol=1e-12)
+    m = nbvkit.load_mesh(p, up="z")
+    np.testing.assert_allclose(m.bounds, [[0, 0, 0], [1, 3, 0]], atol=1e-12)
+
+
+def test_boat_is_y_up():
+    p = shared_mesh("boat_yup.obj")
+    m = nbvkit.load_mesh(p, up="y", scale=4.5)
+    size = m.bounds[1] - m.bounds[0]
+    # the file is 1.84 (x) x 1.99 (y, up) x 8.38 (z) m; z-up after conversion, scaled 4.5
+    np.testing.assert_allclose(size, np.array([1.84, 8.38, 1.99]) * 4.5, rtol=0.01)
+
+
+def test_from_arrays_and_open3d_round_trip():
+    o3d = pytest.importorskip("open3d")
+    box = box_mesh((0, 0, 0), (1, 2, 3))
+    om = box.to_open3d()
+    back = nbvkit.Mesh.from_open3d(om)
+    np.testing.assert_array_equal(back.faces, box.faces)
+    np.testing.assert_allclose(back.vertices, box.vertices)
+    assert nbvkit.mesh_from_open3d(om).area == pytest.approx(22.0)
+
+
+def test_sampling_is_seeded_uniform_and_on_surface():
+    # Two triangles of area 1 and 3 (at z = 0 and z = 1): samples split 1:3.
+    v = np.array([[0, 0, 0], [2, 0, 0], [0, 1, 0], [0, 0, 1], [3, 0, 1], [0, 2, 1]], float)
+    f = np.array([[0, 1, 2], [3, 4, 5]], np.int32)
+    m = nbvkit.Mesh(v, f)
+    a = m.sample_surface(40000, seed=7)
+    b = m.sample_surface(40000, seed=7)
+    c = m.sample_surface(40000, seed=8)
+    np.testing.assert_array_equal(a, b)
+    assert not np.array_equal(a, c)
+    frac_top = np.mean(a[:, 2] > 0.5)
+    assert frac_top == pytest.approx(0.75, abs=0.01)
+    low = a[a[:, 2] < 0.5]
+    assert np.all(low[:, 0] / 2 + low[:, 1] <= 1 + 1e-9) and np.all(low >= -1e-12)
+    pts, faces = m.sample_surface(1000, seed=1, return_faces=True)
+    assert faces.shape == (1000,) and set(np.unique(faces)) <= {0, 1}
+    np.testing.assert_allclose(pts[faces == 1, 2], 1.0)
+
+
+def test_missing_file_names_the_path(tmp_path):
+    p = tmp_path / "nope.obj"
+    with pytest.raises(FileNotFoundError) as e:
+        nbvkit.load_mesh(p)
+    assert str(p) in str(e.value)
+    with pytest.raises(FileNotFoundError):
+        nbvkit._core._load_mesh(str(p))  # the C++ path raises the same Python type
+
+
+def test_unreadable_and_triangle_less_files(tmp_path):
+    junk = tmp_path / "junk.stl"
+    junk.write_bytes(b"\x00\x01garbage" * 3)
+    with pytest.raises(ValueError, match="junk.stl"):
+        nbvkit.load_mesh(junk)
+    pts = tmp_path / "points.obj"
+    pts.write_text("v 0 0 0\nv 1 0 0\nv 0 1 0\n")
+    with pytest.raises(ValueError, match="points.obj"):
+        nbvkit.load_mesh(pts)
+    empty = tmp_path / "empty.obj"
+    empty.write_text("")
+    with pytest.raises(ValueError, match="empty.obj"):
+        nbvkit.load_mesh(empty)
+    with pytest.raises(ValueError, match="directory"):
+        nbvkit.load_mesh(tmp_path)
+
+
+def test_bad_arrays_and_arguments(tmp_path):
+    v = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0]], float)
+    with pytest.raises(ValueError, match="NaN"):
+        nbvkit.Mesh(np.where(v == 1, np.nan, v), [[0, 1, 2]])
+    with pytest.raises(ValueError, match="out of range"):
+        nbvkit.Mesh(v, [[0, 1, 3]])
+    with pytest.raises(ValueError, match="out of range"):
+        nbvkit.Mesh(v, [[0, -1, 2]])
+    with pytest.raises(ValueError, match="no triangles"):
+        nbvkit.Mesh(v, np.zeros((0, 3), np.int32))
+    with pytest.raises(ValueError, match=r"\(N, 3\)"):
+        nbvkit.Mesh(v[:, :2], [[0, 1, 2]])
+    p = tmp_path / "t.obj"
+    p.write_text("v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n")
+    with pytest.raises(ValueError, match="up axis"):
+        nbvkit.load_mesh(p, up="x")
+    for s in (0, -1, float("nan"), float("inf")):
+        with pytest.raises(ValueError, match="scale"):
+            nbvkit.load_mesh(p, scale=s)
+    with pytest.raises(ValueError, match=">= 0"):
+        nbvkit.Mesh(v, [[0, 1, 2]]).sample_surface(-1)
+
+
+def test_default_airliner_matches_spec():
+    m = nbvkit.load_mesh(nbvkit.default_mesh_path())
+    lo, hi = m.bounds
+    size = hi - lo
+    assert 33 <= size[0] <= 37 and 28 <= size[1] <= 32 and 7 <= size[2] <= 8
+    assert 0 < lo[2] < 0.1  # lowest point just above the ground
+    assert 10_000 <= m.num_triangles <= 200_000
+    # mirror-symmetric about its fuselage plane y = 0: every mirrored vertex is a vertex
+    from scipy.spatial import cKDTree
+
+    v = m.vertices
+    d, _ = cKDTree(v).query(v * np.array([1, -1, 1]))
+    assert d.max() < 1e-5
