@@ -9,7 +9,7 @@ import sys
 COMMANDS = {
     "scan": "scan",
     "evaluate": "evaluate",
-    "demo": "demo",
+    "run": "run",
 }
 
 

@@ -1,0 +1,325 @@
+"""Mission configuration: frozen dataclasses, loaded from YAML, with dotted overrides.
+
+One source of truth: sensor, map and cloud defaults are read from the C++ option structs' defaults
+(the bindings expose them), and a test checks that every default here equals its C++ twin.
+Unknown keys are rejected with the key's full dotted name. ``Config.to_dict()`` gives the resolved
+configuration written beside every run's results.
+"""
+from __future__ import annotations
+
+
+import math
+import typing
+from dataclasses import dataclass, field, fields, is_dataclass
+from pathlib import Path
+from typing import Any, Optional
+
+import yaml
+
+from . import _core
+
+_CAM = _core.DepthCameraOptions()
+_LAS = _core.LaserScannerOptions()
+
+
+@dataclass(frozen=True)
+class MeshConfig:
+    path: Optional[str] = None  # None: the shipped generated airliner
+    scale: float = 1.0
+    up: str = "z"  # the file's up axis: "z" or "y"
+
+
+@dataclass(frozen=True)
+class WorkspaceConfig:
+    """The NBV workspace (map bounds for entropy, utility and navigation).
+
+    Default: the structure's bounding box grown by ``margin_xy`` on each side and squared up to a
+    square footprint (as the paper's 40 x 40 m), from ``min(0, bbox z min)`` (the ground) to
+    ``bbox z max + margin_z``. For the shipped airliner (35.0 x 30.0 x 7.5 m) this gives
+    40.0 x 40.0 x 10.0 m. Explicit ``bounds_min``/``bounds_max`` override it.
+    """
+    margin_xy: float = 2.5
+    margin_z: float = 2.5
+    square: bool = True
+    bounds_min: Optional[tuple] = None
+    bounds_max: Optional[tuple] = None
+
+
+@dataclass(frozen=True)
+class MapConfig:
+    resolution: float = 0.2  # m (authors: 0.2)
+    prob_hit: float = 0.7
+    prob_miss: float = 0.4
+    clamp_min: float = 0.12
+    clamp_max: float = 0.97
+    occupancy_threshold: float = 0.6  # authors' setup; see OccupancyMapOptions
+    entropy_unit: str = "nats"  # "nats" (authors) or "bits"
+    clamped_entropy_zero: bool = True  # authors: cells at a clamping bound count zero entropy
+    fast_integration: bool = True  # de-duplicated ray ends; False = plain insertPointCloud
+
+
+@dataclass(frozen=True)
+class CameraConfig:
+    width: int = _CAM.width
+    height: int = _CAM.height
+    hfov_deg: float = _CAM.hfov_deg
+    vfov_deg: float = _CAM.vfov_deg
+    min_range: float = _CAM.min_range
+    max_range: float = _CAM.max_range
+    noise_k: float = _CAM.noise_k  # the authors used 0.0025 (sigma = k z^2)
+    mount_xyz: tuple = (0.0, 0.0, 0.0)
+    mount_rpy_deg: tuple = (0.0, 0.0, 0.0)
+
+
+@dataclass(frozen=True)
+class LaserConfig:
+    fov_deg: float = _LAS.fov_deg
+    resolution_deg: float = _LAS.resolution_deg
+    min_range: float = _LAS.min_range
+    max_range: float = _LAS.max_range
+    noise_sigma: float = _LAS.noise_sigma
+    mount_xyz: tuple = (0.0, 0.0, 0.0)
+    mount_rpy_deg: tuple = (0.0, 10.0, 0.0)  # pitched 10 deg down (Table 1)
+
+
+@dataclass(frozen=True)
+class CloudConfig:
+    camera_voxel: float = 0.02  # m, authors' RGB-D voxel filter
+    laser_voxel: float = 0.1  # m, authors' profile voxel filter
+    min_z: float = 0.3  # m, points below are ground and not registered
+
+
+@dataclass(frozen=True)
+class VehicleConfig:
+    collision_radius: float = 0.8  # m
+    # what to do when the straight segment to a candidate crosses occupied/unknown space:
+    # "reject" the candidate, or "plan" a path through known free space (A* on the map)
+    blocked_path: str = "reject"
+    # cells within this radius of the start pose are known free before the first scan: the
+    # vehicle took off there (no sensor sees its own surroundings); 0 disables
+    start_clear_radius: float = 1.5
+    # the vehicle's own swept volume (collision radius along the flown path) is known free
+    clear_swept_volume: bool = True
+
+
+@dataclass(frozen=True)
+class SamplingConfig:
+    method: str = "agvs"  # "cgvs" (alpha fixed at 0) or "agvs"
+    delta_d: float = 1.0  # m
+    delta_theta: float = math.pi / 4  # rad
+    sigma: float = 1.5
+    alpha_max: int = 5
+    stuck_threshold: float = 0.005  # |dE_v| below this counts as stuck (paper)
+    stuck_window: int = 3  # consecutive stuck iterations before alpha grows (paper)
+    scale_cap: Optional[float] = None  # authors' code: 7.5
+    oscillation_is_stuck: bool = False  # authors' code: an A-B-A-B oscillation counts as stuck
+
+
+@dataclass(frozen=True)
+class UtilityConfig:
+    name: str = "ig"  # "ig" (paper) or "ig_distance" (IG * exp(-lambda * distance))
+    rays_x: Optional[int] = None  # None: one ray per map cell on the far plane (47 at 0.2 m)
+    rays_y: Optional[int] = None  # None: 34 at 0.2 m
+    distance_lambda: float = 0.5  # 1/m, for ig_distance (authors' w = 0.5)
+    # a view must see an occupied cell (paper); with a value, a cell with p above it (authors: 0.8)
+    require_occupied_probability: Optional[float] = None
+
+
+@dataclass(frozen=True)
+class TerminationConfig:
+    threshold: float = 0.001  # |dE_v| (paper)
+    window: int = 5  # consecutive iterations (paper)
+    count_partial_cells: bool = True  # C_view counts cells the frustum touches partially
+
+
+@dataclass(frozen=True)
+class EvaluationConfig:
+    gt_density: Optional[float] = None  # points per m^2; None: nbvkit.evaluate's default
+    coverage_every: int = 10  # iterations between coverage refreshes in the progress/CSV
+
+
+@dataclass(frozen=True)
+class Config:
+    seed: int = 0
+    scenario: str = "5"
+    start: int = 0
+    max_iterations: int = 1000
+    progress: bool = True
+    mesh: MeshConfig = field(default_factory=MeshConfig)
+    workspace: WorkspaceConfig = field(default_factory=WorkspaceConfig)
+    map: MapConfig = field(default_factory=MapConfig)
+    camera: CameraConfig = field(default_factory=CameraConfig)
+    laser: LaserConfig = field(default_factory=LaserConfig)
+    cloud: CloudConfig = field(default_factory=CloudConfig)
+    vehicle: VehicleConfig = field(default_factory=VehicleConfig)
+    sampling: SamplingConfig = field(default_factory=SamplingConfig)
+    utility: UtilityConfig = field(default_factory=UtilityConfig)
+    termination: TerminationConfig = field(default_factory=TerminationConfig)
+    evaluation: EvaluationConfig = field(default_factory=EvaluationConfig)
+
+    # ------------------------------------------------------------------ construction
+    @classmethod
+    def from_dict(cls, data: dict | None) -> "Config":
+        return _build(cls, data or {}, "")
+
+    @classmethod
+    def from_yaml(cls, path: str | Path) -> "Config":
+        p = Path(path)
+        if not p.exists():
+            raise FileNotFoundError(2, "No such config file", str(p))
+        data = yaml.safe_load(p.read_text()) or {}
+        if not isinstance(data, dict):
+            raise ValueError(f"config file {p} must hold a mapping of keys, got {type(data).__name__}")
+        return cls.from_dict(data)
+
+    def with_overrides(self, overrides: list[str] | dict | None) -> "Config":
+        """Apply ``key=value`` strings (dotted keys for nested sections; values parsed as YAML)."""
+        if not overrides:
+            return self
+        items = overrides.items() if isinstance(overrides, dict) else [_split(o) for o in overrides]
+        data = self.to_dict()
+        for key, value in items:
+            _set_dotted(data, key, value)
+        return Config.from_dict(data)
+
+    def to_dict(self) -> dict:
+        return _to_plain(self)
+
+    def to_yaml(self) -> str:
+        return yaml.safe_dump(self.to_dict(), sort_keys=False)
+
+
+def _split(item: str) -> tuple[str, Any]:
+    if "=" not in item:
+        raise ValueError(f"override {item!r} must look like key=value")
+    key, raw = item.split("=", 1)
+    key = key.strip()
+    if not key:
+        raise ValueError(f"override {item!r} has an empty key")
+    try:
+        value = yaml.safe_load(raw) if raw.strip() else None
+    except yaml.YAMLError as e:
+        raise ValueError(f"override {item!r}: cannot parse the value: {e}") from None
+    return key, value
+
+
+def _set_dotted(data: dict, key: str, value: Any) -> None:
+    parts = key.split(".")
+    node = data
+    for i, part in enumerate(parts[:-1]):
+        if part not in node or not isinstance(node[part], dict):
+            raise KeyError(f"unknown config key {'.'.join(parts[:i + 1])!r} (in override {key!r})")
+        node = node[part]
+    if parts[-1] not in node:
+        raise KeyError(f"unknown config key {key!r}")
+    node[parts[-1]] = value
+
+
+def _to_plain(obj: Any) -> Any:
+    if is_dataclass(obj):
+        return {f.name: _to_plain(getattr(obj, f.name)) for f in fields(obj)}
+    if isinstance(obj, tuple):
+        return [_to_plain(x) for x in obj]
+    return obj
+
+
+def _build(cls, data: dict, prefix: str):
+    if not isinstance(data, dict):
+        raise ValueError(f"config section {prefix.rstrip('.') or '<root>'} must be a mapping")
+    hints = typing.get_type_hints(cls)
+    known = {f.name: f for f in fields(cls)}
+    for k in data:
+        if k not in known:
+            raise KeyError(f"unknown config key {prefix + str(k)!r}; known keys here: "
+                           f"{', '.join(sorted(known))}")
+    kwargs = {}
+    for name, value in data.items():
+        kwargs[name] = _coerce(hints[name], value, prefix + name)
+    obj = cls(**kwargs)
+    _validate(obj, prefix)
+    return obj
+
+
+def _coerce(tp, value, key):
+    origin = typing.get_origin(tp)
+    if is_dataclass(tp):
+        return _build(tp, value if value is not None else {}, key + ".")
+    if origin is typing.Union:  # Optional[X]
+        if value is None:
+            return None
+        (inner,) = [a for a in typing.get_args(tp) if a is not type(None)]
+        return _coerce(inner, value, key)
+    if tp is bool:
+        if isinstance(value, bool):
+            return value
+        raise ValueError(f"config key {key!r} must be true or false, got {value!r}")
+    if tp is int:
+        if isinstance(value, bool) or not isinstance(value, (int, float)) or value != int(value):
+            raise ValueError(f"config key {key!r} must be an integer, got {value!r}")
+        return int(value)
+    if tp is float:
+        if isinstance(value, bool) or not isinstance(value, (int, float)):
+            raise ValueError(f"config key {key!r} must be a number, got {value!r}")
+        return float(value)
+    if tp is str:
+        if isinstance(value, (int, float)) and not isinstance(value, bool):
+            return str(value)  # e.g. scenario: 5
+        if not isinstance(value, str):
+            raise ValueError(f"config key {key!r} must be a string, got {value!r}")
+        return value
+    if tp is tuple:
+        if not isinstance(value, (list, tuple)) or not all(
+                isinstance(x, (int, float)) and not isinstance(x, bool) for x in value):
+            raise ValueError(f"config key {key!r} must be a list of numbers, got {value!r}")
+        return tuple(float(x) for x in value)
+    return value
+
+
+_CHOICES = {
+    "mesh.up": ("y", "z"),
+    "map.entropy_unit": ("nats", "bits"),
+    "vehicle.blocked_path": ("reject", "plan"),
+    "sampling.method": ("cgvs", "agvs"),
+    "utility.name": ("ig", "ig_distance"),
+    "scenario": ("profile", "1", "2", "3", "4", "5"),
+}
+_POSITIVE = {"map.resolution", "camera.max_range", "laser.max_range", "cloud.camera_voxel",
+             "cloud.laser_voxel", "vehicle.collision_radius", "sampling.delta_d",
+             "sampling.sigma", "termination.threshold", "sampling.stuck_threshold", "mesh.scale"}
+_NONNEG = {"max_iterations", "start", "sampling.alpha_max", "termination.window",
+           "sampling.stuck_window", "vehicle.start_clear_radius", "camera.noise_k",
+           "laser.noise_sigma", "utility.distance_lambda", "evaluation.coverage_every",
+           "workspace.margin_xy", "workspace.margin_z", "sampling.delta_theta"}
+_TRIPLES = {"camera.mount_xyz", "camera.mount_rpy_deg", "laser.mount_xyz", "laser.mount_rpy_deg",
+            "workspace.bounds_min", "workspace.bounds_max"}
+
+
+def _validate(obj, prefix: str) -> None:
+    for f in fields(obj):
+        key = prefix + f.name
+        v = getattr(obj, f.name)
+        if key in _CHOICES and v not in _CHOICES[key]:
+            raise ValueError(f"config key {key!r} must be one of {', '.join(_CHOICES[key])}; got {v!r}")
+        if isinstance(v, float) and not math.isfinite(v):
+            raise ValueError(f"config key {key!r} must be finite, got {v!r}")
+        if key in _POSITIVE and v is not None and not v > 0:
+            raise ValueError(f"config key {key!r} must be positive, got {v!r}")
+        if key in _NONNEG and v is not None and v < 0:
+            raise ValueError(f"config key {key!r} must be >= 0, got {v!r}")
+        if key in _TRIPLES and v is not None and len(v) != 3:
+            raise ValueError(f"config key {key!r} must have 3 numbers, got {list(v)!r}")
+    if prefix == "" and not 0 <= obj.start <= 4:
+        raise ValueError(f"config key 'start' must be 0..4 (five predefined starts), got {obj.start}")
+    if prefix == "workspace." and (obj.bounds_min is None) != (obj.bounds_max is None):
+        raise ValueError("config keys 'workspace.bounds_min' and 'workspace.bounds_max' go together")
+
+
+def load_config(path: str | Path | None = None, overrides: list[str] | dict | None = None) -> Config:
+    """The default configuration, updated from a YAML file and then from overrides."""
+    cfg = Config.from_yaml(path) if path else Config()
+    return cfg.with_overrides(overrides)
+
+
+__all__ = ["Config", "load_config"] + [c.__name__ for c in (
+    MeshConfig, WorkspaceConfig, MapConfig, CameraConfig, LaserConfig, CloudConfig, VehicleConfig,
+    SamplingConfig, UtilityConfig, TerminationConfig, EvaluationConfig)]

@@ -1,0 +1,70 @@
+"""Workspace, navigation bounds and the five predefined start poses of a structure."""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from .config import Config
+
+
+@dataclass(frozen=True)
+class Workspace:
+    """The NBV workspace box (map bounds) and the navigation bounds (vehicle positions)."""
+    bounds_min: np.ndarray
+    bounds_max: np.ndarray
+    nav_min: np.ndarray
+    nav_max: np.ndarray
+
+    @property
+    def center(self) -> np.ndarray:
+        return (self.bounds_min + self.bounds_max) / 2
+
+    @property
+    def size(self) -> np.ndarray:
+        return self.bounds_max - self.bounds_min
+
+    def contains(self, p) -> bool:
+        p = np.asarray(p, float)[:3]
+        return bool(np.all(p >= self.nav_min) and np.all(p <= self.nav_max))
+
+    def to_dict(self) -> dict:
+        return {k: [float(x) for x in getattr(self, k)] for k in ("bounds_min", "bounds_max", "nav_min", "nav_max")}
+
+
+def make_workspace(mesh_bounds, cfg: Config) -> Workspace:
+    """The workspace of a structure (see WorkspaceConfig); navigation bounds are the workspace
+    shrunk by the collision radius (plus 0.1 m), so the vehicle's sphere stays inside the map."""
+    w = cfg.workspace
+    lo, hi = np.asarray(mesh_bounds[0], float), np.asarray(mesh_bounds[1], float)
+    if w.bounds_min is not None:
+        bmin, bmax = np.array(w.bounds_min, float), np.array(w.bounds_max, float)
+        if not np.all(bmax > bmin):
+            raise ValueError(f"workspace bounds_max {bmax.tolist()} must exceed bounds_min {bmin.tolist()}")
+    else:
+        c = (lo + hi) / 2
+        half = (hi - lo)[:2] / 2 + w.margin_xy
+        if w.square:
+            half = np.full(2, half.max())
+        bmin = np.array([c[0] - half[0], c[1] - half[1], min(0.0, lo[2])])
+        bmax = np.array([c[0] + half[0], c[1] + half[1], hi[2] + w.margin_z])
+    shrink = cfg.vehicle.collision_radius + 0.1
+    nav_min, nav_max = bmin + shrink, bmax - shrink
+    if not np.all(nav_max > nav_min):
+        raise ValueError("the workspace is too small for the vehicle's collision radius")
+    return Workspace(bmin, bmax, nav_min, nav_max)
+
+
+def start_poses(ws: Workspace, n: int = 5) -> np.ndarray:
+    """(n, 4) predefined starts: evenly spaced on the ellipse inscribed in the navigation bounds
+    (just inside the workspace boundary), at mid height, each facing the workspace centre. Start 0
+    is on the -y side facing +y (the authors' (0, -20, 5), yaw 90 deg on their workspace)."""
+    c = (ws.nav_min + ws.nav_max) / 2
+    h = (ws.nav_max - ws.nav_min) / 2
+    out = np.empty((n, 4))
+    for k in range(n):
+        th = -math.pi / 2 + 2 * math.pi * k / n
+        out[k] = [c[0] + h[0] * math.cos(th), c[1] + h[1] * math.sin(th), c[2],
+                  math.atan2(-math.sin(th) * h[1], -math.cos(th) * h[0])]
+    return out

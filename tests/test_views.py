@@ -1,0 +1,123 @@
+"""View evaluation: information gain, the occupied-cell constraint, validity, both map backends."""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+import nbvkit
+from nbvkit import _core
+from conftest import box_mesh, wall_mesh
+
+
+def scanned_wall_map(res=0.2):
+    """A wall at x = 15 scanned from (5, 0, 5) facing +x, in a 0..20 x -10..10 x 0..10 workspace."""
+    m = nbvkit.OccupancyMap(res, (0, -10, 0), (20, 10, 10))
+    cam = nbvkit.DepthCamera(wall_mesh(x=15.0), max_range=12.0)
+    m.mark_free_segment((5, 0, 5), (5, 0, 5), 1.5)  # the take-off bubble
+    m.integrate(cam.scan_pose([5.0, 0.0, 5.0, 0.0]))
+    return m
+
+
+def score(m, cands, current=(5.0, 0.0, 5.0, 0.0), **kw):
+    kw.setdefault("max_range", 12.0)
+    return _core.evaluate_views(m, np.asarray(cands, float), np.asarray(current, float), **kw)
+
+
+def test_view_facing_unknown_gains_more_than_view_facing_known_free():
+    m = scanned_wall_map()
+    s = score(m, [[5, 0, 5, 0.0], [5, 0, 5, math.pi]], require_occupied=False)
+    assert np.all(s["status"] == 0)
+    assert s["gain"][1] > 2 * s["gain"][0]  # behind the vehicle everything is unknown
+    assert s["occupied_seen"][0] > 0 and s["occupied_seen"][1] == 0
+
+
+def test_view_seeing_no_occupied_cell_is_rejected():
+    m = scanned_wall_map()
+    s = score(m, [[5, 0, 5, 0.0], [5, 0, 5, math.pi]])
+    assert s["status"][0] == 0 and np.isfinite(s["utility"][0])
+    assert s["status"][1] == 4 and s["utility"][1] == -np.inf
+    # the authors' variant: the seen cell must have p > 0.8; one hit gives p = 0.7
+    s = score(m, [[5, 0, 5, 0.0]], require_occupied_probability=0.8)
+    assert s["status"][0] == 4
+
+
+def test_candidate_inside_the_structure_or_outside_bounds_is_invalid():
+    mesh = box_mesh((10, -2, 0), (14, 2, 8))
+    m = nbvkit.OccupancyMap(0.2, (0, -10, 0), (20, 10, 10))
+    m.mark_free_segment((4, 0, 4), (4, 0, 4), 1.5)
+    cam = nbvkit.DepthCamera(mesh)
+    m.integrate(cam.scan_pose([4.0, 0.0, 4.0, 0.0]))
+    s = score(m, [[12, 0, 4, 0.0], [4.2, 0, 4, 0.0], [25, 0, 4, 0.0]], current=(4, 0, 4, 0),
+              bounds_min=(0.9, -9.1, 0.9), bounds_max=(19.1, 9.1, 9.1))
+    assert s["status"].tolist() == [2, 0, 1]
+    # a candidate in seen free space right in front of the box face, but nearer than the radius
+    s = score(m, [[9.5, 0, 4, 0.0]], current=(4, 0, 4, 0))
+    assert s["status"][0] == 2
+
+
+def test_straight_path_through_unknown_is_blocked_and_a_path_is_planned_around():
+    m = nbvkit.OccupancyMap(0.2, (0, 0, 0), (12, 12, 4))
+    m.mark_free_segment((2, 6, 2), (10, 6, 2), 1.5)   # a free corridor along x ...
+    m.mark_free_segment((2, 2, 2), (10, 2, 2), 1.5)   # ... a second one along x ...
+    m.mark_free_segment((2, 2, 2), (2, 6, 2), 1.5)    # ... joined at x = 2
+    s = score(m, [[10, 6, 2, 0.0]], current=(10, 2, 2, 0.0), require_occupied=False)
+    assert s["status"][0] == 3  # the straight segment crosses unknown space between the corridors
+    path = _core.plan_path(m, (10, 2, 2), (10, 6, 2), 0.8)
+    assert len(path) >= 3
+    np.testing.assert_allclose(path[0], [10, 2, 2]) and np.testing.assert_allclose(path[-1], [10, 6, 2])
+    length = np.linalg.norm(np.diff(path, axis=0), axis=1).sum()
+    assert length > 8 + 4 - 1  # around through x = 2: about 8 + 4 + 8, shortened by line of sight
+    for a, b in zip(path[:-1], path[1:]):
+        assert _core.segment_is_free(m, a, b, 0.8)
+    assert len(_core.plan_path(m, (10, 2, 2), (6, 9.5, 2), 0.8)) == 0  # target in unknown space
+
+
+def test_mirror_and_octree_backends_agree():
+    mesh = box_mesh((10, -2, 0), (14, 2, 8))
+    m = nbvkit.OccupancyMap(0.2, (0, -10, 0), (20, 10, 10))
+    m.mark_free_segment((4, 0, 4), (4, 0, 4), 1.5)
+    cam = nbvkit.DepthCamera(mesh)
+    for pose in ([4.0, 0.0, 4.0, 0.0], [5.0, -3.0, 5.0, 0.4], [5.0, 3.0, 3.0, -0.4]):
+        m.integrate(cam.scan_pose(pose))
+    m.set_unknown_cells(np.array([[14.1, 0.0, 4.0], [14.1, 0.2, 4.0]]), 0.6)  # predicted cells too
+    rng = np.random.default_rng(1)
+    cands = np.column_stack([rng.uniform(3, 8, 40), rng.uniform(-3, 3, 40), rng.uniform(2, 6, 40),
+                             rng.uniform(-1, 1, 40)])
+    a = score(m, cands, current=(4, 0, 4, 0), backend="mirror")
+    b = score(m, cands, current=(4, 0, 4, 0), backend="octree")
+    assert (a["status"] == 0).sum() >= 5
+    np.testing.assert_array_equal(a["status"], b["status"])
+    np.testing.assert_array_equal(a["cells_seen"], b["cells_seen"])
+    np.testing.assert_array_equal(a["occupied_seen"], b["occupied_seen"])
+    np.testing.assert_allclose(a["gain"], b["gain"], rtol=1e-6)
+
+
+def test_distance_utility_discounts_gain():
+    m = scanned_wall_map()
+    c = [[5, 0, 5, 0.0], [6, 0, 5, 0.0]]
+    ig = score(m, c, current=(5, 0, 5, 0))
+    igd = score(m, c, current=(5, 0, 5, 0), utility="ig_distance", distance_lambda=0.5)
+    np.testing.assert_allclose(igd["utility"], ig["gain"] * np.exp(-0.5 * np.array([0.0, 1.0])))
+    with pytest.raises(ValueError, match="unknown utility"):
+        score(m, c, utility="nope")
+
+
+def test_default_ray_grid_is_one_ray_per_cell_on_the_far_plane():
+    assert _core.view_ray_grid(60, 45, 8.0, 0.2) == (47, 34)
+    assert _core.view_ray_grid(60, 45, 8.0, 0.4) == (24, 17)
+
+
+def test_bad_input():
+    m = scanned_wall_map()
+    with pytest.raises(ValueError, match=r"\(K, 4\)"):
+        score(m, [[5, 0, 5]])
+    with pytest.raises(ValueError, match="NaN"):
+        score(m, [[5, 0, np.nan, 0]])
+    with pytest.raises(ValueError, match="current pose"):
+        score(m, [[5, 0, 5, 0]], current=(0, 0, 0))
+    with pytest.raises(ValueError, match="backend"):
+        score(m, [[5, 0, 5, 0]], backend="gpu")
+    with pytest.raises(ValueError):
+        _core.sphere_is_free(m, (np.nan, 0, 0), 1.0)
