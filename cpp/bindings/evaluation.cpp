@@ -1,7 +1,110 @@
 #include "bindings.hpp"
+#include "nbv/evaluation.hpp"
+#include "nbv/mesh.hpp"
 
 namespace nbv::bind {
 
-void init_evaluation(py::module_& m) { (void)m; }
+namespace {
+
+EvaluationOptions options_arg(const std::vector<double>& resolutions, const std::vector<double>& taus,
+                              double gt_density, std::uint64_t seed, long long max_gt_points) {
+  if (max_gt_points < 1) throw py::value_error("max_gt_points must be >= 1");
+  EvaluationOptions o;
+  o.resolutions = resolutions;
+  o.taus = taus;
+  o.gt_density = gt_density;
+  o.seed = seed;
+  o.max_gt_points = static_cast<std::size_t>(max_gt_points);
+  o.validate();
+  return o;
+}
+
+}  // namespace
+
+void init_evaluation(py::module_& m) {
+  const EvaluationOptions def;
+  py::class_<EvaluationOptions>(m, "EvaluationOptions", "Defaults of nbvkit.evaluate.")
+      .def(py::init<>())
+      .def_readonly("resolutions", &EvaluationOptions::resolutions, "coverage cell sizes, metres")
+      .def_readonly("taus", &EvaluationOptions::taus, "distance thresholds, metres")
+      .def_readonly("gt_density", &EvaluationOptions::gt_density,
+                    "ground-truth samples per m^2 of mesh surface")
+      .def_readonly("seed", &EvaluationOptions::seed)
+      .def_readonly("max_gt_points", &EvaluationOptions::max_gt_points,
+                    "cap on the number of ground-truth samples");
+
+  py::class_<EvaluationResult>(m, "EvaluationResult",
+                               "Raw result of the core's evaluation (nbvkit.evaluate returns a dict).")
+      .def_readonly("resolutions", &EvaluationResult::resolutions)
+      .def_readonly("taus", &EvaluationResult::taus)
+      .def_readonly("coverage", &EvaluationResult::coverage)
+      .def_readonly("area_coverage", &EvaluationResult::area_coverage)
+      .def_readonly("precision", &EvaluationResult::precision)
+      .def_readonly("gt_cells", &EvaluationResult::gt_cells)
+      .def_readonly("cloud_cells", &EvaluationResult::cloud_cells)
+      .def_readonly("covered_cells", &EvaluationResult::covered_cells)
+      .def_readonly("completeness", &EvaluationResult::completeness)
+      .def_readonly("accuracy", &EvaluationResult::accuracy)
+      .def_readonly("fscore", &EvaluationResult::fscore)
+      .def_property_readonly("chamfer", [](const EvaluationResult& r) -> py::object {
+        return r.has_chamfer ? py::object(py::float_(r.chamfer)) : py::none();
+      })
+      .def_property_readonly("mean_cloud_to_gt", [](const EvaluationResult& r) -> py::object {
+        return r.has_chamfer ? py::object(py::float_(r.mean_cloud_to_gt)) : py::none();
+      })
+      .def_property_readonly("mean_gt_to_cloud", [](const EvaluationResult& r) -> py::object {
+        return r.has_chamfer ? py::object(py::float_(r.mean_gt_to_cloud)) : py::none();
+      })
+      .def_readonly("n_points", &EvaluationResult::n_points)
+      .def_readonly("n_gt_points", &EvaluationResult::n_gt_points)
+      .def_readonly("from_mesh", &EvaluationResult::from_mesh)
+      .def_readonly("gt_density", &EvaluationResult::gt_density)
+      .def_readonly("gt_area", &EvaluationResult::gt_area)
+      .def_readonly("seed", &EvaluationResult::seed)
+      .def_readonly("warnings", &EvaluationResult::warnings)
+      .def_readonly("timings_s", &EvaluationResult::timings_s);
+
+  py::class_<Evaluator, std::shared_ptr<Evaluator>>(m, "_Evaluator",
+                                                      "Ground truth prepared once (nbvkit.Evaluator wraps it).")
+      .def(py::init([](const py::handle& gt, const std::vector<double>& resolutions,
+                       const std::vector<double>& taus, double gt_density, std::uint64_t seed,
+                       long long max_gt_points) {
+             const EvaluationOptions o = options_arg(resolutions, taus, gt_density, seed, max_gt_points);
+             if (py::isinstance<Mesh>(gt)) {
+               const Mesh& mesh = gt.cast<const Mesh&>();
+               py::gil_scoped_release release;
+               return std::make_shared<Evaluator>(mesh, o);
+             }
+             auto g = points_arg(gt, "ground truth");
+             py::gil_scoped_release release;
+             return std::make_shared<Evaluator>(g.map(), o);
+           }),
+           py::arg("gt"), py::arg("resolutions") = def.resolutions, py::arg("taus") = def.taus,
+           py::arg("gt_density") = def.gt_density, py::arg("seed") = def.seed,
+           py::arg("max_gt_points") = def.max_gt_points)
+      .def(
+          "evaluate",
+          [](const Evaluator& e, const py::handle& cloud) {
+            auto c = points_arg(cloud, "cloud");
+            py::gil_scoped_release release;
+            return e.evaluate(c.map());
+          },
+          py::arg("cloud"))
+      .def_property_readonly("gt_points", &Evaluator::gt_points)
+      .def_property_readonly("num_gt_points", &Evaluator::num_gt_points)
+      .def_property_readonly("gt_info", [](const Evaluator& e) { return e.gt_info(); });
+
+  m.def(
+      "nearest_distances",
+      [](const py::handle& targets, const py::handle& queries) {
+        auto t = points_arg(targets, "targets");
+        auto q = points_arg(queries, "queries");
+        py::gil_scoped_release release;
+        return nearest_distances(t.map(), q.map());
+      },
+      py::arg("targets"), py::arg("queries"),
+      "(Q,) float64: exact Euclidean distance (metres) from each of the (Q, 3) queries to the nearest\n"
+      "of the (T, 3) targets (inf when there are no targets). A kd-tree, parallel over queries.");
+}
 
 }  // namespace nbv::bind

@@ -1,10 +1,16 @@
 #include "nbv/point_cloud.hpp"
+#include "nbv/parallel.hpp"
 
+#include <atomic>
 #include <algorithm>
 #include <cmath>
 #include <string>
 
 namespace nbv {
+namespace {
+// Marks a point dropped by ground removal or cropping (pack_voxel never sets bit 63).
+constexpr std::uint64_t kFiltered = kEmptyVoxelKey - 1;
+}  // namespace
 
 // ---------------------------------------------------------------------------- VoxelHashMap
 
@@ -69,35 +75,50 @@ void SurfaceCloudOptions::validate() const {
 SurfaceCloud::SurfaceCloud(const SurfaceCloudOptions& options) : opt_(options) { opt_.validate(); }
 
 std::size_t SurfaceCloud::add(const PointsRef& points) {
-  require_finite(points, "points");
   const Eigen::Index n = points.rows();
-  const double s = opt_.voxel_size;
-  const double lim = static_cast<double>(kVoxelCoordLimit);
-  // Pass 1: keys (kEmptyVoxelKey = filtered out). Nothing is modified until all keys are valid.
+  const double s = opt_.voxel_size, inv = 1.0 / s;
+  // Pass 1 (parallel): keys, kEmptyVoxelKey for filtered-out points. Nothing is modified until
+  // every key is known to be valid.
   std::vector<std::uint64_t> keys(static_cast<std::size_t>(n));
-  for (Eigen::Index i = 0; i < n; ++i) {
-    const double x = points(i, 0), y = points(i, 1), z = points(i, 2);
-    bool keep = z >= opt_.min_z;
-    if (keep && opt_.crop)
-      keep = x >= opt_.crop_min.x() && x <= opt_.crop_max.x() && y >= opt_.crop_min.y() &&
-             y <= opt_.crop_max.y() && z >= opt_.crop_min.z() && z <= opt_.crop_max.z();
-    if (!keep) {
-      keys[i] = kEmptyVoxelKey;
-      continue;
+  std::atomic<bool> out_of_range{false}, non_finite{false};
+  const auto key_range = [&](std::size_t b, std::size_t e) {
+    for (std::size_t j = b; j < e; ++j) {
+      const auto i = static_cast<Eigen::Index>(j);
+      const double x = points(i, 0), y = points(i, 1), z = points(i, 2);
+      if (!(std::isfinite(x) && std::isfinite(y) && std::isfinite(z))) {
+        non_finite = true;
+        keys[j] = kFiltered;
+        continue;
+      }
+      bool keep = z >= opt_.min_z;
+      if (keep && opt_.crop)
+        keep = x >= opt_.crop_min.x() && x <= opt_.crop_max.x() && y >= opt_.crop_min.y() &&
+               y <= opt_.crop_max.y() && z >= opt_.crop_min.z() && z <= opt_.crop_max.z();
+      if (!keep) {
+        keys[j] = kFiltered;
+        continue;
+      }
+      keys[j] = try_voxel_key(x, y, z, s, inv);
+      if (keys[j] == kEmptyVoxelKey) out_of_range = true;
     }
-    const double cx = std::floor(x / s), cy = std::floor(y / s), cz = std::floor(z / s);
-    if (!(cx >= -lim && cx < lim && cy >= -lim && cy < lim && cz >= -lim && cz < lim))
-      voxel_index(points.row(i).transpose(), s);  // throws with the offending coordinate
-    keys[i] = pack_voxel(static_cast<std::int64_t>(cx), static_cast<std::int64_t>(cy),
-                         static_cast<std::int64_t>(cz));
-  }
+  };
+  if (n > 65536)
+    parallel_chunks(static_cast<std::size_t>(n), 16384, key_range);
+  else
+    key_range(0, static_cast<std::size_t>(n));
+  if (non_finite) throw std::invalid_argument("points contains NaN or infinite values");
+  if (out_of_range)
+    for (Eigen::Index i = 0; i < n; ++i)
+      if (keys[static_cast<std::size_t>(i)] == kEmptyVoxelKey)
+        voxel_index(points.row(i).transpose(), s);  // throws naming the coordinate
+  index_.reserve(count_.size() + static_cast<std::size_t>(n) / 8);
   // Pass 2: accumulate. Consecutive sensor points often share a voxel: remember the last one.
   const std::size_t before = count_.size();
   std::uint64_t last_key = kEmptyVoxelKey;
   std::uint32_t last = 0;
   for (Eigen::Index i = 0; i < n; ++i) {
     const std::uint64_t k = keys[i];
-    if (k == kEmptyVoxelKey) continue;
+    if (k == kFiltered) continue;
     if (k != last_key) {
       const auto next = static_cast<std::uint32_t>(count_.size());
       const auto r = index_.insert(k, next);

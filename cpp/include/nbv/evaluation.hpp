@@ -1,0 +1,158 @@
+// Scoring a reconstructed point cloud against ground truth (a mesh, sampled, or a point cloud):
+// the paper's cell-count coverage, area coverage, precision, completeness / accuracy / F-score
+// at distance thresholds, and the Chamfer distance.
+#pragma once
+
+#include "nbv/common.hpp"
+#include "nbv/mesh.hpp"
+#include "nbv/point_cloud.hpp"
+
+#include <cstdint>
+#include <string>
+#include <utility>
+#include <vector>
+
+namespace nbv {
+
+/// Exact Euclidean nearest-neighbour index over a fixed point set: a kd-tree (median splits on
+/// the widest axis) whose every node keeps the tight bounding box of its points, so a query far
+/// from the set (an unobserved part of a structure, an outlier) prunes by box distance as a BVH
+/// would. Leaves of `leaf_size` points are stored contiguously in double precision. The build is
+/// parallel (TBB); queries are const and thread-safe.
+class KdTree {
+ public:
+  explicit KdTree(const PointsRef& points, int leaf_size = 12);
+
+  std::size_t size() const { return pts_.size(); }
+  /// Nearest point to q: (index into the constructor's points, squared distance in m^2).
+  /// (-1, inf) for an empty tree. `hint` (an index, or -1) is a point believed to be close
+  /// (e.g. the previous query's answer); it only speeds the search up. Ties go to any of the
+  /// equally near points, but the distance is always the exact minimum.
+  std::pair<Eigen::Index, double> nearest(const Eigen::Vector3d& q, Eigen::Index hint = -1) const;
+  /// The points' indices in tree order: consecutive entries are spatially close, so queries
+  /// issued in this order are cache-friendly.
+  std::vector<std::uint32_t> order() const;
+  /// The k-th point in tree order, and its index among the constructor's points.
+  Eigen::Vector3d point_at(std::size_t k) const { return {pts_[k].p[0], pts_[k].p[1], pts_[k].p[2]}; }
+  std::uint32_t id_at(std::size_t k) const { return pts_[k].id; }
+  /// The points in the constructor's order.
+  Points points() const;
+
+ private:
+  struct Item {
+    double p[3];
+    std::uint32_t id;
+  };
+  struct Node {
+    double lo[3], hi[3];  ///< tight bounding box of the node's points
+    std::int32_t a, b;    ///< inner: children; leaf: item range [a, b)
+    bool leaf;
+  };
+  void build(std::size_t node, std::size_t begin, std::size_t end);
+  std::size_t subtree_nodes(std::size_t m) const;
+  void search(const Node& node, const double* q, double& best, std::int64_t& best_pos) const;
+
+  int leaf_size_;
+  std::vector<Item> pts_;
+  std::vector<Node> nodes_;
+  std::vector<std::uint32_t> pos_;  ///< original index -> position in pts_
+  /// (subtree size, node count) for every subtree size above leaf_size_, sorted (build only).
+  std::vector<std::pair<std::size_t, std::size_t>> subtree_nodes_;
+};
+
+/// (Q,) exact distance (metres) from each query to its nearest target; inf if there are no
+/// targets. Parallel over queries; deterministic.
+Eigen::VectorXd nearest_distances(const PointsRef& targets, const PointsRef& queries);
+
+/// Default ground-truth sampling density (points per m^2), chosen by measurement on the 727 m^2
+/// twinjet (../shared/meshes/twinjet.obj); see the docstring of nbvkit.evaluate for the figures.
+constexpr double kDefaultGtDensity = 1000.0;
+
+struct EvaluationOptions {
+  /// Cell sizes (metres) of the coverage / area-coverage / precision grids (the paper's three).
+  std::vector<double> resolutions{0.05, 0.1, 0.5};
+  /// Distance thresholds (metres) of completeness / accuracy / F-score.
+  std::vector<double> taus{0.05, 0.1};
+  /// Ground-truth samples per m^2 of mesh surface (mesh ground truth only).
+  double gt_density = kDefaultGtDensity;
+  /// Seed of the ground-truth surface sampling (Mesh::sample_surface).
+  std::uint64_t seed = 0;
+  /// Upper bound on the number of ground-truth samples (area * density is capped to it).
+  std::size_t max_gt_points = 20'000'000;
+
+  void validate() const;
+};
+
+struct EvaluationResult {
+  std::vector<double> resolutions, taus;
+  // Per resolution:
+  std::vector<double> coverage;       ///< GT cells also holding a cloud point / GT cells
+  std::vector<double> area_coverage;  ///< GT samples whose cell holds a cloud point / GT samples
+  std::vector<double> precision;      ///< cloud cells also holding a GT sample / cloud cells
+  std::vector<std::int64_t> gt_cells, cloud_cells, covered_cells;
+  // Per tau:
+  std::vector<double> completeness;  ///< GT samples within tau (<=) of a cloud point / GT samples
+  std::vector<double> accuracy;      ///< cloud points within tau (<=) of a GT sample / cloud points
+  std::vector<double> fscore;        ///< 2PR / (P + R), P = accuracy, R = completeness; 0 if both 0
+  /// 0.5 * (mean cloud->GT + mean GT->cloud nearest distance), metres; valid only if has_chamfer
+  /// (false for an empty cloud).
+  bool has_chamfer = false;
+  double chamfer = 0, mean_cloud_to_gt = 0, mean_gt_to_cloud = 0;
+  std::int64_t n_points = 0, n_gt_points = 0;
+  bool from_mesh = false;       ///< GT was a mesh (sampled) rather than a reference cloud
+  double gt_density = 0;        ///< samples per m^2 actually used (mesh GT only)
+  double gt_area = 0;           ///< mesh surface area, m^2 (mesh GT only)
+  std::uint64_t seed = 0;
+  std::vector<std::string> warnings;  ///< e.g. the GT sample count was capped
+  std::vector<std::pair<std::string, double>> timings_s;  ///< wall time of each phase, seconds
+};
+
+/// Ground truth prepared once (samples, their kd-tree, their cells at every resolution) to score
+/// any number of clouds against it, e.g. every few iterations of a mission.
+class Evaluator {
+ public:
+  /// Samples the mesh uniformly at options.gt_density points per m^2:
+  /// Mesh::sample_surface(round(area * density), seed), capped at max_gt_points with a warning
+  /// in the results. Throws std::invalid_argument for bad options or a density so low that no
+  /// sample would be drawn.
+  explicit Evaluator(const Mesh& gt, const EvaluationOptions& options = {});
+  /// Uses a reference (ground-truth) point cloud as is. Throws std::invalid_argument if it is
+  /// empty or holds NaN/inf.
+  explicit Evaluator(const PointsRef& gt_points, const EvaluationOptions& options = {});
+
+  /// Scores `cloud` (N, 3). Throws std::invalid_argument naming "cloud" for NaN/inf. An empty
+  /// cloud gives zero fractions and no Chamfer distance. Const and thread-safe.
+  EvaluationResult evaluate(const PointsRef& cloud) const;
+
+  const EvaluationOptions& options() const { return opt_; }
+  std::size_t num_gt_points() const { return tree_.size(); }
+  /// The ground-truth points (samples in sampling order, or the reference cloud).
+  Points gt_points() const { return tree_.points(); }
+  /// Description of the ground truth as it appears in every result (density, area, warnings).
+  const EvaluationResult& gt_info() const { return base_; }
+
+ private:
+  static std::pair<Points, EvaluationResult> sample_mesh(const Mesh& gt, const EvaluationOptions& options);
+  Evaluator(std::pair<Points, EvaluationResult>&& sampled, const EvaluationOptions& options);
+  Evaluator(const PointsRef& gt, const EvaluationOptions& options, EvaluationResult base);
+  struct Grid {
+    double r = 0;
+    VoxelHashMap index;                 ///< GT cell key -> position in keys / samples
+    std::vector<std::uint64_t> keys;    ///< the GT cells
+    std::vector<std::int64_t> samples;  ///< GT samples in each cell
+  };
+  EvaluationOptions opt_;
+  EvaluationResult base_;
+  KdTree tree_;
+  std::vector<Grid> grids_;
+};
+
+/// Evaluator(gt, options).evaluate(cloud): scores `cloud` (N, 3) against a mesh sampled at
+/// options.gt_density points per m^2.
+EvaluationResult evaluate(const Mesh& gt, const PointsRef& cloud, const EvaluationOptions& options = {});
+
+/// Evaluator(gt, options).evaluate(cloud) with a reference (ground-truth) point cloud (M, 3).
+EvaluationResult evaluate_points(const PointsRef& gt, const PointsRef& cloud,
+                                 const EvaluationOptions& options = {});
+
+}  // namespace nbv

@@ -1,0 +1,426 @@
+#include "nbv/evaluation.hpp"
+#include "nbv/parallel.hpp"
+#include "nbv/point_cloud.hpp"
+
+#include <tbb/parallel_invoke.h>
+
+#include <algorithm>
+#include <atomic>
+#include <chrono>
+#include <cmath>
+#include <limits>
+#include <map>
+#include <sstream>
+
+namespace nbv {
+namespace {
+
+constexpr double kInf = std::numeric_limits<double>::infinity();
+
+// Number of nodes of a tree over `m` items (median split, leaves of <= leaf items).
+std::size_t node_count(std::size_t m, std::size_t leaf, std::map<std::size_t, std::size_t>& memo) {
+  if (m <= leaf) return 1;
+  auto it = memo.find(m);
+  if (it != memo.end()) return it->second;
+  const std::size_t c = 1 + node_count(m / 2, leaf, memo) + node_count(m - m / 2, leaf, memo);
+  memo.emplace(m, c);
+  return c;
+}
+
+double seconds_since(std::chrono::steady_clock::time_point t0) {
+  return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+}
+
+std::string fmt(double v) {
+  std::ostringstream s;
+  s << v;
+  return s.str();
+}
+
+}  // namespace
+
+// ---------------------------------------------------------------------------- KdTree
+
+namespace {
+inline double box_dist2(const double* lo, const double* hi, const double* q) {
+  double d2 = 0;
+  for (int a = 0; a < 3; ++a) {
+    const double v = q[a] < lo[a] ? lo[a] - q[a] : (q[a] > hi[a] ? q[a] - hi[a] : 0.0);
+    d2 += v * v;
+  }
+  return d2;
+}
+}  // namespace
+
+KdTree::KdTree(const PointsRef& points, int leaf_size) : leaf_size_(std::max(1, leaf_size)) {
+  require_finite(points, "kd-tree points");
+  const std::size_t n = static_cast<std::size_t>(points.rows());
+  if (n >= static_cast<std::size_t>(std::numeric_limits<std::int32_t>::max()))
+    throw std::invalid_argument("kd-tree: too many points (" + std::to_string(n) + ")");
+  pts_.resize(n);
+  pos_.resize(n);
+  if (n == 0) return;
+  parallel_chunks(n, 1 << 14, [&](std::size_t b, std::size_t e) {
+    for (std::size_t i = b; i < e; ++i) {
+      const auto r = static_cast<Eigen::Index>(i);
+      pts_[i] = Item{{points(r, 0), points(r, 1), points(r, 2)}, static_cast<std::uint32_t>(i)};
+    }
+  });
+  std::map<std::size_t, std::size_t> memo;  // at most two subtree sizes per depth
+  const std::size_t total = node_count(n, static_cast<std::size_t>(leaf_size_), memo);
+  subtree_nodes_.assign(memo.begin(), memo.end());
+  nodes_.resize(total);
+  core_arena().execute([&] { build(0, 0, n); });
+  subtree_nodes_.clear();
+  subtree_nodes_.shrink_to_fit();
+  parallel_chunks(n, 1 << 14, [&](std::size_t b, std::size_t e) {
+    for (std::size_t i = b; i < e; ++i) pos_[pts_[i].id] = static_cast<std::uint32_t>(i);
+  });
+}
+
+std::size_t KdTree::subtree_nodes(std::size_t m) const {
+  if (m <= static_cast<std::size_t>(leaf_size_)) return 1;
+  auto it = std::lower_bound(subtree_nodes_.begin(), subtree_nodes_.end(),
+                             std::make_pair(m, std::size_t(0)));
+  return it->second;
+}
+
+void KdTree::build(std::size_t node, std::size_t begin, std::size_t end) {
+  Node& nd = nodes_[node];
+  for (int a = 0; a < 3; ++a) {
+    nd.lo[a] = kInf;
+    nd.hi[a] = -kInf;
+  }
+  for (std::size_t i = begin; i < end; ++i)
+    for (int a = 0; a < 3; ++a) {
+      nd.lo[a] = std::min(nd.lo[a], pts_[i].p[a]);
+      nd.hi[a] = std::max(nd.hi[a], pts_[i].p[a]);
+    }
+  const std::size_t m = end - begin;
+  if (m <= static_cast<std::size_t>(leaf_size_)) {
+    nd.a = static_cast<std::int32_t>(begin);
+    nd.b = static_cast<std::int32_t>(end);
+    nd.leaf = true;
+    return;
+  }
+  int dim = 0;
+  for (int a = 1; a < 3; ++a)
+    if (nd.hi[a] - nd.lo[a] > nd.hi[dim] - nd.lo[dim]) dim = a;
+  const std::size_t mid = begin + m / 2;
+  auto first = pts_.begin();
+  std::nth_element(first + static_cast<std::ptrdiff_t>(begin), first + static_cast<std::ptrdiff_t>(mid),
+                   first + static_cast<std::ptrdiff_t>(end),
+                   [dim](const Item& x, const Item& y) { return x.p[dim] < y.p[dim]; });
+  const std::size_t left = node + 1, right = node + 1 + subtree_nodes(mid - begin);
+  nd.a = static_cast<std::int32_t>(left);
+  nd.b = static_cast<std::int32_t>(right);
+  nd.leaf = false;
+  if (m > (1u << 15)) {
+    tbb::parallel_invoke([&] { build(left, begin, mid); }, [&] { build(right, mid, end); });
+  } else {
+    build(left, begin, mid);
+    build(right, mid, end);
+  }
+}
+
+void KdTree::search(const Node& nd, const double* q, double& best, std::int64_t& best_pos) const {
+  if (nd.leaf) {
+    for (std::int32_t i = nd.a; i < nd.b; ++i) {
+      const double* p = pts_[static_cast<std::size_t>(i)].p;
+      const double dx = q[0] - p[0], dy = q[1] - p[1], dz = q[2] - p[2];
+      const double d2 = dx * dx + dy * dy + dz * dz;
+      if (d2 < best) {
+        best = d2;
+        best_pos = i;
+      }
+    }
+    return;
+  }
+  const Node& l = nodes_[static_cast<std::size_t>(nd.a)];
+  const Node& r = nodes_[static_cast<std::size_t>(nd.b)];
+  const double dl = box_dist2(l.lo, l.hi, q), dr = box_dist2(r.lo, r.hi, q);
+  if (dl <= dr) {
+    if (dl < best) search(l, q, best, best_pos);
+    if (dr < best) search(r, q, best, best_pos);
+  } else {
+    if (dr < best) search(r, q, best, best_pos);
+    if (dl < best) search(l, q, best, best_pos);
+  }
+}
+
+std::pair<Eigen::Index, double> KdTree::nearest(const Eigen::Vector3d& q, Eigen::Index hint) const {
+  if (pts_.empty()) return {-1, kInf};
+  double best = kInf;
+  std::int64_t best_pos = -1;
+  const double qq[3] = {q.x(), q.y(), q.z()};
+  if (hint >= 0 && static_cast<std::size_t>(hint) < pos_.size()) {
+    const std::uint32_t p = pos_[static_cast<std::size_t>(hint)];
+    const double* h = pts_[p].p;
+    best = (qq[0] - h[0]) * (qq[0] - h[0]) + (qq[1] - h[1]) * (qq[1] - h[1]) +
+           (qq[2] - h[2]) * (qq[2] - h[2]);
+    best_pos = p;
+  }
+  const Node& root = nodes_[0];
+  if (best_pos < 0 || box_dist2(root.lo, root.hi, qq) < best) search(root, qq, best, best_pos);
+  return {static_cast<Eigen::Index>(pts_[static_cast<std::size_t>(best_pos)].id), best};
+}
+
+Points KdTree::points() const {
+  Points out(static_cast<Eigen::Index>(pts_.size()), 3);
+  for (const Item& it : pts_) out.row(it.id) << it.p[0], it.p[1], it.p[2];
+  return out;
+}
+
+std::vector<std::uint32_t> KdTree::order() const {
+  std::vector<std::uint32_t> out(pts_.size());
+  for (std::size_t i = 0; i < pts_.size(); ++i) out[i] = pts_[i].id;
+  return out;
+}
+
+namespace {
+
+// Distances from every point of `queries` (in its tree order) to the nearest point of `targets`.
+std::vector<double> tree_nearest(const KdTree& targets, const KdTree& queries) {
+  std::vector<double> out(queries.size(), kInf);
+  if (targets.size() == 0) return out;
+  parallel_chunks(queries.size(), 2048, [&](std::size_t b, std::size_t e) {
+    Eigen::Index hint = -1;
+    for (std::size_t k = b; k < e; ++k) {
+      const auto r = targets.nearest(queries.point_at(k), hint);
+      hint = r.first;
+      out[k] = std::sqrt(r.second);
+    }
+  });
+  return out;
+}
+
+}  // namespace
+
+Eigen::VectorXd nearest_distances(const PointsRef& targets, const PointsRef& queries) {
+  require_finite(targets, "targets");
+  require_finite(queries, "queries");
+  const KdTree t(targets);
+  const KdTree q(queries);  // for a cache-friendly query order
+  const std::vector<double> d = tree_nearest(t, q);
+  Eigen::VectorXd out(static_cast<Eigen::Index>(d.size()));
+  for (std::size_t k = 0; k < d.size(); ++k) out[q.id_at(k)] = d[k];
+  return out;
+}
+
+// ---------------------------------------------------------------------------- evaluation
+
+void EvaluationOptions::validate() const {
+  for (double r : resolutions)
+    if (!(std::isfinite(r) && r > 0))
+      throw std::invalid_argument("resolutions must be positive numbers of metres, got " + fmt(r));
+  for (double t : taus)
+    if (!(std::isfinite(t) && t > 0))
+      throw std::invalid_argument("taus must be positive numbers of metres, got " + fmt(t));
+  if (!(std::isfinite(gt_density) && gt_density > 0))
+    throw std::invalid_argument("gt_density must be a positive number of points per m^2, got " +
+                                fmt(gt_density));
+  if (max_gt_points < 1) throw std::invalid_argument("max_gt_points must be >= 1");
+}
+
+namespace {
+
+// Cell keys of a tree's points in tree order (parallel); throws naming `what` if one is too far
+// from the origin for the grid.
+std::vector<std::uint64_t> tree_cell_keys(const KdTree& tree, double r, const char* what) {
+  std::vector<std::uint64_t> keys(tree.size());
+  std::atomic<bool> bad{false};
+  const double inv = 1.0 / r;
+  parallel_chunks(tree.size(), 1 << 14, [&](std::size_t b, std::size_t e) {
+    for (std::size_t k = b; k < e; ++k) {
+      const Eigen::Vector3d p = tree.point_at(k);
+      keys[k] = try_voxel_key(p.x(), p.y(), p.z(), r, inv);
+      if (keys[k] == kEmptyVoxelKey) bad = true;
+    }
+  });
+  if (bad)
+    throw std::invalid_argument(std::string(what) + " has points too far from the origin for a " +
+                                fmt(r) + " m grid (at most 2^20 cells per axis)");
+  return keys;
+}
+
+double ratio(std::int64_t a, std::int64_t b) { return b > 0 ? static_cast<double>(a) / b : 0.0; }
+
+}  // namespace
+
+std::pair<Points, EvaluationResult> Evaluator::sample_mesh(const Mesh& gt,
+                                                           const EvaluationOptions& options) {
+  std::pair<Points, EvaluationResult> out;
+  EvaluationResult& res = out.second;
+  options.validate();
+  res.from_mesh = true;
+  res.seed = options.seed;
+  res.gt_area = gt.area();
+  const double density = options.gt_density;
+  const double want = res.gt_area * density;
+  std::size_t n = static_cast<std::size_t>(std::llround(std::min(want, 1e18)));
+  if (want > static_cast<double>(options.max_gt_points)) {
+    n = options.max_gt_points;
+    res.warnings.push_back("ground truth: " + fmt(res.gt_area) + " m^2 at " + fmt(density) +
+                           " points/m^2 would be " + fmt(want) + " samples; capped at " +
+                           std::to_string(n) + " (" + fmt(static_cast<double>(n) / res.gt_area) +
+                           " points/m^2)");
+  }
+  if (n == 0)
+    throw std::invalid_argument("gt_density " + fmt(density) + " points/m^2 over the mesh's " +
+                                fmt(res.gt_area) + " m^2 gives no ground-truth samples");
+  res.gt_density = static_cast<double>(n) / res.gt_area;
+  const auto t0 = std::chrono::steady_clock::now();
+  out.first = gt.sample_surface(n, options.seed);
+  res.timings_s.emplace_back("sample", seconds_since(t0));
+  return out;
+}
+
+namespace {
+
+const PointsRef& checked_gt(const PointsRef& gt, const EvaluationOptions& options) {
+  options.validate();
+  require_finite(gt, "ground truth");
+  if (gt.rows() == 0) throw std::invalid_argument("ground truth point cloud is empty");
+  return gt;
+}
+
+}  // namespace
+
+Evaluator::Evaluator(const Mesh& gt, const EvaluationOptions& options)
+    : Evaluator(sample_mesh(gt, options), options) {}
+
+Evaluator::Evaluator(std::pair<Points, EvaluationResult>&& sampled, const EvaluationOptions& options)
+    : Evaluator(sampled.first, options, std::move(sampled.second)) {}
+
+Evaluator::Evaluator(const PointsRef& gt_points, const EvaluationOptions& options)
+    : Evaluator(checked_gt(gt_points, options), options, EvaluationResult{}) {}
+
+Evaluator::Evaluator(const PointsRef& gt, const EvaluationOptions& options, EvaluationResult base)
+    : opt_(options), base_(std::move(base)), tree_(gt) {
+  const auto t0 = std::chrono::steady_clock::now();
+  base_.n_gt_points = static_cast<std::int64_t>(tree_.size());
+  for (double r : opt_.resolutions) {
+    Grid g;
+    g.r = r;
+    const std::vector<std::uint64_t> keys = tree_cell_keys(tree_, r, "ground truth");
+    g.index.reserve(keys.size() / 8);
+    std::uint64_t last = kEmptyVoxelKey;
+    std::uint32_t last_pos = 0;
+    for (std::uint64_t k : keys) {  // tree order: runs of equal keys are common
+      if (k != last) {
+        const auto ins = g.index.insert(k, static_cast<std::uint32_t>(g.keys.size()));
+        if (ins.second) {
+          g.keys.push_back(k);
+          g.samples.push_back(0);
+        }
+        last = k;
+        last_pos = ins.first;
+      }
+      ++g.samples[last_pos];
+    }
+    grids_.push_back(std::move(g));
+  }
+  base_.timings_s.emplace_back("prepare_gt", seconds_since(t0));
+}
+
+EvaluationResult Evaluator::evaluate(const PointsRef& cloud) const {
+  using clock = std::chrono::steady_clock;
+  require_finite(cloud, "cloud");
+  EvaluationResult res = base_;
+  res.resolutions = opt_.resolutions;
+  res.taus = opt_.taus;
+  res.n_points = cloud.rows();
+  const std::size_t nr = opt_.resolutions.size(), nt = opt_.taus.size();
+  res.coverage.assign(nr, 0.0);
+  res.area_coverage.assign(nr, 0.0);
+  res.precision.assign(nr, 0.0);
+  res.gt_cells.assign(nr, 0);
+  res.cloud_cells.assign(nr, 0);
+  res.covered_cells.assign(nr, 0);
+  res.completeness.assign(nt, 0.0);
+  res.accuracy.assign(nt, 0.0);
+  res.fscore.assign(nt, 0.0);
+
+  auto t0 = clock::now();
+  const KdTree ctree(cloud);
+  res.timings_s.emplace_back("cloud_kdtree", seconds_since(t0));
+
+  t0 = clock::now();
+  const auto n_gt = static_cast<std::int64_t>(tree_.size());
+  for (std::size_t k = 0; k < nr; ++k) {
+    const Grid& g = grids_[k];
+    res.gt_cells[k] = static_cast<std::int64_t>(g.keys.size());
+    if (cloud.rows() == 0) continue;
+    // The cloud's cells (in tree order: consecutive points usually share a cell).
+    const std::vector<std::uint64_t> keys = tree_cell_keys(ctree, g.r, "cloud");
+    VoxelHashMap cells(keys.size() / 4);
+    std::vector<std::uint64_t> unique;
+    std::uint64_t last = kEmptyVoxelKey;
+    for (std::uint64_t key : keys) {
+      if (key == last) continue;
+      last = key;
+      if (cells.insert(key, 0).second) unique.push_back(key);
+    }
+    std::atomic<std::int64_t> in_gt{0}, covered{0}, covered_samples{0};
+    parallel_chunks(unique.size(), 1 << 13, [&](std::size_t b, std::size_t e) {
+      std::int64_t c = 0;
+      for (std::size_t j = b; j < e; ++j) c += g.index.contains(unique[j]);
+      in_gt += c;
+    });
+    parallel_chunks(g.keys.size(), 1 << 13, [&](std::size_t b, std::size_t e) {
+      std::int64_t c = 0, s = 0;
+      for (std::size_t j = b; j < e; ++j)
+        if (cells.contains(g.keys[j])) {
+          ++c;
+          s += g.samples[j];
+        }
+      covered += c;
+      covered_samples += s;
+    });
+    res.cloud_cells[k] = static_cast<std::int64_t>(unique.size());
+    res.covered_cells[k] = covered;
+    res.coverage[k] = ratio(covered, res.gt_cells[k]);
+    res.area_coverage[k] = ratio(covered_samples, n_gt);
+    res.precision[k] = ratio(in_gt, res.cloud_cells[k]);
+  }
+  res.timings_s.emplace_back("cells", seconds_since(t0));
+  if (cloud.rows() == 0) return res;
+
+  t0 = clock::now();
+  const std::vector<double> d_cloud = tree_nearest(tree_, ctree);  // cloud -> GT, tree order
+  const std::vector<double> d_gt = tree_nearest(ctree, tree_);     // GT -> cloud, tree order
+  res.timings_s.emplace_back("nearest", seconds_since(t0));
+
+  // Sequential sums in (deterministic) tree order: identical results whatever the threading.
+  double sc = 0, sg = 0;
+  for (double d : d_cloud) sc += d;
+  for (double d : d_gt) sg += d;
+  res.mean_cloud_to_gt = sc / static_cast<double>(d_cloud.size());
+  res.mean_gt_to_cloud = sg / static_cast<double>(d_gt.size());
+  res.chamfer = 0.5 * (res.mean_cloud_to_gt + res.mean_gt_to_cloud);
+  res.has_chamfer = true;
+  for (std::size_t k = 0; k < nt; ++k) {
+    const double tau = opt_.taus[k];
+    std::int64_t a = 0, c = 0;
+    for (double d : d_cloud) a += d <= tau;
+    for (double d : d_gt) c += d <= tau;
+    const double P = ratio(a, cloud.rows()), R = ratio(c, n_gt);
+    res.accuracy[k] = P;
+    res.completeness[k] = R;
+    res.fscore[k] = (P + R) > 0 ? 2 * P * R / (P + R) : 0.0;
+  }
+  return res;
+}
+
+EvaluationResult evaluate(const Mesh& gt, const PointsRef& cloud, const EvaluationOptions& options) {
+  require_finite(cloud, "cloud");
+  return Evaluator(gt, options).evaluate(cloud);
+}
+
+EvaluationResult evaluate_points(const PointsRef& gt, const PointsRef& cloud,
+                                 const EvaluationOptions& options) {
+  require_finite(cloud, "cloud");
+  return Evaluator(gt, options).evaluate(cloud);
+}
+
+}  // namespace nbv

@@ -1,0 +1,201 @@
+// Edge cases of the point-cloud and evaluation core: voxel key arithmetic (floor, not
+// truncation; packing limits), the voxel hash map, the surface cloud's centroids, the kd-tree
+// against brute force, LZF decoding, and evaluation of empty / identical clouds.
+#include "nbv/evaluation.hpp"
+#include "nbv/point_cloud.hpp"
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <limits>
+#include <random>
+
+using namespace nbv;
+
+TEST(VoxelKey, FloorNotTruncationForNegativeCoordinates) {
+  const auto a = voxel_index(Eigen::Vector3d(-0.01, 0.0, 0.049), 0.05);
+  EXPECT_EQ(a[0], -1);  // truncation would give 0
+  EXPECT_EQ(a[1], 0);
+  EXPECT_EQ(a[2], 0);
+  EXPECT_EQ(voxel_index(Eigen::Vector3d(-0.05, -0.0500001, -1e-300), 0.05)[0], -1);
+  EXPECT_EQ(voxel_index(Eigen::Vector3d(-0.05, -0.0500001, -1e-300), 0.05)[1], -2);
+  EXPECT_EQ(voxel_index(Eigen::Vector3d(-0.05, -0.0500001, -1e-300), 0.05)[2], -1);
+  EXPECT_NE(voxel_key(Eigen::Vector3d(-0.01, 0, 0), 0.02), voxel_key(Eigen::Vector3d(0.01, 0, 0), 0.02));
+  EXPECT_EQ(voxel_key(Eigen::Vector3d(0.001, 0, 0), 0.02), voxel_key(Eigen::Vector3d(0.019, 0, 0), 0.02));
+}
+
+TEST(VoxelKey, PackUnpackRoundTripAtTheLimits) {
+  const std::int64_t lo = -kVoxelCoordLimit, hi = kVoxelCoordLimit - 1;
+  for (std::int64_t x : {lo, std::int64_t(-1), std::int64_t(0), std::int64_t(1), hi})
+    for (std::int64_t y : {lo, std::int64_t(-7), hi})
+      for (std::int64_t z : {lo, std::int64_t(0), hi}) {
+        const std::uint64_t k = pack_voxel(x, y, z);
+        EXPECT_NE(k, kEmptyVoxelKey);
+        EXPECT_EQ(k >> 63, 0u);
+        const auto u = unpack_voxel(k);
+        EXPECT_EQ(u[0], x);
+        EXPECT_EQ(u[1], y);
+        EXPECT_EQ(u[2], z);
+      }
+  EXPECT_THROW(voxel_index(Eigen::Vector3d(1e9, 0, 0), 0.02), std::invalid_argument);
+  EXPECT_EQ(try_voxel_key(1e9, 0, 0, 0.02, 50.0), kEmptyVoxelKey);
+  EXPECT_EQ(try_voxel_key(-0.01, 0, 0, 0.02, 50.0), voxel_key(Eigen::Vector3d(-0.01, 0, 0), 0.02));
+}
+
+TEST(VoxelKey, FastFloorDivisionEqualsFloorOfTheQuotient) {
+  std::mt19937_64 rng(1);
+  std::uniform_real_distribution<double> U(-50.0, 50.0);
+  for (double size : {0.02, 0.05, 0.1, 0.3, 0.5, 1.0 / 3.0}) {
+    const double inv = 1.0 / size;
+    for (int i = 0; i < 20000; ++i) {
+      double v = U(rng);
+      if (i % 2) {  // on and next to cell boundaries, where rounding matters
+        v = std::round(v / size) * size;
+        if (i % 4 == 1) v = std::nextafter(v, i % 8 == 1 ? 1e9 : -1e9);
+      }
+      ASSERT_EQ(floor_div(v, size, inv), std::floor(v / size)) << v << " / " << size;
+    }
+  }
+  for (double q : {-2.5, -2.0, -0.0, 0.0, 0.5, 3.0, -1e-300, 1e17, -1e17})
+    EXPECT_EQ(fast_floor(q), std::floor(q)) << q;
+}
+
+TEST(VoxelHashMap, InsertFindGrow) {
+  VoxelHashMap m;
+  EXPECT_FALSE(m.contains(pack_voxel(0, 0, 0)));
+  for (std::uint32_t i = 0; i < 10000; ++i) {
+    const auto r = m.insert(pack_voxel(i, -static_cast<std::int64_t>(i), 3), i);
+    EXPECT_TRUE(r.second);
+  }
+  EXPECT_EQ(m.size(), 10000u);
+  const auto again = m.insert(pack_voxel(5, -5, 3), 99);
+  EXPECT_FALSE(again.second);
+  EXPECT_EQ(again.first, 5u);
+  for (std::uint32_t i = 0; i < 10000; ++i)
+    ASSERT_EQ(m.find(pack_voxel(i, -static_cast<std::int64_t>(i), 3)), i);
+  EXPECT_EQ(m.find(pack_voxel(1, 1, 1)), VoxelHashMap::kMissing);
+  m.clear();
+  EXPECT_EQ(m.size(), 0u);
+  EXPECT_FALSE(m.contains(pack_voxel(5, -5, 3)));
+}
+
+TEST(SurfaceCloud, CentroidsInFirstSeenOrderAndGroundRemoval) {
+  SurfaceCloudOptions o;
+  o.voxel_size = 0.1;
+  SurfaceCloud c(o);
+  Points p(5, 3);
+  p << 0.15, 0.0, 1.0,   // voxel (1, 0, 10)
+      -0.01, 0.0, 1.0,   // voxel (-1, 0, 10)
+      0.11, 0.02, 1.04,  // voxel (1, 0, 10)
+      0.0, 0.0, 0.29,    // ground: dropped
+      -0.09, 0.0, 1.0;   // voxel (-1, 0, 10)
+  EXPECT_EQ(c.add(p), 2u);
+  const Points q = c.points();
+  ASSERT_EQ(q.rows(), 2);
+  EXPECT_NEAR(q(0, 0), 0.13, 1e-15);
+  EXPECT_NEAR(q(0, 2), 1.02, 1e-15);
+  EXPECT_NEAR(q(1, 0), -0.05, 1e-15);
+  EXPECT_EQ(c.counts()[0], 2);
+  EXPECT_EQ(c.num_registered(), 4u);
+}
+
+TEST(SurfaceCloud, NonFiniteInputChangesNothing) {
+  SurfaceCloud c;
+  Points p(2, 3);
+  p << 1, 1, 1, 1, std::numeric_limits<double>::quiet_NaN(), 1;
+  EXPECT_THROW(c.add(p), std::invalid_argument);
+  EXPECT_EQ(c.size(), 0u);
+  SurfaceCloudOptions bad;
+  bad.voxel_size = 0;
+  EXPECT_THROW(SurfaceCloud{bad}, std::invalid_argument);
+  bad.voxel_size = -1;
+  EXPECT_THROW(SurfaceCloud{bad}, std::invalid_argument);
+}
+
+TEST(KdTree, MatchesBruteForce) {
+  std::mt19937_64 rng(7);
+  std::normal_distribution<double> N(0.0, 1.0);
+  Points t(2000, 3), q(300, 3);
+  for (Eigen::Index i = 0; i < t.rows(); ++i) t.row(i) << N(rng), N(rng), 0.1 * N(rng);
+  t.bottomRows(100).setConstant(0.25);  // duplicates
+  for (Eigen::Index i = 0; i < q.rows(); ++i) q.row(i) << 3 * N(rng), 3 * N(rng), 3 * N(rng);
+  const KdTree tree(t, 4);
+  Eigen::Index hint = -1;
+  for (Eigen::Index i = 0; i < q.rows(); ++i) {
+    const double best = (t.rowwise() - q.row(i)).rowwise().squaredNorm().minCoeff();
+    const auto r = tree.nearest(q.row(i).transpose(), hint);
+    ASSERT_GE(r.first, 0);
+    EXPECT_DOUBLE_EQ(r.second, best);
+    EXPECT_DOUBLE_EQ((t.row(r.first) - q.row(i)).squaredNorm(), best);
+    hint = (i % 3) ? r.first : (i * 7) % t.rows();  // a good or an arbitrary hint
+  }
+  EXPECT_TRUE(tree.points().isApprox(t));
+}
+
+TEST(KdTree, EmptyAndSinglePoint) {
+  const KdTree empty(Points(0, 3));
+  EXPECT_EQ(empty.nearest(Eigen::Vector3d::Zero()).first, -1);
+  EXPECT_TRUE(std::isinf(empty.nearest(Eigen::Vector3d::Zero()).second));
+  Points one(1, 3);
+  one << 1, 2, 3;
+  const KdTree single(one);
+  EXPECT_EQ(single.nearest(Eigen::Vector3d::Zero()).first, 0);
+  EXPECT_DOUBLE_EQ(single.nearest(Eigen::Vector3d::Zero()).second, 14.0);
+}
+
+TEST(Lzf, DecodesLiteralsAndOverlappingBackReferences) {
+  // "abc" as a literal run, then a back reference of 6 bytes at distance 3: "abcabcabc".
+  const std::uint8_t in[] = {2, 'a', 'b', 'c', (6 - 2) << 5, 2};
+  const auto out = lzf_decompress(in, sizeof(in), 9);
+  EXPECT_EQ(std::string(out.begin(), out.end()), "abcabcabc");
+  EXPECT_THROW(lzf_decompress(in, sizeof(in), 8), std::invalid_argument);   // too long
+  EXPECT_THROW(lzf_decompress(in, sizeof(in), 10), std::invalid_argument);  // too short
+  const std::uint8_t bad[] = {0xe0, 0xff, 0xff};                           // reference before start
+  EXPECT_THROW(lzf_decompress(bad, sizeof(bad), 4), std::invalid_argument);
+}
+
+TEST(Evaluation, EmptyCloudScoresZeroWithoutChamfer) {
+  Points gt(3, 3);
+  gt << 0, 0, 0, 1, 0, 0, 0, 1, 0;
+  const EvaluationResult r = evaluate_points(gt, Points(0, 3));
+  EXPECT_EQ(r.n_points, 0);
+  EXPECT_FALSE(r.has_chamfer);
+  for (double v : r.coverage) EXPECT_EQ(v, 0.0);
+  for (double v : r.precision) EXPECT_EQ(v, 0.0);
+  for (double v : r.fscore) EXPECT_EQ(v, 0.0);
+  EXPECT_EQ(r.gt_cells[0], 3);
+}
+
+TEST(Evaluation, IdenticalCloudsScoreOneAndNegativeCellsCount) {
+  Points gt(4, 3);
+  gt << -0.01, -0.01, -0.01, 0.01, 0.01, 0.01, -0.26, 0.3, 2.0, 5.0, -5.0, -0.001;
+  const EvaluationResult r = evaluate_points(gt, gt);
+  ASSERT_TRUE(r.has_chamfer);
+  EXPECT_EQ(r.chamfer, 0.0);
+  for (double v : r.coverage) EXPECT_EQ(v, 1.0);
+  for (double v : r.accuracy) EXPECT_EQ(v, 1.0);
+  // -0.01 and 0.01 are in cells -1 and 0 at every resolution (the origin is a cell corner);
+  // truncation toward zero would put both in cell 0 and count 3 cells.
+  EXPECT_EQ(r.gt_cells[0], 4);  // 0.05 m
+  EXPECT_EQ(r.gt_cells[2], 4);  // 0.5 m
+}
+
+TEST(Evaluation, BadInput) {
+  Points gt(1, 3);
+  gt << 0, 0, 0;
+  EXPECT_THROW(evaluate_points(Points(0, 3), gt), std::invalid_argument);
+  EvaluationOptions o;
+  o.resolutions = {0.05, 0.0};
+  EXPECT_THROW(evaluate_points(gt, gt, o), std::invalid_argument);
+  o = EvaluationOptions{};
+  o.taus = {-1};
+  EXPECT_THROW(evaluate_points(gt, gt, o), std::invalid_argument);
+  Points nan = gt;
+  nan(0, 1) = std::numeric_limits<double>::infinity();
+  try {
+    evaluate_points(gt, nan);
+    FAIL() << "no exception";
+  } catch (const std::invalid_argument& e) {
+    EXPECT_NE(std::string(e.what()).find("cloud"), std::string::npos);
+  }
+}

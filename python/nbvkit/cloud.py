@@ -1,0 +1,462 @@
+"""Point clouds: the voxel-filtered reconstruction cloud and PLY / PCD / NPY files.
+
+``PointCloud`` accumulates observed surface points (world frame, metres) through an incremental
+voxel-grid filter with ground removal (the C++ ``nbv::SurfaceCloud``). ``read_points`` and
+``write_points`` move ``(N, 3)`` float64 arrays in and out of ``.ply``, ``.pcd`` and ``.npy``
+files; they are plain numpy (no PCL/VTK at import), read what open3d, PCL, CloudCompare and
+MeshLab write, and write files those tools read.
+"""
+from __future__ import annotations
+
+import os
+import re
+import warnings
+from pathlib import Path
+
+import numpy as np
+
+from . import _core
+
+__all__ = ["PointCloud", "read_points", "write_points", "DEFAULT_VOXEL_SIZE", "DEFAULT_MIN_Z",
+           "LASER_VOXEL_SIZE"]
+
+_DEFAULTS = _core.SurfaceCloudOptions()
+#: Voxel-grid cell of the RGB-D camera's cloud, metres (the authors' 0.02 m).
+DEFAULT_VOXEL_SIZE: float = _DEFAULTS.voxel_size
+#: Voxel-grid cell the authors used for the laser's profile cloud, metres.
+LASER_VOXEL_SIZE: float = 0.1
+#: Ground removal: points below this height (metres) are not registered.
+DEFAULT_MIN_Z: float = _DEFAULTS.min_z
+
+_SUFFIXES = (".ply", ".pcd", ".npy")
+
+
+class PointCloud(_core.SurfaceCloud):
+    """Observed surface points, world frame, metres, with an incremental voxel-grid filter.
+
+    Every point added falls in a voxel ``floor(p / voxel_size)`` (grid anchored at the origin);
+    the cloud keeps one point per voxel, the centroid of all points that fell in it — the same as
+    PCL's ``VoxelGrid`` over the union of everything added. Points with ``z < min_z`` (ground
+    removal) or outside ``bounds`` (a ``(2, 3)`` ``[min, max]`` crop box) are not registered.
+    ``points`` returns them as ``(K, 3)`` float64 in the order their voxels were first seen.
+
+    Args:
+        points: optional ``(N, 3)`` array (or a ``Scan``, or another cloud) to add at once.
+        voxel_size: voxel-grid cell in metres. Default 0.02 m, the authors' setting for the
+            RGB-D camera; use ``LASER_VOXEL_SIZE`` (0.1 m) for a laser profile cloud.
+        min_z: ground-removal height in metres (default 0.3 m as the authors); ``None`` or
+            ``-inf`` keeps everything.
+        bounds: optional crop box ``[[xmin, ymin, zmin], [xmax, ymax, zmax]]``.
+
+    Raises ValueError for a non-positive voxel size or NaN/inf points.
+    """
+
+    def __init__(self, points=None, voxel_size: float = DEFAULT_VOXEL_SIZE,
+                 min_z: float | None = DEFAULT_MIN_Z, bounds=None):
+        super().__init__(_positive(voxel_size, "voxel_size"), min_z, bounds)
+        if points is not None:
+            self.add(points)
+
+    def add(self, points) -> int:
+        """Register ``(N, 3)`` world-frame points (or a ``Scan``'s hits, or another cloud's points).
+
+        Returns the number of voxels they created. Raises ValueError, registering nothing, if any
+        point is NaN or infinite.
+        """
+        return super().add(_as_points(points))
+
+    @classmethod
+    def from_numpy(cls, points, voxel_size: float = DEFAULT_VOXEL_SIZE,
+                   min_z: float | None = DEFAULT_MIN_Z, bounds=None) -> "PointCloud":
+        """A cloud holding ``points`` ``(N, 3)`` after the voxel filter and ground removal."""
+        return cls(points, voxel_size=voxel_size, min_z=min_z, bounds=bounds)
+
+    @classmethod
+    def from_open3d(cls, o3d_cloud, voxel_size: float = DEFAULT_VOXEL_SIZE,
+                    min_z: float | None = DEFAULT_MIN_Z, bounds=None) -> "PointCloud":
+        """A cloud from an ``open3d.geometry.PointCloud`` (its points only)."""
+        pts = np.asarray(o3d_cloud.points, dtype=np.float64)
+        return cls(pts, voxel_size=voxel_size, min_z=min_z, bounds=bounds)
+
+    @classmethod
+    def load(cls, path, voxel_size: float = DEFAULT_VOXEL_SIZE,
+             min_z: float | None = DEFAULT_MIN_Z, bounds=None) -> "PointCloud":
+        """Read a ``.ply`` / ``.pcd`` / ``.npy`` file (see ``read_points``) into a new cloud.
+
+        The file's points go through the same filter as any other (so loading a cloud this
+        class saved, with the same settings, gives back the same points). Pass ``min_z=None``
+        to keep points below 0.3 m.
+        """
+        return cls(read_points(path), voxel_size=voxel_size, min_z=min_z, bounds=bounds)
+
+    def save(self, path, ascii: bool = False, dtype=None) -> None:
+        """Write the points to ``.ply``, ``.pcd`` or ``.npy`` (see ``write_points``)."""
+        write_points(path, self.points, ascii=ascii, dtype=dtype)
+
+    def to_numpy(self) -> np.ndarray:
+        """``(K, 3)`` float64 voxel centroids (a copy), same as ``points``."""
+        return self.points
+
+    def __array__(self, dtype=None):
+        pts = self.points
+        return pts if dtype is None else pts.astype(dtype)
+
+    def to_open3d(self):
+        """An ``open3d.geometry.PointCloud`` of the points (open3d is imported only here)."""
+        import open3d as o3d
+
+        return o3d.geometry.PointCloud(o3d.utility.Vector3dVector(self.points))
+
+    def __repr__(self) -> str:
+        mz = "None" if self.min_z is None else f"{self.min_z:g}"
+        return (f"<nbvkit.PointCloud {len(self)} points, voxel_size={self.voxel_size:g} m, "
+                f"min_z={mz}>")
+
+
+def _positive(v, what):
+    try:
+        f = float(v)
+    except (TypeError, ValueError):
+        raise ValueError(f"{what} must be a positive number of metres, got {v!r}") from None
+    if not (np.isfinite(f) and f > 0):
+        raise ValueError(f"{what} must be a positive number of metres, got {v!r}")
+    return f
+
+
+def _as_points(points):
+    if isinstance(points, _core.SurfaceCloud):
+        return points.points
+    if isinstance(points, _core.Scan):
+        return points.hits
+    return points
+
+
+# ------------------------------------------------------------------------------------ files
+
+def write_points(path, points, ascii: bool = False, dtype=None) -> None:
+    """Write ``(N, 3)`` points to a ``.ply``, ``.pcd`` or ``.npy`` file (by the extension).
+
+    - ``.ply``: binary little-endian (``ascii=True`` for text), ``property double x/y/z`` by
+      default — no precision lost; open3d, PCL, MeshLab and CloudCompare read it.
+    - ``.pcd``: PCL PCD v0.7, ``DATA binary`` (or ``ascii``), fields ``x y z`` as ``F 4``
+      (float32) by default, so ``pcl::io::loadPCDFile<pcl::PointXYZ>`` reads it directly
+      (float32 keeps ~4 µm at 35 m); ``dtype=np.float64`` writes ``F 8``.
+    - ``.npy``: the ``(N, 3)`` array as float64 (or ``dtype``).
+
+    Raises ValueError for a bad shape, NaN/inf points or an unknown extension.
+    """
+    path = Path(os.fspath(path)).expanduser()
+    suffix = path.suffix.lower()
+    if suffix not in _SUFFIXES:
+        raise ValueError(f"cannot write point cloud '{path}': unknown extension "
+                         f"'{path.suffix}' (use .ply, .pcd or .npy)")
+    pts = _check_points(points, "points")
+    if dtype is None:
+        dtype = np.float32 if suffix == ".pcd" else np.float64
+    dtype = np.dtype(dtype)
+    if dtype not in (np.dtype(np.float32), np.dtype(np.float64)):
+        raise ValueError(f"dtype must be float32 or float64, got {dtype}")
+    data = np.ascontiguousarray(pts, dtype=dtype.newbyteorder("<"))
+    if suffix == ".npy":
+        with open(path, "wb") as f:  # a file object: np.save would append .npy to ".NPY"
+            np.save(f, np.ascontiguousarray(pts, dtype=dtype))
+        return
+    fmt = "%.9g" if dtype == np.float32 else "%.17g"
+    if suffix == ".ply":
+        t = "float" if dtype == np.float32 else "double"
+        header = ("ply\nformat {} 1.0\ncomment written by nbvkit\nelement vertex {}\n"
+                  "property {t} x\nproperty {t} y\nproperty {t} z\nend_header\n").format(
+                      "ascii" if ascii else "binary_little_endian", len(pts), t=t)
+    else:
+        header = ("# .PCD v0.7 - Point Cloud Data file format\nVERSION 0.7\nFIELDS x y z\n"
+                  "SIZE {s} {s} {s}\nTYPE F F F\nCOUNT 1 1 1\nWIDTH {n}\nHEIGHT 1\n"
+                  "VIEWPOINT 0 0 0 1 0 0 0\nPOINTS {n}\nDATA {d}\n").format(
+                      s=dtype.itemsize, n=len(pts), d="ascii" if ascii else "binary")
+    with open(path, "wb") as f:
+        f.write(header.encode("ascii"))
+        if ascii:
+            if len(pts):
+                np.savetxt(f, data, fmt=fmt)
+        else:
+            f.write(data.tobytes())
+
+
+def read_points(path, drop_nonfinite: bool = True) -> np.ndarray:
+    """Read the x, y, z of every point of a ``.ply``, ``.pcd`` or ``.npy`` file.
+
+    Returns ``(N, 3)`` float64; ``(0, 3)`` for a valid file holding no points.
+
+    - ``.ply``: ``ascii``, ``binary_little_endian`` or ``binary_big_endian``; the ``vertex``
+      element's ``x y z`` properties of any numeric type; other properties and elements (normals,
+      colours, faces) are ignored.
+    - ``.pcd``: PCL PCD v0.5–0.7, ``DATA ascii``, ``binary`` or ``binary_compressed``; fields
+      ``x y z`` of type ``F`` (size 4 or 8, or any ``I``/``U``); other fields are ignored.
+    - ``.npy``: an ``(N, 3)`` numeric array.
+
+    Points with a NaN or infinite coordinate (PCL marks invalid pixels of organised clouds so)
+    are dropped with a warning unless ``drop_nonfinite=False``.
+
+    Raises FileNotFoundError (with the path) for a missing file, and ValueError naming the file
+    and the reason for an unknown extension or a file that cannot be parsed.
+    """
+    path = Path(os.fspath(path)).expanduser()
+    suffix = path.suffix.lower()
+    if not path.exists():
+        raise FileNotFoundError(2, "No such file", str(path))
+    if suffix not in _SUFFIXES:
+        raise ValueError(f"cannot read point cloud '{path}': unknown extension '{path.suffix}' "
+                         f"(use .ply, .pcd or .npy)")
+    if path.is_dir():
+        raise ValueError(f"cannot read point cloud '{path}': it is a directory")
+    try:
+        if suffix == ".npy":
+            pts = _read_npy(path)
+        else:
+            data = path.read_bytes()
+            pts = _read_ply(data) if suffix == ".ply" else _read_pcd(data)
+    except _FormatError as e:
+        raise ValueError(f"cannot read point cloud '{path}': {e}") from None
+    pts = np.ascontiguousarray(pts, dtype=np.float64).reshape(-1, 3)
+    if drop_nonfinite:
+        ok = np.isfinite(pts).all(axis=1)
+        if not ok.all():
+            warnings.warn(f"{path}: dropped {int((~ok).sum())} points with NaN or infinite "
+                          f"coordinates", RuntimeWarning, stacklevel=2)
+            pts = pts[ok]
+    return pts
+
+
+class _FormatError(Exception):
+    pass
+
+
+def _check_points(points, what):
+    a = np.asarray(_as_points(points), dtype=np.float64)
+    if a.ndim == 1 and a.size == 0:
+        a = a.reshape(0, 3)
+    if a.ndim != 2 or a.shape[1] != 3:
+        raise ValueError(f"{what} must have shape (N, 3), got {a.shape}")
+    if not np.isfinite(a).all():
+        raise ValueError(f"{what} contains NaN or infinite values")
+    return a
+
+
+def _read_npy(path):
+    try:
+        a = np.load(path, allow_pickle=False)
+    except ValueError as e:  # pickled object arrays, bad headers
+        raise _FormatError(f"not a plain numpy array file ({e})") from None
+    except (OSError, EOFError) as e:
+        raise _FormatError(f"not a numpy .npy file ({e})") from None
+    if not isinstance(a, np.ndarray) or a.dtype.kind not in "fiu":
+        raise _FormatError(f"expected a numeric (N, 3) array, got dtype {getattr(a, 'dtype', '?')}")
+    if a.ndim == 1 and a.size == 0:
+        return a.reshape(0, 3)
+    if a.ndim != 2 or a.shape[1] != 3:
+        raise _FormatError(f"expected an (N, 3) array, got shape {a.shape}")
+    return a
+
+
+# ---- PLY
+
+_PLY_TYPES = {
+    "char": "i1", "int8": "i1", "uchar": "u1", "uint8": "u1",
+    "short": "i2", "int16": "i2", "ushort": "u2", "uint16": "u2",
+    "int": "i4", "int32": "i4", "uint": "u4", "uint32": "u4",
+    "float": "f4", "float32": "f4", "double": "f8", "float64": "f8",
+}
+
+
+def _split_header(data: bytes, end_marker: bytes, what: str):
+    """(header lines, offset of the body) for a text header ending with the line end_marker."""
+    m = re.search(rb"^" + re.escape(end_marker) + rb"[^\n]*\n", data, re.M)
+    if m is None:
+        # A file whose body is empty may end right after the marker without a newline.
+        m = re.search(rb"^" + re.escape(end_marker) + rb"[^\n]*\Z", data, re.M)
+        if m is None:
+            raise _FormatError(f"no '{end_marker.decode()}' line: not a {what} file or truncated")
+    try:
+        header = data[:m.end()].decode("ascii")
+    except UnicodeDecodeError:
+        raise _FormatError(f"the {what} header is not ASCII text") from None
+    return header.splitlines(), m.end()
+
+
+def _ply_type(name):
+    if name not in _PLY_TYPES:
+        raise _FormatError(f"unknown PLY property type '{name}'")
+    return _PLY_TYPES[name]
+
+
+def _read_ply(data: bytes) -> np.ndarray:
+    if not data.startswith(b"ply"):
+        raise _FormatError("not a PLY file (it does not start with 'ply')")
+    lines, body = _split_header(data, b"end_header", "PLY")
+    fmt = None
+    elements = []  # [name, count, [(kind, name, type, count_type)]]
+    for raw in lines[1:]:
+        tok = raw.split()
+        if not tok or tok[0] in ("comment", "obj_info", "end_header"):
+            continue
+        if tok[0] == "format":
+            if len(tok) < 2 or tok[1] not in ("ascii", "binary_little_endian", "binary_big_endian"):
+                raise _FormatError(f"unknown PLY format line '{raw.strip()}'")
+            fmt = tok[1]
+        elif tok[0] == "element":
+            if len(tok) != 3 or not tok[2].isdigit():
+                raise _FormatError(f"bad PLY element line '{raw.strip()}'")
+            elements.append([tok[1], int(tok[2]), []])
+        elif tok[0] == "property":
+            if not elements:
+                raise _FormatError("PLY property before any element")
+            if len(tok) == 5 and tok[1] == "list":
+                elements[-1][2].append(("list", tok[4], _ply_type(tok[3]), _ply_type(tok[2])))
+            elif len(tok) == 3:
+                elements[-1][2].append(("scalar", tok[2], _ply_type(tok[1]), None))
+            else:
+                raise _FormatError(f"bad PLY property line '{raw.strip()}'")
+        else:
+            raise _FormatError(f"unexpected PLY header line '{raw.strip()}'")
+    if fmt is None:
+        raise _FormatError("the PLY header has no 'format' line")
+    names = [e[0] for e in elements]
+    if "vertex" not in names:
+        return np.zeros((0, 3))  # e.g. an empty file or one with other elements only
+    vi = names.index("vertex")
+    _, count, props = elements[vi]
+    pnames = [p[1] for p in props]
+    for axis in "xyz":
+        if axis not in pnames:
+            raise _FormatError(f"the PLY vertex element has no '{axis}' property")
+    if count == 0:
+        return np.zeros((0, 3))
+    if any(p[0] == "list" for p in props):
+        raise _FormatError("PLY vertex elements with list properties are not supported")
+    if fmt == "ascii":
+        text = data[body:].decode("ascii", errors="replace").splitlines()
+        skip = sum(e[1] for e in elements[:vi])
+        rows = [ln for ln in text if ln.strip()][skip:skip + count]
+        if len(rows) < count:
+            raise _FormatError(f"truncated: {len(rows)} of {count} vertex lines")
+        try:
+            vals = np.array(" ".join(rows).split(), dtype=np.float64)
+        except ValueError:
+            raise _FormatError("non-numeric value in the vertex data") from None
+        if vals.size != count * len(props):
+            raise _FormatError(f"expected {len(props)} values on each of the {count} vertex lines")
+        vals = vals.reshape(count, len(props))
+        return vals[:, [pnames.index(a) for a in "xyz"]]
+    endian = "<" if fmt == "binary_little_endian" else ">"
+    offset = body
+    for name, n, eprops in elements[:vi]:  # skip the elements stored before the vertices
+        offset = _skip_binary_element(data, offset, n, eprops, endian, name)
+    dtype = np.dtype([(f"p{i}", endian + p[2]) for i, p in enumerate(props)])
+    if offset + count * dtype.itemsize > len(data):
+        raise _FormatError(f"truncated: {count} vertices of {dtype.itemsize} bytes do not fit")
+    rec = np.frombuffer(data, dtype=dtype, count=count, offset=offset)
+    return np.stack([rec[f"p{pnames.index(a)}"].astype(np.float64) for a in "xyz"], axis=1)
+
+
+def _skip_binary_element(data, offset, n, props, endian, name):
+    if all(p[0] == "scalar" for p in props):
+        return offset + n * sum(np.dtype(p[2]).itemsize for p in props)
+    for _ in range(n):  # list properties: walk (only for elements stored before the vertices)
+        for kind, _pname, t, ct in props:
+            if kind == "scalar":
+                offset += np.dtype(t).itemsize
+            else:
+                if offset + np.dtype(ct).itemsize > len(data):
+                    raise _FormatError(f"truncated in element '{name}'")
+                k = int(np.frombuffer(data, endian + ct, 1, offset)[0])
+                offset += np.dtype(ct).itemsize + k * np.dtype(t).itemsize
+    return offset
+
+
+# ---- PCD
+
+_PCD_KINDS = {"F": "f", "I": "i", "U": "u"}
+
+
+def _read_pcd(data: bytes) -> np.ndarray:
+    lines, body = _split_header(data, b"DATA", "PCD")
+    h = {}
+    for raw in lines:
+        s = raw.split("#", 1)[0].strip()
+        if not s:
+            continue
+        key, *vals = s.split()
+        h[key.upper()] = vals
+    for key in ("FIELDS", "SIZE", "TYPE", "DATA"):
+        if key not in h:
+            raise _FormatError(f"the PCD header has no {key} line")
+    fields, sizes, types = h["FIELDS"], h["SIZE"], h["TYPE"]
+    counts = h.get("COUNT", ["1"] * len(fields))
+    if not (len(fields) == len(sizes) == len(types) == len(counts)):
+        raise _FormatError("PCD FIELDS, SIZE, TYPE and COUNT have different lengths")
+    try:
+        sizes = [int(s) for s in sizes]
+        counts = [int(c) for c in counts]
+        if "POINTS" in h:
+            n = int(h["POINTS"][0])
+        else:
+            n = int(h["WIDTH"][0]) * int(h.get("HEIGHT", ["1"])[0])
+    except (ValueError, KeyError, IndexError):
+        raise _FormatError("bad SIZE, COUNT, WIDTH, HEIGHT or POINTS in the PCD header") from None
+    for axis in "xyz":
+        if axis not in fields:
+            raise _FormatError(f"the PCD file has no '{axis}' field")
+    dts = []
+    for f, s, t in zip(fields, sizes, types):
+        if t not in _PCD_KINDS or s not in (1, 2, 4, 8) or (t == "F" and s not in (4, 8)):
+            raise _FormatError(f"unsupported PCD field '{f}': TYPE {t} SIZE {s}")
+        dts.append("<" + _PCD_KINDS[t] + str(s))
+    mode = h["DATA"][0].lower() if h["DATA"] else ""
+    cols = [fields.index(a) for a in "xyz"]
+    if n == 0:
+        return np.zeros((0, 3))
+    if mode == "ascii":
+        text = data[body:].decode("ascii", errors="replace").split()
+        per = sum(counts)
+        if len(text) < n * per:
+            raise _FormatError(f"truncated: expected {n} points of {per} values")
+        try:
+            vals = np.array(text[:n * per], dtype=np.float64).reshape(n, per)
+        except ValueError:
+            raise _FormatError("non-numeric value in the point data") from None
+        starts = np.concatenate([[0], np.cumsum(counts)[:-1]])
+        return vals[:, [starts[c] for c in cols]]
+    if mode == "binary":
+        dtype = np.dtype([(f"f{i}", dt, (c,)) if c > 1 else (f"f{i}", dt)
+                          for i, (dt, c) in enumerate(zip(dts, counts))])
+        if body + n * dtype.itemsize > len(data):
+            raise _FormatError(f"truncated: {n} points of {dtype.itemsize} bytes do not fit")
+        rec = np.frombuffer(data, dtype=dtype, count=n, offset=body)
+        return np.stack([_first(rec[f"f{c}"]).astype(np.float64) for c in cols], axis=1)
+    if mode == "binary_compressed":
+        if body + 8 > len(data):
+            raise _FormatError("truncated: no compressed block sizes")
+        csize, usize = (int(v) for v in np.frombuffer(data, "<u4", 2, body))
+        if body + 8 + csize > len(data):
+            raise _FormatError("truncated compressed data")
+        try:
+            raw = _core._lzf_decompress(data[body + 8:body + 8 + csize], usize)
+        except ValueError as e:
+            raise _FormatError(str(e)) from None
+        # Fields are stored one after another (all points' x, then all y, ...).
+        out, off = [], 0
+        per_field = [n * s * c for s, c in zip(sizes, counts)]
+        if sum(per_field) > usize:
+            raise _FormatError("compressed block smaller than the header's points")
+        for i, (dt, c) in enumerate(zip(dts, counts)):
+            if i in cols:
+                arr = np.frombuffer(raw, dt, n * c, off).reshape(n, c)[:, 0]
+                out.append((cols.index(i), arr.astype(np.float64)))
+            off += per_field[i]
+        out.sort(key=lambda t: t[0])
+        return np.stack([a for _, a in out], axis=1)
+    raise _FormatError(f"unknown PCD DATA type '{' '.join(h['DATA'])}'")
+
+
+def _first(a):
+    return a[:, 0] if a.ndim == 2 else a
+

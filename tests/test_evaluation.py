@@ -1,0 +1,373 @@
+"""nbvkit.evaluate: coverage / area coverage / precision on the origin-anchored grid, completeness /
+accuracy / F-score / Chamfer with exact nearest neighbours, determinism, bad input, and the
+`nbvkit evaluate` command."""
+from __future__ import annotations
+
+import json
+import math
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+
+import nbvkit
+from nbvkit import Evaluator, evaluate
+from nbvkit.evaluation import DEFAULT_GT_DENSITY
+from conftest import shared_mesh
+
+KEYS = ("coverage", "area_coverage", "precision", "completeness", "accuracy", "fscore",
+        "chamfer_m", "n_points", "gt_density")
+
+
+def box(lo, hi):
+    """An axis-aligned box [lo, hi] as 12 triangles (built from arrays, no fixture file)."""
+    lo, hi = np.asarray(lo, float), np.asarray(hi, float)
+    c = np.array([[x, y, z] for z in (0, 1) for y in (0, 1) for x in (0, 1)], float)
+    f = np.array([[0, 2, 1], [1, 2, 3], [4, 5, 6], [5, 7, 6], [0, 1, 4], [1, 5, 4],
+                  [2, 6, 3], [3, 6, 7], [0, 4, 2], [2, 4, 6], [1, 3, 5], [3, 7, 5]], np.int32)
+    return nbvkit.Mesh(lo + c * (hi - lo), f)
+
+
+def square_x(x, lo, hi):
+    """The square {x} x [lo, hi]^2 as two triangles."""
+    v = np.array([[x, lo, lo], [x, hi, lo], [x, hi, hi], [x, lo, hi]], float)
+    return nbvkit.Mesh(v, np.array([[0, 1, 2], [0, 2, 3]], np.int32))
+
+
+def reference_metrics(gt, cloud, resolutions, taus):
+    """The definitions, in plain numpy with brute-force distances (small inputs only)."""
+    out = {k: {} for k in ("coverage", "area_coverage", "precision", "completeness", "accuracy")}
+    for r in resolutions:
+        kg = {tuple(k) for k in np.floor(gt / r).astype(np.int64)}
+        kc = {tuple(k) for k in np.floor(cloud / r).astype(np.int64)}
+        per_sample = [tuple(k) in kc for k in np.floor(gt / r).astype(np.int64)]
+        out["coverage"][f"{r:g}"] = len(kg & kc) / len(kg)
+        out["area_coverage"][f"{r:g}"] = float(np.mean(per_sample))
+        out["precision"][f"{r:g}"] = len(kg & kc) / len(kc)
+    d = np.linalg.norm(gt[:, None, :] - cloud[None, :, :], axis=2)
+    d_gt, d_cloud = d.min(axis=1), d.min(axis=0)
+    for t in taus:
+        out["completeness"][f"{t:g}"] = float(np.mean(d_gt <= t))
+        out["accuracy"][f"{t:g}"] = float(np.mean(d_cloud <= t))
+    out["chamfer_m"] = 0.5 * (d_gt.mean() + d_cloud.mean())
+    return out
+
+
+# A 2 m cube placed so that its faces lie mid-cell of the 0.05 m grid (x, y, z in [0.025, 2.025]):
+# no sample sits on a cell boundary, so the cell counts are exact: a face crosses 41 x 41 cells,
+# the cube 6 * 41^2 - 12 * 41 + 8 = 9602 (edge cells shared by two faces, corners by three).
+CUBE_LO, CUBE_HI = 0.025, 2.025
+
+
+@pytest.fixture(scope="module")
+def cube():
+    return box([CUBE_LO] * 3, [CUBE_HI] * 3)
+
+
+@pytest.fixture(scope="module")
+def cube_face_cloud():
+    """Dense samples of the cube's x = 2.025 face alone."""
+    return square_x(CUBE_HI, CUBE_LO, CUBE_HI).sample_surface(200_000, seed=5)
+
+
+# ------------------------------------------------------------------------------ analytic scenes
+
+def test_ground_truth_itself_scores_100_percent(cube):
+    ev = Evaluator(cube, gt_density=2000, seed=1)
+    r = ev(ev.gt_points)
+    for k in ("coverage", "area_coverage", "precision"):
+        assert r[k] == {"0.05": 1.0, "0.1": 1.0, "0.5": 1.0}
+    for k in ("completeness", "accuracy", "fscore"):
+        assert r[k] == {"0.05": 1.0, "0.1": 1.0}
+    assert r["chamfer_m"] == 0.0
+    assert r["n_points"] == r["n_gt_points"] == round(24 * 2000)
+    assert r["gt_area_m2"] == pytest.approx(24.0)
+    assert r["gt_density"] == pytest.approx(2000, rel=1e-9)
+
+
+def test_one_cube_face_gives_a_sixth(cube, cube_face_cloud):
+    r = evaluate(cube, cube_face_cloud, gt_density=20_000, seed=0)
+    # Cells: the face's 41^2 of the cube's 9602 (exact: every cell holds samples at this density).
+    assert r["gt_cells"]["0.05"] == 9602
+    assert r["coverage"]["0.05"] == pytest.approx(41 ** 2 / 9602, abs=1e-12)
+    assert r["coverage"]["0.05"] == pytest.approx(1 / 6, abs=0.01)
+    # Area: the face's layer of cells (x in [2.0, 2.05)) also holds 0.025 m strips of the four
+    # neighbouring faces: (1 + 4 * 0.025 / 2) / 6 = 0.175 of the area. 480k samples: sigma 0.0006.
+    assert r["area_coverage"]["0.05"] == pytest.approx(0.175, abs=0.003)
+    assert r["area_coverage"]["0.05"] == pytest.approx(1 / 6, abs=0.01)
+    assert r["precision"] == {"0.05": 1.0, "0.1": 1.0, "0.5": 1.0}
+    # Within tau of the face: the face and tau-wide strips of its 4 neighbours: (1 + 4 tau / 2) / 6.
+    for tau in (0.05, 0.1):
+        assert r["completeness"][f"{tau:g}"] == pytest.approx((1 + 2 * tau) / 6, abs=0.003)
+    assert r["accuracy"] == {"0.05": 1.0, "0.1": 1.0}
+    P, R = r["accuracy"]["0.05"], r["completeness"]["0.05"]
+    assert r["fscore"]["0.05"] == pytest.approx(2 * P * R / (P + R), rel=1e-12)
+
+
+def test_shifted_cloud_gives_zero_at_fine_resolution(cube):
+    ev = Evaluator(cube, gt_density=5000)
+    shift = np.array([1.0, 1.0, 1.0]) / math.sqrt(3)  # 1 m, off every face plane
+    r = ev(ev.gt_points + shift)
+    assert r["coverage"]["0.05"] < 0.02 and r["area_coverage"]["0.05"] < 0.02
+    assert r["precision"]["0.05"] < 0.02
+    assert r["coverage"]["0.5"] > r["coverage"]["0.05"]
+    # The shifted faces cross the original ones along lines only: few points within 5 cm.
+    assert r["completeness"]["0.05"] < 0.05 and r["accuracy"]["0.05"] < 0.05
+    assert r["chamfer_m"] > 0.2
+
+
+def test_far_cloud_scores_zero_and_fscore_is_zero(cube):
+    r = evaluate(cube, np.full((10, 3), 50.0), gt_density=500)
+    for k in ("coverage", "area_coverage", "precision"):
+        assert all(v == 0 for v in r[k].values())
+    assert r["accuracy"] == r["completeness"] == r["fscore"] == {"0.05": 0.0, "0.1": 0.0}
+    # Chamfer: each far point is ~sqrt(3) * 48 m from the nearest cube corner region.
+    assert r["chamfer_m"] > 80
+
+
+def test_empty_cloud_scores_zero_without_error(cube):
+    for empty in (np.zeros((0, 3)), [], nbvkit.PointCloud()):
+        r = evaluate(cube, empty, gt_density=500)
+        assert r["n_points"] == 0 and r["chamfer_m"] is None
+        assert r["mean_dist_cloud_to_gt_m"] is None
+        for k in ("coverage", "area_coverage", "precision", "completeness", "accuracy", "fscore"):
+            assert all(v == 0.0 for v in r[k].values()), k
+        assert r["gt_cells"]["0.05"] > 0
+        json.dumps(r, allow_nan=False)
+
+
+def test_precision_counts_outlier_cells():
+    rng = np.random.default_rng(0)
+    gt = rng.uniform(0, 1, size=(3000, 3)) * [4, 4, 0] + [0, 0, 1.01]  # a plane at z = 1.01
+    good = gt[:1000]
+    outliers = rng.uniform(-20, 20, size=(500, 3)) + [0, 0, 30]  # far away, all in distinct cells
+    r = evaluate(gt, np.vstack([good, outliers]), resolutions=(0.05,), taus=(0.05,))
+    good_cells = len(np.unique(np.floor(good / 0.05), axis=0))
+    assert r["cloud_cells"]["0.05"] == good_cells + 500
+    assert r["precision"]["0.05"] == pytest.approx(good_cells / (good_cells + 500), abs=1e-12)
+    assert r["accuracy"]["0.05"] == pytest.approx(1000 / 1500, abs=1e-12)
+
+
+def test_matches_the_definitions_on_random_data():
+    rng = np.random.default_rng(7)
+    gt = rng.normal(size=(1500, 3)) * [2, 1, 0.5] - [0.3, 0.2, 0.1]  # negative coordinates too
+    cloud = np.vstack([gt[::3] + rng.normal(scale=0.03, size=(500, 3)),
+                       rng.uniform(-3, 3, size=(300, 3))])
+    res, taus = (0.05, 0.1, 0.5, 1.3), (0.02, 0.05, 0.1, 0.4)
+    r = evaluate(gt, cloud, resolutions=res, taus=taus)
+    ref = reference_metrics(gt, cloud, res, taus)
+    for k in ("coverage", "area_coverage", "precision", "completeness", "accuracy"):
+        assert r[k].keys() == ref[k].keys()
+        for key in r[k]:
+            assert r[k][key] == pytest.approx(ref[k][key], abs=1e-12), (k, key)
+    assert r["chamfer_m"] == pytest.approx(ref["chamfer_m"], rel=1e-12)
+    for key, f in r["fscore"].items():
+        P, R = r["accuracy"][key], r["completeness"][key]
+        assert f == pytest.approx(2 * P * R / (P + R) if P + R else 0.0, rel=1e-12)
+    assert r["gt_source"] == "points" and r["gt_density"] is None and r["gt_area_m2"] is None
+    assert r["n_gt_points"] == 1500 and r["n_points"] == 800
+
+
+def test_nearest_distances_are_exact():
+    rng = np.random.default_rng(1)
+    targets = np.vstack([rng.normal(size=(3000, 3)), np.zeros((50, 3))])  # duplicates too
+    queries = np.vstack([rng.normal(size=(400, 3)) * 3, [[100, 100, 100]]])
+    d = nbvkit.nearest_distances(targets, queries)
+    ref = np.linalg.norm(queries[:, None] - targets[None], axis=2).min(axis=1)
+    np.testing.assert_allclose(d, ref, rtol=1e-14, atol=0)
+    assert np.isinf(nbvkit.nearest_distances(np.zeros((0, 3)), queries)).all()
+
+
+# ------------------------------------------------------------------------------ contracts
+
+def test_same_seed_same_numbers_and_threads_do_not_matter(cube, cube_face_cloud):
+    a = evaluate(cube, cube_face_cloud, gt_density=3000, seed=4)
+    b = evaluate(cube, cube_face_cloud, gt_density=3000, seed=4)
+    assert a == b
+    c = evaluate(cube, cube_face_cloud, gt_density=3000, seed=5)
+    assert c != a and c["n_gt_points"] == a["n_gt_points"]
+    n = nbvkit.get_num_threads()
+    try:
+        nbvkit.set_num_threads(1)
+        assert evaluate(cube, cube_face_cloud, gt_density=3000, seed=4) == a
+    finally:
+        nbvkit.set_num_threads(0 if n > 1 else n)
+
+
+def test_evaluator_reuse_equals_evaluate(cube, cube_face_cloud):
+    ev = Evaluator(cube, gt_density=1500, seed=2)
+    assert ev(cube_face_cloud) == evaluate(cube, cube_face_cloud, gt_density=1500, seed=2)
+    assert ev.evaluate(cube_face_cloud[:100]) == evaluate(cube, cube_face_cloud[:100], gt_density=1500, seed=2)
+    np.testing.assert_array_equal(ev.gt_points, cube.sample_surface(ev.num_gt_points, 2))
+    assert "Evaluator" in repr(ev)
+
+
+def test_reference_cloud_mode(cube):
+    gt = cube.sample_surface(20000, seed=3)
+    r = evaluate(gt, gt[:10000])
+    assert r["gt_source"] == "points" and r["gt_density"] is None and r["seed"] is None
+    assert r["n_gt_points"] == 20000 and r["accuracy"]["0.05"] == 1.0
+    assert 0.5 < r["area_coverage"]["0.05"] < 1.0 and r["coverage"]["0.5"] > 0.95
+    pc = nbvkit.PointCloud(gt, voxel_size=1e-5, min_z=None)  # keeps every sample
+    assert evaluate(pc, gt[:10000]) == r  # a PointCloud is a reference cloud too
+
+
+def test_result_keys_and_json(cube, cube_face_cloud):
+    r = evaluate(cube, cube_face_cloud[:5000], gt_density=500)
+    for k in KEYS + ("n_gt_points", "gt_area_m2", "resolutions", "taus", "seed"):
+        assert k in r
+    assert list(r["coverage"]) == ["0.05", "0.1", "0.5"] and list(r["fscore"]) == ["0.05", "0.1"]
+    assert r["resolutions"] == [0.05, 0.1, 0.5] and r["taus"] == [0.05, 0.1]
+    json.loads(json.dumps(r, allow_nan=False))
+    r2 = evaluate(cube, cube_face_cloud[:5000], resolutions=0.2, taus=[0.3], gt_density=500)
+    assert list(r2["coverage"]) == ["0.2"] and list(r2["accuracy"]) == ["0.3"]
+
+
+def test_default_density_is_documented():
+    assert DEFAULT_GT_DENSITY == 1000
+    assert "1000" in evaluate.__doc__
+    config = pytest.importorskip("nbvkit.config")
+    if hasattr(config, "EvaluationConfig"):
+        d = config.EvaluationConfig().gt_density
+        assert d is None or d == DEFAULT_GT_DENSITY
+
+
+def test_gt_cap_warns(cube):
+    with pytest.warns(RuntimeWarning, match="capped at 1000"):
+        r = evaluate(cube, np.zeros((0, 3)), gt_density=1e6, max_gt_points=1000)
+    assert r["n_gt_points"] == 1000 and r["gt_density"] == pytest.approx(1000 / 24)
+
+
+def test_bad_input(cube):
+    good = np.ones((5, 3))
+    with pytest.raises(ValueError, match="cloud contains NaN"):
+        evaluate(cube, [[0, 0, np.nan]])
+    with pytest.raises(ValueError, match="cloud contains NaN or infinite"):
+        evaluate(good, [[0, 0, np.inf]])
+    with pytest.raises(ValueError, match="ground truth contains NaN"):
+        evaluate([[0, np.nan, 0]], good)
+    with pytest.raises(ValueError, match="ground truth point cloud is empty"):
+        evaluate(np.zeros((0, 3)), good)
+    with pytest.raises(ValueError, match=r"shape \(N, 3\)"):
+        evaluate(cube, np.ones((4, 2)))
+    for res in (0, -0.05, float("nan"), [0.05, float("inf")], "fine"):
+        with pytest.raises(ValueError, match="resolutions"):
+            evaluate(good, good, resolutions=res)
+    with pytest.raises(ValueError, match="duplicate"):
+        evaluate(good, good, resolutions=(0.1, 0.1))
+    for tau in (0, -1, [float("nan")]):
+        with pytest.raises(ValueError, match="taus"):
+            evaluate(good, good, taus=tau)
+    for d in (0, -10, float("nan"), float("inf"), "dense"):
+        with pytest.raises(ValueError, match="gt_density"):
+            evaluate(cube, good, gt_density=d)
+    with pytest.raises(ValueError, match="no ground-truth samples"):
+        evaluate(cube, good, gt_density=1e-3)
+    for seed in (-1, 1.5, True):
+        with pytest.raises(ValueError, match="seed"):
+            evaluate(cube, good, seed=seed)
+    with pytest.raises(ValueError, match="too far from the origin"):
+        evaluate(good, [[1e6, 0, 0]], resolutions=(0.05,))
+
+
+# ------------------------------------------------------------------------------ the twinjet
+
+def camera_cloud(mesh, views):
+    cam = nbvkit.DepthCamera(nbvkit.RaycastScene(mesh))
+    cloud = nbvkit.PointCloud()
+    for pose in views:
+        cloud.add(cam.scan_pose(pose))
+    return cloud
+
+
+def test_twinjet_coverage_is_stable_across_gt_seeds():
+    mesh = nbvkit.load_mesh(shared_mesh("twinjet.obj"))
+    cloud = camera_cloud(mesh, [(x, -7.0, 3.0, math.pi / 2) for x in (-10, -5, 0, 5, 10)]
+                         + [(x, 7.0, 3.0, -math.pi / 2) for x in (-5, 5)])
+    ev0, ev1 = Evaluator(mesh, seed=0), Evaluator(mesh, seed=1)
+    a, b = ev0(cloud), ev1(cloud)
+    assert a["n_gt_points"] == round(mesh.area * DEFAULT_GT_DENSITY)
+    assert 0.05 < a["coverage"]["0.05"] < 0.5  # one side of the fuselage, some wing
+    for key in ("0.05", "0.1", "0.5"):
+        assert abs(a["coverage"][key] - b["coverage"][key]) < 0.005
+        assert abs(a["area_coverage"][key] - b["area_coverage"][key]) < 0.005
+    assert a["accuracy"]["0.05"] > 0.99  # exact scans of the same surface
+    assert ev0(cloud) == a
+
+
+# ------------------------------------------------------------------------------ command line
+
+@pytest.fixture(scope="module")
+def cube_files(tmp_path_factory, cube, cube_face_cloud):
+    d = tmp_path_factory.mktemp("evalcli")
+    v, f = cube.vertices, cube.faces + 1
+    lines = [f"v {x!r} {y!r} {z!r}" for x, y, z in v] + [f"f {a} {b} {c}" for a, b, c in f]
+    (d / "cube.obj").write_text("\n".join(lines) + "\n")
+    nbvkit.write_points(d / "face.ply", cube_face_cloud[:20000])
+    nbvkit.write_points(d / "gt.npy", cube.sample_surface(30000, 0))
+    return d
+
+
+def test_cli_evaluate_writes_json(cube_files, capsys):
+    from nbvkit.cli import main
+
+    out = cube_files / "r.json"
+    rc = main(["evaluate", "--mesh", str(cube_files / "cube.obj"), str(cube_files / "face.ply"),
+               "--json", str(out), "--gt-density", "2000", "--seed", "3"])
+    assert rc == 0
+    text = capsys.readouterr().out
+    assert "coverage" in text and "0.05 m" in text and "Chamfer" in text
+    r = json.loads(out.read_text())
+    for k in KEYS:
+        assert k in r
+    assert r["gt_density"] == pytest.approx(2000) and r["n_points"] == 20000 and r["seed"] == 3
+    assert r["coverage"]["0.05"] == pytest.approx(1 / 6, abs=0.02)
+    expected = evaluate(nbvkit.load_mesh(cube_files / "cube.obj"), nbvkit.read_points(cube_files / "face.ply"),
+                        gt_density=2000, seed=3)
+    for k in ("coverage", "area_coverage", "precision", "completeness", "accuracy", "fscore", "chamfer_m"):
+        assert r[k] == expected[k]
+
+
+def test_cli_reference_cloud_and_scaled_mesh(cube_files, capsys):
+    from nbvkit.cli import main
+
+    out = cube_files / "ref.json"
+    assert main(["evaluate", "--reference-cloud", str(cube_files / "gt.npy"),
+                 str(cube_files / "face.ply"), "--json", str(out)]) == 0
+    r = json.loads(out.read_text())
+    assert r["gt_density"] is None and r["n_gt_points"] == 30000 and r["gt_source"] == "points"
+    assert r["reference_cloud"].endswith("gt.npy")
+    # a 2x-scaled mesh no longer contains the face: coverage drops to ~0
+    out2 = cube_files / "scaled.json"
+    assert main(["evaluate", "--mesh", str(cube_files / "cube.obj"), "--mesh-scale", "2",
+                 str(cube_files / "face.ply"), "--json", str(out2), "--gt-density", "500"]) == 0
+    assert json.loads(out2.read_text())["coverage"]["0.05"] < 0.01
+    capsys.readouterr()
+
+
+def test_cli_errors(cube_files, capsys):
+    from nbvkit.cli import main
+
+    missing = cube_files / "missing_cloud.ply"
+    assert main(["evaluate", "--mesh", str(cube_files / "cube.obj"), str(missing)]) != 0
+    err = capsys.readouterr().err
+    assert "missing_cloud.ply" in err and "error" in err
+    assert main(["evaluate", "--mesh", str(cube_files / "cube.obj"), "--reference-cloud",
+                 str(cube_files / "gt.npy"), str(cube_files / "face.ply")]) != 0
+    assert "not both" in capsys.readouterr().err
+    assert main(["evaluate", "--mesh", str(cube_files / "cube.obj"), str(cube_files / "face.ply"),
+                 "--resolutions", "0"]) != 0
+    assert "resolutions" in capsys.readouterr().err
+    (cube_files / "bad.pcd").write_text("not a pcd\n")
+    assert main(["evaluate", "--mesh", str(cube_files / "cube.obj"), str(cube_files / "bad.pcd")]) != 0
+    assert "bad.pcd" in capsys.readouterr().err
+
+
+def test_cli_help_explains_every_option():
+    proc = subprocess.run([sys.executable, "-m", "nbvkit.cli", "evaluate", "--help"],
+                          capture_output=True, text=True, timeout=60)
+    assert proc.returncode == 0
+    for opt in ("--mesh", "--mesh-scale", "--mesh-up", "--reference-cloud", "--json",
+                "--gt-density", "--seed", "--resolutions", "--taus", "CLOUD"):
+        assert opt in proc.stdout
