@@ -17,6 +17,11 @@ from ._core import (  # noqa: F401  (re-exported)
     set_num_threads,
 )
 from .mesh import default_mesh_path, load_mesh, mesh_from_open3d, mesh_to_open3d
+from ._core import nearest_distances  # noqa: F401
+from .cloud import PointCloud, read_points, write_points  # noqa: F401
+from .evaluation import Evaluator, evaluate  # noqa: F401
+from .mapping import CellFlag, CellState, IntegrationStats, OccupancyMap, OccupancyMapOptions  # noqa: F401
+from .symmetry import SymmetryResult, detect_symmetry, predict_symmetric  # noqa: F401
 
 __version__ = "0.1.0"
 
@@ -34,4 +39,18 @@ __all__ = [
     "mount_transform",
     "pose_to_transform",
     "set_num_threads",
+    "PointCloud",
+    "read_points",
+    "write_points",
+    "nearest_distances",
+    "Evaluator",
+    "evaluate",
+    "CellFlag",
+    "CellState",
+    "IntegrationStats",
+    "OccupancyMap",
+    "OccupancyMapOptions",
+    "SymmetryResult",
+    "detect_symmetry",
+    "predict_symmetric",
 ]

@@ -1,0 +1,271 @@
+// Edge cases of the occupancy map: key arithmetic, ray traversal, workspace bookkeeping, and the
+// fast integration path against OctoMap's own code.
+#include "nbv/occupancy_map.hpp"
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <filesystem>
+#include <random>
+#include <vector>
+
+using nbv::CellFlag;
+using nbv::CellState;
+using nbv::OccupancyMap;
+using nbv::OccupancyMapOptions;
+using nbv::Points;
+using Key = OccupancyMap::Key;
+
+namespace {
+
+Points rows(std::initializer_list<std::array<double, 3>> pts) {
+  Points p(Eigen::Index(pts.size()), 3);
+  Eigen::Index r = 0;
+  for (const auto& a : pts) p.row(r++) << a[0], a[1], a[2];
+  return p;
+}
+
+const Points kNone(0, 3);
+
+std::vector<Key> octomap_ray(const octomap::OcTree& t, const octomap::point3d& a, const octomap::point3d& b) {
+  octomap::KeyRay ray;
+  EXPECT_TRUE(t.computeRayKeys(a, b, ray));
+  return std::vector<Key>(ray.begin(), ray.end());
+}
+
+std::vector<Key> our_ray(const octomap::OcTree& t, const octomap::point3d& a, const octomap::point3d& b) {
+  std::vector<Key> out;
+  EXPECT_TRUE(OccupancyMap::walk_ray_keys(t, a, b, [&](const Key& k) { out.push_back(k); }));
+  return out;
+}
+
+}  // namespace
+
+TEST(MapKeys, NegativeCoordinatesFollowOctomapFloat32Rule) {
+  OccupancyMap m(0.2, {-2, -2, -2}, {2, 2, 2});
+  Key k;
+  ASSERT_TRUE(m.coord_to_key({-0.1, 0.1, -0.3}, k));
+  EXPECT_EQ(k, Key(32767, 32768, 32766));
+  // float(-0.2) is slightly below -0.2: OctoMap files it one cell lower than floor(-0.2 / 0.2)
+  ASSERT_TRUE(m.coord_to_key({-0.2, 0.2, 0.0}, k));
+  EXPECT_EQ(k, m.octree().coordToKey(octomap::point3d(-0.2f, 0.2f, 0.0f)));
+  EXPECT_EQ(int(k[0]), 32768 - 2);
+  EXPECT_EQ(int(k[1]), 32768 + 1);
+  // random points: identical to OctoMap's coordToKey of the float point
+  std::mt19937 rng(3);
+  std::uniform_real_distribution<double> u(-30.0, 30.0);
+  for (int i = 0; i < 10000; ++i) {
+    const Eigen::Vector3d p(u(rng), u(rng), u(rng));
+    ASSERT_TRUE(m.coord_to_key(p, k));
+    EXPECT_EQ(k, m.octree().coordToKey(octomap::point3d(float(p.x()), float(p.y()), float(p.z()))));
+  }
+  EXPECT_FALSE(m.coord_to_key({1e6, 0, 0}, k));  // beyond +-32768 cells
+  const Eigen::Vector3d c = m.key_to_coord(Key(32767, 32768, 32766));
+  EXPECT_NEAR(c.x(), -0.1, 1e-12);
+  EXPECT_NEAR(c.y(), 0.1, 1e-12);
+  EXPECT_NEAR(c.z(), -0.3, 1e-12);
+}
+
+TEST(MapKeys, WorkspaceIndexAtBoundsEdges) {
+  OccupancyMap m(0.2, {-1, -2, 0}, {1, 2, 0.6});
+  EXPECT_EQ(m.dims()[0], 10);
+  EXPECT_EQ(m.dims()[1], 20);
+  EXPECT_EQ(m.dims()[2], 3);
+  EXPECT_EQ(m.num_cells(), 600);
+  const Key lo = m.min_key();
+  EXPECT_EQ(lo, Key(32768 - 5, 32768 - 10, 32768));
+  EXPECT_EQ(m.index_of(lo), 0);
+  const Key hi(lo[0] + 9, lo[1] + 19, lo[2] + 2);
+  EXPECT_EQ(m.index_of(hi), 599);
+  for (int a = 0; a < 3; ++a) {
+    Key below = lo, above = hi;
+    below[a] -= 1;
+    above[a] += 1;
+    EXPECT_FALSE(m.in_workspace(below));
+    EXPECT_EQ(m.index_of(below), -1);
+    EXPECT_FALSE(m.in_workspace(above));
+  }
+  for (std::int64_t i = 0; i < m.num_cells(); ++i) ASSERT_EQ(m.index_of(m.key_at(i)), i);
+  EXPECT_EQ(m.key_at(1), Key(lo[0] + 1, lo[1], lo[2]));  // x fastest
+  EXPECT_EQ(m.key_at(10), Key(lo[0], lo[1] + 1, lo[2]));
+  EXPECT_EQ(m.key_at(200), Key(lo[0], lo[1], lo[2] + 1));
+  EXPECT_NEAR(m.bounds_min().x(), -1.0, 1e-12);
+  EXPECT_NEAR(m.bounds_max().z(), 0.6, 1e-12);
+}
+
+TEST(MapKeys, RejectsBadGrids) {
+  EXPECT_THROW(OccupancyMap(0.0, {0, 0, 0}, {1, 1, 1}), std::invalid_argument);
+  EXPECT_THROW(OccupancyMap(-1.0, {0, 0, 0}, {1, 1, 1}), std::invalid_argument);
+  EXPECT_THROW(OccupancyMap(NAN, {0, 0, 0}, {1, 1, 1}), std::invalid_argument);
+  EXPECT_THROW(OccupancyMap(0.2, {0, 0, 0}, {1, 0, 1}), std::invalid_argument);
+  EXPECT_THROW(OccupancyMap(0.2, {0, 0, NAN}, {1, 1, 1}), std::invalid_argument);
+  EXPECT_THROW(OccupancyMap(0.2, {-7000, 0, 0}, {0, 1, 1}), std::invalid_argument);  // > 32768 cells
+  EXPECT_THROW(OccupancyMap(0.01, {-20, -20, 0}, {20, 20, 10}), std::invalid_argument);  // 1.6e10 cells
+  OccupancyMapOptions o;
+  o.prob_miss = 0.7;
+  EXPECT_THROW(OccupancyMap(0.2, {0, 0, 0}, {1, 1, 1}, o), std::invalid_argument);
+}
+
+TEST(MapRays, WalkerMatchesComputeRayKeys) {
+  octomap::OcTree t(0.2);
+  std::vector<std::pair<octomap::point3d, octomap::point3d>> rays = {
+      {{0, 0, 0}, {3, 0, 0}},            // along +x, starting on a cell corner
+      {{0.1f, 0.1f, 0.1f}, {0.1f, 0.1f, -3.1f}},  // along -z through cell centres
+      {{0, 0, 0}, {1, 1, 1}},            // through cell corners
+      {{0, 0, 0}, {-1, -1, 0}},          // through edges, negative side
+      {{0.05f, 0.05f, 0.05f}, {0.15f, 0.1f, 0.1f}},  // same cell: empty ray
+      {{0.19f, 0, 0}, {0.21f, 0, 0}},    // adjacent cells
+      {{-5.3f, 2.2f, 1.0f}, {7.9f, -3.3f, 4.4f}},
+      {{0, 0, 0}, {400.0f, 300.0f, -50.0f}},  // long ray
+  };
+  std::mt19937 rng(11);
+  std::uniform_real_distribution<float> u(-10.f, 10.f);
+  std::uniform_int_distribution<int> grid(-40, 40);
+  for (int i = 0; i < 3000; ++i) rays.push_back({{u(rng), u(rng), u(rng)}, {u(rng), u(rng), u(rng)}});
+  for (int i = 0; i < 1000; ++i)  // ends on cell boundaries (multiples of the resolution)
+    rays.push_back({{grid(rng) * 0.2f, grid(rng) * 0.2f, grid(rng) * 0.2f},
+                    {grid(rng) * 0.2f, grid(rng) * 0.2f, grid(rng) * 0.2f}});
+  for (const auto& r : rays) ASSERT_EQ(our_ray(t, r.first, r.second), octomap_ray(t, r.first, r.second));
+  // out of range: false, nothing emitted, like computeRayKeys
+  int emitted = 0;
+  EXPECT_FALSE(OccupancyMap::walk_ray_keys(t, {0, 0, 0}, {1e5f, 0, 0}, [&](const Key&) { ++emitted; }));
+  EXPECT_EQ(emitted, 0);
+}
+
+TEST(MapRays, AxisRayMarksFreeThenOccupied) {
+  OccupancyMap m(0.2, {-1, -1, -1}, {5, 1, 1});
+  m.integrate(Eigen::Vector3d(0.1, 0.1, 0.1), rows({{3.1, 0.1, 0.1}}), kNone);
+  for (int i = 0; i < 15; ++i)
+    EXPECT_EQ(m.state({0.1 + 0.2 * i, 0.1, 0.1}), CellState::Free) << i;
+  EXPECT_EQ(m.state({3.1, 0.1, 0.1}), CellState::Occupied);
+  EXPECT_EQ(m.state({3.3, 0.1, 0.1}), CellState::Unknown);
+  EXPECT_EQ(m.state({0.1, 0.5, 0.1}), CellState::Unknown);
+  EXPECT_EQ(m.counts().free, 15);
+  EXPECT_EQ(m.counts().occupied, 1);
+}
+
+TEST(MapRays, CornerRayAgreesWithExactPath) {
+  OccupancyMapOptions all;
+  all.deduplicate_end_points = false;
+  OccupancyMap fast(0.2, {-2, -2, -2}, {2, 2, 2}, all), exact(0.2, {-2, -2, -2}, {2, 2, 2});
+  const Points ends = rows({{1, 1, 1}, {-1, 1, 0.6}, {1.2, -1.2, -1.2}});
+  fast.integrate(Eigen::Vector3d::Zero(), ends, kNone);
+  exact.integrate_exact(Eigen::Vector3d::Zero(), ends, kNone);
+  EXPECT_TRUE(fast.octree() == exact.octree());
+  for (std::int64_t i = 0; i < fast.num_cells(); ++i) ASSERT_EQ(fast.logodds_at(i), exact.logodds_at(i));
+}
+
+TEST(MapWorkspace, CellsOutsideAreInTheOctreeButNotCounted) {
+  OccupancyMap m(0.2, {0, 0, 0}, {2, 2, 2});
+  const double h0 = m.total_entropy();
+  EXPECT_DOUBLE_EQ(h0, 1000 * std::log(2.0));
+  // a ray entirely below the workspace
+  m.integrate(Eigen::Vector3d(0.5, 0.5, -3.0), rows({{1.5, 1.5, -1.0}}), rows({{0.5, 1.5, -2.0}}));
+  EXPECT_EQ(m.counts().unknown, 1000);
+  EXPECT_EQ(m.total_entropy(), h0);
+  EXPECT_GT(m.octree().size(), 0u);
+  EXPECT_EQ(m.state({1.5, 1.5, -1.0}), CellState::Occupied);
+  EXPECT_EQ(m.state({0.5, 1.5, -2.0}), CellState::Free);
+  // a ray that crosses the workspace: only the cells inside count
+  m.integrate(Eigen::Vector3d(-1.9, 1.1, 1.1), rows({{3.9, 1.1, 1.1}}), kNone);
+  EXPECT_EQ(m.counts().free, 10);
+  EXPECT_EQ(m.counts().occupied, 0);
+  EXPECT_EQ(m.state({3.9, 1.1, 1.1}), CellState::Occupied);
+  EXPECT_EQ(m.total_entropy(), m.recompute_total_entropy());
+  EXPECT_EQ(m.verify_mirror(), 0);
+}
+
+TEST(MapUpdate, BatchedUpdateBuildsTheSameOctreeAsUpdateNode) {
+  // Many overlapping scans, clamping and pruning included: the fast path's batched tree update
+  // (lazy updates in tree order, inner nodes fixed once) must give a structurally identical octree.
+  OccupancyMapOptions all;
+  all.deduplicate_end_points = false;
+  OccupancyMap fast(0.2, {-3, -3, -3}, {3, 3, 3}, all), exact(0.2, {-3, -3, -3}, {3, 3, 3});
+  std::mt19937 rng(5);
+  std::normal_distribution<double> g(0.0, 2.0);
+  for (int s = 0; s < 30; ++s) {
+    const Eigen::Vector3d o(g(rng) * 0.3, g(rng) * 0.3, g(rng) * 0.3);
+    Points hits(300, 3), free_ends(100, 3);
+    for (Eigen::Index r = 0; r < hits.rows(); ++r) hits.row(r) << g(rng), g(rng), g(rng);
+    for (Eigen::Index r = 0; r < free_ends.rows(); ++r) free_ends.row(r) << 2 * g(rng), 2 * g(rng), 2 * g(rng);
+    const double max_range = s % 2 ? 4.0 : std::numeric_limits<double>::infinity();
+    fast.integrate(o, hits, free_ends, max_range);
+    exact.integrate_exact(o, hits, free_ends, max_range);
+    ASSERT_TRUE(fast.octree() == exact.octree()) << "scan " << s;
+  }
+  EXPECT_EQ(fast.total_entropy(), exact.total_entropy());
+  EXPECT_EQ(fast.verify_mirror(), 0);
+  // pruning happened (free space far from the hits clamps into coarse leaves)
+  std::size_t coarse = 0;
+  for (auto it = fast.octree().begin_leafs(); it != fast.octree().end_leafs(); ++it) coarse += it.getDepth() < 16;
+  EXPECT_GT(coarse, 0u);
+}
+
+TEST(MapUpdate, PredictionIsDiscardedByObservation) {
+  OccupancyMap m(0.2, {-1, -1, -1}, {3, 1, 1});
+  EXPECT_EQ(m.set_unknown_cells(rows({{1.1, 0.1, 0.1}, {1.15, 0.15, 0.1}, {2.1, 0.1, 0.1}}), 0.6), 2u);
+  const std::int64_t i1 = m.index_of(m.octree().coordToKey(octomap::point3d(1.1f, 0.1f, 0.1f)));
+  EXPECT_EQ(m.flag_at(i1), CellFlag::Predicted);
+  EXPECT_EQ(m.state_at(i1), CellState::Occupied);  // 0.6 >= threshold 0.6
+  EXPECT_EQ(m.counts().predicted, 2);
+  m.integrate(Eigen::Vector3d(0.1, 0.1, 0.1), rows({{2.1, 0.1, 0.1}}), kNone);
+  EXPECT_EQ(m.flag_at(i1), CellFlag::Observed);
+  EXPECT_FLOAT_EQ(m.logodds_at(i1), octomap::logodds(0.4));  // restarted from unknown, one miss
+  EXPECT_FLOAT_EQ(float(m.probability({2.1, 0.1, 0.1})), float(octomap::probability(octomap::logodds(0.7))));
+  EXPECT_EQ(m.counts().predicted, 0);
+  EXPECT_EQ(m.verify_mirror(), 0);
+}
+
+TEST(MapFiles, RoundTripExpandsCoarseLeaves) {
+  OccupancyMap m(0.2, {-3, -3, -3}, {3, 3, 3});
+  Points hits(41 * 41, 3);  // a wall of hits at x = 2.5: the space in front clamps free and prunes
+  for (int i = 0; i < 41; ++i)
+    for (int j = 0; j < 41; ++j) hits.row(i * 41 + j) << 2.5, -1.0 + 0.05 * i, -1.0 + 0.05 * j;
+  for (int i = 0; i < 8; ++i) m.integrate(Eigen::Vector3d(-2.5, 0.3, 0.1), hits, rows({{-2.5, 2.9, 0.1}}));
+  std::size_t coarse = 0;
+  for (auto it = m.octree().begin_leafs(); it != m.octree().end_leafs(); ++it) coarse += it.getDepth() < 16;
+  ASSERT_GT(coarse, 0u);
+  const auto dir = std::filesystem::temp_directory_path() / "nbv_test_map";
+  std::filesystem::create_directories(dir);
+  for (const char* name : {"m.ot", "m.bt"}) {
+    const std::string p = (dir / name).string();
+    m.save(p);
+    OccupancyMap r = OccupancyMap::load(p, Eigen::Vector3d(-3, -3, -3), Eigen::Vector3d(3, 3, 3));
+    EXPECT_EQ(r.verify_mirror(), 0) << name;
+    for (std::int64_t i = 0; i < m.num_cells(); ++i) ASSERT_EQ(r.state_at(i), m.state_at(i)) << name;
+    EXPECT_EQ(r.counts().free, m.counts().free);
+  }
+  EXPECT_THROW(OccupancyMap::load((dir / "absent.ot").string()), nbv::FileNotFound);
+  EXPECT_THROW(m.save((dir / "m.txt").string()), std::invalid_argument);
+  std::filesystem::remove_all(dir);
+}
+
+TEST(MapUpdate, ExactPathEqualsInsertPointCloud) {
+  // With hits only (and no predictions), integrate_exact builds the very octree that
+  // octomap::OcTree::insertPointCloud builds, with and without maxrange.
+  OccupancyMap m(0.2, {-4, -4, -4}, {4, 4, 4});
+  octomap::OcTree plain(0.2);
+  // the map's sensor model; a bare OcTree clamps at log-odds -2 / 3.5 (p 0.1192 / 0.971), the
+  // map (like octomap_server, the authors' setup) at 0.12 / 0.97
+  plain.setProbHit(0.7);
+  plain.setProbMiss(0.4);
+  plain.setClampingThresMin(0.12);
+  plain.setClampingThresMax(0.97);
+  plain.setOccupancyThres(0.6);
+  std::mt19937 rng(9);
+  std::normal_distribution<double> g(0.0, 3.0);
+  for (int s = 0; s < 10; ++s) {
+    const Eigen::Vector3d o(g(rng) * 0.2, g(rng) * 0.2, g(rng) * 0.2);
+    Points hits(500, 3);
+    octomap::Pointcloud cloud;
+    for (Eigen::Index r = 0; r < hits.rows(); ++r) {
+      hits.row(r) << g(rng), g(rng), g(rng);
+      cloud.push_back(float(hits(r, 0)), float(hits(r, 1)), float(hits(r, 2)));
+    }
+    const double max_range = s % 2 ? 5.0 : -1.0;
+    m.integrate_exact(o, hits, kNone, max_range > 0 ? max_range : std::numeric_limits<double>::infinity());
+    plain.insertPointCloud(cloud, octomap::point3d(float(o.x()), float(o.y()), float(o.z())), max_range);
+    ASSERT_TRUE(m.octree() == plain) << "scan " << s;
+  }
+  EXPECT_EQ(m.verify_mirror(), 0);
+}
