@@ -24,6 +24,7 @@ _LAS = _core.LaserScannerOptions()
 
 @dataclass(frozen=True)
 class MeshConfig:
+    """The structure's mesh file."""
     path: Optional[str] = None  # None: the shipped generated airliner
     scale: float = 1.0
     up: str = "z"  # the file's up axis: "z" or "y"
@@ -47,6 +48,7 @@ class WorkspaceConfig:
 
 @dataclass(frozen=True)
 class MapConfig:
+    """The occupancy map (OctoMap) and its entropy."""
     resolution: float = 0.2  # m (authors: 0.2)
     prob_hit: float = 0.7
     prob_miss: float = 0.4
@@ -60,6 +62,7 @@ class MapConfig:
 
 @dataclass(frozen=True)
 class CameraConfig:
+    """The RGB-D camera (paper Table 1); mount = T_body_sensor as xyz (m) + roll/pitch/yaw (deg)."""
     width: int = _CAM.width
     height: int = _CAM.height
     hfov_deg: float = _CAM.hfov_deg
@@ -73,6 +76,7 @@ class CameraConfig:
 
 @dataclass(frozen=True)
 class LaserConfig:
+    """The 2D laser scanner (paper Table 1)."""
     fov_deg: float = _LAS.fov_deg
     resolution_deg: float = _LAS.resolution_deg
     min_range: float = _LAS.min_range
@@ -84,6 +88,7 @@ class LaserConfig:
 
 @dataclass(frozen=True)
 class CloudConfig:
+    """The reconstructed point clouds."""
     camera_voxel: float = 0.02  # m, authors' RGB-D voxel filter
     laser_voxel: float = 0.1  # m, authors' profile voxel filter
     min_z: float = 0.3  # m, points below are ground and not registered
@@ -91,6 +96,7 @@ class CloudConfig:
 
 @dataclass(frozen=True)
 class VehicleConfig:
+    """The UAV: collision sphere and how it flies between views."""
     collision_radius: float = 0.8  # m
     # what to do when the straight segment to a candidate crosses occupied/unknown space:
     # "reject" the candidate, or "plan" a path through known free space (A* on the map)
@@ -104,6 +110,7 @@ class VehicleConfig:
 
 @dataclass(frozen=True)
 class SamplingConfig:
+    """Viewpoint sampling, Eq. 2: CGVS lattice and the AGVS scale sigma**alpha."""
     method: str = "agvs"  # "cgvs" (alpha fixed at 0) or "agvs"
     delta_d: float = 1.0  # m
     delta_theta: float = math.pi / 4  # rad
@@ -117,6 +124,7 @@ class SamplingConfig:
 
 @dataclass(frozen=True)
 class UtilityConfig:
+    """Viewpoint evaluation, sec. 3.4."""
     name: str = "ig"  # "ig" (paper) or "ig_distance" (IG * exp(-lambda * distance))
     rays_x: Optional[int] = None  # None: one ray per map cell on the far plane (47 at 0.2 m)
     rays_y: Optional[int] = None  # None: 34 at 0.2 m
@@ -127,24 +135,61 @@ class UtilityConfig:
 
 @dataclass(frozen=True)
 class TerminationConfig:
+    """Termination, sec. 3.5: |dE_v| < threshold for `window` iterations."""
     threshold: float = 0.001  # |dE_v| (paper)
     window: int = 5  # consecutive iterations (paper)
     count_partial_cells: bool = True  # C_view counts cells the frustum touches partially
 
 
 @dataclass(frozen=True)
+class ProfilingConfig:
+    """Adaptive circular profiling (Algorithm 1) and the bounding-box profiler."""
+    method: str = "circular"  # "circular" (Algorithm 1) or "bbox" (fly the faces of the box)
+    waypoints: int = 5  # N, points around the structure (authors: 5)
+    margin: float = 4.0  # d, obstacle margin added to the bounding radius, m (authors: 4)
+    sweep_step: float = 0.5  # m between laser scans during a vertical sweep
+    z_min: Optional[float] = None  # sweep bounds; None: the workspace's z range
+    z_max: Optional[float] = None
+    max_segment: float = 7.0  # arcs are flown as straight segments of at most this length, m
+    flight_margin: float = 30.0  # the profiling flight volume: workspace grown by this, m
+
+
+@dataclass(frozen=True)
+class SymmetryConfig:
+    """Symmetry detection and prediction (sec. 3.2.2). Owned by nbvkit.symmetry; the defaults
+    equal nbvkit.symmetry.SymmetryOptions() / SymmetricPredictionOptions() (a test checks)."""
+    prediction_probability: float = 0.6  # paper (authors' code: 0.7)
+    keypoints: str = "sift"  # "sift" (authors: 3D SIFT on curvature), "iss" or "uniform"
+    voxel_size: float = 0.1  # m, downsampling before detection and ICP (the profile's voxel)
+    normal_k: int = 50  # neighbours for normals (authors: K = 50)
+    fpfh_radius: float = 1.0  # m, FPFH support radius
+    mirror_descriptors: bool = True  # match against mirrored FPFH (False: authors' plain match)
+    bandwidth: float = 0.08  # mean shift: |dn| (~rad) and d-offset / cloud RMS radius
+    mean_shift_seeds: int = 50  # (authors: 50)
+    candidate_modes: int = 10  # modes refined and scored; the most mirror-consistent wins
+    min_support: int = 8  # pairs voting for the plane, at least
+    min_confidence: float = 0.7  # mirror consistency of surfaces facing the plane, at least
+    icp: bool = True  # refine the plane by ICP of the reflection onto the profile (paper)
+    icp_max_correspondence: float = 1.0  # m (authors: 1)
+    explained_tolerance: float = 0.2  # m, reflections this near an observed point: not predicted
+
+
+@dataclass(frozen=True)
 class EvaluationConfig:
+    """Scoring against the ground truth."""
     gt_density: Optional[float] = None  # points per m^2; None: nbvkit.evaluate's default
     coverage_every: int = 10  # iterations between coverage refreshes in the progress/CSV
 
 
 @dataclass(frozen=True)
 class Config:
-    seed: int = 0
-    scenario: str = "5"
-    start: int = 0
-    max_iterations: int = 1000
-    progress: bool = True
+    """A mission: scenario (Table 2 row), start (0..4), NBV iteration cap, and the sections."""
+    seed: int = 0  # camera/laser noise and sampling seed; the same seed gives the same mission
+    scenario: str = "5"  # profile, 1..5 (Table 2); 5 = profiling + symmetry + AGVS
+    start: int = 0  # which of the five predefined start poses
+    start_pose: Optional[tuple] = None  # (x, y, z, yaw) instead of a predefined start
+    max_iterations: int = 1000  # cap on NBV iterations
+    progress: bool = True  # progress bar on stderr
     mesh: MeshConfig = field(default_factory=MeshConfig)
     workspace: WorkspaceConfig = field(default_factory=WorkspaceConfig)
     map: MapConfig = field(default_factory=MapConfig)
@@ -155,6 +200,8 @@ class Config:
     sampling: SamplingConfig = field(default_factory=SamplingConfig)
     utility: UtilityConfig = field(default_factory=UtilityConfig)
     termination: TerminationConfig = field(default_factory=TerminationConfig)
+    profiling: ProfilingConfig = field(default_factory=ProfilingConfig)
+    symmetry: SymmetryConfig = field(default_factory=SymmetryConfig)
     evaluation: EvaluationConfig = field(default_factory=EvaluationConfig)
 
     # ------------------------------------------------------------------ construction
@@ -282,10 +329,13 @@ _CHOICES = {
     "sampling.method": ("cgvs", "agvs"),
     "utility.name": ("ig", "ig_distance"),
     "scenario": ("profile", "1", "2", "3", "4", "5"),
+    "profiling.method": ("circular", "bbox"),
+    "symmetry.keypoints": ("sift", "iss", "uniform"),
 }
 _POSITIVE = {"map.resolution", "camera.max_range", "laser.max_range", "cloud.camera_voxel",
              "cloud.laser_voxel", "vehicle.collision_radius", "sampling.delta_d",
-             "sampling.sigma", "termination.threshold", "sampling.stuck_threshold", "mesh.scale"}
+             "sampling.sigma", "termination.threshold", "sampling.stuck_threshold", "mesh.scale",
+             "profiling.waypoints", "profiling.sweep_step", "profiling.max_segment"}
 _NONNEG = {"max_iterations", "start", "sampling.alpha_max", "termination.window",
            "sampling.stuck_window", "vehicle.start_clear_radius", "camera.noise_k",
            "laser.noise_sigma", "utility.distance_lambda", "evaluation.coverage_every",
@@ -308,6 +358,8 @@ def _validate(obj, prefix: str) -> None:
             raise ValueError(f"config key {key!r} must be >= 0, got {v!r}")
         if key in _TRIPLES and v is not None and len(v) != 3:
             raise ValueError(f"config key {key!r} must have 3 numbers, got {list(v)!r}")
+    if prefix == "" and obj.start_pose is not None and len(obj.start_pose) != 4:
+        raise ValueError(f"config key 'start_pose' must be 4 numbers (x, y, z, yaw), got {list(obj.start_pose)!r}")
     if prefix == "" and not 0 <= obj.start <= 4:
         raise ValueError(f"config key 'start' must be 0..4 (five predefined starts), got {obj.start}")
     if prefix == "workspace." and (obj.bounds_min is None) != (obj.bounds_max is None):
@@ -322,4 +374,45 @@ def load_config(path: str | Path | None = None, overrides: list[str] | dict | No
 
 __all__ = ["Config", "load_config"] + [c.__name__ for c in (
     MeshConfig, WorkspaceConfig, MapConfig, CameraConfig, LaserConfig, CloudConfig, VehicleConfig,
-    SamplingConfig, UtilityConfig, TerminationConfig, EvaluationConfig)]
+    SamplingConfig, UtilityConfig, TerminationConfig, ProfilingConfig, SymmetryConfig, EvaluationConfig)]
+
+
+def documented_yaml() -> str:
+    """The default configuration as YAML with each key's comment (configs/default.yaml)."""
+    import inspect
+    import re
+
+    def comments(cls):
+        out = {}
+        for line in inspect.getsource(cls).splitlines():
+            m = re.match(r"\s+(\w+): [^=]+= ([^#]*)(#\s*(.*))?$", line)
+            if m:
+                out[m.group(1)] = (m.group(4) or "").strip()
+        return out
+
+    def flow(k, v):
+        return yaml.safe_dump({k: v}, default_flow_style=True, width=1000).strip()[1:-1]
+
+    lines = ["# nbvkit default configuration: every key with its default and unit (generated by",
+             "# `python -m nbvkit.config`). Unknown keys are rejected. Use it with",
+             "# `nbvkit run --config FILE`, or override single keys: `--set map.resolution=0.4`.", ""]
+    data = Config().to_dict()
+    top = comments(Config)
+    for f in fields(Config):
+        v = data[f.name]
+        if isinstance(v, dict):
+            cls = f.default_factory
+            doc = (cls.__doc__ or "").strip().splitlines()[0]
+            lines.append(f"{f.name}:  # {doc}")
+            cm = comments(cls)
+            for k, val in v.items():
+                c = cm.get(k, "")
+                lines.append(f"  {flow(k, val)}" + (f"  # {c}" if c else ""))
+        else:
+            c = top.get(f.name, "")
+            lines.append(flow(f.name, v) + (f"  # {c}" if c else ""))
+    return "\n".join(lines) + "\n"
+
+
+if __name__ == "__main__":
+    print(documented_yaml(), end="")

@@ -1,0 +1,192 @@
+"""Profiling (paper sec. 3.2.1): a quick laser survey that seeds the map and the profile cloud.
+
+Adaptive circular profiling, Algorithm 1: at each of N waypoints around the structure the vehicle
+sweeps vertically between z_min and z_max while the laser scans (one scan every `sweep_step`
+metres), facing the current centroid. The profile cloud is projected on XY; its centroid c and
+bounding radius r (max XY distance from c, plus the obstacle margin d) are recomputed; the vehicle
+moves radially onto the circle (c, r) at its current angle, then along the circle (straight chords
+of at most `max_segment` metres) to the next angle theta + 2 pi / N, until a full turn.
+
+theta_s is the bearing of the start position seen from the workspace centre, so the first circle
+point is the one nearest the start (the paper's wording, "the angle between the global x axis and
+the vector from the UAV's starting position to the centre", would put it on the far side).
+
+The bounding-box profiler (the authors' second method) flies the four vertical faces of the
+structure's observed bounding box grown by the margin, sweeping at each corner and face middle.
+
+The flight is confined to the profiling flight volume (the workspace grown by `flight_margin` in
+x and y) and keeps the collision radius off known-occupied cells; it is not confined to the NBV
+workspace (a circle around a 35 x 30 m aircraft is wider than 40 x 40 m). After the survey the
+vehicle returns to its start pose for the NBV stage. All distances flown are accounted.
+"""
+from __future__ import annotations
+
+import math
+import time
+
+import numpy as np
+
+
+def _segments(a, b, max_len):
+    """Split a-b into straight pieces of at most max_len (returns the intermediate points and b)."""
+    n = max(1, int(math.ceil(np.linalg.norm(b - a) / max_len)))
+    return [a + (b - a) * (i / n) for i in range(1, n + 1)]
+
+
+class Profiler:
+    """Runs a profiling flight for a Mission (uses its laser, map, clouds and vehicle state)."""
+
+    def __init__(self, mission):
+        self.m = mission
+        self.cfg = mission.config.profiling
+        ws = mission.workspace
+        r = mission.config.vehicle.collision_radius
+        self.z_min = self.cfg.z_min if self.cfg.z_min is not None else ws.nav_min[2]
+        self.z_max = self.cfg.z_max if self.cfg.z_max is not None else ws.nav_max[2]
+        if not self.z_max > self.z_min:
+            raise ValueError(f"profiling sweep needs z_max > z_min, got {self.z_min}..{self.z_max}")
+        fm = self.cfg.flight_margin
+        self.fly_min = np.array([ws.bounds_min[0] - fm, ws.bounds_min[1] - fm, ws.nav_min[2]])
+        self.fly_max = np.array([ws.bounds_max[0] + fm, ws.bounds_max[1] + fm, ws.nav_max[2]])
+        self.radius = r
+        self.waypoints: list[list[float]] = []
+        self.circles: list[list[float]] = []
+
+    # -------------------------------------------------------------- motion and sensing
+    def _clip(self, p):
+        return np.minimum(np.maximum(p, self.fly_min), self.fly_max)
+
+    def _face(self, p, c):
+        return math.atan2(c[1] - p[1], c[0] - p[0])
+
+    def _move(self, target_xyz, yaw):
+        """Fly straight to target, clipped to the flight volume, in legs of at most max_segment.
+        The circle encloses every profile point plus the margin d, so legs on and onto it stay
+        clear of the observed structure; `clearance()` reports the closest approach flown."""
+        cur = self.m.state.pose[:3].copy()
+        target = self._clip(np.asarray(target_xyz, float))
+        for q in _segments(cur, target, self.cfg.max_segment):
+            self.m.fly_to(np.array([*q, yaw]), "profile")
+
+    def _sweep(self, center):
+        """Vertical sweep at the current XY position between z_min and z_max, scanning with the
+        laser every sweep_step metres, facing `center`. Goes to the nearer end first."""
+        p = self.m.state.pose
+        yaw = self._face(p, center)
+        lo, hi = self.z_min, self.z_max
+        first, last = (lo, hi) if abs(p[2] - lo) <= abs(p[2] - hi) else (hi, lo)
+        self.m.fly_to(np.array([p[0], p[1], first, yaw]), "profile")
+        n = max(1, int(math.ceil(abs(last - first) / self.cfg.sweep_step)))
+        for i in range(n + 1):
+            z = first + (last - first) * i / n
+            if i:
+                self.m.fly_to(np.array([p[0], p[1], z, yaw]), "profile")
+            self.m.sense_laser(self.m.state.pose)
+        self.waypoints.append([float(p[0]), float(p[1])])
+
+    def _circle(self, fallback_center, fallback_radius):
+        pts = self.m.laser_cloud.points
+        if len(pts) == 0:
+            return np.asarray(fallback_center[:2], float), float(fallback_radius)
+        xy = pts[:, :2]
+        c = xy.mean(axis=0)
+        r = float(np.linalg.norm(xy - c, axis=1).max()) + self.cfg.margin
+        return c, r
+
+    def clearance(self) -> float:
+        """Closest distance (m) from the profiling trajectory's vertices to an occupied cell."""
+        occ = self.m.map.occupied_cells()
+        traj = np.array([r[1:4] for r in self.m.state.trajectory if r[0] == "profile"], float)
+        if len(occ) == 0 or len(traj) == 0:
+            return float("inf")
+        from scipy.spatial import cKDTree
+
+        return float(cKDTree(occ).query(traj)[0].min())
+
+    # -------------------------------------------------------------- the two methods
+    def circular(self):
+        m = self.m
+        start = m.state.pose.copy()
+        ws_c = m.workspace.center
+        theta_s = math.atan2(start[1] - ws_c[1], start[0] - ws_c[0])
+        theta = theta_s
+        phi = 2 * math.pi / self.cfg.waypoints
+        r0 = float(np.linalg.norm(start[:2] - ws_c[:2]))
+        c, r = ws_c[:2], r0
+        k = 0
+        while theta - theta_s < 2 * math.pi - 1e-9:
+            self._sweep(np.array([*c, 0.0]))
+            c, r = self._circle(ws_c, r0)
+            self.circles.append([float(c[0]), float(c[1]), r])
+            z = m.state.pose[2]
+            on = np.array([c[0] + r * math.cos(theta), c[1] + r * math.sin(theta), z])
+            self._move(on, self._face(on, c))
+            theta += phi
+            k += 1
+            # along the circle, as chords of at most max_segment
+            arc = r * phi
+            n = max(1, int(math.ceil(arc / self.cfg.max_segment)))
+            for i in range(1, n + 1):
+                t = theta - phi + phi * i / n
+                q = np.array([c[0] + r * math.cos(t), c[1] + r * math.sin(t), z])
+                self._move(q, self._face(q, c))
+
+    def bbox(self):
+        m = self.m
+        self._sweep(m.workspace.center)
+        pts = m.laser_cloud.points
+        lo = pts[:, :2].min(axis=0) if len(pts) else m.workspace.bounds_min[:2]
+        hi = pts[:, :2].max(axis=0) if len(pts) else m.workspace.bounds_max[:2]
+        lo, hi = lo - self.cfg.margin, hi + self.cfg.margin
+        c = (lo + hi) / 2
+        corners = [np.array([lo[0], lo[1]]), np.array([hi[0], lo[1]]), np.array([hi[0], hi[1]]),
+                   np.array([lo[0], hi[1]])]
+        # start from the corner nearest the vehicle, go round, sweeping at corners and mid-faces
+        p = m.state.pose[:2]
+        i0 = int(np.argmin([np.linalg.norm(q - p) for q in corners]))
+        stops = []
+        for i in range(4):
+            a, b = corners[(i0 + i) % 4], corners[(i0 + i + 1) % 4]
+            stops += [a, (a + b) / 2]
+        stops.append(corners[i0])
+        self.circles.append([float(c[0]), float(c[1]), float(np.linalg.norm(hi - c))])
+        for q in stops:
+            q3 = np.array([q[0], q[1], m.state.pose[2]])
+            self._move(q3, self._face(q3, c))
+            if q is not stops[-1]:
+                self._sweep(np.array([*c, 0.0]))
+
+
+def run_profiling(mission) -> dict:
+    """The profiling stage of a Mission; returns the profile's own summary (Table 2 "Profile" row):
+    distance, entropy reduction, coverage and area coverage of the profile cloud, waypoints."""
+    t0 = time.perf_counter()
+    e0 = mission.map.total_entropy()
+    d0 = mission.state.distance_m
+    start = mission.state.pose.copy()
+    prof = Profiler(mission)
+    if mission.config.profiling.method == "bbox":
+        prof.bbox()
+    else:
+        prof.circular()
+    e1 = mission.map.total_entropy()
+    d_profile = mission.state.distance_m - d0
+    # back to the start pose for the NBV stage (its distance counts toward the mission's)
+    prof._move(start[:3], start[3])
+    mission.fly_to(start, "profile")
+    ev = mission.evaluator(mission.laser_cloud.points)
+    return {
+        "method": mission.config.profiling.method,
+        "distance_m": d_profile,
+        "return_distance_m": mission.state.distance_m - d0 - d_profile,
+        "entropy_initial": e0,
+        "entropy_final": e1,
+        "entropy_reduction": e0 - e1,
+        "coverage": ev["coverage"],
+        "area_coverage": ev["area_coverage"],
+        "points": int(len(mission.laser_cloud)),
+        "clearance_m": prof.clearance(),
+        "waypoints": prof.waypoints,
+        "circles": prof.circles,
+        "time_s": time.perf_counter() - t0,
+    }

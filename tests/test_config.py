@@ -1,0 +1,90 @@
+"""Configuration: defaults equal the C++ defaults, YAML round trip, overrides, rejection."""
+from __future__ import annotations
+
+import math
+
+import pytest
+import yaml
+
+import nbvkit
+from nbvkit import _core
+from nbvkit.config import Config, load_config
+
+ROOT = __import__("pathlib").Path(__file__).resolve().parent.parent
+
+
+def test_python_defaults_equal_cpp_defaults():
+    c = Config()
+    cam, las = _core.DepthCameraOptions(), _core.LaserScannerOptions()
+    for k in ("width", "height", "hfov_deg", "vfov_deg", "min_range", "max_range", "noise_k"):
+        assert getattr(c.camera, k) == getattr(cam, k), k
+    for k in ("fov_deg", "resolution_deg", "min_range", "max_range", "noise_sigma"):
+        assert getattr(c.laser, k) == getattr(las, k), k
+    import numpy as np
+    np.testing.assert_allclose(_core.mount_transform(c.laser.mount_xyz, *c.laser.mount_rpy_deg), las.mount)
+    np.testing.assert_allclose(_core.mount_transform(c.camera.mount_xyz, *c.camera.mount_rpy_deg), cam.mount)
+    mo = nbvkit.OccupancyMapOptions()
+    for k in ("prob_hit", "prob_miss", "clamp_min", "clamp_max", "occupancy_threshold", "clamped_entropy_zero"):
+        assert getattr(c.map, k) == pytest.approx(getattr(mo, k)), k
+    assert c.map.entropy_unit == mo.to_dict()["entropy_unit"]
+    cl = _core.SurfaceCloudOptions()
+    assert c.cloud.min_z == pytest.approx(cl.min_z)
+    rx, ry = _core.view_ray_grid(c.camera.hfov_deg, c.camera.vfov_deg, c.camera.max_range, c.map.resolution)
+    assert (rx, ry) == (47, 34)
+
+
+def test_paper_values():
+    c = Config()
+    assert (c.sampling.delta_d, c.sampling.delta_theta, c.sampling.sigma, c.sampling.alpha_max) == (1.0, math.pi / 4, 1.5, 5)
+    assert (c.sampling.stuck_threshold, c.sampling.stuck_window) == (0.005, 3)
+    assert (c.termination.threshold, c.termination.window) == (0.001, 5)
+    assert c.vehicle.collision_radius == 0.8 and c.symmetry.prediction_probability == 0.6
+    assert c.profiling.waypoints == 5
+
+
+def test_shipped_yaml_is_the_default_and_round_trips(tmp_path):
+    shipped = Config.from_yaml(ROOT / "configs" / "default.yaml")
+    assert shipped == Config()
+    p = tmp_path / "c.yaml"
+    p.write_text(Config().with_overrides(["map.resolution=0.4", "scenario=1"]).to_yaml())
+    back = Config.from_yaml(p)
+    assert back.map.resolution == 0.4 and back.scenario == "1"
+
+
+def test_overrides_and_rejections(tmp_path):
+    c = load_config(None, ["max_iterations=7", "sampling.method=cgvs", "workspace.bounds_min=[0,0,0]",
+                           "workspace.bounds_max=[10,10,5]", "utility.rays_x=10"])
+    assert c.max_iterations == 7 and c.sampling.method == "cgvs" and c.workspace.bounds_max == (10.0, 10.0, 5.0)
+    with pytest.raises(KeyError, match="map.resolutionn"):
+        c.with_overrides(["map.resolutionn=0.1"])
+    with pytest.raises(KeyError, match="nope"):
+        Config.from_dict({"nope": 1})
+    with pytest.raises(KeyError, match="camera.colour"):
+        Config.from_dict({"camera": {"colour": 1}})
+    with pytest.raises(ValueError, match="map.resolution"):
+        c.with_overrides(["map.resolution=0"])
+    with pytest.raises(ValueError, match="utility.name"):
+        c.with_overrides(["utility.name=magic"])
+    with pytest.raises(ValueError, match="integer"):
+        c.with_overrides(["max_iterations=2.5"])
+    with pytest.raises(ValueError, match="key=value"):
+        c.with_overrides(["max_iterations"])
+    with pytest.raises(ValueError, match="start"):
+        c.with_overrides(["start=7"])
+    with pytest.raises(ValueError, match="finite"):
+        c.with_overrides(["map.resolution=.nan"])
+    with pytest.raises(ValueError, match="go together"):
+        c.with_overrides(["workspace.bounds_min=[0,0,0]", "workspace.bounds_max=null"])
+    bad = tmp_path / "bad.yaml"
+    bad.write_text("- a list\n")
+    with pytest.raises(ValueError, match="mapping"):
+        Config.from_yaml(bad)
+    with pytest.raises(FileNotFoundError):
+        Config.from_yaml(tmp_path / "missing.yaml")
+    yaml.safe_load(c.to_yaml())  # serialisable
+
+
+def test_shipped_yaml_is_generated_from_the_dataclasses():
+    from nbvkit.config import documented_yaml
+
+    assert (ROOT / "configs" / "default.yaml").read_text() == documented_yaml()

@@ -1,0 +1,97 @@
+"""The mission runner end to end (shortened: coarse map, few iterations) and its bad input."""
+from __future__ import annotations
+
+import csv
+import json
+
+import numpy as np
+import pytest
+
+import nbvkit
+from nbvkit.config import Config
+from nbvkit.mission import Mission, MissionError
+from nbvkit.workspace import make_workspace, start_poses
+
+FAST = ["map.resolution=0.4", "progress=false", "evaluation.gt_density=100", "max_iterations=12",
+        "evaluation.coverage_every=4"]
+
+
+def cfg(*extra):
+    return Config().with_overrides(FAST + list(extra))
+
+
+def test_default_workspace_is_the_papers_for_the_airliner():
+    mesh = nbvkit.load_mesh(nbvkit.default_mesh_path())
+    ws = make_workspace(mesh.bounds, Config())
+    np.testing.assert_allclose(ws.size, [40.0, 40.0, 10.0], atol=0.1)
+    assert ws.bounds_min[2] == 0.0
+    starts = start_poses(ws)
+    assert starts.shape == (5, 4)
+    for s in starts:  # just inside the boundary, mid height, facing the centre
+        assert ws.contains(s)
+        assert s[2] == pytest.approx(ws.center[2])
+        to_c = ws.center[:2] - s[:2]
+        assert np.dot([np.cos(s[3]), np.sin(s[3])], to_c / np.linalg.norm(to_c)) > 0.99
+    np.testing.assert_allclose(starts[0, :2], [0.0, ws.nav_min[1]], atol=0.1)  # (0, -19.1): authors' (0, -20)
+
+
+def test_scenario1_runs_end_to_end_and_writes_results(tmp_path):
+    m = Mission(cfg("scenario=1"))
+    s = m.run(tmp_path)
+    for f in ("summary.json", "iterations.csv", "config.yaml", "cloud.ply", "map.ot", "trajectory.csv",
+              "figures/trajectory.png", "figures/progress.png"):
+        assert (tmp_path / f).stat().st_size > 0, f
+    d = json.loads((tmp_path / "summary.json").read_text())
+    for k in ("scenario", "start", "iterations", "distance_m", "entropy_initial", "entropy_final",
+              "entropy_reduction", "coverage", "area_coverage", "termination", "wall_time_s", "ms_per_iteration"):
+        assert k in d, k
+    assert d["scenario"] == "1" and 1 <= d["iterations"] <= 12
+    assert d["termination"] in ("max_iterations", "entropy_converged", "no_valid_viewpoint")
+    assert d["entropy_reduction"] > 0 and d["distance_m"] > 0
+    assert 0 < d["coverage"]["0.5"] <= 1 and set(d["coverage"]) == {"0.05", "0.1", "0.5"}
+    rows = list(csv.DictReader(open(tmp_path / "iterations.csv")))
+    assert len(rows) == d["iterations"]
+    dist = [float(r["distance_m"]) for r in rows]
+    assert dist == sorted(dist) and dist[-1] == pytest.approx(d["distance_m"])
+    # distance equals the path flown (the trajectory's segment lengths)
+    traj = np.array([[float(r[k]) for k in ("x", "y", "z")] for r in csv.DictReader(open(tmp_path / "trajectory.csv"))])
+    assert np.linalg.norm(np.diff(traj, axis=0), axis=1).sum() == pytest.approx(d["distance_m"])
+    assert Config.from_yaml(tmp_path / "config.yaml").scenario == "1"
+    back = nbvkit.OccupancyMap.load(str(tmp_path / "map.ot"))
+    assert back.counts()["occupied"] > 0
+
+
+def test_same_seed_same_mission():
+    a = Mission(cfg("scenario=1", "max_iterations=6")).run()
+    b = Mission(cfg("scenario=1", "max_iterations=6")).run()
+    for k in ("iterations", "distance_m", "entropy_final", "coverage"):
+        assert a[k] == b[k], k
+
+
+def test_bad_input_fails_before_any_work():
+    with pytest.raises(MissionError, match="inside the structure|collision radius"):
+        Mission(cfg("scenario=1", "start_pose=[0.0, 0.0, 3.5, 0.0]"))  # inside the fuselage
+    with pytest.raises(MissionError, match="outside the navigation bounds"):
+        Mission(cfg("scenario=1", "start_pose=[100.0, 0.0, 5.0, 0.0]"))
+    with pytest.raises(ValueError, match="utility.name"):
+        cfg("utility.name=nope")
+    with pytest.raises(KeyError, match="bogus"):
+        cfg("bogus=1")
+    with pytest.raises(ValueError, match="map.resolution"):
+        cfg("map.resolution=-0.2")
+    with pytest.raises(FileNotFoundError):
+        Mission(cfg("mesh.path=/nonexistent/mesh.obj"))
+
+
+def test_cli_run_and_help(tmp_path, capsys):
+    from nbvkit.cli import main
+
+    with pytest.raises(SystemExit) as e:
+        main(["run", "--help"])
+    assert e.value.code == 0
+    assert "--scenario" in capsys.readouterr().out
+    rc = main(["run", "--scenario", "1", "--start", "2", "--set", *FAST, "max_iterations=3", "--out", str(tmp_path)])
+    assert rc == 0
+    assert json.loads((tmp_path / "summary.json").read_text())["start"] == 2
+    assert main(["run", "--scenario", "1", "--set", "nope=1", "--out", str(tmp_path)]) == 2
+    assert "unknown config key 'nope'" in capsys.readouterr().err
