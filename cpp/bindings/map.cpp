@@ -187,10 +187,13 @@ clamped_entropy_zero True: cells at a clamping threshold count zero entropy (aut
 deduplicate_end_points True: fast integration traces one ray per end sub-cell; False traces every
   ray (slower, identical to OctoMap's insertPointCloud).
 end_point_subdivision 2: sub-cells per cell edge for that grouping (1..4; 1 = one ray per end cell,
-  which agrees with insertPointCloud on only ~97-98 % of the touched cells; 2 gives > 99 %).)doc")
+  which agrees with insertPointCloud on only ~97-98 % of the touched cells; 2 gives > 99 %).
+clip_to_workspace False: True updates only workspace cells (rays are still traced from their origin;
+  cells outside are neither stored nor updated) - the method reads nothing outside the workspace.)doc")
       .def(py::init([](double prob_hit, double prob_miss, double clamp_min, double clamp_max,
                        double occupancy_threshold, const std::string& entropy_unit,
-                       bool clamped_entropy_zero, bool deduplicate_end_points, int end_point_subdivision) {
+                       bool clamped_entropy_zero, bool deduplicate_end_points, int end_point_subdivision,
+                       bool clip_to_workspace) {
              OccupancyMapOptions o;
              o.prob_hit = prob_hit;
              o.prob_miss = prob_miss;
@@ -201,6 +204,7 @@ end_point_subdivision 2: sub-cells per cell edge for that grouping (1..4; 1 = on
              o.clamped_entropy_zero = clamped_entropy_zero;
              o.deduplicate_end_points = deduplicate_end_points;
              o.end_point_subdivision = end_point_subdivision;
+             o.clip_to_workspace = clip_to_workspace;
              o.validate();
              return o;
            }),
@@ -210,7 +214,8 @@ end_point_subdivision 2: sub-cells per cell edge for that grouping (1..4; 1 = on
            py::arg("entropy_unit") = std::string(unit_name(d.entropy_unit)),
            py::arg("clamped_entropy_zero") = d.clamped_entropy_zero,
            py::arg("deduplicate_end_points") = d.deduplicate_end_points,
-           py::arg("end_point_subdivision") = d.end_point_subdivision)
+           py::arg("end_point_subdivision") = d.end_point_subdivision,
+           py::arg("clip_to_workspace") = d.clip_to_workspace)
       .def_readwrite("prob_hit", &OccupancyMapOptions::prob_hit)
       .def_readwrite("prob_miss", &OccupancyMapOptions::prob_miss)
       .def_readwrite("clamp_min", &OccupancyMapOptions::clamp_min)
@@ -222,6 +227,7 @@ end_point_subdivision 2: sub-cells per cell edge for that grouping (1..4; 1 = on
       .def_readwrite("clamped_entropy_zero", &OccupancyMapOptions::clamped_entropy_zero)
       .def_readwrite("deduplicate_end_points", &OccupancyMapOptions::deduplicate_end_points)
       .def_readwrite("end_point_subdivision", &OccupancyMapOptions::end_point_subdivision)
+      .def_readwrite("clip_to_workspace", &OccupancyMapOptions::clip_to_workspace)
       .def("to_dict",
            [](const OccupancyMapOptions& o) {
              py::dict r;
@@ -233,6 +239,7 @@ end_point_subdivision 2: sub-cells per cell edge for that grouping (1..4; 1 = on
              r["entropy_unit"] = unit_name(o.entropy_unit);
              r["clamped_entropy_zero"] = o.clamped_entropy_zero;
              r["deduplicate_end_points"] = o.deduplicate_end_points;
+             r["clip_to_workspace"] = o.clip_to_workspace;
              r["end_point_subdivision"] = o.end_point_subdivision;
              return r;
            })

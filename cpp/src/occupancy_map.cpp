@@ -513,6 +513,7 @@ IntegrationStats OccupancyMap::integrate(const Eigen::Vector3d& origin, const Po
   //    and the sub-cell of the end point. Consecutive rays ending in the same sub-cell
   //    (neighbouring pixels) are merged on the fly into one candidate.
   const bool dedup = opt_.deduplicate_end_points;
+  const bool clip = opt_.clip_to_workspace;
   const int k = dedup ? opt_.end_point_subdivision : 1;
   const double rf = 1.0 / res_;  // OctoMap's resolution_factor
   const double kd = k, inv_k = 1.0 / k;
@@ -653,7 +654,7 @@ IntegrationStats OccupancyMap::integrate(const Eigen::Vector3d& origin, const Po
         stamp_[std::size_t(idx)] = s_occ;
         occ.push_back(gr.key);
       }
-    } else if (occ_out.insert(gr.key).second) {
+    } else if (!clip && occ_out.insert(gr.key).second) {
       occ.push_back(gr.key);
     }
   }
@@ -662,7 +663,7 @@ IntegrationStats OccupancyMap::integrate(const Eigen::Vector3d& origin, const Po
     if (!(gr.flags & kFreeEndFlag) || (gr.flags & kHitFlag)) continue;
     const std::int64_t idx = index_of(gr.key);
     if (idx < 0) {
-      outside_free.push_back(gr.key);
+      if (!clip) outside_free.push_back(gr.key);
     } else if (stamp_[std::size_t(idx)] != s_occ && stamp_[std::size_t(idx)] != s_free) {
       stamp_[std::size_t(idx)] = s_free;
       fr.push_back(gr.key);
@@ -686,7 +687,7 @@ IntegrationStats OccupancyMap::integrate(const Eigen::Vector3d& origin, const Po
         walk_ray_keys(tree, o, groups[g].rep, [&](const Key& key) {
           const std::int64_t idx = index_of(key);
           if (idx < 0) {
-            out_outside.push_back(key);
+            if (!clip) out_outside.push_back(key);
             return;
           }
           std::uint32_t* st = stamps + idx;
@@ -792,6 +793,7 @@ std::size_t OccupancyMap::mark_free_segment(const Eigen::Vector3d& a, const Eige
         // only cells never observed: the vehicle's own volume is evidence of free space where
         // nothing else is known, and must not keep lowering the entropy of observed cells
         const std::int64_t idx = index_of(k);
+        if (idx < 0 && opt_.clip_to_workspace) continue;
         if (idx >= 0 ? flags_[std::size_t(idx)] != CellFlag::Unknown : tree_->search(k) != nullptr) continue;
         // the cell touches the swept sphere: box distance from the nearest point of the segment
         const Eigen::Vector3d c = key_to_coord(k);
@@ -803,6 +805,7 @@ std::size_t OccupancyMap::mark_free_segment(const Eigen::Vector3d& a, const Eige
   keys.erase(std::remove_if(keys.begin(), keys.begin() + (kb != ka ? 2 : 1),
                             [&](const Key& k) {
                               const std::int64_t idx = index_of(k);
+                              if (idx < 0 && opt_.clip_to_workspace) return true;
                               return idx >= 0 ? flags_[std::size_t(idx)] != CellFlag::Unknown
                                               : tree_->search(k) != nullptr;
                             }),

@@ -58,6 +58,7 @@ class MapConfig:
     entropy_unit: str = "nats"  # "nats" (authors) or "bits"
     clamped_entropy_zero: bool = True  # authors: cells at a clamping bound count zero entropy
     fast_integration: bool = True  # de-duplicated ray ends; False = plain insertPointCloud
+    clip_to_workspace: bool = True  # map only workspace cells (the method reads nothing outside)
 
 
 @dataclass(frozen=True)
@@ -147,7 +148,7 @@ class ProfilingConfig:
     method: str = "circular"  # "circular" (Algorithm 1) or "bbox" (fly the faces of the box)
     waypoints: int = 5  # N, points around the structure (authors: 5)
     margin: float = 4.0  # d, obstacle margin added to the bounding radius, m (authors: 4)
-    sweep_step: float = 0.5  # m between laser scans during a vertical sweep
+    sweep_step: float = 0.025  # m between laser scans in a sweep: a 40 Hz scanner at 1 m/s (authors)
     z_min: Optional[float] = None  # sweep bounds; None: the workspace's z range
     z_max: Optional[float] = None
     max_segment: float = 7.0  # arcs are flown as straight segments of at most this length, m
@@ -178,7 +179,7 @@ class SymmetryConfig:
 class EvaluationConfig:
     """Scoring against the ground truth."""
     gt_density: Optional[float] = None  # points per m^2; None: nbvkit.evaluate's default
-    coverage_every: int = 10  # iterations between coverage refreshes in the progress/CSV
+    coverage_every: int = 25  # iterations between coverage refreshes in the progress/CSV
 
 
 @dataclass(frozen=True)

@@ -141,7 +141,7 @@ class Mission:
                 prob_hit=m.prob_hit, prob_miss=m.prob_miss, clamp_min=m.clamp_min,
                 clamp_max=m.clamp_max, occupancy_threshold=m.occupancy_threshold,
                 entropy_unit=m.entropy_unit, clamped_entropy_zero=m.clamped_entropy_zero,
-                deduplicate_end_points=m.fast_integration))
+                deduplicate_end_points=m.fast_integration, clip_to_workspace=m.clip_to_workspace))
         cl = cfg.cloud
         self.camera_cloud = _core.SurfaceCloud(voxel_size=cl.camera_voxel, min_z=cl.min_z)
         self.laser_cloud = _core.SurfaceCloud(voxel_size=cl.laser_voxel, min_z=cl.min_z)
@@ -167,13 +167,16 @@ class Mission:
         if np.isfinite(t).any():
             raise MissionError(f"start pose {np.round(pose, 3).tolist()} is within the collision radius "
                                f"({r} m) of the structure")
+        # Inside test: from outside, a ray always enters the first surface it meets through a
+        # front face (outward-oriented parts, even intersecting ones); from inside, most first
+        # hits are back faces. Open shells seen from outside give some back faces, hence a vote.
         t, prim = self.scene.intersect(np.asarray(pose[:3], float)[None], dirs, 0.0, np.inf)
         hit = prim >= 0
-        if hit.sum() >= 0.5 * len(dirs):
+        if hit.any():
             v, f = self.mesh.vertices, self.mesh.faces[prim[hit]]
             n = np.cross(v[f[:, 1]] - v[f[:, 0]], v[f[:, 2]] - v[f[:, 0]])
             back = np.einsum("ij,ij->i", n, dirs[hit]) > 0
-            if hit.all() and back.mean() > 0.9:
+            if back.sum() > 0.5 * len(dirs):
                 raise MissionError(f"start pose {np.round(pose, 3).tolist()} is inside the structure")
 
     # ------------------------------------------------------------------ sensing

@@ -80,6 +80,12 @@ struct OccupancyMapOptions {
   /// traces every ray (slower; the same cells as OctoMap's insertPointCloud).
   bool deduplicate_end_points = true;
   int end_point_subdivision = 2;  ///< groups per cell edge, 1..4 (1 = one ray per end cell)
+  /// Integration updates only workspace cells: rays are still traced from their true origin, but
+  /// cells outside the workspace are neither stored nor updated. The method reads nothing outside
+  /// the workspace (entropy, gain and collision are all confined to it), and a laser survey from
+  /// outside it (profiling) then costs a third as much. false (default): the octree maps every
+  /// cell the rays touch, as insertPointCloud does. integrate_exact never clips.
+  bool clip_to_workspace = false;
 
   void validate() const;  ///< throws std::invalid_argument naming the bad field
 };
