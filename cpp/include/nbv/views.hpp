@@ -20,7 +20,7 @@ struct DenseGridView {
   double resolution = 0.2;
   Eigen::Vector3d origin = Eigen::Vector3d::Zero();  ///< world coordinate of cell (0,0,0)'s min corner
   int nx = 0, ny = 0, nz = 0;
-  const float* logodds = nullptr;       ///< per cell log-odds (meaningful where known)
+  const float* logodds = nullptr;       ///< per cell log-odds; unknown cells must hold 0
   const std::uint8_t* known = nullptr;  ///< per cell: 0 = unknown, else observed or predicted
   const float* entropy = nullptr;       ///< per cell entropy in the map's unit (unknown: ln 2 / 1 bit)
   float occupied_logodds = 0.405f;      ///< a known cell is occupied when logodds >= this
