@@ -10,6 +10,8 @@ COMMANDS = {
     "scan": "scan",
     "evaluate": "evaluate",
     "run": "run",
+    "table": "table",
+    "sweep": "sweep",
 }
 
 

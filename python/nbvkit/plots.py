@@ -93,3 +93,126 @@ def plot_mission(mission, out_dir: Path) -> list[Path]:
     fig.savefig(paths[-1], dpi=120)
     plt.close(fig)
     return paths
+
+
+# ------------------------------------------------------------------ experiments
+
+
+def _iterations(run_dir: Path):
+    import pandas as pd
+
+    p = Path(run_dir) / "iterations.csv"
+    return pd.read_csv(p) if p.exists() and p.stat().st_size else None
+
+
+def plot_experiment(root, df, out_dir) -> list[Path]:
+    """Figures of a finished experiment (a tidy table `df` of runs under `root/runs`):
+    coverage vs distance and vs iteration per scenario, the trajectories of one start per
+    scenario (paper's Fig. 7), and the final cloud and map of the full method (Fig. 6)."""
+    plt = _plt()
+    import json
+
+    root, out_dir = Path(root), Path(out_dir)
+    out_dir.mkdir(parents=True, exist_ok=True)
+    paths = []
+    scen = [s for s in ("1", "2", "3", "4", "5") if (df["scenario"].astype(str) == s).any()]
+    colors = dict(zip(("1", "2", "3", "4", "5"), ("tab:gray", "tab:blue", "tab:orange", "tab:green", "tab:red")))
+
+    # coverage vs distance / iteration (mean over starts is not meaningful per step: draw each run)
+    for xkey, xlabel, name in (("distance_m", "distance (m)", "coverage_vs_distance.png"),
+                               ("iteration", "iteration", "coverage_vs_iteration.png")):
+        fig, axes = plt.subplots(1, 3, figsize=(14, 4), sharey=True)
+        for sc in scen:
+            for k, (_, r) in enumerate(df[df["scenario"].astype(str) == sc].iterrows()):
+                it = _iterations(root / "runs" / r["run_id"])
+                if it is None or not len(it):
+                    continue
+                summ = json.loads((root / "runs" / r["run_id"] / "summary.json").read_text())
+                x0 = summ.get("profile", {}).get("distance_m", 0.0) if xkey == "distance_m" else 0
+                for ax, col in zip(axes, ("coverage_005", "coverage_01", "coverage_05")):
+                    d = it.dropna(subset=[col])
+                    ax.plot(d[xkey], d[col] * 100, c=colors[sc], alpha=0.7, lw=1,
+                            label=f"scenario {sc}" if k == 0 else None)
+                del x0
+        for ax, res in zip(axes, ("0.05", "0.10", "0.50")):
+            ax.set_title(f"coverage @ {res} m")
+            ax.set_xlabel(xlabel)
+            ax.grid(alpha=0.3)
+        axes[0].set_ylabel("coverage (%)")
+        axes[0].legend(fontsize=8)
+        fig.tight_layout()
+        paths.append(out_dir / name)
+        fig.savefig(paths[-1], dpi=110)
+        plt.close(fig)
+
+    # trajectories of one start per scenario (Fig. 7)
+    import csv
+
+    mesh = None
+    if scen:
+        fig, axes = plt.subplots(2, len(scen), figsize=(4.2 * len(scen), 6.5),
+                                 gridspec_kw={"height_ratios": [3, 1.2]}, squeeze=False)
+        for j, sc in enumerate(scen):
+            r = df[df["scenario"].astype(str) == sc].sort_values("start").iloc[0]
+            d = root / "runs" / r["run_id"]
+            if mesh is None:
+                mesh = _mesh_of(d)
+            traj = [(row["stage"], float(row["x"]), float(row["y"]), float(row["z"]))
+                    for row in csv.DictReader(open(d / "trajectory.csv"))]
+            sp = mesh.sample_surface(20000, seed=0)
+            plot_trajectory(axes[0, j], axes[1, j], sp, traj,
+                            title=f"scenario {sc} (start {r['start']}): {r['distance_m']:.0f} m")
+        fig.tight_layout()
+        paths.append(out_dir / "trajectories.png")
+        fig.savefig(paths[-1], dpi=110)
+        plt.close(fig)
+
+    # final cloud and map of the most complete scenario present (Fig. 6)
+    best = scen[-1] if scen else None
+    if best is not None:
+        r = df[df["scenario"].astype(str) == best].sort_values("start").iloc[0]
+        paths.append(plot_cloud_and_map(root / "runs" / r["run_id"], out_dir / "final_cloud_and_map.png",
+                                        title=f"scenario {best}, start {r['start']}"))
+    return paths
+
+
+def _mesh_of(run_dir: Path):
+    import yaml
+
+    from .mesh import default_mesh_path, load_mesh
+
+    cfg = yaml.safe_load((Path(run_dir) / "config.yaml").read_text())
+    m = cfg.get("mesh", {})
+    return load_mesh(m.get("path") or default_mesh_path(), scale=m.get("scale", 1.0), up=m.get("up", "z"))
+
+
+def plot_cloud_and_map(run_dir, path, title=None) -> Path:
+    """The final point cloud (top) and the occupancy map's occupied cells (bottom), side views."""
+    plt = _plt()
+    from . import _core
+    from .cloud import read_points
+
+    run_dir = Path(run_dir)
+    pts = read_points(run_dir / "cloud.ply")
+    m = _core.OccupancyMap.load(str(run_dir / "map.ot"))
+    occ = m.occupied_cells()
+    rng = np.random.default_rng(0)
+    if len(pts) > 150_000:
+        pts = pts[rng.choice(len(pts), 150_000, replace=False)]
+    fig, axes = plt.subplots(2, 2, figsize=(12, 7))
+    for row, (P, c, lab) in enumerate(((pts, "tab:blue", f"point cloud ({len(pts):,} shown)"),
+                                      (occ, "tab:green", f"occupied cells ({len(occ):,})"))):
+        for col, (i, j) in enumerate(((0, 1), (0, 2))):
+            ax = axes[row, col]
+            if len(P):
+                ax.scatter(P[:, i], P[:, j], s=0.3 if row == 0 else 1.0, c=c, linewidths=0, rasterized=True)
+            ax.set_aspect("equal")
+            ax.set_xlabel("xyz"[i] + " (m)")
+            ax.set_ylabel("xyz"[j] + " (m)")
+            ax.set_title(lab if col == 0 else "")
+    if title:
+        fig.suptitle(title)
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+    return Path(path)

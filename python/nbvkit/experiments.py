@@ -1,0 +1,267 @@
+"""Experiments: many missions (scenarios x starts x structures x parameter grids), run in
+parallel, resumable, collected into one tidy table; and the paper's Table 2 from it.
+
+Each run writes its own folder ``<out>/runs/<run id>/`` (the Mission results) atomically: into a
+temporary folder renamed into place once complete, so an interrupted sweep restarted with the same
+arguments skips every run whose folder exists and loses no finished result. Runs execute in a
+local process pool by default, or on a Dask distributed cluster given its scheduler address.
+"""
+from __future__ import annotations
+
+import hashlib
+import itertools
+import json
+import os
+import shutil
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+#: the paper's Table 2 rows: label, profiling, symmetry, sampling
+TABLE2_ROWS = [("Profile", "yes", "no", "-"), ("1", "no", "no", "CGVS"), ("2", "yes", "no", "CGVS"),
+               ("3", "yes", "no", "AGVS"), ("4", "yes", "yes", "CGVS"), ("5", "yes", "yes", "AGVS")]
+
+
+@dataclass(frozen=True)
+class RunSpec:
+    """One mission: a scenario from a start on a structure, with config overrides."""
+    scenario: str
+    start: int
+    mesh: str | None = None  # None: the shipped airliner
+    mesh_scale: float = 1.0
+    mesh_up: str = "z"
+    overrides: tuple = ()  # ("key=value", ...)
+    config_file: str | None = None
+    labels: tuple = field(default=())  # (("name", value), ...) extra columns for the tidy table
+
+    @property
+    def run_id(self) -> str:
+        name = Path(self.mesh).stem if self.mesh else "airliner"
+        h = hashlib.sha1(json.dumps([self.mesh, self.mesh_scale, self.mesh_up, list(self.overrides),
+                                     self.config_file]).encode()).hexdigest()[:8]
+        return f"{name}_s{self.scenario}_start{self.start}_{h}"
+
+    def config(self):
+        from .config import load_config
+
+        over = [*self.overrides, f"scenario={json.dumps(self.scenario)}", f"start={self.start}",
+                f"mesh.scale={self.mesh_scale}", f"mesh.up={self.mesh_up}", "progress=false"]
+        if self.mesh:
+            over.append(f"mesh.path={json.dumps(str(self.mesh))}")
+        return load_config(self.config_file, over)
+
+
+def run_one(spec: RunSpec, root: str | os.PathLike, threads: int = 0) -> dict:
+    """Runs one spec into ``root/runs/<run_id>`` unless it is already there; returns its row."""
+    from . import set_num_threads
+    from .mission import Mission
+
+    root = Path(root)
+    final = root / "runs" / spec.run_id
+    if not (final / "summary.json").exists():
+        set_num_threads(threads)
+        cfg = spec.config()
+        tmp = root / "runs" / f".{spec.run_id}.tmp{os.getpid()}"
+        shutil.rmtree(tmp, ignore_errors=True)
+        Mission(cfg).run(tmp)
+        (tmp / "spec.json").write_text(json.dumps(_spec_dict(spec)))
+        try:
+            tmp.rename(final)
+        except OSError:  # another worker finished the same run first
+            shutil.rmtree(tmp, ignore_errors=True)
+    return row_of(final)
+
+
+def _spec_dict(spec: RunSpec) -> dict:
+    return {"scenario": spec.scenario, "start": spec.start, "mesh": spec.mesh, "mesh_scale": spec.mesh_scale,
+            "mesh_up": spec.mesh_up, "overrides": list(spec.overrides), "config_file": spec.config_file,
+            "labels": [list(x) for x in spec.labels]}
+
+
+def row_of(run_dir: Path) -> dict:
+    """One tidy row from a finished run folder."""
+    s = json.loads((run_dir / "summary.json").read_text())
+    spec = json.loads((run_dir / "spec.json").read_text()) if (run_dir / "spec.json").exists() else {}
+    row = {"run_id": run_dir.name, "scenario": s["scenario"], "start": s["start"],
+           "mesh": spec.get("mesh") or "airliner", "overrides": " ".join(spec.get("overrides", [])),
+           "iterations": s["iterations"], "distance_m": s["distance_m"],
+           "entropy_reduction": s["entropy_reduction"], "termination": s["termination"],
+           "wall_time_s": s["wall_time_s"], "ms_per_iteration": s["ms_per_iteration"],
+           "cloud_points": s["cloud_points"], "chamfer_m": s["chamfer_m"]}
+    for k in ("coverage", "area_coverage", "precision"):
+        for r, v in s[k].items():
+            row[f"{k}_{r}"] = v
+    for k in ("completeness", "accuracy", "fscore"):
+        for r, v in s[k].items():
+            row[f"{k}_{r}"] = v
+    p = s.get("profile")
+    if p:
+        row["profile_distance_m"] = p["distance_m"]
+        row["profile_entropy_reduction"] = p["entropy_reduction"]
+        for r, v in p["coverage"].items():
+            row[f"profile_coverage_{r}"] = v
+    sym = s.get("symmetry")
+    if sym:
+        row["symmetry_accepted"] = sym.get("accepted")
+        row["symmetry_confidence"] = sym.get("confidence")
+    for name, value in spec.get("labels", []):
+        row[name] = value
+    return row
+
+
+def run_specs(specs: list[RunSpec], root: str | os.PathLike, workers: int = 0,
+              scheduler: str | None = None, progress: bool = True) -> list[dict]:
+    """Runs every spec (skipping finished ones) and returns their rows, in spec order.
+
+    workers: local processes (0: one per core, 1: in this process); scheduler: the address of a
+    Dask distributed scheduler ("tcp://host:8786") to run on that cluster instead.
+    """
+    root = Path(root)
+    (root / "runs").mkdir(parents=True, exist_ok=True)
+    ncpu = os.cpu_count() or 1
+    if scheduler:
+        from distributed import Client
+
+        with Client(scheduler) as client:
+            futs = client.map(run_one, specs, root=str(root.resolve()), threads=1, pure=False)
+            rows = client.gather(futs)
+    elif workers == 1 or len(specs) <= 1:
+        rows = []
+        for i, s in enumerate(specs):
+            t0 = time.perf_counter()
+            rows.append(run_one(s, root))
+            if progress:
+                print(f"[{i + 1}/{len(specs)}] {s.run_id}: {time.perf_counter() - t0:.1f} s", flush=True)
+    else:
+        import concurrent.futures as cf
+        import multiprocessing as mp
+
+        n = min(workers or ncpu, len(specs))
+        threads = max(1, ncpu // n)
+        with cf.ProcessPoolExecutor(n, mp_context=mp.get_context("spawn")) as ex:
+            futs = {ex.submit(run_one, s, root, threads): i for i, s in enumerate(specs)}
+            rows = [None] * len(specs)
+            for k, f in enumerate(cf.as_completed(futs)):
+                rows[futs[f]] = f.result()
+                if progress:
+                    print(f"[{k + 1}/{len(specs)}] {rows[futs[f]]['run_id']}: "
+                          f"{rows[futs[f]]['wall_time_s']:.1f} s", flush=True)
+    return rows
+
+
+def write_table(rows: list[dict], path: str | os.PathLike) -> None:
+    """Writes rows as a CSV (the tidy table every plotting helper reads)."""
+    import pandas as pd
+
+    pd.DataFrame(rows).to_csv(path, index=False)
+
+
+def read_table(path: str | os.PathLike):
+    import pandas as pd
+
+    return pd.read_csv(path)
+
+
+# ------------------------------------------------------------------ Table 2
+
+
+def table2_specs(mesh=None, mesh_scale=1.0, mesh_up="z", starts=5, overrides=()) -> list[RunSpec]:
+    """The Profile row and Scenarios 1-5, each from `starts` predefined starts."""
+    return [RunSpec(sc, k, mesh, mesh_scale, mesh_up, tuple(overrides))
+            for sc in ("profile", "1", "2", "3", "4", "5") for k in range(starts)]
+
+
+def table2(df) -> "pandas.DataFrame":
+    """The paper's Table 2 from a tidy table of runs: means over starts, with the spread (std)."""
+    import pandas as pd
+
+    out = []
+    for label, prof, sym, samp in TABLE2_ROWS:
+        sub = df[df["scenario"].astype(str) == label.lower()] if label == "Profile" else \
+            df[df["scenario"].astype(str) == label]
+        if label == "Profile" and len(sub):
+            cols = {"distance_m": "profile_distance_m", "entropy_reduction": "profile_entropy_reduction",
+                    "coverage_0.05": "profile_coverage_0.05", "coverage_0.1": "profile_coverage_0.1",
+                    "coverage_0.5": "profile_coverage_0.5"}
+            sub = sub.assign(**{k: sub[v] for k, v in cols.items()}, iterations=np.nan)
+        if not len(sub):
+            continue
+        r = {"Scenario": label, "Profiling": prof, "Symmetry": sym, "Sampling": samp, "runs": len(sub)}
+        for col, name in (("iterations", "Iterations"), ("distance_m", "Distance (m)"),
+                          ("entropy_reduction", "Entropy reduction"), ("coverage_0.05", "Coverage @0.05 m"),
+                          ("coverage_0.1", "Coverage @0.10 m"), ("coverage_0.5", "Coverage @0.50 m"),
+                          ("area_coverage_0.05", "Area cov. @0.05 m"), ("wall_time_s", "Wall time (s)"),
+                          ("ms_per_iteration", "ms/iteration")):
+            v = pd.to_numeric(sub[col], errors="coerce") if col in sub else pd.Series(dtype=float)
+            r[name] = v.mean() if v.notna().any() else np.nan
+            r[name + " sd"] = v.std(ddof=0) if v.notna().sum() > 1 else 0.0
+        out.append(r)
+    return pd.DataFrame(out)
+
+
+def table2_markdown(t) -> str:
+    """Table 2 as Markdown, mean ± spread over the starts."""
+    def fmt(name, v, sd):
+        if v != v:  # NaN
+            return "—"
+        if name.startswith("Coverage") or name.startswith("Area"):
+            return f"{v:.1%} ± {sd:.1%}".replace("%", " %")
+        if name in ("Iterations",):
+            return f"{v:.0f} ± {sd:.0f}"
+        if name == "Entropy reduction":
+            return f"{v:,.0f} ± {sd:,.0f}"
+        return f"{v:,.1f} ± {sd:,.1f}"
+
+    cols = ["Iterations", "Distance (m)", "Entropy reduction", "Coverage @0.05 m", "Coverage @0.10 m",
+            "Coverage @0.50 m", "Area cov. @0.05 m", "Wall time (s)", "ms/iteration"]
+    head = ["Scenario", "Profiling", "Symmetry", "Sampling", *cols, "runs"]
+    lines = ["| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
+    for _, r in t.iterrows():
+        cells = [str(r["Scenario"]), r["Profiling"], r["Symmetry"], r["Sampling"]]
+        cells += [fmt(c, r[c], r[c + " sd"]) for c in cols] + [str(int(r["runs"]))]
+        lines.append("| " + " | ".join(cells) + " |")
+    return "\n".join(lines) + "\n"
+
+
+def write_table2(df, out: Path) -> None:
+    t = table2(df)
+    t.to_csv(out / "table2.csv", index=False)
+    (out / "table2.md").write_text(table2_markdown(t))
+
+
+# ------------------------------------------------------------------ sweeps
+
+
+def sweep_specs(sweep: dict) -> list[RunSpec]:
+    """Specs of a sweep description (see `nbvkit sweep --help`): meshes x scenarios x starts x
+    every combination of the grid's values, with the fixed overrides in `set`."""
+    known = {"meshes", "scenarios", "starts", "grid", "set", "config", "out", "workers", "scheduler"}
+    unknown = set(sweep) - known
+    if unknown:
+        raise KeyError(f"unknown sweep key(s) {sorted(unknown)}; known: {sorted(known)}")
+    meshes = sweep.get("meshes") or [None]
+    scenarios = [str(s) for s in sweep.get("scenarios", ["5"])]
+    starts = sweep.get("starts", [0])
+    if isinstance(starts, int):
+        starts = list(range(starts))
+    grid = sweep.get("grid") or {}
+    if not isinstance(grid, dict) or not all(isinstance(v, list) for v in grid.values()):
+        raise ValueError("sweep 'grid' must map config keys to lists of values")
+    fixed = [f"{k}={json.dumps(v)}" for k, v in (sweep.get("set") or {}).items()]
+    keys = list(grid)
+    specs = []
+    for mesh in meshes:
+        m = mesh if isinstance(mesh, dict) else {"path": mesh}
+        for combo in itertools.product(*[grid[k] for k in keys]):
+            over = fixed + [f"{k}={json.dumps(v)}" for k, v in zip(keys, combo)]
+            labels = tuple((k, v) for k, v in zip(keys, combo))
+            for sc in scenarios:
+                for st in starts:
+                    specs.append(RunSpec(sc, int(st), m.get("path"), float(m.get("scale", 1.0)),
+                                         m.get("up", "z"), tuple(over), sweep.get("config"), labels))
+    # fail before any work on a bad key or value
+    for s in {(sp.mesh, sp.overrides, sp.config_file) for sp in specs}:
+        RunSpec("1", 0, s[0], overrides=s[1], config_file=s[2]).config()
+    return specs

@@ -1,0 +1,125 @@
+"""Experiments: Table 2 layout, resumable sweeps, a Dask cluster on loopback, the notebook."""
+from __future__ import annotations
+
+import os
+from pathlib import Path
+
+import pandas as pd
+import pytest
+import yaml
+
+from nbvkit.experiments import RunSpec, run_specs, sweep_specs, table2, table2_markdown
+
+ROOT = Path(__file__).resolve().parent.parent
+TINY = ("map.resolution=0.4", "evaluation.gt_density=50", "max_iterations=2", "evaluation.coverage_every=1",
+        "profiling.sweep_step=0.5", "profiling.waypoints=3")
+
+
+@pytest.fixture(scope="module")
+def tiny_table(tmp_path_factory):
+    """A finished tiny Table 2 experiment (one start, two iterations per scenario)."""
+    from nbvkit.cli import main
+
+    out = tmp_path_factory.mktemp("table")
+    assert main(["table", "--starts", "1", "--workers", "2", "--set", *TINY, "--out", str(out)]) == 0
+    return out
+
+
+def test_table_command_writes_the_papers_layout(tiny_table):
+    md = (tiny_table / "table2.md").read_text()
+    rows = [l for l in md.splitlines() if l.startswith("| ") and not l.startswith("| Scenario")]
+    assert [r.split("|")[1].strip() for r in rows] == ["Profile", "1", "2", "3", "4", "5"]
+    t = pd.read_csv(tiny_table / "table2.csv")
+    assert list(t["Scenario"].astype(str)) == ["Profile", "1", "2", "3", "4", "5"]
+    for col in ("Iterations", "Distance (m)", "Entropy reduction", "Coverage @0.05 m", "Coverage @0.10 m",
+                "Coverage @0.50 m", "Wall time (s)", "ms/iteration", "Profiling", "Symmetry", "Sampling"):
+        assert col in t.columns, col
+    runs = pd.read_csv(tiny_table / "runs.csv")
+    assert len(runs) == 6 and set(runs["scenario"].astype(str)) == {"profile", "1", "2", "3", "4", "5"}
+    # profiling scenarios fly the profile first: more distance than scenario 1's two steps
+    d = dict(zip(runs["scenario"].astype(str), runs["distance_m"]))
+    assert d["2"] > d["1"] and d["profile"] > 0
+    for f in ("coverage_vs_distance.png", "coverage_vs_iteration.png", "trajectories.png",
+              "final_cloud_and_map.png"):
+        assert (tiny_table / "figures" / f).stat().st_size > 0
+
+
+def test_table2_means_and_spread():
+    df = pd.DataFrame([
+        {"scenario": "1", "iterations": 10, "distance_m": 5.0, "entropy_reduction": 100.0, "coverage_0.05": 0.2,
+         "coverage_0.1": 0.3, "coverage_0.5": 0.4, "area_coverage_0.05": 0.2, "wall_time_s": 1.0, "ms_per_iteration": 5.0},
+        {"scenario": "1", "iterations": 20, "distance_m": 7.0, "entropy_reduction": 300.0, "coverage_0.05": 0.4,
+         "coverage_0.1": 0.5, "coverage_0.5": 0.6, "area_coverage_0.05": 0.4, "wall_time_s": 3.0, "ms_per_iteration": 7.0},
+    ])
+    t = table2(df)
+    r = t.iloc[0]
+    assert r["Scenario"] == "1" and r["Iterations"] == 15 and r["Iterations sd"] == 5
+    assert r["Coverage @0.05 m"] == pytest.approx(0.3) and r["Distance (m)"] == 6.0
+    assert "| 1 | no | no | CGVS | 15 ± 5 |" in table2_markdown(t)
+
+
+def test_sweep_is_resumable_and_rejects_bad_keys(tmp_path):
+    sweep = {"scenarios": ["1"], "starts": [0, 1], "grid": {"sampling.delta_d": [1.0, 2.0]}, "set": dict(
+        kv.split("=") for kv in TINY)}
+    sweep["set"] = {k: yaml.safe_load(v) for k, v in sweep["set"].items()}
+    specs = sweep_specs(sweep)
+    assert len(specs) == 4 and len({s.run_id for s in specs}) == 4
+    rows = run_specs(specs, tmp_path, workers=1, progress=False)
+    assert {r["sampling.delta_d"] for r in rows} == {1.0, 2.0}
+    done = {s.run_id: (tmp_path / "runs" / s.run_id / "summary.json").stat().st_mtime_ns for s in specs}
+    victim = specs[2].run_id
+    import shutil
+
+    shutil.rmtree(tmp_path / "runs" / victim)  # as if interrupted before this run finished
+    (tmp_path / "runs" / f".{victim}.tmp99").mkdir()  # and a half-written temporary folder
+    rows2 = run_specs(specs, tmp_path, workers=1, progress=False)
+    for s in specs:
+        m = (tmp_path / "runs" / s.run_id / "summary.json").stat().st_mtime_ns
+        assert (m == done[s.run_id]) == (s.run_id != victim)
+    assert [r["run_id"] for r in rows2] == [r["run_id"] for r in rows]
+    with pytest.raises(KeyError, match="griid"):
+        sweep_specs({"griid": {}})
+    with pytest.raises(KeyError, match="map.nope"):
+        sweep_specs({"grid": {"map.nope": [1]}})
+
+
+def test_sweep_on_a_local_dask_cluster(tmp_path):
+    distributed = pytest.importorskip("distributed")
+    with distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True, host="127.0.0.1",
+                                  dashboard_address=None) as cluster:
+        specs = [RunSpec("1", k, overrides=TINY) for k in (0, 1)]
+        rows = run_specs(specs, tmp_path, scheduler=cluster.scheduler_address)
+    assert [r["start"] for r in rows] == [0, 1]
+    assert all((tmp_path / "runs" / s.run_id / "summary.json").exists() for s in specs)
+
+
+def test_sweep_command(tmp_path):
+    from nbvkit.cli import main
+
+    f = tmp_path / "sweep.yaml"
+    f.write_text(yaml.safe_dump({"scenarios": ["1"], "starts": 1, "set": {k: yaml.safe_load(v) for k, v in
+                                                                          (kv.split("=") for kv in TINY)}}))
+    assert main(["sweep", str(f), "--out", str(tmp_path / "out"), "--workers", "1"]) == 0
+    assert len(pd.read_csv(tmp_path / "out" / "results.csv")) == 1
+    assert main(["sweep", str(tmp_path / "missing.yaml")]) == 2
+
+
+def test_notebook_executes_headless(tiny_table):
+    nbformat = pytest.importorskip("nbformat")
+    nbclient = pytest.importorskip("nbclient")
+    nb = nbformat.read(ROOT / "notebooks" / "table2.ipynb", as_version=4)
+    env = {"NBVKIT_EXPERIMENT": str(tiny_table)}
+    old = {k: os.environ.get(k) for k in (*env, "DISPLAY")}
+    os.environ.update(env)
+    os.environ.pop("DISPLAY", None)
+    try:
+        nbclient.NotebookClient(nb, timeout=300, kernel_name="python3",
+                                resources={"metadata": {"path": str(ROOT / "notebooks")}}).execute()
+    finally:
+        for k, v in old.items():
+            if v is None:
+                os.environ.pop(k, None)
+            else:
+                os.environ[k] = v
+    text = "".join(o.get("text", "") for c in nb.cells if c.cell_type == "code" for o in c.get("outputs", []))
+    assert "6 runs" in text and "skipping the interactive 3D view" in text
