@@ -11,6 +11,7 @@
 #include <cstdlib>
 #include <cstring>
 #include <filesystem>
+#include <iostream>
 #include <sstream>
 #include <stdexcept>
 #include <unordered_map>
@@ -968,10 +969,22 @@ OccupancyMap OccupancyMap::load(const std::string& path, const std::optional<Eig
   if (!std::filesystem::exists(path, ec)) throw FileNotFound(path);
   if (std::filesystem::is_directory(path, ec))
     throw std::invalid_argument("map file '" + path + "' is a directory");
+  // OctoMap reports progress and errors on std::cerr: keep it for the error message instead.
+  struct CerrCapture {
+    std::ostringstream text;
+    std::streambuf* old = std::cerr.rdbuf(text.rdbuf());
+    ~CerrCapture() { std::cerr.rdbuf(old); }
+    std::string why() const {
+      std::string t = text.str();
+      while (!t.empty() && (t.back() == '\n' || t.back() == ' ')) t.pop_back();
+      return t.empty() ? std::string() : " (OctoMap: " + t + ")";
+    }
+  } cerr_capture;
   std::unique_ptr<octomap::OcTree> tree;
   if (ext == ".ot") {
     std::unique_ptr<octomap::AbstractOcTree> abstract(octomap::AbstractOcTree::read(path));
-    if (!abstract) throw std::invalid_argument("map file '" + path + "' is not a readable OctoMap .ot file");
+    if (!abstract)
+      throw std::invalid_argument("map file '" + path + "' is not a readable OctoMap .ot file" + cerr_capture.why());
     auto* oc = dynamic_cast<octomap::OcTree*>(abstract.get());
     if (!oc)
       throw std::invalid_argument("map file '" + path + "' holds a " + abstract->getTreeType() +
@@ -981,7 +994,7 @@ OccupancyMap OccupancyMap::load(const std::string& path, const std::optional<Eig
   } else {
     tree = std::make_unique<octomap::OcTree>(0.1);
     if (!tree->readBinary(path))
-      throw std::invalid_argument("map file '" + path + "' is not a readable OctoMap .bt file");
+      throw std::invalid_argument("map file '" + path + "' is not a readable OctoMap .bt file" + cerr_capture.why());
   }
   Eigen::Vector3d bmin, bmax;
   if (!bounds_min || !bounds_max) {
