@@ -39,5 +39,6 @@ void init_map(py::module_& m);
 void init_cloud(py::module_& m);
 void init_evaluation(py::module_& m);
 void init_views(py::module_& m);
+void init_symmetry(py::module_& m);
 
 }  // namespace nbv::bind

@@ -10,4 +10,5 @@ PYBIND11_MODULE(_core, m) {
   nbv::bind::init_cloud(m);
   nbv::bind::init_evaluation(m);
   nbv::bind::init_views(m);
+  nbv::bind::init_symmetry(m);
 }

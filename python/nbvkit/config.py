@@ -157,11 +157,14 @@ class ProfilingConfig:
 
 @dataclass(frozen=True)
 class SymmetryConfig:
-    """Symmetry detection and prediction (sec. 3.2.2). Owned by nbvkit.symmetry; the defaults
-    equal nbvkit.symmetry.SymmetryOptions() / SymmetricPredictionOptions() (a test checks)."""
+    """Symmetry detection and prediction (sec. 3.2.2), owned by nbvkit.symmetry.
+
+    The defaults equal nbvkit.symmetry.SymmetryOptions() / SymmetricPredictionOptions() (a test
+    checks)."""
     prediction_probability: float = 0.6  # paper (authors' code: 0.7)
     keypoints: str = "sift"  # "sift" (authors: 3D SIFT on curvature), "iss" or "uniform"
-    voxel_size: float = 0.1  # m, downsampling before detection and ICP (the profile's voxel)
+    voxel_size: float = 0.2  # m, downsampling before detection (2x the profile's voxel: measured)
+    icp_voxel_size: float = 0.1  # m, downsampling before ICP (the profile's laser voxel)
     normal_k: int = 50  # neighbours for normals (authors: K = 50)
     fpfh_radius: float = 1.0  # m, FPFH support radius
     mirror_descriptors: bool = True  # match against mirrored FPFH (False: authors' plain match)

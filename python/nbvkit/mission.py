@@ -214,6 +214,7 @@ class Mission:
         cloud.ply, map.ot, trajectory.csv and figures/*.png there. Returns the summary dict."""
         cfg = self.config
         t_start = time.perf_counter()
+        self.out_dir = Path(out_dir) if out_dir is not None else None  # stages may save figures
         self.entropy_initial = self.map.total_entropy()  # the empty workspace: cells * ln 2
         p = self.state.pose
         self.state.trajectory.append(("start", *p.tolist(), 0.0))

@@ -1,0 +1,389 @@
+"""Reflective-symmetry detection and symmetric prediction (the paper's sec. 3.2.2 and Fig. 3).
+
+The work is done in C++ with PCL (``nbvkit._core``); this module holds thin wrappers with the
+documentation, the mission-stage hook :func:`run_symmetry_prediction`, and the figures.
+
+Pipeline of :func:`detect_symmetry` (any pose: nothing assumes the plane's orientation or position)
+
+1. voxel-grid downsampling (``voxel_size``, 0.2 m = twice the profile's laser voxel) and normals from
+   ``normal_k`` = 50 neighbours (authors), oriented away from the centroid;
+2. keypoints: 3D SIFT on the curvature (``keypoints="sift"``, authors: min scale 0.1 m, 3 octaves,
+   4 scales per octave, min contrast 1e-4), or ``"iss"`` (intrinsic shape signatures), or
+   ``"uniform"`` (one per cell of a ``uniform_leaf`` grid);
+3. FPFH descriptors at the keypoints, the whole cloud as search surface (``fpfh_radius``);
+4. each keypoint is matched to its most similar *other* keypoint. FPFH is not mirror-invariant:
+   a reflection keeps the Darboux frame's u = n_s and w = u x v (up to the reflection) but flips
+   v = d x u, so of PCL's three angular features only f2 = v . n_t changes sign. A keypoint's
+   descriptor is therefore compared with the *mirrored* descriptors of the others (the 11 bins of
+   the f2 sub-histogram reversed; f1 and f3 unchanged — checked on a mirrored cloud by
+   ``tests/test_symmetry.py``). Candidates closer than ``min_pair_distance`` or whose normals are
+   not mirror images about the pair's bisector (``max_normal_angle_deg``) are skipped;
+5. every pair votes for its perpendicular-bisector plane; mean shift (flat kernel, ``bandwidth``
+   over |n_a - n_b| and the offset difference divided by the cloud's RMS radius, ``mean_shift_seeds``
+   = 50 seeds as the authors) finds the modes; a plane and its negation are the same plane: each
+   votes with both signs, so no cluster is split at a sign boundary;
+6. the ``candidate_modes`` modes of most support are refined by reflective point-to-plane ICP and
+   scored; the most mirror-consistent wins. Confidence = the fraction of points facing the plane
+   (normal within ``facing_angle_deg``) whose reflection lies on an observed surface (within
+   ``consistency_tolerance`` of the tangent plane of an observed point at most
+   ``consistency_radius`` away). Surfaces perpendicular to a plane are left out because they map
+   onto themselves under any reflection across them (the walls of every box), which is no
+   evidence. ``accepted`` = support >= ``min_support`` and confidence >= ``min_confidence``.
+
+:func:`predict_symmetric` reflects the cloud about a plane, aligns the reflection onto the cloud
+with PCL's ICP (point-to-plane by default; authors: max correspondence 1 m, transformation
+epsilon 1e-3, fitness epsilon 1e-2), takes the corrected plane from the improper isometry
+ICP o reflection (the eigenvector of its linear part with eigenvalue -1, d from the
+translation) and predicts the reflected points that no observed point explains.
+"""
+from __future__ import annotations
+
+import math
+import time
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from . import _core
+
+SymmetryResult = _core.SymmetryResult
+SymmetricPrediction = _core.SymmetricPrediction
+PlaneClusters = _core.PlaneClusters
+SymmetryOptions = _core.SymmetryOptions
+SymmetricPredictionOptions = _core.SymmetricPredictionOptions
+
+reflect_points = _core.reflect_points
+reflection_matrix = _core.reflection_matrix
+plane_from_pair = _core.plane_from_pair
+canonical_plane = _core.canonical_plane
+mirror_fpfh = _core.mirror_fpfh
+
+
+def _names(options_type) -> list[str]:
+    return sorted(n for n in dir(options_type()) if not n.startswith("_"))
+
+
+def detect_symmetry(points, **options) -> SymmetryResult:
+    """Detects the dominant mirror plane of a point cloud.
+
+    points: (N, 3) float64, any frame, any pose (N >= 10). options (keyword; None keeps the
+    default), see the module docstring for what each does; defaults in ``SymmetryOptions()``:
+    voxel_size 0.2 m (0 disables), normal_k 50, normal_radius 0 (use K), keypoints "sift" |
+    "iss" | "uniform", sift_min_scale 0.1 m, sift_octaves 3, sift_scales_per_octave 4,
+    sift_min_contrast 1e-4, iss_salient_radius 0.6 m, iss_non_max_radius 0.4 m, uniform_leaf
+    0.5 m, fpfh_radius 1.0 m, mirror_descriptors True, max_descriptor_distance inf (authors: 10),
+    min_pair_distance 0.5 m, max_normal_angle_deg 25, matches_per_keypoint 1, bandwidth 0.08,
+    mean_shift_seeds 50, mean_shift_max_iterations 100, candidate_modes 10, refine_iterations 10,
+    refine_max_distance 1.0 m, refine_max_points 4000, consistency_radius 0.5 m,
+    consistency_tolerance 0.1 m, facing_angle_deg 60, min_support 8, min_confidence 0.7.
+
+    Returns a :class:`SymmetryResult`: ``plane`` (4,) [nx, ny, nz, d] with unit normal n and
+    n . p = d on the plane (sign: the largest |n_i| positive), ``support`` (pairs voting for it),
+    ``confidence`` in [0, 1], ``accepted``, ``reason`` (why not accepted), and diagnostics:
+    ``keypoints`` (K, 3), ``pairs`` (P, 2) indices into keypoints, ``pair_planes`` (P, 4),
+    ``pair_distances`` (P,), ``inliers`` (P,) bool, ``modes`` (M, 4), ``mode_support`` (M,),
+    ``mode_confidence`` (M,) (NaN: not checked), ``vote_share``, ``consistency_all``,
+    ``facing_fraction``, ``num_points`` (after downsampling), ``scale`` (m) and ``timings``
+    (dict stage -> seconds, with "total"). When no pair survives matching, ``plane`` is NaN and
+    ``support`` 0. The plane is reported even when not accepted (for diagnostics): use it only if
+    ``accepted``.
+
+    Raises ValueError for a wrong shape, NaN/inf, fewer than 10 points or a bad option. Runs
+    without the GIL; deterministic (the same input gives the same plane).
+    """
+    return _core.detect_symmetry(points, **options)
+
+
+def predict_symmetric(points, plane, icp: bool = True, **options) -> SymmetricPrediction:
+    """Predicts the unobserved mirror half of a cloud.
+
+    points: (N, 3) float64 observed points (N >= 10); plane: [nx, ny, nz, d] (any scale and sign;
+    normalised). icp: refine the plane by ICP of the reflection onto the cloud first (the paper's
+    step 7). options (defaults in ``SymmetricPredictionOptions()``): voxel_size 0.1 m (ICP runs on
+    the downsampled cloud), normal_k 50, icp_point_to_plane True (False: point-to-point),
+    icp_max_correspondence 1.0 m, icp_transformation_epsilon 1e-3, icp_fitness_epsilon 1e-2,
+    icp_max_iterations 50, max_correction_angle_deg 15 and max_correction_offset 2.0 m (larger ICP
+    corrections are rejected and the given plane kept), explained_tolerance 0.2 m.
+
+    Returns a :class:`SymmetricPrediction` that unpacks as ``(predicted, plane)``:
+    ``predicted`` (M, 3) world-frame points = every input point reflected about the (corrected)
+    plane, minus those within explained_tolerance of an observed point; ``plane`` (4,) the
+    corrected plane; plus ``input_plane``, ``transform`` (4x4 improper isometry ICP o reflection),
+    ``icp_converged``, ``icp_applied``, ``icp_fitness`` (m^2), ``residual_rotation_deg`` and
+    ``timings``. Raises ValueError for bad points, a bad plane or a bad option.
+    """
+    return _core.predict_symmetric(points, plane, icp=icp, **options)
+
+
+def mean_shift_planes(planes, center, scale: float, bandwidth: float = SymmetryOptions().bandwidth,
+                      seeds: int = SymmetryOptions().mean_shift_seeds,
+                      max_iterations: int = SymmetryOptions().mean_shift_max_iterations) -> PlaneClusters:
+    """Mean shift over planes (P, 4) [nx, ny, nz, d] (step 5 of detect_symmetry, exposed).
+
+    Distance between planes: sqrt(|n_a - n_b|^2 + ((d_a - n_a.c) - (d_b - n_b.c))^2 / scale^2)
+    with c = ``center`` (metres) and ``scale`` (metres); each plane votes with both signs. Seeds:
+    the ``seeds`` planes of highest vote density, one bandwidth apart. Returns a
+    :class:`PlaneClusters`: ``plane`` (4,) the mode of most support, ``support``, ``inliers``
+    (P,) bool, ``modes`` (M, 4) most support first, ``mode_support`` (M,).
+    """
+    return _core.mean_shift_planes(planes, center, scale, bandwidth, seeds, max_iterations)
+
+
+def plane_from_improper_isometry(transform) -> tuple[np.ndarray, float]:
+    """(plane, residual_rotation_deg) of a 4x4 improper isometry x -> A x + t (det A < 0): the
+    eigenvector of A's symmetric part with the smallest eigenvalue (-1 for a mirror), d = n.t / 2.
+    Raises ValueError for a proper (det > 0) transform."""
+    return _core.plane_from_improper_isometry(np.asarray(transform, float))
+
+
+def compute_fpfh(points, indices, normal_k: int = SymmetryOptions().normal_k,
+                 radius: float = SymmetryOptions().fpfh_radius) -> np.ndarray:
+    """(K, 33) float32 PCL FPFH at points[indices] (every point as search surface; normals from
+    normal_k neighbours, oriented away from the centroid). For tests and diagnostics."""
+    return _core.compute_fpfh(points, [int(i) for i in indices], normal_k, radius)
+
+
+# ------------------------------------------------------------------------------ mission hook
+
+def _finite_or_none(x) -> Any:
+    x = float(x)
+    return x if math.isfinite(x) else None
+
+
+def detection_options(cfg) -> dict:
+    """detect_symmetry keyword options from a nbvkit.config.SymmetryConfig."""
+    return dict(voxel_size=cfg.voxel_size, normal_k=cfg.normal_k, keypoints=cfg.keypoints,
+                fpfh_radius=cfg.fpfh_radius, mirror_descriptors=cfg.mirror_descriptors,
+                bandwidth=cfg.bandwidth, mean_shift_seeds=cfg.mean_shift_seeds,
+                candidate_modes=cfg.candidate_modes, min_support=cfg.min_support,
+                min_confidence=cfg.min_confidence)
+
+
+def prediction_options(cfg) -> dict:
+    """predict_symmetric keyword options (icp included) from a nbvkit.config.SymmetryConfig."""
+    return dict(icp=cfg.icp, voxel_size=cfg.icp_voxel_size, normal_k=cfg.normal_k,
+                icp_max_correspondence=cfg.icp_max_correspondence,
+                explained_tolerance=cfg.explained_tolerance)
+
+
+def run_symmetry_prediction(mission) -> dict:
+    """The mission's symmetry stage (after profiling): detect the mirror plane of the laser profile
+    ``mission.laser_cloud.points``, and if it is accepted predict the unobserved half and write it
+    into ``mission.map`` with ``set_unknown_cells(predicted, cfg.prediction_probability)`` (only
+    unknown cells change; a later observation overrides a prediction). Config:
+    ``mission.config.symmetry`` (a SymmetryConfig).
+
+    Returns a JSON-safe summary: {"plane": [nx, ny, nz, d] or None, "confidence", "support",
+    "accepted", "predicted_points", "cells_set", "time_s", "detected_plane", "icp_applied",
+    "reason", "timings"} — "plane" is the ICP-corrected plane of an accepted detection and None
+    otherwise (never a plane without enough evidence); "detected_plane" is the detector's best
+    plane before ICP, kept for diagnostics even when rejected (None without any pair). Keeps the results on the mission as
+    ``mission.symmetry_result`` and ``mission.symmetry_prediction`` (None when not accepted), and
+    writes ``figures/symmetry.png`` under ``mission.out_dir`` when that attribute is set. A profile
+    of fewer than 10 points is reported (not accepted); a bad option raises ValueError.
+    """
+    t0 = time.perf_counter()
+    cfg = mission.config.symmetry
+    profile = np.asarray(mission.laser_cloud.points, float)
+    summary: dict = {"plane": None, "confidence": 0.0, "support": 0, "accepted": False,
+                     "predicted_points": 0, "cells_set": 0, "time_s": 0.0, "detected_plane": None,
+                     "icp_applied": False, "reason": "", "timings": {}}
+    mission.symmetry_result = None
+    mission.symmetry_prediction = None
+    if len(profile) < 10:  # nothing to detect; a bad option, in contrast, raises ValueError
+        summary["reason"] = f"the profile has {len(profile)} points; symmetry detection needs at least 10"
+        summary["time_s"] = time.perf_counter() - t0
+        return summary
+    res = detect_symmetry(profile, **detection_options(cfg))
+    mission.symmetry_result = res
+    plane = np.asarray(res.plane, float)
+    detected = [float(v) for v in plane] if np.all(np.isfinite(plane)) else None
+    summary.update(detected_plane=detected, confidence=float(res.confidence),
+                   support=int(res.support), accepted=bool(res.accepted), reason=res.reason,
+                   timings={f"detect_{k}": float(v) for k, v in res.timings.items()})
+    pred = None
+    if res.accepted:
+        popts = prediction_options(cfg)
+        pred = predict_symmetric(profile, plane, **popts)
+        mission.symmetry_prediction = pred
+        cells = mission.map.set_unknown_cells(pred.predicted, cfg.prediction_probability)
+        summary.update(plane=[float(v) for v in pred.plane], predicted_points=int(len(pred.predicted)),
+                       cells_set=int(cells), icp_applied=bool(pred.icp_applied))
+        summary["timings"].update({f"predict_{k}": float(v) for k, v in pred.timings.items()})
+    summary["confidence"] = _finite_or_none(summary["confidence"]) or 0.0
+    out_dir = getattr(mission, "out_dir", None)
+    if out_dir:
+        plot_symmetry(profile, res, pred, Path(out_dir) / "figures" / "symmetry.png")
+    summary["time_s"] = time.perf_counter() - t0
+    return summary
+
+
+# ------------------------------------------------------------------------------ figures
+
+def _plt():
+    import matplotlib
+
+    if matplotlib.get_backend().lower() not in ("agg", "pdf", "svg", "module://matplotlib_inline.backend_inline"):
+        try:
+            matplotlib.use("Agg")
+        except Exception:  # pragma: no cover
+            pass
+    import matplotlib.pyplot as plt
+
+    return plt
+
+
+def _subsample(p: np.ndarray, n: int, seed: int = 0) -> np.ndarray:
+    if len(p) <= n:
+        return p
+    return p[np.random.default_rng(seed).choice(len(p), n, replace=False)]
+
+
+def _plane_of(result) -> np.ndarray | None:
+    if result is None:
+        return None
+    pl = np.asarray(getattr(result, "plane", result), float).reshape(-1)
+    return pl if pl.size == 4 and np.all(np.isfinite(pl)) else None
+
+
+def plot_symmetry(profile, result, predicted, path, max_points: int = 20000, title: str | None = None):
+    """The paper's Fig. 3 as a PNG (headless; top views, x-y): (a) the profile, (b) the detected
+    plane over it (blue), (c) the profile mirrored about that plane (green), (d) the mirrored cloud
+    aligned by ICP and merged with the profile, (e) the added points (the prediction, red).
+
+    profile: (N, 3); result: a SymmetryResult (or a plane [nx, ny, nz, d], or None); predicted: a
+    SymmetricPrediction, an (M, 3) array or None. Clouds are subsampled to max_points. Returns
+    the path written.
+    """
+    plt = _plt()
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    prof = np.asarray(profile, float).reshape(-1, 3)
+    plane = _plane_of(result)
+    corrected = _plane_of(predicted) if isinstance(predicted, SymmetricPrediction) else None
+    if corrected is None:
+        corrected = plane
+    added = (np.asarray(predicted.predicted) if isinstance(predicted, SymmetricPrediction)
+             else (np.zeros((0, 3)) if predicted is None else np.asarray(predicted, float).reshape(-1, 3)))
+    mirrored = reflect_points(prof, plane) if plane is not None and len(prof) else np.zeros((0, 3))
+    aligned = reflect_points(prof, corrected) if corrected is not None and len(prof) else np.zeros((0, 3))
+    P, M, A, E = (_subsample(x, max_points) for x in (prof, mirrored, aligned, added))
+
+    fig, axes = plt.subplots(1, 5, figsize=(22, 4.8), constrained_layout=True)
+    both = np.vstack([x for x in (P, M, A, E) if len(x)]) if len(P) else np.zeros((1, 3))
+    lo, hi = both[:, :2].min(0) - 1.0, both[:, :2].max(0) + 1.0
+
+    def base(ax, alpha=1.0, c="0.25"):
+        if len(P):
+            ax.scatter(P[:, 0], P[:, 1], s=0.3, c=c, alpha=alpha, linewidths=0, rasterized=True)
+
+    def plane_line(ax, pl, color):
+        n, d = pl[:3], pl[3]
+        if np.hypot(n[0], n[1]) < 1e-3:  # horizontal plane: no line in a top view
+            return
+        zc = float(np.mean(prof[:, 2])) if len(prof) else 0.0
+        # points of the plane at height zc: n_x x + n_y y = d - n_z zc
+        rhs = d - n[2] * zc
+        t = np.linspace(-1, 1, 2) * np.linalg.norm(hi - lo)
+        p0 = rhs * n[:2] / (n[0] ** 2 + n[1] ** 2)
+        u = np.array([-n[1], n[0]]) / np.hypot(n[0], n[1])
+        ax.plot(p0[0] + t * u[0], p0[1] + t * u[1], "-", c=color, lw=1.5)
+
+    ax = axes[0]
+    base(ax)
+    ax.set_title("(a) profile")
+    ax = axes[1]
+    base(ax)
+    if plane is not None:
+        plane_line(ax, plane, "tab:blue")
+    conf = getattr(result, "confidence", None)
+    acc = getattr(result, "accepted", None)
+    ax.set_title("(b) detected plane" + (f" (conf {conf:.2f}, {'accepted' if acc else 'rejected'})"
+                                          if conf is not None else ""))
+    ax = axes[2]
+    base(ax, 0.5, "0.6")
+    if len(M):
+        ax.scatter(M[:, 0], M[:, 1], s=0.3, c="tab:green", linewidths=0, rasterized=True)
+    ax.set_title("(c) mirrored")
+    ax = axes[3]
+    base(ax)
+    if len(A):
+        ax.scatter(A[:, 0], A[:, 1], s=0.3, c="tab:green", alpha=0.6, linewidths=0, rasterized=True)
+    if corrected is not None:
+        plane_line(ax, corrected, "tab:blue")
+    ax.set_title("(d) aligned (ICP) and merged")
+    ax = axes[4]
+    base(ax, 0.25, "0.7")
+    if len(E):
+        ax.scatter(E[:, 0], E[:, 1], s=0.5, c="tab:red", linewidths=0, rasterized=True)
+    ax.set_title(f"(e) added points ({len(added)})")
+    for ax in axes:
+        ax.set_xlim(lo[0], hi[0])
+        ax.set_ylim(lo[1], hi[1])
+        ax.set_aspect("equal")
+        ax.set_xlabel("x (m)")
+    axes[0].set_ylabel("y (m)")
+    if title:
+        fig.suptitle(title)
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+    return path
+
+
+def symmetry_geometries(profile, result, predicted=None, plane_size: float | None = None):
+    """open3d geometries of Fig. 3 (imports open3d lazily): the profile (grey), its reflection
+    about the (corrected) plane (green), the prediction (red) and the plane as a thin blue square.
+    """
+    import open3d as o3d
+
+    prof = np.asarray(profile, float).reshape(-1, 3)
+    plane = _plane_of(predicted) if isinstance(predicted, SymmetricPrediction) else None
+    if plane is None:
+        plane = _plane_of(result)
+    added = (np.asarray(predicted.predicted) if isinstance(predicted, SymmetricPrediction)
+             else (np.zeros((0, 3)) if predicted is None else np.asarray(predicted, float).reshape(-1, 3)))
+    geoms = []
+
+    def cloud(p, color):
+        pc = o3d.geometry.PointCloud(o3d.utility.Vector3dVector(np.ascontiguousarray(p)))
+        pc.paint_uniform_color(color)
+        return pc
+
+    geoms.append(cloud(prof, [0.5, 0.5, 0.5]))
+    if plane is not None and len(prof):
+        geoms.append(cloud(reflect_points(prof, plane), [0.2, 0.7, 0.2]))
+        n, d = plane[:3], plane[3]
+        c = prof.mean(0)
+        c = c - (n @ c - d) * n
+        size = plane_size or float(np.ptp(prof, axis=0).max())
+        u = np.cross(n, [1.0, 0, 0] if abs(n[0]) < 0.9 else [0, 1.0, 0])
+        u /= np.linalg.norm(u)
+        v = np.cross(n, u)
+        h = 0.5 * size
+        verts = np.array([c - h * u - h * v, c + h * u - h * v, c + h * u + h * v, c - h * u + h * v])
+        tri = np.array([[0, 1, 2], [0, 2, 3], [0, 2, 1], [0, 3, 2]], np.int32)
+        m = o3d.geometry.TriangleMesh(o3d.utility.Vector3dVector(verts), o3d.utility.Vector3iVector(tri))
+        m.paint_uniform_color([0.2, 0.4, 0.9])
+        geoms.append(m)
+    if len(added):
+        geoms.append(cloud(added, [0.9, 0.1, 0.1]))
+    return geoms
+
+
+def show_symmetry_open3d(profile, result, predicted=None, window_name: str = "nbvkit symmetry"):
+    """Opens an open3d window with :func:`symmetry_geometries` (needs a display; for notebooks).
+    Returns the geometries."""
+    import open3d as o3d
+
+    geoms = symmetry_geometries(profile, result, predicted)
+    o3d.visualization.draw_geometries(geoms, window_name=window_name)
+    return geoms
+
+
+__all__ = ["detect_symmetry", "predict_symmetric", "mean_shift_planes", "SymmetryResult",
+           "SymmetricPrediction", "PlaneClusters", "SymmetryOptions", "SymmetricPredictionOptions",
+           "run_symmetry_prediction", "plot_symmetry", "show_symmetry_open3d", "symmetry_geometries",
+           "reflect_points", "reflection_matrix", "plane_from_pair", "canonical_plane",
+           "plane_from_improper_isometry", "mirror_fpfh", "compute_fpfh", "detection_options",
+           "prediction_options"]
