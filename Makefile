@@ -40,7 +40,7 @@ install: venv
 	@$(PY) -c "import nbvkit, sys; print('nbvkit', nbvkit.__version__, 'installed in', sys.prefix)"
 
 demo:
-	$(VENV)/bin/nbvkit run --scenario 1 --out runs/main
+	$(VENV)/bin/nbvkit run --out runs/main
 
 test: install test-cpp test-py
 

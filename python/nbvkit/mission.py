@@ -22,7 +22,8 @@ from .sampling import AdaptiveScale, candidate_poses
 from .termination import EntropyTermination, viewable_cells
 from .workspace import Workspace, make_workspace, start_poses
 
-#: scenario -> (profiling, symmetry, sampling), as in the paper's Table 2
+#: scenario -> (profiling, symmetry prediction, sampling), as in the paper's Table 2 (the
+#: "profile" scenario also reports the symmetry its profile shows, without using it)
 SCENARIOS = {
     "profile": (True, False, None),
     "1": (False, False, "cgvs"),
@@ -226,9 +227,11 @@ class Mission:
         if self.profiling:
             from .profiling import run_profiling  # issue: profiling stage
             self.profile_summary = run_profiling(self)
-        if self.symmetry:
+        if self.symmetry or cfg.scenario == "profile":
             from .symmetry import run_symmetry_prediction
-            self.symmetry_summary = run_symmetry_prediction(self)
+
+            # the profile scenario reports the plane its profile shows, without predicting into the map
+            self.symmetry_summary = run_symmetry_prediction(self, write_map=self.symmetry)
         self.sense_camera(self.state.pose)
         self.tracker = CoverageTracker(self.evaluator.gt_points)
         termination = self._nbv_loop() if cfg.scenario != "profile" else "profile_only"

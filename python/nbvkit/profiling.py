@@ -12,7 +12,8 @@ point is the one nearest the start (the paper's wording, "the angle between the 
 the vector from the UAV's starting position to the centre", would put it on the far side).
 
 The bounding-box profiler (the authors' second method) flies the four vertical faces of the
-structure's observed bounding box grown by the margin, sweeping at each corner and face middle.
+structure's observed bounding box grown by the margin, sweeping at each corner and face middle; the box
+is recomputed after every sweep, as the circle is.
 
 The flight is confined to the profiling flight volume (the workspace grown by `flight_margin` in
 x and y) and keeps the collision radius off known-occupied cells; it is not confined to the NBV
@@ -132,29 +133,39 @@ class Profiler:
                 self._move(q, self._face(q, c))
 
     def bbox(self):
+        """Fly the four vertical faces of the profile's XY bounding box grown by the margin,
+        sweeping at each corner and face middle; the box is recomputed after every sweep (as the
+        circle is), so it grows with the profile and stays clear of what has been seen."""
         m = self.m
+
+        def box():
+            pts = m.laser_cloud.points
+            if len(pts) == 0:
+                return m.workspace.bounds_min[:2].copy(), m.workspace.bounds_max[:2].copy()
+            return pts[:, :2].min(axis=0) - self.cfg.margin, pts[:, :2].max(axis=0) + self.cfg.margin
+
+        def stop(lo, hi, k):  # 8 stops round the box: corner, mid-face, corner, ... from corner 0
+            corners = [np.array([lo[0], lo[1]]), np.array([hi[0], lo[1]]), np.array([hi[0], hi[1]]),
+                       np.array([lo[0], hi[1]])]
+            a, b = corners[(k // 2) % 4], corners[(k // 2 + 1) % 4]
+            return a if k % 2 == 0 else (a + b) / 2
+
         self._sweep(m.workspace.center)
-        pts = m.laser_cloud.points
-        lo = pts[:, :2].min(axis=0) if len(pts) else m.workspace.bounds_min[:2]
-        hi = pts[:, :2].max(axis=0) if len(pts) else m.workspace.bounds_max[:2]
-        lo, hi = lo - self.cfg.margin, hi + self.cfg.margin
-        c = (lo + hi) / 2
-        corners = [np.array([lo[0], lo[1]]), np.array([hi[0], lo[1]]), np.array([hi[0], hi[1]]),
-                   np.array([lo[0], hi[1]])]
-        # start from the corner nearest the vehicle, go round, sweeping at corners and mid-faces
+        lo, hi = box()
         p = m.state.pose[:2]
-        i0 = int(np.argmin([np.linalg.norm(q - p) for q in corners]))
-        stops = []
-        for i in range(4):
-            a, b = corners[(i0 + i) % 4], corners[(i0 + i + 1) % 4]
-            stops += [a, (a + b) / 2]
-        stops.append(corners[i0])
-        self.circles.append([float(c[0]), float(c[1]), float(np.linalg.norm(hi - c))])
-        for q in stops:
+        k0 = 2 * int(np.argmin([np.linalg.norm(stop(lo, hi, 2 * i) - p) for i in range(4)]))
+        for k in range(k0, k0 + 8):
+            c = (lo + hi) / 2
+            q = stop(lo, hi, k)
             q3 = np.array([q[0], q[1], m.state.pose[2]])
             self._move(q3, self._face(q3, c))
-            if q is not stops[-1]:
-                self._sweep(np.array([*c, 0.0]))
+            self._sweep(np.array([*c, 0.0]))
+            lo, hi = box()
+            self.circles.append([float(c[0]), float(c[1]), float(np.linalg.norm(hi - lo) / 2)])
+        c = (lo + hi) / 2
+        q = stop(lo, hi, k0)
+        q3 = np.array([q[0], q[1], m.state.pose[2]])
+        self._move(q3, self._face(q3, c))  # close the loop
 
 
 def run_profiling(mission) -> dict:

@@ -167,7 +167,7 @@ def prediction_options(cfg) -> dict:
                 explained_tolerance=cfg.explained_tolerance)
 
 
-def run_symmetry_prediction(mission) -> dict:
+def run_symmetry_prediction(mission, write_map: bool = True) -> dict:
     """The mission's symmetry stage (after profiling): detect the mirror plane of the laser profile
     ``mission.laser_cloud.points``, and if it is accepted predict the unobserved half and write it
     into ``mission.map`` with ``set_unknown_cells(predicted, cfg.prediction_probability)`` (only
@@ -182,13 +182,16 @@ def run_symmetry_prediction(mission) -> dict:
     ``mission.symmetry_result`` and ``mission.symmetry_prediction`` (None when not accepted), and
     writes ``figures/symmetry.png`` under ``mission.out_dir`` when that attribute is set. A profile
     of fewer than 10 points is reported (not accepted); a bad option raises ValueError.
+    With ``write_map=False`` (the "profile" scenario: detection reported, the map left as the
+    profile made it) the prediction is computed but not written; "cells_set" is then 0 and
+    "written" False.
     """
     t0 = time.perf_counter()
     cfg = mission.config.symmetry
     profile = np.asarray(mission.laser_cloud.points, float)
     summary: dict = {"plane": None, "confidence": 0.0, "support": 0, "accepted": False,
                      "predicted_points": 0, "cells_set": 0, "time_s": 0.0, "detected_plane": None,
-                     "icp_applied": False, "reason": "", "timings": {}}
+                     "icp_applied": False, "reason": "", "timings": {}, "written": False}
     mission.symmetry_result = None
     mission.symmetry_prediction = None
     if len(profile) < 10:  # nothing to detect; a bad option, in contrast, raises ValueError
@@ -207,9 +210,9 @@ def run_symmetry_prediction(mission) -> dict:
         popts = prediction_options(cfg)
         pred = predict_symmetric(profile, plane, **popts)
         mission.symmetry_prediction = pred
-        cells = mission.map.set_unknown_cells(pred.predicted, cfg.prediction_probability)
+        cells = mission.map.set_unknown_cells(pred.predicted, cfg.prediction_probability) if write_map else 0
         summary.update(plane=[float(v) for v in pred.plane], predicted_points=int(len(pred.predicted)),
-                       cells_set=int(cells), icp_applied=bool(pred.icp_applied))
+                       cells_set=int(cells), icp_applied=bool(pred.icp_applied), written=write_map)
         summary["timings"].update({f"predict_{k}": float(v) for k, v in pred.timings.items()})
     summary["confidence"] = _finite_or_none(summary["confidence"]) or 0.0
     out_dir = getattr(mission, "out_dir", None)

@@ -1,0 +1,81 @@
+"""Profiling (Algorithm 1): waypoints on the recomputed circle, a radius that encloses the growing
+profile, clearance from the structure, the bounding-box method, and the profile's own summary."""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from nbvkit.config import Config
+from nbvkit.mission import Mission
+from nbvkit.profiling import Profiler
+
+FAST = ["map.resolution=0.4", "progress=false", "evaluation.gt_density=100", "profiling.sweep_step=0.25"]
+
+
+@pytest.fixture(scope="module")
+def profiled():
+    m = Mission(Config().with_overrides(FAST + ["scenario=profile"]))
+    s = m.run()
+    return m, s
+
+
+def test_profile_summary_and_symmetry_report(profiled):
+    m, s = profiled
+    p = s["profile"]
+    assert s["termination"] == "profile_only" and s["iterations"] == 0
+    assert p["distance_m"] > 2 * math.pi * 20  # at least a turn around a 35 m aircraft
+    assert p["entropy_reduction"] > 0.3 * s["entropy_initial"]  # the laser clears most free space
+    assert p["coverage"]["0.5"] > 0.6 and p["coverage"]["0.05"] < p["coverage"]["0.5"]
+    assert p["clearance_m"] > m.config.vehicle.collision_radius
+    sym = s["symmetry"]
+    assert sym["accepted"] and not sym["written"] and sym["cells_set"] == 0
+    n = np.array(sym["plane"][:3])
+    assert abs(abs(n[1]) - 1) < 1e-3  # the airliner's mirror plane y = 0
+    assert m.map.counts()["predicted"] == 0
+
+
+def test_waypoints_lie_on_the_recomputed_circle(profiled):
+    m, s = profiled
+    p = s["profile"]
+    wps, circles = np.array(p["waypoints"]), np.array(p["circles"])
+    assert len(wps) == m.config.profiling.waypoints == len(circles)
+    # sweep k+1 happens on circle k (centre and radius recomputed after sweep k), N angles apart
+    for k in range(len(wps) - 1):
+        c, r = circles[k, :2], circles[k, 2]
+        assert np.linalg.norm(wps[k + 1] - c) == pytest.approx(r, abs=1e-6)
+    start = m.start_pose[:2]
+    np.testing.assert_allclose(wps[0], start, atol=1e-9)  # the first sweep is at the start
+    ang = [math.atan2(w[1] - c[1], w[0] - c[0]) for w, c in zip(wps[1:], circles[:-1, :2])]
+    steps = np.diff(np.unwrap(ang))
+    np.testing.assert_allclose(steps, 2 * math.pi / len(wps), atol=0.15)
+
+
+def test_radius_encloses_the_profile_and_grows_with_it():
+    class Stub:  # the circle computation on its own
+        pass
+
+    m = Stub()
+    m.config = Config()
+    m.workspace = None
+    prof = Profiler.__new__(Profiler)
+    prof.m, prof.cfg = m, m.config.profiling
+    rng = np.random.default_rng(0)
+    pts = rng.normal(size=(200, 3))
+    radii = []
+    for grow in (1.0, 2.0, 3.0):
+        m.laser_cloud = type("C", (), {"points": np.vstack([pts, grow * np.array([[4, 0, 0], [-4, 0, 0]])])})()
+        c, r = prof._circle(np.zeros(3), 1.0)
+        xy = m.laser_cloud.points[:, :2]
+        assert np.all(np.linalg.norm(xy - c, axis=1) <= r - prof.cfg.margin + 1e-9)
+        radii.append(r)
+    assert radii[0] < radii[1] < radii[2]
+
+
+def test_bounding_box_profiler():
+    m = Mission(Config().with_overrides(FAST + ["scenario=profile", "profiling.method=bbox"]))
+    s = m.run()
+    p = s["profile"]
+    assert p["method"] == "bbox" and len(p["waypoints"]) == 9  # start + 4 corners + 4 mid-faces
+    assert p["coverage"]["0.5"] > 0.5 and p["clearance_m"] > m.config.vehicle.collision_radius
