@@ -88,3 +88,13 @@ def test_shipped_yaml_is_generated_from_the_dataclasses():
     from nbvkit.config import documented_yaml
 
     assert (ROOT / "configs" / "default.yaml").read_text() == documented_yaml()
+
+
+def test_core_type_stub_is_current():
+    import ast
+
+    from nbvkit._stubgen import stub
+
+    text = (ROOT / "python" / "nbvkit" / "_core.pyi").read_text()
+    assert text == stub(), "regenerate with: .venv/bin/python -m nbvkit._stubgen > python/nbvkit/_core.pyi"
+    ast.parse(text)

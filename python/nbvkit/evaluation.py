@@ -12,6 +12,7 @@ import numpy as np
 
 from . import _core
 from ._core import Mesh
+from .cloud import _as_points
 
 __all__ = ["evaluate", "Evaluator", "format_report", "DEFAULT_GT_DENSITY", "DEFAULT_RESOLUTIONS", "DEFAULT_TAUS",
            "MAX_GT_POINTS"]
@@ -45,14 +46,6 @@ def _lengths(values, what):
     if len(set(keys)) != len(keys):
         raise ValueError(f"{what} has duplicate values: {out}")
     return out
-
-
-def _points_of(obj):
-    if isinstance(obj, _core.SurfaceCloud):
-        return obj.points
-    if isinstance(obj, _core.Scan):
-        return obj.hits
-    return obj
 
 
 def evaluate(gt, cloud, resolutions=DEFAULT_RESOLUTIONS, taus=DEFAULT_TAUS,
@@ -162,14 +155,14 @@ class Evaluator:
             raise ValueError(f"gt_density must be a positive number of points per m^2, "
                              f"got {gt_density!r}") from None
         if not isinstance(gt, Mesh):
-            gt = _points_of(gt)
+            gt = _as_points(gt)
         self._core = _core._Evaluator(gt, res_list, tau_list, density, int(seed), int(max_gt_points))
         for w in self._core.gt_info.warnings:
             warnings.warn(w, RuntimeWarning, stacklevel=_stacklevel)
 
     def evaluate(self, cloud) -> dict:
         """Score ``cloud`` ((N, 3) or a PointCloud); see ``nbvkit.evaluate`` for the dict."""
-        return _to_dict(self._core.evaluate(_points_of(cloud)))
+        return _to_dict(self._core.evaluate(_as_points(cloud)))
 
     __call__ = evaluate
 

@@ -224,17 +224,7 @@ def run_symmetry_prediction(mission, write_map: bool = True) -> dict:
 
 # ------------------------------------------------------------------------------ figures
 
-def _plt():
-    import matplotlib
-
-    if matplotlib.get_backend().lower() not in ("agg", "pdf", "svg", "module://matplotlib_inline.backend_inline"):
-        try:
-            matplotlib.use("Agg")
-        except Exception:  # pragma: no cover
-            pass
-    import matplotlib.pyplot as plt
-
-    return plt
+from .plots import _plt  # noqa: E402  (one headless matplotlib set-up for all figures)
 
 
 def _subsample(p: np.ndarray, n: int, seed: int = 0) -> np.ndarray:
