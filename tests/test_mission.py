@@ -95,3 +95,11 @@ def test_cli_run_and_help(tmp_path, capsys):
     assert json.loads((tmp_path / "summary.json").read_text())["start"] == 2
     assert main(["run", "--scenario", "1", "--set", "nope=1", "--out", str(tmp_path)]) == 2
     assert "unknown config key 'nope'" in capsys.readouterr().err
+
+
+def test_blocked_legs_can_be_planned_around_and_the_flown_path_is_counted(tmp_path):
+    m = Mission(cfg("scenario=1", "vehicle.blocked_path=plan", "max_iterations=8"))
+    s = m.run(tmp_path)
+    assert s["iterations"] >= 1
+    traj = np.array([r[1:4] for r in m.state.trajectory], float)
+    assert np.linalg.norm(np.diff(traj, axis=0), axis=1).sum() == pytest.approx(s["distance_m"])
