@@ -121,7 +121,10 @@ class Mission:
         self.mesh = mesh
         self.mesh_path = str(cfg.mesh.path or default_mesh_path())
         self.workspace: Workspace = make_workspace(mesh.bounds, cfg)
-        self.starts = start_poses(self.workspace)
+        # starts within 3/4 of the camera's range of the structure (see start_poses)
+        self.starts = start_poses(self.workspace, surface=mesh.sample_surface(20000, seed=0),
+                                  reach=0.75 * cfg.camera.max_range,
+                                  clearance=cfg.vehicle.collision_radius + 1.0)
         self.start_pose = (np.array(cfg.start_pose, float) if cfg.start_pose is not None
                            else self.starts[cfg.start])
         self.scene = _core.RaycastScene(mesh)

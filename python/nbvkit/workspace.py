@@ -56,15 +56,33 @@ def make_workspace(mesh_bounds, cfg: Config) -> Workspace:
     return Workspace(bmin, bmax, nav_min, nav_max)
 
 
-def start_poses(ws: Workspace, n: int = 5) -> np.ndarray:
-    """(n, 4) predefined starts: evenly spaced on the ellipse inscribed in the navigation bounds
-    (just inside the workspace boundary), at mid height, each facing the workspace centre. Start 0
-    is on the -y side facing +y (the authors' (0, -20, 5), yaw 90 deg on their workspace)."""
+def start_poses(ws: Workspace, n: int = 5, surface=None, reach: float | None = None,
+                clearance: float = 0.0) -> np.ndarray:
+    """(n, 4) predefined starts, evenly spaced in bearing around the workspace centre at mid
+    height, each facing the centre. Each lies on the ellipse inscribed in the navigation bounds
+    (just inside the workspace boundary) unless the structure is out of reach from there: given
+    its surface samples `surface` (M, 3) and the sensor's `reach` (m), a start whose nearest
+    surface point is farther than `reach` moves inward along its bearing until it is within reach
+    (but not nearer than `clearance`). On the diagonals of a cross-shaped structure (an aircraft
+    in a square workspace) the boundary is farther than the camera sees. Start 0 is on the -y
+    side facing +y (the authors' (0, -20, 5), yaw 90 deg on their workspace)."""
     c = (ws.nav_min + ws.nav_max) / 2
     h = (ws.nav_max - ws.nav_min) / 2
+    tree = None
+    if surface is not None and reach is not None and len(surface):
+        from scipy.spatial import cKDTree
+
+        tree = cKDTree(np.asarray(surface, float))
     out = np.empty((n, 4))
     for k in range(n):
         th = -math.pi / 2 + 2 * math.pi * k / n
-        out[k] = [c[0] + h[0] * math.cos(th), c[1] + h[1] * math.sin(th), c[2],
-                  math.atan2(-math.sin(th) * h[1], -math.cos(th) * h[0])]
+        p = np.array([c[0] + h[0] * math.cos(th), c[1] + h[1] * math.sin(th), c[2]])
+        if tree is not None:
+            step = (c - p) / max(np.linalg.norm(c - p), 1e-9) * 0.25
+            for _ in range(int(np.linalg.norm(c - p) / 0.25)):
+                d = tree.query(p)[0]
+                if d <= reach or tree.query(p + step)[0] < clearance:
+                    break
+                p = p + step
+        out[k] = [p[0], p[1], p[2], math.atan2(c[1] - p[1], c[0] - p[0])]
     return out
