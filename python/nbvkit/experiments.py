@@ -265,3 +265,33 @@ def sweep_specs(sweep: dict) -> list[RunSpec]:
     for s in {(sp.mesh, sp.overrides, sp.config_file) for sp in specs}:
         RunSpec("1", 0, s[0], overrides=s[1], config_file=s[2]).config()
     return specs
+
+
+def compare_with_paper(t, paper_csv) -> str:
+    """Markdown: our Table 2 (means over starts) beside the paper's (its table2.csv layout)."""
+    import pandas as pd
+
+    paper = pd.read_csv(paper_csv, dtype={"scenario": str})
+    lines = ["| Scenario | Iterations (ours / paper) | Distance m | Entropy reduction | Coverage @0.05 m | "
+             "Coverage @0.10 m | Coverage @0.50 m |", "|---|---|---|---|---|---|---|"]
+    for _, r in t.iterrows():
+        p = paper[paper["scenario"].astype(str) == str(r["Scenario"])]
+        if not len(p):
+            continue
+        p = p.iloc[0]
+
+        def pair(ours, theirs, kind):
+            if kind == "pct":
+                return f"{ours:.1%} / {theirs:.1%}".replace("%", " %")
+            if kind == "int":
+                return ("—" if ours != ours else f"{ours:,.0f}") + " / " + ("—" if theirs != theirs else f"{theirs:,.0f}")
+            return f"{ours:,.1f} / {theirs:,.1f}"
+
+        lines.append("| " + " | ".join([
+            str(r["Scenario"]), pair(r["Iterations"], p["iterations"], "int"),
+            pair(r["Distance (m)"], p["distance_m"], "num"),
+            pair(r["Entropy reduction"], p["entropy_reduction"], "int"),
+            pair(r["Coverage @0.05 m"], p["coverage_0.05"], "pct"),
+            pair(r["Coverage @0.10 m"], p["coverage_0.10"], "pct"),
+            pair(r["Coverage @0.50 m"], p["coverage_0.50"], "pct")]) + " |")
+    return "\n".join(lines) + "\n"

@@ -121,13 +121,17 @@ class Mission:
         self.mesh = mesh
         self.mesh_path = str(cfg.mesh.path or default_mesh_path())
         self.workspace: Workspace = make_workspace(mesh.bounds, cfg)
-        # starts within 3/4 of the camera's range of the structure (see start_poses)
+        self.scene = _core.RaycastScene(mesh)
+        # starts within 3/4 of the camera's range of the structure, seeing it (see start_poses)
+        c = cfg.camera
+        probe = _core.DepthCamera(self.scene, width=32, height=24, hfov_deg=c.hfov_deg, vfov_deg=c.vfov_deg,
+                                  min_range=c.min_range, max_range=c.max_range,
+                                  mount=_core.mount_transform(c.mount_xyz, *c.mount_rpy_deg))
         self.starts = start_poses(self.workspace, surface=mesh.sample_surface(20000, seed=0),
-                                  reach=0.75 * cfg.camera.max_range,
-                                  clearance=cfg.vehicle.collision_radius + 1.0)
+                                  reach=0.75 * c.max_range, clearance=cfg.vehicle.collision_radius + 1.0,
+                                  sees=lambda pose: len(probe.scan_pose(pose).hits) >= 0.05 * 32 * 24)
         self.start_pose = (np.array(cfg.start_pose, float) if cfg.start_pose is not None
                            else self.starts[cfg.start])
-        self.scene = _core.RaycastScene(mesh)
         self._check_start(self.start_pose)
         c, la = cfg.camera, cfg.laser
         self.camera = _core.DepthCamera(

@@ -57,12 +57,13 @@ def make_workspace(mesh_bounds, cfg: Config) -> Workspace:
 
 
 def start_poses(ws: Workspace, n: int = 5, surface=None, reach: float | None = None,
-                clearance: float = 0.0) -> np.ndarray:
+                clearance: float = 0.0, sees=None) -> np.ndarray:
     """(n, 4) predefined starts, evenly spaced in bearing around the workspace centre at mid
     height, each facing the centre. Each lies on the ellipse inscribed in the navigation bounds
     (just inside the workspace boundary) unless the structure is out of reach from there: given
     its surface samples `surface` (M, 3) and the sensor's `reach` (m), a start whose nearest
-    surface point is farther than `reach` moves inward along its bearing until it is within reach
+    surface point is farther than `reach` — or, given `sees(pose) -> bool`, from which the sensor
+    facing the centre does not see the structure — moves inward along its bearing until both hold
     (but not nearer than `clearance`). On the diagonals of a cross-shaped structure (an aircraft
     in a square workspace) the boundary is farther than the camera sees. Start 0 is on the -y
     side facing +y (the authors' (0, -20, 5), yaw 90 deg on their workspace)."""
@@ -80,8 +81,9 @@ def start_poses(ws: Workspace, n: int = 5, surface=None, reach: float | None = N
         if tree is not None:
             step = (c - p) / max(np.linalg.norm(c - p), 1e-9) * 0.25
             for _ in range(int(np.linalg.norm(c - p) / 0.25)):
-                d = tree.query(p)[0]
-                if d <= reach or tree.query(p + step)[0] < clearance:
+                yaw = math.atan2(c[1] - p[1], c[0] - p[0])
+                ok = tree.query(p)[0] <= reach and (sees is None or sees(np.array([*p, yaw])))
+                if ok or tree.query(p + step)[0] < clearance:
                     break
                 p = p + step
         out[k] = [p[0], p[1], p[2], math.atan2(c[1] - p[1], c[0] - p[0])]
