@@ -116,10 +116,11 @@ class Mission:
         if sampling is not None and sampling != cfg.sampling.method:
             self.config = cfg = replace(cfg, sampling=replace(cfg.sampling, method=sampling))
         if mesh is None:
-            path = cfg.mesh.path or default_mesh_path()
-            mesh = load_mesh(path, scale=cfg.mesh.scale, up=cfg.mesh.up)
+            self.mesh_path = str(cfg.mesh.path or default_mesh_path())
+            mesh = load_mesh(self.mesh_path, scale=cfg.mesh.scale, up=cfg.mesh.up)
+        else:
+            self.mesh_path = "<in-memory mesh>"
         self.mesh = mesh
-        self.mesh_path = str(cfg.mesh.path or default_mesh_path())
         self.workspace: Workspace = make_workspace(mesh.bounds, cfg)
         self.scene = _core.RaycastScene(mesh)
         # starts within 3/4 of the camera's range of the structure, seeing it (see start_poses)
