@@ -123,3 +123,16 @@ def test_notebook_executes_headless(tiny_table):
                 os.environ[k] = v
     text = "".join(o.get("text", "") for c in nb.cells if c.cell_type == "code" for o in c.get("outputs", []))
     assert "6 runs" in text and "skipping the interactive 3D view" in text
+
+
+def test_comparison_with_the_papers_table(tmp_path):
+    from nbvkit.experiments import compare_with_paper
+
+    paper = tmp_path / "paper.csv"
+    paper.write_text("scenario,profiling,symmetry,sampling,iterations,distance_m,entropy_reduction,"
+                     "coverage_0.05,coverage_0.10,coverage_0.50\n1,no,no,CGVS,859,1039.9,289439,0.733,0.787,0.869\n")
+    df = pd.DataFrame([{"scenario": "1", "iterations": 700, "distance_m": 900.0, "entropy_reduction": 8e5,
+                        "coverage_0.05": 0.6, "coverage_0.1": 0.7, "coverage_0.5": 0.9,
+                        "area_coverage_0.05": 0.6, "wall_time_s": 60.0, "ms_per_iteration": 80.0}])
+    md = compare_with_paper(table2(df), paper)
+    assert "| 1 | 700 / 859 | 900.0 / 1,039.9 | 800,000 / 289,439 | 60.0 % / 73.3 % |" in md
