@@ -136,3 +136,9 @@ def test_comparison_with_the_papers_table(tmp_path):
                         "area_coverage_0.05": 0.6, "wall_time_s": 60.0, "ms_per_iteration": 80.0}])
     md = compare_with_paper(table2(df), paper)
     assert "| 1 | 700 / 859 | 900.0 / 1,039.9 | 800,000 / 289,439 | 60.0 % / 73.3 % |" in md
+
+
+def test_shipped_example_sweep_is_valid():
+    spec = yaml.safe_load((ROOT / "configs" / "sweep_example.yaml").read_text())
+    specs = sweep_specs(spec)
+    assert len(specs) == 2 * 2 * 2 * 3
