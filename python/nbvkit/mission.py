@@ -422,4 +422,5 @@ def _progress(total: int, enabled: bool):
         from tqdm import tqdm
     except ImportError:  # pragma: no cover - tqdm is a Debian package we install
         return None
-    return tqdm(total=total, desc="NBV", unit="it", dynamic_ncols=True, leave=False)
+    # disable=None: no bar when stderr is not a terminal (logs, pipes, CI)
+    return tqdm(total=total, desc="NBV", unit="it", dynamic_ncols=True, leave=False, disable=None)
