@@ -102,9 +102,12 @@ class VehicleConfig:
     # what to do when the straight segment to a candidate crosses occupied/unknown space:
     # "reject" the candidate, or "plan" a path through known free space (A* on the map)
     blocked_path: str = "reject"
-    # cells within this radius of the start pose are known free before the first scan: the
-    # vehicle took off there (no sensor sees its own surroundings); 0 disables
-    start_clear_radius: float = 1.5
+    # unknown cells within this radius of the start pose are known free before the first scan:
+    # the vehicle flew there (no sensor sees its own surroundings). With less than ~2 m the strict
+    # "no unknown cell within the collision radius" rule leaves a camera-only start (Scenario 1)
+    # only yaw turns: every 1 m step's sphere reaches outside the camera's 45 deg vertical FOV.
+    # 0 disables
+    start_clear_radius: float = 3.0
     # the vehicle's own swept volume (collision radius along the flown path) is known free
     clear_swept_volume: bool = True
 
