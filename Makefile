@@ -55,8 +55,9 @@ test-cpp: install
 test-py:
 	$(PY) -m pytest -q tests
 
+# Every benchmark prints its figures and its baseline ratio (README, "Measured figures").
 bench: install
-	$(PY) bench/run_all.py
+	for b in bench/bench_*.py; do echo "== $$b"; $(PY) $$b || exit 1; done
 
 clean:
 	rm -rf build $(VENV) python/nbvkit/_core*.so
