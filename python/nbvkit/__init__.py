@@ -22,10 +22,16 @@ from .cloud import PointCloud, read_points, write_points  # noqa: F401
 from .evaluation import Evaluator, evaluate  # noqa: F401
 from .mapping import CellFlag, CellState, IntegrationStats, OccupancyMap, OccupancyMapOptions  # noqa: F401
 from .symmetry import SymmetryResult, detect_symmetry, predict_symmetric  # noqa: F401
+from .config import Config, load_config  # noqa: F401
+from .mission import Mission, MissionError  # noqa: F401
 
 __version__ = "0.1.0"
 
 __all__ = [
+    "Config",
+    "Mission",
+    "MissionError",
+    "load_config",
     "DepthCamera",
     "LaserScanner",
     "Mesh",
