@@ -13,16 +13,7 @@ import time
 import numpy as np
 
 import nbvkit
-
-
-def timeit(fn, repeat):
-    fn()  # warm up
-    ts = []
-    for _ in range(repeat):
-        t0 = time.perf_counter()
-        fn()
-        ts.append(time.perf_counter() - t0)
-    return float(np.median(ts))
+from _timing import median_time
 
 
 def main():
@@ -54,9 +45,9 @@ def main():
     rows = []
     for nt in (1, threads):
         nbvkit.set_num_threads(nt)
-        t_pk = timeit(lambda: cam.scan(T), args.repeat)
-        t_hq = timeit(lambda: cam_hq.scan(T), args.repeat)
-        t_1 = timeit(lambda: scene.intersect(origin, dirs_world, 0.0, 8.0 / 0.7), max(3, args.repeat // 4))
+        t_pk = median_time(lambda: cam.scan(T), args.repeat)
+        t_hq = median_time(lambda: cam_hq.scan(T), args.repeat)
+        t_1 = median_time(lambda: scene.intersect(origin, dirs_world, 0.0, 8.0 / 0.7), max(3, args.repeat // 4))
         rows.append((nt, t_pk, t_hq, t_1))
     nbvkit.set_num_threads(0)
     print(f"{'threads':>7} {'packets ms':>11} {'Mrays/s':>8} {'HQ BVH ms':>10} {'rtcIntersect1 ms':>17} {'speed-up':>9}")
@@ -64,7 +55,7 @@ def main():
         print(f"{nt:>7} {t_pk * 1e3:>11.2f} {n_rays / t_pk / 1e6:>8.1f} {t_hq * 1e3:>10.2f} "
               f"{t_1 * 1e3:>17.2f} {t_1 / t_pk:>8.1f}x")
     las = nbvkit.LaserScanner(scene)
-    t_las = timeit(lambda: las.scan_pose(pose), 200)
+    t_las = median_time(lambda: las.scan_pose(pose), 200)
     print(f"laser scan ({las.num_beams} beams, 1 thread): {t_las * 1e6:.0f} us")
 
 

@@ -9,25 +9,15 @@ Run: .venv/bin/python bench/bench_views.py [--mesh PATH] [--iterations N] [--rep
 from __future__ import annotations
 
 import argparse
-import time
 
 import numpy as np
 
 import nbvkit
+from _timing import median_time
 from nbvkit import _core
 from nbvkit.config import Config
 from nbvkit.mission import Mission
 from nbvkit.sampling import candidate_poses
-
-
-def median_time(fn, repeat):
-    fn()
-    ts = []
-    for _ in range(repeat):
-        t0 = time.perf_counter()
-        fn()
-        ts.append(time.perf_counter() - t0)
-    return float(np.median(ts))
 
 
 def main():

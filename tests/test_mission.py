@@ -37,7 +37,7 @@ def test_default_workspace_is_the_papers_for_the_airliner():
 
 def test_scenario1_runs_end_to_end_and_writes_results(tmp_path):
     m = Mission(cfg("scenario=1"))
-    s = m.run(tmp_path)
+    m.run(tmp_path)
     for f in ("summary.json", "iterations.csv", "config.yaml", "cloud.ply", "map.ot", "trajectory.csv",
               "figures/trajectory.png", "figures/progress.png"):
         assert (tmp_path / f).stat().st_size > 0, f

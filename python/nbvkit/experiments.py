@@ -173,7 +173,7 @@ def table2_specs(mesh=None, mesh_scale=1.0, mesh_up="z", starts=5, overrides=())
             for sc in ("profile", "1", "2", "3", "4", "5") for k in range(starts)]
 
 
-def table2(df) -> "pandas.DataFrame":
+def table2(df):
     """The paper's Table 2 from a tidy table of runs: means over starts, with the spread (std)."""
     import pandas as pd
 
