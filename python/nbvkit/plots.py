@@ -110,8 +110,6 @@ def plot_experiment(root, df, out_dir) -> list[Path]:
     coverage vs distance and vs iteration per scenario, the trajectories of one start per
     scenario (paper's Fig. 7), and the final cloud and map of the full method (Fig. 6)."""
     plt = _plt()
-    import json
-
     root, out_dir = Path(root), Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
     paths = []
@@ -127,13 +125,10 @@ def plot_experiment(root, df, out_dir) -> list[Path]:
                 it = _iterations(root / "runs" / r["run_id"])
                 if it is None or not len(it):
                     continue
-                summ = json.loads((root / "runs" / r["run_id"] / "summary.json").read_text())
-                x0 = summ.get("profile", {}).get("distance_m", 0.0) if xkey == "distance_m" else 0
                 for ax, col in zip(axes, ("coverage_005", "coverage_01", "coverage_05")):
                     d = it.dropna(subset=[col])
                     ax.plot(d[xkey], d[col] * 100, c=colors[sc], alpha=0.7, lw=1,
                             label=f"scenario {sc}" if k == 0 else None)
-                del x0
         for ax, res in zip(axes, ("0.05", "0.10", "0.50")):
             ax.set_title(f"coverage @ {res} m")
             ax.set_xlabel(xlabel)
