@@ -124,21 +124,20 @@ class Mission:
         self.workspace: Workspace = make_workspace(mesh.bounds, cfg)
         self.scene = _core.RaycastScene(mesh)
         # starts within 3/4 of the camera's range of the structure, seeing it (see start_poses)
-        c = cfg.camera
+        c, la = cfg.camera, cfg.laser
+        camera_mount = _core.mount_transform(c.mount_xyz, *c.mount_rpy_deg)
         probe = _core.DepthCamera(self.scene, width=32, height=24, hfov_deg=c.hfov_deg, vfov_deg=c.vfov_deg,
-                                  min_range=c.min_range, max_range=c.max_range,
-                                  mount=_core.mount_transform(c.mount_xyz, *c.mount_rpy_deg))
+                                  min_range=c.min_range, max_range=c.max_range, mount=camera_mount)
         self.starts = start_poses(self.workspace, surface=mesh.sample_surface(20000, seed=0),
                                   reach=0.75 * c.max_range, clearance=cfg.vehicle.collision_radius + 1.0,
                                   sees=lambda pose: len(probe.scan_pose(pose).hits) >= 0.05 * 32 * 24)
         self.start_pose = (np.array(cfg.start_pose, float) if cfg.start_pose is not None
                            else self.starts[cfg.start])
         self._check_start(self.start_pose)
-        c, la = cfg.camera, cfg.laser
         self.camera = _core.DepthCamera(
             self.scene, width=c.width, height=c.height, hfov_deg=c.hfov_deg, vfov_deg=c.vfov_deg,
             min_range=c.min_range, max_range=c.max_range, noise_k=c.noise_k, seed=cfg.seed,
-            mount=_core.mount_transform(c.mount_xyz, *c.mount_rpy_deg))
+            mount=camera_mount)
         self.laser = _core.LaserScanner(
             self.scene, fov_deg=la.fov_deg, resolution_deg=la.resolution_deg, min_range=la.min_range,
             max_range=la.max_range, noise_sigma=la.noise_sigma, seed=cfg.seed + 1,
@@ -256,7 +255,6 @@ class Mission:
                              s.oscillation_is_stuck, enabled=(s.method == "agvs"))
         term = EntropyTermination(self.c_view, cfg.termination.threshold, cfg.termination.window)
         c = cfg.camera
-        mount = _core.mount_transform(c.mount_xyz, *c.mount_rpy_deg)
         entropy_prev = self.map.total_entropy()
         bar = _progress(cfg.max_iterations, cfg.progress)
         last_cov = {}
@@ -269,7 +267,7 @@ class Mission:
                 t1 = time.perf_counter()
                 sc = _core.evaluate_views(
                     self.map, cands, pose, rays_x=self.rays[0], rays_y=self.rays[1],
-                    hfov_deg=c.hfov_deg, vfov_deg=c.vfov_deg, max_range=c.max_range, mount=mount,
+                    hfov_deg=c.hfov_deg, vfov_deg=c.vfov_deg, max_range=c.max_range, mount=self.camera.mount,
                     utility=u.name, distance_lambda=u.distance_lambda, require_occupied=True,
                     require_occupied_probability=u.require_occupied_probability or 0.0,
                     collision_radius=v.collision_radius, bounds_min=self.workspace.nav_min,
