@@ -261,10 +261,14 @@ def sweep_specs(sweep: dict) -> list[RunSpec]:
                 for st in starts:
                     specs.append(RunSpec(sc, int(st), m.get("path"), float(m.get("scale", 1.0)),
                                          m.get("up", "z"), tuple(over), sweep.get("config"), labels))
-    # fail before any work on a bad key or value
+    validate_specs(specs)
+    return specs
+
+
+def validate_specs(specs: list[RunSpec]) -> None:
+    """Builds each distinct configuration once, so that a bad key or value fails before any run."""
     for s in {(sp.mesh, sp.overrides, sp.config_file) for sp in specs}:
         RunSpec("1", 0, s[0], overrides=s[1], config_file=s[2]).config()
-    return specs
 
 
 def compare_with_paper(t, paper_csv) -> str:

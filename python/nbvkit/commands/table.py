@@ -28,15 +28,14 @@ def register(sub) -> argparse.ArgumentParser:
 
 
 def run(args) -> int:
-    from ..experiments import run_specs, table2_specs, write_table, write_table2
+    from ..experiments import run_specs, table2_specs, validate_specs, write_table, write_table2
     from ..plots import plot_experiment
 
     if not 1 <= args.starts <= 5:
         raise ValueError(f"--starts must be 1..5, got {args.starts}")
     out = Path(args.out)
     specs = table2_specs(args.mesh, args.mesh_scale, args.mesh_up, args.starts, args.set)
-    for s in {(sp.mesh, sp.overrides) for sp in specs}:  # bad keys fail before any work
-        specs[0].__class__("1", 0, s[0], overrides=s[1]).config()
+    validate_specs(specs)
     t0 = time.perf_counter()
     rows = run_specs(specs, out, workers=args.workers, scheduler=args.scheduler)
     import pandas as pd
