@@ -784,33 +784,28 @@ std::size_t OccupancyMap::mark_free_segment(const Eigen::Vector3d& a, const Eige
   if (cells > 1e8) throw std::invalid_argument("mark_free_segment: the segment's box holds too many cells");
   const Eigen::Vector3d ab = b - a;
   const double len2 = ab.squaredNorm();
-  std::vector<Key> keys{ka};
-  if (kb != ka) keys.push_back(kb);
+  // Only cells never observed (and, when clipping, inside the workspace): the vehicle's own volume
+  // is evidence of free space where nothing else is known, and must not keep lowering the
+  // entropy of observed cells.
+  auto markable = [&](const Key& k) {
+    const std::int64_t idx = index_of(k);
+    if (idx < 0) return !opt_.clip_to_workspace && tree_->search(k) == nullptr;
+    return flags_[std::size_t(idx)] == CellFlag::Unknown;
+  };
+  std::vector<Key> keys;
+  for (const Key& k : {ka, kb})  // the cells holding the ends, each once
+    if (markable(k) && (keys.empty() || keys.front() != k)) keys.push_back(k);
   for (int z = klo[2]; z <= khi[2]; ++z)
     for (int y = klo[1]; y <= khi[1]; ++y)
       for (int x = klo[0]; x <= khi[0]; ++x) {
         const Key k{octomap::key_type(x), octomap::key_type(y), octomap::key_type(z)};
-        if (k == ka || k == kb) continue;
-        // only cells never observed: the vehicle's own volume is evidence of free space where
-        // nothing else is known, and must not keep lowering the entropy of observed cells
-        const std::int64_t idx = index_of(k);
-        if (idx < 0 && opt_.clip_to_workspace) continue;
-        if (idx >= 0 ? flags_[std::size_t(idx)] != CellFlag::Unknown : tree_->search(k) != nullptr) continue;
+        if (k == ka || k == kb || !markable(k)) continue;
         // the cell touches the swept sphere: box distance from the nearest point of the segment
         const Eigen::Vector3d c = key_to_coord(k);
         const double t = len2 > 0 ? std::clamp((c - a).dot(ab) / len2, 0.0, 1.0) : 0.0;
         const Eigen::Vector3d d = ((a + t * ab - c).cwiseAbs().array() - 0.5 * res_).max(0.0);
         if (d.squaredNorm() <= radius * radius) keys.push_back(k);
       }
-  // the end cells themselves only if unknown too
-  keys.erase(std::remove_if(keys.begin(), keys.begin() + (kb != ka ? 2 : 1),
-                            [&](const Key& k) {
-                              const std::int64_t idx = index_of(k);
-                              if (idx < 0 && opt_.clip_to_workspace) return true;
-                              return idx >= 0 ? flags_[std::size_t(idx)] != CellFlag::Unknown
-                                              : tree_->search(k) != nullptr;
-                            }),
-             keys.begin() + (kb != ka ? 2 : 1));
   return update_cells(keys, false);
 }
 
