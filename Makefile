@@ -13,9 +13,10 @@ APT_PACKAGES := build-essential cmake ninja-build pybind11-dev libeigen3-dev lib
   python3-dev python3-venv python3-pip python3-setuptools python3-wheel python3-numpy \
   python3-pytest python3-open3d python3-matplotlib python3-tqdm python3-yaml python3-scipy \
   python3-nbformat python3-nbclient python3-ipykernel python3-nbconvert \
-  python3-dask python3-distributed python3-pandas xvfb
+  python3-dask python3-distributed python3-pandas xvfb \
+  clang-format black python3-flake8
 
-.PHONY: all deps venv install demo test test-cpp test-py bench clean
+.PHONY: all deps venv install demo test test-cpp test-py lint format bench clean
 
 all: install demo
 
@@ -54,6 +55,20 @@ test-cpp: install
 
 test-py:
 	$(PY) -m pytest -q tests
+
+# Style: clang-format (.clang-format), black + flake8 (pyproject.toml, .flake8); 100 columns.
+CXX_FILES = $(shell git ls-files 'cpp/*.cpp' 'cpp/*.hpp' 'bench/*.cpp')
+PY_DIRS = python tests bench meshes setup.py
+
+lint:
+	clang-format --dry-run --Werror $(CXX_FILES)
+	@awk 'length > 100 { print FILENAME ":" FNR ": line longer than 100 columns"; bad = 1 } END { exit bad }' $(CXX_FILES)
+	black --check -q $(PY_DIRS)
+	$(PY_SYS) -m flake8 $(PY_DIRS)
+
+format:
+	clang-format -i $(CXX_FILES)
+	black -q $(PY_DIRS)
 
 # Every benchmark prints its figures and its baseline ratio (README, "Measured figures").
 bench: install

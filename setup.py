@@ -32,15 +32,24 @@ class CMakeBuild(build_ext):
         jobs = os.environ.get("CMAKE_BUILD_PARALLEL_LEVEL", str(os.cpu_count() or 2))
         gen = ["-G", "Ninja"] if shutil.which("ninja") else []
         cfg = [
-            "cmake", "-S", str(ROOT), "-B", str(build_dir), *gen,
+            "cmake",
+            "-S",
+            str(ROOT),
+            "-B",
+            str(build_dir),
+            *gen,
             f"-DCMAKE_BUILD_TYPE={os.environ.get('NBV_BUILD_TYPE', 'Release')}",
             f"-DPython3_EXECUTABLE={sys.executable}",
             f"-DNBV_EXTENSION_DIR={out.parent}",
         ]
-        if "NBV_BUILD_TESTS" in os.environ:  # otherwise keep what the build tree has (make test-cpp)
+        if (
+            "NBV_BUILD_TESTS" in os.environ
+        ):  # otherwise keep what the build tree has (make test-cpp)
             cfg.append("-DNBV_BUILD_TESTS=" + os.environ["NBV_BUILD_TESTS"])
         subprocess.run(cfg, check=True)
-        subprocess.run(["cmake", "--build", str(build_dir), "--target", "_core", "-j", jobs], check=True)
+        subprocess.run(
+            ["cmake", "--build", str(build_dir), "--target", "_core", "-j", jobs], check=True
+        )
         built = out.parent / out.name
         if not built.exists():
             raise RuntimeError(f"CMake did not produce {built}")
@@ -58,5 +67,7 @@ class BuildPyWithMeshes(build_py):
             shutil.copyfile(src, dst)
 
 
-setup(ext_modules=[CMakeExtension("nbvkit._core")],
-      cmdclass={"build_ext": CMakeBuild, "build_py": BuildPyWithMeshes})
+setup(
+    ext_modules=[CMakeExtension("nbvkit._core")],
+    cmdclass={"build_ext": CMakeBuild, "build_py": BuildPyWithMeshes},
+)

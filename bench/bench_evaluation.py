@@ -86,26 +86,37 @@ def timed(fn, repeat):
 def bench_timing(args):
     path, mesh = load_structure(args.mesh)
     cloud = million_cloud(mesh)
-    print(f"structure: {path.name}, {mesh.area:.1f} m^2; cloud: {len(cloud):,} points; "
-          f"GT density {args.density:g} /m^2 ({mesh.area * args.density:,.0f} samples); "
-          f"threads: {nbvkit.get_num_threads()}")
+    print(
+        f"structure: {path.name}, {mesh.area:.1f} m^2; cloud: {len(cloud):,} points; "
+        f"GT density {args.density:g} /m^2 ({mesh.area * args.density:,.0f} samples); "
+        f"threads: {nbvkit.get_num_threads()}"
+    )
     res, taus = (0.05, 0.1, 0.5), (0.05, 0.1)
-    med, times, ours = timed(lambda: evaluate(mesh, cloud, res, taus, gt_density=args.density),
-                             args.repeat)
-    print(f"nbvkit.evaluate: median {med:.2f} s of {args.repeat} ({', '.join(f'{t:.2f}' for t in times)})")
+    med, times, ours = timed(
+        lambda: evaluate(mesh, cloud, res, taus, gt_density=args.density), args.repeat
+    )
+    print(
+        f"nbvkit.evaluate: median {med:.2f} s of {args.repeat} "
+        f"({', '.join(f'{t:.2f}' for t in times)})"
+    )
     t = time.perf_counter()
     ev = Evaluator(mesh, res, taus, gt_density=args.density)
     t_prep = time.perf_counter() - t
     raw = ev._core.evaluate(cloud)
     phases = dict(ev._core.gt_info.timings_s)
-    print(f"  ground truth prepared once: {t_prep:.2f} s (sampling {phases['sample']:.2f} s, "
-          f"GT cells {phases['prepare_gt']:.2f} s, the rest the GT kd-tree)")
-    print("  per cloud: " + ", ".join(f"{k} {v:.2f} s" for k, v in raw.timings_s
-                                      if k not in phases))
+    print(
+        f"  ground truth prepared once: {t_prep:.2f} s (sampling {phases['sample']:.2f} s, "
+        f"GT cells {phases['prepare_gt']:.2f} s, the rest the GT kd-tree)"
+    )
+    print(
+        "  per cloud: " + ", ".join(f"{k} {v:.2f} s" for k, v in raw.timings_s if k not in phases)
+    )
     med_e, _, _ = timed(lambda: ev(cloud), args.repeat)
     print(f"  Evaluator(mesh) reused, per cloud: median {med_e:.2f} s")
-    print(f"  coverage {fmt(ours['coverage'])}  completeness {fmt(ours['completeness'])}  "
-          f"chamfer {ours['chamfer_m']:.4f} m")
+    print(
+        f"  coverage {fmt(ours['coverage'])}  completeness {fmt(ours['completeness'])}  "
+        f"chamfer {ours['chamfer_m']:.4f} m"
+    )
     if args.no_scipy:
         return
     try:
@@ -113,15 +124,22 @@ def bench_timing(args):
     except ImportError:
         print("scipy not installed: no comparison")
         return
-    med_s, times_s, ref = timed(lambda: scipy_evaluate(mesh, cloud, res, taus, args.density, 0),
-                                args.scipy_repeat)
-    print(f"scipy cKDTree + numpy: median {med_s:.2f} s of {args.scipy_repeat} "
-          f"({', '.join(f'{t:.2f}' for t in times_s)})")
+    med_s, times_s, ref = timed(
+        lambda: scipy_evaluate(mesh, cloud, res, taus, args.density, 0), args.scipy_repeat
+    )
+    print(
+        f"scipy cKDTree + numpy: median {med_s:.2f} s of {args.scipy_repeat} "
+        f"({', '.join(f'{t:.2f}' for t in times_s)})"
+    )
     print(f"ratio scipy / nbvkit: {med_s / med:.1f}x")
-    diff = max(max(abs(ours[k][r] - ref[k][r]) for r in ref[k])
-               for k in ("coverage", "area_coverage", "precision", "completeness", "accuracy"))
-    print(f"largest difference between the two: {diff:.2e} (fractions), "
-          f"chamfer {abs(ours['chamfer_m'] - ref['chamfer_m']):.2e} m")
+    diff = max(
+        max(abs(ours[k][r] - ref[k][r]) for r in ref[k])
+        for k in ("coverage", "area_coverage", "precision", "completeness", "accuracy")
+    )
+    print(
+        f"largest difference between the two: {diff:.2e} (fractions), "
+        f"chamfer {abs(ours['chamfer_m'] - ref['chamfer_m']):.2e} m"
+    )
 
 
 def fmt(d):
@@ -150,10 +168,14 @@ def camera_cloud(mesh, views=60, seed=7, voxel=0.02):
 def bench_stability(args):
     path, mesh = load_structure(args.mesh)
     cloud = camera_cloud(mesh, voxel=args.cloud_voxel)
-    print(f"structure: {path.name}, {mesh.area:.1f} m^2; camera cloud: {len(cloud):,} points "
-          f"(60 views, {args.cloud_voxel:g} m voxels); seeds 0-{args.seeds - 1}")
-    print("density  samples   | coverage 0.05 m: mean  spread   std  | 0.1 m: spread | "
-          "0.5 m: spread | area cov. 0.05: mean  spread | s/eval")
+    print(
+        f"structure: {path.name}, {mesh.area:.1f} m^2; camera cloud: {len(cloud):,} points "
+        f"(60 views, {args.cloud_voxel:g} m voxels); seeds 0-{args.seeds - 1}"
+    )
+    print(
+        "density  samples   | coverage 0.05 m: mean  spread   std  | 0.1 m: spread | "
+        "0.5 m: spread | area cov. 0.05: mean  spread | s/eval"
+    )
     for density in args.densities:
         rows = []
         t = time.perf_counter()
@@ -164,27 +186,44 @@ def bench_stability(args):
         a = np.array([r["area_coverage"]["0.05"] for r in rows]) * 100
         again = evaluate(mesh, cloud, gt_density=density, seed=0)
         same = "same" if again == rows[0] else "DIFFERENT"
-        print(f"{density:7.0f}  {rows[0]['n_gt_points']:>9,} | {c['0.05'].mean():6.2f} %  "
-              f"{np.ptp(c['0.05']):5.2f} pp {c['0.05'].std():5.2f} | {np.ptp(c['0.1']):5.2f} pp     | "
-              f"{np.ptp(c['0.5']):5.2f} pp     | {a.mean():6.2f} %  {np.ptp(a):5.2f} pp    | "
-              f"{dt:5.2f}  (seed 0 again: {same})")
+        print(
+            f"{density:7.0f}  {rows[0]['n_gt_points']:>9,} "
+            f"| {c['0.05'].mean():6.2f} %  "
+            f"{np.ptp(c['0.05']):5.2f} pp {c['0.05'].std():5.2f} | "
+            f"{np.ptp(c['0.1']):5.2f} pp     | "
+            f"{np.ptp(c['0.5']):5.2f} pp     | {a.mean():6.2f} %  {np.ptp(a):5.2f} pp    | "
+            f"{dt:5.2f}  (seed 0 again: {same})"
+        )
 
 
 def main(argv=None):
     p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    p.add_argument("--mesh", help="structure (default: ../shared/meshes/twinjet.obj or the airliner)")
-    p.add_argument("--density", type=float, default=DEFAULT_GT_DENSITY,
-                   help=f"GT samples per m^2 (default {DEFAULT_GT_DENSITY:g})")
+    p.add_argument(
+        "--mesh", help="structure (default: ../shared/meshes/twinjet.obj or the airliner)"
+    )
+    p.add_argument(
+        "--density",
+        type=float,
+        default=DEFAULT_GT_DENSITY,
+        help=f"GT samples per m^2 (default {DEFAULT_GT_DENSITY:g})",
+    )
     p.add_argument("--repeat", type=int, default=3, help="runs of nbvkit.evaluate (median)")
     p.add_argument("--scipy-repeat", type=int, default=1, help="runs of the scipy version (median)")
     p.add_argument("--no-scipy", action="store_true", help="skip the scipy comparison")
     p.add_argument("--threads", type=int, default=0, help="core threads (0 = all)")
-    p.add_argument("--stability", action="store_true",
-                   help="measure coverage spread over GT seeds at several densities instead")
+    p.add_argument(
+        "--stability",
+        action="store_true",
+        help="measure coverage spread over GT seeds at several densities instead",
+    )
     p.add_argument("--densities", type=float, nargs="+", default=[1000, 2000, 4000, 8000, 16000])
     p.add_argument("--seeds", type=int, default=8)
-    p.add_argument("--cloud-voxel", type=float, default=0.02,
-                   help="voxel filter of the --stability camera cloud, metres (default 0.02)")
+    p.add_argument(
+        "--cloud-voxel",
+        type=float,
+        default=0.02,
+        help="voxel filter of the --stability camera cloud, metres (default 0.02)",
+    )
     args = p.parse_args(argv)
     nbvkit.set_num_threads(args.threads)
     if args.stability:

@@ -37,7 +37,9 @@ double ms_since(Clock::time_point t0) {
 
 double median(std::vector<double> v) {
   std::sort(v.begin(), v.end());
-  return v.empty() ? 0.0 : (v.size() % 2 ? v[v.size() / 2] : 0.5 * (v[v.size() / 2 - 1] + v[v.size() / 2]));
+  return v.empty()
+             ? 0.0
+             : (v.size() % 2 ? v[v.size() / 2] : 0.5 * (v[v.size() / 2 - 1] + v[v.size() / 2]));
 }
 
 /// octomap::OcTree::insertPointCloud(hits, origin) with the free rays in the same key sets.
@@ -51,7 +53,8 @@ void plain_insert(octomap::OcTree& tree, const nbv::Scan& s) {
   tree.computeUpdate(cloud, o, free_cells, occupied_cells, -1.0);
   octomap::KeyRay ray;
   for (Eigen::Index r = 0; r < s.free_ends.rows(); ++r) {
-    const octomap::point3d p(float(s.free_ends(r, 0)), float(s.free_ends(r, 1)), float(s.free_ends(r, 2)));
+    const octomap::point3d p(float(s.free_ends(r, 0)), float(s.free_ends(r, 1)),
+                             float(s.free_ends(r, 2)));
     if (tree.computeRayKeys(o, p, ray)) free_cells.insert(ray.begin(), ray.end());
     octomap::OcTreeKey k;
     if (tree.coordToKeyChecked(p, k)) free_cells.insert(k);
@@ -63,7 +66,8 @@ void plain_insert(octomap::OcTree& tree, const nbv::Scan& s) {
 }
 
 /// Share of cells touched by either map whose state agrees.
-double agreement(const nbv::OccupancyMap& a, const nbv::OccupancyMap& b, std::int64_t* touched_out) {
+double agreement(const nbv::OccupancyMap& a, const nbv::OccupancyMap& b,
+                 std::int64_t* touched_out) {
   std::int64_t touched = 0, same = 0;
   for (std::int64_t i = 0; i < a.num_cells(); ++i) {
     const auto sa = a.state_at(i), sb = b.state_at(i);
@@ -93,22 +97,28 @@ int main(int argc, char** argv) {
   const nbv::Mesh mesh = nbv::load_mesh(mesh_path);
   auto scene = std::make_shared<nbv::RaycastScene>(mesh);
   nbv::DepthCamera cam(scene);
-  const Eigen::Vector3d lo = mesh.vertices.colwise().minCoeff(), hi = mesh.vertices.colwise().maxCoeff();
+  const Eigen::Vector3d lo = mesh.vertices.colwise().minCoeff(),
+                        hi = mesh.vertices.colwise().maxCoeff();
   const Eigen::Vector3d c = 0.5 * (lo + hi);
   std::vector<nbv::Scan> scans;
   for (int k = 0; k < 8; ++k) {
     const double th = k * M_PI / 4;
-    scans.push_back(cam.scan_pose(nbv::Pose{c.x() + 10 * std::cos(th), c.y() + 10 * std::sin(th), 4.0, th + M_PI}));
+    scans.push_back(cam.scan_pose(
+        nbv::Pose{c.x() + 10 * std::cos(th), c.y() + 10 * std::sin(th), 4.0, th + M_PI}));
   }
   const double res = 0.2;
   const Eigen::Vector3d bmin(-20, -20, 0), bmax(20, 20, 10);
-  std::printf("mesh %s: %ld triangles; %zu frames %dx%d, map %.2f m over (-20,-20,0)-(20,20,10); %d threads\n",
-              mesh_path.c_str(), long(mesh.faces.rows()), scans.size(), cam.options().width,
-              cam.options().height, res, nbv::get_num_threads());
-  std::printf("times: median of %d runs of the whole sequence (each run on fresh maps)\n\n", repeat);
+  std::printf(
+      "mesh %s: %ld triangles; %zu frames %dx%d, map %.2f m over (-20,-20,0)-(20,20,10); %d "
+      "threads\n",
+      mesh_path.c_str(), long(mesh.faces.rows()), scans.size(), cam.options().width,
+      cam.options().height, res, nbv::get_num_threads());
+  std::printf("times: median of %d runs of the whole sequence (each run on fresh maps)\n\n",
+              repeat);
 
   const std::size_t nf = scans.size();
-  std::vector<std::vector<double>> t_fast(nf), t_exact(nf), t_plain(nf), t_plain_hits(nf), t_fast1(nf);
+  std::vector<std::vector<double>> t_fast(nf), t_exact(nf), t_plain(nf), t_plain_hits(nf),
+      t_fast1(nf);
   std::vector<double> agree(nf, 0.0), agree_single(nf, 0.0);
   std::vector<std::int64_t> touched(nf, 0);
   std::vector<std::size_t> traced(nf, 0);
@@ -139,7 +149,8 @@ int main(int argc, char** argv) {
       for (Eigen::Index r = 0; r < s.hits.rows(); ++r)
         cloud.push_back(float(s.hits(r, 0)), float(s.hits(r, 1)), float(s.hits(r, 2)));
       t0 = Clock::now();
-      plain_hits.insertPointCloud(cloud, octomap::point3d(float(s.origin.x()), float(s.origin.y()), float(s.origin.z())));
+      plain_hits.insertPointCloud(
+          cloud, octomap::point3d(float(s.origin.x()), float(s.origin.y()), float(s.origin.z())));
       t_plain_hits[f].push_back(ms_since(t0));
       if (rep == 0) {
         agree[f] = agreement(fast, exact, &touched[f]);
@@ -158,7 +169,8 @@ int main(int argc, char** argv) {
     t0 = Clock::now();
     sink = sink + fast.recompute_total_entropy();
     tre_ms = ms_since(t0);
-    if (rep == 0 && (fast.total_entropy() != fast.recompute_total_entropy() || fast.verify_mirror() != 0)) {
+    if (rep == 0 &&
+        (fast.total_entropy() != fast.recompute_total_entropy() || fast.verify_mirror() != 0)) {
       std::printf("ERROR: incremental totals or mirror out of sync\n");
       return 1;
     }
@@ -176,13 +188,14 @@ int main(int argc, char** argv) {
     nbv::set_num_threads(0);
   }
 
-  std::printf("%5s %7s %7s %7s | %8s %8s %8s %8s %8s | %6s | %9s %9s %8s\n", "frame", "hits", "free", "traced",
-              "fast ms", "fast 1t", "exact ms", "plain ms", "pc-hits", "ratio", "agree cum", "agree 1f", "touched");
+  std::printf("%5s %7s %7s %7s | %8s %8s %8s %8s %8s | %6s | %9s %9s %8s\n", "frame", "hits",
+              "free", "traced", "fast ms", "fast 1t", "exact ms", "plain ms", "pc-hits", "ratio",
+              "agree cum", "agree 1f", "touched");
   std::vector<double> mf, mp, mx, ratios, bf, bp;
   double min_agree = 1.0, min_agree1 = 1.0;
   for (std::size_t f = 0; f < nf; ++f) {
-    const double a = median(t_fast[f]), a1 = median(t_fast1[f]), x = median(t_exact[f]), p = median(t_plain[f]),
-                 ph = median(t_plain_hits[f]);
+    const double a = median(t_fast[f]), a1 = median(t_fast1[f]), x = median(t_exact[f]),
+                 p = median(t_plain[f]), ph = median(t_plain_hits[f]);
     mf.push_back(a);
     mp.push_back(p);
     bf.push_back(*std::min_element(t_fast[f].begin(), t_fast[f].end()));
@@ -191,18 +204,24 @@ int main(int argc, char** argv) {
     ratios.push_back(p / a);
     min_agree = std::min(min_agree, agree[f]);
     min_agree1 = std::min(min_agree1, agree_single[f]);
-    std::printf("%5zu %7ld %7ld %7zu | %8.2f %8.2f %8.1f %8.1f %8.1f | %5.1fx | %8.3f%% %8.3f%% %8ld\n", f,
-                long(scans[f].hits.rows()), long(scans[f].free_ends.rows()), traced[f], a, a1, x, p, ph, p / a,
-                100 * agree[f], 100 * agree_single[f], long(touched[f]));
+    std::printf(
+        "%5zu %7ld %7ld %7zu | %8.2f %8.2f %8.1f %8.1f %8.1f | %5.1fx | %8.3f%% %8.3f%% %8ld\n", f,
+        long(scans[f].hits.rows()), long(scans[f].free_ends.rows()), traced[f], a, a1, x, p, ph,
+        p / a, 100 * agree[f], 100 * agree_single[f], long(touched[f]));
   }
-  std::printf("\nmedian over frames: fast %.2f ms, plain %.1f ms (ratio %.1fx; worst frame %.1fx), exact %.1f ms\n",
-              median(mf), median(mp), median(mp) / median(mf), *std::min_element(ratios.begin(), ratios.end()),
-              median(mx));
-  std::printf("best run per frame, median over frames: fast %.2f ms, plain %.1f ms (ratio %.1fx)\n", median(bf),
-              median(bp), median(bp) / median(bf));
-  std::printf("agreement with exact (insertPointCloud semantics): worst %.3f%% cumulative, %.3f%% single frame\n",
-              100 * min_agree, 100 * min_agree1);
-  std::printf("total_entropy(): %.1f ns (incremental); recompute_total_entropy(): %.2f ms (full sweep)\n", te_ns,
-              tre_ms);
+  std::printf(
+      "\nmedian over frames: fast %.2f ms, plain %.1f ms (ratio %.1fx; worst frame %.1fx), exact "
+      "%.1f ms\n",
+      median(mf), median(mp), median(mp) / median(mf),
+      *std::min_element(ratios.begin(), ratios.end()), median(mx));
+  std::printf("best run per frame, median over frames: fast %.2f ms, plain %.1f ms (ratio %.1fx)\n",
+              median(bf), median(bp), median(bp) / median(bf));
+  std::printf(
+      "agreement with exact (insertPointCloud semantics): worst %.3f%% cumulative, %.3f%% single "
+      "frame\n",
+      100 * min_agree, 100 * min_agree1);
+  std::printf(
+      "total_entropy(): %.1f ns (incremental); recompute_total_entropy(): %.2f ms (full sweep)\n",
+      te_ns, tre_ms);
   return 0;
 }

@@ -34,8 +34,10 @@ def main():
     lo, hi = mesh.bounds
     c = (lo + hi) / 2
     cam = nbvkit.DepthCamera(mesh)
-    poses = [(c[0] + 10 * np.cos(t), c[1] + 10 * np.sin(t), 4.0, t + np.pi)
-             for t in np.arange(8) * np.pi / 4]
+    poses = [
+        (c[0] + 10 * np.cos(t), c[1] + 10 * np.sin(t), 4.0, t + np.pi)
+        for t in np.arange(8) * np.pi / 4
+    ]
     scans = [cam.scan_pose(p) for p in poses]
     fast_ms = np.zeros((args.repeat, len(scans)))
     exact_ms = np.zeros_like(fast_ms)
@@ -60,15 +62,25 @@ def main():
     fast.recompute_total_entropy()
     tre_ms = (time.perf_counter() - t0) * 1e3
     f, e = np.median(fast_ms, axis=0), np.median(exact_ms, axis=0)
-    print(f"{len(scans)} frames {cam.width}x{cam.height}, map 0.2 m over (-20,-20,0)-(20,20,10), "
-          f"{nbvkit.get_num_threads()} threads; median of {args.repeat} runs")
+    print(
+        f"{len(scans)} frames {cam.width}x{cam.height}, map 0.2 m over (-20,-20,0)-(20,20,10), "
+        f"{nbvkit.get_num_threads()} threads; median of {args.repeat} runs"
+    )
     print(f"{'frame':>5} {'hits':>7} {'fast ms':>8} {'exact ms':>9} {'ratio':>6} {'agree':>8}")
     for i, s in enumerate(scans):
-        print(f"{i:5d} {len(s.hits):7d} {f[i]:8.2f} {e[i]:9.1f} {e[i] / f[i]:5.1f}x {100 * agree[i]:7.3f}%")
-    print(f"median: fast {np.median(f):.2f} ms, exact {np.median(e):.1f} ms, ratio {np.median(e) / np.median(f):.1f}x; "
-          f"worst agreement {100 * min(agree):.3f}%")
-    print(f"total_entropy(): {te_us:.2f} us per call from Python (incremental); "
-          f"recompute_total_entropy(): {tre_ms:.2f} ms")
+        print(
+            f"{i:5d} {len(s.hits):7d} {f[i]:8.2f} {e[i]:9.1f} "
+            f"{e[i] / f[i]:5.1f}x {100 * agree[i]:7.3f}%"
+        )
+    print(
+        f"median: fast {np.median(f):.2f} ms, exact {np.median(e):.1f} ms, "
+        f"ratio {np.median(e) / np.median(f):.1f}x; "
+        f"worst agreement {100 * min(agree):.3f}%"
+    )
+    print(
+        f"total_entropy(): {te_us:.2f} us per call from Python (incremental); "
+        f"recompute_total_entropy(): {tre_ms:.2f} ms"
+    )
 
 
 if __name__ == "__main__":

@@ -37,7 +37,10 @@ def main():
     T = nbvkit.pose_to_transform(pose) @ cam.mount
     n_rays = cam.width * cam.height
     hits = len(cam.scan(T).hits)
-    print(f"mesh: {mesh.num_triangles} triangles; BVH build {build_ms:.1f} ms (high quality {build_hq_ms:.1f} ms)")
+    print(
+        f"mesh: {mesh.num_triangles} triangles; BVH build "
+        f"{build_ms:.1f} ms (high quality {build_hq_ms:.1f} ms)"
+    )
     print(f"camera frame {cam.width}x{cam.height} from 6 m: {hits} hits ({hits / n_rays:.0%})")
     dirs_world = cam.directions @ T[:3, :3].T
     origin = T[:3, 3][None]
@@ -47,13 +50,20 @@ def main():
         nbvkit.set_num_threads(nt)
         t_pk = median_time(lambda: cam.scan(T), args.repeat)
         t_hq = median_time(lambda: cam_hq.scan(T), args.repeat)
-        t_1 = median_time(lambda: scene.intersect(origin, dirs_world, 0.0, 8.0 / 0.7), max(3, args.repeat // 4))
+        t_1 = median_time(
+            lambda: scene.intersect(origin, dirs_world, 0.0, 8.0 / 0.7), max(3, args.repeat // 4)
+        )
         rows.append((nt, t_pk, t_hq, t_1))
     nbvkit.set_num_threads(0)
-    print(f"{'threads':>7} {'packets ms':>11} {'Mrays/s':>8} {'HQ BVH ms':>10} {'rtcIntersect1 ms':>17} {'speed-up':>9}")
+    print(
+        f"{'threads':>7} {'packets ms':>11} {'Mrays/s':>8} {'HQ BVH ms':>10} "
+        f"{'rtcIntersect1 ms':>17} {'speed-up':>9}"
+    )
     for nt, t_pk, t_hq, t_1 in rows:
-        print(f"{nt:>7} {t_pk * 1e3:>11.2f} {n_rays / t_pk / 1e6:>8.1f} {t_hq * 1e3:>10.2f} "
-              f"{t_1 * 1e3:>17.2f} {t_1 / t_pk:>8.1f}x")
+        print(
+            f"{nt:>7} {t_pk * 1e3:>11.2f} {n_rays / t_pk / 1e6:>8.1f} {t_hq * 1e3:>10.2f} "
+            f"{t_1 * 1e3:>17.2f} {t_1 / t_pk:>8.1f}x"
+        )
     las = nbvkit.LaserScanner(scene)
     t_las = median_time(lambda: las.scan_pose(pose), 200)
     print(f"laser scan ({las.num_beams} beams, 1 thread): {t_las * 1e6:.0f} us")

@@ -53,9 +53,13 @@ def random_rotation(rng):
     q = rng.normal(size=4)
     q /= np.linalg.norm(q)
     w, x, y, z = q
-    return np.array([[1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)],
-                     [2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)],
-                     [2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)]])
+    return np.array(
+        [
+            [1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)],
+            [2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)],
+            [2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)],
+        ]
+    )
 
 
 def errors(plane, true, at):
@@ -80,23 +84,41 @@ def run(name, points, true, opts, repeats):
             best = (t2 - t0, t1 - t0, res, pred)
     total, t_det, res, pred = best
     ang, off = errors(res.plane, true, points.mean(0))
-    print(f"\n{name}: {len(points)} points -> {res.num_points} after downsampling, "
-          f"{len(res.keypoints)} keypoints, {len(res.pairs)} pairs, support {res.support}, "
-          f"confidence {res.confidence:.3f}, accepted {res.accepted}")
-    print(f"  detected plane {np.round(res.plane, 4).tolist()}: {ang:.3f} deg, {off:.3f} m from the truth")
+    print(
+        f"\n{name}: {len(points)} points -> {res.num_points} after downsampling, "
+        f"{len(res.keypoints)} keypoints, {len(res.pairs)} pairs, support {res.support}, "
+        f"confidence {res.confidence:.3f}, accepted {res.accepted}"
+    )
+    print(
+        f"  detected plane {np.round(res.plane, 4).tolist()}: "
+        f"{ang:.3f} deg, {off:.3f} m from the truth"
+    )
     if pred is not None:
         ang2, off2 = errors(pred.plane, true, points.mean(0))
-        print(f"  after ICP     {np.round(pred.plane, 4).tolist()}: {ang2:.3f} deg, {off2:.3f} m; "
-              f"{len(pred.predicted)} predicted points")
-    print("  detect  " + "  ".join(f"{k} {v * 1000:.0f} ms" for k, v in res.timings.items() if k != "total"))
+        print(
+            f"  after ICP     {np.round(pred.plane, 4).tolist()}: {ang2:.3f} deg, {off2:.3f} m; "
+            f"{len(pred.predicted)} predicted points"
+        )
+    print(
+        "  detect  "
+        + "  ".join(f"{k} {v * 1000:.0f} ms" for k, v in res.timings.items() if k != "total")
+    )
     if pred is not None:
-        print("  predict " + "  ".join(f"{k} {v * 1000:.0f} ms" for k, v in pred.timings.items() if k != "total"))
-    print(f"  total: detect {t_det:.3f} s + predict {total - t_det:.3f} s = {total:.3f} s (best of {repeats})")
+        print(
+            "  predict "
+            + "  ".join(f"{k} {v * 1000:.0f} ms" for k, v in pred.timings.items() if k != "total")
+        )
+    print(
+        f"  total: detect {t_det:.3f} s + predict {total - t_det:.3f} s = {total:.3f} s "
+        f"(best of {repeats})"
+    )
     return ang, off, res.confidence, total
 
 
 def main():
-    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap = argparse.ArgumentParser(
+        description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
+    )
     ap.add_argument("--poses", type=int, default=0, help="random poses per structure (default 0)")
     ap.add_argument("--keypoints", default="sift", choices=["sift", "iss", "uniform"])
     ap.add_argument("--threads", type=int, default=0, help="core threads (0: all)")
@@ -123,7 +145,9 @@ def main():
             n = R3 @ (R @ Y0[:3])
             true = np.r_[n, (R @ Y0[:3]) @ t + n @ t3]
             label = f"{name} yaw {yaw:.0f} deg + 3D pose"
-            rows.append((name, f"yaw {yaw:.0f} + 3D") + run(label, posed @ R3.T + t3, true, opts, 1))
+            rows.append(
+                (name, f"yaw {yaw:.0f} + 3D") + run(label, posed @ R3.T + t3, true, opts, 1)
+            )
     print("\nsummary: structure, pose, angle error (deg), offset error (m), confidence, time (s)")
     for r in rows:
         print(f"  {r[0]:9s} {r[1]:18s} {r[2]:7.3f} {r[3]:7.3f} {r[4]:7.3f} {r[5]:7.3f}")

@@ -42,21 +42,21 @@ import numpy as np
 # ---------------------------------------------------------------------------
 # Main dimensions (metres)
 # ---------------------------------------------------------------------------
-NOSE_X = 17.5            # nose tip
-TAIL_X = -17.5           # tail-cone tip
-FUS_RADIUS = 1.95        # fuselage radius (diameter 3.9 m)
-BELLY_Z = 1.6            # bottom of the constant section
+NOSE_X = 17.5  # nose tip
+TAIL_X = -17.5  # tail-cone tip
+FUS_RADIUS = 1.95  # fuselage radius (diameter 3.9 m)
+BELLY_Z = 1.6  # bottom of the constant section
 AXIS_Z = BELLY_Z + FUS_RADIUS
-NOSE_START_X = 12.5      # start of the nose cone (end of the cylinder)
-TAIL_START_X = -6.5      # start of the tail cone
-FIN_TOP_Z = 7.5          # top of the vertical fin
+NOSE_START_X = 12.5  # start of the nose cone (end of the cylinder)
+TAIL_START_X = -6.5  # start of the tail cone
+FIN_TOP_Z = 7.5  # top of the vertical fin
 GROUND_CLEARANCE = 0.03  # lowest point of the tyres above z = 0
 
-N_AROUND = 64            # segments around the fuselage
-N_AROUND_SMALL = 48      # segments around the nacelles
-N_AROUND_WHEEL = 36      # segments around the wheels
-N_AROUND_STRUT = 24      # segments around struts and axles
-N_CHORD = 40             # airfoil points per surface (upper / lower)
+N_AROUND = 64  # segments around the fuselage
+N_AROUND_SMALL = 48  # segments around the nacelles
+N_AROUND_WHEEL = 36  # segments around the wheels
+N_AROUND_STRUT = 24  # segments around struts and axles
+N_CHORD = 40  # airfoil points per surface (upper / lower)
 
 OBJ_DECIMALS = 6
 
@@ -70,7 +70,7 @@ class Part:
 
     name: str
     vertices: np.ndarray  # (n, 3) float64
-    faces: np.ndarray     # (m, 3) int64, 0-based, counter-clockwise seen from outside
+    faces: np.ndarray  # (m, 3) int64, 0-based, counter-clockwise seen from outside
 
 
 def signed_volume(vertices: np.ndarray, faces: np.ndarray) -> float:
@@ -240,21 +240,27 @@ def naca4_loop(n: int, thickness: float, camber: float = 0.0, camber_pos: float 
     # cosine spacing, slightly relaxed so the trailing-edge cells are not tiny
     x = 0.85 * 0.5 * (1.0 - np.cos(beta)) + 0.15 * beta / np.pi
     x[0], x[-1] = 0.0, 1.0
-    yt = 5.0 * thickness * (0.2969 * np.sqrt(x) - 0.1260 * x - 0.3516 * x**2
-                            + 0.2843 * x**3 - 0.1036 * x**4)
+    yt = (
+        5.0
+        * thickness
+        * (0.2969 * np.sqrt(x) - 0.1260 * x - 0.3516 * x**2 + 0.2843 * x**3 - 0.1036 * x**4)
+    )
     yt[0], yt[-1] = 0.0, 0.0
     if camber == 0.0:
         xu, zu, xl, zl = x, yt, x, -yt
     else:
         m, p = camber, camber_pos
-        yc = np.where(x < p, m / p**2 * (2 * p * x - x**2),
-                      m / (1 - p) ** 2 * ((1 - 2 * p) + 2 * p * x - x**2))
+        yc = np.where(
+            x < p,
+            m / p**2 * (2 * p * x - x**2),
+            m / (1 - p) ** 2 * ((1 - 2 * p) + 2 * p * x - x**2),
+        )
         dyc = np.where(x < p, 2 * m / p**2 * (p - x), 2 * m / (1 - p) ** 2 * (p - x))
         th = np.arctan(dyc)
         xu, zu = x - yt * np.sin(th), yc + yt * np.cos(th)
         xl, zl = x + yt * np.sin(th), yc - yt * np.cos(th)
-    loop_x = np.concatenate([xu, xl[n - 1:0:-1]])
-    loop_t = np.concatenate([zu, zl[n - 1:0:-1]])
+    loop_x = np.concatenate([xu, xl[n - 1 : 0 : -1]])
+    loop_t = np.concatenate([zu, zl[n - 1 : 0 : -1]])
     return loop_x, loop_t
 
 
@@ -262,11 +268,11 @@ def naca4_loop(n: int, thickness: float, camber: float = 0.0, camber_pos: float 
 class Section:
     """One spanwise station of a lifting surface."""
 
-    span: float        # y (wings, tails) or z (fin, pylon) of the station
-    x_le: float        # x of the leading edge
-    offset: float      # z of the chord line (wings) or y of the chord plane (fin)
+    span: float  # y (wings, tails) or z (fin, pylon) of the station
+    x_le: float  # x of the leading edge
+    offset: float  # z of the chord line (wings) or y of the chord plane (fin)
     chord: float
-    thickness: float   # t/c
+    thickness: float  # t/c
     twist_deg: float = 0.0  # nose-up incidence about the quarter chord (wings only)
 
 
@@ -321,7 +327,7 @@ def fuselage_profile():
     # nose cone: ellipse-like profile, centre line drooping towards the tip
     nose_len = NOSE_X - NOSE_START_X
     for k in range(27, 0, -1):
-        u = math.sin(0.5 * math.pi * k / 28)   # 0 at the joint, 1 at the tip (dense near tip)
+        u = math.sin(0.5 * math.pi * k / 28)  # 0 at the joint, 1 at the tip (dense near tip)
         x = NOSE_START_X + nose_len * u
         r = FUS_RADIUS * (1.0 - u**2.3) ** 0.5
         zc = AXIS_Z - 0.55 * u**2
@@ -382,8 +388,14 @@ def wing_planform(y: float) -> Section:
         x_te = lerp(WING_ROOT_TE_X, tip_te, (ya - WING_KINK_Y) / (WING_TIP_Y - WING_KINK_Y))
     f = (ya - WING_ROOT_Y) / (WING_TIP_Y - WING_ROOT_Y)
     z = WING_ROOT_Z + (ya - WING_ROOT_Y) * math.tan(math.radians(WING_DIHEDRAL_DEG))
-    return Section(span=abs(y), x_le=x_le, offset=z, chord=x_le - x_te,
-                   thickness=lerp(0.15, 0.11, f), twist_deg=lerp(2.0, -1.0, f))
+    return Section(
+        span=abs(y),
+        x_le=x_le,
+        offset=z,
+        chord=x_le - x_te,
+        thickness=lerp(0.15, 0.11, f),
+        twist_deg=lerp(2.0, -1.0, f),
+    )
 
 
 def build_wing_right() -> Part:
@@ -407,9 +419,15 @@ def build_horizontal_tail() -> Part:
     for k in range(0, 21):
         y = lerp(root_y, tip_y, k / 20)
         f = k / 20
-        secs.append(Section(span=y, x_le=root_le - y * math.tan(math.radians(sweep)),
-                            offset=z0 + y * math.tan(math.radians(dihedral)),
-                            chord=lerp(root_chord, tip_chord, f), thickness=lerp(0.12, 0.10, f)))
+        secs.append(
+            Section(
+                span=y,
+                x_le=root_le - y * math.tan(math.radians(sweep)),
+                offset=z0 + y * math.tan(math.radians(dihedral)),
+                chord=lerp(root_chord, tip_chord, f),
+                thickness=lerp(0.12, 0.10, f),
+            )
+        )
     verts, faces = symmetric_wing(secs, camber=0.0)
     return make_part("horizontal_tail", verts, faces)
 
@@ -423,17 +441,21 @@ def build_vertical_fin() -> Part:
     for k in range(n_st + 1):
         f = k / n_st
         z = lerp(root_z, tip_z, f)
-        sec = Section(span=z, x_le=root_le - (z - root_z) * math.tan(math.radians(sweep)),
-                      offset=0.0, chord=lerp(root_chord, tip_chord, f),
-                      thickness=lerp(0.12, 0.10, f))
+        sec = Section(
+            span=z,
+            x_le=root_le - (z - root_z) * math.tan(math.radians(sweep)),
+            offset=0.0,
+            chord=lerp(root_chord, tip_chord, f),
+            thickness=lerp(0.12, 0.10, f),
+        )
         rings.append(vertical_section_ring(sec, N_CHORD))
     verts, faces = loft(rings, "airfoil", "airfoil", n_chord=N_CHORD)
     return make_part("vertical_fin", verts, faces)
 
 
-ENGINE_Y = -5.7          # right engine (mirrored for the left one)
-ENGINE_Z = 1.25          # nacelle axis height
-ENGINE_LIP_X = 3.2       # x of the inlet lip
+ENGINE_Y = -5.7  # right engine (mirrored for the left one)
+ENGINE_Z = 1.25  # nacelle axis height
+ENGINE_LIP_X = 3.2  # x of the inlet lip
 
 
 def nacelle_profile():
@@ -444,32 +466,53 @@ def nacelle_profile():
     cowl and the exhaust plug to its tip.
     """
     prof = [(-0.30, 0.0)]
-    for k in range(1, 7):                      # spinner
+    for k in range(1, 7):  # spinner
         phi = 0.5 * math.pi * k / 6
         prof.append((-0.75 + 0.45 * math.cos(phi), 0.30 * math.sin(phi)))
-    for r in (0.42, 0.54, 0.66, 0.76):         # fan face
+    for r in (0.42, 0.54, 0.66, 0.76):  # fan face
         prof.append((-0.75, r))
-    for k in range(1, 5):                      # inlet wall
+    for k in range(1, 5):  # inlet wall
         f = k / 5
         prof.append((lerp(-0.75, -0.08, f), lerp(0.76, 0.80, f)))
-    for k in range(0, 9):                      # lip (half circle)
+    for k in range(0, 9):  # lip (half circle)
         psi = -0.5 * math.pi + math.pi * k / 8
         prof.append((-0.08 + 0.06 * math.cos(psi), 0.86 + 0.06 * math.sin(psi)))
-    cowl = [(0.30, 0.955), (0.60, 0.98), (1.0, 0.995), (1.4, 1.0), (1.8, 0.99),
-            (2.2, 0.965), (2.6, 0.92), (2.9, 0.86), (3.2, 0.78)]
-    for d, r in cowl:                          # fan cowl
+    cowl = [
+        (0.30, 0.955),
+        (0.60, 0.98),
+        (1.0, 0.995),
+        (1.4, 1.0),
+        (1.8, 0.99),
+        (2.2, 0.965),
+        (2.6, 0.92),
+        (2.9, 0.86),
+        (3.2, 0.78),
+    ]
+    for d, r in cowl:  # fan cowl
         prof.append((-d, r))
-    prof += [(-3.22, 0.70), (-3.26, 0.64)]     # fan nozzle step
+    prof += [(-3.22, 0.70), (-3.26, 0.64)]  # fan nozzle step
     core = [(3.45, 0.60), (3.65, 0.55), (3.85, 0.48), (3.95, 0.42)]
-    prof += [(-d, r) for d, r in core]         # core cowl
-    prof += [(-3.97, 0.36), (-4.1, 0.30), (-4.25, 0.22), (-4.4, 0.12), (-4.5, 0.05),
-             (-4.55, 0.0)]                     # exhaust plug
+    prof += [(-d, r) for d, r in core]  # core cowl
+    prof += [
+        (-3.97, 0.36),
+        (-4.1, 0.30),
+        (-4.25, 0.22),
+        (-4.4, 0.12),
+        (-4.5, 0.05),
+        (-4.55, 0.0),
+    ]  # exhaust plug
     return prof
 
 
 def build_nacelle_right() -> Part:
-    verts, faces = revolve(nacelle_profile(), (ENGINE_LIP_X, ENGINE_Y, ENGINE_Z),
-                           axis=(1, 0, 0), e1=(0, 0, 1), e2=(0, 1, 0), n_around=N_AROUND_SMALL)
+    verts, faces = revolve(
+        nacelle_profile(),
+        (ENGINE_LIP_X, ENGINE_Y, ENGINE_Z),
+        axis=(1, 0, 0),
+        e1=(0, 0, 1),
+        e2=(0, 1, 0),
+        n_around=N_AROUND_SMALL,
+    )
     return make_part("nacelle_right", verts, faces)
 
 
@@ -491,11 +534,11 @@ def build_pylon_right() -> Part:
 def wheel(name: str, centre, radius: float, width: float) -> Part:
     """A wheel (tyre + recessed hub) whose axle is along Y."""
     a = 0.5 * width
-    b = 0.38 * radius            # tyre cross-section half height
+    b = 0.38 * radius  # tyre cross-section half height
     rc = radius - b
     hub = 0.45 * radius
     prof = [(-0.75 * a, 0.0), (-0.75 * a, 0.5 * hub), (-0.75 * a, hub), (-0.9 * a, 1.1 * hub)]
-    p = 4.0                      # superellipse exponent (boxy tyre with round shoulders)
+    p = 4.0  # superellipse exponent (boxy tyre with round shoulders)
     n_arc = 16
     for k in range(n_arc + 1):
         phi = math.pi - math.pi * k / n_arc
@@ -506,18 +549,19 @@ def wheel(name: str, centre, radius: float, width: float) -> Part:
             s, r = 0.0, radius
         prof.append((s, r))
     prof += [(0.9 * a, 1.1 * hub), (0.75 * a, hub), (0.75 * a, 0.5 * hub), (0.75 * a, 0.0)]
-    verts, faces = revolve(prof, centre, axis=(0, 1, 0), e1=(0, 0, 1), e2=(1, 0, 0),
-                           n_around=N_AROUND_WHEEL)
+    verts, faces = revolve(
+        prof, centre, axis=(0, 1, 0), e1=(0, 0, 1), e2=(1, 0, 0), n_around=N_AROUND_WHEEL
+    )
     return make_part(name, verts, faces)
 
 
 NOSE_GEAR_X = 12.6
 NOSE_WHEEL_R, NOSE_WHEEL_W = 0.38, 0.20
-MAIN_GEAR_X, MAIN_GEAR_Y = -1.0, -3.8   # right main gear (mirrored for the left)
+MAIN_GEAR_X, MAIN_GEAR_Y = -1.0, -3.8  # right main gear (mirrored for the left)
 MAIN_WHEEL_R, MAIN_WHEEL_W = 0.58, 0.38
 
-Z_AXIS_DIRS = dict(e1=(1, 0, 0), e2=(0, 1, 0))   # frame for vertical struts
-Y_AXIS_DIRS = dict(e1=(0, 0, 1), e2=(1, 0, 0))   # frame for axles along Y
+Z_AXIS_DIRS = dict(e1=(1, 0, 0), e2=(0, 1, 0))  # frame for vertical struts
+Y_AXIS_DIRS = dict(e1=(0, 0, 1), e2=(1, 0, 0))  # frame for axles along Y
 
 
 def build_nose_gear() -> list[Part]:
@@ -525,8 +569,12 @@ def build_nose_gear() -> list[Part]:
     strut = cylinder((NOSE_GEAR_X, 0.0, axle_z), (NOSE_GEAR_X, 0.0, 2.3), 0.09, **Z_AXIS_DIRS)
     axle = cylinder((NOSE_GEAR_X, -0.30, axle_z), (NOSE_GEAR_X, 0.30, axle_z), 0.05, **Y_AXIS_DIRS)
     wheel_r = wheel("nose_wheel_right", (NOSE_GEAR_X, -0.22, axle_z), NOSE_WHEEL_R, NOSE_WHEEL_W)
-    return [make_part("nose_gear_strut", *strut), make_part("nose_gear_axle", *axle),
-            wheel_r, mirror_part(wheel_r, "nose_wheel_left")]
+    return [
+        make_part("nose_gear_strut", *strut),
+        make_part("nose_gear_axle", *axle),
+        wheel_r,
+        mirror_part(wheel_r, "nose_wheel_left"),
+    ]
 
 
 def build_main_gear_right() -> list[Part]:
@@ -534,20 +582,31 @@ def build_main_gear_right() -> list[Part]:
     x, y = MAIN_GEAR_X, MAIN_GEAR_Y
     strut = cylinder((x, y, axle_z), (x, y, 2.55), 0.13, **Z_AXIS_DIRS)
     axle = cylinder((x, y - 0.5, axle_z), (x, y + 0.5, axle_z), 0.07, **Y_AXIS_DIRS)
-    return [make_part("main_gear_strut_right", *strut),
-            make_part("main_gear_axle_right", *axle),
-            wheel("main_wheel_right_outer", (x, y - 0.37, axle_z), MAIN_WHEEL_R, MAIN_WHEEL_W),
-            wheel("main_wheel_right_inner", (x, y + 0.37, axle_z), MAIN_WHEEL_R, MAIN_WHEEL_W)]
+    return [
+        make_part("main_gear_strut_right", *strut),
+        make_part("main_gear_axle_right", *axle),
+        wheel("main_wheel_right_outer", (x, y - 0.37, axle_z), MAIN_WHEEL_R, MAIN_WHEEL_W),
+        wheel("main_wheel_right_inner", (x, y + 0.37, axle_z), MAIN_WHEEL_R, MAIN_WHEEL_W),
+    ]
 
 
 def build_airliner() -> list[Part]:
     """All parts of the aircraft, in output order."""
     wing = build_wing_right()
-    parts = [build_fuselage(), wing, mirror_part(wing, "wing_left"),
-             build_horizontal_tail(), build_vertical_fin()]
+    parts = [
+        build_fuselage(),
+        wing,
+        mirror_part(wing, "wing_left"),
+        build_horizontal_tail(),
+        build_vertical_fin(),
+    ]
     nacelle, pylon = build_nacelle_right(), build_pylon_right()
-    parts += [nacelle, mirror_part(nacelle, "nacelle_left"),
-              pylon, mirror_part(pylon, "pylon_left")]
+    parts += [
+        nacelle,
+        mirror_part(nacelle, "nacelle_left"),
+        pylon,
+        mirror_part(pylon, "pylon_left"),
+    ]
     parts += build_nose_gear()
     for p in build_main_gear_right():
         parts += [p, mirror_part(p, p.name.replace("right", "left"))]
@@ -628,7 +687,7 @@ def symmetry_error(vertices: np.ndarray, chunk: int = 512) -> float:
         return 0.0
     worst = 0.0
     for i in range(0, len(unmatched), chunk):
-        q = mirrored[unmatched[i:i + chunk]]
+        q = mirrored[unmatched[i : i + chunk]]
         d2 = ((q[:, None, :] - vertices[None, :, :]) ** 2).sum(axis=2)
         worst = max(worst, float(np.sqrt(d2.min(axis=1)).max()))
     return worst
@@ -682,10 +741,14 @@ def check(path: str) -> bool:
 def main(argv: list[str] | None = None) -> int:
     here = os.path.dirname(os.path.abspath(__file__))
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    ap.add_argument("--out", default=os.path.join(here, "airliner.obj"),
-                    help="output OBJ path (default: airliner.obj next to this script)")
-    ap.add_argument("--check", action="store_true",
-                    help="after writing, re-read the OBJ and print statistics")
+    ap.add_argument(
+        "--out",
+        default=os.path.join(here, "airliner.obj"),
+        help="output OBJ path (default: airliner.obj next to this script)",
+    )
+    ap.add_argument(
+        "--check", action="store_true", help="after writing, re-read the OBJ and print statistics"
+    )
     args = ap.parse_args(argv)
     parts = build_airliner()
     write_obj(parts, args.out)

@@ -32,8 +32,23 @@ def box_mesh(lo, hi) -> nbvkit.Mesh:
     lo, hi = np.asarray(lo, float), np.asarray(hi, float)
     c = np.array([[x, y, z] for z in (0, 1) for y in (0, 1) for x in (0, 1)], float)
     v = lo + c * (hi - lo)
-    f = np.array([[0, 2, 1], [1, 2, 3], [4, 5, 6], [5, 7, 6], [0, 1, 4], [1, 5, 4],
-                  [2, 6, 3], [3, 6, 7], [0, 4, 2], [2, 4, 6], [1, 3, 5], [3, 7, 5]], np.int32)
+    f = np.array(
+        [
+            [0, 2, 1],
+            [1, 2, 3],
+            [4, 5, 6],
+            [5, 7, 6],
+            [0, 1, 4],
+            [1, 5, 4],
+            [2, 6, 3],
+            [3, 6, 7],
+            [0, 4, 2],
+            [2, 4, 6],
+            [1, 3, 5],
+            [3, 7, 5],
+        ],
+        np.int32,
+    )
     return nbvkit.Mesh(v, f)
 
 

@@ -28,6 +28,7 @@ def voxel_reference(points, size, min_z=-np.inf):
 
 # ------------------------------------------------------------------------------ voxel filter
 
+
 def test_defaults_are_the_authors():
     assert DEFAULT_VOXEL_SIZE == 0.02 and LASER_VOXEL_SIZE == 0.1 and DEFAULT_MIN_Z == 0.3
     c = PointCloud()
@@ -40,14 +41,23 @@ def test_config_defaults_match_the_core():
     if not hasattr(config, "CloudConfig"):
         pytest.skip("no CloudConfig in nbvkit.config")
     cc = config.CloudConfig()
-    assert (cc.camera_voxel, cc.laser_voxel, cc.min_z) == (DEFAULT_VOXEL_SIZE, LASER_VOXEL_SIZE, DEFAULT_MIN_Z)
+    assert (cc.camera_voxel, cc.laser_voxel, cc.min_z) == (
+        DEFAULT_VOXEL_SIZE,
+        LASER_VOXEL_SIZE,
+        DEFAULT_MIN_Z,
+    )
 
 
 def test_one_point_per_voxel_at_the_centroid():
     c = PointCloud(voxel_size=0.1, min_z=None)
-    pts = np.array([[0.01, 0.02, 0.51], [0.09, 0.08, 0.59],   # voxel (0, 0, 5)
-                    [0.15, 0.02, 0.55],                         # voxel (1, 0, 5)
-                    [0.05, 0.05, 0.55]])                        # voxel (0, 0, 5) again
+    pts = np.array(
+        [
+            [0.01, 0.02, 0.51],
+            [0.09, 0.08, 0.59],  # voxel (0, 0, 5)
+            [0.15, 0.02, 0.55],  # voxel (1, 0, 5)
+            [0.05, 0.05, 0.55],
+        ]
+    )  # voxel (0, 0, 5) again
     assert c.add(pts) == 2
     np.testing.assert_allclose(c.points, [[0.05, 0.05, 0.55], [0.15, 0.02, 0.55]], atol=1e-15)
     np.testing.assert_array_equal(c.counts, [3, 1])
@@ -172,18 +182,27 @@ def test_open3d_conversion():
 
 # ------------------------------------------------------------------------------ files
 
+
 def sample_points(n=1000, seed=0):
     rng = np.random.default_rng(seed)
     return rng.normal(size=(n, 3)) * [10, 5, 2] + [1e3, -2e3, 0.5]  # far from the origin too
 
 
-@pytest.mark.parametrize("name,kw,exact", [
-    ("a.ply", {}, True), ("a.ply", {"ascii": True}, True),
-    ("a.pcd", {}, False), ("a.pcd", {"ascii": True}, False),
-    ("a.pcd", {"dtype": np.float64}, True), ("a.pcd", {"dtype": np.float64, "ascii": True}, True),
-    ("a.ply", {"dtype": np.float32}, False), ("a.npy", {}, True), ("A.PLY", {}, True),
-    ("a.NPY", {}, True),
-])
+@pytest.mark.parametrize(
+    "name,kw,exact",
+    [
+        ("a.ply", {}, True),
+        ("a.ply", {"ascii": True}, True),
+        ("a.pcd", {}, False),
+        ("a.pcd", {"ascii": True}, False),
+        ("a.pcd", {"dtype": np.float64}, True),
+        ("a.pcd", {"dtype": np.float64, "ascii": True}, True),
+        ("a.ply", {"dtype": np.float32}, False),
+        ("a.npy", {}, True),
+        ("A.PLY", {}, True),
+        ("a.NPY", {}, True),
+    ],
+)
 def test_round_trip(tmp_path, name, kw, exact):
     pts = sample_points()
     write_points(tmp_path / name, pts, **kw)
@@ -207,18 +226,27 @@ def test_empty_files(tmp_path, name, ascii):
 def test_open3d_reads_our_files(tmp_path):
     o3d = pytest.importorskip("open3d")
     pts = sample_points()
-    for name, kw, tol in (("o.ply", {}, 0), ("oa.ply", {"ascii": True}, 1e-9), ("o.pcd", {}, 1e-3),
-                          ("oa.pcd", {"ascii": True}, 1e-3)):
+    for name, kw, tol in (
+        ("o.ply", {}, 0),
+        ("oa.ply", {"ascii": True}, 1e-9),
+        ("o.pcd", {}, 1e-3),
+        ("oa.pcd", {"ascii": True}, 1e-3),
+    ):
         write_points(tmp_path / name, pts, **kw)
         got = np.asarray(o3d.io.read_point_cloud(str(tmp_path / name)).points)
         np.testing.assert_allclose(got, pts, atol=tol, rtol=0)
 
 
-@pytest.mark.parametrize("name,kw", [
-    ("w.ply", {"write_ascii": False}), ("w.ply", {"write_ascii": True}),
-    ("w.pcd", {"write_ascii": False}), ("w.pcd", {"write_ascii": True}),
-    ("w.pcd", {"write_ascii": False, "compressed": True}),
-])
+@pytest.mark.parametrize(
+    "name,kw",
+    [
+        ("w.ply", {"write_ascii": False}),
+        ("w.ply", {"write_ascii": True}),
+        ("w.pcd", {"write_ascii": False}),
+        ("w.pcd", {"write_ascii": True}),
+        ("w.pcd", {"write_ascii": False, "compressed": True}),
+    ],
+)
 def test_reads_open3d_files_with_extra_attributes(tmp_path, name, kw):
     o3d = pytest.importorskip("open3d")
     pts = sample_points(seed=2)
@@ -255,13 +283,17 @@ end_header
 
 def test_ply_mesh_file_ascii(tmp_path):
     (tmp_path / "m.ply").write_text(PLY_MESH_ASCII)
-    np.testing.assert_array_equal(read_points(tmp_path / "m.ply"), [[0, 0, 0], [1, 0, 0], [0, 2.5, -1]])
+    np.testing.assert_array_equal(
+        read_points(tmp_path / "m.ply"), [[0, 0, 0], [1, 0, 0], [0, 2.5, -1]]
+    )
 
 
 def test_ply_binary_big_endian_with_elements_before_vertices(tmp_path):
-    header = ("ply\nformat binary_big_endian 1.0\nelement camera 1\nproperty list uchar float k\n"
-              "element vertex 2\nproperty uchar red\nproperty double z\nproperty float y\n"
-              "property double x\nend_header\n")
+    header = (
+        "ply\nformat binary_big_endian 1.0\nelement camera 1\nproperty list uchar float k\n"
+        "element vertex 2\nproperty uchar red\nproperty double z\nproperty float y\n"
+        "property double x\nend_header\n"
+    )
     body = struct.pack(">B2f", 2, 1.0, 2.0)  # the camera element: a 2-long list
     body += struct.pack(">Bdfd", 7, 3.0, 2.0, 1.0) + struct.pack(">Bdfd", 9, -3.0, -2.0, -1.0)
     (tmp_path / "b.ply").write_bytes(header.encode() + body)
@@ -271,27 +303,42 @@ def test_ply_binary_big_endian_with_elements_before_vertices(tmp_path):
 def test_pcd_with_other_fields_and_counts(tmp_path):
     n = 4
     pts = sample_points(n)
-    header = ("# .PCD v0.7\nVERSION 0.7\nFIELDS intensity x y z hist _\nSIZE 2 4 4 8 4 1\n"
-              "TYPE U F F F F U\nCOUNT 1 1 1 1 3 1\nWIDTH 2\nHEIGHT 2\n"
-              "VIEWPOINT 0 0 0 1 0 0 0\nPOINTS 4\nDATA binary\n")
-    rec = np.zeros(n, dtype=[("i", "<u2"), ("x", "<f4"), ("y", "<f4"), ("z", "<f8"),
-                             ("h", "<f4", (3,)), ("pad", "u1")])
+    header = (
+        "# .PCD v0.7\nVERSION 0.7\nFIELDS intensity x y z hist _\nSIZE 2 4 4 8 4 1\n"
+        "TYPE U F F F F U\nCOUNT 1 1 1 1 3 1\nWIDTH 2\nHEIGHT 2\n"
+        "VIEWPOINT 0 0 0 1 0 0 0\nPOINTS 4\nDATA binary\n"
+    )
+    rec = np.zeros(
+        n,
+        dtype=[
+            ("i", "<u2"),
+            ("x", "<f4"),
+            ("y", "<f4"),
+            ("z", "<f8"),
+            ("h", "<f4", (3,)),
+            ("pad", "u1"),
+        ],
+    )
     rec["x"], rec["y"], rec["z"] = pts[:, 0], pts[:, 1], pts[:, 2]
     rec["h"] = 7
     (tmp_path / "f.pcd").write_bytes(header.encode() + rec.tobytes())
     back = read_points(tmp_path / "f.pcd")
     np.testing.assert_allclose(back[:, :2], pts[:, :2].astype(np.float32))
     np.testing.assert_array_equal(back[:, 2], pts[:, 2])
-    lines = "".join(f"{int(a['i'])} {float(a['x'])!r} {float(a['y'])!r} {float(a['z'])!r} 7 7 7 0\n"
-                    for a in rec)
+    lines = "".join(
+        f"{int(a['i'])} {float(a['x'])!r} {float(a['y'])!r} {float(a['z'])!r} 7 7 7 0\n"
+        for a in rec
+    )
     asc = header.replace("binary", "ascii").encode() + lines.encode()
     (tmp_path / "fa.pcd").write_bytes(asc)
     np.testing.assert_allclose(read_points(tmp_path / "fa.pcd"), back)
 
 
 def test_nonfinite_points_in_files_are_dropped(tmp_path):
-    header = ("VERSION 0.7\nFIELDS x y z\nSIZE 4 4 4\nTYPE F F F\nCOUNT 1 1 1\nWIDTH 3\nHEIGHT 1\n"
-              "POINTS 3\nDATA ascii\n1 2 3\nnan nan nan\n4 5 6\n")
+    header = (
+        "VERSION 0.7\nFIELDS x y z\nSIZE 4 4 4\nTYPE F F F\nCOUNT 1 1 1\nWIDTH 3\nHEIGHT 1\n"
+        "POINTS 3\nDATA ascii\n1 2 3\nnan nan nan\n4 5 6\n"
+    )
     (tmp_path / "n.pcd").write_text(header)
     with pytest.warns(RuntimeWarning, match="dropped 1 points"):
         pts = read_points(tmp_path / "n.pcd")
@@ -312,8 +359,10 @@ def test_read_errors(tmp_path):
     (tmp_path / "empty.ply").write_bytes(b"")
     with pytest.raises(ValueError, match="empty.ply"):
         read_points(tmp_path / "empty.ply")
-    (tmp_path / "noy.ply").write_text("ply\nformat ascii 1.0\nelement vertex 1\nproperty float x\n"
-                                      "property float z\nend_header\n1 2\n")
+    (tmp_path / "noy.ply").write_text(
+        "ply\nformat ascii 1.0\nelement vertex 1\nproperty float x\n"
+        "property float z\nend_header\n1 2\n"
+    )
     with pytest.raises(ValueError, match="no 'y' property"):
         read_points(tmp_path / "noy.ply")
     write_points(tmp_path / "t.ply", sample_points(100))
@@ -326,8 +375,10 @@ def test_read_errors(tmp_path):
     (tmp_path / "t.pcd").write_bytes(data[:-10])
     with pytest.raises(ValueError, match=r"t\.pcd.*truncated"):
         read_points(tmp_path / "t.pcd")
-    (tmp_path / "bad.pcd").write_text("VERSION 0.7\nFIELDS x y\nSIZE 4 4\nTYPE F F\nCOUNT 1 1\n"
-                                      "WIDTH 1\nHEIGHT 1\nPOINTS 1\nDATA ascii\n1 2\n")
+    (tmp_path / "bad.pcd").write_text(
+        "VERSION 0.7\nFIELDS x y\nSIZE 4 4\nTYPE F F\nCOUNT 1 1\n"
+        "WIDTH 1\nHEIGHT 1\nPOINTS 1\nDATA ascii\n1 2\n"
+    )
     with pytest.raises(ValueError, match="no 'z' field"):
         read_points(tmp_path / "bad.pcd")
     np.save(tmp_path / "bad.npy", np.zeros((3, 4)))
@@ -339,8 +390,10 @@ def test_read_errors(tmp_path):
 
 
 def test_corrupt_compressed_pcd(tmp_path):
-    header = ("VERSION 0.7\nFIELDS x y z\nSIZE 4 4 4\nTYPE F F F\nCOUNT 1 1 1\nWIDTH 2\nHEIGHT 1\n"
-              "POINTS 2\nDATA binary_compressed\n")
+    header = (
+        "VERSION 0.7\nFIELDS x y z\nSIZE 4 4 4\nTYPE F F F\nCOUNT 1 1 1\nWIDTH 2\nHEIGHT 1\n"
+        "POINTS 2\nDATA binary_compressed\n"
+    )
     body = struct.pack("<II", 4, 24) + b"\xff\xff\xff\xff"  # a back reference before any output
     (tmp_path / "c.pcd").write_bytes(header.encode() + body)
     with pytest.raises(ValueError, match=r"c\.pcd.*corrupt"):

@@ -21,21 +21,40 @@ def test_python_defaults_equal_cpp_defaults():
     for k in ("fov_deg", "resolution_deg", "min_range", "max_range", "noise_sigma"):
         assert getattr(c.laser, k) == getattr(las, k), k
     import numpy as np
-    np.testing.assert_allclose(_core.mount_transform(c.laser.mount_xyz, *c.laser.mount_rpy_deg), las.mount)
-    np.testing.assert_allclose(_core.mount_transform(c.camera.mount_xyz, *c.camera.mount_rpy_deg), cam.mount)
+
+    np.testing.assert_allclose(
+        _core.mount_transform(c.laser.mount_xyz, *c.laser.mount_rpy_deg), las.mount
+    )
+    np.testing.assert_allclose(
+        _core.mount_transform(c.camera.mount_xyz, *c.camera.mount_rpy_deg), cam.mount
+    )
     mo = nbvkit.OccupancyMapOptions()
-    for k in ("prob_hit", "prob_miss", "clamp_min", "clamp_max", "occupancy_threshold", "clamped_entropy_zero"):
+    for k in (
+        "prob_hit",
+        "prob_miss",
+        "clamp_min",
+        "clamp_max",
+        "occupancy_threshold",
+        "clamped_entropy_zero",
+    ):
         assert getattr(c.map, k) == pytest.approx(getattr(mo, k)), k
     assert c.map.entropy_unit == mo.to_dict()["entropy_unit"]
     cl = _core.SurfaceCloudOptions()
     assert c.cloud.min_z == pytest.approx(cl.min_z)
-    rx, ry = _core.view_ray_grid(c.camera.hfov_deg, c.camera.vfov_deg, c.camera.max_range, c.map.resolution)
+    rx, ry = _core.view_ray_grid(
+        c.camera.hfov_deg, c.camera.vfov_deg, c.camera.max_range, c.map.resolution
+    )
     assert (rx, ry) == (47, 34)
 
 
 def test_paper_values():
     c = Config()
-    assert (c.sampling.delta_d, c.sampling.delta_theta, c.sampling.sigma, c.sampling.alpha_max) == (1.0, math.pi / 4, 1.5, 5)
+    assert (c.sampling.delta_d, c.sampling.delta_theta, c.sampling.sigma, c.sampling.alpha_max) == (
+        1.0,
+        math.pi / 4,
+        1.5,
+        5,
+    )
     assert (c.sampling.stuck_threshold, c.sampling.stuck_window) == (0.005, 3)
     assert (c.termination.threshold, c.termination.window) == (0.001, 5)
     assert c.vehicle.collision_radius == 0.8 and c.symmetry.prediction_probability == 0.6
@@ -52,9 +71,21 @@ def test_shipped_yaml_is_the_default_and_round_trips(tmp_path):
 
 
 def test_overrides_and_rejections(tmp_path):
-    c = load_config(None, ["max_iterations=7", "sampling.method=cgvs", "workspace.bounds_min=[0,0,0]",
-                           "workspace.bounds_max=[10,10,5]", "utility.rays_x=10"])
-    assert c.max_iterations == 7 and c.sampling.method == "cgvs" and c.workspace.bounds_max == (10.0, 10.0, 5.0)
+    c = load_config(
+        None,
+        [
+            "max_iterations=7",
+            "sampling.method=cgvs",
+            "workspace.bounds_min=[0,0,0]",
+            "workspace.bounds_max=[10,10,5]",
+            "utility.rays_x=10",
+        ],
+    )
+    assert (
+        c.max_iterations == 7
+        and c.sampling.method == "cgvs"
+        and c.workspace.bounds_max == (10.0, 10.0, 5.0)
+    )
     with pytest.raises(KeyError, match="map.resolutionn"):
         c.with_overrides(["map.resolutionn=0.1"])
     with pytest.raises(KeyError, match="nope"):
@@ -96,5 +127,7 @@ def test_core_type_stub_is_current():
     from nbvkit._stubgen import stub
 
     text = (ROOT / "python" / "nbvkit" / "_core.pyi").read_text()
-    assert text == stub(), "regenerate with: .venv/bin/python -m nbvkit._stubgen > python/nbvkit/_core.pyi"
+    assert (
+        text == stub()
+    ), "regenerate with: .venv/bin/python -m nbvkit._stubgen > python/nbvkit/_core.pyi"
     ast.parse(text)

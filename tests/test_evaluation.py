@@ -16,16 +16,40 @@ from nbvkit import Evaluator, evaluate
 from nbvkit.evaluation import DEFAULT_GT_DENSITY
 from conftest import shared_mesh
 
-KEYS = ("coverage", "area_coverage", "precision", "completeness", "accuracy", "fscore",
-        "chamfer_m", "n_points", "gt_density")
+KEYS = (
+    "coverage",
+    "area_coverage",
+    "precision",
+    "completeness",
+    "accuracy",
+    "fscore",
+    "chamfer_m",
+    "n_points",
+    "gt_density",
+)
 
 
 def box(lo, hi):
     """An axis-aligned box [lo, hi] as 12 triangles (built from arrays, no fixture file)."""
     lo, hi = np.asarray(lo, float), np.asarray(hi, float)
     c = np.array([[x, y, z] for z in (0, 1) for y in (0, 1) for x in (0, 1)], float)
-    f = np.array([[0, 2, 1], [1, 2, 3], [4, 5, 6], [5, 7, 6], [0, 1, 4], [1, 5, 4],
-                  [2, 6, 3], [3, 6, 7], [0, 4, 2], [2, 4, 6], [1, 3, 5], [3, 7, 5]], np.int32)
+    f = np.array(
+        [
+            [0, 2, 1],
+            [1, 2, 3],
+            [4, 5, 6],
+            [5, 7, 6],
+            [0, 1, 4],
+            [1, 5, 4],
+            [2, 6, 3],
+            [3, 6, 7],
+            [0, 4, 2],
+            [2, 4, 6],
+            [1, 3, 5],
+            [3, 7, 5],
+        ],
+        np.int32,
+    )
     return nbvkit.Mesh(lo + c * (hi - lo), f)
 
 
@@ -73,6 +97,7 @@ def cube_face_cloud():
 
 # ------------------------------------------------------------------------------ analytic scenes
 
+
 def test_ground_truth_itself_scores_100_percent(cube):
     ev = Evaluator(cube, gt_density=2000, seed=1)
     r = ev(ev.gt_points)
@@ -90,7 +115,7 @@ def test_one_cube_face_gives_a_sixth(cube, cube_face_cloud):
     r = evaluate(cube, cube_face_cloud, gt_density=20_000, seed=0)
     # Cells: the face's 41^2 of the cube's 9602 (exact: every cell holds samples at this density).
     assert r["gt_cells"]["0.05"] == 9602
-    assert r["coverage"]["0.05"] == pytest.approx(41 ** 2 / 9602, abs=1e-12)
+    assert r["coverage"]["0.05"] == pytest.approx(41**2 / 9602, abs=1e-12)
     assert r["coverage"]["0.05"] == pytest.approx(1 / 6, abs=0.01)
     # Area: the face's layer of cells (x in [2.0, 2.05)) also holds 0.025 m strips of the four
     # neighbouring faces: (1 + 4 * 0.025 / 2) / 6 = 0.175 of the area. 480k samples: sigma 0.0006.
@@ -152,8 +177,9 @@ def test_precision_counts_outlier_cells():
 def test_matches_the_definitions_on_random_data():
     rng = np.random.default_rng(7)
     gt = rng.normal(size=(1500, 3)) * [2, 1, 0.5] - [0.3, 0.2, 0.1]  # negative coordinates too
-    cloud = np.vstack([gt[::3] + rng.normal(scale=0.03, size=(500, 3)),
-                       rng.uniform(-3, 3, size=(300, 3))])
+    cloud = np.vstack(
+        [gt[::3] + rng.normal(scale=0.03, size=(500, 3)), rng.uniform(-3, 3, size=(300, 3))]
+    )
     res, taus = (0.05, 0.1, 0.5, 1.3), (0.02, 0.05, 0.1, 0.4)
     r = evaluate(gt, cloud, resolutions=res, taus=taus)
     ref = reference_metrics(gt, cloud, res, taus)
@@ -181,6 +207,7 @@ def test_nearest_distances_are_exact():
 
 # ------------------------------------------------------------------------------ contracts
 
+
 def test_same_seed_same_numbers_and_threads_do_not_matter(cube, cube_face_cloud):
     a = evaluate(cube, cube_face_cloud, gt_density=3000, seed=4)
     b = evaluate(cube, cube_face_cloud, gt_density=3000, seed=4)
@@ -198,7 +225,9 @@ def test_same_seed_same_numbers_and_threads_do_not_matter(cube, cube_face_cloud)
 def test_evaluator_reuse_equals_evaluate(cube, cube_face_cloud):
     ev = Evaluator(cube, gt_density=1500, seed=2)
     assert ev(cube_face_cloud) == evaluate(cube, cube_face_cloud, gt_density=1500, seed=2)
-    assert ev.evaluate(cube_face_cloud[:100]) == evaluate(cube, cube_face_cloud[:100], gt_density=1500, seed=2)
+    assert ev.evaluate(cube_face_cloud[:100]) == evaluate(
+        cube, cube_face_cloud[:100], gt_density=1500, seed=2
+    )
     np.testing.assert_array_equal(ev.gt_points, cube.sample_surface(ev.num_gt_points, 2))
     assert "Evaluator" in repr(ev)
 
@@ -273,6 +302,7 @@ def test_bad_input(cube):
 
 # ------------------------------------------------------------------------------ the twinjet
 
+
 def camera_cloud(mesh, views):
     cam = nbvkit.DepthCamera(nbvkit.RaycastScene(mesh))
     cloud = nbvkit.PointCloud()
@@ -283,8 +313,11 @@ def camera_cloud(mesh, views):
 
 def test_twinjet_coverage_is_stable_across_gt_seeds():
     mesh = nbvkit.load_mesh(shared_mesh("twinjet.obj"))
-    cloud = camera_cloud(mesh, [(x, -7.0, 3.0, math.pi / 2) for x in (-10, -5, 0, 5, 10)]
-                         + [(x, 7.0, 3.0, -math.pi / 2) for x in (-5, 5)])
+    cloud = camera_cloud(
+        mesh,
+        [(x, -7.0, 3.0, math.pi / 2) for x in (-10, -5, 0, 5, 10)]
+        + [(x, 7.0, 3.0, -math.pi / 2) for x in (-5, 5)],
+    )
     ev0, ev1 = Evaluator(mesh, seed=0), Evaluator(mesh, seed=1)
     a, b = ev0(cloud), ev1(cloud)
     assert a["n_gt_points"] == round(mesh.area * DEFAULT_GT_DENSITY)
@@ -297,6 +330,7 @@ def test_twinjet_coverage_is_stable_across_gt_seeds():
 
 
 # ------------------------------------------------------------------------------ command line
+
 
 @pytest.fixture(scope="module")
 def cube_files(tmp_path_factory, cube, cube_face_cloud):
@@ -313,8 +347,20 @@ def test_cli_evaluate_writes_json(cube_files, capsys):
     from nbvkit.cli import main
 
     out = cube_files / "r.json"
-    rc = main(["evaluate", "--mesh", str(cube_files / "cube.obj"), str(cube_files / "face.ply"),
-               "--json", str(out), "--gt-density", "2000", "--seed", "3"])
+    rc = main(
+        [
+            "evaluate",
+            "--mesh",
+            str(cube_files / "cube.obj"),
+            str(cube_files / "face.ply"),
+            "--json",
+            str(out),
+            "--gt-density",
+            "2000",
+            "--seed",
+            "3",
+        ]
+    )
     assert rc == 0
     text = capsys.readouterr().out
     assert "coverage" in text and "0.05 m" in text and "Chamfer" in text
@@ -323,9 +369,21 @@ def test_cli_evaluate_writes_json(cube_files, capsys):
         assert k in r
     assert r["gt_density"] == pytest.approx(2000) and r["n_points"] == 20000 and r["seed"] == 3
     assert r["coverage"]["0.05"] == pytest.approx(1 / 6, abs=0.02)
-    expected = evaluate(nbvkit.load_mesh(cube_files / "cube.obj"), nbvkit.read_points(cube_files / "face.ply"),
-                        gt_density=2000, seed=3)
-    for k in ("coverage", "area_coverage", "precision", "completeness", "accuracy", "fscore", "chamfer_m"):
+    expected = evaluate(
+        nbvkit.load_mesh(cube_files / "cube.obj"),
+        nbvkit.read_points(cube_files / "face.ply"),
+        gt_density=2000,
+        seed=3,
+    )
+    for k in (
+        "coverage",
+        "area_coverage",
+        "precision",
+        "completeness",
+        "accuracy",
+        "fscore",
+        "chamfer_m",
+    ):
         assert r[k] == expected[k]
 
 
@@ -333,15 +391,41 @@ def test_cli_reference_cloud_and_scaled_mesh(cube_files, capsys):
     from nbvkit.cli import main
 
     out = cube_files / "ref.json"
-    assert main(["evaluate", "--reference-cloud", str(cube_files / "gt.npy"),
-                 str(cube_files / "face.ply"), "--json", str(out)]) == 0
+    assert (
+        main(
+            [
+                "evaluate",
+                "--reference-cloud",
+                str(cube_files / "gt.npy"),
+                str(cube_files / "face.ply"),
+                "--json",
+                str(out),
+            ]
+        )
+        == 0
+    )
     r = json.loads(out.read_text())
     assert r["gt_density"] is None and r["n_gt_points"] == 30000 and r["gt_source"] == "points"
     assert r["reference_cloud"].endswith("gt.npy")
     # a 2x-scaled mesh no longer contains the face: coverage drops to ~0
     out2 = cube_files / "scaled.json"
-    assert main(["evaluate", "--mesh", str(cube_files / "cube.obj"), "--mesh-scale", "2",
-                 str(cube_files / "face.ply"), "--json", str(out2), "--gt-density", "500"]) == 0
+    assert (
+        main(
+            [
+                "evaluate",
+                "--mesh",
+                str(cube_files / "cube.obj"),
+                "--mesh-scale",
+                "2",
+                str(cube_files / "face.ply"),
+                "--json",
+                str(out2),
+                "--gt-density",
+                "500",
+            ]
+        )
+        == 0
+    )
     assert json.loads(out2.read_text())["coverage"]["0.05"] < 0.01
     capsys.readouterr()
 
@@ -353,21 +437,59 @@ def test_cli_errors(cube_files, capsys):
     assert main(["evaluate", "--mesh", str(cube_files / "cube.obj"), str(missing)]) != 0
     err = capsys.readouterr().err
     assert "missing_cloud.ply" in err and "error" in err
-    assert main(["evaluate", "--mesh", str(cube_files / "cube.obj"), "--reference-cloud",
-                 str(cube_files / "gt.npy"), str(cube_files / "face.ply")]) != 0
+    assert (
+        main(
+            [
+                "evaluate",
+                "--mesh",
+                str(cube_files / "cube.obj"),
+                "--reference-cloud",
+                str(cube_files / "gt.npy"),
+                str(cube_files / "face.ply"),
+            ]
+        )
+        != 0
+    )
     assert "not both" in capsys.readouterr().err
-    assert main(["evaluate", "--mesh", str(cube_files / "cube.obj"), str(cube_files / "face.ply"),
-                 "--resolutions", "0"]) != 0
+    assert (
+        main(
+            [
+                "evaluate",
+                "--mesh",
+                str(cube_files / "cube.obj"),
+                str(cube_files / "face.ply"),
+                "--resolutions",
+                "0",
+            ]
+        )
+        != 0
+    )
     assert "resolutions" in capsys.readouterr().err
     (cube_files / "bad.pcd").write_text("not a pcd\n")
-    assert main(["evaluate", "--mesh", str(cube_files / "cube.obj"), str(cube_files / "bad.pcd")]) != 0
+    assert (
+        main(["evaluate", "--mesh", str(cube_files / "cube.obj"), str(cube_files / "bad.pcd")]) != 0
+    )
     assert "bad.pcd" in capsys.readouterr().err
 
 
 def test_cli_help_explains_every_option():
-    proc = subprocess.run([sys.executable, "-m", "nbvkit.cli", "evaluate", "--help"],
-                          capture_output=True, text=True, timeout=60)
+    proc = subprocess.run(
+        [sys.executable, "-m", "nbvkit.cli", "evaluate", "--help"],
+        capture_output=True,
+        text=True,
+        timeout=60,
+    )
     assert proc.returncode == 0
-    for opt in ("--mesh", "--mesh-scale", "--mesh-up", "--reference-cloud", "--json",
-                "--gt-density", "--seed", "--resolutions", "--taus", "CLOUD"):
+    for opt in (
+        "--mesh",
+        "--mesh-scale",
+        "--mesh-up",
+        "--reference-cloud",
+        "--json",
+        "--gt-density",
+        "--seed",
+        "--resolutions",
+        "--taus",
+        "CLOUD",
+    ):
         assert opt in proc.stdout

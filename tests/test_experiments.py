@@ -11,8 +11,14 @@ import yaml
 from nbvkit.experiments import RunSpec, run_specs, sweep_specs, table2, table2_markdown
 
 ROOT = Path(__file__).resolve().parent.parent
-TINY = ("map.resolution=0.4", "evaluation.gt_density=50", "max_iterations=2", "evaluation.coverage_every=1",
-        "profiling.sweep_step=0.5", "profiling.waypoints=3")
+TINY = (
+    "map.resolution=0.4",
+    "evaluation.gt_density=50",
+    "max_iterations=2",
+    "evaluation.coverage_every=1",
+    "profiling.sweep_step=0.5",
+    "profiling.waypoints=3",
+)
 
 
 @pytest.fixture(scope="module")
@@ -21,36 +27,82 @@ def tiny_table(tmp_path_factory):
     from nbvkit.cli import main
 
     out = tmp_path_factory.mktemp("table")
-    assert main(["table", "--starts", "1", "--workers", "2", "--set", *TINY, "--out", str(out)]) == 0
+    assert (
+        main(["table", "--starts", "1", "--workers", "2", "--set", *TINY, "--out", str(out)]) == 0
+    )
     return out
 
 
 def test_table_command_writes_the_papers_layout(tiny_table):
     md = (tiny_table / "table2.md").read_text()
-    rows = [l for l in md.splitlines() if l.startswith("| ") and not l.startswith("| Scenario")]
+    rows = [ln for ln in md.splitlines() if ln.startswith("| ") and not ln.startswith("| Scenario")]
     assert [r.split("|")[1].strip() for r in rows] == ["Profile", "1", "2", "3", "4", "5"]
     t = pd.read_csv(tiny_table / "table2.csv")
     assert list(t["Scenario"].astype(str)) == ["Profile", "1", "2", "3", "4", "5"]
-    for col in ("Iterations", "Distance (m)", "Entropy reduction", "Coverage @0.05 m", "Coverage @0.10 m",
-                "Coverage @0.50 m", "Wall time (s)", "ms/iteration", "Profiling", "Symmetry", "Sampling"):
+    for col in (
+        "Iterations",
+        "Distance (m)",
+        "Entropy reduction",
+        "Coverage @0.05 m",
+        "Coverage @0.10 m",
+        "Coverage @0.50 m",
+        "Wall time (s)",
+        "ms/iteration",
+        "Profiling",
+        "Symmetry",
+        "Sampling",
+    ):
         assert col in t.columns, col
     runs = pd.read_csv(tiny_table / "runs.csv")
-    assert len(runs) == 6 and set(runs["scenario"].astype(str)) == {"profile", "1", "2", "3", "4", "5"}
+    assert len(runs) == 6 and set(runs["scenario"].astype(str)) == {
+        "profile",
+        "1",
+        "2",
+        "3",
+        "4",
+        "5",
+    }
     # profiling scenarios fly the profile first: more distance than scenario 1's two steps
     d = dict(zip(runs["scenario"].astype(str), runs["distance_m"]))
     assert d["2"] > d["1"] and d["profile"] > 0
-    for f in ("coverage_vs_distance.png", "coverage_vs_iteration.png", "trajectories.png",
-              "final_cloud_and_map.png"):
+    for f in (
+        "coverage_vs_distance.png",
+        "coverage_vs_iteration.png",
+        "trajectories.png",
+        "final_cloud_and_map.png",
+    ):
         assert (tiny_table / "figures" / f).stat().st_size > 0
 
 
 def test_table2_means_and_spread():
-    df = pd.DataFrame([
-        {"scenario": "1", "iterations": 10, "distance_m": 5.0, "entropy_reduction": 100.0, "coverage_0.05": 0.2,
-         "coverage_0.1": 0.3, "coverage_0.5": 0.4, "area_coverage_0.05": 0.2, "wall_time_s": 1.0, "ms_per_iteration": 5.0},
-        {"scenario": "1", "iterations": 20, "distance_m": 7.0, "entropy_reduction": 300.0, "coverage_0.05": 0.4,
-         "coverage_0.1": 0.5, "coverage_0.5": 0.6, "area_coverage_0.05": 0.4, "wall_time_s": 3.0, "ms_per_iteration": 7.0},
-    ])
+    df = pd.DataFrame(
+        [
+            {
+                "scenario": "1",
+                "iterations": 10,
+                "distance_m": 5.0,
+                "entropy_reduction": 100.0,
+                "coverage_0.05": 0.2,
+                "coverage_0.1": 0.3,
+                "coverage_0.5": 0.4,
+                "area_coverage_0.05": 0.2,
+                "wall_time_s": 1.0,
+                "ms_per_iteration": 5.0,
+            },
+            {
+                "scenario": "1",
+                "iterations": 20,
+                "distance_m": 7.0,
+                "entropy_reduction": 300.0,
+                "coverage_0.05": 0.4,
+                "coverage_0.1": 0.5,
+                "coverage_0.5": 0.6,
+                "area_coverage_0.05": 0.4,
+                "wall_time_s": 3.0,
+                "ms_per_iteration": 7.0,
+            },
+        ]
+    )
     t = table2(df)
     r = t.iloc[0]
     assert r["Scenario"] == "1" and r["Iterations"] == 15 and r["Iterations sd"] == 5
@@ -59,14 +111,20 @@ def test_table2_means_and_spread():
 
 
 def test_sweep_is_resumable_and_rejects_bad_keys(tmp_path):
-    sweep = {"scenarios": ["1"], "starts": [0, 1], "grid": {"sampling.delta_d": [1.0, 2.0]}, "set": dict(
-        kv.split("=") for kv in TINY)}
+    sweep = {
+        "scenarios": ["1"],
+        "starts": [0, 1],
+        "grid": {"sampling.delta_d": [1.0, 2.0]},
+        "set": dict(kv.split("=") for kv in TINY),
+    }
     sweep["set"] = {k: yaml.safe_load(v) for k, v in sweep["set"].items()}
     specs = sweep_specs(sweep)
     assert len(specs) == 4 and len({s.run_id for s in specs}) == 4
     rows = run_specs(specs, tmp_path, workers=1, progress=False)
     assert {r["sampling.delta_d"] for r in rows} == {1.0, 2.0}
-    done = {s.run_id: (tmp_path / "runs" / s.run_id / "summary.json").stat().st_mtime_ns for s in specs}
+    done = {
+        s.run_id: (tmp_path / "runs" / s.run_id / "summary.json").stat().st_mtime_ns for s in specs
+    }
     victim = specs[2].run_id
     import shutil
 
@@ -85,8 +143,9 @@ def test_sweep_is_resumable_and_rejects_bad_keys(tmp_path):
 
 def test_sweep_on_a_local_dask_cluster(tmp_path):
     distributed = pytest.importorskip("distributed")
-    with distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True, host="127.0.0.1",
-                                  dashboard_address=None) as cluster:
+    with distributed.LocalCluster(
+        n_workers=2, threads_per_worker=1, processes=True, host="127.0.0.1", dashboard_address=None
+    ) as cluster:
         specs = [RunSpec("1", k, overrides=TINY) for k in (0, 1)]
         rows = run_specs(specs, tmp_path, scheduler=cluster.scheduler_address)
     assert [r["start"] for r in rows] == [0, 1]
@@ -97,8 +156,15 @@ def test_sweep_command(tmp_path):
     from nbvkit.cli import main
 
     f = tmp_path / "sweep.yaml"
-    f.write_text(yaml.safe_dump({"scenarios": ["1"], "starts": 1, "set": {k: yaml.safe_load(v) for k, v in
-                                                                          (kv.split("=") for kv in TINY)}}))
+    f.write_text(
+        yaml.safe_dump(
+            {
+                "scenarios": ["1"],
+                "starts": 1,
+                "set": {k: yaml.safe_load(v) for k, v in (kv.split("=") for kv in TINY)},
+            }
+        )
+    )
     assert main(["sweep", str(f), "--out", str(tmp_path / "out"), "--workers", "1"]) == 0
     assert len(pd.read_csv(tmp_path / "out" / "results.csv")) == 1
     assert main(["sweep", str(tmp_path / "missing.yaml")]) == 2
@@ -113,15 +179,21 @@ def test_notebook_executes_headless(tiny_table):
     os.environ.update(env)
     os.environ.pop("DISPLAY", None)
     try:
-        nbclient.NotebookClient(nb, timeout=300, kernel_name="python3",
-                                resources={"metadata": {"path": str(ROOT / "notebooks")}}).execute()
+        nbclient.NotebookClient(
+            nb,
+            timeout=300,
+            kernel_name="python3",
+            resources={"metadata": {"path": str(ROOT / "notebooks")}},
+        ).execute()
     finally:
         for k, v in old.items():
             if v is None:
                 os.environ.pop(k, None)
             else:
                 os.environ[k] = v
-    text = "".join(o.get("text", "") for c in nb.cells if c.cell_type == "code" for o in c.get("outputs", []))
+    text = "".join(
+        o.get("text", "") for c in nb.cells if c.cell_type == "code" for o in c.get("outputs", [])
+    )
     assert "6 runs" in text and "skipping the interactive 3D view" in text
 
 
@@ -129,11 +201,27 @@ def test_comparison_with_the_papers_table(tmp_path):
     from nbvkit.experiments import compare_with_paper
 
     paper = tmp_path / "paper.csv"
-    paper.write_text("scenario,profiling,symmetry,sampling,iterations,distance_m,entropy_reduction,"
-                     "coverage_0.05,coverage_0.10,coverage_0.50\n1,no,no,CGVS,859,1039.9,289439,0.733,0.787,0.869\n")
-    df = pd.DataFrame([{"scenario": "1", "iterations": 700, "distance_m": 900.0, "entropy_reduction": 8e5,
-                        "coverage_0.05": 0.6, "coverage_0.1": 0.7, "coverage_0.5": 0.9,
-                        "area_coverage_0.05": 0.6, "wall_time_s": 60.0, "ms_per_iteration": 80.0}])
+    paper.write_text(
+        "scenario,profiling,symmetry,sampling,iterations,distance_m,entropy_reduction,"
+        "coverage_0.05,coverage_0.10,coverage_0.50\n"
+        "1,no,no,CGVS,859,1039.9,289439,0.733,0.787,0.869\n"
+    )
+    df = pd.DataFrame(
+        [
+            {
+                "scenario": "1",
+                "iterations": 700,
+                "distance_m": 900.0,
+                "entropy_reduction": 8e5,
+                "coverage_0.05": 0.6,
+                "coverage_0.1": 0.7,
+                "coverage_0.5": 0.9,
+                "area_coverage_0.05": 0.6,
+                "wall_time_s": 60.0,
+                "ms_per_iteration": 80.0,
+            }
+        ]
+    )
     md = compare_with_paper(table2(df), paper)
     assert "| 1 | 700 / 859 | 900.0 / 1,039.9 | 800,000 / 289,439 | 60.0 % / 73.3 % |" in md
 

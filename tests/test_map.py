@@ -1,4 +1,5 @@
-"""OccupancyMap: analytic rays, entropy bookkeeping, agreement with OctoMap, predictions, files, errors."""
+"""OccupancyMap: analytic rays, entropy bookkeeping, agreement with OctoMap, predictions, files,
+errors."""
 from __future__ import annotations
 
 import math
@@ -121,8 +122,14 @@ def test_cells_outside_workspace_live_in_octree_but_not_in_totals():
     assert m.state([5.1, 1.1, 1.1]) == CellState.OCCUPIED
     c = m.counts()
     assert c["free"] == 5 and c["occupied"] == 0 and c["free"] + c["occupied"] + c["unknown"] == n
-    assert m.in_workspace([[1.9, 1, 1], [2.0, 1, 1], [-1e-9, 1, 1]]).tolist() == [True, False, False]
-    assert m.total_entropy() == pytest.approx((n - 5) * LN2 + 5 * h_nats(p_of(logodds_f32(0.4))), rel=1e-12)
+    assert m.in_workspace([[1.9, 1, 1], [2.0, 1, 1], [-1e-9, 1, 1]]).tolist() == [
+        True,
+        False,
+        False,
+    ]
+    assert m.total_entropy() == pytest.approx(
+        (n - 5) * LN2 + 5 * h_nats(p_of(logodds_f32(0.4))), rel=1e-12
+    )
 
 
 # ---- grid, keys, layout ---------------------------------------------------------------------
@@ -167,7 +174,9 @@ def test_grid_layout_is_x_fastest_fortran_order():
     assert m.index_of(p) == 2 + nx * (1 + ny * 0)
     assert g.ravel(order="F")[m.index_of(p)] == CellState.OCCUPIED
     assert m.log_odds_grid()[2, 1, 0] == pytest.approx(logodds_f32(0.7))
-    assert m.flag_grid()[2, 1, 0] == CellFlag.OBSERVED and m.flag_grid()[0, 0, 1] == CellFlag.UNKNOWN
+    assert (
+        m.flag_grid()[2, 1, 0] == CellFlag.OBSERVED and m.flag_grid()[0, 0, 1] == CellFlag.UNKNOWN
+    )
     np.testing.assert_array_equal(m.occupied_cells(), [[1.25, 0.75, 0.25]])
 
 
@@ -205,8 +214,11 @@ def test_entropy_after_one_scan_is_the_analytic_sum(box_scene_scans):
         m.integrate(box_scene_scans[0])
         c = m.counts()
         assert c["free"] > 1000 and c["occupied"] > 100
-        expected = scale * (c["unknown"] * LN2 + c["free"] * h_nats(p_of(logodds_f32(0.4)))
-                            + c["occupied"] * h_nats(p_of(logodds_f32(0.7))))
+        expected = scale * (
+            c["unknown"] * LN2
+            + c["free"] * h_nats(p_of(logodds_f32(0.4)))
+            + c["occupied"] * h_nats(p_of(logodds_f32(0.7)))
+        )
         assert m.total_entropy() == pytest.approx(expected, rel=1e-12)
         assert m.total_entropy() < before
 
@@ -224,7 +236,8 @@ def test_clamped_cells_count_zero_entropy_unless_disabled():
     e = plain.entropy([[1.1, 0.1, 0.1], [3.1, 0.1, 0.1]])
     np.testing.assert_allclose(e, [h_nats(0.12), h_nats(0.97)], rtol=1e-5)
     assert plain.total_entropy() == pytest.approx(
-        (m.num_cells - 16) * LN2 + 15 * e[0] + e[1], rel=1e-12)
+        (m.num_cells - 16) * LN2 + 15 * e[0] + e[1], rel=1e-12
+    )
 
 
 def test_incremental_total_equals_recompute_after_many_random_scans():
@@ -296,11 +309,14 @@ def test_without_deduplication_fast_path_equals_octomap_exactly(box_scene_scans)
 def test_set_unknown_cells_sets_only_unknown_cells_and_observation_overrides():
     m = small_map()
     m.integrate((0.1, 0.1, 0.1), [[1.1, 0.1, 0.1]])  # cells x 0.1..0.9 free, 1.1 occupied
-    pts = [[0.5, 0.1, 0.1],  # observed free: untouched
-           [1.1, 0.1, 0.1],  # observed occupied: untouched
-           [2.1, 0.1, 0.1], [2.15, 0.12, 0.05],  # one unknown cell, twice
-           [2.1, 1.1, 0.1],  # another unknown cell
-           [50.0, 0.0, 0.0]]  # outside the workspace: ignored
+    pts = [
+        [0.5, 0.1, 0.1],  # observed free: untouched
+        [1.1, 0.1, 0.1],  # observed occupied: untouched
+        [2.1, 0.1, 0.1],
+        [2.15, 0.12, 0.05],  # one unknown cell, twice
+        [2.1, 1.1, 0.1],  # another unknown cell
+        [50.0, 0.0, 0.0],
+    ]  # outside the workspace: ignored
     h0 = m.total_entropy()
     assert m.set_unknown_cells(pts, 0.6) == 2
     assert m.probability([0.5, 0.1, 0.1]) == pytest.approx(0.4, abs=1e-6)
@@ -311,12 +327,18 @@ def test_set_unknown_cells_sets_only_unknown_cells_and_observation_overrides():
     assert m.state([50.0, 0.0, 0.0]) == CellState.UNKNOWN
     c = m.counts()
     assert c["predicted"] == 2 and c["occupied"] == 3
-    assert m.total_entropy() == pytest.approx(h0 - 2 * LN2 + 2 * h_nats(p_of(logodds_f32(0.6))), rel=1e-12)
+    assert m.total_entropy() == pytest.approx(
+        h0 - 2 * LN2 + 2 * h_nats(p_of(logodds_f32(0.6))), rel=1e-12
+    )
     # a ray through one predicted cell and a hit on the other: both restart from unknown
     m.integrate((0.1, 1.1, 0.1), [[2.1, 1.1, 0.1]], [[3.1, 0.1 + 1e-3, 0.1]])
     m.integrate((2.1, -1.5, 0.1), [], [[2.1, 0.3, 0.1]])
-    assert m.probability([2.1, 1.1, 0.1]) == pytest.approx(0.7, abs=1e-6)  # not 0.6 combined with a hit
-    assert m.probability([2.1, 0.1, 0.1]) == pytest.approx(0.4, abs=1e-6)  # not 0.6 combined with a miss
+    assert m.probability([2.1, 1.1, 0.1]) == pytest.approx(
+        0.7, abs=1e-6
+    )  # not 0.6 combined with a hit
+    assert m.probability([2.1, 0.1, 0.1]) == pytest.approx(
+        0.4, abs=1e-6
+    )  # not 0.6 combined with a miss
     assert not m.is_predicted([[2.1, 0.1, 0.1], [2.1, 1.1, 0.1]]).any()
     assert m.counts()["predicted"] == 0
     assert m.set_unknown_cells([[2.1, 0.1, 0.1]]) == 0  # observed now
@@ -329,7 +351,9 @@ def test_update_cells_clears_cells_once():
     assert n == 2
     assert m.probability([[0.1, 0.1, 0.1], [0.5, 0.1, 0.1]]) == pytest.approx([0.4, 0.4], abs=1e-6)
     assert m.update_cells([[0.5, 0.1, 0.1]], occupied=True) == 1
-    assert m.probability([0.5, 0.1, 0.1]) == pytest.approx(p_of(logodds_f32(0.4) + logodds_f32(0.7)), abs=1e-6)
+    assert m.probability([0.5, 0.1, 0.1]) == pytest.approx(
+        p_of(logodds_f32(0.4) + logodds_f32(0.7)), abs=1e-6
+    )
 
 
 def test_mark_free_segment_clears_a_capsule_of_unknown_cells_only():
@@ -340,7 +364,9 @@ def test_mark_free_segment_clears_a_capsule_of_unknown_cells_only():
     # away, the next ones 0.3 m) along the 11 cells of the segment plus one cap cell each end
     assert n == 13 * 9
     assert m.counts()["free"] == 117
-    assert m.state([[1.1, 0.3, 0.3], [1.1, 0.5, 0.1], [2.3, 0.1, 0.1], [2.5, 0.1, 0.1]]).tolist() == [0, -1, 0, -1]
+    assert m.state(
+        [[1.1, 0.3, 0.3], [1.1, 0.5, 0.1], [2.3, 0.1, 0.1], [2.5, 0.1, 0.1]]
+    ).tolist() == [0, -1, 0, -1]
     # repeating it changes nothing: observed cells are left alone (their entropy stays put)
     e = m.total_entropy()
     assert m.mark_free_segment((0.1, 0.1, 0.1), (2.1, 0.1, 0.1), 0.25) == 0
@@ -371,7 +397,9 @@ def test_save_load_roundtrip_ot_and_bt(tmp_path: Path, box_scene_scans):
     # without bounds: the tree's bounding box
     r = OccupancyMap.load(tmp_path / "map.ot")
     lo, hi = r.bounds
-    assert (lo <= m.occupied_cells().min(axis=0)).all() and (hi >= m.occupied_cells().max(axis=0)).all()
+    assert (lo <= m.occupied_cells().min(axis=0)).all() and (
+        hi >= m.occupied_cells().max(axis=0)
+    ).all()
     np.testing.assert_array_equal(r.state(m.occupied_cells()), CellState.OCCUPIED)
 
 
@@ -416,16 +444,31 @@ def test_options_defaults_and_overrides():
     assert m.state([0.9, 0.1, 0.1]) == CellState.FREE  # 0.7 < 0.8
 
 
-@pytest.mark.parametrize("kwargs", [
-    dict(resolution=0.0), dict(resolution=-0.2), dict(resolution=float("nan")), dict(resolution=float("inf")),
-    dict(bounds_min=(0, 0, float("nan"))), dict(bounds_max=(1, 1, float("inf"))),
-    dict(bounds_min=(0, 0, 0), bounds_max=(1, 0, 1)), dict(bounds_min=(0, 0)),
-    dict(resolution=0.001, bounds_min=(-20, -20, 0), bounds_max=(20, 20, 10)),  # 1.6e13 cells
-    dict(resolution=0.2, bounds_min=(-1e5, 0, 0), bounds_max=(0, 1, 1)),  # beyond OctoMap's range
-    dict(prob_hit=0.3), dict(prob_miss=0.6), dict(clamp_min=0.0), dict(clamp_max=1.0),
-    dict(occupancy_threshold=1.0), dict(entropy_unit="shannons"), dict(end_point_subdivision=0),
-    dict(end_point_subdivision=5),
-])
+@pytest.mark.parametrize(
+    "kwargs",
+    [
+        dict(resolution=0.0),
+        dict(resolution=-0.2),
+        dict(resolution=float("nan")),
+        dict(resolution=float("inf")),
+        dict(bounds_min=(0, 0, float("nan"))),
+        dict(bounds_max=(1, 1, float("inf"))),
+        dict(bounds_min=(0, 0, 0), bounds_max=(1, 0, 1)),
+        dict(bounds_min=(0, 0)),
+        dict(resolution=0.001, bounds_min=(-20, -20, 0), bounds_max=(20, 20, 10)),  # 1.6e13 cells
+        dict(
+            resolution=0.2, bounds_min=(-1e5, 0, 0), bounds_max=(0, 1, 1)
+        ),  # beyond OctoMap's range
+        dict(prob_hit=0.3),
+        dict(prob_miss=0.6),
+        dict(clamp_min=0.0),
+        dict(clamp_max=1.0),
+        dict(occupancy_threshold=1.0),
+        dict(entropy_unit="shannons"),
+        dict(end_point_subdivision=0),
+        dict(end_point_subdivision=5),
+    ],
+)
 def test_constructor_rejects_bad_values(kwargs):
     args = dict(resolution=0.2, bounds_min=(0, 0, 0), bounds_max=(1, 1, 1))
     args.update(kwargs)
@@ -465,8 +508,16 @@ def test_bad_input_for_every_entry_point(box_scene_scans):
             method(box_scene_scans[0], [[1.0, 0, 0]])  # a Scan and hits
         with pytest.raises(ValueError, match="origin"):
             method((1e9, 0, 0), [[1.0, 0, 0]])  # beyond OctoMap's addressable range
-    for query in (m.state, m.probability, m.entropy, m.is_predicted, m.cell_center, m.key, m.index_of,
-                  m.in_workspace):
+    for query in (
+        m.state,
+        m.probability,
+        m.entropy,
+        m.is_predicted,
+        m.cell_center,
+        m.key,
+        m.index_of,
+        m.in_workspace,
+    ):
         with pytest.raises(ValueError, match="NaN"):
             query(nan3)
         with pytest.raises(ValueError, match="shape"):

@@ -33,12 +33,14 @@ DAE = """<?xml version="1.0" encoding="utf-8"?>
           <param name="X" type="float"/><param name="Y" type="float"/><param name="Z" type="float"/>
         </accessor></technique_common></source>
       <vertices id="tri-verts"><input semantic="POSITION" source="#tri-pos"/></vertices>
-      <triangles count="1"><input semantic="VERTEX" source="#tri-verts" offset="0"/><p>0 1 2</p></triangles>
+      <triangles count="1"><input semantic="VERTEX" source="#tri-verts" offset="0"/>
+        <p>0 1 2</p></triangles>
     </mesh></geometry>
   </library_geometries>
   <library_visual_scenes><visual_scene id="Scene">
     <node id="a"><instance_geometry url="#tri"/></node>
-    <node id="b"><matrix>1 0 0 10 0 1 0 0 0 0 1 0 0 0 0 1</matrix><instance_geometry url="#tri"/></node>
+    <node id="b"><matrix>1 0 0 10 0 1 0 0 0 0 1 0 0 0 0 1</matrix>
+      <instance_geometry url="#tri"/></node>
   </visual_scene></library_visual_scenes>
   <scene><instance_visual_scene url="#Scene"/></scene>
 </COLLADA>
@@ -69,8 +71,9 @@ def test_collada_node_transforms_are_applied(tmp_path):
 def test_formats_written_by_open3d(tmp_path, ext):
     o3d = pytest.importorskip("open3d")
     box = box_mesh((1, 2, 3), (2, 4, 7))
-    om = o3d.geometry.TriangleMesh(o3d.utility.Vector3dVector(box.vertices),
-                                   o3d.utility.Vector3iVector(box.faces))
+    om = o3d.geometry.TriangleMesh(
+        o3d.utility.Vector3dVector(box.vertices), o3d.utility.Vector3iVector(box.faces)
+    )
     om.compute_vertex_normals()
     p = tmp_path / f"box{ext}"
     assert o3d.io.write_triangle_mesh(str(p), om)
@@ -98,7 +101,7 @@ def test_boat_is_y_up():
 
 
 def test_from_arrays_and_open3d_round_trip():
-    o3d = pytest.importorskip("open3d")
+    pytest.importorskip("open3d")
     box = box_mesh((0, 0, 0), (1, 2, 3))
     om = box.to_open3d()
     back = nbvkit.Mesh.from_open3d(om)

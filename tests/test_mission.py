@@ -12,8 +12,13 @@ from nbvkit.config import Config
 from nbvkit.mission import Mission, MissionError
 from nbvkit.workspace import make_workspace, start_poses
 
-FAST = ["map.resolution=0.4", "progress=false", "evaluation.gt_density=100", "max_iterations=12",
-        "evaluation.coverage_every=4"]
+FAST = [
+    "map.resolution=0.4",
+    "progress=false",
+    "evaluation.gt_density=100",
+    "max_iterations=12",
+    "evaluation.coverage_every=4",
+]
 
 
 def cfg(*extra):
@@ -32,18 +37,40 @@ def test_default_workspace_is_the_papers_for_the_airliner():
         assert s[2] == pytest.approx(ws.center[2])
         to_c = ws.center[:2] - s[:2]
         assert np.dot([np.cos(s[3]), np.sin(s[3])], to_c / np.linalg.norm(to_c)) > 0.99
-    np.testing.assert_allclose(starts[0, :2], [0.0, ws.nav_min[1]], atol=0.1)  # (0, -19.1): authors' (0, -20)
+    np.testing.assert_allclose(
+        starts[0, :2], [0.0, ws.nav_min[1]], atol=0.1
+    )  # (0, -19.1): authors' (0, -20)
 
 
 def test_scenario1_runs_end_to_end_and_writes_results(tmp_path):
     m = Mission(cfg("scenario=1"))
     m.run(tmp_path)
-    for f in ("summary.json", "iterations.csv", "config.yaml", "cloud.ply", "map.ot", "trajectory.csv",
-              "figures/trajectory.png", "figures/progress.png"):
+    for f in (
+        "summary.json",
+        "iterations.csv",
+        "config.yaml",
+        "cloud.ply",
+        "map.ot",
+        "trajectory.csv",
+        "figures/trajectory.png",
+        "figures/progress.png",
+    ):
         assert (tmp_path / f).stat().st_size > 0, f
     d = json.loads((tmp_path / "summary.json").read_text())
-    for k in ("scenario", "start", "iterations", "distance_m", "entropy_initial", "entropy_final",
-              "entropy_reduction", "coverage", "area_coverage", "termination", "wall_time_s", "ms_per_iteration"):
+    for k in (
+        "scenario",
+        "start",
+        "iterations",
+        "distance_m",
+        "entropy_initial",
+        "entropy_final",
+        "entropy_reduction",
+        "coverage",
+        "area_coverage",
+        "termination",
+        "wall_time_s",
+        "ms_per_iteration",
+    ):
         assert k in d, k
     assert d["scenario"] == "1" and 1 <= d["iterations"] <= 12
     assert d["termination"] in ("max_iterations", "entropy_converged", "no_valid_viewpoint")
@@ -54,7 +81,12 @@ def test_scenario1_runs_end_to_end_and_writes_results(tmp_path):
     dist = [float(r["distance_m"]) for r in rows]
     assert dist == sorted(dist) and dist[-1] == pytest.approx(d["distance_m"])
     # distance equals the path flown (the trajectory's segment lengths)
-    traj = np.array([[float(r[k]) for k in ("x", "y", "z")] for r in csv.DictReader(open(tmp_path / "trajectory.csv"))])
+    traj = np.array(
+        [
+            [float(r[k]) for k in ("x", "y", "z")]
+            for r in csv.DictReader(open(tmp_path / "trajectory.csv"))
+        ]
+    )
     assert np.linalg.norm(np.diff(traj, axis=0), axis=1).sum() == pytest.approx(d["distance_m"])
     assert Config.from_yaml(tmp_path / "config.yaml").scenario == "1"
     back = nbvkit.OccupancyMap.load(str(tmp_path / "map.ot"))
@@ -90,7 +122,20 @@ def test_cli_run_and_help(tmp_path, capsys):
         main(["run", "--help"])
     assert e.value.code == 0
     assert "--scenario" in capsys.readouterr().out
-    rc = main(["run", "--scenario", "1", "--start", "2", "--set", *FAST, "max_iterations=3", "--out", str(tmp_path)])
+    rc = main(
+        [
+            "run",
+            "--scenario",
+            "1",
+            "--start",
+            "2",
+            "--set",
+            *FAST,
+            "max_iterations=3",
+            "--out",
+            str(tmp_path),
+        ]
+    )
     assert rc == 0
     assert json.loads((tmp_path / "summary.json").read_text())["start"] == 2
     assert main(["run", "--scenario", "1", "--set", "nope=1", "--out", str(tmp_path)]) == 2

@@ -11,7 +11,12 @@ from nbvkit.config import Config
 from nbvkit.mission import Mission
 from nbvkit.profiling import Profiler
 
-FAST = ["map.resolution=0.4", "progress=false", "evaluation.gt_density=100", "profiling.sweep_step=0.25"]
+FAST = [
+    "map.resolution=0.4",
+    "progress=false",
+    "evaluation.gt_density=100",
+    "profiling.sweep_step=0.25",
+]
 
 
 @pytest.fixture(scope="module")
@@ -65,7 +70,9 @@ def test_radius_encloses_the_profile_and_grows_with_it():
     pts = rng.normal(size=(200, 3))
     radii = []
     for grow in (1.0, 2.0, 3.0):
-        m.laser_cloud = type("C", (), {"points": np.vstack([pts, grow * np.array([[4, 0, 0], [-4, 0, 0]])])})()
+        m.laser_cloud = type(
+            "C", (), {"points": np.vstack([pts, grow * np.array([[4, 0, 0], [-4, 0, 0]])])}
+        )()
         c, r = prof._circle(np.zeros(3), 1.0)
         xy = m.laser_cloud.points[:, :2]
         assert np.all(np.linalg.norm(xy - c, axis=1) <= r - prof.cfg.margin + 1e-9)

@@ -23,8 +23,14 @@ def test_readme_has_python_blocks():
 @pytest.mark.parametrize("i", range(len(python_blocks())))
 def test_readme_python_block_runs(i, tmp_path):
     code = python_blocks()[i]
-    r = subprocess.run([sys.executable, "-c", code], cwd=tmp_path, capture_output=True, text=True,
-                       timeout=300, env={"MPLBACKEND": "Agg", "PATH": "/usr/bin:/bin"})
+    r = subprocess.run(
+        [sys.executable, "-c", code],
+        cwd=tmp_path,
+        capture_output=True,
+        text=True,
+        timeout=300,
+        env={"MPLBACKEND": "Agg", "PATH": "/usr/bin:/bin"},
+    )
     assert r.returncode == 0, r.stderr
 
 

@@ -16,10 +16,13 @@ def test_lattice_has_80_offsets_with_the_paper_values():
     off = lattice_offsets(delta_d=1.0, delta_theta=math.pi / 4)
     assert off.shape == (80, 4)
     assert len({tuple(r) for r in LATTICE}) == 80 and not np.any(np.all(LATTICE == 0, axis=1))
-    expect = {(i * 1.0, j * 1.0, k * 1.0, m * math.pi / 4)
-              for i, j, k, m in itertools.product((-1, 0, 1), repeat=4) if (i, j, k, m) != (0, 0, 0, 0)}
+    expect = {
+        (i * 1.0, j * 1.0, k * 1.0, m * math.pi / 4)
+        for i, j, k, m in itertools.product((-1, 0, 1), repeat=4)
+        if (i, j, k, m) != (0, 0, 0, 0)
+    }
     assert {tuple(np.round(r, 12)) for r in off} == {tuple(np.round(e, 12)) for e in expect}
-    scaled = lattice_offsets(2.0, 0.1, scale=1.5 ** 2)
+    scaled = lattice_offsets(2.0, 0.1, scale=1.5**2)
     np.testing.assert_allclose(np.abs(scaled[:, :3]).max(), 2.0 * 2.25)
     np.testing.assert_allclose(np.abs(scaled[:, 3]).max(), 0.1)  # yaw is not scaled
 
@@ -47,7 +50,7 @@ def test_alpha_follows_the_rule_on_a_scripted_sequence():
     seq = [n, q, q, q, q, q, n, q, q, q, q, q, q, q, q, q, q]
     alphas = [a.update(d) for d in seq]
     assert alphas == [0, 0, 0, 1, 2, 3, 0, 0, 0, 1, 2, 3, 4, 5, 5, 5, 5]
-    assert a.scale == pytest.approx(1.5 ** 5)
+    assert a.scale == pytest.approx(1.5**5)
     assert AdaptiveScale(cap=7.5).scale == 1.0
     capped = AdaptiveScale(cap=7.5)
     for _ in range(8):
@@ -90,7 +93,7 @@ def test_termination_fires_exactly_after_n_quiet_iterations():
 def test_c_view_matches_the_closed_form_frustum():
     cam = nbvkit.DepthCamera(nbvkit.Mesh([[9, 0, 0], [9, 1, 0], [9, 0, 1]], [[0, 1, 2]]))
     th, tv = math.tan(math.radians(30)), math.tan(math.radians(22.5))
-    V = 4 * th * tv / 3 * (8 ** 3 - 0.5 ** 3)
+    V = 4 * th * tv / 3 * (8**3 - 0.5**3)
     assert cam.frustum_volume() == pytest.approx(V, rel=1e-12)
     assert viewable_cells(60, 45, 0.5, 8, 0.2, count_partial=False) == pytest.approx(V / 0.008)
     assert V / 0.008 == pytest.approx(20400, rel=0.001)
@@ -105,8 +108,12 @@ def test_c_view_with_partial_cells_matches_a_voxelisation():
     for _ in range(6):
         off = rng.uniform(0, s, 3)
         i = np.arange(math.floor((0 - off[0]) / s) - 1, math.ceil((f_ - off[0]) / s) + 1)
-        j = np.arange(math.floor((-f_ * th - off[1]) / s) - 1, math.ceil((f_ * th - off[1]) / s) + 1)
-        k = np.arange(math.floor((-f_ * tv - off[2]) / s) - 1, math.ceil((f_ * tv - off[2]) / s) + 1)
+        j = np.arange(
+            math.floor((-f_ * th - off[1]) / s) - 1, math.ceil((f_ * th - off[1]) / s) + 1
+        )
+        k = np.arange(
+            math.floor((-f_ * tv - off[2]) / s) - 1, math.ceil((f_ * tv - off[2]) / s) + 1
+        )
         I, J, K = np.meshgrid(i, j, k, indexing="ij")
         lo = np.stack([I, J, K], -1).reshape(-1, 3) * s + off
         # a cell touches the convex frustum iff some point of it is inside: test a dense lattice

@@ -126,9 +126,15 @@ def test_laser_mount_pitch_is_applied():
 
 def test_camera_mount_and_mount_transform_convention():
     T = nbvkit.mount_transform(pitch_deg=90.0)
-    np.testing.assert_allclose(T[:3, :3] @ [1, 0, 0], [0, 0, -1], atol=1e-12)  # pitch > 0 looks down
-    cam = nbvkit.DepthCamera(box_mesh((-20, -20, -1), (20, 20, 0)), width=32, height=24,
-                             mount=nbvkit.mount_transform([0, 0, 0.5], pitch_deg=90.0))
+    np.testing.assert_allclose(
+        T[:3, :3] @ [1, 0, 0], [0, 0, -1], atol=1e-12
+    )  # pitch > 0 looks down
+    cam = nbvkit.DepthCamera(
+        box_mesh((-20, -20, -1), (20, 20, 0)),
+        width=32,
+        height=24,
+        mount=nbvkit.mount_transform([0, 0, 0.5], pitch_deg=90.0),
+    )
     s = cam.scan_pose([1.0, 2.0, 3.0, 0.3])
     np.testing.assert_allclose(s.origin, [1, 2, 3.5])
     np.testing.assert_allclose(s.depth, 3.5, atol=1e-9)
@@ -163,8 +169,14 @@ def test_bad_input_is_rejected():
             sensor.scan(np.diag([2.0, 1, 1, 1]))
         with pytest.raises(ValueError, match="x, y, z, yaw"):
             sensor.scan_pose([0, 0, 0])
-    for kw in (dict(width=0), dict(hfov_deg=180), dict(min_range=-1), dict(max_range=0.1),
-               dict(noise_k=-1), dict(hfov_deg=float("nan"))):
+    for kw in (
+        dict(width=0),
+        dict(hfov_deg=180),
+        dict(min_range=-1),
+        dict(max_range=0.1),
+        dict(noise_k=-1),
+        dict(hfov_deg=float("nan")),
+    ):
         with pytest.raises(ValueError):
             nbvkit.DepthCamera(mesh, **kw)
     for kw in (dict(fov_deg=0), dict(resolution_deg=0), dict(max_range=0.05), dict(noise_sigma=-1)):

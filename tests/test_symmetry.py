@@ -32,9 +32,13 @@ def random_rotation(rng):
     q = rng.normal(size=4)
     q /= np.linalg.norm(q)
     w, x, y, z = q
-    return np.array([[1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)],
-                     [2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)],
-                     [2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)]])
+    return np.array(
+        [
+            [1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)],
+            [2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)],
+            [2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)],
+        ]
+    )
 
 
 def plane_errors(plane, true, at):
@@ -83,7 +87,11 @@ def uv_sphere(center, r, nu=24, nv=12):
         th = math.pi * i / nv
         for j in range(nu):
             ph = 2 * math.pi * j / nu
-            verts.append(c + r * np.array([math.sin(th) * math.cos(ph), math.sin(th) * math.sin(ph), math.cos(th)]))
+            verts.append(
+                c
+                + r
+                * np.array([math.sin(th) * math.cos(ph), math.sin(th) * math.sin(ph), math.cos(th)])
+            )
 
     def idx(i, j):
         return 2 + (i - 1) * nu + (j % nu)
@@ -114,7 +122,9 @@ def box(lo, hi):
 
 def l_block_with_sphere():
     """A clearly asymmetric structure: an L of two blocks of different heights, a sphere beside."""
-    return merge_meshes(box((-8, -2, 0), (8, 2, 4)), box((4, 2, 0), (8, 12, 6)), uv_sphere((-5, -5, 2.5), 2.5))
+    return merge_meshes(
+        box((-8, -2, 0), (8, 2, 4)), box((4, 2, 0), (8, 12, 6)), uv_sphere((-5, -5, 2.5), 2.5)
+    )
 
 
 Y0 = np.array([0.0, 1.0, 0.0, 0.0])  # the mirror plane y = 0 of the airliner and the twinjet
@@ -163,9 +173,13 @@ def synthetic_cloud(airliner):
 def test_plane_from_pair_and_canonical_sign():
     p, q = np.array([1.0, 2.0, 3.0]), np.array([1.0, -2.0, 3.0])
     np.testing.assert_allclose(sym.plane_from_pair(p, q), [0, 1, 0, 0], atol=1e-12)
-    np.testing.assert_allclose(sym.plane_from_pair(q + 5, p + 5), [0, 1, 0, 5], atol=1e-12)  # order-free
+    np.testing.assert_allclose(
+        sym.plane_from_pair(q + 5, p + 5), [0, 1, 0, 5], atol=1e-12
+    )  # order-free
     np.testing.assert_allclose(sym.canonical_plane([0, -2, 0, -4]), [0, 1, 0, 2])
-    np.testing.assert_allclose(sym.canonical_plane([-3, 1, 0, 6]), np.array([3, -1, 0, -6]) / math.sqrt(10))
+    np.testing.assert_allclose(
+        sym.canonical_plane([-3, 1, 0, 6]), np.array([3, -1, 0, -6]) / math.sqrt(10)
+    )
     with pytest.raises(ValueError):
         sym.plane_from_pair(p, p)
     with pytest.raises(ValueError):
@@ -178,7 +192,9 @@ def test_reflection_and_improper_isometry():
     pts = rng.normal(size=(100, 3)) * 10
     M = sym.reflection_matrix(plane)
     np.testing.assert_allclose(M @ M, np.eye(4), atol=1e-12)
-    np.testing.assert_allclose(sym.reflect_points(sym.reflect_points(pts, plane), plane), pts, atol=1e-9)
+    np.testing.assert_allclose(
+        sym.reflect_points(sym.reflect_points(pts, plane), plane), pts, atol=1e-9
+    )
     mid = 0.5 * (pts + sym.reflect_points(pts, plane))
     np.testing.assert_allclose(mid @ plane[:3], plane[3], atol=1e-9)  # midpoints on the plane
     got, resid = sym.plane_from_improper_isometry(M)
@@ -215,7 +231,7 @@ def test_fpfh_mirror_map_matches_the_descriptor_of_the_mirror_image():
     def flipped(D, subs):
         D = D.copy()
         for s in subs:
-            D[:, 11 * s:11 * s + 11] = D[:, 11 * s:11 * s + 11][:, ::-1]
+            D[:, 11 * s : 11 * s + 11] = D[:, 11 * s : 11 * s + 11][:, ::-1]
         return D
 
     for subs in [(0,), (2,), (0, 1), (1, 2), (0, 2), (0, 1, 2)]:
@@ -239,14 +255,18 @@ def test_mean_shift_finds_the_dominant_mode_across_sign_flips():
             out.append(-pl if flip_half and k % 2 else pl)
         return out
 
-    dominant = cluster(0, [0.2, 1.0, 0.1], 1.5, 60, flip_half=True)  # half stored with the other sign
+    dominant = cluster(
+        0, [0.2, 1.0, 0.1], 1.5, 60, flip_half=True
+    )  # half stored with the other sign
     second = cluster(0, [1.0, 0.0, 0.3], -2.0, 40)
     third = cluster(0, [0.0, 0.3, 1.0], 4.0, 25)
     noise = [np.r_[v / np.linalg.norm(v), rng.uniform(-20, 20)] for v in rng.normal(size=(100, 3))]
     planes = np.array(dominant + second + third + noise)
     planes = planes[rng.permutation(len(planes))]
     cl = sym.mean_shift_planes(planes, center, scale)
-    true = sym.canonical_plane(np.r_[np.array([0.2, 1.0, 0.1]) / np.linalg.norm([0.2, 1.0, 0.1]), 1.5])
+    true = sym.canonical_plane(
+        np.r_[np.array([0.2, 1.0, 0.1]) / np.linalg.norm([0.2, 1.0, 0.1]), 1.5]
+    )
     ang, off = plane_errors(cl.plane, true, center)
     assert ang < 1.0 and off < 0.1
     assert 55 <= cl.support <= 65
@@ -254,7 +274,16 @@ def test_mean_shift_finds_the_dominant_mode_across_sign_flips():
     assert cl.modes.shape[1] == 4 and cl.mode_support[0] == cl.support
     assert np.all(np.diff(cl.mode_support) <= 0)
     # the second cluster is found as the next mode
-    assert plane_errors(cl.modes[1], sym.canonical_plane(np.r_[np.array([1.0, 0, 0.3]) / np.linalg.norm([1.0, 0, 0.3]), -2.0]), center)[0] < 1.0
+    assert (
+        plane_errors(
+            cl.modes[1],
+            sym.canonical_plane(
+                np.r_[np.array([1.0, 0, 0.3]) / np.linalg.norm([1.0, 0, 0.3]), -2.0]
+            ),
+            center,
+        )[0]
+        < 1.0
+    )
     empty = sym.mean_shift_planes(np.zeros((0, 4)), center, scale)
     assert empty.support == 0 and np.all(np.isnan(empty.plane))
 
@@ -271,8 +300,14 @@ def test_synthetic_cloud_with_noise_and_missing_region(synthetic_cloud):
     assert np.linalg.norm(res.plane[:3]) == pytest.approx(1.0)
     assert res.support >= 8 and 0.7 <= res.confidence <= 1.0
     K, P = len(res.keypoints), len(res.pairs)
-    assert res.keypoints.shape == (K, 3) and res.pairs.shape == (P, 2) and res.pair_planes.shape == (P, 4)
-    assert res.pairs.min() >= 0 and res.pairs.max() < K and np.all(res.pairs[:, 0] < res.pairs[:, 1])
+    assert (
+        res.keypoints.shape == (K, 3)
+        and res.pairs.shape == (P, 2)
+        and res.pair_planes.shape == (P, 4)
+    )
+    assert (
+        res.pairs.min() >= 0 and res.pairs.max() < K and np.all(res.pairs[:, 0] < res.pairs[:, 1])
+    )
     assert res.inliers.sum() == res.support
     for stage in ("normals", "keypoints", "descriptors", "matching", "mean_shift", "total"):
         assert res.timings[stage] >= 0
@@ -366,10 +401,12 @@ def test_prediction_fills_the_missing_region(synthetic_cloud):
     assert np.mean(covered < 0.3) > 0.8  # and fill it
     # a complete symmetric cloud predicts (almost) nothing
     full = np.vstack([points, removed])
-    assert len(nbvkit.predict_symmetric(full, true, explained_tolerance=0.3).predicted) < 0.01 * len(full)
+    assert len(
+        nbvkit.predict_symmetric(full, true, explained_tolerance=0.3).predicted
+    ) < 0.01 * len(full)
 
 
-# ------------------------------------------------------------------------------ mission hook and figures
+# ----------------------------------------------------------------------- mission hook and figures
 
 
 def test_run_symmetry_prediction_writes_the_map(airliner, tmp_path):
@@ -388,7 +425,9 @@ def test_run_symmetry_prediction_writes_the_map(airliner, tmp_path):
     states_before = m.state_grid()
     summary = sym.run_symmetry_prediction(mission)
     json.dumps(summary, allow_nan=False)  # JSON-safe
-    assert summary["accepted"] and summary["support"] >= 8 and 0.7 <= summary["confidence"] <= 1, summary
+    assert (
+        summary["accepted"] and summary["support"] >= 8 and 0.7 <= summary["confidence"] <= 1
+    ), summary
     changed = m.state_grid() != states_before
     assert changed.sum() <= summary["cells_set"]
     assert np.all(states_before[changed] == -1)  # only unknown cells changed
@@ -426,7 +465,9 @@ def test_run_symmetry_prediction_rejects_without_touching_the_map():
     out = sym.run_symmetry_prediction(empty)
     assert not out["accepted"] and out["reason"]
     # a bad option is an error, not a rejection
-    bad = SimpleNamespace(config=Config.from_dict({"symmetry": {"min_confidence": 2.0}}), laser_cloud=cloud, map=m)
+    bad = SimpleNamespace(
+        config=Config.from_dict({"symmetry": {"min_confidence": 2.0}}), laser_cloud=cloud, map=m
+    )
     with pytest.raises(ValueError, match="min_confidence"):
         sym.run_symmetry_prediction(bad)
 
@@ -463,8 +504,16 @@ def test_config_defaults_equal_the_cpp_defaults():
 def test_bad_input_raises_value_error():
     good = np.random.default_rng(0).normal(size=(200, 3))
     plane = [0, 1, 0, 0]
-    bad_points = [np.full((200, 3), np.nan), np.r_[good[:-1], [[np.inf, 0, 0]]], good[:5],
-                  good[:, :2], good.ravel(), None, "points", np.zeros((0, 3))]
+    bad_points = [
+        np.full((200, 3), np.nan),
+        np.r_[good[:-1], [[np.inf, 0, 0]]],
+        good[:5],
+        good[:, :2],
+        good.ravel(),
+        None,
+        "points",
+        np.zeros((0, 3)),
+    ]
     for p in bad_points:
         with pytest.raises(ValueError):
             nbvkit.detect_symmetry(p)
@@ -473,9 +522,16 @@ def test_bad_input_raises_value_error():
     for pl in ([0, 0, 0, 1], [0, 1, 0], [np.nan, 1, 0, 0], [[0, 1, 0, 0]], None):
         with pytest.raises(ValueError):
             nbvkit.predict_symmetric(good, pl)
-    for opts in ({"voxel_size": -1}, {"keypoints": "harris"}, {"no_such_option": 1}, {"normal_k": 2.5},
-                 {"bandwidth": 2.0}, {"min_confidence": 1.5}, {"mirror_descriptors": "yes"},
-                 {"fpfh_radius": float("nan")}):
+    for opts in (
+        {"voxel_size": -1},
+        {"keypoints": "harris"},
+        {"no_such_option": 1},
+        {"normal_k": 2.5},
+        {"bandwidth": 2.0},
+        {"min_confidence": 1.5},
+        {"mirror_descriptors": "yes"},
+        {"fpfh_radius": float("nan")},
+    ):
         with pytest.raises(ValueError):
             nbvkit.detect_symmetry(good, **opts)
     with pytest.raises(ValueError):

@@ -56,8 +56,13 @@ def test_candidate_inside_the_structure_or_outside_bounds_is_invalid():
     m.mark_free_segment((4, 0, 4), (4, 0, 4), 1.5)
     cam = nbvkit.DepthCamera(mesh)
     m.integrate(cam.scan_pose([4.0, 0.0, 4.0, 0.0]))
-    s = score(m, [[12, 0, 4, 0.0], [4.2, 0, 4, 0.0], [25, 0, 4, 0.0]], current=(4, 0, 4, 0),
-              bounds_min=(0.9, -9.1, 0.9), bounds_max=(19.1, 9.1, 9.1))
+    s = score(
+        m,
+        [[12, 0, 4, 0.0], [4.2, 0, 4, 0.0], [25, 0, 4, 0.0]],
+        current=(4, 0, 4, 0),
+        bounds_min=(0.9, -9.1, 0.9),
+        bounds_max=(19.1, 9.1, 9.1),
+    )
     assert s["status"].tolist() == [2, 0, 1]
     # a candidate in seen free space right in front of the box face, but nearer than the radius
     s = score(m, [[9.5, 0, 4, 0.0]], current=(4, 0, 4, 0))
@@ -66,14 +71,16 @@ def test_candidate_inside_the_structure_or_outside_bounds_is_invalid():
 
 def test_straight_path_through_unknown_is_blocked_and_a_path_is_planned_around():
     m = nbvkit.OccupancyMap(0.2, (0, 0, 0), (12, 12, 4))
-    m.mark_free_segment((2, 6, 2), (10, 6, 2), 1.5)   # a free corridor along x ...
-    m.mark_free_segment((2, 2, 2), (10, 2, 2), 1.5)   # ... a second one along x ...
-    m.mark_free_segment((2, 2, 2), (2, 6, 2), 1.5)    # ... joined at x = 2
+    m.mark_free_segment((2, 6, 2), (10, 6, 2), 1.5)  # a free corridor along x ...
+    m.mark_free_segment((2, 2, 2), (10, 2, 2), 1.5)  # ... a second one along x ...
+    m.mark_free_segment((2, 2, 2), (2, 6, 2), 1.5)  # ... joined at x = 2
     s = score(m, [[10, 6, 2, 0.0]], current=(10, 2, 2, 0.0), require_occupied=False)
     assert s["status"][0] == 3  # the straight segment crosses unknown space between the corridors
     path = _core.plan_path(m, (10, 2, 2), (10, 6, 2), 0.8)
     assert len(path) >= 3
-    np.testing.assert_allclose(path[0], [10, 2, 2]) and np.testing.assert_allclose(path[-1], [10, 6, 2])
+    np.testing.assert_allclose(path[0], [10, 2, 2]) and np.testing.assert_allclose(
+        path[-1], [10, 6, 2]
+    )
     length = np.linalg.norm(np.diff(path, axis=0), axis=1).sum()
     assert length > 8 + 4 - 1  # around through x = 2: about 8 + 4 + 8, shortened by line of sight
     for a, b in zip(path[:-1], path[1:]):
@@ -90,8 +97,14 @@ def test_mirror_and_octree_backends_agree():
         m.integrate(cam.scan_pose(pose))
     m.set_unknown_cells(np.array([[14.1, 0.0, 4.0], [14.1, 0.2, 4.0]]), 0.6)  # predicted cells too
     rng = np.random.default_rng(1)
-    cands = np.column_stack([rng.uniform(3, 8, 40), rng.uniform(-3, 3, 40), rng.uniform(2, 6, 40),
-                             rng.uniform(-1, 1, 40)])
+    cands = np.column_stack(
+        [
+            rng.uniform(3, 8, 40),
+            rng.uniform(-3, 3, 40),
+            rng.uniform(2, 6, 40),
+            rng.uniform(-1, 1, 40),
+        ]
+    )
     a = score(m, cands, current=(4, 0, 4, 0), backend="mirror")
     b = score(m, cands, current=(4, 0, 4, 0), backend="octree")
     assert (a["status"] == 0).sum() >= 20

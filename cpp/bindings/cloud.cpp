@@ -73,14 +73,16 @@ profile cloud), min_z 0.3 m.)doc")
           py::arg("points"),
           "Register (N, 3) float64 world-frame points. Returns the number of new voxels.\n"
           "Raises ValueError (registering nothing) if any point is NaN or infinite.")
-      .def_property_readonly("points", &SurfaceCloud::points,
-                             "(K, 3) float64 voxel centroids, world frame, in voxel creation order (a copy)")
+      .def_property_readonly(
+          "points", &SurfaceCloud::points,
+          "(K, 3) float64 voxel centroids, world frame, in voxel creation order (a copy)")
       .def_property_readonly("counts", &SurfaceCloud::counts,
                              "(K,) int64 number of registered points in each voxel")
       .def_property_readonly("num_registered", &SurfaceCloud::num_registered,
                              "total points registered (after ground removal and cropping)")
-      .def_property_readonly("voxel_size", [](const SurfaceCloud& c) { return c.options().voxel_size; },
-                             "voxel-grid cell size, metres")
+      .def_property_readonly(
+          "voxel_size", [](const SurfaceCloud& c) { return c.options().voxel_size; },
+          "voxel-grid cell size, metres")
       .def_property_readonly(
           "min_z",
           [](const SurfaceCloud& c) -> py::object {

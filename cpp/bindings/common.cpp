@@ -5,7 +5,8 @@
 namespace nbv::bind {
 
 PointsArg points_arg(const py::handle& obj, const char* what, bool allow_nonfinite) {
-  if (obj.is_none()) throw py::value_error(std::string(what) + " must be an (N, 3) array, got None");
+  if (obj.is_none())
+    throw py::value_error(std::string(what) + " must be an (N, 3) array, got None");
   py::array_t<double, py::array::c_style | py::array::forcecast> a;
   try {
     a = py::array_t<double, py::array::c_style | py::array::forcecast>::ensure(obj);
@@ -14,12 +15,13 @@ PointsArg points_arg(const py::handle& obj, const char* what, bool allow_nonfini
   }
   if (!a) throw py::value_error(std::string(what) + " must be an (N, 3) array of numbers");
   if (a.ndim() == 1 && a.shape(0) == 0) {  // an empty list: zero points
-    a = py::array_t<double, py::array::c_style | py::array::forcecast>(std::vector<py::ssize_t>{0, 3});
+    a = py::array_t<double, py::array::c_style | py::array::forcecast>(
+        std::vector<py::ssize_t>{0, 3});
   }
   if (a.ndim() != 2 || a.shape(1) != 3)
     throw py::value_error(std::string(what) + " must have shape (N, 3), got " +
-                          std::string(py::str(py::tuple(py::cast(std::vector<py::ssize_t>(
-                              a.shape(), a.shape() + a.ndim()))))));
+                          std::string(py::str(py::tuple(py::cast(
+                              std::vector<py::ssize_t>(a.shape(), a.shape() + a.ndim()))))));
   PointsArg out{a};
   if (!allow_nonfinite && !out.map().allFinite())
     throw py::value_error(std::string(what) + " contains NaN or infinite values");
@@ -50,7 +52,8 @@ void init_common(py::module_& m) {
     try {
       if (p) std::rethrow_exception(p);
     } catch (const FileNotFound& e) {
-      py::object err = py::module_::import("builtins").attr("FileNotFoundError")(2, "No such file", e.path());
+      py::object err =
+          py::module_::import("builtins").attr("FileNotFoundError")(2, "No such file", e.path());
       PyErr_SetObject(PyExc_FileNotFoundError, err.ptr());
     }
   });
@@ -58,18 +61,21 @@ void init_common(py::module_& m) {
         "Worker threads of the core's parallel loops (0 = all hardware threads).");
   m.def("get_num_threads", &get_num_threads);
   m.def(
-      "pose_to_transform", [](const py::handle& pose) { return pose_to_transform(pose_arg(pose, "pose")).matrix(); },
+      "pose_to_transform",
+      [](const py::handle& pose) { return pose_to_transform(pose_arg(pose, "pose")).matrix(); },
       py::arg("pose"), "T_world_body (4x4) of a vehicle pose (x, y, z, yaw).");
   m.def(
       "mount_transform",
       [](const Eigen::Vector3d& xyz, double roll, double pitch, double yaw) {
-        if (!xyz.allFinite() || !std::isfinite(roll) || !std::isfinite(pitch) || !std::isfinite(yaw))
+        if (!xyz.allFinite() || !std::isfinite(roll) || !std::isfinite(pitch) ||
+            !std::isfinite(yaw))
           throw py::value_error("mount_transform arguments must be finite");
         return mount_transform(xyz, roll, pitch, yaw).matrix();
       },
-      py::arg("xyz") = Eigen::Vector3d::Zero(), py::arg("roll_deg") = 0.0, py::arg("pitch_deg") = 0.0,
-      py::arg("yaw_deg") = 0.0,
-      "T_body_sensor (4x4) from a translation and roll/pitch/yaw in degrees (pitch > 0 looks down).");
+      py::arg("xyz") = Eigen::Vector3d::Zero(), py::arg("roll_deg") = 0.0,
+      py::arg("pitch_deg") = 0.0, py::arg("yaw_deg") = 0.0,
+      "T_body_sensor (4x4) from a translation and roll/pitch/yaw in degrees (pitch > 0 looks "
+      "down).");
 }
 
 }  // namespace nbv::bind

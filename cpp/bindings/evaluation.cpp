@@ -1,13 +1,14 @@
-#include "bindings.hpp"
 #include "nbv/evaluation.hpp"
+#include "bindings.hpp"
 #include "nbv/mesh.hpp"
 
 namespace nbv::bind {
 
 namespace {
 
-EvaluationOptions options_arg(const std::vector<double>& resolutions, const std::vector<double>& taus,
-                              double gt_density, std::uint64_t seed, long long max_gt_points) {
+EvaluationOptions options_arg(const std::vector<double>& resolutions,
+                              const std::vector<double>& taus, double gt_density,
+                              std::uint64_t seed, long long max_gt_points) {
   if (max_gt_points < 1) throw py::value_error("max_gt_points must be >= 1");
   EvaluationOptions o;
   o.resolutions = resolutions;
@@ -33,8 +34,9 @@ void init_evaluation(py::module_& m) {
       .def_readonly("max_gt_points", &EvaluationOptions::max_gt_points,
                     "cap on the number of ground-truth samples");
 
-  py::class_<EvaluationResult>(m, "EvaluationResult",
-                               "Raw result of the core's evaluation (nbvkit.evaluate returns a dict).")
+  py::class_<EvaluationResult>(
+      m, "EvaluationResult",
+      "Raw result of the core's evaluation (nbvkit.evaluate returns a dict).")
       .def_readonly("resolutions", &EvaluationResult::resolutions)
       .def_readonly("taus", &EvaluationResult::taus)
       .def_readonly("coverage", &EvaluationResult::coverage)
@@ -46,15 +48,21 @@ void init_evaluation(py::module_& m) {
       .def_readonly("completeness", &EvaluationResult::completeness)
       .def_readonly("accuracy", &EvaluationResult::accuracy)
       .def_readonly("fscore", &EvaluationResult::fscore)
-      .def_property_readonly("chamfer", [](const EvaluationResult& r) -> py::object {
-        return r.has_chamfer ? py::object(py::float_(r.chamfer)) : py::none();
-      })
-      .def_property_readonly("mean_cloud_to_gt", [](const EvaluationResult& r) -> py::object {
-        return r.has_chamfer ? py::object(py::float_(r.mean_cloud_to_gt)) : py::none();
-      })
-      .def_property_readonly("mean_gt_to_cloud", [](const EvaluationResult& r) -> py::object {
-        return r.has_chamfer ? py::object(py::float_(r.mean_gt_to_cloud)) : py::none();
-      })
+      .def_property_readonly("chamfer",
+                             [](const EvaluationResult& r) -> py::object {
+                               return r.has_chamfer ? py::object(py::float_(r.chamfer))
+                                                    : py::none();
+                             })
+      .def_property_readonly("mean_cloud_to_gt",
+                             [](const EvaluationResult& r) -> py::object {
+                               return r.has_chamfer ? py::object(py::float_(r.mean_cloud_to_gt))
+                                                    : py::none();
+                             })
+      .def_property_readonly("mean_gt_to_cloud",
+                             [](const EvaluationResult& r) -> py::object {
+                               return r.has_chamfer ? py::object(py::float_(r.mean_gt_to_cloud))
+                                                    : py::none();
+                             })
       .def_readonly("n_points", &EvaluationResult::n_points)
       .def_readonly("n_gt_points", &EvaluationResult::n_gt_points)
       .def_readonly("from_mesh", &EvaluationResult::from_mesh)
@@ -64,12 +72,13 @@ void init_evaluation(py::module_& m) {
       .def_readonly("warnings", &EvaluationResult::warnings)
       .def_readonly("timings_s", &EvaluationResult::timings_s);
 
-  py::class_<Evaluator, std::shared_ptr<Evaluator>>(m, "_Evaluator",
-                                                      "Ground truth prepared once (nbvkit.Evaluator wraps it).")
+  py::class_<Evaluator, std::shared_ptr<Evaluator>>(
+      m, "_Evaluator", "Ground truth prepared once (nbvkit.Evaluator wraps it).")
       .def(py::init([](const py::handle& gt, const std::vector<double>& resolutions,
                        const std::vector<double>& taus, double gt_density, std::uint64_t seed,
                        long long max_gt_points) {
-             const EvaluationOptions o = options_arg(resolutions, taus, gt_density, seed, max_gt_points);
+             const EvaluationOptions o =
+                 options_arg(resolutions, taus, gt_density, seed, max_gt_points);
              if (py::isinstance<Mesh>(gt)) {
                const Mesh& mesh = gt.cast<const Mesh&>();
                py::gil_scoped_release release;
@@ -103,7 +112,8 @@ void init_evaluation(py::module_& m) {
         return nearest_distances(t.map(), q.map());
       },
       py::arg("targets"), py::arg("queries"),
-      "(Q,) float64: exact Euclidean distance (metres) from each of the (Q, 3) queries to the nearest\n"
+      "(Q,) float64: exact Euclidean distance (metres) from each of the (Q, 3) queries to the "
+      "nearest\n"
       "of the (T, 3) targets (inf when there are no targets). A kd-tree, parallel over queries.");
 }
 

@@ -22,7 +22,8 @@ struct NdPoints {
 };
 
 NdPoints nd_points(const py::handle& obj, const char* what) {
-  if (obj.is_none()) throw py::value_error(std::string(what) + " must be an (N, 3) array, got None");
+  if (obj.is_none())
+    throw py::value_error(std::string(what) + " must be an (N, 3) array, got None");
   CArray a;
   try {
     a = CArray::ensure(obj);
@@ -43,7 +44,8 @@ NdPoints nd_points(const py::handle& obj, const char* what) {
   }
   out.lead.assign(a.shape(), a.shape() + a.ndim() - 1);
   out.array = a;
-  if (!out.map().allFinite()) throw py::value_error(std::string(what) + " contains NaN or infinite values");
+  if (!out.map().allFinite())
+    throw py::value_error(std::string(what) + " contains NaN or infinite values");
   return out;
 }
 
@@ -108,17 +110,20 @@ OccupancyMapOptions options_arg(const py::object& options, const py::kwargs& ove
   return o;
 }
 
-IntegrationStats integrate_any(OccupancyMap& m, const py::handle& scan_or_origin, const py::handle& hits,
-                               const py::handle& free_ends, double max_range, bool exact) {
+IntegrationStats integrate_any(OccupancyMap& m, const py::handle& scan_or_origin,
+                               const py::handle& hits, const py::handle& free_ends,
+                               double max_range, bool exact) {
   if (py::isinstance<Scan>(scan_or_origin)) {
     if (!hits.is_none() || !free_ends.is_none())
       throw py::type_error("pass either a Scan, or origin, hits and free_ends - not both");
     const Scan& s = scan_or_origin.cast<const Scan&>();
     py::gil_scoped_release release;
-    return exact ? m.integrate_exact(s.origin, s.hits, s.free_ends, max_range) : m.integrate(s, max_range);
+    return exact ? m.integrate_exact(s.origin, s.hits, s.free_ends, max_range)
+                 : m.integrate(s, max_range);
   }
   if (hits.is_none() && free_ends.is_none())
-    throw py::value_error("integrate needs an nbvkit.Scan, or a sensor origin with hits and/or free_ends");
+    throw py::value_error(
+        "integrate needs an nbvkit.Scan, or a sensor origin with hits and/or free_ends");
   const Eigen::Vector3d origin = vec3_arg(scan_or_origin, "sensor origin");
   const PointsArg empty = points_arg(py::list(), "hits");
   const PointsArg h = hits.is_none() ? empty : points_arg(hits, "hit points");
@@ -126,7 +131,8 @@ IntegrationStats integrate_any(OccupancyMap& m, const py::handle& scan_or_origin
   auto hm = h.map();
   auto fm = f.map();
   py::gil_scoped_release release;
-  return exact ? m.integrate_exact(origin, hm, fm, max_range) : m.integrate(origin, hm, fm, max_range);
+  return exact ? m.integrate_exact(origin, hm, fm, max_range)
+               : m.integrate(origin, hm, fm, max_range);
 }
 
 py::dict counts_dict(const CellCounts& c) {
@@ -174,13 +180,14 @@ Returns an IntegrationStats. Releases the GIL.)doc";
 void init_map(py::module_& m) {
   const OccupancyMapOptions d;
   py::class_<OccupancyMapOptions>(m, "OccupancyMapOptions", R"doc(
-Parameters of an OccupancyMap (defaults: OctoMap's sensor model, the authors' threshold and entropy).
+Parameters of an OccupancyMap (defaults: OctoMap's sensor model, the authors' threshold and
+entropy).
 
 prob_hit 0.7 / prob_miss 0.4: occupancy of a hit / a cell a ray passes through (probabilities).
 clamp_min 0.12 / clamp_max 0.97: OctoMap's clamping thresholds (probabilities).
-occupancy_threshold 0.6: occupied when p >= threshold (OctoMap's >=; the authors' 0.6: hit once and
-  missed once (p 0.61) stays occupied, hit once missed twice (p 0.51) is free, and cells predicted at
-  the paper's 0.6 count as occupied).
+occupancy_threshold 0.6: occupied when p >= threshold (OctoMap's >=; the authors' 0.6: hit once
+  and missed once (p 0.61) stays occupied, hit once missed twice (p 0.51) is free, and cells
+  predicted at the paper's 0.6 count as occupied).
 entropy_unit 'nats' (default, the authors') or 'bits'.
 clamped_entropy_zero True: cells at a clamping threshold count zero entropy (authors' code; what
   makes the paper's Table 2 entropy column reachable). False: plain binary entropy everywhere.
@@ -188,12 +195,13 @@ deduplicate_end_points True: fast integration traces one ray per end sub-cell; F
   ray (slower, identical to OctoMap's insertPointCloud).
 end_point_subdivision 2: sub-cells per cell edge for that grouping (1..4; 1 = one ray per end cell,
   which agrees with insertPointCloud on only ~97-98 % of the touched cells; 2 gives > 99 %).
-clip_to_workspace False: True updates only workspace cells (rays are still traced from their origin;
-  cells outside are neither stored nor updated) - the method reads nothing outside the workspace.)doc")
+clip_to_workspace False: True updates only workspace cells (rays are still traced from their
+  origin; cells outside are neither stored nor updated) - the method reads nothing outside the
+  workspace.)doc")
       .def(py::init([](double prob_hit, double prob_miss, double clamp_min, double clamp_max,
                        double occupancy_threshold, const std::string& entropy_unit,
-                       bool clamped_entropy_zero, bool deduplicate_end_points, int end_point_subdivision,
-                       bool clip_to_workspace) {
+                       bool clamped_entropy_zero, bool deduplicate_end_points,
+                       int end_point_subdivision, bool clip_to_workspace) {
              OccupancyMapOptions o;
              o.prob_hit = prob_hit;
              o.prob_miss = prob_miss;
@@ -222,7 +230,8 @@ clip_to_workspace False: True updates only workspace cells (rays are still trace
       .def_readwrite("clamp_max", &OccupancyMapOptions::clamp_max)
       .def_readwrite("occupancy_threshold", &OccupancyMapOptions::occupancy_threshold)
       .def_property(
-          "entropy_unit", [](const OccupancyMapOptions& o) { return std::string(unit_name(o.entropy_unit)); },
+          "entropy_unit",
+          [](const OccupancyMapOptions& o) { return std::string(unit_name(o.entropy_unit)); },
           [](OccupancyMapOptions& o, const std::string& s) { o.entropy_unit = unit_from(s); })
       .def_readwrite("clamped_entropy_zero", &OccupancyMapOptions::clamped_entropy_zero)
       .def_readwrite("deduplicate_end_points", &OccupancyMapOptions::deduplicate_end_points)
@@ -249,12 +258,15 @@ clip_to_workspace False: True updates only workspace cells (rays are still trace
 
   py::class_<IntegrationStats>(m, "IntegrationStats", "What one OccupancyMap.integrate call did.")
       .def_readonly("rays", &IntegrationStats::rays, "input rays (hits + free-space rays)")
-      .def_readonly("traced_rays", &IntegrationStats::traced_rays, "rays walked after de-duplicating end cells")
+      .def_readonly("traced_rays", &IntegrationStats::traced_rays,
+                    "rays walked after de-duplicating end cells")
       .def_readonly("occupied_cells", &IntegrationStats::occupied_cells, "cells updated as hit")
       .def_readonly("free_cells", &IntegrationStats::free_cells, "cells updated as miss")
       .def("__repr__", [](const IntegrationStats& s) {
-        return "<IntegrationStats rays=" + std::to_string(s.rays) + " traced=" + std::to_string(s.traced_rays) +
-               " occupied=" + std::to_string(s.occupied_cells) + " free=" + std::to_string(s.free_cells) + ">";
+        return "<IntegrationStats rays=" + std::to_string(s.rays) +
+               " traced=" + std::to_string(s.traced_rays) +
+               " occupied=" + std::to_string(s.occupied_cells) +
+               " free=" + std::to_string(s.free_cells) + ">";
       });
 
   py::class_<OccupancyMap, std::shared_ptr<OccupancyMap>> cls(m, "OccupancyMap", R"doc(
@@ -279,10 +291,11 @@ cell is i + nx * (j + ny * k) == grid.ravel(order='F') position.)doc");
   cls.attr("UNKNOWN") = int(CellState::Unknown);
   cls.attr("FREE") = int(CellState::Free);
   cls.attr("OCCUPIED") = int(CellState::Occupied);
-  cls.def(py::init([](double resolution, const py::handle& bmin, const py::handle& bmax, const py::object& options,
-                      const py::kwargs& kw) {
+  cls.def(py::init([](double resolution, const py::handle& bmin, const py::handle& bmax,
+                      const py::object& options, const py::kwargs& kw) {
             const OccupancyMapOptions o = options_arg(options, kw);
-            const Eigen::Vector3d lo = vec3_arg(bmin, "bounds_min"), hi = vec3_arg(bmax, "bounds_max");
+            const Eigen::Vector3d lo = vec3_arg(bmin, "bounds_min"),
+                                  hi = vec3_arg(bmax, "bounds_max");
             py::gil_scoped_release release;
             return std::make_shared<OccupancyMap>(resolution, lo, hi, o);
           }),
@@ -290,18 +303,23 @@ cell is i + nx * (j + ny * k) == grid.ravel(order='F') position.)doc");
           py::arg("bounds_max") = py::make_tuple(20.0, 20.0, 10.0), py::arg("options") = py::none())
       .def(
           "integrate",
-          [](OccupancyMap& m, const py::handle& scan, const py::handle& hits, const py::handle& free_ends,
-             double max_range) { return integrate_any(m, scan, hits, free_ends, max_range, false); },
+          [](OccupancyMap& m, const py::handle& scan, const py::handle& hits,
+             const py::handle& free_ends, double max_range) {
+            return integrate_any(m, scan, hits, free_ends, max_range, false);
+          },
           py::arg("scan"), py::arg("hits") = py::none(), py::arg("free_ends") = py::none(),
           py::arg("max_range") = std::numeric_limits<double>::infinity(), kIntegrateDoc)
       .def(
           "integrate_exact",
-          [](OccupancyMap& m, const py::handle& scan, const py::handle& hits, const py::handle& free_ends,
+          [](OccupancyMap& m, const py::handle& scan, const py::handle& hits,
+             const py::handle& free_ends,
              double max_range) { return integrate_any(m, scan, hits, free_ends, max_range, true); },
           py::arg("scan"), py::arg("hits") = py::none(), py::arg("free_ends") = py::none(),
           py::arg("max_range") = std::numeric_limits<double>::infinity(),
-          "Same arguments and semantics as integrate, through OctoMap's own code: computeUpdate (the key\n"
-          "sets insertPointCloud builds), free rays via computeRayKeys, then insertPointCloud's update\n"
+          "Same arguments and semantics as integrate, through OctoMap's own code: computeUpdate "
+          "(the key\n"
+          "sets insertPointCloud builds), free rays via computeRayKeys, then insertPointCloud's "
+          "update\n"
           "loop. The reference the fast path is measured against (about 10-20x slower).")
       .def(
           "update_cells",
@@ -312,19 +330,24 @@ cell is i + nx * (j + ny * k) == grid.ravel(order='F') position.)doc");
             return m.update_cells(pm, occupied);
           },
           py::arg("points"), py::arg("occupied") = false,
-          "One miss (or hit, occupied=True) update of every distinct cell holding one of points (N, 3),\n"
-          "e.g. to clear the space a vehicle has flown through. Predictions are discarded first, as by\n"
+          "One miss (or hit, occupied=True) update of every distinct cell holding one of points "
+          "(N, 3),\n"
+          "e.g. to clear the space a vehicle has flown through. Predictions are discarded first, "
+          "as by\n"
           "integrate. Returns the number of distinct cells updated.")
       .def(
           "mark_free_segment",
           [](OccupancyMap& m, const py::handle& a, const py::handle& b, double radius) {
-            const Eigen::Vector3d pa = vec3_arg(a, "segment start"), pb = vec3_arg(b, "segment end");
+            const Eigen::Vector3d pa = vec3_arg(a, "segment start"),
+                                  pb = vec3_arg(b, "segment end");
             py::gil_scoped_release release;
             return m.mark_free_segment(pa, pb, radius);
           },
           py::arg("a"), py::arg("b"), py::arg("radius"),
-          "One miss update of every cell whose centre lies within radius (m) of the segment a-b, and of\n"
-          "the cells holding a and b (the space a vehicle has flown through). Returns the cell count.")
+          "One miss update of every cell whose centre lies within radius (m) of the segment a-b, "
+          "and of\n"
+          "the cells holding a and b (the space a vehicle has flown through). Returns the cell "
+          "count.")
       .def(
           "set_unknown_cells",
           [](OccupancyMap& m, const py::handle& points, double probability) {
@@ -334,9 +357,12 @@ cell is i + nx * (j + ny * k) == grid.ravel(order='F') position.)doc");
             return m.set_unknown_cells(pm, probability);
           },
           py::arg("points"), py::arg("probability") = 0.6,
-          "Every UNKNOWN workspace cell holding at least one of points (N, 3) gets occupancy probability\n"
-          "(0.6: the paper's symmetry prediction; clamped to the clamping thresholds) and is flagged\n"
-          "predicted; a later observation of the cell discards the prediction (restarts from unknown).\n"
+          "Every UNKNOWN workspace cell holding at least one of points (N, 3) gets occupancy "
+          "probability\n"
+          "(0.6: the paper's symmetry prediction; clamped to the clamping thresholds) and is "
+          "flagged\n"
+          "predicted; a later observation of the cell discards the prediction (restarts from "
+          "unknown).\n"
           "Returns the number of cells set.")
       .def(
           "state",
@@ -374,7 +400,8 @@ cell is i + nx * (j + ny * k) == grid.ravel(order='F') position.)doc");
             return shaped(p.lead, r.data());
           },
           py::arg("points"),
-          "float64 (...) cell entropies in the map's unit (unknown: ln 2 nats / 1 bit; clamped cells 0\n"
+          "float64 (...) cell entropies in the map's unit (unknown: ln 2 nats / 1 bit; clamped "
+          "cells 0\n"
           "with clamped_entropy_zero).")
       .def(
           "is_predicted",
@@ -387,7 +414,8 @@ cell is i + nx * (j + ny * k) == grid.ravel(order='F') position.)doc");
             }
             return shaped(p.lead, r.data());
           },
-          py::arg("points"), "bool (...): the cell holds a prediction (set_unknown_cells), not an observation.")
+          py::arg("points"),
+          "bool (...): the cell holds a prediction (set_unknown_cells), not an observation.")
       .def(
           "key",
           [](const OccupancyMap& m, const py::handle& points) {
@@ -433,7 +461,8 @@ cell is i + nx * (j + ny * k) == grid.ravel(order='F') position.)doc");
             return shaped(p.lead, out.data());
           },
           py::arg("points"),
-          "int64 (...) flat workspace index i + nx * (j + ny * k) of each point's cell, -1 outside.")
+          "int64 (...) flat workspace index i + nx * (j + ny * k) of each point's cell, -1 "
+          "outside.")
       .def(
           "in_workspace",
           [](const OccupancyMap& m, const py::handle& points) {
@@ -447,9 +476,10 @@ cell is i + nx * (j + ny * k) == grid.ravel(order='F') position.)doc");
             return shaped(p.lead, out.data()).attr("astype")("bool");
           },
           py::arg("points"), "bool (...): the point's cell is in the workspace.")
-      .def("total_entropy", &OccupancyMap::total_entropy,
-           "Total workspace entropy in the map's unit (unknown cells at p = 0.5). O(1): maintained\n"
-           "incrementally in 2^-50-nat fixed point, equal to recompute_total_entropy().")
+      .def(
+          "total_entropy", &OccupancyMap::total_entropy,
+          "Total workspace entropy in the map's unit (unknown cells at p = 0.5). O(1): maintained\n"
+          "incrementally in 2^-50-nat fixed point, equal to recompute_total_entropy().")
       .def(
           "recompute_total_entropy",
           [](const OccupancyMap& m) {
@@ -457,10 +487,14 @@ cell is i + nx * (j + ny * k) == grid.ravel(order='F') position.)doc");
             return m.recompute_total_entropy();
           },
           "Total workspace entropy by a full sweep over the mirror (for checks).")
-      .def("counts", [](const OccupancyMap& m) { return counts_dict(m.counts()); },
-           "dict of workspace cell counts: free, occupied, unknown (and predicted, a subset of the first two).")
-      .def("recompute_counts", [](const OccupancyMap& m) { return counts_dict(m.recompute_counts()); },
-           "counts() by a full sweep (for checks).")
+      .def(
+          "counts", [](const OccupancyMap& m) { return counts_dict(m.counts()); },
+          "dict of workspace cell counts: free, occupied, unknown (and predicted, a subset of the "
+          "first two).")
+      .def(
+          "recompute_counts",
+          [](const OccupancyMap& m) { return counts_dict(m.recompute_counts()); },
+          "counts() by a full sweep (for checks).")
       .def(
           "occupied_cells",
           [](const OccupancyMap& m) {
@@ -475,23 +509,40 @@ cell is i + nx * (j + ny * k) == grid.ravel(order='F') position.)doc");
             return m.verify_mirror();
           },
           "Number of workspace cells whose dense mirror disagrees with the octree (0 = in sync).")
-      .def("log_odds_grid", [](const OccupancyMap& m) { return grid<float>(m, [&](std::int64_t i) { return m.logodds_at(i); }); },
-           "(nx, ny, nz) float32 log-odds (0 for unknown cells), Fortran order (copy).")
-      .def("state_grid",
-           [](const OccupancyMap& m) { return grid<std::int8_t>(m, [&](std::int64_t i) { return std::int8_t(m.state_at(i)); }); },
-           "(nx, ny, nz) int8 states (0 free, 1 occupied, -1 unknown), Fortran order (copy).")
-      .def("flag_grid",
-           [](const OccupancyMap& m) { return grid<std::uint8_t>(m, [&](std::int64_t i) { return std::uint8_t(m.flag_at(i)); }); },
-           "(nx, ny, nz) uint8 flags (0 unknown, 1 observed, 2 predicted), Fortran order (copy).")
-      .def("entropy_grid", [](const OccupancyMap& m) { return grid<float>(m, [&](std::int64_t i) { return m.entropy_at(i); }); },
-           "(nx, ny, nz) float32 cell entropies in the map's unit, Fortran order (copy).")
       .def(
-          "save", [](const OccupancyMap& m, const py::handle& path) { m.save(path_arg(path)); }, py::arg("path"),
-          "Write the octree: '.ot' (full probabilities) or '.bt' (free/occupied only); octovis reads both.")
+          "log_odds_grid",
+          [](const OccupancyMap& m) {
+            return grid<float>(m, [&](std::int64_t i) { return m.logodds_at(i); });
+          },
+          "(nx, ny, nz) float32 log-odds (0 for unknown cells), Fortran order (copy).")
+      .def(
+          "state_grid",
+          [](const OccupancyMap& m) {
+            return grid<std::int8_t>(m, [&](std::int64_t i) { return std::int8_t(m.state_at(i)); });
+          },
+          "(nx, ny, nz) int8 states (0 free, 1 occupied, -1 unknown), Fortran order (copy).")
+      .def(
+          "flag_grid",
+          [](const OccupancyMap& m) {
+            return grid<std::uint8_t>(m,
+                                      [&](std::int64_t i) { return std::uint8_t(m.flag_at(i)); });
+          },
+          "(nx, ny, nz) uint8 flags (0 unknown, 1 observed, 2 predicted), Fortran order (copy).")
+      .def(
+          "entropy_grid",
+          [](const OccupancyMap& m) {
+            return grid<float>(m, [&](std::int64_t i) { return m.entropy_at(i); });
+          },
+          "(nx, ny, nz) float32 cell entropies in the map's unit, Fortran order (copy).")
+      .def(
+          "save", [](const OccupancyMap& m, const py::handle& path) { m.save(path_arg(path)); },
+          py::arg("path"),
+          "Write the octree: '.ot' (full probabilities) or '.bt' (free/occupied only); octovis "
+          "reads both.")
       .def_static(
           "load",
-          [](const py::handle& path, const py::object& bmin, const py::object& bmax, const py::object& options,
-             const py::kwargs& kw) {
+          [](const py::handle& path, const py::object& bmin, const py::object& bmax,
+             const py::object& options, const py::kwargs& kw) {
             const std::string p = path_arg(path);
             const OccupancyMapOptions o = options_arg(options, kw);
             std::optional<Eigen::Vector3d> lo, hi;
@@ -502,34 +553,47 @@ cell is i + nx * (j + ny * k) == grid.ravel(order='F') position.)doc");
           },
           py::arg("path"), py::arg("bounds_min") = py::none(), py::arg("bounds_max") = py::none(),
           py::arg("options") = py::none(),
-          "Read a '.ot' / '.bt' file. Without bounds the workspace is the tree's bounding box. Every\n"
-          "cell read is flagged observed. FileNotFoundError if missing; ValueError naming the file if\n"
+          "Read a '.ot' / '.bt' file. Without bounds the workspace is the tree's bounding box. "
+          "Every\n"
+          "cell read is flagged observed. FileNotFoundError if missing; ValueError naming the file "
+          "if\n"
           "the extension is unknown or the data unreadable.")
       .def_property_readonly("resolution", &OccupancyMap::resolution, "cell edge (metres)")
       .def_property_readonly("num_cells", &OccupancyMap::num_cells, "cells in the workspace")
       .def_property_readonly(
-          "shape", [](const OccupancyMap& m) { return py::make_tuple(m.dims()[0], m.dims()[1], m.dims()[2]); },
+          "shape",
+          [](const OccupancyMap& m) {
+            return py::make_tuple(m.dims()[0], m.dims()[1], m.dims()[2]);
+          },
           "(nx, ny, nz) workspace cells per axis")
       .def_property_readonly(
           "bounds",
-          [](const OccupancyMap& m) { return py::make_tuple(Eigen::Vector3d(m.bounds_min()), Eigen::Vector3d(m.bounds_max())); },
+          [](const OccupancyMap& m) {
+            return py::make_tuple(Eigen::Vector3d(m.bounds_min()), Eigen::Vector3d(m.bounds_max()));
+          },
           "(min (3,), max (3,)): the cell-aligned workspace box in metres")
       .def_property_readonly(
-          "min_key", [](const OccupancyMap& m) { return py::make_tuple(m.min_key()[0], m.min_key()[1], m.min_key()[2]); },
+          "min_key",
+          [](const OccupancyMap& m) {
+            return py::make_tuple(m.min_key()[0], m.min_key()[1], m.min_key()[2]);
+          },
           "OctoMap key of workspace cell (0, 0, 0)")
       .def_property_readonly(
           "options", [](const OccupancyMap& m) { return OccupancyMapOptions(m.options()); },
           "the map's OccupancyMapOptions (a copy)")
-      .def_property_readonly("entropy_unit", [](const OccupancyMap& m) { return unit_name(m.options().entropy_unit); })
-      .def_property_readonly("octree_num_nodes", [](const OccupancyMap& m) { return m.octree().size(); },
-                             "nodes in the octree (all depths)")
-      .def_property_readonly("octree_memory_bytes", [](const OccupancyMap& m) { return m.octree().memoryUsage(); })
+      .def_property_readonly(
+          "entropy_unit", [](const OccupancyMap& m) { return unit_name(m.options().entropy_unit); })
+      .def_property_readonly(
+          "octree_num_nodes", [](const OccupancyMap& m) { return m.octree().size(); },
+          "nodes in the octree (all depths)")
+      .def_property_readonly("octree_memory_bytes",
+                             [](const OccupancyMap& m) { return m.octree().memoryUsage(); })
       .def("__repr__", [](const OccupancyMap& m) {
         const auto c = m.counts();
         std::ostringstream s;
-        s << "<nbvkit.OccupancyMap " << m.resolution() << " m, " << m.dims()[0] << "x" << m.dims()[1] << "x"
-          << m.dims()[2] << " cells: " << c.free << " free, " << c.occupied << " occupied, " << c.unknown
-          << " unknown>";
+        s << "<nbvkit.OccupancyMap " << m.resolution() << " m, " << m.dims()[0] << "x"
+          << m.dims()[1] << "x" << m.dims()[2] << " cells: " << c.free << " free, " << c.occupied
+          << " occupied, " << c.unknown << " unknown>";
         return s.str();
       });
 }

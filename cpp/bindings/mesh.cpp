@@ -1,5 +1,5 @@
-#include "bindings.hpp"
 #include "nbv/mesh.hpp"
+#include "bindings.hpp"
 
 namespace nbv::bind {
 
@@ -11,17 +11,19 @@ vertices: (N, 3) float64; faces: (M, 3) int32, 0-based. Build with nbvkit.load_m
 Mesh(vertices, faces) or Mesh.from_open3d(o3d_mesh).)doc")
       .def(py::init([](const py::handle& v, const py::handle& f) {
              auto va = points_arg(v, "mesh vertices");
-             auto fa = py::array_t<std::int32_t, py::array::c_style | py::array::forcecast>::ensure(f);
+             auto fa =
+                 py::array_t<std::int32_t, py::array::c_style | py::array::forcecast>::ensure(f);
              if (!fa || fa.ndim() != 2 || fa.shape(1) != 3)
                throw py::value_error("mesh faces must have shape (M, 3) of integer indices");
              Eigen::Map<const Faces> fm(fa.data(), fa.shape(0), 3);
              return std::make_shared<Mesh>(Mesh::from_arrays(va.map(), fm));
            }),
            py::arg("vertices"), py::arg("faces"))
-      .def_property_readonly("vertices", [](const Mesh& s) { return s.vertices; },
-                             "(N, 3) float64 vertex positions, metres (a copy)")
-      .def_property_readonly("faces", [](const Mesh& s) { return s.faces; },
-                             "(M, 3) int32 vertex indices (a copy)")
+      .def_property_readonly(
+          "vertices", [](const Mesh& s) { return s.vertices; },
+          "(N, 3) float64 vertex positions, metres (a copy)")
+      .def_property_readonly(
+          "faces", [](const Mesh& s) { return s.faces; }, "(M, 3) int32 vertex indices (a copy)")
       .def_property_readonly("num_triangles", [](const Mesh& s) { return s.faces.rows(); })
       .def_property_readonly("num_vertices", [](const Mesh& s) { return s.vertices.rows(); })
       .def("triangle_areas", &Mesh::triangle_areas, "(M,) triangle areas, m^2")
@@ -44,25 +46,29 @@ Mesh(vertices, faces) or Mesh.from_open3d(o3d_mesh).)doc")
             Points p;
             {
               py::gil_scoped_release release;
-              p = s.sample_surface(static_cast<std::size_t>(n), seed, return_faces ? &fid : nullptr);
+              p = s.sample_surface(static_cast<std::size_t>(n), seed,
+                                   return_faces ? &fid : nullptr);
             }
             if (return_faces) return py::make_tuple(p, fid);
             return py::cast(p);
           },
           py::arg("n"), py::arg("seed") = 0, py::arg("return_faces") = false,
-          "n points uniformly over the surface (area-weighted), (n, 3) float64; deterministic per seed.\n"
+          "n points uniformly over the surface (area-weighted), (n, 3) float64; deterministic per "
+          "seed.\n"
           "With return_faces=True also returns the (n,) int32 source triangle of each point.")
       .def("__repr__", [](const Mesh& s) {
         auto b = s.bounds();
         Eigen::Vector3d e = b.sizes();
         return "<nbvkit.Mesh " + std::to_string(s.faces.rows()) + " triangles, " +
-               std::to_string(e.x()) + " x " + std::to_string(e.y()) + " x " + std::to_string(e.z()) + " m>";
+               std::to_string(e.x()) + " x " + std::to_string(e.y()) + " x " +
+               std::to_string(e.z()) + " m>";
       });
 
   m.def(
       "_load_mesh",
       [](const std::string& path, double scale, const std::string& up) {
-        if (up.size() != 1) throw py::value_error("mesh up axis must be 'y' or 'z', got '" + up + "'");
+        if (up.size() != 1)
+          throw py::value_error("mesh up axis must be 'y' or 'z', got '" + up + "'");
         py::gil_scoped_release release;
         return std::make_shared<Mesh>(load_mesh(path, scale, up[0]));
       },

@@ -1,12 +1,13 @@
-#include "bindings.hpp"
 #include "nbv/sensors.hpp"
+#include "bindings.hpp"
 
 namespace nbv::bind {
 namespace {
 
 std::shared_ptr<const RaycastScene> scene_of(const py::handle& obj) {
   if (py::isinstance<RaycastScene>(obj)) return obj.cast<std::shared_ptr<RaycastScene>>();
-  if (py::isinstance<Mesh>(obj)) return std::make_shared<RaycastScene>(*obj.cast<std::shared_ptr<Mesh>>());
+  if (py::isinstance<Mesh>(obj))
+    return std::make_shared<RaycastScene>(*obj.cast<std::shared_ptr<Mesh>>());
   throw py::type_error("expected an nbvkit.Mesh or nbvkit.RaycastScene");
 }
 
@@ -43,8 +44,8 @@ Embree ray-casting scene over a mesh (build once, share between sensors).)doc")
       .def_property_readonly("mesh", [](const RaycastScene& s) { return s.mesh(); })
       .def(
           "intersect",
-          [](const RaycastScene& s, const py::handle& origins, const py::handle& dirs, double t_near,
-             double t_far) {
+          [](const RaycastScene& s, const py::handle& origins, const py::handle& dirs,
+             double t_near, double t_far) {
             auto o = points_arg(origins, "ray origins");
             auto d = points_arg(dirs, "ray directions");
             Eigen::VectorXd t;
@@ -57,8 +58,10 @@ Embree ray-casting scene over a mesh (build once, share between sensors).)doc")
           },
           py::arg("origins"), py::arg("directions"), py::arg("t_near") = 0.0,
           py::arg("t_far") = std::numeric_limits<double>::infinity(),
-          "Cast rays o + t d. origins (1, 3) or (N, 3), directions (N, 3) float64 (unit for t in metres).\n"
-          "Returns (t (N,) float64, inf = no hit in [t_near, t_far]; triangle (N,) int32, -1 = no hit).");
+          "Cast rays o + t d. origins (1, 3) or (N, 3), directions (N, 3) float64 (unit for t in "
+          "metres).\n"
+          "Returns (t (N,) float64, inf = no hit in [t_near, t_far]; triangle (N,) int32, -1 = no "
+          "hit).");
 
   py::class_<Scan>(m, "Scan", R"doc(
 One sensor reading, world frame. origin (3,); hits (N, 3) surface points within range; free_ends
@@ -76,7 +79,8 @@ along each beam, inf where there is no valid return.)doc")
       });
 
   const DepthCameraOptions cd;
-  py::class_<DepthCameraOptions>(m, "DepthCameraOptions", "Defaults of the RGB-D camera (paper Table 1).")
+  py::class_<DepthCameraOptions>(m, "DepthCameraOptions",
+                                 "Defaults of the RGB-D camera (paper Table 1).")
       .def(py::init<>())
       .def_readonly("width", &DepthCameraOptions::width)
       .def_readonly("height", &DepthCameraOptions::height)
@@ -114,16 +118,20 @@ The sensor looks along its +x (y left, z up); pixel (u, v) looks along
            py::arg("scene"), py::arg("width") = cd.width, py::arg("height") = cd.height,
            py::arg("hfov_deg") = cd.hfov_deg, py::arg("vfov_deg") = cd.vfov_deg,
            py::arg("min_range") = cd.min_range, py::arg("max_range") = cd.max_range,
-           py::arg("noise_k") = cd.noise_k, py::arg("seed") = cd.seed, py::arg("mount") = py::none())
+           py::arg("noise_k") = cd.noise_k, py::arg("seed") = cd.seed,
+           py::arg("mount") = py::none())
       .def_property_readonly("width", [](const DepthCamera& c) { return c.options().width; })
       .def_property_readonly("height", [](const DepthCamera& c) { return c.options().height; })
       .def_property_readonly("hfov_deg", [](const DepthCamera& c) { return c.options().hfov_deg; })
       .def_property_readonly("vfov_deg", [](const DepthCamera& c) { return c.options().vfov_deg; })
-      .def_property_readonly("min_range", [](const DepthCamera& c) { return c.options().min_range; })
-      .def_property_readonly("max_range", [](const DepthCamera& c) { return c.options().max_range; })
+      .def_property_readonly("min_range",
+                             [](const DepthCamera& c) { return c.options().min_range; })
+      .def_property_readonly("max_range",
+                             [](const DepthCamera& c) { return c.options().max_range; })
       .def_property_readonly("noise_k", [](const DepthCamera& c) { return c.options().noise_k; })
-      .def_property_readonly("mount", [](const DepthCamera& c) { return c.options().mount.matrix(); },
-                             "4x4 T_body_sensor")
+      .def_property_readonly(
+          "mount", [](const DepthCamera& c) { return c.options().mount.matrix(); },
+          "4x4 T_body_sensor")
       .def_property_readonly("fx", &DepthCamera::fx)
       .def_property_readonly("fy", &DepthCamera::fy)
       .def_property_readonly("directions", &DepthCamera::directions,
@@ -137,7 +145,8 @@ The sensor looks along its +x (y left, z up); pixel (u, v) looks along
       .def("reset_noise", &DepthCamera::reset_noise, py::arg("seed"));
 
   const LaserScannerOptions ld;
-  py::class_<LaserScannerOptions>(m, "LaserScannerOptions", "Defaults of the laser scanner (paper Table 1).")
+  py::class_<LaserScannerOptions>(m, "LaserScannerOptions",
+                                  "Defaults of the laser scanner (paper Table 1).")
       .def(py::init<>())
       .def_readonly("fov_deg", &LaserScannerOptions::fov_deg)
       .def_readonly("resolution_deg", &LaserScannerOptions::resolution_deg)
@@ -146,7 +155,8 @@ The sensor looks along its +x (y left, z up); pixel (u, v) looks along
       .def_readonly("noise_sigma", &LaserScannerOptions::noise_sigma)
       .def_readonly("seed", &LaserScannerOptions::seed)
       .def_property_readonly("num_beams", &LaserScannerOptions::num_beams)
-      .def_property_readonly("mount", [](const LaserScannerOptions& o) { return o.mount.matrix(); });
+      .def_property_readonly("mount",
+                             [](const LaserScannerOptions& o) { return o.mount.matrix(); });
 
   py::class_<LaserScanner, std::shared_ptr<LaserScanner>>(m, "LaserScanner", R"doc(
 Single-layer 2D laser scanner ray-cast against a mesh with Embree.
@@ -155,7 +165,8 @@ Beams lie in the sensor's x-y plane from -fov/2 to +fov/2 (counter-clockwise fro
 resolution_deg (180 deg / 0.25 deg -> 721 beams). Ranges along the beam, metres.
 mount: 4x4 T_body_sensor (default: body origin, pitched 10 deg down as in Table 1).)doc")
       .def(py::init([](const py::handle& scene, double fov, double res, double min_range,
-                       double max_range, double noise_sigma, std::uint64_t seed, const py::object& mount) {
+                       double max_range, double noise_sigma, std::uint64_t seed,
+                       const py::object& mount) {
              LaserScannerOptions o;
              o.fov_deg = fov;
              o.resolution_deg = res;
@@ -166,18 +177,25 @@ mount: 4x4 T_body_sensor (default: body origin, pitched 10 deg down as in Table 
              o.mount = mount_or(mount, o.mount);
              return std::make_shared<LaserScanner>(scene_of(scene), o);
            }),
-           py::arg("scene"), py::arg("fov_deg") = ld.fov_deg, py::arg("resolution_deg") = ld.resolution_deg,
-           py::arg("min_range") = ld.min_range, py::arg("max_range") = ld.max_range,
-           py::arg("noise_sigma") = ld.noise_sigma, py::arg("seed") = ld.seed, py::arg("mount") = py::none())
-      .def_property_readonly("num_beams", [](const LaserScanner& l) { return l.options().num_beams(); })
+           py::arg("scene"), py::arg("fov_deg") = ld.fov_deg,
+           py::arg("resolution_deg") = ld.resolution_deg, py::arg("min_range") = ld.min_range,
+           py::arg("max_range") = ld.max_range, py::arg("noise_sigma") = ld.noise_sigma,
+           py::arg("seed") = ld.seed, py::arg("mount") = py::none())
+      .def_property_readonly("num_beams",
+                             [](const LaserScanner& l) { return l.options().num_beams(); })
       .def_property_readonly("fov_deg", [](const LaserScanner& l) { return l.options().fov_deg; })
-      .def_property_readonly("resolution_deg", [](const LaserScanner& l) { return l.options().resolution_deg; })
-      .def_property_readonly("min_range", [](const LaserScanner& l) { return l.options().min_range; })
-      .def_property_readonly("max_range", [](const LaserScanner& l) { return l.options().max_range; })
-      .def_property_readonly("mount", [](const LaserScanner& l) { return l.options().mount.matrix(); },
-                             "4x4 T_body_sensor")
+      .def_property_readonly("resolution_deg",
+                             [](const LaserScanner& l) { return l.options().resolution_deg; })
+      .def_property_readonly("min_range",
+                             [](const LaserScanner& l) { return l.options().min_range; })
+      .def_property_readonly("max_range",
+                             [](const LaserScanner& l) { return l.options().max_range; })
+      .def_property_readonly(
+          "mount", [](const LaserScanner& l) { return l.options().mount.matrix(); },
+          "4x4 T_body_sensor")
       .def_property_readonly("angles", &LaserScanner::angles, "(R,) beam angles, radians")
-      .def_property_readonly("directions", &LaserScanner::directions, "(R, 3) unit beam directions, sensor frame")
+      .def_property_readonly("directions", &LaserScanner::directions,
+                             "(R, 3) unit beam directions, sensor frame")
       .def("scan", &scan_transform<LaserScanner>, py::arg("T_world_sensor"))
       .def("scan_pose", &scan_pose<LaserScanner>, py::arg("pose"),
            "Scan from a vehicle pose (x, y, z, yaw) through the laser's mount.")

@@ -1,6 +1,6 @@
 // Bindings of the symmetry detection and prediction core (nbv/symmetry.hpp).
-#include "bindings.hpp"
 #include "nbv/symmetry.hpp"
+#include "bindings.hpp"
 
 #include <functional>
 #include <map>
@@ -15,14 +15,17 @@ using Setters = std::map<std::string, std::function<void(Opt&, const py::handle&
 template <typename T>
 T cast_value(const py::handle& v, const std::string& key) {
   if constexpr (std::is_same_v<T, bool>) {
-    if (!py::isinstance<py::bool_>(v)) throw py::value_error("option '" + key + "' must be True or False");
+    if (!py::isinstance<py::bool_>(v))
+      throw py::value_error("option '" + key + "' must be True or False");
     return v.cast<bool>();
   } else if constexpr (std::is_integral_v<T>) {
-    if (py::isinstance<py::bool_>(v) || !(py::isinstance<py::int_>(v) || py::hasattr(v, "__index__")))
+    if (py::isinstance<py::bool_>(v) ||
+        !(py::isinstance<py::int_>(v) || py::hasattr(v, "__index__")))
       throw py::value_error("option '" + key + "' must be an integer");
     return py::reinterpret_borrow<py::object>(v).cast<T>();
   } else {
-    if (py::isinstance<py::bool_>(v)) throw py::value_error("option '" + key + "' must be a number");
+    if (py::isinstance<py::bool_>(v))
+      throw py::value_error("option '" + key + "' must be a number");
     try {
       return py::float_(py::reinterpret_borrow<py::object>(v)).cast<double>();
     } catch (const py::error_already_set&) {
@@ -45,7 +48,8 @@ const Setters<SymmetryOptions>& detect_setters() {
     add(s, "normal_k", &O::normal_k);
     add(s, "normal_radius", &O::normal_radius);
     s["keypoints"] = [](O& o, const py::handle& v) {
-      if (!py::isinstance<py::str>(v)) throw py::value_error("option 'keypoints' must be 'sift', 'iss' or 'uniform'");
+      if (!py::isinstance<py::str>(v))
+        throw py::value_error("option 'keypoints' must be 'sift', 'iss' or 'uniform'");
       o.keypoints = symmetry_keypoints_from_string(v.cast<std::string>());
     };
     add(s, "sift_min_scale", &O::sift_min_scale);
@@ -107,7 +111,8 @@ Opt options_from(const py::kwargs& kw, const Setters<Opt>& setters, const char* 
     if (it == setters.end()) {
       std::string known;
       for (const auto& [k, f] : setters) known += (known.empty() ? "" : ", ") + k;
-      throw py::value_error(std::string("unknown ") + what + " option '" + key + "'; known: " + known);
+      throw py::value_error(std::string("unknown ") + what + " option '" + key +
+                            "'; known: " + known);
     }
     if (item.second.is_none()) continue;  // None: keep the default
     try {
@@ -142,7 +147,8 @@ Eigen::Vector4d plane_arg(const py::handle& obj, const char* what) {
     throw py::value_error(std::string(what) + " must be 4 numbers [nx, ny, nz, d]");
   Eigen::Vector4d p(a.data()[0], a.data()[1], a.data()[2], a.data()[3]);
   if (!p.allFinite()) throw py::value_error(std::string(what) + " must be finite");
-  if (!(p.head<3>().norm() > 1e-12)) throw py::value_error(std::string(what) + " has a zero normal");
+  if (!(p.head<3>().norm() > 1e-12))
+    throw py::value_error(std::string(what) + " has a zero normal");
   return p;
 }
 
@@ -150,12 +156,14 @@ Eigen::Vector4d plane_arg(const py::handle& obj, const char* what) {
 
 void init_symmetry(py::module_& m) {
   const SymmetryOptions sd;
-  py::class_<SymmetryOptions>(m, "SymmetryOptions", "Defaults of detect_symmetry (see its docstring).")
+  py::class_<SymmetryOptions>(m, "SymmetryOptions",
+                              "Defaults of detect_symmetry (see its docstring).")
       .def(py::init<>())
       .def_readonly("voxel_size", &SymmetryOptions::voxel_size)
       .def_readonly("normal_k", &SymmetryOptions::normal_k)
       .def_readonly("normal_radius", &SymmetryOptions::normal_radius)
-      .def_property_readonly("keypoints", [](const SymmetryOptions& o) { return to_string(o.keypoints); })
+      .def_property_readonly("keypoints",
+                             [](const SymmetryOptions& o) { return to_string(o.keypoints); })
       .def_readonly("sift_min_scale", &SymmetryOptions::sift_min_scale)
       .def_readonly("sift_octaves", &SymmetryOptions::sift_octaves)
       .def_readonly("sift_scales_per_octave", &SymmetryOptions::sift_scales_per_octave)
@@ -190,10 +198,12 @@ void init_symmetry(py::module_& m) {
       .def_readonly("icp", &SymmetricPredictionOptions::icp)
       .def_readonly("icp_point_to_plane", &SymmetricPredictionOptions::icp_point_to_plane)
       .def_readonly("icp_max_correspondence", &SymmetricPredictionOptions::icp_max_correspondence)
-      .def_readonly("icp_transformation_epsilon", &SymmetricPredictionOptions::icp_transformation_epsilon)
+      .def_readonly("icp_transformation_epsilon",
+                    &SymmetricPredictionOptions::icp_transformation_epsilon)
       .def_readonly("icp_fitness_epsilon", &SymmetricPredictionOptions::icp_fitness_epsilon)
       .def_readonly("icp_max_iterations", &SymmetricPredictionOptions::icp_max_iterations)
-      .def_readonly("max_correction_angle_deg", &SymmetricPredictionOptions::max_correction_angle_deg)
+      .def_readonly("max_correction_angle_deg",
+                    &SymmetricPredictionOptions::max_correction_angle_deg)
       .def_readonly("max_correction_offset", &SymmetricPredictionOptions::max_correction_offset)
       .def_readonly("explained_tolerance", &SymmetricPredictionOptions::explained_tolerance);
 
@@ -219,16 +229,21 @@ pair_distances (P,) descriptor distances; inliers (P,) bool; timings: dict stage
       .def_readonly("scale", &SymmetryResult::scale)
       .def_property_readonly("keypoints", [](const SymmetryResult& r) { return r.keypoints; })
       .def_property_readonly("pairs", [](const SymmetryResult& r) { return r.pairs; })
-      .def_property_readonly("pair_distances", [](const SymmetryResult& r) { return r.pair_distances; })
+      .def_property_readonly("pair_distances",
+                             [](const SymmetryResult& r) { return r.pair_distances; })
       .def_property_readonly("pair_planes", [](const SymmetryResult& r) { return r.pair_planes; })
       .def_property_readonly("inliers", [](const SymmetryResult& r) { return r.inliers; })
       .def_property_readonly("modes", [](const SymmetryResult& r) { return r.modes; })
       .def_property_readonly("mode_support", [](const SymmetryResult& r) { return r.mode_support; })
-      .def_property_readonly("mode_confidence", [](const SymmetryResult& r) { return r.mode_confidence; })
-      .def_property_readonly("timings", [](const SymmetryResult& r) { return timings_dict(r.timings); })
+      .def_property_readonly("mode_confidence",
+                             [](const SymmetryResult& r) { return r.mode_confidence; })
+      .def_property_readonly("timings",
+                             [](const SymmetryResult& r) { return timings_dict(r.timings); })
       .def("__repr__", [](const SymmetryResult& r) {
-        return "SymmetryResult(plane=" + std::string(py::str(py::cast(r.plane).attr("round")(4).attr("tolist")())) +
-               ", support=" + std::to_string(r.support) + ", confidence=" + std::to_string(r.confidence) +
+        return "SymmetryResult(plane=" +
+               std::string(py::str(py::cast(r.plane).attr("round")(4).attr("tolist")())) +
+               ", support=" + std::to_string(r.support) +
+               ", confidence=" + std::to_string(r.confidence) +
                ", accepted=" + (r.accepted ? "True" : "False") + ")";
       });
 
@@ -239,21 +254,27 @@ reflection, an improper isometry), icp_converged, icp_applied, icp_fitness (m^2)
 residual_rotation_deg, timings (dict stage -> seconds).)doc")
       .def_property_readonly("predicted", [](const SymmetricPrediction& r) { return r.predicted; })
       .def_property_readonly("plane", [](const SymmetricPrediction& r) { return r.plane; })
-      .def_property_readonly("input_plane", [](const SymmetricPrediction& r) { return r.input_plane; })
+      .def_property_readonly("input_plane",
+                             [](const SymmetricPrediction& r) { return r.input_plane; })
       .def_property_readonly("transform", [](const SymmetricPrediction& r) { return r.transform; })
       .def_readonly("icp_converged", &SymmetricPrediction::icp_converged)
       .def_readonly("icp_applied", &SymmetricPrediction::icp_applied)
       .def_readonly("icp_fitness", &SymmetricPrediction::icp_fitness)
       .def_readonly("residual_rotation_deg", &SymmetricPrediction::residual_rotation_deg)
-      .def_property_readonly("timings", [](const SymmetricPrediction& r) { return timings_dict(r.timings); })
-      .def("__iter__",
-           [](const SymmetricPrediction& r) {
-             return py::iter(py::make_tuple(py::cast(r.predicted), py::cast(Eigen::Vector4d(r.plane))));
-           },
-           "Unpacks as (predicted, plane).")
+      .def_property_readonly("timings",
+                             [](const SymmetricPrediction& r) { return timings_dict(r.timings); })
+      .def(
+          "__iter__",
+          [](const SymmetricPrediction& r) {
+            return py::iter(
+                py::make_tuple(py::cast(r.predicted), py::cast(Eigen::Vector4d(r.plane))));
+          },
+          "Unpacks as (predicted, plane).")
       .def("__repr__", [](const SymmetricPrediction& r) {
-        return "SymmetricPrediction(predicted=" + std::to_string(r.predicted.rows()) + " points, plane=" +
-               std::string(py::str(py::cast(Eigen::Vector4d(r.plane)).attr("round")(4).attr("tolist")())) +
+        return "SymmetricPrediction(predicted=" + std::to_string(r.predicted.rows()) +
+               " points, plane=" +
+               std::string(
+                   py::str(py::cast(Eigen::Vector4d(r.plane)).attr("round")(4).attr("tolist")())) +
                ", icp_applied=" + (r.icp_applied ? "True" : "False") + ")";
       });
 
@@ -281,7 +302,8 @@ residual_rotation_deg, timings (dict stage -> seconds).)doc")
       [](const py::handle& points, const py::handle& plane, const py::kwargs& kw) {
         const auto a = points_arg(points, "points");
         const Eigen::Vector4d pl = plane_arg(plane, "plane");
-        const SymmetricPredictionOptions o = options_from(kw, predict_setters(), "predict_symmetric");
+        const SymmetricPredictionOptions o =
+            options_from(kw, predict_setters(), "predict_symmetric");
         py::gil_scoped_release release;
         return predict_symmetric(a.map(), pl, o);
       },
@@ -289,26 +311,31 @@ residual_rotation_deg, timings (dict stage -> seconds).)doc")
 
   m.def(
       "mean_shift_planes",
-      [](const py::handle& planes, const Eigen::Vector3d& center, double scale, double bandwidth, int seeds,
-         int max_iterations) {
+      [](const py::handle& planes, const Eigen::Vector3d& center, double scale, double bandwidth,
+         int seeds, int max_iterations) {
         auto a = py::array_t<double, py::array::c_style | py::array::forcecast>::ensure(planes);
-        if (!a || a.ndim() != 2 || a.shape(1) != 4) throw py::value_error("planes must have shape (P, 4)");
+        if (!a || a.ndim() != 2 || a.shape(1) != 4)
+          throw py::value_error("planes must have shape (P, 4)");
         const Planes P = Eigen::Map<const Planes>(a.data(), a.shape(0), 4);
         py::gil_scoped_release release;
         return mean_shift_planes(P, center, scale, bandwidth, seeds, max_iterations);
       },
       py::arg("planes"), py::arg("center"), py::arg("scale"), py::arg("bandwidth") = sd.bandwidth,
-      py::arg("seeds") = sd.mean_shift_seeds, py::arg("max_iterations") = sd.mean_shift_max_iterations,
+      py::arg("seeds") = sd.mean_shift_seeds,
+      py::arg("max_iterations") = sd.mean_shift_max_iterations,
       "Mean shift over planes (P, 4) [nx, ny, nz, d]; see nbvkit.symmetry.mean_shift_planes.");
 
   m.def(
-      "plane_from_pair", [](const Eigen::Vector3d& p, const Eigen::Vector3d& q) { return plane_from_pair(p, q); },
+      "plane_from_pair",
+      [](const Eigen::Vector3d& p, const Eigen::Vector3d& q) { return plane_from_pair(p, q); },
       py::arg("p"), py::arg("q"), "Perpendicular-bisector plane [nx, ny, nz, d] of two points.");
   m.def(
-      "canonical_plane", [](const py::handle& pl) { return canonical_plane(plane_arg(pl, "plane")); },
+      "canonical_plane",
+      [](const py::handle& pl) { return canonical_plane(plane_arg(pl, "plane")); },
       py::arg("plane"), "Unit normal, largest |n_i| positive.");
   m.def(
-      "reflection_matrix", [](const py::handle& pl) { return reflection_matrix(plane_arg(pl, "plane")); },
+      "reflection_matrix",
+      [](const py::handle& pl) { return reflection_matrix(plane_arg(pl, "plane")); },
       py::arg("plane"), "4x4 homogeneous reflection about a plane.");
   m.def(
       "reflect_points",
@@ -316,7 +343,8 @@ residual_rotation_deg, timings (dict stage -> seconds).)doc")
         const auto a = points_arg(points, "points");
         return reflect_points(a.map(), plane_arg(pl, "plane"));
       },
-      py::arg("points"), py::arg("plane"), "(N, 3) points reflected about a plane [nx, ny, nz, d].");
+      py::arg("points"), py::arg("plane"),
+      "(N, 3) points reflected about a plane [nx, ny, nz, d].");
   m.def(
       "plane_from_improper_isometry",
       [](const Eigen::Matrix4d& M) {
@@ -338,13 +366,16 @@ residual_rotation_deg, timings (dict stage -> seconds).)doc")
         const auto a = points_arg(points, "points");
         const Eigen::Index n = a.map().rows();
         for (int i : indices)
-          if (i < 0 || i >= n) throw py::value_error("index " + std::to_string(i) + " out of range");
-        if (normal_k < 3 || !(radius > 0)) throw py::value_error("normal_k must be >= 3 and radius > 0");
+          if (i < 0 || i >= n)
+            throw py::value_error("index " + std::to_string(i) + " out of range");
+        if (normal_k < 3 || !(radius > 0))
+          throw py::value_error("normal_k must be >= 3 and radius > 0");
         py::gil_scoped_release release;
         const auto nc = detail::estimate_normals(a.map(), normal_k, 0.0);
         return detail::compute_fpfh(a.map(), nc.normals, indices, radius);
       },
-      py::arg("points"), py::arg("indices"), py::arg("normal_k") = sd.normal_k, py::arg("radius") = sd.fpfh_radius,
+      py::arg("points"), py::arg("indices"), py::arg("normal_k") = sd.normal_k,
+      py::arg("radius") = sd.fpfh_radius,
       "(K, 33) float32 FPFH (PCL) at points[indices], every point as search surface; normals from "
       "normal_k neighbours oriented away from the centroid. For tests and diagnostics.");
 }

@@ -1,6 +1,6 @@
+#include "nbv/views.hpp"
 #include "bindings.hpp"
 #include "nbv/occupancy_map.hpp"
-#include "nbv/views.hpp"
 
 namespace nbv::bind {
 
@@ -66,12 +66,14 @@ void init_views(py::module_& m) {
       py::arg("map"), py::arg("candidates"), py::arg("current"), py::arg("rays_x") = 47,
       py::arg("rays_y") = 34, py::arg("hfov_deg") = 60.0, py::arg("vfov_deg") = 45.0,
       py::arg("max_range") = 8.0, py::arg("mount") = py::none(), py::arg("utility") = "ig",
-      py::arg("distance_lambda") = ud.distance_lambda, py::arg("require_occupied") = ud.require_occupied,
+      py::arg("distance_lambda") = ud.distance_lambda,
+      py::arg("require_occupied") = ud.require_occupied,
       py::arg("require_occupied_probability") = ud.require_occupied_probability,
       py::arg("collision_radius") = vd.collision_radius, py::arg("bounds_min") = py::none(),
       py::arg("bounds_max") = py::none(), py::arg("check_segment") = vd.check_segment,
       py::arg("backend") = "mirror",
-      R"doc(Score K candidate vehicle poses (K, 4) [x, y, z, yaw] from the current pose, in one call.
+      R"doc(Score K candidate vehicle poses (K, 4) [x, y, z, yaw] from the current pose, in one
+call.
 
 Returns a dict of (K,) arrays: utility (-inf where invalid), gain (sum of the entropies of the
 distinct workspace cells the camera's rays visit, stopping at the first occupied cell inclusive),
@@ -83,7 +85,8 @@ reads every visited cell through OctoMap's search, as the authors did (same answ
   m.def(
       "sphere_is_free",
       [](const OccupancyMap& map, const Eigen::Vector3d& c, double r) {
-        if (!c.allFinite() || !(r >= 0)) throw py::value_error("centre must be finite and radius >= 0");
+        if (!c.allFinite() || !(r >= 0))
+          throw py::value_error("centre must be finite and radius >= 0");
         return sphere_is_free(grid_view(map), c, r);
       },
       py::arg("map"), py::arg("center"), py::arg("radius"),
@@ -108,13 +111,16 @@ reads every visited cell through OctoMap's search, as the authors did (same answ
           path = plan_path(grid_view(map), a, b, r, max_expansions);
         }
         Points out(static_cast<Eigen::Index>(path.size()), 3);
-        for (std::size_t i = 0; i < path.size(); ++i) out.row(static_cast<Eigen::Index>(i)) = path[i];
+        for (std::size_t i = 0; i < path.size(); ++i)
+          out.row(static_cast<Eigen::Index>(i)) = path[i];
         return out;
       },
-      py::arg("map"), py::arg("a"), py::arg("b"), py::arg("radius"), py::arg("max_expansions") = 200000,
+      py::arg("map"), py::arg("a"), py::arg("b"), py::arg("radius"),
+      py::arg("max_expansions") = 200000,
       "A* through known free space; (P, 3) waypoints from a to b, or (0, 3) when there is none.");
   m.def("viewable_cells", &viewable_cells, py::arg("hfov_deg"), py::arg("vfov_deg"),
-        py::arg("min_range"), py::arg("max_range"), py::arg("resolution"), py::arg("count_partial") = true,
+        py::arg("min_range"), py::arg("max_range"), py::arg("resolution"),
+        py::arg("count_partial") = true,
         "C_view of Eq. 5: V_frustum / V_cell, or with count_partial the cells the frustum touches\n"
         "including partial boundary cells: vol(frustum (+) cell) / V_cell.");
   m.def(
@@ -124,7 +130,8 @@ reads every visited cell through OctoMap's search, as the authors did (same answ
         return py::make_tuple(c.rays_x, c.rays_y);
       },
       py::arg("hfov_deg"), py::arg("vfov_deg"), py::arg("max_range"), py::arg("resolution"),
-      "Rays (x, y) of one per map-resolution step on the far plane (47 x 34 at 0.2 m, 8 m, 60 x 45 deg).");
+      "Rays (x, y) of one per map-resolution step on the far plane (47 x 34 at 0.2 m, 8 m, 60 x 45 "
+      "deg).");
 }
 
 }  // namespace nbv::bind

@@ -37,7 +37,8 @@ Eigen::Isometry3d to_rigid(const Eigen::Matrix4d& M, const char* what) {
     throw std::invalid_argument(std::string(what) + " contains NaN or infinite values");
   const Eigen::Matrix3d R = M.topLeftCorner<3, 3>();
   if (!(R.transpose() * R).isApprox(Eigen::Matrix3d::Identity(), 1e-6) || R.determinant() < 0)
-    throw std::invalid_argument(std::string(what) + " is not a rigid transform (rotation part is not a rotation)");
+    throw std::invalid_argument(std::string(what) +
+                                " is not a rigid transform (rotation part is not a rotation)");
   if ((M.row(3) - Eigen::RowVector4d(0, 0, 0, 1)).cwiseAbs().maxCoeff() > 1e-9)
     throw std::invalid_argument(std::string(what) + " last row must be [0, 0, 0, 1]");
   Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
@@ -59,9 +60,7 @@ void set_num_threads(int n) {
   g_arena.reset();
 }
 
-int get_num_threads() {
-  return core_arena().max_concurrency();
-}
+int get_num_threads() { return core_arena().max_concurrency(); }
 
 tbb::task_arena& core_arena() {
   std::lock_guard<std::mutex> lock(g_arena_mutex);

@@ -108,7 +108,8 @@ void KdTree::build(std::size_t node, std::size_t begin, std::size_t end) {
     if (nd.hi[a] - nd.lo[a] > nd.hi[dim] - nd.lo[dim]) dim = a;
   const std::size_t mid = begin + m / 2;
   auto first = pts_.begin();
-  std::nth_element(first + static_cast<std::ptrdiff_t>(begin), first + static_cast<std::ptrdiff_t>(mid),
+  std::nth_element(first + static_cast<std::ptrdiff_t>(begin),
+                   first + static_cast<std::ptrdiff_t>(mid),
                    first + static_cast<std::ptrdiff_t>(end),
                    [dim](const Item& x, const Item& y) { return x.p[dim] < y.p[dim]; });
   const std::size_t left = node + 1, right = node + 1 + subtree_nodes(mid - begin);
@@ -289,7 +290,8 @@ const PointsRef& checked_gt(const PointsRef& gt, const EvaluationOptions& option
 Evaluator::Evaluator(const Mesh& gt, const EvaluationOptions& options)
     : Evaluator(sample_mesh(gt, options), options) {}
 
-Evaluator::Evaluator(std::pair<Points, EvaluationResult>&& sampled, const EvaluationOptions& options)
+Evaluator::Evaluator(std::pair<Points, EvaluationResult>&& sampled,
+                     const EvaluationOptions& options)
     : Evaluator(sampled.first, options, std::move(sampled.second)) {}
 
 Evaluator::Evaluator(const PointsRef& gt_points, const EvaluationOptions& options)
@@ -412,7 +414,8 @@ EvaluationResult Evaluator::evaluate(const PointsRef& cloud) const {
   return res;
 }
 
-EvaluationResult evaluate(const Mesh& gt, const PointsRef& cloud, const EvaluationOptions& options) {
+EvaluationResult evaluate(const Mesh& gt, const PointsRef& cloud,
+                          const EvaluationOptions& options) {
   require_finite(cloud, "cloud");
   return Evaluator(gt, options).evaluate(cloud);
 }

@@ -1,8 +1,8 @@
 #include "nbv/mesh.hpp"
 
-#include <assimp/Importer.hpp>
 #include <assimp/postprocess.h>
 #include <assimp/scene.h>
+#include <assimp/Importer.hpp>
 
 #include <algorithm>
 #include <cmath>
@@ -64,8 +64,8 @@ Points Mesh::sample_surface(std::size_t n, std::uint64_t seed, Eigen::VectorXi* 
   for (std::size_t s = 0; s < n; ++s) {
     const double r = U(rng) * acc;
     auto it = std::upper_bound(cdf.begin(), cdf.end(), r);
-    const auto f = static_cast<Eigen::Index>(std::min<std::ptrdiff_t>(
-        it - cdf.begin(), static_cast<std::ptrdiff_t>(cdf.size()) - 1));
+    const auto f = static_cast<Eigen::Index>(
+        std::min<std::ptrdiff_t>(it - cdf.begin(), static_cast<std::ptrdiff_t>(cdf.size()) - 1));
     const double u = U(rng), v = U(rng), su = std::sqrt(u);
     const double b0 = 1 - su, b1 = su * (1 - v), b2 = su * v;
     out.row(static_cast<Eigen::Index>(s)) = b0 * vertices.row(faces(f, 0)) +
@@ -91,7 +91,8 @@ Mesh load_mesh(const std::string& path, double scale, char up) {
   Assimp::Importer importer;
   // Keep the file's own axes: the caller says which way is up (also for Collada files).
   importer.SetPropertyBool(AI_CONFIG_IMPORT_COLLADA_IGNORE_UP_DIRECTION, true);
-  importer.SetPropertyInteger(AI_CONFIG_PP_SBP_REMOVE, aiPrimitiveType_POINT | aiPrimitiveType_LINE);
+  importer.SetPropertyInteger(AI_CONFIG_PP_SBP_REMOVE,
+                              aiPrimitiveType_POINT | aiPrimitiveType_LINE);
   const unsigned flags = aiProcess_Triangulate | aiProcess_PreTransformVertices |
                          aiProcess_SortByPType | aiProcess_JoinIdenticalVertices;
   const aiScene* scene = importer.ReadFile(path, flags);
@@ -117,7 +118,8 @@ Mesh load_mesh(const std::string& path, double scale, char up) {
     if (!(mesh->mPrimitiveTypes & aiPrimitiveType_TRIANGLE)) continue;
     for (unsigned v = 0; v < mesh->mNumVertices; ++v) {
       const aiVector3D& p = mesh->mVertices[v];
-      const Eigen::Vector3d q = y_up ? Eigen::Vector3d(p.x, -p.z, p.y) : Eigen::Vector3d(p.x, p.y, p.z);
+      const Eigen::Vector3d q =
+          y_up ? Eigen::Vector3d(p.x, -p.z, p.y) : Eigen::Vector3d(p.x, p.y, p.z);
       out.vertices.row(vbase + v) = scale * q;
     }
     for (unsigned f = 0; f < mesh->mNumFaces; ++f) {

@@ -24,7 +24,7 @@ namespace {
 using Key = octomap::OcTreeKey;
 using KeyHash = octomap::OcTreeKey::KeyHash;
 
-constexpr int kTreeMaxVal = 32768;           // OctoMap's tree_max_val at depth 16
+constexpr int kTreeMaxVal = 32768;                  // OctoMap's tree_max_val at depth 16
 constexpr double kFixedScale = 1125899906842624.0;  // 2^50: entropy fixed point, units per nat
 constexpr double kLn2 = 0.693147180559945309417232121458176568;
 constexpr double kSnap = 1e-6;  // bounds within this many cells of a grid plane snap to it
@@ -54,11 +54,13 @@ octomap::point3d row_point3d(const Row& r) {
 
 void check_integrate_args(const Eigen::Vector3d& origin, const PointsRef& hits,
                           const PointsRef& free_ends, double max_range) {
-  if (!origin.allFinite()) throw std::invalid_argument("sensor origin contains NaN or infinite values");
+  if (!origin.allFinite())
+    throw std::invalid_argument("sensor origin contains NaN or infinite values");
   require_finite(hits, "hit points");
   require_finite(free_ends, "free-space ray ends");
   if (std::isnan(max_range) || !(max_range > 0))
-    throw std::invalid_argument("max_range must be > 0 (inf = no limit), got " + std::to_string(max_range));
+    throw std::invalid_argument("max_range must be > 0 (inf = no limit), got " +
+                                std::to_string(max_range));
 }
 
 std::string lower_extension(const std::string& path) {
@@ -73,11 +75,12 @@ std::string lower_extension(const std::string& path) {
 
 void OccupancyMapOptions::validate() const {
   auto prob = [](double v, double lo, double hi, bool lo_open, bool hi_open, const char* name) {
-    const bool ok = std::isfinite(v) && (lo_open ? v > lo : v >= lo) && (hi_open ? v < hi : v <= hi);
+    const bool ok =
+        std::isfinite(v) && (lo_open ? v > lo : v >= lo) && (hi_open ? v < hi : v <= hi);
     if (!ok) {
       std::ostringstream s;
-      s << name << " must be in " << (lo_open ? "(" : "[") << lo << ", " << hi << (hi_open ? ")" : "]")
-        << ", got " << v;
+      s << name << " must be in " << (lo_open ? "(" : "[") << lo << ", " << hi
+        << (hi_open ? ")" : "]") << ", got " << v;
       throw std::invalid_argument(s.str());
     }
   };
@@ -133,23 +136,26 @@ void OccupancyMap::init_grid(const Eigen::Vector3d& bmin, const Eigen::Vector3d&
     throw std::invalid_argument("workspace bounds contain NaN or infinite values");
   for (int a = 0; a < 3; ++a)
     if (!(bmax[a] > bmin[a]))
-      throw std::invalid_argument("workspace bounds_max must exceed bounds_min on every axis, got " +
-                                  fmt_vec(bmin) + " - " + fmt_vec(bmax));
+      throw std::invalid_argument(
+          "workspace bounds_max must exceed bounds_min on every axis, got " + fmt_vec(bmin) +
+          " - " + fmt_vec(bmax));
   const double range_m = kTreeMaxVal * res_;
   std::int64_t kmin[3], kmax[3];
   for (int a = 0; a < 3; ++a) {
     const double lo = bmin[a] / res_, hi = bmax[a] / res_;
     if (std::fabs(lo) > 2.0 * kTreeMaxVal || std::fabs(hi) > 2.0 * kTreeMaxVal)
       throw std::invalid_argument("workspace bounds " + fmt_vec(bmin) + " - " + fmt_vec(bmax) +
-                                  " exceed OctoMap's addressable range +-" + std::to_string(range_m) +
-                                  " m at resolution " + std::to_string(res_));
+                                  " exceed OctoMap's addressable range +-" +
+                                  std::to_string(range_m) + " m at resolution " +
+                                  std::to_string(res_));
     kmin[a] = std::int64_t(std::floor(lo + kSnap));
     kmax[a] = std::int64_t(std::ceil(hi - kSnap));
     if (kmax[a] <= kmin[a]) kmax[a] = kmin[a] + 1;  // a box thinner than a cell: its one cell
     if (kmin[a] + kTreeMaxVal < 0 || kmax[a] + kTreeMaxVal > 2 * kTreeMaxVal)
       throw std::invalid_argument("workspace bounds " + fmt_vec(bmin) + " - " + fmt_vec(bmax) +
-                                  " exceed OctoMap's addressable range +-" + std::to_string(range_m) +
-                                  " m at resolution " + std::to_string(res_));
+                                  " exceed OctoMap's addressable range +-" +
+                                  std::to_string(range_m) + " m at resolution " +
+                                  std::to_string(res_));
   }
   const std::int64_t nx = kmax[0] - kmin[0], ny = kmax[1] - kmin[1], nz = kmax[2] - kmin[2];
   const double cells = double(nx) * double(ny) * double(nz);
@@ -179,7 +185,8 @@ void OccupancyMap::apply_tree_params() {
 // ---- grid ----------------------------------------------------------------------------------
 
 Eigen::Vector3d OccupancyMap::bounds_min() const {
-  return Eigen::Vector3d((int(min_key_[0]) - kTreeMaxVal) * res_, (int(min_key_[1]) - kTreeMaxVal) * res_,
+  return Eigen::Vector3d((int(min_key_[0]) - kTreeMaxVal) * res_,
+                         (int(min_key_[1]) - kTreeMaxVal) * res_,
                          (int(min_key_[2]) - kTreeMaxVal) * res_);
 }
 
@@ -194,7 +201,8 @@ bool OccupancyMap::coord_to_key(const Eigen::Vector3d& p, Key& key) const {
 }
 
 Eigen::Vector3d OccupancyMap::key_to_coord(const Key& key) const {
-  return Eigen::Vector3d(tree_->keyToCoord(key[0]), tree_->keyToCoord(key[1]), tree_->keyToCoord(key[2]));
+  return Eigen::Vector3d(tree_->keyToCoord(key[0]), tree_->keyToCoord(key[1]),
+                         tree_->keyToCoord(key[2]));
 }
 
 OccupancyMap::Key OccupancyMap::key_at(std::int64_t index) const {
@@ -207,7 +215,8 @@ OccupancyMap::Key OccupancyMap::key_at(std::int64_t index) const {
 // ---- entropy and mirror bookkeeping ---------------------------------------------------------
 
 double OccupancyMap::entropy_nats_of_known(float logodds) const {
-  if (opt_.clamped_entropy_zero && (logodds <= clamp_min_log_ || logodds >= clamp_max_log_)) return 0.0;
+  if (opt_.clamped_entropy_zero && (logodds <= clamp_min_log_ || logodds >= clamp_max_log_))
+    return 0.0;
   return binary_entropy_nats(double(logodds));
 }
 
@@ -260,7 +269,8 @@ float OccupancyMap::mirror_entropy(float logodds, CellFlag flag) const {
 std::int64_t OccupancyMap::cached_fixed_entropy(float logodds) {
   std::uint32_t bits;
   std::memcpy(&bits, &logodds, sizeof bits);
-  EntropyCacheEntry& e = entropy_cache_[(bits ^ (bits >> 13) ^ (bits >> 23)) & (entropy_cache_.size() - 1)];
+  EntropyCacheEntry& e =
+      entropy_cache_[(bits ^ (bits >> 13) ^ (bits >> 23)) & (entropy_cache_.size() - 1)];
   if (e.bits != bits) {
     e.bits = bits;
     e.fixed = fixed_entropy(logodds, CellFlag::Observed);
@@ -334,8 +344,9 @@ void OccupancyMap::rebuild_mirror_from_tree() {
     const float l = it->getLogOdds();
     for (int z = b[2]; z < e[2]; ++z)
       for (int y = b[1]; y < e[1]; ++y) {
-        const std::size_t row = std::size_t(z - lo[2]) * std::size_t(dims_[1]) * std::size_t(dims_[0]) +
-                                std::size_t(y - lo[1]) * std::size_t(dims_[0]);
+        const std::size_t row =
+            std::size_t(z - lo[2]) * std::size_t(dims_[1]) * std::size_t(dims_[0]) +
+            std::size_t(y - lo[1]) * std::size_t(dims_[0]);
         for (int x = b[0]; x < e[0]; ++x) {
           logodds_[row + std::size_t(x - lo[0])] = l;
           flags_[row + std::size_t(x - lo[0])] = CellFlag::Observed;
@@ -356,8 +367,10 @@ void OccupancyMap::FreeDeleter::operator()(void* p) const noexcept { std::free(p
 
 void OccupancyMap::ensure_scratch() {
   if (stamp_) return;
-  stamp_.reset(static_cast<std::uint32_t*>(std::calloc(std::size_t(num_cells_), sizeof(std::uint32_t))));
-  group_of_.reset(static_cast<std::int32_t*>(std::malloc(std::size_t(num_cells_) * sizeof(std::int32_t))));
+  stamp_.reset(
+      static_cast<std::uint32_t*>(std::calloc(std::size_t(num_cells_), sizeof(std::uint32_t))));
+  group_of_.reset(
+      static_cast<std::int32_t*>(std::malloc(std::size_t(num_cells_) * sizeof(std::int32_t))));
   if (!stamp_ || !group_of_) throw std::bad_alloc();
   stamp_counter_ = 0;
 }
@@ -451,7 +464,8 @@ void OccupancyMap::apply_updates(const std::vector<Key>& misses, const std::vect
   for (const Key& k : misses) add(k, false);
   for (const Key& k : hits) add(k, true);
   if (ups.empty()) return;
-  std::sort(ups.begin(), ups.end(), [](const Update& a, const Update& b) { return a.code < b.code; });
+  std::sort(ups.begin(), ups.end(),
+            [](const Update& a, const Update& b) { return a.code < b.code; });
   for (const Update& u : ups) {
     if (u.idx >= 0) {
       const octomap::OcTreeNode* node = tree_->setNodeValue(u.key, u.value, true);
@@ -694,7 +708,8 @@ IntegrationStats OccupancyMap::integrate(const Eigen::Vector3d& origin, const Po
           std::uint32_t* st = stamps + idx;
           std::uint32_t cur = __atomic_load_n(st, __ATOMIC_RELAXED);
           while (cur != s_occ && cur != s_free) {
-            if (__atomic_compare_exchange_n(st, &cur, s_free, false, __ATOMIC_RELAXED, __ATOMIC_RELAXED)) {
+            if (__atomic_compare_exchange_n(st, &cur, s_free, false, __ATOMIC_RELAXED,
+                                            __ATOMIC_RELAXED)) {
               out.push_back(key);
               break;
             }
@@ -769,8 +784,10 @@ IntegrationStats OccupancyMap::integrate_exact(const Eigen::Vector3d& origin, co
   return stats;
 }
 
-std::size_t OccupancyMap::mark_free_segment(const Eigen::Vector3d& a, const Eigen::Vector3d& b, double radius) {
-  if (!a.allFinite() || !b.allFinite()) throw std::invalid_argument("segment ends contain NaN or infinite values");
+std::size_t OccupancyMap::mark_free_segment(const Eigen::Vector3d& a, const Eigen::Vector3d& b,
+                                            double radius) {
+  if (!a.allFinite() || !b.allFinite())
+    throw std::invalid_argument("segment ends contain NaN or infinite values");
   if (!std::isfinite(radius) || radius < 0)
     throw std::invalid_argument("radius must be finite and >= 0, got " + std::to_string(radius));
   Key ka, kb;
@@ -780,8 +797,10 @@ std::size_t OccupancyMap::mark_free_segment(const Eigen::Vector3d& a, const Eige
   Key klo, khi;
   if (!coord_to_key(lo, klo) || !coord_to_key(hi, khi))
     throw std::invalid_argument("segment and radius reach outside OctoMap's addressable range");
-  const double cells = double(khi[0] - klo[0] + 1) * double(khi[1] - klo[1] + 1) * double(khi[2] - klo[2] + 1);
-  if (cells > 1e8) throw std::invalid_argument("mark_free_segment: the segment's box holds too many cells");
+  const double cells =
+      double(khi[0] - klo[0] + 1) * double(khi[1] - klo[1] + 1) * double(khi[2] - klo[2] + 1);
+  if (cells > 1e8)
+    throw std::invalid_argument("mark_free_segment: the segment's box holds too many cells");
   const Eigen::Vector3d ab = b - a;
   const double len2 = ab.squaredNorm();
   // Only cells never observed (and, when clipping, inside the workspace): the vehicle's own volume
@@ -812,7 +831,8 @@ std::size_t OccupancyMap::mark_free_segment(const Eigen::Vector3d& a, const Eige
 std::size_t OccupancyMap::set_unknown_cells(const PointsRef& points, double probability) {
   require_finite(points, "predicted points");
   if (!std::isfinite(probability) || !(probability > 0.0) || !(probability < 1.0))
-    throw std::invalid_argument("probability must be in (0, 1), got " + std::to_string(probability));
+    throw std::invalid_argument("probability must be in (0, 1), got " +
+                                std::to_string(probability));
   const float l = octomap::logodds(probability);
   std::size_t set = 0;
   for (Eigen::Index r = 0; r < points.rows(); ++r) {
@@ -880,7 +900,8 @@ template <typename Out, typename F>
 void map_points(const PointsRef& points, Out& out, const F& f) {
   out.resize(points.rows());
   parallel_chunks(std::size_t(points.rows()), 4096, [&](std::size_t b, std::size_t e) {
-    for (std::size_t i = b; i < e; ++i) out[Eigen::Index(i)] = f(Eigen::Vector3d(points.row(Eigen::Index(i))));
+    for (std::size_t i = b; i < e; ++i)
+      out[Eigen::Index(i)] = f(Eigen::Vector3d(points.row(Eigen::Index(i))));
   });
 }
 }  // namespace
@@ -919,7 +940,8 @@ Points OccupancyMap::occupied_cells() const {
   for (std::int64_t i = 0; i < num_cells_; ++i)
     if (state_at(i) == CellState::Occupied) idx.push_back(i);
   Points out(Eigen::Index(idx.size()), 3);
-  for (std::size_t r = 0; r < idx.size(); ++r) out.row(Eigen::Index(r)) = key_to_coord(key_at(idx[r])).transpose();
+  for (std::size_t r = 0; r < idx.size(); ++r)
+    out.row(Eigen::Index(r)) = key_to_coord(key_at(idx[r])).transpose();
   return out;
 }
 
@@ -953,13 +975,15 @@ void OccupancyMap::save(const std::string& path) const {
   if (!ok) throw std::runtime_error("could not write map file '" + path + "'");
 }
 
-OccupancyMap OccupancyMap::load(const std::string& path, const std::optional<Eigen::Vector3d>& bounds_min,
+OccupancyMap OccupancyMap::load(const std::string& path,
+                                const std::optional<Eigen::Vector3d>& bounds_min,
                                 const std::optional<Eigen::Vector3d>& bounds_max,
                                 const OccupancyMapOptions& options) {
   options.validate();
   const std::string ext = lower_extension(path);
   if (ext != ".ot" && ext != ".bt")
-    throw std::invalid_argument("map file '" + path + "': unknown extension '" + ext + "' (expected .ot or .bt)");
+    throw std::invalid_argument("map file '" + path + "': unknown extension '" + ext +
+                                "' (expected .ot or .bt)");
   std::error_code ec;
   if (!std::filesystem::exists(path, ec)) throw FileNotFound(path);
   if (std::filesystem::is_directory(path, ec))
@@ -979,7 +1003,8 @@ OccupancyMap OccupancyMap::load(const std::string& path, const std::optional<Eig
   if (ext == ".ot") {
     std::unique_ptr<octomap::AbstractOcTree> abstract(octomap::AbstractOcTree::read(path));
     if (!abstract)
-      throw std::invalid_argument("map file '" + path + "' is not a readable OctoMap .ot file" + cerr_capture.why());
+      throw std::invalid_argument("map file '" + path + "' is not a readable OctoMap .ot file" +
+                                  cerr_capture.why());
     auto* oc = dynamic_cast<octomap::OcTree*>(abstract.get());
     if (!oc)
       throw std::invalid_argument("map file '" + path + "' holds a " + abstract->getTreeType() +
@@ -989,13 +1014,15 @@ OccupancyMap OccupancyMap::load(const std::string& path, const std::optional<Eig
   } else {
     tree = std::make_unique<octomap::OcTree>(0.1);
     if (!tree->readBinary(path))
-      throw std::invalid_argument("map file '" + path + "' is not a readable OctoMap .bt file" + cerr_capture.why());
+      throw std::invalid_argument("map file '" + path + "' is not a readable OctoMap .bt file" +
+                                  cerr_capture.why());
   }
   Eigen::Vector3d bmin, bmax;
   if (!bounds_min || !bounds_max) {
     if (tree->size() == 0)
-      throw std::invalid_argument("map file '" + path +
-                                  "' holds no cells: pass bounds_min and bounds_max for the workspace");
+      throw std::invalid_argument(
+          "map file '" + path +
+          "' holds no cells: pass bounds_min and bounds_max for the workspace");
     double x, y, z;
     const octomap::OcTree& ct = *tree;
     ct.getMetricMin(x, y, z);

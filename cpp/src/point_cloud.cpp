@@ -1,8 +1,8 @@
 #include "nbv/point_cloud.hpp"
 #include "nbv/parallel.hpp"
 
-#include <atomic>
 #include <algorithm>
+#include <atomic>
 #include <cmath>
 #include <string>
 
@@ -62,8 +62,9 @@ void SurfaceCloudOptions::validate() const {
     throw std::invalid_argument("voxel_size must be a positive number of metres, got " +
                                 std::to_string(voxel_size));
   if (std::isnan(min_z) || min_z == std::numeric_limits<double>::infinity())
-    throw std::invalid_argument("min_z must be a number of metres or -inf (no ground removal), got " +
-                                std::to_string(min_z));
+    throw std::invalid_argument(
+        "min_z must be a number of metres or -inf (no ground removal), got " +
+        std::to_string(min_z));
   if (crop) {
     if (!crop_min.allFinite() || !crop_max.allFinite())
       throw std::invalid_argument("crop box contains NaN or infinite values");

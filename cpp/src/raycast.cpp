@@ -29,16 +29,16 @@ RaycastScene::RaycastScene(const Mesh& mesh, const RaycastOptions& options) : me
   if (!device_) throw std::runtime_error("Embree: cannot create a device");
   rtcSetDeviceErrorFunction(device_, device_error, nullptr);
   scene_ = rtcNewScene(device_);
-  rtcSetSceneBuildQuality(scene_, options.high_quality_bvh ? RTC_BUILD_QUALITY_HIGH
-                                                           : RTC_BUILD_QUALITY_MEDIUM);
+  rtcSetSceneBuildQuality(
+      scene_, options.high_quality_bvh ? RTC_BUILD_QUALITY_HIGH : RTC_BUILD_QUALITY_MEDIUM);
   rtcSetSceneFlags(scene_, RTC_SCENE_FLAG_ROBUST);
   RTCGeometry geom = rtcNewGeometry(device_, RTC_GEOMETRY_TYPE_TRIANGLE);
   const auto nv = static_cast<std::size_t>(mesh_.vertices.rows());
   const auto nf = static_cast<std::size_t>(mesh_.faces.rows());
   auto* v = static_cast<float*>(rtcSetNewGeometryBuffer(geom, RTC_BUFFER_TYPE_VERTEX, 0,
                                                         RTC_FORMAT_FLOAT3, 3 * sizeof(float), nv));
-  auto* f = static_cast<unsigned*>(rtcSetNewGeometryBuffer(geom, RTC_BUFFER_TYPE_INDEX, 0,
-                                                           RTC_FORMAT_UINT3, 3 * sizeof(unsigned), nf));
+  auto* f = static_cast<unsigned*>(rtcSetNewGeometryBuffer(
+      geom, RTC_BUFFER_TYPE_INDEX, 0, RTC_FORMAT_UINT3, 3 * sizeof(unsigned), nf));
   check(device_, "rtcSetNewGeometryBuffer");
   for (std::size_t i = 0; i < nv; ++i)
     for (int k = 0; k < 3; ++k) v[3 * i + k] = static_cast<float>(mesh_.vertices(i, k));
@@ -67,7 +67,8 @@ double RaycastScene::refine(const Eigen::Vector3d& o, const Eigen::Vector3d& d, 
   if (std::abs(den) < 1e-300) return t_float;
   const double t = n.dot(a - o) / den;
   // Guard against a degenerate plane: keep Embree's value if the refinement moved far.
-  return (std::isfinite(t) && std::abs(t - t_float) <= 1e-3 * (1.0 + std::abs(t_float))) ? t : t_float;
+  return (std::isfinite(t) && std::abs(t - t_float) <= 1e-3 * (1.0 + std::abs(t_float))) ? t
+                                                                                         : t_float;
 }
 
 void RaycastScene::intersect(const PointsRef& origins, const PointsRef& directions, double t_near,
@@ -82,7 +83,8 @@ void RaycastScene::intersect(const PointsRef& origins, const PointsRef& directio
   t.setConstant(n, std::numeric_limits<double>::infinity());
   prim.setConstant(n, -1);
   const bool shared = origins.rows() == 1;
-  const float tf = std::isfinite(t_far) ? static_cast<float>(t_far) : std::numeric_limits<float>::infinity();
+  const float tf =
+      std::isfinite(t_far) ? static_cast<float>(t_far) : std::numeric_limits<float>::infinity();
   parallel_chunks(static_cast<std::size_t>(n), 256, [&](std::size_t b, std::size_t e) {
     RTCIntersectContext ctx;
     rtcInitIntersectContext(&ctx);
@@ -118,7 +120,8 @@ void RaycastScene::intersect(const PointsRef& origins, const PointsRef& directio
 
 void RaycastScene::intersect_coherent(const Eigen::Vector3d& o, const Eigen::Matrix3d& R,
                                       const Points& dirs_sensor, const Eigen::VectorXd& t_far,
-                                      Eigen::VectorXd& t, Eigen::VectorXi& prim, bool parallel) const {
+                                      Eigen::VectorXd& t, Eigen::VectorXi& prim,
+                                      bool parallel) const {
   const Eigen::Index n = dirs_sensor.rows();
   t.setConstant(n, std::numeric_limits<double>::infinity());
   prim.setConstant(n, -1);

@@ -65,12 +65,14 @@ void DepthCameraOptions::validate() const {
   require(std::isfinite(vfov_deg) && vfov_deg > 0 && vfov_deg < 180,
           "camera vfov_deg must be in (0, 180)");
   require(std::isfinite(min_range) && min_range >= 0, "camera min_range must be >= 0");
-  require(std::isfinite(max_range) && max_range > min_range, "camera max_range must exceed min_range");
+  require(std::isfinite(max_range) && max_range > min_range,
+          "camera max_range must exceed min_range");
   require(std::isfinite(noise_k) && noise_k >= 0, "camera noise_k must be >= 0");
   require(mount.matrix().allFinite(), "camera mount contains NaN or infinite values");
 }
 
-DepthCamera::DepthCamera(std::shared_ptr<const RaycastScene> scene, const DepthCameraOptions& options)
+DepthCamera::DepthCamera(std::shared_ptr<const RaycastScene> scene,
+                         const DepthCameraOptions& options)
     : scene_(std::move(scene)), opt_(options) {
   if (!scene_) throw std::invalid_argument("camera needs a scene");
   opt_.validate();
@@ -101,7 +103,8 @@ DepthCamera::DepthCamera(std::shared_ptr<const RaycastScene> scene, const DepthC
 }
 
 double DepthCamera::frustum_volume() const {
-  const double a = 4.0 * std::tan(opt_.hfov_deg * M_PI / 360.0) * std::tan(opt_.vfov_deg * M_PI / 360.0);
+  const double a =
+      4.0 * std::tan(opt_.hfov_deg * M_PI / 360.0) * std::tan(opt_.vfov_deg * M_PI / 360.0);
   return a / 3.0 * (std::pow(opt_.max_range, 3) - std::pow(opt_.min_range, 3));
 }
 
@@ -159,16 +162,19 @@ int LaserScannerOptions::num_beams() const {
 }
 
 void LaserScannerOptions::validate() const {
-  require(std::isfinite(fov_deg) && fov_deg > 0 && fov_deg <= 360, "laser fov_deg must be in (0, 360]");
+  require(std::isfinite(fov_deg) && fov_deg > 0 && fov_deg <= 360,
+          "laser fov_deg must be in (0, 360]");
   require(std::isfinite(resolution_deg) && resolution_deg > 0 && resolution_deg <= fov_deg,
           "laser resolution_deg must be in (0, fov_deg]");
   require(std::isfinite(min_range) && min_range >= 0, "laser min_range must be >= 0");
-  require(std::isfinite(max_range) && max_range > min_range, "laser max_range must exceed min_range");
+  require(std::isfinite(max_range) && max_range > min_range,
+          "laser max_range must exceed min_range");
   require(std::isfinite(noise_sigma) && noise_sigma >= 0, "laser noise_sigma must be >= 0");
   require(mount.matrix().allFinite(), "laser mount contains NaN or infinite values");
 }
 
-LaserScanner::LaserScanner(std::shared_ptr<const RaycastScene> scene, const LaserScannerOptions& options)
+LaserScanner::LaserScanner(std::shared_ptr<const RaycastScene> scene,
+                           const LaserScannerOptions& options)
     : scene_(std::move(scene)), opt_(options) {
   if (!scene_) throw std::invalid_argument("laser needs a scene");
   opt_.validate();
@@ -211,7 +217,8 @@ Scan LaserScanner::scan(const Eigen::Isometry3d& T) const {
       continue;
     }
     double r = t[i];
-    if (opt_.noise_sigma > 0) r += opt_.noise_sigma * counter_normal(opt_.seed, frame, static_cast<std::uint64_t>(i));
+    if (opt_.noise_sigma > 0)
+      r += opt_.noise_sigma * counter_normal(opt_.seed, frame, static_cast<std::uint64_t>(i));
     if (r < opt_.min_range * (1 - 1e-9) || r > opt_.max_range * (1 + 1e-9)) continue;
     state[i] = 1;
     pts[i] = o + dw * r;

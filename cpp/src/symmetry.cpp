@@ -77,9 +77,12 @@ SymmetryKeypoints symmetry_keypoints_from_string(const std::string& name) {
 
 std::string to_string(SymmetryKeypoints k) {
   switch (k) {
-    case SymmetryKeypoints::Sift: return "sift";
-    case SymmetryKeypoints::Iss: return "iss";
-    case SymmetryKeypoints::Uniform: return "uniform";
+    case SymmetryKeypoints::Sift:
+      return "sift";
+    case SymmetryKeypoints::Iss:
+      return "iss";
+    case SymmetryKeypoints::Uniform:
+      return "uniform";
   }
   return "?";
 }
@@ -88,18 +91,22 @@ void SymmetryOptions::validate() const {
   auto fin = [](double v) { return std::isfinite(v); };
   require(fin(voxel_size) && voxel_size >= 0, "voxel_size must be >= 0 metres (0 disables)");
   require(normal_k >= 3, "normal_k must be >= 3");
-  require(fin(normal_radius) && normal_radius >= 0, "normal_radius must be >= 0 metres (0: use normal_k)");
+  require(fin(normal_radius) && normal_radius >= 0,
+          "normal_radius must be >= 0 metres (0: use normal_k)");
   require(fin(sift_min_scale) && sift_min_scale > 0, "sift_min_scale must be > 0 metres");
   require(sift_octaves >= 1, "sift_octaves must be >= 1");
   require(sift_scales_per_octave >= 1, "sift_scales_per_octave must be >= 1");
   require(fin(sift_min_contrast) && sift_min_contrast >= 0, "sift_min_contrast must be >= 0");
-  require(fin(iss_salient_radius) && iss_salient_radius > 0, "iss_salient_radius must be > 0 metres");
-  require(fin(iss_non_max_radius) && iss_non_max_radius > 0, "iss_non_max_radius must be > 0 metres");
+  require(fin(iss_salient_radius) && iss_salient_radius > 0,
+          "iss_salient_radius must be > 0 metres");
+  require(fin(iss_non_max_radius) && iss_non_max_radius > 0,
+          "iss_non_max_radius must be > 0 metres");
   require(fin(uniform_leaf) && uniform_leaf > 0, "uniform_leaf must be > 0 metres");
   require(fin(fpfh_radius) && fpfh_radius > 0, "fpfh_radius must be > 0 metres");
   require(!std::isnan(max_descriptor_distance) && max_descriptor_distance > 0,
           "max_descriptor_distance must be > 0 (inf: no limit)");
-  require(fin(min_pair_distance) && min_pair_distance >= 0, "min_pair_distance must be >= 0 metres");
+  require(fin(min_pair_distance) && min_pair_distance >= 0,
+          "min_pair_distance must be >= 0 metres");
   require(fin(max_normal_angle_deg) && max_normal_angle_deg > 0 && max_normal_angle_deg <= 180,
           "max_normal_angle_deg must be in (0, 180]");
   require(matches_per_keypoint >= 1, "matches_per_keypoint must be >= 1");
@@ -109,26 +116,35 @@ void SymmetryOptions::validate() const {
   require(candidate_modes >= 1, "candidate_modes must be >= 1");
   require(refine_iterations >= 0, "refine_iterations must be >= 0");
   require(refine_max_points >= 100, "refine_max_points must be >= 100");
-  require(fin(refine_max_distance) && refine_max_distance > 0, "refine_max_distance must be > 0 metres");
-  require(fin(consistency_radius) && consistency_radius > 0, "consistency_radius must be > 0 metres");
-  require(fin(consistency_tolerance) && consistency_tolerance > 0, "consistency_tolerance must be > 0 metres");
+  require(fin(refine_max_distance) && refine_max_distance > 0,
+          "refine_max_distance must be > 0 metres");
+  require(fin(consistency_radius) && consistency_radius > 0,
+          "consistency_radius must be > 0 metres");
+  require(fin(consistency_tolerance) && consistency_tolerance > 0,
+          "consistency_tolerance must be > 0 metres");
   require(fin(facing_angle_deg) && facing_angle_deg > 0 && facing_angle_deg <= 90,
           "facing_angle_deg must be in (0, 90]");
   require(min_support >= 1, "min_support must be >= 1");
-  require(fin(min_confidence) && min_confidence >= 0 && min_confidence <= 1, "min_confidence must be in [0, 1]");
+  require(fin(min_confidence) && min_confidence >= 0 && min_confidence <= 1,
+          "min_confidence must be in [0, 1]");
 }
 
 void SymmetricPredictionOptions::validate() const {
   auto fin = [](double v) { return std::isfinite(v); };
   require(fin(voxel_size) && voxel_size >= 0, "voxel_size must be >= 0 metres (0 disables)");
   require(normal_k >= 3, "normal_k must be >= 3");
-  require(fin(icp_max_correspondence) && icp_max_correspondence > 0, "icp_max_correspondence must be > 0 metres");
-  require(fin(icp_transformation_epsilon) && icp_transformation_epsilon >= 0, "icp_transformation_epsilon must be >= 0");
+  require(fin(icp_max_correspondence) && icp_max_correspondence > 0,
+          "icp_max_correspondence must be > 0 metres");
+  require(fin(icp_transformation_epsilon) && icp_transformation_epsilon >= 0,
+          "icp_transformation_epsilon must be >= 0");
   require(fin(icp_fitness_epsilon) && icp_fitness_epsilon >= 0, "icp_fitness_epsilon must be >= 0");
   require(icp_max_iterations >= 1, "icp_max_iterations must be >= 1");
-  require(fin(max_correction_angle_deg) && max_correction_angle_deg >= 0, "max_correction_angle_deg must be >= 0");
-  require(fin(max_correction_offset) && max_correction_offset >= 0, "max_correction_offset must be >= 0 metres");
-  require(fin(explained_tolerance) && explained_tolerance >= 0, "explained_tolerance must be >= 0 metres");
+  require(fin(max_correction_angle_deg) && max_correction_angle_deg >= 0,
+          "max_correction_angle_deg must be >= 0");
+  require(fin(max_correction_offset) && max_correction_offset >= 0,
+          "max_correction_offset must be >= 0 metres");
+  require(fin(explained_tolerance) && explained_tolerance >= 0,
+          "explained_tolerance must be >= 0 metres");
 }
 
 // ---------------------------------------------------------------------------- geometry
@@ -172,7 +188,8 @@ Points reflect_points(const PointsRef& points, const Eigen::Vector4d& plane) {
   return out;
 }
 
-Eigen::Vector4d plane_from_improper_isometry(const Eigen::Matrix4d& M, double* residual_rotation_deg) {
+Eigen::Vector4d plane_from_improper_isometry(const Eigen::Matrix4d& M,
+                                             double* residual_rotation_deg) {
   require(M.allFinite(), "transform must be finite");
   const Eigen::Matrix3d A = M.topLeftCorner<3, 3>();
   const Eigen::Vector3d t = M.topRightCorner<3, 1>();
@@ -196,7 +213,8 @@ double plane_angle_deg(const Eigen::Vector4d& a, const Eigen::Vector4d& b) {
   return std::acos(std::min(1.0, c)) * 180.0 / kPi;
 }
 
-double plane_offset_at(const Eigen::Vector4d& a, const Eigen::Vector4d& b, const Eigen::Vector3d& c) {
+double plane_offset_at(const Eigen::Vector4d& a, const Eigen::Vector4d& b,
+                       const Eigen::Vector3d& c) {
   const Eigen::Vector4d pa = canonical_plane(a), pb = canonical_plane(b);
   // c's projection on a, then its distance to b.
   const Eigen::Vector3d on_a = c - (pa.head<3>().dot(c) - pa[3]) * pa.head<3>();
@@ -219,7 +237,8 @@ Points voxel_downsample(const PointsRef& points, double leaf) {
   std::vector<std::uint32_t> count;
   for (Eigen::Index i = 0; i < points.rows(); ++i) {
     const Eigen::Vector3d p = points.row(i).transpose();
-    const auto [slot, inserted] = index.insert(voxel_key(p, leaf), static_cast<std::uint32_t>(sum.size()));
+    const auto [slot, inserted] =
+        index.insert(voxel_key(p, leaf), static_cast<std::uint32_t>(sum.size()));
     if (inserted) {
       sum.push_back(p);
       count.push_back(1);
@@ -234,9 +253,9 @@ Points voxel_downsample(const PointsRef& points, double leaf) {
   return out;
 }
 
-Eigen::Vector4d refine_plane(const PointsRef& points, const NearestNeighbors& tree, const Points& normals,
-                             const Eigen::Vector4d& plane, int iterations, double max_distance,
-                             double min_distance) {
+Eigen::Vector4d refine_plane(const PointsRef& points, const NearestNeighbors& tree,
+                             const Points& normals, const Eigen::Vector4d& plane, int iterations,
+                             double max_distance, double min_distance) {
   const Points& targets = tree.targets();
   Eigen::Vector4d pl = canonical_plane(plane);
   for (int it = 0; it < iterations; ++it) {
@@ -259,8 +278,8 @@ Eigen::Vector4d refine_plane(const PointsRef& points, const NearestNeighbors& tr
       const double res = m.dot(R.row(i).transpose() - targets.row(idx[i]).transpose());
       // dS/dn along e: -2 ((e.p) n + s e); dS/dd: 2 n
       const double mn = m.dot(n);
-      const Eigen::Vector3d J(-2.0 * (e1.dot(p) * mn + s * m.dot(e1)), -2.0 * (e2.dot(p) * mn + s * m.dot(e2)),
-                              2.0 * mn);
+      const Eigen::Vector3d J(-2.0 * (e1.dot(p) * mn + s * m.dot(e1)),
+                              -2.0 * (e2.dot(p) * mn + s * m.dot(e2)), 2.0 * mn);
       // Huber weight at a quarter of the radius: stripes of other surfaces should not pull.
       const double k = 0.25 * r, w = std::abs(res) <= k ? 1.0 : k / std::abs(res);
       H += w * J * J.transpose();
@@ -283,22 +302,25 @@ Eigen::Vector4d refine_plane(const PointsRef& points, const NearestNeighbors& tr
   return canonical_plane(pl);
 }
 
-Consistency mirror_consistency(const PointsRef& points, const Points& normals, const NearestNeighbors& tree,
-                               const Points& target_normals, const Eigen::Vector4d& plane, double radius,
-                               double tolerance, double facing_angle_deg) {
+Consistency mirror_consistency(const PointsRef& points, const Points& normals,
+                               const NearestNeighbors& tree, const Points& target_normals,
+                               const Eigen::Vector4d& plane, double radius, double tolerance,
+                               double facing_angle_deg) {
   Consistency out;
   const Points& targets = tree.targets();
   const Eigen::Vector4d pl = canonical_plane(plane);
   const Eigen::Vector3d n = pl.head<3>();
   // 90 degrees counts every point, including those without a normal.
-  const double cos_facing = facing_angle_deg >= 90.0 ? -1.0 : std::cos(facing_angle_deg * kPi / 180.0);
+  const double cos_facing =
+      facing_angle_deg >= 90.0 ? -1.0 : std::cos(facing_angle_deg * kPi / 180.0);
   std::vector<Eigen::Index> far;
   far.reserve(static_cast<std::size_t>(points.rows()));
   for (Eigen::Index i = 0; i < points.rows(); ++i)
     if (2.0 * std::abs(points.row(i).dot(n) - pl[3]) > radius) far.push_back(i);
   if (far.empty()) return out;
   Points F(static_cast<Eigen::Index>(far.size()), 3);
-  for (std::size_t k = 0; k < far.size(); ++k) F.row(static_cast<Eigen::Index>(k)) = points.row(far[k]);
+  for (std::size_t k = 0; k < far.size(); ++k)
+    F.row(static_cast<Eigen::Index>(k)) = points.row(far[k]);
   const Points R = reflect_points(F, pl);
   const auto [idx, dist] = tree.query(R);
   Eigen::Index ok = 0, ok_facing = 0, facing = 0;
@@ -330,7 +352,8 @@ PlaneClusters mean_shift_planes(const Planes& planes, const Eigen::Vector3d& cen
                                 double bandwidth, int seeds, int max_iterations) {
   require(center.allFinite(), "mean shift center must be finite");
   require(std::isfinite(scale) && scale > 0, "mean shift scale must be > 0 metres");
-  require(std::isfinite(bandwidth) && bandwidth > 0 && bandwidth < 1, "bandwidth must be in (0, 1)");
+  require(std::isfinite(bandwidth) && bandwidth > 0 && bandwidth < 1,
+          "bandwidth must be in (0, 1)");
   require(seeds >= 1 && max_iterations >= 1, "seeds and max_iterations must be >= 1");
   PlaneClusters out;
   const Eigen::Index P = planes.rows();
@@ -369,7 +392,8 @@ PlaneClusters mean_shift_planes(const Planes& planes, const Eigen::Vector3d& cen
   });
   std::vector<std::size_t> order(V);
   std::iota(order.begin(), order.end(), 0);
-  std::stable_sort(order.begin(), order.end(), [&](std::size_t a, std::size_t b) { return density[a] > density[b]; });
+  std::stable_sort(order.begin(), order.end(),
+                   [&](std::size_t a, std::size_t b) { return density[a] > density[b]; });
   std::vector<std::size_t> seed_ids;
   for (std::size_t i : order) {
     if (static_cast<int>(seed_ids.size()) >= seeds) break;
@@ -416,7 +440,8 @@ PlaneClusters mean_shift_planes(const Planes& planes, const Eigen::Vector3d& cen
       modes[s] = {q, support};
     }
   });
-  std::stable_sort(modes.begin(), modes.end(), [](const Mode& a, const Mode& b) { return a.support > b.support; });
+  std::stable_sort(modes.begin(), modes.end(),
+                   [](const Mode& a, const Mode& b) { return a.support > b.support; });
   std::vector<Mode> distinct;
   for (const auto& m : modes) {
     bool dup = false;
@@ -442,9 +467,12 @@ PlaneClusters mean_shift_planes(const Planes& planes, const Eigen::Vector3d& cen
   return out;
 }
 
-Eigen::Matrix<bool, Eigen::Dynamic, 1> plane_votes(const Planes& planes, const Eigen::Vector4d& mode,
-                                                   const Eigen::Vector3d& center, double scale, double bandwidth) {
-  Eigen::Matrix<bool, Eigen::Dynamic, 1> out = Eigen::Matrix<bool, Eigen::Dynamic, 1>::Constant(planes.rows(), false);
+Eigen::Matrix<bool, Eigen::Dynamic, 1> plane_votes(const Planes& planes,
+                                                   const Eigen::Vector4d& mode,
+                                                   const Eigen::Vector3d& center, double scale,
+                                                   double bandwidth) {
+  Eigen::Matrix<bool, Eigen::Dynamic, 1> out =
+      Eigen::Matrix<bool, Eigen::Dynamic, 1>::Constant(planes.rows(), false);
   auto vote = [&](const Eigen::Vector4d& p, Eigen::Vector4d& v) {
     const double len = p.head<3>().norm();
     if (!p.allFinite() || !(len > 1e-12)) return false;
@@ -456,7 +484,8 @@ Eigen::Matrix<bool, Eigen::Dynamic, 1> plane_votes(const Planes& planes, const E
   if (!vote(mode, q)) return out;
   const double h2 = bandwidth * bandwidth;
   for (Eigen::Index i = 0; i < planes.rows(); ++i)
-    if (vote(planes.row(i).transpose(), v)) out[i] = std::min((v - q).squaredNorm(), (v + q).squaredNorm()) <= h2;
+    if (vote(planes.row(i).transpose(), v))
+      out[i] = std::min((v - q).squaredNorm(), (v + q).squaredNorm()) <= h2;
   return out;
 }
 
@@ -465,8 +494,9 @@ Eigen::Matrix<bool, Eigen::Dynamic, 1> plane_votes(const Planes& planes, const E
 SymmetryResult detect_symmetry(const PointsRef& points, const SymmetryOptions& o) {
   o.validate();
   require_finite(points, "points");
-  require(points.rows() >= kMinPoints, "symmetry detection needs at least " + std::to_string(kMinPoints) +
-                                           " points, got " + std::to_string(points.rows()));
+  require(points.rows() >= kMinPoints, "symmetry detection needs at least " +
+                                           std::to_string(kMinPoints) + " points, got " +
+                                           std::to_string(points.rows()));
   SymmetryResult res;
   Stopwatch sw(res.timings);
 
@@ -482,9 +512,11 @@ SymmetryResult detect_symmetry(const PointsRef& points, const SymmetryOptions& o
   auto finish_world = [&]() {
     res.keypoints.rowwise() += c0.transpose();
     for (Eigen::Index i = 0; i < res.pair_planes.rows(); ++i)
-      res.pair_planes.row(i) = canonical_plane(shift_plane(res.pair_planes.row(i).transpose(), -c0)).transpose();
+      res.pair_planes.row(i) =
+          canonical_plane(shift_plane(res.pair_planes.row(i).transpose(), -c0)).transpose();
     for (Eigen::Index i = 0; i < res.modes.rows(); ++i)
-      res.modes.row(i) = canonical_plane(shift_plane(res.modes.row(i).transpose(), -c0)).transpose();
+      res.modes.row(i) =
+          canonical_plane(shift_plane(res.modes.row(i).transpose(), -c0)).transpose();
     if (res.plane.allFinite()) res.plane = canonical_plane(shift_plane(res.plane, -c0));
   };
   res.pairs.resize(0, 2);
@@ -504,7 +536,8 @@ SymmetryResult detect_symmetry(const PointsRef& points, const SymmetryOptions& o
   sw.lap("normals");
   std::vector<int> kp = detail::detect_keypoints(P, nc, o);
   // Keypoints without a normal cannot be matched.
-  kp.erase(std::remove_if(kp.begin(), kp.end(), [&](int i) { return nc.normals.row(i).squaredNorm() == 0; }),
+  kp.erase(std::remove_if(kp.begin(), kp.end(),
+                          [&](int i) { return nc.normals.row(i).squaredNorm() == 0; }),
            kp.end());
   sw.lap("keypoints");
   const Fpfh F = detail::compute_fpfh(P, nc.normals, kp, o.fpfh_radius);
@@ -513,9 +546,11 @@ SymmetryResult detect_symmetry(const PointsRef& points, const SymmetryOptions& o
   // ---- matching: each keypoint's most similar (mirrored) other keypoints
   const Eigen::Index K = static_cast<Eigen::Index>(kp.size());
   res.keypoints.resize(K, 3);
-  for (Eigen::Index i = 0; i < K; ++i) res.keypoints.row(i) = P.row(kp[static_cast<std::size_t>(i)]);
+  for (Eigen::Index i = 0; i < K; ++i)
+    res.keypoints.row(i) = P.row(kp[static_cast<std::size_t>(i)]);
   std::vector<char> valid(static_cast<std::size_t>(K));
-  for (Eigen::Index i = 0; i < K; ++i) valid[i] = F.row(i).allFinite() && F.row(i).squaredNorm() > 0;
+  for (Eigen::Index i = 0; i < K; ++i)
+    valid[i] = F.row(i).allFinite() && F.row(i).squaredNorm() > 0;
   const Fpfh Fm = o.mirror_descriptors ? mirror_fpfh(F) : F;
   const double cos_normal = std::cos(o.max_normal_angle_deg * kPi / 180.0);
   const double min_d2 = o.min_pair_distance * o.min_pair_distance;
@@ -565,9 +600,9 @@ SymmetryResult detect_symmetry(const PointsRef& points, const SymmetryOptions& o
       res.pairs(r, 0) = key.first;
       res.pairs(r, 1) = key.second;
       res.pair_distances[r] = dd;
-      res.pair_planes.row(r) =
-          plane_from_pair(res.keypoints.row(key.first).transpose(), res.keypoints.row(key.second).transpose())
-              .transpose();
+      res.pair_planes.row(r) = plane_from_pair(res.keypoints.row(key.first).transpose(),
+                                               res.keypoints.row(key.second).transpose())
+                                   .transpose();
       ++r;
     }
   }
@@ -581,8 +616,8 @@ SymmetryResult detect_symmetry(const PointsRef& points, const SymmetryOptions& o
   }
 
   // ---- mean shift over the pair planes
-  const PlaneClusters cl = mean_shift_planes(res.pair_planes, c, res.scale, o.bandwidth, o.mean_shift_seeds,
-                                             o.mean_shift_max_iterations);
+  const PlaneClusters cl = mean_shift_planes(res.pair_planes, c, res.scale, o.bandwidth,
+                                             o.mean_shift_seeds, o.mean_shift_max_iterations);
   res.modes = cl.modes;
   res.mode_support = cl.mode_support;
   res.mode_confidence = Eigen::VectorXd::Constant(cl.modes.rows(), kNaN);
@@ -590,7 +625,8 @@ SymmetryResult detect_symmetry(const PointsRef& points, const SymmetryOptions& o
 
   // ---- refine and score the candidate modes on a subset; the most consistent wins
   const detail::NearestNeighbors tree(P);
-  const Eigen::Index stride = std::max<Eigen::Index>(1, (P.rows() + o.refine_max_points - 1) / o.refine_max_points);
+  const Eigen::Index stride =
+      std::max<Eigen::Index>(1, (P.rows() + o.refine_max_points - 1) / o.refine_max_points);
   const Eigen::Index ns = (P.rows() + stride - 1) / stride;
   Points S(ns, 3), SN(ns, 3);
   for (Eigen::Index i = 0; i < ns; ++i) {
@@ -606,9 +642,10 @@ SymmetryResult detect_symmetry(const PointsRef& points, const SymmetryOptions& o
     if (o.refine_iterations > 0)
       pl = detail::refine_plane(S, tree, nc.normals, pl, o.refine_iterations, o.refine_max_distance,
                                 o.consistency_radius);
-    const double conf = detail::mirror_consistency(S, SN, tree, nc.normals, pl, o.consistency_radius,
-                                                   o.consistency_tolerance, o.facing_angle_deg)
-                            .facing;
+    const double conf =
+        detail::mirror_consistency(S, SN, tree, nc.normals, pl, o.consistency_radius,
+                                   o.consistency_tolerance, o.facing_angle_deg)
+            .facing;
     res.mode_confidence[k] = conf;
     if (conf > best_conf) {
       best_conf = conf;
@@ -618,21 +655,25 @@ SymmetryResult detect_symmetry(const PointsRef& points, const SymmetryOptions& o
   }
   // The winner on every point.
   if (o.refine_iterations > 0 && stride > 1)
-    best_plane = detail::refine_plane(P, tree, nc.normals, best_plane, 3, o.consistency_radius, o.consistency_radius);
-  const auto cons = detail::mirror_consistency(P, nc.normals, tree, nc.normals, best_plane, o.consistency_radius,
-                                               o.consistency_tolerance, o.facing_angle_deg);
+    best_plane = detail::refine_plane(P, tree, nc.normals, best_plane, 3, o.consistency_radius,
+                                      o.consistency_radius);
+  const auto cons =
+      detail::mirror_consistency(P, nc.normals, tree, nc.normals, best_plane, o.consistency_radius,
+                                 o.consistency_tolerance, o.facing_angle_deg);
   res.plane = best_plane;
   res.confidence = cons.facing;
   res.consistency_all = cons.all;
   res.facing_fraction = cons.facing_fraction;
   res.mode_confidence[chosen] = cons.facing;
-  res.inliers = plane_votes(res.pair_planes, cl.modes.row(chosen).transpose(), c, res.scale, o.bandwidth);
+  res.inliers =
+      plane_votes(res.pair_planes, cl.modes.row(chosen).transpose(), c, res.scale, o.bandwidth);
   res.support = static_cast<int>(res.inliers.count());
   res.vote_share = double(res.support) / double(NP);
   sw.lap("refine_and_score");
 
   if (res.support < o.min_support)
-    res.reason = "support " + std::to_string(res.support) + " < min_support " + std::to_string(o.min_support);
+    res.reason = "support " + std::to_string(res.support) + " < min_support " +
+                 std::to_string(o.min_support);
   else if (res.confidence < o.min_confidence)
     res.reason = "confidence " + std::to_string(res.confidence) + " < min_confidence " +
                  std::to_string(o.min_confidence);
@@ -649,8 +690,9 @@ SymmetricPrediction predict_symmetric(const PointsRef& points, const Eigen::Vect
   require_finite(points, "points");
   require(plane.allFinite(), "plane must be 4 finite numbers [nx, ny, nz, d]");
   require(plane.head<3>().norm() > 1e-12, "plane normal must not be zero");
-  require(points.rows() >= kMinPoints, "symmetric prediction needs at least " + std::to_string(kMinPoints) +
-                                           " points, got " + std::to_string(points.rows()));
+  require(points.rows() >= kMinPoints, "symmetric prediction needs at least " +
+                                           std::to_string(kMinPoints) + " points, got " +
+                                           std::to_string(points.rows()));
   SymmetricPrediction res;
   Stopwatch sw(res.timings);
   res.input_plane = canonical_plane(plane);

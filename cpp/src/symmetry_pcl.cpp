@@ -1,8 +1,8 @@
 // The PCL stages of symmetry detection and prediction: normals, keypoints (SIFT / ISS /
 // uniform), FPFH, nearest neighbours and ICP. Kept in its own translation unit: PCL's features,
 // keypoints and registration headers take ~15 s and ~1 GB to compile.
-#include "nbv/symmetry.hpp"
 #include "nbv/parallel.hpp"
+#include "nbv/symmetry.hpp"
 
 #include <pcl/features/fpfh_omp.h>
 #include <pcl/features/normal_3d_omp.h>
@@ -77,7 +77,8 @@ std::vector<int> snap(const pcl::KdTreeFLANN<pcl::PointXYZ>& tree,
   std::vector<float> d2(1);
   for (const auto& q : queries) {
     if (!q.allFinite()) continue;
-    if (tree.nearestKSearch(pcl::PointXYZ(q.x(), q.y(), q.z()), 1, idx, d2) == 1) out.push_back(idx[0]);
+    if (tree.nearestKSearch(pcl::PointXYZ(q.x(), q.y(), q.z()), 1, idx, d2) == 1)
+      out.push_back(idx[0]);
   }
   std::sort(out.begin(), out.end());
   out.erase(std::unique(out.begin(), out.end()), out.end());
@@ -204,7 +205,8 @@ NearestNeighbors::~NearestNeighbors() = default;
 
 const Points& NearestNeighbors::targets() const { return impl_->targets; }
 
-std::pair<Eigen::VectorXi, Eigen::VectorXd> NearestNeighbors::query(const PointsRef& queries) const {
+std::pair<Eigen::VectorXi, Eigen::VectorXd> NearestNeighbors::query(
+    const PointsRef& queries) const {
   std::pair<Eigen::VectorXi, Eigen::VectorXd> out{
       Eigen::VectorXi::Constant(queries.rows(), -1),
       Eigen::VectorXd::Constant(queries.rows(), std::numeric_limits<double>::infinity())};
@@ -217,7 +219,8 @@ std::pair<Eigen::VectorXi, Eigen::VectorXd> NearestNeighbors::query(const Points
     for (std::size_t i = b; i < e; ++i) {
       const auto k = static_cast<Eigen::Index>(i);
       const auto q = queries.row(k);
-      if (tree.nearestKSearch(pcl::PointXYZ(float(q[0]), float(q[1]), float(q[2])), 1, idx, d2) == 1) {
+      if (tree.nearestKSearch(pcl::PointXYZ(float(q[0]), float(q[1]), float(q[2])), 1, idx, d2) ==
+          1) {
         out.first[k] = idx[0];
         out.second[k] = (targets.row(idx[0]) - q).norm();  // exact, in double precision
       }

@@ -16,8 +16,8 @@ constexpr double kInf = std::numeric_limits<double>::infinity();
 // Amanatides & Woo 3D-DDA over the grid from o along unit d for t in [0, t_max] (metres).
 // visit(flat_index) returns false to stop the walk. Cells outside the grid are never visited.
 template <typename Visit>
-void walk_ray(const DenseGridView& g, const Eigen::Vector3d& o, const Eigen::Vector3d& d, double t_max,
-              Visit&& visit) {
+void walk_ray(const DenseGridView& g, const Eigen::Vector3d& o, const Eigen::Vector3d& d,
+              double t_max, Visit&& visit) {
   const Eigen::Vector3d pos = (o - g.origin) / g.resolution;  // grid units
   const double tend_g = t_max / g.resolution;
   const int n[3] = {g.nx, g.ny, g.nz};
@@ -53,10 +53,12 @@ void walk_ray(const DenseGridView& g, const Eigen::Vector3d& o, const Eigen::Vec
     }
   }
   for (;;) {
-    const std::size_t idx = static_cast<std::size_t>(c[0]) +
-                            static_cast<std::size_t>(g.nx) * (c[1] + static_cast<std::size_t>(g.ny) * c[2]);
+    const std::size_t idx =
+        static_cast<std::size_t>(c[0]) +
+        static_cast<std::size_t>(g.nx) * (c[1] + static_cast<std::size_t>(g.ny) * c[2]);
     if (!visit(idx, c)) return;
-    const int a = (t_next[0] < t_next[1]) ? (t_next[0] < t_next[2] ? 0 : 2) : (t_next[1] < t_next[2] ? 1 : 2);
+    const int a =
+        (t_next[0] < t_next[1]) ? (t_next[0] < t_next[2] ? 0 : 2) : (t_next[1] < t_next[2] ? 1 : 2);
     if (t_next[a] > t1) return;
     c[a] += step[a];
     if (c[a] < 0 || c[a] >= n[a]) return;
@@ -127,16 +129,20 @@ ViewCameraModel ViewCameraModel::for_resolution(double hfov_deg, double vfov_deg
   m.hfov_deg = hfov_deg;
   m.vfov_deg = vfov_deg;
   m.max_range = max_range;
-  m.rays_x = static_cast<int>(std::ceil(2.0 * max_range * std::tan(hfov_deg * M_PI / 360.0) / resolution));
-  m.rays_y = static_cast<int>(std::ceil(2.0 * max_range * std::tan(vfov_deg * M_PI / 360.0) / resolution));
+  m.rays_x =
+      static_cast<int>(std::ceil(2.0 * max_range * std::tan(hfov_deg * M_PI / 360.0) / resolution));
+  m.rays_y =
+      static_cast<int>(std::ceil(2.0 * max_range * std::tan(vfov_deg * M_PI / 360.0) / resolution));
   return m;
 }
 
 void ViewCameraModel::validate() const {
-  if (rays_x <= 0 || rays_y <= 0) throw std::invalid_argument("view camera needs at least one ray each way");
+  if (rays_x <= 0 || rays_y <= 0)
+    throw std::invalid_argument("view camera needs at least one ray each way");
   if (!(hfov_deg > 0 && hfov_deg < 180 && vfov_deg > 0 && vfov_deg < 180))
     throw std::invalid_argument("view camera field of view must be in (0, 180) degrees");
-  if (!(max_range > 0) || !std::isfinite(max_range)) throw std::invalid_argument("view camera max_range must be positive");
+  if (!(max_range > 0) || !std::isfinite(max_range))
+    throw std::invalid_argument("view camera max_range must be positive");
   if (!mount.matrix().allFinite()) throw std::invalid_argument("view camera mount is not finite");
 }
 
@@ -147,7 +153,8 @@ Points ViewCameraModel::directions() const {
   for (int v = 0; v < rays_y; ++v)
     for (int u = 0; u < rays_x; ++u)
       d.row(static_cast<Eigen::Index>(v) * rays_x + u) =
-          Eigen::Vector3d(1.0, -(u + 0.5 - rays_x / 2.0) / fx, -(v + 0.5 - rays_y / 2.0) / fy).normalized();
+          Eigen::Vector3d(1.0, -(u + 0.5 - rays_x / 2.0) / fx, -(v + 0.5 - rays_y / 2.0) / fy)
+              .normalized();
   return d;
 }
 
@@ -207,19 +214,23 @@ struct OctreeCells {
     const octomap::OcTreeNode* node = map.octree().search(key);
     known = node != nullptr;
     logodds = known ? node->getLogOdds() : 0.0f;
-    entropy = static_cast<float>(map.cell_entropy(logodds, known ? CellFlag::Observed : CellFlag::Unknown));
+    entropy = static_cast<float>(
+        map.cell_entropy(logodds, known ? CellFlag::Observed : CellFlag::Unknown));
   }
 };
 
 template <typename Cells>
-ViewScores score_views(const DenseGridView& g, const Cells& cells,
-                       const Eigen::Ref<const Eigen::Matrix<double, Eigen::Dynamic, 4, Eigen::RowMajor>>& cand,
-                       const Pose& current, const ViewCameraModel& camera,
-                       const UtilityOptions& utility, const ValidityOptions& validity) {
+ViewScores score_views(
+    const DenseGridView& g, const Cells& cells,
+    const Eigen::Ref<const Eigen::Matrix<double, Eigen::Dynamic, 4, Eigen::RowMajor>>& cand,
+    const Pose& current, const ViewCameraModel& camera, const UtilityOptions& utility,
+    const ValidityOptions& validity) {
   g.validate();
   camera.validate();
-  if (!cand.allFinite()) throw std::invalid_argument("candidate poses contain NaN or infinite values");
-  if (!(validity.collision_radius >= 0)) throw std::invalid_argument("collision radius must be >= 0");
+  if (!cand.allFinite())
+    throw std::invalid_argument("candidate poses contain NaN or infinite values");
+  if (!(validity.collision_radius >= 0))
+    throw std::invalid_argument("collision radius must be >= 0");
   const Eigen::Index K = cand.rows();
   ViewScores out;
   out.utility.setConstant(K, -kInf);
@@ -238,7 +249,8 @@ ViewScores score_views(const DenseGridView& g, const Cells& cells,
       const auto k = static_cast<Eigen::Index>(kk);
       const Eigen::Vector3d p(cand(k, 0), cand(k, 1), cand(k, 2));
       auto& st = out.status[k];
-      if ((p.array() < validity.bounds_min.array()).any() || (p.array() > validity.bounds_max.array()).any()) {
+      if ((p.array() < validity.bounds_min.array()).any() ||
+          (p.array() > validity.bounds_max.array()).any()) {
         st = static_cast<std::int8_t>(ViewStatus::OutOfBounds);
         continue;
       }
@@ -250,7 +262,8 @@ ViewScores score_views(const DenseGridView& g, const Cells& cells,
         st = static_cast<std::int8_t>(ViewStatus::PathBlocked);
         continue;
       }
-      const Eigen::Isometry3d T = pose_to_transform({p.x(), p.y(), p.z(), cand(k, 3)}) * camera.mount;
+      const Eigen::Isometry3d T =
+          pose_to_transform({p.x(), p.y(), p.z(), cand(k, 3)}) * camera.mount;
       const Eigen::Vector3d o = T.translation();
       const Eigen::Matrix3d R = T.linear();
       visited.reset(g.num_cells());
@@ -292,17 +305,19 @@ ViewScores score_views(const DenseGridView& g, const Cells& cells,
 
 }  // namespace
 
-ViewScores evaluate_views(const DenseGridView& g,
-                          const Eigen::Ref<const Eigen::Matrix<double, Eigen::Dynamic, 4, Eigen::RowMajor>>& cand,
-                          const Pose& current, const ViewCameraModel& camera,
-                          const UtilityOptions& utility, const ValidityOptions& validity) {
+ViewScores evaluate_views(
+    const DenseGridView& g,
+    const Eigen::Ref<const Eigen::Matrix<double, Eigen::Dynamic, 4, Eigen::RowMajor>>& cand,
+    const Pose& current, const ViewCameraModel& camera, const UtilityOptions& utility,
+    const ValidityOptions& validity) {
   return score_views(g, MirrorCells{g}, cand, current, camera, utility, validity);
 }
 
-ViewScores evaluate_views_octree(const OccupancyMap& map,
-                                 const Eigen::Ref<const Eigen::Matrix<double, Eigen::Dynamic, 4, Eigen::RowMajor>>& cand,
-                                 const Pose& current, const ViewCameraModel& camera,
-                                 const UtilityOptions& utility, const ValidityOptions& validity) {
+ViewScores evaluate_views_octree(
+    const OccupancyMap& map,
+    const Eigen::Ref<const Eigen::Matrix<double, Eigen::Dynamic, 4, Eigen::RowMajor>>& cand,
+    const Pose& current, const ViewCameraModel& camera, const UtilityOptions& utility,
+    const ValidityOptions& validity) {
   const DenseGridView g = grid_view(map);
   return score_views(g, OctreeCells{map}, cand, current, camera, utility, validity);
 }
@@ -310,7 +325,8 @@ ViewScores evaluate_views_octree(const OccupancyMap& map,
 double viewable_cells(double hfov_deg, double vfov_deg, double min_range, double max_range,
                       double resolution, bool count_partial) {
   if (!(resolution > 0) || !(max_range > min_range) || !(min_range >= 0))
-    throw std::invalid_argument("viewable_cells: need resolution > 0 and 0 <= min_range < max_range");
+    throw std::invalid_argument(
+        "viewable_cells: need resolution > 0 and 0 <= min_range < max_range");
   const double th = std::tan(hfov_deg * M_PI / 360.0), tv = std::tan(vfov_deg * M_PI / 360.0);
   const double n = min_range, f = max_range, s = resolution;
   const double V = 4.0 * th * tv / 3.0 * (f * f * f - n * n * n);
@@ -378,10 +394,13 @@ std::vector<Eigen::Vector3d> plan_path(const DenseGridView& g, const Eigen::Vect
         for (int dx = -1; dx <= 1; ++dx) {
           if (!dx && !dy && !dz) continue;
           const Eigen::Vector3i nb = c + Eigen::Vector3i(dx, dy, dz);
-          if (nb.x() < 0 || nb.y() < 0 || nb.z() < 0 || nb.x() >= g.nx || nb.y() >= g.ny || nb.z() >= g.nz) continue;
+          if (nb.x() < 0 || nb.y() < 0 || nb.z() < 0 || nb.x() >= g.nx || nb.y() >= g.ny ||
+              nb.z() >= g.nz)
+            continue;
           if (!traversable(nb)) continue;
           const std::size_t ni = g.index(nb);
-          const double ng = gc + g.resolution * std::sqrt(static_cast<double>(dx * dx + dy * dy + dz * dz));
+          const double ng =
+              gc + g.resolution * std::sqrt(static_cast<double>(dx * dx + dy * dy + dz * dz));
           auto it = gcost.find(ni);
           if (it != gcost.end() && it->second <= ng) continue;
           gcost[ni] = ng;

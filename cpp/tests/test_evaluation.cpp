@@ -20,8 +20,10 @@ TEST(VoxelKey, FloorNotTruncationForNegativeCoordinates) {
   EXPECT_EQ(voxel_index(Eigen::Vector3d(-0.05, -0.0500001, -1e-300), 0.05)[0], -1);
   EXPECT_EQ(voxel_index(Eigen::Vector3d(-0.05, -0.0500001, -1e-300), 0.05)[1], -2);
   EXPECT_EQ(voxel_index(Eigen::Vector3d(-0.05, -0.0500001, -1e-300), 0.05)[2], -1);
-  EXPECT_NE(voxel_key(Eigen::Vector3d(-0.01, 0, 0), 0.02), voxel_key(Eigen::Vector3d(0.01, 0, 0), 0.02));
-  EXPECT_EQ(voxel_key(Eigen::Vector3d(0.001, 0, 0), 0.02), voxel_key(Eigen::Vector3d(0.019, 0, 0), 0.02));
+  EXPECT_NE(voxel_key(Eigen::Vector3d(-0.01, 0, 0), 0.02),
+            voxel_key(Eigen::Vector3d(0.01, 0, 0), 0.02));
+  EXPECT_EQ(voxel_key(Eigen::Vector3d(0.001, 0, 0), 0.02),
+            voxel_key(Eigen::Vector3d(0.019, 0, 0), 0.02));
 }
 
 TEST(VoxelKey, PackUnpackRoundTripAtTheLimits) {
@@ -150,7 +152,7 @@ TEST(Lzf, DecodesLiteralsAndOverlappingBackReferences) {
   EXPECT_EQ(std::string(out.begin(), out.end()), "abcabcabc");
   EXPECT_THROW(lzf_decompress(in, sizeof(in), 8), std::invalid_argument);   // too long
   EXPECT_THROW(lzf_decompress(in, sizeof(in), 10), std::invalid_argument);  // too short
-  const std::uint8_t bad[] = {0xe0, 0xff, 0xff};                           // reference before start
+  const std::uint8_t bad[] = {0xe0, 0xff, 0xff};  // reference before start
   EXPECT_THROW(lzf_decompress(bad, sizeof(bad), 4), std::invalid_argument);
 }
 

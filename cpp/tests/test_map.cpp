@@ -27,13 +27,15 @@ Points rows(std::initializer_list<std::array<double, 3>> pts) {
 
 const Points kNone(0, 3);
 
-std::vector<Key> octomap_ray(const octomap::OcTree& t, const octomap::point3d& a, const octomap::point3d& b) {
+std::vector<Key> octomap_ray(const octomap::OcTree& t, const octomap::point3d& a,
+                             const octomap::point3d& b) {
   octomap::KeyRay ray;
   EXPECT_TRUE(t.computeRayKeys(a, b, ray));
   return std::vector<Key>(ray.begin(), ray.end());
 }
 
-std::vector<Key> our_ray(const octomap::OcTree& t, const octomap::point3d& a, const octomap::point3d& b) {
+std::vector<Key> our_ray(const octomap::OcTree& t, const octomap::point3d& a,
+                         const octomap::point3d& b) {
   std::vector<Key> out;
   EXPECT_TRUE(OccupancyMap::walk_ray_keys(t, a, b, [&](const Key& k) { out.push_back(k); }));
   return out;
@@ -99,8 +101,10 @@ TEST(MapKeys, RejectsBadGrids) {
   EXPECT_THROW(OccupancyMap(NAN, {0, 0, 0}, {1, 1, 1}), std::invalid_argument);
   EXPECT_THROW(OccupancyMap(0.2, {0, 0, 0}, {1, 0, 1}), std::invalid_argument);
   EXPECT_THROW(OccupancyMap(0.2, {0, 0, NAN}, {1, 1, 1}), std::invalid_argument);
-  EXPECT_THROW(OccupancyMap(0.2, {-7000, 0, 0}, {0, 1, 1}), std::invalid_argument);  // > 32768 cells
-  EXPECT_THROW(OccupancyMap(0.01, {-20, -20, 0}, {20, 20, 10}), std::invalid_argument);  // 1.6e10 cells
+  EXPECT_THROW(OccupancyMap(0.2, {-7000, 0, 0}, {0, 1, 1}),
+               std::invalid_argument);  // > 32768 cells
+  EXPECT_THROW(OccupancyMap(0.01, {-20, -20, 0}, {20, 20, 10}),
+               std::invalid_argument);  // 1.6e10 cells
   OccupancyMapOptions o;
   o.prob_miss = 0.7;
   EXPECT_THROW(OccupancyMap(0.2, {0, 0, 0}, {1, 1, 1}, o), std::invalid_argument);
@@ -109,34 +113,36 @@ TEST(MapKeys, RejectsBadGrids) {
 TEST(MapRays, WalkerMatchesComputeRayKeys) {
   octomap::OcTree t(0.2);
   std::vector<std::pair<octomap::point3d, octomap::point3d>> rays = {
-      {{0, 0, 0}, {3, 0, 0}},            // along +x, starting on a cell corner
-      {{0.1f, 0.1f, 0.1f}, {0.1f, 0.1f, -3.1f}},  // along -z through cell centres
-      {{0, 0, 0}, {1, 1, 1}},            // through cell corners
-      {{0, 0, 0}, {-1, -1, 0}},          // through edges, negative side
+      {{0, 0, 0}, {3, 0, 0}},                        // along +x, starting on a cell corner
+      {{0.1f, 0.1f, 0.1f}, {0.1f, 0.1f, -3.1f}},     // along -z through cell centres
+      {{0, 0, 0}, {1, 1, 1}},                        // through cell corners
+      {{0, 0, 0}, {-1, -1, 0}},                      // through edges, negative side
       {{0.05f, 0.05f, 0.05f}, {0.15f, 0.1f, 0.1f}},  // same cell: empty ray
-      {{0.19f, 0, 0}, {0.21f, 0, 0}},    // adjacent cells
+      {{0.19f, 0, 0}, {0.21f, 0, 0}},                // adjacent cells
       {{-5.3f, 2.2f, 1.0f}, {7.9f, -3.3f, 4.4f}},
       {{0, 0, 0}, {400.0f, 300.0f, -50.0f}},  // long ray
   };
   std::mt19937 rng(11);
   std::uniform_real_distribution<float> u(-10.f, 10.f);
   std::uniform_int_distribution<int> grid(-40, 40);
-  for (int i = 0; i < 3000; ++i) rays.push_back({{u(rng), u(rng), u(rng)}, {u(rng), u(rng), u(rng)}});
+  for (int i = 0; i < 3000; ++i)
+    rays.push_back({{u(rng), u(rng), u(rng)}, {u(rng), u(rng), u(rng)}});
   for (int i = 0; i < 1000; ++i)  // ends on cell boundaries (multiples of the resolution)
     rays.push_back({{grid(rng) * 0.2f, grid(rng) * 0.2f, grid(rng) * 0.2f},
                     {grid(rng) * 0.2f, grid(rng) * 0.2f, grid(rng) * 0.2f}});
-  for (const auto& r : rays) ASSERT_EQ(our_ray(t, r.first, r.second), octomap_ray(t, r.first, r.second));
+  for (const auto& r : rays)
+    ASSERT_EQ(our_ray(t, r.first, r.second), octomap_ray(t, r.first, r.second));
   // out of range: false, nothing emitted, like computeRayKeys
   int emitted = 0;
-  EXPECT_FALSE(OccupancyMap::walk_ray_keys(t, {0, 0, 0}, {1e5f, 0, 0}, [&](const Key&) { ++emitted; }));
+  EXPECT_FALSE(
+      OccupancyMap::walk_ray_keys(t, {0, 0, 0}, {1e5f, 0, 0}, [&](const Key&) { ++emitted; }));
   EXPECT_EQ(emitted, 0);
 }
 
 TEST(MapRays, AxisRayMarksFreeThenOccupied) {
   OccupancyMap m(0.2, {-1, -1, -1}, {5, 1, 1});
   m.integrate(Eigen::Vector3d(0.1, 0.1, 0.1), rows({{3.1, 0.1, 0.1}}), kNone);
-  for (int i = 0; i < 15; ++i)
-    EXPECT_EQ(m.state({0.1 + 0.2 * i, 0.1, 0.1}), CellState::Free) << i;
+  for (int i = 0; i < 15; ++i) EXPECT_EQ(m.state({0.1 + 0.2 * i, 0.1, 0.1}), CellState::Free) << i;
   EXPECT_EQ(m.state({3.1, 0.1, 0.1}), CellState::Occupied);
   EXPECT_EQ(m.state({3.3, 0.1, 0.1}), CellState::Unknown);
   EXPECT_EQ(m.state({0.1, 0.5, 0.1}), CellState::Unknown);
@@ -152,7 +158,8 @@ TEST(MapRays, CornerRayAgreesWithExactPath) {
   fast.integrate(Eigen::Vector3d::Zero(), ends, kNone);
   exact.integrate_exact(Eigen::Vector3d::Zero(), ends, kNone);
   EXPECT_TRUE(fast.octree() == exact.octree());
-  for (std::int64_t i = 0; i < fast.num_cells(); ++i) ASSERT_EQ(fast.logodds_at(i), exact.logodds_at(i));
+  for (std::int64_t i = 0; i < fast.num_cells(); ++i)
+    ASSERT_EQ(fast.logodds_at(i), exact.logodds_at(i));
 }
 
 TEST(MapWorkspace, CellsOutsideAreInTheOctreeButNotCounted) {
@@ -187,7 +194,8 @@ TEST(MapUpdate, BatchedUpdateBuildsTheSameOctreeAsUpdateNode) {
     const Eigen::Vector3d o(g(rng) * 0.3, g(rng) * 0.3, g(rng) * 0.3);
     Points hits(300, 3), free_ends(100, 3);
     for (Eigen::Index r = 0; r < hits.rows(); ++r) hits.row(r) << g(rng), g(rng), g(rng);
-    for (Eigen::Index r = 0; r < free_ends.rows(); ++r) free_ends.row(r) << 2 * g(rng), 2 * g(rng), 2 * g(rng);
+    for (Eigen::Index r = 0; r < free_ends.rows(); ++r)
+      free_ends.row(r) << 2 * g(rng), 2 * g(rng), 2 * g(rng);
     const double max_range = s % 2 ? 4.0 : std::numeric_limits<double>::infinity();
     fast.integrate(o, hits, free_ends, max_range);
     exact.integrate_exact(o, hits, free_ends, max_range);
@@ -197,13 +205,15 @@ TEST(MapUpdate, BatchedUpdateBuildsTheSameOctreeAsUpdateNode) {
   EXPECT_EQ(fast.verify_mirror(), 0);
   // pruning happened (free space far from the hits clamps into coarse leaves)
   std::size_t coarse = 0;
-  for (auto it = fast.octree().begin_leafs(); it != fast.octree().end_leafs(); ++it) coarse += it.getDepth() < 16;
+  for (auto it = fast.octree().begin_leafs(); it != fast.octree().end_leafs(); ++it)
+    coarse += it.getDepth() < 16;
   EXPECT_GT(coarse, 0u);
 }
 
 TEST(MapUpdate, PredictionIsDiscardedByObservation) {
   OccupancyMap m(0.2, {-1, -1, -1}, {3, 1, 1});
-  EXPECT_EQ(m.set_unknown_cells(rows({{1.1, 0.1, 0.1}, {1.15, 0.15, 0.1}, {2.1, 0.1, 0.1}}), 0.6), 2u);
+  EXPECT_EQ(m.set_unknown_cells(rows({{1.1, 0.1, 0.1}, {1.15, 0.15, 0.1}, {2.1, 0.1, 0.1}}), 0.6),
+            2u);
   const std::int64_t i1 = m.index_of(m.octree().coordToKey(octomap::point3d(1.1f, 0.1f, 0.1f)));
   EXPECT_EQ(m.flag_at(i1), CellFlag::Predicted);
   EXPECT_EQ(m.state_at(i1), CellState::Occupied);  // 0.6 >= threshold 0.6
@@ -211,7 +221,8 @@ TEST(MapUpdate, PredictionIsDiscardedByObservation) {
   m.integrate(Eigen::Vector3d(0.1, 0.1, 0.1), rows({{2.1, 0.1, 0.1}}), kNone);
   EXPECT_EQ(m.flag_at(i1), CellFlag::Observed);
   EXPECT_FLOAT_EQ(m.logodds_at(i1), octomap::logodds(0.4));  // restarted from unknown, one miss
-  EXPECT_FLOAT_EQ(float(m.probability({2.1, 0.1, 0.1})), float(octomap::probability(octomap::logodds(0.7))));
+  EXPECT_FLOAT_EQ(float(m.probability({2.1, 0.1, 0.1})),
+                  float(octomap::probability(octomap::logodds(0.7))));
   EXPECT_EQ(m.counts().predicted, 0);
   EXPECT_EQ(m.verify_mirror(), 0);
 }
@@ -221,9 +232,11 @@ TEST(MapFiles, RoundTripExpandsCoarseLeaves) {
   Points hits(41 * 41, 3);  // a wall of hits at x = 2.5: the space in front clamps free and prunes
   for (int i = 0; i < 41; ++i)
     for (int j = 0; j < 41; ++j) hits.row(i * 41 + j) << 2.5, -1.0 + 0.05 * i, -1.0 + 0.05 * j;
-  for (int i = 0; i < 8; ++i) m.integrate(Eigen::Vector3d(-2.5, 0.3, 0.1), hits, rows({{-2.5, 2.9, 0.1}}));
+  for (int i = 0; i < 8; ++i)
+    m.integrate(Eigen::Vector3d(-2.5, 0.3, 0.1), hits, rows({{-2.5, 2.9, 0.1}}));
   std::size_t coarse = 0;
-  for (auto it = m.octree().begin_leafs(); it != m.octree().end_leafs(); ++it) coarse += it.getDepth() < 16;
+  for (auto it = m.octree().begin_leafs(); it != m.octree().end_leafs(); ++it)
+    coarse += it.getDepth() < 16;
   ASSERT_GT(coarse, 0u);
   const auto dir = std::filesystem::temp_directory_path() / "nbv_test_map";
   std::filesystem::create_directories(dir);
@@ -232,7 +245,8 @@ TEST(MapFiles, RoundTripExpandsCoarseLeaves) {
     m.save(p);
     OccupancyMap r = OccupancyMap::load(p, Eigen::Vector3d(-3, -3, -3), Eigen::Vector3d(3, 3, 3));
     EXPECT_EQ(r.verify_mirror(), 0) << name;
-    for (std::int64_t i = 0; i < m.num_cells(); ++i) ASSERT_EQ(r.state_at(i), m.state_at(i)) << name;
+    for (std::int64_t i = 0; i < m.num_cells(); ++i)
+      ASSERT_EQ(r.state_at(i), m.state_at(i)) << name;
     EXPECT_EQ(r.counts().free, m.counts().free);
   }
   EXPECT_THROW(OccupancyMap::load((dir / "absent.ot").string()), nbv::FileNotFound);
@@ -263,8 +277,10 @@ TEST(MapUpdate, ExactPathEqualsInsertPointCloud) {
       cloud.push_back(float(hits(r, 0)), float(hits(r, 1)), float(hits(r, 2)));
     }
     const double max_range = s % 2 ? 5.0 : -1.0;
-    m.integrate_exact(o, hits, kNone, max_range > 0 ? max_range : std::numeric_limits<double>::infinity());
-    plain.insertPointCloud(cloud, octomap::point3d(float(o.x()), float(o.y()), float(o.z())), max_range);
+    m.integrate_exact(o, hits, kNone,
+                      max_range > 0 ? max_range : std::numeric_limits<double>::infinity());
+    plain.insertPointCloud(cloud, octomap::point3d(float(o.x()), float(o.y()), float(o.z())),
+                           max_range);
     ASSERT_TRUE(m.octree() == plain) << "scan " << s;
   }
   EXPECT_EQ(m.verify_mirror(), 0);

@@ -53,7 +53,7 @@ TEST(Mesh, ZeroAreaMeshCannotBeSampled) {
 
 TEST(Raycast, DegenerateTriangleIsNeverHit) {
   Points v(6, 3);
-  v << 2, 0, -1, 2, 0, 1, 2, 0, 0,  // zero-area sliver on the ray's path
+  v << 2, 0, -1, 2, 0, 1, 2, 0, 0,   // zero-area sliver on the ray's path
       5, -1, -1, 5, 1, -1, 5, 0, 1;  // a proper triangle behind it
   nbv::Faces f(2, 3);
   f << 0, 1, 2, 3, 4, 5;

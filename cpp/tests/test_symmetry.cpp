@@ -17,7 +17,8 @@ constexpr double kPi = 3.14159265358979323846;
 
 Eigen::Matrix4d rigid(const Eigen::Vector3d& axis, double deg, const Eigen::Vector3d& t) {
   Eigen::Matrix4d T = Eigen::Matrix4d::Identity();
-  T.topLeftCorner<3, 3>() = Eigen::AngleAxisd(deg * kPi / 180.0, axis.normalized()).toRotationMatrix();
+  T.topLeftCorner<3, 3>() =
+      Eigen::AngleAxisd(deg * kPi / 180.0, axis.normalized()).toRotationMatrix();
   T.topRightCorner<3, 1>() = t;
   return T;
 }
@@ -92,12 +93,14 @@ TEST(Symmetry, PlaneFromImproperIsometry) {
   // A rotoreflection (rotation about the normal after the mirror) keeps the plane; a glide
   // (translation along the plane) keeps it too.
   const Eigen::Matrix4d R = rigid(p2.head<3>(), 5.0, Eigen::Vector3d(0.7, 0, -0.2));
-  const Eigen::Vector4d p3 = nbv::plane_from_improper_isometry(R * nbv::reflection_matrix(p2), &residual);
+  const Eigen::Vector4d p3 =
+      nbv::plane_from_improper_isometry(R * nbv::reflection_matrix(p2), &residual);
   EXPECT_LT(nbv::plane_angle_deg(p3, p2), 1e-6);
   EXPECT_NEAR(p3[3], p2[3], 1e-12);
   EXPECT_NEAR(residual, 5.0, 1e-6);
 
-  EXPECT_THROW(nbv::plane_from_improper_isometry(rigid(Eigen::Vector3d::UnitZ(), 10, Eigen::Vector3d::Zero())),
+  EXPECT_THROW(nbv::plane_from_improper_isometry(
+                   rigid(Eigen::Vector3d::UnitZ(), 10, Eigen::Vector3d::Zero())),
                std::invalid_argument);
 }
 
@@ -147,7 +150,8 @@ TEST(Symmetry, MeanShiftMergesBothSignsOfAPlane) {
 }
 
 TEST(Symmetry, MeanShiftEdgeCases) {
-  const nbv::PlaneClusters empty = nbv::mean_shift_planes(Planes(0, 4), Eigen::Vector3d::Zero(), 1.0, 0.1);
+  const nbv::PlaneClusters empty =
+      nbv::mean_shift_planes(Planes(0, 4), Eigen::Vector3d::Zero(), 1.0, 0.1);
   EXPECT_EQ(empty.support, 0);
   EXPECT_TRUE(empty.plane.array().isNaN().all());
   Planes bad(2, 4);
@@ -158,8 +162,10 @@ TEST(Symmetry, MeanShiftEdgeCases) {
   const nbv::PlaneClusters c = nbv::mean_shift_planes(one, Eigen::Vector3d::Zero(), 1.0, 0.1);
   EXPECT_EQ(c.support, 1);
   EXPECT_TRUE(c.plane.isApprox(Eigen::Vector4d(0, 0, 1, -1.5)));
-  EXPECT_THROW(nbv::mean_shift_planes(one, Eigen::Vector3d::Zero(), 0.0, 0.1), std::invalid_argument);
-  EXPECT_THROW(nbv::mean_shift_planes(one, Eigen::Vector3d::Zero(), 1.0, 1.5), std::invalid_argument);
+  EXPECT_THROW(nbv::mean_shift_planes(one, Eigen::Vector3d::Zero(), 0.0, 0.1),
+               std::invalid_argument);
+  EXPECT_THROW(nbv::mean_shift_planes(one, Eigen::Vector3d::Zero(), 1.0, 1.5),
+               std::invalid_argument);
 }
 
 TEST(Symmetry, BadInputThrows) {
@@ -193,11 +199,11 @@ TEST(Symmetry, DetectsThePlaneOfASymmetricPointSet) {
           pts.row(pts.rows() - 1) << x, y, z;
         }
   };
-  add_box({0, -5, 0}, {4, 5, 3}, 0.2);        // body, centred on x = 2
-  add_box({4, -1, 1}, {10, 1, 1.6}, 0.2);     // right wing
-  add_box({-6, -1, 1}, {0, 1, 1.6}, 0.2);     // left wing (mirror)
-  add_box({4, 2, 0}, {5.5, 3.5, 2}, 0.25);    // a pod
-  add_box({-1.5, 2, 0}, {0, 3.5, 2}, 0.25);   // its mirror
+  add_box({0, -5, 0}, {4, 5, 3}, 0.2);       // body, centred on x = 2
+  add_box({4, -1, 1}, {10, 1, 1.6}, 0.2);    // right wing
+  add_box({-6, -1, 1}, {0, 1, 1.6}, 0.2);    // left wing (mirror)
+  add_box({4, 2, 0}, {5.5, 3.5, 2}, 0.25);   // a pod
+  add_box({-1.5, 2, 0}, {0, 3.5, 2}, 0.25);  // its mirror
   const nbv::SymmetryResult r = nbv::detect_symmetry(pts);
   EXPECT_TRUE(r.accepted) << r.reason;
   EXPECT_LT(nbv::plane_angle_deg(r.plane, Eigen::Vector4d(1, 0, 0, 2)), 1.0);

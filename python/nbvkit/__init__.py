@@ -20,7 +20,13 @@ from .mesh import default_mesh_path, load_mesh, mesh_from_open3d, mesh_to_open3d
 from ._core import nearest_distances  # noqa: F401
 from .cloud import PointCloud, read_points, write_points  # noqa: F401
 from .evaluation import Evaluator, evaluate  # noqa: F401
-from .mapping import CellFlag, CellState, IntegrationStats, OccupancyMap, OccupancyMapOptions  # noqa: F401
+from .mapping import (
+    CellFlag,
+    CellState,
+    IntegrationStats,
+    OccupancyMap,
+    OccupancyMapOptions,
+)  # noqa: F401
 from .symmetry import SymmetryResult, detect_symmetry, predict_symmetric  # noqa: F401
 from .config import Config, load_config  # noqa: F401
 from .mission import Mission, MissionError  # noqa: F401

@@ -17,8 +17,14 @@ import numpy as np
 
 from . import _core
 
-__all__ = ["PointCloud", "read_points", "write_points", "DEFAULT_VOXEL_SIZE", "DEFAULT_MIN_Z",
-           "LASER_VOXEL_SIZE"]
+__all__ = [
+    "PointCloud",
+    "read_points",
+    "write_points",
+    "DEFAULT_VOXEL_SIZE",
+    "DEFAULT_MIN_Z",
+    "LASER_VOXEL_SIZE",
+]
 
 _DEFAULTS = _core.SurfaceCloudOptions()
 #: Voxel-grid cell of the RGB-D camera's cloud, metres (the authors' 0.02 m).
@@ -51,8 +57,13 @@ class PointCloud(_core.SurfaceCloud):
     Raises ValueError for a non-positive voxel size or NaN/inf points.
     """
 
-    def __init__(self, points=None, voxel_size: float = DEFAULT_VOXEL_SIZE,
-                 min_z: float | None = DEFAULT_MIN_Z, bounds=None):
+    def __init__(
+        self,
+        points=None,
+        voxel_size: float = DEFAULT_VOXEL_SIZE,
+        min_z: float | None = DEFAULT_MIN_Z,
+        bounds=None,
+    ):
         super().__init__(_positive(voxel_size, "voxel_size"), min_z, bounds)
         if points is not None:
             self.add(points)
@@ -66,21 +77,36 @@ class PointCloud(_core.SurfaceCloud):
         return super().add(_as_points(points))
 
     @classmethod
-    def from_numpy(cls, points, voxel_size: float = DEFAULT_VOXEL_SIZE,
-                   min_z: float | None = DEFAULT_MIN_Z, bounds=None) -> "PointCloud":
+    def from_numpy(
+        cls,
+        points,
+        voxel_size: float = DEFAULT_VOXEL_SIZE,
+        min_z: float | None = DEFAULT_MIN_Z,
+        bounds=None,
+    ) -> "PointCloud":
         """A cloud holding ``points`` ``(N, 3)`` after the voxel filter and ground removal."""
         return cls(points, voxel_size=voxel_size, min_z=min_z, bounds=bounds)
 
     @classmethod
-    def from_open3d(cls, o3d_cloud, voxel_size: float = DEFAULT_VOXEL_SIZE,
-                    min_z: float | None = DEFAULT_MIN_Z, bounds=None) -> "PointCloud":
+    def from_open3d(
+        cls,
+        o3d_cloud,
+        voxel_size: float = DEFAULT_VOXEL_SIZE,
+        min_z: float | None = DEFAULT_MIN_Z,
+        bounds=None,
+    ) -> "PointCloud":
         """A cloud from an ``open3d.geometry.PointCloud`` (its points only)."""
         pts = np.asarray(o3d_cloud.points, dtype=np.float64)
         return cls(pts, voxel_size=voxel_size, min_z=min_z, bounds=bounds)
 
     @classmethod
-    def load(cls, path, voxel_size: float = DEFAULT_VOXEL_SIZE,
-             min_z: float | None = DEFAULT_MIN_Z, bounds=None) -> "PointCloud":
+    def load(
+        cls,
+        path,
+        voxel_size: float = DEFAULT_VOXEL_SIZE,
+        min_z: float | None = DEFAULT_MIN_Z,
+        bounds=None,
+    ) -> "PointCloud":
         """Read a ``.ply`` / ``.pcd`` / ``.npy`` file (see ``read_points``) into a new cloud.
 
         The file's points go through the same filter as any other (so loading a cloud this
@@ -109,8 +135,10 @@ class PointCloud(_core.SurfaceCloud):
 
     def __repr__(self) -> str:
         mz = "None" if self.min_z is None else f"{self.min_z:g}"
-        return (f"<nbvkit.PointCloud {len(self)} points, voxel_size={self.voxel_size:g} m, "
-                f"min_z={mz}>")
+        return (
+            f"<nbvkit.PointCloud {len(self)} points, voxel_size={self.voxel_size:g} m, "
+            f"min_z={mz}>"
+        )
 
 
 def _positive(v, what):
@@ -133,6 +161,7 @@ def _as_points(points):
 
 # ------------------------------------------------------------------------------------ files
 
+
 def write_points(path, points, ascii: bool = False, dtype=None) -> None:
     """Write ``(N, 3)`` points to a ``.ply``, ``.pcd`` or ``.npy`` file (by the extension).
 
@@ -148,8 +177,10 @@ def write_points(path, points, ascii: bool = False, dtype=None) -> None:
     path = Path(os.fspath(path)).expanduser()
     suffix = path.suffix.lower()
     if suffix not in _SUFFIXES:
-        raise ValueError(f"cannot write point cloud '{path}': unknown extension "
-                         f"'{path.suffix}' (use .ply, .pcd or .npy)")
+        raise ValueError(
+            f"cannot write point cloud '{path}': unknown extension "
+            f"'{path.suffix}' (use .ply, .pcd or .npy)"
+        )
     pts = _check_points(points, "points")
     if dtype is None:
         dtype = np.float32 if suffix == ".pcd" else np.float64
@@ -164,14 +195,16 @@ def write_points(path, points, ascii: bool = False, dtype=None) -> None:
     fmt = "%.9g" if dtype == np.float32 else "%.17g"
     if suffix == ".ply":
         t = "float" if dtype == np.float32 else "double"
-        header = ("ply\nformat {} 1.0\ncomment written by nbvkit\nelement vertex {}\n"
-                  "property {t} x\nproperty {t} y\nproperty {t} z\nend_header\n").format(
-                      "ascii" if ascii else "binary_little_endian", len(pts), t=t)
+        header = (
+            "ply\nformat {} 1.0\ncomment written by nbvkit\nelement vertex {}\n"
+            "property {t} x\nproperty {t} y\nproperty {t} z\nend_header\n"
+        ).format("ascii" if ascii else "binary_little_endian", len(pts), t=t)
     else:
-        header = ("# .PCD v0.7 - Point Cloud Data file format\nVERSION 0.7\nFIELDS x y z\n"
-                  "SIZE {s} {s} {s}\nTYPE F F F\nCOUNT 1 1 1\nWIDTH {n}\nHEIGHT 1\n"
-                  "VIEWPOINT 0 0 0 1 0 0 0\nPOINTS {n}\nDATA {d}\n").format(
-                      s=dtype.itemsize, n=len(pts), d="ascii" if ascii else "binary")
+        header = (
+            "# .PCD v0.7 - Point Cloud Data file format\nVERSION 0.7\nFIELDS x y z\n"
+            "SIZE {s} {s} {s}\nTYPE F F F\nCOUNT 1 1 1\nWIDTH {n}\nHEIGHT 1\n"
+            "VIEWPOINT 0 0 0 1 0 0 0\nPOINTS {n}\nDATA {d}\n"
+        ).format(s=dtype.itemsize, n=len(pts), d="ascii" if ascii else "binary")
     with open(path, "wb") as f:
         f.write(header.encode("ascii"))
         if ascii:
@@ -204,8 +237,10 @@ def read_points(path, drop_nonfinite: bool = True) -> np.ndarray:
     if not path.exists():
         raise FileNotFoundError(2, "No such file", str(path))
     if suffix not in _SUFFIXES:
-        raise ValueError(f"cannot read point cloud '{path}': unknown extension '{path.suffix}' "
-                         f"(use .ply, .pcd or .npy)")
+        raise ValueError(
+            f"cannot read point cloud '{path}': unknown extension '{path.suffix}' "
+            f"(use .ply, .pcd or .npy)"
+        )
     if path.is_dir():
         raise ValueError(f"cannot read point cloud '{path}': it is a directory")
     try:
@@ -220,8 +255,11 @@ def read_points(path, drop_nonfinite: bool = True) -> np.ndarray:
     if drop_nonfinite:
         ok = np.isfinite(pts).all(axis=1)
         if not ok.all():
-            warnings.warn(f"{path}: dropped {int((~ok).sum())} points with NaN or infinite "
-                          f"coordinates", RuntimeWarning, stacklevel=2)
+            warnings.warn(
+                f"{path}: dropped {int((~ok).sum())} points with NaN or infinite " f"coordinates",
+                RuntimeWarning,
+                stacklevel=2,
+            )
             pts = pts[ok]
     return pts
 
@@ -260,10 +298,22 @@ def _read_npy(path):
 # ---- PLY
 
 _PLY_TYPES = {
-    "char": "i1", "int8": "i1", "uchar": "u1", "uint8": "u1",
-    "short": "i2", "int16": "i2", "ushort": "u2", "uint16": "u2",
-    "int": "i4", "int32": "i4", "uint": "u4", "uint32": "u4",
-    "float": "f4", "float32": "f4", "double": "f8", "float64": "f8",
+    "char": "i1",
+    "int8": "i1",
+    "uchar": "u1",
+    "uint8": "u1",
+    "short": "i2",
+    "int16": "i2",
+    "ushort": "u2",
+    "uint16": "u2",
+    "int": "i4",
+    "int32": "i4",
+    "uint": "u4",
+    "uint32": "u4",
+    "float": "f4",
+    "float32": "f4",
+    "double": "f8",
+    "float64": "f8",
 }
 
 
@@ -276,7 +326,7 @@ def _split_header(data: bytes, end_marker: bytes, what: str):
         if m is None:
             raise _FormatError(f"no '{end_marker.decode()}' line: not a {what} file or truncated")
     try:
-        header = data[:m.end()].decode("ascii")
+        header = data[: m.end()].decode("ascii")
     except UnicodeDecodeError:
         raise _FormatError(f"the {what} header is not ASCII text") from None
     return header.splitlines(), m.end()
@@ -335,7 +385,7 @@ def _read_ply(data: bytes) -> np.ndarray:
     if fmt == "ascii":
         text = data[body:].decode("ascii", errors="replace").splitlines()
         skip = sum(e[1] for e in elements[:vi])
-        rows = [ln for ln in text if ln.strip()][skip:skip + count]
+        rows = [ln for ln in text if ln.strip()][skip : skip + count]
         if len(rows) < count:
             raise _FormatError(f"truncated: {len(rows)} of {count} vertex lines")
         try:
@@ -420,14 +470,18 @@ def _read_pcd(data: bytes) -> np.ndarray:
         if len(text) < n * per:
             raise _FormatError(f"truncated: expected {n} points of {per} values")
         try:
-            vals = np.array(text[:n * per], dtype=np.float64).reshape(n, per)
+            vals = np.array(text[: n * per], dtype=np.float64).reshape(n, per)
         except ValueError:
             raise _FormatError("non-numeric value in the point data") from None
         starts = np.concatenate([[0], np.cumsum(counts)[:-1]])
         return vals[:, [starts[c] for c in cols]]
     if mode == "binary":
-        dtype = np.dtype([(f"f{i}", dt, (c,)) if c > 1 else (f"f{i}", dt)
-                          for i, (dt, c) in enumerate(zip(dts, counts))])
+        dtype = np.dtype(
+            [
+                (f"f{i}", dt, (c,)) if c > 1 else (f"f{i}", dt)
+                for i, (dt, c) in enumerate(zip(dts, counts))
+            ]
+        )
         if body + n * dtype.itemsize > len(data):
             raise _FormatError(f"truncated: {n} points of {dtype.itemsize} bytes do not fit")
         rec = np.frombuffer(data, dtype=dtype, count=n, offset=body)
@@ -439,7 +493,7 @@ def _read_pcd(data: bytes) -> np.ndarray:
         if body + 8 + csize > len(data):
             raise _FormatError("truncated compressed data")
         try:
-            raw = _core._lzf_decompress(data[body + 8:body + 8 + csize], usize)
+            raw = _core._lzf_decompress(data[body + 8 : body + 8 + csize], usize)
         except ValueError as e:
             raise _FormatError(str(e)) from None
         # Fields are stored one after another (all points' x, then all y, ...).
@@ -459,4 +513,3 @@ def _read_pcd(data: bytes) -> np.ndarray:
 
 def _first(a):
     return a[:, 0] if a.ndim == 2 else a
-

@@ -25,6 +25,7 @@ _LAS = _core.LaserScannerOptions()
 @dataclass(frozen=True)
 class MeshConfig:
     """The structure's mesh file."""
+
     path: Optional[str] = None  # None: the shipped generated airliner
     scale: float = 1.0
     up: str = "z"  # the file's up axis: "z" or "y"
@@ -39,6 +40,7 @@ class WorkspaceConfig:
     ``bbox z max + margin_z``. For the shipped airliner (35.0 x 30.0 x 7.5 m) this gives
     40.0 x 40.0 x 10.0 m. Explicit ``bounds_min``/``bounds_max`` override it.
     """
+
     margin_xy: float = 2.5
     margin_z: float = 2.5
     square: bool = True
@@ -49,6 +51,7 @@ class WorkspaceConfig:
 @dataclass(frozen=True)
 class MapConfig:
     """The occupancy map (OctoMap) and its entropy."""
+
     resolution: float = 0.2  # m (authors: 0.2)
     prob_hit: float = 0.7
     prob_miss: float = 0.4
@@ -64,6 +67,7 @@ class MapConfig:
 @dataclass(frozen=True)
 class CameraConfig:
     """The RGB-D camera (paper Table 1); mount = T_body_sensor as xyz (m) + roll/pitch/yaw (deg)."""
+
     width: int = _CAM.width
     height: int = _CAM.height
     hfov_deg: float = _CAM.hfov_deg
@@ -78,6 +82,7 @@ class CameraConfig:
 @dataclass(frozen=True)
 class LaserConfig:
     """The 2D laser scanner (paper Table 1)."""
+
     fov_deg: float = _LAS.fov_deg
     resolution_deg: float = _LAS.resolution_deg
     min_range: float = _LAS.min_range
@@ -90,6 +95,7 @@ class LaserConfig:
 @dataclass(frozen=True)
 class CloudConfig:
     """The reconstructed point clouds."""
+
     camera_voxel: float = 0.02  # m, authors' RGB-D voxel filter
     laser_voxel: float = 0.1  # m, authors' profile voxel filter
     min_z: float = 0.3  # m, points below are ground and not registered
@@ -98,6 +104,7 @@ class CloudConfig:
 @dataclass(frozen=True)
 class VehicleConfig:
     """The UAV: collision sphere and how it flies between views."""
+
     collision_radius: float = 0.8  # m
     # what to do when the straight segment to a candidate crosses occupied/unknown space:
     # "reject" the candidate, or "plan" a path through known free space (A* on the map)
@@ -115,6 +122,7 @@ class VehicleConfig:
 @dataclass(frozen=True)
 class SamplingConfig:
     """Viewpoint sampling, Eq. 2: CGVS lattice and the AGVS scale sigma**alpha."""
+
     method: str = "agvs"  # "cgvs" (alpha fixed at 0) or "agvs"
     delta_d: float = 1.0  # m
     delta_theta: float = math.pi / 4  # rad
@@ -129,6 +137,7 @@ class SamplingConfig:
 @dataclass(frozen=True)
 class UtilityConfig:
     """Viewpoint evaluation, sec. 3.4."""
+
     name: str = "ig"  # "ig" (paper) or "ig_distance" (IG * exp(-lambda * distance))
     rays_x: Optional[int] = None  # None: one ray per map cell on the far plane (47 at 0.2 m)
     rays_y: Optional[int] = None  # None: 34 at 0.2 m
@@ -140,6 +149,7 @@ class UtilityConfig:
 @dataclass(frozen=True)
 class TerminationConfig:
     """Termination, sec. 3.5: |dE_v| < threshold for `window` iterations."""
+
     threshold: float = 0.001  # |dE_v| (paper)
     window: int = 5  # consecutive iterations (paper)
     count_partial_cells: bool = True  # C_view counts cells the frustum touches partially
@@ -148,10 +158,11 @@ class TerminationConfig:
 @dataclass(frozen=True)
 class ProfilingConfig:
     """Adaptive circular profiling (Algorithm 1) and the bounding-box profiler."""
+
     method: str = "circular"  # "circular" (Algorithm 1) or "bbox" (fly the faces of the box)
     waypoints: int = 5  # N, points around the structure (authors: 5)
     margin: float = 4.0  # d, obstacle margin added to the bounding radius, m (authors: 4)
-    sweep_step: float = 0.025  # m between laser scans in a sweep: a 40 Hz scanner at 1 m/s (authors)
+    sweep_step: float = 0.025  # m between laser scans: a 40 Hz scanner at 1 m/s (authors)
     z_min: Optional[float] = None  # sweep bounds; None: the workspace's z range
     z_max: Optional[float] = None
     max_segment: float = 7.0  # arcs are flown as straight segments of at most this length, m
@@ -164,6 +175,7 @@ class SymmetryConfig:
 
     The defaults equal nbvkit.symmetry.SymmetryOptions() / SymmetricPredictionOptions() (a test
     checks)."""
+
     prediction_probability: float = 0.6  # paper (authors' code: 0.7)
     keypoints: str = "sift"  # "sift" (authors: 3D SIFT on curvature), "iss" or "uniform"
     voxel_size: float = 0.2  # m, downsampling before detection (2x the profile's voxel: measured)
@@ -184,6 +196,7 @@ class SymmetryConfig:
 @dataclass(frozen=True)
 class EvaluationConfig:
     """Scoring against the ground truth."""
+
     gt_density: Optional[float] = None  # points per m^2; None: nbvkit.evaluate's default
     coverage_every: int = 25  # iterations between coverage refreshes in the progress/CSV
 
@@ -191,6 +204,7 @@ class EvaluationConfig:
 @dataclass(frozen=True)
 class Config:
     """A mission: scenario (Table 2 row), start (0..4), NBV iteration cap, and the sections."""
+
     seed: int = 0  # camera/laser noise and sampling seed; the same seed gives the same mission
     scenario: str = "5"  # profile, 1..5 (Table 2); 5 = profiling + symmetry + AGVS
     start: int = 0  # which of the five predefined start poses
@@ -223,7 +237,9 @@ class Config:
             raise FileNotFoundError(2, "No such config file", str(p))
         data = yaml.safe_load(p.read_text()) or {}
         if not isinstance(data, dict):
-            raise ValueError(f"config file {p} must hold a mapping of keys, got {type(data).__name__}")
+            raise ValueError(
+                f"config file {p} must hold a mapping of keys, got {type(data).__name__}"
+            )
         return cls.from_dict(data)
 
     def with_overrides(self, overrides: list[str] | dict | None) -> "Config":
@@ -284,8 +300,10 @@ def _build(cls, data: dict, prefix: str):
     known = {f.name: f for f in fields(cls)}
     for k in data:
         if k not in known:
-            raise KeyError(f"unknown config key {prefix + str(k)!r}; known keys here: "
-                           f"{', '.join(sorted(known))}")
+            raise KeyError(
+                f"unknown config key {prefix + str(k)!r}; known keys here: "
+                f"{', '.join(sorted(known))}"
+            )
     kwargs = {}
     for name, value in data.items():
         kwargs[name] = _coerce(hints[name], value, prefix + name)
@@ -301,7 +319,7 @@ def _coerce(tp, value, key):
     if origin is typing.Union:  # Optional[X]
         if value is None:
             return None
-        (inner,) = [a for a in typing.get_args(tp) if a is not type(None)]
+        (inner,) = [a for a in typing.get_args(tp) if a is not type(None)]  # noqa: E721
         return _coerce(inner, value, key)
     if tp is bool:
         if isinstance(value, bool):
@@ -323,7 +341,8 @@ def _coerce(tp, value, key):
         return value
     if tp is tuple:
         if not isinstance(value, (list, tuple)) or not all(
-                isinstance(x, (int, float)) and not isinstance(x, bool) for x in value):
+            isinstance(x, (int, float)) and not isinstance(x, bool) for x in value
+        ):
             raise ValueError(f"config key {key!r} must be a list of numbers, got {value!r}")
         return tuple(float(x) for x in value)
     return value
@@ -339,16 +358,45 @@ _CHOICES = {
     "profiling.method": ("circular", "bbox"),
     "symmetry.keypoints": ("sift", "iss", "uniform"),
 }
-_POSITIVE = {"map.resolution", "camera.max_range", "laser.max_range", "cloud.camera_voxel",
-             "cloud.laser_voxel", "vehicle.collision_radius", "sampling.delta_d",
-             "sampling.sigma", "termination.threshold", "sampling.stuck_threshold", "mesh.scale",
-             "profiling.waypoints", "profiling.sweep_step", "profiling.max_segment"}
-_NONNEG = {"max_iterations", "start", "sampling.alpha_max", "termination.window",
-           "sampling.stuck_window", "vehicle.start_clear_radius", "camera.noise_k",
-           "laser.noise_sigma", "utility.distance_lambda", "evaluation.coverage_every",
-           "workspace.margin_xy", "workspace.margin_z", "sampling.delta_theta"}
-_TRIPLES = {"camera.mount_xyz", "camera.mount_rpy_deg", "laser.mount_xyz", "laser.mount_rpy_deg",
-            "workspace.bounds_min", "workspace.bounds_max"}
+_POSITIVE = {
+    "map.resolution",
+    "camera.max_range",
+    "laser.max_range",
+    "cloud.camera_voxel",
+    "cloud.laser_voxel",
+    "vehicle.collision_radius",
+    "sampling.delta_d",
+    "sampling.sigma",
+    "termination.threshold",
+    "sampling.stuck_threshold",
+    "mesh.scale",
+    "profiling.waypoints",
+    "profiling.sweep_step",
+    "profiling.max_segment",
+}
+_NONNEG = {
+    "max_iterations",
+    "start",
+    "sampling.alpha_max",
+    "termination.window",
+    "sampling.stuck_window",
+    "vehicle.start_clear_radius",
+    "camera.noise_k",
+    "laser.noise_sigma",
+    "utility.distance_lambda",
+    "evaluation.coverage_every",
+    "workspace.margin_xy",
+    "workspace.margin_z",
+    "sampling.delta_theta",
+}
+_TRIPLES = {
+    "camera.mount_xyz",
+    "camera.mount_rpy_deg",
+    "laser.mount_xyz",
+    "laser.mount_rpy_deg",
+    "workspace.bounds_min",
+    "workspace.bounds_max",
+}
 
 
 def _validate(obj, prefix: str) -> None:
@@ -356,7 +404,9 @@ def _validate(obj, prefix: str) -> None:
         key = prefix + f.name
         v = getattr(obj, f.name)
         if key in _CHOICES and v not in _CHOICES[key]:
-            raise ValueError(f"config key {key!r} must be one of {', '.join(_CHOICES[key])}; got {v!r}")
+            raise ValueError(
+                f"config key {key!r} must be one of {', '.join(_CHOICES[key])}; got {v!r}"
+            )
         if isinstance(v, float) and not math.isfinite(v):
             raise ValueError(f"config key {key!r} must be finite, got {v!r}")
         if key in _POSITIVE and v is not None and not v > 0:
@@ -366,22 +416,46 @@ def _validate(obj, prefix: str) -> None:
         if key in _TRIPLES and v is not None and len(v) != 3:
             raise ValueError(f"config key {key!r} must have 3 numbers, got {list(v)!r}")
     if prefix == "" and obj.start_pose is not None and len(obj.start_pose) != 4:
-        raise ValueError(f"config key 'start_pose' must be 4 numbers (x, y, z, yaw), got {list(obj.start_pose)!r}")
+        raise ValueError(
+            "config key 'start_pose' must be 4 numbers (x, y, z, yaw), "
+            f"got {list(obj.start_pose)!r}"
+        )
     if prefix == "" and not 0 <= obj.start <= 4:
-        raise ValueError(f"config key 'start' must be 0..4 (five predefined starts), got {obj.start}")
+        raise ValueError(
+            f"config key 'start' must be 0..4 (five predefined starts), got {obj.start}"
+        )
     if prefix == "workspace." and (obj.bounds_min is None) != (obj.bounds_max is None):
-        raise ValueError("config keys 'workspace.bounds_min' and 'workspace.bounds_max' go together")
+        raise ValueError(
+            "config keys 'workspace.bounds_min' and 'workspace.bounds_max' go together"
+        )
 
 
-def load_config(path: str | Path | None = None, overrides: list[str] | dict | None = None) -> Config:
+def load_config(
+    path: str | Path | None = None, overrides: list[str] | dict | None = None
+) -> Config:
     """The default configuration, updated from a YAML file and then from overrides."""
     cfg = Config.from_yaml(path) if path else Config()
     return cfg.with_overrides(overrides)
 
 
-__all__ = ["Config", "load_config"] + [c.__name__ for c in (
-    MeshConfig, WorkspaceConfig, MapConfig, CameraConfig, LaserConfig, CloudConfig, VehicleConfig,
-    SamplingConfig, UtilityConfig, TerminationConfig, ProfilingConfig, SymmetryConfig, EvaluationConfig)]
+__all__ = ["Config", "load_config"] + [
+    c.__name__
+    for c in (
+        MeshConfig,
+        WorkspaceConfig,
+        MapConfig,
+        CameraConfig,
+        LaserConfig,
+        CloudConfig,
+        VehicleConfig,
+        SamplingConfig,
+        UtilityConfig,
+        TerminationConfig,
+        ProfilingConfig,
+        SymmetryConfig,
+        EvaluationConfig,
+    )
+]
 
 
 def documented_yaml() -> str:
@@ -400,9 +474,12 @@ def documented_yaml() -> str:
     def flow(k, v):
         return yaml.safe_dump({k: v}, default_flow_style=True, width=1000).strip()[1:-1]
 
-    lines = ["# nbvkit default configuration: every key with its default and unit (generated by",
-             "# `python -m nbvkit.config`). Unknown keys are rejected. Use it with",
-             "# `nbvkit run --config FILE`, or override single keys: `--set map.resolution=0.4`.", ""]
+    lines = [
+        "# nbvkit default configuration: every key with its default and unit (generated by",
+        "# `python -m nbvkit.config`). Unknown keys are rejected. Use it with",
+        "# `nbvkit run --config FILE`, or override single keys: `--set map.resolution=0.4`.",
+        "",
+    ]
     data = Config().to_dict()
     top = comments(Config)
     for f in fields(Config):

@@ -14,8 +14,15 @@ from . import _core
 from ._core import Mesh
 from .cloud import _as_points
 
-__all__ = ["evaluate", "Evaluator", "format_report", "DEFAULT_GT_DENSITY", "DEFAULT_RESOLUTIONS", "DEFAULT_TAUS",
-           "MAX_GT_POINTS"]
+__all__ = [
+    "evaluate",
+    "Evaluator",
+    "format_report",
+    "DEFAULT_GT_DENSITY",
+    "DEFAULT_RESOLUTIONS",
+    "DEFAULT_TAUS",
+    "MAX_GT_POINTS",
+]
 
 _DEF = _core.EvaluationOptions()
 #: Ground-truth samples per m² of mesh surface (see ``evaluate`` for how it was chosen).
@@ -38,7 +45,9 @@ def _lengths(values, what):
     try:
         out = [float(v) for v in values]
     except (TypeError, ValueError):
-        raise ValueError(f"{what} must be a sequence of positive numbers of metres, got {values!r}") from None
+        raise ValueError(
+            f"{what} must be a sequence of positive numbers of metres, got {values!r}"
+        ) from None
     for v in out:
         if not (math.isfinite(v) and v > 0):
             raise ValueError(f"{what} must be positive numbers of metres, got {v!r}")
@@ -48,9 +57,15 @@ def _lengths(values, what):
     return out
 
 
-def evaluate(gt, cloud, resolutions=DEFAULT_RESOLUTIONS, taus=DEFAULT_TAUS,
-             gt_density: float | None = DEFAULT_GT_DENSITY, seed: int = 0,
-             max_gt_points: int = MAX_GT_POINTS) -> dict:
+def evaluate(
+    gt,
+    cloud,
+    resolutions=DEFAULT_RESOLUTIONS,
+    taus=DEFAULT_TAUS,
+    gt_density: float | None = DEFAULT_GT_DENSITY,
+    seed: int = 0,
+    max_gt_points: int = MAX_GT_POINTS,
+) -> dict:
     """Score a reconstructed cloud against ground truth.
 
     Args:
@@ -124,8 +139,15 @@ def evaluate(gt, cloud, resolutions=DEFAULT_RESOLUTIONS, taus=DEFAULT_TAUS,
     sub-centimetre Chamfer comparisons (2000 /m² takes that probability to 1.5e-7).
     Threads do not change any number (per-point results, sums in a fixed order).
     """
-    return Evaluator(gt, resolutions=resolutions, taus=taus, gt_density=gt_density, seed=seed,
-                     max_gt_points=max_gt_points, _stacklevel=3)(cloud)
+    return Evaluator(
+        gt,
+        resolutions=resolutions,
+        taus=taus,
+        gt_density=gt_density,
+        seed=seed,
+        max_gt_points=max_gt_points,
+        _stacklevel=3,
+    )(cloud)
 
 
 class Evaluator:
@@ -137,26 +159,39 @@ class Evaluator:
     ``evaluate(gt, cloud, ...)`` would. ``gt_points`` is the ``(M, 3)`` ground truth used.
     """
 
-    def __init__(self, gt, resolutions=DEFAULT_RESOLUTIONS, taus=DEFAULT_TAUS,
-                 gt_density: float | None = DEFAULT_GT_DENSITY, seed: int = 0,
-                 max_gt_points: int = MAX_GT_POINTS, _stacklevel: int = 2):
+    def __init__(
+        self,
+        gt,
+        resolutions=DEFAULT_RESOLUTIONS,
+        taus=DEFAULT_TAUS,
+        gt_density: float | None = DEFAULT_GT_DENSITY,
+        seed: int = 0,
+        max_gt_points: int = MAX_GT_POINTS,
+        _stacklevel: int = 2,
+    ):
         res_list = _lengths(resolutions, "resolutions")
         tau_list = _lengths(taus, "taus")
         if isinstance(seed, bool) or not isinstance(seed, numbers.Integral) or seed < 0:
             raise ValueError(f"seed must be a non-negative integer, got {seed!r}")
-        if isinstance(max_gt_points, bool) or not isinstance(max_gt_points, numbers.Integral) \
-                or max_gt_points < 1:
+        if (
+            isinstance(max_gt_points, bool)
+            or not isinstance(max_gt_points, numbers.Integral)
+            or max_gt_points < 1
+        ):
             raise ValueError(f"max_gt_points must be a positive integer, got {max_gt_points!r}")
         if gt_density is None:
             gt_density = DEFAULT_GT_DENSITY
         try:
             density = float(gt_density)
         except (TypeError, ValueError):
-            raise ValueError(f"gt_density must be a positive number of points per m^2, "
-                             f"got {gt_density!r}") from None
+            raise ValueError(
+                f"gt_density must be a positive number of points per m^2, " f"got {gt_density!r}"
+            ) from None
         if not isinstance(gt, Mesh):
             gt = _as_points(gt)
-        self._core = _core._Evaluator(gt, res_list, tau_list, density, int(seed), int(max_gt_points))
+        self._core = _core._Evaluator(
+            gt, res_list, tau_list, density, int(seed), int(max_gt_points)
+        )
         for w in self._core.gt_info.warnings:
             warnings.warn(w, RuntimeWarning, stacklevel=_stacklevel)
 
@@ -177,8 +212,11 @@ class Evaluator:
 
     def __repr__(self) -> str:
         info = self._core.gt_info
-        src = (f"mesh sampled at {info.gt_density:.0f} points/m^2" if info.from_mesh
-               else "reference cloud")
+        src = (
+            f"mesh sampled at {info.gt_density:.0f} points/m^2"
+            if info.from_mesh
+            else "reference cloud"
+        )
         return f"<nbvkit.Evaluator {self.num_gt_points} ground-truth points, {src}>"
 
 
@@ -224,29 +262,39 @@ def format_report(result: dict) -> str:
     """A readable table of an ``evaluate`` result."""
     out = []
     if result.get("gt_source") == "mesh":
-        out.append(f"ground truth: mesh, {result['gt_area_m2']:.1f} m^2 sampled at "
-                   f"{result['gt_density']:.0f} points/m^2 ({result['n_gt_points']:,} samples, "
-                   f"seed {result['seed']})")
+        out.append(
+            f"ground truth: mesh, {result['gt_area_m2']:.1f} m^2 sampled at "
+            f"{result['gt_density']:.0f} points/m^2 ({result['n_gt_points']:,} samples, "
+            f"seed {result['seed']})"
+        )
     else:
         out.append(f"ground truth: reference cloud, {result['n_gt_points']:,} points")
     out.append(f"cloud: {result['n_points']:,} points")
     out.append("")
-    out.append(f"{'resolution':>10}  {'coverage':>9}  {'area cov.':>9}  {'precision':>9}  "
-               f"{'GT cells':>10}  {'cloud cells':>11}")
+    out.append(
+        f"{'resolution':>10}  {'coverage':>9}  {'area cov.':>9}  {'precision':>9}  "
+        f"{'GT cells':>10}  {'cloud cells':>11}"
+    )
     for k in result["coverage"]:
-        out.append(f"{k + ' m':>10}  {_pct(result['coverage'][k]):>9}  "
-                   f"{_pct(result['area_coverage'][k]):>9}  {_pct(result['precision'][k]):>9}  "
-                   f"{result['gt_cells'][k]:>10,}  {result['cloud_cells'][k]:>11,}")
+        out.append(
+            f"{k + ' m':>10}  {_pct(result['coverage'][k]):>9}  "
+            f"{_pct(result['area_coverage'][k]):>9}  {_pct(result['precision'][k]):>9}  "
+            f"{result['gt_cells'][k]:>10,}  {result['cloud_cells'][k]:>11,}"
+        )
     out.append("")
     out.append(f"{'tau':>10}  {'complete.':>9}  {'accuracy':>9}  {'F-score':>9}")
     for k in result["completeness"]:
-        out.append(f"{k + ' m':>10}  {_pct(result['completeness'][k]):>9}  "
-                   f"{_pct(result['accuracy'][k]):>9}  {_pct(result['fscore'][k]):>9}")
+        out.append(
+            f"{k + ' m':>10}  {_pct(result['completeness'][k]):>9}  "
+            f"{_pct(result['accuracy'][k]):>9}  {_pct(result['fscore'][k]):>9}"
+        )
     out.append("")
     if result["chamfer_m"] is None:
         out.append("Chamfer distance: n/a (empty cloud)")
     else:
-        out.append(f"Chamfer distance: {result['chamfer_m']:.4f} m (cloud->GT "
-                   f"{result['mean_dist_cloud_to_gt_m']:.4f} m, GT->cloud "
-                   f"{result['mean_dist_gt_to_cloud_m']:.4f} m)")
+        out.append(
+            f"Chamfer distance: {result['chamfer_m']:.4f} m (cloud->GT "
+            f"{result['mean_dist_cloud_to_gt_m']:.4f} m, GT->cloud "
+            f"{result['mean_dist_gt_to_cloud_m']:.4f} m)"
+        )
     return "\n".join(out)

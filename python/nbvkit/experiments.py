@@ -20,13 +20,20 @@ from pathlib import Path
 import numpy as np
 
 #: the paper's Table 2 rows: label, profiling, symmetry, sampling
-TABLE2_ROWS = [("Profile", "yes", "no", "-"), ("1", "no", "no", "CGVS"), ("2", "yes", "no", "CGVS"),
-               ("3", "yes", "no", "AGVS"), ("4", "yes", "yes", "CGVS"), ("5", "yes", "yes", "AGVS")]
+TABLE2_ROWS = [
+    ("Profile", "yes", "no", "-"),
+    ("1", "no", "no", "CGVS"),
+    ("2", "yes", "no", "CGVS"),
+    ("3", "yes", "no", "AGVS"),
+    ("4", "yes", "yes", "CGVS"),
+    ("5", "yes", "yes", "AGVS"),
+]
 
 
 @dataclass(frozen=True)
 class RunSpec:
     """One mission: a scenario from a start on a structure, with config overrides."""
+
     scenario: str
     start: int
     mesh: str | None = None  # None: the shipped airliner
@@ -39,15 +46,24 @@ class RunSpec:
     @property
     def run_id(self) -> str:
         name = Path(self.mesh).stem if self.mesh else "airliner"
-        h = hashlib.sha1(json.dumps([self.mesh, self.mesh_scale, self.mesh_up, list(self.overrides),
-                                     self.config_file]).encode()).hexdigest()[:8]
+        h = hashlib.sha1(
+            json.dumps(
+                [self.mesh, self.mesh_scale, self.mesh_up, list(self.overrides), self.config_file]
+            ).encode()
+        ).hexdigest()[:8]
         return f"{name}_s{self.scenario}_start{self.start}_{h}"
 
     def config(self):
         from .config import load_config
 
-        over = [*self.overrides, f"scenario={json.dumps(self.scenario)}", f"start={self.start}",
-                f"mesh.scale={self.mesh_scale}", f"mesh.up={self.mesh_up}", "progress=false"]
+        over = [
+            *self.overrides,
+            f"scenario={json.dumps(self.scenario)}",
+            f"start={self.start}",
+            f"mesh.scale={self.mesh_scale}",
+            f"mesh.up={self.mesh_up}",
+            "progress=false",
+        ]
         if self.mesh:
             over.append(f"mesh.path={json.dumps(str(self.mesh))}")
         return load_config(self.config_file, over)
@@ -75,21 +91,39 @@ def run_one(spec: RunSpec, root: str | os.PathLike, threads: int = 0) -> dict:
 
 
 def _spec_dict(spec: RunSpec) -> dict:
-    return {"scenario": spec.scenario, "start": spec.start, "mesh": spec.mesh, "mesh_scale": spec.mesh_scale,
-            "mesh_up": spec.mesh_up, "overrides": list(spec.overrides), "config_file": spec.config_file,
-            "labels": [list(x) for x in spec.labels]}
+    return {
+        "scenario": spec.scenario,
+        "start": spec.start,
+        "mesh": spec.mesh,
+        "mesh_scale": spec.mesh_scale,
+        "mesh_up": spec.mesh_up,
+        "overrides": list(spec.overrides),
+        "config_file": spec.config_file,
+        "labels": [list(x) for x in spec.labels],
+    }
 
 
 def row_of(run_dir: Path) -> dict:
     """One tidy row from a finished run folder."""
     s = json.loads((run_dir / "summary.json").read_text())
-    spec = json.loads((run_dir / "spec.json").read_text()) if (run_dir / "spec.json").exists() else {}
-    row = {"run_id": run_dir.name, "scenario": s["scenario"], "start": s["start"],
-           "mesh": spec.get("mesh") or "airliner", "overrides": " ".join(spec.get("overrides", [])),
-           "iterations": s["iterations"], "distance_m": s["distance_m"],
-           "entropy_reduction": s["entropy_reduction"], "termination": s["termination"],
-           "wall_time_s": s["wall_time_s"], "ms_per_iteration": s["ms_per_iteration"],
-           "cloud_points": s["cloud_points"], "chamfer_m": s["chamfer_m"]}
+    spec = (
+        json.loads((run_dir / "spec.json").read_text()) if (run_dir / "spec.json").exists() else {}
+    )
+    row = {
+        "run_id": run_dir.name,
+        "scenario": s["scenario"],
+        "start": s["start"],
+        "mesh": spec.get("mesh") or "airliner",
+        "overrides": " ".join(spec.get("overrides", [])),
+        "iterations": s["iterations"],
+        "distance_m": s["distance_m"],
+        "entropy_reduction": s["entropy_reduction"],
+        "termination": s["termination"],
+        "wall_time_s": s["wall_time_s"],
+        "ms_per_iteration": s["ms_per_iteration"],
+        "cloud_points": s["cloud_points"],
+        "chamfer_m": s["chamfer_m"],
+    }
     for k in ("coverage", "area_coverage", "precision"):
         for r, v in s[k].items():
             row[f"{k}_{r}"] = v
@@ -111,8 +145,13 @@ def row_of(run_dir: Path) -> dict:
     return row
 
 
-def run_specs(specs: list[RunSpec], root: str | os.PathLike, workers: int = 0,
-              scheduler: str | None = None, progress: bool = True) -> list[dict]:
+def run_specs(
+    specs: list[RunSpec],
+    root: str | os.PathLike,
+    workers: int = 0,
+    scheduler: str | None = None,
+    progress: bool = True,
+) -> list[dict]:
     """Runs every spec (skipping finished ones) and returns their rows, in spec order.
 
     workers: local processes (0: one per core, 1: in this process); scheduler: the address of a
@@ -133,7 +172,10 @@ def run_specs(specs: list[RunSpec], root: str | os.PathLike, workers: int = 0,
             t0 = time.perf_counter()
             rows.append(run_one(s, root))
             if progress:
-                print(f"[{i + 1}/{len(specs)}] {s.run_id}: {time.perf_counter() - t0:.1f} s", flush=True)
+                print(
+                    f"[{i + 1}/{len(specs)}] {s.run_id}: {time.perf_counter() - t0:.1f} s",
+                    flush=True,
+                )
     else:
         import concurrent.futures as cf
         import multiprocessing as mp
@@ -146,8 +188,11 @@ def run_specs(specs: list[RunSpec], root: str | os.PathLike, workers: int = 0,
             for k, f in enumerate(cf.as_completed(futs)):
                 rows[futs[f]] = f.result()
                 if progress:
-                    print(f"[{k + 1}/{len(specs)}] {rows[futs[f]]['run_id']}: "
-                          f"{rows[futs[f]]['wall_time_s']:.1f} s", flush=True)
+                    print(
+                        f"[{k + 1}/{len(specs)}] {rows[futs[f]]['run_id']}: "
+                        f"{rows[futs[f]]['wall_time_s']:.1f} s",
+                        flush=True,
+                    )
     return rows
 
 
@@ -169,8 +214,11 @@ def read_table(path: str | os.PathLike):
 
 def table2_specs(mesh=None, mesh_scale=1.0, mesh_up="z", starts=5, overrides=()) -> list[RunSpec]:
     """The Profile row and Scenarios 1-5, each from `starts` predefined starts."""
-    return [RunSpec(sc, k, mesh, mesh_scale, mesh_up, tuple(overrides))
-            for sc in ("profile", "1", "2", "3", "4", "5") for k in range(starts)]
+    return [
+        RunSpec(sc, k, mesh, mesh_scale, mesh_up, tuple(overrides))
+        for sc in ("profile", "1", "2", "3", "4", "5")
+        for k in range(starts)
+    ]
 
 
 def table2(df):
@@ -179,21 +227,40 @@ def table2(df):
 
     out = []
     for label, prof, sym, samp in TABLE2_ROWS:
-        sub = df[df["scenario"].astype(str) == label.lower()] if label == "Profile" else \
-            df[df["scenario"].astype(str) == label]
+        sub = (
+            df[df["scenario"].astype(str) == label.lower()]
+            if label == "Profile"
+            else df[df["scenario"].astype(str) == label]
+        )
         if label == "Profile" and len(sub):
-            cols = {"distance_m": "profile_distance_m", "entropy_reduction": "profile_entropy_reduction",
-                    "coverage_0.05": "profile_coverage_0.05", "coverage_0.1": "profile_coverage_0.1",
-                    "coverage_0.5": "profile_coverage_0.5"}
+            cols = {
+                "distance_m": "profile_distance_m",
+                "entropy_reduction": "profile_entropy_reduction",
+                "coverage_0.05": "profile_coverage_0.05",
+                "coverage_0.1": "profile_coverage_0.1",
+                "coverage_0.5": "profile_coverage_0.5",
+            }
             sub = sub.assign(**{k: sub[v] for k, v in cols.items()}, iterations=np.nan)
         if not len(sub):
             continue
-        r = {"Scenario": label, "Profiling": prof, "Symmetry": sym, "Sampling": samp, "runs": len(sub)}
-        for col, name in (("iterations", "Iterations"), ("distance_m", "Distance (m)"),
-                          ("entropy_reduction", "Entropy reduction"), ("coverage_0.05", "Coverage @0.05 m"),
-                          ("coverage_0.1", "Coverage @0.10 m"), ("coverage_0.5", "Coverage @0.50 m"),
-                          ("area_coverage_0.05", "Area cov. @0.05 m"), ("wall_time_s", "Wall time (s)"),
-                          ("ms_per_iteration", "ms/iteration")):
+        r = {
+            "Scenario": label,
+            "Profiling": prof,
+            "Symmetry": sym,
+            "Sampling": samp,
+            "runs": len(sub),
+        }
+        for col, name in (
+            ("iterations", "Iterations"),
+            ("distance_m", "Distance (m)"),
+            ("entropy_reduction", "Entropy reduction"),
+            ("coverage_0.05", "Coverage @0.05 m"),
+            ("coverage_0.1", "Coverage @0.10 m"),
+            ("coverage_0.5", "Coverage @0.50 m"),
+            ("area_coverage_0.05", "Area cov. @0.05 m"),
+            ("wall_time_s", "Wall time (s)"),
+            ("ms_per_iteration", "ms/iteration"),
+        ):
             v = pd.to_numeric(sub[col], errors="coerce") if col in sub else pd.Series(dtype=float)
             r[name] = v.mean() if v.notna().any() else np.nan
             r[name + " sd"] = v.std(ddof=0) if v.notna().sum() > 1 else 0.0
@@ -203,6 +270,7 @@ def table2(df):
 
 def table2_markdown(t) -> str:
     """Table 2 as Markdown, mean ± spread over the starts."""
+
     def fmt(name, v, sd):
         if v != v:  # NaN
             return "—"
@@ -214,8 +282,17 @@ def table2_markdown(t) -> str:
             return f"{v:,.0f} ± {sd:,.0f}"
         return f"{v:,.1f} ± {sd:,.1f}"
 
-    cols = ["Iterations", "Distance (m)", "Entropy reduction", "Coverage @0.05 m", "Coverage @0.10 m",
-            "Coverage @0.50 m", "Area cov. @0.05 m", "Wall time (s)", "ms/iteration"]
+    cols = [
+        "Iterations",
+        "Distance (m)",
+        "Entropy reduction",
+        "Coverage @0.05 m",
+        "Coverage @0.10 m",
+        "Coverage @0.50 m",
+        "Area cov. @0.05 m",
+        "Wall time (s)",
+        "ms/iteration",
+    ]
     head = ["Scenario", "Profiling", "Symmetry", "Sampling", *cols, "runs"]
     lines = ["| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
     for _, r in t.iterrows():
@@ -237,7 +314,17 @@ def write_table2(df, out: Path) -> None:
 def sweep_specs(sweep: dict) -> list[RunSpec]:
     """Specs of a sweep description (see `nbvkit sweep --help`): meshes x scenarios x starts x
     every combination of the grid's values, with the fixed overrides in `set`."""
-    known = {"meshes", "scenarios", "starts", "grid", "set", "config", "out", "workers", "scheduler"}
+    known = {
+        "meshes",
+        "scenarios",
+        "starts",
+        "grid",
+        "set",
+        "config",
+        "out",
+        "workers",
+        "scheduler",
+    }
     unknown = set(sweep) - known
     if unknown:
         raise KeyError(f"unknown sweep key(s) {sorted(unknown)}; known: {sorted(known)}")
@@ -259,8 +346,18 @@ def sweep_specs(sweep: dict) -> list[RunSpec]:
             labels = tuple((k, v) for k, v in zip(keys, combo))
             for sc in scenarios:
                 for st in starts:
-                    specs.append(RunSpec(sc, int(st), m.get("path"), float(m.get("scale", 1.0)),
-                                         m.get("up", "z"), tuple(over), sweep.get("config"), labels))
+                    specs.append(
+                        RunSpec(
+                            sc,
+                            int(st),
+                            m.get("path"),
+                            float(m.get("scale", 1.0)),
+                            m.get("up", "z"),
+                            tuple(over),
+                            sweep.get("config"),
+                            labels,
+                        )
+                    )
     validate_specs(specs)
     return specs
 
@@ -276,8 +373,12 @@ def compare_with_paper(t, paper_csv) -> str:
     import pandas as pd
 
     paper = pd.read_csv(paper_csv, dtype={"scenario": str})
-    lines = ["| Scenario | Iterations (ours / paper) | Distance m | Entropy reduction | Coverage @0.05 m | "
-             "Coverage @0.10 m | Coverage @0.50 m |", "|---|---|---|---|---|---|---|"]
+    lines = [
+        "| Scenario | Iterations (ours / paper) | Distance m | Entropy reduction "
+        "| Coverage @0.05 m | "
+        "Coverage @0.10 m | Coverage @0.50 m |",
+        "|---|---|---|---|---|---|---|",
+    ]
     for _, r in t.iterrows():
         p = paper[paper["scenario"].astype(str) == str(r["Scenario"])]
         if not len(p):
@@ -288,14 +389,26 @@ def compare_with_paper(t, paper_csv) -> str:
             if kind == "pct":
                 return f"{ours:.1%} / {theirs:.1%}".replace("%", " %")
             if kind == "int":
-                return ("—" if ours != ours else f"{ours:,.0f}") + " / " + ("—" if theirs != theirs else f"{theirs:,.0f}")
+                return (
+                    ("—" if ours != ours else f"{ours:,.0f}")
+                    + " / "
+                    + ("—" if theirs != theirs else f"{theirs:,.0f}")
+                )
             return f"{ours:,.1f} / {theirs:,.1f}"
 
-        lines.append("| " + " | ".join([
-            str(r["Scenario"]), pair(r["Iterations"], p["iterations"], "int"),
-            pair(r["Distance (m)"], p["distance_m"], "num"),
-            pair(r["Entropy reduction"], p["entropy_reduction"], "int"),
-            pair(r["Coverage @0.05 m"], p["coverage_0.05"], "pct"),
-            pair(r["Coverage @0.10 m"], p["coverage_0.10"], "pct"),
-            pair(r["Coverage @0.50 m"], p["coverage_0.50"], "pct")]) + " |")
+        lines.append(
+            "| "
+            + " | ".join(
+                [
+                    str(r["Scenario"]),
+                    pair(r["Iterations"], p["iterations"], "int"),
+                    pair(r["Distance (m)"], p["distance_m"], "num"),
+                    pair(r["Entropy reduction"], p["entropy_reduction"], "int"),
+                    pair(r["Coverage @0.05 m"], p["coverage_0.05"], "pct"),
+                    pair(r["Coverage @0.10 m"], p["coverage_0.10"], "pct"),
+                    pair(r["Coverage @0.50 m"], p["coverage_0.50"], "pct"),
+                ]
+            )
+            + " |"
+        )
     return "\n".join(lines) + "\n"

@@ -43,8 +43,9 @@ def mesh_to_open3d(mesh: Mesh):
     """An ``open3d.geometry.TriangleMesh`` of a Mesh (with vertex normals, for viewing)."""
     import open3d as o3d
 
-    m = o3d.geometry.TriangleMesh(o3d.utility.Vector3dVector(mesh.vertices),
-                                  o3d.utility.Vector3iVector(mesh.faces))
+    m = o3d.geometry.TriangleMesh(
+        o3d.utility.Vector3dVector(mesh.vertices), o3d.utility.Vector3iVector(mesh.faces)
+    )
     m.compute_vertex_normals()
     return m
 
@@ -59,4 +60,6 @@ def default_mesh_path() -> Path:
     for cand in (here / "data" / "airliner.obj", here.parent.parent / "meshes" / "airliner.obj"):
         if cand.exists():
             return cand
-    raise FileNotFoundError(2, "The default airliner mesh is not installed", str(here / "data" / "airliner.obj"))
+    raise FileNotFoundError(
+        2, "The default airliner mesh is not installed", str(here / "data" / "airliner.obj")
+    )

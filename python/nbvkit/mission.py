@@ -33,7 +33,13 @@ SCENARIOS = {
     "5": (True, True, "agvs"),
 }
 
-STATUS_NAMES = {0: "valid", 1: "out_of_bounds", 2: "collision", 3: "path_blocked", 4: "sees_no_occupied"}
+STATUS_NAMES = {
+    0: "valid",
+    1: "out_of_bounds",
+    2: "collision",
+    3: "path_blocked",
+    4: "sees_no_occupied",
+}
 
 
 class MissionError(ValueError):
@@ -126,37 +132,81 @@ class Mission:
         # starts within 3/4 of the camera's range of the structure, seeing it (see start_poses)
         c, la = cfg.camera, cfg.laser
         camera_mount = _core.mount_transform(c.mount_xyz, *c.mount_rpy_deg)
-        probe = _core.DepthCamera(self.scene, width=32, height=24, hfov_deg=c.hfov_deg, vfov_deg=c.vfov_deg,
-                                  min_range=c.min_range, max_range=c.max_range, mount=camera_mount)
-        self.starts = start_poses(self.workspace, surface=mesh.sample_surface(20000, seed=0),
-                                  reach=0.75 * c.max_range, clearance=cfg.vehicle.collision_radius + 1.0,
-                                  sees=lambda pose: len(probe.scan_pose(pose).hits) >= 0.05 * 32 * 24)
-        self.start_pose = (np.array(cfg.start_pose, float) if cfg.start_pose is not None
-                           else self.starts[cfg.start])
+        probe = _core.DepthCamera(
+            self.scene,
+            width=32,
+            height=24,
+            hfov_deg=c.hfov_deg,
+            vfov_deg=c.vfov_deg,
+            min_range=c.min_range,
+            max_range=c.max_range,
+            mount=camera_mount,
+        )
+        self.starts = start_poses(
+            self.workspace,
+            surface=mesh.sample_surface(20000, seed=0),
+            reach=0.75 * c.max_range,
+            clearance=cfg.vehicle.collision_radius + 1.0,
+            sees=lambda pose: len(probe.scan_pose(pose).hits) >= 0.05 * 32 * 24,
+        )
+        self.start_pose = (
+            np.array(cfg.start_pose, float)
+            if cfg.start_pose is not None
+            else self.starts[cfg.start]
+        )
         self._check_start(self.start_pose)
         self.camera = _core.DepthCamera(
-            self.scene, width=c.width, height=c.height, hfov_deg=c.hfov_deg, vfov_deg=c.vfov_deg,
-            min_range=c.min_range, max_range=c.max_range, noise_k=c.noise_k, seed=cfg.seed,
-            mount=camera_mount)
+            self.scene,
+            width=c.width,
+            height=c.height,
+            hfov_deg=c.hfov_deg,
+            vfov_deg=c.vfov_deg,
+            min_range=c.min_range,
+            max_range=c.max_range,
+            noise_k=c.noise_k,
+            seed=cfg.seed,
+            mount=camera_mount,
+        )
         self.laser = _core.LaserScanner(
-            self.scene, fov_deg=la.fov_deg, resolution_deg=la.resolution_deg, min_range=la.min_range,
-            max_range=la.max_range, noise_sigma=la.noise_sigma, seed=cfg.seed + 1,
-            mount=_core.mount_transform(la.mount_xyz, *la.mount_rpy_deg))
+            self.scene,
+            fov_deg=la.fov_deg,
+            resolution_deg=la.resolution_deg,
+            min_range=la.min_range,
+            max_range=la.max_range,
+            noise_sigma=la.noise_sigma,
+            seed=cfg.seed + 1,
+            mount=_core.mount_transform(la.mount_xyz, *la.mount_rpy_deg),
+        )
         m = cfg.map
         self.map = _core.OccupancyMap(
-            m.resolution, self.workspace.bounds_min, self.workspace.bounds_max,
+            m.resolution,
+            self.workspace.bounds_min,
+            self.workspace.bounds_max,
             options=_core.OccupancyMapOptions(
-                prob_hit=m.prob_hit, prob_miss=m.prob_miss, clamp_min=m.clamp_min,
-                clamp_max=m.clamp_max, occupancy_threshold=m.occupancy_threshold,
-                entropy_unit=m.entropy_unit, clamped_entropy_zero=m.clamped_entropy_zero,
-                deduplicate_end_points=m.fast_integration, clip_to_workspace=m.clip_to_workspace))
+                prob_hit=m.prob_hit,
+                prob_miss=m.prob_miss,
+                clamp_min=m.clamp_min,
+                clamp_max=m.clamp_max,
+                occupancy_threshold=m.occupancy_threshold,
+                entropy_unit=m.entropy_unit,
+                clamped_entropy_zero=m.clamped_entropy_zero,
+                deduplicate_end_points=m.fast_integration,
+                clip_to_workspace=m.clip_to_workspace,
+            ),
+        )
         cl = cfg.cloud
         self.camera_cloud = _core.SurfaceCloud(voxel_size=cl.camera_voxel, min_z=cl.min_z)
         self.laser_cloud = _core.SurfaceCloud(voxel_size=cl.laser_voxel, min_z=cl.min_z)
         rx, ry = _core.view_ray_grid(c.hfov_deg, c.vfov_deg, c.max_range, m.resolution)
         self.rays = (cfg.utility.rays_x or rx, cfg.utility.rays_y or ry)
-        self.c_view = viewable_cells(c.hfov_deg, c.vfov_deg, c.min_range, c.max_range, m.resolution,
-                                     cfg.termination.count_partial_cells)
+        self.c_view = viewable_cells(
+            c.hfov_deg,
+            c.vfov_deg,
+            c.min_range,
+            c.max_range,
+            m.resolution,
+            cfg.termination.count_partial_cells,
+        )
         self.state = MissionState(pose=self.start_pose.copy())
         self.records: list[IterationRecord] = []
         self.profile_summary: dict | None = None
@@ -167,14 +217,18 @@ class Mission:
     def _check_start(self, pose) -> None:
         ws = self.workspace
         if not ws.contains(pose):
-            raise MissionError(f"start pose {np.round(pose, 3).tolist()} is outside the navigation bounds "
-                               f"{ws.nav_min.round(3).tolist()} - {ws.nav_max.round(3).tolist()}")
+            raise MissionError(
+                f"start pose {np.round(pose, 3).tolist()} is outside the navigation bounds "
+                f"{ws.nav_min.round(3).tolist()} - {ws.nav_max.round(3).tolist()}"
+            )
         r = self.config.vehicle.collision_radius
         dirs = _fibonacci_sphere(200)
         t, _ = self.scene.intersect(np.asarray(pose[:3], float)[None], dirs, 0.0, max(r, 1e-6))
         if np.isfinite(t).any():
-            raise MissionError(f"start pose {np.round(pose, 3).tolist()} is within the collision radius "
-                               f"({r} m) of the structure")
+            raise MissionError(
+                f"start pose {np.round(pose, 3).tolist()} is within the collision radius "
+                f"({r} m) of the structure"
+            )
         # Inside test: from outside, a ray always enters the first surface it meets through a
         # front face (outward-oriented parts, even intersecting ones); from inside, most first
         # hits are back faces. Open shells seen from outside give some back faces, hence a vote.
@@ -185,7 +239,9 @@ class Mission:
             n = np.cross(v[f[:, 1]] - v[f[:, 0]], v[f[:, 2]] - v[f[:, 0]])
             back = np.einsum("ij,ij->i", n, dirs[hit]) > 0
             if back.sum() > 0.5 * len(dirs):
-                raise MissionError(f"start pose {np.round(pose, 3).tolist()} is inside the structure")
+                raise MissionError(
+                    f"start pose {np.round(pose, 3).tolist()} is inside the structure"
+                )
 
     # ------------------------------------------------------------------ sensing
     def sense_camera(self, pose) -> None:
@@ -233,11 +289,13 @@ class Mission:
         self.evaluator = Evaluator(self.mesh, gt_density=cfg.evaluation.gt_density, seed=cfg.seed)
         if self.profiling:
             from .profiling import run_profiling  # issue: profiling stage
+
             self.profile_summary = run_profiling(self)
         if self.symmetry or cfg.scenario == "profile":
             from .symmetry import run_symmetry_prediction
 
-            # the profile scenario reports the plane its profile shows, without predicting into the map
+            # the profile scenario reports the plane its profile shows, without predicting
+            # into the map
             self.symmetry_summary = run_symmetry_prediction(self, write_map=self.symmetry)
         self.sense_camera(self.state.pose)
         self.tracker = CoverageTracker(self.evaluator.gt_points)
@@ -251,8 +309,15 @@ class Mission:
     def _nbv_loop(self) -> str:
         cfg = self.config
         s, u, v = cfg.sampling, cfg.utility, cfg.vehicle
-        agvs = AdaptiveScale(s.sigma, s.alpha_max, s.stuck_threshold, s.stuck_window, s.scale_cap,
-                             s.oscillation_is_stuck, enabled=(s.method == "agvs"))
+        agvs = AdaptiveScale(
+            s.sigma,
+            s.alpha_max,
+            s.stuck_threshold,
+            s.stuck_window,
+            s.scale_cap,
+            s.oscillation_is_stuck,
+            enabled=(s.method == "agvs"),
+        )
         term = EntropyTermination(self.c_view, cfg.termination.threshold, cfg.termination.window)
         c = cfg.camera
         entropy_prev = self.map.total_entropy()
@@ -266,12 +331,24 @@ class Mission:
                 cands = candidate_poses(pose, s.delta_d, s.delta_theta, agvs.scale)
                 t1 = time.perf_counter()
                 sc = _core.evaluate_views(
-                    self.map, cands, pose, rays_x=self.rays[0], rays_y=self.rays[1],
-                    hfov_deg=c.hfov_deg, vfov_deg=c.vfov_deg, max_range=c.max_range, mount=self.camera.mount,
-                    utility=u.name, distance_lambda=u.distance_lambda, require_occupied=True,
+                    self.map,
+                    cands,
+                    pose,
+                    rays_x=self.rays[0],
+                    rays_y=self.rays[1],
+                    hfov_deg=c.hfov_deg,
+                    vfov_deg=c.vfov_deg,
+                    max_range=c.max_range,
+                    mount=self.camera.mount,
+                    utility=u.name,
+                    distance_lambda=u.distance_lambda,
+                    require_occupied=True,
                     require_occupied_probability=u.require_occupied_probability or 0.0,
-                    collision_radius=v.collision_radius, bounds_min=self.workspace.nav_min,
-                    bounds_max=self.workspace.nav_max, check_segment=(v.blocked_path == "reject"))
+                    collision_radius=v.collision_radius,
+                    bounds_min=self.workspace.nav_min,
+                    bounds_max=self.workspace.nav_max,
+                    check_segment=(v.blocked_path == "reject"),
+                )
                 valid = np.flatnonzero(sc["status"] == 0)
                 chosen, path = None, None
                 for k in valid[np.argsort(-sc["utility"][valid], kind="stable")]:
@@ -298,21 +375,40 @@ class Mission:
                     tc = time.perf_counter()
                     last_cov = self.tracker.coverage(self.cloud_points())
                     self.coverage_time_s += time.perf_counter() - tc
-                    t4 += time.perf_counter() - tc  # reporting, not the method: kept out of the stages
+                    t4 += (
+                        time.perf_counter() - tc
+                    )  # reporting, not the method: kept out of the stages
                 p = self.state.pose
                 rec = IterationRecord(
-                    it, *map(float, p), float(sc["utility"][chosen]), float(sc["gain"][chosen]),
-                    len(cands), len(valid), e_now, e_now - entropy_prev, dev, alpha,
-                    self.state.distance_m, len(self.camera_cloud) + len(self.laser_cloud),
-                    last_cov.get(0.05), last_cov.get(0.1), last_cov.get(0.5),
-                    (t1 - t0) * 1e3, (t2 - t1) * 1e3, (t3 - t2) * 1e3, (t4 - t3) * 1e3)
+                    it,
+                    *map(float, p),
+                    float(sc["utility"][chosen]),
+                    float(sc["gain"][chosen]),
+                    len(cands),
+                    len(valid),
+                    e_now,
+                    e_now - entropy_prev,
+                    dev,
+                    alpha,
+                    self.state.distance_m,
+                    len(self.camera_cloud) + len(self.laser_cloud),
+                    last_cov.get(0.05),
+                    last_cov.get(0.1),
+                    last_cov.get(0.5),
+                    (t1 - t0) * 1e3,
+                    (t2 - t1) * 1e3,
+                    (t3 - t2) * 1e3,
+                    (t4 - t3) * 1e3,
+                )
                 rec.t_bookkeeping_ms = (time.perf_counter() - t4) * 1e3
                 self.records.append(rec)
                 entropy_prev = e_now
                 if bar is not None:
                     bar.update(1)
-                    bar.set_postfix_str(f"H={e_now:,.0f} a={alpha}"
-                                        + (f" cov0.5={last_cov[0.5]:.1%}" if last_cov else ""))
+                    bar.set_postfix_str(
+                        f"H={e_now:,.0f} a={alpha}"
+                        + (f" cov0.5={last_cov[0.5]:.1%}" if last_cov else "")
+                    )
                 if done:
                     termination = "entropy_converged"
                     break
@@ -328,8 +424,10 @@ class Mission:
         n_it = len(self.records)
         e_final = self.map.total_entropy()
         stages = ("sampling", "evaluation", "sensing", "integration", "bookkeeping")
-        per_stage = {s: (float(np.mean([getattr(r, f"t_{s}_ms") for r in self.records])) if n_it else 0.0)
-                     for s in stages}
+        per_stage = {
+            s: (float(np.mean([getattr(r, f"t_{s}_ms") for r in self.records])) if n_it else 0.0)
+            for s in stages
+        }
         out = {
             "scenario": cfg.scenario,
             "start": cfg.start,
@@ -346,8 +444,11 @@ class Mission:
             "entropy_unit": cfg.map.entropy_unit,
             "termination": termination,
             "wall_time_s": wall,
-            "ms_per_iteration": (sum(sum(getattr(r, f"t_{s}_ms") for s in stages) for r in self.records) / n_it
-                                 if n_it else 0.0),
+            "ms_per_iteration": (
+                sum(sum(getattr(r, f"t_{s}_ms") for s in stages) for r in self.records) / n_it
+                if n_it
+                else 0.0
+            ),
             "ms_per_stage": per_stage,
             "coverage_refresh_s": self.coverage_time_s,
             "cloud_points": int(ev["n_points"]),
@@ -355,8 +456,17 @@ class Mission:
             "c_view": self.c_view,
             "seed": cfg.seed,
         }
-        for k in ("coverage", "area_coverage", "precision", "completeness", "accuracy", "fscore",
-                  "chamfer_m", "n_points", "gt_density"):
+        for k in (
+            "coverage",
+            "area_coverage",
+            "precision",
+            "completeness",
+            "accuracy",
+            "fscore",
+            "chamfer_m",
+            "n_points",
+            "gt_density",
+        ):
             out[k] = ev[k]
         if self.profile_summary is not None:
             out["profile"] = self.profile_summary
@@ -409,7 +519,7 @@ def _jsonable(x):
 def _fibonacci_sphere(n: int) -> np.ndarray:
     i = np.arange(n) + 0.5
     phi = np.arccos(1 - 2 * i / n)
-    th = math.pi * (1 + 5 ** 0.5) * i
+    th = math.pi * (1 + 5**0.5) * i
     return np.stack([np.cos(th) * np.sin(phi), np.sin(th) * np.sin(phi), np.cos(phi)], axis=1)
 
 

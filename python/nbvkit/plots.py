@@ -10,7 +10,12 @@ import numpy as np
 def _plt():
     import matplotlib
 
-    if matplotlib.get_backend().lower() not in ("agg", "pdf", "svg", "module://matplotlib_inline.backend_inline"):
+    if matplotlib.get_backend().lower() not in (
+        "agg",
+        "pdf",
+        "svg",
+        "module://matplotlib_inline.backend_inline",
+    ):
         try:
             matplotlib.use("Agg")
         except Exception:  # pragma: no cover
@@ -34,7 +39,14 @@ def plot_trajectory(ax_top, ax_side, structure_points, trajectory, workspace=Non
             ax.plot(xyz[:, i], xyz[:, j], "-", lw=0.8, c="tab:blue", alpha=0.8)
             for st in dict.fromkeys(stages):
                 m = np.array([s == st for s in stages])
-                ax.scatter(xyz[m, i], xyz[m, j], s=6, c=STAGE_COLORS.get(st, "tab:green"), label=st, zorder=3)
+                ax.scatter(
+                    xyz[m, i],
+                    xyz[m, j],
+                    s=6,
+                    c=STAGE_COLORS.get(st, "tab:green"),
+                    label=st,
+                    zorder=3,
+                )
             ax.scatter(xyz[0, i], xyz[0, j], s=60, marker="*", c="red", zorder=4, label="start")
         if workspace is not None:
             lo, hi = workspace.bounds_min, workspace.bounds_max
@@ -62,9 +74,15 @@ def plot_mission(mission, out_dir: Path) -> list[Path]:
     sp = mission.mesh.sample_surface(30000, seed=0)
     fig, (a, b) = plt.subplots(2, 1, figsize=(8, 9), gridspec_kw={"height_ratios": [3, 1.2]})
     cfg = mission.config
-    plot_trajectory(a, b, sp, mission.state.trajectory, mission.workspace,
-                    title=f"scenario {cfg.scenario}, start {cfg.start}: {len(mission.records)} iterations, "
-                          f"{mission.state.distance_m:.0f} m")
+    plot_trajectory(
+        a,
+        b,
+        sp,
+        mission.state.trajectory,
+        mission.workspace,
+        title=f"scenario {cfg.scenario}, start {cfg.start}: {len(mission.records)} iterations, "
+        f"{mission.state.distance_m:.0f} m",
+    )
     fig.tight_layout()
     paths.append(out_dir / "trajectory.png")
     fig.savefig(paths[-1], dpi=120)
@@ -75,7 +93,11 @@ def plot_mission(mission, out_dir: Path) -> list[Path]:
     it = [r.iteration for r in recs]
     axes[0].plot(it, [r.entropy for r in recs], c="tab:purple")
     axes[0].set_ylabel(f"total entropy ({cfg.map.entropy_unit})")
-    for key, lab in (("coverage_005", "0.05 m"), ("coverage_01", "0.10 m"), ("coverage_05", "0.50 m")):
+    for key, lab in (
+        ("coverage_005", "0.05 m"),
+        ("coverage_01", "0.10 m"),
+        ("coverage_05", "0.50 m"),
+    ):
         pts = [(r.iteration, getattr(r, key)) for r in recs if getattr(r, key) is not None]
         if pts:
             x, y = zip(*pts)
@@ -114,11 +136,18 @@ def plot_experiment(root, df, out_dir) -> list[Path]:
     out_dir.mkdir(parents=True, exist_ok=True)
     paths = []
     scen = [s for s in ("1", "2", "3", "4", "5") if (df["scenario"].astype(str) == s).any()]
-    colors = dict(zip(("1", "2", "3", "4", "5"), ("tab:gray", "tab:blue", "tab:orange", "tab:green", "tab:red")))
+    colors = dict(
+        zip(
+            ("1", "2", "3", "4", "5"),
+            ("tab:gray", "tab:blue", "tab:orange", "tab:green", "tab:red"),
+        )
+    )
 
     # coverage vs distance / iteration (mean over starts is not meaningful per step: draw each run)
-    for xkey, xlabel, name in (("distance_m", "distance (m)", "coverage_vs_distance.png"),
-                               ("iteration", "iteration", "coverage_vs_iteration.png")):
+    for xkey, xlabel, name in (
+        ("distance_m", "distance (m)", "coverage_vs_distance.png"),
+        ("iteration", "iteration", "coverage_vs_iteration.png"),
+    ):
         fig, axes = plt.subplots(1, 3, figsize=(14, 4), sharey=True)
         for sc in scen:
             for k, (_, r) in enumerate(df[df["scenario"].astype(str) == sc].iterrows()):
@@ -127,8 +156,14 @@ def plot_experiment(root, df, out_dir) -> list[Path]:
                     continue
                 for ax, col in zip(axes, ("coverage_005", "coverage_01", "coverage_05")):
                     d = it.dropna(subset=[col])
-                    ax.plot(d[xkey], d[col] * 100, c=colors[sc], alpha=0.7, lw=1,
-                            label=f"scenario {sc}" if k == 0 else None)
+                    ax.plot(
+                        d[xkey],
+                        d[col] * 100,
+                        c=colors[sc],
+                        alpha=0.7,
+                        lw=1,
+                        label=f"scenario {sc}" if k == 0 else None,
+                    )
         for ax, res in zip(axes, ("0.05", "0.10", "0.50")):
             ax.set_title(f"coverage @ {res} m")
             ax.set_xlabel(xlabel)
@@ -145,18 +180,30 @@ def plot_experiment(root, df, out_dir) -> list[Path]:
 
     mesh = None
     if scen:
-        fig, axes = plt.subplots(2, len(scen), figsize=(4.2 * len(scen), 6.5),
-                                 gridspec_kw={"height_ratios": [3, 1.2]}, squeeze=False)
+        fig, axes = plt.subplots(
+            2,
+            len(scen),
+            figsize=(4.2 * len(scen), 6.5),
+            gridspec_kw={"height_ratios": [3, 1.2]},
+            squeeze=False,
+        )
         for j, sc in enumerate(scen):
             r = df[df["scenario"].astype(str) == sc].sort_values("start").iloc[0]
             d = root / "runs" / r["run_id"]
             if mesh is None:
                 mesh = _mesh_of(d)
-            traj = [(row["stage"], float(row["x"]), float(row["y"]), float(row["z"]))
-                    for row in csv.DictReader(open(d / "trajectory.csv"))]
+            traj = [
+                (row["stage"], float(row["x"]), float(row["y"]), float(row["z"]))
+                for row in csv.DictReader(open(d / "trajectory.csv"))
+            ]
             sp = mesh.sample_surface(20000, seed=0)
-            plot_trajectory(axes[0, j], axes[1, j], sp, traj,
-                            title=f"scenario {sc} (start {r['start']}): {r['distance_m']:.0f} m")
+            plot_trajectory(
+                axes[0, j],
+                axes[1, j],
+                sp,
+                traj,
+                title=f"scenario {sc} (start {r['start']}): {r['distance_m']:.0f} m",
+            )
         fig.tight_layout()
         paths.append(out_dir / "trajectories.png")
         fig.savefig(paths[-1], dpi=110)
@@ -166,8 +213,13 @@ def plot_experiment(root, df, out_dir) -> list[Path]:
     best = scen[-1] if scen else None
     if best is not None:
         r = df[df["scenario"].astype(str) == best].sort_values("start").iloc[0]
-        paths.append(plot_cloud_and_map(root / "runs" / r["run_id"], out_dir / "final_cloud_and_map.png",
-                                        title=f"scenario {best}, start {r['start']}"))
+        paths.append(
+            plot_cloud_and_map(
+                root / "runs" / r["run_id"],
+                out_dir / "final_cloud_and_map.png",
+                title=f"scenario {best}, start {r['start']}",
+            )
+        )
     return paths
 
 
@@ -178,7 +230,9 @@ def _mesh_of(run_dir: Path):
 
     cfg = yaml.safe_load((Path(run_dir) / "config.yaml").read_text())
     m = cfg.get("mesh", {})
-    return load_mesh(m.get("path") or default_mesh_path(), scale=m.get("scale", 1.0), up=m.get("up", "z"))
+    return load_mesh(
+        m.get("path") or default_mesh_path(), scale=m.get("scale", 1.0), up=m.get("up", "z")
+    )
 
 
 def plot_cloud_and_map(run_dir, path, title=None) -> Path:
@@ -195,12 +249,18 @@ def plot_cloud_and_map(run_dir, path, title=None) -> Path:
     if len(pts) > 150_000:
         pts = pts[rng.choice(len(pts), 150_000, replace=False)]
     fig, axes = plt.subplots(2, 2, figsize=(12, 7))
-    for row, (P, c, lab) in enumerate(((pts, "tab:blue", f"point cloud ({len(pts):,} shown)"),
-                                      (occ, "tab:green", f"occupied cells ({len(occ):,})"))):
+    for row, (P, c, lab) in enumerate(
+        (
+            (pts, "tab:blue", f"point cloud ({len(pts):,} shown)"),
+            (occ, "tab:green", f"occupied cells ({len(occ):,})"),
+        )
+    ):
         for col, (i, j) in enumerate(((0, 1), (0, 2))):
             ax = axes[row, col]
             if len(P):
-                ax.scatter(P[:, i], P[:, j], s=0.3 if row == 0 else 1.0, c=c, linewidths=0, rasterized=True)
+                ax.scatter(
+                    P[:, i], P[:, j], s=0.3 if row == 0 else 1.0, c=c, linewidths=0, rasterized=True
+                )
             ax.set_aspect("equal")
             ax.set_xlabel("xyz"[i] + " (m)")
             ax.set_ylabel("xyz"[j] + " (m)")

@@ -12,8 +12,8 @@ point is the one nearest the start (the paper's wording, "the angle between the 
 the vector from the UAV's starting position to the centre", would put it on the far side).
 
 The bounding-box profiler (the authors' second method) flies the four vertical faces of the
-structure's observed bounding box grown by the margin, sweeping at each corner and face middle; the box
-is recomputed after every sweep, as the circle is.
+structure's observed bounding box grown by the margin, sweeping at each corner and face middle; the
+box is recomputed after every sweep, as the circle is.
 
 The flight is confined to the profiling flight volume (the workspace grown by `flight_margin` in
 x and y) and keeps the collision radius off known-occupied cells; it is not confined to the NBV
@@ -142,11 +142,18 @@ class Profiler:
             pts = m.laser_cloud.points
             if len(pts) == 0:
                 return m.workspace.bounds_min[:2].copy(), m.workspace.bounds_max[:2].copy()
-            return pts[:, :2].min(axis=0) - self.cfg.margin, pts[:, :2].max(axis=0) + self.cfg.margin
+            return (
+                pts[:, :2].min(axis=0) - self.cfg.margin,
+                pts[:, :2].max(axis=0) + self.cfg.margin,
+            )
 
         def stop(lo, hi, k):  # 8 stops round the box: corner, mid-face, corner, ... from corner 0
-            corners = [np.array([lo[0], lo[1]]), np.array([hi[0], lo[1]]), np.array([hi[0], hi[1]]),
-                       np.array([lo[0], hi[1]])]
+            corners = [
+                np.array([lo[0], lo[1]]),
+                np.array([hi[0], lo[1]]),
+                np.array([hi[0], hi[1]]),
+                np.array([lo[0], hi[1]]),
+            ]
             a, b = corners[(k // 2) % 4], corners[(k // 2 + 1) % 4]
             return a if k % 2 == 0 else (a + b) / 2
 

@@ -23,7 +23,9 @@ def wrap_angle(a):
     return (np.asarray(a) + math.pi) % (2 * math.pi) - math.pi
 
 
-def lattice_offsets(delta_d: float = 1.0, delta_theta: float = math.pi / 4, scale: float = 1.0) -> np.ndarray:
+def lattice_offsets(
+    delta_d: float = 1.0, delta_theta: float = math.pi / 4, scale: float = 1.0
+) -> np.ndarray:
     """(80, 4) body-frame offsets (dx, dy, dz, dyaw) of Eq. 2 with linear scale `scale`."""
     if not (delta_d > 0 and scale > 0 and delta_theta >= 0):
         raise ValueError("lattice needs delta_d > 0, scale > 0 and delta_theta >= 0")
@@ -33,8 +35,9 @@ def lattice_offsets(delta_d: float = 1.0, delta_theta: float = math.pi / 4, scal
     return off
 
 
-def candidate_poses(pose, delta_d: float = 1.0, delta_theta: float = math.pi / 4,
-                    scale: float = 1.0) -> np.ndarray:
+def candidate_poses(
+    pose, delta_d: float = 1.0, delta_theta: float = math.pi / 4, scale: float = 1.0
+) -> np.ndarray:
     """(80, 4) world-frame candidate poses (x, y, z, yaw) around a vehicle pose (x, y, z, yaw)."""
     pose = np.asarray(pose, dtype=np.float64)
     if pose.shape != (4,) or not np.all(np.isfinite(pose)):
@@ -55,12 +58,26 @@ class AdaptiveScale:
     (an A-B-A-B alternation of the chosen positions counts as a stuck iteration).
     """
 
-    def __init__(self, sigma: float = 1.5, alpha_max: int = 5, threshold: float = 0.005,
-                 window: int = 3, cap: float | None = None, oscillation_is_stuck: bool = False,
-                 enabled: bool = True):
+    def __init__(
+        self,
+        sigma: float = 1.5,
+        alpha_max: int = 5,
+        threshold: float = 0.005,
+        window: int = 3,
+        cap: float | None = None,
+        oscillation_is_stuck: bool = False,
+        enabled: bool = True,
+    ):
         if not sigma > 0 or alpha_max < 0 or not threshold > 0 or window < 1:
-            raise ValueError("AdaptiveScale needs sigma > 0, alpha_max >= 0, threshold > 0, window >= 1")
-        self.sigma, self.alpha_max, self.threshold, self.window = sigma, alpha_max, threshold, window
+            raise ValueError(
+                "AdaptiveScale needs sigma > 0, alpha_max >= 0, threshold > 0, window >= 1"
+            )
+        self.sigma, self.alpha_max, self.threshold, self.window = (
+            sigma,
+            alpha_max,
+            threshold,
+            window,
+        )
         self.cap, self.oscillation_is_stuck, self.enabled = cap, oscillation_is_stuck, enabled
         self.alpha = 0
         self._quiet = deque(maxlen=window)
@@ -68,7 +85,7 @@ class AdaptiveScale:
 
     @property
     def scale(self) -> float:
-        s = self.sigma ** self.alpha
+        s = self.sigma**self.alpha
         return min(s, self.cap) if self.cap else s
 
     def update(self, delta_ev: float, chosen_position=None) -> int:

@@ -5,8 +5,8 @@ documentation, the mission-stage hook :func:`run_symmetry_prediction`, and the f
 
 Pipeline of :func:`detect_symmetry` (any pose: nothing assumes the plane's orientation or position)
 
-1. voxel-grid downsampling (``voxel_size``, 0.2 m = twice the profile's laser voxel) and normals from
-   ``normal_k`` = 50 neighbours (authors), oriented away from the centroid;
+1. voxel-grid downsampling (``voxel_size``, 0.2 m = twice the profile's laser voxel) and normals
+   from ``normal_k`` = 50 neighbours (authors), oriented away from the centroid;
 2. keypoints: 3D SIFT on the curvature (``keypoints="sift"``, authors: min scale 0.1 m, 3 octaves,
    4 scales per octave, min contrast 1e-4), or ``"iss"`` (intrinsic shape signatures), or
    ``"uniform"`` (one per cell of a ``uniform_leaf`` grid);
@@ -19,9 +19,9 @@ Pipeline of :func:`detect_symmetry` (any pose: nothing assumes the plane's orien
    ``tests/test_symmetry.py``). Candidates closer than ``min_pair_distance`` or whose normals are
    not mirror images about the pair's bisector (``max_normal_angle_deg``) are skipped;
 5. every pair votes for its perpendicular-bisector plane; mean shift (flat kernel, ``bandwidth``
-   over |n_a - n_b| and the offset difference divided by the cloud's RMS radius, ``mean_shift_seeds``
-   = 50 seeds as the authors) finds the modes; a plane and its negation are the same plane: each
-   votes with both signs, so no cluster is split at a sign boundary;
+   over |n_a - n_b| and the offset difference divided by the cloud's RMS radius,
+   ``mean_shift_seeds`` = 50 seeds as the authors) finds the modes; a plane and its negation are
+   the same plane: each votes with both signs, so no cluster is split at a sign boundary;
 6. the ``candidate_modes`` modes of most support are refined by reflective point-to-plane ICP and
    scored; the most mirror-consistent wins. Confidence = the fraction of points facing the plane
    (normal within ``facing_angle_deg``) whose reflection lies on an observed surface (within
@@ -116,9 +116,14 @@ def predict_symmetric(points, plane, icp: bool = True, **options) -> SymmetricPr
     return _core.predict_symmetric(points, plane, icp=icp, **options)
 
 
-def mean_shift_planes(planes, center, scale: float, bandwidth: float = SymmetryOptions().bandwidth,
-                      seeds: int = SymmetryOptions().mean_shift_seeds,
-                      max_iterations: int = SymmetryOptions().mean_shift_max_iterations) -> PlaneClusters:
+def mean_shift_planes(
+    planes,
+    center,
+    scale: float,
+    bandwidth: float = SymmetryOptions().bandwidth,
+    seeds: int = SymmetryOptions().mean_shift_seeds,
+    max_iterations: int = SymmetryOptions().mean_shift_max_iterations,
+) -> PlaneClusters:
     """Mean shift over planes (P, 4) [nx, ny, nz, d] (step 5 of detect_symmetry, exposed).
 
     Distance between planes: sqrt(|n_a - n_b|^2 + ((d_a - n_a.c) - (d_b - n_b.c))^2 / scale^2)
@@ -137,14 +142,19 @@ def plane_from_improper_isometry(transform) -> tuple[np.ndarray, float]:
     return _core.plane_from_improper_isometry(np.asarray(transform, float))
 
 
-def compute_fpfh(points, indices, normal_k: int = SymmetryOptions().normal_k,
-                 radius: float = SymmetryOptions().fpfh_radius) -> np.ndarray:
+def compute_fpfh(
+    points,
+    indices,
+    normal_k: int = SymmetryOptions().normal_k,
+    radius: float = SymmetryOptions().fpfh_radius,
+) -> np.ndarray:
     """(K, 33) float32 PCL FPFH at points[indices] (every point as search surface; normals from
     normal_k neighbours, oriented away from the centroid). For tests and diagnostics."""
     return _core.compute_fpfh(points, [int(i) for i in indices], normal_k, radius)
 
 
 # ------------------------------------------------------------------------------ mission hook
+
 
 def _finite_or_none(x) -> Any:
     x = float(x)
@@ -153,18 +163,29 @@ def _finite_or_none(x) -> Any:
 
 def detection_options(cfg) -> dict:
     """detect_symmetry keyword options from a nbvkit.config.SymmetryConfig."""
-    return dict(voxel_size=cfg.voxel_size, normal_k=cfg.normal_k, keypoints=cfg.keypoints,
-                fpfh_radius=cfg.fpfh_radius, mirror_descriptors=cfg.mirror_descriptors,
-                bandwidth=cfg.bandwidth, mean_shift_seeds=cfg.mean_shift_seeds,
-                candidate_modes=cfg.candidate_modes, min_support=cfg.min_support,
-                min_confidence=cfg.min_confidence)
+    return dict(
+        voxel_size=cfg.voxel_size,
+        normal_k=cfg.normal_k,
+        keypoints=cfg.keypoints,
+        fpfh_radius=cfg.fpfh_radius,
+        mirror_descriptors=cfg.mirror_descriptors,
+        bandwidth=cfg.bandwidth,
+        mean_shift_seeds=cfg.mean_shift_seeds,
+        candidate_modes=cfg.candidate_modes,
+        min_support=cfg.min_support,
+        min_confidence=cfg.min_confidence,
+    )
 
 
 def prediction_options(cfg) -> dict:
     """predict_symmetric keyword options (icp included) from a nbvkit.config.SymmetryConfig."""
-    return dict(icp=cfg.icp, voxel_size=cfg.icp_voxel_size, normal_k=cfg.normal_k,
-                icp_max_correspondence=cfg.icp_max_correspondence,
-                explained_tolerance=cfg.explained_tolerance)
+    return dict(
+        icp=cfg.icp,
+        voxel_size=cfg.icp_voxel_size,
+        normal_k=cfg.normal_k,
+        icp_max_correspondence=cfg.icp_max_correspondence,
+        explained_tolerance=cfg.explained_tolerance,
+    )
 
 
 def run_symmetry_prediction(mission, write_map: bool = True) -> dict:
@@ -178,7 +199,8 @@ def run_symmetry_prediction(mission, write_map: bool = True) -> dict:
     "accepted", "predicted_points", "cells_set", "time_s", "detected_plane", "icp_applied",
     "reason", "timings"} — "plane" is the ICP-corrected plane of an accepted detection and None
     otherwise (never a plane without enough evidence); "detected_plane" is the detector's best
-    plane before ICP, kept for diagnostics even when rejected (None without any pair). Keeps the results on the mission as
+    plane before ICP, kept for diagnostics even when rejected (None without any pair).
+    Keeps the results on the mission as
     ``mission.symmetry_result`` and ``mission.symmetry_prediction`` (None when not accepted), and
     writes ``figures/symmetry.png`` under ``mission.out_dir`` when that attribute is set. A profile
     of fewer than 10 points is reported (not accepted); a bad option raises ValueError.
@@ -189,30 +211,57 @@ def run_symmetry_prediction(mission, write_map: bool = True) -> dict:
     t0 = time.perf_counter()
     cfg = mission.config.symmetry
     profile = np.asarray(mission.laser_cloud.points, float)
-    summary: dict = {"plane": None, "confidence": 0.0, "support": 0, "accepted": False,
-                     "predicted_points": 0, "cells_set": 0, "time_s": 0.0, "detected_plane": None,
-                     "icp_applied": False, "reason": "", "timings": {}, "written": False}
+    summary: dict = {
+        "plane": None,
+        "confidence": 0.0,
+        "support": 0,
+        "accepted": False,
+        "predicted_points": 0,
+        "cells_set": 0,
+        "time_s": 0.0,
+        "detected_plane": None,
+        "icp_applied": False,
+        "reason": "",
+        "timings": {},
+        "written": False,
+    }
     mission.symmetry_result = None
     mission.symmetry_prediction = None
     if len(profile) < 10:  # nothing to detect; a bad option, in contrast, raises ValueError
-        summary["reason"] = f"the profile has {len(profile)} points; symmetry detection needs at least 10"
+        summary[
+            "reason"
+        ] = f"the profile has {len(profile)} points; symmetry detection needs at least 10"
         summary["time_s"] = time.perf_counter() - t0
         return summary
     res = detect_symmetry(profile, **detection_options(cfg))
     mission.symmetry_result = res
     plane = np.asarray(res.plane, float)
     detected = [float(v) for v in plane] if np.all(np.isfinite(plane)) else None
-    summary.update(detected_plane=detected, confidence=float(res.confidence),
-                   support=int(res.support), accepted=bool(res.accepted), reason=res.reason,
-                   timings={f"detect_{k}": float(v) for k, v in res.timings.items()})
+    summary.update(
+        detected_plane=detected,
+        confidence=float(res.confidence),
+        support=int(res.support),
+        accepted=bool(res.accepted),
+        reason=res.reason,
+        timings={f"detect_{k}": float(v) for k, v in res.timings.items()},
+    )
     pred = None
     if res.accepted:
         popts = prediction_options(cfg)
         pred = predict_symmetric(profile, plane, **popts)
         mission.symmetry_prediction = pred
-        cells = mission.map.set_unknown_cells(pred.predicted, cfg.prediction_probability) if write_map else 0
-        summary.update(plane=[float(v) for v in pred.plane], predicted_points=int(len(pred.predicted)),
-                       cells_set=int(cells), icp_applied=bool(pred.icp_applied), written=write_map)
+        cells = (
+            mission.map.set_unknown_cells(pred.predicted, cfg.prediction_probability)
+            if write_map
+            else 0
+        )
+        summary.update(
+            plane=[float(v) for v in pred.plane],
+            predicted_points=int(len(pred.predicted)),
+            cells_set=int(cells),
+            icp_applied=bool(pred.icp_applied),
+            written=write_map,
+        )
         summary["timings"].update({f"predict_{k}": float(v) for k, v in pred.timings.items()})
     summary["confidence"] = _finite_or_none(summary["confidence"]) or 0.0
     out_dir = getattr(mission, "out_dir", None)
@@ -240,7 +289,9 @@ def _plane_of(result) -> np.ndarray | None:
     return pl if pl.size == 4 and np.all(np.isfinite(pl)) else None
 
 
-def plot_symmetry(profile, result, predicted, path, max_points: int = 20000, title: str | None = None):
+def plot_symmetry(
+    profile, result, predicted, path, max_points: int = 20000, title: str | None = None
+):
     """The paper's Fig. 3 as a PNG (headless; top views, x-y): (a) the profile, (b) the detected
     plane over it (blue), (c) the profile mirrored about that plane (green), (d) the mirrored cloud
     aligned by ICP and merged with the profile, (e) the added points (the prediction, red).
@@ -257,10 +308,17 @@ def plot_symmetry(profile, result, predicted, path, max_points: int = 20000, tit
     corrected = _plane_of(predicted) if isinstance(predicted, SymmetricPrediction) else None
     if corrected is None:
         corrected = plane
-    added = (np.asarray(predicted.predicted) if isinstance(predicted, SymmetricPrediction)
-             else (np.zeros((0, 3)) if predicted is None else np.asarray(predicted, float).reshape(-1, 3)))
+    added = (
+        np.asarray(predicted.predicted)
+        if isinstance(predicted, SymmetricPrediction)
+        else (
+            np.zeros((0, 3)) if predicted is None else np.asarray(predicted, float).reshape(-1, 3)
+        )
+    )
     mirrored = reflect_points(prof, plane) if plane is not None and len(prof) else np.zeros((0, 3))
-    aligned = reflect_points(prof, corrected) if corrected is not None and len(prof) else np.zeros((0, 3))
+    aligned = (
+        reflect_points(prof, corrected) if corrected is not None and len(prof) else np.zeros((0, 3))
+    )
     P, M, A, E = (_subsample(x, max_points) for x in (prof, mirrored, aligned, added))
 
     fig, axes = plt.subplots(1, 5, figsize=(22, 4.8), constrained_layout=True)
@@ -292,8 +350,10 @@ def plot_symmetry(profile, result, predicted, path, max_points: int = 20000, tit
         plane_line(ax, plane, "tab:blue")
     conf = getattr(result, "confidence", None)
     acc = getattr(result, "accepted", None)
-    ax.set_title("(b) detected plane" + (f" (conf {conf:.2f}, {'accepted' if acc else 'rejected'})"
-                                          if conf is not None else ""))
+    ax.set_title(
+        "(b) detected plane"
+        + (f" (conf {conf:.2f}, {'accepted' if acc else 'rejected'})" if conf is not None else "")
+    )
     ax = axes[2]
     base(ax, 0.5, "0.6")
     if len(M):
@@ -334,8 +394,13 @@ def symmetry_geometries(profile, result, predicted=None, plane_size: float | Non
     plane = _plane_of(predicted) if isinstance(predicted, SymmetricPrediction) else None
     if plane is None:
         plane = _plane_of(result)
-    added = (np.asarray(predicted.predicted) if isinstance(predicted, SymmetricPrediction)
-             else (np.zeros((0, 3)) if predicted is None else np.asarray(predicted, float).reshape(-1, 3)))
+    added = (
+        np.asarray(predicted.predicted)
+        if isinstance(predicted, SymmetricPrediction)
+        else (
+            np.zeros((0, 3)) if predicted is None else np.asarray(predicted, float).reshape(-1, 3)
+        )
+    )
     geoms = []
 
     def cloud(p, color):
@@ -354,9 +419,13 @@ def symmetry_geometries(profile, result, predicted=None, plane_size: float | Non
         u /= np.linalg.norm(u)
         v = np.cross(n, u)
         h = 0.5 * size
-        verts = np.array([c - h * u - h * v, c + h * u - h * v, c + h * u + h * v, c - h * u + h * v])
+        verts = np.array(
+            [c - h * u - h * v, c + h * u - h * v, c + h * u + h * v, c - h * u + h * v]
+        )
         tri = np.array([[0, 1, 2], [0, 2, 3], [0, 2, 1], [0, 3, 2]], np.int32)
-        m = o3d.geometry.TriangleMesh(o3d.utility.Vector3dVector(verts), o3d.utility.Vector3iVector(tri))
+        m = o3d.geometry.TriangleMesh(
+            o3d.utility.Vector3dVector(verts), o3d.utility.Vector3iVector(tri)
+        )
         m.paint_uniform_color([0.2, 0.4, 0.9])
         geoms.append(m)
     if len(added):
@@ -374,9 +443,26 @@ def show_symmetry_open3d(profile, result, predicted=None, window_name: str = "nb
     return geoms
 
 
-__all__ = ["detect_symmetry", "predict_symmetric", "mean_shift_planes", "SymmetryResult",
-           "SymmetricPrediction", "PlaneClusters", "SymmetryOptions", "SymmetricPredictionOptions",
-           "run_symmetry_prediction", "plot_symmetry", "show_symmetry_open3d", "symmetry_geometries",
-           "reflect_points", "reflection_matrix", "plane_from_pair", "canonical_plane",
-           "plane_from_improper_isometry", "mirror_fpfh", "compute_fpfh", "detection_options",
-           "prediction_options"]
+__all__ = [
+    "detect_symmetry",
+    "predict_symmetric",
+    "mean_shift_planes",
+    "SymmetryResult",
+    "SymmetricPrediction",
+    "PlaneClusters",
+    "SymmetryOptions",
+    "SymmetricPredictionOptions",
+    "run_symmetry_prediction",
+    "plot_symmetry",
+    "show_symmetry_open3d",
+    "symmetry_geometries",
+    "reflect_points",
+    "reflection_matrix",
+    "plane_from_pair",
+    "canonical_plane",
+    "plane_from_improper_isometry",
+    "mirror_fpfh",
+    "compute_fpfh",
+    "detection_options",
+    "prediction_options",
+]

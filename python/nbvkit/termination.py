@@ -13,8 +13,14 @@ from __future__ import annotations
 from . import _core
 
 
-def viewable_cells(hfov_deg: float, vfov_deg: float, min_range: float, max_range: float,
-                   resolution: float, count_partial: bool = True) -> float:
+def viewable_cells(
+    hfov_deg: float,
+    vfov_deg: float,
+    min_range: float,
+    max_range: float,
+    resolution: float,
+    count_partial: bool = True,
+) -> float:
     """C_view of Eq. 5 for a camera and map resolution (see the module docstring)."""
     return _core.viewable_cells(hfov_deg, vfov_deg, min_range, max_range, resolution, count_partial)
 

@@ -12,6 +12,7 @@ from .config import Config
 @dataclass(frozen=True)
 class Workspace:
     """The NBV workspace box (map bounds) and the navigation bounds (vehicle positions)."""
+
     bounds_min: np.ndarray
     bounds_max: np.ndarray
     nav_min: np.ndarray
@@ -30,7 +31,10 @@ class Workspace:
         return bool(np.all(p >= self.nav_min) and np.all(p <= self.nav_max))
 
     def to_dict(self) -> dict:
-        return {k: [float(x) for x in getattr(self, k)] for k in ("bounds_min", "bounds_max", "nav_min", "nav_max")}
+        return {
+            k: [float(x) for x in getattr(self, k)]
+            for k in ("bounds_min", "bounds_max", "nav_min", "nav_max")
+        }
 
 
 def make_workspace(mesh_bounds, cfg: Config) -> Workspace:
@@ -41,7 +45,9 @@ def make_workspace(mesh_bounds, cfg: Config) -> Workspace:
     if w.bounds_min is not None:
         bmin, bmax = np.array(w.bounds_min, float), np.array(w.bounds_max, float)
         if not np.all(bmax > bmin):
-            raise ValueError(f"workspace bounds_max {bmax.tolist()} must exceed bounds_min {bmin.tolist()}")
+            raise ValueError(
+                f"workspace bounds_max {bmax.tolist()} must exceed bounds_min {bmin.tolist()}"
+            )
     else:
         c = (lo + hi) / 2
         half = (hi - lo)[:2] / 2 + w.margin_xy
@@ -56,8 +62,14 @@ def make_workspace(mesh_bounds, cfg: Config) -> Workspace:
     return Workspace(bmin, bmax, nav_min, nav_max)
 
 
-def start_poses(ws: Workspace, n: int = 5, surface=None, reach: float | None = None,
-                clearance: float = 0.0, sees=None) -> np.ndarray:
+def start_poses(
+    ws: Workspace,
+    n: int = 5,
+    surface=None,
+    reach: float | None = None,
+    clearance: float = 0.0,
+    sees=None,
+) -> np.ndarray:
     """(n, 4) predefined starts, evenly spaced in bearing around the workspace centre at mid
     height, each facing the centre. Each lies on the ellipse inscribed in the navigation bounds
     (just inside the workspace boundary) unless the structure is out of reach from there: given

@@ -33,7 +33,9 @@ class KdTree {
   /// issued in this order are cache-friendly.
   std::vector<std::uint32_t> order() const;
   /// The k-th point in tree order, and its index among the constructor's points.
-  Eigen::Vector3d point_at(std::size_t k) const { return {pts_[k].p[0], pts_[k].p[1], pts_[k].p[2]}; }
+  Eigen::Vector3d point_at(std::size_t k) const {
+    return {pts_[k].p[0], pts_[k].p[1], pts_[k].p[2]};
+  }
   std::uint32_t id_at(std::size_t k) const { return pts_[k].id; }
   /// The points in the constructor's order.
   Points points() const;
@@ -99,11 +101,11 @@ struct EvaluationResult {
   bool has_chamfer = false;
   double chamfer = 0, mean_cloud_to_gt = 0, mean_gt_to_cloud = 0;
   std::int64_t n_points = 0, n_gt_points = 0;
-  bool from_mesh = false;       ///< GT was a mesh (sampled) rather than a reference cloud
-  double gt_density = 0;        ///< samples per m^2 actually used (mesh GT only)
-  double gt_area = 0;           ///< mesh surface area, m^2 (mesh GT only)
+  bool from_mesh = false;  ///< GT was a mesh (sampled) rather than a reference cloud
+  double gt_density = 0;   ///< samples per m^2 actually used (mesh GT only)
+  double gt_area = 0;      ///< mesh surface area, m^2 (mesh GT only)
   std::uint64_t seed = 0;
-  std::vector<std::string> warnings;  ///< e.g. the GT sample count was capped
+  std::vector<std::string> warnings;                      ///< e.g. the GT sample count was capped
   std::vector<std::pair<std::string, double>> timings_s;  ///< wall time of each phase, seconds
 };
 
@@ -132,7 +134,8 @@ class Evaluator {
   const EvaluationResult& gt_info() const { return base_; }
 
  private:
-  static std::pair<Points, EvaluationResult> sample_mesh(const Mesh& gt, const EvaluationOptions& options);
+  static std::pair<Points, EvaluationResult> sample_mesh(const Mesh& gt,
+                                                         const EvaluationOptions& options);
   Evaluator(std::pair<Points, EvaluationResult>&& sampled, const EvaluationOptions& options);
   Evaluator(const PointsRef& gt, const EvaluationOptions& options, EvaluationResult base);
   struct Grid {
@@ -149,7 +152,8 @@ class Evaluator {
 
 /// Evaluator(gt, options).evaluate(cloud): scores `cloud` (N, 3) against a mesh sampled at
 /// options.gt_density points per m^2.
-EvaluationResult evaluate(const Mesh& gt, const PointsRef& cloud, const EvaluationOptions& options = {});
+EvaluationResult evaluate(const Mesh& gt, const PointsRef& cloud,
+                          const EvaluationOptions& options = {});
 
 /// Evaluator(gt, options).evaluate(cloud) with a reference (ground-truth) point cloud (M, 3).
 EvaluationResult evaluate_points(const PointsRef& gt, const PointsRef& cloud,

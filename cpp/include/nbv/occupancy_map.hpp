@@ -288,9 +288,9 @@ class OccupancyMap {
   /// Sets mirror cell i to (logodds, flag), keeping totals and counts in sync.
   void set_mirror(std::size_t i, float logodds, CellFlag flag);
   std::int64_t fixed_entropy(float logodds, CellFlag flag) const;
-  __int128 sum_known_entropy_fixed() const;  // sweep over the mirror (parallel)
-  float entropy_float(std::int64_t fixed) const;              // fixed point -> map's unit
-  float mirror_entropy(float logodds, CellFlag flag) const;   // the value entropy_ holds
+  __int128 sum_known_entropy_fixed() const;                  // sweep over the mirror (parallel)
+  float entropy_float(std::int64_t fixed) const;             // fixed point -> map's unit
+  float mirror_entropy(float logodds, CellFlag flag) const;  // the value entropy_ holds
   double entropy_nats_of_known(float logodds) const;
 
   std::unique_ptr<octomap::OcTree> tree_;
@@ -312,7 +312,7 @@ class OccupancyMap {
   struct FreeDeleter {
     void operator()(void* p) const noexcept;
   };
-  std::unique_ptr<std::uint32_t[], FreeDeleter> stamp_;   // per cell: last stamp written
+  std::unique_ptr<std::uint32_t[], FreeDeleter> stamp_;    // per cell: last stamp written
   std::unique_ptr<std::int32_t[], FreeDeleter> group_of_;  // per cell: valid where stamped
   std::uint32_t stamp_counter_ = 0;
   // small direct-mapped cache log-odds bits -> fixed-point entropy (cells take few distinct values)

@@ -74,7 +74,8 @@ inline std::array<std::int64_t, 3> unpack_voxel(std::uint64_t key) {
 }
 inline std::uint64_t try_voxel_key(double x, double y, double z, double size, double inv) {
   constexpr double lim = static_cast<double>(kVoxelCoordLimit);
-  const double cx = floor_div(x, size, inv), cy = floor_div(y, size, inv), cz = floor_div(z, size, inv);
+  const double cx = floor_div(x, size, inv), cy = floor_div(y, size, inv),
+               cz = floor_div(z, size, inv);
   if (!(cx >= -lim && cx < lim && cy >= -lim && cy < lim && cz >= -lim && cz < lim))
     return kEmptyVoxelKey;
   return pack_voxel(static_cast<std::int64_t>(cx), static_cast<std::int64_t>(cy),

@@ -17,8 +17,8 @@ namespace nbv {
 /// One sensor reading in the world frame.
 struct Scan {
   Eigen::Vector3d origin = Eigen::Vector3d::Zero();  ///< sensor origin, world frame
-  Points hits;       ///< (N, 3) surface points hit within range, world frame
-  Points free_ends;  ///< (M, 3) ends (at max range) of rays that hit nothing within range
+  Points hits;               ///< (N, 3) surface points hit within range, world frame
+  Points free_ends;          ///< (M, 3) ends (at max range) of rays that hit nothing within range
   Eigen::VectorXi hit_rays;  ///< (N,) ray index of each hit (camera: v * width + u)
   /// Camera: (H, W) depth along the optical axis in metres, inf where no valid return.
   /// Laser: (1, R) range along each beam in metres, inf where no valid return.
@@ -26,14 +26,14 @@ struct Scan {
 };
 
 struct DepthCameraOptions {
-  int width = 640;          ///< pixels
-  int height = 480;         ///< pixels
-  double hfov_deg = 60.0;   ///< horizontal field of view, degrees
-  double vfov_deg = 45.0;   ///< vertical field of view, degrees
-  double min_range = 0.5;   ///< metres, depth along the optical axis
-  double max_range = 8.0;   ///< metres, depth along the optical axis
-  double noise_k = 0.0;     ///< depth noise sigma = noise_k * z^2 (m); 0.0025 in the authors' setup
-  std::uint64_t seed = 0;   ///< noise seed
+  int width = 640;         ///< pixels
+  int height = 480;        ///< pixels
+  double hfov_deg = 60.0;  ///< horizontal field of view, degrees
+  double vfov_deg = 45.0;  ///< vertical field of view, degrees
+  double min_range = 0.5;  ///< metres, depth along the optical axis
+  double max_range = 8.0;  ///< metres, depth along the optical axis
+  double noise_k = 0.0;    ///< depth noise sigma = noise_k * z^2 (m); 0.0025 in the authors' setup
+  std::uint64_t seed = 0;  ///< noise seed
   Eigen::Isometry3d mount = Eigen::Isometry3d::Identity();  ///< T_body_sensor
 
   void validate() const;
@@ -56,15 +56,17 @@ class DepthCamera {
   /// Scans from a sensor pose. With noise on, each call draws the next frame of noise
   /// (deterministic for a given seed and call sequence; see reset_noise).
   Scan scan(const Eigen::Isometry3d& T_world_sensor) const;
-  Scan scan_pose(const Pose& vehicle) const { return scan(pose_to_transform(vehicle) * opt_.mount); }
+  Scan scan_pose(const Pose& vehicle) const {
+    return scan(pose_to_transform(vehicle) * opt_.mount);
+  }
   void reset_noise(std::uint64_t seed);
 
  private:
   std::shared_ptr<const RaycastScene> scene_;
   DepthCameraOptions opt_;
   double fx_, fy_;
-  Points dirs_;            // pixel order
-  Points tile_dirs_;       // 4x4 tile order, for coherent packets
+  Points dirs_;       // pixel order
+  Points tile_dirs_;  // 4x4 tile order, for coherent packets
   Eigen::VectorXi tile_to_pixel_;
   Eigen::VectorXd tile_tfar_;
   mutable std::atomic<std::uint64_t> frame_{0};
@@ -96,7 +98,9 @@ class LaserScanner {
   const Points& directions() const { return dirs_; }
 
   Scan scan(const Eigen::Isometry3d& T_world_sensor) const;
-  Scan scan_pose(const Pose& vehicle) const { return scan(pose_to_transform(vehicle) * opt_.mount); }
+  Scan scan_pose(const Pose& vehicle) const {
+    return scan(pose_to_transform(vehicle) * opt_.mount);
+  }
   void reset_noise(std::uint64_t seed);
 
  private:

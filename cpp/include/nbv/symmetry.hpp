@@ -55,9 +55,9 @@ struct SymmetryOptions {
 
   // -- 2. keypoints
   SymmetryKeypoints keypoints = SymmetryKeypoints::Sift;
-  double sift_min_scale = 0.1;     ///< metres (authors)
-  int sift_octaves = 3;            ///< (authors)
-  int sift_scales_per_octave = 4;  ///< (authors)
+  double sift_min_scale = 0.1;      ///< metres (authors)
+  int sift_octaves = 3;             ///< (authors)
+  int sift_scales_per_octave = 4;   ///< (authors)
   double sift_min_contrast = 1e-4;  ///< (authors)
   double iss_salient_radius = 0.6;  ///< metres
   double iss_non_max_radius = 0.4;  ///< metres
@@ -148,17 +148,18 @@ struct SymmetryResult {
   double consistency_all = 0.0;
   double facing_fraction = 0.0;
   bool accepted = false;
-  std::string reason;  ///< why not accepted ("" when accepted)
-  std::size_t num_points = 0;  ///< points after downsampling
-  Points keypoints;            ///< (K, 3) keypoint positions (points of the downsampled cloud)
-  IndexPairs pairs;            ///< (P, 2) matched keypoint indices (unordered pairs, i < j)
+  std::string reason;              ///< why not accepted ("" when accepted)
+  std::size_t num_points = 0;      ///< points after downsampling
+  Points keypoints;                ///< (K, 3) keypoint positions (points of the downsampled cloud)
+  IndexPairs pairs;                ///< (P, 2) matched keypoint indices (unordered pairs, i < j)
   Eigen::VectorXd pair_distances;  ///< (P,) descriptor distance of each pair
-  Planes pair_planes;          ///< (P, 4) bisector plane of each pair (canonical sign)
+  Planes pair_planes;              ///< (P, 4) bisector plane of each pair (canonical sign)
   Eigen::Matrix<bool, Eigen::Dynamic, 1> inliers;  ///< (P,) pair votes for the dominant plane
-  Planes modes;                  ///< (M, 4) mean-shift modes, most support first (before refinement)
+  Planes modes;  ///< (M, 4) mean-shift modes, most support first (before refinement)
   Eigen::VectorXi mode_support;  ///< (M,)
-  Eigen::VectorXd mode_confidence;  ///< (M,) confidence of the refined candidates; NaN if not checked
-  double scale = 0.0;          ///< metres: the cloud's RMS radius used by the mean shift
+  Eigen::VectorXd
+      mode_confidence;  ///< (M,) confidence of the refined candidates; NaN if not checked
+  double scale = 0.0;   ///< metres: the cloud's RMS radius used by the mean shift
   StageTimes timings;
 };
 
@@ -173,8 +174,8 @@ struct PlaneClusters {
   Eigen::Vector4d plane = Eigen::Vector4d::Constant(std::numeric_limits<double>::quiet_NaN());
   int support = 0;  ///< planes within the bandwidth of the mode (either sign)
   Eigen::Matrix<bool, Eigen::Dynamic, 1> inliers;  ///< (P,)
-  Planes modes;                    ///< (M, 4) distinct modes, most support first
-  Eigen::VectorXi mode_support;    ///< (M,)
+  Planes modes;                                    ///< (M, 4) distinct modes, most support first
+  Eigen::VectorXi mode_support;                    ///< (M,)
 };
 
 /// Mean shift (flat kernel) over planes (P, 4). A plane and its negation are the same: every
@@ -186,8 +187,10 @@ struct PlaneClusters {
 PlaneClusters mean_shift_planes(const Planes& planes, const Eigen::Vector3d& center, double scale,
                                 double bandwidth, int seeds = 50, int max_iterations = 100);
 /// (P,) which planes lie within `bandwidth` of `mode` (either sign), in mean_shift_planes' metric.
-Eigen::Matrix<bool, Eigen::Dynamic, 1> plane_votes(const Planes& planes, const Eigen::Vector4d& mode,
-                                                   const Eigen::Vector3d& center, double scale, double bandwidth);
+Eigen::Matrix<bool, Eigen::Dynamic, 1> plane_votes(const Planes& planes,
+                                                   const Eigen::Vector4d& mode,
+                                                   const Eigen::Vector3d& center, double scale,
+                                                   double bandwidth);
 
 // ---------------------------------------------------------------------------- prediction
 
@@ -198,9 +201,10 @@ struct SymmetricPredictionOptions {
   /// true: point-to-plane ICP (pcl::IterativeClosestPointWithNormals, the authors' "ICP with
   /// normals"); false: point-to-point (pcl::IterativeClosestPoint).
   bool icp_point_to_plane = true;
-  double icp_max_correspondence = 1.0;      ///< metres (authors: 1)
+  double icp_max_correspondence = 1.0;       ///< metres (authors: 1)
   double icp_transformation_epsilon = 1e-3;  ///< PCL: squared translation step, m^2 (authors: 1e-3)
-  double icp_fitness_epsilon = 1e-2;         ///< PCL: relative change of the mean squared error (authors: 1e-2)
+  double icp_fitness_epsilon =
+      1e-2;  ///< PCL: relative change of the mean squared error (authors: 1e-2)
   int icp_max_iterations = 50;
   /// ICP corrections beyond these are rejected (the input plane is kept): degrees, metres.
   double max_correction_angle_deg = 15.0;
@@ -213,13 +217,13 @@ struct SymmetricPredictionOptions {
 };
 
 struct SymmetricPrediction {
-  Points predicted;              ///< (M, 3) reflected points not explained by observed ones
-  Eigen::Vector4d plane;         ///< the corrected plane (canonical sign), or the input plane
-  Eigen::Vector4d input_plane;   ///< the plane given (normalised, canonical sign)
+  Points predicted;             ///< (M, 3) reflected points not explained by observed ones
+  Eigen::Vector4d plane;        ///< the corrected plane (canonical sign), or the input plane
+  Eigen::Vector4d input_plane;  ///< the plane given (normalised, canonical sign)
   /// 4x4 improper isometry ICP o reflection (the reflection alone without ICP).
   Eigen::Matrix4d transform = Eigen::Matrix4d::Identity();
-  bool icp_converged = false;    ///< PCL's hasConverged()
-  bool icp_applied = false;      ///< the ICP correction was used for `plane`
+  bool icp_converged = false;  ///< PCL's hasConverged()
+  bool icp_applied = false;    ///< the ICP correction was used for `plane`
   double icp_fitness = std::numeric_limits<double>::quiet_NaN();  ///< mean squared distance, m^2
   double residual_rotation_deg = 0.0;  ///< rotation left after the reflection (0: pure mirror)
   StageTimes timings;
@@ -255,7 +259,8 @@ Eigen::Vector4d plane_from_improper_isometry(const Eigen::Matrix4d& M,
 double plane_angle_deg(const Eigen::Vector4d& a, const Eigen::Vector4d& b);
 /// Offset between two planes at a point c: |(n_b . c - d_b)| after aligning b's sign with a,
 /// i.e. how far c's projection on a lies from b. Metres.
-double plane_offset_at(const Eigen::Vector4d& a, const Eigen::Vector4d& b, const Eigen::Vector3d& c);
+double plane_offset_at(const Eigen::Vector4d& a, const Eigen::Vector4d& b,
+                       const Eigen::Vector3d& c);
 
 /// The FPFH of a point's mirror image, computed from the point's own FPFH. Reflection keeps
 /// u = n_s and d, flips v = d x u and keeps w = u x v up to the reflection, so of PCL's three
@@ -271,7 +276,7 @@ Fpfh mirror_fpfh(const Fpfh& descriptors);
 /// `points` (mirror-equivariant for any plane through the centroid).
 namespace detail {
 struct NormalsAndCurvature {
-  Points normals;            ///< (N, 3) unit normals (NaN rows where undefined)
+  Points normals;             ///< (N, 3) unit normals (NaN rows where undefined)
   Eigen::VectorXd curvature;  ///< (N,) surface variation lambda0 / (lambda0 + lambda1 + lambda2)
 };
 NormalsAndCurvature estimate_normals(const PointsRef& points, int k, double radius);
@@ -302,9 +307,9 @@ Eigen::VectorXd nearest_distances(const PointsRef& targets, const PointsRef& que
 /// The plane refined by reflective point-to-plane ICP (see SymmetryOptions::refine_iterations):
 /// `queries` are reflected and paired with their nearest points of `tree`, whose normals are
 /// `target_normals` (zero rows are ignored).
-Eigen::Vector4d refine_plane(const PointsRef& queries, const NearestNeighbors& tree, const Points& target_normals,
-                             const Eigen::Vector4d& plane, int iterations, double max_distance,
-                             double min_distance);
+Eigen::Vector4d refine_plane(const PointsRef& queries, const NearestNeighbors& tree,
+                             const Points& target_normals, const Eigen::Vector4d& plane,
+                             int iterations, double max_distance, double min_distance);
 /// Mirror consistency of `points` about `plane` (see SymmetryResult::confidence).
 struct Consistency {
   double facing = 0.0;           ///< over the points facing the plane (the confidence)

@@ -11,30 +11,56 @@ from ..mission import SCENARIOS, Mission
 
 def register(sub) -> argparse.ArgumentParser:
     p = sub.add_parser(
-        "run", help="run one reconstruction mission and write its results folder",
+        "run",
+        help="run one reconstruction mission and write its results folder",
         description="Fly one scenario of the paper's Table 2 on a structure from one of its five "
-                    "predefined starts, and write DIR/summary.json, iterations.csv, config.yaml "
-                    "(resolved), cloud.ply, map.ot, trajectory.csv and figures/*.png.",
+        "predefined starts, and write DIR/summary.json, iterations.csv, config.yaml "
+        "(resolved), cloud.ply, map.ot, trajectory.csv and figures/*.png.",
         formatter_class=argparse.RawDescriptionHelpFormatter,
         epilog="scenarios: profile = profiling stage alone; 1 = no profiling, no symmetry, CGVS; "
-               "2 = profiling + CGVS; 3 = profiling + AGVS; 4 = profiling + symmetry + CGVS; "
-               "5 = profiling + symmetry + AGVS (the paper's full method)\n"
-               "examples:\n  nbvkit run --scenario 1 --start 0 --set max_iterations=50 --out runs/s1\n"
-               "  nbvkit run --mesh my.obj --mesh-up y --set map.resolution=0.4 sampling.delta_d=2")
-    p.add_argument("--config", metavar="FILE", help="YAML configuration (see configs/default.yaml); "
-                                                   "unknown keys are rejected")
+        "2 = profiling + CGVS; 3 = profiling + AGVS; 4 = profiling + symmetry + CGVS; "
+        "5 = profiling + symmetry + AGVS (the paper's full method)\n"
+        "examples:\n  nbvkit run --scenario 1 --start 0 --set max_iterations=50 --out runs/s1\n"
+        "  nbvkit run --mesh my.obj --mesh-up y --set map.resolution=0.4 sampling.delta_d=2",
+    )
+    p.add_argument(
+        "--config",
+        metavar="FILE",
+        help="YAML configuration (see configs/default.yaml); " "unknown keys are rejected",
+    )
     p.add_argument("--mesh", metavar="PATH", help="structure mesh (default: the shipped airliner)")
-    p.add_argument("--mesh-scale", metavar="S", type=float, default=None, help="multiply mesh coordinates by S")
+    p.add_argument(
+        "--mesh-scale", metavar="S", type=float, default=None, help="multiply mesh coordinates by S"
+    )
     p.add_argument("--mesh-up", choices=("y", "z"), default=None, help="the mesh file's up axis")
-    p.add_argument("--scenario", choices=list(SCENARIOS), default=None,
-                   help="which Table 2 scenario (default: the config's, 5 = the full method)")
-    p.add_argument("--start", type=int, choices=range(5), default=None, metavar="0..4",
-                   help="which of the five predefined start poses around the structure (default 0)")
-    p.add_argument("--set", nargs="+", default=[], metavar="KEY=VALUE",
-                   help="override any config key, dotted for nested ones (e.g. max_iterations=50 "
-                        "map.resolution=0.4 utility.name=ig_distance)")
-    p.add_argument("--out", metavar="DIR", default=None,
-                   help="results folder (default runs/scenario<S>_start<K>)")
+    p.add_argument(
+        "--scenario",
+        choices=list(SCENARIOS),
+        default=None,
+        help="which Table 2 scenario (default: the config's, 5 = the full method)",
+    )
+    p.add_argument(
+        "--start",
+        type=int,
+        choices=range(5),
+        default=None,
+        metavar="0..4",
+        help="which of the five predefined start poses around the structure (default 0)",
+    )
+    p.add_argument(
+        "--set",
+        nargs="+",
+        default=[],
+        metavar="KEY=VALUE",
+        help="override any config key, dotted for nested ones (e.g. max_iterations=50 "
+        "map.resolution=0.4 utility.name=ig_distance)",
+    )
+    p.add_argument(
+        "--out",
+        metavar="DIR",
+        default=None,
+        help="results folder (default runs/scenario<S>_start<K>)",
+    )
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
     return p
 
@@ -62,9 +88,12 @@ def run(args) -> int:
     mission = Mission(cfg)
     s = mission.run(out)
     cov = s["coverage"]
-    print(f"scenario {s['scenario']} start {s['start']}: {s['iterations']} iterations, "
-          f"{s['distance_m']:.1f} m, entropy reduction {s['entropy_reduction']:,.0f} {s['entropy_unit']}, "
-          f"termination: {s['termination']}")
+    print(
+        f"scenario {s['scenario']} start {s['start']}: {s['iterations']} iterations, "
+        f"{s['distance_m']:.1f} m, entropy reduction "
+        f"{s['entropy_reduction']:,.0f} {s['entropy_unit']}, "
+        f"termination: {s['termination']}"
+    )
     print("coverage  " + "  ".join(f"@{k} m {v:6.1%}" for k, v in cov.items()))
     print("area cov. " + "  ".join(f"@{k} m {v:6.1%}" for k, v in s["area_coverage"].items()))
     print(f"wall time {s['wall_time_s']:.1f} s, {s['ms_per_iteration']:.1f} ms/iteration -> {out}/")

@@ -12,20 +12,38 @@ from .common import add_mesh_options, mesh_from_args
 
 def register(sub) -> argparse.ArgumentParser:
     p = sub.add_parser(
-        "scan", help="scan a mesh from one vehicle pose and write the hit points",
-        description="Ray-cast one scan of the structure from a vehicle pose and write the world-frame "
-                    "hit points (PLY, PCD or .npy by the file's extension). The sensor is mounted at "
-                    "the vehicle origin: the camera untilted, the laser pitched 10 deg down (Table 1). "
-                    "Noise is off unless --noise is given.")
+        "scan",
+        help="scan a mesh from one vehicle pose and write the hit points",
+        description="Ray-cast one scan of the structure from a vehicle pose and write the "
+        "world-frame "
+        "hit points (PLY, PCD or .npy by the file's extension). The sensor is mounted at "
+        "the vehicle origin: the camera untilted, the laser pitched 10 deg down (Table 1). "
+        "Noise is off unless --noise is given.",
+    )
     add_mesh_options(p)
-    p.add_argument("--pose", nargs=4, type=float, metavar=("X", "Y", "Z", "YAW"), required=True,
-                   help="vehicle pose: position in metres (world frame, z up) and yaw in radians about +z")
-    p.add_argument("--sensor", choices=("camera", "laser"), default="camera",
-                   help="camera: 640x480 RGB-D, 60x45 deg, 0.5-8 m depth; "
-                        "laser: 721 beams over 180 deg, 0.1-30 m (default camera)")
-    p.add_argument("--noise", type=float, default=0.0, metavar="K",
-                   help="camera depth noise sigma = K z^2 metres (the authors used 0.0025); "
-                        "laser range noise sigma = K metres (default 0: exact)")
+    p.add_argument(
+        "--pose",
+        nargs=4,
+        type=float,
+        metavar=("X", "Y", "Z", "YAW"),
+        required=True,
+        help="vehicle pose: position in metres (world frame, z up) and yaw in radians about +z",
+    )
+    p.add_argument(
+        "--sensor",
+        choices=("camera", "laser"),
+        default="camera",
+        help="camera: 640x480 RGB-D, 60x45 deg, 0.5-8 m depth; "
+        "laser: 721 beams over 180 deg, 0.1-30 m (default camera)",
+    )
+    p.add_argument(
+        "--noise",
+        type=float,
+        default=0.0,
+        metavar="K",
+        help="camera depth noise sigma = K z^2 metres (the authors used 0.0025); "
+        "laser range noise sigma = K metres (default 0: exact)",
+    )
     p.add_argument("--seed", type=int, default=0, help="noise seed (default 0)")
     p.add_argument("--out", required=True, metavar="FILE", help="output cloud: .ply, .pcd or .npy")
     return p
@@ -42,6 +60,8 @@ def run(args) -> int:
         sensor = LaserScanner(scene, noise_sigma=args.noise, seed=args.seed)
     scan = sensor.scan_pose(pose)
     write_points(args.out, scan.hits)
-    print(f"{args.sensor} scan from {tuple(args.pose)}: {len(scan.hits)} hits, "
-          f"{len(scan.free_ends)} free rays -> {args.out}")
+    print(
+        f"{args.sensor} scan from {tuple(args.pose)}: {len(scan.hits)} hits, "
+        f"{len(scan.free_ends)} free rays -> {args.out}"
+    )
     return 0

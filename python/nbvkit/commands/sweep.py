@@ -25,14 +25,21 @@ EXAMPLE = """example sweep file:
 
 def register(sub) -> argparse.ArgumentParser:
     p = sub.add_parser(
-        "sweep", help="run a grid of parameter overrides x scenarios x starts x structures",
+        "sweep",
+        help="run a grid of parameter overrides x scenarios x starts x structures",
         description="Run every combination a sweep file describes, in parallel (local processes or "
-                    "a Dask cluster), resumable (finished runs are skipped), into one tidy table "
-                    "DIR/results.csv that the plotting helpers read.",
-        epilog=EXAMPLE, formatter_class=argparse.RawDescriptionHelpFormatter)
+        "a Dask cluster), resumable (finished runs are skipped), into one tidy table "
+        "DIR/results.csv that the plotting helpers read.",
+        epilog=EXAMPLE,
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+    )
     p.add_argument("config", metavar="CONFIG", help="sweep file (YAML)")
-    p.add_argument("--out", metavar="DIR", default=None, help="output folder (default: the file's out, "
-                                                               "else runs/<file name>)")
+    p.add_argument(
+        "--out",
+        metavar="DIR",
+        default=None,
+        help="output folder (default: the file's out, " "else runs/<file name>)",
+    )
     p.add_argument("--workers", type=int, default=None, metavar="N", help="local worker processes")
     p.add_argument("--scheduler", metavar="ADDRESS", default=None, help="Dask scheduler address")
     return p
@@ -51,7 +58,9 @@ def run(args) -> int:
     out = Path(args.out or sweep.get("out") or f"runs/{path.stem}")
     workers = args.workers if args.workers is not None else int(sweep.get("workers") or 0)
     t0 = time.perf_counter()
-    rows = run_specs(specs, out, workers=workers, scheduler=args.scheduler or sweep.get("scheduler"))
+    rows = run_specs(
+        specs, out, workers=workers, scheduler=args.scheduler or sweep.get("scheduler")
+    )
     write_table(rows, out / "results.csv")
     print(f"{len(rows)} runs in {time.perf_counter() - t0:.0f} s -> {out / 'results.csv'}")
     return 0

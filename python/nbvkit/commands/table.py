@@ -10,20 +10,41 @@ from .common import add_mesh_options
 
 def register(sub) -> argparse.ArgumentParser:
     p = sub.add_parser(
-        "table", help="rerun the paper's Table 2 (Profile + Scenarios 1-5, averaged over starts)",
-        description="Run the Profile row and Scenarios 1-5 from K predefined starts each, in parallel, "
-                    "and write into DIR: runs.csv (one row per run), table2.md and table2.csv (the "
-                    "paper's layout, mean and spread over the starts), figures/*.png and each run's "
-                    "folder under DIR/runs/. Interrupted tables resume: finished runs are kept.")
+        "table",
+        help="rerun the paper's Table 2 (Profile + Scenarios 1-5, averaged over starts)",
+        description="Run the Profile row and Scenarios 1-5 from K predefined starts each, in "
+        "parallel, "
+        "and write into DIR: runs.csv (one row per run), table2.md and table2.csv (the "
+        "paper's layout, mean and spread over the starts), figures/*.png and each run's "
+        "folder under DIR/runs/. Interrupted tables resume: finished runs are kept.",
+    )
     add_mesh_options(p)
-    p.add_argument("--starts", type=int, default=5, metavar="K", help="starts per scenario, 1..5 (default 5)")
-    p.add_argument("--set", nargs="+", default=[], metavar="KEY=VALUE",
-                   help="config overrides applied to every run (e.g. max_iterations=100)")
-    p.add_argument("--workers", type=int, default=0, metavar="N",
-                   help="local worker processes (default: one per core; 1 = serial)")
-    p.add_argument("--scheduler", metavar="ADDRESS", default=None,
-                   help="run on a Dask distributed cluster at this scheduler address instead")
-    p.add_argument("--out", metavar="DIR", default="runs/table2", help="output folder (default runs/table2)")
+    p.add_argument(
+        "--starts", type=int, default=5, metavar="K", help="starts per scenario, 1..5 (default 5)"
+    )
+    p.add_argument(
+        "--set",
+        nargs="+",
+        default=[],
+        metavar="KEY=VALUE",
+        help="config overrides applied to every run (e.g. max_iterations=100)",
+    )
+    p.add_argument(
+        "--workers",
+        type=int,
+        default=0,
+        metavar="N",
+        help="local worker processes (default: one per core; 1 = serial)",
+    )
+    p.add_argument(
+        "--scheduler",
+        metavar="ADDRESS",
+        default=None,
+        help="run on a Dask distributed cluster at this scheduler address instead",
+    )
+    p.add_argument(
+        "--out", metavar="DIR", default="runs/table2", help="output folder (default runs/table2)"
+    )
     return p
 
 
