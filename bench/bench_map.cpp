@@ -70,7 +70,7 @@ double agreement(const nbv::OccupancyMap& a, const nbv::OccupancyMap& b,
                  std::int64_t* touched_out) {
   std::int64_t touched = 0, same = 0;
   for (std::int64_t i = 0; i < a.num_cells(); ++i) {
-    const auto sa = a.state_at(i), sb = b.state_at(i);
+    const auto sa = a.grid().state(i), sb = b.grid().state(i);
     if (sa == nbv::CellState::Unknown && sb == nbv::CellState::Unknown) continue;
     ++touched;
     same += sa == sb;

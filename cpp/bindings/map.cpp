@@ -493,7 +493,7 @@ cell is i + nx * (j + ny * k) == grid.ravel(order='F') position.)doc");
           "first two).")
       .def(
           "recompute_counts",
-          [](const OccupancyMap& m) { return counts_dict(m.recompute_counts()); },
+          [](const OccupancyMap& m) { return counts_dict(m.grid().recompute_counts()); },
           "counts() by a full sweep (for checks).")
       .def(
           "occupied_cells",
@@ -512,26 +512,27 @@ cell is i + nx * (j + ny * k) == grid.ravel(order='F') position.)doc");
       .def(
           "log_odds_grid",
           [](const OccupancyMap& m) {
-            return grid<float>(m, [&](std::int64_t i) { return m.logodds_at(i); });
+            return grid<float>(m, [&](std::int64_t i) { return m.grid().logodds(i); });
           },
           "(nx, ny, nz) float32 log-odds (0 for unknown cells), Fortran order (copy).")
       .def(
           "state_grid",
           [](const OccupancyMap& m) {
-            return grid<std::int8_t>(m, [&](std::int64_t i) { return std::int8_t(m.state_at(i)); });
+            return grid<std::int8_t>(
+                m, [&](std::int64_t i) { return std::int8_t(m.grid().state(i)); });
           },
           "(nx, ny, nz) int8 states (0 free, 1 occupied, -1 unknown), Fortran order (copy).")
       .def(
           "flag_grid",
           [](const OccupancyMap& m) {
-            return grid<std::uint8_t>(m,
-                                      [&](std::int64_t i) { return std::uint8_t(m.flag_at(i)); });
+            return grid<std::uint8_t>(
+                m, [&](std::int64_t i) { return std::uint8_t(m.grid().flag(i)); });
           },
           "(nx, ny, nz) uint8 flags (0 unknown, 1 observed, 2 predicted), Fortran order (copy).")
       .def(
           "entropy_grid",
           [](const OccupancyMap& m) {
-            return grid<float>(m, [&](std::int64_t i) { return m.entropy_at(i); });
+            return grid<float>(m, [&](std::int64_t i) { return m.grid().entropy(i); });
           },
           "(nx, ny, nz) float32 cell entropies in the map's unit, Fortran order (copy).")
       .def(

@@ -24,23 +24,14 @@ namespace {
 using Key = octomap::OcTreeKey;
 using KeyHash = octomap::OcTreeKey::KeyHash;
 
-constexpr int kTreeMaxVal = 32768;                  // OctoMap's tree_max_val at depth 16
-constexpr double kFixedScale = 1125899906842624.0;  // 2^50: entropy fixed point, units per nat
-constexpr double kLn2 = 0.693147180559945309417232121458176568;
-constexpr double kSnap = 1e-6;  // bounds within this many cells of a grid plane snap to it
+constexpr int kTreeMaxVal = 32768;  // OctoMap's tree_max_val at depth 16
+constexpr double kSnap = 1e-6;      // bounds within this many cells of a grid plane snap to it
 const Points kNoPoints(0, 3);
 
 std::string fmt_vec(const Eigen::Vector3d& v) {
   std::ostringstream s;
   s << "(" << v.x() << ", " << v.y() << ", " << v.z() << ")";
   return s.str();
-}
-
-/// Binary entropy in nats of p = sigmoid(l), numerically stable for any l.
-double binary_entropy_nats(double l) {
-  const double a = std::fabs(l);
-  const double e = std::exp(-a);
-  return std::log1p(e) + a * e / (1.0 + e);
 }
 
 octomap::point3d to_point3d(const Eigen::Vector3d& p) {
@@ -106,15 +97,9 @@ OccupancyMap::OccupancyMap(double resolution, const Eigen::Vector3d& bounds_min,
                                 std::to_string(resolution));
   opt_.validate();
   res_ = resolution;
-  init_grid(bounds_min, bounds_max);  // validates the bounds before the octree is made
   tree_ = std::make_unique<octomap::OcTree>(resolution);
   apply_tree_params();
-  logodds_.assign(std::size_t(num_cells_), 0.0f);
-  flags_.assign(std::size_t(num_cells_), CellFlag::Unknown);
-  entropy_.assign(std::size_t(num_cells_), mirror_entropy(0.0f, CellFlag::Unknown));
-  counts_ = CellCounts{};
-  counts_.unknown = num_cells_;
-  known_entropy_fixed_ = 0;
+  init_geometry(bounds_min, bounds_max);
 }
 
 OccupancyMap::OccupancyMap(std::unique_ptr<octomap::OcTree> tree, const Eigen::Vector3d& bounds_min,
@@ -122,16 +107,16 @@ OccupancyMap::OccupancyMap(std::unique_ptr<octomap::OcTree> tree, const Eigen::V
     : tree_(std::move(tree)), opt_(options) {
   opt_.validate();
   res_ = tree_->getResolution();
-  init_grid(bounds_min, bounds_max);
   apply_tree_params();
-  rebuild_mirror_from_tree();
+  init_geometry(bounds_min, bounds_max);
+  grid_from_tree();
 }
 
 OccupancyMap::~OccupancyMap() = default;
 OccupancyMap::OccupancyMap(OccupancyMap&&) noexcept = default;
 OccupancyMap& OccupancyMap::operator=(OccupancyMap&&) noexcept = default;
 
-void OccupancyMap::init_grid(const Eigen::Vector3d& bmin, const Eigen::Vector3d& bmax) {
+void OccupancyMap::init_geometry(const Eigen::Vector3d& bmin, const Eigen::Vector3d& bmax) {
   if (!bmin.allFinite() || !bmax.allFinite())
     throw std::invalid_argument("workspace bounds contain NaN or infinite values");
   for (int a = 0; a < 3; ++a)
@@ -164,9 +149,10 @@ void OccupancyMap::init_grid(const Eigen::Vector3d& bmin, const Eigen::Vector3d&
                                 std::to_string(res_) + " m holds " + std::to_string(cells) +
                                 " cells, more than the limit " + std::to_string(kMaxCells) +
                                 " (coarser resolution or smaller bounds)");
-  dims_ = {int(nx), int(ny), int(nz)};
-  num_cells_ = nx * ny * nz;
   for (int a = 0; a < 3; ++a) min_key_[a] = octomap::key_type(kmin[a] + kTreeMaxVal);
+  grid_ = WorkspaceGrid({int(nx), int(ny), int(nz)}, cell_rule());
+  tree_stale_.assign(std::size_t(grid_.num_cells()), 0);
+  tree_stale_cells_.clear();
 }
 
 void OccupancyMap::apply_tree_params() {
@@ -182,7 +168,17 @@ void OccupancyMap::apply_tree_params() {
   miss_log_ = tree_->getProbMissLog();
 }
 
-// ---- grid ----------------------------------------------------------------------------------
+CellRule OccupancyMap::cell_rule() const {
+  CellRule r;
+  r.occupied_logodds = occ_thres_log_;
+  r.clamp_min_logodds = clamp_min_log_;
+  r.clamp_max_logodds = clamp_max_log_;
+  r.unit = opt_.entropy_unit;
+  r.clamped_entropy_zero = opt_.clamped_entropy_zero;
+  return r;
+}
+
+// ---- geometry ------------------------------------------------------------------------------
 
 Eigen::Vector3d OccupancyMap::bounds_min() const {
   return Eigen::Vector3d((int(min_key_[0]) - kTreeMaxVal) * res_,
@@ -191,9 +187,10 @@ Eigen::Vector3d OccupancyMap::bounds_min() const {
 }
 
 Eigen::Vector3d OccupancyMap::bounds_max() const {
-  return Eigen::Vector3d((int(min_key_[0]) + dims_[0] - kTreeMaxVal) * res_,
-                         (int(min_key_[1]) + dims_[1] - kTreeMaxVal) * res_,
-                         (int(min_key_[2]) + dims_[2] - kTreeMaxVal) * res_);
+  const auto& d = grid_.dims();
+  return Eigen::Vector3d((int(min_key_[0]) + d[0] - kTreeMaxVal) * res_,
+                         (int(min_key_[1]) + d[1] - kTreeMaxVal) * res_,
+                         (int(min_key_[2]) + d[2] - kTreeMaxVal) * res_);
 }
 
 bool OccupancyMap::coord_to_key(const Eigen::Vector3d& p, Key& key) const {
@@ -206,128 +203,21 @@ Eigen::Vector3d OccupancyMap::key_to_coord(const Key& key) const {
 }
 
 OccupancyMap::Key OccupancyMap::key_at(std::int64_t index) const {
-  const std::int64_t nx = dims_[0], ny = dims_[1];
+  const std::int64_t nx = grid_.dims()[0], ny = grid_.dims()[1];
   const std::int64_t i = index % nx, j = (index / nx) % ny, k = index / (nx * ny);
   return Key(octomap::key_type(min_key_[0] + i), octomap::key_type(min_key_[1] + j),
              octomap::key_type(min_key_[2] + k));
 }
 
-// ---- entropy and mirror bookkeeping ---------------------------------------------------------
+// ---- grid and octree -----------------------------------------------------------------------
 
-double OccupancyMap::entropy_nats_of_known(float logodds) const {
-  if (opt_.clamped_entropy_zero && (logodds <= clamp_min_log_ || logodds >= clamp_max_log_))
-    return 0.0;
-  return binary_entropy_nats(double(logodds));
-}
-
-double OccupancyMap::cell_entropy(float logodds, CellFlag flag) const {
-  const double nats = flag == CellFlag::Unknown ? kLn2 : entropy_nats_of_known(logodds);
-  if (opt_.entropy_unit == EntropyUnit::Bits) return flag == CellFlag::Unknown ? 1.0 : nats / kLn2;
-  return nats;
-}
-
-std::int64_t OccupancyMap::fixed_entropy(float logodds, CellFlag flag) const {
-  if (flag == CellFlag::Unknown) return 0;  // unknown cells are counted as unknown * ln 2
-  return std::llround(entropy_nats_of_known(logodds) * kFixedScale);
-}
-
-void OccupancyMap::set_mirror(std::size_t i, float logodds, CellFlag flag) {
-  const CellFlag old_flag = flags_[i];
-  const float old_l = logodds_[i];
-  if (old_flag == flag && old_l == logodds) return;
-  if (old_flag == CellFlag::Unknown) {
-    --counts_.unknown;
-  } else {
-    (old_l >= occ_thres_log_ ? counts_.occupied : counts_.free) -= 1;
-    if (old_flag == CellFlag::Predicted) --counts_.predicted;
-    known_entropy_fixed_ -= cached_fixed_entropy(old_l);
-  }
-  if (flag == CellFlag::Unknown) {
-    ++counts_.unknown;
-    entropy_[i] = mirror_entropy(logodds, flag);
-  } else {
-    (logodds >= occ_thres_log_ ? counts_.occupied : counts_.free) += 1;
-    if (flag == CellFlag::Predicted) ++counts_.predicted;
-    const std::int64_t fixed = cached_fixed_entropy(logodds);
-    known_entropy_fixed_ += fixed;
-    entropy_[i] = entropy_float(fixed);
-  }
-  flags_[i] = flag;
-  logodds_[i] = logodds;
-}
-
-float OccupancyMap::entropy_float(std::int64_t fixed) const {
-  const double nats = double(fixed) / kFixedScale;
-  return float(opt_.entropy_unit == EntropyUnit::Bits ? nats / kLn2 : nats);
-}
-
-float OccupancyMap::mirror_entropy(float logodds, CellFlag flag) const {
-  if (flag == CellFlag::Unknown) return float(cell_entropy(logodds, flag));
-  return entropy_float(fixed_entropy(logodds, flag));
-}
-
-std::int64_t OccupancyMap::cached_fixed_entropy(float logodds) {
-  std::uint32_t bits;
-  std::memcpy(&bits, &logodds, sizeof bits);
-  EntropyCacheEntry& e =
-      entropy_cache_[(bits ^ (bits >> 13) ^ (bits >> 23)) & (entropy_cache_.size() - 1)];
-  if (e.bits != bits) {
-    e.bits = bits;
-    e.fixed = fixed_entropy(logodds, CellFlag::Observed);
-  }
-  return e.fixed;
-}
-
-double OccupancyMap::total_entropy() const {
-  const double known_nats = double(known_entropy_fixed_) / kFixedScale;
-  if (opt_.entropy_unit == EntropyUnit::Bits) return double(counts_.unknown) + known_nats / kLn2;
-  return double(counts_.unknown) * kLn2 + known_nats;
-}
-
-__int128 OccupancyMap::sum_known_entropy_fixed() const {
-  const std::size_t n = std::size_t(num_cells_);
-  const std::size_t grain = 1 << 16;
-  const std::size_t nchunks = (n + grain - 1) / grain;
-  std::vector<__int128> sums(nchunks, 0);
-  parallel_chunks(nchunks, 1, [&](std::size_t cb, std::size_t ce) {
-    for (std::size_t c = cb; c < ce; ++c) {
-      __int128 s = 0;
-      for (std::size_t i = c * grain, e = std::min(n, (c + 1) * grain); i < e; ++i)
-        if (flags_[i] != CellFlag::Unknown) s += fixed_entropy(logodds_[i], flags_[i]);
-      sums[c] = s;
-    }
-  });
-  __int128 s = 0;
-  for (const __int128 v : sums) s += v;  // integers: the same sum in any order
-  return s;
-}
-
-double OccupancyMap::recompute_total_entropy() const {
-  const double known_nats = double(sum_known_entropy_fixed()) / kFixedScale;
-  const double unknown = double(recompute_counts().unknown);
-  if (opt_.entropy_unit == EntropyUnit::Bits) return unknown + known_nats / kLn2;
-  return unknown * kLn2 + known_nats;
-}
-
-CellCounts OccupancyMap::recompute_counts() const {
-  CellCounts c;
-  for (std::size_t i = 0, n = std::size_t(num_cells_); i < n; ++i) {
-    if (flags_[i] == CellFlag::Unknown) {
-      ++c.unknown;
-      continue;
-    }
-    (logodds_[i] >= occ_thres_log_ ? c.occupied : c.free) += 1;
-    if (flags_[i] == CellFlag::Predicted) ++c.predicted;
-  }
-  return c;
-}
-
-void OccupancyMap::rebuild_mirror_from_tree() {
-  const std::size_t n = std::size_t(num_cells_);
-  logodds_.assign(n, 0.0f);
-  flags_.assign(n, CellFlag::Unknown);
+void OccupancyMap::grid_from_tree() {
+  const std::size_t n = std::size_t(grid_.num_cells());
+  std::vector<float> logodds(n, 0.0f);
+  std::vector<CellFlag> flags(n, CellFlag::Unknown);
+  const auto& dims = grid_.dims();
   const int lo[3] = {min_key_[0], min_key_[1], min_key_[2]};
-  const int hi[3] = {lo[0] + dims_[0], lo[1] + dims_[1], lo[2] + dims_[2]};  // exclusive
+  const int hi[3] = {lo[0] + dims[0], lo[1] + dims[1], lo[2] + dims[2]};  // exclusive
   const unsigned depth_max = tree_->getTreeDepth();
   for (auto it = tree_->begin_leafs(), end = tree_->end_leafs(); it != end; ++it) {
     const int size = 1 << (depth_max - it.getDepth());  // cells per axis of this leaf
@@ -345,57 +235,23 @@ void OccupancyMap::rebuild_mirror_from_tree() {
     for (int z = b[2]; z < e[2]; ++z)
       for (int y = b[1]; y < e[1]; ++y) {
         const std::size_t row =
-            std::size_t(z - lo[2]) * std::size_t(dims_[1]) * std::size_t(dims_[0]) +
-            std::size_t(y - lo[1]) * std::size_t(dims_[0]);
+            std::size_t(z - lo[2]) * std::size_t(dims[1]) * std::size_t(dims[0]) +
+            std::size_t(y - lo[1]) * std::size_t(dims[0]);
         for (int x = b[0]; x < e[0]; ++x) {
-          logodds_[row + std::size_t(x - lo[0])] = l;
-          flags_[row + std::size_t(x - lo[0])] = CellFlag::Observed;
+          logodds[row + std::size_t(x - lo[0])] = l;
+          flags[row + std::size_t(x - lo[0])] = CellFlag::Observed;
         }
       }
   }
-  entropy_.resize(n);
-  parallel_chunks(n, 1 << 15, [&](std::size_t b, std::size_t e) {
-    for (std::size_t i = b; i < e; ++i) entropy_[i] = mirror_entropy(logodds_[i], flags_[i]);
-  });
-  counts_ = recompute_counts();
-  known_entropy_fixed_ = sum_known_entropy_fixed();
+  grid_.assign(std::move(logodds), std::move(flags));
 }
 
-// ---- integration ---------------------------------------------------------------------------
-
-void OccupancyMap::FreeDeleter::operator()(void* p) const noexcept { std::free(p); }
-
-void OccupancyMap::ensure_scratch() {
-  if (stamp_) return;
-  stamp_.reset(
-      static_cast<std::uint32_t*>(std::calloc(std::size_t(num_cells_), sizeof(std::uint32_t))));
-  group_of_.reset(
-      static_cast<std::int32_t*>(std::malloc(std::size_t(num_cells_) * sizeof(std::int32_t))));
-  if (!stamp_ || !group_of_) throw std::bad_alloc();
-  stamp_counter_ = 0;
-}
-
-std::uint32_t OccupancyMap::next_stamp(unsigned n) {
-  if (stamp_counter_ > std::numeric_limits<std::uint32_t>::max() - n - 1) {
-    std::fill(stamp_.get(), stamp_.get() + num_cells_, 0u);
-    stamp_counter_ = 0;
+void OccupancyMap::set_cell(std::int64_t i, float logodds, CellFlag flag) {
+  grid_.set(i, logodds, flag);
+  if (!tree_stale_[std::size_t(i)]) {
+    tree_stale_[std::size_t(i)] = 1;
+    tree_stale_cells_.push_back(i);
   }
-  const std::uint32_t first = stamp_counter_ + 1;
-  stamp_counter_ += n;
-  return first;
-}
-
-void OccupancyMap::update_cell(const Key& key, bool hit) {
-  const std::int64_t idx = index_of(key);
-  octomap::OcTreeNode* node;
-  if (idx >= 0 && flags_[std::size_t(idx)] == CellFlag::Predicted) {
-    // An observation overrides a prediction: restart from unknown (log-odds 0), then update. On
-    // a fresh node OctoMap computes 0 + update, clamped; setNodeValue clamps the same way.
-    node = tree_->setNodeValue(key, hit ? hit_log_ : miss_log_, false);
-  } else {
-    node = tree_->updateNode(key, hit, false);
-  }
-  if (idx >= 0) set_mirror(std::size_t(idx), node->getLogOdds(), CellFlag::Observed);
 }
 
 namespace {
@@ -435,48 +291,109 @@ void fix_inner_nodes(octomap::OcTree& tree, octomap::OcTreeNode* node, unsigned 
   if (!tree.pruneNode(node)) node->updateOccupancyChildren();
 }
 
+/// One leaf write of the octree: setNodeValue(key, value) or updateNode(key, value as an update).
+struct LeafWrite {
+  std::uint64_t code;  // tree_order(key)
+  Key key;
+  float value;
+};
+
+/// Writes leaves in tree order (lazily), then fixes their ancestors once.
+void write_leaves(octomap::OcTree& tree, std::vector<LeafWrite>& writes, bool as_update) {
+  if (writes.empty()) return;
+  std::sort(writes.begin(), writes.end(),
+            [](const LeafWrite& a, const LeafWrite& b) { return a.code < b.code; });
+  std::vector<std::uint64_t> codes(writes.size());
+  for (std::size_t i = 0; i < writes.size(); ++i) {
+    if (as_update)
+      tree.updateNode(writes[i].key, writes[i].value, true);
+    else
+      tree.setNodeValue(writes[i].key, writes[i].value, true);
+    codes[i] = writes[i].code;
+  }
+  fix_inner_nodes(tree, tree.getRoot(), 0, codes.data(), 0, codes.size());
+}
+
 }  // namespace
 
-void OccupancyMap::apply_updates(const std::vector<Key>& misses, const std::vector<Key>& hits) {
-  // Same leaf values as one updateNode(key, hit/miss, lazy_eval = false) per cell; faster: the
-  // mirror answers OctoMap's early-abort search and supplies the current value (setNodeValue of
-  // value + update, clamped as updateNodeLogOdds clamps), cells are visited in tree order, and
-  // inner nodes are pruned / updated once per batch instead of once per cell.
-  struct Update {
-    std::uint64_t code;
-    Key key;
-    float value;  // new value (workspace cells) or update (cells outside the workspace)
-    std::int64_t idx;
-  };
-  std::vector<Update> ups;
-  ups.reserve(misses.size() + hits.size());
-  auto add = [&](const Key& key, bool hit) {
-    const float update = hit ? hit_log_ : miss_log_;
-    const std::int64_t idx = index_of(key);
-    float value = update;  // unknown, or predicted (an observation restarts it from log-odds 0)
-    if (idx >= 0 && flags_[std::size_t(idx)] == CellFlag::Observed) {
-      const float l = logodds_[std::size_t(idx)];
-      if (hit ? l >= clamp_max_log_ : l <= clamp_min_log_) return;  // OctoMap's early abort
-      value = l + update;  // OctoMap's addValue on the leaf, whose value the mirror holds
-    }
-    ups.push_back(Update{tree_order(key), key, value, idx});
-  };
-  for (const Key& k : misses) add(k, false);
-  for (const Key& k : hits) add(k, true);
-  if (ups.empty()) return;
-  std::sort(ups.begin(), ups.end(),
-            [](const Update& a, const Update& b) { return a.code < b.code; });
-  for (const Update& u : ups) {
-    if (u.idx >= 0) {
-      const octomap::OcTreeNode* node = tree_->setNodeValue(u.key, u.value, true);
-      set_mirror(std::size_t(u.idx), node->getLogOdds(), CellFlag::Observed);
-    } else {
-      tree_->updateNode(u.key, u.value, true);
-    }
+void OccupancyMap::sync_octree() const {
+  if (tree_stale_cells_.empty()) return;
+  std::vector<LeafWrite> writes;
+  writes.reserve(tree_stale_cells_.size());
+  for (const std::int64_t i : tree_stale_cells_) {
+    const Key key = key_at(i);
+    writes.push_back(LeafWrite{tree_order(key), key, grid_.logodds(i)});
+    tree_stale_[std::size_t(i)] = 0;
   }
-  std::vector<std::uint64_t> codes(ups.size());
-  for (std::size_t i = 0; i < ups.size(); ++i) codes[i] = ups[i].code;
-  fix_inner_nodes(*tree_, tree_->getRoot(), 0, codes.data(), 0, codes.size());
+  tree_stale_cells_.clear();
+  write_leaves(*tree_, writes, false);
+}
+
+const octomap::OcTree& OccupancyMap::octree() const {
+  sync_octree();
+  return *tree_;
+}
+
+// ---- integration ---------------------------------------------------------------------------
+
+void OccupancyMap::FreeDeleter::operator()(void* p) const noexcept { std::free(p); }
+
+void OccupancyMap::ensure_scratch() {
+  if (stamp_) return;
+  const std::size_t n = std::size_t(grid_.num_cells());
+  stamp_.reset(static_cast<std::uint32_t*>(std::calloc(n, sizeof(std::uint32_t))));
+  group_of_.reset(static_cast<std::int32_t*>(std::malloc(n * sizeof(std::int32_t))));
+  if (!stamp_ || !group_of_) throw std::bad_alloc();
+  stamp_counter_ = 0;
+}
+
+std::uint32_t OccupancyMap::next_stamp(unsigned n) {
+  if (stamp_counter_ > std::numeric_limits<std::uint32_t>::max() - n - 1) {
+    std::fill(stamp_.get(), stamp_.get() + grid_.num_cells(), 0u);
+    stamp_counter_ = 0;
+  }
+  const std::uint32_t first = stamp_counter_ + 1;
+  stamp_counter_ += n;
+  return first;
+}
+
+void OccupancyMap::update_cell(const Key& key, bool hit) {
+  const std::int64_t idx = index_of(key);
+  octomap::OcTreeNode* node;
+  if (idx >= 0 && grid_.flag(idx) == CellFlag::Predicted) {
+    // An observation overrides a prediction: restart from unknown (log-odds 0), then update. On
+    // a fresh node OctoMap computes 0 + update, clamped; setNodeValue clamps the same way.
+    node = tree_->setNodeValue(key, hit ? hit_log_ : miss_log_, false);
+  } else {
+    node = tree_->updateNode(key, hit, false);
+  }
+  if (idx >= 0) grid_.set(idx, node->getLogOdds(), CellFlag::Observed);
+}
+
+void OccupancyMap::apply_updates(const std::vector<Key>& misses, const std::vector<Key>& hits) {
+  // A workspace cell gets updateNode's value: unknown or predicted cells (an observation
+  // restarts a prediction from log-odds 0) take the update, observed ones log-odds + update
+  // (OctoMap's float addValue), clamped as updateNodeLogOdds clamps, and nothing changes once
+  // a cell is clamped in the update's direction (updateNode's early abort).
+  std::vector<LeafWrite> outside;  // cells outside the workspace go to the octree directly
+  auto update = [&](const Key& key, bool hit) {
+    const float upd = hit ? hit_log_ : miss_log_;
+    const std::int64_t idx = index_of(key);
+    if (idx < 0) {
+      outside.push_back(LeafWrite{tree_order(key), key, upd});
+      return;
+    }
+    float value = upd;
+    if (grid_.flag(idx) == CellFlag::Observed) {
+      const float l = grid_.logodds(idx);
+      if (hit ? l >= clamp_max_log_ : l <= clamp_min_log_) return;
+      value = l + upd;
+    }
+    set_cell(idx, std::min(std::max(value, clamp_min_log_), clamp_max_log_), CellFlag::Observed);
+  };
+  for (const Key& k : misses) update(k, false);
+  for (const Key& k : hits) update(k, true);
+  write_leaves(*tree_, outside, true);
 }
 
 std::size_t OccupancyMap::update_cells(const PointsRef& points, bool occupied) {
@@ -504,51 +421,67 @@ std::size_t OccupancyMap::update_cells(const std::vector<Key>& keys, bool occupi
   return unique.size();
 }
 
+enum : std::uint8_t { kHitFlag = 1, kFreeEndFlag = 2 };
+
+/// A group of rays ending in the same sub-cell of an end cell.
+struct OccupancyMap::EndPoint {
+  octomap::point3d rep;  // representative end point: the one nearest the sub-cell centre
+  float d2;              // its squared distance to the sub-cell centre (cell units)
+  Key key;               // end cell
+  std::uint16_t sub;     // sub-cell index within the end cell
+  std::uint8_t flags;    // some ray of the group is a hit / a free end in range
+};
+
 IntegrationStats OccupancyMap::integrate(const Scan& scan, double max_range) {
   return integrate(scan.origin, scan.hits, scan.free_ends, max_range);
 }
 
 IntegrationStats OccupancyMap::integrate(const Eigen::Vector3d& origin, const PointsRef& hits,
                                          const PointsRef& free_ends, double max_range) {
-  // points are checked for NaN/inf inside the parallel pass below (before anything changes)
+  // points are checked for NaN/inf inside collect_end_points (before anything changes)
   check_integrate_args(origin, PointsRef(kNoPoints), PointsRef(kNoPoints), max_range);
   const octomap::point3d o = to_point3d(origin);
   Key okey;
   if (!tree_->coordToKeyChecked(o, okey))
     throw std::invalid_argument("sensor origin " + fmt_vec(origin) +
                                 " is outside OctoMap's addressable range");
-  const std::size_t nh = std::size_t(hits.rows()), nf = std::size_t(free_ends.rows()), n = nh + nf;
   IntegrationStats stats;
-  stats.rays = n;
-  if (n == 0) return stats;
-  const bool cut = std::isfinite(max_range);
+  stats.rays = std::size_t(hits.rows() + free_ends.rows());
+  if (stats.rays == 0) return stats;
+  auto candidates = collect_end_points(o, hits, free_ends, max_range);
+  ensure_scratch();
+  const std::uint32_t s_group = next_stamp(3), s_free = s_group + 1, s_occ = s_group + 2;
+  const std::vector<EndPoint> groups = group_end_points(std::move(candidates), s_group);
+  stats.traced_rays = groups.size();
+  EndCells cells = classify_end_cells(groups, s_occ, s_free);
+  trace_free_cells(o, groups, s_occ, s_free, cells);
+  apply_updates(cells.free, cells.occupied);
+  stats.free_cells = cells.free.size();
+  stats.occupied_cells = cells.occupied.size();
+  return stats;
+}
 
-  // 1. Per ray (parallel over fixed chunks): its end point (cut at max_range as OctoMap does),
-  //    the end cell's key (OctoMap's coordToKeyChecked: floor(resolution_factor * c) + 32768)
-  //    and the sub-cell of the end point. Consecutive rays ending in the same sub-cell
-  //    (neighbouring pixels) are merged on the fly into one candidate.
+std::vector<std::vector<OccupancyMap::EndPoint>> OccupancyMap::collect_end_points(
+    const octomap::point3d& o, const PointsRef& hits, const PointsRef& free_ends,
+    double max_range) const {
+  // Per ray (parallel over fixed chunks): its end point (cut at max_range as OctoMap does), the
+  // end cell's key (OctoMap's coordToKeyChecked: floor(resolution_factor * c) + 32768) and the
+  // sub-cell of the end point. Consecutive rays ending in the same sub-cell (neighbouring
+  // pixels) merge on the fly into one candidate.
+  const std::size_t nh = std::size_t(hits.rows()), n = nh + std::size_t(free_ends.rows());
+  const bool cut = std::isfinite(max_range);
   const bool dedup = opt_.deduplicate_end_points;
-  const bool clip = opt_.clip_to_workspace;
   const int k = dedup ? opt_.end_point_subdivision : 1;
   const double rf = 1.0 / res_;  // OctoMap's resolution_factor
   const double kd = k, inv_k = 1.0 / k;
-  enum : std::uint8_t { kHitFlag = 1, kFreeEndFlag = 2 };
-  struct Cand {
-    octomap::point3d rep;  // representative end point: the one nearest the sub-cell centre
-    float d2;              // its squared distance to the sub-cell centre (cell units)
-    Key key;               // end cell
-    std::uint16_t sub;     // sub-cell index within the end cell
-    std::uint8_t flags;    // some ray of the group is a hit / a free end in range
-  };
-  const std::size_t chunk1 = 4096, nchunks1 = (n + chunk1 - 1) / chunk1;
-  std::vector<std::vector<Cand>> cands(nchunks1);
+  const std::size_t chunk = 4096, nchunks = (n + chunk - 1) / chunk;
+  std::vector<std::vector<EndPoint>> out(nchunks);
   std::atomic<int> non_finite{0};  // 1: a hit, 2: a free end is NaN or infinite
-  const octomap::OcTree& tree = *tree_;
-  parallel_chunks(nchunks1, 1, [&](std::size_t cb, std::size_t ce) {
+  parallel_chunks(nchunks, 1, [&](std::size_t cb, std::size_t ce) {
     for (std::size_t c = cb; c < ce; ++c) {
-      std::vector<Cand>& out = cands[c];
-      out.reserve(dedup ? 1024 : chunk1);
-      for (std::size_t r = c * chunk1, e = std::min(n, (c + 1) * chunk1); r < e; ++r) {
+      std::vector<EndPoint>& cands = out[c];
+      cands.reserve(dedup ? 1024 : chunk);
+      for (std::size_t r = c * chunk, e = std::min(n, (c + 1) * chunk); r < e; ++r) {
         const bool is_hit = r < nh;
         const auto row = is_hit ? hits.row(Eigen::Index(r)) : free_ends.row(Eigen::Index(r - nh));
         if (!(std::isfinite(row(0)) && std::isfinite(row(1)) && std::isfinite(row(2)))) {
@@ -587,39 +520,40 @@ IntegrationStats OccupancyMap::integrate(const Eigen::Vector3d& origin, const Po
           sub = sub * k + sa;
         }
         if (!inside) continue;  // OctoMap skips rays whose end it cannot address
-        if (dedup && !out.empty() && out.back().key == key && out.back().sub == sub) {
-          Cand& cd = out.back();
+        if (dedup && !cands.empty() && cands.back().key == key && cands.back().sub == sub) {
+          EndPoint& cd = cands.back();
           if (float(d2) < cd.d2) {
             cd.d2 = float(d2);
             cd.rep = p;
           }
           cd.flags |= flag;
         } else {
-          out.push_back(Cand{p, float(d2), key, std::uint16_t(sub), flag});
+          cands.push_back(EndPoint{p, float(d2), key, std::uint16_t(sub), flag});
         }
       }
     }
   });
-
   if (const int bad = non_finite.load())
     throw std::invalid_argument(bad == 1 ? "hit points contain NaN or infinite values"
                                          : "free-space ray ends contain NaN or infinite values");
+  return out;
+}
 
-  // 2. Group candidates by end sub-cell (serial, in ray order): cells through the stamp array
-  //    (workspace) or a hash map (outside), kk group slots per cell.
-  ensure_scratch();
-  const std::uint32_t s_group = next_stamp(3), s_free = s_group + 1, s_occ = s_group + 2;
+std::vector<OccupancyMap::EndPoint> OccupancyMap::group_end_points(
+    std::vector<std::vector<EndPoint>> candidates, std::uint32_t s_group) {
+  // Serial, in ray order: one group per end sub-cell, found through the stamp array (workspace
+  // cells) or a hash map (outside), kk group slots per end cell.
+  const bool dedup = opt_.deduplicate_end_points;
+  const int k = dedup ? opt_.end_point_subdivision : 1;
   const int kk = k * k * k;
-  std::vector<Cand> groups;
+  std::vector<EndPoint> groups;
   std::vector<std::int32_t> slots;  // kk group slots per end cell (-1: none yet)
   std::unordered_map<Key, std::int32_t, KeyHash> outside_cells;
-  {
-    std::size_t nc = 0;
-    for (const auto& v : cands) nc += v.size();
-    groups.reserve(dedup ? std::min<std::size_t>(nc, 1 << 16) : nc);
-  }
-  for (const auto& chunk_cands : cands) {
-    for (const Cand& cd : chunk_cands) {
+  std::size_t nc = 0;
+  for (const auto& v : candidates) nc += v.size();
+  groups.reserve(dedup ? std::min<std::size_t>(nc, 1 << 16) : nc);
+  for (const auto& chunk : candidates) {
+    for (const EndPoint& cd : chunk) {
       if (!dedup) {
         groups.push_back(cd);
         continue;
@@ -646,7 +580,7 @@ IntegrationStats OccupancyMap::integrate(const Eigen::Vector3d& origin, const Po
         groups.push_back(cd);
         continue;
       }
-      Cand& gr = groups[std::size_t(slot)];
+      EndPoint& gr = groups[std::size_t(slot)];
       if (cd.d2 < gr.d2) {
         gr.d2 = cd.d2;
         gr.rep = cd.rep;
@@ -654,45 +588,64 @@ IntegrationStats OccupancyMap::integrate(const Eigen::Vector3d& origin, const Po
       gr.flags |= cd.flags;
     }
   }
-  cands.clear();
-  cands.shrink_to_fit();
-  stats.traced_rays = groups.size();
+  return groups;
+}
 
-  // 3. End cells: hits first (a cell hit in this scan is never also a miss), then free ends.
-  std::vector<Key> occ, fr;
-  std::unordered_set<Key, KeyHash> occ_out, free_out;
-  for (const Cand& gr : groups) {
+OccupancyMap::EndCells OccupancyMap::classify_end_cells(const std::vector<EndPoint>& groups,
+                                                        std::uint32_t s_occ, std::uint32_t s_free) {
+  // Hits first (a cell hit in this scan is never also a miss), then the cells of free ends.
+  const bool clip = opt_.clip_to_workspace;
+  EndCells out;
+  std::unordered_set<Key, KeyHash> occ_out;
+  for (const EndPoint& gr : groups) {
     if (!(gr.flags & kHitFlag)) continue;
     const std::int64_t idx = index_of(gr.key);
     if (idx >= 0) {
       if (stamp_[std::size_t(idx)] != s_occ) {
         stamp_[std::size_t(idx)] = s_occ;
-        occ.push_back(gr.key);
+        out.occupied.push_back(gr.key);
       }
     } else if (!clip && occ_out.insert(gr.key).second) {
-      occ.push_back(gr.key);
+      out.occupied.push_back(gr.key);
     }
   }
-  std::vector<Key> outside_free;
-  for (const Cand& gr : groups) {
+  std::unordered_set<Key, KeyHash> free_out;
+  for (const EndPoint& gr : groups) {
     if (!(gr.flags & kFreeEndFlag) || (gr.flags & kHitFlag)) continue;
     const std::int64_t idx = index_of(gr.key);
     if (idx < 0) {
-      if (!clip) outside_free.push_back(gr.key);
+      if (!clip && !occ_out.count(gr.key) && free_out.insert(gr.key).second)
+        out.free.push_back(gr.key);
     } else if (stamp_[std::size_t(idx)] != s_occ && stamp_[std::size_t(idx)] != s_free) {
       stamp_[std::size_t(idx)] = s_free;
-      fr.push_back(gr.key);
+      out.free.push_back(gr.key);
     }
   }
+  return out;
+}
 
-  // 4. Walk one ray per group (parallel over fixed chunks). A workspace cell is claimed for this
-  //    scan's misses by the first walker that stamps it (atomic; cells hit in this scan keep
-  //    their stamp); cells outside the workspace are merged afterwards through hash sets.
+void OccupancyMap::trace_free_cells(const octomap::point3d& o, const std::vector<EndPoint>& groups,
+                                    std::uint32_t s_occ, std::uint32_t s_free, EndCells& cells) {
+  // One ray per group (parallel over fixed chunks). A workspace cell is claimed for this scan's
+  // misses by the first walker that stamps it (atomic; cells hit in this scan keep their stamp).
+  // Cells a miss cannot change - observed free cells at the lower clamp, and whole bricks of
+  // them - are passed over without a claim. Cells outside the workspace are merged afterwards
+  // through a hash set.
+  const bool clip = opt_.clip_to_workspace;
   const std::size_t ng = groups.size();
   const std::size_t grain = 32;
   const std::size_t nchunks = (ng + grain - 1) / grain;
   std::vector<std::vector<Key>> chunk_free(nchunks), chunk_out(nchunks);
   std::uint32_t* const stamps = stamp_.get();
+  const octomap::OcTree& tree = *tree_;
+  const auto& dims = grid_.dims();
+  const auto& bdims = grid_.brick_dims();
+  const int mk[3] = {min_key_[0], min_key_[1], min_key_[2]};
+  const std::uint8_t* const live = grid_.brick_live_data();
+  const float* const logodds = grid_.logodds_data();
+  const CellFlag* const flags = grid_.flag_data();
+  const float clamp_min = clamp_min_log_;
+  constexpr int kb = WorkspaceGrid::kBrickShift;
   parallel_chunks(nchunks, 1, [&](std::size_t cb, std::size_t ce) {
     for (std::size_t c = cb; c < ce; ++c) {
       std::vector<Key>& out = chunk_free[c];
@@ -700,11 +653,16 @@ IntegrationStats OccupancyMap::integrate(const Eigen::Vector3d& origin, const Po
       out.reserve(grain * 16);
       for (std::size_t g = c * grain, e = std::min(ng, (c + 1) * grain); g < e; ++g)
         walk_ray_keys(tree, o, groups[g].rep, [&](const Key& key) {
-          const std::int64_t idx = index_of(key);
-          if (idx < 0) {
+          const int i = int(key[0]) - mk[0], j = int(key[1]) - mk[1], kz = int(key[2]) - mk[2];
+          if (unsigned(i) >= unsigned(dims[0]) || unsigned(j) >= unsigned(dims[1]) ||
+              unsigned(kz) >= unsigned(dims[2])) {
             if (!clip) out_outside.push_back(key);
             return;
           }
+          if (!live[(i >> kb) + bdims[0] * ((j >> kb) + bdims[1] * (kz >> kb))]) return;
+          const std::size_t idx =
+              std::size_t(i) + std::size_t(dims[0]) * (std::size_t(j) + std::size_t(dims[1]) * kz);
+          if (flags[idx] == CellFlag::Observed && logodds[idx] <= clamp_min) return;
           std::uint32_t* st = stamps + idx;
           std::uint32_t cur = __atomic_load_n(st, __ATOMIC_RELAXED);
           while (cur != s_occ && cur != s_free) {
@@ -717,23 +675,18 @@ IntegrationStats OccupancyMap::integrate(const Eigen::Vector3d& origin, const Po
         });
     }
   });
-  {
-    std::size_t total = fr.size();
-    for (const auto& v : chunk_free) total += v.size();
-    fr.reserve(total);
-  }
-  for (const auto& v : chunk_free) fr.insert(fr.end(), v.begin(), v.end());
-  for (const Key& key : outside_free)
-    if (!occ_out.count(key) && free_out.insert(key).second) fr.push_back(key);
+  std::size_t total = cells.free.size();
+  for (const auto& v : chunk_free) total += v.size();
+  cells.free.reserve(total);
+  for (const auto& v : chunk_free) cells.free.insert(cells.free.end(), v.begin(), v.end());
+  if (clip) return;
+  std::unordered_set<Key, KeyHash> occupied(cells.occupied.begin(), cells.occupied.end());
+  std::unordered_set<Key, KeyHash> listed;
+  for (const Key& key : cells.free)
+    if (!in_workspace(key)) listed.insert(key);
   for (const auto& v : chunk_out)
     for (const Key& key : v)
-      if (!occ_out.count(key) && free_out.insert(key).second) fr.push_back(key);
-
-  // 5. Update the octree and the mirror, each cell once.
-  apply_updates(fr, occ);
-  stats.free_cells = fr.size();
-  stats.occupied_cells = occ.size();
-  return stats;
+      if (!occupied.count(key) && listed.insert(key).second) cells.free.push_back(key);
 }
 
 IntegrationStats OccupancyMap::integrate_exact(const Eigen::Vector3d& origin, const PointsRef& hits,
@@ -744,6 +697,7 @@ IntegrationStats OccupancyMap::integrate_exact(const Eigen::Vector3d& origin, co
   if (!tree_->coordToKeyChecked(o, okey))
     throw std::invalid_argument("sensor origin " + fmt_vec(origin) +
                                 " is outside OctoMap's addressable range");
+  sync_octree();
   IntegrationStats stats;
   stats.rays = std::size_t(hits.rows() + free_ends.rows());
   stats.traced_rays = stats.rays;
@@ -809,7 +763,7 @@ std::size_t OccupancyMap::mark_free_segment(const Eigen::Vector3d& a, const Eige
   auto markable = [&](const Key& k) {
     const std::int64_t idx = index_of(k);
     if (idx < 0) return !opt_.clip_to_workspace && tree_->search(k) == nullptr;
-    return flags_[std::size_t(idx)] == CellFlag::Unknown;
+    return grid_.flag(idx) == CellFlag::Unknown;
   };
   std::vector<Key> keys;
   for (const Key& k : {ka, kb})  // the cells holding the ends, each once
@@ -833,15 +787,14 @@ std::size_t OccupancyMap::set_unknown_cells(const PointsRef& points, double prob
   if (!std::isfinite(probability) || !(probability > 0.0) || !(probability < 1.0))
     throw std::invalid_argument("probability must be in (0, 1), got " +
                                 std::to_string(probability));
-  const float l = octomap::logodds(probability);
+  const float l = std::min(std::max(octomap::logodds(probability), clamp_min_log_), clamp_max_log_);
   std::size_t set = 0;
   for (Eigen::Index r = 0; r < points.rows(); ++r) {
     Key key;
     if (!tree_->coordToKeyChecked(row_point3d(points.row(r)), key)) continue;
     const std::int64_t idx = index_of(key);
-    if (idx < 0 || flags_[std::size_t(idx)] != CellFlag::Unknown) continue;
-    octomap::OcTreeNode* node = tree_->setNodeValue(key, l, false);
-    set_mirror(std::size_t(idx), node->getLogOdds(), CellFlag::Predicted);
+    if (idx < 0 || grid_.flag(idx) != CellFlag::Unknown) continue;
+    set_cell(idx, l, CellFlag::Predicted);
     ++set;
   }
   return set;
@@ -849,50 +802,47 @@ std::size_t OccupancyMap::set_unknown_cells(const PointsRef& points, double prob
 
 // ---- queries -------------------------------------------------------------------------------
 
-namespace {
-struct Lookup {
-  bool known = false;
-  float logodds = 0;
-  CellFlag flag = CellFlag::Unknown;
-};
-
-Lookup lookup(const OccupancyMap& m, const Eigen::Vector3d& p) {
-  Lookup out;
+bool OccupancyMap::find_cell(const Eigen::Vector3d& p, CellFlag& flag, float& logodds) const {
+  flag = CellFlag::Unknown;
+  logodds = 0.0f;
   Key key;
-  if (!m.coord_to_key(p, key)) return out;
-  const std::int64_t idx = m.index_of(key);
+  if (!coord_to_key(p, key)) return false;
+  const std::int64_t idx = index_of(key);
   if (idx >= 0) {
-    out.flag = m.flag_at(idx);
-    out.known = out.flag != CellFlag::Unknown;
-    out.logodds = m.logodds_at(idx);
-  } else if (const octomap::OcTreeNode* n = m.octree().search(key)) {
-    out.known = true;
-    out.flag = CellFlag::Observed;
-    out.logodds = n->getLogOdds();
+    flag = grid_.flag(idx);
+    logodds = grid_.logodds(idx);
+  } else if (const octomap::OcTreeNode* n = tree_->search(key)) {  // never stale outside
+    flag = CellFlag::Observed;
+    logodds = n->getLogOdds();
   }
-  return out;
+  return flag != CellFlag::Unknown;
 }
-}  // namespace
 
 CellState OccupancyMap::state(const Eigen::Vector3d& p) const {
-  const Lookup c = lookup(*this, p);
-  if (!c.known) return CellState::Unknown;
-  return c.logodds >= occ_thres_log_ ? CellState::Occupied : CellState::Free;
+  CellFlag flag;
+  float l;
+  if (!find_cell(p, flag, l)) return CellState::Unknown;
+  return l >= occ_thres_log_ ? CellState::Occupied : CellState::Free;
 }
 
 double OccupancyMap::probability(const Eigen::Vector3d& p) const {
-  const Lookup c = lookup(*this, p);
-  return c.known ? octomap::probability(c.logodds) : 0.5;
+  CellFlag flag;
+  float l;
+  return find_cell(p, flag, l) ? octomap::probability(l) : 0.5;
 }
 
 double OccupancyMap::entropy(const Eigen::Vector3d& p) const {
-  const Lookup c = lookup(*this, p);
-  return cell_entropy(c.logodds, c.known ? c.flag : CellFlag::Unknown);
+  CellFlag flag;
+  float l;
+  find_cell(p, flag, l);
+  return cell_entropy(l, flag);
 }
 
 bool OccupancyMap::is_predicted(const Eigen::Vector3d& p) const {
-  const Lookup c = lookup(*this, p);
-  return c.flag == CellFlag::Predicted;
+  CellFlag flag;
+  float l;
+  find_cell(p, flag, l);
+  return flag == CellFlag::Predicted;
 }
 
 namespace {
@@ -936,9 +886,9 @@ Eigen::Matrix<bool, Eigen::Dynamic, 1> OccupancyMap::predicted(const PointsRef& 
 
 Points OccupancyMap::occupied_cells() const {
   std::vector<std::int64_t> idx;
-  idx.reserve(std::size_t(counts_.occupied));
-  for (std::int64_t i = 0; i < num_cells_; ++i)
-    if (state_at(i) == CellState::Occupied) idx.push_back(i);
+  idx.reserve(std::size_t(grid_.counts().occupied));
+  for (std::int64_t i = 0, n = grid_.num_cells(); i < n; ++i)
+    if (grid_.state(i) == CellState::Occupied) idx.push_back(i);
   Points out(Eigen::Index(idx.size()), 3);
   for (std::size_t r = 0; r < idx.size(); ++r)
     out.row(Eigen::Index(r)) = key_to_coord(key_at(idx[r])).transpose();
@@ -946,15 +896,16 @@ Points OccupancyMap::occupied_cells() const {
 }
 
 std::int64_t OccupancyMap::verify_mirror() const {
+  sync_octree();
   std::int64_t bad = 0;
-  for (std::int64_t i = 0; i < num_cells_; ++i) {
+  for (std::int64_t i = 0, n = grid_.num_cells(); i < n; ++i) {
     const octomap::OcTreeNode* node = tree_->search(key_at(i));
-    const CellFlag f = flags_[std::size_t(i)];
+    const CellFlag f = grid_.flag(i);
     if (f == CellFlag::Unknown) {
       bad += node != nullptr;
     } else {
-      bad += node == nullptr || node->getLogOdds() != logodds_[std::size_t(i)] ||
-             entropy_[std::size_t(i)] != mirror_entropy(logodds_[std::size_t(i)], f);
+      bad += node == nullptr || node->getLogOdds() != grid_.logodds(i) ||
+             std::fabs(grid_.entropy(i) - cell_entropy(grid_.logodds(i), f)) > 1e-6;
     }
   }
   return bad;
@@ -964,6 +915,7 @@ std::int64_t OccupancyMap::verify_mirror() const {
 
 void OccupancyMap::save(const std::string& path) const {
   const std::string ext = lower_extension(path);
+  sync_octree();
   bool ok;
   if (ext == ".ot")
     ok = tree_->write(path);

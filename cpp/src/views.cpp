@@ -104,10 +104,10 @@ DenseGridView grid_view(const OccupancyMap& map) {
   g.nx = map.dims()[0];
   g.ny = map.dims()[1];
   g.nz = map.dims()[2];
-  g.logodds = map.logodds_data();
-  g.known = reinterpret_cast<const std::uint8_t*>(map.flag_data());
-  g.entropy = map.entropy_data();
-  g.occupied_logodds = map.occupancy_threshold_log();
+  g.logodds = map.grid().logodds_data();
+  g.known = reinterpret_cast<const std::uint8_t*>(map.grid().flag_data());
+  g.scored = map.grid().scored_data();
+  g.occupied_logodds = map.grid().rule().occupied_logodds;
   return g;
 }
 
@@ -118,7 +118,7 @@ bool DenseGridView::cell_of(const Eigen::Vector3d& p, Eigen::Vector3i& c) const 
 }
 
 void DenseGridView::validate() const {
-  if (!(resolution > 0) || nx <= 0 || ny <= 0 || nz <= 0 || !logodds || !known || !entropy)
+  if (!(resolution > 0) || nx <= 0 || ny <= 0 || nz <= 0 || !logodds || !known || !scored)
     throw std::invalid_argument("dense grid view is empty or incomplete");
 }
 
@@ -201,17 +201,18 @@ struct MirrorCells {
   bool need_flag = g.occupied_logodds <= 0.0f;
   void read(std::size_t idx, const int*, bool& known, float& logodds, float& entropy) const {
     logodds = g.logodds[idx];
-    entropy = g.entropy[idx];
+    entropy = std::fabs(g.scored[idx]);
     known = need_flag ? g.known[idx] != 0 : true;
   }
 };
 
 struct OctreeCells {
   const OccupancyMap& map;
+  const octomap::OcTree& tree;  // map.octree(), brought up to date once before the walks
   void read(std::size_t, const int* c, bool& known, float& logodds, float& entropy) const {
     OccupancyMap::Key key = map.min_key();
     for (int a = 0; a < 3; ++a) key[a] = static_cast<octomap::key_type>(key[a] + c[a]);
-    const octomap::OcTreeNode* node = map.octree().search(key);
+    const octomap::OcTreeNode* node = tree.search(key);
     known = node != nullptr;
     logodds = known ? node->getLogOdds() : 0.0f;
     entropy = static_cast<float>(
@@ -319,7 +320,7 @@ ViewScores evaluate_views_octree(
     const Pose& current, const ViewCameraModel& camera, const UtilityOptions& utility,
     const ValidityOptions& validity) {
   const DenseGridView g = grid_view(map);
-  return score_views(g, OctreeCells{map}, cand, current, camera, utility, validity);
+  return score_views(g, OctreeCells{map, map.octree()}, cand, current, camera, utility, validity);
 }
 
 double viewable_cells(double hfov_deg, double vfov_deg, double min_range, double max_range,

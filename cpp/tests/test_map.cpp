@@ -159,7 +159,7 @@ TEST(MapRays, CornerRayAgreesWithExactPath) {
   exact.integrate_exact(Eigen::Vector3d::Zero(), ends, kNone);
   EXPECT_TRUE(fast.octree() == exact.octree());
   for (std::int64_t i = 0; i < fast.num_cells(); ++i)
-    ASSERT_EQ(fast.logodds_at(i), exact.logodds_at(i));
+    ASSERT_EQ(fast.grid().logodds(i), exact.grid().logodds(i));
 }
 
 TEST(MapWorkspace, CellsOutsideAreInTheOctreeButNotCounted) {
@@ -215,12 +215,12 @@ TEST(MapUpdate, PredictionIsDiscardedByObservation) {
   EXPECT_EQ(m.set_unknown_cells(rows({{1.1, 0.1, 0.1}, {1.15, 0.15, 0.1}, {2.1, 0.1, 0.1}}), 0.6),
             2u);
   const std::int64_t i1 = m.index_of(m.octree().coordToKey(octomap::point3d(1.1f, 0.1f, 0.1f)));
-  EXPECT_EQ(m.flag_at(i1), CellFlag::Predicted);
-  EXPECT_EQ(m.state_at(i1), CellState::Occupied);  // 0.6 >= threshold 0.6
+  EXPECT_EQ(m.grid().flag(i1), CellFlag::Predicted);
+  EXPECT_EQ(m.grid().state(i1), CellState::Occupied);  // 0.6 >= threshold 0.6
   EXPECT_EQ(m.counts().predicted, 2);
   m.integrate(Eigen::Vector3d(0.1, 0.1, 0.1), rows({{2.1, 0.1, 0.1}}), kNone);
-  EXPECT_EQ(m.flag_at(i1), CellFlag::Observed);
-  EXPECT_FLOAT_EQ(m.logodds_at(i1), octomap::logodds(0.4));  // restarted from unknown, one miss
+  EXPECT_EQ(m.grid().flag(i1), CellFlag::Observed);
+  EXPECT_FLOAT_EQ(m.grid().logodds(i1), octomap::logodds(0.4));  // restarted from unknown, one miss
   EXPECT_FLOAT_EQ(float(m.probability({2.1, 0.1, 0.1})),
                   float(octomap::probability(octomap::logodds(0.7))));
   EXPECT_EQ(m.counts().predicted, 0);
@@ -246,7 +246,7 @@ TEST(MapFiles, RoundTripExpandsCoarseLeaves) {
     OccupancyMap r = OccupancyMap::load(p, Eigen::Vector3d(-3, -3, -3), Eigen::Vector3d(3, 3, 3));
     EXPECT_EQ(r.verify_mirror(), 0) << name;
     for (std::int64_t i = 0; i < m.num_cells(); ++i)
-      ASSERT_EQ(r.state_at(i), m.state_at(i)) << name;
+      ASSERT_EQ(r.grid().state(i), m.grid().state(i)) << name;
     EXPECT_EQ(r.counts().free, m.counts().free);
   }
   EXPECT_THROW(OccupancyMap::load((dir / "absent.ot").string()), nbv::FileNotFound);

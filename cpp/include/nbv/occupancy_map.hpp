@@ -1,19 +1,22 @@
-// Probabilistic occupancy map: an OctoMap octree (the map of record: integration, .ot/.bt files)
-// plus a dense flat mirror of the workspace box (fast queries, incremental total entropy).
+// Probabilistic occupancy map: an OctoMap octree (the map of record: .ot/.bt files, cells
+// outside the workspace) plus a dense grid of the workspace box (WorkspaceGrid: fast queries,
+// incremental total entropy), which integration updates first.
 //
 // Grid. OctoMap's origin-anchored grid: a coordinate c falls in key floor(c / res) + 32768 per
 // axis (exactly OctoMap's coordToKey, which first rounds the point to float32 as its point3d
 // does; so a point's cell here is the cell OctoMap files it in). The workspace is the box of
 // cells whose index range covers [bounds_min, bounds_max): for (-20,-20,0)-(20,20,10) at 0.2 m
 // that is 200 x 200 x 50 = 2,000,000 cells. Bounds that lie within 1e-6 of a cell on a grid
-// plane are snapped to it (0.3 at 0.1 m is the plane 3, not 3.0000000000000004).
+// plane are snapped to it (0.3 at 0.1 m is the plane 3, not 3.0000000000000004). Cell (i, j, k)
+// of the workspace has the key min_key + (i, j, k), the flat grid index i + nx * (j + ny * k)
+// and the centre bounds_min + (i + 0.5, j + 0.5, k + 0.5) * res.
 //
-// Mirror layout. Cell (i, j, k) of the workspace (i along x, fastest) has the flat index
-// i + nx * (j + ny * k) and the key min_key + (i, j, k); its centre is
-// bounds_min + (i + 0.5, j + 0.5, k + 0.5) * res. Per cell the mirror holds the octree leaf's
-// log-odds (float, exactly the octree's value), a flag (unknown / observed / predicted) and the
-// cell's entropy (float, in the map's unit). Cells outside the workspace live in the octree only
-// and count in no total.
+// Octree and grid. A workspace cell's value is computed in the grid with OctoMap's own float
+// arithmetic (log-odds + update, clamped; no change once clamped) and copied into the octree
+// lazily: the octree is brought up to date, one setNodeValue per changed cell in tree order and
+// one pruning pass, whenever it is read (octree(), save(), integrate_exact, verify_mirror). The
+// result is the octree that per-cell updateNode calls would have built. Cells outside the
+// workspace live in the octree only (updated at once) and count in no total.
 //
 // Occupancy. A cell is occupied when p >= occupancy_threshold (OctoMap's own `>=`), free below,
 // unknown when never observed (not stored in the octree; p = 0.5).
@@ -24,13 +27,15 @@
 // reachable (a profile scan turns most of the workspace into clamped free cells; without the rule
 // each such cell would still hold H(0.12) = 0.367 nats).
 //
-// Thread safety: const queries may run concurrently; the mutating calls (integrate*,
+// Thread safety: const queries may run concurrently, except octree() / save() /
+// verify_mirror(), which may bring the octree up to date; the mutating calls (integrate*,
 // update_cells, mark_free_segment, set_unknown_cells) must not run concurrently with anything
 // else on the same map. Results do not depend on the number of threads.
 #pragma once
 
 #include "nbv/common.hpp"
 #include "nbv/sensors.hpp"
+#include "nbv/workspace_grid.hpp"
 
 #include <octomap/OcTree.h>
 
@@ -44,18 +49,6 @@
 #include <vector>
 
 namespace nbv {
-
-/// Occupancy state of a cell (values as returned by OccupancyMap::state).
-enum class CellState : std::int8_t { Unknown = -1, Free = 0, Occupied = 1 };
-
-/// Where a workspace cell's value comes from.
-enum class CellFlag : std::uint8_t {
-  Unknown = 0,    ///< never observed, not in the octree
-  Observed = 1,   ///< integrated from sensor data (or loaded from a file)
-  Predicted = 2,  ///< set by set_unknown_cells (symmetry prediction); observations override it
-};
-
-enum class EntropyUnit { Nats, Bits };
 
 struct OccupancyMapOptions {
   /// Sensor model, probabilities: OctoMap's published defaults, which the authors kept (through
@@ -98,12 +91,6 @@ struct IntegrationStats {
   std::size_t free_cells = 0;      ///< cells updated as miss
 };
 
-/// Cell counts over the workspace.
-struct CellCounts {
-  std::int64_t free = 0, occupied = 0, unknown = 0;
-  std::int64_t predicted = 0;  ///< predicted cells (also counted as free or occupied)
-};
-
 class OccupancyMap {
  public:
   using Key = octomap::OcTreeKey;
@@ -128,17 +115,16 @@ class OccupancyMap {
   /// is updated once; a cell both hit and passed through counts as hit (OctoMap's computeUpdate).
   /// A predicted cell touched by an observation restarts from unknown (log-odds 0) first.
   ///
-  /// Fast path: plain insertPointCloud spends nearly all its time de-duplicating the keys of
-  /// ~300k rays of ~40 cells each in a hash set. Here the end points are grouped per end cell
-  /// and sub-cell (end_point_subdivision per axis; consecutive rays ending in the same sub-cell
-  /// merge on the fly), one ray is traced per group - from the end point nearest the sub-cell
-  /// centre, with OctoMap's own DDA arithmetic (walk_ray_keys) - in parallel, and the cells are
-  /// de-duplicated through a stamp array over the workspace (atomic claims; a hash set only for
-  /// cells outside it). The octree is then updated once per cell in tree order, inner nodes
-  /// pruned / refreshed once per batch: the same octree as updateNode per cell. The only
-  /// difference from insertPointCloud is that cells only the untraced rays of a group would have
-  /// crossed stay as they were: > 99 % of the touched cells agree (tests, bench/bench_map.cpp).
-  /// With deduplicate_end_points = false every ray is traced and the result is identical.
+  /// Fast path, in named steps: collect_end_points (per ray, parallel: end cell and sub-cell;
+  /// neighbouring rays ending in the same sub-cell merge on the fly), group_end_points (one
+  /// group per end sub-cell, end_point_subdivision per axis), classify_end_cells (hit and
+  /// free-end cells), trace_free_cells (one ray per group, from the end point nearest the
+  /// sub-cell centre, with OctoMap's own DDA arithmetic, in parallel; cells whose miss would
+  /// change nothing - clamped free cells - are skipped, whole bricks of them at a time), then
+  /// apply_updates (each cell once, in the grid). The only difference from insertPointCloud is
+  /// that cells only the untraced rays of a group would have crossed stay as they were: > 99 % of
+  /// the touched cells agree (tests, bench/bench_map.cpp). With deduplicate_end_points = false
+  /// every ray is traced and the result is identical.
   /// Throws std::invalid_argument for non-finite input or an origin outside the addressable range.
   IntegrationStats integrate(const Eigen::Vector3d& origin, const PointsRef& hits,
                              const PointsRef& free_ends,
@@ -147,7 +133,7 @@ class OccupancyMap {
                              double max_range = std::numeric_limits<double>::infinity());
   /// Same semantics through OctoMap's own code: octomap::OcTree::computeUpdate (the key sets
   /// insertPointCloud builds), free rays added with computeRayKeys, then insertPointCloud's
-  /// update loop (misses, then hits, each cell once). The reference the fast path is held to.
+  /// update loop (updateNode per cell: misses, then hits). The reference the fast path is held to.
   IntegrationStats integrate_exact(const Eigen::Vector3d& origin, const PointsRef& hits,
                                    const PointsRef& free_ends,
                                    double max_range = std::numeric_limits<double>::infinity());
@@ -166,9 +152,9 @@ class OccupancyMap {
   std::size_t mark_free_segment(const Eigen::Vector3d& a, const Eigen::Vector3d& b, double radius);
 
   /// Every UNKNOWN workspace cell holding at least one of `points` gets log-odds(probability)
-  /// (clamped to the clamping thresholds, as OctoMap's setNodeValue does) in the octree and the
-  /// mirror and is flagged predicted. Returns the number of cells set. Points outside the
-  /// workspace are ignored. Throws for non-finite points or probability outside (0, 1).
+  /// (clamped to the clamping thresholds, as OctoMap's setNodeValue does) and is flagged
+  /// predicted. Returns the number of cells set. Points outside the workspace are ignored.
+  /// Throws for non-finite points or probability outside (0, 1).
   std::size_t set_unknown_cells(const PointsRef& points, double probability = 0.6);
 
   // ---- per-point queries (points in metres, world frame) ------------------------------------
@@ -183,71 +169,56 @@ class OccupancyMap {
   Eigen::VectorXd entropies(const PointsRef& points) const;
   Eigen::Matrix<bool, Eigen::Dynamic, 1> predicted(const PointsRef& points) const;
 
-  // ---- totals ----------------------------------------------------------------------------------
+  // ---- workspace totals and cells ------------------------------------------------------------
   /// Total workspace entropy in the map's unit, maintained incrementally: O(1).
-  double total_entropy() const;
-  /// Same, recomputed by a sweep over the mirror (for checks; equal to total_entropy() exactly:
-  /// both sum the same per-cell values in 2^-50-nat fixed point, so no drift, any order).
-  double recompute_total_entropy() const;
-  CellCounts counts() const { return counts_; }
-  CellCounts recompute_counts() const;
+  double total_entropy() const { return grid_.total_entropy(); }
+  /// Same, recomputed by a sweep over the grid (equal to total_entropy() exactly).
+  double recompute_total_entropy() const { return grid_.recompute_total_entropy(); }
+  CellCounts counts() const { return grid_.counts(); }
   /// Centres (M, 3) of the occupied workspace cells, in flat-index order.
   Points occupied_cells() const;
-  /// Number of workspace cells whose mirror disagrees with the octree (0 when in sync). Walks
-  /// the octree once per cell: for tests.
+  /// The dense workspace grid (cell values, flags, entropies, brick summary).
+  const WorkspaceGrid& grid() const { return grid_; }
+  /// Number of workspace cells whose grid value disagrees with the octree (0 when in sync;
+  /// brings the octree up to date first). Walks the octree once per cell: for tests.
   std::int64_t verify_mirror() const;
 
-  // ---- grid ------------------------------------------------------------------------------------
+  // ---- geometry --------------------------------------------------------------------------------
   double resolution() const { return res_; }
   const OccupancyMapOptions& options() const { return opt_; }
   Eigen::Vector3d bounds_min() const;  ///< cell-aligned lower corner of the workspace
   Eigen::Vector3d bounds_max() const;  ///< cell-aligned upper corner of the workspace
-  const std::array<int, 3>& dims() const { return dims_; }  ///< (nx, ny, nz)
-  const Key& min_key() const { return min_key_; }           ///< key of cell (0, 0, 0)
-  std::int64_t num_cells() const { return num_cells_; }
-
+  const std::array<int, 3>& dims() const { return grid_.dims(); }  ///< (nx, ny, nz)
+  const Key& min_key() const { return min_key_; }                  ///< key of cell (0, 0, 0)
+  std::int64_t num_cells() const { return grid_.num_cells(); }
   /// OctoMap's key of a point (float32-rounded as OctoMap does); false outside the addressable
   /// range.
   bool coord_to_key(const Eigen::Vector3d& p, Key& key) const;
   /// Centre of a cell (double precision).
   Eigen::Vector3d key_to_coord(const Key& key) const;
   bool in_workspace(const Key& key) const {
-    return unsigned(int(key[0]) - int(min_key_[0])) < unsigned(dims_[0]) &&
-           unsigned(int(key[1]) - int(min_key_[1])) < unsigned(dims_[1]) &&
-           unsigned(int(key[2]) - int(min_key_[2])) < unsigned(dims_[2]);
+    const auto& d = grid_.dims();
+    return unsigned(int(key[0]) - int(min_key_[0])) < unsigned(d[0]) &&
+           unsigned(int(key[1]) - int(min_key_[1])) < unsigned(d[1]) &&
+           unsigned(int(key[2]) - int(min_key_[2])) < unsigned(d[2]);
   }
-  /// Flat mirror index of a key, -1 outside the workspace.
+  /// Flat grid index of a key, -1 outside the workspace.
   std::int64_t index_of(const Key& key) const {
     if (!in_workspace(key)) return -1;
+    const auto& d = grid_.dims();
     return std::int64_t(key[0] - min_key_[0]) +
-           std::int64_t(dims_[0]) * (std::int64_t(key[1] - min_key_[1]) +
-                                     std::int64_t(dims_[1]) * std::int64_t(key[2] - min_key_[2]));
+           std::int64_t(d[0]) * (std::int64_t(key[1] - min_key_[1]) +
+                                 std::int64_t(d[1]) * std::int64_t(key[2] - min_key_[2]));
   }
   Key key_at(std::int64_t index) const;
-
-  // ---- mirror access (index from index_of; no bounds check) ------------------------------------
-  float logodds_at(std::int64_t i) const { return logodds_[std::size_t(i)]; }
-  CellFlag flag_at(std::int64_t i) const { return flags_[std::size_t(i)]; }
-  CellState state_at(std::int64_t i) const {
-    if (flags_[std::size_t(i)] == CellFlag::Unknown) return CellState::Unknown;
-    return logodds_[std::size_t(i)] >= occ_thres_log_ ? CellState::Occupied : CellState::Free;
-  }
-  /// Entropy of the cell in the map's unit (float copy of the value the total sums; constant for
-  /// unknown cells).
-  float entropy_at(std::int64_t i) const { return entropy_[std::size_t(i)]; }
-  const float* logodds_data() const { return logodds_.data(); }
-  const CellFlag* flag_data() const { return flags_.data(); }
-  const float* entropy_data() const { return entropy_.data(); }
-
-  /// Log-odds thresholds as the octree holds them (float).
-  float occupancy_threshold_log() const { return occ_thres_log_; }
-  float clamp_min_log() const { return clamp_min_log_; }
-  float clamp_max_log() const { return clamp_max_log_; }
   /// Entropy in the map's unit of a cell with this log-odds and flag (the rule of the totals).
-  double cell_entropy(float logodds, CellFlag flag) const;
+  double cell_entropy(float logodds, CellFlag flag) const {
+    return grid_.rule().entropy(logodds, flag);
+  }
 
-  /// The octree (map of record). Read-only: changing it behind the map's back breaks the mirror.
-  const octomap::OcTree& octree() const { return *tree_; }
+  /// The octree (map of record), brought up to date first. Read-only: changing it behind the
+  /// map's back breaks the grid.
+  const octomap::OcTree& octree() const;
 
   // ---- files ----------------------------------------------------------------------------------
   /// Writes `.ot` (OcTree::write: full probabilities) or `.bt` (writeBinaryConst: maximum
@@ -255,7 +226,7 @@ class OccupancyMap {
   /// another extension, std::runtime_error when the file cannot be written.
   void save(const std::string& path) const;
   /// Reads a `.ot` / `.bt` file. Without bounds the workspace is the tree's metric bounding box.
-  /// Coarse (pruned) leaves are expanded to their resolution cells in the mirror; every cell read
+  /// Coarse (pruned) leaves are expanded to their resolution cells in the grid; every cell read
   /// is flagged observed (files do not record predictions). Throws FileNotFound for a missing
   /// file, std::invalid_argument naming the file for an unknown extension or unreadable data.
   static OccupancyMap load(const std::string& path,
@@ -272,40 +243,52 @@ class OccupancyMap {
                             const octomap::point3d& end, Emit&& emit);
 
  private:
+  struct EndPoint;  // one end point group of a scan (see integrate)
+  struct EndCells {
+    std::vector<Key> occupied, free;
+  };
   OccupancyMap(std::unique_ptr<octomap::OcTree> tree, const Eigen::Vector3d& bounds_min,
                const Eigen::Vector3d& bounds_max, const OccupancyMapOptions& options);
-  void init_grid(const Eigen::Vector3d& bmin, const Eigen::Vector3d& bmax);
+  void init_geometry(const Eigen::Vector3d& bmin, const Eigen::Vector3d& bmax);
   void apply_tree_params();
-  void rebuild_mirror_from_tree();
+  CellRule cell_rule() const;
+  void grid_from_tree();
   void ensure_scratch();
   std::uint32_t next_stamp(unsigned n);
-  /// Updates one cell as hit/miss through OctoMap's updateNode (lazy_eval = false) and the
-  /// mirror (a prediction is discarded first): integrate_exact's path.
-  void update_cell(const Key& key, bool hit);
-  /// One miss per key of `misses` and one hit per key of `hits` (disjoint, each key once), with
-  /// the same resulting octree as update_cell per key: the fast path.
-  void apply_updates(const std::vector<Key>& misses, const std::vector<Key>& hits);
-  /// Sets mirror cell i to (logodds, flag), keeping totals and counts in sync.
-  void set_mirror(std::size_t i, float logodds, CellFlag flag);
-  std::int64_t fixed_entropy(float logodds, CellFlag flag) const;
-  __int128 sum_known_entropy_fixed() const;                  // sweep over the mirror (parallel)
-  float entropy_float(std::int64_t fixed) const;             // fixed point -> map's unit
-  float mirror_entropy(float logodds, CellFlag flag) const;  // the value entropy_ holds
-  double entropy_nats_of_known(float logodds) const;
 
-  std::unique_ptr<octomap::OcTree> tree_;
+  // the steps of integrate
+  std::vector<std::vector<EndPoint>> collect_end_points(const octomap::point3d& origin,
+                                                        const PointsRef& hits,
+                                                        const PointsRef& free_ends,
+                                                        double max_range) const;
+  std::vector<EndPoint> group_end_points(std::vector<std::vector<EndPoint>> candidates,
+                                         std::uint32_t stamp);
+  EndCells classify_end_cells(const std::vector<EndPoint>& groups, std::uint32_t s_occ,
+                              std::uint32_t s_free);
+  void trace_free_cells(const octomap::point3d& origin, const std::vector<EndPoint>& groups,
+                        std::uint32_t s_occ, std::uint32_t s_free, EndCells& cells);
+  /// One miss per key of `misses` and one hit per key of `hits` (disjoint, each key once): the
+  /// grid value of each workspace cell becomes OctoMap's updateNode result; cells outside the
+  /// workspace are updated in the octree.
+  void apply_updates(const std::vector<Key>& misses, const std::vector<Key>& hits);
+  /// Sets workspace cell i in the grid and queues it for the octree.
+  void set_cell(std::int64_t i, float logodds, CellFlag flag);
+  /// Copies every queued grid cell into the octree (tree order), then prunes once.
+  void sync_octree() const;
+  /// A point's workspace cell from the grid, or another cell from the octree; false: unknown.
+  bool find_cell(const Eigen::Vector3d& p, CellFlag& flag, float& logodds) const;
+  /// integrate_exact's path: one updateNode on an up-to-date octree, copied into the grid.
+  void update_cell(const Key& key, bool hit);
+
+  mutable std::unique_ptr<octomap::OcTree> tree_;
   OccupancyMapOptions opt_;
   double res_ = 0.2;
   Key min_key_;
-  std::array<int, 3> dims_{0, 0, 0};
-  std::int64_t num_cells_ = 0;
+  WorkspaceGrid grid_;
   float occ_thres_log_ = 0, clamp_min_log_ = 0, clamp_max_log_ = 0, hit_log_ = 0, miss_log_ = 0;
-
-  std::vector<float> logodds_;
-  std::vector<CellFlag> flags_;
-  std::vector<float> entropy_;  // in the map's unit
-  CellCounts counts_;
-  __int128 known_entropy_fixed_ = 0;  // sum over non-unknown cells, units of 2^-50 nats
+  // workspace cells whose grid value the octree does not hold yet (flag per cell, list of them)
+  mutable std::vector<std::uint8_t> tree_stale_;
+  mutable std::vector<std::int64_t> tree_stale_cells_;
 
   // integration scratch, allocated on first integrate (calloc: pages are zeroed lazily, so a
   // scan pays only for the pages it touches)
@@ -315,13 +298,6 @@ class OccupancyMap {
   std::unique_ptr<std::uint32_t[], FreeDeleter> stamp_;    // per cell: last stamp written
   std::unique_ptr<std::int32_t[], FreeDeleter> group_of_;  // per cell: valid where stamped
   std::uint32_t stamp_counter_ = 0;
-  // small direct-mapped cache log-odds bits -> fixed-point entropy (cells take few distinct values)
-  struct EntropyCacheEntry {
-    std::uint32_t bits = 0xFFFFFFFFu;  // a NaN pattern no cell holds
-    std::int64_t fixed = 0;
-  };
-  std::array<EntropyCacheEntry, 1024> entropy_cache_{};
-  std::int64_t cached_fixed_entropy(float logodds);
 };
 
 // ---- implementation of the template --------------------------------------------------------

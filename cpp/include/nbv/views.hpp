@@ -23,8 +23,8 @@ struct DenseGridView {
   int nx = 0, ny = 0, nz = 0;
   const float* logodds = nullptr;       ///< per cell log-odds; unknown cells must hold 0
   const std::uint8_t* known = nullptr;  ///< per cell: 0 = unknown, else observed or predicted
-  const float* entropy = nullptr;   ///< per cell entropy in the map's unit (unknown: ln 2 / 1 bit)
-  float occupied_logodds = 0.405f;  ///< a known cell is occupied when logodds >= this
+  const float* scored = nullptr;        ///< per cell entropy, negated when occupied (WorkspaceGrid)
+  float occupied_logodds = 0.405f;      ///< a known cell is occupied when logodds >= this
 
   std::size_t num_cells() const { return static_cast<std::size_t>(nx) * ny * nz; }
   bool cell_of(const Eigen::Vector3d& p, Eigen::Vector3i& c) const;

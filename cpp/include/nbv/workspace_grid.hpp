@@ -1,0 +1,135 @@
+// The dense workspace grid of an occupancy map: per cell log-odds, flag and entropy, with the
+// total entropy and the cell counts kept incrementally and exactly, and a per-brick summary that
+// lets ray walks skip empty space.
+//
+// Layout. Cell (i, j, k), i along x fastest, has the flat index i + nx * (j + ny * k). The grid
+// knows nothing of metres or OctoMap keys: OccupancyMap maps those onto it.
+//
+// Entropy. A cell's entropy follows its CellRule: binary entropy of p = sigmoid(logodds) in nats
+// or bits, unknown cells p = 0.5 (ln 2 nats, 1 bit), and with clamped_entropy_zero a cell at a
+// clamping threshold counts zero. The total sums every cell's entropy in 2^-50-nat fixed point
+// (exact integers: no drift, any order), so total_entropy() is O(1) and equals a full sweep
+// (recompute_total_entropy()) exactly.
+//
+// Bricks. The grid is tiled by bricks of 4 x 4 x 4 cells; each brick counts its "live" cells,
+// i.e. cells that are not neutral. A neutral cell is an observed free cell of zero entropy (a
+// clamped free cell under clamped_entropy_zero): it neither stops a ray nor adds information, so
+// walks whose utility ignores such cells skip whole neutral bricks (brick_live == 0).
+//
+// Thread safety: const members may run concurrently; set/assign must not run concurrently with
+// anything else.
+#pragma once
+
+#include "nbv/common.hpp"
+
+#include <array>
+#include <cmath>
+#include <cstdint>
+#include <vector>
+
+namespace nbv {
+
+/// Occupancy state of a cell (values as returned by OccupancyMap::state).
+enum class CellState : std::int8_t { Unknown = -1, Free = 0, Occupied = 1 };
+
+/// Where a workspace cell's value comes from.
+enum class CellFlag : std::uint8_t {
+  Unknown = 0,    ///< never observed, not in the octree
+  Observed = 1,   ///< integrated from sensor data (or loaded from a file)
+  Predicted = 2,  ///< set by symmetry prediction; observations override it
+};
+
+enum class EntropyUnit { Nats, Bits };
+
+/// Cell counts over the workspace.
+struct CellCounts {
+  std::int64_t free = 0, occupied = 0, unknown = 0;
+  std::int64_t predicted = 0;  ///< predicted cells (also counted as free or occupied)
+};
+
+/// How a cell's log-odds becomes a state and an entropy (thresholds as float log-odds, exactly
+/// as the octree holds them).
+struct CellRule {
+  float occupied_logodds = 0.405465f;  ///< a known cell is occupied when logodds >= this
+  float clamp_min_logodds = -1.99243f;
+  float clamp_max_logodds = 3.47610f;
+  EntropyUnit unit = EntropyUnit::Nats;
+  bool clamped_entropy_zero = true;
+
+  /// Entropy in nats of a known cell (the clamping rule applied).
+  double known_entropy_nats(float logodds) const;
+  /// Entropy in the rule's unit of a cell with this log-odds and flag.
+  double entropy(float logodds, CellFlag flag) const;
+};
+
+class WorkspaceGrid {
+ public:
+  static constexpr int kBrickShift = 2;  ///< bricks of 4 x 4 x 4 cells
+
+  WorkspaceGrid() = default;
+  /// A grid of dims[0] x dims[1] x dims[2] unknown cells.
+  WorkspaceGrid(const std::array<int, 3>& dims, const CellRule& rule);
+
+  const std::array<int, 3>& dims() const { return dims_; }
+  std::int64_t num_cells() const { return std::int64_t(logodds_.size()); }
+  const CellRule& rule() const { return rule_; }
+
+  float logodds(std::int64_t i) const { return logodds_[std::size_t(i)]; }
+  CellFlag flag(std::int64_t i) const { return flags_[std::size_t(i)]; }
+  CellState state(std::int64_t i) const {
+    if (flags_[std::size_t(i)] == CellFlag::Unknown) return CellState::Unknown;
+    return std::signbit(scored_[std::size_t(i)]) ? CellState::Occupied : CellState::Free;
+  }
+  /// Entropy in the rule's unit (the float copy of the value the total sums).
+  float entropy(std::int64_t i) const { return std::fabs(scored_[std::size_t(i)]); }
+
+  /// Sets one cell, keeping the totals, counts and brick summary in sync.
+  void set(std::int64_t i, float logodds, CellFlag flag);
+  /// Replaces every cell (e.g. from a map file); log-odds of unknown cells must be 0.
+  void assign(std::vector<float> logodds, std::vector<CellFlag> flags);
+
+  /// Total entropy in the rule's unit, O(1).
+  double total_entropy() const;
+  /// The same by a full sweep (equal to total_entropy() exactly).
+  double recompute_total_entropy() const;
+  CellCounts counts() const { return counts_; }
+  CellCounts recompute_counts() const;
+
+  // ---- raw arrays for the ray-walking kernels (valid while the grid is alive and unchanged) --
+  const float* logodds_data() const { return logodds_.data(); }
+  const CellFlag* flag_data() const { return flags_.data(); }
+  /// Per cell: its entropy, negated when the cell is occupied (the sign bit marks occupancy,
+  /// also for zero entropy: -0.0f). One read answers "stop here?" and "how much information?".
+  const float* scored_data() const { return scored_.data(); }
+  /// Per brick: the number of live (not neutral) cells; brick (bi, bj, bk) has index
+  /// bi + bx * (bj + by * bk) with (bx, by, bz) = brick_dims().
+  const std::uint8_t* brick_live_data() const { return brick_live_.data(); }
+  const std::array<int, 3>& brick_dims() const { return brick_dims_; }
+  std::int64_t brick_of(std::int64_t i) const;
+
+ private:
+  std::int64_t fixed_entropy(float logodds);  // cached: cells take few distinct values
+  std::int64_t fixed_entropy_uncached(float logodds) const;
+  float to_unit(std::int64_t fixed) const;
+  bool live(std::int64_t fixed, CellFlag flag, bool occupied) const {
+    return !(flag == CellFlag::Observed && !occupied && fixed == 0);
+  }
+  void rebuild_derived();  // scored_, counts, totals and bricks from logodds_ / flags_
+
+  std::array<int, 3> dims_{0, 0, 0};
+  std::array<int, 3> brick_dims_{0, 0, 0};
+  CellRule rule_;
+  std::vector<float> logodds_;
+  std::vector<CellFlag> flags_;
+  std::vector<float> scored_;
+  std::vector<std::uint8_t> brick_live_;
+  CellCounts counts_;
+  __int128 known_entropy_fixed_ = 0;  // sum over known cells, units of 2^-50 nats
+  struct CacheEntry {
+    std::uint32_t bits = 0xFFFFFFFFu;  // a NaN pattern no cell holds
+    std::int64_t fixed = 0;
+  };
+  std::array<CacheEntry, 1024> cache_{};
+};
+
+}  // namespace nbv
