@@ -39,14 +39,18 @@ WorkspaceGrid::WorkspaceGrid(const std::array<int, 3>& dims, const CellRule& rul
     brick_dims_[a] = (dims[a] + (1 << kBrickShift) - 1) >> kBrickShift;
   }
   const std::size_t n = std::size_t(dims[0]) * std::size_t(dims[1]) * std::size_t(dims[2]);
+  if (n >= (std::size_t(1) << 32)) throw std::invalid_argument("workspace grid too large");
+  div_nx_ = Divider(std::uint32_t(dims[0]));
+  div_ny_ = Divider(std::uint32_t(dims[1]));
   logodds_.assign(n, 0.0f);
   flags_.assign(n, CellFlag::Unknown);
   rebuild_derived();
 }
 
 std::int64_t WorkspaceGrid::brick_of(std::int64_t i) const {
-  const std::int64_t nx = dims_[0], ny = dims_[1];
-  const std::int64_t x = i % nx, y = (i / nx) % ny, z = i / (nx * ny);
+  // cell indices are < 2^32 (OccupancyMap::kMaxCells): one exact multiply per division
+  const std::uint32_t yz = div_nx_(std::uint32_t(i)), z = div_ny_(yz);
+  const std::int64_t x = i - std::int64_t(yz) * dims_[0], y = yz - std::int64_t(z) * dims_[1];
   return (x >> kBrickShift) +
          std::int64_t(brick_dims_[0]) *
              ((y >> kBrickShift) + std::int64_t(brick_dims_[1]) * (z >> kBrickShift));

@@ -116,6 +116,17 @@ class WorkspaceGrid {
   }
   void rebuild_derived();  // scored_, counts, totals and bricks from logodds_ / flags_
 
+  /// Exact n / d for 32-bit n by one multiply (Lemire, Kaser, Kurz 2019): set() runs per cell.
+  struct Divider {
+    std::uint64_t m = 0;  // 0: d == 1
+    Divider() = default;
+    explicit Divider(std::uint32_t d) : m(d == 1 ? 0 : ~std::uint64_t(0) / d + 1) {}
+    std::uint32_t operator()(std::uint32_t n) const {
+      return m ? std::uint32_t((static_cast<unsigned __int128>(m) * n) >> 64) : n;
+    }
+  };
+  Divider div_nx_, div_ny_;
+
   std::array<int, 3> dims_{0, 0, 0};
   std::array<int, 3> brick_dims_{0, 0, 0};
   CellRule rule_;
