@@ -69,7 +69,8 @@ void plain_insert(octomap::OcTree& tree, const nbv::Scan& s) {
 double agreement(const nbv::OccupancyMap& a, const nbv::OccupancyMap& b,
                  std::int64_t* touched_out) {
   std::int64_t touched = 0, same = 0;
-  for (std::int64_t i = 0; i < a.num_cells(); ++i) {
+  for (std::size_t id = 0; id < a.grid().layout().storage_size(); ++id) {
+    const auto i = std::int64_t(id);
     const auto sa = a.grid().state(i), sb = b.grid().state(i);
     if (sa == nbv::CellState::Unknown && sb == nbv::CellState::Unknown) continue;
     ++touched;

@@ -36,40 +36,37 @@ def main():
     m.run()
     pose = m.state.pose
     cands = candidate_poses(pose)
-    c = m.config.camera
     kw = dict(
-        rays_x=m.rays[0],
-        rays_y=m.rays[1],
-        hfov_deg=c.hfov_deg,
-        vfov_deg=c.vfov_deg,
-        max_range=c.max_range,
-        collision_radius=m.config.vehicle.collision_radius,
-        bounds_min=m.workspace.nav_min,
-        bounds_max=m.workspace.nav_max,
-        require_occupied=False,
+        camera=m.view_camera,
+        utility=dict(require_occupied=False),
+        validity=dict(
+            collision_radius=m.config.vehicle.collision_radius,
+            bounds_min=m.workspace.nav_min,
+            bounds_max=m.workspace.nav_max,
+        ),
     )
     threads = nbvkit.get_num_threads()
     print(f"map after {len(m.records)} iterations of scenario {args.scenario}: {m.map.counts()}")
     res = {}
     for nt in sorted({1, threads}):
         nbvkit.set_num_threads(nt)
-        a = _core.evaluate_views(m.map, cands, pose, backend="mirror", **kw)
+        a = _core.evaluate_views(m.map, cands, pose, backend="grid", **kw)
         b = _core.evaluate_views(m.map, cands, pose, backend="octree", **kw)
         assert np.array_equal(a["status"], b["status"]) and np.allclose(
             a["gain"], b["gain"], rtol=1e-6
         )
         tm = median_time(
-            lambda: _core.evaluate_views(m.map, cands, pose, backend="mirror", **kw), args.repeat
+            lambda: _core.evaluate_views(m.map, cands, pose, backend="grid", **kw), args.repeat
         )
         to = median_time(
             lambda: _core.evaluate_views(m.map, cands, pose, backend="octree", **kw),
             max(1, args.repeat // 2),
         )
-        res[nt] = (tm, to, int((a["status"] == 0).sum()), int(a["cells_seen"].sum()))
+        res[nt] = (tm, to, int((a["status"] == 0).sum()), int(a["cells"].sum()))
     nbvkit.set_num_threads(0)
     print(
-        f"{'threads':>7} {'mirror DDA ms':>14} {'octree search ms':>17} "
-        f"{'speed-up':>9} {'valid':>6} {'cell visits':>12}"
+        f"{'threads':>7} {'grid DDA ms':>14} {'octree search ms':>17} "
+        f"{'speed-up':>9} {'valid':>6} {'cells':>12}"
     )
     for nt, (tm, to, nv, cells) in res.items():
         print(f"{nt:>7} {tm * 1e3:>14.1f} {to * 1e3:>17.1f} {to / tm:>8.1f}x {nv:>6} {cells:>12,}")

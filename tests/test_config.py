@@ -41,10 +41,10 @@ def test_python_defaults_equal_cpp_defaults():
     assert c.map.entropy_unit == mo.to_dict()["entropy_unit"]
     cl = _core.SurfaceCloudOptions()
     assert c.cloud.min_z == pytest.approx(cl.min_z)
-    rx, ry = _core.view_ray_grid(
+    vc = _core.ViewCameraModel.for_resolution(
         c.camera.hfov_deg, c.camera.vfov_deg, c.camera.max_range, c.map.resolution
     )
-    assert (rx, ry) == (47, 34)
+    assert (vc.rays_x, vc.rays_y) == (47, 34)
 
 
 def test_paper_values():

@@ -22,9 +22,29 @@ def scanned_wall_map(res=0.2, repeats=1):
     return m
 
 
-def score(m, cands, current=(5.0, 0.0, 5.0, 0.0), **kw):
+CAMERA = set(_core.ViewCameraModel.fields())
+UTILITY = set(_core.UtilityOptions.fields())
+VALIDITY = set(_core.ValidityOptions.fields())
+
+
+def score(m, cands, current=(5.0, 0.0, 5.0, 0.0), backend="grid", surface=None, **kw):
+    """evaluate_views with the options given as flat keywords (utility= names the utility)."""
     kw.setdefault("max_range", 12.0)
-    return _core.evaluate_views(m, np.asarray(cands, float), np.asarray(current, float), **kw)
+    if "utility" in kw:
+        kw["name"] = kw.pop("utility")
+    unknown = set(kw) - CAMERA - UTILITY - VALIDITY
+    assert not unknown, unknown
+    pick = lambda keys: {k: v for k, v in kw.items() if k in keys}  # noqa: E731
+    return _core.evaluate_views(
+        m,
+        np.asarray(cands, float),
+        np.asarray(current, float),
+        camera=pick(CAMERA),
+        utility=pick(UTILITY),
+        validity=pick(VALIDITY),
+        surface=surface,
+        backend=backend,
+    )
 
 
 def test_view_facing_unknown_gains_more_than_view_facing_known_free():
@@ -35,7 +55,7 @@ def test_view_facing_unknown_gains_more_than_view_facing_known_free():
     assert s["gain"][1] > 10 * s["gain"][0]
     assert s["occupied_seen"][0] > 0 and s["occupied_seen"][1] == 0
     # the gain of the view facing unknown space is ln 2 per distinct cell it visits
-    assert s["gain"][1] == pytest.approx(s["cells_seen"][1] * math.log(2), rel=0.01)
+    assert s["gain"][1] == pytest.approx(s["cells"][1] * math.log(2), rel=0.01)
     once = score(scanned_wall_map(repeats=1), [[5, 0, 5, 0.0]], require_occupied=False)
     assert once["gain"][0] > s["gain"][0]  # observed once, free cells still hold ~0.67 nats
 
@@ -88,7 +108,7 @@ def test_straight_path_through_unknown_is_blocked_and_a_path_is_planned_around()
     assert len(_core.plan_path(m, (10, 2, 2), (6, 9.5, 2), 0.8)) == 0  # target in unknown space
 
 
-def test_mirror_and_octree_backends_agree():
+def test_grid_and_octree_backends_agree():
     mesh = box_mesh((10, -2, 0), (14, 2, 8))
     m = nbvkit.OccupancyMap(0.2, (0, -10, 0), (20, 10, 10))
     m.mark_free_segment((3, 0, 4), (8, 0, 4), 4.5)  # a known-free region for the candidates
@@ -105,11 +125,11 @@ def test_mirror_and_octree_backends_agree():
             rng.uniform(-1, 1, 40),
         ]
     )
-    a = score(m, cands, current=(4, 0, 4, 0), backend="mirror")
+    a = score(m, cands, current=(4, 0, 4, 0), backend="grid")
     b = score(m, cands, current=(4, 0, 4, 0), backend="octree")
     assert (a["status"] == 0).sum() >= 20
     np.testing.assert_array_equal(a["status"], b["status"])
-    np.testing.assert_array_equal(a["cells_seen"], b["cells_seen"])
+    np.testing.assert_array_equal(a["cells"], b["cells"])
     np.testing.assert_array_equal(a["occupied_seen"], b["occupied_seen"])
     np.testing.assert_allclose(a["gain"], b["gain"], rtol=1e-6)
 
@@ -125,8 +145,10 @@ def test_distance_utility_discounts_gain():
 
 
 def test_default_ray_grid_is_one_ray_per_cell_on_the_far_plane():
-    assert _core.view_ray_grid(60, 45, 8.0, 0.2) == (47, 34)
-    assert _core.view_ray_grid(60, 45, 8.0, 0.4) == (24, 17)
+    c = _core.ViewCameraModel.for_resolution(60, 45, 8.0, 0.2)
+    assert (c.rays_x, c.rays_y) == (47, 34)
+    c = _core.ViewCameraModel.for_resolution(60, 45, 8.0, 0.4)
+    assert (c.rays_x, c.rays_y) == (24, 17)
 
 
 def test_bad_input():
@@ -135,6 +157,8 @@ def test_bad_input():
         score(m, [[5, 0, 5]])
     with pytest.raises(ValueError, match="NaN"):
         score(m, [[5, 0, np.nan, 0]])
+    with pytest.raises(TypeError, match="unknown UtilityOptions option 'nope'"):
+        _core.evaluate_views(m, [[5, 0, 5, 0]], (5, 0, 5, 0), utility={"nope": 1})
     with pytest.raises(ValueError, match="current pose"):
         score(m, [[5, 0, 5, 0]], current=(0, 0, 0))
     with pytest.raises(ValueError, match="backend"):

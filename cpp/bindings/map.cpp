@@ -144,15 +144,18 @@ py::dict counts_dict(const CellCounts& c) {
   return d;
 }
 
+/// An (nx, ny, nz) Fortran-ordered array of f(grid id) per cell.
 template <typename T, typename F>
 py::array_t<T, py::array::f_style> grid(const OccupancyMap& m, const F& f) {
   const auto& d = m.dims();
   py::array_t<T, py::array::f_style> out(std::vector<py::ssize_t>{d[0], d[1], d[2]});
   T* p = out.mutable_data();
-  const std::int64_t n = m.num_cells();
+  const GridLayout& layout = m.grid().layout();
   {
     py::gil_scoped_release release;
-    for (std::int64_t i = 0; i < n; ++i) p[i] = f(i);
+    for (int k = 0; k < d[2]; ++k)
+      for (int j = 0; j < d[1]; ++j)
+        for (int i = 0; i < d[0]; ++i) *p++ = f(std::int64_t(layout.id(i, j, k)));
   }
   return out;
 }
@@ -456,7 +459,13 @@ cell is i + nx * (j + ny * k) == grid.ravel(order='F') position.)doc");
             std::vector<std::int64_t> out(std::size_t(pm.rows()));
             for (Eigen::Index r = 0; r < pm.rows(); ++r) {
               OccupancyMap::Key k;
-              out[std::size_t(r)] = m.coord_to_key(pm.row(r).transpose(), k) ? m.index_of(k) : -1;
+              const bool in = m.coord_to_key(pm.row(r).transpose(), k) && m.in_workspace(k);
+              const auto& d = m.dims();
+              out[std::size_t(r)] =
+                  in ? std::int64_t(k[0] - m.min_key()[0]) +
+                           std::int64_t(d[0]) * (std::int64_t(k[1] - m.min_key()[1]) +
+                                                 std::int64_t(d[1]) * (k[2] - m.min_key()[2]))
+                     : -1;
             }
             return shaped(p.lead, out.data());
           },

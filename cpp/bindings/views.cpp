@@ -1,114 +1,201 @@
+// Bindings of view scoring (nbv/views.hpp), camera observations (nbv/surface_observations.hpp)
+// and navigation (nbv/navigation.hpp).
 #include "nbv/views.hpp"
 #include "bindings.hpp"
+#include "nbv/navigation.hpp"
 #include "nbv/occupancy_map.hpp"
+#include "nbv/surface_observations.hpp"
+#include "options.hpp"
 
 namespace nbv::bind {
+namespace {
+
+using Candidates = Eigen::Matrix<double, Eigen::Dynamic, 4, Eigen::RowMajor>;
+
+Eigen::Vector3d point3(const py::handle& obj, const char* what) {
+  py::array_t<double, py::array::c_style | py::array::forcecast> a;
+  try {
+    a = py::array_t<double, py::array::c_style | py::array::forcecast>::ensure(obj);
+  } catch (const py::error_already_set&) {
+    a = {};
+  }
+  if (!a || a.size() != 3) throw py::value_error(std::string(what) + " must be 3 numbers");
+  const Eigen::Vector3d v(a.data()[0], a.data()[1], a.data()[2]);
+  if (!v.allFinite()) throw py::value_error(std::string(what) + " contains NaN or infinite values");
+  return v;
+}
+
+/// An (nx, ny, nz) Fortran-ordered copy of a per-cell array stored in a grid layout.
+template <typename T>
+py::array_t<T, py::array::f_style> per_cell(const GridLayout& layout, const T* data) {
+  const auto& d = layout.dims;
+  py::array_t<T, py::array::f_style> a(std::vector<py::ssize_t>{d[0], d[1], d[2]});
+  T* p = a.mutable_data();
+  for (int k = 0; k < d[2]; ++k)
+    for (int j = 0; j < d[1]; ++j)
+      for (int i = 0; i < d[0]; ++i) *p++ = data[layout.id(i, j, k)];
+  return a;
+}
+
+}  // namespace
 
 void init_views(py::module_& m) {
-  using Candidates = Eigen::Matrix<double, Eigen::Dynamic, 4, Eigen::RowMajor>;
-  const UtilityOptions ud;
-  const ValidityOptions vd;
+  {
+    OptionsClass<ViewCameraModel> binder(m, "ViewCameraModel", R"doc(
+The camera model view scoring casts its rays with: a pinhole grid of rays_x x rays_y rays over
+the field of view, to max_range depth along the optical axis, mounted on the vehicle by mount
+(T_body_sensor). ViewCameraModel.for_resolution(hfov_deg, vfov_deg, max_range, resolution)
+gives one ray per map cell on the far plane (the authors' 47 x 34 at 0.2 m).)doc");
+    using S = ViewCameraModel;
+    NBV_VIEW_CAMERA_OPTIONS(NBV_BIND_FIELD)
+    binder.finish().def_static("for_resolution", &ViewCameraModel::for_resolution,
+                               py::arg("hfov_deg"), py::arg("vfov_deg"), py::arg("max_range"),
+                               py::arg("resolution"));
+  }
+  {
+    OptionsClass<UtilityOptions> binder(m, "UtilityOptions", R"doc(
+Which utility scores a view and its parameters (nbv/views.hpp; each utility's exact definition
+is documented in cpp/src/utilities/<name>.hpp and in nbvkit.planning).)doc");
+    using S = UtilityOptions;
+    NBV_UTILITY_OPTIONS(NBV_BIND_FIELD)
+    binder.finish();
+  }
+  {
+    OptionsClass<ValidityOptions> binder(m, "ValidityOptions", R"doc(
+When a candidate view is valid: inside the navigation bounds, its collision sphere in known
+free space, and (blocked_path 'reject') its straight flight from the current pose clear.)doc");
+    using S = ValidityOptions;
+    NBV_VALIDITY_OPTIONS(NBV_BIND_FIELD)
+    binder.finish();
+  }
+  m.attr("VIEW_STATUS_NAMES") = py::cast(view_status_names());
+  m.def("utility_names", &utility_names, "Names of the registered view utilities.");
+
+  py::class_<SurfaceObservations, std::shared_ptr<SurfaceObservations>>(m, "SurfaceObservations",
+                                                                        R"doc(
+What the camera has seen of each workspace cell of an OccupancyMap: the bitmask of the 26
+direction bins (cube faces, edges, corners) it was seen from, and the number of camera hits in
+it. SurfaceObservations(map); add_scan(scan) after integrating each camera scan. Read by the
+surface and four_term utilities and by surface_targets.)doc")
+      .def(py::init(
+               [](const OccupancyMap& map) { return std::make_shared<SurfaceObservations>(map); }),
+           py::arg("map"))
+      .def(
+          "add_scan",
+          [](SurfaceObservations& s, const Scan& scan) {
+            py::gil_scoped_release release;
+            return s.add_scan(scan.origin, scan.hits);
+          },
+          py::arg("scan"),
+          "Record a camera Scan (its hits, seen from its origin). Returns the number of cells "
+          "that gained a direction.")
+      .def(
+          "add_points",
+          [](SurfaceObservations& s, const py::handle& origin, const py::handle& hits) {
+            const Eigen::Vector3d o = point3(origin, "origin");
+            auto h = points_arg(hits, "hits");
+            auto hm = h.map();
+            py::gil_scoped_release release;
+            return s.add_scan(o, hm);
+          },
+          py::arg("origin"), py::arg("hits"), "add_scan from an origin (3,) and hits (N, 3).")
+      .def("clear", &SurfaceObservations::clear)
+      .def("seen_cells", &SurfaceObservations::seen_cells,
+           "Number of cells seen from at least one direction.")
+      .def(
+          "seen_grid",
+          [](const SurfaceObservations& s) {
+            return per_cell<std::uint32_t>(s.layout(), s.seen_data());
+          },
+          "(nx, ny, nz) uint32 direction-bin masks, Fortran order (copy).")
+      .def(
+          "hits_grid",
+          [](const SurfaceObservations& s) {
+            return per_cell<std::uint16_t>(s.layout(), s.hits_data());
+          },
+          "(nx, ny, nz) uint16 camera hits per cell, Fortran order (copy).");
+  m.def(
+      "direction_bin", [](const py::handle& d) { return direction_bin(point3(d, "direction")); },
+      py::arg("direction"), "The direction bin (0..25) of a vector.");
+  m.def("bin_direction", &bin_direction, py::arg("bin"), "Unit vector of a direction bin.");
+  m.def("bin_cone", &bin_cone, py::arg("bin"), py::arg("cone_deg"),
+        "Bitmask of the bins within cone_deg of a bin.");
 
   m.def(
       "evaluate_views",
       [](const OccupancyMap& map, const py::handle& candidates, const py::handle& current,
-         int rays_x, int rays_y, double hfov_deg, double vfov_deg, double max_range,
-         const py::object& mount, const std::string& utility, double distance_lambda,
-         bool require_occupied, double require_occupied_probability, double collision_radius,
-         const py::object& bounds_min, const py::object& bounds_max, bool check_segment,
-         const std::string& backend) {
+         const py::object& camera, const py::object& utility, const py::object& validity,
+         const std::shared_ptr<SurfaceObservations>& surface, const std::string& backend) {
         auto c = py::array_t<double, py::array::c_style | py::array::forcecast>::ensure(candidates);
         if (!c || c.ndim() != 2 || c.shape(1) != 4)
           throw py::value_error("candidates must have shape (K, 4): rows x, y, z, yaw");
         Eigen::Map<const Candidates> cm(c.data(), c.shape(0), 4);
         if (!cm.allFinite()) throw py::value_error("candidates contain NaN or infinite values");
         const Pose cur = pose_arg(current, "current pose");
-        ViewCameraModel cam;
-        cam.rays_x = rays_x;
-        cam.rays_y = rays_y;
-        cam.hfov_deg = hfov_deg;
-        cam.vfov_deg = vfov_deg;
-        cam.max_range = max_range;
-        if (!mount.is_none()) cam.mount = transform_arg(mount, "camera mount");
-        UtilityOptions u;
-        if (utility == "ig")
-          u.kind = UtilityOptions::Kind::InformationGain;
-        else if (utility == "ig_distance")
-          u.kind = UtilityOptions::Kind::InformationGainDistance;
-        else
-          throw py::value_error("unknown utility '" + utility + "' (known: ig, ig_distance)");
-        u.distance_lambda = distance_lambda;
-        u.require_occupied = require_occupied;
-        u.require_occupied_probability = require_occupied_probability;
-        if (!(require_occupied_probability >= 0 && require_occupied_probability < 1))
-          throw py::value_error("require_occupied_probability must be in [0, 1)");
-        ValidityOptions v;
-        v.collision_radius = collision_radius;
-        v.check_segment = check_segment;
-        if (!bounds_min.is_none()) v.bounds_min = bounds_min.cast<Eigen::Vector3d>();
-        if (!bounds_max.is_none()) v.bounds_max = bounds_max.cast<Eigen::Vector3d>();
-        if (backend != "mirror" && backend != "octree")
-          throw py::value_error("unknown backend '" + backend + "' (known: mirror, octree)");
+        const ViewCameraModel cam = OptionsClass<ViewCameraModel>::from(camera, "camera");
+        const UtilityOptions u = OptionsClass<UtilityOptions>::from(utility, "utility");
+        const ValidityOptions v = OptionsClass<ValidityOptions>::from(validity, "validity");
+        if (backend != "grid" && backend != "octree")
+          throw py::value_error("unknown backend '" + backend + "' (known: grid, octree)");
         ViewScores s;
         {
           py::gil_scoped_release release;
-          s = backend == "octree" ? evaluate_views_octree(map, cm, cur, cam, u, v)
-                                  : evaluate_views(grid_view(map), cm, cur, cam, u, v);
+          s = backend == "octree"
+                  ? evaluate_views_octree(map, cm, cur, cam, u, v)
+                  : evaluate_views(grid_view(map, surface.get()), cm, cur, cam, u, v);
         }
         py::dict out;
         out["utility"] = s.utility;
         out["gain"] = s.gain;
-        out["cells_seen"] = s.cells_seen;
+        out["cells"] = s.cells;
         out["occupied_seen"] = s.occupied_seen;
         out["status"] = s.status;
         return out;
       },
-      py::arg("map"), py::arg("candidates"), py::arg("current"), py::arg("rays_x") = 47,
-      py::arg("rays_y") = 34, py::arg("hfov_deg") = 60.0, py::arg("vfov_deg") = 45.0,
-      py::arg("max_range") = 8.0, py::arg("mount") = py::none(), py::arg("utility") = "ig",
-      py::arg("distance_lambda") = ud.distance_lambda,
-      py::arg("require_occupied") = ud.require_occupied,
-      py::arg("require_occupied_probability") = ud.require_occupied_probability,
-      py::arg("collision_radius") = vd.collision_radius, py::arg("bounds_min") = py::none(),
-      py::arg("bounds_max") = py::none(), py::arg("check_segment") = vd.check_segment,
-      py::arg("backend") = "mirror",
+      py::arg("map"), py::arg("candidates"), py::arg("current"), py::arg("camera") = py::none(),
+      py::arg("utility") = py::none(), py::arg("validity") = py::none(),
+      py::arg("surface") = nullptr, py::arg("backend") = "grid",
       R"doc(Score K candidate vehicle poses (K, 4) [x, y, z, yaw] from the current pose, in one
-call.
+call. camera / utility / validity: a ViewCameraModel / UtilityOptions / ValidityOptions, a dict
+of their fields, or None for the defaults. surface: the map's SurfaceObservations (needed by the
+surface and four_term utilities).
 
-Returns a dict of (K,) arrays: utility (-inf where invalid), gain (sum of the entropies of the
-distinct workspace cells the camera's rays visit, stopping at the first occupied cell inclusive),
-cells_seen, occupied_seen (rays ending on an occupied cell), status (0 valid, 1 out of bounds,
-2 collision: an occupied/unknown cell within the collision radius, 3 straight path blocked,
-4 sees no occupied cell). backend "mirror" walks the dense workspace mirror (3D-DDA); "octree"
-reads every visited cell through OctoMap's search, as the authors did (same answer, slower).)doc");
+Returns a dict of (K,) arrays: utility (the score to maximise, -inf where invalid), gain (the
+utility's own value before any distance weight), cells (cells that added to it), occupied_seen
+(rays that reached an occupied cell), status (0 valid, 1 out of bounds, 2 collision: an
+occupied/unknown cell within the collision radius, 3 straight path blocked, 4 sees no occupied
+cell; names in VIEW_STATUS_NAMES). backend "grid" walks the map's workspace grid (3D-DDA);
+"octree" reads every visited cell through OctoMap's search, as the authors did (same answer,
+slower).)doc");
 
   m.def(
       "sphere_is_free",
-      [](const OccupancyMap& map, const Eigen::Vector3d& c, double r) {
-        if (!c.allFinite() || !(r >= 0))
-          throw py::value_error("centre must be finite and radius >= 0");
-        return sphere_is_free(grid_view(map), c, r);
+      [](const OccupancyMap& map, const py::handle& c, double r) {
+        const Eigen::Vector3d p = point3(c, "centre");
+        if (!(r >= 0) || !std::isfinite(r)) throw py::value_error("radius must be finite and >= 0");
+        return sphere_is_free(grid_view(map), p, r);
       },
       py::arg("map"), py::arg("center"), py::arg("radius"),
       "True if every workspace cell touching the sphere is known and not occupied.");
   m.def(
       "segment_is_free",
-      [](const OccupancyMap& map, const Eigen::Vector3d& a, const Eigen::Vector3d& b, double r) {
-        if (!a.allFinite() || !b.allFinite() || !(r >= 0))
-          throw py::value_error("segment ends must be finite and radius >= 0");
-        return segment_is_free(grid_view(map), a, b, r);
+      [](const OccupancyMap& map, const py::handle& a, const py::handle& b, double r) {
+        const Eigen::Vector3d pa = point3(a, "segment start"), pb = point3(b, "segment end");
+        if (!(r >= 0) || !std::isfinite(r)) throw py::value_error("radius must be finite and >= 0");
+        return segment_is_free(grid_view(map), pa, pb, r);
       },
-      py::arg("map"), py::arg("a"), py::arg("b"), py::arg("radius"));
+      py::arg("map"), py::arg("a"), py::arg("b"), py::arg("radius"),
+      "True if the sphere swept along a-b stays in known free space.");
   m.def(
       "plan_path",
-      [](const OccupancyMap& map, const Eigen::Vector3d& a, const Eigen::Vector3d& b, double r,
+      [](const OccupancyMap& map, const py::handle& a, const py::handle& b, double r,
          std::size_t max_expansions) {
-        if (!a.allFinite() || !b.allFinite() || !(r >= 0))
-          throw py::value_error("path ends must be finite and radius >= 0");
+        const Eigen::Vector3d pa = point3(a, "path start"), pb = point3(b, "path end");
+        if (!(r >= 0) || !std::isfinite(r)) throw py::value_error("radius must be finite and >= 0");
         std::vector<Eigen::Vector3d> path;
         {
           py::gil_scoped_release release;
-          path = plan_path(grid_view(map), a, b, r, max_expansions);
+          path = plan_path(grid_view(map), pa, pb, r, max_expansions);
         }
         Points out(static_cast<Eigen::Index>(path.size()), 3);
         for (std::size_t i = 0; i < path.size(); ++i)
@@ -121,17 +208,8 @@ reads every visited cell through OctoMap's search, as the authors did (same answ
   m.def("viewable_cells", &viewable_cells, py::arg("hfov_deg"), py::arg("vfov_deg"),
         py::arg("min_range"), py::arg("max_range"), py::arg("resolution"),
         py::arg("count_partial") = true,
-        "C_view of Eq. 5: V_frustum / V_cell, or with count_partial the cells the frustum touches\n"
-        "including partial boundary cells: vol(frustum (+) cell) / V_cell.");
-  m.def(
-      "view_ray_grid",
-      [](double hfov, double vfov, double max_range, double res) {
-        auto c = ViewCameraModel::for_resolution(hfov, vfov, max_range, res);
-        return py::make_tuple(c.rays_x, c.rays_y);
-      },
-      py::arg("hfov_deg"), py::arg("vfov_deg"), py::arg("max_range"), py::arg("resolution"),
-      "Rays (x, y) of one per map-resolution step on the far plane (47 x 34 at 0.2 m, 8 m, 60 x 45 "
-      "deg).");
+        "C_view of Eq. 5: V_frustum / V_cell, or with count_partial the cells the frustum "
+        "touches\nincluding partial boundary cells: vol(frustum (+) cell) / V_cell.");
 }
 
 }  // namespace nbv::bind

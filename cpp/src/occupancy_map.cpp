@@ -151,7 +151,7 @@ void OccupancyMap::init_geometry(const Eigen::Vector3d& bmin, const Eigen::Vecto
                                 " (coarser resolution or smaller bounds)");
   for (int a = 0; a < 3; ++a) min_key_[a] = octomap::key_type(kmin[a] + kTreeMaxVal);
   grid_ = WorkspaceGrid({int(nx), int(ny), int(nz)}, cell_rule());
-  tree_stale_.assign(std::size_t(grid_.num_cells()), 0);
+  tree_stale_.assign(grid_.layout().storage_size(), 0);
   tree_stale_cells_.clear();
 }
 
@@ -202,9 +202,9 @@ Eigen::Vector3d OccupancyMap::key_to_coord(const Key& key) const {
                          tree_->keyToCoord(key[2]));
 }
 
-OccupancyMap::Key OccupancyMap::key_at(std::int64_t index) const {
-  const std::int64_t nx = grid_.dims()[0], ny = grid_.dims()[1];
-  const std::int64_t i = index % nx, j = (index / nx) % ny, k = index / (nx * ny);
+OccupancyMap::Key OccupancyMap::key_at(std::int64_t id) const {
+  int i, j, k;
+  grid_.layout().coords(std::size_t(id), i, j, k);
   return Key(octomap::key_type(min_key_[0] + i), octomap::key_type(min_key_[1] + j),
              octomap::key_type(min_key_[2] + k));
 }
@@ -212,9 +212,9 @@ OccupancyMap::Key OccupancyMap::key_at(std::int64_t index) const {
 // ---- grid and octree -----------------------------------------------------------------------
 
 void OccupancyMap::grid_from_tree() {
-  const std::size_t n = std::size_t(grid_.num_cells());
-  std::vector<float> logodds(n, 0.0f);
-  std::vector<CellFlag> flags(n, CellFlag::Unknown);
+  const GridLayout& layout = grid_.layout();
+  std::vector<float> logodds(layout.storage_size(), 0.0f);
+  std::vector<CellFlag> flags(layout.storage_size(), CellFlag::Unknown);
   const auto& dims = grid_.dims();
   const int lo[3] = {min_key_[0], min_key_[1], min_key_[2]};
   const int hi[3] = {lo[0] + dims[0], lo[1] + dims[1], lo[2] + dims[2]};  // exclusive
@@ -233,15 +233,12 @@ void OccupancyMap::grid_from_tree() {
     if (empty) continue;
     const float l = it->getLogOdds();
     for (int z = b[2]; z < e[2]; ++z)
-      for (int y = b[1]; y < e[1]; ++y) {
-        const std::size_t row =
-            std::size_t(z - lo[2]) * std::size_t(dims[1]) * std::size_t(dims[0]) +
-            std::size_t(y - lo[1]) * std::size_t(dims[0]);
+      for (int y = b[1]; y < e[1]; ++y)
         for (int x = b[0]; x < e[0]; ++x) {
-          logodds[row + std::size_t(x - lo[0])] = l;
-          flags[row + std::size_t(x - lo[0])] = CellFlag::Observed;
+          const std::size_t id = layout.id(x - lo[0], y - lo[1], z - lo[2]);
+          logodds[id] = l;
+          flags[id] = CellFlag::Observed;
         }
-      }
   }
   grid_.assign(std::move(logodds), std::move(flags));
 }
@@ -340,7 +337,7 @@ void OccupancyMap::FreeDeleter::operator()(void* p) const noexcept { std::free(p
 
 void OccupancyMap::ensure_scratch() {
   if (stamp_) return;
-  const std::size_t n = std::size_t(grid_.num_cells());
+  const std::size_t n = grid_.layout().storage_size();
   stamp_.reset(static_cast<std::uint32_t*>(std::calloc(n, sizeof(std::uint32_t))));
   group_of_.reset(static_cast<std::int32_t*>(std::malloc(n * sizeof(std::int32_t))));
   if (!stamp_ || !group_of_) throw std::bad_alloc();
@@ -349,7 +346,7 @@ void OccupancyMap::ensure_scratch() {
 
 std::uint32_t OccupancyMap::next_stamp(unsigned n) {
   if (stamp_counter_ > std::numeric_limits<std::uint32_t>::max() - n - 1) {
-    std::fill(stamp_.get(), stamp_.get() + grid_.num_cells(), 0u);
+    std::fill(stamp_.get(), stamp_.get() + grid_.layout().storage_size(), 0u);
     stamp_counter_ = 0;
   }
   const std::uint32_t first = stamp_counter_ + 1;
@@ -638,14 +635,13 @@ void OccupancyMap::trace_free_cells(const octomap::point3d& o, const std::vector
   std::vector<std::vector<Key>> chunk_free(nchunks), chunk_out(nchunks);
   std::uint32_t* const stamps = stamp_.get();
   const octomap::OcTree& tree = *tree_;
-  const auto& dims = grid_.dims();
-  const auto& bdims = grid_.brick_dims();
+  const GridLayout& layout = grid_.layout();
+  const auto& dims = layout.dims;
   const int mk[3] = {min_key_[0], min_key_[1], min_key_[2]};
   const std::uint8_t* const live = grid_.brick_live_data();
   const float* const logodds = grid_.logodds_data();
   const CellFlag* const flags = grid_.flag_data();
   const float clamp_min = clamp_min_log_;
-  constexpr int kb = WorkspaceGrid::kBrickShift;
   parallel_chunks(nchunks, 1, [&](std::size_t cb, std::size_t ce) {
     for (std::size_t c = cb; c < ce; ++c) {
       std::vector<Key>& out = chunk_free[c];
@@ -659,9 +655,8 @@ void OccupancyMap::trace_free_cells(const octomap::point3d& o, const std::vector
             if (!clip) out_outside.push_back(key);
             return;
           }
-          if (!live[(i >> kb) + bdims[0] * ((j >> kb) + bdims[1] * (kz >> kb))]) return;
-          const std::size_t idx =
-              std::size_t(i) + std::size_t(dims[0]) * (std::size_t(j) + std::size_t(dims[1]) * kz);
+          const std::size_t idx = layout.id(i, j, kz);
+          if (!live[idx >> 6]) return;
           if (flags[idx] == CellFlag::Observed && logodds[idx] <= clamp_min) return;
           std::uint32_t* st = stamps + idx;
           std::uint32_t cur = __atomic_load_n(st, __ATOMIC_RELAXED);
@@ -885,20 +880,28 @@ Eigen::Matrix<bool, Eigen::Dynamic, 1> OccupancyMap::predicted(const PointsRef& 
 }
 
 Points OccupancyMap::occupied_cells() const {
-  std::vector<std::int64_t> idx;
-  idx.reserve(std::size_t(grid_.counts().occupied));
-  for (std::int64_t i = 0, n = grid_.num_cells(); i < n; ++i)
-    if (grid_.state(i) == CellState::Occupied) idx.push_back(i);
-  Points out(Eigen::Index(idx.size()), 3);
-  for (std::size_t r = 0; r < idx.size(); ++r)
-    out.row(Eigen::Index(r)) = key_to_coord(key_at(idx[r])).transpose();
+  std::vector<Eigen::Vector3d> centres;
+  centres.reserve(std::size_t(grid_.counts().occupied));
+  const auto& d = grid_.dims();
+  for (int k = 0; k < d[2]; ++k)
+    for (int j = 0; j < d[1]; ++j)
+      for (int i = 0; i < d[0]; ++i)
+        if (grid_.state(std::int64_t(grid_.layout().id(i, j, k))) == CellState::Occupied)
+          centres.push_back(key_to_coord(Key(octomap::key_type(min_key_[0] + i),
+                                             octomap::key_type(min_key_[1] + j),
+                                             octomap::key_type(min_key_[2] + k))));
+  Points out(Eigen::Index(centres.size()), 3);
+  for (std::size_t r = 0; r < centres.size(); ++r)
+    out.row(Eigen::Index(r)) = centres[r].transpose();
   return out;
 }
 
 std::int64_t OccupancyMap::verify_mirror() const {
   sync_octree();
   std::int64_t bad = 0;
-  for (std::int64_t i = 0, n = grid_.num_cells(); i < n; ++i) {
+  for (std::int64_t i = 0, n = std::int64_t(grid_.layout().storage_size()); i < n; ++i) {
+    int x, y, z;
+    if (!grid_.layout().coords(std::size_t(i), x, y, z)) continue;
     const octomap::OcTreeNode* node = tree_->search(key_at(i));
     const CellFlag f = grid_.flag(i);
     if (f == CellFlag::Unknown) {

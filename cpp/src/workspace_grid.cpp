@@ -32,28 +32,30 @@ double CellRule::entropy(float logodds, CellFlag flag) const {
   return unit == EntropyUnit::Bits ? nats / kLn2 : nats;
 }
 
-WorkspaceGrid::WorkspaceGrid(const std::array<int, 3>& dims, const CellRule& rule)
-    : dims_(dims), rule_(rule) {
+GridLayout::GridLayout(const std::array<int, 3>& d) : dims(d) {
   for (int a = 0; a < 3; ++a) {
-    if (dims[a] <= 0) throw std::invalid_argument("workspace grid dimensions must be positive");
-    brick_dims_[a] = (dims[a] + (1 << kBrickShift) - 1) >> kBrickShift;
+    if (d[a] <= 0) throw std::invalid_argument("grid dimensions must be positive");
+    bricks[a] = (d[a] + 3) >> kBrickShift;
   }
-  const std::size_t n = std::size_t(dims[0]) * std::size_t(dims[1]) * std::size_t(dims[2]);
-  if (n >= (std::size_t(1) << 32)) throw std::invalid_argument("workspace grid too large");
-  div_nx_ = Divider(std::uint32_t(dims[0]));
-  div_ny_ = Divider(std::uint32_t(dims[1]));
-  logodds_.assign(n, 0.0f);
-  flags_.assign(n, CellFlag::Unknown);
-  rebuild_derived();
 }
 
-std::int64_t WorkspaceGrid::brick_of(std::int64_t i) const {
-  // cell indices are < 2^32 (OccupancyMap::kMaxCells): one exact multiply per division
-  const std::uint32_t yz = div_nx_(std::uint32_t(i)), z = div_ny_(yz);
-  const std::int64_t x = i - std::int64_t(yz) * dims_[0], y = yz - std::int64_t(z) * dims_[1];
-  return (x >> kBrickShift) +
-         std::int64_t(brick_dims_[0]) *
-             ((y >> kBrickShift) + std::int64_t(brick_dims_[1]) * (z >> kBrickShift));
+bool GridLayout::coords(std::size_t id, int& i, int& j, int& k) const {
+  const std::size_t brick = id >> 6, in = id & 63;
+  const std::size_t bx = brick % std::size_t(bricks[0]), rest = brick / std::size_t(bricks[0]);
+  const std::size_t by = rest % std::size_t(bricks[1]), bz = rest / std::size_t(bricks[1]);
+  i = int(bx << 2 | (in & 3));
+  j = int(by << 2 | ((in >> 2) & 3));
+  k = int(bz << 2 | (in >> 4));
+  return contains(i, j, k);
+}
+
+WorkspaceGrid::WorkspaceGrid(const std::array<int, 3>& dims, const CellRule& rule)
+    : layout_(dims), rule_(rule) {
+  if (layout_.storage_size() >= (std::size_t(1) << 40))
+    throw std::invalid_argument("workspace grid too large");
+  logodds_.assign(layout_.storage_size(), 0.0f);
+  flags_.assign(layout_.storage_size(), CellFlag::Unknown);
+  rebuild_derived();
 }
 
 std::int64_t WorkspaceGrid::fixed_entropy_uncached(float logodds) const {
@@ -81,7 +83,7 @@ void WorkspaceGrid::set(std::int64_t idx, float logodds, CellFlag flag) {
   const CellFlag old_flag = flags_[i];
   const float old_l = logodds_[i];
   if (old_flag == flag && old_l == logodds) return;
-  const std::size_t brick = std::size_t(brick_of(idx));
+  const std::size_t brick = i >> 6;
   if (old_flag == CellFlag::Unknown) {
     --counts_.unknown;
     --brick_live_[brick];
@@ -113,7 +115,7 @@ void WorkspaceGrid::set(std::int64_t idx, float logodds, CellFlag flag) {
 }
 
 void WorkspaceGrid::assign(std::vector<float> logodds, std::vector<CellFlag> flags) {
-  if (logodds.size() != logodds_.size() || flags.size() != flags_.size())
+  if (logodds.size() != layout_.storage_size() || flags.size() != layout_.storage_size())
     throw std::invalid_argument("WorkspaceGrid::assign: wrong number of cells");
   logodds_ = std::move(logodds);
   flags_ = std::move(flags);
@@ -121,38 +123,45 @@ void WorkspaceGrid::assign(std::vector<float> logodds, std::vector<CellFlag> fla
 }
 
 void WorkspaceGrid::rebuild_derived() {
-  const std::size_t n = logodds_.size();
+  const std::size_t n = layout_.storage_size();
   scored_.resize(n);
+  brick_live_.assign(layout_.num_bricks(), 0);
   const float unknown = float(rule_.entropy(0.0f, CellFlag::Unknown));
-  // per-chunk fixed-point sums: integers, so the same total in any order and any thread count
-  const std::size_t grain = 1 << 16, nchunks = (n + grain - 1) / grain;
-  std::vector<__int128> sums(nchunks, 0);
-  parallel_chunks(nchunks, 1, [&](std::size_t cb, std::size_t ce) {
-    for (std::size_t c = cb; c < ce; ++c) {
+  // per brick: fixed-point sums (integers: the same total in any order and thread count)
+  const std::size_t nb = layout_.num_bricks();
+  std::vector<__int128> sums(nb, 0);
+  parallel_chunks(nb, 256, [&](std::size_t bb, std::size_t be) {
+    for (std::size_t brick = bb; brick < be; ++brick) {
       __int128 s = 0;
-      for (std::size_t i = c * grain, e = std::min(n, (c + 1) * grain); i < e; ++i) {
-        if (flags_[i] == CellFlag::Unknown) {
-          logodds_[i] = 0.0f;
-          scored_[i] = unknown;
+      int live_cells = 0;
+      for (std::size_t id = brick << 6, e = id + 64; id < e; ++id) {
+        int i, j, k;
+        if (!layout_.coords(id, i, j, k)) {  // padding: no cell
+          logodds_[id] = 0.0f;
+          flags_[id] = CellFlag::Unknown;
+          scored_[id] = 0.0f;
           continue;
         }
-        const std::int64_t fixed = fixed_entropy_uncached(logodds_[i]);
+        if (flags_[id] == CellFlag::Unknown) {
+          logodds_[id] = 0.0f;
+          scored_[id] = unknown;
+          ++live_cells;
+          continue;
+        }
+        const std::int64_t fixed = fixed_entropy_uncached(logodds_[id]);
         s += fixed;
+        const bool occ = logodds_[id] >= rule_.occupied_logodds;
         const float v = to_unit(fixed);
-        scored_[i] = logodds_[i] >= rule_.occupied_logodds ? -v : v;
+        scored_[id] = occ ? -v : v;
+        live_cells += live(fixed, flags_[id], occ);
       }
-      sums[c] = s;
+      sums[brick] = s;
+      brick_live_[brick] = std::uint8_t(live_cells);
     }
   });
   known_entropy_fixed_ = 0;
   for (const __int128 v : sums) known_entropy_fixed_ += v;
   counts_ = recompute_counts();
-  brick_live_.assign(std::size_t(brick_dims_[0]) * brick_dims_[1] * brick_dims_[2], 0);
-  for (std::size_t i = 0; i < n; ++i) {
-    const bool occ = std::signbit(scored_[i]);
-    if (flags_[i] == CellFlag::Unknown || live(scored_[i] == 0.0f ? 0 : 1, flags_[i], occ))
-      ++brick_live_[std::size_t(brick_of(std::int64_t(i)))];
-  }
 }
 
 double WorkspaceGrid::total_entropy() const {
@@ -162,7 +171,7 @@ double WorkspaceGrid::total_entropy() const {
 }
 
 double WorkspaceGrid::recompute_total_entropy() const {
-  const std::size_t n = logodds_.size();
+  const std::size_t n = layout_.storage_size();  // padding ids are unknown, 0 in the known sum
   const std::size_t grain = 1 << 16, nchunks = (n + grain - 1) / grain;
   std::vector<__int128> sums(nchunks, 0);
   parallel_chunks(nchunks, 1, [&](std::size_t cb, std::size_t ce) {
@@ -183,11 +192,10 @@ double WorkspaceGrid::recompute_total_entropy() const {
 
 CellCounts WorkspaceGrid::recompute_counts() const {
   CellCounts c;
+  c.unknown = layout_.num_cells();  // padding ids are never known
   for (std::size_t i = 0, n = logodds_.size(); i < n; ++i) {
-    if (flags_[i] == CellFlag::Unknown) {
-      ++c.unknown;
-      continue;
-    }
+    if (flags_[i] == CellFlag::Unknown) continue;
+    --c.unknown;
     (logodds_[i] >= rule_.occupied_logodds ? c.occupied : c.free) += 1;
     if (flags_[i] == CellFlag::Predicted) ++c.predicted;
   }

@@ -197,8 +197,13 @@ class Mission:
         cl = cfg.cloud
         self.camera_cloud = _core.SurfaceCloud(voxel_size=cl.camera_voxel, min_z=cl.min_z)
         self.laser_cloud = _core.SurfaceCloud(voxel_size=cl.laser_voxel, min_z=cl.min_z)
-        rx, ry = _core.view_ray_grid(c.hfov_deg, c.vfov_deg, c.max_range, m.resolution)
-        self.rays = (cfg.utility.rays_x or rx, cfg.utility.rays_y or ry)
+        vc = _core.ViewCameraModel.for_resolution(c.hfov_deg, c.vfov_deg, c.max_range, m.resolution)
+        self.view_camera = vc.copy(
+            rays_x=cfg.utility.rays_x or vc.rays_x,
+            rays_y=cfg.utility.rays_y or vc.rays_y,
+            mount=camera_mount,
+        )
+        self.rays = (self.view_camera.rays_x, self.view_camera.rays_y)
         self.c_view = viewable_cells(
             c.hfov_deg,
             c.vfov_deg,
@@ -319,7 +324,6 @@ class Mission:
             enabled=(s.method == "agvs"),
         )
         term = EntropyTermination(self.c_view, cfg.termination.threshold, cfg.termination.window)
-        c = cfg.camera
         entropy_prev = self.map.total_entropy()
         bar = _progress(cfg.max_iterations, cfg.progress)
         last_cov = {}
@@ -334,20 +338,19 @@ class Mission:
                     self.map,
                     cands,
                     pose,
-                    rays_x=self.rays[0],
-                    rays_y=self.rays[1],
-                    hfov_deg=c.hfov_deg,
-                    vfov_deg=c.vfov_deg,
-                    max_range=c.max_range,
-                    mount=self.camera.mount,
-                    utility=u.name,
-                    distance_lambda=u.distance_lambda,
-                    require_occupied=True,
-                    require_occupied_probability=u.require_occupied_probability or 0.0,
-                    collision_radius=v.collision_radius,
-                    bounds_min=self.workspace.nav_min,
-                    bounds_max=self.workspace.nav_max,
-                    check_segment=(v.blocked_path == "reject"),
+                    camera=self.view_camera,
+                    utility=dict(
+                        name=u.name,
+                        distance_lambda=u.distance_lambda,
+                        require_occupied=True,
+                        require_occupied_probability=u.require_occupied_probability or 0.0,
+                    ),
+                    validity=dict(
+                        collision_radius=v.collision_radius,
+                        bounds_min=self.workspace.nav_min,
+                        bounds_max=self.workspace.nav_max,
+                        blocked_path=v.blocked_path,
+                    ),
                 )
                 valid = np.flatnonzero(sc["status"] == 0)
                 chosen, path = None, None

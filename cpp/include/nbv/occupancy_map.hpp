@@ -169,7 +169,7 @@ class OccupancyMap {
   Eigen::VectorXd entropies(const PointsRef& points) const;
   Eigen::Matrix<bool, Eigen::Dynamic, 1> predicted(const PointsRef& points) const;
 
-  // ---- workspace totals and cells ------------------------------------------------------------
+  // ---- workspace totals and cells -------------------------------------------------------------
   /// Total workspace entropy in the map's unit, maintained incrementally: O(1).
   double total_entropy() const { return grid_.total_entropy(); }
   /// Same, recomputed by a sweep over the grid (equal to total_entropy() exactly).
@@ -202,15 +202,14 @@ class OccupancyMap {
            unsigned(int(key[1]) - int(min_key_[1])) < unsigned(d[1]) &&
            unsigned(int(key[2]) - int(min_key_[2])) < unsigned(d[2]);
   }
-  /// Flat grid index of a key, -1 outside the workspace.
+  /// The grid id of a key's cell (WorkspaceGrid's layout), -1 outside the workspace.
   std::int64_t index_of(const Key& key) const {
     if (!in_workspace(key)) return -1;
-    const auto& d = grid_.dims();
-    return std::int64_t(key[0] - min_key_[0]) +
-           std::int64_t(d[0]) * (std::int64_t(key[1] - min_key_[1]) +
-                                 std::int64_t(d[1]) * std::int64_t(key[2] - min_key_[2]));
+    return std::int64_t(grid_.layout().id(int(key[0]) - min_key_[0], int(key[1]) - min_key_[1],
+                                          int(key[2]) - min_key_[2]));
   }
-  Key key_at(std::int64_t index) const;
+  /// The key of a grid id (which must be a cell's, not padding).
+  Key key_at(std::int64_t id) const;
   /// Entropy in the map's unit of a cell with this log-odds and flag (the rule of the totals).
   double cell_entropy(float logodds, CellFlag flag) const {
     return grid_.rule().entropy(logodds, flag);

@@ -1,9 +1,15 @@
-// Next-best-view candidate evaluation: validity (bounds, collision sphere, flight segment),
-// information-gain utility by ray walks (3D-DDA) over the map's dense workspace mirror, and the
-// termination's count of viewable cells. Section 3.3-3.5 of the paper.
+// Next-best-view candidate evaluation (paper sec. 3.4 and the utilities of its peers): validity
+// (navigation bounds, collision sphere, flight segment) and a utility per candidate, all in one
+// call, by walking the camera's rays through the map's workspace grid (3D-DDA).
+//
+// A utility is a small policy (cpp/src/utilities/*.hpp) that sees every cell each ray enters,
+// in order, and says when the ray stops; cpp/src/utilities/registry.hpp lists them by name. See
+// UtilityOptions::name for the list and each header for the exact definition.
 #pragma once
 
 #include "nbv/common.hpp"
+#include "nbv/grid_view.hpp"
+#include "nbv/options.hpp"
 
 #include <cstdint>
 #include <string>
@@ -13,65 +19,81 @@ namespace nbv {
 
 class OccupancyMap;
 
-/// Read-only view of a dense, axis-aligned cell grid (the occupancy map's workspace mirror).
-/// Cell (i, j, k) covers origin + res * [i, i+1) x [j, j+1) x [k, k+1); its flat index is
-/// i + nx * (j + ny * k).
-struct DenseGridView {
-  double resolution = 0.2;
-  Eigen::Vector3d origin =
-      Eigen::Vector3d::Zero();  ///< world coordinate of cell (0,0,0)'s min corner
-  int nx = 0, ny = 0, nz = 0;
-  const float* logodds = nullptr;       ///< per cell log-odds; unknown cells must hold 0
-  const std::uint8_t* known = nullptr;  ///< per cell: 0 = unknown, else observed or predicted
-  const float* scored = nullptr;        ///< per cell entropy, negated when occupied (WorkspaceGrid)
-  float occupied_logodds = 0.405f;      ///< a known cell is occupied when logodds >= this
+/// The camera model used to score views: a pinhole grid of rays over the field of view.
+#define NBV_VIEW_CAMERA_OPTIONS(X)                                                        \
+  X(int, rays_x, 47,                                                                      \
+    "rays across the horizontal field of view (the authors: one per map cell on the far " \
+    "plane, 47 at 0.2 m; ViewCameraModel.for_resolution)")                                \
+  X(int, rays_y, 34, "rays across the vertical field of view (34 at 0.2 m)")              \
+  X(double, hfov_deg, 60.0, "horizontal field of view, degrees")                          \
+  X(double, vfov_deg, 45.0, "vertical field of view, degrees")                            \
+  X(double, max_range, 8.0, "depth limit along the optical axis, m")                      \
+  X(Eigen::Isometry3d, mount, Eigen::Isometry3d::Identity(),                              \
+    "T_body_sensor: the camera's fixed mount on the vehicle (4 x 4)")
 
-  std::size_t num_cells() const { return static_cast<std::size_t>(nx) * ny * nz; }
-  bool cell_of(const Eigen::Vector3d& p, Eigen::Vector3i& c) const;
-  std::size_t index(const Eigen::Vector3i& c) const {
-    return static_cast<std::size_t>(c.x()) +
-           static_cast<std::size_t>(nx) * (c.y() + static_cast<std::size_t>(ny) * c.z());
-  }
-  void validate() const;
-};
-
-/// The view of an occupancy map's workspace mirror (valid while the map is alive and unchanged).
-DenseGridView grid_view(const OccupancyMap& map);
-
-/// The camera model used to score views: a pinhole ray grid over the field of view.
 struct ViewCameraModel {
-  int rays_x = 47;  ///< rays across the horizontal FOV
-  int rays_y = 34;  ///< rays across the vertical FOV
-  double hfov_deg = 60.0;
-  double vfov_deg = 45.0;
-  double max_range = 8.0;                                   ///< depth along the optical axis, m
-  Eigen::Isometry3d mount = Eigen::Isometry3d::Identity();  ///< T_body_sensor
+  NBV_VIEW_CAMERA_OPTIONS(NBV_DECLARE_OPTION)
 
   /// Rays per map-resolution step on the far plane (the authors' choice: 47 x 34 at 0.2 m).
   static ViewCameraModel for_resolution(double hfov_deg, double vfov_deg, double max_range,
                                         double resolution);
-  /// (rays_x * rays_y, 3) unit directions in the sensor frame.
+  /// (rays_x * rays_y, 3) unit directions in the sensor frame (x forward).
   Points directions() const;
+  void validate() const;  ///< throws std::invalid_argument naming the bad field
+};
+
+#define NBV_UTILITY_OPTIONS(X)                                                                  \
+  X(std::string, name, "ig",                                                                    \
+    "ig (paper: entropy of the distinct cells the rays reach, each ray ending at the first "    \
+    "occupied cell) | ig_distance (ig * exp(-distance_lambda * d), the authors' option) | "     \
+    "occlusion_aware | unobserved_voxel | rear_side_voxel | rear_side_entropy | "               \
+    "proximity_count | average_entropy (Isler et al. 2016 / Delmerico et al. 2018) | "          \
+    "four_term (Almadhoun et al. 2019) | surface (expected new surface)")                       \
+  X(double, distance_lambda, 0.5,                                                               \
+    "1/m; ig_distance and four_term weigh the gain by exp(-distance_lambda * d), d the "        \
+    "straight distance to the view (authors: 0.5)")                                             \
+  X(bool, require_occupied, true,                                                               \
+    "a view must see an occupied cell: the first occupied cell of some ray (paper sec. 3.4.2)") \
+  X(double, require_occupied_probability, 0.0,                                                  \
+    "if > 0, that cell must also have p above it (authors: 0.8)")                               \
+  X(double, min_visibility, 1e-3,                                                               \
+    "occlusion-aware family: a ray stops when its visibility falls below this")                 \
+  X(double, frontier_prior, 0.5,                                                                \
+    "surface: probability that an unknown cell next to an occupied or predicted cell (6 "       \
+    "faces) holds surface")                                                                     \
+  X(double, unknown_prior, 0.005, "surface: the same for any other unknown cell")               \
+  X(double, coverage_cone_deg, 75.0,                                                            \
+    "surface, four_term: a cell seen by the camera from within this angle of a viewing "        \
+    "direction is covered for it")                                                              \
+  X(double, density_target, 50.0,                                                               \
+    "four_term: camera hits in a cell at which its density counts as full")                     \
+  X(double, weight_entropy, 1.0, "four_term: w_H, the weight of the normalised entropy")        \
+  X(double, weight_density, 1.0, "four_term: w_rho, the weight of the missing density")         \
+  X(double, weight_prediction, 1.0, "four_term: w_p, the weight of the predicted share")
+
+struct UtilityOptions {
+  NBV_UTILITY_OPTIONS(NBV_DECLARE_OPTION)
+  void validate() const;  ///< throws std::invalid_argument naming the bad field or utility
+};
+
+#define NBV_VALIDITY_OPTIONS(X)                                                              \
+  X(double, collision_radius, 0.8,                                                           \
+    "m: every cell within this distance of the view must be known and free")                 \
+  X(Eigen::Vector3d, bounds_min, Eigen::Vector3d::Constant(-1e300),                          \
+    "navigation bounds, lower corner (m)")                                                   \
+  X(Eigen::Vector3d, bounds_max, Eigen::Vector3d::Constant(1e300),                           \
+    "navigation bounds, upper corner (m)")                                                   \
+  X(std::string, blocked_path, "reject",                                                     \
+    "a view whose straight flight from the current pose crosses occupied or unknown space: " \
+    "'reject' it, or 'plan' (not checked here: the caller plans a path through known free "  \
+    "space)")
+
+struct ValidityOptions {
+  NBV_VALIDITY_OPTIONS(NBV_DECLARE_OPTION)
   void validate() const;
 };
 
-struct UtilityOptions {
-  enum class Kind { InformationGain, InformationGainDistance };
-  Kind kind = Kind::InformationGain;
-  double distance_lambda = 0.5;  ///< 1/m, for IG * exp(-lambda * distance)
-  /// The view must see a cell that stops a ray (occupied). If > 0, the seen cell must also have
-  /// p > this (the authors' 0.8). 0 = any occupied cell (paper).
-  double require_occupied_probability = 0.0;
-  bool require_occupied = true;
-};
-
-struct ValidityOptions {
-  double collision_radius = 0.8;                                   ///< m
-  Eigen::Vector3d bounds_min = Eigen::Vector3d::Constant(-1e300);  ///< navigation bounds
-  Eigen::Vector3d bounds_max = Eigen::Vector3d::Constant(1e300);
-  bool check_segment = true;  ///< the straight segment from the current pose must be clear
-};
-
+/// Why a candidate is not valid (0 = valid). The names are view_status_names().
 enum class ViewStatus : std::int8_t {
   Valid = 0,
   OutOfBounds = 1,
@@ -79,40 +101,39 @@ enum class ViewStatus : std::int8_t {
   PathBlocked = 3,     ///< the straight segment crosses occupied or unknown space
   SeesNoOccupied = 4,  ///< the paper's constraint: no occupied cell in view
 };
+/// "valid", "out_of_bounds", "collision", "path_blocked", "sees_no_occupied", by ViewStatus value.
+const std::vector<std::string>& view_status_names();
 
 struct ViewScores {
-  Eigen::VectorXd utility;        ///< (K,) utility; -inf where the view is not valid
-  Eigen::VectorXd gain;           ///< (K,) information gain (sum of entropies of visible cells)
-  Eigen::VectorXi cells_seen;     ///< (K,) distinct cells visited by the rays
-  Eigen::VectorXi occupied_seen;  ///< (K,) rays ending on an occupied cell
+  Eigen::VectorXd utility;        ///< (K,) the score to maximise; -inf where the view is invalid
+  Eigen::VectorXd gain;           ///< (K,) the utility's own value, before any distance weight
+  Eigen::VectorXi cells;          ///< (K,) distinct cells that added to the gain
+  Eigen::VectorXi occupied_seen;  ///< (K,) rays that reached an occupied cell
   Eigen::Matrix<std::int8_t, Eigen::Dynamic, 1> status;  ///< (K,) ViewStatus
 };
 
-/// True if every cell that intersects the sphere (center, radius) is known and not occupied.
-bool sphere_is_free(const DenseGridView& grid, const Eigen::Vector3d& center, double radius);
-/// True if spheres every resolution/2 along the segment a-b are all free.
-bool segment_is_free(const DenseGridView& grid, const Eigen::Vector3d& a, const Eigen::Vector3d& b,
-                     double radius);
-
 /// Scores K candidate vehicle poses (rows x, y, z, yaw) from the current pose in one call,
-/// in parallel over candidates. The gain of a view is the sum of the entropies of the distinct
-/// workspace cells its rays visit: each ray walks free, unknown and predicted-but-not-occupied
-/// cells from the sensor origin and stops at the first occupied cell (inclusive), at the depth
-/// limit, or where it leaves the workspace (nothing outside counts).
+/// in parallel over candidates. Rays are cast from the camera (pose * mount) over its field of
+/// view to max_range depth and walk the workspace grid; nothing outside the workspace counts.
+/// Utilities that read camera observations (surface, four_term) need grid.seen / grid.hits.
+/// Throws std::invalid_argument for non-finite candidates or bad options.
 ViewScores evaluate_views(
-    const DenseGridView& grid,
+    const GridView& grid,
     const Eigen::Ref<const Eigen::Matrix<double, Eigen::Dynamic, 4, Eigen::RowMajor>>& candidates,
     const Pose& current, const ViewCameraModel& camera, const UtilityOptions& utility,
     const ValidityOptions& validity);
 
-/// The same scores reading each cell through OctoMap's search (one tree descent per cell visit),
-/// as the authors' implementation did: the reference the mirror must agree with, and the
-/// benchmark baseline. Validity checks still use the mirror.
+/// The same scores reading each cell through OctoMap's search (one tree descent per cell
+/// visit), as the authors' implementation did: the reference the grid walk must agree with, and
+/// the benchmark baseline. Validity checks still use the grid.
 ViewScores evaluate_views_octree(
     const OccupancyMap& map,
     const Eigen::Ref<const Eigen::Matrix<double, Eigen::Dynamic, 4, Eigen::RowMajor>>& candidates,
     const Pose& current, const ViewCameraModel& camera, const UtilityOptions& utility,
     const ValidityOptions& validity);
+
+/// Names of the registered utilities.
+std::vector<std::string> utility_names();
 
 /// Number of map cells a camera frustum can observe (paper Eq. 5): V_frustum / V_cell, or with
 /// count_partial the expected number of cells the frustum touches, partial boundary cells
@@ -120,12 +141,5 @@ ViewScores evaluate_views_octree(
 /// (exact for a convex body and an axis-aligned cell, here for the frustum at zero yaw).
 double viewable_cells(double hfov_deg, double vfov_deg, double min_range, double max_range,
                       double resolution, bool count_partial);
-
-/// A* through known free space (26-connected cells whose collision sphere is free). Returns the
-/// waypoints from a to b (a first, b last) or an empty list if there is none within
-/// max_expansions. The path's length is the sum of its segments.
-std::vector<Eigen::Vector3d> plan_path(const DenseGridView& grid, const Eigen::Vector3d& a,
-                                       const Eigen::Vector3d& b, double radius,
-                                       std::size_t max_expansions = 200000);
 
 }  // namespace nbv

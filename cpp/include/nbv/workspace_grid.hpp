@@ -2,8 +2,11 @@
 // total entropy and the cell counts kept incrementally and exactly, and a per-brick summary that
 // lets ray walks skip empty space.
 //
-// Layout. Cell (i, j, k), i along x fastest, has the flat index i + nx * (j + ny * k). The grid
-// knows nothing of metres or OctoMap keys: OccupancyMap maps those onto it.
+// Layout (GridLayout). Cells are stored in bricks of 4 x 4 x 4 (x fastest within a brick and
+// between bricks), so that the cells a ray crosses share cache lines: cell (i, j, k) has the id
+// 64 * brick + (i & 3) + 4 (j & 3) + 16 (k & 3), brick = (i >> 2) + bx (j >> 2) + bx by (k >> 2).
+// The storage is padded to whole bricks; padding ids hold no cell. The grid knows nothing of
+// metres or OctoMap keys: OccupancyMap maps those onto it.
 //
 // Entropy. A cell's entropy follows its CellRule: binary entropy of p = sigmoid(logodds) in nats
 // or bits, unknown cells p = 0.5 (ln 2 nats, 1 bit), and with clamped_entropy_zero a cell at a
@@ -11,7 +14,7 @@
 // (exact integers: no drift, any order), so total_entropy() is O(1) and equals a full sweep
 // (recompute_total_entropy()) exactly.
 //
-// Bricks. The grid is tiled by bricks of 4 x 4 x 4 cells; each brick counts its "live" cells,
+// Bricks. Each brick counts its "live" cells,
 // i.e. cells that are not neutral. A neutral cell is an observed free cell of zero entropy (a
 // clamped free cell under clamped_entropy_zero): it neither stops a ray nor adds information, so
 // walks whose utility ignores such cells skip whole neutral bricks (brick_live == 0).
@@ -62,16 +65,43 @@ struct CellRule {
   double entropy(float logodds, CellFlag flag) const;
 };
 
+/// Where cell (i, j, k) of a dims[0] x dims[1] x dims[2] grid is stored (see the top).
+struct GridLayout {
+  static constexpr int kBrickShift = 2;  ///< bricks of 4 x 4 x 4 cells
+  std::array<int, 3> dims{0, 0, 0};      ///< cells per axis
+  std::array<int, 3> bricks{0, 0, 0};    ///< bricks per axis
+
+  GridLayout() = default;
+  explicit GridLayout(const std::array<int, 3>& dims);
+  std::size_t id(int i, int j, int k) const {
+    return (std::size_t(i >> 2) +
+            std::size_t(bricks[0]) *
+                (std::size_t(j >> 2) + std::size_t(bricks[1]) * std::size_t(k >> 2)))
+               << 6 |
+           std::size_t((i & 3) | (j & 3) << 2 | (k & 3) << 4);
+  }
+  /// The cell of an id; false for a padding id.
+  bool coords(std::size_t id, int& i, int& j, int& k) const;
+  bool contains(int i, int j, int k) const {
+    return unsigned(i) < unsigned(dims[0]) && unsigned(j) < unsigned(dims[1]) &&
+           unsigned(k) < unsigned(dims[2]);
+  }
+  std::int64_t num_cells() const { return std::int64_t(dims[0]) * dims[1] * dims[2]; }
+  std::size_t storage_size() const { return std::size_t(bricks[0]) * bricks[1] * bricks[2] * 64; }
+  std::size_t num_bricks() const { return std::size_t(bricks[0]) * bricks[1] * bricks[2]; }
+};
+
 class WorkspaceGrid {
  public:
-  static constexpr int kBrickShift = 2;  ///< bricks of 4 x 4 x 4 cells
+  static constexpr int kBrickShift = GridLayout::kBrickShift;
 
   WorkspaceGrid() = default;
   /// A grid of dims[0] x dims[1] x dims[2] unknown cells.
   WorkspaceGrid(const std::array<int, 3>& dims, const CellRule& rule);
 
-  const std::array<int, 3>& dims() const { return dims_; }
-  std::int64_t num_cells() const { return std::int64_t(logodds_.size()); }
+  const GridLayout& layout() const { return layout_; }
+  const std::array<int, 3>& dims() const { return layout_.dims; }
+  std::int64_t num_cells() const { return layout_.num_cells(); }
   const CellRule& rule() const { return rule_; }
 
   float logodds(std::int64_t i) const { return logodds_[std::size_t(i)]; }
@@ -83,9 +113,9 @@ class WorkspaceGrid {
   /// Entropy in the rule's unit (the float copy of the value the total sums).
   float entropy(std::int64_t i) const { return std::fabs(scored_[std::size_t(i)]); }
 
-  /// Sets one cell, keeping the totals, counts and brick summary in sync.
-  void set(std::int64_t i, float logodds, CellFlag flag);
-  /// Replaces every cell (e.g. from a map file); log-odds of unknown cells must be 0.
+  /// Sets cell `id`, keeping the totals, counts and brick summary in sync.
+  void set(std::int64_t id, float logodds, CellFlag flag);
+  /// Replaces every cell (e.g. from a map file): arrays by id, storage_size() long.
   void assign(std::vector<float> logodds, std::vector<CellFlag> flags);
 
   /// Total entropy in the rule's unit, O(1).
@@ -101,11 +131,8 @@ class WorkspaceGrid {
   /// Per cell: its entropy, negated when the cell is occupied (the sign bit marks occupancy,
   /// also for zero entropy: -0.0f). One read answers "stop here?" and "how much information?".
   const float* scored_data() const { return scored_.data(); }
-  /// Per brick: the number of live (not neutral) cells; brick (bi, bj, bk) has index
-  /// bi + bx * (bj + by * bk) with (bx, by, bz) = brick_dims().
+  /// Per brick (id >> 6): the number of live (not neutral) cells.
   const std::uint8_t* brick_live_data() const { return brick_live_.data(); }
-  const std::array<int, 3>& brick_dims() const { return brick_dims_; }
-  std::int64_t brick_of(std::int64_t i) const;
 
  private:
   std::int64_t fixed_entropy(float logodds);  // cached: cells take few distinct values
@@ -116,19 +143,7 @@ class WorkspaceGrid {
   }
   void rebuild_derived();  // scored_, counts, totals and bricks from logodds_ / flags_
 
-  /// Exact n / d for 32-bit n by one multiply (Lemire, Kaser, Kurz 2019): set() runs per cell.
-  struct Divider {
-    std::uint64_t m = 0;  // 0: d == 1
-    Divider() = default;
-    explicit Divider(std::uint32_t d) : m(d == 1 ? 0 : ~std::uint64_t(0) / d + 1) {}
-    std::uint32_t operator()(std::uint32_t n) const {
-      return m ? std::uint32_t((static_cast<unsigned __int128>(m) * n) >> 64) : n;
-    }
-  };
-  Divider div_nx_, div_ny_;
-
-  std::array<int, 3> dims_{0, 0, 0};
-  std::array<int, 3> brick_dims_{0, 0, 0};
+  GridLayout layout_;
   CellRule rule_;
   std::vector<float> logodds_;
   std::vector<CellFlag> flags_;

@@ -1,0 +1,161 @@
+// A read-only view of an occupancy map's workspace grid for the ray-walking kernels (view
+// scoring, coverage sets, surface targets), and the 3D-DDA ray walk they share.
+#pragma once
+
+#include "nbv/common.hpp"
+#include "nbv/workspace_grid.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <cstddef>
+#include <cstdint>
+#include <limits>
+
+namespace nbv {
+
+class OccupancyMap;
+class SurfaceObservations;
+
+/// Cell (i, j, k) covers origin + res * [i, i+1) x [j, j+1) x [k, k+1); its arrays' index is
+/// layout.id(i, j, k) (WorkspaceGrid's brick layout). Valid while the map is alive and unchanged.
+struct GridView {
+  double resolution = 0.2;
+  Eigen::Vector3d origin = Eigen::Vector3d::Zero();  ///< world coordinate of cell (0, 0, 0)'s corner
+  int nx = 0, ny = 0, nz = 0;
+  GridLayout layout;
+  const float* scored = nullptr;    ///< per cell: entropy, negated when occupied (WorkspaceGrid)
+  const float* logodds = nullptr;   ///< per cell log-odds (0 for unknown cells)
+  const CellFlag* flags = nullptr;  ///< per cell: unknown / observed / predicted
+  const std::uint8_t* brick_live = nullptr;  ///< per brick (id >> 6): live (not neutral) cells
+  float unknown_entropy = 0.6931472f;        ///< an unknown cell's (the largest) entropy
+  /// Camera observations (SurfaceObservations), or null: per cell the bitmask of the 26
+  /// direction bins it has been seen from, and the number of camera hits in it.
+  const std::uint32_t* seen = nullptr;
+  const std::uint16_t* hits = nullptr;
+
+  /// Size of the per-cell arrays (padded to whole bricks).
+  std::size_t storage_size() const { return layout.storage_size(); }
+  std::size_t index(int i, int j, int k) const { return layout.id(i, j, k); }
+  std::size_t index(const Eigen::Vector3i& c) const { return index(c.x(), c.y(), c.z()); }
+  bool contains(int i, int j, int k) const {
+    return unsigned(i) < unsigned(nx) && unsigned(j) < unsigned(ny) && unsigned(k) < unsigned(nz);
+  }
+  /// The cell holding p; false when p is outside the grid.
+  bool cell_of(const Eigen::Vector3d& p, Eigen::Vector3i& c) const;
+  Eigen::Vector3d center(int i, int j, int k) const {
+    return origin + (Eigen::Vector3d(i, j, k).array() + 0.5).matrix() * resolution;
+  }
+  bool brick_is_live(std::size_t idx) const { return brick_live[idx >> 6] != 0; }
+  bool occupied(std::size_t idx) const { return std::signbit(scored[idx]); }
+  /// Throws std::invalid_argument when the view is incomplete.
+  void validate() const;
+};
+
+/// The view of a map's grid, with camera observations when `surface` is given (it must have
+/// been made for the same map geometry; std::invalid_argument otherwise).
+GridView grid_view(const OccupancyMap& map, const SurfaceObservations* surface = nullptr);
+
+/// Amanatides & Woo 3D-DDA over the grid from o along the unit vector d for t in [0, t_max]
+/// (metres), clipped to the grid box. visit(flat_index, cell[3], t_enter) returns false to stop.
+/// With kSkipNeutral, cells of bricks without live cells are stepped over without a visit (for
+/// walks to which neutral cells - observed free cells of zero entropy - contribute nothing and
+/// which they never stop). The cells visited, and their order, do not depend on kSkipNeutral
+/// otherwise.
+template <bool kSkipNeutral, typename Visit>
+void walk_ray(const GridView& g, const Eigen::Vector3d& o, const Eigen::Vector3d& d, double t_max,
+              Visit&& visit) {
+  constexpr double kInf = std::numeric_limits<double>::infinity();
+  const Eigen::Vector3d pos = (o - g.origin) / g.resolution;  // grid units
+  const double tend_g = t_max / g.resolution;
+  const int n[3] = {g.nx, g.ny, g.nz};
+  double t0 = 0.0, t1 = tend_g;
+  for (int a = 0; a < 3; ++a) {  // clip to the grid box [0, n]
+    if (d[a] == 0.0) {
+      if (pos[a] < 0.0 || pos[a] >= n[a]) return;
+      continue;
+    }
+    double ta = (0.0 - pos[a]) / d[a], tb = (n[a] - pos[a]) / d[a];
+    if (ta > tb) std::swap(ta, tb);
+    t0 = std::max(t0, ta);
+    t1 = std::min(t1, tb);
+  }
+  if (t0 > t1) return;
+  const Eigen::Vector3d p0 = pos + t0 * d;
+  // Per axis: cell, step, parameter of the next boundary and between boundaries, kept in
+  // scalars; the axis to step is chosen without branches (ties as in the classic form: x only if
+  // strictly first, else y if strictly before z, else z).
+  int c0 = std::clamp(static_cast<int>(std::floor(p0[0])), 0, n[0] - 1);
+  int c1 = std::clamp(static_cast<int>(std::floor(p0[1])), 0, n[1] - 1);
+  int c2 = std::clamp(static_cast<int>(std::floor(p0[2])), 0, n[2] - 1);
+  auto setup = [&](int a, int c, int& step, double& t_next, double& t_delta) {
+    if (d[a] > 0) {
+      step = 1;
+      t_delta = 1.0 / d[a];
+      t_next = (c + 1 - pos[a]) / d[a];
+    } else if (d[a] < 0) {
+      step = -1;
+      t_delta = -1.0 / d[a];
+      t_next = (c - pos[a]) / d[a];
+    } else {
+      step = 0;
+      t_delta = kInf;
+      t_next = kInf;
+    }
+  };
+  int s0, s1, s2;
+  double tn0, tn1, tn2, td0, td1, td2;
+  setup(0, c0, s0, tn0, td0);
+  setup(1, c1, s1, tn1, td1);
+  setup(2, c2, s2, tn2, td2);
+  // The cell id follows the steps: within a brick +-1 / +-4 / +-16, across a brick boundary
+  // +-(brick stride - 3 * in-brick stride).
+  const std::int64_t bstride[3] = {64, 64 * std::int64_t(g.layout.bricks[0]),
+                                   64 * std::int64_t(g.layout.bricks[0]) * g.layout.bricks[1]};
+  const std::int64_t istride[3] = {1, 4, 16};
+  const int steps[3] = {s0, s1, s2};
+  std::int64_t d_in[3], d_cross[3];
+  int edge[3];
+  for (int a = 0; a < 3; ++a) {
+    d_in[a] = steps[a] * istride[a];
+    d_cross[a] = steps[a] * (bstride[a] - 3 * istride[a]);
+    edge[a] = steps[a] > 0 ? 3 : 0;
+  }
+  std::int64_t id = std::int64_t(g.layout.id(c0, c1, c2));
+  double t_enter = t0;
+  for (;;) {
+    const std::size_t idx = std::size_t(id);
+    if (!kSkipNeutral || g.brick_is_live(idx)) {
+      const int c[3] = {c0, c1, c2};
+      if (!visit(idx, c, t_enter * g.resolution)) return;
+    }
+    const double t_cross = std::min(std::min(tn0, tn1), tn2);  // the chosen axis's boundary
+    if (t_cross > t1) return;
+    t_enter = t_cross;
+    if ((tn0 < tn1) & (tn0 < tn2)) {
+      id += (c0 & 3) == edge[0] ? d_cross[0] : d_in[0];
+      c0 += s0;
+      tn0 += td0;
+      if (unsigned(c0) >= unsigned(n[0])) return;
+    } else if (tn1 < tn2) {
+      id += (c1 & 3) == edge[1] ? d_cross[1] : d_in[1];
+      c1 += s1;
+      tn1 += td1;
+      if (unsigned(c1) >= unsigned(n[1])) return;
+    } else {
+      id += (c2 & 3) == edge[2] ? d_cross[2] : d_in[2];
+      c2 += s2;
+      tn2 += td2;
+      if (unsigned(c2) >= unsigned(n[2])) return;
+    }
+  }
+}
+
+/// The 26 direction bins of camera observations: the unit vectors of (i, j, k) in {-1, 0, 1}^3
+/// minus the zero vector, bin b = (i+1) + 3 (j+1) + 9 (k+1), skipping 13.
+int direction_bin(const Eigen::Vector3d& d);
+/// Unit vector of bin b.
+Eigen::Vector3d bin_direction(int b);
+/// Bitmask of the bins whose direction is within `cone_deg` of bin b's (b included).
+std::uint32_t bin_cone(int b, double cone_deg);
+
+}  // namespace nbv

@@ -1,0 +1,58 @@
+// What the camera has seen of each workspace cell: the directions it was seen from and how many
+// camera hits fell in it. The surface utilities and the surface targets read it to tell surface
+// that has been observed densely, and from which side, from surface that has not.
+//
+// Directions are the 26 bins of grid_view.hpp's direction_bin (the unit vectors of the cube's
+// faces, edges and corners): a hit in cell c seen from sensor origin o marks c as seen from the
+// bin of (o - hit). A cell is "covered" for a viewing direction d when it has been seen from a
+// bin within a cone around d (UtilityOptions::coverage_cone_deg): the two faces of a thin plate,
+// 180 degrees apart, are covered separately; the same face seen again from nearby is not new.
+#pragma once
+
+#include "nbv/common.hpp"
+#include "nbv/workspace_grid.hpp"
+
+#include <array>
+#include <cstdint>
+#include <vector>
+
+namespace nbv {
+
+class OccupancyMap;
+
+class SurfaceObservations {
+ public:
+  /// An empty record over `map`'s workspace grid (same cells, same keys as the map).
+  explicit SurfaceObservations(const OccupancyMap& map);
+
+  /// Records one camera scan: hits (N, 3) world-frame points seen from `origin`. Hits outside
+  /// the workspace are ignored. Parallel; throws std::invalid_argument for non-finite input.
+  /// Returns the number of cells that gained a direction bin.
+  std::size_t add_scan(const Eigen::Vector3d& origin, const PointsRef& hits);
+  /// Forgets everything.
+  void clear();
+
+  /// Bitmask of the direction bins cell `i` (a grid id) has been seen from (0: never seen).
+  std::uint32_t seen(std::int64_t i) const { return seen_[std::size_t(i)]; }
+  /// Camera hits that fell in cell i (saturating at 65535).
+  std::uint16_t hits(std::int64_t i) const { return hits_[std::size_t(i)]; }
+  const std::uint32_t* seen_data() const { return seen_.data(); }
+  const std::uint16_t* hits_data() const { return hits_.data(); }
+  /// Cells seen from at least one direction.
+  std::int64_t seen_cells() const;
+
+  const std::array<int, 3>& dims() const { return dims_; }
+  const GridLayout& layout() const { return layout_; }
+  /// True if this record was made for a map of the same workspace grid.
+  bool matches(const OccupancyMap& map) const;
+
+ private:
+  double res_;
+  std::array<int, 3> min_key_;  // OctoMap key of cell (0, 0, 0)
+  std::array<int, 3> dims_;
+  GridLayout layout_;
+  std::vector<std::uint32_t> seen_;
+  std::vector<std::uint16_t> hits_;
+};
+
+}  // namespace nbv

@@ -1,0 +1,98 @@
+#include "nbv/surface_observations.hpp"
+
+#include "nbv/grid_view.hpp"
+#include "nbv/occupancy_map.hpp"
+#include "nbv/parallel.hpp"
+
+#include <atomic>
+#include <cmath>
+#include <stdexcept>
+
+namespace nbv {
+
+SurfaceObservations::SurfaceObservations(const OccupancyMap& map)
+    : res_(map.resolution()),
+      min_key_{map.min_key()[0], map.min_key()[1], map.min_key()[2]},
+      dims_(map.dims()),
+      layout_(map.grid().layout()),
+      seen_(layout_.storage_size(), 0u),
+      hits_(layout_.storage_size(), 0u) {}
+
+bool SurfaceObservations::matches(const OccupancyMap& map) const {
+  return map.resolution() == res_ && map.dims() == dims_ && map.min_key()[0] == min_key_[0] &&
+         map.min_key()[1] == min_key_[1] && map.min_key()[2] == min_key_[2];
+}
+
+void SurfaceObservations::clear() {
+  std::fill(seen_.begin(), seen_.end(), 0u);
+  std::fill(hits_.begin(), hits_.end(), std::uint16_t(0));
+}
+
+std::int64_t SurfaceObservations::seen_cells() const {
+  std::int64_t n = 0;
+  for (const std::uint32_t s : seen_) n += s != 0;
+  return n;
+}
+
+std::size_t SurfaceObservations::add_scan(const Eigen::Vector3d& origin, const PointsRef& hits) {
+  if (!origin.allFinite()) throw std::invalid_argument("scan origin contains NaN or infinite values");
+  require_finite(hits, "hit points");
+  const std::size_t n = std::size_t(hits.rows());
+  const double rf = 1.0 / res_;  // the map's keys: OctoMap's floor(c / res) of float32 points
+  std::atomic<std::size_t> gained{0};
+  const std::size_t chunk = 8192;
+  parallel_chunks((n + chunk - 1) / chunk, 1, [&](std::size_t cb, std::size_t ce) {
+    std::size_t local_gained = 0;
+    for (std::size_t c = cb; c < ce; ++c) {
+      // consecutive hits (neighbouring pixels) mostly share a cell and a bin: flush per run
+      std::int64_t run_cell = -1;
+      std::uint32_t run_bits = 0, run_hits = 0;
+      auto flush = [&] {
+        if (run_cell < 0) return;
+        std::uint32_t* s = &seen_[std::size_t(run_cell)];
+        if ((__atomic_load_n(s, __ATOMIC_RELAXED) & run_bits) != run_bits &&
+            (__atomic_fetch_or(s, run_bits, __ATOMIC_RELAXED) & run_bits) != run_bits)
+          ++local_gained;
+        std::uint16_t* h = &hits_[std::size_t(run_cell)];
+        std::uint16_t cur = __atomic_load_n(h, __ATOMIC_RELAXED);
+        while (cur != 65535) {
+          const std::uint16_t next = std::uint16_t(std::min<std::uint32_t>(65535u, cur + run_hits));
+          if (__atomic_compare_exchange_n(h, &cur, next, false, __ATOMIC_RELAXED, __ATOMIC_RELAXED))
+            break;
+        }
+      };
+      for (std::size_t r = c * chunk, e = std::min(n, (c + 1) * chunk); r < e; ++r) {
+        const Eigen::Index row = Eigen::Index(r);
+        int k[3];
+        bool inside = true;
+        for (int a = 0; a < 3; ++a) {
+          const double t = rf * double(float(hits(row, a)));
+          const double f = std::floor(t);
+          if (!(std::fabs(f) < 1e9)) {
+            inside = false;
+            break;
+          }
+          k[a] = int(f) + 32768 - min_key_[a];
+          inside &= unsigned(k[a]) < unsigned(dims_[a]);
+        }
+        if (!inside) continue;
+        const std::int64_t cell = std::int64_t(layout_.id(k[0], k[1], k[2]));
+        const Eigen::Vector3d to_sensor = origin - hits.row(row).transpose();
+        const std::uint32_t bit = std::uint32_t(1) << direction_bin(to_sensor);
+        if (cell != run_cell) {
+          flush();
+          run_cell = cell;
+          run_bits = 0;
+          run_hits = 0;
+        }
+        run_bits |= bit;
+        ++run_hits;
+      }
+      flush();
+    }
+    gained += local_gained;
+  });
+  return gained.load();
+}
+
+}  // namespace nbv

@@ -1,0 +1,59 @@
+// Expected new surface (nbvkit's surface utility): how much surface the view would be the first
+// to observe from its side, the quantity dense coverage is made of.
+//
+// Per ray, walking from the camera: an observed occupied cell is surface; it counts P_vis if the
+// camera has not yet seen it from within coverage_cone_deg of this ray's direction (from the
+// same side), and ends the ray. A predicted cell (symmetry) is surface with its predicted
+// probability p: it counts P_vis * p and lets P_vis * (1 - p) through. An unknown cell holds
+// surface with a prior - frontier_prior when a face neighbour is occupied or predicted (the
+// surface goes on into the unknown), unknown_prior elsewhere - and counts and passes on the
+// same way. Free cells pass. Each cell counts once per view (for the first ray that credits
+// it); rays end below min_visibility. The result is in cells of new surface: roughly the area
+// the view would add, in units of resolution^2. Needs the camera observations.
+#pragma once
+
+#include "utility.hpp"
+
+namespace nbv::utility {
+
+struct Surface {
+  static constexpr bool kSkipNeutral = true;  // neutral cells are free: they pass, add nothing
+  static constexpr bool kNeedsSurface = true;
+  explicit Surface(ViewContext& ctx) : ctx_(ctx) {}
+  void begin_ray(const Eigen::Vector3d& d) {
+    vis_ = 1.0;
+    cone_ = ctx_.cones[direction_bin(-d)];
+  }
+  template <class Cells>
+  bool visit(const Cells& cells, std::size_t idx, const int* c, double, float scored) {
+    const CellFlag flag = cells.flag(idx, c);
+    if (flag == CellFlag::Observed) {
+      if (!std::signbit(scored)) return true;  // free
+      if ((ctx_.grid.seen[idx] & cone_) == 0 && ctx_.visited.insert(idx)) credit(1.0);
+      return false;
+    }
+    double p;
+    if (flag == CellFlag::Predicted)
+      p = sigmoid(cells.logodds(idx, c));
+    else
+      p = next_to_surface(ctx_.grid, cells, c) ? ctx_.options.frontier_prior
+                                               : ctx_.options.unknown_prior;
+    if (ctx_.visited.insert(idx)) credit(p);
+    vis_ *= 1.0 - p;
+    return vis_ >= ctx_.options.min_visibility;
+  }
+  double gain() const { return gain_; }
+  int cells() const { return cells_; }
+
+ private:
+  void credit(double p) {
+    gain_ += vis_ * p;
+    ++cells_;
+  }
+  ViewContext& ctx_;
+  std::uint32_t cone_ = 0;
+  double vis_ = 1.0, gain_ = 0.0;
+  int cells_ = 0;
+};
+
+}  // namespace nbv::utility

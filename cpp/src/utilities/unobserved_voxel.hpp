@@ -1,0 +1,31 @@
+// Unobserved voxel (Delmerico et al. 2018): per ray, the expected number of unknown cells it
+// sees, sum of P_vis over the unknown cells it enters (P_vis as in occlusion_aware.hpp).
+#pragma once
+
+#include "utility.hpp"
+
+namespace nbv::utility {
+
+struct UnobservedVoxel {
+  static constexpr bool kSkipNeutral = false;
+  static constexpr bool kNeedsSurface = false;
+  explicit UnobservedVoxel(ViewContext& ctx) : min_vis_(ctx.options.min_visibility) {}
+  void begin_ray(const Eigen::Vector3d&) { vis_ = 1.0; }
+  template <class Cells>
+  bool visit(const Cells& cells, std::size_t idx, const int* c, double, float) {
+    if (cells.flag(idx, c) == CellFlag::Unknown) {
+      gain_ += vis_;
+      ++cells_;
+    }
+    vis_ *= 1.0 - occupancy(cells, idx, c);
+    return vis_ >= min_vis_;
+  }
+  double gain() const { return gain_; }
+  int cells() const { return cells_; }
+
+ private:
+  double min_vis_, vis_ = 1.0, gain_ = 0.0;
+  int cells_ = 0;
+};
+
+}  // namespace nbv::utility
