@@ -6,8 +6,8 @@ import math
 import pytest
 import yaml
 
-import nbvkit
 from nbvkit import _core
+from nbvkit import config as cfgmod
 from nbvkit.config import Config, load_config
 
 ROOT = __import__("pathlib").Path(__file__).resolve().parent.parent
@@ -28,17 +28,6 @@ def test_python_defaults_equal_cpp_defaults():
     np.testing.assert_allclose(
         _core.mount_transform(c.camera.mount_xyz, *c.camera.mount_rpy_deg), cam.mount
     )
-    mo = nbvkit.OccupancyMapOptions()
-    for k in (
-        "prob_hit",
-        "prob_miss",
-        "clamp_min",
-        "clamp_max",
-        "occupancy_threshold",
-        "clamped_entropy_zero",
-    ):
-        assert getattr(c.map, k) == pytest.approx(getattr(mo, k)), k
-    assert c.map.entropy_unit == mo.to_dict()["entropy_unit"]
     cl = _core.SurfaceCloudOptions()
     assert c.cloud.min_z == pytest.approx(cl.min_z)
     vc = _core.ViewCameraModel.for_resolution(
@@ -47,8 +36,49 @@ def test_python_defaults_equal_cpp_defaults():
     assert (vc.rays_x, vc.rays_y) == (47, 34)
 
 
+@pytest.mark.parametrize(
+    "section", [cfgmod.MapConfig, cfgmod.UtilityConfig, cfgmod.VehicleConfig, cfgmod.TargetsConfig]
+)
+def test_sections_of_cpp_options_take_their_keys_defaults_and_docs_from_cpp(section):
+    import numpy as np
+
+    opts, mine = section.OPTIONS(), section()
+    docs = section.OPTIONS.fields()
+    assert section.CPP_FIELDS and set(section.CPP_FIELDS) <= set(docs)
+    for k in section.CPP_FIELDS:
+        np.testing.assert_equal(np.asarray(getattr(mine, k)), np.asarray(getattr(opts, k)), k)
+        assert section.FIELD_DOCS[k] == docs[k]
+    assert mine.options() == opts  # the section builds the very same C++ options
+
+
+def test_every_bound_options_class_is_configurable_or_known_internal():
+    mirrored = {
+        s.OPTIONS.__name__
+        for s in (
+            cfgmod.MapConfig,
+            cfgmod.UtilityConfig,
+            cfgmod.VehicleConfig,
+            cfgmod.TargetsConfig,
+        )
+    }
+    # set through their own config sections (sensors, clouds, symmetry) or by the mission
+    # from other keys (the scoring camera from camera + map.resolution + utility.rays_*)
+    elsewhere = {
+        "DepthCameraOptions",
+        "LaserScannerOptions",
+        "SurfaceCloudOptions",
+        "SymmetryOptions",
+        "SymmetricPredictionOptions",
+        "ViewCameraModel",
+        "RaycastOptions",
+        "EvaluationOptions",
+    }
+    bound = {n for n in dir(_core) if n.endswith("Options") or n == "ViewCameraModel"}
+    assert bound - mirrored - elsewhere == set()
+
+
 def test_paper_values():
-    c = Config()
+    c = Config().with_overrides(["scenario=5"])
     assert (c.sampling.delta_d, c.sampling.delta_theta, c.sampling.sigma, c.sampling.alpha_max) == (
         1.0,
         math.pi / 4,
@@ -58,7 +88,10 @@ def test_paper_values():
     assert (c.sampling.stuck_threshold, c.sampling.stuck_window) == (0.005, 3)
     assert (c.termination.threshold, c.termination.window) == (0.001, 5)
     assert c.vehicle.collision_radius == 0.8 and c.symmetry.prediction_probability == 0.6
-    assert c.profiling.waypoints == 5
+    assert c.profiling.waypoints == 5 and c.profiling.close_circle and c.profiling.return_to_start
+    assert c.utility.name == "ig" and c.utility.require_occupied
+    assert c.planner.generators == ("lattice",) and c.planner.terminations == ("entropy",)
+    assert (c.workspace.margin_xy, c.workspace.margin_z) == (2.5, 2.5)
 
 
 def test_shipped_yaml_is_the_default_and_round_trips(tmp_path):

@@ -114,7 +114,11 @@ def test_max_range_cuts_rays_like_octomap():
 
 
 def test_cells_outside_workspace_live_in_octree_but_not_in_totals():
-    m = OccupancyMap(0.2, (0, 0, 0), (2, 2, 2))
+    clipped = OccupancyMap(0.2, (0, 0, 0), (2, 2, 2))  # the default: the workspace only
+    clipped.integrate((1.1, 1.1, 1.1), [[5.1, 1.1, 1.1]])
+    assert clipped.state([4.1, 1.1, 1.1]) == CellState.UNKNOWN
+    assert clipped.counts() == {**clipped.counts(), "free": 5}
+    m = OccupancyMap(0.2, (0, 0, 0), (2, 2, 2), clip_to_workspace=False)
     n = m.num_cells
     assert n == 1000
     m.integrate((1.1, 1.1, 1.1), [[5.1, 1.1, 1.1]])  # leaves the workspace at x = 2

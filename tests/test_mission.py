@@ -25,9 +25,9 @@ def cfg(*extra):
     return Config().with_overrides(FAST + list(extra))
 
 
-def test_default_workspace_is_the_papers_for_the_airliner():
+def test_the_paper_scenarios_workspace_is_the_papers_for_the_airliner():
     mesh = nbvkit.load_mesh(nbvkit.default_mesh_path())
-    ws = make_workspace(mesh.bounds, Config())
+    ws = make_workspace(mesh.bounds, Config().with_overrides(["scenario=5"]))
     np.testing.assert_allclose(ws.size, [40.0, 40.0, 10.0], atol=0.1)
     assert ws.bounds_min[2] == 0.0
     starts = start_poses(ws)

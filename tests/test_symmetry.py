@@ -491,8 +491,9 @@ def test_config_defaults_equal_the_cpp_defaults():
         assert value == getattr(det, key), key
     for key, value in popts.items():
         assert value == (True if key == "icp" else getattr(pre, key)), key
-    # every config field reaches one of the two calls
-    used = {"prediction_probability", "icp_voxel_size"} | set(dopts) | set(popts)
+    # every config field reaches one of the two calls (mode and refresh_every: the mission's)
+    used = {"prediction_probability", "icp_voxel_size", "mode", "refresh_every"}
+    used |= set(dopts) | set(popts)
     assert {f.name for f in fields(SymmetryConfig)} == used
     with pytest.raises(ValueError):
         Config.from_dict({"symmetry": {"keypoints": "harris"}})

@@ -29,6 +29,10 @@ PointsArg points_arg(const py::handle& obj, const char* what, bool allow_nonfini
 /// Converts a 4x4 array-like to a rigid transform (ValueError naming `what` if it is not one).
 Eigen::Isometry3d transform_arg(const py::handle& obj, const char* what);
 
+/// Converts 3 numbers ((3,) or (1, 3)) to a point (ValueError naming `what` if not 3 finite
+/// numbers).
+Eigen::Vector3d vec3_arg(const py::handle& obj, const char* what);
+
 /// Converts (x, y, z, yaw) to a Pose (ValueError naming `what` if not 4 finite numbers).
 Pose pose_arg(const py::handle& obj, const char* what);
 
@@ -40,5 +44,6 @@ void init_cloud(py::module_& m);
 void init_evaluation(py::module_& m);
 void init_views(py::module_& m);
 void init_symmetry(py::module_& m);
+void init_planning(py::module_& m);
 
 }  // namespace nbv::bind

@@ -47,6 +47,20 @@ Pose pose_arg(const py::handle& obj, const char* what) {
   return Pose{d[0], d[1], d[2], d[3]};
 }
 
+Eigen::Vector3d vec3_arg(const py::handle& obj, const char* what) {
+  py::array_t<double, py::array::c_style | py::array::forcecast> a;
+  try {
+    a = py::array_t<double, py::array::c_style | py::array::forcecast>::ensure(obj);
+  } catch (const py::error_already_set&) {
+    a = {};
+  }
+  if (!a || a.size() != 3 || (a.ndim() != 1 && !(a.ndim() == 2 && a.shape(0) == 1)))
+    throw py::value_error(std::string(what) + " must be 3 numbers (x, y, z)");
+  Eigen::Vector3d v(a.data()[0], a.data()[1], a.data()[2]);
+  if (!v.allFinite()) throw py::value_error(std::string(what) + " contains NaN or infinite values");
+  return v;
+}
+
 void init_common(py::module_& m) {
   py::register_exception_translator([](std::exception_ptr p) {
     try {

@@ -1,6 +1,7 @@
 // Bindings of nbv::OccupancyMap (nbvkit.OccupancyMap) and its options.
 #include "bindings.hpp"
 #include "nbv/occupancy_map.hpp"
+#include "options.hpp"
 
 #include <cmath>
 #include <cstring>
@@ -58,55 +59,16 @@ py::array_t<T> shaped(const std::vector<py::ssize_t>& lead, const T* data, std::
   return out;
 }
 
-Eigen::Vector3d vec3_arg(const py::handle& obj, const char* what) {
-  CArray a;
-  try {
-    a = CArray::ensure(obj);
-  } catch (const py::error_already_set&) {
-    a = {};
-  }
-  if (!a || a.size() != 3 || (a.ndim() != 1 && !(a.ndim() == 2 && a.shape(0) == 1)))
-    throw py::value_error(std::string(what) + " must be 3 numbers (x, y, z)");
-  Eigen::Vector3d v(a.data()[0], a.data()[1], a.data()[2]);
-  if (!v.allFinite()) throw py::value_error(std::string(what) + " contains NaN or infinite values");
-  return v;
-}
-
 std::string path_arg(const py::handle& obj) {
   py::object p = py::module_::import("os").attr("fspath")(obj);
   if (!py::isinstance<py::str>(p)) throw py::type_error("path must be a str or os.PathLike of str");
   return p.cast<std::string>();
 }
 
-const char* unit_name(EntropyUnit u) { return u == EntropyUnit::Bits ? "bits" : "nats"; }
-
-EntropyUnit unit_from(const std::string& s) {
-  if (s == "nats" || s == "nat") return EntropyUnit::Nats;
-  if (s == "bits" || s == "bit") return EntropyUnit::Bits;
-  throw py::value_error("entropy_unit must be 'nats' or 'bits', got '" + s + "'");
-}
-
 /// options (None, an OccupancyMapOptions or a dict) with keyword overrides applied by name.
 OccupancyMapOptions options_arg(const py::object& options, const py::kwargs& overrides) {
-  py::object opts = py::cast(OccupancyMapOptions{});
-  py::dict fields;
-  if (py::isinstance<OccupancyMapOptions>(options)) {
-    opts = py::cast(options.cast<OccupancyMapOptions>());
-  } else if (py::isinstance<py::dict>(options)) {
-    fields = options.cast<py::dict>();
-  } else if (!options.is_none()) {
-    throw py::type_error("options must be an nbvkit.OccupancyMapOptions, a dict or None");
-  }
-  for (auto src : {fields, py::dict(overrides)}) {
-    for (auto item : src) {
-      const std::string name = py::str(item.first);
-      if (name.empty() || name[0] == '_' || !py::hasattr(opts, name.c_str()))
-        throw py::type_error("unknown occupancy map option '" + name + "'");
-      opts.attr(name.c_str()) = item.second;
-    }
-  }
-  OccupancyMapOptions o = opts.cast<OccupancyMapOptions>();
-  o.validate();
+  OccupancyMapOptions o = OptionsClass<OccupancyMapOptions>::from(options, "options");
+  if (py::len(overrides)) o = py::cast(o).attr("copy")(**overrides).cast<OccupancyMapOptions>();
   return o;
 }
 
@@ -181,83 +143,14 @@ Returns an IntegrationStats. Releases the GIL.)doc";
 }  // namespace
 
 void init_map(py::module_& m) {
-  const OccupancyMapOptions d;
-  py::class_<OccupancyMapOptions>(m, "OccupancyMapOptions", R"doc(
+  {
+    OptionsClass<OccupancyMapOptions> binder(m, "OccupancyMapOptions", R"doc(
 Parameters of an OccupancyMap (defaults: OctoMap's sensor model, the authors' threshold and
-entropy).
-
-prob_hit 0.7 / prob_miss 0.4: occupancy of a hit / a cell a ray passes through (probabilities).
-clamp_min 0.12 / clamp_max 0.97: OctoMap's clamping thresholds (probabilities).
-occupancy_threshold 0.6: occupied when p >= threshold (OctoMap's >=; the authors' 0.6: hit once
-  and missed once (p 0.61) stays occupied, hit once missed twice (p 0.51) is free, and cells
-  predicted at the paper's 0.6 count as occupied).
-entropy_unit 'nats' (default, the authors') or 'bits'.
-clamped_entropy_zero True: cells at a clamping threshold count zero entropy (authors' code; what
-  makes the paper's Table 2 entropy column reachable). False: plain binary entropy everywhere.
-deduplicate_end_points True: fast integration traces one ray per end sub-cell; False traces every
-  ray (slower, identical to OctoMap's insertPointCloud).
-end_point_subdivision 2: sub-cells per cell edge for that grouping (1..4; 1 = one ray per end cell,
-  which agrees with insertPointCloud on only ~97-98 % of the touched cells; 2 gives > 99 %).
-clip_to_workspace False: True updates only workspace cells (rays are still traced from their
-  origin; cells outside are neither stored nor updated) - the method reads nothing outside the
-  workspace.)doc")
-      .def(py::init([](double prob_hit, double prob_miss, double clamp_min, double clamp_max,
-                       double occupancy_threshold, const std::string& entropy_unit,
-                       bool clamped_entropy_zero, bool deduplicate_end_points,
-                       int end_point_subdivision, bool clip_to_workspace) {
-             OccupancyMapOptions o;
-             o.prob_hit = prob_hit;
-             o.prob_miss = prob_miss;
-             o.clamp_min = clamp_min;
-             o.clamp_max = clamp_max;
-             o.occupancy_threshold = occupancy_threshold;
-             o.entropy_unit = unit_from(entropy_unit);
-             o.clamped_entropy_zero = clamped_entropy_zero;
-             o.deduplicate_end_points = deduplicate_end_points;
-             o.end_point_subdivision = end_point_subdivision;
-             o.clip_to_workspace = clip_to_workspace;
-             o.validate();
-             return o;
-           }),
-           py::kw_only(), py::arg("prob_hit") = d.prob_hit, py::arg("prob_miss") = d.prob_miss,
-           py::arg("clamp_min") = d.clamp_min, py::arg("clamp_max") = d.clamp_max,
-           py::arg("occupancy_threshold") = d.occupancy_threshold,
-           py::arg("entropy_unit") = std::string(unit_name(d.entropy_unit)),
-           py::arg("clamped_entropy_zero") = d.clamped_entropy_zero,
-           py::arg("deduplicate_end_points") = d.deduplicate_end_points,
-           py::arg("end_point_subdivision") = d.end_point_subdivision,
-           py::arg("clip_to_workspace") = d.clip_to_workspace)
-      .def_readwrite("prob_hit", &OccupancyMapOptions::prob_hit)
-      .def_readwrite("prob_miss", &OccupancyMapOptions::prob_miss)
-      .def_readwrite("clamp_min", &OccupancyMapOptions::clamp_min)
-      .def_readwrite("clamp_max", &OccupancyMapOptions::clamp_max)
-      .def_readwrite("occupancy_threshold", &OccupancyMapOptions::occupancy_threshold)
-      .def_property(
-          "entropy_unit",
-          [](const OccupancyMapOptions& o) { return std::string(unit_name(o.entropy_unit)); },
-          [](OccupancyMapOptions& o, const std::string& s) { o.entropy_unit = unit_from(s); })
-      .def_readwrite("clamped_entropy_zero", &OccupancyMapOptions::clamped_entropy_zero)
-      .def_readwrite("deduplicate_end_points", &OccupancyMapOptions::deduplicate_end_points)
-      .def_readwrite("end_point_subdivision", &OccupancyMapOptions::end_point_subdivision)
-      .def_readwrite("clip_to_workspace", &OccupancyMapOptions::clip_to_workspace)
-      .def("to_dict",
-           [](const OccupancyMapOptions& o) {
-             py::dict r;
-             r["prob_hit"] = o.prob_hit;
-             r["prob_miss"] = o.prob_miss;
-             r["clamp_min"] = o.clamp_min;
-             r["clamp_max"] = o.clamp_max;
-             r["occupancy_threshold"] = o.occupancy_threshold;
-             r["entropy_unit"] = unit_name(o.entropy_unit);
-             r["clamped_entropy_zero"] = o.clamped_entropy_zero;
-             r["deduplicate_end_points"] = o.deduplicate_end_points;
-             r["clip_to_workspace"] = o.clip_to_workspace;
-             r["end_point_subdivision"] = o.end_point_subdivision;
-             return r;
-           })
-      .def("__repr__", [](const OccupancyMapOptions& o) {
-        return "OccupancyMapOptions(" + std::string(py::str(py::cast(o).attr("to_dict")())) + ")";
-      });
+entropy rule); each field is documented in OccupancyMapOptions.fields().)doc");
+    using S = OccupancyMapOptions;
+    NBV_OCCUPANCY_MAP_OPTIONS(NBV_BIND_FIELD)
+    binder.finish();
+  }
 
   py::class_<IntegrationStats>(m, "IntegrationStats", "What one OccupancyMap.integrate call did.")
       .def_readonly("rays", &IntegrationStats::rays, "input rays (hits + free-space rays)")
@@ -591,8 +484,10 @@ cell is i + nx * (j + ny * k) == grid.ravel(order='F') position.)doc");
       .def_property_readonly(
           "options", [](const OccupancyMap& m) { return OccupancyMapOptions(m.options()); },
           "the map's OccupancyMapOptions (a copy)")
-      .def_property_readonly(
-          "entropy_unit", [](const OccupancyMap& m) { return unit_name(m.options().entropy_unit); })
+      .def_property_readonly("entropy_unit",
+                             [](const OccupancyMap& m) {
+                               return OptionField<EntropyUnit>::get(m.options().entropy_unit);
+                             })
       .def_property_readonly(
           "octree_num_nodes", [](const OccupancyMap& m) { return m.octree().size(); },
           "nodes in the octree (all depths)")

@@ -11,4 +11,5 @@ PYBIND11_MODULE(_core, m) {
   nbv::bind::init_evaluation(m);
   nbv::bind::init_views(m);
   nbv::bind::init_symmetry(m);
+  nbv::bind::init_planning(m);
 }

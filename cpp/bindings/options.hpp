@@ -13,6 +13,7 @@
 #pragma once
 
 #include "bindings.hpp"
+#include "nbv/workspace_grid.hpp"
 
 #include <functional>
 #include <map>
@@ -38,7 +39,8 @@ template <>
 struct OptionField<double> {
   static py::object get(double v) { return py::float_(v); }
   static double set(const py::handle& h, const std::string& name) {
-    if (py::isinstance<py::bool_>(h) || !(py::isinstance<py::float_>(h) || py::isinstance<py::int_>(h)))
+    if (py::isinstance<py::bool_>(h) ||
+        !(py::isinstance<py::float_>(h) || py::isinstance<py::int_>(h)))
       throw py::type_error("option '" + name + "' must be a number");
     return h.cast<double>();
   }
@@ -85,9 +87,22 @@ struct OptionField<Eigen::Vector3d> {
 
 template <>
 struct OptionField<Eigen::Isometry3d> {
-  static py::object get(const Eigen::Isometry3d& v) { return py::cast(Eigen::Matrix4d(v.matrix())); }
+  static py::object get(const Eigen::Isometry3d& v) {
+    return py::cast(Eigen::Matrix4d(v.matrix()));
+  }
   static Eigen::Isometry3d set(const py::handle& h, const std::string& name) {
     return transform_arg(h, name.c_str());
+  }
+};
+
+template <>
+struct OptionField<EntropyUnit> {
+  static py::object get(EntropyUnit u) { return py::str(u == EntropyUnit::Bits ? "bits" : "nats"); }
+  static EntropyUnit set(const py::handle& h, const std::string& name) {
+    const std::string s = py::isinstance<py::str>(h) ? h.cast<std::string>() : std::string();
+    if (s == "nats" || s == "nat") return EntropyUnit::Nats;
+    if (s == "bits" || s == "bit") return EntropyUnit::Bits;
+    throw py::value_error("option '" + name + "' must be 'nats' or 'bits'");
   }
 };
 
@@ -167,14 +182,13 @@ class OptionsClass {
         },
         "Each field's documentation, by name, in declaration order.");
     cls_.def("__eq__", [names, getters](const T& a, const T& b) {
-      for (const auto& n : names)
-        if (!getters.at(n)(a).equal(getters.at(n)(b))) {
-          py::object x = getters.at(n)(a), y = getters.at(n)(b);
-          if (py::isinstance<py::array>(x) &&
-              py::module_::import("numpy").attr("array_equal")(x, y).template cast<bool>())
-            continue;
-          return false;
-        }
+      const py::object array_equal = py::module_::import("numpy").attr("array_equal");
+      for (const auto& n : names) {
+        py::object x = getters.at(n)(a), y = getters.at(n)(b);
+        const bool same =
+            py::isinstance<py::array>(x) ? array_equal(x, y).template cast<bool>() : x.equal(y);
+        if (!same) return false;
+      }
       return true;
     });
     cls_.def("__repr__", [names, getters, type_name](const T& o) {

@@ -12,19 +12,6 @@ namespace {
 
 using Candidates = Eigen::Matrix<double, Eigen::Dynamic, 4, Eigen::RowMajor>;
 
-Eigen::Vector3d point3(const py::handle& obj, const char* what) {
-  py::array_t<double, py::array::c_style | py::array::forcecast> a;
-  try {
-    a = py::array_t<double, py::array::c_style | py::array::forcecast>::ensure(obj);
-  } catch (const py::error_already_set&) {
-    a = {};
-  }
-  if (!a || a.size() != 3) throw py::value_error(std::string(what) + " must be 3 numbers");
-  const Eigen::Vector3d v(a.data()[0], a.data()[1], a.data()[2]);
-  if (!v.allFinite()) throw py::value_error(std::string(what) + " contains NaN or infinite values");
-  return v;
-}
-
 /// An (nx, ny, nz) Fortran-ordered copy of a per-cell array stored in a grid layout.
 template <typename T>
 py::array_t<T, py::array::f_style> per_cell(const GridLayout& layout, const T* data) {
@@ -88,11 +75,11 @@ surface and four_term utilities and by surface_targets.)doc")
           },
           py::arg("scan"),
           "Record a camera Scan (its hits, seen from its origin). Returns the number of cells "
-          "that gained a direction.")
+          "the camera saw for the first time.")
       .def(
           "add_points",
           [](SurfaceObservations& s, const py::handle& origin, const py::handle& hits) {
-            const Eigen::Vector3d o = point3(origin, "origin");
+            const Eigen::Vector3d o = vec3_arg(origin, "origin");
             auto h = points_arg(hits, "hits");
             auto hm = h.map();
             py::gil_scoped_release release;
@@ -115,7 +102,7 @@ surface and four_term utilities and by surface_targets.)doc")
           },
           "(nx, ny, nz) uint16 camera hits per cell, Fortran order (copy).");
   m.def(
-      "direction_bin", [](const py::handle& d) { return direction_bin(point3(d, "direction")); },
+      "direction_bin", [](const py::handle& d) { return direction_bin(vec3_arg(d, "direction")); },
       py::arg("direction"), "The direction bin (0..25) of a vector.");
   m.def("bin_direction", &bin_direction, py::arg("bin"), "Unit vector of a direction bin.");
   m.def("bin_cone", &bin_cone, py::arg("bin"), py::arg("cone_deg"),
@@ -141,7 +128,7 @@ surface and four_term utilities and by surface_targets.)doc")
         {
           py::gil_scoped_release release;
           s = backend == "octree"
-                  ? evaluate_views_octree(map, cm, cur, cam, u, v)
+                  ? evaluate_views_octree(map, cm, cur, cam, u, v, surface.get())
                   : evaluate_views(grid_view(map, surface.get()), cm, cur, cam, u, v);
         }
         py::dict out;
@@ -171,7 +158,7 @@ slower).)doc");
   m.def(
       "sphere_is_free",
       [](const OccupancyMap& map, const py::handle& c, double r) {
-        const Eigen::Vector3d p = point3(c, "centre");
+        const Eigen::Vector3d p = vec3_arg(c, "centre");
         if (!(r >= 0) || !std::isfinite(r)) throw py::value_error("radius must be finite and >= 0");
         return sphere_is_free(grid_view(map), p, r);
       },
@@ -180,7 +167,7 @@ slower).)doc");
   m.def(
       "segment_is_free",
       [](const OccupancyMap& map, const py::handle& a, const py::handle& b, double r) {
-        const Eigen::Vector3d pa = point3(a, "segment start"), pb = point3(b, "segment end");
+        const Eigen::Vector3d pa = vec3_arg(a, "segment start"), pb = vec3_arg(b, "segment end");
         if (!(r >= 0) || !std::isfinite(r)) throw py::value_error("radius must be finite and >= 0");
         return segment_is_free(grid_view(map), pa, pb, r);
       },
@@ -190,7 +177,7 @@ slower).)doc");
       "plan_path",
       [](const OccupancyMap& map, const py::handle& a, const py::handle& b, double r,
          std::size_t max_expansions) {
-        const Eigen::Vector3d pa = point3(a, "path start"), pb = point3(b, "path end");
+        const Eigen::Vector3d pa = vec3_arg(a, "path start"), pb = vec3_arg(b, "path end");
         if (!(r >= 0) || !std::isfinite(r)) throw py::value_error("radius must be finite and >= 0");
         std::vector<Eigen::Vector3d> path;
         {

@@ -35,7 +35,8 @@ std::int64_t SurfaceObservations::seen_cells() const {
 }
 
 std::size_t SurfaceObservations::add_scan(const Eigen::Vector3d& origin, const PointsRef& hits) {
-  if (!origin.allFinite()) throw std::invalid_argument("scan origin contains NaN or infinite values");
+  if (!origin.allFinite())
+    throw std::invalid_argument("scan origin contains NaN or infinite values");
   require_finite(hits, "hit points");
   const std::size_t n = std::size_t(hits.rows());
   const double rf = 1.0 / res_;  // the map's keys: OctoMap's floor(c / res) of float32 points
@@ -51,8 +52,8 @@ std::size_t SurfaceObservations::add_scan(const Eigen::Vector3d& origin, const P
         if (run_cell < 0) return;
         std::uint32_t* s = &seen_[std::size_t(run_cell)];
         if ((__atomic_load_n(s, __ATOMIC_RELAXED) & run_bits) != run_bits &&
-            (__atomic_fetch_or(s, run_bits, __ATOMIC_RELAXED) & run_bits) != run_bits)
-          ++local_gained;
+            __atomic_fetch_or(s, run_bits, __ATOMIC_RELAXED) == 0)
+          ++local_gained;  // seen by the camera for the first time
         std::uint16_t* h = &hits_[std::size_t(run_cell)];
         std::uint16_t cur = __atomic_load_n(h, __ATOMIC_RELAXED);
         while (cur != 65535) {

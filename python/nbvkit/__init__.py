@@ -30,6 +30,8 @@ from .mapping import (
 from .symmetry import SymmetryResult, detect_symmetry, predict_symmetric  # noqa: F401
 from .config import Config, load_config  # noqa: F401
 from .mission import Mission, MissionError  # noqa: F401
+from .world import World  # noqa: F401
+from .scenarios import SCENARIOS  # noqa: F401
 
 __version__ = "0.1.0"
 
@@ -37,6 +39,8 @@ __all__ = [
     "Config",
     "Mission",
     "MissionError",
+    "World",
+    "SCENARIOS",
     "load_config",
     "DepthCamera",
     "LaserScanner",

@@ -12,6 +12,7 @@ COMMANDS = {
     "run": "run",
     "table": "table",
     "sweep": "sweep",
+    "compare": "compare",
 }
 
 

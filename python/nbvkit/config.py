@@ -1,25 +1,92 @@
 """Mission configuration: frozen dataclasses, loaded from YAML, with dotted overrides.
 
-One source of truth: sensor, map and cloud defaults are read from the C++ option structs' defaults
-(the bindings expose them), and a test checks that every default here equals its C++ twin.
-Unknown keys are rejected with the key's full dotted name. ``Config.to_dict()`` gives the resolved
-configuration written beside every run's results.
+One source of truth. A section that sets C++ options (``map``, ``utility``, ``vehicle``,
+``targets``) is generated from the bound options class: its keys, defaults and documentation are
+the C++ struct's (nbv/options.hpp); ``section.options()`` builds that struct. Other sensor
+defaults are read from their bound options; a test checks that every config default equals its
+C++ twin. Python-only keys are documented by their comment here. ``configs/default.yaml`` is
+generated from all of it (``python -m nbvkit.config``).
+
+Scenarios (nbvkit.scenarios) are presets: resolving a configuration applies the chosen scenario's
+settings to every key the user did not set (``Config.from_dict``, ``load_config`` and
+``with_overrides`` all resolve). Unknown keys are rejected with the key's full dotted name.
+``Config.to_dict()`` gives the resolved configuration written beside every run's results.
 """
 from __future__ import annotations
 
 
 import math
 import typing
-from dataclasses import dataclass, field, fields, is_dataclass
+from dataclasses import dataclass, field, fields, is_dataclass, make_dataclass, replace
 from pathlib import Path
-from typing import Any, Optional
+from typing import Any, Optional, Tuple
 
+import numpy as np
 import yaml
 
 from . import _core
+from .scenarios import DEFAULT as DEFAULT_SCENARIO
+from .scenarios import SCENARIOS
+
+#: A list of names in the configuration (YAML list of strings).
+Names = Tuple[str, ...]
 
 _CAM = _core.DepthCameraOptions()
 _LAS = _core.LaserScannerOptions()
+
+
+def _py_field(value):
+    """(type, default) of a bound C++ option value in the configuration (vectors: tuples)."""
+    if isinstance(value, bool):
+        return bool, value
+    if isinstance(value, int):
+        return int, value
+    if isinstance(value, float):
+        return float, value
+    if isinstance(value, str):
+        return str, value
+    arr = np.asarray(value, float)
+    if arr.shape == (3,):
+        return tuple, tuple(float(x) for x in arr)
+    raise TypeError(f"no configuration type for a C++ option value {value!r}")
+
+
+def cpp_section(name: str, options_cls, doc: str, only=None, before=(), after=()):
+    """A frozen config dataclass whose keys mirror a bound C++ options class: their names,
+    defaults and documentation come from it (``options_cls.fields()``); `only` keeps some of them.
+    `before` / `after`: Python-only keys as (name, type, default, doc). The class gets
+    ``FIELD_DOCS`` (key -> documentation), ``OPTIONS`` (the bound class) and ``options()`` (the C++
+    options built from this section)."""
+    defaults = options_cls()
+    cpp_fields = [f for f in options_cls.fields() if only is None or f in only]
+    docs, spec = {}, []
+    for fname, tp, default, fdoc in before:
+        spec.append((fname, tp, field(default=default)))
+        docs[fname] = fdoc
+    for fname in cpp_fields:
+        tp, default = _py_field(getattr(defaults, fname))
+        spec.append((fname, tp, field(default=default)))
+        docs[fname] = options_cls.fields()[fname]
+    for fname, tp, default, fdoc in after:
+        spec.append((fname, tp, field(default=default)))
+        docs[fname] = fdoc
+
+    def options(self):
+        return options_cls(**{f: getattr(self, f) for f in cpp_fields})
+
+    return make_dataclass(
+        name,
+        spec,
+        frozen=True,
+        namespace={
+            "__doc__": doc,
+            "FIELD_DOCS": docs,
+            "OPTIONS": options_cls,
+            "options": options,
+            "CPP_FIELDS": tuple(cpp_fields),
+            "__module__": __name__,
+        },
+    )
 
 
 @dataclass(frozen=True)
@@ -48,20 +115,12 @@ class WorkspaceConfig:
     bounds_max: Optional[tuple] = None
 
 
-@dataclass(frozen=True)
-class MapConfig:
-    """The occupancy map (OctoMap) and its entropy."""
-
-    resolution: float = 0.2  # m (authors: 0.2)
-    prob_hit: float = 0.7
-    prob_miss: float = 0.4
-    clamp_min: float = 0.12
-    clamp_max: float = 0.97
-    occupancy_threshold: float = 0.6  # authors' setup; see OccupancyMapOptions
-    entropy_unit: str = "nats"  # "nats" (authors) or "bits"
-    clamped_entropy_zero: bool = True  # authors: cells at a clamping bound count zero entropy
-    fast_integration: bool = True  # de-duplicated ray ends; False = plain insertPointCloud
-    clip_to_workspace: bool = True  # map only workspace cells (the method reads nothing outside)
+MapConfig = cpp_section(
+    "MapConfig",
+    _core.OccupancyMapOptions,
+    "The occupancy map (OctoMap) and its entropy.",
+    before=[("resolution", float, 0.2, "cell edge, m (authors: 0.2)")],
+)
 
 
 @dataclass(frozen=True)
@@ -101,22 +160,29 @@ class CloudConfig:
     min_z: float = 0.3  # m, points below are ground and not registered
 
 
-@dataclass(frozen=True)
-class VehicleConfig:
-    """The UAV: collision sphere and how it flies between views."""
-
-    collision_radius: float = 0.8  # m
-    # what to do when the straight segment to a candidate crosses occupied/unknown space:
-    # "reject" the candidate, or "plan" a path through known free space (A* on the map)
-    blocked_path: str = "reject"
-    # unknown cells within this radius of the start pose are known free before the first scan:
-    # the vehicle flew there (no sensor sees its own surroundings). With less than ~2 m the strict
-    # "no unknown cell within the collision radius" rule leaves a camera-only start (Scenario 1)
-    # only yaw turns: every 1 m step's sphere reaches outside the camera's 45 deg vertical FOV.
-    # 0 disables
-    start_clear_radius: float = 3.0
-    # the vehicle's own swept volume (collision radius along the flown path) is known free
-    clear_swept_volume: bool = True
+VehicleConfig = cpp_section(
+    "VehicleConfig",
+    _core.ValidityOptions,
+    "The UAV: collision sphere and how it flies between views.",
+    only=("collision_radius", "blocked_path"),
+    after=[
+        (
+            "start_clear_radius",
+            float,
+            3.0,
+            "m; unknown cells this near the start are known free before the first scan: the "
+            "vehicle took off there (with less than ~2 m the strict collision rule leaves a "
+            "camera-only start only yaw turns: every 1 m step's sphere reaches outside the "
+            "camera's 45 deg vertical FOV); 0 disables",
+        ),
+        (
+            "clear_swept_volume",
+            bool,
+            True,
+            "the vehicle's own swept volume (collision radius along the flown path) is known free",
+        ),
+    ],
+)
 
 
 @dataclass(frozen=True)
@@ -134,16 +200,80 @@ class SamplingConfig:
     oscillation_is_stuck: bool = False  # authors' code: an A-B-A-B oscillation counts as stuck
 
 
-@dataclass(frozen=True)
-class UtilityConfig:
-    """Viewpoint evaluation, sec. 3.4."""
+UtilityConfig = cpp_section(
+    "UtilityConfig",
+    _core.UtilityOptions,
+    "How candidate views are scored (paper sec. 3.4 and the peers' utilities).",
+    before=[
+        (
+            "rays_x",
+            Optional[int],
+            None,
+            "rays across the horizontal FOV; null: one per map cell on the far plane (47 at 0.2 m)",
+        ),
+        ("rays_y", Optional[int], None, "rays across the vertical FOV; null: 34 at 0.2 m"),
+    ],
+)
 
-    name: str = "ig"  # "ig" (paper) or "ig_distance" (IG * exp(-lambda * distance))
-    rays_x: Optional[int] = None  # None: one ray per map cell on the far plane (47 at 0.2 m)
-    rays_y: Optional[int] = None  # None: 34 at 0.2 m
-    distance_lambda: float = 0.5  # 1/m, for ig_distance (authors' w = 0.5)
-    # a view must see an occupied cell (paper); with a value, a cell with p above it (authors: 0.8)
-    require_occupied_probability: Optional[float] = None
+TargetsConfig = cpp_section(
+    "TargetsConfig",
+    _core.SurfaceTargetOptions,
+    "Surface still to observe, which the surface planners aim views at.",
+)
+
+
+@dataclass(frozen=True)
+class PlacementConfig:
+    """Views aimed at surface targets (tour and frontier generators)."""
+
+    cluster_size: float = 1.5  # m; targets grouped per cube of this size and side they face
+    standoffs: tuple = (0.45, 0.7)  # view distances from a target patch, x camera.max_range
+    azimuth_spread_deg: float = 30.0  # views also this far left and right of a patch's normal
+    elevation_margin_deg: float = 4.0  # a patch is kept this far inside the vertical FOV
+
+
+@dataclass(frozen=True)
+class TourConfig:
+    """The coverage-tour generator: set cover of views over the surface targets, a shortest
+    tour through them, flown; then again, until no planned view is worth its flight."""
+
+    min_gain: float = 1.6  # m^2 of new surface a view must add to enter a plan (set cover)
+    rate: float = 1.2  # m^2 of new surface per metre of detour a planned view must pay
+    max_plans: int = 0  # tours planned at most (0: until a plan is empty)
+
+
+@dataclass(frozen=True)
+class FrontierConfig:
+    """The frontier generator: views aimed at the nearest surface targets, each iteration."""
+
+    patches: int = 40  # target patches considered per iteration, the nearest and heaviest first
+
+
+@dataclass(frozen=True)
+class PlannerConfig:
+    """The planner's parts (nbvkit.planning): generators, terminations, how a view is chosen."""
+
+    generators: Names = ("tour",)  # lattice | frontier | tour (first with views left leads)
+    terminations: Names = ("budget",)  # entropy | stall | budget (any one ends the mission)
+    min_gain: float = 0.8  # m^2 of new surface (surface utility; else utility units); 0: any
+    travel_lambda: float = 0.15  # 1/m; a view ranks by utility * exp(-travel_lambda * path)
+
+
+@dataclass(frozen=True)
+class StallConfig:
+    """Surface-coverage stall: the chosen views stopped adding surface."""
+
+    window: int = 5  # consecutive views
+    min_gain: float = 0.8  # m^2 of new surface each added, at most
+
+
+@dataclass(frozen=True)
+class BudgetConfig:
+    """Hard limits (0: none), checked after every view."""
+
+    max_distance_m: float = 0.0
+    max_views: int = 0
+    max_time_s: float = 0.0
 
 
 @dataclass(frozen=True)
@@ -159,14 +289,18 @@ class TerminationConfig:
 class ProfilingConfig:
     """Adaptive circular profiling (Algorithm 1) and the bounding-box profiler."""
 
+    enabled: bool = True  # fly the laser profile before the camera
     method: str = "circular"  # "circular" (Algorithm 1) or "bbox" (fly the faces of the box)
-    waypoints: int = 5  # N, points around the structure (authors: 5)
+    waypoints: int = 4  # N, points around the structure (authors: 5)
     margin: float = 4.0  # d, obstacle margin added to the bounding radius, m (authors: 4)
     sweep_step: float = 0.025  # m between laser scans: a 40 Hz scanner at 1 m/s (authors)
     z_min: Optional[float] = None  # sweep bounds; None: the workspace's z range
     z_max: Optional[float] = None
     max_segment: float = 7.0  # arcs are flown as straight segments of at most this length, m
     flight_margin: float = 30.0  # the profiling flight volume: workspace grown by this, m
+    # fly the last arc back to the first waypoint after the last sweep (Algorithm 1's loop)
+    close_circle: bool = False
+    return_to_start: bool = False  # fly back to the start pose before the camera stage
 
 
 @dataclass(frozen=True)
@@ -176,6 +310,8 @@ class SymmetryConfig:
     The defaults equal nbvkit.symmetry.SymmetryOptions() / SymmetricPredictionOptions() (a test
     checks)."""
 
+    mode: str = "predict"  # none | report (detect, write nothing) | predict (into the map)
+    refresh_every: int = 10  # views between re-predictions from the camera cloud (0: never)
     prediction_probability: float = 0.6  # paper (authors' code: 0.7)
     keypoints: str = "sift"  # "sift" (authors: 3D SIFT on curvature), "iss" or "uniform"
     voxel_size: float = 0.2  # m, downsampling before detection (2x the profile's voxel: measured)
@@ -206,10 +342,10 @@ class Config:
     """A mission: scenario (Table 2 row), start (0..4), NBV iteration cap, and the sections."""
 
     seed: int = 0  # camera/laser noise and sampling seed; the same seed gives the same mission
-    scenario: str = "5"  # profile, 1..5 (Table 2); 5 = profiling + symmetry + AGVS
+    scenario: str = DEFAULT_SCENARIO  # a preset (nbvkit.scenarios): profile, 1..5, surface, ...
     start: int = 0  # which of the five predefined start poses
     start_pose: Optional[tuple] = None  # (x, y, z, yaw) instead of a predefined start
-    max_iterations: int = 1000  # cap on NBV iterations
+    max_iterations: int = 1000  # cap on camera views after profiling
     progress: bool = True  # progress bar on stderr
     mesh: MeshConfig = field(default_factory=MeshConfig)
     workspace: WorkspaceConfig = field(default_factory=WorkspaceConfig)
@@ -220,15 +356,37 @@ class Config:
     vehicle: VehicleConfig = field(default_factory=VehicleConfig)
     sampling: SamplingConfig = field(default_factory=SamplingConfig)
     utility: UtilityConfig = field(default_factory=UtilityConfig)
+    targets: TargetsConfig = field(default_factory=TargetsConfig)
+    placement: PlacementConfig = field(default_factory=PlacementConfig)
+    tour: TourConfig = field(default_factory=TourConfig)
+    frontier: FrontierConfig = field(default_factory=FrontierConfig)
+    planner: PlannerConfig = field(default_factory=PlannerConfig)
     termination: TerminationConfig = field(default_factory=TerminationConfig)
+    stall: StallConfig = field(default_factory=StallConfig)
+    budget: BudgetConfig = field(default_factory=BudgetConfig)
     profiling: ProfilingConfig = field(default_factory=ProfilingConfig)
     symmetry: SymmetryConfig = field(default_factory=SymmetryConfig)
     evaluation: EvaluationConfig = field(default_factory=EvaluationConfig)
+    # what the user set (nested dict), applied over the scenario's preset; not a key
+    _user: dict = field(default_factory=dict, repr=False, compare=False)
+
+    def __post_init__(self):
+        # the scenario's preset fills every key the user did not set (Config() resolves too)
+        if self.scenario not in SCENARIOS:
+            raise ValueError(
+                f"config key 'scenario' must be one of {', '.join(SCENARIOS)}; "
+                f"got {self.scenario!r}"
+            )
+        for key, value in SCENARIOS[self.scenario].settings.items():
+            if not _has_dotted(self._user, key):
+                _set_field(self, key, value)
 
     # ------------------------------------------------------------------ construction
     @classmethod
     def from_dict(cls, data: dict | None) -> "Config":
-        return _build(cls, data or {}, "")
+        """A configuration from a nested dict of the keys to set; the rest come from the
+        scenario's preset and the defaults."""
+        return _build(cls, dict(data or {}), "")
 
     @classmethod
     def from_yaml(cls, path: str | Path) -> "Config":
@@ -243,13 +401,15 @@ class Config:
         return cls.from_dict(data)
 
     def with_overrides(self, overrides: list[str] | dict | None) -> "Config":
-        """Apply ``key=value`` strings (dotted keys for nested sections; values parsed as YAML)."""
+        """Apply ``key=value`` strings (dotted keys for nested sections; values parsed as YAML)
+        on top of what the user set so far; a new scenario brings its own preset."""
         if not overrides:
             return self
         items = overrides.items() if isinstance(overrides, dict) else [_split(o) for o in overrides]
-        data = self.to_dict()
+        data = _deep_copy(self._user)
         for key, value in items:
-            _set_dotted(data, key, value)
+            _check_dotted(key)
+            _put_dotted(data, key, value)
         return Config.from_dict(data)
 
     def to_dict(self) -> dict:
@@ -285,9 +445,59 @@ def _set_dotted(data: dict, key: str, value: Any) -> None:
     node[parts[-1]] = value
 
 
+def _check_dotted(key: str) -> None:
+    """KeyError naming `key` unless it is a key of the configuration."""
+    _set_dotted(Config().to_dict(), key, None)
+
+
+def _put_dotted(data: dict, key: str, value: Any) -> None:
+    parts = key.split(".")
+    node = data
+    for part in parts[:-1]:
+        node = node.setdefault(part, {})
+        if not isinstance(node, dict):
+            raise ValueError(f"config key {key!r}: {part!r} is not a section")
+    node[parts[-1]] = value
+
+
+def _has_dotted(data: dict, key: str) -> bool:
+    node = data
+    for part in key.split("."):
+        if not isinstance(node, dict) or part not in node:
+            return False
+        node = node[part]
+    return True
+
+
+def _set_field(cfg, key: str, value) -> None:
+    """Sets a (nested) field of a frozen config in place, coerced to its type (presets)."""
+    parts = key.split(".")
+    chain = [cfg]
+    for part in parts[:-1]:
+        chain.append(getattr(chain[-1], part))
+    hint = typing.get_type_hints(type(chain[-1]))[parts[-1]]
+    new = replace(chain[-1], **{parts[-1]: _coerce(hint, value, key)}) if len(chain) > 1 else None
+    if new is None:
+        object.__setattr__(cfg, parts[-1], _coerce(hint, value, key))
+        return
+    for obj, part in zip(reversed(chain[:-1]), reversed(parts[:-1])):
+        if obj is cfg:
+            object.__setattr__(cfg, part, new)
+            return
+        new = replace(obj, **{part: new})
+
+
+def _deep_copy(d):
+    return {k: _deep_copy(v) if isinstance(v, dict) else v for k, v in d.items()}
+
+
 def _to_plain(obj: Any) -> Any:
     if is_dataclass(obj):
-        return {f.name: _to_plain(getattr(obj, f.name)) for f in fields(obj)}
+        return {
+            f.name: _to_plain(getattr(obj, f.name))
+            for f in fields(obj)
+            if not f.name.startswith("_")
+        }
     if isinstance(obj, tuple):
         return [_to_plain(x) for x in obj]
     return obj
@@ -297,7 +507,7 @@ def _build(cls, data: dict, prefix: str):
     if not isinstance(data, dict):
         raise ValueError(f"config section {prefix.rstrip('.') or '<root>'} must be a mapping")
     hints = typing.get_type_hints(cls)
-    known = {f.name: f for f in fields(cls)}
+    known = {f.name: f for f in fields(cls) if not f.name.startswith("_")}
     for k in data:
         if k not in known:
             raise KeyError(
@@ -307,6 +517,8 @@ def _build(cls, data: dict, prefix: str):
     kwargs = {}
     for name, value in data.items():
         kwargs[name] = _coerce(hints[name], value, prefix + name)
+    if cls is Config:
+        kwargs["_user"] = _deep_copy(data)  # what the scenario's preset must not override
     obj = cls(**kwargs)
     _validate(obj, prefix)
     return obj
@@ -339,6 +551,14 @@ def _coerce(tp, value, key):
         if not isinstance(value, str):
             raise ValueError(f"config key {key!r} must be a string, got {value!r}")
         return value
+    if tp == Names:
+        if (
+            isinstance(value, str)
+            or not isinstance(value, (list, tuple))
+            or not all(isinstance(x, str) for x in value)
+        ):
+            raise ValueError(f"config key {key!r} must be a list of names, got {value!r}")
+        return tuple(value)
     if tp is tuple:
         if not isinstance(value, (list, tuple)) or not all(
             isinstance(x, (int, float)) and not isinstance(x, bool) for x in value
@@ -353,8 +573,9 @@ _CHOICES = {
     "map.entropy_unit": ("nats", "bits"),
     "vehicle.blocked_path": ("reject", "plan"),
     "sampling.method": ("cgvs", "agvs"),
-    "utility.name": ("ig", "ig_distance"),
-    "scenario": ("profile", "1", "2", "3", "4", "5"),
+    "utility.name": tuple(_core.utility_names()),
+    "scenario": tuple(SCENARIOS),
+    "symmetry.mode": ("none", "report", "predict"),
     "profiling.method": ("circular", "bbox"),
     "symmetry.keypoints": ("sift", "iss", "uniform"),
 }
@@ -373,6 +594,9 @@ _POSITIVE = {
     "profiling.waypoints",
     "profiling.sweep_step",
     "profiling.max_segment",
+    "placement.cluster_size",
+    "frontier.patches",
+    "stall.window",
 }
 _NONNEG = {
     "max_iterations",
@@ -388,6 +612,18 @@ _NONNEG = {
     "workspace.margin_xy",
     "workspace.margin_z",
     "sampling.delta_theta",
+    "tour.min_gain",
+    "tour.rate",
+    "tour.max_plans",
+    "planner.min_gain",
+    "planner.travel_lambda",
+    "stall.min_gain",
+    "budget.max_distance_m",
+    "budget.max_views",
+    "budget.max_time_s",
+    "symmetry.refresh_every",
+    "placement.azimuth_spread_deg",
+    "placement.elevation_margin_deg",
 }
 _TRIPLES = {
     "camera.mount_xyz",
@@ -415,6 +651,20 @@ def _validate(obj, prefix: str) -> None:
             raise ValueError(f"config key {key!r} must be >= 0, got {v!r}")
         if key in _TRIPLES and v is not None and len(v) != 3:
             raise ValueError(f"config key {key!r} must have 3 numbers, got {list(v)!r}")
+    if hasattr(obj, "OPTIONS"):  # a section of C++ options: their own checks, named here
+        try:
+            obj.options()
+        except (ValueError, TypeError) as e:
+            raise ValueError(f"config section {prefix.rstrip('.')!r}: {e}") from None
+    if prefix == "placement." and not (obj.standoffs and all(0 < x <= 1 for x in obj.standoffs)):
+        raise ValueError(
+            "config key 'placement.standoffs' must be fractions of the camera range in (0, 1], "
+            f"got {list(obj.standoffs)!r}"
+        )
+    if prefix == "planner.":
+        from .planning.registry import check_names
+
+        check_names(obj.generators, obj.terminations)
     if prefix == "" and obj.start_pose is not None and len(obj.start_pose) != 4:
         raise ValueError(
             "config key 'start_pose' must be 4 numbers (x, y, z, yaw), "
@@ -450,7 +700,14 @@ __all__ = ["Config", "load_config"] + [
         VehicleConfig,
         SamplingConfig,
         UtilityConfig,
+        TargetsConfig,
+        PlacementConfig,
+        TourConfig,
+        FrontierConfig,
+        PlannerConfig,
         TerminationConfig,
+        StallConfig,
+        BudgetConfig,
         ProfilingConfig,
         SymmetryConfig,
         EvaluationConfig,
@@ -464,6 +721,8 @@ def documented_yaml() -> str:
     import re
 
     def comments(cls):
+        if hasattr(cls, "FIELD_DOCS"):  # generated from C++ options: their documentation
+            return dict(cls.FIELD_DOCS)
         out = {}
         for line in inspect.getsource(cls).splitlines():
             m = re.match(r"\s+(\w+): [^=]+= ([^#]*)(#\s*(.*))?$", line)
@@ -478,11 +737,15 @@ def documented_yaml() -> str:
         "# nbvkit default configuration: every key with its default and unit (generated by",
         "# `python -m nbvkit.config`). Unknown keys are rejected. Use it with",
         "# `nbvkit run --config FILE`, or override single keys: `--set map.resolution=0.4`.",
+        f"# These are the defaults of the `{DEFAULT_SCENARIO}` scenario; other scenarios are",
+        "# presets over them (nbvkit/scenarios.py) - what you set wins over both.",
         "",
     ]
     data = Config().to_dict()
     top = comments(Config)
     for f in fields(Config):
+        if f.name.startswith("_"):
+            continue
         v = data[f.name]
         if isinstance(v, dict):
             cls = f.default_factory

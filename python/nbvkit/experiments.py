@@ -116,6 +116,7 @@ def row_of(run_dir: Path) -> dict:
         "mesh": spec.get("mesh") or "airliner",
         "overrides": " ".join(spec.get("overrides", [])),
         "iterations": s["iterations"],
+        "views": s.get("views", s["iterations"]),
         "distance_m": s["distance_m"],
         "entropy_reduction": s["entropy_reduction"],
         "termination": s["termination"],
@@ -411,4 +412,75 @@ def compare_with_paper(t, paper_csv) -> str:
             )
             + " |"
         )
+    return "\n".join(lines) + "\n"
+
+
+# ------------------------------------------------------------------ planner comparisons
+
+#: The paper's full method (Scenario 5) as its Table 2 reports it: mean over five starts on its
+#: aircraft (coverage against its sparse reference cloud; see docs/RESULTS.md).
+PAPER_SCENARIO5 = {"distance_m": 665.2, "coverage_0.05": 0.865, "iterations": 257}
+
+
+def compare_specs(planners, mesh=None, mesh_scale=1.0, mesh_up="z", starts=5, overrides=()):
+    """Every planner (scenario name) from `starts` predefined starts, with the same overrides.
+    Progress coverage is sampled every 5 views (the coverage-vs-distance figure)."""
+    from .scenarios import SCENARIOS
+
+    for p in planners:
+        if p not in SCENARIOS:
+            raise ValueError(f"unknown planner {p!r}; known: {', '.join(SCENARIOS)}")
+    over = ("evaluation.coverage_every=5", *overrides)
+    return [
+        RunSpec(p, k, mesh, mesh_scale, mesh_up, tuple(over))
+        for p in planners
+        for k in range(starts)
+    ]
+
+
+#: (column of the run table, heading) of the comparison table, in order.
+COMPARE_COLUMNS = (
+    ("coverage_0.05", "Coverage @0.05 m"),
+    ("coverage_0.1", "Coverage @0.10 m"),
+    ("coverage_0.5", "Coverage @0.50 m"),
+    ("area_coverage_0.05", "Area cov. @0.05 m"),
+    ("area_coverage_0.1", "Area cov. @0.10 m"),
+    ("distance_m", "Distance (m)"),
+    ("views", "Views"),
+    ("wall_time_s", "Wall time (s)"),
+)
+
+
+def compare_table(df):
+    """Per planner (in first-seen order): the mean and spread (std) over starts of each of
+    COMPARE_COLUMNS, and the number of runs."""
+    import pandas as pd
+
+    out = []
+    for planner in dict.fromkeys(df["scenario"].astype(str)):
+        sub = df[df["scenario"].astype(str) == planner]
+        r = {"Planner": planner, "runs": len(sub)}
+        for col, name in COMPARE_COLUMNS:
+            v = pd.to_numeric(sub[col], errors="coerce") if col in sub else pd.Series(dtype=float)
+            r[name] = v.mean() if v.notna().any() else np.nan
+            r[name + " sd"] = v.std(ddof=0) if v.notna().sum() > 1 else 0.0
+        out.append(r)
+    return pd.DataFrame(out)
+
+
+def compare_markdown(t) -> str:
+    def fmt(name, v, sd):
+        if v != v:
+            return "—"
+        if "cov" in name.lower():
+            return f"{v:.1%} ± {sd:.1%}".replace("%", " %")
+        if name == "Views":
+            return f"{v:.0f} ± {sd:.0f}"
+        return f"{v:,.1f} ± {sd:,.1f}"
+
+    names = [n for _, n in COMPARE_COLUMNS]
+    lines = ["| Planner | " + " | ".join(names) + " | runs |", "|" + "---|" * (len(names) + 2)]
+    for _, r in t.iterrows():
+        cells = [fmt(n, r[n], r[n + " sd"]) for n in names]
+        lines.append(f"| {r['Planner']} | " + " | ".join(cells) + f" | {int(r['runs'])} |")
     return "\n".join(lines) + "\n"

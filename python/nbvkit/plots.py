@@ -271,3 +271,51 @@ def plot_cloud_and_map(run_dir, path, title=None) -> Path:
     fig.savefig(path, dpi=110)
     plt.close(fig)
     return Path(path)
+
+
+def plot_compare(root, df, out_dir) -> list[Path]:
+    """coverage_vs_distance.png of a planner comparison: coverage at 0.05 m against distance
+    flown, every run as a line (from its iterations.csv) ending in a dot at its final
+    evaluation, one colour per planner, and the paper's Scenario 5 (Table 2 mean) as a star."""
+    from .experiments import PAPER_SCENARIO5
+
+    plt = _plt()
+    root, out_dir = Path(root), Path(out_dir)
+    out_dir.mkdir(parents=True, exist_ok=True)
+    fig, ax = plt.subplots(figsize=(8, 5.5))
+    cmap = plt.get_cmap("tab10")
+    for i, planner in enumerate(dict.fromkeys(df["scenario"].astype(str))):
+        c = cmap(i % 10)
+        sub = df[df["scenario"].astype(str) == planner]
+        for k, (_, r) in enumerate(sub.iterrows()):
+            it = _iterations(root / "runs" / r["run_id"])
+            if it is not None and len(it):
+                d = it.dropna(subset=["coverage_005"])
+                ax.plot(d["distance_m"], d["coverage_005"] * 100, c=c, alpha=0.6, lw=1)
+            ax.scatter(
+                [r["distance_m"]],
+                [r["coverage_0.05"] * 100],
+                color=c,
+                s=18,
+                zorder=3,
+                label=f"{planner} ({len(sub)} starts)" if k == 0 else None,
+            )
+    ax.scatter(
+        [PAPER_SCENARIO5["distance_m"]],
+        [PAPER_SCENARIO5["coverage_0.05"] * 100],
+        marker="*",
+        s=220,
+        c="k",
+        zorder=4,
+        label="paper, Scenario 5 (Table 2)",
+    )
+    ax.set_xlabel("distance flown (m, profiling included)")
+    ax.set_ylabel("coverage @ 0.05 m (%)")
+    ax.set_ylim(0, 100)
+    ax.grid(alpha=0.3)
+    ax.legend(fontsize=8, loc="lower right")
+    fig.tight_layout()
+    path = out_dir / "coverage_vs_distance.png"
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+    return [path]

@@ -18,7 +18,12 @@ box is recomputed after every sweep, as the circle is.
 The flight is confined to the profiling flight volume (the workspace grown by `flight_margin` in
 x and y) and keeps the collision radius off known-occupied cells; it is not confined to the NBV
 workspace (a circle around a 35 x 30 m aircraft is wider than 40 x 40 m). After the survey the
-vehicle returns to its start pose for the NBV stage. All distances flown are accounted.
+vehicle returns to its start pose for the camera stage (profiling.return_to_start, the paper's
+scenarios) or, without returning, climbs or descends its last sweep line to the start's height
+(the ends of a sweep have little known free space around them) and flies straight into the
+navigation bounds if the circle left them. profiling.close_circle = false stops after the last
+sweep instead of flying Algorithm 1's final arc back to the first waypoint. All distances flown
+are accounted.
 """
 from __future__ import annotations
 
@@ -35,13 +40,13 @@ def _segments(a, b, max_len):
 
 
 class Profiler:
-    """Runs a profiling flight for a Mission (uses its laser, map, clouds and vehicle state)."""
+    """Runs a profiling flight in a World (its laser, map, clouds and vehicle state)."""
 
-    def __init__(self, mission):
-        self.m = mission
-        self.cfg = mission.config.profiling
-        ws = mission.workspace
-        r = mission.config.vehicle.collision_radius
+    def __init__(self, world):
+        self.m = world
+        self.cfg = world.config.profiling
+        ws = world.workspace
+        r = world.config.vehicle.collision_radius
         self.z_min = self.cfg.z_min if self.cfg.z_min is not None else ws.nav_min[2]
         self.z_max = self.cfg.z_max if self.cfg.z_max is not None else ws.nav_max[2]
         if not self.z_max > self.z_min:
@@ -119,6 +124,8 @@ class Profiler:
             self._sweep(np.array([*c, 0.0]))
             c, r = self._circle(ws_c, r0)
             self.circles.append([float(c[0]), float(c[1]), r])
+            if not self.cfg.close_circle and theta + phi - theta_s >= 2 * math.pi - 1e-9:
+                break  # the last sweep is done: the way back to the first waypoint adds nothing
             z = m.state.pose[2]
             on = np.array([c[0] + r * math.cos(theta), c[1] + r * math.sin(theta), z])
             self._move(on, self._face(on, c))
@@ -175,34 +182,37 @@ class Profiler:
         self._move(q3, self._face(q3, c))  # close the loop
 
 
-def run_profiling(mission) -> dict:
-    """The profiling stage of a Mission; returns the profile's own summary (Table 2 "Profile" row):
-    distance, entropy reduction, coverage and area coverage of the profile cloud, waypoints."""
+def run_profiling(world) -> dict:
+    """The profiling stage on a World; returns the profile's own summary (Table 2 "Profile"
+    row): distance, entropy reduction, points, waypoints (the caller adds the coverage)."""
     t0 = time.perf_counter()
-    e0 = mission.map.total_entropy()
-    d0 = mission.state.distance_m
-    start = mission.state.pose.copy()
-    prof = Profiler(mission)
-    if mission.config.profiling.method == "bbox":
+    e0 = world.map.total_entropy()
+    d0 = world.state.distance_m
+    start = world.state.pose.copy()
+    prof = Profiler(world)
+    if world.config.profiling.method == "bbox":
         prof.bbox()
     else:
         prof.circular()
-    e1 = mission.map.total_entropy()
-    d_profile = mission.state.distance_m - d0
-    # back to the start pose for the NBV stage (its distance counts toward the mission's)
-    prof._move(start[:3], start[3])
-    mission.fly_to(start, "profile")
-    ev = mission.evaluator(mission.laser_cloud.points)
+    e1 = world.map.total_entropy()
+    d_profile = world.state.distance_m - d0
+    if world.config.profiling.return_to_start:
+        prof._move(start[:3], start[3])
+        world.fly_to(start, "profile")
+    else:
+        # the sweep ended at the top or bottom of the flight volume, where little around it is
+        # known free: back up (or down) its own swept line to the start's height
+        p = world.state.pose
+        world.fly_to(np.array([p[0], p[1], start[2], p[3]]), "profile")
+        world.enter_navigation_space("profile")
     return {
-        "method": mission.config.profiling.method,
+        "method": world.config.profiling.method,
         "distance_m": d_profile,
-        "return_distance_m": mission.state.distance_m - d0 - d_profile,
+        "return_distance_m": world.state.distance_m - d0 - d_profile,
         "entropy_initial": e0,
         "entropy_final": e1,
         "entropy_reduction": e0 - e1,
-        "coverage": ev["coverage"],
-        "area_coverage": ev["area_coverage"],
-        "points": int(len(mission.laser_cloud)),
+        "points": int(len(world.laser_cloud)),
         "clearance_m": prof.clearance(),
         "waypoints": prof.waypoints,
         "circles": prof.circles,

@@ -20,7 +20,8 @@ class SurfaceObservations;
 /// layout.id(i, j, k) (WorkspaceGrid's brick layout). Valid while the map is alive and unchanged.
 struct GridView {
   double resolution = 0.2;
-  Eigen::Vector3d origin = Eigen::Vector3d::Zero();  ///< world coordinate of cell (0, 0, 0)'s corner
+  Eigen::Vector3d origin =
+      Eigen::Vector3d::Zero();  ///< world coordinate of cell (0, 0, 0)'s corner
   int nx = 0, ny = 0, nz = 0;
   GridLayout layout;
   const float* scored = nullptr;    ///< per cell: entropy, negated when occupied (WorkspaceGrid)

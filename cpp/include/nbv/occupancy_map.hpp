@@ -34,6 +34,7 @@
 #pragma once
 
 #include "nbv/common.hpp"
+#include "nbv/options.hpp"
 #include "nbv/sensors.hpp"
 #include "nbv/workspace_grid.hpp"
 
@@ -50,36 +51,37 @@
 
 namespace nbv {
 
-struct OccupancyMapOptions {
-  /// Sensor model, probabilities: OctoMap's published defaults, which the authors kept (through
-  /// octomap_server, whose parameters are exactly 0.7 / 0.4 / 0.12 / 0.97; a bare octomap::OcTree
-  /// clamps at log-odds -2 / 3.5, i.e. p 0.1192 / 0.971).
-  double prob_hit = 0.7;    ///< occupancy update of a hit cell, in [0.5, 1)
-  double prob_miss = 0.4;   ///< occupancy update of a cell a ray passes through, in (0, 0.5]
-  double clamp_min = 0.12;  ///< lower clamping threshold (probability)
-  double clamp_max = 0.97;  ///< upper clamping threshold (probability)
-  /// A cell is occupied when p >= occupancy_threshold (OctoMap's `>=`). 0.6 is the authors'
-  /// setup: with hit 0.7 / miss 0.4 a cell hit once and missed once (p = 0.61) stays occupied,
-  /// hit once and missed twice (p = 0.51) is free, and cells predicted at the paper's 0.6 count
-  /// as occupied (as in the authors' code, where they were set to 0.7 > 0.6).
-  double occupancy_threshold = 0.6;
-  /// Unit of every entropy the map reports: nats (default, the authors') or bits.
-  EntropyUnit entropy_unit = EntropyUnit::Nats;
-  /// Cells at a clamping threshold count zero entropy (authors' code, default). false: the plain
-  /// binary entropy of every cell.
-  bool clamped_entropy_zero = true;
-  /// Fast integration (see OccupancyMap::integrate): end points are grouped on a grid
-  /// end_point_subdivision times finer than the map and one ray is traced per group. false
-  /// traces every ray (slower; the same cells as OctoMap's insertPointCloud).
-  bool deduplicate_end_points = true;
-  int end_point_subdivision = 2;  ///< groups per cell edge, 1..4 (1 = one ray per end cell)
-  /// Integration updates only workspace cells: rays are still traced from their true origin, but
-  /// cells outside the workspace are neither stored nor updated. The method reads nothing outside
-  /// the workspace (entropy, gain and collision are all confined to it), and a laser survey from
-  /// outside it (profiling) then costs a third as much. false (default): the octree maps every
-  /// cell the rays touch, as insertPointCloud does. integrate_exact never clips.
-  bool clip_to_workspace = false;
+/// Parameters of an OccupancyMap. The sensor model probabilities are OctoMap's published
+/// defaults, which the authors kept (through octomap_server: exactly 0.7 / 0.4 / 0.12 / 0.97; a
+/// bare octomap::OcTree clamps at log-odds -2 / 3.5, i.e. p 0.1192 / 0.971).
+#define NBV_OCCUPANCY_MAP_OPTIONS(X)                                                            \
+  X(double, prob_hit, 0.7, "occupancy update of a hit cell, in [0.5, 1)")                       \
+  X(double, prob_miss, 0.4, "occupancy update of a cell a ray passes through, in (0, 0.5]")     \
+  X(double, clamp_min, 0.12, "lower clamping threshold (probability)")                          \
+  X(double, clamp_max, 0.97, "upper clamping threshold (probability)")                          \
+  X(double, occupancy_threshold, 0.6,                                                           \
+    "a cell is occupied when p >= this (OctoMap's >=); the authors' 0.6: a cell hit once and "  \
+    "missed once (p 0.61) stays occupied, hit once and missed twice (p 0.51) is free, and "     \
+    "cells predicted at the paper's 0.6 count as occupied")                                     \
+  X(EntropyUnit, entropy_unit, EntropyUnit::Nats,                                               \
+    "unit of every entropy the map reports: nats (the authors') or bits")                       \
+  X(bool, clamped_entropy_zero, true,                                                           \
+    "cells at a clamping threshold count zero entropy (the authors' code; what makes the "      \
+    "paper's Table 2 entropy column reachable); false: the plain binary entropy of every cell") \
+  X(bool, deduplicate_end_points, true,                                                         \
+    "fast integration: one ray traced per end sub-cell (see end_point_subdivision); false "     \
+    "traces every ray: slower, the same cells as OctoMap's insertPointCloud")                   \
+  X(int, end_point_subdivision, 2,                                                              \
+    "sub-cells per cell edge for grouping ray ends, 1..4 (1 = one ray per end cell, which "     \
+    "agrees with insertPointCloud on only ~97-98 % of the touched cells; 2 gives > 99 %)")      \
+  X(bool, clip_to_workspace, true,                                                              \
+    "integration updates only workspace cells (rays are still traced from their origin): the "  \
+    "method reads nothing outside the workspace, and a laser survey from outside it costs a "   \
+    "third as much; false: the octree also maps the cells outside, as insertPointCloud does "   \
+    "(integrate_exact never clips)")
 
+struct OccupancyMapOptions {
+  NBV_OCCUPANCY_MAP_OPTIONS(NBV_DECLARE_OPTION)
   void validate() const;  ///< throws std::invalid_argument naming the bad field
 };
 

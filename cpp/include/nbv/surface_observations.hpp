@@ -27,7 +27,7 @@ class SurfaceObservations {
 
   /// Records one camera scan: hits (N, 3) world-frame points seen from `origin`. Hits outside
   /// the workspace are ignored. Parallel; throws std::invalid_argument for non-finite input.
-  /// Returns the number of cells that gained a direction bin.
+  /// Returns the number of cells the camera saw for the first time.
   std::size_t add_scan(const Eigen::Vector3d& origin, const PointsRef& hits);
   /// Forgets everything.
   void clear();

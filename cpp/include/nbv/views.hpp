@@ -130,7 +130,7 @@ ViewScores evaluate_views_octree(
     const OccupancyMap& map,
     const Eigen::Ref<const Eigen::Matrix<double, Eigen::Dynamic, 4, Eigen::RowMajor>>& candidates,
     const Pose& current, const ViewCameraModel& camera, const UtilityOptions& utility,
-    const ValidityOptions& validity);
+    const ValidityOptions& validity, const SurfaceObservations* surface = nullptr);
 
 /// Names of the registered utilities.
 std::vector<std::string> utility_names();

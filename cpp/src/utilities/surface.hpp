@@ -22,14 +22,15 @@ struct Surface {
   explicit Surface(ViewContext& ctx) : ctx_(ctx) {}
   void begin_ray(const Eigen::Vector3d& d) {
     vis_ = 1.0;
-    cone_ = ctx_.cones[direction_bin(-d)];
+    bin_ = std::int8_t(direction_bin(-d));
+    cone_ = ctx_.cones[bin_];
   }
   template <class Cells>
   bool visit(const Cells& cells, std::size_t idx, const int* c, double, float scored) {
     const CellFlag flag = cells.flag(idx, c);
     if (flag == CellFlag::Observed) {
       if (!std::signbit(scored)) return true;  // free
-      if ((ctx_.grid.seen[idx] & cone_) == 0 && ctx_.visited.insert(idx)) credit(1.0);
+      if ((ctx_.grid.seen[idx] & cone_) == 0 && ctx_.visited.insert(idx)) credit(idx, 1.0);
       return false;
     }
     double p;
@@ -38,7 +39,7 @@ struct Surface {
     else
       p = next_to_surface(ctx_.grid, cells, c) ? ctx_.options.frontier_prior
                                                : ctx_.options.unknown_prior;
-    if (ctx_.visited.insert(idx)) credit(p);
+    if (ctx_.visited.insert(idx)) credit(idx, p);
     vis_ *= 1.0 - p;
     return vis_ >= ctx_.options.min_visibility;
   }
@@ -46,12 +47,14 @@ struct Surface {
   int cells() const { return cells_; }
 
  private:
-  void credit(double p) {
+  void credit(std::size_t idx, double p) {
     gain_ += vis_ * p;
     ++cells_;
+    if (ctx_.credits) ctx_.credits->push_back({std::int64_t(idx), bin_, float(vis_ * p)});
   }
   ViewContext& ctx_;
   std::uint32_t cone_ = 0;
+  std::int8_t bin_ = 0;
   double vis_ = 1.0, gain_ = 0.0;
   int cells_ = 0;
 };

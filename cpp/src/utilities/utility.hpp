@@ -50,11 +50,20 @@ struct VisitedSet {
   }
 };
 
+/// What a utility credited one cell with: its id, the direction bin (0..25) it was seen from
+/// (of cell -> camera), and the weight.
+struct Credit {
+  std::int64_t cell;
+  std::int8_t bin;
+  float weight;
+};
+
 struct ViewContext {
   const GridView& grid;
   const UtilityOptions& options;
   VisitedSet& visited;
-  const std::uint32_t* cones;  ///< [26]: bin_cone(b, options.coverage_cone_deg)
+  const std::uint32_t* cones;    ///< [26]: bin_cone(b, options.coverage_cone_deg)
+  std::vector<Credit>* credits;  ///< where to record credits, or null
 };
 
 inline double sigmoid(double logodds) { return 1.0 / (1.0 + std::exp(-logodds)); }

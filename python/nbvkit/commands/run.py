@@ -1,4 +1,5 @@
-"""nbvkit run: one mission (a scenario of the paper's Table 2 from one start) with its results."""
+"""nbvkit run: one mission (a scenario: nbvkit's planner or a row of the paper's Table 2) from
+one start, with its results."""
 from __future__ import annotations
 
 import argparse
@@ -6,22 +7,24 @@ import json
 from pathlib import Path
 
 from ..config import load_config
-from ..mission import SCENARIOS, Mission
+from ..mission import Mission
+from ..scenarios import DEFAULT, SCENARIOS
 
 
 def register(sub) -> argparse.ArgumentParser:
     p = sub.add_parser(
         "run",
         help="run one reconstruction mission and write its results folder",
-        description="Fly one scenario of the paper's Table 2 on a structure from one of its five "
-        "predefined starts, and write DIR/summary.json, iterations.csv, config.yaml "
-        "(resolved), cloud.ply, map.ot, trajectory.csv and figures/*.png.",
+        description="Fly one scenario on a structure from one of its five predefined starts, and "
+        "write DIR/summary.json, iterations.csv, config.yaml (resolved), cloud.ply, map.ot, "
+        f"trajectory.csv and figures/*.png. Without --scenario: {DEFAULT}, the recommended "
+        "planner.",
         formatter_class=argparse.RawDescriptionHelpFormatter,
-        epilog="scenarios: profile = profiling stage alone; 1 = no profiling, no symmetry, CGVS; "
-        "2 = profiling + CGVS; 3 = profiling + AGVS; 4 = profiling + symmetry + CGVS; "
-        "5 = profiling + symmetry + AGVS (the paper's full method)\n"
-        "examples:\n  nbvkit run --scenario 1 --start 0 --set max_iterations=50 --out runs/s1\n"
-        "  nbvkit run --mesh my.obj --mesh-up y --set map.resolution=0.4 sampling.delta_d=2",
+        epilog="scenarios (--scenario, or --planner for nbvkit's own):\n"
+        + "\n".join(f"  {k:12s} {v.description}" for k, v in SCENARIOS.items())
+        + "\nexamples:\n  nbvkit run --out runs/main\n"
+        "  nbvkit run --scenario 1 --start 0 --set max_iterations=50 --out runs/s1\n"
+        "  nbvkit run --mesh my.obj --mesh-up y --set map.resolution=0.4",
     )
     p.add_argument(
         "--config",
@@ -35,9 +38,11 @@ def register(sub) -> argparse.ArgumentParser:
     p.add_argument("--mesh-up", choices=("y", "z"), default=None, help="the mesh file's up axis")
     p.add_argument(
         "--scenario",
+        "--planner",
+        dest="scenario",
         choices=list(SCENARIOS),
         default=None,
-        help="which Table 2 scenario (default: the config's, 5 = the full method)",
+        help=f"what to fly: a Table 2 row (profile, 1-5) or a planner (default: {DEFAULT})",
     )
     p.add_argument(
         "--start",

@@ -1,0 +1,129 @@
+// Bindings of the coverage-planning blocks (nbv/coverage.hpp) and tours (nbv/tour.hpp).
+#include "bindings.hpp"
+#include "nbv/coverage.hpp"
+#include "nbv/occupancy_map.hpp"
+#include "nbv/surface_observations.hpp"
+#include "nbv/tour.hpp"
+#include "options.hpp"
+
+namespace nbv::bind {
+
+void init_planning(py::module_& m) {
+  {
+    OptionsClass<SurfaceTargetOptions> binder(m, "SurfaceTargetOptions",
+                                              "Which cells surface_targets reports, and how.");
+    using S = SurfaceTargetOptions;
+    NBV_SURFACE_TARGET_OPTIONS(NBV_BIND_FIELD)
+    binder.finish();
+  }
+  m.def(
+      "surface_targets",
+      [](const OccupancyMap& map, const SurfaceObservations& surface, const py::object& options) {
+        const auto o = OptionsClass<SurfaceTargetOptions>::from(options, "options");
+        SurfaceTargets t;
+        {
+          py::gil_scoped_release release;
+          t = surface_targets(grid_view(map, &surface), o);
+        }
+        py::dict d;
+        d["positions"] = t.positions;
+        d["normals"] = t.normals;
+        d["kind"] = t.kind;
+        d["weight"] = t.weight;
+        return d;
+      },
+      py::arg("map"), py::arg("surface"), py::arg("options") = py::none(),
+      R"doc(Cells whose surface still needs observing, in grid order: a dict of positions (T, 3)
+(cell centres), normals (T, 3) (unit: the direction from which the cell can still add surface),
+kind (T,) int8 (0 observed surface not yet covered from an open side, 1 predicted, 2 frontier:
+unknown between known free space and surface) and weight (T,) (1, the predicted probability, or
+frontier_weight).)doc");
+  m.def(
+      "view_coverage",
+      [](const OccupancyMap& map, const SurfaceObservations& surface, const py::handle& candidates,
+         const py::handle& current, const py::object& camera, const py::object& utility,
+         const py::object& validity) {
+        auto c = py::array_t<double, py::array::c_style | py::array::forcecast>::ensure(candidates);
+        if (!c || c.ndim() != 2 || c.shape(1) != 4)
+          throw py::value_error("candidates must have shape (K, 4): rows x, y, z, yaw");
+        Eigen::Map<const Eigen::Matrix<double, Eigen::Dynamic, 4, Eigen::RowMajor>> cm(
+            c.data(), c.shape(0), 4);
+        const Pose cur = pose_arg(current, "current pose");
+        const auto cam = OptionsClass<ViewCameraModel>::from(camera, "camera");
+        auto u = OptionsClass<UtilityOptions>::from(utility, "utility");
+        const auto v = OptionsClass<ValidityOptions>::from(validity, "validity");
+        ViewCoverage cov;
+        {
+          py::gil_scoped_release release;
+          cov = view_coverage(grid_view(map, &surface), cm, cur, cam, u, v);
+        }
+        py::dict d;
+        d["offsets"] = cov.offsets;
+        d["elements"] = cov.elements;
+        d["weights"] = cov.weights;
+        d["status"] = cov.status;
+        return d;
+      },
+      py::arg("map"), py::arg("surface"), py::arg("candidates"), py::arg("current"),
+      py::arg("camera") = py::none(), py::arg("utility") = py::none(),
+      py::arg("validity") = py::none(),
+      R"doc(What each candidate view (K, 4) would newly cover, as the surface utility credits it
+(utility: its priors and cone; the name is ignored): CSR dict offsets (K + 1,), elements (cell id *
+2 + the side of the cell seen, see nbv/coverage.hpp) and weights, and status (K,) as
+evaluate_views.)doc");
+  m.def(
+      "select_cover",
+      [](const py::dict& coverage, double min_gain, int max_views) {
+        ViewCoverage cov;
+        cov.offsets = coverage["offsets"].cast<Eigen::Matrix<std::int64_t, Eigen::Dynamic, 1>>();
+        cov.elements = coverage["elements"].cast<Eigen::Matrix<std::int64_t, Eigen::Dynamic, 1>>();
+        cov.weights = coverage["weights"].cast<Eigen::VectorXf>();
+        cov.status = coverage["status"].cast<Eigen::Matrix<std::int8_t, Eigen::Dynamic, 1>>();
+        if (cov.offsets.size() != cov.status.size() + 1 ||
+            cov.elements.size() != cov.weights.size() ||
+            (cov.offsets.size() && cov.offsets[cov.offsets.size() - 1] != cov.elements.size()))
+          throw py::value_error("coverage arrays are inconsistent");
+        if (max_views < 0) throw py::value_error("max_views must be >= 0");
+        CoverSelection s;
+        {
+          py::gil_scoped_release release;
+          s = select_cover(cov, min_gain, max_views);
+        }
+        return py::make_tuple(py::cast(s.views), py::cast(s.gains));
+      },
+      py::arg("coverage"), py::arg("min_gain") = 1.0, py::arg("max_views") = 1000,
+      R"doc(Greedy weighted set cover over a view_coverage result: (views, gains), the chosen
+candidate indices in the order chosen and each one's marginal gain, until the best adds less
+than min_gain or max_views are chosen.)doc");
+  m.def(
+      "solve_tour",
+      [](const py::handle& points, const py::handle& start, bool improve) {
+        auto p = points_arg(points, "tour points");
+        const Eigen::Vector3d st = vec3_arg(start, "tour start");
+        auto pm = p.map();
+        Tour t;
+        {
+          py::gil_scoped_release release;
+          t = solve_tour(pm, st, improve);
+        }
+        return py::make_tuple(py::cast(t.order), t.length);
+      },
+      py::arg("points"), py::arg("start"), py::arg("improve") = true,
+      R"doc(Open tour from start through every point (N, 3): (order, length). Nearest neighbour,
+then (improve) 2-opt and Or-opt moves until none shortens it. Deterministic.)doc");
+  m.def(
+      "solve_tour_matrix",
+      [](const Eigen::MatrixXd& D, bool improve) {
+        Tour t;
+        {
+          py::gil_scoped_release release;
+          t = solve_tour_matrix(D, improve);
+        }
+        return py::make_tuple(py::cast(t.order), t.length);
+      },
+      py::arg("distances"), py::arg("improve") = true,
+      R"doc(The same over a symmetric distance matrix (N + 1, N + 1) whose row/column 0 is the
+start (inf: impassable). order indexes the N views (matrix index - 1).)doc");
+}
+
+}  // namespace nbv::bind

@@ -1,0 +1,79 @@
+// Surface coverage planning blocks: where surface still needs observing (surface targets), what
+// each candidate view would newly cover (coverage sets), and a greedy choice of views that
+// covers the most (set cover).
+#pragma once
+
+#include "nbv/common.hpp"
+#include "nbv/grid_view.hpp"
+#include "nbv/options.hpp"
+#include "nbv/views.hpp"
+
+#include <cstdint>
+#include <vector>
+
+namespace nbv {
+
+#define NBV_SURFACE_TARGET_OPTIONS(X)                                                          \
+  X(double, coverage_cone_deg, 75.0,                                                           \
+    "an open side of a surface cell is covered once the camera has seen the cell from within " \
+    "this angle of it")                                                                        \
+  X(bool, observed, true, "occupied cells the camera has not covered from every open side")    \
+  X(bool, predicted, true, "cells predicted by symmetry")                                      \
+  X(bool, frontier, true,                                                                      \
+    "unknown cells between known free space and surface (a face neighbour occupied or "        \
+    "predicted, another free)")                                                                \
+  X(double, frontier_weight, 0.5, "weight of a frontier target (observed ones weigh 1)")
+
+struct SurfaceTargetOptions {
+  NBV_SURFACE_TARGET_OPTIONS(NBV_DECLARE_OPTION)
+  void validate() const;
+};
+
+/// Target kinds.
+enum class TargetKind : std::int8_t { Observed = 0, Predicted = 1, Frontier = 2 };
+
+/// Cells whose surface still needs observing, in grid id order. normal: the unit direction from
+/// which the cell can still add surface (the sum of its open neighbour directions not yet
+/// covered; for frontier cells, of its free neighbours); weight: 1 (observed), the predicted
+/// probability, or frontier_weight.
+struct SurfaceTargets {
+  Points positions;  ///< (T, 3) cell centres
+  Points normals;    ///< (T, 3) unit vectors
+  Eigen::Matrix<std::int8_t, Eigen::Dynamic, 1> kind;
+  Eigen::VectorXd weight;
+};
+
+/// Needs the camera observations (grid.seen). Parallel over bricks; deterministic.
+SurfaceTargets surface_targets(const GridView& grid, const SurfaceTargetOptions& options);
+
+/// What each candidate view would newly cover, as the surface utility credits it: elements
+/// (cell id * 2 + the side of the cell it is seen from) with their expected weight (P_vis *
+/// probability of surface), each at most once per view. A cell's sides come from its open
+/// neighbours (free or unknown, 26-neighbourhood): a surface open on one side has one side, so
+/// views from any angle of it count the cell once; a thin part open on both sides (their
+/// directions summing to little) is split along the axis its open directions spread most on.
+/// CSR by candidate; invalid candidates (status != 0) have none.
+struct ViewCoverage {
+  Eigen::Matrix<std::int64_t, Eigen::Dynamic, 1> offsets;  ///< (K + 1,)
+  Eigen::Matrix<std::int64_t, Eigen::Dynamic, 1> elements;
+  Eigen::VectorXf weights;
+  Eigen::Matrix<std::int8_t, Eigen::Dynamic, 1> status;  ///< (K,) ViewStatus
+};
+
+ViewCoverage view_coverage(
+    const GridView& grid,
+    const Eigen::Ref<const Eigen::Matrix<double, Eigen::Dynamic, 4, Eigen::RowMajor>>& candidates,
+    const Pose& current, const ViewCameraModel& camera, const UtilityOptions& utility,
+    const ValidityOptions& validity);
+
+/// Greedy weighted set cover: repeatedly the view whose not-yet-covered elements weigh most
+/// (each element counts at most `saturation` in total: a weight once covered), until the best
+/// adds less than min_gain or max_views are chosen. Lazy evaluation; ties to the lower index.
+/// Returns the chosen view indices in the order chosen and each one's marginal gain.
+struct CoverSelection {
+  std::vector<int> views;
+  std::vector<double> gains;
+};
+CoverSelection select_cover(const ViewCoverage& coverage, double min_gain, int max_views);
+
+}  // namespace nbv

@@ -1,0 +1,113 @@
+"""Coverage tours (nbvkit's surface planner): plan views that together cover the surface still
+to observe, fly them in a short order, and plan again when the tour is done.
+
+A plan: surface targets -> patches -> candidate views (placement.py) -> what each would newly
+cover (nbvkit._core.view_coverage: cells and the side they are seen from) -> a greedy set cover
+(select_cover, views adding at least tour.min_gain) -> an open tour from the vehicle
+(solve_tour: nearest neighbour, 2-opt, Or-opt) -> prize collecting: views that add less than
+tour.rate m^2 per metre of the detour they cause are dropped, the worst first, until every view
+pays. The tour is then proposed one view at a time (exclusive proposals): the planner re-scores
+each against the current map and skips it when it no longer adds tour.min_gain. When the tour is
+done the next plan is made from what the map shows then; a plan with no view left, or one none
+of whose views could be flown, ends the generator (tour.max_plans caps the plans)."""
+from __future__ import annotations
+
+import numpy as np
+
+from ... import _core
+from ..parts import Proposal
+from ..placement import place_views, target_patches
+
+
+class CoverageTour:
+    def __init__(self, config):
+        self.cfg = config
+        self.views = np.zeros((0, 4))
+        self.aims = np.zeros((0, 3))
+        self.next = 0
+        self.plans: list[dict] = []  # per plan: views selected, kept, flown, planned length
+
+    # ------------------------------------------------------------------ planning
+    def plan(self, world) -> np.ndarray:
+        """The next tour (V, 4) from the vehicle's pose over what the map shows now."""
+        cfg = self.cfg
+        cell_m2 = world.map.resolution**2
+        targets = _core.surface_targets(world.map, world.surface, cfg.targets.options())
+        patches = target_patches(targets, cfg.placement.cluster_size)
+        candidates, owner = place_views(patches, cfg.camera, cfg.placement)
+        record = {
+            "targets": int(len(targets["weight"])),
+            "candidates": int(len(candidates)),
+            "selected": 0,
+            "kept": 0,
+            "flown": 0,
+            "length_m": 0.0,
+        }
+        self.plans.append(record)
+        if len(candidates) == 0:
+            self.aims = np.zeros((0, 3))
+            return np.zeros((0, 4))
+        pose = world.state.pose
+        coverage = _core.view_coverage(
+            world.map,
+            world.surface,
+            candidates,
+            pose,
+            camera=world.view_camera,
+            utility=cfg.utility.options(),
+            validity=world.validity(blocked_path="plan"),
+        )
+        chosen, gains = _core.select_cover(coverage, min_gain=cfg.tour.min_gain / cell_m2)
+        record["selected"] = len(chosen)
+        if not chosen:
+            self.aims = np.zeros((0, 3))
+            return np.zeros((0, 4))
+        views, aims = candidates[chosen], patches.centers[owner[chosen]]
+        order, _ = _core.solve_tour(views[:, :3], pose[:3])
+        order = prize_collect(
+            pose[:3], views[:, :3], np.asarray(gains) * cell_m2, order, cfg.tour.rate
+        )
+        record["kept"] = len(order)
+        if order:
+            pts = np.vstack([pose[:3], views[order, :3]])
+            record["length_m"] = float(np.linalg.norm(np.diff(pts, axis=0), axis=1).sum())
+        self.aims = aims[order]
+        return views[order]
+
+    # ------------------------------------------------------------------ generator
+    def propose(self, world):
+        if self.next >= len(self.views):
+            if self.plans and self.plans[-1]["kept"] and not self.plans[-1]["flown"]:
+                return None  # a whole tour proved unflyable: the next plan would repeat it
+            if self.cfg.tour.max_plans and len(self.plans) >= self.cfg.tour.max_plans:
+                return None
+            self.views, self.next = self.plan(world), 0
+            if len(self.views) == 0:
+                return None
+        k = slice(self.next, self.next + 1)
+        return Proposal(self.views[k], "tour", exclusive=True, aims=self.aims[k])
+
+    def feedback(self, world, proposal, step):
+        self.next += 1  # flown or skipped, the tour moves on
+        if step is not None:
+            self.plans[-1]["flown"] += 1
+
+
+def prize_collect(start, points, gains, order, rate) -> list:
+    """Drops views from an open tour `order` (indices into points (N, 3), gains (N,) in m^2)
+    while some view adds less than `rate` m^2 per metre of the detour it causes (the distance
+    saved by skipping it), the worst first. Returns the kept order."""
+    order = list(order)
+    if rate <= 0:
+        return order
+    while order:
+        seq = np.vstack([start, points[order]])
+        leg = np.linalg.norm(np.diff(seq, axis=0), axis=1)  # leg k ends at order[k]
+        saving = leg.copy()
+        saving[:-1] += leg[1:] - np.linalg.norm(seq[2:] - seq[:-2], axis=1)
+        deficit = rate * saving - gains[order]
+        worst = int(np.argmax(deficit))
+        if deficit[worst] <= 0:
+            break
+        order.pop(worst)
+    return order

@@ -1,0 +1,69 @@
+"""What a planner is made of, and what its parts exchange.
+
+A planner composes *generators* (propose candidate views), a *utility* (scores them, in one C++
+call: nbvkit._core.evaluate_views), a *selection* (the best valid view and the path to it) and
+*terminations* (when to stop). Generators and terminations are small classes registered by name
+in registry.py; a new one is one file and one registry line.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Optional, Protocol
+
+import numpy as np
+
+
+@dataclass
+class Proposal:
+    """Candidate vehicle poses (K, 4) [x, y, z, yaw] from one generator. An exclusive proposal
+    (a tour's next view) is scored alone; the others of an iteration are scored together."""
+
+    poses: np.ndarray
+    source: str
+    exclusive: bool = False
+    aims: Optional[np.ndarray] = None  # (K, 3) the point each candidate is aimed at, if any
+
+
+@dataclass
+class Choice:
+    """The view selected among a proposal: its index, pose, scores and the path to it."""
+
+    index: int
+    pose: np.ndarray
+    utility: float
+    gain: float
+    path: Optional[np.ndarray]  # (P, 3) waypoints from the vehicle, or None: straight
+    length_m: float
+
+
+@dataclass
+class Step:
+    """One view of the mission: what was chosen and what it changed."""
+
+    iteration: int
+    choice: Choice
+    source: str
+    candidates: int
+    valid: int
+    entropy_before: float
+    entropy_after: float
+    delta_ev: float  # (E_before - E_after) / C_view, the paper's Eq. 4
+    new_surface_m2: float  # surface the camera saw from a side it had not seen it from
+    distance_m: float  # total flown so far
+    extra: dict = field(default_factory=dict)  # generator-specific columns (e.g. AGVS alpha)
+
+
+class Generator(Protocol):
+    """Proposes candidate views; told which one (if any) was flown."""
+
+    def propose(self, world) -> Optional[Proposal]:
+        """Candidates for this iteration, or None when this generator has nothing left."""
+
+    def feedback(self, world, proposal: Proposal, step: Optional[Step]) -> None:
+        """After selection: `step` is the view flown (None: no candidate of `proposal` was
+        valid and worth flying)."""
+
+
+class Termination(Protocol):
+    def check(self, world, step: Step) -> Optional[str]:
+        """The reason to stop after `step`, or None."""

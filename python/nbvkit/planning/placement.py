@@ -1,0 +1,70 @@
+"""Views aimed at surface targets: targets grouped into patches, and camera poses placed to see
+each patch (used by the tour and frontier generators). Vectorised numpy over the targets that
+nbvkit._core.surface_targets returns."""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+
+@dataclass
+class Patches:
+    centers: np.ndarray  # (P, 3) weighted centroids of the targets
+    normals: np.ndarray  # (P, 3) unit weighted mean normals
+    weights: np.ndarray  # (P,) summed target weights
+
+
+def target_patches(targets: dict, cluster_size: float) -> Patches:
+    """Groups targets (positions (T, 3), normals (T, 3), weight (T,)) per cube of
+    `cluster_size` metres and per face (6) of their normal, in a deterministic order."""
+    p, n, w = (np.asarray(targets[k], float) for k in ("positions", "normals", "weight"))
+    if len(p) == 0:
+        return Patches(np.zeros((0, 3)), np.zeros((0, 3)), np.zeros(0))
+    axis = np.argmax(np.abs(n), axis=1)
+    face = 2 * axis + (n[np.arange(len(n)), axis] < 0)
+    key = np.column_stack([np.floor(p / cluster_size).astype(np.int64), face])
+    _, inv = np.unique(key, axis=0, return_inverse=True)
+    inv = inv.ravel()
+    weights = np.bincount(inv, w)
+    centers = np.column_stack([np.bincount(inv, p[:, a] * w) for a in range(3)])
+    centers /= np.maximum(weights, 1e-12)[:, None]
+    normals = np.column_stack([np.bincount(inv, n[:, a] * w) for a in range(3)])
+    normals /= np.maximum(np.linalg.norm(normals, axis=1, keepdims=True), 1e-12)
+    return Patches(centers, normals, weights)
+
+
+def place_views(patches: Patches, camera, placement) -> tuple[np.ndarray, np.ndarray]:
+    """Candidate poses (K, 4) looking at the patches, and the patch of each (K,).
+
+    Per patch: from its centre out along its normal, tilted in elevation so that the patch stays
+    placement.elevation_margin_deg inside the camera's vertical field of view (the camera only
+    yaws: its pitch is its mount's), at each stand-off placement.standoffs x camera.max_range,
+    straight on and placement.azimuth_spread_deg to each side; yaw faces the patch. A patch
+    facing straight up or down (horizontal part of its normal < 0.3) is looked at from six
+    azimuths. camera: the config's camera section (vfov_deg, max_range, mount_rpy_deg)."""
+    if len(patches.centers) == 0:
+        return np.zeros((0, 4)), np.zeros(0, int)
+    half = math.radians(camera.vfov_deg / 2 - placement.elevation_margin_deg)
+    axis_el = -math.radians(camera.mount_rpy_deg[1])  # optical axis elevation (pitch > 0: down)
+    spread = math.radians(placement.azimuth_spread_deg)
+    rows, owner = [], []
+    for i, (c, n) in enumerate(zip(patches.centers, patches.normals)):
+        h = math.hypot(n[0], n[1])
+        el = math.atan2(n[2], h)  # elevation of the direction patch -> camera
+        # the camera looks back along -u: its elevation -el must be within the FOV band
+        el = -min(max(-el, axis_el - half), axis_el + half)
+        if h > 0.3:
+            az0 = math.atan2(n[1], n[0])
+            azimuths = [az0] if spread == 0 else [az0, az0 - spread, az0 + spread]
+        else:
+            azimuths = [k * math.pi / 3 for k in range(6)]
+        for az in azimuths:
+            u = np.array([math.cos(el) * math.cos(az), math.cos(el) * math.sin(az), math.sin(el)])
+            yaw = math.atan2(-u[1], -u[0]) - math.radians(camera.mount_rpy_deg[2])
+            for s in placement.standoffs:
+                p = c + s * camera.max_range * u
+                rows.append((p[0], p[1], p[2], math.remainder(yaw, 2 * math.pi)))
+                owner.append(i)
+    return np.asarray(rows, float), np.asarray(owner, int)

@@ -1,0 +1,58 @@
+"""Choosing the view to fly among scored candidates.
+
+A candidate qualifies when it is valid (status 0) and its gain is at least planner.min_gain
+(surface utility: m^2 of new surface; other utilities: their own unit). Among those the best
+utility * exp(-travel_lambda * d) wins, d the length of the flight to it: straight (vehicle
+blocked_path 'reject': the straight leg was checked by the scoring) or an A* path through known
+free space ('plan'), computed lazily - the best by straight distance first, re-ranked by its
+path, until the top one's path is known. Ties go to the lower index, so the paper's scenarios
+(travel_lambda 0, straight legs) choose exactly the best valid utility as before.
+"""
+from __future__ import annotations
+
+import heapq
+import math
+
+import numpy as np
+
+from .parts import Choice
+
+
+class Selector:
+    def __init__(self, config, resolution: float):
+        p = config.planner
+        self.travel_lambda = p.travel_lambda
+        surface = config.utility.name == "surface"
+        self.min_gain = p.min_gain / resolution**2 if surface else p.min_gain
+        self.plan_paths = config.vehicle.blocked_path == "plan"
+
+    def choose(self, world, poses: np.ndarray, scores: dict):
+        here = world.state.pose[:3]
+        ok = np.flatnonzero((scores["status"] == 0) & (scores["gain"] >= self.min_gain))
+        if len(ok) == 0:
+            return None
+        straight = np.linalg.norm(poses[ok, :3] - here, axis=1)
+        value = scores["utility"][ok] * np.exp(-self.travel_lambda * straight)
+        heap = [(-float(v), int(k), float(d), False) for v, k, d in zip(value, ok, straight)]
+        heapq.heapify(heap)
+        paths = {}
+        while heap:
+            neg, k, d, exact = heapq.heappop(heap)
+            if exact or not self.plan_paths:
+                path = paths.get(k) if self.plan_paths else None
+                return Choice(
+                    k,
+                    poses[k].copy(),
+                    float(scores["utility"][k]),
+                    float(scores["gain"][k]),
+                    path,
+                    d,
+                )
+            path = world.plan_path(poses[k])
+            if path is None:
+                continue  # no way there through known free space
+            length = float(np.linalg.norm(np.diff(path, axis=0), axis=1).sum())
+            paths[k] = path
+            v = float(scores["utility"][k]) * math.exp(-self.travel_lambda * length)
+            heapq.heappush(heap, (-v, k, length, True))
+        return None

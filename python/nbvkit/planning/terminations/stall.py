@@ -1,0 +1,15 @@
+"""Surface-coverage stall: stall.window consecutive views each showed the camera less than
+stall.min_gain m^2 of surface it had not seen from that side before (measured from the camera
+observations, not predicted)."""
+from __future__ import annotations
+
+
+class SurfaceStall:
+    def __init__(self, config):
+        self.window = config.stall.window
+        self.min_gain = config.stall.min_gain
+        self.quiet = 0
+
+    def check(self, world, step):
+        self.quiet = self.quiet + 1 if step.new_surface_m2 < self.min_gain else 0
+        return "surface_stall" if self.quiet >= self.window else None

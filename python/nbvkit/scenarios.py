@@ -1,0 +1,114 @@
+"""The scenarios a mission can fly: the rows of the paper's Table 2 and nbvkit's own planners.
+
+A scenario is a preset of configuration keys, applied over the defaults and under whatever the
+user sets (a config file, ``--set``): ``nbvkit run --scenario 3 --set sampling.sigma=2`` flies the
+paper's Scenario 3 with a different AGVS factor. The defaults of ``nbvkit.Config`` are the
+recommended planner's (``surface``), so its preset is empty. This table is the only place that
+lists scenarios; the CLI, the config validation and Table 2 read it. The defaults of
+``nbvkit.Config`` are the recommended planner's except where a C++ default is the paper's (the
+utility, blocked legs) or the paper's workspace: those the ``surface`` preset sets.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+
+@dataclass(frozen=True)
+class Scenario:
+    description: str
+    settings: dict = field(default_factory=dict)  # dotted config key -> value
+    table2: tuple | None = None  # (profiling, symmetry, sampling) columns of the paper's Table 2
+
+
+# The paper's method (sec. 3): the CGVS/AGVS lattice scored by information gain, straight legs
+# (blocked ones rejected), the entropy-per-viewable-voxel termination, in the paper's 40 x 40 x
+# 10 m style workspace (the structure's box grown by 2.5 m), with Algorithm 1's profiling closed
+# back to its start and a return to the start pose.
+_PAPER = {
+    "workspace.margin_xy": 2.5,
+    "workspace.margin_z": 2.5,
+    "planner.generators": ["lattice"],
+    "planner.terminations": ["entropy"],
+    "planner.min_gain": 0.0,
+    "planner.travel_lambda": 0.0,
+    "utility.name": "ig",
+    "vehicle.blocked_path": "reject",
+    "profiling.waypoints": 5,
+    "profiling.close_circle": True,
+    "profiling.return_to_start": True,
+    "symmetry.refresh_every": 0,
+}
+
+# nbvkit's surface planners: the surface utility (expected new surface), A* legs through known
+# free space, and room round the structure for the camera's stand-off (5 m: 0.6 x its 8 m range;
+# the paper's 2.5 m margin pins views against tall facades).
+_SURFACE = {
+    "workspace.margin_xy": 5.0,
+    "utility.name": "surface",
+    "utility.require_occupied": False,
+    "vehicle.blocked_path": "plan",
+}
+
+SCENARIOS: dict[str, Scenario] = {
+    "profile": Scenario(
+        "the laser profile alone (Algorithm 1); its symmetry is reported, not used",
+        {**_PAPER, "profiling.enabled": True, "symmetry.mode": "report", "planner.generators": []},
+        ("yes", "no", "-"),
+    ),
+    "1": Scenario(
+        "the paper's Scenario 1: no profiling, no symmetry, CGVS",
+        {**_PAPER, "profiling.enabled": False, "symmetry.mode": "none", "sampling.method": "cgvs"},
+        ("no", "no", "CGVS"),
+    ),
+    "2": Scenario(
+        "Scenario 2: profiling, CGVS",
+        {**_PAPER, "profiling.enabled": True, "symmetry.mode": "none", "sampling.method": "cgvs"},
+        ("yes", "no", "CGVS"),
+    ),
+    "3": Scenario(
+        "Scenario 3: profiling, AGVS",
+        {**_PAPER, "profiling.enabled": True, "symmetry.mode": "none", "sampling.method": "agvs"},
+        ("yes", "no", "AGVS"),
+    ),
+    "4": Scenario(
+        "Scenario 4: profiling, symmetry prediction, CGVS",
+        {
+            **_PAPER,
+            "profiling.enabled": True,
+            "symmetry.mode": "predict",
+            "sampling.method": "cgvs",
+        },
+        ("yes", "yes", "CGVS"),
+    ),
+    "5": Scenario(
+        "Scenario 5: profiling, symmetry prediction, AGVS (the paper's full method)",
+        {
+            **_PAPER,
+            "profiling.enabled": True,
+            "symmetry.mode": "predict",
+            "sampling.method": "agvs",
+        },
+        ("yes", "yes", "AGVS"),
+    ),
+    "surface": Scenario(
+        "nbvkit's recommended planner: a profile, symmetry prediction, then coverage tours of "
+        "the surface still to observe (set cover of views, ordered as a shortest tour, each "
+        "view paying for its detour) until no planned view is worth its flight",
+        _SURFACE,
+    ),
+    "surface_nbv": Scenario(
+        "greedy next-best-view on the surface utility: views aimed at the surface still to "
+        "observe and the local lattice, the best gain * exp(-travel_lambda * path) flown each "
+        "iteration, until the surface stalls",
+        {
+            **_SURFACE,
+            "planner.generators": ["frontier", "lattice"],
+            "planner.terminations": ["stall", "budget"],
+        },
+    ),
+}
+
+#: The scenarios of the paper's Table 2, in its row order.
+TABLE2 = ("profile", "1", "2", "3", "4", "5")
+#: The scenario `nbvkit run` flies unless told otherwise.
+DEFAULT = "surface"

@@ -1,0 +1,241 @@
+"""The simulated world of a mission: the structure, the vehicle and its sensors, and what has been
+mapped so far (occupancy map, point clouds, camera observations).
+
+Planners read it and move the vehicle through it; they never reach past it. Every per-ray and
+per-cell loop runs in the C++ core (``nbvkit._core``).
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from . import _core
+from .config import Config
+from .mesh import default_mesh_path, load_mesh
+from .workspace import Workspace, make_workspace, start_poses
+
+
+class MissionError(ValueError):
+    """A mission that cannot start: bad start pose, unknown option, missing stage."""
+
+
+@dataclass
+class VehicleState:
+    """Where the vehicle is and has been: pose (x, y, z, yaw), distance flown (m), and the
+    trajectory rows (stage, x, y, z, yaw, distance_m)."""
+
+    pose: np.ndarray
+    distance_m: float = 0.0
+    views: int = 0  # camera frames taken
+    trajectory: list = field(default_factory=list)
+
+
+class World:
+    """The structure (mesh, Embree scene), the workspace, the vehicle and its sensors, and the
+    maps they build: ``map`` (OccupancyMap), ``camera_cloud`` / ``laser_cloud`` (SurfaceCloud),
+    ``surface`` (SurfaceObservations of the camera).
+
+    config: a nbvkit.Config. mesh: an nbvkit.Mesh to use instead of config.mesh. Raises
+    MissionError before any work for a bad start or a start inside the structure.
+    """
+
+    def __init__(self, config: Config, mesh=None):
+        self.config = cfg = config
+        if mesh is None:
+            self.mesh_path = str(cfg.mesh.path or default_mesh_path())
+            mesh = load_mesh(self.mesh_path, scale=cfg.mesh.scale, up=cfg.mesh.up)
+        else:
+            if not isinstance(mesh, _core.Mesh):
+                raise TypeError(f"mesh must be an nbvkit.Mesh, got {type(mesh).__name__}")
+            self.mesh_path = "<in-memory mesh>"
+        self.mesh = mesh
+        self.workspace: Workspace = make_workspace(mesh.bounds, cfg)
+        self.scene = _core.RaycastScene(mesh)
+        c, la = cfg.camera, cfg.laser
+        camera_mount = _core.mount_transform(c.mount_xyz, *c.mount_rpy_deg)
+        self.camera = _core.DepthCamera(
+            self.scene,
+            width=c.width,
+            height=c.height,
+            hfov_deg=c.hfov_deg,
+            vfov_deg=c.vfov_deg,
+            min_range=c.min_range,
+            max_range=c.max_range,
+            noise_k=c.noise_k,
+            seed=cfg.seed,
+            mount=camera_mount,
+        )
+        self.laser = _core.LaserScanner(
+            self.scene,
+            fov_deg=la.fov_deg,
+            resolution_deg=la.resolution_deg,
+            min_range=la.min_range,
+            max_range=la.max_range,
+            noise_sigma=la.noise_sigma,
+            seed=cfg.seed + 1,
+            mount=_core.mount_transform(la.mount_xyz, *la.mount_rpy_deg),
+        )
+        self.starts = self._start_poses(camera_mount)
+        start = np.array(cfg.start_pose, float) if cfg.start_pose is not None else None
+        self.start_pose = start if start is not None else self.starts[cfg.start]
+        self._check_start(self.start_pose)
+        m = cfg.map
+        self.map = _core.OccupancyMap(
+            m.resolution,
+            self.workspace.bounds_min,
+            self.workspace.bounds_max,
+            options=m.options(),
+        )
+        cl = cfg.cloud
+        self.camera_cloud = _core.SurfaceCloud(voxel_size=cl.camera_voxel, min_z=cl.min_z)
+        self.laser_cloud = _core.SurfaceCloud(voxel_size=cl.laser_voxel, min_z=cl.min_z)
+        self.surface = _core.SurfaceObservations(self.map)
+        vc = _core.ViewCameraModel.for_resolution(c.hfov_deg, c.vfov_deg, c.max_range, m.resolution)
+        self.view_camera = vc.copy(
+            rays_x=cfg.utility.rays_x or vc.rays_x,
+            rays_y=cfg.utility.rays_y or vc.rays_y,
+            mount=camera_mount,
+        )
+        self.state = VehicleState(pose=self.start_pose.copy())
+        self.state.trajectory.append(("start", *self.start_pose.tolist(), 0.0))
+        self.out_dir = None  # stages may write figures here
+
+    def take_off(self) -> None:
+        """Unknown cells within vehicle.start_clear_radius of the start become known free: the
+        vehicle took off there (no sensor sees its own surroundings)."""
+        r = self.config.vehicle.start_clear_radius
+        if r > 0:
+            p = self.start_pose[:3]
+            self.map.mark_free_segment(p, p, r)
+
+    # ------------------------------------------------------------------ starts
+    def _start_poses(self, camera_mount) -> np.ndarray:
+        """The five predefined starts (see workspace.start_poses): within 3/4 of the camera's
+        range of the structure, seeing it."""
+        c, v = self.config.camera, self.config.vehicle
+        probe = _core.DepthCamera(
+            self.scene,
+            width=32,
+            height=24,
+            hfov_deg=c.hfov_deg,
+            vfov_deg=c.vfov_deg,
+            min_range=c.min_range,
+            max_range=c.max_range,
+            mount=camera_mount,
+        )
+        return start_poses(
+            self.workspace,
+            surface=self.mesh.sample_surface(20000, seed=0),
+            reach=0.75 * c.max_range,
+            clearance=v.collision_radius + 1.0,
+            sees=lambda pose: len(probe.scan_pose(pose).hits) >= 0.05 * 32 * 24,
+        )
+
+    def _check_start(self, pose) -> None:
+        ws = self.workspace
+        if not ws.contains(pose):
+            raise MissionError(
+                f"start pose {np.round(pose, 3).tolist()} is outside the navigation bounds "
+                f"{ws.nav_min.round(3).tolist()} - {ws.nav_max.round(3).tolist()}"
+            )
+        r = self.config.vehicle.collision_radius
+        dirs = _fibonacci_sphere(200)
+        t, _ = self.scene.intersect(np.asarray(pose[:3], float)[None], dirs, 0.0, max(r, 1e-6))
+        if np.isfinite(t).any():
+            raise MissionError(
+                f"start pose {np.round(pose, 3).tolist()} is within the collision radius "
+                f"({r} m) of the structure"
+            )
+        # Inside test: from outside, a ray always enters the first surface it meets through a
+        # front face (outward-oriented parts, even intersecting ones); from inside, most first
+        # hits are back faces. Open shells seen from outside give some back faces, hence a vote.
+        t, prim = self.scene.intersect(np.asarray(pose[:3], float)[None], dirs, 0.0, np.inf)
+        hit = prim >= 0
+        if hit.any():
+            v, f = self.mesh.vertices, self.mesh.faces[prim[hit]]
+            n = np.cross(v[f[:, 1]] - v[f[:, 0]], v[f[:, 2]] - v[f[:, 0]])
+            back = np.einsum("ij,ij->i", n, dirs[hit]) > 0
+            if back.sum() > 0.5 * len(dirs):
+                raise MissionError(
+                    f"start pose {np.round(pose, 3).tolist()} is inside the structure"
+                )
+
+    # ------------------------------------------------------------------ sensing
+    def sense_camera(self, pose=None):
+        """One camera frame from `pose` (default: the vehicle's), integrated into the map, the
+        camera cloud and the camera observations. Returns the Scan."""
+        scan = self.camera.scan_pose(self.state.pose if pose is None else pose)
+        self.map.integrate(scan)
+        self.camera_cloud.add(scan.hits)
+        self.surface.add_scan(scan)
+        self.state.views += 1
+        return scan
+
+    def sense_laser(self, pose=None):
+        """One laser scan, integrated into the map and the laser cloud. Returns the Scan."""
+        scan = self.laser.scan_pose(self.state.pose if pose is None else pose)
+        self.map.integrate(scan)
+        self.laser_cloud.add(scan.hits)
+        return scan
+
+    def cloud_points(self) -> np.ndarray:
+        """(N, 3) the reconstruction: camera and laser clouds together."""
+        a, b = self.camera_cloud.points, self.laser_cloud.points
+        return np.vstack([a, b]) if len(b) else a
+
+    # ------------------------------------------------------------------ motion
+    def fly_to(self, target, stage: str, path=None) -> float:
+        """Move the vehicle along `path` ((P, 3) waypoints, first = here; default straight) to
+        `target` (x, y, z, yaw); returns the distance flown. The swept volume becomes known free
+        (vehicle.clear_swept_volume)."""
+        cur = self.state.pose
+        pts = np.asarray(path if path is not None and len(path) else [cur[:3], target[:3]], float)
+        d = float(np.linalg.norm(np.diff(pts, axis=0), axis=1).sum())
+        if self.config.vehicle.clear_swept_volume:
+            for a, b in zip(pts[:-1], pts[1:]):
+                self.map.mark_free_segment(a, b, self.config.vehicle.collision_radius)
+        self.state.distance_m += d
+        self.state.pose = np.asarray(target, float).copy()
+        self.state.trajectory.append((stage, *self.state.pose.tolist(), self.state.distance_m))
+        return d
+
+    def validity(self, blocked_path: str | None = None):
+        """ValidityOptions of a candidate view here: the navigation bounds, the vehicle's
+        collision radius and (unless given) its blocked_path rule."""
+        ws, v = self.workspace, self.config.vehicle
+        return _core.ValidityOptions(
+            collision_radius=v.collision_radius,
+            bounds_min=ws.nav_min,
+            bounds_max=ws.nav_max,
+            blocked_path=blocked_path or v.blocked_path,
+        )
+
+    def plan_path(self, target):
+        """A* path (P, 3) from the vehicle to target's position through known free space, or
+        None when there is none."""
+        path = _core.plan_path(
+            self.map,
+            self.state.pose[:3],
+            np.asarray(target, float)[:3],
+            self.config.vehicle.collision_radius,
+        )
+        return path if len(path) else None
+
+    def enter_navigation_space(self, stage: str) -> float:
+        """After a flight outside the navigation bounds (a wide profiling circle), fly straight
+        to the nearest point inside them; returns the distance flown (0 when already inside)."""
+        ws = self.workspace
+        p = self.state.pose
+        q = np.clip(p[:3], ws.nav_min + 1e-6, ws.nav_max - 1e-6)
+        if np.allclose(q, p[:3]):
+            return 0.0
+        return self.fly_to(np.array([*q, p[3]]), stage)
+
+
+def _fibonacci_sphere(n: int) -> np.ndarray:
+    i = np.arange(n) + 0.5
+    phi = np.arccos(1 - 2 * i / n)
+    th = math.pi * (1 + 5**0.5) * i
+    return np.stack([np.cos(th) * np.sin(phi), np.sin(th) * np.sin(phi), np.cos(phi)], axis=1)

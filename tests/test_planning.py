@@ -1,0 +1,296 @@
+"""The planner's parts: tours, set cover, prize collecting, view placement, surface targets,
+generators' contracts, every scenario end to end, and bad planner configurations."""
+from __future__ import annotations
+
+import itertools
+import json
+import math
+
+import numpy as np
+import pytest
+
+import nbvkit
+from nbvkit import _core
+from nbvkit.config import Config, load_config
+from nbvkit.mission import Mission
+from nbvkit.planning.generators.frontier import FrontierGenerator
+from nbvkit.planning.generators.tour import prize_collect
+from nbvkit.planning.placement import Patches, place_views, target_patches
+from nbvkit.scenarios import SCENARIOS
+from conftest import box_mesh, wall_mesh
+
+
+def tour_length(start, pts, order):
+    seq = np.vstack([start, pts[order]])
+    return float(np.linalg.norm(np.diff(seq, axis=0), axis=1).sum())
+
+
+# ------------------------------------------------------------------ tours
+
+
+@pytest.mark.parametrize("seed", range(5))
+def test_tour_visits_every_view_once_and_is_no_longer_than_nearest_neighbour(seed):
+    rng = np.random.default_rng(seed)
+    pts = rng.uniform(-20, 20, (60, 3))
+    start = np.array([25.0, 0.0, 5.0])
+    nn, nn_len = _core.solve_tour(pts, start, improve=False)
+    order, length = _core.solve_tour(pts, start)
+    assert sorted(order) == list(range(60)) and sorted(nn) == list(range(60))
+    assert length == pytest.approx(tour_length(start, pts, order))
+    assert nn_len == pytest.approx(tour_length(start, pts, nn))
+    assert length <= nn_len + 1e-9
+    # a 2-opt local optimum: no reversal of a stretch of the open tour shortens it
+    seq = np.vstack([start, pts[order]])
+    d = lambda a, b: np.linalg.norm(seq[a] - seq[b])  # noqa: E731
+    for i in range(1, 61):
+        for j in range(i + 1, 61):
+            delta = d(i - 1, j) - d(i - 1, i) + (d(i, j + 1) - d(j, j + 1) if j < 60 else 0.0)
+            assert delta > -1e-9
+
+
+def test_tour_is_optimal_on_small_instances():
+    rng = np.random.default_rng(7)
+    pts = rng.uniform(0, 10, (7, 3))
+    start = np.zeros(3)
+    best = min(tour_length(start, pts, list(p)) for p in itertools.permutations(range(7)))
+    _, length = _core.solve_tour(pts, start)
+    assert length <= best * 1.05  # local search lands within 5 % of the optimum here
+
+
+def test_tour_on_a_matrix_avoids_impassable_legs_and_rejects_bad_matrices():
+    d = np.array([[0, 1, 2, 3], [1, 0, 1, 2], [2, 1, 0, 1], [3, 2, 1, 0]], float)
+    d[1, 2] = d[2, 1] = np.inf  # views 0 and 1 (rows 1, 2) cannot follow each other
+    order, length = _core.solve_tour_matrix(d)
+    assert sorted(order) == [0, 1, 2] and np.isfinite(length)
+    seq = [0] + [o + 1 for o in order]
+    assert all(np.isfinite(d[a, b]) for a, b in zip(seq[:-1], seq[1:]))
+    with pytest.raises(ValueError, match="symmetric"):
+        _core.solve_tour_matrix(np.array([[0, 1.0], [2.0, 0]]))
+    with pytest.raises(ValueError, match=">= 0"):
+        _core.solve_tour_matrix(np.array([[0, -1.0], [-1.0, 0]]))
+    with pytest.raises(ValueError, match="NaN"):
+        _core.solve_tour(np.array([[np.nan, 0, 0]]), np.zeros(3))
+
+
+def test_prize_collecting_drops_views_that_do_not_pay_for_their_detour():
+    start = np.zeros(3)
+    pts = np.array([[1.0, 0, 0], [2.0, 0, 0], [2.0, 10.0, 0], [3.0, 0, 0]])
+    gains = np.array([5.0, 5.0, 3.0, 5.0])  # view 2 is a 20 m detour for 3 m^2
+    order = [0, 1, 2, 3]
+    assert prize_collect(start, pts, gains, order, rate=1.0) == [0, 1, 3]
+    assert prize_collect(start, pts, gains, order, rate=0.1) == order  # cheap flight: keep all
+    assert prize_collect(start, pts, gains, order, rate=0.0) == order
+
+
+# ------------------------------------------------------------------ set cover
+
+
+def test_greedy_cover_picks_the_largest_new_coverage_first():
+    # view 0 covers {1, 2, 3}, view 1 {3, 4}, view 2 {4, 5, 6, 7}, view 3 {1, 2} (redundant)
+    sets = [[1, 2, 3], [3, 4], [4, 5, 6, 7], [1, 2]]
+    cov = {
+        "offsets": np.cumsum([0] + [len(s) for s in sets]).astype(np.int64),
+        "elements": np.concatenate(sets).astype(np.int64),
+        "weights": np.ones(sum(map(len, sets)), np.float32),
+        "status": np.zeros(4, np.int8),
+    }
+    views, gains = _core.select_cover(cov, min_gain=0.5, max_views=10)
+    assert views == [2, 0] and gains == [4.0, 3.0]  # then nothing new is left
+    views, _ = _core.select_cover(cov, min_gain=0.5, max_views=1)
+    assert views == [2]
+    cov["status"][2] = 2  # an invalid view is never chosen
+    views, gains = _core.select_cover(cov, min_gain=0.5, max_views=10)
+    assert views == [0, 1] and gains == [3.0, 1.0]
+
+
+# ------------------------------------------------------------------ placement and targets
+
+
+class _Cam:
+    vfov_deg, max_range, mount_rpy_deg = 45.0, 8.0, (0.0, 0.0, 0.0)
+
+
+class _Place:
+    standoffs, azimuth_spread_deg, elevation_margin_deg = (0.5, 0.75), 30.0, 4.0
+
+
+def test_views_are_placed_at_their_standoff_facing_the_patch_inside_the_fov():
+    patches = Patches(
+        centers=np.array([[0.0, 0, 3], [5, 5, 2], [-3, 0, 4]]),
+        normals=np.array([[1.0, 0, 0], [0, 0, 1.0], [-0.6, 0.0, -0.8]]),
+        weights=np.ones(3),
+    )
+    poses, owner = place_views(patches, _Cam, _Place)
+    assert len(poses) == 3 * 2 + 6 * 2 + 3 * 2  # facing up: 6 azimuths
+    half = math.radians(45 / 2)
+    for pose, i in zip(poses, owner):
+        to_patch = patches.centers[i] - pose[:3]
+        dist = np.linalg.norm(to_patch)
+        assert min(abs(dist - 4.0), abs(dist - 6.0)) < 1e-9
+        heading = np.array([math.cos(pose[3]), math.sin(pose[3])])
+        horiz = to_patch[:2] / max(np.linalg.norm(to_patch[:2]), 1e-12)
+        assert heading @ horiz > math.cos(1e-6) or np.linalg.norm(to_patch[:2]) < 1e-9
+        elevation = math.atan2(to_patch[2], np.linalg.norm(to_patch[:2]))
+        assert abs(elevation) <= half  # the patch is in the vertical field of view
+    assert np.all(np.isfinite(poses))
+
+
+def test_patches_group_targets_by_cell_and_side():
+    t = {
+        "positions": np.array([[0.1, 0, 0], [0.2, 0, 0], [0.1, 0, 0], [5, 5, 5]]),
+        "normals": np.array([[1.0, 0, 0], [1.0, 0, 0], [-1.0, 0, 0], [0, 0, 1.0]]),
+        "weight": np.array([1.0, 1.0, 0.5, 1.0]),
+    }
+    p = target_patches(t, 1.0)
+    assert len(p.weights) == 3  # the two sides of the first cell stay apart
+    assert sorted(p.weights.tolist()) == [0.5, 1.0, 2.0]
+
+
+def test_surface_targets_of_a_wall_seen_from_the_front_are_on_its_back():
+    m = nbvkit.OccupancyMap(0.2, (-2, -4, -4), (12, 4, 4))
+    cam = nbvkit.DepthCamera(wall_mesh(x=5.0, half=1.0), max_range=8.0)
+    surface = _core.SurfaceObservations(m)
+    for _ in range(3):
+        scan = cam.scan_pose([0.0, 0.0, 0.0, 0.0])
+        m.integrate(scan)
+        surface.add_scan(scan)
+    t = _core.surface_targets(m, surface, dict(frontier=False, predicted=False))
+    kinds = t["kind"]
+    assert len(kinds) > 0 and np.all(kinds == 0)
+    # the front was seen from the camera's side: what is left faces away from it (+x)
+    assert np.all(t["normals"][:, 0] > 0.5)
+    t2 = _core.surface_targets(m, surface)
+    assert (t2["kind"] == 2).any()  # unknown space behind the wall borders its surface
+    fr = t2["normals"][t2["kind"] == 2]
+    # frontier cells are seen from known free space: the camera's side or past the wall's edges,
+    # never from the unknown space behind the wall
+    assert np.all(fr[:, 0] <= 1e-9) and (fr[:, 0] < -0.5).any()
+
+
+def test_frontier_views_face_their_targets_and_the_valid_ones_are_collision_free():
+    cfg = load_config(
+        overrides=[
+            "scenario=surface_nbv",
+            "map.resolution=0.4",
+            "progress=false",
+            "max_iterations=1",
+        ]
+    )
+    mesh = box_mesh((-3, -3, 0), (3, 3, 4))
+    m = Mission(cfg, mesh=mesh)
+    w = m.world
+    w.take_off()
+    w.sense_camera()
+    gen = FrontierGenerator(cfg)
+    prop = gen.propose(w)
+    assert prop is not None and len(prop.poses) > 0
+    s = _core.evaluate_views(
+        w.map,
+        prop.poses,
+        w.state.pose,
+        camera=w.view_camera,
+        utility=cfg.utility.options(),
+        validity=w.validity(),
+        surface=w.surface,
+    )
+    valid = prop.poses[s["status"] == 0]
+    assert len(valid) > 0
+    for p in valid:
+        assert _core.sphere_is_free(w.map, p[:3], cfg.vehicle.collision_radius)
+    # each view faces the target patch it was placed for, inside the camera's field of view
+    assert prop.aims.shape == (len(prop.poses), 3)
+    for p, aim in zip(prop.poses, prop.aims):
+        to_aim = aim - p[:3]
+        heading = np.array([math.cos(p[3]), math.sin(p[3])])
+        assert heading @ to_aim[:2] / np.linalg.norm(to_aim[:2]) > math.cos(1e-6)
+        elevation = math.degrees(math.atan2(to_aim[2], np.linalg.norm(to_aim[:2])))
+        assert abs(elevation) <= cfg.camera.vfov_deg / 2
+        # and is near the structure: the patch lies on or next to the box's surface
+        assert np.all(aim >= np.array([-3, -3, 0]) - 0.5) and np.all(
+            aim <= np.array([3, 3, 4]) + 0.5
+        )
+
+
+# ------------------------------------------------------------------ missions
+
+QUICK = [
+    "map.resolution=0.4",
+    "progress=false",
+    "evaluation.gt_density=50",
+    "evaluation.coverage_every=2",
+    "profiling.sweep_step=0.25",
+    "symmetry.voxel_size=0.4",
+]
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("scenario", list(SCENARIOS))
+def test_every_scenario_flies_end_to_end(scenario, tmp_path):
+    cfg = load_config(overrides=[f"scenario={scenario}", "max_iterations=6", *QUICK])
+    s = Mission(cfg).run(tmp_path)
+    d = json.loads((tmp_path / "summary.json").read_text())
+    assert d["scenario"] == scenario
+    if scenario == "profile":
+        assert d["termination"] == "profile_only" and d["iterations"] == 0
+    else:
+        assert 1 <= d["iterations"] <= 6
+        assert d["views"] == d["iterations"] + 1  # the first frame, then one per iteration
+    assert s["coverage"]["0.5"] > 0 and s["distance_m"] > 0
+    assert (tmp_path / "iterations.csv").exists()
+
+
+@pytest.mark.slow
+def test_the_surface_planner_tours_and_stops_by_itself():
+    cfg = load_config(overrides=["max_iterations=400", *QUICK])
+    m = Mission(cfg, mesh=box_mesh((-4, -3, 0), (4, 3, 5)))
+    s = m.run()
+    assert s["termination"] == "coverage_complete"
+    assert len(s["tours"]) >= 1 and s["tours"][0]["flown"] >= 1
+    # the 8 x 6 x 5 m box's bottom (48 of its 236 m^2) lies on the ground: 79.7 % is observable;
+    # the tour must see nearly all of that
+    assert s["area_coverage"]["0.1"] > 0.7
+    sources = {r.source for r in m.records}
+    assert sources == {"tour"}
+
+
+@pytest.mark.slow
+def test_budget_stops_a_mission():
+    cfg = load_config(overrides=["max_iterations=400", "budget.max_views=5", *QUICK])
+    s = Mission(cfg, mesh=box_mesh((-4, -3, 0), (4, 3, 5))).run()
+    assert s["termination"] == "budget_views" and s["views"] == 5
+
+
+# ------------------------------------------------------------------ bad input
+
+
+@pytest.mark.parametrize(
+    "override, message",
+    [
+        ("scenario=nope", "scenario"),
+        ("planner.generators=[lattice, nope]", "planner generator 'nope'"),
+        ("planner.terminations=[nope]", "planner termination 'nope'"),
+        ("planner.generators=lattice", "planner.generators"),
+        ("utility.name=nope", "utility.name"),
+        ("utility.weight_density=-1", "weight_density"),
+        ("utility.frontier_prior=.nan", "utility.frontier_prior"),
+        ("tour.rate=-1", "tour.rate"),
+        ("planner.travel_lambda=.inf", "planner.travel_lambda"),
+        ("placement.standoffs=[0.5, 2.0]", "placement.standoffs"),
+        ("targets.frontier_weight=3", "frontier_weight"),
+        ("stall.window=0", "stall.window"),
+    ],
+)
+def test_bad_planner_configuration_fails_before_any_work(override, message):
+    with pytest.raises((ValueError, KeyError), match=message):
+        load_config(overrides=[override])
+
+
+def test_scenario_presets_yield_to_what_the_user_sets():
+    c = load_config(overrides=["scenario=3", "sampling.sigma=2"])
+    assert c.sampling.method == "agvs" and c.sampling.sigma == 2.0  # preset + user
+    assert c.utility.name == "ig" and c.planner.generators == ("lattice",)
+    c2 = load_config(overrides=["scenario=5", "utility.name=four_term"])
+    assert c2.utility.name == "four_term" and c2.symmetry.mode == "predict"
+    assert Config().scenario == "surface" and Config().utility.name == "surface"
+    back = Config.from_dict(c2.to_dict())
+    assert back == c2  # a written config.yaml reproduces the run
