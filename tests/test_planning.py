@@ -80,6 +80,11 @@ def test_prize_collecting_drops_views_that_do_not_pay_for_their_detour():
     assert prize_collect(start, pts, gains, order, rate=1.0) == [0, 1, 3]
     assert prize_collect(start, pts, gains, order, rate=0.1) == order  # cheap flight: keep all
     assert prize_collect(start, pts, gains, order, rate=0.0) == order
+    # a far cluster: each view's own detour is small, the transit to the cluster is not
+    far = np.array([[1.0, 0, 0], [2.0, 0, 0], [30.0, 0, 0], [31.0, 0, 0], [32.0, 0, 0]])
+    g = np.array([5.0, 5.0, 4.0, 4.0, 4.0])
+    assert prize_collect(start, far, g, [0, 1, 2, 3, 4], rate=1.0) == [0, 1]
+    assert prize_collect(start, far, g, [0, 1, 2, 3, 4], rate=0.3) == [0, 1, 2, 3, 4]
 
 
 # ------------------------------------------------------------------ set cover

@@ -7,6 +7,24 @@
 #include "options.hpp"
 
 namespace nbv::bind {
+namespace {
+
+/// A view_coverage result (dict of CSR arrays) back into C++, checked.
+ViewCoverage coverage_arg(const py::dict& coverage) {
+  ViewCoverage cov;
+  cov.offsets = coverage["offsets"].cast<Eigen::Matrix<std::int64_t, Eigen::Dynamic, 1>>();
+  cov.elements = coverage["elements"].cast<Eigen::Matrix<std::int64_t, Eigen::Dynamic, 1>>();
+  cov.weights = coverage["weights"].cast<Eigen::VectorXf>();
+  cov.status = coverage["status"].cast<Eigen::Matrix<std::int8_t, Eigen::Dynamic, 1>>();
+  const Eigen::Index n = cov.offsets.size();
+  bool ok = n == cov.status.size() + 1 && cov.elements.size() == cov.weights.size() &&
+            (n == 0 || (cov.offsets[0] == 0 && cov.offsets[n - 1] == cov.elements.size()));
+  for (Eigen::Index i = 1; ok && i < n; ++i) ok = cov.offsets[i] >= cov.offsets[i - 1];
+  if (!ok) throw py::value_error("coverage arrays are inconsistent");
+  return cov;
+}
+
+}  // namespace
 
 void init_planning(py::module_& m) {
   {
@@ -74,15 +92,7 @@ evaluate_views.)doc");
   m.def(
       "select_cover",
       [](const py::dict& coverage, double min_gain, int max_views) {
-        ViewCoverage cov;
-        cov.offsets = coverage["offsets"].cast<Eigen::Matrix<std::int64_t, Eigen::Dynamic, 1>>();
-        cov.elements = coverage["elements"].cast<Eigen::Matrix<std::int64_t, Eigen::Dynamic, 1>>();
-        cov.weights = coverage["weights"].cast<Eigen::VectorXf>();
-        cov.status = coverage["status"].cast<Eigen::Matrix<std::int8_t, Eigen::Dynamic, 1>>();
-        if (cov.offsets.size() != cov.status.size() + 1 ||
-            cov.elements.size() != cov.weights.size() ||
-            (cov.offsets.size() && cov.offsets[cov.offsets.size() - 1] != cov.elements.size()))
-          throw py::value_error("coverage arrays are inconsistent");
+        const ViewCoverage cov = coverage_arg(coverage);
         if (max_views < 0) throw py::value_error("max_views must be >= 0");
         CoverSelection s;
         {
@@ -95,6 +105,28 @@ evaluate_views.)doc");
       R"doc(Greedy weighted set cover over a view_coverage result: (views, gains), the chosen
 candidate indices in the order chosen and each one's marginal gain, until the best adds less
 than min_gain or max_views are chosen.)doc");
+  m.def(
+      "select_tour",
+      [](const py::dict& coverage, const py::handle& positions, const py::handle& start,
+         double rate, double min_gain, int max_views) {
+        const ViewCoverage cov = coverage_arg(coverage);
+        auto p = points_arg(positions, "candidate positions");
+        const Eigen::Vector3d st = vec3_arg(start, "tour start");
+        if (max_views < 0) throw py::value_error("max_views must be >= 0");
+        auto pm = p.map();
+        CoverSelection s;
+        {
+          py::gil_scoped_release release;
+          s = select_tour(cov, pm, st, rate, min_gain, max_views);
+        }
+        return py::make_tuple(py::cast(s.views), py::cast(s.gains));
+      },
+      py::arg("coverage"), py::arg("positions"), py::arg("start"), py::arg("rate"),
+      py::arg("min_gain") = 1.0, py::arg("max_views") = 1000,
+      R"doc(Prize-collecting tour over a view_coverage result by greedy cheapest insertion:
+(views, gains) in tour order from start. A candidate (positions (K, 3)) enters where it lengthens
+the open tour least, the one maximising its new coverage - rate x that extra length first, until
+none adds min_gain with a positive value. rate: coverage weight per metre.)doc");
   m.def(
       "solve_tour",
       [](const py::handle& points, const py::handle& start, bool improve) {

@@ -249,4 +249,86 @@ CoverSelection select_cover(const ViewCoverage& cov, double min_gain, int max_vi
   return out;
 }
 
+CoverSelection select_tour(const ViewCoverage& cov, const PointsRef& positions,
+                           const Eigen::Vector3d& start, double rate, double min_gain,
+                           int max_views) {
+  const Eigen::Index K = cov.offsets.size() - 1;
+  if (K < 0 || positions.rows() != K)
+    throw std::invalid_argument("select_tour: one position per candidate of the coverage");
+  require_finite(positions, "candidate positions");
+  if (!start.allFinite()) throw std::invalid_argument("select_tour: start is not finite");
+  if (!(rate >= 0) || !std::isfinite(rate)) throw std::invalid_argument("rate must be >= 0");
+  // the candidates each element belongs to (inverse CSR), and every candidate's current gain
+  std::unordered_map<std::int64_t, std::vector<std::pair<Eigen::Index, float>>> holders;
+  std::vector<double> gain(static_cast<std::size_t>(K), 0.0);
+  for (Eigen::Index k = 0; k < K; ++k) {
+    if (cov.status[k] != 0) continue;
+    for (std::int64_t o = cov.offsets[k]; o < cov.offsets[k + 1]; ++o) {
+      holders[cov.elements[o]].emplace_back(k, cov.weights[o]);
+      gain[std::size_t(k)] += cov.weights[o];
+    }
+  }
+  std::unordered_map<std::int64_t, float> covered;
+  std::vector<Eigen::Vector3d> stops{start};  // the open tour: start, then the chosen views
+  std::vector<int> ids{-1};
+  // best insertion cost of each candidate into the current tour (recomputed after each insert)
+  std::vector<double> ins(static_cast<std::size_t>(K)), pos(static_cast<std::size_t>(K));
+  std::vector<char> taken(static_cast<std::size_t>(K), 0);
+  std::vector<int> inserted;  // view ids in insertion order
+  auto p = [&](Eigen::Index k) { return Eigen::Vector3d(positions.row(k).transpose()); };
+  CoverSelection out;
+  while (int(out.views.size()) < max_views) {
+    const std::size_t n = stops.size();
+    int best = -1;
+    double best_value = 0.0;
+    for (Eigen::Index k = 0; k < K; ++k) {
+      if (cov.status[k] != 0 || taken[std::size_t(k)] || gain[std::size_t(k)] < min_gain) continue;
+      const Eigen::Vector3d q = p(k);
+      double cost = (q - stops[n - 1]).norm();  // appended at the end
+      std::size_t at = n;
+      for (std::size_t i = 0; i + 1 < n; ++i) {
+        const double c =
+            (q - stops[i]).norm() + (q - stops[i + 1]).norm() - (stops[i + 1] - stops[i]).norm();
+        if (c < cost) {
+          cost = c;
+          at = i + 1;
+        }
+      }
+      ins[std::size_t(k)] = cost;
+      pos[std::size_t(k)] = double(at);
+      const double value = gain[std::size_t(k)] - rate * cost;
+      if (value > best_value) {
+        best_value = value;
+        best = int(k);
+      }
+    }
+    if (best < 0) break;
+    const std::size_t at = std::size_t(pos[std::size_t(best)]);
+    stops.insert(stops.begin() + std::ptrdiff_t(at), p(best));
+    ids.insert(ids.begin() + std::ptrdiff_t(at), best);
+    taken[std::size_t(best)] = 1;
+    inserted.push_back(best);
+    out.gains.push_back(gain[std::size_t(best)]);
+    // the chosen view's elements are covered now: every holder's gain shrinks accordingly
+    for (std::int64_t o = cov.offsets[best]; o < cov.offsets[best + 1]; ++o) {
+      const std::int64_t e = cov.elements[o];
+      float& have = covered[e];
+      const float now = std::max(have, cov.weights[o]);
+      if (now == have) continue;
+      for (const auto& [k, w] : holders[e])
+        gain[std::size_t(k)] -= std::max(0.0f, w - have) - std::max(0.0f, w - now);
+      have = now;
+    }
+  }
+  // out.gains follows the insertion order; report the views in tour order with their gains
+  std::unordered_map<int, double> gain_of;
+  for (std::size_t i = 0; i < inserted.size(); ++i) gain_of[inserted[i]] = out.gains[i];
+  out.gains.clear();
+  for (std::size_t i = 1; i < ids.size(); ++i) {
+    out.views.push_back(ids[i]);
+    out.gains.push_back(gain_of[ids[i]]);
+  }
+  return out;
+}
+
 }  // namespace nbv

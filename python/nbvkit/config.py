@@ -237,7 +237,10 @@ class TourConfig:
     """The coverage-tour generator: set cover of views over the surface targets, a shortest
     tour through them, flown; then again, until no planned view is worth its flight."""
 
-    min_gain: float = 1.6  # m^2 of new surface a view must add to enter a plan (set cover)
+    # how a plan chooses views: "cover" (greedy set cover, then a shortest tour) or "insertion"
+    # (prize-collecting: new surface - rate x added tour length, by cheapest insertion)
+    selection: str = "cover"
+    min_gain: float = 1.6  # m^2 of new surface a view must add to enter a plan
     rate: float = 1.2  # m^2 of new surface per metre of detour a planned view must pay
     max_plans: int = 0  # tours planned at most (0: until a plan is empty)
 
@@ -576,6 +579,7 @@ _CHOICES = {
     "utility.name": tuple(_core.utility_names()),
     "scenario": tuple(SCENARIOS),
     "symmetry.mode": ("none", "report", "predict"),
+    "tour.selection": ("cover", "insertion"),
     "profiling.method": ("circular", "bbox"),
     "symmetry.keypoints": ("sift", "iss", "uniform"),
 }

@@ -76,4 +76,15 @@ struct CoverSelection {
 };
 CoverSelection select_cover(const ViewCoverage& coverage, double min_gain, int max_views);
 
+/// Prize-collecting tour by greedy cheapest insertion: starting from an open tour at `start`,
+/// repeatedly insert the candidate (positions (K, 3)) maximising gain - rate * insertion cost,
+/// where gain is what it adds to the elements covered so far (as select_cover) and the insertion
+/// cost is the extra length of the open tour with it in its best place (between two stops, or
+/// at the end), until no candidate adds at least min_gain with a positive value or max_views
+/// are in. `rate`: element weight per metre. Returns the tour order (candidate indices, start
+/// excluded) and each view's gain when it was inserted. Deterministic; ties to the lower index.
+CoverSelection select_tour(const ViewCoverage& coverage, const PointsRef& positions,
+                           const Eigen::Vector3d& start, double rate, double min_gain,
+                           int max_views);
+
 }  // namespace nbv

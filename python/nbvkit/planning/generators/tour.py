@@ -57,16 +57,28 @@ class CoverageTour:
             utility=cfg.utility.options(),
             validity=world.validity(blocked_path="plan"),
         )
-        chosen, gains = _core.select_cover(coverage, min_gain=cfg.tour.min_gain / cell_m2)
+        if cfg.tour.selection == "insertion":
+            chosen, gains = _core.select_tour(
+                coverage,
+                candidates[:, :3],
+                pose[:3],
+                rate=cfg.tour.rate / cell_m2,
+                min_gain=cfg.tour.min_gain / cell_m2,
+            )
+        else:
+            chosen, gains = _core.select_cover(coverage, min_gain=cfg.tour.min_gain / cell_m2)
         record["selected"] = len(chosen)
         if not chosen:
             self.aims = np.zeros((0, 3))
             return np.zeros((0, 4))
         views, aims = candidates[chosen], patches.centers[owner[chosen]]
-        order, _ = _core.solve_tour(views[:, :3], pose[:3])
-        order = prize_collect(
-            pose[:3], views[:, :3], np.asarray(gains) * cell_m2, order, cfg.tour.rate
-        )
+        gains = np.asarray(gains) * cell_m2
+        order, length = _core.solve_tour(views[:, :3], pose[:3])
+        if cfg.tour.selection == "insertion":  # keep the insertion order if it is shorter
+            kept = list(range(len(chosen)))
+            if _length(pose[:3], views[:, :3], kept) <= length:
+                order = kept
+        order = prize_collect(pose[:3], views[:, :3], gains, order, cfg.tour.rate)
         record["kept"] = len(order)
         if order:
             pts = np.vstack([pose[:3], views[order, :3]])
@@ -94,20 +106,38 @@ class CoverageTour:
 
 
 def prize_collect(start, points, gains, order, rate) -> list:
-    """Drops views from an open tour `order` (indices into points (N, 3), gains (N,) in m^2)
-    while some view adds less than `rate` m^2 per metre of the detour it causes (the distance
-    saved by skipping it), the worst first. Returns the kept order."""
+    """Drops stretches of an open tour `order` (indices into points (N, 3), gains (N,) in m^2)
+    while some run of consecutive views adds less than `rate` m^2 per metre of the flight its
+    removal saves - a single view's detour, or a far cluster's transit there and back - the
+    worst deficit (rate x saving - gain) first. Returns the kept order."""
     order = list(order)
     if rate <= 0:
         return order
     while order:
         seq = np.vstack([start, points[order]])
         leg = np.linalg.norm(np.diff(seq, axis=0), axis=1)  # leg k ends at order[k]
-        saving = leg.copy()
-        saving[:-1] += leg[1:] - np.linalg.norm(seq[2:] - seq[:-2], axis=1)
-        deficit = rate * saving - gains[order]
-        worst = int(np.argmax(deficit))
-        if deficit[worst] <= 0:
+        n = len(order)
+        cum_leg = np.concatenate([[0.0], np.cumsum(leg)])
+        cum_gain = np.concatenate([[0.0], np.cumsum(gains[order])])
+        best, best_ij = 0.0, None
+        for i in range(n):  # remove order[i..j]
+            j = np.arange(i, n)
+            inner = cum_leg[j + 1] - cum_leg[i]  # from the view before i through j
+            after = np.where(j + 1 < n, leg[np.minimum(j + 1, n - 1)], 0.0)
+            bridge = np.where(
+                j + 1 < n, np.linalg.norm(seq[np.minimum(j + 2, n)] - seq[i], axis=1), 0.0
+            )
+            saving = inner + after - bridge
+            deficit = rate * saving - (cum_gain[j + 1] - cum_gain[i])
+            k = int(np.argmax(deficit))
+            if deficit[k] > best + 1e-12:
+                best, best_ij = float(deficit[k]), (i, int(j[k]))
+        if best_ij is None:
             break
-        order.pop(worst)
+        del order[best_ij[0] : best_ij[1] + 1]
     return order
+
+
+def _length(start, points, order) -> float:
+    seq = np.vstack([start, points[order]])
+    return float(np.linalg.norm(np.diff(seq, axis=0), axis=1).sum())

@@ -1,0 +1,236 @@
+// Edge cases of the planning core: the workspace grid's layout and exact bookkeeping, the ray
+// walk, collision checks and A*, tours, set cover and prize-collecting insertion.
+#include "nbv/coverage.hpp"
+#include "nbv/grid_view.hpp"
+#include "nbv/navigation.hpp"
+#include "nbv/occupancy_map.hpp"
+#include "nbv/tour.hpp"
+#include "nbv/views.hpp"
+#include "nbv/workspace_grid.hpp"
+
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <cmath>
+#include <numeric>
+#include <random>
+#include <set>
+#include <vector>
+
+using namespace nbv;
+
+namespace {
+
+CellRule rule() {
+  CellRule r;
+  r.occupied_logodds = 0.405465f;
+  r.clamp_min_logodds = -1.99243f;
+  r.clamp_max_logodds = 3.47610f;
+  return r;
+}
+
+std::vector<std::array<int, 3>> walk(const GridView& g, const Eigen::Vector3d& o,
+                                     const Eigen::Vector3d& d, double t) {
+  std::vector<std::array<int, 3>> cells;
+  walk_ray<false>(g, o, d.normalized(), t, [&](std::size_t, const int* c, double) {
+    cells.push_back({c[0], c[1], c[2]});
+    return true;
+  });
+  return cells;
+}
+
+}  // namespace
+
+TEST(GridLayout, EveryCellHasItsOwnIdAndPaddingHoldsNone) {
+  for (const std::array<int, 3> dims : {std::array<int, 3>{1, 1, 1}, {5, 3, 9}, {8, 8, 4}}) {
+    const GridLayout L(dims);
+    std::set<std::size_t> ids;
+    for (int k = 0; k < dims[2]; ++k)
+      for (int j = 0; j < dims[1]; ++j)
+        for (int i = 0; i < dims[0]; ++i) {
+          const std::size_t id = L.id(i, j, k);
+          ASSERT_LT(id, L.storage_size());
+          int a, b, c;
+          ASSERT_TRUE(L.coords(id, a, b, c));
+          ASSERT_TRUE(a == i && b == j && c == k);
+          ids.insert(id);
+        }
+    EXPECT_EQ(std::int64_t(ids.size()), L.num_cells());
+    std::size_t padding = 0;
+    for (std::size_t id = 0; id < L.storage_size(); ++id) {
+      int a, b, c;
+      padding += !L.coords(id, a, b, c);
+    }
+    EXPECT_EQ(padding, L.storage_size() - std::size_t(L.num_cells()));
+  }
+  EXPECT_THROW(GridLayout({0, 2, 2}), std::invalid_argument);
+}
+
+TEST(WorkspaceGrid, TotalsCountsAndBricksStayExactUnderRandomUpdates) {
+  WorkspaceGrid g({9, 7, 5}, rule());
+  std::mt19937 rng(3);
+  std::uniform_int_distribution<int> x(0, 8), y(0, 6), z(0, 4), kind(0, 3);
+  const float values[] = {-1.99243f, -0.4f, 0.85f, 3.47610f};
+  for (int n = 0; n < 3000; ++n) {
+    const std::int64_t id = std::int64_t(g.layout().id(x(rng), y(rng), z(rng)));
+    const int k = kind(rng);
+    g.set(id, values[k], k == 1 && n % 7 == 0 ? CellFlag::Predicted : CellFlag::Observed);
+  }
+  EXPECT_EQ(g.total_entropy(), g.recompute_total_entropy());  // fixed point: exactly equal
+  const CellCounts a = g.counts(), b = g.recompute_counts();
+  EXPECT_EQ(a.free, b.free);
+  EXPECT_EQ(a.occupied, b.occupied);
+  EXPECT_EQ(a.unknown, b.unknown);
+  EXPECT_EQ(a.predicted, b.predicted);
+  EXPECT_EQ(a.free + a.occupied + a.unknown, g.num_cells());
+  // brick summary: a brick is live exactly when a cell in it is not an observed clamped free one
+  for (std::size_t brick = 0; brick < g.layout().num_bricks(); ++brick) {
+    int live = 0;
+    for (std::size_t id = brick << 6; id < (brick + 1) << 6; ++id) {
+      int i, j, k;
+      if (!g.layout().coords(id, i, j, k)) continue;
+      const auto s = std::int64_t(id);
+      live += !(g.flag(s) == CellFlag::Observed && g.state(s) == CellState::Free &&
+                g.entropy(s) == 0.0f);
+    }
+    ASSERT_EQ(int(g.brick_live_data()[brick]), live) << brick;
+  }
+}
+
+TEST(WorkspaceGrid, ScoredHoldsEntropyWithOccupancyInItsSign) {
+  WorkspaceGrid g({4, 4, 4}, rule());
+  const std::int64_t a = std::int64_t(g.layout().id(1, 1, 1)), b = std::int64_t(g.layout().id(2, 1, 1));
+  g.set(a, 3.47610f, CellFlag::Observed);  // occupied, clamped: -0.0
+  g.set(b, 0.85f, CellFlag::Observed);
+  EXPECT_TRUE(std::signbit(g.scored_data()[a]));
+  EXPECT_EQ(g.scored_data()[a], 0.0f);
+  EXPECT_EQ(g.state(a), CellState::Occupied);
+  EXPECT_LT(g.scored_data()[b], 0.0f);
+  EXPECT_FLOAT_EQ(-g.scored_data()[b], g.entropy(b));
+  const std::int64_t u = std::int64_t(g.layout().id(0, 0, 0));
+  EXPECT_FLOAT_EQ(g.scored_data()[u], float(std::log(2.0)));  // unknown: ln 2, not occupied
+}
+
+TEST(RayWalk, AxisRaysVisitTheirRowAndDiagonalsEveryCrossedCell) {
+  OccupancyMap m(1.0, {0, 0, 0}, {10, 10, 10});
+  const GridView g = grid_view(m);
+  const auto row = walk(g, {0.5, 3.5, 3.5}, {1, 0, 0}, 4.0);
+  ASSERT_EQ(row.size(), 5u);  // cells 0..4 (the end at x = 4.5 is inside cell 4)
+  for (int i = 0; i < 5; ++i) EXPECT_EQ(row[std::size_t(i)], (std::array<int, 3>{i, 3, 3}));
+  const auto diag = walk(g, {0.5, 0.5, 0.5}, {1, 1, 1}, 100.0);  // to the grid's far corner
+  EXPECT_EQ(diag.front(), (std::array<int, 3>{0, 0, 0}));
+  EXPECT_EQ(diag.back(), (std::array<int, 3>{9, 9, 9}));
+  for (std::size_t i = 1; i < diag.size(); ++i) {  // each step moves one cell along one axis
+    int moved = 0;
+    for (int a = 0; a < 3; ++a) moved += std::abs(diag[i][a] - diag[i - 1][a]);
+    EXPECT_EQ(moved, 1);
+  }
+  EXPECT_TRUE(walk(g, {-5, -5, -5}, {-1, 0, 0}, 100).empty());  // misses the grid
+  const auto entering = walk(g, {-3.5, 2.5, 2.5}, {1, 0, 0}, 5.0);  // starts outside
+  ASSERT_FALSE(entering.empty());
+  EXPECT_EQ(entering.front(), (std::array<int, 3>{0, 2, 2}));
+}
+
+TEST(Navigation, SpheresAndPathsStayInKnownFreeSpace) {
+  OccupancyMap m(0.2, {0, 0, 0}, {6, 6, 3});
+  // a known free corridor along x at y = 1.5 and one along y at x = 4.5, everything else unknown
+  m.mark_free_segment({1, 1.5, 1.5}, {5, 1.5, 1.5}, 1.2);
+  m.mark_free_segment({4.5, 1.5, 1.5}, {4.5, 5, 1.5}, 1.2);
+  const GridView g = grid_view(m);
+  EXPECT_TRUE(sphere_is_free(g, {3, 1.5, 1.5}, 0.6));
+  EXPECT_FALSE(sphere_is_free(g, {3, 3.5, 1.5}, 0.6));  // unknown
+  EXPECT_FALSE(sphere_is_free(g, {0.1, 1.5, 1.5}, 0.6));  // reaches outside the grid
+  EXPECT_FALSE(segment_is_free(g, {2, 1.5, 1.5}, {4.5, 4.5, 1.5}, 0.6));
+  const auto path = plan_path(g, {2, 1.5, 1.5}, {4.5, 4.5, 1.5}, 0.6);
+  ASSERT_GE(path.size(), 3u);  // around the corner
+  for (std::size_t i = 1; i < path.size(); ++i) EXPECT_TRUE(segment_is_free(g, path[i - 1], path[i], 0.6));
+  EXPECT_GT(path_length(path), (Eigen::Vector3d(4.5, 4.5, 1.5) - Eigen::Vector3d(2, 1.5, 1.5)).norm());
+  EXPECT_TRUE(plan_path(g, {2, 1.5, 1.5}, {1.5, 4.5, 1.5}, 0.6).empty());  // goal in unknown
+}
+
+TEST(Tour, IsAPermutationNoLongerThanNearestNeighbourAndEmptyForNoPoints) {
+  std::mt19937 rng(11);
+  std::uniform_real_distribution<double> u(-10, 10);
+  Points pts(40, 3);
+  for (Eigen::Index i = 0; i < 40; ++i) pts.row(i) << u(rng), u(rng), u(rng);
+  const Eigen::Vector3d start(12, 0, 0);
+  const Tour nn = solve_tour(pts, start, false), best = solve_tour(pts, start, true);
+  std::vector<int> sorted = best.order;
+  std::sort(sorted.begin(), sorted.end());
+  std::vector<int> all(40);
+  std::iota(all.begin(), all.end(), 0);
+  EXPECT_EQ(sorted, all);
+  EXPECT_LE(best.length, nn.length + 1e-9);
+  EXPECT_TRUE(solve_tour(Points(0, 3), start).order.empty());
+  EXPECT_EQ(solve_tour(Points(0, 3), start).length, 0.0);
+}
+
+namespace {
+
+ViewCoverage coverage(const std::vector<std::vector<std::int64_t>>& sets) {
+  ViewCoverage c;
+  c.offsets.resize(Eigen::Index(sets.size() + 1));
+  c.offsets[0] = 0;
+  std::vector<std::int64_t> el;
+  for (std::size_t k = 0; k < sets.size(); ++k) {
+    el.insert(el.end(), sets[k].begin(), sets[k].end());
+    c.offsets[Eigen::Index(k + 1)] = std::int64_t(el.size());
+  }
+  c.elements = Eigen::Map<Eigen::Matrix<std::int64_t, Eigen::Dynamic, 1>>(el.data(), Eigen::Index(el.size()));
+  c.weights = Eigen::VectorXf::Ones(Eigen::Index(el.size()));
+  c.status = Eigen::Matrix<std::int8_t, Eigen::Dynamic, 1>::Zero(Eigen::Index(sets.size()));
+  return c;
+}
+
+}  // namespace
+
+TEST(Cover, GreedyAndPrizeCollectingInsertion) {
+  // views along x: 0 at 1 m covers {1,2,3}, 1 at 2 m {3,4}, 2 at 50 m {5,6,7,8}
+  const ViewCoverage cov = coverage({{1, 2, 3}, {3, 4}, {5, 6, 7, 8}});
+  const CoverSelection g = select_cover(cov, 0.5, 10);
+  EXPECT_EQ(g.views, (std::vector<int>{2, 0, 1}));
+  EXPECT_EQ(g.gains, (std::vector<double>{4, 3, 1}));
+  Points pos(3, 3);
+  pos << 1, 0, 0, 2, 0, 0, 50, 0, 0;
+  // 0.05 per metre: the far view pays (4 - 0.05 * 48 > 0); 0.2 per metre: it does not
+  const CoverSelection cheap = select_tour(cov, pos, Eigen::Vector3d::Zero(), 0.05, 0.5, 10);
+  EXPECT_EQ(cheap.views, (std::vector<int>{0, 1, 2}));  // in tour order
+  const CoverSelection dear = select_tour(cov, pos, Eigen::Vector3d::Zero(), 0.2, 0.5, 10);
+  EXPECT_EQ(dear.views, (std::vector<int>{0, 1}));
+  EXPECT_EQ(dear.gains, (std::vector<double>{3, 1}));
+  EXPECT_THROW(select_tour(cov, Points(2, 3), Eigen::Vector3d::Zero(), 0.1, 0.5, 10),
+               std::invalid_argument);
+}
+
+TEST(Views, OptionsRejectBadValuesWithTheirName) {
+  UtilityOptions u;
+  u.name = "nope";
+  EXPECT_THROW(u.validate(), std::invalid_argument);
+  u.name = "surface";
+  u.frontier_prior = 1.5;
+  try {
+    u.validate();
+    FAIL();
+  } catch (const std::invalid_argument& e) {
+    EXPECT_NE(std::string(e.what()).find("frontier_prior"), std::string::npos);
+  }
+  ValidityOptions v;
+  v.blocked_path = "teleport";
+  EXPECT_THROW(v.validate(), std::invalid_argument);
+  ViewCameraModel c;
+  c.rays_x = 0;
+  EXPECT_THROW(c.validate(), std::invalid_argument);
+  EXPECT_EQ(view_status_names().size(), 5u);
+  const auto names = utility_names();
+  EXPECT_NE(std::find(names.begin(), names.end(), "ig"), names.end());
+}
+
+TEST(Views, DirectionBinsAreTheCubesDirectionsAndConesAreSymmetric) {
+  for (int b = 0; b < 26; ++b) {
+    EXPECT_EQ(direction_bin(bin_direction(b)), b);
+    EXPECT_TRUE(bin_cone(b, 0.0) & (1u << b));
+    for (int c = 0; c < 26; ++c)
+      EXPECT_EQ(bool(bin_cone(b, 75.0) & (1u << c)), bool(bin_cone(c, 75.0) & (1u << b)));
+  }
+  EXPECT_EQ(bin_cone(0, 180.0), (1u << 26) - 1);
+}
