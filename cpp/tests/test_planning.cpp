@@ -99,7 +99,8 @@ TEST(WorkspaceGrid, TotalsCountsAndBricksStayExactUnderRandomUpdates) {
 
 TEST(WorkspaceGrid, ScoredHoldsEntropyWithOccupancyInItsSign) {
   WorkspaceGrid g({4, 4, 4}, rule());
-  const std::int64_t a = std::int64_t(g.layout().id(1, 1, 1)), b = std::int64_t(g.layout().id(2, 1, 1));
+  const std::int64_t a = std::int64_t(g.layout().id(1, 1, 1)),
+                     b = std::int64_t(g.layout().id(2, 1, 1));
   g.set(a, 3.47610f, CellFlag::Observed);  // occupied, clamped: -0.0
   g.set(b, 0.85f, CellFlag::Observed);
   EXPECT_TRUE(std::signbit(g.scored_data()[a]));
@@ -125,7 +126,7 @@ TEST(RayWalk, AxisRaysVisitTheirRowAndDiagonalsEveryCrossedCell) {
     for (int a = 0; a < 3; ++a) moved += std::abs(diag[i][a] - diag[i - 1][a]);
     EXPECT_EQ(moved, 1);
   }
-  EXPECT_TRUE(walk(g, {-5, -5, -5}, {-1, 0, 0}, 100).empty());  // misses the grid
+  EXPECT_TRUE(walk(g, {-5, -5, -5}, {-1, 0, 0}, 100).empty());      // misses the grid
   const auto entering = walk(g, {-3.5, 2.5, 2.5}, {1, 0, 0}, 5.0);  // starts outside
   ASSERT_FALSE(entering.empty());
   EXPECT_EQ(entering.front(), (std::array<int, 3>{0, 2, 2}));
@@ -138,13 +139,15 @@ TEST(Navigation, SpheresAndPathsStayInKnownFreeSpace) {
   m.mark_free_segment({4.5, 1.5, 1.5}, {4.5, 5, 1.5}, 1.2);
   const GridView g = grid_view(m);
   EXPECT_TRUE(sphere_is_free(g, {3, 1.5, 1.5}, 0.6));
-  EXPECT_FALSE(sphere_is_free(g, {3, 3.5, 1.5}, 0.6));  // unknown
+  EXPECT_FALSE(sphere_is_free(g, {3, 3.5, 1.5}, 0.6));    // unknown
   EXPECT_FALSE(sphere_is_free(g, {0.1, 1.5, 1.5}, 0.6));  // reaches outside the grid
   EXPECT_FALSE(segment_is_free(g, {2, 1.5, 1.5}, {4.5, 4.5, 1.5}, 0.6));
   const auto path = plan_path(g, {2, 1.5, 1.5}, {4.5, 4.5, 1.5}, 0.6);
   ASSERT_GE(path.size(), 3u);  // around the corner
-  for (std::size_t i = 1; i < path.size(); ++i) EXPECT_TRUE(segment_is_free(g, path[i - 1], path[i], 0.6));
-  EXPECT_GT(path_length(path), (Eigen::Vector3d(4.5, 4.5, 1.5) - Eigen::Vector3d(2, 1.5, 1.5)).norm());
+  for (std::size_t i = 1; i < path.size(); ++i)
+    EXPECT_TRUE(segment_is_free(g, path[i - 1], path[i], 0.6));
+  EXPECT_GT(path_length(path),
+            (Eigen::Vector3d(4.5, 4.5, 1.5) - Eigen::Vector3d(2, 1.5, 1.5)).norm());
   EXPECT_TRUE(plan_path(g, {2, 1.5, 1.5}, {1.5, 4.5, 1.5}, 0.6).empty());  // goal in unknown
 }
 
@@ -176,7 +179,8 @@ ViewCoverage coverage(const std::vector<std::vector<std::int64_t>>& sets) {
     el.insert(el.end(), sets[k].begin(), sets[k].end());
     c.offsets[Eigen::Index(k + 1)] = std::int64_t(el.size());
   }
-  c.elements = Eigen::Map<Eigen::Matrix<std::int64_t, Eigen::Dynamic, 1>>(el.data(), Eigen::Index(el.size()));
+  c.elements = Eigen::Map<Eigen::Matrix<std::int64_t, Eigen::Dynamic, 1>>(el.data(),
+                                                                          Eigen::Index(el.size()));
   c.weights = Eigen::VectorXf::Ones(Eigen::Index(el.size()));
   c.status = Eigen::Matrix<std::int8_t, Eigen::Dynamic, 1>::Zero(Eigen::Index(sets.size()));
   return c;
