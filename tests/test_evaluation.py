@@ -232,6 +232,20 @@ def test_evaluator_reuse_equals_evaluate(cube, cube_face_cloud):
     assert "Evaluator" in repr(ev)
 
 
+def test_cell_figures_alone_equal_the_full_evaluation(cube, cube_face_cloud):
+    ev = Evaluator(cube, gt_density=2000, seed=3)
+    rng = np.random.default_rng(1)
+    noisy = cube_face_cloud + rng.normal(0, 0.03, cube_face_cloud.shape)
+    for cloud in (cube_face_cloud, noisy, np.zeros((0, 3))):
+        full, cells = ev(cloud), ev.coverage(cloud)
+        for key in ("coverage", "area_coverage", "precision", "gt_cells", "covered_cells"):
+            assert cells[key] == full[key], key
+    half = ev.coverage(cube_face_cloud[::2])["coverage"]["0.05"]
+    assert 0 < half <= ev.coverage(cube_face_cloud)["coverage"]["0.05"]  # a subset covers less
+    with pytest.raises(ValueError, match="cloud"):
+        ev.coverage(np.array([[0.0, np.nan, 0.0]]))
+
+
 def test_reference_cloud_mode(cube):
     gt = cube.sample_surface(20000, seed=3)
     r = evaluate(gt, gt[:10000])

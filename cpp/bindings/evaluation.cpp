@@ -99,6 +99,15 @@ void init_evaluation(py::module_& m) {
             return e.evaluate(c.map());
           },
           py::arg("cloud"))
+      .def(
+          "evaluate_cells",
+          [](const Evaluator& e, const py::handle& cloud) {
+            auto c = points_arg(cloud, "cloud");
+            py::gil_scoped_release release;
+            return e.evaluate_cells(c.map());
+          },
+          py::arg("cloud"),
+          "Coverage, area coverage and precision alone (no kd-tree, no distances).")
       .def_property_readonly("gt_points", &Evaluator::gt_points)
       .def_property_readonly("num_gt_points", &Evaluator::num_gt_points)
       .def_property_readonly("gt_info", [](const Evaluator& e) { return e.gt_info(); });

@@ -244,6 +244,24 @@ std::vector<std::uint64_t> tree_cell_keys(const KdTree& tree, double r, const ch
   return keys;
 }
 
+// Cell keys of a cloud's points in input order (parallel); throws like tree_cell_keys.
+std::vector<std::uint64_t> point_cell_keys(const PointsRef& pts, double r, const char* what) {
+  std::vector<std::uint64_t> keys(static_cast<std::size_t>(pts.rows()));
+  std::atomic<bool> bad{false};
+  const double inv = 1.0 / r;
+  parallel_chunks(keys.size(), 1 << 14, [&](std::size_t b, std::size_t e) {
+    for (std::size_t k = b; k < e; ++k) {
+      const auto i = static_cast<Eigen::Index>(k);
+      keys[k] = try_voxel_key(pts(i, 0), pts(i, 1), pts(i, 2), r, inv);
+      if (keys[k] == kEmptyVoxelKey) bad = true;
+    }
+  });
+  if (bad)
+    throw std::invalid_argument(std::string(what) + " has points too far from the origin for a " +
+                                fmt(r) + " m grid (at most 2^20 cells per axis)");
+  return keys;
+}
+
 double ratio(std::int64_t a, std::int64_t b) { return b > 0 ? static_cast<double>(a) / b : 0.0; }
 
 }  // namespace
@@ -325,13 +343,11 @@ Evaluator::Evaluator(const PointsRef& gt, const EvaluationOptions& options, Eval
   base_.timings_s.emplace_back("prepare_gt", seconds_since(t0));
 }
 
-EvaluationResult Evaluator::evaluate(const PointsRef& cloud) const {
-  using clock = std::chrono::steady_clock;
-  require_finite(cloud, "cloud");
+EvaluationResult Evaluator::empty_result(std::int64_t n_points) const {
   EvaluationResult res = base_;
   res.resolutions = opt_.resolutions;
   res.taus = opt_.taus;
-  res.n_points = cloud.rows();
+  res.n_points = n_points;
   const std::size_t nr = opt_.resolutions.size(), nt = opt_.taus.size();
   res.coverage.assign(nr, 0.0);
   res.area_coverage.assign(nr, 0.0);
@@ -342,49 +358,72 @@ EvaluationResult Evaluator::evaluate(const PointsRef& cloud) const {
   res.completeness.assign(nt, 0.0);
   res.accuracy.assign(nt, 0.0);
   res.fscore.assign(nt, 0.0);
+  return res;
+}
+
+void Evaluator::score_cells(std::size_t k, const std::vector<std::uint64_t>& keys,
+                            EvaluationResult& res) const {
+  const Grid& g = grids_[k];
+  res.gt_cells[k] = static_cast<std::int64_t>(g.keys.size());
+  if (keys.empty()) return;
+  VoxelHashMap cells(keys.size() / 4);
+  std::vector<std::uint64_t> unique;
+  std::uint64_t last = kEmptyVoxelKey;
+  for (std::uint64_t key : keys) {
+    if (key == last) continue;
+    last = key;
+    if (cells.insert(key, 0).second) unique.push_back(key);
+  }
+  std::atomic<std::int64_t> in_gt{0}, covered{0}, covered_samples{0};
+  parallel_chunks(unique.size(), 1 << 13, [&](std::size_t b, std::size_t e) {
+    std::int64_t c = 0;
+    for (std::size_t j = b; j < e; ++j) c += g.index.contains(unique[j]);
+    in_gt += c;
+  });
+  parallel_chunks(g.keys.size(), 1 << 13, [&](std::size_t b, std::size_t e) {
+    std::int64_t c = 0, s = 0;
+    for (std::size_t j = b; j < e; ++j)
+      if (cells.contains(g.keys[j])) {
+        ++c;
+        s += g.samples[j];
+      }
+    covered += c;
+    covered_samples += s;
+  });
+  res.cloud_cells[k] = static_cast<std::int64_t>(unique.size());
+  res.covered_cells[k] = covered;
+  res.coverage[k] = ratio(covered, res.gt_cells[k]);
+  res.area_coverage[k] = ratio(covered_samples, static_cast<std::int64_t>(tree_.size()));
+  res.precision[k] = ratio(in_gt, res.cloud_cells[k]);
+}
+
+EvaluationResult Evaluator::evaluate_cells(const PointsRef& cloud) const {
+  require_finite(cloud, "cloud");
+  const auto t0 = std::chrono::steady_clock::now();
+  EvaluationResult res = empty_result(cloud.rows());
+  for (std::size_t k = 0; k < opt_.resolutions.size(); ++k)
+    score_cells(k, point_cell_keys(cloud, opt_.resolutions[k], "cloud"), res);
+  res.timings_s.emplace_back("cells", seconds_since(t0));
+  return res;
+}
+
+EvaluationResult Evaluator::evaluate(const PointsRef& cloud) const {
+  using clock = std::chrono::steady_clock;
+  require_finite(cloud, "cloud");
+  EvaluationResult res = empty_result(cloud.rows());
+  const std::size_t nt = opt_.taus.size();
+  const auto n_gt = static_cast<std::int64_t>(tree_.size());
 
   auto t0 = clock::now();
   const KdTree ctree(cloud);
   res.timings_s.emplace_back("cloud_kdtree", seconds_since(t0));
 
   t0 = clock::now();
-  const auto n_gt = static_cast<std::int64_t>(tree_.size());
-  for (std::size_t k = 0; k < nr; ++k) {
-    const Grid& g = grids_[k];
-    res.gt_cells[k] = static_cast<std::int64_t>(g.keys.size());
-    if (cloud.rows() == 0) continue;
-    // The cloud's cells (in tree order: consecutive points usually share a cell).
-    const std::vector<std::uint64_t> keys = tree_cell_keys(ctree, g.r, "cloud");
-    VoxelHashMap cells(keys.size() / 4);
-    std::vector<std::uint64_t> unique;
-    std::uint64_t last = kEmptyVoxelKey;
-    for (std::uint64_t key : keys) {
-      if (key == last) continue;
-      last = key;
-      if (cells.insert(key, 0).second) unique.push_back(key);
-    }
-    std::atomic<std::int64_t> in_gt{0}, covered{0}, covered_samples{0};
-    parallel_chunks(unique.size(), 1 << 13, [&](std::size_t b, std::size_t e) {
-      std::int64_t c = 0;
-      for (std::size_t j = b; j < e; ++j) c += g.index.contains(unique[j]);
-      in_gt += c;
-    });
-    parallel_chunks(g.keys.size(), 1 << 13, [&](std::size_t b, std::size_t e) {
-      std::int64_t c = 0, s = 0;
-      for (std::size_t j = b; j < e; ++j)
-        if (cells.contains(g.keys[j])) {
-          ++c;
-          s += g.samples[j];
-        }
-      covered += c;
-      covered_samples += s;
-    });
-    res.cloud_cells[k] = static_cast<std::int64_t>(unique.size());
-    res.covered_cells[k] = covered;
-    res.coverage[k] = ratio(covered, res.gt_cells[k]);
-    res.area_coverage[k] = ratio(covered_samples, n_gt);
-    res.precision[k] = ratio(in_gt, res.cloud_cells[k]);
-  }
+  for (std::size_t k = 0; k < opt_.resolutions.size(); ++k)  // tree order: runs of equal cells
+    score_cells(k,
+                cloud.rows() ? tree_cell_keys(ctree, opt_.resolutions[k], "cloud")
+                             : std::vector<std::uint64_t>{},
+                res);
   res.timings_s.emplace_back("cells", seconds_since(t0));
   if (cloud.rows() == 0) return res;
 

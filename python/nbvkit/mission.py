@@ -20,7 +20,7 @@ from .evaluation import Evaluator
 from .planning import Planner
 from .world import MissionError, World
 
-__all__ = ["Mission", "MissionError", "IterationRecord", "CoverageTracker"]
+__all__ = ["Mission", "MissionError", "IterationRecord"]
 
 #: The per-view stages timed in every iteration (ms_per_stage in the summary).
 STAGES = ("sampling", "evaluation", "selection", "motion", "sensing", "mapping")
@@ -57,32 +57,6 @@ class IterationRecord:
     t_motion_ms: float = 0.0
     t_sensing_ms: float = 0.0
     t_mapping_ms: float = 0.0
-
-
-class CoverageTracker:
-    """Cheap coverage for progress reports: the evaluator's ground-truth cell keys per
-    resolution, compared with the keys of the cloud's points - the same cell count as
-    nbvkit.evaluate's coverage, without its distance metrics."""
-
-    RES = (0.05, 0.1, 0.5)
-
-    def __init__(self, gt_points: np.ndarray):
-        self.gt_keys = {r: np.unique(_keys(gt_points, r)) for r in self.RES}
-
-    def coverage(self, points: np.ndarray) -> dict:
-        out = {}
-        for r in self.RES:
-            if len(points) == 0:
-                out[r] = 0.0
-                continue
-            ck = np.unique(_keys(points, r))
-            out[r] = float(np.isin(self.gt_keys[r], ck, assume_unique=True).mean())
-        return out
-
-
-def _keys(p: np.ndarray, r: float) -> np.ndarray:
-    k = np.floor(np.asarray(p) / r).astype(np.int64) + (1 << 20)
-    return (k[:, 0] << 42) | (k[:, 1] << 21) | k[:, 2]
 
 
 class Mission:
@@ -129,7 +103,6 @@ class Mission:
         self.entropy_initial = world.map.total_entropy()  # the empty workspace
         world.take_off()
         self.evaluator = Evaluator(world.mesh, gt_density=cfg.evaluation.gt_density, seed=cfg.seed)
-        self.tracker = CoverageTracker(self.evaluator.gt_points)
         if cfg.profiling.enabled:
             self.profile_summary = self._profile()
         if cfg.symmetry.mode != "none":
@@ -178,7 +151,8 @@ class Mission:
         cov = {}
         if cfg.evaluation.coverage_every and step.iteration % cfg.evaluation.coverage_every == 0:
             t0 = time.perf_counter()
-            cov = self.tracker.coverage(world.cloud_points())
+            c = self.evaluator.coverage(world.cloud_points())["coverage"]
+            cov = {float(k): v for k, v in c.items()}
             self.coverage_time_s += time.perf_counter() - t0
         p, c = world.state.pose, step.choice
         last = self.planner.timers.last

@@ -125,6 +125,10 @@ class Evaluator {
   /// Scores `cloud` (N, 3). Throws std::invalid_argument naming "cloud" for NaN/inf. An empty
   /// cloud gives zero fractions and no Chamfer distance. Const and thread-safe.
   EvaluationResult evaluate(const PointsRef& cloud) const;
+  /// The cell counts of evaluate() alone (coverage, area coverage, precision and their cells),
+  /// without the kd-tree and distances: the same figures at a fraction of the cost, e.g. for a
+  /// mission's progress reports. Completeness, accuracy, F-score and Chamfer stay zero / absent.
+  EvaluationResult evaluate_cells(const PointsRef& cloud) const;
 
   const EvaluationOptions& options() const { return opt_; }
   std::size_t num_gt_points() const { return tree_.size(); }
@@ -138,6 +142,10 @@ class Evaluator {
                                                          const EvaluationOptions& options);
   Evaluator(std::pair<Points, EvaluationResult>&& sampled, const EvaluationOptions& options);
   Evaluator(const PointsRef& gt, const EvaluationOptions& options, EvaluationResult base);
+  EvaluationResult empty_result(std::int64_t n_points) const;
+  /// Fills res's figures of resolution k from the cloud's cell keys at that resolution.
+  void score_cells(std::size_t k, const std::vector<std::uint64_t>& keys,
+                   EvaluationResult& res) const;
   struct Grid {
     double r = 0;
     VoxelHashMap index;                 ///< GT cell key -> position in keys / samples
