@@ -36,15 +36,8 @@ def main():
     m.run()
     pose = m.state.pose
     cands = candidate_poses(pose)
-    kw = dict(
-        camera=m.view_camera,
-        utility=dict(require_occupied=False),
-        validity=dict(
-            collision_radius=m.config.vehicle.collision_radius,
-            bounds_min=m.workspace.nav_min,
-            bounds_max=m.workspace.nav_max,
-        ),
-    )
+    # exactly what the mission's planner passes
+    kw = dict(camera=m.world.view_camera, utility=m.planner.utility, validity=m.world.validity())
     threads = nbvkit.get_num_threads()
     print(f"map after {len(m.records)} iterations of scenario {args.scenario}: {m.map.counts()}")
     res = {}

@@ -70,8 +70,10 @@ def test_scenario1_runs_end_to_end_and_writes_results(tmp_path):
         "termination",
         "wall_time_s",
         "ms_per_iteration",
+        "peak_memory_mb",
     ):
         assert k in d, k
+    assert 50 < d["peak_memory_mb"] < 64 * 1024  # a Python process with the core: tens of MB up
     assert d["scenario"] == "1" and 1 <= d["iterations"] <= 12
     assert d["termination"] in ("max_iterations", "entropy_converged", "no_valid_viewpoint")
     assert d["entropy_reduction"] > 0 and d["distance_m"] > 0

@@ -9,6 +9,7 @@ from __future__ import annotations
 import csv
 import json
 import math
+import resource
 import time
 from dataclasses import dataclass, fields
 from pathlib import Path
@@ -219,6 +220,9 @@ class Mission:
             "ms_per_iteration": sum(per_stage.values()),
             "ms_per_stage": per_stage,
             "coverage_refresh_s": self.coverage_time_s,
+            # the process's peak resident memory so far (Linux ru_maxrss, KiB): in a sweep worker
+            # that has flown several runs, the largest of them
+            "peak_memory_mb": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0,
             "cloud_points": int(ev["n_points"]),
             "workspace": world.workspace.to_dict(),
             "c_view": self.planner.c_view,
