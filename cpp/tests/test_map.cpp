@@ -178,7 +178,9 @@ TEST(MapRays, CornerRayAgreesWithExactPath) {
 }
 
 TEST(MapWorkspace, CellsOutsideAreInTheOctreeButNotCounted) {
-  OccupancyMap m(0.2, {0, 0, 0}, {2, 2, 2});
+  OccupancyMapOptions unclipped;
+  unclipped.clip_to_workspace = false;  // the default clips; this test is about the octree outside
+  OccupancyMap m(0.2, {0, 0, 0}, {2, 2, 2}, unclipped);
   const double h0 = m.total_entropy();
   EXPECT_DOUBLE_EQ(h0, 1000 * std::log(2.0));
   // a ray entirely below the workspace
@@ -197,12 +199,25 @@ TEST(MapWorkspace, CellsOutsideAreInTheOctreeButNotCounted) {
   EXPECT_EQ(m.verify_mirror(), 0);
 }
 
+TEST(MapWorkspace, ClippedMapsKeepNothingOutside) {
+  OccupancyMap m(0.2, {0, 0, 0}, {2, 2, 2});  // clip_to_workspace is the default
+  ASSERT_TRUE(m.options().clip_to_workspace);
+  m.integrate(Eigen::Vector3d(0.5, 0.5, -3.0), rows({{1.5, 1.5, -1.0}}), rows({{0.5, 1.5, -2.0}}));
+  EXPECT_EQ(m.octree().size(), 0u);
+  m.integrate(Eigen::Vector3d(-1.9, 1.1, 1.1), rows({{3.9, 1.1, 1.1}}), kNone);
+  EXPECT_EQ(m.counts().free, 10);
+  EXPECT_EQ(m.state({3.9, 1.1, 1.1}), CellState::Unknown);
+  EXPECT_EQ(m.state({-1.5, 1.1, 1.1}), CellState::Unknown);
+}
+
 TEST(MapUpdate, BatchedUpdateBuildsTheSameOctreeAsUpdateNode) {
   // Many overlapping scans, clamping and pruning included: the fast path's batched tree update
   // (lazy updates in tree order, inner nodes fixed once) must give a structurally identical octree.
-  OccupancyMapOptions all;
+  OccupancyMapOptions all, unclipped;
   all.deduplicate_end_points = false;
-  OccupancyMap fast(0.2, {-3, -3, -3}, {3, 3, 3}, all), exact(0.2, {-3, -3, -3}, {3, 3, 3});
+  all.clip_to_workspace = unclipped.clip_to_workspace = false;  // cells outside the grid too
+  OccupancyMap fast(0.2, {-3, -3, -3}, {3, 3, 3}, all),
+      exact(0.2, {-3, -3, -3}, {3, 3, 3}, unclipped);
   std::mt19937 rng(5);
   std::normal_distribution<double> g(0.0, 2.0);
   for (int s = 0; s < 30; ++s) {
