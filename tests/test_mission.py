@@ -150,3 +150,22 @@ def test_blocked_legs_can_be_planned_around_and_the_flown_path_is_counted(tmp_pa
     assert s["iterations"] >= 1
     traj = np.array([r[1:4] for r in m.state.trajectory], float)
     assert np.linalg.norm(np.diff(traj, axis=0), axis=1).sum() == pytest.approx(s["distance_m"])
+
+
+def test_starts_move_clear_of_a_structure_that_fills_its_workspace():
+    # A 10 m cube with a 1 m margin: the inscribed ellipse of the navigation bounds runs through
+    # the cube's sides, so the starts on it collide. Each moves out along its bearing, then up.
+    from conftest import box_mesh
+    from nbvkit.world import World
+
+    mesh = box_mesh([-5, -5, 0], [5, 5, 10])
+    c = Config().with_overrides(FAST + ["workspace.margin_xy=1.0", "workspace.margin_z=3.0"])
+    world = World(c, mesh=mesh)
+    r = c.vehicle.collision_radius
+    for k, s in enumerate(world.starts):
+        assert world.workspace.contains(s), k
+        assert not world._collides(s), k
+        inside = np.all(np.abs(s[:2]) < 5) and s[2] < 10
+        assert not inside, k
+        d = max(np.abs(s[:2]).max() - 5, s[2] - 10)  # outside the cube: its distance bound
+        assert d >= r, (k, s)

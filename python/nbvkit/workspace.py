@@ -69,6 +69,7 @@ def start_poses(
     reach: float | None = None,
     clearance: float = 0.0,
     sees=None,
+    collides=None,
 ) -> np.ndarray:
     """(n, 4) predefined starts, evenly spaced in bearing around the workspace centre at mid
     height, each facing the centre. Each lies on the ellipse inscribed in the navigation bounds
@@ -76,7 +77,10 @@ def start_poses(
     its surface samples `surface` (M, 3) and the sensor's `reach` (m), a start whose nearest
     surface point is farther than `reach` — or, given `sees(pose) -> bool`, from which the sensor
     facing the centre does not see the structure — moves inward along its bearing until both hold
-    (but not nearer than `clearance`). On the diagonals of a cross-shaped structure (an aircraft
+    (but not nearer than `clearance`). A start that is nearer than `clearance` on the ellipse (a
+    structure that fills its workspace) moves outward along its bearing to the bounds, then to other
+    heights, until it is `clearance` away; `collides(point) -> bool` (in collision or inside;
+    default: nearer than `clearance`) decides which starts move. On the diagonals of a cross-shaped structure (an aircraft
     in a square workspace) the boundary is farther than the camera sees. Start 0 is on the -y
     side facing +y (the authors' (0, -20, 5), yaw 90 deg on their workspace)."""
     c = (ws.nav_min + ws.nav_max) / 2
@@ -90,7 +94,11 @@ def start_poses(
     for k in range(n):
         th = -math.pi / 2 + 2 * math.pi * k / n
         p = np.array([c[0] + h[0] * math.cos(th), c[1] + h[1] * math.sin(th), c[2]])
-        if tree is not None:
+        if tree is not None and (collides(p) if collides else tree.query(p)[0] < clearance):
+            p = _clear_start(
+                ws, c, p, lambda q: tree.query(q)[0] >= clearance and not (collides and collides(q))
+            )
+        elif tree is not None:
             step = (c - p) / max(np.linalg.norm(c - p), 1e-9) * 0.25
             for _ in range(int(np.linalg.norm(c - p) / 0.25)):
                 yaw = math.atan2(c[1] - p[1], c[0] - p[0])
@@ -100,3 +108,24 @@ def start_poses(
                 p = p + step
         out[k] = [p[0], p[1], p[2], math.atan2(c[1] - p[1], c[0] - p[0])]
     return out
+
+
+def _clear_start(ws: Workspace, c, p, clear) -> np.ndarray:
+    """The first point where `clear(point)` holds on the bearing from `c` through `p`,
+    outward from `p` to the navigation bounds, at `p`'s height and then at the other heights of
+    the navigation bounds (nearest first)."""
+    d = np.array([p[0] - c[0], p[1] - c[1], 0.0])
+    d /= max(np.linalg.norm(d), 1e-9)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        lim = np.where(d > 0, (ws.nav_max - p) / d, np.where(d < 0, (ws.nav_min - p) / d, np.inf))
+    outward = np.arange(0.0, max(float(np.min(lim[:2])), 0.0) + 1e-9, 0.25)
+    heights = np.arange(ws.nav_min[2], ws.nav_max[2] + 1e-9, 0.25)
+    for z in [p[2], *sorted(heights, key=lambda z: abs(z - p[2]))]:
+        for t in outward:
+            q = np.array([p[0] + t * d[0], p[1] + t * d[1], z])
+            if clear(q):
+                return q
+    raise ValueError(
+        f"no start on the bearing through {np.round(p, 3).tolist()} is clear of the structure "
+        "inside the navigation bounds: enlarge the workspace margin"
+    )

@@ -131,36 +131,43 @@ class World:
             reach=0.75 * c.max_range,
             clearance=v.collision_radius + 1.0,
             sees=lambda pose: len(probe.scan_pose(pose).hits) >= 0.05 * 32 * 24,
+            collides=self._collides,
         )
 
+    def _collides(self, point) -> bool:
+        """Whether a vehicle at `point` would be in collision with or inside the structure."""
+        return self._start_problem(point) is not None
+
     def _check_start(self, pose) -> None:
+        problem = self._start_problem(pose)
+        if problem:
+            raise MissionError(f"start pose {np.round(pose, 3).tolist()} {problem}")
+
+    def _start_problem(self, pose) -> str | None:
+        """Why `pose` cannot be a start (outside the bounds, within the collision radius of the
+        structure, or inside it), or None."""
         ws = self.workspace
         if not ws.contains(pose):
-            raise MissionError(
-                f"start pose {np.round(pose, 3).tolist()} is outside the navigation bounds "
+            return (
+                f"is outside the navigation bounds "
                 f"{ws.nav_min.round(3).tolist()} - {ws.nav_max.round(3).tolist()}"
             )
         r = self.config.vehicle.collision_radius
-        dirs = _fibonacci_sphere(200)
-        t, _ = self.scene.intersect(np.asarray(pose[:3], float)[None], dirs, 0.0, max(r, 1e-6))
-        if np.isfinite(t).any():
-            raise MissionError(
-                f"start pose {np.round(pose, 3).tolist()} is within the collision radius "
-                f"({r} m) of the structure"
-            )
+        o, dirs = np.asarray(pose[:3], float)[None], _fibonacci_sphere(200)
+        t, prim = self.scene.intersect(o, dirs, 0.0, np.inf)
+        if np.any(t <= max(r, 1e-6)):
+            return f"is within the collision radius ({r} m) of the structure"
         # Inside test: from outside, a ray always enters the first surface it meets through a
         # front face (outward-oriented parts, even intersecting ones); from inside, most first
         # hits are back faces. Open shells seen from outside give some back faces, hence a vote.
-        t, prim = self.scene.intersect(np.asarray(pose[:3], float)[None], dirs, 0.0, np.inf)
         hit = prim >= 0
         if hit.any():
             v, f = self.mesh.vertices, self.mesh.faces[prim[hit]]
             n = np.cross(v[f[:, 1]] - v[f[:, 0]], v[f[:, 2]] - v[f[:, 0]])
             back = np.einsum("ij,ij->i", n, dirs[hit]) > 0
             if back.sum() > 0.5 * len(dirs):
-                raise MissionError(
-                    f"start pose {np.round(pose, 3).tolist()} is inside the structure"
-                )
+                return "is inside the structure"
+        return None
 
     # ------------------------------------------------------------------ sensing
     def sense_camera(self, pose=None):
