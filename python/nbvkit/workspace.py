@@ -77,11 +77,11 @@ def start_poses(
     its surface samples `surface` (M, 3) and the sensor's `reach` (m), a start whose nearest
     surface point is farther than `reach` — or, given `sees(pose) -> bool`, from which the sensor
     facing the centre does not see the structure — moves inward along its bearing until both hold
-    (but not nearer than `clearance`). A start that is nearer than `clearance` on the ellipse (a
-    structure that fills its workspace) moves outward along its bearing to the bounds, then to other
-    heights, until it is `clearance` away; `collides(point) -> bool` (in collision or inside;
-    default: nearer than `clearance`) decides which starts move. On the diagonals of a cross-shaped structure (an aircraft
-    in a square workspace) the boundary is farther than the camera sees. Start 0 is on the -y
+    (but not nearer than `clearance`). A start in the structure on the ellipse (one that fills
+    its workspace; `collides(point) -> bool` says, in collision or inside, default: nearer than
+    `clearance`) moves outward along its bearing to the bounds, then to other heights, until it is
+    clear and `clearance` away. On the diagonals of a cross-shaped structure (an aircraft in a
+    square workspace) the boundary is farther than the camera sees. Start 0 is on the -y
     side facing +y (the authors' (0, -20, 5), yaw 90 deg on their workspace)."""
     c = (ws.nav_min + ws.nav_max) / 2
     h = (ws.nav_max - ws.nav_min) / 2
