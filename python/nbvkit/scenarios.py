@@ -2,9 +2,8 @@
 
 A scenario is a preset of configuration keys, applied over the defaults and under whatever the
 user sets (a config file, ``--set``): ``nbvkit run --scenario 3 --set sampling.sigma=2`` flies the
-paper's Scenario 3 with a different AGVS factor. The defaults of ``nbvkit.Config`` are the
-recommended planner's (``surface``), so its preset is empty. This table is the only place that
-lists scenarios; the CLI, the config validation and Table 2 read it. The defaults of
+paper's Scenario 3 with a different AGVS factor. This table is the only place that lists
+scenarios; the CLI, the config validation and Table 2 read it. The defaults of
 ``nbvkit.Config`` are the recommended planner's except where a C++ default is the paper's (the
 utility, blocked legs) or the paper's workspace: those the ``surface`` preset sets.
 """
