@@ -155,9 +155,9 @@ class LaserConfig:
 class CloudConfig:
     """The reconstructed point clouds."""
 
-    camera_voxel: float = 0.02  # m, authors' RGB-D voxel filter
+    camera_voxel: float = _core.SurfaceCloudOptions().voxel_size  # m, authors' RGB-D voxel filter
     laser_voxel: float = 0.1  # m, authors' profile voxel filter
-    min_z: float = 0.3  # m, points below are ground and not registered
+    min_z: float = _core.SurfaceCloudOptions().min_z  # m, points below are ground, not registered
 
 
 VehicleConfig = cpp_section(
