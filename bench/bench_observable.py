@@ -7,7 +7,7 @@ wall time, and draws docs/figures/observable_convergence.png. Asserts nothing.
     .venv/bin/python bench/bench_observable.py --spacings 2 1 0.5 --no-figure
 
 The default configuration's camera, workspace and vehicle; ground truth at the default density.
-Compare the time at the default spacing (observability.pose_spacing, 1 m) with a Scenario 5
+Compare the time at the default spacing (observability.pose_spacing, 2 m) with a Scenario 5
 mission's wall time (``nbvkit run``): the budget is a tenth of it.
 """
 from __future__ import annotations

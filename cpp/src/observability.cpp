@@ -93,7 +93,9 @@ bool occluded(RTCScene scene, const Eigen::Vector3d& o, const Eigen::Vector3d& d
   return ray.tfar < 0.0f;  // -inf when something was hit
 }
 
-constexpr double kSurfaceEps = 2e-3;  // m: occlusion rays start and end this far from their ends
+// m: occlusion rays start and end this far from their ends (float precision of the BVH is ~4e-6 m
+// at 40 m from the origin); a sample closer than this to an edge may see past the edge
+constexpr double kSurfaceEps = 5e-4;
 
 }  // namespace
 
@@ -296,33 +298,57 @@ ObservabilityResult observable_samples(const RaycastScene& scene, const PointsRe
     for (const auto& t : tmp) offsets.push_back(t.second);
   }
 
-  // ---- the samples
+  // the elevation range the frustum covers (yaw-invariant): a cheap first test
+  double el_lo = M_PI, el_hi = -M_PI;
+  for (int e = 0; e < 4; ++e)
+    for (int k = 0; k <= 256; ++k) {
+      const double t = -1.0 + 2.0 * k / 256.0;
+      const double u = e < 2 ? t : (e == 2 ? -1.0 : 1.0), w = e < 2 ? (e == 0 ? -1.0 : 1.0) : t;
+      const Eigen::Vector3d d = M * Eigen::Vector3d(1.0, u * th, w * tv);
+      const double el = std::asin(std::clamp(d.z() / d.norm(), -1.0, 1.0));
+      el_lo = std::min(el_lo, el);
+      el_hi = std::max(el_hi, el);
+    }
+  const double sin_lo = std::sin(el_lo - 1e-3), sin_hi = std::sin(el_hi + 1e-3);
+
+  // ---- the samples, in a spatially coherent order (Morton order of 0.25 m cells)
   t0 = clock::now();
+  std::vector<std::pair<std::uint64_t, std::uint32_t>> order(n);
+  if (n > 0) {
+    const Eigen::Vector3d lo = points.colwise().minCoeff().transpose();
+    parallel_chunks(n, 1 << 14, [&](std::size_t b, std::size_t e) {
+      for (std::size_t q = b; q < e; ++q) {
+        std::uint64_t key = 0;
+        for (int a = 0; a < 3; ++a) {
+          const auto c = static_cast<std::uint64_t>(
+              std::min(2097151.0, (points(static_cast<Eigen::Index>(q), a) - lo[a]) / 0.25));
+          for (int bit = 0; bit < 21; ++bit) key |= ((c >> bit) & 1u) << (3 * bit + a);
+        }
+        order[q] = {key, static_cast<std::uint32_t>(q)};
+      }
+    });
+    std::sort(order.begin(), order.end());
+  }
   if (n_reach > 0)
     parallel_chunks(n, 64, [&](std::size_t b, std::size_t e) {
-      for (std::size_t q = b; q < e; ++q) {
+      std::int64_t witness = -1;  // the last sample's seeing position: neighbours share it
+      for (std::size_t oq = b; oq < e; ++oq) {
+        const std::size_t q = order[oq].second;
         const auto row = static_cast<Eigen::Index>(q);
         const Eigen::Vector3d x = points.row(row).transpose();
         Eigen::Vector3d nrm = normals.row(row).transpose();
         const double nn = nrm.norm();
         const bool has_normal = nn > 1e-12;
         if (has_normal) nrm /= nn;
-        // nearest lattice point of the camera's vehicle position for a camera at x
-        std::array<std::int64_t, 3> base{};
-        for (int a = 0; a < 3; ++a) {
-          const double c = (a == 2 ? x[a] - mount_z : x[a]) - origin[a];
-          base[a] = static_cast<std::int64_t>(std::llround(c / s));
-        }
-        for (const auto& o : offsets) {
-          const std::int64_t i = base[0] + o[0], j = base[1] + o[1], k = base[2] + o[2];
-          if (i < 0 || j < 0 || k < 0 || i >= dim[0] || j >= dim[1] || k >= dim[2]) continue;
-          if (!reach[static_cast<std::size_t>(flat(i, j, k))]) continue;
+        // the full test of one lattice position
+        auto sees = [&](std::int64_t i, std::int64_t j, std::int64_t k) {
           Eigen::Vector3d c = pos(i, j, k);
           c.z() += mount_z;
           const Eigen::Vector3d v = x - c;  // camera -> sample
           const double dist = v.norm();
-          if (dist > r_max || dist < camera.min_range) continue;
-          if (has_normal && std::abs(nrm.dot(v)) < cos_inc * dist) continue;
+          if (dist > r_max || dist < camera.min_range) return false;
+          if (v.z() < sin_lo * dist || v.z() > sin_hi * dist) return false;
+          if (has_normal && std::abs(nrm.dot(v)) < cos_inc * dist) return false;
           // v turned about z so that its azimuth is the camera axis's (the centring yaw)
           const double vh = std::hypot(v.x(), v.y());
           const Eigen::Vector3d u0(vh * ca, vh * sa, v.z());
@@ -335,10 +361,29 @@ ObservabilityResult observable_samples(const RaycastScene& scene, const PointsRe
             in_view = true;
             break;
           }
-          if (!in_view) continue;
+          if (!in_view) return false;
           const Eigen::Vector3d dir = -v / dist;  // sample -> camera
-          if (occluded(rs, x, dir, kSurfaceEps, dist - kSurfaceEps)) continue;
+          return !occluded(rs, x, dir, kSurfaceEps, dist - kSurfaceEps);
+        };
+        if (witness >= 0 &&
+            sees(witness % dim[0], (witness / dim[0]) % dim[1], witness / (dim[0] * dim[1]))) {
           res.observable[q] = 1;
+          continue;
+        }
+        // nearest lattice point of the camera's vehicle position for a camera at x
+        std::array<std::int64_t, 3> base{};
+        for (int a = 0; a < 3; ++a) {
+          const double c = (a == 2 ? x[a] - mount_z : x[a]) - origin[a];
+          base[a] = static_cast<std::int64_t>(std::llround(c / s));
+        }
+        for (const auto& o : offsets) {
+          const std::int64_t i = base[0] + o[0], j = base[1] + o[1], k = base[2] + o[2];
+          if (i < 0 || j < 0 || k < 0 || i >= dim[0] || j >= dim[1] || k >= dim[2]) continue;
+          const std::int64_t f = flat(i, j, k);
+          if (f == witness || !reach[static_cast<std::size_t>(f)]) continue;
+          if (!sees(i, j, k)) continue;
+          res.observable[q] = 1;
+          witness = f;
           break;
         }
       }

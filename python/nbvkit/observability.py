@@ -5,15 +5,16 @@ wing root inside its fuselage can never be seen, whatever the planner).
 Method (one C++ call, ``nbvkit._core.observable_samples``, Embree):
 
 1. *Poses.* A lattice of candidate vehicle positions of spacing ``observability.pose_spacing``
-   (default 1 m) fills the navigation box (the workspace shrunk by the collision radius: where a
+   (default 2 m) fills the navigation box (the workspace shrunk by the collision radius: where a
    mission's vehicle may be). A lattice point is dropped if the mesh comes within
    ``vehicle.collision_radius`` of it (an Embree point query), or if it is not connected to the
    box's boundary through lattice edges that the mesh does not cross (a flood fill: a closed
    hull's inside is unreachable however large it is). The yaw is free.
 2. *Samples.* The ground-truth samples (``Evaluator.gt_points``: the mesh sampled uniformly at
    ``evaluation.gt_density``) with their triangle's normal (either side).
-3. *Visibility.* A sample is observable if, from some kept position (nearest first; the first
-   success ends the search), with the camera at the position plus its mount height, some yaw
+3. *Visibility.* A sample is observable if, from some kept position (samples in Morton order,
+   the previous sample's seeing position first, then nearest first; the first success ends the
+   search), with the camera at the position plus its mount height, some yaw
    (the one that centres the sample horizontally, and ``yaw_steps`` offsets each side across
    the frustum's half diagonal) puts it inside the pinhole frustum (mount pitch and roll, FOV)
    at a depth along the optical axis in [min_range, max_range], its line of sight is within
