@@ -356,12 +356,12 @@ class ReportConfig:
 
     enabled: bool = True  # write them at the end of every mission
     mesh: bool = True  # reconstruct and score mesh.ply from the final cloud
-    poisson_depth: int = 8  # octree depth of open3d's screened Poisson reconstruction
-    mesh_max_points: int = 150000  # the cloud is voxel-thinned to about this many points first
+    poisson_depth: int = 8  # octree depth of open3d's Poisson (experiments: 7 unless set)
+    mesh_max_points: int = 60000  # the cloud is voxel-thinned to about this many points first
     density_quantile: float = 0.05  # vertices of the lowest Poisson densities are trimmed
     trim_distance: float = 0.3  # m; vertices farther than this from the cloud are trimmed
     html: bool = True  # write report.html (plotly, self-contained)
-    view_points: int = 60000  # ground-truth samples drawn in the report's 3D view
+    view_points: int = 50000  # ground-truth samples drawn in the report's 3D view
 
 
 @dataclass(frozen=True)
