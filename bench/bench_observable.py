@@ -32,11 +32,15 @@ def main() -> None:
     ap.add_argument("--spacings", type=float, nargs="+", default=[3.0, 2.0, 1.0, 0.7, 0.5])
     ap.add_argument("--no-figure", action="store_true")
     args = ap.parse_args()
-    mesh = nbvkit.load_mesh(args.mesh) if args.mesh else nbvkit.load_mesh(nbvkit.default_mesh_path())
+    mesh = (
+        nbvkit.load_mesh(args.mesh) if args.mesh else nbvkit.load_mesh(nbvkit.default_mesh_path())
+    )
     cfg0 = load_config(None, [])
     ev = Evaluator(mesh, gt_density=cfg0.evaluation.gt_density, seed=cfg0.seed)
-    print(f"structure: {args.mesh or 'shipped airliner'}, {mesh.area:.0f} m^2, "
-          f"{ev.num_gt_points:,} ground-truth samples")
+    print(
+        f"structure: {args.mesh or 'shipped airliner'}, {mesh.area:.0f} m^2, "
+        f"{ev.num_gt_points:,} ground-truth samples"
+    )
     print(f"{'spacing':>8} {'poses':>7} {'area':>7} {'@0.05':>7} {'@0.1':>7} {'@0.5':>7} {'s':>7}")
     rows = []
     empty = np.zeros((0, 3))
@@ -48,9 +52,11 @@ def main() -> None:
         ev.set_observable(obs.observable)
         f = ev.coverage(empty)["observable_fraction"]
         rows.append((s, obs.stats["poses"], obs.fraction, f["0.05"], f["0.1"], f["0.5"], dt))
-        print(f"{s:8.2f} {obs.stats['poses']:7d} {100 * obs.fraction:6.2f}% "
-              f"{100 * f['0.05']:6.2f}% {100 * f['0.1']:6.2f}% {100 * f['0.5']:6.2f}% {dt:7.2f}",
-              flush=True)
+        print(
+            f"{s:8.2f} {obs.stats['poses']:7d} {100 * obs.fraction:6.2f}% "
+            f"{100 * f['0.05']:6.2f}% {100 * f['0.1']:6.2f}% {100 * f['0.5']:6.2f}% {dt:7.2f}",
+            flush=True,
+        )
     if args.no_figure:
         return
     import matplotlib
@@ -69,8 +75,14 @@ def main() -> None:
     ax.set_ylabel("observable share of the surface (%)")
     ax.set_title("observable surface of the airliner vs. pose sampling")
     for s, _, fa, *_, dt in rows:
-        ax.annotate(f"{dt:.1f} s", (s, 100 * fa), textcoords="offset points", xytext=(0, -14),
-                    fontsize=8, ha="center")
+        ax.annotate(
+            f"{dt:.1f} s",
+            (s, 100 * fa),
+            textcoords="offset points",
+            xytext=(0, -14),
+            fontsize=8,
+            ha="center",
+        )
     ax.grid(alpha=0.3)
     ax.legend()
     fig.tight_layout()

@@ -79,8 +79,14 @@ def test_the_top_of_a_tower_taller_than_the_navigation_space_is_unobservable():
     assert not r.observable[(p[:, 2] > 13.0) & ~top].any()
     # pitched 30 deg up, the camera reaches higher up the walls but still not the roof
     up = observable_surface(
-        mesh, cfg("workspace.bounds_min=[-8,-8,0]", "workspace.bounds_max=[8,8,10]",
-                  "camera.mount_rpy_deg=[0,-30,0]"), points=p, face_ids=fid
+        mesh,
+        cfg(
+            "workspace.bounds_min=[-8,-8,0]",
+            "workspace.bounds_max=[8,8,10]",
+            "camera.mount_rpy_deg=[0,-30,0]",
+        ),
+        points=p,
+        face_ids=fid,
     )
     assert up.observable.sum() > r.observable.sum()
     assert not up.observable[top].any()
@@ -142,7 +148,8 @@ def test_the_cache_is_reused_and_keyed_by_the_settings(tmp_path):
     np.testing.assert_array_equal(a.observable, b.observable)
     assert len(list(tmp_path.glob("observable-*.npz"))) == 1
     d = observable_surface(
-        mesh, load_config(None, ["evaluation.gt_density=100", "camera.max_range=4"]),
+        mesh,
+        load_config(None, ["evaluation.gt_density=100", "camera.max_range=4"]),
         cache_dir=tmp_path,
     )
     assert not d.cached and len(list(tmp_path.glob("observable-*.npz"))) == 2
@@ -172,8 +179,10 @@ def test_cli_evaluate_observable_json(tmp_path):
     assert r["area_coverage_observable"]["0.05"] == pytest.approx(16 / 17.92, abs=0.03)
     assert r["area_coverage"]["0.05"] == pytest.approx(16 / 33.92, abs=0.03)
     # a mesh as the reconstruction: its surface is sampled
-    assert main(["evaluate", "--mesh", str(obj), str(obj), "--gt-density", "200",
-                 "--json", str(out)]) == 0
+    assert (
+        main(["evaluate", "--mesh", str(obj), str(obj), "--gt-density", "200", "--json", str(out)])
+        == 0
+    )
     r = json.loads(out.read_text())
     assert r["reconstruction"].startswith("mesh") and r["coverage"]["0.05"] > 0.95
     # observability needs the mesh

@@ -80,7 +80,7 @@ def test_a_run_writes_mesh_figures_and_report(tiny_run):
         assert s["area_coverage_observable"][r] >= s["area_coverage"][r] - 1e-12
     assert 0.5 < s["observable_area_fraction"] < 1.0
     assert (tiny_run / "mesh.ply").exists()
-    m = s["mesh"]
+    m = s["reconstructed_mesh"]
     assert m["written"] and m["triangles"] > 0
     assert set(m["mesh_completeness"]) == {"0.05", "0.1"} and m["hausdorff95_m"] > 0
     assert (tiny_run / "figures" / "coverage.png").stat().st_size > 10000
@@ -96,12 +96,26 @@ def test_an_empty_cloud_writes_everything_but_the_mesh(tmp_path, capsys):
 
     out = tmp_path / "empty"
     # every point is below cloud.min_z: the reconstruction stays empty
-    assert main(["run", "--scenario", "5", "--no-progress", "--set", *TINY, "cloud.min_z=1000",
-                 "--out", str(out)]) == 0
+    assert (
+        main(
+            [
+                "run",
+                "--scenario",
+                "5",
+                "--no-progress",
+                "--set",
+                *TINY,
+                "cloud.min_z=1000",
+                "--out",
+                str(out),
+            ]
+        )
+        == 0
+    )
     assert "mesh.ply not written" in capsys.readouterr().out
     s = json.loads((out / "summary.json").read_text())
-    assert s["cloud_points"] == 0 and not s["mesh"]["written"]
-    assert "at least" in s["mesh"]["message"]
+    assert s["cloud_points"] == 0 and not s["reconstructed_mesh"]["written"]
+    assert "at least" in s["reconstructed_mesh"]["message"]
     assert not (out / "mesh.ply").exists()
     for f in ("report.html", "figures/coverage.png", "cloud.ply", "iterations.csv"):
         assert (out / f).exists(), f
@@ -115,8 +129,12 @@ def test_experiment_report_links_each_run(tmp_path, tiny_run):
     shutil.copytree(tiny_run, root / "runs" / "a")
     (root / "figures").mkdir()
     shutil.copy(tiny_run / "figures" / "coverage.png", root / "figures" / "coverage.png")
-    df = pd.DataFrame([{"run_id": "a", "scenario": "5", "coverage_0.05": 0.5},
-                       {"run_id": "b", "scenario": "1", "coverage_0.05": 0.25}])
+    df = pd.DataFrame(
+        [
+            {"run_id": "a", "scenario": "5", "coverage_0.05": 0.5},
+            {"run_id": "b", "scenario": "1", "coverage_0.05": 0.25},
+        ]
+    )
     p = write_experiment_report(root, df, "test experiment", "| table |")
     text = p.read_text()
     assert "href='runs/a/report.html'" in text and "runs/b/report.html" not in text

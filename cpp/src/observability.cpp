@@ -207,8 +207,8 @@ ObservabilityResult observable_samples(const RaycastScene& scene, const PointsRe
   for (std::int64_t k = 0; k < dim[2]; ++k)
     for (std::int64_t j = 0; j < dim[1]; ++j)
       for (std::int64_t i = 0; i < dim[0]; ++i) {
-        const bool boundary = i == 0 || j == 0 || k == 0 || i == dim[0] - 1 ||
-                              j == dim[1] - 1 || k == dim[2] - 1;
+        const bool boundary =
+            i == 0 || j == 0 || k == 0 || i == dim[0] - 1 || j == dim[1] - 1 || k == dim[2] - 1;
         const std::int64_t f = flat(i, j, k);
         if (boundary && free[static_cast<std::size_t>(f)]) {
           reach[static_cast<std::size_t>(f)] = 1;
@@ -219,8 +219,7 @@ ObservabilityResult observable_samples(const RaycastScene& scene, const PointsRe
   while (!queue.empty()) {
     const std::int64_t f = queue.front();
     queue.pop_front();
-    const std::array<std::int64_t, 3> ijk{f % dim[0], (f / dim[0]) % dim[1],
-                                          f / (dim[0] * dim[1])};
+    const std::array<std::int64_t, 3> ijk{f % dim[0], (f / dim[0]) % dim[1], f / (dim[0] * dim[1])};
     for (int a = 0; a < 3; ++a) {
       // +a neighbour through this point's edge bit; -a neighbour through its own bit
       if (ijk[a] + 1 < dim[a] && (edges[static_cast<std::size_t>(f)] >> a & 1u)) {
@@ -288,8 +287,9 @@ ObservabilityResult observable_samples(const RaycastScene& scene, const PointsRe
         for (std::int64_t di = -m; di <= m; ++di) {
           const double d2 = static_cast<double>(di * di + dj * dj + dk * dk) * s * s;
           if (d2 <= reach_r * reach_r)
-            tmp.push_back({d2, {static_cast<std::int32_t>(di), static_cast<std::int32_t>(dj),
-                                static_cast<std::int32_t>(dk)}});
+            tmp.push_back({d2,
+                           {static_cast<std::int32_t>(di), static_cast<std::int32_t>(dj),
+                            static_cast<std::int32_t>(dk)}});
         }
     std::sort(tmp.begin(), tmp.end(), [](const auto& x, const auto& y) {
       return x.first < y.first || (x.first == y.first && x.second < y.second);

@@ -24,8 +24,8 @@ Mesh box(const Eigen::Vector3d& lo, const Eigen::Vector3d& hi, bool inward = fal
   for (int i = 0; i < 8; ++i)
     v.row(i) << (i & 1 ? hi.x() : lo.x()), (i & 2 ? hi.y() : lo.y()), (i & 4 ? hi.z() : lo.z());
   nbv::Faces f(12, 3);
-  f << 0, 2, 1, 1, 2, 3, 4, 5, 6, 5, 7, 6, 0, 1, 4, 1, 5, 4, 2, 6, 3, 3, 6, 7, 0, 4, 2, 2, 4, 6,
-      1, 3, 5, 3, 7, 5;
+  f << 0, 2, 1, 1, 2, 3, 4, 5, 6, 5, 7, 6, 0, 1, 4, 1, 5, 4, 2, 6, 3, 3, 6, 7, 0, 4, 2, 2, 4, 6, 1,
+      3, 5, 3, 7, 5;
   if (inward) f.col(0).swap(f.col(1));
   return Mesh::from_arrays(v, f);
 }
@@ -102,9 +102,9 @@ TEST(Observability, RejectsBadInput) {
   const nbv::RaycastScene scene(wall(0.0));
   nbv::ObservabilityOptions o;
   o.pose_spacing = -1;
-  EXPECT_THROW(nbv::observable_samples(scene, row(0, 0, 2), row(1, 0, 0), {}, {1, 1, 1},
-                                       {2, 2, 2}, o),
-               std::invalid_argument);
+  EXPECT_THROW(
+      nbv::observable_samples(scene, row(0, 0, 2), row(1, 0, 0), {}, {1, 1, 1}, {2, 2, 2}, o),
+      std::invalid_argument);
   Points two(2, 3);
   two.setZero();
   EXPECT_THROW(nbv::observable_samples(scene, row(0, 0, 2), two, {}, {1, 1, 1}, {2, 2, 2}),

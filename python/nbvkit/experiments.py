@@ -149,7 +149,7 @@ def row_of(run_dir: Path) -> dict:
     for k in ("coverage_observable", "area_coverage_observable", "observable_fraction"):
         for r, v in s.get(k, {}).items():
             row[f"{k}_{r}"] = v
-    m = s.get("mesh") or {}
+    m = s.get("reconstructed_mesh") or {}
     if m.get("written"):
         row["mesh_hausdorff95_m"] = m["hausdorff95_m"]
         for t, v in m["mesh_completeness"].items():

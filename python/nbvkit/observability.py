@@ -152,9 +152,7 @@ def observable_surface(
     points = np.ascontiguousarray(points, np.float64)
     if points.ndim != 2 or points.shape[1] != 3:
         raise ValueError(f"points must be (N, 3), got {points.shape}")
-    normals = (
-        sample_normals(mesh, face_ids) if face_ids is not None else np.zeros_like(points)
-    )
+    normals = sample_normals(mesh, face_ids) if face_ids is not None else np.zeros_like(points)
     settings = _settings(cfg, ws)
     path = None
     if cache_dir is not None:

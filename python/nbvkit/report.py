@@ -117,7 +117,7 @@ def finish_run(mission, out, cache_dir=None) -> dict:
         timings["mesh"] = time.perf_counter() - t0
         if mesh is None:
             print(f"mesh.ply not written: {info['message']}")
-            summary["mesh"] = {"written": False, "message": info["message"]}
+            summary["reconstructed_mesh"] = {"written": False, "message": info["message"]}
         else:
             import open3d as o3d
 
@@ -127,7 +127,7 @@ def finish_run(mission, out, cache_dir=None) -> dict:
                 mesh, ev.gt_points, taus=tuple(float(t) for t in summary["completeness"])
             )
             timings["mesh_score"] = time.perf_counter() - t0
-            summary["mesh"] = {"written": True, **info, **scores}
+            summary["reconstructed_mesh"] = {"written": True, **info, **scores}
 
     if rep.enabled:
         t0 = time.perf_counter()
@@ -180,7 +180,9 @@ def run_view(run_dir, view_points: int = 60000):
     ev = Evaluator(mesh, gt_density=cfg.evaluation.gt_density, seed=cfg.seed)
     cache = run_dir / "cache" if (run_dir / "cache").exists() else run_dir.parent.parent / "cache"
     mask = observable_surface(mesh, cfg, evaluator=ev, cache_dir=cache).observable
-    classes, pts = _view_classes(ev, read_points(run_dir / "cloud.ply"), mask, view_points, cfg.seed)
+    classes, pts = _view_classes(
+        ev, read_points(run_dir / "cloud.ply"), mask, view_points, cfg.seed
+    )
     summary = json.loads((run_dir / "summary.json").read_text())
     return pts, classes, summary
 
@@ -196,7 +198,9 @@ def coverage_classes(points, cloud, observable=None, resolution: float = 0.1) ->
         k = np.floor(p / resolution).astype(np.int64) + (1 << 20)
         return (k[:, 0] << 42) | (k[:, 1] << 21) | k[:, 2]
 
-    covered = np.isin(keys(points), np.unique(keys(cloud))) if len(cloud) else np.zeros(len(points), bool)
+    covered = (
+        np.isin(keys(points), np.unique(keys(cloud))) if len(cloud) else np.zeros(len(points), bool)
+    )
     out = np.where(covered, 0, 1).astype(np.int8)
     if observable is not None:
         out[~np.asarray(observable, bool)] = 2
@@ -338,7 +342,7 @@ def _views():
         ("above, front left", -60, 35),
         ("above, rear right", 120, 35),
         ("below", -60, -50),
-        ("side", 0, 0),
+        ("the front", 0, 0),
     )
 
 
@@ -377,7 +381,9 @@ def plot_coverage(points, classes, path, max_points: int = 30000) -> Path:
         ax.axis("off")
     n = max(len(cls), 1)
     handles = [
-        plt.Line2D([], [], marker="o", ls="", color=col, label=f"{lab} ({np.sum(cls == k) / n:.1%})")
+        plt.Line2D(
+            [], [], marker="o", ls="", color=col, label=f"{lab} ({np.sum(cls == k) / n:.1%})"
+        )
         for k, (lab, col) in enumerate(zip(CLASS_NAMES, CLASS_COLOURS))
     ]
     fig.legend(handles=handles, loc="lower center", ncol=3, frameon=False)
@@ -533,7 +539,7 @@ def write_run_report(out, summary: dict, points, classes, records=None) -> Path:
                 "y": _r(y),
                 "z": _r(z),
                 "text": [f"view {r['iteration']} ({r['source']})" for r in its],
-                "marker": {"size": 3, "color": "#ff7f0e"},
+                "marker": {"size": 2.5, "color": "#ff7f0e"},
             }
         )
         traces.append(
@@ -547,8 +553,9 @@ def write_run_report(out, summary: dict, points, classes, records=None) -> Path:
                 "v": _r(np.sin(yaw)),
                 "w": [0.0] * len(x),
                 "sizemode": "absolute",
-                "sizeref": 1.2,
+                "sizeref": 0.5,
                 "anchor": "tail",
+                "visible": "legendonly",
                 "showscale": False,
                 "colorscale": [[0, "#ff7f0e"], [1, "#ff7f0e"]],
                 "showlegend": True,
@@ -583,7 +590,7 @@ def write_run_report(out, summary: dict, points, classes, records=None) -> Path:
         )
     )
     body.append(_per_res_table(summary))
-    m = summary.get("mesh")
+    m = summary.get("reconstructed_mesh")
     if m:
         if m.get("written"):
             body.append("<h2>Reconstructed mesh (mesh.ply)</h2>")
@@ -693,9 +700,7 @@ def _records(out: Path, records) -> list[dict]:
         ]
     rows = _read_csv(out / "iterations.csv")
     num = ("x", "y", "z", "yaw", "entropy", "distance_m")
-    return [
-        {**r, "iteration": int(r["iteration"]), **{k: float(r[k]) for k in num}} for r in rows
-    ]
+    return [{**r, "iteration": int(r["iteration"]), **{k: float(r[k]) for k in num}} for r in rows]
 
 
 # ---------------------------------------------------------------------------------- experiments

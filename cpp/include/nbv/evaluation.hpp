@@ -163,9 +163,9 @@ class Evaluator {
                    EvaluationResult& res) const;
   struct Grid {
     double r = 0;
-    VoxelHashMap index;                 ///< GT cell key -> position in keys / samples
-    std::vector<std::uint64_t> keys;    ///< the GT cells
-    std::vector<std::int64_t> samples;  ///< GT samples in each cell
+    VoxelHashMap index;                            ///< GT cell key -> position in keys / samples
+    std::vector<std::uint64_t> keys;               ///< the GT cells
+    std::vector<std::int64_t> samples;             ///< GT samples in each cell
     std::vector<std::int64_t> observable_samples;  ///< observable GT samples in each cell
     std::int64_t observable_cells = 0;
   };

@@ -18,8 +18,8 @@ def register(sub) -> argparse.ArgumentParser:
         help="run one reconstruction mission and write its results folder",
         description="Fly one scenario on a structure from one of its five predefined starts, and "
         "write DIR/summary.json, iterations.csv, config.yaml (resolved), cloud.ply, map.ot, "
-        "trajectory.csv, mesh.ply, figures/*.png and report.html (open it in a browser). Without --scenario: {DEFAULT}, the recommended "
-        "planner.",
+        "trajectory.csv, mesh.ply, figures/*.png and report.html (open it in a browser). "
+        f"Without --scenario: {DEFAULT}, the recommended planner.",
         formatter_class=argparse.RawDescriptionHelpFormatter,
         epilog="scenarios (--scenario, or --planner for nbvkit's own):\n"
         + "\n".join(f"  {k:12s} {v.description}" for k, v in SCENARIOS.items())
