@@ -29,7 +29,7 @@ ROOT = Path(__file__).resolve().parent.parent
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--mesh", default=None)
-    ap.add_argument("--spacings", type=float, nargs="+", default=[3.0, 2.0, 1.0, 0.7, 0.5])
+    ap.add_argument("--spacings", type=float, nargs="+", default=[8.0, 4.0, 2.0, 1.0])
     ap.add_argument("--no-figure", action="store_true")
     args = ap.parse_args()
     mesh = (

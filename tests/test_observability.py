@@ -188,3 +188,19 @@ def test_cli_evaluate_observable_json(tmp_path):
     # observability needs the mesh
     ref = str(tmp_path / "top.npy")
     assert main(["evaluate", "--reference-cloud", ref, ref, "--observable"]) != 0
+
+
+def test_python_defaults_equal_the_cpp_defaults():
+    import re
+
+    from nbvkit.config import Config
+
+    sig = _core.observable_samples.__doc__.splitlines()[0]
+    cpp = {k: float(v) for k, v in re.findall(r"(\w+): (?:float|int) = ([\d.]+)", sig)}
+    o, v = Config().observability, Config().vehicle
+    assert cpp == {
+        "pose_spacing": o.pose_spacing,
+        "collision_radius": v.collision_radius,
+        "max_incidence_deg": o.max_incidence_deg,
+        "yaw_steps": o.yaw_steps,
+    }

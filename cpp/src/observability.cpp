@@ -148,13 +148,15 @@ ObservabilityResult observable_samples(const RaycastScene& scene, const PointsRe
   res.observable.assign(n, 0);
   const double s = options.pose_spacing;
 
-  // ---- the lattice of candidate positions, centred in the box
+  // ---- the lattice of candidate positions: centre + k * spacing inside the box (so halving the
+  // spacing keeps every position and adds more: the observable set can only grow)
   std::array<std::int64_t, 3> dim{};
   Eigen::Vector3d origin;
   for (int a = 0; a < 3; ++a) {
-    const double len = nav_max[a] - nav_min[a];
-    dim[a] = static_cast<std::int64_t>(std::floor(len / s + 1e-9)) + 1;
-    origin[a] = nav_min[a] + 0.5 * (len - static_cast<double>(dim[a] - 1) * s);
+    const double half = 0.5 * (nav_max[a] - nav_min[a]);
+    const auto kmax = static_cast<std::int64_t>(std::floor(half / s + 1e-9));
+    dim[a] = 2 * kmax + 1;
+    origin[a] = 0.5 * (nav_min[a] + nav_max[a]) - static_cast<double>(kmax) * s;
   }
   const std::int64_t total = dim[0] * dim[1] * dim[2];
   if (total > 200'000'000)

@@ -22,9 +22,10 @@ Method (one C++ call, ``nbvkit._core.observable_samples``, Embree):
    camera hits nothing. The pixel grid is not simulated (at 640 x 480 a pixel spans 1.4 cm at
    8 m, finer than the finest 5 cm coverage cell).
 
-The lattice is the only approximation that a finer setting removes: the observable set grows
-as the spacing shrinks (more positions, e.g. in narrow gaps) and converges;
-``bench/bench_observable.py`` measures it and draws ``docs/figures/observable_convergence.png``.
+The lattice is the only approximation that a finer setting removes. It holds the box's centre
+plus every multiple of the spacing, so halving the spacing keeps every position and adds more:
+the observable set can only grow, and it converges; ``bench/bench_observable.py`` measures it
+and draws ``docs/figures/observable_convergence.png``.
 Results are cached on disk per (mesh, samples, camera, navigation space, options) in a
 ``cache_dir`` (a run's or a sweep's folder), so a 30-run table computes it once per structure.
 """
@@ -44,7 +45,7 @@ from . import _core
 __all__ = ["ObservableSurface", "observable_surface", "sample_normals"]
 
 #: bump when the method changes, so old caches are not reused
-_METHOD_VERSION = 1
+_METHOD_VERSION = 2
 
 
 @dataclass

@@ -44,9 +44,10 @@ struct ObservabilityResult {
 /// mount's pitch and roll matter, its yaw does not, the vehicle's yaw is free) carried by a
 /// vehicle whose position stays in the box [nav_min, nav_max].
 ///
-/// Poses: a lattice of spacing options.pose_spacing centred in the box; a lattice point is kept
+/// Poses: the box centre plus every multiple of options.pose_spacing along each axis, inside the
+/// box (halving the spacing keeps every position: the result only grows); a lattice point is kept
 /// if the mesh is farther than collision_radius from it (an Embree point query) and it is
-/// connected to a lattice point on the box's boundary through lattice edges whose segment the
+/// connected to a point of the lattice's outer layer through lattice edges whose segment the
 /// mesh does not cross (a flood fill): positions sealed inside a closed structure are dropped.
 /// The camera sits at position + mount translation (its horizontal part ignored: yaw is free).
 ///
