@@ -202,21 +202,29 @@ ObservabilityResult observable_samples(const RaycastScene& scene, const PointsRe
   });
   res.timings_s.emplace_back("collision", seconds_since(t0));
 
-  // ---- reachability: flood fill from the free lattice points on the box's boundary
+  // ---- reachability: flood fill from the free lattice points that see out of the structure
+  // (a ray along +-x, +-y or +z escapes the mesh; not -z: the ground is not in the mesh)
   t0 = clock::now();
   std::vector<std::uint8_t> reach(static_cast<std::size_t>(total), 0);
-  std::deque<std::int64_t> queue;
-  for (std::int64_t k = 0; k < dim[2]; ++k)
-    for (std::int64_t j = 0; j < dim[1]; ++j)
-      for (std::int64_t i = 0; i < dim[0]; ++i) {
-        const bool boundary =
-            i == 0 || j == 0 || k == 0 || i == dim[0] - 1 || j == dim[1] - 1 || k == dim[2] - 1;
-        const std::int64_t f = flat(i, j, k);
-        if (boundary && free[static_cast<std::size_t>(f)]) {
-          reach[static_cast<std::size_t>(f)] = 1;
-          queue.push_back(f);
+  parallel_chunks(static_cast<std::size_t>(total), 256, [&](std::size_t b, std::size_t e) {
+    const double inf = std::numeric_limits<double>::infinity();
+    const Eigen::Vector3d dirs[5] = {Eigen::Vector3d::UnitX(), -Eigen::Vector3d::UnitX(),
+                                     Eigen::Vector3d::UnitY(), -Eigen::Vector3d::UnitY(),
+                                     Eigen::Vector3d::UnitZ()};
+    for (std::size_t f = b; f < e; ++f) {
+      if (!free[f]) continue;
+      const auto fi = static_cast<std::int64_t>(f);
+      const Eigen::Vector3d p = pos(fi % dim[0], (fi / dim[0]) % dim[1], fi / (dim[0] * dim[1]));
+      for (const auto& d : dirs)
+        if (!occluded(rs, p, d, 0.0, inf)) {
+          reach[f] = 1;
+          break;
         }
-      }
+    }
+  });
+  std::deque<std::int64_t> queue;
+  for (std::int64_t f = 0; f < total; ++f)
+    if (reach[static_cast<std::size_t>(f)]) queue.push_back(f);
   const std::array<std::int64_t, 3> stride{1, dim[0], dim[0] * dim[1]};
   while (!queue.empty()) {
     const std::int64_t f = queue.front();

@@ -7,9 +7,10 @@ Method (one C++ call, ``nbvkit._core.observable_samples``, Embree):
 1. *Poses.* A lattice of candidate vehicle positions of spacing ``observability.pose_spacing``
    (default 2 m) fills the navigation box (the workspace shrunk by the collision radius: where a
    mission's vehicle may be). A lattice point is dropped if the mesh comes within
-   ``vehicle.collision_radius`` of it (an Embree point query), or if it is not connected to the
-   box's boundary through lattice edges that the mesh does not cross (a flood fill: a closed
-   hull's inside is unreachable however large it is). The yaw is free.
+   ``vehicle.collision_radius`` of it (an Embree point query), or if it is not connected,
+   through lattice edges that the mesh does not cross (a flood fill), to a position from which
+   a ray along +-x, +-y or +z escapes the mesh (the ground below is not part of it): a closed
+   hull's inside is unreachable however large it is. The yaw is free.
 2. *Samples.* The ground-truth samples (``Evaluator.gt_points``: the mesh sampled uniformly at
    ``evaluation.gt_density``) with their triangle's normal (either side).
 3. *Visibility.* A sample is observable if, from some kept position (samples in Morton order,
@@ -45,7 +46,7 @@ from . import _core
 __all__ = ["ObservableSurface", "observable_surface", "sample_normals"]
 
 #: bump when the method changes, so old caches are not reused
-_METHOD_VERSION = 2
+_METHOD_VERSION = 3
 
 
 @dataclass

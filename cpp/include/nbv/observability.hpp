@@ -35,7 +35,7 @@ struct ObservabilityResult {
   Points poses;                          ///< (P, 3) the reachable, collision-free positions
   std::int64_t lattice_points = 0;       ///< candidate positions before collision / reachability
   std::int64_t colliding = 0;            ///< within collision_radius of the mesh
-  std::int64_t unreachable = 0;          ///< free but not connected to the navigation boundary
+  std::int64_t unreachable = 0;          ///< free but sealed in (not connected to the outside)
   std::vector<std::pair<std::string, double>> timings_s;
 };
 
@@ -47,8 +47,9 @@ struct ObservabilityResult {
 /// Poses: the box centre plus every multiple of options.pose_spacing along each axis, inside the
 /// box (halving the spacing keeps every position: the result only grows); a lattice point is kept
 /// if the mesh is farther than collision_radius from it (an Embree point query) and it is
-/// connected to a point of the lattice's outer layer through lattice edges whose segment the
-/// mesh does not cross (a flood fill): positions sealed inside a closed structure are dropped.
+/// connected, through lattice edges whose segment the mesh does not cross (a flood fill), to a
+/// free position from which a ray along +-x, +-y or +z escapes the mesh (the ground, below, is
+/// not part of it): positions sealed inside a closed structure are dropped.
 /// The camera sits at position + mount translation (its horizontal part ignored: yaw is free).
 ///
 /// A sample is observable from a pose if, for some yaw (the one centring it horizontally and
