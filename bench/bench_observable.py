@@ -29,7 +29,7 @@ ROOT = Path(__file__).resolve().parent.parent
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--mesh", default=None)
-    ap.add_argument("--spacings", type=float, nargs="+", default=[8.0, 4.0, 2.0, 1.0])
+    ap.add_argument("--spacings", type=float, nargs="+", default=[8.0, 4.0, 2.0, 1.0, 0.5])
     ap.add_argument("--no-figure", action="store_true")
     args = ap.parse_args()
     mesh = (
@@ -70,6 +70,9 @@ def main() -> None:
     for j, lab in ((3, "cells @0.05 m"), (4, "cells @0.1 m"), (5, "cells @0.5 m")):
         ax.plot(r[:, 0], 100 * r[:, j], ".--", label=lab)
     ax.set_xscale("log")
+    ax.set_xticks(r[:, 0])
+    ax.set_xticklabels([f"{v:g}" for v in r[:, 0]])
+    ax.minorticks_off()
     ax.invert_xaxis()
     ax.set_xlabel("pose lattice spacing (m), finer to the right")
     ax.set_ylabel("observable share of the surface (%)")
