@@ -11,7 +11,7 @@ from conftest import box_mesh
 import nbvkit
 from nbvkit import _core
 from nbvkit.config import load_config
-from nbvkit.observability import observable_surface
+from nbvkit import observable_surface
 
 
 def merge(*meshes) -> nbvkit.Mesh:

@@ -131,7 +131,9 @@ def observable_surface(
     ``evaluator`` if given (its ``gt_points``), else those of ``nbvkit.Evaluator(mesh,
     gt_density, seed)``, i.e. ``mesh.sample_surface(n, seed, return_faces=True)``.
     cache_dir: folder of the on-disk cache (``observable-<key>.npz``; the key hashes the mesh,
-    the samples and every setting above). None: no cache.
+    the samples and every setting above; concurrent processes wait on a file lock, so one
+    computes and the others read). None: no cache.
+    scene: an ``nbvkit.RaycastScene`` of ``mesh`` to reuse (default: one is built).
 
     Returns an ``ObservableSurface``; ``.observable`` is the ``(N,)`` bool mask to pass to
     ``Evaluator.set_observable``.
