@@ -8,8 +8,9 @@ wall time, and draws docs/figures/observable_convergence.png. Asserts nothing.
 
 The default configuration's camera, workspace and vehicle; ground truth at the default density.
 Measured (loaded 2-core machine): 8 / 4 / 2 / 1 / 0.5 m give 52.0 / 87.2 / 91.77 / 91.80 /
-91.80 % of the area (2.0 / 2.1 / 5.5 / 41.7 / 254 s). Compare the time at the default spacing (observability.pose_spacing, 2 m) with a Scenario 5
-mission's wall time (``nbvkit run``): the budget is a tenth of it.
+91.80 % of the area (2.0 / 2.1 / 5.5 / 41.7 / 254 s). Compare the time at the default spacing
+(observability.pose_spacing, 2 m) with a Scenario 5 mission's wall time (``nbvkit run``): the
+budget is a tenth of it.
 """
 from __future__ import annotations
 
