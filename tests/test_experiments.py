@@ -33,6 +33,17 @@ def tiny_table(tmp_path_factory):
     return out
 
 
+def test_table_command_writes_one_report_linking_every_run(tiny_table):
+    text = (tiny_table / "report.html").read_text()
+    runs = pd.read_csv(tiny_table / "runs.csv")
+    for rid in runs["run_id"]:
+        assert f"href='runs/{rid}/report.html'" in text
+        assert (tiny_table / "runs" / rid / "report.html").exists()
+    assert "coverage_observable_0.05" in runs.columns
+    # the observable surface was computed once for the six runs: one cache entry
+    assert len(list((tiny_table / "cache").glob("observable-*.npz"))) == 1
+
+
 def test_table_command_writes_the_papers_layout(tiny_table):
     md = (tiny_table / "table2.md").read_text()
     rows = [ln for ln in md.splitlines() if ln.startswith("| ") and not ln.startswith("| Scenario")]

@@ -45,5 +45,6 @@ void init_evaluation(py::module_& m);
 void init_views(py::module_& m);
 void init_symmetry(py::module_& m);
 void init_planning(py::module_& m);
+void init_observability(py::module_& m);
 
 }  // namespace nbv::bind

@@ -45,6 +45,13 @@ void init_evaluation(py::module_& m) {
       .def_readonly("gt_cells", &EvaluationResult::gt_cells)
       .def_readonly("cloud_cells", &EvaluationResult::cloud_cells)
       .def_readonly("covered_cells", &EvaluationResult::covered_cells)
+      .def_readonly("has_observable", &EvaluationResult::has_observable)
+      .def_readonly("coverage_observable", &EvaluationResult::coverage_observable)
+      .def_readonly("area_coverage_observable", &EvaluationResult::area_coverage_observable)
+      .def_readonly("observable_fraction", &EvaluationResult::observable_fraction)
+      .def_readonly("observable_cells", &EvaluationResult::observable_cells)
+      .def_readonly("covered_observable_cells", &EvaluationResult::covered_observable_cells)
+      .def_readonly("observable_area_fraction", &EvaluationResult::observable_area_fraction)
       .def_readonly("completeness", &EvaluationResult::completeness)
       .def_readonly("accuracy", &EvaluationResult::accuracy)
       .def_readonly("fscore", &EvaluationResult::fscore)
@@ -108,6 +115,19 @@ void init_evaluation(py::module_& m) {
           },
           py::arg("cloud"),
           "Coverage, area coverage and precision alone (no kd-tree, no distances).")
+      .def(
+          "set_observable",
+          [](Evaluator& e, const py::array_t<bool, py::array::c_style | py::array::forcecast>& m) {
+            if (m.ndim() != 1) throw py::value_error("observable mask must be one-dimensional");
+            std::vector<std::uint8_t> v(static_cast<std::size_t>(m.shape(0)));
+            for (std::size_t i = 0; i < v.size(); ++i) v[i] = m.data()[i] ? 1 : 0;
+            py::gil_scoped_release release;
+            e.set_observable(v);
+          },
+          py::arg("mask"),
+          "(M,) bool per ground-truth sample (gt_points order): coverage is also reported\n"
+          "relative to the observable samples. An empty mask clears it.")
+      .def_property_readonly("has_observable", &Evaluator::has_observable)
       .def_property_readonly("gt_points", &Evaluator::gt_points)
       .def_property_readonly("num_gt_points", &Evaluator::num_gt_points)
       .def_property_readonly("gt_info", [](const Evaluator& e) { return e.gt_info(); });

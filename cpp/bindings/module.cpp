@@ -12,4 +12,5 @@ PYBIND11_MODULE(_core, m) {
   nbv::bind::init_views(m);
   nbv::bind::init_symmetry(m);
   nbv::bind::init_planning(m);
+  nbv::bind::init_observability(m);
 }

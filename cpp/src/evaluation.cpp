@@ -355,6 +355,21 @@ EvaluationResult Evaluator::empty_result(std::int64_t n_points) const {
   res.gt_cells.assign(nr, 0);
   res.cloud_cells.assign(nr, 0);
   res.covered_cells.assign(nr, 0);
+  if (!observable_.empty()) {
+    res.has_observable = true;
+    res.coverage_observable.assign(nr, 0.0);
+    res.area_coverage_observable.assign(nr, 0.0);
+    res.observable_fraction.assign(nr, 0.0);
+    res.observable_cells.assign(nr, 0);
+    res.covered_observable_cells.assign(nr, 0);
+    res.observable_area_fraction =
+        ratio(n_observable_, static_cast<std::int64_t>(observable_.size()));
+    for (std::size_t k = 0; k < nr; ++k) {
+      res.observable_cells[k] = grids_[k].observable_cells;
+      res.observable_fraction[k] =
+          ratio(grids_[k].observable_cells, static_cast<std::int64_t>(grids_[k].keys.size()));
+    }
+  }
   res.completeness.assign(nt, 0.0);
   res.accuracy.assign(nt, 0.0);
   res.fscore.assign(nt, 0.0);
@@ -374,27 +389,67 @@ void Evaluator::score_cells(std::size_t k, const std::vector<std::uint64_t>& key
     last = key;
     if (cells.insert(key, 0).second) unique.push_back(key);
   }
-  std::atomic<std::int64_t> in_gt{0}, covered{0}, covered_samples{0};
+  const bool obs = !observable_.empty();
+  std::atomic<std::int64_t> in_gt{0}, covered{0}, covered_samples{0}, covered_obs{0},
+      covered_obs_samples{0};
   parallel_chunks(unique.size(), 1 << 13, [&](std::size_t b, std::size_t e) {
     std::int64_t c = 0;
     for (std::size_t j = b; j < e; ++j) c += g.index.contains(unique[j]);
     in_gt += c;
   });
   parallel_chunks(g.keys.size(), 1 << 13, [&](std::size_t b, std::size_t e) {
-    std::int64_t c = 0, s = 0;
+    std::int64_t c = 0, s = 0, co = 0, so = 0;
     for (std::size_t j = b; j < e; ++j)
       if (cells.contains(g.keys[j])) {
         ++c;
         s += g.samples[j];
+        if (obs && g.observable_samples[j] > 0) {
+          ++co;
+          so += g.observable_samples[j];
+        }
       }
     covered += c;
     covered_samples += s;
+    covered_obs += co;
+    covered_obs_samples += so;
   });
+  if (obs) {
+    res.covered_observable_cells[k] = covered_obs;
+    res.coverage_observable[k] = ratio(covered_obs, g.observable_cells);
+    res.area_coverage_observable[k] = ratio(covered_obs_samples, n_observable_);
+  }
   res.cloud_cells[k] = static_cast<std::int64_t>(unique.size());
   res.covered_cells[k] = covered;
   res.coverage[k] = ratio(covered, res.gt_cells[k]);
   res.area_coverage[k] = ratio(covered_samples, static_cast<std::int64_t>(tree_.size()));
   res.precision[k] = ratio(in_gt, res.cloud_cells[k]);
+}
+
+void Evaluator::set_observable(const std::vector<std::uint8_t>& mask) {
+  if (mask.empty()) {
+    observable_.clear();
+    n_observable_ = 0;
+    for (Grid& g : grids_) {
+      g.observable_samples.clear();
+      g.observable_cells = 0;
+    }
+    return;
+  }
+  if (mask.size() != tree_.size())
+    throw std::invalid_argument("observable mask has " + std::to_string(mask.size()) +
+                                " entries for " + std::to_string(tree_.size()) +
+                                " ground-truth samples");
+  observable_.assign(mask.begin(), mask.end());
+  n_observable_ = 0;
+  for (std::uint8_t v : observable_) n_observable_ += v != 0;
+  for (Grid& g : grids_) {
+    const std::vector<std::uint64_t> keys = tree_cell_keys(tree_, g.r, "ground truth");
+    g.observable_samples.assign(g.keys.size(), 0);
+    for (std::size_t k = 0; k < keys.size(); ++k)
+      if (observable_[tree_.id_at(k)]) ++g.observable_samples[g.index.find(keys[k])];
+    g.observable_cells = 0;
+    for (std::int64_t c : g.observable_samples) g.observable_cells += c > 0;
+  }
 }
 
 EvaluationResult Evaluator::evaluate_cells(const PointsRef& cloud) const {

@@ -20,6 +20,7 @@ from .mesh import default_mesh_path, load_mesh, mesh_from_open3d, mesh_to_open3d
 from ._core import nearest_distances  # noqa: F401
 from .cloud import PointCloud, read_points, write_points  # noqa: F401
 from .evaluation import Evaluator, evaluate  # noqa: F401
+from .observability import ObservableSurface, observable_surface  # noqa: F401
 from .mapping import (
     CellFlag,
     CellState,
@@ -61,6 +62,8 @@ __all__ = [
     "nearest_distances",
     "Evaluator",
     "evaluate",
+    "ObservableSurface",
+    "observable_surface",
     "CellFlag",
     "CellState",
     "IntegrationStats",

@@ -341,6 +341,30 @@ class EvaluationConfig:
 
 
 @dataclass(frozen=True)
+class ObservabilityConfig:
+    """The observable surface (nbvkit.observable_surface): what the camera could see at all."""
+
+    enabled: bool = True  # compute it at the end of a mission (cached under the run/sweep folder)
+    pose_spacing: float = 2.0  # m, lattice of candidate vehicle positions in the navigation box
+    max_incidence_deg: float = 85.0  # largest angle between line of sight and surface normal
+    yaw_steps: int = 8  # yaw offsets tried each side of the one centring a sample
+
+
+@dataclass(frozen=True)
+class ReportConfig:
+    """End-of-run outputs: mesh.ply (Poisson), figures/coverage.png, report.html."""
+
+    enabled: bool = True  # write them at the end of every mission
+    mesh: bool = True  # reconstruct and score mesh.ply from the final cloud
+    poisson_depth: int = 8  # octree depth of open3d's Poisson (experiments: 7 unless set)
+    mesh_max_points: int = 60000  # the cloud is voxel-thinned to about this many points first
+    density_quantile: float = 0.05  # vertices of the lowest Poisson densities are trimmed
+    trim_distance: float = 0.3  # m; vertices farther than this from the cloud are trimmed
+    html: bool = True  # write report.html (plotly, self-contained)
+    view_points: int = 50000  # ground-truth samples drawn in the report's 3D view
+
+
+@dataclass(frozen=True)
 class Config:
     """A mission: scenario (Table 2 row), start (0..4), NBV iteration cap, and the sections."""
 
@@ -370,6 +394,8 @@ class Config:
     profiling: ProfilingConfig = field(default_factory=ProfilingConfig)
     symmetry: SymmetryConfig = field(default_factory=SymmetryConfig)
     evaluation: EvaluationConfig = field(default_factory=EvaluationConfig)
+    observability: ObservabilityConfig = field(default_factory=ObservabilityConfig)
+    report: ReportConfig = field(default_factory=ReportConfig)
     # what the user set (nested dict), applied over the scenario's preset; not a key
     _user: dict = field(default_factory=dict, repr=False, compare=False)
 
@@ -601,6 +627,11 @@ _POSITIVE = {
     "placement.cluster_size",
     "frontier.patches",
     "stall.window",
+    "observability.pose_spacing",
+    "observability.max_incidence_deg",
+    "report.poisson_depth",
+    "report.mesh_max_points",
+    "report.view_points",
 }
 _NONNEG = {
     "max_iterations",
@@ -628,6 +659,9 @@ _NONNEG = {
     "symmetry.refresh_every",
     "placement.azimuth_spread_deg",
     "placement.elevation_margin_deg",
+    "observability.yaw_steps",
+    "report.density_quantile",
+    "report.trim_distance",
 }
 _TRIPLES = {
     "camera.mount_xyz",
@@ -715,6 +749,8 @@ __all__ = ["Config", "load_config"] + [
         ProfilingConfig,
         SymmetryConfig,
         EvaluationConfig,
+        ObservabilityConfig,
+        ReportConfig,
     )
 ]
 

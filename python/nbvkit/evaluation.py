@@ -105,6 +105,14 @@ def evaluate(
     "points"), ``seed``, ``resolutions``, ``taus``, and the cell counts ``gt_cells``,
     ``cloud_cells``, ``covered_cells`` per resolution.
 
+    With an observable mask (``Evaluator.set_observable``, ``nbvkit.observable_surface``) the
+    result also holds, per resolution: ``coverage_observable`` (covered cells among the cells
+    holding an observable sample ÷ those cells), ``area_coverage_observable`` (observable
+    samples in covered cells ÷ observable samples) and ``observable_fraction`` (cells holding an
+    observable sample ÷ GT cells: the observable share of the surface measured in cells of that
+    size), plus ``observable_area_fraction`` (observable samples ÷ samples: the observable share
+    of the area) and the cell counts ``observable_cells``, ``covered_observable_cells``.
+
     An empty cloud scores 0 everywhere with ``chamfer_m`` None. Raises ValueError for NaN/inf in
     either input (naming which), non-positive resolutions or taus, or an empty ground truth.
 
@@ -201,9 +209,29 @@ class Evaluator:
 
     __call__ = evaluate
 
+    def set_observable(self, mask) -> None:
+        """Marks which ground-truth samples (``gt_points`` order) are observable (a ``(M,)``
+        bool array, e.g. from ``nbvkit.observable_surface``). Every later result also carries
+        ``coverage_observable``, ``area_coverage_observable``, ``observable_fraction`` (per
+        resolution) and ``observable_area_fraction``. ``None`` clears it."""
+        if mask is None:
+            self._core.set_observable(np.zeros(0, bool))
+            return
+        mask = np.asarray(mask)
+        if mask.shape != (self.num_gt_points,):
+            raise ValueError(
+                f"observable mask must have shape ({self.num_gt_points},), got {mask.shape}"
+            )
+        self._core.set_observable(mask.astype(bool))
+
+    @property
+    def has_observable(self) -> bool:
+        return self._core.has_observable
+
     def coverage(self, cloud) -> dict:
-        """The cell figures of ``evaluate`` alone (``coverage``, ``area_coverage``, ``precision``
-        and their cell counts) at a fraction of its cost: no kd-tree, no distances."""
+        """The cell figures of ``evaluate`` alone (``coverage``, ``area_coverage``, ``precision``,
+        their cell counts, and the observable figures when set) at a fraction of its cost: no
+        kd-tree, no distances."""
         d = _to_dict(self._core.evaluate_cells(_as_points(cloud)))
         keep = (
             "coverage",
@@ -212,7 +240,7 @@ class Evaluator:
             "gt_cells",
             "cloud_cells",
             "covered_cells",
-        )
+        ) + _OBSERVABLE_KEYS
         return {k: v for k, v in d.items() if k in keep or k.startswith("n_")}
 
     @property
@@ -234,6 +262,16 @@ class Evaluator:
         return f"<nbvkit.Evaluator {self.num_gt_points} ground-truth points, {src}>"
 
 
+_OBSERVABLE_KEYS = (
+    "coverage_observable",
+    "area_coverage_observable",
+    "observable_fraction",
+    "observable_area_fraction",
+    "observable_cells",
+    "covered_observable_cells",
+)
+
+
 def _to_dict(r) -> dict:
     rk = [_key(v) for v in r.resolutions]
     tk = [_key(v) for v in r.taus]
@@ -244,6 +282,18 @@ def _to_dict(r) -> dict:
     def per_int(keys, values):
         return {k: int(v) for k, v in zip(keys, values)}
 
+    out = _to_dict_base(r, rk, tk, per, per_int)
+    if r.has_observable:
+        out["coverage_observable"] = per(rk, r.coverage_observable)
+        out["area_coverage_observable"] = per(rk, r.area_coverage_observable)
+        out["observable_fraction"] = per(rk, r.observable_fraction)
+        out["observable_area_fraction"] = float(r.observable_area_fraction)
+        out["observable_cells"] = per_int(rk, r.observable_cells)
+        out["covered_observable_cells"] = per_int(rk, r.covered_observable_cells)
+    return out
+
+
+def _to_dict_base(r, rk, tk, per, per_int) -> dict:
     return {
         "coverage": per(rk, r.coverage),
         "area_coverage": per(rk, r.area_coverage),
@@ -296,6 +346,18 @@ def format_report(result: dict) -> str:
             f"{result['gt_cells'][k]:>10,}  {result['cloud_cells'][k]:>11,}"
         )
     out.append("")
+    if "coverage_observable" in result:
+        out.append(
+            f"observable surface: {_pct(result['observable_area_fraction']).strip()} of the area"
+        )
+        out.append(f"{'resolution':>10}  {'obs. cov.':>9}  {'obs. area':>9}  {'obs. cells':>10}")
+        for k in result["coverage_observable"]:
+            out.append(
+                f"{k + ' m':>10}  {_pct(result['coverage_observable'][k]):>9}  "
+                f"{_pct(result['area_coverage_observable'][k]):>9}  "
+                f"{_pct(result['observable_fraction'][k]):>10}"
+            )
+        out.append("")
     out.append(f"{'tau':>10}  {'complete.':>9}  {'accuracy':>9}  {'F-score':>9}")
     for k in result["completeness"]:
         out.append(

@@ -92,6 +92,14 @@ struct EvaluationResult {
   std::vector<double> area_coverage;  ///< GT samples whose cell holds a cloud point / GT samples
   std::vector<double> precision;      ///< cloud cells also holding a GT sample / cloud cells
   std::vector<std::int64_t> gt_cells, cloud_cells, covered_cells;
+  // Per resolution, relative to the observable surface (only if has_observable; see
+  // Evaluator::set_observable): a cell is observable if it holds an observable GT sample.
+  bool has_observable = false;
+  std::vector<double> coverage_observable;       ///< covered observable cells / observable cells
+  std::vector<double> area_coverage_observable;  ///< observable samples in covered cells / obs.
+  std::vector<double> observable_fraction;       ///< observable cells / GT cells
+  std::vector<std::int64_t> observable_cells, covered_observable_cells;
+  double observable_area_fraction = 0;  ///< observable GT samples / GT samples (area share)
   // Per tau:
   std::vector<double> completeness;  ///< GT samples within tau (<=) of a cloud point / GT samples
   std::vector<double> accuracy;      ///< cloud points within tau (<=) of a GT sample / cloud points
@@ -130,6 +138,13 @@ class Evaluator {
   /// mission's progress reports. Completeness, accuracy, F-score and Chamfer stay zero / absent.
   EvaluationResult evaluate_cells(const PointsRef& cloud) const;
 
+  /// Marks which ground-truth samples (in gt_points() order) are observable (see
+  /// observable_samples): every later result also reports coverage relative to them. An empty
+  /// mask clears it. Throws std::invalid_argument for a mask of the wrong length. Not
+  /// thread-safe against concurrent evaluations.
+  void set_observable(const std::vector<std::uint8_t>& mask);
+  bool has_observable() const { return !observable_.empty(); }
+
   const EvaluationOptions& options() const { return opt_; }
   std::size_t num_gt_points() const { return tree_.size(); }
   /// The ground-truth points (samples in sampling order, or the reference cloud).
@@ -148,10 +163,14 @@ class Evaluator {
                    EvaluationResult& res) const;
   struct Grid {
     double r = 0;
-    VoxelHashMap index;                 ///< GT cell key -> position in keys / samples
-    std::vector<std::uint64_t> keys;    ///< the GT cells
-    std::vector<std::int64_t> samples;  ///< GT samples in each cell
+    VoxelHashMap index;                            ///< GT cell key -> position in keys / samples
+    std::vector<std::uint64_t> keys;               ///< the GT cells
+    std::vector<std::int64_t> samples;             ///< GT samples in each cell
+    std::vector<std::int64_t> observable_samples;  ///< observable GT samples in each cell
+    std::int64_t observable_cells = 0;
   };
+  std::vector<std::uint8_t> observable_;  ///< per GT sample (constructor order), or empty
+  std::int64_t n_observable_ = 0;
   EvaluationOptions opt_;
   EvaluationResult base_;
   KdTree tree_;

@@ -85,6 +85,11 @@ def run(args) -> int:
     t.to_csv(out / "compare.csv", index=False)
     (out / "compare.md").write_text(compare_markdown(t))
     plot_compare(out, df, out / "figures")
+    from ..report import write_experiment_report
+
+    write_experiment_report(
+        out, df, f"nbvkit compare: {', '.join(planners)}", (out / "compare.md").read_text()
+    )
     print((out / "compare.md").read_text())
     print(f"{len(rows)} runs in {time.perf_counter() - t0:.0f} s -> {out}/")
     return 0

@@ -11,7 +11,7 @@ from ..evaluation import (
     DEFAULT_GT_DENSITY,
     DEFAULT_RESOLUTIONS,
     DEFAULT_TAUS,
-    evaluate,
+    Evaluator,
     format_report,
 )
 from .common import add_mesh_options, mesh_from_args
@@ -40,8 +40,37 @@ def register(sub) -> argparse.ArgumentParser:
     p.add_argument(
         "cloud",
         metavar="CLOUD",
-        help="the reconstructed point cloud to score: .ply, .pcd or .npy (world frame, "
-        "metres, same frame as the mesh after --mesh-scale/--mesh-up)",
+        help="the reconstruction to score: a point cloud (.ply, .pcd or .npy) or a mesh "
+        "(a .ply with faces, .obj, .stl, .off, .glb, .gltf, .dae: its surface is sampled at "
+        "--gt-density), world frame, metres, same frame as the mesh after "
+        "--mesh-scale/--mesh-up",
+    )
+    p.add_argument(
+        "--observable",
+        action="store_true",
+        help="also score relative to the observable surface: the ground-truth samples that "
+        "the configured camera could see from some collision-free pose of the navigation "
+        "space (nbvkit.observable_surface; camera, workspace and vehicle from --config/--set). "
+        "Adds coverage_observable, area_coverage_observable and observable_fraction",
+    )
+    p.add_argument(
+        "--config",
+        metavar="FILE",
+        help="mission configuration (YAML) whose camera, workspace, vehicle and observability "
+        "sections define the observable surface (default: the default configuration)",
+    )
+    p.add_argument(
+        "--set",
+        nargs="+",
+        default=[],
+        metavar="KEY=VALUE",
+        help="override config keys for --observable (e.g. observability.pose_spacing=0.5)",
+    )
+    p.add_argument(
+        "--cache",
+        metavar="DIR",
+        default=None,
+        help="cache folder of the observable surface (default: none, computed every time)",
     )
     p.add_argument(
         "--json",
@@ -90,8 +119,12 @@ def register(sub) -> argparse.ArgumentParser:
 def run(args) -> int:
     if args.mesh and args.reference_cloud:
         raise ValueError("give either --mesh or --reference-cloud, not both")
+    if args.observable and args.reference_cloud:
+        raise ValueError("--observable needs the ground-truth mesh, not --reference-cloud")
+    if args.gt_density is None or not args.gt_density > 0:
+        raise ValueError(f"--gt-density must be > 0, got {args.gt_density}")
     cloud_path = Path(os.fspath(args.cloud)).expanduser()
-    cloud = read_points(cloud_path)
+    cloud, cloud_kind = read_reconstruction(cloud_path, args.gt_density, args.seed)
     if args.reference_cloud:
         gt = read_points(args.reference_cloud)
         gt_desc = {"reference_cloud": str(Path(args.reference_cloud).expanduser())}
@@ -104,22 +137,61 @@ def run(args) -> int:
         }
     if args.seed < 0:
         raise ValueError(f"--seed must be >= 0, got {args.seed}")
-    result = evaluate(
+    ev = Evaluator(
         gt,
-        cloud,
         resolutions=args.resolutions,
         taus=args.taus,
         gt_density=args.gt_density,
         seed=args.seed,
     )
-    print(f"cloud file: {cloud_path}")
+    obs_stats = None
+    if args.observable:
+        from ..config import load_config
+        from ..observability import observable_surface
+
+        overrides = list(args.set) + [f"seed={args.seed}"]
+        cfg = load_config(args.config, overrides)
+        obs = observable_surface(gt, cfg, evaluator=ev, cache_dir=args.cache)
+        ev.set_observable(obs.observable)
+        obs_stats = obs.stats
+    result = ev(cloud)
+    print(f"reconstruction file: {cloud_path} ({cloud_kind})")
     print(f"ground-truth file: {next(iter(gt_desc.values()))}")
     print(format_report(result))
     if args.json:
         out = dict(result)
         out["cloud_path"] = str(cloud_path)
+        out["reconstruction"] = cloud_kind
+        if obs_stats is not None:
+            out["observability"] = obs_stats
         out.update(gt_desc)
         text = json.dumps(out, indent=2, allow_nan=False)
         Path(args.json).expanduser().write_text(text + "\n")
         print(f"results -> {args.json}")
     return 0
+
+
+MESH_SUFFIXES = (".obj", ".stl", ".off", ".glb", ".gltf", ".dae", ".fbx", ".3ds")
+
+
+def _ply_has_faces(path: Path) -> bool:
+    with open(path, "rb") as f:
+        head = f.read(4096).split(b"end_header")[0].decode("ascii", "replace")
+    for line in head.splitlines():
+        parts = line.split()
+        if len(parts) == 3 and parts[:2] == ["element", "face"]:
+            return int(parts[2]) > 0
+    return False
+
+
+def read_reconstruction(path: Path, density: float, seed: int = 0):
+    """The reconstruction's points and what it was: a point cloud as read, or a mesh (a PLY
+    with faces, or another mesh format) sampled uniformly at ``density`` points per m²."""
+    suffix = path.suffix.lower()
+    if suffix in MESH_SUFFIXES or (suffix == ".ply" and path.exists() and _ply_has_faces(path)):
+        from ..mesh import load_mesh
+
+        mesh = load_mesh(path)
+        n = max(1, round(mesh.area * density))
+        return mesh.sample_surface(n, seed), f"mesh, {mesh.area:.1f} m^2 sampled at {density:g}/m^2"
+    return read_points(path), "point cloud"

@@ -8,6 +8,7 @@ from pathlib import Path
 
 from ..config import load_config
 from ..mission import Mission
+from ..report import finish_run
 from ..scenarios import DEFAULT, SCENARIOS
 
 
@@ -17,8 +18,8 @@ def register(sub) -> argparse.ArgumentParser:
         help="run one reconstruction mission and write its results folder",
         description="Fly one scenario on a structure from one of its five predefined starts, and "
         "write DIR/summary.json, iterations.csv, config.yaml (resolved), cloud.ply, map.ot, "
-        f"trajectory.csv and figures/*.png. Without --scenario: {DEFAULT}, the recommended "
-        "planner.",
+        "trajectory.csv, mesh.ply, figures/*.png and report.html (open it in a browser). "
+        f"Without --scenario: {DEFAULT}, the recommended planner.",
         formatter_class=argparse.RawDescriptionHelpFormatter,
         epilog="scenarios (--scenario, or --planner for nbvkit's own):\n"
         + "\n".join(f"  {k:12s} {v.description}" for k, v in SCENARIOS.items())
@@ -91,7 +92,8 @@ def run(args) -> int:
     cfg = config_from_args(args)
     out = Path(args.out or f"runs/scenario{cfg.scenario}_start{cfg.start}")
     mission = Mission(cfg)
-    s = mission.run(out)
+    mission.run(out)
+    s = finish_run(mission, out)
     cov = s["coverage"]
     print(
         f"scenario {s['scenario']} start {s['start']}: {s['iterations']} iterations, "
@@ -101,5 +103,11 @@ def run(args) -> int:
     )
     print("coverage  " + "  ".join(f"@{k} m {v:6.1%}" for k, v in cov.items()))
     print("area cov. " + "  ".join(f"@{k} m {v:6.1%}" for k, v in s["area_coverage"].items()))
+    if "coverage_observable" in s:
+        print(
+            "of the observable surface ("
+            + f"{s['observable_area_fraction']:.1%} of the area): "
+            + "  ".join(f"@{k} m {v:6.1%}" for k, v in s["coverage_observable"].items())
+        )
     print(f"wall time {s['wall_time_s']:.1f} s, {s['ms_per_iteration']:.1f} ms/iteration -> {out}/")
     return 0

@@ -62,5 +62,10 @@ def run(args) -> int:
         specs, out, workers=workers, scheduler=args.scheduler or sweep.get("scheduler")
     )
     write_table(rows, out / "results.csv")
+    import pandas as pd
+
+    from ..report import write_experiment_report
+
+    write_experiment_report(out, pd.DataFrame(rows), f"nbvkit sweep: {path.name}")
     print(f"{len(rows)} runs in {time.perf_counter() - t0:.0f} s -> {out / 'results.csv'}")
     return 0

@@ -65,6 +65,9 @@ def run(args) -> int:
     write_table(rows, out / "runs.csv")
     write_table2(df, out)
     plot_experiment(out, df, out / "figures")
+    from ..report import write_experiment_report
+
+    write_experiment_report(out, df, "nbvkit table: Table 2", (out / "table2.md").read_text())
     print((out / "table2.md").read_text())
     print(f"{len(rows)} runs in {time.perf_counter() - t0:.0f} s -> {out}/")
     return 0

@@ -1,0 +1,73 @@
+// Which parts of a structure's surface a camera could see at all: for each surface sample, is
+// there a collision-free vehicle pose of the navigation space from which the depth camera sees
+// it (in its frustum and range, not grazing, nothing in between)? Embree ray casts, one call.
+#pragma once
+
+#include "nbv/common.hpp"
+#include "nbv/raycast.hpp"
+#include "nbv/sensors.hpp"
+
+#include <cstdint>
+#include <string>
+#include <utility>
+#include <vector>
+
+namespace nbv {
+
+struct ObservabilityOptions {
+  /// Spacing (m) of the lattice of candidate vehicle positions filling the navigation box
+  /// (the airliner's observable share moves by 0.01 points from 2 m to 1 m; see
+  /// bench/bench_observable.py).
+  double pose_spacing = 2.0;
+  /// Vehicle collision radius (m): a candidate position nearer the mesh is in collision.
+  double collision_radius = 0.8;
+  /// Largest angle (deg) between the line of sight and the surface normal (either side) at
+  /// which a sample counts as seen.
+  double max_incidence_deg = 85.0;
+  /// Yaw offsets tried on each side of the yaw that centres a sample horizontally.
+  int yaw_steps = 8;
+
+  void validate() const;
+};
+
+struct ObservabilityResult {
+  std::vector<std::uint8_t> observable;  ///< (N,) 1 where some pose sees the sample
+  Points poses;                          ///< (P, 3) the reachable, collision-free positions
+  std::int64_t lattice_points = 0;       ///< candidate positions before collision / reachability
+  std::int64_t colliding = 0;            ///< within collision_radius of the mesh
+  std::int64_t unreachable = 0;          ///< free but sealed in (not connected to the outside)
+  std::vector<std::pair<std::string, double>> timings_s;
+};
+
+/// Observability of surface samples `points` (N, 3, on the mesh of `scene`) with unit normals
+/// `normals` (N, 3; their sign does not matter) by `camera` (its mount, FOV and depth range; the
+/// mount's pitch and roll matter, its yaw does not, the vehicle's yaw is free) carried by a
+/// vehicle whose position stays in the box [nav_min, nav_max].
+///
+/// Poses: the box centre plus every multiple of options.pose_spacing along each axis, inside the
+/// box (halving the spacing keeps every position: the result only grows); a lattice point is kept
+/// if the mesh is farther than collision_radius from it (an Embree point query) and it is
+/// connected, through lattice edges whose segment the mesh does not cross (a flood fill), to a
+/// free position from which a ray along +-x, +-y or +z escapes the mesh (the ground, below, is
+/// not part of it): positions sealed inside a closed structure are dropped.
+/// The camera sits at position + mount translation (its horizontal part ignored: yaw is free).
+///
+/// A sample is observable from a pose if, for some yaw (the one centring it horizontally and
+/// options.yaw_steps offsets on each side, across the frustum's half diagonal), it lies inside
+/// the pinhole frustum with depth along the optical axis in [min_range, max_range], the line of
+/// sight is within max_incidence_deg of the normal, and an Embree occlusion ray from the sample
+/// to the camera hits nothing. Samples are visited in Morton order (0.25 m cells); the position
+/// that saw the previous sample is tried first, then positions nearest first; the first success
+/// decides.
+/// The pixel grid is not simulated: any direction inside the frustum counts (at 640 x 480 the
+/// pixel footprint at 8 m is 1.4 cm, under the finest 5 cm coverage cell).
+ObservabilityResult observable_samples(const RaycastScene& scene, const PointsRef& points,
+                                       const PointsRef& normals, const DepthCameraOptions& camera,
+                                       const Eigen::Vector3d& nav_min,
+                                       const Eigen::Vector3d& nav_max,
+                                       const ObservabilityOptions& options = {});
+
+/// True if some mesh triangle is within `radius` of `p` (Embree point query).
+bool mesh_within(const RaycastScene& scene, const Eigen::Vector3d& p, double radius);
+
+}  // namespace nbv

@@ -1,0 +1,405 @@
+#include "nbv/observability.hpp"
+#include "nbv/parallel.hpp"
+
+#include <embree3/rtcore.h>
+
+#include <algorithm>
+#include <array>
+#include <chrono>
+#include <cmath>
+#include <deque>
+#include <limits>
+#include <sstream>
+
+namespace nbv {
+namespace {
+
+double seconds_since(std::chrono::steady_clock::time_point t0) {
+  return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+}
+
+std::string fmt(double v) {
+  std::ostringstream s;
+  s << v;
+  return s.str();
+}
+
+// Closest point on triangle abc to p (Ericson, Real-Time Collision Detection, 5.1.5).
+Eigen::Vector3d closest_on_triangle(const Eigen::Vector3d& p, const Eigen::Vector3d& a,
+                                    const Eigen::Vector3d& b, const Eigen::Vector3d& c) {
+  const Eigen::Vector3d ab = b - a, ac = c - a, ap = p - a;
+  const double d1 = ab.dot(ap), d2 = ac.dot(ap);
+  if (d1 <= 0 && d2 <= 0) return a;
+  const Eigen::Vector3d bp = p - b;
+  const double d3 = ab.dot(bp), d4 = ac.dot(bp);
+  if (d3 >= 0 && d4 <= d3) return b;
+  const double vc = d1 * d4 - d3 * d2;
+  if (vc <= 0 && d1 >= 0 && d3 <= 0) return a + ab * (d1 / (d1 - d3));
+  const Eigen::Vector3d cp = p - c;
+  const double d5 = ab.dot(cp), d6 = ac.dot(cp);
+  if (d6 >= 0 && d5 <= d6) return c;
+  const double vb = d5 * d2 - d1 * d6;
+  if (vb <= 0 && d2 >= 0 && d6 <= 0) return a + ac * (d2 / (d2 - d6));
+  const double va = d3 * d6 - d5 * d4;
+  if (va <= 0 && (d4 - d3) >= 0 && (d5 - d6) >= 0)
+    return b + (c - b) * ((d4 - d3) / ((d4 - d3) + (d5 - d6)));
+  const double den = 1.0 / (va + vb + vc);
+  return a + ab * (vb * den) + ac * (vc * den);
+}
+
+struct WithinQuery {
+  const Mesh* mesh;
+  Eigen::Vector3d p;
+  double r2;
+  bool found = false;
+};
+
+bool within_callback(RTCPointQueryFunctionArguments* args) {
+  auto* q = static_cast<WithinQuery*>(args->userPtr);
+  if (q->found) return false;
+  const Mesh& m = *q->mesh;
+  const auto f = static_cast<Eigen::Index>(args->primID);
+  const Eigen::Vector3d a = m.vertices.row(m.faces(f, 0));
+  const Eigen::Vector3d b = m.vertices.row(m.faces(f, 1));
+  const Eigen::Vector3d c = m.vertices.row(m.faces(f, 2));
+  if ((closest_on_triangle(q->p, a, b, c) - q->p).squaredNorm() <= q->r2) {
+    q->found = true;
+    args->query->radius = 0.0f;  // ends the traversal
+    return true;
+  }
+  return false;
+}
+
+// True if the segment from o along unit d over (t_near, t_far) hits the mesh.
+bool occluded(RTCScene scene, const Eigen::Vector3d& o, const Eigen::Vector3d& d, double t_near,
+              double t_far) {
+  if (!(t_far > t_near)) return false;
+  RTCIntersectContext ctx;
+  rtcInitIntersectContext(&ctx);
+  RTCRay ray;
+  ray.org_x = static_cast<float>(o.x());
+  ray.org_y = static_cast<float>(o.y());
+  ray.org_z = static_cast<float>(o.z());
+  ray.dir_x = static_cast<float>(d.x());
+  ray.dir_y = static_cast<float>(d.y());
+  ray.dir_z = static_cast<float>(d.z());
+  ray.tnear = static_cast<float>(t_near);
+  ray.tfar = static_cast<float>(t_far);
+  ray.time = 0.0f;
+  ray.mask = 0xFFFFFFFFu;
+  ray.id = 0;
+  ray.flags = 0;
+  rtcOccluded1(scene, &ctx, &ray);
+  return ray.tfar < 0.0f;  // -inf when something was hit
+}
+
+// m: occlusion rays start and end this far from their ends (float precision of the BVH is ~4e-6 m
+// at 40 m from the origin); a sample closer than this to an edge may see past the edge
+constexpr double kSurfaceEps = 5e-4;
+
+}  // namespace
+
+void ObservabilityOptions::validate() const {
+  if (!(std::isfinite(pose_spacing) && pose_spacing > 0))
+    throw std::invalid_argument("pose_spacing must be a positive number of metres, got " +
+                                fmt(pose_spacing));
+  if (!(std::isfinite(collision_radius) && collision_radius >= 0))
+    throw std::invalid_argument("collision_radius must be >= 0 m, got " + fmt(collision_radius));
+  if (!(max_incidence_deg > 0 && max_incidence_deg <= 90))
+    throw std::invalid_argument("max_incidence_deg must be in (0, 90], got " +
+                                fmt(max_incidence_deg));
+  if (yaw_steps < 0 || yaw_steps > 1000)
+    throw std::invalid_argument("yaw_steps must be in [0, 1000], got " + std::to_string(yaw_steps));
+}
+
+bool mesh_within(const RaycastScene& scene, const Eigen::Vector3d& p, double radius) {
+  WithinQuery q{&scene.mesh(), p, radius * radius};
+  RTCPointQuery pq;
+  pq.x = static_cast<float>(p.x());
+  pq.y = static_cast<float>(p.y());
+  pq.z = static_cast<float>(p.z());
+  pq.time = 0.0f;
+  pq.radius = static_cast<float>(radius) * 1.0001f + 1e-6f;
+  RTCPointQueryContext ctx;
+  rtcInitPointQueryContext(&ctx);
+  rtcPointQuery(scene.handle(), &pq, &ctx, within_callback, &q);
+  return q.found;
+}
+
+ObservabilityResult observable_samples(const RaycastScene& scene, const PointsRef& points,
+                                       const PointsRef& normals, const DepthCameraOptions& camera,
+                                       const Eigen::Vector3d& nav_min,
+                                       const Eigen::Vector3d& nav_max,
+                                       const ObservabilityOptions& options) {
+  using clock = std::chrono::steady_clock;
+  options.validate();
+  camera.validate();
+  require_finite(points, "points");
+  require_finite(normals, "normals");
+  if (normals.rows() != points.rows())
+    throw std::invalid_argument("normals must have one row per point (" +
+                                std::to_string(points.rows()) + "), got " +
+                                std::to_string(normals.rows()));
+  if (!nav_min.allFinite() || !nav_max.allFinite() || (nav_max.array() < nav_min.array()).any())
+    throw std::invalid_argument("the navigation box needs finite nav_min <= nav_max");
+
+  ObservabilityResult res;
+  const auto n = static_cast<std::size_t>(points.rows());
+  res.observable.assign(n, 0);
+  const double s = options.pose_spacing;
+
+  // ---- the lattice of candidate positions: centre + k * spacing inside the box (so halving the
+  // spacing keeps every position and adds more: the observable set can only grow)
+  std::array<std::int64_t, 3> dim{};
+  Eigen::Vector3d origin;
+  for (int a = 0; a < 3; ++a) {
+    const double half = 0.5 * (nav_max[a] - nav_min[a]);
+    const auto kmax = static_cast<std::int64_t>(std::floor(half / s + 1e-9));
+    dim[a] = 2 * kmax + 1;
+    origin[a] = 0.5 * (nav_min[a] + nav_max[a]) - static_cast<double>(kmax) * s;
+  }
+  const std::int64_t total = dim[0] * dim[1] * dim[2];
+  if (total > 200'000'000)
+    throw std::invalid_argument("pose_spacing " + fmt(s) + " m gives " + std::to_string(total) +
+                                " candidate positions (at most 2e8): use a coarser spacing");
+  res.lattice_points = total;
+  auto flat = [&](std::int64_t i, std::int64_t j, std::int64_t k) {
+    return (k * dim[1] + j) * dim[0] + i;
+  };
+  auto pos = [&](std::int64_t i, std::int64_t j, std::int64_t k) {
+    return Eigen::Vector3d(origin.x() + i * s, origin.y() + j * s, origin.z() + k * s);
+  };
+
+  auto t0 = clock::now();
+  RTCScene rs = scene.handle();
+  std::vector<std::uint8_t> free(static_cast<std::size_t>(total), 0);
+  // bit a set: the edge to the +a neighbour does not cross the mesh
+  std::vector<std::uint8_t> edges(static_cast<std::size_t>(total), 0);
+  parallel_chunks(static_cast<std::size_t>(total), 256, [&](std::size_t b, std::size_t e) {
+    for (std::size_t f = b; f < e; ++f) {
+      const auto fi = static_cast<std::int64_t>(f);
+      const std::int64_t i = fi % dim[0], j = (fi / dim[0]) % dim[1], k = fi / (dim[0] * dim[1]);
+      free[f] = !mesh_within(scene, pos(i, j, k), options.collision_radius);
+    }
+  });
+  parallel_chunks(static_cast<std::size_t>(total), 256, [&](std::size_t b, std::size_t e) {
+    for (std::size_t f = b; f < e; ++f) {
+      if (!free[f]) continue;
+      const auto fi = static_cast<std::int64_t>(f);
+      const std::int64_t i = fi % dim[0], j = (fi / dim[0]) % dim[1], k = fi / (dim[0] * dim[1]);
+      const std::array<std::int64_t, 3> ijk{i, j, k};
+      const Eigen::Vector3d p = pos(i, j, k);
+      std::uint8_t bits = 0;
+      for (int a = 0; a < 3; ++a) {
+        if (ijk[a] + 1 >= dim[a]) continue;
+        std::array<std::int64_t, 3> q = ijk;
+        ++q[a];
+        if (!free[static_cast<std::size_t>(flat(q[0], q[1], q[2]))]) continue;
+        if (!occluded(rs, p, Eigen::Vector3d::Unit(a), 0.0, s)) bits |= std::uint8_t(1u << a);
+      }
+      edges[f] = bits;
+    }
+  });
+  res.timings_s.emplace_back("collision", seconds_since(t0));
+
+  // ---- reachability: flood fill from the free lattice points that see out of the structure
+  // (a ray along +-x, +-y or +z escapes the mesh; not -z: the ground is not in the mesh)
+  t0 = clock::now();
+  std::vector<std::uint8_t> reach(static_cast<std::size_t>(total), 0);
+  parallel_chunks(static_cast<std::size_t>(total), 256, [&](std::size_t b, std::size_t e) {
+    const double inf = std::numeric_limits<double>::infinity();
+    const Eigen::Vector3d dirs[5] = {Eigen::Vector3d::UnitX(), -Eigen::Vector3d::UnitX(),
+                                     Eigen::Vector3d::UnitY(), -Eigen::Vector3d::UnitY(),
+                                     Eigen::Vector3d::UnitZ()};
+    for (std::size_t f = b; f < e; ++f) {
+      if (!free[f]) continue;
+      const auto fi = static_cast<std::int64_t>(f);
+      const Eigen::Vector3d p = pos(fi % dim[0], (fi / dim[0]) % dim[1], fi / (dim[0] * dim[1]));
+      for (const auto& d : dirs)
+        if (!occluded(rs, p, d, 0.0, inf)) {
+          reach[f] = 1;
+          break;
+        }
+    }
+  });
+  std::deque<std::int64_t> queue;
+  for (std::int64_t f = 0; f < total; ++f)
+    if (reach[static_cast<std::size_t>(f)]) queue.push_back(f);
+  const std::array<std::int64_t, 3> stride{1, dim[0], dim[0] * dim[1]};
+  while (!queue.empty()) {
+    const std::int64_t f = queue.front();
+    queue.pop_front();
+    const std::array<std::int64_t, 3> ijk{f % dim[0], (f / dim[0]) % dim[1], f / (dim[0] * dim[1])};
+    for (int a = 0; a < 3; ++a) {
+      // +a neighbour through this point's edge bit; -a neighbour through its own bit
+      if (ijk[a] + 1 < dim[a] && (edges[static_cast<std::size_t>(f)] >> a & 1u)) {
+        const std::int64_t g = f + stride[a];
+        if (!reach[static_cast<std::size_t>(g)]) {
+          reach[static_cast<std::size_t>(g)] = 1;
+          queue.push_back(g);
+        }
+      }
+      if (ijk[a] > 0) {
+        const std::int64_t g = f - stride[a];
+        if ((edges[static_cast<std::size_t>(g)] >> a & 1u) && !reach[static_cast<std::size_t>(g)]) {
+          reach[static_cast<std::size_t>(g)] = 1;
+          queue.push_back(g);
+        }
+      }
+    }
+  }
+  std::int64_t n_free = 0, n_reach = 0;
+  for (std::int64_t f = 0; f < total; ++f) {
+    n_free += free[static_cast<std::size_t>(f)];
+    n_reach += reach[static_cast<std::size_t>(f)];
+  }
+  res.colliding = total - n_free;
+  res.unreachable = n_free - n_reach;
+  res.poses.resize(n_reach, 3);
+  {
+    Eigen::Index r = 0;
+    for (std::int64_t f = 0; f < total; ++f)
+      if (reach[static_cast<std::size_t>(f)])
+        res.poses.row(r++) = pos(f % dim[0], (f / dim[0]) % dim[1], f / (dim[0] * dim[1]));
+  }
+  res.timings_s.emplace_back("reachability", seconds_since(t0));
+
+  // ---- the camera: frustum, reach, yaw offsets
+  const Eigen::Matrix3d M = camera.mount.linear();
+  const Eigen::Matrix3d Mt = M.transpose();
+  const double mount_z = camera.mount.translation().z();
+  const double th = std::tan(camera.hfov_deg * M_PI / 360.0);
+  const double tv = std::tan(camera.vfov_deg * M_PI / 360.0);
+  const double diag = std::sqrt(1.0 + th * th + tv * tv);  // corner distance per unit depth
+  const double r_max = camera.max_range * diag;
+  const Eigen::Vector3d axis = M * Eigen::Vector3d::UnitX();
+  const double az0 = std::hypot(axis.x(), axis.y()) > 1e-9 ? std::atan2(axis.y(), axis.x()) : 0.0;
+  const double ca = std::cos(az0), sa = std::sin(az0);
+  const double half = std::atan(std::sqrt(th * th + tv * tv));
+  const int K = options.yaw_steps;
+  std::vector<std::pair<double, double>> yaw_cs;  // cos/sin of the offsets, 0 first
+  yaw_cs.emplace_back(1.0, 0.0);
+  for (int k = 1; k <= K; ++k)
+    for (int sgn : {1, -1}) {
+      const double a = sgn * half * k / K;
+      yaw_cs.emplace_back(std::cos(a), std::sin(a));
+    }
+  const double cos_inc = std::cos(options.max_incidence_deg * M_PI / 180.0);
+
+  // lattice offsets within r_max (+ the half diagonal of a cell), nearest first
+  const double reach_r = r_max + s * std::sqrt(3.0) * 0.5;
+  const auto m = static_cast<std::int64_t>(std::ceil(reach_r / s));
+  std::vector<std::array<std::int32_t, 3>> offsets;
+  {
+    std::vector<std::pair<double, std::array<std::int32_t, 3>>> tmp;
+    for (std::int64_t dk = -m; dk <= m; ++dk)
+      for (std::int64_t dj = -m; dj <= m; ++dj)
+        for (std::int64_t di = -m; di <= m; ++di) {
+          const double d2 = static_cast<double>(di * di + dj * dj + dk * dk) * s * s;
+          if (d2 <= reach_r * reach_r)
+            tmp.push_back({d2,
+                           {static_cast<std::int32_t>(di), static_cast<std::int32_t>(dj),
+                            static_cast<std::int32_t>(dk)}});
+        }
+    std::sort(tmp.begin(), tmp.end(), [](const auto& x, const auto& y) {
+      return x.first < y.first || (x.first == y.first && x.second < y.second);
+    });
+    offsets.reserve(tmp.size());
+    for (const auto& t : tmp) offsets.push_back(t.second);
+  }
+
+  // the elevation range the frustum covers (yaw-invariant): a cheap first test
+  double el_lo = M_PI, el_hi = -M_PI;
+  for (int e = 0; e < 4; ++e)
+    for (int k = 0; k <= 256; ++k) {
+      const double t = -1.0 + 2.0 * k / 256.0;
+      const double u = e < 2 ? t : (e == 2 ? -1.0 : 1.0), w = e < 2 ? (e == 0 ? -1.0 : 1.0) : t;
+      const Eigen::Vector3d d = M * Eigen::Vector3d(1.0, u * th, w * tv);
+      const double el = std::asin(std::clamp(d.z() / d.norm(), -1.0, 1.0));
+      el_lo = std::min(el_lo, el);
+      el_hi = std::max(el_hi, el);
+    }
+  const double sin_lo = std::sin(el_lo - 1e-3), sin_hi = std::sin(el_hi + 1e-3);
+
+  // ---- the samples, in a spatially coherent order (Morton order of 0.25 m cells)
+  t0 = clock::now();
+  std::vector<std::pair<std::uint64_t, std::uint32_t>> order(n);
+  if (n > 0) {
+    const Eigen::Vector3d lo = points.colwise().minCoeff().transpose();
+    parallel_chunks(n, 1 << 14, [&](std::size_t b, std::size_t e) {
+      for (std::size_t q = b; q < e; ++q) {
+        std::uint64_t key = 0;
+        for (int a = 0; a < 3; ++a) {
+          const auto c = static_cast<std::uint64_t>(
+              std::min(2097151.0, (points(static_cast<Eigen::Index>(q), a) - lo[a]) / 0.25));
+          for (int bit = 0; bit < 21; ++bit) key |= ((c >> bit) & 1u) << (3 * bit + a);
+        }
+        order[q] = {key, static_cast<std::uint32_t>(q)};
+      }
+    });
+    std::sort(order.begin(), order.end());
+  }
+  if (n_reach > 0)
+    parallel_chunks(n, 64, [&](std::size_t b, std::size_t e) {
+      std::int64_t witness = -1;  // the last sample's seeing position: neighbours share it
+      for (std::size_t oq = b; oq < e; ++oq) {
+        const std::size_t q = order[oq].second;
+        const auto row = static_cast<Eigen::Index>(q);
+        const Eigen::Vector3d x = points.row(row).transpose();
+        Eigen::Vector3d nrm = normals.row(row).transpose();
+        const double nn = nrm.norm();
+        const bool has_normal = nn > 1e-12;
+        if (has_normal) nrm /= nn;
+        // the full test of one lattice position
+        auto sees = [&](std::int64_t i, std::int64_t j, std::int64_t k) {
+          Eigen::Vector3d c = pos(i, j, k);
+          c.z() += mount_z;
+          const Eigen::Vector3d v = x - c;  // camera -> sample
+          const double dist = v.norm();
+          if (dist > r_max || dist < camera.min_range) return false;
+          if (v.z() < sin_lo * dist || v.z() > sin_hi * dist) return false;
+          if (has_normal && std::abs(nrm.dot(v)) < cos_inc * dist) return false;
+          // v turned about z so that its azimuth is the camera axis's (the centring yaw)
+          const double vh = std::hypot(v.x(), v.y());
+          const Eigen::Vector3d u0(vh * ca, vh * sa, v.z());
+          bool in_view = false;
+          for (const auto& [cy, sy] : yaw_cs) {
+            const Eigen::Vector3d u(cy * u0.x() - sy * u0.y(), sy * u0.x() + cy * u0.y(), u0.z());
+            const Eigen::Vector3d cam = Mt * u;  // sensor frame: +x forward, y left, z up
+            if (cam.x() < camera.min_range || cam.x() > camera.max_range) continue;
+            if (std::abs(cam.y()) > cam.x() * th || std::abs(cam.z()) > cam.x() * tv) continue;
+            in_view = true;
+            break;
+          }
+          if (!in_view) return false;
+          const Eigen::Vector3d dir = -v / dist;  // sample -> camera
+          return !occluded(rs, x, dir, kSurfaceEps, dist - kSurfaceEps);
+        };
+        if (witness >= 0 &&
+            sees(witness % dim[0], (witness / dim[0]) % dim[1], witness / (dim[0] * dim[1]))) {
+          res.observable[q] = 1;
+          continue;
+        }
+        // nearest lattice point of the camera's vehicle position for a camera at x
+        std::array<std::int64_t, 3> base{};
+        for (int a = 0; a < 3; ++a) {
+          const double c = (a == 2 ? x[a] - mount_z : x[a]) - origin[a];
+          base[a] = static_cast<std::int64_t>(std::llround(c / s));
+        }
+        for (const auto& o : offsets) {
+          const std::int64_t i = base[0] + o[0], j = base[1] + o[1], k = base[2] + o[2];
+          if (i < 0 || j < 0 || k < 0 || i >= dim[0] || j >= dim[1] || k >= dim[2]) continue;
+          const std::int64_t f = flat(i, j, k);
+          if (f == witness || !reach[static_cast<std::size_t>(f)]) continue;
+          if (!sees(i, j, k)) continue;
+          res.observable[q] = 1;
+          witness = f;
+          break;
+        }
+      }
+    });
+  res.timings_s.emplace_back("samples", seconds_since(t0));
+  return res;
+}
+
+}  // namespace nbv

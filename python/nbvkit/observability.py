@@ -1,0 +1,259 @@
+"""The observable surface: which part of a structure's surface the configured camera could see at
+all from the navigation space, so that coverage can be told apart from geometry (an aircraft's
+wing root inside its fuselage can never be seen, whatever the planner).
+
+Method (one C++ call, ``nbvkit._core.observable_samples``, Embree):
+
+1. *Poses.* A lattice of candidate vehicle positions of spacing ``observability.pose_spacing``
+   (default 2 m) fills the navigation box (the workspace shrunk by the collision radius: where a
+   mission's vehicle may be). A lattice point is dropped if the mesh comes within
+   ``vehicle.collision_radius`` of it (an Embree point query), or if it is not connected,
+   through lattice edges that the mesh does not cross (a flood fill), to a position from which
+   a ray along +-x, +-y or +z escapes the mesh (the ground below is not part of it): a closed
+   hull's inside is unreachable however large it is. The yaw is free.
+2. *Samples.* The ground-truth samples (``Evaluator.gt_points``: the mesh sampled uniformly at
+   ``evaluation.gt_density``) with their triangle's normal (either side).
+3. *Visibility.* A sample is observable if, from some kept position (samples in Morton order,
+   the previous sample's seeing position first, then nearest first; the first success ends the
+   search), with the camera at the position plus its mount height, some yaw
+   (the one that centres the sample horizontally, and ``yaw_steps`` offsets each side across
+   the frustum's half diagonal) puts it inside the pinhole frustum (mount pitch and roll, FOV)
+   at a depth along the optical axis in [min_range, max_range], its line of sight is within
+   ``max_incidence_deg`` of the normal, and an Embree occlusion ray from the sample to the
+   camera hits nothing. The pixel grid is not simulated (at 640 x 480 a pixel spans 1.4 cm at
+   8 m, finer than the finest 5 cm coverage cell).
+
+The lattice is the only approximation that a finer setting removes. It holds the box's centre
+plus every multiple of the spacing, so halving the spacing keeps every position and adds more:
+the observable set can only grow, and it converges; ``bench/bench_observable.py`` measures it
+and draws ``docs/figures/observable_convergence.png``.
+Results are cached on disk per (mesh, samples, camera, navigation space, options) in a
+``cache_dir`` (a run's or a sweep's folder), so a 30-run table computes it once per structure.
+"""
+from __future__ import annotations
+
+import hashlib
+import json
+import os
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from . import _core
+
+__all__ = ["ObservableSurface", "observable_surface", "sample_normals"]
+
+#: bump when the method changes, so old caches are not reused
+_METHOD_VERSION = 3
+
+
+@dataclass
+class ObservableSurface:
+    """What ``observable_surface`` found.
+
+    points: (N, 3) the samples; observable: (N,) bool; poses: (P, 3) the reachable,
+    collision-free vehicle positions used; stats: counts, timings (s) and the settings;
+    cached: whether it came from the cache.
+    """
+
+    points: np.ndarray
+    observable: np.ndarray
+    poses: np.ndarray
+    stats: dict = field(default_factory=dict)
+    cached: bool = False
+
+    @property
+    def fraction(self) -> float:
+        """Observable share of the samples (of the area, for area-uniform samples)."""
+        return float(self.observable.mean()) if len(self.observable) else 0.0
+
+
+def sample_normals(mesh, face_ids) -> np.ndarray:
+    """(N, 3) unit normals of the triangles ``face_ids`` (N,) of ``mesh`` (zero if degenerate)."""
+    v, f = np.asarray(mesh.vertices), np.asarray(mesh.faces)
+    tri = v[f[np.asarray(face_ids)]]
+    n = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
+    norm = np.linalg.norm(n, axis=1, keepdims=True)
+    return np.divide(n, norm, out=np.zeros_like(n), where=norm > 0)
+
+
+def _settings(config, workspace) -> dict:
+    c, o = config.camera, config.observability
+    return {
+        "camera": {
+            "hfov_deg": c.hfov_deg,
+            "vfov_deg": c.vfov_deg,
+            "min_range": c.min_range,
+            "max_range": c.max_range,
+            "mount_xyz": list(map(float, c.mount_xyz)),
+            "mount_rpy_deg": list(map(float, c.mount_rpy_deg)),
+        },
+        "nav_min": [round(float(x), 9) for x in workspace.nav_min],
+        "nav_max": [round(float(x), 9) for x in workspace.nav_max],
+        "collision_radius": config.vehicle.collision_radius,
+        "pose_spacing": o.pose_spacing,
+        "max_incidence_deg": o.max_incidence_deg,
+        "yaw_steps": o.yaw_steps,
+    }
+
+
+def _cache_key(mesh, points, settings) -> str:
+    h = hashlib.sha256()
+    h.update(np.ascontiguousarray(mesh.vertices, np.float64).tobytes())
+    h.update(np.ascontiguousarray(mesh.faces, np.int32).tobytes())
+    h.update(np.ascontiguousarray(points, np.float64).tobytes())
+    h.update(json.dumps([_METHOD_VERSION, settings], sort_keys=True).encode())
+    return h.hexdigest()[:20]
+
+
+def observable_surface(
+    mesh,
+    config=None,
+    *,
+    points=None,
+    face_ids=None,
+    evaluator=None,
+    cache_dir: str | os.PathLike | None = None,
+    scene=None,
+) -> ObservableSurface:
+    """Which surface samples of ``mesh`` the configured camera could see from some
+    collision-free pose of the navigation space (see the module docstring for the method).
+
+    mesh: an ``nbvkit.Mesh`` (need not be closed: the test is geometric, not topological).
+    config: an ``nbvkit.Config`` (default ``Config()``): ``camera`` (mount, FOV, range),
+    ``workspace`` and ``vehicle.collision_radius`` (the navigation space), ``observability``
+    (pose spacing, incidence limit, yaw steps), ``evaluation.gt_density`` and ``seed`` (the
+    samples).
+    points, face_ids: the samples (N, 3) and their triangles (N,) (normals come from these;
+    without face_ids no incidence test is made). Default: the ground-truth samples of
+    ``evaluator`` if given (its ``gt_points``), else those of ``nbvkit.Evaluator(mesh,
+    gt_density, seed)``, i.e. ``mesh.sample_surface(n, seed, return_faces=True)``.
+    cache_dir: folder of the on-disk cache (``observable-<key>.npz``; the key hashes the mesh,
+    the samples and every setting above; concurrent processes wait on a file lock, so one
+    computes and the others read). None: no cache.
+    scene: an ``nbvkit.RaycastScene`` of ``mesh`` to reuse (default: one is built).
+
+    Returns an ``ObservableSurface``; ``.observable`` is the ``(N,)`` bool mask to pass to
+    ``Evaluator.set_observable``.
+    """
+    from .config import Config
+    from .evaluation import Evaluator
+    from .workspace import make_workspace
+
+    cfg = config or Config()
+    ws = make_workspace(mesh.bounds, cfg)
+    if points is None:
+        ev = evaluator or Evaluator(mesh, gt_density=cfg.evaluation.gt_density, seed=cfg.seed)
+        points = ev.gt_points
+        n = len(points)
+        seed = int(ev._core.gt_info.seed)
+        if ev._core.gt_info.from_mesh:
+            again, fid = mesh.sample_surface(n, seed, return_faces=True)
+            if np.array_equal(again, points):
+                face_ids = fid
+    points = np.ascontiguousarray(points, np.float64)
+    if points.ndim != 2 or points.shape[1] != 3:
+        raise ValueError(f"points must be (N, 3), got {points.shape}")
+    normals = sample_normals(mesh, face_ids) if face_ids is not None else np.zeros_like(points)
+    settings = _settings(cfg, ws)
+    path = None
+    if cache_dir is not None:
+        path = Path(cache_dir) / f"observable-{_cache_key(mesh, points, settings)}.npz"
+        hit = _load(path, points)
+        if hit is not None:
+            return hit
+        path.parent.mkdir(parents=True, exist_ok=True)
+        with _locked(path.with_suffix(".lock")):
+            hit = _load(path, points)  # another process may have computed it meanwhile
+            if hit is not None:
+                return hit
+            out = _compute(mesh, cfg, points, normals, ws, settings, scene)
+            tmp = path.with_name(path.name + f".tmp{os.getpid()}.npz")
+            np.savez_compressed(
+                tmp,
+                observable=out.observable,
+                poses=out.poses,
+                stats=np.array(json.dumps(out.stats)),
+            )
+            os.replace(tmp, path)
+            return out
+    return _compute(mesh, cfg, points, normals, ws, settings, scene)
+
+
+def _compute(mesh, cfg, points, normals, ws, settings, scene) -> ObservableSurface:
+    t0 = time.perf_counter()
+    scene = scene or _core.RaycastScene(mesh)
+    c = cfg.camera
+    camera = _core.DepthCamera(
+        scene,
+        width=16,
+        height=12,
+        hfov_deg=c.hfov_deg,
+        vfov_deg=c.vfov_deg,
+        min_range=c.min_range,
+        max_range=c.max_range,
+        mount=_core.mount_transform(c.mount_xyz, *c.mount_rpy_deg),
+    )
+    o = cfg.observability
+    r = _core.observable_samples(
+        scene,
+        points,
+        normals,
+        camera,
+        ws.nav_min,
+        ws.nav_max,
+        pose_spacing=o.pose_spacing,
+        collision_radius=cfg.vehicle.collision_radius,
+        max_incidence_deg=o.max_incidence_deg,
+        yaw_steps=o.yaw_steps,
+    )
+    mask = np.asarray(r.observable, bool)
+    stats = {
+        "settings": settings,
+        "samples": int(len(mask)),
+        "observable_samples": int(mask.sum()),
+        "lattice_points": int(r.lattice_points),
+        "colliding": int(r.colliding),
+        "unreachable": int(r.unreachable),
+        "poses": int(len(r.poses)),
+        "timings_s": {k: float(v) for k, v in r.timings_s},
+        "wall_time_s": time.perf_counter() - t0,
+    }
+    return ObservableSurface(points, mask, np.asarray(r.poses), stats)
+
+
+def _load(path: Path, points) -> ObservableSurface | None:
+    if not path.exists():
+        return None
+    try:
+        with np.load(path) as z:
+            mask = z["observable"].astype(bool)
+            poses = z["poses"]
+            stats = json.loads(str(z["stats"]))
+    except (OSError, ValueError, KeyError):
+        return None  # a damaged cache entry is recomputed
+    if len(mask) != len(points):
+        return None
+    return ObservableSurface(points, mask, poses, stats, cached=True)
+
+
+class _locked:
+    """An exclusive advisory lock on a file (POSIX flock) while in the block."""
+
+    def __init__(self, path: Path):
+        self.path = path
+
+    def __enter__(self):
+        import fcntl
+
+        self.f = open(self.path, "a")
+        fcntl.flock(self.f, fcntl.LOCK_EX)
+        return self
+
+    def __exit__(self, *exc):
+        import fcntl
+
+        fcntl.flock(self.f, fcntl.LOCK_UN)
+        self.f.close()

@@ -1,0 +1,206 @@
+"""The observable surface: analytic scenes (a sealed hollow box, a plate on the ground, a tower
+taller than the navigation space), the Evaluator's observable figures, the cache, the CLI."""
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+from conftest import box_mesh
+
+import nbvkit
+from nbvkit import _core
+from nbvkit.config import load_config
+from nbvkit import observable_surface
+
+
+def merge(*meshes) -> nbvkit.Mesh:
+    v, f, off = [], [], 0
+    for m in meshes:
+        v.append(np.asarray(m.vertices))
+        f.append(np.asarray(m.faces) + off)
+        off += len(m.vertices)
+    return nbvkit.Mesh(np.vstack(v), np.vstack(f).astype(np.int32))
+
+
+def inverted(m: nbvkit.Mesh) -> nbvkit.Mesh:
+    return nbvkit.Mesh(m.vertices, np.asarray(m.faces)[:, ::-1].copy())
+
+
+def samples(mesh, n=4000, seed=1):
+    p, fid = mesh.sample_surface(n, seed, return_faces=True)
+    return p, fid
+
+
+def cfg(*over):
+    return load_config(None, ["observability.pose_spacing=0.5", *over])
+
+
+def test_a_sealed_hollow_box_is_seen_outside_and_never_inside():
+    # walls 0.3 m thick around a 5 x 5 x 3.4 m hall: large enough to hold free lattice points,
+    # which the flood fill must find unreachable
+    outer = box_mesh((-3, -3, 0.0), (3, 3, 4.0))
+    inner = inverted(box_mesh((-2.7, -2.7, 0.3), (2.7, 2.7, 3.7)))
+    mesh = merge(outer, inner)
+    p, fid = samples(mesh)
+    r = observable_surface(mesh, cfg(), points=p, face_ids=fid)
+    assert r.stats["unreachable"] > 0  # free positions inside the hall exist and are dropped
+    inside = fid >= 12
+    assert not r.observable[inside].any()
+    floor = fid < 2  # the outer box's faces 0, 1 lie on the ground
+    assert r.observable[~inside & ~floor].mean() > 0.99
+    assert not r.observable[floor].any()
+
+
+def test_a_plate_on_the_ground_has_an_unobservable_underside():
+    mesh = box_mesh((-2, -2, 0.0), (2, 2, 0.1))
+    p, fid = samples(mesh)
+    r = observable_surface(mesh, cfg(), points=p, face_ids=fid)
+    # (occlusion rays start 0.5 mm off the surface: ignore samples within 1 mm of the rim)
+    inner = np.abs(p[:, :2]).max(axis=1) < 2 - 1e-3
+    under = (p[:, 2] < 1e-9) & inner
+    top = p[:, 2] > 0.1 - 1e-9
+    assert under.sum() > 100 and top.sum() > 100
+    assert not r.observable[under].any()
+    assert r.observable[top].all()
+
+
+def test_the_top_of_a_tower_taller_than_the_navigation_space_is_unobservable():
+    mesh = box_mesh((-1, -1, 0.0), (1, 1, 20.0))
+    c = cfg("workspace.bounds_min=[-8,-8,0]", "workspace.bounds_max=[8,8,10]")
+    p, fid = samples(mesh, 8000)
+    r = observable_surface(mesh, c, points=p, face_ids=fid)
+    top = p[:, 2] > 20 - 1e-9
+    assert top.sum() > 20
+    assert not r.observable[top].any()
+    # a horizontal camera at most 9.1 m up sees the walls up to 9.1 + 8 tan(22.5 deg) ~ 12.4 m
+    low_wall = (p[:, 2] > 1.5) & (p[:, 2] < 9.0)
+    assert r.observable[low_wall].mean() > 0.99
+    assert not r.observable[(p[:, 2] > 13.0) & ~top].any()
+    # pitched 30 deg up, the camera reaches higher up the walls but still not the roof
+    up = observable_surface(
+        mesh,
+        cfg(
+            "workspace.bounds_min=[-8,-8,0]",
+            "workspace.bounds_max=[8,8,10]",
+            "camera.mount_rpy_deg=[0,-30,0]",
+        ),
+        points=p,
+        face_ids=fid,
+    )
+    assert up.observable.sum() > r.observable.sum()
+    assert not up.observable[top].any()
+
+
+def test_an_open_mesh_works_and_the_range_limits_apply():
+    # a single wall (no interior at all): observable from in front, within range
+    v = np.array([[0, -1, 1], [0, 1, 1], [0, 1, 3], [0, -1, 3]], float)
+    mesh = nbvkit.Mesh(v, np.array([[0, 1, 2], [0, 2, 3]], np.int32))
+    p, fid = samples(mesh, 500)
+    r = observable_surface(mesh, cfg(), points=p, face_ids=fid)
+    assert r.observable.all()
+    # with a max range shorter than the clearance the camera can keep, nothing is seen
+    near = observable_surface(
+        mesh, cfg("camera.max_range=0.7", "camera.min_range=0.1"), points=p, face_ids=fid
+    )
+    assert not near.observable.any()
+
+
+def test_bad_arguments_raise_value_errors():
+    mesh = box_mesh((0, 0, 0), (1, 1, 1))
+    scene = _core.RaycastScene(mesh)
+    cam = _core.DepthCamera(scene, width=8, height=6)
+    p = np.zeros((3, 3))
+    with pytest.raises(ValueError, match="normals"):
+        _core.observable_samples(scene, p, np.zeros((2, 3)), cam, [0, 0, 0], [1, 1, 1])
+    with pytest.raises(ValueError, match="pose_spacing"):
+        _core.observable_samples(scene, p, p, cam, [0, 0, 0], [1, 1, 1], pose_spacing=0)
+    with pytest.raises(ValueError, match="navigation box"):
+        _core.observable_samples(scene, p, p, cam, [0, 0, 0], [-1, 1, 1])
+
+
+def test_the_evaluator_counts_coverage_relative_to_the_observable_samples():
+    gt = np.array([[0.05, 0.05, 0.05], [1.05, 0.05, 0.05], [2.05, 0.05, 0.05], [3.05, 0.05, 0.05]])
+    ev = nbvkit.Evaluator(gt, resolutions=(0.1, 0.5), taus=(0.05,))
+    assert "coverage_observable" not in ev(gt[:1])
+    ev.set_observable([True, True, False, False])
+    r = ev(gt[[0, 2]])  # one observable cell and one unobservable one covered
+    assert r["coverage"]["0.1"] == pytest.approx(0.5)
+    assert r["coverage_observable"]["0.1"] == pytest.approx(0.5)
+    assert r["area_coverage_observable"]["0.5"] == pytest.approx(0.5)
+    assert r["observable_fraction"]["0.1"] == pytest.approx(0.5)
+    assert r["observable_area_fraction"] == pytest.approx(0.5)
+    c = ev.coverage(gt[[2, 3]])  # only unobservable samples covered
+    assert c["coverage_observable"]["0.1"] == 0.0 and c["coverage"]["0.1"] == 0.5
+    assert ev(gt[:2])["coverage_observable"]["0.1"] == 1.0
+    with pytest.raises(ValueError, match="shape"):
+        ev.set_observable([True])
+    ev.set_observable(None)
+    assert "coverage_observable" not in ev(gt)
+
+
+def test_the_cache_is_reused_and_keyed_by_the_settings(tmp_path):
+    mesh = box_mesh((-2, -2, 0.0), (2, 2, 0.1))
+    c = load_config(None, ["evaluation.gt_density=100"])
+    a = observable_surface(mesh, c, cache_dir=tmp_path)
+    b = observable_surface(mesh, c, cache_dir=tmp_path)
+    assert not a.cached and b.cached
+    np.testing.assert_array_equal(a.observable, b.observable)
+    assert len(list(tmp_path.glob("observable-*.npz"))) == 1
+    d = observable_surface(
+        mesh,
+        load_config(None, ["evaluation.gt_density=100", "camera.max_range=4"]),
+        cache_dir=tmp_path,
+    )
+    assert not d.cached and len(list(tmp_path.glob("observable-*.npz"))) == 2
+
+
+def test_cli_evaluate_observable_json(tmp_path):
+    from nbvkit.cli import main
+
+    mesh = box_mesh((-2, -2, 0.0), (2, 2, 0.12))
+    obj = tmp_path / "plate.obj"
+    v, f = np.asarray(mesh.vertices), np.asarray(mesh.faces)
+    obj.write_text(
+        "".join(f"v {x} {y} {z}\n" for x, y, z in v)
+        + "".join(f"f {a + 1} {b + 1} {c + 1}\n" for a, b, c in f)
+    )
+    g = np.arange(-1.99, 2, 0.025)
+    top = np.array([[x, y, 0.12] for x in g for y in g])
+    np.save(tmp_path / "top.npy", top)
+    out = tmp_path / "r.json"
+    args = ["evaluate", "--mesh", str(obj), str(tmp_path / "top.npy"), "--gt-density", "200"]
+    assert main([*args, "--observable", "--json", str(out)]) == 0
+    r = json.loads(out.read_text())
+    for k in ("coverage_observable", "area_coverage_observable", "observable_fraction"):
+        assert set(r[k]) == {"0.05", "0.1", "0.5"}, k
+    # top 16 m^2 (covered) + rim 1.92 m^2 (observable, missed) of 33.92 m^2; underside unseen
+    assert r["observable_area_fraction"] == pytest.approx(17.92 / 33.92, abs=0.03)
+    assert r["area_coverage_observable"]["0.05"] == pytest.approx(16 / 17.92, abs=0.03)
+    assert r["area_coverage"]["0.05"] == pytest.approx(16 / 33.92, abs=0.03)
+    # a mesh as the reconstruction: its surface is sampled
+    assert (
+        main(["evaluate", "--mesh", str(obj), str(obj), "--gt-density", "200", "--json", str(out)])
+        == 0
+    )
+    r = json.loads(out.read_text())
+    assert r["reconstruction"].startswith("mesh") and r["coverage"]["0.05"] > 0.95
+    # observability needs the mesh
+    ref = str(tmp_path / "top.npy")
+    assert main(["evaluate", "--reference-cloud", ref, ref, "--observable"]) != 0
+
+
+def test_python_defaults_equal_the_cpp_defaults():
+    import re
+
+    from nbvkit.config import Config
+
+    sig = _core.observable_samples.__doc__.splitlines()[0]
+    cpp = {k: float(v) for k, v in re.findall(r"(\w+): (?:float|int) = ([\d.]+)", sig)}
+    o, v = Config().observability, Config().vehicle
+    assert cpp == {
+        "pose_spacing": o.pose_spacing,
+        "collision_radius": v.collision_radius,
+        "max_incidence_deg": o.max_incidence_deg,
+        "yaw_steps": o.yaw_steps,
+    }

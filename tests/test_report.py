@@ -1,0 +1,212 @@
+"""End-of-run outputs: mesh.ply and its scores, coverage.png, report.html (opened in headless
+Chromium), the too-few-points case, and the experiment report."""
+from __future__ import annotations
+
+import json
+import os
+import shutil
+import subprocess
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from nbvkit.report import (
+    MIN_MESH_POINTS,
+    coverage_classes,
+    reconstruct_mesh,
+    score_mesh,
+    write_experiment_report,
+)
+
+ROOT = Path(__file__).resolve().parent.parent
+TINY = (
+    "map.resolution=0.4",
+    "evaluation.gt_density=50",
+    "max_iterations=3",
+    "evaluation.coverage_every=1",
+    "profiling.sweep_step=0.5",
+    "profiling.waypoints=3",
+    "report.view_points=20000",
+)
+
+
+@pytest.fixture(scope="module")
+def tiny_run(tmp_path_factory):
+    from nbvkit.cli import main
+
+    out = tmp_path_factory.mktemp("run") / "r"
+    assert main(["run", "--scenario", "5", "--no-progress", "--set", *TINY, "--out", str(out)]) == 0
+    return out
+
+
+def sphere_points(n=20000, r=2.0, seed=0):
+    rng = np.random.default_rng(seed)
+    p = rng.normal(size=(n, 3))
+    return r * p / np.linalg.norm(p, axis=1, keepdims=True) + [0, 0, 5]
+
+
+def test_poisson_reconstructs_a_sphere_and_scores_it():
+    pts = sphere_points()
+    mesh, info = reconstruct_mesh(pts, depth=7, viewpoints=[[0, 0, 5 + 10], [0, 0, -5], [10, 0, 5]])
+    # viewpoints outside the sphere only partly surround it: orient by nearest viewpoint anyway
+    assert mesh is not None, info
+    assert info["triangles"] > 1000
+    assert abs(info["area_m2"] - 4 * np.pi * 4) / (4 * np.pi * 4) < 0.15
+    s = score_mesh(mesh, sphere_points(20000, seed=1), taus=(0.05, 0.1))
+    assert s["mesh_accuracy"]["0.1"] > 0.9 and s["mesh_completeness"]["0.1"] > 0.9
+    assert s["hausdorff95_m"] < 0.15
+
+
+def test_too_few_points_give_a_clear_message_and_no_mesh():
+    mesh, info = reconstruct_mesh(sphere_points(MIN_MESH_POINTS - 1))
+    assert mesh is None and f"at least {MIN_MESH_POINTS}" in info["message"]
+
+
+def test_coverage_classes():
+    pts = np.array([[0.05, 0.05, 0.05], [1.05, 0.05, 0.05], [2.05, 0.05, 0.05]])
+    cls = coverage_classes(pts, pts[:1] + 0.01, observable=[True, True, False])
+    assert cls.tolist() == [0, 1, 2]
+    assert coverage_classes(pts, np.zeros((0, 3))).tolist() == [1, 1, 1]
+
+
+def test_a_run_writes_mesh_figures_and_report(tiny_run):
+    s = json.loads((tiny_run / "summary.json").read_text())
+    for k in ("coverage_observable", "area_coverage_observable", "observable_fraction"):
+        assert set(s[k]) == {"0.05", "0.1", "0.5"}
+        assert all(0 <= v <= 1 for v in s[k].values())
+    # relative to a smaller ground truth, coverage can only grow
+    for r in ("0.05", "0.1", "0.5"):
+        assert s["area_coverage_observable"][r] >= s["area_coverage"][r] - 1e-12
+    assert 0.5 < s["observable_area_fraction"] < 1.0
+    assert (tiny_run / "mesh.ply").exists()
+    m = s["reconstructed_mesh"]
+    assert m["written"] and m["triangles"] > 0
+    assert set(m["mesh_completeness"]) == {"0.05", "0.1"} and m["hausdorff95_m"] > 0
+    assert (tiny_run / "figures" / "coverage.png").stat().st_size > 10000
+    text = (tiny_run / "report.html").read_text()
+    assert "Plotly.newPlot('view3d'" in text and "covered" in text
+    assert "<script src=" not in text  # self-contained
+    assert s["finish_s"]["total"] > 0
+    assert list((tiny_run / "cache").glob("observable-*.npz"))
+
+
+def test_an_empty_cloud_writes_everything_but_the_mesh(tmp_path, capsys):
+    from nbvkit.cli import main
+
+    out = tmp_path / "empty"
+    # every point is below cloud.min_z: the reconstruction stays empty
+    assert (
+        main(
+            [
+                "run",
+                "--scenario",
+                "5",
+                "--no-progress",
+                "--set",
+                *TINY,
+                "cloud.min_z=1000",
+                "--out",
+                str(out),
+            ]
+        )
+        == 0
+    )
+    assert "mesh.ply not written" in capsys.readouterr().out
+    s = json.loads((out / "summary.json").read_text())
+    assert s["cloud_points"] == 0 and not s["reconstructed_mesh"]["written"]
+    assert "at least" in s["reconstructed_mesh"]["message"]
+    assert not (out / "mesh.ply").exists()
+    for f in ("report.html", "figures/coverage.png", "cloud.ply", "iterations.csv"):
+        assert (out / f).exists(), f
+    assert s["coverage_observable"]["0.05"] == 0.0
+
+
+def test_experiment_report_links_each_run(tmp_path, tiny_run):
+    import pandas as pd
+
+    root = tmp_path / "exp"
+    shutil.copytree(tiny_run, root / "runs" / "a")
+    (root / "figures").mkdir()
+    shutil.copy(tiny_run / "figures" / "coverage.png", root / "figures" / "coverage.png")
+    df = pd.DataFrame(
+        [
+            {"run_id": "a", "scenario": "5", "coverage_0.05": 0.5},
+            {"run_id": "b", "scenario": "1", "coverage_0.05": 0.25},
+        ]
+    )
+    p = write_experiment_report(root, df, "test experiment", "| table |")
+    text = p.read_text()
+    assert "href='runs/a/report.html'" in text and "runs/b/report.html" not in text
+    assert "data:image/png;base64," in text and "| table |" in text
+
+
+def _chromium():
+    for name in ("chromium", "chromium-browser", "google-chrome"):
+        p = shutil.which(name)
+        if p:
+            return p
+    return None
+
+
+def test_report_renders_in_headless_chromium(tiny_run, tmp_path):
+    exe = _chromium()
+    if exe is None:
+        pytest.skip("Chromium is not installed (Debian: apt-get install chromium; make deps)")
+    shot = tmp_path / "shot.png"
+    cmd = [
+        exe,
+        "--headless",
+        "--no-sandbox",
+        "--disable-gpu",
+        "--use-gl=swiftshader",
+        "--enable-unsafe-swiftshader",
+        "--enable-logging=stderr",
+        "--v=0",
+        "--hide-scrollbars",
+        f"--user-data-dir={tmp_path / 'profile'}",
+        "--window-size=1280,1800",
+        "--virtual-time-budget=15000",
+        f"--screenshot={shot}",
+        (tiny_run / "report.html").resolve().as_uri(),
+    ]
+    env = {k: v for k, v in os.environ.items() if k != "DISPLAY"}
+    r = subprocess.run(cmd, capture_output=True, text=True, timeout=180, env=env)
+    assert shot.exists(), r.stderr[-3000:]
+    console = [ln for ln in r.stderr.splitlines() if "CONSOLE" in ln or "Uncaught" in ln]
+    errors = [ln for ln in console if "rror" in ln or "Uncaught" in ln]
+    assert errors == [], "\n".join(errors)
+    import matplotlib.image as mpimg
+
+    img = mpimg.imread(shot)[..., :3]
+    # the 3D view's points: the class colours (covered green, missed red) are on screen
+    green = np.array([0x2C, 0xA0, 0x2C]) / 255
+    red = np.array([0xD6, 0x27, 0x28]) / 255
+    near = lambda c: (np.abs(img - c).max(axis=2) < 0.12).sum()  # noqa: E731
+    assert near(green) + near(red) > 500
+
+
+def test_run_notebook_executes_headless(tiny_run):
+    nbformat = pytest.importorskip("nbformat")
+    nbclient = pytest.importorskip("nbclient")
+    nb = nbformat.read(ROOT / "notebooks" / "run.ipynb", as_version=4)
+    old = {k: os.environ.get(k) for k in ("NBVKIT_RUN", "DISPLAY")}
+    os.environ["NBVKIT_RUN"] = str(tiny_run)
+    os.environ.pop("DISPLAY", None)
+    try:
+        nbclient.NotebookClient(
+            nb,
+            timeout=300,
+            kernel_name="python3",
+            resources={"metadata": {"path": str(ROOT / "notebooks")}},
+        ).execute()
+    finally:
+        for k, v in old.items():
+            if v is None:
+                os.environ.pop(k, None)
+            else:
+                os.environ[k] = v
+    text = "".join(
+        o.get("text", "") for c in nb.cells if c.cell_type == "code" for o in c.get("outputs", [])
+    )
+    assert "showing the plotly view" in text and "observable but missed" in text
