@@ -230,33 +230,9 @@ Fpfh mirror_fpfh(const Fpfh& d) {
 
 namespace detail {
 
-Points voxel_downsample(const PointsRef& points, double leaf) {
-  require(std::isfinite(leaf) && leaf > 0, "voxel size must be > 0");
-  VoxelHashMap index(static_cast<std::size_t>(points.rows()));
-  std::vector<Eigen::Vector3d> sum;
-  std::vector<std::uint32_t> count;
-  for (Eigen::Index i = 0; i < points.rows(); ++i) {
-    const Eigen::Vector3d p = points.row(i).transpose();
-    const auto [slot, inserted] =
-        index.insert(voxel_key(p, leaf), static_cast<std::uint32_t>(sum.size()));
-    if (inserted) {
-      sum.push_back(p);
-      count.push_back(1);
-    } else {
-      sum[slot] += p;
-      ++count[slot];
-    }
-  }
-  Points out(static_cast<Eigen::Index>(sum.size()), 3);
-  for (std::size_t i = 0; i < sum.size(); ++i)
-    out.row(static_cast<Eigen::Index>(i)) = (sum[i] / double(count[i])).transpose();
-  return out;
-}
-
-Eigen::Vector4d refine_plane(const PointsRef& points, const NearestNeighbors& tree,
+Eigen::Vector4d refine_plane(const PointsRef& points, const KdTree& tree,
                              const Points& normals, const Eigen::Vector4d& plane, int iterations,
                              double max_distance, double min_distance) {
-  const Points& targets = tree.targets();
   Eigen::Vector4d pl = canonical_plane(plane);
   for (int it = 0; it < iterations; ++it) {
     const double r = std::max(min_distance, max_distance * std::pow(0.7, it));
@@ -264,7 +240,7 @@ Eigen::Vector4d refine_plane(const PointsRef& points, const NearestNeighbors& tr
     // Two unit directions orthogonal to n: the normal's 2 degrees of freedom.
     const Eigen::Vector3d e1 = n.unitOrthogonal(), e2 = n.cross(e1);
     const Points R = reflect_points(points, pl);
-    const auto [idx, dist] = tree.query(R);
+    const auto [idx, dist] = tree.nearest_each(R);
     Eigen::Matrix3d H = Eigen::Matrix3d::Zero();
     Eigen::Vector3d g = Eigen::Vector3d::Zero();
     int used = 0;
@@ -275,7 +251,7 @@ Eigen::Vector4d refine_plane(const PointsRef& points, const NearestNeighbors& tr
       const Eigen::Vector3d p = points.row(i).transpose();
       const double s = n.dot(p) - pl[3];
       // residual: distance of the reflection S(p) = p - 2 s n to the partner's tangent plane
-      const double res = m.dot(R.row(i).transpose() - targets.row(idx[i]).transpose());
+      const double res = m.dot(R.row(i).transpose() - tree.point(idx[i]));
       // dS/dn along e: -2 ((e.p) n + s e); dS/dd: 2 n
       const double mn = m.dot(n);
       const Eigen::Vector3d J(-2.0 * (e1.dot(p) * mn + s * m.dot(e1)),
@@ -303,11 +279,10 @@ Eigen::Vector4d refine_plane(const PointsRef& points, const NearestNeighbors& tr
 }
 
 Consistency mirror_consistency(const PointsRef& points, const Points& normals,
-                               const NearestNeighbors& tree, const Points& target_normals,
+                               const KdTree& tree, const Points& target_normals,
                                const Eigen::Vector4d& plane, double radius, double tolerance,
                                double facing_angle_deg) {
   Consistency out;
-  const Points& targets = tree.targets();
   const Eigen::Vector4d pl = canonical_plane(plane);
   const Eigen::Vector3d n = pl.head<3>();
   // 90 degrees counts every point, including those without a normal.
@@ -322,7 +297,7 @@ Consistency mirror_consistency(const PointsRef& points, const Points& normals,
   for (std::size_t k = 0; k < far.size(); ++k)
     F.row(static_cast<Eigen::Index>(k)) = points.row(far[k]);
   const Points R = reflect_points(F, pl);
-  const auto [idx, dist] = tree.query(R);
+  const auto [idx, dist] = tree.nearest_each(R);
   Eigen::Index ok = 0, ok_facing = 0, facing = 0;
   for (std::size_t k = 0; k < far.size(); ++k) {
     const auto i = static_cast<Eigen::Index>(k);
@@ -330,7 +305,7 @@ Consistency mirror_consistency(const PointsRef& points, const Points& normals,
     facing += faces;
     if (!(dist[i] <= radius) || idx[i] < 0) continue;
     const Eigen::Vector3d m = target_normals.row(idx[i]).transpose();
-    const Eigen::Vector3d delta = R.row(i).transpose() - targets.row(idx[i]).transpose();
+    const Eigen::Vector3d delta = R.row(i).transpose() - tree.point(idx[i]);
     // Without a normal at the partner: point-to-point.
     const double e = m.squaredNorm() > 0 ? std::abs(m.dot(delta)) : delta.norm();
     if (e <= tolerance) {
@@ -503,7 +478,7 @@ SymmetryResult detect_symmetry(const PointsRef& points, const SymmetryOptions& o
   // Work near the origin (PCL is float), shifted by whole voxels so that the downsampling grid
   // stays anchored at the world origin (a cloud already voxelised there is kept as it is).
   const Eigen::Vector3d c0 = grid_anchor(points, o.voxel_size);
-  Points P = o.voxel_size > 0 ? detail::voxel_downsample(centred(points, c0), o.voxel_size)
+  Points P = o.voxel_size > 0 ? voxelgrid_sampling(centred(points, c0), o.voxel_size)
                               : centred(points, c0);
   res.num_points = static_cast<std::size_t>(P.rows());
   const Eigen::Vector3d c = P.colwise().mean().transpose();
@@ -624,7 +599,7 @@ SymmetryResult detect_symmetry(const PointsRef& points, const SymmetryOptions& o
   sw.lap("mean_shift");
 
   // ---- refine and score the candidate modes on a subset; the most consistent wins
-  const detail::NearestNeighbors tree(P);
+  const KdTree tree(P);
   const Eigen::Index stride =
       std::max<Eigen::Index>(1, (P.rows() + o.refine_max_points - 1) / o.refine_max_points);
   const Eigen::Index ns = (P.rows() + stride - 1) / stride;
@@ -702,7 +677,7 @@ SymmetricPrediction predict_symmetric(const PointsRef& points, const Eigen::Vect
   res.transform = reflection_matrix(pl);
 
   if (o.icp) {
-    const Points D = o.voxel_size > 0 ? detail::voxel_downsample(Pc, o.voxel_size) : Pc;
+    const Points D = o.voxel_size > 0 ? voxelgrid_sampling(Pc, o.voxel_size) : Pc;
     const auto nc = detail::estimate_normals(D, o.normal_k, 0.0);
     sw.lap("normals");
     const Points src = reflect_points(D, pl);
@@ -727,7 +702,7 @@ SymmetricPrediction predict_symmetric(const PointsRef& points, const Eigen::Vect
   }
 
   const Points R = reflect_points(Pc, pl);
-  const Eigen::VectorXd dist = detail::nearest_distances(Pc, R);
+  const Eigen::VectorXd dist = nearest_distances(Pc, R);
   Points pred(R.rows(), 3);
   Eigen::Index k = 0;
   for (Eigen::Index i = 0; i < R.rows(); ++i)

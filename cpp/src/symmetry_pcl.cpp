@@ -2,13 +2,15 @@
 // uniform), FPFH, nearest neighbours and ICP. Kept in its own translation unit: PCL's features,
 // keypoints and registration headers take ~15 s and ~1 GB to compile.
 #include "nbv/parallel.hpp"
+#include "nbv/point_cloud.hpp"
 #include "nbv/symmetry.hpp"
 
 #include <pcl/features/fpfh_omp.h>
 #include <pcl/features/normal_3d_omp.h>
+#include <pcl/filters/voxel_grid.h>
 #include <pcl/kdtree/kdtree_flann.h>
 #include <pcl/keypoints/iss_3d.h>
-#include <pcl/keypoints/sift_keypoint.h>
+#include <pcl/search/kdtree.h>
 #include <pcl/point_cloud.h>
 #include <pcl/point_types.h>
 #include <pcl/registration/icp.h>
@@ -67,6 +69,105 @@ pcl::PointCloud<pcl::PointNormal>::Ptr point_normals_to_pcl(const PointsRef& p, 
 }
 
 int threads() { return std::max(1, get_num_threads()); }
+
+/// 3D SIFT keypoints with the curvature as intensity: pcl::SIFTKeypoint<PointNormal, ...>'s
+/// algorithm (PCL 1.13, keypoints/impl/sift_keypoint.hpp) with its per-point loops run in
+/// parallel. Every point's filter responses and extremum test are the same float operations on
+/// the same sorted neighbour lists as PCL's serial loops, so the keypoints are identical; they
+/// are returned per octave in PCL's order (point, then scale).
+std::vector<Eigen::Vector3f> sift_keypoints(const pcl::PointCloud<pcl::PointNormal>::Ptr& input,
+                                            float min_scale, int nr_octaves,
+                                            int nr_scales_per_octave, float min_contrast) {
+  std::vector<Eigen::Vector3f> out;
+  pcl::PointCloud<pcl::PointNormal>::Ptr cloud(new pcl::PointCloud<pcl::PointNormal>(*input));
+  pcl::VoxelGrid<pcl::PointNormal> voxel_grid;
+  float scale = min_scale;
+  for (int octave = 0; octave < nr_octaves; ++octave) {
+    const float s = 1.0f * scale;
+    voxel_grid.setLeafSize(s, s, s);
+    voxel_grid.setInputCloud(cloud);
+    pcl::PointCloud<pcl::PointNormal>::Ptr temp(new pcl::PointCloud<pcl::PointNormal>);
+    voxel_grid.filter(*temp);
+    cloud = temp;
+    if (cloud->size() < 25) break;
+    pcl::search::KdTree<pcl::PointNormal> tree(true);  // sorted results, as PCL's SIFT
+    tree.setInputCloud(cloud);
+    const auto& pts = *cloud;
+    const std::size_t n = pts.size();
+
+    // Scale space: difference of Gaussian-weighted curvature averages (computeScaleSpace).
+    std::vector<float> scales(static_cast<std::size_t>(nr_scales_per_octave + 3));
+    for (int i = 0; i <= nr_scales_per_octave + 2; ++i)
+      scales[static_cast<std::size_t>(i)] =
+          scale * powf(2.0f, (1.0f * static_cast<float>(i) - 1.0f) /
+                                 static_cast<float>(nr_scales_per_octave));
+    const std::size_t nr_dog = scales.size() - 1;
+    Eigen::MatrixXf dog(static_cast<Eigen::Index>(n), static_cast<Eigen::Index>(nr_dog));
+    const float max_radius = 3.0f * scales.back();
+    parallel_chunks(n, 64, [&](std::size_t b, std::size_t e) {
+      pcl::Indices nn;
+      std::vector<float> d2;
+      for (std::size_t i = b; i < e; ++i) {
+        tree.radiusSearch(static_cast<pcl::index_t>(i), max_radius, nn, d2);
+        float response = 0.0f;
+        for (std::size_t k = 0; k < scales.size(); ++k) {
+          const float sigma_sqr = powf(scales[k], 2.0f);
+          float num = 0.0f, den = 0.0f;
+          for (std::size_t j = 0; j < nn.size(); ++j) {
+            const float value = pts[static_cast<std::size_t>(nn[j])].curvature;
+            if (d2[j] <= 9 * sigma_sqr) {
+              const float w = std::exp(-0.5f * d2[j] / sigma_sqr);
+              num += value * w;
+              den += w;
+            } else {
+              break;
+            }
+          }
+          const float previous = response;
+          response = num / den;
+          if (k > 0)
+            dog(static_cast<Eigen::Index>(i), static_cast<Eigen::Index>(k - 1)) =
+                response - previous;
+        }
+      }
+    });
+
+    // Extrema over the 25 nearest points and the adjacent scales (findScaleSpaceExtrema).
+    const int nr = static_cast<int>(nr_dog);
+    std::vector<std::vector<char>> is_extremum(n);
+    parallel_chunks(n, 64, [&](std::size_t b, std::size_t e) {
+      const int k = 25;
+      pcl::Indices nn(k);
+      std::vector<float> d2(k);
+      std::vector<float> lo(static_cast<std::size_t>(nr)), hi(static_cast<std::size_t>(nr));
+      for (std::size_t i = b; i < e; ++i) {
+        const std::size_t m = tree.nearestKSearch(static_cast<pcl::index_t>(i), k, nn, d2);
+        for (int sc = 0; sc < nr; ++sc) {
+          lo[sc] = std::numeric_limits<float>::max();
+          hi[sc] = -std::numeric_limits<float>::max();
+          for (std::size_t j = 0; j < m; ++j) {
+            const float d = dog(nn[j], sc);
+            lo[sc] = (std::min)(lo[sc], d);
+            hi[sc] = (std::max)(hi[sc], d);
+          }
+        }
+        for (int sc = 1; sc < nr - 1; ++sc) {
+          const float val = dog(static_cast<Eigen::Index>(i), sc);
+          if (!(std::abs(val) >= min_contrast)) continue;
+          const bool minimum = val == lo[sc] && val < lo[sc - 1] && val < lo[sc + 1];
+          const bool maximum = val == hi[sc] && val > hi[sc - 1] && val > hi[sc + 1];
+          if (minimum || maximum) is_extremum[i].push_back(char(1));
+        }
+      }
+    });
+    for (std::size_t i = 0; i < n; ++i)
+      for (std::size_t r = 0; r < is_extremum[i].size(); ++r)
+        out.emplace_back(pts[i].x, pts[i].y, pts[i].z);
+    scale *= 2;
+  }
+  return out;
+}
+
 
 /// Index of the nearest point of `tree` to each query position (unique, ascending).
 std::vector<int> snap(const pcl::KdTreeFLANN<pcl::PointXYZ>& tree,
@@ -131,15 +232,8 @@ std::vector<int> detect_keypoints(const PointsRef& points, const NormalsAndCurva
     case SymmetryKeypoints::Sift: {
       auto pn = point_normals_to_pcl(points, nc.normals);
       for (Eigen::Index i = 0; i < n; ++i) (*pn)[i].curvature = float(nc.curvature[i]);
-      // SIFTKeypointFieldSelector<PointNormal> reads the curvature as the intensity.
-      pcl::SIFTKeypoint<pcl::PointNormal, pcl::PointWithScale> sift;
-      sift.setSearchMethod(pcl::make_shared<pcl::search::KdTree<pcl::PointNormal>>());
-      sift.setScales(float(o.sift_min_scale), o.sift_octaves, o.sift_scales_per_octave);
-      sift.setMinimumContrast(float(o.sift_min_contrast));
-      sift.setInputCloud(pn);
-      pcl::PointCloud<pcl::PointWithScale> kp;
-      sift.compute(kp);
-      for (const auto& q : kp) where.emplace_back(q.x, q.y, q.z);
+      where = sift_keypoints(pn, float(o.sift_min_scale), o.sift_octaves,
+                             o.sift_scales_per_octave, float(o.sift_min_contrast));
       break;
     }
     case SymmetryKeypoints::Iss: {
@@ -159,7 +253,7 @@ std::vector<int> detect_keypoints(const PointsRef& points, const NormalsAndCurva
     }
     case SymmetryKeypoints::Uniform: {
       // One keypoint per cell: the point nearest the cell's centroid (cells in first-seen order).
-      const Points cent = voxel_downsample(points, o.uniform_leaf);
+      const Points cent = voxelgrid_sampling(points, o.uniform_leaf);
       for (Eigen::Index i = 0; i < cent.rows(); ++i)
         where.emplace_back(float(cent(i, 0)), float(cent(i, 1)), float(cent(i, 2)));
       break;
@@ -189,48 +283,6 @@ Fpfh compute_fpfh(const PointsRef& points, const Points& normals, const std::vec
   for (std::size_t i = 0; i < desc.size(); ++i)
     for (int b = 0; b < 33; ++b) out(static_cast<Eigen::Index>(i), b) = desc[i].histogram[b];
   return out;
-}
-
-struct NearestNeighbors::Impl {
-  Points targets;
-  pcl::KdTreeFLANN<pcl::PointXYZ> tree;
-};
-
-NearestNeighbors::NearestNeighbors(const PointsRef& targets) : impl_(std::make_unique<Impl>()) {
-  impl_->targets = targets;
-  if (targets.rows() > 0) impl_->tree.setInputCloud(to_pcl(targets));
-}
-
-NearestNeighbors::~NearestNeighbors() = default;
-
-const Points& NearestNeighbors::targets() const { return impl_->targets; }
-
-std::pair<Eigen::VectorXi, Eigen::VectorXd> NearestNeighbors::query(
-    const PointsRef& queries) const {
-  std::pair<Eigen::VectorXi, Eigen::VectorXd> out{
-      Eigen::VectorXi::Constant(queries.rows(), -1),
-      Eigen::VectorXd::Constant(queries.rows(), std::numeric_limits<double>::infinity())};
-  if (impl_->targets.rows() == 0 || queries.rows() == 0) return out;
-  const auto& tree = impl_->tree;
-  const auto& targets = impl_->targets;
-  parallel_chunks(static_cast<std::size_t>(queries.rows()), 256, [&](std::size_t b, std::size_t e) {
-    pcl::Indices idx(1);
-    std::vector<float> d2(1);
-    for (std::size_t i = b; i < e; ++i) {
-      const auto k = static_cast<Eigen::Index>(i);
-      const auto q = queries.row(k);
-      if (tree.nearestKSearch(pcl::PointXYZ(float(q[0]), float(q[1]), float(q[2])), 1, idx, d2) ==
-          1) {
-        out.first[k] = idx[0];
-        out.second[k] = (targets.row(idx[0]) - q).norm();  // exact, in double precision
-      }
-    }
-  });
-  return out;
-}
-
-Eigen::VectorXd nearest_distances(const PointsRef& targets, const PointsRef& queries) {
-  return NearestNeighbors(targets).query(queries).second;
 }
 
 IcpResult icp(const PointsRef& source, const Points& source_normals, const PointsRef& target,

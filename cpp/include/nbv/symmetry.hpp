@@ -13,6 +13,7 @@
 #pragma once
 
 #include "nbv/common.hpp"
+#include "nbv/kdtree.hpp"
 
 #include <cstdint>
 #include <limits>
@@ -286,28 +287,10 @@ std::vector<int> detect_keypoints(const PointsRef& points, const NormalsAndCurva
 /// FPFH at points[indices] with every point as search surface.
 Fpfh compute_fpfh(const PointsRef& points, const Points& normals, const std::vector<int>& indices,
                   double radius);
-/// Exact nearest-neighbour queries over a fixed point set (a PCL kd-tree; parallel queries).
-class NearestNeighbors {
- public:
-  explicit NearestNeighbors(const PointsRef& targets);
-  ~NearestNeighbors();
-  NearestNeighbors(const NearestNeighbors&) = delete;
-  NearestNeighbors& operator=(const NearestNeighbors&) = delete;
-  /// (Q,) index of each query's nearest target (-1 if there is none) and (Q,) its distance
-  /// (inf if none), metres.
-  std::pair<Eigen::VectorXi, Eigen::VectorXd> query(const PointsRef& queries) const;
-  const Points& targets() const;
-
- private:
-  struct Impl;
-  std::unique_ptr<Impl> impl_;
-};
-/// (Q,) distance from each query to its nearest target (inf if no target).
-Eigen::VectorXd nearest_distances(const PointsRef& targets, const PointsRef& queries);
 /// The plane refined by reflective point-to-plane ICP (see SymmetryOptions::refine_iterations):
 /// `queries` are reflected and paired with their nearest points of `tree`, whose normals are
 /// `target_normals` (zero rows are ignored).
-Eigen::Vector4d refine_plane(const PointsRef& queries, const NearestNeighbors& tree,
+Eigen::Vector4d refine_plane(const PointsRef& queries, const KdTree& tree,
                              const Points& target_normals, const Eigen::Vector4d& plane,
                              int iterations, double max_distance, double min_distance);
 /// Mirror consistency of `points` about `plane` (see SymmetryResult::confidence).
@@ -317,7 +300,7 @@ struct Consistency {
   double facing_fraction = 0.0;  ///< facing points / points away from the plane
 };
 Consistency mirror_consistency(const PointsRef& queries, const Points& query_normals,
-                               const NearestNeighbors& tree, const Points& target_normals,
+                               const KdTree& tree, const Points& target_normals,
                                const Eigen::Vector4d& plane, double radius, double tolerance,
                                double facing_angle_deg);
 struct IcpResult {
@@ -327,8 +310,6 @@ struct IcpResult {
 };
 IcpResult icp(const PointsRef& source, const Points& source_normals, const PointsRef& target,
               const Points& target_normals, const SymmetricPredictionOptions& options);
-/// Voxel-grid centroids (cell = floor(p / leaf), deterministic order of first occurrence).
-Points voxel_downsample(const PointsRef& points, double leaf);
 }  // namespace detail
 
 }  // namespace nbv
