@@ -194,8 +194,10 @@ def time_in(package_dir, points_file, repeats, threads):
 def mission_case(args):
     t0 = time.perf_counter()
     pts = mission_profile()
-    print(f"\n[mission] airliner Scenario 5 start 0 profile: {len(pts)} points "
-          f"({time.perf_counter() - t0:.1f} s to fly)")
+    print(
+        f"\n[mission] airliner Scenario 5 start 0 profile: {len(pts)} points "
+        f"({time.perf_counter() - t0:.1f} s to fly)"
+    )
     with tempfile.TemporaryDirectory() as tmp:
         f = Path(tmp) / "profile.npy"
         np.save(f, pts)
@@ -205,10 +207,12 @@ def mission_case(args):
             runs.append((str(args.against), d / "python" if (d / "python").is_dir() else d))
         rows = [(label, time_in(py, f, args.repeats, args.threads)) for label, py in runs]
     for label, r in rows:
-        print(f"  {label}: detect {r['detect']:.3f} s + predict {r['predict']:.3f} s = "
-              f"{r['total']:.3f} s (best of {args.repeats}); {r['num_points']} points after "
-              f"downsampling, {r['keypoints']} keypoints, {r['predicted']} predicted points, "
-              f"fingerprint {r['fingerprint']}")
+        print(
+            f"  {label}: detect {r['detect']:.3f} s + predict {r['predict']:.3f} s = "
+            f"{r['total']:.3f} s (best of {args.repeats}); {r['num_points']} points after "
+            f"downsampling, {r['keypoints']} keypoints, {r['predicted']} predicted points, "
+            f"fingerprint {r['fingerprint']}"
+        )
         print("    " + "  ".join(f"{k} {v * 1000:.0f} ms" for k, v in r["stages"].items()))
     if len(rows) == 2:
         a, b = rows[0][1], rows[1][1]

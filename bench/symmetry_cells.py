@@ -131,8 +131,13 @@ def plot(profile, mirrored, mc, mstate, minside, rows, extra, start):
         ax.barh(labels, vals, left=left, color=c, label=name)
         left += vals
     for i, k in enumerate(labels):
-        ax.text(left[i], i, f" {rows[k]['cells']:,} cells ({rows[k]['unknown']:,} unknown)",
-                va="center", fontsize=8)
+        ax.text(
+            left[i],
+            i,
+            f" {rows[k]['cells']:,} cells ({rows[k]['unknown']:,} unknown)",
+            va="center",
+            fontsize=8,
+        )
     ax.invert_yaxis()
     ax.set_xlim(0, left.max() * 1.45)
     ax.set_xlabel(f"distinct map cells (0.2 m) by state after profiling - airliner, start {start}")
@@ -143,11 +148,21 @@ def plot(profile, mirrored, mc, mstate, minside, rows, extra, start):
     fig, axes = plt.subplots(1, 2, figsize=(14, 6), constrained_layout=True)
     axes[0].scatter(profile[:, 0], profile[:, 1], s=0.2, c="0.3", linewidths=0, rasterized=True)
     axes[0].set_title(f"laser profile ({len(profile):,} points), top view")
-    for v, name, c in ((1, "occupied", "tab:green"), (0, "free", "tab:blue"),
-                       (-1, "unknown", "tab:red")):
+    for v, name, c in (
+        (1, "occupied", "tab:green"),
+        (0, "free", "tab:blue"),
+        (-1, "unknown", "tab:red"),
+    ):
         sel = (mstate == v) & minside
-        axes[1].scatter(mc[sel, 0], mc[sel, 1], s=0.5 if v != -1 else 3, c=c, linewidths=0,
-                        label=f"{name} ({sel.sum():,})", rasterized=True)
+        axes[1].scatter(
+            mc[sel, 0],
+            mc[sel, 1],
+            s=0.5 if v != -1 else 3,
+            c=c,
+            linewidths=0,
+            label=f"{name} ({sel.sum():,})",
+            rasterized=True,
+        )
     axes[1].set_title("cells of the mirrored profile, by state after profiling")
     axes[1].legend(loc="upper right", markerscale=6, fontsize=8)
     for ax in axes:
@@ -168,8 +183,10 @@ def main():
     rows, extra = analyse(args.start, not args.no_figures)
     print(f"{'':42s} {'cells':>8s} {'occupied':>9s} {'free':>8s} {'unknown':>8s} {'outside':>8s}")
     for k, r in rows.items():
-        print(f"{k:42s} {r['cells']:8d} {r['occupied']:9d} {r['free']:8d} {r['unknown']:8d} "
-              f"{r['outside']:8d}")
+        print(
+            f"{k:42s} {r['cells']:8d} {r['occupied']:9d} {r['free']:8d} {r['unknown']:8d} "
+            f"{r['outside']:8d}"
+        )
     print(json.dumps(extra, indent=1))
 
 

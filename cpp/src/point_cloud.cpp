@@ -102,8 +102,7 @@ void VoxelCentroids::clear() {
 
 Points voxelgrid_sampling(const PointsRef& points, double voxel_size) {
   if (!(std::isfinite(voxel_size) && voxel_size > 0))
-    throw std::invalid_argument("voxel size must be > 0 metres, got " +
-                                std::to_string(voxel_size));
+    throw std::invalid_argument("voxel size must be > 0 metres, got " + std::to_string(voxel_size));
   require_finite(points, "points");
   std::vector<std::uint64_t> keys(static_cast<std::size_t>(points.rows()));
   for (Eigen::Index i = 0; i < points.rows(); ++i)

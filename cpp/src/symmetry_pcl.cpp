@@ -10,10 +10,10 @@
 #include <pcl/filters/voxel_grid.h>
 #include <pcl/kdtree/kdtree_flann.h>
 #include <pcl/keypoints/iss_3d.h>
-#include <pcl/search/kdtree.h>
 #include <pcl/point_cloud.h>
 #include <pcl/point_types.h>
 #include <pcl/registration/icp.h>
+#include <pcl/search/kdtree.h>
 
 #include <algorithm>
 #include <cmath>
@@ -168,7 +168,6 @@ std::vector<Eigen::Vector3f> sift_keypoints(const pcl::PointCloud<pcl::PointNorm
   return out;
 }
 
-
 /// Index of the nearest point of `tree` to each query position (unique, ascending).
 std::vector<int> snap(const pcl::KdTreeFLANN<pcl::PointXYZ>& tree,
                       const std::vector<Eigen::Vector3f>& queries) {
@@ -232,8 +231,8 @@ std::vector<int> detect_keypoints(const PointsRef& points, const NormalsAndCurva
     case SymmetryKeypoints::Sift: {
       auto pn = point_normals_to_pcl(points, nc.normals);
       for (Eigen::Index i = 0; i < n; ++i) (*pn)[i].curvature = float(nc.curvature[i]);
-      where = sift_keypoints(pn, float(o.sift_min_scale), o.sift_octaves,
-                             o.sift_scales_per_octave, float(o.sift_min_contrast));
+      where = sift_keypoints(pn, float(o.sift_min_scale), o.sift_octaves, o.sift_scales_per_octave,
+                             float(o.sift_min_contrast));
       break;
     }
     case SymmetryKeypoints::Iss: {

@@ -1,5 +1,6 @@
 // Edge cases of the point-cloud and evaluation core: voxel key arithmetic (floor, not
-// truncation; packing limits), the voxel hash map, the surface cloud's centroids, LZF decoding, and evaluation of empty / identical clouds.
+// truncation; packing limits), the voxel hash map, the surface cloud's centroids, LZF decoding, and
+// evaluation of empty / identical clouds.
 #include "nbv/evaluation.hpp"
 #include "nbv/point_cloud.hpp"
 

@@ -77,9 +77,9 @@ TEST(VoxelgridSampling, CentroidsPerCellInFirstSeenOrder) {
   std::vector<Eigen::Vector3d> sum;
   std::vector<int> count;
   for (Eigen::Index i = 0; i < p.rows(); ++i) {
-    const auto key = std::make_tuple(long(std::floor(p(i, 0) / leaf)),
-                                     long(std::floor(p(i, 1) / leaf)),
-                                     long(std::floor(p(i, 2) / leaf)));
+    const auto key =
+        std::make_tuple(long(std::floor(p(i, 0) / leaf)), long(std::floor(p(i, 1) / leaf)),
+                        long(std::floor(p(i, 2) / leaf)));
     auto [it, inserted] = slot.emplace(key, sum.size());
     if (inserted) {
       sum.emplace_back(Eigen::Vector3d::Zero());

@@ -37,7 +37,9 @@ class KdTree {
   }
   std::uint32_t id_at(std::size_t k) const { return pts_[k].id; }
   /// The constructor's point of index i.
-  Eigen::Vector3d point(Eigen::Index i) const { return point_at(pos_[static_cast<std::size_t>(i)]); }
+  Eigen::Vector3d point(Eigen::Index i) const {
+    return point_at(pos_[static_cast<std::size_t>(i)]);
+  }
   /// The points in the constructor's order.
   Points points() const;
 
