@@ -111,11 +111,11 @@ def analyse(start: int, figures: bool):
         "cells_written_without_point_filter": int(((mstate == -1) & minside).sum()),
     }
     if figures:
-        plot(profile, mirrored, mc, mstate, minside, rows, extra, start)
+        plot(profile, mc, mstate, minside, ucent, mirror_state, rows, start)
     return rows, extra
 
 
-def plot(profile, mirrored, mc, mstate, minside, rows, extra, start):
+def plot(profile, mc, mstate, minside, ucent, mirror_state, rows, start):
     from nbvkit.plots import _plt
 
     plt = _plt()
@@ -141,11 +141,11 @@ def plot(profile, mirrored, mc, mstate, minside, rows, extra, start):
     ax.invert_yaxis()
     ax.set_xlim(0, left.max() * 1.45)
     ax.set_xlabel(f"distinct map cells (0.2 m) by state after profiling - airliner, start {start}")
-    ax.legend(loc="lower right", fontsize=8)
+    ax.legend(loc="upper right", fontsize=8)
     fig.savefig(out / "symmetry_cells.png", dpi=110)
     plt.close(fig)
 
-    fig, axes = plt.subplots(1, 2, figsize=(14, 6), constrained_layout=True)
+    fig, axes = plt.subplots(1, 3, figsize=(20, 6.5), constrained_layout=True)
     axes[0].scatter(profile[:, 0], profile[:, 1], s=0.2, c="0.3", linewidths=0, rasterized=True)
     axes[0].set_title(f"laser profile ({len(profile):,} points), top view")
     for v, name, c in (
@@ -165,6 +165,13 @@ def plot(profile, mirrored, mc, mstate, minside, rows, extra, start):
         )
     axes[1].set_title("cells of the mirrored profile, by state after profiling")
     axes[1].legend(loc="upper right", markerscale=6, fontsize=8)
+    for v, name, c in ((1, "occupied", "tab:green"), (0, "free", "tab:blue"),
+                       (-1, "unknown: both sides unseen", "tab:red")):
+        sel = mirror_state == v
+        axes[2].scatter(ucent[sel, 0], ucent[sel, 1], s=2, c=c, linewidths=0,
+                        label=f"mirror {name} ({sel.sum():,})", rasterized=True)
+    axes[2].set_title("true-surface cells still unknown, by the state of their mirror cell")
+    axes[2].legend(loc="upper right", markerscale=4, fontsize=8)
     for ax in axes:
         ax.set_aspect("equal")
         ax.set_xlabel("x (m)")

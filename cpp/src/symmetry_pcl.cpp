@@ -12,6 +12,7 @@
 #include <pcl/keypoints/iss_3d.h>
 #include <pcl/point_cloud.h>
 #include <pcl/point_types.h>
+#include <pcl/registration/correspondence_estimation.h>
 #include <pcl/registration/icp.h>
 #include <pcl/search/kdtree.h>
 
@@ -69,6 +70,45 @@ pcl::PointCloud<pcl::PointNormal>::Ptr point_normals_to_pcl(const PointsRef& p, 
 }
 
 int threads() { return std::max(1, get_num_threads()); }
+
+/// PCL's nearest-point correspondence estimation (registration/impl/correspondence_estimation.hpp)
+/// with the queries run in parallel: the same search tree, queries and distances as PCL's serial
+/// loop, kept in source order, so ICP follows exactly the same iterations.
+class ParallelCorrespondenceEstimation
+    : public pcl::registration::CorrespondenceEstimation<pcl::PointNormal, pcl::PointNormal> {
+ public:
+  using Base = pcl::registration::CorrespondenceEstimation<pcl::PointNormal, pcl::PointNormal>;
+
+  void determineCorrespondences(pcl::Correspondences& correspondences,
+                                double max_distance) override {
+    if (!initCompute()) return;
+    const double max_dist_sqr = max_distance * max_distance;
+    const auto& idx = *indices_;
+    std::vector<pcl::Correspondence> all(idx.size());
+    std::vector<char> valid(idx.size(), 0);
+    parallel_chunks(idx.size(), 512, [&](std::size_t b, std::size_t e) {
+      pcl::Indices index(1);
+      std::vector<float> distance(1);
+      for (std::size_t i = b; i < e; ++i) {
+        tree_->nearestKSearch((*input_)[idx[i]], 1, index, distance);
+        if (distance[0] > max_dist_sqr) continue;
+        all[i] = pcl::Correspondence(idx[i], index[0], distance[0]);
+        valid[i] = 1;
+      }
+    });
+    correspondences.resize(idx.size());
+    std::size_t n = 0;
+    for (std::size_t i = 0; i < idx.size(); ++i)
+      if (valid[i]) correspondences[n++] = all[i];
+    correspondences.resize(n);
+    deinitCompute();
+  }
+
+  pcl::registration::CorrespondenceEstimationBase<pcl::PointNormal, pcl::PointNormal>::Ptr clone()
+      const override {
+    return pcl::make_shared<ParallelCorrespondenceEstimation>(*this);
+  }
+};
 
 /// 3D SIFT keypoints with the curvature as intensity: pcl::SIFTKeypoint<PointNormal, ...>'s
 /// algorithm (PCL 1.13, keypoints/impl/sift_keypoint.hpp) with its per-point loops run in
@@ -291,6 +331,7 @@ IcpResult icp(const PointsRef& source, const Points& source_normals, const Point
   auto tgt = point_normals_to_pcl(target, target_normals);
   pcl::PointCloud<pcl::PointNormal> aligned;
   auto run = [&](pcl::IterativeClosestPoint<pcl::PointNormal, pcl::PointNormal>& icp) {
+    icp.setCorrespondenceEstimation(pcl::make_shared<ParallelCorrespondenceEstimation>());
     icp.setInputSource(src);
     icp.setInputTarget(tgt);
     icp.setMaxCorrespondenceDistance(o.icp_max_correspondence);
