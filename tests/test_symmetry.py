@@ -323,6 +323,26 @@ def test_airliner_profile(airliner_profile):
     np.testing.assert_array_equal(again.plane, res.plane)
 
 
+def test_results_do_not_depend_on_the_thread_count(airliner_profile):
+    # the parallel stages (SIFT, nearest neighbours, ICP correspondences) keep PCL's serial order
+    points, _ = airliner_profile
+    n = nbvkit.get_num_threads()
+    runs = []
+    try:
+        for threads in (1, 2):
+            nbvkit.set_num_threads(threads)
+            res = nbvkit.detect_symmetry(points)
+            pred = nbvkit.predict_symmetric(points, res.plane)
+            runs.append((res, pred))
+    finally:
+        nbvkit.set_num_threads(0 if n > 1 else n)
+    (a, pa), (b, pb) = runs
+    np.testing.assert_array_equal(a.keypoints, b.keypoints)
+    np.testing.assert_array_equal(a.plane, b.plane)
+    np.testing.assert_array_equal(pa.plane, pb.plane)
+    np.testing.assert_array_equal(pa.predicted, pb.predicted)
+
+
 def test_airliner_profile_in_an_arbitrary_pose(airliner_profile_posed):
     points, true = airliner_profile_posed
     res = nbvkit.detect_symmetry(points)
