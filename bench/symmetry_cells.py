@@ -165,11 +165,21 @@ def plot(profile, mc, mstate, minside, ucent, mirror_state, rows, start):
         )
     axes[1].set_title("cells of the mirrored profile, by state after profiling")
     axes[1].legend(loc="upper right", markerscale=6, fontsize=8)
-    for v, name, c in ((1, "occupied", "tab:green"), (0, "free", "tab:blue"),
-                       (-1, "unknown: both sides unseen", "tab:red")):
+    for v, name, c in (
+        (1, "occupied", "tab:green"),
+        (0, "free", "tab:blue"),
+        (-1, "unknown: both sides unseen", "tab:red"),
+    ):
         sel = mirror_state == v
-        axes[2].scatter(ucent[sel, 0], ucent[sel, 1], s=2, c=c, linewidths=0,
-                        label=f"mirror {name} ({sel.sum():,})", rasterized=True)
+        axes[2].scatter(
+            ucent[sel, 0],
+            ucent[sel, 1],
+            s=2,
+            c=c,
+            linewidths=0,
+            label=f"mirror {name} ({sel.sum():,})",
+            rasterized=True,
+        )
     axes[2].set_title("true-surface cells still unknown, by the state of their mirror cell")
     axes[2].legend(loc="upper right", markerscale=4, fontsize=8)
     for ax in axes:
