@@ -25,48 +25,35 @@
 namespace nbv::detail {
 namespace {
 
-pcl::PointCloud<pcl::PointXYZ>::Ptr to_pcl(const PointsRef& p) {
-  auto c = pcl::make_shared<pcl::PointCloud<pcl::PointXYZ>>();
-  c->resize(static_cast<std::size_t>(p.rows()));
-  for (Eigen::Index i = 0; i < p.rows(); ++i)
-    (*c)[i] = pcl::PointXYZ(float(p(i, 0)), float(p(i, 1)), float(p(i, 2)));
+/// A float PCL cloud from (N, 3) points and/or normals (pass nullptr for what PointT lacks):
+/// pcl::PointXYZ (points), pcl::Normal (normals) or pcl::PointNormal (both); curvature 0.
+template <typename PointT>
+typename pcl::PointCloud<PointT>::Ptr to_pcl(const PointsRef* points, const Points* normals) {
+  const Eigen::Index n = points ? points->rows() : normals->rows();
+  auto c = pcl::make_shared<pcl::PointCloud<PointT>>();
+  c->resize(static_cast<std::size_t>(n));
+  for (Eigen::Index i = 0; i < n; ++i) {
+    auto& q = (*c)[static_cast<std::size_t>(i)];
+    if constexpr (pcl::traits::has_xyz_v<PointT>) {
+      q.x = float((*points)(i, 0));
+      q.y = float((*points)(i, 1));
+      q.z = float((*points)(i, 2));
+    }
+    if constexpr (pcl::traits::has_normal_v<PointT>) {
+      q.normal_x = float((*normals)(i, 0));
+      q.normal_y = float((*normals)(i, 1));
+      q.normal_z = float((*normals)(i, 2));
+      q.curvature = 0.f;
+    }
+  }
   c->width = static_cast<std::uint32_t>(c->size());
   c->height = 1;
   c->is_dense = true;
   return c;
 }
 
-pcl::PointCloud<pcl::Normal>::Ptr normals_to_pcl(const Points& n) {
-  auto c = pcl::make_shared<pcl::PointCloud<pcl::Normal>>();
-  c->resize(static_cast<std::size_t>(n.rows()));
-  for (Eigen::Index i = 0; i < n.rows(); ++i) {
-    auto& q = (*c)[i];
-    q.normal_x = float(n(i, 0));
-    q.normal_y = float(n(i, 1));
-    q.normal_z = float(n(i, 2));
-    q.curvature = 0.f;
-  }
-  c->width = static_cast<std::uint32_t>(c->size());
-  c->height = 1;
-  return c;
-}
-
-pcl::PointCloud<pcl::PointNormal>::Ptr point_normals_to_pcl(const PointsRef& p, const Points& n) {
-  auto c = pcl::make_shared<pcl::PointCloud<pcl::PointNormal>>();
-  c->resize(static_cast<std::size_t>(p.rows()));
-  for (Eigen::Index i = 0; i < p.rows(); ++i) {
-    auto& q = (*c)[i];
-    q.x = float(p(i, 0));
-    q.y = float(p(i, 1));
-    q.z = float(p(i, 2));
-    q.normal_x = float(n(i, 0));
-    q.normal_y = float(n(i, 1));
-    q.normal_z = float(n(i, 2));
-    q.curvature = 0.f;
-  }
-  c->width = static_cast<std::uint32_t>(c->size());
-  c->height = 1;
-  return c;
+pcl::PointCloud<pcl::PointXYZ>::Ptr to_pcl(const PointsRef& p) {
+  return to_pcl<pcl::PointXYZ>(&p, nullptr);
 }
 
 int threads() { return std::max(1, get_num_threads()); }
@@ -269,7 +256,7 @@ std::vector<int> detect_keypoints(const PointsRef& points, const NormalsAndCurva
 
   switch (o.keypoints) {
     case SymmetryKeypoints::Sift: {
-      auto pn = point_normals_to_pcl(points, nc.normals);
+      auto pn = to_pcl<pcl::PointNormal>(&points, &nc.normals);
       for (Eigen::Index i = 0; i < n; ++i) (*pn)[i].curvature = float(nc.curvature[i]);
       where = sift_keypoints(pn, float(o.sift_min_scale), o.sift_octaves, o.sift_scales_per_octave,
                              float(o.sift_min_contrast));
@@ -306,7 +293,7 @@ Fpfh compute_fpfh(const PointsRef& points, const Points& normals, const std::vec
   Fpfh out(static_cast<Eigen::Index>(indices.size()), 33);
   if (indices.empty()) return out;
   auto cloud = to_pcl(points);
-  auto nrm = normals_to_pcl(normals);
+  auto nrm = to_pcl<pcl::Normal>(nullptr, &normals);
   pcl::FPFHEstimationOMP<pcl::PointXYZ, pcl::Normal, pcl::FPFHSignature33> fpfh(
       static_cast<unsigned>(threads()));
   fpfh.setInputCloud(cloud);
@@ -327,8 +314,8 @@ Fpfh compute_fpfh(const PointsRef& points, const Points& normals, const std::vec
 IcpResult icp(const PointsRef& source, const Points& source_normals, const PointsRef& target,
               const Points& target_normals, const SymmetricPredictionOptions& o) {
   IcpResult r;
-  auto src = point_normals_to_pcl(source, source_normals);
-  auto tgt = point_normals_to_pcl(target, target_normals);
+  auto src = to_pcl<pcl::PointNormal>(&source, &source_normals);
+  auto tgt = to_pcl<pcl::PointNormal>(&target, &target_normals);
   pcl::PointCloud<pcl::PointNormal> aligned;
   auto run = [&](pcl::IterativeClosestPoint<pcl::PointNormal, pcl::PointNormal>& icp) {
     icp.setCorrespondenceEstimation(pcl::make_shared<ParallelCorrespondenceEstimation>());
