@@ -2,6 +2,15 @@
 Prints the time per stage, the plane's error from the true mirror plane y = 0 and the
 confidence; asserts nothing.
 
+First the mission's own case: the airliner profile of Scenario 5, start 0 (profiled once), and
+detection + prediction with the mission's symmetry config, timed (best of --repeats) with a
+fingerprint of the plane and the predicted points (equal fingerprints: identical results).
+``--against DIR`` times the same profile, in the same run, with the nbvkit package (and its
+built extension) of another checkout, DIR/python or DIR (e.g. ../main, or a saved copy of the
+package before a change), and prints the ratio.
+
+    .venv/bin/python bench/bench_symmetry.py --against ../main  # mission profile vs main
+    .venv/bin/python bench/bench_symmetry.py --mission-only     # only the mission profile
     .venv/bin/python bench/bench_symmetry.py                  # airliner (+ twinjet if present)
     .venv/bin/python bench/bench_symmetry.py --poses 5        # also 5 random poses of each
     .venv/bin/python bench/bench_symmetry.py --keypoints iss  # another keypoint detector
@@ -16,7 +25,12 @@ mirror-symmetric) and the profile is then moved rigidly in 3D.
 from __future__ import annotations
 
 import argparse
+import json
 import math
+import os
+import subprocess
+import sys
+import tempfile
 import time
 from pathlib import Path
 
@@ -115,6 +129,97 @@ def run(name, points, true, opts, repeats):
     return ang, off, res.confidence, total
 
 
+# Runs in this checkout or, through --against, in another one (its own nbvkit): keep it to the
+# API both have.
+TIME_SNIPPET = r"""
+import hashlib, json, sys, time
+import numpy as np
+import nbvkit
+from nbvkit import symmetry as sym
+from nbvkit.config import Config
+nbvkit.set_num_threads(int(sys.argv[3]))
+pts = np.load(sys.argv[1])
+cfg = Config().symmetry
+best = None
+for _ in range(int(sys.argv[2])):
+    t0 = time.perf_counter()
+    res = sym.detect_symmetry(pts, **sym.detection_options(cfg))
+    t1 = time.perf_counter()
+    pred = sym.predict_symmetric(pts, res.plane, **sym.prediction_options(cfg))
+    t2 = time.perf_counter()
+    if best is None or t2 - t0 < best[0]:
+        best = (t2 - t0, t1 - t0, t2 - t1, res, pred)
+total, det, prd, res, pred = best
+h = hashlib.sha1(np.ascontiguousarray(res.plane).tobytes())
+h.update(np.ascontiguousarray(pred.plane).tobytes())
+h.update(np.ascontiguousarray(pred.predicted).tobytes())
+stages = {"detect_" + k: v for k, v in res.timings.items() if k != "total"}
+stages.update({"predict_" + k: v for k, v in pred.timings.items() if k != "total"})
+print(json.dumps(dict(total=total, detect=det, predict=prd, accepted=bool(res.accepted),
+                      plane=[float(v) for v in pred.plane], predicted=int(len(pred.predicted)),
+                      num_points=int(res.num_points), keypoints=int(len(res.keypoints)),
+                      fingerprint=h.hexdigest()[:16], stages=stages)))
+"""
+
+
+def mission_profile():
+    """The laser profile of the default mission (Scenario 5, start 0, airliner)."""
+    from nbvkit.config import Config
+    from nbvkit.mission import Mission
+    from nbvkit.profiling import run_profiling
+
+    cfg = Config.from_dict({"scenario": "5", "progress": False})
+    m = Mission(cfg)
+    m.world.take_off()
+    run_profiling(m.world)
+    return np.asarray(m.world.laser_cloud.points, float)
+
+
+def time_in(package_dir, points_file, repeats, threads):
+    """Runs TIME_SNIPPET with nbvkit imported from package_dir (None: this checkout's)."""
+    env = dict(os.environ)
+    if package_dir is not None:
+        env["PYTHONPATH"] = str(package_dir) + os.pathsep + env.get("PYTHONPATH", "")
+    out = subprocess.run(
+        [sys.executable, "-c", TIME_SNIPPET, str(points_file), str(repeats), str(threads)],
+        check=True,
+        capture_output=True,
+        text=True,
+        env=env,
+        cwd=tempfile.gettempdir(),
+    )
+    return json.loads(out.stdout.strip().splitlines()[-1])
+
+
+def mission_case(args):
+    t0 = time.perf_counter()
+    pts = mission_profile()
+    print(
+        f"\n[mission] airliner Scenario 5 start 0 profile: {len(pts)} points "
+        f"({time.perf_counter() - t0:.1f} s to fly)"
+    )
+    with tempfile.TemporaryDirectory() as tmp:
+        f = Path(tmp) / "profile.npy"
+        np.save(f, pts)
+        runs = [("this checkout", None)]
+        if args.against:
+            d = Path(args.against).resolve()
+            runs.append((str(args.against), d / "python" if (d / "python").is_dir() else d))
+        rows = [(label, time_in(py, f, args.repeats, args.threads)) for label, py in runs]
+    for label, r in rows:
+        print(
+            f"  {label}: detect {r['detect']:.3f} s + predict {r['predict']:.3f} s = "
+            f"{r['total']:.3f} s (best of {args.repeats}); {r['num_points']} points after "
+            f"downsampling, {r['keypoints']} keypoints, {r['predicted']} predicted points, "
+            f"fingerprint {r['fingerprint']}"
+        )
+        print("    " + "  ".join(f"{k} {v * 1000:.0f} ms" for k, v in r["stages"].items()))
+    if len(rows) == 2:
+        a, b = rows[0][1], rows[1][1]
+        same = "identical" if a["fingerprint"] == b["fingerprint"] else "DIFFERENT"
+        print(f"  speed-up vs {rows[1][0]}: {b['total'] / a['total']:.2f}x; results {same}")
+
+
 def main():
     ap = argparse.ArgumentParser(
         description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
@@ -123,9 +228,14 @@ def main():
     ap.add_argument("--keypoints", default="sift", choices=["sift", "iss", "uniform"])
     ap.add_argument("--threads", type=int, default=0, help="core threads (0: all)")
     ap.add_argument("--repeats", type=int, default=3)
+    ap.add_argument("--against", help="another checkout (with its .venv) to time in the same run")
+    ap.add_argument("--mission-only", action="store_true", help="only the mission's profile")
     args = ap.parse_args()
     nbvkit.set_num_threads(args.threads)
     print(f"threads: {nbvkit.get_num_threads()}, keypoints: {args.keypoints}")
+    mission_case(args)
+    if args.mission_only:
+        return
     opts = {"keypoints": args.keypoints}
     structures = [("airliner", nbvkit.load_mesh(nbvkit.default_mesh_path()))]
     if TWINJET.exists():

@@ -54,13 +54,15 @@ def test_sections_of_cpp_options_take_their_keys_defaults_and_docs_from_cpp(sect
 
 def test_every_bound_options_class_is_configurable_or_known_internal():
     mirrored = {
-        s.OPTIONS.__name__
+        c.__name__
         for s in (
             cfgmod.MapConfig,
             cfgmod.UtilityConfig,
             cfgmod.VehicleConfig,
             cfgmod.TargetsConfig,
+            cfgmod.SymmetryConfig,
         )
+        for c in s.OPTIONS_ALL
     }
     # set through their own config sections (sensors, clouds, symmetry) or by the mission
     # from other keys (the scoring camera from camera + map.resolution + utility.rays_*)
@@ -68,8 +70,6 @@ def test_every_bound_options_class_is_configurable_or_known_internal():
         "DepthCameraOptions",
         "LaserScannerOptions",
         "SurfaceCloudOptions",
-        "SymmetryOptions",
-        "SymmetricPredictionOptions",
         "ViewCameraModel",
         "RaycastOptions",
         "EvaluationOptions",

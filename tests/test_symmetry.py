@@ -323,6 +323,26 @@ def test_airliner_profile(airliner_profile):
     np.testing.assert_array_equal(again.plane, res.plane)
 
 
+def test_results_do_not_depend_on_the_thread_count(airliner_profile):
+    # the parallel stages (SIFT, nearest neighbours, ICP correspondences) keep PCL's serial order
+    points, _ = airliner_profile
+    n = nbvkit.get_num_threads()
+    runs = []
+    try:
+        for threads in (1, 2):
+            nbvkit.set_num_threads(threads)
+            res = nbvkit.detect_symmetry(points)
+            pred = nbvkit.predict_symmetric(points, res.plane)
+            runs.append((res, pred))
+    finally:
+        nbvkit.set_num_threads(0 if n > 1 else n)
+    (a, pa), (b, pb) = runs
+    np.testing.assert_array_equal(a.keypoints, b.keypoints)
+    np.testing.assert_array_equal(a.plane, b.plane)
+    np.testing.assert_array_equal(pa.plane, pb.plane)
+    np.testing.assert_array_equal(pa.predicted, pb.predicted)
+
+
 def test_airliner_profile_in_an_arbitrary_pose(airliner_profile_posed):
     points, true = airliner_profile_posed
     res = nbvkit.detect_symmetry(points)
@@ -464,12 +484,9 @@ def test_run_symmetry_prediction_rejects_without_touching_the_map():
     empty = SimpleNamespace(config=Config(), laser_cloud=_core.SurfaceCloud(voxel_size=0.1), map=m)
     out = sym.run_symmetry_prediction(empty)
     assert not out["accepted"] and out["reason"]
-    # a bad option is an error, not a rejection
-    bad = SimpleNamespace(
-        config=Config.from_dict({"symmetry": {"min_confidence": 2.0}}), laser_cloud=cloud, map=m
-    )
+    # a bad option is an error, not a rejection: the configuration refuses it before any work
     with pytest.raises(ValueError, match="min_confidence"):
-        sym.run_symmetry_prediction(bad)
+        Config.from_dict({"symmetry": {"min_confidence": 2.0}})
 
 
 def test_plot_symmetry(synthetic_cloud, tmp_path):
@@ -487,16 +504,30 @@ def test_config_defaults_equal_the_cpp_defaults():
     cfg = SymmetryConfig()
     assert cfg.prediction_probability == 0.6  # the paper
     dopts, popts = sym.detection_options(cfg), sym.prediction_options(cfg)
-    for key, value in dopts.items():
-        assert value == getattr(det, key), key
-    for key, value in popts.items():
-        assert value == (True if key == "icp" else getattr(pre, key)), key
-    # every config field reaches one of the two calls (mode and refresh_every: the mission's)
-    used = {"prediction_probability", "icp_voxel_size", "mode", "refresh_every"}
-    used |= set(dopts) | set(popts)
-    assert {f.name for f in fields(SymmetryConfig)} == used
+    assert dopts == det.to_dict() and popts == pre.to_dict()
+    # every option has one config key of the same name; the rest are the mission's
+    mission_keys = {"prediction_probability", "mode", "refresh_every"}
+    assert {f.name for f in fields(SymmetryConfig)} == mission_keys | set(dopts) | set(popts)
+    assert not set(dopts) & set(popts)
+    # a changed key reaches its call
+    changed = Config.from_dict({"symmetry": {"fpfh_radius": 1.5, "icp_voxel_size": 0.2}}).symmetry
+    assert sym.detection_options(changed)["fpfh_radius"] == 1.5
+    assert sym.prediction_options(changed)["icp_voxel_size"] == 0.2
     with pytest.raises(ValueError):
         Config.from_dict({"symmetry": {"keypoints": "harris"}})
+    with pytest.raises(ValueError, match="icp_normal_k"):
+        Config.from_dict({"symmetry": {"icp_normal_k": 2}})
+
+
+def test_options_objects_and_keywords_agree(synthetic_cloud):
+    points = synthetic_cloud[0]
+    a = nbvkit.detect_symmetry(points, sym.SymmetryOptions(fpfh_radius=1.2))
+    b = nbvkit.detect_symmetry(points, {"fpfh_radius": 1.2})
+    c = nbvkit.detect_symmetry(points, fpfh_radius=1.2, bandwidth=None)
+    assert np.array_equal(a.plane, b.plane) and np.array_equal(a.plane, c.plane)
+    assert sym.SymmetryOptions().keypoints == "sift"
+    assert "fpfh_radius" in nbvkit.detect_symmetry.__doc__
+    assert "icp_max_correspondence" in nbvkit.predict_symmetric.__doc__
 
 
 # ------------------------------------------------------------------------------ bad input

@@ -1,128 +1,44 @@
 // Bindings of the symmetry detection and prediction core (nbv/symmetry.hpp).
 #include "nbv/symmetry.hpp"
 #include "bindings.hpp"
+#include "options.hpp"
 
-#include <functional>
-#include <map>
 #include <string>
 
 namespace nbv::bind {
+
+template <>
+struct OptionField<SymmetryKeypoints> {
+  static py::object get(SymmetryKeypoints k) { return py::str(to_string(k)); }
+  static SymmetryKeypoints set(const py::handle& h, const std::string& name) {
+    if (!py::isinstance<py::str>(h))
+      throw py::value_error("option '" + name + "' must be 'sift', 'iss' or 'uniform'");
+    try {
+      return symmetry_keypoints_from_string(h.cast<std::string>());
+    } catch (const std::invalid_argument& e) {
+      throw py::value_error(e.what());
+    }
+  }
+};
+
 namespace {
 
+/// The options a symmetry binding was given: `options` (an instance, a dict or None) with keyword
+/// overrides on top; a keyword set to None keeps the value. Unknown names and values of the wrong
+/// type raise ValueError, as bad values do.
 template <typename Opt>
-using Setters = std::map<std::string, std::function<void(Opt&, const py::handle&)>>;
-
-template <typename T>
-T cast_value(const py::handle& v, const std::string& key) {
-  if constexpr (std::is_same_v<T, bool>) {
-    if (!py::isinstance<py::bool_>(v))
-      throw py::value_error("option '" + key + "' must be True or False");
-    return v.cast<bool>();
-  } else if constexpr (std::is_integral_v<T>) {
-    if (py::isinstance<py::bool_>(v) ||
-        !(py::isinstance<py::int_>(v) || py::hasattr(v, "__index__")))
-      throw py::value_error("option '" + key + "' must be an integer");
-    return py::reinterpret_borrow<py::object>(v).cast<T>();
-  } else {
-    if (py::isinstance<py::bool_>(v))
-      throw py::value_error("option '" + key + "' must be a number");
-    try {
-      return py::float_(py::reinterpret_borrow<py::object>(v)).cast<double>();
-    } catch (const py::error_already_set&) {
-      throw py::value_error("option '" + key + "' must be a number");
-    }
+Opt symmetry_options(const py::object& options, const py::kwargs& kw) {
+  py::dict changes;
+  for (const auto& item : kw)
+    if (!item.second.is_none()) changes[item.first] = item.second;
+  try {
+    Opt o = OptionsClass<Opt>::from(options, "options");
+    if (py::len(changes)) o = py::cast(o).attr("copy")(**changes).template cast<Opt>();
+    return o;
+  } catch (py::error_already_set& e) {
+    if (e.matches(PyExc_TypeError)) throw py::value_error(py::str(e.value()).cast<std::string>());
+    throw;
   }
-}
-
-template <typename Opt, typename T>
-void add(Setters<Opt>& s, const char* name, T Opt::*field) {
-  const std::string key = name;
-  s[key] = [field, key](Opt& o, const py::handle& v) { o.*field = cast_value<T>(v, key); };
-}
-
-const Setters<SymmetryOptions>& detect_setters() {
-  static const Setters<SymmetryOptions> s = [] {
-    Setters<SymmetryOptions> s;
-    using O = SymmetryOptions;
-    add(s, "voxel_size", &O::voxel_size);
-    add(s, "normal_k", &O::normal_k);
-    add(s, "normal_radius", &O::normal_radius);
-    s["keypoints"] = [](O& o, const py::handle& v) {
-      if (!py::isinstance<py::str>(v))
-        throw py::value_error("option 'keypoints' must be 'sift', 'iss' or 'uniform'");
-      o.keypoints = symmetry_keypoints_from_string(v.cast<std::string>());
-    };
-    add(s, "sift_min_scale", &O::sift_min_scale);
-    add(s, "sift_octaves", &O::sift_octaves);
-    add(s, "sift_scales_per_octave", &O::sift_scales_per_octave);
-    add(s, "sift_min_contrast", &O::sift_min_contrast);
-    add(s, "iss_salient_radius", &O::iss_salient_radius);
-    add(s, "iss_non_max_radius", &O::iss_non_max_radius);
-    add(s, "uniform_leaf", &O::uniform_leaf);
-    add(s, "fpfh_radius", &O::fpfh_radius);
-    add(s, "mirror_descriptors", &O::mirror_descriptors);
-    add(s, "max_descriptor_distance", &O::max_descriptor_distance);
-    add(s, "min_pair_distance", &O::min_pair_distance);
-    add(s, "max_normal_angle_deg", &O::max_normal_angle_deg);
-    add(s, "matches_per_keypoint", &O::matches_per_keypoint);
-    add(s, "bandwidth", &O::bandwidth);
-    add(s, "mean_shift_seeds", &O::mean_shift_seeds);
-    add(s, "mean_shift_max_iterations", &O::mean_shift_max_iterations);
-    add(s, "candidate_modes", &O::candidate_modes);
-    add(s, "refine_iterations", &O::refine_iterations);
-    add(s, "refine_max_distance", &O::refine_max_distance);
-    add(s, "refine_max_points", &O::refine_max_points);
-    add(s, "consistency_radius", &O::consistency_radius);
-    add(s, "consistency_tolerance", &O::consistency_tolerance);
-    add(s, "facing_angle_deg", &O::facing_angle_deg);
-    add(s, "min_support", &O::min_support);
-    add(s, "min_confidence", &O::min_confidence);
-    return s;
-  }();
-  return s;
-}
-
-const Setters<SymmetricPredictionOptions>& predict_setters() {
-  static const Setters<SymmetricPredictionOptions> s = [] {
-    Setters<SymmetricPredictionOptions> s;
-    using O = SymmetricPredictionOptions;
-    add(s, "voxel_size", &O::voxel_size);
-    add(s, "normal_k", &O::normal_k);
-    add(s, "icp", &O::icp);
-    add(s, "icp_point_to_plane", &O::icp_point_to_plane);
-    add(s, "icp_max_correspondence", &O::icp_max_correspondence);
-    add(s, "icp_transformation_epsilon", &O::icp_transformation_epsilon);
-    add(s, "icp_fitness_epsilon", &O::icp_fitness_epsilon);
-    add(s, "icp_max_iterations", &O::icp_max_iterations);
-    add(s, "max_correction_angle_deg", &O::max_correction_angle_deg);
-    add(s, "max_correction_offset", &O::max_correction_offset);
-    add(s, "explained_tolerance", &O::explained_tolerance);
-    return s;
-  }();
-  return s;
-}
-
-template <typename Opt>
-Opt options_from(const py::kwargs& kw, const Setters<Opt>& setters, const char* what) {
-  Opt o;
-  for (const auto& item : kw) {
-    const std::string key = py::str(item.first);
-    const auto it = setters.find(key);
-    if (it == setters.end()) {
-      std::string known;
-      for (const auto& [k, f] : setters) known += (known.empty() ? "" : ", ") + k;
-      throw py::value_error(std::string("unknown ") + what + " option '" + key +
-                            "'; known: " + known);
-    }
-    if (item.second.is_none()) continue;  // None: keep the default
-    try {
-      it->second(o, item.second);
-    } catch (const py::cast_error&) {
-      throw py::value_error("option '" + key + "' has the wrong type");
-    }
-  }
-  o.validate();
-  return o;
 }
 
 py::dict timings_dict(const StageTimes& t) {
@@ -156,56 +72,22 @@ Eigen::Vector4d plane_arg(const py::handle& obj, const char* what) {
 
 void init_symmetry(py::module_& m) {
   const SymmetryOptions sd;
-  py::class_<SymmetryOptions>(m, "SymmetryOptions",
-                              "Defaults of detect_symmetry (see its docstring).")
-      .def(py::init<>())
-      .def_readonly("voxel_size", &SymmetryOptions::voxel_size)
-      .def_readonly("normal_k", &SymmetryOptions::normal_k)
-      .def_readonly("normal_radius", &SymmetryOptions::normal_radius)
-      .def_property_readonly("keypoints",
-                             [](const SymmetryOptions& o) { return to_string(o.keypoints); })
-      .def_readonly("sift_min_scale", &SymmetryOptions::sift_min_scale)
-      .def_readonly("sift_octaves", &SymmetryOptions::sift_octaves)
-      .def_readonly("sift_scales_per_octave", &SymmetryOptions::sift_scales_per_octave)
-      .def_readonly("sift_min_contrast", &SymmetryOptions::sift_min_contrast)
-      .def_readonly("iss_salient_radius", &SymmetryOptions::iss_salient_radius)
-      .def_readonly("iss_non_max_radius", &SymmetryOptions::iss_non_max_radius)
-      .def_readonly("uniform_leaf", &SymmetryOptions::uniform_leaf)
-      .def_readonly("fpfh_radius", &SymmetryOptions::fpfh_radius)
-      .def_readonly("mirror_descriptors", &SymmetryOptions::mirror_descriptors)
-      .def_readonly("max_descriptor_distance", &SymmetryOptions::max_descriptor_distance)
-      .def_readonly("min_pair_distance", &SymmetryOptions::min_pair_distance)
-      .def_readonly("max_normal_angle_deg", &SymmetryOptions::max_normal_angle_deg)
-      .def_readonly("matches_per_keypoint", &SymmetryOptions::matches_per_keypoint)
-      .def_readonly("bandwidth", &SymmetryOptions::bandwidth)
-      .def_readonly("mean_shift_seeds", &SymmetryOptions::mean_shift_seeds)
-      .def_readonly("mean_shift_max_iterations", &SymmetryOptions::mean_shift_max_iterations)
-      .def_readonly("candidate_modes", &SymmetryOptions::candidate_modes)
-      .def_readonly("refine_iterations", &SymmetryOptions::refine_iterations)
-      .def_readonly("refine_max_distance", &SymmetryOptions::refine_max_distance)
-      .def_readonly("refine_max_points", &SymmetryOptions::refine_max_points)
-      .def_readonly("consistency_radius", &SymmetryOptions::consistency_radius)
-      .def_readonly("consistency_tolerance", &SymmetryOptions::consistency_tolerance)
-      .def_readonly("facing_angle_deg", &SymmetryOptions::facing_angle_deg)
-      .def_readonly("min_support", &SymmetryOptions::min_support)
-      .def_readonly("min_confidence", &SymmetryOptions::min_confidence);
-
-  py::class_<SymmetricPredictionOptions>(m, "SymmetricPredictionOptions",
-                                         "Defaults of predict_symmetric (see its docstring).")
-      .def(py::init<>())
-      .def_readonly("voxel_size", &SymmetricPredictionOptions::voxel_size)
-      .def_readonly("normal_k", &SymmetricPredictionOptions::normal_k)
-      .def_readonly("icp", &SymmetricPredictionOptions::icp)
-      .def_readonly("icp_point_to_plane", &SymmetricPredictionOptions::icp_point_to_plane)
-      .def_readonly("icp_max_correspondence", &SymmetricPredictionOptions::icp_max_correspondence)
-      .def_readonly("icp_transformation_epsilon",
-                    &SymmetricPredictionOptions::icp_transformation_epsilon)
-      .def_readonly("icp_fitness_epsilon", &SymmetricPredictionOptions::icp_fitness_epsilon)
-      .def_readonly("icp_max_iterations", &SymmetricPredictionOptions::icp_max_iterations)
-      .def_readonly("max_correction_angle_deg",
-                    &SymmetricPredictionOptions::max_correction_angle_deg)
-      .def_readonly("max_correction_offset", &SymmetricPredictionOptions::max_correction_offset)
-      .def_readonly("explained_tolerance", &SymmetricPredictionOptions::explained_tolerance);
+  {
+    OptionsClass<SymmetryOptions> binder(m, "SymmetryOptions", R"doc(
+Options of detect_symmetry, by pipeline step; each field is documented in
+SymmetryOptions.fields().)doc");
+    using S = SymmetryOptions;
+    NBV_SYMMETRY_OPTIONS(NBV_BIND_FIELD)
+    binder.finish();
+  }
+  {
+    OptionsClass<SymmetricPredictionOptions> binder(m, "SymmetricPredictionOptions", R"doc(
+Options of predict_symmetric; each field is documented in
+SymmetricPredictionOptions.fields().)doc");
+    using S = SymmetricPredictionOptions;
+    NBV_SYMMETRIC_PREDICTION_OPTIONS(NBV_BIND_FIELD)
+    binder.finish();
+  }
 
   py::class_<SymmetryResult>(m, "SymmetryResult", R"doc(
 Result of detect_symmetry.
@@ -289,25 +171,26 @@ residual_rotation_deg, timings (dict stage -> seconds).)doc")
 
   m.def(
       "detect_symmetry",
-      [](const py::handle& points, const py::kwargs& kw) {
+      [](const py::handle& points, const py::object& options, const py::kwargs& kw) {
         const auto a = points_arg(points, "points");
-        const SymmetryOptions o = options_from(kw, detect_setters(), "detect_symmetry");
+        const auto o = symmetry_options<SymmetryOptions>(options, kw);
         py::gil_scoped_release release;
         return detect_symmetry(a.map(), o);
       },
-      py::arg("points"), "See nbvkit.detect_symmetry.");
+      py::arg("points"), py::arg("options") = py::none(), "See nbvkit.detect_symmetry.");
 
   m.def(
       "predict_symmetric",
-      [](const py::handle& points, const py::handle& plane, const py::kwargs& kw) {
+      [](const py::handle& points, const py::handle& plane, const py::object& options,
+         const py::kwargs& kw) {
         const auto a = points_arg(points, "points");
         const Eigen::Vector4d pl = plane_arg(plane, "plane");
-        const SymmetricPredictionOptions o =
-            options_from(kw, predict_setters(), "predict_symmetric");
+        const auto o = symmetry_options<SymmetricPredictionOptions>(options, kw);
         py::gil_scoped_release release;
         return predict_symmetric(a.map(), pl, o);
       },
-      py::arg("points"), py::arg("plane"), "See nbvkit.predict_symmetric.");
+      py::arg("points"), py::arg("plane"), py::arg("options") = py::none(),
+      "See nbvkit.predict_symmetric.");
 
   m.def(
       "mean_shift_planes",

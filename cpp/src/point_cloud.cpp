@@ -55,6 +55,63 @@ std::pair<std::uint32_t, bool> VoxelHashMap::insert(std::uint64_t key, std::uint
   }
 }
 
+// ---------------------------------------------------------------------------- VoxelCentroids
+
+std::size_t VoxelCentroids::add(const PointsRef& points, const std::vector<std::uint64_t>& keys,
+                                std::uint64_t skip) {
+  if (keys.size() != static_cast<std::size_t>(points.rows()))
+    throw std::invalid_argument("VoxelCentroids::add: one key per point");
+  index_.reserve(count_.size() + keys.size() / 8);
+  // Consecutive sensor points often share a voxel: remember the last one.
+  const std::size_t before = count_.size();
+  std::uint64_t last_key = kEmptyVoxelKey;
+  std::uint32_t last = 0;
+  for (std::size_t i = 0; i < keys.size(); ++i) {
+    const std::uint64_t k = keys[i];
+    if (k == skip) continue;
+    if (k != last_key) {
+      const auto next = static_cast<std::uint32_t>(count_.size());
+      const auto r = index_.insert(k, next);
+      if (r.second) {
+        sum_.emplace_back(Eigen::Vector3d::Zero());
+        count_.push_back(0);
+      }
+      last_key = k;
+      last = r.first;
+    }
+    sum_[last] += points.row(static_cast<Eigen::Index>(i)).transpose();
+    ++count_[last];
+  }
+  return count_.size() - before;
+}
+
+Points VoxelCentroids::centroids() const {
+  Points out(static_cast<Eigen::Index>(count_.size()), 3);
+  for (std::size_t i = 0; i < count_.size(); ++i)
+    out.row(static_cast<Eigen::Index>(i)) = (sum_[i] / static_cast<double>(count_[i])).transpose();
+  return out;
+}
+
+void VoxelCentroids::clear() {
+  index_ = VoxelHashMap();
+  sum_.clear();
+  sum_.shrink_to_fit();
+  count_.clear();
+  count_.shrink_to_fit();
+}
+
+Points voxelgrid_sampling(const PointsRef& points, double voxel_size) {
+  if (!(std::isfinite(voxel_size) && voxel_size > 0))
+    throw std::invalid_argument("voxel size must be > 0 metres, got " + std::to_string(voxel_size));
+  require_finite(points, "points");
+  std::vector<std::uint64_t> keys(static_cast<std::size_t>(points.rows()));
+  for (Eigen::Index i = 0; i < points.rows(); ++i)
+    keys[static_cast<std::size_t>(i)] = voxel_key(points.row(i).transpose(), voxel_size);
+  VoxelCentroids v;
+  v.add(points, keys);
+  return v.centroids();
+}
+
 // ---------------------------------------------------------------------------- SurfaceCloud
 
 void SurfaceCloudOptions::validate() const {
@@ -112,50 +169,23 @@ std::size_t SurfaceCloud::add(const PointsRef& points) {
     for (Eigen::Index i = 0; i < n; ++i)
       if (keys[static_cast<std::size_t>(i)] == kEmptyVoxelKey)
         voxel_index(points.row(i).transpose(), s);  // throws naming the coordinate
-  index_.reserve(count_.size() + static_cast<std::size_t>(n) / 8);
-  // Pass 2: accumulate. Consecutive sensor points often share a voxel: remember the last one.
-  const std::size_t before = count_.size();
-  std::uint64_t last_key = kEmptyVoxelKey;
-  std::uint32_t last = 0;
-  for (Eigen::Index i = 0; i < n; ++i) {
-    const std::uint64_t k = keys[i];
-    if (k == kFiltered) continue;
-    if (k != last_key) {
-      const auto next = static_cast<std::uint32_t>(count_.size());
-      const auto r = index_.insert(k, next);
-      if (r.second) {
-        sum_.emplace_back(Eigen::Vector3d::Zero());
-        count_.push_back(0);
-      }
-      last_key = k;
-      last = r.first;
-    }
-    sum_[last] += points.row(i).transpose();
-    ++count_[last];
-    ++registered_;
-  }
-  return count_.size() - before;
+  const std::size_t added = voxels_.add(points, keys, kFiltered);
+  registered_ += static_cast<std::uint64_t>(
+      std::count_if(keys.begin(), keys.end(), [](std::uint64_t k) { return k != kFiltered; }));
+  return added;
 }
 
-Points SurfaceCloud::points() const {
-  Points out(static_cast<Eigen::Index>(count_.size()), 3);
-  for (std::size_t i = 0; i < count_.size(); ++i)
-    out.row(static_cast<Eigen::Index>(i)) = (sum_[i] / static_cast<double>(count_[i])).transpose();
-  return out;
-}
+Points SurfaceCloud::points() const { return voxels_.centroids(); }
 
 Eigen::Matrix<std::int64_t, Eigen::Dynamic, 1> SurfaceCloud::counts() const {
-  Eigen::Matrix<std::int64_t, Eigen::Dynamic, 1> out(static_cast<Eigen::Index>(count_.size()));
-  for (std::size_t i = 0; i < count_.size(); ++i) out[static_cast<Eigen::Index>(i)] = count_[i];
+  const auto& c = voxels_.counts();
+  Eigen::Matrix<std::int64_t, Eigen::Dynamic, 1> out(static_cast<Eigen::Index>(c.size()));
+  for (std::size_t i = 0; i < c.size(); ++i) out[static_cast<Eigen::Index>(i)] = c[i];
   return out;
 }
 
 void SurfaceCloud::clear() {
-  index_ = VoxelHashMap();
-  sum_.clear();
-  sum_.shrink_to_fit();
-  count_.clear();
-  count_.shrink_to_fit();
+  voxels_.clear();
   registered_ = 0;
 }
 

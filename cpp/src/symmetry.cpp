@@ -131,8 +131,9 @@ void SymmetryOptions::validate() const {
 
 void SymmetricPredictionOptions::validate() const {
   auto fin = [](double v) { return std::isfinite(v); };
-  require(fin(voxel_size) && voxel_size >= 0, "voxel_size must be >= 0 metres (0 disables)");
-  require(normal_k >= 3, "normal_k must be >= 3");
+  require(fin(icp_voxel_size) && icp_voxel_size >= 0,
+          "icp_voxel_size must be >= 0 metres (0 disables)");
+  require(icp_normal_k >= 3, "icp_normal_k must be >= 3");
   require(fin(icp_max_correspondence) && icp_max_correspondence > 0,
           "icp_max_correspondence must be > 0 metres");
   require(fin(icp_transformation_epsilon) && icp_transformation_epsilon >= 0,
@@ -230,33 +231,9 @@ Fpfh mirror_fpfh(const Fpfh& d) {
 
 namespace detail {
 
-Points voxel_downsample(const PointsRef& points, double leaf) {
-  require(std::isfinite(leaf) && leaf > 0, "voxel size must be > 0");
-  VoxelHashMap index(static_cast<std::size_t>(points.rows()));
-  std::vector<Eigen::Vector3d> sum;
-  std::vector<std::uint32_t> count;
-  for (Eigen::Index i = 0; i < points.rows(); ++i) {
-    const Eigen::Vector3d p = points.row(i).transpose();
-    const auto [slot, inserted] =
-        index.insert(voxel_key(p, leaf), static_cast<std::uint32_t>(sum.size()));
-    if (inserted) {
-      sum.push_back(p);
-      count.push_back(1);
-    } else {
-      sum[slot] += p;
-      ++count[slot];
-    }
-  }
-  Points out(static_cast<Eigen::Index>(sum.size()), 3);
-  for (std::size_t i = 0; i < sum.size(); ++i)
-    out.row(static_cast<Eigen::Index>(i)) = (sum[i] / double(count[i])).transpose();
-  return out;
-}
-
-Eigen::Vector4d refine_plane(const PointsRef& points, const NearestNeighbors& tree,
-                             const Points& normals, const Eigen::Vector4d& plane, int iterations,
-                             double max_distance, double min_distance) {
-  const Points& targets = tree.targets();
+Eigen::Vector4d refine_plane(const PointsRef& points, const KdTree& tree, const Points& normals,
+                             const Eigen::Vector4d& plane, int iterations, double max_distance,
+                             double min_distance) {
   Eigen::Vector4d pl = canonical_plane(plane);
   for (int it = 0; it < iterations; ++it) {
     const double r = std::max(min_distance, max_distance * std::pow(0.7, it));
@@ -264,7 +241,7 @@ Eigen::Vector4d refine_plane(const PointsRef& points, const NearestNeighbors& tr
     // Two unit directions orthogonal to n: the normal's 2 degrees of freedom.
     const Eigen::Vector3d e1 = n.unitOrthogonal(), e2 = n.cross(e1);
     const Points R = reflect_points(points, pl);
-    const auto [idx, dist] = tree.query(R);
+    const auto [idx, dist] = tree.nearest_each(R);
     Eigen::Matrix3d H = Eigen::Matrix3d::Zero();
     Eigen::Vector3d g = Eigen::Vector3d::Zero();
     int used = 0;
@@ -275,7 +252,7 @@ Eigen::Vector4d refine_plane(const PointsRef& points, const NearestNeighbors& tr
       const Eigen::Vector3d p = points.row(i).transpose();
       const double s = n.dot(p) - pl[3];
       // residual: distance of the reflection S(p) = p - 2 s n to the partner's tangent plane
-      const double res = m.dot(R.row(i).transpose() - targets.row(idx[i]).transpose());
+      const double res = m.dot(R.row(i).transpose() - tree.point(idx[i]));
       // dS/dn along e: -2 ((e.p) n + s e); dS/dd: 2 n
       const double mn = m.dot(n);
       const Eigen::Vector3d J(-2.0 * (e1.dot(p) * mn + s * m.dot(e1)),
@@ -302,12 +279,10 @@ Eigen::Vector4d refine_plane(const PointsRef& points, const NearestNeighbors& tr
   return canonical_plane(pl);
 }
 
-Consistency mirror_consistency(const PointsRef& points, const Points& normals,
-                               const NearestNeighbors& tree, const Points& target_normals,
-                               const Eigen::Vector4d& plane, double radius, double tolerance,
-                               double facing_angle_deg) {
+Consistency mirror_consistency(const PointsRef& points, const Points& normals, const KdTree& tree,
+                               const Points& target_normals, const Eigen::Vector4d& plane,
+                               double radius, double tolerance, double facing_angle_deg) {
   Consistency out;
-  const Points& targets = tree.targets();
   const Eigen::Vector4d pl = canonical_plane(plane);
   const Eigen::Vector3d n = pl.head<3>();
   // 90 degrees counts every point, including those without a normal.
@@ -322,7 +297,7 @@ Consistency mirror_consistency(const PointsRef& points, const Points& normals,
   for (std::size_t k = 0; k < far.size(); ++k)
     F.row(static_cast<Eigen::Index>(k)) = points.row(far[k]);
   const Points R = reflect_points(F, pl);
-  const auto [idx, dist] = tree.query(R);
+  const auto [idx, dist] = tree.nearest_each(R);
   Eigen::Index ok = 0, ok_facing = 0, facing = 0;
   for (std::size_t k = 0; k < far.size(); ++k) {
     const auto i = static_cast<Eigen::Index>(k);
@@ -330,7 +305,7 @@ Consistency mirror_consistency(const PointsRef& points, const Points& normals,
     facing += faces;
     if (!(dist[i] <= radius) || idx[i] < 0) continue;
     const Eigen::Vector3d m = target_normals.row(idx[i]).transpose();
-    const Eigen::Vector3d delta = R.row(i).transpose() - targets.row(idx[i]).transpose();
+    const Eigen::Vector3d delta = R.row(i).transpose() - tree.point(idx[i]);
     // Without a normal at the partner: point-to-point.
     const double e = m.squaredNorm() > 0 ? std::abs(m.dot(delta)) : delta.norm();
     if (e <= tolerance) {
@@ -491,63 +466,34 @@ Eigen::Matrix<bool, Eigen::Dynamic, 1> plane_votes(const Planes& planes,
 
 // ---------------------------------------------------------------------------- detection
 
-SymmetryResult detect_symmetry(const PointsRef& points, const SymmetryOptions& o) {
-  o.validate();
-  require_finite(points, "points");
-  require(points.rows() >= kMinPoints, "symmetry detection needs at least " +
-                                           std::to_string(kMinPoints) + " points, got " +
-                                           std::to_string(points.rows()));
-  SymmetryResult res;
-  Stopwatch sw(res.timings);
+namespace {
 
-  // Work near the origin (PCL is float), shifted by whole voxels so that the downsampling grid
-  // stays anchored at the world origin (a cloud already voxelised there is kept as it is).
-  const Eigen::Vector3d c0 = grid_anchor(points, o.voxel_size);
-  Points P = o.voxel_size > 0 ? detail::voxel_downsample(centred(points, c0), o.voxel_size)
-                              : centred(points, c0);
-  res.num_points = static_cast<std::size_t>(P.rows());
-  const Eigen::Vector3d c = P.colwise().mean().transpose();
-  res.scale = std::sqrt((P.rowwise() - c.transpose()).rowwise().squaredNorm().mean());
-  sw.lap("downsample");
-  auto finish_world = [&]() {
-    res.keypoints.rowwise() += c0.transpose();
-    for (Eigen::Index i = 0; i < res.pair_planes.rows(); ++i)
-      res.pair_planes.row(i) =
-          canonical_plane(shift_plane(res.pair_planes.row(i).transpose(), -c0)).transpose();
-    for (Eigen::Index i = 0; i < res.modes.rows(); ++i)
-      res.modes.row(i) =
-          canonical_plane(shift_plane(res.modes.row(i).transpose(), -c0)).transpose();
-    if (res.plane.allFinite()) res.plane = canonical_plane(shift_plane(res.plane, -c0));
-  };
-  res.pairs.resize(0, 2);
-  res.pair_planes.resize(0, 4);
-  res.inliers.resize(0);
-  res.pair_distances.resize(0);
-  res.keypoints.resize(0, 3);
-  res.modes.resize(0, 4);
-  res.mode_support.resize(0);
-  res.mode_confidence.resize(0);
-  if (P.rows() < kMinPoints || !(res.scale > 0)) {
-    res.reason = "too few points after downsampling";
-    return res;
-  }
+/// Step 1 of detect_symmetry: the points shifted near the origin (PCL is float) by a whole
+/// number of voxels, so that the downsampling grid stays anchored at the world origin (a cloud
+/// already voxelised there is kept as it is), and downsampled.
+struct PreparedCloud {
+  Eigen::Vector3d c0;  ///< the shift: world = local + c0
+  Points P;            ///< (N, 3) downsampled points, local frame
+  Eigen::Vector3d c;   ///< centroid of P
+  double scale = 0;    ///< RMS distance of P from c, metres
+};
 
-  const auto nc = detail::estimate_normals(P, o.normal_k, o.normal_radius);
-  sw.lap("normals");
-  std::vector<int> kp = detail::detect_keypoints(P, nc, o);
-  // Keypoints without a normal cannot be matched.
-  kp.erase(std::remove_if(kp.begin(), kp.end(),
-                          [&](int i) { return nc.normals.row(i).squaredNorm() == 0; }),
-           kp.end());
-  sw.lap("keypoints");
-  const Fpfh F = detail::compute_fpfh(P, nc.normals, kp, o.fpfh_radius);
-  sw.lap("descriptors");
+PreparedCloud prepare_cloud(const PointsRef& points, double voxel_size) {
+  PreparedCloud out;
+  out.c0 = grid_anchor(points, voxel_size);
+  out.P = voxel_size > 0 ? voxelgrid_sampling(centred(points, out.c0), voxel_size)
+                         : centred(points, out.c0);
+  out.c = out.P.colwise().mean().transpose();
+  out.scale = std::sqrt((out.P.rowwise() - out.c.transpose()).rowwise().squaredNorm().mean());
+  return out;
+}
 
-  // ---- matching: each keypoint's most similar (mirrored) other keypoints
-  const Eigen::Index K = static_cast<Eigen::Index>(kp.size());
-  res.keypoints.resize(K, 3);
-  for (Eigen::Index i = 0; i < K; ++i)
-    res.keypoints.row(i) = P.row(kp[static_cast<std::size_t>(i)]);
+/// Step 4: each keypoint's most similar (mirrored) other keypoints whose normals are mirror
+/// images about the pair's bisector; fills res.pairs, pair_distances and pair_planes (unordered
+/// pairs, smallest descriptor distance, in key order).
+void match_keypoints(const Points& keypoints, const Points& normals, const Fpfh& F,
+                     const SymmetryOptions& o, SymmetryResult& res) {
+  const Eigen::Index K = keypoints.rows();
   std::vector<char> valid(static_cast<std::size_t>(K));
   for (Eigen::Index i = 0; i < K; ++i)
     valid[i] = F.row(i).allFinite() && F.row(i).squaredNorm() > 0;
@@ -560,16 +506,16 @@ SymmetryResult detect_symmetry(const PointsRef& points, const SymmetryOptions& o
     for (std::size_t i = b; i < e; ++i) {
       auto& top = best[i];
       if (!valid[i]) continue;
-      const Eigen::Vector3d pi = res.keypoints.row(static_cast<Eigen::Index>(i)).transpose();
-      const Eigen::Vector3d ni = nc.normals.row(kp[i]).transpose();
+      const Eigen::Vector3d pi = keypoints.row(static_cast<Eigen::Index>(i)).transpose();
+      const Eigen::Vector3d ni = normals.row(static_cast<Eigen::Index>(i)).transpose();
       for (Eigen::Index j = 0; j < K; ++j) {
         if (j == static_cast<Eigen::Index>(i) || !valid[j]) continue;
-        const Eigen::Vector3d diff = pi - res.keypoints.row(j).transpose();
+        const Eigen::Vector3d diff = pi - keypoints.row(j).transpose();
         const double L2 = diff.squaredNorm();
         if (L2 < min_d2 || L2 == 0) continue;
         const Eigen::Vector3d u = diff / std::sqrt(L2);
         const Eigen::Vector3d r = ni - 2.0 * u.dot(ni) * u;  // n_i mirrored about the bisector
-        if (std::abs(r.dot(nc.normals.row(kp[j]))) < cos_normal) continue;
+        if (std::abs(r.dot(normals.row(j))) < cos_normal) continue;
         const float dd = (F.row(static_cast<Eigen::Index>(i)) - Fm.row(j)).norm();
         if (dd > o.max_descriptor_distance) continue;
         if (static_cast<int>(top.size()) < m) {
@@ -594,44 +540,32 @@ SymmetryResult detect_symmetry(const PointsRef& points, const SymmetryOptions& o
   res.pairs.resize(NP, 2);
   res.pair_distances.resize(NP);
   res.pair_planes.resize(NP, 4);
-  {
-    Eigen::Index r = 0;
-    for (const auto& [key, dd] : unique) {
-      res.pairs(r, 0) = key.first;
-      res.pairs(r, 1) = key.second;
-      res.pair_distances[r] = dd;
-      res.pair_planes.row(r) = plane_from_pair(res.keypoints.row(key.first).transpose(),
-                                               res.keypoints.row(key.second).transpose())
-                                   .transpose();
-      ++r;
-    }
+  Eigen::Index r = 0;
+  for (const auto& [key, dd] : unique) {
+    res.pairs(r, 0) = key.first;
+    res.pairs(r, 1) = key.second;
+    res.pair_distances[r] = dd;
+    res.pair_planes.row(r) =
+        plane_from_pair(keypoints.row(key.first).transpose(), keypoints.row(key.second).transpose())
+            .transpose();
+    ++r;
   }
-  sw.lap("matching");
+}
 
-  if (NP == 0) {
-    res.inliers.setConstant(0, false);
-    res.reason = "no keypoint pairs";
-    finish_world();
-    return res;
-  }
-
-  // ---- mean shift over the pair planes
-  const PlaneClusters cl = mean_shift_planes(res.pair_planes, c, res.scale, o.bandwidth,
-                                             o.mean_shift_seeds, o.mean_shift_max_iterations);
-  res.modes = cl.modes;
-  res.mode_support = cl.mode_support;
-  res.mode_confidence = Eigen::VectorXd::Constant(cl.modes.rows(), kNaN);
-  sw.lap("mean_shift");
-
-  // ---- refine and score the candidate modes on a subset; the most consistent wins
-  const detail::NearestNeighbors tree(P);
+/// Step 6: the candidate modes refined and scored on an evenly strided subset of the points; the
+/// most mirror-consistent wins and is refined and scored again on every point. Fills res.plane,
+/// confidence, consistency_all, facing_fraction, mode_confidence, inliers, support, vote_share.
+void choose_plane(const PreparedCloud& pc, const Points& normals, const PlaneClusters& cl,
+                  const SymmetryOptions& o, SymmetryResult& res) {
+  const Points& P = pc.P;
+  const KdTree tree(P);
   const Eigen::Index stride =
       std::max<Eigen::Index>(1, (P.rows() + o.refine_max_points - 1) / o.refine_max_points);
   const Eigen::Index ns = (P.rows() + stride - 1) / stride;
   Points S(ns, 3), SN(ns, 3);
   for (Eigen::Index i = 0; i < ns; ++i) {
     S.row(i) = P.row(i * stride);
-    SN.row(i) = nc.normals.row(i * stride);
+    SN.row(i) = normals.row(i * stride);
   }
   Eigen::Index chosen = 0;
   Eigen::Vector4d best_plane = cl.plane;
@@ -640,12 +574,11 @@ SymmetryResult detect_symmetry(const PointsRef& points, const SymmetryOptions& o
     if (k > 0 && cl.mode_support[k] < o.min_support) break;
     Eigen::Vector4d pl = cl.modes.row(k).transpose();
     if (o.refine_iterations > 0)
-      pl = detail::refine_plane(S, tree, nc.normals, pl, o.refine_iterations, o.refine_max_distance,
+      pl = detail::refine_plane(S, tree, normals, pl, o.refine_iterations, o.refine_max_distance,
                                 o.consistency_radius);
-    const double conf =
-        detail::mirror_consistency(S, SN, tree, nc.normals, pl, o.consistency_radius,
-                                   o.consistency_tolerance, o.facing_angle_deg)
-            .facing;
+    const double conf = detail::mirror_consistency(S, SN, tree, normals, pl, o.consistency_radius,
+                                                   o.consistency_tolerance, o.facing_angle_deg)
+                            .facing;
     res.mode_confidence[k] = conf;
     if (conf > best_conf) {
       best_conf = conf;
@@ -653,12 +586,11 @@ SymmetryResult detect_symmetry(const PointsRef& points, const SymmetryOptions& o
       chosen = k;
     }
   }
-  // The winner on every point.
   if (o.refine_iterations > 0 && stride > 1)
-    best_plane = detail::refine_plane(P, tree, nc.normals, best_plane, 3, o.consistency_radius,
+    best_plane = detail::refine_plane(P, tree, normals, best_plane, 3, o.consistency_radius,
                                       o.consistency_radius);
   const auto cons =
-      detail::mirror_consistency(P, nc.normals, tree, nc.normals, best_plane, o.consistency_radius,
+      detail::mirror_consistency(P, normals, tree, normals, best_plane, o.consistency_radius,
                                  o.consistency_tolerance, o.facing_angle_deg);
   res.plane = best_plane;
   res.confidence = cons.facing;
@@ -666,9 +598,91 @@ SymmetryResult detect_symmetry(const PointsRef& points, const SymmetryOptions& o
   res.facing_fraction = cons.facing_fraction;
   res.mode_confidence[chosen] = cons.facing;
   res.inliers =
-      plane_votes(res.pair_planes, cl.modes.row(chosen).transpose(), c, res.scale, o.bandwidth);
+      plane_votes(res.pair_planes, cl.modes.row(chosen).transpose(), pc.c, res.scale, o.bandwidth);
   res.support = static_cast<int>(res.inliers.count());
-  res.vote_share = double(res.support) / double(NP);
+  res.vote_share = double(res.support) / double(res.pairs.rows());
+}
+
+/// The result's keypoints and planes moved from the local frame back to the world (shift c0).
+void to_world(SymmetryResult& res, const Eigen::Vector3d& c0) {
+  res.keypoints.rowwise() += c0.transpose();
+  for (Eigen::Index i = 0; i < res.pair_planes.rows(); ++i)
+    res.pair_planes.row(i) =
+        canonical_plane(shift_plane(res.pair_planes.row(i).transpose(), -c0)).transpose();
+  for (Eigen::Index i = 0; i < res.modes.rows(); ++i)
+    res.modes.row(i) = canonical_plane(shift_plane(res.modes.row(i).transpose(), -c0)).transpose();
+  if (res.plane.allFinite()) res.plane = canonical_plane(shift_plane(res.plane, -c0));
+}
+
+}  // namespace
+
+SymmetryResult detect_symmetry(const PointsRef& points, const SymmetryOptions& o) {
+  o.validate();
+  require_finite(points, "points");
+  require(points.rows() >= kMinPoints, "symmetry detection needs at least " +
+                                           std::to_string(kMinPoints) + " points, got " +
+                                           std::to_string(points.rows()));
+  SymmetryResult res;
+  Stopwatch sw(res.timings);
+  res.pairs.resize(0, 2);
+  res.pair_planes.resize(0, 4);
+  res.inliers.resize(0);
+  res.pair_distances.resize(0);
+  res.keypoints.resize(0, 3);
+  res.modes.resize(0, 4);
+  res.mode_support.resize(0);
+  res.mode_confidence.resize(0);
+
+  // 1. downsampling, near the origin
+  const PreparedCloud pc = prepare_cloud(points, o.voxel_size);
+  const Points& P = pc.P;
+  res.num_points = static_cast<std::size_t>(P.rows());
+  res.scale = pc.scale;
+  sw.lap("downsample");
+  if (P.rows() < kMinPoints || !(res.scale > 0)) {
+    res.reason = "too few points after downsampling";
+    to_world(res, pc.c0);
+    return res;
+  }
+
+  // 2. normals, 3. keypoints (those without a normal cannot be matched), 4. descriptors
+  const auto nc = detail::estimate_normals(P, o.normal_k, o.normal_radius);
+  sw.lap("normals");
+  std::vector<int> kp = detail::detect_keypoints(P, nc, o);
+  kp.erase(std::remove_if(kp.begin(), kp.end(),
+                          [&](int i) { return nc.normals.row(i).squaredNorm() == 0; }),
+           kp.end());
+  sw.lap("keypoints");
+  const Fpfh F = detail::compute_fpfh(P, nc.normals, kp, o.fpfh_radius);
+  sw.lap("descriptors");
+
+  // 5. matching: pairs of mirror-similar keypoints, each voting for its bisector plane
+  const Eigen::Index K = static_cast<Eigen::Index>(kp.size());
+  Points kn(K, 3);
+  res.keypoints.resize(K, 3);
+  for (Eigen::Index i = 0; i < K; ++i) {
+    res.keypoints.row(i) = P.row(kp[static_cast<std::size_t>(i)]);
+    kn.row(i) = nc.normals.row(kp[static_cast<std::size_t>(i)]);
+  }
+  match_keypoints(res.keypoints, kn, F, o, res);
+  sw.lap("matching");
+  if (res.pairs.rows() == 0) {
+    res.inliers.setConstant(0, false);
+    res.reason = "no keypoint pairs";
+    to_world(res, pc.c0);
+    return res;
+  }
+
+  // 6. mean shift over the pair planes
+  const PlaneClusters cl = mean_shift_planes(res.pair_planes, pc.c, res.scale, o.bandwidth,
+                                             o.mean_shift_seeds, o.mean_shift_max_iterations);
+  res.modes = cl.modes;
+  res.mode_support = cl.mode_support;
+  res.mode_confidence = Eigen::VectorXd::Constant(cl.modes.rows(), kNaN);
+  sw.lap("mean_shift");
+
+  // 7. refine and score the candidate modes; the most consistent wins
+  choose_plane(pc, nc.normals, cl, o, res);
   sw.lap("refine_and_score");
 
   if (res.support < o.min_support)
@@ -678,7 +692,7 @@ SymmetryResult detect_symmetry(const PointsRef& points, const SymmetryOptions& o
     res.reason = "confidence " + std::to_string(res.confidence) + " < min_confidence " +
                  std::to_string(o.min_confidence);
   res.accepted = res.reason.empty();
-  finish_world();
+  to_world(res, pc.c0);
   return res;
 }
 
@@ -696,14 +710,14 @@ SymmetricPrediction predict_symmetric(const PointsRef& points, const Eigen::Vect
   SymmetricPrediction res;
   Stopwatch sw(res.timings);
   res.input_plane = canonical_plane(plane);
-  const Eigen::Vector3d c0 = grid_anchor(points, o.voxel_size);
+  const Eigen::Vector3d c0 = grid_anchor(points, o.icp_voxel_size);
   const Points Pc = centred(points, c0);
   Eigen::Vector4d pl = canonical_plane(shift_plane(res.input_plane, c0));
   res.transform = reflection_matrix(pl);
 
   if (o.icp) {
-    const Points D = o.voxel_size > 0 ? detail::voxel_downsample(Pc, o.voxel_size) : Pc;
-    const auto nc = detail::estimate_normals(D, o.normal_k, 0.0);
+    const Points D = o.icp_voxel_size > 0 ? voxelgrid_sampling(Pc, o.icp_voxel_size) : Pc;
+    const auto nc = detail::estimate_normals(D, o.icp_normal_k, 0.0);
     sw.lap("normals");
     const Points src = reflect_points(D, pl);
     const Points src_n = reflect_normals(nc.normals, pl.head<3>());
@@ -727,7 +741,7 @@ SymmetricPrediction predict_symmetric(const PointsRef& points, const Eigen::Vect
   }
 
   const Points R = reflect_points(Pc, pl);
-  const Eigen::VectorXd dist = detail::nearest_distances(Pc, R);
+  const Eigen::VectorXd dist = nearest_distances(Pc, R);
   Points pred(R.rows(), 3);
   Eigen::Index k = 0;
   for (Eigen::Index i = 0; i < R.rows(); ++i)

@@ -2,16 +2,19 @@
 // uniform), FPFH, nearest neighbours and ICP. Kept in its own translation unit: PCL's features,
 // keypoints and registration headers take ~15 s and ~1 GB to compile.
 #include "nbv/parallel.hpp"
+#include "nbv/point_cloud.hpp"
 #include "nbv/symmetry.hpp"
 
 #include <pcl/features/fpfh_omp.h>
 #include <pcl/features/normal_3d_omp.h>
+#include <pcl/filters/voxel_grid.h>
 #include <pcl/kdtree/kdtree_flann.h>
 #include <pcl/keypoints/iss_3d.h>
-#include <pcl/keypoints/sift_keypoint.h>
 #include <pcl/point_cloud.h>
 #include <pcl/point_types.h>
+#include <pcl/registration/correspondence_estimation.h>
 #include <pcl/registration/icp.h>
+#include <pcl/search/kdtree.h>
 
 #include <algorithm>
 #include <cmath>
@@ -22,51 +25,175 @@
 namespace nbv::detail {
 namespace {
 
-pcl::PointCloud<pcl::PointXYZ>::Ptr to_pcl(const PointsRef& p) {
-  auto c = pcl::make_shared<pcl::PointCloud<pcl::PointXYZ>>();
-  c->resize(static_cast<std::size_t>(p.rows()));
-  for (Eigen::Index i = 0; i < p.rows(); ++i)
-    (*c)[i] = pcl::PointXYZ(float(p(i, 0)), float(p(i, 1)), float(p(i, 2)));
+/// A float PCL cloud from (N, 3) points and/or normals (pass nullptr for what PointT lacks):
+/// pcl::PointXYZ (points), pcl::Normal (normals) or pcl::PointNormal (both); curvature 0.
+template <typename PointT>
+typename pcl::PointCloud<PointT>::Ptr to_pcl(const PointsRef* points, const Points* normals) {
+  const Eigen::Index n = points ? points->rows() : normals->rows();
+  auto c = pcl::make_shared<pcl::PointCloud<PointT>>();
+  c->resize(static_cast<std::size_t>(n));
+  for (Eigen::Index i = 0; i < n; ++i) {
+    auto& q = (*c)[static_cast<std::size_t>(i)];
+    if constexpr (pcl::traits::has_xyz_v<PointT>) {
+      q.x = float((*points)(i, 0));
+      q.y = float((*points)(i, 1));
+      q.z = float((*points)(i, 2));
+    }
+    if constexpr (pcl::traits::has_normal_v<PointT>) {
+      q.normal_x = float((*normals)(i, 0));
+      q.normal_y = float((*normals)(i, 1));
+      q.normal_z = float((*normals)(i, 2));
+      q.curvature = 0.f;
+    }
+  }
   c->width = static_cast<std::uint32_t>(c->size());
   c->height = 1;
   c->is_dense = true;
   return c;
 }
 
-pcl::PointCloud<pcl::Normal>::Ptr normals_to_pcl(const Points& n) {
-  auto c = pcl::make_shared<pcl::PointCloud<pcl::Normal>>();
-  c->resize(static_cast<std::size_t>(n.rows()));
-  for (Eigen::Index i = 0; i < n.rows(); ++i) {
-    auto& q = (*c)[i];
-    q.normal_x = float(n(i, 0));
-    q.normal_y = float(n(i, 1));
-    q.normal_z = float(n(i, 2));
-    q.curvature = 0.f;
-  }
-  c->width = static_cast<std::uint32_t>(c->size());
-  c->height = 1;
-  return c;
-}
-
-pcl::PointCloud<pcl::PointNormal>::Ptr point_normals_to_pcl(const PointsRef& p, const Points& n) {
-  auto c = pcl::make_shared<pcl::PointCloud<pcl::PointNormal>>();
-  c->resize(static_cast<std::size_t>(p.rows()));
-  for (Eigen::Index i = 0; i < p.rows(); ++i) {
-    auto& q = (*c)[i];
-    q.x = float(p(i, 0));
-    q.y = float(p(i, 1));
-    q.z = float(p(i, 2));
-    q.normal_x = float(n(i, 0));
-    q.normal_y = float(n(i, 1));
-    q.normal_z = float(n(i, 2));
-    q.curvature = 0.f;
-  }
-  c->width = static_cast<std::uint32_t>(c->size());
-  c->height = 1;
-  return c;
+pcl::PointCloud<pcl::PointXYZ>::Ptr to_pcl(const PointsRef& p) {
+  return to_pcl<pcl::PointXYZ>(&p, nullptr);
 }
 
 int threads() { return std::max(1, get_num_threads()); }
+
+/// PCL's nearest-point correspondence estimation (registration/impl/correspondence_estimation.hpp)
+/// with the queries run in parallel: the same search tree, queries and distances as PCL's serial
+/// loop, kept in source order, so ICP follows exactly the same iterations.
+class ParallelCorrespondenceEstimation
+    : public pcl::registration::CorrespondenceEstimation<pcl::PointNormal, pcl::PointNormal> {
+ public:
+  using Base = pcl::registration::CorrespondenceEstimation<pcl::PointNormal, pcl::PointNormal>;
+
+  void determineCorrespondences(pcl::Correspondences& correspondences,
+                                double max_distance) override {
+    if (!initCompute()) return;
+    const double max_dist_sqr = max_distance * max_distance;
+    const auto& idx = *indices_;
+    std::vector<pcl::Correspondence> all(idx.size());
+    std::vector<char> valid(idx.size(), 0);
+    parallel_chunks(idx.size(), 512, [&](std::size_t b, std::size_t e) {
+      pcl::Indices index(1);
+      std::vector<float> distance(1);
+      for (std::size_t i = b; i < e; ++i) {
+        tree_->nearestKSearch((*input_)[idx[i]], 1, index, distance);
+        if (distance[0] > max_dist_sqr) continue;
+        all[i] = pcl::Correspondence(idx[i], index[0], distance[0]);
+        valid[i] = 1;
+      }
+    });
+    correspondences.resize(idx.size());
+    std::size_t n = 0;
+    for (std::size_t i = 0; i < idx.size(); ++i)
+      if (valid[i]) correspondences[n++] = all[i];
+    correspondences.resize(n);
+    deinitCompute();
+  }
+
+  pcl::registration::CorrespondenceEstimationBase<pcl::PointNormal, pcl::PointNormal>::Ptr clone()
+      const override {
+    return pcl::make_shared<ParallelCorrespondenceEstimation>(*this);
+  }
+};
+
+/// 3D SIFT keypoints with the curvature as intensity: pcl::SIFTKeypoint<PointNormal, ...>'s
+/// algorithm (PCL 1.13, keypoints/impl/sift_keypoint.hpp) with its per-point loops run in
+/// parallel. Every point's filter responses and extremum test are the same float operations on
+/// the same sorted neighbour lists as PCL's serial loops, so the keypoints are identical; they
+/// are returned per octave in PCL's order (point, then scale).
+std::vector<Eigen::Vector3f> sift_keypoints(const pcl::PointCloud<pcl::PointNormal>::Ptr& input,
+                                            float min_scale, int nr_octaves,
+                                            int nr_scales_per_octave, float min_contrast) {
+  std::vector<Eigen::Vector3f> out;
+  pcl::PointCloud<pcl::PointNormal>::Ptr cloud(new pcl::PointCloud<pcl::PointNormal>(*input));
+  pcl::VoxelGrid<pcl::PointNormal> voxel_grid;
+  float scale = min_scale;
+  for (int octave = 0; octave < nr_octaves; ++octave) {
+    const float s = 1.0f * scale;
+    voxel_grid.setLeafSize(s, s, s);
+    voxel_grid.setInputCloud(cloud);
+    pcl::PointCloud<pcl::PointNormal>::Ptr temp(new pcl::PointCloud<pcl::PointNormal>);
+    voxel_grid.filter(*temp);
+    cloud = temp;
+    if (cloud->size() < 25) break;
+    pcl::search::KdTree<pcl::PointNormal> tree(true);  // sorted results, as PCL's SIFT
+    tree.setInputCloud(cloud);
+    const auto& pts = *cloud;
+    const std::size_t n = pts.size();
+
+    // Scale space: difference of Gaussian-weighted curvature averages (computeScaleSpace).
+    std::vector<float> scales(static_cast<std::size_t>(nr_scales_per_octave + 3));
+    for (int i = 0; i <= nr_scales_per_octave + 2; ++i)
+      scales[static_cast<std::size_t>(i)] =
+          scale * powf(2.0f, (1.0f * static_cast<float>(i) - 1.0f) /
+                                 static_cast<float>(nr_scales_per_octave));
+    const std::size_t nr_dog = scales.size() - 1;
+    Eigen::MatrixXf dog(static_cast<Eigen::Index>(n), static_cast<Eigen::Index>(nr_dog));
+    const float max_radius = 3.0f * scales.back();
+    parallel_chunks(n, 64, [&](std::size_t b, std::size_t e) {
+      pcl::Indices nn;
+      std::vector<float> d2;
+      for (std::size_t i = b; i < e; ++i) {
+        tree.radiusSearch(static_cast<pcl::index_t>(i), max_radius, nn, d2);
+        float response = 0.0f;
+        for (std::size_t k = 0; k < scales.size(); ++k) {
+          const float sigma_sqr = powf(scales[k], 2.0f);
+          float num = 0.0f, den = 0.0f;
+          for (std::size_t j = 0; j < nn.size(); ++j) {
+            const float value = pts[static_cast<std::size_t>(nn[j])].curvature;
+            if (d2[j] <= 9 * sigma_sqr) {
+              const float w = std::exp(-0.5f * d2[j] / sigma_sqr);
+              num += value * w;
+              den += w;
+            } else {
+              break;
+            }
+          }
+          const float previous = response;
+          response = num / den;
+          if (k > 0)
+            dog(static_cast<Eigen::Index>(i), static_cast<Eigen::Index>(k - 1)) =
+                response - previous;
+        }
+      }
+    });
+
+    // Extrema over the 25 nearest points and the adjacent scales (findScaleSpaceExtrema).
+    const int nr = static_cast<int>(nr_dog);
+    std::vector<std::vector<char>> is_extremum(n);
+    parallel_chunks(n, 64, [&](std::size_t b, std::size_t e) {
+      const int k = 25;
+      pcl::Indices nn(k);
+      std::vector<float> d2(k);
+      std::vector<float> lo(static_cast<std::size_t>(nr)), hi(static_cast<std::size_t>(nr));
+      for (std::size_t i = b; i < e; ++i) {
+        const std::size_t m = tree.nearestKSearch(static_cast<pcl::index_t>(i), k, nn, d2);
+        for (int sc = 0; sc < nr; ++sc) {
+          lo[sc] = std::numeric_limits<float>::max();
+          hi[sc] = -std::numeric_limits<float>::max();
+          for (std::size_t j = 0; j < m; ++j) {
+            const float d = dog(nn[j], sc);
+            lo[sc] = (std::min)(lo[sc], d);
+            hi[sc] = (std::max)(hi[sc], d);
+          }
+        }
+        for (int sc = 1; sc < nr - 1; ++sc) {
+          const float val = dog(static_cast<Eigen::Index>(i), sc);
+          if (!(std::abs(val) >= min_contrast)) continue;
+          const bool minimum = val == lo[sc] && val < lo[sc - 1] && val < lo[sc + 1];
+          const bool maximum = val == hi[sc] && val > hi[sc - 1] && val > hi[sc + 1];
+          if (minimum || maximum) is_extremum[i].push_back(char(1));
+        }
+      }
+    });
+    for (std::size_t i = 0; i < n; ++i)
+      for (std::size_t r = 0; r < is_extremum[i].size(); ++r)
+        out.emplace_back(pts[i].x, pts[i].y, pts[i].z);
+    scale *= 2;
+  }
+  return out;
+}
 
 /// Index of the nearest point of `tree` to each query position (unique, ascending).
 std::vector<int> snap(const pcl::KdTreeFLANN<pcl::PointXYZ>& tree,
@@ -129,17 +256,10 @@ std::vector<int> detect_keypoints(const PointsRef& points, const NormalsAndCurva
 
   switch (o.keypoints) {
     case SymmetryKeypoints::Sift: {
-      auto pn = point_normals_to_pcl(points, nc.normals);
+      auto pn = to_pcl<pcl::PointNormal>(&points, &nc.normals);
       for (Eigen::Index i = 0; i < n; ++i) (*pn)[i].curvature = float(nc.curvature[i]);
-      // SIFTKeypointFieldSelector<PointNormal> reads the curvature as the intensity.
-      pcl::SIFTKeypoint<pcl::PointNormal, pcl::PointWithScale> sift;
-      sift.setSearchMethod(pcl::make_shared<pcl::search::KdTree<pcl::PointNormal>>());
-      sift.setScales(float(o.sift_min_scale), o.sift_octaves, o.sift_scales_per_octave);
-      sift.setMinimumContrast(float(o.sift_min_contrast));
-      sift.setInputCloud(pn);
-      pcl::PointCloud<pcl::PointWithScale> kp;
-      sift.compute(kp);
-      for (const auto& q : kp) where.emplace_back(q.x, q.y, q.z);
+      where = sift_keypoints(pn, float(o.sift_min_scale), o.sift_octaves, o.sift_scales_per_octave,
+                             float(o.sift_min_contrast));
       break;
     }
     case SymmetryKeypoints::Iss: {
@@ -159,7 +279,7 @@ std::vector<int> detect_keypoints(const PointsRef& points, const NormalsAndCurva
     }
     case SymmetryKeypoints::Uniform: {
       // One keypoint per cell: the point nearest the cell's centroid (cells in first-seen order).
-      const Points cent = voxel_downsample(points, o.uniform_leaf);
+      const Points cent = voxelgrid_sampling(points, o.uniform_leaf);
       for (Eigen::Index i = 0; i < cent.rows(); ++i)
         where.emplace_back(float(cent(i, 0)), float(cent(i, 1)), float(cent(i, 2)));
       break;
@@ -173,7 +293,7 @@ Fpfh compute_fpfh(const PointsRef& points, const Points& normals, const std::vec
   Fpfh out(static_cast<Eigen::Index>(indices.size()), 33);
   if (indices.empty()) return out;
   auto cloud = to_pcl(points);
-  auto nrm = normals_to_pcl(normals);
+  auto nrm = to_pcl<pcl::Normal>(nullptr, &normals);
   pcl::FPFHEstimationOMP<pcl::PointXYZ, pcl::Normal, pcl::FPFHSignature33> fpfh(
       static_cast<unsigned>(threads()));
   fpfh.setInputCloud(cloud);
@@ -191,55 +311,14 @@ Fpfh compute_fpfh(const PointsRef& points, const Points& normals, const std::vec
   return out;
 }
 
-struct NearestNeighbors::Impl {
-  Points targets;
-  pcl::KdTreeFLANN<pcl::PointXYZ> tree;
-};
-
-NearestNeighbors::NearestNeighbors(const PointsRef& targets) : impl_(std::make_unique<Impl>()) {
-  impl_->targets = targets;
-  if (targets.rows() > 0) impl_->tree.setInputCloud(to_pcl(targets));
-}
-
-NearestNeighbors::~NearestNeighbors() = default;
-
-const Points& NearestNeighbors::targets() const { return impl_->targets; }
-
-std::pair<Eigen::VectorXi, Eigen::VectorXd> NearestNeighbors::query(
-    const PointsRef& queries) const {
-  std::pair<Eigen::VectorXi, Eigen::VectorXd> out{
-      Eigen::VectorXi::Constant(queries.rows(), -1),
-      Eigen::VectorXd::Constant(queries.rows(), std::numeric_limits<double>::infinity())};
-  if (impl_->targets.rows() == 0 || queries.rows() == 0) return out;
-  const auto& tree = impl_->tree;
-  const auto& targets = impl_->targets;
-  parallel_chunks(static_cast<std::size_t>(queries.rows()), 256, [&](std::size_t b, std::size_t e) {
-    pcl::Indices idx(1);
-    std::vector<float> d2(1);
-    for (std::size_t i = b; i < e; ++i) {
-      const auto k = static_cast<Eigen::Index>(i);
-      const auto q = queries.row(k);
-      if (tree.nearestKSearch(pcl::PointXYZ(float(q[0]), float(q[1]), float(q[2])), 1, idx, d2) ==
-          1) {
-        out.first[k] = idx[0];
-        out.second[k] = (targets.row(idx[0]) - q).norm();  // exact, in double precision
-      }
-    }
-  });
-  return out;
-}
-
-Eigen::VectorXd nearest_distances(const PointsRef& targets, const PointsRef& queries) {
-  return NearestNeighbors(targets).query(queries).second;
-}
-
 IcpResult icp(const PointsRef& source, const Points& source_normals, const PointsRef& target,
               const Points& target_normals, const SymmetricPredictionOptions& o) {
   IcpResult r;
-  auto src = point_normals_to_pcl(source, source_normals);
-  auto tgt = point_normals_to_pcl(target, target_normals);
+  auto src = to_pcl<pcl::PointNormal>(&source, &source_normals);
+  auto tgt = to_pcl<pcl::PointNormal>(&target, &target_normals);
   pcl::PointCloud<pcl::PointNormal> aligned;
   auto run = [&](pcl::IterativeClosestPoint<pcl::PointNormal, pcl::PointNormal>& icp) {
+    icp.setCorrespondenceEstimation(pcl::make_shared<ParallelCorrespondenceEstimation>());
     icp.setInputSource(src);
     icp.setInputTarget(tgt);
     icp.setMaxCorrespondenceDistance(o.icp_max_correspondence);

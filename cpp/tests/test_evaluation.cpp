@@ -1,6 +1,6 @@
 // Edge cases of the point-cloud and evaluation core: voxel key arithmetic (floor, not
-// truncation; packing limits), the voxel hash map, the surface cloud's centroids, the kd-tree
-// against brute force, LZF decoding, and evaluation of empty / identical clouds.
+// truncation; packing limits), the voxel hash map, the surface cloud's centroids, LZF decoding, and
+// evaluation of empty / identical clouds.
 #include "nbv/evaluation.hpp"
 #include "nbv/point_cloud.hpp"
 
@@ -112,37 +112,6 @@ TEST(SurfaceCloud, NonFiniteInputChangesNothing) {
   EXPECT_THROW(SurfaceCloud{bad}, std::invalid_argument);
   bad.voxel_size = -1;
   EXPECT_THROW(SurfaceCloud{bad}, std::invalid_argument);
-}
-
-TEST(KdTree, MatchesBruteForce) {
-  std::mt19937_64 rng(7);
-  std::normal_distribution<double> N(0.0, 1.0);
-  Points t(2000, 3), q(300, 3);
-  for (Eigen::Index i = 0; i < t.rows(); ++i) t.row(i) << N(rng), N(rng), 0.1 * N(rng);
-  t.bottomRows(100).setConstant(0.25);  // duplicates
-  for (Eigen::Index i = 0; i < q.rows(); ++i) q.row(i) << 3 * N(rng), 3 * N(rng), 3 * N(rng);
-  const KdTree tree(t, 4);
-  Eigen::Index hint = -1;
-  for (Eigen::Index i = 0; i < q.rows(); ++i) {
-    const double best = (t.rowwise() - q.row(i)).rowwise().squaredNorm().minCoeff();
-    const auto r = tree.nearest(q.row(i).transpose(), hint);
-    ASSERT_GE(r.first, 0);
-    EXPECT_DOUBLE_EQ(r.second, best);
-    EXPECT_DOUBLE_EQ((t.row(r.first) - q.row(i)).squaredNorm(), best);
-    hint = (i % 3) ? r.first : (i * 7) % t.rows();  // a good or an arbitrary hint
-  }
-  EXPECT_TRUE(tree.points().isApprox(t));
-}
-
-TEST(KdTree, EmptyAndSinglePoint) {
-  const KdTree empty(Points(0, 3));
-  EXPECT_EQ(empty.nearest(Eigen::Vector3d::Zero()).first, -1);
-  EXPECT_TRUE(std::isinf(empty.nearest(Eigen::Vector3d::Zero()).second));
-  Points one(1, 3);
-  one << 1, 2, 3;
-  const KdTree single(one);
-  EXPECT_EQ(single.nearest(Eigen::Vector3d::Zero()).first, 0);
-  EXPECT_DOUBLE_EQ(single.nearest(Eigen::Vector3d::Zero()).second, 14.0);
 }
 
 TEST(Lzf, DecodesLiteralsAndOverlappingBackReferences) {

@@ -51,28 +51,41 @@ def _py_field(value):
     raise TypeError(f"no configuration type for a C++ option value {value!r}")
 
 
-def cpp_section(name: str, options_cls, doc: str, only=None, before=(), after=()):
+def cpp_section(name: str, options_cls, doc: str, only=None, before=(), after=(), extra=()):
     """A frozen config dataclass whose keys mirror a bound C++ options class: their names,
     defaults and documentation come from it (``options_cls.fields()``); `only` keeps some of them.
-    `before` / `after`: Python-only keys as (name, type, default, doc). The class gets
-    ``FIELD_DOCS`` (key -> documentation), ``OPTIONS`` (the bound class) and ``options()`` (the C++
-    options built from this section)."""
-    defaults = options_cls()
-    cpp_fields = [f for f in options_cls.fields() if only is None or f in only]
+    `before` / `after`: Python-only keys as (name, type, default, doc). `extra`: more bound
+    options classes whose every field is a key too (after the first class's; names must not
+    clash). The class gets ``FIELD_DOCS`` (key -> documentation), ``OPTIONS`` (the first bound
+    class), ``OPTIONS_ALL`` (all of them), ``options()`` (the first C++ options built from this
+    section) and ``options_for(cls)`` (any of them)."""
+    classes = (options_cls,) + tuple(extra)
+    keys = {
+        cls: [f for f in cls.fields() if cls is not options_cls or only is None or f in only]
+        for cls in classes
+    }
     docs, spec = {}, []
     for fname, tp, default, fdoc in before:
         spec.append((fname, tp, field(default=default)))
         docs[fname] = fdoc
-    for fname in cpp_fields:
-        tp, default = _py_field(getattr(defaults, fname))
-        spec.append((fname, tp, field(default=default)))
-        docs[fname] = options_cls.fields()[fname]
+    for cls in classes:
+        defaults = cls()
+        for fname in keys[cls]:
+            if fname in docs:
+                raise ValueError(f"{name}: key {fname!r} is set twice")
+            tp, default = _py_field(getattr(defaults, fname))
+            spec.append((fname, tp, field(default=default)))
+            docs[fname] = cls.fields()[fname]
     for fname, tp, default, fdoc in after:
         spec.append((fname, tp, field(default=default)))
         docs[fname] = fdoc
+    cpp_fields = [f for cls in classes for f in keys[cls]]
+
+    def options_for(self, cls):
+        return cls(**{f: getattr(self, f) for f in keys[cls]})
 
     def options(self):
-        return options_cls(**{f: getattr(self, f) for f in cpp_fields})
+        return options_for(self, options_cls)
 
     return make_dataclass(
         name,
@@ -82,7 +95,9 @@ def cpp_section(name: str, options_cls, doc: str, only=None, before=(), after=()
             "__doc__": doc,
             "FIELD_DOCS": docs,
             "OPTIONS": options_cls,
+            "OPTIONS_ALL": classes,
             "options": options,
+            "options_for": options_for,
             "CPP_FIELDS": tuple(cpp_fields),
             "__module__": __name__,
         },
@@ -306,30 +321,21 @@ class ProfilingConfig:
     return_to_start: bool = False  # fly back to the start pose before the camera stage
 
 
-@dataclass(frozen=True)
-class SymmetryConfig:
+SymmetryConfig = cpp_section(
+    "SymmetryConfig",
+    _core.SymmetryOptions,
     """Symmetry detection and prediction (sec. 3.2.2), owned by nbvkit.symmetry.
 
-    The defaults equal nbvkit.symmetry.SymmetryOptions() / SymmetricPredictionOptions() (a test
-    checks)."""
-
-    mode: str = "predict"  # none | report (detect, write nothing) | predict (into the map)
-    refresh_every: int = 10  # views between re-predictions from the camera cloud (0: never)
-    prediction_probability: float = 0.6  # paper (authors' code: 0.7)
-    keypoints: str = "sift"  # "sift" (authors: 3D SIFT on curvature), "iss" or "uniform"
-    voxel_size: float = 0.2  # m, downsampling before detection (2x the profile's voxel: measured)
-    icp_voxel_size: float = 0.1  # m, downsampling before ICP (the profile's laser voxel)
-    normal_k: int = 50  # neighbours for normals (authors: K = 50)
-    fpfh_radius: float = 1.0  # m, FPFH support radius
-    mirror_descriptors: bool = True  # match against mirrored FPFH (False: authors' plain match)
-    bandwidth: float = 0.08  # mean shift: |dn| (~rad) and d-offset / cloud RMS radius
-    mean_shift_seeds: int = 50  # (authors: 50)
-    candidate_modes: int = 10  # modes refined and scored; the most mirror-consistent wins
-    min_support: int = 8  # pairs voting for the plane, at least
-    min_confidence: float = 0.7  # mirror consistency of surfaces facing the plane, at least
-    icp: bool = True  # refine the plane by ICP of the reflection onto the profile (paper)
-    icp_max_correspondence: float = 1.0  # m (authors: 1)
-    explained_tolerance: float = 0.2  # m, reflections this near an observed point: not predicted
+    The mission's keys, then every option of detect_symmetry (SymmetryOptions) and of
+    predict_symmetric (SymmetricPredictionOptions), named, defaulted and documented by the C++
+    structs.""",
+    before=[
+        ("mode", str, "predict", "none | report (detect, write nothing) | predict (into the map)"),
+        ("refresh_every", int, 10, "views between re-predictions from the camera cloud (0: never)"),
+        ("prediction_probability", float, 0.6, "of a predicted cell (paper; authors' code: 0.7)"),
+    ],
+    extra=(_core.SymmetricPredictionOptions,),
+)
 
 
 @dataclass(frozen=True)
@@ -663,6 +669,7 @@ _NONNEG = {
     "report.density_quantile",
     "report.trim_distance",
 }
+_INF_OK = {"symmetry.max_descriptor_distance"}  # inf: no limit
 _TRIPLES = {
     "camera.mount_xyz",
     "camera.mount_rpy_deg",
@@ -681,7 +688,7 @@ def _validate(obj, prefix: str) -> None:
             raise ValueError(
                 f"config key {key!r} must be one of {', '.join(_CHOICES[key])}; got {v!r}"
             )
-        if isinstance(v, float) and not math.isfinite(v):
+        if isinstance(v, float) and not math.isfinite(v) and not (key in _INF_OK and v > 0):
             raise ValueError(f"config key {key!r} must be finite, got {v!r}")
         if key in _POSITIVE and v is not None and not v > 0:
             raise ValueError(f"config key {key!r} must be positive, got {v!r}")
@@ -691,7 +698,8 @@ def _validate(obj, prefix: str) -> None:
             raise ValueError(f"config key {key!r} must have 3 numbers, got {list(v)!r}")
     if hasattr(obj, "OPTIONS"):  # a section of C++ options: their own checks, named here
         try:
-            obj.options()
+            for cls in obj.OPTIONS_ALL:
+                obj.options_for(cls)
         except (ValueError, TypeError) as e:
             raise ValueError(f"config section {prefix.rstrip('.')!r}: {e}") from None
     if prefix == "placement." and not (obj.standoffs and all(0 < x <= 1 for x in obj.standoffs)):

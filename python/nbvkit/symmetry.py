@@ -60,23 +60,21 @@ canonical_plane = _core.canonical_plane
 mirror_fpfh = _core.mirror_fpfh
 
 
-def _names(options_type) -> list[str]:
-    return sorted(n for n in dir(options_type()) if not n.startswith("_"))
+def _options_doc(options_type) -> str:
+    """The options' documentation, generated from the bound C++ struct (its one source)."""
+    defaults = options_type()
+    return "\n".join(
+        f"    - ``{name}`` = {getattr(defaults, name)!r}: {doc}"
+        for name, doc in options_type.fields().items()
+    )
 
 
-def detect_symmetry(points, **options) -> SymmetryResult:
+def detect_symmetry(points, options=None, **overrides) -> SymmetryResult:
     """Detects the dominant mirror plane of a point cloud.
 
-    points: (N, 3) float64, any frame, any pose (N >= 10). options (keyword; None keeps the
-    default), see the module docstring for what each does; defaults in ``SymmetryOptions()``:
-    voxel_size 0.2 m (0 disables), normal_k 50, normal_radius 0 (use K), keypoints "sift" |
-    "iss" | "uniform", sift_min_scale 0.1 m, sift_octaves 3, sift_scales_per_octave 4,
-    sift_min_contrast 1e-4, iss_salient_radius 0.6 m, iss_non_max_radius 0.4 m, uniform_leaf
-    0.5 m, fpfh_radius 1.0 m, mirror_descriptors True, max_descriptor_distance inf (authors: 10),
-    min_pair_distance 0.5 m, max_normal_angle_deg 25, matches_per_keypoint 1, bandwidth 0.08,
-    mean_shift_seeds 50, mean_shift_max_iterations 100, candidate_modes 10, refine_iterations 10,
-    refine_max_distance 1.0 m, refine_max_points 4000, consistency_radius 0.5 m,
-    consistency_tolerance 0.1 m, facing_angle_deg 60, min_support 8, min_confidence 0.7.
+    points: (N, 3) float64, any frame, any pose (N >= 10). options: a :class:`SymmetryOptions`, a
+    dict of its fields or None (the defaults); keyword overrides are applied on top (None keeps
+    the value). See the module docstring for the pipeline; the options are listed below.
 
     Returns a :class:`SymmetryResult`: ``plane`` (4,) [nx, ny, nz, d] with unit normal n and
     n . p = d on the plane (sign: the largest |n_i| positive), ``support`` (pairs voting for it),
@@ -89,22 +87,21 @@ def detect_symmetry(points, **options) -> SymmetryResult:
     ``support`` 0. The plane is reported even when not accepted (for diagnostics): use it only if
     ``accepted``.
 
-    Raises ValueError for a wrong shape, NaN/inf, fewer than 10 points or a bad option. Runs
-    without the GIL; deterministic (the same input gives the same plane).
+    Raises ValueError for a wrong shape, NaN/inf, fewer than 10 points or a bad option (an
+    unknown name, a wrong type or a bad value). Runs without the GIL; deterministic (the same
+    input gives the same plane).
+
+    Options (``SymmetryOptions.fields()``; default, then meaning):
     """
-    return _core.detect_symmetry(points, **options)
+    return _core.detect_symmetry(points, options, **overrides)
 
 
-def predict_symmetric(points, plane, icp: bool = True, **options) -> SymmetricPrediction:
+def predict_symmetric(points, plane, options=None, **overrides) -> SymmetricPrediction:
     """Predicts the unobserved mirror half of a cloud.
 
     points: (N, 3) float64 observed points (N >= 10); plane: [nx, ny, nz, d] (any scale and sign;
-    normalised). icp: refine the plane by ICP of the reflection onto the cloud first (the paper's
-    step 7). options (defaults in ``SymmetricPredictionOptions()``): voxel_size 0.1 m (ICP runs on
-    the downsampled cloud), normal_k 50, icp_point_to_plane True (False: point-to-point),
-    icp_max_correspondence 1.0 m, icp_transformation_epsilon 1e-3, icp_fitness_epsilon 1e-2,
-    icp_max_iterations 50, max_correction_angle_deg 15 and max_correction_offset 2.0 m (larger ICP
-    corrections are rejected and the given plane kept), explained_tolerance 0.2 m.
+    normalised). options: a :class:`SymmetricPredictionOptions`, a dict of its fields or None;
+    keyword overrides on top (e.g. ``icp=False`` skips the paper's step 7, the ICP refinement).
 
     Returns a :class:`SymmetricPrediction` that unpacks as ``(predicted, plane)``:
     ``predicted`` (M, 3) world-frame points = every input point reflected about the (corrected)
@@ -112,8 +109,14 @@ def predict_symmetric(points, plane, icp: bool = True, **options) -> SymmetricPr
     corrected plane; plus ``input_plane``, ``transform`` (4x4 improper isometry ICP o reflection),
     ``icp_converged``, ``icp_applied``, ``icp_fitness`` (m^2), ``residual_rotation_deg`` and
     ``timings``. Raises ValueError for bad points, a bad plane or a bad option.
+
+    Options (``SymmetricPredictionOptions.fields()``; default, then meaning):
     """
-    return _core.predict_symmetric(points, plane, icp=icp, **options)
+    return _core.predict_symmetric(points, plane, options, **overrides)
+
+
+detect_symmetry.__doc__ += "\n" + _options_doc(SymmetryOptions) + "\n"
+predict_symmetric.__doc__ += "\n" + _options_doc(SymmetricPredictionOptions) + "\n"
 
 
 def mean_shift_planes(
@@ -162,30 +165,14 @@ def _finite_or_none(x) -> Any:
 
 
 def detection_options(cfg) -> dict:
-    """detect_symmetry keyword options from a nbvkit.config.SymmetryConfig."""
-    return dict(
-        voxel_size=cfg.voxel_size,
-        normal_k=cfg.normal_k,
-        keypoints=cfg.keypoints,
-        fpfh_radius=cfg.fpfh_radius,
-        mirror_descriptors=cfg.mirror_descriptors,
-        bandwidth=cfg.bandwidth,
-        mean_shift_seeds=cfg.mean_shift_seeds,
-        candidate_modes=cfg.candidate_modes,
-        min_support=cfg.min_support,
-        min_confidence=cfg.min_confidence,
-    )
+    """detect_symmetry keyword options (every SymmetryOptions field) from a SymmetryConfig."""
+    return cfg.options_for(SymmetryOptions).to_dict()
 
 
 def prediction_options(cfg) -> dict:
-    """predict_symmetric keyword options (icp included) from a nbvkit.config.SymmetryConfig."""
-    return dict(
-        icp=cfg.icp,
-        voxel_size=cfg.icp_voxel_size,
-        normal_k=cfg.normal_k,
-        icp_max_correspondence=cfg.icp_max_correspondence,
-        explained_tolerance=cfg.explained_tolerance,
-    )
+    """predict_symmetric keyword options (every SymmetricPredictionOptions field) from a
+    SymmetryConfig."""
+    return cfg.options_for(SymmetricPredictionOptions).to_dict()
 
 
 def run_symmetry_prediction(mission, write_map: bool = True) -> dict:

@@ -130,6 +130,36 @@ class VoxelHashMap {
   std::size_t mask_ = 0, size_ = 0;
 };
 
+// ---------------------------------------------------------------------------- voxel centroids
+
+/// Voxel-grid downsampling by centroids, incrementally (the one implementation behind
+/// SurfaceCloud and voxelgrid_sampling; small_gicp's voxelgrid_sampling is the model). Each voxel
+/// keeps the running sum and count of the points added to it; centroids come out in the order
+/// their voxels were first seen, so the result is deterministic for a given sequence of points.
+class VoxelCentroids {
+ public:
+  /// Adds points[i] to the voxel keys[i] (packed keys, e.g. try_voxel_key); points whose key is
+  /// `skip` are left out. Returns the number of new voxels.
+  std::size_t add(const PointsRef& points, const std::vector<std::uint64_t>& keys,
+                  std::uint64_t skip = kEmptyVoxelKey);
+  /// (K, 3) centroids in voxel creation order.
+  Points centroids() const;
+  /// (K,) number of points in each voxel.
+  const std::vector<std::uint32_t>& counts() const { return count_; }
+  std::size_t size() const { return count_.size(); }
+  void clear();
+
+ private:
+  VoxelHashMap index_;
+  std::vector<Eigen::Vector3d> sum_;
+  std::vector<std::uint32_t> count_;
+};
+
+/// Voxel-grid centroids of points (N, 3): one point per cell floor(p / voxel_size) (grid anchored
+/// at the origin), in the order the cells are first seen. Throws std::invalid_argument for a
+/// non-positive voxel size, non-finite points or a point too far from the origin for the grid.
+Points voxelgrid_sampling(const PointsRef& points, double voxel_size);
+
 // ---------------------------------------------------------------------------- surface cloud
 
 struct SurfaceCloudOptions {
@@ -165,16 +195,14 @@ class SurfaceCloud {
   Points points() const;
   /// (K,) number of registered points that fell in each voxel.
   Eigen::Matrix<std::int64_t, Eigen::Dynamic, 1> counts() const;
-  std::size_t size() const { return count_.size(); }
+  std::size_t size() const { return voxels_.size(); }
   /// Total number of points registered (after ground removal and cropping).
   std::uint64_t num_registered() const { return registered_; }
   void clear();
 
  private:
   SurfaceCloudOptions opt_;
-  VoxelHashMap index_;
-  std::vector<Eigen::Vector3d> sum_;
-  std::vector<std::uint32_t> count_;
+  VoxelCentroids voxels_;
   std::uint64_t registered_ = 0;
 };
 

@@ -13,6 +13,8 @@
 #pragma once
 
 #include "nbv/common.hpp"
+#include "nbv/kdtree.hpp"
+#include "nbv/options.hpp"
 
 #include <cstdint>
 #include <limits>
@@ -41,91 +43,83 @@ enum class SymmetryKeypoints {
 SymmetryKeypoints symmetry_keypoints_from_string(const std::string& name);
 std::string to_string(SymmetryKeypoints k);
 
+/// The options of detect_symmetry, by pipeline step (see nbv/options.hpp for the X-macro).
+#define NBV_SYMMETRY_OPTIONS(X)                                                                   \
+  /* -- 1. preprocessing */                                                                       \
+  X(double, voxel_size, 0.2,                                                                      \
+    "voxel-grid cell for downsampling the input, m (centroid per cell, grid anchored at the "     \
+    "world origin); 0 disables. 0.2 m, twice the profile's laser voxel: measured on laser "       \
+    "profiles of the airliner and the twinjet it is 2-4x faster than 0.1 m with the same plane "  \
+    "accuracy and confidence, and finds the plane in more sparse profiles")                       \
+  X(int, normal_k, 50, "neighbours for the normal and curvature estimate (authors: K = 50)")      \
+  X(double, normal_radius, 0.0, "> 0: radius search of this many m for the normals instead of K") \
+  /* -- 2. keypoints */                                                                           \
+  X(SymmetryKeypoints, keypoints, SymmetryKeypoints::Sift,                                        \
+    "'sift' (3D SIFT on the curvature, the authors'), 'iss' (intrinsic shape signatures) or "     \
+    "'uniform' (one keypoint per cell of a uniform_leaf grid, the point nearest its centroid)")   \
+  X(double, sift_min_scale, 0.1, "SIFT: smallest scale, m (authors)")                             \
+  X(int, sift_octaves, 3, "SIFT: octaves (authors)")                                              \
+  X(int, sift_scales_per_octave, 4, "SIFT: scales per octave (authors)")                          \
+  X(double, sift_min_contrast, 1e-4, "SIFT: minimum contrast (authors)")                          \
+  X(double, iss_salient_radius, 0.6, "ISS: salient radius, m")                                    \
+  X(double, iss_non_max_radius, 0.4, "ISS: non-maximum suppression radius, m")                    \
+  X(double, uniform_leaf, 0.5, "'uniform' keypoints: grid cell, m")                               \
+  /* -- 3. descriptors */                                                                         \
+  X(double, fpfh_radius, 1.0,                                                                     \
+    "FPFH support radius, m (should exceed the normals' neighbourhood, ~0.8 m at K = 50 on the "  \
+    "0.2 m grid; 0.8 and 1.5 m measured about as good)")                                          \
+  /* -- 4. matching */                                                                            \
+  X(bool, mirror_descriptors, true,                                                               \
+    "compare a keypoint's FPFH with the mirrored FPFH of the others (FPFH is not "                \
+    "mirror-invariant, see mirror_fpfh); false: with the plain FPFH (the authors' code)")         \
+  X(double, max_descriptor_distance, std::numeric_limits<double>::infinity(),                     \
+    "pairs whose descriptor distance (L2 over the 33 bins, each sub-histogram sums to 100) "      \
+    "exceeds this are dropped (authors: 10; inf keeps every best match)")                         \
+  X(double, min_pair_distance, 0.5,                                                               \
+    "pairs closer than this, m, are not candidates (a point is its own mirror image on the "      \
+    "plane; close pairs give ill-defined bisector normals)")                                      \
+  X(double, max_normal_angle_deg, 25.0,                                                           \
+    "the normals of a pair must be mirror images about the pair's bisector plane within this "    \
+    "angle, degrees (sign-agnostic); 180 disables the check")                                     \
+  X(int, matches_per_keypoint, 1,                                                                 \
+    "matches kept per keypoint: its most similar candidates (1: the paper's 'the keypoint with "  \
+    "the most similar features')")                                                                \
+  /* -- 5. mean shift over planes */                                                              \
+  X(double, bandwidth, 0.08,                                                                      \
+    "mean-shift flat-kernel bandwidth in plane space: |n_a - n_b| (about the angle in radians) "  \
+    "with the offset difference divided by the cloud's RMS radius (independent of the "           \
+    "structure's size and position), in (0, 1)")                                                  \
+  X(int, mean_shift_seeds, 50,                                                                    \
+    "mean-shift seeds (authors: 50): the pair planes of highest vote density, one bandwidth "     \
+    "apart")                                                                                      \
+  X(int, mean_shift_max_iterations, 100, "mean-shift iterations per seed, at most")               \
+  X(int, candidate_modes, 10,                                                                     \
+    "modes refined and scored (those with at least min_support, and always the first); the one "  \
+    "of highest confidence wins. 1: the mode of most support, as the paper")                      \
+  /* -- 6. refinement, confidence and acceptance */                                               \
+  X(int, refine_iterations, 10,                                                                   \
+    "Gauss-Newton iterations of reflective point-to-plane ICP refining a mode (0 disables): "     \
+    "reflections are paired with their nearest observed point within a radius shrinking x0.7 "    \
+    "per iteration from refine_max_distance to consistency_radius")                               \
+  X(double, refine_max_distance, 1.0, "refinement's first pairing radius, m")                     \
+  X(int, refine_max_points, 4000,                                                                 \
+    "candidates are refined and scored on an evenly strided subset of at most this many points; " \
+    "the winner is then refined (3 more iterations) and scored on every point")                   \
+  X(double, consistency_radius, 0.5,                                                              \
+    "a reflected point is consistent when its nearest observed point q is within this many m "    \
+    "and it lies within consistency_tolerance of q's tangent plane (point-to-plane: a laser "     \
+    "profile samples surfaces in stripes)")                                                       \
+  X(double, consistency_tolerance, 0.1, "see consistency_radius, m")                              \
+  X(double, facing_angle_deg, 60.0,                                                               \
+    "only points whose normal is within this angle, degrees (sign-agnostic), of the plane's "     \
+    "normal count towards the confidence: a surface perpendicular to a plane maps onto itself, "  \
+    "which is no evidence of symmetry. 90 counts every point")                                    \
+  X(int, min_support, 8, "pairs voting for the dominant plane, at least")                         \
+  X(double, min_confidence, 0.7,                                                                  \
+    "mirror consistency of the surfaces facing the plane, at least (SymmetryResult.confidence)")
+
 struct SymmetryOptions {
-  // -- 1. preprocessing
-  /// Voxel-grid cell for downsampling the input, metres (centroid per cell, grid anchored at
-  /// the world origin); 0 disables. 0.2 m, twice the profile's laser voxel: measured on laser
-  /// profiles of the airliner and the twinjet it is 2-4x faster than 0.1 m with the same plane
-  /// accuracy and confidence, and finds the plane in more sparse profiles.
-  double voxel_size = 0.2;
-  /// Neighbours for the normal and curvature estimate (authors: K = 50).
-  int normal_k = 50;
-  /// > 0: radius search of this many metres for the normals instead of K nearest.
-  double normal_radius = 0.0;
-
-  // -- 2. keypoints
-  SymmetryKeypoints keypoints = SymmetryKeypoints::Sift;
-  double sift_min_scale = 0.1;      ///< metres (authors)
-  int sift_octaves = 3;             ///< (authors)
-  int sift_scales_per_octave = 4;   ///< (authors)
-  double sift_min_contrast = 1e-4;  ///< (authors)
-  double iss_salient_radius = 0.6;  ///< metres
-  double iss_non_max_radius = 0.4;  ///< metres
-  double uniform_leaf = 0.5;        ///< metres, the "uniform" keypoints' grid cell
-
-  // -- 3. descriptors
-  /// FPFH support radius, metres (should exceed the normals' neighbourhood, ~0.8 m at K = 50
-  /// on the 0.2 m grid; 0.8 and 1.5 m measured about as good).
-  double fpfh_radius = 1.0;
-
-  // -- 4. matching
-  /// Compare a keypoint's FPFH with the *mirrored* FPFH of the others (true; FPFH is not
-  /// mirror-invariant, see mirror_fpfh) or with the plain FPFH (false, the authors' code).
-  bool mirror_descriptors = true;
-  /// Pairs whose descriptor distance (L2 over the 33 bins, each sub-histogram sums to 100)
-  /// exceeds this are dropped. Authors: 10; inf keeps every best match.
-  double max_descriptor_distance = std::numeric_limits<double>::infinity();
-  /// Pairs closer than this (metres) are not candidates (a point is its own mirror image on
-  /// the plane; close pairs give ill-defined bisector normals).
-  double min_pair_distance = 0.5;
-  /// The normals of a pair must be mirror images about the pair's bisector plane within this
-  /// angle, degrees (sign-agnostic); 180 disables the check.
-  double max_normal_angle_deg = 25.0;
-  /// Matches kept per keypoint: its `matches_per_keypoint` most similar candidates (1: the
-  /// paper's "the keypoint with the most similar features").
-  int matches_per_keypoint = 1;
-
-  // -- 5. mean shift over planes
-  /// Flat-kernel bandwidth in plane space: |n_a - n_b| (about the angle in radians) combined
-  /// with the offset difference divided by the cloud's scale (RMS distance of the points from
-  /// their centroid), so the bandwidth does not depend on the structure's size or position.
-  double bandwidth = 0.08;
-  /// Seeds (authors: 50): the pair planes of highest vote density, at least one bandwidth apart.
-  int mean_shift_seeds = 50;
-  int mean_shift_max_iterations = 100;
-  /// Modes checked: the `candidate_modes` modes of most support (those with at least
-  /// min_support, and always the first) are refined and scored, and the one of highest
-  /// confidence wins. 1: the mode of most support, as the paper.
-  int candidate_modes = 10;
-
-  // -- 6. refinement, confidence and acceptance
-  /// Gauss-Newton iterations of reflective point-to-plane ICP refining the mean-shift plane
-  /// (0 disables): reflect the points, pair each reflection with its nearest observed point
-  /// within a radius shrinking (x0.7 per iteration) from refine_max_distance to
-  /// consistency_radius, and minimise the sum of squared distances from the reflections to the
-  /// tangent planes of their partners over the plane's 3 degrees of freedom.
-  int refine_iterations = 10;
-  double refine_max_distance = 1.0;  ///< metres
-  /// Candidates are refined and scored on an evenly strided subset of at most this many points;
-  /// the winner is then refined (3 more iterations) and scored on every point.
-  int refine_max_points = 4000;
-  /// A reflected point is consistent when its nearest observed point q is within
-  /// consistency_radius (metres) and it lies within consistency_tolerance (metres) of q's
-  /// tangent plane. Point-to-plane, because a laser profile samples surfaces in stripes (one
-  /// per scan) and a reflected stripe falls between the stripes of the other side.
-  double consistency_radius = 0.5;
-  double consistency_tolerance = 0.1;
-  /// Only points whose normal is within this angle (degrees, sign-agnostic) of the plane's
-  /// normal count towards the confidence: a surface perpendicular to a plane maps onto itself
-  /// under the reflection (the walls of any box or extrusion, for every plane across them), so
-  /// its consistency is no evidence of symmetry; a surface facing the plane must map onto
-  /// another surface. 90 counts every point.
-  double facing_angle_deg = 60.0;
-  /// Minimum number of pairs voting for the dominant plane.
-  int min_support = 8;
-  /// Minimum confidence (mirror consistency, see SymmetryResult::confidence).
-  double min_confidence = 0.7;
-
+  NBV_SYMMETRY_OPTIONS(NBV_DECLARE_OPTION)
   /// Throws std::invalid_argument naming the first bad field.
   void validate() const;
 };
@@ -194,25 +188,32 @@ Eigen::Matrix<bool, Eigen::Dynamic, 1> plane_votes(const Planes& planes,
 
 // ---------------------------------------------------------------------------- prediction
 
-struct SymmetricPredictionOptions {
-  double voxel_size = 0.1;  ///< metres, downsampling before ICP; 0 disables
-  int normal_k = 50;        ///< neighbours for the normals of point-to-plane ICP (authors: 50)
-  bool icp = true;          ///< refine the plane by ICP of the reflection onto the cloud
-  /// true: point-to-plane ICP (pcl::IterativeClosestPointWithNormals, the authors' "ICP with
-  /// normals"); false: point-to-point (pcl::IterativeClosestPoint).
-  bool icp_point_to_plane = true;
-  double icp_max_correspondence = 1.0;       ///< metres (authors: 1)
-  double icp_transformation_epsilon = 1e-3;  ///< PCL: squared translation step, m^2 (authors: 1e-3)
-  double icp_fitness_epsilon =
-      1e-2;  ///< PCL: relative change of the mean squared error (authors: 1e-2)
-  int icp_max_iterations = 50;
-  /// ICP corrections beyond these are rejected (the input plane is kept): degrees, metres.
-  double max_correction_angle_deg = 15.0;
-  double max_correction_offset = 2.0;
-  /// A reflected point within this distance (metres) of an observed point is already explained
-  /// and is not predicted.
-  double explained_tolerance = 0.2;
+/// The options of predict_symmetric.
+#define NBV_SYMMETRIC_PREDICTION_OPTIONS(X)                                                      \
+  X(bool, icp, true, "refine the plane by ICP of the reflection onto the cloud (the paper)")     \
+  X(double, icp_voxel_size, 0.1,                                                                 \
+    "downsampling before ICP, m (the profile's laser voxel); 0 disables")                        \
+  X(int, icp_normal_k, 50, "neighbours for the normals of point-to-plane ICP (authors: 50)")     \
+  X(bool, icp_point_to_plane, true,                                                              \
+    "point-to-plane ICP (pcl::IterativeClosestPointWithNormals, the authors' 'ICP with "         \
+    "normals'); false: point-to-point (pcl::IterativeClosestPoint)")                             \
+  X(double, icp_max_correspondence, 1.0, "ICP correspondence distance, m (authors: 1)")          \
+  X(double, icp_transformation_epsilon, 1e-3,                                                    \
+    "ICP convergence: squared translation step, m^2 (authors: 1e-3)")                            \
+  X(double, icp_fitness_epsilon, 1e-2,                                                           \
+    "ICP convergence: relative change of the mean squared error (authors: 1e-2)")                \
+  X(int, icp_max_iterations, 50, "ICP iterations, at most")                                      \
+  X(double, max_correction_angle_deg, 15.0,                                                      \
+    "ICP corrections of the plane beyond this angle, degrees, are rejected (the plane is kept)") \
+  X(double, max_correction_offset, 2.0,                                                          \
+    "ICP corrections of the plane beyond this offset, m, are rejected (the plane is kept)")      \
+  X(double, explained_tolerance, 0.2,                                                            \
+    "a reflected point within this distance, m, of an observed point is already explained and "  \
+    "is not predicted")
 
+struct SymmetricPredictionOptions {
+  NBV_SYMMETRIC_PREDICTION_OPTIONS(NBV_DECLARE_OPTION)
+  /// Throws std::invalid_argument naming the first bad field.
   void validate() const;
 };
 
@@ -286,28 +287,10 @@ std::vector<int> detect_keypoints(const PointsRef& points, const NormalsAndCurva
 /// FPFH at points[indices] with every point as search surface.
 Fpfh compute_fpfh(const PointsRef& points, const Points& normals, const std::vector<int>& indices,
                   double radius);
-/// Exact nearest-neighbour queries over a fixed point set (a PCL kd-tree; parallel queries).
-class NearestNeighbors {
- public:
-  explicit NearestNeighbors(const PointsRef& targets);
-  ~NearestNeighbors();
-  NearestNeighbors(const NearestNeighbors&) = delete;
-  NearestNeighbors& operator=(const NearestNeighbors&) = delete;
-  /// (Q,) index of each query's nearest target (-1 if there is none) and (Q,) its distance
-  /// (inf if none), metres.
-  std::pair<Eigen::VectorXi, Eigen::VectorXd> query(const PointsRef& queries) const;
-  const Points& targets() const;
-
- private:
-  struct Impl;
-  std::unique_ptr<Impl> impl_;
-};
-/// (Q,) distance from each query to its nearest target (inf if no target).
-Eigen::VectorXd nearest_distances(const PointsRef& targets, const PointsRef& queries);
 /// The plane refined by reflective point-to-plane ICP (see SymmetryOptions::refine_iterations):
 /// `queries` are reflected and paired with their nearest points of `tree`, whose normals are
 /// `target_normals` (zero rows are ignored).
-Eigen::Vector4d refine_plane(const PointsRef& queries, const NearestNeighbors& tree,
+Eigen::Vector4d refine_plane(const PointsRef& queries, const KdTree& tree,
                              const Points& target_normals, const Eigen::Vector4d& plane,
                              int iterations, double max_distance, double min_distance);
 /// Mirror consistency of `points` about `plane` (see SymmetryResult::confidence).
@@ -317,7 +300,7 @@ struct Consistency {
   double facing_fraction = 0.0;  ///< facing points / points away from the plane
 };
 Consistency mirror_consistency(const PointsRef& queries, const Points& query_normals,
-                               const NearestNeighbors& tree, const Points& target_normals,
+                               const KdTree& tree, const Points& target_normals,
                                const Eigen::Vector4d& plane, double radius, double tolerance,
                                double facing_angle_deg);
 struct IcpResult {
@@ -327,8 +310,6 @@ struct IcpResult {
 };
 IcpResult icp(const PointsRef& source, const Points& source_normals, const PointsRef& target,
               const Points& target_normals, const SymmetricPredictionOptions& options);
-/// Voxel-grid centroids (cell = floor(p / leaf), deterministic order of first occurrence).
-Points voxel_downsample(const PointsRef& points, double leaf);
 }  // namespace detail
 
 }  // namespace nbv

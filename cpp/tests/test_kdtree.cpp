@@ -1,0 +1,118 @@
+// The shared nearest-neighbour index and voxel-centroid downsampling (nbv/kdtree.hpp,
+// nbv/point_cloud.hpp) against brute force.
+#include "nbv/kdtree.hpp"
+#include "nbv/point_cloud.hpp"
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <limits>
+#include <map>
+#include <random>
+#include <tuple>
+
+using namespace nbv;
+
+TEST(KdTree, MatchesBruteForce) {
+  std::mt19937_64 rng(7);
+  std::normal_distribution<double> N(0.0, 1.0);
+  Points t(2000, 3), q(300, 3);
+  for (Eigen::Index i = 0; i < t.rows(); ++i) t.row(i) << N(rng), N(rng), 0.1 * N(rng);
+  t.bottomRows(100).setConstant(0.25);  // duplicates
+  for (Eigen::Index i = 0; i < q.rows(); ++i) q.row(i) << 3 * N(rng), 3 * N(rng), 3 * N(rng);
+  const KdTree tree(t, 4);
+  Eigen::Index hint = -1;
+  for (Eigen::Index i = 0; i < q.rows(); ++i) {
+    const double best = (t.rowwise() - q.row(i)).rowwise().squaredNorm().minCoeff();
+    const auto r = tree.nearest(q.row(i).transpose(), hint);
+    ASSERT_GE(r.first, 0);
+    EXPECT_DOUBLE_EQ(r.second, best);
+    EXPECT_DOUBLE_EQ((t.row(r.first) - q.row(i)).squaredNorm(), best);
+    hint = (i % 3) ? r.first : (i * 7) % t.rows();  // a good or an arbitrary hint
+  }
+  EXPECT_TRUE(tree.points().isApprox(t));
+}
+
+TEST(KdTree, EmptyAndSinglePoint) {
+  const KdTree empty(Points(0, 3));
+  EXPECT_EQ(empty.nearest(Eigen::Vector3d::Zero()).first, -1);
+  EXPECT_TRUE(std::isinf(empty.nearest(Eigen::Vector3d::Zero()).second));
+  Points one(1, 3);
+  one << 1, 2, 3;
+  const KdTree single(one);
+  EXPECT_EQ(single.nearest(Eigen::Vector3d::Zero()).first, 0);
+  EXPECT_DOUBLE_EQ(single.nearest(Eigen::Vector3d::Zero()).second, 14.0);
+}
+
+TEST(KdTree, BatchQueriesMatchBruteForce) {
+  std::mt19937_64 rng(11);
+  std::uniform_real_distribution<double> U(-5.0, 5.0);
+  Points t(3000, 3), q(5000, 3);
+  for (Eigen::Index i = 0; i < t.rows(); ++i) t.row(i) << U(rng), U(rng), 0.2 * U(rng);
+  for (Eigen::Index i = 0; i < q.rows(); ++i) q.row(i) << 1.5 * U(rng), 1.5 * U(rng), U(rng);
+  const KdTree tree(t);
+  const auto [idx, dist] = tree.nearest_each(q);
+  ASSERT_EQ(idx.size(), q.rows());
+  for (Eigen::Index i = 0; i < q.rows(); ++i) {
+    const double best = std::sqrt((t.rowwise() - q.row(i)).rowwise().squaredNorm().minCoeff());
+    ASSERT_GE(idx[i], 0);
+    EXPECT_DOUBLE_EQ(dist[i], best);
+    EXPECT_TRUE(tree.point(idx[i]).isApprox(t.row(idx[i]).transpose()));
+  }
+  const Eigen::VectorXd d = nearest_distances(t, q);
+  EXPECT_TRUE(d.isApprox(dist));
+  const auto [none, inf] = KdTree(Points(0, 3)).nearest_each(q);
+  EXPECT_EQ(none.maxCoeff(), -1);
+  EXPECT_TRUE(std::isinf(inf.minCoeff()));
+}
+
+TEST(VoxelgridSampling, CentroidsPerCellInFirstSeenOrder) {
+  std::mt19937_64 rng(3);
+  std::uniform_real_distribution<double> U(-2.0, 2.0);
+  Points p(4000, 3);
+  for (Eigen::Index i = 0; i < p.rows(); ++i) p.row(i) << U(rng), U(rng), U(rng);
+  const double leaf = 0.5;
+  // Brute force: cells in order of first occurrence, centroid of each.
+  std::map<std::tuple<long, long, long>, std::size_t> slot;
+  std::vector<Eigen::Vector3d> sum;
+  std::vector<int> count;
+  for (Eigen::Index i = 0; i < p.rows(); ++i) {
+    const auto key =
+        std::make_tuple(long(std::floor(p(i, 0) / leaf)), long(std::floor(p(i, 1) / leaf)),
+                        long(std::floor(p(i, 2) / leaf)));
+    auto [it, inserted] = slot.emplace(key, sum.size());
+    if (inserted) {
+      sum.emplace_back(Eigen::Vector3d::Zero());
+      count.push_back(0);
+    }
+    sum[it->second] += p.row(i).transpose();
+    ++count[it->second];
+  }
+  const Points v = voxelgrid_sampling(p, leaf);
+  ASSERT_EQ(v.rows(), static_cast<Eigen::Index>(sum.size()));
+  for (std::size_t k = 0; k < sum.size(); ++k)
+    EXPECT_TRUE(v.row(static_cast<Eigen::Index>(k)).transpose().isApprox(sum[k] / count[k]));
+  // The surface cloud is the same downsampling, fed incrementally.
+  SurfaceCloudOptions o;
+  o.voxel_size = leaf;
+  o.min_z = -std::numeric_limits<double>::infinity();
+  SurfaceCloud cloud(o);
+  cloud.add(p.topRows(1000));
+  cloud.add(p.bottomRows(3000));
+  EXPECT_EQ(cloud.points(), v);  // bit for bit
+}
+
+TEST(VoxelgridSampling, EdgeCases) {
+  EXPECT_EQ(voxelgrid_sampling(Points(0, 3), 0.1).rows(), 0);
+  Points one(1, 3);
+  one << -0.01, 0.0, 1e-3;
+  EXPECT_EQ(voxelgrid_sampling(one, 0.1), one);
+  EXPECT_THROW(voxelgrid_sampling(one, 0.0), std::invalid_argument);
+  EXPECT_THROW(voxelgrid_sampling(one, std::nan("")), std::invalid_argument);
+  one(0, 0) = std::numeric_limits<double>::infinity();
+  EXPECT_THROW(voxelgrid_sampling(one, 0.1), std::invalid_argument);
+  // Points on both sides of a cell boundary stay apart (floor, not truncation).
+  Points two(2, 3);
+  two << -0.01, 0, 0, 0.01, 0, 0;
+  EXPECT_EQ(voxelgrid_sampling(two, 0.1).rows(), 2);
+}
