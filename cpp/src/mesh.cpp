@@ -1,10 +1,12 @@
 #include "nbv/mesh.hpp"
+#include "nbv/ply.hpp"
 
 #include <assimp/postprocess.h>
 #include <assimp/scene.h>
 #include <assimp/Importer.hpp>
 
 #include <algorithm>
+#include <cctype>
 #include <cmath>
 #include <filesystem>
 #include <random>
@@ -76,6 +78,43 @@ Points Mesh::sample_surface(std::size_t n, std::uint64_t seed, Eigen::VectorXi* 
   return out;
 }
 
+namespace {
+
+// PLY files go through nbvkit's own strict reader (nbv/ply.hpp), never through assimp.
+Mesh load_ply_mesh(const std::string& path, double scale, char up) {
+  PlyData ply = read_ply(path, /*read_faces=*/true);
+  if (ply.faces.rows() == 0)
+    throw std::invalid_argument("mesh file '" + path + "' contains no triangles");
+  Mesh out;
+  out.vertices.resize(ply.vertices.rows(), 3);
+  const bool y_up = (up == 'y' || up == 'Y');
+  for (Eigen::Index i = 0; i < ply.vertices.rows(); ++i) {
+    const Eigen::Vector3d p = ply.vertices.row(i).transpose();
+    out.vertices.row(i) = scale * (y_up ? Eigen::Vector3d(p.x(), -p.z(), p.y()) : p);
+  }
+  out.faces = std::move(ply.faces);
+  try {
+    out.validate();
+  } catch (const std::invalid_argument& e) {
+    throw std::invalid_argument("mesh file '" + path + "': " + e.what());
+  }
+  return out;
+}
+
+// Files for assimp: a size cap, so that a file declaring billions of elements is refused before
+// assimp allocates for them.
+void check_assimp_input(const std::string& path) {
+  std::error_code ec;
+  const auto size = std::filesystem::file_size(path, ec);
+  if (ec) throw std::invalid_argument("cannot read mesh '" + path + "': " + ec.message());
+  if (size > kMaxMeshFileBytes)
+    throw std::invalid_argument("cannot read mesh '" + path + "': " + std::to_string(size) +
+                                " bytes, more than the " + std::to_string(kMaxMeshFileBytes) +
+                                " bytes nbvkit reads");
+}
+
+}  // namespace
+
 Mesh load_mesh(const std::string& path, double scale, char up) {
   if (!std::isfinite(scale) || scale <= 0)
     throw std::invalid_argument("mesh scale must be a positive finite number, got " +
@@ -88,6 +127,11 @@ Mesh load_mesh(const std::string& path, double scale, char up) {
   if (fs::is_directory(path, ec))
     throw std::invalid_argument("cannot read mesh '" + path + "': it is a directory");
 
+  std::string ext = fs::path(path).extension().string();
+  std::transform(ext.begin(), ext.end(), ext.begin(), [](unsigned char c) { return std::tolower(c); });
+  if (ext == ".ply") return load_ply_mesh(path, scale, up);
+  check_assimp_input(path);
+
   Assimp::Importer importer;
   // Keep the file's own axes: the caller says which way is up (also for Collada files).
   importer.SetPropertyBool(AI_CONFIG_IMPORT_COLLADA_IGNORE_UP_DIRECTION, true);
@@ -97,7 +141,7 @@ Mesh load_mesh(const std::string& path, double scale, char up) {
                          aiProcess_SortByPType | aiProcess_JoinIdenticalVertices;
   const aiScene* scene = importer.ReadFile(path, flags);
   if (!scene)
-    throw std::invalid_argument("cannot read mesh '" + path + "': " + importer.GetErrorString());
+    throw std::invalid_argument("cannot read mesh '" + path + "': " + printable_ascii(importer.GetErrorString()));
 
   std::size_t nv = 0, nf = 0;
   for (unsigned m = 0; m < scene->mNumMeshes; ++m) {
