@@ -6,6 +6,7 @@ import json
 import os
 from pathlib import Path
 
+from ..paths import check_output_file
 from ..cloud import read_points
 from ..evaluation import (
     DEFAULT_GT_DENSITY,
@@ -90,6 +91,8 @@ def register(sub) -> argparse.ArgumentParser:
 def run(args) -> int:
     if args.mesh and args.reference_cloud:
         raise ValueError("give either --mesh or --reference-cloud, not both")
+    if args.json:
+        check_output_file(args.json, "--json")
     cloud_path = Path(os.fspath(args.cloud)).expanduser()
     cloud = read_points(cloud_path)
     if args.reference_cloud:

@@ -4,10 +4,10 @@ from __future__ import annotations
 
 import argparse
 import json
-from pathlib import Path
 
 from ..config import load_config
 from ..mission import Mission
+from ..paths import check_output_dir
 from ..scenarios import DEFAULT, SCENARIOS
 
 
@@ -55,6 +55,7 @@ def register(sub) -> argparse.ArgumentParser:
     p.add_argument(
         "--set",
         nargs="+",
+        action="extend",
         default=[],
         metavar="KEY=VALUE",
         help="override any config key, dotted for nested ones (e.g. max_iterations=50 "
@@ -89,7 +90,7 @@ def config_from_args(args):
 
 def run(args) -> int:
     cfg = config_from_args(args)
-    out = Path(args.out or f"runs/scenario{cfg.scenario}_start{cfg.start}")
+    out = check_output_dir(args.out or f"runs/scenario{cfg.scenario}_start{cfg.start}", "--out")
     mission = Mission(cfg)
     s = mission.run(out)
     cov = s["coverage"]
