@@ -168,17 +168,17 @@ The sensor looks along its +x (y left, z up); pixel (u, v) looks along
   py::class_<LaserScannerOptions>(m, "LaserScannerOptions",
                                   "Defaults of the laser scanner (paper Table 1); built from "
                                   "keywords, checked (ValueError naming the bad value).")
-      .def(py::init([](double fov, double res, double min_range, double max_range,
-                       double noise_sigma) {
-             LaserScannerOptions o;
-             o.fov_deg = fov;
-             o.resolution_deg = res;
-             o.min_range = min_range;
-             o.max_range = max_range;
-             o.noise_sigma = noise_sigma;
-             o.validate();
-             return o;
-           }),
+      .def(py::init(
+               [](double fov, double res, double min_range, double max_range, double noise_sigma) {
+                 LaserScannerOptions o;
+                 o.fov_deg = fov;
+                 o.resolution_deg = res;
+                 o.min_range = min_range;
+                 o.max_range = max_range;
+                 o.noise_sigma = noise_sigma;
+                 o.validate();
+                 return o;
+               }),
            py::kw_only(), py::arg("fov_deg") = ld.fov_deg,
            py::arg("resolution_deg") = ld.resolution_deg, py::arg("min_range") = ld.min_range,
            py::arg("max_range") = ld.max_range, py::arg("noise_sigma") = ld.noise_sigma)

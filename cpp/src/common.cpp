@@ -2,9 +2,9 @@
 #include "nbv/parallel.hpp"
 
 #include <cmath>
-#include <sstream>
 #include <memory>
 #include <mutex>
+#include <sstream>
 
 namespace nbv {
 

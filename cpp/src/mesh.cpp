@@ -128,7 +128,8 @@ Mesh load_mesh(const std::string& path, double scale, char up) {
     throw std::invalid_argument("cannot read mesh '" + path + "': it is a directory");
 
   std::string ext = fs::path(path).extension().string();
-  std::transform(ext.begin(), ext.end(), ext.begin(), [](unsigned char c) { return std::tolower(c); });
+  std::transform(ext.begin(), ext.end(), ext.begin(),
+                 [](unsigned char c) { return std::tolower(c); });
   if (ext == ".ply") return load_ply_mesh(path, scale, up);
   check_assimp_input(path);
 
@@ -141,7 +142,8 @@ Mesh load_mesh(const std::string& path, double scale, char up) {
                          aiProcess_SortByPType | aiProcess_JoinIdenticalVertices;
   const aiScene* scene = importer.ReadFile(path, flags);
   if (!scene)
-    throw std::invalid_argument("cannot read mesh '" + path + "': " + printable_ascii(importer.GetErrorString()));
+    throw std::invalid_argument("cannot read mesh '" + path +
+                                "': " + printable_ascii(importer.GetErrorString()));
 
   std::size_t nv = 0, nf = 0;
   for (unsigned m = 0; m < scene->mNumMeshes; ++m) {

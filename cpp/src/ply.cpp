@@ -97,14 +97,40 @@ class Body {
     pos_ += k;
     if (mode_ == 2) std::reverse(b, b + k);  // big endian (the reader runs on little-endian x86)
     switch (t) {
-      case Type::I8: return static_cast<std::int8_t>(b[0]);
-      case Type::U8: return b[0];
-      case Type::I16: { std::int16_t v; std::memcpy(&v, b, 2); return v; }
-      case Type::U16: { std::uint16_t v; std::memcpy(&v, b, 2); return v; }
-      case Type::I32: { std::int32_t v; std::memcpy(&v, b, 4); return v; }
-      case Type::U32: { std::uint32_t v; std::memcpy(&v, b, 4); return v; }
-      case Type::F32: { float v; std::memcpy(&v, b, 4); return v; }
-      case Type::F64: { double v; std::memcpy(&v, b, 8); return v; }
+      case Type::I8:
+        return static_cast<std::int8_t>(b[0]);
+      case Type::U8:
+        return b[0];
+      case Type::I16: {
+        std::int16_t v;
+        std::memcpy(&v, b, 2);
+        return v;
+      }
+      case Type::U16: {
+        std::uint16_t v;
+        std::memcpy(&v, b, 2);
+        return v;
+      }
+      case Type::I32: {
+        std::int32_t v;
+        std::memcpy(&v, b, 4);
+        return v;
+      }
+      case Type::U32: {
+        std::uint32_t v;
+        std::memcpy(&v, b, 4);
+        return v;
+      }
+      case Type::F32: {
+        float v;
+        std::memcpy(&v, b, 4);
+        return v;
+      }
+      case Type::F64: {
+        double v;
+        std::memcpy(&v, b, 8);
+        return v;
+      }
     }
     return 0;
   }
@@ -127,7 +153,8 @@ class Body {
     char* end = nullptr;
     errno = 0;
     const double v = std::strtod(buf, &end);
-    if (end == buf || *end != '\0') fail("non-numeric value '" + printable_ascii(buf) + "' in " + where);
+    if (end == buf || *end != '\0')
+      fail("non-numeric value '" + printable_ascii(buf) + "' in " + where);
     pos_ = e;
     return v;
   }

@@ -132,8 +132,7 @@ TEST(Ply, BadHeadersThrow) {
   EXPECT_NE(error_of("plyx\n").find("not a PLY"), std::string::npos);
   EXPECT_NE(error_of("ply\nend_header\n").find("format"), std::string::npos);
   EXPECT_NE(error_of("ply\nformat ascii 1.0\nproperty float x\nend_header\n"), "");
-  EXPECT_NE(error_of("ply\nformat ascii 1.0\nelement vertex 1\nproperty quad x\nend_header\n"),
-            "");
+  EXPECT_NE(error_of("ply\nformat ascii 1.0\nelement vertex 1\nproperty quad x\nend_header\n"), "");
   EXPECT_NE(error_of("ply\nformat weird 1.0\nend_header\n"), "");
   EXPECT_NE(error_of("ply\nformat ascii 1.0\nelement vertex 1\nproperty float x\n"
                      "property float y\nend_header\n1 2\n")
@@ -171,8 +170,8 @@ TEST(Ply, LoadMeshReadsPlyThroughTheStrictReader) {
   }
   const nbv::Mesh m = nbv::load_mesh(path, 2.0, 'y');
   EXPECT_EQ(m.faces.rows(), 2);
-  EXPECT_DOUBLE_EQ(m.vertices(2, 0), 2.0);   // x scaled
-  EXPECT_DOUBLE_EQ(m.vertices(2, 2), 2.0);   // file y became z
+  EXPECT_DOUBLE_EQ(m.vertices(2, 0), 2.0);  // x scaled
+  EXPECT_DOUBLE_EQ(m.vertices(2, 2), 2.0);  // file y became z
   std::remove(path.c_str());
 }
 

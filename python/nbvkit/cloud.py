@@ -297,6 +297,7 @@ def _read_npy(path):
 
 # ---- PLY (split_header: also the PCD reader's)
 
+
 def _split_header(data: bytes, end_marker: bytes, what: str):
     """(header lines, offset of the body) for a text header ending with the line end_marker."""
     m = re.search(rb"^" + re.escape(end_marker) + rb"[^\n]*\n", data, re.M)

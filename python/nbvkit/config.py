@@ -29,6 +29,7 @@ from . import _core
 from .scenarios import DEFAULT as DEFAULT_SCENARIO
 from .scenarios import SCENARIOS
 
+
 class YamlLoader(yaml.SafeLoader):
     """PyYAML's safe loader, also reading 1e-4 / 2E5 as numbers (YAML 1.2; PyYAML's YAML 1.1
     resolver wants a dot and a signed exponent, and reads 1e-4 as a string)."""

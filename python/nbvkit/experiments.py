@@ -417,9 +417,7 @@ def sweep_specs(sweep: dict) -> list[RunSpec]:
             raise ValueError(f"sweep mesh entry {m!r} must be a path, a mapping or null")
     scenarios = sweep.get("scenarios", ["5"])
     if not isinstance(scenarios, list):
-        raise ValueError(
-            f"sweep 'scenarios' must be a list (e.g. [\"1\", \"5\"]), got {scenarios!r}"
-        )
+        raise ValueError(f'sweep \'scenarios\' must be a list (e.g. ["1", "5"]), got {scenarios!r}')
     scenarios = [str(s) for s in scenarios]
     starts = sweep.get("starts", [0])
     if isinstance(starts, int) and not isinstance(starts, bool):
@@ -427,7 +425,9 @@ def sweep_specs(sweep: dict) -> list[RunSpec]:
     if not isinstance(starts, list) or not all(
         isinstance(s, int) and not isinstance(s, bool) for s in starts
     ):
-        raise ValueError(f"sweep 'starts' must be a count or a list of start indices, got {starts!r}")
+        raise ValueError(
+            f"sweep 'starts' must be a count or a list of start indices, got {starts!r}"
+        )
     grid = sweep.get("grid") or {}
     if not isinstance(grid, dict) or not all(isinstance(v, list) for v in grid.values()):
         raise ValueError("sweep 'grid' must map config keys to lists of values")
