@@ -128,6 +128,39 @@ def test_case1_hostile_ply_files_give_clean_errors(tmp_path):
         nbvkit.load_mesh(tmp_path / "bad_index.ply")
 
 
+def test_case1_collada_files_that_crash_or_hang_assimp_are_refused(tmp_path):
+    """Found by bench/fuzz_meshes.py: assimp 5.2 segfaults on a <float_array> with a missing or
+    wrong count and loops forever on a non-integer index; they are refused before assimp."""
+    from fuzz_meshes import _dae
+
+    good = _dae().decode()
+    cases = {
+        "nocount.dae": (good.replace(' count="24"', ' counT="24"'), "without a count"),
+        "count0.dae": (good.replace(' count="24"', ' count="0"'), "count=0"),
+        "countneg.dae": (good.replace(' count="24"', ' count="-1e300"'), "unsigned integer"),
+        "float_index.dae": (good.replace("<p>0 2 1", "<p>0 2 1e9"), "unsigned integers"),
+        "nan_index.dae": (good.replace("<p>0 2 1", "<p>0 nan 1"), "unsigned integers"),
+    }
+    for name, (text, needle) in cases.items():
+        (tmp_path / name).write_text(text)
+        rc, _, err = cli(
+            "scan",
+            "--mesh",
+            tmp_path / name,
+            "--pose",
+            0.5,
+            -3,
+            0.5,
+            1.57,
+            "--out",
+            tmp_path / "x.npy",
+            timeout=60,
+        )
+        expect_error(rc, err, name, needle)
+    (tmp_path / "good.dae").write_text(good)
+    assert nbvkit.load_mesh(tmp_path / "good.dae").faces.shape == (12, 3)
+
+
 def test_case1_fuzz_smoke_no_crash_hang_or_blowup():
     from fuzz_meshes import fuzz
 

@@ -8,7 +8,11 @@
 #include <algorithm>
 #include <cctype>
 #include <cmath>
+#include <cstdlib>
 #include <filesystem>
+#include <fstream>
+#include <iterator>
+#include <optional>
 #include <random>
 #include <vector>
 
@@ -113,6 +117,97 @@ void check_assimp_input(const std::string& path) {
                                 " bytes nbvkit reads");
 }
 
+bool all_digits(const std::string& v) {
+  return !v.empty() && v.size() <= 10 && v.find_first_not_of("0123456789") == std::string::npos;
+}
+
+// The value of attribute `name` in a start tag's text, or nullopt.
+std::optional<std::string> attribute(const std::string& tag, const std::string& name) {
+  for (std::size_t i = tag.find(name); i != std::string::npos; i = tag.find(name, i + 1)) {
+    if (i == 0 || !std::isspace(static_cast<unsigned char>(tag[i - 1]))) continue;
+    std::size_t j = i + name.size();
+    while (j < tag.size() && std::isspace(static_cast<unsigned char>(tag[j]))) ++j;
+    if (j >= tag.size() || tag[j] != '=') continue;
+    ++j;
+    while (j < tag.size() && std::isspace(static_cast<unsigned char>(tag[j]))) ++j;
+    if (j >= tag.size() || (tag[j] != '"' && tag[j] != '\'')) return std::string();
+    const std::size_t k = tag.find(tag[j], j + 1);
+    if (k == std::string::npos) return std::string();
+    return tag.substr(j + 1, k - j - 1);
+  }
+  return std::nullopt;
+}
+
+bool head_contains(const std::string& path, const std::string& what) {
+  std::ifstream f(path, std::ios::binary);
+  std::string head(4096, '\0');
+  f.read(&head[0], static_cast<std::streamsize>(head.size()));
+  head.resize(static_cast<std::size_t>(f.gcount()));
+  return head.find(what) != std::string::npos;
+}
+
+// Collada files: assimp 5.2's reader writes out of bounds for a <float_array> whose count is
+// missing or wrong, and loops forever on a token that is not an unsigned integer in an index list
+// (<p>, <vcount>, <v>, <h>). Such files are refused here, before assimp sees them; so are count,
+// stride, offset and set attributes that are not unsigned integers.
+void check_collada(const std::string& path) {
+  std::ifstream f(path, std::ios::binary);
+  const std::string s((std::istreambuf_iterator<char>(f)), std::istreambuf_iterator<char>());
+  const auto fail = [&](const std::string& why) {
+    throw std::invalid_argument("cannot read mesh '" + path + "': " + printable_ascii(why));
+  };
+  for (std::size_t pos = s.find('<'); pos != std::string::npos; pos = s.find('<', pos + 1)) {
+    const std::size_t end = s.find('>', pos);
+    if (end == std::string::npos) return;  // malformed XML: assimp's parser reports it
+    const std::string tag = s.substr(pos + 1, end - pos - 1);
+    std::size_t n = 0;
+    while (n < tag.size() && !std::isspace(static_cast<unsigned char>(tag[n])) && tag[n] != '/')
+      ++n;
+    std::string name = tag.substr(0, n);
+    if (const auto colon = name.rfind(':'); colon != std::string::npos)
+      name = name.substr(colon + 1);
+    if (name.empty() || name[0] == '/' || name[0] == '?' || name[0] == '!') continue;
+    for (const char* a : {"count", "stride", "offset", "set"}) {
+      const auto v = attribute(tag, a);
+      if (v && !all_digits(*v))
+        fail(std::string("<") + name + "> attribute " + a + "=\"" + v->substr(0, 40) +
+             "\" is not an unsigned integer");
+      if (v && std::string(a) == "stride" && std::stoll(*v) == 0)
+        fail("<" + name + "> has stride 0");
+    }
+    const bool self_closing = !tag.empty() && tag.back() == '/';
+    const bool is_floats = name == "float_array";
+    const bool is_indices = name == "p" || name == "vcount" || name == "v" || name == "h";
+    if (!(is_floats || is_indices) || self_closing) continue;
+    const std::size_t close = s.find("</", end);
+    const std::string body = s.substr(end + 1, close == std::string::npos ? 0 : close - end - 1);
+    if (is_indices) {
+      if (body.find_first_not_of("0123456789 \t\r\n") != std::string::npos)
+        fail("<" + name + "> holds something other than unsigned integers");
+      continue;
+    }
+    const auto count = attribute(tag, "count");
+    if (!count) fail("<float_array> without a count attribute");
+    std::size_t tokens = 0;
+    for (std::size_t i = 0; i < body.size();) {
+      while (i < body.size() && std::isspace(static_cast<unsigned char>(body[i]))) ++i;
+      if (i == body.size()) break;
+      std::size_t j = i;
+      while (j < body.size() && !std::isspace(static_cast<unsigned char>(body[j]))) ++j;
+      const std::string tok = body.substr(i, j - i);
+      char* e = nullptr;
+      std::strtod(tok.c_str(), &e);
+      if (e == tok.c_str() || *e != '\0') fail("<float_array> holds '" + tok.substr(0, 40) + "'");
+      ++tokens;
+      i = j;
+    }
+    if (std::to_string(tokens) != *count && !(tokens == 0 && std::stoll(*count) == 0))
+      fail("<float_array> declares count=" + *count + " but holds " + std::to_string(tokens) +
+           " numbers");
+    if (tokens == 0) fail("<float_array> is empty");
+  }
+}
+
 }  // namespace
 
 Mesh load_mesh(const std::string& path, double scale, char up) {
@@ -132,6 +227,7 @@ Mesh load_mesh(const std::string& path, double scale, char up) {
                  [](unsigned char c) { return std::tolower(c); });
   if (ext == ".ply") return load_ply_mesh(path, scale, up);
   check_assimp_input(path);
+  if (ext == ".dae" || ext == ".xml" || head_contains(path, "<COLLADA")) check_collada(path);
 
   Assimp::Importer importer;
   // Keep the file's own axes: the caller says which way is up (also for Collada files).
