@@ -140,6 +140,8 @@ def test_case1_collada_files_that_crash_or_hang_assimp_are_refused(tmp_path):
         "countneg.dae": (good.replace(' count="24"', ' count="-1e300"'), "unsigned integer"),
         "float_index.dae": (good.replace("<p>0 2 1", "<p>0 2 1e9"), "unsigned integers"),
         "nan_index.dae": (good.replace("<p>0 2 1", "<p>0 nan 1"), "unsigned integers"),
+        "huge_stride.dae": (good.replace('stride="3"', 'stride="2147483648"'), "below 1e9"),
+        "overread.dae": (good.replace('stride="3"', 'stride="4"'), "<accessor> reads 32"),
     }
     for name, (text, needle) in cases.items():
         (tmp_path / name).write_text(text)

@@ -118,7 +118,7 @@ void check_assimp_input(const std::string& path) {
 }
 
 bool all_digits(const std::string& v) {
-  return !v.empty() && v.size() <= 10 && v.find_first_not_of("0123456789") == std::string::npos;
+  return !v.empty() && v.size() <= 9 && v.find_first_not_of("0123456789") == std::string::npos;
 }
 
 // The value of attribute `name` in a start tag's text, or nullopt.
@@ -156,6 +156,7 @@ void check_collada(const std::string& path) {
   const auto fail = [&](const std::string& why) {
     throw std::invalid_argument("cannot read mesh '" + path + "': " + printable_ascii(why));
   };
+  long long last_array = 0;  // values in the last <float_array> (or other array) read
   for (std::size_t pos = s.find('<'); pos != std::string::npos; pos = s.find('<', pos + 1)) {
     const std::size_t end = s.find('>', pos);
     if (end == std::string::npos) return;  // malformed XML: assimp's parser reports it
@@ -171,9 +172,23 @@ void check_collada(const std::string& path) {
       const auto v = attribute(tag, a);
       if (v && !all_digits(*v))
         fail(std::string("<") + name + "> attribute " + a + "=\"" + v->substr(0, 40) +
-             "\" is not an unsigned integer");
+             "\" is not an unsigned integer below 1e9");
       if (v && std::string(a) == "stride" && std::stoll(*v) == 0)
         fail("<" + name + "> has stride 0");
+    }
+    if (name == "accessor") {  // its values must lie within the array read before it
+      const auto count = attribute(tag, "count"), stride = attribute(tag, "stride"),
+                 offset = attribute(tag, "offset");
+      const long long need = (count ? std::stoll(*count) : 0) * (stride ? std::stoll(*stride) : 1) +
+                             (offset ? std::stoll(*offset) : 0);
+      if (need > last_array)
+        fail("<accessor> reads " + std::to_string(need) + " values of an array of " +
+             std::to_string(last_array));
+    }
+    if (name != "float_array" && name.size() > 6 &&
+        name.compare(name.size() - 6, 6, "_array") == 0) {
+      const auto count = attribute(tag, "count");  // int_array, Name_array, ...
+      last_array = count ? std::stoll(*count) : 0;
     }
     const bool self_closing = !tag.empty() && tag.back() == '/';
     const bool is_floats = name == "float_array";
@@ -205,6 +220,7 @@ void check_collada(const std::string& path) {
       fail("<float_array> declares count=" + *count + " but holds " + std::to_string(tokens) +
            " numbers");
     if (tokens == 0) fail("<float_array> is empty");
+    last_array = static_cast<long long>(tokens);
   }
 }
 
