@@ -1,4 +1,5 @@
-"""Mesh loading (assimp; PLY by nbvkit's strict reader), conversion to and from open3d, and the shipped default structure."""
+"""Mesh loading (assimp; PLY by nbvkit's strict reader), conversion to and from open3d, and the
+shipped default structure."""
 from __future__ import annotations
 
 import os
