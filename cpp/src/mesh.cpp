@@ -84,8 +84,21 @@ Points Mesh::sample_surface(std::size_t n, std::uint64_t seed, Eigen::VectorXi* 
 
 namespace {
 
+// A size cap on mesh files (PLY and assimp's formats): what a file may make us allocate grows with
+// its size.
+void check_file_size(const std::string& path) {
+  std::error_code ec;
+  const auto size = std::filesystem::file_size(path, ec);
+  if (ec) throw std::invalid_argument("cannot read mesh '" + path + "': " + ec.message());
+  if (size > kMaxMeshFileBytes)
+    throw std::invalid_argument("cannot read mesh '" + path + "': " + std::to_string(size) +
+                                " bytes, more than the " + std::to_string(kMaxMeshFileBytes) +
+                                " bytes nbvkit reads");
+}
+
 // PLY files go through nbvkit's own strict reader (nbv/ply.hpp), never through assimp.
 Mesh load_ply_mesh(const std::string& path, double scale, char up) {
+  check_file_size(path);
   PlyData ply = read_ply(path, /*read_faces=*/true);
   if (ply.faces.rows() == 0)
     throw std::invalid_argument("mesh file '" + path + "' contains no triangles");
@@ -103,18 +116,6 @@ Mesh load_ply_mesh(const std::string& path, double scale, char up) {
     throw std::invalid_argument("mesh file '" + path + "': " + e.what());
   }
   return out;
-}
-
-// Files for assimp: a size cap, so that a file declaring billions of elements is refused before
-// assimp allocates for them.
-void check_assimp_input(const std::string& path) {
-  std::error_code ec;
-  const auto size = std::filesystem::file_size(path, ec);
-  if (ec) throw std::invalid_argument("cannot read mesh '" + path + "': " + ec.message());
-  if (size > kMaxMeshFileBytes)
-    throw std::invalid_argument("cannot read mesh '" + path + "': " + std::to_string(size) +
-                                " bytes, more than the " + std::to_string(kMaxMeshFileBytes) +
-                                " bytes nbvkit reads");
 }
 
 bool all_digits(const std::string& v) {
@@ -242,7 +243,7 @@ Mesh load_mesh(const std::string& path, double scale, char up) {
   std::transform(ext.begin(), ext.end(), ext.begin(),
                  [](unsigned char c) { return std::tolower(c); });
   if (ext == ".ply") return load_ply_mesh(path, scale, up);
-  check_assimp_input(path);
+  check_file_size(path);
   if (ext == ".dae" || ext == ".xml" || head_contains(path, "<COLLADA")) check_collada(path);
 
   Assimp::Importer importer;
