@@ -33,8 +33,12 @@ Eigen::Isometry3d transform_arg(const py::handle& obj, const char* what);
 /// numbers).
 Eigen::Vector3d vec3_arg(const py::handle& obj, const char* what);
 
-/// Converts (x, y, z, yaw) to a Pose (ValueError naming `what` if not 4 finite numbers).
+/// Converts (x, y, z, yaw) to a Pose (ValueError naming `what` if not 4 finite numbers or a
+/// position beyond +-kMaxCoordinate).
 Pose pose_arg(const py::handle& obj, const char* what);
+
+/// A random seed: a Python int in [0, 2^64) (ValueError naming `what` otherwise).
+std::uint64_t seed_arg(const py::handle& obj, const char* what = "seed");
 
 void init_common(py::module_& m);
 void init_mesh(py::module_& m);

@@ -1,4 +1,5 @@
 #include "bindings.hpp"
+#include "nbv/ply.hpp"
 #include "nbv/point_cloud.hpp"
 
 #include <cmath>
@@ -118,6 +119,21 @@ profile cloud), min_z 0.3 m.)doc")
       },
       py::arg("data"), py::arg("out_size"),
       "Decompress an LZF block (PCD binary_compressed) to exactly out_size bytes.");
+
+  m.def(
+      "_parse_ply",
+      [](const py::bytes& data, bool faces) {
+        const std::string s = data;
+        PlyData ply;
+        {
+          py::gil_scoped_release release;
+          ply = parse_ply(reinterpret_cast<const std::uint8_t*>(s.data()), s.size(), faces);
+        }
+        return py::make_tuple(py::cast(std::move(ply.vertices)), py::cast(std::move(ply.faces)));
+      },
+      py::arg("data"), py::arg("faces") = true,
+      "Parse a PLY file's bytes with nbvkit's strict reader (nbv/ply.hpp): (vertices (N, 3), "
+      "faces (M, 3)). faces=False stops after the vertex element. ValueError naming the problem.");
 }
 
 }  // namespace nbv::bind

@@ -44,7 +44,19 @@ Pose pose_arg(const py::handle& obj, const char* what) {
   for (int i = 0; i < 4; ++i)
     if (!std::isfinite(d[i]))
       throw py::value_error(std::string(what) + " contains NaN or infinite values");
+  require_representable(Eigen::Vector3d(d[0], d[1], d[2]), what);
   return Pose{d[0], d[1], d[2], d[3]};
+}
+
+std::uint64_t seed_arg(const py::handle& obj, const char* what) {
+  if (py::isinstance<py::bool_>(obj) || !py::isinstance<py::int_>(obj))
+    throw py::value_error(std::string(what) + " must be an integer >= 0, got " +
+                          std::string(py::repr(obj)));
+  const py::int_ v = py::reinterpret_borrow<py::int_>(obj);
+  if (v < py::int_(0) || v >= py::int_(py::module_::import("builtins").attr("pow")(2, 64)))
+    throw py::value_error(std::string(what) + " must be an integer in [0, 2**64), got " +
+                          std::string(py::repr(obj)));
+  return v.cast<std::uint64_t>();
 }
 
 Eigen::Vector3d vec3_arg(const py::handle& obj, const char* what) {
@@ -71,6 +83,7 @@ void init_common(py::module_& m) {
       PyErr_SetObject(PyExc_FileNotFoundError, err.ptr());
     }
   });
+  m.attr("MAX_COORDINATE") = kMaxCoordinate;
   m.def("set_num_threads", &set_num_threads, py::arg("n"),
         "Worker threads of the core's parallel loops (0 = all hardware threads).");
   m.def("get_num_threads", &get_num_threads);

@@ -82,10 +82,10 @@ void init_evaluation(py::module_& m) {
   py::class_<Evaluator, std::shared_ptr<Evaluator>>(
       m, "_Evaluator", "Ground truth prepared once (nbvkit.Evaluator wraps it).")
       .def(py::init([](const py::handle& gt, const std::vector<double>& resolutions,
-                       const std::vector<double>& taus, double gt_density, std::uint64_t seed,
+                       const std::vector<double>& taus, double gt_density, const py::object& seed,
                        long long max_gt_points) {
              const EvaluationOptions o =
-                 options_arg(resolutions, taus, gt_density, seed, max_gt_points);
+                 options_arg(resolutions, taus, gt_density, seed_arg(seed), max_gt_points);
              if (py::isinstance<Mesh>(gt)) {
                const Mesh& mesh = gt.cast<const Mesh&>();
                py::gil_scoped_release release;

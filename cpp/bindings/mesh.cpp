@@ -40,8 +40,10 @@ Mesh(vertices, faces) or Mesh.from_open3d(o3d_mesh).)doc")
           "(2, 3): [min xyz, max xyz] of the triangles' vertices")
       .def(
           "sample_surface",
-          [](const Mesh& s, long long n, std::uint64_t seed, bool return_faces) -> py::object {
+          [](const Mesh& s, long long n, const py::object& seed_obj,
+             bool return_faces) -> py::object {
             if (n < 0) throw py::value_error("number of samples must be >= 0");
+            const std::uint64_t seed = seed_arg(seed_obj);
             Eigen::VectorXi fid;
             Points p;
             {

@@ -80,8 +80,25 @@ along each beam, inf where there is no valid return.)doc")
 
   const DepthCameraOptions cd;
   py::class_<DepthCameraOptions>(m, "DepthCameraOptions",
-                                 "Defaults of the RGB-D camera (paper Table 1).")
-      .def(py::init<>())
+                                 "Defaults of the RGB-D camera (paper Table 1); built from "
+                                 "keywords, checked (ValueError naming the bad value).")
+      .def(py::init([](int width, int height, double hfov, double vfov, double min_range,
+                       double max_range, double noise_k) {
+             DepthCameraOptions o;
+             o.width = width;
+             o.height = height;
+             o.hfov_deg = hfov;
+             o.vfov_deg = vfov;
+             o.min_range = min_range;
+             o.max_range = max_range;
+             o.noise_k = noise_k;
+             o.validate();
+             return o;
+           }),
+           py::kw_only(), py::arg("width") = cd.width, py::arg("height") = cd.height,
+           py::arg("hfov_deg") = cd.hfov_deg, py::arg("vfov_deg") = cd.vfov_deg,
+           py::arg("min_range") = cd.min_range, py::arg("max_range") = cd.max_range,
+           py::arg("noise_k") = cd.noise_k)
       .def_readonly("width", &DepthCameraOptions::width)
       .def_readonly("height", &DepthCameraOptions::height)
       .def_readonly("hfov_deg", &DepthCameraOptions::hfov_deg)
@@ -101,7 +118,7 @@ mount: 4x4 T_body_sensor (default identity: at the body origin, no tilt).
 The sensor looks along its +x (y left, z up); pixel (u, v) looks along
 (1, -(u + 0.5 - W/2)/fx, -(v + 0.5 - H/2)/fy).)doc")
       .def(py::init([](const py::handle& scene, int width, int height, double hfov, double vfov,
-                       double min_range, double max_range, double noise_k, std::uint64_t seed,
+                       double min_range, double max_range, double noise_k, const py::object& seed,
                        const py::object& mount) {
              DepthCameraOptions o;
              o.width = width;
@@ -111,7 +128,7 @@ The sensor looks along its +x (y left, z up); pixel (u, v) looks along
              o.min_range = min_range;
              o.max_range = max_range;
              o.noise_k = noise_k;
-             o.seed = seed;
+             o.seed = seed_arg(seed);
              o.mount = mount_or(mount, o.mount);
              return std::make_shared<DepthCamera>(scene_of(scene), o);
            }),
@@ -142,12 +159,29 @@ The sensor looks along its +x (y left, z up); pixel (u, v) looks along
            "Scan from a 4x4 sensor pose T_world_sensor. Returns an nbvkit.Scan.")
       .def("scan_pose", &scan_pose<DepthCamera>, py::arg("pose"),
            "Scan from a vehicle pose (x, y, z, yaw) through the camera's mount.")
-      .def("reset_noise", &DepthCamera::reset_noise, py::arg("seed"));
+      .def(
+          "reset_noise",
+          [](DepthCamera& c, const py::object& seed) { c.reset_noise(seed_arg(seed)); },
+          py::arg("seed"));
 
   const LaserScannerOptions ld;
   py::class_<LaserScannerOptions>(m, "LaserScannerOptions",
-                                  "Defaults of the laser scanner (paper Table 1).")
-      .def(py::init<>())
+                                  "Defaults of the laser scanner (paper Table 1); built from "
+                                  "keywords, checked (ValueError naming the bad value).")
+      .def(py::init(
+               [](double fov, double res, double min_range, double max_range, double noise_sigma) {
+                 LaserScannerOptions o;
+                 o.fov_deg = fov;
+                 o.resolution_deg = res;
+                 o.min_range = min_range;
+                 o.max_range = max_range;
+                 o.noise_sigma = noise_sigma;
+                 o.validate();
+                 return o;
+               }),
+           py::kw_only(), py::arg("fov_deg") = ld.fov_deg,
+           py::arg("resolution_deg") = ld.resolution_deg, py::arg("min_range") = ld.min_range,
+           py::arg("max_range") = ld.max_range, py::arg("noise_sigma") = ld.noise_sigma)
       .def_readonly("fov_deg", &LaserScannerOptions::fov_deg)
       .def_readonly("resolution_deg", &LaserScannerOptions::resolution_deg)
       .def_readonly("min_range", &LaserScannerOptions::min_range)
@@ -165,7 +199,7 @@ Beams lie in the sensor's x-y plane from -fov/2 to +fov/2 (counter-clockwise fro
 resolution_deg (180 deg / 0.25 deg -> 721 beams). Ranges along the beam, metres.
 mount: 4x4 T_body_sensor (default: body origin, pitched 10 deg down as in Table 1).)doc")
       .def(py::init([](const py::handle& scene, double fov, double res, double min_range,
-                       double max_range, double noise_sigma, std::uint64_t seed,
+                       double max_range, double noise_sigma, const py::object& seed,
                        const py::object& mount) {
              LaserScannerOptions o;
              o.fov_deg = fov;
@@ -173,7 +207,7 @@ mount: 4x4 T_body_sensor (default: body origin, pitched 10 deg down as in Table 
              o.min_range = min_range;
              o.max_range = max_range;
              o.noise_sigma = noise_sigma;
-             o.seed = seed;
+             o.seed = seed_arg(seed);
              o.mount = mount_or(mount, o.mount);
              return std::make_shared<LaserScanner>(scene_of(scene), o);
            }),
@@ -199,7 +233,10 @@ mount: 4x4 T_body_sensor (default: body origin, pitched 10 deg down as in Table 
       .def("scan", &scan_transform<LaserScanner>, py::arg("T_world_sensor"))
       .def("scan_pose", &scan_pose<LaserScanner>, py::arg("pose"),
            "Scan from a vehicle pose (x, y, z, yaw) through the laser's mount.")
-      .def("reset_noise", &LaserScanner::reset_noise, py::arg("seed"));
+      .def(
+          "reset_noise",
+          [](LaserScanner& l, const py::object& seed) { l.reset_noise(seed_arg(seed)); },
+          py::arg("seed"));
 }
 
 }  // namespace nbv::bind

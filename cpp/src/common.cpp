@@ -4,6 +4,7 @@
 #include <cmath>
 #include <memory>
 #include <mutex>
+#include <sstream>
 
 namespace nbv {
 
@@ -25,6 +26,29 @@ Eigen::Isometry3d mount_transform(const Eigen::Vector3d& xyz, double roll_deg, d
                    .toRotationMatrix();
   T.translation() = xyz;
   return T;
+}
+
+std::string printable_ascii(const std::string& s) {
+  static const char* hex = "0123456789abcdef";
+  std::string out;
+  for (unsigned char c : s)
+    if (c >= 32 && c < 127) {
+      out += static_cast<char>(c);
+    } else {
+      out += "\\x";
+      out += hex[c >> 4];
+      out += hex[c & 15];
+    }
+  return out;
+}
+
+void require_representable(const Eigen::Vector3d& p, const std::string& what) {
+  if (p.allFinite() && p.cwiseAbs().maxCoeff() <= kMaxCoordinate) return;
+  std::ostringstream s;
+  s.precision(6);
+  s << what << " (" << p.x() << ", " << p.y() << ", " << p.z() << ") is not a usable position: "
+    << "coordinates must be finite and within +-" << kMaxCoordinate << " m";
+  throw std::invalid_argument(s.str());
 }
 
 void require_finite(const PointsRef& points, const char* what) {

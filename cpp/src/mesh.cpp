@@ -1,12 +1,18 @@
 #include "nbv/mesh.hpp"
+#include "nbv/ply.hpp"
 
 #include <assimp/postprocess.h>
 #include <assimp/scene.h>
 #include <assimp/Importer.hpp>
 
 #include <algorithm>
+#include <cctype>
 #include <cmath>
+#include <cstdlib>
 #include <filesystem>
+#include <fstream>
+#include <iterator>
+#include <optional>
 #include <random>
 #include <vector>
 
@@ -76,6 +82,151 @@ Points Mesh::sample_surface(std::size_t n, std::uint64_t seed, Eigen::VectorXi* 
   return out;
 }
 
+namespace {
+
+// A size cap on mesh files (PLY and assimp's formats): what a file may make us allocate grows with
+// its size.
+void check_file_size(const std::string& path) {
+  std::error_code ec;
+  const auto size = std::filesystem::file_size(path, ec);
+  if (ec) throw std::invalid_argument("cannot read mesh '" + path + "': " + ec.message());
+  if (size > kMaxMeshFileBytes)
+    throw std::invalid_argument("cannot read mesh '" + path + "': " + std::to_string(size) +
+                                " bytes, more than the " + std::to_string(kMaxMeshFileBytes) +
+                                " bytes nbvkit reads");
+}
+
+// PLY files go through nbvkit's own strict reader (nbv/ply.hpp), never through assimp.
+Mesh load_ply_mesh(const std::string& path, double scale, char up) {
+  check_file_size(path);
+  PlyData ply = read_ply(path, /*read_faces=*/true);
+  if (ply.faces.rows() == 0)
+    throw std::invalid_argument("mesh file '" + path + "' contains no triangles");
+  Mesh out;
+  out.vertices.resize(ply.vertices.rows(), 3);
+  const bool y_up = (up == 'y' || up == 'Y');
+  for (Eigen::Index i = 0; i < ply.vertices.rows(); ++i) {
+    const Eigen::Vector3d p = ply.vertices.row(i).transpose();
+    out.vertices.row(i) = scale * (y_up ? Eigen::Vector3d(p.x(), -p.z(), p.y()) : p);
+  }
+  out.faces = std::move(ply.faces);
+  try {
+    out.validate();
+  } catch (const std::invalid_argument& e) {
+    throw std::invalid_argument("mesh file '" + path + "': " + e.what());
+  }
+  return out;
+}
+
+bool all_digits(const std::string& v) {
+  return !v.empty() && v.size() <= 9 && v.find_first_not_of("0123456789") == std::string::npos;
+}
+
+// The value of attribute `name` in a start tag's text, or nullopt.
+std::optional<std::string> attribute(const std::string& tag, const std::string& name) {
+  for (std::size_t i = tag.find(name); i != std::string::npos; i = tag.find(name, i + 1)) {
+    if (i == 0 || !std::isspace(static_cast<unsigned char>(tag[i - 1]))) continue;
+    std::size_t j = i + name.size();
+    while (j < tag.size() && std::isspace(static_cast<unsigned char>(tag[j]))) ++j;
+    if (j >= tag.size() || tag[j] != '=') continue;
+    ++j;
+    while (j < tag.size() && std::isspace(static_cast<unsigned char>(tag[j]))) ++j;
+    if (j >= tag.size() || (tag[j] != '"' && tag[j] != '\'')) return std::string();
+    const std::size_t k = tag.find(tag[j], j + 1);
+    if (k == std::string::npos) return std::string();
+    return tag.substr(j + 1, k - j - 1);
+  }
+  return std::nullopt;
+}
+
+bool head_contains(const std::string& path, const std::string& what) {
+  std::ifstream f(path, std::ios::binary);
+  std::string head(4096, '\0');
+  f.read(&head[0], static_cast<std::streamsize>(head.size()));
+  head.resize(static_cast<std::size_t>(f.gcount()));
+  return head.find(what) != std::string::npos;
+}
+
+// Collada files: assimp 5.2's reader writes out of bounds for a <float_array> whose count is
+// missing or wrong, and loops forever on a token that is not an unsigned integer in an index list
+// (<p>, <vcount>, <v>, <h>). Such files are refused here, before assimp sees them; so are count,
+// stride, offset and set attributes that are not unsigned integers.
+void check_collada(const std::string& path) {
+  std::ifstream f(path, std::ios::binary);
+  const std::string s((std::istreambuf_iterator<char>(f)), std::istreambuf_iterator<char>());
+  const auto fail = [&](const std::string& why) {
+    throw std::invalid_argument("cannot read mesh '" + path + "': " + printable_ascii(why));
+  };
+  long long last_array = 0;  // values in the last <float_array> (or other array) read
+  for (std::size_t pos = s.find('<'); pos != std::string::npos; pos = s.find('<', pos + 1)) {
+    const std::size_t end = s.find('>', pos);
+    if (end == std::string::npos) return;  // malformed XML: assimp's parser reports it
+    const std::string tag = s.substr(pos + 1, end - pos - 1);
+    std::size_t n = 0;
+    while (n < tag.size() && !std::isspace(static_cast<unsigned char>(tag[n])) && tag[n] != '/')
+      ++n;
+    std::string name = tag.substr(0, n);
+    if (const auto colon = name.rfind(':'); colon != std::string::npos)
+      name = name.substr(colon + 1);
+    if (name.empty() || name[0] == '/' || name[0] == '?' || name[0] == '!') continue;
+    for (const char* a : {"count", "stride", "offset", "set"}) {
+      const auto v = attribute(tag, a);
+      if (v && !all_digits(*v))
+        fail(std::string("<") + name + "> attribute " + a + "=\"" + v->substr(0, 40) +
+             "\" is not an unsigned integer below 1e9");
+      if (v && std::string(a) == "stride" && std::stoll(*v) == 0)
+        fail("<" + name + "> has stride 0");
+    }
+    if (name == "accessor") {  // its values must lie within the array read before it
+      const auto count = attribute(tag, "count"), stride = attribute(tag, "stride"),
+                 offset = attribute(tag, "offset");
+      const long long need = (count ? std::stoll(*count) : 0) * (stride ? std::stoll(*stride) : 1) +
+                             (offset ? std::stoll(*offset) : 0);
+      if (need > last_array)
+        fail("<accessor> reads " + std::to_string(need) + " values of an array of " +
+             std::to_string(last_array));
+    }
+    if (name != "float_array" && name.size() > 6 &&
+        name.compare(name.size() - 6, 6, "_array") == 0) {
+      const auto count = attribute(tag, "count");  // int_array, Name_array, ...
+      last_array = count ? std::stoll(*count) : 0;
+    }
+    const bool self_closing = !tag.empty() && tag.back() == '/';
+    const bool is_floats = name == "float_array";
+    const bool is_indices = name == "p" || name == "vcount" || name == "v" || name == "h";
+    if (!(is_floats || is_indices) || self_closing) continue;
+    const std::size_t close = s.find("</", end);
+    const std::string body = s.substr(end + 1, close == std::string::npos ? 0 : close - end - 1);
+    if (is_indices) {
+      if (body.find_first_not_of("0123456789 \t\r\n") != std::string::npos)
+        fail("<" + name + "> holds something other than unsigned integers");
+      continue;
+    }
+    const auto count = attribute(tag, "count");
+    if (!count) fail("<float_array> without a count attribute");
+    std::size_t tokens = 0;
+    for (std::size_t i = 0; i < body.size();) {
+      while (i < body.size() && std::isspace(static_cast<unsigned char>(body[i]))) ++i;
+      if (i == body.size()) break;
+      std::size_t j = i;
+      while (j < body.size() && !std::isspace(static_cast<unsigned char>(body[j]))) ++j;
+      const std::string tok = body.substr(i, j - i);
+      char* e = nullptr;
+      std::strtod(tok.c_str(), &e);
+      if (e == tok.c_str() || *e != '\0') fail("<float_array> holds '" + tok.substr(0, 40) + "'");
+      ++tokens;
+      i = j;
+    }
+    if (std::to_string(tokens) != *count && !(tokens == 0 && std::stoll(*count) == 0))
+      fail("<float_array> declares count=" + *count + " but holds " + std::to_string(tokens) +
+           " numbers");
+    if (tokens == 0) fail("<float_array> is empty");
+    last_array = static_cast<long long>(tokens);
+  }
+}
+
+}  // namespace
+
 Mesh load_mesh(const std::string& path, double scale, char up) {
   if (!std::isfinite(scale) || scale <= 0)
     throw std::invalid_argument("mesh scale must be a positive finite number, got " +
@@ -88,6 +239,13 @@ Mesh load_mesh(const std::string& path, double scale, char up) {
   if (fs::is_directory(path, ec))
     throw std::invalid_argument("cannot read mesh '" + path + "': it is a directory");
 
+  std::string ext = fs::path(path).extension().string();
+  std::transform(ext.begin(), ext.end(), ext.begin(),
+                 [](unsigned char c) { return std::tolower(c); });
+  if (ext == ".ply") return load_ply_mesh(path, scale, up);
+  check_file_size(path);
+  if (ext == ".dae" || ext == ".xml" || head_contains(path, "<COLLADA")) check_collada(path);
+
   Assimp::Importer importer;
   // Keep the file's own axes: the caller says which way is up (also for Collada files).
   importer.SetPropertyBool(AI_CONFIG_IMPORT_COLLADA_IGNORE_UP_DIRECTION, true);
@@ -97,7 +255,8 @@ Mesh load_mesh(const std::string& path, double scale, char up) {
                          aiProcess_SortByPType | aiProcess_JoinIdenticalVertices;
   const aiScene* scene = importer.ReadFile(path, flags);
   if (!scene)
-    throw std::invalid_argument("cannot read mesh '" + path + "': " + importer.GetErrorString());
+    throw std::invalid_argument("cannot read mesh '" + path +
+                                "': " + printable_ascii(importer.GetErrorString()));
 
   std::size_t nv = 0, nf = 0;
   for (unsigned m = 0; m < scene->mNumMeshes; ++m) {

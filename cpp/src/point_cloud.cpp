@@ -193,6 +193,11 @@ void SurfaceCloud::clear() {
 
 std::vector<std::uint8_t> lzf_decompress(const std::uint8_t* in, std::size_t in_size,
                                          std::size_t out_size) {
+  // A back reference emits at most 264 bytes from 2 or 3 input bytes: a larger claim is corrupt
+  // (and must not allocate).
+  if (out_size / 132 > in_size + 1)
+    throw std::invalid_argument("corrupt LZF-compressed data: " + std::to_string(in_size) +
+                                " bytes cannot expand to " + std::to_string(out_size));
   std::vector<std::uint8_t> out(out_size);
   std::size_t ip = 0, op = 0;
   const auto corrupt = [] { throw std::invalid_argument("corrupt LZF-compressed data"); };

@@ -25,6 +25,10 @@ void check(RTCDevice device, const char* what) {
 
 RaycastScene::RaycastScene(const Mesh& mesh, const RaycastOptions& options) : mesh_(mesh) {
   mesh_.validate();
+  if (mesh_.vertices.cwiseAbs().maxCoeff() > kMaxCoordinate)
+    throw std::invalid_argument("mesh vertices reach " +
+                                std::to_string(mesh_.vertices.cwiseAbs().maxCoeff()) +
+                                " m, beyond the +-1e9 m the ray caster can represent");
   device_ = rtcNewDevice(nullptr);
   if (!device_) throw std::runtime_error("Embree: cannot create a device");
   rtcSetDeviceErrorFunction(device_, device_error, nullptr);
@@ -79,6 +83,8 @@ void RaycastScene::intersect(const PointsRef& origins, const PointsRef& directio
   if (!(t_near >= 0) || !(t_far > t_near))
     throw std::invalid_argument("ray interval must satisfy 0 <= t_near < t_far");
   require_finite(origins, "ray origins");
+  for (Eigen::Index i = 0; i < origins.rows(); ++i)
+    require_representable(origins.row(i).transpose(), "ray origin " + std::to_string(i));
   require_finite(directions, "ray directions");
   t.setConstant(n, std::numeric_limits<double>::infinity());
   prim.setConstant(n, -1);

@@ -25,6 +25,7 @@ void require(bool ok, const std::string& msg) {
 void check_pose(const Eigen::Isometry3d& T) {
   if (!T.matrix().allFinite())
     throw std::invalid_argument("sensor pose T_world_sensor contains NaN or infinite values");
+  require_representable(T.translation(), "sensor pose: position");
 }
 
 // Gathers rays flagged 1 (hit) or 2 (free) into a Scan, in ray order (deterministic).
@@ -60,6 +61,9 @@ double counter_normal(std::uint64_t seed, std::uint64_t frame, std::uint64_t ind
 
 void DepthCameraOptions::validate() const {
   require(width > 0 && height > 0, "camera width and height must be positive");
+  require(static_cast<std::int64_t>(width) * height <= kMaxCameraPixels,
+          "camera width x height = " + std::to_string(width) + " x " + std::to_string(height) +
+              " is more than " + std::to_string(kMaxCameraPixels) + " pixels");
   require(std::isfinite(hfov_deg) && hfov_deg > 0 && hfov_deg < 180,
           "camera hfov_deg must be in (0, 180)");
   require(std::isfinite(vfov_deg) && vfov_deg > 0 && vfov_deg < 180,
@@ -158,7 +162,12 @@ Scan DepthCamera::scan(const Eigen::Isometry3d& T) const {
 // ---------------------------------------------------------------------------- laser
 
 int LaserScannerOptions::num_beams() const {
-  return static_cast<int>(std::floor(fov_deg / resolution_deg + 1e-9)) + 1;
+  const double n = std::floor(fov_deg / resolution_deg + 1e-9) + 1;
+  if (!(n <= kMaxLaserBeams))
+    throw std::invalid_argument("laser resolution_deg = " + std::to_string(resolution_deg) +
+                                " gives more than " + std::to_string(kMaxLaserBeams) +
+                                " beams over fov_deg = " + std::to_string(fov_deg));
+  return static_cast<int>(n);
 }
 
 void LaserScannerOptions::validate() const {
@@ -170,6 +179,7 @@ void LaserScannerOptions::validate() const {
   require(std::isfinite(max_range) && max_range > min_range,
           "laser max_range must exceed min_range");
   require(std::isfinite(noise_sigma) && noise_sigma >= 0, "laser noise_sigma must be >= 0");
+  num_beams();  // throws naming resolution_deg if the beam count is out of bounds
   require(mount.matrix().allFinite(), "laser mount contains NaN or infinite values");
 }
 

@@ -295,26 +295,7 @@ def _read_npy(path):
     return a
 
 
-# ---- PLY
-
-_PLY_TYPES = {
-    "char": "i1",
-    "int8": "i1",
-    "uchar": "u1",
-    "uint8": "u1",
-    "short": "i2",
-    "int16": "i2",
-    "ushort": "u2",
-    "uint16": "u2",
-    "int": "i4",
-    "int32": "i4",
-    "uint": "u4",
-    "uint32": "u4",
-    "float": "f4",
-    "float32": "f4",
-    "double": "f8",
-    "float64": "f8",
-}
+# ---- PLY (split_header: also the PCD reader's)
 
 
 def _split_header(data: bytes, end_marker: bytes, what: str):
@@ -332,94 +313,13 @@ def _split_header(data: bytes, end_marker: bytes, what: str):
     return header.splitlines(), m.end()
 
 
-def _ply_type(name):
-    if name not in _PLY_TYPES:
-        raise _FormatError(f"unknown PLY property type '{name}'")
-    return _PLY_TYPES[name]
-
-
 def _read_ply(data: bytes) -> np.ndarray:
-    if not data.startswith(b"ply"):
-        raise _FormatError("not a PLY file (it does not start with 'ply')")
-    lines, body = _split_header(data, b"end_header", "PLY")
-    fmt = None
-    elements = []  # [name, count, [(kind, name, type, count_type)]]
-    for raw in lines[1:]:
-        tok = raw.split()
-        if not tok or tok[0] in ("comment", "obj_info", "end_header"):
-            continue
-        if tok[0] == "format":
-            if len(tok) < 2 or tok[1] not in ("ascii", "binary_little_endian", "binary_big_endian"):
-                raise _FormatError(f"unknown PLY format line '{raw.strip()}'")
-            fmt = tok[1]
-        elif tok[0] == "element":
-            if len(tok) != 3 or not tok[2].isdigit():
-                raise _FormatError(f"bad PLY element line '{raw.strip()}'")
-            elements.append([tok[1], int(tok[2]), []])
-        elif tok[0] == "property":
-            if not elements:
-                raise _FormatError("PLY property before any element")
-            if len(tok) == 5 and tok[1] == "list":
-                elements[-1][2].append(("list", tok[4], _ply_type(tok[3]), _ply_type(tok[2])))
-            elif len(tok) == 3:
-                elements[-1][2].append(("scalar", tok[2], _ply_type(tok[1]), None))
-            else:
-                raise _FormatError(f"bad PLY property line '{raw.strip()}'")
-        else:
-            raise _FormatError(f"unexpected PLY header line '{raw.strip()}'")
-    if fmt is None:
-        raise _FormatError("the PLY header has no 'format' line")
-    names = [e[0] for e in elements]
-    if "vertex" not in names:
-        return np.zeros((0, 3))  # e.g. an empty file or one with other elements only
-    vi = names.index("vertex")
-    _, count, props = elements[vi]
-    pnames = [p[1] for p in props]
-    for axis in "xyz":
-        if axis not in pnames:
-            raise _FormatError(f"the PLY vertex element has no '{axis}' property")
-    if count == 0:
-        return np.zeros((0, 3))
-    if any(p[0] == "list" for p in props):
-        raise _FormatError("PLY vertex elements with list properties are not supported")
-    if fmt == "ascii":
-        text = data[body:].decode("ascii", errors="replace").splitlines()
-        skip = sum(e[1] for e in elements[:vi])
-        rows = [ln for ln in text if ln.strip()][skip : skip + count]
-        if len(rows) < count:
-            raise _FormatError(f"truncated: {len(rows)} of {count} vertex lines")
-        try:
-            vals = np.array(" ".join(rows).split(), dtype=np.float64)
-        except ValueError:
-            raise _FormatError("non-numeric value in the vertex data") from None
-        if vals.size != count * len(props):
-            raise _FormatError(f"expected {len(props)} values on each of the {count} vertex lines")
-        vals = vals.reshape(count, len(props))
-        return vals[:, [pnames.index(a) for a in "xyz"]]
-    endian = "<" if fmt == "binary_little_endian" else ">"
-    offset = body
-    for name, n, eprops in elements[:vi]:  # skip the elements stored before the vertices
-        offset = _skip_binary_element(data, offset, n, eprops, endian, name)
-    dtype = np.dtype([(f"p{i}", endian + p[2]) for i, p in enumerate(props)])
-    if offset + count * dtype.itemsize > len(data):
-        raise _FormatError(f"truncated: {count} vertices of {dtype.itemsize} bytes do not fit")
-    rec = np.frombuffer(data, dtype=dtype, count=count, offset=offset)
-    return np.stack([rec[f"p{pnames.index(a)}"].astype(np.float64) for a in "xyz"], axis=1)
-
-
-def _skip_binary_element(data, offset, n, props, endian, name):
-    if all(p[0] == "scalar" for p in props):
-        return offset + n * sum(np.dtype(p[2]).itemsize for p in props)
-    for _ in range(n):  # list properties: walk (only for elements stored before the vertices)
-        for kind, _pname, t, ct in props:
-            if kind == "scalar":
-                offset += np.dtype(t).itemsize
-            else:
-                if offset + np.dtype(ct).itemsize > len(data):
-                    raise _FormatError(f"truncated in element '{name}'")
-                k = int(np.frombuffer(data, endian + ct, 1, offset)[0])
-                offset += np.dtype(ct).itemsize + k * np.dtype(t).itemsize
-    return offset
+    """The vertices of a PLY file, read by the C++ reader meshes use too (nbv/ply.hpp)."""
+    try:
+        vertices, _ = _core._parse_ply(data, faces=False)
+    except ValueError as e:
+        raise _FormatError(str(e)) from None
+    return vertices
 
 
 # ---- PCD

@@ -16,6 +16,7 @@ from __future__ import annotations
 
 
 import math
+import re
 import typing
 from dataclasses import dataclass, field, fields, is_dataclass, make_dataclass, replace
 from pathlib import Path
@@ -27,6 +28,45 @@ import yaml
 from . import _core
 from .scenarios import DEFAULT as DEFAULT_SCENARIO
 from .scenarios import SCENARIOS
+
+
+class YamlLoader(yaml.SafeLoader):
+    """PyYAML's safe loader, also reading 1e-4 / 2E5 as numbers (YAML 1.2; PyYAML's YAML 1.1
+    resolver wants a dot and a signed exponent, and reads 1e-4 as a string)."""
+
+
+YamlLoader.add_implicit_resolver(
+    "tag:yaml.org,2002:float",
+    re.compile(r"^[-+]?(?:[0-9][0-9_]*(?:\.[0-9_]*)?|\.[0-9_]+)[eE][-+]?[0-9]+$"),
+    list("-+0123456789."),
+)
+
+
+def parse_yaml(text: str, source: str = "<string>"):
+    """YAML text parsed with YamlLoader; ValueError "source:line: problem" on a syntax error."""
+    try:
+        return yaml.load(text, Loader=YamlLoader)
+    except yaml.YAMLError as e:
+        mark = getattr(e, "problem_mark", None) or getattr(e, "context_mark", None)
+        where = f"{source}:{mark.line + 1}" if mark is not None else source
+        problem = getattr(e, "problem", None) or str(e).splitlines()[0]
+        raise ValueError(f"{where}: {problem}") from None
+
+
+def read_yaml_file(path, what: str = "YAML file"):
+    """A YAML file parsed (see parse_yaml); FileNotFoundError for a missing path, ValueError
+    naming the file for a directory, undecodable text or a syntax error."""
+    p = Path(path)
+    if not p.exists():
+        raise FileNotFoundError(2, f"No such {what}", str(p))
+    if p.is_dir():
+        raise ValueError(f"{what} {p} is a directory, not a file")
+    try:
+        text = p.read_text()
+    except (OSError, UnicodeDecodeError) as e:
+        raise ValueError(f"cannot read {what} {p}: {e}") from None
+    return parse_yaml(text, str(p))
+
 
 #: A list of names in the configuration (YAML list of strings).
 Names = Tuple[str, ...]
@@ -426,9 +466,7 @@ class Config:
     @classmethod
     def from_yaml(cls, path: str | Path) -> "Config":
         p = Path(path)
-        if not p.exists():
-            raise FileNotFoundError(2, "No such config file", str(p))
-        data = yaml.safe_load(p.read_text()) or {}
+        data = read_yaml_file(p, "config file") or {}
         if not isinstance(data, dict):
             raise ValueError(
                 f"config file {p} must hold a mapping of keys, got {type(data).__name__}"
@@ -438,8 +476,17 @@ class Config:
     def with_overrides(self, overrides: list[str] | dict | None) -> "Config":
         """Apply ``key=value`` strings (dotted keys for nested sections; values parsed as YAML)
         on top of what the user set so far; a new scenario brings its own preset."""
+        if overrides is None:
+            return self
+        if isinstance(overrides, str) or not isinstance(overrides, (list, tuple, dict)):
+            raise TypeError(
+                "overrides must be a list of 'key=value' strings or a dict, "
+                f"got {type(overrides).__name__}"
+            )
         if not overrides:
             return self
+        if not isinstance(overrides, dict) and not all(isinstance(o, str) for o in overrides):
+            raise TypeError("overrides must be a list of 'key=value' strings")
         items = overrides.items() if isinstance(overrides, dict) else [_split(o) for o in overrides]
         data = _deep_copy(self._user)
         for key, value in items:
@@ -462,8 +509,8 @@ def _split(item: str) -> tuple[str, Any]:
     if not key:
         raise ValueError(f"override {item!r} has an empty key")
     try:
-        value = yaml.safe_load(raw) if raw.strip() else None
-    except yaml.YAMLError as e:
+        value = parse_yaml(raw) if raw.strip() else None
+    except ValueError as e:
         raise ValueError(f"override {item!r}: cannot parse the value: {e}") from None
     return key, value
 
@@ -638,13 +685,18 @@ _POSITIVE = {
     "report.poisson_depth",
     "report.mesh_max_points",
     "report.view_points",
+    "termination.window",
+    "sampling.stuck_window",
+    "utility.rays_x",
+    "utility.rays_y",
+    "camera.width",
+    "camera.height",
 }
 _NONNEG = {
+    "seed",
     "max_iterations",
     "start",
     "sampling.alpha_max",
-    "termination.window",
-    "sampling.stuck_window",
     "vehicle.start_clear_radius",
     "camera.noise_k",
     "laser.noise_sigma",
@@ -720,10 +772,57 @@ def _validate(obj, prefix: str) -> None:
         raise ValueError(
             f"config key 'start' must be 0..4 (five predefined starts), got {obj.start}"
         )
+    if prefix == "":
+        _check_derived(obj)
     if prefix == "workspace." and (obj.bounds_min is None) != (obj.bounds_max is None):
         raise ValueError(
             "config keys 'workspace.bounds_min' and 'workspace.bounds_max' go together"
         )
+
+
+def _check_derived(cfg) -> None:
+    """Builds what a mission derives from the configuration alone (the sensors' options and ray
+    counts, the view camera model), so that a bad value fails here, before any work, naming the
+    section."""
+    c, la, u = cfg.camera, cfg.laser, cfg.utility
+    checks = (
+        (
+            "camera",
+            lambda: _core.DepthCameraOptions(
+                width=c.width,
+                height=c.height,
+                hfov_deg=c.hfov_deg,
+                vfov_deg=c.vfov_deg,
+                min_range=c.min_range,
+                max_range=c.max_range,
+                noise_k=c.noise_k,
+            ),
+        ),
+        (
+            "laser",
+            lambda: _core.LaserScannerOptions(
+                fov_deg=la.fov_deg,
+                resolution_deg=la.resolution_deg,
+                min_range=la.min_range,
+                max_range=la.max_range,
+                noise_sigma=la.noise_sigma,
+            ),
+        ),
+        (
+            "utility",
+            lambda: _core.ViewCameraModel.for_resolution(
+                c.hfov_deg, c.vfov_deg, c.max_range, cfg.map.resolution
+            ).copy(**{k: v for k, v in (("rays_x", u.rays_x), ("rays_y", u.rays_y)) if v}),
+        ),
+    )
+    for section, build in checks:
+        try:
+            build()
+        except (ValueError, TypeError) as e:
+            derived = ""
+            if section == "utility" and not (u.rays_x and u.rays_y):
+                derived = f" (null rays_x / rays_y follow map.resolution = {cfg.map.resolution:g})"
+            raise ValueError(f"config section {section!r}: {e}{derived}") from None
 
 
 def load_config(

@@ -93,16 +93,61 @@ def run_one(spec: RunSpec, root: str | os.PathLike, threads: int = 0) -> dict:
         shutil.rmtree(tmp, ignore_errors=True)
         from .report import finish_run
 
-        mission = Mission(cfg)
-        mission.run(tmp)
-        # one observable-surface cache for the whole experiment: once per structure
-        finish_run(mission, tmp, cache_dir=root / "cache")
-        (tmp / "spec.json").write_text(json.dumps(_spec_dict(spec)))
+        try:
+            mission = Mission(cfg)
+            mission.run(tmp)
+            # one observable-surface cache for the whole experiment: once per structure
+            finish_run(mission, tmp, cache_dir=root / "cache")
+            (tmp / "spec.json").write_text(json.dumps(_spec_dict(spec)))
+        except BaseException:  # an error or Ctrl-C: no half-written run folder stays behind
+            shutil.rmtree(tmp, ignore_errors=True)
+            raise
         try:
             tmp.rename(final)
         except OSError:  # another worker finished the same run first
             shutil.rmtree(tmp, ignore_errors=True)
     return row_of(final)
+
+
+class Interrupted(Exception):
+    """Ctrl-C during run_specs: the workers are stopped; ``rows`` holds the finished runs' rows
+    (in spec order), ``total`` the number of specs."""
+
+    def __init__(self, rows: list[dict], total: int):
+        super().__init__(f"interrupted after {len(rows)} of {total} runs")
+        self.rows = rows
+        self.total = total
+
+
+def clean_stale_tmp(root: str | os.PathLike) -> int:
+    """Removes ``runs/.<id>.tmp<pid>`` folders left by runs that were killed (their process is
+    gone); returns how many."""
+    n = 0
+    for d in (Path(root) / "runs").glob(".*.tmp*"):
+        pid = d.name.rsplit(".tmp", 1)[-1]
+        if d.is_dir() and pid.isdigit() and not _alive(int(pid)):
+            shutil.rmtree(d, ignore_errors=True)
+            n += 1
+    return n
+
+
+def _alive(pid: int) -> bool:
+    if pid == os.getpid():
+        return False  # this process starts no run before cleaning
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except PermissionError:
+        return True
+    return True
+
+
+def _ignore_sigint() -> None:
+    """Pool workers leave Ctrl-C to the parent, which stops them."""
+    import signal
+
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
 
 
 def _spec_dict(spec: RunSpec) -> dict:
@@ -183,41 +228,66 @@ def run_specs(
     """
     root = Path(root)
     (root / "runs").mkdir(parents=True, exist_ok=True)
+    clean_stale_tmp(root)
     ncpu = os.cpu_count() or 1
-    if scheduler:
-        from distributed import Client
+    rows: list = [None] * len(specs)
+    try:
+        if scheduler:
+            from distributed import Client
 
-        with Client(scheduler) as client:
-            futs = client.map(run_one, specs, root=str(root.resolve()), threads=1, pure=False)
-            rows = client.gather(futs)
-    elif workers == 1 or len(specs) <= 1:
-        rows = []
-        for i, s in enumerate(specs):
-            t0 = time.perf_counter()
-            rows.append(run_one(s, root))
-            if progress:
-                print(
-                    f"[{i + 1}/{len(specs)}] {s.run_id}: {time.perf_counter() - t0:.1f} s",
-                    flush=True,
-                )
-    else:
-        import concurrent.futures as cf
-        import multiprocessing as mp
-
-        n = min(workers or ncpu, len(specs))
-        threads = max(1, ncpu // n)
-        with cf.ProcessPoolExecutor(n, mp_context=mp.get_context("spawn")) as ex:
-            futs = {ex.submit(run_one, s, root, threads): i for i, s in enumerate(specs)}
-            rows = [None] * len(specs)
-            for k, f in enumerate(cf.as_completed(futs)):
-                rows[futs[f]] = f.result()
+            with Client(scheduler) as client:
+                futs = client.map(run_one, specs, root=str(root.resolve()), threads=1, pure=False)
+                try:
+                    rows = client.gather(futs)
+                except KeyboardInterrupt:
+                    for i, f in enumerate(futs):
+                        if f.status == "finished":
+                            rows[i] = f.result()
+                    client.cancel(futs)
+                    raise
+        elif workers == 1 or len(specs) <= 1:
+            for i, s in enumerate(specs):
+                t0 = time.perf_counter()
+                rows[i] = run_one(s, root)
                 if progress:
                     print(
-                        f"[{k + 1}/{len(specs)}] {rows[futs[f]]['run_id']}: "
-                        f"{rows[futs[f]]['wall_time_s']:.1f} s",
+                        f"[{i + 1}/{len(specs)}] {s.run_id}: {time.perf_counter() - t0:.1f} s",
                         flush=True,
                     )
+        else:
+            _run_pool(specs, root, min(workers or ncpu, len(specs)), ncpu, rows, progress)
+    except KeyboardInterrupt:
+        raise Interrupted([r for r in rows if r is not None], len(specs)) from None
     return rows
+
+
+def _run_pool(specs, root, n, ncpu, rows, progress) -> None:
+    """Runs specs in n spawned processes, filling rows; on Ctrl-C the queued runs are cancelled
+    and the running ones killed (their temporary folders are removed on the next start)."""
+    import concurrent.futures as cf
+    import multiprocessing as mp
+
+    threads = max(1, ncpu // n)
+    ex = cf.ProcessPoolExecutor(n, mp_context=mp.get_context("spawn"), initializer=_ignore_sigint)
+    try:
+        futs = {ex.submit(run_one, s, root, threads): i for i, s in enumerate(specs)}
+        for k, f in enumerate(cf.as_completed(futs)):
+            rows[futs[f]] = f.result()
+            if progress:
+                print(
+                    f"[{k + 1}/{len(specs)}] {rows[futs[f]]['run_id']}: "
+                    f"{rows[futs[f]]['wall_time_s']:.1f} s",
+                    flush=True,
+                )
+    except KeyboardInterrupt:
+        procs = list((getattr(ex, "_processes", None) or {}).values())
+        ex.shutdown(wait=False, cancel_futures=True)
+        for p in procs:
+            p.terminate()
+        for p in procs:
+            p.join(5)
+        raise
+    ex.shutdown(wait=True)
 
 
 def write_table(rows: list[dict], path: str | os.PathLike) -> None:
@@ -353,14 +423,44 @@ def sweep_specs(sweep: dict) -> list[RunSpec]:
     if unknown:
         raise KeyError(f"unknown sweep key(s) {sorted(unknown)}; known: {sorted(known)}")
     meshes = sweep.get("meshes") or [None]
-    scenarios = [str(s) for s in sweep.get("scenarios", ["5"])]
+    if not isinstance(meshes, list):
+        raise ValueError(f"sweep 'meshes' must be a list of paths or mappings, got {meshes!r}")
+    for m in meshes:
+        if isinstance(m, dict):
+            bad = set(m) - {"path", "scale", "up"}
+            if bad:
+                raise KeyError(
+                    f"unknown key(s) {sorted(bad)} in sweep mesh entry {m!r}; "
+                    "known: ['path', 'scale', 'up']"
+                )
+            scale = m.get("scale", 1.0)
+            if isinstance(scale, bool) or not isinstance(scale, (int, float)):
+                raise ValueError(f"sweep mesh entry {m!r}: 'scale' must be a number")
+        elif m is not None and not isinstance(m, str):
+            raise ValueError(f"sweep mesh entry {m!r} must be a path, a mapping or null")
+    scenarios = sweep.get("scenarios", ["5"])
+    if not isinstance(scenarios, list):
+        raise ValueError(f'sweep \'scenarios\' must be a list (e.g. ["1", "5"]), got {scenarios!r}')
+    scenarios = [str(s) for s in scenarios]
     starts = sweep.get("starts", [0])
-    if isinstance(starts, int):
+    if isinstance(starts, int) and not isinstance(starts, bool):
         starts = list(range(starts))
+    if not isinstance(starts, list) or not all(
+        isinstance(s, int) and not isinstance(s, bool) for s in starts
+    ):
+        raise ValueError(
+            f"sweep 'starts' must be a count or a list of start indices, got {starts!r}"
+        )
     grid = sweep.get("grid") or {}
     if not isinstance(grid, dict) or not all(isinstance(v, list) for v in grid.values()):
         raise ValueError("sweep 'grid' must map config keys to lists of values")
-    fixed = [f"{k}={json.dumps(v)}" for k, v in (sweep.get("set") or {}).items()]
+    fixed_set = sweep.get("set") or {}
+    if not isinstance(fixed_set, dict):
+        raise ValueError(
+            f"sweep 'set' must map config keys to values (e.g. {{max_iterations: 200}}), "
+            f"got {fixed_set!r}"
+        )
+    fixed = [f"{k}={json.dumps(v)}" for k, v in fixed_set.items()]
     keys = list(grid)
     specs = []
     for mesh in meshes:

@@ -1,4 +1,5 @@
-"""Mesh loading (assimp), conversion to and from open3d, and the shipped default structure."""
+"""Mesh loading (assimp; PLY by nbvkit's strict reader), conversion to and from open3d, and the
+shipped default structure."""
 from __future__ import annotations
 
 import os
@@ -13,12 +14,14 @@ _UP = {"z": "z", "y": "y", "Z": "z", "Y": "y"}
 
 
 def load_mesh(path: str | os.PathLike, scale: float = 1.0, up: str = "z") -> Mesh:
-    """Load a mesh file (OBJ, STL, PLY, DAE, glTF/GLB, ...) with assimp as one triangle soup.
+    """Load a mesh file (OBJ, STL, PLY, DAE, glTF/GLB, ...) as one triangle soup: PLY with
+    nbvkit's strict reader (declared counts and face indices checked), the rest with assimp.
 
     All parts of the file are merged, each node's transform applied. ``up`` is the file's up axis:
     ``"z"`` keeps coordinates, ``"y"`` rotates file +y onto +z ((x, y, z) -> (x, -z, y)). ``scale``
     multiplies coordinates (e.g. 0.001 for a millimetre file). Raises FileNotFoundError for a
-    missing path and ValueError naming the file for unreadable or triangle-less files.
+    missing path and ValueError naming the file for unreadable, malformed or triangle-less files
+    (README, "Errors").
     """
     if up not in _UP:
         raise ValueError(f"mesh up axis must be 'y' or 'z', got {up!r}")

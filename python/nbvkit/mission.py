@@ -99,6 +99,10 @@ class Mission:
         """Runs the mission; with out_dir writes config.yaml, iterations.csv, summary.json,
         cloud.ply, map.ot, trajectory.csv and figures/*.png there. Returns the summary dict."""
         cfg, world = self.config, self.world
+        if out_dir is not None:  # before any work: a mission must not fly and then fail to save
+            from .paths import check_output_dir
+
+            check_output_dir(out_dir, "out_dir")
         t_start = time.perf_counter()
         world.out_dir = Path(out_dir) if out_dir is not None else None
         self.entropy_initial = world.map.total_entropy()  # the empty workspace

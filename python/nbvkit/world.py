@@ -52,6 +52,14 @@ class World:
             self.mesh_path = "<in-memory mesh>"
         self.mesh = mesh
         self.workspace: Workspace = make_workspace(mesh.bounds, cfg)
+        # The map first: its size check (cells, OctoMap's range) comes before any search.
+        m = cfg.map
+        self.map = _core.OccupancyMap(
+            m.resolution,
+            self.workspace.bounds_min,
+            self.workspace.bounds_max,
+            options=m.options(),
+        )
         self.scene = _core.RaycastScene(mesh)
         c, la = cfg.camera, cfg.laser
         camera_mount = _core.mount_transform(c.mount_xyz, *c.mount_rpy_deg)
@@ -81,13 +89,6 @@ class World:
         start = np.array(cfg.start_pose, float) if cfg.start_pose is not None else None
         self.start_pose = start if start is not None else self.starts[cfg.start]
         self._check_start(self.start_pose)
-        m = cfg.map
-        self.map = _core.OccupancyMap(
-            m.resolution,
-            self.workspace.bounds_min,
-            self.workspace.bounds_max,
-            options=m.options(),
-        )
         cl = cfg.cloud
         self.camera_cloud = _core.SurfaceCloud(voxel_size=cl.camera_voxel, min_z=cl.min_z)
         self.laser_cloud = _core.SurfaceCloud(voxel_size=cl.laser_voxel, min_z=cl.min_z)

@@ -42,6 +42,17 @@ class FileNotFound : public std::runtime_error {
   std::string path_;
 };
 
+/// `s` with every byte outside printable ASCII written as \xNN: text quoted from a file into an
+/// error message must be valid UTF-8 to cross into Python.
+std::string printable_ascii(const std::string& s);
+
+/// Largest |coordinate| (metres) a position may have: the ray caster works in float32, whose
+/// spacing at 1e9 m is already 64 m, and Embree asserts on origins near 2e18.
+constexpr double kMaxCoordinate = 1e9;
+/// Throws std::invalid_argument (-> ValueError) naming `what` and the value if `p` holds NaN, inf
+/// or a coordinate beyond +-kMaxCoordinate.
+void require_representable(const Eigen::Vector3d& p, const std::string& what);
+
 /// Throws std::invalid_argument (-> ValueError) naming `what` if any entry is NaN or inf.
 void require_finite(const PointsRef& points, const char* what);
 /// Converts a 4x4 homogeneous matrix to a rigid transform; throws std::invalid_argument naming

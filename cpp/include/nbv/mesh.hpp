@@ -30,7 +30,11 @@ struct Mesh {
                         Eigen::VectorXi* face_ids = nullptr) const;
 };
 
-/// Loads every mesh of a file (OBJ, STL, PLY, DAE, glTF/GLB, ... whatever assimp reads), with each
+/// Largest mesh file load_mesh reads (bytes): 2 GiB.
+constexpr std::uintmax_t kMaxMeshFileBytes = std::uintmax_t(2) << 30;
+
+/// Loads every mesh of a file (OBJ, STL, PLY, DAE, glTF/GLB, ... whatever assimp reads; PLY through
+/// nbvkit's own strict reader, nbv/ply.hpp), with each
 /// node's transform applied, merged into one triangle soup. `up` names the file's up axis: 'z'
 /// (kept) or 'y' (rotated so file +y becomes +z: (x, y, z) -> (x, -z, y)). `scale` multiplies all
 /// coordinates after the rotation. Throws FileNotFound for a missing path and

@@ -25,6 +25,10 @@ struct Scan {
   Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor> depth;
 };
 
+/// Bounds on derived ray counts (a typo must not become a multi-gigabyte allocation).
+constexpr std::int64_t kMaxCameraPixels = 16'000'000;
+constexpr int kMaxLaserBeams = 1'000'000;
+
 struct DepthCameraOptions {
   int width = 640;         ///< pixels
   int height = 480;        ///< pixels

@@ -11,7 +11,8 @@ def add_mesh_options(p: argparse.ArgumentParser, required: bool = False) -> None
         "--mesh",
         metavar="PATH",
         required=required,
-        help="structure mesh (OBJ, STL, PLY, DAE, glTF, ... read with assimp); "
+        help="structure mesh (OBJ, STL, DAE, glTF, ... read with assimp; PLY with nbvkit's "
+        "strict reader); "
         "default: the shipped generated airliner",
     )
     p.add_argument(

@@ -2,9 +2,10 @@
 from __future__ import annotations
 
 import argparse
+import sys
 import time
-from pathlib import Path
 
+from ..paths import check_output_dir
 from .common import add_mesh_options
 
 
@@ -33,6 +34,7 @@ def register(sub) -> argparse.ArgumentParser:
     p.add_argument(
         "--set",
         nargs="+",
+        action="extend",
         default=[],
         metavar="KEY=VALUE",
         help="config overrides applied to every run (e.g. max_iterations=100)",
@@ -60,6 +62,7 @@ def run(args) -> int:
     import pandas as pd
 
     from ..experiments import (
+        Interrupted,
         compare_markdown,
         compare_specs,
         compare_table,
@@ -74,11 +77,22 @@ def run(args) -> int:
     planners = [p.strip() for p in args.planners.split(",") if p.strip()]
     if not planners:
         raise ValueError("--planners names no planner")
-    out = Path(args.out)
     specs = compare_specs(planners, args.mesh, args.mesh_scale, args.mesh_up, args.starts, args.set)
     validate_specs(specs)
+    out = check_output_dir(args.out, "--out")
     t0 = time.perf_counter()
-    rows = run_specs(specs, out, workers=args.workers, scheduler=args.scheduler)
+    try:
+        rows = run_specs(specs, out, workers=args.workers, scheduler=args.scheduler)
+    except Interrupted as e:
+        if e.rows:
+            write_table(e.rows, out / "runs.csv")
+        print(
+            f"nbvkit compare: interrupted: {len(e.rows)} of {e.total} runs finished"
+            + (f" (their rows: {out / 'runs.csv'})" if e.rows else "")
+            + "; resume with the same command (finished runs are kept)",
+            file=sys.stderr,
+        )
+        return 130
     df = pd.DataFrame(rows)
     write_table(rows, out / "runs.csv")
     t = compare_table(df)

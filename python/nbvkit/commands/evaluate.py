@@ -6,6 +6,7 @@ import json
 import os
 from pathlib import Path
 
+from ..paths import check_output_file
 from ..cloud import read_points
 from ..evaluation import (
     DEFAULT_GT_DENSITY,
@@ -123,6 +124,8 @@ def run(args) -> int:
         raise ValueError("--observable needs the ground-truth mesh, not --reference-cloud")
     if args.gt_density is None or not args.gt_density > 0:
         raise ValueError(f"--gt-density must be > 0, got {args.gt_density}")
+    if args.json:
+        check_output_file(args.json, "--json")
     cloud_path = Path(os.fspath(args.cloud)).expanduser()
     cloud, cloud_kind = read_reconstruction(cloud_path, args.gt_density, args.seed)
     if args.reference_cloud:

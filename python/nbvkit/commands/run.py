@@ -4,11 +4,11 @@ from __future__ import annotations
 
 import argparse
 import json
-from pathlib import Path
 
 from ..config import load_config
 from ..mission import Mission
 from ..report import finish_run
+from ..paths import check_output_dir
 from ..scenarios import DEFAULT, SCENARIOS
 
 
@@ -56,6 +56,7 @@ def register(sub) -> argparse.ArgumentParser:
     p.add_argument(
         "--set",
         nargs="+",
+        action="extend",
         default=[],
         metavar="KEY=VALUE",
         help="override any config key, dotted for nested ones (e.g. max_iterations=50 "
@@ -90,7 +91,7 @@ def config_from_args(args):
 
 def run(args) -> int:
     cfg = config_from_args(args)
-    out = Path(args.out or f"runs/scenario{cfg.scenario}_start{cfg.start}")
+    out = check_output_dir(args.out or f"runs/scenario{cfg.scenario}_start{cfg.start}", "--out")
     mission = Mission(cfg)
     mission.run(out)
     s = finish_run(mission, out)

@@ -3,10 +3,13 @@ from __future__ import annotations
 
 import argparse
 
+from pathlib import Path
+
 import numpy as np
 
-from .._core import DepthCamera, LaserScanner, RaycastScene
+from .._core import MAX_COORDINATE, DepthCamera, LaserScanner, RaycastScene
 from ..cloud import write_points
+from ..paths import check_output_file
 from .common import add_mesh_options, mesh_from_args
 
 
@@ -51,8 +54,16 @@ def register(sub) -> argparse.ArgumentParser:
 
 def run(args) -> int:
     pose = np.asarray(args.pose, dtype=np.float64)
-    if not np.all(np.isfinite(pose)):
-        raise ValueError(f"--pose must be finite numbers, got {args.pose}")
+    if not np.all(np.isfinite(pose)) or np.abs(pose[:3]).max() > MAX_COORDINATE:
+        raise ValueError(
+            f"--pose must be finite numbers with |x|, |y|, |z| <= {MAX_COORDINATE:g} m, "
+            f"got {args.pose}"
+        )
+    if args.seed < 0:
+        raise ValueError(f"--seed must be >= 0, got {args.seed}")
+    if Path(args.out).suffix.lower() not in (".ply", ".pcd", ".npy"):
+        raise ValueError(f"--out {args.out}: unknown extension (use .ply, .pcd or .npy)")
+    check_output_file(args.out, "--out")
     scene = RaycastScene(mesh_from_args(args))
     if args.sensor == "camera":
         sensor = DepthCamera(scene, noise_k=args.noise, seed=args.seed)

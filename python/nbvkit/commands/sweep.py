@@ -2,10 +2,12 @@
 from __future__ import annotations
 
 import argparse
+import sys
 import time
 from pathlib import Path
 
-import yaml
+from ..config import read_yaml_file
+from ..paths import check_output_dir
 
 EXAMPLE = """example sweep file:
   meshes:                       # default: the shipped airliner
@@ -46,21 +48,33 @@ def register(sub) -> argparse.ArgumentParser:
 
 
 def run(args) -> int:
-    from ..experiments import run_specs, sweep_specs, write_table
+    from ..experiments import Interrupted, run_specs, sweep_specs, write_table
 
     path = Path(args.config)
-    if not path.exists():
-        raise FileNotFoundError(2, "No such sweep file", str(path))
-    sweep = yaml.safe_load(path.read_text()) or {}
+    sweep = read_yaml_file(path, "sweep file") or {}
     if not isinstance(sweep, dict):
         raise ValueError(f"sweep file {path} must hold a mapping")
     specs = sweep_specs(sweep)
-    out = Path(args.out or sweep.get("out") or f"runs/{path.stem}")
-    workers = args.workers if args.workers is not None else int(sweep.get("workers") or 0)
+    out = check_output_dir(args.out or sweep.get("out") or f"runs/{path.stem}", "--out")
+    workers = args.workers if args.workers is not None else sweep.get("workers") or 0
+    if isinstance(workers, bool) or not isinstance(workers, int) or workers < 0:
+        raise ValueError(f"sweep 'workers' must be a count >= 0, got {workers!r}")
     t0 = time.perf_counter()
-    rows = run_specs(
-        specs, out, workers=workers, scheduler=args.scheduler or sweep.get("scheduler")
-    )
+    try:
+        rows = run_specs(
+            specs, out, workers=workers, scheduler=args.scheduler or sweep.get("scheduler")
+        )
+    except Interrupted as e:
+        if e.rows:
+            write_table(e.rows, out / "results.csv")
+        print(
+            f"nbvkit sweep: interrupted: {len(e.rows)} of {e.total} runs finished"
+            + (f" (table of them: {out / 'results.csv'})" if e.rows else "")
+            + f"; resume with the same command: nbvkit sweep {args.config}"
+            + (f" --out {args.out}" if args.out else ""),
+            file=sys.stderr,
+        )
+        return 130
     write_table(rows, out / "results.csv")
     import pandas as pd
 

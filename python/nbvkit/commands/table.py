@@ -2,9 +2,10 @@
 from __future__ import annotations
 
 import argparse
+import sys
 import time
-from pathlib import Path
 
+from ..paths import check_output_dir
 from .common import add_mesh_options
 
 
@@ -25,6 +26,7 @@ def register(sub) -> argparse.ArgumentParser:
     p.add_argument(
         "--set",
         nargs="+",
+        action="extend",
         default=[],
         metavar="KEY=VALUE",
         help="config overrides applied to every run (e.g. max_iterations=100)",
@@ -49,17 +51,37 @@ def register(sub) -> argparse.ArgumentParser:
 
 
 def run(args) -> int:
-    from ..experiments import run_specs, table2_specs, validate_specs, write_table, write_table2
+    from ..experiments import (
+        Interrupted,
+        run_specs,
+        table2_specs,
+        validate_specs,
+        write_table,
+        write_table2,
+    )
     from ..plots import plot_experiment
 
     if not 1 <= args.starts <= 5:
         raise ValueError(f"--starts must be 1..5, got {args.starts}")
-    out = Path(args.out)
     specs = table2_specs(args.mesh, args.mesh_scale, args.mesh_up, args.starts, args.set)
     validate_specs(specs)
+    out = check_output_dir(args.out, "--out")
     t0 = time.perf_counter()
-    rows = run_specs(specs, out, workers=args.workers, scheduler=args.scheduler)
     import pandas as pd
+
+    try:
+        rows = run_specs(specs, out, workers=args.workers, scheduler=args.scheduler)
+    except Interrupted as e:
+        if e.rows:
+            write_table(e.rows, out / "runs.csv")
+            write_table2(pd.DataFrame(e.rows), out)
+        print(
+            f"nbvkit table: interrupted: {len(e.rows)} of {e.total} runs finished"
+            + (f" (partial tables: {out / 'runs.csv'}, {out / 'table2.md'})" if e.rows else "")
+            + "; resume with the same command (finished runs are kept)",
+            file=sys.stderr,
+        )
+        return 130
 
     df = pd.DataFrame(rows)
     write_table(rows, out / "runs.csv")

@@ -1,0 +1,213 @@
+// The strict PLY reader (nbv/ply.hpp): valid files in every encoding, and hostile ones (truncated
+// data or header, counts beyond the file, out-of-range indices) that must throw, never crash.
+#include "nbv/common.hpp"
+#include "nbv/mesh.hpp"
+#include "nbv/ply.hpp"
+#include "nbv/raycast.hpp"
+#include "nbv/sensors.hpp"
+
+#include <gtest/gtest.h>
+
+#include <cstdint>
+#include <cstdio>
+#include <cstring>
+#include <fstream>
+#include <limits>
+#include <memory>
+#include <string>
+#include <vector>
+
+namespace {
+
+const float kV[4][3] = {{0, 0, 0}, {1, 0, 0}, {1, 1, 0}, {0, 1, 0}};
+
+std::string header(const std::string& fmt, int nv = 4, int nf = 2) {
+  return "ply\nformat " + fmt + " 1.0\ncomment test\nelement vertex " + std::to_string(nv) +
+         "\nproperty float x\nproperty float y\nproperty float z\nelement face " +
+         std::to_string(nf) + "\nproperty list uchar int vertex_indices\nend_header\n";
+}
+
+std::string ascii_square(int bad_index = 3) {
+  return header("ascii") + "0 0 0\n1 0 0\n1 1 0\n0 1 0\n3 0 1 2\n3 0 2 " +
+         std::to_string(bad_index) + "\n";
+}
+
+template <typename T>
+void put(std::string& s, T v, bool big) {
+  char b[sizeof(T)];
+  std::memcpy(b, &v, sizeof(T));
+  if (big)
+    for (std::size_t i = 0; i < sizeof(T) / 2; ++i) std::swap(b[i], b[sizeof(T) - 1 - i]);
+  s.append(b, sizeof(T));
+}
+
+std::string binary_square(bool big, int last_index = 3) {
+  std::string s = header(big ? "binary_big_endian" : "binary_little_endian");
+  for (const auto& v : kV)
+    for (float c : v) put(s, c, big);
+  const int f[2][3] = {{0, 1, 2}, {0, 2, last_index}};
+  for (const auto& t : f) {
+    put<std::uint8_t>(s, 3, big);
+    for (int i : t) put<std::int32_t>(s, i, big);
+  }
+  return s;
+}
+
+nbv::PlyData parse(const std::string& s, bool faces = true) {
+  return nbv::parse_ply(reinterpret_cast<const std::uint8_t*>(s.data()), s.size(), faces);
+}
+
+void expect_square(const nbv::PlyData& d) {
+  ASSERT_EQ(d.vertices.rows(), 4);
+  ASSERT_EQ(d.faces.rows(), 2);
+  EXPECT_DOUBLE_EQ(d.vertices(2, 0), 1.0);
+  EXPECT_DOUBLE_EQ(d.vertices(2, 1), 1.0);
+  EXPECT_EQ(d.faces(1, 2), 3);
+}
+
+std::string error_of(const std::string& s) {
+  try {
+    parse(s);
+  } catch (const std::invalid_argument& e) {
+    return e.what();
+  }
+  return "";
+}
+
+}  // namespace
+
+TEST(Ply, ReadsAsciiAndBothBinaryEncodings) {
+  expect_square(parse(ascii_square()));
+  expect_square(parse(binary_square(false)));
+  expect_square(parse(binary_square(true)));
+}
+
+TEST(Ply, PolygonsBecomeFansAndOtherPropertiesAreSkipped) {
+  const std::string s =
+      "ply\nformat ascii 1.0\nelement vertex 4\nproperty float x\nproperty uchar red\n"
+      "property float y\nproperty float z\nelement face 1\nproperty uchar flags\n"
+      "property list uchar int vertex_indices\nproperty list uchar float tex\nend_header\n"
+      "0 9 0 0\n1 9 0 0\n1 9 1 0\n0 9 1 0\n7 4 0 1 2 3 2 0.5 0.5\n";
+  const auto d = parse(s);
+  ASSERT_EQ(d.faces.rows(), 2);
+  EXPECT_DOUBLE_EQ(d.vertices(1, 0), 1.0);
+  EXPECT_DOUBLE_EQ(d.vertices(2, 1), 1.0);
+  EXPECT_EQ(d.faces(1, 2), 3);
+}
+
+TEST(Ply, TruncatedDataThrows) {
+  const std::string b = binary_square(false);
+  for (std::size_t n = b.find("end_header") + 11; n < b.size(); ++n)
+    EXPECT_NE(error_of(b.substr(0, n)), "") << "cut at " << n;
+  const std::string a = ascii_square();
+  EXPECT_NE(error_of(a.substr(0, a.size() - 8)).find("truncated"), std::string::npos);
+}
+
+TEST(Ply, TruncatedHeaderThrowsAndDoesNotLoop) {
+  const std::string b = binary_square(false);
+  for (std::size_t n = 0; n < b.find("end_header") + 10; ++n)
+    EXPECT_NE(error_of(b.substr(0, n)), "") << "cut at " << n;
+}
+
+TEST(Ply, CountsBeyondTheFileThrowBeforeAllocating) {
+  std::string s = header("binary_little_endian", 1000000000, 0);
+  s += std::string(100, '\0');
+  EXPECT_NE(error_of(s).find("declares 1000000000"), std::string::npos) << error_of(s);
+  std::string a = header("ascii", 2000000000, 2000000000) + "0 0 0\n";
+  EXPECT_NE(error_of(a).find("truncated"), std::string::npos);
+  EXPECT_NE(error_of(header("ascii", 4) + "0 0 0\n1 0 0\n"), "");  // fewer vertex lines
+  EXPECT_NE(error_of("ply\nformat ascii 1.0\nelement vertex 99999999999999999999\nend_header\n"),
+            "");
+}
+
+TEST(Ply, OutOfRangeFaceIndexThrows) {
+  for (int bad : {4, 1000, -1}) {
+    EXPECT_NE(error_of(ascii_square(bad)).find("out of range"), std::string::npos) << bad;
+    EXPECT_NE(error_of(binary_square(false, bad)).find("out of range"), std::string::npos);
+  }
+}
+
+TEST(Ply, BadHeadersThrow) {
+  EXPECT_NE(error_of("").find("not a PLY"), std::string::npos);
+  EXPECT_NE(error_of("plyx\n").find("not a PLY"), std::string::npos);
+  EXPECT_NE(error_of("ply\nend_header\n").find("format"), std::string::npos);
+  EXPECT_NE(error_of("ply\nformat ascii 1.0\nproperty float x\nend_header\n"), "");
+  EXPECT_NE(error_of("ply\nformat ascii 1.0\nelement vertex 1\nproperty quad x\nend_header\n"), "");
+  EXPECT_NE(error_of("ply\nformat weird 1.0\nend_header\n"), "");
+  EXPECT_NE(error_of("ply\nformat ascii 1.0\nelement vertex 1\nproperty float x\n"
+                     "property float y\nend_header\n1 2\n")
+                .find("no 'z'"),
+            std::string::npos);
+  std::string nonascii = ascii_square();
+  nonascii[5] = '\xff';
+  EXPECT_NE(error_of(nonascii), "");
+}
+
+TEST(Ply, CloudReadStopsAfterTheVertices) {
+  const std::string s = binary_square(false);
+  const std::string cut = s.substr(0, s.size() - 5);  // faces truncated, vertices whole
+  const auto d = parse(cut, /*faces=*/false);
+  EXPECT_EQ(d.vertices.rows(), 4);
+  EXPECT_EQ(d.faces.rows(), 0);
+}
+
+TEST(Ply, LoadMeshReadsPlyThroughTheStrictReader) {
+  const std::string path = ::testing::TempDir() + "nbv_ply_test.ply";
+  {
+    std::ofstream f(path, std::ios::binary);
+    f << ascii_square(7);
+  }
+  try {
+    nbv::load_mesh(path);
+    FAIL() << "an out-of-range index must throw";
+  } catch (const std::invalid_argument& e) {
+    EXPECT_NE(std::string(e.what()).find("nbv_ply_test.ply"), std::string::npos);
+    EXPECT_NE(std::string(e.what()).find("out of range"), std::string::npos);
+  }
+  {
+    std::ofstream f(path, std::ios::binary);
+    f << binary_square(true);
+  }
+  const nbv::Mesh m = nbv::load_mesh(path, 2.0, 'y');
+  EXPECT_EQ(m.faces.rows(), 2);
+  EXPECT_DOUBLE_EQ(m.vertices(2, 0), 2.0);  // x scaled
+  EXPECT_DOUBLE_EQ(m.vertices(2, 2), 2.0);  // file y became z
+  std::remove(path.c_str());
+}
+
+TEST(Hostile, UnrepresentablePosesThrow) {
+  nbv::Points v(3, 3);
+  v << 0, 0, 0, 1, 0, 0, 0, 1, 0;
+  nbv::Faces f(1, 3);
+  f << 0, 1, 2;
+  auto scene = std::make_shared<nbv::RaycastScene>(nbv::Mesh::from_arrays(v, f));
+  nbv::DepthCamera cam(scene);
+  nbv::LaserScanner laser(scene);
+  for (double x : {2e18, -1e10, std::numeric_limits<double>::infinity()}) {
+    EXPECT_THROW(cam.scan_pose(nbv::Pose{x, 0, 4, 0}), std::invalid_argument);
+    EXPECT_THROW(laser.scan_pose(nbv::Pose{0, x, 4, 0}), std::invalid_argument);
+    nbv::Points o(1, 3), d(1, 3);
+    o << 0, 0, x;
+    d << 0, 0, -1;
+    Eigen::VectorXd t;
+    Eigen::VectorXi prim;
+    EXPECT_THROW(scene->intersect(o, d, 0, 100, t, prim), std::invalid_argument);
+  }
+}
+
+TEST(Hostile, DerivedRayCountsAreBounded) {
+  nbv::LaserScannerOptions o;
+  for (double r : {1e-9, 1e-7, 1e-300}) {
+    o.resolution_deg = r;
+    try {
+      o.validate();
+      FAIL() << r;
+    } catch (const std::invalid_argument& e) {
+      EXPECT_NE(std::string(e.what()).find("resolution_deg"), std::string::npos);
+    }
+  }
+  nbv::DepthCameraOptions c;
+  c.width = 100000;
+  c.height = 100000;
+  EXPECT_THROW(c.validate(), std::invalid_argument);
+}

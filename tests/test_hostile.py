@@ -1,0 +1,459 @@
+"""Hostile input (issue 10): every case a hostile user found gets a clear message naming the
+problem, a non-zero exit that is not a signal, and no traceback. Each test fails if its fix is
+undone. Cases that once killed the process run in a subprocess, so a regression fails the test
+instead of the test run."""
+from __future__ import annotations
+
+import os
+import signal
+import struct
+import subprocess
+import sys
+import textwrap
+import time
+from pathlib import Path
+
+import pytest
+
+import nbvkit
+from nbvkit.config import load_config
+
+ROOT = Path(__file__).resolve().parent.parent
+sys.path.insert(0, str(ROOT / "bench"))
+
+CUBE_V = [(0, 0, 0), (1, 0, 0), (1, 1, 0), (0, 1, 0), (0, 0, 1), (1, 0, 1), (1, 1, 1), (0, 1, 1)]
+CUBE_F = [
+    (0, 2, 1),
+    (0, 3, 2),
+    (4, 5, 6),
+    (4, 6, 7),
+    (0, 1, 5),
+    (0, 5, 4),
+    (3, 6, 2),
+    (3, 7, 6),
+    (0, 4, 7),
+    (0, 7, 3),
+    (1, 2, 6),
+    (1, 6, 5),
+]
+
+
+def cube_ply(fmt="binary_little_endian", nv=None, faces=CUBE_F) -> bytes:
+    head = (
+        f"ply\nformat {fmt} 1.0\nelement vertex {nv or len(CUBE_V)}\n"
+        "property float x\nproperty float y\nproperty float z\n"
+        f"element face {len(faces)}\nproperty list uchar int vertex_indices\nend_header\n"
+    ).encode()
+    if fmt == "ascii":
+        body = "".join(f"{x} {y} {z}\n" for x, y, z in CUBE_V)
+        body += "".join(f"3 {a} {b} {c}\n" for a, b, c in faces)
+        return head + body.encode()
+    body = b"".join(struct.pack("<3f", *v) for v in CUBE_V)
+    return head + body + b"".join(struct.pack("<B3i", 3, *f) for f in faces)
+
+
+def cli(*args, timeout=120, cwd=None):
+    """Runs `nbvkit ARGS` in a subprocess: (returncode, stdout, stderr)."""
+    env = dict(os.environ, MPLBACKEND="Agg")
+    p = subprocess.run(
+        [sys.executable, "-m", "nbvkit.cli", *map(str, args)],
+        capture_output=True,
+        text=True,
+        timeout=timeout,
+        cwd=cwd,
+        env=env,
+    )
+    return p.returncode, p.stdout, p.stderr
+
+
+def expect_error(rc, err, *needles):
+    """A clean failure: exit 2 (not a signal, not a crash), no traceback, the message naming the
+    problem."""
+    assert rc == 2, (rc, err)
+    assert "Traceback" not in err, err
+    for n in needles:
+        assert n in err, (n, err)
+
+
+def python(code: str, timeout=120):
+    """Runs Python code in a subprocess (a crash there fails the test, not the test run)."""
+    p = subprocess.run(
+        [sys.executable, "-c", textwrap.dedent(code)],
+        capture_output=True,
+        text=True,
+        timeout=timeout,
+    )
+    assert p.returncode == 0, (p.returncode, p.stdout, p.stderr)
+    return p.stdout
+
+
+@pytest.fixture
+def cube_obj():
+    return ROOT / "meshes" / "fixtures" / "cube.obj"
+
+
+# ------------------------------------------------------------------------ 1-4: crashes, hangs
+
+
+def test_case1_hostile_ply_files_give_clean_errors(tmp_path):
+    good = cube_ply()
+    cases = {
+        "truncated_data.ply": (good[:300], "truncated"),
+        "truncated_header.ply": (good[:60], "end_header"),
+        "short_ascii.ply": (cube_ply("ascii")[:-60], "truncated"),
+        "huge_count.ply": (cube_ply(nv=10**9)[:240], "declares 1000000000"),
+        "bad_index.ply": (cube_ply(faces=CUBE_F[:-1] + [(1, 6, 8)]), "out of range"),
+    }
+    for name, (data, needle) in cases.items():
+        (tmp_path / name).write_bytes(data)
+        t0 = time.perf_counter()
+        rc, _, err = cli(
+            "scan",
+            "--mesh",
+            tmp_path / name,
+            "--pose",
+            0.5,
+            -3,
+            0.5,
+            1.57,
+            "--out",
+            tmp_path / "x.npy",
+        )
+        assert time.perf_counter() - t0 < 60
+        expect_error(rc, err, name, needle)
+    # the valid file loads through the same reader
+    (tmp_path / "good.ply").write_bytes(good)
+    assert nbvkit.load_mesh(tmp_path / "good.ply").faces.shape == (12, 3)
+    with pytest.raises(ValueError, match="out of range"):  # never remapped to vertex 0
+        nbvkit.load_mesh(tmp_path / "bad_index.ply")
+
+
+def test_case1_collada_files_that_crash_or_hang_assimp_are_refused(tmp_path):
+    """Found by bench/fuzz_meshes.py: assimp 5.2 segfaults on a <float_array> with a missing or
+    wrong count and loops forever on a non-integer index; they are refused before assimp."""
+    from fuzz_meshes import _dae
+
+    good = _dae().decode()
+    cases = {
+        "nocount.dae": (good.replace(' count="24"', ' counT="24"'), "without a count"),
+        "count0.dae": (good.replace(' count="24"', ' count="0"'), "count=0"),
+        "countneg.dae": (good.replace(' count="24"', ' count="-1e300"'), "unsigned integer"),
+        "float_index.dae": (good.replace("<p>0 2 1", "<p>0 2 1e9"), "unsigned integers"),
+        "nan_index.dae": (good.replace("<p>0 2 1", "<p>0 nan 1"), "unsigned integers"),
+        "huge_stride.dae": (good.replace('stride="3"', 'stride="2147483648"'), "below 1e9"),
+        "overread.dae": (good.replace('stride="3"', 'stride="4"'), "<accessor> reads 32"),
+    }
+    for name, (text, needle) in cases.items():
+        (tmp_path / name).write_text(text)
+        rc, _, err = cli(
+            "scan",
+            "--mesh",
+            tmp_path / name,
+            "--pose",
+            0.5,
+            -3,
+            0.5,
+            1.57,
+            "--out",
+            tmp_path / "x.npy",
+            timeout=60,
+        )
+        expect_error(rc, err, name, needle)
+    (tmp_path / "good.dae").write_text(good)
+    assert nbvkit.load_mesh(tmp_path / "good.dae").faces.shape == (12, 3)
+
+
+def test_case1_fuzz_smoke_no_crash_hang_or_blowup():
+    from fuzz_meshes import fuzz
+
+    res = fuzz(per_format=12, seed=int(time.time()) % 1000, timeout=30, mem_mb=2048)
+    for fmt, counts in res.items():
+        assert set(counts) <= {"ok", "error"}, (fmt, counts)
+
+
+def test_case2_unrepresentable_pose_is_a_value_error(tmp_path, cube_obj):
+    rc, _, err = cli(
+        "scan", "--mesh", cube_obj, "--pose", "2e18", 0, 4, 0, "--out", tmp_path / "x.npy"
+    )
+    expect_error(rc, err, "--pose")
+    out = python(
+        f"""
+        import numpy as np, nbvkit
+        scene = nbvkit.RaycastScene(nbvkit.load_mesh({str(cube_obj)!r}))
+        calls = [
+            lambda: nbvkit.DepthCamera(scene).scan_pose([2e18, 0, 4, 0]),
+            lambda: nbvkit.LaserScanner(scene).scan_pose([0, -3e18, 4, 0]),
+            lambda: scene.intersect(np.array([[0, 0, 2e18]]), np.array([[0, 0, -1.0]])),
+        ]
+        for call in calls:
+            try:
+                call()
+                print("no error")
+            except ValueError as e:
+                print("ValueError:", e)
+        """
+    )
+    lines = out.strip().splitlines()
+    assert len(lines) == 3 and all(ln.startswith("ValueError") for ln in lines), out
+    assert "pose" in lines[0] and "pose" in lines[1] and "ray origin" in lines[2]
+
+
+def test_case3_derived_counts_are_bounded(tmp_path, cube_obj):
+    for res in ("1e-9", "1e-7"):
+        t0 = time.perf_counter()
+        rc, _, err = cli("run", "--set", f"laser.resolution_deg={res}", "--out", tmp_path / "r")
+        assert time.perf_counter() - t0 < 60
+        expect_error(rc, err, "resolution_deg")
+    out = python(
+        f"""
+        import nbvkit
+        scene = nbvkit.RaycastScene(nbvkit.load_mesh({str(cube_obj)!r}))
+        for kw in (dict(resolution_deg=1e-9), dict(resolution_deg=1e-7)):
+            try:
+                nbvkit.LaserScanner(scene, **kw).scan_pose([0.5, -3, 0.5, 1.57])
+                print("no error")
+            except ValueError as e:
+                print("ValueError:", e)
+        try:
+            nbvkit.DepthCamera(scene, width=100000, height=100000)
+            print("no error")
+        except ValueError as e:
+            print("ValueError:", e)
+        """
+    )
+    lines = out.strip().splitlines()
+    assert all(ln.startswith("ValueError") for ln in lines), out
+    assert "resolution_deg" in lines[0] and "resolution_deg" in lines[1] and "pixels" in lines[2]
+    assert not (tmp_path / "r").exists()
+
+
+def test_case4_huge_mesh_scale_fails_fast_on_the_map_size(tmp_path):
+    for scale, needle in (("1e9", "addressable range"), ("1e2", "cells")):
+        t0 = time.perf_counter()
+        rc, _, err = cli("run", "--mesh-scale", scale, "--out", tmp_path / "r", timeout=120)
+        assert time.perf_counter() - t0 < 60, f"--mesh-scale {scale} took too long"
+        expect_error(rc, err, "workspace", needle)
+
+
+# ------------------------------------------------------------------------ 5-7: lost results
+
+
+def test_case5_output_paths_are_checked_before_any_work(tmp_path):
+    existing = tmp_path / "file.txt"
+    existing.write_text("x")
+    for out, needle in ((existing, "not a folder"), ("/proc/nbvkit/x", "cannot be written")):
+        t0 = time.perf_counter()
+        rc, _, err = cli("run", "--out", out)
+        assert time.perf_counter() - t0 < 30, "the mission ran before the check"
+        expect_error(rc, err, "--out", str(out), needle)
+    with pytest.raises(ValueError, match="not a folder"):
+        nbvkit.Mission(load_config(overrides=["max_iterations=1"])).run(existing)
+
+
+def _sweep_file(tmp_path, runs=5):
+    """A sweep of `runs` tiny airliner missions (scenario 1, two views each)."""
+    (tmp_path / "sweep.yaml").write_text(
+        textwrap.dedent(
+            f"""
+            scenarios: ["1"]
+            starts: {runs}
+            set: {{map.resolution: 0.4, evaluation.gt_density: 50, max_iterations: 2,
+                   evaluation.coverage_every: 1, profiling.sweep_step: 0.5,
+                   profiling.waypoints: 3}}
+            """
+        )
+    )
+    return tmp_path / "sweep.yaml"
+
+
+def _finished(out):
+    """Finished run folders (not the hidden temporary ones of runs in progress)."""
+    runs = (out / "runs").glob("*/summary.json")
+    return [r for r in runs if not r.parent.name.startswith(".")]
+
+
+def test_case6_ctrl_c_stops_a_sweep_and_keeps_what_finished(tmp_path):
+    sweep = _sweep_file(tmp_path)
+    out = tmp_path / "out"
+    stale = out / "runs" / ".airliner_s1_start0_deadbeef.tmp999999999"
+    stale.mkdir(parents=True)
+    p = subprocess.Popen(
+        [sys.executable, "-m", "nbvkit.cli", "sweep", sweep, "--out", out, "--workers", "2"],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+        env=dict(os.environ, MPLBACKEND="Agg"),
+    )
+    t0 = time.perf_counter()
+    while time.perf_counter() - t0 < 240:  # until the first run is finished
+        if _finished(out) or p.poll() is not None:
+            break
+        time.sleep(0.2)
+    assert not stale.exists(), "stale .tmp<pid> folder of a dead run not cleaned"
+    assert p.poll() is None, "the sweep ended before it could be interrupted"
+    p.send_signal(signal.SIGINT)
+    t1 = time.perf_counter()
+    _, err = p.communicate(timeout=60)
+    assert time.perf_counter() - t1 < 20, "workers did not stop promptly"
+    assert p.returncode == 130, (p.returncode, err)
+    assert "Traceback" not in err, err
+    assert "interrupted" in err and "resume" in err
+    finished = _finished(out)
+    rows = (out / "results.csv").read_text().strip().splitlines()
+    assert 1 <= len(rows) - 1 <= len(finished) < 5  # the partial table: runs that finished
+    # resuming cleans the killed runs' temporary folders and finishes the rest
+    rc, _, err = cli("sweep", sweep, "--out", out, "--workers", "1", timeout=600)
+    assert rc == 0, err
+    assert not list((out / "runs").glob(".*.tmp*"))
+    assert len((out / "results.csv").read_text().strip().splitlines()) == 1 + 5
+
+
+def test_case6_ctrl_c_stops_a_table_and_writes_the_partial_table(tmp_path):
+    out = tmp_path / "t"
+    tiny = [
+        "map.resolution=0.4",
+        "evaluation.gt_density=50",
+        "max_iterations=2",
+        "evaluation.coverage_every=1",
+        "profiling.sweep_step=0.5",
+        "profiling.waypoints=3",
+    ]
+    cmd = ["table", "--starts", "1", "--workers", "2", "--set", *tiny, "--out", str(out)]
+    p = subprocess.Popen(
+        [sys.executable, "-m", "nbvkit.cli", *cmd],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+        env=dict(os.environ, MPLBACKEND="Agg"),
+    )
+    t0 = time.perf_counter()
+    while time.perf_counter() - t0 < 240 and p.poll() is None:
+        if (out / "runs").is_dir() and _finished(out):
+            break
+        time.sleep(0.2)
+    assert p.poll() is None, "the table ended before it could be interrupted"
+    p.send_signal(signal.SIGINT)
+    t1 = time.perf_counter()
+    _, err = p.communicate(timeout=60)
+    assert time.perf_counter() - t1 < 20, "workers did not stop promptly"
+    assert p.returncode == 130 and "Traceback" not in err, (p.returncode, err)
+    assert "resume" in err
+    assert (out / "runs.csv").exists() and (out / "table2.md").exists()
+    assert len(_finished(out)) < 6
+
+
+def test_case7_whole_config_is_validated_before_any_work(tmp_path):
+    for override, key in (
+        ("termination.window=0", "termination.window"),
+        ("utility.rays_x=-3", "utility.rays_x"),
+        ("sampling.stuck_window=0", "sampling.stuck_window"),
+    ):
+        t0 = time.perf_counter()
+        rc, _, err = cli("run", "--set", override, "--out", tmp_path / "r")
+        assert time.perf_counter() - t0 < 30
+        expect_error(rc, err, key)
+        assert not (tmp_path / "r").exists(), "a partial output folder was left"
+
+
+# ------------------------------------------------------------------------ 8-12: messages
+
+
+def test_case8_scientific_notation_is_a_number():
+    assert load_config(overrides=["map.resolution=2.5e-1"]).map.resolution == 0.25
+    with pytest.raises(ValueError) as e:  # read as a number, then refused for what it is
+        load_config(overrides=["map.resolution=1e-4"])
+    assert "must be a number" not in str(e.value) and "map.resolution = 0.0001" in str(e.value)
+    assert load_config(overrides=["mesh.scale=2E3"]).mesh.scale == 2000.0
+    from nbvkit.cli import build_parser
+    from nbvkit.commands.run import config_from_args
+
+    args = build_parser().parse_args(["run", "--mesh-scale", "1e-9"])
+    assert config_from_args(args).mesh.scale == 1e-9
+    from nbvkit.config import parse_yaml
+
+    assert parse_yaml("a: 1e-4\nb: -2.5E+3\nc: 1_0\nd: '1e-4'") == {
+        "a": 1e-4,
+        "b": -2500.0,
+        "c": 10,
+        "d": "1e-4",
+    }
+
+
+def test_case9_negative_seed_is_named(tmp_path, cube_obj):
+    rc, _, err = cli("run", "--set", "seed=-1", "--out", tmp_path / "r")
+    expect_error(rc, err, "seed")
+    rc, _, err = cli(
+        "scan",
+        "--mesh",
+        cube_obj,
+        "--pose",
+        0.5,
+        -3,
+        0.5,
+        1.57,
+        "--seed",
+        -1,
+        "--out",
+        tmp_path / "x.npy",
+    )
+    expect_error(rc, err, "--seed")
+    scene = nbvkit.RaycastScene(nbvkit.load_mesh(cube_obj))
+    with pytest.raises(ValueError, match="seed"):
+        nbvkit.DepthCamera(scene, seed=-1)
+    with pytest.raises(ValueError, match="seed"):
+        nbvkit.LaserScanner(scene, seed=-1)
+    with pytest.raises(ValueError, match="seed"):
+        nbvkit.load_mesh(cube_obj).sample_surface(10, seed=-1)
+
+
+def test_case10_bad_yaml_gives_file_and_line(tmp_path):
+    bad = tmp_path / "bad.yaml"
+    bad.write_text("max_iterations: 5\nmap:\n  resolution: [0.2\n")
+    rc, _, err = cli("run", "--config", bad, "--out", tmp_path / "r")
+    expect_error(rc, err, f"{bad}:")
+    assert any(f"{bad}:{n}:" in err for n in (3, 4)), err
+    rc, _, err = cli("sweep", bad)
+    expect_error(rc, err, f"{bad}:")
+    setlist = tmp_path / "setlist.yaml"
+    setlist.write_text("set: [1, 2]\n")
+    rc, _, err = cli("sweep", setlist)
+    expect_error(rc, err, "'set'")
+
+
+def test_case11_config_mistakes_are_rejected(tmp_path, cube_obj):
+    typo = tmp_path / "typo.yaml"
+    typo.write_text(f"meshes: [{{pth: {cube_obj}}}]\n")
+    rc, _, err = cli("sweep", typo, "--out", tmp_path / "o")
+    expect_error(rc, err, "pth")
+    scen = tmp_path / "scen.yaml"
+    scen.write_text('scenarios: "15"\n')
+    rc, _, err = cli("sweep", scen, "--out", tmp_path / "o")
+    expect_error(rc, err, "scenarios")
+    # repeated --set accumulates: a bad key in the first is reported
+    rc, _, err = cli("run", "--set", "nosuch.key=1", "--set", "max_iterations=5")
+    expect_error(rc, err, "nosuch")
+    from nbvkit.cli import build_parser
+
+    args = build_parser().parse_args(["run", "--set", "a=1", "--set", "b=2", "c=3"])
+    assert args.set == ["a=1", "b=2", "c=3"]
+
+
+def test_case12_messages_instead_of_tracebacks(tmp_path, cube_obj):
+    d = tmp_path / "adir"
+    d.mkdir()
+    cloud = tmp_path / "c.npy"
+    import numpy as np
+
+    np.save(cloud, np.zeros((3, 3)))
+    rc, _, err = cli("evaluate", cloud, "--mesh", cube_obj, "--json", d)
+    expect_error(rc, err, "--json", "folder")
+    rc, _, err = cli("scan", "--mesh", cube_obj, "--pose", 0.5, -3, 0.5, 1.57, "--out", d)
+    expect_error(rc, err, "--out")
+    rc, _, err = cli("run", "--config", d)
+    expect_error(rc, err, "config file", "directory")
+    with pytest.raises(TypeError, match="mesh"):
+        nbvkit.Mission(load_config(), mesh=str(cube_obj))
+    with pytest.raises(TypeError, match="overrides"):
+        load_config(overrides="max_iterations=5")
+    with pytest.raises(TypeError, match="overrides"):
+        load_config(overrides=[5])
