@@ -2,6 +2,7 @@
 from __future__ import annotations
 
 import argparse
+import sys
 
 from ..mesh import default_mesh_path, load_mesh
 
@@ -33,3 +34,50 @@ def add_mesh_options(p: argparse.ArgumentParser, required: bool = False) -> None
 def mesh_from_args(args):
     path = args.mesh if args.mesh else default_mesh_path()
     return load_mesh(path, scale=args.mesh_scale, up=args.mesh_up)
+
+
+def add_experiment_options(p: argparse.ArgumentParser, what: str, out: str) -> None:
+    """--starts, --set, --workers, --scheduler and --out of the experiments over the five starts
+    (`what`: what each start is flown for, e.g. "planner")."""
+    p.add_argument(
+        "--starts", type=int, default=5, metavar="K", help=f"starts per {what}, 1..5 (default 5)"
+    )
+    p.add_argument(
+        "--set",
+        nargs="+",
+        action="extend",
+        default=[],
+        metavar="KEY=VALUE",
+        help="config overrides applied to every run (e.g. max_iterations=100)",
+    )
+    p.add_argument(
+        "--workers",
+        type=int,
+        default=0,
+        metavar="N",
+        help="local worker processes (default: one per core; 1 = serial)",
+    )
+    p.add_argument(
+        "--scheduler",
+        metavar="ADDRESS",
+        default=None,
+        help="run on a Dask distributed cluster at this scheduler address instead",
+    )
+    p.add_argument("--out", metavar="DIR", default=out, help=f"output folder (default {out})")
+
+
+def check_starts(starts: int) -> None:
+    if not 1 <= starts <= 5:
+        raise ValueError(f"--starts must be 1..5, got {starts}")
+
+
+def report_interrupted(command: str, e, partial: str, resume: str = "the same command") -> int:
+    """Tell the user what an interrupted experiment kept (`partial`: where its finished runs'
+    rows are, shown when there are any) and how to resume; returns the exit code 130."""
+    print(
+        f"nbvkit {command}: interrupted: {len(e.rows)} of {e.total} runs finished"
+        + (f" ({partial})" if e.rows else "")
+        + f"; resume with {resume} (finished runs are kept)",
+        file=sys.stderr,
+    )
+    return 130

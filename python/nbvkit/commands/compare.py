@@ -2,11 +2,10 @@
 from __future__ import annotations
 
 import argparse
-import sys
 import time
 
 from ..paths import check_output_dir
-from .common import add_mesh_options
+from .common import add_experiment_options, add_mesh_options, check_starts, report_interrupted
 
 
 def register(sub) -> argparse.ArgumentParser:
@@ -28,33 +27,7 @@ def register(sub) -> argparse.ArgumentParser:
         metavar="A,B,...",
         help="comma-separated scenarios to compare (default: surface,5)",
     )
-    p.add_argument(
-        "--starts", type=int, default=5, metavar="K", help="starts per planner, 1..5 (default 5)"
-    )
-    p.add_argument(
-        "--set",
-        nargs="+",
-        action="extend",
-        default=[],
-        metavar="KEY=VALUE",
-        help="config overrides applied to every run (e.g. max_iterations=100)",
-    )
-    p.add_argument(
-        "--workers",
-        type=int,
-        default=0,
-        metavar="N",
-        help="local worker processes (default: one per core; 1 = serial)",
-    )
-    p.add_argument(
-        "--scheduler",
-        metavar="ADDRESS",
-        default=None,
-        help="run on a Dask distributed cluster at this scheduler address instead",
-    )
-    p.add_argument(
-        "--out", metavar="DIR", default="runs/compare", help="output folder (default runs/compare)"
-    )
+    add_experiment_options(p, "planner", "runs/compare")
     return p
 
 
@@ -72,8 +45,7 @@ def run(args) -> int:
     )
     from ..plots import plot_compare
 
-    if not 1 <= args.starts <= 5:
-        raise ValueError(f"--starts must be 1..5, got {args.starts}")
+    check_starts(args.starts)
     planners = [p.strip() for p in args.planners.split(",") if p.strip()]
     if not planners:
         raise ValueError("--planners names no planner")
@@ -86,13 +58,7 @@ def run(args) -> int:
     except Interrupted as e:
         if e.rows:
             write_table(e.rows, out / "runs.csv")
-        print(
-            f"nbvkit compare: interrupted: {len(e.rows)} of {e.total} runs finished"
-            + (f" (their rows: {out / 'runs.csv'})" if e.rows else "")
-            + "; resume with the same command (finished runs are kept)",
-            file=sys.stderr,
-        )
-        return 130
+        return report_interrupted("compare", e, f"their rows: {out / 'runs.csv'}")
     df = pd.DataFrame(rows)
     write_table(rows, out / "runs.csv")
     t = compare_table(df)

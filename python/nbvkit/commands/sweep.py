@@ -2,12 +2,12 @@
 from __future__ import annotations
 
 import argparse
-import sys
 import time
 from pathlib import Path
 
 from ..config import read_yaml_file
 from ..paths import check_output_dir
+from .common import report_interrupted
 
 EXAMPLE = """example sweep file:
   meshes:                       # default: the shipped airliner
@@ -67,14 +67,10 @@ def run(args) -> int:
     except Interrupted as e:
         if e.rows:
             write_table(e.rows, out / "results.csv")
-        print(
-            f"nbvkit sweep: interrupted: {len(e.rows)} of {e.total} runs finished"
-            + (f" (table of them: {out / 'results.csv'})" if e.rows else "")
-            + f"; resume with the same command: nbvkit sweep {args.config}"
-            + (f" --out {args.out}" if args.out else ""),
-            file=sys.stderr,
+        resume = f"the same command: nbvkit sweep {args.config}" + (
+            f" --out {args.out}" if args.out else ""
         )
-        return 130
+        return report_interrupted("sweep", e, f"table of them: {out / 'results.csv'}", resume)
     write_table(rows, out / "results.csv")
     import pandas as pd
 

@@ -2,11 +2,10 @@
 from __future__ import annotations
 
 import argparse
-import sys
 import time
 
 from ..paths import check_output_dir
-from .common import add_mesh_options
+from .common import add_experiment_options, add_mesh_options, check_starts, report_interrupted
 
 
 def register(sub) -> argparse.ArgumentParser:
@@ -20,33 +19,7 @@ def register(sub) -> argparse.ArgumentParser:
         "folder under DIR/runs/. Interrupted tables resume: finished runs are kept.",
     )
     add_mesh_options(p)
-    p.add_argument(
-        "--starts", type=int, default=5, metavar="K", help="starts per scenario, 1..5 (default 5)"
-    )
-    p.add_argument(
-        "--set",
-        nargs="+",
-        action="extend",
-        default=[],
-        metavar="KEY=VALUE",
-        help="config overrides applied to every run (e.g. max_iterations=100)",
-    )
-    p.add_argument(
-        "--workers",
-        type=int,
-        default=0,
-        metavar="N",
-        help="local worker processes (default: one per core; 1 = serial)",
-    )
-    p.add_argument(
-        "--scheduler",
-        metavar="ADDRESS",
-        default=None,
-        help="run on a Dask distributed cluster at this scheduler address instead",
-    )
-    p.add_argument(
-        "--out", metavar="DIR", default="runs/table2", help="output folder (default runs/table2)"
-    )
+    add_experiment_options(p, "scenario", "runs/table2")
     return p
 
 
@@ -61,8 +34,7 @@ def run(args) -> int:
     )
     from ..plots import plot_experiment
 
-    if not 1 <= args.starts <= 5:
-        raise ValueError(f"--starts must be 1..5, got {args.starts}")
+    check_starts(args.starts)
     specs = table2_specs(args.mesh, args.mesh_scale, args.mesh_up, args.starts, args.set)
     validate_specs(specs)
     out = check_output_dir(args.out, "--out")
@@ -75,13 +47,9 @@ def run(args) -> int:
         if e.rows:
             write_table(e.rows, out / "runs.csv")
             write_table2(pd.DataFrame(e.rows), out)
-        print(
-            f"nbvkit table: interrupted: {len(e.rows)} of {e.total} runs finished"
-            + (f" (partial tables: {out / 'runs.csv'}, {out / 'table2.md'})" if e.rows else "")
-            + "; resume with the same command (finished runs are kept)",
-            file=sys.stderr,
+        return report_interrupted(
+            "table", e, f"partial tables: {out / 'runs.csv'}, {out / 'table2.md'}"
         )
-        return 130
 
     df = pd.DataFrame(rows)
     write_table(rows, out / "runs.csv")
