@@ -1,6 +1,6 @@
 // Proximity count (Delmerico et al. 2018): unknown cells close to observed surface are the
 // likely surface. Per ray, the sum of P_vis over the unknown cells it enters that touch an
-// occupied or predicted cell (26-neighbourhood); P_vis as in occlusion_aware.hpp.
+// occupied or predicted cell (26-neighbourhood); P_vis as in visibility.hpp.
 #pragma once
 
 #include "utility.hpp"

@@ -4,12 +4,9 @@
 #include "average_entropy.hpp"
 #include "four_term.hpp"
 #include "ig.hpp"
-#include "occlusion_aware.hpp"
 #include "proximity_count.hpp"
-#include "rear_side_entropy.hpp"
-#include "rear_side_voxel.hpp"
 #include "surface.hpp"
-#include "unobserved_voxel.hpp"
+#include "visibility.hpp"
 
 // X(name, policy, weigh by distance?)
 #define NBV_UTILITIES(X)                         \
