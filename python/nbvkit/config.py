@@ -780,40 +780,43 @@ def _validate(obj, prefix: str) -> None:
         )
 
 
+def camera_kwargs(cfg) -> dict:
+    """The DepthCamera / DepthCameraOptions keywords of a configuration's camera section."""
+    c = cfg.camera
+    keys = ("width", "height", "hfov_deg", "vfov_deg", "min_range", "max_range", "noise_k")
+    return {k: getattr(c, k) for k in keys}
+
+
+def laser_kwargs(cfg) -> dict:
+    """The LaserScanner / LaserScannerOptions keywords of a configuration's laser section."""
+    la = cfg.laser
+    keys = ("fov_deg", "resolution_deg", "min_range", "max_range", "noise_sigma")
+    return {k: getattr(la, k) for k in keys}
+
+
+def view_camera(cfg):
+    """The scoring camera (ViewCameraModel) of a configuration: one ray per map cell on the far
+    plane unless utility.rays_x / rays_y say otherwise; mounted as the camera."""
+    c, u = cfg.camera, cfg.utility
+    vc = _core.ViewCameraModel.for_resolution(
+        c.hfov_deg, c.vfov_deg, c.max_range, cfg.map.resolution
+    )
+    return vc.copy(
+        rays_x=u.rays_x or vc.rays_x,
+        rays_y=u.rays_y or vc.rays_y,
+        mount=_core.mount_transform(c.mount_xyz, *c.mount_rpy_deg),
+    )
+
+
 def _check_derived(cfg) -> None:
     """Builds what a mission derives from the configuration alone (the sensors' options and ray
     counts, the view camera model), so that a bad value fails here, before any work, naming the
     section."""
-    c, la, u = cfg.camera, cfg.laser, cfg.utility
+    u = cfg.utility
     checks = (
-        (
-            "camera",
-            lambda: _core.DepthCameraOptions(
-                width=c.width,
-                height=c.height,
-                hfov_deg=c.hfov_deg,
-                vfov_deg=c.vfov_deg,
-                min_range=c.min_range,
-                max_range=c.max_range,
-                noise_k=c.noise_k,
-            ),
-        ),
-        (
-            "laser",
-            lambda: _core.LaserScannerOptions(
-                fov_deg=la.fov_deg,
-                resolution_deg=la.resolution_deg,
-                min_range=la.min_range,
-                max_range=la.max_range,
-                noise_sigma=la.noise_sigma,
-            ),
-        ),
-        (
-            "utility",
-            lambda: _core.ViewCameraModel.for_resolution(
-                c.hfov_deg, c.vfov_deg, c.max_range, cfg.map.resolution
-            ).copy(**{k: v for k, v in (("rays_x", u.rays_x), ("rays_y", u.rays_y)) if v}),
-        ),
+        ("camera", lambda: _core.DepthCameraOptions(**camera_kwargs(cfg))),
+        ("laser", lambda: _core.LaserScannerOptions(**laser_kwargs(cfg))),
+        ("utility", lambda: view_camera(cfg)),
     )
     for section, build in checks:
         try:

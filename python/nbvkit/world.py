@@ -12,7 +12,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from . import _core
-from .config import Config
+from .config import Config, camera_kwargs, laser_kwargs, view_camera
 from .mesh import default_mesh_path, load_mesh
 from .workspace import Workspace, make_workspace, start_poses
 
@@ -64,24 +64,11 @@ class World:
         c, la = cfg.camera, cfg.laser
         camera_mount = _core.mount_transform(c.mount_xyz, *c.mount_rpy_deg)
         self.camera = _core.DepthCamera(
-            self.scene,
-            width=c.width,
-            height=c.height,
-            hfov_deg=c.hfov_deg,
-            vfov_deg=c.vfov_deg,
-            min_range=c.min_range,
-            max_range=c.max_range,
-            noise_k=c.noise_k,
-            seed=cfg.seed,
-            mount=camera_mount,
+            self.scene, **camera_kwargs(cfg), seed=cfg.seed, mount=camera_mount
         )
         self.laser = _core.LaserScanner(
             self.scene,
-            fov_deg=la.fov_deg,
-            resolution_deg=la.resolution_deg,
-            min_range=la.min_range,
-            max_range=la.max_range,
-            noise_sigma=la.noise_sigma,
+            **laser_kwargs(cfg),
             seed=cfg.seed + 1,
             mount=_core.mount_transform(la.mount_xyz, *la.mount_rpy_deg),
         )
@@ -93,12 +80,7 @@ class World:
         self.camera_cloud = _core.SurfaceCloud(voxel_size=cl.camera_voxel, min_z=cl.min_z)
         self.laser_cloud = _core.SurfaceCloud(voxel_size=cl.laser_voxel, min_z=cl.min_z)
         self.surface = _core.SurfaceObservations(self.map)
-        vc = _core.ViewCameraModel.for_resolution(c.hfov_deg, c.vfov_deg, c.max_range, m.resolution)
-        self.view_camera = vc.copy(
-            rays_x=cfg.utility.rays_x or vc.rays_x,
-            rays_y=cfg.utility.rays_y or vc.rays_y,
-            mount=camera_mount,
-        )
+        self.view_camera = view_camera(cfg)
         self.state = VehicleState(pose=self.start_pose.copy())
         self.state.trajectory.append(("start", *self.start_pose.tolist(), 0.0))
         self.out_dir = None  # stages may write figures here
