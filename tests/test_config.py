@@ -38,7 +38,14 @@ def test_python_defaults_equal_cpp_defaults():
 
 
 @pytest.mark.parametrize(
-    "section", [cfgmod.MapConfig, cfgmod.UtilityConfig, cfgmod.VehicleConfig, cfgmod.TargetsConfig]
+    "section",
+    [
+        cfgmod.MapConfig,
+        cfgmod.UtilityConfig,
+        cfgmod.VehicleConfig,
+        cfgmod.TargetsConfig,
+        cfgmod.ObservabilityConfig,
+    ],
 )
 def test_sections_of_cpp_options_take_their_keys_defaults_and_docs_from_cpp(section):
     import numpy as np
@@ -61,6 +68,7 @@ def test_every_bound_options_class_is_configurable_or_known_internal():
             cfgmod.VehicleConfig,
             cfgmod.TargetsConfig,
             cfgmod.SymmetryConfig,
+            cfgmod.ObservabilityConfig,
         )
         for c in s.OPTIONS_ALL
     }

@@ -1,10 +1,17 @@
 #include "nbv/observability.hpp"
 #include "bindings.hpp"
+#include "options.hpp"
 
 namespace nbv::bind {
 
 void init_observability(py::module_& m) {
-  const ObservabilityOptions def;
+  {
+    OptionsClass<ObservabilityOptions> binder(m, "ObservabilityOptions", R"doc(
+Options of observable_samples; each field is documented in ObservabilityOptions.fields().)doc");
+    using S = ObservabilityOptions;
+    NBV_OBSERVABILITY_OPTIONS(NBV_BIND_FIELD)
+    binder.finish();
+  }
   py::class_<ObservabilityResult>(m, "ObservabilityResult",
                                   "Result of observable_samples (nbvkit.observable_surface).")
       .def_property_readonly("observable",
@@ -25,27 +32,22 @@ void init_observability(py::module_& m) {
       "observable_samples",
       [](const RaycastScene& scene, const py::handle& points, const py::handle& normals,
          const DepthCamera& camera, const py::handle& nav_min, const py::handle& nav_max,
-         double pose_spacing, double collision_radius, double max_incidence_deg, int yaw_steps) {
+         const py::object& options, const py::kwargs& kw) {
         auto p = points_arg(points, "points");
         auto n = points_arg(normals, "normals");
         const Eigen::Vector3d lo = vec3_arg(nav_min, "nav_min");
         const Eigen::Vector3d hi = vec3_arg(nav_max, "nav_max");
-        ObservabilityOptions o;
-        o.pose_spacing = pose_spacing;
-        o.collision_radius = collision_radius;
-        o.max_incidence_deg = max_incidence_deg;
-        o.yaw_steps = yaw_steps;
+        const auto o = options_with_keywords<ObservabilityOptions>(options, kw);
         const DepthCameraOptions cam = camera.options();
         py::gil_scoped_release release;
         return observable_samples(scene, p.map(), n.map(), cam, lo, hi, o);
       },
       py::arg("scene"), py::arg("points"), py::arg("normals"), py::arg("camera"),
-      py::arg("nav_min"), py::arg("nav_max"), py::arg("pose_spacing") = def.pose_spacing,
-      py::arg("collision_radius") = def.collision_radius,
-      py::arg("max_incidence_deg") = def.max_incidence_deg, py::arg("yaw_steps") = def.yaw_steps,
+      py::arg("nav_min"), py::arg("nav_max"), py::arg("options") = py::none(),
       "Which surface samples (N, 3) with normals (N, 3) the depth camera could see from some\n"
       "collision-free, reachable vehicle position of the box [nav_min, nav_max] (any yaw); one\n"
-      "Embree call. See nbvkit.observable_surface for the method.");
+      "Embree call; `options` (ObservabilityOptions, a dict or None) with keyword overrides.\n"
+      "See nbvkit.observable_surface for the method.");
 }
 
 }  // namespace nbv::bind

@@ -235,4 +235,22 @@ class OptionsClass {
 /// X-macro expander: one .field() of the OptionsClass `binder` per option of the struct `S`.
 #define NBV_BIND_FIELD(type, name, default_value, doc) binder.field(#name, &S::name, doc);
 
+/// The options a binding was given: `options` (an instance, a dict or None) with keyword
+/// overrides on top; a keyword set to None keeps the value. Unknown names and values of the wrong
+/// type raise ValueError, as bad values do.
+template <typename Opt>
+Opt options_with_keywords(const py::object& options, const py::kwargs& kw) {
+  py::dict changes;
+  for (const auto& item : kw)
+    if (!item.second.is_none()) changes[item.first] = item.second;
+  try {
+    Opt o = OptionsClass<Opt>::from(options, "options");
+    if (py::len(changes)) o = py::cast(o).attr("copy")(**changes).template cast<Opt>();
+    return o;
+  } catch (py::error_already_set& e) {
+    if (e.matches(PyExc_TypeError)) throw py::value_error(py::str(e.value()).cast<std::string>());
+    throw;
+  }
+}
+
 }  // namespace nbv::bind

@@ -23,24 +23,6 @@ struct OptionField<SymmetryKeypoints> {
 
 namespace {
 
-/// The options a symmetry binding was given: `options` (an instance, a dict or None) with keyword
-/// overrides on top; a keyword set to None keeps the value. Unknown names and values of the wrong
-/// type raise ValueError, as bad values do.
-template <typename Opt>
-Opt symmetry_options(const py::object& options, const py::kwargs& kw) {
-  py::dict changes;
-  for (const auto& item : kw)
-    if (!item.second.is_none()) changes[item.first] = item.second;
-  try {
-    Opt o = OptionsClass<Opt>::from(options, "options");
-    if (py::len(changes)) o = py::cast(o).attr("copy")(**changes).template cast<Opt>();
-    return o;
-  } catch (py::error_already_set& e) {
-    if (e.matches(PyExc_TypeError)) throw py::value_error(py::str(e.value()).cast<std::string>());
-    throw;
-  }
-}
-
 py::dict timings_dict(const StageTimes& t) {
   py::dict d;
   double total = 0;
@@ -173,7 +155,7 @@ residual_rotation_deg, timings (dict stage -> seconds).)doc")
       "detect_symmetry",
       [](const py::handle& points, const py::object& options, const py::kwargs& kw) {
         const auto a = points_arg(points, "points");
-        const auto o = symmetry_options<SymmetryOptions>(options, kw);
+        const auto o = options_with_keywords<SymmetryOptions>(options, kw);
         py::gil_scoped_release release;
         return detect_symmetry(a.map(), o);
       },
@@ -185,7 +167,7 @@ residual_rotation_deg, timings (dict stage -> seconds).)doc")
          const py::kwargs& kw) {
         const auto a = points_arg(points, "points");
         const Eigen::Vector4d pl = plane_arg(plane, "plane");
-        const auto o = symmetry_options<SymmetricPredictionOptions>(options, kw);
+        const auto o = options_with_keywords<SymmetricPredictionOptions>(options, kw);
         py::gil_scoped_release release;
         return predict_symmetric(a.map(), pl, o);
       },

@@ -386,14 +386,20 @@ class EvaluationConfig:
     coverage_every: int = 25  # iterations between coverage refreshes in the progress/CSV
 
 
-@dataclass(frozen=True)
-class ObservabilityConfig:
-    """The observable surface (nbvkit.observable_surface): what the camera could see at all."""
-
-    enabled: bool = True  # compute it at the end of a mission (cached under the run/sweep folder)
-    pose_spacing: float = 2.0  # m, lattice of candidate vehicle positions in the navigation box
-    max_incidence_deg: float = 85.0  # largest angle between line of sight and surface normal
-    yaw_steps: int = 8  # yaw offsets tried each side of the one centring a sample
+ObservabilityConfig = cpp_section(
+    "ObservabilityConfig",
+    _core.ObservabilityOptions,
+    "The observable surface (nbvkit.observable_surface): what the camera could see at all.",
+    only=("pose_spacing", "max_incidence_deg", "yaw_steps"),  # the radius is the vehicle's
+    before=[
+        (
+            "enabled",
+            bool,
+            True,
+            "compute it at the end of a mission (cached under the run/sweep folder)",
+        )
+    ],
+)
 
 
 @dataclass(frozen=True)

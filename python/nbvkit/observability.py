@@ -204,10 +204,8 @@ def _compute(mesh, cfg, points, normals, ws, settings, scene) -> ObservableSurfa
         camera,
         ws.nav_min,
         ws.nav_max,
-        pose_spacing=o.pose_spacing,
+        options=o.options(),
         collision_radius=cfg.vehicle.collision_radius,
-        max_incidence_deg=o.max_incidence_deg,
-        yaw_steps=o.yaw_steps,
     )
     mask = np.asarray(r.observable, bool)
     stats = {

@@ -4,6 +4,7 @@
 #pragma once
 
 #include "nbv/common.hpp"
+#include "nbv/options.hpp"
 #include "nbv/raycast.hpp"
 #include "nbv/sensors.hpp"
 
@@ -14,18 +15,18 @@
 
 namespace nbv {
 
+#define NBV_OBSERVABILITY_OPTIONS(X)                                                           \
+  X(double, pose_spacing, 2.0,                                                                 \
+    "m; lattice of candidate vehicle positions filling the navigation box (the airliner's "    \
+    "observable share moves by 0.01 points from 2 m to 1 m: bench/bench_observable.py)")       \
+  X(double, collision_radius, 0.8, "m; a candidate position nearer the mesh is in collision")  \
+  X(double, max_incidence_deg, 85.0,                                                           \
+    "largest angle between the line of sight and the surface normal (either side) at which a " \
+    "sample counts as seen")                                                                   \
+  X(int, yaw_steps, 8, "yaw offsets tried each side of the yaw that centres a sample")
+
 struct ObservabilityOptions {
-  /// Spacing (m) of the lattice of candidate vehicle positions filling the navigation box
-  /// (the airliner's observable share moves by 0.01 points from 2 m to 1 m; see
-  /// bench/bench_observable.py).
-  double pose_spacing = 2.0;
-  /// Vehicle collision radius (m): a candidate position nearer the mesh is in collision.
-  double collision_radius = 0.8;
-  /// Largest angle (deg) between the line of sight and the surface normal (either side) at
-  /// which a sample counts as seen.
-  double max_incidence_deg = 85.0;
-  /// Yaw offsets tried on each side of the yaw that centres a sample horizontally.
-  int yaw_steps = 8;
+  NBV_OBSERVABILITY_OPTIONS(NBV_DECLARE_OPTION)
 
   void validate() const;
 };
