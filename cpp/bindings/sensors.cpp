@@ -1,5 +1,6 @@
 #include "nbv/sensors.hpp"
 #include "bindings.hpp"
+#include "options.hpp"
 
 namespace nbv::bind {
 namespace {
@@ -32,15 +33,21 @@ Scan scan_pose(const Sensor& s, const py::handle& pose) {
 }  // namespace
 
 void init_sensors(py::module_& m) {
+  {
+    OptionsClass<RaycastOptions> binder(m, "RaycastOptions", "Options of RaycastScene.");
+    using S = RaycastOptions;
+    NBV_RAYCAST_OPTIONS(NBV_BIND_FIELD)
+    binder.finish();
+  }
   py::class_<RaycastScene, std::shared_ptr<RaycastScene>>(m, "RaycastScene", R"doc(
-Embree ray-casting scene over a mesh (build once, share between sensors).)doc")
-      .def(py::init([](const Mesh& mesh, bool hq) {
-             RaycastOptions o;
-             o.high_quality_bvh = hq;
+Embree ray-casting scene over a mesh (build once, share between sensors); `options`
+(RaycastOptions, a dict or None) with keyword overrides, e.g. high_quality_bvh=True.)doc")
+      .def(py::init([](const Mesh& mesh, const py::object& options, const py::kwargs& kw) {
+             const auto o = options_with_keywords<RaycastOptions>(options, kw);
              py::gil_scoped_release release;
              return std::make_shared<RaycastScene>(mesh, o);
            }),
-           py::arg("mesh"), py::arg("high_quality_bvh") = false)
+           py::arg("mesh"), py::arg("options") = py::none())
       .def_property_readonly("mesh", [](const RaycastScene& s) { return s.mesh(); })
       .def(
           "intersect",

@@ -3,6 +3,7 @@
 
 #include "nbv/common.hpp"
 #include "nbv/mesh.hpp"
+#include "nbv/options.hpp"
 
 #include <embree3/rtcore.h>
 
@@ -10,11 +11,15 @@
 
 namespace nbv {
 
-struct RaycastOptions {
-  /// Build a high-quality BVH (slower build, ~1.3x faster traversal; worth it for long missions).
-  bool high_quality_bvh = false;
-};
+#define NBV_RAYCAST_OPTIONS(X)     \
+  X(bool, high_quality_bvh, false, \
+    "build a high-quality BVH (slower build, ~1.3x faster traversal; worth it for long missions)")
 
+struct RaycastOptions {
+  NBV_RAYCAST_OPTIONS(NBV_DECLARE_OPTION)
+
+  void validate() const {}
+};
 /// An Embree scene over one mesh. Thread-safe for concurrent queries after construction.
 /// Hit distances are refined in double precision against the hit triangle, so a hit point
 /// `o + t d` lies on the triangle to ~1e-9 m even far from the origin.
