@@ -1,6 +1,7 @@
 #include "bindings.hpp"
 #include "nbv/ply.hpp"
 #include "nbv/point_cloud.hpp"
+#include "options.hpp"
 
 #include <cmath>
 #include <limits>
@@ -38,12 +39,15 @@ void bounds_arg(const py::object& bounds, SurfaceCloudOptions& o) {
 
 void init_cloud(py::module_& m) {
   const SurfaceCloudOptions def;
-  py::class_<SurfaceCloudOptions>(m, "SurfaceCloudOptions",
-                                  "Defaults of the surface point cloud (the authors' settings).")
-      .def(py::init<>())
-      .def_readonly("voxel_size", &SurfaceCloudOptions::voxel_size,
-                    "voxel-grid cell, metres (0.02: RGB-D camera; the laser profile used 0.1)")
-      .def_readonly("min_z", &SurfaceCloudOptions::min_z, "ground removal height, metres");
+  {
+    OptionsClass<SurfaceCloudOptions> binder(
+        m, "SurfaceCloudOptions",
+        "Options of the surface point cloud (the authors' settings); each field is documented in "
+        "SurfaceCloudOptions.fields().");
+    using S = SurfaceCloudOptions;
+    NBV_SURFACE_CLOUD_OPTIONS(NBV_BIND_FIELD)
+    binder.finish();
+  }
 
   py::class_<SurfaceCloud, std::shared_ptr<SurfaceCloud>>(m, "SurfaceCloud", R"doc(
 Observed surface points, world frame, with an incremental voxel-grid filter.

@@ -3,6 +3,7 @@
 #pragma once
 
 #include "nbv/common.hpp"
+#include "nbv/options.hpp"
 
 #include <array>
 #include <cmath>
@@ -162,21 +163,22 @@ Points voxelgrid_sampling(const PointsRef& points, double voxel_size);
 
 // ---------------------------------------------------------------------------- surface cloud
 
+#define NBV_SURFACE_CLOUD_OPTIONS(X)                                                            \
+  X(double, voxel_size, 0.02,                                                                   \
+    "voxel-grid cell, m: one point (the centroid) per cell; the authors used 0.02 for the "     \
+    "RGB-D camera's cloud and 0.1 for the laser's profile cloud")                               \
+  X(double, min_z, 0.3,                                                                         \
+    "ground removal, m (world z): points below are not registered; -inf disables it (authors: " \
+    "0.3)")                                                                                     \
+  X(bool, crop, false, "register only points inside the crop box [crop_min, crop_max]")         \
+  X(Eigen::Vector3d, crop_min, Eigen::Vector3d::Zero(), "crop box minimum corner, m (world)")   \
+  X(Eigen::Vector3d, crop_max, Eigen::Vector3d::Zero(), "crop box maximum corner, m (world)")
+
 struct SurfaceCloudOptions {
-  /// Voxel-grid filter cell, metres: one point (the centroid) per cell. The authors used 0.02 m
-  /// for the RGB-D camera's cloud and 0.1 m for the laser's profile cloud; 0.02 is the default.
-  double voxel_size = 0.02;
-  /// Ground removal: points with z < min_z (metres, world frame) are not registered. -inf
-  /// disables it. 0.3 m as in the authors' code.
-  double min_z = 0.3;
-  /// Optional crop box (world frame, metres): points outside it are not registered.
-  bool crop = false;
-  Eigen::Vector3d crop_min = Eigen::Vector3d::Zero();
-  Eigen::Vector3d crop_max = Eigen::Vector3d::Zero();
+  NBV_SURFACE_CLOUD_OPTIONS(NBV_DECLARE_OPTION)
 
   void validate() const;
 };
-
 /// A cloud of observed surface points with an incremental voxel-grid filter.
 ///
 /// Each voxel (cell = floor(p / voxel_size), anchored at the origin) holds the running centroid
