@@ -69,6 +69,14 @@ struct OptionField<bool> {
 };
 
 template <>
+struct OptionField<std::uint64_t> {
+  static py::object get(std::uint64_t v) { return py::int_(v); }
+  static std::uint64_t set(const py::handle& h, const std::string& name) {
+    return seed_arg(h, ("option '" + name + "'").c_str());
+  }
+};
+
+template <>
 struct OptionField<Eigen::Vector3d> {
   static py::object get(const Eigen::Vector3d& v) { return py::cast(Eigen::Vector3d(v)); }
   static Eigen::Vector3d set(const py::handle& h, const std::string& name) {

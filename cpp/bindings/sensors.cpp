@@ -86,35 +86,15 @@ along each beam, inf where there is no valid return.)doc")
       });
 
   const DepthCameraOptions cd;
-  py::class_<DepthCameraOptions>(m, "DepthCameraOptions",
-                                 "Defaults of the RGB-D camera (paper Table 1); built from "
-                                 "keywords, checked (ValueError naming the bad value).")
-      .def(py::init([](int width, int height, double hfov, double vfov, double min_range,
-                       double max_range, double noise_k) {
-             DepthCameraOptions o;
-             o.width = width;
-             o.height = height;
-             o.hfov_deg = hfov;
-             o.vfov_deg = vfov;
-             o.min_range = min_range;
-             o.max_range = max_range;
-             o.noise_k = noise_k;
-             o.validate();
-             return o;
-           }),
-           py::kw_only(), py::arg("width") = cd.width, py::arg("height") = cd.height,
-           py::arg("hfov_deg") = cd.hfov_deg, py::arg("vfov_deg") = cd.vfov_deg,
-           py::arg("min_range") = cd.min_range, py::arg("max_range") = cd.max_range,
-           py::arg("noise_k") = cd.noise_k)
-      .def_readonly("width", &DepthCameraOptions::width)
-      .def_readonly("height", &DepthCameraOptions::height)
-      .def_readonly("hfov_deg", &DepthCameraOptions::hfov_deg)
-      .def_readonly("vfov_deg", &DepthCameraOptions::vfov_deg)
-      .def_readonly("min_range", &DepthCameraOptions::min_range)
-      .def_readonly("max_range", &DepthCameraOptions::max_range)
-      .def_readonly("noise_k", &DepthCameraOptions::noise_k)
-      .def_readonly("seed", &DepthCameraOptions::seed)
-      .def_property_readonly("mount", [](const DepthCameraOptions& o) { return o.mount.matrix(); });
+  {
+    OptionsClass<DepthCameraOptions> binder(
+        m, "DepthCameraOptions",
+        "Options of the RGB-D camera (paper Table 1); keyword constructor, checked (ValueError "
+        "naming the bad value); each field is documented in DepthCameraOptions.fields().");
+    using S = DepthCameraOptions;
+    NBV_DEPTH_CAMERA_OPTIONS(NBV_BIND_FIELD)
+    binder.finish();
+  }
 
   py::class_<DepthCamera, std::shared_ptr<DepthCamera>>(m, "DepthCamera", R"doc(
 Pinhole RGB-D (depth) camera ray-cast against a mesh with Embree (16-ray packets over 4x4 tiles).
@@ -172,32 +152,15 @@ The sensor looks along its +x (y left, z up); pixel (u, v) looks along
           py::arg("seed"));
 
   const LaserScannerOptions ld;
-  py::class_<LaserScannerOptions>(m, "LaserScannerOptions",
-                                  "Defaults of the laser scanner (paper Table 1); built from "
-                                  "keywords, checked (ValueError naming the bad value).")
-      .def(py::init(
-               [](double fov, double res, double min_range, double max_range, double noise_sigma) {
-                 LaserScannerOptions o;
-                 o.fov_deg = fov;
-                 o.resolution_deg = res;
-                 o.min_range = min_range;
-                 o.max_range = max_range;
-                 o.noise_sigma = noise_sigma;
-                 o.validate();
-                 return o;
-               }),
-           py::kw_only(), py::arg("fov_deg") = ld.fov_deg,
-           py::arg("resolution_deg") = ld.resolution_deg, py::arg("min_range") = ld.min_range,
-           py::arg("max_range") = ld.max_range, py::arg("noise_sigma") = ld.noise_sigma)
-      .def_readonly("fov_deg", &LaserScannerOptions::fov_deg)
-      .def_readonly("resolution_deg", &LaserScannerOptions::resolution_deg)
-      .def_readonly("min_range", &LaserScannerOptions::min_range)
-      .def_readonly("max_range", &LaserScannerOptions::max_range)
-      .def_readonly("noise_sigma", &LaserScannerOptions::noise_sigma)
-      .def_readonly("seed", &LaserScannerOptions::seed)
-      .def_property_readonly("num_beams", &LaserScannerOptions::num_beams)
-      .def_property_readonly("mount",
-                             [](const LaserScannerOptions& o) { return o.mount.matrix(); });
+  {
+    OptionsClass<LaserScannerOptions> binder(
+        m, "LaserScannerOptions",
+        "Options of the laser scanner (paper Table 1); keyword constructor, checked (ValueError "
+        "naming the bad value); each field is documented in LaserScannerOptions.fields().");
+    using S = LaserScannerOptions;
+    NBV_LASER_SCANNER_OPTIONS(NBV_BIND_FIELD)
+    binder.finish().def_property_readonly("num_beams", &LaserScannerOptions::num_beams);
+  }
 
   py::class_<LaserScanner, std::shared_ptr<LaserScanner>>(m, "LaserScanner", R"doc(
 Single-layer 2D laser scanner ray-cast against a mesh with Embree.

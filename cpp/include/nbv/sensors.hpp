@@ -6,6 +6,7 @@
 #pragma once
 
 #include "nbv/common.hpp"
+#include "nbv/options.hpp"
 #include "nbv/raycast.hpp"
 
 #include <atomic>
@@ -29,20 +30,22 @@ struct Scan {
 constexpr std::int64_t kMaxCameraPixels = 16'000'000;
 constexpr int kMaxLaserBeams = 1'000'000;
 
+#define NBV_DEPTH_CAMERA_OPTIONS(X)                                                              \
+  X(int, width, 640, "pixels")                                                                   \
+  X(int, height, 480, "pixels")                                                                  \
+  X(double, hfov_deg, 60.0, "horizontal field of view, degrees")                                 \
+  X(double, vfov_deg, 45.0, "vertical field of view, degrees")                                   \
+  X(double, min_range, 0.5, "metres, depth along the optical axis")                              \
+  X(double, max_range, 8.0, "metres, depth along the optical axis")                              \
+  X(double, noise_k, 0.0, "depth noise sigma = noise_k * z^2 (m); 0.0025 in the authors' setup") \
+  X(std::uint64_t, seed, 0, "noise seed")                                                        \
+  X(Eigen::Isometry3d, mount, Eigen::Isometry3d::Identity(), "4x4 T_body_sensor")
+
 struct DepthCameraOptions {
-  int width = 640;         ///< pixels
-  int height = 480;        ///< pixels
-  double hfov_deg = 60.0;  ///< horizontal field of view, degrees
-  double vfov_deg = 45.0;  ///< vertical field of view, degrees
-  double min_range = 0.5;  ///< metres, depth along the optical axis
-  double max_range = 8.0;  ///< metres, depth along the optical axis
-  double noise_k = 0.0;    ///< depth noise sigma = noise_k * z^2 (m); 0.0025 in the authors' setup
-  std::uint64_t seed = 0;  ///< noise seed
-  Eigen::Isometry3d mount = Eigen::Isometry3d::Identity();  ///< T_body_sensor
+  NBV_DEPTH_CAMERA_OPTIONS(NBV_DECLARE_OPTION)
 
   void validate() const;
 };
-
 /// Pinhole depth camera. Pixel (u, v) (u right, v down, centres at +0.5) looks along
 /// (1, -(u + 0.5 - W/2) / fx, -(v + 0.5 - H/2) / fy) in the sensor frame, fx = (W/2)/tan(hfov/2).
 class DepthCamera {
@@ -76,20 +79,22 @@ class DepthCamera {
   mutable std::atomic<std::uint64_t> frame_{0};
 };
 
+#define NBV_LASER_SCANNER_OPTIONS(X)                                                    \
+  X(double, fov_deg, 180.0, "horizontal field of view, degrees, centred on +x")         \
+  X(double, resolution_deg, 0.25, "angle between beams, degrees")                       \
+  X(double, min_range, 0.1, "metres along the beam")                                    \
+  X(double, max_range, 30.0, "metres along the beam")                                   \
+  X(double, noise_sigma, 0.0, "range noise sigma, metres")                              \
+  X(std::uint64_t, seed, 0, "noise seed")                                               \
+  X(Eigen::Isometry3d, mount, mount_transform(Eigen::Vector3d::Zero(), 0.0, 10.0, 0.0), \
+    "4x4 T_body_sensor; default pitched 10 deg down (Table 1), at the body origin")
+
 struct LaserScannerOptions {
-  double fov_deg = 180.0;        ///< horizontal field of view, degrees, centred on +x
-  double resolution_deg = 0.25;  ///< angle between beams, degrees
-  double min_range = 0.1;        ///< metres along the beam
-  double max_range = 30.0;       ///< metres along the beam
-  double noise_sigma = 0.0;      ///< range noise sigma, metres
-  std::uint64_t seed = 0;
-  /// T_body_sensor; default pitched 10 deg down (Table 1), at the body origin.
-  Eigen::Isometry3d mount = mount_transform(Eigen::Vector3d::Zero(), 0.0, 10.0, 0.0);
+  NBV_LASER_SCANNER_OPTIONS(NBV_DECLARE_OPTION)
 
   int num_beams() const;
   void validate() const;
 };
-
 /// Single-layer laser scanner: beams in the sensor's x-y plane at angles -fov/2 ... +fov/2
 /// (counter-clockwise from +x toward +y), one every resolution_deg.
 class LaserScanner {
