@@ -1,6 +1,7 @@
 #include "nbv/evaluation.hpp"
 #include "bindings.hpp"
 #include "nbv/mesh.hpp"
+#include "options.hpp"
 
 namespace nbv::bind {
 
@@ -24,15 +25,14 @@ EvaluationOptions options_arg(const std::vector<double>& resolutions,
 
 void init_evaluation(py::module_& m) {
   const EvaluationOptions def;
-  py::class_<EvaluationOptions>(m, "EvaluationOptions", "Defaults of nbvkit.evaluate.")
-      .def(py::init<>())
-      .def_readonly("resolutions", &EvaluationOptions::resolutions, "coverage cell sizes, metres")
-      .def_readonly("taus", &EvaluationOptions::taus, "distance thresholds, metres")
-      .def_readonly("gt_density", &EvaluationOptions::gt_density,
-                    "ground-truth samples per m^2 of mesh surface")
-      .def_readonly("seed", &EvaluationOptions::seed)
-      .def_readonly("max_gt_points", &EvaluationOptions::max_gt_points,
-                    "cap on the number of ground-truth samples");
+  {
+    OptionsClass<EvaluationOptions> binder(
+        m, "EvaluationOptions",
+        "Options of nbvkit.evaluate; each field is documented in EvaluationOptions.fields().");
+    using S = EvaluationOptions;
+    NBV_EVALUATION_OPTIONS(NBV_BIND_FIELD)
+    binder.finish();
+  }
 
   py::class_<EvaluationResult>(
       m, "EvaluationResult",

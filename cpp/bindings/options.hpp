@@ -77,6 +77,18 @@ struct OptionField<std::uint64_t> {
 };
 
 template <>
+struct OptionField<std::vector<double>> {
+  static py::object get(const std::vector<double>& v) { return py::cast(v); }
+  static std::vector<double> set(const py::handle& h, const std::string& name) {
+    std::vector<double> out;
+    if (py::isinstance<py::str>(h) || !py::isinstance<py::sequence>(h))
+      throw py::type_error("option '" + name + "' must be a list of numbers");
+    for (const auto& x : h.cast<py::sequence>()) out.push_back(OptionField<double>::set(x, name));
+    return out;
+  }
+};
+
+template <>
 struct OptionField<Eigen::Vector3d> {
   static py::object get(const Eigen::Vector3d& v) { return py::cast(Eigen::Vector3d(v)); }
   static Eigen::Vector3d set(const py::handle& h, const std::string& name) {

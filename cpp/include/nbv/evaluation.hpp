@@ -6,6 +6,7 @@
 #include "nbv/common.hpp"
 #include "nbv/kdtree.hpp"
 #include "nbv/mesh.hpp"
+#include "nbv/options.hpp"
 #include "nbv/point_cloud.hpp"
 
 #include <cstdint>
@@ -19,17 +20,19 @@ namespace nbv {
 /// twinjet (../shared/meshes/twinjet.obj); see the docstring of nbvkit.evaluate for the figures.
 constexpr double kDefaultGtDensity = 1000.0;
 
+#define NBV_EVALUATION_OPTIONS(X)                                                          \
+  X(std::vector<double>, resolutions, (std::vector<double>{0.05, 0.1, 0.5}),               \
+    "m; cell sizes of the coverage / area-coverage / precision grids (the paper's three)") \
+  X(std::vector<double>, taus, (std::vector<double>{0.05, 0.1}),                           \
+    "m; distance thresholds of completeness / accuracy / F-score")                         \
+  X(double, gt_density, kDefaultGtDensity,                                                 \
+    "ground-truth samples per m^2 of mesh surface (mesh ground truth only)")               \
+  X(std::uint64_t, seed, 0, "seed of the ground-truth surface sampling")                   \
+  X(std::uint64_t, max_gt_points, 20'000'000,                                              \
+    "upper bound on the number of ground-truth samples (area * density is capped to it)")
+
 struct EvaluationOptions {
-  /// Cell sizes (metres) of the coverage / area-coverage / precision grids (the paper's three).
-  std::vector<double> resolutions{0.05, 0.1, 0.5};
-  /// Distance thresholds (metres) of completeness / accuracy / F-score.
-  std::vector<double> taus{0.05, 0.1};
-  /// Ground-truth samples per m^2 of mesh surface (mesh ground truth only).
-  double gt_density = kDefaultGtDensity;
-  /// Seed of the ground-truth surface sampling (Mesh::sample_surface).
-  std::uint64_t seed = 0;
-  /// Upper bound on the number of ground-truth samples (area * density is capped to it).
-  std::size_t max_gt_points = 20'000'000;
+  NBV_EVALUATION_OPTIONS(NBV_DECLARE_OPTION)
 
   void validate() const;
 };
