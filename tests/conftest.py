@@ -60,3 +60,32 @@ def wall():
 @pytest.fixture
 def unit_box():
     return box_mesh((0, 0, 0), (1, 1, 1))
+
+
+def execute_notebook(name: str, env: dict):
+    """Runs notebooks/<name> headless (no DISPLAY) with the environment variables `env` set for
+    its kernel; returns the text of its code cells' outputs."""
+    import os
+
+    nbformat = pytest.importorskip("nbformat")
+    nbclient = pytest.importorskip("nbclient")
+    nb = nbformat.read(ROOT / "notebooks" / name, as_version=4)
+    old = {k: os.environ.get(k) for k in (*env, "DISPLAY")}
+    os.environ.update(env)
+    os.environ.pop("DISPLAY", None)
+    try:
+        nbclient.NotebookClient(
+            nb,
+            timeout=300,
+            kernel_name="python3",
+            resources={"metadata": {"path": str(ROOT / "notebooks")}},
+        ).execute()
+    finally:
+        for k, v in old.items():
+            if v is None:
+                os.environ.pop(k, None)
+            else:
+                os.environ[k] = v
+    return "".join(
+        o.get("text", "") for c in nb.cells if c.cell_type == "code" for o in c.get("outputs", [])
+    )

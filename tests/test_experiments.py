@@ -1,13 +1,13 @@
 """Experiments: Table 2 layout, resumable sweeps, a Dask cluster on loopback, the notebook."""
 from __future__ import annotations
 
-import os
 from pathlib import Path
 
 import pandas as pd
 import pytest
 import yaml
 
+from conftest import execute_notebook
 from nbvkit.experiments import RunSpec, run_specs, sweep_specs, table2, table2_markdown
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -182,29 +182,7 @@ def test_sweep_command(tmp_path):
 
 
 def test_notebook_executes_headless(tiny_table):
-    nbformat = pytest.importorskip("nbformat")
-    nbclient = pytest.importorskip("nbclient")
-    nb = nbformat.read(ROOT / "notebooks" / "table2.ipynb", as_version=4)
-    env = {"NBVKIT_EXPERIMENT": str(tiny_table)}
-    old = {k: os.environ.get(k) for k in (*env, "DISPLAY")}
-    os.environ.update(env)
-    os.environ.pop("DISPLAY", None)
-    try:
-        nbclient.NotebookClient(
-            nb,
-            timeout=300,
-            kernel_name="python3",
-            resources={"metadata": {"path": str(ROOT / "notebooks")}},
-        ).execute()
-    finally:
-        for k, v in old.items():
-            if v is None:
-                os.environ.pop(k, None)
-            else:
-                os.environ[k] = v
-    text = "".join(
-        o.get("text", "") for c in nb.cells if c.cell_type == "code" for o in c.get("outputs", [])
-    )
+    text = execute_notebook("table2.ipynb", {"NBVKIT_EXPERIMENT": str(tiny_table)})
     assert "6 runs" in text and "skipping the interactive 3D view" in text
 
 

@@ -21,21 +21,7 @@ from nbvkit.config import load_config
 ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT / "bench"))
 
-CUBE_V = [(0, 0, 0), (1, 0, 0), (1, 1, 0), (0, 1, 0), (0, 0, 1), (1, 0, 1), (1, 1, 1), (0, 1, 1)]
-CUBE_F = [
-    (0, 2, 1),
-    (0, 3, 2),
-    (4, 5, 6),
-    (4, 6, 7),
-    (0, 1, 5),
-    (0, 5, 4),
-    (3, 6, 2),
-    (3, 7, 6),
-    (0, 4, 7),
-    (0, 7, 3),
-    (1, 2, 6),
-    (1, 6, 5),
-]
+from fuzz_meshes import F as CUBE_F, V as CUBE_V  # noqa: E402  (the fuzz's seed cube)
 
 
 def cube_ply(fmt="binary_little_endian", nv=None, faces=CUBE_F) -> bytes:

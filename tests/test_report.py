@@ -11,6 +11,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from conftest import execute_notebook
 from nbvkit.report import (
     MIN_MESH_POINTS,
     coverage_classes,
@@ -187,26 +188,5 @@ def test_report_renders_in_headless_chromium(tiny_run, tmp_path):
 
 
 def test_run_notebook_executes_headless(tiny_run):
-    nbformat = pytest.importorskip("nbformat")
-    nbclient = pytest.importorskip("nbclient")
-    nb = nbformat.read(ROOT / "notebooks" / "run.ipynb", as_version=4)
-    old = {k: os.environ.get(k) for k in ("NBVKIT_RUN", "DISPLAY")}
-    os.environ["NBVKIT_RUN"] = str(tiny_run)
-    os.environ.pop("DISPLAY", None)
-    try:
-        nbclient.NotebookClient(
-            nb,
-            timeout=300,
-            kernel_name="python3",
-            resources={"metadata": {"path": str(ROOT / "notebooks")}},
-        ).execute()
-    finally:
-        for k, v in old.items():
-            if v is None:
-                os.environ.pop(k, None)
-            else:
-                os.environ[k] = v
-    text = "".join(
-        o.get("text", "") for c in nb.cells if c.cell_type == "code" for o in c.get("outputs", [])
-    )
+    text = execute_notebook("run.ipynb", {"NBVKIT_RUN": str(tiny_run)})
     assert "showing the plotly view" in text and "observable but missed" in text
