@@ -4,6 +4,7 @@
 #include <Eigen/Core>
 #include <Eigen/Geometry>
 
+#include <chrono>
 #include <cstdint>
 #include <stdexcept>
 #include <string>
@@ -45,6 +46,12 @@ class FileNotFound : public std::runtime_error {
 /// `s` with every byte outside printable ASCII written as \xNN: text quoted from a file into an
 /// error message must be valid UTF-8 to cross into Python.
 std::string printable_ascii(const std::string& s);
+
+/// A number as an error message shows it (shortest round-trip-ish form, "inf", "nan").
+std::string fmt(double v);
+
+/// Seconds elapsed since `t0` (steady clock), for the stage timings results report.
+double seconds_since(std::chrono::steady_clock::time_point t0);
 
 /// Largest |coordinate| (metres) a position may have: the ray caster works in float32, whose
 /// spacing at 1e9 m is already 64 m, and Embree asserts on origins near 2e18.
