@@ -12,10 +12,6 @@ std::shared_ptr<const RaycastScene> scene_of(const py::handle& obj) {
   throw py::type_error("expected an nbvkit.Mesh or nbvkit.RaycastScene");
 }
 
-Eigen::Isometry3d mount_or(const py::object& mount, const Eigen::Isometry3d& fallback) {
-  return mount.is_none() ? fallback : transform_arg(mount, "sensor mount (T_body_sensor)");
-}
-
 template <typename Sensor>
 Scan scan_transform(const Sensor& s, const py::handle& T) {
   const Eigen::Isometry3d Tws = transform_arg(T, "T_world_sensor");
@@ -85,7 +81,6 @@ along each beam, inf where there is no valid return.)doc")
                std::to_string(s.free_ends.rows()) + " free rays>";
       });
 
-  const DepthCameraOptions cd;
   {
     OptionsClass<DepthCameraOptions> binder(
         m, "DepthCameraOptions",
@@ -99,31 +94,18 @@ along each beam, inf where there is no valid return.)doc")
   py::class_<DepthCamera, std::shared_ptr<DepthCamera>>(m, "DepthCamera", R"doc(
 Pinhole RGB-D (depth) camera ray-cast against a mesh with Embree (16-ray packets over 4x4 tiles).
 
-scene: an nbvkit.Mesh or nbvkit.RaycastScene. Ranges are depths along the optical axis (metres).
+scene: an nbvkit.Mesh or nbvkit.RaycastScene; options: DepthCameraOptions (or a dict, or None for
+the defaults) with keyword overrides: width, height, hfov_deg, vfov_deg, min_range, max_range,
+noise_k, seed, mount. Ranges are depths along the optical axis (metres).
 noise_k: depth noise sigma = noise_k * z^2 (0 = exact; the authors used 0.0025), seeded.
 mount: 4x4 T_body_sensor (default identity: at the body origin, no tilt).
 The sensor looks along its +x (y left, z up); pixel (u, v) looks along
 (1, -(u + 0.5 - W/2)/fx, -(v + 0.5 - H/2)/fy).)doc")
-      .def(py::init([](const py::handle& scene, int width, int height, double hfov, double vfov,
-                       double min_range, double max_range, double noise_k, const py::object& seed,
-                       const py::object& mount) {
-             DepthCameraOptions o;
-             o.width = width;
-             o.height = height;
-             o.hfov_deg = hfov;
-             o.vfov_deg = vfov;
-             o.min_range = min_range;
-             o.max_range = max_range;
-             o.noise_k = noise_k;
-             o.seed = seed_arg(seed);
-             o.mount = mount_or(mount, o.mount);
+      .def(py::init([](const py::handle& scene, const py::object& options, const py::kwargs& kw) {
+             const auto o = options_with_keywords<DepthCameraOptions>(options, kw);
              return std::make_shared<DepthCamera>(scene_of(scene), o);
            }),
-           py::arg("scene"), py::arg("width") = cd.width, py::arg("height") = cd.height,
-           py::arg("hfov_deg") = cd.hfov_deg, py::arg("vfov_deg") = cd.vfov_deg,
-           py::arg("min_range") = cd.min_range, py::arg("max_range") = cd.max_range,
-           py::arg("noise_k") = cd.noise_k, py::arg("seed") = cd.seed,
-           py::arg("mount") = py::none())
+           py::arg("scene"), py::arg("options") = py::none())
       .def_property_readonly("width", [](const DepthCamera& c) { return c.options().width; })
       .def_property_readonly("height", [](const DepthCamera& c) { return c.options().height; })
       .def_property_readonly("hfov_deg", [](const DepthCamera& c) { return c.options().hfov_deg; })
@@ -151,7 +133,6 @@ The sensor looks along its +x (y left, z up); pixel (u, v) looks along
           [](DepthCamera& c, const py::object& seed) { c.reset_noise(seed_arg(seed)); },
           py::arg("seed"));
 
-  const LaserScannerOptions ld;
   {
     OptionsClass<LaserScannerOptions> binder(
         m, "LaserScannerOptions",
@@ -167,24 +148,14 @@ Single-layer 2D laser scanner ray-cast against a mesh with Embree.
 
 Beams lie in the sensor's x-y plane from -fov/2 to +fov/2 (counter-clockwise from +x), one per
 resolution_deg (180 deg / 0.25 deg -> 721 beams). Ranges along the beam, metres.
-mount: 4x4 T_body_sensor (default: body origin, pitched 10 deg down as in Table 1).)doc")
-      .def(py::init([](const py::handle& scene, double fov, double res, double min_range,
-                       double max_range, double noise_sigma, const py::object& seed,
-                       const py::object& mount) {
-             LaserScannerOptions o;
-             o.fov_deg = fov;
-             o.resolution_deg = res;
-             o.min_range = min_range;
-             o.max_range = max_range;
-             o.noise_sigma = noise_sigma;
-             o.seed = seed_arg(seed);
-             o.mount = mount_or(mount, o.mount);
+mount: 4x4 T_body_sensor (default: body origin, pitched 10 deg down as in Table 1).
+options: LaserScannerOptions (or a dict, or None for the defaults) with keyword overrides: fov_deg,
+resolution_deg, min_range, max_range, noise_sigma, seed, mount.)doc")
+      .def(py::init([](const py::handle& scene, const py::object& options, const py::kwargs& kw) {
+             const auto o = options_with_keywords<LaserScannerOptions>(options, kw);
              return std::make_shared<LaserScanner>(scene_of(scene), o);
            }),
-           py::arg("scene"), py::arg("fov_deg") = ld.fov_deg,
-           py::arg("resolution_deg") = ld.resolution_deg, py::arg("min_range") = ld.min_range,
-           py::arg("max_range") = ld.max_range, py::arg("noise_sigma") = ld.noise_sigma,
-           py::arg("seed") = ld.seed, py::arg("mount") = py::none())
+           py::arg("scene"), py::arg("options") = py::none())
       .def_property_readonly("num_beams",
                              [](const LaserScanner& l) { return l.options().num_beams(); })
       .def_property_readonly("fov_deg", [](const LaserScanner& l) { return l.options().fov_deg; })
