@@ -4,7 +4,6 @@
 #include "average_entropy.hpp"
 #include "four_term.hpp"
 #include "ig.hpp"
-#include "proximity_count.hpp"
 #include "surface.hpp"
 #include "visibility.hpp"
 
