@@ -52,6 +52,11 @@ def cli(*args, timeout=120, cwd=None):
     return p.returncode, p.stdout, p.stderr
 
 
+def scan_cli(mesh, out, timeout=120):
+    """`nbvkit scan` of `mesh` from a pose facing the unit cube: (returncode, stdout, stderr)."""
+    return cli("scan", "--mesh", mesh, "--pose", 0.5, -3, 0.5, 1.57, "--out", out, timeout=timeout)
+
+
 def expect_error(rc, err, *needles):
     """A clean failure: exit 2 (not a signal, not a crash), no traceback, the message naming the
     problem."""
@@ -93,18 +98,7 @@ def test_case1_hostile_ply_files_give_clean_errors(tmp_path):
     for name, (data, needle) in cases.items():
         (tmp_path / name).write_bytes(data)
         t0 = time.perf_counter()
-        rc, _, err = cli(
-            "scan",
-            "--mesh",
-            tmp_path / name,
-            "--pose",
-            0.5,
-            -3,
-            0.5,
-            1.57,
-            "--out",
-            tmp_path / "x.npy",
-        )
+        rc, _, err = scan_cli(tmp_path / name, tmp_path / "x.npy")
         assert time.perf_counter() - t0 < 60
         expect_error(rc, err, name, needle)
     # the valid file loads through the same reader
@@ -131,19 +125,7 @@ def test_case1_collada_files_that_crash_or_hang_assimp_are_refused(tmp_path):
     }
     for name, (text, needle) in cases.items():
         (tmp_path / name).write_text(text)
-        rc, _, err = cli(
-            "scan",
-            "--mesh",
-            tmp_path / name,
-            "--pose",
-            0.5,
-            -3,
-            0.5,
-            1.57,
-            "--out",
-            tmp_path / "x.npy",
-            timeout=60,
-        )
+        rc, _, err = scan_cli(tmp_path / name, tmp_path / "x.npy", timeout=60)
         expect_error(rc, err, name, needle)
     (tmp_path / "good.dae").write_text(good)
     assert nbvkit.load_mesh(tmp_path / "good.dae").faces.shape == (12, 3)
@@ -433,7 +415,7 @@ def test_case12_messages_instead_of_tracebacks(tmp_path, cube_obj):
     np.save(cloud, np.zeros((3, 3)))
     rc, _, err = cli("evaluate", cloud, "--mesh", cube_obj, "--json", d)
     expect_error(rc, err, "--json", "folder")
-    rc, _, err = cli("scan", "--mesh", cube_obj, "--pose", 0.5, -3, 0.5, 1.57, "--out", d)
+    rc, _, err = scan_cli(cube_obj, d)
     expect_error(rc, err, "--out")
     rc, _, err = cli("run", "--config", d)
     expect_error(rc, err, "config file", "directory")
