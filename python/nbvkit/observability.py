@@ -42,6 +42,7 @@ from pathlib import Path
 import numpy as np
 
 from . import _core
+from .config import camera_kwargs
 
 __all__ = ["ObservableSurface", "observable_surface", "sample_normals"]
 
@@ -186,14 +187,12 @@ def _compute(mesh, cfg, points, normals, ws, settings, scene) -> ObservableSurfa
     t0 = time.perf_counter()
     scene = scene or _core.RaycastScene(mesh)
     c = cfg.camera
-    camera = _core.DepthCamera(
+    camera = _core.DepthCamera(  # only its field of view, ranges and mount are used
         scene,
+        camera_kwargs(cfg),
         width=16,
         height=12,
-        hfov_deg=c.hfov_deg,
-        vfov_deg=c.vfov_deg,
-        min_range=c.min_range,
-        max_range=c.max_range,
+        noise_k=0.0,
         mount=_core.mount_transform(c.mount_xyz, *c.mount_rpy_deg),
     )
     o = cfg.observability

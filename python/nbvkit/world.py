@@ -98,14 +98,12 @@ class World:
         """The five predefined starts (see workspace.start_poses): within 3/4 of the camera's
         range of the structure, seeing it."""
         c, v = self.config.camera, self.config.vehicle
-        probe = _core.DepthCamera(
+        probe = _core.DepthCamera(  # a coarse, noise-free copy of the camera
             self.scene,
+            camera_kwargs(self.config),
             width=32,
             height=24,
-            hfov_deg=c.hfov_deg,
-            vfov_deg=c.vfov_deg,
-            min_range=c.min_range,
-            max_range=c.max_range,
+            noise_k=0.0,
             mount=camera_mount,
         )
         return start_poses(
