@@ -15,7 +15,7 @@ from nbvkit.config import Config, load_config
 from nbvkit.mission import Mission
 from nbvkit.planning.generators.frontier import FrontierGenerator
 from nbvkit.planning.generators.tour import prize_collect
-from nbvkit.planning.placement import Patches, place_views, target_patches
+from nbvkit.planning.placement import Patches, into_bounds, place_views, target_patches
 from nbvkit.scenarios import SCENARIOS
 from conftest import box_mesh, wall_mesh
 
@@ -138,6 +138,49 @@ def test_views_are_placed_at_their_standoff_facing_the_patch_inside_the_fov():
         elevation = math.atan2(to_patch[2], np.linalg.norm(to_patch[:2]))
         assert abs(elevation) <= half  # the patch is in the vertical field of view
     assert np.all(np.isfinite(poses))
+
+
+def test_views_below_the_floor_move_up_and_out_until_the_patch_is_in_view():
+    # a patch on the side of a beam 2 m below the navigation floor (z 0), facing +x, and one 1 m
+    # above the ceiling (z 10) facing -y: the views placed along their normals leave the box
+    patches = Patches(
+        centers=np.array([[0.0, 0, -2.0], [0.0, 0, 11.0]]),
+        normals=np.array([[1.0, 0, 0], [0.0, -1.0, 0]]),
+        weights=np.ones(2),
+    )
+    box = (np.array([-20.0, -20, 0]), np.array([20.0, 20, 10]))
+    free, owner = place_views(patches, _Cam, _Place)
+    assert np.all((free[:, 2] < 0) | (free[:, 2] > 10))  # all outside without the bounds
+    poses, owner2 = place_views(patches, _Cam, _Place, box)
+    assert np.array_equal(owner, owner2) and np.array_equal(poses[:, 3], free[:, 3])
+    lowest = -math.radians(45 / 2 - 4.0)  # the band the patch must stay in
+    moved_out = False
+    for pose, i, before in zip(poses, owner, free):
+        assert np.all(pose[:3] >= box[0]) and np.all(pose[:3] <= box[1])
+        assert pose[2] in (0.0, 10.0)  # on the floor or the ceiling, not farther in
+        to_patch = patches.centers[i] - pose[:3]
+        h = np.linalg.norm(to_patch[:2])
+        elevation = math.atan2(to_patch[2], h)
+        assert lowest - 1e-9 <= elevation <= -lowest + 1e-9
+        # the same azimuth from the patch as before, and no farther than the band requires
+        out = before[:2] - patches.centers[i, :2]
+        assert (pose[:2] - patches.centers[i, :2]) @ out / np.linalg.norm(out) == pytest.approx(h)
+        need = abs(to_patch[2]) / math.tan(-lowest)  # out far enough for the band
+        assert h == pytest.approx(max(need, np.linalg.norm(out)))
+        moved_out |= need > np.linalg.norm(out)
+    assert moved_out  # the floor's 4 m views had to back off to 6 m
+    # a view that would have to go beyond the range, or a patch straight below, is left alone
+    far = into_bounds(
+        np.array([[0.0, 0, -9.0], [3.0, 0, -9.0]]),
+        np.array([[0.0, 0, -12.0], [0.0, 0, -12.0]]),
+        box,
+        (lowest, -lowest),
+        (1.0, 8.0),
+    )
+    assert np.array_equal(far, [[0.0, 0, -9.0], [3.0, 0, -9.0]])
+    # inside the box: unchanged
+    inside = np.array([[1.0, 2.0, 3.0]])
+    assert np.array_equal(into_bounds(inside, inside + 1, box, (lowest, -lowest), (1, 8)), inside)
 
 
 def test_patches_group_targets_by_cell_and_side():

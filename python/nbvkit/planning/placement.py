@@ -35,7 +35,7 @@ def target_patches(targets: dict, cluster_size: float) -> Patches:
     return Patches(centers, normals, weights)
 
 
-def place_views(patches: Patches, camera, placement) -> tuple[np.ndarray, np.ndarray]:
+def place_views(patches: Patches, camera, placement, bounds=None) -> tuple[np.ndarray, np.ndarray]:
     """Candidate poses (K, 4) looking at the patches, and the patch of each (K,).
 
     Per patch: from its centre out along its normal, tilted in elevation so that the patch stays
@@ -43,7 +43,11 @@ def place_views(patches: Patches, camera, placement) -> tuple[np.ndarray, np.nda
     yaws: its pitch is its mount's), at each stand-off placement.standoffs x camera.max_range,
     straight on and placement.azimuth_spread_deg to each side; yaw faces the patch. A patch
     facing straight up or down (horizontal part of its normal < 0.3) is looked at from six
-    azimuths. camera: the config's camera section (vfov_deg, max_range, mount_rpy_deg)."""
+    azimuths. camera: the config's camera section (vfov_deg, max_range, mount_rpy_deg).
+    bounds: (lo, hi) of the navigation space, or None; a view placed outside them is moved in
+    (into_bounds) instead of being left to fail validation: surface near the floor or the ceiling
+    of the navigation space, or near its sides, is then looked at from the nearest pose that can
+    fly and still holds it in the field of view."""
     if len(patches.centers) == 0:
         return np.zeros((0, 4)), np.zeros(0, int)
     half = math.radians(camera.vfov_deg / 2 - placement.elevation_margin_deg)
@@ -67,4 +71,51 @@ def place_views(patches: Patches, camera, placement) -> tuple[np.ndarray, np.nda
                 p = c + s * camera.max_range * u
                 rows.append((p[0], p[1], p[2], math.remainder(yaw, 2 * math.pi)))
                 owner.append(i)
-    return np.asarray(rows, float), np.asarray(owner, int)
+    poses, owner = np.asarray(rows, float), np.asarray(owner, int)
+    if bounds is not None:
+        poses[:, :3] = into_bounds(
+            poses[:, :3],
+            patches.centers[owner],
+            bounds,
+            (axis_el - half, axis_el + half),
+            (min(placement.standoffs) * camera.max_range / 2, camera.max_range),
+        )
+    return poses, owner
+
+
+def into_bounds(positions, aims, bounds, band, distances) -> np.ndarray:
+    """Views (K, 3) looking at `aims` (K, 3), moved into the box bounds = (lo, hi) where they lie
+    outside it: to the box's floor or ceiling, then horizontally away from or towards the aim,
+    along the same azimuth, just far enough that the aim stays within the camera's vertical band
+    (lowest, highest elevation in view, radians), and no farther than the box's sides. A view
+    that cannot be moved in (out of the band, or its distance to the aim outside distances =
+    (nearest, farthest)) is left as it was.
+    Views inside the box, and views straight above or below their aim, are not changed."""
+    lo, hi = (np.asarray(b, float) for b in bounds)
+    p = np.asarray(positions, float)
+    out = ~np.all((p >= lo) & (p <= hi), axis=1)
+    d = p[:, :2] - aims[:, :2]
+    h = np.linalg.norm(d, axis=1)
+    fix = np.flatnonzero(out & (h > 1e-6))
+    if len(fix) == 0:
+        return p
+    a, u, h = aims[fix], d[fix] / h[fix, None], h[fix]
+    z = np.clip(p[fix, 2], lo[2], hi[2])
+    rise = z - a[:, 2]  # > 0: the camera looks down at its aim
+    need = np.zeros(len(fix))
+    down, up = -band[0], band[1]  # the largest depression and elevation in view
+    below = rise > 0
+    need[below] = rise[below] / np.tan(down) if down > 1e-6 else np.inf
+    need[~below] = -rise[~below] / np.tan(up) if up > 1e-6 else np.inf
+    # the farthest the view may go along its azimuth and stay between the box's sides
+    with np.errstate(divide="ignore", invalid="ignore"):
+        reach = np.where(
+            u > 0, (hi[:2] - a[:, :2]) / u, np.where(u < 0, (lo[:2] - a[:, :2]) / u, np.inf)
+        )
+    reach = reach.min(axis=1)
+    h_new = np.minimum(np.maximum(h, need), reach)
+    dist = np.hypot(h_new, rise)
+    ok = (h_new >= need) & (dist >= distances[0]) & (dist <= distances[1])
+    q = np.column_stack([a[:, :2] + h_new[:, None] * u, z])
+    p[fix[ok]] = q[ok]
+    return p

@@ -26,7 +26,9 @@ class FrontierGenerator:
         keep = np.sort(rank[: cfg.frontier.patches])
         patches.centers, patches.normals = patches.centers[keep], patches.normals[keep]
         patches.weights = patches.weights[keep]
-        poses, owner = place_views(patches, cfg.camera, cfg.placement)
+        poses, owner = place_views(
+            patches, cfg.camera, cfg.placement, (world.workspace.nav_min, world.workspace.nav_max)
+        )
         if not len(poses):
             return None
         return Proposal(poses, "frontier", aims=patches.centers[owner])

@@ -34,7 +34,9 @@ class CoverageTour:
         cell_m2 = world.map.resolution**2
         targets = _core.surface_targets(world.map, world.surface, cfg.targets.options())
         patches = target_patches(targets, cfg.placement.cluster_size)
-        candidates, owner = place_views(patches, cfg.camera, cfg.placement)
+        candidates, owner = place_views(
+            patches, cfg.camera, cfg.placement, (world.workspace.nav_min, world.workspace.nav_max)
+        )
         record = {
             "targets": int(len(targets["weight"])),
             "candidates": int(len(candidates)),
