@@ -232,6 +232,20 @@ def test_evaluator_reuse_equals_evaluate(cube, cube_face_cloud):
     assert "Evaluator" in repr(ev)
 
 
+def test_options_object_with_keyword_overrides(cube, cube_face_cloud):
+    opts = nbvkit.EvaluationOptions(gt_density=1500, seed=7, taus=[0.1])
+    ev = Evaluator(cube, opts, seed=2)
+    assert ev.options == opts.copy(seed=2) and opts.seed == 7
+    expected = evaluate(cube, cube_face_cloud, gt_density=1500, seed=2, taus=0.1)
+    assert ev(cube_face_cloud) == expected
+    assert evaluate(cube, cube_face_cloud, {"gt_density": 1500, "seed": 2, "taus": [0.1]}) == (
+        expected
+    )
+    assert Evaluator(cube, gt_density=None).options.gt_density == DEFAULT_GT_DENSITY
+    with pytest.raises(ValueError, match="unknown EvaluationOptions option 'density'"):
+        Evaluator(cube, density=1500)
+
+
 def test_cell_figures_alone_equal_the_full_evaluation(cube, cube_face_cloud):
     ev = Evaluator(cube, gt_density=2000, seed=3)
     rng = np.random.default_rng(1)
@@ -252,7 +266,7 @@ def test_reference_cloud_mode(cube):
     assert r["gt_source"] == "points" and r["gt_density"] is None and r["seed"] is None
     assert r["n_gt_points"] == 20000 and r["accuracy"]["0.05"] == 1.0
     assert 0.5 < r["area_coverage"]["0.05"] < 1.0 and r["coverage"]["0.5"] > 0.95
-    pc = nbvkit.PointCloud(gt, voxel_size=1e-5, min_z=None)  # keeps every sample
+    pc = nbvkit.PointCloud(gt, voxel_size=1e-5, min_z=float("-inf"))  # keeps every sample
     assert evaluate(pc, gt[:10000]) == r  # a PointCloud is a reference cloud too
 
 
