@@ -21,6 +21,7 @@ __all__ = [
     "DEFAULT_RESOLUTIONS",
     "DEFAULT_TAUS",
     "MAX_GT_POINTS",
+    "SUMMARY_KEYS",
 ]
 
 _DEF = _core.EvaluationOptions()
@@ -32,6 +33,18 @@ DEFAULT_RESOLUTIONS: tuple = tuple(_DEF.resolutions)
 DEFAULT_TAUS: tuple = tuple(_DEF.taus)
 #: Cap on the number of ground-truth samples (area × density is capped to it, with a warning).
 MAX_GT_POINTS: int = _DEF.max_gt_points
+#: The headline figures of an ``evaluate`` result that a run's summary carries.
+SUMMARY_KEYS: tuple = (
+    "coverage",
+    "area_coverage",
+    "precision",
+    "completeness",
+    "accuracy",
+    "fscore",
+    "chamfer_m",
+    "n_points",
+    "gt_density",
+)
 
 
 def _key(v: float) -> str:
