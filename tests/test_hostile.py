@@ -6,7 +6,6 @@ from __future__ import annotations
 
 import os
 import signal
-import struct
 import subprocess
 import sys
 import textwrap
@@ -21,21 +20,7 @@ from nbvkit.config import load_config
 ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT / "bench"))
 
-from fuzz_meshes import F as CUBE_F, V as CUBE_V  # noqa: E402  (the fuzz's seed cube)
-
-
-def cube_ply(fmt="binary_little_endian", nv=None, faces=CUBE_F) -> bytes:
-    head = (
-        f"ply\nformat {fmt} 1.0\nelement vertex {nv or len(CUBE_V)}\n"
-        "property float x\nproperty float y\nproperty float z\n"
-        f"element face {len(faces)}\nproperty list uchar int vertex_indices\nend_header\n"
-    ).encode()
-    if fmt == "ascii":
-        body = "".join(f"{x} {y} {z}\n" for x, y, z in CUBE_V)
-        body += "".join(f"3 {a} {b} {c}\n" for a, b, c in faces)
-        return head + body.encode()
-    body = b"".join(struct.pack("<3f", *v) for v in CUBE_V)
-    return head + body + b"".join(struct.pack("<B3i", 3, *f) for f in faces)
+from fuzz_meshes import F as CUBE_F, cube_ply  # noqa: E402  (the fuzz's seed cube)
 
 
 def cli(*args, timeout=120, cwd=None):
