@@ -242,6 +242,7 @@ class ObservabilityResult:
     def unreachable(self) -> typing.Any: ...
 
 class OccupancyMap:
+    DEFAULT_RESOLUTION: typing.ClassVar[typing.Any]
     FREE: typing.ClassVar[typing.Any]
     OCCUPIED: typing.ClassVar[typing.Any]
     UNKNOWN: typing.ClassVar[typing.Any]
