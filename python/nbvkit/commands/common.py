@@ -37,20 +37,18 @@ def mesh_from_args(args):
     return load_mesh(path, scale=args.mesh_scale, up=args.mesh_up)
 
 
+def add_set_option(p: argparse.ArgumentParser, help: str) -> None:
+    """--set KEY=VALUE ...: config overrides (repeatable; every one given counts)."""
+    p.add_argument("--set", nargs="+", action="extend", default=[], metavar="KEY=VALUE", help=help)
+
+
 def add_experiment_options(p: argparse.ArgumentParser, what: str, out: str) -> None:
     """--starts, --set, --workers, --scheduler and --out of the experiments over the five starts
     (`what`: what each start is flown for, e.g. "planner")."""
     p.add_argument(
         "--starts", type=int, default=5, metavar="K", help=f"starts per {what}, 1..5 (default 5)"
     )
-    p.add_argument(
-        "--set",
-        nargs="+",
-        action="extend",
-        default=[],
-        metavar="KEY=VALUE",
-        help="config overrides applied to every run (e.g. max_iterations=100)",
-    )
+    add_set_option(p, "config overrides applied to every run (e.g. max_iterations=100)")
     p.add_argument(
         "--workers",
         type=int,
