@@ -16,6 +16,7 @@ import pytest
 
 import nbvkit
 from nbvkit.config import load_config
+from conftest import TINY_RUN
 
 ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT / "bench"))
@@ -263,15 +264,7 @@ def test_case6_ctrl_c_stops_a_sweep_and_keeps_what_finished(tmp_path):
 
 def test_case6_ctrl_c_stops_a_table_and_writes_the_partial_table(tmp_path):
     out = tmp_path / "t"
-    tiny = [
-        "map.resolution=0.4",
-        "evaluation.gt_density=50",
-        "max_iterations=2",
-        "evaluation.coverage_every=1",
-        "profiling.sweep_step=0.5",
-        "profiling.waypoints=3",
-    ]
-    cmd = ["table", "--starts", "1", "--workers", "2", "--set", *tiny, "--out", str(out)]
+    cmd = ["table", "--starts", "1", "--workers", "2", "--set", *TINY_RUN, "--out", str(out)]
     p = subprocess.Popen(
         [sys.executable, "-m", "nbvkit.cli", *cmd],
         stdout=subprocess.PIPE,
