@@ -93,14 +93,15 @@ def bench_timing(args):
     )
     res, taus = (0.05, 0.1, 0.5), (0.05, 0.1)
     med, times, ours = timed(
-        lambda: evaluate(mesh, cloud, res, taus, gt_density=args.density), args.repeat
+        lambda: evaluate(mesh, cloud, resolutions=res, taus=taus, gt_density=args.density),
+        args.repeat,
     )
     print(
         f"nbvkit.evaluate: median {med:.2f} s of {args.repeat} "
         f"({', '.join(f'{t:.2f}' for t in times)})"
     )
     t = time.perf_counter()
-    ev = Evaluator(mesh, res, taus, gt_density=args.density)
+    ev = Evaluator(mesh, resolutions=res, taus=taus, gt_density=args.density)
     t_prep = time.perf_counter() - t
     raw = ev._core.evaluate(cloud)
     phases = dict(ev._core.gt_info.timings_s)
@@ -152,7 +153,7 @@ def camera_cloud(mesh, views=60, seed=7, voxel=0.02):
     rng = np.random.default_rng(seed)
     scene = nbvkit.RaycastScene(mesh)
     cam = nbvkit.DepthCamera(scene)
-    cloud = nbvkit.PointCloud(voxel_size=voxel, min_z=None)
+    cloud = nbvkit.PointCloud(voxel_size=voxel, min_z=float("-inf"))
     targets = mesh.sample_surface(views, seed)
     for p in targets:
         d = rng.normal(size=3)

@@ -11,12 +11,12 @@ Run: .venv/bin/python bench/bench_map.py [--mesh PATH] [--repeat N]
 """
 from __future__ import annotations
 
-import argparse
 import time
 
 import numpy as np
 
 import nbvkit
+from _timing import bench_mesh, mesh_parser
 
 
 def agreement(a: nbvkit.OccupancyMap, b: nbvkit.OccupancyMap) -> float:
@@ -26,13 +26,8 @@ def agreement(a: nbvkit.OccupancyMap, b: nbvkit.OccupancyMap) -> float:
 
 
 def main():
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--mesh", default=None)
-    ap.add_argument("--repeat", type=int, default=3)
-    args = ap.parse_args()
-    mesh = nbvkit.load_mesh(args.mesh or nbvkit.default_mesh_path())
-    lo, hi = mesh.bounds
-    c = (lo + hi) / 2
+    args = mesh_parser(__doc__, repeat=3).parse_args()
+    mesh, lo, hi, c = bench_mesh(args.mesh)
     cam = nbvkit.DepthCamera(mesh)
     poses = [
         (c[0] + 10 * np.cos(t), c[1] + 10 * np.sin(t), 4.0, t + np.pi)

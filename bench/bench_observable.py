@@ -14,29 +14,25 @@ budget is a tenth of it.
 """
 from __future__ import annotations
 
-import argparse
 import time
 from pathlib import Path
 
 import numpy as np
 
-import nbvkit
 from nbvkit.config import load_config
 from nbvkit.evaluation import Evaluator
 from nbvkit.observability import observable_surface
+from _timing import bench_mesh, mesh_parser
 
 ROOT = Path(__file__).resolve().parent.parent
 
 
 def main() -> None:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--mesh", default=None)
+    ap = mesh_parser(__doc__)
     ap.add_argument("--spacings", type=float, nargs="+", default=[8.0, 4.0, 2.0, 1.0, 0.5])
     ap.add_argument("--no-figure", action="store_true")
     args = ap.parse_args()
-    mesh = (
-        nbvkit.load_mesh(args.mesh) if args.mesh else nbvkit.load_mesh(nbvkit.default_mesh_path())
-    )
+    mesh = bench_mesh(args.mesh)[0]
     cfg0 = load_config(None, [])
     ev = Evaluator(mesh, gt_density=cfg0.evaluation.gt_density, seed=cfg0.seed)
     print(

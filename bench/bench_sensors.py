@@ -7,23 +7,17 @@ Run: .venv/bin/python bench/bench_sensors.py [--mesh PATH] [--repeat N]
 """
 from __future__ import annotations
 
-import argparse
 import time
 
 import numpy as np
 
 import nbvkit
-from _timing import median_time
+from _timing import bench_mesh, median_time, mesh_parser
 
 
 def main():
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--mesh", default=None)
-    ap.add_argument("--repeat", type=int, default=20)
-    args = ap.parse_args()
-    mesh = nbvkit.load_mesh(args.mesh or nbvkit.default_mesh_path())
-    lo, hi = mesh.bounds
-    c = (lo + hi) / 2
+    args = mesh_parser(__doc__, repeat=20).parse_args()
+    mesh, lo, hi, c = bench_mesh(args.mesh)
     t0 = time.perf_counter()
     scene = nbvkit.RaycastScene(mesh)
     build_ms = (time.perf_counter() - t0) * 1e3

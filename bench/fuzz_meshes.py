@@ -79,19 +79,21 @@ def _stl_ascii() -> bytes:
     return (s + "endsolid cube\n").encode()
 
 
-def _ply(fmt: str) -> bytes:
+def cube_ply(fmt: str = "binary_little_endian", nv: int | None = None, faces=F) -> bytes:
+    """The seed cube as a PLY file in `fmt`; `nv` overrides the declared vertex count and
+    `faces` the faces (tests/test_hostile.py builds broken files with them)."""
     head = (
-        f"ply\nformat {fmt} 1.0\ncomment nbvkit fuzz cube\nelement vertex {len(V)}\n"
+        f"ply\nformat {fmt} 1.0\ncomment nbvkit fuzz cube\nelement vertex {nv or len(V)}\n"
         "property float x\nproperty float y\nproperty float z\n"
-        f"element face {len(F)}\nproperty list uchar int vertex_indices\nend_header\n"
+        f"element face {len(faces)}\nproperty list uchar int vertex_indices\nend_header\n"
     ).encode()
     if fmt == "ascii":
         body = "".join(f"{x} {y} {z}\n" for x, y, z in V)
-        body += "".join(f"3 {a} {b} {c}\n" for a, b, c in F)
+        body += "".join(f"3 {a} {b} {c}\n" for a, b, c in faces)
         return head + body.encode()
     e = "<" if fmt == "binary_little_endian" else ">"
     body = b"".join(struct.pack(e + "3f", *v) for v in V)
-    body += b"".join(struct.pack(e + "B3i", 3, *f) for f in F)
+    body += b"".join(struct.pack(e + "B3i", 3, *f) for f in faces)
     return head + body
 
 
@@ -171,9 +173,9 @@ SEEDS = {
     "obj": (".obj", _obj),
     "stl_binary": (".stl", _stl_binary),
     "stl_ascii": (".stl", _stl_ascii),
-    "ply_binary": (".ply", lambda: _ply("binary_little_endian")),
-    "ply_binary_be": (".ply", lambda: _ply("binary_big_endian")),
-    "ply_ascii": (".ply", lambda: _ply("ascii")),
+    "ply_binary": (".ply", lambda: cube_ply("binary_little_endian")),
+    "ply_binary_be": (".ply", lambda: cube_ply("binary_big_endian")),
+    "ply_ascii": (".ply", lambda: cube_ply("ascii")),
     "gltf": (".gltf", _gltf),
     "dae": (".dae", _dae),
 }

@@ -11,6 +11,16 @@ import nbvkit
 ROOT = Path(__file__).resolve().parent.parent
 SHARED_MESHES = ROOT.parent / "shared" / "meshes"
 
+#: Config overrides that make a run (and a Table 2 row) take seconds: for tests of the plumbing.
+TINY_RUN = (
+    "map.resolution=0.4",
+    "evaluation.gt_density=50",
+    "max_iterations=2",
+    "evaluation.coverage_every=1",
+    "profiling.sweep_step=0.5",
+    "profiling.waypoints=3",
+)
+
 
 def shared_mesh(name: str) -> Path:
     """Path of a mesh in ../shared/meshes, or skip the test when the folder is absent."""

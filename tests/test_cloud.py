@@ -10,6 +10,8 @@ import nbvkit
 from nbvkit import PointCloud, read_points, write_points
 from nbvkit.cloud import DEFAULT_MIN_Z, DEFAULT_VOXEL_SIZE, LASER_VOXEL_SIZE
 
+NO_GROUND = float("-inf")  # min_z that disables ground removal
+
 
 def voxel_reference(points, size, min_z=-np.inf):
     """What the filter must give: per voxel floor(p / size), the mean of its points, voxels in
@@ -32,7 +34,8 @@ def voxel_reference(points, size, min_z=-np.inf):
 def test_defaults_are_the_authors():
     assert DEFAULT_VOXEL_SIZE == 0.02 and LASER_VOXEL_SIZE == 0.1 and DEFAULT_MIN_Z == 0.3
     c = PointCloud()
-    assert c.voxel_size == 0.02 and c.min_z == 0.3 and c.bounds is None and len(c) == 0
+    assert c.voxel_size == 0.02 and c.min_z == 0.3 and not c.options.crop and len(c) == 0
+    assert c.options == nbvkit.SurfaceCloudOptions()
     assert c.points.shape == (0, 3) and c.points.dtype == np.float64
 
 
@@ -49,7 +52,7 @@ def test_config_defaults_match_the_core():
 
 
 def test_one_point_per_voxel_at_the_centroid():
-    c = PointCloud(voxel_size=0.1, min_z=None)
+    c = PointCloud(voxel_size=0.1, min_z=NO_GROUND)
     pts = np.array(
         [
             [0.01, 0.02, 0.51],
@@ -65,7 +68,7 @@ def test_one_point_per_voxel_at_the_centroid():
 
 
 def test_floor_not_truncation_for_negative_coordinates():
-    c = PointCloud(voxel_size=0.02, min_z=None)
+    c = PointCloud(voxel_size=0.02, min_z=NO_GROUND)
     # -0.01 and +0.01 are in voxels -1 and 0; truncation toward zero would merge them.
     assert c.add([[-0.01, 0.5, 1.0], [0.01, 0.5, 1.0]]) == 2
     assert c.add([[-0.019, -0.001, -0.001]]) == 1  # voxel (-1, -1, -1)
@@ -102,21 +105,35 @@ def test_ground_removal():
     pts = [[0, 0, 0.0], [0, 0, 0.29], [1, 0, 0.3], [2, 0, 5.0]]
     c = PointCloud(pts)  # default min_z 0.3: z < 0.3 dropped, z == 0.3 kept
     np.testing.assert_allclose(c.points[:, 2], [0.3, 5.0])
-    assert PointCloud(pts, min_z=None).min_z is None
-    assert len(PointCloud(pts, min_z=None)) == 4
-    assert len(PointCloud(pts, min_z=float("-inf"))) == 4
+    assert PointCloud(pts, min_z=NO_GROUND).min_z == NO_GROUND
+    assert len(PointCloud(pts, min_z=NO_GROUND)) == 4
+    assert len(PointCloud(pts, min_z=None)) == 2  # a keyword set to None keeps the default
     assert len(PointCloud(pts, min_z=1.0)) == 1
 
 
 def test_crop_box():
     pts = [[0, 0, 1], [5, 0, 1], [0, 5, 1], [0, 0, 9]]
-    c = PointCloud(pts, bounds=[[-1, -1, 0], [1, 1, 2]])
+    c = PointCloud(pts, crop=True, crop_min=[-1, -1, 0], crop_max=[1, 1, 2])
     np.testing.assert_allclose(c.points, [[0, 0, 1]])
-    np.testing.assert_allclose(c.bounds, [[-1, -1, 0], [1, 1, 2]])
-    with pytest.raises(ValueError, match="bounds"):
-        PointCloud(bounds=[1, 2, 3])
+    assert c.options.crop
+    np.testing.assert_allclose([c.options.crop_min, c.options.crop_max], [[-1, -1, 0], [1, 1, 2]])
+    with pytest.raises(ValueError, match="crop_min"):
+        PointCloud(crop=True, crop_min=[1, 2])
     with pytest.raises(ValueError, match="max must be >= min"):
-        PointCloud(bounds=[[1, 1, 1], [0, 0, 0]])
+        PointCloud(crop=True, crop_min=[1, 1, 1], crop_max=[0, 0, 0])
+
+
+def test_options_object_with_keyword_overrides():
+    opts = nbvkit.SurfaceCloudOptions(voxel_size=0.1, min_z=NO_GROUND)
+    c = PointCloud([[0, 0, 0.05]], opts, voxel_size=0.5)
+    assert c.voxel_size == 0.5 and c.min_z == NO_GROUND and len(c) == 1
+    assert c.options == opts.copy(voxel_size=0.5)
+    assert PointCloud(options={"voxel_size": 0.2}).voxel_size == 0.2
+    assert opts.voxel_size == 0.1  # the options passed in are not changed
+    c.options.voxel_size = 1.0  # a copy: the cloud keeps its own
+    assert c.voxel_size == 0.5
+    with pytest.raises(ValueError, match="unknown SurfaceCloudOptions option 'bounds'"):
+        PointCloud(bounds=[[0, 0, 0], [1, 1, 1]])
 
 
 def test_clear_keeps_options():
@@ -129,12 +146,12 @@ def test_clear_keeps_options():
 def test_add_scan_and_cloud(wall):
     cam = nbvkit.DepthCamera(nbvkit.RaycastScene(wall), width=64, height=48)
     scan = cam.scan(np.eye(4))
-    c = PointCloud(voxel_size=0.05, min_z=None)
+    c = PointCloud(voxel_size=0.05, min_z=NO_GROUND)
     assert c.add(scan) > 0
     ref, _ = voxel_reference(scan.hits, 0.05)
     np.testing.assert_allclose(c.points, ref, atol=1e-12)
     assert np.allclose(c.points[:, 0], 5.0)
-    c2 = PointCloud(c, voxel_size=0.05, min_z=None)
+    c2 = PointCloud(c, voxel_size=0.05, min_z=NO_GROUND)
     np.testing.assert_allclose(c2.points, c.points, atol=1e-12)
     np.testing.assert_array_equal(np.asarray(c), c.points)
 
@@ -171,13 +188,13 @@ def test_save_and_load_round_trip(tmp_path):
 
 def test_open3d_conversion():
     o3d = pytest.importorskip("open3d")
-    c = PointCloud([[0, 0, 1.0], [1, 2, 3.0]], min_z=None)
+    c = PointCloud([[0, 0, 1.0], [1, 2, 3.0]], min_z=NO_GROUND)
     pc = c.to_open3d()
     assert isinstance(pc, o3d.geometry.PointCloud)
     np.testing.assert_allclose(np.asarray(pc.points), c.points)
-    back = PointCloud.from_open3d(pc, min_z=None)
+    back = PointCloud.from_open3d(pc, min_z=NO_GROUND)
     np.testing.assert_allclose(back.points, c.points)
-    np.testing.assert_allclose(PointCloud.from_numpy(c.points, min_z=None).points, c.points)
+    np.testing.assert_allclose(PointCloud.from_numpy(c.points, min_z=NO_GROUND).points, c.points)
 
 
 # ------------------------------------------------------------------------------ files

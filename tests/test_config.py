@@ -31,6 +31,9 @@ def test_python_defaults_equal_cpp_defaults():
     cl = _core.SurfaceCloudOptions()
     assert c.cloud.min_z == pytest.approx(cl.min_z)
     assert c.cloud.camera_voxel == pytest.approx(cl.voxel_size)
+    assert (
+        c.map.resolution == _core.OccupancyMap.DEFAULT_RESOLUTION == _core.OccupancyMap().resolution
+    )
     vc = _core.ViewCameraModel.for_resolution(
         c.camera.hfov_deg, c.camera.vfov_deg, c.camera.max_range, c.map.resolution
     )

@@ -7,18 +7,11 @@ import pandas as pd
 import pytest
 import yaml
 
-from conftest import execute_notebook
+from conftest import TINY_RUN, execute_notebook
 from nbvkit.experiments import RunSpec, run_specs, sweep_specs, table2, table2_markdown
 
 ROOT = Path(__file__).resolve().parent.parent
-TINY = (
-    "map.resolution=0.4",
-    "evaluation.gt_density=50",
-    "max_iterations=2",
-    "evaluation.coverage_every=1",
-    "profiling.sweep_step=0.5",
-    "profiling.waypoints=3",
-)
+TINY = TINY_RUN
 
 
 @pytest.fixture(scope="module")

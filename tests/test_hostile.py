@@ -6,7 +6,6 @@ from __future__ import annotations
 
 import os
 import signal
-import struct
 import subprocess
 import sys
 import textwrap
@@ -17,25 +16,12 @@ import pytest
 
 import nbvkit
 from nbvkit.config import load_config
+from conftest import TINY_RUN
 
 ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT / "bench"))
 
-from fuzz_meshes import F as CUBE_F, V as CUBE_V  # noqa: E402  (the fuzz's seed cube)
-
-
-def cube_ply(fmt="binary_little_endian", nv=None, faces=CUBE_F) -> bytes:
-    head = (
-        f"ply\nformat {fmt} 1.0\nelement vertex {nv or len(CUBE_V)}\n"
-        "property float x\nproperty float y\nproperty float z\n"
-        f"element face {len(faces)}\nproperty list uchar int vertex_indices\nend_header\n"
-    ).encode()
-    if fmt == "ascii":
-        body = "".join(f"{x} {y} {z}\n" for x, y, z in CUBE_V)
-        body += "".join(f"3 {a} {b} {c}\n" for a, b, c in faces)
-        return head + body.encode()
-    body = b"".join(struct.pack("<3f", *v) for v in CUBE_V)
-    return head + body + b"".join(struct.pack("<B3i", 3, *f) for f in faces)
+from fuzz_meshes import F as CUBE_F, cube_ply  # noqa: E402  (the fuzz's seed cube)
 
 
 def cli(*args, timeout=120, cwd=None):
@@ -278,15 +264,7 @@ def test_case6_ctrl_c_stops_a_sweep_and_keeps_what_finished(tmp_path):
 
 def test_case6_ctrl_c_stops_a_table_and_writes_the_partial_table(tmp_path):
     out = tmp_path / "t"
-    tiny = [
-        "map.resolution=0.4",
-        "evaluation.gt_density=50",
-        "max_iterations=2",
-        "evaluation.coverage_every=1",
-        "profiling.sweep_step=0.5",
-        "profiling.waypoints=3",
-    ]
-    cmd = ["table", "--starts", "1", "--workers", "2", "--set", *tiny, "--out", str(out)]
+    cmd = ["table", "--starts", "1", "--workers", "2", "--set", *TINY_RUN, "--out", str(out)]
     p = subprocess.Popen(
         [sys.executable, "-m", "nbvkit.cli", *cmd],
         stdout=subprocess.PIPE,

@@ -481,9 +481,9 @@ def test_constructor_rejects_bad_values(kwargs):
 
 
 def test_unknown_option_is_rejected_by_name():
-    with pytest.raises(TypeError, match="prob_hitt"):
+    with pytest.raises(ValueError, match="prob_hitt"):
         OccupancyMap(0.2, (0, 0, 0), (1, 1, 1), prob_hitt=0.7)
-    with pytest.raises(TypeError, match="colour"):
+    with pytest.raises(ValueError, match="colour"):
         OccupancyMap(0.2, (0, 0, 0), (1, 1, 1), options={"colour": 1})
 
 

@@ -5,26 +5,7 @@
 
 namespace nbv::bind {
 
-namespace {
-
-EvaluationOptions options_arg(const std::vector<double>& resolutions,
-                              const std::vector<double>& taus, double gt_density,
-                              std::uint64_t seed, long long max_gt_points) {
-  if (max_gt_points < 1) throw py::value_error("max_gt_points must be >= 1");
-  EvaluationOptions o;
-  o.resolutions = resolutions;
-  o.taus = taus;
-  o.gt_density = gt_density;
-  o.seed = seed;
-  o.max_gt_points = static_cast<std::size_t>(max_gt_points);
-  o.validate();
-  return o;
-}
-
-}  // namespace
-
 void init_evaluation(py::module_& m) {
-  const EvaluationOptions def;
   {
     OptionsClass<EvaluationOptions> binder(
         m, "EvaluationOptions",
@@ -81,11 +62,8 @@ void init_evaluation(py::module_& m) {
 
   py::class_<Evaluator, std::shared_ptr<Evaluator>>(
       m, "_Evaluator", "Ground truth prepared once (nbvkit.Evaluator wraps it).")
-      .def(py::init([](const py::handle& gt, const std::vector<double>& resolutions,
-                       const std::vector<double>& taus, double gt_density, const py::object& seed,
-                       long long max_gt_points) {
-             const EvaluationOptions o =
-                 options_arg(resolutions, taus, gt_density, seed_arg(seed), max_gt_points);
+      .def(py::init([](const py::handle& gt, const py::object& options, const py::kwargs& kw) {
+             const auto o = options_with_keywords<EvaluationOptions>(options, kw);
              if (py::isinstance<Mesh>(gt)) {
                const Mesh& mesh = gt.cast<const Mesh&>();
                py::gil_scoped_release release;
@@ -95,9 +73,12 @@ void init_evaluation(py::module_& m) {
              py::gil_scoped_release release;
              return std::make_shared<Evaluator>(g.map(), o);
            }),
-           py::arg("gt"), py::arg("resolutions") = def.resolutions, py::arg("taus") = def.taus,
-           py::arg("gt_density") = def.gt_density, py::arg("seed") = def.seed,
-           py::arg("max_gt_points") = def.max_gt_points)
+           py::arg("gt"), py::arg("options") = py::none(),
+           "gt: a Mesh (sampled at gt_density points per m^2) or (M, 3) float64 reference points;\n"
+           "options: EvaluationOptions (or a dict, or None) with keyword overrides of its fields.")
+      .def_property_readonly(
+          "options", [](const Evaluator& e) { return EvaluationOptions(e.options()); },
+          "the EvaluationOptions used (a copy)")
       .def(
           "evaluate",
           [](const Evaluator& e, const py::handle& cloud) {

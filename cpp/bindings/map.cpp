@@ -65,13 +65,6 @@ std::string path_arg(const py::handle& obj) {
   return p.cast<std::string>();
 }
 
-/// options (None, an OccupancyMapOptions or a dict) with keyword overrides applied by name.
-OccupancyMapOptions options_arg(const py::object& options, const py::kwargs& overrides) {
-  OccupancyMapOptions o = OptionsClass<OccupancyMapOptions>::from(options, "options");
-  if (py::len(overrides)) o = py::cast(o).attr("copy")(**overrides).cast<OccupancyMapOptions>();
-  return o;
-}
-
 IntegrationStats integrate_any(OccupancyMap& m, const py::handle& scan_or_origin,
                                const py::handle& hits, const py::handle& free_ends,
                                double max_range, bool exact) {
@@ -171,11 +164,13 @@ plus a dense mirror of the workspace box (fast queries, incrementally maintained
 
 OccupancyMap(resolution=0.2, bounds_min=(-20, -20, 0), bounds_max=(20, 20, 10), options=None,
              **option_overrides)
-resolution: cell edge in metres. bounds: the workspace box in metres (world frame); the workspace
-is the cells of OctoMap's origin-anchored grid (cell = floor(c / resolution)) that cover
-[bounds_min, bounds_max) - 200 x 200 x 50 = 2,000,000 cells for the defaults. Cells outside it are
+resolution: cell edge in metres (default OccupancyMap.DEFAULT_RESOLUTION). bounds: the workspace
+box in metres (world frame); the workspace is the cells of OctoMap's origin-anchored grid (cell =
+floor(c / resolution)) that cover [bounds_min, bounds_max) - 200 x 200 x 50 = 2,000,000 cells for
+the defaults. Cells outside it are
 kept in the octree but count in no total. options: an OccupancyMapOptions or a dict; keyword
-overrides (prob_hit=..., entropy_unit='bits', ...) are applied on top.
+overrides (prob_hit=..., entropy_unit='bits', ...) are applied on top (one set to None keeps the
+value); an unknown name raises ValueError.
 
 Cell states: OccupancyMap.FREE (0), OCCUPIED (1), UNKNOWN (-1) (also nbvkit.CellState). Unknown
 cells have p = 0.5. Query points are (..., 3) float64 (world frame, metres); results keep the
@@ -187,15 +182,17 @@ cell is i + nx * (j + ny * k) == grid.ravel(order='F') position.)doc");
   cls.attr("UNKNOWN") = int(CellState::Unknown);
   cls.attr("FREE") = int(CellState::Free);
   cls.attr("OCCUPIED") = int(CellState::Occupied);
+  cls.attr("DEFAULT_RESOLUTION") = OccupancyMap::kDefaultResolution;
   cls.def(py::init([](double resolution, const py::handle& bmin, const py::handle& bmax,
                       const py::object& options, const py::kwargs& kw) {
-            const OccupancyMapOptions o = options_arg(options, kw);
+            const OccupancyMapOptions o = options_with_keywords<OccupancyMapOptions>(options, kw);
             const Eigen::Vector3d lo = vec3_arg(bmin, "bounds_min"),
                                   hi = vec3_arg(bmax, "bounds_max");
             py::gil_scoped_release release;
             return std::make_shared<OccupancyMap>(resolution, lo, hi, o);
           }),
-          py::arg("resolution") = 0.2, py::arg("bounds_min") = py::make_tuple(-20.0, -20.0, 0.0),
+          py::arg("resolution") = OccupancyMap::kDefaultResolution,
+          py::arg("bounds_min") = py::make_tuple(-20.0, -20.0, 0.0),
           py::arg("bounds_max") = py::make_tuple(20.0, 20.0, 10.0), py::arg("options") = py::none())
       .def(
           "integrate",
@@ -447,7 +444,7 @@ cell is i + nx * (j + ny * k) == grid.ravel(order='F') position.)doc");
           [](const py::handle& path, const py::object& bmin, const py::object& bmax,
              const py::object& options, const py::kwargs& kw) {
             const std::string p = path_arg(path);
-            const OccupancyMapOptions o = options_arg(options, kw);
+            const OccupancyMapOptions o = options_with_keywords<OccupancyMapOptions>(options, kw);
             std::optional<Eigen::Vector3d> lo, hi;
             if (!bmin.is_none()) lo = vec3_arg(bmin, "bounds_min");
             if (!bmax.is_none()) hi = vec3_arg(bmax, "bounds_max");

@@ -28,6 +28,11 @@ void EvaluationOptions::validate() const {
   for (double t : taus)
     if (!(std::isfinite(t) && t > 0))
       throw std::invalid_argument("taus must be positive numbers of metres, got " + fmt(t));
+  for (const auto* v : {&resolutions, &taus})
+    for (std::size_t i = 0; i < v->size(); ++i)
+      if (std::find(v->begin(), v->begin() + i, (*v)[i]) != v->begin() + i)
+        throw std::invalid_argument(std::string(v == &taus ? "taus" : "resolutions") +
+                                    " has duplicate values: " + fmt((*v)[i]));
   if (!(std::isfinite(gt_density) && gt_density > 0))
     throw std::invalid_argument("gt_density must be a positive number of points per m^2, got " +
                                 fmt(gt_density));

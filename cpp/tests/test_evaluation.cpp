@@ -125,6 +125,19 @@ TEST(Lzf, DecodesLiteralsAndOverlappingBackReferences) {
   EXPECT_THROW(lzf_decompress(bad, sizeof(bad), 4), std::invalid_argument);
 }
 
+TEST(Evaluation, OptionsRejectDuplicateAndNonPositiveGrids) {
+  EvaluationOptions o;
+  EXPECT_NO_THROW(o.validate());
+  o.resolutions = {0.1, 0.5, 0.1};
+  EXPECT_THROW(o.validate(), std::invalid_argument);
+  o = EvaluationOptions{};
+  o.taus = {0.05, 0.05};
+  EXPECT_THROW(o.validate(), std::invalid_argument);
+  o = EvaluationOptions{};
+  o.resolutions = {0.0};
+  EXPECT_THROW(o.validate(), std::invalid_argument);
+}
+
 TEST(Evaluation, EmptyCloudScoresZeroWithoutChamfer) {
   Points gt(3, 3);
   gt << 0, 0, 0, 1, 0, 0, 0, 1, 0;

@@ -43,28 +43,26 @@ class PointCloud(_core.SurfaceCloud):
     Every point added falls in a voxel ``floor(p / voxel_size)`` (grid anchored at the origin);
     the cloud keeps one point per voxel, the centroid of all points that fell in it — the same as
     PCL's ``VoxelGrid`` over the union of everything added. Points with ``z < min_z`` (ground
-    removal) or outside ``bounds`` (a ``(2, 3)`` ``[min, max]`` crop box) are not registered.
+    removal) or, with ``crop=True``, outside the box ``[crop_min, crop_max]`` are not registered.
     ``points`` returns them as ``(K, 3)`` float64 in the order their voxels were first seen.
 
     Args:
         points: optional ``(N, 3)`` array (or a ``Scan``, or another cloud) to add at once.
-        voxel_size: voxel-grid cell in metres. Default 0.02 m, the authors' setting for the
-            RGB-D camera; use ``LASER_VOXEL_SIZE`` (0.1 m) for a laser profile cloud.
-        min_z: ground-removal height in metres (default 0.3 m as the authors); ``None`` or
-            ``-inf`` keeps everything.
-        bounds: optional crop box ``[[xmin, ymin, zmin], [xmax, ymax, zmax]]``.
+        options: a ``SurfaceCloudOptions`` (or a dict of its fields, or None for the defaults),
+            with keyword overrides of its fields (a keyword set to None keeps the value):
 
-    Raises ValueError for a non-positive voxel size or NaN/inf points.
+            - ``voxel_size``: voxel-grid cell in metres. Default 0.02 m, the authors' setting for
+              the RGB-D camera; use ``LASER_VOXEL_SIZE`` (0.1 m) for a laser profile cloud;
+            - ``min_z``: ground-removal height in metres (default 0.3 m as the authors);
+              ``float("-inf")`` keeps everything;
+            - ``crop``, ``crop_min``, ``crop_max``: register only points inside the box
+              ``[crop_min, crop_max]`` (world frame, metres) when ``crop`` is True.
+
+    Raises ValueError for a non-positive voxel size, an unknown option or NaN/inf points.
     """
 
-    def __init__(
-        self,
-        points=None,
-        voxel_size: float = DEFAULT_VOXEL_SIZE,
-        min_z: float | None = DEFAULT_MIN_Z,
-        bounds=None,
-    ):
-        super().__init__(_positive(voxel_size, "voxel_size"), min_z, bounds)
+    def __init__(self, points=None, options=None, **kw):
+        super().__init__(options, **kw)
         if points is not None:
             self.add(points)
 
@@ -77,43 +75,24 @@ class PointCloud(_core.SurfaceCloud):
         return super().add(_as_points(points))
 
     @classmethod
-    def from_numpy(
-        cls,
-        points,
-        voxel_size: float = DEFAULT_VOXEL_SIZE,
-        min_z: float | None = DEFAULT_MIN_Z,
-        bounds=None,
-    ) -> "PointCloud":
+    def from_numpy(cls, points, options=None, **kw) -> "PointCloud":
         """A cloud holding ``points`` ``(N, 3)`` after the voxel filter and ground removal."""
-        return cls(points, voxel_size=voxel_size, min_z=min_z, bounds=bounds)
+        return cls(points, options, **kw)
 
     @classmethod
-    def from_open3d(
-        cls,
-        o3d_cloud,
-        voxel_size: float = DEFAULT_VOXEL_SIZE,
-        min_z: float | None = DEFAULT_MIN_Z,
-        bounds=None,
-    ) -> "PointCloud":
+    def from_open3d(cls, o3d_cloud, options=None, **kw) -> "PointCloud":
         """A cloud from an ``open3d.geometry.PointCloud`` (its points only)."""
-        pts = np.asarray(o3d_cloud.points, dtype=np.float64)
-        return cls(pts, voxel_size=voxel_size, min_z=min_z, bounds=bounds)
+        return cls(np.asarray(o3d_cloud.points, dtype=np.float64), options, **kw)
 
     @classmethod
-    def load(
-        cls,
-        path,
-        voxel_size: float = DEFAULT_VOXEL_SIZE,
-        min_z: float | None = DEFAULT_MIN_Z,
-        bounds=None,
-    ) -> "PointCloud":
+    def load(cls, path, options=None, **kw) -> "PointCloud":
         """Read a ``.ply`` / ``.pcd`` / ``.npy`` file (see ``read_points``) into a new cloud.
 
         The file's points go through the same filter as any other (so loading a cloud this
-        class saved, with the same settings, gives back the same points). Pass ``min_z=None``
-        to keep points below 0.3 m.
+        class saved, with the same settings, gives back the same points). Pass
+        ``min_z=float("-inf")`` to keep points below 0.3 m.
         """
-        return cls(read_points(path), voxel_size=voxel_size, min_z=min_z, bounds=bounds)
+        return cls(read_points(path), options, **kw)
 
     def save(self, path, ascii: bool = False, dtype=None) -> None:
         """Write the points to ``.ply``, ``.pcd`` or ``.npy`` (see ``write_points``)."""
@@ -134,21 +113,10 @@ class PointCloud(_core.SurfaceCloud):
         return o3d.geometry.PointCloud(o3d.utility.Vector3dVector(self.points))
 
     def __repr__(self) -> str:
-        mz = "None" if self.min_z is None else f"{self.min_z:g}"
         return (
             f"<nbvkit.PointCloud {len(self)} points, voxel_size={self.voxel_size:g} m, "
-            f"min_z={mz}>"
+            f"min_z={self.min_z:g}>"
         )
-
-
-def _positive(v, what):
-    try:
-        f = float(v)
-    except (TypeError, ValueError):
-        raise ValueError(f"{what} must be a positive number of metres, got {v!r}") from None
-    if not (np.isfinite(f) and f > 0):
-        raise ValueError(f"{what} must be a positive number of metres, got {v!r}")
-    return f
 
 
 def _as_points(points):

@@ -174,7 +174,9 @@ MapConfig = cpp_section(
     "MapConfig",
     _core.OccupancyMapOptions,
     "The occupancy map (OctoMap) and its entropy.",
-    before=[("resolution", float, 0.2, "cell edge, m (authors: 0.2)")],
+    before=[
+        ("resolution", float, _core.OccupancyMap.DEFAULT_RESOLUTION, "cell edge, m (authors: 0.2)")
+    ],
 )
 
 

@@ -4,7 +4,6 @@ precision, completeness / accuracy / F-score and the Chamfer distance. The work 
 """
 from __future__ import annotations
 
-import math
 import numbers
 import warnings
 
@@ -22,6 +21,7 @@ __all__ = [
     "DEFAULT_RESOLUTIONS",
     "DEFAULT_TAUS",
     "MAX_GT_POINTS",
+    "SUMMARY_KEYS",
 ]
 
 _DEF = _core.EvaluationOptions()
@@ -33,39 +33,33 @@ DEFAULT_RESOLUTIONS: tuple = tuple(_DEF.resolutions)
 DEFAULT_TAUS: tuple = tuple(_DEF.taus)
 #: Cap on the number of ground-truth samples (area × density is capped to it, with a warning).
 MAX_GT_POINTS: int = _DEF.max_gt_points
+#: The headline figures of an ``evaluate`` result that a run's summary carries.
+SUMMARY_KEYS: tuple = (
+    "coverage",
+    "area_coverage",
+    "precision",
+    "completeness",
+    "accuracy",
+    "fscore",
+    "chamfer_m",
+    "n_points",
+    "gt_density",
+)
 
 
 def _key(v: float) -> str:
     return f"{v:g}"
 
 
-def _lengths(values, what):
-    if isinstance(values, numbers.Real):
-        values = (values,)
-    try:
-        out = [float(v) for v in values]
-    except (TypeError, ValueError):
-        raise ValueError(
-            f"{what} must be a sequence of positive numbers of metres, got {values!r}"
-        ) from None
-    for v in out:
-        if not (math.isfinite(v) and v > 0):
-            raise ValueError(f"{what} must be positive numbers of metres, got {v!r}")
-    keys = [_key(v) for v in out]
-    if len(set(keys)) != len(keys):
-        raise ValueError(f"{what} has duplicate values: {out}")
-    return out
+def _evaluator_keywords(kw: dict) -> dict:
+    """The keyword overrides with a single resolution or tau accepted as a number."""
+    return {
+        k: (v,) if k in ("resolutions", "taus") and isinstance(v, numbers.Real) else v
+        for k, v in kw.items()
+    }
 
 
-def evaluate(
-    gt,
-    cloud,
-    resolutions=DEFAULT_RESOLUTIONS,
-    taus=DEFAULT_TAUS,
-    gt_density: float | None = DEFAULT_GT_DENSITY,
-    seed: int = 0,
-    max_gt_points: int = MAX_GT_POINTS,
-) -> dict:
+def evaluate(gt, cloud, options=None, **kw) -> dict:
     """Score a reconstructed cloud against ground truth.
 
     Args:
@@ -74,12 +68,16 @@ def evaluate(
             gt_density), seed)``), or a reference point cloud ``(M, 3)`` used as is (as the
             authors did, with a densified cloud of their mesh).
         cloud: the reconstruction, ``(N, 3)`` float64 world-frame points, or a ``PointCloud``.
-        resolutions: cell sizes (m) of the coverage grids; the paper's 0.05 / 0.1 / 0.5.
-        taus: distance thresholds (m) of completeness / accuracy / F-score.
-        gt_density: ground-truth samples per m² (mesh only); None means the default.
-        seed: seed of the ground-truth sampling; the same seed gives identical results.
-        max_gt_points: cap on the number of samples; a larger ``area * gt_density`` is capped
-            with a ``RuntimeWarning``.
+        options: an ``EvaluationOptions`` (or a dict of its fields, or None for the defaults),
+            with keyword overrides of its fields (a keyword set to None keeps the value):
+
+            - ``resolutions``: cell sizes (m) of the coverage grids; the paper's 0.05 / 0.1 / 0.5
+              (one number is accepted for one grid);
+            - ``taus``: distance thresholds (m) of completeness / accuracy / F-score;
+            - ``gt_density``: ground-truth samples per m² (mesh only);
+            - ``seed``: seed of the ground-truth sampling; the same seed gives identical results;
+            - ``max_gt_points``: cap on the number of samples; a larger ``area * gt_density`` is
+              capped with a ``RuntimeWarning``.
 
     Returns a dict (JSON-ready: plain floats/ints, ``None`` instead of NaN). Per resolution r,
     keyed ``f"{r:g}"`` ("0.05", "0.1", "0.5"), with every point in cell ``floor(p / r)`` of one
@@ -114,7 +112,8 @@ def evaluate(
     of the area) and the cell counts ``observable_cells``, ``covered_observable_cells``.
 
     An empty cloud scores 0 everywhere with ``chamfer_m`` None. Raises ValueError for NaN/inf in
-    either input (naming which), non-positive resolutions or taus, or an empty ground truth.
+    either input (naming which), non-positive or duplicate resolutions or taus, an unknown
+    option, or an empty ground truth.
 
     Ground-truth density. The cell count ``coverage`` depends on how densely the mesh is sampled:
     a cell the surface only grazes is a GT cell only if a sample happens to land in it. The
@@ -147,59 +146,28 @@ def evaluate(
     sub-centimetre Chamfer comparisons (2000 /m² takes that probability to 1.5e-7).
     Threads do not change any number (per-point results, sums in a fixed order).
     """
-    return Evaluator(
-        gt,
-        resolutions=resolutions,
-        taus=taus,
-        gt_density=gt_density,
-        seed=seed,
-        max_gt_points=max_gt_points,
-        _stacklevel=3,
-    )(cloud)
+    return Evaluator(gt, options, _stacklevel=3, **kw)(cloud)
 
 
 class Evaluator:
     """Ground truth prepared once, to score many clouds against it (e.g. during a mission).
 
-    ``Evaluator(gt, ...)`` takes the arguments of ``evaluate`` except the cloud; sampling the
+    ``Evaluator(gt, options, **kw)`` takes the arguments of ``evaluate`` except the cloud
+    (``options`` is an ``EvaluationOptions``, a dict or None, with keyword overrides); sampling the
     mesh, the samples' kd-tree and their cells at every resolution are built here, once.
     ``evaluator(cloud)`` (or ``.evaluate(cloud)``) then returns exactly what
     ``evaluate(gt, cloud, ...)`` would. ``gt_points`` is the ``(M, 3)`` ground truth used.
     """
 
-    def __init__(
-        self,
-        gt,
-        resolutions=DEFAULT_RESOLUTIONS,
-        taus=DEFAULT_TAUS,
-        gt_density: float | None = DEFAULT_GT_DENSITY,
-        seed: int = 0,
-        max_gt_points: int = MAX_GT_POINTS,
-        _stacklevel: int = 2,
-    ):
-        res_list = _lengths(resolutions, "resolutions")
-        tau_list = _lengths(taus, "taus")
-        if isinstance(seed, bool) or not isinstance(seed, numbers.Integral) or seed < 0:
-            raise ValueError(f"seed must be a non-negative integer, got {seed!r}")
-        if (
-            isinstance(max_gt_points, bool)
-            or not isinstance(max_gt_points, numbers.Integral)
-            or max_gt_points < 1
-        ):
-            raise ValueError(f"max_gt_points must be a positive integer, got {max_gt_points!r}")
-        if gt_density is None:
-            gt_density = DEFAULT_GT_DENSITY
-        try:
-            density = float(gt_density)
-        except (TypeError, ValueError):
-            raise ValueError(
-                f"gt_density must be a positive number of points per m^2, " f"got {gt_density!r}"
-            ) from None
+    def __init__(self, gt, options=None, *, _stacklevel: int = 2, **kw):
         if not isinstance(gt, Mesh):
             gt = _as_points(gt)
-        self._core = _core._Evaluator(
-            gt, res_list, tau_list, density, int(seed), int(max_gt_points)
-        )
+        self._core = _core._Evaluator(gt, options, **_evaluator_keywords(kw))
+        o = self._core.options
+        for what, values in (("resolutions", o.resolutions), ("taus", o.taus)):
+            keys = [_key(v) for v in values]  # the result's dict keys must not collide
+            if len(set(keys)) != len(keys):
+                raise ValueError(f"{what} has duplicate values: {list(values)}")
         for w in self._core.gt_info.warnings:
             warnings.warn(w, RuntimeWarning, stacklevel=_stacklevel)
 
@@ -223,6 +191,11 @@ class Evaluator:
                 f"observable mask must have shape ({self.num_gt_points},), got {mask.shape}"
             )
         self._core.set_observable(mask.astype(bool))
+
+    @property
+    def options(self) -> _core.EvaluationOptions:
+        """The ``EvaluationOptions`` used (a copy)."""
+        return self._core.options
 
     @property
     def has_observable(self) -> bool:

@@ -17,7 +17,7 @@ from pathlib import Path
 import numpy as np
 
 from .config import Config
-from .evaluation import Evaluator
+from .evaluation import SUMMARY_KEYS, Evaluator
 from .planning import Planner
 from .world import MissionError, World
 
@@ -232,17 +232,7 @@ class Mission:
             "c_view": self.planner.c_view,
             "seed": cfg.seed,
         }
-        for k in (
-            "coverage",
-            "area_coverage",
-            "precision",
-            "completeness",
-            "accuracy",
-            "fscore",
-            "chamfer_m",
-            "n_points",
-            "gt_density",
-        ):
+        for k in SUMMARY_KEYS:
             out[k] = ev[k]
         if self.profile_summary is not None:
             out["profile"] = self.profile_summary

@@ -97,6 +97,7 @@ class OccupancyMap {
  public:
   using Key = octomap::OcTreeKey;
   static constexpr std::int64_t kMaxCells = 400'000'000;
+  static constexpr double kDefaultResolution = 0.2;  ///< cell edge, m (the authors' 0.2)
 
   /// resolution in metres; workspace bounds in metres (world frame). Throws std::invalid_argument
   /// for a non-positive or non-finite resolution, non-finite bounds, max <= min, bounds outside

@@ -3,6 +3,7 @@ from __future__ import annotations
 
 import argparse
 import sys
+import time
 
 from ..mesh import default_mesh_path, load_mesh
 
@@ -36,20 +37,18 @@ def mesh_from_args(args):
     return load_mesh(path, scale=args.mesh_scale, up=args.mesh_up)
 
 
+def add_set_option(p: argparse.ArgumentParser, help: str) -> None:
+    """--set KEY=VALUE ...: config overrides (repeatable; every one given counts)."""
+    p.add_argument("--set", nargs="+", action="extend", default=[], metavar="KEY=VALUE", help=help)
+
+
 def add_experiment_options(p: argparse.ArgumentParser, what: str, out: str) -> None:
     """--starts, --set, --workers, --scheduler and --out of the experiments over the five starts
     (`what`: what each start is flown for, e.g. "planner")."""
     p.add_argument(
         "--starts", type=int, default=5, metavar="K", help=f"starts per {what}, 1..5 (default 5)"
     )
-    p.add_argument(
-        "--set",
-        nargs="+",
-        action="extend",
-        default=[],
-        metavar="KEY=VALUE",
-        help="config overrides applied to every run (e.g. max_iterations=100)",
-    )
+    add_set_option(p, "config overrides applied to every run (e.g. max_iterations=100)")
     p.add_argument(
         "--workers",
         type=int,
@@ -81,3 +80,48 @@ def report_interrupted(command: str, e, partial: str, resume: str = "the same co
         file=sys.stderr,
     )
     return 130
+
+
+def fly_experiment(
+    command: str,
+    specs,
+    out,
+    title: str,
+    workers=None,
+    scheduler=None,
+    rows_file: str = "runs.csv",
+    tables=None,
+    plot=None,
+    partial: str = "their rows",
+    resume: str = "the same command",
+) -> int:
+    """Fly an experiment's `specs` into the folder `out` (finished runs are kept and reused) and
+    write its results: one row per run in out/rows_file, then `tables(out, df)` (the command's
+    summary tables; returns their markdown, printed and shown in the report), `plot(out, df,
+    figures_dir)` and out/report.html titled `title`. When interrupted, writes the rows and
+    tables of the finished runs, says where (`partial`) and how to `resume`, and returns 130;
+    else 0."""
+    import pandas as pd
+
+    from ..experiments import Interrupted, run_specs, write_table
+    from ..report import write_experiment_report
+
+    t0 = time.perf_counter()
+    try:
+        rows = run_specs(specs, out, workers=workers, scheduler=scheduler)
+    except Interrupted as e:
+        if e.rows:
+            write_table(e.rows, out / rows_file)
+            if tables is not None:
+                tables(out, pd.DataFrame(e.rows))
+        return report_interrupted(command, e, partial, resume)
+    df = pd.DataFrame(rows)
+    write_table(rows, out / rows_file)
+    markdown = tables(out, df) if tables is not None else None
+    if plot is not None:
+        plot(out, df, out / "figures")
+    write_experiment_report(out, df, title, markdown)
+    if markdown is not None:
+        print(markdown)
+    print(f"{len(rows)} runs in {time.perf_counter() - t0:.0f} s -> {out}/")
+    return 0

@@ -2,10 +2,9 @@
 from __future__ import annotations
 
 import argparse
-import time
 
 from ..paths import check_output_dir
-from .common import add_experiment_options, add_mesh_options, check_starts, report_interrupted
+from .common import add_experiment_options, add_mesh_options, check_starts, fly_experiment
 
 
 def register(sub) -> argparse.ArgumentParser:
@@ -32,17 +31,7 @@ def register(sub) -> argparse.ArgumentParser:
 
 
 def run(args) -> int:
-    import pandas as pd
-
-    from ..experiments import (
-        Interrupted,
-        compare_markdown,
-        compare_specs,
-        compare_table,
-        run_specs,
-        validate_specs,
-        write_table,
-    )
+    from ..experiments import compare_markdown, compare_specs, compare_table, validate_specs
     from ..plots import plot_compare
 
     check_starts(args.starts)
@@ -52,24 +41,21 @@ def run(args) -> int:
     specs = compare_specs(planners, args.mesh, args.mesh_scale, args.mesh_up, args.starts, args.set)
     validate_specs(specs)
     out = check_output_dir(args.out, "--out")
-    t0 = time.perf_counter()
-    try:
-        rows = run_specs(specs, out, workers=args.workers, scheduler=args.scheduler)
-    except Interrupted as e:
-        if e.rows:
-            write_table(e.rows, out / "runs.csv")
-        return report_interrupted("compare", e, f"their rows: {out / 'runs.csv'}")
-    df = pd.DataFrame(rows)
-    write_table(rows, out / "runs.csv")
-    t = compare_table(df)
-    t.to_csv(out / "compare.csv", index=False)
-    (out / "compare.md").write_text(compare_markdown(t))
-    plot_compare(out, df, out / "figures")
-    from ..report import write_experiment_report
 
-    write_experiment_report(
-        out, df, f"nbvkit compare: {', '.join(planners)}", (out / "compare.md").read_text()
+    def tables(out, df) -> str:
+        t = compare_table(df)
+        t.to_csv(out / "compare.csv", index=False)
+        (out / "compare.md").write_text(compare_markdown(t))
+        return (out / "compare.md").read_text()
+
+    return fly_experiment(
+        "compare",
+        specs,
+        out,
+        f"nbvkit compare: {', '.join(planners)}",
+        args.workers,
+        args.scheduler,
+        tables=tables,
+        plot=plot_compare,
+        partial=f"partial tables: {out / 'runs.csv'}, {out / 'compare.md'}",
     )
-    print((out / "compare.md").read_text())
-    print(f"{len(rows)} runs in {time.perf_counter() - t0:.0f} s -> {out}/")
-    return 0

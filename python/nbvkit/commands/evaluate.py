@@ -15,7 +15,7 @@ from ..evaluation import (
     Evaluator,
     format_report,
 )
-from .common import add_mesh_options, mesh_from_args
+from .common import add_mesh_options, add_set_option, mesh_from_args
 
 
 def register(sub) -> argparse.ArgumentParser:
@@ -60,13 +60,7 @@ def register(sub) -> argparse.ArgumentParser:
         help="mission configuration (YAML) whose camera, workspace, vehicle and observability "
         "sections define the observable surface (default: the default configuration)",
     )
-    p.add_argument(
-        "--set",
-        nargs="+",
-        default=[],
-        metavar="KEY=VALUE",
-        help="override config keys for --observable (e.g. observability.pose_spacing=0.5)",
-    )
+    add_set_option(p, "override config keys for --observable (e.g. observability.pose_spacing=0.5)")
     p.add_argument(
         "--cache",
         metavar="DIR",

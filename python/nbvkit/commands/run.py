@@ -10,6 +10,7 @@ from ..mission import Mission
 from ..report import finish_run
 from ..paths import check_output_dir
 from ..scenarios import DEFAULT, SCENARIOS
+from .common import add_set_option
 
 
 def register(sub) -> argparse.ArgumentParser:
@@ -53,13 +54,9 @@ def register(sub) -> argparse.ArgumentParser:
         metavar="0..4",
         help="which of the five predefined start poses around the structure (default 0)",
     )
-    p.add_argument(
-        "--set",
-        nargs="+",
-        action="extend",
-        default=[],
-        metavar="KEY=VALUE",
-        help="override any config key, dotted for nested ones (e.g. max_iterations=50 "
+    add_set_option(
+        p,
+        "override any config key, dotted for nested ones (e.g. max_iterations=50 "
         "map.resolution=0.4 utility.name=ig_distance)",
     )
     p.add_argument(

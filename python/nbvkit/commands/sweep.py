@@ -2,12 +2,11 @@
 from __future__ import annotations
 
 import argparse
-import time
 from pathlib import Path
 
 from ..config import read_yaml_file
 from ..paths import check_output_dir
-from .common import report_interrupted
+from .common import fly_experiment
 
 EXAMPLE = """example sweep file:
   meshes:                       # default: the shipped airliner
@@ -48,7 +47,7 @@ def register(sub) -> argparse.ArgumentParser:
 
 
 def run(args) -> int:
-    from ..experiments import Interrupted, run_specs, sweep_specs, write_table
+    from ..experiments import sweep_specs
 
     path = Path(args.config)
     sweep = read_yaml_file(path, "sweep file") or {}
@@ -59,23 +58,17 @@ def run(args) -> int:
     workers = args.workers if args.workers is not None else sweep.get("workers") or 0
     if isinstance(workers, bool) or not isinstance(workers, int) or workers < 0:
         raise ValueError(f"sweep 'workers' must be a count >= 0, got {workers!r}")
-    t0 = time.perf_counter()
-    try:
-        rows = run_specs(
-            specs, out, workers=workers, scheduler=args.scheduler or sweep.get("scheduler")
-        )
-    except Interrupted as e:
-        if e.rows:
-            write_table(e.rows, out / "results.csv")
-        resume = f"the same command: nbvkit sweep {args.config}" + (
-            f" --out {args.out}" if args.out else ""
-        )
-        return report_interrupted("sweep", e, f"table of them: {out / 'results.csv'}", resume)
-    write_table(rows, out / "results.csv")
-    import pandas as pd
-
-    from ..report import write_experiment_report
-
-    write_experiment_report(out, pd.DataFrame(rows), f"nbvkit sweep: {path.name}")
-    print(f"{len(rows)} runs in {time.perf_counter() - t0:.0f} s -> {out / 'results.csv'}")
-    return 0
+    resume = f"the same command: nbvkit sweep {args.config}" + (
+        f" --out {args.out}" if args.out else ""
+    )
+    return fly_experiment(
+        "sweep",
+        specs,
+        out,
+        f"nbvkit sweep: {path.name}",
+        workers,
+        args.scheduler or sweep.get("scheduler"),
+        rows_file="results.csv",
+        partial=f"table of them: {out / 'results.csv'}",
+        resume=resume,
+    )

@@ -2,10 +2,9 @@
 from __future__ import annotations
 
 import argparse
-import time
 
 from ..paths import check_output_dir
-from .common import add_experiment_options, add_mesh_options, check_starts, report_interrupted
+from .common import add_experiment_options, add_mesh_options, check_starts, fly_experiment
 
 
 def register(sub) -> argparse.ArgumentParser:
@@ -24,40 +23,26 @@ def register(sub) -> argparse.ArgumentParser:
 
 
 def run(args) -> int:
-    from ..experiments import (
-        Interrupted,
-        run_specs,
-        table2_specs,
-        validate_specs,
-        write_table,
-        write_table2,
-    )
+    from ..experiments import table2_specs, validate_specs, write_table2
     from ..plots import plot_experiment
 
     check_starts(args.starts)
     specs = table2_specs(args.mesh, args.mesh_scale, args.mesh_up, args.starts, args.set)
     validate_specs(specs)
     out = check_output_dir(args.out, "--out")
-    t0 = time.perf_counter()
-    import pandas as pd
 
-    try:
-        rows = run_specs(specs, out, workers=args.workers, scheduler=args.scheduler)
-    except Interrupted as e:
-        if e.rows:
-            write_table(e.rows, out / "runs.csv")
-            write_table2(pd.DataFrame(e.rows), out)
-        return report_interrupted(
-            "table", e, f"partial tables: {out / 'runs.csv'}, {out / 'table2.md'}"
-        )
+    def tables(out, df) -> str:
+        write_table2(df, out)
+        return (out / "table2.md").read_text()
 
-    df = pd.DataFrame(rows)
-    write_table(rows, out / "runs.csv")
-    write_table2(df, out)
-    plot_experiment(out, df, out / "figures")
-    from ..report import write_experiment_report
-
-    write_experiment_report(out, df, "nbvkit table: Table 2", (out / "table2.md").read_text())
-    print((out / "table2.md").read_text())
-    print(f"{len(rows)} runs in {time.perf_counter() - t0:.0f} s -> {out}/")
-    return 0
+    return fly_experiment(
+        "table",
+        specs,
+        out,
+        "nbvkit table: Table 2",
+        args.workers,
+        args.scheduler,
+        tables=tables,
+        plot=plot_experiment,
+        partial=f"partial tables: {out / 'runs.csv'}, {out / 'table2.md'}",
+    )
