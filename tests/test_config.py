@@ -34,6 +34,9 @@ def test_python_defaults_equal_cpp_defaults():
     assert (
         c.map.resolution == _core.OccupancyMap.DEFAULT_RESOLUTION == _core.OccupancyMap().resolution
     )
+    lo, hi = _core.OccupancyMap().bounds
+    assert tuple(lo) == _core.OccupancyMap.DEFAULT_BOUNDS_MIN == (-20.0, -20.0, 0.0)
+    assert tuple(hi) == _core.OccupancyMap.DEFAULT_BOUNDS_MAX == (20.0, 20.0, 10.0)
     vc = _core.ViewCameraModel.for_resolution(
         c.camera.hfov_deg, c.camera.vfov_deg, c.camera.max_range, c.map.resolution
     )

@@ -165,9 +165,9 @@ plus a dense mirror of the workspace box (fast queries, incrementally maintained
 OccupancyMap(resolution=0.2, bounds_min=(-20, -20, 0), bounds_max=(20, 20, 10), options=None,
              **option_overrides)
 resolution: cell edge in metres (default OccupancyMap.DEFAULT_RESOLUTION). bounds: the workspace
-box in metres (world frame); the workspace is the cells of OctoMap's origin-anchored grid (cell =
-floor(c / resolution)) that cover [bounds_min, bounds_max) - 200 x 200 x 50 = 2,000,000 cells for
-the defaults. Cells outside it are
+box in metres (world frame; default OccupancyMap.DEFAULT_BOUNDS_MIN / _MAX); the workspace is the
+cells of OctoMap's origin-anchored grid (cell = floor(c / resolution)) that cover [bounds_min,
+bounds_max) - 200 x 200 x 50 = 2,000,000 cells for the defaults. Cells outside it are
 kept in the octree but count in no total. options: an OccupancyMapOptions or a dict; keyword
 overrides (prob_hit=..., entropy_unit='bits', ...) are applied on top (one set to None keeps the
 value); an unknown name raises ValueError.
@@ -183,6 +183,10 @@ cell is i + nx * (j + ny * k) == grid.ravel(order='F') position.)doc");
   cls.attr("FREE") = int(CellState::Free);
   cls.attr("OCCUPIED") = int(CellState::Occupied);
   cls.attr("DEFAULT_RESOLUTION") = OccupancyMap::kDefaultResolution;
+  const auto& dmin = OccupancyMap::kDefaultBoundsMin;
+  const auto& dmax = OccupancyMap::kDefaultBoundsMax;
+  cls.attr("DEFAULT_BOUNDS_MIN") = py::make_tuple(dmin[0], dmin[1], dmin[2]);
+  cls.attr("DEFAULT_BOUNDS_MAX") = py::make_tuple(dmax[0], dmax[1], dmax[2]);
   cls.def(py::init([](double resolution, const py::handle& bmin, const py::handle& bmax,
                       const py::object& options, const py::kwargs& kw) {
             const OccupancyMapOptions o = options_with_keywords<OccupancyMapOptions>(options, kw);
@@ -192,8 +196,8 @@ cell is i + nx * (j + ny * k) == grid.ravel(order='F') position.)doc");
             return std::make_shared<OccupancyMap>(resolution, lo, hi, o);
           }),
           py::arg("resolution") = OccupancyMap::kDefaultResolution,
-          py::arg("bounds_min") = py::make_tuple(-20.0, -20.0, 0.0),
-          py::arg("bounds_max") = py::make_tuple(20.0, 20.0, 10.0), py::arg("options") = py::none())
+          py::arg("bounds_min") = cls.attr("DEFAULT_BOUNDS_MIN"),
+          py::arg("bounds_max") = cls.attr("DEFAULT_BOUNDS_MAX"), py::arg("options") = py::none())
       .def(
           "integrate",
           [](OccupancyMap& m, const py::handle& scan, const py::handle& hits,

@@ -98,6 +98,9 @@ class OccupancyMap {
   using Key = octomap::OcTreeKey;
   static constexpr std::int64_t kMaxCells = 400'000'000;
   static constexpr double kDefaultResolution = 0.2;  ///< cell edge, m (the authors' 0.2)
+  /// The default workspace box, m: the paper's 40 x 40 x 10 m.
+  static constexpr std::array<double, 3> kDefaultBoundsMin{-20.0, -20.0, 0.0};
+  static constexpr std::array<double, 3> kDefaultBoundsMax{20.0, 20.0, 10.0};
 
   /// resolution in metres; workspace bounds in metres (world frame). Throws std::invalid_argument
   /// for a non-positive or non-finite resolution, non-finite bounds, max <= min, bounds outside
