@@ -183,6 +183,31 @@ def test_views_below_the_floor_move_up_and_out_until_the_patch_is_in_view():
     assert np.array_equal(into_bounds(inside, inside + 1, box, (lowest, -lowest), (1, 8)), inside)
 
 
+def test_a_tour_flies_to_a_far_cluster_that_pays_for_its_transit_only_as_a_whole():
+    from nbvkit.planning.generators.tour import CoverageTour
+
+    def tour_for(gain_per_view):
+        # five views 1 m apart, 50 m from the vehicle, each adding gain_per_view new elements
+        n = gain_per_view
+        cov = {
+            "offsets": np.arange(0, 5 * n + 1, n, dtype=np.int64),
+            "elements": np.arange(5 * n, dtype=np.int64),
+            "weights": np.ones(5 * n, np.float32),
+            "status": np.zeros(5, np.int8),
+        }
+        cand = np.array([[50.0 + i, 0, 0, 0] for i in range(5)])
+        gen = CoverageTour(nbvkit.load_config(overrides=["tour.rate=0.45"]))  # m^2 per metre
+        pose = np.zeros(4)
+        return [gen._insertion_tour(cov, cand, pose, 1.0, charge) for charge in (True, False)]
+
+    anchored, free = tour_for(6)  # 30 m^2 for 54 m: worth 30 - 0.45 x 54 = 5.7
+    assert anchored[2] == [] and anchored[3] == 0.0  # no single view pays 0.45 x 50 m
+    assert sorted(np.asarray(free[0])[free[2]]) == [0, 1, 2, 3, 4]
+    assert free[3] == pytest.approx(30 - 0.45 * 54)
+    anchored, free = tour_for(4)  # 20 m^2 for 54 m: the transit is not worth it
+    assert free[2] == [] and free[3] == 0.0
+
+
 def test_patches_group_targets_by_cell_and_side():
     t = {
         "positions": np.array([[0.1, 0, 0], [0.2, 0, 0], [0.1, 0, 0], [5, 5, 5]]),

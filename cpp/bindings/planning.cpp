@@ -108,7 +108,7 @@ than min_gain or max_views are chosen.)doc");
   m.def(
       "select_tour",
       [](const py::dict& coverage, const py::handle& positions, const py::handle& start,
-         double rate, double min_gain, int max_views) {
+         double rate, double min_gain, int max_views, bool charge_transit) {
         const ViewCoverage cov = coverage_arg(coverage);
         auto p = points_arg(positions, "candidate positions");
         const Eigen::Vector3d st = vec3_arg(start, "tour start");
@@ -117,16 +117,19 @@ than min_gain or max_views are chosen.)doc");
         CoverSelection s;
         {
           py::gil_scoped_release release;
-          s = select_tour(cov, pm, st, rate, min_gain, max_views);
+          s = select_tour(cov, pm, st, rate, min_gain, max_views, charge_transit);
         }
         return py::make_tuple(py::cast(s.views), py::cast(s.gains));
       },
       py::arg("coverage"), py::arg("positions"), py::arg("start"), py::arg("rate"),
-      py::arg("min_gain") = 1.0, py::arg("max_views") = 1000,
+      py::arg("min_gain") = 1.0, py::arg("max_views") = 1000, py::arg("charge_transit") = true,
       R"doc(Prize-collecting tour over a view_coverage result by greedy cheapest insertion:
 (views, gains) in tour order from start. A candidate (positions (K, 3)) enters where it lengthens
 the open tour least, the one maximising its new coverage - rate x that extra length first, until
-none adds min_gain with a positive value. rate: coverage weight per metre.)doc");
+none adds min_gain with a positive value. rate: coverage weight per metre. charge_transit=False:
+the first view enters free of the flight from start to it, so that a far cluster that pays for
+its transit only as a whole can form (judge the transit afterwards, e.g. by prize
+collection).)doc");
   m.def(
       "solve_tour",
       [](const py::handle& points, const py::handle& start, bool improve) {

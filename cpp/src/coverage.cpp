@@ -251,7 +251,7 @@ CoverSelection select_cover(const ViewCoverage& cov, double min_gain, int max_vi
 
 CoverSelection select_tour(const ViewCoverage& cov, const PointsRef& positions,
                            const Eigen::Vector3d& start, double rate, double min_gain,
-                           int max_views) {
+                           int max_views, bool charge_transit) {
   const Eigen::Index K = cov.offsets.size() - 1;
   if (K < 0 || positions.rows() != K)
     throw std::invalid_argument("select_tour: one position per candidate of the coverage");
@@ -284,7 +284,8 @@ CoverSelection select_tour(const ViewCoverage& cov, const PointsRef& positions,
     for (Eigen::Index k = 0; k < K; ++k) {
       if (cov.status[k] != 0 || taken[std::size_t(k)] || gain[std::size_t(k)] < min_gain) continue;
       const Eigen::Vector3d q = p(k);
-      double cost = (q - stops[n - 1]).norm();  // appended at the end
+      // appended at the end (the first view, without charge_transit, for free)
+      double cost = n == 1 && !charge_transit ? 0.0 : (q - stops[n - 1]).norm();
       std::size_t at = n;
       for (std::size_t i = 0; i + 1 < n; ++i) {
         const double c =

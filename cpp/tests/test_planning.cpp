@@ -204,6 +204,25 @@ TEST(Cover, GreedyAndPrizeCollectingInsertion) {
   EXPECT_EQ(dear.gains, (std::vector<double>{3, 1}));
   EXPECT_THROW(select_tour(cov, Points(2, 3), Eigen::Vector3d::Zero(), 0.1, 0.5, 10),
                std::invalid_argument);
+  // the first view's transit free: the far view (the best gain) enters first, the near ones on
+  // the way to it at no extra length; judging the transit is left to the caller
+  const CoverSelection free = select_tour(cov, pos, Eigen::Vector3d::Zero(), 0.2, 0.5, 10, false);
+  EXPECT_EQ(free.views, (std::vector<int>{0, 1, 2}));
+  EXPECT_EQ(free.gains, (std::vector<double>{3, 1, 4}));
+}
+
+TEST(Cover, AFarClusterFormsOnlyWithoutChargingItsTransit) {
+  // five views 1 m apart, 50 m away, 6 new elements each: none pays 0.45 x 50 m alone
+  const ViewCoverage cov = coverage({{0, 1, 2, 3, 4, 5},
+                                     {6, 7, 8, 9, 10, 11},
+                                     {12, 13, 14, 15, 16, 17},
+                                     {18, 19, 20, 21, 22, 23},
+                                     {24, 25, 26, 27, 28, 29}});
+  Points pos(5, 3);
+  for (int i = 0; i < 5; ++i) pos.row(i) << 50.0 + i, 0, 0;
+  EXPECT_TRUE(select_tour(cov, pos, Eigen::Vector3d::Zero(), 0.45, 0.5, 10).views.empty());
+  const CoverSelection all = select_tour(cov, pos, Eigen::Vector3d::Zero(), 0.45, 0.5, 10, false);
+  EXPECT_EQ(all.views, (std::vector<int>{0, 1, 2, 3, 4}));
 }
 
 TEST(Views, OptionsRejectBadValuesWithTheirName) {

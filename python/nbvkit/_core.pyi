@@ -242,6 +242,8 @@ class ObservabilityResult:
     def unreachable(self) -> typing.Any: ...
 
 class OccupancyMap:
+    DEFAULT_BOUNDS_MAX: typing.ClassVar[typing.Any]
+    DEFAULT_BOUNDS_MIN: typing.ClassVar[typing.Any]
     DEFAULT_RESOLUTION: typing.ClassVar[typing.Any]
     FREE: typing.ClassVar[typing.Any]
     OCCUPIED: typing.ClassVar[typing.Any]
@@ -710,7 +712,7 @@ def segment_is_free(map: OccupancyMap, a: typing.Any, b: typing.Any, radius: flo
 
 def select_cover(coverage: dict, min_gain: float = 1.0, max_views: int = 1000) -> tuple: ...
 
-def select_tour(coverage: dict, positions: typing.Any, start: typing.Any, rate: float, min_gain: float = 1.0, max_views: int = 1000) -> tuple: ...
+def select_tour(coverage: dict, positions: typing.Any, start: typing.Any, rate: float, min_gain: float = 1.0, max_views: int = 1000, charge_transit: bool = True) -> tuple: ...
 
 def set_num_threads(n: int) -> None: ...
 

@@ -81,10 +81,14 @@ CoverSelection select_cover(const ViewCoverage& coverage, double min_gain, int m
 /// where gain is what it adds to the elements covered so far (as select_cover) and the insertion
 /// cost is the extra length of the open tour with it in its best place (between two stops, or
 /// at the end), until no candidate adds at least min_gain with a positive value or max_views
-/// are in. `rate`: element weight per metre. Returns the tour order (candidate indices, start
-/// excluded) and each view's gain when it was inserted. Deterministic; ties to the lower index.
+/// are in. `rate`: element weight per metre. charge_transit = false: the first view enters
+/// free of the flight from `start` to it (the best gain anywhere), so that a cluster of views
+/// that together pay for their transit, none of which would alone, can be built; whether the
+/// transit is worth it is then for the caller to judge (a prize-collecting pass over the tour).
+/// Returns the tour order (candidate indices, start excluded) and each view's gain when it was
+/// inserted. Deterministic; ties to the lower index.
 CoverSelection select_tour(const ViewCoverage& coverage, const PointsRef& positions,
                            const Eigen::Vector3d& start, double rate, double min_gain,
-                           int max_views);
+                           int max_views, bool charge_transit = true);
 
 }  // namespace nbv

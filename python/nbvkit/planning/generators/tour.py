@@ -60,33 +60,54 @@ class CoverageTour:
             validity=world.validity(blocked_path="plan"),
         )
         if cfg.tour.selection == "insertion":
-            chosen, gains = _core.select_tour(
-                coverage,
-                candidates[:, :3],
-                pose[:3],
-                rate=cfg.tour.rate / cell_m2,
-                min_gain=cfg.tour.min_gain / cell_m2,
-            )
+            # anchored at the vehicle, and with the first view's transit free (a far cluster
+            # that pays only as a whole); the tour worth more after prize collection is flown
+            tours = [
+                self._insertion_tour(coverage, candidates, pose, cell_m2, charge)
+                for charge in (True, False)
+            ]
+            chosen, gains, order = max(tours, key=lambda t: t[3])[:3]
         else:
             chosen, gains = _core.select_cover(coverage, min_gain=cfg.tour.min_gain / cell_m2)
+            gains = np.asarray(gains) * cell_m2
+            order = _core.solve_tour(candidates[chosen, :3], pose[:3])[0] if chosen else []
+            order = prize_collect(pose[:3], candidates[chosen, :3], gains, order, cfg.tour.rate)
         record["selected"] = len(chosen)
-        if not chosen:
-            self.aims = np.zeros((0, 3))
-            return np.zeros((0, 4))
         views, aims = candidates[chosen], patches.centers[owner[chosen]]
-        gains = np.asarray(gains) * cell_m2
-        order, length = _core.solve_tour(views[:, :3], pose[:3])
-        if cfg.tour.selection == "insertion":  # keep the insertion order if it is shorter
-            kept = list(range(len(chosen)))
-            if _length(pose[:3], views[:, :3], kept) <= length:
-                order = kept
-        order = prize_collect(pose[:3], views[:, :3], gains, order, cfg.tour.rate)
         record["kept"] = len(order)
         if order:
             pts = np.vstack([pose[:3], views[order, :3]])
             record["length_m"] = float(np.linalg.norm(np.diff(pts, axis=0), axis=1).sum())
         self.aims = aims[order]
         return views[order]
+
+    def _insertion_tour(self, coverage, candidates, pose, cell_m2, charge_transit):
+        """(chosen, gains m^2, kept order into chosen, net value m^2) of a prize-collecting
+        insertion tour from the vehicle: the shorter of its insertion order and the tour solved
+        over its views, then prize-collected; net value: the kept views' gains - rate x the
+        length of the kept tour."""
+        rate = self.cfg.tour.rate
+        chosen, gains = _core.select_tour(
+            coverage,
+            candidates[:, :3],
+            pose[:3],
+            rate=rate / cell_m2,
+            min_gain=self.cfg.tour.min_gain / cell_m2,
+            charge_transit=charge_transit,
+        )
+        if not chosen:
+            return chosen, np.zeros(0), [], 0.0
+        gains = np.asarray(gains) * cell_m2
+        points = candidates[chosen, :3]
+        order, length = _core.solve_tour(points, pose[:3])
+        kept = list(range(len(chosen)))
+        if _length(pose[:3], points, kept) <= length:
+            order = kept
+        order = prize_collect(pose[:3], points, gains, order, rate)
+        value = (
+            float(gains[order].sum()) - rate * _length(pose[:3], points, order) if order else 0.0
+        )
+        return chosen, gains, order, value
 
     # ------------------------------------------------------------------ generator
     def propose(self, world):
