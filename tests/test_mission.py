@@ -169,3 +169,21 @@ def test_starts_move_clear_of_a_structure_that_fills_its_workspace():
         assert not inside, k
         d = max(np.abs(s[:2]).max() - 5, s[2] - 10)  # outside the cube: its distance bound
         assert d >= r, (k, s)
+
+
+def test_ground_removal_is_measured_from_z0_or_from_a_structure_reaching_below_it():
+    from conftest import box_mesh
+    from nbvkit.world import World, ground_height
+
+    assert ground_height([[-1, -1, 0.03], [1, 1, 7.5]]) == 0.0  # standing on z = 0: z = 0
+    assert ground_height([[-1, -1, 15.0], [1, 1, 25.0]]) == 0.0  # floating: still z = 0
+    assert ground_height([[-1, -1, -5.0], [1, 1, 5.0]]) == -5.0  # centred on its origin
+    c = Config().with_overrides(FAST)
+    # a structure centred on its origin keeps its lower half: only 0.3 m above its base is ground
+    world = World(c, mesh=box_mesh([-3, -3, -5], [3, 3, 5]))
+    for cloud in (world.camera_cloud, world.laser_cloud):
+        assert cloud.min_z == pytest.approx(-5.0 + c.cloud.min_z)
+    world.camera_cloud.add(np.array([[4.0, 0.0, -2.0], [4.0, 0.0, -4.9]]))
+    assert len(world.camera_cloud) == 1  # the point 0.1 m above the base is ground
+    world = World(c, mesh=box_mesh([-3, -3, 0], [3, 3, 5]))
+    assert world.camera_cloud.min_z == pytest.approx(c.cloud.min_z)

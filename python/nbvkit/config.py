@@ -208,13 +208,16 @@ class LaserConfig:
     mount_rpy_deg: tuple = (0.0, 10.0, 0.0)  # pitched 10 deg down (Table 1)
 
 
+_CLOUD = _core.SurfaceCloudOptions()
+
+
 @dataclass(frozen=True)
 class CloudConfig:
     """The reconstructed point clouds."""
 
-    camera_voxel: float = _core.SurfaceCloudOptions().voxel_size  # m, authors' RGB-D voxel filter
+    camera_voxel: float = _CLOUD.voxel_size  # m, authors' RGB-D voxel filter
     laser_voxel: float = 0.1  # m, authors' profile voxel filter
-    min_z: float = _core.SurfaceCloudOptions().min_z  # m, points below are ground, not registered
+    min_z: float = _CLOUD.min_z  # m above the ground (world.ground_height): lower points dropped
 
 
 VehicleConfig = cpp_section(

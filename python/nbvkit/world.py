@@ -32,6 +32,14 @@ class VehicleState:
     trajectory: list = field(default_factory=list)
 
 
+def ground_height(bounds) -> float:
+    """The height of the ground the clouds' ground removal (cloud.min_z) is measured from: z = 0,
+    the ground plane of the authors' world, unless the structure reaches below it (a mesh centred
+    on its origin, a bridge's piers), in which case the ground is the structure's lowest point -
+    nothing of a structure lies under the ground, and the simulated world has no ground plane."""
+    return min(0.0, float(np.asarray(bounds, float)[0][2]))
+
+
 class World:
     """The structure (mesh, Embree scene), the workspace, the vehicle and its sensors, and the
     maps they build: ``map`` (OccupancyMap), ``camera_cloud`` / ``laser_cloud`` (SurfaceCloud),
@@ -77,8 +85,9 @@ class World:
         self.start_pose = start if start is not None else self.starts[cfg.start]
         self._check_start(self.start_pose)
         cl = cfg.cloud
-        self.camera_cloud = _core.SurfaceCloud(voxel_size=cl.camera_voxel, min_z=cl.min_z)
-        self.laser_cloud = _core.SurfaceCloud(voxel_size=cl.laser_voxel, min_z=cl.min_z)
+        min_z = ground_height(mesh.bounds) + cl.min_z
+        self.camera_cloud = _core.SurfaceCloud(voxel_size=cl.camera_voxel, min_z=min_z)
+        self.laser_cloud = _core.SurfaceCloud(voxel_size=cl.laser_voxel, min_z=min_z)
         self.surface = _core.SurfaceObservations(self.map)
         self.view_camera = view_camera(cfg)
         self.state = VehicleState(pose=self.start_pose.copy())
