@@ -187,3 +187,14 @@ def test_ground_removal_is_measured_from_z0_or_from_a_structure_reaching_below_i
     assert len(world.camera_cloud) == 1  # the point 0.1 m above the base is ground
     world = World(c, mesh=box_mesh([-3, -3, 0], [3, 3, 5]))
     assert world.camera_cloud.min_z == pytest.approx(c.cloud.min_z)
+
+
+def test_starts_on_the_bounds_stay_inside_them_whatever_the_rounding():
+    # a structure placed anywhere (here: the twinjet yawed 200 deg and lifted 15 m): the centre
+    # minus the half-size of its navigation bounds rounds 1 ulp below their minimum in y
+    mesh_bounds = [[-45.82121534, -3.96087897, 15.00483], [-11.10136336, 26.45899583, 25.52203178]]
+    ws = make_workspace(mesh_bounds, Config())
+    c, h = (ws.nav_min + ws.nav_max) / 2, (ws.nav_max - ws.nav_min) / 2
+    assert c[1] - h[1] < ws.nav_min[1]  # the case this guards against
+    for s in start_poses(ws):
+        assert ws.contains(s)

@@ -94,6 +94,7 @@ def start_poses(
     for k in range(n):
         th = -math.pi / 2 + 2 * math.pi * k / n
         p = np.array([c[0] + h[0] * math.cos(th), c[1] + h[1] * math.sin(th), c[2]])
+        p = np.clip(p, ws.nav_min, ws.nav_max)  # c - h can round to just outside the bounds
         if tree is not None and (collides(p) if collides else tree.query(p)[0] < clearance):
             p = _clear_start(
                 ws, c, p, lambda q: tree.query(q)[0] >= clearance and not (collides and collides(q))
