@@ -173,7 +173,8 @@ def test_starts_move_clear_of_a_structure_that_fills_its_workspace():
 
 def test_ground_removal_is_measured_from_z0_or_from_a_structure_reaching_below_it():
     from conftest import box_mesh
-    from nbvkit.world import World, ground_height
+    from nbvkit.workspace import ground_height
+    from nbvkit.world import World
 
     assert ground_height([[-1, -1, 0.03], [1, 1, 7.5]]) == 0.0  # standing on z = 0: z = 0
     assert ground_height([[-1, -1, 15.0], [1, 1, 25.0]]) == 0.0  # floating: still z = 0

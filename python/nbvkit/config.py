@@ -217,7 +217,7 @@ class CloudConfig:
 
     camera_voxel: float = _CLOUD.voxel_size  # m, authors' RGB-D voxel filter
     laser_voxel: float = 0.1  # m, authors' profile voxel filter
-    min_z: float = _CLOUD.min_z  # m above the ground (world.ground_height): lower points dropped
+    min_z: float = _CLOUD.min_z  # m above the ground (workspace.ground_height): lower dropped
 
 
 VehicleConfig = cpp_section(

@@ -37,6 +37,15 @@ class Workspace:
         }
 
 
+def ground_height(bounds) -> float:
+    """The ground the clouds' ground removal (cloud.min_z) is measured from, and the workspace's
+    floor: z = 0, the ground plane of the authors' world, unless the structure reaches below it (a
+    mesh centred on its origin, a bridge's piers), in which case the ground is the structure's
+    lowest point - nothing of a structure lies under the ground, and the simulated world has no
+    ground plane."""
+    return min(0.0, float(np.asarray(bounds, float)[0][2]))
+
+
 def make_workspace(mesh_bounds, cfg: Config) -> Workspace:
     """The workspace of a structure (see WorkspaceConfig); navigation bounds are the workspace
     shrunk by the collision radius (plus 0.1 m), so the vehicle's sphere stays inside the map."""
@@ -53,7 +62,7 @@ def make_workspace(mesh_bounds, cfg: Config) -> Workspace:
         half = (hi - lo)[:2] / 2 + w.margin_xy
         if w.square:
             half = np.full(2, half.max())
-        bmin = np.array([c[0] - half[0], c[1] - half[1], min(0.0, lo[2])])
+        bmin = np.array([c[0] - half[0], c[1] - half[1], ground_height(mesh_bounds)])
         bmax = np.array([c[0] + half[0], c[1] + half[1], hi[2] + w.margin_z])
     shrink = cfg.vehicle.collision_radius + 0.1
     nav_min, nav_max = bmin + shrink, bmax - shrink

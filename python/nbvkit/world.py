@@ -14,7 +14,7 @@ import numpy as np
 from . import _core
 from .config import Config, camera_kwargs, laser_kwargs, view_camera
 from .mesh import default_mesh_path, load_mesh
-from .workspace import Workspace, make_workspace, start_poses
+from .workspace import Workspace, ground_height, make_workspace, start_poses
 
 
 class MissionError(ValueError):
@@ -30,14 +30,6 @@ class VehicleState:
     distance_m: float = 0.0
     views: int = 0  # camera frames taken
     trajectory: list = field(default_factory=list)
-
-
-def ground_height(bounds) -> float:
-    """The height of the ground the clouds' ground removal (cloud.min_z) is measured from: z = 0,
-    the ground plane of the authors' world, unless the structure reaches below it (a mesh centred
-    on its origin, a bridge's piers), in which case the ground is the structure's lowest point -
-    nothing of a structure lies under the ground, and the simulated world has no ground plane."""
-    return min(0.0, float(np.asarray(bounds, float)[0][2]))
 
 
 class World:
