@@ -77,18 +77,17 @@ class RunSpec:
 def run_one(spec: RunSpec, root: str | os.PathLike, threads: int = 0) -> dict:
     """Runs one spec into ``root/runs/<run_id>`` unless it is already there; returns its row."""
     from . import set_num_threads
+    from .config import _has_dotted
     from .mission import Mission
 
     root = Path(root)
     final = root / "runs" / spec.run_id
-    if not (final / "summary.json").exists():
+    cfg = spec.config()
+    if not _has_dotted(cfg._user, "report.poisson_depth"):
+        # sweeps: a cheaper mesh per run (a look, not a result) unless the user set it
+        cfg = cfg.with_overrides([f"report.poisson_depth={SWEEP_POISSON_DEPTH}"])
+    if not _finished_with(final, cfg):
         set_num_threads(threads)
-        cfg = spec.config()
-        from .config import _has_dotted
-
-        if not _has_dotted(cfg._user, "report.poisson_depth"):
-            # sweeps: a cheaper mesh per run (a look, not a result) unless the user set it
-            cfg = cfg.with_overrides([f"report.poisson_depth={SWEEP_POISSON_DEPTH}"])
         tmp = root / "runs" / f".{spec.run_id}.tmp{os.getpid()}"
         shutil.rmtree(tmp, ignore_errors=True)
         from .report import finish_run
@@ -102,11 +101,25 @@ def run_one(spec: RunSpec, root: str | os.PathLike, threads: int = 0) -> dict:
         except BaseException:  # an error or Ctrl-C: no half-written run folder stays behind
             shutil.rmtree(tmp, ignore_errors=True)
             raise
+        if final.exists() and not _finished_with(final, cfg):
+            shutil.rmtree(final, ignore_errors=True)  # a stale run of another configuration
         try:
             tmp.rename(final)
         except OSError:  # another worker finished the same run first
             shutil.rmtree(tmp, ignore_errors=True)
     return row_of(final)
+
+
+def _finished_with(run_dir: Path, cfg) -> bool:
+    """Whether run_dir holds a finished run of exactly this resolved configuration. The run id
+    hashes the spec (mesh, overrides, config file name), not the defaults it resolves to nor the
+    file's content: a run kept from before a default or the file changed is flown again."""
+    try:
+        return (run_dir / "summary.json").exists() and (
+            run_dir / "config.yaml"
+        ).read_text() == cfg.to_yaml()
+    except OSError:
+        return False
 
 
 class Interrupted(Exception):
