@@ -300,7 +300,7 @@ class TourConfig:
     # how a plan chooses views: "cover" (greedy set cover, then a shortest tour) or "insertion"
     # (prize-collecting: new surface - rate x added tour length, by cheapest insertion)
     selection: str = "insertion"
-    min_gain: float = 1.6  # m^2 of new surface a view must add to enter a plan
+    min_gain: float = 1.2  # m^2 of new surface a view must add to enter a plan (docs/RESULTS.md)
     rate: float = 0.75  # m^2 of new surface per metre of tour a planned view must pay for
     max_plans: int = 0  # tours planned at most (0: until a plan is empty)
 
