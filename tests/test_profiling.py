@@ -41,6 +41,23 @@ def test_profile_summary_and_symmetry_report(profiled):
     assert m.map.counts()["predicted"] == 0
 
 
+def test_camera_frames_taken_in_flight_during_the_profile(profiled):
+    """profiling.camera_step: the RGB-D camera takes a frame each time that many metres have been
+    flown. The flight is the same; the frames add camera points and dense coverage, and they are
+    not views (the paper's profile is the laser alone: camera_step 0, no camera point)."""
+    base, b = profiled
+    assert len(base.camera_cloud) == 0 and b["profile"]["camera_frames"] == 0
+    step = 4.0
+    m = Mission(Config().with_overrides(FAST + ["scenario=profile", f"profiling.camera_step={step}"]))
+    s = m.run()
+    p = s["profile"]
+    assert p["distance_m"] == pytest.approx(b["profile"]["distance_m"], rel=1e-9)
+    flown = p["distance_m"] + p["return_distance_m"]  # the frames go on while it flies back
+    assert flown / step - 1 <= p["camera_frames"] <= flown / step
+    assert s["views"] == 0 and len(m.camera_cloud) > 0
+    assert p["coverage"]["0.05"] > b["profile"]["coverage"]["0.05"] + 0.02
+
+
 def test_waypoints_lie_on_the_recomputed_circle(profiled):
     m, s = profiled
     p = s["profile"]

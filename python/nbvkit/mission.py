@@ -131,7 +131,7 @@ class Mission:
         from .profiling import run_profiling
 
         summary = run_profiling(self.world)
-        ev = self.evaluator(self.world.laser_cloud.points)
+        ev = self.evaluator(self.world.cloud_points())  # laser, and camera frames if taken
         summary.update(coverage=ev["coverage"], area_coverage=ev["area_coverage"])
         return summary
 

@@ -55,12 +55,31 @@ class Profiler:
         self.fly_min = np.array([ws.bounds_min[0] - fm, ws.bounds_min[1] - fm, ws.nav_min[2]])
         self.fly_max = np.array([ws.bounds_max[0] + fm, ws.bounds_max[1] + fm, ws.nav_max[2]])
         self.radius = r
+        self.camera_frames = 0
+        self._since_frame = 0.0
         self.waypoints: list[list[float]] = []
         self.circles: list[list[float]] = []
 
     # -------------------------------------------------------------- motion and sensing
     def _clip(self, p):
         return np.minimum(np.maximum(p, self.fly_min), self.fly_max)
+
+    def _fly(self, target):
+        """fly_to in the profile stage; with profiling.camera_step > 0 the camera also takes a frame
+        every camera_step metres flown (legs longer than that are split: one frame per leg)."""
+        step = self.cfg.camera_step
+        if step <= 0:
+            self.m.fly_to(target, "profile")
+            return
+        cur = self.m.state.pose[:3].copy()
+        for q in _segments(cur, np.asarray(target[:3], float), step):
+            before = self.m.state.distance_m
+            self.m.fly_to(np.array([*q, target[3]]), "profile")
+            self._since_frame += self.m.state.distance_m - before
+            if self._since_frame >= step - 1e-9:
+                self.m.sense_camera(view=False)
+                self.camera_frames += 1
+                self._since_frame = max(0.0, self._since_frame - step)
 
     def _face(self, p, c):
         return math.atan2(c[1] - p[1], c[0] - p[0])
@@ -72,7 +91,7 @@ class Profiler:
         cur = self.m.state.pose[:3].copy()
         target = self._clip(np.asarray(target_xyz, float))
         for q in _segments(cur, target, self.cfg.max_segment):
-            self.m.fly_to(np.array([*q, yaw]), "profile")
+            self._fly(np.array([*q, yaw]))
 
     def _sweep(self, center):
         """Vertical sweep at the current XY position between z_min and z_max, scanning with the
@@ -81,12 +100,12 @@ class Profiler:
         yaw = self._face(p, center)
         lo, hi = self.z_min, self.z_max
         first, last = (lo, hi) if abs(p[2] - lo) <= abs(p[2] - hi) else (hi, lo)
-        self.m.fly_to(np.array([p[0], p[1], first, yaw]), "profile")
+        self._fly(np.array([p[0], p[1], first, yaw]))
         n = max(1, int(math.ceil(abs(last - first) / self.cfg.sweep_step)))
         for i in range(n + 1):
             z = first + (last - first) * i / n
             if i:
-                self.m.fly_to(np.array([p[0], p[1], z, yaw]), "profile")
+                self._fly(np.array([p[0], p[1], z, yaw]))
             self.m.sense_laser(self.m.state.pose)
         self.waypoints.append([float(p[0]), float(p[1])])
 
@@ -213,6 +232,7 @@ def run_profiling(world) -> dict:
         "entropy_final": e1,
         "entropy_reduction": e0 - e1,
         "points": int(len(world.laser_cloud)),
+        "camera_frames": prof.camera_frames,
         "clearance_m": prof.clearance(),
         "waypoints": prof.waypoints,
         "circles": prof.circles,

@@ -22,7 +22,7 @@ class Scenario:
 # The paper's method (sec. 3): the CGVS/AGVS lattice scored by information gain, straight legs
 # (blocked ones rejected), the entropy-per-viewable-voxel termination, in the paper's 40 x 40 x
 # 10 m style workspace (the structure's box grown by 2.5 m), with Algorithm 1's profiling closed
-# back to its start and a return to the start pose.
+# back to its start and a return to the start pose, the laser alone.
 _PAPER = {
     "workspace.margin_xy": 2.5,
     "workspace.margin_z": 2.5,
@@ -33,6 +33,7 @@ _PAPER = {
     "utility.name": "ig",
     "vehicle.blocked_path": "reject",
     "profiling.waypoints": 5,
+    "profiling.camera_step": 0.0,
     "profiling.close_circle": True,
     "profiling.return_to_start": True,
     "symmetry.refresh_every": 0,
@@ -90,7 +91,8 @@ SCENARIOS: dict[str, Scenario] = {
         ("yes", "yes", "AGVS"),
     ),
     "surface": Scenario(
-        "nbvkit's recommended planner: a profile, symmetry prediction, then coverage tours of "
+        "nbvkit's recommended planner: a profile (the laser, and a camera frame every metre "
+        "flown), symmetry prediction, then coverage tours of "
         "the surface still to observe (set cover of views, ordered as a shortest tour, each "
         "view paying for its detour) until no planned view is worth its flight",
         _SURFACE,

@@ -152,14 +152,15 @@ class World:
         return None
 
     # ------------------------------------------------------------------ sensing
-    def sense_camera(self, pose=None):
+    def sense_camera(self, pose=None, view: bool = True):
         """One camera frame from `pose` (default: the vehicle's), integrated into the map, the
-        camera cloud and the camera observations. Returns the Scan."""
+        camera cloud and the camera observations; `view`: it counts as a view (False: a frame
+        taken in flight, during the profile). Returns the Scan."""
         scan = self.camera.scan_pose(self.state.pose if pose is None else pose)
         self.map.integrate(scan)
         self.camera_cloud.add(scan.hits)
         self.surface.add_scan(scan)
-        self.state.views += 1
+        self.state.views += view
         return scan
 
     def sense_laser(self, pose=None):
