@@ -48,7 +48,9 @@ def test_camera_frames_taken_in_flight_during_the_profile(profiled):
     base, b = profiled
     assert len(base.camera_cloud) == 0 and b["profile"]["camera_frames"] == 0
     step = 4.0
-    m = Mission(Config().with_overrides(FAST + ["scenario=profile", f"profiling.camera_step={step}"]))
+    m = Mission(
+        Config().with_overrides(FAST + ["scenario=profile", f"profiling.camera_step={step}"])
+    )
     s = m.run()
     p = s["profile"]
     assert p["distance_m"] == pytest.approx(b["profile"]["distance_m"], rel=1e-9)

@@ -357,7 +357,7 @@ class ProfilingConfig:
     waypoints: int = 4  # N, points around the structure (authors: 5)
     margin: float = 4.0  # d, obstacle margin added to the bounding radius, m (authors: 4)
     sweep_step: float = 0.025  # m between laser scans: a 40 Hz scanner at 1 m/s (authors)
-    camera_step: float = 1.0  # m flown between RGB-D frames during the profile; 0: laser only (paper)
+    camera_step: float = 1.0  # m between camera frames taken in the profile flight; 0: none (paper)
     z_min: Optional[float] = None  # sweep bounds; None: the workspace's z range
     z_max: Optional[float] = None
     max_segment: float = 7.0  # arcs are flown as straight segments of at most this length, m
