@@ -145,20 +145,31 @@ def test_sweep_is_resumable_and_rejects_bad_keys(tmp_path):
         sweep_specs({"grid": {"map.nope": [1]}})
 
 
-def test_a_kept_run_of_another_configuration_is_flown_again(tmp_path, monkeypatch):
-    """The run id hashes the spec, not the defaults it resolves to: a run kept from before a
-    default changed (its config.yaml differs) must not stand in for the new configuration."""
-    spec = RunSpec("1", 0, overrides=TINY)
-    run_specs([spec], tmp_path, workers=1, progress=False)
+def test_a_kept_run_of_another_configuration_or_mesh_is_flown_again(tmp_path):
+    """The run id hashes the spec, not the defaults it resolves to nor the mesh file's content: a
+    run kept from before a default changed (its config.yaml differs) or the mesh was edited in
+    place must not stand in for the new one."""
+    import shutil
+
+    mesh = tmp_path / "airliner.obj"
+    shutil.copy(ROOT / "meshes" / "airliner.obj", mesh)
+    spec = RunSpec("1", 0, mesh=str(mesh), overrides=TINY)
     run = tmp_path / "runs" / spec.run_id
-    kept = (run / "summary.json").stat().st_mtime_ns
-    run_specs([spec], tmp_path, workers=1, progress=False)
-    assert (run / "summary.json").stat().st_mtime_ns == kept  # same configuration: reused
+
+    def fly():
+        rows = run_specs([spec], tmp_path, workers=1, progress=False)
+        assert rows[0]["run_id"] == spec.run_id
+        return (run / "summary.json").stat().st_mtime_ns
+
+    kept = fly()
+    assert fly() == kept  # the same configuration and mesh: reused
     config = run / "config.yaml"
     config.write_text(config.read_text().replace("prob_hit: 0.7", "prob_hit: 0.75"))
-    rows = run_specs([spec], tmp_path, workers=1, progress=False)
-    assert (run / "summary.json").stat().st_mtime_ns != kept  # flown again
-    assert "prob_hit: 0.7\n" in config.read_text() and rows[0]["run_id"] == spec.run_id
+    again = fly()
+    assert again != kept and "prob_hit: 0.7\n" in config.read_text()  # flown again
+    with open(mesh, "a") as f:
+        f.write("# edited in place\n")
+    assert fly() != again  # the same path, another file: flown again
 
 
 def test_sweep_on_a_local_dask_cluster(tmp_path):

@@ -97,7 +97,9 @@ def run_one(spec: RunSpec, root: str | os.PathLike, threads: int = 0) -> dict:
             mission.run(tmp)
             # one observable-surface cache for the whole experiment: once per structure
             finish_run(mission, tmp, cache_dir=root / "cache")
-            (tmp / "spec.json").write_text(json.dumps(_spec_dict(spec)))
+            (tmp / "spec.json").write_text(
+                json.dumps({**_spec_dict(spec), "mesh_sha1": _mesh_digest(cfg)})
+            )
         except BaseException:  # an error or Ctrl-C: no half-written run folder stays behind
             shutil.rmtree(tmp, ignore_errors=True)
             raise
@@ -111,15 +113,32 @@ def run_one(spec: RunSpec, root: str | os.PathLike, threads: int = 0) -> dict:
 
 
 def _finished_with(run_dir: Path, cfg) -> bool:
-    """Whether run_dir holds a finished run of exactly this resolved configuration. The run id
-    hashes the spec (mesh, overrides, config file name), not the defaults it resolves to nor the
-    file's content: a run kept from before a default or the file changed is flown again."""
+    """Whether run_dir holds a finished run of exactly this resolved configuration on this mesh
+    file's content. The run id hashes the spec (mesh path, overrides, config file name), not the
+    defaults it resolves to, the config file's content nor the mesh's: a run kept from before one
+    of them changed is flown again."""
     try:
-        return (run_dir / "summary.json").exists() and (
-            run_dir / "config.yaml"
-        ).read_text() == cfg.to_yaml()
-    except OSError:
+        return (
+            (run_dir / "summary.json").exists()
+            and (run_dir / "config.yaml").read_text() == cfg.to_yaml()
+            and json.loads((run_dir / "spec.json").read_text()).get("mesh_sha1")
+            == _mesh_digest(cfg)
+        )
+    except (OSError, ValueError):
         return False
+
+
+def _mesh_digest(cfg) -> str:
+    """SHA-1 of the mesh file a configuration flies (the shipped airliner when mesh.path is
+    None)."""
+    from .mesh import default_mesh_path
+
+    path = cfg.mesh.path if cfg.mesh.path is not None else default_mesh_path()
+    h = hashlib.sha1()
+    with open(path, "rb") as f:
+        for block in iter(lambda: f.read(1 << 20), b""):
+            h.update(block)
+    return h.hexdigest()
 
 
 class Interrupted(Exception):
