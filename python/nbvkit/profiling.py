@@ -24,6 +24,11 @@ scenarios) or, without returning, climbs or descends its last sweep line to the 
 navigation bounds if the circle left them. profiling.close_circle = false stops after the last
 sweep instead of flying Algorithm 1's final arc back to the first waypoint. All distances flown
 are accounted.
+
+With profiling.camera_step > 0 (the recommended planner's 1 m; the paper's scenarios set 0) the
+RGB-D camera also takes a frame every camera_step metres of the flight, facing the structure as
+the vehicle does on every sweep and arc. The frames go into the map, the camera cloud and the
+camera observations; they are frames in flight, not views (``profile.camera_frames`` counts them).
 """
 from __future__ import annotations
 
