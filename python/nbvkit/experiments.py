@@ -86,7 +86,8 @@ def run_one(spec: RunSpec, root: str | os.PathLike, threads: int = 0) -> dict:
     if not _has_dotted(cfg._user, "report.poisson_depth"):
         # sweeps: a cheaper mesh per run (a look, not a result) unless the user set it
         cfg = cfg.with_overrides([f"report.poisson_depth={SWEEP_POISSON_DEPTH}"])
-    if not _finished_with(final, cfg):
+    mesh_sha1 = _mesh_digest(cfg)
+    if not _finished_with(final, cfg, mesh_sha1):
         set_num_threads(threads)
         tmp = root / "runs" / f".{spec.run_id}.tmp{os.getpid()}"
         shutil.rmtree(tmp, ignore_errors=True)
@@ -97,13 +98,11 @@ def run_one(spec: RunSpec, root: str | os.PathLike, threads: int = 0) -> dict:
             mission.run(tmp)
             # one observable-surface cache for the whole experiment: once per structure
             finish_run(mission, tmp, cache_dir=root / "cache")
-            (tmp / "spec.json").write_text(
-                json.dumps({**_spec_dict(spec), "mesh_sha1": _mesh_digest(cfg)})
-            )
+            (tmp / "spec.json").write_text(json.dumps({**_spec_dict(spec), "mesh_sha1": mesh_sha1}))
         except BaseException:  # an error or Ctrl-C: no half-written run folder stays behind
             shutil.rmtree(tmp, ignore_errors=True)
             raise
-        if final.exists() and not _finished_with(final, cfg):
+        if final.exists() and not _finished_with(final, cfg, mesh_sha1):
             shutil.rmtree(final, ignore_errors=True)  # a stale run of another configuration
         try:
             tmp.rename(final)
@@ -112,33 +111,33 @@ def run_one(spec: RunSpec, root: str | os.PathLike, threads: int = 0) -> dict:
     return row_of(final)
 
 
-def _finished_with(run_dir: Path, cfg) -> bool:
-    """Whether run_dir holds a finished run of exactly this resolved configuration on this mesh
-    file's content. The run id hashes the spec (mesh path, overrides, config file name), not the
-    defaults it resolves to, the config file's content nor the mesh's: a run kept from before one
-    of them changed is flown again."""
+def _finished_with(run_dir: Path, cfg, mesh_sha1: str | None) -> bool:
+    """Whether run_dir holds a finished run of exactly this resolved configuration on the mesh
+    file whose content has this SHA-1 (_mesh_digest). The run id hashes the spec (mesh path,
+    overrides, config file name), not the defaults it resolves to, the config file's content nor
+    the mesh's: a run kept from before one of them changed is flown again."""
     try:
         return (
             (run_dir / "summary.json").exists()
             and (run_dir / "config.yaml").read_text() == cfg.to_yaml()
-            and json.loads((run_dir / "spec.json").read_text()).get("mesh_sha1")
-            == _mesh_digest(cfg)
+            and mesh_sha1 is not None
+            and json.loads((run_dir / "spec.json").read_text()).get("mesh_sha1") == mesh_sha1
         )
     except (OSError, ValueError):
         return False
 
 
-def _mesh_digest(cfg) -> str:
+def _mesh_digest(cfg) -> str | None:
     """SHA-1 of the mesh file a configuration flies (the shipped airliner when mesh.path is
-    None)."""
+    None); None when it cannot be read (the mission then fails on it, naming the problem)."""
     from .mesh import default_mesh_path
 
     path = cfg.mesh.path if cfg.mesh.path is not None else default_mesh_path()
-    h = hashlib.sha1()
-    with open(path, "rb") as f:
-        for block in iter(lambda: f.read(1 << 20), b""):
-            h.update(block)
-    return h.hexdigest()
+    try:
+        with open(path, "rb") as f:
+            return hashlib.file_digest(f, "sha1").hexdigest()
+    except OSError:
+        return None
 
 
 class Interrupted(Exception):
