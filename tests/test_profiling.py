@@ -9,7 +9,7 @@ import pytest
 
 from nbvkit.config import Config
 from nbvkit.mission import Mission
-from nbvkit.profiling import Profiler
+from nbvkit.profiling import Profiler, _Circle, _GrownHull
 
 FAST = [
     "map.resolution=0.4",
@@ -105,3 +105,73 @@ def test_bounding_box_profiler():
     p = s["profile"]
     assert p["method"] == "bbox" and len(p["waypoints"]) == 9  # start + 4 corners + 4 mid-faces
     assert p["coverage"]["0.5"] > 0.5 and p["clearance_m"] > m.config.vehicle.collision_radius
+
+
+def test_grown_hull_of_a_square_is_at_the_margin_from_it():
+    """Analytic: the 2 x 2 square grown by d = 1 has straight faces at x = +-2, y = +-2 and arcs
+    of radius 1 round its corners; the vehicle faces the nearest point of the square."""
+    sq = np.array([[1, 1], [-1, 1], [-1, -1], [1, -1], [0, 0], [0.5, -0.2]], float)
+    h = _GrownHull(sq, 1.0)
+    np.testing.assert_allclose(h.c, [0, 0], atol=1e-12)  # interior points are not vertices
+    np.testing.assert_allclose(h.at(0.0), [2, 0], atol=1e-9)
+    np.testing.assert_allclose(h.at(math.pi / 2), [0, 2], atol=1e-9)
+    np.testing.assert_allclose(h.at(math.pi / 4), [1 + 0.5**0.5, 1 + 0.5**0.5], atol=1e-9)
+    np.testing.assert_allclose(h.facing(np.array([2.0, 0.3])), [1, 0.3], atol=1e-12)
+    np.testing.assert_allclose(h.facing(np.array([1.7, 1.7])), [1, 1], atol=1e-12)
+    assert h.summary()[2] == pytest.approx((8 + 2 * math.pi) / (2 * math.pi))
+
+
+def test_grown_hull_of_random_points_keeps_the_margin_all_round():
+    rng = np.random.default_rng(3)
+    xy = rng.normal(size=(300, 2)) * [6.0, 2.0] + [10.0, -4.0]  # elongated, off the origin
+    d = 2.5
+    h = _GrownHull(xy, d)
+    # the distance to the hull is the distance to its dense boundary samples (outside it)
+    v = h.v
+    e = np.roll(v, -1, axis=0) - v
+    t = np.linspace(0, 1, 400)
+    boundary = (v[:, None, :] + t[None, :, None] * e[:, None, :]).reshape(-1, 2)
+    for theta in np.linspace(0, 2 * math.pi, 37):
+        p = h.at(theta)
+        assert np.linalg.norm(boundary - p, axis=1).min() == pytest.approx(d, abs=2e-3)
+        assert math.atan2(*(p - h.c)[::-1]) == pytest.approx(
+            math.atan2(math.sin(theta), math.cos(theta)), abs=1e-9
+        )
+    # chords of at most d / 2 between neighbouring points stay within 0.13 d of the margin
+    pts = np.array([h.at(0.0)] + h.arc(0.0, 2 * math.pi, 7.0))
+    np.testing.assert_allclose(pts[-1], pts[0], atol=1e-9)
+    assert np.linalg.norm(np.diff(pts, axis=0), axis=1).max() <= d / 2 + 1e-9
+    mids = (pts[1:] + pts[:-1]) / 2
+    near = np.array([np.linalg.norm(boundary - q, axis=1).min() for q in mids])
+    assert near.min() > 0.87 * d
+
+
+def test_hull_profile_falls_back_to_the_circle_on_a_collinear_profile():
+    class Stub:
+        pass
+
+    m = Stub()
+    m.config = Config().with_overrides(["profiling.method=hull"])
+    prof = Profiler.__new__(Profiler)
+    prof.m, prof.cfg = m, m.config.profiling
+    line = np.array([[x, 2 * x, 1.0] for x in range(5)], float)
+    m.laser_cloud = type("C", (), {"points": line, "__len__": lambda self: len(line)})()
+    region = prof._region(np.zeros(3), 1.0)
+    c, r = prof._circle(np.zeros(3), 1.0)
+    assert isinstance(region, _Circle) and region.summary() == [c[0], c[1], r]
+
+
+def test_hull_profiler_flies_shorter_than_the_circle_and_keeps_clear():
+    """The grown hull lies inside the circle Algorithm 1 would fly round the same cloud, so the
+    profile is shorter; it keeps the margin from what it has seen and faces the structure."""
+    circ = Mission(
+        Config().with_overrides(FAST + ["profiling.method=circular", "max_iterations=0"])
+    )
+    c = circ.run()["profile"]
+    m = Mission(Config().with_overrides(FAST + ["profiling.method=hull", "max_iterations=0"]))
+    s = m.run()
+    p = s["profile"]
+    assert p["method"] == "hull" and len(p["waypoints"]) == m.config.profiling.waypoints
+    assert p["distance_m"] < 0.9 * c["distance_m"]
+    assert p["clearance_m"] > m.config.vehicle.collision_radius
+    assert p["coverage"]["0.05"] > 0.5 * c["coverage"]["0.05"]

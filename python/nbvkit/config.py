@@ -350,10 +350,12 @@ class TerminationConfig:
 
 @dataclass(frozen=True)
 class ProfilingConfig:
-    """Adaptive circular profiling (Algorithm 1) and the bounding-box profiler."""
+    """Adaptive circular profiling (Algorithm 1), its grown-hull variant and the bounding-box
+    profiler."""
 
     enabled: bool = True  # fly the laser profile before the camera
-    method: str = "circular"  # "circular" (Algorithm 1) or "bbox" (fly the faces of the box)
+    # circular (Algorithm 1), hull (its loop round the grown XY hull) or bbox (the box's faces)
+    method: str = "hull"
     waypoints: int = 4  # N, points around the structure (authors: 5)
     margin: float = 4.0  # d, obstacle margin added to the bounding radius, m (authors: 4)
     sweep_step: float = 0.025  # m between laser scans: a 40 Hz scanner at 1 m/s (authors)
@@ -671,7 +673,7 @@ _CHOICES = {
     "scenario": tuple(SCENARIOS),
     "symmetry.mode": ("none", "report", "predict"),
     "tour.selection": ("cover", "insertion"),
-    "profiling.method": ("circular", "bbox"),
+    "profiling.method": ("circular", "hull", "bbox"),
     "symmetry.keypoints": ("sift", "iss", "uniform"),
 }
 _POSITIVE = {

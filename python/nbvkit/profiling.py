@@ -11,6 +11,13 @@ theta_s is the bearing of the start position seen from the workspace centre, so 
 point is the one nearest the start (the paper's wording, "the angle between the global x axis and
 the vector from the UAV's starting position to the centre", would put it on the far side).
 
+The grown-hull profiler (method hull, nbvkit's) keeps Algorithm 1's loop, waypoints and bearings
+but flies the profile's XY convex hull grown by d instead of the circle (c, r): the closed curve
+at distance d from the hull, which lies inside that circle. Round a long or square structure it is
+shorter than the circle, and it holds the camera at the stand-off d from every face, facing the
+nearest point of the hull, instead of up to r - d from the faces' middles. A profile whose XY
+points are collinear falls back to the circle.
+
 The bounding-box profiler (the authors' second method) flies the four vertical faces of the
 structure's observed bounding box grown by the margin, sweeping at each corner and face middle; the
 box is recomputed after every sweep, as the circle is.
@@ -36,12 +43,100 @@ import math
 import time
 
 import numpy as np
+from scipy.spatial import ConvexHull, QhullError
 
 
 def _segments(a, b, max_len):
     """Split a-b into straight pieces of at most max_len (returns the intermediate points and b)."""
     n = max(1, int(math.ceil(np.linalg.norm(b - a) / max_len)))
     return [a + (b - a) * (i / n) for i in range(1, n + 1)]
+
+
+class _Circle:
+    """Algorithm 1's circle (c, r): flown facing its centre."""
+
+    def __init__(self, c, r):
+        self.c, self.r = np.asarray(c, float), float(r)
+
+    def at(self, theta):
+        return self.c + self.r * np.array([math.cos(theta), math.sin(theta)])
+
+    def facing(self, p):
+        return self.c
+
+    def arc(self, t0, phi, max_segment):
+        """Points along the circle from bearing t0 to t0 + phi (excluded, included), as chords of
+        at most max_segment."""
+        n = max(1, int(math.ceil(self.r * phi / max_segment)))
+        return [self.at(t0 + phi * i / n) for i in range(1, n + 1)]
+
+    def summary(self):
+        return [float(self.c[0]), float(self.c[1]), self.r]
+
+
+class _GrownHull:
+    """The XY convex hull P of the profile grown by the margin d: the closed convex curve at
+    distance d from P (straight faces at d from P's edges joined by arcs of radius d round its
+    corners). Bearings are taken from the mean c of P's vertices, which lies inside P, so each
+    bearing meets the curve once. Flown facing the nearest point of P, i.e. square on to the
+    face beside it. Its chords of at most d / 2 keep within 0.13 d of the curve round a corner."""
+
+    def __init__(self, xy, margin):
+        v = np.asarray(xy, float)[ConvexHull(xy).vertices]  # counter-clockwise
+        self.v, self.d = v, float(margin)
+        self.c = v.mean(axis=0)
+        self.e = np.roll(v, -1, axis=0) - v  # edge k runs from v[k] to v[k + 1]
+        self.reach = float(np.linalg.norm(v - self.c, axis=1).max()) + self.d
+
+    def _nearest(self, p):
+        """The point of P's boundary nearest p, and the distance to P (0 inside)."""
+        w = np.asarray(p, float) - self.v
+        t = np.clip((w * self.e).sum(axis=1) / (self.e * self.e).sum(axis=1), 0.0, 1.0)
+        q = self.v + t[:, None] * self.e
+        k = int(np.argmin(np.linalg.norm(q - p, axis=1)))
+        inside = np.all(self.e[:, 0] * w[:, 1] - self.e[:, 1] * w[:, 0] >= 0)
+        return q[k], 0.0 if inside else float(np.linalg.norm(q[k] - p))
+
+    def at(self, theta):
+        u = np.array([math.cos(theta), math.sin(theta)])
+        lo, hi = 0.0, self.reach  # distance to P is 0 at lo, >= d at hi, monotone in between
+        for _ in range(48):
+            mid = 0.5 * (lo + hi)
+            lo, hi = (mid, hi) if self._nearest(self.c + mid * u)[1] < self.d else (lo, mid)
+        return self.c + hi * u
+
+    def facing(self, p):
+        return self._nearest(p)[0]
+
+    def arc(self, t0, phi, max_segment):
+        """Points along the curve from bearing t0 to t0 + phi (excluded, included), as chords of
+        at most min(max_segment, d / 2): bearings are halved where the curve runs oblique to
+        them (an elongated hull's ends)."""
+        lim = min(max_segment, self.d / 2)
+        out = []
+
+        def split(a, pa, b, pb):
+            if np.linalg.norm(pb - pa) <= lim or b - a < 1e-9:
+                out.append(pb)
+                return
+            m = 0.5 * (a + b)
+            pm = self.at(m)
+            split(a, pa, m, pm)
+            split(m, pm, b, pb)
+
+        n = max(1, int(math.ceil(self.reach * phi / lim)))
+        ts = [t0 + phi * i / n for i in range(n + 1)]
+        prev = self.at(ts[0])
+        for a, b in zip(ts[:-1], ts[1:]):
+            pb = self.at(b)
+            split(a, prev, b, pb)
+            prev = pb
+        return out
+
+    def summary(self):
+        """Centre and the radius of the circle of the same perimeter (P's plus 2 pi d)."""
+        perimeter = float(np.linalg.norm(self.e, axis=1).sum()) + 2 * math.pi * self.d
+        return [float(self.c[0]), float(self.c[1]), perimeter / (2 * math.pi)]
 
 
 class Profiler:
@@ -123,6 +218,17 @@ class Profiler:
         r = float(np.linalg.norm(xy - c, axis=1).max()) + self.cfg.margin
         return c, r
 
+    def _region(self, fallback_center, fallback_radius):
+        """The closed curve flown round the profile: Algorithm 1's circle (method circular) or
+        the profile's XY convex hull grown by the margin (method hull), from the cloud so far."""
+        c, r = self._circle(fallback_center, fallback_radius)
+        if self.cfg.method == "hull" and len(self.m.laser_cloud) >= 3:
+            try:
+                return _GrownHull(self.m.laser_cloud.points[:, :2], self.cfg.margin)
+            except QhullError:  # a profile seen edge-on (collinear in XY): the circle
+                pass
+        return _Circle(c, r)
+
     def clearance(self) -> float:
         """Closest distance (m) from the profiling trajectory's vertices to an occupied cell."""
         occ = self.m.map.occupied_cells()
@@ -142,26 +248,19 @@ class Profiler:
         theta = theta_s
         phi = 2 * math.pi / self.cfg.waypoints
         r0 = float(np.linalg.norm(start[:2] - ws_c[:2]))
-        c, r = ws_c[:2], r0
-        k = 0
+        region = _Circle(ws_c[:2], r0)
         while theta - theta_s < 2 * math.pi - 1e-9:
-            self._sweep(np.array([*c, 0.0]))
-            c, r = self._circle(ws_c, r0)
-            self.circles.append([float(c[0]), float(c[1]), r])
+            self._sweep(region.facing(m.state.pose[:2]))
+            region = self._region(ws_c, r0)
+            self.circles.append(region.summary())
             if not self.cfg.close_circle and theta + phi - theta_s >= 2 * math.pi - 1e-9:
                 break  # the last sweep is done: the way back to the first waypoint adds nothing
             z = m.state.pose[2]
-            on = np.array([c[0] + r * math.cos(theta), c[1] + r * math.sin(theta), z])
-            self._move(on, self._face(on, c))
+            on = region.at(theta)
+            self._move([*on, z], self._face(on, region.facing(on)))
             theta += phi
-            k += 1
-            # along the circle, as chords of at most max_segment
-            arc = r * phi
-            n = max(1, int(math.ceil(arc / self.cfg.max_segment)))
-            for i in range(1, n + 1):
-                t = theta - phi + phi * i / n
-                q = np.array([c[0] + r * math.cos(t), c[1] + r * math.sin(t), z])
-                self._move(q, self._face(q, c))
+            for q in region.arc(theta - phi, phi, self.cfg.max_segment):  # along the curve
+                self._move([*q, z], self._face(q, region.facing(q)))
 
     def bbox(self):
         """Fly the four vertical faces of the profile's XY bounding box grown by the margin,

@@ -32,6 +32,7 @@ _PAPER = {
     "planner.travel_lambda": 0.0,
     "utility.name": "ig",
     "vehicle.blocked_path": "reject",
+    "profiling.method": "circular",
     "profiling.waypoints": 5,
     "profiling.camera_step": 0.0,
     "profiling.close_circle": True,
@@ -91,8 +92,8 @@ SCENARIOS: dict[str, Scenario] = {
         ("yes", "yes", "AGVS"),
     ),
     "surface": Scenario(
-        "nbvkit's recommended planner: a profile (the laser, and a camera frame every metre "
-        "flown), symmetry prediction, then coverage tours of "
+        "nbvkit's recommended planner: a profile round the structure's grown hull (the laser, "
+        "and a camera frame every metre flown), symmetry prediction, then coverage tours of "
         "the surface still to observe (set cover of views, ordered as a shortest tour, each "
         "view paying for its detour) until no planned view is worth its flight",
         _SURFACE,
