@@ -144,6 +144,11 @@ def test_overrides_and_rejections(tmp_path):
         c.with_overrides(["map.resolution=0"])
     with pytest.raises(ValueError, match="utility.name"):
         c.with_overrides(["utility.name=magic"])
+    for margin in ("0", "-1"):  # a profile flown on (or inside) what it has seen
+        with pytest.raises(ValueError, match="profiling.margin"):
+            c.with_overrides([f"profiling.margin={margin}"])
+    with pytest.raises(ValueError, match="profiling.method"):
+        c.with_overrides(["profiling.method=spiral"])
     with pytest.raises(ValueError, match="integer"):
         c.with_overrides(["max_iterations=2.5"])
     with pytest.raises(ValueError, match="key=value"):

@@ -691,6 +691,7 @@ _POSITIVE = {
     "profiling.waypoints",
     "profiling.sweep_step",
     "profiling.max_segment",
+    "profiling.margin",
     "placement.cluster_size",
     "frontier.patches",
     "stall.window",
