@@ -48,7 +48,7 @@ class Step:
     entropy_before: float
     entropy_after: float
     delta_ev: float  # (E_before - E_after) / C_view, the paper's Eq. 4
-    new_surface_m2: float  # surface the camera saw from a side it had not seen it from
+    new_surface_m2: float  # surface cells the camera saw for the first time (from any side)
     distance_m: float  # total flown so far
     extra: dict = field(default_factory=dict)  # generator-specific columns (e.g. AGVS alpha)
 

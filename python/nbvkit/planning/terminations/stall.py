@@ -1,6 +1,7 @@
 """Surface-coverage stall: stall.window consecutive views each showed the camera less than
-stall.min_gain m^2 of surface it had not seen from that side before (measured from the camera
-observations, not predicted)."""
+stall.min_gain m^2 of surface it had never seen (cells seen for the first time, from any side:
+measured from the camera observations, not predicted; a view that sees known surface from a new
+side, which the surface utility credits, adds nothing here)."""
 from __future__ import annotations
 
 
