@@ -19,11 +19,9 @@ import argparse
 
 import numpy as np
 
-from nbvkit import _core
 from nbvkit.config import Config
 from nbvkit.mission import Mission
-from nbvkit.workspace import ground_height
-from nbvkit.world import World
+from nbvkit.world import World, surface_clouds
 
 
 class _Recorder:
@@ -54,21 +52,20 @@ class _Recorder:
 
 
 def coverage_along(mission: Mission, log, distances) -> list[float]:
-    """Area coverage at 0.05 m of the clouds built from the scans taken within each distance."""
-    cfg = mission.config
-    min_z = ground_height(mission.world.mesh.bounds) + cfg.cloud.min_z
-    out = []
-    for d in distances:
-        clouds = {
-            "camera": _core.SurfaceCloud(voxel_size=cfg.cloud.camera_voxel, min_z=min_z),
-            "laser": _core.SurfaceCloud(voxel_size=cfg.cloud.laser_voxel, min_z=min_z),
-        }
-        for flown, kind, hits in log:
-            if flown <= d + 1e-9:
-                clouds[kind].add(hits)
+    """Area coverage at 0.05 m of the clouds built from the scans taken within each distance
+    (the log is in flight order, so each scan is added once, before the first distance past it)."""
+    clouds = dict(
+        zip(("camera", "laser"), surface_clouds(mission.config, mission.world.mesh.bounds))
+    )
+    out = [0.0] * len(distances)
+    k = 0
+    for i in np.argsort(distances, kind="stable"):
+        while k < len(log) and log[k][0] <= distances[i] + 1e-9:
+            clouds[log[k][1]].add(log[k][2])
+            k += 1
         cam, las = clouds["camera"].points, clouds["laser"].points
         pts = np.vstack([cam, las]) if len(las) else cam
-        out.append(mission.evaluator(pts)["area_coverage"]["0.05"] if len(pts) else 0.0)
+        out[i] = mission.evaluator(pts)["area_coverage"]["0.05"] if len(pts) else 0.0
     return out
 
 

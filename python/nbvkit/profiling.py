@@ -221,13 +221,12 @@ class Profiler:
     def _region(self, fallback_center, fallback_radius):
         """The closed curve flown round the profile: Algorithm 1's circle (method circular) or
         the profile's XY convex hull grown by the margin (method hull), from the cloud so far."""
-        c, r = self._circle(fallback_center, fallback_radius)
         if self.cfg.method == "hull" and len(self.m.laser_cloud) >= 3:
             try:
                 return _GrownHull(self.m.laser_cloud.points[:, :2], self.cfg.margin)
             except QhullError:  # a profile seen edge-on (collinear in XY): the circle
                 pass
-        return _Circle(c, r)
+        return _Circle(*self._circle(fallback_center, fallback_radius))
 
     def clearance(self) -> float:
         """Closest distance (m) from the profiling trajectory's vertices to an occupied cell."""

@@ -32,6 +32,17 @@ class VehicleState:
     trajectory: list = field(default_factory=list)
 
 
+def surface_clouds(config: Config, mesh_bounds):
+    """(camera, laser) empty SurfaceClouds as a mission keeps them: each voxel-filtered at its
+    cloud.*_voxel, dropping points less than cloud.min_z above the structure's ground."""
+    cl = config.cloud
+    min_z = ground_height(mesh_bounds) + cl.min_z
+    return (
+        _core.SurfaceCloud(voxel_size=cl.camera_voxel, min_z=min_z),
+        _core.SurfaceCloud(voxel_size=cl.laser_voxel, min_z=min_z),
+    )
+
+
 class World:
     """The structure (mesh, Embree scene), the workspace, the vehicle and its sensors, and the
     maps they build: ``map`` (OccupancyMap), ``camera_cloud`` / ``laser_cloud`` (SurfaceCloud),
@@ -76,10 +87,7 @@ class World:
         start = np.array(cfg.start_pose, float) if cfg.start_pose is not None else None
         self.start_pose = start if start is not None else self.starts[cfg.start]
         self._check_start(self.start_pose)
-        cl = cfg.cloud
-        min_z = ground_height(mesh.bounds) + cl.min_z
-        self.camera_cloud = _core.SurfaceCloud(voxel_size=cl.camera_voxel, min_z=min_z)
-        self.laser_cloud = _core.SurfaceCloud(voxel_size=cl.laser_voxel, min_z=min_z)
+        self.camera_cloud, self.laser_cloud = surface_clouds(cfg, mesh.bounds)
         self.surface = _core.SurfaceObservations(self.map)
         self.view_camera = view_camera(cfg)
         self.state = VehicleState(pose=self.start_pose.copy())
