@@ -61,10 +61,12 @@ GridView grid_view(const OccupancyMap& map, const SurfaceObservations* surface =
 /// With kSkipNeutral, cells of bricks without live cells are stepped over without a visit (for
 /// walks to which neutral cells - observed free cells of zero entropy - contribute nothing and
 /// which they never stop). The cells visited, and their order, do not depend on kSkipNeutral
-/// otherwise.
+/// otherwise. Always inlined: compiled apart, the walk reached its visitor's state through
+/// memory and reloaded it after every store the visitor made.
 template <bool kSkipNeutral, typename Visit>
-void walk_ray(const GridView& g, const Eigen::Vector3d& o, const Eigen::Vector3d& d, double t_max,
-              Visit&& visit) {
+__attribute__((always_inline)) inline void walk_ray(const GridView& g, const Eigen::Vector3d& o,
+                                                    const Eigen::Vector3d& d, double t_max,
+                                                    Visit&& visit) {
   constexpr double kInf = std::numeric_limits<double>::infinity();
   const Eigen::Vector3d pos = (o - g.origin) / g.resolution;  // grid units
   const double tend_g = t_max / g.resolution;

@@ -18,11 +18,12 @@ namespace nbv::utility {
 struct FourTerm {
   static constexpr bool kSkipNeutral = false;  // neutral cells dilute the mean entropy
   static constexpr bool kNeedsSurface = true;
-  explicit FourTerm(ViewContext& ctx) : ctx_(ctx) {}
+  explicit FourTerm(ViewContext& ctx) : ctx_(ctx), marks_(ctx.visited.marks()) {}
+  ~FourTerm() { marks_.keep(); }
   void begin_ray(const Eigen::Vector3d&) {}
   template <class Cells>
   bool visit(const Cells& cells, std::size_t idx, const int* c, double, float scored) {
-    if (!ctx_.visited.insert(idx)) return !std::signbit(scored);
+    if (!marks_.insert(idx)) return !std::signbit(scored);
     ++reached_;
     entropy_ += std::fabs(scored);
     if (!std::signbit(scored)) return true;
@@ -48,6 +49,7 @@ struct FourTerm {
 
  private:
   ViewContext& ctx_;
+  VisitedSet::Marks marks_;
   double entropy_ = 0.0, density_ = 0.0;
   int reached_ = 0, occupied_ = 0, observed_ = 0, predicted_ = 0;
 };

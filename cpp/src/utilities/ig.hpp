@@ -11,21 +11,23 @@ namespace nbv::utility {
 struct InformationGain {
   static constexpr bool kSkipNeutral = true;
   static constexpr bool kNeedsSurface = false;
-  explicit InformationGain(ViewContext& ctx) : ctx_(ctx) {}
+  explicit InformationGain(ViewContext& ctx) : marks_(ctx.visited.marks()) {}
+  ~InformationGain() { marks_.keep(); }
   void begin_ray(const Eigen::Vector3d&) {}
   template <class Cells>
   bool visit(const Cells&, std::size_t idx, const int*, double, float scored) {
-    if (scored != 0.0f && ctx_.visited.insert(idx)) {
-      gain_ += std::fabs(scored);
-      ++cells_;
-    }
+    // Neutral cells in live bricks are marked too (they add nothing either way), so that
+    // nothing here branches on the cell.
+    const bool counts = marks_.insert(idx) & (scored != 0.0f);
+    gain_ = add_if(gain_, std::fabs(scored), counts);
+    cells_ += counts;
     return !std::signbit(scored);
   }
   double gain() const { return gain_; }
   int cells() const { return cells_; }
 
  private:
-  ViewContext& ctx_;
+  VisitedSet::Marks marks_;
   double gain_ = 0.0;
   int cells_ = 0;
 };

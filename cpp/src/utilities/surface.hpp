@@ -19,7 +19,8 @@ namespace nbv::utility {
 struct Surface {
   static constexpr bool kSkipNeutral = true;  // neutral cells are free: they pass, add nothing
   static constexpr bool kNeedsSurface = true;
-  explicit Surface(ViewContext& ctx) : ctx_(ctx) {}
+  explicit Surface(ViewContext& ctx) : ctx_(ctx), marks_(ctx.visited.marks()) {}
+  ~Surface() { marks_.keep(); }
   void begin_ray(const Eigen::Vector3d& d) {
     vis_ = 1.0;
     bin_ = std::int8_t(direction_bin(-d));
@@ -30,7 +31,7 @@ struct Surface {
     const CellFlag flag = cells.flag(idx, c);
     if (flag == CellFlag::Observed) {
       if (!std::signbit(scored)) return true;  // free
-      if ((ctx_.grid.seen[idx] & cone_) == 0 && ctx_.visited.insert(idx)) credit(idx, 1.0);
+      if ((ctx_.grid.seen[idx] & cone_) == 0 && marks_.insert(idx)) credit(idx, 1.0);
       return false;
     }
     double p;
@@ -39,7 +40,7 @@ struct Surface {
     else
       p = next_to_surface(ctx_.grid, cells, c) ? ctx_.options.frontier_prior
                                                : ctx_.options.unknown_prior;
-    if (ctx_.visited.insert(idx)) credit(idx, p);
+    if (marks_.insert(idx)) credit(idx, p);
     vis_ *= 1.0 - p;
     return vis_ >= ctx_.options.min_visibility;
   }
@@ -53,6 +54,7 @@ struct Surface {
     if (ctx_.credits) ctx_.credits->push_back({std::int64_t(idx), bin_, float(vis_ * p)});
   }
   ViewContext& ctx_;
+  VisitedSet::Marks marks_;
   std::uint32_t cone_ = 0;
   std::int8_t bin_ = 0;
   double vis_ = 1.0, gain_ = 0.0;

@@ -21,34 +21,61 @@
 
 #include <cmath>
 #include <cstdint>
+#include <cstring>
 #include <vector>
 
 namespace nbv::utility {
 
 /// Per-thread set of the cells a view has counted: a bitset over the grid (2 M cells -> 256 KB,
-/// small enough for the core's L2 cache), cleared after each view through the words it touched.
+/// small enough for the core's L2 cache), one 64-bit word per brick of the grid's layout, cleared
+/// after each view through the words it touched. Marks::insert does not branch on the content:
+/// whether a ray's next cell is new follows no pattern a branch predictor learns, and a
+/// mispredicted branch per cell cost more than the ray's step.
 struct VisitedSet {
   std::vector<std::uint64_t> bits;
-  std::vector<std::uint32_t> touched;
+  std::vector<std::uint32_t> touched;  ///< the first n_touched: the words that are not zero
+  std::size_t n_touched = 0;
   void reset(std::size_t n) {
     const std::size_t words = (n + 63) / 64;
     if (bits.size() != words) {
       bits.assign(words, 0);
-      touched.clear();
+      touched.assign(words + 1, 0);  // + 1: insert writes one slot past the words it keeps
+      n_touched = 0;
     }
-    for (std::uint32_t w : touched) bits[w] = 0;
-    touched.clear();
+    for (std::size_t k = 0; k < n_touched; ++k) bits[touched[k]] = 0;
+    n_touched = 0;
   }
-  /// Marks cell i; true if it was not marked yet.
-  bool insert(std::size_t i) {
-    std::uint64_t& w = bits[i >> 6];
-    const std::uint64_t m = std::uint64_t(1) << (i & 63);
-    if (w & m) return false;
-    if (!w) touched.push_back(static_cast<std::uint32_t>(i >> 6));
-    w |= m;
-    return true;
-  }
+  /// A view's handle on the set, as raw pointers and a count: a utility holds one for its view
+  /// (marks() at the start, keep() at the end hands the count back), which lets the compiler keep
+  /// all three in registers while a ray walks, where the set's own members were reloaded at
+  /// every cell.
+  struct Marks {
+    std::uint64_t* bits;
+    std::uint32_t* touched;
+    std::size_t n_touched;
+    VisitedSet* set;
+    /// Marks cell i; true if it was not marked yet.
+    bool insert(std::size_t i) {
+      std::uint64_t& w = bits[i >> 6];
+      const std::uint64_t old = w, m = std::uint64_t(1) << (i & 63);
+      w = old | m;
+      touched[n_touched] = static_cast<std::uint32_t>(i >> 6);
+      n_touched += old == 0;
+      return (old & m) == 0;
+    }
+    void keep() const { set->n_touched = n_touched; }
+  };
+  Marks marks() { return {bits.data(), touched.data(), n_touched, this}; }
 };
+
+/// a + b where `m`, else a + 0.0 (the same value, a never being -0.0), without a branch.
+inline double add_if(double a, double b, bool m) {
+  std::uint64_t bits;
+  std::memcpy(&bits, &b, sizeof bits);
+  bits &= -std::uint64_t(m);
+  std::memcpy(&b, &bits, sizeof bits);
+  return a + b;
+}
 
 /// What a utility credited one cell with: its id, the direction bin (0..25) it was seen from
 /// (of cell -> camera), and the weight.
