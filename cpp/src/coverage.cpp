@@ -178,14 +178,20 @@ ViewCoverage view_coverage(
   };
   kernel::Job job{g, cand, current, camera, utility, validity, false, {}};
   job.on_view = [&](Eigen::Index k, const std::vector<utility::Credit>& credits) {
-    std::unordered_map<std::int64_t, float> best;  // element -> largest weight in this view
-    for (const auto& c : credits) {
-      float& w = best[c.cell * 2 + side_of(c.cell, c.bin)];
-      w = std::max(w, c.weight);
-    }
+    // (element, weight) sorted by element, each element once with its largest weight in the view
     auto& s = sets[std::size_t(k)];
-    s.assign(best.begin(), best.end());
+    s.clear();
+    s.reserve(credits.size());
+    for (const auto& c : credits) s.emplace_back(c.cell * 2 + side_of(c.cell, c.bin), c.weight);
     std::sort(s.begin(), s.end());
+    std::size_t m = 0;
+    for (std::size_t i = 0; i < s.size(); ++i) {
+      if (m && s[m - 1].first == s[i].first)
+        s[m - 1].second = s[i].second;  // sorted: the later weight is the larger
+      else
+        s[m++] = s[i];
+    }
+    s.resize(m);
   };
   const ViewScores scores = kernel::score<utility::Surface, true>(job, kernel::GridCells{g});
   ViewCoverage out;
@@ -258,18 +264,38 @@ CoverSelection select_tour(const ViewCoverage& cov, const PointsRef& positions,
   require_finite(positions, "candidate positions");
   if (!start.allFinite()) throw std::invalid_argument("select_tour: start is not finite");
   if (!(rate >= 0) || !std::isfinite(rate)) throw std::invalid_argument("rate must be >= 0");
-  // the candidates each element belongs to (inverse CSR), and every candidate's current gain
-  std::unordered_map<std::int64_t, std::vector<std::pair<Eigen::Index, float>>> holders;
+  // every candidate's current gain, and the candidates each element belongs to (inverse CSR:
+  // the distinct elements sorted, each with its holders in candidate order)
   std::vector<double> gain(static_cast<std::size_t>(K), 0.0);
+  std::vector<std::int64_t> entries;  // offsets into cov of the valid candidates' elements
   for (Eigen::Index k = 0; k < K; ++k) {
     if (cov.status[k] != 0) continue;
     for (std::int64_t o = cov.offsets[k]; o < cov.offsets[k + 1]; ++o) {
-      holders[cov.elements[o]].emplace_back(k, cov.weights[o]);
+      entries.push_back(o);
       gain[std::size_t(k)] += cov.weights[o];
     }
   }
-  std::unordered_map<std::int64_t, float> covered;
-  std::vector<Eigen::Vector3d> stops{start};  // the open tour: start, then the chosen views
+  std::stable_sort(entries.begin(), entries.end(), [&](std::int64_t a, std::int64_t b) {
+    return cov.elements[a] < cov.elements[b];
+  });
+  std::vector<std::int64_t> keys;     // distinct elements, ascending
+  std::vector<std::size_t> first{0};  // holders of keys[i]: entries[first[i], first[i + 1])
+  std::vector<Eigen::Index> holder(entries.size());
+  for (std::size_t i = 0; i < entries.size(); ++i) {
+    const std::int64_t e = cov.elements[entries[i]];
+    if (keys.empty() || keys.back() != e) {
+      if (!keys.empty()) first.push_back(i);
+      keys.push_back(e);
+    }
+    // the candidate owning entry o: the k with offsets[k] <= o < offsets[k + 1]
+    holder[i] =
+        Eigen::Index(std::upper_bound(cov.offsets.data(), cov.offsets.data() + K + 1, entries[i]) -
+                     cov.offsets.data()) -
+        1;
+  }
+  first.push_back(entries.size());
+  std::vector<float> covered(keys.size(), 0.0f);  // per distinct element: weight covered
+  std::vector<Eigen::Vector3d> stops{start};      // the open tour: start, then the chosen views
   std::vector<int> ids{-1};
   // best insertion cost of each candidate into the current tour (recomputed after each insert)
   std::vector<double> ins(static_cast<std::size_t>(K)), pos(static_cast<std::size_t>(K));
@@ -312,12 +338,15 @@ CoverSelection select_tour(const ViewCoverage& cov, const PointsRef& positions,
     out.gains.push_back(gain[std::size_t(best)]);
     // the chosen view's elements are covered now: every holder's gain shrinks accordingly
     for (std::int64_t o = cov.offsets[best]; o < cov.offsets[best + 1]; ++o) {
-      const std::int64_t e = cov.elements[o];
+      const std::size_t e =
+          std::size_t(std::lower_bound(keys.begin(), keys.end(), cov.elements[o]) - keys.begin());
       float& have = covered[e];
       const float now = std::max(have, cov.weights[o]);
       if (now == have) continue;
-      for (const auto& [k, w] : holders[e])
-        gain[std::size_t(k)] -= std::max(0.0f, w - have) - std::max(0.0f, w - now);
+      for (std::size_t i = first[e]; i < first[e + 1]; ++i) {
+        const float w = cov.weights[entries[i]];
+        gain[std::size_t(holder[i])] -= std::max(0.0f, w - have) - std::max(0.0f, w - now);
+      }
       have = now;
     }
   }
