@@ -267,31 +267,26 @@ CoverSelection select_tour(const ViewCoverage& cov, const PointsRef& positions,
   // every candidate's current gain, and the candidates each element belongs to (inverse CSR:
   // the distinct elements sorted, each with its holders in candidate order)
   std::vector<double> gain(static_cast<std::size_t>(K), 0.0);
-  std::vector<std::int64_t> entries;  // offsets into cov of the valid candidates' elements
+  // (offset into cov, candidate) of every valid candidate's elements
+  std::vector<std::pair<std::int64_t, Eigen::Index>> entries;
   for (Eigen::Index k = 0; k < K; ++k) {
     if (cov.status[k] != 0) continue;
     for (std::int64_t o = cov.offsets[k]; o < cov.offsets[k + 1]; ++o) {
-      entries.push_back(o);
+      entries.emplace_back(o, k);
       gain[std::size_t(k)] += cov.weights[o];
     }
   }
-  std::stable_sort(entries.begin(), entries.end(), [&](std::int64_t a, std::int64_t b) {
-    return cov.elements[a] < cov.elements[b];
+  std::stable_sort(entries.begin(), entries.end(), [&](const auto& a, const auto& b) {
+    return cov.elements[a.first] < cov.elements[b.first];
   });
   std::vector<std::int64_t> keys;     // distinct elements, ascending
   std::vector<std::size_t> first{0};  // holders of keys[i]: entries[first[i], first[i + 1])
-  std::vector<Eigen::Index> holder(entries.size());
   for (std::size_t i = 0; i < entries.size(); ++i) {
-    const std::int64_t e = cov.elements[entries[i]];
+    const std::int64_t e = cov.elements[entries[i].first];
     if (keys.empty() || keys.back() != e) {
       if (!keys.empty()) first.push_back(i);
       keys.push_back(e);
     }
-    // the candidate owning entry o: the k with offsets[k] <= o < offsets[k + 1]
-    holder[i] =
-        Eigen::Index(std::upper_bound(cov.offsets.data(), cov.offsets.data() + K + 1, entries[i]) -
-                     cov.offsets.data()) -
-        1;
   }
   first.push_back(entries.size());
   std::vector<float> covered(keys.size(), 0.0f);  // per distinct element: weight covered
@@ -344,8 +339,8 @@ CoverSelection select_tour(const ViewCoverage& cov, const PointsRef& positions,
       const float now = std::max(have, cov.weights[o]);
       if (now == have) continue;
       for (std::size_t i = first[e]; i < first[e + 1]; ++i) {
-        const float w = cov.weights[entries[i]];
-        gain[std::size_t(holder[i])] -= std::max(0.0f, w - have) - std::max(0.0f, w - now);
+        const float w = cov.weights[entries[i].first];
+        gain[std::size_t(entries[i].second)] -= std::max(0.0f, w - have) - std::max(0.0f, w - now);
       }
       have = now;
     }
