@@ -1,11 +1,19 @@
 // The PCL stages of symmetry detection and prediction: normals, keypoints (SIFT / ISS /
 // uniform), FPFH, nearest neighbours and ICP. Kept in its own translation unit: PCL's features,
 // keypoints and registration headers take ~15 s and ~1 GB to compile.
+//
+// The kd-tree searches are compiled here, not taken from libpcl_kdtree: Debian builds FLANN's
+// header-only search into that library with OpenMP, so every single-point query there opens an
+// OpenMP parallel region (one thread, but futex calls: ~600,000 per detection + prediction on
+// the airliner profile). Including the implementations instantiates the same FLANN tree and
+// search code, without OpenMP, in this unit (the same trees, neighbours and order): detection +
+// prediction 1.20 -> 0.63 s with identical results (bench/bench_symmetry.py --against).
 #include "nbv/parallel.hpp"
 #include "nbv/point_cloud.hpp"
 #include "nbv/symmetry.hpp"
 
-#include <pcl/features/fpfh_omp.h>
+#include <pcl/common/transforms.h>
+#include <pcl/features/fpfh.h>
 #include <pcl/features/normal_3d_omp.h>
 #include <pcl/filters/voxel_grid.h>
 #include <pcl/kdtree/kdtree_flann.h>
@@ -15,9 +23,13 @@
 #include <pcl/registration/correspondence_estimation.h>
 #include <pcl/registration/icp.h>
 #include <pcl/search/kdtree.h>
+#include <pcl/kdtree/impl/kdtree_flann.hpp>  // see the top of the file
+#include <pcl/search/impl/kdtree.hpp>        // see the top of the file
 
 #include <algorithm>
 #include <cmath>
+#include <cstdint>
+#include <cstring>
 #include <limits>
 #include <stdexcept>
 #include <unordered_map>
@@ -97,6 +109,44 @@ class ParallelCorrespondenceEstimation
   }
 };
 
+/// pcl::Registration::getFitnessScore(max_range) with the queries run in parallel: the mean
+/// squared distance from each transformed source point to its nearest target point, over those
+/// whose squared distance is at most max_range (PCL compares the square with max_range), summed
+/// in source order as PCL does, so the value is the same to the last bit.
+double fitness_score(const pcl::PointCloud<pcl::PointNormal>& source, const Eigen::Matrix4f& T,
+                     const pcl::search::KdTree<pcl::PointNormal>& tree, double max_range) {
+  pcl::PointCloud<pcl::PointNormal> moved;
+  pcl::transformPointCloud(source, moved, T);
+  std::vector<float> d2(moved.size());
+  parallel_chunks(moved.size(), 512, [&](std::size_t b, std::size_t e) {
+    pcl::Indices index(1);
+    std::vector<float> distance(1);
+    for (std::size_t i = b; i < e; ++i) {
+      tree.nearestKSearch(moved[i], 1, index, distance);
+      d2[i] = distance[0];
+    }
+  });
+  double sum = 0.0;
+  int nr = 0;
+  for (const float d : d2)
+    if (d <= max_range) {
+      sum += d;
+      ++nr;
+    }
+  return nr > 0 ? sum / nr : std::numeric_limits<double>::max();
+}
+
+std::uint32_t float_bits(float f) {
+  std::uint32_t u;
+  std::memcpy(&u, &f, sizeof u);
+  return u;
+}
+float bits_float(std::uint32_t u) {
+  float f;
+  std::memcpy(&f, &u, sizeof f);
+  return f;
+}
+
 /// 3D SIFT keypoints with the curvature as intensity: pcl::SIFTKeypoint<PointNormal, ...>'s
 /// algorithm (PCL 1.13, keypoints/impl/sift_keypoint.hpp) with its per-point loops run in
 /// parallel. Every point's filter responses and extremum test are the same float operations on
@@ -117,7 +167,10 @@ std::vector<Eigen::Vector3f> sift_keypoints(const pcl::PointCloud<pcl::PointNorm
     voxel_grid.filter(*temp);
     cloud = temp;
     if (cloud->size() < 25) break;
-    pcl::search::KdTree<pcl::PointNormal> tree(true);  // sorted results, as PCL's SIFT
+    // PCL's SIFT searches sorted: FLANN sorts each radius search by (squared distance, index).
+    // This one searches unsorted and sorts the same pairs packed into 64-bit keys (a
+    // non-negative float's bits order as its value), the same order, about twice as fast.
+    pcl::search::KdTree<pcl::PointNormal> tree(false);
     tree.setInputCloud(cloud);
     const auto& pts = *cloud;
     const std::size_t n = pts.size();
@@ -134,16 +187,28 @@ std::vector<Eigen::Vector3f> sift_keypoints(const pcl::PointCloud<pcl::PointNorm
     parallel_chunks(n, 64, [&](std::size_t b, std::size_t e) {
       pcl::Indices nn;
       std::vector<float> d2;
+      std::vector<std::uint64_t> keys;
+      std::vector<float> dist, curv;
       for (std::size_t i = b; i < e; ++i) {
         tree.radiusSearch(static_cast<pcl::index_t>(i), max_radius, nn, d2);
+        keys.resize(nn.size());
+        for (std::size_t j = 0; j < nn.size(); ++j)
+          keys[j] = (std::uint64_t(float_bits(d2[j])) << 32) | std::uint32_t(nn[j]);
+        std::sort(keys.begin(), keys.end());
+        dist.resize(keys.size());
+        curv.resize(keys.size());
+        for (std::size_t j = 0; j < keys.size(); ++j) {
+          dist[j] = bits_float(std::uint32_t(keys[j] >> 32));
+          curv[j] = pts[static_cast<std::size_t>(keys[j] & 0xffffffffu)].curvature;
+        }
         float response = 0.0f;
         for (std::size_t k = 0; k < scales.size(); ++k) {
           const float sigma_sqr = powf(scales[k], 2.0f);
           float num = 0.0f, den = 0.0f;
-          for (std::size_t j = 0; j < nn.size(); ++j) {
-            const float value = pts[static_cast<std::size_t>(nn[j])].curvature;
-            if (d2[j] <= 9 * sigma_sqr) {
-              const float w = std::exp(-0.5f * d2[j] / sigma_sqr);
+          for (std::size_t j = 0; j < dist.size(); ++j) {
+            const float value = curv[j];
+            if (dist[j] <= 9 * sigma_sqr) {
+              const float w = std::exp(-0.5f * dist[j] / sigma_sqr);
               num += value * w;
               den += w;
             } else {
@@ -168,6 +233,18 @@ std::vector<Eigen::Vector3f> sift_keypoints(const pcl::PointCloud<pcl::PointNorm
       std::vector<float> d2(k);
       std::vector<float> lo(static_cast<std::size_t>(nr)), hi(static_cast<std::size_t>(nr));
       for (std::size_t i = b; i < e; ++i) {
+        // A point is among its own 25 nearest (a voxel-grid cloud has at most 8 coincident
+        // points), so lo and hi bound its own responses: it can only be an extremum at a scale
+        // where it has the contrast and is beyond both adjacent scales' responses. Most points
+        // are not, and are not searched (the same keypoints, ~2x fewer searches).
+        const auto ii = static_cast<Eigen::Index>(i);
+        bool candidate = false;
+        for (int sc = 1; sc < nr - 1 && !candidate; ++sc) {
+          const float val = dog(ii, sc), below = dog(ii, sc - 1), above = dog(ii, sc + 1);
+          candidate = std::abs(val) >= min_contrast && ((!(val >= below) && !(val >= above)) ||
+                                                        (!(val <= below) && !(val <= above)));
+        }
+        if (!candidate) continue;
         const std::size_t m = tree.nearestKSearch(static_cast<pcl::index_t>(i), k, nn, d2);
         for (int sc = 0; sc < nr; ++sc) {
           lo[sc] = std::numeric_limits<float>::max();
@@ -290,24 +367,68 @@ std::vector<int> detect_keypoints(const PointsRef& points, const NormalsAndCurva
 
 Fpfh compute_fpfh(const PointsRef& points, const Points& normals, const std::vector<int>& indices,
                   double radius) {
+  // pcl::FPFHEstimationOMP::computeFeature (PCL 1.13, features/impl/fpfh_omp.hpp) in TBB, with
+  // PCL's own SPFH and weighting functions. An SPFH adds the same increment, 100 / (n - 1), to
+  // its bins once per neighbour, so it does not depend on the neighbours' order, and neither does
+  // the set of points that need one: those two steps search unsorted. The weighting sums floats
+  // in the order of the neighbours, so it searches sorted, as PCL does. The descriptors are the
+  // same to the last bit.
   Fpfh out(static_cast<Eigen::Index>(indices.size()), 33);
   if (indices.empty()) return out;
   auto cloud = to_pcl(points);
   auto nrm = to_pcl<pcl::Normal>(nullptr, &normals);
-  pcl::FPFHEstimationOMP<pcl::PointXYZ, pcl::Normal, pcl::FPFHSignature33> fpfh(
-      static_cast<unsigned>(threads()));
-  fpfh.setInputCloud(cloud);
-  fpfh.setInputNormals(nrm);
-  fpfh.setIndices(pcl::make_shared<pcl::Indices>(indices.begin(), indices.end()));
-  fpfh.setSearchMethod(pcl::make_shared<pcl::search::KdTree<pcl::PointXYZ>>());
-  fpfh.setRadiusSearch(radius);
-  pcl::PointCloud<pcl::FPFHSignature33> desc;
-  fpfh.compute(desc);
-  if (desc.size() != indices.size())
-    throw std::runtime_error("FPFH returned " + std::to_string(desc.size()) + " descriptors for " +
-                             std::to_string(indices.size()) + " keypoints");
-  for (std::size_t i = 0; i < desc.size(); ++i)
-    for (int b = 0; b < 33; ++b) out(static_cast<Eigen::Index>(i), b) = desc[i].histogram[b];
+  pcl::search::KdTree<pcl::PointXYZ> tree(false);
+  tree.setInputCloud(cloud);
+  using Estimation = pcl::FPFHEstimation<pcl::PointXYZ, pcl::Normal, pcl::FPFHSignature33>;
+
+  // 1. The points whose SPFH is needed: every neighbour of a keypoint (ascending, unique).
+  std::vector<int> need;
+  {
+    std::vector<char> mark(cloud->size(), 0);
+    pcl::Indices nn;
+    std::vector<float> d2;
+    for (const int i : indices)
+      if (tree.radiusSearch((*cloud)[static_cast<std::size_t>(i)], radius, nn, d2) > 0)
+        for (const auto j : nn) mark[static_cast<std::size_t>(j)] = 1;
+    for (std::size_t j = 0; j < mark.size(); ++j)
+      if (mark[j]) need.push_back(static_cast<int>(j));
+  }
+
+  // 2. Their SPFH signatures (11 bins per feature, PCL's default), one row each.
+  const auto m = static_cast<Eigen::Index>(need.size());
+  Eigen::MatrixXf h1 = Eigen::MatrixXf::Zero(m, 11), h2 = Eigen::MatrixXf::Zero(m, 11),
+                  h3 = Eigen::MatrixXf::Zero(m, 11);
+  std::vector<int> row(cloud->size(), 0);
+  parallel_chunks(need.size(), 32, [&](std::size_t b, std::size_t e) {
+    Estimation local;
+    pcl::Indices nn;
+    std::vector<float> d2;
+    for (std::size_t r = b; r < e; ++r) {
+      const int p = need[r];
+      row[static_cast<std::size_t>(p)] = static_cast<int>(r);
+      if (tree.radiusSearch((*cloud)[static_cast<std::size_t>(p)], radius, nn, d2) == 0) continue;
+      local.computePointSPFHSignature(*cloud, *nrm, p, static_cast<int>(r), nn, h1, h2, h3);
+    }
+  });
+
+  // 3. Each keypoint's FPFH: its neighbours' SPFH weighted by 1 / squared distance.
+  tree.setSortedResults(true);
+  parallel_chunks(indices.size(), 8, [&](std::size_t b, std::size_t e) {
+    Estimation local;
+    pcl::Indices nn;
+    std::vector<float> d2;
+    Eigen::VectorXf hist;
+    for (std::size_t k = b; k < e; ++k) {
+      const auto ki = static_cast<Eigen::Index>(k);
+      if (tree.radiusSearch((*cloud)[static_cast<std::size_t>(indices[k])], radius, nn, d2) == 0) {
+        out.row(ki).setConstant(std::numeric_limits<float>::quiet_NaN());
+        continue;
+      }
+      for (auto& j : nn) j = row[static_cast<std::size_t>(j)];
+      local.weightPointSPFHSignature(h1, h2, h3, nn, d2, hist);
+      for (int c = 0; c < 33; ++c) out(ki, c) = hist[c];
+    }
+  });
   return out;
 }
 
@@ -316,11 +437,16 @@ IcpResult icp(const PointsRef& source, const Points& source_normals, const Point
   IcpResult r;
   auto src = to_pcl<pcl::PointNormal>(&source, &source_normals);
   auto tgt = to_pcl<pcl::PointNormal>(&target, &target_normals);
+  // The target's tree, built once: PCL would build it in Registration::initCompute and again in
+  // the correspondence estimation's first call (the same tree both times).
+  auto tree = pcl::make_shared<pcl::search::KdTree<pcl::PointNormal>>();
+  tree->setInputCloud(tgt);
   pcl::PointCloud<pcl::PointNormal> aligned;
   auto run = [&](pcl::IterativeClosestPoint<pcl::PointNormal, pcl::PointNormal>& icp) {
     icp.setCorrespondenceEstimation(pcl::make_shared<ParallelCorrespondenceEstimation>());
     icp.setInputSource(src);
     icp.setInputTarget(tgt);
+    icp.setSearchMethodTarget(tree, true);
     icp.setMaxCorrespondenceDistance(o.icp_max_correspondence);
     icp.setTransformationEpsilon(o.icp_transformation_epsilon);
     icp.setEuclideanFitnessEpsilon(o.icp_fitness_epsilon);
@@ -328,7 +454,7 @@ IcpResult icp(const PointsRef& source, const Points& source_normals, const Point
     icp.align(aligned);
     r.converged = icp.hasConverged();
     r.transform = icp.getFinalTransformation().cast<double>();
-    r.fitness = icp.getFitnessScore(o.icp_max_correspondence);
+    r.fitness = fitness_score(*src, icp.getFinalTransformation(), *tree, o.icp_max_correspondence);
   };
   if (o.icp_point_to_plane) {
     pcl::IterativeClosestPointWithNormals<pcl::PointNormal, pcl::PointNormal> icp;
