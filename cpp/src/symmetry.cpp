@@ -717,11 +717,12 @@ SymmetricPrediction predict_symmetric(const PointsRef& points, const Eigen::Vect
 
   if (o.icp) {
     const Points D = o.icp_voxel_size > 0 ? voxelgrid_sampling(Pc, o.icp_voxel_size) : Pc;
-    const auto nc = detail::estimate_normals(D, o.icp_normal_k, 0.0);
+    detail::IcpTarget target(D);
+    const auto nc = target.estimate_normals(o.icp_normal_k);
     sw.lap("normals");
     const Points src = reflect_points(D, pl);
     const Points src_n = reflect_normals(nc.normals, pl.head<3>());
-    const detail::IcpResult r = detail::icp(src, src_n, D, nc.normals, o);
+    const detail::IcpResult r = target.align(src, src_n, o);
     sw.lap("icp");
     res.icp_converged = r.converged;
     res.icp_fitness = r.fitness;

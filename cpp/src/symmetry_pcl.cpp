@@ -291,26 +291,17 @@ std::vector<int> snap(const pcl::KdTreeFLANN<pcl::PointXYZ>& tree,
 
 }  // namespace
 
-NormalsAndCurvature estimate_normals(const PointsRef& points, int k, double radius) {
+namespace {
+
+/// PCL's normals of `points` oriented away from their centroid, as NormalsAndCurvature.
+NormalsAndCurvature oriented(const PointsRef& points, const pcl::PointCloud<pcl::Normal>& normals) {
   NormalsAndCurvature out;
   const Eigen::Index n = points.rows();
   out.normals.setZero(n, 3);
   out.curvature.setZero(n);
-  if (n == 0) return out;
-  auto cloud = to_pcl(points);
-  pcl::NormalEstimationOMP<pcl::PointXYZ, pcl::Normal> ne(static_cast<unsigned>(threads()));
-  ne.setInputCloud(cloud);
-  auto tree = pcl::make_shared<pcl::search::KdTree<pcl::PointXYZ>>();
-  ne.setSearchMethod(tree);
-  if (radius > 0)
-    ne.setRadiusSearch(radius);
-  else
-    ne.setKSearch(std::min<int>(k, static_cast<int>(n)));
-  pcl::PointCloud<pcl::Normal> normals;
-  ne.compute(normals);
   const Eigen::Vector3d c = points.colwise().mean().transpose();
   for (Eigen::Index i = 0; i < n; ++i) {
-    const auto& q = normals[i];
+    const auto& q = normals[static_cast<std::size_t>(i)];
     Eigen::Vector3d v(q.normal_x, q.normal_y, q.normal_z);
     if (!v.allFinite() || v.norm() < 1e-6) continue;  // left zero: FPFH skips zero normals
     v.normalize();
@@ -320,6 +311,33 @@ NormalsAndCurvature estimate_normals(const PointsRef& points, int k, double radi
     out.curvature[i] = std::isfinite(q.curvature) ? q.curvature : 0.0;
   }
   return out;
+}
+
+/// pcl::NormalEstimationOMP of `cloud` through `tree` (built on it): K nearest, or a radius.
+template <typename PointT>
+pcl::PointCloud<pcl::Normal> pcl_normals(const typename pcl::PointCloud<PointT>::Ptr& cloud,
+                                         const typename pcl::search::KdTree<PointT>::Ptr& tree,
+                                         int k, double radius) {
+  pcl::NormalEstimationOMP<PointT, pcl::Normal> ne(static_cast<unsigned>(threads()));
+  ne.setInputCloud(cloud);
+  ne.setSearchMethod(tree);
+  if (radius > 0)
+    ne.setRadiusSearch(radius);
+  else
+    ne.setKSearch(std::min<int>(k, static_cast<int>(cloud->size())));
+  pcl::PointCloud<pcl::Normal> normals;
+  ne.compute(normals);
+  return normals;
+}
+
+}  // namespace
+
+NormalsAndCurvature estimate_normals(const PointsRef& points, int k, double radius) {
+  if (points.rows() == 0) return oriented(points, {});
+  auto cloud = to_pcl(points);
+  auto tree = pcl::make_shared<pcl::search::KdTree<pcl::PointXYZ>>();
+  tree->setInputCloud(cloud);
+  return oriented(points, pcl_normals<pcl::PointXYZ>(cloud, tree, k, radius));
 }
 
 std::vector<int> detect_keypoints(const PointsRef& points, const NormalsAndCurvature& nc,
@@ -432,21 +450,50 @@ Fpfh compute_fpfh(const PointsRef& points, const Points& normals, const std::vec
   return out;
 }
 
-IcpResult icp(const PointsRef& source, const Points& source_normals, const PointsRef& target,
-              const Points& target_normals, const SymmetricPredictionOptions& o) {
+struct IcpTarget::Impl {
+  Points points;
+  pcl::PointCloud<pcl::PointNormal>::Ptr cloud;
+  pcl::search::KdTree<pcl::PointNormal>::Ptr tree;
+};
+
+IcpTarget::IcpTarget(const PointsRef& points) : impl_(std::make_unique<Impl>()) {
+  impl_->points = points;
+  const Points zero = Points::Zero(points.rows(), 3);
+  impl_->cloud = to_pcl<pcl::PointNormal>(&points, &zero);
+  impl_->tree = pcl::make_shared<pcl::search::KdTree<pcl::PointNormal>>();
+  if (points.rows() > 0) impl_->tree->setInputCloud(impl_->cloud);
+}
+
+IcpTarget::~IcpTarget() = default;
+
+NormalsAndCurvature IcpTarget::estimate_normals(int k) {
+  const Points& p = impl_->points;
+  if (p.rows() == 0) return oriented(p, {});
+  NormalsAndCurvature nc =
+      oriented(p, pcl_normals<pcl::PointNormal>(impl_->cloud, impl_->tree, k, 0.0));
+  // The target's normals as align() uses them (as to_pcl writes them: float, curvature 0).
+  for (Eigen::Index i = 0; i < p.rows(); ++i) {
+    auto& q = (*impl_->cloud)[static_cast<std::size_t>(i)];
+    q.normal_x = float(nc.normals(i, 0));
+    q.normal_y = float(nc.normals(i, 1));
+    q.normal_z = float(nc.normals(i, 2));
+    q.curvature = 0.f;
+  }
+  return nc;
+}
+
+IcpResult IcpTarget::align(const PointsRef& source, const Points& source_normals,
+                           const SymmetricPredictionOptions& o) {
   IcpResult r;
   auto src = to_pcl<pcl::PointNormal>(&source, &source_normals);
-  auto tgt = to_pcl<pcl::PointNormal>(&target, &target_normals);
-  // The target's tree, built once: PCL would build it in Registration::initCompute and again in
-  // the correspondence estimation's first call (the same tree both times).
-  auto tree = pcl::make_shared<pcl::search::KdTree<pcl::PointNormal>>();
-  tree->setInputCloud(tgt);
+  const auto& tgt = impl_->cloud;
+  const auto& tree = impl_->tree;
   pcl::PointCloud<pcl::PointNormal> aligned;
   auto run = [&](pcl::IterativeClosestPoint<pcl::PointNormal, pcl::PointNormal>& icp) {
     icp.setCorrespondenceEstimation(pcl::make_shared<ParallelCorrespondenceEstimation>());
     icp.setInputSource(src);
     icp.setInputTarget(tgt);
-    icp.setSearchMethodTarget(tree, true);
+    icp.setSearchMethodTarget(tree, true);  // built on tgt, which keeps its points
     icp.setMaxCorrespondenceDistance(o.icp_max_correspondence);
     icp.setTransformationEpsilon(o.icp_transformation_epsilon);
     icp.setEuclideanFitnessEpsilon(o.icp_fitness_epsilon);

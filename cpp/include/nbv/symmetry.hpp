@@ -308,8 +308,25 @@ struct IcpResult {
   bool converged = false;
   double fitness = std::numeric_limits<double>::quiet_NaN();
 };
-IcpResult icp(const PointsRef& source, const Points& source_normals, const PointsRef& target,
-              const Points& target_normals, const SymmetricPredictionOptions& options);
+/// The target of predict_symmetric's ICP: a PCL cloud of `points` and its FLANN tree, built once
+/// for the target's normals and for every correspondence search of the alignment (PCL would
+/// build the same tree three times).
+class IcpTarget {
+ public:
+  explicit IcpTarget(const PointsRef& points);
+  ~IcpTarget();
+  IcpTarget(const IcpTarget&) = delete;
+  IcpTarget& operator=(const IcpTarget&) = delete;
+  /// estimate_normals(points, k, 0), kept as the target's normals for align().
+  NormalsAndCurvature estimate_normals(int k);
+  /// Point-to-plane (or point-to-point) ICP of `source` onto the target.
+  IcpResult align(const PointsRef& source, const Points& source_normals,
+                  const SymmetricPredictionOptions& options);
+
+ private:
+  struct Impl;
+  std::unique_ptr<Impl> impl_;
+};
 }  // namespace detail
 
 }  // namespace nbv
