@@ -172,6 +172,24 @@ def test_a_kept_run_of_another_configuration_or_mesh_is_flown_again(tmp_path):
     assert fly() != again  # the same path, another file: flown again
 
 
+def test_ctrl_c_keeps_a_run_that_finished_before_its_row_arrived(tmp_path, monkeypatch):
+    """A worker can finish a run (its folder in place) just before Ctrl-C reaches the parent,
+    which has not yet received the row: the partial table must still hold that run."""
+    import nbvkit.experiments as ex
+
+    specs = [RunSpec("1", k, overrides=TINY) for k in (0, 1)]
+
+    def pool(specs, root, n, ncpu, rows, progress):  # the first run finishes, its row is lost
+        ex.run_one(specs[0], root)
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(ex, "_run_pool", pool)
+    with pytest.raises(ex.Interrupted) as e:
+        run_specs(specs, tmp_path, workers=2, progress=False)
+    assert [r["run_id"] for r in e.value.rows] == [specs[0].run_id]
+    assert e.value.total == 2
+
+
 def test_sweep_on_a_local_dask_cluster(tmp_path):
     distributed = pytest.importorskip("distributed")
     with distributed.LocalCluster(

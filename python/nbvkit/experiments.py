@@ -77,16 +77,11 @@ class RunSpec:
 def run_one(spec: RunSpec, root: str | os.PathLike, threads: int = 0) -> dict:
     """Runs one spec into ``root/runs/<run_id>`` unless it is already there; returns its row."""
     from . import set_num_threads
-    from .config import _has_dotted
     from .mission import Mission
 
     root = Path(root)
     final = root / "runs" / spec.run_id
-    cfg = spec.config()
-    if not _has_dotted(cfg._user, "report.poisson_depth"):
-        # sweeps: a cheaper mesh per run (a look, not a result) unless the user set it
-        cfg = cfg.with_overrides([f"report.poisson_depth={SWEEP_POISSON_DEPTH}"])
-    mesh_sha1 = _mesh_digest(cfg)
+    cfg, mesh_sha1 = _resolved(spec)
     if not _finished_with(final, cfg, mesh_sha1):
         set_num_threads(threads)
         tmp = root / "runs" / f".{spec.run_id}.tmp{os.getpid()}"
@@ -109,6 +104,31 @@ def run_one(spec: RunSpec, root: str | os.PathLike, threads: int = 0) -> dict:
         except OSError:  # another worker finished the same run first
             shutil.rmtree(tmp, ignore_errors=True)
     return row_of(final)
+
+
+def _resolved(spec: RunSpec):
+    """The configuration a spec runs with, and the SHA-1 of its mesh file (see _finished_with)."""
+    from .config import _has_dotted
+
+    cfg = spec.config()
+    if not _has_dotted(cfg._user, "report.poisson_depth"):
+        # sweeps: a cheaper mesh per run (a look, not a result) unless the user set it
+        cfg = cfg.with_overrides([f"report.poisson_depth={SWEEP_POISSON_DEPTH}"])
+    return cfg, _mesh_digest(cfg)
+
+
+def _finished_rows(specs: list[RunSpec], root: Path, rows: list) -> None:
+    """Fills the rows still missing from the run folders already finished on disk: a worker can
+    finish a run (its folder renamed into place) just before Ctrl-C reaches the parent, which
+    has then not yet received its row."""
+    for i, spec in enumerate(specs):
+        final = root / "runs" / spec.run_id
+        if rows[i] is None and final.is_dir():
+            try:
+                if _finished_with(final, *_resolved(spec)):
+                    rows[i] = row_of(final)
+            except (OSError, ValueError, KeyError):
+                pass  # unreadable: left for the next start to run again
 
 
 def _finished_with(run_dir: Path, cfg, mesh_sha1: str | None) -> bool:
@@ -288,6 +308,7 @@ def run_specs(
         else:
             _run_pool(specs, root, min(workers or ncpu, len(specs)), ncpu, rows, progress)
     except KeyboardInterrupt:
+        _finished_rows(specs, root, rows)
         raise Interrupted([r for r in rows if r is not None], len(specs)) from None
     return rows
 
