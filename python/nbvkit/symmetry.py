@@ -308,7 +308,12 @@ def plot_symmetry(
     )
     P, M, A, E = (_subsample(x, max_points) for x in (prof, mirrored, aligned, added))
 
-    fig, axes = plt.subplots(1, 5, figsize=(22, 4.8), constrained_layout=True)
+    # Fixed margins: a constrained layout would draw every panel once more to measure it (0.3 s
+    # of the 0.45 s this figure took on the airliner's profile).
+    fig, axes = plt.subplots(1, 5, figsize=(22, 4.8))
+    fig.subplots_adjust(
+        left=0.035, right=0.995, bottom=0.1, top=0.86 if title else 0.93, wspace=0.12
+    )
     both = np.vstack([x for x in (P, M, A, E) if len(x)]) if len(P) else np.zeros((1, 3))
     lo, hi = both[:, :2].min(0) - 1.0, both[:, :2].max(0) + 1.0
 
