@@ -131,31 +131,62 @@ Scan DepthCamera::scan(const Eigen::Isometry3d& T) const {
   Scan out;
   out.origin = o;
   out.depth.setConstant(H, W, kInf);
+  // 1. Each ray's outcome (tile order, as traced): 1 a return at depth z (kept in `depth`),
+  // 2 nothing within max depth (a free ray to the far plane), 0 a return out of range.
   std::vector<std::uint8_t> state(static_cast<std::size_t>(n), 0);
-  std::vector<Eigen::Vector3d> pts(static_cast<std::size_t>(n));
   parallel_chunks(static_cast<std::size_t>(n), 4096, [&](std::size_t b, std::size_t e) {
     for (std::size_t k = b; k < e; ++k) {
       const Eigen::Index p = tile_to_pixel_[static_cast<Eigen::Index>(k)];
-      const double cx = dirs_(p, 0);  // cosine to the optical axis
-      const Eigen::Vector3d dw = R * dirs_.row(p).transpose();
       const double tk = t[static_cast<Eigen::Index>(k)];
-      if (!std::isfinite(tk)) {  // nothing within max depth: free ray to the far plane
+      if (!std::isfinite(tk)) {
         state[p] = 2;
-        pts[p] = o + dw * (opt_.max_range / cx);
         continue;
       }
-      double z = tk * cx;
+      double z = tk * dirs_(p, 0);  // dirs_(p, 0): the cosine to the optical axis
       if (opt_.noise_k > 0)
         z += opt_.noise_k * z * z * counter_normal(opt_.seed, frame, static_cast<std::uint64_t>(p));
       // no valid return outside [min, max] depth (a relative 1e-9 tolerance keeps a surface
       // exactly at a limit, whose depth rounds to a hair beyond it, in range)
       if (z < opt_.min_range * (1 - 1e-9) || z > opt_.max_range * (1 + 1e-9)) continue;
       state[p] = 1;
-      pts[p] = o + dw * (z / cx);
       out.depth(p / W, p % W) = z;
     }
   });
-  compact(state, pts, out);
+  // 2. The end points in pixel order, written in parallel: each block of pixels counts its hits
+  // and free rays, and writes from its offset (the order of a serial gather, deterministic).
+  const std::size_t block = 8192, nb = (static_cast<std::size_t>(n) + block - 1) / block;
+  std::vector<Eigen::Index> first_hit(nb + 1, 0), first_free(nb + 1, 0);
+  parallel_chunks(nb, 1, [&](std::size_t bb, std::size_t be) {
+    for (std::size_t b = bb; b < be; ++b)
+      for (std::size_t p = b * block, e = std::min<std::size_t>(n, p + block); p < e; ++p) {
+        first_hit[b + 1] += state[p] == 1;
+        first_free[b + 1] += state[p] == 2;
+      }
+  });
+  for (std::size_t b = 0; b < nb; ++b) {
+    first_hit[b + 1] += first_hit[b];
+    first_free[b + 1] += first_free[b];
+  }
+  out.hits.resize(first_hit[nb], 3);
+  out.free_ends.resize(first_free[nb], 3);
+  out.hit_rays.resize(first_hit[nb]);
+  parallel_chunks(nb, 1, [&](std::size_t bb, std::size_t be) {
+    for (std::size_t b = bb; b < be; ++b) {
+      Eigen::Index ih = first_hit[b], jf = first_free[b];
+      for (std::size_t p = b * block, e = std::min<std::size_t>(n, p + block); p < e; ++p) {
+        if (!state[p]) continue;
+        const auto pi = static_cast<Eigen::Index>(p);
+        const double cx = dirs_(pi, 0);
+        const Eigen::Vector3d dw = R * dirs_.row(pi).transpose();
+        if (state[p] == 1) {
+          out.hits.row(ih) = o + dw * (out.depth(pi / W, pi % W) / cx);
+          out.hit_rays[ih++] = static_cast<int>(p);
+        } else {
+          out.free_ends.row(jf++) = o + dw * (opt_.max_range / cx);
+        }
+      }
+    }
+  });
   return out;
 }
 
