@@ -31,8 +31,6 @@
 #include <cstdint>
 #include <cstring>
 #include <limits>
-#include <stdexcept>
-#include <unordered_map>
 
 namespace nbv::detail {
 namespace {
