@@ -5,9 +5,11 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 #include <queue>
 #include <stdexcept>
 #include <unordered_map>
+#include <utility>
 
 namespace nbv {
 
@@ -255,6 +257,72 @@ CoverSelection select_cover(const ViewCoverage& cov, double min_gain, int max_vi
   return out;
 }
 
+namespace {
+
+int bit_width(std::uint64_t x) { return x ? 64 - __builtin_clzll(x) : 0; }
+
+/// The inverse of a coverage: its distinct elements ascending, and the offsets into it of each
+/// one's holders, in candidate order.
+struct Holders {
+  std::vector<std::int64_t> keys;  ///< the distinct elements, ascending
+  std::vector<std::size_t> first;  ///< holders of keys[i]: offsets[first[i], first[i + 1])
+  std::vector<std::uint64_t> offsets;
+};
+
+/// The holders of the `held` elements whose owner is >= 0 (elements in [lo, hi]): a stable LSD
+/// radix sort on the element's bits of keys packed as (element - lo, offset), the offsets being
+/// in order already.
+Holders holders_of(const ViewCoverage& cov, const std::vector<std::int32_t>& owner,
+                   std::size_t held, std::int64_t lo, std::int64_t hi) {
+  Holders h;
+  std::vector<std::uint64_t>& a = h.offsets;
+  a.reserve(held);
+  const std::size_t total = owner.size();
+  const int ob = bit_width(total), eb = bit_width(std::uint64_t(hi) - std::uint64_t(lo));
+  auto add = [&](std::int64_t e, std::size_t i) {
+    if (h.keys.empty() || h.keys.back() != e) {
+      h.keys.push_back(e);
+      h.first.push_back(i);
+    }
+  };
+  if (held == 0 || ob + eb > 64) {  // (too wide to pack: a comparison sort, the same order)
+    for (std::size_t o = 0; o < total; ++o)
+      if (owner[o] >= 0) a.push_back(o);
+    std::stable_sort(a.begin(), a.end(), [&](std::uint64_t x, std::uint64_t y) {
+      return cov.elements[Eigen::Index(x)] < cov.elements[Eigen::Index(y)];
+    });
+    for (std::size_t i = 0; i < a.size(); ++i) add(cov.elements[Eigen::Index(a[i])], i);
+    h.first.push_back(a.size());
+    return h;
+  }
+  for (std::size_t o = 0; o < total; ++o)
+    if (owner[o] >= 0)
+      a.push_back((std::uint64_t(cov.elements[Eigen::Index(o)]) - std::uint64_t(lo)) << ob | o);
+  constexpr int kDigit = 11;
+  const std::uint64_t mask = (std::uint64_t(1) << kDigit) - 1;
+  std::vector<std::size_t> count(std::size_t(1) << kDigit);
+  std::vector<std::uint64_t> b;
+  b.reserve(held);
+  for (int shift = ob; shift < ob + eb; shift += kDigit) {
+    std::fill(count.begin(), count.end(), 0);
+    for (const std::uint64_t x : a) ++count[(x >> shift) & mask];
+    std::size_t sum = 0;
+    for (std::size_t& c : count) sum += std::exchange(c, sum);
+    b.resize(held);  // (written whole below)
+    for (const std::uint64_t x : a) b[count[(x >> shift) & mask]++] = x;
+    a.swap(b);
+  }
+  const std::uint64_t low = (std::uint64_t(1) << ob) - 1;
+  for (std::size_t i = 0; i < held; ++i) {
+    add(std::int64_t(a[i] >> ob) + lo, i);
+    a[i] &= low;
+  }
+  h.first.push_back(held);
+  return h;
+}
+
+}  // namespace
+
 CoverSelection select_tour(const ViewCoverage& cov, const PointsRef& positions,
                            const Eigen::Vector3d& start, double rate, double min_gain,
                            int max_views, bool charge_transit) {
@@ -264,73 +332,117 @@ CoverSelection select_tour(const ViewCoverage& cov, const PointsRef& positions,
   require_finite(positions, "candidate positions");
   if (!start.allFinite()) throw std::invalid_argument("select_tour: start is not finite");
   if (!(rate >= 0) || !std::isfinite(rate)) throw std::invalid_argument("rate must be >= 0");
+  if (K > std::numeric_limits<std::int32_t>::max())
+    throw std::invalid_argument("select_tour: too many candidates");
   // every candidate's current gain, and the candidates each element belongs to (inverse CSR:
-  // the distinct elements sorted, each with its holders in candidate order)
+  // the distinct elements ascending, each with its holders in candidate order)
   std::vector<double> gain(static_cast<std::size_t>(K), 0.0);
-  // (offset into cov, candidate) of every valid candidate's elements
-  std::vector<std::pair<std::int64_t, Eigen::Index>> entries;
+  const std::int64_t total = K ? cov.offsets[K] : 0;
+  std::vector<std::int32_t> owner(static_cast<std::size_t>(total), -1);  // offset -> candidate
+  std::int64_t lo = std::numeric_limits<std::int64_t>::max(),            // the elements' range
+      hi = std::numeric_limits<std::int64_t>::min();
+  std::size_t held = 0;
   for (Eigen::Index k = 0; k < K; ++k) {
     if (cov.status[k] != 0) continue;
     for (std::int64_t o = cov.offsets[k]; o < cov.offsets[k + 1]; ++o) {
-      entries.emplace_back(o, k);
+      owner[std::size_t(o)] = std::int32_t(k);
       gain[std::size_t(k)] += cov.weights[o];
+      lo = std::min(lo, cov.elements[o]);
+      hi = std::max(hi, cov.elements[o]);
+      ++held;
     }
   }
-  std::stable_sort(entries.begin(), entries.end(), [&](const auto& a, const auto& b) {
-    return cov.elements[a.first] < cov.elements[b.first];
-  });
-  std::vector<std::int64_t> keys;     // distinct elements, ascending
-  std::vector<std::size_t> first{0};  // holders of keys[i]: entries[first[i], first[i + 1])
-  for (std::size_t i = 0; i < entries.size(); ++i) {
-    const std::int64_t e = cov.elements[entries[i].first];
-    if (keys.empty() || keys.back() != e) {
-      if (!keys.empty()) first.push_back(i);
-      keys.push_back(e);
-    }
-  }
-  first.push_back(entries.size());
+  const Holders holders = holders_of(cov, owner, held, lo, hi);
+  const std::vector<std::int64_t>& keys = holders.keys;
+  const std::vector<std::size_t>& first = holders.first;
+  const std::vector<std::uint64_t>& hold = holders.offsets;
   std::vector<float> covered(keys.size(), 0.0f);  // per distinct element: weight covered
   std::vector<Eigen::Vector3d> stops{start};      // the open tour: start, then the chosen views
   std::vector<int> ids{-1};
-  // best insertion cost of each candidate into the current tour (recomputed after each insert)
-  std::vector<double> ins(static_cast<std::size_t>(K)), pos(static_cast<std::size_t>(K));
-  std::vector<char> taken(static_cast<std::size_t>(K), 0);
   std::vector<int> inserted;  // view ids in insertion order
   auto p = [&](Eigen::Index k) { return Eigen::Vector3d(positions.row(k).transpose()); };
+  // Per candidate still in play, its cheapest insertion into the current tour, kept up to date
+  // as the tour grows instead of searched again: the cost of appending it after the last stop
+  // and its cheapest leg (the cost of going through it between the leg's two stops, the first
+  // leg of least cost). Inserting a view changes one leg into two (or adds one at the end), so
+  // a candidate only compares the new legs with its cheapest, and searches all legs again only
+  // when its cheapest leg was the one replaced. Each cost is the same expression, so the same
+  // number, as the exhaustive search over every leg at every step would compute.
+  constexpr int kNoLeg = std::numeric_limits<int>::max();
+  constexpr double kInf = std::numeric_limits<double>::infinity();
+  std::vector<Eigen::Index> alive;  // valid, not taken, gain >= min_gain (gains only shrink)
+  for (Eigen::Index k = 0; k < K; ++k)
+    if (cov.status[k] == 0 && gain[std::size_t(k)] >= min_gain) alive.push_back(k);
+  std::vector<double> append(static_cast<std::size_t>(K)), leg_cost(static_cast<std::size_t>(K));
+  std::vector<int> leg_of(static_cast<std::size_t>(K), kNoLeg);
+  for (const Eigen::Index k : alive) {
+    append[std::size_t(k)] = charge_transit ? (p(k) - start).norm() : 0.0;
+    leg_cost[std::size_t(k)] = kInf;
+  }
+  std::vector<double> leg;                                // leg[i]: from stops[i] to stops[i + 1]
+  auto consider = [&](Eigen::Index k, double c, int i) {  // leg i at cost c: the cheaper, first
+    double& best = leg_cost[std::size_t(k)];
+    int& at = leg_of[std::size_t(k)];
+    if (c < best || (c == best && i < at)) {
+      best = c;
+      at = i;
+    }
+  };
+  auto through = [&](const Eigen::Vector3d& q, std::size_t i) {  // cost of q on leg i
+    return (q - stops[i]).norm() + (q - stops[i + 1]).norm() - leg[i];
+  };
   CoverSelection out;
   while (int(out.views.size()) < max_views) {
     const std::size_t n = stops.size();
+    // the best value (> 0), ties to the lower index, over the candidates still in play; the
+    // cheapest insertion: appended, unless a leg is strictly cheaper
     int best = -1;
     double best_value = 0.0;
-    for (Eigen::Index k = 0; k < K; ++k) {
-      if (cov.status[k] != 0 || taken[std::size_t(k)] || gain[std::size_t(k)] < min_gain) continue;
-      const Eigen::Vector3d q = p(k);
-      // appended at the end (the first view, without charge_transit, for free)
-      double cost = n == 1 && !charge_transit ? 0.0 : (q - stops[n - 1]).norm();
-      std::size_t at = n;
-      for (std::size_t i = 0; i + 1 < n; ++i) {
-        const double c =
-            (q - stops[i]).norm() + (q - stops[i + 1]).norm() - (stops[i + 1] - stops[i]).norm();
-        if (c < cost) {
-          cost = c;
-          at = i + 1;
-        }
-      }
-      ins[std::size_t(k)] = cost;
-      pos[std::size_t(k)] = double(at);
-      const double value = gain[std::size_t(k)] - rate * cost;
-      if (value > best_value) {
+    std::size_t best_at = 0;
+    std::size_t m = 0;
+    for (const Eigen::Index k : alive) {
+      const std::size_t kk = std::size_t(k);
+      if (gain[kk] < min_gain) continue;  // for good
+      alive[m++] = k;
+      const bool on_leg = leg_cost[kk] < append[kk];
+      const double value = gain[kk] - rate * (on_leg ? leg_cost[kk] : append[kk]);
+      if (value > best_value) {  // alive is in index order: ties keep the lower index
         best_value = value;
         best = int(k);
+        best_at = on_leg ? std::size_t(leg_of[kk]) + 1 : n;
       }
     }
+    alive.resize(m);
     if (best < 0) break;
-    const std::size_t at = std::size_t(pos[std::size_t(best)]);
-    stops.insert(stops.begin() + std::ptrdiff_t(at), p(best));
+    const std::size_t at = best_at;
+    const Eigen::Vector3d x = p(best);
+    stops.insert(stops.begin() + std::ptrdiff_t(at), x);
     ids.insert(ids.begin() + std::ptrdiff_t(at), best);
-    taken[std::size_t(best)] = 1;
+    leg.resize(n);
+    for (std::size_t i = 0; i < n; ++i) leg[i] = (stops[i + 1] - stops[i]).norm();
     inserted.push_back(best);
     out.gains.push_back(gain[std::size_t(best)]);
+    alive.erase(std::find(alive.begin(), alive.end(), Eigen::Index(best)));
+    for (const Eigen::Index k : alive) {
+      const std::size_t kk = std::size_t(k);
+      const Eigen::Vector3d q = p(k);
+      if (at == n) {  // appended: a new last leg, and appending now follows x
+        consider(k, through(q, n - 1), int(n - 1));
+        append[kk] = (q - x).norm();
+        continue;
+      }
+      // leg at - 1 became legs at - 1 and at; the legs after it moved up by one
+      int& li = leg_of[kk];
+      if (li == int(at) - 1) {
+        leg_cost[kk] = kInf;
+        li = kNoLeg;
+        for (std::size_t i = 0; i < n; ++i) consider(k, through(q, i), int(i));
+        continue;
+      }
+      if (li != kNoLeg && li > int(at) - 1) ++li;
+      consider(k, through(q, at - 1), int(at) - 1);
+      consider(k, through(q, at), int(at));
+    }
     // the chosen view's elements are covered now: every holder's gain shrinks accordingly
     for (std::int64_t o = cov.offsets[best]; o < cov.offsets[best + 1]; ++o) {
       const std::size_t e =
@@ -339,8 +451,9 @@ CoverSelection select_tour(const ViewCoverage& cov, const PointsRef& positions,
       const float now = std::max(have, cov.weights[o]);
       if (now == have) continue;
       for (std::size_t i = first[e]; i < first[e + 1]; ++i) {
-        const float w = cov.weights[entries[i].first];
-        gain[std::size_t(entries[i].second)] -= std::max(0.0f, w - have) - std::max(0.0f, w - now);
+        const float w = cov.weights[Eigen::Index(hold[i])];
+        gain[std::size_t(owner[std::size_t(hold[i])])] -=
+            std::max(0.0f, w - have) - std::max(0.0f, w - now);
       }
       have = now;
     }

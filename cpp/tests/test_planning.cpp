@@ -12,6 +12,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <map>
 #include <numeric>
 #include <random>
 #include <set>
@@ -223,6 +224,116 @@ TEST(Cover, AFarClusterFormsOnlyWithoutChargingItsTransit) {
   EXPECT_TRUE(select_tour(cov, pos, Eigen::Vector3d::Zero(), 0.45, 0.5, 10).views.empty());
   const CoverSelection all = select_tour(cov, pos, Eigen::Vector3d::Zero(), 0.45, 0.5, 10, false);
   EXPECT_EQ(all.views, (std::vector<int>{0, 1, 2, 3, 4}));
+}
+
+namespace {
+
+// select_tour as first written: every candidate's insertion cost into the whole tour at every
+// step, candidates in index order. The pruned, ordered search must choose exactly the same.
+CoverSelection reference_select_tour(const ViewCoverage& cov, const Points& pos,
+                                     const Eigen::Vector3d& start, double rate, double min_gain,
+                                     int max_views, bool charge_transit) {
+  const Eigen::Index K = cov.offsets.size() - 1;
+  std::vector<double> gain(std::size_t(K), 0.0);
+  std::map<std::int64_t, std::vector<std::pair<std::int64_t, Eigen::Index>>> holders;
+  for (Eigen::Index k = 0; k < K; ++k) {
+    if (cov.status[k] != 0) continue;
+    for (std::int64_t o = cov.offsets[k]; o < cov.offsets[k + 1]; ++o) {
+      holders[cov.elements[o]].push_back({o, k});
+      gain[std::size_t(k)] += cov.weights[o];
+    }
+  }
+  std::map<std::int64_t, float> covered;
+  std::vector<Eigen::Vector3d> stops{start};
+  std::vector<int> ids{-1}, inserted;
+  std::vector<char> taken(std::size_t(K), 0);
+  std::vector<double> gains;
+  while (int(inserted.size()) < max_views) {
+    const std::size_t n = stops.size();
+    int best = -1;
+    double best_value = 0.0;
+    std::size_t best_at = 0;
+    for (Eigen::Index k = 0; k < K; ++k) {
+      if (cov.status[k] != 0 || taken[std::size_t(k)] || gain[std::size_t(k)] < min_gain) continue;
+      const Eigen::Vector3d q = pos.row(k).transpose();
+      double cost = n == 1 && !charge_transit ? 0.0 : (q - stops[n - 1]).norm();
+      std::size_t at = n;
+      for (std::size_t i = 0; i + 1 < n; ++i) {
+        const double c =
+            (q - stops[i]).norm() + (q - stops[i + 1]).norm() - (stops[i + 1] - stops[i]).norm();
+        if (c < cost) {
+          cost = c;
+          at = i + 1;
+        }
+      }
+      const double value = gain[std::size_t(k)] - rate * cost;
+      if (value > best_value) {
+        best_value = value;
+        best = int(k);
+        best_at = at;
+      }
+    }
+    if (best < 0) break;
+    stops.insert(stops.begin() + std::ptrdiff_t(best_at), Eigen::Vector3d(pos.row(best)));
+    ids.insert(ids.begin() + std::ptrdiff_t(best_at), best);
+    taken[std::size_t(best)] = 1;
+    inserted.push_back(best);
+    gains.push_back(gain[std::size_t(best)]);
+    for (std::int64_t o = cov.offsets[best]; o < cov.offsets[best + 1]; ++o) {
+      float& have = covered[cov.elements[o]];
+      const float now = std::max(have, cov.weights[o]);
+      for (const auto& [oo, holder] : holders[cov.elements[o]]) {
+        const float w = cov.weights[oo];
+        gain[std::size_t(holder)] -= std::max(0.0f, w - have) - std::max(0.0f, w - now);
+      }
+      have = now;
+    }
+  }
+  CoverSelection out;
+  std::map<int, double> gain_of;
+  for (std::size_t i = 0; i < inserted.size(); ++i) gain_of[inserted[i]] = gains[i];
+  for (std::size_t i = 1; i < ids.size(); ++i) {
+    out.views.push_back(ids[i]);
+    out.gains.push_back(gain_of[ids[i]]);
+  }
+  return out;
+}
+
+}  // namespace
+
+TEST(Cover, PrizeCollectingInsertionChoosesAsTheExhaustiveSearch) {
+  // random scenes, some on an integer lattice with equal weights (ties in gain, in insertion
+  // cost and in value), some with invalid candidates; the views, their order and gains agree
+  std::mt19937 rng(11);
+  for (int scene = 0; scene < 600; ++scene) {
+    const int K = 1 + int(rng() % 60), E = 1 + int(rng() % 80);
+    const bool lattice = scene % 2 == 0;
+    std::uniform_real_distribution<double> coord(-20.0, 20.0), weight(0.05, 1.0);
+    std::vector<std::vector<std::int64_t>> sets(static_cast<std::size_t>(K));
+    for (auto& set : sets) {
+      const int m = int(rng() % 12);
+      for (int i = 0; i < m; ++i) set.push_back(std::int64_t(rng() % std::uint32_t(E)));
+      std::sort(set.begin(), set.end());
+      set.erase(std::unique(set.begin(), set.end()), set.end());
+    }
+    ViewCoverage cov = coverage(sets);
+    for (Eigen::Index i = 0; i < cov.weights.size(); ++i)
+      cov.weights[i] = lattice ? 1.0f : float(weight(rng));
+    for (Eigen::Index k = 0; k < K; ++k)
+      if (rng() % 10 == 0) cov.status[k] = 2;
+    Points pos(K, 3);
+    for (Eigen::Index k = 0; k < K; ++k)
+      for (int a = 0; a < 3; ++a) pos(k, a) = lattice ? double(int(rng() % 3)) : coord(rng);
+    const Eigen::Vector3d start = lattice ? Eigen::Vector3d(2, 2, 0) : Eigen::Vector3d(0, 0, 0);
+    const double rate = lattice ? 0.25 * double(rng() % 4) : 0.3 * weight(rng);
+    const double min_gain = double(rng() % 3);
+    for (const bool charge : {true, false}) {
+      const CoverSelection a = select_tour(cov, pos, start, rate, min_gain, 1000, charge);
+      const CoverSelection b = reference_select_tour(cov, pos, start, rate, min_gain, 1000, charge);
+      ASSERT_EQ(a.views, b.views) << "scene " << scene << " charge " << charge;
+      ASSERT_EQ(a.gains, b.gains) << "scene " << scene << " charge " << charge;
+    }
+  }
 }
 
 TEST(Views, OptionsRejectBadValuesWithTheirName) {
