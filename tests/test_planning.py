@@ -106,6 +106,35 @@ def test_greedy_cover_picks_the_largest_new_coverage_first():
     cov["status"][2] = 2  # an invalid view is never chosen
     views, gains = _core.select_cover(cov, min_gain=0.5, max_views=10)
     assert views == [0, 1] and gains == [3.0, 1.0]
+    # other integer and float types are read as well (converted); lists too
+    as_lists = {
+        k: v.astype(np.int32 if k != "weights" else np.float64).tolist() for k, v in cov.items()
+    }
+    assert _core.select_cover(as_lists, min_gain=0.5, max_views=10) == (views, gains)
+
+
+def test_cover_and_tour_reject_malformed_coverage_with_a_message():
+    good = {
+        "offsets": np.array([0, 2, 3], np.int64),
+        "elements": np.array([1, 2, 2], np.int64),
+        "weights": np.ones(3, np.float32),
+        "status": np.zeros(2, np.int8),
+    }
+    pos, start = np.zeros((2, 3)), np.zeros(3)
+    bad = [
+        ({**good, "elements": good["elements"].reshape(3, 1)}, "1-D"),
+        ({**good, "weights": np.ones(2, np.float32)}, "inconsistent"),
+        ({**good, "offsets": np.array([0, 3, 2], np.int64)}, "inconsistent"),
+        ({**good, "status": np.zeros(3, np.int8)}, "inconsistent"),
+        ({**good, "weights": ["a", "b", "c"]}, "weights"),
+    ]
+    for cov, message in bad:
+        with pytest.raises(ValueError, match=message):
+            _core.select_cover(cov)
+        with pytest.raises(ValueError, match=message):
+            _core.select_tour(cov, pos, start, rate=0.1)
+    with pytest.raises(KeyError):
+        _core.select_tour({k: v for k, v in good.items() if k != "status"}, pos, start, rate=0.1)
 
 
 # ------------------------------------------------------------------ placement and targets

@@ -9,20 +9,42 @@
 namespace nbv::bind {
 namespace {
 
-/// A view_coverage result (dict of CSR arrays) back into C++, checked.
-ViewCoverage coverage_arg(const py::dict& coverage) {
-  ViewCoverage cov;
-  cov.offsets = coverage["offsets"].cast<Eigen::Matrix<std::int64_t, Eigen::Dynamic, 1>>();
-  cov.elements = coverage["elements"].cast<Eigen::Matrix<std::int64_t, Eigen::Dynamic, 1>>();
-  cov.weights = coverage["weights"].cast<Eigen::VectorXf>();
-  cov.status = coverage["status"].cast<Eigen::Matrix<std::int8_t, Eigen::Dynamic, 1>>();
-  const Eigen::Index n = cov.offsets.size();
-  bool ok = n == cov.status.size() + 1 && cov.elements.size() == cov.weights.size() &&
-            (n == 0 || (cov.offsets[0] == 0 && cov.offsets[n - 1] == cov.elements.size()));
-  for (Eigen::Index i = 1; ok && i < n; ++i) ok = cov.offsets[i] >= cov.offsets[i - 1];
-  if (!ok) throw py::value_error("coverage arrays are inconsistent");
-  return cov;
+template <class T>
+using Array = py::array_t<T, py::array::c_style | py::array::forcecast>;
+
+template <class T>
+Array<T> vector_arg(const py::dict& coverage, const char* key) {
+  Array<T> a = Array<T>::ensure(coverage[key]);
+  if (!a || a.ndim() != 1)
+    throw py::value_error(std::string("coverage['") + key + "'] must be a 1-D numeric array");
+  return a;
 }
+
+template <class T>
+Eigen::Map<const Eigen::Matrix<T, Eigen::Dynamic, 1>> as_vector(const Array<T>& a) {
+  return {a.data(), Eigen::Index(a.size())};
+}
+
+/// A view_coverage result (dict of CSR arrays), checked, read in place: numpy arrays of the
+/// right type are not copied (they are large: one entry per view and surface element).
+struct CoverageArg {
+  explicit CoverageArg(const py::dict& coverage)
+      : offsets(vector_arg<std::int64_t>(coverage, "offsets")),
+        elements(vector_arg<std::int64_t>(coverage, "elements")),
+        weights(vector_arg<float>(coverage, "weights")),
+        status(vector_arg<std::int8_t>(coverage, "status")),
+        ref(as_vector(offsets), as_vector(elements), as_vector(weights), as_vector(status)) {
+    const Eigen::Index n = ref.offsets.size();
+    bool ok = n == ref.status.size() + 1 && ref.elements.size() == ref.weights.size() &&
+              (n == 0 || (ref.offsets[0] == 0 && ref.offsets[n - 1] == ref.elements.size()));
+    for (Eigen::Index i = 1; ok && i < n; ++i) ok = ref.offsets[i] >= ref.offsets[i - 1];
+    if (!ok) throw py::value_error("coverage arrays are inconsistent");
+  }
+  Array<std::int64_t> offsets, elements;  // (kept alive for ref)
+  Array<float> weights;
+  Array<std::int8_t> status;
+  CoverageRef ref;
+};
 
 }  // namespace
 
@@ -92,12 +114,12 @@ evaluate_views.)doc");
   m.def(
       "select_cover",
       [](const py::dict& coverage, double min_gain, int max_views) {
-        const ViewCoverage cov = coverage_arg(coverage);
+        const CoverageArg cov(coverage);
         if (max_views < 0) throw py::value_error("max_views must be >= 0");
         CoverSelection s;
         {
           py::gil_scoped_release release;
-          s = select_cover(cov, min_gain, max_views);
+          s = select_cover(cov.ref, min_gain, max_views);
         }
         return py::make_tuple(py::cast(s.views), py::cast(s.gains));
       },
@@ -109,7 +131,7 @@ than min_gain or max_views are chosen.)doc");
       "select_tour",
       [](const py::dict& coverage, const py::handle& positions, const py::handle& start,
          double rate, double min_gain, int max_views, bool charge_transit) {
-        const ViewCoverage cov = coverage_arg(coverage);
+        const CoverageArg cov(coverage);
         auto p = points_arg(positions, "candidate positions");
         const Eigen::Vector3d st = vec3_arg(start, "tour start");
         if (max_views < 0) throw py::value_error("max_views must be >= 0");
@@ -117,7 +139,7 @@ than min_gain or max_views are chosen.)doc");
         CoverSelection s;
         {
           py::gil_scoped_release release;
-          s = select_tour(cov, pm, st, rate, min_gain, max_views, charge_transit);
+          s = select_tour(cov.ref, pm, st, rate, min_gain, max_views, charge_transit);
         }
         return py::make_tuple(py::cast(s.views), py::cast(s.gains));
       },

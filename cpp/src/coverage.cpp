@@ -1,5 +1,6 @@
 #include "nbv/coverage.hpp"
 
+#include "nbv/huge_pages.hpp"
 #include "nbv/parallel.hpp"
 #include "view_kernel.hpp"
 
@@ -215,7 +216,7 @@ ViewCoverage view_coverage(
   return out;
 }
 
-CoverSelection select_cover(const ViewCoverage& cov, double min_gain, int max_views) {
+CoverSelection select_cover(const CoverageRef& cov, double min_gain, int max_views) {
   const Eigen::Index K = cov.offsets.size() - 1;
   if (K < 0) throw std::invalid_argument("coverage has no offsets");
   CoverSelection out;
@@ -266,16 +267,16 @@ int bit_width(std::uint64_t x) { return x ? 64 - __builtin_clzll(x) : 0; }
 struct Holders {
   std::vector<std::int64_t> keys;  ///< the distinct elements, ascending
   std::vector<std::size_t> first;  ///< holders of keys[i]: offsets[first[i], first[i + 1])
-  std::vector<std::uint64_t> offsets;
+  HugeVector<std::uint64_t> offsets;
 };
 
 /// The holders of the `held` elements whose owner is >= 0 (elements in [lo, hi]): a stable LSD
 /// radix sort on the element's bits of keys packed as (element - lo, offset), the offsets being
 /// in order already.
-Holders holders_of(const ViewCoverage& cov, const std::vector<std::int32_t>& owner,
-                   std::size_t held, std::int64_t lo, std::int64_t hi) {
+Holders holders_of(const CoverageRef& cov, const HugeVector<std::int32_t>& owner, std::size_t held,
+                   std::int64_t lo, std::int64_t hi) {
   Holders h;
-  std::vector<std::uint64_t>& a = h.offsets;
+  HugeVector<std::uint64_t>& a = h.offsets;
   a.reserve(held);
   const std::size_t total = owner.size();
   const int ob = bit_width(total), eb = bit_width(std::uint64_t(hi) - std::uint64_t(lo));
@@ -301,7 +302,7 @@ Holders holders_of(const ViewCoverage& cov, const std::vector<std::int32_t>& own
   constexpr int kDigit = 11;
   const std::uint64_t mask = (std::uint64_t(1) << kDigit) - 1;
   std::vector<std::size_t> count(std::size_t(1) << kDigit);
-  std::vector<std::uint64_t> b;
+  HugeVector<std::uint64_t> b;
   b.reserve(held);
   for (int shift = ob; shift < ob + eb; shift += kDigit) {
     std::fill(count.begin(), count.end(), 0);
@@ -323,7 +324,7 @@ Holders holders_of(const ViewCoverage& cov, const std::vector<std::int32_t>& own
 
 }  // namespace
 
-CoverSelection select_tour(const ViewCoverage& cov, const PointsRef& positions,
+CoverSelection select_tour(const CoverageRef& cov, const PointsRef& positions,
                            const Eigen::Vector3d& start, double rate, double min_gain,
                            int max_views, bool charge_transit) {
   const Eigen::Index K = cov.offsets.size() - 1;
@@ -338,8 +339,8 @@ CoverSelection select_tour(const ViewCoverage& cov, const PointsRef& positions,
   // the distinct elements ascending, each with its holders in candidate order)
   std::vector<double> gain(static_cast<std::size_t>(K), 0.0);
   const std::int64_t total = K ? cov.offsets[K] : 0;
-  std::vector<std::int32_t> owner(static_cast<std::size_t>(total), -1);  // offset -> candidate
-  std::int64_t lo = std::numeric_limits<std::int64_t>::max(),            // the elements' range
+  HugeVector<std::int32_t> owner(static_cast<std::size_t>(total), -1);  // offset -> candidate
+  std::int64_t lo = std::numeric_limits<std::int64_t>::max(),           // the elements' range
       hi = std::numeric_limits<std::int64_t>::min();
   std::size_t held = 0;
   for (Eigen::Index k = 0; k < K; ++k) {
@@ -355,7 +356,7 @@ CoverSelection select_tour(const ViewCoverage& cov, const PointsRef& positions,
   const Holders holders = holders_of(cov, owner, held, lo, hi);
   const std::vector<std::int64_t>& keys = holders.keys;
   const std::vector<std::size_t>& first = holders.first;
-  const std::vector<std::uint64_t>& hold = holders.offsets;
+  const HugeVector<std::uint64_t>& hold = holders.offsets;
   std::vector<float> covered(keys.size(), 0.0f);  // per distinct element: weight covered
   std::vector<Eigen::Vector3d> stops{start};      // the open tour: start, then the chosen views
   std::vector<int> ids{-1};

@@ -60,6 +60,19 @@ struct ViewCoverage {
   Eigen::Matrix<std::int8_t, Eigen::Dynamic, 1> status;  ///< (K,) ViewStatus
 };
 
+/// A read-only view of coverage arrays (a ViewCoverage, or arrays held elsewhere: numpy's, by the
+/// bindings, without a copy).
+struct CoverageRef {
+  Eigen::Ref<const Eigen::Matrix<std::int64_t, Eigen::Dynamic, 1>> offsets;
+  Eigen::Ref<const Eigen::Matrix<std::int64_t, Eigen::Dynamic, 1>> elements;
+  Eigen::Ref<const Eigen::VectorXf> weights;
+  Eigen::Ref<const Eigen::Matrix<std::int8_t, Eigen::Dynamic, 1>> status;
+  CoverageRef(const ViewCoverage& c)  // NOLINT: a ViewCoverage is its own view
+      : offsets(c.offsets), elements(c.elements), weights(c.weights), status(c.status) {}
+  CoverageRef(decltype(offsets) o, decltype(elements) e, decltype(weights) w, decltype(status) st)
+      : offsets(o), elements(e), weights(w), status(st) {}
+};
+
 ViewCoverage view_coverage(
     const GridView& grid,
     const Eigen::Ref<const Eigen::Matrix<double, Eigen::Dynamic, 4, Eigen::RowMajor>>& candidates,
@@ -74,7 +87,7 @@ struct CoverSelection {
   std::vector<int> views;
   std::vector<double> gains;
 };
-CoverSelection select_cover(const ViewCoverage& coverage, double min_gain, int max_views);
+CoverSelection select_cover(const CoverageRef& coverage, double min_gain, int max_views);
 
 /// Prize-collecting tour by greedy cheapest insertion: starting from an open tour at `start`,
 /// repeatedly insert the candidate (positions (K, 3)) maximising gain - rate * insertion cost,
@@ -87,7 +100,7 @@ CoverSelection select_cover(const ViewCoverage& coverage, double min_gain, int m
 /// transit is worth it is then for the caller to judge (a prize-collecting pass over the tour).
 /// Returns the tour order (candidate indices, start excluded) and each view's gain when it was
 /// inserted. Deterministic; ties to the lower index.
-CoverSelection select_tour(const ViewCoverage& coverage, const PointsRef& positions,
+CoverSelection select_tour(const CoverageRef& coverage, const PointsRef& positions,
                            const Eigen::Vector3d& start, double rate, double min_gain,
                            int max_views, bool charge_transit = true);
 

@@ -1,0 +1,132 @@
+"""Coverage-tour planning speed: the first tour the recommended planner plans on the airliner (or
+--mesh) after its profile - the candidate views' coverage (view_coverage) and the prize-collecting
+insertion over them (select_tour, with and without charging the first transit, as the tour
+generator calls it).
+
+``--against DIR`` times select_tour on the same coverage, in the same run, with the nbvkit package
+(and its built extension) of another checkout, DIR/python or DIR (e.g. a saved copy of the
+package before a change), checks that it chooses the same views with the same gains, and prints
+the ratio.
+
+    .venv/bin/python bench/bench_tour.py
+    .venv/bin/python bench/bench_tour.py --against /tmp/main_before --repeat 5
+"""
+from __future__ import annotations
+
+import json
+import os
+import subprocess
+import sys
+import tempfile
+from pathlib import Path
+
+import numpy as np
+
+import nbvkit
+from _timing import median_time, mesh_parser
+from nbvkit import _core
+from nbvkit.config import Config
+from nbvkit.evaluation import Evaluator
+from nbvkit.mission import Mission
+from nbvkit.planning.placement import place_views, target_patches
+
+# Runs in this checkout or, through --against, in another one: only select_tour's array API.
+TIME_SNIPPET = r"""
+import json, sys, time
+import numpy as np
+from nbvkit import _core
+d = np.load(sys.argv[1])
+kw = json.loads(sys.argv[2])
+cov = {k: d[k] for k in ("offsets", "elements", "weights", "status")}
+out, times = [], []
+for charge in (True, False):
+    args = (cov, d["positions"], d["start"])
+    _core.select_tour(*args, charge_transit=charge, **kw)  # warm-up
+    best = float("inf")
+    for _ in range(int(sys.argv[3])):
+        t = time.perf_counter()
+        views, gains = _core.select_tour(*args, charge_transit=charge, **kw)
+        best = min(best, time.perf_counter() - t)
+    times.append(best)
+    out.append([list(map(int, views)), [float(g) for g in gains]])
+print(json.dumps({"times": times, "choice": out}))
+"""
+
+
+def first_plan(mesh: str | None):
+    """The coverage of the first tour's candidates, its positions and start, and the rate and
+    minimum gain in the units select_tour takes, as the tour generator computes them."""
+    over = ["progress=false"] + ([f"mesh.path={mesh}"] if mesh else [])
+    m = Mission(Config().with_overrides(over))
+    w, cfg = m.world, m.config
+    w.take_off()
+    m.evaluator = Evaluator(w.mesh)
+    m._profile()
+    m._symmetry()
+    w.sense_camera()
+    targets = _core.surface_targets(w.map, w.surface, cfg.targets.options())
+    patches = target_patches(targets, cfg.placement.cluster_size)
+    cands, _ = place_views(
+        patches, cfg.camera, cfg.placement, (w.workspace.nav_min, w.workspace.nav_max)
+    )
+    kw = dict(
+        camera=w.view_camera,
+        utility=cfg.utility.options(),
+        validity=w.validity(blocked_path="plan"),
+    )
+    cov = _core.view_coverage(w.map, w.surface, cands, w.state.pose, **kw)
+    t_cov = median_time(lambda: _core.view_coverage(w.map, w.surface, cands, w.state.pose, **kw), 1)
+    cell = w.map.resolution**2
+    sel = {"rate": cfg.tour.rate / cell, "min_gain": cfg.tour.min_gain / cell}
+    return cov, cands, w.state.pose, sel, t_cov
+
+
+def time_in(python_dir: Path | None, data: str, kw: dict, repeat: int) -> dict:
+    env = dict(os.environ)
+    if python_dir is not None:
+        env["PYTHONPATH"] = str(python_dir)
+    res = subprocess.run(
+        [sys.executable, "-c", TIME_SNIPPET, data, json.dumps(kw), str(repeat)],
+        env=env,
+        capture_output=True,
+        text=True,
+        check=True,
+    )
+    return json.loads(res.stdout)
+
+
+def main():
+    ap = mesh_parser(__doc__, repeat=3)
+    ap.add_argument("--against", help="another checkout to time select_tour in, in the same run")
+    args = ap.parse_args()
+    cov, cands, pose, sel, t_cov = first_plan(args.mesh)
+    valid = int((cov["status"] == 0).sum())
+    print(
+        f"first tour: {len(cands)} candidate views ({valid} valid), "
+        f"{len(cov['elements']):,} (view, surface element) pairs; "
+        f"view_coverage {t_cov * 1e3:.0f} ms on {nbvkit.get_num_threads()} threads"
+    )
+    with tempfile.TemporaryDirectory() as tmp:
+        data = str(Path(tmp) / "coverage.npz")
+        np.savez(data, positions=cands[:, :3], start=pose[:3], **cov)
+        runs = [("this checkout", None)]
+        if args.against:
+            d = Path(args.against).resolve()
+            runs.append((args.against, d / "python" if (d / "python").is_dir() else d))
+        rows = [(label, time_in(py, data, sel, args.repeat)) for label, py in runs]
+    for label, r in rows:
+        t = r["times"]
+        n = [len(c[0]) for c in r["choice"]]
+        print(
+            f"  {label}: select_tour {t[0] * 1e3:.0f} ms (transit charged, {n[0]} views) + "
+            f"{t[1] * 1e3:.0f} ms (first transit free, {n[1]} views), best of {args.repeat}"
+        )
+    if len(rows) == 2:
+        (_, a), (_, b) = rows
+        same = a["choice"] == b["choice"]
+        ratio = sum(b["times"]) / sum(a["times"])
+        print(f"  {ratio:.2f}x faster than {rows[1][0]}; same views, order and gains: {same}")
+
+
+if __name__ == "__main__":
+    main()
