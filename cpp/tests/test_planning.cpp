@@ -2,6 +2,7 @@
 // walk, collision checks and A*, tours, set cover and prize-collecting insertion.
 #include "nbv/coverage.hpp"
 #include "nbv/grid_view.hpp"
+#include "nbv/huge_pages.hpp"
 #include "nbv/navigation.hpp"
 #include "nbv/occupancy_map.hpp"
 #include "nbv/tour.hpp"
@@ -334,6 +335,18 @@ TEST(Cover, PrizeCollectingInsertionChoosesAsTheExhaustiveSearch) {
       ASSERT_EQ(a.gains, b.gains) << "scene " << scene << " charge " << charge;
     }
   }
+}
+
+TEST(HugeVector, LargeBuffersAreHugePageAlignedAndHoldTheirValues) {
+  // past the threshold: 2 MiB aligned (what madvise needs); below it: an ordinary allocation
+  HugeVector<std::uint64_t> big(HugePageAllocator<std::uint64_t>::kMin / 8 + 12345);
+  EXPECT_EQ(reinterpret_cast<std::uintptr_t>(big.data()) % HugePageAllocator<char>::kHuge, 0u);
+  std::iota(big.begin(), big.end(), std::uint64_t(7));
+  big.push_back(1);  // reallocation copies into a new huge buffer
+  EXPECT_EQ(reinterpret_cast<std::uintptr_t>(big.data()) % HugePageAllocator<char>::kHuge, 0u);
+  for (std::size_t i = 0; i + 1 < big.size(); ++i) ASSERT_EQ(big[i], i + 7);
+  HugeVector<int> small(100, 3);
+  EXPECT_EQ(std::accumulate(small.begin(), small.end(), 0), 300);
 }
 
 TEST(Views, OptionsRejectBadValuesWithTheirName) {
