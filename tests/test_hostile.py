@@ -288,6 +288,73 @@ def test_case6_ctrl_c_stops_a_table_and_writes_the_partial_table(tmp_path):
     assert len(_finished(out)) < 6
 
 
+def _children(pid: int) -> list[int]:
+    try:
+        return [int(c) for c in Path(f"/proc/{pid}/task/{pid}/children").read_text().split()]
+    except OSError:
+        return []
+
+
+def _alive(pid: int) -> bool:
+    try:
+        state = Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()[0]
+    except OSError:
+        return False
+    return state != "Z"
+
+
+def _table_with_workers(out):
+    """A table started in its own process, once its two workers are flying: (process, workers)."""
+    cmd = ["table", "--starts", "1", "--workers", "2", "--set", *TINY_RUN, "--out", str(out)]
+    p = subprocess.Popen(
+        [sys.executable, "-m", "nbvkit.cli", *cmd],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+        env=dict(os.environ, MPLBACKEND="Agg"),
+    )
+    t0 = time.perf_counter()
+    workers: list[int] = []
+    while time.perf_counter() - t0 < 120 and p.poll() is None:
+        # the pool's workers (spawned interpreters), once runs have started
+        workers = [c for c in _children(p.pid) if "spawn_main" in _cmdline(c)]
+        started = list((out / "runs").glob(".*.tmp*")) if (out / "runs").is_dir() else []
+        if len(workers) == 2 and len(started) == 2:  # both flying a run
+            break
+        time.sleep(0.2)
+    assert p.poll() is None and len(workers) == 2, "the table ended before it could be stopped"
+    return p, workers
+
+
+def _cmdline(pid: int) -> str:
+    try:
+        return Path(f"/proc/{pid}/cmdline").read_text().replace("\0", " ")
+    except OSError:
+        return ""
+
+
+@pytest.mark.skipif(not Path("/proc/self/task").is_dir(), reason="needs Linux /proc")
+def test_case6_kill_stops_a_table_and_its_workers(tmp_path):
+    # SIGTERM (`kill`) is handled as Ctrl-C: workers stopped, partial table, a resume hint
+    p, workers = _table_with_workers(tmp_path / "t")
+    p.send_signal(signal.SIGTERM)
+    _, err = p.communicate(timeout=60)
+    assert p.returncode == 130 and "Traceback" not in err, (p.returncode, err)
+    assert "interrupted" in err and "resume" in err
+    time.sleep(1)
+    assert not [w for w in workers if _alive(w)], "workers outlived the table"
+    # SIGKILL cannot be handled: the workers die with their parent (parent-death signal)
+    p, workers = _table_with_workers(tmp_path / "k")
+    p.kill()
+    p.wait(timeout=30)  # (not communicate: workers left running would hold its pipes open)
+    p.stdout.close()
+    p.stderr.close()
+    t0 = time.perf_counter()
+    while time.perf_counter() - t0 < 10 and any(_alive(w) for w in workers):
+        time.sleep(0.2)
+    assert not [w for w in workers if _alive(w)], "workers flew on after their parent was killed"
+
+
 def test_case7_whole_config_is_validated_before_any_work(tmp_path):
     for override, key in (
         ("termination.window=0", "termination.window"),

@@ -8,6 +8,7 @@ local process pool by default, or on a Dask distributed cluster given its schedu
 """
 from __future__ import annotations
 
+import contextlib
 import hashlib
 import itertools
 import json
@@ -161,8 +162,8 @@ def _mesh_digest(cfg) -> str | None:
 
 
 class Interrupted(Exception):
-    """Ctrl-C during run_specs: the workers are stopped; ``rows`` holds the finished runs' rows
-    (in spec order), ``total`` the number of specs."""
+    """Ctrl-C (or SIGTERM) during run_specs: the workers are stopped; ``rows`` holds the finished
+    runs' rows (in spec order), ``total`` the number of specs."""
 
     def __init__(self, rows: list[dict], total: int):
         super().__init__(f"interrupted after {len(rows)} of {total} runs")
@@ -194,11 +195,44 @@ def _alive(pid: int) -> bool:
     return True
 
 
-def _ignore_sigint() -> None:
-    """Pool workers leave Ctrl-C to the parent, which stops them."""
+def _worker_init() -> None:
+    """Pool workers leave Ctrl-C to the parent, which stops them; and die with the parent, should
+    it be killed outright (Linux: the parent-death signal), instead of flying on unseen."""
     import signal
 
     signal.signal(signal.SIGINT, signal.SIG_IGN)
+    try:
+        import ctypes
+        import multiprocessing
+
+        libc = ctypes.CDLL(None, use_errno=True)
+        libc.prctl(1, int(signal.SIGKILL), 0, 0, 0)  # PR_SET_PDEATHSIG
+    except (OSError, AttributeError):  # not Linux: Ctrl-C and SIGTERM still stop the workers
+        return
+    parent = multiprocessing.parent_process()
+    if parent is not None and os.getppid() != parent.pid:
+        os._exit(1)  # the parent died while this worker was starting
+
+
+@contextlib.contextmanager
+def _terminate_as_interrupt():
+    """While runs are flying, a `kill` (SIGTERM) stops them as Ctrl-C does: workers stopped,
+    finished runs kept, the partial table written. (Main thread only: signals go there.)"""
+    import signal
+    import threading
+
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+
+    def interrupt(signum, frame):
+        raise KeyboardInterrupt
+
+    previous = signal.signal(signal.SIGTERM, interrupt)
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGTERM, previous)
 
 
 def _spec_dict(spec: RunSpec) -> dict:
@@ -280,37 +314,43 @@ def run_specs(
     root = Path(root)
     (root / "runs").mkdir(parents=True, exist_ok=True)
     clean_stale_tmp(root)
-    ncpu = os.cpu_count() or 1
     rows: list = [None] * len(specs)
     try:
-        if scheduler:
-            from distributed import Client
-
-            with Client(scheduler) as client:
-                futs = client.map(run_one, specs, root=str(root.resolve()), threads=1, pure=False)
-                try:
-                    rows = client.gather(futs)
-                except KeyboardInterrupt:
-                    for i, f in enumerate(futs):
-                        if f.status == "finished":
-                            rows[i] = f.result()
-                    client.cancel(futs)
-                    raise
-        elif workers == 1 or len(specs) <= 1:
-            for i, s in enumerate(specs):
-                t0 = time.perf_counter()
-                rows[i] = run_one(s, root)
-                if progress:
-                    print(
-                        f"[{i + 1}/{len(specs)}] {s.run_id}: {time.perf_counter() - t0:.1f} s",
-                        flush=True,
-                    )
-        else:
-            _run_pool(specs, root, min(workers or ncpu, len(specs)), ncpu, rows, progress)
+        with _terminate_as_interrupt():
+            _run_all(specs, root, workers, scheduler, progress, rows)
     except KeyboardInterrupt:
         _finished_rows(specs, root, rows)
         raise Interrupted([r for r in rows if r is not None], len(specs)) from None
     return rows
+
+
+def _run_all(specs, root, workers, scheduler, progress, rows) -> None:
+    """Fills rows in place: on a Dask cluster, in this process, or in local processes."""
+    if scheduler:
+        from distributed import Client
+
+        with Client(scheduler) as client:
+            futs = client.map(run_one, specs, root=str(root.resolve()), threads=1, pure=False)
+            try:
+                rows[:] = client.gather(futs)
+            except KeyboardInterrupt:
+                for i, f in enumerate(futs):
+                    if f.status == "finished":
+                        rows[i] = f.result()
+                client.cancel(futs)
+                raise
+    elif workers == 1 or len(specs) <= 1:
+        for i, s in enumerate(specs):
+            t0 = time.perf_counter()
+            rows[i] = run_one(s, root)
+            if progress:
+                print(
+                    f"[{i + 1}/{len(specs)}] {s.run_id}: {time.perf_counter() - t0:.1f} s",
+                    flush=True,
+                )
+    else:
+        ncpu = os.cpu_count() or 1
+        _run_pool(specs, root, min(workers or ncpu, len(specs)), ncpu, rows, progress)
 
 
 def _run_pool(specs, root, n, ncpu, rows, progress) -> None:
@@ -320,7 +360,7 @@ def _run_pool(specs, root, n, ncpu, rows, progress) -> None:
     import multiprocessing as mp
 
     threads = max(1, ncpu // n)
-    ex = cf.ProcessPoolExecutor(n, mp_context=mp.get_context("spawn"), initializer=_ignore_sigint)
+    ex = cf.ProcessPoolExecutor(n, mp_context=mp.get_context("spawn"), initializer=_worker_init)
     try:
         futs = {ex.submit(run_one, s, root, threads): i for i, s in enumerate(specs)}
         for k, f in enumerate(cf.as_completed(futs)):
