@@ -262,16 +262,21 @@ def test_case6_ctrl_c_stops_a_sweep_and_keeps_what_finished(tmp_path):
     assert len((out / "results.csv").read_text().strip().splitlines()) == 1 + 5
 
 
-def test_case6_ctrl_c_stops_a_table_and_writes_the_partial_table(tmp_path):
-    out = tmp_path / "t"
+def _start_table(out) -> subprocess.Popen:
+    """A small Table 2 (one start, two workers) in its own process."""
     cmd = ["table", "--starts", "1", "--workers", "2", "--set", *TINY_RUN, "--out", str(out)]
-    p = subprocess.Popen(
+    return subprocess.Popen(
         [sys.executable, "-m", "nbvkit.cli", *cmd],
         stdout=subprocess.PIPE,
         stderr=subprocess.PIPE,
         text=True,
         env=dict(os.environ, MPLBACKEND="Agg"),
     )
+
+
+def test_case6_ctrl_c_stops_a_table_and_writes_the_partial_table(tmp_path):
+    out = tmp_path / "t"
+    p = _start_table(out)
     t0 = time.perf_counter()
     while time.perf_counter() - t0 < 240 and p.poll() is None:
         if (out / "runs").is_dir() and _finished(out):
@@ -305,14 +310,7 @@ def _alive(pid: int) -> bool:
 
 def _table_with_workers(out):
     """A table started in its own process, once its two workers are flying: (process, workers)."""
-    cmd = ["table", "--starts", "1", "--workers", "2", "--set", *TINY_RUN, "--out", str(out)]
-    p = subprocess.Popen(
-        [sys.executable, "-m", "nbvkit.cli", *cmd],
-        stdout=subprocess.PIPE,
-        stderr=subprocess.PIPE,
-        text=True,
-        env=dict(os.environ, MPLBACKEND="Agg"),
-    )
+    p = _start_table(out)
     t0 = time.perf_counter()
     workers: list[int] = []
     while time.perf_counter() - t0 < 120 and p.poll() is None:
