@@ -24,11 +24,11 @@ import numpy as np
 
 import nbvkit
 from _timing import median_time, mesh_parser
-from nbvkit import _core
 from nbvkit.config import Config
-from nbvkit.evaluation import Evaluator
 from nbvkit.mission import Mission
-from nbvkit.planning.placement import place_views, target_patches
+from nbvkit.planning.generators.tour import CoverageTour
+from nbvkit.profiling import run_profiling
+from nbvkit.symmetry import run_symmetry_prediction
 
 # Runs in this checkout or, through --against, in another one: only select_tour's array API.
 TIME_SNIPPET = r"""
@@ -54,28 +54,20 @@ print(json.dumps({"times": times, "choice": out}))
 
 
 def first_plan(mesh: str | None):
-    """The coverage of the first tour's candidates, its positions and start, and the rate and
-    minimum gain in the units select_tour takes, as the tour generator computes them."""
+    """The coverage of the first tour's candidates, its positions and start, the rate and minimum
+    gain in the units select_tour takes, and view_coverage's time, as the tour generator computes
+    them after the mission's profile and symmetry prediction."""
     over = ["progress=false"] + ([f"mesh.path={mesh}"] if mesh else [])
     m = Mission(Config().with_overrides(over))
     w, cfg = m.world, m.config
     w.take_off()
-    m.evaluator = Evaluator(w.mesh)
-    m._profile()
-    m._symmetry()
+    run_profiling(w)
+    run_symmetry_prediction(w, write_map=cfg.symmetry.mode == "predict")
     w.sense_camera()
-    targets = _core.surface_targets(w.map, w.surface, cfg.targets.options())
-    patches = target_patches(targets, cfg.placement.cluster_size)
-    cands, _ = place_views(
-        patches, cfg.camera, cfg.placement, (w.workspace.nav_min, w.workspace.nav_max)
-    )
-    kw = dict(
-        camera=w.view_camera,
-        utility=cfg.utility.options(),
-        validity=w.validity(blocked_path="plan"),
-    )
-    cov = _core.view_coverage(w.map, w.surface, cands, w.state.pose, **kw)
-    t_cov = median_time(lambda: _core.view_coverage(w.map, w.surface, cands, w.state.pose, **kw), 1)
+    tour = CoverageTour(cfg)
+    cands = tour.candidates(w)[2]
+    cov = tour.coverage(w, cands)
+    t_cov = median_time(lambda: tour.coverage(w, cands), 1)
     cell = w.map.resolution**2
     sel = {"rate": cfg.tour.rate / cell, "min_gain": cfg.tour.min_gain / cell}
     return cov, cands, w.state.pose, sel, t_cov

@@ -302,14 +302,12 @@ Holders holders_of(const CoverageRef& cov, const HugeVector<std::int32_t>& owner
   constexpr int kDigit = 11;
   const std::uint64_t mask = (std::uint64_t(1) << kDigit) - 1;
   std::vector<std::size_t> count(std::size_t(1) << kDigit);
-  HugeVector<std::uint64_t> b;
-  b.reserve(held);
+  HugeVector<std::uint64_t> b(held);
   for (int shift = ob; shift < ob + eb; shift += kDigit) {
     std::fill(count.begin(), count.end(), 0);
     for (const std::uint64_t x : a) ++count[(x >> shift) & mask];
     std::size_t sum = 0;
     for (std::size_t& c : count) sum += std::exchange(c, sum);
-    b.resize(held);  // (written whole below)
     for (const std::uint64_t x : a) b[count[(x >> shift) & mask]++] = x;
     a.swap(b);
   }

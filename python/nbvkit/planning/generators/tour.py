@@ -28,15 +28,34 @@ class CoverageTour:
         self.plans: list[dict] = []  # per plan: views selected, kept, flown, planned length
 
     # ------------------------------------------------------------------ planning
-    def plan(self, world) -> np.ndarray:
-        """The next tour (V, 4) from the vehicle's pose over what the map shows now."""
+    def candidates(self, world):
+        """(targets, patches, candidate views (K, 4), the patch of each (K,)) over the surface
+        still to observe that the map shows now."""
         cfg = self.cfg
-        cell_m2 = world.map.resolution**2
         targets = _core.surface_targets(world.map, world.surface, cfg.targets.options())
         patches = target_patches(targets, cfg.placement.cluster_size)
         candidates, owner = place_views(
             patches, cfg.camera, cfg.placement, (world.workspace.nav_min, world.workspace.nav_max)
         )
+        return targets, patches, candidates, owner
+
+    def coverage(self, world, candidates) -> dict:
+        """What each candidate would newly cover, from the vehicle's pose (view_coverage)."""
+        return _core.view_coverage(
+            world.map,
+            world.surface,
+            candidates,
+            world.state.pose,
+            camera=world.view_camera,
+            utility=self.cfg.utility.options(),
+            validity=world.validity(blocked_path="plan"),
+        )
+
+    def plan(self, world) -> np.ndarray:
+        """The next tour (V, 4) from the vehicle's pose over what the map shows now."""
+        cfg = self.cfg
+        cell_m2 = world.map.resolution**2
+        targets, patches, candidates, owner = self.candidates(world)
         record = {
             "targets": int(len(targets["weight"])),
             "candidates": int(len(candidates)),
@@ -50,15 +69,7 @@ class CoverageTour:
             self.aims = np.zeros((0, 3))
             return np.zeros((0, 4))
         pose = world.state.pose
-        coverage = _core.view_coverage(
-            world.map,
-            world.surface,
-            candidates,
-            pose,
-            camera=world.view_camera,
-            utility=cfg.utility.options(),
-            validity=world.validity(blocked_path="plan"),
-        )
+        coverage = self.coverage(world, candidates)
         if cfg.tour.selection == "insertion":
             # anchored at the vehicle, and with the first view's transit free (a far cluster
             # that pays only as a whole); the tour worth more after prize collection is flown
