@@ -225,9 +225,10 @@ def test_a_tour_flies_to_a_far_cluster_that_pays_for_its_transit_only_as_a_whole
             "status": np.zeros(5, np.int8),
         }
         cand = np.array([[50.0 + i, 0, 0, 0] for i in range(5)])
-        gen = CoverageTour(nbvkit.load_config(overrides=["tour.rate=0.45"]))  # m^2 per metre
+        gen = CoverageTour(nbvkit.load_config())
         pose = np.zeros(4)
-        return [gen._insertion_tour(cov, cand, pose, 1.0, charge) for charge in (True, False)]
+        rate = 0.45  # m^2 per metre
+        return [gen._insertion_tour(cov, cand, pose, 1.0, 1.2, rate, c) for c in (True, False)]
 
     anchored, free = tour_for(6)  # 30 m^2 for 54 m: worth 30 - 0.45 x 54 = 5.7
     assert anchored[2] == [] and anchored[3] == 0.0  # no single view pays 0.45 x 50 m
@@ -235,6 +236,40 @@ def test_a_tour_flies_to_a_far_cluster_that_pays_for_its_transit_only_as_a_whole
     assert free[3] == pytest.approx(30 - 0.45 * 54)
     anchored, free = tour_for(4)  # 20 m^2 for 54 m: the transit is not worth it
     assert free[2] == [] and free[3] == 0.0
+
+
+def test_area_thresholds_shrink_with_a_structure_smaller_than_the_reference_area():
+    from types import SimpleNamespace
+
+    from nbvkit.planning.parts import threshold_scale
+    from nbvkit.planning.selection import Selector
+
+    def world_showing(side):  # a map whose occupied cells make a side x side plane of 0.2 m cells
+        m = nbvkit.OccupancyMap(0.2, (-10, -10, -1), (10, 10, 1))
+        g = (np.arange(side) + 0.5) * 0.2 - 9.0
+        x, y = np.meshgrid(g, g)
+        m.update_cells(np.c_[x.ravel(), y.ravel(), np.full(side * side, 0.1)], occupied=True)
+        assert m.counts()["occupied"] == side * side
+        return SimpleNamespace(map=m, state=SimpleNamespace(pose=np.zeros(4)))
+
+    small, large = world_showing(50), world_showing(90)  # 100 m^2 and 324 m^2 of surface
+    assert threshold_scale(small.map, 400.0) == pytest.approx(100 / 400)
+    assert threshold_scale(large.map, 300.0) == 1.0  # at least the reference: as set
+    assert threshold_scale(small.map, 0.0) == 1.0  # reference 0: as set at any size
+
+    # planner.min_gain 0.8 m^2 = 20 cells; on the 100 m^2 structure a quarter of it, 5 cells
+    cfg = load_config(overrides=["vehicle.blocked_path=reject"])
+    scores = {
+        "status": np.zeros(2, np.int8),
+        "gain": np.array([4.0, 8.0]),  # cells of new surface
+        "utility": np.array([4.0, 8.0]),
+    }
+    poses = np.array([[1.0, 0, 0, 0], [2.0, 0, 0, 0]])
+    choice = Selector(cfg, 0.2).choose(small, poses, scores)
+    assert choice is not None and choice.index == 1  # 8 cells pass, 4 would not
+    assert Selector(cfg, 0.2).choose(large, poses, scores) is None
+    absolute = load_config(overrides=["vehicle.blocked_path=reject", "planner.reference_area=0"])
+    assert Selector(absolute, 0.2).choose(small, poses, scores) is None
 
 
 def test_patches_group_targets_by_cell_and_side():
@@ -348,6 +383,7 @@ def test_the_surface_planner_tours_and_stops_by_itself():
     s = m.run()
     assert s["termination"] == "coverage_complete"
     assert len(s["tours"]) >= 1 and s["tours"][0]["flown"] >= 1
+    assert 0 < s["tours"][0]["scale"] < 1  # a box of 236 m^2 < planner.reference_area
     # the 8 x 6 x 5 m box's bottom (48 of its 236 m^2) lies on the ground: 79.7 % is observable;
     # the tour must see nearly all of that
     assert s["area_coverage"]["0.1"] > 0.7
@@ -377,6 +413,7 @@ def test_budget_stops_a_mission():
         ("utility.frontier_prior=.nan", "utility.frontier_prior"),
         ("tour.rate=-1", "tour.rate"),
         ("planner.travel_lambda=.inf", "planner.travel_lambda"),
+        ("planner.reference_area=-1", "planner.reference_area"),
         ("placement.standoffs=[0.5, 2.0]", "placement.standoffs"),
         ("targets.frontier_weight=3", "frontier_weight"),
         ("stall.window=0", "stall.window"),

@@ -320,6 +320,9 @@ class PlannerConfig:
     terminations: Names = ("budget",)  # entropy | stall | budget (any one ends the mission)
     min_gain: float = 0.8  # m^2 of new surface (surface utility; else utility units); 0: any
     travel_lambda: float = 0.15  # 1/m; a view ranks by utility * exp(-travel_lambda * path)
+    # on a smaller structure (mapped surface A), m^2 thresholds x A/reference_area, tour.rate x
+    # its square root (parts.threshold_scale); the profiles of the 35 m airliners map 417-502 m^2
+    reference_area: float = 400.0  # m^2 of mapped surface under which thresholds shrink; 0: never
 
 
 @dataclass(frozen=True)
@@ -726,6 +729,7 @@ _NONNEG = {
     "tour.max_plans",
     "planner.min_gain",
     "planner.travel_lambda",
+    "planner.reference_area",
     "stall.min_gain",
     "budget.max_distance_m",
     "budget.max_views",

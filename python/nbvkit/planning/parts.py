@@ -53,6 +53,20 @@ class Step:
     extra: dict = field(default_factory=dict)  # generator-specific columns (e.g. AGVS alpha)
 
 
+def threshold_scale(occupancy_map, reference_area: float) -> float:
+    """The factor the surface planners' thresholds take on a structure smaller than
+    `reference_area` m^2 (planner.reference_area): min(1, A / reference_area), A the surface the
+    map shows now (its occupied cells, predicted ones included, x the cell area). Areas
+    (tour.min_gain, planner.min_gain, stall.min_gain) are multiplied by it, rates per metre
+    (tour.rate) by its square root, as a structure's surface and its tour shrink with its size.
+    A structure at least that large keeps them as set: its views' gains are bounded by the
+    camera's footprint, not by the structure. reference_area 0: thresholds as set."""
+    if reference_area <= 0:
+        return 1.0
+    area = occupancy_map.counts()["occupied"] * occupancy_map.resolution**2
+    return min(1.0, area / reference_area)
+
+
 class Generator(Protocol):
     """Proposes candidate views; told which one (if any) was flown."""
 

@@ -1,12 +1,13 @@
 """Choosing the view to fly among scored candidates.
 
-A candidate qualifies when it is valid (status 0) and its gain is at least planner.min_gain
-(surface utility: m^2 of new surface; other utilities: their own unit). Among those the best
-utility * exp(-travel_lambda * d) wins, d the length of the flight to it: straight (vehicle
-blocked_path 'reject': the straight leg was checked by the scoring) or an A* path through known
-free space ('plan'), computed lazily - the best by straight distance first, re-ranked by its
-path, until the top one's path is known. Ties go to the lower index, so the paper's scenarios
-(travel_lambda 0, straight legs) choose exactly the best valid utility as before.
+A candidate qualifies when it is valid (status 0) and its gain is at least planner.min_gain (surface
+utility: m^2 of new surface, scaled down on a structure smaller than planner.reference_area,
+parts.threshold_scale; other utilities: their own unit, as set). Among those the best utility *
+exp(-travel_lambda * d) wins, d the length of the flight to it: straight (vehicle blocked_path
+'reject': the straight leg was checked by the scoring) or an A* path through known free space
+('plan'), computed lazily - the best by straight distance first, re-ranked by its path, until the
+top one's path is known. Ties go to the lower index, so the paper's scenarios (travel_lambda 0,
+straight legs) choose exactly the best valid utility as before.
 """
 from __future__ import annotations
 
@@ -15,20 +16,24 @@ import math
 
 import numpy as np
 
-from .parts import Choice
+from .parts import Choice, threshold_scale
 
 
 class Selector:
     def __init__(self, config, resolution: float):
         p = config.planner
         self.travel_lambda = p.travel_lambda
-        surface = config.utility.name == "surface"
-        self.min_gain = p.min_gain / resolution**2 if surface else p.min_gain
+        self.surface = config.utility.name == "surface"
+        self.min_gain = p.min_gain / resolution**2 if self.surface else p.min_gain
+        self.reference_area = p.reference_area
         self.plan_paths = config.vehicle.blocked_path == "plan"
 
     def choose(self, world, poses: np.ndarray, scores: dict):
         here = world.state.pose[:3]
-        ok = np.flatnonzero((scores["status"] == 0) & (scores["gain"] >= self.min_gain))
+        min_gain = self.min_gain
+        if self.surface and min_gain > 0:
+            min_gain *= threshold_scale(world.map, self.reference_area)
+        ok = np.flatnonzero((scores["status"] == 0) & (scores["gain"] >= min_gain))
         if len(ok) == 0:
             return None
         straight = np.linalg.norm(poses[ok, :3] - here, axis=1)

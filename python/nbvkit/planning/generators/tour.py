@@ -9,13 +9,14 @@ tour.rate m^2 per metre of the detour they cause are dropped, the worst first, u
 pays. The tour is then proposed one view at a time (exclusive proposals): the planner re-scores
 each against the current map and skips it when it no longer adds tour.min_gain. When the tour is
 done the next plan is made from what the map shows then; a plan with no view left, or one none
-of whose views could be flown, ends the generator (tour.max_plans caps the plans)."""
+of whose views could be flown, ends the generator (tour.max_plans caps the plans). On a structure
+smaller than planner.reference_area both thresholds shrink with it (parts.threshold_scale)."""
 from __future__ import annotations
 
 import numpy as np
 
 from ... import _core
-from ..parts import Proposal
+from ..parts import Proposal, threshold_scale
 from ..placement import place_views, target_patches
 
 
@@ -55,8 +56,11 @@ class CoverageTour:
         """The next tour (V, 4) from the vehicle's pose over what the map shows now."""
         cfg = self.cfg
         cell_m2 = world.map.resolution**2
+        scale = threshold_scale(world.map, cfg.planner.reference_area)
+        min_gain, rate = cfg.tour.min_gain * scale, cfg.tour.rate * np.sqrt(scale)
         targets, patches, candidates, owner = self.candidates(world)
         record = {
+            "scale": float(scale),
             "targets": int(len(targets["weight"])),
             "candidates": int(len(candidates)),
             "selected": 0,
@@ -74,15 +78,15 @@ class CoverageTour:
             # anchored at the vehicle, and with the first view's transit free (a far cluster
             # that pays only as a whole); the tour worth more after prize collection is flown
             tours = [
-                self._insertion_tour(coverage, candidates, pose, cell_m2, charge)
+                self._insertion_tour(coverage, candidates, pose, cell_m2, min_gain, rate, charge)
                 for charge in (True, False)
             ]
             chosen, gains, order = max(tours, key=lambda t: t[3])[:3]
         else:
-            chosen, gains = _core.select_cover(coverage, min_gain=cfg.tour.min_gain / cell_m2)
+            chosen, gains = _core.select_cover(coverage, min_gain=min_gain / cell_m2)
             gains = np.asarray(gains) * cell_m2
             order = _core.solve_tour(candidates[chosen, :3], pose[:3])[0] if chosen else []
-            order = prize_collect(pose[:3], candidates[chosen, :3], gains, order, cfg.tour.rate)
+            order = prize_collect(pose[:3], candidates[chosen, :3], gains, order, rate)
         record["selected"] = len(chosen)
         views, aims = candidates[chosen], patches.centers[owner[chosen]]
         record["kept"] = len(order)
@@ -92,18 +96,17 @@ class CoverageTour:
         self.aims = aims[order]
         return views[order]
 
-    def _insertion_tour(self, coverage, candidates, pose, cell_m2, charge_transit):
+    def _insertion_tour(self, coverage, candidates, pose, cell_m2, min_gain, rate, charge_transit):
         """(chosen, gains m^2, kept order into chosen, net value m^2) of a prize-collecting
-        insertion tour from the vehicle: the shorter of its insertion order and the tour solved
-        over its views, then prize-collected; net value: the kept views' gains - rate x the
-        length of the kept tour."""
-        rate = self.cfg.tour.rate
+        insertion tour from the vehicle (views adding min_gain m^2, paying rate m^2 per metre):
+        the shorter of its insertion order and the tour solved over its views, then
+        prize-collected; net value: the kept views' gains - rate x the length of the kept tour."""
         chosen, gains = _core.select_tour(
             coverage,
             candidates[:, :3],
             pose[:3],
             rate=rate / cell_m2,
-            min_gain=self.cfg.tour.min_gain / cell_m2,
+            min_gain=min_gain / cell_m2,
             charge_transit=charge_transit,
         )
         if not chosen:
