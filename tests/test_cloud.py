@@ -91,6 +91,18 @@ def test_incremental_equals_batch_and_numpy_reference():
     assert len(np.unique(keys, axis=0)) == len(batch)
 
 
+def test_voxelgrid_sampling_gives_the_cloud_filter_centroids_and_rejects_bad_input():
+    rng = np.random.default_rng(4)
+    pts = rng.uniform(-3, 3, size=(5000, 3))
+    ref, _ = voxel_reference(pts, 0.4, min_z=-np.inf)
+    np.testing.assert_allclose(nbvkit._core.voxelgrid_sampling(pts, 0.4), ref, rtol=0, atol=1e-12)
+    for bad in (0.0, -1.0, float("nan")):
+        with pytest.raises(ValueError, match="voxel size"):
+            nbvkit._core.voxelgrid_sampling(pts, bad)
+    with pytest.raises(ValueError, match="points"):
+        nbvkit._core.voxelgrid_sampling(np.array([[0.0, np.nan, 0.0]]), 0.1)
+
+
 def test_readding_creates_nothing():
     rng = np.random.default_rng(0)
     pts = rng.uniform(0.5, 2, size=(500, 3))

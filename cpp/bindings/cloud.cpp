@@ -63,6 +63,19 @@ cloud), min_z 0.3 m.)doc")
       .def("__len__", &SurfaceCloud::size);
 
   m.def(
+      "voxelgrid_sampling",
+      [](const py::handle& points, double voxel_size) {
+        auto a = points_arg(points, "points", /*allow_nonfinite=*/true);  // the core checks
+        py::gil_scoped_release release;
+        return voxelgrid_sampling(a.map(), voxel_size);
+      },
+      py::arg("points"), py::arg("voxel_size"),
+      "(K, 3) float64 voxel-grid centroids of (N, 3) points: one point per cell "
+      "floor(p / voxel_size) (grid anchored at the origin), the mean of the points in it, in the "
+      "order the cells are first seen. ValueError for a non-positive voxel size or a non-finite "
+      "point.");
+
+  m.def(
       "_lzf_decompress",
       [](const py::bytes& data, std::size_t out_size) {
         const std::string s = data;
