@@ -13,6 +13,7 @@ import time
 from pathlib import Path
 
 import pytest
+import yaml
 
 import nbvkit
 from nbvkit.config import load_config
@@ -187,6 +188,34 @@ def test_case4_huge_mesh_scale_fails_fast_on_the_map_size(tmp_path):
         rc, _, err = cli("run", "--mesh-scale", scale, "--out", tmp_path / "r", timeout=120)
         assert time.perf_counter() - t0 < 60, f"--mesh-scale {scale} took too long"
         expect_error(rc, err, "workspace", needle)
+
+
+def test_case4_a_georeferenced_mesh_is_told_its_shift_and_flies_with_it(tmp_path, cube_obj):
+    far = tmp_path / "utm_cube.obj"
+    lines = []
+    for line in cube_obj.read_text().splitlines():
+        if line.startswith("v "):
+            x, y, z = map(float, line.split()[1:])
+            line = f"v {x + 500000:.1f} {y + 4000000:.1f} {z:.1f}"
+        lines.append(line)
+    far.write_text("\n".join(lines) + "\n")
+    common = (
+        "--mesh",
+        far,
+        "--scenario",
+        "profile",
+        "--no-progress",
+        "--set",
+        "report.enabled=false",
+    )
+    rc, _, err = cli("run", *common, "--out", tmp_path / "a", timeout=120)
+    expect_error(rc, err, "addressable range", "mesh.shift=[-500000,-4000000,0]")
+    rc, out, err = cli(
+        "run", *common, "--mesh-shift", "-500000", "-4000000", "0", "--out", tmp_path / "b"
+    )
+    assert rc == 0, err
+    cfg = yaml.safe_load((tmp_path / "b" / "config.yaml").read_text())
+    assert cfg["mesh"]["shift"] == [-500000.0, -4000000.0, 0.0]
 
 
 # ------------------------------------------------------------------------ 5-7: lost results

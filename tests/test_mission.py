@@ -102,6 +102,29 @@ def test_same_seed_same_mission():
         assert a[k] == b[k], k
 
 
+def test_a_georeferenced_mesh_is_named_too_far_and_flies_as_at_the_origin_with_mesh_shift(tmp_path):
+    from conftest import box_mesh
+
+    def write_box(path, offset):  # a 6 x 4 x 3 m box, whole metres: shifts are exact
+        m = box_mesh(np.array([-3.0, -2, 0]) + offset, np.array([3.0, 2, 3]) + offset)
+        lines = [f"v {x:.1f} {y:.1f} {z:.1f}" for x, y, z in np.asarray(m.vertices)]
+        lines += ["f " + " ".join(str(i + 1) for i in f) for f in np.asarray(m.faces)]
+        path.write_text("\n".join(lines) + "\n")
+        return str(path)
+
+    near = write_box(tmp_path / "near.obj", np.zeros(3))
+    utm = write_box(tmp_path / "utm.obj", np.array([500000.0, 4000000.0, 0.0]))
+    run = ("scenario=1", "max_iterations=4", "evaluation.coverage_every=0")
+    with pytest.raises(MissionError, match=r"mesh\.shift=\[-500000,-4000000,0\]"):
+        Mission(cfg(f"mesh.path={utm}", *run))
+    a = Mission(cfg(f"mesh.path={near}", *run)).run()
+    b = Mission(cfg(f"mesh.path={utm}", "mesh.shift=[-500000,-4000000,0]", *run)).run()
+    for k in ("iterations", "distance_m", "entropy_final", "coverage", "start_pose"):
+        assert a[k] == b[k], k
+    with pytest.raises(ValueError, match="mesh.shift"):
+        cfg("mesh.shift=[1, .nan, 0]")
+
+
 def test_the_fast_scoring_flies_the_same_mission_as_the_reference_reads(monkeypatch):
     """Scenario 5 (profile, symmetry, AGVS, the paper's IG) chooses the same views, flies the same
     distance and ends at the same entropy whether its candidates are scored by the grid walk or

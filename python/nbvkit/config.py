@@ -151,6 +151,7 @@ class MeshConfig:
     path: Optional[str] = None  # None: the shipped generated airliner
     scale: float = 1.0
     up: str = "z"  # the file's up axis: "z" or "y"
+    shift: tuple = (0.0, 0.0, 0.0)  # m added after scale and up; results are in the shifted frame
 
 
 @dataclass(frozen=True)
@@ -743,6 +744,7 @@ _NONNEG = {
 }
 _INF_OK = {"symmetry.max_descriptor_distance"}  # inf: no limit
 _TRIPLES = {
+    "mesh.shift",
     "camera.mount_xyz",
     "camera.mount_rpy_deg",
     "laser.mount_xyz",
@@ -766,8 +768,11 @@ def _validate(obj, prefix: str) -> None:
             raise ValueError(f"config key {key!r} must be positive, got {v!r}")
         if key in _NONNEG and v is not None and v < 0:
             raise ValueError(f"config key {key!r} must be >= 0, got {v!r}")
-        if key in _TRIPLES and v is not None and len(v) != 3:
-            raise ValueError(f"config key {key!r} must have 3 numbers, got {list(v)!r}")
+        if key in _TRIPLES and v is not None:
+            if len(v) != 3:
+                raise ValueError(f"config key {key!r} must have 3 numbers, got {list(v)!r}")
+            if not all(isinstance(x, (int, float)) and math.isfinite(x) for x in v):
+                raise ValueError(f"config key {key!r} must be 3 finite numbers, got {list(v)!r}")
     if hasattr(obj, "OPTIONS"):  # a section of C++ options: their own checks, named here
         try:
             for cls in obj.OPTIONS_ALL:

@@ -231,7 +231,10 @@ def _mesh_of(run_dir: Path):
     cfg = yaml.safe_load((Path(run_dir) / "config.yaml").read_text())
     m = cfg.get("mesh", {})
     return load_mesh(
-        m.get("path") or default_mesh_path(), scale=m.get("scale", 1.0), up=m.get("up", "z")
+        m.get("path") or default_mesh_path(),
+        scale=m.get("scale", 1.0),
+        up=m.get("up", "z"),
+        shift=m.get("shift"),
     )
 
 

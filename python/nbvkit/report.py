@@ -176,7 +176,8 @@ def run_view(run_dir, view_points: int = 60000):
 
     run_dir = Path(run_dir)
     cfg = load_config(run_dir / "config.yaml", [])
-    mesh = load_mesh(cfg.mesh.path or default_mesh_path(), scale=cfg.mesh.scale, up=cfg.mesh.up)
+    m = cfg.mesh
+    mesh = load_mesh(m.path or default_mesh_path(), scale=m.scale, up=m.up, shift=m.shift)
     ev = Evaluator(mesh, gt_density=cfg.evaluation.gt_density, seed=cfg.seed)
     cache = run_dir / "cache" if (run_dir / "cache").exists() else run_dir.parent.parent / "cache"
     mask = observable_surface(mesh, cfg, evaluator=ev, cache_dir=cache).observable

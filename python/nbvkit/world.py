@@ -56,7 +56,9 @@ class World:
         self.config = cfg = config
         if mesh is None:
             self.mesh_path = str(cfg.mesh.path or default_mesh_path())
-            mesh = load_mesh(self.mesh_path, scale=cfg.mesh.scale, up=cfg.mesh.up)
+            mesh = load_mesh(
+                self.mesh_path, scale=cfg.mesh.scale, up=cfg.mesh.up, shift=cfg.mesh.shift
+            )
         else:
             if not isinstance(mesh, _core.Mesh):
                 raise TypeError(f"mesh must be an nbvkit.Mesh, got {type(mesh).__name__}")
@@ -65,12 +67,26 @@ class World:
         self.workspace: Workspace = make_workspace(mesh.bounds, cfg)
         # The map first: its size check (cells, OctoMap's range) comes before any search.
         m = cfg.map
-        self.map = _core.OccupancyMap(
-            m.resolution,
-            self.workspace.bounds_min,
-            self.workspace.bounds_max,
-            options=m.options(),
-        )
+        try:
+            self.map = _core.OccupancyMap(
+                m.resolution,
+                self.workspace.bounds_min,
+                self.workspace.bounds_max,
+                options=m.options(),
+            )
+        except ValueError as e:
+            ws = self.workspace
+            reach = 32767 * m.resolution  # OctoMap's keys, each way from the origin
+            if "addressable range" not in str(e) or np.any(ws.bounds_max - ws.bounds_min > reach):
+                raise
+            c = np.round(-(mesh.bounds[0] + mesh.bounds[1]) / 2)
+            c[2] = 0.0
+            shift = ",".join(f"{x:.0f}" for x in c + np.asarray(cfg.mesh.shift, float))
+            raise MissionError(
+                f"{e}: the structure lies too far from the origin for the map; fly it in a frame "
+                f"near the origin with mesh.shift (e.g. --set mesh.shift=[{shift}]: its "
+                "results are then in that frame)"
+            ) from None
         self.scene = _core.RaycastScene(mesh)
         c, la = cfg.camera, cfg.laser
         camera_mount = _core.mount_transform(c.mount_xyz, *c.mount_rpy_deg)

@@ -30,11 +30,31 @@ def add_mesh_options(p: argparse.ArgumentParser, required: bool = False) -> None
         default="z",
         help="the mesh file's up axis; y-up files are rotated to z-up (default z)",
     )
+    add_mesh_shift_option(p)
 
 
 def mesh_from_args(args):
     path = args.mesh if args.mesh else default_mesh_path()
-    return load_mesh(path, scale=args.mesh_scale, up=args.mesh_up)
+    return load_mesh(path, scale=args.mesh_scale, up=args.mesh_up, shift=args.mesh_shift)
+
+
+def add_mesh_shift_option(p: argparse.ArgumentParser) -> None:
+    p.add_argument(
+        "--mesh-shift",
+        nargs=3,
+        type=float,
+        default=None,
+        metavar=("X", "Y", "Z"),
+        help="add (X, Y, Z) metres to the mesh coordinates after scale and up axis, e.g. to "
+        "bring a georeferenced mesh near the origin (results are in the shifted frame)",
+    )
+
+
+def shift_override(args) -> list:
+    """The config override of --mesh-shift, if given."""
+    if args.mesh_shift is None:
+        return []
+    return ["mesh.shift=[" + ",".join(repr(float(x)) for x in args.mesh_shift) + "]"]
 
 
 def add_set_option(p: argparse.ArgumentParser, help: str) -> None:

@@ -4,7 +4,13 @@ from __future__ import annotations
 import argparse
 
 from ..paths import check_output_dir
-from .common import add_experiment_options, add_mesh_options, check_starts, fly_experiment
+from .common import (
+    add_experiment_options,
+    add_mesh_options,
+    check_starts,
+    fly_experiment,
+    shift_override,
+)
 
 
 def register(sub) -> argparse.ArgumentParser:
@@ -38,7 +44,10 @@ def run(args) -> int:
     planners = [p.strip() for p in args.planners.split(",") if p.strip()]
     if not planners:
         raise ValueError("--planners names no planner")
-    specs = compare_specs(planners, args.mesh, args.mesh_scale, args.mesh_up, args.starts, args.set)
+    overrides = [*args.set, *shift_override(args)]
+    specs = compare_specs(
+        planners, args.mesh, args.mesh_scale, args.mesh_up, args.starts, overrides
+    )
     validate_specs(specs)
     out = check_output_dir(args.out, "--out")
 

@@ -36,7 +36,7 @@ def register(sub) -> argparse.ArgumentParser:
         metavar="PATH",
         help="use this ground-truth point cloud (.ply, .pcd or .npy) as is instead of "
         "sampling a mesh (as the authors evaluated); excludes --mesh, and "
-        "--mesh-scale / --mesh-up / --gt-density / --seed do not apply to it",
+        "--mesh-scale / --mesh-up / --mesh-shift / --gt-density / --seed do not apply to it",
     )
     p.add_argument(
         "cloud",
@@ -44,7 +44,7 @@ def register(sub) -> argparse.ArgumentParser:
         help="the reconstruction to score: a point cloud (.ply, .pcd or .npy) or a mesh "
         "(a .ply with faces, .obj, .stl, .off, .glb, .gltf, .dae: its surface is sampled at "
         "--gt-density), world frame, metres, same frame as the mesh after "
-        "--mesh-scale/--mesh-up",
+        "--mesh-scale/--mesh-up/--mesh-shift",
     )
     p.add_argument(
         "--observable",
@@ -131,6 +131,7 @@ def run(args) -> int:
             "mesh": str(args.mesh) if args.mesh else "default (shipped airliner)",
             "mesh_scale": args.mesh_scale,
             "mesh_up": args.mesh_up,
+            "mesh_shift": args.mesh_shift,
         }
     if args.seed < 0:
         raise ValueError(f"--seed must be >= 0, got {args.seed}")

@@ -10,7 +10,7 @@ from ..mission import Mission
 from ..report import finish_run
 from ..paths import check_output_dir
 from ..scenarios import DEFAULT, SCENARIOS
-from .common import add_set_option
+from .common import add_mesh_shift_option, add_set_option, shift_override
 
 
 def register(sub) -> argparse.ArgumentParser:
@@ -38,6 +38,7 @@ def register(sub) -> argparse.ArgumentParser:
         "--mesh-scale", metavar="S", type=float, default=None, help="multiply mesh coordinates by S"
     )
     p.add_argument("--mesh-up", choices=("y", "z"), default=None, help="the mesh file's up axis")
+    add_mesh_shift_option(p)
     p.add_argument(
         "--scenario",
         "--planner",
@@ -77,6 +78,7 @@ def config_from_args(args):
         overrides.append(f"mesh.scale={args.mesh_scale}")
     if args.mesh_up is not None:
         overrides.append(f"mesh.up={args.mesh_up}")
+    overrides += shift_override(args)
     if args.scenario is not None:
         overrides.append(f"scenario={json.dumps(args.scenario)}")
     if args.start is not None:
