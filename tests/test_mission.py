@@ -256,3 +256,21 @@ def test_starts_on_the_bounds_stay_inside_them_whatever_the_rounding():
     assert c[1] - h[1] < ws.nav_min[1]  # the case this guards against
     for s in start_poses(ws):
         assert ws.contains(s)
+
+
+def test_stage_timers_lap_counts_every_run_of_a_stage_since_the_last_lap(monkeypatch):
+    from nbvkit import timing
+
+    clock = iter(range(100))
+    monkeypatch.setattr(timing, "perf_counter", lambda: float(next(clock)))
+    t = timing.StageTimers()
+    for _ in range(3):  # e.g. three tour views scored and skipped, then one flown
+        with t("evaluation"):
+            pass  # 1 s each on the fake clock
+    with t("sensing"):
+        pass
+    assert t.lap() == {"evaluation": 3.0, "sensing": 1.0}
+    with t("evaluation"):
+        pass
+    assert t.lap() == {"evaluation": 1.0, "sensing": 0.0}
+    assert t.total == {"evaluation": 4.0, "sensing": 1.0}

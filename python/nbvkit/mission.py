@@ -160,7 +160,7 @@ class Mission:
             cov = {float(k): v for k, v in c.items()}
             self.coverage_time_s += time.perf_counter() - t0
         p, c = world.state.pose, step.choice
-        last = self.planner.timers.last
+        lap = self.planner.timers.lap()
         self.records.append(
             IterationRecord(
                 step.iteration,
@@ -181,7 +181,7 @@ class Mission:
                 cov.get(0.05),
                 cov.get(0.1),
                 cov.get(0.5),
-                *(last.get(s, 0.0) * 1e3 for s in STAGES),
+                *(lap.get(s, 0.0) * 1e3 for s in STAGES),
             )
         )
         if self._bar is not None:

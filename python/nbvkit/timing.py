@@ -1,25 +1,32 @@
 """Stage timers: the mission's per-stage wall time, kept out of the method's code."""
 from __future__ import annotations
 
-import time
 from collections import defaultdict
 from contextlib import contextmanager
+from time import perf_counter
 
 
 class StageTimers:
-    """``with timers("sensing"): ...`` adds the block's wall time to the stage; ``last`` holds
-    each stage's most recent time (s) and ``total`` its sum."""
+    """``with timers("sensing"): ...`` adds the block's wall time to the stage; ``total`` holds
+    each stage's sum (s) and ``lap()`` each stage's time since the previous lap."""
 
     def __init__(self):
         self.total = defaultdict(float)
-        self.last = {}
+        self._at_lap = {}
+
+    def lap(self) -> dict:
+        """Each stage's time (s) since the previous lap (or since the timers were made): all of
+        an iteration's time, also where a stage ran more than once (tour views skipped, a new
+        tour planned)."""
+        out = {s: t - self._at_lap.get(s, 0.0) for s, t in self.total.items()}
+        self._at_lap = dict(self.total)
+        return out
 
     @contextmanager
     def __call__(self, stage: str):
-        t0 = time.perf_counter()
+        t0 = perf_counter()
         try:
             yield
         finally:
-            dt = time.perf_counter() - t0
+            dt = perf_counter() - t0
             self.total[stage] += dt
-            self.last[stage] = dt
