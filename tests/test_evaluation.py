@@ -335,6 +335,19 @@ def cube_files(tmp_path_factory, cube, cube_face_cloud):
     return d
 
 
+def test_cli_evaluate_warns_when_the_cloud_is_in_another_frame(cube_files, capsys, tmp_path):
+    from nbvkit.cli import main
+
+    face = nbvkit.read_points(cube_files / "face.ply")
+    args = ["evaluate", "--mesh", str(cube_files / "cube.obj"), "--gt-density", "500"]
+    assert main([*args, str(cube_files / "face.ply")]) == 0
+    assert "same frame" not in capsys.readouterr().err
+    nbvkit.write_points(tmp_path / "moved.ply", face + [0.0, 0.0, 100.0])
+    assert main([*args, str(tmp_path / "moved.ply")]) == 0
+    err = capsys.readouterr().err
+    assert "same frame" in err and "--mesh-shift" in err
+
+
 def test_cli_evaluate_writes_json(cube_files, capsys):
     from nbvkit.cli import main
 

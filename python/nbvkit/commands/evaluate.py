@@ -4,7 +4,10 @@ from __future__ import annotations
 import argparse
 import json
 import os
+import sys
 from pathlib import Path
+
+import numpy as np
 
 from ..paths import check_output_file
 from ..cloud import read_points
@@ -155,6 +158,9 @@ def run(args) -> int:
     result = ev(cloud)
     print(f"reconstruction file: {cloud_path} ({cloud_kind})")
     print(f"ground-truth file: {next(iter(gt_desc.values()))}")
+    apart = _frames_apart(np.asarray(cloud), ev.gt_points, max(args.taus))
+    if apart:
+        print(f"warning: {apart}", file=sys.stderr)
     print(format_report(result))
     if args.json:
         out = dict(result)
@@ -167,6 +173,22 @@ def run(args) -> int:
         Path(args.json).expanduser().write_text(text + "\n")
         print(f"results -> {args.json}")
     return 0
+
+
+def _frames_apart(cloud, gt, margin: float) -> str:
+    """Why the cloud and the ground truth seem to be in different frames (their bounding boxes,
+    grown by `margin`, do not meet), or ''."""
+    if len(cloud) == 0 or len(gt) == 0:
+        return ""
+    lo_c, hi_c = cloud.min(axis=0), cloud.max(axis=0)
+    lo_g, hi_g = gt.min(axis=0) - margin, gt.max(axis=0) + margin
+    if np.all(hi_c >= lo_g) and np.all(lo_c <= hi_g):
+        return ""
+    gap = np.linalg.norm(np.maximum(0, np.maximum(lo_g - hi_c, lo_c - hi_g)))
+    return (
+        f"the reconstruction lies {gap:.1f} m from the ground truth's bounding box: are they "
+        "in the same frame? (--mesh-scale, --mesh-up and --mesh-shift apply to the mesh only)"
+    )
 
 
 MESH_SUFFIXES = (".obj", ".stl", ".off", ".glb", ".gltf", ".dae", ".fbx", ".3ds")
