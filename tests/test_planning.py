@@ -256,6 +256,7 @@ def test_area_thresholds_shrink_with_a_structure_smaller_than_the_reference_area
     assert threshold_scale(small.map, 400.0) == pytest.approx(100 / 400)
     assert threshold_scale(large.map, 300.0) == 1.0  # at least the reference: as set
     assert threshold_scale(small.map, 0.0) == 1.0  # reference 0: as set at any size
+    assert threshold_scale(small.map, 4000.0) == 0.1  # never below a tenth
 
     # planner.min_gain 0.8 m^2 = 20 cells; on the 100 m^2 structure a quarter of it, 5 cells
     cfg = load_config(overrides=["vehicle.blocked_path=reject"])
