@@ -1,7 +1,13 @@
 """Helpers shared by the benchmark scripts (imported from the scripts' own folder): timing, the
 common command line and the structure to time."""
 import argparse
+import json
+import os
+import subprocess
+import sys
+import tempfile
 import time
+from pathlib import Path
 
 import numpy as np
 
@@ -35,3 +41,31 @@ def median_time(fn, repeat: int) -> float:
         fn()
         ts.append(time.perf_counter() - t0)
     return float(np.median(ts))
+
+
+def checkouts(against: str | None) -> list:
+    """[(label, package dir)]: this checkout's (None: the nbvkit already importable) and, with
+    --against DIR, another checkout's package, DIR/python or DIR (a saved copy of a package)."""
+    runs = [("this checkout", None)]
+    if against:
+        d = Path(against).resolve()
+        runs.append((against, d / "python" if (d / "python").is_dir() else d))
+    return runs
+
+
+def run_snippet(snippet: str, args, package_dir=None) -> dict:
+    """Runs `python -c snippet *args` with nbvkit imported from package_dir (None: as this process
+    imports it), from a temporary folder; returns the JSON object its last output line prints.
+    File arguments must be absolute paths."""
+    env = dict(os.environ)
+    if package_dir is not None:
+        env["PYTHONPATH"] = str(package_dir) + os.pathsep + env.get("PYTHONPATH", "")
+    out = subprocess.run(
+        [sys.executable, "-c", snippet, *map(str, args)],
+        check=True,
+        capture_output=True,
+        text=True,
+        env=env,
+        cwd=tempfile.gettempdir(),
+    )
+    return json.loads(out.stdout.strip().splitlines()[-1])

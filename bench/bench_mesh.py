@@ -11,11 +11,10 @@ package before a change), and prints the ratio. Prints figures; asserts nothing.
 from __future__ import annotations
 
 import argparse
-import json
-import os
-import subprocess
 import sys
 from pathlib import Path
+
+from _timing import checkouts, run_snippet
 
 ROOT = Path(__file__).resolve().parent.parent
 
@@ -41,20 +40,6 @@ print(json.dumps({"points": len(pts), "s": best,
 """
 
 
-def time_in(pythonpath, cloud, depth, repeat) -> dict:
-    env = dict(os.environ)
-    if pythonpath is not None:
-        env["PYTHONPATH"] = str(pythonpath)
-    res = subprocess.run(
-        [sys.executable, "-c", SNIPPET, str(cloud), str(depth), str(repeat)],
-        env=env,
-        capture_output=True,
-        text=True,
-        check=True,
-    )
-    return json.loads(res.stdout)
-
-
 def main():
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--cloud", default=str(ROOT / "runs" / "main" / "cloud.ply"))
@@ -62,14 +47,13 @@ def main():
     ap.add_argument("--repeat", type=int, default=3)
     ap.add_argument("--against", help="another checkout to time the same call in, in the same run")
     args = ap.parse_args()
-    cloud = Path(args.cloud)
+    cloud = Path(args.cloud).resolve()
     if not cloud.is_file():
         sys.exit(f"no cloud at {cloud}: run `make` first (it writes runs/main) or pass --cloud")
-    runs = [("this checkout", None)]
-    if args.against:
-        d = Path(args.against).resolve()
-        runs.append((args.against, d / "python" if (d / "python").is_dir() else d))
-    rows = [(label, time_in(py, cloud, args.depth, args.repeat)) for label, py in runs]
+    rows = [
+        (label, run_snippet(SNIPPET, (cloud, args.depth, args.repeat), py))
+        for label, py in checkouts(args.against)
+    ]
     print(f"{cloud}: {rows[0][1]['points']:,} points, Poisson depth {args.depth}")
     for label, r in rows:
         print(

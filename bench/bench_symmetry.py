@@ -25,11 +25,7 @@ mirror-symmetric) and the profile is then moved rigidly in 3D.
 from __future__ import annotations
 
 import argparse
-import json
 import math
-import os
-import subprocess
-import sys
 import tempfile
 import time
 from pathlib import Path
@@ -37,6 +33,7 @@ from pathlib import Path
 import numpy as np
 
 import nbvkit
+from _timing import checkouts, run_snippet
 from nbvkit import _core
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -169,22 +166,6 @@ def mission_profile():
     return np.asarray(m.world.laser_cloud.points, float)
 
 
-def time_in(package_dir, points_file, repeats, threads):
-    """Runs TIME_SNIPPET with nbvkit imported from package_dir (None: this checkout's)."""
-    env = dict(os.environ)
-    if package_dir is not None:
-        env["PYTHONPATH"] = str(package_dir) + os.pathsep + env.get("PYTHONPATH", "")
-    out = subprocess.run(
-        [sys.executable, "-c", TIME_SNIPPET, str(points_file), str(repeats), str(threads)],
-        check=True,
-        capture_output=True,
-        text=True,
-        env=env,
-        cwd=tempfile.gettempdir(),
-    )
-    return json.loads(out.stdout.strip().splitlines()[-1])
-
-
 def mission_case(args):
     t0 = time.perf_counter()
     pts = mission_profile()
@@ -195,11 +176,10 @@ def mission_case(args):
     with tempfile.TemporaryDirectory() as tmp:
         f = Path(tmp) / "profile.npy"
         np.save(f, pts)
-        runs = [("this checkout", None)]
-        if args.against:
-            d = Path(args.against).resolve()
-            runs.append((str(args.against), d / "python" if (d / "python").is_dir() else d))
-        rows = [(label, time_in(py, f, args.repeats, args.threads)) for label, py in runs]
+        rows = [
+            (label, run_snippet(TIME_SNIPPET, (f, args.repeats, args.threads), py))
+            for label, py in checkouts(args.against)
+        ]
     for label, r in rows:
         print(
             f"  {label}: detect {r['detect']:.3f} s + predict {r['predict']:.3f} s = "

@@ -14,16 +14,13 @@ the ratio.
 from __future__ import annotations
 
 import json
-import os
-import subprocess
-import sys
 import tempfile
 from pathlib import Path
 
 import numpy as np
 
 import nbvkit
-from _timing import median_time, mesh_parser
+from _timing import checkouts, median_time, mesh_parser, run_snippet
 from nbvkit.config import Config
 from nbvkit.mission import Mission
 from nbvkit.planning.generators.tour import CoverageTour
@@ -73,20 +70,6 @@ def first_plan(mesh: str | None):
     return cov, cands, w.state.pose, sel, t_cov
 
 
-def time_in(python_dir: Path | None, data: str, kw: dict, repeat: int) -> dict:
-    env = dict(os.environ)
-    if python_dir is not None:
-        env["PYTHONPATH"] = str(python_dir)
-    res = subprocess.run(
-        [sys.executable, "-c", TIME_SNIPPET, data, json.dumps(kw), str(repeat)],
-        env=env,
-        capture_output=True,
-        text=True,
-        check=True,
-    )
-    return json.loads(res.stdout)
-
-
 def main():
     ap = mesh_parser(__doc__, repeat=3)
     ap.add_argument("--against", help="another checkout to time select_tour in, in the same run")
@@ -101,11 +84,10 @@ def main():
     with tempfile.TemporaryDirectory() as tmp:
         data = str(Path(tmp) / "coverage.npz")
         np.savez(data, positions=cands[:, :3], start=pose[:3], **cov)
-        runs = [("this checkout", None)]
-        if args.against:
-            d = Path(args.against).resolve()
-            runs.append((args.against, d / "python" if (d / "python").is_dir() else d))
-        rows = [(label, time_in(py, data, sel, args.repeat)) for label, py in runs]
+        rows = [
+            (label, run_snippet(TIME_SNIPPET, (data, json.dumps(sel), args.repeat), py))
+            for label, py in checkouts(args.against)
+        ]
     for label, r in rows:
         t = r["times"]
         n = [len(c[0]) for c in r["choice"]]
