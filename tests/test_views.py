@@ -108,6 +108,27 @@ def test_straight_path_through_unknown_is_blocked_and_a_path_is_planned_around()
     assert len(_core.plan_path(m, (10, 2, 2), (6, 9.5, 2), 0.8)) == 0  # target in unknown space
 
 
+def test_the_free_component_answers_what_a_search_would_and_the_reference_agrees():
+    m = nbvkit.OccupancyMap(0.2, (0, 0, 0), (12, 12, 4))
+    m.mark_free_segment((2, 6, 2), (10, 6, 2), 1.5)  # two corridors joined at x = 2 ...
+    m.mark_free_segment((2, 2, 2), (10, 2, 2), 1.5)
+    m.mark_free_segment((2, 2, 2), (2, 6, 2), 1.5)
+    m.mark_free_segment((9, 10, 2), (10.5, 10, 2), 1.5)  # ... and a pocket apart from them
+    start = (10, 2, 2)
+    goals = np.array([[10, 6, 2], [6, 2, 2], [9.8, 10, 2], [6, 9.5, 2], [2, 4, 2]])
+    paths = [_core.plan_path(m, start, g, 0.8) for g in goals]
+    for g, p in zip(goals, paths):  # the first implementation gives the same path
+        np.testing.assert_array_equal(p, _core.plan_path(m, start, g, 0.8, reference=True))
+    found = [len(p) > 0 for p in paths]
+    assert found == [True, True, False, False, True]  # the pocket, and unknown space: no way
+    component = _core.FreeComponent(m, start, 0.8)
+    assert component.contains(m, goals).tolist() == found
+    with pytest.raises(ValueError, match="targets"):
+        component.contains(m, np.zeros((2, 2)))
+    with pytest.raises(ValueError, match="radius"):
+        _core.FreeComponent(m, start, -1.0)
+
+
 def test_grid_and_octree_backends_agree():
     mesh = box_mesh((10, -2, 0), (14, 2, 8))
     m = nbvkit.OccupancyMap(0.2, (0, -10, 0), (20, 10, 10))

@@ -176,13 +176,14 @@ slower).)doc");
   m.def(
       "plan_path",
       [](const OccupancyMap& map, const py::handle& a, const py::handle& b, double r,
-         std::size_t max_expansions) {
+         std::size_t max_expansions, bool reference) {
         const Eigen::Vector3d pa = vec3_arg(a, "path start"), pb = vec3_arg(b, "path end");
         if (!(r >= 0) || !std::isfinite(r)) throw py::value_error("radius must be finite and >= 0");
         std::vector<Eigen::Vector3d> path;
         {
           py::gil_scoped_release release;
-          path = plan_path(grid_view(map), pa, pb, r, max_expansions);
+          path = reference ? plan_path_reference(grid_view(map), pa, pb, r, max_expansions)
+                           : plan_path(grid_view(map), pa, pb, r, max_expansions);
         }
         Points out(static_cast<Eigen::Index>(path.size()), 3);
         for (std::size_t i = 0; i < path.size(); ++i)
@@ -190,8 +191,39 @@ slower).)doc");
         return out;
       },
       py::arg("map"), py::arg("a"), py::arg("b"), py::arg("radius"),
-      py::arg("max_expansions") = 200000,
-      "A* through known free space; (P, 3) waypoints from a to b, or (0, 3) when there is none.");
+      py::arg("max_expansions") = 200000, py::arg("reference") = false,
+      "A* through known free space; (P, 3) waypoints from a to b, or (0, 3) when there is none.\n"
+      "reference=True runs the first implementation (the same path, slower), for tests and\n"
+      "benchmarks.");
+  py::class_<FreeComponent>(m, "FreeComponent", R"doc(
+The cells plan_path can reach from `start` through known free space (collision sphere of
+`radius`), found by one flood. Valid while `map` is unchanged: ask it about many targets of one
+planning step instead of searching a path to each.)doc")
+      .def(py::init([](const OccupancyMap& map, const py::handle& a, double r) {
+             const Eigen::Vector3d pa = vec3_arg(a, "start");
+             if (!(r >= 0) || !std::isfinite(r))
+               throw py::value_error("radius must be finite and >= 0");
+             py::gil_scoped_release release;
+             return FreeComponent(grid_view(map), pa, r);
+           }),
+           py::arg("map"), py::arg("start"), py::arg("radius"))
+      .def(
+          "contains",
+          [](const FreeComponent& c, const OccupancyMap& map, const py::handle& targets) {
+            const PointsArg t = points_arg(targets, "targets");
+            std::vector<std::uint8_t> ok;
+            {
+              py::gil_scoped_release release;
+              ok = c.contains(grid_view(map), t.map());
+            }
+            py::array_t<bool> out(static_cast<py::ssize_t>(ok.size()));
+            auto o = out.mutable_unchecked<1>();
+            for (std::size_t i = 0; i < ok.size(); ++i) o(py::ssize_t(i)) = ok[i] != 0;
+            return out;
+          },
+          py::arg("map"), py::arg("targets"),
+          "(N,) bool per target (N, 3) of the same, unchanged map: True where plan_path can reach\n"
+          "it (straight, or its cell in the component and in sight of it); False where it cannot.");
   m.def("viewable_cells", &viewable_cells, py::arg("hfov_deg"), py::arg("vfov_deg"),
         py::arg("min_range"), py::arg("max_range"), py::arg("resolution"),
         py::arg("count_partial") = true,

@@ -1,11 +1,163 @@
 #include "nbv/navigation.hpp"
 
 #include <algorithm>
+#include <array>
 #include <cmath>
+#include <cstdint>
+#include <deque>
 #include <queue>
 #include <unordered_map>
 
 namespace nbv {
+
+namespace {
+
+// ---- traversability: is the collision sphere centred on a cell free? ----------------------
+//
+// sphere_is_free at a cell's centre tests a fixed set of cells around it: offset o touches the
+// sphere when sum over axes of max(|o_a| - 1/2, 0)^2 <= (radius / resolution)^2, within a box of
+// offsets [-e, e], e = floor(1/2 + r), that must lie inside the grid. Grouped by column (o_x, o_y),
+// the touching offsets are a z-range [-h, h]. Where a stencil term or the box edge is within 1e-9
+// of the boundary, the rounding of the centre could decide it: there the stencil is not used and
+// every cell goes through sphere_is_free.
+struct SphereStencil {
+  struct Column {
+    int dx, dy, h;
+  };
+  std::vector<Column> columns;
+  int extent = 0;
+  bool exact = false;
+
+  explicit SphereStencil(double r) {
+    auto near_int = [](double x) { return std::abs(x - std::round(x)) < 1e-9; };
+    if (near_int(0.5 - r) || near_int(0.5 + r)) return;
+    extent = int(std::floor(0.5 + r));
+    const double r2 = r * r;
+    auto f = [](int o) {
+      const double d = std::max(std::abs(o) - 0.5, 0.0);
+      return d * d;
+    };
+    for (int dy = -extent; dy <= extent; ++dy)
+      for (int dx = -extent; dx <= extent; ++dx) {
+        int h = -1;
+        for (int dz = 0; dz <= extent; ++dz) {
+          const double s = f(dx) + f(dy) + f(dz);
+          if (std::abs(s - r2) < 1e-9) return;  // on the boundary: leave it to sphere_is_free
+          if (s <= r2) h = dz;
+        }
+        if (h >= 0) columns.push_back({dx, dy, h});
+      }
+    exact = true;
+  }
+};
+
+// Per-call scratch, reused between calls (thread-local; stamps instead of clearing).
+// - What the search knows of each cell, per brick of 64 cells: a brick's block is made on its
+//   first touch in the call, so a search pays for the bricks it touches, not for the grid.
+// - Blocked cells (unknown or occupied) and traversable cells as bits in words of 64 cells along
+//   x, each computed on first use: a traversable word is the complement of the OR, over the
+//   stencil's offsets, of the blocked words shifted by the offset, with everything outside the
+//   grid blocked (which is sphere_is_free's "the box must lie inside the grid": the stencil
+//   reaches the box's extent along each axis). 64 cells cost about what one sphere test did.
+struct SearchScratch {
+  struct Block {
+    double g[64];
+    std::uint64_t parent[64];
+    std::uint64_t has_g, reached;  // bits per cell: g set; reached by the backward flood
+  };
+  std::vector<std::uint32_t> brick_stamp, brick_block;
+  std::deque<Block> blocks;  // a deque: a block's address never moves
+  std::size_t used = 0;
+  int words = 0;  // words per row along x
+  std::vector<std::uint32_t> blocked_stamp, trav_stamp;
+  std::vector<std::uint64_t> blocked_bits, trav_bits;
+  std::uint32_t stamp = 0;
+
+  void begin(const GridView& g) {
+    const std::size_t bricks = g.storage_size() >> 6;
+    words = (g.nx + 63) / 64;
+    const std::size_t nw = std::size_t(words) * std::size_t(g.ny) * std::size_t(g.nz);
+    if (brick_stamp.size() != bricks || blocked_stamp.size() != nw || ++stamp == 0) {
+      brick_stamp.assign(bricks, 0);
+      brick_block.assign(bricks, 0);
+      blocked_stamp.assign(nw, 0);
+      trav_stamp.assign(nw, 0);
+      blocked_bits.assign(nw, 0);
+      trav_bits.assign(nw, 0);
+      stamp = 1;
+    }
+    used = 0;
+  }
+  Block& block(std::size_t idx) {
+    const std::size_t b = idx >> 6;
+    if (brick_stamp[b] != stamp) {
+      brick_stamp[b] = stamp;
+      if (used == blocks.size()) blocks.emplace_back();
+      Block& k = blocks[used];
+      k.has_g = k.reached = 0;
+      brick_block[b] = std::uint32_t(used++);
+    }
+    return blocks[brick_block[b]];
+  }
+  /// Word w of row (j, k): bit x - 64 w set where cell (x, j, k) is blocked or outside the grid.
+  std::uint64_t blocked(const GridView& g, int w, int j, int k) {
+    if (w < 0 || w >= words || !g.contains(0, j, k)) return ~std::uint64_t(0);
+    const std::size_t at =
+        std::size_t(w) + std::size_t(words) * (std::size_t(j) + std::size_t(g.ny) * std::size_t(k));
+    if (blocked_stamp[at] != stamp) {
+      blocked_stamp[at] = stamp;
+      std::uint64_t bits = 0;
+      for (int b = 0; b < 64; ++b) {
+        const int x = 64 * w + b;
+        if (x >= g.nx) {
+          bits |= ~std::uint64_t(0) << b;
+          break;
+        }
+        const std::size_t idx = g.index(x, j, k);
+        bits |= std::uint64_t(g.flags[idx] == CellFlag::Unknown || g.occupied(idx)) << b;
+      }
+      blocked_bits[at] = bits;
+    }
+    return blocked_bits[at];
+  }
+  /// Bits x0 .. x0 + 63 of row (j, k) (x0 may be negative or past the row: blocked there).
+  std::uint64_t blocked_from(const GridView& g, int x0, int j, int k) {
+    const int w = x0 >> 6, s = x0 & 63;  // arithmetic shift: floor for negative x0
+    const std::uint64_t lo = blocked(g, w, j, k);
+    if (s == 0) return lo;
+    return lo >> s | blocked(g, w + 1, j, k) << (64 - s);
+  }
+  /// Word w of row (j, k) of cells whose collision sphere (radius) is free.
+  std::uint64_t traversable(const GridView& g, const SphereStencil& st, double radius, int w, int j,
+                            int k) {
+    const std::size_t at =
+        std::size_t(w) + std::size_t(words) * (std::size_t(j) + std::size_t(g.ny) * std::size_t(k));
+    if (trav_stamp[at] != stamp) {
+      trav_stamp[at] = stamp;
+      std::uint64_t free = 0;
+      if (st.exact) {
+        std::uint64_t any = 0;
+        for (const SphereStencil::Column& c : st.columns)
+          for (int dz = -c.h; dz <= c.h && any != ~std::uint64_t(0); ++dz)
+            any |= blocked_from(g, 64 * w + c.dx, j + c.dy, k + dz);
+        free = ~any;
+      } else {
+        for (int b = 0; b < 64 && 64 * w + b < g.nx; ++b)
+          free |= std::uint64_t(sphere_is_free(g, g.center(64 * w + b, j, k), radius)) << b;
+      }
+      trav_bits[at] = free;
+    }
+    return trav_bits[at];
+  }
+};
+
+// Out of line: where the search's lambdas named a thread_local, each use looked its address up.
+__attribute__((noinline)) SearchScratch& thread_scratch() {
+  static thread_local SearchScratch s;
+  return s;
+}
+
+}  // namespace
 
 bool sphere_is_free(const GridView& g, const Eigen::Vector3d& center, double radius) {
   const double r = radius / g.resolution;
@@ -39,9 +191,28 @@ bool segment_is_free(const GridView& g, const Eigen::Vector3d& a, const Eigen::V
   return true;
 }
 
-std::vector<Eigen::Vector3d> plan_path(const GridView& g, const Eigen::Vector3d& a,
-                                       const Eigen::Vector3d& b, double radius,
-                                       std::size_t max_expansions) {
+// Path: a -> cell centres -> b, shortened greedily by line of sight.
+static std::vector<Eigen::Vector3d> shortened(const GridView& g, const Eigen::Vector3d& a,
+                                              const std::vector<Eigen::Vector3d>& cells,
+                                              const Eigen::Vector3d& b, double radius) {
+  std::vector<Eigen::Vector3d> raw;
+  raw.push_back(a);
+  raw.insert(raw.end(), cells.begin(), cells.end());
+  raw.push_back(b);
+  std::vector<Eigen::Vector3d> path{raw.front()};
+  std::size_t i = 0;
+  while (i + 1 < raw.size()) {
+    std::size_t j = raw.size() - 1;
+    while (j > i + 1 && !segment_is_free(g, raw[i], raw[j], radius)) --j;
+    path.push_back(raw[j]);
+    i = j;
+  }
+  return path;
+}
+
+std::vector<Eigen::Vector3d> plan_path_reference(const GridView& g, const Eigen::Vector3d& a,
+                                                 const Eigen::Vector3d& b, double radius,
+                                                 std::size_t max_expansions) {
   g.validate();
   if (segment_is_free(g, a, b, radius)) return {a, b};
   Eigen::Vector3i ca, cb;
@@ -114,20 +285,210 @@ std::vector<Eigen::Vector3d> plan_path(const GridView& g, const Eigen::Vector3d&
     if (idx == ia) break;
   }
   std::reverse(cells.begin(), cells.end());
-  // Path: a -> cell centres -> b, shortened greedily by line of sight.
-  std::vector<Eigen::Vector3d> raw;
-  raw.push_back(a);
-  raw.insert(raw.end(), cells.begin(), cells.end());
-  raw.push_back(b);
-  std::vector<Eigen::Vector3d> path{raw.front()};
-  std::size_t i = 0;
-  while (i + 1 < raw.size()) {
-    std::size_t j = raw.size() - 1;
-    while (j > i + 1 && !segment_is_free(g, raw[i], raw[j], radius)) --j;
-    path.push_back(raw[j]);
-    i = j;
+  return shortened(g, a, cells, b, radius);
+}
+
+std::vector<Eigen::Vector3d> plan_path(const GridView& g, const Eigen::Vector3d& a,
+                                       const Eigen::Vector3d& b, double radius,
+                                       std::size_t max_expansions, PathSearchStats* stats) {
+  if (stats) *stats = {};
+  // plan_path_reference step for step (the same cells, costs, queue and order, so the same
+  // path), with what it knows of each cell in per-brick blocks instead of hash maps, the
+  // collision test 64 cells at a time (SphereStencil, SearchScratch::traversable), and a flood
+  // from b beside the search that ends it as soon as b's free component is known not to hold a.
+  g.validate();
+  if (segment_is_free(g, a, b, radius)) return {a, b};
+  Eigen::Vector3i ca, cb;
+  if (!g.cell_of(a, ca) || !g.cell_of(b, cb)) return {};
+  SearchScratch& s = thread_scratch();
+  s.begin(g);
+  const SphereStencil stencil(radius / g.resolution);
+  auto center = [&](int i, int j, int k) {
+    return Eigen::Vector3d(g.origin +
+                           (Eigen::Vector3d(i, j, k).array() + 0.5).matrix() * g.resolution);
+  };
+  auto traversable = [&](int i, int j, int k) {
+    return (s.traversable(g, stencil, radius, i >> 6, j, k) >> (i & 63) & 1) != 0;
+  };
+  const std::size_t ia = g.index(ca), ib = g.index(cb);
+  if (!traversable(cb.x(), cb.y(), cb.z()) ||
+      !segment_is_free(g, center(cb.x(), cb.y(), cb.z()), b, radius))
+    return {};
+  struct Node {
+    double f;
+    std::size_t idx;
+    int i, j, k;
+    bool operator>(const Node& o) const { return f > o.f; }
+  };
+  std::priority_queue<Node, std::vector<Node>, std::greater<Node>> open;
+  const Eigen::Vector3d goal = center(cb.x(), cb.y(), cb.z());
+  {
+    SearchScratch::Block& blk = s.block(ia);
+    blk.g[ia & 63] = 0.0;
+    blk.has_g |= std::uint64_t(1) << (ia & 63);
   }
-  return path;
+  open.push({(center(ca.x(), ca.y(), ca.z()) - goal).norm(), ia, ca.x(), ca.y(), ca.z()});
+  // the flood from b: breadth first over traversable cells; it proves b unreachable when it
+  // runs out without touching a's cell (the search's moves are symmetric)
+  constexpr std::size_t kFloodAfter = 1024;  // expansions before the flood starts
+  std::vector<std::array<int, 3>> flood{{cb.x(), cb.y(), cb.z()}};
+  std::size_t flood_head = 0;
+  bool flood_done = ia == ib;
+  s.block(ib).reached |= std::uint64_t(1) << (ib & 63);
+  std::size_t expansions = 0;
+  bool found = false;
+  while (!open.empty() && expansions < max_expansions) {
+    const Node cur = open.top();
+    open.pop();
+    const double gc = s.block(cur.idx).g[cur.idx & 63];
+    if (cur.f > gc + (center(cur.i, cur.j, cur.k) - goal).norm() + 1e-9) continue;  // stale
+    if (cur.idx == ib) {
+      found = true;
+      break;
+    }
+    ++expansions;
+    for (int dz = -1; dz <= 1; ++dz)
+      for (int dy = -1; dy <= 1; ++dy)
+        for (int dx = -1; dx <= 1; ++dx) {
+          if (!dx && !dy && !dz) continue;
+          const int ni = cur.i + dx, nj = cur.j + dy, nk = cur.k + dz;
+          if (!g.contains(ni, nj, nk)) continue;
+          const std::size_t nidx = g.index(ni, nj, nk);
+          if (!traversable(ni, nj, nk)) continue;
+          const double ng =
+              gc + g.resolution * std::sqrt(static_cast<double>(dx * dx + dy * dy + dz * dz));
+          SearchScratch::Block& blk = s.block(nidx);
+          const std::uint64_t bit = std::uint64_t(1) << (nidx & 63);
+          if ((blk.has_g & bit) && blk.g[nidx & 63] <= ng) continue;
+          blk.g[nidx & 63] = ng;
+          blk.has_g |= bit;
+          blk.parent[nidx & 63] = cur.idx;
+          open.push({ng + (center(ni, nj, nk) - goal).norm(), nidx, ni, nj, nk});
+        }
+    if (!flood_done && expansions > kFloodAfter) {  // one step of the flood
+      if (flood_head == flood.size()) {             // b's component is closed and lacks a
+        if (stats) *stats = {expansions, flood.size(), true};
+        return {};
+      }
+      const std::array<int, 3> c = flood[flood_head++];
+      for (int dz = -1; dz <= 1 && !flood_done; ++dz)
+        for (int dy = -1; dy <= 1 && !flood_done; ++dy)
+          for (int dx = -1; dx <= 1; ++dx) {
+            if (!dx && !dy && !dz) continue;
+            const int ni = c[0] + dx, nj = c[1] + dy, nk = c[2] + dz;
+            if (!g.contains(ni, nj, nk)) continue;
+            const std::size_t nidx = g.index(ni, nj, nk);
+            if (nidx == ia) {
+              flood_done = true;  // a borders b's component: leave it to the search
+              break;
+            }
+            SearchScratch::Block& blk = s.block(nidx);
+            const std::uint64_t bit = std::uint64_t(1) << (nidx & 63);
+            if ((blk.reached & bit) || !traversable(ni, nj, nk)) continue;
+            blk.reached |= bit;
+            flood.push_back({ni, nj, nk});
+          }
+    }
+  }
+  if (stats) *stats = {expansions, flood.size(), false};
+  if (!found) return {};
+  std::vector<Eigen::Vector3d> cells;
+  for (std::size_t idx = ib;; idx = s.block(idx).parent[idx & 63]) {
+    int i, j, k;
+    g.layout.coords(idx, i, j, k);
+    cells.push_back(center(i, j, k));
+    if (idx == ia) break;
+  }
+  std::reverse(cells.begin(), cells.end());
+  return shortened(g, a, cells, b, radius);
+}
+
+FreeComponent::FreeComponent(const GridView& g, const Eigen::Vector3d& a, double radius)
+    : start_(a), radius_(radius) {
+  // A flood over words of 64 cells along x: a word's reached bits grow along its row through
+  // traversable bits, then reach the 3 x 3 rows about it (26-connectivity: cell x touches x - 1,
+  // x, x + 1 of each neighbouring row, across word edges too); a word is queued again whenever
+  // it gains bits. The start is seeded as plan_path expands it: its traversable neighbours.
+  g.validate();
+  SearchScratch& s = thread_scratch();
+  s.begin(g);
+  const SphereStencil stencil(radius / g.resolution);
+  words_ = s.words;
+  ny_ = g.ny;
+  auto at = [&](int w, int j, int k) {
+    return std::size_t(w) +
+           std::size_t(words_) * (std::size_t(j) + std::size_t(g.ny) * std::size_t(k));
+  };
+  reached_.assign(std::size_t(words_) * std::size_t(g.ny) * std::size_t(g.nz), 0);
+  std::vector<std::array<int, 3>> queue;
+  std::vector<std::uint8_t> queued(reached_.size(), 0);
+  auto add = [&](int w, int j, int k, std::uint64_t bits) {
+    if (w < 0 || w >= words_ || !g.contains(0, j, k) || !bits) return;
+    const std::size_t i = at(w, j, k);
+    const std::uint64_t fresh = bits & s.traversable(g, stencil, radius, w, j, k) & ~reached_[i];
+    if (!fresh) return;
+    reached_[i] |= fresh;
+    if (!queued[i]) {
+      queued[i] = 1;
+      queue.push_back({w, j, k});
+    }
+  };
+  start_in_grid_ = g.cell_of(a, start_cell_);
+  if (start_in_grid_)
+    for (int dz = -1; dz <= 1; ++dz)
+      for (int dy = -1; dy <= 1; ++dy)
+        for (int dx = -1; dx <= 1; ++dx) {
+          const int x = start_cell_.x() + dx;
+          if ((dx || dy || dz) && x >= 0 && x < g.nx)
+            add(x >> 6, start_cell_.y() + dy, start_cell_.z() + dz, std::uint64_t(1) << (x & 63));
+        }
+  for (std::size_t head = 0; head < queue.size(); ++head) {
+    const auto [w, j, k] = queue[head];
+    const std::size_t i = at(w, j, k);
+    queued[i] = 0;
+    const std::uint64_t t = s.traversable(g, stencil, radius, w, j, k);
+    std::uint64_t r = reached_[i];
+    for (std::uint64_t prev = 0; prev != r;) {  // along the row, within the word
+      prev = r;
+      r = t & (r | r << 1 | r >> 1);
+    }
+    reached_[i] = r;
+    const std::uint64_t here = r | r << 1 | r >> 1, left = r << 63, right = r >> 63;
+    for (int dk = -1; dk <= 1; ++dk)
+      for (int dj = -1; dj <= 1; ++dj) {
+        if (dj || dk) add(w, j + dj, k + dk, here);
+        add(w - 1, j + dj, k + dk, left);
+        add(w + 1, j + dj, k + dk, right);
+      }
+  }
+}
+
+std::vector<std::uint8_t> FreeComponent::contains(const GridView& g,
+                                                  const PointsRef& targets) const {
+  g.validate();
+  if (std::size_t(g.nx + 63) / 64 != std::size_t(words_) || g.ny != ny_ ||
+      std::size_t(words_) * std::size_t(g.ny) * std::size_t(g.nz) != reached_.size())
+    throw std::invalid_argument("FreeComponent::contains: the grid is not the flooded one");
+  std::vector<std::uint8_t> out(std::size_t(targets.rows()), 0);
+  for (Eigen::Index n = 0; n < targets.rows(); ++n) {
+    const Eigen::Vector3d b = targets.row(n).transpose();
+    if (segment_is_free(g, start_, b, radius_)) {
+      out[std::size_t(n)] = 1;
+      continue;
+    }
+    Eigen::Vector3i cb;
+    if (!start_in_grid_ || !g.cell_of(b, cb)) continue;
+    const std::size_t i =
+        std::size_t(cb.x() >> 6) +
+        std::size_t(words_) * (std::size_t(cb.y()) + std::size_t(ny_) * std::size_t(cb.z()));
+    const std::uint64_t bit = std::uint64_t(1) << (cb.x() & 63);
+    // a reached cell is traversable; the start's own cell is reached only if it is
+    const bool in =
+        (reached_[i] & bit) ||
+        (cb == start_cell_ && sphere_is_free(g, g.center(cb.x(), cb.y(), cb.z()), radius_));
+    out[std::size_t(n)] = in && segment_is_free(g, g.center(cb.x(), cb.y(), cb.z()), b, radius_);
+  }
+  return out;
 }
 
 double path_length(const std::vector<Eigen::Vector3d>& path) {

@@ -153,6 +153,75 @@ TEST(Navigation, SpheresAndPathsStayInKnownFreeSpace) {
   EXPECT_TRUE(plan_path(g, {2, 1.5, 1.5}, {1.5, 4.5, 1.5}, 0.6).empty());  // goal in unknown
 }
 
+TEST(Navigation, FastSearchGivesTheReferencePathOnRandomScenes) {
+  // Known free tunnels of random radii through unknown space, occupied blobs in them: the fast
+  // search must return plan_path_reference's path exactly, reachable or not (and FreeComponent
+  // must tell which), for collision
+  // radii whose sphere stencil is exact (0.8, 0.35 m) and one on a cell boundary (0.5 m: every
+  // cell through sphere_is_free), and with the expansion cap biting.
+  std::mt19937 rng(5);
+  std::uniform_real_distribution<double> ux(0.5, 15.5), uy(0.5, 7.5), uz(0.5, 4.5), ur(0.6, 1.6);
+  int found = 0, unreachable = 0, compared = 0;
+  for (int scene = 0; scene < 6; ++scene) {
+    OccupancyMap m(0.2, {0, 0, 0}, {16, 8, 5});  // 80 cells along x: two words per row
+    std::vector<Eigen::Vector3d> nodes;
+    for (int n = 0; n < 7; ++n) nodes.emplace_back(ux(rng), uy(rng), uz(rng));
+    for (std::size_t n = 1; n < nodes.size(); ++n)
+      if (n % 3 != 0)  // leave some tunnels apart: disconnected free components
+        m.mark_free_segment(nodes[n - 1], nodes[n], ur(rng));
+    Points blobs(12, 3);
+    for (Eigen::Index k = 0; k < blobs.rows(); ++k) blobs.row(k) << ux(rng), uy(rng), uz(rng);
+    m.update_cells(blobs, true);
+    const GridView g = grid_view(m);
+    for (double radius : {0.8, 0.35, 0.5})
+      for (std::size_t cap : {std::size_t(200000), std::size_t(300)})
+        for (int q = 0; q < 12; ++q) {
+          const Eigen::Vector3d a =
+              nodes[rng() % nodes.size()] + Eigen::Vector3d(0.05, -0.03, 0.02);
+          const Eigen::Vector3d b = nodes[rng() % nodes.size()] + Eigen::Vector3d(-0.04, 0.06, 0.0);
+          const auto ref = plan_path_reference(g, a, b, radius, cap);
+          const auto fast = plan_path(g, a, b, radius, cap);
+          ASSERT_EQ(fast.size(), ref.size()) << "scene " << scene << " radius " << radius;
+          for (std::size_t i = 0; i < ref.size(); ++i) EXPECT_EQ(fast[i], ref[i]);
+          (ref.empty() ? unreachable : found) += 1;
+          ++compared;
+          if (cap == 200000) {  // the scenes have fewer cells: the cap never bites
+            Points t(1, 3);
+            t.row(0) = b.transpose();
+            EXPECT_EQ(FreeComponent(g, a, radius).contains(g, t)[0] != 0, !ref.empty())
+                << "scene " << scene << " radius " << radius;
+          }
+        }
+  }
+  EXPECT_EQ(compared, 6 * 3 * 2 * 12);
+  EXPECT_GT(found, 40);  // both outcomes are exercised
+  EXPECT_GT(unreachable, 40);
+}
+
+TEST(Navigation, AGoalInAClosedPocketCostsThePocketNotTheWholeFreeSpace) {
+  // a large known free hall and, apart from it, a small free pocket: the search from the hall
+  // ends when the flood from the pocket closes, long before the hall is exhausted
+  OccupancyMap m(0.2, {0, 0, 0}, {16, 8, 5});
+  m.mark_free_segment({2.5, 4, 2.5}, {9.5, 4, 2.5}, 2.2);    // the hall
+  m.mark_free_segment({13.2, 4, 2.5}, {13.6, 4, 2.5}, 1.2);  // the pocket, 1.3 m of unknown apart
+  const GridView g = grid_view(m);
+  const Eigen::Vector3d a(3, 4.1, 2.5), b(13.4, 4, 2.5);
+  PathSearchStats stats;
+  EXPECT_TRUE(plan_path(g, a, b, 0.35, 200000, &stats).empty());
+  EXPECT_TRUE(stats.flood_ended);
+  EXPECT_LT(stats.expansions, 1024u + stats.flooded + 30);  // the flood's pace: one per expansion
+  EXPECT_TRUE(plan_path_reference(g, a, b, 0.35).empty());
+  PathSearchStats whole;  // a goal in the hall: found by the search, the flood not needed
+  EXPECT_FALSE(plan_path(g, a, {9.2, 4.2, 2.4}, 0.35, 200000, &whole).empty());
+  EXPECT_FALSE(whole.flood_ended);
+  // exhausting the hall, as the search alone would, costs several times what the flood took
+  int hall = 0;
+  for (int k = 0; k < g.nz; ++k)
+    for (int j = 0; j < g.ny; ++j)
+      for (int i = 0; i < 55; ++i) hall += sphere_is_free(g, g.center(i, j, k), 0.35);
+  EXPECT_GT(hall, 3 * int(stats.expansions));
+}
+
 TEST(Tour, IsAPermutationNoLongerThanNearestNeighbourAndEmptyForNoPoints) {
   std::mt19937 rng(11);
   std::uniform_real_distribution<double> u(-10, 10);

@@ -17,12 +17,50 @@ bool sphere_is_free(const GridView& grid, const Eigen::Vector3d& center, double 
 bool segment_is_free(const GridView& grid, const Eigen::Vector3d& a, const Eigen::Vector3d& b,
                      double radius);
 
+/// What a plan_path search did: cells it expanded, cells its flood from b reached, and whether
+/// the flood ended it (b's free component closed without a).
+struct PathSearchStats {
+  std::size_t expansions = 0, flooded = 0;
+  bool flood_ended = false;
+};
+
 /// A* through known free space (26-connected cells whose collision sphere is free). Returns the
 /// waypoints from a to b (a first, b last), shortened greedily by line of sight, or an empty
 /// list if there is none within max_expansions. The path's length is the sum of its segments.
+/// Beside the search, once it has expanded 1,024 cells, a flood from b steps once per
+/// expansion: when b's free component turns out closed without a the search ends (b in a small
+/// pocket costs the pocket, not a's whole component); it never changes the answer.
 std::vector<Eigen::Vector3d> plan_path(const GridView& grid, const Eigen::Vector3d& a,
                                        const Eigen::Vector3d& b, double radius,
-                                       std::size_t max_expansions = 200000);
+                                       std::size_t max_expansions = 200000,
+                                       PathSearchStats* stats = nullptr);
+
+/// The cells plan_path can reach from a: a's free component (traversable cells, 26-connected,
+/// reached from a's neighbours as the search expands them), found by one flood. Valid for the
+/// grid it was made from while that grid is unchanged.
+class FreeComponent {
+ public:
+  FreeComponent(const GridView& grid, const Eigen::Vector3d& a, double radius);
+  /// Per target row: can plan_path reach it from a? True where the straight flight is free, or
+  /// where the target's cell is in the component (or is a's own cell, traversable) and its
+  /// centre sees the target through free space. plan_path's expansion cap is not applied: a
+  /// true here can still be a search cut short there; a false is always a failed search.
+  std::vector<std::uint8_t> contains(const GridView& grid, const PointsRef& targets) const;
+
+ private:
+  Eigen::Vector3d start_;
+  double radius_;
+  Eigen::Vector3i start_cell_{0, 0, 0};
+  bool start_in_grid_ = false;
+  int words_ = 0, ny_ = 0;              // words of 64 cells per row along x; rows along y
+  std::vector<std::uint64_t> reached_;  // per word: the component's cells
+};
+
+/// plan_path as it was first written (hash maps, a sphere test per cell, no flood): the same
+/// path for the same input, kept as the reference the fast search is tested and timed against.
+std::vector<Eigen::Vector3d> plan_path_reference(const GridView& grid, const Eigen::Vector3d& a,
+                                                 const Eigen::Vector3d& b, double radius,
+                                                 std::size_t max_expansions = 200000);
 
 /// Length of a polyline (rows are waypoints).
 double path_length(const std::vector<Eigen::Vector3d>& path);

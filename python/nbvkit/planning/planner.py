@@ -85,6 +85,7 @@ class Planner:
         tour) leads; its views are tried in turn. Otherwise the non-exclusive proposals are
         scored together."""
         t = self.timers
+        self.selector.begin()
         while True:
             with t("sampling"):
                 proposal, contributors = self.propose(world)

@@ -8,6 +8,10 @@ exp(-travel_lambda * d) wins, d the length of the flight to it: straight (vehicl
 ('plan'), computed lazily - the best by straight distance first, re-ranked by its path, until the
 top one's path is known. Ties go to the lower index, so the paper's scenarios (travel_lambda 0,
 straight legs) choose exactly the best valid utility as before.
+
+Within one planning step (begin() to the next begin(): the map does not change) the first failed
+search floods the vehicle's free component once (_core.FreeComponent); a later candidate outside
+it is passed over without a search. It changes no choice: a search to such a view always fails.
 """
 from __future__ import annotations
 
@@ -16,6 +20,7 @@ import math
 
 import numpy as np
 
+from .. import _core
 from .parts import Choice, threshold_scale
 
 
@@ -27,6 +32,15 @@ class Selector:
         self.min_gain = p.min_gain / resolution**2 if self.surface else p.min_gain
         self.reference_area = p.reference_area
         self.plan_paths = config.vehicle.blocked_path == "plan"
+        self.radius = config.vehicle.collision_radius
+        self.component = None  # the vehicle's free component, once a search has failed
+
+    def begin(self) -> None:
+        """A new planning step: the map may have changed since the last."""
+        self.component = None
+
+    def _reachable(self, world, pose) -> bool:
+        return self.component is None or bool(self.component.contains(world.map, pose[None, :3])[0])
 
     def choose(self, world, poses: np.ndarray, scores: dict):
         here = world.state.pose[:3]
@@ -53,9 +67,11 @@ class Selector:
                     path,
                     d,
                 )
-            path = world.plan_path(poses[k])
-            if path is None:
-                continue  # no way there through known free space
+            path = world.plan_path(poses[k]) if self._reachable(world, poses[k]) else None
+            if path is None:  # no way there through known free space
+                if self.component is None:
+                    self.component = _core.FreeComponent(world.map, here, self.radius)
+                continue
             length = float(np.linalg.norm(np.diff(path, axis=0), axis=1).sum())
             paths[k] = path
             v = float(scores["utility"][k]) * math.exp(-self.travel_lambda * length)
