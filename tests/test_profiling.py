@@ -9,7 +9,7 @@ import pytest
 
 from nbvkit.config import Config
 from nbvkit.mission import Mission
-from nbvkit.profiling import Profiler, _Circle, _GrownHull
+from nbvkit.profiling import Profiler, _Circle, _GrownHull, run_profiling
 
 FAST = [
     "map.resolution=0.4",
@@ -175,3 +175,32 @@ def test_hull_profiler_flies_shorter_than_the_circle_and_keeps_clear():
     assert p["distance_m"] < 0.9 * c["distance_m"]
     assert p["clearance_m"] > m.config.vehicle.collision_radius
     assert p["coverage"]["0.05"] > 0.5 * c["coverage"]["0.05"]
+
+
+def test_the_profile_goes_round_a_part_its_laser_has_not_seen_instead_of_through_it():
+    # An L-shaped block (24 x 8 m and 8 x 14 m, 8 m tall) seen by a laser of 12 m range: the
+    # grown hull of a partial profile cuts across the far wing, and the curve flown on it met
+    # the wing (before the range check, 0.02-0.05 m from its walls on four starts of five).
+    from scipy.spatial import cKDTree
+
+    from conftest import box_mesh
+
+    a, b = box_mesh((0, 0, 0), (24, 8, 8)), box_mesh((0, 8, 0), (8, 22, 8))
+    v = np.vstack([a.vertices, b.vertices])
+    f = np.vstack([a.faces, b.faces + len(a.vertices)])
+    import nbvkit
+
+    mesh = nbvkit.Mesh(v, f)
+    surface = cKDTree(np.asarray(mesh.sample_surface(100000)))
+    blocked = 0
+    for start in (2, 4):
+        over = FAST + [f"start={start}", "laser.max_range=12"]
+        m = Mission(Config().with_overrides(over), mesh=mesh)
+        m.world.take_off()
+        s = run_profiling(m.world)
+        blocked += s["blocked_steps"]
+        path = np.array([r[1:4] for r in m.world.state.trajectory], float)
+        flown = np.vstack([np.linspace(p, q, 20) for p, q in zip(path[:-1], path[1:])])
+        assert surface.query(flown)[0].min() > 0.5  # off the walls (collision radius 0.8 m)
+        assert s["distance_m"] > 2 * (24 + 22)  # and still round the whole structure
+    assert blocked > 0  # the range check is what kept it off

@@ -23,8 +23,14 @@ structure's observed bounding box grown by the margin, sweeping at each corner a
 box is recomputed after every sweep, as the circle is.
 
 The flight is confined to the profiling flight volume (the workspace grown by `flight_margin` in
-x and y) and keeps the collision radius off known-occupied cells; it is not confined to the NBV
-workspace (a circle around a 35 x 30 m aircraft is wider than 40 x 40 m). After the survey the
+x and y); it is not confined to the NBV workspace (a circle around a 35 x 30 m aircraft is wider
+than 40 x 40 m). The curve encloses what the laser has seen, and a part it has not seen yet
+(beyond its range, or hidden behind other parts) can stand across it: before every step the
+vehicle checks its way with range rays (an obstacle sensor: along the step, and round its end to
+the collision radius). A sweep the structure blocks ends where it is; on a blocked move the
+vehicle scans with its laser where it stands, the curve is recomputed with that scan, and the
+vehicle goes out along its bearing onto the new curve and on along it (up to 3 times, then the
+loop goes on from where it stands). `profile.blocked_steps` counts the steps stopped. After the survey the
 vehicle returns to its start pose for the camera stage (profiling.return_to_start, the paper's
 scenarios) or, without returning, climbs or descends its last sweep line to the start's height
 (the ends of a sweep have little known free space around them) and flies straight into the
@@ -44,6 +50,12 @@ import time
 
 import numpy as np
 from scipy.spatial import ConvexHull, QhullError
+
+from .world import _fibonacci_sphere
+
+
+class _Blocked(Exception):
+    """A profile step on which the vehicle's forward range check meets the structure."""
 
 
 def _segments(a, b, max_len):
@@ -155,6 +167,9 @@ class Profiler:
         self.fly_min = np.array([ws.bounds_min[0] - fm, ws.bounds_min[1] - fm, ws.nav_min[2]])
         self.fly_max = np.array([ws.bounds_max[0] + fm, ws.bounds_max[1] + fm, ws.nav_max[2]])
         self.radius = r
+        self.collision_radius = world.config.vehicle.collision_radius
+        self.blocked = 0  # steps the range check stopped
+        self._around = _fibonacci_sphere(32)
         self.camera_frames = 0
         self._since_frame = 0.0
         self.waypoints: list[list[float]] = []
@@ -169,10 +184,12 @@ class Profiler:
         every camera_step metres flown (legs longer than that are split: one frame per leg)."""
         step = self.cfg.camera_step
         if step <= 0:
+            self._check(self.m.state.pose[:3], target[:3])
             self.m.fly_to(target, "profile")
             return
         cur = self.m.state.pose[:3].copy()
         for q in _segments(cur, np.asarray(target[:3], float), step):
+            self._check(self.m.state.pose[:3], q)
             before = self.m.state.distance_m
             self.m.fly_to(np.array([*q, target[3]]), "profile")
             self._since_frame += self.m.state.distance_m - before
@@ -180,6 +197,34 @@ class Profiler:
                 self.m.sense_camera(view=False)
                 self.camera_frames += 1
                 self._since_frame = max(0.0, self._since_frame - step)
+
+    def _check(self, a, b):
+        """The vehicle's range check before it flies a -> b (an obstacle sensor): rays along the
+        motion from its centre (to the step's end plus the collision radius) and from eight
+        points of a ring of that radius about it (to the step's end), and rays in 32 directions
+        about b (to the collision radius). Raises _Blocked where one meets the structure: the
+        profile flies round what its laser has seen, and a part it has not seen yet (beyond the
+        laser's range, or behind other parts) can stand across the curve."""
+        a, b = np.asarray(a, float), np.asarray(b, float)
+        d = b - a
+        length = float(np.linalg.norm(d))
+        if length < 1e-9:
+            return
+        u = d / length
+        ref = np.array([0.0, 0.0, 1.0]) if abs(u[2]) < 0.9 else np.array([1.0, 0.0, 0.0])
+        e1 = np.cross(u, ref)
+        e1 /= np.linalg.norm(e1)
+        e2 = np.cross(u, e1)
+        ang = np.arange(8) * (math.pi / 4)
+        ring = self.collision_radius * (np.cos(ang)[:, None] * e1 + np.sin(ang)[:, None] * e2)
+        origins = np.vstack([a, a + ring, np.tile(b, (len(self._around), 1))])
+        dirs = np.vstack([np.tile(u, (9, 1)), self._around])
+        t, _ = self.m.scene.intersect(origins, dirs, 0.0, np.inf)
+        r = self.collision_radius
+        reach = np.r_[length + r, np.full(8, length), np.full(len(self._around), r)]
+        if np.any(t <= reach):
+            self.blocked += 1
+            raise _Blocked
 
     def _face(self, p, c):
         return math.atan2(c[1] - p[1], c[0] - p[0])
@@ -200,12 +245,15 @@ class Profiler:
         yaw = self._face(p, center)
         lo, hi = self.z_min, self.z_max
         first, last = (lo, hi) if abs(p[2] - lo) <= abs(p[2] - hi) else (hi, lo)
-        self._fly(np.array([p[0], p[1], first, yaw]))
-        n = max(1, int(math.ceil(abs(last - first) / self.cfg.sweep_step)))
-        for i in range(n + 1):
-            z = first + (last - first) * i / n
-            if i:
-                self._fly(np.array([p[0], p[1], z, yaw]))
+        try:
+            self._fly(np.array([p[0], p[1], first, yaw]))
+            n = max(1, int(math.ceil(abs(last - first) / self.cfg.sweep_step)))
+            for i in range(n + 1):
+                z = first + (last - first) * i / n
+                if i:
+                    self._fly(np.array([p[0], p[1], z, yaw]))
+                self.m.sense_laser(self.m.state.pose)
+        except _Blocked:  # the structure above or below: the sweep ends where it stands
             self.m.sense_laser(self.m.state.pose)
         self.waypoints.append([float(p[0]), float(p[1])])
 
@@ -227,6 +275,32 @@ class Profiler:
             except QhullError:  # a profile seen edge-on (collinear in XY): the circle
                 pass
         return _Circle(*self._circle(fallback_center, fallback_radius))
+
+    def _round(self, theta_end, fallback_center, fallback_radius, tries=3):
+        """After a blocked step on the way to bearing theta_end: a laser scan where the vehicle
+        stands, the curve recomputed with it, then out along the bearing onto the new curve and
+        along it to theta_end; again (at most `tries` times) if the structure blocks that too,
+        then the vehicle stays where it is and the loop goes on from there. Returns the curve."""
+        m = self.m
+        region = self._region(fallback_center, fallback_radius)
+        for _ in range(tries):
+            m.sense_laser(m.state.pose)
+            region = self._region(fallback_center, fallback_radius)
+            p, z = m.state.pose[:2], m.state.pose[2]
+            b = math.atan2(p[1] - region.c[1], p[0] - region.c[0])
+            left = (theta_end - b) % (2 * math.pi)
+            if left > math.pi:  # already past it on the new curve
+                left = 0.0
+            try:
+                out = region.at(b)
+                if np.linalg.norm(out - region.c) > np.linalg.norm(p - region.c):
+                    self._move([*out, z], self._face(out, region.facing(out)))
+                for q in region.arc(b, left, self.cfg.max_segment) if left > 0 else []:
+                    self._move([*q, z], self._face(q, region.facing(q)))
+                return region
+            except _Blocked:
+                continue
+        return region
 
     def clearance(self) -> float:
         """Closest distance (m) from the profiling trajectory's vertices to an occupied cell."""
@@ -255,11 +329,14 @@ class Profiler:
             if not self.cfg.close_circle and theta + phi - theta_s >= 2 * math.pi - 1e-9:
                 break  # the last sweep is done: the way back to the first waypoint adds nothing
             z = m.state.pose[2]
-            on = region.at(theta)
-            self._move([*on, z], self._face(on, region.facing(on)))
+            try:
+                on = region.at(theta)
+                self._move([*on, z], self._face(on, region.facing(on)))
+                for q in region.arc(theta, phi, self.cfg.max_segment):  # along the curve
+                    self._move([*q, z], self._face(q, region.facing(q)))
+            except _Blocked:
+                region = self._round(theta + phi, ws_c, r0)
             theta += phi
-            for q in region.arc(theta - phi, phi, self.cfg.max_segment):  # along the curve
-                self._move([*q, z], self._face(q, region.facing(q)))
 
     def bbox(self):
         """Fly the four vertical faces of the profile's XY bounding box grown by the margin,
@@ -294,14 +371,20 @@ class Profiler:
             c = (lo + hi) / 2
             q = stop(lo, hi, k)
             q3 = np.array([q[0], q[1], m.state.pose[2]])
-            self._move(q3, self._face(q3, c))
+            try:
+                self._move(q3, self._face(q3, c))
+            except _Blocked:  # sweep where it stands, and the box grows with what it sees
+                pass
             self._sweep(np.array([*c, 0.0]))
             lo, hi = box()
             self.circles.append([float(c[0]), float(c[1]), float(np.linalg.norm(hi - lo) / 2)])
         c = (lo + hi) / 2
         q = stop(lo, hi, k0)
         q3 = np.array([q[0], q[1], m.state.pose[2]])
-        self._move(q3, self._face(q3, c))  # close the loop
+        try:
+            self._move(q3, self._face(q3, c))  # close the loop
+        except _Blocked:
+            pass
 
 
 def run_profiling(world) -> dict:
@@ -319,13 +402,22 @@ def run_profiling(world) -> dict:
     e1 = world.map.total_entropy()
     d_profile = world.state.distance_m - d0
     if world.config.profiling.return_to_start:
-        prof._move(start[:3], start[3])
-        world.fly_to(start, "profile")
+        try:
+            prof._move(start[:3], start[3])
+        except _Blocked:  # the straight way back meets the structure: the next stage plans one
+            pass
+        else:
+            world.fly_to(start, "profile")
     else:
         # the sweep ended at the top or bottom of the flight volume, where little around it is
         # known free: back up (or down) its own swept line to the start's height
         p = world.state.pose
-        world.fly_to(np.array([p[0], p[1], start[2], p[3]]), "profile")
+        down = np.array([p[0], p[1], start[2], p[3]])
+        try:
+            prof._check(p[:3], down[:3])
+            world.fly_to(down, "profile")
+        except _Blocked:  # a sweep the structure cut short: stay at its end
+            pass
         world.enter_navigation_space("profile")
     return {
         "method": world.config.profiling.method,
@@ -337,6 +429,7 @@ def run_profiling(world) -> dict:
         "points": int(len(world.laser_cloud)),
         "camera_frames": prof.camera_frames,
         "clearance_m": prof.clearance(),
+        "blocked_steps": prof.blocked,
         "waypoints": prof.waypoints,
         "circles": prof.circles,
         "time_s": time.perf_counter() - t0,
