@@ -30,11 +30,13 @@ vehicle checks its way with range rays (an obstacle sensor: along the step, and 
 the collision radius). A sweep the structure blocks ends where it is; on a blocked move the
 vehicle scans with its laser where it stands, the curve is recomputed with that scan, and the
 vehicle goes out along its bearing onto the new curve and on along it (up to 3 times, then the
-loop goes on from where it stands). `profile.blocked_steps` counts the steps stopped. After the survey the
-vehicle returns to its start pose for the camera stage (profiling.return_to_start, the paper's
+loop goes on from where it stands). `profile.blocked_steps` counts the steps stopped.
+
+After the survey the vehicle returns to its start pose for the camera stage (profiling.return_to_start, the paper's
 scenarios) or, without returning, climbs or descends its last sweep line to the start's height
 (the ends of a sweep have little known free space around them) and flies straight into the
-navigation bounds if the circle left them. profiling.close_circle = false stops after the last
+navigation bounds if the circle left them (either stays where it is if the check blocks it).
+profiling.close_circle = false stops after the last
 sweep instead of flying Algorithm 1's final arc back to the first waypoint. All distances flown
 are accounted.
 
