@@ -488,3 +488,21 @@ def test_cli_help_explains_every_option():
         "CLOUD",
     ):
         assert opt in proc.stdout
+
+
+def test_coverage_of_clouds_read_in_place_equals_that_of_their_points_stacked():
+    rng = np.random.default_rng(3)
+    mesh = box((0, 0, 0), (4, 3, 2))
+    ev = Evaluator(mesh, gt_density=400, seed=1)
+    samples = np.asarray(mesh.sample_surface(30000, seed=2))
+    near = samples + rng.normal(0, 0.03, samples.shape)  # off the surface by a few cm
+    camera = nbvkit.PointCloud(near[:20000], min_z=float("-inf"))
+    laser = nbvkit.PointCloud(near[20000:], voxel_size=0.1, min_z=float("-inf"))
+    ev.set_observable(np.arange(ev.num_gt_points) % 3 != 0)  # the observable figures too
+    stacked = ev.coverage(np.vstack([camera.points, laser.points]))
+    in_place = ev.coverage([camera, laser])
+    assert in_place == stacked
+    assert 0.1 < in_place["coverage"]["0.05"] < in_place["coverage"]["0.5"] <= 1.0
+    assert ev.coverage([laser]) == ev.coverage(laser.points)
+    with pytest.raises(ValueError, match="SurfaceCloud"):
+        ev._core.evaluate_cells_of([camera, None])

@@ -97,6 +97,16 @@ void init_evaluation(py::module_& m) {
           py::arg("cloud"),
           "Coverage, area coverage and precision alone (no kd-tree, no distances).")
       .def(
+          "evaluate_cells_of",
+          [](const Evaluator& e, const std::vector<const SurfaceCloud*>& clouds) {
+            for (const SurfaceCloud* c : clouds)
+              if (!c) throw py::value_error("clouds must be SurfaceCloud objects, not None");
+            py::gil_scoped_release release;
+            return e.evaluate_cells(clouds);
+          },
+          py::arg("clouds"),
+          "evaluate_cells of SurfaceClouds' points, one cloud after the other, read in place.")
+      .def(
           "set_observable",
           [](Evaluator& e, const py::array_t<bool, py::array::c_style | py::array::forcecast>& m) {
             if (m.ndim() != 1) throw py::value_error("observable mask must be one-dimensional");

@@ -278,6 +278,35 @@ EvaluationResult Evaluator::evaluate_cells(const PointsRef& cloud) const {
   return res;
 }
 
+EvaluationResult Evaluator::evaluate_cells(const std::vector<const SurfaceCloud*>& clouds) const {
+  const auto t0 = std::chrono::steady_clock::now();
+  std::size_t n = 0;
+  for (const SurfaceCloud* c : clouds) n += c->size();
+  EvaluationResult res = empty_result(static_cast<Eigen::Index>(n));
+  for (std::size_t k = 0; k < opt_.resolutions.size(); ++k) {
+    const double r = opt_.resolutions[k], inv = 1.0 / r;
+    std::vector<std::uint64_t> keys(n);
+    std::atomic<bool> bad{false};
+    std::size_t offset = 0;
+    for (const SurfaceCloud* c : clouds) {
+      parallel_chunks(c->size(), 1 << 14, [&](std::size_t b, std::size_t e) {
+        for (std::size_t i = b; i < e; ++i) {
+          const Eigen::Vector3d p = c->point(i);
+          keys[offset + i] = try_voxel_key(p.x(), p.y(), p.z(), r, inv);
+          if (keys[offset + i] == kEmptyVoxelKey) bad = true;
+        }
+      });
+      offset += c->size();
+    }
+    if (bad)
+      throw std::invalid_argument("cloud has points too far from the origin for a " + fmt(r) +
+                                  " m grid (at most 2^20 cells per axis)");
+    score_cells(k, keys, res);
+  }
+  res.timings_s.emplace_back("cells", seconds_since(t0));
+  return res;
+}
+
 EvaluationResult Evaluator::evaluate(const PointsRef& cloud) const {
   using clock = std::chrono::steady_clock;
   require_finite(cloud, "cloud");

@@ -88,7 +88,7 @@ std::size_t VoxelCentroids::add(const PointsRef& points, const std::vector<std::
 Points VoxelCentroids::centroids() const {
   Points out(static_cast<Eigen::Index>(count_.size()), 3);
   for (std::size_t i = 0; i < count_.size(); ++i)
-    out.row(static_cast<Eigen::Index>(i)) = (sum_[i] / static_cast<double>(count_[i])).transpose();
+    out.row(static_cast<Eigen::Index>(i)) = centroid(i).transpose();
   return out;
 }
 

@@ -204,8 +204,15 @@ class Evaluator:
     def coverage(self, cloud) -> dict:
         """The cell figures of ``evaluate`` alone (``coverage``, ``area_coverage``, ``precision``,
         their cell counts, and the observable figures when set) at a fraction of its cost: no
-        kd-tree, no distances."""
-        d = _to_dict(self._core.evaluate_cells(_as_points(cloud)))
+        kd-tree, no distances. ``cloud``: points, or a list of ``PointCloud`` objects read in
+        place, one after the other (the same figures as of their points stacked, without copying
+        them: a mission's progress refreshes)."""
+        if isinstance(cloud, (list, tuple)) and all(
+            isinstance(c, _core.SurfaceCloud) for c in cloud
+        ):
+            d = _to_dict(self._core.evaluate_cells_of(list(cloud)))
+        else:
+            d = _to_dict(self._core.evaluate_cells(_as_points(cloud)))
         keep = (
             "coverage",
             "area_coverage",

@@ -156,7 +156,7 @@ class Mission:
         cov = {}
         if cfg.evaluation.coverage_every and step.iteration % cfg.evaluation.coverage_every == 0:
             t0 = time.perf_counter()
-            c = self.evaluator.coverage(world.cloud_points())["coverage"]
+            c = self.evaluator.coverage([world.camera_cloud, world.laser_cloud])["coverage"]
             cov = {float(k): v for k, v in c.items()}
             self.coverage_time_s += time.perf_counter() - t0
         p, c = world.state.pose, step.choice

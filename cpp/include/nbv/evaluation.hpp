@@ -89,6 +89,9 @@ class Evaluator {
   /// without the kd-tree and distances: the same figures at a fraction of the cost, e.g. for a
   /// mission's progress reports. Completeness, accuracy, F-score and Chamfer stay zero / absent.
   EvaluationResult evaluate_cells(const PointsRef& cloud) const;
+  /// evaluate_cells of the clouds' points one after the other (the same result as of their
+  /// points() stacked), read in place: no copy of a cloud of millions of points.
+  EvaluationResult evaluate_cells(const std::vector<const SurfaceCloud*>& clouds) const;
 
   /// Marks which ground-truth samples (in gt_points() order) are observable (see
   /// observable_samples): every later result also reports coverage relative to them. An empty

@@ -145,6 +145,8 @@ class VoxelCentroids {
                   std::uint64_t skip = kEmptyVoxelKey);
   /// (K, 3) centroids in voxel creation order.
   Points centroids() const;
+  /// Centroid of voxel i (the row centroids() holds).
+  Eigen::Vector3d centroid(std::size_t i) const { return sum_[i] / static_cast<double>(count_[i]); }
   /// (K,) number of points in each voxel.
   const std::vector<std::uint32_t>& counts() const { return count_; }
   std::size_t size() const { return count_.size(); }
@@ -195,6 +197,8 @@ class SurfaceCloud {
   std::size_t add(const PointsRef& points);
   /// (K, 3) voxel centroids in voxel creation order.
   Points points() const;
+  /// Voxel i's centroid (row i of points(), without building the array).
+  Eigen::Vector3d point(std::size_t i) const { return voxels_.centroid(i); }
   /// (K,) number of registered points that fell in each voxel.
   Eigen::Matrix<std::int64_t, Eigen::Dynamic, 1> counts() const;
   std::size_t size() const { return voxels_.size(); }
