@@ -203,7 +203,8 @@ class Profiler:
         """The vehicle's range check before it flies a -> b (an obstacle sensor): rays along the
         motion from its centre (to the step's end plus the collision radius) and from eight
         points of a ring of that radius about it (to the step's end), and rays in 32 directions
-        about b (to the collision radius). Raises _Blocked where one meets the structure: the
+        about a and b (b nearer the structure than the collision radius, and nearer than a, is
+        blocked). Raises _Blocked where one meets the structure: the
         profile flies round what its laser has seen, and a part it has not seen yet (beyond the
         laser's range, or behind other parts) can stand across the curve."""
         a, b = np.asarray(a, float), np.asarray(b, float)
@@ -218,12 +219,16 @@ class Profiler:
         e2 = np.cross(u, e1)
         ang = np.arange(8) * (math.pi / 4)
         ring = self.collision_radius * (np.cos(ang)[:, None] * e1 + np.sin(ang)[:, None] * e2)
-        origins = np.vstack([a, a + ring, np.tile(b, (len(self._around), 1))])
-        dirs = np.vstack([np.tile(u, (9, 1)), self._around])
+        n = len(self._around)
+        origins = np.vstack([a, a + ring, np.tile(b, (n, 1)), np.tile(a, (n, 1))])
+        dirs = np.vstack([np.tile(u, (9, 1)), self._around, self._around])
         t, _ = self.m.scene.intersect(origins, dirs, 0.0, np.inf)
         r = self.collision_radius
-        reach = np.r_[length + r, np.full(8, length), np.full(len(self._around), r)]
-        if np.any(t <= reach):
+        clear_b, clear_a = t[9 : 9 + n].min(), t[9 + n :].min()
+        ahead = np.any(t[:9] <= np.r_[length + r, np.full(8, length)])
+        # nearer than the radius only blocks a step that goes nearer still: a vehicle that got
+        # close (beside a part the rays along its way passed) may always move away
+        if ahead or (clear_b < r and clear_b < clear_a):
             self.blocked += 1
             raise _Blocked
 
@@ -248,13 +253,16 @@ class Profiler:
         first, last = (lo, hi) if abs(p[2] - lo) <= abs(p[2] - hi) else (hi, lo)
         try:
             self._fly(np.array([p[0], p[1], first, yaw]))
+        except _Blocked:  # the structure below (above): the sweep starts where it stopped
+            first = self.m.state.pose[2]
+        try:
             n = max(1, int(math.ceil(abs(last - first) / self.cfg.sweep_step)))
             for i in range(n + 1):
                 z = first + (last - first) * i / n
                 if i:
                     self._fly(np.array([p[0], p[1], z, yaw]))
                 self.m.sense_laser(self.m.state.pose)
-        except _Blocked:  # the structure above or below: the sweep ends where it stands
+        except _Blocked:  # the structure above (below): the sweep ends where it stands
             self.m.sense_laser(self.m.state.pose)
         self.waypoints.append([float(p[0]), float(p[1])])
 
