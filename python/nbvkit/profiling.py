@@ -25,10 +25,11 @@ box is recomputed after every sweep, as the circle is.
 The flight is confined to the profiling flight volume (the workspace grown by `flight_margin` in
 x and y); it is not confined to the NBV workspace (a circle around a 35 x 30 m aircraft is wider
 than 40 x 40 m). The curve encloses what the laser has seen, and a part it has not seen yet
-(beyond its range, or hidden behind other parts) can stand across it: before every step the
-vehicle checks its way with range rays (an obstacle sensor: along the step, and round its end to
-the collision radius). A sweep the structure blocks ends where it is; on a blocked move the
-vehicle scans with its laser where it stands, the curve is recomputed with that scan, and the
+(beyond its range, or hidden behind or below other parts) can stand across it: before every
+step the vehicle checks its way with range rays (an obstacle sensor: along the step, and round its
+end: nearer than the collision radius, and nearer than before, is blocked). A sweep blocked on
+its way to its first end sweeps from there to the other, and ends where it is blocked on that
+way; on a blocked move the vehicle scans with its laser where it stands, the curve is recomputed with that scan, and the
 vehicle goes out along its bearing onto the new curve and on along it (up to 3 times, then the
 loop goes on from where it stands). `profile.blocked_steps` counts the steps stopped.
 
