@@ -31,7 +31,8 @@ end: nearer than the collision radius, and nearer than before, is blocked). A sw
 its way to its first end sweeps from there to the other, and ends where it is blocked on that
 way; on a blocked move the vehicle scans with its laser where it stands, the curve is recomputed
 with that scan, and the vehicle goes out along its bearing onto the new curve and on along it (up
-to 3 times, then the loop goes on from where it stands). `profile.blocked_steps` counts the steps stopped.
+to 3 times, then the loop goes on from where it stands). `profile.blocked_steps` counts the
+steps stopped.
 
 After the survey the vehicle returns to its start pose for the camera stage
 (profiling.return_to_start, the paper's scenarios) or, without returning, climbs or descends its
