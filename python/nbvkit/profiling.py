@@ -234,6 +234,15 @@ class Profiler:
             self.blocked += 1
             raise _Blocked
 
+    def clear(self, a, b) -> bool:
+        """Whether the range check lets the vehicle fly a -> b (not counted as a blocked step)."""
+        try:
+            self._check(a, b)
+            return True
+        except _Blocked:
+            self.blocked -= 1
+            return False
+
     def _face(self, p, c):
         return math.atan2(c[1] - p[1], c[0] - p[0])
 
@@ -398,6 +407,17 @@ class Profiler:
             pass
 
 
+def _retrace(world, clear) -> bool:
+    """Flies the profile's own flight backwards (free: it was flown) until clear(position) holds;
+    True if it does."""
+    path = [np.array(r[1:5], float) for r in world.state.trajectory if r[0] == "profile"]
+    for q in reversed(path):
+        if clear(world.state.pose[:3]):
+            return True
+        world.fly_to(q, "profile")
+    return clear(world.state.pose[:3])
+
+
 def run_profiling(world) -> dict:
     """The profiling stage on a World; returns the profile's own summary (Table 2 "Profile"
     row): distance, entropy reduction, points, waypoints (the caller adds the coverage)."""
@@ -415,20 +435,23 @@ def run_profiling(world) -> dict:
     if world.config.profiling.return_to_start:
         try:
             prof._move(start[:3], start[3])
-        except _Blocked:  # the straight way back meets the structure: the next stage plans one
-            pass
+        except _Blocked:  # back along its own flight until the way to the start is clear
+            if _retrace(world, lambda a: prof.clear(a, start[:3])):
+                world.fly_to(start, "profile")
         else:
             world.fly_to(start, "profile")
     else:
         # the sweep ended at the top or bottom of the flight volume, where little around it is
-        # known free: back up (or down) its own swept line to the start's height
+        # known free: back up (or down) its own swept line to the start's height; where the
+        # structure is above (below), first back along its own flight until the way is clear
+        def level(a):
+            return prof.clear(a, [a[0], a[1], start[2]])
+
+        if not level(world.state.pose[:3]):
+            _retrace(world, level)
         p = world.state.pose
-        down = np.array([p[0], p[1], start[2], p[3]])
-        try:
-            prof._check(p[:3], down[:3])
-            world.fly_to(down, "profile")
-        except _Blocked:  # a sweep the structure cut short: stay at its end
-            pass
+        if level(p[:3]):
+            world.fly_to(np.array([p[0], p[1], start[2], p[3]]), "profile")
         world.enter_navigation_space("profile")
     return {
         "method": world.config.profiling.method,
