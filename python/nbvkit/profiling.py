@@ -37,8 +37,9 @@ steps stopped.
 After the survey the vehicle returns to its start pose for the camera stage
 (profiling.return_to_start, the paper's scenarios) or, without returning, climbs or descends its
 last sweep line to the start's height (the ends of a sweep have little known free space around
-them) and flies straight into the navigation bounds if the circle left them (either stays where
-it is if the check blocks it). profiling.close_circle = false stops after the last sweep instead
+them) and flies straight into the navigation bounds if the circle left them. Where the check
+blocks the way back (the climb), the vehicle first flies back along its own profile flight, which
+is free, until the way is clear. profiling.close_circle = false stops after the last sweep instead
 of flying Algorithm 1's final arc back to the first waypoint. All distances flown are accounted.
 
 With profiling.camera_step > 0 (the recommended planner's 1 m; the paper's scenarios set 0) the
