@@ -25,13 +25,12 @@ struct SphereStencil {
     int dx, dy, h;
   };
   std::vector<Column> columns;
-  int extent = 0;
   bool exact = false;
 
   explicit SphereStencil(double r) {
     auto near_int = [](double x) { return std::abs(x - std::round(x)) < 1e-9; };
     if (near_int(0.5 - r) || near_int(0.5 + r)) return;
-    extent = int(std::floor(0.5 + r));
+    const int extent = int(std::floor(0.5 + r));
     const double r2 = r * r;
     auto f = [](int o) {
       const double d = std::max(std::abs(o) - 0.5, 0.0);
@@ -50,6 +49,11 @@ struct SphereStencil {
     exact = true;
   }
 };
+
+// Index of word w (64 cells along x from x = 64 w) of row (j, k), rows of `words` words.
+inline std::size_t word_at(int words, int ny, int w, int j, int k) {
+  return std::size_t(w) + std::size_t(words) * (std::size_t(j) + std::size_t(ny) * std::size_t(k));
+}
 
 // Per-call scratch, reused between calls (thread-local; stamps instead of clearing).
 // - What the search knows of each cell, per brick of 64 cells: a brick's block is made on its
@@ -102,8 +106,7 @@ struct SearchScratch {
   /// Word w of row (j, k): bit x - 64 w set where cell (x, j, k) is blocked or outside the grid.
   std::uint64_t blocked(const GridView& g, int w, int j, int k) {
     if (w < 0 || w >= words || !g.contains(0, j, k)) return ~std::uint64_t(0);
-    const std::size_t at =
-        std::size_t(w) + std::size_t(words) * (std::size_t(j) + std::size_t(g.ny) * std::size_t(k));
+    const std::size_t at = word_at(words, g.ny, w, j, k);
     if (blocked_stamp[at] != stamp) {
       blocked_stamp[at] = stamp;
       std::uint64_t bits = 0;
@@ -130,8 +133,7 @@ struct SearchScratch {
   /// Word w of row (j, k) of cells whose collision sphere (radius) is free.
   std::uint64_t traversable(const GridView& g, const SphereStencil& st, double radius, int w, int j,
                             int k) {
-    const std::size_t at =
-        std::size_t(w) + std::size_t(words) * (std::size_t(j) + std::size_t(g.ny) * std::size_t(k));
+    const std::size_t at = word_at(words, g.ny, w, j, k);
     if (trav_stamp[at] != stamp) {
       trav_stamp[at] = stamp;
       std::uint64_t free = 0;
@@ -303,16 +305,12 @@ std::vector<Eigen::Vector3d> plan_path(const GridView& g, const Eigen::Vector3d&
   SearchScratch& s = thread_scratch();
   s.begin(g);
   const SphereStencil stencil(radius / g.resolution);
-  auto center = [&](int i, int j, int k) {
-    return Eigen::Vector3d(g.origin +
-                           (Eigen::Vector3d(i, j, k).array() + 0.5).matrix() * g.resolution);
-  };
   auto traversable = [&](int i, int j, int k) {
     return (s.traversable(g, stencil, radius, i >> 6, j, k) >> (i & 63) & 1) != 0;
   };
   const std::size_t ia = g.index(ca), ib = g.index(cb);
   if (!traversable(cb.x(), cb.y(), cb.z()) ||
-      !segment_is_free(g, center(cb.x(), cb.y(), cb.z()), b, radius))
+      !segment_is_free(g, g.center(cb.x(), cb.y(), cb.z()), b, radius))
     return {};
   struct Node {
     double f;
@@ -321,13 +319,13 @@ std::vector<Eigen::Vector3d> plan_path(const GridView& g, const Eigen::Vector3d&
     bool operator>(const Node& o) const { return f > o.f; }
   };
   std::priority_queue<Node, std::vector<Node>, std::greater<Node>> open;
-  const Eigen::Vector3d goal = center(cb.x(), cb.y(), cb.z());
+  const Eigen::Vector3d goal = g.center(cb.x(), cb.y(), cb.z());
   {
     SearchScratch::Block& blk = s.block(ia);
     blk.g[ia & 63] = 0.0;
     blk.has_g |= std::uint64_t(1) << (ia & 63);
   }
-  open.push({(center(ca.x(), ca.y(), ca.z()) - goal).norm(), ia, ca.x(), ca.y(), ca.z()});
+  open.push({(g.center(ca.x(), ca.y(), ca.z()) - goal).norm(), ia, ca.x(), ca.y(), ca.z()});
   // the flood from b: breadth first over traversable cells; it proves b unreachable when it
   // runs out without touching a's cell (the search's moves are symmetric)
   constexpr std::size_t kFloodAfter = 1024;  // expansions before the flood starts
@@ -341,7 +339,7 @@ std::vector<Eigen::Vector3d> plan_path(const GridView& g, const Eigen::Vector3d&
     const Node cur = open.top();
     open.pop();
     const double gc = s.block(cur.idx).g[cur.idx & 63];
-    if (cur.f > gc + (center(cur.i, cur.j, cur.k) - goal).norm() + 1e-9) continue;  // stale
+    if (cur.f > gc + (g.center(cur.i, cur.j, cur.k) - goal).norm() + 1e-9) continue;  // stale
     if (cur.idx == ib) {
       found = true;
       break;
@@ -363,7 +361,7 @@ std::vector<Eigen::Vector3d> plan_path(const GridView& g, const Eigen::Vector3d&
           blk.g[nidx & 63] = ng;
           blk.has_g |= bit;
           blk.parent[nidx & 63] = cur.idx;
-          open.push({ng + (center(ni, nj, nk) - goal).norm(), nidx, ni, nj, nk});
+          open.push({ng + (g.center(ni, nj, nk) - goal).norm(), nidx, ni, nj, nk});
         }
     if (!flood_done && expansions > kFloodAfter) {  // one step of the flood
       if (flood_head == flood.size()) {             // b's component is closed and lacks a
@@ -396,7 +394,7 @@ std::vector<Eigen::Vector3d> plan_path(const GridView& g, const Eigen::Vector3d&
   for (std::size_t idx = ib;; idx = s.block(idx).parent[idx & 63]) {
     int i, j, k;
     g.layout.coords(idx, i, j, k);
-    cells.push_back(center(i, j, k));
+    cells.push_back(g.center(i, j, k));
     if (idx == ia) break;
   }
   std::reverse(cells.begin(), cells.end());
@@ -415,10 +413,7 @@ FreeComponent::FreeComponent(const GridView& g, const Eigen::Vector3d& a, double
   const SphereStencil stencil(radius / g.resolution);
   words_ = s.words;
   ny_ = g.ny;
-  auto at = [&](int w, int j, int k) {
-    return std::size_t(w) +
-           std::size_t(words_) * (std::size_t(j) + std::size_t(g.ny) * std::size_t(k));
-  };
+  auto at = [&](int w, int j, int k) { return word_at(words_, ny_, w, j, k); };
   reached_.assign(std::size_t(words_) * std::size_t(g.ny) * std::size_t(g.nz), 0);
   std::vector<std::array<int, 3>> queue;
   std::vector<std::uint8_t> queued(reached_.size(), 0);
@@ -478,9 +473,7 @@ std::vector<std::uint8_t> FreeComponent::contains(const GridView& g,
     }
     Eigen::Vector3i cb;
     if (!start_in_grid_ || !g.cell_of(b, cb)) continue;
-    const std::size_t i =
-        std::size_t(cb.x() >> 6) +
-        std::size_t(words_) * (std::size_t(cb.y()) + std::size_t(ny_) * std::size_t(cb.z()));
+    const std::size_t i = word_at(words_, ny_, cb.x() >> 6, cb.y(), cb.z());
     const std::uint64_t bit = std::uint64_t(1) << (cb.x() & 63);
     // a reached cell is traversable; the start's own cell is reached only if it is
     const bool in =
