@@ -41,41 +41,48 @@ void EvaluationOptions::validate() const {
 
 namespace {
 
-// Cell keys of a tree's points in tree order (parallel); throws naming `what` if one is too far
-// from the origin for the grid.
-std::vector<std::uint64_t> tree_cell_keys(const KdTree& tree, double r, const char* what) {
-  std::vector<std::uint64_t> keys(tree.size());
+// Cell keys of n points point_at(0 .. n - 1) into out[0 .. n) (parallel); false if a point is
+// too far from the origin for the grid (its key is kEmptyVoxelKey).
+template <class PointAt>
+bool fill_cell_keys(std::uint64_t* out, std::size_t n, const PointAt& point_at, double r) {
   std::atomic<bool> bad{false};
   const double inv = 1.0 / r;
-  parallel_chunks(tree.size(), 1 << 14, [&](std::size_t b, std::size_t e) {
+  parallel_chunks(n, 1 << 14, [&](std::size_t b, std::size_t e) {
     for (std::size_t k = b; k < e; ++k) {
-      const Eigen::Vector3d p = tree.point_at(k);
-      keys[k] = try_voxel_key(p.x(), p.y(), p.z(), r, inv);
-      if (keys[k] == kEmptyVoxelKey) bad = true;
+      const Eigen::Vector3d p = point_at(k);
+      out[k] = try_voxel_key(p.x(), p.y(), p.z(), r, inv);
+      if (out[k] == kEmptyVoxelKey) bad = true;
     }
   });
-  if (bad)
-    throw std::invalid_argument(std::string(what) + " has points too far from the origin for a " +
-                                fmt(r) + " m grid (at most 2^20 cells per axis)");
+  return !bad;
+}
+
+[[noreturn]] void throw_too_far(const char* what, double r) {
+  throw std::invalid_argument(std::string(what) + " has points too far from the origin for a " +
+                              fmt(r) + " m grid (at most 2^20 cells per axis)");
+}
+
+template <class PointAt>
+std::vector<std::uint64_t> cell_keys(std::size_t n, const PointAt& point_at, double r,
+                                     const char* what) {
+  std::vector<std::uint64_t> keys(n);
+  if (!fill_cell_keys(keys.data(), n, point_at, r)) throw_too_far(what, r);
   return keys;
 }
 
-// Cell keys of a cloud's points in input order (parallel); throws like tree_cell_keys.
+// Cell keys of a tree's points in tree order; throws naming `what` if one is too far from the
+// origin for the grid.
+std::vector<std::uint64_t> tree_cell_keys(const KdTree& tree, double r, const char* what) {
+  return cell_keys(
+      tree.size(), [&](std::size_t k) { return tree.point_at(k); }, r, what);
+}
+
+// Cell keys of a cloud's points in input order; throws like tree_cell_keys.
 std::vector<std::uint64_t> point_cell_keys(const PointsRef& pts, double r, const char* what) {
-  std::vector<std::uint64_t> keys(static_cast<std::size_t>(pts.rows()));
-  std::atomic<bool> bad{false};
-  const double inv = 1.0 / r;
-  parallel_chunks(keys.size(), 1 << 14, [&](std::size_t b, std::size_t e) {
-    for (std::size_t k = b; k < e; ++k) {
-      const auto i = static_cast<Eigen::Index>(k);
-      keys[k] = try_voxel_key(pts(i, 0), pts(i, 1), pts(i, 2), r, inv);
-      if (keys[k] == kEmptyVoxelKey) bad = true;
-    }
-  });
-  if (bad)
-    throw std::invalid_argument(std::string(what) + " has points too far from the origin for a " +
-                                fmt(r) + " m grid (at most 2^20 cells per axis)");
-  return keys;
+  return cell_keys(
+      std::size_t(pts.rows()),
+      [&](std::size_t k) { return Eigen::Vector3d(pts.row(Eigen::Index(k)).transpose()); }, r,
+      what);
 }
 
 double ratio(std::int64_t a, std::int64_t b) { return b > 0 ? static_cast<double>(a) / b : 0.0; }
@@ -284,23 +291,15 @@ EvaluationResult Evaluator::evaluate_cells(const std::vector<const SurfaceCloud*
   for (const SurfaceCloud* c : clouds) n += c->size();
   EvaluationResult res = empty_result(static_cast<Eigen::Index>(n));
   for (std::size_t k = 0; k < opt_.resolutions.size(); ++k) {
-    const double r = opt_.resolutions[k], inv = 1.0 / r;
+    const double r = opt_.resolutions[k];
     std::vector<std::uint64_t> keys(n);
-    std::atomic<bool> bad{false};
     std::size_t offset = 0;
     for (const SurfaceCloud* c : clouds) {
-      parallel_chunks(c->size(), 1 << 14, [&](std::size_t b, std::size_t e) {
-        for (std::size_t i = b; i < e; ++i) {
-          const Eigen::Vector3d p = c->point(i);
-          keys[offset + i] = try_voxel_key(p.x(), p.y(), p.z(), r, inv);
-          if (keys[offset + i] == kEmptyVoxelKey) bad = true;
-        }
-      });
+      if (!fill_cell_keys(
+              keys.data() + offset, c->size(), [&](std::size_t i) { return c->point(i); }, r))
+        throw_too_far("cloud", r);
       offset += c->size();
     }
-    if (bad)
-      throw std::invalid_argument("cloud has points too far from the origin for a " + fmt(r) +
-                                  " m grid (at most 2^20 cells per axis)");
     score_cells(k, keys, res);
   }
   res.timings_s.emplace_back("cells", seconds_since(t0));
