@@ -203,18 +203,28 @@ class Profiler:
                 self._since_frame = max(0.0, self._since_frame - step)
 
     def _check(self, a, b):
+        """Raises _Blocked (and counts it) where the range check stops the step a -> b."""
+        if self._blocked(a, b):
+            self.blocked += 1
+            raise _Blocked
+
+    def clear(self, a, b) -> bool:
+        """Whether the range check lets the vehicle fly a -> b (not counted as a blocked step)."""
+        return not self._blocked(a, b)
+
+    def _blocked(self, a, b) -> bool:
         """The vehicle's range check before it flies a -> b (an obstacle sensor): rays along the
         motion from its centre (to the step's end plus the collision radius) and from eight
         points of a ring of that radius about it (to the step's end), and rays in 32 directions
         about a and b (b nearer the structure than the collision radius, and nearer than a, is
-        blocked). Raises _Blocked where one meets the structure: the
-        profile flies round what its laser has seen, and a part it has not seen yet (beyond the
-        laser's range, or behind other parts) can stand across the curve."""
+        blocked). True where one meets the structure: the profile flies round what its laser has
+        seen, and a part it has not seen yet (beyond the laser's range, or behind other parts)
+        can stand across the curve."""
         a, b = np.asarray(a, float), np.asarray(b, float)
         d = b - a
         length = float(np.linalg.norm(d))
         if length < 1e-9:
-            return
+            return False
         u = d / length
         ref = np.array([0.0, 0.0, 1.0]) if abs(u[2]) < 0.9 else np.array([1.0, 0.0, 0.0])
         e1 = np.cross(u, ref)
@@ -231,18 +241,7 @@ class Profiler:
         ahead = np.any(t[:9] <= np.r_[length + r, np.full(8, length)])
         # nearer than the radius only blocks a step that goes nearer still: a vehicle that got
         # close (beside a part the rays along its way passed) may always move away
-        if ahead or (clear_b < r and clear_b < clear_a):
-            self.blocked += 1
-            raise _Blocked
-
-    def clear(self, a, b) -> bool:
-        """Whether the range check lets the vehicle fly a -> b (not counted as a blocked step)."""
-        try:
-            self._check(a, b)
-            return True
-        except _Blocked:
-            self.blocked -= 1
-            return False
+        return bool(ahead or (clear_b < r and clear_b < clear_a))
 
     def _face(self, p, c):
         return math.atan2(c[1] - p[1], c[0] - p[0])
@@ -303,7 +302,6 @@ class Profiler:
         along it to theta_end; again (at most `tries` times) if the structure blocks that too,
         then the vehicle stays where it is and the loop goes on from there. Returns the curve."""
         m = self.m
-        region = self._region(fallback_center, fallback_radius)
         for _ in range(tries):
             m.sense_laser(m.state.pose)
             region = self._region(fallback_center, fallback_radius)
