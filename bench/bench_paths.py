@@ -45,7 +45,7 @@ def main() -> None:
         ws = summary["workspace"]
         m = _core.OccupancyMap.load(run / "map.ot", ws["bounds_min"], ws["bounds_max"])
         traj = np.loadtxt(run / "trajectory.csv", delimiter=",", skiprows=1, usecols=(1, 2, 3))
-    radius = Config().vehicle.collision_radius
+        radius = Config.from_yaml(run / "config.yaml").vehicle.collision_radius  # the mission's
     rng = np.random.default_rng(a.seed)
     lo, hi = np.array(ws["nav_min"]), np.array(ws["nav_max"])
     goals = []
