@@ -506,3 +506,33 @@ def test_coverage_of_clouds_read_in_place_equals_that_of_their_points_stacked():
     assert ev.coverage([laser]) == ev.coverage(laser.points)
     with pytest.raises(ValueError, match="SurfaceCloud"):
         ev._core.evaluate_cells_of([camera, None])
+
+
+def _cell_figures(gt, cloud, r):
+    """coverage, area coverage and precision at cell size r from their definitions (numpy)."""
+
+    def keys(p):  # the integer cell of each point, packed in one int64 (21 bits an axis)
+        c = np.floor(p / r).astype(np.int64) + (1 << 20)
+        return (c[:, 0] << 42) | (c[:, 1] << 21) | c[:, 2]
+
+    kg, kc = keys(gt), np.unique(keys(cloud))
+    cells, inv = np.unique(kg, return_inverse=True)
+    hit = np.isin(cells, kc)
+    return hit.mean(), float(hit[inv].mean()), int(hit.sum()) / len(kc)
+
+
+def test_cell_figures_of_a_cloud_of_millions_match_their_definitions():
+    # over 3 M points the distinct cells are found in 4 parts in parallel (evaluation.cpp)
+    rng = np.random.default_rng(11)
+    gt = rng.uniform(-4, 4, size=(200000, 3)) * [1, 1, 0.25]
+    cloud = np.vstack(
+        [gt[::2] + rng.normal(0, 0.04, (100000, 3)), rng.uniform(-5, 5, (3300000, 3))]
+    )
+    ev = Evaluator(gt, resolutions=(0.05, 0.1, 0.5))
+    figures = ev.coverage(cloud)
+    for r in (0.05, 0.1, 0.5):
+        cov, area, prec = _cell_figures(gt, cloud, r)
+        key = f"{r:g}"
+        assert figures["coverage"][key] == pytest.approx(cov, abs=1e-12)
+        assert figures["area_coverage"][key] == pytest.approx(area, abs=1e-12)
+        assert figures["precision"][key] == pytest.approx(prec, abs=1e-12)

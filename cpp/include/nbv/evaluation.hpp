@@ -113,8 +113,8 @@ class Evaluator {
   Evaluator(std::pair<Points, EvaluationResult>&& sampled, const EvaluationOptions& options);
   Evaluator(const PointsRef& gt, const EvaluationOptions& options, EvaluationResult base);
   EvaluationResult empty_result(std::int64_t n_points) const;
-  /// Fills res's figures of resolution k from the cloud's cell keys at that resolution.
-  void score_cells(std::size_t k, const std::vector<std::uint64_t>& keys,
+  /// Fills res's figures of resolution k from the cloud's n cell keys at that resolution.
+  void score_cells(std::size_t k, const std::uint64_t* keys, std::size_t n,
                    EvaluationResult& res) const;
   struct Grid {
     double r = 0;
