@@ -446,10 +446,8 @@ def run_profiling(world) -> dict:
         def level(a):
             return prof.clear(a, [a[0], a[1], start[2]])
 
-        if not level(world.state.pose[:3]):
-            _retrace(world, level)
-        p = world.state.pose
-        if level(p[:3]):
+        if level(world.state.pose[:3]) or _retrace(world, level):
+            p = world.state.pose
             world.fly_to(np.array([p[0], p[1], start[2], p[3]]), "profile")
         world.enter_navigation_space("profile")
     return {
