@@ -127,8 +127,9 @@ def test_a_georeferenced_mesh_is_named_too_far_and_flies_as_at_the_origin_with_m
 
 def test_the_fast_scoring_flies_the_same_mission_as_the_reference_reads(monkeypatch):
     """Scenario 5 (profile, symmetry, AGVS, the paper's IG) chooses the same views, flies the same
-    distance and ends at the same entropy whether its candidates are scored by the grid walk or
-    through OctoMap's search per cell (the reference path kept beside the fast one)."""
+    distance and ends at the same entropy whether its candidates are scored by the grid walk (with
+    the planner's memo of earlier walks) or through OctoMap's search per cell for every view (the
+    reference path kept beside the fast one)."""
     from nbvkit import _core
     from nbvkit.planning import planner
 
@@ -142,16 +143,19 @@ def test_the_fast_scoring_flies_the_same_mission_as_the_reference_reads(monkeypa
             @staticmethod
             def evaluate_views(*args, **kw):
                 calls.append(backend)
+                if backend == "octree":
+                    kw.pop("memo")
                 return _core.evaluate_views(*args, backend=backend, **kw)
 
         monkeypatch.setattr(planner, "_core", Core())
         m = Mission(cfg("scenario=5", "max_iterations=10", "profiling.sweep_step=0.5"))
         summary = m.run()
         poses = np.array([[r.x, r.y, r.z, r.yaw] for r in m.records])
-        return summary, poses, len(calls)
+        return summary, poses, len(calls), m.planner.memo.stats()
 
-    fast, fast_poses, n_fast = fly("grid")
-    ref, ref_poses, n_ref = fly("octree")
+    fast, fast_poses, n_fast, memo = fly("grid")
+    ref, ref_poses, n_ref, _ = fly("octree")
+    assert memo["reused"] > 0  # the memo served views
     assert n_fast == n_ref >= 10
     assert fast["iterations"] == ref["iterations"] == 10
     np.testing.assert_array_equal(fast_poses, ref_poses)

@@ -27,7 +27,7 @@ UTILITY = set(_core.UtilityOptions.fields())
 VALIDITY = set(_core.ValidityOptions.fields())
 
 
-def score(m, cands, current=(5.0, 0.0, 5.0, 0.0), backend="grid", surface=None, **kw):
+def score(m, cands, current=(5.0, 0.0, 5.0, 0.0), backend="grid", surface=None, memo=None, **kw):
     """evaluate_views with the options given as flat keywords (utility= names the utility)."""
     kw.setdefault("max_range", 12.0)
     if "utility" in kw:
@@ -44,6 +44,7 @@ def score(m, cands, current=(5.0, 0.0, 5.0, 0.0), backend="grid", surface=None, 
         validity=pick(VALIDITY),
         surface=surface,
         backend=backend,
+        memo=memo,
     )
 
 
@@ -186,3 +187,82 @@ def test_bad_input():
         score(m, [[5, 0, 5, 0]], backend="gpu")
     with pytest.raises(ValueError):
         _core.sphere_is_free(m, (np.nan, 0, 0), 1.0)
+
+
+def assert_same_scores(a, b):
+    for k in ("utility", "gain", "cells", "occupied_seen", "status"):
+        np.testing.assert_array_equal(a[k], b[k], err_msg=k)
+
+
+def test_the_memo_of_walks_scores_as_walking_again():
+    """A view scored again at the same pose is served from its ViewMemo record while every cell its
+    rays reached keeps its occupancy and every neutral brick they stepped over stays neutral, with
+    the gain, cells and occupied_seen of a new walk to the last bit; otherwise it is walked."""
+    m = scanned_wall_map(repeats=6)  # clamped (neutral) free cells between x = 5 and the wall
+    cands = [[5, 0, 5, 0.0], [5, 0, 5, math.pi], [5, 0.4, 5, 0.3], [4.6, 0, 5.2, -0.2]]
+    memo = _core.ViewMemo()
+    kw = dict(require_occupied=False, require_occupied_probability=0.6)
+
+    def check(reused, walked, stale):
+        a, b = score(m, cands, memo=memo, **kw), score(m, cands, **kw)
+        assert_same_scores(a, b)
+        assert memo.stats() == dict(reused=reused, walked=walked, stale=stale)
+        return a
+
+    first = check(0, 4, 0)
+    assert (first["status"] == 0).all() and first["occupied_seen"][0] > 0
+    check(4, 4, 0)  # the same map: every view from its record
+    # behind the camera an unknown cell becomes free: its entropy changes, no occupancy does
+    m.update_cells([[2.1, 0.1, 5.1]], occupied=False)
+    after = check(8, 4, 0)
+    assert after["gain"][1] < first["gain"][1] and after["gain"][0] == first["gain"][0]
+    # a hit in the clamped free space before the wall: still free, but its brick is no longer
+    # neutral, so the rays that stepped over it would now visit it (view 0 looks through it)
+    m.update_cells([[10.1, 0.1, 5.1]], occupied=True)
+    check(9, 7, 3)  # the three views towards +x looked through it; the one towards -x did not
+    for _ in range(3):  # hit again until occupied: the rays through it stop there
+        m.update_cells([[10.1, 0.1, 5.1]], occupied=True)
+    blocked = check(10, 10, 6)
+    assert blocked["gain"][0] != first["gain"][0]
+    assert memo.entries == 4 and memo.bytes > 0
+    score(m, cands, memo=memo, max_range=10.0)  # another camera: the records are dropped
+    assert memo.stats()["walked"] == 14 and memo.entries == 4
+
+
+def test_the_memo_agrees_with_walking_over_random_edits():
+    rng = np.random.default_rng(3)
+    m = scanned_wall_map(repeats=3)
+    poses = np.column_stack(
+        [[5, 0, 5] + rng.uniform(-0.6, 0.6, (12, 3)), rng.uniform(-np.pi, np.pi, 12)]
+    )
+    memo = _core.ViewMemo(keep_calls=3)
+    for r in range(24):
+        pts = rng.uniform([-9, -9, 0.5], [19, 9, 9.5], (60, 3))
+        for _ in range(r % 3 + 1):  # 1-3 hits (occupied from the second), or a miss
+            m.update_cells(pts, occupied=r % 4 != 0)
+        cands = poses[rng.choice(12, 8, replace=False)]
+        a = score(m, cands, memo=memo, collision_radius=0.0)
+        assert_same_scores(a, score(m, cands, collision_radius=0.0))
+    stats = memo.stats()
+    assert stats["reused"] > 10 and stats["stale"] > 10
+    assert memo.entries <= 12
+
+
+def test_the_memo_keeps_only_recent_records_and_refuses_bad_use():
+    m = scanned_wall_map()
+    memo = _core.ViewMemo(keep_calls=1)
+    score(m, [[5, 0, 5, 0.0]], memo=memo)
+    score(m, [[5, 0, 5, 0.5]], memo=memo)  # the first record was not used by this call
+    assert memo.entries == 1
+    score(m, [[5, 0, 5, 0.0]], memo=memo)
+    assert memo.stats() == dict(reused=0, walked=3, stale=0)
+    memo.clear()
+    assert memo.entries == 0 and memo.keep_calls == 1
+    with pytest.raises(ValueError, match="keep_calls"):
+        _core.ViewMemo(0)
+    with pytest.raises(ValueError, match="memo"):
+        score(m, [[5, 0, 5, 0.0]], memo=memo, backend="octree")
+    # utilities that cannot replay a walk score every view
+    score(m, [[5, 0, 5, 0.0]], memo=memo, utility="average_entropy")
+    score(m, [[5, 0, 5, 0.0]], memo=memo, utility="average_entropy")
+    assert memo.entries == 0

@@ -7,6 +7,8 @@
 #include "nbv/surface_observations.hpp"
 #include "options.hpp"
 
+#include <mutex>
+
 namespace nbv::bind {
 namespace {
 
@@ -108,11 +110,38 @@ surface and four_term utilities and by surface_targets.)doc")
   m.def("bin_cone", &bin_cone, py::arg("bin"), py::arg("cone_deg"),
         "Bitmask of the bins within cone_deg of a bin.");
 
+  py::class_<ViewMemo, std::shared_ptr<ViewMemo>>(m, "ViewMemo", R"doc(
+What the paper's IG walks of candidate views found, kept from one evaluate_views call to the next
+(pass it as memo=). A view scored again at the same pose (bit for bit) whose walk still holds -
+every cell its rays reached has kept its occupancy, every neutral brick they stepped over is
+still neutral - is scored from its record: the same gain, cells and occupied_seen, without
+walking its rays. Entries that none of the last keep_calls calls used are dropped; a call with
+another camera or grid geometry clears it. Used by the ig and ig_distance utilities on the grid
+backend; the others walk every view.)doc")
+      .def(py::init<int>(), py::arg("keep_calls") = 2)
+      .def(
+          "stats",
+          [](const ViewMemo& memo) {
+            const ViewMemo::Stats s = memo.stats();
+            py::dict d;
+            d["reused"] = s.reused;
+            d["stale"] = s.stale;
+            d["walked"] = s.walked;
+            return d;
+          },
+          "Views so far: reused (scored from their record), stale (a record that no longer held, "
+          "then walked), walked (walked and recorded, stale ones included).")
+      .def_property_readonly("entries", &ViewMemo::entries, "Poses held.")
+      .def_property_readonly("bytes", &ViewMemo::bytes, "Memory held by the records.")
+      .def_property_readonly("keep_calls", &ViewMemo::keep_calls)
+      .def("clear", &ViewMemo::clear, "Drops every record.");
+
   m.def(
       "evaluate_views",
       [](const OccupancyMap& map, const py::handle& candidates, const py::handle& current,
          const py::object& camera, const py::object& utility, const py::object& validity,
-         const std::shared_ptr<SurfaceObservations>& surface, const std::string& backend) {
+         const std::shared_ptr<SurfaceObservations>& surface, const std::string& backend,
+         const std::shared_ptr<ViewMemo>& memo) {
         auto c = py::array_t<double, py::array::c_style | py::array::forcecast>::ensure(candidates);
         if (!c || c.ndim() != 2 || c.shape(1) != 4)
           throw py::value_error("candidates must have shape (K, 4): rows x, y, z, yaw");
@@ -124,12 +153,16 @@ surface and four_term utilities and by surface_targets.)doc")
         const ValidityOptions v = OptionsClass<ValidityOptions>::from(validity, "validity");
         if (backend != "grid" && backend != "octree")
           throw py::value_error("unknown backend '" + backend + "' (known: grid, octree)");
+        if (memo && backend != "grid")
+          throw py::value_error("memo= is for the grid backend (the octree one is the reference)");
         ViewScores s;
         {
           py::gil_scoped_release release;
+          std::unique_lock<std::mutex> lock;  // one call at a time per memo
+          if (memo) lock = std::unique_lock<std::mutex>(memo->mutex());
           s = backend == "octree"
                   ? evaluate_views_octree(map, cm, cur, cam, u, v, surface.get())
-                  : evaluate_views(grid_view(map, surface.get()), cm, cur, cam, u, v);
+                  : evaluate_views(grid_view(map, surface.get()), cm, cur, cam, u, v, memo.get());
         }
         py::dict out;
         out["utility"] = s.utility;
@@ -141,11 +174,12 @@ surface and four_term utilities and by surface_targets.)doc")
       },
       py::arg("map"), py::arg("candidates"), py::arg("current"), py::arg("camera") = py::none(),
       py::arg("utility") = py::none(), py::arg("validity") = py::none(),
-      py::arg("surface") = nullptr, py::arg("backend") = "grid",
+      py::arg("surface") = nullptr, py::arg("backend") = "grid", py::arg("memo") = nullptr,
       R"doc(Score K candidate vehicle poses (K, 4) [x, y, z, yaw] from the current pose, in one
 call. camera / utility / validity: a ViewCameraModel / UtilityOptions / ValidityOptions, a dict
 of their fields, or None for the defaults. surface: the map's SurfaceObservations (needed by the
-surface and four_term utilities).
+surface and four_term utilities). memo: a ViewMemo kept across calls (the same scores, fewer
+walks).
 
 Returns a dict of (K,) arrays: utility (the score to maximise, -inf where invalid), gain (the
 utility's own value before any distance weight), cells (cells that added to it), occupied_seen

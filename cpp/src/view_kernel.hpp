@@ -9,9 +9,11 @@
 #include "nbv/views.hpp"
 #include "utilities/registry.hpp"
 
+#include <algorithm>
 #include <cmath>
 #include <functional>
 #include <limits>
+#include <type_traits>
 
 namespace nbv::kernel {
 
@@ -65,10 +67,42 @@ struct Job {
   bool distance_weight;
   /// If set, called after each valid view with what its utility credited (Surface records).
   std::function<void(Eigen::Index, const std::vector<utility::Credit>&)> on_view;
+  ViewMemo* memo = nullptr;  ///< walks kept between calls, for utilities with replay()
 };
 
+// Does the utility declare replay() (utility.hpp)?
+template <class U, class = void>
+struct Replayable : std::false_type {};
+template <class U>
+struct Replayable<U, std::void_t<decltype(&U::replay)>> : std::true_type {};
+
+// What a memo entry depends on besides the map: the camera's rays and the grid's geometry.
+inline std::vector<double> memo_geometry(const Job& job) {
+  const ViewCameraModel& c = job.camera;
+  const GridView& g = job.grid;
+  std::vector<double> v = {double(c.rays_x), double(c.rays_y), c.hfov_deg,   c.vfov_deg,
+                           c.max_range,      g.resolution,     g.origin.x(), g.origin.y(),
+                           g.origin.z(),     double(g.nx),     double(g.ny), double(g.nz)};
+  v.insert(v.end(), c.mount.matrix().data(), c.mount.matrix().data() + 16);
+  return v;
+}
+
+// A view's gain, cell count and occupied rays from its memo entry, if the walk it records still
+// holds: every stepped-over brick still neutral, every recorded cell of the same occupancy.
+template <class Utility>
+bool replay(const GridView& g, const ViewMemo::Entry& e, double occ_req, double& gain, int& cells,
+            int& occ) {
+  for (const std::uint32_t b : e.bricks)
+    if (g.brick_live[b]) return false;
+  if (!Utility::replay(g, e, gain, cells)) return false;
+  occ = 0;
+  for (const std::uint32_t s : e.stops) occ += g.logodds[s] > occ_req;
+  return true;
+}
+
 // One kernel for every utility: validity, then the rays of each valid candidate through the
-// grid, each cell handed to the utility in order.
+// grid, each cell handed to the utility in order (or, with a memo, the view's earlier walk
+// replayed where it still holds).
 template <class Utility, bool kSkip, class Cells>
 ViewScores score(const Job& job, const Cells& cells) {
   const GridView& g = job.grid;
@@ -88,6 +122,26 @@ ViewScores score(const Job& job, const Cells& cells) {
   const Eigen::Vector3d here(job.current.x, job.current.y, job.current.z);
   const ValidityOptions& v = job.validity;
   const bool check_segment = v.blocked_path == "reject";
+
+  // the memo: cell ids must fit 31 bits (the 32nd holds the occupancy)
+  constexpr bool kMemo = Replayable<Utility>::value && kSkip && std::is_same_v<Cells, GridCells>;
+  ViewMemo* memo = nullptr;
+  if constexpr (kMemo)
+    if (job.memo && !job.on_view && g.storage_size() <= (std::size_t(1) << 31)) memo = job.memo;
+  std::vector<ViewMemo::Key> keys;
+  std::vector<ViewMemo::Entry> fresh;
+  std::vector<std::uint8_t> outcome;  // ViewMemo::end's codes
+  if (memo) {
+    memo->begin(memo_geometry(job));
+    keys.resize(std::size_t(K));
+    fresh.resize(std::size_t(K));
+    outcome.assign(std::size_t(K), 0);
+    for (auto& e : fresh) e = memo->take();
+    for (Eigen::Index k = 0; k < K; ++k)
+      keys[std::size_t(k)] =
+          ViewMemo::key(job.cand(k, 0), job.cand(k, 1), job.cand(k, 2), job.cand(k, 3));
+  }
+
   parallel_chunks(static_cast<std::size_t>(K), 1, [&](std::size_t b, std::size_t e) {
     thread_local utility::VisitedSet visited;
     thread_local std::vector<utility::Credit> credits;
@@ -107,43 +161,93 @@ ViewScores score(const Job& job, const Cells& cells) {
         st = static_cast<std::int8_t>(ViewStatus::PathBlocked);
         continue;
       }
-      const Eigen::Isometry3d T =
-          pose_to_transform({p.x(), p.y(), p.z(), job.cand(k, 3)}) * job.camera.mount;
-      const Eigen::Vector3d o = T.translation();
-      const Eigen::Matrix3d R = T.linear();
-      visited.reset(g.storage_size());
-      credits.clear();
-      utility::ViewContext ctx{g, job.utility, visited, cones, job.on_view ? &credits : nullptr};
-      Utility u(ctx);
-      int occ = 0;
-      for (Eigen::Index r = 0; r < dirs.rows(); ++r) {
-        const Eigen::Vector3d ds = dirs.row(r).transpose();
-        const Eigen::Vector3d dw = R * ds;
-        u.begin_ray(dw);
-        bool ray_occ = false;
-        walk_ray<kSkip>(g, o, dw, job.camera.max_range / ds.x(),
-                        [&](std::size_t idx, const int* c, double t) {
-                          const float s = cells.scored(idx, c);
-                          if (!ray_occ && std::signbit(s)) {  // the ray's first occupied cell
-                            ray_occ = true;
-                            if (cells.logodds(idx, c) > occ_req) ++occ;
-                          }
-                          return u.visit(cells, idx, c, t, s);
-                        });
+      double gain = 0.0;
+      int n_cells = 0, occ = 0;
+      // Every ray of the view through the grid; with kRecord, the rays' stops go into `rec` and
+      // the utility marks the neutral bricks stepped over too (keep() reads the marks).
+      auto walk = [&](auto record, ViewMemo::Entry* rec) {
+        constexpr bool kRecord = decltype(record)::value;
+        const Eigen::Isometry3d T =
+            pose_to_transform({p.x(), p.y(), p.z(), job.cand(k, 3)}) * job.camera.mount;
+        const Eigen::Vector3d o = T.translation();
+        const Eigen::Matrix3d R = T.linear();
+        visited.reset(g.storage_size());
+        credits.clear();
+        utility::ViewContext ctx{g, job.utility, visited, cones, job.on_view ? &credits : nullptr};
+        Utility u(ctx);
+        for (Eigen::Index r = 0; r < dirs.rows(); ++r) {
+          const Eigen::Vector3d ds = dirs.row(r).transpose();
+          const Eigen::Vector3d dw = R * ds;
+          u.begin_ray(dw);
+          bool ray_occ = false;
+          [[maybe_unused]] const std::size_t stop = walk_ray<kSkip>(
+              g, o, dw, job.camera.max_range / ds.x(),
+              [&](std::size_t idx, const int* c, double t) {
+                const float s = cells.scored(idx, c);
+                if (!ray_occ && std::signbit(s)) {  // the ray's first occupied cell
+                  ray_occ = true;
+                  if (cells.logodds(idx, c) > occ_req) ++occ;
+                }
+                return u.visit(cells, idx, c, t, s);
+              },
+              [&](std::size_t idx) {
+                if constexpr (kRecord) u.skipped(idx);
+              });
+          // a replayable utility stops a ray only at its first occupied cell
+          if constexpr (kRecord)
+            if (stop != kNoCell) rec->stops.push_back(std::uint32_t(stop));
+        }
+        if (job.on_view) job.on_view(k, credits);
+        gain = u.gain();
+        n_cells = u.cells();
+      };
+      // The view's entry from the cells its walk marked (after the utility handed the set back).
+      auto keep = [&](ViewMemo::Entry& rec) {
+        for (std::size_t i = 0; i < visited.n_touched; ++i) {
+          const std::uint32_t w = visited.touched[i];
+          if (!g.brick_live[w]) {  // a neutral brick stepped over (IG::skipped)
+            rec.bricks.push_back(w);
+            continue;
+          }
+          const std::uint64_t reached = visited.bits[w];
+          std::uint64_t occ = 0;
+          for (std::uint64_t m = reached; m; m &= m - 1) {
+            const int bit = __builtin_ctzll(m);
+            occ |= std::uint64_t(std::signbit(g.scored[std::size_t(w) * 64 + bit])) << bit;
+          }
+          rec.words.push_back({reached, occ, w});
+        }
+      };
+      bool scored = false;
+      if constexpr (kMemo) {
+        if (memo) {
+          const ViewMemo::Entry* entry = memo->find(keys[kk]);
+          if (entry && replay<Utility>(g, *entry, occ_req, gain, n_cells, occ)) {
+            outcome[kk] = 1;
+            scored = true;
+          } else {
+            outcome[kk] = entry ? 3 : 2;
+            ViewMemo::Entry& rec = fresh[kk];
+            walk(std::true_type{}, &rec);
+            keep(rec);
+            scored = true;
+          }
+        }
       }
-      if (job.on_view) job.on_view(k, credits);
-      out.gain[k] = u.gain();
-      out.cells[k] = u.cells();
+      if (!scored) walk(std::false_type{}, nullptr);
+      out.gain[k] = gain;
+      out.cells[k] = n_cells;
       out.occupied_seen[k] = occ;
       if (job.utility.require_occupied && occ == 0) {
         st = static_cast<std::int8_t>(ViewStatus::SeesNoOccupied);
         continue;
       }
-      double value = u.gain();
+      double value = gain;
       if (job.distance_weight) value *= std::exp(-job.utility.distance_lambda * (p - here).norm());
       out.utility[k] = value;
     }
   });
+  if (memo) memo->end(keys, fresh, outcome);
   return out;
 }
 

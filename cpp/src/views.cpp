@@ -7,6 +7,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstring>
 #include <limits>
 #include <sstream>
 
@@ -144,13 +145,105 @@ void ValidityOptions::validate() const {
                                 "'");
 }
 
+// ---- the memo of walks -------------------------------------------------------------------------
+
+ViewMemo::ViewMemo(int keep_calls) : keep_calls_(keep_calls) {
+  if (keep_calls < 1)
+    throw std::invalid_argument("ViewMemo keep_calls must be >= 1, got " +
+                                std::to_string(keep_calls));
+}
+
+ViewMemo::Key ViewMemo::key(double x, double y, double z, double yaw) {
+  Key k;
+  const double v[4] = {x, y, z, yaw};
+  for (int a = 0; a < 4; ++a) std::memcpy(&k[a], &v[a], sizeof(double));
+  return k;
+}
+
+std::size_t ViewMemo::KeyHash::operator()(const Key& k) const {
+  std::uint64_t h = 0x9E3779B97F4A7C15ull;
+  for (std::uint64_t v : k) h = (h ^ v) * 0xBF58476D1CE4E5B9ull, h ^= h >> 31;
+  return std::size_t(h);
+}
+
+static std::size_t entry_bytes(const ViewMemo::Entry& e) {
+  return sizeof(e) + sizeof(ViewMemo::Word) * e.words.capacity() +
+         4 * (e.stops.capacity() + e.bricks.capacity());
+}
+
+std::size_t ViewMemo::bytes() const {
+  std::size_t b = 0;
+  for (const auto& [k, e] : entries_) b += sizeof(Key) + entry_bytes(e);
+  for (const Entry& e : spare_) b += entry_bytes(e);
+  return b;
+}
+
+void ViewMemo::clear() {
+  entries_.clear();
+  spare_.clear();
+  geometry_.clear();
+}
+
+ViewMemo::Entry ViewMemo::take() {
+  if (spare_.empty()) return {};
+  Entry e = std::move(spare_.back());
+  spare_.pop_back();
+  e.words.clear();
+  e.stops.clear();
+  e.bricks.clear();
+  return e;
+}
+
+void ViewMemo::begin(const std::vector<double>& geometry) {
+  // bit for bit: a NaN never reaches here (the options are validated)
+  if (geometry != geometry_) {
+    entries_.clear();
+    geometry_ = geometry;
+  }
+  ++call_;
+}
+
+const ViewMemo::Entry* ViewMemo::find(const Key& k) const {
+  const auto it = entries_.find(k);
+  return it == entries_.end() ? nullptr : &it->second;
+}
+
+void ViewMemo::end(const std::vector<Key>& keys, std::vector<Entry>& fresh,
+                   const std::vector<std::uint8_t>& outcome) {
+  for (std::size_t k = 0; k < keys.size(); ++k) {
+    if (outcome[k] == 1) {
+      entries_.at(keys[k]).used = call_;
+      ++stats_.reused;
+    } else if (outcome[k] >= 2) {
+      fresh[k].used = call_;
+      Entry& e = entries_[keys[k]];
+      std::swap(e, fresh[k]);  // the old record's arrays go back with the unused ones below
+      ++stats_.walked;
+      stats_.stale += outcome[k] == 3;
+    }
+  }
+  for (Entry& e : fresh)
+    if (e.words.capacity()) spare_.push_back(std::move(e));
+  for (auto it = entries_.begin(); it != entries_.end();) {
+    if (it->second.used > call_ - keep_calls_) {
+      ++it;
+      continue;
+    }
+    spare_.push_back(std::move(it->second));
+    it = entries_.erase(it);
+  }
+  // keep no more spare arrays than a call can use
+  if (spare_.size() > keys.size()) spare_.resize(keys.size());
+}
+
 // ---- scoring ---------------------------------------------------------------------------------
 
 ViewScores evaluate_views(const GridView& g, const Candidates& cand, const Pose& current,
                           const ViewCameraModel& camera, const UtilityOptions& utility,
-                          const ValidityOptions& validity) {
+                          const ValidityOptions& validity, ViewMemo* memo) {
   check_inputs(g, cand, camera, utility, validity);
-  return dispatch(Job{g, cand, current, camera, utility, validity, false}, GridCells{g}, true);
+  return dispatch(Job{g, cand, current, camera, utility, validity, false, {}, memo}, GridCells{g},
+                  true);
 }
 
 ViewScores evaluate_views_octree(const OccupancyMap& map, const Candidates& cand,
@@ -160,7 +253,8 @@ ViewScores evaluate_views_octree(const OccupancyMap& map, const Candidates& cand
   const GridView g = grid_view(map, surface);
   check_inputs(g, cand, camera, utility, validity);
   const OctreeCells cells{map, map.octree()};
-  return dispatch(Job{g, cand, current, camera, utility, validity, false}, cells, false);
+  return dispatch(Job{g, cand, current, camera, utility, validity, false, {}, nullptr}, cells,
+                  false);
 }
 
 double viewable_cells(double hfov_deg, double vfov_deg, double min_range, double max_range,

@@ -57,16 +57,23 @@ struct GridView {
 GridView grid_view(const OccupancyMap& map, const SurfaceObservations* surface = nullptr);
 
 /// Amanatides & Woo 3D-DDA over the grid from o along the unit vector d for t in [0, t_max]
-/// (metres), clipped to the grid box. visit(flat_index, cell[3], t_enter) returns false to stop.
+/// (metres), clipped to the grid box. visit(flat_index, cell[3], t_enter) returns false to stop;
+/// the walk returns the index of the cell it stopped at, or kNoCell.
 /// With kSkipNeutral, cells of bricks without live cells are stepped over without a visit (for
 /// walks to which neutral cells - observed free cells of zero entropy - contribute nothing and
 /// which they never stop). The cells visited, and their order, do not depend on kSkipNeutral
-/// otherwise. Always inlined: compiled apart, the walk reached its visitor's state through
-/// memory and reloaded it after every store the visitor made.
-template <bool kSkipNeutral, typename Visit>
-__attribute__((always_inline)) inline void walk_ray(const GridView& g, const Eigen::Vector3d& o,
-                                                    const Eigen::Vector3d& d, double t_max,
-                                                    Visit&& visit) {
+/// otherwise; skipped(flat_index) is called for each cell stepped over (a no-op by default).
+/// Always inlined: compiled apart, the walk reached its visitor's state through memory and
+/// reloaded it after every store the visitor made.
+struct SkipNothing {
+  void operator()(std::size_t) const {}
+};
+constexpr std::size_t kNoCell = ~std::size_t(0);
+template <bool kSkipNeutral, typename Visit, typename Skipped = SkipNothing>
+__attribute__((always_inline)) inline std::size_t walk_ray(const GridView& g,
+                                                           const Eigen::Vector3d& o,
+                                                           const Eigen::Vector3d& d, double t_max,
+                                                           Visit&& visit, Skipped&& skipped = {}) {
   constexpr double kInf = std::numeric_limits<double>::infinity();
   const Eigen::Vector3d pos = (o - g.origin) / g.resolution;  // grid units
   const double tend_g = t_max / g.resolution;
@@ -74,7 +81,7 @@ __attribute__((always_inline)) inline void walk_ray(const GridView& g, const Eig
   double t0 = 0.0, t1 = tend_g;
   for (int a = 0; a < 3; ++a) {  // clip to the grid box [0, n]
     if (d[a] == 0.0) {
-      if (pos[a] < 0.0 || pos[a] >= n[a]) return;
+      if (pos[a] < 0.0 || pos[a] >= n[a]) return kNoCell;
       continue;
     }
     double ta = (0.0 - pos[a]) / d[a], tb = (n[a] - pos[a]) / d[a];
@@ -82,7 +89,7 @@ __attribute__((always_inline)) inline void walk_ray(const GridView& g, const Eig
     t0 = std::max(t0, ta);
     t1 = std::min(t1, tb);
   }
-  if (t0 > t1) return;
+  if (t0 > t1) return kNoCell;
   const Eigen::Vector3d p0 = pos + t0 * d;
   // Per axis: cell, step, parameter of the next boundary and between boundaries, kept in
   // scalars; the axis to step is chosen without branches (ties as in the classic form: x only if
@@ -129,26 +136,28 @@ __attribute__((always_inline)) inline void walk_ray(const GridView& g, const Eig
     const std::size_t idx = std::size_t(id);
     if (!kSkipNeutral || g.brick_is_live(idx)) {
       const int c[3] = {c0, c1, c2};
-      if (!visit(idx, c, t_enter * g.resolution)) return;
+      if (!visit(idx, c, t_enter * g.resolution)) return idx;
+    } else {
+      skipped(idx);
     }
     const double t_cross = std::min(std::min(tn0, tn1), tn2);  // the chosen axis's boundary
-    if (t_cross > t1) return;
+    if (t_cross > t1) return kNoCell;
     t_enter = t_cross;
     if ((tn0 < tn1) & (tn0 < tn2)) {
       id += (c0 & 3) == edge[0] ? d_cross[0] : d_in[0];
       c0 += s0;
       tn0 += td0;
-      if (unsigned(c0) >= unsigned(n[0])) return;
+      if (unsigned(c0) >= unsigned(n[0])) return kNoCell;
     } else if (tn1 < tn2) {
       id += (c1 & 3) == edge[1] ? d_cross[1] : d_in[1];
       c1 += s1;
       tn1 += td1;
-      if (unsigned(c1) >= unsigned(n[1])) return;
+      if (unsigned(c1) >= unsigned(n[1])) return kNoCell;
     } else {
       id += (c2 & 3) == edge[2] ? d_cross[2] : d_in[2];
       c2 += s2;
       tn2 += td2;
-      if (unsigned(c2) >= unsigned(n[2])) return;
+      if (unsigned(c2) >= unsigned(n[2])) return kNoCell;
     }
   }
 }

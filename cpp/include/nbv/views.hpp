@@ -11,8 +11,11 @@
 #include "nbv/grid_view.hpp"
 #include "nbv/options.hpp"
 
+#include <array>
 #include <cstdint>
+#include <mutex>
 #include <string>
+#include <unordered_map>
 #include <vector>
 
 namespace nbv {
@@ -112,6 +115,74 @@ struct ViewScores {
   Eigen::Matrix<std::int8_t, Eigen::Dynamic, 1> status;  ///< (K,) ViewStatus
 };
 
+/// What the paper's IG walks of candidate views found, kept from one scoring call to the next
+/// (aeplanner caches gains; this cache is exact). Per candidate pose, its four doubles bit for
+/// bit: the distinct cells its rays reached, each with its occupancy then; the cells where rays
+/// stopped at an occupied cell; the neutral bricks they stepped over. Where a later call scores
+/// the same pose, every kept cell has kept its occupancy and every stepped-over brick is still
+/// neutral, each ray would walk the same cells and stop at the same one: the gain is summed again
+/// over the kept cells and the stops are counted again, without a walk. The sum is the walk's to
+/// the last bit: each cell's entropy is a float of at least 2^-8 (or zero), a multiple of 2^-31,
+/// so every partial sum below 2^22 is exact, in any order; a view outside those bounds (only
+/// extreme clamping thresholds give such entropies) is walked. Otherwise the view is
+/// walked and kept anew. Entries that none of the last `keep_calls` calls used are dropped; a call
+/// with a different camera or grid geometry clears the memo. Used by the utilities whose walks can
+/// be replayed (ig, ig_distance) on the grid; others walk every view.
+class ViewMemo {
+ public:
+  explicit ViewMemo(int keep_calls = 2);
+
+  struct Stats {
+    std::int64_t reused = 0;  ///< views scored from their entry, without a walk
+    std::int64_t stale = 0;   ///< views whose entry no longer held (then walked)
+    std::int64_t walked = 0;  ///< views walked and kept (stale ones included)
+  };
+  Stats stats() const { return stats_; }
+  std::size_t entries() const { return entries_.size(); }
+  std::size_t bytes() const;  ///< memory held by the entries' arrays
+  int keep_calls() const { return keep_calls_; }
+  void clear();
+  /// Held by a caller for the length of a scoring call when calls may come from several threads.
+  std::mutex& mutex() { return mutex_; }
+
+  // ---- for the scoring kernel ----
+  /// 64 cells of the grid's layout (one brick: ids 64 word ... 64 word + 63) a view reached.
+  struct Word {
+    std::uint64_t cells;     ///< bit b: cell 64 word + b was reached
+    std::uint64_t occupied;  ///< bit b: ... and was occupied then
+    std::uint32_t word;
+  };
+  struct Entry {
+    std::vector<Word> words;
+    std::vector<std::uint32_t> stops;   ///< per ray that stopped: its occupied cell's id
+    std::vector<std::uint32_t> bricks;  ///< neutral bricks stepped over
+    std::int64_t used = 0;              ///< the last call that used or made it
+  };
+  using Key = std::array<std::uint64_t, 4>;
+  static Key key(double x, double y, double z, double yaw);
+  /// Starts a call: clears the memo if `geometry` (camera and grid) differs from the last call's.
+  void begin(const std::vector<double>& geometry);
+  const Entry* find(const Key& k) const;
+  /// An empty entry to record into, with the arrays of a dropped one (their pages already
+  /// touched: a fresh array's first writes cost more than the walk that fills it).
+  Entry take();
+  /// Ends a call: keeps the fresh entries, marks the reused ones used, drops the unused.
+  void end(const std::vector<Key>& keys, std::vector<Entry>& fresh,
+           const std::vector<std::uint8_t>& outcome);  // 0 not scored, 1 reused, 2 walked, 3 stale
+
+ private:
+  struct KeyHash {
+    std::size_t operator()(const Key& k) const;
+  };
+  int keep_calls_;
+  std::int64_t call_ = 0;
+  std::vector<double> geometry_;
+  std::unordered_map<Key, Entry, KeyHash> entries_;
+  std::vector<Entry> spare_;  // dropped entries, for their arrays
+  Stats stats_;
+  std::mutex mutex_;
+};
+
 /// Scores K candidate vehicle poses (rows x, y, z, yaw) from the current pose in one call,
 /// in parallel over candidates. Rays are cast from the camera (pose * mount) over its field of
 /// view to max_range depth and walk the workspace grid; nothing outside the workspace counts.
@@ -121,7 +192,7 @@ ViewScores evaluate_views(
     const GridView& grid,
     const Eigen::Ref<const Eigen::Matrix<double, Eigen::Dynamic, 4, Eigen::RowMajor>>& candidates,
     const Pose& current, const ViewCameraModel& camera, const UtilityOptions& utility,
-    const ValidityOptions& validity);
+    const ValidityOptions& validity, ViewMemo* memo = nullptr);
 
 /// The same scores reading each cell through OctoMap's search (one tree descent per cell
 /// visit), as the authors' implementation did: the reference the grid walk must agree with, and

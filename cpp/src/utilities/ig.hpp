@@ -6,6 +6,8 @@
 
 #include "utility.hpp"
 
+#include <cstring>
+
 namespace nbv::utility {
 
 struct InformationGain {
@@ -25,6 +27,37 @@ struct InformationGain {
   }
   double gain() const { return gain_; }
   int cells() const { return cells_; }
+
+  // ---- replay (ViewMemo) ----
+  /// A neutral cell stepped over: its brick is marked by its first cell's bit, which no cell of
+  /// a neutral brick holds otherwise (ViewMemo records it as a stepped-over brick).
+  void skipped(std::size_t idx) { marks_.insert(idx & ~std::size_t(63)); }
+  /// The gain and count of a view from the cells its walk reached; false if one of them changed
+  /// its occupancy since, or if the sum could depend on its order (see ViewMemo).
+  static bool replay(const GridView& g, const ViewMemo::Entry& e, double& gain, int& count) {
+    double sum = 0.0;
+    int n = 0;
+    std::uint64_t changed = 0;
+    std::uint32_t small = 0;  // a nonzero entropy below 2^-8
+    for (const ViewMemo::Word& w : e.words) {
+      const float* s = g.scored + std::size_t(w.word) * 64;
+      std::uint64_t occ = 0;
+      for (std::uint64_t m = w.cells; m; m &= m - 1) {
+        const int b = __builtin_ctzll(m);
+        std::uint32_t bits;
+        std::memcpy(&bits, &s[b], sizeof bits);
+        occ |= std::uint64_t(bits >> 31) << b;
+        const std::uint32_t magnitude = bits & 0x7FFFFFFFu;
+        small |= magnitude - 1 < (std::uint32_t(127 - 8) << 23) - 1;  // 0 < |s| < 2^-8
+        sum += std::fabs(s[b]);
+        n += magnitude != 0;
+      }
+      changed |= occ ^ w.occupied;
+    }
+    gain = sum;
+    count = n;
+    return changed == 0 && small == 0 && sum < 4194304.0;  // 2^22
+  }
 
  private:
   VisitedSet::Marks marks_;

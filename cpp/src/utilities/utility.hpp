@@ -10,6 +10,12 @@
 //     double gain() const;  int cells() const;
 //   };
 //
+// A utility whose gain is the sum of the entropies of the distinct cells its rays reached may
+// also declare, for ViewMemo,
+//     void skipped(std::size_t idx);  // a neutral cell stepped over (mark its brick)
+//     static bool replay(const GridView& g, const ViewMemo::Entry& e, double& gain, int& count);
+// replay() scores a view again from its entry, or returns false (then the view is walked).
+//
 // visit() is called for every cell the ray enters, in order (t: distance from the camera at the
 // cell's entry, m; scored: the cell's entropy, negated when occupied) and returns false to end
 // the ray. cells.flag(idx, c) / cells.logodds(idx, c) read the rest of a cell. A new utility is

@@ -35,6 +35,8 @@ class Planner:
         )
         self.on_step = on_step
         self.timers = StageTimers()
+        # the paper's IG walks kept between iterations: the same scores, fewer walks
+        self.memo = _core.ViewMemo()
 
     def run(self, world) -> str:
         """Flies views until a termination fires; returns why it stopped."""
@@ -100,6 +102,7 @@ class Planner:
                     utility=self.utility,
                     validity=world.validity(),
                     surface=world.surface,
+                    memo=self.memo,
                 )
             with t("selection"):
                 choice = self.selector.choose(world, proposal.poses, scores)
