@@ -20,6 +20,7 @@ GridView grid_view(const OccupancyMap& map, const SurfaceObservations* surface) 
   g.logodds = w.logodds_data();
   g.flags = w.flag_data();
   g.brick_live = w.brick_live_data();
+  g.brick_open = w.brick_open_data();
   g.unknown_entropy = float(w.rule().entropy(0.0f, CellFlag::Unknown));
   if (surface) {
     if (!surface->matches(map))
@@ -38,7 +39,7 @@ bool GridView::cell_of(const Eigen::Vector3d& p, Eigen::Vector3i& c) const {
 
 void GridView::validate() const {
   if (!(resolution > 0) || nx <= 0 || ny <= 0 || nz <= 0 || !scored || !logodds || !flags ||
-      !brick_live)
+      !brick_live || !brick_open)
     throw std::invalid_argument("grid view is empty or incomplete");
 }
 

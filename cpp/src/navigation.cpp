@@ -169,18 +169,26 @@ bool sphere_is_free(const GridView& g, const Eigen::Vector3d& center, double rad
   if (lo.x() < 0 || lo.y() < 0 || lo.z() < 0 || hi.x() >= g.nx || hi.y() >= g.ny || hi.z() >= g.nz)
     return false;  // part of the sphere is outside the mapped workspace: unknown
   const double r2 = r * r;
-  for (int k = lo.z(); k <= hi.z(); ++k) {
-    const double dz = std::max({k - q.z(), 0.0, q.z() - (k + 1)});
-    for (int j = lo.y(); j <= hi.y(); ++j) {
-      const double dy = std::max({j - q.y(), 0.0, q.y() - (j + 1)});
-      for (int i = lo.x(); i <= hi.x(); ++i) {
-        const double dx = std::max({i - q.x(), 0.0, q.x() - (i + 1)});
-        if (dx * dx + dy * dy + dz * dz > r2) continue;  // the cell does not touch the sphere
-        const std::size_t idx = g.index(i, j, k);
-        if (g.flags[idx] == CellFlag::Unknown || g.occupied(idx)) return false;
+  // brick by brick: a brick of 64 open cells passes whichever of them touch the sphere
+  const std::size_t bx = std::size_t(g.layout.bricks[0]), by = std::size_t(g.layout.bricks[1]);
+  for (int bk = lo.z() >> 2; bk <= hi.z() >> 2; ++bk)
+    for (int bj = lo.y() >> 2; bj <= hi.y() >> 2; ++bj)
+      for (int bi = lo.x() >> 2; bi <= hi.x() >> 2; ++bi) {
+        if (g.brick_open[std::size_t(bi) + bx * (std::size_t(bj) + by * std::size_t(bk))] == 64)
+          continue;
+        for (int k = std::max(lo.z(), 4 * bk); k <= std::min(hi.z(), 4 * bk + 3); ++k) {
+          const double dz = std::max({k - q.z(), 0.0, q.z() - (k + 1)});
+          for (int j = std::max(lo.y(), 4 * bj); j <= std::min(hi.y(), 4 * bj + 3); ++j) {
+            const double dy = std::max({j - q.y(), 0.0, q.y() - (j + 1)});
+            for (int i = std::max(lo.x(), 4 * bi); i <= std::min(hi.x(), 4 * bi + 3); ++i) {
+              const double dx = std::max({i - q.x(), 0.0, q.x() - (i + 1)});
+              if (dx * dx + dy * dy + dz * dz > r2) continue;  // the cell does not touch it
+              const std::size_t idx = g.index(i, j, k);
+              if (g.flags[idx] == CellFlag::Unknown || g.occupied(idx)) return false;
+            }
+          }
+        }
       }
-    }
-  }
   return true;
 }
 

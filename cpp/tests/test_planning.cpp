@@ -97,6 +97,16 @@ TEST(WorkspaceGrid, TotalsCountsAndBricksStayExactUnderRandomUpdates) {
     }
     ASSERT_EQ(int(g.brick_live_data()[brick]), live) << brick;
   }
+  // ... and counts its open cells: known and not occupied
+  for (std::size_t brick = 0; brick < g.layout().num_bricks(); ++brick) {
+    int open = 0;
+    for (std::size_t id = brick << 6; id < (brick + 1) << 6; ++id) {
+      int i, j, k;
+      if (!g.layout().coords(id, i, j, k)) continue;
+      open += g.state(std::int64_t(id)) == CellState::Free;
+    }
+    ASSERT_EQ(int(g.brick_open_data()[brick]), open) << brick;
+  }
 }
 
 TEST(WorkspaceGrid, ScoredHoldsEntropyWithOccupancyInItsSign) {
@@ -151,6 +161,48 @@ TEST(Navigation, SpheresAndPathsStayInKnownFreeSpace) {
   EXPECT_GT(path_length(path),
             (Eigen::Vector3d(4.5, 4.5, 1.5) - Eigen::Vector3d(2, 1.5, 1.5)).norm());
   EXPECT_TRUE(plan_path(g, {2, 1.5, 1.5}, {1.5, 4.5, 1.5}, 0.6).empty());  // goal in unknown
+}
+
+TEST(Navigation, SphereTestsPassOpenBricksAsTheirCellsWould) {
+  // the definition, cell by cell: every cell touching the sphere known and not occupied
+  auto brute = [](const GridView& g, const Eigen::Vector3d& c, double radius) {
+    const double r = radius / g.resolution;
+    const Eigen::Vector3d q = (c - g.origin) / g.resolution;
+    const Eigen::Vector3i lo = (q.array() - r).floor().cast<int>();
+    const Eigen::Vector3i hi = (q.array() + r).floor().cast<int>();
+    if ((lo.array() < 0).any() || hi.x() >= g.nx || hi.y() >= g.ny || hi.z() >= g.nz) return false;
+    for (int k = lo.z(); k <= hi.z(); ++k)
+      for (int j = lo.y(); j <= hi.y(); ++j)
+        for (int i = lo.x(); i <= hi.x(); ++i) {
+          const double dx = std::max({i - q.x(), 0.0, q.x() - (i + 1)});
+          const double dy = std::max({j - q.y(), 0.0, q.y() - (j + 1)});
+          const double dz = std::max({k - q.z(), 0.0, q.z() - (k + 1)});
+          if (dx * dx + dy * dy + dz * dz > r * r) continue;
+          const std::size_t idx = g.index(i, j, k);
+          if (g.flags[idx] == CellFlag::Unknown || g.occupied(idx)) return false;
+        }
+    return true;
+  };
+  OccupancyMap m(0.2, {0, 0, 0}, {7, 5.4, 3.4});  // 35 x 27 x 17 cells: part bricks at the edges
+  m.mark_free_segment({1, 1, 1.7}, {6, 4.4, 1.7}, 1.3);
+  std::mt19937 rng(5);
+  std::uniform_real_distribution<double> ux(0, 7), uy(0, 5.4), uz(0, 3.4), ur(0, 1.2);
+  std::vector<Eigen::Vector3d> hits;  // a few occupied cells inside the free space
+  for (int n = 0; n < 12; ++n) hits.emplace_back(ux(rng), uy(rng), uz(rng));
+  Points h(Eigen::Index(hits.size()), 3);
+  for (std::size_t n = 0; n < hits.size(); ++n) h.row(Eigen::Index(n)) = hits[n];
+  m.update_cells(h, true);
+  const GridView g = grid_view(m);
+  int open = 0;
+  for (int n = 0; n < 20000; ++n) {
+    const Eigen::Vector3d c(ux(rng), uy(rng), uz(rng));
+    const double r = n % 50 == 0 ? 0.0 : ur(rng);
+    const bool expect = brute(g, c, r);
+    open += expect;
+    ASSERT_EQ(sphere_is_free(g, c, r), expect) << c.transpose() << " r " << r;
+  }
+  EXPECT_GT(open, 1000);  // both answers are common
+  EXPECT_LT(open, 19000);
 }
 
 TEST(Navigation, FastSearchGivesTheReferencePathOnRandomScenes) {

@@ -28,6 +28,7 @@ struct GridView {
   const float* logodds = nullptr;   ///< per cell log-odds (0 for unknown cells)
   const CellFlag* flags = nullptr;  ///< per cell: unknown / observed / predicted
   const std::uint8_t* brick_live = nullptr;  ///< per brick (id >> 6): live (not neutral) cells
+  const std::uint8_t* brick_open = nullptr;  ///< per brick: known, not occupied cells (64: all)
   float unknown_entropy = 0.6931472f;        ///< an unknown cell's (the largest) entropy
   /// Camera observations (SurfaceObservations), or null: per cell the bitmask of the 26
   /// direction bins it has been seen from, and the number of camera hits in it.

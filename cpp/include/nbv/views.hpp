@@ -187,6 +187,8 @@ class ViewMemo {
 /// in parallel over candidates. Rays are cast from the camera (pose * mount) over its field of
 /// view to max_range depth and walk the workspace grid; nothing outside the workspace counts.
 /// Utilities that read camera observations (surface, four_term) need grid.seen / grid.hits.
+/// With a memo (kept by the caller across calls), views of the ig utilities scored before at the
+/// same pose may be re-summed from their record instead of walked: the same scores.
 /// Throws std::invalid_argument for non-finite candidates or bad options.
 ViewScores evaluate_views(
     const GridView& grid,

@@ -17,7 +17,9 @@
 // Bricks. Each brick counts its "live" cells,
 // i.e. cells that are not neutral. A neutral cell is an observed free cell of zero entropy (a
 // clamped free cell under clamped_entropy_zero): it neither stops a ray nor adds information, so
-// walks whose utility ignores such cells skip whole neutral bricks (brick_live == 0).
+// walks whose utility ignores such cells skip whole neutral bricks (brick_live == 0). Each also
+// counts its open cells (known and not occupied): a collision test passes a brick of 64 of them
+// without looking at its cells.
 //
 // Thread safety: const members may run concurrently; set/assign must not run concurrently with
 // anything else.
@@ -133,6 +135,8 @@ class WorkspaceGrid {
   const float* scored_data() const { return scored_.data(); }
   /// Per brick (id >> 6): the number of live (not neutral) cells.
   const std::uint8_t* brick_live_data() const { return brick_live_.data(); }
+  /// Per brick: the number of open cells (known and not occupied; 64: the whole brick).
+  const std::uint8_t* brick_open_data() const { return brick_open_.data(); }
 
  private:
   std::int64_t fixed_entropy(float logodds);  // cached: cells take few distinct values
@@ -149,6 +153,7 @@ class WorkspaceGrid {
   std::vector<CellFlag> flags_;
   std::vector<float> scored_;
   std::vector<std::uint8_t> brick_live_;
+  std::vector<std::uint8_t> brick_open_;
   CellCounts counts_;
   __int128 known_entropy_fixed_ = 0;  // sum over known cells, units of 2^-50 nats
   struct CacheEntry {
