@@ -9,7 +9,6 @@
 #include "nbv/views.hpp"
 #include "utilities/registry.hpp"
 
-#include <algorithm>
 #include <cmath>
 #include <functional>
 #include <limits>
@@ -123,11 +122,11 @@ ViewScores score(const Job& job, const Cells& cells) {
   const ValidityOptions& v = job.validity;
   const bool check_segment = v.blocked_path == "reject";
 
-  // the memo: cell ids must fit 31 bits (the 32nd holds the occupancy)
+  // the memo (its entries hold cell ids in 32 bits)
   constexpr bool kMemo = Replayable<Utility>::value && kSkip && std::is_same_v<Cells, GridCells>;
   ViewMemo* memo = nullptr;
   if constexpr (kMemo)
-    if (job.memo && !job.on_view && g.storage_size() <= (std::size_t(1) << 31)) memo = job.memo;
+    if (job.memo && !job.on_view && g.storage_size() <= (std::size_t(1) << 32)) memo = job.memo;
   std::vector<ViewMemo::Key> keys;
   std::vector<ViewMemo::Entry> fresh;
   std::vector<std::uint8_t> outcome;  // ViewMemo::end's codes

@@ -470,6 +470,41 @@ TEST(HugeVector, LargeBuffersAreHugePageAlignedAndHoldTheirValues) {
   EXPECT_EQ(std::accumulate(small.begin(), small.end(), 0), 300);
 }
 
+TEST(Views, TheMemoOfWalksScoresAsWalkingAgain) {
+  OccupancyMap m(0.2, {0, 0, 0}, {12, 8, 6});
+  m.mark_free_segment({2, 4, 3}, {8, 4, 3}, 1.5);
+  std::mt19937 rng(11);
+  std::uniform_real_distribution<double> ux(0, 12), uy(0, 8), uz(0, 6), u(-1, 1);
+  Eigen::Matrix<double, Eigen::Dynamic, 4, Eigen::RowMajor> cand(10, 4);
+  for (Eigen::Index k = 0; k < cand.rows(); ++k)
+    cand.row(k) << 5 + 2 * u(rng), 4 + 0.5 * u(rng), 3 + 0.5 * u(rng), 3 * u(rng);
+  ViewCameraModel camera;
+  UtilityOptions utility;
+  utility.require_occupied = false;
+  utility.require_occupied_probability = 0.6;
+  ValidityOptions validity;
+  validity.collision_radius = 0.3;
+  validity.blocked_path = "plan";
+  ViewMemo memo;
+  for (int round = 0; round < 12; ++round) {
+    Points p(20, 3);  // hits and misses scattered over the workspace
+    for (Eigen::Index r = 0; r < p.rows(); ++r) p.row(r) << ux(rng), uy(rng), uz(rng);
+    for (int n = 0; n <= round % 3; ++n) m.update_cells(p, round % 4 != 0);
+    const GridView g = grid_view(m);
+    const ViewScores a = evaluate_views(g, cand, {5, 4, 3, 0}, camera, utility, validity, &memo);
+    const ViewScores b = evaluate_views(g, cand, {5, 4, 3, 0}, camera, utility, validity);
+    EXPECT_EQ(a.gain, b.gain);  // bit for bit
+    EXPECT_EQ(a.utility, b.utility);
+    EXPECT_EQ(a.cells, b.cells);
+    EXPECT_EQ(a.occupied_seen, b.occupied_seen);
+    EXPECT_EQ(a.status, b.status);
+  }
+  EXPECT_GT(memo.stats().reused, 0);
+  EXPECT_GT(memo.stats().stale, 0);
+  EXPECT_EQ(memo.entries(), std::size_t(cand.rows()));
+  EXPECT_THROW(ViewMemo(0), std::invalid_argument);
+}
+
 TEST(Views, OptionsRejectBadValuesWithTheirName) {
   UtilityOptions u;
   u.name = "nope";
