@@ -118,7 +118,7 @@ still neutral - is scored from its record: the same gain, cells and occupied_see
 walking its rays. Entries that none of the last keep_calls calls used are dropped; a call with
 another camera or grid geometry clears it. Used by the ig and ig_distance utilities on the grid
 backend; the others walk every view.)doc")
-      .def(py::init<int>(), py::arg("keep_calls") = 2)
+      .def(py::init<int>(), py::arg("keep_calls") = 8)
       .def(
           "stats",
           [](const ViewMemo& memo) {
