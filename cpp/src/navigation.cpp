@@ -170,12 +170,10 @@ bool sphere_is_free(const GridView& g, const Eigen::Vector3d& center, double rad
     return false;  // part of the sphere is outside the mapped workspace: unknown
   const double r2 = r * r;
   // brick by brick: a brick of 64 open cells passes whichever of them touch the sphere
-  const std::size_t bx = std::size_t(g.layout.bricks[0]), by = std::size_t(g.layout.bricks[1]);
   for (int bk = lo.z() >> 2; bk <= hi.z() >> 2; ++bk)
     for (int bj = lo.y() >> 2; bj <= hi.y() >> 2; ++bj)
       for (int bi = lo.x() >> 2; bi <= hi.x() >> 2; ++bi) {
-        if (g.brick_open[std::size_t(bi) + bx * (std::size_t(bj) + by * std::size_t(bk))] == 64)
-          continue;
+        if (g.brick_open[g.index(4 * bi, 4 * bj, 4 * bk) >> 6] == 64) continue;
         for (int k = std::max(lo.z(), 4 * bk); k <= std::min(hi.z(), 4 * bk + 3); ++k) {
           const double dz = std::max({k - q.z(), 0.0, q.z() - (k + 1)});
           for (int j = std::max(lo.y(), 4 * bj); j <= std::min(hi.y(), 4 * bj + 3); ++j) {
