@@ -129,12 +129,12 @@ ViewScores score(const Job& job, const Cells& cells) {
     if (job.memo && !job.on_view && g.storage_size() <= (std::size_t(1) << 32)) memo = job.memo;
   std::vector<ViewMemo::Key> keys;
   std::vector<ViewMemo::Entry> fresh;
-  std::vector<std::uint8_t> outcome;  // ViewMemo::end's codes
+  std::vector<ViewMemo::Outcome> outcome;
   if (memo) {
     memo->begin(memo_geometry(job));
     keys.resize(std::size_t(K));
     fresh.resize(std::size_t(K));
-    outcome.assign(std::size_t(K), 0);
+    outcome.assign(std::size_t(K), ViewMemo::Outcome::NotScored);
     for (auto& e : fresh) e = memo->take();
     for (Eigen::Index k = 0; k < K; ++k)
       keys[std::size_t(k)] =
@@ -222,10 +222,10 @@ ViewScores score(const Job& job, const Cells& cells) {
         if (memo) {
           const ViewMemo::Entry* entry = memo->find(keys[kk]);
           if (entry && replay<Utility>(g, *entry, occ_req, gain, n_cells, occ)) {
-            outcome[kk] = 1;
+            outcome[kk] = ViewMemo::Outcome::Reused;
             scored = true;
           } else {
-            outcome[kk] = entry ? 3 : 2;
+            outcome[kk] = entry ? ViewMemo::Outcome::Stale : ViewMemo::Outcome::Walked;
             ViewMemo::Entry& rec = fresh[kk];
             walk(std::true_type{}, &rec);
             keep(rec);

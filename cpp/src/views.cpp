@@ -209,17 +209,17 @@ const ViewMemo::Entry* ViewMemo::find(const Key& k) const {
 }
 
 void ViewMemo::end(const std::vector<Key>& keys, std::vector<Entry>& fresh,
-                   const std::vector<std::uint8_t>& outcome) {
+                   const std::vector<Outcome>& outcome) {
   for (std::size_t k = 0; k < keys.size(); ++k) {
-    if (outcome[k] == 1) {
+    if (outcome[k] == Outcome::Reused) {
       entries_.at(keys[k]).used = call_;
       ++stats_.reused;
-    } else if (outcome[k] >= 2) {
+    } else if (outcome[k] == Outcome::Walked || outcome[k] == Outcome::Stale) {
       fresh[k].used = call_;
       Entry& e = entries_[keys[k]];
       std::swap(e, fresh[k]);  // the old record's arrays go back with the unused ones below
       ++stats_.walked;
-      stats_.stale += outcome[k] == 3;
+      stats_.stale += outcome[k] == Outcome::Stale;
     }
   }
   for (Entry& e : fresh)

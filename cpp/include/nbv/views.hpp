@@ -167,9 +167,11 @@ class ViewMemo {
   /// An empty entry to record into, with the arrays of a dropped one (their pages already
   /// touched: a fresh array's first writes cost more than the walk that fills it).
   Entry take();
+  /// What a call did with each candidate.
+  enum class Outcome : std::uint8_t { NotScored, Reused, Walked, Stale };
   /// Ends a call: keeps the fresh entries, marks the reused ones used, drops the unused.
   void end(const std::vector<Key>& keys, std::vector<Entry>& fresh,
-           const std::vector<std::uint8_t>& outcome);  // 0 not scored, 1 reused, 2 walked, 3 stale
+           const std::vector<Outcome>& outcome);
 
  private:
   struct KeyHash {
