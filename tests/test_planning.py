@@ -407,6 +407,8 @@ def test_every_scenario_flies_end_to_end(scenario, tmp_path):
         assert d["views"] == d["iterations"] + 1  # the first frame, then one per iteration
     assert s["coverage"]["0.5"] > 0 and s["distance_m"] > 0
     assert (tmp_path / "iterations.csv").exists()
+    # the paper's Fig. 3 where a symmetry stage ran (drawn with the results, not in the flight)
+    assert (tmp_path / "figures" / "symmetry.png").exists() == ("symmetry" in d), d.keys()
 
 
 @pytest.mark.slow

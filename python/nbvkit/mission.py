@@ -104,7 +104,6 @@ class Mission:
 
             check_output_dir(out_dir, "out_dir")
         t_start = time.perf_counter()
-        world.out_dir = Path(out_dir) if out_dir is not None else None
         self.entropy_initial = world.map.total_entropy()  # the empty workspace
         world.take_off()
         self.evaluator = Evaluator(world.mesh, gt_density=cfg.evaluation.gt_density, seed=cfg.seed)

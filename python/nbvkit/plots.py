@@ -66,7 +66,8 @@ def _rect(x, y, w, h):
 
 
 def plot_mission(mission, out_dir: Path) -> list[Path]:
-    """Writes trajectory.png and progress.png for a finished mission; returns their paths."""
+    """Writes trajectory.png and progress.png for a finished mission, and symmetry.png (the
+    paper's Fig. 3) where its symmetry stage ran; returns their paths."""
     plt = _plt()
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
@@ -114,6 +115,19 @@ def plot_mission(mission, out_dir: Path) -> list[Path]:
     paths.append(out_dir / "progress.png")
     fig.savefig(paths[-1], dpi=120)
     plt.close(fig)
+
+    world = mission.world
+    if getattr(world, "symmetry_result", None) is not None:
+        from .symmetry import plot_symmetry
+
+        paths.append(
+            plot_symmetry(
+                world.symmetry_profile,
+                world.symmetry_result,
+                world.symmetry_prediction,
+                out_dir / "symmetry.png",
+            )
+        )
     return paths
 
 

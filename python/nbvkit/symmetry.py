@@ -189,8 +189,9 @@ def run_symmetry_prediction(mission, write_map: bool = True) -> dict:
     plane before ICP, kept for diagnostics even when rejected (None without any pair).
     Keeps the results on the mission as
     ``mission.symmetry_result`` and ``mission.symmetry_prediction`` (None when not accepted), and
-    writes ``figures/symmetry.png`` under ``mission.out_dir`` when that attribute is set. A profile
-    of fewer than 10 points is reported (not accepted); a bad option raises ValueError.
+    the profile it read as ``mission.symmetry_profile``, for the figure (``plot_symmetry``), which
+    a mission draws with its results. A profile of fewer than 10 points is reported (not
+    accepted); a bad option raises ValueError.
     With ``write_map=False`` (the "profile" scenario: detection reported, the map left as the
     profile made it) the prediction is computed but not written; "cells_set" is then 0 and
     "written" False.
@@ -214,6 +215,7 @@ def run_symmetry_prediction(mission, write_map: bool = True) -> dict:
     }
     mission.symmetry_result = None
     mission.symmetry_prediction = None
+    mission.symmetry_profile = profile
     if len(profile) < 10:  # nothing to detect; a bad option, in contrast, raises ValueError
         summary[
             "reason"
@@ -251,9 +253,6 @@ def run_symmetry_prediction(mission, write_map: bool = True) -> dict:
         )
         summary["timings"].update({f"predict_{k}": float(v) for k, v in pred.timings.items()})
     summary["confidence"] = _finite_or_none(summary["confidence"]) or 0.0
-    out_dir = getattr(mission, "out_dir", None)
-    if out_dir:
-        plot_symmetry(profile, res, pred, Path(out_dir) / "figures" / "symmetry.png")
     summary["time_s"] = time.perf_counter() - t0
     return summary
 

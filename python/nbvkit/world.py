@@ -108,7 +108,8 @@ class World:
         self.view_camera = view_camera(cfg)
         self.state = VehicleState(pose=self.start_pose.copy())
         self.state.trajectory.append(("start", *self.start_pose.tolist(), 0.0))
-        self.out_dir = None  # stages may write figures here
+        # the symmetry stage's results, for the mission's figures (nbvkit.symmetry)
+        self.symmetry_result = self.symmetry_prediction = self.symmetry_profile = None
 
     def take_off(self) -> None:
         """Unknown cells within vehicle.start_clear_radius of the start become known free: the
