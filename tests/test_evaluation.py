@@ -224,6 +224,66 @@ def test_cell_figures_alone_equal_the_full_evaluation(cube, cube_face_cloud):
         ev.coverage(np.array([[0.0, np.nan, 0.0]]))
 
 
+CELL_KEYS = ("coverage", "area_coverage", "precision", "gt_cells", "cloud_cells", "covered_cells")
+
+
+def test_a_centroid_that_moves_to_another_cell_uncovers_the_cell_it_left():
+    # GT: one sample in the 0.5 m cell [0, 0.5)^3 and one in [0.5, 1) x [0, 0.5)^2. A camera-cloud
+    # voxel of 1 m holds the centroid of its points: first (0.45, .2, .2), then, with a point at
+    # (0.65, .2, .2), their mean (0.55, .2, .2): the covered 0.5 m cell is now the second one.
+    gt = np.array([[0.2, 0.2, 0.2], [0.7, 0.2, 0.2]])
+    ev = Evaluator(gt, resolutions=(0.5,), taus=(0.1,))
+    cloud = nbvkit._core.SurfaceCloud(voxel_size=1.0, min_z=-1.0)
+    cloud.add(np.array([[0.45, 0.2, 0.2]]))
+    first = ev.coverage([cloud])
+    assert first["covered_cells"]["0.5"] == 1 and first["area_coverage"]["0.5"] == 0.5
+    cloud.add(np.array([[0.65, 0.2, 0.2]]))
+    np.testing.assert_allclose(cloud.points, [[0.55, 0.2, 0.2]])
+    second = ev.coverage([cloud])
+    assert second["covered_cells"]["0.5"] == 1 and second["cloud_cells"]["0.5"] == 1
+    assert second == ev.coverage(cloud.points)  # the cell it left is no longer covered
+    assert ev._tracker is not None  # served by the tracker kept between calls
+
+
+def test_progress_refreshes_of_growing_clouds_equal_a_fresh_count(cube):
+    """Evaluator.coverage of SurfaceClouds keeps a CoverageTracker between calls: centroids move
+    between cells as points are added, a cloud is cleared, another replaces it, the observable
+    mask changes, the list of clouds changes. Every call equals a count from scratch."""
+    ev = Evaluator(cube, gt_density=3000, seed=2)
+    gt = ev.gt_points
+    rng = np.random.default_rng(5)
+    cam = nbvkit._core.SurfaceCloud(voxel_size=0.02, min_z=-1.0)
+    las = nbvkit._core.SurfaceCloud(voxel_size=0.1, min_z=-1.0)
+    clouds = [cam, las]
+    for step in range(24):
+        near = gt[rng.integers(0, len(gt), 3000)] + rng.normal(0, 0.03, (3000, 3))
+        clouds[step % len(clouds)].add(near)
+        if step == 9:
+            cam.clear()
+        if step == 12:
+            clouds = [nbvkit._core.SurfaceCloud(voxel_size=0.05, min_z=-1.0), las]
+            clouds[0].add(near)
+        if step == 15:
+            ev.set_observable(rng.random(len(gt)) < 0.6)
+        if step == 18:
+            clouds = [las]
+        if step == 21:
+            ev.set_observable(None)
+        got = ev.coverage(clouds)
+        want = nbvkit.evaluation._to_dict(ev._core.evaluate_cells_of(clouds))
+        for key in CELL_KEYS + nbvkit.evaluation._OBSERVABLE_KEYS:
+            assert got.get(key) == want.get(key), (step, key)
+    assert got["covered_cells"]["0.05"] > 0
+    # a point too far from the origin for the grids: an error, and nothing counted
+    far = nbvkit._core.SurfaceCloud(voxel_size=1.0, min_z=-1.0)
+    far.add(np.array([[2e5, 0.0, 0.0]]))  # inside the 1 m cloud grid, outside the 0.05 m one
+    with pytest.raises(ValueError, match="too far from the origin"):
+        ev.coverage([las, far])
+    with pytest.raises(ValueError, match="too far from the origin"):
+        ev._core.evaluate_cells_of([las, far])
+    assert ev.coverage([las]) == got  # the failed call changed nothing
+
+
 def test_reference_cloud_mode(cube):
     gt = cube.sample_surface(20000, seed=3)
     r = evaluate(gt, gt[:10000])

@@ -123,6 +123,23 @@ void init_evaluation(py::module_& m) {
       .def_property_readonly("num_gt_points", &Evaluator::num_gt_points)
       .def_property_readonly("gt_info", [](const Evaluator& e) { return e.gt_info(); });
 
+  py::class_<CoverageTracker>(m, "CoverageTracker", R"doc(
+The cell figures of _Evaluator.evaluate_cells_of(clouds), kept up to date between calls on
+growing SurfaceClouds: each call looks again only at the voxels added or moved since the last
+(a mission's progress refreshes; nbvkit.Evaluator.coverage uses one). The same figures as
+evaluate_cells_of to the last bit. Keeps the evaluator alive.)doc")
+      .def(py::init<const Evaluator&>(), py::arg("evaluator"), py::keep_alive<1, 2>())
+      .def(
+          "update",
+          [](CoverageTracker& t, const std::vector<const SurfaceCloud*>& clouds) {
+            for (const SurfaceCloud* c : clouds)
+              if (!c) throw py::value_error("clouds must be SurfaceCloud objects, not None");
+            py::gil_scoped_release release;
+            return t.update(clouds);
+          },
+          py::arg("clouds"), "evaluate_cells_of(clouds) for the clouds as they are now.")
+      .def_property_readonly("bytes", &CoverageTracker::bytes, "bytes of per-point and cell state");
+
   m.def(
       "nearest_distances",
       [](const py::handle& targets, const py::handle& queries) {

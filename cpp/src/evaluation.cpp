@@ -276,6 +276,7 @@ void Evaluator::score_cells(std::size_t k, const std::uint64_t* keys, std::size_
 }
 
 void Evaluator::set_observable(const std::vector<std::uint8_t>& mask) {
+  ++observable_version_;
   if (mask.empty()) {
     observable_.clear();
     n_observable_ = 0;
@@ -391,6 +392,208 @@ EvaluationResult evaluate_points(const PointsRef& gt, const PointsRef& cloud,
                                  const EvaluationOptions& options) {
   require_finite(cloud, "cloud");
   return Evaluator(gt, options).evaluate(cloud);
+}
+
+}  // namespace nbv
+
+// ---------------------------------------------------------------------------- CoverageTracker
+
+namespace nbv {
+
+CoverageTracker::CoverageTracker(const Evaluator& evaluator) : ev_(evaluator) { reset(); }
+
+void CoverageTracker::reset() {
+  clouds_.clear();
+  cells_.clear();
+  cells_.resize(ev_.opt_.resolutions.size());
+  observable_version_ = ev_.observable_version_;
+}
+
+std::size_t CoverageTracker::bytes() const {
+  std::size_t b = 0;
+  for (const Cloud& c : clouds_) {
+    b += c.count.capacity() * sizeof(std::uint32_t);
+    for (const auto& cell : c.cell) b += cell.capacity() * sizeof(std::uint32_t);
+  }
+  for (const Cells& c : cells_)
+    b += c.index.bytes() + c.key.capacity() * sizeof(std::uint64_t) +
+         (c.n.capacity() + c.gt.capacity()) * sizeof(std::uint32_t);
+  return b;
+}
+
+std::uint32_t CoverageTracker::cell_of(std::size_t k, std::uint64_t key) {
+  Cells& c = cells_[k];
+  const auto id = static_cast<std::uint32_t>(c.key.size());
+  const auto ins = c.index.insert(key, id);
+  if (ins.second) {
+    c.key.push_back(key);
+    c.n.push_back(0);
+    c.gt.push_back(ev_.grids_[k].index.find(key));
+  }
+  return ins.first;
+}
+
+void CoverageTracker::add_point(std::size_t k, std::uint32_t id) {
+  Cells& c = cells_[k];
+  if (c.n[id]++ != 0) return;
+  ++c.occupied;
+  const std::uint32_t g = c.gt[id];
+  if (g == VoxelHashMap::kMissing) return;
+  const Evaluator::Grid& grid = ev_.grids_[k];
+  ++c.covered;
+  c.covered_samples += grid.samples[g];
+  if (!grid.observable_samples.empty() && grid.observable_samples[g] > 0) {
+    ++c.covered_obs;
+    c.covered_obs_samples += grid.observable_samples[g];
+  }
+}
+
+void CoverageTracker::remove_point(std::size_t k, std::uint32_t id) {
+  Cells& c = cells_[k];
+  if (--c.n[id] != 0) return;
+  --c.occupied;
+  const std::uint32_t g = c.gt[id];
+  if (g == VoxelHashMap::kMissing) return;
+  const Evaluator::Grid& grid = ev_.grids_[k];
+  --c.covered;
+  c.covered_samples -= grid.samples[g];
+  if (!grid.observable_samples.empty() && grid.observable_samples[g] > 0) {
+    --c.covered_obs;
+    c.covered_obs_samples -= grid.observable_samples[g];
+  }
+}
+
+void CoverageTracker::count_observable(std::size_t k) {
+  Cells& c = cells_[k];
+  const Evaluator::Grid& grid = ev_.grids_[k];
+  c.covered_obs = c.covered_obs_samples = 0;
+  if (grid.observable_samples.empty()) return;
+  for (std::size_t id = 0; id < c.key.size(); ++id)
+    if (c.n[id] > 0 && c.gt[id] != VoxelHashMap::kMissing &&
+        grid.observable_samples[c.gt[id]] > 0) {
+      ++c.covered_obs;
+      c.covered_obs_samples += grid.observable_samples[c.gt[id]];
+    }
+}
+
+EvaluationResult CoverageTracker::update(const std::vector<const SurfaceCloud*>& clouds) {
+  const auto t0 = std::chrono::steady_clock::now();
+  const std::vector<double>& res_m = ev_.opt_.resolutions;
+  const std::size_t nr = res_m.size();
+  const bool same_list = clouds.size() == clouds_.size();  // else every count starts again
+  // Pass 1 (parallel, nothing modified): per cloud, the points that are new or whose voxel
+  // count changed and whose cell changed at some resolution, with their keys at every
+  // resolution, in blocks of a fixed size so that they are applied in point order.
+  constexpr std::size_t kBlock = std::size_t(1) << 14;
+  struct Block {
+    std::vector<std::uint32_t> point;
+    std::vector<std::uint64_t> key;  // nr per point
+  };
+  std::vector<std::vector<Block>> changes(clouds.size());
+  std::vector<std::atomic<bool>> too_far(nr);
+  for (auto& f : too_far) f = false;
+  std::vector<double> inv(nr);
+  for (std::size_t k = 0; k < nr; ++k) inv[k] = 1.0 / res_m[k];
+  for (std::size_t c = 0; c < clouds.size(); ++c) {
+    const SurfaceCloud& cloud = *clouds[c];
+    static const Cloud kNew;
+    const Cloud& seen = same_list ? clouds_[c] : kNew;
+    const bool same = same_list && seen.stamp == cloud.stamp();
+    const std::size_t n = cloud.size(), m = same ? seen.count.size() : 0;
+    const std::vector<std::uint32_t>& counts = cloud.voxel_counts();
+    std::vector<Block>& blocks = changes[c];
+    blocks.resize((n + kBlock - 1) / kBlock);
+    parallel_chunks(blocks.size(), 1, [&](std::size_t bb, std::size_t be) {
+      std::vector<std::uint64_t> keys(nr);
+      for (std::size_t b = bb; b < be; ++b) {
+        Block& out = blocks[b];
+        for (std::size_t i = b * kBlock, e = std::min(n, i + kBlock); i < e; ++i) {
+          if (i < m && counts[i] == seen.count[i]) continue;
+          const Eigen::Vector3d p = cloud.point(i);
+          bool moved = i >= m;
+          for (std::size_t k = 0; k < nr; ++k) {
+            keys[k] = try_voxel_key(p.x(), p.y(), p.z(), res_m[k], inv[k]);
+            if (keys[k] == kEmptyVoxelKey) too_far[k] = true;
+            if (!moved && keys[k] != cells_[k].key[seen.cell[k][i]]) moved = true;
+          }
+          if (!moved) continue;
+          out.point.push_back(static_cast<std::uint32_t>(i));
+          out.key.insert(out.key.end(), keys.begin(), keys.end());
+        }
+      }
+    });
+  }
+  for (std::size_t k = 0; k < nr; ++k)
+    if (too_far[k]) throw_too_far("cloud", res_m[k]);
+  const double scan_s = seconds_since(t0);
+
+  // Pass 2: a cloud cleared or replaced gives its points back; then every change moves its point
+  // between cells. Each resolution's cells are apart: the resolutions in parallel.
+  if (!same_list) {
+    reset();
+    clouds_.resize(clouds.size());
+  }
+  std::size_t n_points = 0;
+  std::vector<std::size_t> before(clouds.size());  // points seen before this call, per cloud
+  for (std::size_t c = 0; c < clouds.size(); ++c) {
+    const SurfaceCloud& cloud = *clouds[c];
+    Cloud& seen = clouds_[c];
+    n_points += cloud.size();
+    if (seen.stamp != cloud.stamp()) {
+      for (std::size_t k = 0; k < seen.cell.size(); ++k)
+        for (std::uint32_t id : seen.cell[k]) remove_point(k, id);
+      seen = Cloud{};
+      seen.stamp = cloud.stamp();
+      seen.cell.resize(nr);
+    }
+    before[c] = seen.count.size();
+    seen.count.assign(cloud.voxel_counts().begin(), cloud.voxel_counts().end());
+  }
+  parallel_chunks(nr, 1, [&](std::size_t kb, std::size_t ke) {
+    for (std::size_t k = kb; k < ke; ++k)
+      for (std::size_t c = 0; c < clouds.size(); ++c) {
+        std::vector<std::uint32_t>& cell = clouds_[c].cell[k];
+        cell.resize(clouds[c]->size());
+        for (const Block& blk : changes[c])
+          for (std::size_t j = 0; j < blk.point.size(); ++j) {
+            const std::size_t i = blk.point[j];
+            const std::uint64_t key = blk.key[j * nr + k];
+            if (i < before[c]) {
+              if (cells_[k].key[cell[i]] == key) continue;
+              remove_point(k, cell[i]);
+            }
+            cell[i] = cell_of(k, key);
+            add_point(k, cell[i]);
+          }
+      }
+  });
+  if (observable_version_ != ev_.observable_version_) {
+    for (std::size_t k = 0; k < nr; ++k) count_observable(k);
+    observable_version_ = ev_.observable_version_;
+  }
+
+  EvaluationResult res = ev_.empty_result(static_cast<std::int64_t>(n_points));
+  const bool obs = !ev_.observable_.empty();
+  const auto n_gt = static_cast<std::int64_t>(ev_.tree_.size());
+  for (std::size_t k = 0; k < nr; ++k) {
+    const Cells& c = cells_[k];
+    const Evaluator::Grid& g = ev_.grids_[k];
+    res.gt_cells[k] = static_cast<std::int64_t>(g.keys.size());
+    if (n_points == 0) continue;
+    res.cloud_cells[k] = c.occupied;
+    res.covered_cells[k] = c.covered;
+    res.coverage[k] = ratio(c.covered, res.gt_cells[k]);
+    res.area_coverage[k] = ratio(c.covered_samples, n_gt);
+    res.precision[k] = ratio(c.covered, c.occupied);
+    if (obs) {
+      res.covered_observable_cells[k] = c.covered_obs;
+      res.coverage_observable[k] = ratio(c.covered_obs, g.observable_cells);
+      res.area_coverage_observable[k] = ratio(c.covered_obs_samples, ev_.n_observable_);
+    }
+  }
+  res.timings_s.emplace_back("cells", seconds_since(t0));
+  res.timings_s.emplace_back("scan", scan_s);  // of which pass 1
+  return res;
 }
 
 }  // namespace nbv

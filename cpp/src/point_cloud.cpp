@@ -132,6 +132,44 @@ void SurfaceCloudOptions::validate() const {
 
 SurfaceCloud::SurfaceCloud(const SurfaceCloudOptions& options) : opt_(options) { opt_.validate(); }
 
+SurfaceCloud::SurfaceCloud(const SurfaceCloud& other)
+    : opt_(other.opt_), voxels_(other.voxels_), registered_(other.registered_) {}
+
+SurfaceCloud::SurfaceCloud(SurfaceCloud&& other) noexcept
+    : opt_(other.opt_), voxels_(std::move(other.voxels_)), registered_(other.registered_) {
+  other.voxels_.clear();  // a moved-from hash map keeps its sizes: leave an empty cloud behind
+  other.registered_ = 0;
+  other.stamp_ = new_stamp();
+}
+
+SurfaceCloud& SurfaceCloud::operator=(const SurfaceCloud& other) {
+  if (this != &other) {
+    opt_ = other.opt_;
+    voxels_ = other.voxels_;
+    registered_ = other.registered_;
+    stamp_ = new_stamp();
+  }
+  return *this;
+}
+
+SurfaceCloud& SurfaceCloud::operator=(SurfaceCloud&& other) noexcept {
+  if (this != &other) {
+    opt_ = other.opt_;
+    voxels_ = std::move(other.voxels_);
+    registered_ = other.registered_;
+    stamp_ = new_stamp();
+    other.voxels_.clear();
+    other.registered_ = 0;
+    other.stamp_ = new_stamp();
+  }
+  return *this;
+}
+
+std::uint64_t SurfaceCloud::new_stamp() {
+  static std::atomic<std::uint64_t> next{1};
+  return next.fetch_add(1, std::memory_order_relaxed);
+}
+
 std::size_t SurfaceCloud::add(const PointsRef& points) {
   const Eigen::Index n = points.rows();
   const double s = opt_.voxel_size, inv = 1.0 / s;
@@ -187,6 +225,7 @@ Eigen::Matrix<std::int64_t, Eigen::Dynamic, 1> SurfaceCloud::counts() const {
 void SurfaceCloud::clear() {
   voxels_.clear();
   registered_ = 0;
+  stamp_ = new_stamp();
 }
 
 // ---------------------------------------------------------------------------- LZF

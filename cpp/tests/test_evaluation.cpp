@@ -183,3 +183,44 @@ TEST(Evaluation, BadInput) {
     EXPECT_NE(std::string(e.what()).find("cloud"), std::string::npos);
   }
 }
+
+TEST(CoverageTracker, EqualsACountFromScratchAsCloudsGrowMoveAndAreCleared) {
+  std::mt19937 rng(7);
+  std::uniform_real_distribution<double> u(-2.0, 2.0);
+  std::normal_distribution<double> noise(0.0, 0.03);
+  Points gt(4000, 3);
+  for (Eigen::Index i = 0; i < gt.rows(); ++i) gt.row(i) << u(rng), u(rng), 0.25 * u(rng);
+  Evaluator ev(gt);
+  CoverageTracker tracker(ev);
+  SurfaceCloudOptions fine, coarse;
+  fine.voxel_size = 0.02;
+  coarse.voxel_size = 0.1;
+  fine.min_z = coarse.min_z = -10.0;
+  SurfaceCloud a(fine), b(coarse);
+  std::vector<std::uint8_t> mask(static_cast<std::size_t>(gt.rows()));
+  for (int step = 0; step < 16; ++step) {
+    Points p(1500, 3);
+    for (Eigen::Index i = 0; i < p.rows(); ++i)
+      p.row(i) = gt.row(static_cast<Eigen::Index>(rng() % 4000)) +
+                 Eigen::RowVector3d(noise(rng), noise(rng), noise(rng));
+    (step % 3 ? a : b).add(p);
+    if (step == 6) a.clear();
+    if (step == 8) b = SurfaceCloud(b);  // a copy: another stamp, the same points
+    if (step == 10) {
+      for (auto& m : mask) m = rng() % 3 != 0;
+      ev.set_observable(mask);
+    }
+    const std::vector<const SurfaceCloud*> clouds = step == 12
+                                                        ? std::vector<const SurfaceCloud*>{&b}
+                                                        : std::vector<const SurfaceCloud*>{&a, &b};
+    const EvaluationResult got = tracker.update(clouds), want = ev.evaluate_cells(clouds);
+    EXPECT_EQ(got.n_points, want.n_points) << step;
+    EXPECT_EQ(got.covered_cells, want.covered_cells) << step;
+    EXPECT_EQ(got.cloud_cells, want.cloud_cells) << step;
+    EXPECT_EQ(got.coverage, want.coverage) << step;
+    EXPECT_EQ(got.area_coverage, want.area_coverage) << step;
+    EXPECT_EQ(got.precision, want.precision) << step;
+    EXPECT_EQ(got.covered_observable_cells, want.covered_observable_cells) << step;
+    EXPECT_EQ(got.area_coverage_observable, want.area_coverage_observable) << step;
+  }
+}

@@ -163,6 +163,7 @@ class Evaluator:
         if not isinstance(gt, Mesh):
             gt = _as_points(gt)
         self._core = _core._Evaluator(gt, options, **_evaluator_keywords(kw))
+        self._tracker = None  # coverage() of growing SurfaceClouds, made on first use
         o = self._core.options
         for what, values in (("resolutions", o.resolutions), ("taus", o.taus)):
             keys = [_key(v) for v in values]  # the result's dict keys must not collide
@@ -204,13 +205,19 @@ class Evaluator:
     def coverage(self, cloud) -> dict:
         """The cell figures of ``evaluate`` alone (``coverage``, ``area_coverage``, ``precision``,
         their cell counts, and the observable figures when set) at a fraction of its cost: no
-        kd-tree, no distances. ``cloud``: points, or a list of ``PointCloud`` objects read in
+        kd-tree, no distances. ``cloud``: points, or a list of ``SurfaceCloud`` objects read in
         place, one after the other (the same figures as of their points stacked, without copying
-        them: a mission's progress refreshes)."""
+        them: a mission's progress refreshes).
+
+        For a list of clouds the evaluator keeps a ``CoverageTracker``: a later call with the same
+        clouds, grown since, looks again only at the voxels added or moved (the same figures; it
+        holds 4 bytes per cloud point and 4 more per resolution)."""
         if isinstance(cloud, (list, tuple)) and all(
             isinstance(c, _core.SurfaceCloud) for c in cloud
         ):
-            d = _to_dict(self._core.evaluate_cells_of(list(cloud)))
+            if self._tracker is None:
+                self._tracker = _core.CoverageTracker(self._core)
+            d = _to_dict(self._tracker.update(list(cloud)))
         else:
             d = _to_dict(self._core.evaluate_cells(_as_points(cloud)))
         keep = (

@@ -99,6 +99,8 @@ class Evaluator {
   /// thread-safe against concurrent evaluations.
   void set_observable(const std::vector<std::uint8_t>& mask);
   bool has_observable() const { return !observable_.empty(); }
+  /// Changes with every set_observable (for CoverageTracker).
+  std::uint64_t observable_version() const { return observable_version_; }
 
   const EvaluationOptions& options() const { return opt_; }
   std::size_t num_gt_points() const { return tree_.size(); }
@@ -124,12 +126,63 @@ class Evaluator {
     std::vector<std::int64_t> observable_samples;  ///< observable GT samples in each cell
     std::int64_t observable_cells = 0;
   };
+  friend class CoverageTracker;
   std::vector<std::uint8_t> observable_;  ///< per GT sample (constructor order), or empty
   std::int64_t n_observable_ = 0;
+  std::uint64_t observable_version_ = 0;
   EvaluationOptions opt_;
   EvaluationResult base_;
   KdTree tree_;
   std::vector<Grid> grids_;
+};
+
+/// Evaluator::evaluate_cells of growing SurfaceClouds, kept up to date between calls: a mission's
+/// progress refreshes. Each call returns exactly what evaluate_cells(clouds) would, but only the
+/// voxels added or moved since the last call are looked at again.
+///
+/// A SurfaceCloud grows by add(): voxels are appended, and a voxel's centroid moves exactly when
+/// its point count changes. The tracker keeps, per point, the count it last saw and the cell it
+/// lies in at every resolution (4 + 4 per resolution bytes), and per cloud cell the number of
+/// points in it; a cloud cell holding a point that is also a GT cell is a covered cell. A call
+/// re-keys only the points whose count changed, moves those whose cell changed, and adds the new
+/// ones. A cloud that was cleared or replaced (another stamp()), or a different number of clouds,
+/// starts that cloud's (or every) count again.
+///
+/// Holds a reference to the Evaluator, which must outlive it. Not thread-safe.
+class CoverageTracker {
+ public:
+  explicit CoverageTracker(const Evaluator& evaluator);
+  /// The figures of evaluator.evaluate_cells(clouds) for the clouds as they are now. Throws
+  /// std::invalid_argument (nothing changed) if a point is too far from the origin for a grid.
+  EvaluationResult update(const std::vector<const SurfaceCloud*>& clouds);
+  /// Bytes held (per-point and per-cell state).
+  std::size_t bytes() const;
+
+ private:
+  struct Cloud {
+    std::uint64_t stamp = 0;
+    std::vector<std::uint32_t> count;              ///< per point: the voxel count last seen
+    std::vector<std::vector<std::uint32_t>> cell;  ///< per resolution and point: its cell (id)
+  };
+  struct Cells {                     ///< one resolution's cloud cells
+    VoxelHashMap index;              ///< key -> dense id
+    std::vector<std::uint64_t> key;  ///< per dense id
+    std::vector<std::uint32_t> n;    ///< points in the cell
+    std::vector<std::uint32_t> gt;   ///< the GT cell (Evaluator::Grid position) or kMissing
+    std::int64_t occupied = 0;       ///< cells with n > 0
+    std::int64_t covered = 0;        ///< ... of which GT cells
+    std::int64_t covered_samples = 0, covered_obs = 0, covered_obs_samples = 0;
+  };
+  void reset();
+  std::uint32_t cell_of(std::size_t k, std::uint64_t key);
+  void add_point(std::size_t k, std::uint32_t cell);
+  void remove_point(std::size_t k, std::uint32_t cell);
+  void count_observable(std::size_t k);
+
+  const Evaluator& ev_;
+  std::vector<Cloud> clouds_;
+  std::vector<Cells> cells_;
+  std::uint64_t observable_version_ = 0;
 };
 
 /// Evaluator(gt, options).evaluate(cloud): scores `cloud` (N, 3) against a mesh sampled at

@@ -99,6 +99,10 @@ class VoxelHashMap {
   explicit VoxelHashMap(std::size_t expected = 0) { reserve(expected); }
 
   std::size_t size() const { return size_; }
+  /// Bytes held by the table.
+  std::size_t bytes() const {
+    return keys_.capacity() * sizeof(std::uint64_t) + values_.capacity() * sizeof(std::uint32_t);
+  }
   void clear();
   /// Makes room for `n` entries without rehashing.
   void reserve(std::size_t n);
@@ -190,6 +194,11 @@ struct SurfaceCloudOptions {
 class SurfaceCloud {
  public:
   explicit SurfaceCloud(const SurfaceCloudOptions& options = {});
+  // A copy is a new cloud: it takes a new stamp (see stamp()), and so does a moved-from one.
+  SurfaceCloud(const SurfaceCloud& other);
+  SurfaceCloud(SurfaceCloud&& other) noexcept;
+  SurfaceCloud& operator=(const SurfaceCloud& other);
+  SurfaceCloud& operator=(SurfaceCloud&& other) noexcept;
 
   const SurfaceCloudOptions& options() const { return opt_; }
   /// Registers points (N, 3), world frame. Returns the number of new voxels they created.
@@ -204,12 +213,20 @@ class SurfaceCloud {
   std::size_t size() const { return voxels_.size(); }
   /// Total number of points registered (after ground removal and cropping).
   std::uint64_t num_registered() const { return registered_; }
+  /// Number of points registered in each voxel (creation order): a voxel's centroid changes
+  /// exactly when its count does.
+  const std::vector<std::uint32_t>& voxel_counts() const { return voxels_.counts(); }
+  /// An id unique to this cloud's history in the process: it changes when the cloud is cleared
+  /// (and a copy has its own), so between two equal stamps the cloud only grew by add().
+  std::uint64_t stamp() const { return stamp_; }
   void clear();
 
  private:
+  static std::uint64_t new_stamp();
   SurfaceCloudOptions opt_;
   VoxelCentroids voxels_;
   std::uint64_t registered_ = 0;
+  std::uint64_t stamp_ = new_stamp();
 };
 
 // ---------------------------------------------------------------------------- file helpers
