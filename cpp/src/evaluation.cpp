@@ -500,7 +500,7 @@ EvaluationResult CoverageTracker::update(const std::vector<const SurfaceCloud*>&
     const Cloud& seen = same_list ? clouds_[c] : kNew;
     const bool same = same_list && seen.stamp == cloud.stamp();
     const std::size_t n = cloud.size(), m = same ? seen.count.size() : 0;
-    const std::vector<std::uint32_t>& counts = cloud.voxel_counts();
+    const HugeVector<std::uint32_t>& counts = cloud.voxel_counts();
     std::vector<Block>& blocks = changes[c];
     blocks.resize((n + kBlock - 1) / kBlock);
     parallel_chunks(blocks.size(), 1, [&](std::size_t bb, std::size_t be) {
@@ -552,7 +552,7 @@ EvaluationResult CoverageTracker::update(const std::vector<const SurfaceCloud*>&
   parallel_chunks(nr, 1, [&](std::size_t kb, std::size_t ke) {
     for (std::size_t k = kb; k < ke; ++k)
       for (std::size_t c = 0; c < clouds.size(); ++c) {
-        std::vector<std::uint32_t>& cell = clouds_[c].cell[k];
+        HugeVector<std::uint32_t>& cell = clouds_[c].cell[k];
         cell.resize(clouds[c]->size());
         for (const Block& blk : changes[c])
           for (std::size_t j = 0; j < blk.point.size(); ++j) {

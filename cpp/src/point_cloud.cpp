@@ -26,8 +26,8 @@ void VoxelHashMap::reserve(std::size_t n) {
 }
 
 void VoxelHashMap::rehash(std::size_t capacity) {
-  std::vector<std::uint64_t> old_keys(capacity, kEmptyVoxelKey);
-  std::vector<std::uint32_t> old_values(capacity);
+  HugeVector<std::uint64_t> old_keys(capacity, kEmptyVoxelKey);
+  HugeVector<std::uint32_t> old_values(capacity);
   old_keys.swap(keys_);
   old_values.swap(values_);
   mask_ = capacity - 1;
@@ -62,27 +62,76 @@ std::size_t VoxelCentroids::add(const PointsRef& points, const std::vector<std::
   if (keys.size() != static_cast<std::size_t>(points.rows()))
     throw std::invalid_argument("VoxelCentroids::add: one key per point");
   index_.reserve(count_.size() + keys.size() / 8);
-  // Consecutive sensor points often share a voxel: remember the last one.
-  const std::size_t before = count_.size();
+  const std::size_t before = count_.size(), n = keys.size();
+  const int threads = get_num_threads();
+  if (threads < 2 || n < 8192) {
+    // Consecutive sensor points often share a voxel: remember the last one.
+    std::uint64_t last_key = kEmptyVoxelKey;
+    std::uint32_t last = 0;
+    for (std::size_t i = 0; i < n; ++i) {
+      const std::uint64_t k = keys[i];
+      if (k == skip) continue;
+      if (k != last_key) {
+        last = voxel_of(k);
+        last_key = k;
+      }
+      sum_[last] += points.row(static_cast<Eigen::Index>(i)).transpose();
+      ++count_[last];
+    }
+    return count_.size() - before;
+  }
+  // In parallel, with the serial result: (1) each point's voxel where it exists (lookups only;
+  // in a table of millions of voxels most are cache misses), (2) in input order, the voxels first
+  // seen here get the next ids, (3) each voxel's points are summed, in input order, by the one
+  // task that owns its block of 64 voxels.
+  constexpr std::uint32_t kSkipped = VoxelHashMap::kMissing - 1;
+  std::vector<std::uint32_t> id(n);
+  parallel_chunks(n, 4096, [&](std::size_t b, std::size_t e) {
+    std::uint64_t last_key = kEmptyVoxelKey;
+    std::uint32_t last = 0;
+    for (std::size_t i = b; i < e; ++i) {
+      const std::uint64_t k = keys[i];
+      if (k == skip) {
+        id[i] = kSkipped;
+        continue;
+      }
+      if (k != last_key) {
+        last = index_.find(k);
+        last_key = k;
+      }
+      id[i] = last;
+    }
+  });
   std::uint64_t last_key = kEmptyVoxelKey;
   std::uint32_t last = 0;
-  for (std::size_t i = 0; i < keys.size(); ++i) {
-    const std::uint64_t k = keys[i];
-    if (k == skip) continue;
-    if (k != last_key) {
-      const auto next = static_cast<std::uint32_t>(count_.size());
-      const auto r = index_.insert(k, next);
-      if (r.second) {
-        sum_.emplace_back(Eigen::Vector3d::Zero());
-        count_.push_back(0);
-      }
-      last_key = k;
-      last = r.first;
+  for (std::size_t i = 0; i < n; ++i) {
+    if (id[i] != VoxelHashMap::kMissing) continue;
+    if (keys[i] != last_key) {
+      last = voxel_of(keys[i]);
+      last_key = keys[i];
     }
-    sum_[last] += points.row(static_cast<Eigen::Index>(i)).transpose();
-    ++count_[last];
+    id[i] = last;
   }
+  const std::size_t parts = static_cast<std::size_t>(threads);
+  parallel_chunks(parts, 1, [&](std::size_t pb, std::size_t pe) {
+    for (std::size_t part = pb; part < pe; ++part)
+      for (std::size_t i = 0; i < n; ++i) {
+        const std::uint32_t v = id[i];
+        if (v == kSkipped || (v >> 6) % parts != part) continue;
+        sum_[v] += points.row(static_cast<Eigen::Index>(i)).transpose();
+        ++count_[v];
+      }
+  });
   return count_.size() - before;
+}
+
+std::uint32_t VoxelCentroids::voxel_of(std::uint64_t key) {
+  const auto r = index_.insert(key, static_cast<std::uint32_t>(count_.size()));
+  if (r.second) {
+    sum_.emplace_back(Eigen::Vector3d::Zero());
+    count_.push_back(0);
+  }
+  return r.first;
 }
 
 Points VoxelCentroids::centroids() const {
@@ -198,8 +247,8 @@ std::size_t SurfaceCloud::add(const PointsRef& points) {
       if (keys[j] == kEmptyVoxelKey) out_of_range = true;
     }
   };
-  if (n > 65536)
-    parallel_chunks(static_cast<std::size_t>(n), 16384, key_range);
+  if (n > 16384)
+    parallel_chunks(static_cast<std::size_t>(n), 8192, key_range);
   else
     key_range(0, static_cast<std::size_t>(n));
   if (non_finite) throw std::invalid_argument("points contains NaN or infinite values");

@@ -9,6 +9,7 @@
 #include <cmath>
 #include <limits>
 #include <random>
+#include <tuple>
 
 using namespace nbv;
 
@@ -99,6 +100,37 @@ TEST(SurfaceCloud, CentroidsInFirstSeenOrderAndGroundRemoval) {
   EXPECT_NEAR(q(1, 0), -0.05, 1e-15);
   EXPECT_EQ(c.counts()[0], 2);
   EXPECT_EQ(c.num_registered(), 4u);
+}
+
+TEST(SurfaceCloud, ThreadsDoNotChangeTheCentroidsOrTheirOrder) {
+  // Frames large enough for the parallel registration, with runs of equal voxels, new voxels
+  // scattered among old ones, and ground points: 1 thread and 2 give the same bits.
+  std::mt19937 rng(3);
+  std::uniform_real_distribution<double> u(-1.0, 1.0);
+  std::vector<Points> frames;
+  for (int f = 0; f < 6; ++f) {
+    Points p(40000, 3);
+    for (Eigen::Index i = 0; i < p.rows(); ++i) {
+      const double t = (f + 1) * 0.3 * u(rng);
+      p.row(i) << t + 0.001 * (i % 7), 0.5 * u(rng), 0.2 + 0.5 * std::abs(u(rng));
+    }
+    frames.push_back(p);
+  }
+  const int threads = get_num_threads();
+  const auto fly = [&](int n) {
+    set_num_threads(n);
+    SurfaceCloud c;
+    std::vector<std::size_t> added;
+    for (const Points& p : frames) added.push_back(c.add(p));
+    set_num_threads(threads);
+    return std::make_tuple(c.points(), c.counts(), added);
+  };
+  const auto [p1, n1, a1] = fly(1);
+  const auto [p2, n2, a2] = fly(2);
+  EXPECT_EQ(a1, a2);
+  ASSERT_EQ(p1.rows(), p2.rows());
+  EXPECT_TRUE((p1.array() == p2.array()).all());  // bit for bit, in the same order
+  EXPECT_TRUE((n1.array() == n2.array()).all());
 }
 
 TEST(SurfaceCloud, NonFiniteInputChangesNothing) {

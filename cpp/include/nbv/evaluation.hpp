@@ -161,16 +161,16 @@ class CoverageTracker {
  private:
   struct Cloud {
     std::uint64_t stamp = 0;
-    std::vector<std::uint32_t> count;              ///< per point: the voxel count last seen
-    std::vector<std::vector<std::uint32_t>> cell;  ///< per resolution and point: its cell (id)
+    HugeVector<std::uint32_t> count;              ///< per point: the voxel count last seen
+    std::vector<HugeVector<std::uint32_t>> cell;  ///< per resolution and point: its cell (id)
   };
-  struct Cells {                     ///< one resolution's cloud cells
-    VoxelHashMap index;              ///< key -> dense id
-    std::vector<std::uint64_t> key;  ///< per dense id
-    std::vector<std::uint32_t> n;    ///< points in the cell
-    std::vector<std::uint32_t> gt;   ///< the GT cell (Evaluator::Grid position) or kMissing
-    std::int64_t occupied = 0;       ///< cells with n > 0
-    std::int64_t covered = 0;        ///< ... of which GT cells
+  struct Cells {                    ///< one resolution's cloud cells
+    VoxelHashMap index;             ///< key -> dense id
+    HugeVector<std::uint64_t> key;  ///< per dense id
+    HugeVector<std::uint32_t> n;    ///< points in the cell
+    HugeVector<std::uint32_t> gt;   ///< the GT cell (Evaluator::Grid position) or kMissing
+    std::int64_t occupied = 0;      ///< cells with n > 0
+    std::int64_t covered = 0;       ///< ... of which GT cells
     std::int64_t covered_samples = 0, covered_obs = 0, covered_obs_samples = 0;
   };
   void reset();

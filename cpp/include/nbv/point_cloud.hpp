@@ -3,6 +3,7 @@
 #pragma once
 
 #include "nbv/common.hpp"
+#include "nbv/huge_pages.hpp"
 #include "nbv/options.hpp"
 
 #include <array>
@@ -130,8 +131,9 @@ class VoxelHashMap {
   }
   void rehash(std::size_t capacity);
 
-  std::vector<std::uint64_t> keys_;
-  std::vector<std::uint32_t> values_;
+  // Tables of millions of voxels: huge pages spare a page fault per 4 KiB as they grow.
+  HugeVector<std::uint64_t> keys_;
+  HugeVector<std::uint32_t> values_;
   std::size_t mask_ = 0, size_ = 0;
 };
 
@@ -152,14 +154,17 @@ class VoxelCentroids {
   /// Centroid of voxel i (the row centroids() holds).
   Eigen::Vector3d centroid(std::size_t i) const { return sum_[i] / static_cast<double>(count_[i]); }
   /// (K,) number of points in each voxel.
-  const std::vector<std::uint32_t>& counts() const { return count_; }
+  const HugeVector<std::uint32_t>& counts() const { return count_; }
   std::size_t size() const { return count_.size(); }
   void clear();
 
  private:
+  /// The voxel of `key`, made (empty, with the next id) if it is new.
+  std::uint32_t voxel_of(std::uint64_t key);
+
   VoxelHashMap index_;
-  std::vector<Eigen::Vector3d> sum_;
-  std::vector<std::uint32_t> count_;
+  HugeVector<Eigen::Vector3d> sum_;
+  HugeVector<std::uint32_t> count_;
 };
 
 /// Voxel-grid centroids of points (N, 3): one point per cell floor(p / voxel_size) (grid anchored
@@ -215,7 +220,7 @@ class SurfaceCloud {
   std::uint64_t num_registered() const { return registered_; }
   /// Number of points registered in each voxel (creation order): a voxel's centroid changes
   /// exactly when its count does.
-  const std::vector<std::uint32_t>& voxel_counts() const { return voxels_.counts(); }
+  const HugeVector<std::uint32_t>& voxel_counts() const { return voxels_.counts(); }
   /// An id unique to this cloud's history in the process: it changes when the cloud is cleared
   /// (and a copy has its own), so between two equal stamps the cloud only grew by add().
   std::uint64_t stamp() const { return stamp_; }
