@@ -118,6 +118,16 @@ void init_evaluation(py::module_& m) {
           py::arg("mask"),
           "(M,) bool per ground-truth sample (gt_points order): coverage is also reported\n"
           "relative to the observable samples. An empty mask clears it.")
+      .def(
+          "nearest_to_gt",
+          [](const Evaluator& e, const py::handle& queries) {
+            auto q = points_arg(queries, "queries");
+            py::gil_scoped_release release;
+            return Eigen::VectorXd(nearest_distances(e.gt_tree(), q.map()));
+          },
+          py::arg("queries"),
+          "(Q,) exact distance from each query to its nearest ground-truth point: "
+          "nearest_distances(gt_points, queries) without building the ground truth's tree again.")
       .def_property_readonly("has_observable", &Evaluator::has_observable)
       .def_property_readonly("gt_points", &Evaluator::gt_points)
       .def_property_readonly("num_gt_points", &Evaluator::num_gt_points)

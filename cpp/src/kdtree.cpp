@@ -198,10 +198,13 @@ std::vector<double> tree_nearest(const KdTree& targets, const KdTree& queries) {
 
 Eigen::VectorXd nearest_distances(const PointsRef& targets, const PointsRef& queries) {
   require_finite(targets, "targets");
+  return nearest_distances(KdTree(targets), queries);
+}
+
+Eigen::VectorXd nearest_distances(const KdTree& targets, const PointsRef& queries) {
   require_finite(queries, "queries");
-  const KdTree t(targets);
   const KdTree q(queries);  // for a cache-friendly query order
-  const std::vector<double> d = tree_nearest(t, q);
+  const std::vector<double> d = tree_nearest(targets, q);
   Eigen::VectorXd out(static_cast<Eigen::Index>(d.size()));
   for (std::size_t k = 0; k < d.size(); ++k) out[q.id_at(k)] = d[k];
   return out;

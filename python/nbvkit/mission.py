@@ -129,8 +129,10 @@ class Mission:
     def _profile(self) -> dict:
         from .profiling import run_profiling
 
-        summary = run_profiling(self.world)
-        ev = self.evaluator(self.world.cloud_points())  # laser, and camera frames if taken
+        world = self.world
+        summary = run_profiling(world)
+        # laser, and camera frames if taken: the cell figures alone (no distances)
+        ev = self.evaluator.coverage([world.camera_cloud, world.laser_cloud])
         summary.update(coverage=ev["coverage"], area_coverage=ev["area_coverage"])
         return summary
 

@@ -21,6 +21,7 @@ from __future__ import annotations
 
 import base64
 import csv
+import functools
 import html
 import json
 import math
@@ -123,9 +124,7 @@ def finish_run(mission, out, cache_dir=None) -> dict:
 
             o3d.io.write_triangle_mesh(str(out / "mesh.ply"), mesh)
             t0 = time.perf_counter()
-            scores = score_mesh(
-                mesh, ev.gt_points, taus=tuple(float(t) for t in summary["completeness"])
-            )
+            scores = score_mesh(mesh, ev, taus=tuple(float(t) for t in summary["completeness"]))
             timings["mesh_score"] = time.perf_counter() - t0
             summary["reconstructed_mesh"] = {"written": True, **info, **scores}
 
@@ -304,7 +303,8 @@ def reconstruct_mesh(
 
 def score_mesh(mesh, gt_points, taus=(0.05, 0.1), density: float | None = None, seed: int = 0):
     """Scores a reconstructed mesh (an open3d TriangleMesh or an nbvkit.Mesh) against the
-    ground-truth samples ``gt_points`` (M, 3).
+    ground-truth samples ``gt_points`` (M, 3), or against an ``nbvkit.Evaluator``'s (whose
+    kd-tree is then used as it is: the same distances).
 
     The mesh's surface is sampled uniformly at ``density`` points per m² (default 1000, the
     ground truth's default) with ``seed``; with exact nearest distances
@@ -319,13 +319,20 @@ def score_mesh(mesh, gt_points, taus=(0.05, 0.1), density: float | None = None, 
 
     if not isinstance(mesh, _core.Mesh):
         mesh = mesh_from_open3d(mesh)
-    gt = np.asarray(gt_points, float)
+    from .evaluation import Evaluator
+
+    if isinstance(gt_points, Evaluator):
+        gt = gt_points.gt_points
+        to_gt = gt_points._core.nearest_to_gt
+    else:
+        gt = np.asarray(gt_points, float)
+        to_gt = lambda q: _core.nearest_distances(gt, q)  # noqa: E731
     dens = density or 1000.0
     n = int(min(max(round(mesh.area * dens), 1), 5_000_000))
     ms = mesh.sample_surface(n, seed)
     # the fractions from at most ~200k queries each way (every k-th point: a statistical error
     # under 0.2 points), against the full sets
-    d_m = _core.nearest_distances(gt, ms[:: max(1, n // 200_000)])
+    d_m = to_gt(ms[:: max(1, n // 200_000)])
     d_g = _core.nearest_distances(ms, gt[:: max(1, len(gt) // 200_000)])
     out = {
         "mesh_accuracy": {f"{t:g}": float(np.mean(d_m <= t)) for t in taus},
@@ -402,9 +409,11 @@ def plot_coverage(points, classes, path, max_points: int = 30000) -> Path:
 # ---------------------------------------------------------------------------------- HTML
 
 
+@functools.lru_cache(maxsize=1)
 def plotly_js() -> str:
     """plotly.js, from the plotly package (Debian's python3-plotly reads it from
-    /usr/share/python3-plotly/plotly.js). Raises RuntimeError if plotly is not installed."""
+    /usr/share/python3-plotly/plotly.js), read once per process (3.6 MB: a sweep's worker writes
+    a report per run). Raises RuntimeError if plotly is not installed."""
     try:
         from plotly.offline import get_plotlyjs
 
@@ -418,6 +427,12 @@ def plotly_js() -> str:
         ) from None
 
 
+@functools.lru_cache(maxsize=1)
+def _plotly_in_script() -> str:
+    """plotly_js() as the body of an HTML script element."""
+    return plotly_js().replace("</script", "<\\/script")
+
+
 _STYLE = """
 body { font-family: sans-serif; margin: 1.5em auto; max-width: 1250px; color: #222; }
 table { border-collapse: collapse; margin: 0.5em 0 1.5em 0; font-size: 0.9em; }
@@ -429,7 +444,7 @@ img { max-width: 100%; border: 1px solid #eee; } h2 { margin-top: 1.5em; }
 
 
 def _page(title: str, body: str, plotly: bool = True) -> str:
-    js = plotly_js().replace("</script", "<\\/script") if plotly else ""
+    js = _plotly_in_script() if plotly else ""
     script = f"<script type='text/javascript'>{js}</script>" if plotly else ""
     return (
         "<!DOCTYPE html>\n<html><head><meta charset='utf-8'>"

@@ -106,6 +106,8 @@ class Evaluator {
   std::size_t num_gt_points() const { return tree_.size(); }
   /// The ground-truth points (samples in sampling order, or the reference cloud).
   Points gt_points() const { return tree_.points(); }
+  /// The ground truth's kd-tree (e.g. for nearest_distances to it).
+  const KdTree& gt_tree() const { return tree_; }
   /// Description of the ground truth as it appears in every result (density, area, warnings).
   const EvaluationResult& gt_info() const { return base_; }
 

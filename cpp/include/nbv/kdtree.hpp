@@ -68,6 +68,8 @@ class KdTree {
 /// (Q,) exact distance (metres) from each query to its nearest target; inf if there are no
 /// targets. Parallel over queries; deterministic.
 Eigen::VectorXd nearest_distances(const PointsRef& targets, const PointsRef& queries);
+/// The same against the targets' tree, built once for many calls.
+Eigen::VectorXd nearest_distances(const KdTree& targets, const PointsRef& queries);
 /// Distances from every point of `queries`, in its tree order, to the nearest point of `targets`
 /// (parallel; a query's answer seeds the next one's search).
 std::vector<double> tree_nearest(const KdTree& targets, const KdTree& queries);
