@@ -145,19 +145,24 @@ def observable_surface(
 
     cfg = config or Config()
     ws = make_workspace(mesh.bounds, cfg)
+    ev = None
     if points is None:
         ev = evaluator or Evaluator(mesh, gt_density=cfg.evaluation.gt_density, seed=cfg.seed)
         points = ev.gt_points
-        n = len(points)
-        seed = int(ev._core.gt_info.seed)
-        if ev._core.gt_info.from_mesh:
-            again, fid = mesh.sample_surface(n, seed, return_faces=True)
-            if np.array_equal(again, points):
-                face_ids = fid
     points = np.ascontiguousarray(points, np.float64)
     if points.ndim != 2 or points.shape[1] != 3:
         raise ValueError(f"points must be (N, 3), got {points.shape}")
-    normals = sample_normals(mesh, face_ids) if face_ids is not None else np.zeros_like(points)
+
+    def normals():  # only a computation needs them (a cache hit does not)
+        fid = face_ids
+        if ev is not None and ev._core.gt_info.from_mesh:
+            again, f = mesh.sample_surface(
+                len(points), int(ev._core.gt_info.seed), return_faces=True
+            )
+            if np.array_equal(again, points):
+                fid = f
+        return sample_normals(mesh, fid) if fid is not None else np.zeros_like(points)
+
     settings = _settings(cfg, ws)
     path = None
     if cache_dir is not None:
@@ -170,7 +175,7 @@ def observable_surface(
             hit = _load(path, points)  # another process may have computed it meanwhile
             if hit is not None:
                 return hit
-            out = _compute(mesh, cfg, points, normals, ws, settings, scene)
+            out = _compute(mesh, cfg, points, normals(), ws, settings, scene)
             tmp = path.with_name(path.name + f".tmp{os.getpid()}.npz")
             np.savez_compressed(
                 tmp,
@@ -180,7 +185,7 @@ def observable_surface(
             )
             os.replace(tmp, path)
             return out
-    return _compute(mesh, cfg, points, normals, ws, settings, scene)
+    return _compute(mesh, cfg, points, normals(), ws, settings, scene)
 
 
 def _compute(mesh, cfg, points, normals, ws, settings, scene) -> ObservableSurface:

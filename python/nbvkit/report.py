@@ -87,7 +87,8 @@ def finish_run(mission, out, cache_dir=None) -> dict:
         )
         mask = obs.observable
         ev.set_observable(mask)
-        cov = ev.coverage(cloud)
+        world = mission.world  # the cell figures of `cloud`, from the mission's kept count
+        cov = ev.coverage([world.camera_cloud, world.laser_cloud])
         for k in (
             "coverage_observable",
             "area_coverage_observable",
