@@ -11,6 +11,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+import nbvkit
+
 from conftest import execute_notebook
 from nbvkit.report import (
     MIN_MESH_POINTS,
@@ -54,9 +56,12 @@ def test_poisson_reconstructs_a_sphere_and_scores_it():
     assert mesh is not None, info
     assert info["triangles"] > 1000
     assert abs(info["area_m2"] - 4 * np.pi * 4) / (4 * np.pi * 4) < 0.15
-    s = score_mesh(mesh, sphere_points(20000, seed=1), taus=(0.05, 0.1))
+    gt = sphere_points(20000, seed=1)
+    s = score_mesh(mesh, gt, taus=(0.05, 0.1))
     assert s["mesh_accuracy"]["0.1"] > 0.9 and s["mesh_completeness"]["0.1"] > 0.9
     assert s["hausdorff95_m"] < 0.15
+    # against an Evaluator of the same points: its kd-tree, the same scores
+    assert score_mesh(mesh, nbvkit.Evaluator(gt), taus=(0.05, 0.1)) == s
 
 
 def test_too_few_points_give_a_clear_message_and_no_mesh():
