@@ -642,6 +642,9 @@ void OccupancyMap::trace_free_cells(const octomap::point3d& o, const std::vector
   const float* const logodds = grid_.logodds_data();
   const CellFlag* const flags = grid_.flag_data();
   const float clamp_min = clamp_min_log_;
+  // A walk steps each axis in one direction only, so a ray from a cell of the workspace that
+  // has left it never comes back: with clipping, its walk ends there.
+  const bool end_outside = clip && in_workspace(tree.coordToKey(o));
   parallel_chunks(nchunks, 1, [&](std::size_t cb, std::size_t ce) {
     for (std::size_t c = cb; c < ce; ++c) {
       std::vector<Key>& out = chunk_free[c];
@@ -653,11 +656,11 @@ void OccupancyMap::trace_free_cells(const octomap::point3d& o, const std::vector
           if (unsigned(i) >= unsigned(dims[0]) || unsigned(j) >= unsigned(dims[1]) ||
               unsigned(kz) >= unsigned(dims[2])) {
             if (!clip) out_outside.push_back(key);
-            return;
+            return !end_outside;
           }
           const std::size_t idx = layout.id(i, j, kz);
-          if (!live[idx >> 6]) return;
-          if (flags[idx] == CellFlag::Observed && logodds[idx] <= clamp_min) return;
+          if (!live[idx >> 6]) return true;
+          if (flags[idx] == CellFlag::Observed && logodds[idx] <= clamp_min) return true;
           std::uint32_t* st = stamps + idx;
           std::uint32_t cur = __atomic_load_n(st, __ATOMIC_RELAXED);
           while (cur != s_occ && cur != s_free) {
@@ -667,6 +670,7 @@ void OccupancyMap::trace_free_cells(const octomap::point3d& o, const std::vector
               break;
             }
           }
+          return true;
         });
     }
   });

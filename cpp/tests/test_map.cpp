@@ -210,6 +210,34 @@ TEST(MapWorkspace, ClippedMapsKeepNothingOutside) {
   EXPECT_EQ(m.state({-1.5, 1.1, 1.1}), CellState::Unknown);
 }
 
+TEST(MapWorkspace, ClippedRaysEndWhereTheyLeaveAndTheGridIsTheSame) {
+  // A clipped map ends a ray's walk where it leaves the workspace (from an origin inside; from
+  // outside it walks on). Inside, its cells must be those of an unclipped map, which walks on.
+  OccupancyMapOptions unclipped;
+  unclipped.clip_to_workspace = false;
+  OccupancyMap clipped(0.2, {-2, -2, 0}, {2, 2, 1.6}),
+      full(0.2, {-2, -2, 0}, {2, 2, 1.6}, unclipped);
+  std::mt19937 rng(11);
+  std::uniform_real_distribution<double> u(-1.0, 1.0);
+  for (int s = 0; s < 40; ++s) {
+    const double far = s % 4 == 3 ? 3.0 : 1.0;  // every 4th origin outside the workspace
+    const Eigen::Vector3d o(1.8 * far * u(rng), 1.8 * u(rng), 0.8 + 0.7 * u(rng));
+    Points hits(200, 3), free_ends(200, 3);
+    for (Eigen::Index r = 0; r < hits.rows(); ++r)
+      hits.row(r) << 3 * u(rng), 3 * u(rng), 2 * u(rng);
+    for (Eigen::Index r = 0; r < free_ends.rows(); ++r)
+      free_ends.row(r) = o.transpose() + 6.0 * Eigen::RowVector3d(u(rng), u(rng), u(rng));
+    clipped.integrate(o, hits, free_ends, s % 2 ? 3.0 : std::numeric_limits<double>::infinity());
+    full.integrate(o, hits, free_ends, s % 2 ? 3.0 : std::numeric_limits<double>::infinity());
+  }
+  ASSERT_GT(clipped.counts().free, 100);
+  for (std::size_t i = 0; i < clipped.grid().layout().storage_size(); ++i) {
+    ASSERT_EQ(clipped.grid().logodds(std::int64_t(i)), full.grid().logodds(std::int64_t(i))) << i;
+    ASSERT_EQ(clipped.grid().flag(std::int64_t(i)), full.grid().flag(std::int64_t(i))) << i;
+  }
+  EXPECT_EQ(clipped.total_entropy(), full.total_entropy());
+}
+
 TEST(MapUpdate, BatchedUpdateBuildsTheSameOctreeAsUpdateNode) {
   // Many overlapping scans, clamping and pruning included: the fast path's batched tree update
   // (lazy updates in tree order, inner nodes fixed once) must give a structurally identical octree.

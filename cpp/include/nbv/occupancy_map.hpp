@@ -47,6 +47,7 @@
 #include <memory>
 #include <optional>
 #include <string>
+#include <type_traits>
 #include <vector>
 
 namespace nbv {
@@ -241,8 +242,9 @@ class OccupancyMap {
 
   /// Walks the cells OctoMap's computeRayKeys(origin, end) returns, in order (origin cell
   /// first, end cell excluded), calling emit(key) for each; the same float/double arithmetic
-  /// as OctoMap, without its fixed 100,000-key buffer. Returns false when an end is outside the
-  /// addressable range (nothing emitted), like computeRayKeys.
+  /// as OctoMap, without its fixed 100,000-key buffer. An emit that returns bool ends the walk
+  /// by returning false. Returns false when an end is outside the addressable range (nothing
+  /// emitted), like computeRayKeys.
   template <typename Emit>
   static bool walk_ray_keys(const octomap::OcTree& tree, const octomap::point3d& origin,
                             const octomap::point3d& end, Emit&& emit);
@@ -315,7 +317,15 @@ bool OccupancyMap::walk_ray_keys(const octomap::OcTree& tree, const octomap::poi
   if (!tree.coordToKeyChecked(origin, key_origin) || !tree.coordToKeyChecked(end, key_end))
     return false;
   if (key_origin == key_end) return true;
-  emit(key_origin);
+  const auto go_on = [&](const Key& key) {
+    if constexpr (std::is_same_v<decltype(emit(key)), bool>) {
+      return emit(key);
+    } else {
+      emit(key);
+      return true;
+    }
+  };
+  if (!go_on(key_origin)) return true;
 
   octomap::point3d direction = (end - origin);
   const float length = (float)direction.norm();
@@ -354,7 +364,7 @@ bool OccupancyMap::walk_ray_keys(const octomap::OcTree& tree, const octomap::poi
     if (current_key == key_end) break;
     const double dist_from_origin = std::min(std::min(tMax[0], tMax[1]), tMax[2]);
     if (dist_from_origin > length) break;
-    emit(current_key);
+    if (!go_on(current_key)) break;
   }
   return true;
 }
