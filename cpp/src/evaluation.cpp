@@ -263,16 +263,22 @@ void Evaluator::score_cells(std::size_t k, const std::uint64_t* keys, std::size_
     covered_obs += co;
     covered_obs_samples += so;
   });
-  if (obs) {
-    res.covered_observable_cells[k] = covered_obs;
-    res.coverage_observable[k] = ratio(covered_obs, g.observable_cells);
-    res.area_coverage_observable[k] = ratio(covered_obs_samples, n_observable_);
+  set_cell_figures(k, {n_unique, in_gt, covered, covered_samples, covered_obs, covered_obs_samples},
+                   res);
+}
+
+void Evaluator::set_cell_figures(std::size_t k, const CellTally& t, EvaluationResult& res) const {
+  res.gt_cells[k] = static_cast<std::int64_t>(grids_[k].keys.size());
+  if (!observable_.empty()) {
+    res.covered_observable_cells[k] = t.covered_obs;
+    res.coverage_observable[k] = ratio(t.covered_obs, grids_[k].observable_cells);
+    res.area_coverage_observable[k] = ratio(t.covered_obs_samples, n_observable_);
   }
-  res.cloud_cells[k] = n_unique;
-  res.covered_cells[k] = covered;
-  res.coverage[k] = ratio(covered, res.gt_cells[k]);
-  res.area_coverage[k] = ratio(covered_samples, static_cast<std::int64_t>(tree_.size()));
-  res.precision[k] = ratio(in_gt.load(), res.cloud_cells[k]);
+  res.cloud_cells[k] = t.cloud_cells;
+  res.covered_cells[k] = t.covered;
+  res.coverage[k] = ratio(t.covered, res.gt_cells[k]);
+  res.area_coverage[k] = ratio(t.covered_samples, static_cast<std::int64_t>(tree_.size()));
+  res.precision[k] = ratio(t.in_gt, t.cloud_cells);
 }
 
 void Evaluator::set_observable(const std::vector<std::uint8_t>& mask) {
@@ -573,23 +579,12 @@ EvaluationResult CoverageTracker::update(const std::vector<const SurfaceCloud*>&
   }
 
   EvaluationResult res = ev_.empty_result(static_cast<std::int64_t>(n_points));
-  const bool obs = !ev_.observable_.empty();
-  const auto n_gt = static_cast<std::int64_t>(ev_.tree_.size());
   for (std::size_t k = 0; k < nr; ++k) {
-    const Cells& c = cells_[k];
-    const Evaluator::Grid& g = ev_.grids_[k];
-    res.gt_cells[k] = static_cast<std::int64_t>(g.keys.size());
-    if (n_points == 0) continue;
-    res.cloud_cells[k] = c.occupied;
-    res.covered_cells[k] = c.covered;
-    res.coverage[k] = ratio(c.covered, res.gt_cells[k]);
-    res.area_coverage[k] = ratio(c.covered_samples, n_gt);
-    res.precision[k] = ratio(c.covered, c.occupied);
-    if (obs) {
-      res.covered_observable_cells[k] = c.covered_obs;
-      res.coverage_observable[k] = ratio(c.covered_obs, g.observable_cells);
-      res.area_coverage_observable[k] = ratio(c.covered_obs_samples, ev_.n_observable_);
-    }
+    const Cells& c = cells_[k];  // a covered cell is a cloud cell found in the ground truth
+    ev_.set_cell_figures(
+        k,
+        {c.occupied, c.covered, c.covered, c.covered_samples, c.covered_obs, c.covered_obs_samples},
+        res);
   }
   res.timings_s.emplace_back("cells", seconds_since(t0));
   res.timings_s.emplace_back("scan", scan_s);  // of which pass 1

@@ -184,32 +184,12 @@ SurfaceCloud::SurfaceCloud(const SurfaceCloudOptions& options) : opt_(options) {
 SurfaceCloud::SurfaceCloud(const SurfaceCloud& other)
     : opt_(other.opt_), voxels_(other.voxels_), registered_(other.registered_) {}
 
-SurfaceCloud::SurfaceCloud(SurfaceCloud&& other) noexcept
-    : opt_(other.opt_), voxels_(std::move(other.voxels_)), registered_(other.registered_) {
-  other.voxels_.clear();  // a moved-from hash map keeps its sizes: leave an empty cloud behind
-  other.registered_ = 0;
-  other.stamp_ = new_stamp();
-}
-
 SurfaceCloud& SurfaceCloud::operator=(const SurfaceCloud& other) {
   if (this != &other) {
     opt_ = other.opt_;
     voxels_ = other.voxels_;
     registered_ = other.registered_;
     stamp_ = new_stamp();
-  }
-  return *this;
-}
-
-SurfaceCloud& SurfaceCloud::operator=(SurfaceCloud&& other) noexcept {
-  if (this != &other) {
-    opt_ = other.opt_;
-    voxels_ = std::move(other.voxels_);
-    registered_ = other.registered_;
-    stamp_ = new_stamp();
-    other.voxels_.clear();
-    other.registered_ = 0;
-    other.stamp_ = new_stamp();
   }
   return *this;
 }

@@ -132,7 +132,7 @@ class Mission:
         world = self.world
         summary = run_profiling(world)
         # laser, and camera frames if taken: the cell figures alone (no distances)
-        ev = self.evaluator.coverage([world.camera_cloud, world.laser_cloud])
+        ev = self.evaluator.coverage(world.clouds)
         summary.update(coverage=ev["coverage"], area_coverage=ev["area_coverage"])
         return summary
 
@@ -157,7 +157,7 @@ class Mission:
         cov = {}
         if cfg.evaluation.coverage_every and step.iteration % cfg.evaluation.coverage_every == 0:
             t0 = time.perf_counter()
-            c = self.evaluator.coverage([world.camera_cloud, world.laser_cloud])["coverage"]
+            c = self.evaluator.coverage(world.clouds)["coverage"]
             cov = {float(k): v for k, v in c.items()}
             self.coverage_time_s += time.perf_counter() - t0
         p, c = world.state.pose, step.choice

@@ -87,8 +87,7 @@ def finish_run(mission, out, cache_dir=None) -> dict:
         )
         mask = obs.observable
         ev.set_observable(mask)
-        world = mission.world  # the cell figures of `cloud`, from the mission's kept count
-        cov = ev.coverage([world.camera_cloud, world.laser_cloud])
+        cov = ev.coverage(mission.world.clouds)  # of `cloud`, from the mission's kept count
         for k in (
             "coverage_observable",
             "area_coverage_observable",

@@ -195,6 +195,12 @@ class World:
         self.laser_cloud.add(scan.hits)
         return scan
 
+    @property
+    def clouds(self) -> list:
+        """The reconstruction's clouds, camera then laser (to read in place, e.g. by
+        ``Evaluator.coverage``, which keeps its count of them between calls)."""
+        return [self.camera_cloud, self.laser_cloud]
+
     def cloud_points(self) -> np.ndarray:
         """(N, 3) the reconstruction: camera and laser clouds together."""
         a, b = self.camera_cloud.points, self.laser_cloud.points

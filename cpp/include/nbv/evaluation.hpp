@@ -117,6 +117,15 @@ class Evaluator {
   Evaluator(std::pair<Points, EvaluationResult>&& sampled, const EvaluationOptions& options);
   Evaluator(const PointsRef& gt, const EvaluationOptions& options, EvaluationResult base);
   EvaluationResult empty_result(std::int64_t n_points) const;
+  /// What a cloud's cells hold at one resolution (see set_cell_figures).
+  struct CellTally {
+    std::int64_t cloud_cells = 0;  ///< distinct cloud cells
+    std::int64_t in_gt = 0;        ///< ... that are GT cells
+    std::int64_t covered = 0;      ///< GT cells holding a cloud point
+    std::int64_t covered_samples = 0, covered_obs = 0, covered_obs_samples = 0;
+  };
+  /// Writes res's cell figures of resolution k (res from empty_result).
+  void set_cell_figures(std::size_t k, const CellTally& t, EvaluationResult& res) const;
   /// Fills res's figures of resolution k from the cloud's n cell keys at that resolution.
   void score_cells(std::size_t k, const std::uint64_t* keys, std::size_t n,
                    EvaluationResult& res) const;

@@ -199,11 +199,10 @@ struct SurfaceCloudOptions {
 class SurfaceCloud {
  public:
   explicit SurfaceCloud(const SurfaceCloudOptions& options = {});
-  // A copy is a new cloud: it takes a new stamp (see stamp()), and so does a moved-from one.
+  // A copy is a new cloud: it takes a new stamp (see stamp()). (No move operations: a move
+  // copies, so the moved-from cloud keeps its points and its stamp.)
   SurfaceCloud(const SurfaceCloud& other);
-  SurfaceCloud(SurfaceCloud&& other) noexcept;
   SurfaceCloud& operator=(const SurfaceCloud& other);
-  SurfaceCloud& operator=(SurfaceCloud&& other) noexcept;
 
   const SurfaceCloudOptions& options() const { return opt_; }
   /// Registers points (N, 3), world frame. Returns the number of new voxels they created.
