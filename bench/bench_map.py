@@ -7,7 +7,15 @@ computeUpdate + updateNode loop, i.e. insertPointCloud with the free rays in the
 in the same run, their ratio, the agreement of the two maps (share of cells touched by either
 whose free/occupied/unknown state is the same), and the time of total_entropy().
 The C++ benchmark bench/bench_map.cpp also times a bare octomap::OcTree (no mirror).
-Run: .venv/bin/python bench/bench_map.py [--mesh PATH] [--repeat N]
+
+--mission flies a mission instead (Scenario 5, start 0, on the structure; --scenario to change)
+with a shadow map beside the mission's: every scan the mission integrates (the profile's laser
+scans and every camera frame) is also integrated into the shadow with integrate_exact, and every
+other change of the map (the vehicle's free path, predicted cells) is made in both. The shadow's
+octree is brought up to date before each timed call. Prints ms per camera frame of the loop for
+both and their ratio: the issue's baseline on the mission's own frames and maps.
+
+Run: .venv/bin/python bench/bench_map.py [--mesh PATH] [--repeat N] [--mission [--scenario S]]
 """
 from __future__ import annotations
 
@@ -25,8 +33,74 @@ def agreement(a: nbvkit.OccupancyMap, b: nbvkit.OccupancyMap) -> float:
     return float((sa[touched] == sb[touched]).mean())
 
 
+def mission(args) -> None:
+    """The camera frames of a mission, integrated by the mission's map and by a shadow map with
+    integrate_exact (see the module's doc)."""
+    from nbvkit.config import Config
+    from nbvkit.mission import Mission
+
+    cls = nbvkit.OccupancyMap
+    real = {k: getattr(cls, k) for k in ("integrate", "mark_free_segment", "set_unknown_cells")}
+    state = {"map": None, "shadow": None, "loop": False}
+    ms = {"fast": [], "exact": []}
+
+    def integrate(self, scan, *a, **kw):
+        if self is not state["map"]:
+            return real["integrate"](self, scan, *a, **kw)
+        shadow = state["shadow"]
+        shadow.octree_num_nodes  # brings the shadow's octree up to date (not timed)
+        t0 = time.perf_counter()
+        out = real["integrate"](self, scan, *a, **kw)
+        t1 = time.perf_counter()
+        shadow.integrate_exact(scan, *a, **kw)
+        t2 = time.perf_counter()
+        if len(scan.hits) + len(scan.free_ends) > 10000:  # a camera frame, not a laser scan
+            ms["fast"].append((t1 - t0) * 1e3)
+            ms["exact"].append((t2 - t1) * 1e3)
+        return out
+
+    def both(name):
+        def call(self, *a, **kw):
+            if self is state["map"]:
+                real[name](state["shadow"], *a, **kw)
+            return real[name](self, *a, **kw)
+
+        return call
+
+    cls.integrate = integrate
+    cls.mark_free_segment = both("mark_free_segment")
+    cls.set_unknown_cells = both("set_unknown_cells")
+    over = [f"scenario={args.scenario}", "start=0", "progress=false", "report.enabled=false"]
+    if args.mesh:
+        over.append(f"mesh.path={args.mesh}")
+    m = Mission(Config().with_overrides(over))
+    fm = m.world.map
+    lo, hi = fm.bounds
+    state["map"] = fm
+    state["shadow"] = nbvkit.OccupancyMap(fm.resolution, lo, hi, options=fm.options)
+    m.run()
+    for k, v in real.items():
+        setattr(cls, k, v)
+    f, e = np.array(ms["fast"]), np.array(ms["exact"])
+    agree = agreement(fm, state["shadow"])
+    print(
+        f"scenario {args.scenario}, start 0: {len(f)} camera frames, "
+        f"{nbvkit.get_num_threads()} threads; final maps agree on {100 * agree:.3f}% of the "
+        "cells either touched"
+    )
+    print(
+        f"  ms per frame: fast {f.mean():.2f} (median {np.median(f):.2f}), integrate_exact "
+        f"{e.mean():.1f} (median {np.median(e):.1f}) -> {e.sum() / f.sum():.1f}x"
+    )
+
+
 def main():
-    args = mesh_parser(__doc__, repeat=3).parse_args()
+    ap = mesh_parser(__doc__, repeat=3)
+    ap.add_argument("--mission", action="store_true", help="a mission's frames (see above)")
+    ap.add_argument("--scenario", default="5")
+    args = ap.parse_args()
+    if args.mission:
+        return mission(args)
     mesh, lo, hi, c = bench_mesh(args.mesh)
     cam = nbvkit.DepthCamera(mesh)
     poses = [
