@@ -102,6 +102,21 @@ def test_same_seed_same_mission():
         assert a[k] == b[k], k
 
 
+def test_a_structure_wholly_within_the_ground_removal_is_refused_before_any_work():
+    from conftest import box_mesh
+
+    slab = box_mesh([-3.0, -3.0, 0.0], [3.0, 3.0, 0.2])  # 0.2 m tall; the clouds drop z < 0.3
+    run = ("scenario=1", "max_iterations=3", "evaluation.coverage_every=0")
+    with pytest.raises(MissionError, match=r"cloud\.min_z = 0\.3 m.*ground at z = 0 m"):
+        Mission(cfg(*run), mesh=slab)
+    # sunk below z = 0 the ground is its own lowest point: the same refusal
+    with pytest.raises(MissionError, match="ground at z = -5 m"):
+        Mission(cfg(*run), mesh=box_mesh([-3.0, -3.0, -5.0], [3.0, 3.0, -4.8]))
+    # the advice works: with the ground removal lowered, the slab's points enter the cloud
+    s = Mission(cfg(*run, "cloud.min_z=-1"), mesh=slab).run()
+    assert s["cloud_points"] > 0 and s["coverage"]["0.5"] > 0
+
+
 def test_a_georeferenced_mesh_is_named_too_far_and_flies_as_at_the_origin_with_mesh_shift(tmp_path):
     from conftest import box_mesh
 

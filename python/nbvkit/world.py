@@ -43,6 +43,21 @@ def surface_clouds(config: Config, mesh_bounds):
     )
 
 
+def _check_above_ground_removal(mesh_bounds, min_z: float) -> None:
+    """Raises MissionError for a structure that lies wholly within the clouds' ground removal
+    (cloud.min_z above its ground): every point of it would be dropped, and a mission would end
+    at once with nothing covered."""
+    ground = ground_height(mesh_bounds)
+    top = float(np.asarray(mesh_bounds, float)[1][2])
+    if top <= ground + min_z:
+        raise MissionError(
+            f"the structure's top (z = {top:g} m) is not above the clouds' ground removal "
+            f"(cloud.min_z = {min_z:g} m above the ground at z = {ground:g} m): every point of it "
+            "would be dropped as ground; lower cloud.min_z (e.g. --set cloud.min_z=-1 keeps "
+            "everything) or lift the structure (mesh.shift)"
+        )
+
+
 class World:
     """The structure (mesh, Embree scene), the workspace, the vehicle and its sensors, and the
     maps they build: ``map`` (OccupancyMap), ``camera_cloud`` / ``laser_cloud`` (SurfaceCloud),
@@ -64,6 +79,7 @@ class World:
                 raise TypeError(f"mesh must be an nbvkit.Mesh, got {type(mesh).__name__}")
             self.mesh_path = "<in-memory mesh>"
         self.mesh = mesh
+        _check_above_ground_removal(mesh.bounds, cfg.cloud.min_z)
         self.workspace: Workspace = make_workspace(mesh.bounds, cfg)
         # The map first: its size check (cells, OctoMap's range) comes before any search.
         m = cfg.map
