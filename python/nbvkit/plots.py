@@ -25,7 +25,7 @@ def _plt():
     return plt
 
 
-STAGE_COLORS = {"start": "k", "profile": "tab:orange", "nbv": "tab:blue"}
+STAGE_COLORS = {"profile": "tab:orange", "nbv": "tab:blue"}
 
 
 def plot_trajectory(ax_top, ax_side, structure_points, trajectory, workspace=None, title=None):
@@ -38,6 +38,8 @@ def plot_trajectory(ax_top, ax_side, structure_points, trajectory, workspace=Non
             stages = [r[0] for r in trajectory]
             ax.plot(xyz[:, i], xyz[:, j], "-", lw=0.8, c="tab:blue", alpha=0.8)
             for st in dict.fromkeys(stages):
+                if st == "start":  # the star below marks it
+                    continue
                 m = np.array([s == st for s in stages])
                 ax.scatter(
                     xyz[m, i],
