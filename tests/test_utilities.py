@@ -195,6 +195,62 @@ def test_surface_utility_credits_unseen_sides_predictions_and_frontier():
     ) == pytest.approx(expected, rel=1e-6)
 
 
+def test_surface_utility_weighs_a_credit_by_the_cameras_sampling_density():
+    # A camera whose pixels are 5 deg apart, needing samples 0.01 m apart: a face-on cell is
+    # sampled densely enough within k = 0.01 / (5 deg in rad) = 0.115 m. The ray starts at the
+    # centre of cell 0 (x = 0.1) and enters cell 2 at x = 0.4, 0.3 m away, cell 3 0.5 m, 4 0.7 m.
+    k = 0.01 / math.radians(5.0)
+
+    def w(r, cos_i=1.0):
+        return min(1.0, k * cos_i / r)
+
+    def score(m, max_cells, **utility):
+        cam = _core.ViewCameraModel(
+            rays_x=1,
+            rays_y=1,
+            hfov_deg=1.0,
+            vfov_deg=1.0,
+            max_range=RES * (max_cells - 0.6),
+            pixel_pitch_deg=5.0,
+        )
+        s = _core.evaluate_views(
+            m,
+            [[0.5 * RES, 2.5 * RES, 2.5 * RES, 0.0]],
+            [0.1, 0.5, 0.5, 0.0],
+            camera=cam,
+            utility=dict(name="surface", require_occupied=False, min_visibility=1e-9, **utility),
+            validity=dict(collision_radius=0.0, blocked_path="plan"),
+            surface=_core.SurfaceObservations(m),
+        )
+        return float(s["gain"][0])
+
+    # face on: cell 2's open faces (free neighbours) are -x and both of y and of z, which
+    # cancel: its normal is -x, the ray's incidence 0
+    face = cell_map(5, {(2, 2, 2): "O", (3, 2, 2): "O"}, clamped_entropy_zero=True)
+    assert score(face, 4) == pytest.approx(1.0)  # no density weight by default
+    assert score(face, 4, dense_spacing=0.01) == pytest.approx(w(0.3), rel=1e-9)
+    assert score(face, 4, dense_spacing=1.0) == pytest.approx(1.0)  # dense enough: at most 1
+    # open towards -x and +y only (+x and -y occupied): the normal is (-1, 1, 0) / sqrt(2),
+    # 45 deg from the ray
+    corner = cell_map(
+        5, {(2, 2, 2): "O", (3, 2, 2): "O", (2, 1, 2): "O"}, clamped_entropy_zero=True
+    )
+    assert score(corner, 4, dense_spacing=0.01) == pytest.approx(w(0.3, math.sqrt(0.5)), rel=1e-9)
+    # open on every side: no direction to measure incidence from, the range alone
+    alone = cell_map(5, {(2, 2, 2): "O"}, clamped_entropy_zero=True)
+    assert score(alone, 4, dense_spacing=0.01) == pytest.approx(w(0.3), rel=1e-9)
+    # predicted and unknown cells: their surface probability, weighted by range alone
+    m3, _ = row_map("FFPUU", clamped_entropy_zero=True)
+    fp, up = 0.5, 0.005
+    expected = 0.6 * w(0.3) + 0.4 * fp * w(0.5) + 0.4 * (1 - fp) * up * w(0.7)
+    got = score(m3, 5, dense_spacing=0.01, frontier_prior=fp, unknown_prior=up)
+    assert got == pytest.approx(expected, rel=1e-6)  # p = 0.6 held as float log-odds
+    with pytest.raises(ValueError, match="dense_spacing"):
+        score(face, 4, dense_spacing=-0.1)
+    with pytest.raises(ValueError, match="pixel_pitch_deg"):
+        _core.ViewCameraModel(pixel_pitch_deg=0.0)
+
+
 def test_utilities_that_read_camera_observations_need_them():
     m, _ = row_map("FUO")
     with pytest.raises(ValueError, match="needs the camera observations"):

@@ -121,6 +121,8 @@ ViewScores score(const Job& job, const Cells& cells) {
   const Eigen::Vector3d here(job.current.x, job.current.y, job.current.z);
   const ValidityOptions& v = job.validity;
   const bool check_segment = v.blocked_path == "reject";
+  const double dense_range =
+      job.utility.dense_spacing / (job.camera.pixel_pitch_deg * M_PI / 180.0);
 
   // the memo (its entries hold cell ids in 32 bits)
   constexpr bool kMemo = Replayable<Utility>::value && kSkip && std::is_same_v<Cells, GridCells>;
@@ -172,7 +174,8 @@ ViewScores score(const Job& job, const Cells& cells) {
         const Eigen::Matrix3d R = T.linear();
         visited.reset(g.storage_size());
         credits.clear();
-        utility::ViewContext ctx{g, job.utility, visited, cones, job.on_view ? &credits : nullptr};
+        utility::ViewContext ctx{
+            g, job.utility, visited, cones, job.on_view ? &credits : nullptr, dense_range};
         Utility u(ctx);
         for (Eigen::Index r = 0; r < dirs.rows(); ++r) {
           const Eigen::Vector3d ds = dirs.row(r).transpose();

@@ -92,6 +92,8 @@ void ViewCameraModel::validate() const {
   if (!(max_range > 0) || !std::isfinite(max_range))
     throw std::invalid_argument("view camera max_range must be positive");
   if (!mount.matrix().allFinite()) throw std::invalid_argument("view camera mount is not finite");
+  if (!(pixel_pitch_deg > 0 && pixel_pitch_deg < 90))
+    throw std::invalid_argument("view camera pixel_pitch_deg must be in (0, 90) degrees");
 }
 
 Points ViewCameraModel::directions() const {
@@ -132,6 +134,7 @@ void UtilityOptions::validate() const {
   check(density_target, density_target > 0, "density_target", "> 0");
   check(weight_entropy, weight_entropy >= 0, "weight_entropy", ">= 0");
   check(weight_density, weight_density >= 0, "weight_density", ">= 0");
+  check(dense_spacing, dense_spacing >= 0, "dense_spacing", ">= 0");
   check(weight_prediction, weight_prediction >= 0, "weight_prediction", ">= 0");
 }
 

@@ -830,6 +830,7 @@ def view_camera(cfg):
         rays_x=u.rays_x or vc.rays_x,
         rays_y=u.rays_y or vc.rays_y,
         mount=_core.mount_transform(c.mount_xyz, *c.mount_rpy_deg),
+        pixel_pitch_deg=max(c.hfov_deg / c.width, c.vfov_deg / c.height),
     )
 
 

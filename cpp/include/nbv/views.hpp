@@ -32,7 +32,10 @@ class OccupancyMap;
   X(double, vfov_deg, 45.0, "vertical field of view, degrees")                            \
   X(double, max_range, 8.0, "depth limit along the optical axis, m")                      \
   X(Eigen::Isometry3d, mount, Eigen::Isometry3d::Identity(),                              \
-    "T_body_sensor: the camera's fixed mount on the vehicle (4 x 4)")
+    "T_body_sensor: the camera's fixed mount on the vehicle (4 x 4)")                     \
+  X(double, pixel_pitch_deg, 60.0 / 640.0,                                                \
+    "the sensor's angle between neighbouring pixels, degrees (the coarser axis): how "    \
+    "densely its samples land, for the surface utility's dense_spacing")
 
 struct ViewCameraModel {
   NBV_VIEW_CAMERA_OPTIONS(NBV_DECLARE_OPTION)
@@ -72,7 +75,11 @@ struct ViewCameraModel {
     "four_term: camera hits in a cell at which its density counts as full")                     \
   X(double, weight_entropy, 1.0, "four_term: w_H, the weight of the normalised entropy")        \
   X(double, weight_density, 1.0, "four_term: w_rho, the weight of the missing density")         \
-  X(double, weight_prediction, 1.0, "four_term: w_p, the weight of the predicted share")
+  X(double, weight_prediction, 1.0, "four_term: w_p, the weight of the predicted share")        \
+  X(double, dense_spacing, 0.0,                                                                 \
+    "surface: the sample spacing (m) that dense coverage needs; a cell the camera would see "   \
+    "at range r and incidence i counts min(1, dense_spacing * cos(i) / (r * pixel pitch)) "     \
+    "(incidence from the cell's open faces; 1 where they give none); 0: no density weight")
 
 struct UtilityOptions {
   NBV_UTILITY_OPTIONS(NBV_DECLARE_OPTION)

@@ -8,8 +8,12 @@
 // surface with a prior - frontier_prior when a face neighbour is occupied or predicted (the
 // surface goes on into the unknown), unknown_prior elsewhere - and counts and passes on the
 // same way. Free cells pass. Each cell counts once per view (for the first ray that credits
-// it); rays end below min_visibility. The result is in cells of new surface: roughly the area
-// the view would add, in units of resolution^2. Needs the camera observations.
+// it); rays end below min_visibility. With dense_spacing > 0 each credit is also weighted by how
+// densely the camera would sample the cell: min(1, dense_spacing cos(i) / (r pitch)), r the
+// range, i the incidence on the cell's surface (its normal the sum of its open face directions,
+// free or unknown neighbours; cos(i) = 1 where they give none, as for unknown cells). The result
+// is in cells of new surface: roughly the area the view would add, in units of resolution^2.
+// Needs the camera observations.
 #pragma once
 
 #include "utility.hpp"
@@ -22,16 +26,18 @@ struct Surface {
   explicit Surface(ViewContext& ctx) : ctx_(ctx), marks_(ctx.visited.marks()) {}
   ~Surface() { marks_.keep(); }
   void begin_ray(const Eigen::Vector3d& d) {
+    dir_ = d;  // unit (ViewCameraModel::directions)
     vis_ = 1.0;
     bin_ = std::int8_t(direction_bin(-d));
     cone_ = ctx_.cones[bin_];
   }
   template <class Cells>
-  bool visit(const Cells& cells, std::size_t idx, const int* c, double, float scored) {
+  bool visit(const Cells& cells, std::size_t idx, const int* c, double t, float scored) {
     const CellFlag flag = cells.flag(idx, c);
     if (flag == CellFlag::Observed) {
       if (!std::signbit(scored)) return true;  // free
-      if ((ctx_.grid.seen[idx] & cone_) == 0 && marks_.insert(idx)) credit(idx, 1.0);
+      if ((ctx_.grid.seen[idx] & cone_) == 0 && marks_.insert(idx))
+        credit(idx, density(cells, c, t, true));
       return false;
     }
     double p;
@@ -40,7 +46,7 @@ struct Surface {
     else
       p = next_to_surface(ctx_.grid, cells, c) ? ctx_.options.frontier_prior
                                                : ctx_.options.unknown_prior;
-    if (marks_.insert(idx)) credit(idx, p);
+    if (marks_.insert(idx)) credit(idx, p * density(cells, c, t, false));
     vis_ *= 1.0 - p;
     return vis_ >= ctx_.options.min_visibility;
   }
@@ -48,6 +54,29 @@ struct Surface {
   int cells() const { return cells_; }
 
  private:
+  /// The density weight of a cell at range `range` (1 without dense_spacing); `surface`: an
+  /// occupied cell, whose open faces give the incidence.
+  template <class Cells>
+  double density(const Cells& cells, const int* c, double range, bool surface) const {
+    const double k = ctx_.dense_range;
+    if (k <= 0.0) return 1.0;
+    double cos_i = 1.0;
+    if (surface) {
+      const GridView& g = ctx_.grid;
+      double n[3] = {0.0, 0.0, 0.0};
+      for (int a = 0; a < 3; ++a)
+        for (int s = -1; s <= 1; s += 2) {
+          int m[3] = {c[0], c[1], c[2]};
+          m[a] += s;
+          if (!g.contains(m[0], m[1], m[2])) continue;
+          const std::size_t j = g.index(m[0], m[1], m[2]);
+          if (!std::signbit(cells.scored(j, m)) || cells.flag(j, m) == CellFlag::Unknown) n[a] += s;
+        }
+      const double nn = std::sqrt(n[0] * n[0] + n[1] * n[1] + n[2] * n[2]);
+      if (nn > 0.0) cos_i = std::abs(n[0] * dir_.x() + n[1] * dir_.y() + n[2] * dir_.z()) / nn;
+    }
+    return std::min(1.0, k * cos_i / std::max(range, 1e-12));
+  }
   void credit(std::size_t idx, double p) {
     gain_ += vis_ * p;
     ++cells_;
@@ -58,6 +87,7 @@ struct Surface {
   std::uint32_t cone_ = 0;
   std::int8_t bin_ = 0;
   double vis_ = 1.0, gain_ = 0.0;
+  Eigen::Vector3d dir_ = Eigen::Vector3d::UnitX();
   int cells_ = 0;
 };
 

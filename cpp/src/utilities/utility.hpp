@@ -97,6 +97,9 @@ struct ViewContext {
   VisitedSet& visited;
   const std::uint32_t* cones;    ///< [26]: bin_cone(b, options.coverage_cone_deg)
   std::vector<Credit>* credits;  ///< where to record credits, or null
+  /// surface: dense_spacing / the camera's pixel pitch (rad), the range (m) within which a
+  /// face-on cell is sampled densely enough; 0: no density weight
+  double dense_range = 0.0;
 };
 
 inline double sigmoid(double logodds) { return 1.0 / (1.0 + std::exp(-logodds)); }
