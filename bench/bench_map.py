@@ -41,7 +41,7 @@ def mission(args) -> None:
 
     cls = nbvkit.OccupancyMap
     real = {k: getattr(cls, k) for k in ("integrate", "mark_free_segment", "set_unknown_cells")}
-    state = {"map": None, "shadow": None, "loop": False}
+    state = {"map": None, "shadow": None}
     ms = {"fast": [], "exact": []}
 
     def integrate(self, scan, *a, **kw):

@@ -32,27 +32,33 @@ class VehicleState:
     trajectory: list = field(default_factory=list)
 
 
+def cloud_floor(config: Config, mesh_bounds) -> float:
+    """The height below which the clouds drop points: cloud.min_z above the structure's ground
+    (workspace.ground_height)."""
+    return ground_height(mesh_bounds) + config.cloud.min_z
+
+
 def surface_clouds(config: Config, mesh_bounds):
     """(camera, laser) empty SurfaceClouds as a mission keeps them: each voxel-filtered at its
-    cloud.*_voxel, dropping points less than cloud.min_z above the structure's ground."""
+    cloud.*_voxel, dropping points below cloud_floor."""
     cl = config.cloud
-    min_z = ground_height(mesh_bounds) + cl.min_z
+    min_z = cloud_floor(config, mesh_bounds)
     return (
         _core.SurfaceCloud(voxel_size=cl.camera_voxel, min_z=min_z),
         _core.SurfaceCloud(voxel_size=cl.laser_voxel, min_z=min_z),
     )
 
 
-def _check_above_ground_removal(mesh_bounds, min_z: float) -> None:
+def _check_above_ground_removal(config: Config, mesh_bounds) -> None:
     """Raises MissionError for a structure that lies wholly within the clouds' ground removal
-    (cloud.min_z above its ground): every point of it would be dropped, and a mission would end
-    at once with nothing covered."""
-    ground = ground_height(mesh_bounds)
+    (below cloud_floor): every point of it would be dropped, and a mission would end at once
+    with nothing covered."""
     top = float(np.asarray(mesh_bounds, float)[1][2])
-    if top <= ground + min_z:
+    if top <= cloud_floor(config, mesh_bounds):
         raise MissionError(
             f"the structure's top (z = {top:g} m) is not above the clouds' ground removal "
-            f"(cloud.min_z = {min_z:g} m above the ground at z = {ground:g} m): every point of it "
+            f"(cloud.min_z = {config.cloud.min_z:g} m above the ground at z = "
+            f"{ground_height(mesh_bounds):g} m): every point of it "
             "would be dropped as ground; lower cloud.min_z (e.g. --set cloud.min_z=-1 keeps "
             "everything) or lift the structure (mesh.shift)"
         )
@@ -79,7 +85,7 @@ class World:
                 raise TypeError(f"mesh must be an nbvkit.Mesh, got {type(mesh).__name__}")
             self.mesh_path = "<in-memory mesh>"
         self.mesh = mesh
-        _check_above_ground_removal(mesh.bounds, cfg.cloud.min_z)
+        _check_above_ground_removal(cfg, mesh.bounds)
         self.workspace: Workspace = make_workspace(mesh.bounds, cfg)
         # The map first: its size check (cells, OctoMap's range) comes before any search.
         m = cfg.map
