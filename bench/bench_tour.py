@@ -3,10 +3,11 @@
 insertion over them (select_tour, with and without charging the first transit, as the tour
 generator calls it).
 
-``--against DIR`` times select_tour on the same coverage, in the same run, with the nbvkit package
-(and its built extension) of another checkout, DIR/python or DIR (e.g. a saved copy of the
-package before a change), checks that it chooses the same views with the same gains, and prints
-the ratio.
+``--against DIR`` times both, in the same run, with the nbvkit package (and its built extension)
+of another checkout, DIR/python or DIR (e.g. a saved copy of the package before a change): each
+checkout flies the profile and times view_coverage over the same candidates (alternating, best of
+--repeat each), then select_tour on the same coverage; it checks that both give the same coverage
+arrays, and choose the same views with the same gains, and prints the ratios.
 
     .venv/bin/python bench/bench_tour.py
     .venv/bin/python bench/bench_tour.py --against /tmp/main_before --repeat 5
@@ -50,10 +51,29 @@ print(json.dumps({"times": times, "choice": out}))
 """
 
 
-def first_plan(mesh: str | None):
+# Runs in either checkout: the first plan's view_coverage, timed, and a digest of its arrays.
+COVERAGE_SNIPPET = r"""
+import hashlib, json, sys, time
+import numpy as np
+sys.path.insert(0, sys.argv[1])
+from bench_tour import first_plan
+cov, cands, pose, sel, t, again = first_plan(sys.argv[2] or None, with_again=True)
+ts = []
+for _ in range(int(sys.argv[3])):
+    t0 = time.perf_counter()
+    again()
+    ts.append(time.perf_counter() - t0)
+keys = ("offsets", "elements", "weights", "status")
+digest = hashlib.sha1(b"".join(np.ascontiguousarray(cov[k]).tobytes() for k in keys))
+print(json.dumps({"time": min(ts), "digest": digest.hexdigest()}))
+"""
+
+
+def first_plan(mesh: str | None, with_again: bool = False):
     """The coverage of the first tour's candidates, its positions and start, the rate and minimum
     gain in the units select_tour takes, and view_coverage's time, as the tour generator computes
-    them after the mission's profile and symmetry prediction."""
+    them after the mission's profile and symmetry prediction (with_again: and a function that
+    computes the coverage again)."""
     over = ["progress=false"] + ([f"mesh.path={mesh}"] if mesh else [])
     m = Mission(Config().with_overrides(over))
     w, cfg = m.world, m.config
@@ -67,6 +87,8 @@ def first_plan(mesh: str | None):
     t_cov = median_time(lambda: tour.coverage(w, cands), 1)
     cell = w.map.resolution**2
     sel = {"rate": cfg.tour.rate / cell, "min_gain": cfg.tour.min_gain / cell}
+    if with_again:
+        return cov, cands, w.state.pose, sel, t_cov, lambda: tour.coverage(w, cands)
     return cov, cands, w.state.pose, sel, t_cov
 
 
@@ -88,6 +110,21 @@ def main():
             (label, run_snippet(TIME_SNIPPET, (data, json.dumps(sel), args.repeat), py))
             for label, py in checkouts(args.against)
         ]
+    if args.against:  # view_coverage in both checkouts, alternating
+        bench = str(Path(__file__).resolve().parent)
+        cov_rows = {label: [] for label, _ in checkouts(args.against)}
+        for _ in range(2):
+            for label, py in checkouts(args.against):
+                cov_rows[label].append(
+                    run_snippet(COVERAGE_SNIPPET, (bench, args.mesh or "", args.repeat), py)
+                )
+        (la, ra), (lb, rb) = cov_rows.items()
+        ta, tb = (min(r["time"] for r in rr) for rr in (ra, rb))
+        same = len({r["digest"] for r in ra + rb}) == 1
+        print(
+            f"  view_coverage: {la} {ta * 1e3:.0f} ms, {lb} {tb * 1e3:.0f} ms -> {tb / ta:.2f}x; "
+            f"the same arrays: {same}"
+        )
     for label, r in rows:
         t = r["times"]
         n = [len(c[0]) for c in r["choice"]]

@@ -468,3 +468,36 @@ def test_scenario_presets_yield_to_what_the_user_sets():
     assert Config().scenario == "surface" and Config().utility.name == "surface"
     back = Config.from_dict(c2.to_dict())
     assert back == c2  # a written config.yaml reproduces the run
+
+
+def test_view_coverage_sets_hold_what_the_surface_utility_credits_each_view():
+    # view_coverage walks with its own packed copy of the grid (one byte a cell); each view's
+    # set must hold the cells the surface utility credits walking the grid itself, and weigh
+    # them alike: a box seen from two sides, frontier and unknown cells all round it
+    m = nbvkit.OccupancyMap(0.2, (-6, -6, 0), (6, 6, 5))
+    cam = nbvkit.DepthCamera(box_mesh((-1.5, -1.5, 0), (1.5, 1.5, 2.5)), max_range=8.0)
+    surface = _core.SurfaceObservations(m)
+    for pose in ([-5.0, 0.0, 1.5, 0.0], [0.0, -5.0, 2.0, math.pi / 2]):
+        m.mark_free_segment(pose[:3], pose[:3], 1.0)
+        scan = cam.scan_pose(pose)
+        m.integrate(scan)
+        surface.add_scan(scan)
+    rng = np.random.default_rng(3)
+    xy = rng.uniform(-5.5, 5.5, (60, 2))
+    poses = np.column_stack([xy, rng.uniform(0.5, 4.5, 60), np.arctan2(-xy[:, 1], -xy[:, 0])])
+    kw = dict(
+        camera=_core.ViewCameraModel(rays_x=24, rays_y=18, max_range=8.0),
+        utility=dict(name="surface", require_occupied=False),
+        validity=dict(collision_radius=0.0, blocked_path="plan"),
+    )
+    current = [-5.0, 0.0, 1.5, 0.0]
+    cov = _core.view_coverage(m, surface, poses, current, **kw)
+    scores = _core.evaluate_views(m, poses, current, surface=surface, **kw)
+    np.testing.assert_array_equal(cov["status"], scores["status"])
+    sizes = np.diff(cov["offsets"])
+    sums = np.add.reduceat(cov["weights"].astype(float), cov["offsets"][:-1]) * (sizes > 0)
+    valid = scores["status"] == 0
+    assert valid.sum() >= 10 and (sizes[valid] > 0).sum() >= 10
+    # each cell once per view, so the set has one element per credited cell; weights are floats
+    np.testing.assert_array_equal(sizes[valid], scores["cells"][valid])
+    np.testing.assert_allclose(sums[valid], scores["gain"][valid], rtol=1e-5)

@@ -196,7 +196,7 @@ ViewCoverage view_coverage(
     }
     s.resize(m);
   };
-  const ViewScores scores = kernel::score<utility::Surface, true>(job, kernel::GridCells{g});
+  const ViewScores scores = kernel::score<utility::Surface, true>(job, kernel::PackedCells(g));
   ViewCoverage out;
   out.status = scores.status;
   out.offsets.resize(K + 1);

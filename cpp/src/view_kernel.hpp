@@ -12,6 +12,7 @@
 #include <cmath>
 #include <functional>
 #include <limits>
+#include <memory>
 #include <type_traits>
 
 namespace nbv::kernel {
@@ -23,12 +24,48 @@ using Candidates = Eigen::Ref<const Eigen::Matrix<double, Eigen::Dynamic, 4, Eig
 inline double logit(double p) { return std::log(p / (1.0 - p)); }
 
 // Cell readers: the workspace grid (fast), or OctoMap's search per cell (the authors' way, kept
-// as the reference the grid is checked against and as the benchmark baseline).
+// as the reference the grid is checked against and as the benchmark baseline). near_surface is
+// utility::next_to_surface (6 faces) of the cell.
 struct GridCells {
   const GridView& g;
   float scored(std::size_t idx, const int*) const { return g.scored[idx]; }
   float logodds(std::size_t idx, const int*) const { return g.logodds[idx]; }
   CellFlag flag(std::size_t idx, const int*) const { return g.flags[idx]; }
+  bool near_surface(std::size_t, const int* c) const {
+    return utility::next_to_surface(g, *this, c);
+  }
+};
+
+// The grid as one byte per cell, for a call that walks many views with a utility that reads
+// only whether a cell is occupied (the sign of `scored`: +-1 here), its flag, and log-odds
+// where it stops (Surface, view_coverage): made once per call, it lets the walks read one cache
+// line per brick of 64 cells where they read a float and a flag per cell. near_surface is
+// worked out the first time a walk asks and kept in the cell's byte for the rest of the call,
+// in which the grid does not change: two threads may both work it out, and store the same byte.
+class PackedCells {
+ public:
+  explicit PackedCells(const GridView& g) : g(g), bytes_(new std::uint8_t[g.storage_size()]) {
+    parallel_chunks(g.storage_size() >> 6, 256, [&](std::size_t b, std::size_t e) {
+      for (std::size_t i = b << 6; i < e << 6; ++i)
+        bytes_[i] = std::uint8_t(std::signbit(g.scored[i])) | std::uint8_t(g.flags[i]) << 1;
+    });
+  }
+  float scored(std::size_t idx, const int*) const { return bytes_[idx] & kOccupied ? -1.f : 1.f; }
+  float logodds(std::size_t idx, const int*) const { return g.logodds[idx]; }
+  CellFlag flag(std::size_t idx, const int*) const { return CellFlag((bytes_[idx] >> 1) & 3); }
+  bool near_surface(std::size_t idx, const int* c) const {
+    std::uint8_t v = __atomic_load_n(&bytes_[idx], __ATOMIC_RELAXED);
+    if (!(v & kKnown)) {
+      v |= kKnown | (utility::next_to_surface(g, *this, c) ? kNear : 0);
+      __atomic_store_n(&bytes_[idx], v, __ATOMIC_RELAXED);
+    }
+    return v & kNear;
+  }
+  const GridView& g;
+
+ private:
+  static constexpr std::uint8_t kOccupied = 1, kKnown = 8, kNear = 16;  // flag: bits 1-2
+  std::unique_ptr<std::uint8_t[]> bytes_;
 };
 
 struct OctreeCells {
@@ -53,6 +90,10 @@ struct OctreeCells {
   // files and the octree keep no predictions: the grid's flag tells them apart
   CellFlag flag(std::size_t idx, const int* c) const {
     return node(c) ? map.grid().flag(std::int64_t(idx)) : CellFlag::Unknown;
+  }
+  const GridView& g;  // the map's grid: its geometry, for near_surface
+  bool near_surface(std::size_t, const int* c) const {
+    return utility::next_to_surface(g, *this, c);
   }
 };
 

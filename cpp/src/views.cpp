@@ -255,7 +255,7 @@ ViewScores evaluate_views_octree(const OccupancyMap& map, const Candidates& cand
                                  const SurfaceObservations* surface) {
   const GridView g = grid_view(map, surface);
   check_inputs(g, cand, camera, utility, validity);
-  const OctreeCells cells{map, map.octree()};
+  const OctreeCells cells{map, map.octree(), g};
   return dispatch(Job{g, cand, current, camera, utility, validity, false, {}, nullptr}, cells,
                   false);
 }

@@ -44,8 +44,7 @@ struct Surface {
     if (flag == CellFlag::Predicted)
       p = sigmoid(cells.logodds(idx, c));
     else
-      p = next_to_surface(ctx_.grid, cells, c) ? ctx_.options.frontier_prior
-                                               : ctx_.options.unknown_prior;
+      p = cells.near_surface(idx, c) ? ctx_.options.frontier_prior : ctx_.options.unknown_prior;
     if (marks_.insert(idx)) credit(idx, p * density(cells, c, t, false));
     vis_ *= 1.0 - p;
     return vis_ >= ctx_.options.min_visibility;
