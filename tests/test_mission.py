@@ -193,6 +193,23 @@ def test_bad_input_fails_before_any_work():
         Mission(cfg("mesh.path=/nonexistent/mesh.obj"))
 
 
+def test_the_inside_test_does_not_read_the_faces_winding():
+    # a 4 m canyon between two 20 x 3 x 10 m blocks: the blocks fill most directions from its
+    # middle, so a test that counted back faces met first took it for "inside" once the faces
+    # were wound the other way; the parity of each ray's crossings does not care
+    from conftest import box_mesh
+
+    a, b = box_mesh((-10, -5, 0), (10, -2, 10)), box_mesh((-10, 2, 0), (10, 5, 10))
+    v, f = np.vstack([a.vertices, b.vertices]), np.vstack([a.faces, b.faces + 8])
+    windings = {"outward": f, "reversed": f[:, ::-1], "both": np.vstack([f, f[:, ::-1]])}
+    for name, faces in windings.items():
+        mesh = nbvkit.Mesh(v, np.ascontiguousarray(faces))
+        m = Mission(cfg("scenario=1", "start_pose=[0.0, 0.0, 5.0, 1.5708]"), mesh=mesh)
+        assert m.world.start_pose[1] == 0.0, name
+        with pytest.raises(MissionError, match="inside the structure"):
+            Mission(cfg("scenario=1", "start_pose=[0.0, -3.5, 5.0, 0.0]"), mesh=mesh)
+
+
 def test_cli_run_and_help(tmp_path, capsys):
     from nbvkit.cli import main
 

@@ -186,17 +186,32 @@ class World:
         t, prim = self.scene.intersect(o, dirs, 0.0, np.inf)
         if np.any(t <= max(r, 1e-6)):
             return f"is within the collision radius ({r} m) of the structure"
-        # Inside test: from outside, a ray always enters the first surface it meets through a
-        # front face (outward-oriented parts, even intersecting ones); from inside, most first
-        # hits are back faces. Open shells seen from outside give some back faces, hence a vote.
-        hit = prim >= 0
-        if hit.any():
-            v, f = self.mesh.vertices, self.mesh.faces[prim[hit]]
-            n = np.cross(v[f[:, 1]] - v[f[:, 0]], v[f[:, 2]] - v[f[:, 0]])
-            back = np.einsum("ij,ij->i", n, dirs[hit]) > 0
-            if back.sum() > 0.5 * len(dirs):
-                return "is inside the structure"
+        # Inside test, by the parity of each ray's crossings: a ray from inside a closed surface
+        # crosses it an odd number of times, from outside an even number, whichever way the
+        # faces are wound (reversed, mixed, or doubled back to back). Holes and open shells make
+        # some rays wrong, hence a vote over all of them.
+        if (self._crossings(o, dirs) % 2 == 1).sum() > 0.5 * len(dirs):
+            return "is inside the structure"
         return None
+
+    def _crossings(self, origin, dirs, max_crossings: int = 64) -> np.ndarray:
+        """(N,) times each ray from `origin` (1, 3) along `dirs` (N, 3) crosses the structure's
+        surface. Faces met at the same point (a shared edge, coincident faces) count once: the
+        next search starts 1e-6 of the structure's size past each hit."""
+        lo, hi = self.mesh.bounds
+        eps = 1e-6 * max(float(np.max(hi - lo)), 1e-3)
+        count = np.zeros(len(dirs), int)
+        o = np.repeat(np.asarray(origin, float).reshape(1, 3), len(dirs), axis=0)
+        live = np.arange(len(dirs))
+        for _ in range(max_crossings):
+            t, prim = self.scene.intersect(o[live], dirs[live], 0.0, np.inf)
+            hit = prim >= 0
+            live = live[hit]
+            if len(live) == 0:
+                break
+            count[live] += 1
+            o[live] += (t[hit] + eps)[:, None] * dirs[live]
+        return count
 
     # ------------------------------------------------------------------ sensing
     def sense_camera(self, pose=None, view: bool = True):
