@@ -1,5 +1,6 @@
-"""Writes six structures unlike the ones the planner's settings were measured on, to fly it on
-shapes it was never tuned for (docs/RESULTS.md, "Six structures built after the settings"):
+"""Writes nine structures unlike the ones the planner's settings were measured on, to fly it on
+shapes it was never tuned for (docs/RESULTS.md, "Six structures built after the settings" and
+"Three more: a domed drum, a guyed chimney, solar rows"):
 
 - turbine: a 32 m tapered tower, a nacelle, a hub and three 15 m blades (tall, thin, overhead);
 - lbuild: an L-shaped building, 30 x 28 x 12 m, with a low annex, roof slabs overhanging by 1 m,
@@ -11,7 +12,13 @@ shapes it was never tuned for (docs/RESULTS.md, "Six structures built after the 
 - ship: a 48 m hull tapered at the bow, a superstructure with overhanging bridge wings, a mast,
   a stack and a row of containers, turned 40 degrees and moved 300 m east and 200 m south;
 - arch: a 40 m twin-tube arch, 12 m high, a deck at 6 m hung from thin hangers, two abutments,
-  turned -25 degrees.
+  turned -25 degrees;
+- dome: a 20 m drum, 6 m high, under a hemispherical dome, with a lantern on top and four
+  porches (one large curved surface, seen mostly at grazing angles from a level camera);
+- chimney: a 40 m chimney, 3 m across, with a gallery at 30 m and three guy wires 6 cm thick
+  (thinner than a map cell) down to anchors 20 m out (tall, with members the map barely holds);
+- solar: four rows of solar panels, 16 x 2 m and 5 cm thick, tilted 25 degrees on posts, moved
+  to x = -120 m and turned 15 degrees (wide, flat and low, thin plates seen from both sides).
 
 Each part is a closed triangle mesh (boxes, capped cylinders or cones, a sphere); parts overlap
 where they join, as in a modelled structure. The output is deterministic.
@@ -68,16 +75,18 @@ class Builder:
             f += [(k, j, n + k), (j, n + j, n + k), (2 * n, j, k), (2 * n + 1, n + k, n + j)]
         self.add(v, f)
 
-    def sphere(self, c, r, n=16):
+    def sphere(self, c, r, n=16, upper_half=False):
+        """A sphere of 2n x n quads; upper_half: only its upper half (open at the equator)."""
         c = np.asarray(c, float)
         v, f = [], []
-        for i in range(n + 1):
+        rings = n // 2 if upper_half else n
+        for i in range(rings + 1):
             th = math.pi * i / n
             for k in range(2 * n):
                 ph = math.pi * k / n
                 d = [math.sin(th) * math.cos(ph), math.sin(th) * math.sin(ph), math.cos(th)]
                 v.append(c + r * np.array(d))
-        for i in range(n):
+        for i in range(rings):
             for k in range(2 * n):
                 a, b = i * 2 * n + k, i * 2 * n + (k + 1) % (2 * n)
                 f += [(a, a + 2 * n, b), (b, a + 2 * n, b + 2 * n)]
@@ -195,6 +204,68 @@ def arch() -> Builder:
     return m.place(-25)
 
 
+def dome() -> Builder:
+    m = Builder()
+    m.cylinder([0, 0, 0], [0, 0, 6], 10.0, n=48)  # drum
+    m.sphere([0, 0, 6], 10.0, n=24, upper_half=True)  # dome, on the drum's top
+    m.cylinder([0, 0, 15.5], [0, 0, 19], 1.5, n=16)  # lantern
+    for a in range(4):  # porches
+        t = math.pi / 2 * a + math.pi / 4
+        c, d = np.array([math.cos(t), math.sin(t)]), np.array([-math.sin(t), math.cos(t)])
+        for s in (-1.5, 1.5):  # two columns each
+            p = (11.5 * c + s * d).tolist()
+            m.cylinder([p[0], p[1], 0], [p[0], p[1], 4], 0.3, n=12)
+        lo, hi = np.minimum(9.0 * c - 2.2 * d, 12.5 * c + 2.2 * d), np.maximum(
+            9.0 * c - 2.2 * d, 12.5 * c + 2.2 * d
+        )
+        m.box([lo[0], lo[1], 4.0], [hi[0], hi[1], 4.6])  # porch roof
+    return m
+
+
+def chimney() -> Builder:
+    m = Builder()
+    m.cylinder([0, 0, 0], [0, 0, 40], 1.8, 1.3, n=32)
+    m.cylinder([0, 0, 29.6], [0, 0, 30], 2.6, n=32)  # gallery
+    for k in range(3):  # guy wires
+        t = 2 * math.pi * k / 3
+        m.cylinder(
+            [1.5 * math.cos(t), 1.5 * math.sin(t), 30],
+            [20 * math.cos(t), 20 * math.sin(t), 0.3],
+            0.03,
+            n=6,
+        )
+        m.box(
+            [20 * math.cos(t) - 0.5, 20 * math.sin(t) - 0.5, 0],
+            [20 * math.cos(t) + 0.5, 20 * math.sin(t) + 0.5, 0.5],
+        )
+    return m
+
+
+def solar() -> Builder:
+    m, tilt = Builder(), math.radians(25)
+    for row in range(4):
+        y0 = 5.0 * row
+        # a plate 16 x 2 x 0.05 m tilted about x, its low edge at 0.8 m
+        v, f = [], []
+        for z_off in (0.0, 0.05):
+            for w in (0.0, 2.0):
+                for x in (0.0, 16.0):
+                    v.append(
+                        [
+                            x,
+                            y0 + w * math.cos(tilt) - z_off * math.sin(tilt),
+                            0.8 + w * math.sin(tilt) + z_off * math.cos(tilt),
+                        ]
+                    )
+        f = [(0, 2, 1), (1, 2, 3), (4, 5, 6), (5, 7, 6), (0, 1, 4), (1, 5, 4)]
+        f += [(2, 6, 3), (3, 6, 7), (0, 4, 2), (2, 4, 6), (1, 3, 5), (3, 7, 5)]
+        m.add(v, f)
+        for x in (1.0, 8.0, 15.0):  # posts under the low and the high edge
+            m.cylinder([x, y0 + 0.3, 0], [x, y0 + 0.3, 0.9], 0.06, n=8)
+            m.cylinder([x, y0 + 1.5, 0], [x, y0 + 1.5, 1.45], 0.06, n=8)
+    return m.place(15, (-120.0, 0.0, 0.0))
+
+
 STRUCTURES = {
     "turbine": turbine,
     "lbuild": lbuild,
@@ -202,6 +273,9 @@ STRUCTURES = {
     "girder": girder,
     "ship": ship,
     "arch": arch,
+    "dome": dome,
+    "chimney": chimney,
+    "solar": solar,
 }
 
 
