@@ -37,6 +37,34 @@ def test_table_command_writes_one_report_linking_every_run(tiny_table):
     assert len(list((tiny_table / "cache").glob("observable-*.npz"))) == 1
 
 
+def test_compare_command_writes_its_table_from_the_runs(tmp_path):
+    # two planners from two starts: compare.md / compare.csv hold each planner's mean and spread
+    # of the runs in runs.csv, observable area coverage included, and the figure is written
+    from nbvkit.cli import main
+
+    out = tmp_path / "cmp"
+    args = ["compare", "--planners", "surface,1", "--starts", "2", "--workers", "2"]
+    assert main([*args, "--set", *TINY, "--out", str(out)]) == 0
+    runs = pd.read_csv(out / "runs.csv")
+    t = pd.read_csv(out / "compare.csv")
+    assert list(t["Planner"].astype(str)) == ["surface", "1"]
+    for planner in ("surface", "1"):
+        sub = runs[runs["scenario"].astype(str) == planner]
+        got = t[t["Planner"].astype(str) == planner].iloc[0]
+        assert len(sub) == 2 == got["runs"]
+        for col, name in (
+            ("area_coverage_0.05", "Area cov. @0.05 m"),
+            ("area_coverage_observable_0.05", "Observable area cov. @0.05 m"),
+            ("distance_m", "Distance (m)"),
+        ):
+            assert got[name] == pytest.approx(sub[col].mean()), (planner, name)
+            assert got[name + " sd"] == pytest.approx(sub[col].std(ddof=0)), (planner, name)
+        assert 0 < got["Observable area cov. @0.05 m"] <= 1
+    md = (out / "compare.md").read_text()
+    assert "Observable area cov. @0.05 m" in md.splitlines()[0]
+    assert (out / "figures" / "coverage_vs_distance.png").stat().st_size > 0
+
+
 def test_table_command_writes_the_papers_layout(tiny_table):
     md = (tiny_table / "table2.md").read_text()
     rows = [ln for ln in md.splitlines() if ln.startswith("| ") and not ln.startswith("| Scenario")]

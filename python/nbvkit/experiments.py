@@ -660,6 +660,8 @@ COMPARE_COLUMNS = (
     ("coverage_0.5", "Coverage @0.50 m"),
     ("area_coverage_0.05", "Area cov. @0.05 m"),
     ("area_coverage_0.1", "Area cov. @0.10 m"),
+    # the same, of the surface a camera flown through the navigation space could see
+    ("area_coverage_observable_0.05", "Observable area cov. @0.05 m"),
     ("distance_m", "Distance (m)"),
     ("views", "Views"),
     ("wall_time_s", "Wall time (s)"),

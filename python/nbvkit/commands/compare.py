@@ -20,7 +20,8 @@ def register(sub) -> argparse.ArgumentParser:
         description="Run each planner (a scenario: surface, surface_nbv, 1-5, ...) from K "
         "predefined starts on a structure, in parallel, and write into DIR: runs.csv (one row "
         "per run), compare.csv and compare.md (mean and spread over the starts: coverage at "
-        "each resolution, area coverage, distance, views, wall time), figures/"
+        "each resolution, area coverage, area coverage of the observable surface, distance, "
+        "views, wall time), figures/"
         "coverage_vs_distance.png (coverage at 0.05 m against distance per planner, the "
         "paper's Scenario 5 end point marked) and each run's folder under DIR/runs/. "
         "Interrupted comparisons resume: finished runs are kept.",
