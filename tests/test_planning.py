@@ -501,3 +501,60 @@ def test_view_coverage_sets_hold_what_the_surface_utility_credits_each_view():
     # each cell once per view, so the set has one element per credited cell; weights are floats
     np.testing.assert_array_equal(sizes[valid], scores["cells"][valid])
     np.testing.assert_allclose(sums[valid], scores["gain"][valid], rtol=1e-5)
+
+
+def test_a_view_that_reaches_where_a_stranded_patchs_views_would_be_is_credited_with_it():
+    # Known free air for x < 5, unknown beyond, a wall at x = 10. A patch on the wall can only be
+    # looked at from the unknown air: its view at x = 8 fails the collision test for want of known
+    # free space, the one at x = 9.6 because the wall is within its collision radius. A view at
+    # x = 3 facing the wall reaches the cell at x = 8 (unknown space its frame would make known)
+    # and is credited with access_weight x the patch's weight, once; the same view facing away
+    # is not, and once credited to a chosen view the place is not credited again.
+    from types import SimpleNamespace
+
+    from nbvkit.planning.generators.tour import CoverageTour
+
+    m = nbvkit.OccupancyMap(0.2, (0, 0, 0), (12, 6, 4))
+    m.mark_free_segment((2.5, 3.0, 2.0), (2.5, 3.0, 2.0), 2.5)
+    wall = np.array([[10.1, y, z] for y in np.arange(0.1, 6, 0.2) for z in np.arange(0.1, 4, 0.2)])
+    m.update_cells(wall, occupied=True)
+    surface = _core.SurfaceObservations(m)
+    cands = np.array(
+        [
+            [8.1, 3.1, 2.1, math.pi],
+            [9.6, 3.1, 2.1, math.pi],
+            [3.0, 3.1, 2.1, 0.0],
+            [3.0, 3.1, 2.1, math.pi],
+        ]
+    )
+    owner = np.array([0, 0, 1, 1])
+    patches = Patches(
+        np.array([[10.0, 3.0, 2.0], [2.0, 3.0, 2.0]]), -np.eye(3)[[0, 0]], np.array([40.0, 10.0])
+    )
+    cov = _core.view_coverage(
+        m,
+        surface,
+        cands,
+        [3.0, 3.1, 2.1, 0.0],
+        camera=_core.ViewCameraModel(rays_x=13, rays_y=9, max_range=8.0),
+        utility=dict(name="surface", require_occupied=False),
+        validity=dict(collision_radius=0.8, blocked_path="plan"),
+    )
+    assert cov["status"].tolist() == [2, 2, 0, 0]
+    cfg = Config().with_overrides(["tour.access_weight=0.5"])
+    tour = CoverageTour(cfg)
+    world = SimpleNamespace(map=m)
+    out, opens = tour._access(world, cov, cands, owner, patches)
+    size = np.diff(cov["offsets"])
+    new_size = np.diff(out["offsets"])
+    assert new_size.tolist() == [0, 0, size[2] + 1, size[3]]
+    last = out["offsets"][3] - 1  # the facing view's extra element, after its own
+    assert out["elements"][last] > cov["elements"].max() and out["weights"][last] == 20.0
+    keep = np.delete(np.arange(len(out["elements"])), last)
+    np.testing.assert_array_equal(out["elements"][keep], cov["elements"])
+    assert list(opens) == [2] and len(opens[2]) == 1  # the cell at x = 8, not the one at 9.6
+    tour.opened.update(opens[2])
+    again, _ = tour._access(world, cov, cands, owner, patches)
+    np.testing.assert_array_equal(again["offsets"], cov["offsets"])
+    off = CoverageTour(Config())._access(world, cov, cands, owner, patches)[0]  # weight 0: off
+    np.testing.assert_array_equal(off["elements"], cov["elements"])

@@ -304,6 +304,9 @@ class TourConfig:
     min_gain: float = 1.2  # m^2 of new surface a view must add to enter a plan (docs/RESULTS.md)
     rate: float = 0.75  # m^2 of new surface per metre of tour a planned view must pay for
     max_plans: int = 0  # tours planned at most (0: until a plan is empty)
+    # a stranded patch: all its views fail the collision test for want of known free space;
+    # a view whose rays reach where they would be gets this share of its weight
+    access_weight: float = 0.0  # share of a stranded patch credited to a view opening it; 0: off
 
 
 @dataclass(frozen=True)
@@ -728,6 +731,7 @@ _NONNEG = {
     "tour.rate",
     "profiling.camera_step",
     "tour.max_plans",
+    "tour.access_weight",
     "planner.min_gain",
     "planner.travel_lambda",
     "planner.reference_area",

@@ -9,7 +9,10 @@ tour.rate m^2 per metre of the detour they cause are dropped, the worst first, u
 pays. The tour is then proposed one view at a time (exclusive proposals): the planner re-scores
 each against the current map and skips it when it no longer adds tour.min_gain. When the tour is
 done the next plan is made from what the map shows then; a plan with no view left, or one none
-of whose views could be flown, ends the generator (tour.max_plans caps the plans). On a structure
+of whose views could be flown, ends the generator (tour.max_plans caps the plans). With
+tour.access_weight > 0 a view is also credited with the surface it would give access to: patches
+whose every view fails the collision test for want of known free space, where its rays reach
+the place of such a view (_access; off by default, docs/RESULTS.md). On a structure
 smaller than planner.reference_area both thresholds shrink with it (parts.threshold_scale)."""
 from __future__ import annotations
 
@@ -27,6 +30,7 @@ class CoverageTour:
         self.aims = np.zeros((0, 3))
         self.next = 0
         self.plans: list[dict] = []  # per plan: views selected, kept, flown, planned length
+        self.opened: set[int] = set()  # cells of stranded views a chosen view was credited with
 
     # ------------------------------------------------------------------ planning
     def candidates(self, world):
@@ -74,6 +78,7 @@ class CoverageTour:
             return np.zeros((0, 4))
         pose = world.state.pose
         coverage = self.coverage(world, candidates)
+        coverage, opens = self._access(world, coverage, candidates, owner, patches)
         if cfg.tour.selection == "insertion":
             # anchored at the vehicle, and with the first view's transit free (a far cluster
             # that pays only as a whole); the tour worth more after prize collection is flown
@@ -88,6 +93,8 @@ class CoverageTour:
             order = _core.solve_tour(candidates[chosen, :3], pose[:3])[0] if chosen else []
             order = prize_collect(pose[:3], candidates[chosen, :3], gains, order, rate)
         record["selected"] = len(chosen)
+        for k in chosen:  # the places a chosen view opens are not credited again
+            self.opened.update(opens.get(int(k), ()))
         views, aims = candidates[chosen], patches.centers[owner[chosen]]
         record["kept"] = len(order)
         if order:
@@ -95,6 +102,68 @@ class CoverageTour:
             record["length_m"] = float(np.linalg.norm(np.diff(pts, axis=0), axis=1).sum())
         self.aims = aims[order]
         return views[order]
+
+    def _access(self, world, coverage, candidates, owner, patches):
+        """(coverage, opens): the coverage with, for each valid view, one element per stranded
+        patch it would open, weighing tour.access_weight x the patch's weight; opens: per such
+        view, the cells of the stranded views it reaches. A patch is stranded when none of its
+        views is valid and some fail the collision test only for want of known free space (no
+        occupied cell within the collision radius); a valid view opens it when its rays reach the
+        cell of one of those views (the cell is in its coverage set: unknown space the frame
+        would make known)."""
+        w = self.cfg.tour.access_weight
+        status = coverage["status"]
+        if w <= 0 or len(status) == 0:
+            return coverage, {}
+        valid = status == 0
+        seen = np.zeros(len(patches.weights), bool)
+        seen[owner[valid]] = True
+        failed = np.flatnonzero((status == COLLISION) & ~seen[owner])
+        if len(failed) == 0 or not valid.any():
+            return coverage, {}
+        m = world.map
+        pos = candidates[failed, :3]
+        r = self.cfg.vehicle.collision_radius
+        free_of_structure = ~_occupied_within(m, pos, r)
+        failed, pos = failed[free_of_structure], pos[free_of_structure]
+        cells = _layout_ids(m, pos)
+        keep = (cells >= 0) & ~np.isin(cells, list(self.opened))
+        failed, cells = failed[keep], cells[keep]
+        if len(failed) == 0:
+            return coverage, {}
+        order = np.argsort(cells, kind="stable")
+        cells, patch = cells[order], owner[failed][order]
+        off, el, wt = (np.asarray(coverage[k]) for k in ("offsets", "elements", "weights"))
+        view = np.repeat(np.arange(len(off) - 1), np.diff(off))
+        hit = np.flatnonzero(np.isin(el // 2, cells))
+        lo = np.searchsorted(cells, el[hit] // 2, "left")
+        hi = np.searchsorted(cells, el[hit] // 2, "right")
+        n = hi - lo
+        rows = np.repeat(np.arange(len(hit)), n)
+        idx = np.repeat(lo - np.cumsum(n) + n, n) + np.arange(n.sum())
+        pairs = np.unique(np.column_stack([view[hit][rows], patch[idx], cells[idx]]), axis=0)
+        if len(pairs) == 0:
+            return coverage, {}
+        opens: dict = {}
+        for v, c in zip(pairs[:, 0], pairs[:, 2]):
+            opens.setdefault(int(v), []).append(int(c))
+        vp = np.unique(pairs[:, :2], axis=0)  # (view, patch), sorted by view
+        base = int(el.max()) + 1 if len(el) else 0
+        extra = np.bincount(vp[:, 0], minlength=len(off) - 1)
+        new_off = off + np.concatenate([[0], np.cumsum(extra)])
+        new_el = np.empty(len(el) + len(vp), el.dtype)
+        new_wt = np.empty(len(wt) + len(vp), wt.dtype)
+        shift = np.concatenate([[0], np.cumsum(extra)])[:-1]
+        at = np.arange(len(el)) + shift[view]
+        new_el[at], new_wt[at] = el, wt
+        first = new_off[1:] - extra  # where each view's extra elements start
+        j = np.arange(len(vp)) - np.repeat(np.cumsum(extra) - extra, extra)
+        at = first[vp[:, 0]] + j
+        new_el[at] = base + vp[:, 1]
+        new_wt[at] = w * patches.weights[vp[:, 1]]
+        out = dict(coverage)
+        out.update(offsets=new_off, elements=new_el, weights=new_wt)
+        return out, opens
 
     def _insertion_tour(self, coverage, candidates, pose, cell_m2, min_gain, rate, charge_transit):
         """(chosen, gains m^2, kept order into chosen, net value m^2) of a prize-collecting
@@ -173,6 +242,33 @@ def prize_collect(start, points, gains, order, rate) -> list:
             break
         del order[best_ij[0] : best_ij[1] + 1]
     return order
+
+
+COLLISION = 2  # ViewStatus::Collision (_core.view_status_names)
+
+
+def _occupied_within(occupancy_map, points, radius) -> np.ndarray:
+    """(N,) whether an occupied cell lies within `radius` of each point (cells sampled at the
+    map's resolution over the ball)."""
+    res = occupancy_map.resolution
+    k = int(np.ceil(radius / res))
+    g = np.arange(-k, k + 1) * res
+    off = np.stack(np.meshgrid(g, g, g, indexing="ij"), -1).reshape(-1, 3)
+    off = off[np.linalg.norm(off, axis=1) <= radius + 0.5 * res]
+    q = (points[:, None, :] + off[None]).reshape(-1, 3)
+    return (occupancy_map.state(q).reshape(len(points), -1) == 1).any(axis=1)
+
+
+def _layout_ids(occupancy_map, points) -> np.ndarray:
+    """(N,) the grid's storage id of each point's cell (its bricks of 4 x 4 x 4 cells, as the
+    coverage sets' elements // 2 name cells), -1 outside the workspace."""
+    nx, ny, _ = occupancy_map.shape
+    f = np.asarray(occupancy_map.index_of(points), np.int64)
+    i, j, k = f % nx, (f // nx) % ny, f // (nx * ny)
+    bx, by = (nx + 3) // 4, (ny + 3) // 4
+    brick = (i >> 2) + bx * ((j >> 2) + by * (k >> 2))
+    ids = brick << 6 | (i & 3) | (j & 3) << 2 | (k & 3) << 4
+    return np.where(f >= 0, ids, -1)
 
 
 def _length(start, points, order) -> float:
