@@ -558,3 +558,19 @@ def test_a_view_that_reaches_where_a_stranded_patchs_views_would_be_is_credited_
     np.testing.assert_array_equal(again["offsets"], cov["offsets"])
     off = CoverageTour(Config())._access(world, cov, cands, owner, patches)[0]  # weight 0: off
     np.testing.assert_array_equal(off["elements"], cov["elements"])
+
+
+def test_append_elements_keeps_each_views_set_in_order():
+    from nbvkit.planning.generators.tour import _append_elements
+
+    cov = {
+        "offsets": np.array([0, 2, 2, 5]),
+        "elements": np.array([1, 3, 0, 4, 9]),
+        "weights": np.array([1.0, 2.0, 3.0, 4.0, 5.0], np.float32),
+        "status": np.zeros(3, np.int8),
+    }
+    out = _append_elements(cov, np.array([0, 0, 2]), np.array([10, 11, 12]), [0.1, 0.2, 0.3])
+    assert out["offsets"].tolist() == [0, 4, 4, 8]
+    assert out["elements"].tolist() == [1, 3, 10, 11, 0, 4, 9, 12]
+    np.testing.assert_allclose(out["weights"], [1, 2, 0.1, 0.2, 3, 4, 5, 0.3], rtol=1e-6)
+    assert out["status"] is cov["status"]

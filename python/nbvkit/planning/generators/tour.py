@@ -148,22 +148,9 @@ class CoverageTour:
         for v, c in zip(pairs[:, 0], pairs[:, 2]):
             opens.setdefault(int(v), []).append(int(c))
         vp = np.unique(pairs[:, :2], axis=0)  # (view, patch), sorted by view
-        base = int(el.max()) + 1 if len(el) else 0
-        extra = np.bincount(vp[:, 0], minlength=len(off) - 1)
-        new_off = off + np.concatenate([[0], np.cumsum(extra)])
-        new_el = np.empty(len(el) + len(vp), el.dtype)
-        new_wt = np.empty(len(wt) + len(vp), wt.dtype)
-        shift = np.concatenate([[0], np.cumsum(extra)])[:-1]
-        at = np.arange(len(el)) + shift[view]
-        new_el[at], new_wt[at] = el, wt
-        first = new_off[1:] - extra  # where each view's extra elements start
-        j = np.arange(len(vp)) - np.repeat(np.cumsum(extra) - extra, extra)
-        at = first[vp[:, 0]] + j
-        new_el[at] = base + vp[:, 1]
-        new_wt[at] = w * patches.weights[vp[:, 1]]
-        out = dict(coverage)
-        out.update(offsets=new_off, elements=new_el, weights=new_wt)
-        return out, opens
+        base = int(el.max()) + 1 if len(el) else 0  # past every cell's element
+        extra = (vp[:, 0], base + vp[:, 1], w * patches.weights[vp[:, 1]])
+        return _append_elements(coverage, *extra), opens
 
     def _insertion_tour(self, coverage, candidates, pose, cell_m2, min_gain, rate, charge_transit):
         """(chosen, gains m^2, kept order into chosen, net value m^2) of a prize-collecting
@@ -245,6 +232,26 @@ def prize_collect(start, points, gains, order, rate) -> list:
 
 
 COLLISION = 2  # ViewStatus::Collision (_core.view_status_names)
+
+
+def _append_elements(coverage, views, elements, weights) -> dict:
+    """The coverage sets (offsets, elements, weights: per view, its elements in increasing order)
+    with elements[i] (larger than any of the view's own) and its weight appended to the set of
+    views[i]; views in increasing order."""
+    off, el, wt = (np.asarray(coverage[k]) for k in ("offsets", "elements", "weights"))
+    count = np.diff(off)
+    extra = np.bincount(views, minlength=len(count))
+    before = np.concatenate([[0], np.cumsum(extra)])  # extra elements before each view's set
+    new_off = off + before
+    new_el = np.empty(len(el) + len(views), el.dtype)
+    new_wt = np.empty(len(wt) + len(views), wt.dtype)
+    at = np.arange(len(el)) + np.repeat(before[:-1], count)
+    new_el[at], new_wt[at] = el, wt
+    at = new_off[1:][views] - extra[views] + (np.arange(len(views)) - before[views])
+    new_el[at], new_wt[at] = elements, weights
+    out = dict(coverage)
+    out.update(offsets=new_off, elements=new_el, weights=new_wt)
+    return out
 
 
 def _occupied_within(occupancy_map, points, radius) -> np.ndarray:
