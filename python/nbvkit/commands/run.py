@@ -104,10 +104,11 @@ def run(args) -> int:
     print("coverage  " + "  ".join(f"@{k} m {v:6.1%}" for k, v in cov.items()))
     print("area cov. " + "  ".join(f"@{k} m {v:6.1%}" for k, v in s["area_coverage"].items()))
     if "coverage_observable" in s:
-        print(
-            "of the observable surface ("
-            + f"{s['observable_area_fraction']:.1%} of the area): "
-            + "  ".join(f"@{k} m {v:6.1%}" for k, v in s["coverage_observable"].items())
-        )
+        print(f"of the observable surface ({s['observable_area_fraction']:.1%} of the area):")
+        for name, key in (
+            ("coverage", "coverage_observable"),
+            ("area cov.", "area_coverage_observable"),
+        ):
+            print(f"  {name:<9} " + "  ".join(f"@{k} m {v:6.1%}" for k, v in s[key].items()))
     print(f"wall time {s['wall_time_s']:.1f} s, {s['ms_per_iteration']:.1f} ms/iteration -> {out}/")
     return 0
