@@ -546,3 +546,17 @@ def test_bad_input_for_every_entry_point(box_scene_scans):
     # nothing above changed the map
     assert m.counts()["unknown"] == m.num_cells
     assert m.total_entropy() == pytest.approx(m.num_cells * LN2, rel=1e-15)
+
+
+def test_storage_index_names_each_cell_once_by_its_brick():
+    # a 15 x 10 x 5 grid is stored in bricks of 4 x 4 x 4 cells (4 x 3 x 2 of them, padded):
+    # each cell has its own id below 64 x 24, the cells of one brick share id // 64, -1 outside
+    m = nbvkit.OccupancyMap(0.2, (0, 0, 0), (3.0, 2.0, 1.0))
+    nx, ny, nz = m.shape
+    ijk = np.stack(np.meshgrid(np.arange(nx), np.arange(ny), np.arange(nz), indexing="ij"), -1)
+    centres = (ijk.reshape(-1, 3) + 0.5) * 0.2
+    ids = m.storage_index(centres)
+    assert len(np.unique(ids)) == nx * ny * nz and ids.min() >= 0 and ids.max() < 64 * 4 * 3 * 2
+    brick = ijk.reshape(-1, 3) // 4
+    np.testing.assert_array_equal(ids // 64, brick[:, 0] + 4 * (brick[:, 1] + 3 * brick[:, 2]))
+    assert m.storage_index([[-1.0, 0.5, 0.5], [0.5, 0.5, 5.0]]).tolist() == [-1, -1]

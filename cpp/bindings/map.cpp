@@ -367,6 +367,27 @@ cell is i + nx * (j + ny * k) == grid.ravel(order='F') position.)doc");
           "int64 (...) flat workspace index i + nx * (j + ny * k) of each point's cell, -1 "
           "outside.")
       .def(
+          "storage_index",
+          [](const OccupancyMap& m, const py::handle& points) {
+            auto p = nd_points(points, "query points");
+            auto pm = p.map();
+            std::vector<std::int64_t> out(std::size_t(pm.rows()));
+            const GridLayout& layout = m.grid().layout();
+            for (Eigen::Index r = 0; r < pm.rows(); ++r) {
+              OccupancyMap::Key k;
+              const bool in = m.coord_to_key(pm.row(r).transpose(), k) && m.in_workspace(k);
+              out[std::size_t(r)] =
+                  in ? std::int64_t(layout.id(k[0] - m.min_key()[0], k[1] - m.min_key()[1],
+                                              k[2] - m.min_key()[2]))
+                     : -1;
+            }
+            return shaped(p.lead, out.data());
+          },
+          py::arg("points"),
+          "int64 (...) where each point's cell is stored in the workspace grid (its bricks of "
+          "4 x 4 x 4 cells): the cell ids of view_coverage's elements (element // 2); -1 "
+          "outside.")
+      .def(
           "in_workspace",
           [](const OccupancyMap& m, const py::handle& points) {
             auto p = nd_points(points, "query points");

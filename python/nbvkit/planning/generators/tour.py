@@ -126,7 +126,7 @@ class CoverageTour:
         r = self.cfg.vehicle.collision_radius
         free_of_structure = ~_occupied_within(m, pos, r)
         failed, pos = failed[free_of_structure], pos[free_of_structure]
-        cells = _layout_ids(m, pos)
+        cells = np.asarray(m.storage_index(pos), np.int64)
         keep = (cells >= 0) & ~np.isin(cells, list(self.opened))
         failed, cells = failed[keep], cells[keep]
         if len(failed) == 0:
@@ -264,18 +264,6 @@ def _occupied_within(occupancy_map, points, radius) -> np.ndarray:
     off = off[np.linalg.norm(off, axis=1) <= radius + 0.5 * res]
     q = (points[:, None, :] + off[None]).reshape(-1, 3)
     return (occupancy_map.state(q).reshape(len(points), -1) == 1).any(axis=1)
-
-
-def _layout_ids(occupancy_map, points) -> np.ndarray:
-    """(N,) the grid's storage id of each point's cell (its bricks of 4 x 4 x 4 cells, as the
-    coverage sets' elements // 2 name cells), -1 outside the workspace."""
-    nx, ny, _ = occupancy_map.shape
-    f = np.asarray(occupancy_map.index_of(points), np.int64)
-    i, j, k = f % nx, (f // nx) % ny, f // (nx * ny)
-    bx, by = (nx + 3) // 4, (ny + 3) // 4
-    brick = (i >> 2) + bx * ((j >> 2) + by * (k >> 2))
-    ids = brick << 6 | (i & 3) | (j & 3) << 2 | (k & 3) << 4
-    return np.where(f >= 0, ids, -1)
 
 
 def _length(start, points, order) -> float:
