@@ -115,6 +115,21 @@ py::array_t<T, py::array::f_style> grid(const OccupancyMap& m, const F& f) {
   return out;
 }
 
+/// An int64 (...) array of id(i, j, k) of the workspace cell holding each point, -1 outside.
+template <typename F>
+py::array_t<std::int64_t> cell_ids(const OccupancyMap& m, const py::handle& points, const F& id) {
+  auto p = nd_points(points, "query points");
+  auto pm = p.map();
+  std::vector<std::int64_t> out(std::size_t(pm.rows()));
+  for (Eigen::Index r = 0; r < pm.rows(); ++r) {
+    OccupancyMap::Key k;
+    const bool in = m.coord_to_key(pm.row(r).transpose(), k) && m.in_workspace(k);
+    out[std::size_t(r)] =
+        in ? id(k[0] - m.min_key()[0], k[1] - m.min_key()[1], k[2] - m.min_key()[2]) : -1;
+  }
+  return shaped(p.lead, out.data());
+}
+
 const char* kIntegrateDoc = R"doc(
 Integrate one scan: integrate(scan) or integrate(origin, hits, free_ends=None, max_range=inf).
 
@@ -348,20 +363,10 @@ cell is i + nx * (j + ny * k) == grid.ravel(order='F') position.)doc");
       .def(
           "index_of",
           [](const OccupancyMap& m, const py::handle& points) {
-            auto p = nd_points(points, "query points");
-            auto pm = p.map();
-            std::vector<std::int64_t> out(std::size_t(pm.rows()));
-            for (Eigen::Index r = 0; r < pm.rows(); ++r) {
-              OccupancyMap::Key k;
-              const bool in = m.coord_to_key(pm.row(r).transpose(), k) && m.in_workspace(k);
-              const auto& d = m.dims();
-              out[std::size_t(r)] =
-                  in ? std::int64_t(k[0] - m.min_key()[0]) +
-                           std::int64_t(d[0]) * (std::int64_t(k[1] - m.min_key()[1]) +
-                                                 std::int64_t(d[1]) * (k[2] - m.min_key()[2]))
-                     : -1;
-            }
-            return shaped(p.lead, out.data());
+            const auto& d = m.dims();
+            return cell_ids(m, points, [&](int i, int j, int k) {
+              return std::int64_t(i) + std::int64_t(d[0]) * (j + std::int64_t(d[1]) * k);
+            });
           },
           py::arg("points"),
           "int64 (...) flat workspace index i + nx * (j + ny * k) of each point's cell, -1 "
@@ -369,19 +374,9 @@ cell is i + nx * (j + ny * k) == grid.ravel(order='F') position.)doc");
       .def(
           "storage_index",
           [](const OccupancyMap& m, const py::handle& points) {
-            auto p = nd_points(points, "query points");
-            auto pm = p.map();
-            std::vector<std::int64_t> out(std::size_t(pm.rows()));
             const GridLayout& layout = m.grid().layout();
-            for (Eigen::Index r = 0; r < pm.rows(); ++r) {
-              OccupancyMap::Key k;
-              const bool in = m.coord_to_key(pm.row(r).transpose(), k) && m.in_workspace(k);
-              out[std::size_t(r)] =
-                  in ? std::int64_t(layout.id(k[0] - m.min_key()[0], k[1] - m.min_key()[1],
-                                              k[2] - m.min_key()[2]))
-                     : -1;
-            }
-            return shaped(p.lead, out.data());
+            return cell_ids(m, points,
+                            [&](int i, int j, int k) { return std::int64_t(layout.id(i, j, k)); });
           },
           py::arg("points"),
           "int64 (...) where each point's cell is stored in the workspace grid (its bricks of "
