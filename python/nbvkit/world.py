@@ -182,36 +182,40 @@ class World:
                 f"{ws.nav_min.round(3).tolist()} - {ws.nav_max.round(3).tolist()}"
             )
         r = self.config.vehicle.collision_radius
-        o, dirs = np.asarray(pose[:3], float)[None], _fibonacci_sphere(200)
-        t, prim = self.scene.intersect(o, dirs, 0.0, np.inf)
-        if np.any(t <= max(r, 1e-6)):
+        dirs = _fibonacci_sphere(200)
+        count, first = self._crossings(pose[:3], dirs)
+        if np.any(first <= max(r, 1e-6)):
             return f"is within the collision radius ({r} m) of the structure"
         # Inside test, by the parity of each ray's crossings: a ray from inside a closed surface
         # crosses it an odd number of times, from outside an even number, whichever way the
         # faces are wound (reversed, mixed, or doubled back to back). Holes and open shells make
         # some rays wrong, hence a vote over all of them.
-        if (self._crossings(o, dirs) % 2 == 1).sum() > 0.5 * len(dirs):
+        if (count % 2 == 1).sum() > 0.5 * len(dirs):
             return "is inside the structure"
         return None
 
-    def _crossings(self, origin, dirs, max_crossings: int = 64) -> np.ndarray:
-        """(N,) times each ray from `origin` (1, 3) along `dirs` (N, 3) crosses the structure's
-        surface. Faces met at the same point (a shared edge, coincident faces) count once: the
-        next search starts 1e-6 of the structure's size past each hit."""
+    def _crossings(self, origin, dirs, max_crossings: int = 64):
+        """(count, first): (N,) times each ray from `origin` (3,) along `dirs` (N, 3) crosses the
+        structure's surface, and (N,) the distance to its first crossing (inf: none). Faces met
+        at the same point (a shared edge, coincident faces) count once: the next search starts
+        1e-6 of the structure's size past each hit."""
         lo, hi = self.mesh.bounds
         eps = 1e-6 * max(float(np.max(hi - lo)), 1e-3)
         count = np.zeros(len(dirs), int)
         o = np.repeat(np.asarray(origin, float).reshape(1, 3), len(dirs), axis=0)
         live = np.arange(len(dirs))
+        first = None
         for _ in range(max_crossings):
             t, prim = self.scene.intersect(o[live], dirs[live], 0.0, np.inf)
+            if first is None:
+                first = t
             hit = prim >= 0
             live = live[hit]
             if len(live) == 0:
                 break
             count[live] += 1
             o[live] += (t[hit] + eps)[:, None] * dirs[live]
-        return count
+        return count, first
 
     # ------------------------------------------------------------------ sensing
     def sense_camera(self, pose=None, view: bool = True):
