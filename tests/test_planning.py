@@ -510,8 +510,6 @@ def test_a_view_that_reaches_where_a_stranded_patchs_views_would_be_is_credited_
     # x = 3 facing the wall reaches the cell at x = 8 (unknown space its frame would make known)
     # and is credited with access_weight x the patch's weight, once; the same view facing away
     # is not, and once credited to a chosen view the place is not credited again.
-    from types import SimpleNamespace
-
     from nbvkit.planning.generators.tour import CoverageTour
 
     m = nbvkit.OccupancyMap(0.2, (0, 0, 0), (12, 6, 4))
@@ -543,7 +541,7 @@ def test_a_view_that_reaches_where_a_stranded_patchs_views_would_be_is_credited_
     assert cov["status"].tolist() == [2, 2, 0, 0]
     cfg = Config().with_overrides(["tour.access_weight=0.5"])
     tour = CoverageTour(cfg)
-    world = SimpleNamespace(map=m)
+    world = _access_world(m, [3.0, 3.1, 2.1, 0.0])
     out, opens = tour._access(world, cov, cands, owner, patches)
     size = np.diff(cov["offsets"])
     new_size = np.diff(out["offsets"])
@@ -558,6 +556,60 @@ def test_a_view_that_reaches_where_a_stranded_patchs_views_would_be_is_credited_
     np.testing.assert_array_equal(again["offsets"], cov["offsets"])
     off = CoverageTour(Config())._access(world, cov, cands, owner, patches)[0]  # weight 0: off
     np.testing.assert_array_equal(off["elements"], cov["elements"])
+
+
+def _access_world(occupancy_map, pose):
+    from types import SimpleNamespace
+
+    lo, hi = (np.asarray(b, float) for b in occupancy_map.bounds)
+    return SimpleNamespace(
+        map=occupancy_map,
+        state=SimpleNamespace(pose=np.asarray(pose, float)),
+        workspace=SimpleNamespace(nav_min=lo, nav_max=hi),
+    )
+
+
+@pytest.mark.parametrize("gap, credited", [(1.0, False), (3.2, True)])
+def test_a_stranded_place_behind_a_wall_with_a_gap_narrower_than_the_vehicle_is_not_credited(
+    gap, credited
+):
+    # The scene above with a second wall at x = 6 between the vehicle and the stranded view's
+    # place (x = 8), holed round the line of sight: the view's rays reach the place through the
+    # hole either way, but the vehicle (0.8 m collision radius) could pass only the 3.2 m one.
+    from nbvkit.planning.generators.tour import CoverageTour, _reachable
+
+    m = nbvkit.OccupancyMap(0.2, (0, 0, 0), (12, 6, 4))
+    m.mark_free_segment((2.5, 3.0, 2.0), (2.5, 3.0, 2.0), 2.5)
+    grid = [(y, z) for y in np.arange(0.1, 6, 0.2) for z in np.arange(0.1, 4, 0.2)]
+    wall = np.array([[10.1, y, z] for y, z in grid])
+    holed = np.array([[6.1, y, z] for y, z in grid if max(abs(y - 3.1), abs(z - 2.1)) > gap / 2])
+    m.update_cells(np.vstack([wall, holed]), occupied=True)
+    surface = _core.SurfaceObservations(m)
+    cands = np.array([[8.1, 3.1, 2.1, math.pi], [3.0, 3.1, 2.1, 0.0]])
+    owner = np.array([0, 1])
+    patches = Patches(
+        np.array([[10.0, 3.0, 2.0], [2.0, 3.0, 2.0]]), -np.eye(3)[[0, 0]], np.array([40.0, 10.0])
+    )
+    cov = _core.view_coverage(
+        m,
+        surface,
+        cands,
+        [3.0, 3.1, 2.1, 0.0],
+        camera=_core.ViewCameraModel(rays_x=13, rays_y=9, max_range=8.0),
+        utility=dict(name="surface", require_occupied=False),
+        validity=dict(collision_radius=0.8, blocked_path="plan"),
+    )
+    assert cov["status"].tolist() == [2, 0]
+    place = m.storage_index(cands[:1, :3])[0]
+    assert place in np.asarray(cov["elements"]) // 2  # the rays reach it through the hole
+    world = _access_world(m, [3.0, 3.1, 2.1, 0.0])
+    reach = _reachable(world, 0.8)
+    assert reach[15, 15, 10] and not reach[30, 2, 2]  # by the vehicle; in the wall at x = 6
+    assert reach[40, 15, 10] == credited  # the stranded view's cell
+    tour = CoverageTour(Config().with_overrides(["tour.access_weight=0.5"]))
+    out, opens = tour._access(world, cov, cands, owner, patches)
+    assert (list(opens) == [1]) == credited
+    assert len(out["elements"]) == len(cov["elements"]) + int(credited)
 
 
 def test_append_elements_keeps_each_views_set_in_order():

@@ -12,11 +12,13 @@ done the next plan is made from what the map shows then; a plan with no view lef
 of whose views could be flown, ends the generator (tour.max_plans caps the plans). With
 tour.access_weight > 0 a view is also credited with the surface it would give access to: patches
 whose every view fails the collision test for want of known free space, where its rays reach
-the place of such a view (_access; off by default, docs/RESULTS.md). On a structure
+the place of such a view and the vehicle could fly there through space not known to be occupied
+(_access, _reachable; off by default, docs/RESULTS.md). On a structure
 smaller than planner.reference_area both thresholds shrink with it (parts.threshold_scale)."""
 from __future__ import annotations
 
 import numpy as np
+from scipy import ndimage
 
 from ... import _core
 from ..parts import Proposal, threshold_scale
@@ -108,9 +110,10 @@ class CoverageTour:
         patch it would open, weighing tour.access_weight x the patch's weight; opens: per such
         view, the cells of the stranded views it reaches. A patch is stranded when none of its
         views is valid and some fail the collision test only for want of known free space (no
-        occupied cell within the collision radius); a valid view opens it when its rays reach the
-        cell of one of those views (the cell is in its coverage set: unknown space the frame
-        would make known)."""
+        occupied cell within the collision radius) and the vehicle could reach that view's place
+        (_reachable: not behind walls the map shows, nor through a gap narrower than the
+        vehicle); a valid view opens it when its rays reach the cell of one of those views (the
+        cell is in its coverage set: unknown space the frame would make known)."""
         w = self.cfg.tour.access_weight
         status = coverage["status"]
         if w <= 0 or len(status) == 0:
@@ -126,6 +129,12 @@ class CoverageTour:
         r = self.cfg.vehicle.collision_radius
         free_of_structure = ~_occupied_within(m, pos, r)
         failed, pos = failed[free_of_structure], pos[free_of_structure]
+        reach = _reachable(world, r)
+        if reach is not None:  # not sealed off from the vehicle by cells known occupied
+            ids = np.floor((pos - np.asarray(m.bounds[0])) / m.resolution).astype(np.int64)
+            ids = np.clip(ids, 0, np.array(reach.shape) - 1)
+            inside = reach[ids[:, 0], ids[:, 1], ids[:, 2]]
+            failed, pos = failed[inside], pos[inside]
         cells = np.asarray(m.storage_index(pos), np.int64)
         keep = (cells >= 0) & ~np.isin(cells, list(self.opened))
         failed, cells = failed[keep], cells[keep]
@@ -264,6 +273,34 @@ def _occupied_within(occupancy_map, points, radius) -> np.ndarray:
     off = off[np.linalg.norm(off, axis=1) <= radius + 0.5 * res]
     q = (points[:, None, :] + off[None]).reshape(-1, 3)
     return (occupancy_map.state(q).reshape(len(points), -1) == 1).any(axis=1)
+
+
+def _reachable(world, radius):
+    """(nx, ny, nz) bool over the map's workspace cells: those the vehicle could fly to from
+    where it is through space not known to be occupied - cells inside the navigation bounds
+    with no occupied cell centre within `radius`, joined to the vehicle's cell through faces. A
+    place behind walls the map shows, or in a gap narrower than the vehicle, is not. None when
+    the vehicle's own cell and its neighbours are not clear (no test can be made)."""
+    m = world.map
+    res, lo = m.resolution, np.asarray(m.bounds[0], float)
+    occupied = m.state_grid() == m.OCCUPIED
+    clear = ndimage.distance_transform_edt(~occupied, sampling=res) > radius
+    for axis in range(3):
+        centre = lo[axis] + (np.arange(clear.shape[axis]) + 0.5) * res
+        inside = (centre >= world.workspace.nav_min[axis]) & (
+            centre <= world.workspace.nav_max[axis]
+        )
+        shape = [1, 1, 1]
+        shape[axis] = -1
+        clear &= inside.reshape(shape)
+    labels, _ = ndimage.label(clear)
+    at = np.floor((np.asarray(world.state.pose[:3], float) - lo) / res).astype(int)
+    near = labels[tuple(slice(max(a - 2, 0), a + 3) for a in at)]
+    near = near[near > 0]
+    if len(near) == 0:
+        return None
+    own = labels[tuple(np.clip(at, 0, np.array(labels.shape) - 1))]
+    return labels == (own if own > 0 else np.bincount(near).argmax())
 
 
 def _length(start, points, order) -> float:
