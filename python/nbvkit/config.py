@@ -374,6 +374,7 @@ class ProfilingConfig:
     # fly the last arc back to the first waypoint after the last sweep (Algorithm 1's loop)
     close_circle: bool = False
     return_to_start: bool = False  # fly back to the start pose before the camera stage
+    arcs: str = "descending"  # level (Algorithm 1), or descending from one sweep end to the other
 
 
 SymmetryConfig = cpp_section(
@@ -681,6 +682,7 @@ _CHOICES = {
     "symmetry.mode": ("none", "report", "predict"),
     "tour.selection": ("cover", "insertion"),
     "profiling.method": ("circular", "hull", "bbox"),
+    "profiling.arcs": ("level", "descending"),
     "symmetry.keypoints": ("sift", "iss", "uniform"),
 }
 _POSITIVE = {

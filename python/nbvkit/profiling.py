@@ -42,6 +42,12 @@ blocks the way back (the climb), the vehicle first flies back along its own prof
 is free, until the way is clear. profiling.close_circle = false stops after the last sweep instead
 of flying Algorithm 1's final arc back to the first waypoint. All distances flown are accounted.
 
+profiling.arcs = descending (nbvkit's) flies each arc from the end of one sweep to the other end:
+from the top of sweep k down to the bottom at waypoint k + 1 (or up), the height in proportion to
+the distance along the arc, so every sweep runs the same way and the camera frames of an arc cross
+every height of the faces between two sweeps, where a level arc (Algorithm 1's, the paper's
+scenarios) sees one band at the top or the bottom of them. The bbox profiler's legs stay level.
+
 With profiling.camera_step > 0 (the recommended planner's 1 m; the paper's scenarios set 0) the
 RGB-D camera also takes a frame every camera_step metres of the flight, facing the structure as
 the vehicle does on every sweep and arc. The frames go into the map, the camera cloud and the
@@ -321,6 +327,19 @@ class Profiler:
                 continue
         return region
 
+    def _arc_heights(self, start, arc, z):
+        """The height at each point of an arc flown from `start` (XY) at height z: z throughout
+        (profiling.arcs = level, Algorithm 1), or (descending) from z to the other end of the
+        sweep in proportion to the distance along the arc, so that the next sweep runs the way
+        this one did and the camera's frames on the way cross every height of the face between
+        two sweeps instead of one band at its top or bottom."""
+        if self.cfg.arcs == "level" or len(arc) == 0:
+            return [z] * len(arc)
+        end = self.z_min if abs(z - self.z_max) <= abs(z - self.z_min) else self.z_max
+        legs = np.linalg.norm(np.diff(np.vstack([start, arc]), axis=0), axis=1)
+        along = np.cumsum(legs) / max(float(legs.sum()), 1e-9)
+        return list(z + (end - z) * along)
+
     def clearance(self) -> float:
         """Closest distance (m) from the profiling trajectory's vertices to an occupied cell."""
         occ = self.m.map.occupied_cells()
@@ -351,8 +370,9 @@ class Profiler:
             try:
                 on = region.at(theta)
                 self._move([*on, z], self._face(on, region.facing(on)))
-                for q in region.arc(theta, phi, self.cfg.max_segment):  # along the curve
-                    self._move([*q, z], self._face(q, region.facing(q)))
+                arc = region.arc(theta, phi, self.cfg.max_segment)  # along the curve
+                for q, zq in zip(arc, self._arc_heights(on, arc, z)):
+                    self._move([*q, zq], self._face(q, region.facing(q)))
             except _Blocked:
                 region = self._round(theta + phi, ws_c, r0)
             theta += phi

@@ -36,6 +36,7 @@ _PAPER = {
     "profiling.waypoints": 5,
     "profiling.camera_step": 0.0,
     "profiling.close_circle": True,
+    "profiling.arcs": "level",
     "profiling.return_to_start": True,
     "symmetry.refresh_every": 0,
 }
