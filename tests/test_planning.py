@@ -503,6 +503,33 @@ def test_view_coverage_sets_hold_what_the_surface_utility_credits_each_view():
     np.testing.assert_allclose(sums[valid], scores["gain"][valid], rtol=1e-5)
 
 
+def _stranded_scene(cands, hole=None):
+    """(map, patches, view_coverage of cands from (3, 3.1, 2.1)) over a 12 x 6 x 4 m map: known
+    free air within 2.5 m of (2.5, 3, 2), unknown beyond, a wall at x = 10 and, with `hole`, a
+    second wall at x = 6 holed round the line y = 3.1, z = 2.1 (a square `hole` m wide); patch 0
+    on the far wall (weight 40), patch 1 behind the vehicle (10)."""
+    m = nbvkit.OccupancyMap(0.2, (0, 0, 0), (12, 6, 4))
+    m.mark_free_segment((2.5, 3.0, 2.0), (2.5, 3.0, 2.0), 2.5)
+    grid = [(y, z) for y in np.arange(0.1, 6, 0.2) for z in np.arange(0.1, 4, 0.2)]
+    cells = [[10.1, y, z] for y, z in grid]
+    if hole is not None:
+        cells += [[6.1, y, z] for y, z in grid if max(abs(y - 3.1), abs(z - 2.1)) > hole / 2]
+    m.update_cells(np.array(cells), occupied=True)
+    patches = Patches(
+        np.array([[10.0, 3.0, 2.0], [2.0, 3.0, 2.0]]), -np.eye(3)[[0, 0]], np.array([40.0, 10.0])
+    )
+    cov = _core.view_coverage(
+        m,
+        _core.SurfaceObservations(m),
+        cands,
+        [3.0, 3.1, 2.1, 0.0],
+        camera=_core.ViewCameraModel(rays_x=13, rays_y=9, max_range=8.0),
+        utility=dict(name="surface", require_occupied=False),
+        validity=dict(collision_radius=0.8, blocked_path="plan"),
+    )
+    return m, patches, cov
+
+
 def test_a_view_that_reaches_where_a_stranded_patchs_views_would_be_is_credited_with_it():
     # Known free air for x < 5, unknown beyond, a wall at x = 10. A patch on the wall can only be
     # looked at from the unknown air: its view at x = 8 fails the collision test for want of known
@@ -512,11 +539,6 @@ def test_a_view_that_reaches_where_a_stranded_patchs_views_would_be_is_credited_
     # is not, and once credited to a chosen view the place is not credited again.
     from nbvkit.planning.generators.tour import CoverageTour
 
-    m = nbvkit.OccupancyMap(0.2, (0, 0, 0), (12, 6, 4))
-    m.mark_free_segment((2.5, 3.0, 2.0), (2.5, 3.0, 2.0), 2.5)
-    wall = np.array([[10.1, y, z] for y in np.arange(0.1, 6, 0.2) for z in np.arange(0.1, 4, 0.2)])
-    m.update_cells(wall, occupied=True)
-    surface = _core.SurfaceObservations(m)
     cands = np.array(
         [
             [8.1, 3.1, 2.1, math.pi],
@@ -526,18 +548,7 @@ def test_a_view_that_reaches_where_a_stranded_patchs_views_would_be_is_credited_
         ]
     )
     owner = np.array([0, 0, 1, 1])
-    patches = Patches(
-        np.array([[10.0, 3.0, 2.0], [2.0, 3.0, 2.0]]), -np.eye(3)[[0, 0]], np.array([40.0, 10.0])
-    )
-    cov = _core.view_coverage(
-        m,
-        surface,
-        cands,
-        [3.0, 3.1, 2.1, 0.0],
-        camera=_core.ViewCameraModel(rays_x=13, rays_y=9, max_range=8.0),
-        utility=dict(name="surface", require_occupied=False),
-        validity=dict(collision_radius=0.8, blocked_path="plan"),
-    )
+    m, patches, cov = _stranded_scene(cands)
     assert cov["status"].tolist() == [2, 2, 0, 0]
     cfg = Config().with_overrides(["tour.access_weight=0.5"])
     tour = CoverageTour(cfg)
@@ -578,27 +589,9 @@ def test_a_stranded_place_behind_a_wall_with_a_gap_narrower_than_the_vehicle_is_
     # hole either way, but the vehicle (0.8 m collision radius) could pass only the 3.2 m one.
     from nbvkit.planning.generators.tour import CoverageTour, _reachable
 
-    m = nbvkit.OccupancyMap(0.2, (0, 0, 0), (12, 6, 4))
-    m.mark_free_segment((2.5, 3.0, 2.0), (2.5, 3.0, 2.0), 2.5)
-    grid = [(y, z) for y in np.arange(0.1, 6, 0.2) for z in np.arange(0.1, 4, 0.2)]
-    wall = np.array([[10.1, y, z] for y, z in grid])
-    holed = np.array([[6.1, y, z] for y, z in grid if max(abs(y - 3.1), abs(z - 2.1)) > gap / 2])
-    m.update_cells(np.vstack([wall, holed]), occupied=True)
-    surface = _core.SurfaceObservations(m)
     cands = np.array([[8.1, 3.1, 2.1, math.pi], [3.0, 3.1, 2.1, 0.0]])
     owner = np.array([0, 1])
-    patches = Patches(
-        np.array([[10.0, 3.0, 2.0], [2.0, 3.0, 2.0]]), -np.eye(3)[[0, 0]], np.array([40.0, 10.0])
-    )
-    cov = _core.view_coverage(
-        m,
-        surface,
-        cands,
-        [3.0, 3.1, 2.1, 0.0],
-        camera=_core.ViewCameraModel(rays_x=13, rays_y=9, max_range=8.0),
-        utility=dict(name="surface", require_occupied=False),
-        validity=dict(collision_radius=0.8, blocked_path="plan"),
-    )
+    m, patches, cov = _stranded_scene(cands, hole=gap)
     assert cov["status"].tolist() == [2, 0]
     place = m.storage_index(cands[:1, :3])[0]
     assert place in np.asarray(cov["elements"]) // 2  # the rays reach it through the hole
