@@ -149,6 +149,8 @@ def test_overrides_and_rejections(tmp_path):
             c.with_overrides([f"profiling.margin={margin}"])
     with pytest.raises(ValueError, match="profiling.method"):
         c.with_overrides(["profiling.method=spiral"])
+    with pytest.raises(ValueError, match="profiling.arcs"):
+        c.with_overrides(["profiling.arcs=spiral"])
     with pytest.raises(ValueError, match="integer"):
         c.with_overrides(["max_iterations=2.5"])
     with pytest.raises(ValueError, match="key=value"):
