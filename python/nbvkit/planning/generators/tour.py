@@ -129,11 +129,10 @@ class CoverageTour:
         r = self.cfg.vehicle.collision_radius
         free_of_structure = ~_occupied_within(m, pos, r)
         failed, pos = failed[free_of_structure], pos[free_of_structure]
-        reach = _reachable(world, r)
+        reach = _reachable(world, r) if len(failed) else None
         if reach is not None:  # not sealed off from the vehicle by cells known occupied
-            ids = np.floor((pos - np.asarray(m.bounds[0])) / m.resolution).astype(np.int64)
-            ids = np.clip(ids, 0, np.array(reach.shape) - 1)
-            inside = reach[ids[:, 0], ids[:, 1], ids[:, 2]]
+            ids = np.asarray(m.index_of(pos), np.int64)  # flat, Fortran order; -1 outside
+            inside = (ids >= 0) & reach.ravel(order="F")[np.maximum(ids, 0)]
             failed, pos = failed[inside], pos[inside]
         cells = np.asarray(m.storage_index(pos), np.int64)
         keep = (cells >= 0) & ~np.isin(cells, list(self.opened))
