@@ -619,3 +619,28 @@ def test_append_elements_keeps_each_views_set_in_order():
     assert out["elements"].tolist() == [1, 3, 10, 11, 0, 4, 9, 12]
     np.testing.assert_allclose(out["weights"], [1, 2, 0.1, 0.2, 3, 4, 5, 0.3], rtol=1e-6)
     assert out["status"] is cov["status"]
+
+
+def test_the_vehicle_can_plan_its_way_back_along_its_own_flight():
+    # Nothing sensed: the only known free space is the volume the vehicle swept (and the
+    # take-off's, not made here). A* tests the collision sphere at cell centres, and a path off
+    # the centres leaves every centre's sphere reaching past a corridor of the collision radius
+    # into unknown cells: no way back. Widened by half a cell diagonal, the corridor holds the
+    # cells the flight crossed, and the way back is found, no longer than the flight.
+    mesh = box_mesh((-2, -2, 0), (2, 2, 4))
+    legs = [(5.07, -5.11, 2.57, 0.0), (5.11, 5.03, 2.21, 0.0)]
+    for widen in (False, True):
+        over = ["progress=false", f"vehicle.widen_swept_volume={widen}"]
+        m = Mission(Config().with_overrides(over + ["start_pose=[-4.93,-5.07,2.13,0.0]"]), mesh)
+        w = m.world
+        start = w.state.pose.copy()
+        flown = sum(w.fly_to(np.array(p), "test") for p in legs)
+        path = w.plan_path(start)
+        if not widen:
+            assert path is None
+            continue
+        assert path is not None
+        np.testing.assert_allclose(path[0], w.state.pose[:3])
+        np.testing.assert_allclose(path[-1], start[:3])
+        assert np.linalg.norm(np.diff(path, axis=0), axis=1).sum() <= flown + 1e-9
+        assert (w.map.state(path) == 0).all()  # waypoints in known free cells

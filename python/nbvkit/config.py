@@ -242,6 +242,15 @@ VehicleConfig = cpp_section(
             True,
             "the vehicle's own swept volume (collision radius along the flown path) is known free",
         ),
+        (
+            "widen_swept_volume",
+            bool,
+            True,
+            "the swept volume made known free reaches half a cell diagonal past the collision "
+            "radius, so the cells the flown path crosses pass A*'s test (the sphere at each cell's "
+            "centre) and the vehicle can always plan its way back along its own flight; false: "
+            "the radius alone (the paper's scenarios)",
+        ),
     ],
 )
 

@@ -32,6 +32,7 @@ _PAPER = {
     "planner.travel_lambda": 0.0,
     "utility.name": "ig",
     "vehicle.blocked_path": "reject",
+    "vehicle.widen_swept_volume": False,
     "profiling.method": "circular",
     "profiling.waypoints": 5,
     "profiling.camera_step": 0.0,

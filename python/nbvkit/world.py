@@ -255,9 +255,13 @@ class World:
         cur = self.state.pose
         pts = np.asarray(path if path is not None and len(path) else [cur[:3], target[:3]], float)
         d = float(np.linalg.norm(np.diff(pts, axis=0), axis=1).sum())
-        if self.config.vehicle.clear_swept_volume:
+        v = self.config.vehicle
+        if v.clear_swept_volume:
+            r = v.collision_radius
+            if v.widen_swept_volume:
+                r += 0.5 * math.sqrt(3.0) * self.map.resolution
             for a, b in zip(pts[:-1], pts[1:]):
-                self.map.mark_free_segment(a, b, self.config.vehicle.collision_radius)
+                self.map.mark_free_segment(a, b, r)
         self.state.distance_m += d
         self.state.pose = np.asarray(target, float).copy()
         self.state.trajectory.append((stage, *self.state.pose.tolist(), self.state.distance_m))
