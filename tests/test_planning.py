@@ -411,6 +411,32 @@ def test_every_scenario_flies_end_to_end(scenario, tmp_path):
     assert (tmp_path / "figures" / "symmetry.png").exists() == ("symmetry" in d), d.keys()
 
 
+def test_a_tour_that_flew_nothing_is_replanned_over_reachable_views_then_the_planner_says_why():
+    # After the profile round an 8 x 6 x 5 m box: a plan over the views a path through known
+    # free space can reach (the vehicle's free component) considers fewer candidates, and every
+    # view it keeps is in that component. A tour none of whose views was flown is followed by
+    # such a plan; when that one flies nothing either, the mission stops with the reason.
+    cfg = load_config(overrides=["max_iterations=0", *QUICK])
+    m = Mission(cfg, mesh=box_mesh((-4, -3, 0), (4, 3, 5)))
+    m.run()
+    w = m.world
+    tour = next(g for g in m.planner.generators if hasattr(g, "plans"))
+    comp = _core.FreeComponent(w.map, w.state.pose[:3], cfg.vehicle.collision_radius)
+    every = tour.plan(w)
+    reach = tour.plan(w, reachable_only=True)
+    a, b = tour.plans
+    assert not a["reachable_only"] and b["reachable_only"]
+    assert 0 < b["candidates"] < a["candidates"]
+    assert len(reach) > 0 and comp.contains(w.map, reach[:, :3]).all()
+    # the last tour (every) flew nothing: the next plan is over reachable views only
+    tour.plans = [{**a, "kept": len(every), "flown": 0}]
+    tour.views, tour.next = every, len(every)
+    assert tour.propose(w) is not None and tour.plans[-1]["reachable_only"]
+    assert tour.stop_reason is None
+    tour.next = len(tour.views)  # and it flew nothing either
+    assert m.planner.next_view(w) == "no_reachable_view" and tour.stop_reason == "no_reachable_view"
+
+
 @pytest.mark.slow
 def test_the_surface_planner_tours_and_stops_by_itself():
     cfg = load_config(overrides=["max_iterations=400", *QUICK])

@@ -79,7 +79,9 @@ class Generator(Protocol):
     """Proposes candidate views; told which one (if any) was flown."""
 
     def propose(self, world) -> Optional[Proposal]:
-        """Candidates for this iteration, or None when this generator has nothing left."""
+        """Candidates for this iteration, or None when this generator has nothing left (an
+        optional attribute `stop_reason` names the cause when it is not that the surface is
+        covered)."""
 
     def feedback(self, world, proposal: Proposal, step: Optional[Step]) -> None:
         """After selection: `step` is the view flown (None: no candidate of `proposal` was

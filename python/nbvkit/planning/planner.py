@@ -82,8 +82,10 @@ class Planner:
 
     def next_view(self, world):
         """(proposal, its generators, scores, choice) of the next view to fly, or why there is
-        none: "coverage_complete" (no generator proposes anything) or "no_valid_viewpoint" (no
-        candidate is valid and worth flying). The first generator with an exclusive proposal (a
+        none: "coverage_complete" (no generator proposes anything), a generator's own
+        `stop_reason` where it gave up for another cause (a tour none of whose views could be
+        reached: "no_reachable_view"), or "no_valid_viewpoint" (no candidate is valid and worth
+        flying). The first generator with an exclusive proposal (a
         tour) leads; its views are tried in turn. Otherwise the non-exclusive proposals are
         scored together."""
         t = self.timers
@@ -92,7 +94,8 @@ class Planner:
             with t("sampling"):
                 proposal, contributors = self.propose(world)
             if proposal is None:
-                return "coverage_complete"
+                reasons = (getattr(g, "stop_reason", None) for g in self.generators)
+                return next((r for r in reasons if r), "coverage_complete")
             with t("evaluation"):
                 scores = _core.evaluate_views(
                     world.map,

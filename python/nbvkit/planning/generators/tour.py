@@ -33,6 +33,7 @@ class CoverageTour:
         self.next = 0
         self.plans: list[dict] = []  # per plan: views selected, kept, flown, planned length
         self.opened: set[int] = set()  # cells of stranded views a chosen view was credited with
+        self.stop_reason = None  # why propose() gave up, when not because the surface is covered
 
     # ------------------------------------------------------------------ planning
     def candidates(self, world):
@@ -58,13 +59,20 @@ class CoverageTour:
             validity=world.validity(blocked_path="plan"),
         )
 
-    def plan(self, world) -> np.ndarray:
-        """The next tour (V, 4) from the vehicle's pose over what the map shows now."""
+    def plan(self, world, reachable_only: bool = False) -> np.ndarray:
+        """The next tour (V, 4) from the vehicle's pose over what the map shows now; with
+        reachable_only, over the candidates a path through known free space can reach now (the
+        vehicle's free component)."""
         cfg = self.cfg
         cell_m2 = world.map.resolution**2
         scale = threshold_scale(world.map, cfg.planner.reference_area)
         min_gain, rate = cfg.tour.min_gain * scale, cfg.tour.rate * np.sqrt(scale)
         targets, patches, candidates, owner = self.candidates(world)
+        if reachable_only and len(candidates):
+            here = world.state.pose[:3]
+            component = _core.FreeComponent(world.map, here, cfg.vehicle.collision_radius)
+            reach = np.asarray(component.contains(world.map, candidates[:, :3]), bool)
+            candidates, owner = candidates[reach], owner[reach]
         record = {
             "scale": float(scale),
             "targets": int(len(targets["weight"])),
@@ -73,6 +81,7 @@ class CoverageTour:
             "kept": 0,
             "flown": 0,
             "length_m": 0.0,
+            "reachable_only": reachable_only,
         }
         self.plans.append(record)
         if len(candidates) == 0:
@@ -190,11 +199,16 @@ class CoverageTour:
     # ------------------------------------------------------------------ generator
     def propose(self, world):
         if self.next >= len(self.views):
-            if self.plans and self.plans[-1]["kept"] and not self.plans[-1]["flown"]:
-                return None  # a whole tour proved unflyable: the next plan would repeat it
+            last = self.plans[-1] if self.plans else None
+            unflyable = last is not None and last["kept"] and not last["flown"]
+            if unflyable and last["reachable_only"]:
+                self.stop_reason = "no_reachable_view"
+                return None
             if self.cfg.tour.max_plans and len(self.plans) >= self.cfg.tour.max_plans:
                 return None
-            self.views, self.next = self.plan(world), 0
+            # after a tour none of whose views could be reached, the next plans only those
+            # that can be (the same plan again would fail the same way)
+            self.views, self.next = self.plan(world, reachable_only=bool(unflyable)), 0
             if len(self.views) == 0:
                 return None
         k = slice(self.next, self.next + 1)
