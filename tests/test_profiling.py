@@ -236,3 +236,31 @@ def test_descending_arcs_cross_every_height_between_two_sweeps():
     assert desc["distance_m"] > level["distance_m"]
     assert desc["distance_m"] < level["distance_m"] + 3 * (hi - lo)
     assert desc["coverage"]["0.05"] > level["coverage"]["0.05"] + 0.05  # 49.0 against 35.4 %
+
+
+def test_a_profile_started_in_a_courtyard_goes_over_the_wall():
+    # Four 6 m walls round a 18 x 18 m courtyard, the vehicle starting inside. The grown hull of
+    # what the laser sees lies outside the walls, and every way out at the vehicle's height is
+    # blocked: the retries go over the top of the flight volume (stuck inside before, two of
+    # the four sweeps at the same place). Every sweep after the first is outside, at a place of
+    # its own.
+    import nbvkit
+    from conftest import box_mesh
+
+    walls = [
+        box_mesh((-10, -10, 0), (10, -9, 6)),
+        box_mesh((-10, 9, 0), (10, 10, 6)),
+        box_mesh((-10, -9, 0), (-9, 9, 6)),
+        box_mesh((9, -9, 0), (10, 9, 6)),
+    ]
+    v = np.vstack([w.vertices for w in walls])
+    f = np.vstack([np.asarray(w.faces) + 8 * i for i, w in enumerate(walls)])
+    over = FAST + ["profiling.method=hull", "start_pose=[0,-3,3,1.5708]"]
+    m = Mission(Config().with_overrides(over), mesh=nbvkit.Mesh(v, f))
+    m.world.take_off()
+    s = run_profiling(m.world)
+    wps = np.array(s["waypoints"])
+    assert len(wps) == 4
+    assert np.all(np.abs(wps[1:]).max(axis=1) > 10 + m.config.vehicle.collision_radius)
+    assert min(np.linalg.norm(a - b) for i, a in enumerate(wps) for b in wps[i + 1 :]) > 5
+    assert s["blocked_steps"] > 0  # the walls did stand in the way

@@ -31,8 +31,8 @@ end: nearer than the collision radius, and nearer than before, is blocked). A sw
 its way to its first end sweeps from there to the other, and ends where it is blocked on that
 way; on a blocked move the vehicle scans with its laser where it stands, the curve is recomputed
 with that scan, and the vehicle goes out along its bearing onto the new curve and on along it (up
-to 3 times, then the loop goes on from where it stands). `profile.blocked_steps` counts the
-steps stopped.
+to 3 times: at its height, then over the top of the flight volume, then along its bottom; then
+the loop goes on from where it stands). `profile.blocked_steps` counts the steps stopped.
 
 After the survey the vehicle returns to its start pose for the camera stage
 (profiling.return_to_start, the paper's scenarios) or, without returning, climbs or descends its
@@ -305,10 +305,12 @@ class Profiler:
     def _round(self, theta_end, fallback_center, fallback_radius, tries=3):
         """After a blocked step on the way to bearing theta_end: a laser scan where the vehicle
         stands, the curve recomputed with it, then out along the bearing onto the new curve and
-        along it to theta_end; again (at most `tries` times) if the structure blocks that too,
-        then the vehicle stays where it is and the loop goes on from there. Returns the curve."""
+        along it to theta_end; again if the structure blocks that too, at the top of the flight
+        volume, then at its bottom (at most `tries` attempts), over or under what stands in the
+        way; then the vehicle stays where it is and the loop goes on from there. Returns the
+        curve."""
         m = self.m
-        for _ in range(tries):
+        for k in range(tries):
             m.sense_laser(m.state.pose)
             region = self._region(fallback_center, fallback_radius)
             p, z = m.state.pose[:2], m.state.pose[2]
@@ -317,6 +319,9 @@ class Profiler:
             if left > math.pi:  # already past it on the new curve
                 left = 0.0
             try:
+                if k % 3:  # over the top of the flight volume, then along its bottom
+                    z = self.z_max if k % 3 == 1 else self.z_min
+                    self._move([*p, z], m.state.pose[3])
                 out = region.at(b)
                 if np.linalg.norm(out - region.c) > np.linalg.norm(p - region.c):
                     self._move([*out, z], self._face(out, region.facing(out)))
