@@ -87,35 +87,6 @@ def test_free_end_clears_its_end_cell_and_hit_wins_over_free(method):
     assert m.counts()["free"] == 10 and m.counts()["occupied"] == 1
 
 
-@pytest.mark.parametrize("method", ["integrate", "integrate_exact"])
-def test_keep_hit_cells_holds_a_hit_cell_at_the_threshold_against_misses(method):
-    # A cell hit once (p 0.7), then crossed by three rays that end beyond it: OctoMap's update
-    # takes it to p 0.39, free; with keep_hit_cells the misses stop at the occupancy threshold
-    # (0.6) and it stays occupied, and a later hit raises it from there. Cells no ray ended in
-    # are updated as before.
-    o, cell, beyond, before = (0.1, 0.1, 0.1), [1.1, 0.1, 0.1], [[2.1, 0.1, 0.1]], [0.9, 0.1, 0.1]
-    for keep in (False, True):
-        m = small_map(keep_hit_cells=keep)
-        getattr(m, method)(o, [cell])
-        for _ in range(3):
-            getattr(m, method)(o, beyond)
-        if keep:
-            assert m.state(cell) == CellState.OCCUPIED
-            assert m.probability(cell) == pytest.approx(0.6, abs=1e-6)
-        else:
-            assert m.state(cell) == CellState.FREE
-            assert m.probability(cell) == pytest.approx(
-                p_of(logodds_f32(0.7) + 3 * logodds_f32(0.4)), abs=1e-5
-            )
-        assert m.probability(before) == pytest.approx(p_of(4 * logodds_f32(0.4)), abs=1e-5)
-        assert m.state(beyond[0]) == CellState.OCCUPIED  # hit three times
-        getattr(m, method)(o, [cell])
-        expected = (logodds_f32(0.6) if keep else logodds_f32(0.7) + 3 * logodds_f32(0.4)) + (
-            logodds_f32(0.7)
-        )
-        assert m.probability(cell) == pytest.approx(p_of(expected), abs=1e-5)
-
-
 def test_ray_along_diagonal_through_cell_corners_matches_exact():
     # rays through grid corners are where DDA tie-breaking matters: the fast walker must pick the
     # same cells as OctoMap's computeRayKeys

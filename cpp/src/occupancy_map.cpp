@@ -153,7 +153,6 @@ void OccupancyMap::init_geometry(const Eigen::Vector3d& bmin, const Eigen::Vecto
   grid_ = WorkspaceGrid({int(nx), int(ny), int(nz)}, cell_rule());
   tree_stale_.assign(grid_.layout().storage_size(), 0);
   tree_stale_cells_.clear();
-  hit_before_.assign(opt_.keep_hit_cells ? grid_.layout().storage_size() : 0, 0);
 }
 
 void OccupancyMap::apply_tree_params() {
@@ -365,12 +364,6 @@ void OccupancyMap::update_cell(const Key& key, bool hit) {
   } else {
     node = tree_->updateNode(key, hit, false);
   }
-  if (idx >= 0 && !hit_before_.empty()) {
-    if (hit)
-      hit_before_[std::size_t(idx)] = 1;
-    else if (hit_before_[std::size_t(idx)] && node->getLogOdds() < kept_floor())
-      node = tree_->setNodeValue(key, kept_floor(), false);
-  }
   if (idx >= 0) grid_.set(idx, node->getLogOdds(), CellFlag::Observed);
 }
 
@@ -379,9 +372,7 @@ void OccupancyMap::apply_updates(const std::vector<Key>& misses, const std::vect
   // restarts a prediction from log-odds 0) take the update, observed ones log-odds + update
   // (OctoMap's float addValue), clamped as updateNodeLogOdds clamps, and nothing changes once
   // a cell is clamped in the update's direction (updateNode's early abort).
-  // With keep_hit_cells a miss takes a cell hit before no lower than the occupancy threshold.
   std::vector<LeafWrite> outside;  // cells outside the workspace go to the octree directly
-  const bool keep = !hit_before_.empty();
   auto update = [&](const Key& key, bool hit) {
     const float upd = hit ? hit_log_ : miss_log_;
     const std::int64_t idx = index_of(key);
@@ -395,15 +386,7 @@ void OccupancyMap::apply_updates(const std::vector<Key>& misses, const std::vect
       if (hit ? l >= clamp_max_log_ : l <= clamp_min_log_) return;
       value = l + upd;
     }
-    value = std::min(std::max(value, clamp_min_log_), clamp_max_log_);
-    if (keep) {
-      std::uint8_t& before = hit_before_[std::size_t(idx)];
-      if (hit)
-        before = 1;
-      else if (before)
-        value = std::max(value, kept_floor());
-    }
-    set_cell(idx, value, CellFlag::Observed);
+    set_cell(idx, std::min(std::max(value, clamp_min_log_), clamp_max_log_), CellFlag::Observed);
   };
   for (const Key& k : misses) update(k, false);
   for (const Key& k : hits) update(k, true);

@@ -40,7 +40,6 @@
 
 #include <octomap/OcTree.h>
 
-#include <algorithm>
 #include <array>
 #include <cstddef>
 #include <cstdint>
@@ -76,10 +75,6 @@ namespace nbv {
   X(int, end_point_subdivision, 2,                                                              \
     "sub-cells per cell edge for grouping ray ends, 1..4 (1 = one ray per end cell, which "     \
     "agrees with insertPointCloud on only ~97-98 % of the touched cells; 2 gives > 99 %)")      \
-  X(bool, keep_hit_cells, false,                                                                \
-    "misses never take a workspace cell some ray has ended in below occupancy_threshold: with " \
-    "exact sensors a hit cell holds surface, which rays grazing a thin skin would otherwise "   \
-    "carve free; with noisy ones stray hits stay occupied")                                     \
   X(bool, clip_to_workspace, true,                                                              \
     "integration updates only workspace cells (rays are still traced from their origin): the "  \
     "method reads nothing outside the workspace, and a laser survey from outside it costs a "   \
@@ -289,8 +284,6 @@ class OccupancyMap {
   void sync_octree() const;
   /// A point's workspace cell from the grid, or another cell from the octree; false: unknown.
   bool find_cell(const Eigen::Vector3d& p, CellFlag& flag, float& logodds) const;
-  /// keep_hit_cells: the log-odds a miss takes a cell hit before no lower than.
-  float kept_floor() const { return std::min(occ_thres_log_, clamp_max_log_); }
   /// integrate_exact's path: one updateNode on an up-to-date octree, copied into the grid.
   void update_cell(const Key& key, bool hit);
 
@@ -302,8 +295,6 @@ class OccupancyMap {
   float occ_thres_log_ = 0, clamp_min_log_ = 0, clamp_max_log_ = 0, hit_log_ = 0, miss_log_ = 0;
   // workspace cells whose grid value the octree does not hold yet (flag per cell, list of them)
   mutable std::vector<std::uint8_t> tree_stale_;
-  // keep_hit_cells: per workspace cell, whether some ray has ended in it (empty when off)
-  std::vector<std::uint8_t> hit_before_;
   mutable std::vector<std::int64_t> tree_stale_cells_;
 
   // integration scratch, allocated on first integrate (calloc: pages are zeroed lazily, so a
