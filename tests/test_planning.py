@@ -670,3 +670,31 @@ def test_the_vehicle_can_plan_its_way_back_along_its_own_flight():
         np.testing.assert_allclose(path[-1], start[:3])
         assert np.linalg.norm(np.diff(path, axis=0), axis=1).sum() <= flown + 1e-9
         assert (w.map.state(path) == 0).all()  # waypoints in known free cells
+
+
+def test_a_search_cut_short_by_its_cap_is_searched_again_when_the_view_is_reachable():
+    # The way back along two legs flown through unknown space (as above) takes A* more than 5
+    # expanded cells. With vehicle.path_expansions = 5 the first search fails; the view lies in
+    # the vehicle's free component, so the selection searches again without the cap and flies
+    # the same path as with the default cap.
+    from nbvkit.planning.selection import Selector
+
+    mesh = box_mesh((-2, -2, 0), (2, 2, 4))
+    legs = [(5.07, -5.11, 2.57, 0.0), (5.11, 5.03, 2.21, 0.0)]
+    paths = []
+    for cap in (5, 200000):
+        over = ["progress=false", f"vehicle.path_expansions={cap}"]
+        m = Mission(Config().with_overrides(over + ["start_pose=[-4.93,-5.07,2.13,0.0]"]), mesh)
+        w = m.world
+        start = w.state.pose.copy()
+        for p in legs:
+            w.fly_to(np.array(p), "test")
+        assert (w.plan_path(start) is None) == (cap == 5)
+        sel = Selector(m.config, w.map.resolution)
+        sel.begin()
+        one = np.ones(1)
+        scores = {"status": np.zeros(1, np.int8), "gain": 1e9 * one, "utility": one}
+        choice = sel.choose(w, start[None], scores)
+        assert choice is not None and choice.path is not None
+        paths.append(choice.path)
+    np.testing.assert_array_equal(*paths)

@@ -251,6 +251,13 @@ VehicleConfig = cpp_section(
             "centre) and the vehicle can always plan its way back along its own flight; false: "
             "the radius alone (the paper's scenarios)",
         ),
+        (
+            "path_expansions",
+            int,
+            200000,
+            "cells an A* search to a view expands at most; a view the vehicle's free component "
+            "holds is searched again without the cap",
+        ),
     ],
 )
 
@@ -701,6 +708,7 @@ _POSITIVE = {
     "cloud.camera_voxel",
     "cloud.laser_voxel",
     "vehicle.collision_radius",
+    "vehicle.path_expansions",
     "sampling.delta_d",
     "sampling.sigma",
     "termination.threshold",

@@ -278,14 +278,18 @@ class World:
             blocked_path=blocked_path or v.blocked_path,
         )
 
-    def plan_path(self, target):
+    def plan_path(self, target, max_expansions: int | None = None):
         """A* path (P, 3) from the vehicle to target's position through known free space, or
-        None when there is none."""
+        None when there is none within max_expansions expanded cells (default
+        vehicle.path_expansions)."""
+        if max_expansions is None:
+            max_expansions = self.config.vehicle.path_expansions
         path = _core.plan_path(
             self.map,
             self.state.pose[:3],
             np.asarray(target, float)[:3],
             self.config.vehicle.collision_radius,
+            max_expansions=max_expansions,
         )
         return path if len(path) else None
 

@@ -12,6 +12,8 @@ straight legs) choose exactly the best valid utility as before.
 Within one planning step (begin() to the next begin(): the map does not change) the first failed
 search floods the vehicle's free component once (_core.FreeComponent); a later candidate outside
 it is passed over without a search. It changes no choice: a search to such a view always fails.
+A failed search to a view inside the component was cut short by its cap on expanded cells (on a
+large map the way round a structure can take more): it is searched again without one.
 """
 from __future__ import annotations
 
@@ -67,10 +69,14 @@ class Selector:
                     path,
                     d,
                 )
-            path = world.plan_path(poses[k]) if self._reachable(world, poses[k]) else None
-            if path is None:  # no way there through known free space
+            reach = self._reachable(world, poses[k])
+            path = world.plan_path(poses[k]) if reach else None
+            if path is None and reach:
                 if self.component is None:
                     self.component = _core.FreeComponent(world.map, here, self.radius)
+                if self._reachable(world, poses[k]):  # cut short by its cap: search it all
+                    path = world.plan_path(poses[k], max_expansions=world.map.num_cells)
+            if path is None:  # no way there through known free space
                 continue
             length = float(np.linalg.norm(np.diff(path, axis=0), axis=1).sum())
             paths[k] = path
