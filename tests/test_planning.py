@@ -14,7 +14,7 @@ from nbvkit import _core
 from nbvkit.config import Config, load_config
 from nbvkit.mission import Mission
 from nbvkit.planning.generators.frontier import FrontierGenerator
-from nbvkit.planning.generators.tour import prize_collect
+from nbvkit.planning.generators.tour import exploration_targets, prize_collect
 from nbvkit.planning.placement import Patches, into_bounds, place_views, target_patches
 from nbvkit.scenarios import SCENARIOS
 from conftest import box_mesh, wall_mesh
@@ -453,6 +453,55 @@ def test_the_surface_planner_tours_and_stops_by_itself():
 
 
 @pytest.mark.slow
+def test_exploration_is_planned_only_after_a_surface_plan_with_nothing_worth_flying():
+    # With tour.explore, a plan over the surface the map shows that keeps no view is followed by
+    # plans over views of the unknown space within the structure's extent as well; the mission
+    # ends when such a plan keeps nothing. Until then the flight is the one without it.
+    over = ["max_iterations=400", *QUICK]
+    runs = {}
+    for explore in (False, True):
+        cfg = load_config(overrides=over + [f"tour.explore={explore}"])
+        m = Mission(cfg, mesh=box_mesh((-4, -3, 0), (4, 3, 5)))
+        runs[explore] = (m.run(), [(r.x, r.y, r.z, r.yaw) for r in m.records])
+    (plain, plain_poses), (s, poses) = runs[False], runs[True]
+    n = len(plain["tours"])
+    assert not any(p["explore"] for p in plain["tours"]) and plain["tours"][-1]["kept"] == 0
+    tours = s["tours"]
+    assert s["termination"] == "coverage_complete"
+    assert tours[:n] == plain["tours"]  # the same plans and flight up to the fallback
+    np.testing.assert_array_equal(poses[: len(plain_poses)], plain_poses)
+    assert len(tours) > n and all(p["explore"] for p in tours[n:])
+    assert tours[-1]["kept"] == 0
+
+
+def test_an_exploring_plan_adds_views_facing_the_unknown_after_the_surfaces(monkeypatch):
+    # After the profile round a box, one unknown cell 2 m off its +x face looking back at -x (a
+    # stand-in for exploration_targets' answer): the candidates are the surface's, in the same
+    # order, then views of that cell's patch, straight on (no azimuth spread), facing it.
+    from nbvkit.planning.generators import tour as tour_module
+
+    cfg = load_config(overrides=["max_iterations=0", *QUICK])
+    m = Mission(cfg, mesh=box_mesh((-4, -3, 0), (4, 3, 5)))
+    m.run()
+    t = next(g for g in m.planner.generators if hasattr(g, "plans"))
+    _, patches, surface, owner = t.candidates(m.world)
+    cell = np.array([[6.2, 0.2, 2.6]])
+    fake = {"positions": cell, "normals": np.array([[-1.0, 0.0, 0.0]]), "weight": np.ones(1)}
+    monkeypatch.setattr(tour_module, "exploration_targets", lambda _map: fake)
+    _, both, views, of = t.candidates(m.world, explore=True)
+    k = len(surface)
+    np.testing.assert_array_equal(views[:k], surface)
+    np.testing.assert_array_equal(of[:k], owner)
+    assert len(both.weights) == len(patches.weights) + 1
+    np.testing.assert_allclose(both.centers[-1], cell[0])
+    extra, owners = views[k:], of[k:]
+    assert len(extra) == len(cfg.placement.standoffs) and (owners == len(patches.weights)).all()
+    to_cell = cell[0, :2] - extra[:, :2]
+    np.testing.assert_allclose(np.arctan2(to_cell[:, 1], to_cell[:, 0]), extra[:, 3], atol=1e-9)
+    assert (extra[:, 0] < cell[0, 0]).all()  # on the free side
+
+
+@pytest.mark.slow
 def test_budget_stops_a_mission():
     cfg = load_config(overrides=["max_iterations=400", "budget.max_views=5", *QUICK])
     s = Mission(cfg, mesh=box_mesh((-4, -3, 0), (4, 3, 5))).run()
@@ -629,6 +678,34 @@ def test_a_stranded_place_behind_a_wall_with_a_gap_narrower_than_the_vehicle_is_
     out, opens = tour._access(world, cov, cands, owner, patches)
     assert (list(opens) == [1]) == credited
     assert len(out["elements"]) == len(cov["elements"]) + int(credited)
+
+
+@pytest.mark.parametrize("far_corner", [True, False])
+def test_exploration_targets_are_the_unknown_face_of_known_free_space_within_the_structure(
+    far_corner,
+):
+    # A 5 m cube of 0.5 m cells: the half x < 2.5 m known free, the other half unknown, one
+    # occupied cell in the free half's corner. With a second occupied cell on the unknown face's
+    # far edge the structure's extent reaches past that face, and the targets are its 10 x 10
+    # unknown cells at x = 2.75 m looking back at the free half (-x), less that occupied cell
+    # and its two neighbours on the face (surface_targets' frontier). Without it the extent ends
+    # at x = 0.75 m and no unknown space within it borders free space.
+    m = _core.OccupancyMap(0.5, (0, 0, 0), (5, 5, 5))
+    g = (np.arange(10) + 0.5) * 0.5
+    cells = np.stack(np.meshgrid(g, g, g, indexing="ij"), -1).reshape(-1, 3)
+    m.update_cells(cells[cells[:, 0] < 2.5], occupied=False)
+    solid = [[0.25, 0.25, 0.25]] + ([[2.75, 4.75, 4.75]] if far_corner else [])
+    m.update_cells(np.array(solid), occupied=True)
+    t = exploration_targets(m)
+    if not far_corner:
+        assert len(t["weight"]) == 0
+        return
+    assert len(t["weight"]) == 97
+    assert (t["positions"][:, 0] == 2.75).all()
+    for beside in ([2.75, 4.75, 4.25], [2.75, 4.25, 4.75]):
+        assert not np.isclose(t["positions"], beside).all(axis=1).any()
+    np.testing.assert_array_equal(t["normals"], np.tile([-1.0, 0.0, 0.0], (97, 1)))
+    np.testing.assert_array_equal(t["weight"], np.ones(97))
 
 
 def test_append_elements_keeps_each_views_set_in_order():

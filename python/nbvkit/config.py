@@ -323,6 +323,9 @@ class TourConfig:
     # a stranded patch: all its views fail the collision test for want of known free space;
     # a view whose rays reach where they would be gets this share of its weight
     access_weight: float = 0.0  # share of a stranded patch credited to a view opening it; 0: off
+    # once no view of the surface the map shows is worth its flight, plans also weigh views of
+    # the unknown space within the structure's extent (unknown cells bordering free space)
+    explore: bool = True  # then also plan views that open unknown space; false: stop there
 
 
 @dataclass(frozen=True)

@@ -8,8 +8,11 @@ cover (nbvkit._core.view_coverage: cells and the side they are seen from) -> a g
 tour.rate m^2 per metre of the detour they cause are dropped, the worst first, until every view
 pays. The tour is then proposed one view at a time (exclusive proposals): the planner re-scores
 each against the current map and skips it when it no longer adds tour.min_gain. When the tour is
-done the next plan is made from what the map shows then; a plan with no view left, or one none
-of whose views could be flown, ends the generator (tour.max_plans caps the plans). With
+done the next plan is made from what the map shows then. With tour.explore, once a plan keeps no
+view, every later plan also weighs views of the unknown space within the structure's extent
+(exploration_targets: parts of the structure nothing has shown yet hold no surface target); a
+plan with no view left, or one none of whose views could be flown, ends the generator
+(tour.max_plans caps the plans). With
 tour.access_weight > 0 a view is also credited with the surface it would give access to: patches
 whose every view fails the collision test for want of known free space, where its rays reach
 the place of such a view and the vehicle could fly there through space not known to be occupied
@@ -17,12 +20,15 @@ the place of such a view and the vehicle could fly there through space not known
 smaller than planner.reference_area both thresholds shrink with it (parts.threshold_scale)."""
 from __future__ import annotations
 
+import dataclasses
+
 import numpy as np
 from scipy import ndimage
 
 from ... import _core
+from ...mapping import CellFlag
 from ..parts import Proposal, threshold_scale
-from ..placement import place_views, target_patches
+from ..placement import Patches, place_views, target_patches
 
 
 class CoverageTour:
@@ -34,17 +40,32 @@ class CoverageTour:
         self.plans: list[dict] = []  # per plan: views selected, kept, flown, planned length
         self.opened: set[int] = set()  # cells of stranded views a chosen view was credited with
         self.stop_reason = None  # why propose() gave up, when not because the surface is covered
+        self.exploring = False  # plans include views of unknown space (tour.explore)
 
     # ------------------------------------------------------------------ planning
-    def candidates(self, world):
+    def candidates(self, world, explore: bool = False):
         """(targets, patches, candidate views (K, 4), the patch of each (K,)) over the surface
-        still to observe that the map shows now."""
+        still to observe that the map shows now; with explore, also over the unknown space
+        within the structure's extent that borders known free space (exploration_targets,
+        grouped per cube of the camera's nearer stand-off, each looked at straight on; their
+        patches follow the surface's)."""
         cfg = self.cfg
+        bounds = (world.workspace.nav_min, world.workspace.nav_max)
         targets = _core.surface_targets(world.map, world.surface, cfg.targets.options())
         patches = target_patches(targets, cfg.placement.cluster_size)
-        candidates, owner = place_views(
-            patches, cfg.camera, cfg.placement, (world.workspace.nav_min, world.workspace.nav_max)
-        )
+        candidates, owner = place_views(patches, cfg.camera, cfg.placement, bounds)
+        if explore:
+            size = max(
+                min(cfg.placement.standoffs) * cfg.camera.max_range, cfg.placement.cluster_size
+            )
+            more = target_patches(exploration_targets(world.map), size)
+            straight = dataclasses.replace(cfg.placement, azimuth_spread_deg=0.0)
+            views, of = place_views(more, cfg.camera, straight, bounds)
+            candidates = np.vstack([candidates, views])
+            owner = np.concatenate([owner, of + len(patches.weights)])
+            patches = Patches(
+                *(np.concatenate([getattr(patches, f), getattr(more, f)]) for f in _PATCH_FIELDS)
+            )
         return targets, patches, candidates, owner
 
     def coverage(self, world, candidates) -> dict:
@@ -59,15 +80,16 @@ class CoverageTour:
             validity=world.validity(blocked_path="plan"),
         )
 
-    def plan(self, world, reachable_only: bool = False) -> np.ndarray:
+    def plan(self, world, reachable_only: bool = False, explore: bool = False) -> np.ndarray:
         """The next tour (V, 4) from the vehicle's pose over what the map shows now; with
         reachable_only, over the candidates a path through known free space can reach now (the
-        vehicle's free component)."""
+        vehicle's free component); with explore, over views of the unknown space within the
+        structure's extent too (candidates)."""
         cfg = self.cfg
         cell_m2 = world.map.resolution**2
         scale = threshold_scale(world.map, cfg.planner.reference_area)
         min_gain, rate = cfg.tour.min_gain * scale, cfg.tour.rate * np.sqrt(scale)
-        targets, patches, candidates, owner = self.candidates(world)
+        targets, patches, candidates, owner = self.candidates(world, explore)
         if reachable_only and len(candidates):
             here = world.state.pose[:3]
             component = _core.FreeComponent(world.map, here, cfg.vehicle.collision_radius)
@@ -82,6 +104,7 @@ class CoverageTour:
             "flown": 0,
             "length_m": 0.0,
             "reachable_only": reachable_only,
+            "explore": explore,
         }
         self.plans.append(record)
         if len(candidates) == 0:
@@ -208,7 +231,13 @@ class CoverageTour:
                 return None
             # after a tour none of whose views could be reached, the next plans only those
             # that can be (the same plan again would fail the same way)
-            self.views, self.next = self.plan(world, reachable_only=bool(unflyable)), 0
+            reach = bool(unflyable)
+            self.views, self.next = self.plan(world, reach, self.exploring), 0
+            if len(self.views) == 0 and self.cfg.tour.explore and not self.exploring:
+                # no view of the surface the map shows is worth its flight: from now on views
+                # that open the unknown space within the structure's extent compete too
+                self.exploring = True
+                self.views = self.plan(world, reach, explore=True)
             if len(self.views) == 0:
                 return None
         k = slice(self.next, self.next + 1)
@@ -254,6 +283,58 @@ def prize_collect(start, points, gains, order, rate) -> list:
 
 
 COLLISION = 2  # ViewStatus::Collision (_core.view_status_names)
+_PATCH_FIELDS = ("centers", "normals", "weights")
+
+
+def exploration_targets(occupancy_map) -> dict:
+    """Unknown cells that a view could open: those with a free face neighbour, inside the box of
+    the cells known occupied or predicted grown by one cell (the structure's extent as the map
+    shows it, not the open sky round it), and with no occupied or predicted face neighbour
+    (those are surface_targets' frontier). Same keys as surface_targets: positions (T, 3) cell
+    centres, normals (T, 3) the unit sum of the directions to their free neighbours, weight (T,)
+    ones."""
+    m = occupancy_map
+    state, flag = m.state_grid(), m.flag_grid()
+    solid = (state == m.OCCUPIED) | (flag == CellFlag.PREDICTED)
+    empty = {"positions": np.zeros((0, 3)), "normals": np.zeros((0, 3)), "weight": np.zeros(0)}
+    if not solid.any():
+        return empty
+    box = []
+    for axis in range(3):
+        on = np.flatnonzero(solid.any(axis=tuple(a for a in range(3) if a != axis)))
+        box.append(slice(max(on[0] - 1, 0), on[-1] + 2))
+    box = tuple(box)
+    state, solid = state[box], solid[box]
+    unknown = (state == m.UNKNOWN) & ~solid
+    free = np.pad(state == m.FREE, 1)
+    solid = np.pad(solid, 1)
+    inner = tuple(slice(1, -1) for _ in range(3))
+    near_free = np.zeros_like(unknown)
+    near_solid = np.zeros_like(unknown)
+    shifted = {}
+    for axis in range(3):
+        for step in (-1, 1):
+            at = list(inner)
+            at[axis] = slice(1 + step, free.shape[axis] - 1 + step)
+            shifted[axis, step] = free[tuple(at)]
+            near_free |= shifted[axis, step]
+            near_solid |= solid[tuple(at)]
+    frontier = unknown & near_free & ~near_solid
+    ijk = np.nonzero(frontier)
+    if len(ijk[0]) == 0:
+        return empty
+    normals = np.zeros((len(ijk[0]), 3))
+    for (axis, step), f in shifted.items():
+        normals[:, axis] += step * f[ijk]
+    norm = np.linalg.norm(normals, axis=1)
+    keep = norm > 0  # free on opposite faces only: no side to look from
+    lo = np.asarray(m.bounds[0], float) + [b.start * m.resolution for b in box]
+    positions = lo + (np.column_stack(ijk)[keep] + 0.5) * m.resolution
+    return {
+        "positions": positions,
+        "normals": normals[keep] / norm[keep, None],
+        "weight": np.ones(int(keep.sum())),
+    }
 
 
 def _append_elements(coverage, views, elements, weights) -> dict:
