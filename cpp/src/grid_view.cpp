@@ -22,11 +22,17 @@ GridView grid_view(const OccupancyMap& map, const SurfaceObservations* surface) 
   g.brick_live = w.brick_live_data();
   g.brick_open = w.brick_open_data();
   g.unknown_entropy = float(w.rule().entropy(0.0f, CellFlag::Unknown));
+  g.grid_stamps = w.stamps().data();
+  g.grid_epoch = w.stamps().take_epoch();
+  g.grid_id = w.stamps().id();
   if (surface) {
     if (!surface->matches(map))
       throw std::invalid_argument("surface observations were made for another map's grid");
     g.seen = surface->seen_data();
     g.hits = surface->hits_data();
+    g.seen_stamps = surface->stamps().data();
+    g.seen_epoch = surface->stamps().take_epoch();
+    g.seen_id = surface->stamps().id();
   }
   return g;
 }

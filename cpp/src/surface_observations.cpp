@@ -16,7 +16,8 @@ SurfaceObservations::SurfaceObservations(const OccupancyMap& map)
       dims_(map.dims()),
       layout_(map.grid().layout()),
       seen_(layout_.storage_size(), 0u),
-      hits_(layout_.storage_size(), 0u) {}
+      hits_(layout_.storage_size(), 0u),
+      stamps_(layout_.num_bricks()) {}
 
 bool SurfaceObservations::matches(const OccupancyMap& map) const {
   return map.resolution() == res_ && map.dims() == dims_ && map.min_key()[0] == min_key_[0] &&
@@ -26,6 +27,7 @@ bool SurfaceObservations::matches(const OccupancyMap& map) const {
 void SurfaceObservations::clear() {
   std::fill(seen_.begin(), seen_.end(), 0u);
   std::fill(hits_.begin(), hits_.end(), std::uint16_t(0));
+  stamps_.touch_all();
 }
 
 std::int64_t SurfaceObservations::seen_cells() const {
@@ -50,6 +52,7 @@ std::size_t SurfaceObservations::add_scan(const Eigen::Vector3d& origin, const P
       std::uint32_t run_bits = 0, run_hits = 0;
       auto flush = [&] {
         if (run_cell < 0) return;
+        stamps_.touch(std::size_t(run_cell) >> 6);
         std::uint32_t* s = &seen_[std::size_t(run_cell)];
         if ((__atomic_load_n(s, __ATOMIC_RELAXED) & run_bits) != run_bits &&
             __atomic_fetch_or(s, run_bits, __ATOMIC_RELAXED) == 0)

@@ -2,6 +2,7 @@
 
 #include "nbv/parallel.hpp"
 
+#include <algorithm>
 #include <cstring>
 #include <stdexcept>
 
@@ -49,6 +50,15 @@ bool GridLayout::coords(std::size_t id, int& i, int& j, int& k) const {
   return contains(i, j, k);
 }
 
+std::uint64_t BrickStamps::next_id() {
+  static std::atomic<std::uint64_t> next{1};
+  return next.fetch_add(1, std::memory_order_relaxed);
+}
+
+void BrickStamps::touch_all() {
+  std::fill(stamps_.begin(), stamps_.end(), epoch_.load(std::memory_order_relaxed));
+}
+
 WorkspaceGrid::WorkspaceGrid(const std::array<int, 3>& dims, const CellRule& rule)
     : layout_(dims), rule_(rule) {
   if (layout_.storage_size() >= (std::size_t(1) << 40))
@@ -84,6 +94,7 @@ void WorkspaceGrid::set(std::int64_t idx, float logodds, CellFlag flag) {
   const float old_l = logodds_[i];
   if (old_flag == flag && old_l == logodds) return;
   const std::size_t brick = i >> 6;
+  stamps_.touch(brick);
   if (old_flag == CellFlag::Unknown) {
     --counts_.unknown;
     --brick_live_[brick];
@@ -129,6 +140,8 @@ void WorkspaceGrid::rebuild_derived() {
   scored_.resize(n);
   brick_live_.assign(layout_.num_bricks(), 0);
   brick_open_.assign(layout_.num_bricks(), 0);
+  if (stamps_.data() == nullptr) stamps_ = BrickStamps(layout_.num_bricks());
+  stamps_.touch_all();
   const float unknown = float(rule_.entropy(0.0f, CellFlag::Unknown));
   // per brick: fixed-point sums (integers: the same total in any order and thread count)
   const std::size_t nb = layout_.num_bricks();

@@ -343,3 +343,22 @@ TEST(MapUpdate, ExactPathEqualsInsertPointCloud) {
   }
   EXPECT_EQ(m.verify_mirror(), 0);
 }
+
+// Every change of a cell stamps its brick above the epoch a reader took before it; a write that
+// changes nothing, and the other bricks, keep their stamps. A copy is another record (new id).
+TEST(BrickStamps, AWriteStampsItsBrickAboveTheReadersEpoch) {
+  nbv::WorkspaceGrid w({8, 8, 8}, nbv::CellRule{});
+  const nbv::BrickStamps& st = w.stamps();
+  const std::uint32_t e = st.take_epoch();
+  for (std::size_t b = 0; b < w.layout().num_bricks(); ++b) EXPECT_LE(st.data()[b], e);
+  const std::size_t id = w.layout().id(5, 1, 6);  // brick (1, 0, 1)
+  w.set(std::int64_t(id), -1.0f, CellFlag::Observed);
+  for (std::size_t b = 0; b < w.layout().num_bricks(); ++b)
+    EXPECT_EQ(st.data()[b] > e, b == id >> 6) << "brick " << b;
+  const std::uint32_t e2 = st.take_epoch();
+  EXPECT_GT(e2, e);
+  w.set(std::int64_t(id), -1.0f, CellFlag::Observed);  // the same value: no change
+  EXPECT_LE(st.data()[id >> 6], e2);
+  const nbv::WorkspaceGrid copy = w;
+  EXPECT_NE(copy.stamps().id(), w.stamps().id());
+}

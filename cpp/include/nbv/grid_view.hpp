@@ -34,6 +34,13 @@ struct GridView {
   /// direction bins it has been seen from, and the number of camera hits in it.
   const std::uint32_t* seen = nullptr;
   const std::uint16_t* hits = nullptr;
+  /// When the bricks of the grid's cells and of the camera observations last changed, the epochs
+  /// this view was taken at (every change so far stamped at most those), and whose stamps they
+  /// are (BrickStamps::id): what CoverageMemo checks its records against.
+  const std::uint32_t* grid_stamps = nullptr;
+  const std::uint32_t* seen_stamps = nullptr;
+  std::uint32_t grid_epoch = 0, seen_epoch = 0;
+  std::uint64_t grid_id = 0, seen_id = 0;
 
   /// Size of the per-cell arrays (padded to whole bricks).
   std::size_t storage_size() const { return layout.storage_size(); }

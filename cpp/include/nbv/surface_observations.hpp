@@ -37,6 +37,8 @@ class SurfaceObservations {
   /// Camera hits that fell in cell i (saturating at 65535).
   std::uint16_t hits(std::int64_t i) const { return hits_[std::size_t(i)]; }
   const std::uint32_t* seen_data() const { return seen_.data(); }
+  /// When each brick's records last changed (see BrickStamps).
+  const BrickStamps& stamps() const { return stamps_; }
   const std::uint16_t* hits_data() const { return hits_.data(); }
   /// Cells seen from at least one direction.
   std::int64_t seen_cells() const;
@@ -53,6 +55,7 @@ class SurfaceObservations {
   GridLayout layout_;
   std::vector<std::uint32_t> seen_;
   std::vector<std::uint16_t> hits_;
+  BrickStamps stamps_;
 };
 
 }  // namespace nbv

@@ -21,6 +21,9 @@
 // counts its open cells (known and not occupied): a collision test passes a brick of 64 of them
 // without looking at its cells.
 //
+// Stamps (BrickStamps). Every write stamps its brick with the grid's current epoch, so that a
+// reader who took an epoch can tell later which bricks changed since (CoverageMemo).
+//
 // Thread safety: const members may run concurrently; set/assign must not run concurrently with
 // anything else.
 #pragma once
@@ -28,6 +31,7 @@
 #include "nbv/common.hpp"
 
 #include <array>
+#include <atomic>
 #include <cmath>
 #include <cstdint>
 #include <vector>
@@ -93,6 +97,47 @@ struct GridLayout {
   std::size_t num_bricks() const { return std::size_t(bricks[0]) * bricks[1] * bricks[2]; }
 };
 
+/// Which bricks of a grid's arrays changed, and when: a writer stamps a brick it changes with the
+/// current epoch; a reader takes an epoch (take_epoch), after which every write is stamped above
+/// it. A brick whose stamp is at most the epoch a reader took has not changed since. Each
+/// instance has an id of its own (a copy gets a new one), so that a reader can tell records
+/// apart.
+class BrickStamps {
+ public:
+  BrickStamps() = default;
+  explicit BrickStamps(std::size_t bricks) : stamps_(bricks, 0u) {}
+  BrickStamps(const BrickStamps& o) : stamps_(o.stamps_), epoch_(o.epoch_.load()) {}
+  BrickStamps(BrickStamps&& o) noexcept
+      : stamps_(std::move(o.stamps_)), epoch_(o.epoch_.load()), id_(o.id_) {}
+  BrickStamps& operator=(const BrickStamps& o) {
+    stamps_ = o.stamps_;
+    epoch_ = o.epoch_.load();
+    id_ = next_id();
+    return *this;
+  }
+  BrickStamps& operator=(BrickStamps&& o) noexcept {
+    stamps_ = std::move(o.stamps_);
+    epoch_ = o.epoch_.load();
+    id_ = o.id_;
+    return *this;
+  }
+  /// Brick `b` changed (writers that may run in parallel: the store is atomic).
+  void touch(std::size_t b) {
+    __atomic_store_n(&stamps_[b], epoch_.load(std::memory_order_relaxed), __ATOMIC_RELAXED);
+  }
+  void touch_all();
+  /// Every write so far is stamped at most the epoch returned, every later one above it.
+  std::uint32_t take_epoch() const { return epoch_.fetch_add(1, std::memory_order_relaxed); }
+  const std::uint32_t* data() const { return stamps_.data(); }
+  std::uint64_t id() const { return id_; }
+
+ private:
+  static std::uint64_t next_id();
+  std::vector<std::uint32_t> stamps_;
+  mutable std::atomic<std::uint32_t> epoch_{1};
+  std::uint64_t id_ = next_id();
+};
+
 class WorkspaceGrid {
  public:
   static constexpr int kBrickShift = GridLayout::kBrickShift;
@@ -137,6 +182,8 @@ class WorkspaceGrid {
   const std::uint8_t* brick_live_data() const { return brick_live_.data(); }
   /// Per brick: the number of open cells (known and not occupied; 64: the whole brick).
   const std::uint8_t* brick_open_data() const { return brick_open_.data(); }
+  /// When each brick's cells last changed (see BrickStamps).
+  const BrickStamps& stamps() const { return stamps_; }
 
  private:
   std::int64_t fixed_entropy(float logodds);  // cached: cells take few distinct values
@@ -154,6 +201,7 @@ class WorkspaceGrid {
   std::vector<float> scored_;
   std::vector<std::uint8_t> brick_live_;
   std::vector<std::uint8_t> brick_open_;
+  BrickStamps stamps_;
   CellCounts counts_;
   __int128 known_entropy_fixed_ = 0;  // sum over known cells, units of 2^-50 nats
   struct CacheEntry {
