@@ -474,6 +474,25 @@ def test_exploration_is_planned_only_after_a_surface_plan_with_nothing_worth_fly
     assert tours[-1]["kept"] == 0
 
 
+@pytest.mark.slow
+def test_the_surface_planner_flies_the_same_mission_with_and_without_its_coverage_memo():
+    runs = []
+    for keep in (True, False):
+        cfg = load_config(overrides=["max_iterations=400", *QUICK])
+        m = Mission(cfg, mesh=box_mesh((-4, -3, 0), (4, 3, 5)))
+        tour = next(g for g in m.planner.generators if hasattr(g, "plans"))
+        if not keep:
+            tour.memo = None
+        s = m.run()
+        runs.append((s, [(r.x, r.y, r.z, r.yaw) for r in m.records], tour.memo))
+    (a, poses_a, memo), (b, poses_b, _) = runs
+    assert len(a["tours"]) >= 2 and a["tours"] == b["tours"]
+    np.testing.assert_array_equal(poses_a, poses_b)
+    for key in ("distance_m", "entropy_final", "coverage", "area_coverage", "termination"):
+        assert a[key] == b[key], key
+    assert memo.stats()["reused"] > 0
+
+
 def test_an_exploring_plan_adds_views_facing_the_unknown_after_the_surfaces(monkeypatch):
     # After the profile round a box, one unknown cell 2 m off its +x face looking back at -x (a
     # stand-in for exploration_targets' answer): the candidates are the surface's, in the same
@@ -576,6 +595,67 @@ def test_view_coverage_sets_hold_what_the_surface_utility_credits_each_view():
     # each cell once per view, so the set has one element per credited cell; weights are floats
     np.testing.assert_array_equal(sizes[valid], scores["cells"][valid])
     np.testing.assert_allclose(sums[valid], scores["gain"][valid], rtol=1e-5)
+
+
+def test_the_coverage_memo_answers_as_walking_again():
+    """view_coverage with a CoverageMemo gives the arrays of a call without one, call after call,
+    while the map and the camera observations change between calls: a record is used only while
+    no brick near those its rays passed has changed; another map clears it."""
+    mesh = box_mesh((-1.5, -1.5, 0), (1.5, 1.5, 2.5))
+    m = nbvkit.OccupancyMap(0.2, (-6, -6, 0), (6, 6, 5))
+    cam = nbvkit.DepthCamera(mesh, max_range=8.0)
+    surface = _core.SurfaceObservations(m)
+    scan = cam.scan_pose([-5.0, 0.0, 1.5, 0.0])
+    m.mark_free_segment((-5.0, 0.0, 1.5), (-5.0, 0.0, 1.5), 1.0)
+    m.integrate(scan)
+    surface.add_scan(scan)
+    rng = np.random.default_rng(5)
+    ring = np.linspace(0, 2 * np.pi, 17)  # a flight round the box: free space to view from
+    path = np.column_stack([4.5 * np.cos(ring), 4.5 * np.sin(ring), np.full(17, 2.0)])
+    for a, b in zip(path[:-1], path[1:]):
+        m.mark_free_segment(a, b, 1.2)
+    angle = rng.uniform(0, 2 * np.pi, 40)
+    xy = 4.5 * np.column_stack([np.cos(angle), np.sin(angle)]) + rng.uniform(-0.5, 0.5, (40, 2))
+    poses = np.column_stack([xy, rng.uniform(1.5, 2.5, 40), np.arctan2(-xy[:, 1], -xy[:, 0])])
+    kw = dict(
+        camera=_core.ViewCameraModel(rays_x=24, rays_y=18, max_range=8.0),
+        utility=dict(name="surface", require_occupied=False),
+        validity=dict(collision_radius=0.0, blocked_path="plan"),
+    )
+    memo = _core.CoverageMemo(keep_calls=2)
+    current = [-5.0, 0.0, 1.5, 0.0]
+
+    def check(m, surface):
+        a = _core.view_coverage(m, surface, poses, current, memo=memo, **kw)
+        b = _core.view_coverage(m, surface, poses, current, **kw)
+        for key in ("offsets", "elements", "weights", "status"):
+            np.testing.assert_array_equal(a[key], b[key])
+        return a
+
+    first = check(m, surface)
+    assert (first["status"] == 0).sum() >= 10
+    walked = memo.stats()["walked"]
+    check(m, surface)  # nothing changed: every valid view from its record
+    assert memo.stats() == dict(reused=walked, walked=walked, stale=0)
+    for pose in ([0.0, -5.0, 2.0, math.pi / 2], [5.0, 0.5, 1.0, math.pi]):
+        scan = cam.scan_pose(pose)  # a frame changes the map and the observations near it
+        m.integrate(scan)
+        surface.add_scan(scan)
+        check(m, surface)
+        # hits in a corner of the workspace: the views whose rays pass near it walk again
+        m.update_cells(rng.uniform([3.5, 3.5, 0.5], [5.5, 5.5, 4.5], (5, 3)), occupied=True)
+        check(m, surface)
+    stats = memo.stats()
+    assert stats["reused"] > walked + 10 and stats["stale"] > 10
+    assert memo.entries <= len(poses) and memo.bytes > 0
+    # the same geometry, another map: nothing is taken from the first map's records
+    other = nbvkit.OccupancyMap(0.2, (-6, -6, 0), (6, 6, 5))
+    other.integrate(cam.scan_pose([-5.0, 0.0, 1.5, 0.0]))
+    reused = memo.stats()["reused"]
+    check(other, _core.SurfaceObservations(other))
+    assert memo.stats()["reused"] == reused
+    with pytest.raises(ValueError, match="keep_calls"):
+        _core.CoverageMemo(keep_calls=0)
 
 
 def _stranded_scene(cands, hole=None):

@@ -78,11 +78,36 @@ void init_planning(py::module_& m) {
 kind (T,) int8 (0 observed surface not yet covered from an open side, 1 predicted, 2 frontier:
 unknown between known free space and surface) and weight (T,) (1, the predicted probability, or
 frontier_weight).)doc");
+  py::class_<CoverageMemo, std::shared_ptr<CoverageMemo>>(m, "CoverageMemo", R"doc(
+What view_coverage's walks found, kept from one call to the next over the same map and surface
+record (pass it as memo=). A view asked for again at the same pose (bit for bit) is answered from
+its record while no brick of 4 x 4 x 4 cells within one brick of those its rays entered or stepped
+over has changed in the map or the camera observations since: the same coverage set and status,
+without walking its rays. Validity is checked anew each call. Entries that none of the last
+keep_calls calls used are dropped; another map, record, camera or utility clears it.)doc")
+      .def(py::init<int>(), py::arg("keep_calls") = 3)
+      .def(
+          "stats",
+          [](const CoverageMemo& memo) {
+            const CoverageMemo::Stats s = memo.stats();
+            py::dict d;
+            d["reused"] = s.reused;
+            d["stale"] = s.stale;
+            d["walked"] = s.walked;
+            return d;
+          },
+          "Views so far: reused (answered from their record), stale (a record that no longer "
+          "held, then walked), walked (walked and recorded, stale ones included).")
+      .def_property_readonly("entries", &CoverageMemo::entries, "Poses held.")
+      .def_property_readonly("bytes", &CoverageMemo::bytes, "Memory held by the records.")
+      .def_property_readonly("keep_calls", &CoverageMemo::keep_calls)
+      .def("clear", &CoverageMemo::clear, "Drops every record.");
+
   m.def(
       "view_coverage",
       [](const OccupancyMap& map, const SurfaceObservations& surface, const py::handle& candidates,
          const py::handle& current, const py::object& camera, const py::object& utility,
-         const py::object& validity) {
+         const py::object& validity, const std::shared_ptr<CoverageMemo>& memo) {
         auto c = py::array_t<double, py::array::c_style | py::array::forcecast>::ensure(candidates);
         if (!c || c.ndim() != 2 || c.shape(1) != 4)
           throw py::value_error("candidates must have shape (K, 4): rows x, y, z, yaw");
@@ -95,7 +120,9 @@ frontier_weight).)doc");
         ViewCoverage cov;
         {
           py::gil_scoped_release release;
-          cov = view_coverage(grid_view(map, &surface), cm, cur, cam, u, v);
+          std::unique_lock<std::mutex> lock;  // one call at a time per memo
+          if (memo) lock = std::unique_lock<std::mutex>(memo->mutex());
+          cov = view_coverage(grid_view(map, &surface), cm, cur, cam, u, v, memo.get());
         }
         py::dict d;
         d["offsets"] = cov.offsets;
@@ -106,11 +133,12 @@ frontier_weight).)doc");
       },
       py::arg("map"), py::arg("surface"), py::arg("candidates"), py::arg("current"),
       py::arg("camera") = py::none(), py::arg("utility") = py::none(),
-      py::arg("validity") = py::none(),
+      py::arg("validity") = py::none(), py::arg("memo") = nullptr,
       R"doc(What each candidate view (K, 4) would newly cover, as the surface utility credits it
 (utility: its priors and cone; the name is ignored): CSR dict offsets (K + 1,), elements (cell id *
 2 + the side of the cell seen, see nbv/coverage.hpp) and weights, and status (K,) as
-evaluate_views.)doc");
+evaluate_views. memo: a CoverageMemo kept across calls over this map and surface record (the same
+arrays, fewer walks).)doc");
   m.def(
       "select_cover",
       [](const py::dict& coverage, double min_gain, int max_views) {

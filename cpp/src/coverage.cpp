@@ -127,11 +127,117 @@ SurfaceTargets surface_targets(const GridView& g, const SurfaceTargetOptions& op
   return out;
 }
 
+// ---- CoverageMemo ----------------------------------------------------------------------------
+
+CoverageMemo::CoverageMemo(int keep_calls) : keep_calls_(keep_calls) {
+  if (keep_calls < 1)
+    throw std::invalid_argument("CoverageMemo keep_calls must be >= 1, got " +
+                                std::to_string(keep_calls));
+}
+
+std::size_t CoverageMemo::KeyHash::operator()(const Key& k) const {
+  std::uint64_t h = 0x9E3779B97F4A7C15ull;
+  for (std::uint64_t v : k) h = (h ^ v) * 0xBF58476D1CE4E5B9ull, h ^= h >> 31;
+  return std::size_t(h);
+}
+
+std::size_t CoverageMemo::bytes() const {
+  std::size_t n = 0;
+  for (const auto& [k, e] : entries_)
+    n += sizeof(e) + 4 * (e.elements.capacity() + e.weights.capacity()) +
+         4 * e.brick_words.capacity() + 8 * e.brick_bits.capacity();
+  return n + 4 * near_grid_.capacity();
+}
+
+void CoverageMemo::clear() {
+  entries_.clear();
+  geometry_.clear();
+  grid_id_ = seen_id_ = 0;
+}
+
+namespace {
+// Per brick, the newest of the stamps of it and its (up to) 26 neighbours: three passes of a
+// running maximum over one neighbour along x, y and z.
+std::vector<std::uint32_t> newest_nearby(const GridLayout& layout, const std::uint32_t* stamps) {
+  const int bx = layout.bricks[0], by = layout.bricks[1], bz = layout.bricks[2];
+  const std::size_t n = layout.num_bricks();
+  std::vector<std::uint32_t> a(stamps, stamps + n), b(n);
+  const std::size_t stride[3] = {1, std::size_t(bx), std::size_t(bx) * std::size_t(by)};
+  const int len[3] = {bx, by, bz};
+  for (int axis = 0; axis < 3; ++axis) {
+    parallel_chunks(n, 4096, [&](std::size_t lo, std::size_t hi) {
+      for (std::size_t i = lo; i < hi; ++i) {
+        const int c = int((i / stride[axis]) % std::size_t(len[axis]));
+        std::uint32_t m = a[i];
+        if (c > 0) m = std::max(m, a[i - stride[axis]]);
+        if (c + 1 < len[axis]) m = std::max(m, a[i + stride[axis]]);
+        b[i] = m;
+      }
+    });
+    a.swap(b);
+  }
+  return a;
+}
+}  // namespace
+
+bool CoverageMemo::begin(const GridView& g, const std::vector<double>& geometry) {
+  if (!g.grid_stamps || !g.seen_stamps || g.storage_size() * 2 >= (std::size_t(1) << 32))
+    return false;
+  if (geometry != geometry_ || g.grid_id != grid_id_ || g.seen_id != seen_id_) {
+    entries_.clear();
+    geometry_ = geometry;
+    grid_id_ = g.grid_id;
+    seen_id_ = g.seen_id;
+  }
+  ++call_;
+  // a walk reads the camera observations of the cells it enters only, the map's cells around
+  // them too
+  near_grid_ = newest_nearby(g.layout, g.grid_stamps);
+  seen_stamps_ = g.seen_stamps;
+  return true;
+}
+
+const CoverageMemo::Entry* CoverageMemo::find(const Key& key) const {
+  const auto it = entries_.find(key);
+  if (it == entries_.end()) return nullptr;
+  const Entry& e = it->second;
+  for (std::size_t i = 0; i < e.brick_words.size(); ++i) {
+    const std::size_t base = std::size_t(e.brick_words[i]) * 64;
+    for (std::uint64_t m = e.brick_bits[i]; m; m &= m - 1) {
+      const std::size_t b = base + std::size_t(__builtin_ctzll(m));
+      if (near_grid_[b] > e.grid_epoch || seen_stamps_[b] > e.seen_epoch) return nullptr;
+    }
+  }
+  return &e;
+}
+
+void CoverageMemo::end(const std::vector<Key>& keys, std::vector<Entry>& fresh,
+                       const std::vector<std::uint8_t>& walked,
+                       const std::vector<std::uint8_t>& reused) {
+  for (std::size_t k = 0; k < keys.size(); ++k) {
+    if (reused[k]) {
+      auto it = entries_.find(keys[k]);
+      it->second.used = call_;
+      ++stats_.reused;
+    } else if (walked[k]) {
+      fresh[k].used = call_;
+      auto [it, added] = entries_.insert_or_assign(keys[k], std::move(fresh[k]));
+      (void)it;
+      stats_.stale += !added;
+      ++stats_.walked;
+    }
+  }
+  for (auto it = entries_.begin(); it != entries_.end();)
+    it = it->second.used > call_ - keep_calls_ ? std::next(it) : entries_.erase(it);
+}
+
+// ---- view_coverage ---------------------------------------------------------------------------
+
 ViewCoverage view_coverage(
     const GridView& g,
     const Eigen::Ref<const Eigen::Matrix<double, Eigen::Dynamic, 4, Eigen::RowMajor>>& cand,
     const Pose& current, const ViewCameraModel& camera, const UtilityOptions& utility,
-    const ValidityOptions& validity) {
+    const ValidityOptions& validity, CoverageMemo* memo) {
   g.validate();
   camera.validate();
   utility.validate();
@@ -180,6 +286,48 @@ ViewCoverage view_coverage(
     return bin_dir[bin].dot(bin_dir[code - 1]) >= 0 ? 0 : 1;
   };
   kernel::Job job{g, cand, current, camera, utility, validity, false, {}};
+  // the memo: which candidates it answers, what the walked ones leave in it
+  std::vector<CoverageMemo::Key> keys;
+  std::vector<CoverageMemo::Entry> fresh;
+  std::vector<std::uint8_t> walked, reused;
+  if (memo) {
+    std::vector<double> geometry = kernel::memo_geometry(job);
+    const UtilityOptions& u = utility;
+    geometry.insert(geometry.end(), {double(u.require_occupied), u.require_occupied_probability,
+                                     u.min_visibility, u.frontier_prior, u.unknown_prior,
+                                     u.coverage_cone_deg, u.dense_spacing, camera.pixel_pitch_deg});
+    if (!memo->begin(g, geometry)) memo = nullptr;
+  }
+  if (memo) {
+    keys.resize(std::size_t(K));
+    fresh.resize(std::size_t(K));
+    walked.assign(std::size_t(K), 0);
+    reused.assign(std::size_t(K), 0);
+    for (Eigen::Index k = 0; k < K; ++k)
+      keys[std::size_t(k)] = ViewMemo::key(cand(k, 0), cand(k, 1), cand(k, 2), cand(k, 3));
+    job.replay_view = [&](Eigen::Index k, double& gain, int& cells, int& occupied) {
+      const CoverageMemo::Entry* e = memo->find(keys[std::size_t(k)]);
+      if (!e) return false;
+      auto& s = sets[std::size_t(k)];
+      s.resize(e->elements.size());
+      for (std::size_t i = 0; i < s.size(); ++i) s[i] = {e->elements[i], e->weights[i]};
+      gain = e->gain;
+      cells = e->cells;
+      occupied = e->occupied;
+      reused[std::size_t(k)] = 1;
+      return true;
+    };
+    job.on_bricks = [&](Eigen::Index k, const utility::VisitedSet& bricks) {
+      CoverageMemo::Entry& e = fresh[std::size_t(k)];
+      e.brick_words.assign(bricks.touched.begin(), bricks.touched.begin() + bricks.n_touched);
+      e.brick_bits.resize(bricks.n_touched);
+      for (std::size_t i = 0; i < bricks.n_touched; ++i)
+        e.brick_bits[i] = bricks.bits[bricks.touched[i]];
+      e.grid_epoch = g.grid_epoch;
+      e.seen_epoch = g.seen_epoch;
+      walked[std::size_t(k)] = 1;
+    };
+  }
   job.on_view = [&](Eigen::Index k, const std::vector<utility::Credit>& credits) {
     // (element, weight) sorted by element, each element once with its largest weight in the view
     auto& s = sets[std::size_t(k)];
@@ -197,6 +345,23 @@ ViewCoverage view_coverage(
     s.resize(m);
   };
   const ViewScores scores = kernel::score<utility::Surface, true>(job, kernel::PackedCells(g));
+  if (memo) {
+    for (Eigen::Index k = 0; k < K; ++k) {
+      if (!walked[std::size_t(k)]) continue;
+      CoverageMemo::Entry& e = fresh[std::size_t(k)];
+      const auto& s = sets[std::size_t(k)];
+      e.elements.resize(s.size());
+      e.weights.resize(s.size());
+      for (std::size_t i = 0; i < s.size(); ++i) {
+        e.elements[i] = std::uint32_t(s[i].first);
+        e.weights[i] = s[i].second;
+      }
+      e.gain = scores.gain[k];
+      e.cells = scores.cells[k];
+      e.occupied = scores.occupied_seen[k];
+    }
+    memo->end(keys, fresh, walked, reused);
+  }
   ViewCoverage out;
   out.status = scores.status;
   out.offsets.resize(K + 1);

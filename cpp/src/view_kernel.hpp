@@ -108,6 +108,12 @@ struct Job {
   /// If set, called after each valid view with what its utility credited (Surface records).
   std::function<void(Eigen::Index, const std::vector<utility::Credit>&)> on_view;
   ViewMemo* memo = nullptr;  ///< walks kept between calls, for utilities with replay()
+  /// If set and true for a valid view, its walk is skipped: the call gave its gain, cells and
+  /// occupied rays (CoverageMemo's records).
+  std::function<bool(Eigen::Index, double&, int&, int&)> replay_view;
+  /// If set, called after each walked view with the bricks its rays entered or stepped over (a
+  /// set over brick ids: its words of 64 bricks, VisitedSet::touched, and their bits).
+  std::function<void(Eigen::Index, const utility::VisitedSet&)> on_bricks;
 };
 
 // Does the utility declare replay() (utility.hpp)?
@@ -184,9 +190,11 @@ ViewScores score(const Job& job, const Cells& cells) {
           ViewMemo::key(job.cand(k, 0), job.cand(k, 1), job.cand(k, 2), job.cand(k, 3));
   }
 
+  const bool record_bricks = bool(job.on_bricks);
   parallel_chunks(static_cast<std::size_t>(K), 1, [&](std::size_t b, std::size_t e) {
     thread_local utility::VisitedSet visited;
     thread_local std::vector<utility::Credit> credits;
+    thread_local utility::VisitedSet brick_set;  // with on_bricks: the bricks a view's rays passed
     for (std::size_t kk = b; kk < e; ++kk) {
       const auto k = static_cast<Eigen::Index>(kk);
       const Eigen::Vector3d p(job.cand(k, 0), job.cand(k, 1), job.cand(k, 2));
@@ -215,6 +223,8 @@ ViewScores score(const Job& job, const Cells& cells) {
         const Eigen::Matrix3d R = T.linear();
         visited.reset(g.storage_size());
         credits.clear();
+        if (record_bricks) brick_set.reset(g.layout.num_bricks());
+        utility::VisitedSet::Marks brick_marks = brick_set.marks();
         utility::ViewContext ctx{
             g, job.utility, visited, cones, job.on_view ? &credits : nullptr, dense_range};
         Utility u(ctx);
@@ -226,6 +236,7 @@ ViewScores score(const Job& job, const Cells& cells) {
           [[maybe_unused]] const std::size_t stop = walk_ray<kSkip>(
               g, o, dw, job.camera.max_range / ds.x(),
               [&](std::size_t idx, const int* c, double t) {
+                if (record_bricks) brick_marks.insert(idx >> 6);
                 const float s = cells.scored(idx, c);
                 if (!ray_occ && std::signbit(s)) {  // the ray's first occupied cell
                   ray_occ = true;
@@ -234,6 +245,7 @@ ViewScores score(const Job& job, const Cells& cells) {
                 return u.visit(cells, idx, c, t, s);
               },
               [&](std::size_t idx) {
+                if (record_bricks) brick_marks.insert(idx >> 6);
                 if constexpr (kRecord) u.skipped(idx);
               });
           // a replayable utility stops a ray only at its first occupied cell
@@ -241,6 +253,10 @@ ViewScores score(const Job& job, const Cells& cells) {
             if (stop != kNoCell) rec->stops.push_back(std::uint32_t(stop));
         }
         if (job.on_view) job.on_view(k, credits);
+        if (record_bricks) {
+          brick_marks.keep();
+          job.on_bricks(k, brick_set);
+        }
         gain = u.gain();
         n_cells = u.cells();
       };
@@ -261,9 +277,9 @@ ViewScores score(const Job& job, const Cells& cells) {
           rec.words.push_back({reached, occ, w});
         }
       };
-      bool scored = false;
+      bool scored = job.replay_view && job.replay_view(k, gain, n_cells, occ);
       if constexpr (kMemo) {
-        if (memo) {
+        if (memo && !scored) {
           const ViewMemo::Entry* entry = memo->find(keys[kk]);
           if (entry && replay<Utility>(g, *entry, occ_req, gain, n_cells, occ)) {
             outcome[kk] = ViewMemo::Outcome::Reused;

@@ -9,6 +9,8 @@
 #include "nbv/views.hpp"
 
 #include <cstdint>
+#include <mutex>
+#include <unordered_map>
 #include <vector>
 
 namespace nbv {
@@ -73,11 +75,81 @@ struct CoverageRef {
       : offsets(o), elements(e), weights(w), status(st) {}
 };
 
+/// What view_coverage walks found, kept from one call to the next (the same answers, fewer walks).
+/// Per candidate pose, its four doubles bit for bit: the view's coverage set, gain, cell count
+/// and occupied rays, the bricks its rays entered or stepped over, and the epochs of the map's
+/// and the camera observations' stamps it was walked at (GridView). A later call over the same
+/// map and observations takes the record instead of walking while none of the bricks it lists
+/// has changed in the camera observations since, and no brick within one brick of them in the
+/// map: a view's walk reads the observations of the cells it enters, and the map's cells around
+/// them too (for the utility's frontier test, a cell's surface normal and a coverage element's
+/// side), all within one cell of a cell it entered. Validity (bounds, collision, path) is checked
+/// anew in every call. Entries that none of the last `keep_calls` calls used are dropped; a call
+/// over another map or observation record, or with another camera, grid or utility, clears the
+/// memo. Grids of 2^31 cells or more are walked every time (elements are kept in 32 bits).
+class CoverageMemo {
+ public:
+  explicit CoverageMemo(int keep_calls = 3);
+
+  struct Stats {
+    std::int64_t reused = 0;  ///< views answered from their record, without a walk
+    std::int64_t stale = 0;   ///< views whose record no longer held (then walked)
+    std::int64_t walked = 0;  ///< views walked and kept (stale ones included)
+  };
+  Stats stats() const { return stats_; }
+  std::size_t entries() const { return entries_.size(); }
+  std::size_t bytes() const;  ///< memory held by the entries' arrays
+  int keep_calls() const { return keep_calls_; }
+  void clear();
+  /// Held by a caller for the length of a call when calls may come from several threads.
+  std::mutex& mutex() { return mutex_; }
+
+  // ---- for view_coverage ----
+  struct Entry {
+    std::vector<std::uint32_t> elements;
+    std::vector<float> weights;
+    /// the bricks the view's rays entered or stepped over: words of 64 brick ids and their bits
+    std::vector<std::uint32_t> brick_words;
+    std::vector<std::uint64_t> brick_bits;
+    double gain = 0.0;
+    int cells = 0, occupied = 0;
+    std::uint32_t grid_epoch = 0, seen_epoch = 0;
+    std::int64_t used = 0;  ///< the last call that used or made it
+  };
+  using Key = ViewMemo::Key;
+  /// Starts a call over `grid` (its stamps and epochs) with `geometry` (camera, grid, utility):
+  /// clears the memo if either differs from the last call's; false if this grid cannot be kept.
+  bool begin(const GridView& grid, const std::vector<double>& geometry);
+  /// The entry of `key` if it holds for this call's grid, else null (counted as stale if one
+  /// exists).
+  const Entry* find(const Key& key) const;
+  /// Ends a call: keeps `fresh[k]` for each walked view (walked[k]), marks the reused ones used,
+  /// drops the unused.
+  void end(const std::vector<Key>& keys, std::vector<Entry>& fresh,
+           const std::vector<std::uint8_t>& walked, const std::vector<std::uint8_t>& reused);
+
+ private:
+  struct KeyHash {
+    std::size_t operator()(const Key& k) const;
+  };
+  int keep_calls_;
+  std::int64_t call_ = 0;
+  std::vector<double> geometry_;
+  std::uint64_t grid_id_ = 0, seen_id_ = 0;
+  std::vector<std::uint32_t> near_grid_;        // per brick: the newest map stamp within one brick
+  const std::uint32_t* seen_stamps_ = nullptr;  // the call's camera observation stamps
+  std::unordered_map<Key, Entry, KeyHash> entries_;
+  Stats stats_;
+  std::mutex mutex_;
+};
+
+/// With a memo (kept by the caller across calls over the same map and observations), views
+/// walked in an earlier call whose record still holds are answered from it: the same arrays.
 ViewCoverage view_coverage(
     const GridView& grid,
     const Eigen::Ref<const Eigen::Matrix<double, Eigen::Dynamic, 4, Eigen::RowMajor>>& candidates,
     const Pose& current, const ViewCameraModel& camera, const UtilityOptions& utility,
-    const ValidityOptions& validity);
+    const ValidityOptions& validity, CoverageMemo* memo = nullptr);
 
 /// Greedy weighted set cover: repeatedly the view whose not-yet-covered elements weigh most
 /// (each element counts at most `saturation` in total: a weight once covered), until the best

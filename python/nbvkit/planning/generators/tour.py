@@ -41,6 +41,8 @@ class CoverageTour:
         self.opened: set[int] = set()  # cells of stranded views a chosen view was credited with
         self.stop_reason = None  # why propose() gave up, when not because the surface is covered
         self.exploring = False  # plans include views of unknown space (tour.explore)
+        # what earlier plans' walks found, for candidates asked for again (the same arrays)
+        self.memo = _core.CoverageMemo()
 
     # ------------------------------------------------------------------ planning
     def candidates(self, world, explore: bool = False):
@@ -78,6 +80,7 @@ class CoverageTour:
             camera=world.view_camera,
             utility=self.cfg.utility.options(),
             validity=world.validity(blocked_path="plan"),
+            memo=self.memo,
         )
 
     def plan(self, world, reachable_only: bool = False, explore: bool = False) -> np.ndarray:
