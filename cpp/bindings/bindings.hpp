@@ -8,6 +8,7 @@
 #include <pybind11/pybind11.h>
 #include <pybind11/stl.h>
 
+#include <memory>
 #include <string>
 
 namespace nbv::bind {
@@ -50,5 +51,27 @@ void init_views(py::module_& m);
 void init_symmetry(py::module_& m);
 void init_planning(py::module_& m);
 void init_observability(py::module_& m);
+
+/// What a memo of walks (ViewMemo, CoverageMemo) shows Python besides its constructor: stats,
+/// entries, bytes, keep_calls and clear.
+template <class Memo>
+void def_memo_members(py::class_<Memo, std::shared_ptr<Memo>>& c) {
+  c.def(
+       "stats",
+       [](const Memo& memo) {
+         const auto s = memo.stats();
+         py::dict d;
+         d["reused"] = s.reused;
+         d["stale"] = s.stale;
+         d["walked"] = s.walked;
+         return d;
+       },
+       "Views so far: reused (answered from their record, without a walk), stale (a record "
+       "that no longer held, then walked), walked (walked and recorded, stale ones included).")
+      .def_property_readonly("entries", &Memo::entries, "Poses held.")
+      .def_property_readonly("bytes", &Memo::bytes, "Memory held by the records.")
+      .def_property_readonly("keep_calls", &Memo::keep_calls)
+      .def("clear", &Memo::clear, "Drops every record.");
+}
 
 }  // namespace nbv::bind

@@ -78,30 +78,15 @@ void init_planning(py::module_& m) {
 kind (T,) int8 (0 observed surface not yet covered from an open side, 1 predicted, 2 frontier:
 unknown between known free space and surface) and weight (T,) (1, the predicted probability, or
 frontier_weight).)doc");
-  py::class_<CoverageMemo, std::shared_ptr<CoverageMemo>>(m, "CoverageMemo", R"doc(
+  py::class_<CoverageMemo, std::shared_ptr<CoverageMemo>> coverage_memo(m, "CoverageMemo", R"doc(
 What view_coverage's walks found, kept from one call to the next over the same map and surface
 record (pass it as memo=). A view asked for again at the same pose (bit for bit) is answered from
 its record while no brick of 4 x 4 x 4 cells within one brick of those its rays entered or stepped
 over has changed in the map or the camera observations since: the same coverage set and status,
 without walking its rays. Validity is checked anew each call. Entries that none of the last
-keep_calls calls used are dropped; another map, record, camera or utility clears it.)doc")
-      .def(py::init<int>(), py::arg("keep_calls") = 3)
-      .def(
-          "stats",
-          [](const CoverageMemo& memo) {
-            const CoverageMemo::Stats s = memo.stats();
-            py::dict d;
-            d["reused"] = s.reused;
-            d["stale"] = s.stale;
-            d["walked"] = s.walked;
-            return d;
-          },
-          "Views so far: reused (answered from their record), stale (a record that no longer "
-          "held, then walked), walked (walked and recorded, stale ones included).")
-      .def_property_readonly("entries", &CoverageMemo::entries, "Poses held.")
-      .def_property_readonly("bytes", &CoverageMemo::bytes, "Memory held by the records.")
-      .def_property_readonly("keep_calls", &CoverageMemo::keep_calls)
-      .def("clear", &CoverageMemo::clear, "Drops every record.");
+keep_calls calls used are dropped; another map, record, camera or utility clears it.)doc");
+  coverage_memo.def(py::init<int>(), py::arg("keep_calls") = 3);
+  def_memo_members(coverage_memo);
 
   m.def(
       "view_coverage",

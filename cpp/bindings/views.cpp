@@ -110,31 +110,16 @@ surface and four_term utilities and by surface_targets.)doc")
   m.def("bin_cone", &bin_cone, py::arg("bin"), py::arg("cone_deg"),
         "Bitmask of the bins within cone_deg of a bin.");
 
-  py::class_<ViewMemo, std::shared_ptr<ViewMemo>>(m, "ViewMemo", R"doc(
+  py::class_<ViewMemo, std::shared_ptr<ViewMemo>> view_memo(m, "ViewMemo", R"doc(
 What the paper's IG walks of candidate views found, kept from one evaluate_views call to the next
 (pass it as memo=). A view scored again at the same pose (bit for bit) whose walk still holds -
 every cell its rays reached has kept its occupancy, every neutral brick they stepped over is
 still neutral - is scored from its record: the same gain, cells and occupied_seen, without
 walking its rays. Entries that none of the last keep_calls calls used are dropped; a call with
 another camera or grid geometry clears it. Used by the ig and ig_distance utilities on the grid
-backend; the others walk every view.)doc")
-      .def(py::init<int>(), py::arg("keep_calls") = 8)
-      .def(
-          "stats",
-          [](const ViewMemo& memo) {
-            const ViewMemo::Stats s = memo.stats();
-            py::dict d;
-            d["reused"] = s.reused;
-            d["stale"] = s.stale;
-            d["walked"] = s.walked;
-            return d;
-          },
-          "Views so far: reused (scored from their record), stale (a record that no longer held, "
-          "then walked), walked (walked and recorded, stale ones included).")
-      .def_property_readonly("entries", &ViewMemo::entries, "Poses held.")
-      .def_property_readonly("bytes", &ViewMemo::bytes, "Memory held by the records.")
-      .def_property_readonly("keep_calls", &ViewMemo::keep_calls)
-      .def("clear", &ViewMemo::clear, "Drops every record.");
+backend; the others walk every view.)doc");
+  view_memo.def(py::init<int>(), py::arg("keep_calls") = 8);
+  def_memo_members(view_memo);
 
   m.def(
       "evaluate_views",

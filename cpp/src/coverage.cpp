@@ -135,12 +135,6 @@ CoverageMemo::CoverageMemo(int keep_calls) : keep_calls_(keep_calls) {
                                 std::to_string(keep_calls));
 }
 
-std::size_t CoverageMemo::KeyHash::operator()(const Key& k) const {
-  std::uint64_t h = 0x9E3779B97F4A7C15ull;
-  for (std::uint64_t v : k) h = (h ^ v) * 0xBF58476D1CE4E5B9ull, h ^= h >> 31;
-  return std::size_t(h);
-}
-
 std::size_t CoverageMemo::bytes() const {
   std::size_t n = 0;
   for (const auto& [k, e] : entries_)
@@ -304,7 +298,7 @@ ViewCoverage view_coverage(
     walked.assign(std::size_t(K), 0);
     reused.assign(std::size_t(K), 0);
     for (Eigen::Index k = 0; k < K; ++k)
-      keys[std::size_t(k)] = ViewMemo::key(cand(k, 0), cand(k, 1), cand(k, 2), cand(k, 3));
+      keys[std::size_t(k)] = pose_key(cand(k, 0), cand(k, 1), cand(k, 2), cand(k, 3));
     job.replay_view = [&](Eigen::Index k, double& gain, int& cells, int& occupied) {
       const CoverageMemo::Entry* e = memo->find(keys[std::size_t(k)]);
       if (!e) return false;

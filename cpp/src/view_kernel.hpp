@@ -187,7 +187,7 @@ ViewScores score(const Job& job, const Cells& cells) {
     for (auto& e : fresh) e = memo->take();
     for (Eigen::Index k = 0; k < K; ++k)
       keys[std::size_t(k)] =
-          ViewMemo::key(job.cand(k, 0), job.cand(k, 1), job.cand(k, 2), job.cand(k, 3));
+          pose_key(job.cand(k, 0), job.cand(k, 1), job.cand(k, 2), job.cand(k, 3));
   }
 
   const bool record_bricks = bool(job.on_bricks);

@@ -156,14 +156,14 @@ ViewMemo::ViewMemo(int keep_calls) : keep_calls_(keep_calls) {
                                 std::to_string(keep_calls));
 }
 
-ViewMemo::Key ViewMemo::key(double x, double y, double z, double yaw) {
-  Key k;
+PoseKey pose_key(double x, double y, double z, double yaw) {
+  PoseKey k;
   const double v[4] = {x, y, z, yaw};
   for (int a = 0; a < 4; ++a) std::memcpy(&k[a], &v[a], sizeof(double));
   return k;
 }
 
-std::size_t ViewMemo::KeyHash::operator()(const Key& k) const {
+std::size_t PoseKeyHash::operator()(const PoseKey& k) const {
   std::uint64_t h = 0x9E3779B97F4A7C15ull;
   for (std::uint64_t v : k) h = (h ^ v) * 0xBF58476D1CE4E5B9ull, h ^= h >> 31;
   return std::size_t(h);

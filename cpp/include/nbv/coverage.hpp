@@ -91,11 +91,7 @@ class CoverageMemo {
  public:
   explicit CoverageMemo(int keep_calls = 3);
 
-  struct Stats {
-    std::int64_t reused = 0;  ///< views answered from their record, without a walk
-    std::int64_t stale = 0;   ///< views whose record no longer held (then walked)
-    std::int64_t walked = 0;  ///< views walked and kept (stale ones included)
-  };
+  using Stats = MemoStats;
   Stats stats() const { return stats_; }
   std::size_t entries() const { return entries_.size(); }
   std::size_t bytes() const;  ///< memory held by the entries' arrays
@@ -116,7 +112,7 @@ class CoverageMemo {
     std::uint32_t grid_epoch = 0, seen_epoch = 0;
     std::int64_t used = 0;  ///< the last call that used or made it
   };
-  using Key = ViewMemo::Key;
+  using Key = PoseKey;
   /// Starts a call over `grid` (its stamps and epochs) with `geometry` (camera, grid, utility):
   /// clears the memo if either differs from the last call's; false if this grid cannot be kept.
   bool begin(const GridView& grid, const std::vector<double>& geometry);
@@ -129,16 +125,13 @@ class CoverageMemo {
            const std::vector<std::uint8_t>& walked, const std::vector<std::uint8_t>& reused);
 
  private:
-  struct KeyHash {
-    std::size_t operator()(const Key& k) const;
-  };
   int keep_calls_;
   std::int64_t call_ = 0;
   std::vector<double> geometry_;
   std::uint64_t grid_id_ = 0, seen_id_ = 0;
   std::vector<std::uint32_t> near_grid_;        // per brick: the newest map stamp within one brick
   const std::uint32_t* seen_stamps_ = nullptr;  // the call's camera observation stamps
-  std::unordered_map<Key, Entry, KeyHash> entries_;
+  std::unordered_map<Key, Entry, PoseKeyHash> entries_;
   Stats stats_;
   std::mutex mutex_;
 };

@@ -122,6 +122,20 @@ struct ViewScores {
   Eigen::Matrix<std::int8_t, Eigen::Dynamic, 1> status;  ///< (K,) ViewStatus
 };
 
+/// A candidate pose as the key of a memo of walks (ViewMemo, CoverageMemo): its x, y, z and yaw
+/// bit for bit.
+using PoseKey = std::array<std::uint64_t, 4>;
+PoseKey pose_key(double x, double y, double z, double yaw);
+struct PoseKeyHash {
+  std::size_t operator()(const PoseKey& k) const;
+};
+/// What a memo of walks did with the views asked of it, so far.
+struct MemoStats {
+  std::int64_t reused = 0;  ///< views answered from their record, without a walk
+  std::int64_t stale = 0;   ///< views whose record no longer held (then walked)
+  std::int64_t walked = 0;  ///< views walked and kept (stale ones included)
+};
+
 /// What the paper's IG walks of candidate views found, kept from one scoring call to the next
 /// (aeplanner caches gains; this cache is exact). Per candidate pose, its four doubles bit for
 /// bit: the distinct cells its rays reached, each with its occupancy then; the cells where rays
@@ -140,11 +154,7 @@ class ViewMemo {
  public:
   explicit ViewMemo(int keep_calls = 8);
 
-  struct Stats {
-    std::int64_t reused = 0;  ///< views scored from their entry, without a walk
-    std::int64_t stale = 0;   ///< views whose entry no longer held (then walked)
-    std::int64_t walked = 0;  ///< views walked and kept (stale ones included)
-  };
+  using Stats = MemoStats;
   Stats stats() const { return stats_; }
   std::size_t entries() const { return entries_.size(); }
   std::size_t bytes() const;  ///< memory held by the entries' arrays
@@ -166,8 +176,7 @@ class ViewMemo {
     std::vector<std::uint32_t> bricks;  ///< neutral bricks stepped over
     std::int64_t used = 0;              ///< the last call that used or made it
   };
-  using Key = std::array<std::uint64_t, 4>;
-  static Key key(double x, double y, double z, double yaw);
+  using Key = PoseKey;
   /// Starts a call: clears the memo if `geometry` (camera and grid) differs from the last call's.
   void begin(const std::vector<double>& geometry);
   const Entry* find(const Key& k) const;
@@ -181,13 +190,10 @@ class ViewMemo {
            const std::vector<Outcome>& outcome);
 
  private:
-  struct KeyHash {
-    std::size_t operator()(const Key& k) const;
-  };
   int keep_calls_;
   std::int64_t call_ = 0;
   std::vector<double> geometry_;
-  std::unordered_map<Key, Entry, KeyHash> entries_;
+  std::unordered_map<Key, Entry, PoseKeyHash> entries_;
   std::vector<Entry> spare_;  // dropped entries, for their arrays
   Stats stats_;
   std::mutex mutex_;
