@@ -81,9 +81,9 @@ frontier_weight).)doc");
   py::class_<CoverageMemo, std::shared_ptr<CoverageMemo>> coverage_memo(m, "CoverageMemo", R"doc(
 What view_coverage's walks found, kept from one call to the next over the same map and surface
 record (pass it as memo=). A view asked for again at the same pose (bit for bit) is answered from
-its record while no brick of 4 x 4 x 4 cells within one brick of those its rays entered or stepped
-over has changed in the map or the camera observations since: the same coverage set and status,
-without walking its rays. Validity is checked anew each call. Entries that none of the last
+its record while none of the bricks of 4 x 4 x 4 cells its rays entered or stepped over has
+changed in the camera observations since, and none within one brick of them in the map: the same
+coverage set and status, without walking its rays. Validity is checked anew each call. Entries that none of the last
 keep_calls calls used are dropped; another map, record, camera or utility clears it.)doc");
   coverage_memo.def(py::init<int>(), py::arg("keep_calls") = 3);
   def_memo_members(coverage_memo);

@@ -60,7 +60,7 @@ void BrickStamps::touch_all() {
 }
 
 WorkspaceGrid::WorkspaceGrid(const std::array<int, 3>& dims, const CellRule& rule)
-    : layout_(dims), rule_(rule) {
+    : layout_(dims), rule_(rule), stamps_(layout_.num_bricks()) {
   if (layout_.storage_size() >= (std::size_t(1) << 40))
     throw std::invalid_argument("workspace grid too large");
   logodds_.assign(layout_.storage_size(), 0.0f);
@@ -140,7 +140,6 @@ void WorkspaceGrid::rebuild_derived() {
   scored_.resize(n);
   brick_live_.assign(layout_.num_bricks(), 0);
   brick_open_.assign(layout_.num_bricks(), 0);
-  if (stamps_.data() == nullptr) stamps_ = BrickStamps(layout_.num_bricks());
   stamps_.touch_all();
   const float unknown = float(rule_.entropy(0.0f, CellFlag::Unknown));
   // per brick: fixed-point sums (integers: the same total in any order and thread count)

@@ -116,8 +116,8 @@ class CoverageMemo {
   /// Starts a call over `grid` (its stamps and epochs) with `geometry` (camera, grid, utility):
   /// clears the memo if either differs from the last call's; false if this grid cannot be kept.
   bool begin(const GridView& grid, const std::vector<double>& geometry);
-  /// The entry of `key` if it holds for this call's grid, else null (counted as stale if one
-  /// exists).
+  /// The entry of `key` if it holds for this call's grid, else null (a record that no longer
+  /// holds is replaced by the view's new walk, and counted stale, in end()).
   const Entry* find(const Key& key) const;
   /// Ends a call: keeps `fresh[k]` for each walked view (walked[k]), marks the reused ones used,
   /// drops the unused.
