@@ -83,8 +83,9 @@ What view_coverage's walks found, kept from one call to the next over the same m
 record (pass it as memo=). A view asked for again at the same pose (bit for bit) is answered from
 its record while none of the bricks of 4 x 4 x 4 cells its rays entered or stepped over has
 changed in the camera observations since, and none within one brick of them in the map: the same
-coverage set and status, without walking its rays. Validity is checked anew each call. Entries that none of the last
-keep_calls calls used are dropped; another map, record, camera or utility clears it.)doc");
+coverage set and status, without walking its rays. Validity is checked anew each call. Entries
+that none of the last keep_calls calls used are dropped; another map, record, camera or utility
+clears it.)doc");
   coverage_memo.def(py::init<int>(), py::arg("keep_calls") = 3);
   def_memo_members(coverage_memo);
 
