@@ -12,7 +12,7 @@ import pytest
 import nbvkit
 from nbvkit import _core
 from nbvkit.config import Config, load_config
-from nbvkit.mission import Mission
+from nbvkit.mission import STAGES, Mission
 from nbvkit.planning.generators.frontier import FrontierGenerator
 from nbvkit.planning.generators.tour import exploration_targets, prize_collect
 from nbvkit.planning.placement import Patches, into_bounds, place_views, target_patches
@@ -450,6 +450,11 @@ def test_the_surface_planner_tours_and_stops_by_itself():
     assert s["area_coverage"]["0.1"] > 0.7
     sources = {r.source for r in m.records}
     assert sources == {"tour"}
+    # ms_per_stage counts the plan that ended the mission (no view, so no row) as well
+    rows_ms = sum(getattr(r, f"t_{st}_ms") for r in m.records for st in STAGES)
+    assert s["final_plan_ms"] > 0
+    assert s["ms_per_iteration"] * s["iterations"] == pytest.approx(rows_ms + s["final_plan_ms"])
+    assert s["ms_per_stage"]["sampling"] * s["iterations"] > sum(r.t_sampling_ms for r in m.records)
 
 
 @pytest.mark.slow

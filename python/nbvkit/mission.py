@@ -198,10 +198,11 @@ class Mission:
         ev = self.evaluator(world.cloud_points())
         n_it = len(self.records)
         e_final = world.map.total_entropy()
-        per_stage = {
-            s: float(np.mean([getattr(r, f"t_{s}_ms") for r in self.records])) if n_it else 0.0
-            for s in STAGES
-        }
+        # Per flown view, every second the per-view stages took: the rows of iterations.csv and
+        # the plan that ended the mission, which flew no view and so has no row (final_plan_ms).
+        timers = self.planner.timers
+        per_stage = {s: timers.total.get(s, 0.0) * 1e3 / n_it if n_it else 0.0 for s in STAGES}
+        final_plan_ms = sum(timers.pending().get(s, 0.0) for s in STAGES) * 1e3
         tour = next((g for g in self.planner.generators if hasattr(g, "plans")), None)
         out = {
             "scenario": cfg.scenario,
@@ -224,6 +225,7 @@ class Mission:
             "wall_time_s": wall,
             "ms_per_iteration": sum(per_stage.values()),
             "ms_per_stage": per_stage,
+            "final_plan_ms": final_plan_ms,
             "coverage_refresh_s": self.coverage_time_s,
             # the process's peak resident memory so far (Linux ru_maxrss, KiB): in a sweep worker
             # that has flown several runs, the largest of them

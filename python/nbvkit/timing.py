@@ -18,9 +18,13 @@ class StageTimers:
         """Each stage's time (s) since the previous lap (or since the timers were made): all of
         an iteration's time, also where a stage ran more than once (tour views skipped, a new
         tour planned)."""
-        out = {s: t - self._at_lap.get(s, 0.0) for s, t in self.total.items()}
+        out = self.pending()
         self._at_lap = dict(self.total)
         return out
+
+    def pending(self) -> dict:
+        """Each stage's time (s) since the previous lap, without taking one."""
+        return {s: t - self._at_lap.get(s, 0.0) for s, t in self.total.items()}
 
     @contextmanager
     def __call__(self, stage: str):
