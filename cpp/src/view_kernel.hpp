@@ -122,6 +122,12 @@ struct Replayable : std::false_type {};
 template <class U>
 struct Replayable<U, std::void_t<decltype(&U::replay)>> : std::true_type {};
 
+// Does the utility declare kIdsOnly (utility.hpp)?
+template <class U, class = void>
+struct IdsOnly : std::false_type {};
+template <class U>
+struct IdsOnly<U, std::void_t<decltype(U::kIdsOnly)>> : std::bool_constant<U::kIdsOnly> {};
+
 // What a memo entry depends on besides the map: the camera's rays and the grid's geometry.
 inline std::vector<double> memo_geometry(const Job& job) {
   const ViewCameraModel& c = job.camera;
@@ -171,6 +177,8 @@ ViewScores score(const Job& job, const Cells& cells) {
   const double dense_range =
       job.utility.dense_spacing / (job.camera.pixel_pitch_deg * M_PI / 180.0);
 
+  // four rays at a time (walk_rays4), for a utility that reads a cell's id and score only
+  constexpr bool kIds = IdsOnly<Utility>::value && std::is_same_v<Cells, GridCells>;
   // the memo (its entries hold cell ids in 32 bits)
   constexpr bool kMemo = Replayable<Utility>::value && kSkip && std::is_same_v<Cells, GridCells>;
   ViewMemo* memo = nullptr;
@@ -195,6 +203,8 @@ ViewScores score(const Job& job, const Cells& cells) {
     thread_local utility::VisitedSet visited;
     thread_local std::vector<utility::Credit> credits;
     thread_local utility::VisitedSet brick_set;  // with on_bricks: the bricks a view's rays passed
+    thread_local std::vector<std::int64_t> ray_cells;  // walk_rays4's cells
+    if constexpr (kIds) ray_cells.resize(4 * std::size_t(max_ray_cells(g)));
     for (std::size_t kk = b; kk < e; ++kk) {
       const auto k = static_cast<Eigen::Index>(kk);
       const Eigen::Vector3d p(job.cand(k, 0), job.cand(k, 1), job.cand(k, 2));
@@ -228,29 +238,60 @@ ViewScores score(const Job& job, const Cells& cells) {
         utility::ViewContext ctx{
             g, job.utility, visited, cones, job.on_view ? &credits : nullptr, dense_range};
         Utility u(ctx);
-        for (Eigen::Index r = 0; r < dirs.rows(); ++r) {
+        bool ray_occ = false;
+        auto visit = [&](std::size_t idx, const int* c, double t) {
+          if (record_bricks) brick_marks.insert(idx >> 6);
+          const float s = cells.scored(idx, c);
+          if (!ray_occ && std::signbit(s)) {  // the ray's first occupied cell
+            ray_occ = true;
+            if (cells.logodds(idx, c) > occ_req) ++occ;
+          }
+          return u.visit(cells, idx, c, t, s);
+        };
+        auto skipped = [&](std::size_t idx) {
+          if (record_bricks) brick_marks.insert(idx >> 6);
+          if constexpr (kRecord) u.skipped(idx);
+        };
+        // a replayable utility stops a ray only at its first occupied cell
+        auto end_ray = [&](std::size_t stop) {
+          if constexpr (kRecord)
+            if (stop != kNoCell) rec->stops.push_back(std::uint32_t(stop));
+        };
+        const Eigen::Index n_rays = dirs.rows();
+        bool walked = false;
+        if constexpr (kIds) {
+          if (!record_bricks) {
+            // four rays at a time through walk_rays4, their cells then taken ray by ray in
+            // walk_ray's order; the information gain's ray ends at its first occupied cell
+            const RayOrigin from = ray_origin(g, o);
+            for (Eigen::Index r0 = 0; r0 < n_rays; r0 += 4) {
+              RayStart starts[4];
+              bool active[4] = {false, false, false, false};
+              Eigen::Vector3d dw[4];
+              for (int l = 0; l < 4 && r0 + l < n_rays; ++l) {
+                const Eigen::Vector3d ds = dirs.row(r0 + l).transpose();
+                dw[l] = R * ds;
+                active[l] = ray_start(g, from, dw[l], job.camera.max_range / ds.x(), starts[l]);
+              }
+              int count[4];
+              walk_rays4(g, starts, active, ray_cells.data(), count);
+              for (int l = 0; l < 4 && r0 + l < n_rays; ++l) {
+                u.begin_ray(dw[l]);
+                const std::size_t stop =
+                    u.template visit_ray<kSkip, kRecord>(g, ray_cells.data() + l, 4, count[l]);
+                if (stop != kNoCell && cells.logodds(stop, nullptr) > occ_req) ++occ;
+                end_ray(stop);
+              }
+            }
+            walked = true;
+          }
+        }
+        for (Eigen::Index r = 0; r < n_rays && !walked; ++r) {
           const Eigen::Vector3d ds = dirs.row(r).transpose();
           const Eigen::Vector3d dw = R * ds;
           u.begin_ray(dw);
-          bool ray_occ = false;
-          [[maybe_unused]] const std::size_t stop = walk_ray<kSkip>(
-              g, o, dw, job.camera.max_range / ds.x(),
-              [&](std::size_t idx, const int* c, double t) {
-                if (record_bricks) brick_marks.insert(idx >> 6);
-                const float s = cells.scored(idx, c);
-                if (!ray_occ && std::signbit(s)) {  // the ray's first occupied cell
-                  ray_occ = true;
-                  if (cells.logodds(idx, c) > occ_req) ++occ;
-                }
-                return u.visit(cells, idx, c, t, s);
-              },
-              [&](std::size_t idx) {
-                if (record_bricks) brick_marks.insert(idx >> 6);
-                if constexpr (kRecord) u.skipped(idx);
-              });
-          // a replayable utility stops a ray only at its first occupied cell
-          if constexpr (kRecord)
-            if (stop != kNoCell) rec->stops.push_back(std::uint32_t(stop));
+          ray_occ = false;
+          end_ray(walk_ray<kSkip>(g, o, dw, job.camera.max_range / ds.x(), visit, skipped));
         }
         if (job.on_view) job.on_view(k, credits);
         if (record_bricks) {

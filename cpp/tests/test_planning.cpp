@@ -144,6 +144,68 @@ TEST(RayWalk, AxisRaysVisitTheirRowAndDiagonalsEveryCrossedCell) {
   EXPECT_EQ(entering.front(), (std::array<int, 3>{0, 2, 2}));
 }
 
+TEST(RayWalk, FourLanesWalkTheCellsOfWalkRayOnRandomAndDegenerateRays) {
+  // A grid whose sides are not multiples of a brick, rays from inside, outside and on cell
+  // boundaries, along axes (with -0.0 components), diagonals (exact ties) and at random, with
+  // ranges that end inside, on a boundary and past the grid: walk_rays4's cells, in AVX2 lanes
+  // and one ray at a time, are walk_ray<false>'s in order, lane by lane.
+  OccupancyMap m(0.5, {-3.0, -2.0, -1.0}, {4.5, 3.5, 2.0});  // 15 x 11 x 6 cells
+  const GridView g = grid_view(m);
+  std::mt19937 rng(7);
+  std::uniform_real_distribution<double> pos(-4.0, 5.0), unit(-1.0, 1.0), range(0.0, 12.0);
+  std::vector<std::pair<Eigen::Vector3d, Eigen::Vector3d>> rays;
+  const double axis[3] = {-0.0, 0.0, 1.0};
+  for (const double ax : axis)
+    for (const double ay : axis)
+      for (const double az : {-1.0, -0.0, 1.0}) {
+        const Eigen::Vector3d d(ax, ay, az);
+        if (d.norm() > 0) rays.push_back({{0.25, 0.5, 0.0}, d.normalized()});  // on boundaries
+      }
+  for (int i = 0; i < 600; ++i) {
+    Eigen::Vector3d o(pos(rng), pos(rng), pos(rng) * 0.5), d(unit(rng), unit(rng), unit(rng));
+    if (i % 5 == 0) o = (o * 2.0).array().round() / 2.0;  // a cell corner
+    if (i % 7 == 0) d[i % 3] = 0.0;
+    if (d.norm() < 1e-3) continue;
+    rays.push_back({o, d.normalized()});
+  }
+  std::vector<std::int64_t> cells(4 * std::size_t(max_ray_cells(g)));
+  std::size_t walked = 0;
+  int crossing = 0;
+  for (std::size_t r0 = 0; r0 < rays.size(); r0 += 4) {
+    RayStart starts[4];
+    bool active[4];
+    double t_max[4];
+    std::vector<std::int64_t> expect[4];
+    for (int l = 0; l < 4; ++l) {
+      const std::size_t r = std::min(r0 + std::size_t(l), rays.size() - 1);
+      t_max[l] = l == 3 ? 100.0 : l == 2 ? std::floor(range(rng)) : range(rng);
+      const auto& [o, d] = rays[r];
+      active[l] = ray_start(g, ray_origin(g, o), d, t_max[l], starts[l]);
+      walk_ray<false>(g, o, d, t_max[l], [&](std::size_t idx, const int*, double) {
+        expect[l].push_back(std::int64_t(idx));
+        return true;
+      });
+      ASSERT_EQ(active[l], !expect[l].empty()) << "ray " << r;
+    }
+    for (const bool simd : {true, false}) {
+      int count[4] = {-1, -1, -1, -1};
+      walk_rays4(g, starts, active, cells.data(), count, simd);
+      for (int l = 0; l < 4; ++l) {
+        ASSERT_EQ(count[l], int(expect[l].size())) << "ray " << r0 + l << " simd " << simd;
+        for (int j = 0; j < count[l]; ++j)
+          ASSERT_EQ(cells[std::size_t(4 * j + l)], expect[l][std::size_t(j)])
+              << "ray " << r0 + l << " cell " << j << " simd " << simd;
+      }
+    }
+    for (int l = 0; l < 4; ++l) {
+      walked += expect[l].size();
+      crossing += expect[l].size() >= 5;
+    }
+  }
+  EXPECT_GT(crossing, 150);  // rays that crossed the grid, not just a corner of it
+  EXPECT_GT(walked, 2000u);
+}
+
 TEST(Navigation, SpheresAndPathsStayInKnownFreeSpace) {
   OccupancyMap m(0.2, {0, 0, 0}, {6, 6, 3});
   // a known free corridor along x at y = 1.5 and one along y at x = 4.5, everything else unknown

@@ -64,6 +64,26 @@ struct GridView {
 /// been made for the same map geometry; std::invalid_argument otherwise).
 GridView grid_view(const OccupancyMap& map, const SurfaceObservations* surface = nullptr);
 
+/// The part [t0, t1] (grid units) of the ray pos + t d (pos in grid units, d a unit vector) that
+/// lies in the grid box [0, n] with t in [0, t_max / resolution]; false if there is none.
+inline bool clip_to_grid(const GridView& g, const Eigen::Vector3d& pos, const Eigen::Vector3d& d,
+                         double t_max, double& t0, double& t1) {
+  const int n[3] = {g.nx, g.ny, g.nz};
+  t0 = 0.0;
+  t1 = t_max / g.resolution;
+  for (int a = 0; a < 3; ++a) {
+    if (d[a] == 0.0) {
+      if (pos[a] < 0.0 || pos[a] >= n[a]) return false;
+      continue;
+    }
+    double ta = (0.0 - pos[a]) / d[a], tb = (n[a] - pos[a]) / d[a];
+    if (ta > tb) std::swap(ta, tb);
+    t0 = std::max(t0, ta);
+    t1 = std::min(t1, tb);
+  }
+  return t0 <= t1;
+}
+
 /// Amanatides & Woo 3D-DDA over the grid from o along the unit vector d for t in [0, t_max]
 /// (metres), clipped to the grid box. visit(flat_index, cell[3], t_enter) returns false to stop;
 /// the walk returns the index of the cell it stopped at, or kNoCell.
@@ -84,20 +104,9 @@ __attribute__((always_inline)) inline std::size_t walk_ray(const GridView& g,
                                                            Visit&& visit, Skipped&& skipped = {}) {
   constexpr double kInf = std::numeric_limits<double>::infinity();
   const Eigen::Vector3d pos = (o - g.origin) / g.resolution;  // grid units
-  const double tend_g = t_max / g.resolution;
   const int n[3] = {g.nx, g.ny, g.nz};
-  double t0 = 0.0, t1 = tend_g;
-  for (int a = 0; a < 3; ++a) {  // clip to the grid box [0, n]
-    if (d[a] == 0.0) {
-      if (pos[a] < 0.0 || pos[a] >= n[a]) return kNoCell;
-      continue;
-    }
-    double ta = (0.0 - pos[a]) / d[a], tb = (n[a] - pos[a]) / d[a];
-    if (ta > tb) std::swap(ta, tb);
-    t0 = std::max(t0, ta);
-    t1 = std::min(t1, tb);
-  }
-  if (t0 > t1) return kNoCell;
+  double t0, t1;
+  if (!clip_to_grid(g, pos, d, t_max, t0, t1)) return kNoCell;
   const Eigen::Vector3d p0 = pos + t0 * d;
   // Per axis: cell, step, parameter of the next boundary and between boundaries, kept in
   // scalars; the axis to step is chosen without branches (ties as in the classic form: x only if
@@ -169,6 +178,44 @@ __attribute__((always_inline)) inline std::size_t walk_ray(const GridView& g,
     }
   }
 }
+
+/// walk_ray's state at a ray's first cell, for walking rays four at a time (walk_rays4): per
+/// axis the parameter of the next boundary and between boundaries (grid units), a countdown of
+/// the steps left in the grid (plus `floor`, so that it is a multiple of 4 exactly where a step
+/// crosses a brick boundary; the ray leaves the grid when it falls below `floor`), and the id's
+/// change for a step within a brick (step_in) and the extra change across a brick boundary
+/// (step_cross); the end t1 and the first cell's id.
+struct RayStart {
+  double t_next[3], t_delta[3], t1;
+  std::int64_t id, countdown[3], floor[3], step_in[3], step_cross[3];
+};
+
+/// Where rays from o start in the grid: o in grid units, whether it lies inside the grid box,
+/// and its cell (clamped to the grid).
+struct RayOrigin {
+  Eigen::Vector3d pos;
+  bool inside = false;
+  int cell[3] = {0, 0, 0};
+};
+RayOrigin ray_origin(const GridView& g, const Eigen::Vector3d& o);
+
+/// walk_ray's setup of the ray from `origin` along the unit vector d for t in [0, t_max]
+/// (metres); false if it misses the grid (walk_ray visits no cell).
+bool ray_start(const GridView& g, const RayOrigin& origin, const Eigen::Vector3d& d, double t_max,
+               RayStart& r);
+
+/// The most cells a ray visits in the grid (a bound for walk_rays4's buffer).
+inline int max_ray_cells(const GridView& g) { return g.nx + g.ny + g.nz + 1; }
+
+/// The cells of walk_ray<false> for four rays, for walks that need a cell's flat index only
+/// (the information gain): cells[4 j + l] is lane l's j-th cell, for j < count[l], in walk_ray's
+/// order and under its comparisons (ties as there), with `cells` holding 4 max_ray_cells(g).
+/// Lanes that are not `active` get no cell. The rays step in the lanes of AVX2 registers where
+/// the CPU has them (simd = true), one at a time otherwise: a walk whose visitor does little per
+/// cell spent most of its time in the mispredicted branches of walk_ray's step; a lane steps
+/// without one, and the visitor reads the cells after.
+void walk_rays4(const GridView& g, const RayStart* starts, const bool* active, std::int64_t* cells,
+                int* count, bool simd = true);
 
 /// The 26 direction bins of camera observations: the unit vectors of (i, j, k) in {-1, 0, 1}^3
 /// minus the zero vector, bin b = (i+1) + 3 (j+1) + 9 (k+1), skipping 13.

@@ -7,12 +7,14 @@
 #include "utility.hpp"
 
 #include <cstring>
+#include <vector>
 
 namespace nbv::utility {
 
 struct InformationGain {
   static constexpr bool kSkipNeutral = true;
   static constexpr bool kNeedsSurface = false;
+  static constexpr bool kIdsOnly = true;  // visit() reads a cell's id and score only
   explicit InformationGain(ViewContext& ctx) : marks_(ctx.visited.marks()) {}
   ~InformationGain() { marks_.keep(); }
   void begin_ray(const Eigen::Vector3d&) {}
@@ -24,6 +26,51 @@ struct InformationGain {
     gain_ = add_if(gain_, std::fabs(scored), counts);
     cells_ += counts;
     return !std::signbit(scored);
+  }
+  /// One ray's cells in walk_ray's order (ids[stride j], j < count), as visit() would take
+  /// them, with neutral bricks stepped over (kSkip; marked as skipped() does with kRecord):
+  /// returns the cell the ray stopped at (its first occupied), or kNoCell. Compiled apart, with
+  /// its state in locals: inlined into the kernel, its sum was kept on the stack.
+  template <bool kSkip, bool kRecord>
+  __attribute__((noinline)) std::size_t visit_ray(const GridView& g, const std::int64_t* ids,
+                                                  int stride, int count) {
+    const std::uint8_t* live = g.brick_live;
+    const float* scored = g.scored;
+    VisitedSet::Marks m = marks_;
+    double gain = gain_;
+    int cells = cells_;
+    std::size_t stop = kNoCell;
+    // kRecord: the neutral bricks entered, marked after the ray (as skipped() does) by their
+    // first cell's bit: marked cell by cell, each mark waited on the one before into its word
+    thread_local std::vector<std::uint32_t> entered_bricks;
+    if (kRecord && entered_bricks.size() <= std::size_t(count))
+      entered_bricks.resize(std::size_t(count) + 1);
+    std::uint32_t* entered = entered_bricks.data();
+    std::size_t n_entered = 0, last = ~std::size_t(0);
+    for (int j = 0; j < count; ++j) {
+      const auto idx = std::size_t(ids[std::ptrdiff_t(j) * stride]);
+      if (kSkip && live[idx >> 6] == 0) {
+        if constexpr (kRecord) {
+          entered[n_entered] = std::uint32_t(idx >> 6);
+          n_entered += (idx >> 6) != last;
+          last = idx >> 6;
+        }
+        continue;
+      }
+      const float s = scored[idx];
+      const bool counts = m.insert(idx) & (s != 0.0f);
+      gain = add_if(gain, std::fabs(s), counts);
+      cells += counts;
+      if (std::signbit(s)) {
+        stop = idx;
+        break;
+      }
+    }
+    for (std::size_t e = 0; e < n_entered; ++e) m.insert(std::size_t(entered[e]) << 6);
+    marks_ = m;
+    gain_ = gain;
+    cells_ = cells;
+    return stop;
   }
   double gain() const { return gain_; }
   int cells() const { return cells_; }
