@@ -60,14 +60,13 @@ RayOrigin ray_origin(const GridView& g, const Eigen::Vector3d& o) {
   r.inside = true;
   for (int a = 0; a < 3; ++a) {
     r.inside &= r.pos[a] >= 0.0 && r.pos[a] < n[a];
-    r.cell[a] = std::clamp(static_cast<int>(std::floor(r.pos[a])), 0, n[a] - 1);
+    r.cell[a] = grid_cell(r.pos[a], n[a]);
   }
   return r;
 }
 
 bool ray_start(const GridView& g, const RayOrigin& origin, const Eigen::Vector3d& d, double t_max,
                RayStart& r) {
-  constexpr double kInf = std::numeric_limits<double>::infinity();
   const Eigen::Vector3d& pos = origin.pos;
   const int n[3] = {g.nx, g.ny, g.nz};
   int c[3];
@@ -85,32 +84,19 @@ bool ray_start(const GridView& g, const RayOrigin& origin, const Eigen::Vector3d
     if (!clip_to_grid(g, pos, d, t_max, t0, t1)) return false;
     r.t1 = t1;
     const Eigen::Vector3d p0 = pos + t0 * d;
-    for (int a = 0; a < 3; ++a) c[a] = std::clamp(static_cast<int>(std::floor(p0[a])), 0, n[a] - 1);
+    for (int a = 0; a < 3; ++a) c[a] = grid_cell(p0[a], n[a]);
   }
-  const std::int64_t bstride[3] = {64, 64 * std::int64_t(g.layout.bricks[0]),
-                                   64 * std::int64_t(g.layout.bricks[0]) * g.layout.bricks[1]};
-  const std::int64_t istride[3] = {1, 4, 16};
-  for (int a = 0; a < 3; ++a) {  // as walk_ray
-    int step = 0;
-    if (d[a] > 0) {
-      step = 1;
-      r.t_delta[a] = 1.0 / d[a];
-      r.t_next[a] = (c[a] + 1 - pos[a]) / d[a];
-    } else if (d[a] < 0) {
-      step = -1;
-      r.t_delta[a] = -1.0 / d[a];
-      r.t_next[a] = (c[a] - pos[a]) / d[a];
-    } else {
-      r.t_delta[a] = kInf;
-      r.t_next[a] = kInf;
-    }
-    r.step_in[a] = step * istride[a];
-    r.step_cross[a] = step * (bstride[a] - 3 * istride[a]) - r.step_in[a];
+  int step[3];
+  for (int a = 0; a < 3; ++a) dda_axis(d[a], c[a], pos[a], step[a], r.t_next[a], r.t_delta[a]);
+  std::int64_t cross[3];
+  dda_id_steps(g, step, r.step_in, cross);
+  for (int a = 0; a < 3; ++a) {
+    r.step_cross[a] = cross[a] - r.step_in[a];
     // steps left: n - 1 - c up, c down; + floor makes it 3 - (c & 3), c & 3 modulo 4
-    r.floor[a] = step > 0 ? (4 - n[a] % 4) % 4 : 0;
-    r.countdown[a] = (step > 0   ? n[a] - 1 - c[a]
-                      : step < 0 ? c[a]
-                                 : std::int64_t(1) << 40) +
+    r.floor[a] = step[a] > 0 ? (4 - n[a] % 4) % 4 : 0;
+    r.countdown[a] = (step[a] > 0   ? n[a] - 1 - c[a]
+                      : step[a] < 0 ? c[a]
+                                    : std::int64_t(1) << 40) +
                      r.floor[a];
   }
   r.id = std::int64_t(g.layout.id(c[0], c[1], c[2]));

@@ -84,6 +84,43 @@ inline bool clip_to_grid(const GridView& g, const Eigen::Vector3d& pos, const Ei
   return t0 <= t1;
 }
 
+/// The cell holding grid coordinate p along an axis of n cells, clamped to the grid.
+inline int grid_cell(double p, int n) {
+  return std::clamp(static_cast<int>(std::floor(p)), 0, n - 1);
+}
+
+/// The 3D-DDA's start along one axis: from grid coordinate p in cell c, with da the direction's
+/// component, the step (+1, -1 or 0), the parameter (grid units) of the next boundary and the
+/// parameter between boundaries.
+inline void dda_axis(double da, int c, double p, int& step, double& t_next, double& t_delta) {
+  if (da > 0) {
+    step = 1;
+    t_delta = 1.0 / da;
+    t_next = (c + 1 - p) / da;
+  } else if (da < 0) {
+    step = -1;
+    t_delta = -1.0 / da;
+    t_next = (c - p) / da;
+  } else {
+    step = 0;
+    t_delta = std::numeric_limits<double>::infinity();
+    t_next = t_delta;
+  }
+}
+
+/// The change of a cell's id for a step along each axis: within a brick +-1 / +-4 / +-16 (in),
+/// across a brick boundary +-(brick stride - 3 * in-brick stride) (cross).
+inline void dda_id_steps(const GridView& g, const int step[3], std::int64_t in[3],
+                         std::int64_t cross[3]) {
+  const std::int64_t bstride[3] = {64, 64 * std::int64_t(g.layout.bricks[0]),
+                                   64 * std::int64_t(g.layout.bricks[0]) * g.layout.bricks[1]};
+  const std::int64_t istride[3] = {1, 4, 16};
+  for (int a = 0; a < 3; ++a) {
+    in[a] = step[a] * istride[a];
+    cross[a] = step[a] * (bstride[a] - 3 * istride[a]);
+  }
+}
+
 /// Amanatides & Woo 3D-DDA over the grid from o along the unit vector d for t in [0, t_max]
 /// (metres), clipped to the grid box. visit(flat_index, cell[3], t_enter) returns false to stop;
 /// the walk returns the index of the cell it stopped at, or kNoCell.
@@ -102,7 +139,6 @@ __attribute__((always_inline)) inline std::size_t walk_ray(const GridView& g,
                                                            const Eigen::Vector3d& o,
                                                            const Eigen::Vector3d& d, double t_max,
                                                            Visit&& visit, Skipped&& skipped = {}) {
-  constexpr double kInf = std::numeric_limits<double>::infinity();
   const Eigen::Vector3d pos = (o - g.origin) / g.resolution;  // grid units
   const int n[3] = {g.nx, g.ny, g.nz};
   double t0, t1;
@@ -111,42 +147,18 @@ __attribute__((always_inline)) inline std::size_t walk_ray(const GridView& g,
   // Per axis: cell, step, parameter of the next boundary and between boundaries, kept in
   // scalars; the axis to step is chosen without branches (ties as in the classic form: x only if
   // strictly first, else y if strictly before z, else z).
-  int c0 = std::clamp(static_cast<int>(std::floor(p0[0])), 0, n[0] - 1);
-  int c1 = std::clamp(static_cast<int>(std::floor(p0[1])), 0, n[1] - 1);
-  int c2 = std::clamp(static_cast<int>(std::floor(p0[2])), 0, n[2] - 1);
-  auto setup = [&](int a, int c, int& step, double& t_next, double& t_delta) {
-    if (d[a] > 0) {
-      step = 1;
-      t_delta = 1.0 / d[a];
-      t_next = (c + 1 - pos[a]) / d[a];
-    } else if (d[a] < 0) {
-      step = -1;
-      t_delta = -1.0 / d[a];
-      t_next = (c - pos[a]) / d[a];
-    } else {
-      step = 0;
-      t_delta = kInf;
-      t_next = kInf;
-    }
-  };
+  int c0 = grid_cell(p0[0], n[0]), c1 = grid_cell(p0[1], n[1]), c2 = grid_cell(p0[2], n[2]);
   int s0, s1, s2;
   double tn0, tn1, tn2, td0, td1, td2;
-  setup(0, c0, s0, tn0, td0);
-  setup(1, c1, s1, tn1, td1);
-  setup(2, c2, s2, tn2, td2);
-  // The cell id follows the steps: within a brick +-1 / +-4 / +-16, across a brick boundary
-  // +-(brick stride - 3 * in-brick stride).
-  const std::int64_t bstride[3] = {64, 64 * std::int64_t(g.layout.bricks[0]),
-                                   64 * std::int64_t(g.layout.bricks[0]) * g.layout.bricks[1]};
-  const std::int64_t istride[3] = {1, 4, 16};
+  dda_axis(d[0], c0, pos[0], s0, tn0, td0);
+  dda_axis(d[1], c1, pos[1], s1, tn1, td1);
+  dda_axis(d[2], c2, pos[2], s2, tn2, td2);
+  // The cell id follows the steps.
   const int steps[3] = {s0, s1, s2};
   std::int64_t d_in[3], d_cross[3];
+  dda_id_steps(g, steps, d_in, d_cross);
   int edge[3];
-  for (int a = 0; a < 3; ++a) {
-    d_in[a] = steps[a] * istride[a];
-    d_cross[a] = steps[a] * (bstride[a] - 3 * istride[a]);
-    edge[a] = steps[a] > 0 ? 3 : 0;
-  }
+  for (int a = 0; a < 3; ++a) edge[a] = steps[a] > 0 ? 3 : 0;
   std::int64_t id = std::int64_t(g.layout.id(c0, c1, c2));
   double t_enter = t0;
   for (;;) {
