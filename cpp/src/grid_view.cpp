@@ -25,6 +25,7 @@ GridView grid_view(const OccupancyMap& map, const SurfaceObservations* surface) 
   g.flags = w.flag_data();
   g.brick_live = w.brick_live_data();
   g.brick_open = w.brick_open_data();
+  g.brick_occupied = w.brick_occupied_data();
   g.unknown_entropy = float(w.rule().entropy(0.0f, CellFlag::Unknown));
   g.grid_stamps = w.stamps().data();
   g.grid_epoch = w.stamps().take_epoch();
@@ -49,7 +50,7 @@ bool GridView::cell_of(const Eigen::Vector3d& p, Eigen::Vector3i& c) const {
 
 void GridView::validate() const {
   if (!(resolution > 0) || nx <= 0 || ny <= 0 || nz <= 0 || !scored || !logodds || !flags ||
-      !brick_live || !brick_open)
+      !brick_live || !brick_open || !brick_occupied)
     throw std::invalid_argument("grid view is empty or incomplete");
 }
 
@@ -105,28 +106,92 @@ bool ray_start(const GridView& g, const RayOrigin& origin, const Eigen::Vector3d
 
 namespace {
 
-// One ray at a time: walk_ray's loop on RayStart's state.
-void walk_rays4_scalar(const RayStart* starts, const bool* active, std::int64_t* cells, int* count,
-                       int cap) {
-  for (int l = 0; l < 4; ++l) {
-    count[l] = 0;
-    if (!active[l]) continue;
-    RayStart r = starts[l];
-    int j = 0;
-    cells[l] = r.id;
-    for (++j; j < cap; ++j) {
-      if (std::min(std::min(r.t_next[0], r.t_next[1]), r.t_next[2]) > r.t1) break;
-      const int a = (r.t_next[0] < r.t_next[1]) & (r.t_next[0] < r.t_next[2]) ? 0
-                    : r.t_next[1] < r.t_next[2]                               ? 1
-                                                                              : 2;
-      r.t_next[a] += r.t_delta[a];
-      r.id += r.step_in[a] + ((r.countdown[a] & 3) == 0 ? r.step_cross[a] : 0);
-      if (--r.countdown[a] < r.floor[a]) break;
-      cells[4 * j + l] = r.id;
+// ray_start's arithmetic from an origin inside the grid, four rays in the lanes of AVX2
+// registers: the same quotients, differences and minima, lane by lane (IEEE operations give
+// the same bits in a lane as in a scalar register).
+__attribute__((target("avx2"))) void ray_starts4_avx2(const GridView& g, const RayOrigin& origin,
+                                                      const double* const* d, const double* t_max,
+                                                      RayStart* r, bool* active) {
+  const int n[3] = {g.nx, g.ny, g.nz};
+  const __m256d zero = _mm256_setzero_pd(), one = _mm256_set1_pd(1.0);
+  const __m256d inf = _mm256_set1_pd(std::numeric_limits<double>::infinity());
+  __m256d t1 = _mm256_div_pd(_mm256_loadu_pd(t_max), _mm256_set1_pd(g.resolution));
+  alignas(32) double t_next[3][4], t_delta[3][4];
+  int up[3], down[3];
+  for (int a = 0; a < 3; ++a) {
+    const __m256d da = _mm256_loadu_pd(d[a]), p = _mm256_set1_pd(origin.pos[a]);
+    const __m256d gt = _mm256_cmp_pd(da, zero, _CMP_GT_OQ),
+                  lt = _mm256_cmp_pd(da, zero, _CMP_LT_OQ);
+    const __m256d moving = _mm256_or_pd(gt, lt);
+    // t1 = min(t1, ((d > 0 ? n : 0) - p) / d) where d != 0, as std::min(t1, q): q if q < t1
+    const __m256d q = _mm256_div_pd(_mm256_sub_pd(_mm256_and_pd(gt, _mm256_set1_pd(n[a])), p), da);
+    t1 = _mm256_blendv_pd(t1, _mm256_min_pd(q, t1), moving);
+    // dda_axis: 1 / d and (c + 1 - p) / d up, -1 / d and (c - p) / d down, infinity otherwise
+    const __m256d c = _mm256_set1_pd(origin.cell[a]);
+    const __m256d delta = _mm256_div_pd(_mm256_blendv_pd(_mm256_set1_pd(-1.0), one, gt), da);
+    const __m256d next = _mm256_div_pd(
+        _mm256_sub_pd(_mm256_blendv_pd(c, _mm256_set1_pd(origin.cell[a] + 1), gt), p), da);
+    _mm256_store_pd(t_delta[a], _mm256_blendv_pd(inf, delta, moving));
+    _mm256_store_pd(t_next[a], _mm256_blendv_pd(inf, next, moving));
+    up[a] = _mm256_movemask_pd(gt);
+    down[a] = _mm256_movemask_pd(lt);
+  }
+  const int reached = _mm256_movemask_pd(_mm256_cmp_pd(zero, t1, _CMP_LE_OQ));
+  alignas(32) double t1s[4];
+  _mm256_store_pd(t1s, t1);
+  // the rest depends on the steps' signs alone: worked out per axis for +1, -1 and 0
+  std::int64_t in[3][3], cross[3][3], floor[3][3], countdown[3][3];
+  for (int k = 0; k < 3; ++k) {
+    const int step[3] = {k == 0   ? 1
+                         : k == 1 ? -1
+                                  : 0,
+                         k == 0   ? 1
+                         : k == 1 ? -1
+                                  : 0,
+                         k == 0   ? 1
+                         : k == 1 ? -1
+                                  : 0};
+    std::int64_t i3[3], c3[3];
+    dda_id_steps(g, step, i3, c3);
+    for (int a = 0; a < 3; ++a) {
+      in[a][k] = i3[a];
+      cross[a][k] = c3[a] - i3[a];
+      floor[a][k] = step[a] > 0 ? (4 - n[a] % 4) % 4 : 0;
+      countdown[a][k] = (step[a] > 0   ? n[a] - 1 - origin.cell[a]
+                         : step[a] < 0 ? origin.cell[a]
+                                       : std::int64_t(1) << 40) +
+                        floor[a][k];
     }
-    count[l] = j;
+  }
+  const auto id = std::int64_t(g.layout.id(origin.cell[0], origin.cell[1], origin.cell[2]));
+  for (int l = 0; l < 4; ++l) {
+    active[l] = reached >> l & 1;
+    RayStart& s = r[l];
+    s.t1 = t1s[l];
+    s.id = id;
+    for (int a = 0; a < 3; ++a) {
+      const int k = up[a] >> l & 1 ? 0 : down[a] >> l & 1 ? 1 : 2;
+      s.t_next[a] = t_next[a][l];
+      s.t_delta[a] = t_delta[a][l];
+      s.step_in[a] = in[a][k];
+      s.step_cross[a] = cross[a][k];
+      s.floor[a] = floor[a][k];
+      s.countdown[a] = countdown[a][k];
+    }
   }
 }
+
+}  // namespace
+
+void ray_starts4(const GridView& g, const RayOrigin& origin, const double* const* d,
+                 const double* t_max, RayStart* r, bool* active, bool simd) {
+  static const bool avx2 = __builtin_cpu_supports("avx2");
+  if (simd && avx2 && origin.inside) return ray_starts4_avx2(g, origin, d, t_max, r, active);
+  for (int l = 0; l < 4; ++l)
+    active[l] = ray_start(g, origin, {d[0][l], d[1][l], d[2][l]}, t_max[l], r[l]);
+}
+
+namespace {
 
 __attribute__((target("avx2"))) inline __m256i load4(const std::int64_t* p) {
   return _mm256_load_si256(reinterpret_cast<const __m256i*>(p));
@@ -139,10 +204,46 @@ __attribute__((target("avx2"))) inline __m256i pick(__m256d x, __m256d y, __m256
   return _mm256_castpd_si256(_mm256_blendv_pd(bc, _mm256_castsi256_pd(a), x));
 }
 
-// Four rays in the lanes of AVX2 registers: the same comparisons and additions, the axis of each
-// lane's step chosen by masks.
-__attribute__((target("avx2"))) void walk_rays4_avx2(const RayStart* starts, const bool* active,
-                                                     std::int64_t* cells, int* count, int cap) {
+// One ray at a time: walk_ray's loop on RayStart's state, each cell marked as it is entered.
+void mark_rays4_scalar(const GridView& g, const RayStart* starts, const bool* active,
+                       CellMarks& marks, std::size_t* stop, int cap) {
+  for (int l = 0; l < 4; ++l) {
+    stop[l] = kNoCell;
+    if (!active[l]) continue;
+    RayStart r = starts[l];
+    for (int j = 0;;) {
+      const auto id = std::size_t(r.id);
+      const std::uint64_t old = marks.bits[id >> 6];
+      marks.bits[id >> 6] = old | std::uint64_t(1) << (id & 63);
+      marks.touched[marks.n_touched] = std::uint32_t(id >> 6);
+      marks.n_touched += old == 0;
+      if (std::signbit(g.scored[id])) {
+        stop[l] = id;
+        break;
+      }
+      if (++j >= cap || std::min(std::min(r.t_next[0], r.t_next[1]), r.t_next[2]) > r.t1) break;
+      const int a = (r.t_next[0] < r.t_next[1]) & (r.t_next[0] < r.t_next[2]) ? 0
+                    : r.t_next[1] < r.t_next[2]                               ? 1
+                                                                              : 2;
+      r.t_next[a] += r.t_delta[a];
+      r.id += r.step_in[a] + ((r.countdown[a] & 3) == 0 ? r.step_cross[a] : 0);
+      if (--r.countdown[a] < r.floor[a]) break;
+    }
+  }
+}
+
+// Four rays in the lanes of AVX2 registers, with walk_ray's comparisons and additions (the
+// stepping axis chosen by masks). Per step, each lane writes its cell's id and its run: the
+// mask of the ray's cells so far in the current brick; and the lanes whose run ends there (the
+// ray leaves the brick or the grid) go into a byte per step. Then, ray by ray, the runs are put
+// into the set, each with one read and one write of its word; a run's cells are read only in a
+// brick that holds an occupied cell, up to the ray's first (where the ray stops, with the run
+// so far). Marked cell by cell, each mark waited on the one before it in the same word, and
+// there are about four visits for each distinct cell of a view.
+__attribute__((target("avx2"))) void mark_rays4_avx2(const GridView& g, const RayStart* starts,
+                                                     const bool* active, CellMarks& marks,
+                                                     const MarkBuffer& buffer, std::size_t* stop,
+                                                     int cap) {
   alignas(32) double dv[7][4];
   alignas(32) std::int64_t iv[13][4];
   int any = 0;  // an idle lane repeats an active one's start
@@ -168,53 +269,154 @@ __attribute__((target("avx2"))) void walk_rays4_avx2(const RayStart* starts, con
   const __m256i in0 = load4(iv[7]), in1 = load4(iv[8]), in2 = load4(iv[9]);
   const __m256i cr0 = load4(iv[10]), cr1 = load4(iv[11]), cr2 = load4(iv[12]);
   const __m256i zero = _mm256_setzero_si256(), three = _mm256_set1_epi64x(3);
-  const __m256i one = _mm256_set1_epi64x(1);
+  const __m256i one = _mm256_set1_epi64x(1), low6 = _mm256_set1_epi64x(63);
   __m256i alive = _mm256_set_epi64x(-std::int64_t(active[3]), -std::int64_t(active[2]),
                                     -std::int64_t(active[1]), -std::int64_t(active[0]));
-  __m256i n = _mm256_sub_epi64(zero, alive);  // each lane's cells so far
-  _mm256_storeu_si256(reinterpret_cast<__m256i*>(cells), id);
-  for (int j = 1; j < cap && !_mm256_testz_si256(alive, alive); ++j) {
+  __m256i run = _mm256_sllv_epi64(one, _mm256_and_si256(id, low6));
+  auto* cells = reinterpret_cast<__m256i*>(buffer.cells);
+  auto* runs = reinterpret_cast<__m256i*>(buffer.runs);
+  std::uint8_t* ends_at = buffer.ends;
+  int steps = 0;
+  while (steps < cap) {
+    const __m256i was = alive, here = id;
     const __m256d t_cross = _mm256_min_pd(_mm256_min_pd(tn0, tn1), tn2);
     alive = _mm256_and_si256(alive, _mm256_castpd_si256(_mm256_cmp_pd(t_cross, t1, _CMP_LE_OQ)));
-    // walk_ray's choice: x only if strictly first, else y if strictly before z, else z
     const __m256d x =
         _mm256_and_pd(_mm256_cmp_pd(tn0, tn1, _CMP_LT_OQ), _mm256_cmp_pd(tn0, tn2, _CMP_LT_OQ));
     const __m256d y = _mm256_andnot_pd(x, _mm256_cmp_pd(tn1, tn2, _CMP_LT_OQ));
     const __m256d xy = _mm256_or_pd(x, y);
-    tn0 = _mm256_add_pd(tn0, _mm256_and_pd(x, td0));  // + 0.0 leaves the others as they are
+    tn0 = _mm256_add_pd(tn0, _mm256_and_pd(x, td0));
     tn1 = _mm256_add_pd(tn1, _mm256_and_pd(y, td1));
     tn2 = _mm256_add_pd(tn2, _mm256_andnot_pd(xy, td2));
-    const __m256i k = pick(x, y, k0, k1, k2);  // the stepping axis's countdown
+    const __m256i k = pick(x, y, k0, k1, k2);
     const __m256i edge = _mm256_cmpeq_epi64(_mm256_and_si256(k, three), zero);
     id = _mm256_add_epi64(id, _mm256_add_epi64(pick(x, y, in0, in1, in2),
                                                _mm256_and_si256(edge, pick(x, y, cr0, cr1, cr2))));
-    // a mask is -1 where its axis stepped; the ray leaves the grid when its countdown drops
-    // below the floor
     k0 = _mm256_add_epi64(k0, _mm256_castpd_si256(x));
     k1 = _mm256_add_epi64(k1, _mm256_castpd_si256(y));
     k2 = _mm256_sub_epi64(_mm256_sub_epi64(k2, one), _mm256_castpd_si256(xy));
     alive = _mm256_and_si256(alive, _mm256_cmpgt_epi64(k, pick(x, y, f0, f1, f2)));
-    _mm256_storeu_si256(reinterpret_cast<__m256i*>(cells + 4 * j), id);
-    n = _mm256_sub_epi64(n, alive);
+    // this cell's run ends where the ray leaves its brick or the grid
+    const __m256i ends = _mm256_and_si256(was, _mm256_or_si256(edge, _mm256_xor_si256(was, alive)));
+    _mm256_storeu_si256(cells + steps, here);
+    _mm256_storeu_si256(runs + steps, run);
+    ends_at[steps] = std::uint8_t(_mm256_movemask_pd(_mm256_castsi256_pd(ends)));
+    ++steps;
+    run = _mm256_or_si256(_mm256_andnot_si256(ends, run),
+                          _mm256_sllv_epi64(one, _mm256_and_si256(id, low6)));
+    if (_mm256_testz_si256(alive, alive)) break;
   }
-  alignas(32) std::int64_t nn[4];
-  _mm256_store_si256(reinterpret_cast<__m256i*>(nn), n);
-  for (int l = 0; l < 4; ++l) count[l] = int(nn[l]);
+  _mm256_storeu_si256(reinterpret_cast<__m256i*>(ends_at + steps), zero);
+  // Lane by lane, its run ends 32 steps at a time: bit l of each step's byte moved to bit 7
+  const float* scored = g.scored;
+  const std::uint8_t* occupied = g.brick_occupied;
+  const std::uint64_t* ids = buffer.cells;
+  const std::uint64_t* masks = buffer.runs;
+  std::uint64_t* bits = marks.bits;
+  std::uint32_t* touched = marks.touched;
+  std::size_t n_touched = marks.n_touched;
+  for (int l = 0; l < 4; ++l) {
+    stop[l] = kNoCell;
+    int first = 0;  // the current run's first step
+    bool stopped = false;
+    for (int b = 0; b < steps && !stopped; b += 32) {
+      const __m256i e8 = _mm256_loadu_si256(reinterpret_cast<const __m256i*>(ends_at + b));
+      auto e = unsigned(_mm256_movemask_epi8(_mm256_slli_epi16(e8, 7 - l)));
+      for (; e; e &= e - 1) {
+        const int j = b + __builtin_ctz(e);
+        const std::size_t w = ids[4 * j + l] >> 6;
+        std::uint64_t mask = masks[4 * j + l];
+        if (occupied[w]) {
+          for (int i = first; i <= j; ++i) {
+            const std::uint64_t c = ids[4 * i + l];
+            if (std::signbit(scored[c])) {
+              mask = masks[4 * i + l];
+              stop[l] = c;
+              stopped = true;
+              break;
+            }
+          }
+        }
+        const std::uint64_t old = bits[w];
+        bits[w] = old | mask;
+        touched[n_touched] = std::uint32_t(w);
+        n_touched += old == 0;
+        if (stopped) break;
+        first = j + 1;
+      }
+    }
+  }
+  marks.n_touched = n_touched;
+}
+
+// Eight cells at a time in AVX2 lanes (a byte of a word: its scores, masked by its bits), in
+// double: the lanes' sums are exact under sum_marked's condition, in any order.
+__attribute__((target("avx2"))) bool sum_marked_avx2(const GridView& g, const std::uint32_t* words,
+                                                     std::size_t n_words, const std::uint64_t* bits,
+                                                     double& gain, int& cells) {
+  const __m256i bit = _mm256_setr_epi32(1, 2, 4, 8, 16, 32, 64, 128);
+  const __m256i magnitude_mask = _mm256_set1_epi32(0x7FFFFFFF);
+  const __m256i zero = _mm256_setzero_si256();
+  const __m256i tiny = _mm256_set1_epi32(std::int32_t(std::uint32_t(127 - 8) << 23));
+  __m256d acc0 = _mm256_setzero_pd(), acc1 = _mm256_setzero_pd();
+  __m256i small = zero;
+  int n = 0;
+  for (std::size_t i = 0; i < n_words; ++i) {
+    const std::uint32_t w = words[i];
+    if (!g.brick_live[w]) continue;  // a neutral brick stepped over
+    const std::uint64_t m = bits[w];
+    const float* s = g.scored + std::size_t(w) * 64;
+    for (int half = 0; half < 8; ++half) {
+      const auto byte = std::int32_t((m >> (8 * half)) & 0xFF);
+      if (!byte) continue;
+      const __m256i lanes = _mm256_cmpeq_epi32(_mm256_and_si256(_mm256_set1_epi32(byte), bit), bit);
+      const __m256i v = _mm256_and_si256(
+          _mm256_and_si256(_mm256_loadu_si256(reinterpret_cast<const __m256i*>(s + 8 * half)),
+                           magnitude_mask),
+          lanes);
+      const __m256i nonzero = _mm256_cmpgt_epi32(v, zero);
+      small = _mm256_or_si256(small, _mm256_and_si256(nonzero, _mm256_cmpgt_epi32(tiny, v)));
+      n += __builtin_popcount(unsigned(_mm256_movemask_ps(_mm256_castsi256_ps(nonzero))));
+      const __m256 f = _mm256_castsi256_ps(v);
+      acc0 = _mm256_add_pd(acc0, _mm256_cvtps_pd(_mm256_castps256_ps128(f)));
+      acc1 = _mm256_add_pd(acc1, _mm256_cvtps_pd(_mm256_extractf128_ps(f, 1)));
+    }
+  }
+  alignas(32) double a[4];
+  _mm256_store_pd(a, _mm256_add_pd(acc0, acc1));
+  gain = (a[0] + a[1]) + (a[2] + a[3]);
+  cells = n;
+  return _mm256_testz_si256(small, small) && gain < 4194304.0;  // 2^22
 }
 
 }  // namespace
 
-void walk_rays4(const GridView& g, const RayStart* starts, const bool* active, std::int64_t* cells,
-                int* count, bool simd) {
+bool sum_marked(const GridView& g, const std::uint32_t* words, std::size_t n_words,
+                const std::uint64_t* bits, double& gain, int& cells, bool simd) {
+  static const bool avx2 = __builtin_cpu_supports("avx2");
+  if (simd && avx2) return sum_marked_avx2(g, words, n_words, bits, gain, cells);
+  double sum = 0.0;
+  int n = 0;
+  std::uint32_t small = 0;
+  for (std::size_t i = 0; i < n_words; ++i)
+    if (g.brick_live[words[i]])
+      sum_cells(g.scored + std::size_t(words[i]) * 64, bits[words[i]], sum, n, small);
+  gain = sum;
+  cells = n;
+  return small == 0 && sum < 4194304.0;  // 2^22
+}
+
+void mark_rays4(const GridView& g, const RayStart* starts, const bool* active, CellMarks& marks,
+                const MarkBuffer& buffer, std::size_t* stop, bool simd) {
   static const bool avx2 = __builtin_cpu_supports("avx2");
   if (!(active[0] | active[1] | active[2] | active[3])) {
-    std::fill(count, count + 4, 0);
+    std::fill(stop, stop + 4, kNoCell);
     return;
   }
   if (simd && avx2)
-    walk_rays4_avx2(starts, active, cells, count, max_ray_cells(g));
+    mark_rays4_avx2(g, starts, active, marks, buffer, stop, max_ray_cells(g));
   else
-    walk_rays4_scalar(starts, active, cells, count, max_ray_cells(g));
+    mark_rays4_scalar(g, starts, active, marks, stop, max_ray_cells(g));
 }
 
 int direction_bin(const Eigen::Vector3d& d) {

@@ -122,11 +122,11 @@ struct Replayable : std::false_type {};
 template <class U>
 struct Replayable<U, std::void_t<decltype(&U::replay)>> : std::true_type {};
 
-// Does the utility declare kIdsOnly (utility.hpp)?
+// Does the utility declare kMarksRays (utility.hpp)?
 template <class U, class = void>
-struct IdsOnly : std::false_type {};
+struct MarksRays : std::false_type {};
 template <class U>
-struct IdsOnly<U, std::void_t<decltype(U::kIdsOnly)>> : std::bool_constant<U::kIdsOnly> {};
+struct MarksRays<U, std::void_t<decltype(U::kMarksRays)>> : std::bool_constant<U::kMarksRays> {};
 
 // What a memo entry depends on besides the map: the camera's rays and the grid's geometry.
 inline std::vector<double> memo_geometry(const Job& job) {
@@ -177,8 +177,9 @@ ViewScores score(const Job& job, const Cells& cells) {
   const double dense_range =
       job.utility.dense_spacing / (job.camera.pixel_pitch_deg * M_PI / 180.0);
 
-  // four rays at a time (walk_rays4), for a utility that reads a cell's id and score only
-  constexpr bool kIds = IdsOnly<Utility>::value && std::is_same_v<Cells, GridCells>;
+  // four rays at a time (mark_rays4), for a utility that sums over the distinct cells its rays
+  // enter up to their first occupied cell
+  constexpr bool kIds = MarksRays<Utility>::value && std::is_same_v<Cells, GridCells>;
   // the memo (its entries hold cell ids in 32 bits)
   constexpr bool kMemo = Replayable<Utility>::value && kSkip && std::is_same_v<Cells, GridCells>;
   ViewMemo* memo = nullptr;
@@ -203,8 +204,13 @@ ViewScores score(const Job& job, const Cells& cells) {
     thread_local utility::VisitedSet visited;
     thread_local std::vector<utility::Credit> credits;
     thread_local utility::VisitedSet brick_set;  // with on_bricks: the bricks a view's rays passed
-    thread_local std::vector<std::int64_t> ray_cells;  // walk_rays4's cells
-    if constexpr (kIds) ray_cells.resize(4 * std::size_t(max_ray_cells(g)));
+    thread_local std::vector<std::uint64_t> mark_cells, mark_runs;  // mark_rays4's buffers
+    thread_local std::vector<std::uint8_t> mark_ends;
+    if constexpr (kIds) {
+      mark_cells.resize(4 * std::size_t(max_ray_cells(g)));
+      mark_runs.resize(mark_cells.size());
+      mark_ends.resize(std::size_t(max_ray_cells(g)) + 32);
+    }
     for (std::size_t kk = b; kk < e; ++kk) {
       const auto k = static_cast<Eigen::Index>(kk);
       const Eigen::Vector3d p(job.cand(k, 0), job.cand(k, 1), job.cand(k, 2));
@@ -261,29 +267,38 @@ ViewScores score(const Job& job, const Cells& cells) {
         bool walked = false;
         if constexpr (kIds) {
           if (!record_bricks) {
-            // four rays at a time through walk_rays4, their cells then taken ray by ray in
-            // walk_ray's order; the information gain's ray ends at its first occupied cell
+            // four rays at a time, their cells marked up to each one's first occupied cell
             const RayOrigin from = ray_origin(g, o);
+            const MarkBuffer buffer{mark_cells.data(), mark_runs.data(), mark_ends.data()};
             for (Eigen::Index r0 = 0; r0 < n_rays; r0 += 4) {
               RayStart starts[4];
               bool active[4] = {false, false, false, false};
-              Eigen::Vector3d dw[4];
-              for (int l = 0; l < 4 && r0 + l < n_rays; ++l) {
+              // the rays' directions in the world, by component, and their ranges
+              alignas(32) double dw[3][4] = {}, range[4] = {};
+              const int lanes = int(std::min<Eigen::Index>(4, n_rays - r0));
+              for (int l = 0; l < lanes; ++l) {
                 const Eigen::Vector3d ds = dirs.row(r0 + l).transpose();
-                dw[l] = R * ds;
-                active[l] = ray_start(g, from, dw[l], job.camera.max_range / ds.x(), starts[l]);
+                const Eigen::Vector3d w = R * ds;
+                for (int a = 0; a < 3; ++a) dw[a][l] = w[a];
+                range[l] = job.camera.max_range / ds.x();
               }
-              int count[4];
-              walk_rays4(g, starts, active, ray_cells.data(), count);
+              const double* const d[3] = {dw[0], dw[1], dw[2]};
+              ray_starts4(g, from, d, range, starts, active);
+              for (int l = lanes; l < 4; ++l) active[l] = false;
+              std::size_t stop[4];
+              u.mark_rays(g, starts, active, buffer, stop);
               for (int l = 0; l < 4 && r0 + l < n_rays; ++l) {
-                u.begin_ray(dw[l]);
-                const std::size_t stop =
-                    u.template visit_ray<kSkip, kRecord>(g, ray_cells.data() + l, 4, count[l]);
-                if (stop != kNoCell && cells.logodds(stop, nullptr) > occ_req) ++occ;
-                end_ray(stop);
+                if (stop[l] != kNoCell && cells.logodds(stop[l], nullptr) > occ_req) ++occ;
+                end_ray(stop[l]);
               }
             }
-            walked = true;
+            // the gain summed over the marked cells; where that sum could differ from the one
+            // in the walk's order, the view is walked again below, cell by cell
+            walked = u.sum_marks(g);
+            if (!walked) {
+              occ = 0;
+              if constexpr (kRecord) rec->stops.clear();
+            }
           }
         }
         for (Eigen::Index r = 0; r < n_rays && !walked; ++r) {

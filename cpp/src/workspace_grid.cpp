@@ -101,6 +101,7 @@ void WorkspaceGrid::set(std::int64_t idx, float logodds, CellFlag flag) {
   } else {
     const bool occ = old_l >= rule_.occupied_logodds;
     brick_open_[brick] -= !occ;
+    brick_occupied_[brick] -= occ;
     (occ ? counts_.occupied : counts_.free) -= 1;
     if (old_flag == CellFlag::Predicted) --counts_.predicted;
     const std::int64_t fixed = fixed_entropy(old_l);
@@ -115,6 +116,7 @@ void WorkspaceGrid::set(std::int64_t idx, float logodds, CellFlag flag) {
   } else {
     const bool occ = logodds >= rule_.occupied_logodds;
     brick_open_[brick] += !occ;
+    brick_occupied_[brick] += occ;
     (occ ? counts_.occupied : counts_.free) += 1;
     if (flag == CellFlag::Predicted) ++counts_.predicted;
     const std::int64_t fixed = fixed_entropy(logodds);
@@ -140,6 +142,7 @@ void WorkspaceGrid::rebuild_derived() {
   scored_.resize(n);
   brick_live_.assign(layout_.num_bricks(), 0);
   brick_open_.assign(layout_.num_bricks(), 0);
+  brick_occupied_.assign(layout_.num_bricks(), 0);
   stamps_.touch_all();
   const float unknown = float(rule_.entropy(0.0f, CellFlag::Unknown));
   // per brick: fixed-point sums (integers: the same total in any order and thread count)
@@ -148,7 +151,7 @@ void WorkspaceGrid::rebuild_derived() {
   parallel_chunks(nb, 256, [&](std::size_t bb, std::size_t be) {
     for (std::size_t brick = bb; brick < be; ++brick) {
       __int128 s = 0;
-      int live_cells = 0, open_cells = 0;
+      int live_cells = 0, open_cells = 0, occupied_cells = 0;
       for (std::size_t id = brick << 6, e = id + 64; id < e; ++id) {
         int i, j, k;
         if (!layout_.coords(id, i, j, k)) {  // padding: no cell
@@ -170,10 +173,12 @@ void WorkspaceGrid::rebuild_derived() {
         scored_[id] = occ ? -v : v;
         live_cells += live(fixed, flags_[id], occ);
         open_cells += !occ;
+        occupied_cells += occ;
       }
       sums[brick] = s;
       brick_live_[brick] = std::uint8_t(live_cells);
       brick_open_[brick] = std::uint8_t(open_cells);
+      brick_occupied_[brick] = std::uint8_t(occupied_cells);
     }
   });
   known_entropy_fixed_ = 0;

@@ -97,15 +97,17 @@ TEST(WorkspaceGrid, TotalsCountsAndBricksStayExactUnderRandomUpdates) {
     }
     ASSERT_EQ(int(g.brick_live_data()[brick]), live) << brick;
   }
-  // ... and counts its open cells: known and not occupied
+  // ... and counts its open cells (known and not occupied) and its occupied cells
   for (std::size_t brick = 0; brick < g.layout().num_bricks(); ++brick) {
-    int open = 0;
+    int open = 0, occupied = 0;
     for (std::size_t id = brick << 6; id < (brick + 1) << 6; ++id) {
       int i, j, k;
       if (!g.layout().coords(id, i, j, k)) continue;
       open += g.state(std::int64_t(id)) == CellState::Free;
+      occupied += g.state(std::int64_t(id)) == CellState::Occupied;
     }
     ASSERT_EQ(int(g.brick_open_data()[brick]), open) << brick;
+    ASSERT_EQ(int(g.brick_occupied_data()[brick]), occupied) << brick;
   }
 }
 
@@ -144,15 +146,21 @@ TEST(RayWalk, AxisRaysVisitTheirRowAndDiagonalsEveryCrossedCell) {
   EXPECT_EQ(entering.front(), (std::array<int, 3>{0, 2, 2}));
 }
 
-TEST(RayWalk, FourLanesWalkTheCellsOfWalkRayOnRandomAndDegenerateRays) {
-  // A grid whose sides are not multiples of a brick, rays from inside, outside and on cell
-  // boundaries, along axes (with -0.0 components), diagonals (exact ties) and at random, with
-  // ranges that end inside, on a boundary and past the grid: walk_rays4's cells, in AVX2 lanes
-  // and one ray at a time, are walk_ray<false>'s in order, lane by lane.
+TEST(RayWalk, FourLanesMarkTheCellsOfWalkRayUpToTheFirstOccupiedOne) {
+  // A grid whose sides are not multiples of a brick, with occupied cells, rays from inside,
+  // outside and on cell boundaries, along axes (with -0.0 components), diagonals (exact ties)
+  // and at random, with ranges that end inside, on a boundary and past the grid: mark_rays4, in
+  // AVX2 lanes and one ray at a time, marks the cells walk_ray<false> enters up to and including
+  // each ray's first occupied cell, lists each word it set once, and gives that cell.
   OccupancyMap m(0.5, {-3.0, -2.0, -1.0}, {4.5, 3.5, 2.0});  // 15 x 11 x 6 cells
-  const GridView g = grid_view(m);
   std::mt19937 rng(7);
   std::uniform_real_distribution<double> pos(-4.0, 5.0), unit(-1.0, 1.0), range(0.0, 12.0);
+  std::uniform_real_distribution<double> px(-3.0, 4.5), py(-2.0, 3.5), pz(-1.0, 2.0);
+  Points hits(40, 3);
+  for (Eigen::Index k = 0; k < hits.rows(); ++k) hits.row(k) << px(rng), py(rng), pz(rng);
+  for (int n = 0; n < 3; ++n) m.update_cells(hits, true);
+  m.mark_free_segment({-2.5, -1.5, 0.5}, {4.0, 3.0, 0.5}, 0.6);
+  const GridView g = grid_view(m);
   std::vector<std::pair<Eigen::Vector3d, Eigen::Vector3d>> rays;
   const double axis[3] = {-0.0, 0.0, 1.0};
   for (const double ax : axis)
@@ -168,42 +176,54 @@ TEST(RayWalk, FourLanesWalkTheCellsOfWalkRayOnRandomAndDegenerateRays) {
     if (d.norm() < 1e-3) continue;
     rays.push_back({o, d.normalized()});
   }
-  std::vector<std::int64_t> cells(4 * std::size_t(max_ray_cells(g)));
+  const std::size_t words = g.storage_size() / 64, size = 4 * std::size_t(max_ray_cells(g));
+  std::vector<std::uint64_t> cells(size), runs(size);
+  std::vector<std::uint8_t> ends(std::size_t(max_ray_cells(g)) + 32);
+  const MarkBuffer buffer{cells.data(), runs.data(), ends.data()};
   std::size_t walked = 0;
-  int crossing = 0;
+  int crossing = 0, stopped = 0;
   for (std::size_t r0 = 0; r0 < rays.size(); r0 += 4) {
     RayStart starts[4];
     bool active[4];
-    double t_max[4];
-    std::vector<std::int64_t> expect[4];
+    std::vector<std::uint64_t> expect(words + 1, 0);
+    std::size_t expect_stop[4];
     for (int l = 0; l < 4; ++l) {
       const std::size_t r = std::min(r0 + std::size_t(l), rays.size() - 1);
-      t_max[l] = l == 3 ? 100.0 : l == 2 ? std::floor(range(rng)) : range(rng);
+      const double t_max = l == 3 ? 100.0 : l == 2 ? std::floor(range(rng)) : range(rng);
       const auto& [o, d] = rays[r];
-      active[l] = ray_start(g, ray_origin(g, o), d, t_max[l], starts[l]);
-      walk_ray<false>(g, o, d, t_max[l], [&](std::size_t idx, const int*, double) {
-        expect[l].push_back(std::int64_t(idx));
-        return true;
+      active[l] = ray_start(g, ray_origin(g, o), d, t_max, starts[l]);
+      std::size_t n = 0;
+      expect_stop[l] = walk_ray<false>(g, o, d, t_max, [&](std::size_t idx, const int*, double) {
+        expect[idx >> 6] |= std::uint64_t(1) << (idx & 63);
+        ++n;
+        return !std::signbit(g.scored[idx]);
       });
-      ASSERT_EQ(active[l], !expect[l].empty()) << "ray " << r;
+      ASSERT_EQ(active[l], n > 0) << "ray " << r;
+      walked += n;
+      crossing += n >= 5;
+      stopped += expect_stop[l] != kNoCell;
     }
     for (const bool simd : {true, false}) {
-      int count[4] = {-1, -1, -1, -1};
-      walk_rays4(g, starts, active, cells.data(), count, simd);
-      for (int l = 0; l < 4; ++l) {
-        ASSERT_EQ(count[l], int(expect[l].size())) << "ray " << r0 + l << " simd " << simd;
-        for (int j = 0; j < count[l]; ++j)
-          ASSERT_EQ(cells[std::size_t(4 * j + l)], expect[l][std::size_t(j)])
-              << "ray " << r0 + l << " cell " << j << " simd " << simd;
-      }
-    }
-    for (int l = 0; l < 4; ++l) {
-      walked += expect[l].size();
-      crossing += expect[l].size() >= 5;
+      std::vector<std::uint64_t> bits(words + 1, 0);
+      std::vector<std::uint32_t> touched(words + 1, 0);
+      CellMarks marks{bits.data(), touched.data(), 0};
+      std::size_t stop[4] = {0, 0, 0, 0};
+      mark_rays4(g, starts, active, marks, buffer, stop, simd);
+      for (int l = 0; l < 4; ++l)
+        ASSERT_EQ(stop[l], expect_stop[l]) << "ray " << r0 + l << " simd " << simd;
+      ASSERT_EQ(bits, expect) << "rays " << r0 << ".. simd " << simd;
+      std::vector<std::uint32_t> listed(touched.begin(), touched.begin() + marks.n_touched);
+      std::sort(listed.begin(), listed.end());
+      ASSERT_EQ(std::adjacent_find(listed.begin(), listed.end()), listed.end());
+      for (std::size_t w = 0; w < words; ++w)
+        ASSERT_EQ(std::binary_search(listed.begin(), listed.end(), std::uint32_t(w)),
+                  expect[w] != 0);
     }
   }
   EXPECT_GT(crossing, 150);  // rays that crossed the grid, not just a corner of it
-  EXPECT_GT(walked, 2000u);
+  EXPECT_GT(walked, 1500u);
+  EXPECT_GT(stopped, 40);  // rays that stopped at an occupied cell, and rays that did not
+  EXPECT_LT(stopped, int(rays.size()) - 100);
 }
 
 TEST(Navigation, SpheresAndPathsStayInKnownFreeSpace) {
@@ -565,6 +585,128 @@ TEST(Views, TheMemoOfWalksScoresAsWalkingAgain) {
   EXPECT_GT(memo.stats().stale, 0);
   EXPECT_EQ(memo.entries(), std::size_t(cand.rows()));
   EXPECT_THROW(ViewMemo(0), std::invalid_argument);
+}
+
+// The paper's information gain as walk_ray walks it: each view's rays in order, each to its
+// first occupied cell, the entropies of the distinct nonzero cells summed in the order the
+// rays first reach them.
+double gain_in_walk_order(const GridView& g, const Eigen::Vector4d& view,
+                          const ViewCameraModel& camera, int& cells) {
+  const Points dirs = camera.directions();
+  const Eigen::Isometry3d T =
+      pose_to_transform({view[0], view[1], view[2], view[3]}) * camera.mount;
+  std::vector<bool> seen(g.storage_size(), false);
+  double sum = 0.0;
+  cells = 0;
+  for (Eigen::Index r = 0; r < dirs.rows(); ++r) {
+    const Eigen::Vector3d ds = dirs.row(r).transpose();
+    walk_ray<false>(g, T.translation(), T.linear() * ds, camera.max_range / ds.x(),
+                    [&](std::size_t idx, const int*, double) {
+                      const float s = g.scored[idx];
+                      if (!seen[idx] && s != 0.0f) {
+                        sum += std::fabs(s);
+                        ++cells;
+                      }
+                      seen[idx] = true;
+                      return !std::signbit(s);
+                    });
+  }
+  return sum;
+}
+
+TEST(Views, TheInformationGainIsTheSumInTheWalksOrderBitForBit) {
+  // Views scored four rays at a time, their marks summed in the set's order, give the sum in
+  // the walk's order to the last bit: on a map of the usual entropies (the sum is exact in any
+  // order) and on one whose free cells fall far below 2^-8 nats (walked again in order).
+  for (const bool tiny : {false, true}) {
+    OccupancyMapOptions o;
+    if (tiny) {  // free cells of about 3e-11 nats: a sum's order shows in its last bits
+      o.prob_miss = 0.05;
+      o.clamp_min = 1e-12;
+      o.clamped_entropy_zero = false;
+    }
+    OccupancyMap m(0.2, {0, 0, 0}, {12, 8, 6}, o);
+    std::mt19937 rng(3);
+    std::uniform_real_distribution<double> ux(0, 12), uy(0, 8), uz(0, 6), u(-1, 1);
+    m.mark_free_segment({2, 4, 3}, {8, 4, 3}, 1.5);
+    Points hits(60, 3), misses(400, 3);
+    for (Eigen::Index r = 0; r < hits.rows(); ++r) hits.row(r) << ux(rng), uy(rng), uz(rng);
+    for (Eigen::Index r = 0; r < misses.rows(); ++r)
+      misses.row(r) << 2 + 6 * (u(rng) + 1) / 2, 4 + u(rng), 3 + u(rng);
+    for (int n = 0; n < 2; ++n) m.update_cells(hits, true);
+    for (int n = 0; n < 30; ++n) m.update_cells(misses, false);
+    const GridView g = grid_view(m);
+    int below = 0;  // cells of nonzero entropy below 2^-8
+    for (std::size_t i = 0; i < g.storage_size(); ++i)
+      below += g.scored[i] != 0.0f && std::fabs(g.scored[i]) < 0.00390625f;
+    EXPECT_EQ(below > 0, tiny);
+    Eigen::Matrix<double, Eigen::Dynamic, 4, Eigen::RowMajor> cand(12, 4);
+    for (Eigen::Index k = 0; k < cand.rows(); ++k)
+      cand.row(k) << 5 + 2 * u(rng), 4 + 0.5 * u(rng), 3 + 0.5 * u(rng), 3 * u(rng);
+    ViewCameraModel camera;
+    UtilityOptions utility;
+    utility.require_occupied = false;
+    ValidityOptions validity;
+    validity.collision_radius = 0.3;
+    validity.blocked_path = "plan";
+    ViewMemo memo;
+    for (ViewMemo* with : {static_cast<ViewMemo*>(nullptr), &memo}) {
+      const ViewScores a = evaluate_views(g, cand, {5, 4, 3, 0}, camera, utility, validity, with);
+      int valid = 0;
+      for (Eigen::Index k = 0; k < cand.rows(); ++k) {
+        if (a.status[k] != 0) continue;
+        ++valid;
+        int cells = 0;
+        const double expect = gain_in_walk_order(g, cand.row(k).transpose(), camera, cells);
+        EXPECT_EQ(a.gain[k], expect) << "view " << k << " tiny " << tiny;  // bit for bit
+        EXPECT_EQ(a.cells[k], cells) << "view " << k << " tiny " << tiny;
+      }
+      EXPECT_GE(valid, 8);
+    }
+  }
+}
+
+TEST(Views, MarkedCellsSumInLanesAsOneAtATime) {
+  // sum_marked in AVX2 lanes and one cell at a time: the same gain, count and verdict, on words
+  // of random cells and entropies (neutral bricks skipped), and false for an entropy below 2^-8
+  OccupancyMap m(0.2, {0, 0, 0}, {6, 6, 4});
+  std::mt19937 rng(9);
+  std::uniform_real_distribution<double> ux(0, 6), uy(0, 6), uz(0, 4);
+  Points p(300, 3);
+  for (Eigen::Index r = 0; r < p.rows(); ++r) p.row(r) << ux(rng), uy(rng), uz(rng);
+  m.update_cells(p, true);
+  m.update_cells(p.topRows(150), false);
+  m.mark_free_segment({1, 1, 2}, {5, 5, 2}, 1.0);
+  const GridView g = grid_view(m);
+  const std::size_t words = g.storage_size() / 64;
+  std::vector<std::uint64_t> bits(words + 1, 0);
+  std::vector<std::uint32_t> listed;
+  for (std::size_t w = 0; w < words; w += 1 + rng() % 3) {
+    bits[w] = (std::uint64_t(rng()) << 32 | rng()) & (std::uint64_t(rng()) << 32 | rng());
+    if (bits[w]) listed.push_back(std::uint32_t(w));
+  }
+  double gain[2];
+  int cells[2];
+  bool exact[2];
+  for (const bool simd : {true, false})
+    exact[simd] =
+        sum_marked(g, listed.data(), listed.size(), bits.data(), gain[simd], cells[simd], simd);
+  EXPECT_TRUE(exact[0] && exact[1]);
+  EXPECT_EQ(gain[0], gain[1]);
+  EXPECT_EQ(cells[0], cells[1]);
+  EXPECT_GT(cells[0], 1000);
+  // one tiny entropy among them: neither sum is taken
+  OccupancyMapOptions o;
+  o.clamp_min = 1e-5;
+  o.clamped_entropy_zero = false;
+  OccupancyMap t(0.2, {0, 0, 0}, {6, 6, 4}, o);
+  for (int n = 0; n < 30; ++n) t.update_cells(p.topRows(1), false);
+  const GridView h = grid_view(t);
+  std::vector<std::uint64_t> all(h.storage_size() / 64 + 1, ~std::uint64_t(0));
+  std::vector<std::uint32_t> every(h.storage_size() / 64);
+  std::iota(every.begin(), every.end(), 0u);
+  for (const bool simd : {true, false})
+    EXPECT_FALSE(sum_marked(h, every.data(), every.size(), all.data(), gain[0], cells[0], simd));
 }
 
 TEST(Views, OptionsRejectBadValuesWithTheirName) {

@@ -9,6 +9,7 @@
 #include <cmath>
 #include <cstddef>
 #include <cstdint>
+#include <cstring>
 #include <limits>
 
 namespace nbv {
@@ -27,9 +28,10 @@ struct GridView {
   const float* scored = nullptr;    ///< per cell: entropy, negated when occupied (WorkspaceGrid)
   const float* logodds = nullptr;   ///< per cell log-odds (0 for unknown cells)
   const CellFlag* flags = nullptr;  ///< per cell: unknown / observed / predicted
-  const std::uint8_t* brick_live = nullptr;  ///< per brick (id >> 6): live (not neutral) cells
-  const std::uint8_t* brick_open = nullptr;  ///< per brick: known, not occupied cells (64: all)
-  float unknown_entropy = 0.6931472f;        ///< an unknown cell's (the largest) entropy
+  const std::uint8_t* brick_live = nullptr;      ///< per brick (id >> 6): live (not neutral) cells
+  const std::uint8_t* brick_open = nullptr;      ///< per brick: known, not occupied cells (64: all)
+  const std::uint8_t* brick_occupied = nullptr;  ///< per brick: occupied cells
+  float unknown_entropy = 0.6931472f;            ///< an unknown cell's (the largest) entropy
   /// Camera observations (SurfaceObservations), or null: per cell the bitmask of the 26
   /// direction bins it has been seen from, and the number of camera hits in it.
   const std::uint32_t* seen = nullptr;
@@ -191,7 +193,7 @@ __attribute__((always_inline)) inline std::size_t walk_ray(const GridView& g,
   }
 }
 
-/// walk_ray's state at a ray's first cell, for walking rays four at a time (walk_rays4): per
+/// walk_ray's state at a ray's first cell, for walking rays four at a time (mark_rays4): per
 /// axis the parameter of the next boundary and between boundaries (grid units), a countdown of
 /// the steps left in the grid (plus `floor`, so that it is a multiple of 4 exactly where a step
 /// crosses a brick boundary; the ray leaves the grid when it falls below `floor`), and the id's
@@ -216,18 +218,69 @@ RayOrigin ray_origin(const GridView& g, const Eigen::Vector3d& o);
 bool ray_start(const GridView& g, const RayOrigin& origin, const Eigen::Vector3d& d, double t_max,
                RayStart& r);
 
-/// The most cells a ray visits in the grid (a bound for walk_rays4's buffer).
+/// ray_start for four rays from one origin, their directions' components d[axis][lane] and
+/// their ranges t_max[lane]; active[lane] as ray_start returns. From an origin inside the grid
+/// (every view the planner scores) in the lanes of AVX2 registers where the CPU has them
+/// (simd = true), with the same arithmetic; one ray at a time otherwise.
+void ray_starts4(const GridView& g, const RayOrigin& origin, const double* const* d,
+                 const double* t_max, RayStart* r, bool* active, bool simd = true);
+
+/// The most cells a ray visits in the grid (a bound for mark_rays4's buffers).
 inline int max_ray_cells(const GridView& g) { return g.nx + g.ny + g.nz + 1; }
 
-/// The cells of walk_ray<false> for four rays, for walks that need a cell's flat index only
-/// (the information gain): cells[4 j + l] is lane l's j-th cell, for j < count[l], in walk_ray's
-/// order and under its comparisons (ties as there), with `cells` holding 4 max_ray_cells(g).
-/// Lanes that are not `active` get no cell. The rays step in the lanes of AVX2 registers where
-/// the CPU has them (simd = true), one at a time otherwise: a walk whose visitor does little per
-/// cell spent most of its time in the mispredicted branches of walk_ray's step; a lane steps
-/// without one, and the visitor reads the cells after.
-void walk_rays4(const GridView& g, const RayStart* starts, const bool* active, std::int64_t* cells,
-                int* count, bool simd = true);
+/// A set of cells as bits, one 64-bit word per brick of the grid's layout (the word of cell id
+/// is id >> 6, its bit id & 63), and the list of the words it has set: a word is appended to
+/// `touched` (at n_touched, which then grows) when a mark finds it zero. `touched` must hold
+/// one slot past the words it can list.
+struct CellMarks {
+  std::uint64_t* bits;
+  std::uint32_t* touched;
+  std::size_t n_touched;
+};
+
+/// mark_rays4's buffers: the lanes' cells and runs (the masks of a ray's cells so far in its
+/// brick), 4 max_ray_cells(g) each, and a byte per step, max_ray_cells(g) + 32.
+struct MarkBuffer {
+  std::uint64_t* cells;
+  std::uint64_t* runs;
+  std::uint8_t* ends;
+};
+
+/// The information gain's walk of four rays: marks in `marks` the cells walk_ray<false> enters
+/// along each active ray, up to and including its first occupied cell (scored < 0, or -0.0),
+/// and gives that cell in stop[l] (kNoCell where the ray ends without one, and for inactive
+/// lanes). The rays step in the lanes of AVX2 registers where the CPU has them (simd = true),
+/// one at a time otherwise; in the lanes, a ray's cells in one brick are gathered into a mask
+/// that goes into the set once.
+void mark_rays4(const GridView& g, const RayStart* starts, const bool* active, CellMarks& marks,
+                const MarkBuffer& buffer, std::size_t* stop, bool simd = true);
+
+/// Adds the entropies |s[b]| of the cells b in `cells` (a word's 64) to sum in order and the
+/// nonzero ones to n, sets `small` where one is nonzero and below 2^-8, and returns the occupied
+/// cells among them.
+inline std::uint64_t sum_cells(const float* s, std::uint64_t cells, double& sum, int& n,
+                               std::uint32_t& small) {
+  std::uint64_t occupied = 0;
+  for (std::uint64_t m = cells; m; m &= m - 1) {
+    const int b = __builtin_ctzll(m);
+    std::uint32_t bits;
+    std::memcpy(&bits, &s[b], sizeof bits);
+    occupied |= std::uint64_t(bits >> 31) << b;
+    const std::uint32_t magnitude = bits & 0x7FFFFFFFu;
+    small |= magnitude - 1 < (std::uint32_t(127 - 8) << 23) - 1;  // 0 < |s| < 2^-8
+    sum += std::fabs(s[b]);
+    n += magnitude != 0;
+  }
+  return occupied;
+}
+
+/// The information gain of marked cells: the sum of the entropies |scored| of the cells whose
+/// bits are set in bits[w] for the words w listed (those of neutral bricks skipped), and the
+/// number of them that are nonzero. True where that sum is exact in any order, so that it equals
+/// a sum in any other order bit for bit: no nonzero entropy below 2^-8 (each is then a multiple
+/// of 2^-31) and a total below 2^22 (2^53 such units). In AVX2 lanes where the CPU has them.
+bool sum_marked(const GridView& g, const std::uint32_t* words, std::size_t n_words,
+                const std::uint64_t* bits, double& gain, int& cells, bool simd = true);
 
 /// The 26 direction bins of camera observations: the unit vectors of (i, j, k) in {-1, 0, 1}^3
 /// minus the zero vector, bin b = (i+1) + 3 (j+1) + 9 (k+1), skipping 13.

@@ -19,7 +19,8 @@
 // clamped free cell under clamped_entropy_zero): it neither stops a ray nor adds information, so
 // walks whose utility ignores such cells skip whole neutral bricks (brick_live == 0). Each also
 // counts its open cells (known and not occupied): a collision test passes a brick of 64 of them
-// without looking at its cells.
+// without looking at its cells, and its occupied cells (a ray that ends at its first occupied
+// cell reads the cells of a brick with none only to step through them).
 //
 // Stamps (BrickStamps). Every write stamps its brick with the grid's current epoch, so that a
 // reader who took an epoch can tell later which bricks changed since (CoverageMemo).
@@ -182,6 +183,8 @@ class WorkspaceGrid {
   const std::uint8_t* brick_live_data() const { return brick_live_.data(); }
   /// Per brick: the number of open cells (known and not occupied; 64: the whole brick).
   const std::uint8_t* brick_open_data() const { return brick_open_.data(); }
+  /// Per brick: the number of occupied cells.
+  const std::uint8_t* brick_occupied_data() const { return brick_occupied_.data(); }
   /// When each brick's cells last changed (see BrickStamps).
   const BrickStamps& stamps() const { return stamps_; }
 
@@ -201,6 +204,7 @@ class WorkspaceGrid {
   std::vector<float> scored_;
   std::vector<std::uint8_t> brick_live_;
   std::vector<std::uint8_t> brick_open_;
+  std::vector<std::uint8_t> brick_occupied_;
   BrickStamps stamps_;
   CellCounts counts_;
   __int128 known_entropy_fixed_ = 0;  // sum over known cells, units of 2^-50 nats

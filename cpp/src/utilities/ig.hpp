@@ -14,7 +14,7 @@ namespace nbv::utility {
 struct InformationGain {
   static constexpr bool kSkipNeutral = true;
   static constexpr bool kNeedsSurface = false;
-  static constexpr bool kIdsOnly = true;  // visit() reads a cell's id and score only
+  static constexpr bool kMarksRays = true;  // mark_rays(), sum_marks()
   explicit InformationGain(ViewContext& ctx) : marks_(ctx.visited.marks()) {}
   ~InformationGain() { marks_.keep(); }
   void begin_ray(const Eigen::Vector3d&) {}
@@ -27,50 +27,27 @@ struct InformationGain {
     cells_ += counts;
     return !std::signbit(scored);
   }
-  /// One ray's cells in walk_ray's order (ids[stride j], j < count), as visit() would take
-  /// them, with neutral bricks stepped over (kSkip; marked as skipped() does with kRecord):
-  /// returns the cell the ray stopped at (its first occupied), or kNoCell. Compiled apart, with
-  /// its state in locals: inlined into the kernel, its sum was kept on the stack.
-  template <bool kSkip, bool kRecord>
-  __attribute__((noinline)) std::size_t visit_ray(const GridView& g, const std::int64_t* ids,
-                                                  int stride, int count) {
-    const std::uint8_t* live = g.brick_live;
-    const float* scored = g.scored;
-    VisitedSet::Marks m = marks_;
-    double gain = gain_;
-    int cells = cells_;
-    std::size_t stop = kNoCell;
-    // kRecord: the neutral bricks entered, marked after the ray (as skipped() does) by their
-    // first cell's bit: marked cell by cell, each mark waited on the one before into its word
-    thread_local std::vector<std::uint32_t> entered_bricks;
-    if (kRecord && entered_bricks.size() <= std::size_t(count))
-      entered_bricks.resize(std::size_t(count) + 1);
-    std::uint32_t* entered = entered_bricks.data();
-    std::size_t n_entered = 0, last = ~std::size_t(0);
-    for (int j = 0; j < count; ++j) {
-      const auto idx = std::size_t(ids[std::ptrdiff_t(j) * stride]);
-      if (kSkip && live[idx >> 6] == 0) {
-        if constexpr (kRecord) {
-          entered[n_entered] = std::uint32_t(idx >> 6);
-          n_entered += (idx >> 6) != last;
-          last = idx >> 6;
-        }
-        continue;
-      }
-      const float s = scored[idx];
-      const bool counts = m.insert(idx) & (s != 0.0f);
-      gain = add_if(gain, std::fabs(s), counts);
-      cells += counts;
-      if (std::signbit(s)) {
-        stop = idx;
-        break;
-      }
-    }
-    for (std::size_t e = 0; e < n_entered; ++e) m.insert(std::size_t(entered[e]) << 6);
-    marks_ = m;
-    gain_ = gain;
-    cells_ = cells;
-    return stop;
+  /// Four rays of the view from their starts: the cells each enters up to its first occupied
+  /// one marked in the set (mark_rays4; neutral bricks' cells too, which kRecord asks for and
+  /// which nothing else reads), and that cell in stop[l]. The gain and count are summed over
+  /// the marks once the view's rays are done (sum_marks).
+  void mark_rays(const GridView& g, const RayStart* starts, const bool* active,
+                 const MarkBuffer& buffer, std::size_t* stop) {
+    CellMarks cells{marks_.bits, marks_.touched, marks_.n_touched};
+    mark_rays4(g, starts, active, cells, buffer, stop);
+    marks_.n_touched = cells.n_touched;
+  }
+  /// After mark_rays's rays: the gain and count over the cells they marked (sum_marked).
+  /// False where that sum could differ from visit()'s, in the order of the walk (a nonzero
+  /// entropy below 2^-8 or a sum of 2^22 or more): the marks are then cleared and the gain and
+  /// count zeroed, for the view to be walked again with visit().
+  bool sum_marks(const GridView& g) {
+    if (sum_marked(g, marks_.touched, marks_.n_touched, marks_.bits, gain_, cells_)) return true;
+    for (std::size_t i = 0; i < marks_.n_touched; ++i) marks_.bits[marks_.touched[i]] = 0;
+    marks_.n_touched = 0;
+    gain_ = 0.0;
+    cells_ = 0;
+    return false;
   }
   double gain() const { return gain_; }
   int cells() const { return cells_; }
@@ -86,21 +63,9 @@ struct InformationGain {
     int n = 0;
     std::uint64_t changed = 0;
     std::uint32_t small = 0;  // a nonzero entropy below 2^-8
-    for (const ViewMemo::Word& w : e.words) {
-      const float* s = g.scored + std::size_t(w.word) * 64;
-      std::uint64_t occ = 0;
-      for (std::uint64_t m = w.cells; m; m &= m - 1) {
-        const int b = __builtin_ctzll(m);
-        std::uint32_t bits;
-        std::memcpy(&bits, &s[b], sizeof bits);
-        occ |= std::uint64_t(bits >> 31) << b;
-        const std::uint32_t magnitude = bits & 0x7FFFFFFFu;
-        small |= magnitude - 1 < (std::uint32_t(127 - 8) << 23) - 1;  // 0 < |s| < 2^-8
-        sum += std::fabs(s[b]);
-        n += magnitude != 0;
-      }
-      changed |= occ ^ w.occupied;
-    }
+    for (const ViewMemo::Word& w : e.words)
+      changed |=
+          sum_cells(g.scored + std::size_t(w.word) * 64, w.cells, sum, n, small) ^ w.occupied;
     gain = sum;
     count = n;
     return changed == 0 && small == 0 && sum < 4194304.0;  // 2^22

@@ -15,12 +15,12 @@
 //     void skipped(std::size_t idx);  // a neutral cell stepped over (mark its brick)
 //     static bool replay(const GridView& g, const ViewMemo::Entry& e, double& gain, int& count);
 // replay() scores a view again from its entry, or returns false (then the view is walked).
-// A utility whose visit() reads a cell's id and score only, and whose ray ends at its first
-// occupied cell, may declare kIdsOnly = true and
-//     template <bool kSkip, bool kRecord>
-//     std::size_t visit_ray(const GridView& g, const std::int64_t* ids, int stride, int count);
-// (the ray's cells, as visit() would take them; returns the cell it stopped at or kNoCell):
-// the kernel then walks its rays four at a time (walk_rays4) on the workspace grid.
+// A utility whose gain sums the entropies of the distinct cells its rays enter, each ray ending
+// at its first occupied cell, may declare kMarksRays = true and
+//     void mark_rays(const GridView& g, const RayStart* starts, const bool* active,
+//                    const MarkBuffer& buffer, std::size_t* stop);  // mark_rays4 into its set
+//     bool sum_marks(const GridView& g);  // after the rays: false to be walked with visit()
+// the kernel then walks its rays four at a time (mark_rays4) on the workspace grid.
 //
 // visit() is called for every cell the ray enters, in order (t: distance from the camera at the
 // cell's entry, m; scored: the cell's entropy, negated when occupied) and returns false to end
