@@ -552,21 +552,31 @@ TEST(HugeVector, LargeBuffersAreHugePageAlignedAndHoldTheirValues) {
   EXPECT_EQ(std::accumulate(small.begin(), small.end(), 0), 300);
 }
 
+// Candidate views around (5, 4, 3) m in a 12 x 8 x 6 m map, and the options the view tests
+// share (every valid view scored, paths planned).
+struct ViewScene {
+  Eigen::Matrix<double, Eigen::Dynamic, 4, Eigen::RowMajor> cand;
+  ViewCameraModel camera;
+  UtilityOptions utility;
+  ValidityOptions validity;
+  ViewScene(std::mt19937& rng, Eigen::Index n) : cand(n, 4) {
+    std::uniform_real_distribution<double> u(-1, 1);
+    for (Eigen::Index k = 0; k < n; ++k)
+      cand.row(k) << 5 + 2 * u(rng), 4 + 0.5 * u(rng), 3 + 0.5 * u(rng), 3 * u(rng);
+    utility.require_occupied = false;
+    validity.collision_radius = 0.3;
+    validity.blocked_path = "plan";
+  }
+};
+
 TEST(Views, TheMemoOfWalksScoresAsWalkingAgain) {
   OccupancyMap m(0.2, {0, 0, 0}, {12, 8, 6});
   m.mark_free_segment({2, 4, 3}, {8, 4, 3}, 1.5);
   std::mt19937 rng(11);
-  std::uniform_real_distribution<double> ux(0, 12), uy(0, 8), uz(0, 6), u(-1, 1);
-  Eigen::Matrix<double, Eigen::Dynamic, 4, Eigen::RowMajor> cand(10, 4);
-  for (Eigen::Index k = 0; k < cand.rows(); ++k)
-    cand.row(k) << 5 + 2 * u(rng), 4 + 0.5 * u(rng), 3 + 0.5 * u(rng), 3 * u(rng);
-  ViewCameraModel camera;
-  UtilityOptions utility;
-  utility.require_occupied = false;
-  utility.require_occupied_probability = 0.6;
-  ValidityOptions validity;
-  validity.collision_radius = 0.3;
-  validity.blocked_path = "plan";
+  std::uniform_real_distribution<double> ux(0, 12), uy(0, 8), uz(0, 6);
+  ViewScene v(rng, 10);
+  v.utility.require_occupied_probability = 0.6;
+  const auto& [cand, camera, utility, validity] = v;
   ViewMemo memo;
   for (int round = 0; round < 12; ++round) {
     Points p(20, 3);  // hits and misses scattered over the workspace
@@ -640,15 +650,8 @@ TEST(Views, TheInformationGainIsTheSumInTheWalksOrderBitForBit) {
     for (std::size_t i = 0; i < g.storage_size(); ++i)
       below += g.scored[i] != 0.0f && std::fabs(g.scored[i]) < 0.00390625f;
     EXPECT_EQ(below > 0, tiny);
-    Eigen::Matrix<double, Eigen::Dynamic, 4, Eigen::RowMajor> cand(12, 4);
-    for (Eigen::Index k = 0; k < cand.rows(); ++k)
-      cand.row(k) << 5 + 2 * u(rng), 4 + 0.5 * u(rng), 3 + 0.5 * u(rng), 3 * u(rng);
-    ViewCameraModel camera;
-    UtilityOptions utility;
-    utility.require_occupied = false;
-    ValidityOptions validity;
-    validity.collision_radius = 0.3;
-    validity.blocked_path = "plan";
+    const ViewScene v(rng, 12);
+    const auto& [cand, camera, utility, validity] = v;
     ViewMemo memo;
     for (ViewMemo* with : {static_cast<ViewMemo*>(nullptr), &memo}) {
       const ViewScores a = evaluate_views(g, cand, {5, 4, 3, 0}, camera, utility, validity, with);
