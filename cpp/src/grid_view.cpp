@@ -54,6 +54,18 @@ void GridView::validate() const {
     throw std::invalid_argument("grid view is empty or incomplete");
 }
 
+namespace {
+
+// RayStart's countdown of the steps left in the grid along an axis of n cells for a ray from
+// cell c stepping by `step`, and its floor: steps left n - 1 - c up, c down; + floor makes it
+// 3 - (c & 3), c & 3 modulo 4 (a step crosses a brick boundary where it is a multiple of 4).
+void dda_countdown(int step, int c, int n, std::int64_t& floor, std::int64_t& countdown) {
+  floor = step > 0 ? (4 - n % 4) % 4 : 0;
+  countdown = (step > 0 ? n - 1 - c : step < 0 ? c : std::int64_t(1) << 40) + floor;
+}
+
+}  // namespace
+
 RayOrigin ray_origin(const GridView& g, const Eigen::Vector3d& o) {
   RayOrigin r;
   r.pos = (o - g.origin) / g.resolution;  // as walk_ray
@@ -62,6 +74,18 @@ RayOrigin ray_origin(const GridView& g, const Eigen::Vector3d& o) {
   for (int a = 0; a < 3; ++a) {
     r.inside &= r.pos[a] >= 0.0 && r.pos[a] < n[a];
     r.cell[a] = grid_cell(r.pos[a], n[a]);
+  }
+  if (!r.inside) return r;
+  r.id = std::int64_t(g.layout.id(r.cell[0], r.cell[1], r.cell[2]));
+  for (int k = 0; k < 3; ++k) {  // ray_start's steps, countdowns and floors from this cell
+    const int s = k == 0 ? 1 : k == 1 ? -1 : 0, step[3] = {s, s, s};
+    std::int64_t in[3], cross[3];
+    dda_id_steps(g, step, in, cross);
+    for (int a = 0; a < 3; ++a) {
+      r.step_in[a][k] = in[a];
+      r.step_cross[a][k] = cross[a] - in[a];
+      dda_countdown(s, r.cell[a], n[a], r.floor[a][k], r.countdown[a][k]);
+    }
   }
   return r;
 }
@@ -93,12 +117,7 @@ bool ray_start(const GridView& g, const RayOrigin& origin, const Eigen::Vector3d
   dda_id_steps(g, step, r.step_in, cross);
   for (int a = 0; a < 3; ++a) {
     r.step_cross[a] = cross[a] - r.step_in[a];
-    // steps left: n - 1 - c up, c down; + floor makes it 3 - (c & 3), c & 3 modulo 4
-    r.floor[a] = step[a] > 0 ? (4 - n[a] % 4) % 4 : 0;
-    r.countdown[a] = (step[a] > 0   ? n[a] - 1 - c[a]
-                      : step[a] < 0 ? c[a]
-                                    : std::int64_t(1) << 40) +
-                     r.floor[a];
+    dda_countdown(step[a], c[a], n[a], r.floor[a], r.countdown[a]);
   }
   r.id = std::int64_t(g.layout.id(c[0], c[1], c[2]));
   return true;
@@ -139,44 +158,19 @@ __attribute__((target("avx2"))) void ray_starts4_avx2(const GridView& g, const R
   const int reached = _mm256_movemask_pd(_mm256_cmp_pd(zero, t1, _CMP_LE_OQ));
   alignas(32) double t1s[4];
   _mm256_store_pd(t1s, t1);
-  // the rest depends on the steps' signs alone: worked out per axis for +1, -1 and 0
-  std::int64_t in[3][3], cross[3][3], floor[3][3], countdown[3][3];
-  for (int k = 0; k < 3; ++k) {
-    const int step[3] = {k == 0   ? 1
-                         : k == 1 ? -1
-                                  : 0,
-                         k == 0   ? 1
-                         : k == 1 ? -1
-                                  : 0,
-                         k == 0   ? 1
-                         : k == 1 ? -1
-                                  : 0};
-    std::int64_t i3[3], c3[3];
-    dda_id_steps(g, step, i3, c3);
-    for (int a = 0; a < 3; ++a) {
-      in[a][k] = i3[a];
-      cross[a][k] = c3[a] - i3[a];
-      floor[a][k] = step[a] > 0 ? (4 - n[a] % 4) % 4 : 0;
-      countdown[a][k] = (step[a] > 0   ? n[a] - 1 - origin.cell[a]
-                         : step[a] < 0 ? origin.cell[a]
-                                       : std::int64_t(1) << 40) +
-                        floor[a][k];
-    }
-  }
-  const auto id = std::int64_t(g.layout.id(origin.cell[0], origin.cell[1], origin.cell[2]));
   for (int l = 0; l < 4; ++l) {
     active[l] = reached >> l & 1;
     RayStart& s = r[l];
     s.t1 = t1s[l];
-    s.id = id;
-    for (int a = 0; a < 3; ++a) {
+    s.id = origin.id;
+    for (int a = 0; a < 3; ++a) {  // the rest depends on the step's sign alone (RayOrigin)
       const int k = up[a] >> l & 1 ? 0 : down[a] >> l & 1 ? 1 : 2;
       s.t_next[a] = t_next[a][l];
       s.t_delta[a] = t_delta[a][l];
-      s.step_in[a] = in[a][k];
-      s.step_cross[a] = cross[a][k];
-      s.floor[a] = floor[a][k];
-      s.countdown[a] = countdown[a][k];
+      s.step_in[a] = origin.step_in[a][k];
+      s.step_cross[a] = origin.step_cross[a][k];
+      s.floor[a] = origin.floor[a][k];
+      s.countdown[a] = origin.countdown[a][k];
     }
   }
 }

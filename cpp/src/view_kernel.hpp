@@ -179,7 +179,7 @@ ViewScores score(const Job& job, const Cells& cells) {
 
   // four rays at a time (mark_rays4), for a utility that sums over the distinct cells its rays
   // enter up to their first occupied cell
-  constexpr bool kIds = MarksRays<Utility>::value && std::is_same_v<Cells, GridCells>;
+  constexpr bool kMarks = MarksRays<Utility>::value && std::is_same_v<Cells, GridCells>;
   // the memo (its entries hold cell ids in 32 bits)
   constexpr bool kMemo = Replayable<Utility>::value && kSkip && std::is_same_v<Cells, GridCells>;
   ViewMemo* memo = nullptr;
@@ -206,7 +206,7 @@ ViewScores score(const Job& job, const Cells& cells) {
     thread_local utility::VisitedSet brick_set;  // with on_bricks: the bricks a view's rays passed
     thread_local std::vector<std::uint64_t> mark_cells, mark_runs;  // mark_rays4's buffers
     thread_local std::vector<std::uint8_t> mark_ends;
-    if constexpr (kIds) {
+    if constexpr (kMarks) {
       mark_cells.resize(4 * std::size_t(max_ray_cells(g)));
       mark_runs.resize(mark_cells.size());
       mark_ends.resize(std::size_t(max_ray_cells(g)) + 32);
@@ -265,7 +265,7 @@ ViewScores score(const Job& job, const Cells& cells) {
         };
         const Eigen::Index n_rays = dirs.rows();
         bool walked = false;
-        if constexpr (kIds) {
+        if constexpr (kMarks) {
           if (!record_bricks) {
             // four rays at a time, their cells marked up to each one's first occupied cell
             const RayOrigin from = ray_origin(g, o);
@@ -287,7 +287,7 @@ ViewScores score(const Job& job, const Cells& cells) {
               for (int l = lanes; l < 4; ++l) active[l] = false;
               std::size_t stop[4];
               u.mark_rays(g, starts, active, buffer, stop);
-              for (int l = 0; l < 4 && r0 + l < n_rays; ++l) {
+              for (int l = 0; l < lanes; ++l) {
                 if (stop[l] != kNoCell && cells.logodds(stop[l], nullptr) > occ_req) ++occ;
                 end_ray(stop[l]);
               }

@@ -205,11 +205,15 @@ struct RayStart {
 };
 
 /// Where rays from o start in the grid: o in grid units, whether it lies inside the grid box,
-/// and its cell (clamped to the grid).
+/// and its cell (clamped to the grid). For an origin inside, also what ray_start gives a ray
+/// from that cell per axis and step (k = 0, 1, 2 for a step of +1, -1, 0): its id's steps, its
+/// countdown and floor (ray_starts4 picks them by the signs of a ray's direction).
 struct RayOrigin {
   Eigen::Vector3d pos;
   bool inside = false;
   int cell[3] = {0, 0, 0};
+  std::int64_t id = 0;
+  std::int64_t step_in[3][3], step_cross[3][3], floor[3][3], countdown[3][3];
 };
 RayOrigin ray_origin(const GridView& g, const Eigen::Vector3d& o);
 

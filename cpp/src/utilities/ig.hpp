@@ -6,9 +6,6 @@
 
 #include "utility.hpp"
 
-#include <cstring>
-#include <vector>
-
 namespace nbv::utility {
 
 struct InformationGain {
@@ -28,9 +25,9 @@ struct InformationGain {
     return !std::signbit(scored);
   }
   /// Four rays of the view from their starts: the cells each enters up to its first occupied
-  /// one marked in the set (mark_rays4; neutral bricks' cells too, which kRecord asks for and
-  /// which nothing else reads), and that cell in stop[l]. The gain and count are summed over
-  /// the marks once the view's rays are done (sum_marks).
+  /// one marked in the set (mark_rays4; neutral bricks' cells too, which the memo's record
+  /// reads as bricks stepped over, and nothing else reads), and that cell in stop[l]. The gain and
+  /// count are summed over the marks once the view's rays are done (sum_marks).
   void mark_rays(const GridView& g, const RayStart* starts, const bool* active,
                  const MarkBuffer& buffer, std::size_t* stop) {
     CellMarks cells{marks_.bits, marks_.touched, marks_.n_touched};
