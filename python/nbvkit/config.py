@@ -459,7 +459,8 @@ class Config:
     scenario: str = DEFAULT_SCENARIO  # a preset (nbvkit.scenarios): profile, 1..5, surface, ...
     start: int = 0  # which of the five predefined start poses
     start_pose: Optional[tuple] = None  # (x, y, z, yaw) instead of a predefined start
-    max_iterations: int = 1000  # cap on camera views after profiling
+    # cap on camera views after profiling; null: follows the structure (planning.budgets)
+    max_iterations: Optional[int] = None
     progress: bool = True  # progress bar on stderr
     mesh: MeshConfig = field(default_factory=MeshConfig)
     workspace: WorkspaceConfig = field(default_factory=WorkspaceConfig)

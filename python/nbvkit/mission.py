@@ -19,6 +19,7 @@ import numpy as np
 from .config import Config
 from .evaluation import SUMMARY_KEYS, Evaluator
 from .planning import Planner
+from .planning.terminations.budget import BUDGET_REASONS, view_cap
 from .world import MissionError, World
 
 __all__ = ["Mission", "MissionError", "IterationRecord"]
@@ -45,6 +46,8 @@ class IterationRecord:
     entropy_change: float
     delta_ev: float
     alpha: int
+    expected_m2: float | None  # the new surface the plan expected of the view (surface utility)
+    realized_m2: float | None  # how much of it the view brought, as the utility counts it
     new_surface_m2: float
     leg_m: float
     distance_m: float
@@ -79,6 +82,8 @@ class Mission:
         self.symmetry_summary: dict | None = None
         self.coverage_time_s = 0.0  # progress-report coverage refreshes (not a stage)
         self.termination = "not_run"
+        # the cap on views after profiling (max_iterations, or one that follows the structure)
+        self.max_views = view_cap(cfg.max_iterations, self.world.mesh.area)
 
     # the world's parts, for stages and figures
     mesh = property(lambda self: self.world.mesh)
@@ -113,9 +118,9 @@ class Mission:
             self.symmetry_summary = self._symmetry()
         if cfg.planner.generators:
             world.sense_camera()  # the first view, from where the camera stage starts
-            self._bar = _progress(cfg.max_iterations, cfg.progress)
+            self._bar = _progress(self.max_views, cfg.progress)
             try:
-                self.termination = self.planner.run(world)
+                self.termination = self.planner.run(world, self.max_views)
             finally:
                 if self._bar is not None:
                     self._bar.close()
@@ -175,6 +180,8 @@ class Mission:
                 step.entropy_after - step.entropy_before,
                 step.delta_ev,
                 int(step.extra.get("alpha", 0)),
+                step.expected_m2,
+                step.realized_m2,
                 step.new_surface_m2,
                 step.extra["leg_m"],
                 step.distance_m,
@@ -222,6 +229,9 @@ class Mission:
             "entropy_reduction": self.entropy_initial - e_final,
             "entropy_unit": cfg.map.entropy_unit,
             "termination": termination,
+            # a budget (view cap, distance, views, time) ended it, not the planner's coverage
+            "stopped_by_budget": termination in BUDGET_REASONS,
+            "max_views": self.max_views,
             "wall_time_s": wall,
             "ms_per_iteration": sum(per_stage.values()),
             "ms_per_stage": per_stage,
@@ -235,6 +245,7 @@ class Mission:
             "c_view": self.planner.c_view,
             "seed": cfg.seed,
         }
+        out.update(_gain_accounting(self.records))
         for k in SUMMARY_KEYS:
             out[k] = ev[k]
         if self.profile_summary is not None:
@@ -265,6 +276,24 @@ class Mission:
         write_points(out / "cloud.ply", self.world.cloud_points())
         self.world.map.save(str(out / "map.ot"))
         plot_mission(self, out / "figures")
+
+
+def _gain_accounting(records) -> dict:
+    """What the views were expected to bring against what they brought (surface utility): the
+    sums of expected_m2, realized_m2 (as the utility counts) and new_surface_m2 (cells seen for
+    the first time) over the flown views, and the two ratios to the expected; {} otherwise."""
+    flown = [r for r in records if r.expected_m2 is not None]
+    if not flown:
+        return {}
+    expected = sum(r.expected_m2 for r in flown)
+    realized = sum(r.realized_m2 for r in flown)
+    new = sum(r.new_surface_m2 for r in flown)
+    return {
+        "expected_m2": expected,
+        "realized_m2": realized,
+        "realized_to_expected": realized / expected if expected > 0 else None,
+        "new_surface_to_expected": new / expected if expected > 0 else None,
+    }
 
 
 def _write_json_atomic(path: Path, data: dict) -> None:

@@ -7,6 +7,7 @@ import json
 
 from ..config import load_config
 from ..mission import Mission
+from ..planning.terminations.budget import budget_note
 from ..report import finish_run
 from ..paths import check_output_dir
 from ..scenarios import DEFAULT, SCENARIOS
@@ -101,6 +102,9 @@ def run(args) -> int:
         f"{s['entropy_reduction']:,.0f} {s['entropy_unit']}, "
         f"termination: {s['termination']}"
     )
+    note = budget_note(s["termination"], s)
+    if note:
+        print("note: " + note)
     print("coverage  " + "  ".join(f"@{k} m {v:6.1%}" for k, v in cov.items()))
     print("area cov. " + "  ".join(f"@{k} m {v:6.1%}" for k, v in s["area_coverage"].items()))
     if "coverage_observable" in s:
