@@ -26,6 +26,7 @@ import numpy as np
 import yaml
 
 from . import _core
+from .cameras import CAMERA_PRESETS
 from .scenarios import DEFAULT as DEFAULT_SCENARIO
 from .scenarios import SCENARIOS
 
@@ -185,6 +186,7 @@ MapConfig = cpp_section(
 class CameraConfig:
     """The RGB-D camera (paper Table 1); mount = T_body_sensor as xyz (m) + roll/pitch/yaw (deg)."""
 
+    preset: str = "rgbd"  # a named camera (nbvkit.cameras): rgbd (the paper's), inspection
     width: int = _CAM.width
     height: int = _CAM.height
     hfov_deg: float = _CAM.hfov_deg
@@ -459,8 +461,7 @@ class Config:
     scenario: str = DEFAULT_SCENARIO  # a preset (nbvkit.scenarios): profile, 1..5, surface, ...
     start: int = 0  # which of the five predefined start poses
     start_pose: Optional[tuple] = None  # (x, y, z, yaw) instead of a predefined start
-    # cap on camera views after profiling; null: follows the structure (planning.budgets)
-    max_iterations: Optional[int] = None
+    max_iterations: Optional[int] = None  # views after profiling; null: 0.5 per m^2 of surface
     progress: bool = True  # progress bar on stderr
     mesh: MeshConfig = field(default_factory=MeshConfig)
     workspace: WorkspaceConfig = field(default_factory=WorkspaceConfig)
@@ -495,6 +496,10 @@ class Config:
                 f"got {self.scenario!r}"
             )
         for key, value in SCENARIOS[self.scenario].settings.items():
+            if not _has_dotted(self._user, key):
+                _set_field(self, key, value)
+        # then the named camera's keys (and its stand-off room), under what the user set
+        for key, value in CAMERA_PRESETS.get(self.camera.preset, {}).items():
             if not _has_dotted(self._user, key):
                 _set_field(self, key, value)
 
@@ -698,6 +703,7 @@ _CHOICES = {
     "vehicle.blocked_path": ("reject", "plan"),
     "sampling.method": ("cgvs", "agvs"),
     "utility.name": tuple(_core.utility_names()),
+    "camera.preset": tuple(CAMERA_PRESETS),
     "scenario": tuple(SCENARIOS),
     "symmetry.mode": ("none", "report", "predict"),
     "tour.selection": ("cover", "insertion"),
