@@ -55,7 +55,7 @@ class Planner:
                 world.map.integrate(scan)
                 world.camera_cloud.add(scan.hits)
                 new_cells = world.surface.add_scan(scan)
-                world.state.views += 1
+                world.state.capture("view")
             entropy_after = world.map.total_entropy()
             step = Step(
                 iteration,
