@@ -137,7 +137,9 @@ def test_qgc_plan_read_back_flies_the_flight(exported, run_dir):
     assert items[0]["command"] == 22 and items[-1]["command"] == 20
     fl = read_run(run_dir)
     home = np.array(m["plannedHomePosition"])
-    np.testing.assert_allclose(_to_mesh(*home[:, None]).ravel(), fl.home, atol=0.01)
+    np.testing.assert_allclose(_to_mesh(*home[:, None]).ravel(), s["launch_point_mesh"], atol=0.01)
+    top = np.array(s["climb_top_mesh"])
+    assert top[2] == pytest.approx(fl.start[2]) and s["launch_point_mesh"][:2] == list(top[:2])
     # per view: a waypoint that holds, a gimbal pitch (1000, horizon-locked) and one image (2000)
     views = [k for k, it in enumerate(items) if it["command"] == 2000]
     n_views = sum(c == "view" for c in fl.capture)
@@ -177,7 +179,7 @@ def test_qgc_plan_read_back_flies_the_flight(exported, run_dir):
         yaw = fl.yaw[int(rows[k]["flight_row"])]
         assert nav[k]["params"][3] == pytest.approx((HEADING - math.degrees(yaw)) % 360, abs=1e-6)
     # starts and ends above the launch point
-    assert np.abs(xyz[0] - fl.start).max() < 0.01 and np.abs(xyz[-1] - fl.start).max() < 0.01
+    assert np.abs(xyz[0] - top).max() < 0.01 and np.abs(xyz[-1] - top).max() < 0.01
 
 
 def test_qgc_wpl_text_mission(exported):
@@ -373,7 +375,8 @@ def test_a_budget_splits_the_flight_into_sorties_from_and_to_home(run_dir, tmp_p
                 for k in ("latitude_deg", "longitude_deg", "altitude_m")
             )
         )[0]
-        assert np.abs(first - fl.start).max() < 0.01 and np.abs(last - fl.start).max() < 0.01
+        top = budget["climb_top_mesh"]
+        assert np.abs(first - top).max() < 0.01 and np.abs(last - top).max() < 0.01
         plan = json.loads((out / f"sortie_{srt['sortie']:02d}.plan").read_text())["mission"]
         assert plan["items"][0]["command"] == 22 and plan["items"][-1]["command"] == 20
         home = home or plan["plannedHomePosition"]
@@ -487,3 +490,32 @@ def test_the_report_shows_the_flight_time_and_the_sorties(run_dir, tmp_path):
         assert "sortie 1" in text and "#1f77b4" in text
     finally:
         (run_dir / "report.html").unlink()
+
+
+def test_a_blocked_climb_below_the_start_moves_the_launch_point(run_dir, monkeypatch):
+    from nbvkit.export import plan
+
+    fl = read_run(run_dir)
+    occ = plan.load_map(fl)
+    s = fl.start
+    real = plan._column_clear
+    # pretend the structure stands over the ground below the start (as a wing can)
+    blocked = lambda f, m, x, y, top: (  # noqa: E731
+        np.hypot(x - s[0], y - s[1]) > 1.0 and real(f, m, x, y, top)
+    )
+    monkeypatch.setattr(plan, "_column_clear", blocked)
+    plan.find_launch(fl, occ, plan.FlightModel())
+    assert np.hypot(*(fl.launch[:2] - s[:2])) > 1.0 and fl.launch[2] == s[2]
+    assert np.allclose(fl.launch_path[0], fl.launch) and np.allclose(fl.launch_path[-1], s)
+    assert np.allclose(fl.home, [*fl.launch[:2], fl.workspace["bounds_min"][2]])
+    for a, b in zip(fl.launch_path[:-1], fl.launch_path[1:]):
+        assert _core.segment_is_free(occ, a, b, fl.radius)
+    sp = plan.SortiePlanner(
+        fl, plan.FlightModel(), plan.ReturnPaths(fl, plan.FlightModel(), occ, [])
+    )
+    w = sp.whole().waypoints
+    assert w[0].action == "takeoff" and np.allclose(w[0].xyz, fl.launch)
+    assert w[-1].action == "home" and np.allclose(w[-1].xyz, fl.launch)
+    monkeypatch.setattr(plan, "_column_clear", lambda *a: False)
+    with pytest.raises(ValueError, match="no launch point"):
+        plan.find_launch(fl, occ, plan.FlightModel())

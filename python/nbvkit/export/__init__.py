@@ -21,7 +21,7 @@ from .plan import (
     FlightModel,
     ReturnPaths,
     SortiePlanner,
-    check_takeoff_column,
+    find_launch,
     load_map,
     read_run,
 )
@@ -73,7 +73,7 @@ def _budget(flight_time_min, reserve_pct):
 def _planner(run_dir, model: FlightModel, need_all_returns: bool):
     fl = read_run(run_dir)
     occ = load_map(fl)
-    check_takeoff_column(fl, occ)
+    find_launch(fl, occ, model)
     # A* ways back from the captures a sortie may end at (the profile's other points go back
     # along the profile to one); without a budget only the last row's way back matters
     work = SortiePlanner.work_rows(fl)
@@ -233,6 +233,7 @@ def export_mission(
             "above the launch point"
         ),
         "launch_point_mesh": [float(v) for v in fl.home],
+        "climb_top_mesh": [float(v) for v in fl.launch],
         "model": {
             "speed_m_s": model.speed,
             "climb_rate_m_s": model.climb_rate,

@@ -67,8 +67,8 @@ class FlightModel:
 @dataclass
 class RunFlight:
     """The flight of a run folder: rows (N, 3) xyz, yaw and pitch (N,) radians, stage and capture
-    (N,) strings; home (3,): the launch point below the start; radius: the vehicle's collision
-    radius; config: the run's Config; map_path: its map.ot (or None)."""
+    (N,) strings; home (3,): the launch point on the ground (find_launch); radius: the
+    vehicle's collision radius; config: the run's Config; map_path: its map.ot (or None)."""
 
     run_dir: Path
     xyz: np.ndarray
@@ -81,6 +81,8 @@ class RunFlight:
     config: object
     map_path: Path | None
     workspace: dict
+    launch: np.ndarray | None = None  # top of the take-off climb (find_launch)
+    launch_path: np.ndarray | None = None  # (P, 3) launch -> start through known free space
 
     @property
     def start(self) -> np.ndarray:
@@ -158,28 +160,62 @@ def load_map(fl: RunFlight):
     )
 
 
-def check_takeoff_column(fl: RunFlight, occ_map) -> None:
-    """ValueError when the vertical climb from home to the start meets a cell the run's map
-    holds occupied within the collision radius (unknown cells near the ground pass: the
-    simulation never looked there, the launch site is the user's to check)."""
-    if occ_map is None:
-        return
-    a, b = fl.home, fl.start
+def _column_clear(fl: RunFlight, occ_map, x: float, y: float, top: float) -> bool:
+    """Whether the vertical line at (x, y) from the ground to `top` stays farther than the
+    collision radius from every cell the run's map holds occupied (unknown cells pass: near the
+    ground the simulation never looked; the launch site is the user's to check)."""
+    ground = fl.home[2]
     res = occ_map.resolution
-    n = max(2, int(math.ceil((b[2] - a[2]) / (0.5 * res))) + 1)
-    z = np.linspace(a[2], b[2], n)
+    n = max(2, int(math.ceil((top - ground) / (0.5 * res))) + 1)
+    z = np.linspace(ground, top, n)
     ring = [(0.0, 0.0)] + [
         (fl.radius * math.cos(t), fl.radius * math.sin(t))
         for t in np.linspace(0, 2 * math.pi, 9)[:-1]
     ]
-    pts = np.array([[a[0] + dx, a[1] + dy, zz] for zz in z for dx, dy in ring])
+    pts = np.array([[x + dx, y + dy, zz] for zz in z for dx, dy in ring])
     lo, hi = np.asarray(fl.workspace["bounds_min"]), np.asarray(fl.workspace["bounds_max"])
     pts = pts[np.all((pts >= lo) & (pts <= hi), axis=1)]
-    if len(pts) and np.any(occ_map.state(pts) == 1):
-        raise ValueError(
-            f"the climb from the launch point {np.round(a, 2).tolist()} to the start "
-            f"{np.round(b, 2).tolist()} passes within the collision radius of the structure"
-        )
+    return not (len(pts) and np.any(occ_map.state(pts) == 1))
+
+
+def find_launch(fl: RunFlight, occ_map, model: FlightModel) -> None:
+    """Sets fl.launch (the top of the take-off climb, at the start's height) and fl.home (the
+    launch point on the ground below it) and fl.launch_path (launch -> start).
+
+    The launch point is the ground below the start when the climb there is clear of the
+    structure (_column_clear); otherwise the nearest point of the workspace floor, on rings
+    round the start, whose climb is clear and from whose top an A* path through the map's known
+    free space reaches the start. ValueError when there is none. Without a map: below the
+    start."""
+    from .. import _core
+
+    s = fl.start
+    fl.launch, fl.launch_path = s.copy(), s[None, :].copy()
+    fl.home = np.array([s[0], s[1], fl.home[2]])
+    if occ_map is None or _column_clear(fl, occ_map, s[0], s[1], s[2]):
+        return
+    nav_lo = np.asarray(fl.workspace.get("nav_min", fl.workspace["bounds_min"]), float)
+    nav_hi = np.asarray(fl.workspace.get("nav_max", fl.workspace["bounds_max"]), float)
+    step = max(occ_map.resolution, 0.5)
+    reach = float(np.max(nav_hi[:2] - nav_lo[:2]))
+    for r in np.arange(step, reach + step, step):
+        n = max(8, int(math.ceil(2 * math.pi * r / step)))
+        for t in np.arange(n) * (2 * math.pi / n):
+            q = np.array([s[0] + r * math.cos(t), s[1] + r * math.sin(t), s[2]])
+            if np.any(q[:2] < nav_lo[:2]) or np.any(q[:2] > nav_hi[:2]):
+                continue
+            if not _column_clear(fl, occ_map, q[0], q[1], q[2]):
+                continue
+            path = _core.plan_path(occ_map, q, s, fl.radius)
+            if len(path) >= 2:
+                fl.launch, fl.launch_path = q, np.asarray(path, float)
+                fl.home = np.array([q[0], q[1], fl.home[2]])
+                return
+    raise ValueError(
+        f"no launch point: the climb from the ground below the start {np.round(s, 2).tolist()} "
+        "meets the structure, and no point of the workspace floor has a clear climb and a "
+        "known-free way to the start"
+    )
 
 
 class ReturnPaths:
@@ -319,7 +355,11 @@ class SortiePlanner:
         self.cum = np.cumsum(leg)  # s from row 0 along the flight
         hov = np.array([model.hover_s if c == VIEW else 0.0 for c in fl.capture])
         self.cum_hover = np.cumsum(hov)
-        self.climb_s = float(abs(fl.start[2] - fl.home[2]) / model.climb_rate)
+        if fl.launch is None:
+            fl.launch, fl.launch_path = fl.start.copy(), fl.start[None, :].copy()
+        #: seconds from the ground to the start (climb, then the way over) and back
+        self.climb_s = float(abs(fl.launch[2] - fl.home[2]) / model.climb_rate)
+        self.climb_s += model.path_time(fl.launch_path)
         self.work = self.work_rows(fl)
 
     @staticmethod
@@ -340,7 +380,9 @@ class SortiePlanner:
 
     def sortie(self, number: int, r: int, e: int) -> Sortie:
         fl = self.fl
-        wps = [Waypoint(fl.start.copy(), float(fl.yaw[r]), 0.0, "takeoff", -1, "takeoff")]
+        wps = [Waypoint(fl.launch.copy(), float(fl.yaw[r]), 0.0, "takeoff", -1, "takeoff")]
+        for p in fl.launch_path[1:]:  # from the top of the climb to the start
+            wps.append(Waypoint(p, float(fl.yaw[r]), 0.0, "transit", -1, "out"))
         if r > 0:  # out to row r: its way back, reversed (without the start and the row)
             for p in self.returns.path(r)[::-1][1:-1]:
                 wps.append(Waypoint(p, float(fl.yaw[r]), 0.0, "transit", -1, "out"))
@@ -357,11 +399,11 @@ class SortiePlanner:
                     fl.stage[i],
                 )
             )
-        back = self.returns.path(e)[1:]
-        for p in back[:-1]:
-            wps.append(Waypoint(p, float(fl.yaw[e]), 0.0, "transit", -1, "back"))
-        if e > 0 or fl.capture[0]:
-            wps.append(Waypoint(fl.start.copy(), float(fl.yaw[e]), 0.0, "home", -1, "back"))
+        back = [*self.returns.path(e)[1:], *fl.launch_path[::-1][1:]]
+        if e > 0 or fl.capture[0] or len(fl.launch_path) > 1:
+            for p in back[:-1]:
+                wps.append(Waypoint(p, float(fl.yaw[e]), 0.0, "transit", -1, "back"))
+            wps.append(Waypoint(fl.launch.copy(), float(fl.yaw[e]), 0.0, "home", -1, "back"))
         wps = simplify(wps)
         pts = np.array([fl.home, *[w.xyz for w in wps], fl.home])
         s = Sortie(number, wps, r, e)
