@@ -136,7 +136,9 @@ def finish_run(mission, out, cache_dir=None) -> dict:
         if rep.html:
             t0 = time.perf_counter()
             summary["finish_s"] = {**timings, "total": time.perf_counter() - t_all}
-            write_run_report(out, summary, pts, classes, records=mission.records)
+            write_run_report(
+                out, summary, pts, classes, records=mission.records, occ_map=mission.map
+            )
             timings["report_html"] = time.perf_counter() - t0
     timings["total"] = time.perf_counter() - t_all
     summary["finish_s"] = timings
@@ -507,11 +509,12 @@ def _r(a, nd=3):
     return np.round(np.asarray(a, float), nd).tolist()
 
 
-def write_run_report(out, summary: dict, points, classes, records=None) -> Path:
+def write_run_report(out, summary: dict, points, classes, records=None, occ_map=None) -> Path:
     """``out/report.html``: the summary figures, an interactive 3D view of the surface
     (``points`` (N, 3) coloured by ``classes`` (N,): covered / observable but missed /
     unobservable) with the trajectory (``out/trajectory.csv``) and the chosen views
-    (``records`` or ``out/iterations.csv``), the progress plots, and the run's PNG figures.
+    (``records`` or ``out/iterations.csv``), the progress plots, the estimated flight time
+    (``occ_map``: the run's final map, else read from map.ot) and the run's PNG figures.
     Self-contained: plotly.js is inlined; it opens offline."""
     out = Path(out)
     pts = np.asarray(points, float).reshape(-1, 3)
@@ -610,7 +613,7 @@ def write_run_report(out, summary: dict, points, classes, records=None) -> Path:
         )
     )
     body.append(_per_res_table(summary))
-    body.append(flight_section(out))
+    body.append(flight_section(out, occ_map=occ_map))
     m = summary.get("reconstructed_mesh")
     if m:
         if m.get("written"):
@@ -699,17 +702,18 @@ FLIGHT_BEGIN, FLIGHT_END = "<!-- nbvkit:flight -->", "<!-- /nbvkit:flight -->"
 SORTIE_COLOURS = ("#1f77b4", "#ff7f0e", "#2ca02c", "#d62728", "#9467bd", "#8c564b", "#e377c2")
 
 
-def flight_section(out, export: dict | None = None, paths=None) -> str:
+def flight_section(out, export: dict | None = None, paths=None, occ_map=None) -> str:
     """The report's "Flight" section (between FLIGHT_BEGIN and FLIGHT_END): the whole mission's
     estimated flight time (nbvkit.export's flight-time model; ``export``: the summary of an
     export_mission, else its default speeds) and, with a budget, the sorties: a table, and
-    ``paths`` ((N, 3) mesh-frame waypoints per sortie) drawn in colour."""
+    ``paths`` ((N, 3) mesh-frame waypoints per sortie) drawn in colour. occ_map: the run's
+    final map when at hand (else read from map.ot)."""
     out = Path(out)
     try:
         if export is None:
             from .export import estimate_flight
 
-            e = estimate_flight(out)
+            e = estimate_flight(out, occ_map=occ_map)
             model = e["model"]
             mission = {"time_s": e["time_s"], "distance_m": e["distance_m"], "views": e["views"]}
         else:

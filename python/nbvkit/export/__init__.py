@@ -70,9 +70,9 @@ def _budget(flight_time_min, reserve_pct):
     return 60.0 * flight_time_min * (1.0 - reserve_pct / 100.0)
 
 
-def _planner(run_dir, model: FlightModel, need_all_returns: bool):
+def _planner(run_dir, model: FlightModel, need_all_returns: bool, occ_map=None):
     fl = read_run(run_dir)
-    occ = load_map(fl)
+    occ = load_map(fl) if occ_map is None else occ_map
     find_launch(fl, occ, model)
     # A* ways back from the captures a sortie may end at (the profile's other points go back
     # along the profile to one); without a budget only the last row's way back matters
@@ -83,11 +83,12 @@ def _planner(run_dir, model: FlightModel, need_all_returns: bool):
     return fl, SortiePlanner(fl, model, returns)
 
 
-def estimate_flight(run_dir, speed=5.0, climb_rate=2.0, hover_s=2.0) -> dict:
+def estimate_flight(run_dir, speed=5.0, climb_rate=2.0, hover_s=2.0, occ_map=None) -> dict:
     """The whole mission's estimated flight (one battery, no limit) of a run folder: time_s,
-    distance_m, views, frames (see nbvkit.export.plan for the model)."""
+    distance_m, views, frames (see nbvkit.export.plan for the model). occ_map: the run's final
+    OccupancyMap when at hand (default: read from its map.ot)."""
     model = FlightModel(speed, climb_rate, hover_s)
-    fl, sp = _planner(run_dir, model, need_all_returns=False)
+    fl, sp = _planner(run_dir, model, need_all_returns=False, occ_map=occ_map)
     s = sp.whole()
     return {
         "time_s": s.time_s,

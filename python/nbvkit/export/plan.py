@@ -290,17 +290,17 @@ def simplify(wps: list, tol: float = 1e-3) -> list:
     if len(wps) < 3:
         return list(wps)
     keep = [wps[0]]
-    run = []  # dropped since the last kept point
+    run = []  # positions dropped since the last kept point
     for k in range(1, len(wps) - 1):
         w, nxt = wps[k], wps[k + 1]
         droppable = (
             w.action == "waypoint"
             and abs(w.yaw - nxt.yaw) < 1e-12
             and abs(w.pitch - nxt.pitch) < 1e-12
-            and all(_off_segment(q.xyz, keep[-1].xyz, nxt.xyz) <= tol for q in (*run, w))
+            and _off_segment(np.array([*run, w.xyz]), keep[-1].xyz, nxt.xyz).max() <= tol
         )
         if droppable:
-            run.append(w)
+            run.append(w.xyz)
         else:
             keep.append(w)
             run = []
@@ -308,12 +308,12 @@ def simplify(wps: list, tol: float = 1e-3) -> list:
     return keep
 
 
-def _off_segment(p, a, b) -> float:
-    """Distance (m) of p from the segment a-b."""
+def _off_segment(p: np.ndarray, a, b) -> np.ndarray:
+    """(N,) distances (m) of the points p (N, 3) from the segment a-b."""
     ab = b - a
     n = float(ab @ ab)
-    t = 0.0 if n == 0 else min(1.0, max(0.0, float((p - a) @ ab) / n))
-    return float(np.linalg.norm(p - (a + t * ab)))
+    t = np.zeros(len(p)) if n == 0 else np.clip((p - a) @ ab / n, 0.0, 1.0)
+    return np.linalg.norm(p - (a + t[:, None] * ab), axis=1)
 
 
 @dataclass
