@@ -20,7 +20,7 @@ from .config import Config
 from .evaluation import SUMMARY_KEYS, Evaluator
 from .planning import Planner
 from .planning.terminations.budget import BUDGET_REASONS, view_cap
-from .world import MissionError, World
+from .world import FLIGHT_COLUMNS, MissionError, World
 
 __all__ = ["Mission", "MissionError", "IterationRecord"]
 
@@ -102,7 +102,8 @@ class Mission:
     # ------------------------------------------------------------------ the method
     def run(self, out_dir: str | Path | None = None) -> dict:
         """Runs the mission; with out_dir writes config.yaml, iterations.csv, summary.json,
-        cloud.ply, map.ot, trajectory.csv and figures/*.png there. Returns the summary dict."""
+        cloud.ply, map.ot, trajectory.csv, flight.csv and figures/*.png there. Returns the
+        summary dict."""
         cfg, world = self.config, self.world
         if out_dir is not None:  # before any work: a mission must not fly and then fail to save
             from .paths import check_output_dir
@@ -273,6 +274,10 @@ class Mission:
             w = csv.writer(f)
             w.writerow(["stage", "x", "y", "z", "yaw", "distance_m"])
             w.writerows(self.world.state.trajectory)
+        with open(out / "flight.csv", "w", newline="") as f:  # every point flown (nbvkit export)
+            w = csv.writer(f)
+            w.writerow(FLIGHT_COLUMNS)
+            w.writerows(self.world.state.flight)
         write_points(out / "cloud.ply", self.world.cloud_points())
         self.world.map.save(str(out / "map.ot"))
         plot_mission(self, out / "figures")

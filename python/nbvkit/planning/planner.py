@@ -57,7 +57,7 @@ class Planner:
                 world.map.integrate(scan)
                 world.camera_cloud.add(scan.hits)
                 new_cells = world.surface.add_scan(scan)
-                world.state.views += 1
+                world.state.capture("view")
             entropy_after = world.map.total_entropy()
             with t("evaluation"):
                 expected, realized = self.delivered(world, choice)
