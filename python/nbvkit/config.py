@@ -328,9 +328,6 @@ class TourConfig:
     # once no view of the surface the map shows is worth its flight, plans also weigh views of
     # the unknown space within the structure's extent (unknown cells bordering free space)
     explore: bool = True  # then also plan views that open unknown space; false: stop there
-    # a tour is planned again before its end once the surface the map shows (occupied cells) has
-    # grown by this factor since it was planned (2: doubled); 0: each tour is flown to its end
-    replan_growth: float = 0.0
 
 
 @dataclass(frozen=True)
@@ -747,7 +744,6 @@ _POSITIVE = {
     "camera.height",
 }
 _NONNEG = {
-    "tour.replan_growth",
     "seed",
     "max_iterations",
     "start",

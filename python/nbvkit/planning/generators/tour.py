@@ -41,7 +41,6 @@ class CoverageTour:
         self.opened: set[int] = set()  # cells of stranded views a chosen view was credited with
         self.stop_reason = None  # why propose() gave up, when not because the surface is covered
         self.exploring = False  # plans include views of unknown space (tour.explore)
-        self.planned_surface = 0  # occupied cells the map showed when the tour was planned
         # what earlier plans' walks found, for candidates asked for again (the same arrays)
         self.memo = _core.CoverageMemo()
 
@@ -224,18 +223,7 @@ class CoverageTour:
         return chosen, gains, order, value
 
     # ------------------------------------------------------------------ generator
-    def stale(self, world) -> bool:
-        """Whether the tour being flown was planned on a map that has since grown by
-        tour.replan_growth (the surface it shows, in occupied cells): the surface found since is
-        targets the tour never weighed."""
-        g = self.cfg.tour.replan_growth
-        if g <= 0 or self.next >= len(self.views):
-            return False
-        return world.map.counts()["occupied"] >= g * max(self.planned_surface, 1)
-
     def propose(self, world):
-        if self.stale(world):
-            self.next = len(self.views)  # plan again now, over what the map shows
         if self.next >= len(self.views):
             last = self.plans[-1] if self.plans else None
             unflyable = last is not None and last["kept"] and not last["flown"]
@@ -247,7 +235,6 @@ class CoverageTour:
             # after a tour none of whose views could be reached, the next plans only those
             # that can be (the same plan again would fail the same way)
             reach = bool(unflyable)
-            self.planned_surface = world.map.counts()["occupied"]
             self.views, self.next = self.plan(world, reach, self.exploring), 0
             if len(self.views) == 0 and self.cfg.tour.explore and not self.exploring:
                 # no view of the surface the map shows is worth its flight: from now on views
