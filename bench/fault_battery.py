@@ -23,6 +23,8 @@ Cases (each a row of the summary table):
   bad-cache     a damaged observable-surface cache file: recomputed (the run succeeds)
   threads-scan  camera scans in one thread while another calls set_num_threads in a loop
   threads-2m    two missions in two threads of one process: the results of serial runs
+  threads-dask  a sweep of 4 runs on a Dask worker with 2 threads (the runner sets the thread
+                count before every run): every run complete, the worker never restarted
   threads-map   integrate on one map from 4 threads: the serial map (states, log-odds,
                 entropy total), mirror and totals consistent
   mission-twice a Mission run twice gives the result of a fresh one
@@ -506,6 +508,26 @@ for trial in range({trials}):
 print("same", {trials})
 """
 
+DASK_2T = """
+import tempfile
+from pathlib import Path
+import distributed
+from nbvkit.experiments import RunSpec, run_specs
+from nbvkit.runfolder import is_complete_run
+over = {over!r}
+with tempfile.TemporaryDirectory() as d, distributed.LocalCluster(
+    n_workers=1, threads_per_worker=2, processes=True, host="127.0.0.1",
+    dashboard_address=None) as cluster, distributed.Client(cluster) as client:
+    before = set(client.scheduler_info()["workers"])
+    specs = [RunSpec("1", k, overrides=tuple(over)) for k in range({runs})]
+    rows = run_specs(specs, d, scheduler=cluster.scheduler_address, progress=False)
+    after = set(client.scheduler_info()["workers"])
+    assert before == after, f"the worker was restarted: {{before}} -> {{after}}"
+    assert all(is_complete_run(Path(d) / "runs" / s.run_id) for s in specs)
+    assert [r["start"] for r in rows] == list(range({runs}))
+print("{runs} runs on 1 worker x 2 threads, no restart")
+"""
+
 MISSION_TWICE = """
 import nbvkit
 from nbvkit.config import load_config
@@ -520,6 +542,14 @@ for k in keys:
 assert ta == tb
 print("same")
 """
+
+
+def _has_distributed() -> bool:
+    try:
+        import distributed  # noqa: F401
+    except ImportError:
+        return False
+    return True
 
 
 def python_case(code: str, timeout=300) -> tuple:
@@ -586,6 +616,8 @@ def main(argv=None) -> int:
         record("bad-cache", bad_cache_case(tmp, base))
         record("threads-scan", python_case(THREADS_SCAN.format(seconds=2 if args.quick else 10)))
         record("threads-2m", python_case(THREADS_2M.format(over=TINY)))
+        if _has_distributed():
+            record("threads-dask", python_case(DASK_2T.format(over=TINY, runs=4)))
         record("threads-map", python_case(THREADS_MAP.format(trials=3 if args.quick else 20)))
         record("mission-twice", python_case(MISSION_TWICE.format(over=TINY)))
 

@@ -5,6 +5,7 @@
 #include <gtest/gtest.h>
 
 #include <atomic>
+#include <chrono>
 #include <thread>
 #include <vector>
 
@@ -25,10 +26,14 @@ TEST(ThreadPool, SetNumThreadsWhileLoopsRunKeepsTheirArenaAlive) {
         ++loops;
       }
     });
-  for (int k = 0; k < 400; ++k) set_num_threads(1 + k % 3);
+  // replace the arena over and over while the loops run, until they have run 200 times
+  const auto t0 = std::chrono::steady_clock::now();
+  for (int k = 0; loops < 200 && std::chrono::steady_clock::now() - t0 < std::chrono::seconds(20);
+       ++k)
+    set_num_threads(1 + k % 3);
   stop = true;
   for (auto& t : workers) t.join();
   set_num_threads(0);
-  EXPECT_GT(loops.load(), 0);
+  EXPECT_GE(loops.load(), 200);
   EXPECT_GE(get_num_threads(), 1);
 }
