@@ -429,11 +429,21 @@ def test_bad_input_names_the_problem_and_writes_nothing(run_dir, tmp_path, kwarg
     assert list(tmp_path.iterdir()) == []  # no output folder, no temporary folder
 
 
-def test_a_run_folder_without_a_trajectory_is_named(tmp_path):
-    (tmp_path / "run").mkdir()
-    with pytest.raises(FileNotFoundError, match="no trajectory"):
-        export_mission(tmp_path / "run", "qgc", ORIGIN, out_dir=tmp_path / "ex")
-    assert sorted(p.name for p in tmp_path.iterdir()) == ["run"]
+def test_a_run_folder_without_a_trajectory_is_named(run_dir, tmp_path):
+    import shutil
+
+    from nbvkit.runfolder import IncompleteRunError
+
+    (tmp_path / "empty").mkdir()
+    with pytest.raises(IncompleteRunError, match="empty is not a complete nbvkit run"):
+        export_mission(tmp_path / "empty", "qgc", ORIGIN, out_dir=tmp_path / "ex")
+    run = tmp_path / "run"  # a finished run that has lost its flight since
+    shutil.copytree(run_dir, run, ignore=shutil.ignore_patterns("export"))
+    (run / "flight.csv").unlink()
+    (run / "trajectory.csv").unlink()
+    with pytest.raises(IncompleteRunError, match="lacks flight.csv"):
+        export_mission(run, "qgc", ORIGIN, out_dir=tmp_path / "ex")
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["empty", "run"]
 
 
 def test_cli_export_and_its_errors(run_dir, tmp_path, capsys):

@@ -62,12 +62,18 @@ def finish_run(mission, out, cache_dir=None) -> dict:
     out: its results folder; cache_dir: the observable-surface cache (default ``out/cache``;
     a sweep passes its own folder's so that every run of a structure shares one entry).
     Returns the updated summary. Stage timings go into ``summary["finish_s"]``.
+
+    On a complete run folder (``Mission.run(out_dir)``'s) its ``manifest.json`` is removed first
+    and written again last, so that a folder left half-finished here says so
+    (nbvkit.runfolder); the commands call it on the run's temporary folder instead.
     """
     from .mission import _write_json_atomic
+    from .runfolder import mark_incomplete, write_manifest
 
     out = Path(out)
     cfg = mission.config
     summary = json.loads((out / "summary.json").read_text())
+    was_complete = mark_incomplete(out)
     timings: dict = {}
     t_all = time.perf_counter()
     cloud = mission.cloud_points()
@@ -120,9 +126,7 @@ def finish_run(mission, out, cache_dir=None) -> dict:
             print(f"mesh.ply not written: {info['message']}")
             summary["reconstructed_mesh"] = {"written": False, "message": info["message"]}
         else:
-            import open3d as o3d
-
-            o3d.io.write_triangle_mesh(str(out / "mesh.ply"), mesh)
+            write_mesh_ply(out / "mesh.ply", mesh)
             t0 = time.perf_counter()
             scores = score_mesh(mesh, ev, taus=tuple(float(t) for t in summary["completeness"]))
             timings["mesh_score"] = time.perf_counter() - t0
@@ -143,7 +147,49 @@ def finish_run(mission, out, cache_dir=None) -> dict:
     timings["total"] = time.perf_counter() - t_all
     summary["finish_s"] = timings
     _write_json_atomic(out / "summary.json", summary)
+    if was_complete:
+        write_manifest(out)
     return summary
+
+
+def write_mesh_ply(path, mesh) -> Path:
+    """Writes an open3d TriangleMesh as PLY, whole or not at all: into a temporary file that is
+    checked and renamed over ``path``. OSError when it cannot be written (open3d only returns
+    False, and on a full disk may leave a short file)."""
+    import os
+
+    import open3d as o3d
+
+    path = Path(path)
+    tmp = path.with_name(f".{path.name}.tmp{os.getpid()}.ply")
+    try:
+        ok = o3d.io.write_triangle_mesh(str(tmp), mesh)
+        if ok:  # read it back: the counts of a short file do not match
+            back = o3d.io.read_triangle_mesh(str(tmp))
+            ok = len(back.vertices) == len(mesh.vertices) and len(back.triangles) == len(
+                mesh.triangles
+            )
+        if not ok:
+            free = _free_bytes(path.parent)
+            raise OSError(
+                f"cannot write {path}: open3d could not write the mesh whole"
+                + (" (the disk is full)" if free is not None and free < (1 << 20) else "")
+            )
+        os.replace(tmp, path)
+    except BaseException:
+        if tmp.exists():
+            tmp.unlink()
+        raise
+    return path
+
+
+def _free_bytes(folder) -> int | None:
+    import shutil
+
+    try:
+        return shutil.disk_usage(folder).free
+    except OSError:
+        return None
 
 
 def _viewpoints(mission) -> np.ndarray:
@@ -175,7 +221,9 @@ def run_view(run_dir, view_points: int = 60000):
     from .mesh import default_mesh_path, load_mesh
     from .observability import observable_surface
 
-    run_dir = Path(run_dir)
+    from .runfolder import require_complete_run
+
+    run_dir = require_complete_run(run_dir)
     cfg = load_config(run_dir / "config.yaml", [])
     m = cfg.mesh
     mesh = load_mesh(m.path or default_mesh_path(), scale=m.scale, up=m.up, shift=m.shift)
@@ -590,7 +638,10 @@ def write_run_report(out, summary: dict, points, classes, records=None, occ_map=
         "legend": {"itemsizing": "constant"},
         "margin": {"l": 0, "r": 0, "t": 40, "b": 0},
     }
-    body = [f"<h1>nbvkit run: {html.escape(out.name)}</h1>"]
+    from .runfolder import run_name
+
+    name = run_name(out)  # the folder's name once in place (not its temporary name)
+    body = [f"<h1>nbvkit run: {html.escape(name)}</h1>"]
     body.append(
         _table(
             [
@@ -693,7 +744,7 @@ def write_run_report(out, summary: dict, points, classes, records=None, occ_map=
         + "</pre>"
     )
     path = out / "report.html"
-    path.write_text(_page(f"nbvkit run {out.name}", "\n".join(body)))
+    _write_text_atomic(path, _page(f"nbvkit run {name}", "\n".join(body)))
     return path
 
 
@@ -776,9 +827,14 @@ def update_flight_section(out, export: dict, paths=None) -> bool:
     if a < 0 or b < a:
         return False
     new = text[:a] + flight_section(out, export, paths) + text[b + len(FLIGHT_END) :]
+    from .runfolder import mark_incomplete, write_manifest
+
+    was_complete = mark_incomplete(out)  # the manifest lists report.html's size
     tmp = path.with_suffix(".html.tmp")
     tmp.write_text(new)
     tmp.replace(path)
+    if was_complete:
+        write_manifest(out)
     return True
 
 
@@ -862,8 +918,14 @@ def write_experiment_report(root, df, title: str, markdown: str | None = None) -
         body.append("<h2>Figures</h2>")
         body.extend(_img(f) for f in figs)
     path = root / "report.html"
-    path.write_text(_page(title, "\n".join(body), plotly=False))
+    _write_text_atomic(path, _page(title, "\n".join(body), plotly=False))
     return path
+
+
+def _write_text_atomic(path, text: str) -> None:
+    from .mission import _write_text_atomic as write
+
+    write(Path(path), text)
 
 
 def _plain(v):

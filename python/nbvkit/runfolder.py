@@ -57,6 +57,8 @@ OUTPUT_NAMES = frozenset(
         "summary.json",
         "iterations.csv",
         "trajectory.csv",
+        "flight.csv",
+        "export",
         "cloud.ply",
         "map.ot",
         "mesh.ply",
@@ -68,7 +70,7 @@ OUTPUT_NAMES = frozenset(
 )
 
 #: folders whose files are not listed in the manifest (caches are rewritten independently)
-_UNLISTED = ("cache",)
+_UNLISTED = ("cache", "export")  # nbvkit export writes its folder after the run, whole
 
 
 class IncompleteRunError(ValueError):

@@ -192,7 +192,9 @@ def export_mission(
     frame = GeoFrame(*(float(v) for v in origin), float(heading_deg), altitude_ref)
     model = FlightModel(float(speed), float(climb_rate), float(hover_s))
     usable = _budget(flight_time_min, float(reserve_pct))
-    run = Path(run_dir).expanduser()
+    from ..runfolder import require_complete_run
+
+    run = require_complete_run(Path(run_dir).expanduser())  # whole, not half-written
     out = Path(out_dir).expanduser() if out_dir is not None else run / "export"
     if out.exists() and not out.is_dir():
         raise ValueError(f"output folder {out} exists and is not a folder")
