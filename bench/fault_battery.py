@@ -10,6 +10,7 @@ Cases (each a row of the summary table):
                 folder holds one complete, consistent run; no temporary folder is left
   kill-noover   the same without --overwrite: the rerun succeeds, or (killed after the folder
                 appeared) refuses with "already holds a complete run" over a complete folder
+  kill-late     SIGKILL the moment the folder has appeared, then the same command
   disk-full     the run's folder on a small tmpfs (as root), else under RLIMIT_FSIZE: exit 2
                 naming the write error; no summary.json anywhere under the mount, no partial
                 folder, no temporary folder left
@@ -212,6 +213,31 @@ def kill_case(tmp: Path, delay: float, overwrite: bool = True) -> tuple:
         return f"left beside the folder: {left}", ""
     phase = ("before the folder appeared" if not was_there else "after") if killed else "done"
     return None, phase
+
+
+def kill_late_case(tmp: Path) -> tuple:
+    """SIGKILL the moment the folder has appeared (the run is printing its figures), then the
+    same command with --overwrite."""
+    out = tmp / "run"
+    p = subprocess.Popen(
+        run_argv(out, "--overwrite"),
+        stdout=subprocess.DEVNULL,
+        stderr=subprocess.DEVNULL,
+        env=_env(),
+    )
+    while p.poll() is None and not (out / "manifest.json").exists():
+        time.sleep(0.002)
+    killed = p.poll() is None
+    p.kill()
+    p.wait()
+    bad = run_problems(out)
+    if bad:
+        return f"after the kill: {bad}", ""
+    rc, _, err = run(run_argv(out, "--overwrite"))
+    if rc != 0:
+        return f"rerun exit {rc}: {err.strip()[-300:]}", ""
+    bad = run_problems(out) or leftovers(out)
+    return (str(bad) if bad else None), ("killed after the folder appeared" if killed else "done")
 
 
 def can_mount_tmpfs() -> bool:
@@ -598,6 +624,10 @@ def main(argv=None) -> int:
             d = tmp / f"killno{i}"
             d.mkdir()
             record("kill-noover", kill_case(d, rng.uniform(0.05, 1.05) * t_run, overwrite=False))
+        for i in range(1 if args.quick else 3):
+            d = tmp / f"killlate{i}"
+            d.mkdir()
+            record("kill-late", kill_late_case(d))
         mount = can_mount_tmpfs()
         sizes = (
             ["64k", "256k", "1m", "4m"]

@@ -1,16 +1,18 @@
 #include "nbv/common.hpp"
 #include "nbv/parallel.hpp"
 
+#include <fcntl.h>
 #include <unistd.h>
 
 #include <cerrno>
 #include <cmath>
 #include <cstdio>
 #include <cstring>
-#include <fstream>
 #include <memory>
 #include <mutex>
+#include <ostream>
 #include <sstream>
+#include <streambuf>
 
 namespace nbv {
 
@@ -39,29 +41,78 @@ FileWriteError::FileWriteError(const std::string& path, int error)
       path_(path),
       error_(error) {}
 
+namespace {
+/// A stream buffer writing to a file descriptor that keeps the errno of the first failed write
+/// (std::ofstream loses it: a full disk read as EIO).
+class FdBuf : public std::streambuf {
+ public:
+  explicit FdBuf(int fd) : fd_(fd) { setp(buf_, buf_ + sizeof buf_); }
+  int error() const { return error_; }
+
+ protected:
+  int overflow(int c) override {
+    if (sync() != 0) return traits_type::eof();
+    if (c != traits_type::eof()) {
+      *pptr() = char(c);
+      pbump(1);
+    }
+    return traits_type::not_eof(c);
+  }
+  int sync() override {
+    if (error_) return -1;
+    const char* p = pbase();
+    std::size_t n = std::size_t(pptr() - pbase());
+    while (n > 0) {
+      const ssize_t w = ::write(fd_, p, n);
+      if (w < 0) {
+        if (errno == EINTR) continue;
+        error_ = errno;
+        return -1;
+      }
+      p += w;
+      n -= std::size_t(w);
+    }
+    setp(buf_, buf_ + sizeof buf_);
+    return 0;
+  }
+
+ private:
+  int fd_;
+  int error_ = 0;
+  char buf_[1 << 16];
+};
+}  // namespace
+
 void write_file(const std::string& path, const std::function<void(std::ostream&)>& write) {
   const std::string tmp = path + ".tmp" + std::to_string(::getpid());
+  const int fd = ::open(tmp.c_str(), O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC, 0644);
+  if (fd < 0) throw FileWriteError(path, errno);
   const auto fail = [&](int error) {
+    ::close(fd);
     std::remove(tmp.c_str());
     throw FileWriteError(path, error ? error : EIO);
   };
-  std::ofstream f;
-  errno = 0;
-  f.open(tmp, std::ios::out | std::ios::binary | std::ios::trunc);
-  if (!f.is_open()) fail(errno);
+  auto buf = std::make_unique<FdBuf>(fd);
+  std::ostream out(buf.get());
   try {
-    write(f);
+    write(out);
   } catch (...) {
-    f.close();
+    ::close(fd);
     std::remove(tmp.c_str());
     throw;
   }
-  errno = 0;
-  f.flush();
-  if (!f) fail(errno);
-  f.close();  // the last buffered bytes: a full disk may only show here
-  if (!f) fail(errno);
-  if (std::rename(tmp.c_str(), path.c_str()) != 0) fail(errno);
+  out.flush();
+  if (buf->error() || !out) fail(buf->error());
+  if (::close(fd) != 0) {  // some file systems report a full disk only here
+    const int e = errno;
+    std::remove(tmp.c_str());
+    throw FileWriteError(path, e ? e : EIO);
+  }
+  if (std::rename(tmp.c_str(), path.c_str()) != 0) {
+    const int e = errno;
+    std::remove(tmp.c_str());
+    throw FileWriteError(path, e);
+  }
 }
 
 std::string printable_ascii(const std::string& s) {

@@ -423,7 +423,11 @@ class RunFolder:
                 return
             old = p.parent / f".{p.name}.old{os.getpid()}"
             os.rename(p, old)
-            os.rename(tmp, p)
+            try:
+                os.rename(tmp, p)
+            except OSError:
+                os.rename(old, p)  # the old run back in place
+                raise
             shutil.rmtree(old, ignore_errors=True)
         else:
             os.rename(tmp, p)  # onto an absent or empty folder
