@@ -37,6 +37,7 @@ class IterationRecord:
     y: float
     z: float
     yaw: float
+    pitch: float  # the camera gimbal's, radians, > 0 looks down (0: level)
     source: str  # the generator that proposed the view
     utility: float
     gain: float
@@ -102,7 +103,8 @@ class Mission:
     # ------------------------------------------------------------------ the method
     def run(self, out_dir: str | Path | None = None) -> dict:
         """Runs the mission; with out_dir writes config.yaml, iterations.csv, summary.json,
-        cloud.ply, map.ot, trajectory.csv and figures/*.png there. Returns the summary dict."""
+        cloud.ply, map.ot, trajectory.csv and figures/*.png there (poses as x, y, z, yaw and the
+        camera gimbal's pitch, radians, > 0 looks down). Returns the summary dict."""
         cfg, world = self.config, self.world
         if out_dir is not None:  # before any work: a mission must not fly and then fail to save
             from .paths import check_output_dir
@@ -271,7 +273,7 @@ class Mission:
                 w.writerow(["" if getattr(r, k) is None else getattr(r, k) for k in names])
         with open(out / "trajectory.csv", "w", newline="") as f:
             w = csv.writer(f)
-            w.writerow(["stage", "x", "y", "z", "yaw", "distance_m"])
+            w.writerow(["stage", "x", "y", "z", "yaw", "pitch", "distance_m"])
             w.writerows(self.world.state.trajectory)
         write_points(out / "cloud.ply", self.world.cloud_points())
         self.world.map.save(str(out / "map.ot"))
