@@ -379,3 +379,23 @@ def test_the_lattice_around_a_pitched_view_is_the_lattice_around_its_pose():
     assert a.shape == (80, 4)
     with pytest.raises(ValueError, match="or 5"):
         candidate_poses([*pose, 0.3, 0.0])
+
+
+def test_the_camera_observations_record_the_pitched_direction():
+    # straight down from 4 m, the camera 0.3 m ahead of and 0.1 m below the gimbal's axis:
+    # Ry(90 deg) takes that offset to 0.1 m behind and 0.3 m below, the camera at (-0.1, 0, 3.7)
+    mount = nbvkit.mount_transform([0.3, 0.0, -0.1])
+    cam = nbvkit.DepthCamera(floor_mesh(), width=64, height=48, mount=mount)
+    scan = cam.scan_pose([0, 0, 4, 0, math.pi / 2])
+    np.testing.assert_allclose(scan.origin, [-0.1, 0, 3.7], atol=1e-12)
+    m = nbvkit.OccupancyMap(0.2, (-6, -6, -1), (6, 6, 5))
+    surface = _core.SurfaceObservations(m)
+    surface.add_scan(scan)
+    seen = surface.seen_grid().reshape(-1, order="F")
+    ids = np.asarray(m.index_of(scan.hits))
+    expect = np.zeros_like(seen)
+    for i, h in zip(ids, scan.hits):  # each hit marks its cell seen from the bin of (origin - hit)
+        expect[i] |= np.uint32(1) << np.uint32(_core.direction_bin(scan.origin - h))
+    np.testing.assert_array_equal(seen, expect)
+    up = 1 << _core.direction_bin([0, 0, 1])
+    assert seen[m.index_of([[-0.1, 0, 0.0]])[0]] == up  # the cell below, seen from straight above
