@@ -2,6 +2,7 @@
 #pragma once
 
 #include "nbv/common.hpp"
+#include "nbv/views.hpp"
 
 #include <pybind11/eigen.h>
 #include <pybind11/numpy.h>
@@ -36,9 +37,22 @@ Eigen::Isometry3d transform_arg(const py::handle& obj, const char* what);
 /// numbers).
 Eigen::Vector3d vec3_arg(const py::handle& obj, const char* what);
 
-/// Converts (x, y, z, yaw) to a Pose (ValueError naming `what` if not 4 finite numbers or a
-/// position beyond +-kMaxCoordinate).
+/// Converts (x, y, z, yaw) or (x, y, z, yaw, pitch) to a Pose, pitch 0 for 4 numbers
+/// (ValueError naming `what` if not 4 or 5 finite numbers, a position beyond +-kMaxCoordinate, or
+/// a pitch beyond +-pi/2).
 Pose pose_arg(const py::handle& obj, const char* what);
+
+/// A C-contiguous float64 (K, 4) or (K, 5) array of candidate views; `map()` views it.
+struct ViewPosesArg {
+  py::array_t<double, py::array::c_style | py::array::forcecast> array;
+  Eigen::Map<const ViewPoses> map() const {
+    return {array.data(), static_cast<Eigen::Index>(array.shape(0)),
+            static_cast<Eigen::Index>(array.shape(1))};
+  }
+};
+/// Converts candidate views, (K, 4) rows x, y, z, yaw or (K, 5) rows x, y, z, yaw, pitch
+/// (ValueError naming `what` for another shape, non-finite values or a pitch beyond +-pi/2).
+ViewPosesArg view_poses_arg(const py::handle& obj, const char* what = "candidates");
 
 /// A random seed: a Python int in [0, 2^64) (ValueError naming `what` otherwise).
 std::uint64_t seed_arg(const py::handle& obj, const char* what = "seed");

@@ -38,15 +38,45 @@ Eigen::Isometry3d transform_arg(const py::handle& obj, const char* what) {
 }
 
 Pose pose_arg(const py::handle& obj, const char* what) {
-  auto a = py::array_t<double, py::array::c_style | py::array::forcecast>::ensure(obj);
-  if (!a || a.ndim() != 1 || a.shape(0) != 4)
-    throw py::value_error(std::string(what) + " must be 4 numbers (x, y, z, yaw)");
+  py::array_t<double, py::array::c_style | py::array::forcecast> a;
+  try {
+    a = py::array_t<double, py::array::c_style | py::array::forcecast>::ensure(obj);
+  } catch (const py::error_already_set&) {
+    a = {};
+  }
+  if (!a || a.ndim() != 1 || (a.shape(0) != 4 && a.shape(0) != 5))
+    throw py::value_error(std::string(what) +
+                          " must be 4 numbers (x, y, z, yaw) or 5 (x, y, z, yaw, pitch)");
   const double* d = a.data();
   for (int i = 0; i < 4; ++i)
     if (!std::isfinite(d[i]))
       throw py::value_error(std::string(what) + " contains NaN or infinite values");
   require_representable(Eigen::Vector3d(d[0], d[1], d[2]), what);
-  return Pose{d[0], d[1], d[2], d[3]};
+  const double pitch = a.shape(0) == 5 ? d[4] : 0.0;
+  require_pitch(pitch, what);  // names the pitch: non-finite, or beyond +-pi/2
+  return Pose{d[0], d[1], d[2], d[3], pitch};
+}
+
+ViewPosesArg view_poses_arg(const py::handle& obj, const char* what) {
+  py::array_t<double, py::array::c_style | py::array::forcecast> a;
+  try {
+    a = py::array_t<double, py::array::c_style | py::array::forcecast>::ensure(obj);
+  } catch (const py::error_already_set&) {
+    a = {};
+  }
+  if (!a || a.ndim() != 2 || (a.shape(1) != 4 && a.shape(1) != 5))
+    throw py::value_error(std::string(what) +
+                          " must have shape (K, 4): rows x, y, z, yaw, or (K, 5): rows x, y, z, "
+                          "yaw, pitch");
+  ViewPosesArg out{a};
+  if (!out.map().leftCols(4).allFinite())
+    throw py::value_error(std::string(what) + " contain NaN or infinite values");
+  if (a.shape(1) == 5) {
+    const auto m = out.map();
+    for (Eigen::Index k = 0; k < m.rows(); ++k)
+      require_pitch(m(k, 4), std::string(what) + " row " + std::to_string(k));
+  }
+  return out;
 }
 
 std::uint64_t seed_arg(const py::handle& obj, const char* what) {
@@ -98,7 +128,22 @@ void init_common(py::module_& m) {
   m.def(
       "pose_to_transform",
       [](const py::handle& pose) { return pose_to_transform(pose_arg(pose, "pose")).matrix(); },
-      py::arg("pose"), "T_world_body (4x4) of a vehicle pose (x, y, z, yaw).");
+      py::arg("pose"),
+      "T_world_body (4x4) of a vehicle pose (x, y, z, yaw) or view (x, y, z, yaw, pitch): the\n"
+      "body does not pitch (the pitch is the camera gimbal's, see gimbal_transform).");
+  m.def(
+      "gimbal_transform",
+      [](const py::handle& pose, const py::handle& mount) {
+        const Pose p = pose_arg(pose, "pose");
+        const Eigen::Isometry3d M =
+            mount.is_none() ? Eigen::Isometry3d::Identity() : transform_arg(mount, "mount");
+        return gimbal_sensor_transform(p, M).matrix();
+      },
+      py::arg("pose"), py::arg("mount") = py::none(),
+      "T_world_sensor (4x4) of a sensor on the camera gimbal at a view (x, y, z, yaw[, pitch]):\n"
+      "T(x, y, z) Rz(yaw) Ry(pitch) mount (pitch in radians, > 0 looks down, as mount_transform's\n"
+      "pitch; mount: 4x4 T_body_sensor at pitch 0, default identity). The camera's scan_pose and\n"
+      "view scoring use it; the laser does not ride the gimbal.");
   m.def(
       "mount_transform",
       [](const Eigen::Vector3d& xyz, double roll, double pitch, double yaw) {

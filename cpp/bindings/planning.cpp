@@ -80,12 +80,12 @@ unknown between known free space and surface) and weight (T,) (1, the predicted 
 frontier_weight).)doc");
   py::class_<CoverageMemo, std::shared_ptr<CoverageMemo>> coverage_memo(m, "CoverageMemo", R"doc(
 What view_coverage's walks found, kept from one call to the next over the same map and surface
-record (pass it as memo=). A view asked for again at the same pose (bit for bit) is answered from
-its record while none of the bricks of 4 x 4 x 4 cells its rays entered or stepped over has
-changed in the camera observations since, and none within one brick of them in the map: the same
-coverage set and status, without walking its rays. Validity is checked anew each call. Entries
-that none of the last keep_calls calls used are dropped; another map, record, camera or utility
-clears it.)doc");
+record (pass it as memo=). A view asked for again at the same pose and pitch (bit for bit) is
+answered from its record while none of the bricks of 4 x 4 x 4 cells its rays entered or stepped
+over has changed in the camera observations since, and none within one brick of them in the map:
+the same coverage set and status, without walking its rays. Validity is checked anew each call.
+Entries that none of the last keep_calls calls used are dropped; another map, record, camera or
+utility clears it.)doc");
   coverage_memo.def(py::init<int>(), py::arg("keep_calls") = 3);
   def_memo_members(coverage_memo);
 
@@ -94,11 +94,8 @@ clears it.)doc");
       [](const OccupancyMap& map, const SurfaceObservations& surface, const py::handle& candidates,
          const py::handle& current, const py::object& camera, const py::object& utility,
          const py::object& validity, const std::shared_ptr<CoverageMemo>& memo) {
-        auto c = py::array_t<double, py::array::c_style | py::array::forcecast>::ensure(candidates);
-        if (!c || c.ndim() != 2 || c.shape(1) != 4)
-          throw py::value_error("candidates must have shape (K, 4): rows x, y, z, yaw");
-        Eigen::Map<const Eigen::Matrix<double, Eigen::Dynamic, 4, Eigen::RowMajor>> cm(
-            c.data(), c.shape(0), 4);
+        const ViewPosesArg c = view_poses_arg(candidates, "candidates");
+        const auto cm = c.map();
         const Pose cur = pose_arg(current, "current pose");
         const auto cam = OptionsClass<ViewCameraModel>::from(camera, "camera");
         auto u = OptionsClass<UtilityOptions>::from(utility, "utility");
@@ -120,7 +117,8 @@ clears it.)doc");
       py::arg("map"), py::arg("surface"), py::arg("candidates"), py::arg("current"),
       py::arg("camera") = py::none(), py::arg("utility") = py::none(),
       py::arg("validity") = py::none(), py::arg("memo") = nullptr,
-      R"doc(What each candidate view (K, 4) would newly cover, as the surface utility credits it
+      R"doc(What each candidate view ((K, 4) rows x, y, z, yaw, or (K, 5) with the gimbal's pitch,
+as evaluate_views) would newly cover, as the surface utility credits it
 (utility: its priors and cone; the name is ignored): CSR dict offsets (K + 1,), elements (cell id *
 2 + the side of the cell seen, see nbv/coverage.hpp) and weights, and status (K,) as
 evaluate_views. memo: a CoverageMemo kept across calls over this map and surface record (the same

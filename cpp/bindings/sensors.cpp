@@ -127,7 +127,10 @@ The sensor looks along its +x (y left, z up); pixel (u, v) looks along
       .def("scan", &scan_transform<DepthCamera>, py::arg("T_world_sensor"),
            "Scan from a 4x4 sensor pose T_world_sensor. Returns an nbvkit.Scan.")
       .def("scan_pose", &scan_pose<DepthCamera>, py::arg("pose"),
-           "Scan from a vehicle pose (x, y, z, yaw) through the camera's mount.")
+           "Scan from a view (x, y, z, yaw) or (x, y, z, yaw, pitch): the camera rides a gimbal\n"
+           "that pitches it (radians, > 0 looks down, |pitch| <= pi/2) before its mount:\n"
+           "T_world_sensor = T(x, y, z) Rz(yaw) Ry(pitch) mount (gimbal_transform). 4 numbers\n"
+           "mean pitch 0, the level camera.")
       .def(
           "reset_noise",
           [](DepthCamera& c, const py::object& seed) { c.reset_noise(seed_arg(seed)); },
@@ -173,7 +176,9 @@ resolution_deg, min_range, max_range, noise_sigma, seed, mount.)doc")
                              "(R, 3) unit beam directions, sensor frame")
       .def("scan", &scan_transform<LaserScanner>, py::arg("T_world_sensor"))
       .def("scan_pose", &scan_pose<LaserScanner>, py::arg("pose"),
-           "Scan from a vehicle pose (x, y, z, yaw) through the laser's mount.")
+           "Scan from a vehicle pose (x, y, z, yaw) through the laser's fixed mount on the body.\n"
+           "A 5th number (the camera gimbal's pitch) is accepted and ignored: the laser does not\n"
+           "ride the gimbal.")
       .def(
           "reset_noise",
           [](LaserScanner& l, const py::object& seed) { l.reset_noise(seed_arg(seed)); },

@@ -12,8 +12,6 @@
 namespace nbv::bind {
 namespace {
 
-using Candidates = Eigen::Matrix<double, Eigen::Dynamic, 4, Eigen::RowMajor>;
-
 /// An (nx, ny, nz) Fortran-ordered copy of a per-cell array stored in a grid layout.
 template <typename T>
 py::array_t<T, py::array::f_style> per_cell(const GridLayout& layout, const T* data,
@@ -125,9 +123,9 @@ surface and four_term utilities and by surface_targets.)doc")
 
   py::class_<ViewMemo, std::shared_ptr<ViewMemo>> view_memo(m, "ViewMemo", R"doc(
 What the paper's IG walks of candidate views found, kept from one evaluate_views call to the next
-(pass it as memo=). A view scored again at the same pose (bit for bit) whose walk still holds -
-every cell its rays reached has kept its occupancy, every neutral brick they stepped over is
-still neutral - is scored from its record: the same gain, cells and occupied_seen, without
+(pass it as memo=). A view scored again at the same pose and pitch (bit for bit) whose walk still
+holds - every cell its rays reached has kept its occupancy, every neutral brick they stepped over
+is still neutral - is scored from its record: the same gain, cells and occupied_seen, without
 walking its rays. Entries that none of the last keep_calls calls used are dropped; a call with
 another camera or grid geometry clears it. Used by the ig and ig_distance utilities on the grid
 backend; the others walk every view.)doc");
@@ -140,11 +138,8 @@ backend; the others walk every view.)doc");
          const py::object& camera, const py::object& utility, const py::object& validity,
          const std::shared_ptr<SurfaceObservations>& surface, const std::string& backend,
          const std::shared_ptr<ViewMemo>& memo) {
-        auto c = py::array_t<double, py::array::c_style | py::array::forcecast>::ensure(candidates);
-        if (!c || c.ndim() != 2 || c.shape(1) != 4)
-          throw py::value_error("candidates must have shape (K, 4): rows x, y, z, yaw");
-        Eigen::Map<const Candidates> cm(c.data(), c.shape(0), 4);
-        if (!cm.allFinite()) throw py::value_error("candidates contain NaN or infinite values");
+        const ViewPosesArg c = view_poses_arg(candidates, "candidates");
+        const auto cm = c.map();
         const Pose cur = pose_arg(current, "current pose");
         const ViewCameraModel cam = OptionsClass<ViewCameraModel>::from(camera, "camera");
         const UtilityOptions u = OptionsClass<UtilityOptions>::from(utility, "utility");
@@ -173,9 +168,12 @@ backend; the others walk every view.)doc");
       py::arg("map"), py::arg("candidates"), py::arg("current"), py::arg("camera") = py::none(),
       py::arg("utility") = py::none(), py::arg("validity") = py::none(),
       py::arg("surface") = nullptr, py::arg("backend") = "grid", py::arg("memo") = nullptr,
-      R"doc(Score K candidate vehicle poses (K, 4) [x, y, z, yaw] from the current pose, in one
-call. camera / utility / validity: a ViewCameraModel / UtilityOptions / ValidityOptions, a dict
-of their fields, or None for the defaults. surface: the map's SurfaceObservations (needed by the
+      R"doc(Score K candidate views from the current pose, in one call: (K, 4) rows [x, y, z,
+yaw] (a level camera) or (K, 5) rows [x, y, z, yaw, pitch], pitch the camera gimbal's in radians
+(> 0 looks down, |pitch| <= pi/2): the camera's rays leave from gimbal_transform(view,
+camera.mount). A (K, 4) array scores exactly as the (K, 5) one with pitch 0. camera / utility /
+validity: a ViewCameraModel / UtilityOptions / ValidityOptions, a dict of their fields, or None
+for the defaults. surface: the map's SurfaceObservations (needed by the
 surface and four_term utilities). memo: a ViewMemo kept across calls (the same scores, fewer
 walks).
 

@@ -23,6 +23,24 @@ Eigen::Isometry3d pose_to_transform(const Pose& p) {
   return T;
 }
 
+void require_pitch(double pitch, const std::string& what) {
+  if (!std::isfinite(pitch) || std::abs(pitch) > kMaxGimbalPitch)
+    throw std::invalid_argument(
+        what + ": pitch must be finite and within +-pi/2 rad (+-90 deg), got " + fmt(pitch) +
+        " rad" + (std::isfinite(pitch) ? " (" + fmt(pitch * 180 / M_PI) + " deg)" : ""));
+}
+
+Eigen::Isometry3d gimbal_mount(double pitch, const Eigen::Isometry3d& mount) {
+  if (pitch == 0) return mount;  // -0.0 too: the level camera's mount, untouched
+  Eigen::Isometry3d G = Eigen::Isometry3d::Identity();
+  G.linear() = Eigen::AngleAxisd(pitch, Eigen::Vector3d::UnitY()).toRotationMatrix();
+  return G * mount;
+}
+
+Eigen::Isometry3d gimbal_sensor_transform(const Pose& pose, const Eigen::Isometry3d& mount) {
+  return pose_to_transform(pose) * gimbal_mount(pose.pitch, mount);
+}
+
 Eigen::Isometry3d mount_transform(const Eigen::Vector3d& xyz, double roll_deg, double pitch_deg,
                                   double yaw_deg) {
   const double d2r = M_PI / 180.0;

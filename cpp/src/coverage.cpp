@@ -243,19 +243,16 @@ void CoverageMemo::end(const std::vector<Key>& keys, std::vector<Entry>& fresh,
 
 // ---- view_coverage ---------------------------------------------------------------------------
 
-ViewCoverage view_coverage(
-    const GridView& g,
-    const Eigen::Ref<const Eigen::Matrix<double, Eigen::Dynamic, 4, Eigen::RowMajor>>& cand,
-    const Pose& current, const ViewCameraModel& camera, const UtilityOptions& utility,
-    const ValidityOptions& validity, CoverageMemo* memo) {
+ViewCoverage view_coverage(const GridView& g, const ViewPosesRef& cand, const Pose& current,
+                           const ViewCameraModel& camera, const UtilityOptions& utility,
+                           const ValidityOptions& validity, CoverageMemo* memo) {
   g.validate();
   camera.validate();
   utility.validate();
   validity.validate();
   if (!g.seen || !g.hits)
     throw std::invalid_argument("view_coverage needs the camera observations");
-  if (!cand.allFinite())
-    throw std::invalid_argument("candidate poses contain NaN or infinite values");
+  check_view_poses(cand);
   const Eigen::Index K = cand.rows();
   std::vector<std::vector<std::pair<std::int64_t, float>>> sets(static_cast<std::size_t>(K));
   // per cell, lazily: the direction splitting its sides (code 1 + bin index of the side axis,
@@ -313,8 +310,7 @@ ViewCoverage view_coverage(
     fresh.resize(std::size_t(K));
     walked.assign(std::size_t(K), 0);
     reused.assign(std::size_t(K), 0);
-    for (Eigen::Index k = 0; k < K; ++k)
-      keys[std::size_t(k)] = pose_key(cand(k, 0), cand(k, 1), cand(k, 2), cand(k, 3));
+    for (Eigen::Index k = 0; k < K; ++k) keys[std::size_t(k)] = pose_key(view_pose(cand, k));
     job.replay_view = [&](Eigen::Index k, double& gain, int& cells, int& occupied) {
       const CoverageMemo::Entry* e = memo->find(keys[std::size_t(k)]);
       if (!e) return false;

@@ -19,7 +19,7 @@ namespace nbv::kernel {
 
 constexpr double kInf = std::numeric_limits<double>::infinity();
 
-using Candidates = Eigen::Ref<const Eigen::Matrix<double, Eigen::Dynamic, 4, Eigen::RowMajor>>;
+using Candidates = ViewPosesRef;  // (K, 4) level views or (K, 5) with the gimbal's pitch
 
 inline double logit(double p) { return std::log(p / (1.0 - p)); }
 
@@ -194,9 +194,7 @@ ViewScores score(const Job& job, const Cells& cells) {
     fresh.resize(std::size_t(K));
     outcome.assign(std::size_t(K), ViewMemo::Outcome::NotScored);
     for (auto& e : fresh) e = memo->take();
-    for (Eigen::Index k = 0; k < K; ++k)
-      keys[std::size_t(k)] =
-          pose_key(job.cand(k, 0), job.cand(k, 1), job.cand(k, 2), job.cand(k, 3));
+    for (Eigen::Index k = 0; k < K; ++k) keys[std::size_t(k)] = pose_key(view_pose(job.cand, k));
   }
 
   const bool record_bricks = bool(job.on_bricks);
@@ -233,8 +231,9 @@ ViewScores score(const Job& job, const Cells& cells) {
       // the utility marks the neutral bricks stepped over too (keep() reads the marks).
       auto walk = [&](auto record, ViewMemo::Entry* rec) {
         constexpr bool kRecord = decltype(record)::value;
+        // the camera on its gimbal; at pitch 0, pose_to_transform(pose) * mount bit for bit
         const Eigen::Isometry3d T =
-            pose_to_transform({p.x(), p.y(), p.z(), job.cand(k, 3)}) * job.camera.mount;
+            gimbal_sensor_transform(view_pose(job.cand, k), job.camera.mount);
         const Eigen::Vector3d o = T.translation();
         const Eigen::Matrix3d R = T.linear();
         visited.reset(g.storage_size());

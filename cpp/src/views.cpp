@@ -46,8 +46,7 @@ void check_inputs(const GridView& g, const Candidates& cand, const ViewCameraMod
   camera.validate();
   utility.validate();
   validity.validate();
-  if (!cand.allFinite())
-    throw std::invalid_argument("candidate poses contain NaN or infinite values");
+  check_view_poses(cand);
 }
 
 }  // namespace
@@ -156,16 +155,30 @@ ViewMemo::ViewMemo(int keep_calls) : keep_calls_(keep_calls) {
                                 std::to_string(keep_calls));
 }
 
-PoseKey pose_key(double x, double y, double z, double yaw) {
+void check_view_poses(const ViewPosesRef& views) {
+  if (views.cols() != 4 && views.cols() != 5)
+    throw std::invalid_argument(
+        "candidate views must have 4 columns (x, y, z, yaw) or 5 (x, y, z, yaw, pitch), got " +
+        std::to_string(views.cols()));
+  if (!views.leftCols(4).allFinite())
+    throw std::invalid_argument("candidate poses contain NaN or infinite values");
+  if (views.cols() == 5)  // non-finite too, named as the pitch
+    for (Eigen::Index k = 0; k < views.rows(); ++k)
+      require_pitch(views(k, 4), "candidate view " + std::to_string(k));
+}
+
+PoseKey pose_key(double x, double y, double z, double yaw, double pitch) {
   PoseKey k;
-  const double v[4] = {x, y, z, yaw};
-  for (int a = 0; a < 4; ++a) std::memcpy(&k[a], &v[a], sizeof(double));
+  const double v[5] = {x, y, z, yaw, pitch == 0 ? 0.0 : pitch};
+  for (int a = 0; a < 5; ++a) std::memcpy(&k[a], &v[a], sizeof(double));
   return k;
 }
 
 std::size_t PoseKeyHash::operator()(const PoseKey& k) const {
   std::uint64_t h = 0x9E3779B97F4A7C15ull;
-  for (std::uint64_t v : k) h = (h ^ v) * 0xBF58476D1CE4E5B9ull, h ^= h >> 31;
+  // x, y, z, yaw; then the pitch, only where it is not level: a level view hashes as before
+  for (int a = 0; a < 4; ++a) h = (h ^ k[a]) * 0xBF58476D1CE4E5B9ull, h ^= h >> 31;
+  if (k[4]) h = (h ^ k[4]) * 0xBF58476D1CE4E5B9ull, h ^= h >> 31;
   return std::size_t(h);
 }
 

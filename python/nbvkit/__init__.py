@@ -2,8 +2,11 @@
 
 Frames: world z up. A vehicle pose is (x, y, z, yaw); its body frame is x forward, y left, z up,
 rotated by yaw about world z. Sensors look along their own +x; a sensor's mount is the fixed
-transform T_body_sensor, so T_world_sensor = T_world_body @ T_body_sensor. Arrays in are (N, 3)
-float64 (anything array-like is converted); arrays out are numpy.
+transform T_body_sensor, so T_world_sensor = T_world_body @ T_body_sensor. The camera rides a
+gimbal: a view is (x, y, z, yaw, pitch), T_world_camera = T_world_body @ Ry(pitch) @ T_body_camera
+(gimbal_transform; pitch in radians, > 0 looks down as a mount's pitch, 4 numbers mean level);
+the laser keeps its fixed mount. Arrays in are (N, 3) float64 (anything array-like is
+converted); arrays out are numpy.
 """
 from ._core import (  # noqa: F401  (re-exported)
     DepthCamera,
@@ -17,6 +20,7 @@ from ._core import (  # noqa: F401  (re-exported)
     Scan,
     SurfaceCloudOptions,
     get_num_threads,
+    gimbal_transform,
     mount_transform,
     pose_to_transform,
     set_num_threads,
@@ -63,6 +67,7 @@ __all__ = [
     "load_mesh",
     "mesh_from_open3d",
     "mesh_to_open3d",
+    "gimbal_transform",
     "mount_transform",
     "pose_to_transform",
     "set_num_threads",

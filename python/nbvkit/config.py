@@ -184,7 +184,13 @@ MapConfig = cpp_section(
 
 @dataclass(frozen=True)
 class CameraConfig:
-    """The RGB-D camera (paper Table 1); mount = T_body_sensor as xyz (m) + roll/pitch/yaw (deg)."""
+    """The RGB-D camera (paper Table 1); mount = T_body_sensor as xyz (m) + roll/pitch/yaw (deg).
+
+    The camera rides a gimbal between the body and its mount: a view is (x, y, z, yaw, pitch),
+    T_world_camera = T(x, y, z) Rz(yaw) Ry(pitch) mount, pitch > 0 looking DOWN (REP-103, the
+    sign of mount_rpy_deg's pitch). ``gimbal_pitch_deg`` [min, max] is the pitch range it can
+    hold, in degrees within [-90, 90]: [-30, 90] is 30 deg up to straight down, as inspection
+    UAVs; [0, 0] the fixed level camera (the paper's scenarios)."""
 
     preset: str = "rgbd"  # a named camera (nbvkit.cameras): rgbd (the paper's), inspection
     width: int = _CAM.width
@@ -196,6 +202,7 @@ class CameraConfig:
     noise_k: float = _CAM.noise_k  # the authors used 0.0025 (sigma = k z^2)
     mount_xyz: tuple = (0.0, 0.0, 0.0)
     mount_rpy_deg: tuple = (0.0, 0.0, 0.0)
+    gimbal_pitch_deg: tuple = (-30.0, 90.0)  # [min, max] deg, > 0 looks down; [0, 0]: level
 
 
 @dataclass(frozen=True)
@@ -460,7 +467,7 @@ class Config:
     seed: int = 0  # camera/laser noise and sampling seed; the same seed gives the same mission
     scenario: str = DEFAULT_SCENARIO  # a preset (nbvkit.scenarios): profile, 1..5, surface, ...
     start: int = 0  # which of the five predefined start poses
-    start_pose: Optional[tuple] = None  # (x, y, z, yaw) instead of a predefined start
+    start_pose: Optional[tuple] = None  # (x, y, z, yaw[, pitch]) instead of a predefined start
     max_iterations: Optional[int] = None  # views after profiling; null: 0.5 per m^2 of surface
     progress: bool = True  # progress bar on stderr
     mesh: MeshConfig = field(default_factory=MeshConfig)
@@ -821,11 +828,26 @@ def _validate(obj, prefix: str) -> None:
         from .planning.registry import check_names
 
         check_names(obj.generators, obj.terminations)
-    if prefix == "" and obj.start_pose is not None and len(obj.start_pose) != 4:
+    if prefix == "camera.":
+        _check_gimbal(obj.gimbal_pitch_deg)
+    if prefix == "" and obj.start_pose is not None and len(obj.start_pose) not in (4, 5):
         raise ValueError(
-            "config key 'start_pose' must be 4 numbers (x, y, z, yaw), "
-            f"got {list(obj.start_pose)!r}"
+            "config key 'start_pose' must be 4 numbers (x, y, z, yaw) or 5 (x, y, z, yaw, "
+            f"pitch), got {list(obj.start_pose)!r}"
         )
+    if prefix == "" and obj.start_pose is not None:
+        if not all(math.isfinite(x) for x in obj.start_pose):
+            raise ValueError(
+                f"config key 'start_pose' must be finite numbers, got {list(obj.start_pose)!r}"
+            )
+        if len(obj.start_pose) == 5:
+            lo, hi = obj.camera.gimbal_pitch_deg
+            pitch = math.degrees(obj.start_pose[4])
+            if not lo - 1e-9 <= pitch <= hi + 1e-9:
+                raise ValueError(
+                    f"config key 'start_pose': its pitch {obj.start_pose[4]!r} rad "
+                    f"({pitch:g} deg) is outside camera.gimbal_pitch_deg [{lo:g}, {hi:g}] deg"
+                )
     if prefix == "" and not 0 <= obj.start <= 4:
         raise ValueError(
             f"config key 'start' must be 0..4 (five predefined starts), got {obj.start}"
@@ -835,6 +857,32 @@ def _validate(obj, prefix: str) -> None:
     if prefix == "workspace." and (obj.bounds_min is None) != (obj.bounds_max is None):
         raise ValueError(
             "config keys 'workspace.bounds_min' and 'workspace.bounds_max' go together"
+        )
+
+
+def _check_gimbal(pitch_range) -> None:
+    """Raises ValueError unless camera.gimbal_pitch_deg is [min, max], finite, within [-90, 90]
+    deg, min <= max, and holds 0 (the planners fly level views until they choose pitches)."""
+    key = "camera.gimbal_pitch_deg"
+    if len(pitch_range) != 2:
+        raise ValueError(
+            f"config key {key!r} must be 2 numbers [min, max] (deg, > 0 looks down), "
+            f"got {list(pitch_range)!r}"
+        )
+    lo, hi = pitch_range
+    if not (math.isfinite(lo) and math.isfinite(hi)):
+        raise ValueError(f"config key {key!r} must be finite, got {list(pitch_range)!r}")
+    if not (-90.0 <= lo <= 90.0 and -90.0 <= hi <= 90.0):
+        raise ValueError(
+            f"config key {key!r}: a pitch must be within [-90, 90] deg (90: straight down, -90: "
+            f"straight up), got {list(pitch_range)!r}"
+        )
+    if lo > hi:
+        raise ValueError(f"config key {key!r}: min {lo:g} > max {hi:g} deg")
+    if not lo <= 0.0 <= hi:
+        raise ValueError(
+            f"config key {key!r} must include 0 (level): nbvkit's planners fly level views "
+            f"until they choose pitches, got {list(pitch_range)!r}"
         )
 
 

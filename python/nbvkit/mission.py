@@ -40,6 +40,7 @@ class IterationRecord:
     y: float
     z: float
     yaw: float
+    pitch: float  # the camera gimbal's, radians, > 0 looks down (0: level)
     source: str  # the generator that proposed the view
     utility: float
     gain: float
@@ -114,8 +115,8 @@ class Mission:
     # ------------------------------------------------------------------ the method
     def run(self, out_dir: str | Path | None = None, overwrite: bool = False) -> dict:
         """Runs the mission; with out_dir writes config.yaml, iterations.csv, summary.json,
-        cloud.ply, map.ot, trajectory.csv, flight.csv and figures/*.png there. Returns the
-        summary dict.
+        cloud.ply, map.ot, trajectory.csv, flight.csv and figures/*.png there (poses as x, y, z,
+        yaw and the camera gimbal's pitch, radians, > 0 looks down). Returns the summary dict.
 
         The folder is written whole or not at all (nbvkit.runfolder): into a temporary folder
         beside it, moved into place with ``manifest.json`` once complete. out_dir is checked
@@ -317,7 +318,7 @@ class Mission:
                 w.writerow(["" if getattr(r, k) is None else getattr(r, k) for k in names])
         with _atomic_open(out / "trajectory.csv", newline="") as f:
             w = csv.writer(f)
-            w.writerow(["stage", "x", "y", "z", "yaw", "distance_m"])
+            w.writerow(["stage", "x", "y", "z", "yaw", "pitch", "distance_m"])
             w.writerows(self.world.state.trajectory)
         with _atomic_open(out / "flight.csv", newline="") as f:  # every point flown (export)
             w = csv.writer(f)

@@ -434,7 +434,7 @@ class Profiler:
 def _retrace(world, clear) -> bool:
     """Flies the profile's own flight backwards (free: it was flown) until clear(position) holds;
     True if it does."""
-    path = [np.array(r[1:5], float) for r in world.state.trajectory if r[0] == "profile"]
+    path = [np.array(r[1:6], float) for r in world.state.trajectory if r[0] == "profile"]
     for q in reversed(path):
         if clear(world.state.pose[:3]):
             return True

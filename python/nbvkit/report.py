@@ -601,6 +601,8 @@ def write_run_report(out, summary: dict, points, classes, records=None, occ_map=
         y = np.array([r["y"] for r in its])
         z = np.array([r["z"] for r in its])
         yaw = np.array([r["yaw"] for r in its])
+        # the camera's axis: body yaw, then the gimbal's pitch (> 0 looks down)
+        pitch = np.array([r.get("pitch", 0.0) for r in its])
         traces.append(
             {
                 "type": "scatter3d",
@@ -620,9 +622,9 @@ def write_run_report(out, summary: dict, points, classes, records=None, occ_map=
                 "x": _r(x),
                 "y": _r(y),
                 "z": _r(z),
-                "u": _r(np.cos(yaw)),
-                "v": _r(np.sin(yaw)),
-                "w": [0.0] * len(x),
+                "u": _r(np.cos(yaw) * np.cos(pitch)),
+                "v": _r(np.sin(yaw) * np.cos(pitch)),
+                "w": _r(-np.sin(pitch)),
                 "sizemode": "absolute",
                 "sizeref": 0.5,
                 "anchor": "tail",
@@ -854,6 +856,7 @@ def _records(out: Path, records) -> list[dict]:
                 "y": r.y,
                 "z": r.z,
                 "yaw": r.yaw,
+                "pitch": r.pitch,
                 "source": r.source,
                 "entropy": r.entropy,
                 "distance_m": r.distance_m,
@@ -865,7 +868,15 @@ def _records(out: Path, records) -> list[dict]:
         ]
     rows = _read_csv(out / "iterations.csv")
     num = ("x", "y", "z", "yaw", "entropy", "distance_m")
-    return [{**r, "iteration": int(r["iteration"]), **{k: float(r[k]) for k in num}} for r in rows]
+    return [
+        {
+            **r,
+            "iteration": int(r["iteration"]),
+            **{k: float(r[k]) for k in num},
+            "pitch": float(r.get("pitch") or 0.0),  # runs written before views had a pitch: level
+        }
+        for r in rows
+    ]
 
 
 # ---------------------------------------------------------------------------------- experiments

@@ -38,10 +38,14 @@ def lattice_offsets(
 def candidate_poses(
     pose, delta_d: float = 1.0, delta_theta: float = math.pi / 4, scale: float = 1.0
 ) -> np.ndarray:
-    """(80, 4) world-frame candidate poses (x, y, z, yaw) around a vehicle pose (x, y, z, yaw)."""
+    """(80, 4) world-frame candidate poses (x, y, z, yaw: level views) around a vehicle pose
+    (x, y, z, yaw) or view (x, y, z, yaw, pitch; the pitch plays no part)."""
     pose = np.asarray(pose, dtype=np.float64)
-    if pose.shape != (4,) or not np.all(np.isfinite(pose)):
-        raise ValueError(f"pose must be 4 finite numbers (x, y, z, yaw), got {pose!r}")
+    if pose.shape not in ((4,), (5,)) or not np.all(np.isfinite(pose)):
+        raise ValueError(
+            f"pose must be 4 finite numbers (x, y, z, yaw) or 5 (x, y, z, yaw, pitch), got {pose!r}"
+        )
+    pose = pose[:4]
     off = lattice_offsets(delta_d, delta_theta, scale)
     c, s = math.cos(pose[3]), math.sin(pose[3])
     R = np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])

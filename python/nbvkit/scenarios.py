@@ -22,8 +22,9 @@ class Scenario:
 # The paper's method (sec. 3): the CGVS/AGVS lattice scored by information gain, straight legs
 # (blocked ones rejected), the entropy-per-viewable-voxel termination, in the paper's 40 x 40 x
 # 10 m style workspace (the structure's box grown by 2.5 m), with Algorithm 1's profiling closed
-# back to its start and a return to the start pose, the laser alone.
+# back to its start and a return to the start pose, the laser alone; the camera fixed level.
 _PAPER = {
+    "camera.gimbal_pitch_deg": (0.0, 0.0),
     "workspace.margin_xy": 2.5,
     "workspace.margin_z": 2.5,
     "planner.generators": ["lattice"],

@@ -25,13 +25,28 @@ class MissionError(ValueError):
 FLIGHT_COLUMNS = ("stage", "x", "y", "z", "yaw", "pitch", "capture", "distance_m")
 
 
+def as_view(pose) -> np.ndarray:
+    """A pose (x, y, z, yaw) or view (x, y, z, yaw, pitch) as a view (5,) float64: 4 numbers
+    mean the level camera (pitch 0). The pitch is the camera gimbal's, radians, > 0 looks
+    down (camera.gimbal_pitch_deg)."""
+    p = np.asarray(pose, float).reshape(-1)
+    if len(p) == 4:
+        return np.append(p, 0.0)
+    if len(p) != 5:
+        raise ValueError(
+            f"a pose must be 4 numbers (x, y, z, yaw) or 5 (x, y, z, yaw, pitch), got {len(p)}"
+        )
+    return p.copy()
+
+
 @dataclass
 class VehicleState:
-    """Where the vehicle is and has been: pose (x, y, z, yaw), distance flown (m), the
-    trajectory rows (stage, x, y, z, yaw, distance_m: the start and each leg's end), and the
-    flight rows (FLIGHT_COLUMNS: every point flown, the A* waypoints between the legs' ends
-    included; pitch in radians, 0 while views are level; capture "view" where a counted view was
-    taken, "frame" where an in-flight camera frame was, else "": one capture per row)."""
+    """Where the vehicle is and has been: pose (x, y, z, yaw, pitch) (the camera gimbal's pitch,
+    radians, > 0 looks down), distance flown (m), the trajectory rows (stage, x, y, z, yaw,
+    pitch, distance_m: the start and each leg's end), and the flight rows (FLIGHT_COLUMNS: every
+    point flown, the A* waypoints between the legs' ends included; capture "view" where a
+    counted view was taken, "frame" where an in-flight camera frame was, else "": one capture
+    per row)."""
 
     pose: np.ndarray
     distance_m: float = 0.0
@@ -157,8 +172,8 @@ class World:
         self.camera_cloud, self.laser_cloud = surface_clouds(cfg, mesh.bounds)
         self.surface = _core.SurfaceObservations(self.map)
         self.view_camera = view_camera(cfg)
-        self.state = VehicleState(pose=self.start_pose.copy())
-        self.state.trajectory.append(("start", *self.start_pose.tolist(), 0.0))
+        self.state = VehicleState(pose=as_view(self.start_pose))
+        self.state.trajectory.append(("start", *self.state.pose.tolist(), 0.0))
         self.state.record_leg("start", self.start_pose[None, :3], 0.0)
         # the symmetry stage's results, for the mission's figures (nbvkit.symmetry)
         self.symmetry_result = self.symmetry_prediction = self.symmetry_profile = None
@@ -280,8 +295,11 @@ class World:
     # ------------------------------------------------------------------ motion
     def fly_to(self, target, stage: str, path=None) -> float:
         """Move the vehicle along `path` ((P, 3) waypoints, first = here; default straight) to
-        `target` (x, y, z, yaw); returns the distance flown. The swept volume becomes known free
-        (vehicle.clear_swept_volume)."""
+        `target` (x, y, z, yaw) or (x, y, z, yaw, pitch) (4 numbers: the camera level); returns
+        the distance flown. The swept volume becomes known free (vehicle.clear_swept_volume).
+        Raises ValueError for a pitch outside camera.gimbal_pitch_deg."""
+        target = as_view(target)
+        self._check_pitch(target[4])
         cur = self.state.pose
         pts = np.asarray(path if path is not None and len(path) else [cur[:3], target[:3]], float)
         d = float(np.linalg.norm(np.diff(pts, axis=0), axis=1).sum())
@@ -294,10 +312,19 @@ class World:
                 self.map.mark_free_segment(a, b, r)
         d0 = self.state.distance_m
         self.state.distance_m += d
-        self.state.pose = np.asarray(target, float).copy()
+        self.state.pose = target
         self.state.trajectory.append((stage, *self.state.pose.tolist(), self.state.distance_m))
         self.state.record_leg(stage, pts, d0)
         return d
+
+    def _check_pitch(self, pitch: float) -> None:
+        lo, hi = self.config.camera.gimbal_pitch_deg
+        deg = math.degrees(pitch)
+        if not (math.isfinite(pitch) and lo - 1e-9 <= deg <= hi + 1e-9):
+            raise ValueError(
+                f"view pitch {pitch!r} rad ({deg:g} deg) is outside camera.gimbal_pitch_deg "
+                f"[{lo:g}, {hi:g}] deg"
+            )
 
     def validity(self, blocked_path: str | None = None):
         """ValidityOptions of a candidate view here: the navigation bounds, the vehicle's
@@ -333,7 +360,7 @@ class World:
         q = np.clip(p[:3], ws.nav_min + 1e-6, ws.nav_max - 1e-6)
         if np.allclose(q, p[:3]):
             return 0.0
-        return self.fly_to(np.array([*q, p[3]]), stage)
+        return self.fly_to(np.array([*q, *p[3:]]), stage)
 
 
 def _fibonacci_sphere(n: int) -> np.ndarray:

@@ -5,6 +5,7 @@
 #include <Eigen/Geometry>
 
 #include <chrono>
+#include <cmath>
 #include <cstdint>
 #include <functional>
 #include <iosfwd>
@@ -21,14 +22,34 @@ using Faces = Eigen::Matrix<std::int32_t, Eigen::Dynamic, 3, Eigen::RowMajor>;
 /// Read-only view of a row-major (N, 3) float64 array (maps numpy without a copy).
 using PointsRef = Eigen::Ref<const Points>;
 
-/// A vehicle pose: position in the world frame (metres) and yaw about world +z (radians).
-/// The body frame is x forward, y left, z up; it is the world frame rotated by `yaw` about z.
+/// A view: a vehicle pose, position in the world frame (metres) and yaw about world +z
+/// (radians), and the pitch of the camera's gimbal (radians, in [-pi/2, pi/2]). The body frame
+/// is x forward, y left, z up; it is the world frame rotated by `yaw` about z (the body never
+/// pitches). The gimbal turns the camera mount about the body's y axis: pitch > 0 looks DOWN
+/// (REP-103's Ry(+pitch) turns +x toward -z, the sign of mount_transform's pitch); 0 is level.
+/// Only the camera rides the gimbal; the laser keeps its fixed mount on the body.
 struct Pose {
   double x = 0, y = 0, z = 0, yaw = 0;
+  double pitch = 0;
 };
 
-/// T_world_body of a vehicle pose.
+/// T_world_body of a vehicle pose (position and yaw; the gimbal's pitch plays no part).
 Eigen::Isometry3d pose_to_transform(const Pose& pose);
+
+/// The largest |pitch| of a gimbal, radians (straight down or straight up).
+constexpr double kMaxGimbalPitch = M_PI / 2;
+/// Throws std::invalid_argument (-> ValueError) naming `what` and the value unless `pitch` is
+/// finite and within +-kMaxGimbalPitch (radians).
+void require_pitch(double pitch, const std::string& what);
+
+/// T_world_sensor of a sensor on the gimbal: T(x, y, z) Rz(yaw) Ry(pitch) * mount, evaluated as
+/// pose_to_transform(pose) * (Ry(pitch) * mount). At pitch 0 (either sign) it is
+/// pose_to_transform(pose) * mount bit for bit, and a pitched pose gives exactly what a level
+/// pose gives with the mount Ry(pitch) * mount (gimbal_mount).
+Eigen::Isometry3d gimbal_sensor_transform(const Pose& pose, const Eigen::Isometry3d& mount);
+/// Ry(pitch) * mount: the mount as the gimbal at `pitch` (radians) carries it; `mount` itself at
+/// pitch 0.
+Eigen::Isometry3d gimbal_mount(double pitch, const Eigen::Isometry3d& mount);
 
 /// A fixed sensor mount T_body_sensor from a translation (metres) and roll/pitch/yaw in degrees
 /// (REP-103: x forward, y left, z up; positive pitch tilts the sensor's +x axis DOWN).

@@ -138,11 +138,10 @@ class CoverageMemo {
 
 /// With a memo (kept by the caller across calls over the same map and observations), views
 /// walked in an earlier call whose record still holds are answered from it: the same arrays.
-ViewCoverage view_coverage(
-    const GridView& grid,
-    const Eigen::Ref<const Eigen::Matrix<double, Eigen::Dynamic, 4, Eigen::RowMajor>>& candidates,
-    const Pose& current, const ViewCameraModel& camera, const UtilityOptions& utility,
-    const ValidityOptions& validity, CoverageMemo* memo = nullptr);
+ViewCoverage view_coverage(const GridView& grid, const ViewPosesRef& candidates,
+                           const Pose& current, const ViewCameraModel& camera,
+                           const UtilityOptions& utility, const ValidityOptions& validity,
+                           CoverageMemo* memo = nullptr);
 
 /// Greedy weighted set cover: repeatedly the view whose not-yet-covered elements weigh most
 /// (each element counts at most `saturation` in total: a weight once covered), until the best

@@ -1,8 +1,10 @@
 // Simulated range sensors ray-cast against a mesh: a pinhole RGB-D (depth) camera and a single
 // layer 2D laser scanner. Defaults are the paper's Table 1.
 //
-// Frames: world z up. A sensor looks along its own +x, with y left and z up (REP-103). Its pose
-// is T_world_sensor = T_world_body * mount, where mount = T_body_sensor is fixed on the vehicle.
+// Frames: world z up. A sensor looks along its own +x, with y left and z up (REP-103). The laser's
+// pose is T_world_sensor = T_world_body * mount, where mount = T_body_sensor is fixed on the
+// vehicle; the camera rides a gimbal that pitches it about the body's y axis first:
+// T_world_sensor = T_world_body * Ry(pitch) * mount (pitch > 0 looks down; nbv/common.hpp).
 #pragma once
 
 #include "nbv/common.hpp"
@@ -63,8 +65,12 @@ class DepthCamera {
   /// Scans from a sensor pose. With noise on, each call draws the next frame of noise
   /// (deterministic for a given seed and call sequence; see reset_noise).
   Scan scan(const Eigen::Isometry3d& T_world_sensor) const;
-  Scan scan_pose(const Pose& vehicle) const {
-    return scan(pose_to_transform(vehicle) * opt_.mount);
+  /// Scans from a view (x, y, z, yaw, pitch): the camera rides the gimbal,
+  /// T_world_sensor = gimbal_sensor_transform(view, mount) = T(x, y, z) Rz(yaw) Ry(pitch) mount
+  /// (pitch > 0 looks down). Throws std::invalid_argument for a pitch beyond +-pi/2.
+  Scan scan_pose(const Pose& view) const {
+    require_pitch(view.pitch, "camera view");
+    return scan(gimbal_sensor_transform(view, opt_.mount));
   }
   void reset_noise(std::uint64_t seed);
 
@@ -107,6 +113,9 @@ class LaserScanner {
   const Points& directions() const { return dirs_; }
 
   Scan scan(const Eigen::Isometry3d& T_world_sensor) const;
+  /// Scans from a vehicle pose through the laser's fixed mount on the body:
+  /// T_world_sensor = pose_to_transform(vehicle) * mount. The laser does not ride the camera's
+  /// gimbal: the pose's pitch is ignored.
   Scan scan_pose(const Pose& vehicle) const {
     return scan(pose_to_transform(vehicle) * opt_.mount);
   }

@@ -122,10 +122,24 @@ struct ViewScores {
   Eigen::Matrix<std::int8_t, Eigen::Dynamic, 1> status;  ///< (K,) ViewStatus
 };
 
-/// A candidate pose as the key of a memo of walks (ViewMemo, CoverageMemo): its x, y, z and yaw
-/// bit for bit.
-using PoseKey = std::array<std::uint64_t, 4>;
-PoseKey pose_key(double x, double y, double z, double yaw);
+/// Candidate views, one a row: (K, 4) x, y, z, yaw (a level camera) or (K, 5) x, y, z, yaw,
+/// pitch (the camera gimbal's, radians, > 0 looks down; nbv/common.hpp's Pose).
+using ViewPoses = Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>;
+using ViewPosesRef = Eigen::Ref<const ViewPoses>;
+/// Row k of `views` as a Pose (pitch 0 where there are 4 columns).
+inline Pose view_pose(const ViewPosesRef& views, Eigen::Index k) {
+  return {views(k, 0), views(k, 1), views(k, 2), views(k, 3), views.cols() > 4 ? views(k, 4) : 0.0};
+}
+/// Throws std::invalid_argument unless `views` has 4 or 5 columns of finite numbers and every
+/// pitch is within +-pi/2.
+void check_view_poses(const ViewPosesRef& views);
+
+/// A candidate view as the key of a memo of walks (ViewMemo, CoverageMemo): its x, y, z, yaw and
+/// pitch bit for bit (a pitch of -0.0 keyed as 0.0: both are the level camera). Two pitches at
+/// one position are two entries; a level view's key hashes as it did before views had a pitch.
+using PoseKey = std::array<std::uint64_t, 5>;
+PoseKey pose_key(double x, double y, double z, double yaw, double pitch = 0.0);
+inline PoseKey pose_key(const Pose& p) { return pose_key(p.x, p.y, p.z, p.yaw, p.pitch); }
 struct PoseKeyHash {
   std::size_t operator()(const PoseKey& k) const;
 };
@@ -199,27 +213,26 @@ class ViewMemo {
   std::mutex mutex_;
 };
 
-/// Scores K candidate vehicle poses (rows x, y, z, yaw) from the current pose in one call,
-/// in parallel over candidates. Rays are cast from the camera (pose * mount) over its field of
+/// Scores K candidate views (rows x, y, z, yaw or x, y, z, yaw, pitch) from the current pose in
+/// one call, in parallel over candidates. Rays are cast from the camera
+/// (gimbal_sensor_transform(view, mount): T(x, y, z) Rz(yaw) Ry(pitch) mount) over its field of
 /// view to max_range depth and walk the workspace grid; nothing outside the workspace counts.
 /// Utilities that read camera observations (surface, four_term) need grid.seen / grid.hits.
 /// With a memo (kept by the caller across calls), views of the ig utilities scored before at the
 /// same pose may be re-summed from their record instead of walked: the same scores.
-/// Throws std::invalid_argument for non-finite candidates or bad options.
-ViewScores evaluate_views(
-    const GridView& grid,
-    const Eigen::Ref<const Eigen::Matrix<double, Eigen::Dynamic, 4, Eigen::RowMajor>>& candidates,
-    const Pose& current, const ViewCameraModel& camera, const UtilityOptions& utility,
-    const ValidityOptions& validity, ViewMemo* memo = nullptr);
+/// Throws std::invalid_argument for non-finite candidates, a pitch beyond +-pi/2, or bad
+/// options.
+ViewScores evaluate_views(const GridView& grid, const ViewPosesRef& candidates, const Pose& current,
+                          const ViewCameraModel& camera, const UtilityOptions& utility,
+                          const ValidityOptions& validity, ViewMemo* memo = nullptr);
 
 /// The same scores reading each cell through OctoMap's search (one tree descent per cell
 /// visit), as the authors' implementation did: the reference the grid walk must agree with, and
 /// the benchmark baseline. Validity checks still use the grid.
-ViewScores evaluate_views_octree(
-    const OccupancyMap& map,
-    const Eigen::Ref<const Eigen::Matrix<double, Eigen::Dynamic, 4, Eigen::RowMajor>>& candidates,
-    const Pose& current, const ViewCameraModel& camera, const UtilityOptions& utility,
-    const ValidityOptions& validity, const SurfaceObservations* surface = nullptr);
+ViewScores evaluate_views_octree(const OccupancyMap& map, const ViewPosesRef& candidates,
+                                 const Pose& current, const ViewCameraModel& camera,
+                                 const UtilityOptions& utility, const ValidityOptions& validity,
+                                 const SurfaceObservations* surface = nullptr);
 
 /// Names of the registered utilities.
 std::vector<std::string> utility_names();

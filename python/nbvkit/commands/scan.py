@@ -26,11 +26,13 @@ def register(sub) -> argparse.ArgumentParser:
     add_mesh_options(p)
     p.add_argument(
         "--pose",
-        nargs=4,
+        nargs="+",
         type=float,
-        metavar=("X", "Y", "Z", "YAW"),
+        metavar="X Y Z YAW [PITCH]",
         required=True,
-        help="vehicle pose: position in metres (world frame, z up) and yaw in radians about +z",
+        help="vehicle pose: position in metres (world frame, z up), yaw in radians about +z and "
+        "optionally the camera gimbal's pitch in radians (> 0 looks down, |pitch| <= pi/2; "
+        "default 0: level; the laser ignores it)",
     )
     p.add_argument(
         "--sensor",
@@ -54,6 +56,10 @@ def register(sub) -> argparse.ArgumentParser:
 
 def run(args) -> int:
     pose = np.asarray(args.pose, dtype=np.float64)
+    if len(pose) not in (4, 5):
+        raise ValueError(
+            f"--pose must be 4 numbers (X Y Z YAW) or 5 (X Y Z YAW PITCH), got {len(pose)}"
+        )
     if not np.all(np.isfinite(pose)) or np.abs(pose[:3]).max() > MAX_COORDINATE:
         raise ValueError(
             f"--pose must be finite numbers with |x|, |y|, |z| <= {MAX_COORDINATE:g} m, "

@@ -15,7 +15,8 @@ import numpy as np
 
 @dataclass
 class Proposal:
-    """Candidate vehicle poses (K, 4) [x, y, z, yaw] from one generator. An exclusive proposal
+    """Candidate views (K, 4) [x, y, z, yaw] (level) or (K, 5) [x, y, z, yaw, pitch] (the camera
+    gimbal's pitch, radians, > 0 looks down) from one generator. An exclusive proposal
     (a tour's next view) is scored alone; the others of an iteration are scored together."""
 
     poses: np.ndarray

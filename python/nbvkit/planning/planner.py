@@ -161,5 +161,10 @@ class Planner:
             return None, []
         if len(merged) == 1:
             return merged[0], makers
-        poses = np.vstack([p.poses for p in merged])
+        if len({p.poses.shape[1] for p in merged}) > 1:  # level (K, 4) beside (K, 5): pitch 0
+            poses = np.vstack(
+                [np.pad(p.poses, ((0, 0), (0, 5 - p.poses.shape[1]))) for p in merged]
+            )
+        else:
+            poses = np.vstack([p.poses for p in merged])
         return Proposal(poses, "+".join(p.source for p in merged)), makers

@@ -1,0 +1,401 @@
+"""The camera gimbal (issue 33, part 1): a view is (x, y, z, yaw, pitch), pitch > 0 looking down.
+
+Analytic pixels of a pitched camera, the 4-vector as the 5-vector with pitch 0 bit for bit,
+scoring a pitched view as a level view whose mount holds the pitch, the memos keeping pitches
+apart, the pitch in the mission's files and the report's arrows, and bad input refused."""
+from __future__ import annotations
+
+import csv
+import json
+import math
+import re
+
+import numpy as np
+import pytest
+
+import nbvkit
+from nbvkit import _core
+from nbvkit.config import Config
+from nbvkit.mission import Mission
+from nbvkit.scenarios import SCENARIOS, TABLE2
+from conftest import TINY_RUN, box_mesh
+
+DEG = math.pi / 180
+
+
+def floor_mesh(half=100.0, z=0.0):
+    v = np.array([[-half, -half, z], [half, -half, z], [half, half, z], [-half, half, z]], float)
+    return nbvkit.Mesh(v, np.array([[0, 1, 2], [0, 2, 3]], np.int32))
+
+
+def rot_z(a):
+    c, s = math.cos(a), math.sin(a)
+    return np.array([[c, -s, 0], [s, c, 0], [0, 0, 1.0]])
+
+
+def rot_y(a):
+    c, s = math.cos(a), math.sin(a)
+    return np.array([[c, 0, s], [0, 1, 0], [-s, 0, c]])
+
+
+def project(cam, view, point):
+    """(u, v, depth) of a world point for a camera at view (x, y, z, yaw, pitch) with an
+    identity mount, written out independently of the core: p_s = (Rz Ry)^T (point - o), then
+    u + 0.5 - W/2 = -fx y_s / x_s, v + 0.5 - H/2 = -fy z_s / x_s."""
+    R = rot_z(view[3]) @ rot_y(view[4])
+    ps = R.T @ (np.asarray(point, float) - np.asarray(view[:3], float))
+    u = cam.width / 2 - cam.fx * ps[1] / ps[0] - 0.5
+    v = cam.height / 2 - cam.fy * ps[2] / ps[0] - 0.5
+    return u, v, ps[0]
+
+
+def test_a_pitched_camera_sees_a_floor_point_at_the_predicted_pixel():
+    cam = nbvkit.DepthCamera(floor_mesh(), width=65, height=49, min_range=0.1, max_range=60)
+    for view in ([0, 0, 4, 0, 30 * DEG], [2, -1, 6, 2.0, 55 * DEG], [1, 1, 3, -0.7, 90 * DEG]):
+        scan = cam.scan_pose(view)
+        assert len(scan.hits) > 0
+        for k in range(0, len(scan.hits), max(1, len(scan.hits) // 40)):
+            # every hit lies on the floor and projects back onto its own pixel
+            p = scan.hits[k]
+            assert abs(p[2]) < 1e-9
+            u, v, depth = project(cam, view, p)
+            r = scan.hit_rays[k]
+            assert (u, v) == pytest.approx((r % cam.width, r // cam.width), abs=1e-6)
+            assert scan.depth[r // cam.width, r % cam.width] == pytest.approx(depth, rel=1e-9)
+    # a known point: 4 m up, pitched down 30 deg, yaw 0: the optical axis meets the floor at
+    # x = 4 / tan(30 deg), seen at the image centre (32, 24) at depth 4 / sin(30 deg) = 8 m
+    d = cam.scan_pose([0, 0, 4, 0, 30 * DEG]).depth
+    assert d[24, 32] == pytest.approx(8.0, rel=1e-12)
+    assert project(cam, [0, 0, 4, 0, 30 * DEG], [4 / math.tan(30 * DEG), 0, 0]) == pytest.approx(
+        (32, 24, 8.0)
+    )
+    # pitched up 30 deg, a ceiling 4 m above is seen at the centre at 8 m too
+    up = nbvkit.DepthCamera(floor_mesh(z=8.0), width=65, height=49, max_range=60)
+    assert up.scan_pose([0, 0, 4, 0, -30 * DEG]).depth[24, 32] == pytest.approx(8.0, rel=1e-12)
+    assert np.isinf(up.scan_pose([0, 0, 4, 0, 30 * DEG]).depth[24, 32])
+
+
+def test_four_numbers_are_pitch_zero_bit_for_bit():
+    cam = nbvkit.DepthCamera(box_mesh((3, -2, 0), (6, 2, 3)), width=80, height=60)
+    for pose in ([0.0, 0.5, 2.0, 0.1], [1.0, -3.0, 4.0, 1.1]):
+        a = cam.scan_pose(pose)
+        for zero in (0.0, -0.0):
+            b = cam.scan_pose([*pose, zero])
+            np.testing.assert_array_equal(a.hits, b.hits)
+            np.testing.assert_array_equal(a.free_ends, b.free_ends)
+            np.testing.assert_array_equal(a.depth, b.depth)
+        T = nbvkit.pose_to_transform(pose)
+        mount = nbvkit.mount_transform([0.1, 0, 0.2], 0, 10, 5)
+        np.testing.assert_array_equal(nbvkit.gimbal_transform([*pose, 0.0], mount), T @ mount)
+        np.testing.assert_array_equal(nbvkit.gimbal_transform(pose), T)
+
+
+def test_gimbal_transform_is_yaw_then_pitch_then_mount():
+    mount = nbvkit.mount_transform([0.3, -0.1, 0.2], 1.0, 8.0, -4.0)
+    for view in ([1, 2, 3, 0.4, 0.3], [-5, 0, 2, -2.0, -0.5], [0, 0, 9, 3.0, math.pi / 2]):
+        G = np.eye(4)
+        G[:3, :3] = rot_z(view[3]) @ rot_y(view[4])
+        G[:3, 3] = view[:3]
+        np.testing.assert_allclose(nbvkit.gimbal_transform(view, mount), G @ mount, atol=1e-14)
+        # the body does not pitch
+        np.testing.assert_array_equal(
+            nbvkit.pose_to_transform(view), nbvkit.pose_to_transform(view[:4])
+        )
+    # pitch > 0 looks down, as a mount's pitch does
+    axis = nbvkit.gimbal_transform([0, 0, 0, 0, 0.4])[:3, 0]
+    np.testing.assert_allclose(axis, nbvkit.mount_transform(pitch_deg=0.4 / DEG)[:3, 0])
+    assert axis[2] < 0
+
+
+def _scene():
+    """A map of a box scanned from three views (one pitched), its camera observations, and
+    candidate views around it."""
+    mesh = box_mesh((4, -2, 0), (7, 2, 2.5))
+    cam = nbvkit.DepthCamera(mesh, width=120, height=90)
+    m = nbvkit.OccupancyMap(0.2, (-4, -8, 0), (12, 8, 8))
+    surface = _core.SurfaceObservations(m)
+    for view in ([0, 0, 2, 0], [0, -4, 4, 0.6, 0.4], [1, 4, 3, -0.5, 0.2]):
+        s = cam.scan_pose(view)
+        m.integrate(s)
+        surface.add_scan(s)
+    m.mark_free_segment((0, -3, 3), (0, 3, 3), 1.0)
+    rng = np.random.default_rng(4)
+    cand = np.column_stack(
+        [rng.uniform(-0.5, 0.5, 14), rng.uniform(-3, 3, 14), rng.uniform(2.5, 3.5, 14)]
+    )
+    cand = np.column_stack([cand, rng.uniform(-0.6, 0.6, 14)])
+    return m, surface, cand
+
+
+CAMERA = dict(rays_x=40, rays_y=30, mount=nbvkit.mount_transform([0.1, 0, 0], 0, 5, 0))
+VALIDITY = dict(collision_radius=0.3, blocked_path="plan")
+
+
+def _score(m, surface, cand, camera=CAMERA, memo=None, **utility):
+    utility.setdefault("require_occupied", False)
+    return _core.evaluate_views(
+        m,
+        cand,
+        (0, 0, 3, 0),
+        camera=camera,
+        utility=utility,
+        validity=VALIDITY,
+        surface=surface,
+        memo=memo,
+    )
+
+
+def _same(a, b):
+    for k in a:
+        np.testing.assert_array_equal(a[k], b[k], err_msg=k)
+
+
+def _pitched(cand, pitch):
+    return np.column_stack([cand, np.full(len(cand), pitch)])
+
+
+def test_a_pitched_view_scores_as_a_level_view_with_the_pitch_in_its_mount():
+    m, surface, cand = _scene()
+    for name in ("ig", "surface", "rear_side_voxel"):
+        level = _score(m, surface, cand, name=name)
+        assert (level["status"] == 0).sum() >= 8
+        for pitch in (-25 * DEG, 20 * DEG, 60 * DEG):
+            mount = nbvkit.gimbal_transform([0, 0, 0, 0, pitch], CAMERA["mount"])
+            a = _score(m, surface, _pitched(cand, pitch), name=name)
+            b = _score(m, surface, cand, camera={**CAMERA, "mount": mount}, name=name)
+            _same(a, b)
+            assert not np.array_equal(a["gain"], level["gain"]), (name, pitch)
+        # the octree backend reads the same
+        a = _score(m, surface, _pitched(cand, 0.3), name=name)
+        b = _core.evaluate_views(
+            m,
+            _pitched(cand, 0.3),
+            (0, 0, 3, 0),
+            camera=CAMERA,
+            utility={"name": name, "require_occupied": False},
+            validity=VALIDITY,
+            surface=surface,
+            backend="octree",
+        )
+        _same(a, b)
+    pitch = 40 * DEG
+    mount = nbvkit.gimbal_transform([0, 0, 0, 0, pitch], CAMERA["mount"])
+    kw = dict(utility={"name": "surface"}, validity=VALIDITY)
+    a = _core.view_coverage(m, surface, _pitched(cand, pitch), (0, 0, 3, 0), camera=CAMERA, **kw)
+    b = _core.view_coverage(m, surface, cand, (0, 0, 3, 0), camera={**CAMERA, "mount": mount}, **kw)
+    _same(a, b)
+    assert len(a["elements"]) > 0
+
+
+def test_level_candidates_score_as_pitch_zero_bit_for_bit():
+    m, surface, cand = _scene()
+    for name in ("ig", "surface"):
+        memo4, memo5 = _core.ViewMemo(), _core.ViewMemo()
+        for _ in range(2):
+            _same(
+                _score(m, surface, cand, memo=memo4, name=name),
+                _score(m, surface, _pitched(cand, 0.0), memo=memo5, name=name),
+            )
+    c4, c5 = _core.CoverageMemo(), _core.CoverageMemo()
+    for _ in range(2):
+        a = _core.view_coverage(m, surface, cand, (0, 0, 3, 0), camera=CAMERA, memo=c4)
+        b = _core.view_coverage(m, surface, _pitched(cand, -0.0), (0, 0, 3, 0), CAMERA, memo=c5)
+        _same(a, b)
+    assert c5.stats()["reused"] > 0
+
+
+def test_the_memos_keep_pitches_apart():
+    m, surface, cand = _scene()
+    memo, cover = _core.ViewMemo(), _core.CoverageMemo(keep_calls=8)
+
+    def coverage(c, memo=None):
+        return _core.view_coverage(
+            m, surface, c, (0, 0, 3, 0), CAMERA, validity=VALIDITY, memo=memo
+        )
+
+    for pitch in (0.0, 0.5, -0.3, 0.5):
+        c = _pitched(cand, pitch)
+        _same(_score(m, surface, c, memo=memo), _score(m, surface, c))
+        _same(coverage(c, cover), coverage(c))
+    valid = int((_score(m, surface, cand)["status"] == 0).sum())
+    assert memo.entries == 3 * valid and memo.stats()["reused"] == valid
+    assert cover.entries == 3 * valid and cover.stats()["reused"] == valid
+
+
+def test_the_laser_ignores_the_pitch():
+    las = nbvkit.LaserScanner(box_mesh((4, -2, 0), (7, 2, 2.5)))
+    a, b = las.scan_pose([0, 0, 2, 0.1]), las.scan_pose([0, 0, 2, 0.1, 0.8])
+    np.testing.assert_array_equal(a.hits, b.hits)
+
+
+def test_bad_pitches_are_refused_naming_the_pitch():
+    cam = nbvkit.DepthCamera(floor_mesh(), width=8, height=6)
+    las = nbvkit.LaserScanner(floor_mesh())
+    m, surface, cand = _scene()
+    for bad in (np.nan, np.inf, -np.inf, math.pi / 2 + 1e-6, -2.0, 4.0):
+        for sensor in (cam, las):
+            with pytest.raises(ValueError, match="pitch"):
+                sensor.scan_pose([0, 0, 4, 0, bad])
+        with pytest.raises(ValueError, match="pitch"):
+            nbvkit.gimbal_transform([0, 0, 4, 0, bad])
+        with pytest.raises(ValueError, match="candidates row 1.*pitch"):
+            _score(m, surface, np.array([[0, 0, 3, 0, 0.1], [0, 0, 3, 0, bad]]))
+        with pytest.raises(ValueError, match="pitch"):
+            _core.view_coverage(m, surface, [[0, 0, 3, 0, bad]], (0, 0, 3, 0))
+        with pytest.raises(ValueError, match="current pose.*pitch"):
+            _core.evaluate_views(m, cand[:1], (0, 0, 3, 0, bad))
+    cam.scan_pose([0, 0, 4, 0, math.pi / 2])  # the limits themselves hold
+    cam.scan_pose([0, 0, 4, 0, -math.pi / 2])
+    with pytest.raises(ValueError, match=r"4 numbers \(x, y, z, yaw\) or 5"):
+        cam.scan_pose([0, 0, 4, 0, 0, 0])
+    with pytest.raises(ValueError, match=r"\(K, 4\).*\(K, 5\)"):
+        _score(m, surface, np.zeros((2, 6)))
+
+
+# ---------------------------------------------------------------------------------- config
+
+
+def test_gimbal_range_defaults_sign_and_the_paper_scenarios_keep_the_level_camera():
+    assert Config().camera.gimbal_pitch_deg == (-30.0, 90.0)  # 30 up to straight down
+    for s in TABLE2:
+        assert Config(scenario=s).camera.gimbal_pitch_deg == (0.0, 0.0), s
+        assert SCENARIOS[s].settings["camera.gimbal_pitch_deg"] == (0.0, 0.0)
+    assert Config(scenario="surface_nbv").camera.gimbal_pitch_deg == (-30.0, 90.0)
+    c = Config.from_dict({"scenario": "5", "camera": {"gimbal_pitch_deg": [-10, 45]}})
+    assert c.camera.gimbal_pitch_deg == (-10.0, 45.0)  # the user's wins over the preset
+
+
+@pytest.mark.parametrize(
+    "value, message",
+    [
+        ([60, 10], "min 60 > max 10"),
+        ([-30, 95], r"within \[-90, 90\]"),
+        ([-91, 0], r"within \[-90, 90\]"),
+        ([float("nan"), 90], "finite"),
+        ([0, float("inf")], "finite"),
+        ([0], r"2 numbers \[min, max\]"),
+        ([0, 10, 20], r"2 numbers \[min, max\]"),
+        ([10, 90], "include 0"),
+        ("down", "list of numbers"),
+    ],
+)
+def test_a_bad_gimbal_range_is_a_clear_error_before_any_work(value, message):
+    with pytest.raises(ValueError, match="camera.gimbal_pitch_deg") as e:
+        Config.from_dict({"camera": {"gimbal_pitch_deg": value}})
+    assert re.search(message, str(e.value)), str(e.value)
+
+
+def test_a_start_pose_may_hold_a_pitch_within_the_gimbal_range():
+    c = Config.from_dict({"start_pose": [1, 2, 3, 0.5, 0.4]})
+    assert c.start_pose == (1.0, 2.0, 3.0, 0.5, 0.4)
+    with pytest.raises(ValueError, match="outside camera.gimbal_pitch_deg"):
+        Config.from_dict({"start_pose": [1, 2, 3, 0.5, 0.4], "scenario": "1"})  # level only
+    with pytest.raises(ValueError, match="outside camera.gimbal_pitch_deg"):
+        Config.from_dict({"start_pose": [1, 2, 3, 0.5, -1.0]})  # -57 deg: beyond 30 deg up
+    with pytest.raises(ValueError, match="start_pose.*finite"):
+        Config.from_dict({"start_pose": [1, 2, 3, 0.5, float("nan")]})
+    with pytest.raises(ValueError, match="start_pose"):
+        Config.from_dict({"start_pose": [1, 2, 3]})
+
+
+# ---------------------------------------------------------------------------------- mission
+
+
+def _tiny(*sets):
+    return Config().with_overrides([*TINY_RUN, "progress=false", "report.enabled=false", *sets])
+
+
+def test_the_mission_writes_a_pitch_column_and_starts_from_a_pitched_view(tmp_path):
+    probe = Mission(_tiny("scenario=surface"))
+    start = probe.world.start_pose
+    pitch = 0.35
+    m = Mission(_tiny("scenario=surface", f"start_pose=[{','.join(map(str, start))},{pitch}]"))
+    assert len(m.world.state.pose) == 5 and m.world.state.pose[4] == pitch
+    m.run(tmp_path)
+    traj = list(csv.DictReader(open(tmp_path / "trajectory.csv")))
+    assert list(traj[0]) == ["stage", "x", "y", "z", "yaw", "pitch", "distance_m"]
+    assert float(traj[0]["pitch"]) == pitch
+    assert all(float(r["pitch"]) == 0.0 for r in traj[1:])  # the planners fly level views
+    its = list(csv.DictReader(open(tmp_path / "iterations.csv")))
+    assert its and list(its[0])[:6] == ["iteration", "x", "y", "z", "yaw", "pitch"]
+    assert all(float(r["pitch"]) == 0.0 for r in its)
+
+
+def test_a_view_outside_the_gimbal_range_is_not_flown():
+    m = Mission(_tiny("scenario=1"))
+    w = m.world
+    with pytest.raises(ValueError, match="outside camera.gimbal_pitch_deg"):
+        w.fly_to([*w.state.pose[:4], 0.2], "nbv")
+    w.fly_to(w.state.pose[:4], "nbv")  # 4 numbers: level
+    assert w.state.pose[4] == 0.0 and len(w.state.trajectory[-1]) == 7
+
+
+def test_the_reports_view_arrows_follow_the_pitch(tmp_path):
+    from nbvkit.report import write_run_report
+
+    rows = [
+        dict(
+            iteration=1,
+            x=0,
+            y=0,
+            z=5,
+            yaw=0.0,
+            pitch=math.pi / 2,
+            source="s",
+            entropy=1,
+            distance_m=1,
+        ),
+        dict(
+            iteration=2,
+            x=1,
+            y=0,
+            z=5,
+            yaw=math.pi / 2,
+            pitch=-30 * DEG,
+            source="s",
+            entropy=1,
+            distance_m=2,
+        ),
+        dict(iteration=3, x=2, y=0, z=5, yaw=0.0, pitch=0.0, source="s", entropy=1, distance_m=3),
+    ]
+    with open(tmp_path / "iterations.csv", "w", newline="") as f:
+        w = csv.DictWriter(f, fieldnames=list(rows[0]))
+        w.writeheader()
+        w.writerows(rows)
+    path = write_run_report(tmp_path, {}, np.zeros((3, 3)), np.zeros(3, int))
+    html = path.read_text()
+    cone = json.loads(re.search(r'(\{"type":"cone".*?\})', html).group(1))
+    np.testing.assert_allclose(cone["u"], [0, 0, 1], atol=1e-3)
+    np.testing.assert_allclose(cone["v"], [0, math.cos(30 * DEG), 0], atol=1e-3)
+    np.testing.assert_allclose(cone["w"], [-1, 0.5, 0], atol=1e-3)  # down, up, level
+
+
+def test_the_lattice_around_a_pitched_view_is_the_lattice_around_its_pose():
+    from nbvkit.sampling import candidate_poses
+
+    pose = [1.0, 2.0, 3.0, 0.4]
+    a, b = candidate_poses(pose), candidate_poses([*pose, 0.3])
+    np.testing.assert_array_equal(a, b)
+    assert a.shape == (80, 4)
+    with pytest.raises(ValueError, match="or 5"):
+        candidate_poses([*pose, 0.3, 0.0])
+
+
+def test_the_camera_observations_record_the_pitched_direction():
+    # straight down from 4 m, the camera 0.3 m ahead of and 0.1 m below the gimbal's axis:
+    # Ry(90 deg) takes that offset to 0.1 m behind and 0.3 m below, the camera at (-0.1, 0, 3.7)
+    mount = nbvkit.mount_transform([0.3, 0.0, -0.1])
+    cam = nbvkit.DepthCamera(floor_mesh(), width=64, height=48, mount=mount)
+    scan = cam.scan_pose([0, 0, 4, 0, math.pi / 2])
+    np.testing.assert_allclose(scan.origin, [-0.1, 0, 3.7], atol=1e-12)
+    m = nbvkit.OccupancyMap(0.2, (-6, -6, -1), (6, 6, 5))
+    surface = _core.SurfaceObservations(m)
+    surface.add_scan(scan)
+    seen = surface.seen_grid().reshape(-1, order="F")
+    ids = np.asarray(m.index_of(scan.hits))
+    expect = np.zeros_like(seen)
+    for i, h in zip(ids, scan.hits):  # each hit marks its cell seen from the bin of (origin - hit)
+        expect[i] |= np.uint32(1) << np.uint32(_core.direction_bin(scan.origin - h))
+    np.testing.assert_array_equal(seen, expect)
+    up = 1 << _core.direction_bin([0, 0, 1])
+    assert seen[m.index_of([[-0.1, 0, 0.0]])[0]] == up  # the cell below, seen from straight above
