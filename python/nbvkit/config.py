@@ -26,7 +26,14 @@ import numpy as np
 import yaml
 
 from . import _core
-from .limits import MAX_TEXT_FILE_BYTES, MAX_YAML_NODES, Bound, check_input_file, shorten
+from .limits import (
+    MAX_TEXT_FILE_BYTES,
+    MAX_VIEW_RAYS,
+    MAX_YAML_NODES,
+    Bound,
+    check_input_file,
+    shorten,
+)
 from .scenarios import DEFAULT as DEFAULT_SCENARIO
 from .scenarios import SCENARIOS
 
@@ -259,7 +266,7 @@ class CameraConfig:
     hfov_deg: float = _CAM.hfov_deg
     vfov_deg: float = _CAM.vfov_deg
     min_range: float = _CAM.min_range
-    max_range: float = positive(_CAM.max_range)
+    max_range: float = positive(_CAM.max_range, 1000)
     noise_k: float = nonneg(_CAM.noise_k)  # the authors used 0.0025 (sigma = k z^2)
     mount_xyz: tuple = (0.0, 0.0, 0.0)
     mount_rpy_deg: tuple = (0.0, 0.0, 0.0)
@@ -272,7 +279,7 @@ class LaserConfig:
     fov_deg: float = _LAS.fov_deg
     resolution_deg: float = _LAS.resolution_deg
     min_range: float = _LAS.min_range
-    max_range: float = positive(_LAS.max_range)
+    max_range: float = positive(_LAS.max_range, 1000)
     noise_sigma: float = nonneg(_LAS.noise_sigma)
     mount_xyz: tuple = (0.0, 0.0, 0.0)
     mount_rpy_deg: tuple = (0.0, 10.0, 0.0)  # pitched 10 deg down (Table 1)
@@ -330,7 +337,7 @@ VehicleConfig = cpp_section(
     ],
     bounds={
         "collision_radius": Bound(lo=0, lo_open=True),
-        "start_clear_radius": Bound(lo=0),
+        "start_clear_radius": Bound(lo=0, hi=1000),
         "path_expansions": Bound(lo=1, hi=400_000_000),
     },
 )
@@ -888,7 +895,7 @@ def _validate(obj, prefix: str) -> None:
             for cls in obj.OPTIONS_ALL:
                 obj.options_for(cls)
         except (ValueError, TypeError) as e:
-            raise ValueError(f"config section {prefix.rstrip('.')!r}: {e}") from None
+            raise _section_error(obj, prefix.rstrip("."), e) from None
     if prefix == "placement." and not (obj.standoffs and all(0 < x <= 1 for x in obj.standoffs)):
         raise ValueError(
             "config key 'placement.standoffs' must be fractions of the camera range in (0, 1], "
@@ -964,12 +971,40 @@ def _check_derived(cfg) -> None:
     )
     for section, build in checks:
         try:
-            build()
+            built = build()
         except (ValueError, TypeError) as e:
             derived = ""
             if section == "utility" and not (u.rays_x and u.rays_y):
                 derived = f" (null rays_x / rays_y follow map.resolution = {cfg.map.resolution:g})"
-            raise ValueError(f"config section {section!r}: {e}{derived}") from None
+            raise _section_error(getattr(cfg, section), section, e, derived) from None
+    rays = built.rays_x * built.rays_y  # the view camera's, scored per candidate view
+    if rays > MAX_VIEW_RAYS:
+        if u.rays_x and u.rays_y:
+            fits = "utility.rays_x x rays_y within the limit would fit"
+        else:
+            fit = cfg.camera.max_range * math.sqrt(MAX_VIEW_RAYS / rays) * 0.99
+            fits = (
+                f"camera.max_range <= {fit:.4g} (null utility.rays_x / rays_y give one ray per map "
+                f"cell on the far plane at map.resolution = {cfg.map.resolution:g}), or "
+                "utility.rays_x / rays_y set, would fit"
+            )
+        raise ValueError(
+            f"the view camera: camera.max_range = {cfg.camera.max_range:g} makes "
+            f"{built.rays_x} x {built.rays_y} = {rays:,} rays per candidate view, more than the "
+            f"limit {MAX_VIEW_RAYS:,} (checked before any work); {fits}"
+        )
+
+
+def _section_error(section, name: str, e: Exception, extra: str = "") -> ValueError:
+    """The ValueError of a section's C++ options check: "config key 'map.prob_hit' must be ..."
+    when the C++ message starts with a key of the section, else "config section 'map': ..."."""
+    msg = shorten(str(e), 300).strip("'\"")
+    if msg.startswith(name + " "):  # "camera hfov_deg must be ..."
+        msg = msg[len(name) + 1 :]
+    first = msg.split(" ", 1)[0]
+    if first in {f.name for f in fields(section)}:  # "prob_hit must be ...": name the key
+        return ValueError(f"config key {name + '.' + first!r}{msg[len(first):]}{extra}")
+    return ValueError(f"config section {name!r}: {msg}{extra}")
 
 
 def load_config(

@@ -32,6 +32,7 @@ __all__ = [
     "MAX_DATA_FILE_BYTES",
     "MAX_YAML_NODES",
     "MAX_INT",
+    "MAX_VIEW_RAYS",
     "MAX_GT_SAMPLES",
     "MAX_PROFILE_SCANS",
     "MAX_PROFILE_LASER_RAYS",
@@ -52,6 +53,10 @@ MAX_YAML_NODES = 100_000
 #: The largest value of an integer key without a maximum of its own (C++ int).
 MAX_INT = 2**31 - 1
 
+#: Rays per candidate view of the view camera (utility.rays_x x rays_y; null: one per map cell on
+#: the far plane, 47 x 34 = 1,598 at the default 8 m and 0.2 m), scored for every candidate of
+#: every iteration.
+MAX_VIEW_RAYS = 250_000
 #: Ground-truth surface samples of a mission (area x evaluation.gt_density): ~150 bytes each over
 #: the mission (points, source faces, KD-tree, coverage cells, observability); a full run of the
 #: unit cube with 8 M samples peaks at 1.3 GB. The office building (5,815 m^2) at the default
@@ -73,10 +78,12 @@ MAX_OBSERVABILITY_POSES = 500_000
 #: Candidate positions x surface samples tested from them (the airliner at the default 2 m:
 #: 8e8, ~3 s; at 1 m: 7e9, ~26 s on 2 cores).
 MAX_OBSERVABILITY_PAIRS = 10**10
-#: Memory of the map's flat workspace grid (bytes; OccupancyMap keeps ~5 bytes per cell beside
-#: OctoMap's tree); OccupancyMap's own limit (400 M cells) is past 2 GB.
-MAX_MAP_BYTES = 1 << 30
-MAP_BYTES_PER_CELL = 5
+#: Memory a mission's map takes (bytes): the flat workspace grid, the octree and the per-cell
+#: state of the surface observations and the planners, ~50 bytes per workspace cell in a
+#: mission (a 9.6 M-cell workspace: 465 MB); OccupancyMap's own limit (400 M cells) is 20 GB.
+#: The airliner's default workspace holds 3.1 M cells at 0.2 m, 25 M at 0.1 m.
+MAX_MAP_BYTES = 3 << 29  # 1.5 GiB: 32 M cells
+MAP_BYTES_PER_CELL = 50
 
 
 def shorten(value, limit: int = 120) -> str:
@@ -246,6 +253,18 @@ def check_profile(cfg, mesh_bounds, ws) -> None:
         return
     w = _profile_plan(cfg, mesh_bounds, ws)
     what = "the profile flight"
+    if not w["z_max"] > w["z_min"]:
+        raise ValueError(
+            f"config keys 'profiling.z_min' / 'profiling.z_max': the sweeps need z_max > z_min "
+            f"(null: the navigation box's {float(ws.nav_min[2]):g} / {float(ws.nav_max[2]):g} m), "
+            f"got {w['z_min']:g}..{w['z_max']:g}"
+        )
+    if not w["z_max"] > w["z_min"]:
+        raise ValueError(
+            f"config keys 'profiling.z_min' / 'profiling.z_max': the sweeps need z_max > z_min "
+            f"(null: the navigation box's {float(ws.nav_min[2]):g} / {float(ws.nav_max[2]):g} m), "
+            f"got {w['z_min']:g}..{w['z_max']:g}"
+        )
     if w["scans"] > MAX_PROFILE_SCANS:
         fit_per_sweep = MAX_PROFILE_SCANS / w["sweeps"] - 1  # scans per sweep that would fit
         nav_height = float(ws.nav_max[2] - ws.nav_min[2])
@@ -339,13 +358,14 @@ def check_observability(cfg, ws, samples: float) -> None:
         _refuse("the observable surface", unit, count, limit, key, o.pose_spacing, fits)
 
 
-def check_map(cfg, ws) -> None:
+def check_map(cfg, ws) -> bool:
     """ValueError when the map's workspace grid would take more than MAX_MAP_BYTES (the
-    structure is too large, or too long and thin in a square workspace, for the resolution)."""
+    structure is too large, or too long and thin in a square workspace, for the resolution).
+    False (nothing checked) for a workspace beyond OctoMap's range, which OccupancyMap reports."""
     r = cfg.map.resolution
     reach = 32767 * r  # OctoMap's keys each way: beyond them OccupancyMap names the range
     if any(abs(float(x)) > reach for x in (*ws.bounds_min, *ws.bounds_max)):
-        return
+        return False
     size = [float(b - a) for a, b in zip(ws.bounds_min, ws.bounds_max)]
     cells = math.prod(max(math.ceil(s / r), 1) for s in size)
     limit = MAX_MAP_BYTES // MAP_BYTES_PER_CELL
@@ -358,12 +378,14 @@ def check_map(cfg, ws) -> None:
             f"{fit * 1.01:.3g} would fit, or a smaller workspace (workspace.bounds_min / "
             "bounds_max, workspace.square=false for a long structure)"
         )
+    return True
 
 
 def check_work(cfg, mesh, ws) -> None:
     """Every work check of a mission on `mesh` (an nbvkit.Mesh) in workspace `ws`: the map's
     memory, the profile flight, the ground-truth samples and the observable-surface lattice."""
-    check_map(cfg, ws)
+    if not check_map(cfg, ws):
+        return  # beyond OctoMap's range: the map names it (and the shift that brings it near)
     check_profile(cfg, mesh.bounds, ws)
     samples = check_gt_samples(cfg, float(mesh.area))
     check_observability(cfg, ws, samples)

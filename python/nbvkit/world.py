@@ -109,8 +109,15 @@ class World:
         except ValueError as e:
             ws = self.workspace
             reach = 32767 * m.resolution  # OctoMap's keys, each way from the origin
-            if "addressable range" not in str(e) or np.any(ws.bounds_max - ws.bounds_min > reach):
+            if "addressable range" not in str(e):
                 raise
+            if np.any(ws.bounds_max - ws.bounds_min > reach):  # too large, wherever it lies
+                raise MissionError(
+                    f"{e}: the structure (mesh.scale = {cfg.mesh.scale:g}) and its workspace "
+                    f"(workspace.margin_xy = {cfg.workspace.margin_xy:g}, margin_z = "
+                    f"{cfg.workspace.margin_z:g} m) are too large for the map at map.resolution = "
+                    f"{m.resolution:g} m"
+                ) from None
             c = np.round(-(mesh.bounds[0] + mesh.bounds[1]) / 2)
             c[2] = 0.0
             shift = ",".join(f"{x:.0f}" for x in c + np.asarray(cfg.mesh.shift, float))
