@@ -333,3 +333,26 @@ def test_sweep_files_are_bounded():
         sweep_specs({"starts": 10**12})
     with pytest.raises(ValueError, match="runs"):
         sweep_specs({"starts": 5, "grid": {f"k{i}": list(range(10)) for i in range(8)}})
+
+
+def test_cpp_option_errors_name_the_dotted_key():
+    for override, needle in (
+        ("map.prob_hit=0", "config key 'map.prob_hit' must be in [0.5, 1)"),
+        ("camera.hfov_deg=0", "config key 'camera.hfov_deg' must be in (0, 180)"),
+        ("laser.resolution_deg=1e-9", "config key 'laser.resolution_deg'"),
+    ):
+        with pytest.raises(ValueError) as e:
+            load_config(overrides=[override])
+        assert needle in str(e.value), str(e.value)
+
+
+def test_view_camera_rays_are_bounded_with_the_range_that_fits():
+    with pytest.raises(ValueError, match="rays per candidate view") as e:
+        load_config(overrides=["camera.max_range=1000"])
+    fit = float(str(e.value).split("camera.max_range <= ")[1].split()[0])
+    load_config(overrides=[f"camera.max_range={fit}"])
+
+
+def test_an_empty_sweep_range_names_the_profiling_keys():
+    msg = _mission_error(["profiling.z_max=0"])
+    assert "'profiling.z_max'" in msg and "z_max > z_min" in msg

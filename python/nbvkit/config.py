@@ -969,6 +969,14 @@ def _check_derived(cfg) -> None:
         ("laser", lambda: _core.LaserScannerOptions(**laser_kwargs(cfg))),
         ("utility", lambda: view_camera(cfg)),
     )
+    c = cfg.camera
+    if not (u.rays_x and u.rays_y) and 0 < c.hfov_deg < 180 and 0 < c.vfov_deg < 180:
+        # the view camera's rays follow the map cells on the far plane (ViewCameraModel.
+        # for_resolution): bounded before they are built
+        def across(fov):
+            return math.ceil(2 * c.max_range * math.tan(math.radians(fov) / 2) / cfg.map.resolution)
+
+        _check_view_rays(cfg, u.rays_x or across(c.hfov_deg), u.rays_y or across(c.vfov_deg))
     for section, build in checks:
         try:
             built = build()
@@ -977,10 +985,16 @@ def _check_derived(cfg) -> None:
             if section == "utility" and not (u.rays_x and u.rays_y):
                 derived = f" (null rays_x / rays_y follow map.resolution = {cfg.map.resolution:g})"
             raise _section_error(getattr(cfg, section), section, e, derived) from None
-    rays = built.rays_x * built.rays_y  # the view camera's, scored per candidate view
+    _check_view_rays(cfg, built.rays_x, built.rays_y)
+
+
+def _check_view_rays(cfg, rays_x: int, rays_y: int) -> None:
+    """ValueError when the view camera's rays per candidate view exceed MAX_VIEW_RAYS."""
+    u = cfg.utility
+    rays = rays_x * rays_y
     if rays > MAX_VIEW_RAYS:
         if u.rays_x and u.rays_y:
-            fits = "utility.rays_x x rays_y within the limit would fit"
+            fits = f"utility.rays_x x rays_y <= {MAX_VIEW_RAYS:,} would fit"
         else:
             fit = cfg.camera.max_range * math.sqrt(MAX_VIEW_RAYS / rays) * 0.99
             fits = (
@@ -988,9 +1002,14 @@ def _check_derived(cfg) -> None:
                 f"cell on the far plane at map.resolution = {cfg.map.resolution:g}), or "
                 "utility.rays_x / rays_y set, would fit"
             )
+        what = (
+            "utility.rays_x x rays_y"
+            if u.rays_x and u.rays_y
+            else f"camera.max_range = {cfg.camera.max_range:g}"
+        )
         raise ValueError(
-            f"the view camera: camera.max_range = {cfg.camera.max_range:g} makes "
-            f"{built.rays_x} x {built.rays_y} = {rays:,} rays per candidate view, more than the "
+            f"the view camera: {what} makes "
+            f"{rays_x} x {rays_y} = {rays:,} rays per candidate view, more than the "
             f"limit {MAX_VIEW_RAYS:,} (checked before any work); {fits}"
         )
 
