@@ -14,8 +14,9 @@ Each outcome is classified:
 - ``>2GB``: peak resident memory above 2 GiB (killed at 2.5 GiB);
 - ``silent``: exit 0 with a result known to be wrong (checked where the case can tell).
 
-Usage: python bench/hostile_battery.py [--jobs 2] [--timeout 120] [--only KEY_SUBSTRING]
-    [--md FILE]. Prints a summary table (and every case that is not ok / error) in markdown.
+Usage: python bench/hostile_battery.py [--jobs 2] [--timeout 120] [--only SUBSTRING ...]
+    [--groups GROUP ...] [--md FILE] [--json FILE]. Prints a summary table (and every case that
+    is not ok / error) in markdown.
 The numeric keys are enumerated from the configuration's dataclasses (nbvkit.config), not listed.
 """
 from __future__ import annotations
@@ -509,14 +510,16 @@ def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--jobs", type=int, default=2, help="cases run at once (default 2)")
     ap.add_argument("--timeout", type=float, default=120, help="seconds per case (default 120)")
-    ap.add_argument("--only", default=None, help="only cases whose name contains this")
+    ap.add_argument(
+        "--only", nargs="+", default=None, help="only cases whose name contains one of these"
+    )
     ap.add_argument("--groups", nargs="+", default=None, help="only these groups")
     ap.add_argument("--md", default=None, help="also write the table to this file")
     ap.add_argument("--json", default=None, help="write every case's outcome to this file")
     args = ap.parse_args(argv)
     cases = key_cases() + file_cases() + mesh_cases() + api_cases()
     if args.only:
-        cases = [c for c in cases if args.only in c.name]
+        cases = [c for c in cases if any(s in c.name for s in args.only)]
     if args.groups:
         cases = [c for c in cases if c.group in args.groups]
     t0 = time.perf_counter()

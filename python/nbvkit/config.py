@@ -500,7 +500,7 @@ SymmetryConfig = cpp_section(
     extra=(_core.SymmetricPredictionOptions,),
     bounds={
         "refresh_every": Bound(lo=0, hi=10**6),
-        "prediction_probability": Bound(lo=0, hi=1),
+        "prediction_probability": Bound(lo=0.5, hi=1, lo_open=True, hi_open=True),
         "max_descriptor_distance": Bound(inf=True),
         "normal_k": Bound(hi=1000),
         "sift_octaves": Bound(hi=16),
@@ -1090,7 +1090,8 @@ def documented_yaml() -> str:
             hint = next(a for a in typing.get_args(hint) if a is not type(None))  # noqa: E721
         if hint not in (int, float) or ("bound" not in f.metadata and hint is not int):
             return comment
-        rng = f"[{field_bound(cls, f).describe()}]"
+        rng = field_bound(cls, f).describe()
+        rng = rng if rng[:1] in ("(", "[") else f"[{rng}]"  # "(0, 1000]" or "[>= 0]"
         return f"{comment} {rng}" if comment else rng
 
     lines = [

@@ -118,17 +118,21 @@ class Bound:
     hi: float | None = None
     lo_open: bool = False
     inf: bool = False
+    hi_open: bool = False  # the value must be below hi
 
     def describe(self) -> str:
-        """The range as text: "> 0", ">= 0 and <= 1000", "1..1000"."""
+        """The range as text: "> 0", ">= 0 and <= 1000", "1..1000", "(0.5, 1)"."""
         lo, hi = self.lo, self.hi
-        if lo is not None and hi is not None and not self.lo_open:
+        if lo is not None and hi is not None and not self.lo_open and not self.hi_open:
             return f"{_fmt(lo)}..{_fmt(hi)}"
+        if lo is not None and hi is not None:
+            left, right = "(["[not self.lo_open], ")]"[not self.hi_open]
+            return f"{left}{_fmt(lo)}, {_fmt(hi)}{right}"
         parts = []
         if lo is not None:
             parts.append(f"{'>' if self.lo_open else '>='} {_fmt(lo)}")
         if hi is not None:
-            parts.append(f"<= {_fmt(hi)}")
+            parts.append(f"{'<' if self.hi_open else '<='} {_fmt(hi)}")
         return " and ".join(parts)
 
     def check(self, key: str, v) -> None:
@@ -144,7 +148,11 @@ class Bound:
             if what is None:
                 what = f"{'>' if self.lo_open else '>='} {_fmt(self.lo)}"
             raise ValueError(f"config key {key!r} must be {what}, got {_fmt(v)}")
-        if self.hi is not None and v > self.hi and not (self.inf and math.isinf(v)):
+        if self.hi is None or (self.inf and math.isinf(v)):
+            return
+        if self.hi_open and v >= self.hi:
+            raise ValueError(f"config key {key!r} must be in {self.describe()}, got {_fmt(v)}")
+        if v > self.hi:
             raise ValueError(
                 f"config key {key!r} = {_fmt(v)} is more than its limit {_fmt(self.hi)} "
                 f"(range {self.describe()})"
@@ -153,7 +161,7 @@ class Bound:
     def for_type(self, tp) -> "Bound":
         """This bound, with MAX_INT as the maximum of an integer key that has none."""
         if tp is int and self.hi is None:
-            return Bound(self.lo, MAX_INT, self.lo_open, self.inf)
+            return Bound(self.lo, MAX_INT, self.lo_open, self.inf, self.hi_open)
         return self
 
 
