@@ -9,6 +9,8 @@
 #include <pybind11/stl.h>
 
 #include <memory>
+#include <mutex>
+#include <shared_mutex>
 #include <string>
 
 namespace nbv::bind {
@@ -40,6 +42,40 @@ Pose pose_arg(const py::handle& obj, const char* what);
 
 /// A random seed: a Python int in [0, 2^64) (ValueError naming `what` otherwise).
 std::uint64_t seed_arg(const py::handle& obj, const char* what = "seed");
+
+/// Holds an object's AccessLock (shared: Lock = std::shared_lock, exclusive: std::unique_lock)
+/// for a call that runs without the GIL: the GIL is released first and taken back after the lock
+/// is released, so a thread waiting for the lock never holds the GIL that the holder may need.
+template <template <class> class Lock>
+class Unlocked {
+ public:
+  explicit Unlocked(std::shared_mutex& m) : lock_(m) {}
+  template <class T>
+  explicit Unlocked(const T& object) : lock_(object.access_lock()) {}
+
+ private:
+  py::gil_scoped_release release_;  // declared first: released before locking
+  Lock<std::shared_mutex> lock_;
+};
+/// Shared access to a map (queries) without the GIL.
+using Reading = Unlocked<std::shared_lock>;
+/// Exclusive access to a map (updates) without the GIL.
+using Writing = Unlocked<std::unique_lock>;
+
+/// Shared access to two objects (a map and its SurfaceObservations), in that order, without the
+/// GIL. (Always map first, then surface: the one lock order.)
+class Reading2 {
+ public:
+  template <class A, class B>
+  Reading2(const A& a, const B* b)
+      : a_(a.access_lock()),
+        b_(b ? std::shared_lock<std::shared_mutex>(b->access_lock())
+             : std::shared_lock<std::shared_mutex>()) {}
+
+ private:
+  py::gil_scoped_release release_;
+  std::shared_lock<std::shared_mutex> a_, b_;
+};
 
 void init_common(py::module_& m);
 void init_mesh(py::module_& m);

@@ -1,6 +1,7 @@
 #include "bindings.hpp"
 
 #include <cmath>
+#include <cstring>
 
 namespace nbv::bind {
 
@@ -81,11 +82,18 @@ void init_common(py::module_& m) {
       py::object err =
           py::module_::import("builtins").attr("FileNotFoundError")(2, "No such file", e.path());
       PyErr_SetObject(PyExc_FileNotFoundError, err.ptr());
+    } catch (const FileWriteError& e) {
+      // OSError(errno, strerror, path) picks its subclass from errno, as Python's own writers
+      py::object err = py::module_::import("builtins")
+                           .attr("OSError")(e.error(), std::strerror(e.error()), e.path());
+      PyErr_SetObject(err.get_type().ptr(), err.ptr());
     }
   });
   m.attr("MAX_COORDINATE") = kMaxCoordinate;
   m.def("set_num_threads", &set_num_threads, py::arg("n"),
-        "Worker threads of the core's parallel loops (0 = all hardware threads).");
+        "Worker threads of the core's parallel loops (0 = all hardware threads). Process-wide;\n"
+        "safe to call while other threads scan or score views: their running calls finish on\n"
+        "the threads they started with, later calls use the new count.");
   m.def("get_num_threads", &get_num_threads);
   m.def(
       "pose_to_transform",

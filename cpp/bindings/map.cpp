@@ -72,7 +72,7 @@ IntegrationStats integrate_any(OccupancyMap& m, const py::handle& scan_or_origin
     if (!hits.is_none() || !free_ends.is_none())
       throw py::type_error("pass either a Scan, or origin, hits and free_ends - not both");
     const Scan& s = scan_or_origin.cast<const Scan&>();
-    py::gil_scoped_release release;
+    Writing lock(m);
     return exact ? m.integrate_exact(s.origin, s.hits, s.free_ends, max_range)
                  : m.integrate(s, max_range);
   }
@@ -85,7 +85,7 @@ IntegrationStats integrate_any(OccupancyMap& m, const py::handle& scan_or_origin
   const PointsArg f = free_ends.is_none() ? empty : points_arg(free_ends, "free-space ray ends");
   auto hm = h.map();
   auto fm = f.map();
-  py::gil_scoped_release release;
+  Writing lock(m);
   return exact ? m.integrate_exact(origin, hm, fm, max_range)
                : m.integrate(origin, hm, fm, max_range);
 }
@@ -107,7 +107,7 @@ py::array_t<T, py::array::f_style> grid(const OccupancyMap& m, const F& f) {
   T* p = out.mutable_data();
   const GridLayout& layout = m.grid().layout();
   {
-    py::gil_scoped_release release;
+    Reading lock(m);
     for (int k = 0; k < d[2]; ++k)
       for (int j = 0; j < d[1]; ++j)
         for (int i = 0; i < d[0]; ++i) *p++ = f(std::int64_t(layout.id(i, j, k)));
@@ -146,7 +146,8 @@ parallel, with OctoMap's DDA; cells are de-duplicated through a stamp array and 
 updated once per cell. Agrees with OctoMap's insertPointCloud (integrate_exact) on > 99 % of the
 touched cells, ~10-15x faster on a 640x480 frame (bench/bench_map.cpp); with
 deduplicate_end_points=False every ray is traced and the result is identical.
-Returns an IntegrationStats. Releases the GIL.)doc";
+Returns an IntegrationStats. Releases the GIL; calls on one map from several threads take turns
+(see OccupancyMap: thread safety).)doc";
 
 }  // namespace
 
@@ -193,7 +194,14 @@ leading shape. Points are rounded to float32 before they are filed, exactly as O
 
 Grids (log_odds_grid() etc.) are (nx, ny, nz) Fortran-ordered copies: grid[i, j, k] is the cell
 with centre bounds_min + (i + 0.5, j + 0.5, k + 0.5) * resolution; the C++ flat index of that
-cell is i + nx * (j + ny * k) == grid.ravel(order='F') position.)doc");
+cell is i + nx * (j + ny * k) == grid.ravel(order='F') position.
+
+Thread safety: a map may be used from several Python threads. Every call holds the map's lock
+(shared by queries, which run together; exclusive for integrate*, update_cells,
+mark_free_segment, set_unknown_cells, save, verify_mirror and the octree figures), taken
+without the GIL; so concurrent integrations take turns and give the map the serial calls would
+have built, in the order they got the lock. evaluate_views, view_coverage, surface_targets,
+plan_path and the collision checks read a map under the same lock.)doc");
   cls.attr("UNKNOWN") = int(CellState::Unknown);
   cls.attr("FREE") = int(CellState::Free);
   cls.attr("OCCUPIED") = int(CellState::Occupied);
@@ -238,7 +246,7 @@ cell is i + nx * (j + ny * k) == grid.ravel(order='F') position.)doc");
           [](OccupancyMap& m, const py::handle& points, bool occupied) {
             auto p = points_arg(points, "points");
             auto pm = p.map();
-            py::gil_scoped_release release;
+            Writing lock(m);
             return m.update_cells(pm, occupied);
           },
           py::arg("points"), py::arg("occupied") = false,
@@ -252,7 +260,7 @@ cell is i + nx * (j + ny * k) == grid.ravel(order='F') position.)doc");
           [](OccupancyMap& m, const py::handle& a, const py::handle& b, double radius) {
             const Eigen::Vector3d pa = vec3_arg(a, "segment start"),
                                   pb = vec3_arg(b, "segment end");
-            py::gil_scoped_release release;
+            Writing lock(m);
             return m.mark_free_segment(pa, pb, radius);
           },
           py::arg("a"), py::arg("b"), py::arg("radius"),
@@ -265,7 +273,7 @@ cell is i + nx * (j + ny * k) == grid.ravel(order='F') position.)doc");
           [](OccupancyMap& m, const py::handle& points, double probability) {
             auto p = points_arg(points, "predicted points");
             auto pm = p.map();
-            py::gil_scoped_release release;
+            Writing lock(m);
             return m.set_unknown_cells(pm, probability);
           },
           py::arg("points"), py::arg("probability") = 0.6,
@@ -282,7 +290,7 @@ cell is i + nx * (j + ny * k) == grid.ravel(order='F') position.)doc");
             auto p = nd_points(points, "query points");
             Eigen::Matrix<std::int8_t, Eigen::Dynamic, 1> r;
             {
-              py::gil_scoped_release release;
+              Reading lock(m);
               r = m.states(p.map());
             }
             return shaped(p.lead, r.data());
@@ -294,7 +302,7 @@ cell is i + nx * (j + ny * k) == grid.ravel(order='F') position.)doc");
             auto p = nd_points(points, "query points");
             Eigen::VectorXd r;
             {
-              py::gil_scoped_release release;
+              Reading lock(m);
               r = m.probabilities(p.map());
             }
             return shaped(p.lead, r.data());
@@ -306,7 +314,7 @@ cell is i + nx * (j + ny * k) == grid.ravel(order='F') position.)doc");
             auto p = nd_points(points, "query points");
             Eigen::VectorXd r;
             {
-              py::gil_scoped_release release;
+              Reading lock(m);
               r = m.entropies(p.map());
             }
             return shaped(p.lead, r.data());
@@ -321,7 +329,7 @@ cell is i + nx * (j + ny * k) == grid.ravel(order='F') position.)doc");
             auto p = nd_points(points, "query points");
             Eigen::Matrix<bool, Eigen::Dynamic, 1> r;
             {
-              py::gil_scoped_release release;
+              Reading lock(m);
               r = m.predicted(p.map());
             }
             return shaped(p.lead, r.data());
@@ -396,35 +404,54 @@ cell is i + nx * (j + ny * k) == grid.ravel(order='F') position.)doc");
           },
           py::arg("points"), "bool (...): the point's cell is in the workspace.")
       .def(
-          "total_entropy", &OccupancyMap::total_entropy,
+          "total_entropy",
+          [](const OccupancyMap& m) {
+            Reading lock(m);
+            return m.total_entropy();
+          },
           "Total workspace entropy in the map's unit (unknown cells at p = 0.5). O(1): maintained\n"
           "incrementally in 2^-50-nat fixed point, equal to recompute_total_entropy().")
       .def(
           "recompute_total_entropy",
           [](const OccupancyMap& m) {
-            py::gil_scoped_release release;
+            Reading lock(m);
             return m.recompute_total_entropy();
           },
           "Total workspace entropy by a full sweep over the mirror (for checks).")
       .def(
-          "counts", [](const OccupancyMap& m) { return counts_dict(m.counts()); },
+          "counts",
+          [](const OccupancyMap& m) {
+            CellCounts c;
+            {
+              Reading lock(m);
+              c = m.counts();
+            }
+            return counts_dict(c);
+          },
           "dict of workspace cell counts: free, occupied, unknown (and predicted, a subset of the "
           "first two).")
       .def(
           "recompute_counts",
-          [](const OccupancyMap& m) { return counts_dict(m.grid().recompute_counts()); },
+          [](const OccupancyMap& m) {
+            CellCounts c;
+            {
+              Reading lock(m);
+              c = m.grid().recompute_counts();
+            }
+            return counts_dict(c);
+          },
           "counts() by a full sweep (for checks).")
       .def(
           "occupied_cells",
           [](const OccupancyMap& m) {
-            py::gil_scoped_release release;
+            Reading lock(m);
             return m.occupied_cells();
           },
           "(M, 3) float64 centres of the occupied workspace cells, in flat-index order.")
       .def(
           "verify_mirror",
           [](const OccupancyMap& m) {
-            py::gil_scoped_release release;
+            Writing lock(m);  // brings the octree up to date
             return m.verify_mirror();
           },
           "Number of workspace cells whose dense mirror disagrees with the octree (0 = in sync).")
@@ -455,7 +482,12 @@ cell is i + nx * (j + ny * k) == grid.ravel(order='F') position.)doc");
           },
           "(nx, ny, nz) float32 cell entropies in the map's unit, Fortran order (copy).")
       .def(
-          "save", [](const OccupancyMap& m, const py::handle& path) { m.save(path_arg(path)); },
+          "save",
+          [](const OccupancyMap& m, const py::handle& path) {
+            const std::string p = path_arg(path);
+            Writing lock(m);  // brings the octree up to date
+            m.save(p);
+          },
           py::arg("path"),
           "Write the octree: '.ot' (full probabilities) or '.bt' (free/occupied only); octovis "
           "reads both.")
@@ -506,12 +538,23 @@ cell is i + nx * (j + ny * k) == grid.ravel(order='F') position.)doc");
                                return OptionField<EntropyUnit>::get(m.options().entropy_unit);
                              })
       .def_property_readonly(
-          "octree_num_nodes", [](const OccupancyMap& m) { return m.octree().size(); },
+          "octree_num_nodes",
+          [](const OccupancyMap& m) {
+            Writing lock(m);  // brings the octree up to date
+            return m.octree().size();
+          },
           "nodes in the octree (all depths)")
       .def_property_readonly("octree_memory_bytes",
-                             [](const OccupancyMap& m) { return m.octree().memoryUsage(); })
+                             [](const OccupancyMap& m) {
+                               Writing lock(m);
+                               return m.octree().memoryUsage();
+                             })
       .def("__repr__", [](const OccupancyMap& m) {
-        const auto c = m.counts();
+        CellCounts c;
+        {
+          Reading lock(m);
+          c = m.counts();
+        }
         std::ostringstream s;
         s << "<nbvkit.OccupancyMap " << m.resolution() << " m, " << m.dims()[0] << "x"
           << m.dims()[1] << "x" << m.dims()[2] << " cells: " << c.free << " free, " << c.occupied

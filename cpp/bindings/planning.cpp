@@ -62,7 +62,7 @@ void init_planning(py::module_& m) {
         const auto o = OptionsClass<SurfaceTargetOptions>::from(options, "options");
         SurfaceTargets t;
         {
-          py::gil_scoped_release release;
+          Reading2 reading(map, &surface);
           t = surface_targets(grid_view(map, &surface), o);
         }
         py::dict d;
@@ -105,7 +105,7 @@ clears it.)doc");
         const auto v = OptionsClass<ValidityOptions>::from(validity, "validity");
         ViewCoverage cov;
         {
-          py::gil_scoped_release release;
+          Reading2 reading(map, &surface);
           std::unique_lock<std::mutex> lock;  // one call at a time per memo
           if (memo) lock = std::unique_lock<std::mutex>(memo->mutex());
           cov = view_coverage(grid_view(map, &surface), cm, cur, cam, u, v, memo.get());

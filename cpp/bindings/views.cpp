@@ -16,13 +16,17 @@ using Candidates = Eigen::Matrix<double, Eigen::Dynamic, 4, Eigen::RowMajor>;
 
 /// An (nx, ny, nz) Fortran-ordered copy of a per-cell array stored in a grid layout.
 template <typename T>
-py::array_t<T, py::array::f_style> per_cell(const GridLayout& layout, const T* data) {
+py::array_t<T, py::array::f_style> per_cell(const GridLayout& layout, const T* data,
+                                            std::shared_mutex& mutex) {
   const auto& d = layout.dims;
   py::array_t<T, py::array::f_style> a(std::vector<py::ssize_t>{d[0], d[1], d[2]});
   T* p = a.mutable_data();
-  for (int k = 0; k < d[2]; ++k)
-    for (int j = 0; j < d[1]; ++j)
-      for (int i = 0; i < d[0]; ++i) *p++ = data[layout.id(i, j, k)];
+  {
+    Reading lock(mutex);
+    for (int k = 0; k < d[2]; ++k)
+      for (int j = 0; j < d[1]; ++j)
+        for (int i = 0; i < d[0]; ++i) *p++ = data[layout.id(i, j, k)];
+  }
   return a;
 }
 
@@ -72,7 +76,7 @@ surface and four_term utilities and by surface_targets.)doc")
       .def(
           "add_scan",
           [](SurfaceObservations& s, const Scan& scan) {
-            py::gil_scoped_release release;
+            Writing lock(s);
             return s.add_scan(scan.origin, scan.hits);
           },
           py::arg("scan"),
@@ -84,23 +88,32 @@ surface and four_term utilities and by surface_targets.)doc")
             const Eigen::Vector3d o = vec3_arg(origin, "origin");
             auto h = points_arg(hits, "hits");
             auto hm = h.map();
-            py::gil_scoped_release release;
+            Writing lock(s);
             return s.add_scan(o, hm);
           },
           py::arg("origin"), py::arg("hits"), "add_scan from an origin (3,) and hits (N, 3).")
-      .def("clear", &SurfaceObservations::clear)
-      .def("seen_cells", &SurfaceObservations::seen_cells,
-           "Number of cells seen from at least one direction.")
+      .def("clear",
+           [](SurfaceObservations& s) {
+             Writing lock(s);
+             s.clear();
+           })
+      .def(
+          "seen_cells",
+          [](const SurfaceObservations& s) {
+            Reading lock(s);
+            return s.seen_cells();
+          },
+          "Number of cells seen from at least one direction.")
       .def(
           "seen_grid",
           [](const SurfaceObservations& s) {
-            return per_cell<std::uint32_t>(s.layout(), s.seen_data());
+            return per_cell<std::uint32_t>(s.layout(), s.seen_data(), s.access_lock());
           },
           "(nx, ny, nz) uint32 direction-bin masks, Fortran order (copy).")
       .def(
           "hits_grid",
           [](const SurfaceObservations& s) {
-            return per_cell<std::uint16_t>(s.layout(), s.hits_data());
+            return per_cell<std::uint16_t>(s.layout(), s.hits_data(), s.access_lock());
           },
           "(nx, ny, nz) uint16 camera hits per cell, Fortran order (copy).");
   m.def(
@@ -142,7 +155,7 @@ backend; the others walk every view.)doc");
           throw py::value_error("memo= is for the grid backend (the octree one is the reference)");
         ViewScores s;
         {
-          py::gil_scoped_release release;
+          Reading2 reading(map, surface.get());
           std::unique_lock<std::mutex> lock;  // one call at a time per memo
           if (memo) lock = std::unique_lock<std::mutex>(memo->mutex());
           s = backend == "octree"
@@ -179,6 +192,7 @@ slower).)doc");
       [](const OccupancyMap& map, const py::handle& c, double r) {
         const Eigen::Vector3d p = vec3_arg(c, "centre");
         if (!(r >= 0) || !std::isfinite(r)) throw py::value_error("radius must be finite and >= 0");
+        Reading lock(map);
         return sphere_is_free(grid_view(map), p, r);
       },
       py::arg("map"), py::arg("center"), py::arg("radius"),
@@ -188,6 +202,7 @@ slower).)doc");
       [](const OccupancyMap& map, const py::handle& a, const py::handle& b, double r) {
         const Eigen::Vector3d pa = vec3_arg(a, "segment start"), pb = vec3_arg(b, "segment end");
         if (!(r >= 0) || !std::isfinite(r)) throw py::value_error("radius must be finite and >= 0");
+        Reading lock(map);
         return segment_is_free(grid_view(map), pa, pb, r);
       },
       py::arg("map"), py::arg("a"), py::arg("b"), py::arg("radius"),
@@ -200,7 +215,7 @@ slower).)doc");
         if (!(r >= 0) || !std::isfinite(r)) throw py::value_error("radius must be finite and >= 0");
         std::vector<Eigen::Vector3d> path;
         {
-          py::gil_scoped_release release;
+          Reading lock(map);
           path = reference ? plan_path_reference(grid_view(map), pa, pb, r, max_expansions)
                            : plan_path(grid_view(map), pa, pb, r, max_expansions);
         }
@@ -222,7 +237,7 @@ planning step instead of searching a path to each.)doc")
              const Eigen::Vector3d pa = vec3_arg(a, "start");
              if (!(r >= 0) || !std::isfinite(r))
                throw py::value_error("radius must be finite and >= 0");
-             py::gil_scoped_release release;
+             Reading lock(map);
              return FreeComponent(grid_view(map), pa, r);
            }),
            py::arg("map"), py::arg("start"), py::arg("radius"))
@@ -232,7 +247,7 @@ planning step instead of searching a path to each.)doc")
             const PointsArg t = points_arg(targets, "targets");
             std::vector<std::uint8_t> ok;
             {
-              py::gil_scoped_release release;
+              Reading lock(map);
               ok = c.contains(grid_view(map), t.map());
             }
             py::array_t<bool> out(static_cast<py::ssize_t>(ok.size()));

@@ -1,7 +1,13 @@
 #include "nbv/common.hpp"
 #include "nbv/parallel.hpp"
 
+#include <unistd.h>
+
+#include <cerrno>
 #include <cmath>
+#include <cstdio>
+#include <cstring>
+#include <fstream>
 #include <memory>
 #include <mutex>
 #include <sstream>
@@ -26,6 +32,36 @@ Eigen::Isometry3d mount_transform(const Eigen::Vector3d& xyz, double roll_deg, d
                    .toRotationMatrix();
   T.translation() = xyz;
   return T;
+}
+
+FileWriteError::FileWriteError(const std::string& path, int error)
+    : std::runtime_error("cannot write '" + printable_ascii(path) + "': " + std::strerror(error)),
+      path_(path),
+      error_(error) {}
+
+void write_file(const std::string& path, const std::function<void(std::ostream&)>& write) {
+  const std::string tmp = path + ".tmp" + std::to_string(::getpid());
+  const auto fail = [&](int error) {
+    std::remove(tmp.c_str());
+    throw FileWriteError(path, error ? error : EIO);
+  };
+  std::ofstream f;
+  errno = 0;
+  f.open(tmp, std::ios::out | std::ios::binary | std::ios::trunc);
+  if (!f.is_open()) fail(errno);
+  try {
+    write(f);
+  } catch (...) {
+    f.close();
+    std::remove(tmp.c_str());
+    throw;
+  }
+  errno = 0;
+  f.flush();
+  if (!f) fail(errno);
+  f.close();  // the last buffered bytes: a full disk may only show here
+  if (!f) fail(errno);
+  if (std::rename(tmp.c_str(), path.c_str()) != 0) fail(errno);
 }
 
 std::string printable_ascii(const std::string& s) {
@@ -72,28 +108,33 @@ Eigen::Isometry3d to_rigid(const Eigen::Matrix4d& M, const char* what) {
 }
 
 namespace {
+// The arena is shared: core_arena() hands out a reference-counted handle, so set_num_threads
+// replaces the arena without freeing it under a parallel loop that another thread is running in
+// it (that loop keeps the old arena alive until it returns; the next loop gets the new one).
 std::mutex g_arena_mutex;
 int g_threads = 0;
-std::unique_ptr<tbb::task_arena> g_arena;
+std::shared_ptr<tbb::task_arena> g_arena;
 }  // namespace
 
 void set_num_threads(int n) {
   if (n < 0) throw std::invalid_argument("number of threads must be >= 0 (0 = all)");
+  std::shared_ptr<tbb::task_arena> old;  // released outside the lock
   std::lock_guard<std::mutex> lock(g_arena_mutex);
+  if (n == g_threads && g_arena) return;  // unchanged: keep the arena (and its threads)
   g_threads = n;
-  g_arena.reset();
+  old = std::move(g_arena);
 }
 
-int get_num_threads() { return core_arena().max_concurrency(); }
+int get_num_threads() { return core_arena()->max_concurrency(); }
 
-tbb::task_arena& core_arena() {
+std::shared_ptr<tbb::task_arena> core_arena() {
   std::lock_guard<std::mutex> lock(g_arena_mutex);
   if (!g_arena) {
-    g_arena = g_threads > 0 ? std::make_unique<tbb::task_arena>(g_threads)
-                            : std::make_unique<tbb::task_arena>();
+    g_arena = g_threads > 0 ? std::make_shared<tbb::task_arena>(g_threads)
+                            : std::make_shared<tbb::task_arena>();
     g_arena->initialize();
   }
-  return *g_arena;
+  return g_arena;
 }
 
 std::string fmt(double v) {

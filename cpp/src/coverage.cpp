@@ -31,6 +31,19 @@ struct Target {
   double weight;
 };
 
+/// Whether a face neighbour of cell c is occupied (observed or predicted) or predicted.
+bool touches_surface_face(const GridView& g, const int* c) {
+  for (int a = 0; a < 3; ++a)
+    for (int s = -1; s <= 1; s += 2) {
+      int m[3] = {c[0], c[1], c[2]};
+      m[a] += s;
+      if (!g.contains(m[0], m[1], m[2])) continue;
+      const std::size_t nid = g.layout.id(m[0], m[1], m[2]);
+      if (std::signbit(g.scored[nid]) || g.flags[nid] == CellFlag::Predicted) return true;
+    }
+  return false;
+}
+
 }  // namespace
 
 SurfaceTargets surface_targets(const GridView& g, const SurfaceTargetOptions& opt) {
@@ -73,7 +86,10 @@ SurfaceTargets surface_targets(const GridView& g, const SurfaceTargetOptions& op
           kind = TargetKind::Predicted;
           weight = 1.0 / (1.0 + std::exp(-double(g.logodds[id])));
         } else if (f == CellFlag::Unknown) {
-          if (!opt.frontier) continue;
+          // a frontier target needs a face neighbour occupied or predicted: most unknown
+          // cells have none, and are passed over on their six faces before the 26-neighbour
+          // walk below (the same targets)
+          if (!opt.frontier || !touches_surface_face(g, c)) continue;
           kind = TargetKind::Frontier;
           weight = opt.frontier_weight;
         } else {

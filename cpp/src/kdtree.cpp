@@ -59,7 +59,7 @@ KdTree::KdTree(const PointsRef& points, int leaf_size) : leaf_size_(std::max(1, 
   const std::size_t total = node_count(n, static_cast<std::size_t>(leaf_size_), memo);
   subtree_nodes_.assign(memo.begin(), memo.end());
   nodes_.resize(total);
-  core_arena().execute([&] { build(0, 0, n); });
+  core_arena()->execute([&] { build(0, 0, n); });
   subtree_nodes_.clear();
   subtree_nodes_.shrink_to_fit();
   parallel_chunks(n, 1 << 14, [&](std::size_t b, std::size_t e) {

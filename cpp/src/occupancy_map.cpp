@@ -922,16 +922,18 @@ std::int64_t OccupancyMap::verify_mirror() const {
 
 void OccupancyMap::save(const std::string& path) const {
   const std::string ext = lower_extension(path);
-  sync_octree();
-  bool ok;
-  if (ext == ".ot")
-    ok = tree_->write(path);
-  else if (ext == ".bt")
-    ok = tree_->writeBinaryConst(path);
-  else
+  if (ext != ".ot" && ext != ".bt")
     throw std::invalid_argument("map file '" + path + "': unknown extension '" + ext +
                                 "' (use .ot for full probabilities or .bt for free/occupied)");
-  if (!ok) throw std::runtime_error("could not write map file '" + path + "'");
+  sync_octree();
+  // OcTree::write(filename) does not check the stream after writing (a full disk left a
+  // truncated file and reported success): write through a checked stream instead.
+  write_file(path, [&](std::ostream& out) {
+    if (ext == ".ot")
+      tree_->write(out);
+    else
+      tree_->writeBinaryConst(out);
+  });
 }
 
 OccupancyMap OccupancyMap::load(const std::string& path,

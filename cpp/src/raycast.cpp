@@ -52,7 +52,7 @@ RaycastScene::RaycastScene(const Mesh& mesh, const RaycastOptions& options) : me
   rtcCommitGeometry(geom);
   rtcAttachGeometry(scene_, geom);
   rtcReleaseGeometry(geom);
-  core_arena().execute([&] { rtcCommitScene(scene_); });
+  core_arena()->execute([&] { rtcCommitScene(scene_); });
   check(device_, "rtcCommitScene");
 }
 

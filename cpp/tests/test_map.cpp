@@ -4,6 +4,7 @@
 
 #include <gtest/gtest.h>
 
+#include <cerrno>
 #include <cmath>
 #include <filesystem>
 #include <random>
@@ -309,6 +310,18 @@ TEST(MapFiles, RoundTripExpandsCoarseLeaves) {
   }
   EXPECT_THROW(OccupancyMap::load((dir / "absent.ot").string()), nbv::FileNotFound);
   EXPECT_THROW(m.save((dir / "m.txt").string()), std::invalid_argument);
+  // a write that fails (here: no such folder; a full disk the same way) throws, leaving nothing
+  try {
+    m.save((dir / "absent" / "m.ot").string());
+    ADD_FAILURE() << "save into a missing folder did not throw";
+  } catch (const nbv::FileWriteError& e) {
+    EXPECT_EQ(e.error(), ENOENT);
+  }
+  // a failed save leaves an existing file as it was
+  const std::string p = (dir / "m.ot").string();
+  const auto size = std::filesystem::file_size(p);
+  EXPECT_THROW(m.save(p + "/x.ot"), nbv::FileWriteError);
+  EXPECT_EQ(std::filesystem::file_size(p), size);
   std::filesystem::remove_all(dir);
 }
 

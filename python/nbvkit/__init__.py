@@ -38,6 +38,7 @@ from .config import Config, load_config  # noqa: F401
 from .mission import Mission, MissionError  # noqa: F401
 from .world import World  # noqa: F401
 from .scenarios import SCENARIOS  # noqa: F401
+from .export import export_mission  # noqa: F401
 
 __version__ = "0.1.0"
 
@@ -48,6 +49,7 @@ __all__ = [
     "World",
     "SCENARIOS",
     "load_config",
+    "export_mission",
     "DepthCamera",
     "DepthCameraOptions",
     "LaserScanner",

@@ -13,6 +13,7 @@ COMMANDS = {
     "table": "table",
     "sweep": "sweep",
     "compare": "compare",
+    "export": "export",
 }
 
 

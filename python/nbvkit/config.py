@@ -26,6 +26,7 @@ import numpy as np
 import yaml
 
 from . import _core
+from .cameras import CAMERA_PRESETS
 from .limits import (
     MAX_TEXT_FILE_BYTES,
     MAX_VIEW_RAYS,
@@ -261,6 +262,7 @@ MapConfig = cpp_section(
 class CameraConfig:
     """The RGB-D camera (paper Table 1); mount = T_body_sensor as xyz (m) + roll/pitch/yaw (deg)."""
 
+    preset: str = "rgbd"  # a named camera (nbvkit.cameras): rgbd (the paper's), inspection
     width: int = within(_CAM.width, 1, 16_000)
     height: int = within(_CAM.height, 1, 16_000)
     hfov_deg: float = _CAM.hfov_deg
@@ -570,7 +572,7 @@ class Config:
     scenario: str = DEFAULT_SCENARIO  # a preset (nbvkit.scenarios): profile, 1..5, surface, ...
     start: int = within(0, 0, 4)  # which of the five predefined start poses
     start_pose: Optional[tuple] = None  # (x, y, z, yaw) instead of a predefined start
-    max_iterations: int = within(1000, 0, 10**6)  # cap on camera views after profiling
+    max_iterations: Optional[int] = within(None, 0, 10**6)  # views; null: 0.5 per m^2 of surface
     progress: bool = True  # progress bar on stderr
     mesh: MeshConfig = field(default_factory=MeshConfig)
     workspace: WorkspaceConfig = field(default_factory=WorkspaceConfig)
@@ -605,6 +607,10 @@ class Config:
                 f"got {shorten(self.scenario)}"
             )
         for key, value in SCENARIOS[self.scenario].settings.items():
+            if not _has_dotted(self._user, key):
+                _set_field(self, key, value)
+        # then the named camera's keys (and its stand-off room), under what the user set
+        for key, value in CAMERA_PRESETS.get(self.camera.preset, {}).items():
             if not _has_dotted(self._user, key):
                 _set_field(self, key, value)
 
@@ -823,6 +829,7 @@ _CHOICES = {
     "vehicle.blocked_path": ("reject", "plan"),
     "sampling.method": ("cgvs", "agvs"),
     "utility.name": tuple(_core.utility_names()),
+    "camera.preset": tuple(CAMERA_PRESETS),
     "scenario": tuple(SCENARIOS),
     "symmetry.mode": ("none", "report", "predict"),
     "tour.selection": ("cover", "insertion"),

@@ -1,9 +1,11 @@
 """Experiments: many missions (scenarios x starts x structures x parameter grids), run in
 parallel, resumable, collected into one tidy table; and the paper's Table 2 from it.
 
-Each run writes its own folder ``<out>/runs/<run id>/`` (the Mission results) atomically: into a
-temporary folder renamed into place once complete, so an interrupted sweep restarted with the same
-arguments skips every run whose folder exists and loses no finished result. Runs execute in a
+Each run writes its own folder ``<out>/runs/<run id>/`` (the Mission results) atomically
+(nbvkit.runfolder: into a temporary folder renamed into place once complete, ``manifest.json``
+last, under a lock that two workers given the same run share by turns), so an interrupted sweep
+restarted with the same arguments skips every run whose folder is complete and of the same
+configuration, flies the others again, and loses no finished result. Runs execute in a
 local process pool by default, or on a Dask distributed cluster given its scheduler address.
 """
 from __future__ import annotations
@@ -83,30 +85,30 @@ def run_one(spec: RunSpec, root: str | os.PathLike, threads: int = 0) -> dict:
     from . import set_num_threads
     from .mission import Mission
 
+    from .mission import _write_json_atomic
+    from .report import finish_run
+    from .runfolder import RunFolder
+
     root = Path(root)
     final = root / "runs" / spec.run_id
     cfg, mesh_sha1 = _resolved(spec)
-    if not _finished_with(final, cfg, mesh_sha1):
-        set_num_threads(threads)
-        tmp = root / "runs" / f".{spec.run_id}.tmp{os.getpid()}"
-        shutil.rmtree(tmp, ignore_errors=True)
-        from .report import finish_run
-
-        try:
+    if _finished_with(final, cfg, mesh_sha1):
+        return row_of(final)
+    # A kept folder that is incomplete or of another configuration is replaced whole; another
+    # worker flying the same run holds its lock: wait for it, then reuse what it wrote.
+    with RunFolder(final, overwrite=True, wait=True, carry=()) as folder:
+        if _finished_with(final, cfg, mesh_sha1):
+            folder.cancel()
+        else:
+            set_num_threads(threads)
             mission = Mission(cfg)
-            mission.run(tmp)
+            summary = mission.run()
+            mission.write_results(folder.tmp, summary)
             # one observable-surface cache for the whole experiment: once per structure
-            finish_run(mission, tmp, cache_dir=root / "cache")
-            (tmp / "spec.json").write_text(json.dumps({**_spec_dict(spec), "mesh_sha1": mesh_sha1}))
-        except BaseException:  # an error or Ctrl-C: no half-written run folder stays behind
-            shutil.rmtree(tmp, ignore_errors=True)
-            raise
-        if final.exists() and not _finished_with(final, cfg, mesh_sha1):
-            shutil.rmtree(final, ignore_errors=True)  # a stale run of another configuration
-        try:
-            tmp.rename(final)
-        except OSError:  # another worker finished the same run first
-            shutil.rmtree(tmp, ignore_errors=True)
+            finish_run(mission, folder.tmp, cache_dir=root / "cache")
+            _write_json_atomic(
+                folder.tmp / "spec.json", {**_spec_dict(spec), "mesh_sha1": mesh_sha1}
+            )
     return row_of(final)
 
 
@@ -140,9 +142,11 @@ def _finished_with(run_dir: Path, cfg, mesh_sha1: str | None) -> bool:
     file whose content has this SHA-1 (_mesh_digest). The run id hashes the spec (mesh path,
     overrides, config file name), not the defaults it resolves to, the config file's content nor
     the mesh's: a run kept from before one of them changed is flown again."""
+    from .runfolder import is_complete_run
+
     try:
         return (
-            (run_dir / "summary.json").exists()
+            is_complete_run(run_dir)
             and (run_dir / "config.yaml").read_text() == cfg.to_yaml()
             and mesh_sha1 is not None
             and json.loads((run_dir / "spec.json").read_text()).get("mesh_sha1") == mesh_sha1

@@ -6,10 +6,13 @@ nbvkit.profiling, nbvkit.symmetry and nbvkit.planning; the world they act on is 
 """
 from __future__ import annotations
 
+import contextlib
 import csv
 import json
 import math
+import os
 import resource
+import threading
 import time
 from dataclasses import dataclass, fields
 from pathlib import Path
@@ -19,7 +22,8 @@ import numpy as np
 from .config import Config
 from .evaluation import SUMMARY_KEYS, Evaluator
 from .planning import Planner
-from .world import MissionError, World
+from .planning.terminations.budget import BUDGET_REASONS, view_cap
+from .world import FLIGHT_COLUMNS, MissionError, World
 
 __all__ = ["Mission", "MissionError", "IterationRecord"]
 
@@ -45,6 +49,8 @@ class IterationRecord:
     entropy_change: float
     delta_ev: float
     alpha: int
+    expected_m2: float | None  # the new surface the plan expected of the view (surface utility)
+    realized_m2: float | None  # how much of it the view brought, as the utility counts it
     new_surface_m2: float
     leg_m: float
     distance_m: float
@@ -71,14 +77,25 @@ class Mission:
     def __init__(self, config: Config | None = None, mesh=None):
         if config is not None and not isinstance(config, Config):
             raise TypeError(f"config must be an nbvkit.Config, got {type(config).__name__}")
-        self.config = cfg = config or Config()
-        self.world = World(cfg, mesh)
+        self.config = config or Config()
+        self._running = threading.Lock()
+        self._ran = False
+        self._start(World(self.config, mesh))
+
+    def _start(self, world: World) -> None:
+        """Everything a run changes, as a new Mission has it."""
+        cfg = self.config
+        self.world = world
         self.planner = Planner(cfg, cfg.map.resolution, on_step=self._record)
         self.records: list[IterationRecord] = []
+        self.refresh = None
+        self._bar = None
         self.profile_summary: dict | None = None
         self.symmetry_summary: dict | None = None
         self.coverage_time_s = 0.0  # progress-report coverage refreshes (not a stage)
         self.termination = "not_run"
+        # the cap on views after profiling (max_iterations, or one that follows the structure)
+        self.max_views = view_cap(cfg.max_iterations, self.world.mesh.area)
 
     # the world's parts, for stages and figures
     mesh = property(lambda self: self.world.mesh)
@@ -95,14 +112,47 @@ class Mission:
         return self.world.cloud_points()
 
     # ------------------------------------------------------------------ the method
-    def run(self, out_dir: str | Path | None = None) -> dict:
+    def run(self, out_dir: str | Path | None = None, overwrite: bool = False) -> dict:
         """Runs the mission; with out_dir writes config.yaml, iterations.csv, summary.json,
-        cloud.ply, map.ot, trajectory.csv and figures/*.png there. Returns the summary dict."""
-        cfg, world = self.config, self.world
-        if out_dir is not None:  # before any work: a mission must not fly and then fail to save
-            from .paths import check_output_dir
+        cloud.ply, map.ot, trajectory.csv, flight.csv and figures/*.png there. Returns the
+        summary dict.
 
-            check_output_dir(out_dir, "out_dir")
+        The folder is written whole or not at all (nbvkit.runfolder): into a temporary folder
+        beside it, moved into place with ``manifest.json`` once complete. out_dir is checked
+        before any work: ValueError if it cannot be written, if another run is writing it, or
+        if it already holds files and ``overwrite`` is not given (an overwrite replaces the old
+        run whole, and only a folder holding nothing but nbvkit's outputs).
+
+        A Mission may run again: each run starts from a fresh world (the same results as a new
+        Mission of the same configuration and mesh). One run at a time: a second thread calling
+        run() on a Mission that is running gets a RuntimeError.
+        """
+        if not self._running.acquire(blocking=False):
+            raise RuntimeError(
+                "this Mission is already running (in another thread): a Mission runs one "
+                "flight at a time; make one Mission per thread"
+            )
+        try:
+            if out_dir is None:
+                return self._run()
+            from .runfolder import RunFolder
+
+            # before any work: a mission must not fly and then fail to save
+            with RunFolder(out_dir, overwrite=overwrite, what="out_dir") as folder:
+                summary = self._run()
+                self.write_results(folder.tmp, summary)
+            return summary
+        finally:
+            self._running.release()
+
+    def _run(self) -> dict:
+        if self._ran:  # a second run starts from a fresh world, as a new Mission would
+            world = self.world
+            mesh_path = world.mesh_path
+            self._start(World(self.config, world.mesh))
+            self.world.mesh_path = mesh_path
+        self._ran = True
+        cfg, world = self.config, self.world
         t_start = time.perf_counter()
         self.entropy_initial = world.map.total_entropy()  # the empty workspace
         world.take_off()
@@ -113,18 +163,15 @@ class Mission:
             self.symmetry_summary = self._symmetry()
         if cfg.planner.generators:
             world.sense_camera()  # the first view, from where the camera stage starts
-            self._bar = _progress(cfg.max_iterations, cfg.progress)
+            self._bar = _progress(self.max_views, cfg.progress)
             try:
-                self.termination = self.planner.run(world)
+                self.termination = self.planner.run(world, self.max_views)
             finally:
                 if self._bar is not None:
                     self._bar.close()
         else:
             self.termination = "profile_only"
-        summary = self._summary(self.termination, time.perf_counter() - t_start)
-        if out_dir is not None:
-            self.write_results(Path(out_dir), summary)
-        return summary
+        return self._summary(self.termination, time.perf_counter() - t_start)
 
     def _profile(self) -> dict:
         from .profiling import run_profiling
@@ -151,7 +198,7 @@ class Mission:
     # ------------------------------------------------------------------ per view
     def _record(self, step) -> None:
         cfg, world = self.config, self.world
-        refresh = getattr(self, "refresh", None)
+        refresh = self.refresh
         if refresh is not None:
             self.symmetry_summary["refreshed_cells"] += refresh.after_view(step)
         cov = {}
@@ -175,6 +222,8 @@ class Mission:
                 step.entropy_after - step.entropy_before,
                 step.delta_ev,
                 int(step.extra.get("alpha", 0)),
+                step.expected_m2,
+                step.realized_m2,
                 step.new_surface_m2,
                 step.extra["leg_m"],
                 step.distance_m,
@@ -222,6 +271,9 @@ class Mission:
             "entropy_reduction": self.entropy_initial - e_final,
             "entropy_unit": cfg.map.entropy_unit,
             "termination": termination,
+            # a budget (view cap, distance, views, time) ended it, not the planner's coverage
+            "stopped_by_budget": termination in BUDGET_REASONS,
+            "max_views": self.max_views,
             "wall_time_s": wall,
             "ms_per_iteration": sum(per_stage.values()),
             "ms_per_stage": per_stage,
@@ -235,6 +287,7 @@ class Mission:
             "c_view": self.planner.c_view,
             "seed": cfg.seed,
         }
+        out.update(_gain_accounting(self.records))
         for k in SUMMARY_KEYS:
             out[k] = ev[k]
         if self.profile_summary is not None:
@@ -246,31 +299,77 @@ class Mission:
         return out
 
     def write_results(self, out: Path, summary: dict) -> None:
+        """Writes the run's files into the folder ``out`` as they are (Mission.run(out_dir) and
+        the commands call it on the temporary folder of nbvkit.runfolder.RunFolder, which makes
+        the whole folder appear at once). summary.json is written last. Any write error (a full
+        disk) raises OSError."""
         from .cloud import write_points
         from .plots import plot_mission
 
+        out = Path(out)
         out.mkdir(parents=True, exist_ok=True)
-        (out / "config.yaml").write_text(self.config.to_yaml())
-        _write_json_atomic(out / "summary.json", summary)
+        _write_text_atomic(out / "config.yaml", self.config.to_yaml())
         names = [f.name for f in fields(IterationRecord)]
-        with open(out / "iterations.csv", "w", newline="") as f:
+        with _atomic_open(out / "iterations.csv", newline="") as f:
             w = csv.writer(f)
             w.writerow(names)
             for r in self.records:
                 w.writerow(["" if getattr(r, k) is None else getattr(r, k) for k in names])
-        with open(out / "trajectory.csv", "w", newline="") as f:
+        with _atomic_open(out / "trajectory.csv", newline="") as f:
             w = csv.writer(f)
             w.writerow(["stage", "x", "y", "z", "yaw", "distance_m"])
             w.writerows(self.world.state.trajectory)
+        with _atomic_open(out / "flight.csv", newline="") as f:  # every point flown (export)
+            w = csv.writer(f)
+            w.writerow(FLIGHT_COLUMNS)
+            w.writerows(self.world.state.flight)
         write_points(out / "cloud.ply", self.world.cloud_points())
         self.world.map.save(str(out / "map.ot"))
         plot_mission(self, out / "figures")
+        _write_json_atomic(out / "summary.json", summary)
+
+
+@contextlib.contextmanager
+def _atomic_open(path: Path, mode: str = "w", **kw):
+    """A file opened for writing at a temporary name beside `path`, renamed over it once closed
+    without error (a write error, e.g. a full disk, raises OSError and leaves `path` as it was)."""
+    path = Path(path)
+    tmp = path.with_name(f".{path.name}.tmp{os.getpid()}")
+    try:
+        with open(tmp, mode, **kw) as f:
+            yield f
+        os.replace(tmp, path)
+    except BaseException:
+        with contextlib.suppress(OSError):
+            tmp.unlink()
+        raise
+
+
+def _write_text_atomic(path: Path, text: str) -> None:
+    with _atomic_open(path) as f:
+        f.write(text)
+
+
+def _gain_accounting(records) -> dict:
+    """What the views were expected to bring against what they brought (surface utility): the
+    sums of expected_m2, realized_m2 (as the utility counts) and new_surface_m2 (cells seen for
+    the first time) over the flown views, and the two ratios to the expected; {} otherwise."""
+    flown = [r for r in records if r.expected_m2 is not None]
+    if not flown:
+        return {}
+    expected = sum(r.expected_m2 for r in flown)
+    realized = sum(r.realized_m2 for r in flown)
+    new = sum(r.new_surface_m2 for r in flown)
+    return {
+        "expected_m2": expected,
+        "realized_m2": realized,
+        "realized_to_expected": realized / expected if expected > 0 else None,
+        "new_surface_to_expected": new / expected if expected > 0 else None,
+    }
 
 
 def _write_json_atomic(path: Path, data: dict) -> None:
-    tmp = path.with_suffix(path.suffix + ".tmp")
-    tmp.write_text(json.dumps(_jsonable(data), indent=2, allow_nan=False))
-    tmp.replace(path)
+    _write_text_atomic(path, json.dumps(_jsonable(data), indent=2, allow_nan=False))
 
 
 def _jsonable(x):

@@ -55,3 +55,10 @@ def check_output_file(path, what: str = "output file") -> Path:
     if not existed:
         p.unlink()
     return p
+
+
+# Run folders: whole or marked incomplete (nbvkit.runfolder). Commands that read a run folder
+# (evaluate, export, sweep resume, ...) call require_complete_run first.
+from .runfolder import require_complete_run  # noqa: E402
+
+__all__ += ["require_complete_run"]

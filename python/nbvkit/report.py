@@ -136,7 +136,9 @@ def finish_run(mission, out, cache_dir=None) -> dict:
         if rep.html:
             t0 = time.perf_counter()
             summary["finish_s"] = {**timings, "total": time.perf_counter() - t_all}
-            write_run_report(out, summary, pts, classes, records=mission.records)
+            write_run_report(
+                out, summary, pts, classes, records=mission.records, occ_map=mission.map
+            )
             timings["report_html"] = time.perf_counter() - t0
     timings["total"] = time.perf_counter() - t_all
     summary["finish_s"] = timings
@@ -507,11 +509,12 @@ def _r(a, nd=3):
     return np.round(np.asarray(a, float), nd).tolist()
 
 
-def write_run_report(out, summary: dict, points, classes, records=None) -> Path:
+def write_run_report(out, summary: dict, points, classes, records=None, occ_map=None) -> Path:
     """``out/report.html``: the summary figures, an interactive 3D view of the surface
     (``points`` (N, 3) coloured by ``classes`` (N,): covered / observable but missed /
     unobservable) with the trajectory (``out/trajectory.csv``) and the chosen views
-    (``records`` or ``out/iterations.csv``), the progress plots, and the run's PNG figures.
+    (``records`` or ``out/iterations.csv``), the progress plots, the estimated flight time
+    (``occ_map``: the run's final map, else read from map.ot) and the run's PNG figures.
     Self-contained: plotly.js is inlined; it opens offline."""
     out = Path(out)
     pts = np.asarray(points, float).reshape(-1, 3)
@@ -610,6 +613,7 @@ def write_run_report(out, summary: dict, points, classes, records=None) -> Path:
         )
     )
     body.append(_per_res_table(summary))
+    body.append(flight_section(out, occ_map=occ_map))
     m = summary.get("reconstructed_mesh")
     if m:
         if m.get("written"):
@@ -691,6 +695,91 @@ def write_run_report(out, summary: dict, points, classes, records=None) -> Path:
     path = out / "report.html"
     path.write_text(_page(f"nbvkit run {out.name}", "\n".join(body)))
     return path
+
+
+FLIGHT_BEGIN, FLIGHT_END = "<!-- nbvkit:flight -->", "<!-- /nbvkit:flight -->"
+#: colours of the sorties in the report's flight view (cycled)
+SORTIE_COLOURS = ("#1f77b4", "#ff7f0e", "#2ca02c", "#d62728", "#9467bd", "#8c564b", "#e377c2")
+
+
+def flight_section(out, export: dict | None = None, paths=None, occ_map=None) -> str:
+    """The report's "Flight" section (between FLIGHT_BEGIN and FLIGHT_END): the whole mission's
+    estimated flight time (nbvkit.export's flight-time model; ``export``: the summary of an
+    export_mission, else its default speeds) and, with a budget, the sorties: a table, and
+    ``paths`` ((N, 3) mesh-frame waypoints per sortie) drawn in colour. occ_map: the run's
+    final map when at hand (else read from map.ot)."""
+    out = Path(out)
+    try:
+        if export is None:
+            from .export import estimate_flight
+
+            e = estimate_flight(out, occ_map=occ_map)
+            model = e["model"]
+            mission = {"time_s": e["time_s"], "distance_m": e["distance_m"], "views": e["views"]}
+        else:
+            mission, model = export["mission"], export["model"]
+    except (OSError, ValueError, RuntimeError) as err:
+        body = f"<p>Flight time not estimated: {html.escape(str(err))}</p>"
+        return f"{FLIGHT_BEGIN}<h2>Flight</h2>{body}{FLIGHT_END}"
+    speed = model.get("speed", model.get("speed_m_s"))
+    climb = model.get("climb_rate", model.get("climb_rate_m_s"))
+    rows = [
+        ("estimated flight time (min)", f"{mission['time_s'] / 60:.1f}"),
+        ("flight distance with take-off and return (m)", f"{mission['distance_m']:.1f}"),
+        ("views", mission["views"]),
+        ("model", f"{speed:g} m/s, climb {climb:g} m/s, hover {model['hover_s']:g} s per view"),
+    ]
+    body = [f"<h2>Flight</h2>{_table(rows)}"]
+    if export is not None and export.get("budget"):
+        b = export["budget"]
+        body.append(
+            f"<p>Sorties for a {b['flight_time_min']:g} min battery ({b['reserve_pct']:g}% "
+            f"reserve): {len(export['sorties'])}"
+            + (f"; not flown: {len(export['unreachable'])} points" if export["unreachable"] else "")
+            + "</p>"
+        )
+        body.append(
+            _table(
+                [("sortie", "views / distance (m) / time (min)")]
+                + [
+                    (s["sortie"], f"{s['views']} / {s['distance_m']:.1f} / {s['time_min']:.2f}")
+                    for s in export["sorties"]
+                ]
+            )
+        )
+        if paths:
+            traces = [
+                {
+                    "type": "scatter3d",
+                    "mode": "lines",
+                    "name": f"sortie {k + 1}",
+                    "x": _r(p[:, 0]),
+                    "y": _r(p[:, 1]),
+                    "z": _r(p[:, 2]),
+                    "line": {"color": SORTIE_COLOURS[k % len(SORTIE_COLOURS)], "width": 4},
+                }
+                for k, p in enumerate(paths)
+            ]
+            layout = {"title": "sorties", "scene": {"aspectmode": "data"}}
+            body.append(_plot("sorties3d", traces, layout))
+    return FLIGHT_BEGIN + "\n".join(body) + FLIGHT_END
+
+
+def update_flight_section(out, export: dict, paths=None) -> bool:
+    """Replaces the flight section of ``out/report.html`` (if there) with one for ``export``;
+    True if the report was updated."""
+    path = Path(out) / "report.html"
+    if not path.is_file():
+        return False
+    text = path.read_text()
+    a, b = text.find(FLIGHT_BEGIN), text.find(FLIGHT_END)
+    if a < 0 or b < a:
+        return False
+    new = text[:a] + flight_section(out, export, paths) + text[b + len(FLIGHT_END) :]
+    tmp = path.with_suffix(".html.tmp")
+    tmp.write_text(new)
+    tmp.replace(path)
+    return True
 
 
 def _read_csv(path: Path) -> list[dict]:

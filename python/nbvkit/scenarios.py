@@ -40,6 +40,7 @@ _PAPER = {
     "profiling.arcs": "level",
     "profiling.return_to_start": True,
     "symmetry.refresh_every": 0,
+    "max_iterations": 1000,
 }
 
 # nbvkit's surface planners: the surface utility (expected new surface), A* legs through known

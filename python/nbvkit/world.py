@@ -22,15 +22,44 @@ class MissionError(ValueError):
     """A mission that cannot start: bad start pose, unknown option, missing stage."""
 
 
+#: The columns of VehicleState.flight (and of a run's flight.csv).
+FLIGHT_COLUMNS = ("stage", "x", "y", "z", "yaw", "pitch", "capture", "distance_m")
+
+
 @dataclass
 class VehicleState:
-    """Where the vehicle is and has been: pose (x, y, z, yaw), distance flown (m), and the
-    trajectory rows (stage, x, y, z, yaw, distance_m)."""
+    """Where the vehicle is and has been: pose (x, y, z, yaw), distance flown (m), the
+    trajectory rows (stage, x, y, z, yaw, distance_m: the start and each leg's end), and the
+    flight rows (FLIGHT_COLUMNS: every point flown, the A* waypoints between the legs' ends
+    included; pitch in radians, 0 while views are level; capture "view" where a counted view was
+    taken, "frame" where an in-flight camera frame was, else "": one capture per row)."""
 
     pose: np.ndarray
     distance_m: float = 0.0
     views: int = 0  # camera frames taken
     trajectory: list = field(default_factory=list)
+    flight: list = field(default_factory=list)
+
+    def record_leg(self, stage: str, pts: np.ndarray, d0: float) -> None:
+        """Flight rows of a leg flown along `pts` (P, 3; first = where it started) from the
+        distance d0 to the current pose: the waypoints in between, then the pose."""
+        pitch = float(self.pose[4]) if len(self.pose) > 4 else 0.0
+        yaw = float(self.pose[3])
+        d = d0
+        for a, b in zip(pts[:-2], pts[1:-1]):
+            d += float(np.linalg.norm(b - a))
+            self.flight.append([stage, *map(float, b), yaw, pitch, "", d])
+        p = self.pose
+        self.flight.append([stage, *map(float, p[:3]), yaw, pitch, "", self.distance_m])
+
+    def capture(self, kind: str = "view") -> None:
+        """Marks the last flight row (where the vehicle is) as a camera capture: a counted view
+        ("view", which also counts in `views`) or an in-flight frame ("frame")."""
+        if kind == "view":
+            self.views += 1
+        if self.flight[-1][6]:  # a second capture here: a row of its own
+            self.flight.append(list(self.flight[-1]))
+        self.flight[-1][6] = kind
 
 
 def cloud_floor(config: Config, mesh_bounds) -> float:
@@ -147,6 +176,7 @@ class World:
         self.view_camera = view_camera(cfg)
         self.state = VehicleState(pose=self.start_pose.copy())
         self.state.trajectory.append(("start", *self.start_pose.tolist(), 0.0))
+        self.state.record_leg("start", self.start_pose[None, :3], 0.0)
         # the symmetry stage's results, for the mission's figures (nbvkit.symmetry)
         self.symmetry_result = self.symmetry_prediction = self.symmetry_profile = None
 
@@ -243,7 +273,7 @@ class World:
         self.map.integrate(scan)
         self.camera_cloud.add(scan.hits)
         self.surface.add_scan(scan)
-        self.state.views += view
+        self.state.capture("view" if view else "frame")
         return scan
 
     def sense_laser(self, pose=None):
@@ -279,9 +309,11 @@ class World:
                 r += 0.5 * math.sqrt(3.0) * self.map.resolution
             for a, b in zip(pts[:-1], pts[1:]):
                 self.map.mark_free_segment(a, b, r)
+        d0 = self.state.distance_m
         self.state.distance_m += d
         self.state.pose = np.asarray(target, float).copy()
         self.state.trajectory.append((stage, *self.state.pose.tolist(), self.state.distance_m))
+        self.state.record_leg(stage, pts, d0)
         return d
 
     def validity(self, blocked_path: str | None = None):

@@ -6,6 +6,9 @@
 
 #include <chrono>
 #include <cstdint>
+#include <functional>
+#include <iosfwd>
+#include <shared_mutex>
 #include <stdexcept>
 #include <string>
 
@@ -43,6 +46,25 @@ class FileNotFound : public std::runtime_error {
   std::string path_;
 };
 
+/// Raised when a file cannot be written whole (a full disk, a missing folder, no permission);
+/// crosses into Python as OSError(errno, strerror, path).
+class FileWriteError : public std::runtime_error {
+ public:
+  FileWriteError(const std::string& path, int error);
+  const std::string& path() const { return path_; }
+  int error() const { return error_; }
+
+ private:
+  std::string path_;
+  int error_;
+};
+
+/// Writes `path` whole or not at all: `write` fills a stream on a temporary file beside it,
+/// which is flushed, checked and renamed over `path`; on any failure the temporary file is
+/// removed and FileWriteError (with the system's reason, e.g. ENOSPC) is thrown, leaving an
+/// existing `path` as it was.
+void write_file(const std::string& path, const std::function<void(std::ostream&)>& write);
+
 /// `s` with every byte outside printable ASCII written as \xNN: text quoted from a file into an
 /// error message must be valid UTF-8 to cross into Python.
 std::string printable_ascii(const std::string& s);
@@ -67,7 +89,25 @@ void require_finite(const PointsRef& points, const char* what);
 /// not [0, 0, 0, 1].
 Eigen::Isometry3d to_rigid(const Eigen::Matrix4d& M, const char* what);
 
+/// The reader-writer lock of an object that several threads may share (OccupancyMap,
+/// SurfaceObservations): the Python bindings hold it shared around every query and exclusively
+/// around every update, so calls from several Python threads (which release the GIL) are
+/// serialised where they must be. A member that moves with its object: the moved-to object gets
+/// a fresh, unlocked lock (moving an object that is in use is a bug anyway).
+class AccessLock {
+ public:
+  AccessLock() = default;
+  AccessLock(AccessLock&&) noexcept {}
+  AccessLock& operator=(AccessLock&&) noexcept { return *this; }
+  std::shared_mutex& mutex() const { return m_; }
+
+ private:
+  mutable std::shared_mutex m_;
+};
+
 /// Number of worker threads used by the core's parallel loops (0 = all hardware threads).
+/// Process-wide; safe to call while other threads run parallel loops: those finish on the
+/// threads they started with, and every later loop uses the new count.
 void set_num_threads(int n);
 int get_num_threads();
 

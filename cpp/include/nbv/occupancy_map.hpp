@@ -30,7 +30,9 @@
 // Thread safety: const queries may run concurrently, except octree() / save() /
 // verify_mirror(), which may bring the octree up to date; the mutating calls (integrate*,
 // update_cells, mark_free_segment, set_unknown_cells) must not run concurrently with anything
-// else on the same map. Results do not depend on the number of threads.
+// else on the same map. C++ callers that share a map between threads hold access_lock() (shared
+// for queries, exclusive for the rest); the Python bindings do so around every call, so one map
+// may be used from several Python threads. Results do not depend on the number of threads.
 #pragma once
 
 #include "nbv/common.hpp"
@@ -225,6 +227,8 @@ class OccupancyMap {
   /// The octree (map of record), brought up to date first. Read-only: changing it behind the
   /// map's back breaks the grid.
   const octomap::OcTree& octree() const;
+  /// The map's reader-writer lock (see Thread safety above); the map itself never takes it.
+  std::shared_mutex& access_lock() const { return access_.mutex(); }
 
   // ---- files ----------------------------------------------------------------------------------
   /// Writes `.ot` (OcTree::write: full probabilities) or `.bt` (writeBinaryConst: maximum
@@ -305,6 +309,7 @@ class OccupancyMap {
   std::unique_ptr<std::uint32_t[], FreeDeleter> stamp_;    // per cell: last stamp written
   std::unique_ptr<std::int32_t[], FreeDeleter> group_of_;  // per cell: valid where stamped
   std::uint32_t stamp_counter_ = 0;
+  AccessLock access_;
 };
 
 // ---- implementation of the template --------------------------------------------------------

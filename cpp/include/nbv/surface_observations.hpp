@@ -47,6 +47,9 @@ class SurfaceObservations {
   const GridLayout& layout() const { return layout_; }
   /// True if this record was made for a map of the same workspace grid.
   bool matches(const OccupancyMap& map) const;
+  /// The record's reader-writer lock for callers sharing it between threads (the Python
+  /// bindings: shared around reads, exclusive around add_scan / clear); never taken inside.
+  std::shared_mutex& access_lock() const { return access_.mutex(); }
 
  private:
   double res_;
@@ -56,6 +59,7 @@ class SurfaceObservations {
   std::vector<std::uint32_t> seen_;
   std::vector<std::uint16_t> hits_;
   BrickStamps stamps_;
+  AccessLock access_;
 };
 
 }  // namespace nbv

@@ -9,7 +9,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..paths import check_output_file
+from ..paths import check_output_file, require_complete_run
 from ..cloud import read_points
 from ..evaluation import (
     DEFAULT_GT_DENSITY,
@@ -44,9 +44,10 @@ def register(sub) -> argparse.ArgumentParser:
     p.add_argument(
         "cloud",
         metavar="CLOUD",
-        help="the reconstruction to score: a point cloud (.ply, .pcd or .npy) or a mesh "
+        help="the reconstruction to score: a point cloud (.ply, .pcd or .npy), a mesh "
         "(a .ply with faces, .obj, .stl, .off, .glb, .gltf, .dae: its surface is sampled at "
-        "--gt-density), world frame, metres, same frame as the mesh after "
+        "--gt-density), or a run folder (its cloud.ply; a run folder must be complete), world "
+        "frame, metres, same frame as the mesh after "
         "--mesh-scale/--mesh-up/--mesh-shift",
     )
     p.add_argument(
@@ -123,7 +124,7 @@ def run(args) -> int:
         raise ValueError(f"--gt-density must be > 0, got {args.gt_density}")
     if args.json:
         check_output_file(args.json, "--json")
-    cloud_path = Path(os.fspath(args.cloud)).expanduser()
+    cloud_path = run_cloud(Path(os.fspath(args.cloud)).expanduser())
     cloud, cloud_kind = read_reconstruction(cloud_path, args.gt_density, args.seed)
     if args.reference_cloud:
         gt = read_points(args.reference_cloud)
@@ -177,6 +178,19 @@ def run(args) -> int:
         Path(args.json).expanduser().write_text(text + "\n")
         print(f"results -> {args.json}")
     return 0
+
+
+def run_cloud(path: Path) -> Path:
+    """The file to score for CLOUD: a run folder's cloud.ply, or the file itself. A run folder,
+    or a file in one, must be a complete run (nbvkit.paths.require_complete_run): the cloud of a
+    run that was interrupted, failed or is still being written is refused."""
+    from ..runfolder import looks_like_run
+
+    if path.is_dir():
+        return require_complete_run(path, "CLOUD") / "cloud.ply"
+    if looks_like_run(path.parent):
+        require_complete_run(path.parent, "CLOUD's run folder")
+    return path
 
 
 def _frames_apart(cloud, gt, margin: float) -> str:

@@ -7,8 +7,9 @@ import json
 
 from ..config import load_config
 from ..mission import Mission
+from ..planning.terminations.budget import budget_note
 from ..report import finish_run
-from ..paths import check_output_dir
+from ..runfolder import RunFolder
 from ..scenarios import DEFAULT, SCENARIOS
 from .common import add_mesh_shift_option, add_set_option, shift_override
 
@@ -19,7 +20,10 @@ def register(sub) -> argparse.ArgumentParser:
         help="run one reconstruction mission and write its results folder",
         description="Fly one scenario on a structure from one of its five predefined starts, and "
         "write DIR/summary.json, iterations.csv, config.yaml (resolved), cloud.ply, map.ot, "
-        "trajectory.csv, mesh.ply, figures/*.png and report.html (open it in a browser). "
+        "trajectory.csv, mesh.ply, figures/*.png and report.html (open it in a browser), and "
+        "manifest.json last: the folder appears whole once the run is complete (a failed or "
+        "killed run leaves no partial folder), and a folder that already holds files is "
+        "refused unless --overwrite. "
         f"Without --scenario: {DEFAULT}, the recommended planner.",
         formatter_class=argparse.RawDescriptionHelpFormatter,
         epilog="scenarios (--scenario, or --planner for nbvkit's own):\n"
@@ -66,6 +70,12 @@ def register(sub) -> argparse.ArgumentParser:
         default=None,
         help="results folder (default runs/scenario<S>_start<K>)",
     )
+    p.add_argument(
+        "--overwrite",
+        action="store_true",
+        help="replace the run already in --out (whole, once the new one is complete; a folder "
+        "holding files nbvkit did not write is never replaced)",
+    )
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
     return p
 
@@ -90,10 +100,13 @@ def config_from_args(args):
 
 def run(args) -> int:
     cfg = config_from_args(args)
-    out = check_output_dir(args.out or f"runs/scenario{cfg.scenario}_start{cfg.start}", "--out")
-    mission = Mission(cfg)
-    mission.run(out)
-    s = finish_run(mission, out)
+    out = args.out or f"runs/scenario{cfg.scenario}_start{cfg.start}"
+    # checked (writable, not in use by another run, empty or --overwrite) before any work
+    with RunFolder(out, overwrite=args.overwrite, what="--out") as folder:
+        mission = Mission(cfg)
+        summary = mission.run()
+        mission.write_results(folder.tmp, summary)
+        s = finish_run(mission, folder.tmp)
     cov = s["coverage"]
     print(
         f"scenario {s['scenario']} start {s['start']}: {s['iterations']} iterations, "
@@ -101,6 +114,9 @@ def run(args) -> int:
         f"{s['entropy_reduction']:,.0f} {s['entropy_unit']}, "
         f"termination: {s['termination']}"
     )
+    note = budget_note(s["termination"], s)
+    if note:
+        print("note: " + note)
     print("coverage  " + "  ".join(f"@{k} m {v:6.1%}" for k, v in cov.items()))
     print("area cov. " + "  ".join(f"@{k} m {v:6.1%}" for k, v in s["area_coverage"].items()))
     if "coverage_observable" in s:

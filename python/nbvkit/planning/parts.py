@@ -51,6 +51,8 @@ class Step:
     new_surface_m2: float  # surface cells the camera saw for the first time (from any side)
     distance_m: float  # total flown so far
     extra: dict = field(default_factory=dict)  # generator-specific columns (e.g. AGVS alpha)
+    expected_m2: Optional[float] = None  # new surface the surface utility expected of it, m^2
+    realized_m2: Optional[float] = None  # how much of that it brought (Planner.delivered)
 
 
 #: The smallest factor threshold_scale gives: at a tenth of the thresholds (0.12 m^2 of new

@@ -24,6 +24,7 @@ class Planner:
         self.terminations = [TERMINATIONS[n](config) for n in config.planner.terminations]
         self.selector = Selector(config, resolution)
         self.utility = config.utility.options()
+        self.surface = config.utility.name == "surface"  # its gain: cells of new surface
         c = config.camera
         self.c_view = viewable_cells(
             c.hfov_deg,
@@ -38,10 +39,11 @@ class Planner:
         # the paper's IG walks kept between iterations: the same scores, fewer walks
         self.memo = _core.ViewMemo()
 
-    def run(self, world) -> str:
-        """Flies views until a termination fires; returns why it stopped."""
+    def run(self, world, max_views: int) -> str:
+        """Flies views until a termination fires or max_views are flown ("max_iterations");
+        returns why it stopped."""
         t = self.timers
-        for iteration in range(1, self.config.max_iterations + 1):
+        for iteration in range(1, max_views + 1):
             found = self.next_view(world)  # viewpoint sampling + evaluation + selection
             if isinstance(found, str):
                 return found
@@ -55,8 +57,10 @@ class Planner:
                 world.map.integrate(scan)
                 world.camera_cloud.add(scan.hits)
                 new_cells = world.surface.add_scan(scan)
-                world.state.views += 1
+                world.state.capture("view")
             entropy_after = world.map.total_entropy()
+            with t("evaluation"):
+                expected, realized = self.delivered(world, choice)
             step = Step(
                 iteration,
                 choice,
@@ -69,6 +73,8 @@ class Planner:
                 new_cells * world.map.resolution**2,
                 world.state.distance_m,
                 extra={"leg_m": leg, "scan": scan},
+                expected_m2=expected,
+                realized_m2=realized,
             )
             for g in contributors:
                 g.feedback(world, proposal, step)
@@ -79,6 +85,29 @@ class Planner:
                 if reason:
                     return reason
         return "max_iterations"
+
+    def delivered(self, world, choice):
+        """(expected, realized) m^2 of the view just flown, in the surface utility's own terms
+        (None, None for other utilities): the new surface its score counted when it was chosen,
+        and how much of that the frame brought - the score's drop when the same pose is scored
+        again on the map after it. What is still counted after the view was flown from there
+        (unknown space the structure hides, surface beyond the camera's reach) was expected of
+        it and not delivered."""
+        if not self.surface:
+            return None, None
+        after = _core.evaluate_views(
+            world.map,
+            choice.pose[None],
+            world.state.pose,
+            camera=world.view_camera,
+            utility=self.utility,
+            validity=world.validity(),
+            surface=world.surface,
+            memo=self.memo,
+        )
+        cell_m2 = world.map.resolution**2
+        left = float(after["gain"][0]) if after["status"][0] == 0 else 0.0
+        return choice.gain * cell_m2, max(0.0, choice.gain - left) * cell_m2
 
     def next_view(self, world):
         """(proposal, its generators, scores, choice) of the next view to fly, or why there is

@@ -1,8 +1,50 @@
-"""Hard limits on a mission after profiling: distance flown (m, profiling included), camera views
-and wall time (s); 0 disables a limit."""
+"""Budgets: the limits that end a mission before its planner finds the structure covered.
+
+`view_cap` resolves max_iterations (the cap on camera views after profiling); `Budget` is the
+termination of the budget section: distance flown (m, profiling included), camera views and
+wall time (s); 0 disables a limit. A mission that one of them ended says so in its summary
+(`stopped_by_budget`) and on the console: its coverage is what the budget allowed, not what the
+planner could reach."""
 from __future__ import annotations
 
+import math
 import time
+
+#: max_iterations left unset (null) follows the structure: this many views per m^2 of its
+#: surface, and at least MIN_VIEW_CAP. The recommended planner flies about 0.23 views per m^2 of
+#: observable surface on the airliner; twice the whole surface's worth is a cap that a planner
+#: making progress does not meet, and still ends one that flies on without any.
+VIEWS_PER_M2 = 0.5
+MIN_VIEW_CAP = 1000
+
+#: The termination reasons that are budgets (nothing about the structure's coverage).
+BUDGET_REASONS = ("max_iterations", "budget_distance", "budget_views", "budget_time")
+
+
+def view_cap(max_iterations, surface_area_m2: float) -> int:
+    """The cap on camera views after profiling: max_iterations as set, or (None) the one that
+    follows the structure: max(MIN_VIEW_CAP, VIEWS_PER_M2 x its surface area)."""
+    if max_iterations is not None:
+        return int(max_iterations)
+    return max(MIN_VIEW_CAP, int(math.ceil(VIEWS_PER_M2 * surface_area_m2)))
+
+
+def budget_note(termination: str, summary: dict) -> str | None:
+    """A line for the console when a budget ended the mission (None otherwise), naming the
+    budget and how to raise it."""
+    if termination not in BUDGET_REASONS:
+        return None
+    if termination == "max_iterations":
+        n = summary.get("max_views")
+        what, key = f"the view cap ({n} view{'' if n == 1 else 's'})", "max_iterations"
+    else:
+        key = {"budget_distance": "budget.max_distance_m", "budget_views": "budget.max_views"}
+        key = key.get(termination, "budget.max_time_s")
+        what = f"the budget {key}"
+    return (
+        f"stopped by {what}, not because the structure is covered: the coverage is what the "
+        f"budget allowed (raise it with --set {key}=...)"
+    )
 
 
 class Budget:

@@ -1,0 +1,106 @@
+"""nbvkit export: a run's flight as missions a drone flies and camera poses (nbvkit.export)."""
+from __future__ import annotations
+
+import argparse
+
+
+def register(sub) -> argparse.ArgumentParser:
+    from ..export import FORMATS
+
+    p = sub.add_parser(
+        "export",
+        help="write a run's flight as QGroundControl/ArduPilot/DJI missions, KML, GeoJSON, CSV "
+        "and COLMAP poses",
+        description="Write what a run flew (RUN_DIR/flight.csv: the profile, the A* legs and the "
+        "views) as files a ground station, a DJI aircraft or a photogrammetry tool reads. The "
+        "mesh frame is local East-North-Up at --origin turned by --heading. With --flight-time "
+        "the flight is split into sorties from and back to the launch point (below the start), "
+        "one file per sortie per format, plus sorties.csv. Format facts and sources: "
+        "docs/EXPORT.md.",
+    )
+    p.add_argument("run_dir", metavar="RUN_DIR", help="a run folder of `nbvkit run`")
+    p.add_argument(
+        "--format",
+        default="qgc",
+        metavar="FORMAT[,FORMAT...]",
+        help=f"any of {', '.join(FORMATS)} (default qgc: a .plan and a QGC WPL 110 .waypoints)",
+    )
+    p.add_argument(
+        "--origin",
+        nargs=3,
+        type=float,
+        required=True,
+        metavar=("LAT", "LON", "ALT"),
+        help="WGS84 latitude and longitude (degrees) and altitude (m) of the mesh frame's origin",
+    )
+    p.add_argument(
+        "--altitude-ref",
+        choices=("amsl", "ellipsoid"),
+        default="amsl",
+        help="what ALT is measured from: mean sea level or the WGS84 ellipsoid (default amsl)",
+    )
+    p.add_argument(
+        "--heading",
+        type=float,
+        default=0.0,
+        metavar="DEG",
+        help="bearing of the mesh's +x axis, degrees clockwise from true north (default 0)",
+    )
+    p.add_argument("--speed", type=float, default=5.0, metavar="M_S", help="cruise speed (5)")
+    p.add_argument(
+        "--climb-rate", type=float, default=2.0, metavar="M_S", help="climb/descent rate (2)"
+    )
+    p.add_argument("--hover", type=float, default=2.0, metavar="S", help="hover per view (2 s)")
+    p.add_argument(
+        "--flight-time",
+        type=float,
+        default=None,
+        metavar="MIN",
+        help="one battery's flight time: split the flight into sorties within it",
+    )
+    p.add_argument(
+        "--reserve",
+        type=float,
+        default=20.0,
+        metavar="PCT",
+        help="battery reserve kept unused, percent of --flight-time (default 20)",
+    )
+    p.add_argument("--out", metavar="DIR", default=None, help="output folder (RUN_DIR/export)")
+    return p
+
+
+def run(args) -> int:
+    from ..export import export_mission
+
+    s = export_mission(
+        args.run_dir,
+        formats=args.format,
+        origin=tuple(args.origin),
+        heading_deg=args.heading,
+        out_dir=args.out,
+        speed=args.speed,
+        climb_rate=args.climb_rate,
+        hover_s=args.hover,
+        flight_time_min=args.flight_time,
+        reserve_pct=args.reserve,
+        altitude_ref=args.altitude_ref,
+    )
+    m = s["mission"]
+    print(
+        f"mission: {m['views']} views, {m['distance_m']:.0f} m, {m['time_min']:.1f} min "
+        f"(speed {args.speed:g} m/s, climb {args.climb_rate:g} m/s, hover {args.hover:g} s)"
+    )
+    if s["budget"] is not None:
+        print(f"{'sortie':>6} {'views':>6} {'distance_m':>11} {'time_min':>9}")
+        for r in s["sorties"]:
+            print(
+                f"{r['sortie']:>6} {r['views']:>6} {r['distance_m']:>11.1f} {r['time_min']:>9.2f}"
+            )
+        for u in s["unreachable"]:
+            what = u["capture"] or f"{u['stage']} point"
+            print(
+                f"not flown: {what} at flight row {u['row']} needs {u['needed_s'] / 60:.2f} min "
+                "out, along and back, more than one battery"
+            )
+    print(f"{len(s['files'])} files -> {s['out']}/")
+    return 0

@@ -1,0 +1,345 @@
+"""Fly the plan: a run's flight as files a ground station, a DJI aircraft or a photogrammetry tool
+reads (``nbvkit export`` / ``nbvkit.export_mission``), split into one flight per battery on
+request. The format facts and their sources are in docs/EXPORT.md.
+"""
+from __future__ import annotations
+
+import json
+import math
+import os
+import shutil
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+
+from .georef import ALTITUDE_REFS, GeoFrame  # noqa: F401
+from .plan import (
+    FRAME,
+    VIEW,
+    FlightModel,
+    ReturnPaths,
+    SortiePlanner,
+    find_launch,
+    load_map,
+    read_run,
+)
+from . import writers
+
+__all__ = ["FORMATS", "export_mission", "estimate_flight", "GeoFrame", "FlightModel"]
+
+#: format -> the files it writes per sortie (colmap: one model of the whole flight)
+FORMATS = {
+    "qgc": (".plan", ".waypoints"),
+    "wpml": (".kmz",),
+    "kml": (".kml",),
+    "geojson": (".geojson",),
+    "csv": (".csv",),
+    "colmap": ("colmap/cameras.txt", "colmap/images.txt", "colmap/points3D.txt"),
+}
+
+
+def _formats(formats) -> list[str]:
+    if isinstance(formats, str):
+        formats = formats.split(",")
+    out = []
+    for f in formats:
+        f = str(f).strip().lower()
+        if not f:
+            continue
+        if f not in FORMATS:
+            raise ValueError(f"unknown export format {f!r} (known: {', '.join(FORMATS)})")
+        if f not in out:
+            out.append(f)
+    if not out:
+        raise ValueError(f"no export format given (known: {', '.join(FORMATS)})")
+    return out
+
+
+def _budget(flight_time_min, reserve_pct):
+    """Usable seconds of one battery, or None without a budget."""
+    if not (math.isfinite(reserve_pct) and 0 <= reserve_pct < 100):
+        raise ValueError(f"reserve must be within [0, 100) %, got {reserve_pct}")
+    if flight_time_min is None:
+        return None
+    if not (math.isfinite(flight_time_min) and flight_time_min > 0):
+        raise ValueError(
+            f"flight time must be a finite number of minutes > 0, got {flight_time_min}"
+        )
+    return 60.0 * flight_time_min * (1.0 - reserve_pct / 100.0)
+
+
+def _planner(run_dir, model: FlightModel, need_all_returns: bool, occ_map=None):
+    fl = read_run(run_dir)
+    occ = load_map(fl) if occ_map is None else occ_map
+    find_launch(fl, occ, model)
+    # A* ways back from the captures a sortie may end at (the profile's other points go back
+    # along the profile to one); without a budget only the last row's way back matters
+    work = SortiePlanner.work_rows(fl)
+    caps = [i for i in work if fl.capture[i]]
+    targets = [*caps, work[-1]] if need_all_returns else work[-1:]
+    returns = ReturnPaths(fl, model, occ, targets)
+    return fl, SortiePlanner(fl, model, returns)
+
+
+def estimate_flight(run_dir, speed=5.0, climb_rate=2.0, hover_s=2.0, occ_map=None) -> dict:
+    """The whole mission's estimated flight (one battery, no limit) of a run folder: time_s,
+    distance_m, views, frames (see nbvkit.export.plan for the model). occ_map: the run's final
+    OccupancyMap when at hand (default: read from its map.ot)."""
+    model = FlightModel(speed, climb_rate, hover_s)
+    fl, sp = _planner(run_dir, model, need_all_returns=False, occ_map=occ_map)
+    s = sp.whole()
+    return {
+        "time_s": s.time_s,
+        "distance_m": s.distance_m,
+        "views": s.views,
+        "frames": s.frames,
+        "model": {"speed": speed, "climb_rate": climb_rate, "hover_s": hover_s},
+    }
+
+
+def _geo(fl, sortie, frame: GeoFrame, speed, hover_s, numbers, name) -> writers.GeoWaypoints:
+    """The sortie's waypoints on the Earth, with headings and gimbal angles."""
+    from .. import _core
+
+    cfg = fl.config
+    cam = _core.mount_transform(cfg.camera.mount_xyz, *cfg.camera.mount_rpy_deg)
+    wps = sortie.waypoints
+    xyz = np.array([w.xyz for w in wps], float)
+    lat, lon, alt = frame.to_geodetic(xyz)
+    heading, pitch, gyaw = [], [], []
+    for w in wps:
+        T_body = _core.pose_to_transform([*w.xyz, w.yaw])
+        T = T_body @ _core.mount_transform([0, 0, 0], 0.0, math.degrees(w.pitch), 0.0) @ cam
+        h = frame.bearing(T_body[:3, 0])
+        fwd = T[:3, 0]
+        heading.append(h)
+        pitch.append(math.degrees(math.asin(max(-1.0, min(1.0, fwd[2])))))
+        gyaw.append(writers._signed(frame.bearing(fwd) - h) if np.hypot(*fwd[:2]) > 1e-9 else 0.0)
+    hlat, hlon, halt = frame.to_geodetic(fl.home)
+    return writers.GeoWaypoints(
+        lat=lat,
+        lon=lon,
+        alt=alt,
+        rel_alt=xyz[:, 2] - fl.home[2],
+        heading=np.array(heading),
+        gimbal_pitch=np.array(pitch),
+        gimbal_yaw=np.array(gyaw),
+        action=[w.action for w in wps],
+        stage=[w.stage for w in wps],
+        row=[w.row for w in wps],
+        number=[numbers.get(w.row, 0) for w in wps],
+        home=(float(hlat[0]), float(hlon[0]), float(halt[0])),
+        speed=float(speed),
+        hover_s=float(hover_s),
+        altitude_ref=frame.altitude_ref,
+        name=name,
+    )
+
+
+def camera_poses(fl) -> list:
+    """(name, T_world_sensor (4, 4)) of every capture of the flight, in order: view_0001.png ...,
+    frame_0001.png ... (numbered per kind)."""
+    from .. import _core
+
+    cfg = fl.config
+    cam = _core.mount_transform(cfg.camera.mount_xyz, *cfg.camera.mount_rpy_deg)
+    out, count = [], {VIEW: 0, FRAME: 0}
+    for i, c in enumerate(fl.capture):
+        if not c:
+            continue
+        count[c] += 1
+        T_body = _core.pose_to_transform([*fl.xyz[i], fl.yaw[i]])
+        T = T_body @ _core.mount_transform([0, 0, 0], 0.0, math.degrees(fl.pitch[i]), 0.0) @ cam
+        out.append((f"{c}_{count[c]:04d}.png", T))
+    return out
+
+
+def export_mission(
+    run_dir,
+    formats=("qgc",),
+    origin=None,
+    heading_deg: float = 0.0,
+    out_dir=None,
+    speed: float = 5.0,
+    climb_rate: float = 2.0,
+    hover_s: float = 2.0,
+    flight_time_min: float | None = None,
+    reserve_pct: float = 20.0,
+    altitude_ref: str = "amsl",
+    dji_drone=(67, 0),
+    dji_payload: int = 52,
+) -> dict:
+    """Writes a run folder's flight in `formats` (FORMATS; a list or "qgc,kml,...") to `out_dir`
+    (default RUN_DIR/export) and returns the export's summary (also out_dir/export.json).
+
+    origin: (latitude, longitude, altitude) of the mesh frame's origin, degrees WGS84 and metres
+    (altitude_ref "amsl" or "ellipsoid"); heading_deg: the bearing of the mesh's +x axis. speed
+    (m/s), climb_rate (m/s), hover_s (s per view): the flight-time model. flight_time_min: one
+    battery's flight time; with it the flight is split into sorties within flight_time_min *
+    (1 - reserve_pct / 100) each, one file per sortie per format. dji_drone / dji_payload: the
+    WPML droneEnumValue/droneSubEnumValue and payloadEnumValue (default: M30).
+
+    Raises ValueError naming a bad value (latitude, longitude, non-finite numbers, an unknown
+    format, a budget too small for any view), FileNotFoundError for a run folder without a
+    flight. Files are written into a temporary folder beside out_dir and moved into place only
+    when all are written: on an error nothing is left half-written.
+    """
+    fmts = _formats(formats)
+    if origin is None or len(origin) != 3:
+        raise ValueError(f"origin must be (latitude, longitude, altitude), got {origin!r}")
+    frame = GeoFrame(*(float(v) for v in origin), float(heading_deg), altitude_ref)
+    model = FlightModel(float(speed), float(climb_rate), float(hover_s))
+    usable = _budget(flight_time_min, float(reserve_pct))
+    run = Path(run_dir).expanduser()
+    out = Path(out_dir).expanduser() if out_dir is not None else run / "export"
+    if out.exists() and not out.is_dir():
+        raise ValueError(f"output folder {out} exists and is not a folder")
+
+    fl, sp = _planner(run, model, need_all_returns=usable is not None)
+    whole = sp.whole()
+    unreachable = []
+    if usable is None:
+        sorties = [whole]
+    else:
+        sorties, unreachable = sp.split(usable)
+        n_views = int((np.asarray(fl.capture) == VIEW).sum())
+        flown = sum(s.views for s in sorties)
+        if not sorties or (n_views and flown == 0):
+            need = min((u["needed_s"] for u in unreachable if u["capture"] == VIEW), default=None)
+            raise ValueError(
+                f"flight time {flight_time_min:g} min ({usable / 60:.2f} min usable after the "
+                f"{reserve_pct:g}% reserve) is too short for any view"
+                + (
+                    f": the nearest view needs {need / 60:.2f} min out, hover and back"
+                    if need
+                    else ""
+                )
+            )
+    numbers, count = {}, {VIEW: 0, FRAME: 0}
+    for i, c in enumerate(fl.capture):
+        if c:
+            count[c] += 1
+            numbers[i] = count[c]
+
+    names = ["mission"] if usable is None else [f"sortie_{s.number:02d}" for s in sorties]
+    created_ms = int(time.time() * 1000)
+    summary = {
+        "run": str(run),
+        "origin": frame.to_dict(),
+        "frames_note": (
+            "mesh frame = local East-North-Up at the origin turned by heading_deg (the bearing "
+            "of the mesh's +x axis); altitudes in the origin's reference, relative altitudes "
+            "above the launch point"
+        ),
+        "launch_point_mesh": [float(v) for v in fl.home],
+        "climb_top_mesh": [float(v) for v in fl.launch],
+        "model": {
+            "speed_m_s": model.speed,
+            "climb_rate_m_s": model.climb_rate,
+            "hover_s": model.hover_s,
+        },
+        "mission": {
+            "time_s": round(whole.time_s, 1),
+            "time_min": round(whole.time_s / 60, 2),
+            "distance_m": round(whole.distance_m, 3),
+            "views": whole.views,
+            "frames": whole.frames,
+        },
+        "budget": None
+        if usable is None
+        else {
+            "flight_time_min": flight_time_min,
+            "reserve_pct": reserve_pct,
+            "usable_min": round(usable / 60, 3),
+        },
+        "sorties": [s.to_dict() for s in sorties],
+        "unreachable": unreachable,
+        "formats": fmts,
+        "files": [],
+    }
+
+    # ---- write everything into a temporary folder, then move it into place
+    anchor = out.parent
+    while not anchor.exists():
+        anchor = anchor.parent
+    tmp = Path(tempfile.mkdtemp(prefix=".nbvkit-export-", dir=anchor))
+    try:
+        files = []
+        for s, name in zip(sorties, names):
+            g = _geo(fl, s, frame, model.speed, model.hover_s, numbers, name)
+            if "qgc" in fmts:
+                writers.write_qgc_plan(g, tmp / f"{name}.plan")
+                writers.write_qgc_wpl(g, tmp / f"{name}.waypoints")
+                files += [f"{name}.plan", f"{name}.waypoints"]
+            if "wpml" in fmts:
+                writers.write_wpml_kmz(g, tmp / f"{name}.kmz", dji_drone, dji_payload, created_ms)
+                files.append(f"{name}.kmz")
+            if "kml" in fmts:
+                writers.write_kml(g, tmp / f"{name}.kml")
+                files.append(f"{name}.kml")
+            if "geojson" in fmts:
+                writers.write_geojson(g, tmp / f"{name}.geojson")
+                files.append(f"{name}.geojson")
+            if "csv" in fmts:
+                writers.write_csv(g, tmp / f"{name}.csv")
+                files.append(f"{name}.csv")
+        if "colmap" in fmts:
+            (tmp / "colmap").mkdir()
+            writers.write_colmap(
+                tmp / "colmap", writers.camera_intrinsics(fl.config), camera_poses(fl)
+            )
+            files += [f"colmap/{n}" for n in ("cameras.txt", "images.txt", "points3D.txt")]
+        if usable is not None:
+            _write_sortie_table(tmp / "sorties.csv", summary)
+            files.append("sorties.csv")
+        files.append("export.json")
+        summary["files"] = files
+        summary["out"] = str(out)
+        (tmp / "export.json").write_text(json.dumps(summary, indent=2, allow_nan=False) + "\n")
+        _move_into_place(tmp, out, files)
+    except BaseException:
+        shutil.rmtree(tmp, ignore_errors=True)
+        raise
+    from ..report import update_flight_section
+
+    paths = [np.array([fl.home, *[w.xyz for w in s.waypoints], fl.home]) for s in sorties]
+    summary["report_updated"] = update_flight_section(run, summary, paths)
+    return summary
+
+
+def _write_sortie_table(path: Path, summary: dict) -> None:
+    import csv
+
+    cols = ["sortie", "views", "frames", "waypoints", "distance_m", "time_min", "time_s"]
+    with open(path, "w", newline="") as f:
+        w = csv.writer(f)
+        w.writerow(cols)
+        for s in summary["sorties"]:
+            w.writerow([s[c] for c in cols])
+
+
+def _move_into_place(tmp: Path, out: Path, files: list) -> None:
+    """Moves the finished export from tmp to out: a rename when out does not exist; else the
+    files of the previous export there (its export.json's list) are removed and the new ones
+    moved in one by one."""
+    if not out.exists():
+        out.parent.mkdir(parents=True, exist_ok=True)
+        os.rename(tmp, out)
+        return
+    old = out / "export.json"
+    if old.is_file():
+        try:
+            previous = json.loads(old.read_text()).get("files", [])
+        except (ValueError, OSError):
+            previous = []
+        for name in previous:
+            p = out / name
+            if name not in files and p.is_file() and out in p.resolve().parents:
+                p.unlink()
+    for name in files:
+        dst = out / name
+        dst.parent.mkdir(parents=True, exist_ok=True)
+        os.replace(tmp / name, dst)
+    shutil.rmtree(tmp, ignore_errors=True)

@@ -1,0 +1,510 @@
+"""Writers of the export formats, from the facts in docs/EXPORT.md (each with its source).
+
+Every writer takes the geo-located waypoints of one sortie (GeoWaypoints) and writes one file;
+colmap writes the camera model of the whole flight. Numbers are written in full (JSON) or to
+1e-9 degree (about 0.1 mm) and 1 mm.
+"""
+from __future__ import annotations
+
+import csv
+import io
+import json
+import math
+import zipfile
+from dataclasses import dataclass
+from xml.etree import ElementTree as ET
+
+import numpy as np
+
+# MAVLink common message set (mavlink/mavlink message_definitions/v1.0/common.xml)
+MAV_CMD_NAV_WAYPOINT = 16
+MAV_CMD_NAV_RETURN_TO_LAUNCH = 20
+MAV_CMD_NAV_TAKEOFF = 22
+MAV_CMD_CONDITION_YAW = 115
+MAV_CMD_DO_GIMBAL_MANAGER_PITCHYAW = 1000
+MAV_CMD_IMAGE_START_CAPTURE = 2000
+MAV_FRAME_GLOBAL = 0
+MAV_FRAME_MISSION = 2
+MAV_FRAME_GLOBAL_RELATIVE_ALT = 3
+GIMBAL_MANAGER_FLAGS_PITCH_LOCK = 8  # pitch relative to the horizon
+MAV_AUTOPILOT_ARDUPILOTMEGA, MAV_AUTOPILOT_PX4 = 3, 12
+MAV_TYPE_QUADROTOR = 2
+QGC_ALTITUDE_MODE_RELATIVE = 1  # QGroundControl's AltMode: AltitudeModeRelative
+
+KML_NS = "http://www.opengis.net/kml/2.2"
+WPML_NS = "http://www.dji.com/wpmz/1.0.2"
+
+
+@dataclass
+class GeoWaypoints:
+    """A sortie's waypoints with everything a format needs: lat, lon (deg), alt (m, in the
+    origin's reference), rel_alt (m above the launch point), heading (deg clockwise from north,
+    [0, 360)), gimbal_pitch (deg, positive up), gimbal_yaw (deg, relative to the vehicle's nose,
+    positive right), action, stage, row (flight row or -1) - each (N,); home: (lat, lon, alt)
+    of the launch point; views: the 1-based number of each view/frame in the whole flight (0
+    else)."""
+
+    lat: np.ndarray
+    lon: np.ndarray
+    alt: np.ndarray
+    rel_alt: np.ndarray
+    heading: np.ndarray
+    gimbal_pitch: np.ndarray
+    gimbal_yaw: np.ndarray
+    action: list
+    stage: list
+    row: list
+    number: list
+    home: tuple
+    speed: float
+    hover_s: float
+    altitude_ref: str
+    name: str
+
+    def __len__(self):
+        return len(self.lat)
+
+
+def _f(x: float, nd: int) -> str:
+    return f"{x:.{nd}f}"
+
+
+def _signed(deg: float) -> float:
+    """An angle in [-180, 180)."""
+    return (deg + 180.0) % 360.0 - 180.0
+
+
+# ---------------------------------------------------------------------- MAVLink missions
+def mavlink_items(g: GeoWaypoints, condition_yaw: bool = False) -> list[dict]:
+    """The mission as MAVLink items (command, frame, params p1..p7 with None for NaN): take-off,
+    a waypoint per point (views: hold for the hover, then the gimbal pitch and one image), and
+    return to launch. condition_yaw: also a MAV_CMD_CONDITION_YAW before each view's waypoint
+    (ArduPilot turns by it; it ignores NAV_WAYPOINT's yaw)."""
+    items = []
+    for k in range(len(g)):
+        a = g.action[k]
+        lat, lon, rel = float(g.lat[k]), float(g.lon[k]), float(g.rel_alt[k])
+        yaw = None if a == "transit" else float(g.heading[k])
+        if a == "takeoff":
+            items.append(
+                (MAV_CMD_NAV_TAKEOFF, MAV_FRAME_GLOBAL_RELATIVE_ALT, [0, 0, 0, yaw, lat, lon, rel])
+            )
+            continue
+        if a == "view" and condition_yaw:
+            items.append(
+                (MAV_CMD_CONDITION_YAW, MAV_FRAME_MISSION, [float(g.heading[k]), 0, 0, 0, 0, 0, 0])
+            )
+        hold = g.hover_s if a == "view" else 0.0
+        items.append(
+            (MAV_CMD_NAV_WAYPOINT, MAV_FRAME_GLOBAL_RELATIVE_ALT, [hold, 0, 0, yaw, lat, lon, rel])
+        )
+        if a in ("view", "frame"):
+            if a == "view":
+                items.append(
+                    (
+                        MAV_CMD_DO_GIMBAL_MANAGER_PITCHYAW,
+                        MAV_FRAME_MISSION,
+                        [
+                            float(g.gimbal_pitch[k]),
+                            float(g.gimbal_yaw[k]),
+                            None,
+                            None,
+                            GIMBAL_MANAGER_FLAGS_PITCH_LOCK,
+                            0,
+                            0,
+                        ],
+                    )
+                )
+            # one image: interval 0, total images 1, sequence number = the capture's number
+            items.append(
+                (
+                    MAV_CMD_IMAGE_START_CAPTURE,
+                    MAV_FRAME_MISSION,
+                    [0, 0, 1, int(g.number[k]), 0, 0, None],
+                )
+            )
+    items.append((MAV_CMD_NAV_RETURN_TO_LAUNCH, MAV_FRAME_MISSION, [0, 0, 0, 0, 0, 0, 0]))
+    return [{"command": c, "frame": f, "params": p} for c, f, p in items]
+
+
+def write_qgc_plan(g: GeoWaypoints, path, firmware: int = MAV_AUTOPILOT_PX4) -> None:
+    """QGroundControl .plan (JSON): mission items as SimpleItems, relative altitudes."""
+    items = []
+    for i, it in enumerate(mavlink_items(g), start=1):
+        item = {
+            "autoContinue": True,
+            "command": it["command"],
+            "doJumpId": i,
+            "frame": it["frame"],
+            "params": [None if v is None else float(v) for v in it["params"]],
+            "type": "SimpleItem",
+        }
+        if it["frame"] == MAV_FRAME_GLOBAL_RELATIVE_ALT:
+            item.update(
+                AMSLAltAboveTerrain=None,
+                Altitude=item["params"][6],
+                AltitudeMode=QGC_ALTITUDE_MODE_RELATIVE,
+            )
+        items.append(item)
+    plan = {
+        "fileType": "Plan",
+        "version": 1,
+        "groundStation": "QGroundControl",
+        "mission": {
+            "version": 2,
+            "firmwareType": firmware,
+            "vehicleType": MAV_TYPE_QUADROTOR,
+            "cruiseSpeed": g.speed,
+            "hoverSpeed": g.speed,
+            "globalPlanAltitudeMode": QGC_ALTITUDE_MODE_RELATIVE,
+            "plannedHomePosition": [float(x) for x in g.home],
+            "items": items,
+        },
+        "geoFence": {"circles": [], "polygons": [], "version": 2},
+        "rallyPoints": {"points": [], "version": 2},
+    }
+    with open(path, "w") as f:
+        json.dump(plan, f, indent=2, allow_nan=False)
+        f.write("\n")
+
+
+def write_qgc_wpl(g: GeoWaypoints, path) -> None:
+    """The plain-text `QGC WPL 110` mission (Mission Planner, ArduPilot): line 0 the home (absolute
+    altitude), then the items, tab-separated; NaN parameters written as 0."""
+    lines = ["QGC WPL 110"]
+    home = [0, 1, MAV_FRAME_GLOBAL, MAV_CMD_NAV_WAYPOINT, 0, 0, 0, 0, *g.home, 1]
+    rows = [home]
+    for i, it in enumerate(mavlink_items(g, condition_yaw=True), start=1):
+        p = [0.0 if v is None else float(v) for v in it["params"]]
+        rows.append([i, 0, it["frame"], it["command"], *p, 1])
+    for r in rows:
+        idx, cur, frame, cmd = r[:4]
+        p = r[4:11]
+        out = [str(idx), str(cur), str(frame), str(cmd)]
+        out += [_f(v, 6) for v in p[:4]]
+        out += [_f(p[4], 9), _f(p[5], 9), _f(p[6], 3), str(r[11])]
+        lines.append("\t".join(out))
+    with open(path, "w") as f:
+        f.write("\n".join(lines) + "\n")
+
+
+# ---------------------------------------------------------------------- DJI WPML (KMZ)
+def _el(parent, tag, text=None, ns=WPML_NS):
+    e = ET.SubElement(parent, f"{{{ns}}}{tag}")
+    if text is not None:
+        e.text = str(text)
+    return e
+
+
+def _mission_config(doc, g: GeoWaypoints, drone, payload, template: bool):
+    mc = _el(doc, "missionConfig")
+    _el(mc, "flyToWaylineMode", "safely")
+    _el(mc, "finishAction", "goHome")
+    _el(mc, "exitOnRCLost", "executeLostAction")
+    _el(mc, "executeRCLostAction", "goBack")
+    takeoff_h = float(g.rel_alt[0])
+    _el(mc, "takeOffSecurityHeight", _f(min(max(takeoff_h, 1.2), 1500.0), 3))
+    if template:
+        _el(mc, "takeOffRefPoint", f"{_f(g.home[0], 9)},{_f(g.home[1], 9)},{_f(g.home[2], 3)}")
+    _el(mc, "globalTransitionalSpeed", _f(min(g.speed, 15.0), 2))
+    _el(mc, "globalRTHHeight", _f(takeoff_h, 3))
+    di = _el(mc, "droneInfo")
+    _el(di, "droneEnumValue", drone[0])
+    _el(di, "droneSubEnumValue", drone[1])
+    pi = _el(mc, "payloadInfo")
+    _el(pi, "payloadEnumValue", payload)
+    _el(pi, "payloadPositionIndex", 0)
+
+
+def _placemark(folder, g: GeoWaypoints, k: int, index: int, template: bool, group: int):
+    pm = ET.SubElement(folder, f"{{{KML_NS}}}Placemark")
+    pt = ET.SubElement(pm, f"{{{KML_NS}}}Point")
+    ET.SubElement(
+        pt, f"{{{KML_NS}}}coordinates"
+    ).text = f"{_f(float(g.lon[k]), 9)},{_f(float(g.lat[k]), 9)}"
+    _el(pm, "index", index)
+    if template:
+        _el(pm, "height", _f(float(g.rel_alt[k]), 3))
+        if g.altitude_ref == "ellipsoid":
+            _el(pm, "ellipsoidHeight", _f(float(g.alt[k]), 3))
+        _el(pm, "useGlobalHeight", 0)
+        _el(pm, "useGlobalSpeed", 0)
+        _el(pm, "useGlobalHeadingParam", 0)
+        _el(pm, "useGlobalTurnParam", 0)
+        _el(pm, "gimbalPitchAngle", _f(float(g.gimbal_pitch[k]), 3))
+    else:
+        _el(pm, "executeHeight", _f(float(g.rel_alt[k]), 3))
+    _el(pm, "waypointSpeed", _f(g.speed, 2))
+    hp = _el(pm, "waypointHeadingParam")
+    if g.action[k] == "transit":
+        _el(hp, "waypointHeadingMode", "followWayline")
+    else:
+        _el(hp, "waypointHeadingMode", "smoothTransition")
+        _el(hp, "waypointHeadingAngle", _f(_signed(float(g.heading[k])), 3))
+    _el(hp, "waypointHeadingPathMode", "followBadArc")
+    tp = _el(pm, "waypointTurnParam")
+    _el(tp, "waypointTurnMode", "toPointAndStopWithDiscontinuityCurvature")
+    _el(tp, "waypointTurnDampingDist", 0)
+    a = g.action[k]
+    if a not in ("view", "frame"):
+        return group
+    ag = _el(pm, "actionGroup")
+    _el(ag, "actionGroupId", group)
+    _el(ag, "actionGroupStartIndex", index)
+    _el(ag, "actionGroupEndIndex", index)
+    _el(ag, "actionGroupMode", "sequence")
+    _el(_el(ag, "actionTrigger"), "actionTriggerType", "reachPoint")
+    aid = 0
+    if a == "view":
+        act = _el(ag, "action")
+        _el(act, "actionId", aid)
+        aid += 1
+        _el(act, "actionActuatorFunc", "gimbalRotate")
+        p = _el(act, "actionActuatorFuncParam")
+        _el(p, "gimbalHeadingYawBase", "north")
+        _el(p, "gimbalRotateMode", "absoluteAngle")
+        _el(p, "gimbalPitchRotateEnable", 1)
+        _el(p, "gimbalPitchRotateAngle", _f(float(g.gimbal_pitch[k]), 3))
+        _el(p, "gimbalRollRotateEnable", 0)
+        _el(p, "gimbalRollRotateAngle", 0)
+        _el(p, "gimbalYawRotateEnable", 0)
+        _el(p, "gimbalYawRotateAngle", 0)
+        _el(p, "gimbalRotateTimeEnable", 0)
+        _el(p, "gimbalRotateTime", 0)
+        _el(p, "payloadPositionIndex", 0)
+        if g.hover_s > 0:
+            act = _el(ag, "action")
+            _el(act, "actionId", aid)
+            aid += 1
+            _el(act, "actionActuatorFunc", "hover")
+            _el(_el(act, "actionActuatorFuncParam"), "hoverTime", _f(g.hover_s, 3))
+    act = _el(ag, "action")
+    _el(act, "actionId", aid)
+    _el(act, "actionActuatorFunc", "takePhoto")
+    p = _el(act, "actionActuatorFuncParam")
+    _el(p, "fileSuffix", f"{a}{int(g.number[k]):04d}")
+    _el(p, "payloadPositionIndex", 0)
+    return group + 1
+
+
+def _wpml_doc(g: GeoWaypoints, drone, payload, template: bool, created_ms: int) -> bytes:
+    ET.register_namespace("", KML_NS)
+    ET.register_namespace("wpml", WPML_NS)
+    kml = ET.Element(f"{{{KML_NS}}}kml")
+    doc = ET.SubElement(kml, f"{{{KML_NS}}}Document")
+    if template:
+        _el(doc, "author", "nbvkit")
+        _el(doc, "createTime", created_ms)
+        _el(doc, "updateTime", created_ms)
+    _mission_config(doc, g, drone, payload, template)
+    folder = ET.SubElement(doc, f"{{{KML_NS}}}Folder")
+    if template:
+        _el(folder, "templateType", "waypoint")
+    _el(folder, "templateId", 0)
+    if template:
+        cs = _el(folder, "waylineCoordinateSysParam")
+        _el(cs, "coordinateMode", "WGS84")
+        _el(cs, "heightMode", "relativeToStartPoint")
+    else:
+        _el(folder, "executeHeightMode", "relativeToStartPoint")
+        _el(folder, "waylineId", 0)
+    _el(folder, "autoFlightSpeed", _f(g.speed, 2))
+    if template:
+        _el(folder, "globalHeight", _f(float(g.rel_alt[0]), 3))
+        _el(folder, "gimbalPitchMode", "usePointSetting")
+        gh = _el(folder, "globalWaypointHeadingParam")
+        _el(gh, "waypointHeadingMode", "followWayline")
+        _el(gh, "waypointHeadingPathMode", "followBadArc")
+        _el(folder, "globalWaypointTurnMode", "toPointAndStopWithDiscontinuityCurvature")
+        _el(folder, "globalUseStraightLine", 0)
+    group = 0
+    for index, k in enumerate(range(len(g))):
+        group = _placemark(folder, g, k, index, template, group)
+    return ET.tostring(kml, encoding="UTF-8", xml_declaration=True)
+
+
+def write_wpml_kmz(g: GeoWaypoints, path, drone=(67, 0), payload=52, created_ms: int = 0):
+    """DJI WPML route: a zip (.kmz) of wpmz/template.kml and wpmz/waylines.wpml; heights relative
+    to the take-off point. drone: (droneEnumValue, droneSubEnumValue), default M30; payload:
+    payloadEnumValue (default 52, the M30's camera)."""
+    with zipfile.ZipFile(path, "w", compression=zipfile.ZIP_DEFLATED) as z:
+        z.writestr("wpmz/template.kml", _wpml_doc(g, drone, payload, True, created_ms))
+        z.writestr("wpmz/waylines.wpml", _wpml_doc(g, drone, payload, False, created_ms))
+
+
+# ---------------------------------------------------------------------- KML, GeoJSON, CSV
+def write_kml(g: GeoWaypoints, path) -> None:
+    """KML 2.2: the flight line (LineString) and a Point per view/frame, altitudeMode absolute."""
+    ET.register_namespace("", KML_NS)
+    k = lambda tag: f"{{{KML_NS}}}{tag}"  # noqa: E731
+    kml = ET.Element(k("kml"))
+    doc = ET.SubElement(kml, k("Document"))
+    ET.SubElement(doc, k("name")).text = g.name
+    ET.SubElement(doc, k("description")).text = (
+        f"nbvkit flight; altitudes absolute ({g.altitude_ref}"
+        + (": KML reads them as above sea level" if g.altitude_ref == "ellipsoid" else "")
+        + ")"
+    )
+    line = ET.SubElement(doc, k("Placemark"))
+    ET.SubElement(line, k("name")).text = "flight"
+    ls = ET.SubElement(line, k("LineString"))
+    ET.SubElement(ls, k("altitudeMode")).text = "absolute"
+    ET.SubElement(ls, k("coordinates")).text = " ".join(
+        f"{_f(float(g.lon[i]), 9)},{_f(float(g.lat[i]), 9)},{_f(float(g.alt[i]), 3)}"
+        for i in range(len(g))
+    )
+    folder = ET.SubElement(doc, k("Folder"))
+    ET.SubElement(folder, k("name")).text = "views"
+    for i in range(len(g)):
+        if g.action[i] not in ("view", "frame"):
+            continue
+        pm = ET.SubElement(folder, k("Placemark"))
+        ET.SubElement(pm, k("name")).text = f"{g.action[i]} {int(g.number[i])}"
+        ET.SubElement(pm, k("description")).text = (
+            f"heading {g.heading[i]:.1f} deg, gimbal pitch {g.gimbal_pitch[i]:.1f} deg, "
+            f"{g.rel_alt[i]:.2f} m above the launch point"
+        )
+        pt = ET.SubElement(pm, k("Point"))
+        ET.SubElement(pt, k("altitudeMode")).text = "absolute"
+        ET.SubElement(
+            pt, k("coordinates")
+        ).text = f"{_f(float(g.lon[i]), 9)},{_f(float(g.lat[i]), 9)},{_f(float(g.alt[i]), 3)}"
+    ET.ElementTree(kml).write(path, encoding="UTF-8", xml_declaration=True)
+
+
+def write_geojson(g: GeoWaypoints, path) -> None:
+    """GeoJSON (RFC 7946): a LineString of the flight and a Point per view/frame, positions
+    [lon, lat, alt]."""
+
+    def pos(i):
+        return [float(g.lon[i]), float(g.lat[i]), float(g.alt[i])]
+
+    feats = [
+        {
+            "type": "Feature",
+            "geometry": {"type": "LineString", "coordinates": [pos(i) for i in range(len(g))]},
+            "properties": {"kind": "flight", "name": g.name, "altitude_reference": g.altitude_ref},
+        }
+    ]
+    for i in range(len(g)):
+        if g.action[i] in ("view", "frame"):
+            feats.append(
+                {
+                    "type": "Feature",
+                    "geometry": {"type": "Point", "coordinates": pos(i)},
+                    "properties": {
+                        "kind": g.action[i],
+                        "number": int(g.number[i]),
+                        "flight_row": int(g.row[i]),
+                        "heading_deg": float(g.heading[i]),
+                        "gimbal_pitch_deg": float(g.gimbal_pitch[i]),
+                        "rel_alt_m": float(g.rel_alt[i]),
+                        "altitude_reference": g.altitude_ref,
+                    },
+                }
+            )
+    with open(path, "w") as f:
+        json.dump({"type": "FeatureCollection", "features": feats}, f, indent=1, allow_nan=False)
+        f.write("\n")
+
+
+CSV_COLUMNS = (
+    "seq",
+    "action",
+    "stage",
+    "flight_row",
+    "latitude_deg",
+    "longitude_deg",
+    "altitude_m",
+    "rel_altitude_m",
+    "heading_deg",
+    "gimbal_pitch_deg",
+)
+
+
+def write_csv(g: GeoWaypoints, path) -> None:
+    """One row per waypoint: CSV_COLUMNS (altitude_m in the origin's reference; rel_altitude_m
+    above the launch point; action takeoff / waypoint / view / frame / transit / home)."""
+    buf = io.StringIO()
+    w = csv.writer(buf)
+    w.writerow(CSV_COLUMNS)
+    for i in range(len(g)):
+        w.writerow(
+            [
+                i,
+                g.action[i],
+                g.stage[i],
+                int(g.row[i]),
+                _f(float(g.lat[i]), 9),
+                _f(float(g.lon[i]), 9),
+                _f(float(g.alt[i]), 3),
+                _f(float(g.rel_alt[i]), 3),
+                _f(float(g.heading[i]), 3),
+                _f(float(g.gimbal_pitch[i]), 3),
+            ]
+        )
+    with open(path, "w", newline="") as f:
+        f.write(buf.getvalue())
+
+
+# ---------------------------------------------------------------------- COLMAP
+#: COLMAP's camera axes in nbvkit's sensor frame (x forward, y left, z up): x right = -y,
+#: y down = -z, z forward = +x.
+R_COLMAP_SENSOR = np.array([[0.0, -1.0, 0.0], [0.0, 0.0, -1.0], [1.0, 0.0, 0.0]])
+
+
+def colmap_pose(T_world_sensor: np.ndarray):
+    """(qw, qx, qy, qz), (tx, ty, tz): COLMAP's world-to-camera pose of a sensor pose (4, 4)."""
+    from scipy.spatial.transform import Rotation
+
+    R_ws, t = T_world_sensor[:3, :3], T_world_sensor[:3, 3]
+    R_cw = R_COLMAP_SENSOR @ R_ws.T
+    t_cw = -R_cw @ t
+    x, y, z, w = Rotation.from_matrix(R_cw).as_quat()
+    q = np.array([w, x, y, z])
+    if q[0] < 0:
+        q = -q
+    return q, t_cw
+
+
+def write_colmap(folder, camera: dict, images: list) -> None:
+    """COLMAP text model: cameras.txt (one PINHOLE camera), images.txt (a pose per image, no 2D
+    points) and an empty points3D.txt. camera: width, height, fx, fy, cx, cy; images: (name,
+    T_world_sensor (4, 4)) in order."""
+    c = camera
+    with open(folder / "cameras.txt", "w") as f:
+        f.write("# Camera list with one line of data per camera:\n")
+        f.write("#   CAMERA_ID, MODEL, WIDTH, HEIGHT, PARAMS[]\n")
+        f.write("# Number of cameras: 1\n")
+        f.write(
+            f"1 PINHOLE {c['width']} {c['height']} {c['fx']!r} {c['fy']!r} "
+            f"{c['cx']!r} {c['cy']!r}\n"
+        )
+    with open(folder / "images.txt", "w") as f:
+        f.write("# Image list with two lines of data per image:\n")
+        f.write("#   IMAGE_ID, QW, QX, QY, QZ, TX, TY, TZ, CAMERA_ID, NAME\n")
+        f.write("#   POINTS2D[] as (X, Y, POINT3D_ID)\n")
+        f.write(f"# Number of images: {len(images)}, mean observations per image: 0\n")
+        for i, (name, T) in enumerate(images, start=1):
+            q, t = colmap_pose(np.asarray(T, float))
+            f.write(" ".join([str(i), *(repr(float(v)) for v in (*q, *t)), "1", name]) + "\n\n")
+    with open(folder / "points3D.txt", "w") as f:
+        f.write("# 3D point list with one line of data per point:\n")
+        f.write("#   POINT3D_ID, X, Y, Z, R, G, B, ERROR, TRACK[] as (IMAGE_ID, POINT2D_IDX)\n")
+        f.write("# Number of points: 0, mean track length: 0\n")
+
+
+def camera_intrinsics(config) -> dict:
+    """PINHOLE intrinsics of the run's DepthCamera (cpp/src/sensors.cpp: fx = (W/2) /
+    tan(hfov/2), fy = (H/2) / tan(vfov/2); pixel (u, v) looks through its centre, (u + 0.5,
+    v + 0.5) in COLMAP's image coordinates, so cx = W/2, cy = H/2)."""
+    c = config.camera
+    w, h = int(c.width), int(c.height)
+    return {
+        "width": w,
+        "height": h,
+        "fx": (w / 2.0) / math.tan(math.radians(c.hfov_deg) / 2.0),
+        "fy": (h / 2.0) / math.tan(math.radians(c.vfov_deg) / 2.0),
+        "cx": w / 2.0,
+        "cy": h / 2.0,
+    }

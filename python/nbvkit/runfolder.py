@@ -1,0 +1,441 @@
+"""Run folders that are whole or say they are not.
+
+A run's results (``Mission.run(out_dir)``, ``nbvkit run --out``, each run of an experiment) are
+written into a hidden temporary folder beside the target, ``.<name>.tmp<pid>``, and moved into
+place when complete: the last file written into it is ``manifest.json`` (every output file with
+its size), then the temporary folder is renamed onto the target (swapped with an old run in one
+step where the file system can, with ``renameat2(RENAME_EXCHANGE)``). So a crash, a kill or a full
+disk leaves the target as it was (absent, or the previous whole run) plus a hidden temporary
+folder that the next run on that target removes.
+
+``manifest.json`` is the completion marker: a folder is a complete run when it holds one and
+every file it lists has the listed size (``require_complete_run``). Commands that read a run
+folder (evaluate, compare, sweep resume, export) call ``require_complete_run`` first.
+
+While a run is written, it holds an exclusive lock (``flock``) on ``.<name>.lock`` beside the
+target: a second run on the same folder fails at once with a message naming the first one's
+process (or, for the experiment runner, waits and then reuses it). The kernel drops the lock
+when its process dies, so a killed run never blocks the next. The lock file stays (an empty,
+hidden file): removing it could let two runs lock two different files.
+
+A folder that already holds anything is refused unless ``overwrite`` is given; an overwrite
+replaces it whole (no old file stays beside the new ones) and only when it holds nothing but
+nbvkit's own outputs (``OUTPUT_NAMES``): ``--overwrite`` never removes a user's other files.
+"""
+from __future__ import annotations
+
+import ctypes
+import errno
+import json
+import os
+import re
+import shutil
+import time
+from pathlib import Path
+
+__all__ = [
+    "MANIFEST",
+    "OUTPUT_NAMES",
+    "IncompleteRunError",
+    "RunFolder",
+    "is_complete_run",
+    "looks_like_run",
+    "require_complete_run",
+    "mark_incomplete",
+    "run_name",
+    "write_manifest",
+]
+
+#: the completion marker, written last
+MANIFEST = "manifest.json"
+
+#: every name nbvkit writes at the top of a run folder (an overwrite removes only these)
+OUTPUT_NAMES = frozenset(
+    {
+        MANIFEST,
+        "config.yaml",
+        "summary.json",
+        "iterations.csv",
+        "trajectory.csv",
+        "cloud.ply",
+        "map.ot",
+        "mesh.ply",
+        "report.html",
+        "spec.json",
+        "figures",
+        "cache",
+    }
+)
+
+#: folders whose files are not listed in the manifest (caches are rewritten independently)
+_UNLISTED = ("cache",)
+
+
+class IncompleteRunError(ValueError):
+    """A folder that is not a complete run folder (no manifest, or files that do not match it)."""
+
+
+# ---------------------------------------------------------------------------------- reading
+
+
+def _listed_files(folder: Path) -> dict:
+    """{relative posix path: size} of every regular file in folder (not the manifest, not
+    caches)."""
+    out = {}
+    for root, dirs, files in os.walk(folder):
+        rel_root = Path(root).relative_to(folder)
+        if rel_root == Path("."):
+            dirs[:] = [d for d in dirs if d not in _UNLISTED]
+        for name in files:
+            rel = (rel_root / name).as_posix()
+            if rel == MANIFEST:
+                continue
+            out[rel] = os.stat(os.path.join(root, name)).st_size
+    return dict(sorted(out.items()))
+
+
+def _problem(path: Path, check_lock: bool = True) -> str | None:
+    """Why path is not a complete run folder, or None. (check_lock=False: by the run that holds
+    its lock.)"""
+    holder = _lock_holder(path) if check_lock else None
+    if holder:
+        return f"is being written by an nbvkit run ({holder}); wait for it to finish"
+    if not path.exists():
+        return "does not exist"
+    if not path.is_dir():
+        return "is not a folder"
+    m = path / MANIFEST
+    if not m.exists():
+        return (
+            f"has no {MANIFEST}: the run that wrote it did not finish (interrupted, killed or "
+            "failed), or it was written by nbvkit before run folders were marked complete; "
+            "run it again"
+        )
+    try:
+        manifest = json.loads(m.read_text())
+        files = manifest["files"]
+        if not isinstance(files, dict):
+            raise TypeError
+    except (OSError, ValueError, KeyError, TypeError):
+        return f"has an unreadable {MANIFEST}; run it again"
+    for rel, size in files.items():
+        f = path / rel
+        try:
+            actual = f.stat().st_size
+        except OSError:
+            return f"lacks {rel}, which its run wrote; run it again"
+        if actual != size:
+            return (
+                f"holds a damaged {rel} ({actual} bytes; its run wrote {size}): truncated or "
+                "changed since; run it again"
+            )
+    return None
+
+
+def looks_like_run(folder) -> bool:
+    """Whether folder is (or is becoming) an nbvkit run folder: it holds a manifest or a summary,
+    is a run's temporary folder, or a run is writing it."""
+    f = Path(os.fspath(folder)).expanduser()
+    return (
+        (f / MANIFEST).exists()
+        or (f / "summary.json").exists()
+        or re.fullmatch(r"\.(.+)\.tmp\d+", f.name) is not None
+        or _lock_holder(f) is not None
+    )
+
+
+def is_complete_run(path) -> bool:
+    """Whether path is a complete run folder (see require_complete_run)."""
+    return _problem(Path(os.fspath(path)).expanduser()) is None
+
+
+def require_complete_run(path, what: str = "run folder") -> Path:
+    """The run folder ``path`` as a Path if it is complete: it holds ``manifest.json`` (written
+    last by the run) and every file listed there with the listed size. Otherwise raises
+    IncompleteRunError (a ValueError) naming the folder and what is wrong: missing, being written
+    by another run, interrupted, or a file truncated or changed since."""
+    p = Path(os.fspath(path)).expanduser()
+    why = _problem(p)
+    if why is not None:
+        raise IncompleteRunError(f"{what} {p} is not a complete nbvkit run: it {why}")
+    return p
+
+
+def write_manifest(folder) -> Path:
+    """Writes ``folder/manifest.json`` (every file's size), flushed to disk, as the last file of
+    a run. Raises OSError if it cannot be written whole."""
+    import nbvkit
+
+    folder = Path(folder)
+    files = _listed_files(folder)
+    for rel in files:  # the outputs reach the disk before the marker that vouches for them
+        _fsync_path(folder / rel)
+    data = {"nbvkit": nbvkit.__version__, "written": time.time(), "files": files}
+    tmp = folder / (MANIFEST + ".tmp")
+    with open(tmp, "w") as f:
+        f.write(json.dumps(data, indent=1) + "\n")
+        f.flush()
+        os.fsync(f.fileno())
+    os.replace(tmp, folder / MANIFEST)
+    _fsync_path(folder)
+    return folder / MANIFEST
+
+
+def mark_incomplete(folder) -> bool:
+    """Removes ``folder/manifest.json`` before a run folder is changed in place (finish_run on a
+    finished Mission's folder); returns whether there was one (write_manifest again after)."""
+    m = Path(folder) / MANIFEST
+    try:
+        m.unlink()
+    except FileNotFoundError:
+        return False
+    _fsync_path(Path(folder))
+    return True
+
+
+def _fsync_path(p: Path) -> None:
+    fd = os.open(p, os.O_RDONLY)
+    try:
+        os.fsync(fd)
+    finally:
+        os.close(fd)
+
+
+# ---------------------------------------------------------------------------------- the lock
+
+
+def _lock_path(path: Path) -> Path:
+    return path.parent / f".{path.name}.lock"
+
+
+def _lock_holder(path: Path) -> str | None:
+    """'pid N' of the live process holding path's run lock, or None."""
+    import fcntl
+
+    lp = _lock_path(path)
+    try:
+        fd = os.open(lp, os.O_RDONLY)
+    except OSError:
+        return None
+    try:
+        try:
+            fcntl.flock(fd, fcntl.LOCK_SH | fcntl.LOCK_NB)
+        except OSError:
+            text = os.pread(fd, 64, 0).decode("ascii", "replace").strip()
+            return f"pid {text}" if text.isdigit() else "another process"
+        fcntl.flock(fd, fcntl.LOCK_UN)
+        return None
+    finally:
+        os.close(fd)
+
+
+class _RunLock:
+    def __init__(self, path: Path, what: str, wait: bool):
+        self.path, self.what, self.wait = path, what, wait
+        self.fd = None
+
+    def acquire(self) -> None:
+        import fcntl
+
+        lp = _lock_path(self.path)
+        try:
+            fd = os.open(lp, os.O_RDWR | os.O_CREAT, 0o644)
+        except OSError as e:
+            raise ValueError(
+                f"{self.what} {self.path} cannot be written: its folder {self.path.parent}: "
+                f"{e.strerror or e}"
+            ) from None
+        try:
+            fcntl.flock(fd, fcntl.LOCK_EX | (0 if self.wait else fcntl.LOCK_NB))
+        except OSError as e:
+            holder = os.pread(fd, 64, 0).decode("ascii", "replace").strip()
+            os.close(fd)
+            if e.errno not in (errno.EWOULDBLOCK, errno.EAGAIN):
+                raise
+            who = f"pid {holder}" if holder.isdigit() else "another process"
+            raise ValueError(
+                f"{self.what} {self.path} is being written by another nbvkit run ({who}): two "
+                "runs cannot share a folder; wait for it or choose another folder"
+            ) from None
+        os.ftruncate(fd, 0)
+        os.pwrite(fd, str(os.getpid()).encode(), 0)
+        self.fd = fd
+
+    def release(self) -> None:
+        import fcntl
+
+        if self.fd is not None:
+            try:
+                os.ftruncate(self.fd, 0)
+            except OSError:
+                pass
+            fcntl.flock(self.fd, fcntl.LOCK_UN)
+            os.close(self.fd)
+            self.fd = None
+
+
+# ---------------------------------------------------------------------------------- writing
+
+
+def _exchange(a: Path, b: Path) -> bool:
+    """Atomically swaps the paths a and b (Linux renameat2 RENAME_EXCHANGE); False where the
+    system or file system cannot."""
+    try:
+        libc = ctypes.CDLL(None, use_errno=True)
+        fn = libc.renameat2
+    except (OSError, AttributeError):
+        return False
+    fn.argtypes = [ctypes.c_int, ctypes.c_char_p, ctypes.c_int, ctypes.c_char_p, ctypes.c_uint]
+    at_fdcwd, rename_exchange = -100, 2
+    return fn(at_fdcwd, os.fsencode(a), at_fdcwd, os.fsencode(b), rename_exchange) == 0
+
+
+class RunFolder:
+    """Writes one run folder whole, or not at all::
+
+        with RunFolder("runs/x", overwrite=False, what="--out") as rf:
+            ...write the results into rf.tmp...
+        # here runs/x holds the complete run (manifest.json last); on an exception or a kill
+        # runs/x is as it was before
+
+    Entering checks before any work: the folder can be written (ValueError naming ``what``
+    otherwise); no other run is writing it (the lock: ValueError, or with ``wait`` blocks until
+    the other run ends); it is empty or absent, or ``overwrite`` is given and it holds only
+    nbvkit's outputs. ``cancel()`` inside the block drops what was written and keeps the target
+    as it is (the experiment runner, finding the run finished by another worker meanwhile).
+    """
+
+    def __init__(
+        self,
+        path,
+        *,
+        overwrite: bool = False,
+        wait: bool = False,
+        what: str = "run folder",
+        carry: tuple = ("cache",),
+    ):
+        from .paths import check_output_dir
+
+        p = Path(os.fspath(path)).expanduser()
+        if p.is_symlink():
+            p = Path(os.path.realpath(p))
+        check_output_dir(p, what)  # the old checks and messages: a file, an unwritable place
+        p = Path(os.path.abspath(p))
+        if p.parent == p:
+            raise ValueError(f"{what} {p} is the root folder: choose a folder to hold the run")
+        self.path, self.overwrite, self.what, self.carry = p, overwrite, what, tuple(carry)
+        self._carried: list = []
+        self._lock = _RunLock(p, what, wait)
+        self.tmp: Path | None = None
+        self._cancelled = False
+
+    def __enter__(self) -> "RunFolder":
+        p = self.path
+        p.parent.mkdir(parents=True, exist_ok=True)
+        self._lock.acquire()
+        try:
+            self._check_target()
+            self._remove_stale()
+            self.tmp = p.parent / f".{p.name}.tmp{os.getpid()}"
+            try:
+                self.tmp.mkdir()
+            except OSError as e:
+                raise ValueError(
+                    f"{self.what} {p} cannot be written: results are written beside it in "
+                    f"{p.parent} first, which refuses: {e.strerror or e}"
+                ) from None
+            for name in self.carry:  # an overwritten run's cache serves the new run
+                if p.exists() and (p / name).is_dir():
+                    os.rename(p / name, self.tmp / name)
+                    self._carried.append(name)
+        except BaseException:
+            self._lock.release()
+            raise
+        return self
+
+    def cancel(self) -> None:
+        self._cancelled = True
+
+    def _check_target(self) -> None:
+        p = self.path
+        if not p.exists():
+            return
+        entries = sorted(os.listdir(p))
+        if not entries:
+            return
+        if not self.overwrite:
+            complete = _problem(p, check_lock=False) is None
+            state = "a complete run" if complete else "files (an unfinished run?)"
+            raise ValueError(
+                f"{self.what} {p} already holds {state}: pass --overwrite (Python: "
+                "overwrite=True) to replace it, or choose another folder"
+            )
+        foreign = [e for e in entries if e not in OUTPUT_NAMES]
+        if foreign:
+            shown = ", ".join(foreign[:5]) + (", ..." if len(foreign) > 5 else "")
+            raise ValueError(
+                f"{self.what} {p} holds files nbvkit does not write ({shown}): not overwriting "
+                "it; move them away or choose another folder"
+            )
+
+    def _remove_stale(self) -> None:
+        """Temporary folders of earlier runs on this target (killed: we hold the lock now)."""
+        p = self.path
+        for d in p.parent.glob(f".{_glob_escape(p.name)}.tmp*"):
+            if d.is_dir() and d.name[len(p.name) + 5 :].isdigit():
+                shutil.rmtree(d, ignore_errors=True)
+        for d in p.parent.glob(f".{_glob_escape(p.name)}.old*"):
+            if d.is_dir() and d.name[len(p.name) + 5 :].isdigit():
+                shutil.rmtree(d, ignore_errors=True)
+
+    def __exit__(self, exc_type, exc, tb) -> None:
+        try:
+            if exc_type is not None or self._cancelled:
+                self._discard()
+                return
+            try:
+                write_manifest(self.tmp)
+                self._commit()
+            except BaseException:
+                self._discard()
+                raise
+        finally:
+            self._lock.release()
+
+    def _discard(self) -> None:
+        """Drops the temporary folder, giving back what was carried over from the target."""
+        for name in self._carried:
+            try:
+                if self.path.is_dir() and not (self.path / name).exists():
+                    os.rename(self.tmp / name, self.path / name)
+            except OSError:
+                pass
+        shutil.rmtree(self.tmp, ignore_errors=True)
+
+    def _commit(self) -> None:
+        p, tmp = self.path, self.tmp
+        if p.exists() and os.listdir(p):
+            if _exchange(tmp, p):  # tmp now holds the old run
+                shutil.rmtree(tmp, ignore_errors=True)
+                _fsync_path(p.parent)
+                return
+            old = p.parent / f".{p.name}.old{os.getpid()}"
+            os.rename(p, old)
+            os.rename(tmp, p)
+            shutil.rmtree(old, ignore_errors=True)
+        else:
+            os.rename(tmp, p)  # onto an absent or empty folder
+        _fsync_path(p.parent)
+
+
+def run_name(folder) -> str:
+    """The name a run folder has once in place: ``x`` for its temporary ``.x.tmp<pid>``."""
+    name = Path(folder).name
+    m = re.fullmatch(r"\.(.+)\.tmp\d+", name)
+    return m.group(1) if m else name
+
+
+def _glob_escape(name: str) -> str:
+    import glob
+
+    return glob.escape(name)

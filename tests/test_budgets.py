@@ -1,0 +1,83 @@
+"""Budgets and the gain accounting (issue 37): a mission a budget ended says so, the view cap
+follows the structure unless set, and every view records what it was expected to bring beside
+what it brought."""
+from __future__ import annotations
+
+import csv
+
+import numpy as np
+import pytest
+
+from conftest import ROOT, TINY_RUN, box_mesh
+from nbvkit import cli
+from nbvkit.config import load_config
+from nbvkit.mission import Mission
+from nbvkit.planning.terminations.budget import MIN_VIEW_CAP, VIEWS_PER_M2, view_cap
+
+QUICK = [
+    "map.resolution=0.4",
+    "progress=false",
+    "evaluation.gt_density=50",
+    "evaluation.coverage_every=0",
+    "profiling.sweep_step=0.25",
+    "symmetry.voxel_size=0.4",
+]
+
+
+def test_the_view_cap_follows_the_structure_unless_set():
+    assert view_cap(250, 1e6) == 250  # as set, whatever the structure
+    assert view_cap(0, 1e6) == 0
+    assert view_cap(None, 10.0) == MIN_VIEW_CAP  # a small structure: the floor
+    assert view_cap(None, 19_700.0) == int(np.ceil(VIEWS_PER_M2 * 19_700.0))
+    assert view_cap(None, 19_700.0) > MIN_VIEW_CAP
+    # unset by default for nbvkit's planners; the paper's scenarios keep their 1000
+    assert load_config().max_iterations is None
+    assert load_config(overrides=["scenario=5"]).max_iterations == 1000
+    mesh = box_mesh((0, 0, 0), (100, 60, 40))  # 24,800 m^2
+    m = Mission(load_config(overrides=QUICK + ["map.resolution=1.0"]), mesh=mesh)
+    assert m.max_views == int(np.ceil(VIEWS_PER_M2 * mesh.area))
+
+
+def test_views_record_their_expected_and_realized_gain_and_none_looks_into_a_closed_box():
+    # A closed 8 x 6 x 5 m box: its inside is unknown space the surface utility credits with a
+    # prior, but no view can be planned there (collision) or see into it. Every flown view's row
+    # holds what its score expected (m^2) and what of that it brought, as the utility counts it.
+    lo, hi = np.array([-4.0, -3.0, 0.0]), np.array([4.0, 3.0, 5.0])
+    m = Mission(load_config(overrides=QUICK + ["max_iterations=6"]), mesh=box_mesh(lo, hi))
+    s = m.run()
+    assert s["termination"] == "max_iterations" and s["stopped_by_budget"]
+    assert s["max_views"] == 6 and len(m.records) == 6
+    for r in m.records:
+        pos = np.array([r.x, r.y, r.z])
+        assert not np.all((pos > lo) & (pos < hi)), pos  # never inside the box
+        assert r.expected_m2 > 0  # a flown tour view was worth something
+        assert 0 <= r.realized_m2 <= r.expected_m2 + 1e-9
+    expected = sum(r.expected_m2 for r in m.records)
+    realized = sum(r.realized_m2 for r in m.records)
+    assert s["expected_m2"] == pytest.approx(expected)
+    assert s["realized_to_expected"] == pytest.approx(realized / expected)
+    new = sum(r.new_surface_m2 for r in m.records)
+    assert s["new_surface_to_expected"] == pytest.approx(new / expected)
+
+
+def test_the_paper_utility_records_no_expected_surface():
+    m = Mission(load_config(overrides=QUICK + ["scenario=1", "max_iterations=2"]))
+    s = m.run()
+    assert [r.expected_m2 for r in m.records] == [None, None]
+    assert "expected_m2" not in s and s["stopped_by_budget"]
+
+
+def test_a_budget_that_ended_the_mission_is_said_on_the_console_and_in_the_files(tmp_path, capsys):
+    cube = ROOT / "meshes" / "fixtures" / "cube.obj"
+    out = tmp_path / "run"
+    over = [*TINY_RUN, "report.enabled=false", "max_iterations=1"]
+    assert (
+        cli.main(["run", "--mesh", str(cube), "--no-progress", "--out", str(out), "--set", *over])
+        == 0
+    )
+    text = capsys.readouterr().out
+    assert "termination: max_iterations" in text
+    assert "stopped by the view cap (1 view), not because the structure is covered" in text
+    with open(out / "iterations.csv") as f:
+        rows = list(csv.DictReader(f))
+    assert rows and all(float(r["expected_m2"]) >= float(r["realized_m2"]) >= 0 for r in rows)

@@ -1,0 +1,243 @@
+"""Faults (issue 36): run folders that are whole or say they are not, write errors that raise,
+and an API that is safe from several threads. Real subprocesses for kills, full disks and
+shared folders; the fuller battery is bench/fault_battery.py (its table: docs/HOSTILE.md)."""
+from __future__ import annotations
+
+import json
+import os
+import random
+import sys
+import textwrap
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+import nbvkit
+from nbvkit.runfolder import (
+    MANIFEST,
+    IncompleteRunError,
+    RunFolder,
+    is_complete_run,
+    require_complete_run,
+)
+
+ROOT = Path(__file__).resolve().parent.parent
+sys.path.insert(0, str(ROOT / "bench"))
+
+import fault_battery as fb  # noqa: E402
+
+
+def _ok(result):
+    bad, note = result
+    assert bad is None, bad
+    return note
+
+
+@pytest.fixture(scope="module")
+def finished_run(tmp_path_factory):
+    """One complete tiny run folder made by `nbvkit run` (and its wall time)."""
+    out = tmp_path_factory.mktemp("faults") / "base"
+    t0 = time.perf_counter()
+    rc, _, err = fb.run(fb.run_argv(out))
+    assert rc == 0, err
+    return out, time.perf_counter() - t0
+
+
+# ------------------------------------------------------------------------ the run folder
+
+
+def test_a_run_folder_is_complete_and_consistent(finished_run):
+    out, _ = finished_run
+    assert fb.run_problems(out) == []
+    manifest = json.loads((out / MANIFEST).read_text())
+    assert {"summary.json", "cloud.ply", "map.ot", "config.yaml"} <= set(manifest["files"])
+    assert not any(k.startswith("cache/") for k in manifest["files"])
+    assert fb.leftovers(out) == []
+    assert require_complete_run(out) == out
+
+
+def test_incomplete_folders_are_refused_with_the_reason(tmp_path, finished_run):
+    import shutil
+
+    out = tmp_path / "r"
+    shutil.copytree(finished_run[0], out)
+    (out / "iterations.csv").write_text("iteration\n")  # changed since the run wrote it
+    with pytest.raises(IncompleteRunError, match="damaged iterations.csv"):
+        require_complete_run(out)
+    (out / MANIFEST).unlink()
+    with pytest.raises(ValueError, match="has no manifest.json"):
+        require_complete_run(out)
+    with pytest.raises(ValueError, match="does not exist"):
+        require_complete_run(tmp_path / "nope")
+    assert not is_complete_run(out)
+    from nbvkit.paths import require_complete_run as public
+
+    assert public is require_complete_run
+
+
+def test_a_failing_run_leaves_nothing_and_the_old_run_stays(tmp_path, finished_run):
+    import shutil
+
+    out = tmp_path / "r"
+    shutil.copytree(finished_run[0], out)
+    before = (out / "summary.json").read_bytes()
+    with pytest.raises(RuntimeError, match="boom"):
+        with RunFolder(out, overwrite=True) as rf:
+            (rf.tmp / "summary.json").write_text("{}")
+            raise RuntimeError("boom")
+    assert (out / "summary.json").read_bytes() == before
+    assert is_complete_run(out)
+    assert fb.leftovers(out) == []
+    # an overwrite replaces it whole: no old file stays
+    with RunFolder(out, overwrite=True) as rf:
+        (rf.tmp / "summary.json").write_text("{}")
+    assert sorted(os.listdir(out)) == ["cache", MANIFEST, "summary.json"]  # the cache is carried
+    assert fb.leftovers(out) == []
+
+
+def test_two_runs_on_one_folder_cannot_both_succeed(tmp_path):
+    out = tmp_path / "x"
+    with RunFolder(out, what="--out"):
+        with pytest.raises(ValueError, match="being written by another nbvkit run"):
+            RunFolder(out, what="--out").__enter__()
+        with pytest.raises(IncompleteRunError, match="being written by an nbvkit run"):
+            require_complete_run(out)
+    assert is_complete_run(out)
+    with pytest.raises(ValueError, match="already holds a complete run.*--overwrite"):
+        RunFolder(out).__enter__()
+
+
+def test_cli_two_runs_at_once_and_a_rerun(tmp_path):
+    _ok(fb.shared_case(tmp_path))
+    _ok(fb.rerun_case(tmp_path))
+
+
+def test_python_api_refuses_a_folder_with_another_run(tmp_path):
+    from nbvkit.config import load_config
+
+    cfg = load_config(overrides=[*fb.TINY, "scenario=1", "progress=false"])
+    out = tmp_path / "api"
+    nbvkit.Mission(cfg).run(out)
+    assert is_complete_run(out)
+    with pytest.raises(ValueError, match="already holds a complete run"):
+        nbvkit.Mission(cfg).run(out)
+    nbvkit.Mission(cfg).run(out, overwrite=True)
+    assert is_complete_run(out)
+
+
+def test_finish_run_on_a_complete_folder_keeps_it_marked(tmp_path):
+    from nbvkit.config import load_config
+    from nbvkit.report import finish_run
+
+    cfg = load_config(overrides=[*fb.TINY, "scenario=1", "progress=false"])
+    m = nbvkit.Mission(cfg)
+    out = tmp_path / "f"
+    m.run(out)
+    finish_run(m, out)
+    assert fb.run_problems(out) == []
+
+
+@pytest.mark.parametrize("seed", [0, 1, 2])
+def test_a_kill_at_a_random_moment_then_the_same_command_gives_one_complete_run(
+    tmp_path, finished_run, seed
+):
+    delay = random.Random(seed).uniform(0.05, 1.05) * finished_run[1]
+    _ok(fb.kill_case(tmp_path, delay, overwrite=seed != 2))
+
+
+def test_evaluate_refuses_an_incomplete_run_folder(tmp_path, finished_run):
+    _ok(fb.reader_case(tmp_path, finished_run[0]))
+
+
+def test_a_damaged_cache_file_is_recomputed(tmp_path, finished_run):
+    _ok(fb.bad_cache_case(tmp_path, finished_run[0]))
+
+
+def test_a_damaged_cache_file_is_recomputed_in_python(tmp_path, unit_box):
+    from nbvkit.observability import observable_surface
+
+    cfg = nbvkit.Config().with_overrides(["evaluation.gt_density=50"])
+    a = observable_surface(unit_box, cfg, cache_dir=tmp_path)
+    (entry,) = tmp_path.glob("observable-*.npz")
+    for damage in (b"", b"PK\x03\x04garbage", entry.read_bytes()[:100]):
+        entry.write_bytes(damage)
+        b = observable_surface(unit_box, cfg, cache_dir=tmp_path)
+        assert not b.cached
+        assert (a.observable == b.observable).all()
+    assert observable_surface(unit_box, cfg, cache_dir=tmp_path).cached
+    assert not list(tmp_path.glob("*.tmp*"))
+
+
+# ------------------------------------------------------------------------ full disks
+
+
+@pytest.fixture(scope="module")
+def mount_ok():
+    return fb.can_mount_tmpfs()
+
+
+@pytest.mark.parametrize("size", ["64k", "1m"])
+def test_a_full_disk_leaves_no_summary_claiming_a_finished_run(tmp_path, mount_ok, size):
+    note = _ok(fb.disk_full_case(tmp_path, size, mount_ok))
+    assert note != "fitted", f"{size} held the whole run: the test tried nothing"
+
+
+def test_map_save_on_a_full_disk_raises_and_leaves_no_file(mount_ok):
+    _ok(fb.map_save_full_case(mount_ok))
+
+
+def test_write_errors_raise(tmp_path):
+    """Every output writer raises on a write error (here: a folder that is not there)."""
+    from nbvkit.cloud import write_points
+
+    missing = tmp_path / "gone" / "x"
+    m = nbvkit.OccupancyMap(0.5, (0, 0, 0), (2, 2, 2))
+    with pytest.raises(FileNotFoundError):
+        m.save(str(missing) + ".ot")
+    with pytest.raises(OSError):
+        write_points(str(missing) + ".ply", np.zeros((3, 3)))
+    if Path("/dev/full").exists():  # a file on a full disk
+        full = tmp_path / "full.ply"
+        full.symlink_to("/dev/full")
+        with pytest.raises(OSError, match="No space left"):
+            write_points(full, np.zeros((3, 3)))
+
+
+# ------------------------------------------------------------------------ threads
+
+
+def test_scanning_while_another_thread_changes_the_thread_count():
+    _ok(fb.python_case(fb.THREADS_SCAN.format(seconds=2)))
+
+
+def test_two_missions_in_two_threads_match_serial_runs():
+    _ok(fb.python_case(fb.THREADS_2M.format(over=fb.TINY)))
+
+
+def test_integrate_on_one_map_from_several_threads_matches_serial():
+    _ok(fb.python_case(fb.THREADS_MAP.format(trials=3)))
+
+
+def test_a_mission_run_twice_gives_a_fresh_missions_result():
+    _ok(fb.python_case(fb.MISSION_TWICE.format(over=fb.TINY)))
+
+
+def test_a_mission_running_in_one_thread_refuses_a_second_run():
+    code = """
+    import threading, time, nbvkit
+    from nbvkit.config import load_config
+    m = nbvkit.Mission(load_config(overrides=list({over!r}) + ["scenario=1", "progress=false"]))
+    t = threading.Thread(target=m.run)
+    t.start()
+    while not m._running.locked():
+        time.sleep(0.001)
+    try:
+        m.run()
+    except RuntimeError as e:
+        assert "already running" in str(e)
+        print("refused")
+    t.join()
+    """
+    assert _ok(fb.python_case(textwrap.dedent(code).format(over=fb.TINY))) == "refused"
