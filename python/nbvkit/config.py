@@ -355,9 +355,7 @@ class SamplingConfig:
     sigma: float = positive(1.5)
     alpha_max: int = within(5, 0, 100)
     stuck_threshold: float = positive(0.005)  # |dE_v| below this counts as stuck (paper)
-    stuck_window: int = within(
-        3, 1, 10**6
-    )  # stuck iterations in a row before alpha grows (paper)
+    stuck_window: int = within(3, 1, 10**6)  # stuck iterations in a row before alpha grows
     scale_cap: Optional[float] = positive(None)  # authors' code: 7.5
     oscillation_is_stuck: bool = False  # authors' code: an A-B-A-B oscillation counts as stuck
 
@@ -566,9 +564,7 @@ class ReportConfig:
 class Config:
     """A mission: scenario (Table 2 row), start (0..4), NBV iteration cap, and the sections."""
 
-    seed: int = within(
-        0, 0, 2**64 - 2
-    )  # noise and sampling seed; the same seed, the same mission
+    seed: int = within(0, 0, 2**64 - 2)  # noise and sampling seed; same seed, same mission
     scenario: str = DEFAULT_SCENARIO  # a preset (nbvkit.scenarios): profile, 1..5, surface, ...
     start: int = within(0, 0, 4)  # which of the five predefined start poses
     start_pose: Optional[tuple] = None  # (x, y, z, yaw) instead of a predefined start
