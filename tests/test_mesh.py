@@ -71,8 +71,9 @@ def test_collada_node_transforms_are_applied(tmp_path):
 def test_formats_written_by_open3d(tmp_path, ext):
     o3d = pytest.importorskip("open3d")
     box = box_mesh((1, 2, 3), (2, 4, 7))
-    om = o3d.geometry.TriangleMesh(
-        o3d.utility.Vector3dVector(box.vertices), o3d.utility.Vector3iVector(box.faces)
+    om = o3d.geometry.TriangleMesh(  # a Mesh's arrays are read-only: open3d wants copies
+        o3d.utility.Vector3dVector(np.array(box.vertices)),
+        o3d.utility.Vector3iVector(np.array(box.faces)),
     )
     om.compute_vertex_normals()
     p = tmp_path / f"box{ext}"

@@ -3,6 +3,15 @@
 
 namespace nbv::bind {
 
+namespace {
+// A numpy array that cannot be written: changing a copy of a mesh's arrays would look like
+// changing the mesh, which it does not.
+py::object read_only(py::object a) {
+  a.attr("flags").attr("writeable") = false;
+  return a;
+}
+}  // namespace
+
 void init_mesh(py::module_& m) {
   py::class_<Mesh, std::shared_ptr<Mesh>>(m, "Mesh", R"doc(
 A triangle soup in metres, world frame, z up.
@@ -20,10 +29,13 @@ Mesh(vertices, faces) or Mesh.from_open3d(o3d_mesh).)doc")
            }),
            py::arg("vertices"), py::arg("faces"))
       .def_property_readonly(
-          "vertices", [](const Mesh& s) { return s.vertices; },
-          "(N, 3) float64 vertex positions, metres (a copy)")
+          "vertices", [](const Mesh& s) { return read_only(py::cast(s.vertices)); },
+          "(N, 3) float64 vertex positions, metres (a read-only copy: a Mesh never changes; "
+          "build a new one with Mesh(vertices, faces), which checks them)")
       .def_property_readonly(
-          "faces", [](const Mesh& s) { return s.faces; }, "(M, 3) int32 vertex indices (a copy)")
+          "faces", [](const Mesh& s) { return read_only(py::cast(s.faces)); },
+          "(M, 3) int32 vertex indices (a read-only copy: a Mesh never changes; build a new one "
+          "with Mesh(vertices, faces), which checks them)")
       .def_property_readonly("num_triangles", [](const Mesh& s) { return s.faces.rows(); })
       .def_property_readonly("num_vertices", [](const Mesh& s) { return s.vertices.rows(); })
       .def("triangle_areas", &Mesh::triangle_areas, "(M,) triangle areas, m^2")
@@ -68,11 +80,26 @@ Mesh(vertices, faces) or Mesh.from_open3d(o3d_mesh).)doc")
 
   m.def(
       "_load_mesh",
-      [](const std::string& path, double scale, const std::string& up) {
+      [](const py::object& path_obj, double scale, const std::string& up) {
+        // The path as the OS's bytes (os.fsencode of a str, bytes or os.PathLike): any path the
+        // OS accepts, also one that is not UTF-8.
+        const std::string path = py::bytes(py::module_::import("os").attr("fsencode")(path_obj));
         if (up.size() != 1)
           throw py::value_error("mesh up axis must be 'y' or 'z', got '" + up + "'");
-        py::gil_scoped_release release;
-        return std::make_shared<Mesh>(load_mesh(path, scale, up[0]));
+        std::shared_ptr<Mesh> mesh;
+        std::string error;
+        {
+          py::gil_scoped_release release;
+          try {
+            mesh = std::make_shared<Mesh>(load_mesh(path, scale, up[0]));
+          } catch (const std::invalid_argument& e) {
+            error = e.what();
+          }
+        }
+        if (!error.empty())  // the message names the path: its bytes need not be UTF-8
+          throw py::value_error(
+              py::bytes(error).attr("decode")("utf-8", "backslashreplace").cast<std::string>());
+        return mesh;
       },
       py::arg("path"), py::arg("scale") = 1.0, py::arg("up") = "z");
 }

@@ -84,16 +84,72 @@ Points Mesh::sample_surface(std::size_t n, std::uint64_t seed, Eigen::VectorXi* 
 
 namespace {
 
-// A size cap on mesh files (PLY and assimp's formats): what a file may make us allocate grows with
+// Mesh files must be regular files (a FIFO would block the reader forever, a device such as
+// /dev/zero never ends) of at most kMaxMeshFileBytes: what a file may make us allocate grows with
 // its size.
 void check_file_size(const std::string& path) {
+  namespace fs = std::filesystem;
   std::error_code ec;
-  const auto size = std::filesystem::file_size(path, ec);
+  const fs::file_status st = fs::status(path, ec);
+  if (ec) throw std::invalid_argument("cannot read mesh '" + path + "': " + ec.message());
+  if (!fs::is_regular_file(st))
+    throw std::invalid_argument("cannot read mesh '" + path + "': it is " +
+                                (fs::is_directory(st)        ? "a directory"
+                                 : fs::is_fifo(st)           ? "a FIFO (named pipe)"
+                                 : fs::is_character_file(st) ? "a character device"
+                                 : fs::is_block_file(st)     ? "a block device"
+                                 : fs::is_socket(st)         ? "a socket"
+                                                             : "not a regular file") +
+                                ": nbvkit reads regular files only");
+  const auto size = fs::file_size(path, ec);
   if (ec) throw std::invalid_argument("cannot read mesh '" + path + "': " + ec.message());
   if (size > kMaxMeshFileBytes)
     throw std::invalid_argument("cannot read mesh '" + path + "': " + std::to_string(size) +
                                 " bytes, more than the " + std::to_string(kMaxMeshFileBytes) +
                                 " bytes nbvkit reads");
+}
+
+// A loaded mesh: Mesh::validate, and at least one triangle with an area (a mesh of degenerate
+// triangles alone has no surface to see, sample or score).
+void validate_loaded(const Mesh& m, const std::string& path) {
+  try {
+    m.validate();
+  } catch (const std::invalid_argument& e) {
+    throw std::invalid_argument("mesh file '" + path + "': " + e.what());
+  }
+  const double area = m.area();
+  if (!(area > 0) || !std::isfinite(area))
+    throw std::invalid_argument(
+        "mesh file '" + path + "': its " + std::to_string(m.faces.rows()) + " triangles have " +
+        (area > 0 ? "an infinite area (coordinates too large)" : "no area (all degenerate)"));
+}
+
+// Refuses a file whose faces (of any polygon size) use a vertex with a NaN or infinite
+// coordinate, naming how many and the first one.
+void check_finite_vertices(const aiScene& scene, const std::string& path) {
+  std::size_t bad = 0;
+  std::string first;
+  for (unsigned m = 0; m < scene.mNumMeshes; ++m) {
+    const aiMesh* mesh = scene.mMeshes[m];
+    std::vector<char> used(mesh->mNumVertices, 0);
+    for (unsigned f = 0; f < mesh->mNumFaces; ++f) {
+      const aiFace& face = mesh->mFaces[f];
+      if (face.mNumIndices < 3) continue;
+      for (unsigned k = 0; k < face.mNumIndices; ++k)
+        if (face.mIndices[k] < mesh->mNumVertices) used[face.mIndices[k]] = 1;
+    }
+    for (unsigned v = 0; v < mesh->mNumVertices; ++v) {
+      const aiVector3D& p = mesh->mVertices[v];
+      if (!used[v] || (std::isfinite(p.x) && std::isfinite(p.y) && std::isfinite(p.z))) continue;
+      if (bad++ == 0)
+        first = "vertex " + std::to_string(v) + " of part " + std::to_string(m) + " is (" +
+                std::to_string(p.x) + ", " + std::to_string(p.y) + ", " + std::to_string(p.z) + ")";
+    }
+  }
+  if (bad)
+    throw std::invalid_argument("mesh file '" + path + "': " + std::to_string(bad) +
+                                " vertices of its faces have a NaN or infinite coordinate (" +
+                                first + ")");
 }
 
 // PLY files go through nbvkit's own strict reader (nbv/ply.hpp), never through assimp.
@@ -110,11 +166,7 @@ Mesh load_ply_mesh(const std::string& path, double scale, char up) {
     out.vertices.row(i) = scale * (y_up ? Eigen::Vector3d(p.x(), -p.z(), p.y()) : p);
   }
   out.faces = std::move(ply.faces);
-  try {
-    out.validate();
-  } catch (const std::invalid_argument& e) {
-    throw std::invalid_argument("mesh file '" + path + "': " + e.what());
-  }
+  validate_loaded(out, path);
   return out;
 }
 
@@ -253,7 +305,15 @@ Mesh load_mesh(const std::string& path, double scale, char up) {
                               aiPrimitiveType_POINT | aiPrimitiveType_LINE);
   const unsigned flags = aiProcess_Triangulate | aiProcess_PreTransformVertices |
                          aiProcess_SortByPType | aiProcess_JoinIdenticalVertices;
-  const aiScene* scene = importer.ReadFile(path, flags);
+  // Read first without post-processing: JoinIdenticalVertices would merge a vertex with a NaN
+  // coordinate into another vertex (NaN compares equal to nothing, assimp's hashing takes it for
+  // a neighbour), and the mesh would load with the wrong shape and area.
+  const aiScene* scene = importer.ReadFile(path, 0);
+  if (!scene)
+    throw std::invalid_argument("cannot read mesh '" + path +
+                                "': " + printable_ascii(importer.GetErrorString()));
+  check_finite_vertices(*scene, path);
+  scene = importer.ApplyPostProcessing(flags);
   if (!scene)
     throw std::invalid_argument("cannot read mesh '" + path +
                                 "': " + printable_ascii(importer.GetErrorString()));
@@ -290,11 +350,7 @@ Mesh load_mesh(const std::string& path, double scale, char up) {
     }
     vbase += mesh->mNumVertices;
   }
-  try {
-    out.validate();
-  } catch (const std::invalid_argument& e) {
-    throw std::invalid_argument("mesh file '" + path + "': " + e.what());
-  }
+  validate_loaded(out, path);
   return out;
 }
 

@@ -5,8 +5,13 @@
 
 #include <gtest/gtest.h>
 
+#include <sys/stat.h>
+
 #include <cmath>
+#include <cstdio>
+#include <fstream>
 #include <limits>
+#include <string>
 
 using nbv::Mesh;
 using nbv::Points;
@@ -39,6 +44,57 @@ TEST(Mesh, RejectsEmptyAndBadIndices) {
 
 TEST(Mesh, MissingFileThrowsFileNotFound) {
   EXPECT_THROW(nbv::load_mesh("/nonexistent/never.obj"), nbv::FileNotFound);
+}
+
+namespace {
+// The message of load_mesh(path)'s std::invalid_argument, or "" when it loads.
+std::string load_error(const std::string& path) {
+  try {
+    nbv::load_mesh(path);
+  } catch (const std::invalid_argument& e) {
+    return e.what();
+  }
+  return "";
+}
+
+std::string write_obj(const std::string& name, const std::string& text) {
+  const std::string path = ::testing::TempDir() + name;
+  std::ofstream(path) << text;
+  return path;
+}
+}  // namespace
+
+TEST(Mesh, NonFiniteVertexIsRefusedNotMergedAway) {
+  // assimp's JoinIdenticalVertices would merge the NaN vertex into another: the loader checks
+  // the raw vertices first
+  const std::string cube =
+      "v 0 0 0\nv 1 0 0\nv 0 1 0\nv 1 1 0\nv 0 0 1\nv 1 0 1\nv 0 1 1\nv X 1 1\n"
+      "f 1 3 2\nf 2 3 4\nf 5 6 7\nf 6 8 7\nf 1 2 5\nf 2 6 5\nf 3 7 4\nf 4 7 8\n"
+      "f 1 5 3\nf 3 5 7\nf 2 4 6\nf 4 8 6\n";
+  for (const char* bad : {"nan", "inf", "-inf"}) {
+    std::string text = cube;
+    text.replace(text.find('X'), 1, bad);
+    const std::string path = write_obj("nbv_nan_cube.obj", text);
+    EXPECT_NE(load_error(path).find("NaN or infinite"), std::string::npos) << bad;
+    std::remove(path.c_str());
+  }
+  std::string text = cube;
+  text.replace(text.find('X'), 1, "1");
+  const std::string path = write_obj("nbv_cube.obj", text);
+  EXPECT_DOUBLE_EQ(nbv::load_mesh(path).area(), 6.0);
+  std::remove(path.c_str());
+}
+
+TEST(Mesh, FileWithoutAreaFifoAndDeviceAreRefused) {
+  const std::string flat = write_obj("nbv_flat.obj", "v 0 0 0\nv 1 0 0\nv 2 0 0\nf 1 2 3\n");
+  EXPECT_NE(load_error(flat).find("no area"), std::string::npos);
+  std::remove(flat.c_str());
+  const std::string fifo = ::testing::TempDir() + "nbv_fifo.obj";
+  std::remove(fifo.c_str());
+  ASSERT_EQ(mkfifo(fifo.c_str(), 0600), 0);
+  EXPECT_NE(load_error(fifo).find("FIFO"), std::string::npos);  // refused, never opened
+  std::remove(fifo.c_str());
+  EXPECT_NE(load_error("/dev/zero").find("character device"), std::string::npos);
 }
 
 TEST(Mesh, ZeroAreaMeshCannotBeSampled) {

@@ -16,6 +16,7 @@ from pathlib import Path
 import numpy as np
 
 from . import _core
+from .limits import MAX_DATA_FILE_BYTES, check_input_file
 
 __all__ = [
     "PointCloud",
@@ -198,19 +199,16 @@ def read_points(path, drop_nonfinite: bool = True) -> np.ndarray:
     are dropped with a warning unless ``drop_nonfinite=False``.
 
     Raises FileNotFoundError (with the path) for a missing file, and ValueError naming the file
-    and the reason for an unknown extension or a file that cannot be parsed.
+    and the reason for anything but a regular file of at most 2 GiB (a directory, a FIFO, a
+    device), an unknown extension or a file that cannot be parsed.
     """
-    path = Path(os.fspath(path)).expanduser()
+    path = check_input_file(path, "point cloud", MAX_DATA_FILE_BYTES)
     suffix = path.suffix.lower()
-    if not path.exists():
-        raise FileNotFoundError(2, "No such file", str(path))
     if suffix not in _SUFFIXES:
         raise ValueError(
             f"cannot read point cloud '{path}': unknown extension '{path.suffix}' "
             f"(use .ply, .pcd or .npy)"
         )
-    if path.is_dir():
-        raise ValueError(f"cannot read point cloud '{path}': it is a directory")
     try:
         if suffix == ".npy":
             pts = _read_npy(path)

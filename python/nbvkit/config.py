@@ -27,6 +27,14 @@ import yaml
 
 from . import _core
 from .cameras import CAMERA_PRESETS
+from .limits import (
+    MAX_TEXT_FILE_BYTES,
+    MAX_VIEW_RAYS,
+    MAX_YAML_NODES,
+    Bound,
+    check_input_file,
+    shorten,
+)
 from .scenarios import DEFAULT as DEFAULT_SCENARIO
 from .scenarios import SCENARIOS
 
@@ -43,34 +51,89 @@ YamlLoader.add_implicit_resolver(
 )
 
 
+def _expanded_nodes(node, limit: int, memo: dict) -> int:
+    """Nodes of a composed YAML document once its aliases are expanded (an alias repeats its
+    anchor's whole subtree); stops counting past `limit`."""
+    key = id(node)
+    if key in memo:
+        return memo[key]
+    memo[key] = limit + 1  # a node reached again while being counted: a cycle
+    n = 1
+    if isinstance(node, yaml.SequenceNode):
+        children = node.value
+    elif isinstance(node, yaml.MappingNode):
+        children = [x for pair in node.value for x in pair]
+    else:
+        children = []
+    for child in children:
+        n += _expanded_nodes(child, limit, memo)
+        if n > limit:
+            break
+    memo[key] = n
+    return n
+
+
 def parse_yaml(text: str, source: str = "<string>"):
-    """YAML text parsed with YamlLoader; ValueError "source:line: problem" on a syntax error."""
+    """YAML text parsed with YamlLoader; ValueError "source:line: problem" on a syntax error, and
+    for a document whose aliases expand to more than MAX_YAML_NODES nodes (a "billion laughs")."""
     try:
-        return yaml.load(text, Loader=YamlLoader)
+        loader = YamlLoader(text)
+        try:
+            node = loader.get_single_node()
+            if node is not None and _expanded_nodes(node, MAX_YAML_NODES, {}) > MAX_YAML_NODES:
+                raise ValueError(
+                    f"{source}: the YAML document expands (through its aliases) to more than "
+                    f"{MAX_YAML_NODES:,} values, the limit of a configuration"
+                )
+            return loader.construct_document(node) if node is not None else None
+        finally:
+            loader.dispose()
     except yaml.YAMLError as e:
         mark = getattr(e, "problem_mark", None) or getattr(e, "context_mark", None)
         where = f"{source}:{mark.line + 1}" if mark is not None else source
         problem = getattr(e, "problem", None) or str(e).splitlines()[0]
-        raise ValueError(f"{where}: {problem}") from None
+        raise ValueError(f"{where}: {shorten(problem, 200)}") from None
+    except RecursionError:
+        raise ValueError(f"{source}: the YAML document is nested too deeply") from None
 
 
 def read_yaml_file(path, what: str = "YAML file"):
     """A YAML file parsed (see parse_yaml); FileNotFoundError for a missing path, ValueError
-    naming the file for a directory, undecodable text or a syntax error."""
-    p = Path(path)
-    if not p.exists():
-        raise FileNotFoundError(2, f"No such {what}", str(p))
-    if p.is_dir():
-        raise ValueError(f"{what} {p} is a directory, not a file")
+    naming the file for anything but a regular file of at most MAX_TEXT_FILE_BYTES (a directory,
+    a FIFO, a device), undecodable text or a syntax error."""
+    p = check_input_file(path, what, MAX_TEXT_FILE_BYTES)
     try:
         text = p.read_text()
     except (OSError, UnicodeDecodeError) as e:
-        raise ValueError(f"cannot read {what} {p}: {e}") from None
+        raise ValueError(f"cannot read {what} {p}: {shorten(str(e), 200)}") from None
     return parse_yaml(text, str(p))
 
 
 #: A list of names in the configuration (YAML list of strings).
 Names = Tuple[str, ...]
+
+
+def bounded(default, bound: Bound):
+    """A dataclass field with its default and its range (nbvkit.limits.Bound), checked whenever
+    a configuration is built; an integer key without a maximum gets limits.MAX_INT."""
+    return field(default=default, metadata={"bound": bound})
+
+
+def positive(default, hi=None):
+    """A field whose value must be > 0 (and <= hi; None stays allowed where the type is
+    Optional)."""
+    return bounded(default, Bound(lo=0, lo_open=True, hi=hi))
+
+
+def nonneg(default):
+    """A field whose value must be >= 0."""
+    return bounded(default, Bound(lo=0))
+
+
+def within(default, lo, hi):
+    """A field whose value must lie in [lo, hi]."""
+    return bounded(default, Bound(lo=lo, hi=hi))
+
 
 _CAM = _core.DepthCameraOptions()
 _LAS = _core.LaserScannerOptions()
@@ -92,22 +155,32 @@ def _py_field(value):
     raise TypeError(f"no configuration type for a C++ option value {value!r}")
 
 
-def cpp_section(name: str, options_cls, doc: str, only=None, before=(), after=(), extra=()):
+def cpp_section(
+    name: str, options_cls, doc: str, only=None, before=(), after=(), extra=(), bounds=None
+):
     """A frozen config dataclass whose keys mirror a bound C++ options class: their names,
     defaults and documentation come from it (``options_cls.fields()``); `only` keeps some of them.
     `before` / `after`: Python-only keys as (name, type, default, doc). `extra`: more bound
     options classes whose every field is a key too (after the first class's; names must not
-    clash). The class gets ``FIELD_DOCS`` (key -> documentation), ``OPTIONS`` (the first bound
-    class), ``OPTIONS_ALL`` (all of them), ``options()`` (the first C++ options built from this
-    section) and ``options_for(cls)`` (any of them)."""
+    clash). `bounds`: key -> Bound of the keys whose range is checked here (beyond the C++
+    options' own checks; every integer key also gets limits.MAX_INT). The class gets
+    ``FIELD_DOCS`` (key -> documentation), ``OPTIONS`` (the first bound class), ``OPTIONS_ALL``
+    (all of them), ``options()`` (the first C++ options built from this section) and
+    ``options_for(cls)`` (any of them)."""
     classes = (options_cls,) + tuple(extra)
     keys = {
         cls: [f for f in cls.fields() if cls is not options_cls or only is None or f in only]
         for cls in classes
     }
-    docs, spec = {}, []
+    docs, spec, bounds = {}, [], dict(bounds or {})
+
+    def spec_field(fname, default):
+        if fname in bounds:
+            return bounded(default, bounds.pop(fname))
+        return field(default=default)
+
     for fname, tp, default, fdoc in before:
-        spec.append((fname, tp, field(default=default)))
+        spec.append((fname, tp, spec_field(fname, default)))
         docs[fname] = fdoc
     for cls in classes:
         defaults = cls()
@@ -115,11 +188,13 @@ def cpp_section(name: str, options_cls, doc: str, only=None, before=(), after=()
             if fname in docs:
                 raise ValueError(f"{name}: key {fname!r} is set twice")
             tp, default = _py_field(getattr(defaults, fname))
-            spec.append((fname, tp, field(default=default)))
+            spec.append((fname, tp, spec_field(fname, default)))
             docs[fname] = cls.fields()[fname]
     for fname, tp, default, fdoc in after:
-        spec.append((fname, tp, field(default=default)))
+        spec.append((fname, tp, spec_field(fname, default)))
         docs[fname] = fdoc
+    if bounds:
+        raise ValueError(f"{name}: bounds of unknown keys {sorted(bounds)}")
     cpp_fields = [f for cls in classes for f in keys[cls]]
 
     def options_for(self, cls):
@@ -150,7 +225,7 @@ class MeshConfig:
     """The structure's mesh file."""
 
     path: Optional[str] = None  # None: the shipped generated airliner
-    scale: float = 1.0
+    scale: float = positive(1.0)
     up: str = "z"  # the file's up axis: "z" or "y"
     shift: tuple = (0.0, 0.0, 0.0)  # m added after scale and up; results are in the shifted frame
 
@@ -165,8 +240,8 @@ class WorkspaceConfig:
     40.0 x 40.0 x 10.0 m. Explicit ``bounds_min``/``bounds_max`` override it.
     """
 
-    margin_xy: float = 2.5
-    margin_z: float = 2.5
+    margin_xy: float = nonneg(2.5)
+    margin_z: float = nonneg(2.5)
     square: bool = True
     bounds_min: Optional[tuple] = None
     bounds_max: Optional[tuple] = None
@@ -179,6 +254,7 @@ MapConfig = cpp_section(
     before=[
         ("resolution", float, _core.OccupancyMap.DEFAULT_RESOLUTION, "cell edge, m (authors: 0.2)")
     ],
+    bounds={"resolution": Bound(lo=0, lo_open=True)},
 )
 
 
@@ -193,13 +269,13 @@ class CameraConfig:
     UAVs; [0, 0] the fixed level camera (the paper's scenarios)."""
 
     preset: str = "rgbd"  # a named camera (nbvkit.cameras): rgbd (the paper's), inspection
-    width: int = _CAM.width
-    height: int = _CAM.height
+    width: int = within(_CAM.width, 1, 16_000)
+    height: int = within(_CAM.height, 1, 16_000)
     hfov_deg: float = _CAM.hfov_deg
     vfov_deg: float = _CAM.vfov_deg
     min_range: float = _CAM.min_range
-    max_range: float = _CAM.max_range
-    noise_k: float = _CAM.noise_k  # the authors used 0.0025 (sigma = k z^2)
+    max_range: float = positive(_CAM.max_range, 1000)
+    noise_k: float = nonneg(_CAM.noise_k)  # the authors used 0.0025 (sigma = k z^2)
     mount_xyz: tuple = (0.0, 0.0, 0.0)
     mount_rpy_deg: tuple = (0.0, 0.0, 0.0)
     gimbal_pitch_deg: tuple = (-30.0, 90.0)  # [min, max] deg, > 0 looks down; [0, 0]: level
@@ -212,8 +288,8 @@ class LaserConfig:
     fov_deg: float = _LAS.fov_deg
     resolution_deg: float = _LAS.resolution_deg
     min_range: float = _LAS.min_range
-    max_range: float = _LAS.max_range
-    noise_sigma: float = _LAS.noise_sigma
+    max_range: float = positive(_LAS.max_range, 1000)
+    noise_sigma: float = nonneg(_LAS.noise_sigma)
     mount_xyz: tuple = (0.0, 0.0, 0.0)
     mount_rpy_deg: tuple = (0.0, 10.0, 0.0)  # pitched 10 deg down (Table 1)
 
@@ -225,8 +301,8 @@ _CLOUD = _core.SurfaceCloudOptions()
 class CloudConfig:
     """The reconstructed point clouds."""
 
-    camera_voxel: float = _CLOUD.voxel_size  # m, authors' RGB-D voxel filter
-    laser_voxel: float = 0.1  # m, authors' profile voxel filter
+    camera_voxel: float = positive(_CLOUD.voxel_size)  # m, authors' RGB-D voxel filter
+    laser_voxel: float = positive(0.1)  # m, authors' profile voxel filter
     min_z: float = _CLOUD.min_z  # m above the ground (workspace.ground_height): lower dropped
 
 
@@ -268,6 +344,11 @@ VehicleConfig = cpp_section(
             "holds is searched again without the cap",
         ),
     ],
+    bounds={
+        "collision_radius": Bound(lo=0, lo_open=True),
+        "start_clear_radius": Bound(lo=0, hi=1000),
+        "path_expansions": Bound(lo=1, hi=400_000_000),
+    },
 )
 
 
@@ -276,13 +357,13 @@ class SamplingConfig:
     """Viewpoint sampling, Eq. 2: CGVS lattice and the AGVS scale sigma**alpha."""
 
     method: str = "agvs"  # "cgvs" (alpha fixed at 0) or "agvs"
-    delta_d: float = 1.0  # m
-    delta_theta: float = math.pi / 4  # rad
-    sigma: float = 1.5
-    alpha_max: int = 5
-    stuck_threshold: float = 0.005  # |dE_v| below this counts as stuck (paper)
-    stuck_window: int = 3  # consecutive stuck iterations before alpha grows (paper)
-    scale_cap: Optional[float] = None  # authors' code: 7.5
+    delta_d: float = positive(1.0)  # m
+    delta_theta: float = nonneg(math.pi / 4)  # rad
+    sigma: float = positive(1.5)
+    alpha_max: int = within(5, 0, 100)
+    stuck_threshold: float = positive(0.005)  # |dE_v| below this counts as stuck (paper)
+    stuck_window: int = within(3, 1, 10**6)  # stuck iterations in a row before alpha grows
+    scale_cap: Optional[float] = positive(None)  # authors' code: 7.5
     oscillation_is_stuck: bool = False  # authors' code: an A-B-A-B oscillation counts as stuck
 
 
@@ -299,6 +380,11 @@ UtilityConfig = cpp_section(
         ),
         ("rays_y", Optional[int], None, "rays across the vertical FOV; null: 34 at 0.2 m"),
     ],
+    bounds={
+        "rays_x": Bound(lo=0, lo_open=True, hi=4096),
+        "rays_y": Bound(lo=0, lo_open=True, hi=4096),
+        "distance_lambda": Bound(lo=0),
+    },
 )
 
 TargetsConfig = cpp_section(
@@ -312,10 +398,10 @@ TargetsConfig = cpp_section(
 class PlacementConfig:
     """Views aimed at surface targets (tour and frontier generators)."""
 
-    cluster_size: float = 1.5  # m; targets grouped per cube of this size and side they face
+    cluster_size: float = positive(1.5)  # m; targets grouped per cube of this size and side faced
     standoffs: tuple = (0.45, 0.7)  # view distances from a target patch, x camera.max_range
-    azimuth_spread_deg: float = 30.0  # views also this far left and right of a patch's normal
-    elevation_margin_deg: float = 4.0  # a patch is kept this far inside the vertical FOV
+    azimuth_spread_deg: float = within(30.0, 0, 180)  # views this far either side of the normal
+    elevation_margin_deg: float = within(4.0, 0, 90)  # patches kept this far inside vertical FOV
 
 
 @dataclass(frozen=True)
@@ -326,12 +412,12 @@ class TourConfig:
     # how a plan chooses views: "cover" (greedy set cover, then a shortest tour) or "insertion"
     # (prize-collecting: new surface - rate x added tour length, by cheapest insertion)
     selection: str = "insertion"
-    min_gain: float = 1.2  # m^2 of new surface a view must add to enter a plan (docs/RESULTS.md)
-    rate: float = 0.75  # m^2 of new surface per metre of tour a planned view must pay for
-    max_plans: int = 0  # tours planned at most (0: until a plan is empty)
+    min_gain: float = nonneg(1.2)  # m^2 of new surface a view must add to enter a plan (RESULTS.md)
+    rate: float = nonneg(0.75)  # m^2 of new surface per metre of tour a planned view must pay for
+    max_plans: int = within(0, 0, 10**6)  # tours planned at most (0: until a plan is empty)
     # a stranded patch: all its views fail the collision test for want of known free space;
     # a view whose rays reach where they would be gets this share of its weight
-    access_weight: float = 0.0  # share of a stranded patch credited to a view opening it; 0: off
+    access_weight: float = nonneg(0.0)  # a stranded patch's share credited to a view opening it
     # once no view of the surface the map shows is worth its flight, plans also weigh views of
     # the unknown space within the structure's extent (unknown cells bordering free space)
     explore: bool = True  # then also plan views that open unknown space; false: stop there
@@ -341,7 +427,7 @@ class TourConfig:
 class FrontierConfig:
     """The frontier generator: views aimed at the nearest surface targets, each iteration."""
 
-    patches: int = 40  # target patches considered per iteration, the nearest and heaviest first
+    patches: int = within(40, 1, 100_000)  # target patches per iteration: nearest, heaviest first
 
 
 @dataclass(frozen=True)
@@ -350,36 +436,36 @@ class PlannerConfig:
 
     generators: Names = ("tour",)  # lattice | frontier | tour (first with views left leads)
     terminations: Names = ("budget",)  # entropy | stall | budget (any one ends the mission)
-    min_gain: float = 0.8  # m^2 of new surface (surface utility; else utility units); 0: any
-    travel_lambda: float = 0.15  # 1/m; a view ranks by utility * exp(-travel_lambda * path)
+    min_gain: float = nonneg(0.8)  # m^2 of new surface (surface utility; else utility units); 0 any
+    travel_lambda: float = nonneg(0.15)  # 1/m; a view ranks by utility * exp(-travel_lambda * path)
     # on a smaller structure (mapped surface A), m^2 thresholds x A/reference_area, tour.rate x
     # its square root (parts.threshold_scale); the profiles of the 35 m airliners map 417-502 m^2
-    reference_area: float = 400.0  # m^2 of mapped surface under which thresholds shrink; 0: never
+    reference_area: float = nonneg(400.0)  # m^2 of mapped surface below which thresholds shrink
 
 
 @dataclass(frozen=True)
 class StallConfig:
     """Surface-coverage stall: the chosen views stopped adding surface."""
 
-    window: int = 5  # consecutive views
-    min_gain: float = 0.8  # m^2 of new surface each added, at most
+    window: int = within(5, 1, 10**6)  # consecutive views
+    min_gain: float = nonneg(0.8)  # m^2 of new surface each added, at most
 
 
 @dataclass(frozen=True)
 class BudgetConfig:
     """Hard limits (0: none), checked after every view."""
 
-    max_distance_m: float = 0.0
-    max_views: int = 0
-    max_time_s: float = 0.0
+    max_distance_m: float = nonneg(0.0)
+    max_views: int = nonneg(0)
+    max_time_s: float = nonneg(0.0)
 
 
 @dataclass(frozen=True)
 class TerminationConfig:
     """Termination, sec. 3.5: |dE_v| < threshold for `window` iterations."""
 
-    threshold: float = 0.001  # |dE_v| (paper)
-    window: int = 5  # consecutive iterations (paper)
+    threshold: float = positive(0.001)  # |dE_v| (paper)
+    window: int = within(5, 1, 10**6)  # consecutive iterations (paper)
     count_partial_cells: bool = True  # C_view counts cells the frustum touches partially
 
 
@@ -391,14 +477,14 @@ class ProfilingConfig:
     enabled: bool = True  # fly the laser profile before the camera
     # circular (Algorithm 1), hull (its loop round the grown XY hull) or bbox (the box's faces)
     method: str = "hull"
-    waypoints: int = 4  # N, points around the structure (authors: 5)
-    margin: float = 4.0  # d, obstacle margin added to the bounding radius, m (authors: 4)
-    sweep_step: float = 0.025  # m between laser scans: a 40 Hz scanner at 1 m/s (authors)
-    camera_step: float = 1.0  # m between camera frames taken in the profile flight; 0: none (paper)
+    waypoints: int = within(4, 1, 1000)  # N, points around the structure (authors: 5)
+    margin: float = positive(4.0, 1e4)  # d: margin added to the bounding radius, m (authors: 4)
+    sweep_step: float = positive(0.025)  # m between laser scans: a 40 Hz scanner at 1 m/s (authors)
+    camera_step: float = nonneg(1.0)  # m between profile camera frames; 0: none (paper)
     z_min: Optional[float] = None  # sweep bounds; None: the workspace's z range
     z_max: Optional[float] = None
-    max_segment: float = 7.0  # arcs are flown as straight segments of at most this length, m
-    flight_margin: float = 30.0  # the profiling flight volume: workspace grown by this, m
+    max_segment: float = positive(7.0)  # arcs are flown as straight segments of at most this, m
+    flight_margin: float = within(30.0, 0, 1e4)  # the flight volume: workspace grown by this, m
     # fly the last arc back to the first waypoint after the last sweep (Algorithm 1's loop)
     close_circle: bool = False
     return_to_start: bool = False  # fly back to the start pose before the camera stage
@@ -419,6 +505,22 @@ SymmetryConfig = cpp_section(
         ("prediction_probability", float, 0.6, "of a predicted cell (paper; authors' code: 0.7)"),
     ],
     extra=(_core.SymmetricPredictionOptions,),
+    bounds={
+        "refresh_every": Bound(lo=0, hi=10**6),
+        "prediction_probability": Bound(lo=0.5, hi=1, lo_open=True, hi_open=True),
+        "max_descriptor_distance": Bound(inf=True),
+        "normal_k": Bound(hi=1000),
+        "sift_octaves": Bound(hi=16),
+        "sift_scales_per_octave": Bound(hi=32),
+        "matches_per_keypoint": Bound(hi=100),
+        "mean_shift_seeds": Bound(hi=10_000),
+        "mean_shift_max_iterations": Bound(hi=100_000),
+        "candidate_modes": Bound(hi=1000),
+        "refine_iterations": Bound(hi=1000),
+        "refine_max_points": Bound(hi=10**7),
+        "icp_normal_k": Bound(hi=1000),
+        "icp_max_iterations": Bound(hi=100_000),
+    },
 )
 
 
@@ -426,8 +528,8 @@ SymmetryConfig = cpp_section(
 class EvaluationConfig:
     """Scoring against the ground truth."""
 
-    gt_density: Optional[float] = None  # points per m^2; None: nbvkit.evaluate's default
-    coverage_every: int = 25  # iterations between coverage refreshes in the progress/CSV
+    gt_density: Optional[float] = positive(None)  # points per m^2; None: nbvkit.evaluate's default
+    coverage_every: int = nonneg(25)  # iterations between coverage refreshes in the progress/CSV
 
 
 ObservabilityConfig = cpp_section(
@@ -443,6 +545,11 @@ ObservabilityConfig = cpp_section(
             "compute it at the end of a mission (cached under the run/sweep folder)",
         )
     ],
+    bounds={
+        "pose_spacing": Bound(lo=0, lo_open=True),
+        "max_incidence_deg": Bound(lo=0, lo_open=True),
+        "yaw_steps": Bound(lo=0, hi=180),
+    },
 )
 
 
@@ -452,23 +559,23 @@ class ReportConfig:
 
     enabled: bool = True  # write them at the end of every mission
     mesh: bool = True  # reconstruct and score mesh.ply from the final cloud
-    poisson_depth: int = 8  # octree depth of open3d's Poisson (experiments: 7 unless set)
-    mesh_max_points: int = 60000  # the cloud is voxel-thinned to about this many points first
-    density_quantile: float = 0.05  # vertices of the lowest Poisson densities are trimmed
-    trim_distance: float = 0.3  # m; vertices farther than this from the cloud are trimmed
+    poisson_depth: int = within(8, 1, 12)  # octree depth of open3d's Poisson (experiments: 7)
+    mesh_max_points: int = within(60000, 1, 10**7)  # the cloud is voxel-thinned to ~this many
+    density_quantile: float = within(0.05, 0, 1)  # vertices of the lowest Poisson densities trimmed
+    trim_distance: float = nonneg(0.3)  # m; vertices farther than this from the cloud are trimmed
     html: bool = True  # write report.html (plotly, self-contained)
-    view_points: int = 50000  # ground-truth samples drawn in the report's 3D view
+    view_points: int = within(50000, 1, 2 * 10**6)  # ground-truth samples in the report's 3D view
 
 
 @dataclass(frozen=True)
 class Config:
     """A mission: scenario (Table 2 row), start (0..4), NBV iteration cap, and the sections."""
 
-    seed: int = 0  # camera/laser noise and sampling seed; the same seed gives the same mission
+    seed: int = within(0, 0, 2**64 - 2)  # noise and sampling seed; same seed, same mission
     scenario: str = DEFAULT_SCENARIO  # a preset (nbvkit.scenarios): profile, 1..5, surface, ...
-    start: int = 0  # which of the five predefined start poses
+    start: int = within(0, 0, 4)  # which of the five predefined start poses
     start_pose: Optional[tuple] = None  # (x, y, z, yaw[, pitch]) instead of a predefined start
-    max_iterations: Optional[int] = None  # views after profiling; null: 0.5 per m^2 of surface
+    max_iterations: Optional[int] = within(None, 0, 10**6)  # views; null: 0.5 per m^2 of surface
     progress: bool = True  # progress bar on stderr
     mesh: MeshConfig = field(default_factory=MeshConfig)
     workspace: WorkspaceConfig = field(default_factory=WorkspaceConfig)
@@ -500,7 +607,7 @@ class Config:
         if self.scenario not in SCENARIOS:
             raise ValueError(
                 f"config key 'scenario' must be one of {', '.join(SCENARIOS)}; "
-                f"got {self.scenario!r}"
+                f"got {shorten(self.scenario)}"
             )
         for key, value in SCENARIOS[self.scenario].settings.items():
             if not _has_dotted(self._user, key):
@@ -557,15 +664,15 @@ class Config:
 
 def _split(item: str) -> tuple[str, Any]:
     if "=" not in item:
-        raise ValueError(f"override {item!r} must look like key=value")
+        raise ValueError(f"override {shorten(item)} must look like key=value")
     key, raw = item.split("=", 1)
     key = key.strip()
     if not key:
-        raise ValueError(f"override {item!r} has an empty key")
+        raise ValueError(f"override {shorten(item)} has an empty key")
     try:
         value = parse_yaml(raw) if raw.strip() else None
     except ValueError as e:
-        raise ValueError(f"override {item!r}: cannot parse the value: {e}") from None
+        raise ValueError(f"override {shorten(item)}: cannot parse the value: {e}") from None
     return key, value
 
 
@@ -574,10 +681,13 @@ def _set_dotted(data: dict, key: str, value: Any) -> None:
     node = data
     for i, part in enumerate(parts[:-1]):
         if part not in node or not isinstance(node[part], dict):
-            raise KeyError(f"unknown config key {'.'.join(parts[:i + 1])!r} (in override {key!r})")
+            raise KeyError(
+                f"unknown config key {shorten('.'.join(parts[:i + 1]))} "
+                f"(in override {shorten(key)})"
+            )
         node = node[part]
     if parts[-1] not in node:
-        raise KeyError(f"unknown config key {key!r}")
+        raise KeyError(f"unknown config key {shorten(key)}")
     node[parts[-1]] = value
 
 
@@ -647,7 +757,7 @@ def _build(cls, data: dict, prefix: str):
     for k in data:
         if k not in known:
             raise KeyError(
-                f"unknown config key {prefix + str(k)!r}; known keys here: "
+                f"unknown config key {shorten(prefix + str(k))}; known keys here: "
                 f"{', '.join(sorted(known))}"
             )
     kwargs = {}
@@ -672,20 +782,27 @@ def _coerce(tp, value, key):
     if tp is bool:
         if isinstance(value, bool):
             return value
-        raise ValueError(f"config key {key!r} must be true or false, got {value!r}")
+        raise ValueError(f"config key {key!r} must be true or false, got {shorten(value)}")
     if tp is int:
-        if isinstance(value, bool) or not isinstance(value, (int, float)) or value != int(value):
-            raise ValueError(f"config key {key!r} must be an integer, got {value!r}")
+        if (
+            isinstance(value, bool)
+            or not isinstance(value, (int, float))
+            or (isinstance(value, float) and not (math.isfinite(value) and value == int(value)))
+        ):
+            raise ValueError(f"config key {key!r} must be an integer, got {shorten(value)}")
         return int(value)
     if tp is float:
         if isinstance(value, bool) or not isinstance(value, (int, float)):
-            raise ValueError(f"config key {key!r} must be a number, got {value!r}")
-        return float(value)
+            raise ValueError(f"config key {key!r} must be a number, got {shorten(value)}")
+        try:
+            return float(value)
+        except OverflowError:  # an integer past 1e308
+            raise ValueError(f"config key {key!r} must be finite, got {shorten(value)}") from None
     if tp is str:
         if isinstance(value, (int, float)) and not isinstance(value, bool):
             return str(value)  # e.g. scenario: 5
         if not isinstance(value, str):
-            raise ValueError(f"config key {key!r} must be a string, got {value!r}")
+            raise ValueError(f"config key {key!r} must be a string, got {shorten(value)}")
         return value
     if tp == Names:
         if (
@@ -693,14 +810,19 @@ def _coerce(tp, value, key):
             or not isinstance(value, (list, tuple))
             or not all(isinstance(x, str) for x in value)
         ):
-            raise ValueError(f"config key {key!r} must be a list of names, got {value!r}")
+            raise ValueError(f"config key {key!r} must be a list of names, got {shorten(value)}")
         return tuple(value)
     if tp is tuple:
-        if not isinstance(value, (list, tuple)) or not all(
-            isinstance(x, (int, float)) and not isinstance(x, bool) for x in value
+        if (
+            not isinstance(value, (list, tuple))
+            or len(value) > 16
+            or not all(isinstance(x, (int, float)) and not isinstance(x, bool) for x in value)
         ):
-            raise ValueError(f"config key {key!r} must be a list of numbers, got {value!r}")
-        return tuple(float(x) for x in value)
+            raise ValueError(f"config key {key!r} must be a list of numbers, got {shorten(value)}")
+        try:
+            return tuple(float(x) for x in value)
+        except OverflowError:
+            raise ValueError(f"config key {key!r} must be finite, got {shorten(value)}") from None
     return value
 
 
@@ -718,71 +840,6 @@ _CHOICES = {
     "profiling.arcs": ("level", "descending"),
     "symmetry.keypoints": ("sift", "iss", "uniform"),
 }
-_POSITIVE = {
-    "map.resolution",
-    "camera.max_range",
-    "laser.max_range",
-    "cloud.camera_voxel",
-    "cloud.laser_voxel",
-    "vehicle.collision_radius",
-    "vehicle.path_expansions",
-    "sampling.delta_d",
-    "sampling.sigma",
-    "termination.threshold",
-    "sampling.stuck_threshold",
-    "mesh.scale",
-    "profiling.waypoints",
-    "profiling.sweep_step",
-    "profiling.max_segment",
-    "profiling.margin",
-    "placement.cluster_size",
-    "frontier.patches",
-    "stall.window",
-    "observability.pose_spacing",
-    "observability.max_incidence_deg",
-    "report.poisson_depth",
-    "report.mesh_max_points",
-    "report.view_points",
-    "termination.window",
-    "sampling.stuck_window",
-    "utility.rays_x",
-    "utility.rays_y",
-    "camera.width",
-    "camera.height",
-}
-_NONNEG = {
-    "seed",
-    "max_iterations",
-    "start",
-    "sampling.alpha_max",
-    "vehicle.start_clear_radius",
-    "camera.noise_k",
-    "laser.noise_sigma",
-    "utility.distance_lambda",
-    "evaluation.coverage_every",
-    "workspace.margin_xy",
-    "workspace.margin_z",
-    "sampling.delta_theta",
-    "tour.min_gain",
-    "tour.rate",
-    "profiling.camera_step",
-    "tour.max_plans",
-    "tour.access_weight",
-    "planner.min_gain",
-    "planner.travel_lambda",
-    "planner.reference_area",
-    "stall.min_gain",
-    "budget.max_distance_m",
-    "budget.max_views",
-    "budget.max_time_s",
-    "symmetry.refresh_every",
-    "placement.azimuth_spread_deg",
-    "placement.elevation_margin_deg",
-    "observability.yaw_steps",
-    "report.density_quantile",
-    "report.trim_distance",
-}
-_INF_OK = {"symmetry.max_descriptor_distance"}  # inf: no limit
 _TRIPLES = {
     "mesh.shift",
     "camera.mount_xyz",
@@ -794,35 +851,65 @@ _TRIPLES = {
 }
 
 
+def field_bound(cls, f) -> Bound:
+    """The range of field `f` of config class `cls` (its declared Bound; an integer key without
+    a maximum gets limits.MAX_INT; NaN and infinities are refused unless it says so)."""
+    hint = typing.get_type_hints(cls)[f.name]
+    if typing.get_origin(hint) is typing.Union:  # Optional[X]
+        (hint,) = [a for a in typing.get_args(hint) if a is not type(None)]  # noqa: E721
+    return f.metadata.get("bound", Bound()).for_type(hint)
+
+
+def bounds_table() -> list[tuple[str, str, str, str]]:
+    """(key, type, default, range) of every numeric key of the configuration (docs)."""
+    rows = []
+
+    def walk(cls, prefix):
+        for f in fields(cls):
+            if f.name.startswith("_"):
+                continue
+            hint = typing.get_type_hints(cls)[f.name]
+            if is_dataclass(hint):
+                walk(hint, prefix + f.name + ".")
+                continue
+            inner = hint
+            if typing.get_origin(hint) is typing.Union:
+                (inner,) = [a for a in typing.get_args(hint) if a is not type(None)]  # noqa: E721
+            if inner in (int, float):
+                default = getattr(cls(), f.name) if cls is not Config else getattr(Config(), f.name)
+                rng = field_bound(cls, f).describe() or "any finite"
+                rows.append((prefix + f.name, inner.__name__, repr(default), rng))
+
+    walk(Config, "")
+    return rows
+
+
 def _validate(obj, prefix: str) -> None:
     for f in fields(obj):
         key = prefix + f.name
         v = getattr(obj, f.name)
         if key in _CHOICES and v not in _CHOICES[key]:
             raise ValueError(
-                f"config key {key!r} must be one of {', '.join(_CHOICES[key])}; got {v!r}"
+                f"config key {key!r} must be one of {', '.join(_CHOICES[key])}; got {shorten(v)}"
             )
-        if isinstance(v, float) and not math.isfinite(v) and not (key in _INF_OK and v > 0):
-            raise ValueError(f"config key {key!r} must be finite, got {v!r}")
-        if key in _POSITIVE and v is not None and not v > 0:
-            raise ValueError(f"config key {key!r} must be positive, got {v!r}")
-        if key in _NONNEG and v is not None and v < 0:
-            raise ValueError(f"config key {key!r} must be >= 0, got {v!r}")
+        field_bound(type(obj), f).check(key, v)
         if key in _TRIPLES and v is not None:
             if len(v) != 3:
-                raise ValueError(f"config key {key!r} must have 3 numbers, got {list(v)!r}")
+                raise ValueError(f"config key {key!r} must have 3 numbers, got {shorten(list(v))}")
             if not all(isinstance(x, (int, float)) and math.isfinite(x) for x in v):
-                raise ValueError(f"config key {key!r} must be 3 finite numbers, got {list(v)!r}")
+                raise ValueError(
+                    f"config key {key!r} must be 3 finite numbers, got {shorten(list(v))}"
+                )
     if hasattr(obj, "OPTIONS"):  # a section of C++ options: their own checks, named here
         try:
             for cls in obj.OPTIONS_ALL:
                 obj.options_for(cls)
         except (ValueError, TypeError) as e:
-            raise ValueError(f"config section {prefix.rstrip('.')!r}: {e}") from None
+            raise _section_error(obj, prefix.rstrip("."), e) from None
     if prefix == "placement." and not (obj.standoffs and all(0 < x <= 1 for x in obj.standoffs)):
         raise ValueError(
             "config key 'placement.standoffs' must be fractions of the camera range in (0, 1], "
-            f"got {list(obj.standoffs)!r}"
+            f"got {shorten(list(obj.standoffs))}"
         )
     if prefix == "planner.":
         from .planning.registry import check_names
@@ -833,7 +920,7 @@ def _validate(obj, prefix: str) -> None:
     if prefix == "" and obj.start_pose is not None and len(obj.start_pose) not in (4, 5):
         raise ValueError(
             "config key 'start_pose' must be 4 numbers (x, y, z, yaw) or 5 (x, y, z, yaw, "
-            f"pitch), got {list(obj.start_pose)!r}"
+            f"pitch), got {shorten(list(obj.start_pose))}"
         )
     if prefix == "" and obj.start_pose is not None:
         if not all(math.isfinite(x) for x in obj.start_pose):
@@ -848,9 +935,11 @@ def _validate(obj, prefix: str) -> None:
                     f"config key 'start_pose': its pitch {obj.start_pose[4]!r} rad "
                     f"({pitch:g} deg) is outside camera.gimbal_pitch_deg [{lo:g}, {hi:g}] deg"
                 )
-    if prefix == "" and not 0 <= obj.start <= 4:
+    if prefix == "" and not obj.planner.generators and not obj.profiling.enabled:
         raise ValueError(
-            f"config key 'start' must be 0..4 (five predefined starts), got {obj.start}"
+            "config key 'planner.generators' is empty and profiling is off "
+            "(profiling.enabled = false): the mission would fly nothing; name a generator "
+            f"({', '.join(_generator_names())}) or enable profiling"
         )
     if prefix == "":
         _check_derived(obj)
@@ -884,6 +973,12 @@ def _check_gimbal(pitch_range) -> None:
             f"config key {key!r} must include 0 (level): nbvkit's planners fly level views "
             f"until they choose pitches, got {list(pitch_range)!r}"
         )
+
+
+def _generator_names():
+    from .planning.registry import GENERATORS
+
+    return tuple(GENERATORS)
 
 
 def camera_kwargs(cfg) -> dict:
@@ -925,14 +1020,61 @@ def _check_derived(cfg) -> None:
         ("laser", lambda: _core.LaserScannerOptions(**laser_kwargs(cfg))),
         ("utility", lambda: view_camera(cfg)),
     )
+    c = cfg.camera
+    if not (u.rays_x and u.rays_y) and 0 < c.hfov_deg < 180 and 0 < c.vfov_deg < 180:
+        # the view camera's rays follow the map cells on the far plane (ViewCameraModel.
+        # for_resolution): bounded before they are built
+        def across(fov):
+            return math.ceil(2 * c.max_range * math.tan(math.radians(fov) / 2) / cfg.map.resolution)
+
+        _check_view_rays(cfg, u.rays_x or across(c.hfov_deg), u.rays_y or across(c.vfov_deg))
     for section, build in checks:
         try:
-            build()
+            built = build()
         except (ValueError, TypeError) as e:
             derived = ""
             if section == "utility" and not (u.rays_x and u.rays_y):
                 derived = f" (null rays_x / rays_y follow map.resolution = {cfg.map.resolution:g})"
-            raise ValueError(f"config section {section!r}: {e}{derived}") from None
+            raise _section_error(getattr(cfg, section), section, e, derived) from None
+    _check_view_rays(cfg, built.rays_x, built.rays_y)
+
+
+def _check_view_rays(cfg, rays_x: int, rays_y: int) -> None:
+    """ValueError when the view camera's rays per candidate view exceed MAX_VIEW_RAYS."""
+    u = cfg.utility
+    rays = rays_x * rays_y
+    if rays > MAX_VIEW_RAYS:
+        if u.rays_x and u.rays_y:
+            fits = f"utility.rays_x x rays_y <= {MAX_VIEW_RAYS:,} would fit"
+        else:
+            fit = cfg.camera.max_range * math.sqrt(MAX_VIEW_RAYS / rays) * 0.99
+            fits = (
+                f"camera.max_range <= {fit:.4g} (null utility.rays_x / rays_y give one ray per map "
+                f"cell on the far plane at map.resolution = {cfg.map.resolution:g}), or "
+                "utility.rays_x / rays_y set, would fit"
+            )
+        what = (
+            "utility.rays_x x rays_y"
+            if u.rays_x and u.rays_y
+            else f"camera.max_range = {cfg.camera.max_range:g}"
+        )
+        raise ValueError(
+            f"the view camera: {what} makes "
+            f"{rays_x} x {rays_y} = {rays:,} rays per candidate view, more than the "
+            f"limit {MAX_VIEW_RAYS:,} (checked before any work); {fits}"
+        )
+
+
+def _section_error(section, name: str, e: Exception, extra: str = "") -> ValueError:
+    """The ValueError of a section's C++ options check: "config key 'map.prob_hit' must be ..."
+    when the C++ message starts with a key of the section, else "config section 'map': ..."."""
+    msg = shorten(str(e), 300).strip("'\"")
+    if msg.startswith(name + " "):  # "camera hfov_deg must be ..."
+        msg = msg[len(name) + 1 :]
+    first = msg.split(" ", 1)[0]
+    if first in {f.name for f in fields(section)}:  # "prob_hit must be ...": name the key
+        return ValueError(f"config key {name + '.' + first!r}{msg[len(first):]}{extra}")
+    return ValueError(f"config section {name!r}: {msg}{extra}")
 
 
 def load_config(
@@ -990,6 +1132,19 @@ def documented_yaml() -> str:
     def flow(k, v):
         return yaml.safe_dump({k: v}, default_flow_style=True, width=1000).strip()[1:-1]
 
+    def with_range(cls, name, comment):
+        """The comment with the key's range appended (numeric keys with a declared bound or an
+        integer's maximum)."""
+        f = {x.name: x for x in fields(cls)}[name]
+        hint = typing.get_type_hints(cls)[name]
+        if typing.get_origin(hint) is typing.Union:
+            hint = next(a for a in typing.get_args(hint) if a is not type(None))  # noqa: E721
+        if hint not in (int, float) or ("bound" not in f.metadata and hint is not int):
+            return comment
+        rng = field_bound(cls, f).describe()
+        rng = rng if rng[:1] in ("(", "[") else f"[{rng}]"  # "(0, 1000]" or "[>= 0]"
+        return f"{comment} {rng}" if comment else rng
+
     lines = [
         "# nbvkit default configuration: every key with its default and unit (generated by",
         "# `python -m nbvkit.config`). Unknown keys are rejected. Use it with",
@@ -1010,10 +1165,10 @@ def documented_yaml() -> str:
             lines.append(f"{f.name}:  # {doc}")
             cm = comments(cls)
             for k, val in v.items():
-                c = cm.get(k, "")
+                c = with_range(cls, k, cm.get(k, ""))
                 lines.append(f"  {flow(k, val)}" + (f"  # {c}" if c else ""))
         else:
-            c = top.get(f.name, "")
+            c = with_range(Config, f.name, top.get(f.name, ""))
             lines.append(flow(f.name, v) + (f"  # {c}" if c else ""))
     return "\n".join(lines) + "\n"
 

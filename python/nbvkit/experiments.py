@@ -14,6 +14,7 @@ import contextlib
 import hashlib
 import itertools
 import json
+import math
 import os
 import shutil
 import time
@@ -21,6 +22,8 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
+
+from .limits import shorten
 
 #: the paper's Table 2 rows: label, profiling, symmetry, sampling
 TABLE2_ROWS = [
@@ -157,11 +160,14 @@ def _mesh_digest(cfg) -> str | None:
     None); None when it cannot be read (the mission then fails on it, naming the problem)."""
     from .mesh import default_mesh_path
 
+    from .limits import check_input_file
+
     path = cfg.mesh.path if cfg.mesh.path is not None else default_mesh_path()
     try:
+        path = check_input_file(path, "mesh file")  # a FIFO would block open() forever
         with open(path, "rb") as f:
             return hashlib.file_digest(f, "sha1").hexdigest()
-    except OSError:
+    except (OSError, ValueError):
         return None
 
 
@@ -505,6 +511,10 @@ def write_table2(df, out: Path) -> None:
 # ------------------------------------------------------------------ sweeps
 
 
+#: Runs one sweep file may describe (meshes x scenarios x starts x grid values).
+MAX_SWEEP_RUNS = 100_000
+
+
 def sweep_specs(sweep: dict) -> list[RunSpec]:
     """Specs of a sweep description (see `nbvkit sweep --help`): meshes x scenarios x starts x
     every combination of the grid's values, with the fixed overrides in `set`."""
@@ -524,32 +534,39 @@ def sweep_specs(sweep: dict) -> list[RunSpec]:
         raise KeyError(f"unknown sweep key(s) {sorted(unknown)}; known: {sorted(known)}")
     meshes = sweep.get("meshes") or [None]
     if not isinstance(meshes, list):
-        raise ValueError(f"sweep 'meshes' must be a list of paths or mappings, got {meshes!r}")
+        raise ValueError(
+            f"sweep 'meshes' must be a list of paths or mappings, got {shorten(meshes)}"
+        )
     for m in meshes:
         if isinstance(m, dict):
             bad = set(m) - {"path", "scale", "up"}
             if bad:
                 raise KeyError(
-                    f"unknown key(s) {sorted(bad)} in sweep mesh entry {m!r}; "
+                    f"unknown key(s) {sorted(bad)} in sweep mesh entry {shorten(m)}; "
                     "known: ['path', 'scale', 'up']"
                 )
             scale = m.get("scale", 1.0)
             if isinstance(scale, bool) or not isinstance(scale, (int, float)):
-                raise ValueError(f"sweep mesh entry {m!r}: 'scale' must be a number")
+                raise ValueError(f"sweep mesh entry {shorten(m)}: 'scale' must be a number")
         elif m is not None and not isinstance(m, str):
-            raise ValueError(f"sweep mesh entry {m!r} must be a path, a mapping or null")
+            raise ValueError(f"sweep mesh entry {shorten(m)} must be a path, a mapping or null")
     scenarios = sweep.get("scenarios", ["5"])
     if not isinstance(scenarios, list):
-        raise ValueError(f'sweep \'scenarios\' must be a list (e.g. ["1", "5"]), got {scenarios!r}')
+        raise ValueError(
+            f'sweep \'scenarios\' must be a list (e.g. ["1", "5"]), got {shorten(scenarios)}'
+        )
     scenarios = [str(s) for s in scenarios]
     starts = sweep.get("starts", [0])
     if isinstance(starts, int) and not isinstance(starts, bool):
+        if not 0 <= starts <= 5:
+            raise ValueError(f"sweep 'starts' count must be 0..5 (five predefined starts), "
+                             f"got {shorten(starts)}")  # fmt: skip
         starts = list(range(starts))
     if not isinstance(starts, list) or not all(
         isinstance(s, int) and not isinstance(s, bool) for s in starts
     ):
         raise ValueError(
-            f"sweep 'starts' must be a count or a list of start indices, got {starts!r}"
+            f"sweep 'starts' must be a count or a list of start indices, got {shorten(starts)}"
         )
     grid = sweep.get("grid") or {}
     if not isinstance(grid, dict) or not all(isinstance(v, list) for v in grid.values()):
@@ -558,10 +575,16 @@ def sweep_specs(sweep: dict) -> list[RunSpec]:
     if not isinstance(fixed_set, dict):
         raise ValueError(
             f"sweep 'set' must map config keys to values (e.g. {{max_iterations: 200}}), "
-            f"got {fixed_set!r}"
+            f"got {shorten(fixed_set)}"
         )
     fixed = [f"{k}={json.dumps(v)}" for k, v in fixed_set.items()]
     keys = list(grid)
+    runs = len(meshes) * len(scenarios) * len(starts) * math.prod(len(grid[k]) for k in keys)
+    if runs > MAX_SWEEP_RUNS:
+        raise ValueError(
+            f"the sweep makes {runs:,} runs (meshes x scenarios x starts x grid values), more "
+            f"than the limit {MAX_SWEEP_RUNS:,}; split it into smaller sweeps"
+        )
     specs = []
     for mesh in meshes:
         m = mesh if isinstance(mesh, dict) else {"path": mesh}

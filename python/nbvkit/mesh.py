@@ -9,6 +9,7 @@ import numpy as np
 
 from . import _core
 from ._core import Mesh
+from .limits import MAX_DATA_FILE_BYTES, check_input_file
 
 _UP = {"z": "z", "y": "y", "Z": "z", "Y": "y"}
 
@@ -22,8 +23,11 @@ def load_mesh(path: str | os.PathLike, scale: float = 1.0, up: str = "z", shift=
     multiplies coordinates (e.g. 0.001 for a millimetre file). ``shift`` (x, y, z), in metres,
     is then added to every vertex: a georeferenced mesh (UTM coordinates) is flown near the origin,
     where OctoMap can address it (+-6.5 km at 0.2 m) and Embree's float32 keeps millimetres.
-    Raises FileNotFoundError for a missing path and ValueError naming the file for unreadable,
-    malformed or triangle-less files, or naming a bad scale, up axis or shift (README, "Errors").
+    ``path``: any path the OS accepts (str, bytes, os.PathLike; also not UTF-8). Raises
+    FileNotFoundError for a missing path and ValueError naming the file for anything but a
+    regular file of at most 2 GiB (a directory, a FIFO, a device), for unreadable or malformed
+    files, a vertex of a face with a NaN or infinite coordinate, no triangle with an area, or
+    naming a bad scale, up axis or shift (README, "Errors").
     """
     if up not in _UP:
         raise ValueError(f"mesh up axis must be 'y' or 'z', got {up!r}")
@@ -38,10 +42,8 @@ def load_mesh(path: str | os.PathLike, scale: float = 1.0, up: str = "z", shift=
             raise ValueError(f"mesh shift must be 3 numbers (x, y, z) in metres, got {shift!r}")
         if not np.isfinite(shift).all():
             raise ValueError(f"mesh shift must be finite, got {shift.tolist()}")
-    p = Path(os.fspath(path)).expanduser()
-    if not p.exists():
-        raise FileNotFoundError(2, "No such file", str(p))
-    mesh = _core._load_mesh(str(p), scale, _UP[up])
+    p = check_input_file(path, "mesh file", MAX_DATA_FILE_BYTES)
+    mesh = _core._load_mesh(os.fsencode(p), scale, _UP[up])
     if shift is not None and shift.any():
         mesh = Mesh(np.asarray(mesh.vertices) + shift, mesh.faces)
     return mesh
@@ -58,8 +60,9 @@ def mesh_to_open3d(mesh: Mesh):
     """An ``open3d.geometry.TriangleMesh`` of a Mesh (with vertex normals, for viewing)."""
     import open3d as o3d
 
-    m = o3d.geometry.TriangleMesh(
-        o3d.utility.Vector3dVector(mesh.vertices), o3d.utility.Vector3iVector(mesh.faces)
+    m = o3d.geometry.TriangleMesh(  # (open3d takes writeable arrays only: copies)
+        o3d.utility.Vector3dVector(np.array(mesh.vertices)),
+        o3d.utility.Vector3iVector(np.array(mesh.faces)),
     )
     m.compute_vertex_normals()
     return m

@@ -67,7 +67,11 @@ def make_workspace(mesh_bounds, cfg: Config) -> Workspace:
     shrink = cfg.vehicle.collision_radius + 0.1
     nav_min, nav_max = bmin + shrink, bmax - shrink
     if not np.all(nav_max > nav_min):
-        raise ValueError("the workspace is too small for the vehicle's collision radius")
+        raise ValueError(
+            f"the workspace {(bmax - bmin).round(3).tolist()} m is too small for the vehicle's "
+            f"collision radius (vehicle.collision_radius = {cfg.vehicle.collision_radius:g} m; "
+            f"workspace.margin_xy = {w.margin_xy:g}, workspace.margin_z = {w.margin_z:g} m)"
+        )
     return Workspace(bmin, bmax, nav_min, nav_max)
 
 

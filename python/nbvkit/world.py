@@ -13,6 +13,7 @@ import numpy as np
 
 from . import _core
 from .config import Config, camera_kwargs, laser_kwargs, view_camera
+from .limits import check_work
 from .mesh import default_mesh_path, load_mesh
 from .workspace import Workspace, ground_height, make_workspace, start_poses
 
@@ -129,8 +130,17 @@ class World:
                 raise TypeError(f"mesh must be an nbvkit.Mesh, got {type(mesh).__name__}")
             self.mesh_path = "<in-memory mesh>"
         self.mesh = mesh
+        if not mesh.area > 0 or not math.isfinite(mesh.area):
+            area = "no" if not mesh.area > 0 else "an infinite"
+            raise MissionError(
+                f"the structure's mesh ({self.mesh_path}) has no surface: its "
+                f"{mesh.num_triangles} triangles have {area} area"
+            )
         _check_above_ground_removal(cfg, mesh.bounds)
         self.workspace: Workspace = make_workspace(mesh.bounds, cfg)
+        # What the configuration asks of this structure (map memory, profile scans and legs,
+        # ground-truth samples, observability lattice): refused before any work (nbvkit.limits).
+        check_work(cfg, mesh, self.workspace)
         # The map first: its size check (cells, OctoMap's range) comes before any search.
         m = cfg.map
         try:
@@ -143,8 +153,15 @@ class World:
         except ValueError as e:
             ws = self.workspace
             reach = 32767 * m.resolution  # OctoMap's keys, each way from the origin
-            if "addressable range" not in str(e) or np.any(ws.bounds_max - ws.bounds_min > reach):
+            if "addressable range" not in str(e):
                 raise
+            if np.any(ws.bounds_max - ws.bounds_min > reach):  # too large, wherever it lies
+                raise MissionError(
+                    f"{e}: the structure (mesh.scale = {cfg.mesh.scale:g}) and its workspace "
+                    f"(workspace.margin_xy = {cfg.workspace.margin_xy:g}, margin_z = "
+                    f"{cfg.workspace.margin_z:g} m) are too large for the map at map.resolution = "
+                    f"{m.resolution:g} m"
+                ) from None
             c = np.round(-(mesh.bounds[0] + mesh.bounds[1]) / 2)
             c[2] = 0.0
             shift = ",".join(f"{x:.0f}" for x in c + np.asarray(cfg.mesh.shift, float))

@@ -139,6 +139,10 @@ def run(args) -> int:
         }
     if args.seed < 0:
         raise ValueError(f"--seed must be >= 0, got {args.seed}")
+    if not args.reference_cloud:
+        from ..limits import check_samples
+
+        check_samples(gt.area, args.gt_density, "--gt-density")
     ev = Evaluator(
         gt,
         resolutions=args.resolutions,
@@ -221,11 +225,17 @@ def _ply_has_faces(path: Path) -> bool:
 def read_reconstruction(path: Path, density: float, seed: int = 0):
     """The reconstruction's points and what it was: a point cloud as read, or a mesh (a PLY
     with faces, or another mesh format) sampled uniformly at ``density`` points per m²."""
+    from ..limits import check_input_file
+
+    path = check_input_file(path, "reconstruction file")  # not a FIFO, a device, a folder
     suffix = path.suffix.lower()
-    if suffix in MESH_SUFFIXES or (suffix == ".ply" and path.exists() and _ply_has_faces(path)):
+    if suffix in MESH_SUFFIXES or (suffix == ".ply" and _ply_has_faces(path)):
         from ..mesh import load_mesh
 
+        from ..limits import check_samples
+
         mesh = load_mesh(path)
+        check_samples(mesh.area, density, "--gt-density")
         n = max(1, round(mesh.area * density))
         return mesh.sample_surface(n, seed), f"mesh, {mesh.area:.1f} m^2 sampled at {density:g}/m^2"
     return read_points(path), "point cloud"

@@ -1,0 +1,358 @@
+"""Bounds on inputs (issue 36, "Inputs"): every configured value has a range, every file read is
+a regular file of sane size, meshes reach C++ only finite and with a surface, and the work a
+configuration implies is checked before any work. The fast cases of bench/hostile_battery.py;
+each fails if its fix is undone."""
+from __future__ import annotations
+
+import math
+import os
+import subprocess
+import sys
+import threading
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+import nbvkit
+from nbvkit.config import Config, bounds_table, documented_yaml, load_config, read_yaml_file
+from nbvkit.limits import MAX_INT, check_input_file
+
+ROOT = Path(__file__).resolve().parent.parent
+CUBE = ROOT / "meshes" / "fixtures" / "cube.obj"
+sys.path.insert(0, str(ROOT / "bench"))
+
+from hostile_battery import (  # noqa: E402
+    CUBE_F,
+    CUBE_V,
+    LAUGHS,
+    gltf_text,
+    numeric_keys,
+    obj_text,
+    stl_text,
+)
+
+
+def cli(*args, timeout=60):
+    p = subprocess.run(
+        [sys.executable, "-m", "nbvkit.cli", *map(str, args)],
+        capture_output=True,
+        text=True,
+        timeout=timeout,
+        env=dict(os.environ, MPLBACKEND="Agg"),
+    )
+    return p.returncode, p.stdout, p.stderr
+
+
+# ---------------------------------------------------------------------------- config keys
+
+
+@pytest.mark.parametrize("value", ["nan", "inf", "-inf", "1e400", ".nan", ".inf", "-1e400"])
+def test_every_numeric_key_refuses_non_finite_values_naming_the_key(value):
+    for key, _ in numeric_keys():
+        if key == "symmetry.max_descriptor_distance" and value in (".inf", "1e400"):
+            assert math.isinf(getattr(load_config(overrides=[f"{key}={value}"]).symmetry,
+                                      "max_descriptor_distance"))  # fmt: skip
+            continue
+        with pytest.raises(ValueError) as e:
+            load_config(overrides=[f"{key}={value}"])
+        assert repr(key) in str(e.value), (key, value, str(e.value))
+
+
+def test_every_integer_key_has_a_maximum_and_refuses_1e12_naming_it():
+    ints = [k for k, t in numeric_keys() if t == "int"]
+    assert len(ints) >= 30
+    rows = {k: rng for k, _, _, rng in bounds_table()}
+    for key in ints:
+        assert "<=" in rows[key] or ".." in rows[key] or rows[key].endswith("]"), (key, rows[key])
+        for value in ("1e12", str(10**30)) if key != "seed" else (str(10**30),):
+            with pytest.raises(ValueError, match="limit") as e:
+                load_config(overrides=[f"{key}={value}"])
+            assert repr(key) in str(e.value)
+    # the default maximum of an integer key is the C++ int's
+    with pytest.raises(ValueError, match=f"limit {MAX_INT:_}"):
+        load_config(overrides=["vehicle.path_expansions=1", f"budget.max_views={MAX_INT + 1}"])
+
+
+def test_integer_keys_say_integer_for_fractions_and_negatives_are_named():
+    with pytest.raises(ValueError, match="'camera.width' must be an integer, got 1.5"):
+        load_config(overrides=["camera.width=1.5"])
+    with pytest.raises(ValueError, match="'profiling.waypoints' must be >= 1, got -1"):
+        load_config(overrides=["profiling.waypoints=-1"])
+
+
+def test_bounds_are_declared_on_fields_and_documented_in_default_yaml():
+    text = documented_yaml()
+    assert "waypoints: 4  # N, points around the structure (authors: 5) [1..1000]" in text
+    assert "[0..1_000_000]" in next(ln for ln in text.splitlines() if "max_iterations:" in ln)
+    # every default of every scenario lies within its bounds
+    from nbvkit.scenarios import SCENARIOS
+
+    for name in SCENARIOS:
+        Config.from_dict({"scenario": name})
+
+
+def test_defaults_are_unchanged_by_the_bounds():
+    cfg = Config()
+    assert (cfg.profiling.waypoints, cfg.profiling.margin, cfg.camera.width) == (4, 4.0, 640)
+    assert cfg.evaluation.gt_density is None and cfg.observability.pose_spacing == 2.0
+
+
+def test_empty_generators_with_profiling_off_is_an_error_not_profile_only():
+    with pytest.raises(ValueError, match="planner.generators.*fly nothing"):
+        load_config(overrides=["planner.generators=[]", "profiling.enabled=false"])
+    assert load_config(overrides=["scenario=profile"]).planner.generators == ()
+
+
+def test_messages_quote_hostile_values_shortly():
+    huge = "x" * 10**6
+    for override in ([f"scenario={huge}"], [f"camera.width={huge}"], [f"{huge}=1"]):
+        with pytest.raises((ValueError, KeyError)) as e:
+            load_config(overrides=override)
+        assert len(str(e.value)) < 1000
+
+
+# ---------------------------------------------------------------------------- files
+
+
+def test_yaml_alias_bomb_is_refused_quickly_with_a_short_message(tmp_path):
+    bomb = tmp_path / "bomb.yaml"
+    bomb.write_text(LAUGHS)
+    t0 = time.perf_counter()
+    with pytest.raises(ValueError, match="aliases") as e:
+        Config.from_yaml(bomb)
+    assert time.perf_counter() - t0 < 5 and len(str(e.value)) < 500
+    # anchors and aliases of ordinary size still work
+    ok = tmp_path / "ok.yaml"
+    ok.write_text("camera: &c {width: 320}\nmax_iterations: 3\n")
+    assert Config.from_yaml(ok).camera.width == 320
+
+
+def test_config_and_sweep_files_must_be_regular_files_of_sane_size(tmp_path):
+    fifo = tmp_path / "c.yaml"
+    os.mkfifo(fifo)
+    zero = tmp_path / "z.yaml"
+    zero.symlink_to("/dev/zero")
+    big = tmp_path / "big.yaml"
+    big.write_text("# " + "x" * (5 << 20))
+    for path, needle in (
+        (fifo, "FIFO"),
+        (zero, "character device"),
+        (tmp_path, "directory"),
+        (big, "more than the 4,194,304 bytes"),
+    ):
+        for what in ("config file", "sweep file"):
+            with pytest.raises(ValueError, match=needle) as e:
+                read_yaml_file(path, what)
+            assert str(path) in str(e.value) and what in str(e.value)
+    with pytest.raises(FileNotFoundError):
+        read_yaml_file(tmp_path / "missing.yaml")
+
+
+def test_a_fifo_config_through_the_cli_exits_2_at_once(tmp_path):
+    fifo = tmp_path / "c.yaml"
+    os.mkfifo(fifo)
+    t0 = time.perf_counter()
+    rc, _, err = cli("run", "--config", fifo, "--out", tmp_path / "o", timeout=60)
+    assert rc == 2 and "FIFO" in err and "Traceback" not in err, (rc, err)
+    assert time.perf_counter() - t0 < 30
+
+
+def test_point_cloud_and_mesh_readers_refuse_fifos_devices_and_folders(tmp_path):
+    from nbvkit.cloud import read_points
+
+    for name in ("c.npy", "c.ply", "m.obj", "m.ply"):
+        fifo = tmp_path / ("fifo_" + name)
+        os.mkfifo(fifo)
+        dev = tmp_path / ("dev_" + name)
+        dev.symlink_to("/dev/urandom")
+        read = read_points if name.startswith("c") else nbvkit.load_mesh
+        for path, needle in ((fifo, "FIFO"), (dev, "character device")):
+            result = {}
+
+            def call():
+                try:
+                    read(path)
+                except Exception as e:  # noqa: BLE001 - the test inspects it
+                    result["e"] = e
+
+            t = threading.Thread(target=call, daemon=True)
+            t.start()
+            t.join(10)
+            assert not t.is_alive(), f"reading {path} blocked"
+            assert isinstance(result.get("e"), ValueError), result
+            assert needle in str(result["e"]) and str(path) in str(result["e"])
+
+
+def test_the_cpp_mesh_loader_refuses_non_regular_files_too(tmp_path):
+    fifo = tmp_path / "m.obj"
+    os.mkfifo(fifo)
+    with pytest.raises(ValueError, match="FIFO"):
+        nbvkit._core._load_mesh(str(fifo))
+    with pytest.raises(ValueError, match="character device"):
+        nbvkit._core._load_mesh("/dev/zero")
+
+
+def test_check_input_file_takes_any_os_path(tmp_path):
+    odd = os.path.join(os.fsencode(str(tmp_path)), b"c\xff\xfe.yaml")
+    with open(odd, "wb") as f:
+        f.write(b"max_iterations: 3\n")
+    assert check_input_file(odd, "config file").name == os.fsdecode(b"c\xff\xfe.yaml")
+    assert Config.from_yaml(os.fsdecode(odd)).max_iterations == 3
+
+
+# ---------------------------------------------------------------------------- meshes
+
+
+def _nan_cube(coord=float("nan")):
+    v = list(CUBE_V)
+    v[7] = (coord, 1.0, 1.0)
+    return v
+
+
+@pytest.mark.parametrize("ext", [".obj", ".stl", ".gltf"])
+@pytest.mark.parametrize("coord", [float("nan"), float("inf")])
+def test_non_finite_vertices_are_refused_not_merged(tmp_path, ext, coord):
+    text = {".obj": obj_text, ".stl": stl_text, ".gltf": gltf_text}[ext](_nan_cube(coord), CUBE_F)
+    p = tmp_path / ("m" + ext)
+    p.write_text(text)
+    with pytest.raises(ValueError, match="NaN or infinite") as e:
+        nbvkit.load_mesh(p)
+    assert str(p) in str(e.value)
+    # the same file with the vertex finite loads with the cube's area
+    good = tmp_path / ("good" + ext)
+    good.write_text({".obj": obj_text, ".stl": stl_text, ".gltf": gltf_text}[ext](CUBE_V, CUBE_F))
+    assert nbvkit.load_mesh(good).area == pytest.approx(6.0)
+
+
+def test_a_mesh_without_a_triangle_of_area_is_an_error(tmp_path):
+    p = tmp_path / "flat.obj"
+    p.write_text(obj_text([(0, 0, 0), (1, 0, 0), (2, 0, 0)], [(0, 1, 2)]))
+    with pytest.raises(ValueError, match="no area"):
+        nbvkit.load_mesh(p)
+    v = np.array([[0, 0, 0], [1, 0, 0], [2, 0, 0]], float)
+    flat = nbvkit.Mesh(v, np.array([[0, 1, 2]], np.int32))  # arrays: allowed (C++ tests use it)
+    with pytest.raises(ValueError, match="no surface"):
+        nbvkit.Mission(load_config(overrides=["max_iterations=1"]), mesh=flat)
+
+
+def test_mesh_arrays_are_read_only_and_rebuilt_meshes_are_checked():
+    m = nbvkit.load_mesh(CUBE)
+    with pytest.raises(ValueError, match="read-only"):
+        m.faces[0, 0] = 10**6
+    with pytest.raises(ValueError, match="read-only"):
+        m.vertices[0, 0] = np.nan
+    f = np.array(m.faces)
+    f[0, 0] = 10**6
+    with pytest.raises(ValueError, match="out of range"):
+        nbvkit.Mesh(m.vertices, f)
+    v = np.array(m.vertices)
+    v[0, 0] = np.nan
+    with pytest.raises(ValueError, match="NaN|finite"):
+        nbvkit.Mesh(v, m.faces)
+
+
+def test_non_utf8_mesh_paths_load(tmp_path):
+    raw = os.path.join(os.fsencode(str(tmp_path)), b"m\xff\xfe.obj")
+    with open(raw, "wb") as f:
+        f.write(obj_text(CUBE_V, CUBE_F).encode())
+    for path in (raw, os.fsdecode(raw), Path(os.fsdecode(raw))):
+        assert nbvkit.load_mesh(path).area == pytest.approx(6.0)
+    bad = os.path.join(os.fsencode(str(tmp_path)), b"x\xff.obj")
+    with open(bad, "wb") as f:
+        f.write(b"not a mesh\n")
+    with pytest.raises(ValueError, match="cannot read mesh|no triangles"):
+        nbvkit.load_mesh(bad)
+
+
+# ---------------------------------------------------------------------------- work
+
+
+def _mission_error(overrides, mesh=None):
+    cfg = load_config(overrides=["map.resolution=0.4", *overrides])
+    t0 = time.perf_counter()
+    with pytest.raises(ValueError) as e:
+        nbvkit.Mission(cfg, mesh=mesh if mesh is not None else nbvkit.load_mesh(CUBE))
+    assert time.perf_counter() - t0 < 10, "the check came after the work"
+    return str(e.value)
+
+
+@pytest.mark.parametrize(
+    "override, key",
+    [
+        ("profiling.z_max=1e12", "profiling.z_max"),
+        ("profiling.margin=1e-6", "profiling.margin"),
+        ("profiling.sweep_step=1e-6", "profiling.sweep_step"),
+        ("profiling.camera_step=1e-4", "profiling.camera_step"),
+        ("profiling.max_segment=1e-5", "profiling.max_segment"),
+        ("evaluation.gt_density=1e12", "evaluation.gt_density"),
+        ("observability.pose_spacing=0.05", "observability.pose_spacing"),
+    ],
+)
+def test_keys_that_size_work_are_checked_before_any_work(override, key):
+    msg = _mission_error([override])
+    assert key in msg and "limit" in msg and "would fit" in msg, msg
+
+
+def test_the_value_that_would_fit_fits():
+    msg = _mission_error(["evaluation.gt_density=1e12"])
+    fit = float(msg.rsplit("<= ", 1)[1].split()[0])
+    cfg = load_config(overrides=["map.resolution=0.4", f"evaluation.gt_density={fit}"])
+    from nbvkit.limits import check_work
+    from nbvkit.workspace import make_workspace
+
+    mesh = nbvkit.load_mesh(CUBE)
+    check_work(cfg, mesh, make_workspace(mesh.bounds, cfg))
+
+
+def _obj_mesh(tmp_path, verts, faces):
+    p = tmp_path / "m.obj"
+    p.write_text(obj_text(verts, faces))
+    return nbvkit.load_mesh(p)
+
+
+def test_a_structure_too_large_or_thin_for_the_map_is_refused_before_any_work(tmp_path):
+    sliver = _obj_mesh(
+        tmp_path,
+        CUBE_V + [(0.5, 0.5, 0.5), (2000.0, 0.5, 0.5), (2000.0, 0.6, 0.5)],
+        CUBE_F + [(8, 9, 10)],
+    )
+    cfg = load_config(overrides=["max_iterations=2"])
+    with pytest.raises(ValueError, match="map.resolution >= .* would fit"):
+        nbvkit.Mission(cfg, mesh=sliver)
+    tower = _obj_mesh(tmp_path, [(2 * x, 2 * y, 2000 * z) for x, y, z in CUBE_V], CUBE_F)
+    with pytest.raises(ValueError, match="would fit"):
+        nbvkit.Mission(cfg, mesh=tower)
+
+
+def test_sweep_files_are_bounded():
+    from nbvkit.experiments import sweep_specs
+
+    with pytest.raises(ValueError, match="0..5"):
+        sweep_specs({"starts": 10**12})
+    with pytest.raises(ValueError, match="runs"):
+        sweep_specs({"starts": 5, "grid": {f"k{i}": list(range(10)) for i in range(8)}})
+
+
+def test_cpp_option_errors_name_the_dotted_key():
+    for override, needle in (
+        ("map.prob_hit=0", "config key 'map.prob_hit' must be in [0.5, 1)"),
+        ("camera.hfov_deg=0", "config key 'camera.hfov_deg' must be in (0, 180)"),
+        ("laser.resolution_deg=1e-9", "config key 'laser.resolution_deg'"),
+    ):
+        with pytest.raises(ValueError) as e:
+            load_config(overrides=[override])
+        assert needle in str(e.value), str(e.value)
+
+
+def test_view_camera_rays_are_bounded_with_the_range_that_fits():
+    with pytest.raises(ValueError, match="rays per candidate view") as e:
+        load_config(overrides=["camera.max_range=1000"])
+    fit = float(str(e.value).split("camera.max_range <= ")[1].split()[0])
+    load_config(overrides=[f"camera.max_range={fit}"])
+
+
+def test_an_empty_sweep_range_names_the_profiling_keys():
+    msg = _mission_error(["profiling.z_max=0"])
+    assert "'profiling.z_max'" in msg and "z_max > z_min" in msg
