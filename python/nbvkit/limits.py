@@ -77,12 +77,12 @@ MAX_PROFILE_FRAMES = 10_000
 MAX_OBSERVABILITY_POSES = 500_000
 #: Candidate positions x surface samples tested from them (the airliner at the default 2 m:
 #: 8e8, ~3 s; at 1 m: 7e9, ~26 s on 2 cores).
-MAX_OBSERVABILITY_PAIRS = 10**10
+MAX_OBSERVABILITY_PAIRS = 10**13  # the 100 m plant at 2 m: 75,625 x 8 M = 6e11, ~350 s
 #: Memory a mission's map takes (bytes): the flat workspace grid, the octree and the per-cell
 #: state of the surface observations and the planners, ~50 bytes per workspace cell in a
 #: mission (a 9.6 M-cell workspace: 465 MB); OccupancyMap's own limit (400 M cells) is 20 GB.
 #: The airliner's default workspace holds 3.1 M cells at 0.2 m, 25 M at 0.1 m.
-MAX_MAP_BYTES = 3 << 29  # 1.5 GiB: 32 M cells
+MAX_MAP_BYTES = 6 << 30  # 6 GiB: 129 M cells (the 100 m plant at 0.2 m: 77 M)
 MAP_BYTES_PER_CELL = 50
 
 
@@ -331,14 +331,14 @@ def check_samples(area: float, density: float, key: str, shown=None) -> None:
 
 def check_gt_samples(cfg, area: float) -> float:
     """The number of ground-truth samples of the structure (area x evaluation.gt_density);
-    ValueError when it exceeds MAX_GT_SAMPLES."""
+    ValueError when a density the user set makes more than MAX_GT_SAMPLES. The default density
+    (null) is capped there instead (nbvkit.evaluate's max_gt_points): a large structure (the
+    100 m plant: 20,415 m^2) is scored at a lower density, not refused."""
     from .evaluation import DEFAULT_GT_DENSITY
 
     density = cfg.evaluation.gt_density
-    if density is None:
-        shown = f"null (the default, {_fmt(DEFAULT_GT_DENSITY)})"
-        check_samples(area, DEFAULT_GT_DENSITY, "evaluation.gt_density", shown)
-        return area * DEFAULT_GT_DENSITY
+    if density is None:  # the default adapts: capped at MAX_GT_SAMPLES (the evaluator warns)
+        return min(area * DEFAULT_GT_DENSITY, MAX_GT_SAMPLES)
     check_samples(area, density, "evaluation.gt_density")
     return area * density
 

@@ -28,7 +28,7 @@ constexpr double kDefaultGtDensity = 1000.0;
   X(double, gt_density, kDefaultGtDensity,                                                 \
     "ground-truth samples per m^2 of mesh surface (mesh ground truth only)")               \
   X(std::uint64_t, seed, 0, "seed of the ground-truth surface sampling")                   \
-  X(std::uint64_t, max_gt_points, 20'000'000,                                              \
+  X(std::uint64_t, max_gt_points, 8'000'000,                                               \
     "upper bound on the number of ground-truth samples (area * density is capped to it)")
 
 struct EvaluationOptions {
