@@ -65,17 +65,18 @@ def _csv(path):
 
 
 # ------------------------------------------------------------------ what was flown
-def test_flight_csv_holds_every_point_flown_and_trajectory_csv_is_unchanged(run_dir):
+def test_flight_csv_holds_every_point_flown_and_every_trajectory_row(run_dir):
     traj = _csv(run_dir / "trajectory.csv")
-    assert list(traj[0].keys()) == ["stage", "x", "y", "z", "yaw", "distance_m"]
+    assert list(traj[0].keys()) == ["stage", "x", "y", "z", "yaw", "pitch", "distance_m"]
     flight = _read_flight(run_dir)
     summary = json.loads((run_dir / "summary.json").read_text())
     assert sum(r["capture"] == "view" for r in flight) == summary["views"]
     # every trajectory row (a leg's end) is a flight row, in order, with the same distance
-    fx = np.array([[float(r[k]) for k in ("x", "y", "z", "distance_m")] for r in flight])
+    cols = ("x", "y", "z", "distance_m", "pitch")
+    fx = np.array([[float(r[k]) for k in cols] for r in flight])
     j = 0
     for r in traj:
-        t = np.array([float(r[k]) for k in ("x", "y", "z", "distance_m")])
+        t = np.array([float(r[k]) for k in cols])
         while not np.allclose(fx[j], t, atol=1e-9):
             j += 1
         assert j < len(fx)
@@ -86,6 +87,7 @@ def test_flight_csv_holds_every_point_flown_and_trajectory_csv_is_unchanged(run_
     np.testing.assert_allclose(
         np.diff(fx[:, 3]), np.linalg.norm(np.diff(fx[:, :3], axis=0), axis=1), atol=1e-9
     )
+    assert np.all(fx[:, 4] == 0.0)  # the planners fly level views (gimbal pitch 0)
 
 
 # ------------------------------------------------------------------ geodesy
