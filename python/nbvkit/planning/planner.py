@@ -86,6 +86,20 @@ class Planner:
                     return reason
         return "max_iterations"
 
+    def score(self, world, poses) -> dict:
+        """The utility's scores of candidate views `poses` (K, 4 or 5) from where the vehicle is:
+        one C++ call (evaluate_views) with the planner's memo."""
+        return _core.evaluate_views(
+            world.map,
+            poses,
+            world.state.pose,
+            camera=world.view_camera,
+            utility=self.utility,
+            validity=world.validity(),
+            surface=world.surface,
+            memo=self.memo,
+        )
+
     def delivered(self, world, choice):
         """(expected, realized) m^2 of the view just flown, in the surface utility's own terms
         (None, None for other utilities): the new surface its score counted when it was chosen,
@@ -95,16 +109,7 @@ class Planner:
         it and not delivered."""
         if not self.surface:
             return None, None
-        after = _core.evaluate_views(
-            world.map,
-            choice.pose[None],
-            world.state.pose,
-            camera=world.view_camera,
-            utility=self.utility,
-            validity=world.validity(),
-            surface=world.surface,
-            memo=self.memo,
-        )
+        after = self.score(world, choice.pose[None])
         cell_m2 = world.map.resolution**2
         left = float(after["gain"][0]) if after["status"][0] == 0 else 0.0
         return choice.gain * cell_m2, max(0.0, choice.gain - left) * cell_m2
@@ -126,16 +131,7 @@ class Planner:
                 reasons = (getattr(g, "stop_reason", None) for g in self.generators)
                 return next((r for r in reasons if r), "coverage_complete")
             with t("evaluation"):
-                scores = _core.evaluate_views(
-                    world.map,
-                    proposal.poses,
-                    world.state.pose,
-                    camera=world.view_camera,
-                    utility=self.utility,
-                    validity=world.validity(),
-                    surface=world.surface,
-                    memo=self.memo,
-                )
+                scores = self.score(world, proposal.poses)
             with t("selection"):
                 choice = self.selector.choose(world, proposal.poses, scores)
             if choice is not None:
