@@ -114,7 +114,7 @@ def run(args) -> int:
         f"{s['entropy_reduction']:,.0f} {s['entropy_unit']}, "
         f"termination: {s['termination']}"
     )
-    note = budget_note(s["termination"], s)
+    note = budget_note(s)
     if note:
         print("note: " + note)
     print("coverage  " + "  ".join(f"@{k} m {v:6.1%}" for k, v in cov.items()))

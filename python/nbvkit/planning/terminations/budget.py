@@ -17,8 +17,15 @@ import time
 VIEWS_PER_M2 = 0.5
 MIN_VIEW_CAP = 1000
 
-#: The termination reasons that are budgets (nothing about the structure's coverage).
-BUDGET_REASONS = ("max_iterations", "budget_distance", "budget_views", "budget_time")
+#: The termination reasons that are budgets (nothing about the structure's coverage), each with
+#: the config key that sets it.
+BUDGET_KEYS = {
+    "max_iterations": "max_iterations",
+    "budget_distance": "budget.max_distance_m",
+    "budget_views": "budget.max_views",
+    "budget_time": "budget.max_time_s",
+}
+BUDGET_REASONS = tuple(BUDGET_KEYS)
 
 
 def view_cap(max_iterations, surface_area_m2: float) -> int:
@@ -29,17 +36,16 @@ def view_cap(max_iterations, surface_area_m2: float) -> int:
     return max(MIN_VIEW_CAP, int(math.ceil(VIEWS_PER_M2 * surface_area_m2)))
 
 
-def budget_note(termination: str, summary: dict) -> str | None:
+def budget_note(summary: dict) -> str | None:
     """A line for the console when a budget ended the mission (None otherwise), naming the
     budget and how to raise it."""
-    if termination not in BUDGET_REASONS:
+    key = BUDGET_KEYS.get(summary["termination"])
+    if key is None:
         return None
-    if termination == "max_iterations":
+    if key == "max_iterations":
         n = summary.get("max_views")
-        what, key = f"the view cap ({n} view{'' if n == 1 else 's'})", "max_iterations"
+        what = f"the view cap ({n} view{'' if n == 1 else 's'})"
     else:
-        key = {"budget_distance": "budget.max_distance_m", "budget_views": "budget.max_views"}
-        key = key.get(termination, "budget.max_time_s")
         what = f"the budget {key}"
     return (
         f"stopped by {what}, not because the structure is covered: the coverage is what the "
