@@ -80,7 +80,7 @@ def first_plan(mesh: str | None, with_again: bool = False):
     w.take_off()
     run_profiling(w)
     run_symmetry_prediction(w, write_map=cfg.symmetry.mode == "predict")
-    w.sense_camera()
+    w.sense("view")
     tour = CoverageTour(cfg)
     cands = tour.candidates(w)[2]
     cov = tour.coverage(w, cands)

@@ -25,30 +25,25 @@ from nbvkit.world import World, surface_clouds
 
 
 class _Recorder:
-    """Wraps World.sense_camera / sense_laser to log (distance flown, kind, hits) per scan."""
+    """Wraps World.integrate to log (distance flown, sensor, hits) per scan."""
 
     def __init__(self):
         self.log: list[tuple[float, str, np.ndarray]] = []
-        self._cam, self._las = World.sense_camera, World.sense_laser
+        self._integrate = World.integrate
 
     def __enter__(self):
         rec = self
 
-        def cam(world, pose=None, view=True):
-            scan = rec._cam(world, pose, view)
-            rec.log.append((world.state.distance_m, "camera", np.asarray(scan.hits, float)))
-            return scan
+        def integrate(world, scan, kind="view"):
+            sensor = World.SENSOR_OF[kind]
+            rec.log.append((world.state.distance_m, sensor, np.asarray(scan.hits, float)))
+            return rec._integrate(world, scan, kind)
 
-        def las(world, pose=None):
-            scan = rec._las(world, pose)
-            rec.log.append((world.state.distance_m, "laser", np.asarray(scan.hits, float)))
-            return scan
-
-        World.sense_camera, World.sense_laser = cam, las
+        World.integrate = integrate
         return self
 
     def __exit__(self, *exc):
-        World.sense_camera, World.sense_laser = self._cam, self._las
+        World.integrate = self._integrate
 
 
 def coverage_along(mission: Mission, log, distances) -> list[float]:

@@ -97,14 +97,16 @@ def numeric_keys() -> list[tuple[str, str]]:
                 continue
             tp = hints[f.name]
             if is_dataclass(tp):
-                walk(tp, prefix + f.name + ".")
-                continue
+                continue  # a section: below, with the planner parts' sections
             if typing.get_origin(tp) is typing.Union:
                 tp = next(a for a in typing.get_args(tp) if a is not type(None))  # noqa: E721
             if tp in (int, float):
                 out.append((prefix + f.name, tp.__name__))
 
     walk(Config, "")
+    for name, section in Config().sections():
+        if is_dataclass(section):
+            walk(type(section), name + ".")
     return out
 
 

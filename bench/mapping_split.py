@@ -2,8 +2,8 @@
 camera frame of each core call the planner's mapping stage makes - integrating the frame into the
 occupancy map (OccupancyMap.integrate), registering its points in the camera cloud
 (SurfaceCloud.add) and in the surface observations (SurfaceObservations.add_scan). The profile's
-laser scans (world.sense_laser) and the first frame (world.sense_camera) are counted apart. Prints
-figures; asserts nothing.
+laser scans (world.sense("laser")) and the first frame (world.sense("view")) are counted apart.
+Prints figures; asserts nothing.
 
     .venv/bin/python bench/mapping_split.py                   # Scenario 5, start 0, airliner
     .venv/bin/python bench/mapping_split.py --scenario surface --mesh ../shared/meshes/twinjet.obj

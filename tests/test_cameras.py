@@ -7,8 +7,8 @@ import pytest
 
 import nbvkit
 from conftest import wall_mesh
-from nbvkit.cameras import CAMERA_PRESETS
-from nbvkit.config import camera_kwargs, load_config
+from nbvkit.sensors import CAMERA_PRESETS, camera_kwargs
+from nbvkit.config import load_config
 
 
 def test_a_preset_fills_the_camera_keys_the_user_did_not_set():
@@ -28,10 +28,10 @@ def test_a_preset_fills_the_camera_keys_the_user_did_not_set():
 def test_the_inspection_camera_samples_a_wall_20_m_away_finer_than_the_coverage_cell():
     wall = wall_mesh(x=20.0)  # the plane x = 20, facing a camera at the origin looking along +x
     pose = [0.0, 0.0, 0.0, 0.0]
-    rgbd = nbvkit.DepthCamera(wall, **camera_kwargs(load_config()))
+    rgbd = nbvkit.DepthCamera(wall, **camera_kwargs(load_config().camera))
     assert len(rgbd.scan_pose(pose).hits) == 0  # beyond its 8 m
     cfg = load_config(overrides=["camera.preset=inspection"])
-    cam = nbvkit.DepthCamera(wall, **camera_kwargs(cfg))
+    cam = nbvkit.DepthCamera(wall, **camera_kwargs(cfg.camera))
     scan = cam.scan_pose(pose)
     assert len(scan.hits) == cfg.camera.width * cfg.camera.height  # every pixel on the wall
     assert np.allclose(scan.hits[:, 0], 20.0)

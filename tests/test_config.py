@@ -94,14 +94,14 @@ def test_every_bound_options_class_is_configurable_or_known_internal():
 
 def test_paper_values():
     c = Config().with_overrides(["scenario=5"])
-    assert (c.sampling.delta_d, c.sampling.delta_theta, c.sampling.sigma, c.sampling.alpha_max) == (
+    assert (c.lattice.delta_d, c.lattice.delta_theta, c.lattice.sigma, c.lattice.alpha_max) == (
         1.0,
         math.pi / 4,
         1.5,
         5,
     )
-    assert (c.sampling.stuck_threshold, c.sampling.stuck_window) == (0.005, 3)
-    assert (c.termination.threshold, c.termination.window) == (0.001, 5)
+    assert (c.lattice.stuck_threshold, c.lattice.stuck_window) == (0.005, 3)
+    assert (c.entropy.threshold, c.entropy.window) == (0.001, 5)
     assert c.vehicle.collision_radius == 0.8 and c.symmetry.prediction_probability == 0.6
     assert c.profiling.waypoints == 5 and c.profiling.close_circle and c.profiling.return_to_start
     assert c.utility.name == "ig" and c.utility.require_occupied
@@ -123,7 +123,7 @@ def test_overrides_and_rejections(tmp_path):
         None,
         [
             "max_iterations=7",
-            "sampling.method=cgvs",
+            "lattice.method=cgvs",
             "workspace.bounds_min=[0,0,0]",
             "workspace.bounds_max=[10,10,5]",
             "utility.rays_x=10",
@@ -131,7 +131,7 @@ def test_overrides_and_rejections(tmp_path):
     )
     assert (
         c.max_iterations == 7
-        and c.sampling.method == "cgvs"
+        and c.lattice.method == "cgvs"
         and c.workspace.bounds_max == (10.0, 10.0, 5.0)
     )
     with pytest.raises(KeyError, match="map.resolutionn"):
@@ -186,3 +186,21 @@ def test_core_type_stub_is_current():
         text == stub()
     ), "regenerate with: .venv/bin/python -m nbvkit._stubgen > python/nbvkit/_core.pyi"
     ast.parse(text)
+
+
+def test_renamed_keys_still_load_with_a_deprecation_warning(tmp_path):
+    """sampling -> lattice, termination -> entropy (sections named like their parts) and
+    targets.coverage_cone_deg -> utility.coverage_cone_deg (one cone) load for one release."""
+    f = tmp_path / "old.yaml"
+    f.write_text("sampling: {sigma: 2.5}\ntermination: {window: 7}\n")
+    with pytest.warns(DeprecationWarning, match="'sampling' is now 'lattice'"):
+        c = Config.from_yaml(f)
+    assert c.lattice.sigma == 2.5 and c.entropy.window == 7
+    with pytest.warns(DeprecationWarning, match="now 'utility.coverage_cone_deg'"):
+        c = load_config(overrides=["targets.coverage_cone_deg=60"])
+    assert c.utility.coverage_cone_deg == 60.0
+    assert "coverage_cone_deg" not in c.to_dict()["targets"]  # one home
+    with pytest.warns(DeprecationWarning), pytest.raises(ValueError, match="both set"):
+        Config.from_dict({"sampling": {"sigma": 2.0}, "lattice": {"sigma": 3.0}})
+    # the resolved configuration is written under the current names only
+    assert "sampling" not in c.to_dict() and "lattice" in c.to_dict()

@@ -12,7 +12,8 @@ import pytest
 
 import nbvkit
 from nbvkit import _core
-from nbvkit.config import Config, camera_kwargs
+from nbvkit.config import Config
+from nbvkit.sensors import camera_kwargs
 from nbvkit.export import GeoFrame, export_mission
 from nbvkit.export.plan import read_run
 from nbvkit.mission import Mission
@@ -310,7 +311,7 @@ def test_colmap_pose_reprojects_mesh_points_to_the_pixels_the_camera_saw(exporte
     mesh = nbvkit.load_mesh(nbvkit.default_mesh_path())
     cam = _core.DepthCamera(
         _core.RaycastScene(mesh),
-        camera_kwargs(cfg),
+        camera_kwargs(cfg.camera),
         noise_k=0.0,
         mount=_core.mount_transform(cfg.camera.mount_xyz, *cfg.camera.mount_rpy_deg),
     )

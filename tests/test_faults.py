@@ -127,16 +127,16 @@ def test_python_api_refuses_a_folder_with_another_run(tmp_path):
     assert is_complete_run(out)
 
 
-def test_finish_run_on_a_complete_folder_keeps_it_marked(tmp_path):
+def test_a_run_with_its_end_of_run_outputs_is_one_complete_folder(tmp_path):
     from nbvkit.config import load_config
-    from nbvkit.report import finish_run
 
     cfg = load_config(overrides=[*fb.TINY, "scenario=1", "progress=false"])
-    m = nbvkit.Mission(cfg)
     out = tmp_path / "f"
-    m.run(out)
-    finish_run(m, out)
+    summary = nbvkit.Mission(cfg).run(out, finish=True)
     assert fb.run_problems(out) == []
+    # summary.json is written once, with the end-of-run figures in it
+    assert json.loads((out / "summary.json").read_text())["finish_s"] == summary["finish_s"]
+    assert (out / "report.html").exists()
 
 
 @pytest.mark.parametrize("seed", [0, 1, 2])

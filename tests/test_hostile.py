@@ -384,9 +384,9 @@ def test_case6_kill_stops_a_table_and_its_workers(tmp_path):
 
 def test_case7_whole_config_is_validated_before_any_work(tmp_path):
     for override, key in (
-        ("termination.window=0", "termination.window"),
+        ("entropy.window=0", "entropy.window"),
         ("utility.rays_x=-3", "utility.rays_x"),
-        ("sampling.stuck_window=0", "sampling.stuck_window"),
+        ("lattice.stuck_window=0", "lattice.stuck_window"),
     ):
         t0 = time.perf_counter()
         rc, _, err = cli("run", "--set", override, "--out", tmp_path / "r")

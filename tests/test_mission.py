@@ -146,7 +146,7 @@ def test_the_fast_scoring_flies_the_same_mission_as_the_reference_reads(monkeypa
     the planner's memo of earlier walks) or through OctoMap's search per cell for every view (the
     reference path kept beside the fast one)."""
     from nbvkit import _core
-    from nbvkit.planning import planner
+    from nbvkit.planning import scoring
 
     def fly(backend):
         calls = []
@@ -162,7 +162,7 @@ def test_the_fast_scoring_flies_the_same_mission_as_the_reference_reads(monkeypa
                     kw.pop("memo")
                 return _core.evaluate_views(*args, backend=backend, **kw)
 
-        monkeypatch.setattr(planner, "_core", Core())
+        monkeypatch.setattr(scoring, "_core", Core())
         m = Mission(cfg("scenario=5", "max_iterations=10", "profiling.sweep_step=0.5"))
         summary = m.run()
         poses = np.array([[r.x, r.y, r.z, r.yaw] for r in m.records])

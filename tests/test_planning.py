@@ -12,7 +12,8 @@ import pytest
 import nbvkit
 from nbvkit import _core
 from nbvkit.config import Config, load_config
-from nbvkit.mission import STAGES, Mission
+from nbvkit.mission import Mission
+from nbvkit.recorder import STAGES
 from nbvkit.planning.generators.frontier import FrontierGenerator
 from nbvkit.planning.generators.tour import exploration_targets, prize_collect
 from nbvkit.planning.placement import Patches, into_bounds, place_views, target_patches
@@ -350,7 +351,7 @@ def test_frontier_views_face_their_targets_and_the_valid_ones_are_collision_free
     m = Mission(cfg, mesh=mesh)
     w = m.world
     w.take_off()
-    w.sense_camera()
+    w.sense("view")
     gen = FrontierGenerator(cfg)
     prop = gen.propose(w)
     assert prop is not None and len(prop.poses) > 0
@@ -559,8 +560,8 @@ def test_bad_planner_configuration_fails_before_any_work(override, message):
 
 
 def test_scenario_presets_yield_to_what_the_user_sets():
-    c = load_config(overrides=["scenario=3", "sampling.sigma=2"])
-    assert c.sampling.method == "agvs" and c.sampling.sigma == 2.0  # preset + user
+    c = load_config(overrides=["scenario=3", "lattice.sigma=2"])
+    assert c.lattice.method == "agvs" and c.lattice.sigma == 2.0  # preset + user
     assert c.utility.name == "ig" and c.planner.generators == ("lattice",)
     c2 = load_config(overrides=["scenario=5", "utility.name=four_term"])
     assert c2.utility.name == "four_term" and c2.symmetry.mode == "predict"

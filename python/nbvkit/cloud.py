@@ -11,12 +11,14 @@ from __future__ import annotations
 import os
 import re
 import warnings
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
 from . import _core
 from .limits import MAX_DATA_FILE_BYTES, check_input_file
+from .settings import positive
 
 __all__ = [
     "PointCloud",
@@ -36,6 +38,18 @@ LASER_VOXEL_SIZE: float = 0.1
 DEFAULT_MIN_Z: float = _DEFAULTS.min_z
 
 _SUFFIXES = (".ply", ".pcd", ".npy")
+
+
+_CLOUD = _core.SurfaceCloudOptions()
+
+
+@dataclass(frozen=True)
+class CloudConfig:
+    """The reconstructed point clouds."""
+
+    camera_voxel: float = positive(_CLOUD.voxel_size)  # m, authors' RGB-D voxel filter
+    laser_voxel: float = positive(0.1)  # m, authors' profile voxel filter
+    min_z: float = _CLOUD.min_z  # m above the ground (workspace.ground_height): lower dropped
 
 
 class PointCloud(_core.SurfaceCloud):

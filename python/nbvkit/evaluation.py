@@ -6,12 +6,15 @@ from __future__ import annotations
 
 import numbers
 import warnings
+from dataclasses import dataclass
+from typing import Optional
 
 import numpy as np
 
 from . import _core
 from ._core import Mesh
 from .cloud import _as_points
+from .settings import nonneg, positive
 
 __all__ = [
     "evaluate",
@@ -45,6 +48,14 @@ SUMMARY_KEYS: tuple = (
     "n_points",
     "gt_density",
 )
+
+
+@dataclass(frozen=True)
+class EvaluationConfig:
+    """Scoring against the ground truth."""
+
+    gt_density: Optional[float] = positive(None)  # points per m^2; None: nbvkit.evaluate's default
+    coverage_every: int = nonneg(25)  # iterations between coverage refreshes in the progress/CSV
 
 
 def _key(v: float) -> str:

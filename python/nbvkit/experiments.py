@@ -85,8 +85,7 @@ def run_one(spec: RunSpec, root: str | os.PathLike, threads: int = 0) -> dict:
     from . import set_num_threads
     from .mission import Mission
 
-    from .mission import _write_json_atomic
-    from .report import finish_run
+    from .runfolder import write_json_atomic as _write_json_atomic
     from .runfolder import RunFolder
 
     root = Path(root)
@@ -102,10 +101,8 @@ def run_one(spec: RunSpec, root: str | os.PathLike, threads: int = 0) -> dict:
         else:
             set_num_threads(threads)
             mission = Mission(cfg)
-            summary = mission.run()
-            mission.write_results(folder.tmp, summary)
             # one observable-surface cache for the whole experiment: once per structure
-            finish_run(mission, folder.tmp, cache_dir=root / "cache")
+            mission.save(folder.tmp, mission.run(), finish=True, cache_dir=root / "cache")
             _write_json_atomic(
                 folder.tmp / "spec.json", {**_spec_dict(spec), "mesh_sha1": mesh_sha1}
             )

@@ -9,9 +9,24 @@ from __future__ import annotations
 
 import enum
 
+from . import _core
 from ._core import IntegrationStats, OccupancyMap, OccupancyMapOptions
+from .limits import Bound
+from .settings import cpp_section
 
 __all__ = ["CellFlag", "CellState", "IntegrationStats", "OccupancyMap", "OccupancyMapOptions"]
+
+
+MapConfig = cpp_section(
+    "MapConfig",
+    _core.OccupancyMapOptions,
+    "The occupancy map (OctoMap) and its entropy.",
+    before=[
+        ("resolution", float, _core.OccupancyMap.DEFAULT_RESOLUTION, "cell edge, m (authors: 0.2)")
+    ],
+    bounds={"resolution": Bound(lo=0, lo_open=True)},
+    choices={"entropy_unit": ("nats", "bits")},
+)
 
 
 class CellState(enum.IntEnum):

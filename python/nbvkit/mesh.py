@@ -3,15 +3,30 @@ shipped default structure."""
 from __future__ import annotations
 
 import os
+from dataclasses import dataclass
 from pathlib import Path
+from typing import Optional
 
 import numpy as np
 
 from . import _core
 from ._core import Mesh
 from .limits import MAX_DATA_FILE_BYTES, check_input_file
+from .settings import choice, positive, triple
 
 _UP = {"z": "z", "y": "y", "Z": "z", "Y": "y"}
+
+
+@dataclass(frozen=True)
+class MeshConfig:
+    """The structure's mesh file."""
+
+    path: Optional[str] = None  # None: the shipped generated airliner
+    scale: float = positive(1.0)
+    up: str = choice("z", ("y", "z"))  # the file's up axis: "z" or "y"
+    shift: tuple = triple(
+        (0.0, 0.0, 0.0)
+    )  # m added after scale and up; results are in the shifted frame
 
 
 def load_mesh(path: str | os.PathLike, scale: float = 1.0, up: str = "z", shift=None) -> Mesh:

@@ -2,69 +2,23 @@
 
 ``Mission(config).run(out_dir)`` flies one scenario (nbvkit.scenarios: a row of the paper's Table
 2, or one of nbvkit's planners) from one start pose and writes a results folder. The stages are
-nbvkit.profiling, nbvkit.symmetry and nbvkit.planning; the world they act on is nbvkit.world.
+nbvkit.profiling, nbvkit.symmetry and nbvkit.planning; the world they act on is nbvkit.world;
+nbvkit.recorder records the views and writes the results.
 """
 from __future__ import annotations
 
-import contextlib
-import csv
-import json
-import math
-import os
-import resource
 import threading
 import time
-from dataclasses import dataclass, fields
 from pathlib import Path
 
-import numpy as np
-
 from .config import Config
-from .evaluation import SUMMARY_KEYS, Evaluator
+from .evaluation import Evaluator
 from .planning import Planner
-from .planning.terminations.budget import BUDGET_REASONS, view_cap
-from .world import FLIGHT_COLUMNS, MissionError, World
+from .planning.terminations.budget import view_cap
+from .recorder import IterationRecord, Recorder
+from .world import MissionError, World
 
 __all__ = ["Mission", "MissionError", "IterationRecord"]
-
-#: The per-view stages timed in every iteration (ms_per_stage in the summary).
-STAGES = ("sampling", "evaluation", "selection", "motion", "sensing", "mapping")
-
-
-@dataclass
-class IterationRecord:
-    """One row of iterations.csv: a view flown after profiling."""
-
-    iteration: int
-    x: float
-    y: float
-    z: float
-    yaw: float
-    pitch: float  # the camera gimbal's, radians, > 0 looks down (0: level)
-    source: str  # the generator that proposed the view
-    utility: float
-    gain: float
-    candidates: int
-    valid: int
-    entropy: float
-    entropy_change: float
-    delta_ev: float
-    alpha: int
-    expected_m2: float | None  # the new surface the plan expected of the view (surface utility)
-    realized_m2: float | None  # how much of it the view brought, as the utility counts it
-    new_surface_m2: float
-    leg_m: float
-    distance_m: float
-    cloud_points: int
-    coverage_005: float | None = None
-    coverage_01: float | None = None
-    coverage_05: float | None = None
-    t_sampling_ms: float = 0.0
-    t_evaluation_ms: float = 0.0
-    t_selection_ms: float = 0.0
-    t_motion_ms: float = 0.0
-    t_sensing_ms: float = 0.0
-    t_mapping_ms: float = 0.0
 
 
 class Mission:
@@ -85,38 +39,28 @@ class Mission:
 
     def _start(self, world: World) -> None:
         """Everything a run changes, as a new Mission has it."""
-        cfg = self.config
         self.world = world
-        self.planner = Planner(cfg, cfg.map.resolution, on_step=self._record)
-        self.records: list[IterationRecord] = []
-        self.refresh = None
-        self._bar = None
-        self.profile_summary: dict | None = None
-        self.symmetry_summary: dict | None = None
-        self.coverage_time_s = 0.0  # progress-report coverage refreshes (not a stage)
+        self.planner = Planner(self.config)
+        self.recorder = Recorder(self)
+        self.profile_summary = self.symmetry_summary = None
         self.termination = "not_run"
         # the cap on views after profiling (max_iterations, or one that follows the structure)
-        self.max_views = view_cap(cfg.max_iterations, self.world.mesh.area)
+        self.max_views = view_cap(self.config.max_iterations, world.mesh.area)
 
-    # the world's parts, for stages and figures
+    # the world's parts and the records, for stages and figures
     mesh = property(lambda self: self.world.mesh)
-    mesh_path = property(lambda self: self.world.mesh_path)
     map = property(lambda self: self.world.map)
-    state = property(lambda self: self.world.state)
-    workspace = property(lambda self: self.world.workspace)
-    start_pose = property(lambda self: self.world.start_pose)
-    starts = property(lambda self: self.world.starts)
-    camera_cloud = property(lambda self: self.world.camera_cloud)
-    laser_cloud = property(lambda self: self.world.laser_cloud)
+    records = property(lambda self: self.recorder.records)
 
-    def cloud_points(self) -> np.ndarray:
+    def cloud_points(self):
         return self.world.cloud_points()
 
     # ------------------------------------------------------------------ the method
-    def run(self, out_dir: str | Path | None = None, overwrite: bool = False) -> dict:
-        """Runs the mission; with out_dir writes config.yaml, iterations.csv, summary.json,
-        cloud.ply, map.ot, trajectory.csv, flight.csv and figures/*.png there (poses as x, y, z,
-        yaw and the camera gimbal's pitch, radians, > 0 looks down). Returns the summary dict.
+    def run(self, out_dir: str | Path | None = None, overwrite: bool = False, finish=False) -> dict:
+        """Runs the mission; with out_dir writes its results folder there (Recorder.write:
+        config.yaml, iterations.csv, trajectory.csv, flight.csv, cloud.ply, map.ot, figures/,
+        summary.json; with `finish` also the end-of-run outputs of nbvkit.report). Returns the
+        summary dict.
 
         The folder is written whole or not at all (nbvkit.runfolder): into a temporary folder
         beside it, moved into place with ``manifest.json`` once complete. out_dir is checked
@@ -140,17 +84,19 @@ class Mission:
 
             # before any work: a mission must not fly and then fail to save
             with RunFolder(out_dir, overwrite=overwrite, what="out_dir") as folder:
-                summary = self._run()
-                self.write_results(folder.tmp, summary)
-            return summary
+                return self.save(folder.tmp, self._run(), finish=finish)
         finally:
             self._running.release()
 
+    def save(self, out, summary: dict, finish: bool = False, cache_dir=None) -> dict:
+        """Writes this finished mission's results into the folder `out` (Recorder.write);
+        returns the summary written."""
+        return self.recorder.write(Path(out), summary, finish=finish, cache_dir=cache_dir)
+
     def _run(self) -> dict:
         if self._ran:  # a second run starts from a fresh world, as a new Mission would
-            world = self.world
-            mesh_path = world.mesh_path
-            self._start(World(self.config, world.mesh))
+            mesh_path = self.world.mesh_path
+            self._start(World(self.config, self.world.mesh))
             self.world.mesh_path = mesh_path
         self._ran = True
         cfg, world = self.config, self.world
@@ -162,29 +108,29 @@ class Mission:
             self.profile_summary = self._profile()
         if cfg.symmetry.mode != "none":
             self.symmetry_summary = self._symmetry()
+        self.termination = "profile_only"
         if cfg.planner.generators:
-            world.sense_camera()  # the first view, from where the camera stage starts
-            self._bar = _progress(self.max_views, cfg.progress)
+            world.sense("view")  # the first view, from where the camera stage starts
+            self.planner.hooks["record"] = self.recorder.on_step  # the last hook
+            self.recorder.open_progress(self.max_views, cfg.progress)
             try:
                 self.termination = self.planner.run(world, self.max_views)
             finally:
-                if self._bar is not None:
-                    self._bar.close()
-        else:
-            self.termination = "profile_only"
-        return self._summary(self.termination, time.perf_counter() - t_start)
+                self.recorder.close_progress()
+        return self.recorder.summary(self.termination, time.perf_counter() - t_start)
 
     def _profile(self) -> dict:
         from .profiling import run_profiling
 
-        world = self.world
-        summary = run_profiling(world)
+        summary = run_profiling(self.world)
         # laser, and camera frames if taken: the cell figures alone (no distances)
-        ev = self.evaluator.coverage(world.clouds)
+        ev = self.evaluator.coverage(self.world.clouds)
         summary.update(coverage=ev["coverage"], area_coverage=ev["area_coverage"])
         return summary
 
     def _symmetry(self) -> dict:
+        """Symmetry prediction; with symmetry.refresh_every, the after-view hook
+        "symmetry_refresh" re-predicts from the camera cloud."""
         from .prediction import SymmetryRefresh
         from .symmetry import run_symmetry_prediction
 
@@ -192,209 +138,11 @@ class Mission:
         summary = run_symmetry_prediction(self.world, write_map=cfg.mode == "predict")
         plane = summary.get("plane")
         if cfg.mode == "predict" and plane is not None and cfg.refresh_every > 0:
-            self.refresh = SymmetryRefresh(self.world, plane, cfg)
+            refresh = SymmetryRefresh(self.world, plane, cfg)
             summary["refreshed_cells"] = 0
+
+            def symmetry_refresh(world, step):
+                summary["refreshed_cells"] += refresh.after_view(step)
+
+            self.planner.hooks["symmetry_refresh"] = symmetry_refresh
         return summary
-
-    # ------------------------------------------------------------------ per view
-    def _record(self, step) -> None:
-        cfg, world = self.config, self.world
-        refresh = self.refresh
-        if refresh is not None:
-            self.symmetry_summary["refreshed_cells"] += refresh.after_view(step)
-        cov = {}
-        if cfg.evaluation.coverage_every and step.iteration % cfg.evaluation.coverage_every == 0:
-            t0 = time.perf_counter()
-            c = self.evaluator.coverage(world.clouds)["coverage"]
-            cov = {float(k): v for k, v in c.items()}
-            self.coverage_time_s += time.perf_counter() - t0
-        p, c = world.state.pose, step.choice
-        lap = self.planner.timers.lap()
-        self.records.append(
-            IterationRecord(
-                step.iteration,
-                *map(float, p),
-                step.source,
-                c.utility,
-                c.gain,
-                step.candidates,
-                step.valid,
-                step.entropy_after,
-                step.entropy_after - step.entropy_before,
-                step.delta_ev,
-                int(step.extra.get("alpha", 0)),
-                step.expected_m2,
-                step.realized_m2,
-                step.new_surface_m2,
-                step.extra["leg_m"],
-                step.distance_m,
-                len(world.camera_cloud) + len(world.laser_cloud),
-                cov.get(0.05),
-                cov.get(0.1),
-                cov.get(0.5),
-                *(lap.get(s, 0.0) * 1e3 for s in STAGES),
-            )
-        )
-        if self._bar is not None:
-            self._bar.update(1)
-            self._bar.set_postfix_str(
-                f"{step.distance_m:.0f} m H={step.entropy_after:,.0f}"
-                + (f" cov0.05={cov[0.05]:.1%}" if cov else "")
-            )
-
-    # ------------------------------------------------------------------ results
-    def _summary(self, termination: str, wall: float) -> dict:
-        cfg, world = self.config, self.world
-        ev = self.evaluator(world.cloud_points())
-        n_it = len(self.records)
-        e_final = world.map.total_entropy()
-        # Per flown view, every second the per-view stages took: the rows of iterations.csv and
-        # the plan that ended the mission, which flew no view and so has no row (final_plan_ms).
-        timers = self.planner.timers
-        per_stage = {s: timers.total.get(s, 0.0) * 1e3 / n_it if n_it else 0.0 for s in STAGES}
-        final_plan_ms = sum(timers.pending().get(s, 0.0) for s in STAGES) * 1e3
-        tour = next((g for g in self.planner.generators if hasattr(g, "plans")), None)
-        out = {
-            "scenario": cfg.scenario,
-            "start": cfg.start,
-            "start_pose": [float(x) for x in world.start_pose],
-            "mesh": world.mesh_path,
-            "profiling": cfg.profiling.enabled,
-            "symmetry_prediction": cfg.symmetry.mode == "predict",
-            "generators": list(cfg.planner.generators),
-            "utility": cfg.utility.name,
-            "sampling": cfg.sampling.method if "lattice" in cfg.planner.generators else None,
-            "iterations": n_it,
-            "views": world.state.views,
-            "distance_m": world.state.distance_m,
-            "entropy_initial": self.entropy_initial,
-            "entropy_final": e_final,
-            "entropy_reduction": self.entropy_initial - e_final,
-            "entropy_unit": cfg.map.entropy_unit,
-            "termination": termination,
-            # a budget (view cap, distance, views, time) ended it, not the planner's coverage
-            "stopped_by_budget": termination in BUDGET_REASONS,
-            "max_views": self.max_views,
-            "wall_time_s": wall,
-            "ms_per_iteration": sum(per_stage.values()),
-            "ms_per_stage": per_stage,
-            "final_plan_ms": final_plan_ms,
-            "coverage_refresh_s": self.coverage_time_s,
-            # the process's peak resident memory so far (Linux ru_maxrss, KiB): in a sweep worker
-            # that has flown several runs, the largest of them
-            "peak_memory_mb": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0,
-            "cloud_points": int(ev["n_points"]),
-            "workspace": world.workspace.to_dict(),
-            "c_view": self.planner.c_view,
-            "seed": cfg.seed,
-        }
-        out.update(_gain_accounting(self.records))
-        for k in SUMMARY_KEYS:
-            out[k] = ev[k]
-        if self.profile_summary is not None:
-            out["profile"] = self.profile_summary
-        if self.symmetry_summary is not None:
-            out["symmetry"] = self.symmetry_summary
-        if tour is not None:
-            out["tours"] = tour.plans
-        return out
-
-    def write_results(self, out: Path, summary: dict) -> None:
-        """Writes the run's files into the folder ``out`` as they are (Mission.run(out_dir) and
-        the commands call it on the temporary folder of nbvkit.runfolder.RunFolder, which makes
-        the whole folder appear at once). summary.json is written last. Any write error (a full
-        disk) raises OSError."""
-        from .cloud import write_points
-        from .plots import plot_mission
-
-        out = Path(out)
-        out.mkdir(parents=True, exist_ok=True)
-        _write_text_atomic(out / "config.yaml", self.config.to_yaml())
-        names = [f.name for f in fields(IterationRecord)]
-        with _atomic_open(out / "iterations.csv", newline="") as f:
-            w = csv.writer(f)
-            w.writerow(names)
-            for r in self.records:
-                w.writerow(["" if getattr(r, k) is None else getattr(r, k) for k in names])
-        with _atomic_open(out / "trajectory.csv", newline="") as f:
-            w = csv.writer(f)
-            w.writerow(["stage", "x", "y", "z", "yaw", "pitch", "distance_m"])
-            w.writerows(self.world.state.trajectory)
-        with _atomic_open(out / "flight.csv", newline="") as f:  # every point flown (export)
-            w = csv.writer(f)
-            w.writerow(FLIGHT_COLUMNS)
-            w.writerows(self.world.state.flight)
-        write_points(out / "cloud.ply", self.world.cloud_points())
-        self.world.map.save(str(out / "map.ot"))
-        plot_mission(self, out / "figures")
-        _write_json_atomic(out / "summary.json", summary)
-
-
-@contextlib.contextmanager
-def _atomic_open(path: Path, mode: str = "w", **kw):
-    """A file opened for writing at a temporary name beside `path`, renamed over it once closed
-    without error (a write error, e.g. a full disk, raises OSError and leaves `path` as it was)."""
-    path = Path(path)
-    tmp = path.with_name(f".{path.name}.tmp{os.getpid()}")
-    try:
-        with open(tmp, mode, **kw) as f:
-            yield f
-        os.replace(tmp, path)
-    except BaseException:
-        with contextlib.suppress(OSError):
-            tmp.unlink()
-        raise
-
-
-def _write_text_atomic(path: Path, text: str) -> None:
-    with _atomic_open(path) as f:
-        f.write(text)
-
-
-def _gain_accounting(records) -> dict:
-    """What the views were expected to bring against what they brought (surface utility): the
-    sums of expected_m2, realized_m2 (as the utility counts) and new_surface_m2 (cells seen for
-    the first time) over the flown views, and the two ratios to the expected; {} otherwise."""
-    flown = [r for r in records if r.expected_m2 is not None]
-    if not flown:
-        return {}
-    expected = sum(r.expected_m2 for r in flown)
-    realized = sum(r.realized_m2 for r in flown)
-    new = sum(r.new_surface_m2 for r in flown)
-    return {
-        "expected_m2": expected,
-        "realized_m2": realized,
-        "realized_to_expected": realized / expected if expected > 0 else None,
-        "new_surface_to_expected": new / expected if expected > 0 else None,
-    }
-
-
-def _write_json_atomic(path: Path, data: dict) -> None:
-    _write_text_atomic(path, json.dumps(_jsonable(data), indent=2, allow_nan=False))
-
-
-def _jsonable(x):
-    if isinstance(x, dict):
-        return {str(k): _jsonable(v) for k, v in x.items()}
-    if isinstance(x, (list, tuple)):
-        return [_jsonable(v) for v in x]
-    if isinstance(x, (np.floating, float)):
-        return float(x) if math.isfinite(x) else None
-    if isinstance(x, np.integer):
-        return int(x)
-    if isinstance(x, np.ndarray):
-        return _jsonable(x.tolist())
-    return x
-
-
-def _progress(total: int, enabled: bool):
-    if not enabled:
-        return None
-    try:
-        from tqdm import tqdm
-    except ImportError:  # pragma: no cover - tqdm is a Debian package we install
-        return None
-    # disable=None: no bar when stderr is not a terminal (logs, pipes, CI)
-    return tqdm(
-        total=total, desc="views", unit="view", dynamic_ncols=True, leave=False, disable=None
-    )

@@ -42,12 +42,35 @@ from pathlib import Path
 import numpy as np
 
 from . import _core
-from .config import camera_kwargs
+from .limits import Bound
+from .sensors import build_camera
+from .settings import cpp_section
 
 __all__ = ["ObservableSurface", "observable_surface", "sample_normals"]
 
 #: bump when the method changes, so old caches are not reused
 _METHOD_VERSION = 3
+
+
+ObservabilityConfig = cpp_section(
+    "ObservabilityConfig",
+    _core.ObservabilityOptions,
+    "The observable surface (nbvkit.observable_surface): what the camera could see at all.",
+    only=("pose_spacing", "max_incidence_deg", "yaw_steps"),  # the radius is the vehicle's
+    before=[
+        (
+            "enabled",
+            bool,
+            True,
+            "compute it at the end of a mission (cached under the run/sweep folder)",
+        )
+    ],
+    bounds={
+        "pose_spacing": Bound(lo=0, lo_open=True),
+        "max_incidence_deg": Bound(lo=0, lo_open=True),
+        "yaw_steps": Bound(lo=0, hi=180),
+    },
+)
 
 
 @dataclass
@@ -114,7 +137,7 @@ def _cache_key(mesh, points, settings) -> str:
 
 def observable_surface(
     mesh,
-    config=None,
+    config,
     *,
     points=None,
     face_ids=None,
@@ -126,7 +149,7 @@ def observable_surface(
     collision-free pose of the navigation space (see the module docstring for the method).
 
     mesh: an ``nbvkit.Mesh`` (need not be closed: the test is geometric, not topological).
-    config: an ``nbvkit.Config`` (default ``Config()``): ``camera`` (mount, FOV, range),
+    config: an ``nbvkit.Config``: ``camera`` (mount, FOV, range),
     ``workspace`` and ``vehicle.collision_radius`` (the navigation space), ``observability``
     (pose spacing, incidence limit, yaw steps), ``evaluation.gt_density`` and ``seed`` (the
     samples).
@@ -142,11 +165,10 @@ def observable_surface(
     Returns an ``ObservableSurface``; ``.observable`` is the ``(N,)`` bool mask to pass to
     ``Evaluator.set_observable``.
     """
-    from .config import Config
     from .evaluation import Evaluator
     from .workspace import make_workspace
 
-    cfg = config or Config()
+    cfg = config
     ws = make_workspace(mesh.bounds, cfg)
     ev = None
     if points is None:
@@ -187,15 +209,8 @@ def observable_surface(
 def _compute(mesh, cfg, points, normals, ws, settings, scene) -> ObservableSurface:
     t0 = time.perf_counter()
     scene = scene or _core.RaycastScene(mesh)
-    c = cfg.camera
-    camera = _core.DepthCamera(  # only its field of view, ranges and mount are used
-        scene,
-        camera_kwargs(cfg),
-        width=16,
-        height=12,
-        noise_k=0.0,
-        mount=_core.mount_transform(c.mount_xyz, *c.mount_rpy_deg),
-    )
+    # only its field of view, ranges and mount are used
+    camera = build_camera(cfg.camera, scene, cfg.seed, width=16, height=12, noise_k=0.0)
     o = cfg.observability
     r = _core.observable_samples(
         scene,

@@ -99,10 +99,10 @@ def plot_mission(mission, out_dir: Path) -> list[Path]:
         a,
         b,
         sp,
-        mission.state.trajectory,
-        mission.workspace,
+        mission.world.state.trajectory,
+        mission.world.workspace,
         title=f"scenario {cfg.scenario}, start {cfg.start}: {len(mission.records)} iterations, "
-        f"{mission.state.distance_m:.0f} m",
+        f"{mission.world.state.distance_m:.0f} m",
     )
     fig.tight_layout()
     paths.append(out_dir / "trajectory.png")

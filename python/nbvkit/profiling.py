@@ -57,11 +57,38 @@ from __future__ import annotations
 
 import math
 import time
+from dataclasses import dataclass
+from typing import Optional
 
 import numpy as np
 from scipy.spatial import ConvexHull, QhullError
 
+from .settings import choice, nonneg, positive, within
 from .world import _fibonacci_sphere
+
+
+@dataclass(frozen=True)
+class ProfilingConfig:
+    """Adaptive circular profiling (Algorithm 1), its grown-hull variant and the bounding-box
+    profiler."""
+
+    enabled: bool = True  # fly the laser profile before the camera
+    # circular (Algorithm 1), hull (its loop round the grown XY hull) or bbox (the box's faces)
+    method: str = choice("hull", ("circular", "hull", "bbox"))
+    waypoints: int = within(4, 1, 1000)  # N, points around the structure (authors: 5)
+    margin: float = positive(4.0, 1e4)  # d: margin added to the bounding radius, m (authors: 4)
+    sweep_step: float = positive(0.025)  # m between laser scans: a 40 Hz scanner at 1 m/s (authors)
+    camera_step: float = nonneg(1.0)  # m between profile camera frames; 0: none (paper)
+    z_min: Optional[float] = None  # sweep bounds; None: the workspace's z range
+    z_max: Optional[float] = None
+    max_segment: float = positive(7.0)  # arcs are flown as straight segments of at most this, m
+    flight_margin: float = within(30.0, 0, 1e4)  # the flight volume: workspace grown by this, m
+    # fly the last arc back to the first waypoint after the last sweep (Algorithm 1's loop)
+    close_circle: bool = False
+    return_to_start: bool = False  # fly back to the start pose before the camera stage
+    arcs: str = choice(
+        "descending", ("level", "descending")
+    )  # level (Algorithm 1), or descending from one sweep end to the other
 
 
 class _Blocked(Exception):
@@ -204,7 +231,7 @@ class Profiler:
             self.m.fly_to(np.array([*q, target[3]]), "profile")
             self._since_frame += self.m.state.distance_m - before
             if self._since_frame >= step - 1e-9:
-                self.m.sense_camera(view=False)
+                self.m.sense("frame")
                 self.camera_frames += 1
                 self._since_frame = max(0.0, self._since_frame - step)
 
@@ -278,9 +305,9 @@ class Profiler:
                 z = first + (last - first) * i / n
                 if i:
                     self._fly(np.array([p[0], p[1], z, yaw]))
-                self.m.sense_laser(self.m.state.pose)
+                self.m.sense("laser")
         except _Blocked:  # the structure above (below): the sweep ends where it stands
-            self.m.sense_laser(self.m.state.pose)
+            self.m.sense("laser")
         self.waypoints.append([float(p[0]), float(p[1])])
 
     def _circle(self, fallback_center, fallback_radius):
@@ -311,7 +338,7 @@ class Profiler:
         curve."""
         m = self.m
         for k in range(tries):
-            m.sense_laser(m.state.pose)
+            m.sense("laser")
             region = self._region(fallback_center, fallback_radius)
             p, z = m.state.pose[:2], m.state.pose[2]
             b = math.atan2(p[1] - region.c[1], p[0] - region.c[0])

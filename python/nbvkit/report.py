@@ -2,8 +2,8 @@
 mesh (``mesh.ply``, scored against the ground truth), ``figures/coverage.png`` and a
 self-contained ``report.html``; and one ``report.html`` per experiment (table, sweep, compare).
 
-``finish_run(mission, out, cache_dir)`` runs after ``Mission.run`` has written its folder (the
-``nbvkit run`` command and the experiment runner call it); it adds to ``summary.json`` and
+``finish_run(mission, out, summary, cache_dir)`` runs as a mission's folder is written
+(``Mission.run(out, finish=True)``, ``Mission.save``); it adds to the summary and
 writes the files. Each part is switched by the ``observability`` and ``report`` config sections.
 
 Mesh reconstruction: open3d's screened Poisson reconstruction rather than ball pivoting. The
@@ -26,9 +26,12 @@ import html
 import json
 import math
 import time
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
+
+from .settings import nonneg, within
 
 __all__ = [
     "finish_run",
@@ -54,26 +57,34 @@ CLASS_NAMES = ("covered", "observable but missed", "unobservable")
 # ---------------------------------------------------------------------------------- the run
 
 
-def finish_run(mission, out, cache_dir=None) -> dict:
-    """Adds the observable-surface figures and the mesh scores to ``out/summary.json`` and
-    writes ``mesh.ply``, ``figures/coverage.png`` and ``report.html`` for a finished mission.
+@dataclass(frozen=True)
+class ReportConfig:
+    """End-of-run outputs: mesh.ply (Poisson), figures/coverage.png, report.html."""
+
+    enabled: bool = True  # write them at the end of every mission
+    mesh: bool = True  # reconstruct and score mesh.ply from the final cloud
+    poisson_depth: int = within(8, 1, 12)  # octree depth of open3d's Poisson (experiments: 7)
+    mesh_max_points: int = within(60000, 1, 10**7)  # the cloud is voxel-thinned to ~this many
+    density_quantile: float = within(0.05, 0, 1)  # vertices of the lowest Poisson densities trimmed
+    trim_distance: float = nonneg(0.3)  # m; vertices farther than this from the cloud are trimmed
+    html: bool = True  # write report.html (plotly, self-contained)
+    view_points: int = within(50000, 1, 2 * 10**6)  # ground-truth samples in the report's 3D view
+
+
+def finish_run(mission, out, summary: dict, cache_dir=None) -> dict:
+    """The end-of-run outputs of a finished mission: writes ``mesh.ply``,
+    ``figures/coverage.png`` and ``report.html`` into its results folder `out` and returns
+    `summary` with the observable-surface figures and the mesh scores added (the caller writes
+    summary.json once, last: Mission.save / Recorder.write).
 
     mission: the ``nbvkit.Mission`` that has run (its evaluator, world and records are used);
-    out: its results folder; cache_dir: the observable-surface cache (default ``out/cache``;
-    a sweep passes its own folder's so that every run of a structure shares one entry).
-    Returns the updated summary. Stage timings go into ``summary["finish_s"]``.
-
-    On a complete run folder (``Mission.run(out_dir)``'s) its ``manifest.json`` is removed first
-    and written again last, so that a folder left half-finished here says so
-    (nbvkit.runfolder); the commands call it on the run's temporary folder instead.
+    cache_dir: the observable-surface cache (default ``out/cache``; a sweep passes its own
+    folder's so that every run of a structure shares one entry). Stage timings go into
+    ``summary["finish_s"]``.
     """
-    from .mission import _write_json_atomic
-    from .runfolder import mark_incomplete, write_manifest
-
     out = Path(out)
     cfg = mission.config
-    summary = json.loads((out / "summary.json").read_text())
-    was_complete = mark_incomplete(out)
+    summary = dict(summary)
     timings: dict = {}
     t_all = time.perf_counter()
     cloud = mission.cloud_points()
@@ -146,9 +157,6 @@ def finish_run(mission, out, cache_dir=None) -> dict:
             timings["report_html"] = time.perf_counter() - t0
     timings["total"] = time.perf_counter() - t_all
     summary["finish_s"] = timings
-    _write_json_atomic(out / "summary.json", summary)
-    if was_complete:
-        write_manifest(out)
     return summary
 
 
@@ -934,7 +942,7 @@ def write_experiment_report(root, df, title: str, markdown: str | None = None) -
 
 
 def _write_text_atomic(path, text: str) -> None:
-    from .mission import _write_text_atomic as write
+    from .runfolder import write_text_atomic as write
 
     write(Path(path), text)
 

@@ -24,14 +24,18 @@ nbvkit's own outputs (``OUTPUT_NAMES``): ``--overwrite`` never removes a user's 
 """
 from __future__ import annotations
 
+import contextlib
 import ctypes
 import errno
 import json
+import math
 import os
 import re
 import shutil
 import time
 from pathlib import Path
+
+import numpy as np
 
 __all__ = [
     "MANIFEST",
@@ -445,3 +449,43 @@ def _glob_escape(name: str) -> str:
     import glob
 
     return glob.escape(name)
+
+
+# ------------------------------------------------------------------ atomic files
+@contextlib.contextmanager
+def atomic_open(path: Path, mode: str = "w", **kw):
+    """A file opened for writing at a temporary name beside `path`, renamed over it once closed
+    without error (a write error, e.g. a full disk, raises OSError and leaves `path` as it was)."""
+    path = Path(path)
+    tmp = path.with_name(f".{path.name}.tmp{os.getpid()}")
+    try:
+        with open(tmp, mode, **kw) as f:
+            yield f
+        os.replace(tmp, path)
+    except BaseException:
+        with contextlib.suppress(OSError):
+            tmp.unlink()
+        raise
+
+
+def write_text_atomic(path: Path, text: str) -> None:
+    with atomic_open(path) as f:
+        f.write(text)
+
+
+def write_json_atomic(path: Path, data: dict) -> None:
+    write_text_atomic(path, json.dumps(_jsonable(data), indent=2, allow_nan=False))
+
+
+def _jsonable(x):
+    if isinstance(x, dict):
+        return {str(k): _jsonable(v) for k, v in x.items()}
+    if isinstance(x, (list, tuple)):
+        return [_jsonable(v) for v in x]
+    if isinstance(x, (np.floating, float)):
+        return float(x) if math.isfinite(x) else None
+    if isinstance(x, np.integer):
+        return int(x)
+    if isinstance(x, np.ndarray):
+        return _jsonable(x.tolist())
+    return x

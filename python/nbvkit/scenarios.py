@@ -62,17 +62,17 @@ SCENARIOS: dict[str, Scenario] = {
     ),
     "1": Scenario(
         "the paper's Scenario 1: no profiling, no symmetry, CGVS",
-        {**_PAPER, "profiling.enabled": False, "symmetry.mode": "none", "sampling.method": "cgvs"},
+        {**_PAPER, "profiling.enabled": False, "symmetry.mode": "none", "lattice.method": "cgvs"},
         ("no", "no", "CGVS"),
     ),
     "2": Scenario(
         "Scenario 2: profiling, CGVS",
-        {**_PAPER, "profiling.enabled": True, "symmetry.mode": "none", "sampling.method": "cgvs"},
+        {**_PAPER, "profiling.enabled": True, "symmetry.mode": "none", "lattice.method": "cgvs"},
         ("yes", "no", "CGVS"),
     ),
     "3": Scenario(
         "Scenario 3: profiling, AGVS",
-        {**_PAPER, "profiling.enabled": True, "symmetry.mode": "none", "sampling.method": "agvs"},
+        {**_PAPER, "profiling.enabled": True, "symmetry.mode": "none", "lattice.method": "agvs"},
         ("yes", "no", "AGVS"),
     ),
     "4": Scenario(
@@ -81,7 +81,7 @@ SCENARIOS: dict[str, Scenario] = {
             **_PAPER,
             "profiling.enabled": True,
             "symmetry.mode": "predict",
-            "sampling.method": "cgvs",
+            "lattice.method": "cgvs",
         },
         ("yes", "yes", "CGVS"),
     ),
@@ -91,7 +91,7 @@ SCENARIOS: dict[str, Scenario] = {
             **_PAPER,
             "profiling.enabled": True,
             "symmetry.mode": "predict",
-            "sampling.method": "agvs",
+            "lattice.method": "agvs",
         },
         ("yes", "yes", "AGVS"),
     ),

@@ -46,6 +46,8 @@ from typing import Any
 import numpy as np
 
 from . import _core
+from .limits import Bound
+from .settings import cpp_section
 
 SymmetryResult = _core.SymmetryResult
 SymmetricPrediction = _core.SymmetricPrediction
@@ -58,6 +60,40 @@ reflection_matrix = _core.reflection_matrix
 plane_from_pair = _core.plane_from_pair
 canonical_plane = _core.canonical_plane
 mirror_fpfh = _core.mirror_fpfh
+
+
+SymmetryConfig = cpp_section(
+    "SymmetryConfig",
+    _core.SymmetryOptions,
+    """Symmetry detection and prediction (sec. 3.2.2), owned by nbvkit.symmetry.
+
+    The mission's keys, then every option of detect_symmetry (SymmetryOptions) and of
+    predict_symmetric (SymmetricPredictionOptions), named, defaulted and documented by the C++
+    structs.""",
+    before=[
+        ("mode", str, "predict", "none | report (detect, write nothing) | predict (into the map)"),
+        ("refresh_every", int, 10, "views between re-predictions from the camera cloud (0: never)"),
+        ("prediction_probability", float, 0.6, "of a predicted cell (paper; authors' code: 0.7)"),
+    ],
+    extra=(_core.SymmetricPredictionOptions,),
+    choices={"mode": ("none", "report", "predict"), "keypoints": ("sift", "iss", "uniform")},
+    bounds={
+        "refresh_every": Bound(lo=0, hi=10**6),
+        "prediction_probability": Bound(lo=0.5, hi=1, lo_open=True, hi_open=True),
+        "max_descriptor_distance": Bound(inf=True),
+        "normal_k": Bound(hi=1000),
+        "sift_octaves": Bound(hi=16),
+        "sift_scales_per_octave": Bound(hi=32),
+        "matches_per_keypoint": Bound(hi=100),
+        "mean_shift_seeds": Bound(hi=10_000),
+        "mean_shift_max_iterations": Bound(hi=100_000),
+        "candidate_modes": Bound(hi=1000),
+        "refine_iterations": Bound(hi=1000),
+        "refine_max_points": Bound(hi=10**7),
+        "icp_normal_k": Bound(hi=1000),
+        "icp_max_iterations": Bound(hi=100_000),
+    },
+)
 
 
 def _options_doc(options_type) -> str:

@@ -26,6 +26,11 @@ class StageTimers:
         """Each stage's time (s) since the previous lap, without taking one."""
         return {s: t - self._at_lap.get(s, 0.0) for s, t in self.total.items()}
 
+    def call(self, stage: str, fn, *args, **kwargs):
+        """fn(*args, **kwargs), its wall time added to `stage`."""
+        with self(stage):
+            return fn(*args, **kwargs)
+
     @contextmanager
     def __call__(self, stage: str):
         t0 = perf_counter()

@@ -3,10 +3,32 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import Optional
 
 import numpy as np
 
-from .config import Config
+from .settings import nonneg, triple
+
+
+@dataclass(frozen=True)
+class WorkspaceConfig:
+    """The NBV workspace (map bounds for entropy, utility and navigation).
+
+    Default: the structure's bounding box grown by ``margin_xy`` on each side and squared up to a
+    square footprint (as the paper's 40 x 40 m), from ``min(0, bbox z min)`` (the ground) to
+    ``bbox z max + margin_z``. For the shipped airliner (35.0 x 30.0 x 7.5 m) this gives
+    40.0 x 40.0 x 10.0 m. Explicit ``bounds_min``/``bounds_max`` override it.
+    """
+
+    margin_xy: float = nonneg(2.5)
+    margin_z: float = nonneg(2.5)
+    square: bool = True
+    bounds_min: Optional[tuple] = triple(None)
+    bounds_max: Optional[tuple] = triple(None)
+
+    def check(self, key: str) -> None:
+        if (self.bounds_min is None) != (self.bounds_max is None):
+            raise ValueError(f"config keys '{key}.bounds_min' and '{key}.bounds_max' go together")
 
 
 @dataclass(frozen=True)
@@ -46,7 +68,7 @@ def ground_height(bounds) -> float:
     return min(0.0, float(np.asarray(bounds, float)[0][2]))
 
 
-def make_workspace(mesh_bounds, cfg: Config) -> Workspace:
+def make_workspace(mesh_bounds, cfg) -> Workspace:
     """The workspace of a structure (see WorkspaceConfig); navigation bounds are the workspace
     shrunk by the collision radius (plus 0.1 m), so the vehicle's sphere stays inside the map."""
     w = cfg.workspace

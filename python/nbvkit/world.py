@@ -12,10 +12,58 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from . import _core
-from .config import Config, camera_kwargs, laser_kwargs, view_camera
-from .limits import check_work
+from .limits import Bound, check_work
 from .mesh import default_mesh_path, load_mesh
+from .sensors import build_camera, build_laser, build_view_camera
+from .settings import cpp_section
 from .workspace import Workspace, ground_height, make_workspace, start_poses
+
+
+VehicleConfig = cpp_section(
+    "VehicleConfig",
+    _core.ValidityOptions,
+    "The UAV: collision sphere and how it flies between views.",
+    only=("collision_radius", "blocked_path"),
+    after=[
+        (
+            "start_clear_radius",
+            float,
+            3.0,
+            "m; unknown cells this near the start are known free before the first scan: the "
+            "vehicle took off there (with less than ~2 m the strict collision rule leaves a "
+            "camera-only start only yaw turns: every 1 m step's sphere reaches outside the "
+            "camera's 45 deg vertical FOV); 0 disables",
+        ),
+        (
+            "clear_swept_volume",
+            bool,
+            True,
+            "the vehicle's own swept volume (collision radius along the flown path) is known free",
+        ),
+        (
+            "widen_swept_volume",
+            bool,
+            True,
+            "the swept volume made known free reaches half a cell diagonal past the collision "
+            "radius, so the cells the flown path crosses pass A*'s test (the sphere at each cell's "
+            "centre) and the vehicle can always plan its way back along its own flight; false: "
+            "the radius alone (the paper's scenarios)",
+        ),
+        (
+            "path_expansions",
+            int,
+            200000,
+            "cells an A* search to a view expands at most; a view the vehicle's free component "
+            "holds is searched again without the cap",
+        ),
+    ],
+    choices={"blocked_path": ("reject", "plan")},
+    bounds={
+        "collision_radius": Bound(lo=0, lo_open=True),
+        "start_clear_radius": Bound(lo=0, hi=1000),
+        "path_expansions": Bound(lo=1, hi=400_000_000),
+    },
+)
 
 
 class MissionError(ValueError):
@@ -77,13 +125,13 @@ class VehicleState:
         self.flight[-1][6] = kind
 
 
-def cloud_floor(config: Config, mesh_bounds) -> float:
+def cloud_floor(config, mesh_bounds) -> float:
     """The height below which the clouds drop points: cloud.min_z above the structure's ground
     (workspace.ground_height)."""
     return ground_height(mesh_bounds) + config.cloud.min_z
 
 
-def surface_clouds(config: Config, mesh_bounds):
+def surface_clouds(config, mesh_bounds):
     """(camera, laser) empty SurfaceClouds as a mission keeps them: each voxel-filtered at its
     cloud.*_voxel, dropping points below cloud_floor."""
     cl = config.cloud
@@ -94,7 +142,7 @@ def surface_clouds(config: Config, mesh_bounds):
     )
 
 
-def _check_above_ground_removal(config: Config, mesh_bounds) -> None:
+def _check_above_ground_removal(config, mesh_bounds) -> None:
     """Raises MissionError for a structure that lies wholly within the clouds' ground removal
     (below cloud_floor): every point of it would be dropped, and a mission would end at once
     with nothing covered."""
@@ -118,7 +166,7 @@ class World:
     MissionError before any work for a bad start or a start inside the structure.
     """
 
-    def __init__(self, config: Config, mesh=None):
+    def __init__(self, config, mesh=None):
         self.config = cfg = config
         if mesh is None:
             self.mesh_path = str(cfg.mesh.path or default_mesh_path())
@@ -171,24 +219,15 @@ class World:
                 "results are then in that frame)"
             ) from None
         self.scene = _core.RaycastScene(mesh)
-        c, la = cfg.camera, cfg.laser
-        camera_mount = _core.mount_transform(c.mount_xyz, *c.mount_rpy_deg)
-        self.camera = _core.DepthCamera(
-            self.scene, **camera_kwargs(cfg), seed=cfg.seed, mount=camera_mount
-        )
-        self.laser = _core.LaserScanner(
-            self.scene,
-            **laser_kwargs(cfg),
-            seed=cfg.seed + 1,
-            mount=_core.mount_transform(la.mount_xyz, *la.mount_rpy_deg),
-        )
-        self.starts = self._start_poses(camera_mount)
+        self.camera = build_camera(cfg.camera, self.scene, cfg.seed)
+        self.laser = build_laser(cfg.laser, self.scene, cfg.seed + 1)
+        self.starts = self._start_poses()
         start = np.array(cfg.start_pose, float) if cfg.start_pose is not None else None
         self.start_pose = start if start is not None else self.starts[cfg.start]
         self._check_start(self.start_pose)
         self.camera_cloud, self.laser_cloud = surface_clouds(cfg, mesh.bounds)
         self.surface = _core.SurfaceObservations(self.map)
-        self.view_camera = view_camera(cfg)
+        self.view_camera = build_view_camera(cfg.camera, cfg.utility, cfg.map.resolution)
         self.state = VehicleState(pose=as_view(self.start_pose))
         self.state.trajectory.append(("start", *self.state.pose.tolist(), 0.0))
         self.state.record_leg("start", self.start_pose[None, :3], 0.0)
@@ -204,18 +243,12 @@ class World:
             self.map.mark_free_segment(p, p, r)
 
     # ------------------------------------------------------------------ starts
-    def _start_poses(self, camera_mount) -> np.ndarray:
+    def _start_poses(self) -> np.ndarray:
         """The five predefined starts (see workspace.start_poses): within 3/4 of the camera's
         range of the structure, seeing it."""
         c, v = self.config.camera, self.config.vehicle
-        probe = _core.DepthCamera(  # a coarse, noise-free copy of the camera
-            self.scene,
-            camera_kwargs(self.config),
-            width=32,
-            height=24,
-            noise_k=0.0,
-            mount=camera_mount,
-        )
+        # a coarse, noise-free copy of the camera
+        probe = build_camera(c, self.scene, self.config.seed, width=32, height=24, noise_k=0.0)
         return start_poses(
             self.workspace,
             surface=self.mesh.sample_surface(20000, seed=0),
@@ -280,23 +313,37 @@ class World:
         return count, first
 
     # ------------------------------------------------------------------ sensing
-    def sense_camera(self, pose=None, view: bool = True):
-        """One camera frame from `pose` (default: the vehicle's), integrated into the map, the
-        camera cloud and the camera observations; `view`: it counts as a view (False: a frame
-        taken in flight, during the profile). Returns the Scan."""
-        scan = self.camera.scan_pose(self.state.pose if pose is None else pose)
-        self.map.integrate(scan)
-        self.camera_cloud.add(scan.hits)
-        self.surface.add_scan(scan)
-        self.state.capture("view" if view else "frame")
+    #: what a capture is: the sensor that takes it
+    SENSOR_OF = {"view": "camera", "frame": "camera", "laser": "laser"}
+
+    def sense(self, kind: str = "view", pose=None):
+        """One capture from `pose` (default: the vehicle's), scanned and integrated (scan, then
+        integrate). kind: "view" (a camera frame that counts as a view), "frame" (a camera frame
+        taken in flight, during the profile) or "laser" (a laser scan). Returns the Scan."""
+        scan = self.scan(kind, pose)
+        self.integrate(scan, kind)
         return scan
 
-    def sense_laser(self, pose=None):
-        """One laser scan, integrated into the map and the laser cloud. Returns the Scan."""
-        scan = self.laser.scan_pose(self.state.pose if pose is None else pose)
+    def scan(self, kind: str = "view", pose=None):
+        """The Scan of a capture (see sense) from `pose` (default: the vehicle's); nothing is
+        integrated."""
+        if kind not in self.SENSOR_OF:
+            raise ValueError(f"unknown capture {kind!r}; known: {', '.join(self.SENSOR_OF)}")
+        sensor = self.camera if self.SENSOR_OF[kind] == "camera" else self.laser
+        return sensor.scan_pose(self.state.pose if pose is None else pose)
+
+    def integrate(self, scan, kind: str = "view") -> int:
+        """Integrates a capture's Scan (see sense): into the map, and the camera cloud and
+        camera observations (a camera frame, also marked on the flight) or the laser cloud.
+        Returns the surface cells the camera saw for the first time (0 for a laser scan)."""
         self.map.integrate(scan)
-        self.laser_cloud.add(scan.hits)
-        return scan
+        if self.SENSOR_OF[kind] == "laser":
+            self.laser_cloud.add(scan.hits)
+            return 0
+        self.camera_cloud.add(scan.hits)
+        new_cells = self.surface.add_scan(scan)
+        self.state.capture(kind)
+        return new_cells
 
     @property
     def clouds(self) -> list:

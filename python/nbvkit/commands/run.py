@@ -8,7 +8,6 @@ import json
 from ..config import load_config
 from ..mission import Mission
 from ..planning.terminations.budget import budget_note
-from ..report import finish_run
 from ..runfolder import RunFolder
 from ..scenarios import DEFAULT, SCENARIOS
 from .common import add_mesh_shift_option, add_set_option, shift_override
@@ -104,9 +103,7 @@ def run(args) -> int:
     # checked (writable, not in use by another run, empty or --overwrite) before any work
     with RunFolder(out, overwrite=args.overwrite, what="--out") as folder:
         mission = Mission(cfg)
-        summary = mission.run()
-        mission.write_results(folder.tmp, summary)
-        s = finish_run(mission, folder.tmp)
+        s = mission.save(folder.tmp, mission.run(), finish=True)
     cov = s["coverage"]
     print(
         f"scenario {s['scenario']} start {s['start']}: {s['iterations']} iterations, "

@@ -222,8 +222,11 @@ class ReturnPaths:
     """For each point of the flight, the cheapest known-safe way back to the start (see the
     module's docstring): its time (s) and its points (first = the point, last = the start)."""
 
-    def __init__(self, fl: RunFlight, model: FlightModel, occ_map, targets, max_expansions=200000):
+    def __init__(self, fl: RunFlight, model: FlightModel, occ_map, targets, max_expansions=None):
         from .. import _core
+
+        if max_expansions is None:  # the run's own A* cap (vehicle.path_expansions)
+            max_expansions = fl.config.vehicle.path_expansions
 
         n = len(fl.xyz)
         self.fl, self.model = fl, model

@@ -3,7 +3,13 @@
 A planner composes *generators* (propose candidate views), a *utility* (scores them, in one C++
 call: nbvkit._core.evaluate_views), a *selection* (the best valid view and the path to it) and
 *terminations* (when to stop). Generators and terminations are small classes registered by name
-in registry.py; a new one is one file and one registry line.
+in registry.py; a new one is one file and one registry line (or, from a script,
+``nbvkit.register_generator`` / ``register_termination``).
+
+A part is built as ``Part(settings, context)``: ``settings`` is its own section of the
+configuration (an instance of its ``Settings`` dataclass, the YAML section named like the part;
+None for a part without one), ``context`` the few shared things every part may read
+(PlanningContext).
 """
 from __future__ import annotations
 
@@ -11,6 +17,35 @@ from dataclasses import dataclass, field
 from typing import Optional, Protocol
 
 import numpy as np
+
+
+@dataclass(frozen=True)
+class PlanningContext:
+    """What the planner's parts share besides their own sections: the camera and vehicle, the
+    map's cell size, and the sections of the shared planning blocks (placement of views at
+    surface targets, the utility, the planner's thresholds)."""
+
+    camera: object  # sensors.CameraConfig
+    vehicle: object  # world.VehicleConfig
+    resolution: float  # m, the map's cell
+    utility: object  # scoring.UtilityConfig
+    targets: object  # nbvkit._core.SurfaceTargetOptions (placement.target_options)
+    placement: object  # placement.PlacementConfig
+    planner: object  # planner.PlannerConfig
+
+    @classmethod
+    def of(cls, config) -> "PlanningContext":
+        from .placement import target_options
+
+        return cls(
+            config.camera,
+            config.vehicle,
+            config.map.resolution,
+            config.utility,
+            target_options(config.targets, config.utility),
+            config.placement,
+            config.planner,
+        )
 
 
 @dataclass
@@ -54,6 +89,8 @@ class Step:
     extra: dict = field(default_factory=dict)  # generator-specific columns (e.g. AGVS alpha)
     expected_m2: Optional[float] = None  # new surface the surface utility expected of it, m^2
     realized_m2: Optional[float] = None  # how much of that it brought (Planner.delivered)
+    proposal: Optional[Proposal] = None  # the proposal it was chosen from
+    makers: list = field(default_factory=list)  # the generators that proposed it
 
 
 #: The smallest factor threshold_scale gives: at a tenth of the thresholds (0.12 m^2 of new

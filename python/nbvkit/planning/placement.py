@@ -8,6 +8,42 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .. import _core
+from ..limits import shorten
+from ..settings import cpp_section, positive, within
+
+
+TargetsConfig = cpp_section(
+    "TargetsConfig",
+    _core.SurfaceTargetOptions,
+    "Surface still to observe, which the surface planners aim views at (the cone within which "
+    "a side counts as seen is the utility's: utility.coverage_cone_deg).",
+    only=[f for f in _core.SurfaceTargetOptions.fields() if f != "coverage_cone_deg"],
+)
+
+
+def target_options(targets, utility) -> _core.SurfaceTargetOptions:
+    """The SurfaceTargetOptions of a targets section, with the utility section's coverage cone
+    (one cone for what a view covers and what is left to cover)."""
+    return targets.options().copy(coverage_cone_deg=utility.coverage_cone_deg)
+
+
+@dataclass(frozen=True)
+class PlacementConfig:
+    """Views aimed at surface targets (tour and frontier generators)."""
+
+    cluster_size: float = positive(1.5)  # m; targets grouped per cube of this size and side faced
+    standoffs: tuple = (0.45, 0.7)  # view distances from a target patch, x camera.max_range
+    azimuth_spread_deg: float = within(30.0, 0, 180)  # views this far either side of the normal
+    elevation_margin_deg: float = within(4.0, 0, 90)  # patches kept this far inside vertical FOV
+
+    def check(self, key: str) -> None:
+        if not (self.standoffs and all(0 < x <= 1 for x in self.standoffs)):
+            raise ValueError(
+                f"config key '{key}.standoffs' must be fractions of the camera range in (0, 1], "
+                f"got {shorten(list(self.standoffs))}"
+            )
+
 
 @dataclass
 class Patches:

@@ -1,29 +1,53 @@
-"""The next-best-view loop of the paper's Fig. 1, made of interchangeable parts."""
+"""The next-best-view loop of the paper's Fig. 1, made of interchangeable parts: generators
+propose views, the utility scores them (one call, scoring.Scorer), the selection picks one, the
+vehicle flies there and senses, the after-view hooks run by name, the terminations decide."""
 from __future__ import annotations
+
+from dataclasses import dataclass
 
 import numpy as np
 
-from .. import _core
+from ..settings import Names, nonneg
 from ..termination import viewable_cells
 from ..timing import StageTimers
-from .parts import Proposal, Step
-from .registry import GENERATORS, TERMINATIONS
+from .parts import PlanningContext, Proposal, Step
+from .registry import get_generator, get_termination
+from .scoring import Scorer
 from .selection import Selector
 
 
+@dataclass(frozen=True)
+class PlannerConfig:
+    """The planner's parts (nbvkit.planning): generators, terminations, how a view is chosen."""
+
+    generators: Names = ("tour",)  # lattice | frontier | tour (first with views left leads)
+    terminations: Names = ("budget",)  # entropy | stall | budget (any one ends the mission)
+    min_gain: float = nonneg(0.8)  # m^2 of new surface (surface utility; else utility units); 0 any
+    travel_lambda: float = nonneg(0.15)  # 1/m; a view ranks by utility * exp(-travel_lambda * path)
+    # on a smaller structure (mapped surface A), m^2 thresholds x A/reference_area, tour.rate x
+    # its square root (parts.threshold_scale); the profiles of the 35 m airliners map 417-502 m^2
+    reference_area: float = nonneg(400.0)  # m^2 of mapped surface below which thresholds shrink
+
+    def check(self, key: str) -> None:
+        from .registry import check_names
+
+        check_names(self.generators, self.terminations)
+
+
 class Planner:
-    """Generators propose views, the utility scores them (one C++ call), the selection picks
-    one, the vehicle flies there and senses, the terminations decide whether to go on.
+    """The loop of Fig. 1 over a World. config: a resolved nbvkit.Config (planner.generators /
+    planner.terminations name the parts, registry.py; each is built from its own section).
+    ``hooks``: name -> hook(world, step), run after every view in order ("feedback": the
+    generators that proposed the view learn of it, e.g. AGVS's scale); a mission adds its own
+    (the symmetry refresh, the recorder). ``timers``: each stage's wall time, taken around the
+    parts' calls."""
 
-    config: a resolved nbvkit.Config (planner.generators / planner.terminations name the parts,
-    registry.py). `on_step(step)` is called after every view (records, progress)."""
-
-    def __init__(self, config, resolution: float, on_step=None):
-        self.config = config
-        self.generators = [GENERATORS[n](config) for n in config.planner.generators]
-        self.terminations = [TERMINATIONS[n](config) for n in config.planner.terminations]
-        self.selector = Selector(config, resolution)
-        self.utility = config.utility.options()
+    def __init__(self, config):
+        ctx = PlanningContext.of(config)
+        self.generators = [get_generator(n, config, ctx) for n in config.planner.generators]
+        self.terminations = [get_termination(n, config, ctx) for n in config.planner.terminations]
+        self.selector = Selector(ctx)
+        self.score = Scorer(config.utility)
         self.surface = config.utility.name == "surface"  # its gain: cells of new surface
         c = config.camera
         self.c_view = viewable_cells(
@@ -31,13 +55,11 @@ class Planner:
             c.vfov_deg,
             c.min_range,
             c.max_range,
-            resolution,
-            config.termination.count_partial_cells,
+            ctx.resolution,
+            config.entropy.count_partial_cells,
         )
-        self.on_step = on_step
         self.timers = StageTimers()
-        # the paper's IG walks kept between iterations: the same scores, fewer walks
-        self.memo = _core.ViewMemo()
+        self.hooks = {"feedback": _feedback}
 
     def run(self, world, max_views: int) -> str:
         """Flies views until a termination fires or max_views are flown ("max_iterations");
@@ -47,57 +69,41 @@ class Planner:
             found = self.next_view(world)  # viewpoint sampling + evaluation + selection
             if isinstance(found, str):
                 return found
-            proposal, contributors, scores, choice = found
             entropy_before = world.map.total_entropy()
-            with t("motion"):
-                leg = world.fly_to(choice.pose, "nbv", choice.path)
-            with t("sensing"):
-                scan = world.camera.scan_pose(world.state.pose)
-            with t("mapping"):
-                world.map.integrate(scan)
-                world.camera_cloud.add(scan.hits)
-                new_cells = world.surface.add_scan(scan)
-                world.state.capture("view")
-            entropy_after = world.map.total_entropy()
-            with t("evaluation"):
-                expected, realized = self.delivered(world, choice)
-            step = Step(
-                iteration,
-                choice,
-                proposal.source,
-                len(proposal.poses),
-                int((scores["status"] == 0).sum()),
-                entropy_before,
-                entropy_after,
-                (entropy_before - entropy_after) / self.c_view,
-                new_cells * world.map.resolution**2,
-                world.state.distance_m,
-                extra={"leg_m": leg, "scan": scan},
-                expected_m2=expected,
-                realized_m2=realized,
-            )
-            for g in contributors:
-                g.feedback(world, proposal, step)
-            if self.on_step:
-                self.on_step(step)
+            choice = found[3]
+            leg = t.call("motion", world.fly_to, choice.pose, "nbv", choice.path)
+            scan = t.call("sensing", world.scan, "view")
+            new_cells = t.call("mapping", world.integrate, scan, "view")
+            delivered = t.call("evaluation", self.delivered, world, choice)
+            step = self.step(world, iteration, found, entropy_before, new_cells, delivered)
+            step.extra.update(leg_m=leg, scan=scan)
+            for hook in self.hooks.values():
+                hook(world, step)
             for term in self.terminations:
                 reason = term.check(world, step)
                 if reason:
                     return reason
         return "max_iterations"
 
-    def score(self, world, poses) -> dict:
-        """The utility's scores of candidate views `poses` (K, 4 or 5) from where the vehicle is:
-        one C++ call (evaluate_views) with the planner's memo."""
-        return _core.evaluate_views(
-            world.map,
-            poses,
-            world.state.pose,
-            camera=world.view_camera,
-            utility=self.utility,
-            validity=world.validity(),
-            surface=world.surface,
-            memo=self.memo,
+    def step(self, world, iteration, found, entropy_before, new_cells, delivered) -> Step:
+        """The record of a view just flown (parts.Step)."""
+        proposal, makers, scores, choice = found
+        entropy_after = world.map.total_entropy()
+        return Step(
+            iteration,
+            choice,
+            proposal.source,
+            len(proposal.poses),
+            int((scores["status"] == 0).sum()),
+            entropy_before,
+            entropy_after,
+            (entropy_before - entropy_after) / self.c_view,
+            new_cells * world.map.resolution**2,
+            world.state.distance_m,
+            expected_m2=delivered[0],
+            realized_m2=delivered[1],
+            proposal=proposal,
+            makers=makers,
         )
 
     def delivered(self, world, choice):
@@ -119,24 +125,20 @@ class Planner:
         none: "coverage_complete" (no generator proposes anything), a generator's own
         `stop_reason` where it gave up for another cause (a tour none of whose views could be
         reached: "no_reachable_view"), or "no_valid_viewpoint" (no candidate is valid and worth
-        flying). The first generator with an exclusive proposal (a
-        tour) leads; its views are tried in turn. Otherwise the non-exclusive proposals are
-        scored together."""
+        flying). The first generator with an exclusive proposal (a tour) leads; its views are
+        tried in turn. Otherwise the non-exclusive proposals are scored together."""
         t = self.timers
         self.selector.begin()
         while True:
-            with t("sampling"):
-                proposal, contributors = self.propose(world)
+            proposal, makers = t.call("sampling", self.propose, world)
             if proposal is None:
                 reasons = (getattr(g, "stop_reason", None) for g in self.generators)
                 return next((r for r in reasons if r), "coverage_complete")
-            with t("evaluation"):
-                scores = self.score(world, proposal.poses)
-            with t("selection"):
-                choice = self.selector.choose(world, proposal.poses, scores)
+            scores = t.call("evaluation", self.score, world, proposal.poses)
+            choice = t.call("selection", self.selector.choose, world, proposal.poses, scores)
             if choice is not None:
-                return proposal, contributors, scores, choice
-            for g in contributors:
+                return proposal, makers, scores, choice
+            for g in makers:
                 g.feedback(world, proposal, None)
             if not proposal.exclusive:
                 return "no_valid_viewpoint"
@@ -157,10 +159,14 @@ class Planner:
             return None, []
         if len(merged) == 1:
             return merged[0], makers
-        if len({p.poses.shape[1] for p in merged}) > 1:  # level (K, 4) beside (K, 5): pitch 0
-            poses = np.vstack(
-                [np.pad(p.poses, ((0, 0), (0, 5 - p.poses.shape[1]))) for p in merged]
-            )
-        else:
-            poses = np.vstack([p.poses for p in merged])
+        width = max(p.poses.shape[1] for p in merged)  # level (K, 4) beside (K, 5): pitch 0
+        poses = np.vstack(
+            [np.pad(p.poses, ((0, 0), (0, width - p.poses.shape[1]))) for p in merged]
+        )
         return Proposal(poses, "+".join(p.source for p in merged)), makers
+
+
+def _feedback(world, step: Step) -> None:
+    """The generators that proposed the flown view learn of it (AGVS's scale follows dE_v)."""
+    for g in step.makers:
+        g.feedback(world, step.proposal, step)

@@ -27,14 +27,14 @@ from .parts import Choice, threshold_scale
 
 
 class Selector:
-    def __init__(self, config, resolution: float):
-        p = config.planner
+    def __init__(self, context):
+        p, resolution = context.planner, context.resolution
         self.travel_lambda = p.travel_lambda
-        self.surface = config.utility.name == "surface"
+        self.surface = context.utility.name == "surface"
         self.min_gain = p.min_gain / resolution**2 if self.surface else p.min_gain
         self.reference_area = p.reference_area
-        self.plan_paths = config.vehicle.blocked_path == "plan"
-        self.radius = config.vehicle.collision_radius
+        self.plan_paths = context.vehicle.blocked_path == "plan"
+        self.radius = context.vehicle.collision_radius
         self.component = None  # the vehicle's free component, once a search has failed
 
     def begin(self) -> None:

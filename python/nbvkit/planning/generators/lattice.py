@@ -2,13 +2,36 @@
 AGVS when the mission stalls (nbvkit.sampling)."""
 from __future__ import annotations
 
+import math
+from dataclasses import dataclass
+from typing import Optional
+
 from ...sampling import AdaptiveScale, candidate_poses
+from ...settings import choice, nonneg, positive, within
 from ..parts import Proposal
 
 
+@dataclass(frozen=True)
+class LatticeConfig:
+    """The lattice generator (section ``lattice``, formerly ``sampling``): the viewpoint
+    sampling of Eq. 2, the CGVS lattice and the AGVS scale sigma**alpha."""
+
+    method: str = choice("agvs", ("cgvs", "agvs"))  # "cgvs" (alpha fixed at 0) or "agvs"
+    delta_d: float = positive(1.0)  # m
+    delta_theta: float = nonneg(math.pi / 4)  # rad
+    sigma: float = positive(1.5)
+    alpha_max: int = within(5, 0, 100)
+    stuck_threshold: float = positive(0.005)  # |dE_v| below this counts as stuck (paper)
+    stuck_window: int = within(3, 1, 10**6)  # stuck iterations in a row before alpha grows
+    scale_cap: Optional[float] = positive(None)  # authors' code: 7.5
+    oscillation_is_stuck: bool = False  # authors' code: an A-B-A-B oscillation counts as stuck
+
+
 class LatticeGenerator:
-    def __init__(self, config):
-        s = config.sampling
+    Settings = LatticeConfig
+
+    def __init__(self, settings: LatticeConfig, context=None):
+        s = settings
         self.s = s
         self.scale = AdaptiveScale(
             s.sigma,

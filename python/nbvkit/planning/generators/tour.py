@@ -21,19 +21,43 @@ smaller than planner.reference_area both thresholds shrink with it (parts.thresh
 from __future__ import annotations
 
 import dataclasses
+from dataclasses import dataclass
 
 import numpy as np
 from scipy import ndimage
 
 from ... import _core
 from ...mapping import CellFlag
+from ...settings import choice, nonneg, within
 from ..parts import Proposal, threshold_scale
 from ..placement import Patches, place_views, target_patches
 
 
+@dataclass(frozen=True)
+class TourConfig:
+    """The coverage-tour generator: set cover of views over the surface targets, a shortest
+    tour through them, flown; then again, until no planned view is worth its flight."""
+
+    # how a plan chooses views: "cover" (greedy set cover, then a shortest tour) or "insertion"
+    # (prize-collecting: new surface - rate x added tour length, by cheapest insertion)
+    selection: str = choice("insertion", ("cover", "insertion"))
+    min_gain: float = nonneg(1.2)  # m^2 of new surface a view must add to enter a plan (RESULTS.md)
+    rate: float = nonneg(0.75)  # m^2 of new surface per metre of tour a planned view must pay for
+    max_plans: int = within(0, 0, 10**6)  # tours planned at most (0: until a plan is empty)
+    # a stranded patch: all its views fail the collision test for want of known free space;
+    # a view whose rays reach where they would be gets this share of its weight
+    access_weight: float = nonneg(0.0)  # a stranded patch's share credited to a view opening it
+    # once no view of the surface the map shows is worth its flight, plans also weigh views of
+    # the unknown space within the structure's extent (unknown cells bordering free space)
+    explore: bool = True  # then also plan views that open unknown space; false: stop there
+
+
 class CoverageTour:
-    def __init__(self, config):
-        self.cfg = config
+    Settings = TourConfig
+
+    def __init__(self, settings: TourConfig, context):
+        self.settings = settings
+        self.ctx = context
         self.views = np.zeros((0, 4))
         self.aims = np.zeros((0, 3))
         self.next = 0
@@ -51,18 +75,18 @@ class CoverageTour:
         within the structure's extent that borders known free space (exploration_targets,
         grouped per cube of the camera's nearer stand-off, each looked at straight on; their
         patches follow the surface's)."""
-        cfg = self.cfg
+        ctx = self.ctx
         bounds = (world.workspace.nav_min, world.workspace.nav_max)
-        targets = _core.surface_targets(world.map, world.surface, cfg.targets.options())
-        patches = target_patches(targets, cfg.placement.cluster_size)
-        candidates, owner = place_views(patches, cfg.camera, cfg.placement, bounds)
+        targets = _core.surface_targets(world.map, world.surface, ctx.targets)
+        patches = target_patches(targets, ctx.placement.cluster_size)
+        candidates, owner = place_views(patches, ctx.camera, ctx.placement, bounds)
         if explore:
             size = max(
-                min(cfg.placement.standoffs) * cfg.camera.max_range, cfg.placement.cluster_size
+                min(ctx.placement.standoffs) * ctx.camera.max_range, ctx.placement.cluster_size
             )
             more = target_patches(exploration_targets(world.map), size)
-            straight = dataclasses.replace(cfg.placement, azimuth_spread_deg=0.0)
-            views, of = place_views(more, cfg.camera, straight, bounds)
+            straight = dataclasses.replace(ctx.placement, azimuth_spread_deg=0.0)
+            views, of = place_views(more, ctx.camera, straight, bounds)
             candidates = np.vstack([candidates, views])
             owner = np.concatenate([owner, of + len(patches.weights)])
             patches = Patches(
@@ -78,7 +102,7 @@ class CoverageTour:
             candidates,
             world.state.pose,
             camera=world.view_camera,
-            utility=self.cfg.utility.options(),
+            utility=self.ctx.utility.options(),
             validity=world.validity(blocked_path="plan"),
             memo=self.memo,
         )
@@ -88,14 +112,14 @@ class CoverageTour:
         reachable_only, over the candidates a path through known free space can reach now (the
         vehicle's free component); with explore, over views of the unknown space within the
         structure's extent too (candidates)."""
-        cfg = self.cfg
+        ctx, own = self.ctx, self.settings
         cell_m2 = world.map.resolution**2
-        scale = threshold_scale(world.map, cfg.planner.reference_area)
-        min_gain, rate = cfg.tour.min_gain * scale, cfg.tour.rate * np.sqrt(scale)
+        scale = threshold_scale(world.map, ctx.planner.reference_area)
+        min_gain, rate = own.min_gain * scale, own.rate * np.sqrt(scale)
         targets, patches, candidates, owner = self.candidates(world, explore)
         if reachable_only and len(candidates):
             here = world.state.pose[:3]
-            component = _core.FreeComponent(world.map, here, cfg.vehicle.collision_radius)
+            component = _core.FreeComponent(world.map, here, ctx.vehicle.collision_radius)
             reach = np.asarray(component.contains(world.map, candidates[:, :3]), bool)
             candidates, owner = candidates[reach], owner[reach]
         record = {
@@ -116,7 +140,7 @@ class CoverageTour:
         pose = world.state.pose
         coverage = self.coverage(world, candidates)
         coverage, opens = self._access(world, coverage, candidates, owner, patches)
-        if cfg.tour.selection == "insertion":
+        if own.selection == "insertion":
             # anchored at the vehicle, and with the first view's transit free (a far cluster
             # that pays only as a whole); the tour worth more after prize collection is flown
             tours = [
@@ -149,7 +173,7 @@ class CoverageTour:
         (_reachable: not behind walls the map shows, nor through a gap narrower than the
         vehicle); a valid view opens it when its rays reach the cell of one of those views (the
         cell is in its coverage set: unknown space the frame would make known)."""
-        w = self.cfg.tour.access_weight
+        w = self.settings.access_weight
         status = coverage["status"]
         if w <= 0 or len(status) == 0:
             return coverage, {}
@@ -161,7 +185,7 @@ class CoverageTour:
             return coverage, {}
         m = world.map
         pos = candidates[failed, :3]
-        r = self.cfg.vehicle.collision_radius
+        r = self.ctx.vehicle.collision_radius
         free_of_structure = ~_occupied_within(m, pos, r)
         failed, pos = failed[free_of_structure], pos[free_of_structure]
         reach = _reachable(world, r) if len(failed) else None
@@ -230,13 +254,13 @@ class CoverageTour:
             if unflyable and last["reachable_only"]:
                 self.stop_reason = "no_reachable_view"
                 return None
-            if self.cfg.tour.max_plans and len(self.plans) >= self.cfg.tour.max_plans:
+            if self.settings.max_plans and len(self.plans) >= self.settings.max_plans:
                 return None
             # after a tour none of whose views could be reached, the next plans only those
             # that can be (the same plan again would fail the same way)
             reach = bool(unflyable)
             self.views, self.next = self.plan(world, reach, self.exploring), 0
-            if len(self.views) == 0 and self.cfg.tour.explore and not self.exploring:
+            if len(self.views) == 0 and self.settings.explore and not self.exploring:
                 # no view of the surface the map shows is worth its flight: from now on views
                 # that open the unknown space within the structure's extent compete too
                 self.exploring = True

@@ -9,6 +9,9 @@ from __future__ import annotations
 
 import math
 import time
+from dataclasses import dataclass
+
+from ...settings import nonneg
 
 #: max_iterations left unset (null) follows the structure: this many views per m^2 of its
 #: surface, and at least MIN_VIEW_CAP. The recommended planner flies about 0.23 views per m^2 of
@@ -26,6 +29,15 @@ BUDGET_KEYS = {
     "budget_time": "budget.max_time_s",
 }
 BUDGET_REASONS = tuple(BUDGET_KEYS)
+
+
+@dataclass(frozen=True)
+class BudgetConfig:
+    """Hard limits (0: none), checked after every view."""
+
+    max_distance_m: float = nonneg(0.0)
+    max_views: int = nonneg(0)
+    max_time_s: float = nonneg(0.0)
 
 
 def view_cap(max_iterations, surface_area_m2: float) -> int:
@@ -54,8 +66,10 @@ def budget_note(summary: dict) -> str | None:
 
 
 class Budget:
-    def __init__(self, config):
-        self.b = config.budget
+    Settings = BudgetConfig
+
+    def __init__(self, settings: BudgetConfig, context=None):
+        self.b = settings
         self.t0 = time.perf_counter()
 
     def check(self, world, step):

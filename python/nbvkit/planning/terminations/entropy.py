@@ -3,11 +3,27 @@
 (paper: 0.001 and N = 5). C_view is nbvkit.termination.viewable_cells."""
 from __future__ import annotations
 
+from dataclasses import dataclass
+
+from ...settings import positive, within
+
+
+@dataclass(frozen=True)
+class EntropyConfig:
+    """The entropy termination (section ``entropy``, formerly ``termination``), sec. 3.5:
+    |dE_v| < threshold for `window` iterations."""
+
+    threshold: float = positive(0.001)  # |dE_v| (paper)
+    window: int = within(5, 1, 10**6)  # consecutive iterations (paper)
+    count_partial_cells: bool = True  # C_view counts cells the frustum touches partially
+
 
 class EntropyChange:
-    def __init__(self, config):
-        self.threshold = config.termination.threshold
-        self.window = config.termination.window
+    Settings = EntropyConfig
+
+    def __init__(self, settings: EntropyConfig, context=None):
+        self.threshold = settings.threshold
+        self.window = settings.window
         self.quiet = 0
 
     def check(self, world, step):

@@ -5,14 +5,27 @@ side, which the surface utility credits, adds nothing here). On a structure smal
 planner.reference_area the threshold shrinks with it (parts.threshold_scale)."""
 from __future__ import annotations
 
+from dataclasses import dataclass
+
+from ...settings import nonneg, within
 from ..parts import threshold_scale
 
 
+@dataclass(frozen=True)
+class StallConfig:
+    """Surface-coverage stall: the chosen views stopped adding surface."""
+
+    window: int = within(5, 1, 10**6)  # consecutive views
+    min_gain: float = nonneg(0.8)  # m^2 of new surface each added, at most
+
+
 class SurfaceStall:
-    def __init__(self, config):
-        self.window = config.stall.window
-        self.min_gain = config.stall.min_gain
-        self.reference_area = config.planner.reference_area
+    Settings = StallConfig
+
+    def __init__(self, settings: StallConfig, context):
+        self.window = settings.window
+        self.min_gain = settings.min_gain
+        self.reference_area = context.planner.reference_area
         self.quiet = 0
 
     def check(self, world, step):

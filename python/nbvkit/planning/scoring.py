@@ -1,0 +1,72 @@
+"""Scoring candidate views: the utility's settings (section `utility`) and the one scoring entry
+of a planner, ``Scorer``: one C++ call (nbvkit._core.evaluate_views) over all candidates with the
+planner's memo, or a utility written in Python (register_utility)."""
+from __future__ import annotations
+
+from typing import Optional
+
+from .. import _core
+from ..limits import Bound
+from ..settings import cpp_section
+
+
+def utility_names() -> tuple:
+    """The utilities a configuration may name: the C++ core's and those registered from
+    Python."""
+    from .registry import UTILITIES
+
+    return tuple(_core.utility_names()) + tuple(UTILITIES)
+
+
+UtilityConfig = cpp_section(
+    "UtilityConfig",
+    _core.UtilityOptions,
+    "How candidate views are scored (paper sec. 3.4 and the peers' utilities).",
+    before=[
+        (
+            "rays_x",
+            Optional[int],
+            None,
+            "rays across the horizontal FOV; null: one per map cell on the far plane (47 at 0.2 m)",
+        ),
+        ("rays_y", Optional[int], None, "rays across the vertical FOV; null: 34 at 0.2 m"),
+    ],
+    choices={"name": utility_names},
+    bounds={
+        "rays_x": Bound(lo=0, lo_open=True, hi=4096),
+        "rays_y": Bound(lo=0, lo_open=True, hi=4096),
+        "distance_lambda": Bound(lo=0),
+    },
+)
+
+
+class Scorer:
+    """A planner's one scoring entry: the utility's scores of candidate views `poses` (K, 4 or
+    5) from where the vehicle is, in one call, with one memo kept across calls (the paper's IG
+    walks: the same scores, fewer walks). A utility registered from Python
+    (planning.registry.register_utility) is scored over the candidates' rays instead."""
+
+    def __init__(self, utility: UtilityConfig):
+        from .registry import UTILITIES
+
+        self.name = utility.name
+        self.python = UTILITIES.get(utility.name)
+        self.options = None if self.python else utility.options()
+        self.memo = _core.ViewMemo()
+
+    def __call__(self, world, poses) -> dict:
+        """dict of (K,) arrays: utility, gain, cells, occupied_seen, status (evaluate_views)."""
+        if self.python is not None:
+            from .utilities import score_python
+
+            return score_python(self.python, world, poses)
+        return _core.evaluate_views(
+            world.map,
+            poses,
+            world.state.pose,
+            camera=world.view_camera,
+            utility=self.options,
+            validity=world.validity(),
+            surface=world.surface,
+            memo=self.memo,
+        )

@@ -1,0 +1,241 @@
+"""What a mission records and writes: one IterationRecord per view (the Recorder observes the
+planner's steps), the summary, and the run folder's files, each written once (summary.json
+last, after the end-of-run outputs of nbvkit.report when asked for)."""
+from __future__ import annotations
+
+import csv
+import resource
+import time
+from dataclasses import dataclass, fields
+from pathlib import Path
+
+from .evaluation import SUMMARY_KEYS
+from .planning.terminations.budget import BUDGET_REASONS
+from .runfolder import atomic_open, write_json_atomic, write_text_atomic
+from .world import FLIGHT_COLUMNS
+
+#: The per-view stages timed in every iteration (ms_per_stage in the summary).
+STAGES = ("sampling", "evaluation", "selection", "motion", "sensing", "mapping")
+
+
+@dataclass
+class IterationRecord:
+    """One row of iterations.csv: a view flown after profiling."""
+
+    iteration: int
+    x: float
+    y: float
+    z: float
+    yaw: float
+    pitch: float  # the camera gimbal's, radians, > 0 looks down (0: level)
+    source: str  # the generator that proposed the view
+    utility: float
+    gain: float
+    candidates: int
+    valid: int
+    entropy: float
+    entropy_change: float
+    delta_ev: float
+    alpha: int
+    expected_m2: float | None  # the new surface the plan expected of the view (surface utility)
+    realized_m2: float | None  # how much of it the view brought, as the utility counts it
+    new_surface_m2: float
+    leg_m: float
+    distance_m: float
+    cloud_points: int
+    coverage_005: float | None = None
+    coverage_01: float | None = None
+    coverage_05: float | None = None
+    t_sampling_ms: float = 0.0
+    t_evaluation_ms: float = 0.0
+    t_selection_ms: float = 0.0
+    t_motion_ms: float = 0.0
+    t_sensing_ms: float = 0.0
+    t_mapping_ms: float = 0.0
+
+
+class Recorder:
+    """Observes a mission's planner: after every view (``on_step``, a planner hook) a row of
+    iterations.csv, the progress bar and, every evaluation.coverage_every views, the coverage so
+    far. ``summary`` and ``write`` turn a finished mission into its results."""
+
+    def __init__(self, mission):
+        self.mission = mission
+        self.records: list[IterationRecord] = []
+        self.coverage_time_s = 0.0  # progress-report coverage refreshes (not a stage)
+        self.bar = None
+
+    def open_progress(self, total: int, enabled: bool) -> None:
+        self.bar = _progress(total, enabled)
+
+    def close_progress(self) -> None:
+        if self.bar is not None:
+            self.bar.close()
+
+    def on_step(self, world, step) -> None:
+        m = self.mission
+        cfg = m.config
+        cov = {}
+        if cfg.evaluation.coverage_every and step.iteration % cfg.evaluation.coverage_every == 0:
+            t0 = time.perf_counter()
+            c = m.evaluator.coverage(world.clouds)["coverage"]
+            cov = {float(k): v for k, v in c.items()}
+            self.coverage_time_s += time.perf_counter() - t0
+        p, c = world.state.pose, step.choice
+        lap = m.planner.timers.lap()
+        self.records.append(
+            IterationRecord(
+                step.iteration,
+                *map(float, p),
+                step.source,
+                c.utility,
+                c.gain,
+                step.candidates,
+                step.valid,
+                step.entropy_after,
+                step.entropy_after - step.entropy_before,
+                step.delta_ev,
+                int(step.extra.get("alpha", 0)),
+                step.expected_m2,
+                step.realized_m2,
+                step.new_surface_m2,
+                step.extra["leg_m"],
+                step.distance_m,
+                len(world.camera_cloud) + len(world.laser_cloud),
+                cov.get(0.05),
+                cov.get(0.1),
+                cov.get(0.5),
+                *(lap.get(s, 0.0) * 1e3 for s in STAGES),
+            )
+        )
+        if self.bar is not None:
+            self.bar.update(1)
+            self.bar.set_postfix_str(
+                f"{step.distance_m:.0f} m H={step.entropy_after:,.0f}"
+                + (f" cov0.05={cov[0.05]:.1%}" if cov else "")
+            )
+
+    def summary(self, termination: str, wall: float) -> dict:
+        m = self.mission
+        cfg, world = m.config, m.world
+        ev = m.evaluator(world.cloud_points())
+        n_it = len(self.records)
+        e_final = world.map.total_entropy()
+        # Per flown view, every second the per-view stages took: the rows of iterations.csv and
+        # the plan that ended the mission, which flew no view and so has no row (final_plan_ms).
+        timers = m.planner.timers
+        per_stage = {s: timers.total.get(s, 0.0) * 1e3 / n_it if n_it else 0.0 for s in STAGES}
+        final_plan_ms = sum(timers.pending().get(s, 0.0) for s in STAGES) * 1e3
+        tour = next((g for g in m.planner.generators if hasattr(g, "plans")), None)
+        out = {
+            "scenario": cfg.scenario,
+            "start": cfg.start,
+            "start_pose": [float(x) for x in world.start_pose],
+            "mesh": world.mesh_path,
+            "profiling": cfg.profiling.enabled,
+            "symmetry_prediction": cfg.symmetry.mode == "predict",
+            "generators": list(cfg.planner.generators),
+            "utility": cfg.utility.name,
+            "sampling": cfg.lattice.method if "lattice" in cfg.planner.generators else None,
+            "iterations": n_it,
+            "views": world.state.views,
+            "distance_m": world.state.distance_m,
+            "entropy_initial": m.entropy_initial,
+            "entropy_final": e_final,
+            "entropy_reduction": m.entropy_initial - e_final,
+            "entropy_unit": cfg.map.entropy_unit,
+            "termination": termination,
+            # a budget (view cap, distance, views, time) ended it, not the planner's coverage
+            "stopped_by_budget": termination in BUDGET_REASONS,
+            "max_views": m.max_views,
+            "wall_time_s": wall,
+            "ms_per_iteration": sum(per_stage.values()),
+            "ms_per_stage": per_stage,
+            "final_plan_ms": final_plan_ms,
+            "coverage_refresh_s": self.coverage_time_s,
+            # the process's peak resident memory so far (Linux ru_maxrss, KiB): in a sweep worker
+            # that has flown several runs, the largest of them
+            "peak_memory_mb": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0,
+            "cloud_points": int(ev["n_points"]),
+            "workspace": world.workspace.to_dict(),
+            "c_view": m.planner.c_view,
+            "seed": cfg.seed,
+        }
+        out.update(_gain_accounting(self.records))
+        for k in SUMMARY_KEYS:
+            out[k] = ev[k]
+        if m.profile_summary is not None:
+            out["profile"] = m.profile_summary
+        if m.symmetry_summary is not None:
+            out["symmetry"] = m.symmetry_summary
+        if tour is not None:
+            out["tours"] = tour.plans
+        return out
+
+    def write(self, out: Path, summary: dict, finish: bool = False, cache_dir=None) -> dict:
+        """Writes the run's files into the folder ``out``: config.yaml, iterations.csv,
+        trajectory.csv, flight.csv, cloud.ply, map.ot, figures/*.png; with `finish` the
+        end-of-run outputs (nbvkit.report.finish_run: observable surface, mesh.ply, report.html,
+        whose figures join the summary); summary.json last, once. Returns the summary written.
+        Any write error (a full disk) raises OSError."""
+        from .cloud import write_points
+        from .plots import plot_mission
+
+        m = self.mission
+        out = Path(out)
+        out.mkdir(parents=True, exist_ok=True)
+        write_text_atomic(out / "config.yaml", m.config.to_yaml())
+        names = [f.name for f in fields(IterationRecord)]
+        with atomic_open(out / "iterations.csv", newline="") as f:
+            w = csv.writer(f)
+            w.writerow(names)
+            for r in self.records:
+                w.writerow(["" if getattr(r, k) is None else getattr(r, k) for k in names])
+        with atomic_open(out / "trajectory.csv", newline="") as f:
+            w = csv.writer(f)
+            w.writerow(["stage", "x", "y", "z", "yaw", "pitch", "distance_m"])
+            w.writerows(m.world.state.trajectory)
+        with atomic_open(out / "flight.csv", newline="") as f:  # every point flown (export)
+            w = csv.writer(f)
+            w.writerow(FLIGHT_COLUMNS)
+            w.writerows(m.world.state.flight)
+        write_points(out / "cloud.ply", m.world.cloud_points())
+        m.world.map.save(str(out / "map.ot"))
+        plot_mission(m, out / "figures")
+        if finish:
+            from .report import finish_run
+
+            summary = finish_run(m, out, summary, cache_dir=cache_dir)
+        write_json_atomic(out / "summary.json", summary)
+        return summary
+
+
+def _gain_accounting(records) -> dict:
+    """What the views were expected to bring against what they brought (surface utility): the
+    sums of expected_m2, realized_m2 (as the utility counts) and new_surface_m2 (cells seen for
+    the first time) over the flown views, and the two ratios to the expected; {} otherwise."""
+    flown = [r for r in records if r.expected_m2 is not None]
+    if not flown:
+        return {}
+    expected = sum(r.expected_m2 for r in flown)
+    realized = sum(r.realized_m2 for r in flown)
+    new = sum(r.new_surface_m2 for r in flown)
+    return {
+        "expected_m2": expected,
+        "realized_m2": realized,
+        "realized_to_expected": realized / expected if expected > 0 else None,
+        "new_surface_to_expected": new / expected if expected > 0 else None,
+    }
+
+
+def _progress(total: int, enabled: bool):
+    if not enabled:
+        return None
+    try:
+        from tqdm import tqdm
+    except ImportError:  # pragma: no cover - tqdm is a Debian package we install
+        return None
+    # disable=None: no bar when stderr is not a terminal (logs, pipes, CI)
+    return tqdm(
+        total=total, desc="views", unit="view", dynamic_ncols=True, leave=False, disable=None
+    )

@@ -1,0 +1,163 @@
+"""The sensors: the RGB-D camera on its gimbal and the 2D laser scanner, their settings (the
+``camera`` and ``laser`` sections), the named cameras, and one builder each.
+
+Named cameras: ``camera.preset`` fills the camera keys (and the room its stand-off needs) that a
+configuration does not set itself, as a scenario fills the planner's.
+
+- ``rgbd`` (default): the paper's RGB-D camera (Table 1): 640 x 480 pixels, 60 x 45 deg, depth
+  0.5-8 m; a pixel spans 1.44 cm at 8 m. Its keys are the C++ defaults
+  (``nbvkit.DepthCameraOptions``), so the preset sets nothing.
+- ``inspection``: a camera for large structures (issue 37): the same field of view at twice the
+  pixels, 1280 x 960, depth 1-24 m. A pixel spans 2.2 cm at 24 m, so the 5 cm coverage cells hold
+  several points at its whole range, and one frame of a flat face 17 m away (its far stand-off,
+  0.7 x 24 m) spans about 19 x 14 m. Its frame takes about 4 x the rays of the RGB-D camera's,
+  and views planned three times farther out need room: ``workspace.margin_xy`` 17 m (the far
+  stand-off) instead of the surface planners' 5 m, and so a larger map.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+from . import _core
+from .settings import choice, nonneg, positive, triple, within
+
+_CAM = _core.DepthCameraOptions()
+_LAS = _core.LaserScannerOptions()
+
+#: preset name -> {dotted config key: value}, applied under what the user sets.
+CAMERA_PRESETS: dict[str, dict] = {
+    "rgbd": {},
+    "inspection": {
+        "camera.width": 1280,
+        "camera.height": 960,
+        "camera.hfov_deg": 60.0,
+        "camera.vfov_deg": 45.0,
+        "camera.min_range": 1.0,
+        "camera.max_range": 24.0,
+        "workspace.margin_xy": 17.0,
+    },
+}
+
+
+@dataclass(frozen=True)
+class CameraConfig:
+    """The RGB-D camera (paper Table 1); mount = T_body_sensor as xyz (m) + roll/pitch/yaw (deg).
+
+    The camera rides a gimbal between the body and its mount: a view is (x, y, z, yaw, pitch),
+    T_world_camera = T(x, y, z) Rz(yaw) Ry(pitch) mount, pitch > 0 looking DOWN (REP-103, the
+    sign of mount_rpy_deg's pitch). ``gimbal_pitch_deg`` [min, max] is the pitch range it can
+    hold, in degrees within [-90, 90]: [-30, 90] is 30 deg up to straight down, as inspection
+    UAVs; [0, 0] the fixed level camera (the paper's scenarios)."""
+
+    preset: str = choice(
+        "rgbd", tuple(CAMERA_PRESETS)
+    )  # a named camera (nbvkit.cameras): rgbd (the paper's), inspection
+    width: int = within(_CAM.width, 1, 16_000)
+    height: int = within(_CAM.height, 1, 16_000)
+    hfov_deg: float = _CAM.hfov_deg
+    vfov_deg: float = _CAM.vfov_deg
+    min_range: float = _CAM.min_range
+    max_range: float = positive(_CAM.max_range, 1000)
+    noise_k: float = nonneg(_CAM.noise_k)  # the authors used 0.0025 (sigma = k z^2)
+    mount_xyz: tuple = triple((0.0, 0.0, 0.0))
+    mount_rpy_deg: tuple = triple((0.0, 0.0, 0.0))
+    gimbal_pitch_deg: tuple = (-30.0, 90.0)  # [min, max] deg, > 0 looks down; [0, 0]: level
+
+    def check(self, key: str) -> None:
+        check_gimbal(self.gimbal_pitch_deg, key + ".gimbal_pitch_deg")
+
+
+@dataclass(frozen=True)
+class LaserConfig:
+    """The 2D laser scanner (paper Table 1)."""
+
+    fov_deg: float = _LAS.fov_deg
+    resolution_deg: float = _LAS.resolution_deg
+    min_range: float = _LAS.min_range
+    max_range: float = positive(_LAS.max_range, 1000)
+    noise_sigma: float = nonneg(_LAS.noise_sigma)
+    mount_xyz: tuple = triple((0.0, 0.0, 0.0))
+    mount_rpy_deg: tuple = triple((0.0, 10.0, 0.0))  # pitched 10 deg down (Table 1)
+
+
+def check_gimbal(pitch_range, key: str = "camera.gimbal_pitch_deg") -> None:
+    """Raises ValueError unless camera.gimbal_pitch_deg is [min, max], finite, within [-90, 90]
+    deg, min <= max, and holds 0 (the planners fly level views until they choose pitches)."""
+    if len(pitch_range) != 2:
+        raise ValueError(
+            f"config key {key!r} must be 2 numbers [min, max] (deg, > 0 looks down), "
+            f"got {list(pitch_range)!r}"
+        )
+    lo, hi = pitch_range
+    if not (math.isfinite(lo) and math.isfinite(hi)):
+        raise ValueError(f"config key {key!r} must be finite, got {list(pitch_range)!r}")
+    if not (-90.0 <= lo <= 90.0 and -90.0 <= hi <= 90.0):
+        raise ValueError(
+            f"config key {key!r}: a pitch must be within [-90, 90] deg (90: straight down, -90: "
+            f"straight up), got {list(pitch_range)!r}"
+        )
+    if lo > hi:
+        raise ValueError(f"config key {key!r}: min {lo:g} > max {hi:g} deg")
+    if not lo <= 0.0 <= hi:
+        raise ValueError(
+            f"config key {key!r} must include 0 (level): nbvkit's planners fly level views "
+            f"until they choose pitches, got {list(pitch_range)!r}"
+        )
+
+
+_CAMERA_KEYS = ("width", "height", "hfov_deg", "vfov_deg", "min_range", "max_range", "noise_k")
+_LASER_KEYS = ("fov_deg", "resolution_deg", "min_range", "max_range", "noise_sigma")
+
+
+def camera_kwargs(camera: CameraConfig) -> dict:
+    """The DepthCamera / DepthCameraOptions keywords of a camera section."""
+    return {k: getattr(camera, k) for k in _CAMERA_KEYS}
+
+
+def laser_kwargs(laser: LaserConfig) -> dict:
+    """The LaserScanner / LaserScannerOptions keywords of a laser section."""
+    return {k: getattr(laser, k) for k in _LASER_KEYS}
+
+
+def camera_mount(camera: CameraConfig):
+    """T_body_camera (4, 4) of a camera section (the gimbal turns it by the view's pitch)."""
+    return _core.mount_transform(camera.mount_xyz, *camera.mount_rpy_deg)
+
+
+def build_camera(camera: CameraConfig, scene, seed: int, **changes) -> _core.DepthCamera:
+    """The depth camera of a camera section over `scene`; `changes` replace some of its keys
+    (e.g. a coarse noise-free probe: width=32, height=24, noise_k=0)."""
+    return _core.DepthCamera(
+        scene, **{**camera_kwargs(camera), **changes}, seed=seed, mount=camera_mount(camera)
+    )
+
+
+def build_laser(laser: LaserConfig, scene, seed: int) -> _core.LaserScanner:
+    """The laser scanner of a laser section over `scene`, on its fixed mount."""
+    mount = _core.mount_transform(laser.mount_xyz, *laser.mount_rpy_deg)
+    return _core.LaserScanner(scene, **laser_kwargs(laser), seed=seed, mount=mount)
+
+
+def build_view_camera(camera: CameraConfig, utility, resolution: float):
+    """The scoring camera (ViewCameraModel): one ray per map cell of `resolution` on the far
+    plane unless the utility section's rays_x / rays_y say otherwise; mounted as the camera."""
+    vc = _core.ViewCameraModel.for_resolution(
+        camera.hfov_deg, camera.vfov_deg, camera.max_range, resolution
+    )
+    return vc.copy(
+        rays_x=utility.rays_x or vc.rays_x,
+        rays_y=utility.rays_y or vc.rays_y,
+        mount=camera_mount(camera),
+        pixel_pitch_deg=max(camera.hfov_deg / camera.width, camera.vfov_deg / camera.height),
+    )
+
+
+def view_rays_across(camera: CameraConfig, resolution: float) -> tuple[int, int]:
+    """(rays_x, rays_y) of the view camera that follows the map cells on the far plane
+    (ViewCameraModel.for_resolution), computed before it is built (for its size check)."""
+
+    def across(fov):
+        return math.ceil(2 * camera.max_range * math.tan(math.radians(fov) / 2) / resolution)
+
+    return across(camera.hfov_deg), across(camera.vfov_deg)

@@ -1,0 +1,282 @@
+"""Settings: how a part of nbvkit declares its configuration section.
+
+A part (a generator, a termination, a sensor, a stage) keeps a frozen dataclass of its settings
+beside its class; its YAML section is named like the part. The fields declare their own checks:
+``positive`` / ``nonneg`` / ``within`` (a range, nbvkit.limits.Bound), ``choice`` (one of some
+names) and ``triple`` (3 finite numbers); a section may add a ``check(self, key)`` method for
+what spans several of its keys. A section that sets C++ options is generated from the bound
+options class (``cpp_section``): its keys, defaults and documentation are the C++ struct's.
+
+nbvkit.config composes the sections into a Config and loads it (YAML, dotted overrides); this
+module is what the parts import, so that no part imports the configuration.
+"""
+from __future__ import annotations
+
+import math
+import typing
+from dataclasses import field, fields, is_dataclass, make_dataclass
+from typing import Tuple
+
+import numpy as np
+
+from .limits import Bound, shorten
+
+#: A list of names in the configuration (YAML list of strings).
+Names = Tuple[str, ...]
+
+
+def bounded(default, bound: Bound):
+    """A dataclass field with its default and its range (nbvkit.limits.Bound), checked whenever
+    a configuration is built; an integer key without a maximum gets limits.MAX_INT."""
+    return field(default=default, metadata={"bound": bound})
+
+
+def positive(default, hi=None):
+    """A field whose value must be > 0 (and <= hi; None stays allowed where the type is
+    Optional)."""
+    return bounded(default, Bound(lo=0, lo_open=True, hi=hi))
+
+
+def nonneg(default):
+    """A field whose value must be >= 0."""
+    return bounded(default, Bound(lo=0))
+
+
+def within(default, lo, hi):
+    """A field whose value must lie in [lo, hi]."""
+    return bounded(default, Bound(lo=lo, hi=hi))
+
+
+def choice(default, options):
+    """A field whose value must be one of `options` (a tuple of names, or a function returning
+    them, for names that are registered at run time)."""
+    return field(default=default, metadata={"choices": options})
+
+
+def triple(default):
+    """A field of 3 finite numbers (or None where the type is Optional)."""
+    return field(default=default, metadata={"triple": True})
+
+
+def _py_field(value):
+    """(type, default) of a bound C++ option value in the configuration (vectors: tuples)."""
+    if isinstance(value, bool):
+        return bool, value
+    if isinstance(value, int):
+        return int, value
+    if isinstance(value, float):
+        return float, value
+    if isinstance(value, str):
+        return str, value
+    arr = np.asarray(value, float)
+    if arr.shape == (3,):
+        return tuple, tuple(float(x) for x in arr)
+    raise TypeError(f"no configuration type for a C++ option value {value!r}")
+
+
+def cpp_section(
+    name: str,
+    options_cls,
+    doc: str,
+    only=None,
+    before=(),
+    after=(),
+    extra=(),
+    bounds=None,
+    choices=None,
+):
+    """A frozen config dataclass whose keys mirror a bound C++ options class: their names,
+    defaults and documentation come from it (``options_cls.fields()``); `only` keeps some of them.
+    `before` / `after`: Python-only keys as (name, type, default, doc). `extra`: more bound
+    options classes whose every field is a key too (after the first class's; names must not
+    clash). `bounds`: key -> Bound of the keys whose range is checked here (beyond the C++
+    options' own checks; every integer key also gets limits.MAX_INT). `choices`: key -> the
+    names it may take (see ``choice``). The class gets
+    ``FIELD_DOCS`` (key -> documentation), ``OPTIONS`` (the first bound class), ``OPTIONS_ALL``
+    (all of them), ``options()`` (the first C++ options built from this section) and
+    ``options_for(cls)`` (any of them)."""
+    classes = (options_cls,) + tuple(extra)
+    keys = {
+        cls: [f for f in cls.fields() if cls is not options_cls or only is None or f in only]
+        for cls in classes
+    }
+    docs, spec, bounds, choices = {}, [], dict(bounds or {}), dict(choices or {})
+
+    def spec_field(fname, default):
+        meta = {}
+        if fname in bounds:
+            meta["bound"] = bounds.pop(fname)
+        if fname in choices:
+            meta["choices"] = choices.pop(fname)
+        return field(default=default, metadata=meta)
+
+    for fname, tp, default, fdoc in before:
+        spec.append((fname, tp, spec_field(fname, default)))
+        docs[fname] = fdoc
+    for cls in classes:
+        defaults = cls()
+        for fname in keys[cls]:
+            if fname in docs:
+                raise ValueError(f"{name}: key {fname!r} is set twice")
+            tp, default = _py_field(getattr(defaults, fname))
+            spec.append((fname, tp, spec_field(fname, default)))
+            docs[fname] = cls.fields()[fname]
+    for fname, tp, default, fdoc in after:
+        spec.append((fname, tp, spec_field(fname, default)))
+        docs[fname] = fdoc
+    if bounds or choices:
+        raise ValueError(
+            f"{name}: bounds or choices of unknown keys {sorted({**bounds, **choices})}"
+        )
+    cpp_fields = [f for cls in classes for f in keys[cls]]
+
+    def options_for(self, cls):
+        return cls(**{f: getattr(self, f) for f in keys[cls]})
+
+    def options(self):
+        return options_for(self, options_cls)
+
+    return make_dataclass(
+        name,
+        spec,
+        frozen=True,
+        namespace={
+            "__doc__": doc,
+            "FIELD_DOCS": docs,
+            "OPTIONS": options_cls,
+            "OPTIONS_ALL": classes,
+            "options": options,
+            "options_for": options_for,
+            "CPP_FIELDS": tuple(cpp_fields),
+            "__module__": __name__,
+        },
+    )
+
+
+def build(cls, data, prefix: str):
+    """A section `cls` from a mapping of the keys to set (the rest keep their defaults), each
+    value coerced to its field's type and checked; KeyError names an unknown key with its full
+    dotted name, ValueError a bad value."""
+    if not isinstance(data, dict):
+        raise ValueError(f"config section {prefix.rstrip('.') or '<root>'} must be a mapping")
+    hints = typing.get_type_hints(cls)
+    known = {f.name for f in fields(cls) if not f.name.startswith("_")}
+    for k in data:
+        if k not in known:
+            raise KeyError(
+                f"unknown config key {shorten(prefix + str(k))}; known keys here: "
+                f"{', '.join(sorted(known))}"
+            )
+    obj = cls(**{name: coerce(hints[name], value, prefix + name) for name, value in data.items()})
+    validate(obj, prefix)
+    return obj
+
+
+def coerce(tp, value, key):
+    origin = typing.get_origin(tp)
+    if is_dataclass(tp):
+        return build(tp, value if value is not None else {}, key + ".")
+    if origin is typing.Union:  # Optional[X]
+        if value is None:
+            return None
+        (inner,) = [a for a in typing.get_args(tp) if a is not type(None)]  # noqa: E721
+        return coerce(inner, value, key)
+    if tp is bool:
+        if isinstance(value, bool):
+            return value
+        raise ValueError(f"config key {key!r} must be true or false, got {shorten(value)}")
+    if tp is int:
+        if (
+            isinstance(value, bool)
+            or not isinstance(value, (int, float))
+            or (isinstance(value, float) and not (math.isfinite(value) and value == int(value)))
+        ):
+            raise ValueError(f"config key {key!r} must be an integer, got {shorten(value)}")
+        return int(value)
+    if tp is float:
+        if isinstance(value, bool) or not isinstance(value, (int, float)):
+            raise ValueError(f"config key {key!r} must be a number, got {shorten(value)}")
+        try:
+            return float(value)
+        except OverflowError:  # an integer past 1e308
+            raise ValueError(f"config key {key!r} must be finite, got {shorten(value)}") from None
+    if tp is str:
+        if isinstance(value, (int, float)) and not isinstance(value, bool):
+            return str(value)  # e.g. scenario: 5
+        if not isinstance(value, str):
+            raise ValueError(f"config key {key!r} must be a string, got {shorten(value)}")
+        return value
+    if tp == Names:
+        if (
+            isinstance(value, str)
+            or not isinstance(value, (list, tuple))
+            or not all(isinstance(x, str) for x in value)
+        ):
+            raise ValueError(f"config key {key!r} must be a list of names, got {shorten(value)}")
+        return tuple(value)
+    if tp is tuple:
+        if (
+            not isinstance(value, (list, tuple))
+            or len(value) > 16
+            or not all(isinstance(x, (int, float)) and not isinstance(x, bool) for x in value)
+        ):
+            raise ValueError(f"config key {key!r} must be a list of numbers, got {shorten(value)}")
+        try:
+            return tuple(float(x) for x in value)
+        except OverflowError:
+            raise ValueError(f"config key {key!r} must be finite, got {shorten(value)}") from None
+    return value
+
+
+def field_bound(cls, f) -> Bound:
+    """The range of field `f` of config class `cls` (its declared Bound; an integer key without
+    a maximum gets limits.MAX_INT; NaN and infinities are refused unless it says so)."""
+    hint = typing.get_type_hints(cls)[f.name]
+    if typing.get_origin(hint) is typing.Union:  # Optional[X]
+        (hint,) = [a for a in typing.get_args(hint) if a is not type(None)]  # noqa: E721
+    return f.metadata.get("bound", Bound()).for_type(hint)
+
+
+def validate(obj, prefix: str) -> None:
+    """Checks a section's values as its fields declare (range, choices, 3 numbers), its C++
+    options' own checks, then its ``check(key)`` method if it has one."""
+    for f in fields(obj):
+        if f.name.startswith("_"):
+            continue
+        key = prefix + f.name
+        v = getattr(obj, f.name)
+        options = f.metadata.get("choices")
+        if options is not None:
+            options = tuple(options() if callable(options) else options)
+            if v not in options:
+                raise ValueError(
+                    f"config key {key!r} must be one of {', '.join(options)}; got {shorten(v)}"
+                )
+        field_bound(type(obj), f).check(key, v)
+        if f.metadata.get("triple") and v is not None:
+            if len(v) != 3:
+                raise ValueError(f"config key {key!r} must have 3 numbers, got {shorten(list(v))}")
+            if not all(isinstance(x, (int, float)) and math.isfinite(x) for x in v):
+                raise ValueError(
+                    f"config key {key!r} must be 3 finite numbers, got {shorten(list(v))}"
+                )
+    if hasattr(obj, "OPTIONS"):  # a section of C++ options: their own checks, named here
+        try:
+            for cls in obj.OPTIONS_ALL:
+                obj.options_for(cls)
+        except (ValueError, TypeError) as e:
+            raise section_error(obj, prefix.rstrip("."), e) from None
+    if hasattr(obj, "check"):
+        obj.check(prefix.rstrip("."))
+
+
+def section_error(section, name: str, e: Exception, extra: str = "") -> ValueError:
+    """The ValueError of a section's C++ options check: "config key 'map.prob_hit' must be ..."
+    when the C++ message starts with a key of the section, else "config section 'map': ..."."""
+    msg = shorten(str(e), 300).strip("'\"")
+    if msg.startswith(name + " "):  # "camera hfov_deg must be ..."
+        msg = msg[len(name) + 1 :]
+    first = msg.split(" ", 1)[0]
+    if first in {f.name for f in fields(section)}:  # "prob_hit must be ...": name the key
+        return ValueError(f"config key {name + '.' + first!r}{msg[len(first):]}{extra}")
+    return ValueError(f"config section {name!r}: {msg}{extra}")
