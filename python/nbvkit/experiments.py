@@ -80,10 +80,14 @@ class RunSpec:
         return load_config(self.config_file, over)
 
 
-def run_one(spec: RunSpec, root: str | os.PathLike, threads: int = 0) -> dict:
-    """Runs one spec into ``root/runs/<run_id>`` unless it is already there; returns its row."""
+def run_one(spec: RunSpec, root: str | os.PathLike, threads: int = 0, plugins=()) -> dict:
+    """Runs one spec into ``root/runs/<run_id>`` unless it is already there; returns its row.
+    plugins: plugin files to load first (a Dask worker's process has not loaded them)."""
     from . import set_num_threads
     from .mission import Mission
+    from .plugins import load_plugins
+
+    load_plugins(plugins)
 
     from .runfolder import write_json_atomic as _write_json_atomic
     from .runfolder import RunFolder
@@ -206,11 +210,15 @@ def _alive(pid: int) -> bool:
     return True
 
 
-def _worker_init() -> None:
-    """Pool workers leave Ctrl-C to the parent, which stops them; and die with the parent, should
-    it be killed outright (Linux: the parent-death signal), instead of flying on unseen."""
+def _worker_init(plugins=()) -> None:
+    """Pool workers load the parent's plugin files (their parts and sections); leave Ctrl-C to
+    the parent, which stops them; and die with the parent, should it be killed outright (Linux:
+    the parent-death signal), instead of flying on unseen."""
     import signal
 
+    from .plugins import load_plugins
+
+    load_plugins(plugins)
     signal.signal(signal.SIGINT, signal.SIG_IGN)
     try:
         import ctypes
@@ -341,7 +349,11 @@ def _run_all(specs, root, workers, scheduler, progress, rows) -> None:
         from distributed import Client
 
         with Client(scheduler) as client:
-            futs = client.map(run_one, specs, root=str(root.resolve()), threads=1, pure=False)
+            from .plugins import loaded
+
+            futs = client.map(
+                run_one, specs, root=str(root.resolve()), threads=1, plugins=loaded(), pure=False
+            )
             try:
                 rows[:] = client.gather(futs)
             except KeyboardInterrupt:
@@ -371,7 +383,11 @@ def _run_pool(specs, root, n, ncpu, rows, progress) -> None:
     import multiprocessing as mp
 
     threads = max(1, ncpu // n)
-    ex = cf.ProcessPoolExecutor(n, mp_context=mp.get_context("spawn"), initializer=_worker_init)
+    from .plugins import loaded
+
+    ex = cf.ProcessPoolExecutor(
+        n, mp_context=mp.get_context("spawn"), initializer=_worker_init, initargs=(loaded(),)
+    )
     try:
         futs = {ex.submit(run_one, s, root, threads): i for i, s in enumerate(specs)}
         for k, f in enumerate(cf.as_completed(futs)):

@@ -24,9 +24,7 @@ class MeshConfig:
     path: Optional[str] = None  # None: the shipped generated airliner
     scale: float = positive(1.0)
     up: str = choice("z", ("y", "z"))  # the file's up axis: "z" or "y"
-    shift: tuple = triple(
-        (0.0, 0.0, 0.0)
-    )  # m added after scale and up; results are in the shifted frame
+    shift: tuple = triple((0.0, 0.0, 0.0))  # m added after scale and up: results in that frame
 
 
 def load_mesh(path: str | os.PathLike, scale: float = 1.0, up: str = "z", shift=None) -> Mesh:

@@ -86,9 +86,8 @@ class ProfilingConfig:
     # fly the last arc back to the first waypoint after the last sweep (Algorithm 1's loop)
     close_circle: bool = False
     return_to_start: bool = False  # fly back to the start pose before the camera stage
-    arcs: str = choice(
-        "descending", ("level", "descending")
-    )  # level (Algorithm 1), or descending from one sweep end to the other
+    # level (Algorithm 1), or descending from one sweep end to the other
+    arcs: str = choice("descending", ("level", "descending"))  # level or descending
 
 
 class _Blocked(Exception):

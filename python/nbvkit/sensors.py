@@ -50,9 +50,7 @@ class CameraConfig:
     hold, in degrees within [-90, 90]: [-30, 90] is 30 deg up to straight down, as inspection
     UAVs; [0, 0] the fixed level camera (the paper's scenarios)."""
 
-    preset: str = choice(
-        "rgbd", tuple(CAMERA_PRESETS)
-    )  # a named camera (nbvkit.cameras): rgbd (the paper's), inspection
+    preset: str = choice("rgbd", tuple(CAMERA_PRESETS))  # named camera: rgbd (paper), inspection
     width: int = within(_CAM.width, 1, 16_000)
     height: int = within(_CAM.height, 1, 16_000)
     hfov_deg: float = _CAM.hfov_deg

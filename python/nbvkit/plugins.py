@@ -1,0 +1,44 @@
+"""Your own planner parts from a file: ``load_plugin("my_parts.py")`` (``nbvkit run --plugin
+my_parts.py``) imports it; the file registers its parts with nbvkit.register_generator,
+register_termination or register_utility. The configuration then has their sections and
+accepts their names, and sweeps load the same files in every worker process.
+docs/PLUGINS.md has a worked example."""
+from __future__ import annotations
+
+import hashlib
+import importlib.util
+import sys
+
+from .limits import check_input_file
+
+#: The plugin files loaded in this process, in order (the sweeps' workers load them too).
+LOADED: list[str] = []
+
+
+def load_plugin(path) -> None:
+    """Imports the Python file `path` once (FileNotFoundError if missing; its own errors
+    propagate, with the file named in the traceback)."""
+    p = check_input_file(path, "plugin file").resolve()
+    if str(p) in LOADED:
+        return
+    name = "nbvkit_plugin_" + hashlib.sha1(str(p).encode()).hexdigest()[:12]
+    spec = importlib.util.spec_from_file_location(name, p)
+    if spec is None or spec.loader is None:
+        raise ValueError(f"plugin file {p} is not a Python module")
+    module = importlib.util.module_from_spec(spec)
+    sys.modules[name] = module
+    try:
+        spec.loader.exec_module(module)
+    except BaseException:
+        del sys.modules[name]
+        raise
+    LOADED.append(str(p))
+
+
+def load_plugins(paths) -> None:
+    for p in paths or ():
+        load_plugin(p)
+
+
+def loaded() -> tuple[str, ...]:
+    return tuple(LOADED)
