@@ -81,7 +81,7 @@ def main():
         over.append(f"mesh.path={args.mesh}")
     m = Mission(Config().with_overrides(over))
     m.run()
-    s = m.planner.memo.stats()
+    s = m.planner.score.memo.stats()
     n = calls[0]
     views = s["reused"] + s["walked"]
     print(
@@ -92,9 +92,8 @@ def main():
         f"  reused from the memo: {s['reused']} ({s['reused'] / max(views, 1):.1%}); walked "
         f"{s['walked']}, of which {s['stale']} had a record that no longer held"
     )
-    print(
-        f"  memo at the end: {m.planner.memo.entries} records, {m.planner.memo.bytes / 1e6:.1f} MB"
-    )
+    memo = m.planner.score.memo
+    print(f"  memo at the end: {memo.entries} records, {memo.bytes / 1e6:.1f} MB")
     a, b = 1e3 * spent["memo"] / n, 1e3 * spent["walk"] / n
     print(f"  ms per call: with the memo {a:.2f}, walking every view {b:.2f} -> {b / a:.2f}x")
     print("  every call: the same utility, gain, cells, occupied_seen and status both ways")

@@ -37,7 +37,9 @@ def main():
     pose = m.state.pose
     cands = candidate_poses(pose)
     # exactly what the mission's planner passes
-    kw = dict(camera=m.world.view_camera, utility=m.planner.utility, validity=m.world.validity())
+    kw = dict(
+        camera=m.world.view_camera, utility=m.planner.score.options, validity=m.world.validity()
+    )
     threads = nbvkit.get_num_threads()
     print(f"map after {len(m.records)} iterations of scenario {args.scenario}: {m.map.counts()}")
     res = {}

@@ -166,7 +166,7 @@ def test_the_fast_scoring_flies_the_same_mission_as_the_reference_reads(monkeypa
         m = Mission(cfg("scenario=5", "max_iterations=10", "profiling.sweep_step=0.5"))
         summary = m.run()
         poses = np.array([[r.x, r.y, r.z, r.yaw] for r in m.records])
-        return summary, poses, len(calls), m.planner.memo.stats()
+        return summary, poses, len(calls), m.planner.score.memo.stats()
 
     fast, fast_poses, n_fast, memo = fly("grid")
     ref, ref_poses, n_ref, _ = fly("octree")

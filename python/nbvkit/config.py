@@ -17,7 +17,6 @@ renamed in this release (``RENAMED``) still work, with a DeprecationWarning.
 from __future__ import annotations
 
 import math
-import re
 import typing
 import warnings
 from dataclasses import dataclass, field, fields, is_dataclass, replace
@@ -28,7 +27,7 @@ import yaml
 
 from .cloud import CloudConfig
 from .evaluation import EvaluationConfig
-from .limits import MAX_TEXT_FILE_BYTES, MAX_VIEW_RAYS, MAX_YAML_NODES, check_input_file, shorten
+from .limits import shorten
 from .mapping import MapConfig
 from .mesh import MeshConfig
 from .observability import ObservabilityConfig
@@ -40,19 +39,12 @@ from .profiling import ProfilingConfig
 from .report import ReportConfig
 from .scenarios import DEFAULT as DEFAULT_SCENARIO
 from .scenarios import SCENARIOS
-from .sensors import (
-    CAMERA_PRESETS,
-    CameraConfig,
-    LaserConfig,
-    build_view_camera,
-    camera_kwargs,
-    laser_kwargs,
-    view_rays_across,
-)
-from .settings import build, choice, coerce, field_bound, section_error, validate, within
+from .sensors import CAMERA_PRESETS, CameraConfig, LaserConfig, check_view_camera
+from .settings import build, choice, coerce, field_bound, validate, within
 from .symmetry import SymmetryConfig
 from .workspace import WorkspaceConfig
 from .world import VehicleConfig
+from .yamlio import parse_yaml, read_yaml_file
 
 #: Keys renamed in this release: old dotted key (or section) -> new. The old names still load,
 #: with a DeprecationWarning, until the next release.
@@ -61,76 +53,6 @@ RENAMED = {
     "termination": "entropy",  # the entropy termination's
     "targets.coverage_cone_deg": "utility.coverage_cone_deg",  # one cone for both
 }
-
-
-class YamlLoader(yaml.SafeLoader):
-    """PyYAML's safe loader, also reading 1e-4 / 2E5 as numbers (YAML 1.2; PyYAML's YAML 1.1
-    resolver wants a dot and a signed exponent, and reads 1e-4 as a string)."""
-
-
-YamlLoader.add_implicit_resolver(
-    "tag:yaml.org,2002:float",
-    re.compile(r"^[-+]?(?:[0-9][0-9_]*(?:\.[0-9_]*)?|\.[0-9_]+)[eE][-+]?[0-9]+$"),
-    list("-+0123456789."),
-)
-
-
-def _expanded_nodes(node, limit: int, memo: dict) -> int:
-    """Nodes of a composed YAML document once its aliases are expanded (an alias repeats its
-    anchor's whole subtree); stops counting past `limit`."""
-    key = id(node)
-    if key in memo:
-        return memo[key]
-    memo[key] = limit + 1  # a node reached again while being counted: a cycle
-    n = 1
-    if isinstance(node, yaml.SequenceNode):
-        children = node.value
-    elif isinstance(node, yaml.MappingNode):
-        children = [x for pair in node.value for x in pair]
-    else:
-        children = []
-    for child in children:
-        n += _expanded_nodes(child, limit, memo)
-        if n > limit:
-            break
-    memo[key] = n
-    return n
-
-
-def parse_yaml(text: str, source: str = "<string>"):
-    """YAML text parsed with YamlLoader; ValueError "source:line: problem" on a syntax error, and
-    for a document whose aliases expand to more than MAX_YAML_NODES nodes (a "billion laughs")."""
-    try:
-        loader = YamlLoader(text)
-        try:
-            node = loader.get_single_node()
-            if node is not None and _expanded_nodes(node, MAX_YAML_NODES, {}) > MAX_YAML_NODES:
-                raise ValueError(
-                    f"{source}: the YAML document expands (through its aliases) to more than "
-                    f"{MAX_YAML_NODES:,} values, the limit of a configuration"
-                )
-            return loader.construct_document(node) if node is not None else None
-        finally:
-            loader.dispose()
-    except yaml.YAMLError as e:
-        mark = getattr(e, "problem_mark", None) or getattr(e, "context_mark", None)
-        where = f"{source}:{mark.line + 1}" if mark is not None else source
-        problem = getattr(e, "problem", None) or str(e).splitlines()[0]
-        raise ValueError(f"{where}: {shorten(problem, 200)}") from None
-    except RecursionError:
-        raise ValueError(f"{source}: the YAML document is nested too deeply") from None
-
-
-def read_yaml_file(path, what: str = "YAML file"):
-    """A YAML file parsed (see parse_yaml); FileNotFoundError for a missing path, ValueError
-    naming the file for anything but a regular file of at most MAX_TEXT_FILE_BYTES (a directory,
-    a FIFO, a device), undecodable text or a syntax error."""
-    p = check_input_file(path, what, MAX_TEXT_FILE_BYTES)
-    try:
-        text = p.read_text()
-    except (OSError, UnicodeDecodeError) as e:
-        raise ValueError(f"cannot read {what} {p}: {shorten(str(e), 200)}") from None
-    return parse_yaml(text, str(p))
 
 
 @dataclass(frozen=True)
@@ -224,7 +146,7 @@ class Config:
                 "(profiling.enabled = false): the mission would fly nothing; name a generator "
                 f"({', '.join(GENERATORS)}) or enable profiling"
             )
-        _check_derived(self)
+        check_view_camera(self.camera, self.laser, self.utility, self.map.resolution)
 
     # ------------------------------------------------------------------ construction
     @classmethod
@@ -470,59 +392,6 @@ def _check_start_pose(cfg) -> None:
                 f"config key 'start_pose': its pitch {pose[4]!r} rad ({pitch:g} deg) is "
                 f"outside camera.gimbal_pitch_deg [{lo:g}, {hi:g}] deg"
             )
-
-
-def _check_derived(cfg) -> None:
-    """Builds what a mission derives from the configuration alone (the sensors' options and ray
-    counts, the view camera model), so that a bad value fails here, before any work, naming the
-    section."""
-    from . import _core
-
-    u, c, res = cfg.utility, cfg.camera, cfg.map.resolution
-    checks = (
-        ("camera", lambda: _core.DepthCameraOptions(**camera_kwargs(c))),
-        ("laser", lambda: _core.LaserScannerOptions(**laser_kwargs(cfg.laser))),
-        ("utility", lambda: build_view_camera(c, u, res)),
-    )
-    if not (u.rays_x and u.rays_y) and 0 < c.hfov_deg < 180 and 0 < c.vfov_deg < 180:
-        # bounded before they are built
-        across_x, across_y = view_rays_across(c, res)
-        _check_view_rays(cfg, u.rays_x or across_x, u.rays_y or across_y)
-    for section, make in checks:
-        try:
-            built = make()
-        except (ValueError, TypeError) as e:
-            derived = ""
-            if section == "utility" and not (u.rays_x and u.rays_y):
-                derived = f" (null rays_x / rays_y follow map.resolution = {res:g})"
-            raise section_error(getattr(cfg, section), section, e, derived) from None
-    _check_view_rays(cfg, built.rays_x, built.rays_y)
-
-
-def _check_view_rays(cfg, rays_x: int, rays_y: int) -> None:
-    """ValueError when the view camera's rays per candidate view exceed MAX_VIEW_RAYS."""
-    u = cfg.utility
-    rays = rays_x * rays_y
-    if rays > MAX_VIEW_RAYS:
-        if u.rays_x and u.rays_y:
-            fits = f"utility.rays_x x rays_y <= {MAX_VIEW_RAYS:,} would fit"
-        else:
-            fit = cfg.camera.max_range * math.sqrt(MAX_VIEW_RAYS / rays) * 0.99
-            fits = (
-                f"camera.max_range <= {fit:.4g} (null utility.rays_x / rays_y give one ray per map "
-                f"cell on the far plane at map.resolution = {cfg.map.resolution:g}), or "
-                "utility.rays_x / rays_y set, would fit"
-            )
-        what = (
-            "utility.rays_x x rays_y"
-            if u.rays_x and u.rays_y
-            else f"camera.max_range = {cfg.camera.max_range:g}"
-        )
-        raise ValueError(
-            f"the view camera: {what} makes "
-            f"{rays_x} x {rays_y} = {rays:,} rays per candidate view, more than the "
-            f"limit {MAX_VIEW_RAYS:,} (checked before any work); {fits}"
-        )
 
 
 def load_config(

@@ -22,12 +22,9 @@ __all__ = ["Mission", "MissionError", "IterationRecord"]
 
 
 class Mission:
-    """One run of a scenario on one structure from one start.
-
-    config: a nbvkit.Config (default: the recommended planner). mesh: an nbvkit.Mesh to use
-    instead of config.mesh. Raises MissionError (a ValueError) before any work for a bad start or
-    configuration.
-    """
+    """One run of a scenario on one structure from one start. config: a nbvkit.Config (default:
+    the recommended planner); mesh: an nbvkit.Mesh instead of config.mesh. MissionError (a
+    ValueError) before any work for a bad start or configuration."""
 
     def __init__(self, config: Config | None = None, mesh=None):
         if config is not None and not isinstance(config, Config):
@@ -57,21 +54,11 @@ class Mission:
 
     # ------------------------------------------------------------------ the method
     def run(self, out_dir: str | Path | None = None, overwrite: bool = False, finish=False) -> dict:
-        """Runs the mission; with out_dir writes its results folder there (Recorder.write:
-        config.yaml, iterations.csv, trajectory.csv, flight.csv, cloud.ply, map.ot, figures/,
-        summary.json; with `finish` also the end-of-run outputs of nbvkit.report). Returns the
-        summary dict.
-
-        The folder is written whole or not at all (nbvkit.runfolder): into a temporary folder
-        beside it, moved into place with ``manifest.json`` once complete. out_dir is checked
-        before any work: ValueError if it cannot be written, if another run is writing it, or
-        if it already holds files and ``overwrite`` is not given (an overwrite replaces the old
-        run whole, and only a folder holding nothing but nbvkit's outputs).
-
-        A Mission may run again: each run starts from a fresh world (the same results as a new
-        Mission of the same configuration and mesh). One run at a time: a second thread calling
-        run() on a Mission that is running gets a RuntimeError.
-        """
+        """Runs the mission and returns its summary; with out_dir writes its results folder
+        there (Recorder.write; with `finish` also nbvkit.report's end-of-run outputs), whole or
+        not at all (nbvkit.runfolder: checked before any work; ValueError if it cannot be
+        written, another run is writing it, or it holds files and ``overwrite`` is not given).
+        A Mission may run again, from a fresh world; one run at a time (RuntimeError)."""
         if not self._running.acquire(blocking=False):
             raise RuntimeError(
                 "this Mission is already running (in another thread): a Mission runs one "

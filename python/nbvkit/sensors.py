@@ -20,7 +20,8 @@ import math
 from dataclasses import dataclass
 
 from . import _core
-from .settings import choice, nonneg, positive, triple, within
+from .limits import MAX_VIEW_RAYS
+from .settings import choice, nonneg, positive, section_error, triple, within
 
 _CAM = _core.DepthCameraOptions()
 _LAS = _core.LaserScannerOptions()
@@ -159,3 +160,52 @@ def view_rays_across(camera: CameraConfig, resolution: float) -> tuple[int, int]
         return math.ceil(2 * camera.max_range * math.tan(math.radians(fov) / 2) / resolution)
 
     return across(camera.hfov_deg), across(camera.vfov_deg)
+
+
+def check_view_camera(camera: CameraConfig, laser: LaserConfig, utility, resolution: float):
+    """Builds what a mission derives from the sensor sections alone (the sensors' options and
+    ray counts, the view camera model), so that a bad value fails before any work, naming the
+    section; the view camera's rays per candidate view are bounded (MAX_VIEW_RAYS) before they
+    are built."""
+    u, c = utility, camera
+    checks = (
+        ("camera", c, lambda: _core.DepthCameraOptions(**camera_kwargs(c))),
+        ("laser", laser, lambda: _core.LaserScannerOptions(**laser_kwargs(laser))),
+        ("utility", u, lambda: build_view_camera(c, u, resolution)),
+    )
+    if not (u.rays_x and u.rays_y) and 0 < c.hfov_deg < 180 and 0 < c.vfov_deg < 180:
+        across_x, across_y = view_rays_across(c, resolution)
+        _check_view_rays(c, u, resolution, u.rays_x or across_x, u.rays_y or across_y)
+    for name, section, make in checks:
+        try:
+            built = make()
+        except (ValueError, TypeError) as e:
+            derived = ""
+            if name == "utility" and not (u.rays_x and u.rays_y):
+                derived = f" (null rays_x / rays_y follow map.resolution = {resolution:g})"
+            raise section_error(section, name, e, derived) from None
+    _check_view_rays(c, u, resolution, built.rays_x, built.rays_y)
+
+
+def _check_view_rays(camera, utility, resolution: float, rays_x: int, rays_y: int) -> None:
+    """ValueError when the view camera's rays per candidate view exceed MAX_VIEW_RAYS."""
+    u = utility
+    rays = rays_x * rays_y
+    if rays <= MAX_VIEW_RAYS:
+        return
+    if u.rays_x and u.rays_y:
+        what = "utility.rays_x x rays_y"
+        fits = f"utility.rays_x x rays_y <= {MAX_VIEW_RAYS:,} would fit"
+    else:
+        what = f"camera.max_range = {camera.max_range:g}"
+        fit = camera.max_range * math.sqrt(MAX_VIEW_RAYS / rays) * 0.99
+        fits = (
+            f"camera.max_range <= {fit:.4g} (null utility.rays_x / rays_y give one ray per map "
+            f"cell on the far plane at map.resolution = {resolution:g}), or "
+            "utility.rays_x / rays_y set, would fit"
+        )
+    raise ValueError(
+        f"the view camera: {what} makes "
+        f"{rays_x} x {rays_y} = {rays:,} rays per candidate view, more than the "
+        f"limit {MAX_VIEW_RAYS:,} (checked before any work); {fits}"
+    )

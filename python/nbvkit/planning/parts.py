@@ -92,6 +92,27 @@ class Step:
     proposal: Optional[Proposal] = None  # the proposal it was chosen from
     makers: list = field(default_factory=list)  # the generators that proposed it
 
+    @classmethod
+    def of(cls, iteration, found, world, entropy_before, c_view, new_cells) -> "Step":
+        """The step of a view just flown and integrated: found = (proposal, its generators,
+        scores, choice) as Planner.next_view gave it; c_view: the paper's C_view."""
+        proposal, makers, scores, choice = found
+        entropy_after = world.map.total_entropy()
+        return cls(
+            iteration,
+            choice,
+            proposal.source,
+            len(proposal.poses),
+            int((scores["status"] == 0).sum()),
+            entropy_before,
+            entropy_after,
+            (entropy_before - entropy_after) / c_view,
+            new_cells * world.map.resolution**2,
+            world.state.distance_m,
+            proposal=proposal,
+            makers=makers,
+        )
+
 
 #: The smallest factor threshold_scale gives: at a tenth of the thresholds (0.12 m^2 of new
 #: surface a view, 3 cells of the 0.2 m map) a view's gain is down to the map's own noise. On a
@@ -113,6 +134,25 @@ def threshold_scale(occupancy_map, reference_area: float) -> float:
         return 1.0
     area = occupancy_map.counts()["occupied"] * occupancy_map.resolution**2
     return min(1.0, max(MIN_THRESHOLD_SCALE, area / reference_area))
+
+
+def propose(generators, world):
+    """(proposal, generators): an exclusive proposal of the first generator that has one, else
+    the union of the others' proposals and the generators that made it; (None, []) if none."""
+    merged, makers = [], []
+    for g in generators:
+        p = g.propose(world)
+        if p is None:
+            continue
+        if p.exclusive:
+            return p, [g]
+        merged.append(p)
+        makers.append(g)
+    if len(merged) <= 1:
+        return (merged[0] if merged else None), makers
+    width = max(p.poses.shape[1] for p in merged)  # level (K, 4) beside (K, 5): pitch 0
+    poses = np.vstack([np.pad(p.poses, ((0, 0), (0, width - p.poses.shape[1]))) for p in merged])
+    return Proposal(poses, "+".join(p.source for p in merged)), makers
 
 
 class Generator(Protocol):

@@ -5,12 +5,10 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-import numpy as np
-
 from ..settings import Names, nonneg
 from ..termination import viewable_cells
 from ..timing import StageTimers
-from .parts import PlanningContext, Proposal, Step
+from .parts import PlanningContext, Step, propose
 from .registry import get_generator, get_termination
 from .scoring import Scorer
 from .selection import Selector
@@ -48,7 +46,6 @@ class Planner:
         self.terminations = [get_termination(n, config, ctx) for n in config.planner.terminations]
         self.selector = Selector(ctx)
         self.score = Scorer(config.utility)
-        self.surface = config.utility.name == "surface"  # its gain: cells of new surface
         c = config.camera
         self.c_view = viewable_cells(
             c.hfov_deg,
@@ -69,13 +66,13 @@ class Planner:
             found = self.next_view(world)  # viewpoint sampling + evaluation + selection
             if isinstance(found, str):
                 return found
-            entropy_before = world.map.total_entropy()
-            choice = found[3]
+            entropy_before, choice = world.map.total_entropy(), found[3]
             leg = t.call("motion", world.fly_to, choice.pose, "nbv", choice.path)
             scan = t.call("sensing", world.scan, "view")
             new_cells = t.call("mapping", world.integrate, scan, "view")
-            delivered = t.call("evaluation", self.delivered, world, choice)
-            step = self.step(world, iteration, found, entropy_before, new_cells, delivered)
+            delivered = t.call("evaluation", self.score.delivered, world, choice)
+            step = Step.of(iteration, found, world, entropy_before, self.c_view, new_cells)
+            step.expected_m2, step.realized_m2 = delivered
             step.extra.update(leg_m=leg, scan=scan)
             for hook in self.hooks.values():
                 hook(world, step)
@@ -84,41 +81,6 @@ class Planner:
                 if reason:
                     return reason
         return "max_iterations"
-
-    def step(self, world, iteration, found, entropy_before, new_cells, delivered) -> Step:
-        """The record of a view just flown (parts.Step)."""
-        proposal, makers, scores, choice = found
-        entropy_after = world.map.total_entropy()
-        return Step(
-            iteration,
-            choice,
-            proposal.source,
-            len(proposal.poses),
-            int((scores["status"] == 0).sum()),
-            entropy_before,
-            entropy_after,
-            (entropy_before - entropy_after) / self.c_view,
-            new_cells * world.map.resolution**2,
-            world.state.distance_m,
-            expected_m2=delivered[0],
-            realized_m2=delivered[1],
-            proposal=proposal,
-            makers=makers,
-        )
-
-    def delivered(self, world, choice):
-        """(expected, realized) m^2 of the view just flown, in the surface utility's own terms
-        (None, None for other utilities): the new surface its score counted when it was chosen,
-        and how much of that the frame brought - the score's drop when the same pose is scored
-        again on the map after it. What is still counted after the view was flown from there
-        (unknown space the structure hides, surface beyond the camera's reach) was expected of
-        it and not delivered."""
-        if not self.surface:
-            return None, None
-        after = self.score(world, choice.pose[None])
-        cell_m2 = world.map.resolution**2
-        left = float(after["gain"][0]) if after["status"][0] == 0 else 0.0
-        return choice.gain * cell_m2, max(0.0, choice.gain - left) * cell_m2
 
     def next_view(self, world):
         """(proposal, its generators, scores, choice) of the next view to fly, or why there is
@@ -130,7 +92,7 @@ class Planner:
         t = self.timers
         self.selector.begin()
         while True:
-            proposal, makers = t.call("sampling", self.propose, world)
+            proposal, makers = t.call("sampling", propose, self.generators, world)
             if proposal is None:
                 reasons = (getattr(g, "stop_reason", None) for g in self.generators)
                 return next((r for r in reasons if r), "coverage_complete")
@@ -142,28 +104,6 @@ class Planner:
                 g.feedback(world, proposal, None)
             if not proposal.exclusive:
                 return "no_valid_viewpoint"
-
-    def propose(self, world):
-        """(proposal, generators): an exclusive proposal of the first generator that has one,
-        else the union of the others' proposals and the generators that made it."""
-        merged, makers = [], []
-        for g in self.generators:
-            p = g.propose(world)
-            if p is None:
-                continue
-            if p.exclusive:
-                return p, [g]
-            merged.append(p)
-            makers.append(g)
-        if not merged:
-            return None, []
-        if len(merged) == 1:
-            return merged[0], makers
-        width = max(p.poses.shape[1] for p in merged)  # level (K, 4) beside (K, 5): pitch 0
-        poses = np.vstack(
-            [np.pad(p.poses, ((0, 0), (0, width - p.poses.shape[1]))) for p in merged]
-        )
-        return Proposal(poses, "+".join(p.source for p in merged)), makers
 
 
 def _feedback(world, step: Step) -> None:

@@ -50,6 +50,7 @@ class Scorer:
         from .registry import UTILITIES
 
         self.name = utility.name
+        self.surface = utility.name == "surface"  # its gain: cells of new surface
         self.python = UTILITIES.get(utility.name)
         self.options = None if self.python else utility.options()
         self.memo = _core.ViewMemo()
@@ -70,3 +71,17 @@ class Scorer:
             surface=world.surface,
             memo=self.memo,
         )
+
+    def delivered(self, world, choice):
+        """(expected, realized) m^2 of the view just flown, in the surface utility's own terms
+        (None, None for other utilities): the new surface its score counted when it was chosen,
+        and how much of that the frame brought - the score's drop when the same pose is scored
+        again on the map after it. What is still counted after the view was flown from there
+        (unknown space the structure hides, surface beyond the camera's reach) was expected of
+        it and not delivered."""
+        if not self.surface:
+            return None, None
+        after = self(world, choice.pose[None])
+        cell_m2 = world.map.resolution**2
+        left = float(after["gain"][0]) if after["status"][0] == 0 else 0.0
+        return choice.gain * cell_m2, max(0.0, choice.gain - left) * cell_m2

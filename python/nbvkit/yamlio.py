@@ -1,0 +1,79 @@
+"""YAML as nbvkit reads it: numbers such as 1e-4 read as numbers (YAML 1.2), a document's size
+bounded through its aliases (a "billion laughs" is refused), errors naming the file and line."""
+from __future__ import annotations
+
+import re
+
+import yaml
+
+from .limits import MAX_TEXT_FILE_BYTES, MAX_YAML_NODES, check_input_file, shorten
+
+
+class YamlLoader(yaml.SafeLoader):
+    """PyYAML's safe loader, also reading 1e-4 / 2E5 as numbers (YAML 1.2; PyYAML's YAML 1.1
+    resolver wants a dot and a signed exponent, and reads 1e-4 as a string)."""
+
+
+YamlLoader.add_implicit_resolver(
+    "tag:yaml.org,2002:float",
+    re.compile(r"^[-+]?(?:[0-9][0-9_]*(?:\.[0-9_]*)?|\.[0-9_]+)[eE][-+]?[0-9]+$"),
+    list("-+0123456789."),
+)
+
+
+def _expanded_nodes(node, limit: int, memo: dict) -> int:
+    """Nodes of a composed YAML document once its aliases are expanded (an alias repeats its
+    anchor's whole subtree); stops counting past `limit`."""
+    key = id(node)
+    if key in memo:
+        return memo[key]
+    memo[key] = limit + 1  # a node reached again while being counted: a cycle
+    n = 1
+    if isinstance(node, yaml.SequenceNode):
+        children = node.value
+    elif isinstance(node, yaml.MappingNode):
+        children = [x for pair in node.value for x in pair]
+    else:
+        children = []
+    for child in children:
+        n += _expanded_nodes(child, limit, memo)
+        if n > limit:
+            break
+    memo[key] = n
+    return n
+
+
+def parse_yaml(text: str, source: str = "<string>"):
+    """YAML text parsed with YamlLoader; ValueError "source:line: problem" on a syntax error, and
+    for a document whose aliases expand to more than MAX_YAML_NODES nodes (a "billion laughs")."""
+    try:
+        loader = YamlLoader(text)
+        try:
+            node = loader.get_single_node()
+            if node is not None and _expanded_nodes(node, MAX_YAML_NODES, {}) > MAX_YAML_NODES:
+                raise ValueError(
+                    f"{source}: the YAML document expands (through its aliases) to more than "
+                    f"{MAX_YAML_NODES:,} values, the limit of a configuration"
+                )
+            return loader.construct_document(node) if node is not None else None
+        finally:
+            loader.dispose()
+    except yaml.YAMLError as e:
+        mark = getattr(e, "problem_mark", None) or getattr(e, "context_mark", None)
+        where = f"{source}:{mark.line + 1}" if mark is not None else source
+        problem = getattr(e, "problem", None) or str(e).splitlines()[0]
+        raise ValueError(f"{where}: {shorten(problem, 200)}") from None
+    except RecursionError:
+        raise ValueError(f"{source}: the YAML document is nested too deeply") from None
+
+
+def read_yaml_file(path, what: str = "YAML file"):
+    """A YAML file parsed (see parse_yaml); FileNotFoundError for a missing path, ValueError
+    naming the file for anything but a regular file of at most MAX_TEXT_FILE_BYTES (a directory,
+    a FIFO, a device), undecodable text or a syntax error."""
+    p = check_input_file(path, what, MAX_TEXT_FILE_BYTES)
+    try:
+        text = p.read_text()
+    except (OSError, UnicodeDecodeError) as e:
+        raise ValueError(f"cannot read {what} {p}: {shorten(str(e), 200)}") from None
+    return parse_yaml(text, str(p))
