@@ -146,14 +146,14 @@ def test_sweep_is_resumable_and_rejects_bad_keys(tmp_path):
     sweep = {
         "scenarios": ["1"],
         "starts": [0, 1],
-        "grid": {"sampling.delta_d": [1.0, 2.0]},
+        "grid": {"lattice.delta_d": [1.0, 2.0]},
         "set": dict(kv.split("=") for kv in TINY),
     }
     sweep["set"] = {k: yaml.safe_load(v) for k, v in sweep["set"].items()}
     specs = sweep_specs(sweep)
     assert len(specs) == 4 and len({s.run_id for s in specs}) == 4
     rows = run_specs(specs, tmp_path, workers=1, progress=False)
-    assert {r["sampling.delta_d"] for r in rows} == {1.0, 2.0}
+    assert {r["lattice.delta_d"] for r in rows} == {1.0, 2.0}
     done = {
         s.run_id: (tmp_path / "runs" / s.run_id / "summary.json").stat().st_mtime_ns for s in specs
     }

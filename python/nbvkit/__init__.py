@@ -43,6 +43,12 @@ from .mission import Mission, MissionError  # noqa: F401
 from .world import World  # noqa: F401
 from .scenarios import SCENARIOS  # noqa: F401
 from .export import export_mission  # noqa: F401
+from .planning.registry import (  # noqa: F401  (your own planner parts: docs/PLUGINS.md)
+    register_generator,
+    register_termination,
+    register_utility,
+)
+from .plugins import load_plugin  # noqa: F401
 
 __version__ = "0.1.0"
 
@@ -54,6 +60,10 @@ __all__ = [
     "SCENARIOS",
     "load_config",
     "export_mission",
+    "register_generator",
+    "register_termination",
+    "register_utility",
+    "load_plugin",
     "DepthCamera",
     "DepthCameraOptions",
     "LaserScanner",

@@ -5,7 +5,11 @@ import argparse
 import importlib
 import sys
 
+from .plugins import load_plugins
+
 # name -> module in nbvkit.commands; each module defines register(subparsers) and run(args).
+#: The commands that fly missions: they take --plugin FILE (your own planner parts).
+FLYING = ("run", "compare", "sweep", "table")
 COMMANDS = {
     "scan": "scan",
     "evaluate": "evaluate",
@@ -28,6 +32,16 @@ def build_parser() -> argparse.ArgumentParser:
         mod = importlib.import_module(f"nbvkit.commands.{module}")
         p = mod.register(sub)
         p.set_defaults(_run=mod.run)
+        if name in FLYING:
+            p.add_argument(
+                "--plugin",
+                action="append",
+                default=[],
+                metavar="FILE",
+                help="a Python file that registers your own planner parts "
+                "(nbvkit.register_generator / register_termination / register_utility) before "
+                "the configuration is read; repeatable (docs/PLUGINS.md)",
+            )
     return parser
 
 
@@ -35,6 +49,7 @@ def main(argv: list[str] | None = None) -> int:
     parser = build_parser()
     args = parser.parse_args(argv)
     try:
+        load_plugins(getattr(args, "plugin", ()))
         return int(args._run(args) or 0)
     except KeyboardInterrupt:
         print(f"nbvkit {args.command}: interrupted", file=sys.stderr)

@@ -58,8 +58,8 @@ RENAMED = {
 @dataclass(frozen=True)
 class Config:
     """A mission: scenario (Table 2 row), start (0..4), NBV iteration cap, the sections of the
-    world and its stages, and one section per registered planner part (``config.tour``,
-    ``config.entropy``, ...: ``section(name)``)."""
+    world and its stages, and one section per registered planner part (``config.<name>``,
+    ``section(name)``)."""
 
     seed: int = within(0, 0, 2**64 - 2)  # noise and sampling seed; same seed, same mission
     # a preset (nbvkit.scenarios): profile, 1..5, surface, ...
@@ -107,7 +107,7 @@ class Config:
                 _set_field(self, key, value)
 
     def __getattr__(self, name: str):
-        """A planner part's section (``config.tour``); a renamed section by its old name."""
+        """A planner part's section (``config.<name>``); a renamed section by its old name."""
         if name.startswith("_"):
             raise AttributeError(name)
         parts = self.__dict__.get("_parts", {})

@@ -1,7 +1,7 @@
 """The scenarios a mission can fly: the rows of the paper's Table 2 and nbvkit's own planners.
 
 A scenario is a preset of configuration keys, applied over the defaults and under whatever the
-user sets (a config file, ``--set``): ``nbvkit run --scenario 3 --set sampling.sigma=2`` flies the
+user sets (a config file, ``--set``): ``nbvkit run --scenario 3 --set lattice.sigma=2`` flies the
 paper's Scenario 3 with a different AGVS factor. This table is the only place that lists
 scenarios; the CLI, the config validation and Table 2 read it. The defaults of
 ``nbvkit.Config`` are the recommended planner's except where a C++ default is the paper's (the

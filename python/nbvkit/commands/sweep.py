@@ -16,7 +16,7 @@ EXAMPLE = """example sweep file:
   starts: [0, 1, 2]             # or a count: 3
   grid:                         # every combination of these config keys' values
     map.resolution: [0.2, 0.4]
-    sampling.delta_d: [1.0, 2.0]
+    lattice.delta_d: [1.0, 2.0]
   set: {max_iterations: 200}    # fixed overrides for every run
   out: runs/my_sweep            # optional; --out wins
   workers: 2                    # optional; --workers wins

@@ -1,5 +1,5 @@
 """The paper's termination (sec. 3.5): the entropy change per viewable voxel, |dE_v| =
-|E_{n-1} - E_n| / C_view, below termination.threshold for termination.window consecutive views
+|E_{n-1} - E_n| / C_view, below entropy.threshold for entropy.window consecutive views
 (paper: 0.001 and N = 5). C_view is nbvkit.termination.viewable_cells."""
 from __future__ import annotations
 
