@@ -85,7 +85,7 @@ format:
 	clang-format -i $(CXX_FILES)
 	black -q $(PY_DIRS)
 
-# Every benchmark prints its figures and its baseline ratio (README, "Measured figures").
+# Every benchmark prints its figures and its baseline ratio (docs/RESULTS.md, "Measured figures").
 bench: install
 	for b in bench/bench_*.py; do echo "== $$b"; $(PY) $$b || exit 1; done
 

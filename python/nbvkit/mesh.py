@@ -40,7 +40,7 @@ def load_mesh(path: str | os.PathLike, scale: float = 1.0, up: str = "z", shift=
     FileNotFoundError for a missing path and ValueError naming the file for anything but a
     regular file of at most 2 GiB (a directory, a FIFO, a device), for unreadable or malformed
     files, a vertex of a face with a NaN or infinite coordinate, no triangle with an area, or
-    naming a bad scale, up axis or shift (README, "Errors").
+    naming a bad scale, up axis or shift (docs/USAGE.md, "Errors").
     """
     if up not in _UP:
         raise ValueError(f"mesh up axis must be 'y' or 'z', got {up!r}")
