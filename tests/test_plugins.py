@@ -172,3 +172,24 @@ def _source(*objs) -> str:
     head = "from dataclasses import dataclass\nfrom nbvkit.planning.parts import Proposal\n"
     head += "from nbvkit.settings import positive, within\n"
     return head + "\n\n".join(inspect.getsource(o) for o in objs)
+
+
+def test_the_worked_example_of_docs_plugins_flies(tmp_path):
+    import re
+
+    doc = (ROOT / "docs" / "PLUGINS.md").read_text()
+    example = re.search(r"`my_parts.py`.*?```python\n(.*?)```", doc, flags=re.S).group(1)
+    plugin = tmp_path / "my_parts.py"
+    plugin.write_text(example)
+    out = tmp_path / "ring"
+    p = subprocess.run(
+        [sys.executable, "-m", "nbvkit.cli", "run", "--plugin", str(plugin), "--planner", "ring",
+         "--mesh", str(ROOT / "meshes" / "fixtures" / "cube.obj"), "--out", str(out),
+         "--set", *QUICK, "ring.count=5", "ring.distance=2"],
+        capture_output=True, text=True, timeout=300,
+    )  # fmt: skip
+    assert p.returncode == 0, p.stderr
+    s = json.loads((out / "summary.json").read_text())
+    assert s["scenario"] == "ring" and s["generators"] == ["ring"]
+    assert s["termination"] == "coverage_complete" and s["iterations"] == 5
+    assert "ring:" in (out / "config.yaml").read_text()

@@ -49,6 +49,7 @@ from .planning.registry import (  # noqa: F401  (your own planner parts: docs/PL
     register_utility,
 )
 from .plugins import load_plugin  # noqa: F401
+from .scenarios import register_scenario  # noqa: F401
 
 __version__ = "0.1.0"
 
@@ -64,6 +65,7 @@ __all__ = [
     "register_termination",
     "register_utility",
     "load_plugin",
+    "register_scenario",
     "DepthCamera",
     "DepthCameraOptions",
     "LaserScanner",

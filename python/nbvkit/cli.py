@@ -45,11 +45,24 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
+def _plugin_files(argv) -> list:
+    """The --plugin files named in argv (loaded before the parser is built, so that their
+    scenarios are choices of --scenario / --planners)."""
+    pre = argparse.ArgumentParser(add_help=False)
+    pre.add_argument("--plugin", action="append", default=[])
+    return pre.parse_known_args(argv)[0].plugin
+
+
 def main(argv: list[str] | None = None) -> int:
+    argv = sys.argv[1:] if argv is None else list(argv)
+    try:
+        load_plugins(_plugin_files(argv))
+    except (FileNotFoundError, ValueError, OSError) as e:
+        print(f"nbvkit: error: {e}", file=sys.stderr)
+        return 2
     parser = build_parser()
     args = parser.parse_args(argv)
     try:
-        load_plugins(getattr(args, "plugin", ()))
         return int(args._run(args) or 0)
     except KeyboardInterrupt:
         print(f"nbvkit {args.command}: interrupted", file=sys.stderr)

@@ -63,7 +63,7 @@ class Config:
 
     seed: int = within(0, 0, 2**64 - 2)  # noise and sampling seed; same seed, same mission
     # a preset (nbvkit.scenarios): profile, 1..5, surface, ...
-    scenario: str = choice(DEFAULT_SCENARIO, tuple(SCENARIOS))
+    scenario: str = choice(DEFAULT_SCENARIO, lambda: tuple(SCENARIOS))
     start: int = within(0, 0, 4)  # which of the five predefined start poses
     start_pose: Optional[tuple] = None  # (x, y, z, yaw[, pitch]) instead of a predefined start
     max_iterations: Optional[int] = within(None, 0, 10**6)  # views; null: 0.5 per m^2 of surface

@@ -118,3 +118,12 @@ SCENARIOS: dict[str, Scenario] = {
 TABLE2 = ("profile", "1", "2", "3", "4", "5")
 #: The scenario `nbvkit run` flies unless told otherwise.
 DEFAULT = "surface"
+
+
+def register_scenario(name: str, description: str, settings: dict) -> None:
+    """Adds a scenario (a preset of dotted config keys, e.g. a plugin's planner:
+    {"planner.generators": ["ring"]}); `nbvkit run --planner`, `nbvkit compare --planners` and
+    the configuration accept its name."""
+    if not isinstance(name, str) or not name or name in SCENARIOS:
+        raise ValueError(f"scenario {name!r} is registered already or not a name")
+    SCENARIOS[name] = Scenario(description, dict(settings))
