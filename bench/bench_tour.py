@@ -24,7 +24,7 @@ import nbvkit
 from _timing import checkouts, median_time, mesh_parser, run_snippet
 from nbvkit.config import Config
 from nbvkit.mission import Mission
-from nbvkit.planning.generators.tour import CoverageTour
+from nbvkit.planning.registry import get_generator
 from nbvkit.profiling import run_profiling
 from nbvkit.symmetry import run_symmetry_prediction
 
@@ -81,7 +81,7 @@ def first_plan(mesh: str | None, with_again: bool = False):
     run_profiling(w)
     run_symmetry_prediction(w, write_map=cfg.symmetry.mode == "predict")
     w.sense("view")
-    tour = CoverageTour(cfg)
+    tour = get_generator("tour", cfg)
     cands = tour.candidates(w)[2]
     cov = tour.coverage(w, cands)
     t_cov = median_time(lambda: tour.coverage(w, cands), 1)

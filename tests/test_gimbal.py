@@ -399,3 +399,32 @@ def test_the_camera_observations_record_the_pitched_direction():
     np.testing.assert_array_equal(seen, expect)
     up = 1 << _core.direction_bin([0, 0, 1])
     assert seen[m.index_of([[-0.1, 0, 0.0]])[0]] == up  # the cell below, seen from straight above
+
+
+def test_the_lattice_samples_the_gimbals_pitches_and_the_paper_stays_level():
+    """Issue 33: with lattice.delta_pitch_deg, nbvkit's greedy planner samples each lattice view
+    at the gimbal's pitches (30 deg apart, 0 included); the paper's scenarios (a level camera)
+    keep (K, 4) views whatever it says."""
+    from nbvkit.config import load_config
+    from nbvkit.planning.generators.lattice import gimbal_pitches
+    from nbvkit.planning.registry import get_generator
+
+    assert np.allclose(np.degrees(gimbal_pitches((-30, 90), 30)), [-30, 0, 30, 60, 90])
+    assert np.allclose(np.degrees(gimbal_pitches((-45, 80), 30)), [-30, 0, 30, 60])
+    assert np.array_equal(gimbal_pitches((0, 0), 30), [0.0])
+
+    class World:
+        class state:
+            pose = np.array([1.0, 2.0, 3.0, 0.5, 0.0])
+
+    paper_cfg = load_config(overrides=["scenario=5", "lattice.delta_pitch_deg=30"])
+    paper = get_generator("lattice", paper_cfg).propose(World)
+    assert paper.poses.shape[1] == 4
+    level = get_generator("lattice", load_config(overrides=["scenario=surface_nbv"]))
+    assert level.propose(World).poses.shape == paper.poses.shape  # level unless asked
+    cfg = load_config(overrides=["scenario=surface_nbv", "lattice.delta_pitch_deg=30"])
+    pitched = get_generator("lattice", cfg).propose(World)
+    assert pitched.poses.shape == (len(paper.poses) * 5, 5)
+    assert np.allclose(np.unique(np.round(np.degrees(pitched.poses[:, 4]))), [-30, 0, 30, 60, 90])
+    # every position of the level lattice, at each pitch
+    assert np.allclose(pitched.poses[::5, :4], paper.poses)

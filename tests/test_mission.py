@@ -241,7 +241,7 @@ def test_blocked_legs_can_be_planned_around_and_the_flown_path_is_counted(tmp_pa
     m = Mission(cfg("scenario=1", "vehicle.blocked_path=plan", "max_iterations=8"))
     s = m.run(tmp_path)
     assert s["iterations"] >= 1
-    traj = np.array([r[1:4] for r in m.state.trajectory], float)
+    traj = np.array([r[1:4] for r in m.world.state.trajectory], float)
     assert np.linalg.norm(np.diff(traj, axis=0), axis=1).sum() == pytest.approx(s["distance_m"])
 
 

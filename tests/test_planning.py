@@ -14,7 +14,8 @@ from nbvkit import _core
 from nbvkit.config import Config, load_config
 from nbvkit.mission import Mission
 from nbvkit.recorder import STAGES
-from nbvkit.planning.generators.frontier import FrontierGenerator
+from nbvkit.planning.parts import PlanningContext
+from nbvkit.planning.registry import get_generator
 from nbvkit.planning.generators.tour import exploration_targets, prize_collect
 from nbvkit.planning.placement import Patches, into_bounds, place_views, target_patches
 from nbvkit.scenarios import SCENARIOS
@@ -143,10 +144,20 @@ def test_cover_and_tour_reject_malformed_coverage_with_a_message():
 
 class _Cam:
     vfov_deg, max_range, mount_rpy_deg = 45.0, 8.0, (0.0, 0.0, 0.0)
+    gimbal_pitch_deg = (0.0, 0.0)  # level: the paper's camera
+
+
+class _Gimbal(_Cam):
+    gimbal_pitch_deg = (-30.0, 90.0)  # 30 deg up to straight down
 
 
 class _Place:
     standoffs, azimuth_spread_deg, elevation_margin_deg = (0.5, 0.75), 30.0, 4.0
+    gimbal = False
+
+
+class _PlaceGimbal(_Place):
+    gimbal = True  # placement.gimbal: also face roofs and undersides by the gimbal's pitch
 
 
 def test_views_are_placed_at_their_standoff_facing_the_patch_inside_the_fov():
@@ -214,8 +225,6 @@ def test_views_below_the_floor_move_up_and_out_until_the_patch_is_in_view():
 
 
 def test_a_tour_flies_to_a_far_cluster_that_pays_for_its_transit_only_as_a_whole():
-    from nbvkit.planning.generators.tour import CoverageTour
-
     def tour_for(gain_per_view):
         # five views 1 m apart, 50 m from the vehicle, each adding gain_per_view new elements
         n = gain_per_view
@@ -226,7 +235,7 @@ def test_a_tour_flies_to_a_far_cluster_that_pays_for_its_transit_only_as_a_whole
             "status": np.zeros(5, np.int8),
         }
         cand = np.array([[50.0 + i, 0, 0, 0] for i in range(5)])
-        gen = CoverageTour(nbvkit.load_config())
+        gen = get_generator("tour", nbvkit.load_config())
         pose = np.zeros(4)
         rate = 0.45  # m^2 per metre
         return [gen._insertion_tour(cov, cand, pose, 1.0, 1.2, rate, c) for c in (True, False)]
@@ -267,11 +276,11 @@ def test_area_thresholds_shrink_with_a_structure_smaller_than_the_reference_area
         "utility": np.array([4.0, 8.0]),
     }
     poses = np.array([[1.0, 0, 0, 0], [2.0, 0, 0, 0]])
-    choice = Selector(cfg, 0.2).choose(small, poses, scores)
+    choice = Selector(PlanningContext.of(cfg)).choose(small, poses, scores)
     assert choice is not None and choice.index == 1  # 8 cells pass, 4 would not
-    assert Selector(cfg, 0.2).choose(large, poses, scores) is None
+    assert Selector(PlanningContext.of(cfg)).choose(large, poses, scores) is None
     absolute = load_config(overrides=["vehicle.blocked_path=reject", "planner.reference_area=0"])
-    assert Selector(absolute, 0.2).choose(small, poses, scores) is None
+    assert Selector(PlanningContext.of(absolute)).choose(small, poses, scores) is None
 
 
 def test_selection_passes_over_views_outside_the_free_component_after_a_failed_search():
@@ -295,7 +304,7 @@ def test_selection_passes_over_views_outside_the_free_component_after_a_failed_s
     poses = np.array([[9, 9, 2, 0], [5, 9, 2, 0], [9, 2, 2, 0.0]])  # two apart, one reachable
     utility = np.array([9.0, 8.0, 1.0])  # the views apart are worth more
     scores = {"status": np.zeros(3, np.int8), "gain": np.full(3, 1e3), "utility": utility}
-    selector = Selector(cfg, 0.2)
+    selector = Selector(PlanningContext.of(cfg))
     selector.begin()
     choice = selector.choose(world, poses, scores)
     assert choice.index == 2  # the only reachable view, whatever its utility
@@ -352,7 +361,7 @@ def test_frontier_views_face_their_targets_and_the_valid_ones_are_collision_free
     w = m.world
     w.take_off()
     w.sense("view")
-    gen = FrontierGenerator(cfg)
+    gen = get_generator("frontier", cfg)
     prop = gen.propose(w)
     assert prop is not None and len(prop.poses) > 0
     s = _core.evaluate_views(
@@ -375,7 +384,8 @@ def test_frontier_views_face_their_targets_and_the_valid_ones_are_collision_free
         heading = np.array([math.cos(p[3]), math.sin(p[3])])
         assert heading @ to_aim[:2] / np.linalg.norm(to_aim[:2]) > math.cos(1e-6)
         elevation = math.degrees(math.atan2(to_aim[2], np.linalg.norm(to_aim[:2])))
-        assert abs(elevation) <= cfg.camera.vfov_deg / 2
+        pitch = math.degrees(p[4]) if len(p) > 4 else 0.0  # > 0 looks down
+        assert abs(elevation + pitch) <= cfg.camera.vfov_deg / 2 + 1e-9
         # and is near the structure: the patch lies on or next to the box's surface
         assert np.all(aim >= np.array([-3, -3, 0]) - 0.5) and np.all(
             aim <= np.array([3, 3, 4]) + 0.5
@@ -698,7 +708,6 @@ def test_a_view_that_reaches_where_a_stranded_patchs_views_would_be_is_credited_
     # x = 3 facing the wall reaches the cell at x = 8 (unknown space its frame would make known)
     # and is credited with access_weight x the patch's weight, once; the same view facing away
     # is not, and once credited to a chosen view the place is not credited again.
-    from nbvkit.planning.generators.tour import CoverageTour
 
     cands = np.array(
         [
@@ -712,7 +721,7 @@ def test_a_view_that_reaches_where_a_stranded_patchs_views_would_be_is_credited_
     m, patches, cov = _stranded_scene(cands)
     assert cov["status"].tolist() == [2, 2, 0, 0]
     cfg = Config().with_overrides(["tour.access_weight=0.5"])
-    tour = CoverageTour(cfg)
+    tour = get_generator("tour", cfg)
     world = _access_world(m, [3.0, 3.1, 2.1, 0.0])
     out, opens = tour._access(world, cov, cands, owner, patches)
     size = np.diff(cov["offsets"])
@@ -726,7 +735,8 @@ def test_a_view_that_reaches_where_a_stranded_patchs_views_would_be_is_credited_
     tour.opened.update(opens[2])
     again, _ = tour._access(world, cov, cands, owner, patches)
     np.testing.assert_array_equal(again["offsets"], cov["offsets"])
-    off = CoverageTour(Config())._access(world, cov, cands, owner, patches)[0]  # weight 0: off
+    tour_off = get_generator("tour", Config())  # access weight 0: off
+    off = tour_off._access(world, cov, cands, owner, patches)[0]
     np.testing.assert_array_equal(off["elements"], cov["elements"])
 
 
@@ -748,7 +758,7 @@ def test_a_stranded_place_behind_a_wall_with_a_gap_narrower_than_the_vehicle_is_
     # The scene above with a second wall at x = 6 between the vehicle and the stranded view's
     # place (x = 8), holed round the line of sight: the view's rays reach the place through the
     # hole either way, but the vehicle (0.8 m collision radius) could pass only the 3.2 m one.
-    from nbvkit.planning.generators.tour import CoverageTour, _reachable
+    from nbvkit.planning.generators.tour import _reachable
 
     cands = np.array([[8.1, 3.1, 2.1, math.pi], [3.0, 3.1, 2.1, 0.0]])
     owner = np.array([0, 1])
@@ -760,7 +770,7 @@ def test_a_stranded_place_behind_a_wall_with_a_gap_narrower_than_the_vehicle_is_
     reach = _reachable(world, 0.8)
     assert reach[15, 15, 10] and not reach[30, 2, 2]  # by the vehicle; in the wall at x = 6
     assert reach[40, 15, 10] == credited  # the stranded view's cell
-    tour = CoverageTour(Config().with_overrides(["tour.access_weight=0.5"]))
+    tour = get_generator("tour", Config().with_overrides(["tour.access_weight=0.5"]))
     out, opens = tour._access(world, cov, cands, owner, patches)
     assert (list(opens) == [1]) == credited
     assert len(out["elements"]) == len(cov["elements"]) + int(credited)
@@ -853,7 +863,7 @@ def test_a_search_cut_short_by_its_cap_is_searched_again_when_the_view_is_reacha
         for p in legs:
             w.fly_to(np.array(p), "test")
         assert (w.plan_path(start) is None) == (cap == 5)
-        sel = Selector(m.config, w.map.resolution)
+        sel = Selector(PlanningContext.of(m.config))
         sel.begin()
         one = np.ones(1)
         scores = {"status": np.zeros(1, np.int8), "gain": 1e9 * one, "utility": one}
@@ -861,3 +871,61 @@ def test_a_search_cut_short_by_its_cap_is_searched_again_when_the_view_is_reacha
         assert choice is not None and choice.path is not None
         paths.append(choice.path)
     np.testing.assert_array_equal(*paths)
+
+
+def _looks_at(pose, point, vfov_deg=45.0):
+    """(angle off the optical axis in elevation, horizontal bearing error), radians, of `point`
+    seen from the (x, y, z, yaw, pitch) view (level mount)."""
+    d = point - pose[:3]
+    el = math.atan2(d[2], math.hypot(d[0], d[1]))  # elevation of the line of sight
+    off = el - (-pose[4])  # against the optical axis' elevation (pitch > 0 looks down)
+    bearing = math.remainder(math.atan2(d[1], d[0]) - pose[3], 2 * math.pi)
+    return off, bearing
+
+
+def test_the_gimbal_faces_a_roof_from_above_and_clamps_an_underside_at_its_limit():
+    """Issue 33, placement contract: beside the level camera's views, an upward-facing patch is
+    also looked at straight down from its stand-offs above it (one view each, pitch 90 deg); a
+    downward-facing one cannot be faced head-on (the gimbal looks up 30 deg at most): its pitch
+    is clamped at -30 deg and the patch is kept in the field of view from six azimuths; a wall,
+    which the level camera faces head-on, gets the level views alone."""
+    patches = Patches(
+        centers=np.array([[0.0, 0, 3], [5, 5, 4], [-3, 0, 4]]),
+        normals=np.array([[0.0, 0, 1], [0, 0, -1], [1.0, 0, 0]]),
+        weights=np.ones(3),
+    )
+    level, level_owner = place_views(patches, _Cam, _Place)
+    assert level.shape == (6 * 2 + 6 * 2 + 3 * 2, 4)  # the level camera's views stay (K, 4)
+    assert place_views(patches, _Gimbal, _Place)[0].shape == level.shape  # placement.gimbal off
+    poses, owner = place_views(patches, _Gimbal, _PlaceGimbal)
+    assert poses.shape == (len(level) + 2 + 6 * 2, 5)
+    assert np.array_equal(poses[poses[:, 4] == 0, :4], level)  # the level views, unchanged
+    half = math.radians(45 / 2 - 4.0)
+    for pose, i in zip(poses, owner):
+        c = patches.centers[i]
+        assert min(abs(np.linalg.norm(c - pose[:3]) - d) for d in (4.0, 6.0)) < 1e-9
+        assert math.radians(-30) - 1e-12 <= pose[4] <= math.radians(90) + 1e-12
+        off, bearing = _looks_at(pose, c)
+        assert abs(off) <= half + 1e-9  # in the vertical field of view, margin kept
+        if pose[4] == 0:
+            continue
+        if i == 0:  # the roof: straight above, looking straight down
+            assert np.allclose(pose[:2], c[:2]) and pose[4] == pytest.approx(math.pi / 2)
+        else:  # the underside: clamped at the gimbal's limit, looking up at it
+            assert i == 1 and pose[4] == pytest.approx(math.radians(-30)) and pose[2] < c[2]
+            assert abs(bearing) < 1e-9
+
+
+def test_a_view_above_the_ceiling_is_brought_down_and_keeps_its_patch_in_view():
+    """The roof's straight-down view above the navigation box's ceiling comes down to it and
+    moves aside only as far as the clamped pitch's field of view needs."""
+    patches = Patches(
+        centers=np.array([[0.0, 0, 8]]), normals=np.array([[0.2, 0, 1.0]]), weights=np.ones(1)
+    )
+    patches.normals /= np.linalg.norm(patches.normals, axis=1)[:, None]
+    box = (np.array([-20.0, -20, 0]), np.array([20.0, 20, 10]))
+    poses, owner = place_views(patches, _Gimbal, _PlaceGimbal, box)
+    for pose in poses:
+        assert pose[2] <= 10.0 + 1e-9
+        off, _ = _looks_at(pose, patches.centers[0])
+        assert abs(off) <= math.radians(45 / 2 - 4.0) + 1e-9

@@ -46,7 +46,7 @@ def test_camera_frames_taken_in_flight_during_the_profile(profiled):
     flown. The flight is the same; the frames add camera points and dense coverage, and they are
     not views (the paper's profile is the laser alone: camera_step 0, no camera point)."""
     base, b = profiled
-    assert len(base.camera_cloud) == 0 and b["profile"]["camera_frames"] == 0
+    assert len(base.world.camera_cloud) == 0 and b["profile"]["camera_frames"] == 0
     step = 4.0
     m = Mission(
         Config().with_overrides(FAST + ["scenario=profile", f"profiling.camera_step={step}"])
@@ -56,7 +56,7 @@ def test_camera_frames_taken_in_flight_during_the_profile(profiled):
     assert p["distance_m"] == pytest.approx(b["profile"]["distance_m"], rel=1e-9)
     flown = p["distance_m"] + p["return_distance_m"]  # the frames go on while it flies back
     assert flown / step - 1 <= p["camera_frames"] <= flown / step
-    assert s["views"] == 0 and len(m.camera_cloud) > 0
+    assert s["views"] == 0 and len(m.world.camera_cloud) > 0
     assert p["coverage"]["0.05"] > b["profile"]["coverage"]["0.05"] + 0.02
 
 
@@ -69,7 +69,7 @@ def test_waypoints_lie_on_the_recomputed_circle(profiled):
     for k in range(len(wps) - 1):
         c, r = circles[k, :2], circles[k, 2]
         assert np.linalg.norm(wps[k + 1] - c) == pytest.approx(r, abs=1e-6)
-    start = m.start_pose[:2]
+    start = m.world.start_pose[:2]
     np.testing.assert_allclose(wps[0], start, atol=1e-9)  # the first sweep is at the start
     ang = [math.atan2(w[1] - c[1], w[0] - c[0]) for w, c in zip(wps[1:], circles[:-1, :2])]
     steps = np.diff(np.unwrap(ang))

@@ -100,6 +100,10 @@ void ObservabilityOptions::validate() const {
                                 fmt(max_incidence_deg));
   if (yaw_steps < 0 || yaw_steps > 1000)
     throw std::invalid_argument("yaw_steps must be in [0, 1000], got " + std::to_string(yaw_steps));
+  if (!(gimbal_min_deg >= -90.0 && gimbal_max_deg <= 90.0 && gimbal_min_deg <= gimbal_max_deg))
+    throw std::invalid_argument(
+        "gimbal_min_deg <= gimbal_max_deg within [-90, 90] required, got [" +
+        std::to_string(gimbal_min_deg) + ", " + std::to_string(gimbal_max_deg) + "]");
 }
 
 bool mesh_within(const RaycastScene& scene, const Eigen::Vector3d& p, double radius) {
@@ -309,7 +313,14 @@ ObservabilityResult observable_samples(const RaycastScene& scene, const PointsRe
       el_lo = std::min(el_lo, el);
       el_hi = std::max(el_hi, el);
     }
-  const double sin_lo = std::sin(el_lo - 1e-3), sin_hi = std::sin(el_hi + 1e-3);
+  // the gimbal's pitch range (> 0 looks down) widens the band: pitched by p, the frustum's
+  // elevations move down by p
+  const double g_lo = options.gimbal_min_deg * M_PI / 180.0;
+  const double g_hi = options.gimbal_max_deg * M_PI / 180.0;
+  const bool gimbal = g_lo != 0.0 || g_hi != 0.0;
+  const double axis_el = std::asin(std::clamp(axis.z(), -1.0, 1.0));
+  const double sin_lo = std::sin(std::max(-M_PI / 2, el_lo - g_hi - 1e-3));
+  const double sin_hi = std::sin(std::min(M_PI / 2, el_hi - g_lo + 1e-3));
 
   // ---- the samples, in a spatially coherent order (Morton order of 0.25 m cells)
   t0 = clock::now();
@@ -354,7 +365,13 @@ ObservabilityResult observable_samples(const RaycastScene& scene, const PointsRe
           const Eigen::Vector3d u0(vh * ca, vh * sa, v.z());
           bool in_view = false;
           for (const auto& [cy, sy] : yaw_cs) {
-            const Eigen::Vector3d u(cy * u0.x() - sy * u0.y(), sy * u0.x() + cy * u0.y(), u0.z());
+            Eigen::Vector3d u(cy * u0.x() - sy * u0.y(), sy * u0.x() + cy * u0.y(), u0.z());
+            if (gimbal) {  // pitched to centre the sample vertically, within the range
+              const double p =
+                  std::clamp(axis_el - std::atan2(u.z(), std::hypot(u.x(), u.y())), g_lo, g_hi);
+              const double cp = std::cos(p), sp = std::sin(p);
+              u = Eigen::Vector3d(cp * u.x() - sp * u.z(), u.y(), sp * u.x() + cp * u.z());
+            }
             const Eigen::Vector3d cam = Mt * u;  // sensor frame: +x forward, y left, z up
             if (cam.x() < camera.min_range || cam.x() > camera.max_range) continue;
             if (std::abs(cam.y()) > cam.x() * th || std::abs(cam.z()) > cam.x() * tv) continue;

@@ -15,7 +15,8 @@ Method (one C++ call, ``nbvkit._core.observable_samples``, Embree):
    ``evaluation.gt_density``) with their triangle's normal (either side).
 3. *Visibility.* A sample is observable if, from some kept position (samples in Morton order,
    the previous sample's seeing position first, then nearest first; the first success ends the
-   search), with the camera at the position plus its mount height, some yaw
+   search), with the camera at the position plus its mount height (pitched by its gimbal, within
+   camera.gimbal_pitch_deg, to centre the sample vertically), some yaw
    (the one that centres the sample horizontally, and ``yaw_steps`` offsets each side across
    the frustum's half diagonal) puts it inside the pinhole frustum (mount pitch and roll, FOV)
    at a depth along the optical axis in [min_range, max_range], its line of sight is within
@@ -49,7 +50,7 @@ from .settings import cpp_section
 __all__ = ["ObservableSurface", "observable_surface", "sample_normals"]
 
 #: bump when the method changes, so old caches are not reused
-_METHOD_VERSION = 3
+_METHOD_VERSION = 4
 
 
 ObservabilityConfig = cpp_section(
@@ -123,6 +124,7 @@ def _settings(config, workspace) -> dict:
         "pose_spacing": o.pose_spacing,
         "max_incidence_deg": o.max_incidence_deg,
         "yaw_steps": o.yaw_steps,
+        "gimbal_pitch_deg": list(map(float, c.gimbal_pitch_deg)),
     }
 
 
@@ -219,7 +221,10 @@ def _compute(mesh, cfg, points, normals, ws, settings, scene) -> ObservableSurfa
         camera,
         ws.nav_min,
         ws.nav_max,
-        options=o.options(),
+        options=o.options().copy(
+            gimbal_min_deg=cfg.camera.gimbal_pitch_deg[0],
+            gimbal_max_deg=cfg.camera.gimbal_pitch_deg[1],
+        ),
         collision_radius=cfg.vehicle.collision_radius,
     )
     mask = np.asarray(r.observable, bool)

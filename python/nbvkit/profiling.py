@@ -79,7 +79,9 @@ class ProfilingConfig:
     margin: float = positive(4.0, 1e4)  # d: margin added to the bounding radius, m (authors: 4)
     sweep_step: float = positive(0.025)  # m between laser scans: a 40 Hz scanner at 1 m/s (authors)
     camera_step: float = nonneg(1.0)  # m between profile camera frames; 0: none (paper)
-    z_min: Optional[float] = None  # sweep bounds; None: the workspace's z range
+    # sweep bounds; None: the navigation floor, and the structure's top + 2.5 m less the
+    # vehicle's clearance (the paper's sweep, whatever the flight envelope above the top)
+    z_min: Optional[float] = None
     z_max: Optional[float] = None
     max_segment: float = positive(7.0)  # arcs are flown as straight segments of at most this, m
     flight_margin: float = within(30.0, 0, 1e4)  # the flight volume: workspace grown by this, m
@@ -196,7 +198,9 @@ class Profiler:
         ws = world.workspace
         r = world.config.vehicle.collision_radius
         self.z_min = self.cfg.z_min if self.cfg.z_min is not None else ws.nav_min[2]
-        self.z_max = self.cfg.z_max if self.cfg.z_max is not None else ws.nav_max[2]
+        # the paper's sweep top, whatever the flight envelope above the structure: a laser
+        # sweep needs no more (Workspace.sweep_top)
+        self.z_max = self.cfg.z_max if self.cfg.z_max is not None else ws.structure_nav_max[2]
         if not self.z_max > self.z_min:
             raise ValueError(f"profiling sweep needs z_max > z_min, got {self.z_min}..{self.z_max}")
         fm = self.cfg.flight_margin

@@ -102,6 +102,12 @@ SCENARIOS: dict[str, Scenario] = {
         "view paying for its detour) until no planned view is worth its flight",
         _SURFACE,
     ),
+    "surface_gimbal": Scenario(
+        "the recommended planner with the camera on its gimbal (issue 33): a flight envelope "
+        "reaching the camera's far stand-off above the structure, and tours that also face roofs "
+        "from above and undersides from below by the gimbal's pitch",
+        {**_SURFACE, "workspace.margin_z": None, "placement.gimbal": True},
+    ),
     "surface_nbv": Scenario(
         "greedy next-best-view on the surface utility: views aimed at the surface still to "
         "observe and the local lattice, the best gain * exp(-travel_lambda * path) flown each "

@@ -16,12 +16,16 @@ class WorkspaceConfig:
 
     Default: the structure's bounding box grown by ``margin_xy`` on each side and squared up to a
     square footprint (as the paper's 40 x 40 m), from ``min(0, bbox z min)`` (the ground) to
-    ``bbox z max + margin_z``. For the shipped airliner (35.0 x 30.0 x 7.5 m) this gives
-    40.0 x 40.0 x 10.0 m. Explicit ``bounds_min``/``bounds_max`` override it.
+    ``bbox z max + margin_z``: for the shipped airliner (35.0 x 30.0 x 7.5 m) and the paper's
+    margins 40.0 x 40.0 x 10.0 m. ``margin_z`` null (the ``surface_gimbal`` planner): a flight
+    envelope that reaches above the top by the camera's far stand-off (max placement.standoffs x
+    camera.max_range), so tops are seen from above (envelope_margin_z); the profile's sweeps and
+    the starts keep to the structure's height. Explicit ``bounds_min``/``bounds_max`` override
+    it.
     """
 
     margin_xy: float = nonneg(2.5)
-    margin_z: float = nonneg(2.5)
+    margin_z: Optional[float] = nonneg(2.5)  # m above the top; null: the camera's far stand-off
     square: bool = True
     bounds_min: Optional[tuple] = triple(None)
     bounds_max: Optional[tuple] = triple(None)
@@ -33,12 +37,21 @@ class WorkspaceConfig:
 
 @dataclass(frozen=True)
 class Workspace:
-    """The NBV workspace box (map bounds) and the navigation bounds (vehicle positions)."""
+    """The NBV workspace box (map bounds) and the navigation bounds (vehicle positions);
+    sweep_top: the highest the profile's sweeps and the predefined starts go (the navigation
+    top, or below it within a flight envelope: structure_nav_top)."""
 
     bounds_min: np.ndarray
     bounds_max: np.ndarray
     nav_min: np.ndarray
     nav_max: np.ndarray
+    sweep_top: float | None = None  # None: nav_max's
+
+    @property
+    def structure_nav_max(self) -> np.ndarray:
+        """nav_max with its z at sweep_top: the navigation box of the profile and the starts."""
+        top = self.nav_max[2] if self.sweep_top is None else self.sweep_top
+        return np.array([self.nav_max[0], self.nav_max[1], top])
 
     @property
     def center(self) -> np.ndarray:
@@ -68,6 +81,28 @@ def ground_height(bounds) -> float:
     return min(0.0, float(np.asarray(bounds, float)[0][2]))
 
 
+#: m above the structure's top of the paper's workspace (its 40 x 40 x 10 m box round the
+#: airliner); the profile's sweeps and the predefined starts keep to it, whatever the flight
+#: envelope above the top (workspace.margin_z null: envelope_margin_z).
+PAPER_MARGIN_Z = 2.5
+
+
+def structure_nav_top(nav_max, mesh_bounds, clearance: float) -> float:
+    """Within a flight envelope (workspace.margin_z null), the highest the profile sweeps and
+    the starts go: the structure's top + PAPER_MARGIN_Z less the vehicle's clearance (collision
+    radius + 0.1 m), as on the paper's workspace, within the navigation space."""
+    top = float(np.asarray(mesh_bounds[1], float)[2])
+    return min(float(nav_max[2]), top + PAPER_MARGIN_Z - clearance)
+
+
+def envelope_margin_z(cfg) -> float:
+    """How far above the structure's top the workspace reaches when workspace.margin_z is null:
+    the camera's far stand-off (max placement.standoffs x camera.max_range) plus the vehicle's
+    collision radius and 0.1 m, so that the vehicle can fly a top's far stand-off above it."""
+    far = max(cfg.placement.standoffs) * cfg.camera.max_range
+    return far + cfg.vehicle.collision_radius + 0.1
+
+
 def make_workspace(mesh_bounds, cfg) -> Workspace:
     """The workspace of a structure (see WorkspaceConfig); navigation bounds are the workspace
     shrunk by the collision radius (plus 0.1 m), so the vehicle's sphere stays inside the map."""
@@ -85,16 +120,23 @@ def make_workspace(mesh_bounds, cfg) -> Workspace:
         if w.square:
             half = np.full(2, half.max())
         bmin = np.array([c[0] - half[0], c[1] - half[1], ground_height(mesh_bounds)])
-        bmax = np.array([c[0] + half[0], c[1] + half[1], hi[2] + w.margin_z])
+        margin_z = w.margin_z if w.margin_z is not None else envelope_margin_z(cfg)
+        bmax = np.array([c[0] + half[0], c[1] + half[1], hi[2] + margin_z])
     shrink = cfg.vehicle.collision_radius + 0.1
     nav_min, nav_max = bmin + shrink, bmax - shrink
+    if cfg.vehicle.min_altitude is not None:  # the ground clearance, above the workspace floor
+        nav_min[2] = bmin[2] + max(shrink, cfg.vehicle.min_altitude)
     if not np.all(nav_max > nav_min):
         raise ValueError(
             f"the workspace {(bmax - bmin).round(3).tolist()} m is too small for the vehicle's "
             f"collision radius (vehicle.collision_radius = {cfg.vehicle.collision_radius:g} m; "
-            f"workspace.margin_xy = {w.margin_xy:g}, workspace.margin_z = {w.margin_z:g} m)"
+            f"workspace.margin_xy = {w.margin_xy:g}, workspace.margin_z = {w.margin_z}, "
+            f"vehicle.min_altitude = {cfg.vehicle.min_altitude})"
         )
-    return Workspace(bmin, bmax, nav_min, nav_max)
+    sweep_top = None
+    if w.bounds_min is None and w.margin_z is None:  # a flight envelope above the structure
+        sweep_top = structure_nav_top(nav_max, mesh_bounds, shrink)
+    return Workspace(bmin, bmax, nav_min, nav_max, sweep_top)
 
 
 def start_poses(

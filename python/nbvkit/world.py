@@ -6,8 +6,10 @@ per-cell loop runs in the C++ core (``nbvkit._core``).
 """
 from __future__ import annotations
 
+import dataclasses
 import math
 from dataclasses import dataclass, field
+from typing import Optional
 
 import numpy as np
 
@@ -16,7 +18,12 @@ from .limits import Bound, check_work
 from .mesh import default_mesh_path, load_mesh
 from .sensors import build_camera, build_laser, build_view_camera
 from .settings import cpp_section
-from .workspace import Workspace, ground_height, make_workspace, start_poses
+from .workspace import (
+    Workspace,
+    ground_height,
+    make_workspace,
+    start_poses,
+)
 
 
 VehicleConfig = cpp_section(
@@ -56,12 +63,20 @@ VehicleConfig = cpp_section(
             "cells an A* search to a view expands at most; a view the vehicle's free component "
             "holds is searched again without the cap",
         ),
+        (
+            "min_altitude",
+            Optional[float],
+            None,
+            "m; the ground clearance: the lowest the vehicle's centre flies above the workspace "
+            "floor (the ground); null: its collision radius + 0.1 m",
+        ),
     ],
     choices={"blocked_path": ("reject", "plan")},
     bounds={
         "collision_radius": Bound(lo=0, lo_open=True),
         "start_clear_radius": Bound(lo=0, hi=1000),
         "path_expansions": Bound(lo=1, hi=400_000_000),
+        "min_altitude": Bound(lo=0, hi=10_000),
     },
 )
 
@@ -207,7 +222,7 @@ class World:
                 raise MissionError(
                     f"{e}: the structure (mesh.scale = {cfg.mesh.scale:g}) and its workspace "
                     f"(workspace.margin_xy = {cfg.workspace.margin_xy:g}, margin_z = "
-                    f"{cfg.workspace.margin_z:g} m) are too large for the map at map.resolution = "
+                    f"{cfg.workspace.margin_z} m) are too large for the map at map.resolution = "
                     f"{m.resolution:g} m"
                 ) from None
             c = np.round(-(mesh.bounds[0] + mesh.bounds[1]) / 2)
@@ -249,8 +264,10 @@ class World:
         c, v = self.config.camera, self.config.vehicle
         # a coarse, noise-free copy of the camera
         probe = build_camera(c, self.scene, self.config.seed, width=32, height=24, noise_k=0.0)
+        # the starts keep to the structure's height, whatever the flight envelope above it
+        ws = self.workspace
         return start_poses(
-            self.workspace,
+            dataclasses.replace(ws, nav_max=ws.structure_nav_max),
             surface=self.mesh.sample_surface(20000, seed=0),
             reach=0.75 * c.max_range,
             clearance=v.collision_radius + 1.0,

@@ -23,7 +23,11 @@ namespace nbv {
   X(double, max_incidence_deg, 85.0,                                                           \
     "largest angle between the line of sight and the surface normal (either side) at which a " \
     "sample counts as seen")                                                                   \
-  X(int, yaw_steps, 8, "yaw offsets tried each side of the yaw that centres a sample")
+  X(int, yaw_steps, 8, "yaw offsets tried each side of the yaw that centres a sample")         \
+  X(double, gimbal_min_deg, 0.0,                                                               \
+    "the camera gimbal's pitch range, deg (> 0 looks down; camera.gimbal_pitch_deg): the "     \
+    "pitch that centres a sample vertically, within it, is tried; [0, 0]: the fixed mount")    \
+  X(double, gimbal_max_deg, 0.0, "the top of that range, deg")
 
 struct ObservabilityOptions {
   NBV_OBSERVABILITY_OPTIONS(NBV_DECLARE_OPTION)
@@ -52,6 +56,9 @@ struct ObservabilityResult {
 /// free position from which a ray along +-x, +-y or +z escapes the mesh (the ground, below, is
 /// not part of it): positions sealed inside a closed structure are dropped.
 /// The camera sits at position + mount translation (its horizontal part ignored: yaw is free).
+/// With a gimbal (gimbal_min_deg < gimbal_max_deg), the camera turns by the pitch p that centres
+/// the sample vertically, clamped to the range: T_body_camera = Ry(p) mount (as
+/// gimbal_transform; the mount's translation is not turned).
 ///
 /// A sample is observable from a pose if, for some yaw (the one centring it horizontally and
 /// options.yaw_steps offsets on each side, across the frustum's half diagonal), it lies inside

@@ -36,6 +36,9 @@ class PlacementConfig:
     standoffs: tuple = (0.45, 0.7)  # view distances from a target patch, x camera.max_range
     azimuth_spread_deg: float = within(30.0, 0, 180)  # views this far either side of the normal
     elevation_margin_deg: float = within(4.0, 0, 90)  # patches kept this far inside vertical FOV
+    # also face the patches the level camera cannot face head-on (roofs, undersides) by the
+    # gimbal's pitch (camera.gimbal_pitch_deg); false: level views (docs/RESULTS.md, "gimbal")
+    gimbal: bool = False
 
     def check(self, key: str) -> None:
         if not (self.standoffs and all(0 < x <= 1 for x in self.standoffs)):
@@ -72,58 +75,80 @@ def target_patches(targets: dict, cluster_size: float) -> Patches:
 
 
 def place_views(patches: Patches, camera, placement, bounds=None) -> tuple[np.ndarray, np.ndarray]:
-    """Candidate poses (K, 4) looking at the patches, and the patch of each (K,).
+    """Candidate views looking at the patches, and the patch of each (K,): (K, 5) [x, y, z, yaw,
+    pitch] with placement.gimbal and a camera gimbal (camera.gimbal_pitch_deg other than [0, 0]),
+    else (K, 4) level views.
 
-    Per patch: from its centre out along its normal, tilted in elevation so that the patch stays
-    placement.elevation_margin_deg inside the camera's vertical field of view (the camera only
-    yaws: its pitch is its mount's), at each stand-off placement.standoffs x camera.max_range,
-    straight on and placement.azimuth_spread_deg to each side; yaw faces the patch. A patch
-    facing straight up or down (horizontal part of its normal < 0.3) is looked at from six
-    azimuths. camera: the config's camera section (vfov_deg, max_range, mount_rpy_deg).
-    bounds: (lo, hi) of the navigation space, or None; a view placed outside them is moved in
-    (into_bounds) instead of being left to fail validation: surface near the floor or the ceiling
-    of the navigation space, or near its sides, is then looked at from the nearest pose that can
-    fly and still holds it in the field of view."""
+    Per patch: from its centre out along its normal, at each stand-off placement.standoffs x
+    camera.max_range, straight on and placement.azimuth_spread_deg to each side; yaw faces the
+    patch. The level camera's views are tilted in elevation so that the patch stays
+    placement.elevation_margin_deg inside its vertical field of view; a patch it cannot face
+    head-on (a roof, an underside) is also faced by the gimbal's pitch (a roof from straight
+    above looking down, an underside from below looking up), clamped at its limits. A patch
+    facing up or down (horizontal part of its normal < 0.3) that a view does not face head-on is
+    looked at from six azimuths. camera: the config's camera section (vfov_deg, max_range,
+    mount_rpy_deg, gimbal_pitch_deg). bounds: (lo, hi) of the navigation space, or None; a view
+    placed outside them is moved in (into_bounds) instead of being left to fail validation:
+    surface near the floor or the ceiling of the navigation space, or near its sides, is then
+    looked at from the nearest pose that can fly and still holds it in the field of view."""
+    lo_p, hi_p = (math.radians(x) for x in camera.gimbal_pitch_deg)
+    gimbal = placement.gimbal and (lo_p, hi_p) != (0.0, 0.0)
     if len(patches.centers) == 0:
-        return np.zeros((0, 4)), np.zeros(0, int)
+        return np.zeros((0, 5 if gimbal else 4)), np.zeros(0, int)
     half = math.radians(camera.vfov_deg / 2 - placement.elevation_margin_deg)
-    axis_el = -math.radians(camera.mount_rpy_deg[1])  # optical axis elevation (pitch > 0: down)
+    mount = math.radians(camera.mount_rpy_deg[1])  # the mount's pitch (> 0: down)
     spread = math.radians(placement.azimuth_spread_deg)
-    rows, owner = [], []
+    rows, owner, bands = [], [], []
     for i, (c, n) in enumerate(zip(patches.centers, patches.normals)):
         h = math.hypot(n[0], n[1])
-        el = math.atan2(n[2], h)  # elevation of the direction patch -> camera
-        # the camera looks back along -u: its elevation -el must be within the FOV band
-        el = -min(max(-el, axis_el - half), axis_el + half)
-        if h > 0.3:
-            az0 = math.atan2(n[1], n[0])
-            azimuths = [az0] if spread == 0 else [az0, az0 - spread, az0 + spread]
-        else:
-            azimuths = [k * math.pi / 3 for k in range(6)]
-        for az in azimuths:
-            u = np.array([math.cos(el) * math.cos(az), math.cos(el) * math.sin(az), math.sin(el)])
-            yaw = math.atan2(-u[1], -u[0]) - math.radians(camera.mount_rpy_deg[2])
-            for s in placement.standoffs:
-                p = c + s * camera.max_range * u
-                rows.append((p[0], p[1], p[2], math.remainder(yaw, 2 * math.pi)))
-                owner.append(i)
+        el_n = math.atan2(n[2], h)  # elevation of the normal: the direction patch -> camera
+        pitches = [0.0]
+        # a patch the level camera cannot face head-on (a roof, an underside): also faced by the
+        # gimbal's pitch, clamped at its limits
+        if gimbal and abs(-el_n + mount) > half:
+            pitches.append(min(max(el_n - mount, lo_p), hi_p))
+        for pitch in pitches:
+            axis_el = -(mount + pitch)  # the optical axis' elevation
+            # the camera looks back along -u: its elevation -el must be within the FOV band
+            el = -min(max(-el_n, axis_el - half), axis_el + half)
+            head_on = abs(el - el_n) < 1e-9
+            if h > 0.3 or (head_on and h > 1e-9):
+                az0 = math.atan2(n[1], n[0])
+                azimuths = [az0] if spread == 0 else [az0, az0 - spread, az0 + spread]
+            elif head_on:  # straight up or down: one view, any yaw
+                azimuths = [0.0]
+            else:
+                azimuths = [k * math.pi / 3 for k in range(6)]
+            for az in azimuths:
+                u = np.array(
+                    [math.cos(el) * math.cos(az), math.cos(el) * math.sin(az), math.sin(el)]
+                )
+                yaw = az + math.pi - math.radians(camera.mount_rpy_deg[2])
+                if abs(u[0]) + abs(u[1]) > 1e-12:
+                    yaw = math.atan2(-u[1], -u[0]) - math.radians(camera.mount_rpy_deg[2])
+                for s in placement.standoffs:
+                    p = c + s * camera.max_range * u
+                    rows.append((p[0], p[1], p[2], math.remainder(yaw, 2 * math.pi), pitch))
+                    owner.append(i)
+                    bands.append((axis_el - half, axis_el + half))
     poses, owner = np.asarray(rows, float), np.asarray(owner, int)
     if bounds is not None:
         poses[:, :3] = into_bounds(
             poses[:, :3],
             patches.centers[owner],
             bounds,
-            (axis_el - half, axis_el + half),
+            np.asarray(bands, float),
             (min(placement.standoffs) * camera.max_range / 2, camera.max_range),
         )
-    return poses, owner
+    return (poses if gimbal else poses[:, :4]), owner
 
 
 def into_bounds(positions, aims, bounds, band, distances) -> np.ndarray:
     """Views (K, 3) looking at `aims` (K, 3), moved into the box bounds = (lo, hi) where they lie
     outside it: to the box's floor or ceiling, then horizontally away from or towards the aim,
     along the same azimuth, just far enough that the aim stays within the camera's vertical band
-    (lowest, highest elevation in view, radians), and no farther than the box's sides. A view
+    (lowest, highest elevation in view, radians: a pair, or (K, 2) one per view), and no
+    farther than the box's sides. A view
     that cannot be moved in (out of the band, or its distance to the aim outside distances =
     (nearest, farthest)) is left as it was.
     Views inside the box, and views straight above or below their aim, are not changed."""
@@ -138,20 +163,36 @@ def into_bounds(positions, aims, bounds, band, distances) -> np.ndarray:
     a, u, h = aims[fix], d[fix] / h[fix, None], h[fix]
     z = np.clip(p[fix, 2], lo[2], hi[2])
     rise = z - a[:, 2]  # > 0: the camera looks down at its aim
-    need = np.zeros(len(fix))
-    down, up = -band[0], band[1]  # the largest depression and elevation in view
-    below = rise > 0
-    need[below] = rise[below] / np.tan(down) if down > 1e-6 else np.inf
-    need[~below] = -rise[~below] / np.tan(up) if up > 1e-6 else np.inf
+    band = np.broadcast_to(np.asarray(band, float), (len(p), 2))[fix]
+    # the line of sight to the aim, at elevation atan2(-rise, h), must lie within the band:
+    # a horizontal distance between need (nearest) and most (farthest)
+    need, most = _distances_in_band(rise, band)
     # the farthest the view may go along its azimuth and stay between the box's sides
     with np.errstate(divide="ignore", invalid="ignore"):
         reach = np.where(
             u > 0, (hi[:2] - a[:, :2]) / u, np.where(u < 0, (lo[:2] - a[:, :2]) / u, np.inf)
         )
     reach = reach.min(axis=1)
-    h_new = np.minimum(np.maximum(h, need), reach)
+    h_new = np.minimum(np.maximum(h, need), np.minimum(reach, most))
     dist = np.hypot(h_new, rise)
-    ok = (h_new >= need) & (dist >= distances[0]) & (dist <= distances[1])
+    ok = (h_new >= need) & (h_new <= most)
+    ok &= (dist >= distances[0]) & (dist <= distances[1])
     q = np.column_stack([a[:, :2] + h_new[:, None] * u, z])
     p[fix[ok]] = q[ok]
     return p
+
+
+def _distances_in_band(rise, band):
+    """(nearest, farthest) horizontal distances (K,) from which an aim `rise` (K,) below the
+    camera (< 0: above it) is seen at an elevation within band (K, 2) = (lowest, highest),
+    radians within [-pi/2, pi/2]."""
+    depth = np.abs(rise)
+    # seen from above: the line of sight's depression, atan(rise / h), in [-hi, -lo]; from
+    # below its elevation, atan(-rise / h), in [lo, hi]
+    steep = np.where(rise > 0, -band[:, 0], band[:, 1])  # the steepest sight line in view
+    flat = np.where(rise > 0, -band[:, 1], band[:, 0])  # the flattest
+    with np.errstate(divide="ignore", invalid="ignore"):
+        need = np.where(steep >= np.pi / 2 - 1e-9, 0.0, depth / np.tan(steep))
+        most = np.where(flat > 1e-9, depth / np.tan(flat), np.inf)
+    need = np.where(steep <= 1e-9, np.inf, need)  # nothing in view on that side
+    return need, most
