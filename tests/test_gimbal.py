@@ -428,3 +428,26 @@ def test_the_lattice_samples_the_gimbals_pitches_and_the_paper_stays_level():
     assert np.allclose(np.unique(np.round(np.degrees(pitched.poses[:, 4]))), [-30, 0, 30, 60, 90])
     # every position of the level lattice, at each pitch
     assert np.allclose(pitched.poses[::5, :4], paper.poses)
+
+
+def test_the_flight_envelope_reaches_the_far_standoff_above_the_top_and_a_ground_clearance():
+    """Issue 33, part 2: workspace.margin_z null lets the vehicle fly the camera's far stand-off
+    above the structure's top; the profile's sweeps and the starts keep to the structure's
+    height (the same starts as without the envelope); vehicle.min_altitude raises the floor."""
+    from nbvkit.config import load_config
+    from nbvkit.world import World
+
+    flat = World(load_config(overrides=["scenario=surface"]))
+    env = World(load_config(overrides=["scenario=surface_gimbal"]))
+    top = env.mesh.bounds[1][2]
+    far = max(env.config.placement.standoffs) * env.config.camera.max_range
+    assert env.workspace.nav_max[2] == pytest.approx(top + far)
+    assert env.workspace.nav_max[2] > flat.workspace.nav_max[2]
+    assert env.workspace.structure_nav_max[2] == pytest.approx(flat.workspace.nav_max[2])
+    assert np.allclose(env.starts, flat.starts)
+    low = World(load_config(overrides=["scenario=surface_gimbal", "vehicle.min_altitude=3"]))
+    assert low.workspace.nav_min[2] == pytest.approx(low.workspace.bounds_min[2] + 3.0)
+    with pytest.raises(ValueError, match="'vehicle.min_altitude' must be >= 0"):
+        load_config(overrides=["vehicle.min_altitude=-1"])
+    with pytest.raises(ValueError, match="vehicle.min_altitude"):
+        load_config(overrides=["vehicle.min_altitude=.nan"])

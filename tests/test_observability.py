@@ -197,3 +197,34 @@ def test_python_defaults_equal_the_cpp_defaults():
     o, v = Config().observability, Config().vehicle
     assert o.options() == cpp  # the section's keys come from the bound options
     assert v.collision_radius == cpp.collision_radius  # the radius comes from the vehicle
+
+
+def test_a_roof_seen_only_by_a_pitched_camera_is_observable_with_the_gimbal():
+    """Issue 33, part 4: a 4 x 4 m plate whose centre the vehicle can only be right above (the
+    navigation box ends 1 m beyond its edges, 1.5-3 m over it) is outside a level camera's
+    45 deg vertical field of view, and inside it once the gimbal pitches down."""
+    from conftest import box_mesh
+
+    plate = box_mesh((-2, -2, 4.9), (2, 2, 5.0))
+    scene = nbvkit.RaycastScene(plate)
+    pts = np.array([[x, y, 5.0] for x in np.linspace(-1, 1, 5) for y in np.linspace(-1, 1, 5)])
+    normals = np.tile([0.0, 0.0, 1.0], (len(pts), 1))
+    camera = nbvkit.DepthCamera(scene, width=16, height=12, noise_k=0.0)
+    lo, hi = np.array([-2.5, -2.5, 6.5]), np.array([2.5, 2.5, 8.0])
+
+    def observable(g):
+        opts = _core.ObservabilityOptions(
+            pose_spacing=0.5, gimbal_min_deg=g[0], gimbal_max_deg=g[1]
+        )
+        r = _core.observable_samples(
+            scene, pts, normals, camera, lo, hi, options=opts, collision_radius=0.8
+        )
+        return np.asarray(r.observable, bool)
+
+    level = observable((0.0, 0.0))
+    pitched = observable((-30.0, 90.0))
+    assert not level[12]  # the centre: straight below every reachable position's reach
+    assert pitched.all()
+    assert np.all(pitched >= level)  # the gimbal only adds
+    with pytest.raises(ValueError, match="gimbal_min_deg"):
+        _core.ObservabilityOptions(gimbal_min_deg=10, gimbal_max_deg=5)
