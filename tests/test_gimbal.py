@@ -451,3 +451,52 @@ def test_the_flight_envelope_reaches_the_far_standoff_above_the_top_and_a_ground
         load_config(overrides=["vehicle.min_altitude=-1"])
     with pytest.raises(ValueError, match="vehicle.min_altitude"):
         load_config(overrides=["vehicle.min_altitude=.nan"])
+
+
+QUICK_RUN = [
+    "map.resolution=0.4",
+    "progress=false",
+    "evaluation.gt_density=50",
+    "evaluation.coverage_every=0",
+    "profiling.sweep_step=0.25",
+    "symmetry.mode=none",
+    "report.enabled=false",
+    "observability.enabled=false",
+    "max_iterations=40",
+]
+
+
+def test_a_short_mission_with_the_gimbal_looks_down_at_a_flat_roof():
+    """surface_gimbal on a low wide box (a flat roof 1.5 m up): a view pitched down is flown,
+    within the gimbal's limits, and what a camera can see of the box is covered (its floor, a
+    third of its area, cannot be)."""
+    from conftest import box_mesh
+    from nbvkit.config import load_config
+    from nbvkit.mission import Mission
+
+    mesh = box_mesh((-4, -3, 0), (4, 3, 1.5))
+    m = Mission(load_config(overrides=["scenario=surface_gimbal", *QUICK_RUN]), mesh=mesh)
+    s = m.run()
+    pitch = np.degrees([r.pitch for r in m.records])
+    assert np.all((pitch >= -30 - 1e-9) & (pitch <= 90 + 1e-9))
+    assert np.any(pitch > 20)  # a view looks down at the roof
+    assert s["coverage"]["0.1"] > 0.55
+
+
+def test_the_model_planner_plans_from_the_mesh_and_flies_with_the_real_camera():
+    """--planner model on a box: the map knows the structure before the first view (no
+    profile), the tours plan over all of it, the real camera covers what it can see (the box's
+    floor, a quarter of its area, it cannot)."""
+    from conftest import box_mesh
+    from nbvkit.config import load_config
+    from nbvkit.mission import Mission
+
+    mesh = box_mesh((-3, -2, 0), (3, 2, 2.5))
+    m = Mission(load_config(overrides=["scenario=model", *QUICK_RUN]), mesh=mesh)
+    s = m.run()
+    assert s["profiling"] is False and s["generators"] == ["model"]
+    assert {r.source for r in m.records} == {"model"}
+    assert s["termination"] in ("coverage_complete", "no_reachable_view")
+    assert s["coverage"]["0.1"] > 0.65
+    assert s["tours"] and s["tours"][0]["kept"] > 0
+    assert s["tours"][0]["targets"] > 200  # the whole model is a target from the first plan

@@ -108,6 +108,18 @@ SCENARIOS: dict[str, Scenario] = {
         "from above and undersides from below by the gimbal's pitch",
         {**_SURFACE, "workspace.margin_z": None, "placement.gimbal": True},
     ),
+    "model": Scenario(
+        "plan from a known model (issue 33): the structure's mesh written into the map as seen "
+        "from the navigation space, then the recommended planner's coverage tours over every "
+        "surface cell, flown with the real camera; the reference for how close an online "
+        "planner comes to a plan made with full knowledge",
+        {
+            **_SURFACE,
+            "profiling.enabled": False,
+            "symmetry.mode": "none",
+            "planner.generators": ["model"],
+        },
+    ),
     "surface_nbv": Scenario(
         "greedy next-best-view on the surface utility: views aimed at the surface still to "
         "observe and the local lattice, the best gain * exp(-travel_lambda * path) flown each "

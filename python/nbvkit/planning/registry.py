@@ -9,6 +9,7 @@ from __future__ import annotations
 
 from .generators.frontier import FrontierGenerator
 from .generators.lattice import LatticeGenerator
+from .generators.model import ModelPlan
 from .generators.tour import CoverageTour
 from .terminations.budget import Budget
 from .terminations.entropy import EntropyChange
@@ -18,6 +19,7 @@ GENERATORS = {
     "lattice": LatticeGenerator,  # the paper's CGVS / AGVS lattice around the vehicle
     "frontier": FrontierGenerator,  # views aimed at the nearest surface still to observe
     "tour": CoverageTour,  # set-cover tours over the surface still to observe
+    "model": ModelPlan,  # the same tours over a known model of the structure, planned up front
 }
 
 TERMINATIONS = {
