@@ -21,7 +21,7 @@ import numpy as np
 
 from ... import _core
 from ...sensors import build_camera
-from ...settings import positive, within
+from ...settings import nonneg, positive, within
 from .tour import CoverageTour, TourConfig
 
 
@@ -31,6 +31,9 @@ class ModelConfig:
 
     pose_spacing: float = positive(4.0, 100)  # m between the positions the model is seen from
     frame_rays: int = within(48, 4, 1024)  # rays across each coarse 90 x 90 deg frame (square)
+    # the tours' thresholds, as tour.min_gain and tour.rate
+    min_gain: float = nonneg(TourConfig.min_gain)  # m^2 of new surface a planned view must add
+    rate: float = nonneg(TourConfig.rate)  # m^2 per metre of tour a planned view must pay for
 
 
 class ModelPlan:
@@ -42,7 +45,8 @@ class ModelPlan:
         self.settings = settings
         self.ctx = context
         # the surface planner's tours, on the model: no exploration (nothing is unknown)
-        self.tour = CoverageTour(TourConfig(explore=False), context)
+        tour = TourConfig(min_gain=settings.min_gain, rate=settings.rate, explore=False)
+        self.tour = CoverageTour(tour, context)
         self.known = False
         self.stop_reason = None
 
