@@ -6,42 +6,7 @@ from pathlib import Path
 
 import numpy as np
 
-
-def _plt():
-    """What the figure functions use of pyplot (subplots, close, get_cmap, Line2D), without
-    pyplot's global figure registry and backend: each figure is a bare
-    ``matplotlib.figure.Figure`` saved by its own Agg canvas, so two missions writing their
-    figures in two threads of one process share no state (pyplot is not thread-safe), and
-    nothing depends on the session's backend."""
-    return _Figures
-
-
-class _Figures:
-    _FIGURE_KEYS = ("figsize", "dpi", "constrained_layout", "layout", "facecolor")
-
-    @staticmethod
-    def subplots(*args, **kw):
-        from matplotlib.figure import Figure
-
-        fig = Figure(**{k: kw.pop(k) for k in _Figures._FIGURE_KEYS if k in kw})
-        return fig, fig.subplots(*args, **kw)
-
-    @staticmethod
-    def close(fig) -> None:
-        """Nothing to do: the figure is not registered anywhere; dropping it frees it."""
-
-    @staticmethod
-    def get_cmap(name):
-        import matplotlib
-
-        return matplotlib.colormaps[name]
-
-    @staticmethod
-    def Line2D(*args, **kw):  # noqa: N802 - pyplot's name
-        from matplotlib.lines import Line2D
-
-        return Line2D(*args, **kw)
-
+from .figures import _plt
 
 STAGE_COLORS = {"profile": "tab:orange", "nbv": "tab:blue"}
 
@@ -138,7 +103,7 @@ def plot_mission(mission, out_dir: Path) -> list[Path]:
 
     world = mission.world
     if getattr(world, "symmetry_result", None) is not None:
-        from .symmetry import plot_symmetry
+        from .symmetry_figures import plot_symmetry
 
         paths.append(
             plot_symmetry(

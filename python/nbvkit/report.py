@@ -428,7 +428,7 @@ def _project(pts, az, el):
 def plot_coverage(points, classes, path, max_points: int = 30000) -> Path:
     """``path`` (PNG): the surface points coloured covered / observable but missed /
     unobservable, seen orthographically from four viewpoints (nearest points drawn last)."""
-    from .plots import _plt
+    from .figures import _plt
 
     plt = _plt()
     path = Path(path)
