@@ -279,7 +279,7 @@ def plot_compare(root, df, out_dir) -> list[Path]:
     """coverage_vs_distance.png of a planner comparison: coverage at 0.05 m against distance
     flown, every run as a line (from its iterations.csv) ending in a dot at its final
     evaluation, one colour per planner, and the paper's Scenario 5 (Table 2 mean) as a star."""
-    from .experiments import PAPER_SCENARIO5
+    from .experiment_tables import PAPER_SCENARIO5
 
     plt = _plt()
     root, out_dir = Path(root), Path(out_dir)
