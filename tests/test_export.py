@@ -506,7 +506,7 @@ def test_the_report_shows_the_flight_time_and_the_sorties(run_dir, tmp_path):
 
 
 def test_a_blocked_climb_below_the_start_moves_the_launch_point(run_dir, monkeypatch):
-    from nbvkit.export import plan
+    from nbvkit import flight as plan  # the flight-time model, the launch point, the sorties
 
     fl = read_run(run_dir)
     occ = plan.load_map(fl)

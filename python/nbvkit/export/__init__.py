@@ -15,16 +15,8 @@ from pathlib import Path
 import numpy as np
 
 from .georef import ALTITUDE_REFS, GeoFrame  # noqa: F401
-from .plan import (
-    FRAME,
-    VIEW,
-    FlightModel,
-    ReturnPaths,
-    SortiePlanner,
-    find_launch,
-    load_map,
-    read_run,
-)
+from ..flight import FRAME, VIEW, FlightModel, estimate, sortie_planner
+from .plan import read_run
 from . import writers
 
 __all__ = ["FORMATS", "export_mission", "estimate_flight", "GeoFrame", "FlightModel"]
@@ -71,32 +63,16 @@ def _budget(flight_time_min, reserve_pct):
 
 
 def _planner(run_dir, model: FlightModel, need_all_returns: bool, occ_map=None):
+    """The flight of a run folder and its SortiePlanner (nbvkit.flight.sortie_planner)."""
     fl = read_run(run_dir)
-    occ = load_map(fl) if occ_map is None else occ_map
-    find_launch(fl, occ, model)
-    # A* ways back from the captures a sortie may end at (the profile's other points go back
-    # along the profile to one); without a budget only the last row's way back matters
-    work = SortiePlanner.work_rows(fl)
-    caps = [i for i in work if fl.capture[i]]
-    targets = [*caps, work[-1]] if need_all_returns else work[-1:]
-    returns = ReturnPaths(fl, model, occ, targets)
-    return fl, SortiePlanner(fl, model, returns)
+    return fl, sortie_planner(fl, model, need_all_returns, occ_map)
 
 
 def estimate_flight(run_dir, speed=5.0, climb_rate=2.0, hover_s=2.0, occ_map=None) -> dict:
     """The whole mission's estimated flight (one battery, no limit) of a run folder: time_s,
-    distance_m, views, frames (see nbvkit.export.plan for the model). occ_map: the run's final
+    distance_m, views, frames (see nbvkit.flight for the model). occ_map: the run's final
     OccupancyMap when at hand (default: read from its map.ot)."""
-    model = FlightModel(speed, climb_rate, hover_s)
-    fl, sp = _planner(run_dir, model, need_all_returns=False, occ_map=occ_map)
-    s = sp.whole()
-    return {
-        "time_s": s.time_s,
-        "distance_m": s.distance_m,
-        "views": s.views,
-        "frames": s.frames,
-        "model": {"speed": speed, "climb_rate": climb_rate, "hover_s": hover_s},
-    }
+    return estimate(read_run(run_dir), FlightModel(speed, climb_rate, hover_s), occ_map)
 
 
 def _geo(fl, sortie, frame: GeoFrame, speed, hover_s, numbers, name) -> writers.GeoWaypoints:
