@@ -111,6 +111,8 @@ def run_flight(run_dir, rows, workspace: dict, config, map_path=None, arrays=Non
     ``world.state.flight`` as mappings), its workspace (summary.json's "workspace": the ground is
     its floor) and its Config; map_path: its map.ot or None; arrays: flight_arrays(rows) when
     already read."""
+    if not len(rows):
+        raise ValueError("the run flew no point")
     xyz, yaw, pitch = flight_arrays(rows) if arrays is None else arrays
     if "bounds_min" not in workspace:
         raise ValueError("the run's workspace has no bounds")

@@ -280,7 +280,7 @@ def export_mission(
     except BaseException:
         shutil.rmtree(tmp, ignore_errors=True)
         raise
-    from ..report import update_flight_section
+    from ..run_report import update_flight_section
 
     paths = [np.array([fl.home, *[w.xyz for w in s.waypoints], fl.home]) for s in sorties]
     summary["report_updated"] = update_flight_section(run, summary, paths)
