@@ -18,6 +18,7 @@ from .georef import ALTITUDE_REFS, GeoFrame  # noqa: F401
 from ..flight import FRAME, VIEW, FlightModel, estimate, sortie_planner
 from .plan import read_run
 from . import writers
+from .wpml import write_wpml_kmz
 
 __all__ = ["FORMATS", "export_mission", "estimate_flight", "GeoFrame", "FlightModel"]
 
@@ -177,33 +178,64 @@ def export_mission(
 
     fl, sp = _planner(run, model, need_all_returns=usable is not None)
     whole = sp.whole()
-    unreachable = []
     if usable is None:
-        sorties = [whole]
+        sorties, unreachable = [whole], []
     else:
-        sorties, unreachable = sp.split(usable)
-        n_views = int((np.asarray(fl.capture) == VIEW).sum())
-        flown = sum(s.views for s in sorties)
-        if not sorties or (n_views and flown == 0):
-            need = min((u["needed_s"] for u in unreachable if u["capture"] == VIEW), default=None)
-            raise ValueError(
-                f"flight time {flight_time_min:g} min ({usable / 60:.2f} min usable after the "
-                f"{reserve_pct:g}% reserve) is too short for any view"
-                + (
-                    f": the nearest view needs {need / 60:.2f} min out, hover and back"
-                    if need
-                    else ""
-                )
-            )
-    numbers, count = {}, {VIEW: 0, FRAME: 0}
-    for i, c in enumerate(fl.capture):
-        if c:
-            count[c] += 1
-            numbers[i] = count[c]
+        sorties, unreachable = _split(fl, sp, usable, flight_time_min, reserve_pct)
+    budget = None
+    if usable is not None:
+        budget = {
+            "flight_time_min": flight_time_min,
+            "reserve_pct": reserve_pct,
+            "usable_min": round(usable / 60, 3),
+        }
+    summary = _summary(run, frame, fl, model, whole, budget, sorties, unreachable, fmts)
 
-    names = ["mission"] if usable is None else [f"sortie_{s.number:02d}" for s in sorties]
-    created_ms = int(time.time() * 1000)
-    summary = {
+    # ---- write everything into a temporary folder, then move it into place
+    anchor = out.parent
+    while not anchor.exists():
+        anchor = anchor.parent
+    tmp = Path(tempfile.mkdtemp(prefix=".nbvkit-export-", dir=anchor))
+    try:
+        names = ["mission"] if usable is None else [f"sortie_{s.number:02d}" for s in sorties]
+        files = _write_formats(tmp, fmts, fl, sorties, names, frame, model, dji_drone, dji_payload)
+        if usable is not None:
+            _write_sortie_table(tmp / "sorties.csv", summary)
+            files.append("sorties.csv")
+        files.append("export.json")
+        summary["files"] = files
+        summary["out"] = str(out)
+        (tmp / "export.json").write_text(json.dumps(summary, indent=2, allow_nan=False) + "\n")
+        _move_into_place(tmp, out, files)
+    except BaseException:
+        shutil.rmtree(tmp, ignore_errors=True)
+        raise
+    from ..run_report import update_flight_section
+
+    paths = [np.array([fl.home, *[w.xyz for w in s.waypoints], fl.home]) for s in sorties]
+    summary["report_updated"] = update_flight_section(run, summary, paths)
+    return summary
+
+
+def _split(fl, sp, usable: float, flight_time_min, reserve_pct):
+    """(sorties, unreachable) of the flight within `usable` seconds each; ValueError when the
+    budget is too short for any view."""
+    sorties, unreachable = sp.split(usable)
+    n_views = int((np.asarray(fl.capture) == VIEW).sum())
+    flown = sum(s.views for s in sorties)
+    if not sorties or (n_views and flown == 0):
+        need = min((u["needed_s"] for u in unreachable if u["capture"] == VIEW), default=None)
+        raise ValueError(
+            f"flight time {flight_time_min:g} min ({usable / 60:.2f} min usable after the "
+            f"{reserve_pct:g}% reserve) is too short for any view"
+            + (f": the nearest view needs {need / 60:.2f} min out, hover and back" if need else "")
+        )
+    return sorties, unreachable
+
+
+def _summary(run, frame, fl, model, whole, budget, sorties, unreachable, fmts) -> dict:
+    """The export's summary (export.json) before its files are listed."""
+    return {
         "run": str(run),
         "origin": frame.to_dict(),
         "frames_note": (
@@ -225,66 +257,46 @@ def export_mission(
             "views": whole.views,
             "frames": whole.frames,
         },
-        "budget": None
-        if usable is None
-        else {
-            "flight_time_min": flight_time_min,
-            "reserve_pct": reserve_pct,
-            "usable_min": round(usable / 60, 3),
-        },
+        "budget": budget,
         "sorties": [s.to_dict() for s in sorties],
         "unreachable": unreachable,
         "formats": fmts,
         "files": [],
     }
 
-    # ---- write everything into a temporary folder, then move it into place
-    anchor = out.parent
-    while not anchor.exists():
-        anchor = anchor.parent
-    tmp = Path(tempfile.mkdtemp(prefix=".nbvkit-export-", dir=anchor))
-    try:
-        files = []
-        for s, name in zip(sorties, names):
-            g = _geo(fl, s, frame, model.speed, model.hover_s, numbers, name)
-            if "qgc" in fmts:
-                writers.write_qgc_plan(g, tmp / f"{name}.plan")
-                writers.write_qgc_wpl(g, tmp / f"{name}.waypoints")
-                files += [f"{name}.plan", f"{name}.waypoints"]
-            if "wpml" in fmts:
-                writers.write_wpml_kmz(g, tmp / f"{name}.kmz", dji_drone, dji_payload, created_ms)
-                files.append(f"{name}.kmz")
-            if "kml" in fmts:
-                writers.write_kml(g, tmp / f"{name}.kml")
-                files.append(f"{name}.kml")
-            if "geojson" in fmts:
-                writers.write_geojson(g, tmp / f"{name}.geojson")
-                files.append(f"{name}.geojson")
-            if "csv" in fmts:
-                writers.write_csv(g, tmp / f"{name}.csv")
-                files.append(f"{name}.csv")
-        if "colmap" in fmts:
-            (tmp / "colmap").mkdir()
-            writers.write_colmap(
-                tmp / "colmap", writers.camera_intrinsics(fl.config), camera_poses(fl)
-            )
-            files += [f"colmap/{n}" for n in ("cameras.txt", "images.txt", "points3D.txt")]
-        if usable is not None:
-            _write_sortie_table(tmp / "sorties.csv", summary)
-            files.append("sorties.csv")
-        files.append("export.json")
-        summary["files"] = files
-        summary["out"] = str(out)
-        (tmp / "export.json").write_text(json.dumps(summary, indent=2, allow_nan=False) + "\n")
-        _move_into_place(tmp, out, files)
-    except BaseException:
-        shutil.rmtree(tmp, ignore_errors=True)
-        raise
-    from ..run_report import update_flight_section
 
-    paths = [np.array([fl.home, *[w.xyz for w in s.waypoints], fl.home]) for s in sorties]
-    summary["report_updated"] = update_flight_section(run, summary, paths)
-    return summary
+def _write_formats(tmp: Path, fmts, fl, sorties, names, frame, model, drone, payload) -> list:
+    """Writes each sortie (named `names`) in each format into tmp; returns the files' names."""
+    numbers, count = {}, {VIEW: 0, FRAME: 0}  # each capture's number of its kind
+    for i, c in enumerate(fl.capture):
+        if c:
+            count[c] += 1
+            numbers[i] = count[c]
+    created_ms = int(time.time() * 1000)
+    files = []
+    for s, name in zip(sorties, names):
+        g = _geo(fl, s, frame, model.speed, model.hover_s, numbers, name)
+        if "qgc" in fmts:
+            writers.write_qgc_plan(g, tmp / f"{name}.plan")
+            writers.write_qgc_wpl(g, tmp / f"{name}.waypoints")
+            files += [f"{name}.plan", f"{name}.waypoints"]
+        if "wpml" in fmts:
+            write_wpml_kmz(g, tmp / f"{name}.kmz", drone, payload, created_ms)
+            files.append(f"{name}.kmz")
+        if "kml" in fmts:
+            writers.write_kml(g, tmp / f"{name}.kml")
+            files.append(f"{name}.kml")
+        if "geojson" in fmts:
+            writers.write_geojson(g, tmp / f"{name}.geojson")
+            files.append(f"{name}.geojson")
+        if "csv" in fmts:
+            writers.write_csv(g, tmp / f"{name}.csv")
+            files.append(f"{name}.csv")
+    if "colmap" in fmts:
+        (tmp / "colmap").mkdir()
+        writers.write_colmap(tmp / "colmap", writers.camera_intrinsics(fl.config), camera_poses(fl))
+        files += [f"colmap/{n}" for n in ("cameras.txt", "images.txt", "points3D.txt")]
+    return files
 
 
 def _write_sortie_table(path: Path, summary: dict) -> None:
