@@ -16,6 +16,8 @@ import numpy as np
 
 from .georef import ALTITUDE_REFS, GeoFrame  # noqa: F401
 from ..flight import FRAME, VIEW, FlightModel, estimate, sortie_planner
+from ..run_report import update_flight_section
+from ..runfolder import require_complete_run
 from .plan import read_run
 from . import writers
 from .wpml import write_wpml_kmz
@@ -169,8 +171,6 @@ def export_mission(
     frame = GeoFrame(*(float(v) for v in origin), float(heading_deg), altitude_ref)
     model = FlightModel(float(speed), float(climb_rate), float(hover_s))
     usable = _budget(flight_time_min, float(reserve_pct))
-    from ..runfolder import require_complete_run
-
     run = require_complete_run(Path(run_dir).expanduser())  # whole, not half-written
     out = Path(out_dir).expanduser() if out_dir is not None else run / "export"
     if out.exists() and not out.is_dir():
@@ -184,22 +184,29 @@ def export_mission(
         sorties, unreachable = _split(fl, sp, usable, flight_time_min, reserve_pct)
     budget = None
     if usable is not None:
-        budget = {
-            "flight_time_min": flight_time_min,
-            "reserve_pct": reserve_pct,
-            "usable_min": round(usable / 60, 3),
-        }
+        budget = {"flight_time_min": flight_time_min, "reserve_pct": reserve_pct}
+        budget["usable_min"] = round(usable / 60, 3)
     summary = _summary(run, frame, fl, model, whole, budget, sorties, unreachable, fmts)
 
-    # ---- write everything into a temporary folder, then move it into place
+    _write_into(
+        out, summary, fl, sorties, frame, model, (dji_drone, dji_payload), usable is not None
+    )
+    paths = [np.array([fl.home, *[w.xyz for w in s.waypoints], fl.home]) for s in sorties]
+    summary["report_updated"] = update_flight_section(run, summary, paths)
+    return summary
+
+
+def _write_into(out: Path, summary: dict, fl, sorties, frame, model, dji, budget: bool) -> None:
+    """Writes the export (every format, sorties.csv with a budget, export.json) into a temporary
+    folder beside `out`, then moves it into place; on an error nothing is left half-written."""
     anchor = out.parent
     while not anchor.exists():
         anchor = anchor.parent
     tmp = Path(tempfile.mkdtemp(prefix=".nbvkit-export-", dir=anchor))
     try:
-        names = ["mission"] if usable is None else [f"sortie_{s.number:02d}" for s in sorties]
-        files = _write_formats(tmp, fmts, fl, sorties, names, frame, model, dji_drone, dji_payload)
-        if usable is not None:
+        names = [f"sortie_{s.number:02d}" for s in sorties] if budget else ["mission"]
+        files = _write_formats(tmp, summary["formats"], fl, sorties, names, frame, model, *dji)
+        if budget:
             _write_sortie_table(tmp / "sorties.csv", summary)
             files.append("sorties.csv")
         files.append("export.json")
@@ -210,11 +217,6 @@ def export_mission(
     except BaseException:
         shutil.rmtree(tmp, ignore_errors=True)
         raise
-    from ..run_report import update_flight_section
-
-    paths = [np.array([fl.home, *[w.xyz for w in s.waypoints], fl.home]) for s in sorties]
-    summary["report_updated"] = update_flight_section(run, summary, paths)
-    return summary
 
 
 def _split(fl, sp, usable: float, flight_time_min, reserve_pct):
