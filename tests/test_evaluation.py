@@ -308,6 +308,7 @@ def test_result_keys_and_json(cube, cube_face_cloud):
 def test_default_density_is_documented():
     assert DEFAULT_GT_DENSITY == 1000
     assert "1000" in evaluate.__doc__
+    assert "--stability" in nbvkit.evaluation.__doc__  # the measurement that chose it
     config = pytest.importorskip("nbvkit.config")
     if hasattr(config, "EvaluationConfig"):
         d = config.EvaluationConfig().gt_density

@@ -97,6 +97,18 @@ def test_a_run_writes_mesh_figures_and_report(tiny_run):
     assert list((tiny_run / "cache").glob("observable-*.npz"))
 
 
+def test_the_report_shows_the_flight_time_of_the_finished_folder(tiny_run):
+    """finish_run estimates the flight from the mission in memory (the folder has no
+    summary.json yet): the same section as the finished folder's estimate gives."""
+    from nbvkit.export import estimate_flight
+    from nbvkit.report import FLIGHT_BEGIN, FLIGHT_END, flight_section
+
+    text = (tiny_run / "report.html").read_text()
+    section = text[text.index(FLIGHT_BEGIN) : text.index(FLIGHT_END) + len(FLIGHT_END)]
+    assert "estimated flight time (min)" in section
+    assert section == flight_section(estimate_flight(tiny_run))
+
+
 def test_an_empty_cloud_writes_everything_but_the_mesh(tmp_path, capsys):
     from nbvkit.cli import main
 

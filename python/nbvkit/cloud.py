@@ -309,6 +309,28 @@ _PCD_KINDS = {"F": "f", "I": "i", "U": "u"}
 
 def _read_pcd(data: bytes) -> np.ndarray:
     lines, body = _split_header(data, b"DATA", "PCD")
+    h = _pcd_header(lines)
+    fields, sizes, types, counts, n = _pcd_layout(h)
+    dts = []
+    for f, s, t in zip(fields, sizes, types):
+        if t not in _PCD_KINDS or s not in (1, 2, 4, 8) or (t == "F" and s not in (4, 8)):
+            raise _FormatError(f"unsupported PCD field '{f}': TYPE {t} SIZE {s}")
+        dts.append("<" + _PCD_KINDS[t] + str(s))
+    mode = h["DATA"][0].lower() if h["DATA"] else ""
+    cols = [fields.index(a) for a in "xyz"]
+    if n == 0:
+        return np.zeros((0, 3))
+    if mode == "ascii":
+        return _pcd_ascii(data[body:], n, counts, cols)
+    if mode == "binary":
+        return _pcd_binary(data, body, n, dts, counts, cols)
+    if mode == "binary_compressed":
+        return _pcd_compressed(data, body, n, dts, sizes, counts, cols)
+    raise _FormatError(f"unknown PCD DATA type '{' '.join(h['DATA'])}'")
+
+
+def _pcd_header(lines) -> dict:
+    """A PCD header's lines as {KEY: [values]}; _FormatError without FIELDS, SIZE, TYPE, DATA."""
     h = {}
     for raw in lines:
         s = raw.split("#", 1)[0].strip()
@@ -319,6 +341,11 @@ def _read_pcd(data: bytes) -> np.ndarray:
     for key in ("FIELDS", "SIZE", "TYPE", "DATA"):
         if key not in h:
             raise _FormatError(f"the PCD header has no {key} line")
+    return h
+
+
+def _pcd_layout(h: dict):
+    """fields, sizes, types, counts (per field) and the number of points of a PCD header."""
     fields, sizes, types = h["FIELDS"], h["SIZE"], h["TYPE"]
     counts = h.get("COUNT", ["1"] * len(fields))
     if not (len(fields) == len(sizes) == len(types) == len(counts)):
@@ -335,60 +362,57 @@ def _read_pcd(data: bytes) -> np.ndarray:
     for axis in "xyz":
         if axis not in fields:
             raise _FormatError(f"the PCD file has no '{axis}' field")
-    dts = []
-    for f, s, t in zip(fields, sizes, types):
-        if t not in _PCD_KINDS or s not in (1, 2, 4, 8) or (t == "F" and s not in (4, 8)):
-            raise _FormatError(f"unsupported PCD field '{f}': TYPE {t} SIZE {s}")
-        dts.append("<" + _PCD_KINDS[t] + str(s))
-    mode = h["DATA"][0].lower() if h["DATA"] else ""
-    cols = [fields.index(a) for a in "xyz"]
-    if n == 0:
-        return np.zeros((0, 3))
-    if mode == "ascii":
-        text = data[body:].decode("ascii", errors="replace").split()
-        per = sum(counts)
-        if len(text) < n * per:
-            raise _FormatError(f"truncated: expected {n} points of {per} values")
-        try:
-            vals = np.array(text[: n * per], dtype=np.float64).reshape(n, per)
-        except ValueError:
-            raise _FormatError("non-numeric value in the point data") from None
-        starts = np.concatenate([[0], np.cumsum(counts)[:-1]])
-        return vals[:, [starts[c] for c in cols]]
-    if mode == "binary":
-        dtype = np.dtype(
-            [
-                (f"f{i}", dt, (c,)) if c > 1 else (f"f{i}", dt)
-                for i, (dt, c) in enumerate(zip(dts, counts))
-            ]
-        )
-        if body + n * dtype.itemsize > len(data):
-            raise _FormatError(f"truncated: {n} points of {dtype.itemsize} bytes do not fit")
-        rec = np.frombuffer(data, dtype=dtype, count=n, offset=body)
-        return np.stack([_first(rec[f"f{c}"]).astype(np.float64) for c in cols], axis=1)
-    if mode == "binary_compressed":
-        if body + 8 > len(data):
-            raise _FormatError("truncated: no compressed block sizes")
-        csize, usize = (int(v) for v in np.frombuffer(data, "<u4", 2, body))
-        if body + 8 + csize > len(data):
-            raise _FormatError("truncated compressed data")
-        try:
-            raw = _core._lzf_decompress(data[body + 8 : body + 8 + csize], usize)
-        except ValueError as e:
-            raise _FormatError(str(e)) from None
-        # Fields are stored one after another (all points' x, then all y, ...).
-        out, off = [], 0
-        per_field = [n * s * c for s, c in zip(sizes, counts)]
-        if sum(per_field) > usize:
-            raise _FormatError("compressed block smaller than the header's points")
-        for i, (dt, c) in enumerate(zip(dts, counts)):
-            if i in cols:
-                arr = np.frombuffer(raw, dt, n * c, off).reshape(n, c)[:, 0]
-                out.append((cols.index(i), arr.astype(np.float64)))
-            off += per_field[i]
-        out.sort(key=lambda t: t[0])
-        return np.stack([a for _, a in out], axis=1)
-    raise _FormatError(f"unknown PCD DATA type '{' '.join(h['DATA'])}'")
+    return fields, sizes, types, counts, n
+
+
+def _pcd_ascii(body: bytes, n: int, counts, cols) -> np.ndarray:
+    text = body.decode("ascii", errors="replace").split()
+    per = sum(counts)
+    if len(text) < n * per:
+        raise _FormatError(f"truncated: expected {n} points of {per} values")
+    try:
+        vals = np.array(text[: n * per], dtype=np.float64).reshape(n, per)
+    except ValueError:
+        raise _FormatError("non-numeric value in the point data") from None
+    starts = np.concatenate([[0], np.cumsum(counts)[:-1]])
+    return vals[:, [starts[c] for c in cols]]
+
+
+def _pcd_binary(data: bytes, body: int, n: int, dts, counts, cols) -> np.ndarray:
+    dtype = np.dtype(
+        [
+            (f"f{i}", dt, (c,)) if c > 1 else (f"f{i}", dt)
+            for i, (dt, c) in enumerate(zip(dts, counts))
+        ]
+    )
+    if body + n * dtype.itemsize > len(data):
+        raise _FormatError(f"truncated: {n} points of {dtype.itemsize} bytes do not fit")
+    rec = np.frombuffer(data, dtype=dtype, count=n, offset=body)
+    return np.stack([_first(rec[f"f{c}"]).astype(np.float64) for c in cols], axis=1)
+
+
+def _pcd_compressed(data: bytes, body: int, n: int, dts, sizes, counts, cols) -> np.ndarray:
+    if body + 8 > len(data):
+        raise _FormatError("truncated: no compressed block sizes")
+    csize, usize = (int(v) for v in np.frombuffer(data, "<u4", 2, body))
+    if body + 8 + csize > len(data):
+        raise _FormatError("truncated compressed data")
+    try:
+        raw = _core._lzf_decompress(data[body + 8 : body + 8 + csize], usize)
+    except ValueError as e:
+        raise _FormatError(str(e)) from None
+    # Fields are stored one after another (all points' x, then all y, ...).
+    out, off = [], 0
+    per_field = [n * s * c for s, c in zip(sizes, counts)]
+    if sum(per_field) > usize:
+        raise _FormatError("compressed block smaller than the header's points")
+    for i, (dt, c) in enumerate(zip(dts, counts)):
+        if i in cols:
+            arr = np.frombuffer(raw, dt, n * c, off).reshape(n, c)[:, 0]
+            out.append((cols.index(i), arr.astype(np.float64)))
+        off += per_field[i]
+    out.sort(key=lambda t: t[0])
+    return np.stack([a for _, a in out], axis=1)
 
 
 def _first(a):

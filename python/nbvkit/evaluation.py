@@ -1,6 +1,36 @@
 """Scoring a reconstruction against ground truth: coverage (the paper's metric), area coverage,
 precision, completeness / accuracy / F-score and the Chamfer distance. The work is one C++ call
 (``nbv::evaluate``); this module adapts arguments and shapes the result as a JSON-ready dict.
+
+Ground-truth density. The cell count ``coverage`` depends on how densely the mesh is sampled:
+a cell the surface only grazes is a GT cell only if a sample happens to land in it. The
+default, DEFAULT_GT_DENSITY = 1000 points per m², was chosen by measurement
+(``bench/bench_evaluation.py --stability``) on ../shared/meshes/twinjet.obj (727 m²) against
+a camera reconstruction from 60 random views (1.17 M points after the 0.02 m voxel filter),
+evaluated with GT seeds 0-7 (pp = percentage points)::
+
+    density  samples   coverage 0.05 m           0.1 m    0.5 m    area_coverage 0.05 m
+    (/m²)              mean    spread  std       spread   spread   mean     spread
+      250      182 k   68.41 %  0.27   0.10 pp   0.24     0.24     68.58 %  0.25
+      500      364 k   68.19 %  0.22   0.07      0.12     0.19     68.55 %  0.21
+     1000      727 k   67.81 %  0.11   0.03      0.05     0.18     68.51 %  0.18
+     2000     1.45 M   67.16 %  0.06   0.02      0.06     0.11     68.51 %  0.09
+     4000     2.91 M   66.30 %  0.05   0.02      0.03     0.11     68.50 %  0.07
+     8000     5.82 M   65.42 %  0.04   0.01      0.06     0.10     68.50 %  0.04
+    16000    11.6 M    64.66 %  0.04   0.01      0.03     0.05     68.50 %  0.04
+
+Every density keeps the spread of 8 seeds under 0.5 pp, but below 1000 /m² the standard
+deviation (0.07-0.10 pp) lets the range over more seeds approach it (±3σ = 0.4-0.6 pp);
+1000 /m² is the smallest with a wide margin (σ 0.03 pp; a sparse 0.1 m-voxel cloud: spread
+0.08 pp) and it evaluates a 1 M-point cloud in under a second. Note the *mean* of
+``coverage`` drifts down by ~0.7 pp per doubling of the density (more grazed cells become GT
+cells), so coverage figures are comparable only at the same density: always quote it (the
+result carries it). ``area_coverage`` does not drift (68.5 % at every density). Distances
+are to the GT *samples*: a point exactly on the surface is on average ~0.5/√density from
+the nearest sample (≈ 1.6 cm at 1000 /m²), a floor under ``chamfer_m``, and it is farther
+than tau from every sample with probability exp(−π tau² density) (0.04 % at tau = 0.05 m,
+1000 /m²: a perfect cloud scores 99.96 % accuracy there). Raise ``gt_density`` for
+sub-centimetre Chamfer comparisons (2000 /m² takes that probability to 1.5e-7).
 """
 from __future__ import annotations
 
@@ -126,35 +156,8 @@ def evaluate(gt, cloud, options=None, **kw) -> dict:
     either input (naming which), non-positive or duplicate resolutions or taus, an unknown
     option, or an empty ground truth.
 
-    Ground-truth density. The cell count ``coverage`` depends on how densely the mesh is sampled:
-    a cell the surface only grazes is a GT cell only if a sample happens to land in it. The
-    default, DEFAULT_GT_DENSITY = 1000 points per m², was chosen by measurement
-    (``bench/bench_evaluation.py --stability``) on ../shared/meshes/twinjet.obj (727 m²) against
-    a camera reconstruction from 60 random views (1.17 M points after the 0.02 m voxel filter),
-    evaluated with GT seeds 0-7 (pp = percentage points)::
-
-        density  samples   coverage 0.05 m           0.1 m    0.5 m    area_coverage 0.05 m
-        (/m²)              mean    spread  std       spread   spread   mean     spread
-          250      182 k   68.41 %  0.27   0.10 pp   0.24     0.24     68.58 %  0.25
-          500      364 k   68.19 %  0.22   0.07      0.12     0.19     68.55 %  0.21
-         1000      727 k   67.81 %  0.11   0.03      0.05     0.18     68.51 %  0.18
-         2000     1.45 M   67.16 %  0.06   0.02      0.06     0.11     68.51 %  0.09
-         4000     2.91 M   66.30 %  0.05   0.02      0.03     0.11     68.50 %  0.07
-         8000     5.82 M   65.42 %  0.04   0.01      0.06     0.10     68.50 %  0.04
-        16000    11.6 M    64.66 %  0.04   0.01      0.03     0.05     68.50 %  0.04
-
-    Every density keeps the spread of 8 seeds under 0.5 pp, but below 1000 /m² the standard
-    deviation (0.07-0.10 pp) lets the range over more seeds approach it (±3σ = 0.4-0.6 pp);
-    1000 /m² is the smallest with a wide margin (σ 0.03 pp; a sparse 0.1 m-voxel cloud: spread
-    0.08 pp) and it evaluates a 1 M-point cloud in under a second. Note the *mean* of
-    ``coverage`` drifts down by ~0.7 pp per doubling of the density (more grazed cells become GT
-    cells), so coverage figures are comparable only at the same density: always quote it (the
-    result carries it). ``area_coverage`` does not drift (68.5 % at every density). Distances
-    are to the GT *samples*: a point exactly on the surface is on average ~0.5/√density from
-    the nearest sample (≈ 1.6 cm at 1000 /m²), a floor under ``chamfer_m``, and it is farther
-    than tau from every sample with probability exp(−π tau² density) (0.04 % at tau = 0.05 m,
-    1000 /m²: a perfect cloud scores 99.96 % accuracy there). Raise ``gt_density`` for
-    sub-centimetre Chamfer comparisons (2000 /m² takes that probability to 1.5e-7).
+    Ground-truth density: DEFAULT_GT_DENSITY = 1000 points per m², chosen by measurement (the
+    module's docstring: coverage figures are comparable only at the same density).
     Threads do not change any number (per-point results, sums in a fixed order).
     """
     return Evaluator(gt, options, _stacklevel=3, **kw)(cloud)

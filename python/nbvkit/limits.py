@@ -334,11 +334,11 @@ def check_gt_samples(cfg, area: float) -> float:
     ValueError when a density the user set makes more than MAX_GT_SAMPLES. The default density
     (null) is capped there instead (nbvkit.evaluate's max_gt_points): a large structure (the
     100 m plant: 20,415 m^2) is scored at a lower density, not refused."""
-    from .evaluation import DEFAULT_GT_DENSITY
+    from ._core import EvaluationOptions  # nbvkit.evaluation.DEFAULT_GT_DENSITY's source
 
     density = cfg.evaluation.gt_density
     if density is None:  # the default adapts: capped at MAX_GT_SAMPLES (the evaluator warns)
-        return min(area * DEFAULT_GT_DENSITY, MAX_GT_SAMPLES)
+        return min(area * EvaluationOptions().gt_density, MAX_GT_SAMPLES)
     check_samples(area, density, "evaluation.gt_density")
     return area * density
 

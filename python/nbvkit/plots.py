@@ -6,42 +6,7 @@ from pathlib import Path
 
 import numpy as np
 
-
-def _plt():
-    """What the figure functions use of pyplot (subplots, close, get_cmap, Line2D), without
-    pyplot's global figure registry and backend: each figure is a bare
-    ``matplotlib.figure.Figure`` saved by its own Agg canvas, so two missions writing their
-    figures in two threads of one process share no state (pyplot is not thread-safe), and
-    nothing depends on the session's backend."""
-    return _Figures
-
-
-class _Figures:
-    _FIGURE_KEYS = ("figsize", "dpi", "constrained_layout", "layout", "facecolor")
-
-    @staticmethod
-    def subplots(*args, **kw):
-        from matplotlib.figure import Figure
-
-        fig = Figure(**{k: kw.pop(k) for k in _Figures._FIGURE_KEYS if k in kw})
-        return fig, fig.subplots(*args, **kw)
-
-    @staticmethod
-    def close(fig) -> None:
-        """Nothing to do: the figure is not registered anywhere; dropping it frees it."""
-
-    @staticmethod
-    def get_cmap(name):
-        import matplotlib
-
-        return matplotlib.colormaps[name]
-
-    @staticmethod
-    def Line2D(*args, **kw):  # noqa: N802 - pyplot's name
-        from matplotlib.lines import Line2D
-
-        return Line2D(*args, **kw)
-
+from .figures import _plt
 
 STAGE_COLORS = {"profile": "tab:orange", "nbv": "tab:blue"}
 
@@ -138,7 +103,7 @@ def plot_mission(mission, out_dir: Path) -> list[Path]:
 
     world = mission.world
     if getattr(world, "symmetry_result", None) is not None:
-        from .symmetry import plot_symmetry
+        from .symmetry_figures import plot_symmetry
 
         paths.append(
             plot_symmetry(
@@ -165,84 +130,19 @@ def plot_experiment(root, df, out_dir) -> list[Path]:
     """Figures of a finished experiment (a tidy table `df` of runs under `root/runs`):
     coverage vs distance and vs iteration per scenario, the trajectories of one start per
     scenario (paper's Fig. 7), and the final cloud and map of the full method (Fig. 6)."""
-    plt = _plt()
     root, out_dir = Path(root), Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
-    paths = []
     scen = [s for s in ("1", "2", "3", "4", "5") if (df["scenario"].astype(str) == s).any()]
-    colors = dict(
-        zip(
-            ("1", "2", "3", "4", "5"),
-            ("tab:gray", "tab:blue", "tab:orange", "tab:green", "tab:red"),
-        )
-    )
-
     # coverage vs distance / iteration (mean over starts is not meaningful per step: draw each run)
-    for xkey, xlabel, name in (
-        ("distance_m", "distance (m)", "coverage_vs_distance.png"),
-        ("iteration", "iteration", "coverage_vs_iteration.png"),
-    ):
-        fig, axes = plt.subplots(1, 3, figsize=(14, 4), sharey=True)
-        for sc in scen:
-            for k, (_, r) in enumerate(df[df["scenario"].astype(str) == sc].iterrows()):
-                it = _iterations(root / "runs" / r["run_id"])
-                if it is None or not len(it):
-                    continue
-                for ax, col in zip(axes, ("coverage_005", "coverage_01", "coverage_05")):
-                    d = it.dropna(subset=[col])
-                    ax.plot(
-                        d[xkey],
-                        d[col] * 100,
-                        c=colors[sc],
-                        alpha=0.7,
-                        lw=1,
-                        label=f"scenario {sc}" if k == 0 else None,
-                    )
-        for ax, res in zip(axes, ("0.05", "0.10", "0.50")):
-            ax.set_title(f"coverage @ {res} m")
-            ax.set_xlabel(xlabel)
-            ax.grid(alpha=0.3)
-        axes[0].set_ylabel("coverage (%)")
-        axes[0].legend(fontsize=8)
-        fig.tight_layout()
-        paths.append(out_dir / name)
-        fig.savefig(paths[-1], dpi=110)
-        plt.close(fig)
-
-    # trajectories of one start per scenario (Fig. 7)
-    import csv
-
-    mesh = None
-    if scen:
-        fig, axes = plt.subplots(
-            2,
-            len(scen),
-            figsize=(4.2 * len(scen), 6.5),
-            gridspec_kw={"height_ratios": [3, 1.2]},
-            squeeze=False,
+    paths = [
+        _coverage_of_scenarios(root, df, scen, xkey, xlabel, out_dir / name)
+        for xkey, xlabel, name in (
+            ("distance_m", "distance (m)", "coverage_vs_distance.png"),
+            ("iteration", "iteration", "coverage_vs_iteration.png"),
         )
-        for j, sc in enumerate(scen):
-            r = df[df["scenario"].astype(str) == sc].sort_values("start").iloc[0]
-            d = root / "runs" / r["run_id"]
-            if mesh is None:
-                mesh = _mesh_of(d)
-            traj = [
-                (row["stage"], float(row["x"]), float(row["y"]), float(row["z"]))
-                for row in csv.DictReader(open(d / "trajectory.csv"))
-            ]
-            sp = mesh.sample_surface(20000, seed=0)
-            plot_trajectory(
-                axes[0, j],
-                axes[1, j],
-                sp,
-                traj,
-                title=f"scenario {sc} (start {r['start']}): {r['distance_m']:.0f} m",
-            )
-        fig.tight_layout()
-        paths.append(out_dir / "trajectories.png")
-        fig.savefig(paths[-1], dpi=110)
-        plt.close(fig)
-
+    ]
+    if scen:
+        paths.append(_trajectories(root, df, scen, out_dir / "trajectories.png"))
     # final cloud and map of the most complete scenario present (Fig. 6)
     best = scen[-1] if scen else None
     if best is not None:
@@ -255,6 +155,83 @@ def plot_experiment(root, df, out_dir) -> list[Path]:
             )
         )
     return paths
+
+
+#: colour of each of the paper's scenarios in the experiment's figures
+SCENARIO_COLORS = dict(
+    zip(
+        ("1", "2", "3", "4", "5"),
+        ("tab:gray", "tab:blue", "tab:orange", "tab:green", "tab:red"),
+    )
+)
+
+
+def _coverage_of_scenarios(root: Path, df, scen, xkey, xlabel, path: Path) -> Path:
+    """Coverage at the three resolutions against `xkey` (distance_m or iteration), every run of
+    the scenarios `scen` a line in its scenario's colour."""
+    plt = _plt()
+    fig, axes = plt.subplots(1, 3, figsize=(14, 4), sharey=True)
+    for sc in scen:
+        for k, (_, r) in enumerate(df[df["scenario"].astype(str) == sc].iterrows()):
+            it = _iterations(root / "runs" / r["run_id"])
+            if it is None or not len(it):
+                continue
+            for ax, col in zip(axes, ("coverage_005", "coverage_01", "coverage_05")):
+                d = it.dropna(subset=[col])
+                ax.plot(
+                    d[xkey],
+                    d[col] * 100,
+                    c=SCENARIO_COLORS[sc],
+                    alpha=0.7,
+                    lw=1,
+                    label=f"scenario {sc}" if k == 0 else None,
+                )
+    for ax, res in zip(axes, ("0.05", "0.10", "0.50")):
+        ax.set_title(f"coverage @ {res} m")
+        ax.set_xlabel(xlabel)
+        ax.grid(alpha=0.3)
+    axes[0].set_ylabel("coverage (%)")
+    axes[0].legend(fontsize=8)
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+    return path
+
+
+def _trajectories(root: Path, df, scen, path: Path) -> Path:
+    """The trajectories of the first start of each scenario in `scen` (the paper's Fig. 7)."""
+    import csv
+
+    plt = _plt()
+    mesh = None
+    fig, axes = plt.subplots(
+        2,
+        len(scen),
+        figsize=(4.2 * len(scen), 6.5),
+        gridspec_kw={"height_ratios": [3, 1.2]},
+        squeeze=False,
+    )
+    for j, sc in enumerate(scen):
+        r = df[df["scenario"].astype(str) == sc].sort_values("start").iloc[0]
+        d = root / "runs" / r["run_id"]
+        if mesh is None:
+            mesh = _mesh_of(d)
+        traj = [
+            (row["stage"], float(row["x"]), float(row["y"]), float(row["z"]))
+            for row in csv.DictReader(open(d / "trajectory.csv"))
+        ]
+        sp = mesh.sample_surface(20000, seed=0)
+        plot_trajectory(
+            axes[0, j],
+            axes[1, j],
+            sp,
+            traj,
+            title=f"scenario {sc} (start {r['start']}): {r['distance_m']:.0f} m",
+        )
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+    return path
 
 
 def _mesh_of(run_dir: Path):
@@ -314,7 +291,7 @@ def plot_compare(root, df, out_dir) -> list[Path]:
     """coverage_vs_distance.png of a planner comparison: coverage at 0.05 m against distance
     flown, every run as a line (from its iterations.csv) ending in a dot at its final
     evaluation, one colour per planner, and the paper's Scenario 5 (Table 2 mean) as a star."""
-    from .experiments import PAPER_SCENARIO5
+    from .experiment_tables import PAPER_SCENARIO5
 
     plt = _plt()
     root, out_dir = Path(root), Path(out_dir)

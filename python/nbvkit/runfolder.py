@@ -37,6 +37,9 @@ from pathlib import Path
 
 import numpy as np
 
+from ._version import __version__
+from .output_paths import check_output_dir
+
 __all__ = [
     "MANIFEST",
     "OUTPUT_NAMES",
@@ -170,13 +173,11 @@ def require_complete_run(path, what: str = "run folder") -> Path:
 def write_manifest(folder) -> Path:
     """Writes ``folder/manifest.json`` (every file's size), flushed to disk, as the last file of
     a run. Raises OSError if it cannot be written whole."""
-    import nbvkit
-
     folder = Path(folder)
     files = _listed_files(folder)
     for rel in files:  # the outputs reach the disk before the marker that vouches for them
         _fsync_path(folder / rel)
-    data = {"nbvkit": nbvkit.__version__, "written": time.time(), "files": files}
+    data = {"nbvkit": __version__, "written": time.time(), "files": files}
     tmp = folder / (MANIFEST + ".tmp")
     with open(tmp, "w") as f:
         f.write(json.dumps(data, indent=1) + "\n")
@@ -320,8 +321,6 @@ class RunFolder:
         what: str = "run folder",
         carry: tuple = ("cache",),
     ):
-        from .paths import check_output_dir
-
         p = Path(os.fspath(path)).expanduser()
         if p.is_symlink():
             p = Path(os.path.realpath(p))

@@ -34,6 +34,14 @@ def register(sub) -> argparse.ArgumentParser:
         "(--reference-cloud). Prints a table; --json writes every figure.",
     )
     add_mesh_options(p)
+    _add_inputs(p)
+    _add_observable_options(p)
+    _add_scoring_options(p)
+    return p
+
+
+def _add_inputs(p) -> None:
+    """The ground truth besides the mesh (--reference-cloud) and the reconstruction (CLOUD)."""
     p.add_argument(
         "--reference-cloud",
         metavar="PATH",
@@ -50,6 +58,10 @@ def register(sub) -> argparse.ArgumentParser:
         "frame, metres, same frame as the mesh after "
         "--mesh-scale/--mesh-up/--mesh-shift",
     )
+
+
+def _add_observable_options(p) -> None:
+    """--observable and the configuration that defines the observable surface."""
     p.add_argument(
         "--observable",
         action="store_true",
@@ -71,6 +83,10 @@ def register(sub) -> argparse.ArgumentParser:
         default=None,
         help="cache folder of the observable surface (default: none, computed every time)",
     )
+
+
+def _add_scoring_options(p) -> None:
+    """--json and the scoring's settings: ground-truth density and seed, resolutions, taus."""
     p.add_argument(
         "--json",
         metavar="OUT",
@@ -112,7 +128,6 @@ def register(sub) -> argparse.ArgumentParser:
         help="distance thresholds in metres for completeness / accuracy / F-score "
         "(default: " + " ".join(f"{t:g}" for t in DEFAULT_TAUS) + ")",
     )
-    return p
 
 
 def run(args) -> int:

@@ -15,17 +15,12 @@ from pathlib import Path
 import numpy as np
 
 from .georef import ALTITUDE_REFS, GeoFrame  # noqa: F401
-from .plan import (
-    FRAME,
-    VIEW,
-    FlightModel,
-    ReturnPaths,
-    SortiePlanner,
-    find_launch,
-    load_map,
-    read_run,
-)
+from ..flight import FRAME, VIEW, FlightModel, estimate, sortie_planner
+from ..run_report import update_flight_section
+from ..runfolder import require_complete_run
+from .plan import read_run
 from . import writers
+from .wpml import write_wpml_kmz
 
 __all__ = ["FORMATS", "export_mission", "estimate_flight", "GeoFrame", "FlightModel"]
 
@@ -71,32 +66,16 @@ def _budget(flight_time_min, reserve_pct):
 
 
 def _planner(run_dir, model: FlightModel, need_all_returns: bool, occ_map=None):
+    """The flight of a run folder and its SortiePlanner (nbvkit.flight.sortie_planner)."""
     fl = read_run(run_dir)
-    occ = load_map(fl) if occ_map is None else occ_map
-    find_launch(fl, occ, model)
-    # A* ways back from the captures a sortie may end at (the profile's other points go back
-    # along the profile to one); without a budget only the last row's way back matters
-    work = SortiePlanner.work_rows(fl)
-    caps = [i for i in work if fl.capture[i]]
-    targets = [*caps, work[-1]] if need_all_returns else work[-1:]
-    returns = ReturnPaths(fl, model, occ, targets)
-    return fl, SortiePlanner(fl, model, returns)
+    return fl, sortie_planner(fl, model, need_all_returns, occ_map)
 
 
 def estimate_flight(run_dir, speed=5.0, climb_rate=2.0, hover_s=2.0, occ_map=None) -> dict:
     """The whole mission's estimated flight (one battery, no limit) of a run folder: time_s,
-    distance_m, views, frames (see nbvkit.export.plan for the model). occ_map: the run's final
+    distance_m, views, frames (see nbvkit.flight for the model). occ_map: the run's final
     OccupancyMap when at hand (default: read from its map.ot)."""
-    model = FlightModel(speed, climb_rate, hover_s)
-    fl, sp = _planner(run_dir, model, need_all_returns=False, occ_map=occ_map)
-    s = sp.whole()
-    return {
-        "time_s": s.time_s,
-        "distance_m": s.distance_m,
-        "views": s.views,
-        "frames": s.frames,
-        "model": {"speed": speed, "climb_rate": climb_rate, "hover_s": hover_s},
-    }
+    return estimate(read_run(run_dir), FlightModel(speed, climb_rate, hover_s), occ_map)
 
 
 def _geo(fl, sortie, frame: GeoFrame, speed, hover_s, numbers, name) -> writers.GeoWaypoints:
@@ -192,8 +171,6 @@ def export_mission(
     frame = GeoFrame(*(float(v) for v in origin), float(heading_deg), altitude_ref)
     model = FlightModel(float(speed), float(climb_rate), float(hover_s))
     usable = _budget(flight_time_min, float(reserve_pct))
-    from ..runfolder import require_complete_run
-
     run = require_complete_run(Path(run_dir).expanduser())  # whole, not half-written
     out = Path(out_dir).expanduser() if out_dir is not None else run / "export"
     if out.exists() and not out.is_dir():
@@ -201,33 +178,66 @@ def export_mission(
 
     fl, sp = _planner(run, model, need_all_returns=usable is not None)
     whole = sp.whole()
-    unreachable = []
     if usable is None:
-        sorties = [whole]
+        sorties, unreachable = [whole], []
     else:
-        sorties, unreachable = sp.split(usable)
-        n_views = int((np.asarray(fl.capture) == VIEW).sum())
-        flown = sum(s.views for s in sorties)
-        if not sorties or (n_views and flown == 0):
-            need = min((u["needed_s"] for u in unreachable if u["capture"] == VIEW), default=None)
-            raise ValueError(
-                f"flight time {flight_time_min:g} min ({usable / 60:.2f} min usable after the "
-                f"{reserve_pct:g}% reserve) is too short for any view"
-                + (
-                    f": the nearest view needs {need / 60:.2f} min out, hover and back"
-                    if need
-                    else ""
-                )
-            )
-    numbers, count = {}, {VIEW: 0, FRAME: 0}
-    for i, c in enumerate(fl.capture):
-        if c:
-            count[c] += 1
-            numbers[i] = count[c]
+        sorties, unreachable = _split(fl, sp, usable, flight_time_min, reserve_pct)
+    budget = None
+    if usable is not None:
+        budget = {"flight_time_min": flight_time_min, "reserve_pct": reserve_pct}
+        budget["usable_min"] = round(usable / 60, 3)
+    summary = _summary(run, frame, fl, model, whole, budget, sorties, unreachable, fmts)
 
-    names = ["mission"] if usable is None else [f"sortie_{s.number:02d}" for s in sorties]
-    created_ms = int(time.time() * 1000)
-    summary = {
+    _write_into(
+        out, summary, fl, sorties, frame, model, (dji_drone, dji_payload), usable is not None
+    )
+    paths = [np.array([fl.home, *[w.xyz for w in s.waypoints], fl.home]) for s in sorties]
+    summary["report_updated"] = update_flight_section(run, summary, paths)
+    return summary
+
+
+def _write_into(out: Path, summary: dict, fl, sorties, frame, model, dji, budget: bool) -> None:
+    """Writes the export (every format, sorties.csv with a budget, export.json) into a temporary
+    folder beside `out`, then moves it into place; on an error nothing is left half-written."""
+    anchor = out.parent
+    while not anchor.exists():
+        anchor = anchor.parent
+    tmp = Path(tempfile.mkdtemp(prefix=".nbvkit-export-", dir=anchor))
+    try:
+        names = [f"sortie_{s.number:02d}" for s in sorties] if budget else ["mission"]
+        files = _write_formats(tmp, summary["formats"], fl, sorties, names, frame, model, *dji)
+        if budget:
+            _write_sortie_table(tmp / "sorties.csv", summary)
+            files.append("sorties.csv")
+        files.append("export.json")
+        summary["files"] = files
+        summary["out"] = str(out)
+        (tmp / "export.json").write_text(json.dumps(summary, indent=2, allow_nan=False) + "\n")
+        _move_into_place(tmp, out, files)
+    except BaseException:
+        shutil.rmtree(tmp, ignore_errors=True)
+        raise
+
+
+def _split(fl, sp, usable: float, flight_time_min, reserve_pct):
+    """(sorties, unreachable) of the flight within `usable` seconds each; ValueError when the
+    budget is too short for any view."""
+    sorties, unreachable = sp.split(usable)
+    n_views = int((np.asarray(fl.capture) == VIEW).sum())
+    flown = sum(s.views for s in sorties)
+    if not sorties or (n_views and flown == 0):
+        need = min((u["needed_s"] for u in unreachable if u["capture"] == VIEW), default=None)
+        raise ValueError(
+            f"flight time {flight_time_min:g} min ({usable / 60:.2f} min usable after the "
+            f"{reserve_pct:g}% reserve) is too short for any view"
+            + (f": the nearest view needs {need / 60:.2f} min out, hover and back" if need else "")
+        )
+    return sorties, unreachable
+
+
+def _summary(run, frame, fl, model, whole, budget, sorties, unreachable, fmts) -> dict:
+    """The export's summary (export.json) before its files are listed."""
+    return {
         "run": str(run),
         "origin": frame.to_dict(),
         "frames_note": (
@@ -249,66 +259,46 @@ def export_mission(
             "views": whole.views,
             "frames": whole.frames,
         },
-        "budget": None
-        if usable is None
-        else {
-            "flight_time_min": flight_time_min,
-            "reserve_pct": reserve_pct,
-            "usable_min": round(usable / 60, 3),
-        },
+        "budget": budget,
         "sorties": [s.to_dict() for s in sorties],
         "unreachable": unreachable,
         "formats": fmts,
         "files": [],
     }
 
-    # ---- write everything into a temporary folder, then move it into place
-    anchor = out.parent
-    while not anchor.exists():
-        anchor = anchor.parent
-    tmp = Path(tempfile.mkdtemp(prefix=".nbvkit-export-", dir=anchor))
-    try:
-        files = []
-        for s, name in zip(sorties, names):
-            g = _geo(fl, s, frame, model.speed, model.hover_s, numbers, name)
-            if "qgc" in fmts:
-                writers.write_qgc_plan(g, tmp / f"{name}.plan")
-                writers.write_qgc_wpl(g, tmp / f"{name}.waypoints")
-                files += [f"{name}.plan", f"{name}.waypoints"]
-            if "wpml" in fmts:
-                writers.write_wpml_kmz(g, tmp / f"{name}.kmz", dji_drone, dji_payload, created_ms)
-                files.append(f"{name}.kmz")
-            if "kml" in fmts:
-                writers.write_kml(g, tmp / f"{name}.kml")
-                files.append(f"{name}.kml")
-            if "geojson" in fmts:
-                writers.write_geojson(g, tmp / f"{name}.geojson")
-                files.append(f"{name}.geojson")
-            if "csv" in fmts:
-                writers.write_csv(g, tmp / f"{name}.csv")
-                files.append(f"{name}.csv")
-        if "colmap" in fmts:
-            (tmp / "colmap").mkdir()
-            writers.write_colmap(
-                tmp / "colmap", writers.camera_intrinsics(fl.config), camera_poses(fl)
-            )
-            files += [f"colmap/{n}" for n in ("cameras.txt", "images.txt", "points3D.txt")]
-        if usable is not None:
-            _write_sortie_table(tmp / "sorties.csv", summary)
-            files.append("sorties.csv")
-        files.append("export.json")
-        summary["files"] = files
-        summary["out"] = str(out)
-        (tmp / "export.json").write_text(json.dumps(summary, indent=2, allow_nan=False) + "\n")
-        _move_into_place(tmp, out, files)
-    except BaseException:
-        shutil.rmtree(tmp, ignore_errors=True)
-        raise
-    from ..report import update_flight_section
 
-    paths = [np.array([fl.home, *[w.xyz for w in s.waypoints], fl.home]) for s in sorties]
-    summary["report_updated"] = update_flight_section(run, summary, paths)
-    return summary
+def _write_formats(tmp: Path, fmts, fl, sorties, names, frame, model, drone, payload) -> list:
+    """Writes each sortie (named `names`) in each format into tmp; returns the files' names."""
+    numbers, count = {}, {VIEW: 0, FRAME: 0}  # each capture's number of its kind
+    for i, c in enumerate(fl.capture):
+        if c:
+            count[c] += 1
+            numbers[i] = count[c]
+    created_ms = int(time.time() * 1000)
+    files = []
+    for s, name in zip(sorties, names):
+        g = _geo(fl, s, frame, model.speed, model.hover_s, numbers, name)
+        if "qgc" in fmts:
+            writers.write_qgc_plan(g, tmp / f"{name}.plan")
+            writers.write_qgc_wpl(g, tmp / f"{name}.waypoints")
+            files += [f"{name}.plan", f"{name}.waypoints"]
+        if "wpml" in fmts:
+            write_wpml_kmz(g, tmp / f"{name}.kmz", drone, payload, created_ms)
+            files.append(f"{name}.kmz")
+        if "kml" in fmts:
+            writers.write_kml(g, tmp / f"{name}.kml")
+            files.append(f"{name}.kml")
+        if "geojson" in fmts:
+            writers.write_geojson(g, tmp / f"{name}.geojson")
+            files.append(f"{name}.geojson")
+        if "csv" in fmts:
+            writers.write_csv(g, tmp / f"{name}.csv")
+            files.append(f"{name}.csv")
+    if "colmap" in fmts:
+        (tmp / "colmap").mkdir()
+        writers.write_colmap(tmp / "colmap", writers.camera_intrinsics(fl.config), camera_poses(fl))
+        files += [f"colmap/{n}" for n in ("cameras.txt", "images.txt", "points3D.txt")]
+    return files
 
 
 def _write_sortie_table(path: Path, summary: dict) -> None:

@@ -2,7 +2,7 @@
 
 Every writer takes the geo-located waypoints of one sortie (GeoWaypoints) and writes one file;
 colmap writes the camera model of the whole flight. Numbers are written in full (JSON) or to
-1e-9 degree (about 0.1 mm) and 1 mm.
+1e-9 degree (about 0.1 mm) and 1 mm. The DJI WPML route's writer is nbvkit.export.wpml.
 """
 from __future__ import annotations
 
@@ -10,7 +10,6 @@ import csv
 import io
 import json
 import math
-import zipfile
 from dataclasses import dataclass
 from xml.etree import ElementTree as ET
 
@@ -186,150 +185,6 @@ def write_qgc_wpl(g: GeoWaypoints, path) -> None:
         lines.append("\t".join(out))
     with open(path, "w") as f:
         f.write("\n".join(lines) + "\n")
-
-
-# ---------------------------------------------------------------------- DJI WPML (KMZ)
-def _el(parent, tag, text=None, ns=WPML_NS):
-    e = ET.SubElement(parent, f"{{{ns}}}{tag}")
-    if text is not None:
-        e.text = str(text)
-    return e
-
-
-def _mission_config(doc, g: GeoWaypoints, drone, payload, template: bool):
-    mc = _el(doc, "missionConfig")
-    _el(mc, "flyToWaylineMode", "safely")
-    _el(mc, "finishAction", "goHome")
-    _el(mc, "exitOnRCLost", "executeLostAction")
-    _el(mc, "executeRCLostAction", "goBack")
-    takeoff_h = float(g.rel_alt[0])
-    _el(mc, "takeOffSecurityHeight", _f(min(max(takeoff_h, 1.2), 1500.0), 3))
-    if template:
-        _el(mc, "takeOffRefPoint", f"{_f(g.home[0], 9)},{_f(g.home[1], 9)},{_f(g.home[2], 3)}")
-    _el(mc, "globalTransitionalSpeed", _f(min(g.speed, 15.0), 2))
-    _el(mc, "globalRTHHeight", _f(takeoff_h, 3))
-    di = _el(mc, "droneInfo")
-    _el(di, "droneEnumValue", drone[0])
-    _el(di, "droneSubEnumValue", drone[1])
-    pi = _el(mc, "payloadInfo")
-    _el(pi, "payloadEnumValue", payload)
-    _el(pi, "payloadPositionIndex", 0)
-
-
-def _placemark(folder, g: GeoWaypoints, k: int, index: int, template: bool, group: int):
-    pm = ET.SubElement(folder, f"{{{KML_NS}}}Placemark")
-    pt = ET.SubElement(pm, f"{{{KML_NS}}}Point")
-    ET.SubElement(
-        pt, f"{{{KML_NS}}}coordinates"
-    ).text = f"{_f(float(g.lon[k]), 9)},{_f(float(g.lat[k]), 9)}"
-    _el(pm, "index", index)
-    if template:
-        _el(pm, "height", _f(float(g.rel_alt[k]), 3))
-        if g.altitude_ref == "ellipsoid":
-            _el(pm, "ellipsoidHeight", _f(float(g.alt[k]), 3))
-        _el(pm, "useGlobalHeight", 0)
-        _el(pm, "useGlobalSpeed", 0)
-        _el(pm, "useGlobalHeadingParam", 0)
-        _el(pm, "useGlobalTurnParam", 0)
-        _el(pm, "gimbalPitchAngle", _f(float(g.gimbal_pitch[k]), 3))
-    else:
-        _el(pm, "executeHeight", _f(float(g.rel_alt[k]), 3))
-    _el(pm, "waypointSpeed", _f(g.speed, 2))
-    hp = _el(pm, "waypointHeadingParam")
-    if g.action[k] == "transit":
-        _el(hp, "waypointHeadingMode", "followWayline")
-    else:
-        _el(hp, "waypointHeadingMode", "smoothTransition")
-        _el(hp, "waypointHeadingAngle", _f(_signed(float(g.heading[k])), 3))
-    _el(hp, "waypointHeadingPathMode", "followBadArc")
-    tp = _el(pm, "waypointTurnParam")
-    _el(tp, "waypointTurnMode", "toPointAndStopWithDiscontinuityCurvature")
-    _el(tp, "waypointTurnDampingDist", 0)
-    a = g.action[k]
-    if a not in ("view", "frame"):
-        return group
-    ag = _el(pm, "actionGroup")
-    _el(ag, "actionGroupId", group)
-    _el(ag, "actionGroupStartIndex", index)
-    _el(ag, "actionGroupEndIndex", index)
-    _el(ag, "actionGroupMode", "sequence")
-    _el(_el(ag, "actionTrigger"), "actionTriggerType", "reachPoint")
-    aid = 0
-    if a == "view":
-        act = _el(ag, "action")
-        _el(act, "actionId", aid)
-        aid += 1
-        _el(act, "actionActuatorFunc", "gimbalRotate")
-        p = _el(act, "actionActuatorFuncParam")
-        _el(p, "gimbalHeadingYawBase", "north")
-        _el(p, "gimbalRotateMode", "absoluteAngle")
-        _el(p, "gimbalPitchRotateEnable", 1)
-        _el(p, "gimbalPitchRotateAngle", _f(float(g.gimbal_pitch[k]), 3))
-        _el(p, "gimbalRollRotateEnable", 0)
-        _el(p, "gimbalRollRotateAngle", 0)
-        _el(p, "gimbalYawRotateEnable", 0)
-        _el(p, "gimbalYawRotateAngle", 0)
-        _el(p, "gimbalRotateTimeEnable", 0)
-        _el(p, "gimbalRotateTime", 0)
-        _el(p, "payloadPositionIndex", 0)
-        if g.hover_s > 0:
-            act = _el(ag, "action")
-            _el(act, "actionId", aid)
-            aid += 1
-            _el(act, "actionActuatorFunc", "hover")
-            _el(_el(act, "actionActuatorFuncParam"), "hoverTime", _f(g.hover_s, 3))
-    act = _el(ag, "action")
-    _el(act, "actionId", aid)
-    _el(act, "actionActuatorFunc", "takePhoto")
-    p = _el(act, "actionActuatorFuncParam")
-    _el(p, "fileSuffix", f"{a}{int(g.number[k]):04d}")
-    _el(p, "payloadPositionIndex", 0)
-    return group + 1
-
-
-def _wpml_doc(g: GeoWaypoints, drone, payload, template: bool, created_ms: int) -> bytes:
-    ET.register_namespace("", KML_NS)
-    ET.register_namespace("wpml", WPML_NS)
-    kml = ET.Element(f"{{{KML_NS}}}kml")
-    doc = ET.SubElement(kml, f"{{{KML_NS}}}Document")
-    if template:
-        _el(doc, "author", "nbvkit")
-        _el(doc, "createTime", created_ms)
-        _el(doc, "updateTime", created_ms)
-    _mission_config(doc, g, drone, payload, template)
-    folder = ET.SubElement(doc, f"{{{KML_NS}}}Folder")
-    if template:
-        _el(folder, "templateType", "waypoint")
-    _el(folder, "templateId", 0)
-    if template:
-        cs = _el(folder, "waylineCoordinateSysParam")
-        _el(cs, "coordinateMode", "WGS84")
-        _el(cs, "heightMode", "relativeToStartPoint")
-    else:
-        _el(folder, "executeHeightMode", "relativeToStartPoint")
-        _el(folder, "waylineId", 0)
-    _el(folder, "autoFlightSpeed", _f(g.speed, 2))
-    if template:
-        _el(folder, "globalHeight", _f(float(g.rel_alt[0]), 3))
-        _el(folder, "gimbalPitchMode", "usePointSetting")
-        gh = _el(folder, "globalWaypointHeadingParam")
-        _el(gh, "waypointHeadingMode", "followWayline")
-        _el(gh, "waypointHeadingPathMode", "followBadArc")
-        _el(folder, "globalWaypointTurnMode", "toPointAndStopWithDiscontinuityCurvature")
-        _el(folder, "globalUseStraightLine", 0)
-    group = 0
-    for index, k in enumerate(range(len(g))):
-        group = _placemark(folder, g, k, index, template, group)
-    return ET.tostring(kml, encoding="UTF-8", xml_declaration=True)
-
-
-def write_wpml_kmz(g: GeoWaypoints, path, drone=(67, 0), payload=52, created_ms: int = 0):
-    """DJI WPML route: a zip (.kmz) of wpmz/template.kml and wpmz/waylines.wpml; heights relative
-    to the take-off point. drone: (droneEnumValue, droneSubEnumValue), default M30; payload:
-    payloadEnumValue (default 52, the M30's camera)."""
-    with zipfile.ZipFile(path, "w", compression=zipfile.ZIP_DEFLATED) as z:
-        z.writestr("wpmz/template.kml", _wpml_doc(g, drone, payload, True, created_ms))
-        z.writestr("wpmz/waylines.wpml", _wpml_doc(g, drone, payload, False, created_ms))
 
 
 # ---------------------------------------------------------------------- KML, GeoJSON, CSV

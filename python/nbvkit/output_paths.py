@@ -1,0 +1,57 @@
+"""Output paths checked before any work: a mission or a sweep must not run for minutes and then
+fail to write its results. (Imported by nbvkit.runfolder; users import these from nbvkit.paths.)"""
+from __future__ import annotations
+
+import os
+import tempfile
+from pathlib import Path
+
+__all__ = ["check_output_dir", "check_output_file"]
+
+
+def check_output_dir(path, what: str = "output folder") -> Path:
+    """ValueError naming `what` unless `path` is (or can be created as) a writable folder.
+
+    Checks by creating it (and any missing parents) and a probe file in it; whatever the check
+    created is removed again, so a later failure leaves nothing behind."""
+    p = Path(os.fspath(path)).expanduser()
+    if p.exists() and not p.is_dir():
+        raise ValueError(f"{what} {p} exists and is not a folder")
+    created = []
+    q = p
+    while not q.exists() and q != q.parent:
+        created.append(q)
+        q = q.parent
+    try:
+        p.mkdir(parents=True, exist_ok=True)
+        with tempfile.NamedTemporaryFile(dir=p, prefix=".nbvkit-probe"):
+            pass
+    except OSError as e:
+        raise ValueError(f"{what} {p} cannot be written: {e.strerror or e}") from None
+    finally:
+        for c in created:  # deepest first
+            try:
+                c.rmdir()
+            except OSError:
+                break
+    return p
+
+
+def check_output_file(path, what: str = "output file") -> Path:
+    """ValueError naming `what` unless a file can be written at `path` (not a folder, its folder
+    exists and is writable). Nothing is left behind."""
+    p = Path(os.fspath(path)).expanduser()
+    if p.is_dir():
+        raise ValueError(f"{what} {p} is a folder, not a file")
+    parent = p.parent if str(p.parent) else Path(".")
+    if not parent.is_dir():
+        raise ValueError(f"{what} {p}: folder {parent} does not exist")
+    existed = p.exists()
+    try:
+        with open(p, "ab"):
+            pass
+    except OSError as e:
+        raise ValueError(f"{what} {p} cannot be written: {e.strerror or e}") from None
+    if not existed:
+        p.unlink()
+    return p

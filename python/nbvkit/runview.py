@@ -1,0 +1,33 @@
+"""A finished run folder reopened for a look (notebooks/run.ipynb): its surface's coverage
+colouring rebuilt from config.yaml and cloud.ply. Above nbvkit.config (it loads the run's
+configuration), so not part of nbvkit.report."""
+from __future__ import annotations
+
+import json
+
+from .cloud import read_points
+from .config import load_config
+from .coverage_view import view_classes
+from .evaluation import Evaluator
+from .mesh import default_mesh_path, load_mesh
+from .observability import observable_surface
+from .runfolder import require_complete_run
+
+__all__ = ["run_view"]
+
+
+def run_view(run_dir, view_points: int = 60000):
+    """The coverage colouring of a finished run folder: ``(points, classes, summary)`` with a
+    subsample of the ground-truth samples (N, 3) and their class (0 covered, 1 observable but
+    missed, 2 unobservable), rebuilt from its ``config.yaml`` and ``cloud.ply`` (the observable
+    surface comes from the run's cache when it is there)."""
+    run_dir = require_complete_run(run_dir)
+    cfg = load_config(run_dir / "config.yaml", [])
+    m = cfg.mesh
+    mesh = load_mesh(m.path or default_mesh_path(), scale=m.scale, up=m.up, shift=m.shift)
+    ev = Evaluator(mesh, gt_density=cfg.evaluation.gt_density, seed=cfg.seed)
+    cache = run_dir / "cache" if (run_dir / "cache").exists() else run_dir.parent.parent / "cache"
+    mask = observable_surface(mesh, cfg, evaluator=ev, cache_dir=cache).observable
+    classes, pts = view_classes(ev, read_points(run_dir / "cloud.ply"), mask, view_points, cfg.seed)
+    summary = json.loads((run_dir / "summary.json").read_text())
+    return pts, classes, summary
