@@ -67,7 +67,8 @@ def test_a_plate_on_the_ground_has_an_unobservable_underside():
 
 def test_the_top_of_a_tower_taller_than_the_navigation_space_is_unobservable():
     mesh = box_mesh((-1, -1, 0.0), (1, 1, 20.0))
-    c = cfg("workspace.bounds_min=[-8,-8,0]", "workspace.bounds_max=[8,8,10]")
+    box = ("workspace.bounds_min=[-8,-8,0]", "workspace.bounds_max=[8,8,10]")
+    c = cfg(*box, "camera.gimbal_pitch_deg=[0,0]")  # the fixed level camera
     p, fid = samples(mesh, 8000)
     r = observable_surface(mesh, c, points=p, face_ids=fid)
     top = p[:, 2] > 20 - 1e-9
@@ -80,16 +81,15 @@ def test_the_top_of_a_tower_taller_than_the_navigation_space_is_unobservable():
     # pitched 30 deg up, the camera reaches higher up the walls but still not the roof
     up = observable_surface(
         mesh,
-        cfg(
-            "workspace.bounds_min=[-8,-8,0]",
-            "workspace.bounds_max=[8,8,10]",
-            "camera.mount_rpy_deg=[0,-30,0]",
-        ),
+        cfg(*box, "camera.mount_rpy_deg=[0,-30,0]", "camera.gimbal_pitch_deg=[0,0]"),
         points=p,
         face_ids=fid,
     )
     assert up.observable.sum() > r.observable.sum()
     assert not up.observable[top].any()
+    # the gimbal (30 deg up to straight down, the default) reaches as high as that mount
+    gimbal = observable_surface(mesh, cfg(*box), points=p, face_ids=fid)
+    assert np.all(gimbal.observable >= up.observable) and not gimbal.observable[top].any()
 
 
 def test_an_open_mesh_works_and_the_range_limits_apply():

@@ -51,7 +51,7 @@ from .planning.registry import (  # noqa: F401  (your own planner parts: docs/PL
 from .plugins import load_plugin  # noqa: F401
 from .scenarios import register_scenario  # noqa: F401
 
-__version__ = "0.1.0"
+from ._version import __version__  # noqa: F401, E402
 
 __all__ = [
     "Config",
