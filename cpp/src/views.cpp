@@ -273,6 +273,216 @@ ViewScores evaluate_views_octree(const OccupancyMap& map, const Candidates& cand
                   false);
 }
 
+// ---- what candidates' rays reach -------------------------------------------------------------
+
+namespace {
+
+/// A cell one of a view's rays reached: its id and coordinates, and the ray (and the axis of the
+/// face it entered through, -1 for none) of the smallest range so far.
+struct Reached {
+  std::uint64_t id;
+  double range;
+  std::int32_t ray;
+  std::int8_t axis;
+  int c[3];
+};
+
+/// Per thread: which record of the current view holds a cell id. Open addressing with linear
+/// probing; an entry belongs to the current view when its generation is the view's, so that a
+/// new view starts in O(1).
+class CellSlots {
+ public:
+  void begin_view() {
+    if (table_.empty()) grow(std::size_t(1) << 14);
+    if (++gen_ == 0) {  // wrapped: no entry may look current
+      for (Slot& s : table_) s.gen = 0;
+      gen_ = 1;
+    }
+    n_ = 0;
+  }
+  /// The record of cell `id`, or `fresh` (which is then recorded for it); sets `is_new`.
+  std::uint32_t find_or_add(std::uint64_t id, std::uint32_t fresh, bool& is_new) {
+    if (2 * (n_ + 1) > table_.size()) grow(2 * table_.size());
+    for (std::size_t h = hash(id);; h = (h + 1) & mask_) {
+      Slot& s = table_[h];
+      if (s.gen != gen_) {
+        s = {id, fresh, gen_};
+        ++n_;
+        is_new = true;
+        return fresh;
+      }
+      if (s.id == id) {
+        is_new = false;
+        return s.at;
+      }
+    }
+  }
+
+ private:
+  struct Slot {
+    std::uint64_t id;
+    std::uint32_t at, gen;
+  };
+  std::size_t hash(std::uint64_t id) const {
+    return std::size_t((id * 0x9E3779B97F4A7C15ull) >> shift_);
+  }
+  void grow(std::size_t size) {  // size: a power of 2; the current view's entries kept
+    std::vector<Slot> old;
+    old.swap(table_);
+    table_.assign(size, Slot{0, 0, 0});  // generation 0: no view's (they start at 1)
+    mask_ = size - 1;
+    shift_ = 64 - __builtin_ctzll(size);
+    for (const Slot& s : old) {
+      if (gen_ == 0 || s.gen != gen_) continue;
+      std::size_t h = hash(s.id);
+      while (table_[h].gen == gen_) h = (h + 1) & mask_;
+      table_[h] = s;
+    }
+  }
+  std::vector<Slot> table_;
+  std::size_t mask_ = 0, n_ = 0;
+  int shift_ = 64;
+  std::uint32_t gen_ = 0;
+};
+
+/// Which face a ray entering the workspace from outside crosses first: the axis whose
+/// entering boundary it reaches last (clip_to_grid's t0).
+int entry_axis(const GridView& g, const Eigen::Vector3d& o, const Eigen::Vector3d& d) {
+  const Eigen::Vector3d pos = (o - g.origin) / g.resolution;
+  const int n[3] = {g.nx, g.ny, g.nz};
+  int axis = -1;
+  double best = -kernel::kInf;
+  for (int a = 0; a < 3; ++a) {
+    if (d[a] == 0.0) continue;
+    const double t = ((d[a] > 0 ? 0.0 : double(n[a])) - pos[a]) / d[a];
+    if (t > best) best = t, axis = a;
+  }
+  return axis;
+}
+
+}  // namespace
+
+CandidateRays candidate_rays(const GridView& g, const Candidates& cand, const Pose& current,
+                             const ViewCameraModel& camera, const UtilityOptions& utility,
+                             const ValidityOptions& validity) {
+  check_inputs(g, cand, camera, utility, validity);
+  const Eigen::Index K = cand.rows();
+  CandidateRays out;
+  out.occupied_seen.setZero(K);
+  out.status.setConstant(K, static_cast<std::int8_t>(ViewStatus::Valid));
+  const Points dirs = camera.directions();
+  const double occ_req = utility.require_occupied_probability > 0
+                             ? kernel::logit(utility.require_occupied_probability)
+                             : -kernel::kInf;
+  const Eigen::Vector3d here(current.x, current.y, current.z);
+  const bool check_segment = validity.blocked_path == "reject";
+  std::vector<std::vector<Reached>> reached(static_cast<std::size_t>(K));
+
+  // The walks: every ray of each valid view, as evaluate_views walks them (walk_ray<false>
+  // visits the cells the ig utility's four-lane walk marks, in order).
+  parallel_chunks(static_cast<std::size_t>(K), 1, [&](std::size_t b, std::size_t e) {
+    thread_local CellSlots slots;
+    for (std::size_t kk = b; kk < e; ++kk) {
+      const auto k = static_cast<Eigen::Index>(kk);
+      const Pose pose = view_pose(cand, k);
+      const Eigen::Vector3d p(pose.x, pose.y, pose.z);
+      const ViewStatus st = kernel::view_validity(g, p, here, validity, check_segment);
+      out.status[k] = static_cast<std::int8_t>(st);
+      if (st != ViewStatus::Valid) continue;
+      const Eigen::Isometry3d T = gimbal_sensor_transform(pose, camera.mount);
+      const Eigen::Vector3d o = T.translation();
+      const Eigen::Matrix3d R = T.linear();
+      std::vector<Reached>& rec = reached[kk];
+      slots.begin_view();
+      int occ = 0;
+      for (Eigen::Index r = 0; r < dirs.rows(); ++r) {
+        const Eigen::Vector3d ds = dirs.row(r).transpose();
+        const Eigen::Vector3d dw = R * ds;
+        bool first = true;
+        int prev[3] = {0, 0, 0};
+        walk_ray<false>(
+            g, o, dw, camera.max_range / ds.x(), [&](std::size_t idx, const int* c, double t) {
+              int axis;
+              if (first)
+                axis = t > 0.0 ? entry_axis(g, o, dw) : -1;
+              else
+                axis = c[0] != prev[0] ? 0 : c[1] != prev[1] ? 1 : 2;
+              first = false;
+              prev[0] = c[0], prev[1] = c[1], prev[2] = c[2];
+              bool is_new;
+              const std::uint32_t at = slots.find_or_add(idx, std::uint32_t(rec.size()), is_new);
+              if (is_new)
+                rec.push_back({idx, t, std::int32_t(r), std::int8_t(axis), {c[0], c[1], c[2]}});
+              else if (t < rec[at].range)
+                rec[at].range = t, rec[at].ray = std::int32_t(r), rec[at].axis = std::int8_t(axis);
+              if (!std::signbit(g.scored[idx])) return true;
+              occ += g.logodds[idx] > occ_req;  // the ray's first occupied cell
+              return false;
+            });
+      }
+      out.occupied_seen[k] = occ;
+      if (utility.require_occupied && occ == 0)
+        out.status[k] = static_cast<std::int8_t>(ViewStatus::SeesNoOccupied);
+    }
+  });
+
+  // The flat arrays, each view's cells at its offset.
+  out.offsets.resize(K + 1);
+  out.offsets[0] = 0;
+  for (Eigen::Index k = 0; k < K; ++k)
+    out.offsets[k + 1] = out.offsets[k] + std::int64_t(reached[std::size_t(k)].size());
+  const Eigen::Index N = out.offsets[K];
+  out.index.resize(N);
+  out.centers.resize(N, 3);
+  out.probability.resize(N);
+  out.logodds.resize(N);
+  out.state.resize(N);
+  out.range.resize(N);
+  out.incidence.resize(N);
+  const bool observed = out.observed = g.seen && g.hits;
+  out.seen.resize(observed ? N : 0);
+  out.hits.resize(observed ? N : 0);
+  const kernel::GridCells cells{g};
+  parallel_chunks(static_cast<std::size_t>(K), 1, [&](std::size_t b, std::size_t e) {
+    for (std::size_t kk = b; kk < e; ++kk) {
+      const auto k = static_cast<Eigen::Index>(kk);
+      const std::vector<Reached>& rec = reached[kk];
+      if (rec.empty()) continue;
+      const Eigen::Matrix3d R = gimbal_sensor_transform(view_pose(cand, k), camera.mount).linear();
+      Eigen::Index i = out.offsets[k];
+      for (const Reached& c : rec) {
+        const std::size_t id = std::size_t(c.id);
+        const CellFlag flag = g.flags[id];
+        const bool occupied = std::signbit(g.scored[id]);
+        out.index[i] = c.c[0] + std::int64_t(g.nx) * (c.c[1] + std::int64_t(g.ny) * c.c[2]);
+        out.centers.row(i) = g.center(c.c[0], c.c[1], c.c[2]);
+        out.logodds[i] = g.logodds[id];
+        out.probability[i] = utility::occupancy(cells, id, c.c);
+        out.state[i] = static_cast<std::int8_t>(flag == CellFlag::Unknown ? CellState::Unknown
+                                                : occupied                ? CellState::Occupied
+                                                                          : CellState::Free);
+        out.range[i] = c.range;
+        const Eigen::Vector3d d = R * dirs.row(c.ray).transpose();
+        double cos_i = std::numeric_limits<double>::quiet_NaN();
+        double n[3] = {0.0, 0.0, 0.0};
+        if (occupied) utility::open_face_normal(g, cells, c.c, n);
+        const double nn = std::sqrt(n[0] * n[0] + n[1] * n[1] + n[2] * n[2]);
+        if (nn > 0.0)
+          cos_i = std::abs(n[0] * d.x() + n[1] * d.y() + n[2] * d.z()) / nn;
+        else if (c.axis >= 0)
+          cos_i = std::abs(d[c.axis]) / d.norm();
+        out.incidence[i] = std::isnan(cos_i) ? cos_i : std::acos(std::min(1.0, cos_i));
+        if (observed) {
+          out.seen[i] = g.seen[id];
+          out.hits[i] = g.hits[id];
+        }
+        ++i;
+      }
+    }
+  });
+  return out;
+}
+
 double viewable_cells(double hfov_deg, double vfov_deg, double min_range, double max_range,
                       double resolution, bool count_partial) {
   if (!(resolution > 0) || !(max_range > min_range) || !(min_range >= 0))
