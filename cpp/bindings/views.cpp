@@ -315,7 +315,7 @@ arrays, in the order its rays first reached them; view(k) gives them as their ow
 arrays are read-only views into this object (no copy). len() is K.)doc");
   def_cell_arrays(rays, [](const py::object& self) {
     const auto& r = self.cast<const std::shared_ptr<CandidateRays>&>();
-    return std::make_tuple(r, Eigen::Index(0), Eigen::Index(r->index.size()));
+    return std::make_tuple(r, Eigen::Index(0), Eigen::Index(r->num_cells()));
   });
   rays.def_property_readonly(
           "offsets",
@@ -340,7 +340,7 @@ arrays are read-only views into this object (no copy). len() is K.)doc");
           },
           "(K,) int32 rays that ended at an occupied cell (evaluate_views' occupied_seen)")
       .def_property_readonly(
-          "num_cells", [](const CandidateRays& r) { return r.index.size(); },
+          "num_cells", [](const CandidateRays& r) { return r.num_cells(); },
           "N, the cells of all candidates together")
       .def("__len__", [](const CandidateRays& r) { return r.size(); })
       .def(
@@ -357,7 +357,7 @@ arrays are read-only views into this object (no copy). len() is K.)doc");
           "the rows offsets[k]:offsets[k + 1]; IndexError outside [-K, K).")
       .def("__repr__", [](const CandidateRays& r) {
         return "CandidateRays(" + std::to_string(r.size()) + " candidates, " +
-               std::to_string(r.index.size()) + " cells)";
+               std::to_string(r.num_cells()) + " cells)";
       });
 
   m.def(

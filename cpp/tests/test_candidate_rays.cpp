@@ -75,9 +75,9 @@ TEST(CandidateRays, AWallAtAKnownDistanceIsReachedThereAndHeadOn) {
   EXPECT_EQ(r.occupied_seen[0], 25);  // every ray ends at the wall
   EXPECT_EQ(r.occupied_seen[1], 0);
   EXPECT_EQ(r.offsets[0], 0);
-  EXPECT_EQ(r.offsets[2], r.index.size());
+  EXPECT_EQ(std::size_t(r.offsets[2]), r.num_cells());
   EXPECT_FALSE(r.observed);
-  EXPECT_EQ(r.seen.size(), 0);
+  EXPECT_TRUE(r.seen.empty() && r.hits.empty());
 
   for (Eigen::Index k = 0; k < 2; ++k) {
     // the distinct cells walked, and the nearest entry of each
@@ -87,7 +87,7 @@ TEST(CandidateRays, AWallAtAKnownDistanceIsReachedThereAndHeadOn) {
     for (Eigen::Index i = r.offsets[k]; i < r.offsets[k + 1]; ++i) got.insert(r.index[i]);
     EXPECT_EQ(got.size(), walked.size()) << "cells of a view are distinct";
     for (Eigen::Index i = r.offsets[k]; i < r.offsets[k + 1]; ++i) {
-      const Eigen::Vector3d c = r.centers.row(i).transpose();
+      const Eigen::Vector3d c = r.center(std::size_t(i));
       const std::size_t id = g.index(int(c.x() / 0.2), int(c.y() / 0.2), int(c.z() / 0.2));
       ASSERT_TRUE(walked.count(id));
       EXPECT_EQ(r.range[i], walked.at(id));
@@ -97,7 +97,7 @@ TEST(CandidateRays, AWallAtAKnownDistanceIsReachedThereAndHeadOn) {
 
   int occupied = 0, head_on = 0, own = 0, unknown = 0;
   for (Eigen::Index i = r.offsets[0]; i < r.offsets[1]; ++i) {
-    const Eigen::Vector3d c = r.centers.row(i).transpose();
+    const Eigen::Vector3d c = r.center(std::size_t(i));
     if (r.range[i] == 0.0) {  // the camera's own cell: free, entered through no face
       ++own;
       EXPECT_TRUE(std::isnan(r.incidence[i]));

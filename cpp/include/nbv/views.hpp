@@ -9,6 +9,7 @@
 
 #include "nbv/common.hpp"
 #include "nbv/grid_view.hpp"
+#include "nbv/huge_pages.hpp"
 #include "nbv/options.hpp"
 
 #include <array>
@@ -242,26 +243,29 @@ struct CandidateRays {
   template <class T>
   using Vector = Eigen::Matrix<T, Eigen::Dynamic, 1>;
   Vector<std::int64_t> offsets;  ///< (K + 1,) offsets[0] = 0, offsets[K] = N
-  /// (N,) the cell's flat workspace index i + nx (j + ny k) (OccupancyMap.index_of's)
-  Vector<std::int64_t> index;
-  Points centers;               ///< (N, 3) cell centres, world frame (m)
-  Eigen::VectorXd probability;  ///< (N,) occupancy probability sigmoid(log-odds); unknown 0.5
-  Eigen::VectorXf logodds;      ///< (N,) the map's log-odds, as it holds them; unknown 0
-  Vector<std::int8_t> state;    ///< (N,) CellState: -1 unknown, 0 free, 1 occupied
-  /// (N,) metres from the camera to where a ray entered the cell, the smallest over the rays
-  /// (0 for the camera's own cell; where the camera is outside the workspace, a ray's first cell
-  /// is entered where the ray enters the workspace)
-  Eigen::VectorXd range;
-  /// (N,) radians in [0, pi/2], for the ray of the smallest range (the first of equal ones): the
-  /// angle between it and the cell's normal: for an occupied cell, the surface normal the surface
+  // Per cell, N each (3 N for centers); in huge pages where the kernel offers them: on this
+  // project's virtual machine the page faults of first writes to fresh 4 KiB pages cost more
+  // than the walks (huge_pages.hpp).
+  /// the cell's flat workspace index i + nx (j + ny k) (OccupancyMap.index_of's)
+  HugeVector<std::int64_t> index;
+  HugeVector<double> centers;      ///< (N, 3) row-major: cell centres, world frame (m)
+  HugeVector<double> probability;  ///< occupancy probability sigmoid(log-odds); unknown 0.5
+  HugeVector<float> logodds;       ///< the map's log-odds, as it holds them; unknown 0
+  HugeVector<std::int8_t> state;   ///< CellState: -1 unknown, 0 free, 1 occupied
+  /// metres from the camera to where a ray entered the cell, the smallest over the rays (0 for
+  /// the camera's own cell; where the camera is outside the workspace, a ray's first cell is
+  /// entered where the ray enters the workspace)
+  HugeVector<double> range;
+  /// radians in [0, pi/2], for the ray of the smallest range (the first of equal ones): the angle
+  /// between it and the cell's normal: for an occupied cell, the surface normal the surface
   /// utility estimates (utility::open_face_normal), for other cells, and for an occupied one
   /// whose open faces give no normal, the normal of the face the ray entered through. NaN for
   /// the camera's own cell (entered through no face).
-  Eigen::VectorXd incidence;
-  /// (N,) with camera observations (grid.seen / grid.hits; `observed`): the cell's
-  /// direction-bin mask and camera hits; empty (0,) without
-  Vector<std::uint32_t> seen;
-  Vector<std::uint16_t> hits;
+  HugeVector<double> incidence;
+  /// with camera observations (grid.seen / grid.hits; `observed`): the cell's direction-bin mask
+  /// and camera hits; empty without
+  HugeVector<std::uint32_t> seen;
+  HugeVector<std::uint16_t> hits;
   bool observed = false;
   /// (K,) rays that ended at an occupied cell of log-odds above require_occupied_probability's
   /// (evaluate_views' occupied_seen)
@@ -270,7 +274,11 @@ struct CandidateRays {
   /// bounds, in collision or with a blocked path were not walked: they have no cells. A view
   /// that sees no occupied cell (SeesNoOccupied) keeps the cells it reached.
   Vector<std::int8_t> status;
-  Eigen::Index size() const { return status.size(); }
+  Eigen::Index size() const { return status.size(); }     ///< K
+  std::size_t num_cells() const { return index.size(); }  ///< N
+  Eigen::Vector3d center(std::size_t i) const {
+    return {centers[3 * i], centers[3 * i + 1], centers[3 * i + 2]};
+  }
 };
 
 /// Walks the camera rays of K candidate views (rows as evaluate_views' candidates) exactly as
