@@ -210,3 +210,35 @@ def test_bad_input_raises_value_error_naming_the_problem(world):
         PythonUtility(lambda r: 0, require_occupied_probability=1.5)
     with pytest.raises(ValueError, match=r"per-cell values must have shape"):
         per_candidate(nbvkit.candidate_rays(m, poses, here), np.zeros(2))
+
+
+def test_a_mission_flies_on_the_python_utility_as_on_the_ig_utility():
+    """Scenario 1 (the paper's ig) with its planner's scoring replaced by the Python information
+    gain: every call scores as the planner's own evaluate_views would, and the mission flies."""
+    from conftest import TINY_RUN
+    from nbvkit.mission import Mission
+
+    m = Mission(Config().with_overrides(list(TINY_RUN) + ["scenario=1", "progress=false"]))
+    assert m.planner.utility.name == "ig"
+    u = m.planner.utility
+    python = PythonUtility(
+        information_gain(m.map.options),
+        require_occupied=u.require_occupied,
+        require_occupied_probability=u.require_occupied_probability,
+    )
+    own, calls = m.planner.score, []
+
+    def score(world, poses):
+        ours, theirs = python.score(world, poses), own(world, poses)
+        calls.append((ours, theirs))
+        return ours
+
+    m.planner.score = score
+    m.run()
+    assert len(m.records) == 2 and len(calls) >= 2
+    for ours, theirs in calls:
+        np.testing.assert_array_equal(ours["status"], theirs["status"])
+        np.testing.assert_array_equal(ours["cells"], theirs["cells"])
+        valid = theirs["status"] == 0
+        assert valid.any()
+        np.testing.assert_allclose(ours["utility"][valid], theirs["utility"][valid], rtol=1e-6)
