@@ -199,6 +199,7 @@ def test_bad_input_raises_value_error_naming_the_problem(world):
         nbvkit.candidate_rays(m, [[5, 0, 5, 0]], here, validity={"nope": 1})
     empty = nbvkit.candidate_rays(m, np.zeros((0, 4)), here)
     assert len(empty) == 0 and empty.offsets.tolist() == [0] and empty.centers.shape == (0, 3)
+    assert not empty.centers.flags.writeable and empty.status.shape == (0,)
     poses = candidates(world)
     with pytest.raises(ValueError, match=rf"shape \(3,\), not \({len(poses)},\)"):
         PythonUtility(lambda r: np.zeros(3)).score(world, poses)

@@ -33,8 +33,9 @@ template <typename T>
 py::array owned_array(const py::handle& owner, const T* data, py::ssize_t n, py::ssize_t row = 0) {
   std::vector<py::ssize_t> shape{n};
   if (row) shape.push_back(row);
-  if (n == 0) return py::array(py::dtype::of<T>(), shape);  // no storage to point into
-  py::array a(py::dtype::of<T>(), shape, data, owner);
+  // no storage to point into when empty
+  py::array a =
+      n ? py::array(py::dtype::of<T>(), shape, data, owner) : py::array(py::dtype::of<T>(), shape);
   py::detail::array_proxy(a.ptr())->flags &= ~py::detail::npy_api::NPY_ARRAY_WRITEABLE_;
   return a;
 }
