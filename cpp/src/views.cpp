@@ -360,6 +360,52 @@ int entry_axis(const GridView& g, const Eigen::Vector3d& o, const Eigen::Vector3
   return axis;
 }
 
+/// Walks the rays of the camera at T (camera.directions() `dirs`, each to max_range depth) as
+/// evaluate_views does, recording in `rec` the distinct cells they reach (slots: which record
+/// holds a cell); returns the rays that ended at an occupied cell of log-odds above occ_req. Kept
+/// out of its caller (noipa: not inlined, nor specialised for its arguments), so that the
+/// caller's thread-local tables come in as plain references that the walk keeps in registers;
+/// inlined, GCC looked their thread-local addresses up again at every cell.
+[[gnu::noipa]] int walk_view(const GridView& g, const Points& dirs, const Eigen::Isometry3d& T,
+                             double max_range, double occ_req, CellSlots& slots,
+                             std::vector<Reached>& rec) {
+  const Eigen::Vector3d o = T.translation();
+  const Eigen::Matrix3d R = T.linear();
+  rec.clear();
+  slots.begin_view();
+  std::uint64_t brick = ~std::uint64_t(0);
+  std::uint32_t* block = nullptr;
+  int occ = 0;
+  for (Eigen::Index r = 0; r < dirs.rows(); ++r) {
+    const Eigen::Vector3d ds = dirs.row(r).transpose();
+    const Eigen::Vector3d dw = R * ds;
+    bool first = true;
+    int prev[3] = {0, 0, 0};
+    walk_ray<false>(g, o, dw, max_range / ds.x(), [&](std::size_t idx, const int* c, double t) {
+      int axis;
+      if (first)
+        axis = t > 0.0 ? entry_axis(g, o, dw) : -1;
+      else
+        axis = c[0] != prev[0] ? 0 : c[1] != prev[1] ? 1 : 2;
+      first = false;
+      prev[0] = c[0], prev[1] = c[1], prev[2] = c[2];
+      if ((idx >> 6) != brick) brick = idx >> 6, block = slots.block(brick);
+      std::uint32_t& at = block[idx & 63];
+      if (at == CellSlots::kNone) {
+        at = std::uint32_t(rec.size());
+        rec.push_back({idx, t, std::int32_t(r), std::int8_t(axis)});
+      } else if (t < rec[at].range) {
+        rec[at].range = t, rec[at].ray = std::int32_t(r);
+        rec[at].axis = std::int8_t(axis);
+      }
+      if (!std::signbit(g.scored[idx])) return true;
+      occ += g.logodds[idx] > occ_req;  // the ray's first occupied cell
+      return false;
+    });
+  }
+  return occ;
+}
+
 }  // namespace
 
 CandidateRays candidate_rays(const GridView& g, const Candidates& cand, const Pose& current,
@@ -381,12 +427,9 @@ CandidateRays candidate_rays(const GridView& g, const Candidates& cand, const Po
   // The walks: every ray of each valid view, as evaluate_views walks them (walk_ray<false>
   // visits the cells the ig utility's four-lane walk marks, in order).
   parallel_chunks(static_cast<std::size_t>(K), 1, [&](std::size_t b, std::size_t e) {
-    // per thread, kept between calls (their arrays grown once); references, so that the walk
-    // does not look the thread's copies up at every cell
-    thread_local CellSlots slots_of_thread;
-    thread_local std::vector<Reached> rec_of_thread;
-    CellSlots& slots = slots_of_thread;
-    std::vector<Reached>& rec = rec_of_thread;  // the view's cells, then copied to `reached`
+    // per thread, kept between calls (their arrays grown once)
+    thread_local CellSlots slots;
+    thread_local std::vector<Reached> rec;  // a view's cells, then copied to `reached`
     for (std::size_t kk = b; kk < e; ++kk) {
       const auto k = static_cast<Eigen::Index>(kk);
       const Pose pose = view_pose(cand, k);
@@ -395,41 +438,7 @@ CandidateRays candidate_rays(const GridView& g, const Candidates& cand, const Po
       out.status[k] = static_cast<std::int8_t>(st);
       if (st != ViewStatus::Valid) continue;
       const Eigen::Isometry3d T = gimbal_sensor_transform(pose, camera.mount);
-      const Eigen::Vector3d o = T.translation();
-      const Eigen::Matrix3d R = T.linear();
-      rec.clear();
-      slots.begin_view();
-      std::uint64_t brick = ~std::uint64_t(0);
-      std::uint32_t* block = nullptr;
-      int occ = 0;
-      for (Eigen::Index r = 0; r < dirs.rows(); ++r) {
-        const Eigen::Vector3d ds = dirs.row(r).transpose();
-        const Eigen::Vector3d dw = R * ds;
-        bool first = true;
-        int prev[3] = {0, 0, 0};
-        walk_ray<false>(g, o, dw, camera.max_range / ds.x(),
-                        [&](std::size_t idx, const int* c, double t) {
-                          int axis;
-                          if (first)
-                            axis = t > 0.0 ? entry_axis(g, o, dw) : -1;
-                          else
-                            axis = c[0] != prev[0] ? 0 : c[1] != prev[1] ? 1 : 2;
-                          first = false;
-                          prev[0] = c[0], prev[1] = c[1], prev[2] = c[2];
-                          if ((idx >> 6) != brick) brick = idx >> 6, block = slots.block(brick);
-                          std::uint32_t& at = block[idx & 63];
-                          if (at == CellSlots::kNone) {
-                            at = std::uint32_t(rec.size());
-                            rec.push_back({idx, t, std::int32_t(r), std::int8_t(axis)});
-                          } else if (t < rec[at].range) {
-                            rec[at].range = t, rec[at].ray = std::int32_t(r);
-                            rec[at].axis = std::int8_t(axis);
-                          }
-                          if (!std::signbit(g.scored[idx])) return true;
-                          occ += g.logodds[idx] > occ_req;  // the ray's first occupied cell
-                          return false;
-                        });
-      }
+      const int occ = walk_view(g, dirs, T, camera.max_range, occ_req, slots, rec);
       reached[kk].assign(rec.begin(), rec.end());
       out.occupied_seen[k] = occ;
       if (utility.require_occupied && occ == 0)

@@ -243,29 +243,29 @@ struct CandidateRays {
   template <class T>
   using Vector = Eigen::Matrix<T, Eigen::Dynamic, 1>;
   Vector<std::int64_t> offsets;  ///< (K + 1,) offsets[0] = 0, offsets[K] = N
-  // Per cell, N each (3 N for centers); in huge pages where the kernel offers them: on this
-  // project's virtual machine the page faults of first writes to fresh 4 KiB pages cost more
-  // than the walks (huge_pages.hpp).
+  // Per cell, N each (3 N for centers); in huge pages where the kernel offers them, first
+  // touched by the threads that fill them: on this project's virtual machine the page faults of
+  // first writes to fresh 4 KiB pages cost more than the walks (huge_pages.hpp).
   /// the cell's flat workspace index i + nx (j + ny k) (OccupancyMap.index_of's)
-  HugeVector<std::int64_t> index;
-  HugeVector<double> centers;      ///< (N, 3) row-major: cell centres, world frame (m)
-  HugeVector<double> probability;  ///< occupancy probability sigmoid(log-odds); unknown 0.5
-  HugeVector<float> logodds;       ///< the map's log-odds, as it holds them; unknown 0
-  HugeVector<std::int8_t> state;   ///< CellState: -1 unknown, 0 free, 1 occupied
+  HugeBuffer<std::int64_t> index;
+  HugeBuffer<double> centers;      ///< (N, 3) row-major: cell centres, world frame (m)
+  HugeBuffer<double> probability;  ///< occupancy probability sigmoid(log-odds); unknown 0.5
+  HugeBuffer<float> logodds;       ///< the map's log-odds, as it holds them; unknown 0
+  HugeBuffer<std::int8_t> state;   ///< CellState: -1 unknown, 0 free, 1 occupied
   /// metres from the camera to where a ray entered the cell, the smallest over the rays (0 for
   /// the camera's own cell; where the camera is outside the workspace, a ray's first cell is
   /// entered where the ray enters the workspace)
-  HugeVector<double> range;
+  HugeBuffer<double> range;
   /// radians in [0, pi/2], for the ray of the smallest range (the first of equal ones): the angle
   /// between it and the cell's normal: for an occupied cell, the surface normal the surface
   /// utility estimates (utility::open_face_normal), for other cells, and for an occupied one
   /// whose open faces give no normal, the normal of the face the ray entered through. NaN for
   /// the camera's own cell (entered through no face).
-  HugeVector<double> incidence;
+  HugeBuffer<double> incidence;
   /// with camera observations (grid.seen / grid.hits; `observed`): the cell's direction-bin mask
   /// and camera hits; empty without
-  HugeVector<std::uint32_t> seen;
-  HugeVector<std::uint16_t> hits;
+  HugeBuffer<std::uint32_t> seen;
+  HugeBuffer<std::uint16_t> hits;
   bool observed = false;
   /// (K,) rays that ended at an occupied cell of log-odds above require_occupied_probability's
   /// (evaluate_views' occupied_seen)
