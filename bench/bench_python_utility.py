@@ -11,16 +11,23 @@ Run: .venv/bin/python bench/bench_python_utility.py [--mesh PATH] [--iterations 
 from __future__ import annotations
 
 import argparse
+import time
 
 import numpy as np
 
 import nbvkit
-from _timing import median_time
 from nbvkit import _core
 from nbvkit.config import Config
 from nbvkit.mission import Mission
 from nbvkit.planning.utilities import PythonUtility, information_gain
 from nbvkit.sampling import candidate_poses
+
+
+def timed(fn) -> float:
+    """Wall time (s) of one call of fn."""
+    t0 = time.perf_counter()
+    fn()
+    return time.perf_counter() - t0
 
 
 def main():
@@ -70,12 +77,14 @@ def main():
     res = {}
     for nt in sorted({1, threads}):
         nbvkit.set_num_threads(nt)
-        t_ig = median_time(baseline, args.repeat)
-        t_rays = median_time(rays, args.repeat)
         rr = rays()
-        t_fn = median_time(lambda: util.fn(rr), args.repeat)
-        t_py = median_time(python_utility, args.repeat)
-        res[nt] = (t_ig, t_rays, t_fn, t_py)
+        parts = [baseline, rays, lambda: util.fn(rr), python_utility]
+        # interleaved, one call of each per round, so that a slower spell of a shared machine
+        # weighs on all four alike; medians over the rounds
+        for f in parts:
+            f()  # warm-up
+        times = np.array([[timed(f) for f in parts] for _ in range(args.repeat)])
+        res[nt] = np.median(times, axis=0)
     nbvkit.set_num_threads(0)
     print(
         f"{'threads':>7} {'ig (C++) ms':>12} {'rays ms':>9} {'numpy ms':>9} "
