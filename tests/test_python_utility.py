@@ -156,6 +156,31 @@ def test_the_python_information_gain_is_the_ig_utility(world):
     assert np.argmax(ig["utility"]) in order[:5]
 
 
+@pytest.mark.parametrize(
+    "rule", [{}, {"entropy_unit": "bits"}, {"clamped_entropy_zero": False}], ids=str
+)
+def test_the_python_information_gain_follows_the_maps_entropy_rule(rule):
+    """A wall scanned 4 times (its free cells in front clamped): the ig gain and cells under each
+    entropy rule of the map."""
+    from conftest import wall_mesh
+
+    m = nbvkit.OccupancyMap(0.2, (-10, -10, 0), (20, 10, 10), options=rule)
+    m.mark_free_segment((5, 0, 5), (5, 0, 5), 1.5)
+    cam = nbvkit.DepthCamera(wall_mesh(x=11.0), max_range=12.0)
+    for _ in range(4):
+        m.integrate(cam.scan_pose([5.0, 0, 5, 0]))
+    views = [[5, 0, 5, 0.0], [5, 0, 5, 0.5], [5, 0.3, 5, -0.3], [5.5, 0, 5, 0.1]]
+    ig = _core.evaluate_views(m, views, (5, 0, 5, 0))
+    assert np.all(ig["status"] == 0)
+    rays = nbvkit.candidate_rays(m, views, (5, 0, 5, 0))
+    gain, cells = information_gain(m.options)(rays)
+    np.testing.assert_allclose(gain, ig["gain"], rtol=1e-6)
+    np.testing.assert_array_equal(cells, ig["cells"])
+    clamped = (rays.state == 0) & (rays.logodds < -1.9)
+    assert clamped.any()  # the rule matters here
+    assert np.all(cells < np.diff(rays.offsets)) == rule.get("clamped_entropy_zero", True)
+
+
 def test_the_distance_weight_and_the_occupied_constraint_follow_the_utility_options(world):
     poses = candidates(world)
     here = world.state.pose
