@@ -45,7 +45,13 @@ from .. import _core
 
 CandidateRays = _core.CandidateRays
 
-__all__ = ["PythonUtility", "per_candidate", "candidate_of_cells", "information_gain"]
+__all__ = [
+    "PythonUtility",
+    "score_python",
+    "per_candidate",
+    "candidate_of_cells",
+    "information_gain",
+]
 
 
 def candidate_of_cells(rays) -> np.ndarray:
@@ -189,3 +195,18 @@ class PythonUtility:
         -inf where the view is invalid, status != 0), gain (K,) float64 (fn's), cells (K,) int32,
         occupied_seen (K,) int32, status (K,) int8 (VIEW_STATUS_NAMES)."""
         return self.score_rays(self.rays(world, poses), poses, world.state.pose)
+
+
+def score_python(fn: Callable, world, poses, options=None) -> dict:
+    """The scores dict of candidate views `poses` (K, 4 or 5) by a utility written in Python,
+    `fn(rays) -> gains (K,)` (or ``(gains, cells)``), from where the vehicle is: the entry a
+    planner's scoring calls for a utility registered from Python (``register_utility``).
+    `options`: UtilityOptions (None: the defaults), of which require_occupied and
+    require_occupied_probability are read (the paper's constraint, status 4); no distance
+    weight (see PythonUtility for one)."""
+    o = options if options is not None else _core.UtilityOptions()
+    return PythonUtility(
+        fn,
+        require_occupied=o.require_occupied,
+        require_occupied_probability=o.require_occupied_probability,
+    ).score(world, poses)
