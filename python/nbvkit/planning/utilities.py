@@ -9,7 +9,9 @@ log-odds, state, range and incidence, as flat numpy arrays cut per candidate by 
 (a :class:`nbvkit.CandidateRays`).
 
 :class:`PythonUtility` wraps such a function ``fn(rays) -> gains (K,)`` (or ``(gains, cells)``)
-and scores candidates as ``Planner.score`` does, with the same dict.
+and scores candidates as the planner's ``Scorer`` does, with the same dict. A planner flies on one
+registered by name: ``nbvkit.register_utility("mine", fn)``, then ``utility.name: mine`` (its
+Scorer calls :func:`score_python`).
 
 Worked example: the paper's information gain (Eq. 3) in Python, the sum of the entropies of the
 distinct cells a view's rays reach::
@@ -25,7 +27,7 @@ distinct cells a view's rays reach::
     utility = PythonUtility(entropy_gain)
     scores = utility.score(world, poses)  # {"utility", "gain", "cells", "occupied_seen", "status"}
 
-It ranks views as the "ig" utility does, but is not equal to it: the map counts a cell at a
+It ranks views much as the "ig" utility does, but is not equal to it: the map counts a cell at a
 clamping threshold as certain (zero entropy, ``clamped_entropy_zero``, the authors' rule), and
 reports entropy in its ``entropy_unit``. :func:`information_gain` applies the map's own rule to
 the cells' float32 log-odds and gives ig's gain (to float rounding, 1e-7 relative) and ig's
@@ -109,8 +111,8 @@ class PythonUtility:
     the utility is gain * exp(-distance_lambda * d), d the straight distance from the vehicle to
     the view (as ig_distance weighs it); the gain is returned unweighted.
 
-    :meth:`score` has ``Planner.score``'s signature and dict; a planner can use it in place of
-    its own (``planner.score = PythonUtility(fn).score``)."""
+    :meth:`score` has the signature and dict of a planner's ``Scorer``; to fly a planner on `fn`,
+    register it by name (``nbvkit.register_utility``; see :func:`score_python`)."""
 
     def __init__(
         self,
