@@ -44,7 +44,8 @@ def main():
         over.append(f"mesh.path={args.mesh}")
     m = Mission(Config().with_overrides(over))
     m.run()
-    world, pose = m.world, m.state.pose
+    world = m.world
+    pose = world.state.pose
     cands = candidate_poses(pose)
     k = len(cands)
     ig_options = _core.UtilityOptions(name="ig")
