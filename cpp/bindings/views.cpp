@@ -28,6 +28,107 @@ py::array_t<T, py::array::f_style> per_cell(const GridLayout& layout, const T* d
   return a;
 }
 
+/// A read-only numpy view of `n` rows (each `row` values) of T at `data`, kept alive by `owner`.
+template <typename T>
+py::array owned_array(const py::handle& owner, const T* data, py::ssize_t n, py::ssize_t row = 0) {
+  std::vector<py::ssize_t> shape{n};
+  if (row) shape.push_back(row);
+  // no storage to point into when empty
+  py::array a =
+      n ? py::array(py::dtype::of<T>(), shape, data, owner) : py::array(py::dtype::of<T>(), shape);
+  py::detail::array_proxy(a.ptr())->flags &= ~py::detail::npy_api::NPY_ARRAY_WRITEABLE_;
+  return a;
+}
+
+/// One candidate's share of a CandidateRays (CandidateRays.view(k)).
+struct CandidateRaysView {
+  std::shared_ptr<const CandidateRays> rays;
+  Eigen::Index k;
+  Eigen::Index begin() const { return Eigen::Index(rays->offsets[k]); }
+  Eigen::Index size() const { return Eigen::Index(rays->offsets[k + 1] - rays->offsets[k]); }
+};
+
+/// The per-cell arrays of CandidateRays (all rows: k < 0) or of one candidate's view, as
+/// properties of `cls` whose instances are `self`.
+template <class Class, class Get>
+void def_cell_arrays(Class& cls, Get get) {
+  // get(self) -> (rays, first row, rows)
+  cls.def_property_readonly(
+         "index",
+         [get](const py::object& self) {
+           auto [r, b, n] = get(self);
+           return owned_array(self, r->index.data() + b, n);
+         },
+         "(N,) int64 flat workspace index i + nx * (j + ny * k) of each cell "
+         "(OccupancyMap.index_of's)")
+      .def_property_readonly(
+          "centers",
+          [get](const py::object& self) {
+            auto [r, b, n] = get(self);
+            return owned_array(self, r->centers.data() + 3 * b, n, 3);
+          },
+          "(N, 3) float64 cell centres, world frame (m)")
+      .def_property_readonly(
+          "probability",
+          [get](const py::object& self) {
+            auto [r, b, n] = get(self);
+            return owned_array(self, r->probability.data() + b, n);
+          },
+          "(N,) float64 occupancy probability, sigmoid of the map's log-odds; unknown cells 0.5 "
+          "(the map's prior)")
+      .def_property_readonly(
+          "logodds",
+          [get](const py::object& self) {
+            auto [r, b, n] = get(self);
+            return owned_array(self, r->logodds.data() + b, n);
+          },
+          "(N,) float32 the map's log-odds as it holds them (unknown 0): compare with the "
+          "map's float32 clamping thresholds exactly")
+      .def_property_readonly(
+          "state",
+          [get](const py::object& self) {
+            auto [r, b, n] = get(self);
+            return owned_array(self, r->state.data() + b, n);
+          },
+          "(N,) int8 CellState: -1 unknown, 0 free, 1 occupied (predicted cells by their "
+          "probability)")
+      .def_property_readonly(
+          "range",
+          [get](const py::object& self) {
+            auto [r, b, n] = get(self);
+            return owned_array(self, r->range.data() + b, n);
+          },
+          "(N,) float64 metres from the camera to where a ray entered the cell, the smallest "
+          "over its rays (0 for the camera's own cell)")
+      .def_property_readonly(
+          "incidence",
+          [get](const py::object& self) {
+            auto [r, b, n] = get(self);
+            return owned_array(self, r->incidence.data() + b, n);
+          },
+          "(N,) float64 radians in [0, pi/2]: the angle between the ray of the smallest range "
+          "and the cell's normal (an occupied cell's surface normal from its open faces, as "
+          "the surface utility estimates it; otherwise the face the ray entered through); NaN "
+          "for the camera's own cell")
+      .def_property_readonly(
+          "seen",
+          [get](const py::object& self) -> py::object {
+            auto [r, b, n] = get(self);
+            if (!r->observed) return py::none();
+            return owned_array(self, r->seen.data() + b, n);
+          },
+          "(N,) uint32 direction-bin masks the camera has seen each cell from (surface= given), "
+          "else None")
+      .def_property_readonly(
+          "hits",
+          [get](const py::object& self) -> py::object {
+            auto [r, b, n] = get(self);
+            if (!r->observed) return py::none();
+            return owned_array(self, r->hits.data() + b, n);
+          },
+          "(N,) uint16 camera hits in each cell (surface= given), else None");
+}
+
 }  // namespace
 
 void init_views(py::module_& m) {
@@ -184,6 +285,123 @@ occupied/unknown cell within the collision radius, 3 straight path blocked, 4 se
 cell; names in VIEW_STATUS_NAMES). backend "grid" walks the map's workspace grid (3D-DDA);
 "octree" reads every visited cell through OctoMap's search, as the authors did (same answer,
 slower).)doc");
+
+  // the view first: CandidateRays.view returns one (and its signature names it)
+  py::class_<CandidateRaysView> rays_view(m, "CandidateRaysView", R"doc(
+One candidate's cells of a CandidateRays (CandidateRays.view(k)): the same per-cell arrays,
+its rows only (read-only views), with its status and occupied_seen. len() is its cell count.)doc");
+  def_cell_arrays(rays_view, [](const py::object& self) {
+    const auto& v = self.cast<const CandidateRaysView&>();
+    return std::make_tuple(v.rays, v.begin(), v.size());
+  });
+  rays_view.def_readonly("k", &CandidateRaysView::k, "the candidate's row")
+      .def_property_readonly(
+          "status", [](const CandidateRaysView& v) { return int(v.rays->status[v.k]); },
+          "evaluate_views' status code of the candidate (0 valid)")
+      .def_property_readonly(
+          "occupied_seen", [](const CandidateRaysView& v) { return v.rays->occupied_seen[v.k]; },
+          "rays of the candidate that ended at an occupied cell")
+      .def("__len__", &CandidateRaysView::size)
+      .def("__repr__", [](const CandidateRaysView& v) {
+        return "CandidateRaysView(k=" + std::to_string(v.k) + ", " + std::to_string(v.size()) +
+               " cells, status " + std::to_string(int(v.rays->status[v.k])) + ")";
+      });
+
+  py::class_<CandidateRays, std::shared_ptr<CandidateRays>> rays(m, "CandidateRays", R"doc(
+What the camera rays of K candidate views reach (candidate_rays): per candidate the DISTINCT
+workspace cells its rays entered, each ray walked exactly as evaluate_views walks it (ending at
+its first occupied cell inclusive, at the camera's max_range depth or where it leaves the
+workspace). Candidate k's cells are rows offsets[k]:offsets[k + 1] of the (N,) / (N, 3) per-cell
+arrays, in the order its rays first reached them; view(k) gives them as their own arrays. The
+arrays are read-only views into this object (no copy). len() is K.)doc");
+  def_cell_arrays(rays, [](const py::object& self) {
+    const auto& r = self.cast<const std::shared_ptr<CandidateRays>&>();
+    return std::make_tuple(r, Eigen::Index(0), Eigen::Index(r->num_cells()));
+  });
+  rays.def_property_readonly(
+          "offsets",
+          [](const py::object& self) {
+            const auto& r = self.cast<const CandidateRays&>();
+            return owned_array(self, r.offsets.data(), r.offsets.size());
+          },
+          "(K + 1,) int64: candidate k's cells are rows offsets[k]:offsets[k + 1]")
+      .def_property_readonly(
+          "status",
+          [](const py::object& self) {
+            const auto& r = self.cast<const CandidateRays&>();
+            return owned_array(self, r.status.data(), r.status.size());
+          },
+          "(K,) int8 evaluate_views' status: 0 valid, 1 out of bounds, 2 collision, 3 path "
+          "blocked (1-3 not walked: no cells), 4 sees no occupied cell (walked: its cells kept)")
+      .def_property_readonly(
+          "occupied_seen",
+          [](const py::object& self) {
+            const auto& r = self.cast<const CandidateRays&>();
+            return owned_array(self, r.occupied_seen.data(), r.occupied_seen.size());
+          },
+          "(K,) int32 rays that ended at an occupied cell (evaluate_views' occupied_seen)")
+      .def_property_readonly(
+          "num_cells", [](const CandidateRays& r) { return r.num_cells(); },
+          "N, the cells of all candidates together")
+      .def("__len__", [](const CandidateRays& r) { return r.size(); })
+      .def(
+          "view",
+          [](const std::shared_ptr<CandidateRays>& r, Eigen::Index k) {
+            const Eigen::Index K = r->size();
+            if (k < -K || k >= K)
+              throw py::index_error("candidate " + std::to_string(k) + " out of range for " +
+                                    std::to_string(K) + " candidates");
+            return CandidateRaysView{r, k < 0 ? k + K : k};
+          },
+          py::arg("k"),
+          "Candidate k's cells (k < 0 counts from the end): a CandidateRaysView whose arrays are "
+          "the rows offsets[k]:offsets[k + 1]; IndexError outside [-K, K).")
+      .def("__repr__", [](const CandidateRays& r) {
+        return "CandidateRays(" + std::to_string(r.size()) + " candidates, " +
+               std::to_string(r.num_cells()) + " cells)";
+      });
+
+  m.def(
+      "candidate_rays",
+      [](const OccupancyMap& map, const py::handle& candidates, const py::handle& current,
+         const py::object& camera, const py::object& validity,
+         const std::shared_ptr<SurfaceObservations>& surface, const py::object& utility) {
+        const ViewPosesArg c = view_poses_arg(candidates, "candidates");
+        const auto cm = c.map();
+        const Pose cur = pose_arg(current, "current pose");
+        const ViewCameraModel cam = OptionsClass<ViewCameraModel>::from(camera, "camera");
+        const UtilityOptions u = OptionsClass<UtilityOptions>::from(utility, "utility");
+        const ValidityOptions v = OptionsClass<ValidityOptions>::from(validity, "validity");
+        std::shared_ptr<CandidateRays> out;
+        {
+          Reading2 reading(map, surface.get());
+          out = std::make_shared<CandidateRays>(
+              candidate_rays(grid_view(map, surface.get()), cm, cur, cam, u, v));
+        }
+        return out;
+      },
+      py::arg("map"), py::arg("candidates"), py::arg("current"), py::arg("camera") = py::none(),
+      py::arg("validity") = py::none(), py::arg("surface") = nullptr,
+      py::arg("utility") = py::none(),
+      R"doc(What the camera rays of K candidate views reach, for a view utility written in
+Python: one C++ call over all candidates (in parallel, without the GIL, under the map's reading
+lock). candidates, current, camera, validity, surface as for evaluate_views: (K, 4) rows
+[x, y, z, yaw] or (K, 5) rows [x, y, z, yaw, pitch], world frame (m, rad). Each view's rays are
+walked exactly as evaluate_views walks them: the same rays, each ending at its first occupied
+cell (inclusive), at camera.max_range depth or where it leaves the workspace.
+
+utility: UtilityOptions (or a dict, or None for the defaults) of which only require_occupied and
+require_occupied_probability are read: they decide status 4 and occupied_seen as in
+evaluate_views. surface: the map's SurfaceObservations, to also get each cell's seen / hits.
+
+Returns a CandidateRays: offsets (K + 1,) int64; per cell, candidate by candidate, index (N,)
+int64, centers (N, 3) float64 world, probability (N,) float64 (unknown 0.5), logodds (N,)
+float32, state (N,) int8 (-1 unknown, 0 free, 1 occupied), range (N,) float64 m (smallest over
+the rays), incidence (N,) float64 rad (NaN for the camera's own cell), seen / hits (or None);
+per candidate status (K,) int8 (0 valid; 1-3 not walked: no cells; 4 sees no occupied cell: its
+cells kept) and occupied_seen (K,) int32. The distinct cells of nonzero map entropy among a
+valid view's cells are exactly those evaluate_views' ig utility counts (its `cells`).
+ValueError for a bad shape, non-finite values or bad options.)doc");
 
   m.def(
       "sphere_is_free",

@@ -97,6 +97,20 @@ struct OctreeCells {
   }
 };
 
+// Whether a view at p can be flown to before its rays are walked: inside the navigation bounds,
+// its collision sphere known and free, and (check_segment) the straight flight from `here` clear.
+// The status of evaluate_views and candidate_rays alike (SeesNoOccupied comes after the walk).
+inline ViewStatus view_validity(const GridView& g, const Eigen::Vector3d& p,
+                                const Eigen::Vector3d& here, const ValidityOptions& v,
+                                bool check_segment) {
+  if ((p.array() < v.bounds_min.array()).any() || (p.array() > v.bounds_max.array()).any())
+    return ViewStatus::OutOfBounds;
+  if (!sphere_is_free(g, p, v.collision_radius)) return ViewStatus::Collision;
+  if (check_segment && !segment_is_free(g, here, p, v.collision_radius))
+    return ViewStatus::PathBlocked;
+  return ViewStatus::Valid;
+}
+
 struct Job {
   const GridView& grid;
   Candidates cand;
@@ -213,18 +227,8 @@ ViewScores score(const Job& job, const Cells& cells) {
       const auto k = static_cast<Eigen::Index>(kk);
       const Eigen::Vector3d p(job.cand(k, 0), job.cand(k, 1), job.cand(k, 2));
       auto& st = out.status[k];
-      if ((p.array() < v.bounds_min.array()).any() || (p.array() > v.bounds_max.array()).any()) {
-        st = static_cast<std::int8_t>(ViewStatus::OutOfBounds);
-        continue;
-      }
-      if (!sphere_is_free(g, p, v.collision_radius)) {
-        st = static_cast<std::int8_t>(ViewStatus::Collision);
-        continue;
-      }
-      if (check_segment && !segment_is_free(g, here, p, v.collision_radius)) {
-        st = static_cast<std::int8_t>(ViewStatus::PathBlocked);
-        continue;
-      }
+      st = static_cast<std::int8_t>(view_validity(g, p, here, v, check_segment));
+      if (st != static_cast<std::int8_t>(ViewStatus::Valid)) continue;
       double gain = 0.0;
       int n_cells = 0, occ = 0;
       // Every ray of the view through the grid; with kRecord, the rays' stops go into `rec` and

@@ -273,6 +273,239 @@ ViewScores evaluate_views_octree(const OccupancyMap& map, const Candidates& cand
                   false);
 }
 
+// ---- what candidates' rays reach -------------------------------------------------------------
+
+namespace {
+
+/// A cell one of a view's rays reached: its id, and the ray (and the axis of the face it entered
+/// through, -1 for none) of the smallest range so far.
+struct Reached {
+  std::uint64_t id;
+  double range;
+  std::int32_t ray;
+  std::int8_t axis;
+};
+
+/// Per thread: which record of the current view holds a cell. Brick by brick (the grid's bricks
+/// of 64 cells): an open-addressing table from a brick's id to a block of 64 record numbers, one
+/// per cell of the brick (kNone: not reached yet). A ray crosses a few cells per brick and its
+/// neighbours cross the same bricks, so a walk mostly finds its block at hand (the last one) or
+/// in a small table; the blocks sit together in one pool. Both are cleared per view.
+class CellSlots {
+ public:
+  static constexpr std::uint32_t kNone = ~std::uint32_t(0);
+  void begin_view() {
+    // room for twice the bricks of the largest view so far
+    std::size_t size = 1024;
+    while (size < 2 * blocks_) size *= 2;
+    if (keys_.size() < size) keys_.resize(size), at_.resize(size);
+    mask_ = keys_.size() - 1;
+    shift_ = 64 - __builtin_ctzll(keys_.size());
+    std::fill(keys_.begin(), keys_.end(), kEmpty);
+    blocks_ = 0;
+  }
+  /// The 64 record numbers of brick `brick`'s cells (valid until the next call).
+  std::uint32_t* block(std::uint64_t brick) {
+    if (2 * (blocks_ + 1) > keys_.size()) grow();
+    std::size_t h = std::size_t((brick * 0x9E3779B97F4A7C15ull) >> shift_);
+    for (;; h = (h + 1) & mask_) {
+      if (keys_[h] == brick) return &pool_[std::size_t(at_[h]) * 64];
+      if (keys_[h] == kEmpty) break;
+    }
+    keys_[h] = brick;
+    at_[h] = std::uint32_t(blocks_);
+    if (pool_.size() < 64 * (blocks_ + 1))
+      pool_.resize(std::max<std::size_t>(4096, 2 * pool_.size()));
+    std::uint32_t* b = &pool_[64 * blocks_++];
+    std::fill(b, b + 64, kNone);
+    return b;
+  }
+
+ private:
+  static constexpr std::uint64_t kEmpty = ~std::uint64_t(0);
+  void grow() {
+    std::vector<std::uint64_t> keys(2 * keys_.size(), kEmpty);
+    std::vector<std::uint32_t> at(keys.size());
+    mask_ = keys.size() - 1;
+    shift_ = 64 - __builtin_ctzll(keys.size());
+    for (std::size_t i = 0; i < keys_.size(); ++i) {
+      if (keys_[i] == kEmpty) continue;
+      std::size_t h = std::size_t((keys_[i] * 0x9E3779B97F4A7C15ull) >> shift_);
+      while (keys[h] != kEmpty) h = (h + 1) & mask_;
+      keys[h] = keys_[i];
+      at[h] = at_[i];
+    }
+    keys_.swap(keys);
+    at_.swap(at);
+  }
+  std::vector<std::uint64_t> keys_;  // brick ids (kEmpty: free)
+  std::vector<std::uint32_t> at_;    // their blocks in pool_
+  std::vector<std::uint32_t> pool_;  // blocks of 64 record numbers
+  std::size_t blocks_ = 0, mask_ = 0;
+  int shift_ = 64;
+};
+
+/// Which face a ray entering the workspace from outside crosses first: the axis whose
+/// entering boundary it reaches last (clip_to_grid's t0).
+int entry_axis(const GridView& g, const Eigen::Vector3d& o, const Eigen::Vector3d& d) {
+  const Eigen::Vector3d pos = (o - g.origin) / g.resolution;
+  const int n[3] = {g.nx, g.ny, g.nz};
+  int axis = -1;
+  double best = -kernel::kInf;
+  for (int a = 0; a < 3; ++a) {
+    if (d[a] == 0.0) continue;
+    const double t = ((d[a] > 0 ? 0.0 : double(n[a])) - pos[a]) / d[a];
+    if (t > best) best = t, axis = a;
+  }
+  return axis;
+}
+
+/// Walks the rays of the camera at T (camera.directions() `dirs`, each to max_range depth) as
+/// evaluate_views does, recording in `rec` the distinct cells they reach (slots: which record
+/// holds a cell); returns the rays that ended at an occupied cell of log-odds above occ_req. Kept
+/// out of its caller (noipa: not inlined, nor specialised for its arguments), so that the
+/// caller's thread-local tables come in as plain references that the walk keeps in registers;
+/// inlined, GCC looked their thread-local addresses up again at every cell.
+[[gnu::noipa]] int walk_view(const GridView& g, const Points& dirs, const Eigen::Isometry3d& T,
+                             double max_range, double occ_req, CellSlots& slots,
+                             std::vector<Reached>& rec) {
+  const Eigen::Vector3d o = T.translation();
+  const Eigen::Matrix3d R = T.linear();
+  rec.clear();
+  slots.begin_view();
+  std::uint64_t brick = ~std::uint64_t(0);
+  std::uint32_t* block = nullptr;
+  int occ = 0;
+  for (Eigen::Index r = 0; r < dirs.rows(); ++r) {
+    const Eigen::Vector3d ds = dirs.row(r).transpose();
+    const Eigen::Vector3d dw = R * ds;
+    bool first = true;
+    int prev[3] = {0, 0, 0};
+    walk_ray<false>(g, o, dw, max_range / ds.x(), [&](std::size_t idx, const int* c, double t) {
+      int axis;
+      if (first)
+        axis = t > 0.0 ? entry_axis(g, o, dw) : -1;
+      else
+        axis = c[0] != prev[0] ? 0 : c[1] != prev[1] ? 1 : 2;
+      first = false;
+      prev[0] = c[0], prev[1] = c[1], prev[2] = c[2];
+      if ((idx >> 6) != brick) brick = idx >> 6, block = slots.block(brick);
+      std::uint32_t& at = block[idx & 63];
+      if (at == CellSlots::kNone) {
+        at = std::uint32_t(rec.size());
+        rec.push_back({idx, t, std::int32_t(r), std::int8_t(axis)});
+      } else if (t < rec[at].range) {
+        rec[at].range = t, rec[at].ray = std::int32_t(r);
+        rec[at].axis = std::int8_t(axis);
+      }
+      if (!std::signbit(g.scored[idx])) return true;
+      occ += g.logodds[idx] > occ_req;  // the ray's first occupied cell
+      return false;
+    });
+  }
+  return occ;
+}
+
+}  // namespace
+
+CandidateRays candidate_rays(const GridView& g, const Candidates& cand, const Pose& current,
+                             const ViewCameraModel& camera, const UtilityOptions& utility,
+                             const ValidityOptions& validity) {
+  check_inputs(g, cand, camera, utility, validity);
+  const Eigen::Index K = cand.rows();
+  CandidateRays out;
+  out.occupied_seen.setZero(K);
+  out.status.setConstant(K, static_cast<std::int8_t>(ViewStatus::Valid));
+  const Points dirs = camera.directions();
+  const double occ_req = utility.require_occupied_probability > 0
+                             ? kernel::logit(utility.require_occupied_probability)
+                             : -kernel::kInf;
+  const Eigen::Vector3d here(current.x, current.y, current.z);
+  const bool check_segment = validity.blocked_path == "reject";
+  std::vector<std::vector<Reached>> reached(static_cast<std::size_t>(K));
+
+  // The walks: every ray of each valid view, as evaluate_views walks them (walk_ray<false>
+  // visits the cells the ig utility's four-lane walk marks, in order).
+  parallel_chunks(static_cast<std::size_t>(K), 1, [&](std::size_t b, std::size_t e) {
+    // per thread, kept between calls (their arrays grown once)
+    thread_local CellSlots slots;
+    thread_local std::vector<Reached> rec;  // a view's cells, then copied to `reached`
+    for (std::size_t kk = b; kk < e; ++kk) {
+      const auto k = static_cast<Eigen::Index>(kk);
+      const Pose pose = view_pose(cand, k);
+      const Eigen::Vector3d p(pose.x, pose.y, pose.z);
+      const ViewStatus st = kernel::view_validity(g, p, here, validity, check_segment);
+      out.status[k] = static_cast<std::int8_t>(st);
+      if (st != ViewStatus::Valid) continue;
+      const Eigen::Isometry3d T = gimbal_sensor_transform(pose, camera.mount);
+      const int occ = walk_view(g, dirs, T, camera.max_range, occ_req, slots, rec);
+      reached[kk].assign(rec.begin(), rec.end());
+      out.occupied_seen[k] = occ;
+      if (utility.require_occupied && occ == 0)
+        out.status[k] = static_cast<std::int8_t>(ViewStatus::SeesNoOccupied);
+    }
+  });
+
+  // The flat arrays, each view's cells at its offset.
+  out.offsets.resize(K + 1);
+  out.offsets[0] = 0;
+  for (Eigen::Index k = 0; k < K; ++k)
+    out.offsets[k + 1] = out.offsets[k] + std::int64_t(reached[std::size_t(k)].size());
+  const std::size_t N = std::size_t(out.offsets[K]);
+  out.index.resize(N);
+  out.centers.resize(3 * N);
+  out.probability.resize(N);
+  out.logodds.resize(N);
+  out.state.resize(N);
+  out.range.resize(N);
+  out.incidence.resize(N);
+  const bool observed = out.observed = g.seen && g.hits;
+  out.seen.resize(observed ? N : 0);
+  out.hits.resize(observed ? N : 0);
+  const kernel::GridCells cells{g};
+  parallel_chunks(static_cast<std::size_t>(K), 1, [&](std::size_t b, std::size_t e) {
+    for (std::size_t kk = b; kk < e; ++kk) {
+      const auto k = static_cast<Eigen::Index>(kk);
+      const std::vector<Reached>& rec = reached[kk];
+      if (rec.empty()) continue;
+      const Eigen::Matrix3d R = gimbal_sensor_transform(view_pose(cand, k), camera.mount).linear();
+      std::size_t i = std::size_t(out.offsets[k]);
+      for (const Reached& c : rec) {
+        const std::size_t id = std::size_t(c.id);
+        int cell[3];
+        g.layout.coords(id, cell[0], cell[1], cell[2]);
+        const CellFlag flag = g.flags[id];
+        const bool occupied = std::signbit(g.scored[id]);
+        out.index[i] = cell[0] + std::int64_t(g.nx) * (cell[1] + std::int64_t(g.ny) * cell[2]);
+        const Eigen::Vector3d centre = g.center(cell[0], cell[1], cell[2]);
+        for (int a = 0; a < 3; ++a) out.centers[3 * i + std::size_t(a)] = centre[a];
+        out.logodds[i] = g.logodds[id];
+        out.probability[i] = utility::occupancy(cells, id, cell);
+        out.state[i] = static_cast<std::int8_t>(flag == CellFlag::Unknown ? CellState::Unknown
+                                                : occupied                ? CellState::Occupied
+                                                                          : CellState::Free);
+        out.range[i] = c.range + 0.0;  // -0.0 (a cell entered at the camera) as 0
+        const Eigen::Vector3d d = R * dirs.row(c.ray).transpose();
+        double cos_i = std::numeric_limits<double>::quiet_NaN();
+        double n[3] = {0.0, 0.0, 0.0};
+        if (occupied) utility::open_face_normal(g, cells, cell, n);
+        const double nn = std::sqrt(n[0] * n[0] + n[1] * n[1] + n[2] * n[2]);
+        if (nn > 0.0)
+          cos_i = std::abs(n[0] * d.x() + n[1] * d.y() + n[2] * d.z()) / nn;
+        else if (c.axis >= 0)
+          cos_i = std::abs(d[c.axis]) / d.norm();
+        out.incidence[i] = std::isnan(cos_i) ? cos_i : std::acos(std::min(1.0, cos_i));
+        if (observed) {
+          out.seen[i] = g.seen[id];
+          out.hits[i] = g.hits[id];
+        }
+        ++i;
+      }
+    }
+  });
+  return out;
+}
+
 double viewable_cells(double hfov_deg, double vfov_deg, double min_range, double max_range,
                       double resolution, bool count_partial) {
   if (!(resolution > 0) || !(max_range > min_range) || !(min_range >= 0))

@@ -9,6 +9,8 @@ the laser keeps its fixed mount. Arrays in are (N, 3) float64 (anything array-li
 converted); arrays out are numpy.
 """
 from ._core import (  # noqa: F401  (re-exported)
+    CandidateRays,
+    CandidateRaysView,
     DepthCamera,
     DepthCameraOptions,
     EvaluationOptions,
@@ -19,6 +21,7 @@ from ._core import (  # noqa: F401  (re-exported)
     RaycastScene,
     Scan,
     SurfaceCloudOptions,
+    candidate_rays,
     get_num_threads,
     gimbal_transform,
     mount_transform,
@@ -101,4 +104,7 @@ __all__ = [
     "SymmetryResult",
     "detect_symmetry",
     "predict_symmetric",
+    "CandidateRays",
+    "CandidateRaysView",
+    "candidate_rays",
 ]

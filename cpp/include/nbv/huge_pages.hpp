@@ -13,6 +13,8 @@
 #include <cstddef>
 #include <cstdlib>
 #include <new>
+#include <type_traits>
+#include <utility>
 #include <vector>
 
 namespace nbv {
@@ -55,5 +57,32 @@ struct HugePageAllocator {
 /// A std::vector whose large buffers ask for huge pages.
 template <class T>
 using HugeVector = std::vector<T, HugePageAllocator<T>>;
+
+/// HugePageAllocator whose value-initialisation (resize(n), vector(n)) leaves trivial elements
+/// uninitialised: for an array that is filled right after, in parallel, so that its pages are
+/// first touched (and zeroed by the kernel) by the threads that fill them, not by one memset.
+template <class T>
+struct UninitHugePageAllocator : HugePageAllocator<T> {
+  template <class U>
+  struct rebind {
+    using other = UninitHugePageAllocator<U>;
+  };
+  UninitHugePageAllocator() = default;
+  template <class U>
+  UninitHugePageAllocator(const UninitHugePageAllocator<U>&) {}  // NOLINT: rebinding
+  template <class U>
+  void construct(U* p) noexcept(std::is_nothrow_default_constructible_v<U>) {
+    ::new (static_cast<void*>(p)) U;  // default-initialised: no zeroing for trivial types
+  }
+  template <class U, class... Args>
+  void construct(U* p, Args&&... args) {
+    ::new (static_cast<void*>(p)) U(std::forward<Args>(args)...);
+  }
+};
+
+/// A HugeVector whose resize leaves trivial elements uninitialised (UninitHugePageAllocator):
+/// every element must be written before it is read.
+template <class T>
+using HugeBuffer = std::vector<T, UninitHugePageAllocator<T>>;
 
 }  // namespace nbv

@@ -9,6 +9,7 @@
 
 #include "nbv/common.hpp"
 #include "nbv/grid_view.hpp"
+#include "nbv/huge_pages.hpp"
 #include "nbv/options.hpp"
 
 #include <array>
@@ -233,6 +234,65 @@ ViewScores evaluate_views_octree(const OccupancyMap& map, const ViewPosesRef& ca
                                  const Pose& current, const ViewCameraModel& camera,
                                  const UtilityOptions& utility, const ValidityOptions& validity,
                                  const SurfaceObservations* surface = nullptr);
+
+/// What the camera rays of K candidate views reach (candidate_rays), for a utility written
+/// elsewhere (in Python) over them. Per candidate k, its cells are the rows
+/// [offsets[k], offsets[k + 1]) of the per-cell arrays, in the order its rays first reached them
+/// (ray by ray, each from the camera outwards): the DISTINCT workspace cells its rays entered.
+struct CandidateRays {
+  template <class T>
+  using Vector = Eigen::Matrix<T, Eigen::Dynamic, 1>;
+  Vector<std::int64_t> offsets;  ///< (K + 1,) offsets[0] = 0, offsets[K] = N
+  // Per cell, N each (3 N for centers); in huge pages where the kernel offers them, first
+  // touched by the threads that fill them: on this project's virtual machine the page faults of
+  // first writes to fresh 4 KiB pages cost more than the walks (huge_pages.hpp).
+  /// the cell's flat workspace index i + nx (j + ny k) (OccupancyMap.index_of's)
+  HugeBuffer<std::int64_t> index;
+  HugeBuffer<double> centers;      ///< (N, 3) row-major: cell centres, world frame (m)
+  HugeBuffer<double> probability;  ///< occupancy probability sigmoid(log-odds); unknown 0.5
+  HugeBuffer<float> logodds;       ///< the map's log-odds, as it holds them; unknown 0
+  HugeBuffer<std::int8_t> state;   ///< CellState: -1 unknown, 0 free, 1 occupied
+  /// metres from the camera to where a ray entered the cell, the smallest over the rays (0 for
+  /// the camera's own cell; where the camera is outside the workspace, a ray's first cell is
+  /// entered where the ray enters the workspace)
+  HugeBuffer<double> range;
+  /// radians in [0, pi/2], for the ray of the smallest range (the first of equal ones): the angle
+  /// between it and the cell's normal: for an occupied cell, the surface normal the surface
+  /// utility estimates (utility::open_face_normal), for other cells, and for an occupied one
+  /// whose open faces give no normal, the normal of the face the ray entered through. NaN for
+  /// the camera's own cell (entered through no face).
+  HugeBuffer<double> incidence;
+  /// with camera observations (grid.seen / grid.hits; `observed`): the cell's direction-bin mask
+  /// and camera hits; empty without
+  HugeBuffer<std::uint32_t> seen;
+  HugeBuffer<std::uint16_t> hits;
+  bool observed = false;
+  /// (K,) rays that ended at an occupied cell of log-odds above require_occupied_probability's
+  /// (evaluate_views' occupied_seen)
+  Eigen::VectorXi occupied_seen;
+  /// (K,) ViewStatus, as evaluate_views gives it for the same utility options. Views out of
+  /// bounds, in collision or with a blocked path were not walked: they have no cells. A view
+  /// that sees no occupied cell (SeesNoOccupied) keeps the cells it reached.
+  Vector<std::int8_t> status;
+  Eigen::Index size() const { return status.size(); }     ///< K
+  std::size_t num_cells() const { return index.size(); }  ///< N
+  Eigen::Vector3d center(std::size_t i) const {
+    return {centers[3 * i], centers[3 * i + 1], centers[3 * i + 2]};
+  }
+};
+
+/// Walks the camera rays of K candidate views (rows as evaluate_views' candidates) exactly as
+/// evaluate_views does - the same rays (camera.directions() on the gimbal), each ending at its
+/// first occupied cell (inclusive), at the camera's max_range depth or where it leaves the
+/// workspace - and records the distinct cells each view's rays reached (CandidateRays). One call
+/// for all candidates, in parallel over them; each candidate's cells do not depend on the
+/// threads. Validity and status as evaluate_views's; of `utility` only require_occupied and
+/// require_occupied_probability are read (they decide SeesNoOccupied and occupied_seen).
+/// Throws std::invalid_argument for non-finite candidates, a pitch beyond +-pi/2, or bad
+/// options.
+CandidateRays candidate_rays(const GridView& grid, const ViewPosesRef& candidates,
+                             const Pose& current, const ViewCameraModel& camera,
+                             const UtilityOptions& utility, const ValidityOptions& validity);
 
 /// Names of the registered utilities.
 std::vector<std::string> utility_names();

@@ -61,16 +61,8 @@ struct Surface {
     if (k <= 0.0) return 1.0;
     double cos_i = 1.0;
     if (surface) {
-      const GridView& g = ctx_.grid;
-      double n[3] = {0.0, 0.0, 0.0};
-      for (int a = 0; a < 3; ++a)
-        for (int s = -1; s <= 1; s += 2) {
-          int m[3] = {c[0], c[1], c[2]};
-          m[a] += s;
-          if (!g.contains(m[0], m[1], m[2])) continue;
-          const std::size_t j = g.index(m[0], m[1], m[2]);
-          if (!std::signbit(cells.scored(j, m)) || cells.flag(j, m) == CellFlag::Unknown) n[a] += s;
-        }
+      double n[3];
+      open_face_normal(ctx_.grid, cells, c, n);
       const double nn = std::sqrt(n[0] * n[0] + n[1] * n[1] + n[2] * n[2]);
       if (nn > 0.0) cos_i = std::abs(n[0] * dir_.x() + n[1] * dir_.y() + n[2] * dir_.z()) / nn;
     }

@@ -134,4 +134,20 @@ bool next_to_surface(const GridView& g, const Cells& cells, const int* c, bool a
   return false;
 }
 
+/// The outward normal of an occupied cell's surface as the surface utility estimates it: the sum
+/// of the unit vectors towards its open face neighbours (free or unknown; neighbours outside the
+/// grid left out), not normalised; zero where they cancel or there are none.
+template <class Cells>
+void open_face_normal(const GridView& g, const Cells& cells, const int* c, double n[3]) {
+  n[0] = n[1] = n[2] = 0.0;
+  for (int a = 0; a < 3; ++a)
+    for (int s = -1; s <= 1; s += 2) {
+      int m[3] = {c[0], c[1], c[2]};
+      m[a] += s;
+      if (!g.contains(m[0], m[1], m[2])) continue;
+      const std::size_t j = g.index(m[0], m[1], m[2]);
+      if (!std::signbit(cells.scored(j, m)) || cells.flag(j, m) == CellFlag::Unknown) n[a] += s;
+    }
+}
+
 }  // namespace nbv::utility

@@ -4,5 +4,6 @@ registered by name (registry.py); scenarios (nbvkit.scenarios) compose them."""
 from .parts import Choice, Proposal, Step
 from .planner import Planner
 from .registry import GENERATORS, TERMINATIONS
+from .utilities import PythonUtility
 
-__all__ = ["Planner", "Proposal", "Choice", "Step", "GENERATORS", "TERMINATIONS"]
+__all__ = ["Planner", "Proposal", "Choice", "Step", "GENERATORS", "TERMINATIONS", "PythonUtility"]

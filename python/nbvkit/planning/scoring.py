@@ -40,6 +40,21 @@ UtilityConfig = cpp_section(
 )
 
 
+def _options_for(self, cls, _plain=UtilityConfig.options_for):
+    """The C++ options of the section; a utility registered from Python goes to the C++ core
+    (its checks, the occupied constraint, the coverage cone) under the name 'ig', which the
+    core knows: built under its own name they failed its check of the name."""
+    from .registry import UTILITIES
+
+    if self.name not in UTILITIES:
+        return _plain(self, cls)
+    return cls(**{f: "ig" if f == "name" else getattr(self, f) for f in cls.fields()})
+
+
+UtilityConfig.options_for = _options_for
+UtilityConfig.options = lambda self: _options_for(self, UtilityConfig.OPTIONS)
+
+
 class Scorer:
     """A planner's one scoring entry: the utility's scores of candidate views `poses` (K, 4 or
     5) from where the vehicle is, in one call, with one memo kept across calls (the paper's IG
@@ -52,7 +67,7 @@ class Scorer:
         self.name = utility.name
         self.surface = utility.name == "surface"  # its gain: cells of new surface
         self.python = UTILITIES.get(utility.name)
-        self.options = None if self.python else utility.options()
+        self.options = utility.options()  # for a Python utility: its occupied constraint
         self.memo = _core.ViewMemo()
 
     def __call__(self, world, poses) -> dict:
@@ -60,7 +75,7 @@ class Scorer:
         if self.python is not None:
             from .utilities import score_python
 
-            return score_python(self.python, world, poses)
+            return score_python(self.python, world, poses, self.options)
         return _core.evaluate_views(
             world.map,
             poses,
