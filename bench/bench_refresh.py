@@ -91,7 +91,7 @@ def mission(args) -> None:
     tracker = m.evaluator._tracker
     print(
         f"scenario {args.scenario}, start {args.start}: {n} refreshes over {len(m.records)} "
-        f"iterations, {len(m.camera_cloud) + len(m.laser_cloud):,} cloud points at the end "
+        f"iterations, {len(m.world.camera_cloud) + len(m.world.laser_cloud):,} cloud points at the end "
         f"(threads: {nbvkit.get_num_threads()})"
     )
     a, b = 1e3 * spent["tracked"] / n, 1e3 * spent["scratch"] / n

@@ -34,7 +34,7 @@ def main():
         over.append(f"mesh.path={args.mesh}")
     m = Mission(Config().with_overrides(over))
     m.run()
-    pose = m.state.pose
+    pose = m.world.state.pose
     cands = candidate_poses(pose)
     # exactly what the mission's planner passes
     kw = dict(

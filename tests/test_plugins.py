@@ -193,3 +193,24 @@ def test_the_worked_example_of_docs_plugins_flies(tmp_path):
     assert s["scenario"] == "ring" and s["generators"] == ["ring"]
     assert s["termination"] == "coverage_complete" and s["iterations"] == 5
     assert "ring:" in (out / "config.yaml").read_text()
+
+
+def test_the_utility_example_of_docs_plugins_flies_the_papers_method(tmp_path):
+    import re
+
+    doc = (ROOT / "docs" / "PLUGINS.md").read_text()
+    example = re.search(r"`my_utility.py`:\n\n```python\n(.*?)```", doc, flags=re.S).group(1)
+    plugin = tmp_path / "my_utility.py"
+    plugin.write_text(example)
+    out = tmp_path / "u"
+    p = subprocess.run(
+        [sys.executable, "-m", "nbvkit.cli", "run", "--plugin", str(plugin), "--scenario", "5",
+         "--mesh", str(ROOT / "meshes" / "fixtures" / "cube.obj"), "--out", str(out),
+         "--set", "map.resolution=0.4", "evaluation.gt_density=50", "max_iterations=3",
+         "profiling.enabled=false", "symmetry.mode=none", "report.enabled=false",
+         "observability.enabled=false", "utility.name=near_unknown"],
+        capture_output=True, text=True, timeout=300,
+    )  # fmt: skip
+    assert p.returncode == 0, p.stderr
+    s = json.loads((out / "summary.json").read_text())
+    assert s["utility"] == "near_unknown" and s["iterations"] >= 1

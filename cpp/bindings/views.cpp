@@ -161,6 +161,7 @@ free space, and (blocked_path 'reject') its straight flight from the current pos
     binder.finish();
   }
   m.attr("VIEW_STATUS_NAMES") = py::cast(view_status_names());
+  m.attr("DEFAULT_PATH_EXPANSIONS") = kDefaultPathExpansions;
   m.def("utility_names", &utility_names, "Names of the registered view utilities.");
 
   py::class_<SurfaceObservations, std::shared_ptr<SurfaceObservations>>(m, "SurfaceObservations",
@@ -441,7 +442,7 @@ ValueError for a bad shape, non-finite values or bad options.)doc");
         return out;
       },
       py::arg("map"), py::arg("a"), py::arg("b"), py::arg("radius"),
-      py::arg("max_expansions") = 200000, py::arg("reference") = false,
+      py::arg("max_expansions") = kDefaultPathExpansions, py::arg("reference") = false,
       "A* through known free space; (P, 3) waypoints from a to b, or (0, 3) when there is none.\n"
       "reference=True runs the first implementation (the same path, slower), for tests and\n"
       "benchmarks.");

@@ -59,7 +59,7 @@ VehicleConfig = cpp_section(
         (
             "path_expansions",
             int,
-            200000,
+            _core.DEFAULT_PATH_EXPANSIONS,
             "cells an A* search to a view expands at most; a view the vehicle's free component "
             "holds is searched again without the cap",
         ),

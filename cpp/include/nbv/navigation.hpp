@@ -24,6 +24,10 @@ struct PathSearchStats {
   bool flood_ended = false;
 };
 
+/// Cells an A* search expands at most unless told (vehicle.path_expansions's default, bound as
+/// nbvkit._core.DEFAULT_PATH_EXPANSIONS).
+inline constexpr std::size_t kDefaultPathExpansions = 200000;
+
 /// A* through known free space (26-connected cells whose collision sphere is free). Returns the
 /// waypoints from a to b (a first, b last), shortened greedily by line of sight, or an empty
 /// list if there is none within max_expansions. The path's length is the sum of its segments.
@@ -32,7 +36,7 @@ struct PathSearchStats {
 /// pocket costs the pocket, not a's whole component); it never changes the answer.
 std::vector<Eigen::Vector3d> plan_path(const GridView& grid, const Eigen::Vector3d& a,
                                        const Eigen::Vector3d& b, double radius,
-                                       std::size_t max_expansions = 200000,
+                                       std::size_t max_expansions = kDefaultPathExpansions,
                                        PathSearchStats* stats = nullptr);
 
 /// The cells plan_path can reach from a: a's free component (traversable cells, 26-connected,
@@ -58,9 +62,9 @@ class FreeComponent {
 
 /// plan_path as it was first written (hash maps, a sphere test per cell, no flood): the same
 /// path for the same input, kept as the reference the fast search is tested and timed against.
-std::vector<Eigen::Vector3d> plan_path_reference(const GridView& grid, const Eigen::Vector3d& a,
-                                                 const Eigen::Vector3d& b, double radius,
-                                                 std::size_t max_expansions = 200000);
+std::vector<Eigen::Vector3d> plan_path_reference(
+    const GridView& grid, const Eigen::Vector3d& a, const Eigen::Vector3d& b, double radius,
+    std::size_t max_expansions = kDefaultPathExpansions);
 
 /// Length of a polyline (rows are waypoints).
 double path_length(const std::vector<Eigen::Vector3d>& path);
