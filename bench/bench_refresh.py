@@ -89,9 +89,10 @@ def mission(args) -> None:
     m.run()
     n = calls[0]
     tracker = m.evaluator._tracker
+    points = len(m.world.camera_cloud) + len(m.world.laser_cloud)
     print(
         f"scenario {args.scenario}, start {args.start}: {n} refreshes over {len(m.records)} "
-        f"iterations, {len(m.world.camera_cloud) + len(m.world.laser_cloud):,} cloud points at the end "
+        f"iterations, {points:,} cloud points at the end "
         f"(threads: {nbvkit.get_num_threads()})"
     )
     a, b = 1e3 * spent["tracked"] / n, 1e3 * spent["scratch"] / n
