@@ -24,6 +24,27 @@ def mesh_parser(doc: str, repeat: int | None = None) -> argparse.ArgumentParser:
     return ap
 
 
+def flown_map_parser(doc: str, iterations: int) -> argparse.ArgumentParser:
+    """mesh_parser (--repeat 5) with --iterations (views flown before measuring, default
+    `iterations`) and --scenario (default 1): the map a benchmark times its calls on."""
+    ap = mesh_parser(doc, repeat=5)
+    ap.add_argument(
+        "--iterations", type=int, default=iterations, help="mission iterations before measuring"
+    )
+    ap.add_argument("--scenario", default="1")
+    return ap
+
+
+def flown_mission(args):
+    """The Mission of args (flown_map_parser's), flown: its world holds the map to time on."""
+    over = [f"max_iterations={args.iterations}", "progress=false", f"scenario={args.scenario}"]
+    if args.mesh:
+        over.append(f"mesh.path={args.mesh}")
+    m = nbvkit.Mission(nbvkit.load_config(overrides=over))
+    m.run()
+    return m
+
+
 def bench_mesh(path=None):
     """(mesh, lo, hi, centre): the structure at `path` (default: the shipped airliner), its
     bounding box corners and centre."""

@@ -10,15 +10,13 @@ Run: .venv/bin/python bench/bench_python_utility.py [--mesh PATH] [--iterations 
 """
 from __future__ import annotations
 
-import argparse
 import time
 
 import numpy as np
 
 import nbvkit
+from _timing import flown_map_parser, flown_mission
 from nbvkit import _core
-from nbvkit.config import Config
-from nbvkit.mission import Mission
 from nbvkit.planning.utilities import PythonUtility, information_gain
 from nbvkit.sampling import candidate_poses
 
@@ -31,19 +29,8 @@ def timed(fn) -> float:
 
 
 def main():
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--mesh", default=None)
-    ap.add_argument(
-        "--iterations", type=int, default=20, help="mission iterations before measuring"
-    )
-    ap.add_argument("--scenario", default="1")
-    ap.add_argument("--repeat", type=int, default=5)
-    args = ap.parse_args()
-    over = [f"max_iterations={args.iterations}", "progress=false", f"scenario={args.scenario}"]
-    if args.mesh:
-        over.append(f"mesh.path={args.mesh}")
-    m = Mission(Config().with_overrides(over))
-    m.run()
+    args = flown_map_parser(__doc__, 20).parse_args()
+    m = flown_mission(args)
     world = m.world
     pose = world.state.pose
     cands = candidate_poses(pose)

@@ -8,32 +8,18 @@ Run: .venv/bin/python bench/bench_views.py [--mesh PATH] [--iterations N] [--rep
 """
 from __future__ import annotations
 
-import argparse
 
 import numpy as np
 
 import nbvkit
-from _timing import median_time
+from _timing import flown_map_parser, flown_mission, median_time
 from nbvkit import _core
-from nbvkit.config import Config
-from nbvkit.mission import Mission
 from nbvkit.sampling import candidate_poses
 
 
 def main():
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--mesh", default=None)
-    ap.add_argument(
-        "--iterations", type=int, default=60, help="mission iterations before measuring"
-    )
-    ap.add_argument("--scenario", default="1")
-    ap.add_argument("--repeat", type=int, default=5)
-    args = ap.parse_args()
-    over = [f"max_iterations={args.iterations}", "progress=false", f"scenario={args.scenario}"]
-    if args.mesh:
-        over.append(f"mesh.path={args.mesh}")
-    m = Mission(Config().with_overrides(over))
-    m.run()
+    args = flown_map_parser(__doc__, 60).parse_args()
+    m = flown_mission(args)
     pose = m.world.state.pose
     cands = candidate_poses(pose)
     # exactly what the mission's planner passes
