@@ -1,7 +1,10 @@
-"""Writes nine structures unlike the ones the planner's settings were measured on, to fly it on
+"""Writes ten structures unlike the ones the planner's settings were measured on, to fly it on
 shapes it was never tuned for (docs/RESULTS.md, "Six structures built after the settings" and
 "Three more: a domed drum, a guyed chimney, solar rows"):
 
+- station: a 14 x 10 x 5 m shop with a flat roof behind 0.8 m parapets, a 30 x 12 m forecourt
+  slab 0.25 m thick and a canopy on four columns 4.5 m up over it, turned 20 degrees and moved
+  off the origin (horizontal faces near the ground: docs/RESULTS.md, "The camera gimbal");
 - turbine: a 32 m tapered tower, a nacelle, a hub and three 15 m blades (tall, thin, overhead);
 - lbuild: an L-shaped building, 30 x 28 x 12 m, with a low annex, roof slabs overhanging by 1 m,
   a rooftop plant room and a canopy on posts (overhangs, hidden free space);
@@ -266,7 +269,29 @@ def solar() -> Builder:
     return m.place(15, (-120.0, 0.0, 0.0))
 
 
+def station() -> Builder:
+    """Horizontal faces near the ground (issue 33): a 14 x 10 x 5 m shop with a flat roof and
+    0.8 m parapets, a 30 x 12 m forecourt slab 0.25 m thick before it, and a 12 x 7 m canopy 4.5
+    m up on four columns over the slab; turned 20 deg and moved off the origin."""
+    m = Builder()
+    m.box([0, 0, 0], [14, 10, 5])  # the shop
+    for lo, hi in (
+        ([0, 0, 5], [14, 0.25, 5.8]),
+        ([0, 9.75, 5], [14, 10, 5.8]),
+        ([0, 0, 5], [0.25, 10, 5.8]),
+        ([13.75, 0, 5], [14, 10, 5.8]),
+    ):
+        m.box(lo, hi)  # parapets round the flat roof
+    m.box([-8, -13, 0], [22, -1, 0.25])  # the forecourt slab
+    m.box([1, -10, 4.5], [13, -3, 4.8])  # the canopy
+    for x in (2, 12):
+        for y in (-9, -4):
+            m.box([x - 0.2, y - 0.2, 0.25], [x + 0.2, y + 0.2, 4.5])
+    return m.place(20, (30.0, -15.0, 0.0))
+
+
 STRUCTURES = {
+    "station": station,
     "turbine": turbine,
     "lbuild": lbuild,
     "tanks": tanks,
