@@ -24,7 +24,7 @@ from pathlib import Path
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from unseen_structures import Builder  # noqa: E402
+from unseen_structures import Builder, selected  # noqa: E402
 
 
 def plant(rng: np.random.Generator) -> Builder:
@@ -102,9 +102,7 @@ def main():
     ap.add_argument("--only", default=",".join(STRUCTURES), help="comma-separated names")
     args = ap.parse_args()
     args.out.mkdir(parents=True, exist_ok=True)
-    for name in args.only.split(","):
-        if name not in STRUCTURES:
-            raise SystemExit(f"unknown structure {name!r}: one of {', '.join(STRUCTURES)}")
+    for name in selected(args.only, STRUCTURES):
         path = args.out / f"{name}_s{args.seed}.obj"
         mesh = STRUCTURES[name](np.random.default_rng(args.seed))
         mesh.write(path)

@@ -304,15 +304,23 @@ STRUCTURES = {
 }
 
 
+def selected(only: str, table: dict) -> list:
+    """The names of the comma-separated `only` (--only), each a key of `table`; SystemExit
+    naming an unknown one."""
+    names = only.split(",")
+    for name in names:
+        if name not in table:
+            raise SystemExit(f"unknown structure {name!r}: one of {', '.join(table)}")
+    return names
+
+
 def main():
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("out", type=Path, help="folder to write NAME.obj into")
     ap.add_argument("--only", default=",".join(STRUCTURES), help="comma-separated names")
     args = ap.parse_args()
     args.out.mkdir(parents=True, exist_ok=True)
-    for name in args.only.split(","):
-        if name not in STRUCTURES:
-            raise SystemExit(f"unknown structure {name!r}: one of {', '.join(STRUCTURES)}")
+    for name in selected(args.only, STRUCTURES):
         path = args.out / f"{name}.obj"
         STRUCTURES[name]().write(path)
         print(path)
