@@ -141,6 +141,31 @@ def test_the_configuration_module_names_no_part():
         assert f'"{name}' not in body and f"{name}:" not in body and f".{name}" not in body, name
 
 
+CUBE = ROOT / "meshes" / "fixtures" / "cube.obj"
+
+
+def _run_with_plugin(plugin, out, *args) -> dict:
+    """`nbvkit run --plugin plugin --mesh cube --out out ARGS` in a subprocess; its summary."""
+    p = subprocess.run(
+        [sys.executable, "-m", "nbvkit.cli", "run", "--plugin", str(plugin), "--mesh", str(CUBE),
+         "--out", str(out), *args],
+        capture_output=True, text=True, timeout=300,
+    )  # fmt: skip
+    assert p.returncode == 0, p.stderr
+    return json.loads((out / "summary.json").read_text())
+
+
+def _doc_example(name: str, tmp_path):
+    """The python block of docs/PLUGINS.md introduced by `name`, written to tmp_path/name."""
+    import re
+
+    doc = (ROOT / "docs" / "PLUGINS.md").read_text()
+    code = re.search(rf"`{re.escape(name)}`[^`]*?```python\n(.*?)```", doc, flags=re.S).group(1)
+    path = tmp_path / name
+    path.write_text(code)
+    return path
+
+
 def test_nbvkit_run_flies_a_plugin_file(tmp_path):
     plugin = tmp_path / "my_parts.py"
     plugin.write_text(
@@ -149,14 +174,8 @@ def test_nbvkit_run_flies_a_plugin_file(tmp_path):
         + "\nnbvkit.register_generator('ring', RingGenerator)\n"
     )
     out = tmp_path / "run"
-    p = subprocess.run(
-        [sys.executable, "-m", "nbvkit.cli", "run", "--plugin", str(plugin),
-         "--mesh", str(ROOT / "meshes" / "fixtures" / "cube.obj"), "--out", str(out),
-         "--set", *QUICK, "planner.generators=[ring]", "ring.count=4", "max_iterations=2"],
-        capture_output=True, text=True, timeout=300,
-    )  # fmt: skip
-    assert p.returncode == 0, p.stderr
-    s = json.loads((out / "summary.json").read_text())
+    extra = ["planner.generators=[ring]", "ring.count=4", "max_iterations=2"]
+    s = _run_with_plugin(plugin, out, "--set", *QUICK, *extra)
     assert s["generators"] == ["ring"] and s["iterations"] == 2
     assert "ring:" in (out / "config.yaml").read_text()
     bad = subprocess.run(
@@ -175,42 +194,21 @@ def _source(*objs) -> str:
 
 
 def test_the_worked_example_of_docs_plugins_flies(tmp_path):
-    import re
-
-    doc = (ROOT / "docs" / "PLUGINS.md").read_text()
-    example = re.search(r"`my_parts.py`.*?```python\n(.*?)```", doc, flags=re.S).group(1)
-    plugin = tmp_path / "my_parts.py"
-    plugin.write_text(example)
+    plugin = _doc_example("my_parts.py", tmp_path)
     out = tmp_path / "ring"
-    p = subprocess.run(
-        [sys.executable, "-m", "nbvkit.cli", "run", "--plugin", str(plugin), "--planner", "ring",
-         "--mesh", str(ROOT / "meshes" / "fixtures" / "cube.obj"), "--out", str(out),
-         "--set", *QUICK, "ring.count=5", "ring.distance=2"],
-        capture_output=True, text=True, timeout=300,
-    )  # fmt: skip
-    assert p.returncode == 0, p.stderr
-    s = json.loads((out / "summary.json").read_text())
+    s = _run_with_plugin(plugin, out, "--planner", "ring", "--set", *QUICK, "ring.count=5",
+                         "ring.distance=2")  # fmt: skip
     assert s["scenario"] == "ring" and s["generators"] == ["ring"]
     assert s["termination"] == "coverage_complete" and s["iterations"] == 5
     assert "ring:" in (out / "config.yaml").read_text()
 
 
 def test_the_utility_example_of_docs_plugins_flies_the_papers_method(tmp_path):
-    import re
-
-    doc = (ROOT / "docs" / "PLUGINS.md").read_text()
-    example = re.search(r"`my_utility.py`:\n\n```python\n(.*?)```", doc, flags=re.S).group(1)
-    plugin = tmp_path / "my_utility.py"
-    plugin.write_text(example)
-    out = tmp_path / "u"
-    p = subprocess.run(
-        [sys.executable, "-m", "nbvkit.cli", "run", "--plugin", str(plugin), "--scenario", "5",
-         "--mesh", str(ROOT / "meshes" / "fixtures" / "cube.obj"), "--out", str(out),
-         "--set", "map.resolution=0.4", "evaluation.gt_density=50", "max_iterations=3",
-         "profiling.enabled=false", "symmetry.mode=none", "report.enabled=false",
-         "observability.enabled=false", "utility.name=near_unknown"],
-        capture_output=True, text=True, timeout=300,
+    plugin = _doc_example("my_utility.py", tmp_path)
+    s = _run_with_plugin(
+        plugin, tmp_path / "u", "--scenario", "5",
+        "--set", "map.resolution=0.4", "evaluation.gt_density=50", "max_iterations=3",
+        "profiling.enabled=false", "symmetry.mode=none", "report.enabled=false",
+        "observability.enabled=false", "utility.name=near_unknown",
     )  # fmt: skip
-    assert p.returncode == 0, p.stderr
-    s = json.loads((out / "summary.json").read_text())
     assert s["utility"] == "near_unknown" and s["iterations"] >= 1
