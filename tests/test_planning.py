@@ -16,7 +16,8 @@ from nbvkit.mission import Mission
 from nbvkit.recorder import STAGES
 from nbvkit.planning.parts import PlanningContext
 from nbvkit.planning.registry import get_generator
-from nbvkit.planning.generators.tour import exploration_targets, prize_collect
+from nbvkit.planning.generators.exploration import exploration_targets
+from nbvkit.planning.generators.tour import prize_collect
 from nbvkit.planning.placement import Patches, into_bounds, place_views, target_patches
 from nbvkit.scenarios import SCENARIOS
 from conftest import box_mesh, wall_mesh
@@ -522,7 +523,7 @@ def test_an_exploring_plan_adds_views_facing_the_unknown_after_the_surfaces(monk
     _, patches, surface, owner = t.candidates(m.world)
     cell = np.array([[6.2, 0.2, 2.6]])
     fake = {"positions": cell, "normals": np.array([[-1.0, 0.0, 0.0]]), "weight": np.ones(1)}
-    monkeypatch.setattr(tour_module, "exploration_targets", lambda _map: fake)
+    monkeypatch.setattr(tour_module, "exploration_targets", lambda _map, _box=None: fake)
     _, both, views, of = t.candidates(m.world, explore=True)
     k = len(surface)
     np.testing.assert_array_equal(views[:k], surface)

@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import Optional
 
 import numpy as np
 
@@ -32,13 +33,18 @@ def target_options(targets, utility) -> _core.SurfaceTargetOptions:
 class PlacementConfig:
     """Views aimed at surface targets (tour and frontier generators)."""
 
-    cluster_size: float = positive(1.5)  # m; targets grouped per cube of this size and side faced
+    # a patch keeps its share of the camera's footprint: 1.5 m for the paper's 8 m camera
+    cluster_size: Optional[float] = positive(None)  # m, cubes of targets; null: 0.1875 x range
     standoffs: tuple = (0.45, 0.7)  # view distances from a target patch, x camera.max_range
     azimuth_spread_deg: float = within(30.0, 0, 180)  # views this far either side of the normal
     elevation_margin_deg: float = within(4.0, 0, 90)  # patches kept this far inside vertical FOV
     # also face the patches the level camera cannot face head-on (roofs, undersides) by the
     # gimbal's pitch (camera.gimbal_pitch_deg); false: level views (docs/RESULTS.md, "gimbal")
     gimbal: bool = False
+
+    def cluster(self, camera) -> float:
+        """The patch size (m): cluster_size, or a share of the camera's range."""
+        return self.cluster_size if self.cluster_size is not None else 0.1875 * camera.max_range
 
     def check(self, key: str) -> None:
         if not (self.standoffs and all(0 < x <= 1 for x in self.standoffs)):

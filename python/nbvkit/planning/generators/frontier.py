@@ -31,7 +31,7 @@ class FrontierGenerator:
     def propose(self, world):
         ctx = self.ctx
         targets = _core.surface_targets(world.map, world.surface, ctx.targets)
-        patches = target_patches(targets, ctx.placement.cluster_size)
+        patches = target_patches(targets, ctx.placement.cluster(ctx.camera))
         if len(patches.weights) == 0:
             return None
         d = np.linalg.norm(patches.centers - world.state.pose[:3], axis=1)

@@ -17,20 +17,30 @@ tour.access_weight > 0 a view is also credited with the surface it would give ac
 whose every view fails the collision test for want of known free space, where its rays reach
 the place of such a view and the vehicle could fly there through space not known to be occupied
 (_access, _reachable; off by default, docs/RESULTS.md). On a structure
-smaller than planner.reference_area both thresholds shrink with it (parts.threshold_scale)."""
+smaller than planner.reference_area both thresholds shrink with it (parts.threshold_scale).
+
+On a workspace larger than tour.region_size (6 x the camera's range unless set: a 100 m plant,
+not a 35 m aircraft) the tours are planned region by region (regions.py: the region the vehicle
+is in, then the next of an open tour over the regions still holding value), explore the unknown
+space of the whole workspace from the first plan, and keep at first only views adding
+2^tour.gain_levels x min_gain, halving the threshold each time a plan keeps none: the large gains
+of the whole structure are flown before the small ones near the vehicle (docs/RESULTS.md, "Large
+structures"). tour.horizon > 0 plans again after that many views of a tour."""
 from __future__ import annotations
 
 import dataclasses
 from dataclasses import dataclass
+from typing import Optional
 
 import numpy as np
 from scipy import ndimage
 
 from ... import _core
-from ...mapping import CellFlag
-from ...settings import choice, nonneg, within
+from ...settings import choice, nonneg, positive, within
 from ..parts import Proposal, threshold_scale
 from ..placement import Patches, place_views, target_patches
+from .exploration import exploration_targets
+from .regions import Regions
 
 
 @dataclass(frozen=True)
@@ -50,6 +60,11 @@ class TourConfig:
     # once no view of the surface the map shows is worth its flight, plans also weigh views of
     # the unknown space within the structure's extent (unknown cells bordering free space)
     explore: bool = True  # then also plan views that open unknown space; false: stop there
+    # a workspace larger than a region is covered region by region (regions.py), exploring the
+    # unknown space within the workspace from the first plan, the larger gains first
+    region_size: Optional[float] = positive(None)  # m; null: 6 x camera.max_range
+    gain_levels: Optional[int] = within(None, 0, 20)  # 2^n x min_gain first; null: 3 on regions, 0
+    horizon: int = within(0, 0, 10**6)  # views of a tour flown before planning again; 0: all
 
 
 class CoverageTour:
@@ -67,6 +82,9 @@ class CoverageTour:
         self.exploring = False  # plans include views of unknown space (tour.explore)
         # what earlier plans' walks found, for candidates asked for again (the same arrays)
         self.memo = _core.CoverageMemo()
+        self.regions: Regions | None = None  # set at the first plan (a large workspace)
+        self.regional = None  # not decided yet
+        self.level = None  # the multiple of tour.min_gain plans keep now (gain_levels)
 
     # ------------------------------------------------------------------ planning
     def candidates(self, world, explore: bool = False):
@@ -78,13 +96,17 @@ class CoverageTour:
         ctx = self.ctx
         bounds = (world.workspace.nav_min, world.workspace.nav_max)
         targets = _core.surface_targets(world.map, world.surface, ctx.targets)
-        patches = target_patches(targets, ctx.placement.cluster_size)
+        patches = target_patches(targets, ctx.placement.cluster(ctx.camera))
         candidates, owner = place_views(patches, ctx.camera, ctx.placement, bounds)
         if explore:
             size = max(
-                min(ctx.placement.standoffs) * ctx.camera.max_range, ctx.placement.cluster_size
+                min(ctx.placement.standoffs) * ctx.camera.max_range,
+                ctx.placement.cluster(ctx.camera),
             )
-            more = target_patches(exploration_targets(world.map), size)
+            box = None  # a large workspace: all of it (regions.py); else the structure's extent
+            if self.regional:
+                box = (world.workspace.bounds_min, world.workspace.bounds_max)
+            more = target_patches(exploration_targets(world.map, box), size)
             straight = dataclasses.replace(ctx.placement, azimuth_spread_deg=0.0)
             views, of = place_views(more, ctx.camera, straight, bounds)
             candidates = np.vstack([candidates, views])
@@ -111,11 +133,17 @@ class CoverageTour:
         """The next tour (V, 4) from the vehicle's pose over what the map shows now; with
         reachable_only, over the candidates a path through known free space can reach now (the
         vehicle's free component); with explore, over views of the unknown space within the
-        structure's extent too (candidates)."""
+        structure's extent too (candidates). On a workspace of several regions (regions.py)
+        the tour is planned over one region's patches, exploring from the first plan."""
         ctx, own = self.ctx, self.settings
-        cell_m2 = world.map.resolution**2
+        if self.regional is None:
+            self.regions = Regions.of(world.workspace, ctx.camera, own.region_size)
+            self.regional = self.regions is not None
+            levels = own.gain_levels if own.gain_levels is not None else 3 * self.regional
+            self.level = float(2**levels)
+        explore = explore or (self.regional and own.explore)
         scale = threshold_scale(world.map, ctx.planner.reference_area)
-        min_gain, rate = own.min_gain * scale, own.rate * np.sqrt(scale)
+        min_gain, rate = own.min_gain * scale * self.level, own.rate * np.sqrt(scale)
         targets, patches, candidates, owner = self.candidates(world, explore)
         if reachable_only and len(candidates):
             here = world.state.pose[:3]
@@ -132,15 +160,53 @@ class CoverageTour:
             "length_m": 0.0,
             "reachable_only": reachable_only,
             "explore": explore,
+            "min_gain_m2": float(min_gain),
         }
         self.plans.append(record)
+        chosen = (np.zeros((0, candidates.shape[1])), np.zeros((0, 3)))
         if len(candidates) == 0:
-            self.aims = np.zeros((0, 3))
-            return np.zeros((0, 4))
+            pass
+        elif not self.regional:
+            chosen = self._choose(world, candidates, owner, patches, record, min_gain, rate)
+        else:
+            chosen = self._regional(world, candidates, owner, patches, record, min_gain, rate)
+        self.aims = chosen[1]
+        return chosen[0]
+
+    def _regional(self, world, candidates, owner, patches, record, min_gain, rate):
+        """(views, aims) of the tour over the first region in the regions' order whose plan keeps
+        a view; the regions tried without one are done. When every region holding value is
+        done they are weighed again once (what the flight found may have given them some);
+        empty when that keeps nothing either."""
+        regions, tried = self.regions, []
+        where = regions.ids(patches.centers)[owner]
+        min_value = min_gain / world.map.resolution**2
+        for again in (False, True):
+            if again:
+                regions.done.clear()
+            here = world.state.pose
+            for r in regions.order(here, patches.centers, patches.weights, min_value, tried):
+                sub = where == r
+                views, aims = self._choose(
+                    world, candidates[sub], owner[sub], patches, record, min_gain, rate
+                )
+                regions.done.add(r)  # visited in this pass over the regions
+                if len(views):
+                    regions.current, record["region"] = r, int(r)
+                    return views, aims
+                tried.append(r)
+            if not regions.done - set(tried):
+                break
+        return np.zeros((0, candidates.shape[1])), np.zeros((0, 3))
+
+    def _choose(self, world, candidates, owner, patches, record, min_gain, rate):
+        """(views, aims) in flight order: the set of candidates the selection keeps (tour.selection
+        over their coverage), then prize-collected; `record` gets the counts."""
+        cell_m2 = world.map.resolution**2
         pose = world.state.pose
         coverage = self.coverage(world, candidates)
         coverage, opens = self._access(world, coverage, candidates, owner, patches)
-        if own.selection == "insertion":
+        if self.settings.selection == "insertion":
             # anchored at the vehicle, and with the first view's transit free (a far cluster
             # that pays only as a whole); the tour worth more after prize collection is flown
             tours = [
@@ -158,11 +224,11 @@ class CoverageTour:
             self.opened.update(opens.get(int(k), ()))
         views, aims = candidates[chosen], patches.centers[owner[chosen]]
         record["kept"] = len(order)
+        record["length_m"] = 0.0
         if order:
             pts = np.vstack([pose[:3], views[order, :3]])
             record["length_m"] = float(np.linalg.norm(np.diff(pts, axis=0), axis=1).sum())
-        self.aims = aims[order]
-        return views[order]
+        return views[order], aims[order]
 
     def _access(self, world, coverage, candidates, owner, patches):
         """(coverage, opens): the coverage with, for each valid view, one element per stranded
@@ -248,6 +314,9 @@ class CoverageTour:
 
     # ------------------------------------------------------------------ generator
     def propose(self, world):
+        h = self.settings.horizon
+        if h and self.plans and self.plans[-1]["flown"] >= h:
+            self.views = self.views[:0]  # planned again over what the flown views showed
         if self.next >= len(self.views):
             last = self.plans[-1] if self.plans else None
             unflyable = last is not None and last["kept"] and not last["flown"]
@@ -260,7 +329,15 @@ class CoverageTour:
             # that can be (the same plan again would fail the same way)
             reach = bool(unflyable)
             self.views, self.next = self.plan(world, reach, self.exploring), 0
-            if len(self.views) == 0 and self.settings.explore and not self.exploring:
+            while len(self.views) == 0 and self.level > 1:  # then the smaller gains
+                self.level = max(1.0, self.level / 2)
+                self.views = self.plan(world, reach, self.exploring)
+            if (
+                len(self.views) == 0
+                and self.settings.explore
+                and not self.exploring
+                and not self.regional
+            ):
                 # no view of the surface the map shows is worth its flight: from now on views
                 # that open the unknown space within the structure's extent compete too
                 self.exploring = True
@@ -311,57 +388,6 @@ def prize_collect(start, points, gains, order, rate) -> list:
 
 COLLISION = 2  # ViewStatus::Collision (_core.view_status_names)
 _PATCH_FIELDS = ("centers", "normals", "weights")
-
-
-def exploration_targets(occupancy_map) -> dict:
-    """Unknown cells that a view could open: those with a free face neighbour, inside the box of
-    the cells known occupied or predicted grown by one cell (the structure's extent as the map
-    shows it, not the open sky round it), and with no occupied or predicted face neighbour
-    (those are surface_targets' frontier). Same keys as surface_targets: positions (T, 3) cell
-    centres, normals (T, 3) the unit sum of the directions to their free neighbours, weight (T,)
-    ones."""
-    m = occupancy_map
-    state, flag = m.state_grid(), m.flag_grid()
-    solid = (state == m.OCCUPIED) | (flag == CellFlag.PREDICTED)
-    empty = {"positions": np.zeros((0, 3)), "normals": np.zeros((0, 3)), "weight": np.zeros(0)}
-    if not solid.any():
-        return empty
-    box = []
-    for axis in range(3):
-        on = np.flatnonzero(solid.any(axis=tuple(a for a in range(3) if a != axis)))
-        box.append(slice(max(on[0] - 1, 0), on[-1] + 2))
-    box = tuple(box)
-    state, solid = state[box], solid[box]
-    unknown = (state == m.UNKNOWN) & ~solid
-    free = np.pad(state == m.FREE, 1)
-    solid = np.pad(solid, 1)
-    inner = tuple(slice(1, -1) for _ in range(3))
-    near_free = np.zeros_like(unknown)
-    near_solid = np.zeros_like(unknown)
-    shifted = {}
-    for axis in range(3):
-        for step in (-1, 1):
-            at = list(inner)
-            at[axis] = slice(1 + step, free.shape[axis] - 1 + step)
-            shifted[axis, step] = free[tuple(at)]
-            near_free |= shifted[axis, step]
-            near_solid |= solid[tuple(at)]
-    frontier = unknown & near_free & ~near_solid
-    ijk = np.nonzero(frontier)
-    if len(ijk[0]) == 0:
-        return empty
-    normals = np.zeros((len(ijk[0]), 3))
-    for (axis, step), f in shifted.items():
-        normals[:, axis] += step * f[ijk]
-    norm = np.linalg.norm(normals, axis=1)
-    keep = norm > 0  # free on opposite faces only: no side to look from
-    lo = np.asarray(m.bounds[0], float) + [b.start * m.resolution for b in box]
-    positions = lo + (np.column_stack(ijk)[keep] + 0.5) * m.resolution
-    return {
-        "positions": positions,
-        "normals": normals[keep] / norm[keep, None],
-        "weight": np.ones(int(keep.sum())),
-    }
 
 
 def _append_elements(coverage, views, elements, weights) -> dict:

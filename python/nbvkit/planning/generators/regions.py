@@ -1,0 +1,69 @@
+"""Regions of a large structure's workspace, covered one after another (issue 37).
+
+On a structure larger than a region (tour.region_size, by default 6 x the camera's range: a 35 m
+aircraft is one region, a 100 m plant nine), the coverage tour plans over one region at a time,
+as hierarchical coverage planners do: the workspace box is cut into a grid of equal boxes no
+longer than the region size; each plan weighs, per region, the remaining value of its patches
+(surface still to observe and, at this scale, the unknown space within the workspace that
+borders known free space); the vehicle finishes the region it is in, then goes on to the first
+region of an open tour over the regions still holding value (solve_tour from the vehicle). A
+region whose plan keeps no view is done; once every region is done they are all weighed again
+once, since what the flight discovered may have given some new value, and the generator ends
+when that pass keeps nothing. A plan's cost follows a region's targets, not the structure's."""
+from __future__ import annotations
+
+import numpy as np
+
+from ... import _core
+
+
+class Regions:
+    """The region grid over a box, and which regions are done."""
+
+    def __init__(self, lo, hi, size: float):
+        self.lo = np.asarray(lo, float)
+        extent = np.asarray(hi, float) - self.lo
+        self.shape = np.maximum(1, np.ceil(extent / size - 1e-9)).astype(int)
+        self.cell = extent / self.shape
+        self.done: set[int] = set()
+        self.current: int | None = None
+
+    @classmethod
+    def of(cls, workspace, camera, size) -> "Regions | None":
+        """The regions of a workspace (None when it is one region: small structures plan as
+        one); size None: 6 x camera.max_range."""
+        size = 6.0 * camera.max_range if size is None else float(size)
+        regions = cls(workspace.bounds_min, workspace.bounds_max, size)
+        return regions if regions.count > 1 else None
+
+    @property
+    def count(self) -> int:
+        return int(np.prod(self.shape))
+
+    def ids(self, points) -> np.ndarray:
+        """(N,) the region of each point (clipped into the grid)."""
+        ijk = np.floor((np.asarray(points, float).reshape(-1, 3) - self.lo) / self.cell)
+        ijk = np.clip(ijk.astype(int), 0, self.shape - 1)
+        return np.ravel_multi_index(ijk.T, self.shape)
+
+    def order(self, here, centers, weights, min_value, skip=()) -> list[int]:
+        """Regions to plan in, best first: the current region while its patches (centers,
+        weights) hold at least min_value, then the others holding it in the order of an open
+        tour from `here` over their weighted centres; regions done or in `skip` left out."""
+        region = self.ids(centers)
+        value = np.bincount(region, weights, minlength=self.count)
+        live = set(np.flatnonzero(value >= min_value).tolist()) - self.done - set(skip)
+        if not live:
+            return []
+        first = [self.current] if self.current in live else []
+        rest = sorted(live - set(first))
+        if rest:
+            mid = np.array(
+                [
+                    np.average(centers[region == r], axis=0, weights=weights[region == r])
+                    for r in rest
+                ]
+            )
+            order, _ = _core.solve_tour(mid, np.asarray(here, float)[:3])
+            rest = [rest[k] for k in order]
+        return first + rest

@@ -1,0 +1,117 @@
+"""Regions of a large workspace (issue 37): the grid, the order a tour takes them in, the pass
+over them, and the patch size that follows the camera."""
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from nbvkit.config import load_config
+from nbvkit.planning.generators.regions import Regions
+from nbvkit.planning.generators.exploration import exploration_targets
+from nbvkit.workspace import Workspace
+
+
+def _workspace(lo, hi) -> Workspace:
+    lo, hi = np.asarray(lo, float), np.asarray(hi, float)
+    return Workspace(lo, hi, lo + 0.5, hi - 0.5)
+
+
+def test_the_grid_has_equal_regions_no_longer_than_the_size():
+    r = Regions((-10, 0, 0), (110, 50, 12), 48.0)
+    assert r.shape.tolist() == [3, 2, 1] and r.count == 6
+    assert np.allclose(r.cell, [40.0, 25.0, 12.0])
+    ids = r.ids([[-10, 0, 0], [29.9, 24.9, 5], [30.1, 25.1, 5], [109.9, 49.9, 11.9], [500, -9, 99]])
+    # row-major over (3, 2, 1): region (i, j) is 2 i + j; points outside are clipped in
+    assert ids.tolist() == [0, 0, 3, 5, 4]
+
+
+def test_a_structure_within_one_region_plans_as_one():
+    cam = load_config().camera  # the paper's 8 m camera: regions of 48 m
+    assert Regions.of(_workspace((-22.5, -22.5, 0), (22.5, 22.5, 10)), cam, None) is None
+    big = Regions.of(_workspace((0, 0, 0), (110, 110, 50)), cam, None)
+    assert big is not None and big.shape.tolist() == [3, 3, 2]
+    assert Regions.of(_workspace((0, 0, 0), (110, 110, 50)), cam, 200.0) is None
+    wide = load_config(overrides=["camera.preset=inspection"]).camera  # 24 m: 144 m regions
+    assert Regions.of(_workspace((0, 0, 0), (110, 110, 50)), wide, None) is None
+
+
+def test_the_current_region_goes_first_then_a_tour_over_the_rest():
+    r = Regions((0, 0, 0), (100, 10, 10), 10.0)  # ten regions along x
+    centers = np.array([[5.0, 5, 5], [95, 5, 5], [45, 5, 5], [25, 5, 5], [65, 5, 5]])
+    weights = np.array([10.0, 10, 10, 10, 0.5])
+    here = [50.0, 5, 5]
+    order = r.order(here, centers, weights, min_value=1.0)
+    assert 6 not in order  # region 6 holds less than min_value
+    assert order[0] == 4  # the nearest first
+    assert sorted(order) == [0, 2, 4, 9]
+    r.current = 9
+    assert r.order(here, centers, weights, 1.0)[0] == 9  # the current region while it holds value
+    r.done.update({9, 4})
+    assert 9 not in r.order(here, centers, weights, 1.0)
+    assert r.order(here, centers, weights, 1.0, skip=[0, 2]) == []
+
+
+def test_exploration_within_a_box_needs_no_known_structure():
+    import nbvkit
+
+    m = nbvkit.OccupancyMap(0.5, (0, 0, 0), (10, 10, 10))
+    # nothing known occupied: without a box there is no extent to explore
+    assert len(exploration_targets(m)["weight"]) == 0
+    m.mark_free_segment((2.0, 5.0, 5.0), (4.0, 5.0, 5.0), 1.0)  # a flight through the open
+    t = exploration_targets(m, ((0, 0, 0), (10, 10, 10)))
+    free = m.state(t["positions"] + t["normals"] * 0.5)
+    assert len(t["weight"]) > 0 and np.all(m.state(t["positions"]) == m.UNKNOWN)
+    assert np.all(free == m.FREE)  # each looks out of the unknown towards the free space
+    assert np.all(np.linalg.norm(t["positions"] - [3.0, 5.0, 5.0], axis=1) < 3.0)
+    inner = exploration_targets(m, ((0, 0, 0), (3, 10, 10)))  # only within the box
+    assert 0 < len(inner["weight"]) < len(t["weight"])
+    assert np.all(inner["positions"][:, 0] <= 3.0 + m.resolution)
+
+
+def test_patches_follow_the_camera_range_unless_set():
+    cfg = load_config()
+    assert cfg.placement.cluster(cfg.camera) == 1.5  # the paper's 8 m camera
+    wide = load_config(overrides=["camera.preset=inspection"])
+    assert wide.placement.cluster(wide.camera) == pytest.approx(4.5)
+    fixed = load_config(overrides=["camera.preset=inspection", "placement.cluster_size=2"])
+    assert fixed.placement.cluster(fixed.camera) == 2.0
+
+
+def test_a_workspace_of_several_regions_is_toured_region_by_region_larger_gains_first():
+    # Two 4 m cubes 30 m apart, regions of 12 m: the tours visit both cubes' regions, keep at
+    # first only views adding 8 x tour.min_gain, and halve that each time a plan keeps none;
+    # they cover as much as one tour over the whole workspace does, in fewer views.
+    import nbvkit
+    from conftest import box_mesh
+    from nbvkit.mission import Mission
+
+    a, b = box_mesh((0, 0, 0), (4, 4, 4)), box_mesh((30, 0, 0), (34, 4, 4))
+    mesh = nbvkit.Mesh(
+        np.vstack([a.vertices, b.vertices]), np.vstack([a.faces, b.faces + len(a.vertices)])
+    )
+    quick = [
+        "map.resolution=0.4",
+        "progress=false",
+        "evaluation.gt_density=50",
+        "evaluation.coverage_every=0",
+        "profiling.sweep_step=0.25",
+        "symmetry.voxel_size=0.4",
+    ]
+    runs = {}
+    for size in (12, 1000):
+        m = Mission(load_config(overrides=quick + [f"tour.region_size={size}"]), mesh=mesh)
+        runs[size] = (m, m.run())
+    m, s = runs[12]
+    assert s["termination"] == "coverage_complete"
+    plans = s["tours"]
+    assert len({p["region"] for p in plans if "region" in p}) >= 2
+    xs = np.array([r.x for r in m.records])
+    assert (xs < 15).any() and (xs > 15).any()  # views of both cubes
+    scale = np.array([p["min_gain_m2"] / p["scale"] for p in plans])  # the multiple of min_gain
+    base = load_config().tour.min_gain
+    assert scale[0] == pytest.approx(8 * base)
+    assert np.all(np.diff(scale) <= 1e-9) and scale[-1] == pytest.approx(base)
+    one, whole = runs[1000][1], s
+    assert "region" not in one["tours"][0]
+    assert whole["area_coverage"]["0.05"] >= one["area_coverage"]["0.05"] - 0.01
+    assert whole["views"] < one["views"]
