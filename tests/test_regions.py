@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from nbvkit.config import load_config
-from nbvkit.planning.generators.regions import Regions
+from nbvkit.planning.generators.regions import Regions, is_large
 from nbvkit.planning.generators.exploration import exploration_targets
 from nbvkit.workspace import Workspace
 
@@ -25,14 +25,16 @@ def test_the_grid_has_equal_regions_no_longer_than_the_size():
     assert ids.tolist() == [0, 0, 3, 5, 4]
 
 
-def test_a_structure_within_one_region_plans_as_one():
-    cam = load_config().camera  # the paper's 8 m camera: regions of 48 m
-    assert Regions.of(_workspace((-22.5, -22.5, 0), (22.5, 22.5, 10)), cam, None) is None
-    big = Regions.of(_workspace((0, 0, 0), (110, 110, 50)), cam, None)
-    assert big is not None and big.shape.tolist() == [3, 3, 2]
-    assert Regions.of(_workspace((0, 0, 0), (110, 110, 50)), cam, 200.0) is None
-    wide = load_config(overrides=["camera.preset=inspection"]).camera  # 24 m: 144 m regions
-    assert Regions.of(_workspace((0, 0, 0), (110, 110, 50)), wide, None) is None
+def test_large_workspaces_are_those_longer_than_six_camera_ranges_and_regions_are_opt_in():
+    cam = load_config().camera  # the paper's 8 m camera: large beyond 48 m
+    aircraft = _workspace((-22.5, -22.5, 0), (22.5, 22.5, 10))  # the airliner's 45 m
+    plant = _workspace((0, 0, 0), (110, 110, 50))
+    assert not is_large(aircraft, cam) and is_large(plant, cam)
+    wide = load_config(overrides=["camera.preset=inspection"]).camera  # 24 m: beyond 144 m
+    assert not is_large(plant, wide)
+    assert Regions.of(plant, None) is None  # regions only when tour.region_size is set
+    assert Regions.of(plant, 48.0).shape.tolist() == [3, 3, 2]
+    assert Regions.of(aircraft, 48.0) is None  # one region
 
 
 def test_the_current_region_goes_first_then_a_tour_over_the_rest():
@@ -78,9 +80,10 @@ def test_patches_follow_the_camera_range_unless_set():
 
 
 def test_a_workspace_of_several_regions_is_toured_region_by_region_larger_gains_first():
-    # Two 4 m cubes 30 m apart, regions of 12 m: the tours visit both cubes' regions, keep at
-    # first only views adding 8 x tour.min_gain, and halve that each time a plan keeps none;
-    # they cover as much as one tour over the whole workspace does, in fewer views.
+    # Two 4 m cubes 30 m apart, regions of 12 m and a 4 m camera (a large workspace: 6 x 4 m <
+    # 44 m): the tours visit both cubes' regions, keep at first only views adding 8 x
+    # tour.min_gain, and halve that each time a plan keeps none; they cover as much as the
+    # one tour over the whole workspace does (the larger gains first too), in fewer views.
     import nbvkit
     from conftest import box_mesh
     from nbvkit.mission import Mission
@@ -98,8 +101,10 @@ def test_a_workspace_of_several_regions_is_toured_region_by_region_larger_gains_
         "symmetry.voxel_size=0.4",
     ]
     runs = {}
-    for size in (12, 1000):
-        m = Mission(load_config(overrides=quick + [f"tour.region_size={size}"]), mesh=mesh)
+    for size in (12, None):
+        more = ["camera.max_range=4", "workspace.margin_xy=5"]
+        more += [f"tour.region_size={size}"] if size else []
+        m = Mission(load_config(overrides=quick + more), mesh=mesh)
         runs[size] = (m, m.run())
     m, s = runs[12]
     assert s["termination"] == "coverage_complete"
@@ -111,7 +116,8 @@ def test_a_workspace_of_several_regions_is_toured_region_by_region_larger_gains_
     base = load_config().tour.min_gain
     assert scale[0] == pytest.approx(8 * base)
     assert np.all(np.diff(scale) <= 1e-9) and scale[-1] == pytest.approx(base)
-    one, whole = runs[1000][1], s
+    one, whole = runs[None][1], s
     assert "region" not in one["tours"][0]
+    assert one["tours"][0]["min_gain_m2"] / one["tours"][0]["scale"] == pytest.approx(8 * base)
     assert whole["area_coverage"]["0.05"] >= one["area_coverage"]["0.05"] - 0.01
     assert whole["views"] < one["views"]

@@ -1,7 +1,7 @@
 """Regions of a large structure's workspace, covered one after another (issue 37).
 
-On a structure larger than a region (tour.region_size, by default 6 x the camera's range: a 35 m
-aircraft is one region, a 100 m plant nine), the coverage tour plans over one region at a time,
+With tour.region_size set (off by default: docs/RESULTS.md, "Large structures", measures it),
+the coverage tour plans over one region at a time,
 as hierarchical coverage planners do: the workspace box is cut into a grid of equal boxes no
 longer than the region size; each plan weighs, per region, the remaining value of its patches
 (surface still to observe and, at this scale, the unknown space within the workspace that
@@ -17,6 +17,18 @@ import numpy as np
 from ... import _core
 
 
+#: A workspace whose longest side exceeds this many camera ranges is large: its tours take the
+#: larger gains first (tour.gain_levels). 6 x the paper's 8 m camera is 48 m: a 35 m aircraft's
+#: workspace (45 m) is not large, a 100 m plant's is.
+LARGE_IN_RANGES = 6.0
+
+
+def is_large(workspace, camera) -> bool:
+    """Whether the workspace's longest side exceeds LARGE_IN_RANGES x camera.max_range."""
+    side = float(np.max(np.asarray(workspace.bounds_max) - np.asarray(workspace.bounds_min)))
+    return side > LARGE_IN_RANGES * camera.max_range
+
+
 class Regions:
     """The region grid over a box, and which regions are done."""
 
@@ -29,11 +41,12 @@ class Regions:
         self.current: int | None = None
 
     @classmethod
-    def of(cls, workspace, camera, size) -> "Regions | None":
-        """The regions of a workspace (None when it is one region: small structures plan as
-        one); size None: 6 x camera.max_range."""
-        size = 6.0 * camera.max_range if size is None else float(size)
-        regions = cls(workspace.bounds_min, workspace.bounds_max, size)
+    def of(cls, workspace, size) -> "Regions | None":
+        """The regions of a workspace of `size` m (None when size is None or the workspace is
+        one region)."""
+        if size is None:
+            return None
+        regions = cls(workspace.bounds_min, workspace.bounds_max, float(size))
         return regions if regions.count > 1 else None
 
     @property

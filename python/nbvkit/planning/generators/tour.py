@@ -19,13 +19,14 @@ the place of such a view and the vehicle could fly there through space not known
 (_access, _reachable; off by default, docs/RESULTS.md). On a structure
 smaller than planner.reference_area both thresholds shrink with it (parts.threshold_scale).
 
-On a workspace larger than tour.region_size (6 x the camera's range unless set: a 100 m plant,
-not a 35 m aircraft) the tours are planned region by region (regions.py: the region the vehicle
-is in, then the next of an open tour over the regions still holding value), explore the unknown
-space of the whole workspace from the first plan, and keep at first only views adding
-2^tour.gain_levels x min_gain, halving the threshold each time a plan keeps none: the large gains
-of the whole structure are flown before the small ones near the vehicle (docs/RESULTS.md, "Large
-structures"). tour.horizon > 0 plans again after that many views of a tour."""
+On a large workspace (longer than 6 camera ranges: a 100 m plant, not a 35 m aircraft; by
+default) plans keep at first only views adding 2^tour.gain_levels x min_gain, halving the
+threshold each time a plan keeps none: the large gains of the whole structure are flown before
+the small ones near the vehicle (a decreasing-threshold greedy; docs/RESULTS.md, "Large
+structures"). With tour.region_size the tours are planned region by region (regions.py: the
+region the vehicle is in, then the next of an open tour over the regions still holding value)
+and explore the unknown space of the whole workspace from the first plan. tour.horizon > 0 plans
+again after that many views of a tour."""
 from __future__ import annotations
 
 import dataclasses
@@ -40,7 +41,7 @@ from ...settings import choice, nonneg, positive, within
 from ..parts import Proposal, threshold_scale
 from ..placement import Patches, place_views, target_patches
 from .exploration import exploration_targets
-from .regions import Regions
+from .regions import Regions, is_large
 
 
 @dataclass(frozen=True)
@@ -60,10 +61,12 @@ class TourConfig:
     # once no view of the surface the map shows is worth its flight, plans also weigh views of
     # the unknown space within the structure's extent (unknown cells bordering free space)
     explore: bool = True  # then also plan views that open unknown space; false: stop there
-    # a workspace larger than a region is covered region by region (regions.py), exploring the
-    # unknown space within the workspace from the first plan, the larger gains first
-    region_size: Optional[float] = positive(None)  # m; null: 6 x camera.max_range
-    gain_levels: Optional[int] = within(None, 0, 20)  # 2^n x min_gain first; null: 3 on regions, 0
+    # plans first keep only views adding 2^gain_levels x min_gain, halving it each time a plan
+    # keeps none; null: 3 on a workspace longer than 6 camera ranges (regions.is_large), else 0
+    gain_levels: Optional[int] = within(None, 0, 20)  # the larger gains first; null: by size
+    # with region_size, a workspace larger than it is toured region by region (regions.py),
+    # exploring the unknown space of the whole workspace from the first plan
+    region_size: Optional[float] = positive(None)  # m; null: one region
     horizon: int = within(0, 0, 10**6)  # views of a tour flown before planning again; 0: all
 
 
@@ -137,9 +140,11 @@ class CoverageTour:
         the tour is planned over one region's patches, exploring from the first plan."""
         ctx, own = self.ctx, self.settings
         if self.regional is None:
-            self.regions = Regions.of(world.workspace, ctx.camera, own.region_size)
+            self.regions = Regions.of(world.workspace, own.region_size)
             self.regional = self.regions is not None
-            levels = own.gain_levels if own.gain_levels is not None else 3 * self.regional
+            levels = own.gain_levels
+            if levels is None:  # larger gains first on a large structure only
+                levels = 3 if is_large(world.workspace, ctx.camera) else 0
             self.level = float(2**levels)
         explore = explore or (self.regional and own.explore)
         scale = threshold_scale(world.map, ctx.planner.reference_area)
