@@ -25,8 +25,7 @@ threshold each time a plan keeps none: the large gains of the whole structure ar
 the small ones near the vehicle (a decreasing-threshold greedy; docs/RESULTS.md, "Large
 structures"). With tour.region_size the tours are planned region by region (regions.py: the
 region the vehicle is in, then the next of an open tour over the regions still holding value)
-and explore the unknown space of the whole workspace from the first plan. tour.horizon > 0 plans
-again after that many views of a tour."""
+and explore the unknown space of the whole workspace from the first plan."""
 from __future__ import annotations
 
 import dataclasses
@@ -67,7 +66,6 @@ class TourConfig:
     # with region_size, a workspace larger than it is toured region by region (regions.py),
     # exploring the unknown space of the whole workspace from the first plan
     region_size: Optional[float] = positive(None)  # m; null: one region
-    horizon: int = within(0, 0, 10**6)  # views of a tour flown before planning again; 0: all
 
 
 class CoverageTour:
@@ -319,9 +317,6 @@ class CoverageTour:
 
     # ------------------------------------------------------------------ generator
     def propose(self, world):
-        h = self.settings.horizon
-        if h and self.plans and self.plans[-1]["flown"] >= h:
-            self.views = self.views[:0]  # planned again over what the flown views showed
         if self.next >= len(self.views):
             last = self.plans[-1] if self.plans else None
             unflyable = last is not None and last["kept"] and not last["flown"]
