@@ -121,3 +121,16 @@ def test_a_workspace_of_several_regions_is_toured_region_by_region_larger_gains_
     assert one["tours"][0]["min_gain_m2"] / one["tours"][0]["scale"] == pytest.approx(8 * base)
     assert whole["area_coverage"]["0.05"] >= one["area_coverage"]["0.05"] - 0.01
     assert whole["views"] < one["views"]
+
+
+def test_the_inspection_camera_scores_one_ray_per_map_cell_at_its_near_standoff():
+    from nbvkit.sensors import build_view_camera
+
+    cfg = load_config(overrides=["camera.preset=inspection"])
+    cam = build_view_camera(cfg.camera, cfg.utility, cfg.map.resolution)
+    near = min(cfg.placement.standoffs) * cfg.camera.max_range  # 10.8 m
+    across = [
+        2 * near * np.tan(np.radians(f / 2)) for f in (cfg.camera.hfov_deg, cfg.camera.vfov_deg)
+    ]
+    spacing = np.array(across) / [cam.rays_x, cam.rays_y]
+    assert np.all(spacing <= cfg.map.resolution) and np.all(spacing > 0.8 * cfg.map.resolution)
