@@ -22,6 +22,17 @@ TINY_RUN = (
 )
 
 
+#: Config overrides of a short mission on a small analytic scene (a coarse map and ground truth).
+QUICK_MISSION = (
+    "map.resolution=0.4",
+    "progress=false",
+    "evaluation.gt_density=50",
+    "evaluation.coverage_every=0",
+    "profiling.sweep_step=0.25",
+    "symmetry.voxel_size=0.4",
+)
+
+
 def shared_mesh(name: str) -> Path:
     """Path of a mesh in ../shared/meshes, or skip the test when the folder is absent."""
     p = SHARED_MESHES / name

@@ -8,20 +8,13 @@ import csv
 import numpy as np
 import pytest
 
-from conftest import ROOT, TINY_RUN, box_mesh
+from conftest import QUICK_MISSION, ROOT, TINY_RUN, box_mesh
 from nbvkit import cli
 from nbvkit.config import load_config
 from nbvkit.mission import Mission
 from nbvkit.planning.terminations.budget import MIN_VIEW_CAP, VIEWS_PER_M2, view_cap
 
-QUICK = [
-    "map.resolution=0.4",
-    "progress=false",
-    "evaluation.gt_density=50",
-    "evaluation.coverage_every=0",
-    "profiling.sweep_step=0.25",
-    "symmetry.voxel_size=0.4",
-]
+QUICK = list(QUICK_MISSION)
 
 
 def test_the_view_cap_follows_the_structure_unless_set():

@@ -85,21 +85,14 @@ def test_a_workspace_of_several_regions_is_toured_region_by_region_larger_gains_
     # tour.min_gain, and halve that each time a plan keeps none; they cover as much as the
     # one tour over the whole workspace does (the larger gains first too), in fewer views.
     import nbvkit
-    from conftest import box_mesh
+    from conftest import QUICK_MISSION, box_mesh
     from nbvkit.mission import Mission
 
     a, b = box_mesh((0, 0, 0), (4, 4, 4)), box_mesh((30, 0, 0), (34, 4, 4))
     mesh = nbvkit.Mesh(
         np.vstack([a.vertices, b.vertices]), np.vstack([a.faces, b.faces + len(a.vertices)])
     )
-    quick = [
-        "map.resolution=0.4",
-        "progress=false",
-        "evaluation.gt_density=50",
-        "evaluation.coverage_every=0",
-        "profiling.sweep_step=0.25",
-        "symmetry.voxel_size=0.4",
-    ]
+    quick = list(QUICK_MISSION)
     runs = {}
     for size in (12, None):
         more = ["camera.max_range=4", "workspace.margin_xy=5"]
