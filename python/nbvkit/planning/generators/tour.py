@@ -104,7 +104,7 @@ class CoverageTour:
                 min(ctx.placement.standoffs) * ctx.camera.max_range,
                 ctx.placement.cluster(ctx.camera),
             )
-            box = None  # a large workspace: all of it (regions.py); else the structure's extent
+            box = None  # touring by regions: the whole workspace; else the structure's extent
             if self.regional:
                 box = (world.workspace.bounds_min, world.workspace.bounds_max)
             more = target_patches(exploration_targets(world.map, box), size)
@@ -166,21 +166,17 @@ class CoverageTour:
             "min_gain_m2": float(min_gain),
         }
         self.plans.append(record)
-        chosen = (np.zeros((0, candidates.shape[1])), np.zeros((0, 3)))
-        if len(candidates) == 0:
-            pass
-        elif not self.regional:
-            chosen = self._choose(world, candidates, owner, patches, record, min_gain, rate)
-        else:
-            chosen = self._regional(world, candidates, owner, patches, record, min_gain, rate)
-        self.aims = chosen[1]
-        return chosen[0]
+        views, self.aims = np.zeros((0, candidates.shape[1])), np.zeros((0, 3))
+        if len(candidates):
+            choose = self._regional if self.regional else self._choose
+            views, self.aims = choose(world, candidates, owner, patches, record, min_gain, rate)
+        return views
 
     def _regional(self, world, candidates, owner, patches, record, min_gain, rate):
         """(views, aims) of the tour over the first region in the regions' order whose plan keeps
-        a view; the regions tried without one are done. When every region holding value is
-        done they are weighed again once (what the flight found may have given them some);
-        empty when that keeps nothing either."""
+        a view; every region planned in is done for this pass over the regions. When no region
+        left in the pass keeps a view, a new pass weighs the others again (what the flight
+        found may have given them some); empty when that keeps nothing either."""
         regions, tried = self.regions, []
         where = regions.ids(patches.centers)[owner]
         min_value = min_gain / world.map.resolution**2
