@@ -1,15 +1,15 @@
 """Regions of a large structure's workspace, covered one after another (issue 37).
 
 With tour.region_size set (off by default: docs/RESULTS.md, "Large structures", measures it),
-the coverage tour plans over one region at a time,
-as hierarchical coverage planners do: the workspace box is cut into a grid of equal boxes no
-longer than the region size; each plan weighs, per region, the remaining value of its patches
-(surface still to observe and, at this scale, the unknown space within the workspace that
-borders known free space); the vehicle finishes the region it is in, then goes on to the first
-region of an open tour over the regions still holding value (solve_tour from the vehicle). A
-region whose plan keeps no view is done; once every region is done they are all weighed again
-once, since what the flight discovered may have given some new value, and the generator ends
-when that pass keeps nothing. A plan's cost follows a region's targets, not the structure's."""
+the coverage tour plans over one region at a time, as hierarchical coverage planners do: the
+workspace box is cut into a grid of equal boxes no longer than the region size; each plan weighs,
+per region, the remaining value of its patches (surface still to observe and the unknown space
+within the workspace that borders known free space). A plan is made in the region the vehicle
+is in, else in the first of an open tour over the regions still holding value (solve_tour from
+the vehicle); a region planned in is done for this pass over the regions. When no region left
+in the pass keeps a view, a new pass weighs the others again (what the flight discovered may
+have given them some), and the generator ends when that keeps nothing either. A plan's tour and
+selection follow a region's candidates, not the structure's."""
 from __future__ import annotations
 
 import numpy as np

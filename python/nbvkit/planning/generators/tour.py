@@ -83,9 +83,13 @@ class CoverageTour:
         self.exploring = False  # plans include views of unknown space (tour.explore)
         # what earlier plans' walks found, for candidates asked for again (the same arrays)
         self.memo = _core.CoverageMemo()
-        self.regions: Regions | None = None  # set at the first plan (a large workspace)
-        self.regional = None  # not decided yet
-        self.level = None  # the multiple of tour.min_gain plans keep now (gain_levels)
+        self.regions: Regions | None = None  # set at the first plan (tour.region_size)
+        self.level = None  # the multiple of tour.min_gain plans keep now; None: no plan yet
+
+    @property
+    def regional(self) -> bool:
+        """Whether the tours are planned region by region (tour.region_size)."""
+        return self.regions is not None
 
     # ------------------------------------------------------------------ planning
     def candidates(self, world, explore: bool = False):
@@ -137,9 +141,8 @@ class CoverageTour:
         structure's extent too (candidates). On a workspace of several regions (regions.py)
         the tour is planned over one region's patches, exploring from the first plan."""
         ctx, own = self.ctx, self.settings
-        if self.regional is None:
+        if self.level is None:  # the first plan
             self.regions = Regions.of(world.workspace, own.region_size)
-            self.regional = self.regions is not None
             levels = own.gain_levels
             if levels is None:  # larger gains first on a large structure only
                 levels = 3 if is_large(world.workspace, ctx.camera) else 0
@@ -180,10 +183,10 @@ class CoverageTour:
         regions, tried = self.regions, []
         where = regions.ids(patches.centers)[owner]
         min_value = min_gain / world.map.resolution**2
+        here = world.state.pose
         for again in (False, True):
             if again:
                 regions.done.clear()
-            here = world.state.pose
             for r in regions.order(here, patches.centers, patches.weights, min_value, tried):
                 sub = where == r
                 views, aims = self._choose(
