@@ -12,9 +12,9 @@
 namespace nbv::bind {
 namespace {
 
-/// An (nx, ny, nz) Fortran-ordered copy of a per-cell array stored in a grid layout.
-template <typename T>
-py::array_t<T, py::array::f_style> per_cell(const GridLayout& layout, const T* data,
+/// An (nx, ny, nz) Fortran-ordered copy of a per-cell value, get(grid id), of a grid layout.
+template <typename T, typename Get>
+py::array_t<T, py::array::f_style> per_cell(const GridLayout& layout, const Get& get,
                                             std::shared_mutex& mutex) {
   const auto& d = layout.dims;
   py::array_t<T, py::array::f_style> a(std::vector<py::ssize_t>{d[0], d[1], d[2]});
@@ -23,7 +23,7 @@ py::array_t<T, py::array::f_style> per_cell(const GridLayout& layout, const T* d
     Reading lock(mutex);
     for (int k = 0; k < d[2]; ++k)
       for (int j = 0; j < d[1]; ++j)
-        for (int i = 0; i < d[0]; ++i) *p++ = data[layout.id(i, j, k)];
+        for (int i = 0; i < d[0]; ++i) *p++ = get(std::int64_t(layout.id(i, j, k)));
   }
   return a;
 }
@@ -204,16 +204,33 @@ surface and four_term utilities and by surface_targets.)doc")
             return s.seen_cells();
           },
           "Number of cells seen from at least one direction.")
+      .def_property_readonly(
+          "allocated_bricks",
+          [](const SurfaceObservations& s) {
+            Reading lock(s);
+            return s.allocated_bricks();
+          },
+          "Bricks of 4 x 4 x 4 cells holding records: the record grows with the surface the "
+          "camera hit, not with the workspace box.")
+      .def_property_readonly(
+          "bytes",
+          [](const SurfaceObservations& s) {
+            Reading lock(s);
+            return s.bytes();
+          },
+          "Bytes held by the records (brick table and blocks).")
       .def(
           "seen_grid",
           [](const SurfaceObservations& s) {
-            return per_cell<std::uint32_t>(s.layout(), s.seen_data(), s.access_lock());
+            return per_cell<std::uint32_t>(
+                s.layout(), [&](std::int64_t i) { return s.seen(i); }, s.access_lock());
           },
           "(nx, ny, nz) uint32 direction-bin masks, Fortran order (copy).")
       .def(
           "hits_grid",
           [](const SurfaceObservations& s) {
-            return per_cell<std::uint16_t>(s.layout(), s.hits_data(), s.access_lock());
+            return per_cell<std::uint16_t>(
+                s.layout(), [&](std::int64_t i) { return s.hits(i); }, s.access_lock());
           },
           "(nx, ny, nz) uint16 camera hits per cell, Fortran order (copy).");
   m.def(

@@ -49,7 +49,7 @@ bool touches_surface_face(const GridView& g, const int* c) {
 SurfaceTargets surface_targets(const GridView& g, const SurfaceTargetOptions& opt) {
   g.validate();
   opt.validate();
-  if (!g.seen) throw std::invalid_argument("surface_targets needs the camera observations");
+  if (!g.observed()) throw std::invalid_argument("surface_targets needs the camera observations");
   std::uint32_t cones[26];
   for (int b = 0; b < 26; ++b) cones[b] = bin_cone(b, opt.coverage_cone_deg);
   // the 26 neighbour offsets, their unit directions and direction bins
@@ -114,7 +114,7 @@ SurfaceTargets surface_targets(const GridView& g, const SurfaceTargetOptions& op
             continue;
           }
           if (n_occ && nf != CellFlag::Unknown) continue;  // not an open side
-          if (kind == TargetKind::Observed && n_free && (g.seen[id] & cones[bins[n]])) continue;
+          if (kind == TargetKind::Observed && n_free && (g.seen(id) & cones[bins[n]])) continue;
           normal += unit[n];
         }
         if (kind == TargetKind::Frontier && !(touches_surface && touches_free)) continue;
@@ -250,7 +250,7 @@ ViewCoverage view_coverage(const GridView& g, const ViewPosesRef& cand, const Po
   camera.validate();
   utility.validate();
   validity.validate();
-  if (!g.seen || !g.hits)
+  if (!g.observed())
     throw std::invalid_argument("view_coverage needs the camera observations");
   check_view_poses(cand);
   const Eigen::Index K = cand.rows();

@@ -33,8 +33,9 @@ GridView grid_view(const OccupancyMap& map, const SurfaceObservations* surface) 
   if (surface) {
     if (!surface->matches(map))
       throw std::invalid_argument("surface observations were made for another map's grid");
-    g.seen = surface->seen_data();
-    g.hits = surface->hits_data();
+    g.seen_blocks = surface->brick_blocks();
+    g.seen_pool = surface->seen_pool();
+    g.hits_pool = surface->hits_pool();
     g.seen_stamps = surface->stamps().data();
     g.seen_epoch = surface->stamps().take_epoch();
     g.seen_id = surface->stamps().id();

@@ -6,6 +6,7 @@
 
 #include <atomic>
 #include <cmath>
+#include <limits>
 #include <stdexcept>
 
 namespace nbv {
@@ -15,8 +16,9 @@ SurfaceObservations::SurfaceObservations(const OccupancyMap& map)
       min_key_{map.min_key()[0], map.min_key()[1], map.min_key()[2]},
       dims_(map.dims()),
       layout_(map.grid().layout()),
-      seen_(layout_.storage_size(), 0u),
-      hits_(layout_.storage_size(), 0u),
+      block_(layout_.num_bricks(), 0u),
+      seen_pool_(64, 0u),
+      hits_pool_(64, 0u),
       stamps_(layout_.num_bricks()) {}
 
 bool SurfaceObservations::matches(const OccupancyMap& map) const {
@@ -25,15 +27,35 @@ bool SurfaceObservations::matches(const OccupancyMap& map) const {
 }
 
 void SurfaceObservations::clear() {
-  std::fill(seen_.begin(), seen_.end(), 0u);
-  std::fill(hits_.begin(), hits_.end(), std::uint16_t(0));
+  std::fill(block_.begin(), block_.end(), 0u);
+  std::vector<std::uint32_t>(64, 0u).swap(seen_pool_);  // the memory goes back
+  std::vector<std::uint16_t>(64, 0u).swap(hits_pool_);
   stamps_.touch_all();
 }
 
 std::int64_t SurfaceObservations::seen_cells() const {
   std::int64_t n = 0;
-  for (const std::uint32_t s : seen_) n += s != 0;
+  for (std::size_t i = 64; i < seen_pool_.size(); ++i) n += seen_pool_[i] != 0;
   return n;
+}
+
+std::size_t SurfaceObservations::bytes() const {
+  return block_.capacity() * sizeof(std::uint32_t) + seen_pool_.capacity() * sizeof(std::uint32_t) +
+         hits_pool_.capacity() * sizeof(std::uint16_t);
+}
+
+void SurfaceObservations::allocate(const std::vector<std::int64_t>& cells) {
+  for (const std::int64_t c : cells) {
+    if (c < 0) continue;
+    std::uint32_t& b = block_[std::size_t(c) >> 6];
+    if (b) continue;
+    const std::size_t blocks = seen_pool_.size() / 64;
+    if (blocks >= std::numeric_limits<std::uint32_t>::max())
+      throw std::length_error("surface observations: more bricks than a 32-bit block index");
+    b = std::uint32_t(blocks);
+    seen_pool_.resize(seen_pool_.size() + 64, 0u);
+    hits_pool_.resize(hits_pool_.size() + 64, std::uint16_t(0));
+  }
 }
 
 std::size_t SurfaceObservations::add_scan(const Eigen::Vector3d& origin, const PointsRef& hits) {
@@ -42,8 +64,29 @@ std::size_t SurfaceObservations::add_scan(const Eigen::Vector3d& origin, const P
   require_finite(hits, "hit points");
   const std::size_t n = std::size_t(hits.rows());
   const double rf = 1.0 / res_;  // the map's keys: OctoMap's floor(c / res) of float32 points
-  std::atomic<std::size_t> gained{0};
+  // the hits' cells (grid ids, -1 outside the workspace), in parallel; then their bricks' blocks
+  std::vector<std::int64_t> cells(n, -1);
   const std::size_t chunk = 8192;
+  parallel_chunks((n + chunk - 1) / chunk, 1, [&](std::size_t cb, std::size_t ce) {
+    for (std::size_t r = cb * chunk, e = std::min(n, ce * chunk); r < e; ++r) {
+      const Eigen::Index row = Eigen::Index(r);
+      int k[3];
+      bool inside = true;
+      for (int a = 0; a < 3; ++a) {
+        const double t = rf * double(float(hits(row, a)));
+        const double f = std::floor(t);
+        if (!(std::fabs(f) < 1e9)) {
+          inside = false;
+          break;
+        }
+        k[a] = int(f) + 32768 - min_key_[a];
+        inside &= unsigned(k[a]) < unsigned(dims_[a]);
+      }
+      if (inside) cells[r] = std::int64_t(layout_.id(k[0], k[1], k[2]));
+    }
+  });
+  allocate(cells);
+  std::atomic<std::size_t> gained{0};
   parallel_chunks((n + chunk - 1) / chunk, 1, [&](std::size_t cb, std::size_t ce) {
     std::size_t local_gained = 0;
     for (std::size_t c = cb; c < ce; ++c) {
@@ -53,11 +96,12 @@ std::size_t SurfaceObservations::add_scan(const Eigen::Vector3d& origin, const P
       auto flush = [&] {
         if (run_cell < 0) return;
         stamps_.touch(std::size_t(run_cell) >> 6);
-        std::uint32_t* s = &seen_[std::size_t(run_cell)];
+        const std::size_t at = slot(std::size_t(run_cell));
+        std::uint32_t* s = &seen_pool_[at];
         if ((__atomic_load_n(s, __ATOMIC_RELAXED) & run_bits) != run_bits &&
             __atomic_fetch_or(s, run_bits, __ATOMIC_RELAXED) == 0)
           ++local_gained;  // seen by the camera for the first time
-        std::uint16_t* h = &hits_[std::size_t(run_cell)];
+        std::uint16_t* h = &hits_pool_[at];
         std::uint16_t cur = __atomic_load_n(h, __ATOMIC_RELAXED);
         while (cur != 65535) {
           const std::uint16_t next = std::uint16_t(std::min<std::uint32_t>(65535u, cur + run_hits));
@@ -66,21 +110,9 @@ std::size_t SurfaceObservations::add_scan(const Eigen::Vector3d& origin, const P
         }
       };
       for (std::size_t r = c * chunk, e = std::min(n, (c + 1) * chunk); r < e; ++r) {
+        const std::int64_t cell = cells[r];
+        if (cell < 0) continue;
         const Eigen::Index row = Eigen::Index(r);
-        int k[3];
-        bool inside = true;
-        for (int a = 0; a < 3; ++a) {
-          const double t = rf * double(float(hits(row, a)));
-          const double f = std::floor(t);
-          if (!(std::fabs(f) < 1e9)) {
-            inside = false;
-            break;
-          }
-          k[a] = int(f) + 32768 - min_key_[a];
-          inside &= unsigned(k[a]) < unsigned(dims_[a]);
-        }
-        if (!inside) continue;
-        const std::int64_t cell = std::int64_t(layout_.id(k[0], k[1], k[2]));
         const Eigen::Vector3d to_sensor = origin - hits.row(row).transpose();
         const std::uint32_t bit = std::uint32_t(1) << direction_bin(to_sensor);
         if (cell != run_cell) {

@@ -26,7 +26,7 @@ ViewScores dispatch(const Job& job, const Cells& cells, bool skip_neutral) {
 #define NBV_DISPATCH(key, Policy, distance)                                           \
   if (name == key) {                                                                  \
     if constexpr (utility::Policy::kNeedsSurface)                                     \
-      if (!job.grid.seen || !job.grid.hits)                                           \
+      if (!job.grid.observed())                                           \
         throw std::invalid_argument("utility '" + name +                              \
                                     "' needs the camera observations (surface=...)"); \
     Job j = job;                                                                      \
@@ -459,7 +459,7 @@ CandidateRays candidate_rays(const GridView& g, const Candidates& cand, const Po
   out.state.resize(N);
   out.range.resize(N);
   out.incidence.resize(N);
-  const bool observed = out.observed = g.seen && g.hits;
+  const bool observed = out.observed = g.observed();
   out.seen.resize(observed ? N : 0);
   out.hits.resize(observed ? N : 0);
   const kernel::GridCells cells{g};
@@ -496,8 +496,8 @@ CandidateRays candidate_rays(const GridView& g, const Candidates& cand, const Po
           cos_i = std::abs(d[c.axis]) / d.norm();
         out.incidence[i] = std::isnan(cos_i) ? cos_i : std::acos(std::min(1.0, cos_i));
         if (observed) {
-          out.seen[i] = g.seen[id];
-          out.hits[i] = g.hits[id];
+          out.seen[i] = g.seen(id);
+          out.hits[i] = g.hits(id);
         }
         ++i;
       }

@@ -32,10 +32,12 @@ struct GridView {
   const std::uint8_t* brick_open = nullptr;      ///< per brick: known, not occupied cells (64: all)
   const std::uint8_t* brick_occupied = nullptr;  ///< per brick: occupied cells
   float unknown_entropy = 0.6931472f;            ///< an unknown cell's (the largest) entropy
-  /// Camera observations (SurfaceObservations), or null: per cell the bitmask of the 26
-  /// direction bins it has been seen from, and the number of camera hits in it.
-  const std::uint32_t* seen = nullptr;
-  const std::uint16_t* hits = nullptr;
+  /// Camera observations (SurfaceObservations' sparse storage), or null: per brick its block,
+  /// and per block of 64 cells the bitmask of the 26 direction bins each has been seen from and
+  /// the number of camera hits in it. Read them with seen(id) and hits(id).
+  const std::uint32_t* seen_blocks = nullptr;
+  const std::uint32_t* seen_pool = nullptr;
+  const std::uint16_t* hits_pool = nullptr;
   /// When the bricks of the grid's cells and of the camera observations last changed, the epochs
   /// this view was taken at (every change so far stamped at most those), and whose stamps they
   /// are (BrickStamps::id): what CoverageMemo checks its records against.
@@ -57,6 +59,14 @@ struct GridView {
     return origin + (Eigen::Vector3d(i, j, k).array() + 0.5).matrix() * resolution;
   }
   bool brick_is_live(std::size_t idx) const { return brick_live[idx >> 6] != 0; }
+  /// True when the view holds camera observations.
+  bool observed() const { return seen_blocks != nullptr; }
+  /// Cell idx's direction-bin mask and camera hits (observed() views only).
+  std::uint32_t seen(std::size_t idx) const { return seen_pool[observation_slot(idx)]; }
+  std::uint16_t hits(std::size_t idx) const { return hits_pool[observation_slot(idx)]; }
+  std::size_t observation_slot(std::size_t idx) const {
+    return std::size_t(seen_blocks[idx >> 6]) << 6 | (idx & 63);
+  }
   bool occupied(std::size_t idx) const { return std::signbit(scored[idx]); }
   /// Throws std::invalid_argument when the view is incomplete.
   void validate() const;

@@ -7,6 +7,11 @@
 // bin of (o - hit). A cell is "covered" for a viewing direction d when it has been seen from a
 // bin within a cone around d (UtilityOptions::coverage_cone_deg): the two faces of a thin plate,
 // 180 degrees apart, are covered separately; the same face seen again from nearby is not new.
+//
+// Storage is sparse, by the grid's bricks of 4 x 4 x 4 cells: a brick gets its 64 records when
+// the camera first hits a cell of it, so the record grows with the surface seen, not with the
+// workspace box (a 100 m plant's box holds 75 million cells, its surface about 1 % of them).
+// Every other brick reads from block 0, a shared block of zeros that is never written.
 #pragma once
 
 #include "nbv/common.hpp"
@@ -33,15 +38,22 @@ class SurfaceObservations {
   void clear();
 
   /// Bitmask of the direction bins cell `i` (a grid id) has been seen from (0: never seen).
-  std::uint32_t seen(std::int64_t i) const { return seen_[std::size_t(i)]; }
+  std::uint32_t seen(std::int64_t i) const { return seen_pool_[slot(std::size_t(i))]; }
   /// Camera hits that fell in cell i (saturating at 65535).
-  std::uint16_t hits(std::int64_t i) const { return hits_[std::size_t(i)]; }
-  const std::uint32_t* seen_data() const { return seen_.data(); }
+  std::uint16_t hits(std::int64_t i) const { return hits_pool_[slot(std::size_t(i))]; }
+  /// The storage: per brick (id >> 6) its block, and the blocks of 64 records, cell id & 63 in
+  /// block b at b * 64 + (id & 63) (block 0: zeros). Valid until the next add_scan or clear.
+  const std::uint32_t* brick_blocks() const { return block_.data(); }
+  const std::uint32_t* seen_pool() const { return seen_pool_.data(); }
+  const std::uint16_t* hits_pool() const { return hits_pool_.data(); }
   /// When each brick's records last changed (see BrickStamps).
   const BrickStamps& stamps() const { return stamps_; }
-  const std::uint16_t* hits_data() const { return hits_.data(); }
   /// Cells seen from at least one direction.
   std::int64_t seen_cells() const;
+  /// Bricks holding records (hit by the camera at least once since the last clear).
+  std::size_t allocated_bricks() const { return seen_pool_.size() / 64 - 1; }
+  /// Bytes held by the records (brick table and blocks, capacity included).
+  std::size_t bytes() const;
 
   const std::array<int, 3>& dims() const { return dims_; }
   const GridLayout& layout() const { return layout_; }
@@ -56,8 +68,12 @@ class SurfaceObservations {
   std::array<int, 3> min_key_;  // OctoMap key of cell (0, 0, 0)
   std::array<int, 3> dims_;
   GridLayout layout_;
-  std::vector<std::uint32_t> seen_;
-  std::vector<std::uint16_t> hits_;
+  std::size_t slot(std::size_t i) const { return std::size_t(block_[i >> 6]) << 6 | (i & 63); }
+  /// Gives every brick of `cells` (grid ids, -1 skipped) its block.
+  void allocate(const std::vector<std::int64_t>& cells);
+  std::vector<std::uint32_t> block_;      // per brick: its block (0: none yet)
+  std::vector<std::uint32_t> seen_pool_;  // per block, 64 direction-bin masks
+  std::vector<std::uint16_t> hits_pool_;  // per block, 64 hit counts
   BrickStamps stamps_;
   AccessLock access_;
 };

@@ -32,7 +32,7 @@ struct FourTerm {
       ++predicted_;
     } else {
       ++observed_;
-      density_ += std::min(1.0, ctx_.grid.hits[idx] / ctx_.options.density_target);
+      density_ += std::min(1.0, ctx_.grid.hits(idx) / ctx_.options.density_target);
     }
     return false;
   }

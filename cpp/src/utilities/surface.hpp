@@ -36,7 +36,7 @@ struct Surface {
     const CellFlag flag = cells.flag(idx, c);
     if (flag == CellFlag::Observed) {
       if (!std::signbit(scored)) return true;  // free
-      if ((ctx_.grid.seen[idx] & cone_) == 0 && marks_.insert(idx))
+      if ((ctx_.grid.seen(idx) & cone_) == 0 && marks_.insert(idx))
         credit(idx, density(cells, c, t, true));
       return false;
     }

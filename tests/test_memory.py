@@ -1,0 +1,55 @@
+"""Memory that grows with the surface, not with the workspace box (issue 37, part 4)."""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+import nbvkit
+from conftest import QUICK_MISSION, box_mesh
+from nbvkit.config import load_config
+from nbvkit.mission import Mission
+
+
+def _two_boxes(gap: float) -> nbvkit.Mesh:
+    """Two 4 m boxes `gap` metres apart along x."""
+    a, b = box_mesh((0, 0, 0), (4, 4, 4)), box_mesh((gap, 0, 0), (gap + 4, 4, 4))
+    return nbvkit.Mesh(np.vstack([a.vertices, b.vertices]), np.vstack([a.faces, b.faces + 8]))
+
+
+def test_the_camera_record_holds_the_bricks_of_the_surface_seen_not_the_workspace():
+    # two small structures 150 m apart: a 154 m workspace, 192 m^2 of surface
+    mesh = _two_boxes(150.0)
+    cfg = load_config(overrides=[*QUICK_MISSION, "max_iterations=6", "profiling.enabled=false"])
+    mission = Mission(cfg, mesh=mesh)
+    mission.run()
+    record = mission.world.surface
+    seen = record.seen_grid()  # the dense copy, read through the sparse storage
+    assert np.count_nonzero(seen) == record.seen_cells() > 0
+    assert np.count_nonzero(record.hits_grid()) == record.seen_cells()
+    res = cfg.map.resolution
+    bricks = math.prod(math.ceil(d / 4) for d in seen.shape)  # the workspace's 4^3-cell bricks
+    # a brick is a 4-cell cube: a plane crosses at most 3 bricks per brick face of its area
+    surface_bricks = 3 * float(mesh.area) / (4 * res) ** 2
+    assert 0 < record.allocated_bricks <= surface_bricks < bricks / 20
+    # the bytes follow the bricks held: the brick table, and 6 bytes per cell of a held brick
+    dense = seen.size * 6
+    assert record.bytes < 4 * bricks + 64 * 6 * 2 * (record.allocated_bricks + 1) < dense / 5
+    # what the camera saw of one box lies in its bricks: seen cells only near the surface
+    i, j, k = np.nonzero(seen)
+    assert len(i) == record.seen_cells()
+
+
+def test_starts_of_a_scene_with_an_empty_centre_face_a_structure_within_reach():
+    # the inward walk towards the workspace centre finds nothing there: each start then turns
+    # towards the nearest structure, and faces it from within the camera's reach
+    mission = Mission(load_config(overrides=[*QUICK_MISSION]), mesh=_two_boxes(150.0))
+    world = mission.world
+    reach = world.config.camera.max_range
+    samples = np.array([[x, y, z] for x in (0, 2, 4) for y in (0, 2, 4) for z in (0, 2, 4)], float)
+    boxes = np.vstack([samples, samples + [150.0, 0, 0]])
+    for pose in world.starts:
+        d = np.linalg.norm(boxes - pose[:3], axis=1)
+        assert d.min() <= reach + 1e-6
+        scan = world.scan("view", pose)
+        assert len(scan.hits) > 0  # the camera sees a box from every start
