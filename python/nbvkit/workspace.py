@@ -177,15 +177,36 @@ def start_poses(
                 ws, c, p, lambda q: tree.query(q)[0] >= clearance and not (collides and collides(q))
             )
         elif tree is not None:
-            step = (c - p) / max(np.linalg.norm(c - p), 1e-9) * 0.25
-            for _ in range(int(np.linalg.norm(c - p) / 0.25)):
-                yaw = math.atan2(c[1] - p[1], c[0] - p[0])
-                ok = tree.query(p)[0] <= reach and (sees is None or sees(np.array([*p, yaw])))
-                if ok or tree.query(p + step)[0] < clearance:
-                    break
-                p = p + step
+            p, yaw = _inward_start(p, c, tree, reach, clearance, sees)
+            out[k] = [p[0], p[1], p[2], yaw]
+            continue
         out[k] = [p[0], p[1], p[2], math.atan2(c[1] - p[1], c[0] - p[0])]
     return out
+
+
+def _inward_start(p, c, tree, reach: float, clearance: float, sees):
+    """(position, yaw) of a start that sees the structure: from `p` inward towards the centre
+    `c`, facing it, the first place within `reach` of the surface (and, given `sees`, seeing
+    it). Where the centre holds no structure (structures far apart) no place on that bearing may
+    be: then from `p` towards the nearest surface sample, facing it."""
+
+    def walk(p, goal):
+        step = (goal - p) / max(np.linalg.norm(goal - p), 1e-9) * 0.25
+        for _ in range(int(np.linalg.norm(goal - p) / 0.25)):
+            yaw = math.atan2(goal[1] - p[1], goal[0] - p[0])
+            ok = tree.query(p)[0] <= reach and (sees is None or sees(np.array([*p, yaw])))
+            if ok or tree.query(p + step)[0] < clearance:
+                return p, yaw, ok
+            p = p + step
+        return p, math.atan2(goal[1] - p[1], goal[0] - p[0]), False
+
+    q, yaw, ok = walk(p, c)
+    if ok:
+        return q, yaw
+    nearest = tree.data[tree.query(p)[1]]
+    goal = np.array([nearest[0], nearest[1], p[2]])
+    q2, yaw2, ok2 = walk(p, goal)
+    return (q2, yaw2) if ok2 else (q, yaw)
 
 
 def _clear_start(ws: Workspace, c, p, clear) -> np.ndarray:
