@@ -125,6 +125,10 @@ void init_common(py::module_& m) {
         "safe to call while other threads scan or score views: their running calls finish on\n"
         "the threads they started with, later calls use the new count.");
   m.def("get_num_threads", &get_num_threads);
+  m.def("release_free_memory", &release_free_memory,
+        "Hands the heap's free pages back to the OS (glibc malloc_trim): after a plan on a large\n"
+        "structure, whose transient coverage sets leave the worker threads' arenas resident.\n"
+        "True if any pages went back.");
   m.def(
       "pose_to_transform",
       [](const py::handle& pose) { return pose_to_transform(pose_arg(pose, "pose")).matrix(); },

@@ -1,6 +1,9 @@
 #include "nbv/common.hpp"
 #include "nbv/parallel.hpp"
 
+#ifdef __GLIBC__
+#include <malloc.h>
+#endif
 #include <fcntl.h>
 #include <unistd.h>
 
@@ -184,6 +187,14 @@ std::mutex g_arena_mutex;
 int g_threads = 0;
 std::shared_ptr<tbb::task_arena> g_arena;
 }  // namespace
+
+bool release_free_memory() {
+#ifdef __GLIBC__
+  return malloc_trim(0) != 0;
+#else
+  return false;
+#endif
+}
 
 void set_num_threads(int n) {
   if (n < 0) throw std::invalid_argument("number of threads must be >= 0 (0 = all)");

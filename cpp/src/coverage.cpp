@@ -254,7 +254,11 @@ ViewCoverage view_coverage(const GridView& g, const ViewPosesRef& cand, const Po
     throw std::invalid_argument("view_coverage needs the camera observations");
   check_view_poses(cand);
   const Eigen::Index K = cand.rows();
-  std::vector<std::vector<std::pair<std::int64_t, float>>> sets(static_cast<std::size_t>(K));
+  // elements cell * 2 + side fit 32 bits (OccupancyMap holds at most 400 M cells): 8 bytes per
+  // element while the sets are gathered, the largest transient of a plan on a large structure
+  if (g.storage_size() * 2 >= (std::size_t(1) << 32))
+    throw std::invalid_argument("view_coverage: the grid holds too many cells");
+  std::vector<std::vector<std::pair<std::uint32_t, float>>> sets(static_cast<std::size_t>(K));
   // per cell, lazily: the direction splitting its sides (code 1 + bin index of the side axis,
   // + 27 when the cell has one side only; 0: not computed). Racing threads write the same value.
   std::vector<std::uint8_t> side_axis(g.storage_size(), 0);
@@ -339,7 +343,8 @@ ViewCoverage view_coverage(const GridView& g, const ViewPosesRef& cand, const Po
     auto& s = sets[std::size_t(k)];
     s.clear();
     s.reserve(credits.size());
-    for (const auto& c : credits) s.emplace_back(c.cell * 2 + side_of(c.cell, c.bin), c.weight);
+    for (const auto& c : credits)
+      s.emplace_back(std::uint32_t(c.cell * 2 + side_of(c.cell, c.bin)), c.weight);
     std::sort(s.begin(), s.end());
     std::size_t m = 0;
     for (std::size_t i = 0; i < s.size(); ++i) {
@@ -359,7 +364,7 @@ ViewCoverage view_coverage(const GridView& g, const ViewPosesRef& cand, const Po
       e.elements.resize(s.size());
       e.weights.resize(s.size());
       for (std::size_t i = 0; i < s.size(); ++i) {
-        e.elements[i] = std::uint32_t(s[i].first);
+        e.elements[i] = s[i].first;
         e.weights[i] = s[i].second;
       }
       e.gain = scores.gain[k];
@@ -379,10 +384,11 @@ ViewCoverage view_coverage(const GridView& g, const ViewPosesRef& cand, const Po
   for (Eigen::Index k = 0; k < K; ++k) {
     std::int64_t o = out.offsets[k];
     for (const auto& [e, w] : sets[std::size_t(k)]) {
-      out.elements[o] = e;
+      out.elements[o] = std::int64_t(e);
       out.weights[o] = w;
       ++o;
     }
+    std::vector<std::pair<std::uint32_t, float>>().swap(sets[std::size_t(k)]);  // its memory back
   }
   return out;
 }

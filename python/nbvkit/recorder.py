@@ -9,6 +9,7 @@ import time
 from dataclasses import dataclass, fields
 from pathlib import Path
 
+from . import _core
 from .evaluation import SUMMARY_KEYS
 from .planning.terminations.budget import BUDGET_REASONS
 from .runfolder import atomic_open, write_json_atomic, write_text_atomic
@@ -118,6 +119,7 @@ class Recorder:
     def summary(self, termination: str, wall: float) -> dict:
         m = self.mission
         cfg, world = m.config, m.world
+        _core.release_free_memory()  # the flight's freed heap, before the cloud is scored
         ev = m.evaluator(world.cloud_points())
         n_it = len(self.records)
         e_final = world.map.total_entropy()

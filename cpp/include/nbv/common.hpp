@@ -132,4 +132,9 @@ class AccessLock {
 void set_num_threads(int n);
 int get_num_threads();
 
+/// Hands the heap's free pages back to the OS (glibc's malloc_trim; nothing elsewhere). A plan
+/// on a large structure gathers and frees millions of small coverage sets across the worker
+/// threads' arenas; without this the process keeps their pages resident. True if any went back.
+bool release_free_memory();
+
 }  // namespace nbv

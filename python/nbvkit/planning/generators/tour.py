@@ -173,6 +173,7 @@ class CoverageTour:
         if len(candidates):
             choose = self._regional if self.regional else self._choose
             views, self.aims = choose(world, candidates, owner, patches, record, min_gain, rate)
+            _core.release_free_memory()  # the plan's coverage sets, freed across the arenas
         return views
 
     def _regional(self, world, candidates, owner, patches, record, min_gain, rate):
