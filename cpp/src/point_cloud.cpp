@@ -21,7 +21,7 @@ void VoxelHashMap::clear() {
 
 void VoxelHashMap::reserve(std::size_t n) {
   std::size_t cap = 16;
-  while (cap < 2 * n) cap <<= 1;
+  while (3 * cap < 4 * n) cap <<= 1;
   if (cap > keys_.size()) rehash(cap);
 }
 
@@ -42,7 +42,7 @@ void VoxelHashMap::rehash(std::size_t capacity) {
 }
 
 std::pair<std::uint32_t, bool> VoxelHashMap::insert(std::uint64_t key, std::uint32_t value) {
-  if (2 * (size_ + 1) > keys_.size()) rehash(std::max<std::size_t>(16, 2 * keys_.size()));
+  if (4 * (size_ + 1) > 3 * keys_.size()) rehash(std::max<std::size_t>(16, 2 * keys_.size()));
   for (std::size_t i = slot(key);; i = (i + 1) & mask_) {
     const std::uint64_t k = keys_[i];
     if (k == key) return {values_[i], false};

@@ -91,7 +91,8 @@ inline std::uint64_t voxel_key(const Eigen::Vector3d& p, double size) {
 }
 
 /// Open-addressing (linear probing) hash map from packed voxel keys to 32-bit values. Grows at a
-/// load factor of 1/2. Much faster than std::unordered_map for this use (no node allocation, one
+/// load factor of 3/4 (12 bytes a slot: 16-32 bytes an entry; at 1/2 a 100 m plant's 19 M-voxel
+/// camera cloud held a 64 M-slot, 800 MB table). Much faster than std::unordered_map for this use (no node allocation, one
 /// cache line per probe). Keys must not be kEmptyVoxelKey.
 class VoxelHashMap {
  public:

@@ -1,0 +1,78 @@
+"""Peak memory of a mission on a large structure, results folder written, with this checkout and
+(--against DIR) another one, each in a process of its own, in the same run: the peak resident
+memory (ru_maxrss), what the flight reached (which must not change: the same views, the same
+coverage) and the ratio of the peaks. Meshes come from bench/large_structures.py (a layout per
+seed, never tuned on).
+
+    .venv/bin/python bench/large_memory.py --seed 1 --views 300 --against /tmp/before
+    .venv/bin/python bench/large_memory.py --structure bridge --seed 3 --views 300
+
+DIR is another checkout (DIR/python) or a saved copy of a built package (its folder's parent).
+"""
+from __future__ import annotations
+
+import argparse
+import sys
+import tempfile
+from pathlib import Path
+
+import numpy as np
+from _timing import checkouts, run_snippet
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from large_structures import STRUCTURES  # noqa: E402
+
+FLY_SNIPPET = r"""
+import json, resource, sys, tempfile, time
+from pathlib import Path
+from nbvkit.config import load_config
+from nbvkit.mission import Mission
+cfg = load_config(overrides=[
+    f"mesh.path={sys.argv[1]}", f"max_iterations={sys.argv[2]}", "progress=false",
+    "report.enabled=false", "observability.enabled=false", *sys.argv[3:]])
+t = time.perf_counter()
+with tempfile.TemporaryDirectory() as tmp:
+    s = Mission(cfg).run(Path(tmp) / "run")
+print(json.dumps({
+    "peak_mb": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024,
+    "mission_peak_mb": s["peak_memory_mb"], "coverage": s["area_coverage"]["0.05"],
+    "distance": s["distance_m"], "views": s["views"], "cloud_points": s["cloud_points"],
+    "wall_s": time.perf_counter() - t}))
+"""
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--structure", default="plant", choices=list(STRUCTURES))
+    ap.add_argument("--seed", type=int, default=1)
+    ap.add_argument("--views", type=int, default=300, help="the view cap (default 300)")
+    ap.add_argument("--against", help="another checkout (or a saved package) to compare with")
+    ap.add_argument("--set", nargs="*", default=[], help="config overrides for both runs")
+    a = ap.parse_args()
+    with tempfile.TemporaryDirectory() as tmp:
+        path = Path(tmp) / "mesh.obj"
+        STRUCTURES[a.structure](np.random.default_rng(a.seed)).write(path)
+        print(f"{a.structure} seed {a.seed}, {a.views} views at most, results folder written")
+        print("| code | peak (end of run) | peak (mission) | area cov. @0.05 m | flown | cloud |")
+        print("|---|---|---|---|---|---|")
+        rows = []
+        for label, package in checkouts(a.against):
+            r = run_snippet(FLY_SNIPPET, [path, a.views, *a.set], package)
+            rows.append(r)
+            print(
+                f"| {label} | {r['peak_mb'] / 1024:.2f} GB | {r['mission_peak_mb'] / 1024:.2f} GB "
+                f"| {100 * r['coverage']:.2f} % | {r['distance']:,.0f} m | "
+                f"{r['cloud_points']:,} points |",
+                flush=True,
+            )
+    if len(rows) == 2:
+        now, then = rows
+        same = all(now[k] == then[k] for k in ("coverage", "distance", "views", "cloud_points"))
+        print(
+            f"peak ratio (this / {a.against}): {now['peak_mb'] / then['peak_mb']:.2f}; "
+            f"the same flight: {'yes' if same else 'NO'}"
+        )
+
+
+if __name__ == "__main__":
+    main()
