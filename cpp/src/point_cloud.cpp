@@ -128,6 +128,11 @@ std::size_t VoxelCentroids::add(const PointsRef& points, const std::vector<std::
 std::uint32_t VoxelCentroids::voxel_of(std::uint64_t key) {
   const auto r = index_.insert(key, static_cast<std::uint32_t>(count_.size()));
   if (r.second) {
+    if (count_.size() == count_.capacity()) {  // grow by a quarter, not double: millions of voxels
+      const std::size_t cap = count_.size() + std::max<std::size_t>(count_.size() / 4, 4096);
+      sum_.reserve(cap);
+      count_.reserve(cap);
+    }
     sum_.emplace_back(Eigen::Vector3d::Zero());
     count_.push_back(0);
   }
