@@ -119,6 +119,7 @@ class Recorder:
     def summary(self, termination: str, wall: float) -> dict:
         m = self.mission
         cfg, world = m.config, m.world
+        m.evaluator.forget_clouds()  # the progress refreshes' state: not needed from here
         _core.release_free_memory()  # the flight's freed heap, before the cloud is scored
         ev = m.evaluator(world.cloud_points())
         n_it = len(self.records)
