@@ -569,6 +569,25 @@ def test_coverage_of_clouds_read_in_place_equals_that_of_their_points_stacked():
         ev._core.evaluate_cells_of([camera, None])
 
 
+def test_a_full_evaluation_of_clouds_read_in_place_equals_that_of_their_points_stacked():
+    # the mission's final scoring: no stacked copy held, the same figures (distances included)
+    rng = np.random.default_rng(5)
+    mesh = box((0, 0, 0), (4, 3, 2))
+    ev = Evaluator(mesh, gt_density=400, seed=1)
+    near = np.asarray(mesh.sample_surface(20000, seed=2)) + rng.normal(0, 0.03, (20000, 3))
+    camera = nbvkit.PointCloud(near[:15000], min_z=float("-inf"))
+    laser = nbvkit.PointCloud(near[15000:], voxel_size=0.1, min_z=float("-inf"))
+    stacked = np.vstack([camera.points, laser.points])
+    assert np.array_equal(nbvkit._core.stack_points([camera, laser]), stacked)
+    in_place, of_points = ev.evaluate([camera, laser]), ev.evaluate(stacked)
+    assert in_place == of_points
+    assert in_place["n_points"] == len(stacked) and in_place["chamfer_m"] > 0
+    empty = ev.evaluate([nbvkit.PointCloud()])
+    assert empty["n_points"] == 0 and empty["coverage"]["0.05"] == 0.0
+    with pytest.raises(ValueError, match="SurfaceCloud"):
+        nbvkit._core.stack_points([camera, None])
+
+
 def _cell_figures(gt, cloud, r):
     """coverage, area coverage and precision at cell size r from their definitions (numpy)."""
 

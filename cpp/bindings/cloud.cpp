@@ -63,6 +63,17 @@ cloud), min_z 0.3 m.)doc")
       .def("__len__", &SurfaceCloud::size);
 
   m.def(
+      "stack_points",
+      [](const std::vector<const SurfaceCloud*>& clouds) {
+        for (const SurfaceCloud* c : clouds)
+          if (!c) throw py::value_error("clouds must be SurfaceCloud objects, not None");
+        py::gil_scoped_release release;
+        return stack_points(clouds);
+      },
+      py::arg("clouds"),
+      "(N, 3) float64: the clouds' points one cloud after the other, in one array (the same as "
+      "numpy.vstack of their points, without a copy per cloud).");
+  m.def(
       "voxelgrid_sampling",
       [](const py::handle& points, double voxel_size) {
         auto a = points_arg(points, "points", /*allow_nonfinite=*/true);  // the core checks

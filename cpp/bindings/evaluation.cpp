@@ -88,6 +88,17 @@ void init_evaluation(py::module_& m) {
           },
           py::arg("cloud"))
       .def(
+          "evaluate_of",
+          [](const Evaluator& e, const std::vector<const SurfaceCloud*>& clouds) {
+            for (const SurfaceCloud* c : clouds)
+              if (!c) throw py::value_error("clouds must be SurfaceCloud objects, not None");
+            py::gil_scoped_release release;
+            return e.evaluate(clouds);
+          },
+          py::arg("clouds"),
+          "evaluate of SurfaceClouds' points, one cloud after the other, without a stacked copy "
+          "held while scoring.")
+      .def(
           "evaluate_cells",
           [](const Evaluator& e, const py::handle& cloud) {
             auto c = points_arg(cloud, "cloud");

@@ -343,24 +343,38 @@ EvaluationResult Evaluator::evaluate_cells(const std::vector<const SurfaceCloud*
 }
 
 EvaluationResult Evaluator::evaluate(const PointsRef& cloud) const {
-  using clock = std::chrono::steady_clock;
   require_finite(cloud, "cloud");
-  EvaluationResult res = empty_result(cloud.rows());
+  const auto t0 = std::chrono::steady_clock::now();
+  const KdTree ctree(cloud);
+  return score(ctree, cloud.rows(), seconds_since(t0));
+}
+
+EvaluationResult Evaluator::evaluate(const std::vector<const SurfaceCloud*>& clouds) const {
+  const auto t0 = std::chrono::steady_clock::now();
+  Eigen::Index n = 0;
+  const KdTree ctree = [&] {
+    const Points points = stack_points(clouds);  // freed once the tree holds them
+    n = points.rows();
+    return KdTree(points);
+  }();
+  return score(ctree, n, seconds_since(t0));
+}
+
+EvaluationResult Evaluator::score(const KdTree& ctree, Eigen::Index n, double kdtree_s) const {
+  using clock = std::chrono::steady_clock;
+  EvaluationResult res = empty_result(n);
   const std::size_t nt = opt_.taus.size();
   const auto n_gt = static_cast<std::int64_t>(tree_.size());
+  res.timings_s.emplace_back("cloud_kdtree", kdtree_s);
 
   auto t0 = clock::now();
-  const KdTree ctree(cloud);
-  res.timings_s.emplace_back("cloud_kdtree", seconds_since(t0));
-
-  t0 = clock::now();
   for (std::size_t k = 0; k < opt_.resolutions.size(); ++k) {  // tree order: runs of equal cells
-    const auto keys = cloud.rows() ? tree_cell_keys(ctree, opt_.resolutions[k], "cloud")
-                                   : std::vector<std::uint64_t>{};
+    const auto keys =
+        n ? tree_cell_keys(ctree, opt_.resolutions[k], "cloud") : std::vector<std::uint64_t>{};
     score_cells(k, keys.data(), keys.size(), res);
   }
   res.timings_s.emplace_back("cells", seconds_since(t0));
-  if (cloud.rows() == 0) return res;
+  if (n == 0) return res;
 
   t0 = clock::now();
   const std::vector<double> d_cloud = tree_nearest(tree_, ctree);  // cloud -> GT, tree order
@@ -380,7 +394,7 @@ EvaluationResult Evaluator::evaluate(const PointsRef& cloud) const {
     std::int64_t a = 0, c = 0;
     for (double d : d_cloud) a += d <= tau;
     for (double d : d_gt) c += d <= tau;
-    const double P = ratio(a, cloud.rows()), R = ratio(c, n_gt);
+    const double P = ratio(a, n), R = ratio(c, n_gt);
     res.accuracy[k] = P;
     res.completeness[k] = R;
     res.fscore[k] = (P + R) > 0 ? 2 * P * R / (P + R) : 0.0;

@@ -139,6 +139,16 @@ std::uint32_t VoxelCentroids::voxel_of(std::uint64_t key) {
   return r.first;
 }
 
+Points stack_points(const std::vector<const SurfaceCloud*>& clouds) {
+  std::size_t n = 0;
+  for (const SurfaceCloud* c : clouds) n += c->size();
+  Points out(static_cast<Eigen::Index>(n), 3);
+  Eigen::Index row = 0;
+  for (const SurfaceCloud* c : clouds)
+    for (std::size_t i = 0; i < c->size(); ++i) out.row(row++) = c->point(i).transpose();
+  return out;
+}
+
 Points VoxelCentroids::centroids() const {
   Points out(static_cast<Eigen::Index>(count_.size()), 3);
   for (std::size_t i = 0; i < count_.size(); ++i)

@@ -187,7 +187,12 @@ class Evaluator:
             warnings.warn(w, RuntimeWarning, stacklevel=_stacklevel)
 
     def evaluate(self, cloud) -> dict:
-        """Score ``cloud`` ((N, 3) or a PointCloud); see ``nbvkit.evaluate`` for the dict."""
+        """Score ``cloud`` ((N, 3), a PointCloud, or a list of them scored as their points
+        stacked, without holding a stacked copy); see ``nbvkit.evaluate`` for the dict."""
+        if isinstance(cloud, (list, tuple)) and all(
+            isinstance(c, _core.SurfaceCloud) for c in cloud
+        ):
+            return _to_dict(self._core.evaluate_of(list(cloud)))
         return _to_dict(self._core.evaluate(_as_points(cloud)))
 
     __call__ = evaluate

@@ -121,7 +121,7 @@ class Recorder:
         cfg, world = m.config, m.world
         m.evaluator.forget_clouds()  # the progress refreshes' state: not needed from here
         _core.release_free_memory()  # the flight's freed heap, before the cloud is scored
-        ev = m.evaluator(world.cloud_points())
+        ev = m.evaluator(world.clouds)  # read in place: no stacked copy held while scoring
         n_it = len(self.records)
         e_final = world.map.total_entropy()
         # Per flown view, every second the per-view stages took: the rows of iterations.csv and

@@ -370,8 +370,7 @@ class World:
 
     def cloud_points(self) -> np.ndarray:
         """(N, 3) the reconstruction: camera and laser clouds together."""
-        a, b = self.camera_cloud.points, self.laser_cloud.points
-        return np.vstack([a, b]) if len(b) else a
+        return _core.stack_points(self.clouds)
 
     # ------------------------------------------------------------------ motion
     def fly_to(self, target, stage: str, path=None) -> float:

@@ -92,8 +92,8 @@ inline std::uint64_t voxel_key(const Eigen::Vector3d& p, double size) {
 
 /// Open-addressing (linear probing) hash map from packed voxel keys to 32-bit values. Grows at a
 /// load factor of 3/4 (12 bytes a slot: 16-32 bytes an entry; at 1/2 a 100 m plant's 19 M-voxel
-/// camera cloud held a 64 M-slot, 800 MB table). Much faster than std::unordered_map for this use (no node allocation, one
-/// cache line per probe). Keys must not be kEmptyVoxelKey.
+/// camera cloud held a 64 M-slot, 800 MB table). Much faster than std::unordered_map for this use
+/// (no node allocation, one cache line per probe). Keys must not be kEmptyVoxelKey.
 class VoxelHashMap {
  public:
   static constexpr std::uint32_t kMissing = std::numeric_limits<std::uint32_t>::max();
@@ -233,6 +233,10 @@ class SurfaceCloud {
   std::uint64_t registered_ = 0;
   std::uint64_t stamp_ = new_stamp();
 };
+
+/// (sum of sizes, 3): the clouds' points one cloud after the other (each in voxel creation
+/// order), in one array: the same as stacking their points(), without a copy per cloud.
+Points stack_points(const std::vector<const SurfaceCloud*>& clouds);
 
 // ---------------------------------------------------------------------------- file helpers
 
