@@ -4,6 +4,7 @@ from __future__ import annotations
 import math
 
 import numpy as np
+import pytest
 
 import nbvkit
 from conftest import QUICK_MISSION, box_mesh
@@ -53,3 +54,14 @@ def test_starts_of_a_scene_with_an_empty_centre_face_a_structure_within_reach():
         assert d.min() <= reach + 1e-6
         scan = world.scan("view", pose)
         assert len(scan.hits) > 0  # the camera sees a box from every start
+
+
+def test_a_mission_that_saw_nothing_says_so_rather_than_coverage_complete():
+    # the profile circles the workspace centre, between the boxes and beyond the laser's reach
+    # of both: no point is seen, and the planner has nothing to cover
+    cfg = load_config(overrides=[*QUICK_MISSION, "max_iterations=6"])
+    mission = Mission(cfg, mesh=_two_boxes(150.0))
+    with pytest.warns(RuntimeWarning, match="saw no surface"):
+        summary = mission.run()
+    assert summary["termination"] == "nothing_seen"
+    assert summary["cloud_points"] == 0
