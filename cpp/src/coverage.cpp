@@ -250,8 +250,7 @@ ViewCoverage view_coverage(const GridView& g, const ViewPosesRef& cand, const Po
   camera.validate();
   utility.validate();
   validity.validate();
-  if (!g.observed())
-    throw std::invalid_argument("view_coverage needs the camera observations");
+  if (!g.observed()) throw std::invalid_argument("view_coverage needs the camera observations");
   check_view_poses(cand);
   const Eigen::Index K = cand.rows();
   // elements cell * 2 + side fit 32 bits (OccupancyMap holds at most 400 M cells): 8 bytes per

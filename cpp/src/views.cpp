@@ -26,7 +26,7 @@ ViewScores dispatch(const Job& job, const Cells& cells, bool skip_neutral) {
 #define NBV_DISPATCH(key, Policy, distance)                                           \
   if (name == key) {                                                                  \
     if constexpr (utility::Policy::kNeedsSurface)                                     \
-      if (!job.grid.observed())                                           \
+      if (!job.grid.observed())                                                       \
         throw std::invalid_argument("utility '" + name +                              \
                                     "' needs the camera observations (surface=...)"); \
     Job j = job;                                                                      \
