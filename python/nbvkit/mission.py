@@ -9,24 +9,16 @@ from __future__ import annotations
 
 import threading
 import time
-import warnings
 from pathlib import Path
 
 from .config import Config
 from .evaluation import Evaluator
 from .planning import Planner
-from .planning.terminations.budget import view_cap
+from .planning.terminations.budget import ended_by, view_cap
 from .recorder import IterationRecord, Recorder
 from .world import MissionError, World
 
 __all__ = ["Mission", "MissionError", "IterationRecord"]
-
-#: Why a mission whose sensors saw no surface ends (termination "nothing_seen").
-NOTHING_SEEN = (
-    "the sensors saw no surface of the structure (no point from the profile nor from a view): "
-    "the planner had nothing to cover. The start may be out of the sensors' reach of every "
-    "part (structures far apart: try profiling.enabled=false, or another start)"
-)
 
 
 class Mission:
@@ -112,10 +104,7 @@ class Mission:
                 self.termination = self.planner.run(world, self.max_views)
             finally:
                 self.recorder.close_progress()
-            if self.termination == "coverage_complete" and not any(map(len, world.clouds)):
-                # nothing to cover because nothing was seen, not because it is covered
-                self.termination = "nothing_seen"
-                warnings.warn(NOTHING_SEEN, RuntimeWarning, stacklevel=3)
+            self.termination = ended_by(self.termination, world)  # or "nothing_seen"
         return self.recorder.summary(self.termination, time.perf_counter() - t_start)
 
     def _profile(self) -> dict:

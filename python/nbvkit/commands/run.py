@@ -112,10 +112,6 @@ def run(args) -> int:
         f"termination: {s['termination']}"
     )
     note = budget_note(s)
-    if s["termination"] == "nothing_seen":
-        from ..mission import NOTHING_SEEN
-
-        note = NOTHING_SEEN
     if note:
         print("note: " + note)
     print("coverage  " + "  ".join(f"@{k} m {v:6.1%}" for k, v in cov.items()))

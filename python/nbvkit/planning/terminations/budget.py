@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import math
 import time
+import warnings
 from dataclasses import dataclass
 
 from ...settings import nonneg
@@ -48,9 +49,28 @@ def view_cap(max_iterations, surface_area_m2: float) -> int:
     return max(MIN_VIEW_CAP, int(math.ceil(VIEWS_PER_M2 * surface_area_m2)))
 
 
+#: Why a mission whose sensors saw no surface ends (termination "nothing_seen").
+NOTHING_SEEN = (
+    "the sensors saw no surface of the structure (no point from the profile nor from a view): "
+    "the planner had nothing to cover. The start may be out of the sensors' reach of every "
+    "part (structures far apart: try profiling.enabled=false, or another start)"
+)
+
+
+def ended_by(termination: str, world) -> str:
+    """The planner's termination, or "nothing_seen" (with a RuntimeWarning) where it found
+    nothing to cover because the sensors never saw a surface, not because it is covered."""
+    if termination == "coverage_complete" and not any(map(len, world.clouds)):
+        warnings.warn(NOTHING_SEEN, RuntimeWarning, stacklevel=4)
+        return "nothing_seen"
+    return termination
+
+
 def budget_note(summary: dict) -> str | None:
-    """A line for the console when a budget ended the mission (None otherwise), naming the
-    budget and how to raise it."""
+    """A line for the console when a budget ended the mission, naming the budget and how to
+    raise it, or when the sensors saw nothing (NOTHING_SEEN); None otherwise."""
+    if summary["termination"] == "nothing_seen":
+        return NOTHING_SEEN
     key = BUDGET_KEYS.get(summary["termination"])
     if key is None:
         return None
