@@ -14,6 +14,10 @@
 #include <shared_mutex>
 #include <string>
 
+namespace nbv {
+class SurfaceCloud;
+}  // namespace nbv
+
 namespace nbv::bind {
 
 namespace py = pybind11;
@@ -56,6 +60,9 @@ ViewPosesArg view_poses_arg(const py::handle& obj, const char* what = "candidate
 
 /// A random seed: a Python int in [0, 2^64) (ValueError naming `what` otherwise).
 std::uint64_t seed_arg(const py::handle& obj, const char* what = "seed");
+
+/// ValueError if a list of SurfaceClouds from Python holds None.
+void check_clouds(const std::vector<const SurfaceCloud*>& clouds);
 
 /// Holds an object's AccessLock (shared: Lock = std::shared_lock, exclusive: std::unique_lock)
 /// for a call that runs without the GIL: the GIL is released first and taken back after the lock

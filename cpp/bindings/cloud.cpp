@@ -65,8 +65,7 @@ cloud), min_z 0.3 m.)doc")
   m.def(
       "stack_points",
       [](const std::vector<const SurfaceCloud*>& clouds) {
-        for (const SurfaceCloud* c : clouds)
-          if (!c) throw py::value_error("clouds must be SurfaceCloud objects, not None");
+        check_clouds(clouds);
         py::gil_scoped_release release;
         return stack_points(clouds);
       },

@@ -90,6 +90,11 @@ std::uint64_t seed_arg(const py::handle& obj, const char* what) {
   return v.cast<std::uint64_t>();
 }
 
+void check_clouds(const std::vector<const SurfaceCloud*>& clouds) {
+  for (const SurfaceCloud* c : clouds)
+    if (!c) throw py::value_error("clouds must be SurfaceCloud objects, not None");
+}
+
 Eigen::Vector3d vec3_arg(const py::handle& obj, const char* what) {
   py::array_t<double, py::array::c_style | py::array::forcecast> a;
   try {

@@ -90,8 +90,7 @@ void init_evaluation(py::module_& m) {
       .def(
           "evaluate_of",
           [](const Evaluator& e, const std::vector<const SurfaceCloud*>& clouds) {
-            for (const SurfaceCloud* c : clouds)
-              if (!c) throw py::value_error("clouds must be SurfaceCloud objects, not None");
+            check_clouds(clouds);
             py::gil_scoped_release release;
             return e.evaluate(clouds);
           },
@@ -110,8 +109,7 @@ void init_evaluation(py::module_& m) {
       .def(
           "evaluate_cells_of",
           [](const Evaluator& e, const std::vector<const SurfaceCloud*>& clouds) {
-            for (const SurfaceCloud* c : clouds)
-              if (!c) throw py::value_error("clouds must be SurfaceCloud objects, not None");
+            check_clouds(clouds);
             py::gil_scoped_release release;
             return e.evaluate_cells(clouds);
           },
@@ -153,8 +151,7 @@ evaluate_cells_of to the last bit. Keeps the evaluator alive.)doc")
       .def(
           "update",
           [](CoverageTracker& t, const std::vector<const SurfaceCloud*>& clouds) {
-            for (const SurfaceCloud* c : clouds)
-              if (!c) throw py::value_error("clouds must be SurfaceCloud objects, not None");
+            check_clouds(clouds);
             py::gil_scoped_release release;
             return t.update(clouds);
           },

@@ -88,6 +88,13 @@ class EvaluationConfig:
     coverage_every: int = nonneg(25)  # iterations between coverage refreshes in the progress/CSV
 
 
+def _is_cloud_list(cloud) -> bool:
+    """Whether `cloud` is a list (or tuple) of SurfaceClouds, read in place by the evaluator."""
+    return isinstance(cloud, (list, tuple)) and all(
+        isinstance(c, _core.SurfaceCloud) for c in cloud
+    )
+
+
 def _key(v: float) -> str:
     return f"{v:g}"
 
@@ -189,9 +196,7 @@ class Evaluator:
     def evaluate(self, cloud) -> dict:
         """Score ``cloud`` ((N, 3), a PointCloud, or a list of them scored as their points
         stacked, without holding a stacked copy); see ``nbvkit.evaluate`` for the dict."""
-        if isinstance(cloud, (list, tuple)) and all(
-            isinstance(c, _core.SurfaceCloud) for c in cloud
-        ):
+        if _is_cloud_list(cloud):
             return _to_dict(self._core.evaluate_of(list(cloud)))
         return _to_dict(self._core.evaluate(_as_points(cloud)))
 
@@ -237,9 +242,7 @@ class Evaluator:
         For a list of clouds the evaluator keeps a ``CoverageTracker``: a later call with the same
         clouds, grown since, looks again only at the voxels added or moved (the same figures; it
         holds 4 bytes per cloud point and 4 more per resolution)."""
-        if isinstance(cloud, (list, tuple)) and all(
-            isinstance(c, _core.SurfaceCloud) for c in cloud
-        ):
+        if _is_cloud_list(cloud):
             if self._tracker is None:
                 self._tracker = _core.CoverageTracker(self._core)
             d = _to_dict(self._tracker.update(list(cloud)))
