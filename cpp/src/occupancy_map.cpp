@@ -151,8 +151,8 @@ void OccupancyMap::init_geometry(const Eigen::Vector3d& bmin, const Eigen::Vecto
                                 " (coarser resolution or smaller bounds)");
   for (int a = 0; a < 3; ++a) min_key_[a] = octomap::key_type(kmin[a] + kTreeMaxVal);
   grid_ = WorkspaceGrid({int(nx), int(ny), int(nz)}, cell_rule());
-  tree_stale_.assign(grid_.layout().storage_size(), 0);
-  tree_stale_cells_.clear();
+  stale_cells_.assign(grid_.layout().num_bricks(), 0);
+  stale_bricks_.clear();
 }
 
 void OccupancyMap::apply_tree_params() {
@@ -245,10 +245,9 @@ void OccupancyMap::grid_from_tree() {
 
 void OccupancyMap::set_cell(std::int64_t i, float logodds, CellFlag flag) {
   grid_.set(i, logodds, flag);
-  if (!tree_stale_[std::size_t(i)]) {
-    tree_stale_[std::size_t(i)] = 1;
-    tree_stale_cells_.push_back(i);
-  }
+  std::uint64_t& cells = stale_cells_[std::size_t(i) >> 6];
+  if (!cells) stale_bricks_.push_back(std::uint32_t(std::size_t(i) >> 6));
+  cells |= std::uint64_t(1) << (i & 63);
 }
 
 namespace {
@@ -314,15 +313,22 @@ void write_leaves(octomap::OcTree& tree, std::vector<LeafWrite>& writes, bool as
 }  // namespace
 
 void OccupancyMap::sync_octree() const {
-  if (tree_stale_cells_.empty()) return;
+  // in batches: a mission's first save writes tens of millions of cells
+  constexpr std::size_t kBatch = std::size_t(1) << 22;
   std::vector<LeafWrite> writes;
-  writes.reserve(tree_stale_cells_.size());
-  for (const std::int64_t i : tree_stale_cells_) {
-    const Key key = key_at(i);
-    writes.push_back(LeafWrite{tree_order(key), key, grid_.logodds(i)});
-    tree_stale_[std::size_t(i)] = 0;
+  writes.reserve(std::min(kBatch, stale_bricks_.size() * 64));
+  for (const std::uint32_t b : stale_bricks_) {
+    for (std::uint64_t cells = std::exchange(stale_cells_[b], 0); cells; cells &= cells - 1) {
+      const std::int64_t i = std::int64_t(b) << 6 | __builtin_ctzll(cells);
+      const Key key = key_at(i);
+      writes.push_back(LeafWrite{tree_order(key), key, grid_.logodds(i)});
+    }
+    if (writes.size() >= kBatch) {
+      write_leaves(*tree_, writes, false);
+      writes.clear();
+    }
   }
-  tree_stale_cells_.clear();
+  stale_bricks_.clear();
   write_leaves(*tree_, writes, false);
 }
 
@@ -333,25 +339,11 @@ const octomap::OcTree& OccupancyMap::octree() const {
 
 // ---- integration ---------------------------------------------------------------------------
 
-void OccupancyMap::FreeDeleter::operator()(void* p) const noexcept { std::free(p); }
-
 void OccupancyMap::ensure_scratch() {
   if (stamp_) return;
   const std::size_t n = grid_.layout().storage_size();
-  stamp_.reset(static_cast<std::uint32_t*>(std::calloc(n, sizeof(std::uint32_t))));
-  group_of_.reset(static_cast<std::int32_t*>(std::malloc(n * sizeof(std::int32_t))));
-  if (!stamp_ || !group_of_) throw std::bad_alloc();
-  stamp_counter_ = 0;
-}
-
-std::uint32_t OccupancyMap::next_stamp(unsigned n) {
-  if (stamp_counter_ > std::numeric_limits<std::uint32_t>::max() - n - 1) {
-    std::fill(stamp_.get(), stamp_.get() + grid_.layout().storage_size(), 0u);
-    stamp_counter_ = 0;
-  }
-  const std::uint32_t first = stamp_counter_ + 1;
-  stamp_counter_ += n;
-  return first;
+  stamp_ = ReleasableArray<std::uint32_t>(n);
+  group_of_ = ReleasableArray<std::int32_t>(n);
 }
 
 void OccupancyMap::update_cell(const Key& key, bool hit) {
@@ -447,7 +439,15 @@ IntegrationStats OccupancyMap::integrate(const Eigen::Vector3d& origin, const Po
   if (stats.rays == 0) return stats;
   auto candidates = collect_end_points(o, hits, free_ends, max_range);
   ensure_scratch();
-  const std::uint32_t s_group = next_stamp(3), s_free = s_group + 1, s_occ = s_group + 2;
+  // the scratch reads zero before each scan, and its pages go back to the kernel after it
+  struct Release {
+    OccupancyMap& m;
+    ~Release() {
+      m.stamp_.release();
+      m.group_of_.release();
+    }
+  } release{*this};
+  const std::uint32_t s_group = 1, s_free = 2, s_occ = 3;
   const std::vector<EndPoint> groups = group_end_points(std::move(candidates), s_group);
   stats.traced_rays = groups.size();
   EndCells cells = classify_end_cells(groups, s_occ, s_free);
@@ -633,7 +633,7 @@ void OccupancyMap::trace_free_cells(const octomap::point3d& o, const std::vector
   const std::size_t grain = 32;
   const std::size_t nchunks = (ng + grain - 1) / grain;
   std::vector<std::vector<Key>> chunk_free(nchunks), chunk_out(nchunks);
-  std::uint32_t* const stamps = stamp_.get();
+  std::uint32_t* const stamps = stamp_.data();
   const octomap::OcTree& tree = *tree_;
   const GridLayout& layout = grid_.layout();
   const auto& dims = layout.dims;

@@ -10,6 +10,7 @@
 
 #include <sys/mman.h>
 
+#include <algorithm>
 #include <cstddef>
 #include <cstdlib>
 #include <new>
@@ -84,5 +85,57 @@ struct UninitHugePageAllocator : HugePageAllocator<T> {
 /// every element must be written before it is read.
 template <class T>
 using HugeBuffer = std::vector<T, UninitHugePageAllocator<T>>;
+
+/// A zero-filled array of n trivial T in an anonymous mapping of its own, whose pages can all be
+/// handed back to the kernel at once (release): every element then reads zero again, and a page
+/// costs memory only once it is written again. For scratch indexed by a large id space of which
+/// one use touches a small part (the integration's per-cell stamps of a 77 M-cell grid): its
+/// memory is what one use touched, not what every use ever touched, and a fresh one costs
+/// nothing until written.
+template <class T>
+class ReleasableArray {
+  static_assert(std::is_trivially_copyable_v<T>, "ReleasableArray holds trivial elements");
+
+ public:
+  ReleasableArray() = default;
+  explicit ReleasableArray(std::size_t n) : n_(n) {
+    if (n == 0) return;
+    void* p = mmap(nullptr, bytes(), PROT_READ | PROT_WRITE, MAP_PRIVATE | MAP_ANONYMOUS, -1, 0);
+    if (p == MAP_FAILED) throw std::bad_alloc();
+    p_ = static_cast<T*>(p);
+  }
+  ReleasableArray(ReleasableArray&& o) noexcept
+      : p_(std::exchange(o.p_, nullptr)), n_(std::exchange(o.n_, 0)) {}
+  ReleasableArray& operator=(ReleasableArray&& o) noexcept {
+    if (this != &o) {
+      unmap();
+      p_ = std::exchange(o.p_, nullptr);
+      n_ = std::exchange(o.n_, 0);
+    }
+    return *this;
+  }
+  ReleasableArray(const ReleasableArray&) = delete;
+  ReleasableArray& operator=(const ReleasableArray&) = delete;
+  ~ReleasableArray() { unmap(); }
+
+  T* data() const { return p_; }
+  T& operator[](std::size_t i) const { return p_[i]; }
+  std::size_t size() const { return n_; }
+  explicit operator bool() const { return p_ != nullptr; }
+  /// Every element reads zero again; the pages written so far no longer count as memory.
+  void release() {
+    if (p_ && madvise(p_, bytes(), MADV_DONTNEED) != 0)
+      std::fill(p_, p_ + n_, T{});  // (not expected: the mapping is private and anonymous)
+  }
+
+ private:
+  std::size_t bytes() const { return n_ * sizeof(T); }
+  void unmap() {
+    if (p_) munmap(p_, bytes());
+    p_ = nullptr;
+  }
+  T* p_ = nullptr;
+  std::size_t n_ = 0;
+};
 
 }  // namespace nbv

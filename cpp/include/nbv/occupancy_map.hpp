@@ -36,6 +36,7 @@
 #pragma once
 
 #include "nbv/common.hpp"
+#include "nbv/huge_pages.hpp"
 #include "nbv/options.hpp"
 #include "nbv/sensors.hpp"
 #include "nbv/workspace_grid.hpp"
@@ -265,7 +266,6 @@ class OccupancyMap {
   CellRule cell_rule() const;
   void grid_from_tree();
   void ensure_scratch();
-  std::uint32_t next_stamp(unsigned n);
 
   // the steps of integrate
   std::vector<std::vector<EndPoint>> collect_end_points(const octomap::point3d& origin,
@@ -297,18 +297,15 @@ class OccupancyMap {
   Key min_key_;
   WorkspaceGrid grid_;
   float occ_thres_log_ = 0, clamp_min_log_ = 0, clamp_max_log_ = 0, hit_log_ = 0, miss_log_ = 0;
-  // workspace cells whose grid value the octree does not hold yet (flag per cell, list of them)
-  mutable std::vector<std::uint8_t> tree_stale_;
-  mutable std::vector<std::int64_t> tree_stale_cells_;
+  // workspace cells whose grid value the octree does not hold yet: a bit per cell of each brick,
+  // and the bricks holding any
+  mutable std::vector<std::uint64_t> stale_cells_;
+  mutable std::vector<std::uint32_t> stale_bricks_;
 
-  // integration scratch, allocated on first integrate (calloc: pages are zeroed lazily, so a
-  // scan pays only for the pages it touches)
-  struct FreeDeleter {
-    void operator()(void* p) const noexcept;
-  };
-  std::unique_ptr<std::uint32_t[], FreeDeleter> stamp_;    // per cell: last stamp written
-  std::unique_ptr<std::int32_t[], FreeDeleter> group_of_;  // per cell: valid where stamped
-  std::uint32_t stamp_counter_ = 0;
+  // integration scratch per workspace cell, made on first integrate and handed back to the
+  // kernel after each (ReleasableArray): it holds memory only for the cells one scan touches
+  ReleasableArray<std::uint32_t> stamp_;    // per cell: last stamp written
+  ReleasableArray<std::int32_t> group_of_;  // per cell: valid where stamped
   AccessLock access_;
 };
 
