@@ -351,13 +351,15 @@ EvaluationResult Evaluator::evaluate(const PointsRef& cloud) const {
 
 EvaluationResult Evaluator::evaluate(const std::vector<const SurfaceCloud*>& clouds) const {
   const auto t0 = std::chrono::steady_clock::now();
-  Eigen::Index n = 0;
-  const KdTree ctree = [&] {
-    const Points points = stack_points(clouds);  // freed once the tree holds them
-    n = points.rows();
-    return KdTree(points);
-  }();
-  return score(ctree, n, seconds_since(t0));
+  // the clouds' points in order, read in place (no stacked copy beside the tree)
+  std::vector<std::size_t> first{0};
+  for (const SurfaceCloud* c : clouds) first.push_back(first.back() + c->size());
+  const KdTree ctree(first.back(), [&](std::size_t i) {
+    const std::size_t c =
+        std::size_t(std::upper_bound(first.begin(), first.end(), i) - first.begin()) - 1;
+    return clouds[c]->point(i - first[c]);
+  });
+  return score(ctree, Eigen::Index(first.back()), seconds_since(t0));
 }
 
 EvaluationResult Evaluator::score(const KdTree& ctree, Eigen::Index n, double kdtree_s) const {
@@ -376,25 +378,33 @@ EvaluationResult Evaluator::score(const KdTree& ctree, Eigen::Index n, double kd
   res.timings_s.emplace_back("cells", seconds_since(t0));
   if (n == 0) return res;
 
+  // Each way in turn (one array of distances at a time), summed sequentially in (deterministic)
+  // tree order: identical results whatever the threading.
   t0 = clock::now();
-  const std::vector<double> d_cloud = tree_nearest(tree_, ctree);  // cloud -> GT, tree order
-  const std::vector<double> d_gt = tree_nearest(ctree, tree_);     // GT -> cloud, tree order
+  struct Sums {
+    double total = 0;
+    std::vector<std::int64_t> within;  // per tau: distances <= tau
+  };
+  const auto sums = [&](const std::vector<double>& d) {
+    Sums s;
+    for (double x : d) s.total += x;
+    for (std::size_t k = 0; k < nt; ++k) {
+      std::int64_t c = 0;
+      for (double x : d) c += x <= opt_.taus[k];
+      s.within.push_back(c);
+    }
+    return s;
+  };
+  const Sums cloud_to_gt = sums(tree_nearest(tree_, ctree));  // cloud -> GT, tree order
+  const Sums gt_to_cloud = sums(tree_nearest(ctree, tree_));  // GT -> cloud, tree order
   res.timings_s.emplace_back("nearest", seconds_since(t0));
 
-  // Sequential sums in (deterministic) tree order: identical results whatever the threading.
-  double sc = 0, sg = 0;
-  for (double d : d_cloud) sc += d;
-  for (double d : d_gt) sg += d;
-  res.mean_cloud_to_gt = sc / static_cast<double>(d_cloud.size());
-  res.mean_gt_to_cloud = sg / static_cast<double>(d_gt.size());
+  res.mean_cloud_to_gt = cloud_to_gt.total / static_cast<double>(n);
+  res.mean_gt_to_cloud = gt_to_cloud.total / static_cast<double>(n_gt);
   res.chamfer = 0.5 * (res.mean_cloud_to_gt + res.mean_gt_to_cloud);
   res.has_chamfer = true;
   for (std::size_t k = 0; k < nt; ++k) {
-    const double tau = opt_.taus[k];
-    std::int64_t a = 0, c = 0;
-    for (double d : d_cloud) a += d <= tau;
-    for (double d : d_gt) c += d <= tau;
-    const double P = ratio(a, n), R = ratio(c, n_gt);
+    const double P = ratio(cloud_to_gt.within[k], n), R = ratio(gt_to_cloud.within[k], n_gt);
     res.accuracy[k] = P;
     res.completeness[k] = R;
     res.fscore[k] = (P + R) > 0 ? 2 * P * R / (P + R) : 0.0;

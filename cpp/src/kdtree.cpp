@@ -5,6 +5,7 @@
 #include <tbb/parallel_invoke.h>
 
 #include <algorithm>
+#include <atomic>
 #include <cmath>
 #include <limits>
 #include <map>
@@ -41,20 +42,32 @@ inline double box_dist2(const double* lo, const double* hi, const double* q) {
 }
 }  // namespace
 
-KdTree::KdTree(const PointsRef& points, int leaf_size) : leaf_size_(std::max(1, leaf_size)) {
-  require_finite(points, "kd-tree points");
-  const std::size_t n = static_cast<std::size_t>(points.rows());
+KdTree::KdTree(const PointsRef& points, int leaf_size)
+    : KdTree(
+          std::size_t(points.rows()),
+          [&points](std::size_t i) {
+            const auto r = static_cast<Eigen::Index>(i);
+            return Eigen::Vector3d(points(r, 0), points(r, 1), points(r, 2));
+          },
+          leaf_size) {}
+
+KdTree::KdTree(std::size_t n, const std::function<Eigen::Vector3d(std::size_t)>& point,
+               int leaf_size)
+    : leaf_size_(std::max(1, leaf_size)) {
   if (n >= static_cast<std::size_t>(std::numeric_limits<std::int32_t>::max()))
     throw std::invalid_argument("kd-tree: too many points (" + std::to_string(n) + ")");
   pts_.resize(n);
   pos_.resize(n);
   if (n == 0) return;
+  std::atomic<bool> finite{true};
   parallel_chunks(n, 1 << 14, [&](std::size_t b, std::size_t e) {
     for (std::size_t i = b; i < e; ++i) {
-      const auto r = static_cast<Eigen::Index>(i);
-      pts_[i] = Item{{points(r, 0), points(r, 1), points(r, 2)}, static_cast<std::uint32_t>(i)};
+      const Eigen::Vector3d p = point(i);
+      if (!p.allFinite()) finite.store(false, std::memory_order_relaxed);
+      pts_[i] = Item{{p[0], p[1], p[2]}, static_cast<std::uint32_t>(i)};
     }
   });
+  if (!finite.load()) throw std::invalid_argument("kd-tree points contains NaN or infinite values");
   std::map<std::size_t, std::size_t> memo;  // at most two subtree sizes per depth
   const std::size_t total = node_count(n, static_cast<std::size_t>(leaf_size_), memo);
   subtree_nodes_.assign(memo.begin(), memo.end());

@@ -44,6 +44,33 @@ TEST(KdTree, EmptyAndSinglePoint) {
   EXPECT_DOUBLE_EQ(single.nearest(Eigen::Vector3d::Zero()).second, 14.0);
 }
 
+TEST(KdTree, PointsGivenOneAtATimeMakeTheSameTree) {
+  // the points of two blocks read in place, as the evaluation reads several clouds
+  std::mt19937_64 rng(3);
+  std::uniform_real_distribution<double> U(-2.0, 2.0);
+  Points t(777, 3);
+  for (Eigen::Index i = 0; i < t.rows(); ++i) t.row(i) << U(rng), U(rng), U(rng);
+  const Eigen::Index split = 300;
+  const KdTree whole(t, 5);
+  const Points a = t.topRows(split), b = t.bottomRows(t.rows() - split);
+  const KdTree parts(
+      std::size_t(t.rows()),
+      [&](std::size_t i) -> Eigen::Vector3d {
+        const Eigen::Index r = Eigen::Index(i);
+        return r < split ? a.row(r).transpose() : b.row(r - split).transpose();
+      },
+      5);
+  ASSERT_EQ(parts.size(), whole.size());
+  for (std::size_t k = 0; k < whole.size(); ++k) {
+    ASSERT_EQ(parts.id_at(k), whole.id_at(k));
+    ASSERT_EQ(parts.point_at(k), whole.point_at(k));
+  }
+  EXPECT_EQ(parts.points(), t);
+  const auto nan = std::numeric_limits<double>::quiet_NaN();
+  EXPECT_THROW(KdTree(3, [&](std::size_t i) { return Eigen::Vector3d(0, i == 1 ? nan : 0, 0); }),
+               std::invalid_argument);
+}
+
 TEST(KdTree, BatchQueriesMatchBruteForce) {
   std::mt19937_64 rng(11);
   std::uniform_real_distribution<double> U(-5.0, 5.0);

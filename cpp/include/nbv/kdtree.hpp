@@ -5,6 +5,7 @@
 #include "nbv/common.hpp"
 
 #include <cstdint>
+#include <functional>
 #include <utility>
 #include <vector>
 
@@ -18,6 +19,10 @@ namespace nbv {
 class KdTree {
  public:
   explicit KdTree(const PointsRef& points, int leaf_size = 12);
+  /// The same tree over n points given one at a time by point(i), i in [0, n) (called in
+  /// parallel): e.g. the points of several clouds read in place, without a stacked copy.
+  KdTree(std::size_t n, const std::function<Eigen::Vector3d(std::size_t)>& point,
+         int leaf_size = 12);
 
   std::size_t size() const { return pts_.size(); }
   /// Nearest point to q: (index into the constructor's points, squared distance in m^2).
