@@ -10,6 +10,8 @@
 #include "nbv/workspace_grid.hpp"
 
 #include <gtest/gtest.h>
+#include <sys/mman.h>
+#include <unistd.h>
 
 #include <algorithm>
 #include <cmath>
@@ -540,6 +542,36 @@ TEST(Cover, PrizeCollectingInsertionChoosesAsTheExhaustiveSearch) {
   }
 }
 
+TEST(Cover, PrizeCollectingInsertionOverManyWideElementsChoosesAsTheExhaustiveSearch) {
+  // elements spread over 2^30 values and 10^5 memberships: the inverse's in-place sort goes
+  // several digits deep before it sorts by comparison
+  std::mt19937 rng(5);
+  std::vector<std::int64_t> pool(4000);
+  for (auto& e : pool) e = std::int64_t(rng() % (std::uint32_t(1) << 30));
+  const int K = 400;
+  std::vector<std::vector<std::int64_t>> sets(K);
+  for (auto& set : sets) {
+    for (int i = 0; i < 250; ++i) set.push_back(pool[rng() % pool.size()]);
+    std::sort(set.begin(), set.end());
+    set.erase(std::unique(set.begin(), set.end()), set.end());
+  }
+  ViewCoverage cov = coverage(sets);
+  std::uniform_real_distribution<double> coord(-30.0, 30.0), weight(0.05, 1.0);
+  for (Eigen::Index i = 0; i < cov.weights.size(); ++i) cov.weights[i] = float(weight(rng));
+  ASSERT_GT(cov.elements.size(), 90000);
+  Points pos(K, 3);
+  for (Eigen::Index k = 0; k < K; ++k)
+    for (int a = 0; a < 3; ++a) pos(k, a) = coord(rng);
+  const Eigen::Vector3d start(0, 0, 0);
+  for (const bool charge : {true, false}) {
+    const CoverSelection a = select_tour(cov, pos, start, 0.5, 5.0, 1000, charge);
+    const CoverSelection b = reference_select_tour(cov, pos, start, 0.5, 5.0, 1000, charge);
+    ASSERT_GT(a.views.size(), 10u);
+    ASSERT_EQ(a.views, b.views) << "charge " << charge;
+    ASSERT_EQ(a.gains, b.gains) << "charge " << charge;
+  }
+}
+
 TEST(HugeVector, LargeBuffersAreHugePageAlignedAndHoldTheirValues) {
   // past the threshold: 2 MiB aligned (what madvise needs); below it: an ordinary allocation
   HugeVector<std::uint64_t> big(HugePageAllocator<std::uint64_t>::kMin / 8 + 12345);
@@ -550,6 +582,34 @@ TEST(HugeVector, LargeBuffersAreHugePageAlignedAndHoldTheirValues) {
   for (std::size_t i = 0; i + 1 < big.size(); ++i) ASSERT_EQ(big[i], i + 7);
   HugeVector<int> small(100, 3);
   EXPECT_EQ(std::accumulate(small.begin(), small.end(), 0), 300);
+}
+
+TEST(ReleasableArray, ReadsZeroAfterReleaseAndMoves) {
+  ReleasableArray<std::uint32_t> a(3 << 20);  // 12 MiB: many pages
+  ASSERT_TRUE(a);
+  EXPECT_EQ(a[0], 0u);
+  EXPECT_EQ(a[a.size() - 1], 0u);
+  for (std::size_t i = 0; i < a.size(); i += 1000) a[i] = std::uint32_t(i + 1);
+  for (std::size_t i = 0; i < a.size(); i += 1000) ASSERT_EQ(a[i], i + 1);
+  // resident pages (mincore): those written, and none once released
+  const auto resident = [](const ReleasableArray<std::uint32_t>& x) {
+    const std::size_t page = std::size_t(sysconf(_SC_PAGESIZE));
+    std::vector<unsigned char> in((x.size() * 4 + page - 1) / page);
+    EXPECT_EQ(mincore(x.data(), x.size() * 4, in.data()), 0);
+    return std::count_if(in.begin(), in.end(), [](unsigned char c) { return c & 1; });
+  };
+  EXPECT_GE(resident(a), 3000);  // 12 MiB written every 4 KB: every 4 KiB page
+  ReleasableArray<std::uint32_t> b(std::move(a));
+  EXPECT_FALSE(a);
+  EXPECT_EQ(b[1000], 1001u);
+  b.release();
+  EXPECT_EQ(resident(b), 0);
+  for (std::size_t i = 0; i < b.size(); i += 1000) ASSERT_EQ(b[i], 0u);
+  b[5] = 9;
+  a = std::move(b);
+  EXPECT_EQ(a[5], 9u);
+  EXPECT_EQ(a.size(), std::size_t(3) << 20);
+  EXPECT_FALSE(ReleasableArray<int>(0));
 }
 
 // Candidate views around (5, 4, 3) m in a 12 x 8 x 6 m map, and the options the view tests
