@@ -15,16 +15,69 @@ other change of the map (the vehicle's free path, predicted cells) is made in bo
 octree is brought up to date before each timed call. Prints ms per camera frame of the loop for
 both and their ratio: the issue's baseline on the mission's own frames and maps.
 
+--against DIR times the fast path in this checkout and in another one (DIR/python, or a saved
+package), alternating, in the same run: the 8 frames integrated again and again into one map
+that already holds them (a mission's steady state: the scratch the integration keeps between
+frames, or hands back after each, counts here), and checks both maps end the same.
+
 Run: .venv/bin/python bench/bench_map.py [--mesh PATH] [--repeat N] [--mission [--scenario S]]
+     .venv/bin/python bench/bench_map.py --against /tmp/before [--repeat N]
 """
 from __future__ import annotations
 
 import time
+from pathlib import Path
 
 import numpy as np
 
 import nbvkit
-from _timing import bench_mesh, mesh_parser
+from _timing import bench_mesh, checkouts, mesh_parser, run_snippet
+
+# Runs in either checkout: ms per frame of the fast path, frames integrated again into a map
+# that holds them, and a digest of the final map.
+AGAIN_SNIPPET = r"""
+import hashlib, json, sys, time
+import numpy as np
+import nbvkit
+sys.path.insert(0, sys.argv[1])
+from _timing import bench_mesh
+mesh, lo, hi, c = bench_mesh(sys.argv[2] or None)
+cam = nbvkit.DepthCamera(mesh)
+poses = [(c[0] + 10 * np.cos(t), c[1] + 10 * np.sin(t), 4.0, t + np.pi)
+         for t in np.arange(8) * np.pi / 4]
+scans = [cam.scan_pose(p) for p in poses]
+m = nbvkit.OccupancyMap(0.2)
+for s in scans:
+    m.integrate(s)
+ms = []
+for _ in range(int(sys.argv[3])):
+    for s in scans:
+        t = time.perf_counter()
+        m.integrate(s)
+        ms.append((time.perf_counter() - t) * 1e3)
+digest = hashlib.sha1(np.ascontiguousarray(m.log_odds_grid()).tobytes()).hexdigest()
+print(json.dumps({"ms": float(np.median(ms)), "digest": digest}))
+"""
+
+
+def against(args) -> None:
+    """The fast path in both checkouts, alternating (see the module's doc)."""
+    bench = str(Path(__file__).resolve().parent)
+    runs = {label: [] for label, _ in checkouts(args.against)}
+    for _ in range(3):
+        for label, py in checkouts(args.against):
+            runs[label].append(
+                run_snippet(AGAIN_SNIPPET, (bench, args.mesh or "", args.repeat), py)
+            )
+    (la, ra), (lb, rb) = runs.items()
+    ta, tb = (min(r["ms"] for r in rr) for rr in (ra, rb))
+    same = len({r["digest"] for r in ra + rb}) == 1
+    print(
+        f"8 frames integrated again into a map holding them, best of 3 runs of {args.repeat} "
+        f"passes each, {nbvkit.get_num_threads()} threads"
+    )
+    print(f"  fast path: {la} {ta:.2f} ms, {lb} {tb:.2f} ms per frame -> {tb / ta:.2f}x")
+    print(f"  the same final map: {same}")
 
 
 def agreement(a: nbvkit.OccupancyMap, b: nbvkit.OccupancyMap) -> float:
@@ -98,9 +151,12 @@ def main():
     ap = mesh_parser(__doc__, repeat=3)
     ap.add_argument("--mission", action="store_true", help="a mission's frames (see above)")
     ap.add_argument("--scenario", default="5")
+    ap.add_argument("--against", help="another checkout to time the fast path in (see above)")
     args = ap.parse_args()
     if args.mission:
         return mission(args)
+    if args.against:
+        return against(args)
     mesh, lo, hi, c = bench_mesh(args.mesh)
     cam = nbvkit.DepthCamera(mesh)
     poses = [
