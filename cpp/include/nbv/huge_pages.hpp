@@ -102,6 +102,9 @@ class ReleasableArray {
     if (n == 0) return;
     void* p = mmap(nullptr, bytes(), PROT_READ | PROT_WRITE, MAP_PRIVATE | MAP_ANONYMOUS, -1, 0);
     if (p == MAP_FAILED) throw std::bad_alloc();
+    // ordinary pages also where huge pages are "always": a use touches scattered cells, and
+    // a 2 MiB page zeroed again after every release would cost more than it saves
+    madvise(p, bytes(), MADV_NOHUGEPAGE);
     p_ = static_cast<T*>(p);
   }
   ReleasableArray(ReleasableArray&& o) noexcept
