@@ -641,19 +641,28 @@ def test_the_coverage_memo_answers_as_walking_again():
     )
     memo = _core.CoverageMemo(keep_calls=2)
     current = [-5.0, 0.0, 1.5, 0.0]
+    # a memo held to half of what one call records drops records, and answers the same
+    probe = _core.CoverageMemo()
+    _core.view_coverage(m, surface, poses, current, memo=probe, **kw)
+    capped = _core.CoverageMemo(keep_calls=2, max_bytes=probe.bytes // 2)
 
     def check(m, surface):
         a = _core.view_coverage(m, surface, poses, current, memo=memo, **kw)
         b = _core.view_coverage(m, surface, poses, current, **kw)
+        c = _core.view_coverage(m, surface, poses, current, memo=capped, **kw)
         for key in ("offsets", "elements", "weights", "status"):
             np.testing.assert_array_equal(a[key], b[key])
+            np.testing.assert_array_equal(c[key], b[key])
+        assert capped.bytes <= capped.max_bytes
         return a
 
     first = check(m, surface)
     assert (first["status"] == 0).sum() >= 10
     walked = memo.stats()["walked"]
     check(m, surface)  # nothing changed: every valid view from its record
-    assert memo.stats() == dict(reused=walked, walked=walked, stale=0)
+    assert memo.stats() == dict(reused=walked, walked=walked, stale=0, evicted=0)
+    held = capped.stats()
+    assert held["evicted"] > 0 and 0 < held["reused"] < walked
     for pose in ([0.0, -5.0, 2.0, math.pi / 2], [5.0, 0.5, 1.0, math.pi]):
         scan = cam.scan_pose(pose)  # a frame changes the map and the observations near it
         m.integrate(scan)

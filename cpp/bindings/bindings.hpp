@@ -110,21 +110,24 @@ void init_planning(py::module_& m);
 void init_observability(py::module_& m);
 
 /// What a memo of walks (ViewMemo, CoverageMemo) shows Python besides its constructor: stats,
-/// entries, bytes, keep_calls and clear.
+/// entries, bytes, keep_calls and clear; `evicts`: a memo held within a size (its stats count
+/// the records it dropped).
 template <class Memo>
-void def_memo_members(py::class_<Memo, std::shared_ptr<Memo>>& c) {
+void def_memo_members(py::class_<Memo, std::shared_ptr<Memo>>& c, bool evicts = false) {
   c.def(
        "stats",
-       [](const Memo& memo) {
+       [evicts](const Memo& memo) {
          const auto s = memo.stats();
          py::dict d;
          d["reused"] = s.reused;
          d["stale"] = s.stale;
          d["walked"] = s.walked;
+         if (evicts) d["evicted"] = s.evicted;
          return d;
        },
        "Views so far: reused (answered from their record, without a walk), stale (a record "
-       "that no longer held, then walked), walked (walked and recorded, stale ones included).")
+       "that no longer held, then walked), walked (walked and recorded, stale ones included) and, "
+       "for a memo held within max_bytes, evicted (records dropped to stay within it).")
       .def_property_readonly("entries", &Memo::entries, "Poses held.")
       .def_property_readonly("bytes", &Memo::bytes, "Memory held by the records.")
       .def_property_readonly("keep_calls", &Memo::keep_calls)

@@ -84,10 +84,13 @@ record (pass it as memo=). A view asked for again at the same pose and pitch (bi
 answered from its record while none of the bricks of 4 x 4 x 4 cells its rays entered or stepped
 over has changed in the camera observations since, and none within one brick of them in the map:
 the same coverage set and status, without walking its rays. Validity is checked anew each call.
-Entries that none of the last keep_calls calls used are dropped; another map, record, camera or
-utility clears it.)doc");
-  coverage_memo.def(py::init<int>(), py::arg("keep_calls") = 3);
-  def_memo_members(coverage_memo);
+Entries that none of the last keep_calls calls used are dropped, and beyond max_bytes (default
+256 MiB) those used longest ago; another map, record, camera or utility clears it.)doc");
+  coverage_memo
+      .def(py::init<int, std::size_t>(), py::arg("keep_calls") = 3,
+           py::arg("max_bytes") = CoverageMemo::kDefaultMaxBytes)
+      .def_property_readonly("max_bytes", &CoverageMemo::max_bytes);
+  def_memo_members(coverage_memo, true);
 
   m.def(
       "view_coverage",

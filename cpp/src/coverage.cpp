@@ -146,17 +146,21 @@ SurfaceTargets surface_targets(const GridView& g, const SurfaceTargetOptions& op
 
 // ---- CoverageMemo ----------------------------------------------------------------------------
 
-CoverageMemo::CoverageMemo(int keep_calls) : keep_calls_(keep_calls) {
+CoverageMemo::CoverageMemo(int keep_calls, std::size_t max_bytes)
+    : keep_calls_(keep_calls), max_bytes_(max_bytes) {
   if (keep_calls < 1)
     throw std::invalid_argument("CoverageMemo keep_calls must be >= 1, got " +
                                 std::to_string(keep_calls));
 }
 
+std::size_t CoverageMemo::entry_bytes(const Entry& e) {
+  return sizeof(e) + 4 * (e.elements.capacity() + e.weights.capacity()) +
+         4 * e.brick_words.capacity() + 8 * e.brick_bits.capacity();
+}
+
 std::size_t CoverageMemo::bytes() const {
   std::size_t n = 0;
-  for (const auto& [k, e] : entries_)
-    n += sizeof(e) + 4 * (e.elements.capacity() + e.weights.capacity()) +
-         4 * e.brick_words.capacity() + 8 * e.brick_bits.capacity();
+  for (const auto& [k, e] : entries_) n += entry_bytes(e);
   return n + 4 * near_grid_.capacity();
 }
 
@@ -240,6 +244,22 @@ void CoverageMemo::end(const std::vector<Key>& keys, std::vector<Entry>& fresh,
   }
   for (auto it = entries_.begin(); it != entries_.end();)
     it = it->second.used > call_ - keep_calls_ ? std::next(it) : entries_.erase(it);
+  std::size_t held = bytes();
+  if (held <= max_bytes_) return;
+  // over max_bytes: the records used longest ago go first, then the largest
+  std::vector<decltype(entries_)::iterator> order;
+  order.reserve(entries_.size());
+  for (auto it = entries_.begin(); it != entries_.end(); ++it) order.push_back(it);
+  std::sort(order.begin(), order.end(), [](const auto& a, const auto& b) {
+    if (a->second.used != b->second.used) return a->second.used < b->second.used;
+    return a->second.elements.size() > b->second.elements.size();
+  });
+  for (const auto& it : order) {
+    if (held <= max_bytes_) break;
+    held -= entry_bytes(it->second);
+    entries_.erase(it);
+    ++stats_.evicted;
+  }
 }
 
 // ---- view_coverage ---------------------------------------------------------------------------

@@ -89,13 +89,17 @@ struct CoverageRef {
 /// memo. Grids of 2^31 cells or more are walked every time (elements are kept in 32 bits).
 class CoverageMemo {
  public:
-  explicit CoverageMemo(int keep_calls = 3);
+  /// max_bytes: records beyond it are dropped at the end of a call, those used longest ago
+  /// first (a view is then walked again when next asked: the same answers, more time).
+  static constexpr std::size_t kDefaultMaxBytes = std::size_t(256) << 20;
+  explicit CoverageMemo(int keep_calls = 3, std::size_t max_bytes = kDefaultMaxBytes);
 
   using Stats = MemoStats;
   Stats stats() const { return stats_; }
   std::size_t entries() const { return entries_.size(); }
   std::size_t bytes() const;  ///< memory held by the entries' arrays
   int keep_calls() const { return keep_calls_; }
+  std::size_t max_bytes() const { return max_bytes_; }
   void clear();
   /// Held by a caller for the length of a call when calls may come from several threads.
   std::mutex& mutex() { return mutex_; }
@@ -125,7 +129,9 @@ class CoverageMemo {
            const std::vector<std::uint8_t>& walked, const std::vector<std::uint8_t>& reused);
 
  private:
+  static std::size_t entry_bytes(const Entry& e);
   int keep_calls_;
+  std::size_t max_bytes_;
   std::int64_t call_ = 0;
   std::vector<double> geometry_;
   std::uint64_t grid_id_ = 0, seen_id_ = 0;

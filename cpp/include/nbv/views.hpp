@@ -146,9 +146,10 @@ struct PoseKeyHash {
 };
 /// What a memo of walks did with the views asked of it, so far.
 struct MemoStats {
-  std::int64_t reused = 0;  ///< views answered from their record, without a walk
-  std::int64_t stale = 0;   ///< views whose record no longer held (then walked)
-  std::int64_t walked = 0;  ///< views walked and kept (stale ones included)
+  std::int64_t reused = 0;   ///< views answered from their record, without a walk
+  std::int64_t stale = 0;    ///< views whose record no longer held (then walked)
+  std::int64_t walked = 0;   ///< views walked and kept (stale ones included)
+  std::int64_t evicted = 0;  ///< records dropped to keep the memo within its bytes (CoverageMemo)
 };
 
 /// What the paper's IG walks of candidate views found, kept from one scoring call to the next
