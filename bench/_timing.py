@@ -74,6 +74,18 @@ def checkouts(against: str | None) -> list:
     return runs
 
 
+def alternate(snippet: str, args, against: str, rounds: int, key: str = "time"):
+    """Runs `snippet` (run_snippet) in this checkout and in `against`'s, alternating, `rounds`
+    times each: ([(label, the least `key` over its runs)] for both, whether every run printed the
+    same "digest")."""
+    runs = {label: [] for label, _ in checkouts(against)}
+    for _ in range(rounds):
+        for label, py in checkouts(against):
+            runs[label].append(run_snippet(snippet, args, py))
+    best = [(label, min(r[key] for r in rr)) for label, rr in runs.items()]
+    return best, len({r["digest"] for rr in runs.values() for r in rr}) == 1
+
+
 def run_snippet(snippet: str, args, package_dir=None) -> dict:
     """Runs `python -c snippet *args` with nbvkit imported from package_dir (None: as this process
     imports it), from a temporary folder; returns the JSON object its last output line prints.

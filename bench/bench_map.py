@@ -31,7 +31,7 @@ from pathlib import Path
 import numpy as np
 
 import nbvkit
-from _timing import bench_mesh, checkouts, mesh_parser, run_snippet
+from _timing import alternate, bench_mesh, mesh_parser
 
 # Runs in either checkout: ms per frame of the fast path, frames integrated again into a map
 # that holds them, and a digest of the final map.
@@ -63,15 +63,8 @@ print(json.dumps({"ms": float(np.median(ms)), "digest": digest}))
 def against(args) -> None:
     """The fast path in both checkouts, alternating (see the module's doc)."""
     bench = str(Path(__file__).resolve().parent)
-    runs = {label: [] for label, _ in checkouts(args.against)}
-    for _ in range(3):
-        for label, py in checkouts(args.against):
-            runs[label].append(
-                run_snippet(AGAIN_SNIPPET, (bench, args.mesh or "", args.repeat), py)
-            )
-    (la, ra), (lb, rb) = runs.items()
-    ta, tb = (min(r["ms"] for r in rr) for rr in (ra, rb))
-    same = len({r["digest"] for r in ra + rb}) == 1
+    snippet_args = (bench, args.mesh or "", args.repeat)
+    ((la, ta), (lb, tb)), same = alternate(AGAIN_SNIPPET, snippet_args, args.against, 3, "ms")
     print(
         f"8 frames integrated again into a map holding them, best of 3 runs of {args.repeat} "
         f"passes each, {nbvkit.get_num_threads()} threads"

@@ -21,7 +21,7 @@ from pathlib import Path
 import numpy as np
 
 import nbvkit
-from _timing import checkouts, median_time, mesh_parser, run_snippet
+from _timing import alternate, checkouts, median_time, mesh_parser, run_snippet
 from nbvkit.config import Config
 from nbvkit.mission import Mission
 from nbvkit.planning.registry import get_generator
@@ -112,15 +112,8 @@ def main():
         ]
     if args.against:  # view_coverage in both checkouts, alternating
         bench = str(Path(__file__).resolve().parent)
-        cov_rows = {label: [] for label, _ in checkouts(args.against)}
-        for _ in range(2):
-            for label, py in checkouts(args.against):
-                cov_rows[label].append(
-                    run_snippet(COVERAGE_SNIPPET, (bench, args.mesh or "", args.repeat), py)
-                )
-        (la, ra), (lb, rb) = cov_rows.items()
-        ta, tb = (min(r["time"] for r in rr) for rr in (ra, rb))
-        same = len({r["digest"] for r in ra + rb}) == 1
+        snippet_args = (bench, args.mesh or "", args.repeat)
+        ((la, ta), (lb, tb)), same = alternate(COVERAGE_SNIPPET, snippet_args, args.against, 2)
         print(
             f"  view_coverage: {la} {ta * 1e3:.0f} ms, {lb} {tb * 1e3:.0f} ms -> {tb / ta:.2f}x; "
             f"the same arrays: {same}"
