@@ -344,6 +344,29 @@ void OccupancyMap::ensure_scratch() {
   const std::size_t n = grid_.layout().storage_size();
   stamp_ = ReleasableArray<std::uint32_t>(n);
   group_of_ = ReleasableArray<std::int32_t>(n);
+  scratch_written_.assign((n >> kScratchPageShift) + 1, 0);
+  stamp_counter_ = 0;
+}
+
+std::uint32_t OccupancyMap::next_stamp(unsigned n) {
+  if (stamp_counter_ > std::numeric_limits<std::uint32_t>::max() - n - 1) {
+    stamp_.release();  // every stamp reads zero again
+    std::fill(scratch_written_.begin(), scratch_written_.end(), 0);
+    stamp_counter_ = 0;
+  }
+  const std::uint32_t first = stamp_counter_ + 1;
+  stamp_counter_ += n;
+  return first;
+}
+
+void OccupancyMap::bound_scratch() {
+  const auto written =
+      std::size_t(std::count(scratch_written_.begin(), scratch_written_.end(), std::uint8_t(1)));
+  if (written <= kScratchPages) return;
+  stamp_.release();
+  group_of_.release();
+  std::fill(scratch_written_.begin(), scratch_written_.end(), 0);
+  stamp_counter_ = 0;
 }
 
 void OccupancyMap::update_cell(const Key& key, bool hit) {
@@ -439,19 +462,12 @@ IntegrationStats OccupancyMap::integrate(const Eigen::Vector3d& origin, const Po
   if (stats.rays == 0) return stats;
   auto candidates = collect_end_points(o, hits, free_ends, max_range);
   ensure_scratch();
-  // the scratch reads zero before each scan, and its pages go back to the kernel after it
-  struct Release {
-    OccupancyMap& m;
-    ~Release() {
-      m.stamp_.release();
-      m.group_of_.release();
-    }
-  } release{*this};
-  const std::uint32_t s_group = 1, s_free = 2, s_occ = 3;
+  const std::uint32_t s_group = next_stamp(3), s_free = s_group + 1, s_occ = s_group + 2;
   const std::vector<EndPoint> groups = group_end_points(std::move(candidates), s_group);
   stats.traced_rays = groups.size();
   EndCells cells = classify_end_cells(groups, s_occ, s_free);
   trace_free_cells(o, groups, s_occ, s_free, cells);
+  bound_scratch();
   apply_updates(cells.free, cells.occupied);
   stats.free_cells = cells.free.size();
   stats.occupied_cells = cells.occupied.size();
@@ -564,6 +580,7 @@ std::vector<OccupancyMap::EndPoint> OccupancyMap::group_end_points(
         } else {
           stamp_[i] = s_group;
           base = group_of_[i] = std::int32_t(slots.size());
+          mark_written(i);
           slots.resize(slots.size() + std::size_t(kk), -1);
         }
       } else {
@@ -600,6 +617,7 @@ OccupancyMap::EndCells OccupancyMap::classify_end_cells(const std::vector<EndPoi
     if (idx >= 0) {
       if (stamp_[std::size_t(idx)] != s_occ) {
         stamp_[std::size_t(idx)] = s_occ;
+        mark_written(std::size_t(idx));
         out.occupied.push_back(gr.key);
       }
     } else if (!clip && occ_out.insert(gr.key).second) {
@@ -615,6 +633,7 @@ OccupancyMap::EndCells OccupancyMap::classify_end_cells(const std::vector<EndPoi
         out.free.push_back(gr.key);
     } else if (stamp_[std::size_t(idx)] != s_occ && stamp_[std::size_t(idx)] != s_free) {
       stamp_[std::size_t(idx)] = s_free;
+      mark_written(std::size_t(idx));
       out.free.push_back(gr.key);
     }
   }
@@ -666,6 +685,7 @@ void OccupancyMap::trace_free_cells(const octomap::point3d& o, const std::vector
           while (cur != s_occ && cur != s_free) {
             if (__atomic_compare_exchange_n(st, &cur, s_free, false, __ATOMIC_RELAXED,
                                             __ATOMIC_RELAXED)) {
+              mark_written(idx);
               out.push_back(key);
               break;
             }

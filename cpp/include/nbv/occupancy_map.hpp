@@ -266,6 +266,13 @@ class OccupancyMap {
   CellRule cell_rule() const;
   void grid_from_tree();
   void ensure_scratch();
+  std::uint32_t next_stamp(unsigned n);
+  /// Cell i's page of the scratch arrays is written (threads may race: the same value).
+  void mark_written(std::size_t i) {
+    __atomic_store_n(&scratch_written_[i >> kScratchPageShift], std::uint8_t(1), __ATOMIC_RELAXED);
+  }
+  /// Hands the scratch's pages back once more than kScratchPages have been written since.
+  void bound_scratch();
 
   // the steps of integrate
   std::vector<std::vector<EndPoint>> collect_end_points(const octomap::point3d& origin,
@@ -302,10 +309,16 @@ class OccupancyMap {
   mutable std::vector<std::uint64_t> stale_cells_;
   mutable std::vector<std::uint32_t> stale_bricks_;
 
-  // integration scratch per workspace cell, made on first integrate and handed back to the
-  // kernel after each (ReleasableArray): it holds memory only for the cells one scan touches
-  ReleasableArray<std::uint32_t> stamp_;    // per cell: last stamp written
-  ReleasableArray<std::int32_t> group_of_;  // per cell: valid where stamped
+  // integration scratch per workspace cell, made on first integrate. Its pages go back to the
+  // kernel (ReleasableArray::release) once the scans since the last release have written more
+  // than kScratchPages of them: it holds what recent scans touched, not what the whole mission
+  // did (a page written again after a release costs a fault, ~4 us on this project's machine).
+  static constexpr int kScratchPageShift = 10;        // 1,024 cells: 4 KiB of either array
+  static constexpr std::size_t kScratchPages = 8192;  // 32 MiB of either array
+  ReleasableArray<std::uint32_t> stamp_;              // per cell: last stamp written
+  ReleasableArray<std::int32_t> group_of_;            // per cell: valid where stamped
+  std::vector<std::uint8_t> scratch_written_;         // per page: written since the release
+  std::uint32_t stamp_counter_ = 0;
   AccessLock access_;
 };
 
