@@ -5,7 +5,6 @@
 #include "view_kernel.hpp"
 
 #include <algorithm>
-#include <array>
 #include <cmath>
 #include <limits>
 #include <queue>
@@ -468,45 +467,9 @@ struct Holders {
   HugeVector<std::uint64_t> offsets;
 };
 
-constexpr int kDigit = 8;  // sort_in_place's radix: 256 buckets
-
-/// Sorts the n distinct keys a in place, without a scratch array: by the digit of kDigit bits
-/// at `shift`, then each bucket by the next digit down (American flag sort: a bucket's keys move
-/// into place by cycles of swaps), until the digits reach bit `low` or a bucket is small; those
-/// are sorted by comparison. The top level's buckets are sorted in parallel.
-void sort_in_place(std::uint64_t* a, std::size_t n, int shift, int low, bool parallel) {
-  if (n <= 256 || shift < low) {
-    std::sort(a, a + n);
-    return;
-  }
-  constexpr std::size_t kBuckets = std::size_t(1) << kDigit;
-  const auto digit = [shift](std::uint64_t x) { return std::size_t(x >> shift) & (kBuckets - 1); };
-  std::array<std::size_t, kBuckets + 1> begin{};
-  for (std::size_t i = 0; i < n; ++i) ++begin[digit(a[i]) + 1];
-  for (std::size_t d = 0; d < kBuckets; ++d) begin[d + 1] += begin[d];
-  std::array<std::size_t, kBuckets> next;
-  std::copy(begin.begin(), begin.end() - 1, next.begin());
-  for (std::size_t d = 0; d < kBuckets; ++d) {
-    while (next[d] < begin[d + 1]) {
-      std::uint64_t x = a[next[d]];
-      for (std::size_t dx = digit(x); dx != d; dx = digit(x)) std::swap(x, a[next[dx]++]);
-      a[next[d]++] = x;
-    }
-  }
-  const auto bucket = [&](std::size_t d) {
-    sort_in_place(a + begin[d], begin[d + 1] - begin[d], shift - kDigit, low, false);
-  };
-  if (parallel) {
-    parallel_chunks(kBuckets, 1, [&](std::size_t b, std::size_t e) {
-      for (std::size_t d = b; d < e; ++d) bucket(d);
-    });
-  } else {
-    for (std::size_t d = 0; d < kBuckets; ++d) bucket(d);
-  }
-}
-
-/// The holders of the `held` elements whose owner is >= 0 (elements in [lo, hi]): keys packed as
-/// (element - lo, offset), sorted in place (8 bytes an element, no scratch).
+/// The holders of the `held` elements whose owner is >= 0 (elements in [lo, hi]): a stable LSD
+/// radix sort on the element's bits of keys packed as (element - lo, offset), the offsets being
+/// in order already.
 Holders holders_of(const CoverageRef& cov, const HugeVector<std::int32_t>& owner, std::size_t held,
                    std::int64_t lo, std::int64_t hi) {
   Holders h;
@@ -533,9 +496,18 @@ Holders holders_of(const CoverageRef& cov, const HugeVector<std::int32_t>& owner
   for (std::size_t o = 0; o < total; ++o)
     if (owner[o] >= 0)
       a.push_back((std::uint64_t(cov.elements[Eigen::Index(o)]) - std::uint64_t(lo)) << ob | o);
-  // the keys are distinct (their low bits are the offsets): sorted, they are in element order
-  // and each element's holders in offset order, as a stable sort by element would leave them
-  sort_in_place(a.data(), a.size(), ob + eb - kDigit, ob, true);
+  constexpr int kDigit = 11;
+  const std::uint64_t mask = (std::uint64_t(1) << kDigit) - 1;
+  std::vector<std::size_t> count(std::size_t(1) << kDigit);
+  HugeVector<std::uint64_t> b(held);
+  for (int shift = ob; shift < ob + eb; shift += kDigit) {
+    std::fill(count.begin(), count.end(), 0);
+    for (const std::uint64_t x : a) ++count[(x >> shift) & mask];
+    std::size_t sum = 0;
+    for (std::size_t& c : count) sum += std::exchange(c, sum);
+    for (const std::uint64_t x : a) b[count[(x >> shift) & mask]++] = x;
+    a.swap(b);
+  }
   const std::uint64_t low = (std::uint64_t(1) << ob) - 1;
   for (std::size_t i = 0; i < held; ++i) {
     add(std::int64_t(a[i] >> ob) + lo, i);
