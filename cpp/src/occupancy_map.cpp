@@ -349,11 +349,7 @@ void OccupancyMap::ensure_scratch() {
 }
 
 std::uint32_t OccupancyMap::next_stamp(unsigned n) {
-  if (stamp_counter_ > std::numeric_limits<std::uint32_t>::max() - n - 1) {
-    stamp_.release();  // every stamp reads zero again
-    std::fill(scratch_written_.begin(), scratch_written_.end(), 0);
-    stamp_counter_ = 0;
-  }
+  if (stamp_counter_ > std::numeric_limits<std::uint32_t>::max() - n - 1) release_scratch();
   const std::uint32_t first = stamp_counter_ + 1;
   stamp_counter_ += n;
   return first;
@@ -362,8 +358,11 @@ std::uint32_t OccupancyMap::next_stamp(unsigned n) {
 void OccupancyMap::bound_scratch() {
   const auto written =
       std::size_t(std::count(scratch_written_.begin(), scratch_written_.end(), std::uint8_t(1)));
-  if (written <= kScratchPages) return;
-  stamp_.release();
+  if (written > kScratchPages) release_scratch();
+}
+
+void OccupancyMap::release_scratch() {
+  stamp_.release();  // every stamp reads zero again
   group_of_.release();
   std::fill(scratch_written_.begin(), scratch_written_.end(), 0);
   stamp_counter_ = 0;

@@ -273,6 +273,8 @@ class OccupancyMap {
   }
   /// Hands the scratch's pages back once more than kScratchPages have been written since.
   void bound_scratch();
+  /// Every page of the scratch back to the kernel (it reads zero), the stamps from the start.
+  void release_scratch();
 
   // the steps of integrate
   std::vector<std::vector<EndPoint>> collect_end_points(const octomap::point3d& origin,
