@@ -18,7 +18,14 @@ from nbvkit.planning.parts import PlanningContext
 from nbvkit.planning.registry import get_generator
 from nbvkit.planning.generators.exploration import exploration_targets
 from nbvkit.planning.generators.tour import prize_collect
-from nbvkit.planning.placement import Patches, into_bounds, place_views, target_patches
+from nbvkit.planning.placement import (
+    Patches,
+    PlacementConfig,
+    into_bounds,
+    place_views,
+    refit_blocked,
+    target_patches,
+)
 from nbvkit.scenarios import SCENARIOS
 from conftest import box_mesh, wall_mesh
 
@@ -467,6 +474,21 @@ def test_the_surface_planner_tours_and_stops_by_itself():
     assert s["final_plan_ms"] > 0
     assert s["ms_per_iteration"] * s["iterations"] == pytest.approx(rows_ms + s["final_plan_ms"])
     assert s["ms_per_stage"]["sampling"] * s["iterations"] > sum(r.t_sampling_ms for r in m.records)
+
+
+@pytest.mark.slow
+def test_with_the_fallback_placement_every_flown_view_was_feasible_when_planned():
+    """placement.fallback in a mission: the box on the ground's lower patches get views from
+    tilted directions where their own leave the navigation space; each plan reports the patches
+    no direction serves, and the mission covers the box as without it."""
+    cfg = load_config(overrides=["max_iterations=400", "placement.fallback=true", *QUICK])
+    m = Mission(cfg, mesh=box_mesh((-4, -3, 0), (4, 3, 5)))
+    s = m.run()
+    assert s["termination"] == "coverage_complete"
+    assert all(isinstance(t["unplaced_patches"], int) for t in s["tours"])
+    assert s["area_coverage"]["0.1"] > 0.7
+    flown = np.array([[r.x, r.y, r.z] for r in m.records])
+    assert m.world.can_hold(flown).all()  # the map at the end holds every view's sphere free
 
 
 @pytest.mark.slow
@@ -939,3 +961,44 @@ def test_a_view_above_the_ceiling_is_brought_down_and_keeps_its_patch_in_view():
         assert pose[2] <= 10.0 + 1e-9
         off, _ = _looks_at(pose, patches.centers[0])
         assert abs(off) <= math.radians(45 / 2 - 4.0) + 1e-9
+
+
+def test_a_blocked_patch_is_looked_at_from_the_nearest_direction_that_can_fly_or_reported():
+    """Issue 33, placement contract: patch 0's views all lie in a slab the vehicle cannot hold
+    (|y| < 3.5 m: straight on, and 30 deg either side at 4 and 6 m); tilted 15 and 30 deg its
+    views stay in the slab, tilted 45 deg sideways the far stand-off (6 m, y = +-4.24) leaves
+    it: those two views are added, facing the patch. Patch 1 has feasible views and keeps
+    exactly its own; patch 2 lies in a region nothing can hold and is reported."""
+    patches = Patches(
+        centers=np.array([[0.0, 0, 3], [0.0, 30, 3], [0.0, -60, 3]]),
+        normals=np.array([[1.0, 0, 0], [1.0, 0, 0], [1.0, 0, 0]]),
+        weights=np.ones(3),
+    )
+
+    def feasible(p):
+        slab = (np.abs(p[:, 1]) < 3.5) & (np.abs(p[:, 1] - 30) > 12)
+        return ~slab & (np.linalg.norm(p - patches.centers[2], axis=1) > 15)
+
+    place = PlacementConfig(standoffs=(0.5, 0.75), fallback=True)  # _Place's, as a config
+    poses, owner = place_views(patches, _Cam, place)
+    out, out_owner, unplaced = refit_blocked(poses, owner, patches, _Cam, place, None, feasible)
+    assert np.array_equal(out[: len(poses)], poses)  # the placed views stay, in order
+    assert np.array_equal(out_owner[: len(poses)], owner)
+    added, of = out[len(poses) :], out_owner[len(poses) :]
+    assert list(unplaced) == [2]
+    assert list(of) == [0, 0]
+    assert np.all(feasible(added[:, :3]))
+    for pose in added:
+        to_view = pose[:3] - patches.centers[0]
+        assert np.linalg.norm(to_view) == pytest.approx(6.0)
+        tilt = math.degrees(math.acos(to_view @ patches.normals[0] / 6.0))
+        assert tilt == pytest.approx(45.0)
+        off, bearing = _looks_at(np.append(pose, 0.0), patches.centers[0])
+        assert abs(off) < 1e-9 and abs(bearing) < 1e-9
+    # nothing blocked: the views come back as they were, and no patch is reported
+    same, same_owner, none = refit_blocked(poses, owner, patches, _Cam, place, None, _anywhere)
+    assert np.array_equal(same, poses) and np.array_equal(same_owner, owner) and len(none) == 0
+
+
+def _anywhere(p):
+    return np.ones(len(p), bool)

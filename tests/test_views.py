@@ -187,6 +187,23 @@ def test_bad_input():
         score(m, [[5, 0, 5, 0]], backend="gpu")
     with pytest.raises(ValueError):
         _core.sphere_is_free(m, (np.nan, 0, 0), 1.0)
+    with pytest.raises(ValueError, match="centres"):
+        _core.spheres_are_free(m, [[np.nan, 0, 0]], 1.0)
+    with pytest.raises(ValueError, match="radius"):
+        _core.spheres_are_free(m, [[5, 0, 5]], -1.0)
+
+
+def test_spheres_are_free_answers_as_sphere_is_free_for_each_centre():
+    m = scanned_wall_map()
+    rng = np.random.default_rng(3)
+    lo, hi = (np.asarray(b, float) for b in m.bounds)
+    centres = rng.uniform(lo - 1.0, hi + 1.0, size=(400, 3))
+    for r in (0.0, 0.5, 0.8):
+        many = _core.spheres_are_free(m, centres, r)
+        one = [_core.sphere_is_free(m, c, r) for c in centres]
+        assert many.dtype == bool and many.tolist() == one
+        assert 0 < many.sum() < len(centres)  # both answers occur
+    assert _core.spheres_are_free(m, np.zeros((0, 3)), 0.8).shape == (0,)
 
 
 def assert_same_scores(a, b):

@@ -432,6 +432,22 @@ ValueError for a bad shape, non-finite values or bad options.)doc");
       py::arg("map"), py::arg("center"), py::arg("radius"),
       "True if every workspace cell touching the sphere is known and not occupied.");
   m.def(
+      "spheres_are_free",
+      [](const OccupancyMap& map, const py::handle& c, double r) {
+        const PointsArg centres = points_arg(c, "centres");
+        if (!(r >= 0) || !std::isfinite(r)) throw py::value_error("radius must be finite and >= 0");
+        const auto pts = centres.map();
+        py::array_t<bool> out(static_cast<py::ssize_t>(pts.rows()));
+        auto o = out.mutable_unchecked<1>();
+        Reading lock(map);  // releases the GIL
+        const GridView grid = grid_view(map);
+        for (Eigen::Index i = 0; i < pts.rows(); ++i)
+          o(py::ssize_t(i)) = sphere_is_free(grid, pts.row(i).transpose(), r);
+        return out;
+      },
+      py::arg("map"), py::arg("centres"), py::arg("radius"),
+      "(N,) bool per centre (N, 3): sphere_is_free of each (one call for many views).");
+  m.def(
       "segment_is_free",
       [](const OccupancyMap& map, const py::handle& a, const py::handle& b, double r) {
         const Eigen::Vector3d pa = vec3_arg(a, "segment start"), pb = vec3_arg(b, "segment end");

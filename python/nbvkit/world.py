@@ -417,6 +417,18 @@ class World:
             blocked_path=blocked_path or v.blocked_path,
         )
 
+    def can_hold(self, positions) -> np.ndarray:
+        """(K,) bool per position (K, 3): within the navigation space, with the vehicle's
+        collision sphere in known free space (what a view there needs to be flown)."""
+        p = np.asarray(positions, float).reshape(-1, 3)
+        ws = self.workspace
+        inside = np.all((p >= ws.nav_min) & (p <= ws.nav_max), axis=1)
+        ok = np.zeros(len(p), bool)
+        if inside.any():
+            radius = self.config.vehicle.collision_radius
+            ok[inside] = _core.spheres_are_free(self.map, p[inside], radius)
+        return ok
+
     def plan_path(self, target, max_expansions: int | None = None):
         """A* path (P, 3) from the vehicle to target's position through known free space, or
         None when there is none within max_expansions expanded cells (default

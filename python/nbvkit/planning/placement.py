@@ -3,6 +3,7 @@ each patch (used by the tour and frontier generators). Vectorised numpy over the
 nbvkit._core.surface_targets returns."""
 from __future__ import annotations
 
+import dataclasses
 import math
 from dataclasses import dataclass
 from typing import Optional
@@ -41,6 +42,10 @@ class PlacementConfig:
     # also face the patches the level camera cannot face head-on (roofs, undersides) by the
     # gimbal's pitch (camera.gimbal_pitch_deg); false: level views (docs/RESULTS.md, "gimbal")
     gimbal: bool = False
+    # a patch none of whose views can be flown (outside the navigation space, or the vehicle's
+    # sphere there not known free) is looked at from the nearest direction that can: its
+    # normal tilted by 15, 30, ... 75 deg (refit_blocked); false: such a patch waits
+    fallback: bool = False
 
     def cluster(self, camera) -> float:
         """The patch size (m): cluster_size, or a share of the camera's range."""
@@ -202,3 +207,51 @@ def _distances_in_band(rise, band):
         most = np.where(flat > 1e-9, depth / np.tan(flat), np.inf)
     need = np.where(steep <= 1e-9, np.inf, need)  # nothing in view on that side
     return need, most
+
+
+#: The tilts (deg) away from a blocked patch's normal that refit_blocked tries, nearest first,
+#: each at FALLBACK_AZIMUTHS directions around the normal.
+FALLBACK_TILTS_DEG = (15.0, 30.0, 45.0, 60.0, 75.0)
+FALLBACK_AZIMUTHS = 8
+
+
+def refit_blocked(poses, owner, patches, camera, placement, bounds, feasible):
+    """(poses, owner, unplaced): the views of place_views with, for each patch none of whose
+    views is feasible, the feasible views from the nearest direction that has some: its normal
+    tilted by FALLBACK_TILTS_DEG towards FALLBACK_AZIMUTHS directions round it, placed and aimed
+    as place_views does (straight on, at each stand-off); unplaced: the patches (indices) for
+    which no tilt gives one. feasible: (K, 3) positions -> (K,) bool (the navigation space and
+    the vehicle's collision sphere in known free space). The views of the other patches are
+    kept as they were, feasible or not."""
+    ok = np.asarray(feasible(poses[:, :3]), bool) if len(poses) else np.zeros(0, bool)
+    placed = np.zeros(len(patches.weights), bool)
+    placed[owner] = True
+    served = np.zeros(len(patches.weights), bool)
+    served[owner[ok]] = True
+    left = np.flatnonzero(placed & ~served)
+    if len(left) == 0:
+        return poses, owner, left
+    straight = dataclasses.replace(placement, azimuth_spread_deg=0.0)
+    n = patches.normals
+    helper = np.where(np.abs(n[:, :1]) < 0.9, [[1.0, 0.0, 0.0]], [[0.0, 1.0, 0.0]])
+    e1 = np.cross(n, helper)
+    e1 /= np.linalg.norm(e1, axis=1, keepdims=True)
+    e2 = np.cross(n, e1)
+    phi = 2 * np.pi * np.arange(FALLBACK_AZIMUTHS) / FALLBACK_AZIMUTHS
+    more, of = [poses], [owner]
+    for tilt in np.radians(FALLBACK_TILTS_DEG):
+        patch = np.repeat(left, FALLBACK_AZIMUTHS)
+        a = np.tile(phi, len(left))[:, None]
+        dirs = np.cos(tilt) * n[patch] + np.sin(tilt) * (
+            np.cos(a) * e1[patch] + np.sin(a) * e2[patch]
+        )
+        tilted = Patches(patches.centers[patch], dirs, patches.weights[patch])
+        views, which = place_views(tilted, camera, straight, bounds)
+        good = np.asarray(feasible(views[:, :3]), bool)
+        views, which = views[good], patch[which[good]]
+        more.append(views)
+        of.append(which)
+        left = np.setdiff1d(left, which)
+        if len(left) == 0:
+            break
+    return np.vstack(more), np.concatenate(of), left

@@ -38,7 +38,7 @@ from scipy import ndimage
 from ... import _core
 from ...settings import choice, nonneg, positive, within
 from ..parts import Proposal, threshold_scale
-from ..placement import Patches, place_views, target_patches
+from ..placement import Patches, place_views, refit_blocked, target_patches
 from .exploration import exploration_targets
 from .regions import Regions, is_large
 
@@ -85,6 +85,7 @@ class CoverageTour:
         self.memo = _core.CoverageMemo()
         self.regions: Regions | None = None  # set at the first plan (tour.region_size)
         self.level = None  # the multiple of tour.min_gain plans keep now; None: no plan yet
+        self.unplaced = 0  # patches of the last plan no feasible view looks at (placement.fallback)
 
     @property
     def regional(self) -> bool:
@@ -103,6 +104,11 @@ class CoverageTour:
         targets = _core.surface_targets(world.map, world.surface, ctx.targets)
         patches = target_patches(targets, ctx.placement.cluster(ctx.camera))
         candidates, owner = place_views(patches, ctx.camera, ctx.placement, bounds)
+        if ctx.placement.fallback:  # blocked patches from the nearest direction that can fly
+            candidates, owner, unplaced = refit_blocked(
+                candidates, owner, patches, ctx.camera, ctx.placement, bounds, world.can_hold
+            )
+            self.unplaced = len(unplaced)
         if explore:
             size = max(
                 min(ctx.placement.standoffs) * ctx.camera.max_range,
@@ -167,6 +173,7 @@ class CoverageTour:
             "reachable_only": reachable_only,
             "explore": explore,
             "min_gain_m2": float(min_gain),
+            "unplaced_patches": int(self.unplaced),
         }
         self.plans.append(record)
         views, self.aims = np.zeros((0, candidates.shape[1])), np.zeros((0, 3))
