@@ -511,6 +511,11 @@ def test_exploration_is_planned_only_after_a_surface_plan_with_nothing_worth_fly
     np.testing.assert_array_equal(poses[: len(plain_poses)], plain_poses)
     assert len(tours) > n and all(p["explore"] for p in tours[n:])
     assert tours[-1]["kept"] == 0
+    # tour.explore_first: every plan weighs the unknown space, the first one included
+    cfg = load_config(overrides=over + ["tour.explore_first=true"])
+    first = Mission(cfg, mesh=box_mesh((-4, -3, 0), (4, 3, 5))).run()
+    assert first["termination"] == "coverage_complete"
+    assert all(p["explore"] for p in first["tours"])
 
 
 @pytest.mark.slow
