@@ -62,8 +62,13 @@ class Workspace:
         return self.bounds_max - self.bounds_min
 
     def contains(self, p) -> bool:
-        p = np.asarray(p, float)[:3]
-        return bool(np.all(p >= self.nav_min) and np.all(p <= self.nav_max))
+        """Whether the position of pose `p` lies in the navigation space."""
+        return bool(self.contains_each(np.asarray(p, float)[:3])[0])
+
+    def contains_each(self, points) -> np.ndarray:
+        """(K,) bool per position (K, 3): within the navigation space."""
+        p = np.asarray(points, float).reshape(-1, 3)
+        return np.all((p >= self.nav_min) & (p <= self.nav_max), axis=1)
 
     def to_dict(self) -> dict:
         return {

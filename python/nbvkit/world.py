@@ -421,8 +421,7 @@ class World:
         """(K,) bool per position (K, 3): within the navigation space, with the vehicle's
         collision sphere in known free space (what a view there needs to be flown)."""
         p = np.asarray(positions, float).reshape(-1, 3)
-        ws = self.workspace
-        inside = np.all((p >= ws.nav_min) & (p <= ws.nav_max), axis=1)
+        inside = self.workspace.contains_each(p)
         ok = np.zeros(len(p), bool)
         if inside.any():
             radius = self.config.vehicle.collision_radius
