@@ -547,11 +547,11 @@ def test_an_exploring_plan_adds_views_facing_the_unknown_after_the_surfaces(monk
     m = Mission(cfg, mesh=box_mesh((-4, -3, 0), (4, 3, 5)))
     m.run()
     t = next(g for g in m.planner.generators if hasattr(g, "plans"))
-    _, patches, surface, owner = t.candidates(m.world)
+    _, patches, surface, owner, _ = t.candidates(m.world)
     cell = np.array([[6.2, 0.2, 2.6]])
     fake = {"positions": cell, "normals": np.array([[-1.0, 0.0, 0.0]]), "weight": np.ones(1)}
     monkeypatch.setattr(tour_module, "exploration_targets", lambda _map, _box=None: fake)
-    _, both, views, of = t.candidates(m.world, explore=True)
+    _, both, views, of, _ = t.candidates(m.world, explore=True)
     k = len(surface)
     np.testing.assert_array_equal(views[:k], surface)
     np.testing.assert_array_equal(of[:k], owner)

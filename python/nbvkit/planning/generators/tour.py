@@ -88,7 +88,6 @@ class CoverageTour:
         self.memo = _core.CoverageMemo()
         self.regions: Regions | None = None  # set at the first plan (tour.region_size)
         self.level = None  # the multiple of tour.min_gain plans keep now; None: no plan yet
-        self.unplaced = 0  # patches of the last plan no feasible view looks at (placement.fallback)
 
     @property
     def regional(self) -> bool:
@@ -97,7 +96,8 @@ class CoverageTour:
 
     # ------------------------------------------------------------------ planning
     def candidates(self, world, explore: bool = False):
-        """(targets, patches, candidate views (K, 4), the patch of each (K,)) over the surface
+        """(targets, patches, candidate views (K, 4), the patch of each (K,), the patches no
+        feasible view looks at (placement.fallback; none without it)) over the surface
         still to observe that the map shows now; with explore, also over the unknown space
         within the structure's extent that borders known free space (exploration_targets,
         grouped per cube of the camera's nearer stand-off, each looked at straight on; their
@@ -107,11 +107,11 @@ class CoverageTour:
         targets = _core.surface_targets(world.map, world.surface, ctx.targets)
         patches = target_patches(targets, ctx.placement.cluster(ctx.camera))
         candidates, owner = place_views(patches, ctx.camera, ctx.placement, bounds)
+        unplaced = np.zeros(0, int)
         if ctx.placement.fallback:  # blocked patches from the nearest direction that can fly
             candidates, owner, unplaced = refit_blocked(
                 candidates, owner, patches, ctx.camera, ctx.placement, bounds, world.can_hold
             )
-            self.unplaced = len(unplaced)
         if explore:
             size = max(
                 min(ctx.placement.standoffs) * ctx.camera.max_range,
@@ -128,7 +128,7 @@ class CoverageTour:
             patches = Patches(
                 *(np.concatenate([getattr(patches, f), getattr(more, f)]) for f in _PATCH_FIELDS)
             )
-        return targets, patches, candidates, owner
+        return targets, patches, candidates, owner, unplaced
 
     def coverage(self, world, candidates) -> dict:
         """What each candidate would newly cover, from the vehicle's pose (view_coverage)."""
@@ -160,7 +160,7 @@ class CoverageTour:
         explore = explore or self.exploring or (self.regional and own.explore)
         scale = threshold_scale(world.map, ctx.planner.reference_area)
         min_gain, rate = own.min_gain * scale * self.level, own.rate * np.sqrt(scale)
-        targets, patches, candidates, owner = self.candidates(world, explore)
+        targets, patches, candidates, owner, unplaced = self.candidates(world, explore)
         if reachable_only and len(candidates):
             here = world.state.pose[:3]
             component = _core.FreeComponent(world.map, here, ctx.vehicle.collision_radius)
@@ -177,7 +177,7 @@ class CoverageTour:
             "reachable_only": reachable_only,
             "explore": explore,
             "min_gain_m2": float(min_gain),
-            "unplaced_patches": int(self.unplaced),
+            "unplaced_patches": len(unplaced),
         }
         self.plans.append(record)
         views, self.aims = np.zeros((0, candidates.shape[1])), np.zeros((0, 3))
