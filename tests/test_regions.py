@@ -70,6 +70,18 @@ def test_exploration_within_a_box_needs_no_known_structure():
     assert np.all(inner["positions"][:, 0] <= 3.0 + m.resolution)
 
 
+def test_exploration_box_must_be_whole_and_finite():
+    import nbvkit
+
+    m = nbvkit.OccupancyMap(0.5, (0, 0, 0), (10, 10, 10))
+    with pytest.raises(ValueError, match="both lo and hi"):
+        nbvkit._core.exploration_targets(m, (0, 0, 0))
+    with pytest.raises(ValueError, match="hi"):
+        nbvkit._core.exploration_targets(m, (0, 0, 0), (np.nan, 5, 5))
+    far = nbvkit._core.exploration_targets(m, (40, 40, 40), (50, 50, 50))  # beyond the grid
+    assert far["cells"].shape == (0, 3)
+
+
 def test_patches_follow_the_camera_range_unless_set():
     cfg = load_config()
     assert cfg.placement.cluster(cfg.camera) == 1.5  # the paper's 8 m camera

@@ -78,6 +78,40 @@ void init_planning(py::module_& m) {
 kind (T,) int8 (0 observed surface not yet covered from an open side, 1 predicted, 2 frontier:
 unknown between known free space and surface) and weight (T,) (1, the predicted probability, or
 frontier_weight).)doc");
+  m.def(
+      "exploration_targets",
+      [](const OccupancyMap& map, const py::object& lo, const py::object& hi) {
+        if (lo.is_none() != hi.is_none())
+          throw py::value_error("exploration_targets: give both lo and hi, or neither");
+        Eigen::Vector3i a = Eigen::Vector3i::Zero(), b = Eigen::Vector3i::Zero();
+        if (!lo.is_none()) {
+          const Eigen::Vector3d la = vec3_arg(lo, "lo"), hb = vec3_arg(hi, "hi");
+          for (int k = 0; k < 3; ++k) {
+            // cell indices: clamp before the cast (a box far outside the grid is empty)
+            a[k] = int(std::clamp(std::floor(la[k]), -1.0, 1e9));
+            b[k] = int(std::clamp(std::floor(hb[k]), -1.0, 1e9));
+          }
+        }
+        ExplorationTargets t;
+        {
+          Reading lock(map);  // releases the GIL
+          const GridView g = grid_view(map);
+          if (lo.is_none() && !structure_extent(g, a, b)) a = b = Eigen::Vector3i::Zero();
+          t = exploration_targets(g, a, b);
+        }
+        py::dict d;
+        d["cells"] = t.cells;
+        d["free_sides"] = t.free_sides;
+        d["lo"] = a;
+        return d;
+      },
+      py::arg("map"), py::arg("lo") = py::none(), py::arg("hi") = py::none(),
+      R"doc(The unknown space a view could open, in one pass over the map's bricks: unknown cells
+with a known free face neighbour and no occupied or predicted one, among the cells of the box
+[lo, hi) (cell indices, clipped to the grid; neighbours outside it count as neither). Without a
+box, the box of the cells known occupied or predicted grown by one cell (empty when there are
+none). A dict of cells (T, 3) int32 in C order of (i, j, k), free_sides (T, 3) int8 (per cell the
+sum of the directions to its free face neighbours) and lo (3,), the box's first cell as used.)doc");
   py::class_<CoverageMemo, std::shared_ptr<CoverageMemo>> coverage_memo(m, "CoverageMemo", R"doc(
 What view_coverage's walks found, kept from one call to the next over the same map and surface
 record (pass it as memo=). A view asked for again at the same pose and pitch (bit for bit) is

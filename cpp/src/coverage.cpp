@@ -143,6 +143,143 @@ SurfaceTargets surface_targets(const GridView& g, const SurfaceTargetOptions& op
   return out;
 }
 
+// ---- exploration targets ---------------------------------------------------------------------
+
+namespace {
+/// Known and occupied, or predicted (the structure as the map shows it).
+bool solid_cell(const GridView& g, std::size_t id) {
+  const CellFlag f = g.flags[id];
+  return f == CellFlag::Predicted || (f != CellFlag::Unknown && std::signbit(g.scored[id]));
+}
+bool free_cell(const GridView& g, std::size_t id) {
+  return g.flags[id] != CellFlag::Unknown && !std::signbit(g.scored[id]);
+}
+/// Calls body(brick, i0, j0, k0) for each brick of g's layout that meets the box [lo, hi), in
+/// parallel; (i0, j0, k0) is the brick's first cell.
+template <typename Body>
+void for_bricks_in(const GridView& g, const Eigen::Vector3i& lo, const Eigen::Vector3i& hi,
+                   const Body& body) {
+  const auto& nb = g.layout.bricks;
+  const int b0[3] = {lo[0] >> 2, lo[1] >> 2, lo[2] >> 2};
+  const int b1[3] = {(hi[0] + 3) >> 2, (hi[1] + 3) >> 2, (hi[2] + 3) >> 2};
+  const std::size_t sx = std::size_t(b1[0] - b0[0]), sy = std::size_t(b1[1] - b0[1]);
+  const std::size_t n = sx * sy * std::size_t(b1[2] - b0[2]);
+  parallel_chunks(n, 64, [&](std::size_t begin, std::size_t end) {
+    for (std::size_t t = begin; t < end; ++t) {
+      const int bi = b0[0] + int(t % sx), bj = b0[1] + int(t / sx % sy),
+                bk = b0[2] + int(t / sx / sy);
+      const std::size_t brick =
+          std::size_t(bi) + std::size_t(nb[0]) * (std::size_t(bj) + std::size_t(nb[1]) * bk);
+      body(brick, bi << 2, bj << 2, bk << 2);
+    }
+  });
+}
+}  // namespace
+
+bool structure_extent(const GridView& g, Eigen::Vector3i& lo, Eigen::Vector3i& hi) {
+  g.validate();
+  const Eigen::Vector3i n(g.nx, g.ny, g.nz);
+  std::mutex merge;
+  Eigen::Vector3i a = n, b = Eigen::Vector3i::Constant(-1);
+  for_bricks_in(g, Eigen::Vector3i::Zero(), n, [&](std::size_t brick, int i0, int j0, int k0) {
+    if (g.brick_occupied[brick] == 0) {  // the brick's flags say whether any is predicted
+      bool predicted = false;
+      for (int c = 0; c < 64; ++c)
+        predicted |= g.flags[brick << 6 | std::size_t(c)] == CellFlag::Predicted;
+      if (!predicted) return;
+    }
+    Eigen::Vector3i bl = n, bh = Eigen::Vector3i::Constant(-1);
+    for (int c = 0; c < 64; ++c) {
+      const std::size_t id = brick << 6 | std::size_t(c);
+      const Eigen::Vector3i x(i0 + (c & 3), j0 + (c >> 2 & 3), k0 + (c >> 4));
+      if (!g.contains(x[0], x[1], x[2]) || !solid_cell(g, id)) continue;
+      bl = bl.cwiseMin(x);
+      bh = bh.cwiseMax(x);
+    }
+    if (bh[0] < 0) return;
+    std::lock_guard<std::mutex> hold(merge);
+    a = a.cwiseMin(bl);
+    b = b.cwiseMax(bh);
+  });
+  if (b[0] < 0) return false;
+  lo = (a.array() - 1).max(0).matrix();
+  hi = (b.array() + 2).min(n.array()).matrix();
+  return true;
+}
+
+ExplorationTargets exploration_targets(const GridView& g, Eigen::Vector3i lo, Eigen::Vector3i hi) {
+  g.validate();
+  const Eigen::Vector3i n(g.nx, g.ny, g.nz);
+  lo = lo.cwiseMax(0).cwiseMin(n);
+  hi = hi.cwiseMax(lo).cwiseMin(n);
+  ExplorationTargets out;
+  if ((hi - lo).minCoeff() <= 0) return out;
+  struct Found {
+    std::int64_t key;  // C order of (i, j, k)
+    std::int8_t side[3];
+  };
+  std::mutex merge;
+  std::vector<Found> all;
+  const auto& nb = g.layout.bricks;
+  const std::int64_t brick_step[3] = {1, nb[0], std::int64_t(nb[0]) * nb[1]};
+  for_bricks_in(g, lo, hi, [&](std::size_t brick, int i0, int j0, int k0) {
+    // passed over whole: a brick whose cells are all known, or whose cells have no known free
+    // face neighbour because neither it nor a brick beside it holds a known free cell
+    if (int(g.brick_open[brick]) + g.brick_occupied[brick] == 64) return;
+    bool open_near = g.brick_open[brick] != 0;
+    const int b[3] = {i0 >> 2, j0 >> 2, k0 >> 2};
+    for (int a = 0; a < 3 && !open_near; ++a) {
+      if (b[a] > 0) open_near |= g.brick_open[brick - std::size_t(brick_step[a])] != 0;
+      if (b[a] + 1 < nb[a]) open_near |= g.brick_open[brick + std::size_t(brick_step[a])] != 0;
+    }
+    if (!open_near) return;
+    std::vector<Found> found;
+    for (int c = 0; c < 64; ++c) {
+      const std::size_t id = brick << 6 | std::size_t(c);
+      if (g.flags[id] != CellFlag::Unknown) continue;
+      const int x[3] = {i0 + (c & 3), j0 + (c >> 2 & 3), k0 + (c >> 4)};
+      if (x[0] < lo[0] || x[0] >= hi[0] || x[1] < lo[1] || x[1] >= hi[1] || x[2] < lo[2] ||
+          x[2] >= hi[2])
+        continue;
+      bool near_free = false, near_solid = false;
+      std::int8_t side[3] = {0, 0, 0};
+      for (int a = 0; a < 3 && !near_solid; ++a)
+        for (int s = -1; s <= 1; s += 2) {
+          int m[3] = {x[0], x[1], x[2]};
+          m[a] += s;
+          if (m[a] < lo[a] || m[a] >= hi[a]) continue;
+          const std::size_t nid = g.layout.id(m[0], m[1], m[2]);
+          if (solid_cell(g, nid)) {
+            near_solid = true;
+            break;
+          }
+          if (free_cell(g, nid)) {
+            near_free = true;
+            side[a] = std::int8_t(side[a] + s);
+          }
+        }
+      if (!near_free || near_solid) continue;
+      const std::int64_t key = (std::int64_t(x[0]) * g.ny + x[1]) * g.nz + x[2];
+      found.push_back({key, {side[0], side[1], side[2]}});
+    }
+    if (found.empty()) return;
+    std::lock_guard<std::mutex> hold(merge);
+    all.insert(all.end(), found.begin(), found.end());
+  });
+  std::sort(all.begin(), all.end(), [](const Found& a, const Found& b) { return a.key < b.key; });
+  out.cells.resize(Eigen::Index(all.size()), 3);
+  out.free_sides.resize(Eigen::Index(all.size()), 3);
+  for (std::size_t r = 0; r < all.size(); ++r) {
+    const std::int64_t key = all[r].key;
+    const Eigen::Index row = Eigen::Index(r);
+    out.cells(row, 2) = std::int32_t(key % g.nz);
+    out.cells(row, 1) = std::int32_t(key / g.nz % g.ny);
+    out.cells(row, 0) = std::int32_t(key / g.nz / g.ny);
+    for (int a = 0; a < 3; ++a) out.free_sides(row, a) = all[r].side[a];
+  }
+  return out;
+}
+
 // ---- CoverageMemo ----------------------------------------------------------------------------
 
 CoverageMemo::CoverageMemo(int keep_calls, std::size_t max_bytes)

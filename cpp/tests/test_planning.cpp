@@ -289,6 +289,84 @@ TEST(Navigation, SphereTestsPassOpenBricksAsTheirCellsWould) {
   EXPECT_LT(open, 19000);
 }
 
+TEST(Exploration, TargetsAndExtentAreTheirDefinitionCellByCell) {
+  // the definitions over every cell: unknown, a known free face neighbour and no occupied or
+  // predicted one within the box (neighbours outside it count as neither), in C order
+  auto solid = [](const GridView& g, std::size_t id) {
+    return g.flags[id] == CellFlag::Predicted ||
+           (g.flags[id] != CellFlag::Unknown && g.occupied(id));
+  };
+  auto brute = [&](const GridView& g, const Eigen::Vector3i& lo, const Eigen::Vector3i& hi) {
+    std::vector<std::array<int, 6>> out;  // i, j, k and the free sides
+    for (int i = lo.x(); i < hi.x(); ++i)
+      for (int j = lo.y(); j < hi.y(); ++j)
+        for (int k = lo.z(); k < hi.z(); ++k) {
+          if (g.flags[g.index(i, j, k)] != CellFlag::Unknown) continue;
+          std::array<int, 6> t{i, j, k, 0, 0, 0};
+          bool near_free = false, near_solid = false;
+          for (int a = 0; a < 3; ++a)
+            for (int s = -1; s <= 1; s += 2) {
+              Eigen::Vector3i c(i, j, k);
+              c[a] += s;
+              if (c[a] < lo[a] || c[a] >= hi[a]) continue;
+              const std::size_t id = g.index(c);
+              near_solid |= solid(g, id);
+              if (g.flags[id] != CellFlag::Unknown && !g.occupied(id)) {
+                near_free = true;
+                t[3 + a] += s;
+              }
+            }
+          if (near_free && !near_solid) out.push_back(t);
+        }
+    return out;
+  };
+  OccupancyMap m(0.2, {0, 0, 0}, {7, 5.4, 3.4});  // 35 x 27 x 17 cells: part bricks at the edges
+  std::mt19937 rng(11);
+  std::uniform_real_distribution<double> ux(0, 7), uy(0, 5.4), uz(0, 3.4);
+  auto random_points = [&](int n) {
+    Points p(n, 3);
+    for (int r = 0; r < n; ++r) p.row(r) = Eigen::Vector3d(ux(rng), uy(rng), uz(rng)).transpose();
+    return p;
+  };
+  const GridView empty = grid_view(m);
+  Eigen::Vector3i lo, hi;
+  EXPECT_FALSE(structure_extent(empty, lo, hi));  // nothing known occupied or predicted
+  m.mark_free_segment({1, 1, 1.7}, {6, 4.4, 1.7}, 1.3);
+  m.update_cells(random_points(1500), false);
+  m.update_cells(random_points(60), true);
+  m.set_unknown_cells(random_points(60), 0.6);
+  const GridView g = grid_view(m);
+  ASSERT_TRUE(structure_extent(g, lo, hi));
+  Eigen::Vector3i a(g.nx, g.ny, g.nz), b(-1, -1, -1);
+  for (int i = 0; i < g.nx; ++i)
+    for (int j = 0; j < g.ny; ++j)
+      for (int k = 0; k < g.nz; ++k)
+        if (solid(g, g.index(i, j, k))) {
+          a = a.cwiseMin(Eigen::Vector3i(i, j, k));
+          b = b.cwiseMax(Eigen::Vector3i(i, j, k));
+        }
+  EXPECT_EQ(lo, (a.array() - 1).max(0).matrix().eval());
+  EXPECT_EQ(hi, (b.array() + 2).min(Eigen::Array3i(g.nx, g.ny, g.nz)).matrix().eval());
+  const std::vector<std::pair<Eigen::Vector3i, Eigen::Vector3i>> boxes = {
+      {{0, 0, 0}, {g.nx, g.ny, g.nz}}, {lo, hi}, {{3, 5, 2}, {30, 13, 9}}, {{5, 5, 5}, {5, 9, 9}}};
+  std::size_t total = 0;
+  for (const auto& [blo, bhi] : boxes) {
+    const auto expect = brute(g, blo, bhi);
+    const ExplorationTargets t = exploration_targets(g, blo, bhi);
+    ASSERT_EQ(std::size_t(t.cells.rows()), expect.size());
+    for (std::size_t r = 0; r < expect.size(); ++r)
+      for (int c = 0; c < 3; ++c) {
+        ASSERT_EQ(t.cells(Eigen::Index(r), c), expect[r][c]) << r;
+        ASSERT_EQ(t.free_sides(Eigen::Index(r), c), expect[r][3 + c]) << r;
+      }
+    total += expect.size();
+  }
+  EXPECT_GT(total, 300u);  // the scene has a frontier to find
+  // a box beyond the grid is clipped to it: the whole grid's answer
+  EXPECT_EQ(exploration_targets(g, {-4, -4, -4}, {99, 99, 99}).cells,
+            exploration_targets(g, {0, 0, 0}, {g.nx, g.ny, g.nz}).cells);
+}
+
 TEST(Navigation, FastSearchGivesTheReferencePathOnRandomScenes) {
   // Known free tunnels of random radii through unknown space, occupied blobs in them: the fast
   // search must return plan_path_reference's path exactly, reachable or not (and FreeComponent

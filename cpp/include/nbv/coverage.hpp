@@ -48,6 +48,25 @@ struct SurfaceTargets {
 /// Needs the camera observations (grid.seen). Parallel over bricks; deterministic.
 SurfaceTargets surface_targets(const GridView& grid, const SurfaceTargetOptions& options);
 
+/// The unknown space a view could open (the coverage tour's exploration targets): unknown cells
+/// with a known free face neighbour and no occupied or predicted one, among the cells of the box
+/// [lo, hi) (cell indices; neighbours outside it count as neither). cells (T, 3) in C order of
+/// (i, j, k) (k fastest); free_sides (T, 3) per cell the sum over its free face neighbours of the
+/// direction to them (each component -1, 0 or 1; zero where free lies on opposite faces only).
+struct ExplorationTargets {
+  Eigen::Matrix<std::int32_t, Eigen::Dynamic, 3, Eigen::RowMajor> cells;
+  Eigen::Matrix<std::int8_t, Eigen::Dynamic, 3, Eigen::RowMajor> free_sides;
+};
+
+/// The box of the cells known occupied or predicted, grown by one cell and clipped to the grid,
+/// as [lo, hi) cell indices; false when the map holds none.
+bool structure_extent(const GridView& grid, Eigen::Vector3i& lo, Eigen::Vector3i& hi);
+
+/// exploration_targets over the box [lo, hi) (clipped to the grid). Parallel over bricks; one
+/// pass, without a copy of the grid.
+ExplorationTargets exploration_targets(const GridView& grid, Eigen::Vector3i lo,
+                                       Eigen::Vector3i hi);
+
 /// What each candidate view would newly cover, as the surface utility credits it: elements
 /// (cell id * 2 + the side of the cell it is seen from) with their expected weight (P_vis *
 /// probability of surface), each at most once per view. A cell's sides come from its open
