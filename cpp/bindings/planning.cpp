@@ -144,11 +144,11 @@ Entries that none of the last keep_calls calls used are dropped, and beyond max_
           if (memo) lock = std::unique_lock<std::mutex>(memo->mutex());
           cov = view_coverage(grid_view(map, &surface), cm, cur, cam, u, v, memo.get());
         }
-        py::dict d;
-        d["offsets"] = cov.offsets;
-        d["elements"] = cov.elements;
-        d["weights"] = cov.weights;
-        d["status"] = cov.status;
+        py::dict d;  // the arrays handed to numpy as they are (a plant's plan: 50 M elements)
+        d["offsets"] = py::cast(std::move(cov.offsets));
+        d["elements"] = py::cast(std::move(cov.elements));
+        d["weights"] = py::cast(std::move(cov.weights));
+        d["status"] = py::cast(std::move(cov.status));
         return d;
       },
       py::arg("map"), py::arg("surface"), py::arg("candidates"), py::arg("current"),
