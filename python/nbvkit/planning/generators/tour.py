@@ -60,8 +60,8 @@ class TourConfig:
     # once no view of the surface the map shows is worth its flight, plans also weigh views of
     # the unknown space within the structure's extent (unknown cells bordering free space)
     explore: bool = True  # then also plan views that open unknown space; false: stop there
-    # with explore: from the first plan on (the plant: +2.1 points at 1,000 views, and a peak
-    # 1.9 GB higher; docs/RESULTS.md, "Coverage levers tried on the plant")
+    # with explore: from the first plan on (the plant: +2.1 points at 1,000 views, a peak 1.1 GB
+    # higher: its plans hold 2-4 x the coverage elements; docs/RESULTS.md, "Coverage levers")
     explore_first: bool = False
     # plans first keep only views adding 2^gain_levels x min_gain, halving it each time a plan
     # keeps none; null: 3 on a workspace longer than 6 camera ranges (regions.is_large), else 0
