@@ -31,15 +31,24 @@ struct Target {
   double weight;
 };
 
-/// Whether a face neighbour of cell c is occupied (observed or predicted) or predicted.
+/// Occupied (observed or predicted) or predicted: the structure as the map shows it (an unknown
+/// cell's entropy is positive, so occupied() holds only for known cells).
+bool solid_cell(const GridView& g, std::size_t id) {
+  return g.occupied(id) || g.flags[id] == CellFlag::Predicted;
+}
+/// Known and not occupied.
+bool free_cell(const GridView& g, std::size_t id) {
+  return g.flags[id] != CellFlag::Unknown && !g.occupied(id);
+}
+
+/// Whether a face neighbour of cell c is solid (solid_cell).
 bool touches_surface_face(const GridView& g, const int* c) {
   for (int a = 0; a < 3; ++a)
     for (int s = -1; s <= 1; s += 2) {
       int m[3] = {c[0], c[1], c[2]};
       m[a] += s;
       if (!g.contains(m[0], m[1], m[2])) continue;
-      const std::size_t nid = g.layout.id(m[0], m[1], m[2]);
-      if (std::signbit(g.scored[nid]) || g.flags[nid] == CellFlag::Predicted) return true;
+      if (solid_cell(g, g.layout.id(m[0], m[1], m[2]))) return true;
     }
   return false;
 }
@@ -106,7 +115,7 @@ SurfaceTargets surface_targets(const GridView& g, const SurfaceTargetOptions& op
           const bool face = std::abs(off[n][0]) + std::abs(off[n][1]) + std::abs(off[n][2]) == 1;
           const bool n_free = nf == CellFlag::Observed && !n_occ;
           if (kind == TargetKind::Frontier) {
-            if (face && (n_occ || nf == CellFlag::Predicted)) touches_surface = true;
+            if (face && solid_cell(g, nid)) touches_surface = true;
             if (n_free) {
               touches_free |= face;
               normal += unit[n];
@@ -146,14 +155,6 @@ SurfaceTargets surface_targets(const GridView& g, const SurfaceTargetOptions& op
 // ---- exploration targets ---------------------------------------------------------------------
 
 namespace {
-/// Known and occupied, or predicted (the structure as the map shows it).
-bool solid_cell(const GridView& g, std::size_t id) {
-  const CellFlag f = g.flags[id];
-  return f == CellFlag::Predicted || (f != CellFlag::Unknown && std::signbit(g.scored[id]));
-}
-bool free_cell(const GridView& g, std::size_t id) {
-  return g.flags[id] != CellFlag::Unknown && !std::signbit(g.scored[id]);
-}
 /// Calls body(brick, i0, j0, k0) for each brick of g's layout that meets the box [lo, hi), in
 /// parallel; (i0, j0, k0) is the brick's first cell.
 template <typename Body>
