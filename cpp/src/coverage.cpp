@@ -595,63 +595,81 @@ CoverSelection select_cover(const CoverageRef& cov, double min_gain, int max_vie
 
 namespace {
 
-int bit_width(std::uint64_t x) { return x ? 64 - __builtin_clzll(x) : 0; }
+/// The distinct elements of a coverage, ranked 0, 1, ... in ascending order: a bitmap over
+/// their range with a running count per 64-bit word (a bit and a half per value in the range),
+/// or, where the range is too sparse for that to be cheaper than the elements themselves, the
+/// distinct elements sorted.
+class ElementRanks {
+ public:
+  template <typename Held>
+  ElementRanks(const CoverageRef& cov, Held held, std::size_t n, std::int64_t lo, std::int64_t hi)
+      : lo_(lo) {
+    const std::uint64_t span = std::uint64_t(hi) - std::uint64_t(lo);  // the range's size - 1
+    if (n && span / 8 < 4 * n + 4096) {
+      bits_.assign(std::size_t(span / 64 + 1), 0);
+      held([&](Eigen::Index, std::int64_t o) {
+        const std::uint64_t v = std::uint64_t(cov.elements[o]) - std::uint64_t(lo);
+        bits_[v >> 6] |= std::uint64_t(1) << (v & 63);
+      });
+      before_.resize(bits_.size());
+      std::uint32_t sum = 0;
+      for (std::size_t w = 0; w < bits_.size(); ++w) {
+        before_[w] = sum;
+        sum += std::uint32_t(__builtin_popcountll(bits_[w]));
+      }
+      size_ = sum;
+    } else {
+      keys_.reserve(n);
+      held([&](Eigen::Index, std::int64_t o) { keys_.push_back(cov.elements[o]); });
+      std::sort(keys_.begin(), keys_.end());
+      keys_.erase(std::unique(keys_.begin(), keys_.end()), keys_.end());
+      keys_.shrink_to_fit();
+      size_ = keys_.size();
+    }
+  }
+  std::size_t size() const { return size_; }
+  /// The rank of an element that the coverage holds.
+  std::size_t operator()(std::int64_t e) const {
+    if (bits_.empty())
+      return std::size_t(std::lower_bound(keys_.begin(), keys_.end(), e) - keys_.begin());
+    const std::uint64_t v = std::uint64_t(e) - std::uint64_t(lo_);
+    const std::uint64_t below = bits_[v >> 6] & ((std::uint64_t(1) << (v & 63)) - 1);
+    return before_[v >> 6] + std::size_t(__builtin_popcountll(below));
+  }
 
-/// The inverse of a coverage: its distinct elements ascending, and the offsets into it of each
-/// one's holders, in candidate order.
-struct Holders {
-  std::vector<std::int64_t> keys;  ///< the distinct elements, ascending
-  std::vector<std::size_t> first;  ///< holders of keys[i]: offsets[first[i], first[i + 1])
-  HugeVector<std::uint64_t> offsets;
+ private:
+  std::int64_t lo_;
+  std::vector<std::uint64_t> bits_;
+  std::vector<std::uint32_t> before_;
+  std::vector<std::int64_t> keys_;
+  std::size_t size_ = 0;
 };
 
-/// The holders of the `held` elements whose owner is >= 0 (elements in [lo, hi]): a stable LSD
-/// radix sort on the element's bits of keys packed as (element - lo, offset), the offsets being
-/// in order already.
-Holders holders_of(const CoverageRef& cov, const HugeVector<std::int32_t>& owner, std::size_t held,
-                   std::int64_t lo, std::int64_t hi) {
-  Holders h;
-  HugeVector<std::uint64_t>& a = h.offsets;
-  a.reserve(held);
-  const std::size_t total = owner.size();
-  const int ob = bit_width(total), eb = bit_width(std::uint64_t(hi) - std::uint64_t(lo));
-  auto add = [&](std::int64_t e, std::size_t i) {
-    if (h.keys.empty() || h.keys.back() != e) {
-      h.keys.push_back(e);
-      h.first.push_back(i);
-    }
+/// The inverse of a coverage: per distinct element (by rank), its holders in candidate order,
+/// each with the weight it gives the element, side by side for the updates to read in one pass;
+/// by a counting sort on the rank (8 bytes per element held, 4 per distinct element).
+struct Holders {
+  struct Holder {
+    std::int32_t candidate;
+    float weight;
   };
-  if (held == 0 || ob + eb > 64) {  // (too wide to pack: a comparison sort, the same order)
-    for (std::size_t o = 0; o < total; ++o)
-      if (owner[o] >= 0) a.push_back(o);
-    std::stable_sort(a.begin(), a.end(), [&](std::uint64_t x, std::uint64_t y) {
-      return cov.elements[Eigen::Index(x)] < cov.elements[Eigen::Index(y)];
-    });
-    for (std::size_t i = 0; i < a.size(); ++i) add(cov.elements[Eigen::Index(a[i])], i);
-    h.first.push_back(a.size());
-    return h;
-  }
-  for (std::size_t o = 0; o < total; ++o)
-    if (owner[o] >= 0)
-      a.push_back((std::uint64_t(cov.elements[Eigen::Index(o)]) - std::uint64_t(lo)) << ob | o);
-  constexpr int kDigit = 11;
-  const std::uint64_t mask = (std::uint64_t(1) << kDigit) - 1;
-  std::vector<std::size_t> count(std::size_t(1) << kDigit);
-  HugeVector<std::uint64_t> b(held);
-  for (int shift = ob; shift < ob + eb; shift += kDigit) {
-    std::fill(count.begin(), count.end(), 0);
-    for (const std::uint64_t x : a) ++count[(x >> shift) & mask];
-    std::size_t sum = 0;
-    for (std::size_t& c : count) sum += std::exchange(c, sum);
-    for (const std::uint64_t x : a) b[count[(x >> shift) & mask]++] = x;
-    a.swap(b);
-  }
-  const std::uint64_t low = (std::uint64_t(1) << ob) - 1;
-  for (std::size_t i = 0; i < held; ++i) {
-    add(std::int64_t(a[i] >> ob) + lo, i);
-    a[i] &= low;
-  }
-  h.first.push_back(held);
+  std::vector<std::uint32_t> first;  ///< holders of rank r: of[first[r], first[r + 1])
+  HugeVector<Holder> of;
+};
+
+template <typename Held>
+Holders holders_of(const CoverageRef& cov, Held held, std::size_t n, const ElementRanks& rank) {
+  Holders h;
+  h.first.assign(rank.size() + 1, 0);
+  held([&](Eigen::Index, std::int64_t o) { ++h.first[rank(cov.elements[o]) + 1]; });
+  for (std::size_t r = 0; r < rank.size(); ++r) h.first[r + 1] += h.first[r];
+  h.of.resize(n);
+  // place each holder at its rank's cursor (first[r], advanced), then shift the cursors back
+  held([&](Eigen::Index k, std::int64_t o) {
+    h.of[h.first[rank(cov.elements[o])]++] = {std::int32_t(k), cov.weights[o]};
+  });
+  for (std::size_t r = rank.size(); r > 0; --r) h.first[r] = h.first[r - 1];
+  h.first[0] = 0;
   return h;
 }
 
@@ -669,28 +687,33 @@ CoverSelection select_tour(const CoverageRef& cov, const PointsRef& positions,
   if (K > std::numeric_limits<std::int32_t>::max())
     throw std::invalid_argument("select_tour: too many candidates");
   // every candidate's current gain, and the candidates each element belongs to (inverse CSR:
-  // the distinct elements ascending, each with its holders in candidate order)
+  // the distinct elements by rank, each with its holders in candidate order)
   std::vector<double> gain(static_cast<std::size_t>(K), 0.0);
   const std::int64_t total = K ? cov.offsets[K] : 0;
-  HugeVector<std::int32_t> owner(static_cast<std::size_t>(total), -1);  // offset -> candidate
-  std::int64_t lo = std::numeric_limits<std::int64_t>::max(),           // the elements' range
+  if (std::uint64_t(total) > std::numeric_limits<std::uint32_t>::max())
+    throw std::invalid_argument("select_tour: over 2^32 coverage elements; plan fewer candidates");
+  std::int64_t lo = std::numeric_limits<std::int64_t>::max(),  // the elements' range
       hi = std::numeric_limits<std::int64_t>::min();
   std::size_t held = 0;
   for (Eigen::Index k = 0; k < K; ++k) {
     if (cov.status[k] != 0) continue;
     for (std::int64_t o = cov.offsets[k]; o < cov.offsets[k + 1]; ++o) {
-      owner[std::size_t(o)] = std::int32_t(k);
       gain[std::size_t(k)] += cov.weights[o];
       lo = std::min(lo, cov.elements[o]);
       hi = std::max(hi, cov.elements[o]);
       ++held;
     }
   }
-  const Holders holders = holders_of(cov, owner, held, lo, hi);
-  const std::vector<std::int64_t>& keys = holders.keys;
-  const std::vector<std::size_t>& first = holders.first;
-  const HugeVector<std::uint64_t>& hold = holders.offsets;
-  std::vector<float> covered(keys.size(), 0.0f);  // per distinct element: weight covered
+  auto each_held = [&](auto&& f) {  // the valid candidates and their offsets, ascending
+    for (Eigen::Index k = 0; k < K; ++k)
+      if (cov.status[k] == 0)
+        for (std::int64_t o = cov.offsets[k]; o < cov.offsets[k + 1]; ++o) f(k, o);
+  };
+  const ElementRanks rank(cov, each_held, held, lo, hi);
+  const Holders holders = holders_of(cov, each_held, held, rank);
+  const std::vector<std::uint32_t>& first = holders.first;
+  const HugeVector<Holders::Holder>& hold = holders.of;
+  std::vector<float> covered(rank.size(), 0.0f);  // per distinct element: weight covered
   std::vector<Eigen::Vector3d> stops{start};      // the open tour: start, then the chosen views
   std::vector<int> ids{-1};
   std::vector<int> inserted;  // view ids in insertion order
@@ -779,15 +802,13 @@ CoverSelection select_tour(const CoverageRef& cov, const PointsRef& positions,
     }
     // the chosen view's elements are covered now: every holder's gain shrinks accordingly
     for (std::int64_t o = cov.offsets[best]; o < cov.offsets[best + 1]; ++o) {
-      const std::size_t e =
-          std::size_t(std::lower_bound(keys.begin(), keys.end(), cov.elements[o]) - keys.begin());
+      const std::size_t e = rank(cov.elements[o]);
       float& have = covered[e];
       const float now = std::max(have, cov.weights[o]);
       if (now == have) continue;
       for (std::size_t i = first[e]; i < first[e + 1]; ++i) {
-        const float w = cov.weights[Eigen::Index(hold[i])];
-        gain[std::size_t(owner[std::size_t(hold[i])])] -=
-            std::max(0.0f, w - have) - std::max(0.0f, w - now);
+        const float w = hold[i].weight;
+        gain[std::size_t(hold[i].candidate)] -= std::max(0.0f, w - have) - std::max(0.0f, w - now);
       }
       have = now;
     }
