@@ -137,6 +137,8 @@ def test_cover_and_tour_reject_malformed_coverage_with_a_message():
         ({**good, "offsets": np.array([0, 3, 2], np.int64)}, "inconsistent"),
         ({**good, "status": np.zeros(3, np.int8)}, "inconsistent"),
         ({**good, "weights": ["a", "b", "c"]}, "weights"),
+        ({**good, "elements": np.array([1, 2, 2**31], np.int64)}, "32 bits"),
+        ({**good, "elements": np.array([-(2**31) - 1, 2, 2], np.int64)}, "32 bits"),
     ]
     for cov, message in bad:
         with pytest.raises(ValueError, match=message):
@@ -855,6 +857,12 @@ def test_append_elements_keeps_each_views_set_in_order():
     assert out["elements"].tolist() == [1, 3, 10, 11, 0, 4, 9, 12]
     np.testing.assert_allclose(out["weights"], [1, 2, 0.1, 0.2, 3, 4, 5, 0.3], rtol=1e-6)
     assert out["status"] is cov["status"]
+    # view_coverage's elements are int32: appended ones keep that type, or say they do not fit
+    cov32 = {**cov, "elements": cov["elements"].astype(np.int32)}
+    out = _append_elements(cov32, np.array([1]), np.array([2**31 - 1]), [1.0])
+    assert out["elements"].dtype == np.int32 and out["elements"][2] == 2**31 - 1
+    with pytest.raises(OverflowError, match="int32"):
+        _append_elements(cov32, np.array([1]), np.array([2**31]), [1.0])
 
 
 def test_the_vehicle_can_plan_its_way_back_along_its_own_flight():

@@ -6,6 +6,9 @@
 #include "nbv/tour.hpp"
 #include "options.hpp"
 
+#include <limits>
+#include <string>
+
 namespace nbv::bind {
 namespace {
 
@@ -25,12 +28,28 @@ Eigen::Map<const Eigen::Matrix<T, Eigen::Dynamic, 1>> as_vector(const Array<T>& 
   return {a.data(), Eigen::Index(a.size())};
 }
 
+/// coverage["elements"] as int32: an int32 array as it is; other integers (int64, as a script
+/// would build them) converted once their values are checked to fit.
+Array<std::int32_t> elements_arg(const py::dict& coverage) {
+  const py::array given = py::array::ensure(coverage["elements"]);
+  if (given && given.dtype().is(py::dtype::of<std::int32_t>()))
+    return vector_arg<std::int32_t>(coverage, "elements");
+  const Array<std::int64_t> wide = vector_arg<std::int64_t>(coverage, "elements");
+  const std::int64_t* v = wide.data();
+  for (py::ssize_t i = 0; i < wide.size(); ++i)
+    if (v[i] < std::numeric_limits<std::int32_t>::min() ||
+        v[i] > std::numeric_limits<std::int32_t>::max())
+      throw py::value_error("coverage['elements'] must fit 32 bits (int32); element " +
+                            std::to_string(v[i]) + " does not");
+  return Array<std::int32_t>::ensure(wide);
+}
+
 /// A view_coverage result (dict of CSR arrays), checked, read in place: numpy arrays of the
 /// right type are not copied (they are large: one entry per view and surface element).
 struct CoverageArg {
   explicit CoverageArg(const py::dict& coverage)
       : offsets(vector_arg<std::int64_t>(coverage, "offsets")),
-        elements(vector_arg<std::int64_t>(coverage, "elements")),
+        elements(elements_arg(coverage)),
         weights(vector_arg<float>(coverage, "weights")),
         status(vector_arg<std::int8_t>(coverage, "status")),
         ref(as_vector(offsets), as_vector(elements), as_vector(weights), as_vector(status)) {
@@ -40,7 +59,8 @@ struct CoverageArg {
     for (Eigen::Index i = 1; ok && i < n; ++i) ok = ref.offsets[i] >= ref.offsets[i - 1];
     if (!ok) throw py::value_error("coverage arrays are inconsistent");
   }
-  Array<std::int64_t> offsets, elements;  // (kept alive for ref)
+  Array<std::int64_t> offsets;  // (kept alive for ref)
+  Array<std::int32_t> elements;
   Array<float> weights;
   Array<std::int8_t> status;
   CoverageRef ref;
@@ -156,8 +176,8 @@ Entries that none of the last keep_calls calls used are dropped, and beyond max_
       py::arg("validity") = py::none(), py::arg("memo") = nullptr,
       R"doc(What each candidate view ((K, 4) rows x, y, z, yaw, or (K, 5) with the gimbal's pitch,
 as evaluate_views) would newly cover, as the surface utility credits it
-(utility: its priors and cone; the name is ignored): CSR dict offsets (K + 1,), elements (cell id *
-2 + the side of the cell seen, see nbv/coverage.hpp) and weights, and status (K,) as
+(utility: its priors and cone; the name is ignored): CSR dict offsets (K + 1,), elements (int32:
+cell id * 2 + the side of the cell seen, see nbv/coverage.hpp) and weights, and status (K,) as
 evaluate_views. memo: a CoverageMemo kept across calls over this map and surface record (the same
 arrays, fewer walks).)doc");
   m.def(

@@ -411,9 +411,9 @@ ViewCoverage view_coverage(const GridView& g, const ViewPosesRef& cand, const Po
   if (!g.observed()) throw std::invalid_argument("view_coverage needs the camera observations");
   check_view_poses(cand);
   const Eigen::Index K = cand.rows();
-  // elements cell * 2 + side fit 32 bits (OccupancyMap holds at most 400 M cells): 8 bytes per
+  // elements cell * 2 + side fit 31 bits (OccupancyMap holds at most 400 M cells): 8 bytes per
   // element while the sets are gathered, the largest transient of a plan on a large structure
-  if (g.storage_size() * 2 >= (std::size_t(1) << 32))
+  if (g.storage_size() * 2 >= (std::size_t(1) << 31))
     throw std::invalid_argument("view_coverage: the grid holds too many cells");
   std::vector<std::vector<std::pair<std::uint32_t, float>>> sets(static_cast<std::size_t>(K));
   // per cell, lazily: the direction splitting its sides (code 1 + bin index of the side axis,
@@ -542,7 +542,7 @@ ViewCoverage view_coverage(const GridView& g, const ViewPosesRef& cand, const Po
   for (Eigen::Index k = 0; k < K; ++k) {
     std::int64_t o = out.offsets[k];
     for (const auto& [e, w] : sets[std::size_t(k)]) {
-      out.elements[o] = std::int64_t(e);
+      out.elements[o] = std::int32_t(e);
       out.weights[o] = w;
       ++o;
     }
@@ -699,8 +699,8 @@ CoverSelection select_tour(const CoverageRef& cov, const PointsRef& positions,
     if (cov.status[k] != 0) continue;
     for (std::int64_t o = cov.offsets[k]; o < cov.offsets[k + 1]; ++o) {
       gain[std::size_t(k)] += cov.weights[o];
-      lo = std::min(lo, cov.elements[o]);
-      hi = std::max(hi, cov.elements[o]);
+      lo = std::min(lo, std::int64_t(cov.elements[o]));
+      hi = std::max(hi, std::int64_t(cov.elements[o]));
       ++held;
     }
   }

@@ -455,16 +455,16 @@ TEST(Tour, IsAPermutationNoLongerThanNearestNeighbourAndEmptyForNoPoints) {
 
 namespace {
 
-ViewCoverage coverage(const std::vector<std::vector<std::int64_t>>& sets) {
+ViewCoverage coverage(const std::vector<std::vector<std::int32_t>>& sets) {
   ViewCoverage c;
   c.offsets.resize(Eigen::Index(sets.size() + 1));
   c.offsets[0] = 0;
-  std::vector<std::int64_t> el;
+  std::vector<std::int32_t> el;
   for (std::size_t k = 0; k < sets.size(); ++k) {
     el.insert(el.end(), sets[k].begin(), sets[k].end());
     c.offsets[Eigen::Index(k + 1)] = std::int64_t(el.size());
   }
-  c.elements = Eigen::Map<Eigen::Matrix<std::int64_t, Eigen::Dynamic, 1>>(el.data(),
+  c.elements = Eigen::Map<Eigen::Matrix<std::int32_t, Eigen::Dynamic, 1>>(el.data(),
                                                                           Eigen::Index(el.size()));
   c.weights = Eigen::VectorXf::Ones(Eigen::Index(el.size()));
   c.status = Eigen::Matrix<std::int8_t, Eigen::Dynamic, 1>::Zero(Eigen::Index(sets.size()));
@@ -593,10 +593,10 @@ TEST(Cover, PrizeCollectingInsertionChoosesAsTheExhaustiveSearch) {
     const int K = 1 + int(rng() % 60), E = 1 + int(rng() % 80);
     const bool lattice = scene % 2 == 0;
     std::uniform_real_distribution<double> coord(-20.0, 20.0), weight(0.05, 1.0);
-    std::vector<std::vector<std::int64_t>> sets(static_cast<std::size_t>(K));
+    std::vector<std::vector<std::int32_t>> sets(static_cast<std::size_t>(K));
     for (auto& set : sets) {
       const int m = int(rng() % 12);
-      for (int i = 0; i < m; ++i) set.push_back(std::int64_t(rng() % std::uint32_t(E)));
+      for (int i = 0; i < m; ++i) set.push_back(std::int32_t(rng() % std::uint32_t(E)));
       std::sort(set.begin(), set.end());
       set.erase(std::unique(set.begin(), set.end()), set.end());
     }
@@ -625,10 +625,10 @@ TEST(Cover, PrizeCollectingInsertionOverManyWideElementsChoosesAsTheExhaustiveSe
   // bitmap, so they are ranked by the sorted distinct elements; ranked densely instead (the same
   // elements, one apart, below zero), the bitmap ranks them, and the choice is the same
   std::mt19937 rng(5);
-  std::vector<std::int64_t> pool(4000);
-  for (auto& e : pool) e = std::int64_t(rng() % (std::uint32_t(1) << 30));
+  std::vector<std::int32_t> pool(4000);
+  for (auto& e : pool) e = std::int32_t(rng() % (std::uint32_t(1) << 30));
   const int K = 400;
-  std::vector<std::vector<std::int64_t>> sets(K);
+  std::vector<std::vector<std::int32_t>> sets(K);
   for (auto& set : sets) {
     for (int i = 0; i < 250; ++i) set.push_back(pool[rng() % pool.size()]);
     std::sort(set.begin(), set.end());
@@ -649,17 +649,17 @@ TEST(Cover, PrizeCollectingInsertionOverManyWideElementsChoosesAsTheExhaustiveSe
     ASSERT_EQ(a.views, b.views) << "charge " << charge;
     ASSERT_EQ(a.gains, b.gains) << "charge " << charge;
     ViewCoverage dense = cov;
-    std::vector<std::int64_t> sorted(pool);
+    std::vector<std::int32_t> sorted(pool);
     std::sort(sorted.begin(), sorted.end());
     for (Eigen::Index i = 0; i < dense.elements.size(); ++i)
-      dense.elements[i] =
-          std::lower_bound(sorted.begin(), sorted.end(), cov.elements[i]) - sorted.begin() - 9000;
+      dense.elements[i] = std::int32_t(
+          std::lower_bound(sorted.begin(), sorted.end(), cov.elements[i]) - sorted.begin() - 9000);
     const CoverSelection c = select_tour(dense, pos, start, 0.5, 5.0, 1000, charge);
     ASSERT_EQ(a.views, c.views) << "charge " << charge;
     ASSERT_EQ(a.gains, c.gains) << "charge " << charge;
     ViewCoverage extreme = cov;  // the widest range an element can span
-    extreme.elements[0] = std::numeric_limits<std::int64_t>::min();
-    extreme.elements[extreme.elements.size() - 1] = std::numeric_limits<std::int64_t>::max();
+    extreme.elements[0] = std::numeric_limits<std::int32_t>::min();
+    extreme.elements[extreme.elements.size() - 1] = std::numeric_limits<std::int32_t>::max();
     const CoverSelection d = select_tour(extreme, pos, start, 0.5, 5.0, 1000, charge);
     const CoverSelection e = reference_select_tour(extreme, pos, start, 0.5, 5.0, 1000, charge);
     ASSERT_EQ(d.views, e.views) << "charge " << charge;

@@ -73,10 +73,11 @@ ExplorationTargets exploration_targets(const GridView& grid, Eigen::Vector3i lo,
 /// neighbours (free or unknown, 26-neighbourhood): a surface open on one side has one side, so
 /// views from any angle of it count the cell once; a thin part open on both sides (their
 /// directions summing to little) is split along the axis its open directions spread most on.
-/// CSR by candidate; invalid candidates (status != 0) have none.
+/// CSR by candidate; invalid candidates (status != 0) have none. Elements are 32-bit (a grid
+/// of up to 2^30 cells; OccupancyMap holds at most 400 M): a large plan holds tens of millions.
 struct ViewCoverage {
   Eigen::Matrix<std::int64_t, Eigen::Dynamic, 1> offsets;  ///< (K + 1,)
-  Eigen::Matrix<std::int64_t, Eigen::Dynamic, 1> elements;
+  Eigen::Matrix<std::int32_t, Eigen::Dynamic, 1> elements;
   Eigen::VectorXf weights;
   Eigen::Matrix<std::int8_t, Eigen::Dynamic, 1> status;  ///< (K,) ViewStatus
 };
@@ -85,7 +86,7 @@ struct ViewCoverage {
 /// bindings, without a copy).
 struct CoverageRef {
   Eigen::Ref<const Eigen::Matrix<std::int64_t, Eigen::Dynamic, 1>> offsets;
-  Eigen::Ref<const Eigen::Matrix<std::int64_t, Eigen::Dynamic, 1>> elements;
+  Eigen::Ref<const Eigen::Matrix<std::int32_t, Eigen::Dynamic, 1>> elements;
   Eigen::Ref<const Eigen::VectorXf> weights;
   Eigen::Ref<const Eigen::Matrix<std::int8_t, Eigen::Dynamic, 1>> status;
   CoverageRef(const ViewCoverage& c)  // NOLINT: a ViewCoverage is its own view

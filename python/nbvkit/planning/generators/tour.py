@@ -413,6 +413,9 @@ def _append_elements(coverage, views, elements, weights) -> dict:
     with elements[i] (larger than any of the view's own) and its weight appended to the set of
     views[i]; views in increasing order."""
     off, el, wt = (np.asarray(coverage[k]) for k in ("offsets", "elements", "weights"))
+    elements = np.asarray(elements)
+    if len(elements) and int(elements.max()) > np.iinfo(el.dtype).max:
+        raise OverflowError(f"coverage elements beyond {el.dtype}: {int(elements.max())}")
     count = np.diff(off)
     extra = np.bincount(views, minlength=len(count))
     before = np.concatenate([[0], np.cumsum(extra)])  # extra elements before each view's set
