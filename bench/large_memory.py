@@ -53,8 +53,10 @@ def main() -> None:
         path = Path(tmp) / "mesh.obj"
         STRUCTURES[a.structure](np.random.default_rng(a.seed)).write(path)
         print(f"{a.structure} seed {a.seed}, {a.views} views at most, results folder written")
-        print("| code | peak (end of run) | peak (mission) | area cov. @0.05 m | flown | cloud |")
-        print("|---|---|---|---|---|---|")
+        print(
+            "| code | peak (end of run) | peak (mission) | area cov. @0.05 m | flown | cloud | wall |"
+        )
+        print("|---|---|---|---|---|---|---|")
         rows = []
         for label, package in checkouts(a.against):
             r = run_snippet(FLY_SNIPPET, [path, a.views, *a.set], package)
@@ -62,7 +64,7 @@ def main() -> None:
             print(
                 f"| {label} | {r['peak_mb'] / 1024:.2f} GB | {r['mission_peak_mb'] / 1024:.2f} GB "
                 f"| {100 * r['coverage']:.2f} % | {r['distance']:,.0f} m | "
-                f"{r['cloud_points']:,} points |",
+                f"{r['cloud_points']:,} points | {r['wall_s']:.0f} s |",
                 flush=True,
             )
     if len(rows) == 2:

@@ -6,6 +6,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <functional>
 #include <limits>
 #include <queue>
 #include <stdexcept>
@@ -371,12 +372,16 @@ void CoverageMemo::end(const std::vector<Key>& keys, std::vector<Entry>& fresh,
       auto it = entries_.find(keys[k]);
       it->second.used = call_;
       ++stats_.reused;
-    } else if (walked[k]) {
+    } else if (walked[k] == 1) {
       fresh[k].used = call_;
       auto [it, added] = entries_.insert_or_assign(keys[k], std::move(fresh[k]));
       (void)it;
       stats_.stale += !added;
       ++stats_.walked;
+    } else if (walked[k] == 2) {  // walked, its record dropped for max_bytes, as an older one
+      stats_.stale += entries_.erase(keys[k]);
+      ++stats_.walked;
+      ++stats_.evicted;
     }
   }
   for (auto it = entries_.begin(); it != entries_.end();)
@@ -400,6 +405,41 @@ void CoverageMemo::end(const std::vector<Key>& keys, std::vector<Entry>& fresh,
 }
 
 // ---- view_coverage ---------------------------------------------------------------------------
+
+namespace {
+
+/// walked[k] of a view whose record the memo keeps, and of one whose record it would drop at once
+constexpr std::uint8_t kRecord = 1, kWalkedOnly = 2;
+/// From this many coverage elements, view_coverage hands the heap back as it copies the sets.
+constexpr std::int64_t kTrimElements = 16'000'000;
+
+/// Marks the walked views whose records the memo could not keep (kWalkedOnly), and frees their
+/// brick lists, so that their copies are never made: while this call's records alone exceed the
+/// memo's max_bytes, the largest, as its eviction would drop them (older records go first).
+void keep_within(const CoverageMemo& memo, std::vector<CoverageMemo::Entry>& fresh,
+                 std::vector<std::uint8_t>& walked,
+                 const std::vector<std::vector<std::pair<std::uint32_t, float>>>& sets) {
+  std::vector<std::pair<std::size_t, std::size_t>> bytes;  // (a record's bytes, view)
+  std::size_t sum = 0;
+  for (std::size_t k = 0; k < walked.size(); ++k) {
+    if (walked[k] != kRecord) continue;
+    const CoverageMemo::Entry& e = fresh[k];
+    const std::size_t b = sizeof(e) + 8 * sets[k].size() + 4 * e.brick_words.size() +
+                          8 * e.brick_bits.size();
+    bytes.push_back({b, k});
+    sum += b;
+  }
+  if (sum <= memo.max_bytes()) return;
+  std::sort(bytes.begin(), bytes.end(), std::greater<>());
+  for (const auto& [b, k] : bytes) {
+    if (sum <= memo.max_bytes()) break;
+    sum -= b;
+    walked[k] = kWalkedOnly;
+    fresh[k] = CoverageMemo::Entry();
+  }
+}
+
+}  // namespace
 
 ViewCoverage view_coverage(const GridView& g, const ViewPosesRef& cand, const Pose& current,
                            const ViewCameraModel& camera, const UtilityOptions& utility,
@@ -493,7 +533,7 @@ ViewCoverage view_coverage(const GridView& g, const ViewPosesRef& cand, const Po
         e.brick_bits[i] = bricks.bits[bricks.touched[i]];
       e.grid_epoch = g.grid_epoch;
       e.seen_epoch = g.seen_epoch;
-      walked[std::size_t(k)] = 1;
+      walked[std::size_t(k)] = kRecord;
     };
   }
   job.on_view = [&](Eigen::Index k, const std::vector<utility::Credit>& credits) {
@@ -514,11 +554,31 @@ ViewCoverage view_coverage(const GridView& g, const ViewPosesRef& cand, const Po
     s.resize(m);
   };
   const ViewScores scores = kernel::score<utility::Surface, true>(job, kernel::PackedCells(g));
-  if (memo) {
-    for (Eigen::Index k = 0; k < K; ++k) {
-      if (!walked[std::size_t(k)]) continue;
+  ViewCoverage out;
+  out.status = scores.status;
+  out.offsets.resize(K + 1);
+  out.offsets[0] = 0;
+  for (Eigen::Index k = 0; k < K; ++k)
+    out.offsets[k + 1] = out.offsets[k] + std::int64_t(sets[std::size_t(k)].size());
+  if (memo) keep_within(*memo, fresh, walked, sets);
+  // The sets move into the arrays one by one, each freed as it goes, with their memo records;
+  // on a large plan the heap they leave goes back every eighth of the elements, so the sets,
+  // their copy and their records are not all held at once (a 100 m plant's plans: 30-50 M).
+  const std::int64_t total = out.offsets[K], trim_every = total / 8;
+  const bool trim = total >= kTrimElements;
+  std::int64_t next_trim = trim_every;
+  out.elements.resize(total);
+  out.weights.resize(total);
+  for (Eigen::Index k = 0; k < K; ++k) {
+    auto& s = sets[std::size_t(k)];
+    std::int64_t o = out.offsets[k];
+    for (const auto& [e, w] : s) {
+      out.elements[o] = std::int32_t(e);
+      out.weights[o] = w;
+      ++o;
+    }
+    if (memo && walked[std::size_t(k)] == kRecord) {
       CoverageMemo::Entry& e = fresh[std::size_t(k)];
-      const auto& s = sets[std::size_t(k)];
       e.elements.resize(s.size());
       e.weights.resize(s.size());
       for (std::size_t i = 0; i < s.size(); ++i) {
@@ -529,25 +589,14 @@ ViewCoverage view_coverage(const GridView& g, const ViewPosesRef& cand, const Po
       e.cells = scores.cells[k];
       e.occupied = scores.occupied_seen[k];
     }
-    memo->end(keys, fresh, walked, reused);
-  }
-  ViewCoverage out;
-  out.status = scores.status;
-  out.offsets.resize(K + 1);
-  out.offsets[0] = 0;
-  for (Eigen::Index k = 0; k < K; ++k)
-    out.offsets[k + 1] = out.offsets[k] + std::int64_t(sets[std::size_t(k)].size());
-  out.elements.resize(out.offsets[K]);
-  out.weights.resize(out.offsets[K]);
-  for (Eigen::Index k = 0; k < K; ++k) {
-    std::int64_t o = out.offsets[k];
-    for (const auto& [e, w] : sets[std::size_t(k)]) {
-      out.elements[o] = std::int32_t(e);
-      out.weights[o] = w;
-      ++o;
+    std::vector<std::pair<std::uint32_t, float>>().swap(s);  // its memory back
+    if (trim && o >= next_trim) {
+      release_free_memory();
+      next_trim += trim_every;
     }
-    std::vector<std::pair<std::uint32_t, float>>().swap(sets[std::size_t(k)]);  // its memory back
   }
+  if (memo) memo->end(keys, fresh, walked, reused);
+  if (trim) release_free_memory();
   return out;
 }
 

@@ -143,8 +143,8 @@ class CoverageMemo {
   /// The entry of `key` if it holds for this call's grid, else null (a record that no longer
   /// holds is replaced by the view's new walk, and counted stale, in end()).
   const Entry* find(const Key& key) const;
-  /// Ends a call: keeps `fresh[k]` for each walked view (walked[k]), marks the reused ones used,
-  /// drops the unused.
+  /// Ends a call: keeps `fresh[k]` for each walked view (walked[k] == 1; 2: walked, its record
+  /// not kept, and any older one dropped), marks the reused ones used, drops the unused.
   void end(const std::vector<Key>& keys, std::vector<Entry>& fresh,
            const std::vector<std::uint8_t>& walked, const std::vector<std::uint8_t>& reused);
 

@@ -71,11 +71,6 @@ class TourConfig:
     region_size: Optional[float] = positive(None)  # m; null: one region
 
 
-# coverage elements beyond which the heap the walks freed is handed back before the selection
-# allocates its own (a 100 m plant's plans: 34-53 M; the airliner's: 0.4-7.3 M)
-_LARGE_COVERAGE = 16_000_000
-
-
 class CoverageTour:
     Settings = TourConfig
 
@@ -223,9 +218,7 @@ class CoverageTour:
         over their coverage), then prize-collected; `record` gets the counts."""
         cell_m2 = world.map.resolution**2
         pose = world.state.pose
-        coverage = self.coverage(world, candidates)
-        if len(coverage["elements"]) > _LARGE_COVERAGE:
-            _core.release_free_memory()  # the walks' scratch, before the selection allocates
+        coverage = self.coverage(world, candidates)  # (a large plan's walks' heap handed back)
         coverage, opens = self._access(world, coverage, candidates, owner, patches)
         if self.settings.selection == "insertion":
             # anchored at the vehicle, and with the first view's transit free (a far cluster
