@@ -54,7 +54,8 @@ def main() -> None:
         STRUCTURES[a.structure](np.random.default_rng(a.seed)).write(path)
         print(f"{a.structure} seed {a.seed}, {a.views} views at most, results folder written")
         print(
-            "| code | peak (end of run) | peak (mission) | area cov. @0.05 m | flown | cloud | wall |"
+            "| code | peak (end of run) | peak (mission) | area cov. @0.05 m | flown | cloud "
+            "| wall |"
         )
         print("|---|---|---|---|---|---|---|")
         rows = []
