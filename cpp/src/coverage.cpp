@@ -364,6 +364,14 @@ const CoverageMemo::Entry* CoverageMemo::find(const Key& key) const {
   return &e;
 }
 
+namespace {
+/// walked[k] (CoverageMemo::end) of a view whose record the memo keeps, and of one whose record
+/// it would drop at once
+constexpr std::uint8_t kRecord = 1, kWalkedOnly = 2;
+/// From this many coverage elements, view_coverage hands the heap back as it copies the sets.
+constexpr std::int64_t kTrimElements = 16'000'000;
+}  // namespace
+
 void CoverageMemo::end(const std::vector<Key>& keys, std::vector<Entry>& fresh,
                        const std::vector<std::uint8_t>& walked,
                        const std::vector<std::uint8_t>& reused) {
@@ -372,13 +380,13 @@ void CoverageMemo::end(const std::vector<Key>& keys, std::vector<Entry>& fresh,
       auto it = entries_.find(keys[k]);
       it->second.used = call_;
       ++stats_.reused;
-    } else if (walked[k] == 1) {
+    } else if (walked[k] == kRecord) {
       fresh[k].used = call_;
       auto [it, added] = entries_.insert_or_assign(keys[k], std::move(fresh[k]));
       (void)it;
       stats_.stale += !added;
       ++stats_.walked;
-    } else if (walked[k] == 2) {  // walked, its record dropped for max_bytes, as an older one
+    } else if (walked[k] == kWalkedOnly) {  // its record dropped for max_bytes, and an older one
       stats_.stale += entries_.erase(keys[k]);
       ++stats_.walked;
       ++stats_.evicted;
@@ -408,11 +416,6 @@ void CoverageMemo::end(const std::vector<Key>& keys, std::vector<Entry>& fresh,
 
 namespace {
 
-/// walked[k] of a view whose record the memo keeps, and of one whose record it would drop at once
-constexpr std::uint8_t kRecord = 1, kWalkedOnly = 2;
-/// From this many coverage elements, view_coverage hands the heap back as it copies the sets.
-constexpr std::int64_t kTrimElements = 16'000'000;
-
 /// Marks the walked views whose records the memo could not keep (kWalkedOnly), and frees their
 /// brick lists, so that their copies are never made: while this call's records alone exceed the
 /// memo's max_bytes, the largest, as its eviction would drop them (older records go first).
@@ -424,8 +427,8 @@ void keep_within(const CoverageMemo& memo, std::vector<CoverageMemo::Entry>& fre
   for (std::size_t k = 0; k < walked.size(); ++k) {
     if (walked[k] != kRecord) continue;
     const CoverageMemo::Entry& e = fresh[k];
-    const std::size_t b = sizeof(e) + 8 * sets[k].size() + 4 * e.brick_words.size() +
-                          8 * e.brick_bits.size();
+    const std::size_t b =
+        sizeof(e) + 8 * sets[k].size() + 4 * e.brick_words.size() + 8 * e.brick_bits.size();
     bytes.push_back({b, k});
     sum += b;
   }
