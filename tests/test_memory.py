@@ -39,6 +39,11 @@ def test_the_camera_record_holds_the_bricks_of_the_surface_seen_not_the_workspac
     # what the camera saw of one box lies in its bricks: seen cells only near the surface
     i, j, k = np.nonzero(seen)
     assert len(i) == record.seen_cells()
+    # the planner's memos of walks, used in flight, are dropped before the end-of-run results
+    memos = [p.memo for p in (mission.planner.score, *mission.planner.generators)]
+    memos = [m for m in memos if hasattr(m, "entries")]
+    assert memos and sum(m.stats()["walked"] for m in memos) > 0
+    assert all(m.entries == 0 and m.bytes == 0 for m in memos)
 
 
 def test_starts_of_a_scene_with_an_empty_centre_face_a_structure_within_reach():

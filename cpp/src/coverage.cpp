@@ -306,6 +306,8 @@ void CoverageMemo::clear() {
   entries_.clear();
   geometry_.clear();
   grid_id_ = seen_id_ = 0;
+  std::vector<std::uint32_t>().swap(near_grid_);  // (made again by the next call's begin)
+  seen_stamps_ = nullptr;
 }
 
 namespace {

@@ -120,6 +120,7 @@ class Recorder:
         m = self.mission
         cfg, world = m.config, m.world
         m.evaluator.forget_clouds()  # the progress refreshes' state: not needed from here
+        m.planner.release_caches()  # the walks' memos (a large structure's: up to 256 MiB)
         _core.release_free_memory()  # the flight's freed heap, before the cloud is scored
         ev = m.evaluator(world.clouds)  # read in place: no stacked copy held while scoring
         n_it = len(self.records)
