@@ -19,6 +19,15 @@ from .world import FLIGHT_COLUMNS
 STAGES = ("sampling", "evaluation", "selection", "motion", "sensing", "mapping")
 
 
+def _drop_memos(planner) -> None:
+    """Clears the planner parts' memos of walks after the flight, before the end-of-run results
+    need the memory: they only save time (the same answers without them), and a large
+    structure's hold up to 256 MiB."""
+    for part in (planner.score, *planner.generators):
+        if getattr(part, "memo", None) is not None:
+            part.memo.clear()
+
+
 @dataclass
 class IterationRecord:
     """One row of iterations.csv: a view flown after profiling."""
@@ -120,7 +129,7 @@ class Recorder:
         m = self.mission
         cfg, world = m.config, m.world
         m.evaluator.forget_clouds()  # the progress refreshes' state: not needed from here
-        m.planner.release_caches()  # the walks' memos (a large structure's: up to 256 MiB)
+        _drop_memos(m.planner)
         _core.release_free_memory()  # the flight's freed heap, before the cloud is scored
         ev = m.evaluator(world.clouds)  # read in place: no stacked copy held while scoring
         n_it = len(self.records)

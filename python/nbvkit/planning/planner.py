@@ -82,14 +82,6 @@ class Planner:
                     return reason
         return "max_iterations"
 
-    def release_caches(self) -> None:
-        """Drops what the parts keep only to plan faster (the walks' memos: the same answers
-        without them): after the flight, before the end-of-run results need the memory."""
-        for part in (self.score, *self.generators):
-            memo = getattr(part, "memo", None)
-            if memo is not None:
-                memo.clear()
-
     def next_view(self, world):
         """(proposal, its generators, scores, choice) of the next view to fly, or why there is
         none: "coverage_complete" (no generator proposes anything), a generator's own
