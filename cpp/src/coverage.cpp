@@ -291,14 +291,14 @@ CoverageMemo::CoverageMemo(int keep_calls, std::size_t max_bytes)
                                 std::to_string(keep_calls));
 }
 
-std::size_t CoverageMemo::entry_bytes(const Entry& e) {
-  return sizeof(e) + 4 * (e.elements.capacity() + e.weights.capacity()) +
-         4 * e.brick_words.capacity() + 8 * e.brick_bits.capacity();
+std::size_t CoverageMemo::entry_bytes(const Entry& e, std::size_t elements) {
+  return sizeof(e) + (4 + 4) * elements + 4 * e.brick_words.capacity() +
+         8 * e.brick_bits.capacity();
 }
 
 std::size_t CoverageMemo::bytes() const {
   std::size_t n = 0;
-  for (const auto& [k, e] : entries_) n += entry_bytes(e);
+  for (const auto& [k, e] : entries_) n += entry_bytes(e, e.elements.capacity());
   return n + 4 * near_grid_.capacity();
 }
 
@@ -370,8 +370,6 @@ namespace {
 /// walked[k] (CoverageMemo::end) of a view whose record the memo keeps, and of one whose record
 /// it would drop at once
 constexpr std::uint8_t kRecord = 1, kWalkedOnly = 2;
-/// From this many coverage elements, view_coverage hands the heap back as it copies the sets.
-constexpr std::int64_t kTrimElements = 16'000'000;
 }  // namespace
 
 void CoverageMemo::end(const std::vector<Key>& keys, std::vector<Entry>& fresh,
@@ -408,7 +406,7 @@ void CoverageMemo::end(const std::vector<Key>& keys, std::vector<Entry>& fresh,
   });
   for (const auto& it : order) {
     if (held <= max_bytes_) break;
-    held -= entry_bytes(it->second);
+    held -= entry_bytes(it->second, it->second.elements.capacity());
     entries_.erase(it);
     ++stats_.evicted;
   }
@@ -417,6 +415,9 @@ void CoverageMemo::end(const std::vector<Key>& keys, std::vector<Entry>& fresh,
 // ---- view_coverage ---------------------------------------------------------------------------
 
 namespace {
+
+/// From this many coverage elements, view_coverage hands the heap back as it copies the sets.
+constexpr std::int64_t kTrimElements = 16'000'000;
 
 /// Marks the walked views whose records the memo could not keep (kWalkedOnly), and frees their
 /// brick lists, so that their copies are never made: while this call's records alone exceed the
@@ -428,9 +429,7 @@ void keep_within(const CoverageMemo& memo, std::vector<CoverageMemo::Entry>& fre
   std::size_t sum = 0;
   for (std::size_t k = 0; k < walked.size(); ++k) {
     if (walked[k] != kRecord) continue;
-    const CoverageMemo::Entry& e = fresh[k];
-    const std::size_t b =
-        sizeof(e) + 8 * sets[k].size() + 4 * e.brick_words.size() + 8 * e.brick_bits.size();
+    const std::size_t b = CoverageMemo::entry_bytes(fresh[k], sets[k].size());
     bytes.push_back({b, k});
     sum += b;
   }

@@ -147,9 +147,11 @@ class CoverageMemo {
   /// not kept, and any older one dropped), marks the reused ones used, drops the unused.
   void end(const std::vector<Key>& keys, std::vector<Entry>& fresh,
            const std::vector<std::uint8_t>& walked, const std::vector<std::uint8_t>& reused);
+  /// The bytes a record holds with `elements` coverage elements and their weights (and its
+  /// brick lists): what bytes() counts of it, and what max_bytes bounds.
+  static std::size_t entry_bytes(const Entry& e, std::size_t elements);
 
  private:
-  static std::size_t entry_bytes(const Entry& e);
   int keep_calls_;
   std::size_t max_bytes_;
   std::int64_t call_ = 0;
