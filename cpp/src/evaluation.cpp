@@ -39,6 +39,7 @@ void EvaluationOptions::validate() const {
     throw std::invalid_argument("gt_density must be a positive number of points per m^2, got " +
                                 fmt(gt_density));
   if (max_gt_points < 1) throw std::invalid_argument("max_gt_points must be >= 1");
+  if (part_points < 1) throw std::invalid_argument("part_points must be >= 1");
 }
 
 namespace {
@@ -344,67 +345,80 @@ EvaluationResult Evaluator::evaluate_cells(const std::vector<const SurfaceCloud*
 
 EvaluationResult Evaluator::evaluate(const PointsRef& cloud) const {
   require_finite(cloud, "cloud");
-  const auto t0 = std::chrono::steady_clock::now();
-  const KdTree ctree(cloud);
-  return score(ctree, cloud.rows(), seconds_since(t0));
+  return score(std::size_t(cloud.rows()), [&cloud](std::size_t i) {
+    const auto r = static_cast<Eigen::Index>(i);
+    return Eigen::Vector3d(cloud(r, 0), cloud(r, 1), cloud(r, 2));
+  });
 }
 
 EvaluationResult Evaluator::evaluate(const std::vector<const SurfaceCloud*>& clouds) const {
-  const auto t0 = std::chrono::steady_clock::now();
-  // the clouds' points in order, read in place (no stacked copy beside the tree)
+  // the clouds' points in order, read in place (no stacked copy)
   std::vector<std::size_t> first{0};
   for (const SurfaceCloud* c : clouds) first.push_back(first.back() + c->size());
-  const KdTree ctree(first.back(), [&](std::size_t i) {
+  return score(first.back(), [&](std::size_t i) {
     const std::size_t c =
         std::size_t(std::upper_bound(first.begin(), first.end(), i) - first.begin()) - 1;
     return clouds[c]->point(i - first[c]);
   });
-  return score(ctree, Eigen::Index(first.back()), seconds_since(t0));
 }
 
-EvaluationResult Evaluator::score(const KdTree& ctree, Eigen::Index n, double kdtree_s) const {
+EvaluationResult Evaluator::score(std::size_t n,
+                                  const std::function<Eigen::Vector3d(std::size_t)>& point) const {
   using clock = std::chrono::steady_clock;
-  EvaluationResult res = empty_result(n);
+  EvaluationResult res = empty_result(static_cast<std::int64_t>(n));
   const std::size_t nt = opt_.taus.size();
   const auto n_gt = static_cast<std::int64_t>(tree_.size());
-  res.timings_s.emplace_back("cloud_kdtree", kdtree_s);
 
   auto t0 = clock::now();
-  for (std::size_t k = 0; k < opt_.resolutions.size(); ++k) {  // tree order: runs of equal cells
-    const auto keys =
-        n ? tree_cell_keys(ctree, opt_.resolutions[k], "cloud") : std::vector<std::uint64_t>{};
+  for (std::size_t k = 0; k < opt_.resolutions.size(); ++k) {
+    const auto keys = cell_keys(n, point, opt_.resolutions[k], "cloud");
     score_cells(k, keys.data(), keys.size(), res);
   }
-  res.timings_s.emplace_back("cells", seconds_since(t0));
-  if (n == 0) return res;
+  const double cells_s = seconds_since(t0);
 
-  // Each way in turn (one array of distances at a time), summed sequentially in (deterministic)
-  // tree order: identical results whatever the threading.
-  t0 = clock::now();
+  // The distances, one part of the cloud at a time (options.part_points points in input order):
+  // a kd-tree over the part, each part point's distance to the ground truth, and each
+  // ground-truth sample's nearest distance so far lowered to the part's nearest. A cloud of one
+  // part (by default under 4.2 M points: every structure of the paper's size) is one tree over
+  // the whole cloud; a 100 m structure's 22 M points never hold a tree over all of them (1.2 GB).
   struct Sums {
     double total = 0;
-    std::vector<std::int64_t> within;  // per tau: distances <= tau
-  };
-  const auto sums = [&](const std::vector<double>& d) {
-    Sums s;
-    for (double x : d) s.total += x;
-    for (std::size_t k = 0; k < nt; ++k) {
-      std::int64_t c = 0;
-      for (double x : d) c += x <= opt_.taus[k];
-      s.within.push_back(c);
+    std::vector<std::int64_t> within = {};  // per tau: distances <= tau
+    void add(const std::vector<double>& d, const std::vector<double>& taus) {
+      for (double x : d) total += x;
+      within.resize(taus.size(), 0);
+      for (std::size_t k = 0; k < taus.size(); ++k)
+        for (double x : d) within[k] += x <= taus[k];
     }
-    return s;
   };
-  const Sums cloud_to_gt = sums(tree_nearest(tree_, ctree));  // cloud -> GT, tree order
-  const Sums gt_to_cloud = sums(tree_nearest(ctree, tree_));  // GT -> cloud, tree order
-  res.timings_s.emplace_back("nearest", seconds_since(t0));
+  const auto part_size = static_cast<std::size_t>(opt_.part_points);
+  double kdtree_s = 0, nearest_s = 0;
+  Sums cloud_to_gt, gt_to_cloud;
+  std::vector<double> best2(n ? tree_.size() : 0, std::numeric_limits<double>::infinity());
+  for (std::size_t b = 0; b < n; b += part_size) {
+    t0 = clock::now();
+    const KdTree part(std::min(part_size, n - b), [&](std::size_t i) { return point(b + i); });
+    kdtree_s += seconds_since(t0);
+    t0 = clock::now();
+    cloud_to_gt.add(tree_nearest(tree_, part), opt_.taus);  // each part in its tree order
+    tree_nearest_lower(part, tree_, best2);                 // GT samples in GT tree order
+    nearest_s += seconds_since(t0);
+  }
+  res.timings_s.emplace_back("cloud_kdtree", kdtree_s);
+  res.timings_s.emplace_back("cells", cells_s);
+  if (n == 0) return res;
+  t0 = clock::now();
+  for (double& d : best2) d = std::sqrt(d);
+  gt_to_cloud.add(best2, opt_.taus);
+  res.timings_s.emplace_back("nearest", nearest_s + seconds_since(t0));
 
   res.mean_cloud_to_gt = cloud_to_gt.total / static_cast<double>(n);
   res.mean_gt_to_cloud = gt_to_cloud.total / static_cast<double>(n_gt);
   res.chamfer = 0.5 * (res.mean_cloud_to_gt + res.mean_gt_to_cloud);
   res.has_chamfer = true;
   for (std::size_t k = 0; k < nt; ++k) {
-    const double P = ratio(cloud_to_gt.within[k], n), R = ratio(gt_to_cloud.within[k], n_gt);
+    const double P = ratio(cloud_to_gt.within[k], static_cast<std::int64_t>(n)),
+                 R = ratio(gt_to_cloud.within[k], n_gt);
     res.accuracy[k] = P;
     res.completeness[k] = R;
     res.fscore[k] = (P + R) > 0 ? 2 * P * R / (P + R) : 0.0;

@@ -152,19 +152,28 @@ void KdTree::search(const Node& nd, const double* q, double& best, std::int64_t&
 }
 
 std::pair<Eigen::Index, double> KdTree::nearest(const Eigen::Vector3d& q, Eigen::Index hint) const {
-  if (pts_.empty()) return {-1, kInf};
-  double best = kInf;
+  return nearest(q, hint, kInf);
+}
+
+std::pair<Eigen::Index, double> KdTree::nearest(const Eigen::Vector3d& q, Eigen::Index hint,
+                                                double bound2) const {
+  double best = bound2;
   std::int64_t best_pos = -1;
+  if (pts_.empty()) return {-1, best};
   const double qq[3] = {q.x(), q.y(), q.z()};
   if (hint >= 0 && static_cast<std::size_t>(hint) < pos_.size()) {
     const std::uint32_t p = pos_[static_cast<std::size_t>(hint)];
     const double* h = pts_[p].p;
-    best = (qq[0] - h[0]) * (qq[0] - h[0]) + (qq[1] - h[1]) * (qq[1] - h[1]) +
-           (qq[2] - h[2]) * (qq[2] - h[2]);
-    best_pos = p;
+    const double d2 = (qq[0] - h[0]) * (qq[0] - h[0]) + (qq[1] - h[1]) * (qq[1] - h[1]) +
+                      (qq[2] - h[2]) * (qq[2] - h[2]);
+    if (d2 < best) {
+      best = d2;
+      best_pos = p;
+    }
   }
   const Node& root = nodes_[0];
-  if (best_pos < 0 || box_dist2(root.lo, root.hi, qq) < best) search(root, qq, best, best_pos);
+  if (box_dist2(root.lo, root.hi, qq) < best) search(root, qq, best, best_pos);
+  if (best_pos < 0) return {-1, best};
   return {static_cast<Eigen::Index>(pts_[static_cast<std::size_t>(best_pos)].id), best};
 }
 
@@ -207,6 +216,21 @@ std::vector<double> tree_nearest(const KdTree& targets, const KdTree& queries) {
     }
   });
   return out;
+}
+
+void tree_nearest_lower(const KdTree& targets, const KdTree& queries, std::vector<double>& best2) {
+  if (best2.size() != queries.size())
+    throw std::invalid_argument("tree_nearest_lower: one distance per query");
+  if (targets.size() == 0) return;
+  parallel_chunks(queries.size(), 2048, [&](std::size_t b, std::size_t e) {
+    Eigen::Index hint = -1;
+    for (std::size_t k = b; k < e; ++k) {
+      const auto r = targets.nearest(queries.point_at(k), hint, best2[k]);
+      if (r.first < 0) continue;
+      hint = r.first;
+      best2[k] = r.second;
+    }
+  });
 }
 
 Eigen::VectorXd nearest_distances(const PointsRef& targets, const PointsRef& queries) {

@@ -196,6 +196,50 @@ TEST(Evaluation, IdenticalCloudsScoreOneAndNegativeCellsCount) {
   EXPECT_EQ(r.gt_cells[2], 4);  // 0.5 m
 }
 
+TEST(Evaluation, ACloudScoredInPartsHasTheFiguresOfOneTreeAndOfBruteForce) {
+  // Ground truth on a plane patch; a cloud over part of it with outliers, so that some samples'
+  // nearest point lies in another part than their neighbours' (parts are in input order).
+  std::mt19937 rng(3);
+  std::uniform_real_distribution<double> U(0.0, 1.0);
+  Points gt(3000, 3), cloud(1000, 3);
+  for (Eigen::Index i = 0; i < gt.rows(); ++i) gt.row(i) << 2 * U(rng), 2 * U(rng), 0.0;
+  for (Eigen::Index i = 0; i < cloud.rows(); ++i)
+    cloud.row(i) << 1.3 * U(rng), 2 * U(rng), (i % 7 == 0 ? 0.3 : 0.02) * U(rng);
+  EvaluationOptions whole, parts;
+  parts.part_points = 97;  // 11 parts, the last one short
+  const EvaluationResult a = evaluate_points(gt, cloud, whole);
+  const EvaluationResult b = evaluate_points(gt, cloud, parts);
+  EXPECT_EQ(a.completeness, b.completeness);
+  EXPECT_EQ(a.accuracy, b.accuracy);
+  EXPECT_EQ(a.coverage, b.coverage);
+  EXPECT_EQ(a.area_coverage, b.area_coverage);
+  EXPECT_EQ(a.mean_gt_to_cloud, b.mean_gt_to_cloud);  // summed in the ground truth's order
+  EXPECT_NEAR(a.mean_cloud_to_gt, b.mean_cloud_to_gt, 1e-14);
+  // brute force: the mean distance each way, and completeness at the first tau
+  double gt_sum = 0, cloud_sum = 0;
+  std::int64_t within = 0;
+  for (Eigen::Index i = 0; i < gt.rows(); ++i) {
+    double best = 1e300;
+    for (Eigen::Index j = 0; j < cloud.rows(); ++j)
+      best = std::min(best, (gt.row(i) - cloud.row(j)).norm());
+    gt_sum += best;
+    within += best <= parts.taus[0];
+  }
+  for (Eigen::Index j = 0; j < cloud.rows(); ++j) {
+    double best = 1e300;
+    for (Eigen::Index i = 0; i < gt.rows(); ++i)
+      best = std::min(best, (gt.row(i) - cloud.row(j)).norm());
+    cloud_sum += best;
+  }
+  EXPECT_NEAR(b.mean_gt_to_cloud, gt_sum / gt.rows(), 1e-12);
+  EXPECT_NEAR(b.mean_cloud_to_gt, cloud_sum / cloud.rows(), 1e-12);
+  EXPECT_EQ(b.completeness[0], double(within) / gt.rows());
+  EXPECT_GT(b.completeness[0], 0.3);  // the cloud covers part of the patch only
+  EXPECT_LT(b.completeness[0], 0.9);
+  parts.part_points = 0;
+  EXPECT_THROW(evaluate_points(gt, cloud, parts), std::invalid_argument);
+}
+
 TEST(Evaluation, BadInput) {
   Points gt(1, 3);
   gt << 0, 0, 0;

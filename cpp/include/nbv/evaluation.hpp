@@ -10,6 +10,7 @@
 #include "nbv/point_cloud.hpp"
 
 #include <cstdint>
+#include <functional>
 #include <string>
 #include <utility>
 #include <vector>
@@ -20,16 +21,20 @@ namespace nbv {
 /// twinjet (../shared/meshes/twinjet.obj); see the docstring of nbvkit.evaluate for the figures.
 constexpr double kDefaultGtDensity = 1000.0;
 
-#define NBV_EVALUATION_OPTIONS(X)                                                          \
-  X(std::vector<double>, resolutions, (std::vector<double>{0.05, 0.1, 0.5}),               \
-    "m; cell sizes of the coverage / area-coverage / precision grids (the paper's three)") \
-  X(std::vector<double>, taus, (std::vector<double>{0.05, 0.1}),                           \
-    "m; distance thresholds of completeness / accuracy / F-score")                         \
-  X(double, gt_density, kDefaultGtDensity,                                                 \
-    "ground-truth samples per m^2 of mesh surface (mesh ground truth only)")               \
-  X(std::uint64_t, seed, 0, "seed of the ground-truth surface sampling")                   \
-  X(std::uint64_t, max_gt_points, 8'000'000,                                               \
-    "upper bound on the number of ground-truth samples (area * density is capped to it)")
+#define NBV_EVALUATION_OPTIONS(X)                                                           \
+  X(std::vector<double>, resolutions, (std::vector<double>{0.05, 0.1, 0.5}),                \
+    "m; cell sizes of the coverage / area-coverage / precision grids (the paper's three)")  \
+  X(std::vector<double>, taus, (std::vector<double>{0.05, 0.1}),                            \
+    "m; distance thresholds of completeness / accuracy / F-score")                          \
+  X(double, gt_density, kDefaultGtDensity,                                                  \
+    "ground-truth samples per m^2 of mesh surface (mesh ground truth only)")                \
+  X(std::uint64_t, seed, 0, "seed of the ground-truth surface sampling")                    \
+  X(std::uint64_t, max_gt_points, 8'000'000,                                                \
+    "upper bound on the number of ground-truth samples (area * density is capped to it)")   \
+  X(std::uint64_t, part_points, std::uint64_t(1) << 22,                                     \
+    "distances are scored one part of the cloud at a time, a kd-tree of at most this many " \
+    "points (about 54 bytes each) at once; the same figures, but for the rounding of the "  \
+    "mean distances")
 
 struct EvaluationOptions {
   NBV_EVALUATION_OPTIONS(NBV_DECLARE_OPTION)
@@ -133,9 +138,10 @@ class Evaluator {
   /// Fills res's figures of resolution k from the cloud's n cell keys at that resolution.
   void score_cells(std::size_t k, const std::uint64_t* keys, std::size_t n,
                    EvaluationResult& res) const;
-  /// evaluate()'s cells and distances of a cloud of n points held by `ctree` (built in
-  /// kdtree_s seconds).
-  EvaluationResult score(const KdTree& ctree, Eigen::Index n, double kdtree_s) const;
+  /// evaluate()'s cells and distances of a cloud of n points, point(i) for i in [0, n) (called
+  /// in parallel).
+  EvaluationResult score(std::size_t n,
+                         const std::function<Eigen::Vector3d(std::size_t)>& point) const;
   struct Grid {
     double r = 0;
     VoxelHashMap index;                            ///< GT cell key -> position in keys / samples

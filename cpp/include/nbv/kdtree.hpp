@@ -30,6 +30,10 @@ class KdTree {
   /// (e.g. the previous query's answer); it only speeds the search up. Ties go to the point of
   /// lowest index among the equally near ones, and the distance is always the exact minimum.
   std::pair<Eigen::Index, double> nearest(const Eigen::Vector3d& q, Eigen::Index hint = -1) const;
+  /// The same, looking only for points nearer than sqrt(bound2): (-1, bound2) when none is
+  /// (a bound from an earlier search, e.g. in another tree, prunes this one).
+  std::pair<Eigen::Index, double> nearest(const Eigen::Vector3d& q, Eigen::Index hint,
+                                          double bound2) const;
   /// Nearest neighbours of many queries (N, 3), in parallel: (N,) indices into the constructor's
   /// points (-1 for an empty tree) and (N,) Euclidean distances in metres (inf if none).
   std::pair<Eigen::VectorXi, Eigen::VectorXd> nearest_each(const PointsRef& queries) const;
@@ -70,6 +74,10 @@ class KdTree {
   std::vector<std::pair<std::size_t, std::size_t>> subtree_nodes_;
 };
 
+/// Lowers best2[k], the squared distance from the k-th point of `queries` (tree order) to the
+/// nearest point found so far, to the nearest point of `targets` where that is nearer (parallel):
+/// over several target trees in turn, best2 ends as the exact squared distance to their union.
+void tree_nearest_lower(const KdTree& targets, const KdTree& queries, std::vector<double>& best2);
 /// (Q,) exact distance (metres) from each query to its nearest target; inf if there are no
 /// targets. Parallel over queries; deterministic.
 Eigen::VectorXd nearest_distances(const PointsRef& targets, const PointsRef& queries);
