@@ -90,6 +90,13 @@ std::vector<std::uint64_t> point_cell_keys(const PointsRef& pts, double r, const
 
 double ratio(std::int64_t a, std::int64_t b) { return b > 0 ? static_cast<double>(a) / b : 0.0; }
 
+// Makes room in `v` for n elements, an eighth more when it must move: per-point arrays of millions
+// of points grow a little at a time, where std::vector would double them.
+template <class V>
+void reserve_for(V& v, std::size_t n) {
+  if (n > v.capacity()) v.reserve(n + n / 8);
+}
+
 }  // namespace
 
 std::pair<Points, EvaluationResult> Evaluator::sample_mesh(const Mesh& gt,
@@ -164,6 +171,8 @@ Evaluator::Evaluator(const PointsRef& gt, const EvaluationOptions& options, Eval
       }
       ++g.samples[last_pos];
     }
+    g.keys.shrink_to_fit();  // held for the evaluator's life: not the doubling's spare room
+    g.samples.shrink_to_fit();
     grids_.push_back(std::move(g));
   }
   base_.timings_s.emplace_back("prepare_gt", seconds_since(t0));
@@ -470,6 +479,9 @@ std::uint32_t CoverageTracker::cell_of(std::size_t k, std::uint64_t key) {
   const auto id = static_cast<std::uint32_t>(c.key.size());
   const auto ins = c.index.insert(key, id);
   if (ins.second) {
+    reserve_for(c.key, c.key.size() + 1);
+    reserve_for(c.n, c.key.size());
+    reserve_for(c.gt, c.key.size());
     c.key.push_back(key);
     c.n.push_back(0);
     c.gt.push_back(ev_.grids_[k].index.find(key));
@@ -591,12 +603,14 @@ EvaluationResult CoverageTracker::update(const std::vector<const SurfaceCloud*>&
       seen.cell.resize(nr);
     }
     before[c] = seen.count.size();
+    reserve_for(seen.count, cloud.size());
     seen.count.assign(cloud.voxel_counts().begin(), cloud.voxel_counts().end());
   }
   parallel_chunks(nr, 1, [&](std::size_t kb, std::size_t ke) {
     for (std::size_t k = kb; k < ke; ++k)
       for (std::size_t c = 0; c < clouds.size(); ++c) {
         HugeVector<std::uint32_t>& cell = clouds_[c].cell[k];
+        reserve_for(cell, clouds[c]->size());
         cell.resize(clouds[c]->size());
         for (const Block& blk : changes[c])
           for (std::size_t j = 0; j < blk.point.size(); ++j) {
