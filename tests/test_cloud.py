@@ -252,6 +252,31 @@ def test_empty_files(tmp_path, name, ascii):
     assert back.shape == (0, 3) and back.dtype == np.float64
 
 
+@pytest.mark.parametrize("name", ["s.ply", "s.pcd", "s.npy"])
+@pytest.mark.parametrize("ascii", [False, True])
+def test_a_list_of_clouds_is_written_a_part_at_a_time_as_its_stacked_points(
+    tmp_path, monkeypatch, name, ascii
+):
+    import nbvkit.cloud
+
+    monkeypatch.setattr(nbvkit.cloud, "_WRITE_PART", 7)  # parts across the clouds' boundary
+    camera = PointCloud(sample_points(40), voxel_size=0.02, min_z=NO_GROUND)
+    laser = PointCloud(sample_points(25, seed=1) + 3.0, voxel_size=0.1, min_z=NO_GROUND)
+    stacked = np.vstack([camera.points, laser.points])
+    write_points(tmp_path / name, [camera, laser], ascii=ascii, dtype=np.float64)
+    write_points(tmp_path / ("ref" + name[1:]), stacked, ascii=ascii, dtype=np.float64)
+    assert (tmp_path / name).read_bytes() == (tmp_path / ("ref" + name[1:])).read_bytes()
+    np.testing.assert_array_equal(read_points(tmp_path / name), stacked)
+    # numpy's own reader for .npy
+    if name.endswith(".npy"):
+        np.testing.assert_array_equal(np.load(tmp_path / name), stacked)
+    assert np.array_equal(
+        nbvkit._core.stack_points([camera, laser], 30, 50), stacked[30:50]
+    ) and nbvkit._core.stack_points([camera, laser], 60, 1000).shape == (len(stacked) - 60, 3)
+    with pytest.raises(ValueError, match="start and stop"):
+        nbvkit._core.stack_points([camera], -1)
+
+
 def test_open3d_reads_our_files(tmp_path):
     o3d = pytest.importorskip("open3d")
     pts = sample_points()

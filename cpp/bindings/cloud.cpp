@@ -64,14 +64,20 @@ cloud), min_z 0.3 m.)doc")
 
   m.def(
       "stack_points",
-      [](const std::vector<const SurfaceCloud*>& clouds) {
+      [](const std::vector<const SurfaceCloud*>& clouds, std::int64_t start,
+         const std::optional<std::int64_t>& stop) {
         check_clouds(clouds);
+        if (start < 0 || (stop && *stop < 0))
+          throw py::value_error("stack_points: start and stop must be >= 0");
         py::gil_scoped_release release;
-        return stack_points(clouds);
+        return stack_points(clouds, std::size_t(start),
+                            stop ? std::size_t(*stop) : std::numeric_limits<std::size_t>::max());
       },
-      py::arg("clouds"),
+      py::arg("clouds"), py::arg("start") = 0, py::arg("stop") = py::none(),
       "(N, 3) float64: the clouds' points one cloud after the other, in one array (the same as "
-      "numpy.vstack of their points, without a copy per cloud).");
+      "numpy.vstack of their points, without a copy per cloud). start, stop: only rows "
+      "[start, stop) of that stack (clamped to it), e.g. to write a large cloud a part at a "
+      "time.");
   m.def(
       "voxelgrid_sampling",
       [](const py::handle& points, double voxel_size) {

@@ -139,13 +139,20 @@ std::uint32_t VoxelCentroids::voxel_of(std::uint64_t key) {
   return r.first;
 }
 
-Points stack_points(const std::vector<const SurfaceCloud*>& clouds) {
+Points stack_points(const std::vector<const SurfaceCloud*>& clouds, std::size_t start,
+                    std::size_t stop) {
   std::size_t n = 0;
   for (const SurfaceCloud* c : clouds) n += c->size();
-  Points out(static_cast<Eigen::Index>(n), 3);
+  stop = std::min(stop, n);
+  start = std::min(start, stop);
+  Points out(static_cast<Eigen::Index>(stop - start), 3);
   Eigen::Index row = 0;
-  for (const SurfaceCloud* c : clouds)
-    for (std::size_t i = 0; i < c->size(); ++i) out.row(row++) = c->point(i).transpose();
+  std::size_t first = 0;  // the stacked row of the cloud's first point
+  for (const SurfaceCloud* c : clouds) {
+    const std::size_t b = std::max(start, first), e = std::min(stop, first + c->size());
+    for (std::size_t i = b; i < e; ++i) out.row(row++) = c->point(i - first).transpose();
+    first += c->size();
+  }
   return out;
 }
 

@@ -43,7 +43,7 @@ import numpy as np
 
 from . import _core
 from ._core import Mesh
-from .cloud import _as_points
+from .cloud import _as_points, _is_cloud_list
 from .settings import nonneg, positive
 
 __all__ = [
@@ -86,13 +86,6 @@ class EvaluationConfig:
 
     gt_density: Optional[float] = positive(None)  # points per m^2; None: nbvkit.evaluate's default
     coverage_every: int = nonneg(25)  # iterations between coverage refreshes in the progress/CSV
-
-
-def _is_cloud_list(cloud) -> bool:
-    """Whether `cloud` is a list (or tuple) of SurfaceClouds, read in place by the evaluator."""
-    return isinstance(cloud, (list, tuple)) and all(
-        isinstance(c, _core.SurfaceCloud) for c in cloud
-    )
 
 
 def _key(v: float) -> str:

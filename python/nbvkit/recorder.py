@@ -212,7 +212,7 @@ class Recorder:
             w = csv.writer(f)
             w.writerow(FLIGHT_COLUMNS)
             w.writerows(m.world.state.flight)
-        write_points(out / "cloud.ply", m.world.cloud_points())
+        write_points(out / "cloud.ply", m.world.clouds)  # streamed: no stacked copy
         m.world.map.save(str(out / "map.ot"))
         plot_mission(m, out / "figures")
         if finish:

@@ -235,8 +235,10 @@ class SurfaceCloud {
 };
 
 /// (sum of sizes, 3): the clouds' points one cloud after the other (each in voxel creation
-/// order), in one array: the same as stacking their points(), without a copy per cloud.
-Points stack_points(const std::vector<const SurfaceCloud*>& clouds);
+/// order), in one array: the same as stacking their points(), without a copy per cloud. With
+/// [start, stop), only those rows of the stack (clamped to it): a large cloud a part at a time.
+Points stack_points(const std::vector<const SurfaceCloud*>& clouds, std::size_t start = 0,
+                    std::size_t stop = std::numeric_limits<std::size_t>::max());
 
 // ---------------------------------------------------------------------------- file helpers
 
