@@ -280,15 +280,15 @@ class CoverageTour:
             return coverage, {}
         order = np.argsort(cells, kind="stable")
         cells, patch = cells[order], owner[failed][order]
-        off, el, wt = (np.asarray(coverage[k]) for k in ("offsets", "elements", "weights"))
-        view = np.repeat(np.arange(len(off) - 1), np.diff(off))
-        hit = np.flatnonzero(np.isin(el // 2, cells))
-        lo = np.searchsorted(cells, el[hit] // 2, "left")
-        hi = np.searchsorted(cells, el[hit] // 2, "right")
+        off, el = (np.asarray(coverage[k]) for k in ("offsets", "elements"))
+        hit = np.flatnonzero(np.isin(el // 2, cells))  # elements in those cells (either side)
+        at = el[hit] // 2
+        lo, hi = np.searchsorted(cells, at, "left"), np.searchsorted(cells, at, "right")
         n = hi - lo
         rows = np.repeat(np.arange(len(hit)), n)
         idx = np.repeat(lo - np.cumsum(n) + n, n) + np.arange(n.sum())
-        pairs = np.unique(np.column_stack([view[hit][rows], patch[idx], cells[idx]]), axis=0)
+        view = np.searchsorted(off, hit, "right") - 1  # the view holding each hit element
+        pairs = np.unique(np.column_stack([view[rows], patch[idx], cells[idx]]), axis=0)
         if len(pairs) == 0:
             return coverage, {}
         opens: dict = {}
