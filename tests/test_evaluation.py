@@ -617,3 +617,23 @@ def test_cell_figures_of_a_cloud_of_millions_match_their_definitions():
         assert figures["coverage"][key] == pytest.approx(cov, abs=1e-12)
         assert figures["area_coverage"][key] == pytest.approx(area, abs=1e-12)
         assert figures["precision"][key] == pytest.approx(prec, abs=1e-12)
+
+
+def test_the_ground_truth_is_the_same_before_and_after_its_tree_is_built():
+    """The evaluator holds its samples as points until a score needs distances, then as a
+    kd-tree: the points, the cell figures and the observable figures do not change."""
+    rng = np.random.default_rng(5)
+    gt = rng.uniform(-2, 2, size=(2000, 3))
+    cloud = gt[:700] + rng.normal(scale=0.02, size=(700, 3))
+    mask = gt[:, 0] < 0.5
+    ev = Evaluator(gt)
+    ev.set_observable(mask)
+    before = ev.coverage(cloud)
+    np.testing.assert_array_equal(ev.gt_points, gt)
+    full = ev(cloud)  # builds the tree
+    np.testing.assert_array_equal(ev.gt_points, gt)
+    assert ev.coverage(cloud) == before
+    ev.set_observable(mask)  # the cells of the observable samples, now read from the tree
+    assert ev.coverage(cloud) == before
+    assert {k: full[k] for k in before} == before
+    np.testing.assert_allclose(ev._core.nearest_to_gt(gt[:5]), 0.0, atol=0)

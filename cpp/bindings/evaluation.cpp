@@ -138,7 +138,9 @@ void init_evaluation(py::module_& m) {
           "(Q,) exact distance from each query to its nearest ground-truth point: "
           "nearest_distances(gt_points, queries) without building the ground truth's tree again.")
       .def_property_readonly("has_observable", &Evaluator::has_observable)
-      .def_property_readonly("gt_points", &Evaluator::gt_points)
+      .def_property_readonly(
+          "gt_points", [](const Evaluator& e) { return e.gt_points(); },
+          "(M, 3) the ground-truth samples (a copy)")
       .def_property_readonly("num_gt_points", &Evaluator::num_gt_points)
       .def_property_readonly("gt_info", [](const Evaluator& e) { return e.gt_info(); });
 

@@ -73,14 +73,8 @@ std::vector<std::uint64_t> cell_keys(std::size_t n, const PointAt& point_at, dou
   return keys;
 }
 
-// Cell keys of a tree's points in tree order; throws naming `what` if one is too far from the
-// origin for the grid.
-std::vector<std::uint64_t> tree_cell_keys(const KdTree& tree, double r, const char* what) {
-  return cell_keys(
-      tree.size(), [&](std::size_t k) { return tree.point_at(k); }, r, what);
-}
-
-// Cell keys of a cloud's points in input order; throws like tree_cell_keys.
+// Cell keys of points in input order; throws naming `what` if one is too far from the origin
+// for the grid.
 std::vector<std::uint64_t> point_cell_keys(const PointsRef& pts, double r, const char* what) {
   return cell_keys(
       std::size_t(pts.rows()),
@@ -149,17 +143,17 @@ Evaluator::Evaluator(const PointsRef& gt_points, const EvaluationOptions& option
     : Evaluator(checked_gt(gt_points, options), options, EvaluationResult{}) {}
 
 Evaluator::Evaluator(const PointsRef& gt, const EvaluationOptions& options, EvaluationResult base)
-    : opt_(options), base_(std::move(base)), tree_(gt) {
+    : opt_(options), base_(std::move(base)), n_gt_(std::size_t(gt.rows())), gt_(gt) {
   const auto t0 = std::chrono::steady_clock::now();
-  base_.n_gt_points = static_cast<std::int64_t>(tree_.size());
+  base_.n_gt_points = static_cast<std::int64_t>(n_gt_);
   for (double r : opt_.resolutions) {
     Grid g;
     g.r = r;
-    const std::vector<std::uint64_t> keys = tree_cell_keys(tree_, r, "ground truth");
+    const std::vector<std::uint64_t> keys = gt_cell_keys(r);
     g.index.reserve(keys.size() / 8);
     std::uint64_t last = kEmptyVoxelKey;
     std::uint32_t last_pos = 0;
-    for (std::uint64_t k : keys) {  // tree order: runs of equal keys are common
+    for (std::uint64_t k : keys) {  // sampling order: runs of equal keys are common
       if (k != last) {
         const auto ins = g.index.insert(k, static_cast<std::uint32_t>(g.keys.size()));
         if (ins.second) {
@@ -287,8 +281,32 @@ void Evaluator::set_cell_figures(std::size_t k, const CellTally& t, EvaluationRe
   res.cloud_cells[k] = t.cloud_cells;
   res.covered_cells[k] = t.covered;
   res.coverage[k] = ratio(t.covered, res.gt_cells[k]);
-  res.area_coverage[k] = ratio(t.covered_samples, static_cast<std::int64_t>(tree_.size()));
+  res.area_coverage[k] = ratio(t.covered_samples, static_cast<std::int64_t>(n_gt_));
   res.precision[k] = ratio(t.in_gt, t.cloud_cells);
+}
+
+const KdTree& Evaluator::gt_tree() const {
+  std::lock_guard<std::mutex> lock(tree_mutex_);
+  if (!tree_) {
+    tree_ = std::make_unique<KdTree>(gt_);
+    gt_ = Points();  // the tree holds them
+  }
+  return *tree_;
+}
+
+Points Evaluator::gt_points() const {
+  std::lock_guard<std::mutex> lock(tree_mutex_);
+  return tree_ ? tree_->points() : gt_;
+}
+
+Eigen::Vector3d Evaluator::gt_point(std::size_t k) const {
+  if (tree_) return tree_->point(Eigen::Index(k));
+  return gt_.row(Eigen::Index(k)).transpose();
+}
+
+std::vector<std::uint64_t> Evaluator::gt_cell_keys(double r) const {
+  return cell_keys(
+      n_gt_, [this](std::size_t k) { return gt_point(k); }, r, "ground truth");
 }
 
 void Evaluator::set_observable(const std::vector<std::uint8_t>& mask) {
@@ -302,18 +320,18 @@ void Evaluator::set_observable(const std::vector<std::uint8_t>& mask) {
     }
     return;
   }
-  if (mask.size() != tree_.size())
+  if (mask.size() != num_gt_points())
     throw std::invalid_argument("observable mask has " + std::to_string(mask.size()) +
-                                " entries for " + std::to_string(tree_.size()) +
+                                " entries for " + std::to_string(num_gt_points()) +
                                 " ground-truth samples");
   observable_.assign(mask.begin(), mask.end());
   n_observable_ = 0;
   for (std::uint8_t v : observable_) n_observable_ += v != 0;
   for (Grid& g : grids_) {
-    const std::vector<std::uint64_t> keys = tree_cell_keys(tree_, g.r, "ground truth");
+    const std::vector<std::uint64_t> keys = gt_cell_keys(g.r);
     g.observable_samples.assign(g.keys.size(), 0);
     for (std::size_t k = 0; k < keys.size(); ++k)
-      if (observable_[tree_.id_at(k)]) ++g.observable_samples[g.index.find(keys[k])];
+      if (observable_[k]) ++g.observable_samples[g.index.find(keys[k])];
     g.observable_cells = 0;
     for (std::int64_t c : g.observable_samples) g.observable_cells += c > 0;
   }
@@ -376,7 +394,7 @@ EvaluationResult Evaluator::score(std::size_t n,
   using clock = std::chrono::steady_clock;
   EvaluationResult res = empty_result(static_cast<std::int64_t>(n));
   const std::size_t nt = opt_.taus.size();
-  const auto n_gt = static_cast<std::int64_t>(tree_.size());
+  const auto n_gt = static_cast<std::int64_t>(n_gt_);
 
   auto t0 = clock::now();
   for (std::size_t k = 0; k < opt_.resolutions.size(); ++k) {
@@ -403,14 +421,15 @@ EvaluationResult Evaluator::score(std::size_t n,
   const auto part_size = static_cast<std::size_t>(opt_.part_points);
   double kdtree_s = 0, nearest_s = 0;
   Sums cloud_to_gt, gt_to_cloud;
-  std::vector<double> best2(n ? tree_.size() : 0, std::numeric_limits<double>::infinity());
+  const KdTree* gt = n ? &gt_tree() : nullptr;
+  std::vector<double> best2(n ? gt->size() : 0, std::numeric_limits<double>::infinity());
   for (std::size_t b = 0; b < n; b += part_size) {
     t0 = clock::now();
     const KdTree part(std::min(part_size, n - b), [&](std::size_t i) { return point(b + i); });
     kdtree_s += seconds_since(t0);
     t0 = clock::now();
-    cloud_to_gt.add(tree_nearest(tree_, part), opt_.taus);  // each part in its tree order
-    tree_nearest_lower(part, tree_, best2);                 // GT samples in GT tree order
+    cloud_to_gt.add(tree_nearest(*gt, part), opt_.taus);  // each part in its tree order
+    tree_nearest_lower(part, *gt, best2);                 // GT samples in GT tree order
     nearest_s += seconds_since(t0);
   }
   res.timings_s.emplace_back("cloud_kdtree", kdtree_s);

@@ -11,6 +11,8 @@
 
 #include <cstdint>
 #include <functional>
+#include <memory>
+#include <mutex>
 #include <string>
 #include <utility>
 #include <vector>
@@ -74,8 +76,11 @@ struct EvaluationResult {
   std::vector<std::pair<std::string, double>> timings_s;  ///< wall time of each phase, seconds
 };
 
-/// Ground truth prepared once (samples, their kd-tree, their cells at every resolution) to score
-/// any number of clouds against it, e.g. every few iterations of a mission.
+/// Ground truth prepared once (samples, their cells at every resolution, and their kd-tree, built
+/// by the first call that needs distances, which then holds the samples) to score any number of
+/// clouds against it, e.g. every few iterations of a mission: the progress refreshes need the
+/// cells alone, so a mission holds 8 M samples as points (0.2 GB) and not as a tree (0.4 GB)
+/// until its final results.
 class Evaluator {
  public:
   /// Samples the mesh uniformly at options.gt_density points per m^2:
@@ -91,8 +96,8 @@ class Evaluator {
   /// cloud gives zero fractions and no Chamfer distance. Const and thread-safe.
   EvaluationResult evaluate(const PointsRef& cloud) const;
   /// evaluate() of the clouds' points one cloud after the other (stack_points), the same
-  /// result, holding no stacked copy while it scores: the kd-tree is built from a temporary
-  /// freed before the cells and distances (a 19 M-point cloud: 460 MB less at the peak).
+  /// result, read in place: no stacked copy, and a kd-tree over one part of them at a time
+  /// (EvaluationOptions::part_points).
   EvaluationResult evaluate(const std::vector<const SurfaceCloud*>& clouds) const;
   /// The cell counts of evaluate() alone (coverage, area coverage, precision and their cells),
   /// without the kd-tree and distances: the same figures at a fraction of the cost, e.g. for a
@@ -112,11 +117,12 @@ class Evaluator {
   std::uint64_t observable_version() const { return observable_version_; }
 
   const EvaluationOptions& options() const { return opt_; }
-  std::size_t num_gt_points() const { return tree_.size(); }
-  /// The ground-truth points (samples in sampling order, or the reference cloud).
-  Points gt_points() const { return tree_.points(); }
-  /// The ground truth's kd-tree (e.g. for nearest_distances to it).
-  const KdTree& gt_tree() const { return tree_; }
+  std::size_t num_gt_points() const { return n_gt_; }
+  /// The ground-truth points (samples in sampling order, or the reference cloud): a copy.
+  Points gt_points() const;
+  /// The ground truth's kd-tree (e.g. for nearest_distances to it), built on first use
+  /// (thread-safe) and kept.
+  const KdTree& gt_tree() const;
   /// Description of the ground truth as it appears in every result (density, area, warnings).
   const EvaluationResult& gt_info() const { return base_; }
 
@@ -156,7 +162,14 @@ class Evaluator {
   std::uint64_t observable_version_ = 0;
   EvaluationOptions opt_;
   EvaluationResult base_;
-  KdTree tree_;
+  /// The ground truth's point k: from gt_, or from the tree once it is built.
+  Eigen::Vector3d gt_point(std::size_t k) const;
+  /// Cell keys of the ground truth's points, in order; throws if one is too far from the origin.
+  std::vector<std::uint64_t> gt_cell_keys(double r) const;
+  std::size_t n_gt_ = 0;
+  mutable Points gt_;  ///< the samples until the tree is built (then empty)
+  mutable std::mutex tree_mutex_;
+  mutable std::unique_ptr<KdTree> tree_;  ///< of the samples, made by gt_tree()
   std::vector<Grid> grids_;
 };
 
