@@ -865,6 +865,39 @@ def test_append_elements_keeps_each_views_set_in_order():
         _append_elements(cov32, np.array([1]), np.array([2**31]), [1.0])
 
 
+def test_append_elements_and_elements_in_cells_equal_a_plain_construction(monkeypatch):
+    import nbvkit.planning.generators.tour as tour
+
+    monkeypatch.setattr(tour, "_CHUNK", 37)  # several chunks
+    rng = np.random.default_rng(11)
+    for _ in range(20):
+        sizes = rng.integers(0, 9, size=rng.integers(1, 30))
+        sets = [np.sort(rng.choice(200, size=k, replace=False)) for k in sizes]
+        cov = {
+            "offsets": np.concatenate([[0], np.cumsum(sizes)]),
+            "elements": np.concatenate(sets).astype(np.int32),
+            "weights": rng.random(sizes.sum()).astype(np.float32),
+        }
+        cells = np.unique(rng.integers(0, 120, size=rng.integers(0, 40)))
+        hit = tour._elements_in_cells(cov["elements"], cells)
+        np.testing.assert_array_equal(hit, np.flatnonzero(np.isin(cov["elements"] // 2, cells)))
+        views = np.sort(rng.integers(0, len(sizes), size=rng.integers(0, 12)))
+        extra = 200 + np.arange(len(views))
+        w = rng.random(len(views))
+        out = tour._append_elements(cov, views, extra, w)
+        want_el, want_w = [], []  # each view's set, then its extras in the order given
+        for v, s in enumerate(sets):
+            o = cov["offsets"][v]
+            want_el += [*s, *extra[views == v]]
+            want_w += [*cov["weights"][o : o + len(s)], *w[views == v].astype(np.float32)]
+        assert out["elements"].tolist() == want_el and out["elements"].dtype == np.int32
+        assert out["weights"].tolist() == want_w
+        assert out["offsets"].tolist() == [
+            0,
+            *np.cumsum(sizes + np.bincount(views, minlength=len(sizes))),
+        ]
+
+
 def test_the_vehicle_can_plan_its_way_back_along_its_own_flight():
     # Nothing sensed: the only known free space is the volume the vehicle swept (and the
     # take-off's, not made here). A* tests the collision sphere at cell centres, and a path off
