@@ -84,12 +84,13 @@ std::vector<std::uint64_t> point_cell_keys(const PointsRef& pts, double r, const
       what);
 }
 
-// The points of a cloud of n points (point(i)) in slabs along the axis of its bounding box's
-// longest side, each of at most `most` points unless one of 4096 equal bins along the axis holds
-// more; each slab's points in ascending order. Deterministic: bins from the same arithmetic in
-// every pass.
-std::vector<std::vector<std::uint32_t>> cloud_slabs(
-    std::size_t n, const std::function<Eigen::Vector3d(std::size_t)>& point, std::size_t most) {
+// The slab of each point of a cloud of n points (point(i)) along the axis of its bounding box's
+// longest side, each slab of at most `most` points unless one of 4096 equal bins along the axis
+// holds more (at most 256 slabs; each holds a point). Deterministic: bins
+// from the same arithmetic in every pass.
+std::vector<std::uint8_t> cloud_slabs(std::size_t n,
+                                      const std::function<Eigen::Vector3d(std::size_t)>& point,
+                                      std::size_t most) {
   constexpr std::size_t kBins = 4096;
   Eigen::Vector3d lo = Eigen::Vector3d::Constant(std::numeric_limits<double>::infinity());
   Eigen::Vector3d hi = -lo;
@@ -122,7 +123,7 @@ std::vector<std::vector<std::uint32_t>> cloud_slabs(
     });
     std::size_t slab = 0, in_slab = 0;
     for (std::size_t k = 0; k < kBins; ++k) {
-      if (in_slab > 0 && in_slab + count[k] > most && slab < 255) {
+      if (in_slab > 0 && count[k] > 0 && in_slab + count[k] > most && slab < 255) {
         ++slab;
         in_slab = 0;
       }
@@ -130,9 +131,11 @@ std::vector<std::vector<std::uint32_t>> cloud_slabs(
       in_slab += count[k];
     }
   }
-  std::vector<std::vector<std::uint32_t>> slabs(std::size_t(slab_of_bin.back()) + 1);
-  for (std::size_t i = 0; i < n; ++i) slabs[slab_of_bin[bin(i)]].push_back(std::uint32_t(i));
-  return slabs;
+  std::vector<std::uint8_t> slab(n);
+  parallel_chunks(n, 1 << 16, [&](std::size_t b, std::size_t e) {
+    for (std::size_t i = b; i < e; ++i) slab[i] = slab_of_bin[bin(i)];
+  });
+  return slab;
 }
 
 double ratio(std::int64_t a, std::int64_t b) { return b > 0 ? static_cast<double>(a) / b : 0.0; }
@@ -479,9 +482,12 @@ EvaluationResult Evaluator::score(std::size_t n,
   // the parts: the whole cloud, or slabs of it along its longest axis (a sample far from a slab
   // is not searched there), each after an upper bound from every 32nd point (a subset: no nearer
   // than the cloud's nearest), so that a sample whose slab comes late has a near bound at once
-  const std::vector<std::vector<std::uint32_t>> slabs =
-      n > part_size ? cloud_slabs(n, point, part_size) : std::vector<std::vector<std::uint32_t>>{};
-  if (!slabs.empty()) {
+  const std::vector<std::uint8_t> slab_of =
+      n > part_size ? cloud_slabs(n, point, part_size) : std::vector<std::uint8_t>{};
+  const std::size_t parts =
+      slab_of.empty() ? (n ? 1 : 0)
+                      : std::size_t(*std::max_element(slab_of.begin(), slab_of.end())) + 1;
+  if (parts > 1) {
     t0 = clock::now();
     const KdTree every((n + 31) / 32, [&](std::size_t i) { return point(i * 32); });
     kdtree_s += seconds_since(t0);
@@ -489,11 +495,14 @@ EvaluationResult Evaluator::score(std::size_t n,
     tree_nearest_lower(every, *gt, best2);
     nearest_s += seconds_since(t0);
   }
-  for (std::size_t s = 0; s < std::max<std::size_t>(slabs.size(), n ? 1 : 0); ++s) {
+  for (std::size_t s = 0; s < parts; ++s) {
     t0 = clock::now();
-    const KdTree part =
-        slabs.empty() ? KdTree(n, point)
-                      : KdTree(slabs[s].size(), [&](std::size_t i) { return point(slabs[s][i]); });
+    std::vector<std::uint32_t> in;  // the slab's points
+    for (std::size_t i = 0; i < slab_of.size(); ++i)
+      if (slab_of[i] == s) in.push_back(std::uint32_t(i));
+    const KdTree part = slab_of.empty()
+                            ? KdTree(n, point)
+                            : KdTree(in.size(), [&](std::size_t i) { return point(in[i]); });
     kdtree_s += seconds_since(t0);
     t0 = clock::now();
     cloud_to_gt.add(tree_nearest(*gt, part), opt_.taus);  // each part in its tree order
