@@ -74,6 +74,16 @@ def checkouts(against: str | None) -> list:
     return runs
 
 
+def run_each(snippet: str, args, against: str | None, row) -> list:
+    """Runs `snippet` (run_snippet) once in this checkout and, with `against`, once in that one,
+    each in a process of its own; prints row(label, result) after each. Returns the results."""
+    results = []
+    for label, package in checkouts(against):
+        results.append(run_snippet(snippet, args, package))
+        print(row(label, results[-1]), flush=True)
+    return results
+
+
 def alternate(snippet: str, args, against: str, rounds: int, key: str = "time"):
     """Runs `snippet` (run_snippet) in this checkout and in `against`'s, alternating, `rounds`
     times each: ([(label, the least `key` over its runs)] for both, whether every run printed the

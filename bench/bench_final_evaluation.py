@@ -11,16 +11,14 @@ DIR is another checkout (DIR/python) or a saved copy of a built package (its fol
 """
 from __future__ import annotations
 
-import argparse
 import sys
 import tempfile
 from pathlib import Path
 
-import numpy as np
-from _timing import checkouts, run_snippet
+from _timing import run_each
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from large_structures import STRUCTURES  # noqa: E402
+from large_structures import structure_parser, write_structure  # noqa: E402
 
 SNIPPET = r"""
 import json, resource, sys, time, warnings
@@ -54,30 +52,24 @@ print(json.dumps({"s": end - t, "with_gt_s": end - t0, "held_mb": held,
 
 
 def main() -> None:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--structure", default="plant", choices=list(STRUCTURES))
-    ap.add_argument("--seed", type=int, default=2)
+    ap = structure_parser(__doc__, seed=2)
     ap.add_argument("--points", type=float, default=60e6, help="points sampled (default 60e6)")
-    ap.add_argument("--against", help="another checkout (or a saved package) to compare with")
     a = ap.parse_args()
     with tempfile.TemporaryDirectory() as tmp:
-        path = Path(tmp) / "mesh.obj"
-        STRUCTURES[a.structure](np.random.default_rng(a.seed)).write(path)
+        path = write_structure(a.structure, a.seed, tmp)
         print(f"{a.structure} seed {a.seed}, {a.points:.3g} points sampled over 55 % of it")
         print(
             "| code | cloud | evaluation | with the ground truth | held before | peak | chamfer |"
         )
         print("|---|---|---|---|---|---|---|")
-        rows = []
-        for label, package in checkouts(a.against):
-            r = run_snippet(SNIPPET, [path, a.points], package)
-            rows.append(r)
-            print(
-                f"| {label} | {r['points']:,} points | {r['s']:.1f} s | {r['with_gt_s']:.1f} s | "
-                f"{r['held_mb'] / 1024:.2f} GB | {r['peak_mb'] / 1024:.2f} GB | "
-                f"{r['chamfer_m']!r} m |",
-                flush=True,
-            )
+        rows = run_each(
+            SNIPPET,
+            [path, a.points],
+            a.against,
+            lambda label, r: f"| {label} | {r['points']:,} points | {r['s']:.1f} s | "
+            f"{r['with_gt_s']:.1f} s | {r['held_mb'] / 1024:.2f} GB | "
+            f"{r['peak_mb'] / 1024:.2f} GB | {r['chamfer_m']!r} m |",
+        )
     if len(rows) == 2:
         now, then = rows
         print(

@@ -11,16 +11,14 @@ DIR is another checkout (DIR/python) or a saved copy of a built package (its fol
 """
 from __future__ import annotations
 
-import argparse
 import sys
 import tempfile
 from pathlib import Path
 
-import numpy as np
-from _timing import checkouts, run_snippet
+from _timing import run_each
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from large_structures import STRUCTURES  # noqa: E402
+from large_structures import structure_parser, write_structure  # noqa: E402
 
 FLY_SNIPPET = r"""
 import json, resource, sys, tempfile, time
@@ -42,32 +40,26 @@ print(json.dumps({
 
 
 def main() -> None:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--structure", default="plant", choices=list(STRUCTURES))
-    ap.add_argument("--seed", type=int, default=1)
+    ap = structure_parser(__doc__, seed=1)
     ap.add_argument("--views", type=int, default=300, help="the view cap (default 300)")
-    ap.add_argument("--against", help="another checkout (or a saved package) to compare with")
     ap.add_argument("--set", nargs="*", default=[], help="config overrides for both runs")
     a = ap.parse_args()
     with tempfile.TemporaryDirectory() as tmp:
-        path = Path(tmp) / "mesh.obj"
-        STRUCTURES[a.structure](np.random.default_rng(a.seed)).write(path)
+        path = write_structure(a.structure, a.seed, tmp)
         print(f"{a.structure} seed {a.seed}, {a.views} views at most, results folder written")
         print(
             "| code | peak (end of run) | peak (mission) | area cov. @0.05 m | flown | cloud "
             "| wall |"
         )
         print("|---|---|---|---|---|---|---|")
-        rows = []
-        for label, package in checkouts(a.against):
-            r = run_snippet(FLY_SNIPPET, [path, a.views, *a.set], package)
-            rows.append(r)
-            print(
-                f"| {label} | {r['peak_mb'] / 1024:.2f} GB | {r['mission_peak_mb'] / 1024:.2f} GB "
-                f"| {100 * r['coverage']:.2f} % | {r['distance']:,.0f} m | "
-                f"{r['cloud_points']:,} points | {r['wall_s']:.0f} s |",
-                flush=True,
-            )
+        rows = run_each(
+            FLY_SNIPPET,
+            [path, a.views, *a.set],
+            a.against,
+            lambda label, r: f"| {label} | {r['peak_mb'] / 1024:.2f} GB | "
+            f"{r['mission_peak_mb'] / 1024:.2f} GB | {100 * r['coverage']:.2f} % | "
+            f"{r['distance']:,.0f} m | {r['cloud_points']:,} points | {r['wall_s']:.0f} s |",
+        )
     if len(rows) == 2:
         now, then = rows
         same = all(now[k] == then[k] for k in ("coverage", "distance", "views", "cloud_points"))

@@ -95,6 +95,23 @@ def bridge(rng: np.random.Generator) -> Builder:
 STRUCTURES = {"plant": plant, "bridge": bridge}
 
 
+def structure_parser(doc: str, seed: int) -> argparse.ArgumentParser:
+    """A parser described by the first line of `doc` with --structure (default plant), --seed
+    (default `seed`) and --against (another checkout, or a saved package, to compare with)."""
+    ap = argparse.ArgumentParser(description=doc.splitlines()[0])
+    ap.add_argument("--structure", default="plant", choices=list(STRUCTURES))
+    ap.add_argument("--seed", type=int, default=seed)
+    ap.add_argument("--against", help="another checkout (or a saved package) to compare with")
+    return ap
+
+
+def write_structure(name: str, seed: int, folder) -> Path:
+    """The structure `name` of layout `seed`, written to folder/mesh.obj (returned)."""
+    path = Path(folder) / "mesh.obj"
+    STRUCTURES[name](np.random.default_rng(seed)).write(path)
+    return path
+
+
 def main():
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("out", type=Path, help="folder to write NAME_sSEED.obj into")
