@@ -204,20 +204,6 @@ std::vector<std::uint32_t> KdTree::order() const {
   return out;
 }
 
-std::vector<double> tree_nearest(const KdTree& targets, const KdTree& queries) {
-  std::vector<double> out(queries.size(), kInf);
-  if (targets.size() == 0) return out;
-  parallel_chunks(queries.size(), 2048, [&](std::size_t b, std::size_t e) {
-    Eigen::Index hint = -1;
-    for (std::size_t k = b; k < e; ++k) {
-      const auto r = targets.nearest(queries.point_at(k), hint);
-      hint = r.first;
-      out[k] = std::sqrt(r.second);
-    }
-  });
-  return out;
-}
-
 void tree_nearest_lower(const KdTree& targets, const KdTree& queries, std::vector<double>& best2) {
   if (best2.size() != queries.size())
     throw std::invalid_argument("tree_nearest_lower: one distance per query");
@@ -231,6 +217,13 @@ void tree_nearest_lower(const KdTree& targets, const KdTree& queries, std::vecto
       best2[k] = r.second;
     }
   });
+}
+
+std::vector<double> tree_nearest(const KdTree& targets, const KdTree& queries) {
+  std::vector<double> out(queries.size(), kInf);  // squared, then the distances
+  tree_nearest_lower(targets, queries, out);
+  for (double& d : out) d = std::sqrt(d);
+  return out;
 }
 
 Eigen::VectorXd nearest_distances(const PointsRef& targets, const PointsRef& queries) {

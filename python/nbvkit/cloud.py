@@ -196,6 +196,8 @@ _WRITE_PART = 1 << 20
 
 
 def _is_cloud_list(points) -> bool:
+    """Whether `points` is a list (or tuple) of SurfaceClouds, read in place (by write_points and
+    the evaluator) rather than as one array."""
     return isinstance(points, (list, tuple)) and all(
         isinstance(c, _core.SurfaceCloud) for c in points
     )
