@@ -70,3 +70,29 @@ def test_a_mission_that_saw_nothing_says_so_rather_than_coverage_complete():
         summary = mission.run()
     assert summary["termination"] == "nothing_seen"
     assert summary["cloud_points"] == 0
+
+
+def test_the_map_holds_cells_for_the_bricks_its_rays_reached_not_the_workspace():
+    # the same 154 m scene: the map's grid gives cells only to the bricks its sensors reached
+    mesh = _two_boxes(150.0)
+    cfg = load_config(overrides=[*QUICK_MISSION, "max_iterations=6", "profiling.enabled=false"])
+    mission = Mission(cfg, mesh=mesh)
+    mission.run()
+    m = mission.world.map
+    allocated, total = m.grid_bricks
+    flags = np.asarray(m.flag_grid())
+    pad = [(0, -s % 4) for s in flags.shape]
+    known = np.pad(flags != 0, pad).reshape(
+        *(x for s in flags.shape for x in (math.ceil(s / 4), 4))
+    )
+    known_bricks = int(known.any(axis=(1, 3, 5)).sum())
+    assert total == known.size // 64
+    # every brick holding a known cell has cells of its own, and (no cell was made unknown
+    # again) no other brick has
+    assert 0 < allocated == known_bricks < total / 20
+    # 9 bytes a cell of an allocated brick and of the shared unknown one (log-odds, entropy,
+    # flag), and 11 a brick of tables
+    assert m.grid_memory_bytes == (allocated + 1) * 64 * 9 + total * 11
+    assert m.grid_memory_bytes < flags.size * 9 / 10  # a tenth of the dense grid's
+    # the map answers as before: the entropy summed cell by cell equals the kept total
+    assert m.total_entropy() == m.recompute_total_entropy()

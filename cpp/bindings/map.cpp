@@ -176,7 +176,8 @@ entropy rule); each field is documented in OccupancyMapOptions.fields().)doc");
 
   py::class_<OccupancyMap, std::shared_ptr<OccupancyMap>> cls(m, "OccupancyMap", R"doc(
 Probabilistic occupancy map: an OctoMap octree (the map of record: integration, .ot/.bt files)
-plus a dense mirror of the workspace box (fast queries, incrementally maintained totals).
+plus a mirror of the workspace box (fast queries, incrementally maintained totals), which holds
+cells only for the bricks of 4 x 4 x 4 cells the sensors reached (grid_bricks).
 
 OccupancyMap(resolution=0.2, bounds_min=(-20, -20, 0), bounds_max=(20, 20, 10), options=None,
              **option_overrides)
@@ -549,6 +550,27 @@ plan_path and the collision checks read a map under the same lock.)doc");
                                Writing lock(m);
                                return m.octree().memoryUsage();
                              })
+      .def_property_readonly(
+          "grid_bricks",
+          [](const OccupancyMap& m) {
+            std::size_t allocated, total;
+            {
+              Reading lock(m);  // (without the GIL: no Python object made under it)
+              allocated = m.grid().allocated_bricks();
+              total = m.grid().layout().num_bricks();
+            }
+            return py::make_tuple(allocated, total);
+          },
+          "(allocated, total) bricks of 4 x 4 x 4 cells of the workspace grid: a brick holds "
+          "cells of its own once written (and when it holds padding past the grid's upper "
+          "faces); the others read as unknown from one shared brick")
+      .def_property_readonly(
+          "grid_memory_bytes",
+          [](const OccupancyMap& m) {
+            Reading lock(m);
+            return m.grid().bytes();
+          },
+          "bytes the workspace grid holds: its allocated bricks' cells and its per-brick tables")
       .def("__repr__", [](const OccupancyMap& m) {
         CellCounts c;
         {

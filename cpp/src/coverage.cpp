@@ -35,11 +35,11 @@ struct Target {
 /// Occupied (observed or predicted) or predicted: the structure as the map shows it (an unknown
 /// cell's entropy is positive, so occupied() holds only for known cells).
 bool solid_cell(const GridView& g, std::size_t id) {
-  return g.occupied(id) || g.flags[id] == CellFlag::Predicted;
+  return g.occupied(id) || g.cells.flag_at(id) == CellFlag::Predicted;
 }
 /// Known and not occupied.
 bool free_cell(const GridView& g, std::size_t id) {
-  return g.flags[id] != CellFlag::Unknown && !g.occupied(id);
+  return g.cells.flag_at(id) != CellFlag::Unknown && !g.occupied(id);
 }
 
 /// Whether a face neighbour of cell c is solid (solid_cell).
@@ -83,8 +83,8 @@ SurfaceTargets surface_targets(const GridView& g, const SurfaceTargetOptions& op
       for (std::size_t id = brick << 6, end = id + 64; id < end; ++id) {
         int c[3];
         if (!g.layout.coords(id, c[0], c[1], c[2])) continue;
-        const CellFlag f = g.flags[id];
-        const bool occ = std::signbit(g.scored[id]);
+        const CellFlag f = g.cells.flag_at(id);
+        const bool occ = g.cells.occupied(id);
         TargetKind kind;
         double weight;
         if (f == CellFlag::Observed && occ) {
@@ -94,7 +94,7 @@ SurfaceTargets surface_targets(const GridView& g, const SurfaceTargetOptions& op
         } else if (f == CellFlag::Predicted) {
           if (!opt.predicted) continue;
           kind = TargetKind::Predicted;
-          weight = 1.0 / (1.0 + std::exp(-double(g.logodds[id])));
+          weight = 1.0 / (1.0 + std::exp(-double(g.cells.logodds_at(id))));
         } else if (f == CellFlag::Unknown) {
           // a frontier target needs a face neighbour occupied or predicted: most unknown
           // cells have none, and are passed over on their six faces before the 26-neighbour
@@ -111,8 +111,8 @@ SurfaceTargets surface_targets(const GridView& g, const SurfaceTargetOptions& op
           const int a = c[0] + off[n][0], b = c[1] + off[n][1], d = c[2] + off[n][2];
           if (!g.contains(a, b, d)) continue;
           const std::size_t nid = g.layout.id(a, b, d);
-          const CellFlag nf = g.flags[nid];
-          const bool n_occ = std::signbit(g.scored[nid]);
+          const CellFlag nf = g.cells.flag_at(nid);
+          const bool n_occ = g.cells.occupied(nid);
           const bool face = std::abs(off[n][0]) + std::abs(off[n][1]) + std::abs(off[n][2]) == 1;
           const bool n_free = nf == CellFlag::Observed && !n_occ;
           if (kind == TargetKind::Frontier) {
@@ -187,7 +187,7 @@ bool structure_extent(const GridView& g, Eigen::Vector3i& lo, Eigen::Vector3i& h
     if (g.brick_occupied[brick] == 0) {  // the brick's flags say whether any is predicted
       bool predicted = false;
       for (int c = 0; c < 64; ++c)
-        predicted |= g.flags[brick << 6 | std::size_t(c)] == CellFlag::Predicted;
+        predicted |= g.cells.flag_at(brick << 6 | std::size_t(c)) == CellFlag::Predicted;
       if (!predicted) return;
     }
     Eigen::Vector3i bl = n, bh = Eigen::Vector3i::Constant(-1);
@@ -238,7 +238,7 @@ ExplorationTargets exploration_targets(const GridView& g, Eigen::Vector3i lo, Ei
     std::vector<Found> found;
     for (int c = 0; c < 64; ++c) {
       const std::size_t id = brick << 6 | std::size_t(c);
-      if (g.flags[id] != CellFlag::Unknown) continue;
+      if (g.cells.flag_at(id) != CellFlag::Unknown) continue;
       const int x[3] = {i0 + (c & 3), j0 + (c >> 2 & 3), k0 + (c >> 4)};
       if (x[0] < lo[0] || x[0] >= hi[0] || x[1] < lo[1] || x[1] >= hi[1] || x[2] < lo[2] ||
           x[2] >= hi[2])
@@ -480,7 +480,7 @@ ViewCoverage view_coverage(const GridView& g, const ViewPosesRef& cand, const Po
             const int a = c[0] + dx, b = c[1] + dy, e = c[2] + dz;
             if (!g.contains(a, b, e)) continue;
             const std::size_t n = g.layout.id(a, b, e);
-            if (std::signbit(g.scored[n]) && g.flags[n] != CellFlag::Unknown) continue;
+            if (g.cells.occupied(n) && g.cells.flag_at(n) != CellFlag::Unknown) continue;
             const Eigen::Vector3d u = Eigen::Vector3d(dx, dy, dz).normalized();
             sum += u;
             spread += u.cwiseAbs();

@@ -20,9 +20,7 @@ GridView grid_view(const OccupancyMap& map, const SurfaceObservations* surface) 
   g.ny = w.dims()[1];
   g.nz = w.dims()[2];
   g.layout = w.layout();
-  g.scored = w.scored_data();
-  g.logodds = w.logodds_data();
-  g.flags = w.flag_data();
+  g.cells = w.cells();
   g.brick_live = w.brick_live_data();
   g.brick_open = w.brick_open_data();
   g.brick_occupied = w.brick_occupied_data();
@@ -50,8 +48,8 @@ bool GridView::cell_of(const Eigen::Vector3d& p, Eigen::Vector3i& c) const {
 }
 
 void GridView::validate() const {
-  if (!(resolution > 0) || nx <= 0 || ny <= 0 || nz <= 0 || !scored || !logodds || !flags ||
-      !brick_live || !brick_open || !brick_occupied)
+  if (!(resolution > 0) || nx <= 0 || ny <= 0 || nz <= 0 || !cells || !brick_live || !brick_open ||
+      !brick_occupied)
     throw std::invalid_argument("grid view is empty or incomplete");
 }
 
@@ -212,7 +210,7 @@ void mark_rays4_scalar(const GridView& g, const RayStart* starts, const bool* ac
       marks.bits[id >> 6] = old | std::uint64_t(1) << (id & 63);
       marks.touched[marks.n_touched] = std::uint32_t(id >> 6);
       marks.n_touched += old == 0;
-      if (std::signbit(g.scored[id])) {
+      if (g.cells.occupied(id)) {
         stop[l] = id;
         break;
       }
@@ -303,7 +301,7 @@ __attribute__((target("avx2"))) void mark_rays4_avx2(const GridView& g, const Ra
   }
   _mm256_storeu_si256(reinterpret_cast<__m256i*>(ends_at + steps), zero);
   // Lane by lane, its run ends 32 steps at a time: bit l of each step's byte moved to bit 7
-  const float* scored = g.scored;
+  const CellPools pools = g.cells;
   const std::uint8_t* occupied = g.brick_occupied;
   const std::uint64_t* ids = buffer.cells;
   const std::uint64_t* masks = buffer.runs;
@@ -324,7 +322,7 @@ __attribute__((target("avx2"))) void mark_rays4_avx2(const GridView& g, const Ra
         if (occupied[w]) {
           for (int i = first; i <= j; ++i) {
             const std::uint64_t c = ids[4 * i + l];
-            if (std::signbit(scored[c])) {
+            if (pools.occupied(c)) {
               mask = masks[4 * i + l];
               stop[l] = c;
               stopped = true;
@@ -360,7 +358,7 @@ __attribute__((target("avx2"))) bool sum_marked_avx2(const GridView& g, const st
     const std::uint32_t w = words[i];
     if (!g.brick_live[w]) continue;  // a neutral brick stepped over
     const std::uint64_t m = bits[w];
-    const float* s = g.scored + std::size_t(w) * 64;
+    const float* s = g.cells.brick_scored(w);
     for (int half = 0; half < 8; ++half) {
       const auto byte = std::int32_t((m >> (8 * half)) & 0xFF);
       if (!byte) continue;
@@ -395,7 +393,7 @@ bool sum_marked(const GridView& g, const std::uint32_t* words, std::size_t n_wor
   std::uint32_t small = 0;
   for (std::size_t i = 0; i < n_words; ++i)
     if (g.brick_live[words[i]])
-      sum_cells(g.scored + std::size_t(words[i]) * 64, bits[words[i]], sum, n, small);
+      sum_cells(g.cells.brick_scored(words[i]), bits[words[i]], sum, n, small);
   gain = sum;
   cells = n;
   return small == 0 && sum < 4194304.0;  // 2^22

@@ -117,7 +117,7 @@ struct SearchScratch {
           break;
         }
         const std::size_t idx = g.index(x, j, k);
-        bits |= std::uint64_t(g.flags[idx] == CellFlag::Unknown || g.occupied(idx)) << b;
+        bits |= std::uint64_t(g.cells.flag_at(idx) == CellFlag::Unknown || g.occupied(idx)) << b;
       }
       blocked_bits[at] = bits;
     }
@@ -182,7 +182,7 @@ bool sphere_is_free(const GridView& g, const Eigen::Vector3d& center, double rad
               const double dx = std::max({i - q.x(), 0.0, q.x() - (i + 1)});
               if (dx * dx + dy * dy + dz * dz > r2) continue;  // the cell does not touch it
               const std::size_t idx = g.index(i, j, k);
-              if (g.flags[idx] == CellFlag::Unknown || g.occupied(idx)) return false;
+              if (g.cells.flag_at(idx) == CellFlag::Unknown || g.occupied(idx)) return false;
             }
           }
         }

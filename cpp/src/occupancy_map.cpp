@@ -213,34 +213,29 @@ OccupancyMap::Key OccupancyMap::key_at(std::int64_t id) const {
 
 void OccupancyMap::grid_from_tree() {
   const GridLayout& layout = grid_.layout();
-  std::vector<float> logodds(layout.storage_size(), 0.0f);
-  std::vector<CellFlag> flags(layout.storage_size(), CellFlag::Unknown);
   const auto& dims = grid_.dims();
   const int lo[3] = {min_key_[0], min_key_[1], min_key_[2]};
   const int hi[3] = {lo[0] + dims[0], lo[1] + dims[1], lo[2] + dims[2]};  // exclusive
   const unsigned depth_max = tree_->getTreeDepth();
-  for (auto it = tree_->begin_leafs(), end = tree_->end_leafs(); it != end; ++it) {
-    const int size = 1 << (depth_max - it.getDepth());  // cells per axis of this leaf
-    const Key key = it.getKey();
-    int b[3], e[3];
-    bool empty = false;
-    for (int a = 0; a < 3; ++a) {
-      const int base = size > 1 ? int(key[a]) - size / 2 : int(key[a]);
-      b[a] = std::max(base, lo[a]);
-      e[a] = std::min(base + size, hi[a]);
-      empty |= b[a] >= e[a];
+  grid_.assign_observed([&](auto&& put) {
+    for (auto it = tree_->begin_leafs(), end = tree_->end_leafs(); it != end; ++it) {
+      const int size = 1 << (depth_max - it.getDepth());  // cells per axis of this leaf
+      const Key key = it.getKey();
+      int b[3], e[3];
+      bool empty = false;
+      for (int a = 0; a < 3; ++a) {
+        const int base = size > 1 ? int(key[a]) - size / 2 : int(key[a]);
+        b[a] = std::max(base, lo[a]);
+        e[a] = std::min(base + size, hi[a]);
+        empty |= b[a] >= e[a];
+      }
+      if (empty) continue;
+      const float l = it->getLogOdds();
+      for (int z = b[2]; z < e[2]; ++z)
+        for (int y = b[1]; y < e[1]; ++y)
+          for (int x = b[0]; x < e[0]; ++x) put(layout.id(x - lo[0], y - lo[1], z - lo[2]), l);
     }
-    if (empty) continue;
-    const float l = it->getLogOdds();
-    for (int z = b[2]; z < e[2]; ++z)
-      for (int y = b[1]; y < e[1]; ++y)
-        for (int x = b[0]; x < e[0]; ++x) {
-          const std::size_t id = layout.id(x - lo[0], y - lo[1], z - lo[2]);
-          logodds[id] = l;
-          flags[id] = CellFlag::Observed;
-        }
-  }
-  grid_.assign(std::move(logodds), std::move(flags));
+  });
 }
 
 void OccupancyMap::set_cell(std::int64_t i, float logodds, CellFlag flag) {
@@ -657,8 +652,7 @@ void OccupancyMap::trace_free_cells(const octomap::point3d& o, const std::vector
   const auto& dims = layout.dims;
   const int mk[3] = {min_key_[0], min_key_[1], min_key_[2]};
   const std::uint8_t* const live = grid_.brick_live_data();
-  const float* const logodds = grid_.logodds_data();
-  const CellFlag* const flags = grid_.flag_data();
+  const CellPools grid = grid_.cells();
   const float clamp_min = clamp_min_log_;
   // A walk steps each axis in one direction only, so a ray from a cell of the workspace that
   // has left it never comes back: with clipping, its walk ends there.
@@ -678,7 +672,8 @@ void OccupancyMap::trace_free_cells(const octomap::point3d& o, const std::vector
           }
           const std::size_t idx = layout.id(i, j, kz);
           if (!live[idx >> 6]) return true;
-          if (flags[idx] == CellFlag::Observed && logodds[idx] <= clamp_min) return true;
+          const std::size_t c = grid.at(idx);
+          if (grid.flags[c] == CellFlag::Observed && grid.logodds[c] <= clamp_min) return true;
           std::uint32_t* st = stamps + idx;
           std::uint32_t cur = __atomic_load_n(st, __ATOMIC_RELAXED);
           while (cur != s_occ && cur != s_free) {

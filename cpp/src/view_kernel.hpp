@@ -28,9 +28,9 @@ inline double logit(double p) { return std::log(p / (1.0 - p)); }
 // utility::next_to_surface (6 faces) of the cell.
 struct GridCells {
   const GridView& g;
-  float scored(std::size_t idx, const int*) const { return g.scored[idx]; }
-  float logodds(std::size_t idx, const int*) const { return g.logodds[idx]; }
-  CellFlag flag(std::size_t idx, const int*) const { return g.flags[idx]; }
+  float scored(std::size_t idx, const int*) const { return g.cells.scored_at(idx); }
+  float logodds(std::size_t idx, const int*) const { return g.cells.logodds_at(idx); }
+  CellFlag flag(std::size_t idx, const int*) const { return g.cells.flag_at(idx); }
   bool near_surface(std::size_t, const int* c) const {
     return utility::next_to_surface(g, *this, c);
   }
@@ -46,12 +46,15 @@ class PackedCells {
  public:
   explicit PackedCells(const GridView& g) : g(g), bytes_(new std::uint8_t[g.storage_size()]) {
     parallel_chunks(g.storage_size() >> 6, 256, [&](std::size_t b, std::size_t e) {
-      for (std::size_t i = b << 6; i < e << 6; ++i)
-        bytes_[i] = std::uint8_t(std::signbit(g.scored[i])) | std::uint8_t(g.flags[i]) << 1;
+      for (std::size_t i = b << 6; i < e << 6; ++i) {
+        const std::size_t c = g.cells.at(i);
+        bytes_[i] = std::uint8_t(std::signbit(g.cells.scored[c])) | std::uint8_t(g.cells.flags[c])
+                                                                        << 1;
+      }
     });
   }
   float scored(std::size_t idx, const int*) const { return bytes_[idx] & kOccupied ? -1.f : 1.f; }
-  float logodds(std::size_t idx, const int*) const { return g.logodds[idx]; }
+  float logodds(std::size_t idx, const int*) const { return g.cells.logodds_at(idx); }
   CellFlag flag(std::size_t idx, const int*) const { return CellFlag((bytes_[idx] >> 1) & 3); }
   bool near_surface(std::size_t idx, const int* c) const {
     std::uint8_t v = __atomic_load_n(&bytes_[idx], __ATOMIC_RELAXED);
@@ -162,7 +165,7 @@ bool replay(const GridView& g, const ViewMemo::Entry& e, double occ_req, double&
     if (g.brick_live[b]) return false;
   if (!Utility::replay(g, e, gain, cells)) return false;
   occ = 0;
-  for (const std::uint32_t s : e.stops) occ += g.logodds[s] > occ_req;
+  for (const std::uint32_t s : e.stops) occ += g.cells.logodds_at(s) > occ_req;
   return true;
 }
 
@@ -331,7 +334,7 @@ ViewScores score(const Job& job, const Cells& cells) {
           std::uint64_t occ = 0;
           for (std::uint64_t m = reached; m; m &= m - 1) {
             const int bit = __builtin_ctzll(m);
-            occ |= std::uint64_t(std::signbit(g.scored[std::size_t(w) * 64 + bit])) << bit;
+            occ |= std::uint64_t(std::signbit(g.cells.brick_scored(w)[bit])) << bit;
           }
           rec.words.push_back({reached, occ, w});
         }

@@ -398,8 +398,8 @@ int entry_axis(const GridView& g, const Eigen::Vector3d& o, const Eigen::Vector3
         rec[at].range = t, rec[at].ray = std::int32_t(r);
         rec[at].axis = std::int8_t(axis);
       }
-      if (!std::signbit(g.scored[idx])) return true;
-      occ += g.logodds[idx] > occ_req;  // the ray's first occupied cell
+      if (!g.cells.occupied(idx)) return true;
+      occ += g.cells.logodds_at(idx) > occ_req;  // the ray's first occupied cell
       return false;
     });
   }
@@ -474,12 +474,12 @@ CandidateRays candidate_rays(const GridView& g, const Candidates& cand, const Po
         const std::size_t id = std::size_t(c.id);
         int cell[3];
         g.layout.coords(id, cell[0], cell[1], cell[2]);
-        const CellFlag flag = g.flags[id];
-        const bool occupied = std::signbit(g.scored[id]);
+        const CellFlag flag = g.cells.flag_at(id);
+        const bool occupied = g.cells.occupied(id);
         out.index[i] = cell[0] + std::int64_t(g.nx) * (cell[1] + std::int64_t(g.ny) * cell[2]);
         const Eigen::Vector3d centre = g.center(cell[0], cell[1], cell[2]);
         for (int a = 0; a < 3; ++a) out.centers[3 * i + std::size_t(a)] = centre[a];
-        out.logodds[i] = g.logodds[id];
+        out.logodds[i] = g.cells.logodds_at(id);
         out.probability[i] = utility::occupancy(cells, id, cell);
         out.state[i] = static_cast<std::int8_t>(flag == CellFlag::Unknown ? CellState::Unknown
                                                 : occupied                ? CellState::Occupied

@@ -5,6 +5,7 @@
 #include <algorithm>
 #include <cstring>
 #include <stdexcept>
+#include <utility>
 
 namespace nbv {
 namespace {
@@ -63,9 +64,110 @@ WorkspaceGrid::WorkspaceGrid(const std::array<int, 3>& dims, const CellRule& rul
     : layout_(dims), rule_(rule), stamps_(layout_.num_bricks()) {
   if (layout_.storage_size() >= (std::size_t(1) << 40))
     throw std::invalid_argument("workspace grid too large");
-  logodds_.assign(layout_.storage_size(), 0.0f);
-  flags_.assign(layout_.storage_size(), CellFlag::Unknown);
+  // slots: the shared unknown brick and at most one per brick
+  pool_logodds_ = ReleasableArray<float>(layout_.storage_size() + 64);
+  pool_scored_ = ReleasableArray<float>(layout_.storage_size() + 64);
+  pool_flags_ = ReleasableArray<CellFlag>(layout_.storage_size() + 64);
+  clear_cells();
   rebuild_derived();
+}
+
+WorkspaceGrid::WorkspaceGrid(const WorkspaceGrid& o)
+    : layout_(o.layout_),
+      rule_(o.rule_),
+      brick_live_(o.brick_live_),
+      brick_open_(o.brick_open_),
+      brick_occupied_(o.brick_occupied_),
+      stamps_(o.stamps_),
+      counts_(o.counts_),
+      known_entropy_fixed_(o.known_entropy_fixed_) {
+  copy_cells(o);
+}
+
+WorkspaceGrid& WorkspaceGrid::operator=(const WorkspaceGrid& o) {
+  if (this == &o) return *this;
+  layout_ = o.layout_;
+  rule_ = o.rule_;
+  brick_live_ = o.brick_live_;
+  brick_open_ = o.brick_open_;
+  brick_occupied_ = o.brick_occupied_;
+  stamps_ = o.stamps_;
+  counts_ = o.counts_;
+  known_entropy_fixed_ = o.known_entropy_fixed_;
+  cache_ = {};
+  copy_cells(o);
+  return *this;
+}
+
+WorkspaceGrid::WorkspaceGrid(WorkspaceGrid&& o) noexcept { *this = std::move(o); }
+
+WorkspaceGrid& WorkspaceGrid::operator=(WorkspaceGrid&& o) noexcept {
+  if (this == &o) return *this;
+  layout_ = o.layout_;
+  rule_ = o.rule_;
+  slot_ = std::move(o.slot_);
+  used_slots_ = std::exchange(o.used_slots_, 0);
+  pool_logodds_ = std::move(o.pool_logodds_);
+  pool_scored_ = std::move(o.pool_scored_);
+  pool_flags_ = std::move(o.pool_flags_);
+  brick_live_ = std::move(o.brick_live_);
+  brick_open_ = std::move(o.brick_open_);
+  brick_occupied_ = std::move(o.brick_occupied_);
+  stamps_ = std::move(o.stamps_);
+  counts_ = o.counts_;
+  known_entropy_fixed_ = o.known_entropy_fixed_;
+  cache_ = o.cache_;
+  point_cells();
+  o.point_cells();
+  return *this;
+}
+
+void WorkspaceGrid::copy_cells(const WorkspaceGrid& o) {
+  slot_ = o.slot_;
+  used_slots_ = o.used_slots_;
+  const std::size_t n = o.pool_scored_.size(), used = used_slots_ * 64;
+  pool_logodds_ = ReleasableArray<float>(n);
+  pool_scored_ = ReleasableArray<float>(n);
+  pool_flags_ = ReleasableArray<CellFlag>(n);
+  if (used) {
+    std::copy(o.pool_logodds_.data(), o.pool_logodds_.data() + used, pool_logodds_.data());
+    std::copy(o.pool_scored_.data(), o.pool_scored_.data() + used, pool_scored_.data());
+    std::copy(o.pool_flags_.data(), o.pool_flags_.data() + used, pool_flags_.data());
+  }
+  point_cells();
+}
+
+void WorkspaceGrid::point_cells() {
+  cells_.slots = slot_.data();
+  cells_.scored = pool_scored_.data();
+  cells_.logodds = pool_logodds_.data();
+  cells_.flags = pool_flags_.data();
+}
+
+void WorkspaceGrid::clear_cells() {  // every cell unknown, no brick with a slot
+  pool_logodds_.release();           // every page zero again: log-odds 0, flags unknown
+  pool_scored_.release();
+  pool_flags_.release();
+  slot_.assign(layout_.num_bricks(), 0u);
+  const float unknown = float(rule_.entropy(0.0f, CellFlag::Unknown));
+  std::fill(pool_scored_.data(), pool_scored_.data() + 64, unknown);  // slot 0: unknown cells
+  used_slots_ = 1;
+  point_cells();
+}
+
+std::size_t WorkspaceGrid::own_brick(std::size_t brick) {
+  std::uint32_t& s = slot_[brick];
+  if (s == 0) {
+    s = std::uint32_t(used_slots_++);
+    std::copy(pool_scored_.data(), pool_scored_.data() + 64, pool_scored_.data() + (s << 6));
+  }
+  return s;
+}
+
+std::size_t WorkspaceGrid::bytes() const {
+  const std::size_t per_cell = sizeof(float) * 2 + sizeof(CellFlag);
+  const std::size_t per_brick = sizeof(std::uint32_t) * 2 + 3;  // slot, stamp, three counts
+  return used_slots_ * 64 * per_cell + layout_.num_bricks() * per_brick;
 }
 
 std::int64_t WorkspaceGrid::fixed_entropy_uncached(float logodds) const {
@@ -89,11 +191,12 @@ float WorkspaceGrid::to_unit(std::int64_t fixed) const {
 }
 
 void WorkspaceGrid::set(std::int64_t idx, float logodds, CellFlag flag) {
-  const std::size_t i = std::size_t(idx);
-  const CellFlag old_flag = flags_[i];
-  const float old_l = logodds_[i];
+  const std::size_t brick = std::size_t(idx) >> 6;
+  std::size_t i = cells_.at(std::size_t(idx));
+  const CellFlag old_flag = pool_flags_[i];
+  const float old_l = pool_logodds_[i];
   if (old_flag == flag && old_l == logodds) return;
-  const std::size_t brick = i >> 6;
+  i = own_brick(brick) << 6 | (std::size_t(idx) & 63);
   stamps_.touch(brick);
   if (old_flag == CellFlag::Unknown) {
     --counts_.unknown;
@@ -111,7 +214,7 @@ void WorkspaceGrid::set(std::int64_t idx, float logodds, CellFlag flag) {
   if (flag == CellFlag::Unknown) {
     ++counts_.unknown;
     ++brick_live_[brick];
-    scored_[i] = float(rule_.entropy(0.0f, CellFlag::Unknown));
+    pool_scored_[i] = float(rule_.entropy(0.0f, CellFlag::Unknown));
     logodds = 0.0f;
   } else {
     const bool occ = logodds >= rule_.occupied_logodds;
@@ -123,23 +226,13 @@ void WorkspaceGrid::set(std::int64_t idx, float logodds, CellFlag flag) {
     known_entropy_fixed_ += fixed;
     if (live(fixed, flag, occ)) ++brick_live_[brick];
     const float e = to_unit(fixed);
-    scored_[i] = occ ? -e : e;
+    pool_scored_[i] = occ ? -e : e;
   }
-  flags_[i] = flag;
-  logodds_[i] = logodds;
-}
-
-void WorkspaceGrid::assign(std::vector<float> logodds, std::vector<CellFlag> flags) {
-  if (logodds.size() != layout_.storage_size() || flags.size() != layout_.storage_size())
-    throw std::invalid_argument("WorkspaceGrid::assign: wrong number of cells");
-  logodds_ = std::move(logodds);
-  flags_ = std::move(flags);
-  rebuild_derived();
+  pool_flags_[i] = flag;
+  pool_logodds_[i] = logodds;
 }
 
 void WorkspaceGrid::rebuild_derived() {
-  const std::size_t n = layout_.storage_size();
-  scored_.resize(n);
   brick_live_.assign(layout_.num_bricks(), 0);
   brick_open_.assign(layout_.num_bricks(), 0);
   brick_occupied_.assign(layout_.num_bricks(), 0);
@@ -150,28 +243,38 @@ void WorkspaceGrid::rebuild_derived() {
   std::vector<__int128> sums(nb, 0);
   parallel_chunks(nb, 256, [&](std::size_t bb, std::size_t be) {
     for (std::size_t brick = bb; brick < be; ++brick) {
+      if (slot_[brick] == 0) {  // the shared brick: unknown cells (and padding)
+        int cells = 0;
+        for (std::size_t id = brick << 6, e = id + 64; id < e; ++id) {
+          int i, j, k;
+          cells += layout_.coords(id, i, j, k);
+        }
+        brick_live_[brick] = std::uint8_t(cells);
+        continue;
+      }
       __int128 s = 0;
       int live_cells = 0, open_cells = 0, occupied_cells = 0;
       for (std::size_t id = brick << 6, e = id + 64; id < e; ++id) {
+        const std::size_t c = cells_.at(id);
         int i, j, k;
-        if (!layout_.coords(id, i, j, k)) {  // padding: no cell
-          logodds_[id] = 0.0f;
-          flags_[id] = CellFlag::Unknown;
-          scored_[id] = 0.0f;
+        if (!layout_.coords(id, i, j, k)) {  // padding: no cell, read as an unknown one
+          pool_logodds_[c] = 0.0f;
+          pool_flags_[c] = CellFlag::Unknown;
+          pool_scored_[c] = unknown;
           continue;
         }
-        if (flags_[id] == CellFlag::Unknown) {
-          logodds_[id] = 0.0f;
-          scored_[id] = unknown;
+        if (pool_flags_[c] == CellFlag::Unknown) {
+          pool_logodds_[c] = 0.0f;
+          pool_scored_[c] = unknown;
           ++live_cells;
           continue;
         }
-        const std::int64_t fixed = fixed_entropy_uncached(logodds_[id]);
+        const std::int64_t fixed = fixed_entropy_uncached(pool_logodds_[c]);
         s += fixed;
-        const bool occ = logodds_[id] >= rule_.occupied_logodds;
+        const bool occ = pool_logodds_[c] >= rule_.occupied_logodds;
         const float v = to_unit(fixed);
-        scored_[id] = occ ? -v : v;
-        live_cells += live(fixed, flags_[id], occ);
+        pool_scored_[c] = occ ? -v : v;
+        live_cells += live(fixed, pool_flags_[c], occ);
         open_cells += !occ;
         occupied_cells += occ;
       }
@@ -193,14 +296,15 @@ double WorkspaceGrid::total_entropy() const {
 }
 
 double WorkspaceGrid::recompute_total_entropy() const {
-  const std::size_t n = layout_.storage_size();  // padding ids are unknown, 0 in the known sum
+  // the given slots' cells (padding and the shared brick's cells are unknown: 0 in the sum)
+  const std::size_t n = used_slots_ * 64;
   const std::size_t grain = 1 << 16, nchunks = (n + grain - 1) / grain;
   std::vector<__int128> sums(nchunks, 0);
   parallel_chunks(nchunks, 1, [&](std::size_t cb, std::size_t ce) {
     for (std::size_t c = cb; c < ce; ++c) {
       __int128 s = 0;
       for (std::size_t i = c * grain, e = std::min(n, (c + 1) * grain); i < e; ++i)
-        if (flags_[i] != CellFlag::Unknown) s += fixed_entropy_uncached(logodds_[i]);
+        if (pool_flags_[i] != CellFlag::Unknown) s += fixed_entropy_uncached(pool_logodds_[i]);
       sums[c] = s;
     }
   });
@@ -214,12 +318,12 @@ double WorkspaceGrid::recompute_total_entropy() const {
 
 CellCounts WorkspaceGrid::recompute_counts() const {
   CellCounts c;
-  c.unknown = layout_.num_cells();  // padding ids are never known
-  for (std::size_t i = 0, n = logodds_.size(); i < n; ++i) {
-    if (flags_[i] == CellFlag::Unknown) continue;
+  c.unknown = layout_.num_cells();  // padding and the shared brick's cells are never known
+  for (std::size_t i = 0, n = used_slots_ * 64; i < n; ++i) {
+    if (pool_flags_[i] == CellFlag::Unknown) continue;
     --c.unknown;
-    (logodds_[i] >= rule_.occupied_logodds ? c.occupied : c.free) += 1;
-    if (flags_[i] == CellFlag::Predicted) ++c.predicted;
+    (pool_logodds_[i] >= rule_.occupied_logodds ? c.occupied : c.free) += 1;
+    if (pool_flags_[i] == CellFlag::Predicted) ++c.predicted;
   }
   return c;
 }

@@ -183,9 +183,9 @@ TEST(CandidateRays, AgreeWithTheScoringOnRandomScenes) {
       for (Eigen::Index i = r.offsets[k]; i < r.offsets[k + 1]; ++i) {
         const std::size_t id = m.grid().layout().id(int(r.index[i] % 60), int(r.index[i] / 60 % 40),
                                                     int(r.index[i] / 2400));
-        gain += std::fabs(g.scored[id]);
-        cells += g.scored[id] != 0.0f;
-        EXPECT_EQ(r.logodds[i], g.logodds[id]);
+        gain += std::fabs(g.cells.scored_at(id));
+        cells += g.cells.scored_at(id) != 0.0f;
+        EXPECT_EQ(r.logodds[i], g.cells.logodds_at(id));
       }
       EXPECT_EQ(gain, s.gain[k]) << "view " << k;
       EXPECT_EQ(cells, s.cells[k]) << "view " << k;

@@ -119,13 +119,80 @@ TEST(WorkspaceGrid, ScoredHoldsEntropyWithOccupancyInItsSign) {
                      b = std::int64_t(g.layout().id(2, 1, 1));
   g.set(a, 3.47610f, CellFlag::Observed);  // occupied, clamped: -0.0
   g.set(b, 0.85f, CellFlag::Observed);
-  EXPECT_TRUE(std::signbit(g.scored_data()[a]));
-  EXPECT_EQ(g.scored_data()[a], 0.0f);
+  EXPECT_TRUE(std::signbit(g.scored(a)));
+  EXPECT_EQ(g.scored(a), 0.0f);
   EXPECT_EQ(g.state(a), CellState::Occupied);
-  EXPECT_LT(g.scored_data()[b], 0.0f);
-  EXPECT_FLOAT_EQ(-g.scored_data()[b], g.entropy(b));
+  EXPECT_LT(g.scored(b), 0.0f);
+  EXPECT_FLOAT_EQ(-g.scored(b), g.entropy(b));
   const std::int64_t u = std::int64_t(g.layout().id(0, 0, 0));
-  EXPECT_FLOAT_EQ(g.scored_data()[u], float(std::log(2.0)));  // unknown: ln 2, not occupied
+  EXPECT_FLOAT_EQ(g.scored(u), float(std::log(2.0)));  // unknown: ln 2, not occupied
+}
+
+// The grid holds cells only for the bricks written: every other cell reads unknown from the
+// shared brick. Values read back exactly after writes, copies and
+// moves, and a copy is independent of its source.
+TEST(WorkspaceGrid, HoldsCellsOnlyForTheBricksWritten) {
+  const std::array<int, 3> dims{37, 21, 13};  // no axis a multiple of 4: padding on 3 faces
+  WorkspaceGrid g(dims, rule());
+  const GridLayout& L = g.layout();
+  EXPECT_EQ(g.allocated_bricks(), 0u);
+  const std::size_t empty_bytes = g.bytes();
+  // writes into three bricks, one of them holding padding
+  std::map<std::int64_t, std::pair<float, CellFlag>> want;
+  const std::array<std::array<int, 3>, 5> cells{
+      {{1, 1, 1}, {2, 3, 1}, {9, 5, 6}, {36, 20, 12}, {10, 4, 7}}};
+  const float values[] = {-1.2f, 0.9f, 3.47610f, -0.4f, 2.0f};
+  std::set<std::size_t> bricks;
+  for (std::size_t n = 0; n < cells.size(); ++n) {
+    const auto& c = cells[n];
+    const auto id = std::int64_t(L.id(c[0], c[1], c[2]));
+    const CellFlag f = n == 4 ? CellFlag::Predicted : CellFlag::Observed;
+    g.set(id, values[n], f);
+    want[id] = {values[n], f};
+    bricks.insert(std::size_t(id) >> 6);
+  }
+  EXPECT_EQ(bricks.size(), 3u);
+  EXPECT_EQ(g.allocated_bricks(), bricks.size());
+  EXPECT_EQ(g.bytes(), empty_bytes + bricks.size() * 64 * 9);
+  auto check = [&](const WorkspaceGrid& w) {
+    for (int k = 0; k < dims[2]; ++k)
+      for (int j = 0; j < dims[1]; ++j)
+        for (int i = 0; i < dims[0]; ++i) {
+          const auto id = std::int64_t(L.id(i, j, k));
+          const auto it = want.find(id);
+          if (it == want.end()) {
+            ASSERT_EQ(w.flag(id), CellFlag::Unknown);
+            ASSERT_EQ(w.logodds(id), 0.0f);
+            ASSERT_FLOAT_EQ(w.scored(id), float(std::log(2.0)));
+            continue;
+          }
+          ASSERT_EQ(w.flag(id), it->second.second);
+          ASSERT_EQ(w.logodds(id), it->second.first);
+          ASSERT_EQ(w.state(id), it->second.first >= rule().occupied_logodds ? CellState::Occupied
+                                                                             : CellState::Free);
+        }
+    const auto pad = std::int64_t(L.id(39, 20, 12));  // past the x face, in (36, 20, 12)'s brick
+    int i, j, k;
+    EXPECT_FALSE(L.coords(std::size_t(pad), i, j, k));
+    EXPECT_EQ(w.flag(pad), CellFlag::Unknown);
+    EXPECT_FLOAT_EQ(w.scored(pad), float(std::log(2.0)));
+    EXPECT_EQ(w.total_entropy(), w.recompute_total_entropy());
+    EXPECT_EQ(w.counts().unknown, w.recompute_counts().unknown);
+  };
+  check(g);
+  WorkspaceGrid copy = g;
+  check(copy);
+  copy.set(std::int64_t(L.id(30, 2, 2)), 1.0f, CellFlag::Observed);  // the copy's own brick
+  EXPECT_EQ(copy.allocated_bricks(), g.allocated_bricks() + 1);
+  check(g);
+  WorkspaceGrid moved = std::move(g);
+  check(moved);
+  // a cell set back to unknown reads unknown; its brick keeps its slot
+  const auto first = want.begin()->first;
+  moved.set(first, 0.0f, CellFlag::Unknown);
+  want.erase(first);
+  check(moved);
+  EXPECT_EQ(moved.allocated_bricks(), bricks.size());
 }
 
 TEST(RayWalk, AxisRaysVisitTheirRowAndDiagonalsEveryCrossedCell) {
@@ -198,7 +265,7 @@ TEST(RayWalk, FourLanesMarkTheCellsOfWalkRayUpToTheFirstOccupiedOne) {
       expect_stop[l] = walk_ray<false>(g, o, d, t_max, [&](std::size_t idx, const int*, double) {
         expect[idx >> 6] |= std::uint64_t(1) << (idx & 63);
         ++n;
-        return !std::signbit(g.scored[idx]);
+        return !g.occupied(idx);
       });
       ASSERT_EQ(active[l], n > 0) << "ray " << r;
       walked += n;
@@ -263,7 +330,7 @@ TEST(Navigation, SphereTestsPassOpenBricksAsTheirCellsWould) {
           const double dz = std::max({k - q.z(), 0.0, q.z() - (k + 1)});
           if (dx * dx + dy * dy + dz * dz > r * r) continue;
           const std::size_t idx = g.index(i, j, k);
-          if (g.flags[idx] == CellFlag::Unknown || g.occupied(idx)) return false;
+          if (g.cells.flag_at(idx) == CellFlag::Unknown || g.occupied(idx)) return false;
         }
     return true;
   };
@@ -293,15 +360,15 @@ TEST(Exploration, TargetsAndExtentAreTheirDefinitionCellByCell) {
   // the definitions over every cell: unknown, a known free face neighbour and no occupied or
   // predicted one within the box (neighbours outside it count as neither), in C order
   auto solid = [](const GridView& g, std::size_t id) {
-    return g.flags[id] == CellFlag::Predicted ||
-           (g.flags[id] != CellFlag::Unknown && g.occupied(id));
+    return g.cells.flag_at(id) == CellFlag::Predicted ||
+           (g.cells.flag_at(id) != CellFlag::Unknown && g.occupied(id));
   };
   auto brute = [&](const GridView& g, const Eigen::Vector3i& lo, const Eigen::Vector3i& hi) {
     std::vector<std::array<int, 6>> out;  // i, j, k and the free sides
     for (int i = lo.x(); i < hi.x(); ++i)
       for (int j = lo.y(); j < hi.y(); ++j)
         for (int k = lo.z(); k < hi.z(); ++k) {
-          if (g.flags[g.index(i, j, k)] != CellFlag::Unknown) continue;
+          if (g.cells.flag_at(g.index(i, j, k)) != CellFlag::Unknown) continue;
           std::array<int, 6> t{i, j, k, 0, 0, 0};
           bool near_free = false, near_solid = false;
           for (int a = 0; a < 3; ++a)
@@ -311,7 +378,7 @@ TEST(Exploration, TargetsAndExtentAreTheirDefinitionCellByCell) {
               if (c[a] < lo[a] || c[a] >= hi[a]) continue;
               const std::size_t id = g.index(c);
               near_solid |= solid(g, id);
-              if (g.flags[id] != CellFlag::Unknown && !g.occupied(id)) {
+              if (g.cells.flag_at(id) != CellFlag::Unknown && !g.occupied(id)) {
                 near_free = true;
                 t[3 + a] += s;
               }
@@ -767,7 +834,7 @@ double gain_in_walk_order(const GridView& g, const Eigen::Vector4d& view,
     const Eigen::Vector3d ds = dirs.row(r).transpose();
     walk_ray<false>(g, T.translation(), T.linear() * ds, camera.max_range / ds.x(),
                     [&](std::size_t idx, const int*, double) {
-                      const float s = g.scored[idx];
+                      const float s = g.cells.scored_at(idx);
                       if (!seen[idx] && s != 0.0f) {
                         sum += std::fabs(s);
                         ++cells;
@@ -803,7 +870,7 @@ TEST(Views, TheInformationGainIsTheSumInTheWalksOrderBitForBit) {
     const GridView g = grid_view(m);
     int below = 0;  // cells of nonzero entropy below 2^-8
     for (std::size_t i = 0; i < g.storage_size(); ++i)
-      below += g.scored[i] != 0.0f && std::fabs(g.scored[i]) < 0.00390625f;
+      below += g.cells.scored_at(i) != 0.0f && std::fabs(g.cells.scored_at(i)) < 0.00390625f;
     EXPECT_EQ(below > 0, tiny);
     const ViewScene v(rng, 12);
     const auto& [cand, camera, utility, validity] = v;

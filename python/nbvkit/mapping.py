@@ -1,9 +1,11 @@
-"""Occupancy map (OctoMap + dense workspace mirror): the compiled classes and their constants.
+"""Occupancy map (OctoMap + workspace mirror): the compiled classes and their constants.
 
 ``OccupancyMap`` is the C++ class ``nbv::OccupancyMap`` (see its docstring): the OctoMap octree
-is the map of record, a dense mirror of the workspace box answers queries and keeps the total
-entropy and cell counts incrementally. ``CellState`` names the values ``OccupancyMap.state``
-returns; ``CellFlag`` the values of ``OccupancyMap.flag_grid``.
+is the map of record, a mirror of the workspace box answers queries and keeps the total
+entropy and cell counts incrementally; the mirror holds cells only for the bricks the sensors
+reached (``OccupancyMap.grid_bricks``), so its memory follows the space observed, not the box.
+``CellState`` names the values ``OccupancyMap.state`` returns; ``CellFlag`` the values of
+``OccupancyMap.flag_grid``.
 """
 from __future__ import annotations
 

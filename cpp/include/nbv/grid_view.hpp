@@ -25,9 +25,7 @@ struct GridView {
       Eigen::Vector3d::Zero();  ///< world coordinate of cell (0, 0, 0)'s corner
   int nx = 0, ny = 0, nz = 0;
   GridLayout layout;
-  const float* scored = nullptr;    ///< per cell: entropy, negated when occupied (WorkspaceGrid)
-  const float* logodds = nullptr;   ///< per cell log-odds (0 for unknown cells)
-  const CellFlag* flags = nullptr;  ///< per cell: unknown / observed / predicted
+  CellPools cells;  ///< per cell by id: entropy negated when occupied, log-odds, flag
   const std::uint8_t* brick_live = nullptr;      ///< per brick (id >> 6): live (not neutral) cells
   const std::uint8_t* brick_open = nullptr;      ///< per brick: known, not occupied cells (64: all)
   const std::uint8_t* brick_occupied = nullptr;  ///< per brick: occupied cells
@@ -46,7 +44,7 @@ struct GridView {
   std::uint32_t grid_epoch = 0, seen_epoch = 0;
   std::uint64_t grid_id = 0, seen_id = 0;
 
-  /// Size of the per-cell arrays (padded to whole bricks).
+  /// Size of the cell id space (padded to whole bricks).
   std::size_t storage_size() const { return layout.storage_size(); }
   std::size_t index(int i, int j, int k) const { return layout.id(i, j, k); }
   std::size_t index(const Eigen::Vector3i& c) const { return index(c.x(), c.y(), c.z()); }
@@ -67,7 +65,7 @@ struct GridView {
   std::size_t observation_slot(std::size_t idx) const {
     return std::size_t(seen_blocks[idx >> 6]) << 6 | (idx & 63);
   }
-  bool occupied(std::size_t idx) const { return std::signbit(scored[idx]); }
+  bool occupied(std::size_t idx) const { return cells.occupied(idx); }
   /// Throws std::invalid_argument when the view is incomplete.
   void validate() const;
 };

@@ -1,6 +1,7 @@
 // Probabilistic occupancy map: an OctoMap octree (the map of record: .ot/.bt files, cells
-// outside the workspace) plus a dense grid of the workspace box (WorkspaceGrid: fast queries,
-// incremental total entropy), which integration updates first.
+// outside the workspace) plus a grid of the workspace box (WorkspaceGrid: fast queries,
+// incremental total entropy; cells held only for the bricks written), which integration updates
+// first.
 //
 // Grid. OctoMap's origin-anchored grid: a coordinate c falls in key floor(c / res) + 32768 per
 // axis (exactly OctoMap's coordToKey, which first rounds the point to float32 as its point3d
@@ -187,7 +188,7 @@ class OccupancyMap {
   CellCounts counts() const { return grid_.counts(); }
   /// Centres (M, 3) of the occupied workspace cells, in flat-index order.
   Points occupied_cells() const;
-  /// The dense workspace grid (cell values, flags, entropies, brick summary).
+  /// The workspace grid (cell values, flags, entropies, brick summary).
   const WorkspaceGrid& grid() const { return grid_; }
   /// Number of workspace cells whose grid value disagrees with the octree (0 when in sync;
   /// brings the octree up to date first). Walks the octree once per cell: for tests.

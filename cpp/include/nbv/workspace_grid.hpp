@@ -1,12 +1,21 @@
-// The dense workspace grid of an occupancy map: per cell log-odds, flag and entropy, with the
-// total entropy and the cell counts kept incrementally and exactly, and a per-brick summary that
-// lets ray walks skip empty space.
+// The workspace grid of an occupancy map: per cell log-odds, flag and entropy, with the total
+// entropy and the cell counts kept incrementally and exactly, and a per-brick summary that lets
+// ray walks skip empty space.
 //
 // Layout (GridLayout). Cells are stored in bricks of 4 x 4 x 4 (x fastest within a brick and
 // between bricks), so that the cells a ray crosses share cache lines: cell (i, j, k) has the id
 // 64 * brick + (i & 3) + 4 (j & 3) + 16 (k & 3), brick = (i >> 2) + bx (j >> 2) + bx by (k >> 2).
-// The storage is padded to whole bricks; padding ids hold no cell. The grid knows nothing of
+// The id space is padded to whole bricks; padding ids hold no cell. The grid knows nothing of
 // metres or OctoMap keys: OccupancyMap maps those onto it.
+//
+// Storage (CellPools). The cells' values are held per brick, and only for the bricks a write has
+// reached: a brick table maps each brick to its slot of 64 cells in three pools (log-odds, flag,
+// entropy), and every brick never written maps to slot 0, a shared brick of unknown cells. A
+// slot is given on a brick's first write and kept. The pools are mappings of the whole id
+// space's size whose pages cost memory only once written, so they never move and hold only the
+// bricks given out: the memory grows with the space the sensors reached, not with the
+// workspace's box (a 100 m plant's map, 1,000 views in: a fifth of its bricks). Padding ids read
+// as unknown cells (log-odds 0, flag unknown, the unknown entropy) and count in no total.
 //
 // Entropy. A cell's entropy follows its CellRule: binary entropy of p = sigmoid(logodds) in nats
 // or bits, unknown cells p = 0.5 (ln 2 nats, 1 bit), and with clamped_entropy_zero a cell at a
@@ -30,6 +39,7 @@
 #pragma once
 
 #include "nbv/common.hpp"
+#include "nbv/huge_pages.hpp"
 
 #include <array>
 #include <atomic>
@@ -139,6 +149,28 @@ class BrickStamps {
   std::uint64_t id_ = next_id();
 };
 
+/// Read access to a grid's cells by id (see Storage at the top): valid while the grid is alive;
+/// pointers stay valid as the grid gives bricks slots, and reads see the slots given so far.
+struct CellPools {
+  const std::uint32_t* slots = nullptr;  ///< per brick (id >> 6): its slot (0: unknown brick)
+  const float* scored = nullptr;         ///< per slot cell: entropy, negated when occupied
+  const float* logodds = nullptr;        ///< per slot cell: log-odds (0 for unknown cells)
+  const CellFlag* flags = nullptr;       ///< per slot cell: unknown / observed / predicted
+
+  /// Where cell `id`'s values are held in the pools.
+  std::size_t at(std::size_t id) const { return std::size_t(slots[id >> 6]) << 6 | (id & 63); }
+  /// Cell `id`'s entropy, negated when it is occupied (WorkspaceGrid::scored).
+  float scored_at(std::size_t id) const { return scored[at(id)]; }
+  float logodds_at(std::size_t id) const { return logodds[at(id)]; }
+  CellFlag flag_at(std::size_t id) const { return flags[at(id)]; }
+  bool occupied(std::size_t id) const { return std::signbit(scored_at(id)); }
+  /// The 64 scored values of a brick, in id order.
+  const float* brick_scored(std::size_t brick) const {
+    return scored + (std::size_t(slots[brick]) << 6);
+  }
+  explicit operator bool() const { return slots && scored && logodds && flags; }
+};
+
 class WorkspaceGrid {
  public:
   static constexpr int kBrickShift = GridLayout::kBrickShift;
@@ -146,25 +178,48 @@ class WorkspaceGrid {
   WorkspaceGrid() = default;
   /// A grid of dims[0] x dims[1] x dims[2] unknown cells.
   WorkspaceGrid(const std::array<int, 3>& dims, const CellRule& rule);
+  WorkspaceGrid(const WorkspaceGrid& o);
+  WorkspaceGrid& operator=(const WorkspaceGrid& o);
+  WorkspaceGrid(WorkspaceGrid&& o) noexcept;
+  WorkspaceGrid& operator=(WorkspaceGrid&& o) noexcept;
 
   const GridLayout& layout() const { return layout_; }
   const std::array<int, 3>& dims() const { return layout_.dims; }
   std::int64_t num_cells() const { return layout_.num_cells(); }
   const CellRule& rule() const { return rule_; }
 
-  float logodds(std::int64_t i) const { return logodds_[std::size_t(i)]; }
-  CellFlag flag(std::int64_t i) const { return flags_[std::size_t(i)]; }
+  float logodds(std::int64_t i) const { return cells_.logodds_at(std::size_t(i)); }
+  CellFlag flag(std::int64_t i) const { return cells_.flag_at(std::size_t(i)); }
   CellState state(std::int64_t i) const {
-    if (flags_[std::size_t(i)] == CellFlag::Unknown) return CellState::Unknown;
-    return std::signbit(scored_[std::size_t(i)]) ? CellState::Occupied : CellState::Free;
+    const std::size_t c = cells_.at(std::size_t(i));
+    if (cells_.flags[c] == CellFlag::Unknown) return CellState::Unknown;
+    return std::signbit(cells_.scored[c]) ? CellState::Occupied : CellState::Free;
   }
   /// Entropy in the rule's unit (the float copy of the value the total sums).
-  float entropy(std::int64_t i) const { return std::fabs(scored_[std::size_t(i)]); }
+  float entropy(std::int64_t i) const { return std::fabs(cells_.scored_at(std::size_t(i))); }
+  /// Entropy, negated when the cell is occupied (the sign bit marks occupancy, also for zero
+  /// entropy: -0.0f). One read answers "stop here?" and "how much information?".
+  float scored(std::int64_t i) const { return cells_.scored_at(std::size_t(i)); }
 
   /// Sets cell `id`, keeping the totals, counts and brick summary in sync.
   void set(std::int64_t id, float logodds, CellFlag flag);
-  /// Replaces every cell (e.g. from a map file): arrays by id, storage_size() long.
-  void assign(std::vector<float> logodds, std::vector<CellFlag> flags);
+  /// Replaces every cell (e.g. from a map file): all unknown, then fill(put) calls
+  /// put(id, logodds) once for each observed cell.
+  template <class Fill>
+  void assign_observed(Fill&& fill) {
+    clear_cells();
+    fill([this](std::size_t id, float logodds) {
+      const std::size_t c = own_brick(id >> 6) << 6 | (id & 63);
+      pool_logodds_[c] = logodds;
+      pool_flags_[c] = CellFlag::Observed;
+    });
+    rebuild_derived();
+  }
+
+  /// Bricks holding cells of their own: those written since the grid was made or assigned.
+  std::size_t allocated_bricks() const { return used_slots_ ? used_slots_ - 1 : 0; }
+  /// Bytes the grid holds: its given slots' cells, and its per-brick tables.
+  std::size_t bytes() const;
 
   /// Total entropy in the rule's unit, O(1).
   double total_entropy() const;
@@ -173,12 +228,9 @@ class WorkspaceGrid {
   CellCounts counts() const { return counts_; }
   CellCounts recompute_counts() const;
 
-  // ---- raw arrays for the ray-walking kernels (valid while the grid is alive and unchanged) --
-  const float* logodds_data() const { return logodds_.data(); }
-  const CellFlag* flag_data() const { return flags_.data(); }
-  /// Per cell: its entropy, negated when the cell is occupied (the sign bit marks occupancy,
-  /// also for zero entropy: -0.0f). One read answers "stop here?" and "how much information?".
-  const float* scored_data() const { return scored_.data(); }
+  // ---- raw arrays for the ray-walking kernels (valid while the grid is alive) ---------------
+  /// The cells by id (scored, log-odds and flags).
+  const CellPools& cells() const { return cells_; }
   /// Per brick (id >> 6): the number of live (not neutral) cells.
   const std::uint8_t* brick_live_data() const { return brick_live_.data(); }
   /// Per brick: the number of open cells (known and not occupied; 64: the whole brick).
@@ -195,13 +247,19 @@ class WorkspaceGrid {
   bool live(std::int64_t fixed, CellFlag flag, bool occupied) const {
     return !(flag == CellFlag::Observed && !occupied && fixed == 0);
   }
-  void rebuild_derived();  // scored_, counts, totals and bricks from logodds_ / flags_
+  void rebuild_derived();  // scored, counts, totals and bricks from the log-odds and flags
+  void clear_cells();      // every cell unknown, no brick with a slot
+  std::size_t own_brick(std::size_t brick);  // the brick's slot, given on its first call
+  void copy_cells(const WorkspaceGrid& o);
+  void point_cells();  // cells_ at this grid's tables
 
   GridLayout layout_;
   CellRule rule_;
-  std::vector<float> logodds_;
-  std::vector<CellFlag> flags_;
-  std::vector<float> scored_;
+  std::vector<std::uint32_t> slot_;  // per brick
+  std::size_t used_slots_ = 0;       // slots given, the shared unknown brick (slot 0) included
+  ReleasableArray<float> pool_logodds_, pool_scored_;
+  ReleasableArray<CellFlag> pool_flags_;
+  CellPools cells_;
   std::vector<std::uint8_t> brick_live_;
   std::vector<std::uint8_t> brick_open_;
   std::vector<std::uint8_t> brick_occupied_;

@@ -61,8 +61,7 @@ struct InformationGain {
     std::uint64_t changed = 0;
     std::uint32_t small = 0;  // a nonzero entropy below 2^-8
     for (const ViewMemo::Word& w : e.words)
-      changed |=
-          sum_cells(g.scored + std::size_t(w.word) * 64, w.cells, sum, n, small) ^ w.occupied;
+      changed |= sum_cells(g.cells.brick_scored(w.word), w.cells, sum, n, small) ^ w.occupied;
     gain = sum;
     count = n;
     return changed == 0 && small == 0 && sum < 4194304.0;  // 2^22
