@@ -10,6 +10,7 @@
 #include "utilities/registry.hpp"
 
 #include <cmath>
+#include <cstring>
 #include <functional>
 #include <limits>
 #include <memory>
@@ -46,10 +47,16 @@ class PackedCells {
  public:
   explicit PackedCells(const GridView& g) : g(g), bytes_(new std::uint8_t[g.storage_size()]) {
     parallel_chunks(g.storage_size() >> 6, 256, [&](std::size_t b, std::size_t e) {
-      for (std::size_t i = b << 6; i < e << 6; ++i) {
-        const std::size_t c = g.cells.at(i);
-        bytes_[i] = std::uint8_t(std::signbit(g.cells.scored[c])) | std::uint8_t(g.cells.flags[c])
-                                                                        << 1;
+      for (std::size_t brick = b; brick < e; ++brick) {
+        std::uint8_t* out = &bytes_[brick << 6];
+        if (g.cells.slots[brick] == 0) {  // the shared brick: unknown cells, not occupied
+          std::memset(out, 0, 64);
+          continue;
+        }
+        const float* scored = g.cells.brick_scored(brick);
+        const CellFlag* flags = g.cells.flags + (std::size_t(g.cells.slots[brick]) << 6);
+        for (int i = 0; i < 64; ++i)
+          out[i] = std::uint8_t(std::signbit(scored[i])) | std::uint8_t(flags[i]) << 1;
       }
     });
   }
