@@ -17,7 +17,7 @@ from nbvkit.recorder import STAGES
 from nbvkit.planning.parts import PlanningContext
 from nbvkit.planning.registry import get_generator
 from nbvkit.planning.generators.exploration import exploration_targets
-from nbvkit.planning.generators.tour import prize_collect
+from nbvkit.planning.generators.tour import _insertion_tour, prize_collect
 from nbvkit.planning.placement import (
     Patches,
     PlacementConfig,
@@ -234,6 +234,26 @@ def test_views_below_the_floor_move_up_and_out_until_the_patch_is_in_view():
     assert np.array_equal(into_bounds(inside, inside + 1, box, (lowest, -lowest), (1, 8)), inside)
 
 
+def test_select_tours_gives_select_tours_of_each_charge_from_one_inverse():
+    rng = np.random.default_rng(5)
+    for trial in range(20):
+        k = int(rng.integers(1, 80))
+        sizes = rng.integers(0, 40, k)
+        cov = {
+            "offsets": np.r_[0, np.cumsum(sizes)].astype(np.int64),
+            "elements": rng.integers(0, 300, sizes.sum()).astype(np.int64),
+            "weights": rng.choice([0.25, 0.5, 1.0], sizes.sum()).astype(np.float32),
+            "status": (rng.random(k) < 0.2).astype(np.int8),
+        }
+        pos = rng.uniform(-30, 30, (k, 3))
+        kw = dict(rate=float(rng.uniform(0, 2)), min_gain=float(rng.uniform(0.5, 4)))
+        charges = [True, False, True] if trial % 2 else [False]
+        tours = _core.select_tours(cov, pos, (0, 0, 1), charges=charges, **kw)
+        one = [_core.select_tour(cov, pos, (0, 0, 1), charge_transit=c, **kw) for c in charges]
+        assert [(list(v), list(g)) for v, g in tours] == [(list(v), list(g)) for v, g in one]
+    assert _core.select_tours(cov, pos, (0, 0, 1), charges=[], **kw) == []
+
+
 def test_a_tour_flies_to_a_far_cluster_that_pays_for_its_transit_only_as_a_whole():
     def tour_for(gain_per_view):
         # five views 1 m apart, 50 m from the vehicle, each adding gain_per_view new elements
@@ -245,10 +265,10 @@ def test_a_tour_flies_to_a_far_cluster_that_pays_for_its_transit_only_as_a_whole
             "status": np.zeros(5, np.int8),
         }
         cand = np.array([[50.0 + i, 0, 0, 0] for i in range(5)])
-        gen = get_generator("tour", nbvkit.load_config())
         pose = np.zeros(4)
         rate = 0.45  # m^2 per metre
-        return [gen._insertion_tour(cov, cand, pose, 1.0, 1.2, rate, c) for c in (True, False)]
+        found = _core.select_tours(cov, cand[:, :3], pose[:3], rate=rate, min_gain=1.2)
+        return [_insertion_tour(c, g, cand, pose, 1.0, rate) for c, g in found]
 
     anchored, free = tour_for(6)  # 30 m^2 for 54 m: worth 30 - 0.45 x 54 = 5.7
     assert anchored[2] == [] and anchored[3] == 0.0  # no single view pays 0.45 x 50 m

@@ -222,6 +222,31 @@ the first view enters free of the flight from start to it, so that a far cluster
 its transit only as a whole can form (judge the transit afterwards, e.g. by prize
 collection).)doc");
   m.def(
+      "select_tours",
+      [](const py::dict& coverage, const py::handle& positions, const py::handle& start,
+         double rate, double min_gain, int max_views, const std::vector<bool>& charges) {
+        const CoverageArg cov(coverage);
+        auto p = points_arg(positions, "candidate positions");
+        const Eigen::Vector3d st = vec3_arg(start, "tour start");
+        if (max_views < 0) throw py::value_error("max_views must be >= 0");
+        auto pm = p.map();
+        std::vector<CoverSelection> s;
+        {
+          py::gil_scoped_release release;
+          s = select_tours(cov.ref, pm, st, rate, min_gain, max_views, charges);
+        }
+        py::list out;
+        for (const CoverSelection& t : s)
+          out.append(py::make_tuple(py::cast(t.views), py::cast(t.gains)));
+        return out;
+      },
+      py::arg("coverage"), py::arg("positions"), py::arg("start"), py::arg("rate"),
+      py::arg("min_gain") = 1.0, py::arg("max_views") = 1000,
+      py::arg("charges") = std::vector<bool>{true, false},
+      R"doc(select_tour once for each of `charges` (its charge_transit), over one inverse of the
+coverage built once, the tours in parallel: [(views, gains), ...], the same as a select_tour call
+each.)doc");
+  m.def(
       "solve_tour",
       [](const py::handle& points, const py::handle& start, bool improve) {
         auto p = points_arg(points, "tour points");

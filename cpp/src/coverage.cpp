@@ -726,46 +726,16 @@ Holders holders_of(const CoverageRef& cov, Held held, std::size_t n, const Eleme
   return h;
 }
 
-}  // namespace
-
-CoverSelection select_tour(const CoverageRef& cov, const PointsRef& positions,
-                           const Eigen::Vector3d& start, double rate, double min_gain,
-                           int max_views, bool charge_transit) {
+/// One prize-collecting insertion tour over a coverage's inverse (select_tour), from the
+/// candidates' gains with nothing covered.
+CoverSelection insertion_tour(const CoverageRef& cov, const PointsRef& positions,
+                              const Eigen::Vector3d& start, double rate, double min_gain,
+                              int max_views, bool charge_transit, const ElementRanks& rank,
+                              const std::vector<std::uint32_t>& first,
+                              const HugeVector<Holders::Holder>& hold,
+                              const std::vector<double>& gain0) {
   const Eigen::Index K = cov.offsets.size() - 1;
-  if (K < 0 || positions.rows() != K)
-    throw std::invalid_argument("select_tour: one position per candidate of the coverage");
-  require_finite(positions, "candidate positions");
-  if (!start.allFinite()) throw std::invalid_argument("select_tour: start is not finite");
-  if (!(rate >= 0) || !std::isfinite(rate)) throw std::invalid_argument("rate must be >= 0");
-  if (K > std::numeric_limits<std::int32_t>::max())
-    throw std::invalid_argument("select_tour: too many candidates");
-  // every candidate's current gain, and the candidates each element belongs to (inverse CSR:
-  // the distinct elements by rank, each with its holders in candidate order)
-  std::vector<double> gain(static_cast<std::size_t>(K), 0.0);
-  const std::int64_t total = K ? cov.offsets[K] : 0;
-  if (std::uint64_t(total) > std::numeric_limits<std::uint32_t>::max())
-    throw std::invalid_argument("select_tour: over 2^32 coverage elements; plan fewer candidates");
-  std::int64_t lo = std::numeric_limits<std::int64_t>::max(),  // the elements' range
-      hi = std::numeric_limits<std::int64_t>::min();
-  std::size_t held = 0;
-  for (Eigen::Index k = 0; k < K; ++k) {
-    if (cov.status[k] != 0) continue;
-    for (std::int64_t o = cov.offsets[k]; o < cov.offsets[k + 1]; ++o) {
-      gain[std::size_t(k)] += cov.weights[o];
-      lo = std::min(lo, std::int64_t(cov.elements[o]));
-      hi = std::max(hi, std::int64_t(cov.elements[o]));
-      ++held;
-    }
-  }
-  auto each_held = [&](auto&& f) {  // the valid candidates and their offsets, ascending
-    for (Eigen::Index k = 0; k < K; ++k)
-      if (cov.status[k] == 0)
-        for (std::int64_t o = cov.offsets[k]; o < cov.offsets[k + 1]; ++o) f(k, o);
-  };
-  const ElementRanks rank(cov, each_held, held, lo, hi);
-  const Holders holders = holders_of(cov, each_held, held, rank);
-  const std::vector<std::uint32_t>& first = holders.first;
-  const HugeVector<Holders::Holder>& hold = holders.of;
+  std::vector<double> gain = gain0;
   std::vector<float> covered(rank.size(), 0.0f);  // per distinct element: weight covered
   std::vector<Eigen::Vector3d> stops{start};      // the open tour: start, then the chosen views
   std::vector<int> ids{-1};
@@ -877,4 +847,59 @@ CoverSelection select_tour(const CoverageRef& cov, const PointsRef& positions,
   return out;
 }
 
+}  // namespace
+
+std::vector<CoverSelection> select_tours(const CoverageRef& cov, const PointsRef& positions,
+                                         const Eigen::Vector3d& start, double rate, double min_gain,
+                                         int max_views, const std::vector<bool>& charges) {
+  const Eigen::Index K = cov.offsets.size() - 1;
+  if (K < 0 || positions.rows() != K)
+    throw std::invalid_argument("select_tour: one position per candidate of the coverage");
+  require_finite(positions, "candidate positions");
+  if (!start.allFinite()) throw std::invalid_argument("select_tour: start is not finite");
+  if (!(rate >= 0) || !std::isfinite(rate)) throw std::invalid_argument("rate must be >= 0");
+  if (K > std::numeric_limits<std::int32_t>::max())
+    throw std::invalid_argument("select_tour: too many candidates");
+  // every candidate's current gain, and the candidates each element belongs to (inverse CSR:
+  // the distinct elements by rank, each with its holders in candidate order)
+  std::vector<double> gain0(static_cast<std::size_t>(K), 0.0);  // with nothing covered
+  const std::int64_t total = K ? cov.offsets[K] : 0;
+  if (std::uint64_t(total) > std::numeric_limits<std::uint32_t>::max())
+    throw std::invalid_argument("select_tour: over 2^32 coverage elements; plan fewer candidates");
+  std::int64_t lo = std::numeric_limits<std::int64_t>::max(),  // the elements' range
+      hi = std::numeric_limits<std::int64_t>::min();
+  std::size_t held = 0;
+  for (Eigen::Index k = 0; k < K; ++k) {
+    if (cov.status[k] != 0) continue;
+    for (std::int64_t o = cov.offsets[k]; o < cov.offsets[k + 1]; ++o) {
+      gain0[std::size_t(k)] += cov.weights[o];
+      lo = std::min(lo, std::int64_t(cov.elements[o]));
+      hi = std::max(hi, std::int64_t(cov.elements[o]));
+      ++held;
+    }
+  }
+  auto each_held = [&](auto&& f) {  // the valid candidates and their offsets, ascending
+    for (Eigen::Index k = 0; k < K; ++k)
+      if (cov.status[k] == 0)
+        for (std::int64_t o = cov.offsets[k]; o < cov.offsets[k + 1]; ++o) f(k, o);
+  };
+  const ElementRanks rank(cov, each_held, held, lo, hi);
+  const Holders holders = holders_of(cov, each_held, held, rank);
+  const std::vector<std::uint32_t>& first = holders.first;
+  const HugeVector<Holders::Holder>& hold = holders.of;
+  // the tours read the inverse and write only their own state: one task each
+  std::vector<CoverSelection> tours(charges.size());
+  parallel_chunks(charges.size(), 1, [&](std::size_t b, std::size_t e) {
+    for (std::size_t i = b; i < e; ++i)
+      tours[i] = insertion_tour(cov, positions, start, rate, min_gain, max_views, charges[i], rank,
+                                first, hold, gain0);
+  });
+  return tours;
+}
+
+CoverSelection select_tour(const CoverageRef& cov, const PointsRef& positions,
+                           const Eigen::Vector3d& start, double rate, double min_gain,
+                           int max_views, bool charge_transit) {
+  return select_tours(cov, positions, start, rate, min_gain, max_views, {charge_transit})[0];
+}
 }  // namespace nbv

@@ -195,5 +195,10 @@ CoverSelection select_cover(const CoverageRef& coverage, double min_gain, int ma
 CoverSelection select_tour(const CoverageRef& coverage, const PointsRef& positions,
                            const Eigen::Vector3d& start, double rate, double min_gain,
                            int max_views, bool charge_transit = true);
+/// select_tour once for each of `charges` (charge_transit), in parallel, over one inverse of the
+/// coverage (built once): the same tours as a select_tour call each.
+std::vector<CoverSelection> select_tours(const CoverageRef& coverage, const PointsRef& positions,
+                                         const Eigen::Vector3d& start, double rate, double min_gain,
+                                         int max_views, const std::vector<bool>& charges);
 
 }  // namespace nbv

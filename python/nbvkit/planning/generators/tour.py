@@ -223,10 +223,15 @@ class CoverageTour:
         if self.settings.selection == "insertion":
             # anchored at the vehicle, and with the first view's transit free (a far cluster
             # that pays only as a whole); the tour worth more after prize collection is flown
-            tours = [
-                self._insertion_tour(coverage, candidates, pose, cell_m2, min_gain, rate, charge)
-                for charge in (True, False)
-            ]
+            found = _core.select_tours(  # one inverse of the coverage, the two tours at once
+                coverage,
+                candidates[:, :3],
+                pose[:3],
+                rate=rate / cell_m2,
+                min_gain=min_gain / cell_m2,
+                charges=[True, False],
+            )
+            tours = [_insertion_tour(c, g, candidates, pose, cell_m2, rate) for c, g in found]
             chosen, gains, order = max(tours, key=lambda t: t[3])[:3]
         else:
             chosen, gains = _core.select_cover(coverage, min_gain=min_gain / cell_m2)
@@ -298,33 +303,6 @@ class CoverageTour:
         base = int(el.max()) + 1 if len(el) else 0  # past every cell's element
         extra = (vp[:, 0], base + vp[:, 1], w * patches.weights[vp[:, 1]])
         return _append_elements(coverage, *extra), opens
-
-    def _insertion_tour(self, coverage, candidates, pose, cell_m2, min_gain, rate, charge_transit):
-        """(chosen, gains m^2, kept order into chosen, net value m^2) of a prize-collecting
-        insertion tour from the vehicle (views adding min_gain m^2, paying rate m^2 per metre):
-        the shorter of its insertion order and the tour solved over its views, then
-        prize-collected; net value: the kept views' gains - rate x the length of the kept tour."""
-        chosen, gains = _core.select_tour(
-            coverage,
-            candidates[:, :3],
-            pose[:3],
-            rate=rate / cell_m2,
-            min_gain=min_gain / cell_m2,
-            charge_transit=charge_transit,
-        )
-        if not chosen:
-            return chosen, np.zeros(0), [], 0.0
-        gains = np.asarray(gains) * cell_m2
-        points = candidates[chosen, :3]
-        order, length = _core.solve_tour(points, pose[:3])
-        kept = list(range(len(chosen)))
-        if _length(pose[:3], points, kept) <= length:
-            order = kept
-        order = prize_collect(pose[:3], points, gains, order, rate)
-        value = (
-            float(gains[order].sum()) - rate * _length(pose[:3], points, order) if order else 0.0
-        )
-        return chosen, gains, order, value
 
     # ------------------------------------------------------------------ generator
     def propose(self, world):
@@ -486,6 +464,24 @@ def _reachable(world, radius):
         return None
     own = labels[tuple(np.clip(at, 0, np.array(labels.shape) - 1))]
     return labels == (own if own > 0 else np.bincount(near).argmax())
+
+
+def _insertion_tour(chosen, gains, candidates, pose, cell_m2, rate):
+    """(chosen, gains m^2, kept order into chosen, net value m^2) of a prize-collecting
+    insertion tour from the vehicle (select_tour's views and gains in cell units, paying rate
+    m^2 per metre): the shorter of its insertion order and the tour solved over its views, then
+    prize-collected; net value: the kept views' gains - rate x the length of the kept tour."""
+    if not chosen:
+        return chosen, np.zeros(0), [], 0.0
+    gains = np.asarray(gains) * cell_m2
+    points = candidates[chosen, :3]
+    order, length = _core.solve_tour(points, pose[:3])
+    kept = list(range(len(chosen)))
+    if _length(pose[:3], points, kept) <= length:
+        order = kept
+    order = prize_collect(pose[:3], points, gains, order, rate)
+    value = float(gains[order].sum()) - rate * _length(pose[:3], points, order) if order else 0.0
+    return chosen, gains, order, value
 
 
 def _length(start, points, order) -> float:
