@@ -18,12 +18,19 @@ def _two_boxes(gap: float) -> nbvkit.Mesh:
     return nbvkit.Mesh(np.vstack([a.vertices, b.vertices]), np.vstack([a.faces, b.faces + 8]))
 
 
-def test_the_camera_record_holds_the_bricks_of_the_surface_seen_not_the_workspace():
-    # two small structures 150 m apart: a 154 m workspace, 192 m^2 of surface
+@pytest.fixture(scope="module")
+def two_boxes_flown():
+    """(mission, config, mesh): two small structures 150 m apart (a 154 m workspace, 192 m^2
+    of surface), flown for 6 views without a profile."""
     mesh = _two_boxes(150.0)
     cfg = load_config(overrides=[*QUICK_MISSION, "max_iterations=6", "profiling.enabled=false"])
     mission = Mission(cfg, mesh=mesh)
     mission.run()
+    return mission, cfg, mesh
+
+
+def test_the_camera_record_holds_the_bricks_of_the_surface_seen_not_the_workspace(two_boxes_flown):
+    mission, cfg, mesh = two_boxes_flown
     record = mission.world.surface
     seen = record.seen_grid()  # the dense copy, read through the sparse storage
     assert np.count_nonzero(seen) == record.seen_cells() > 0
@@ -72,13 +79,9 @@ def test_a_mission_that_saw_nothing_says_so_rather_than_coverage_complete():
     assert summary["cloud_points"] == 0
 
 
-def test_the_map_holds_cells_for_the_bricks_its_rays_reached_not_the_workspace():
-    # the same 154 m scene: the map's grid gives cells only to the bricks its sensors reached
-    mesh = _two_boxes(150.0)
-    cfg = load_config(overrides=[*QUICK_MISSION, "max_iterations=6", "profiling.enabled=false"])
-    mission = Mission(cfg, mesh=mesh)
-    mission.run()
-    m = mission.world.map
+def test_the_map_holds_cells_for_the_bricks_its_rays_reached_not_the_workspace(two_boxes_flown):
+    # the map's grid gives cells only to the bricks its sensors reached
+    m = two_boxes_flown[0].world.map
     allocated, total = m.grid_bricks
     flags = np.asarray(m.flag_grid())
     pad = [(0, -s % 4) for s in flags.shape]
