@@ -377,6 +377,23 @@ def test_surface_targets_of_a_wall_seen_from_the_front_are_on_its_back():
     assert np.all(fr[:, 0] <= 1e-9) and (fr[:, 0] < -0.5).any()
 
 
+def test_frontier_targets_in_bricks_never_written_are_found_beside_written_ones():
+    # an occupied and a free cell in two bricks of 4 x 4 x 4 cells; the unknown cells touching
+    # both lie in two bricks the map never wrote (their cells read from the shared brick)
+    m = nbvkit.OccupancyMap(0.2, (0, 0, 0), (4, 4, 4))
+
+    def cell(i, j, k):
+        return np.array([[i, j, k]]) * 0.2 + 0.1
+
+    m.update_cells(cell(4, 3, 5), occupied=True)
+    m.update_cells(cell(3, 4, 5), occupied=False)
+    assert m.grid_bricks == (2, 125)
+    t = _core.surface_targets(m, _core.SurfaceObservations(m))
+    assert np.all(t["kind"] == 2)  # frontier
+    found = sorted(map(tuple, np.round(t["positions"] / 0.2 - 0.5).astype(int)))
+    assert found == [(3, 3, 5), (4, 4, 5)]
+
+
 def test_frontier_views_face_their_targets_and_the_valid_ones_are_collision_free():
     cfg = load_config(
         overrides=[

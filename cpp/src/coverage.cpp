@@ -54,6 +54,21 @@ bool touches_surface_face(const GridView& g, const int* c) {
   return false;
 }
 
+/// Whether a brick or one beside it (a face) holds cells of its own: a brick that is not, and has
+/// none beside it, holds only unknown cells with no solid cell on any face (a solid cell, occupied
+/// or predicted, is a written one).
+bool written_near(const GridView& g, std::size_t brick) {
+  const std::uint32_t* slots = g.cells.slots;
+  if (slots[brick]) return true;
+  const auto& nb = g.layout.bricks;
+  const std::size_t bx = brick % std::size_t(nb[0]), rest = brick / std::size_t(nb[0]);
+  const std::size_t by = rest % std::size_t(nb[1]), bz = rest / std::size_t(nb[1]);
+  const std::size_t sy = std::size_t(nb[0]), sz = sy * std::size_t(nb[1]);
+  return (bx > 0 && slots[brick - 1]) || (bx + 1 < std::size_t(nb[0]) && slots[brick + 1]) ||
+         (by > 0 && slots[brick - sy]) || (by + 1 < std::size_t(nb[1]) && slots[brick + sy]) ||
+         (bz > 0 && slots[brick - sz]) || (bz + 1 < std::size_t(nb[2]) && slots[brick + sz]);
+}
+
 }  // namespace
 
 SurfaceTargets surface_targets(const GridView& g, const SurfaceTargetOptions& opt) {
@@ -79,7 +94,8 @@ SurfaceTargets surface_targets(const GridView& g, const SurfaceTargetOptions& op
   std::vector<std::vector<Target>> per_brick(nb);
   parallel_chunks(nb, 64, [&](std::size_t bb, std::size_t be) {
     for (std::size_t brick = bb; brick < be; ++brick) {
-      if (!g.brick_live[brick]) continue;  // neutral cells only: free space
+      if (!g.brick_live[brick]) continue;     // neutral cells only: free space
+      if (!written_near(g, brick)) continue;  // unknown cells, no solid face neighbour: none
       for (std::size_t id = brick << 6, end = id + 64; id < end; ++id) {
         int c[3];
         if (!g.layout.coords(id, c[0], c[1], c[2])) continue;
