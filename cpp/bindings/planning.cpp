@@ -66,6 +66,27 @@ struct CoverageArg {
   CoverageRef ref;
 };
 
+/// select_tours over the arguments of select_tour and select_tours, checked, without the GIL:
+/// a (views, gains) tuple per charge.
+std::vector<py::tuple> tours_arg(const py::dict& coverage, const py::handle& positions,
+                                 const py::handle& start, double rate, double min_gain,
+                                 int max_views, const std::vector<bool>& charges) {
+  const CoverageArg cov(coverage);
+  auto p = points_arg(positions, "candidate positions");
+  const Eigen::Vector3d st = vec3_arg(start, "tour start");
+  if (max_views < 0) throw py::value_error("max_views must be >= 0");
+  auto pm = p.map();
+  std::vector<CoverSelection> s;
+  {
+    py::gil_scoped_release release;
+    s = select_tours(cov.ref, pm, st, rate, min_gain, max_views, charges);
+  }
+  std::vector<py::tuple> out;
+  for (const CoverSelection& t : s)
+    out.push_back(py::make_tuple(py::cast(t.views), py::cast(t.gains)));
+  return out;
+}
+
 }  // namespace
 
 void init_planning(py::module_& m) {
@@ -200,17 +221,9 @@ than min_gain or max_views are chosen.)doc");
       "select_tour",
       [](const py::dict& coverage, const py::handle& positions, const py::handle& start,
          double rate, double min_gain, int max_views, bool charge_transit) {
-        const CoverageArg cov(coverage);
-        auto p = points_arg(positions, "candidate positions");
-        const Eigen::Vector3d st = vec3_arg(start, "tour start");
-        if (max_views < 0) throw py::value_error("max_views must be >= 0");
-        auto pm = p.map();
-        CoverSelection s;
-        {
-          py::gil_scoped_release release;
-          s = select_tour(cov.ref, pm, st, rate, min_gain, max_views, charge_transit);
-        }
-        return py::make_tuple(py::cast(s.views), py::cast(s.gains));
+        const auto tour =
+            tours_arg(coverage, positions, start, rate, min_gain, max_views, {charge_transit});
+        return tour[0];
       },
       py::arg("coverage"), py::arg("positions"), py::arg("start"), py::arg("rate"),
       py::arg("min_gain") = 1.0, py::arg("max_views") = 1000, py::arg("charge_transit") = true,
@@ -225,20 +238,7 @@ collection).)doc");
       "select_tours",
       [](const py::dict& coverage, const py::handle& positions, const py::handle& start,
          double rate, double min_gain, int max_views, const std::vector<bool>& charges) {
-        const CoverageArg cov(coverage);
-        auto p = points_arg(positions, "candidate positions");
-        const Eigen::Vector3d st = vec3_arg(start, "tour start");
-        if (max_views < 0) throw py::value_error("max_views must be >= 0");
-        auto pm = p.map();
-        std::vector<CoverSelection> s;
-        {
-          py::gil_scoped_release release;
-          s = select_tours(cov.ref, pm, st, rate, min_gain, max_views, charges);
-        }
-        py::list out;
-        for (const CoverSelection& t : s)
-          out.append(py::make_tuple(py::cast(t.views), py::cast(t.gains)));
-        return out;
+        return tours_arg(coverage, positions, start, rate, min_gain, max_views, charges);
       },
       py::arg("coverage"), py::arg("positions"), py::arg("start"), py::arg("rate"),
       py::arg("min_gain") = 1.0, py::arg("max_views") = 1000,

@@ -747,10 +747,10 @@ Holders holders_of(const CoverageRef& cov, Held held, std::size_t n, const Eleme
 CoverSelection insertion_tour(const CoverageRef& cov, const PointsRef& positions,
                               const Eigen::Vector3d& start, double rate, double min_gain,
                               int max_views, bool charge_transit, const ElementRanks& rank,
-                              const std::vector<std::uint32_t>& first,
-                              const HugeVector<Holders::Holder>& hold,
-                              const std::vector<double>& gain0) {
+                              const Holders& holders, const std::vector<double>& gain0) {
   const Eigen::Index K = cov.offsets.size() - 1;
+  const std::vector<std::uint32_t>& first = holders.first;
+  const HugeVector<Holders::Holder>& hold = holders.of;
   std::vector<double> gain = gain0;
   std::vector<float> covered(rank.size(), 0.0f);  // per distinct element: weight covered
   std::vector<Eigen::Vector3d> stops{start};      // the open tour: start, then the chosen views
@@ -901,14 +901,12 @@ std::vector<CoverSelection> select_tours(const CoverageRef& cov, const PointsRef
   };
   const ElementRanks rank(cov, each_held, held, lo, hi);
   const Holders holders = holders_of(cov, each_held, held, rank);
-  const std::vector<std::uint32_t>& first = holders.first;
-  const HugeVector<Holders::Holder>& hold = holders.of;
   // the tours read the inverse and write only their own state: one task each
   std::vector<CoverSelection> tours(charges.size());
   parallel_chunks(charges.size(), 1, [&](std::size_t b, std::size_t e) {
     for (std::size_t i = b; i < e; ++i)
       tours[i] = insertion_tour(cov, positions, start, rate, min_gain, max_views, charges[i], rank,
-                                first, hold, gain0);
+                                holders, gain0);
   });
   return tours;
 }

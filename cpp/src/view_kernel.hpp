@@ -54,7 +54,7 @@ class PackedCells {
           continue;
         }
         const float* scored = g.cells.brick_scored(brick);
-        const CellFlag* flags = g.cells.flags + (std::size_t(g.cells.slots[brick]) << 6);
+        const CellFlag* flags = g.cells.brick_flags(brick);
         for (int i = 0; i < 64; ++i)
           out[i] = std::uint8_t(std::signbit(scored[i])) | std::uint8_t(flags[i]) << 1;
       }

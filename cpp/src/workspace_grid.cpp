@@ -72,17 +72,7 @@ WorkspaceGrid::WorkspaceGrid(const std::array<int, 3>& dims, const CellRule& rul
   rebuild_derived();
 }
 
-WorkspaceGrid::WorkspaceGrid(const WorkspaceGrid& o)
-    : layout_(o.layout_),
-      rule_(o.rule_),
-      brick_live_(o.brick_live_),
-      brick_open_(o.brick_open_),
-      brick_occupied_(o.brick_occupied_),
-      stamps_(o.stamps_),
-      counts_(o.counts_),
-      known_entropy_fixed_(o.known_entropy_fixed_) {
-  copy_cells(o);
-}
+WorkspaceGrid::WorkspaceGrid(const WorkspaceGrid& o) { *this = o; }
 
 WorkspaceGrid& WorkspaceGrid::operator=(const WorkspaceGrid& o) {
   if (this == &o) return *this;
@@ -257,16 +247,12 @@ void WorkspaceGrid::rebuild_derived() {
       for (std::size_t id = brick << 6, e = id + 64; id < e; ++id) {
         const std::size_t c = cells_.at(id);
         int i, j, k;
-        if (!layout_.coords(id, i, j, k)) {  // padding: no cell, read as an unknown one
+        const bool cell = layout_.coords(id, i, j, k);  // padding: no cell, read as unknown
+        if (!cell || pool_flags_[c] == CellFlag::Unknown) {
           pool_logodds_[c] = 0.0f;
           pool_flags_[c] = CellFlag::Unknown;
           pool_scored_[c] = unknown;
-          continue;
-        }
-        if (pool_flags_[c] == CellFlag::Unknown) {
-          pool_logodds_[c] = 0.0f;
-          pool_scored_[c] = unknown;
-          ++live_cells;
+          live_cells += cell;
           continue;
         }
         const std::int64_t fixed = fixed_entropy_uncached(pool_logodds_[c]);

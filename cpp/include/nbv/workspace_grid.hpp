@@ -168,6 +168,10 @@ struct CellPools {
   const float* brick_scored(std::size_t brick) const {
     return scored + (std::size_t(slots[brick]) << 6);
   }
+  /// The 64 flags of a brick, in id order.
+  const CellFlag* brick_flags(std::size_t brick) const {
+    return flags + (std::size_t(slots[brick]) << 6);
+  }
   explicit operator bool() const { return slots && scored && logodds && flags; }
 };
 
