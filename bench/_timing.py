@@ -74,6 +74,12 @@ def checkouts(against: str | None) -> list:
     return runs
 
 
+def table_header(*columns: str) -> None:
+    """Prints a Markdown table's header: a "code" column (which checkout), then `columns`."""
+    print("| code | " + " | ".join(columns) + " |")
+    print("|---" * (len(columns) + 1) + "|")
+
+
 def run_each(snippet: str, args, against: str | None, row) -> list:
     """Runs `snippet` (run_snippet) once in this checkout and, with `against`, once in that one,
     each in a process of its own; prints row(label, result) after each. Returns the results."""

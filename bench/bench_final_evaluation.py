@@ -12,13 +12,10 @@ DIR is another checkout (DIR/python) or a saved copy of a built package (its fol
 from __future__ import annotations
 
 import sys
-import tempfile
 from pathlib import Path
 
-from _timing import run_each
-
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from large_structures import structure_parser, write_structure  # noqa: E402
+from large_structures import compare_on_structure, structure_parser  # noqa: E402
 
 SNIPPET = r"""
 import json, resource, sys, time, warnings
@@ -55,21 +52,16 @@ def main() -> None:
     ap = structure_parser(__doc__, seed=2)
     ap.add_argument("--points", type=float, default=60e6, help="points sampled (default 60e6)")
     a = ap.parse_args()
-    with tempfile.TemporaryDirectory() as tmp:
-        path = write_structure(a.structure, a.seed, tmp)
-        print(f"{a.structure} seed {a.seed}, {a.points:.3g} points sampled over 55 % of it")
-        print(
-            "| code | cloud | evaluation | with the ground truth | held before | peak | chamfer |"
-        )
-        print("|---|---|---|---|---|---|---|")
-        rows = run_each(
-            SNIPPET,
-            [path, a.points],
-            a.against,
-            lambda label, r: f"| {label} | {r['points']:,} points | {r['s']:.1f} s | "
-            f"{r['with_gt_s']:.1f} s | {r['held_mb'] / 1024:.2f} GB | "
-            f"{r['peak_mb'] / 1024:.2f} GB | {r['chamfer_m']!r} m |",
-        )
+    rows = compare_on_structure(
+        a,
+        f"{a.points:.3g} points sampled over 55 % of it",
+        ("cloud", "evaluation", "with the ground truth", "held before", "peak", "chamfer"),
+        SNIPPET,
+        [a.points],
+        lambda label, r: f"| {label} | {r['points']:,} points | {r['s']:.1f} s | "
+        f"{r['with_gt_s']:.1f} s | {r['held_mb'] / 1024:.2f} GB | "
+        f"{r['peak_mb'] / 1024:.2f} GB | {r['chamfer_m']!r} m |",
+    )
     if len(rows) == 2:
         now, then = rows
         print(

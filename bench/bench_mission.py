@@ -11,7 +11,7 @@ DIR is another checkout (DIR/python) or a saved copy of a built package (its fol
 """
 from __future__ import annotations
 
-from _timing import checkouts, mesh_parser, run_snippet
+from _timing import checkouts, mesh_parser, run_snippet, table_header
 
 FLY_SNIPPET = r"""
 import hashlib, json, resource, sys, tempfile, time
@@ -41,8 +41,7 @@ def main() -> None:
     ap.add_argument("--set", nargs="*", default=[], help="config overrides for every mission")
     a = ap.parse_args()
     runs = {label: [] for label, _ in checkouts(a.against)}
-    print("| code | views | ms per view: " + ", ".join(STAGES) + " | wall | peak | digest |")
-    print("|---|---|---|---|---|---|")
+    table_header("views", "ms per view: " + ", ".join(STAGES), "wall", "peak", "digest")
     for _ in range(a.rounds):
         for label, package in checkouts(a.against):
             r = run_snippet(FLY_SNIPPET, [a.mesh or "", *a.set], package)

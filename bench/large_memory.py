@@ -12,13 +12,10 @@ DIR is another checkout (DIR/python) or a saved copy of a built package (its fol
 from __future__ import annotations
 
 import sys
-import tempfile
 from pathlib import Path
 
-from _timing import run_each
-
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from large_structures import structure_parser, write_structure  # noqa: E402
+from large_structures import compare_on_structure, structure_parser  # noqa: E402
 
 FLY_SNIPPET = r"""
 import json, resource, sys, tempfile, time
@@ -44,22 +41,16 @@ def main() -> None:
     ap.add_argument("--views", type=int, default=300, help="the view cap (default 300)")
     ap.add_argument("--set", nargs="*", default=[], help="config overrides for both runs")
     a = ap.parse_args()
-    with tempfile.TemporaryDirectory() as tmp:
-        path = write_structure(a.structure, a.seed, tmp)
-        print(f"{a.structure} seed {a.seed}, {a.views} views at most, results folder written")
-        print(
-            "| code | peak (end of run) | peak (mission) | area cov. @0.05 m | flown | cloud "
-            "| wall |"
-        )
-        print("|---|---|---|---|---|---|---|")
-        rows = run_each(
-            FLY_SNIPPET,
-            [path, a.views, *a.set],
-            a.against,
-            lambda label, r: f"| {label} | {r['peak_mb'] / 1024:.2f} GB | "
-            f"{r['mission_peak_mb'] / 1024:.2f} GB | {100 * r['coverage']:.2f} % | "
-            f"{r['distance']:,.0f} m | {r['cloud_points']:,} points | {r['wall_s']:.0f} s |",
-        )
+    rows = compare_on_structure(
+        a,
+        f"{a.views} views at most, results folder written",
+        ("peak (end of run)", "peak (mission)", "area cov. @0.05 m", "flown", "cloud", "wall"),
+        FLY_SNIPPET,
+        [a.views, *a.set],
+        lambda label, r: f"| {label} | {r['peak_mb'] / 1024:.2f} GB | "
+        f"{r['mission_peak_mb'] / 1024:.2f} GB | {100 * r['coverage']:.2f} % | "
+        f"{r['distance']:,.0f} m | {r['cloud_points']:,} points | {r['wall_s']:.0f} s |",
+    )
     if len(rows) == 2:
         now, then = rows
         same = all(now[k] == then[k] for k in ("coverage", "distance", "views", "cloud_points"))

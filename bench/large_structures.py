@@ -19,11 +19,13 @@ from __future__ import annotations
 
 import argparse
 import sys
+import tempfile
 from pathlib import Path
 
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
+from _timing import run_each, table_header  # noqa: E402
 from unseen_structures import Builder, selected  # noqa: E402
 
 
@@ -110,6 +112,18 @@ def write_structure(name: str, seed: int, folder) -> Path:
     path = Path(folder) / "mesh.obj"
     STRUCTURES[name](np.random.default_rng(seed)).write(path)
     return path
+
+
+def compare_on_structure(a, what: str, columns, snippet: str, args, row) -> list:
+    """Writes the structure of `a` (structure_parser's arguments) into a temporary folder, prints
+    a title (the structure, its seed and `what`) and a table header of `columns`, and runs
+    `snippet` with the mesh's path and then `args`, in this checkout and in a.against's
+    (run_each, printing row(label, result) for each): the results."""
+    with tempfile.TemporaryDirectory() as tmp:
+        path = write_structure(a.structure, a.seed, tmp)
+        print(f"{a.structure} seed {a.seed}, {what}")
+        table_header(*columns)
+        return run_each(snippet, [path, *args], a.against, row)
 
 
 def main():
