@@ -53,6 +53,15 @@ def test_the_camera_record_holds_the_bricks_of_the_surface_seen_not_the_workspac
     assert all(m.entries == 0 and m.bytes == 0 for m in memos)
 
 
+def test_a_large_workspace_weighs_the_unknown_space_from_the_first_plan(two_boxes_flown):
+    # tour.explore_first null: by size; the 154 m workspace is longer than 6 camera ranges, so
+    # every plan weighs views of the unknown space, the first one included
+    mission = two_boxes_flown[0]
+    assert mission.config.tour.explore_first is None
+    tour = next(g for g in mission.planner.generators if hasattr(g, "plans"))
+    assert tour.plans and all(p["explore"] for p in tour.plans)
+
+
 def test_starts_of_a_scene_with_an_empty_centre_face_a_structure_within_reach():
     # the inward walk towards the workspace centre finds nothing there: each start then turns
     # towards the nearest structure, and faces it from within the camera's reach

@@ -10,9 +10,10 @@ pays. The tour is then proposed one view at a time (exclusive proposals): the pl
 each against the current map and skips it when it no longer adds tour.min_gain. When the tour is
 done the next plan is made from what the map shows then. With tour.explore, once a plan keeps no
 view, every later plan also weighs views of the unknown space within the structure's extent
-(exploration_targets: parts of the structure nothing has shown yet hold no surface target;
-with tour.explore_first every plan does, the first one included); a plan with no view left, or
-one none of whose views could be flown, ends the generator (tour.max_plans caps the plans). With
+(exploration_targets: parts of the structure nothing has shown yet hold no surface target; with
+tour.explore_first, by default on a large workspace, every plan does, the first one included); a
+plan with no view left, or one none of whose views could be flown, ends the generator
+(tour.max_plans caps the plans). With
 tour.access_weight > 0 a view is also credited with the surface it would give access to: patches
 whose every view fails the collision test for want of known free space, where its rays reach
 the place of such a view and the vehicle could fly there through space not known to be occupied
@@ -60,9 +61,9 @@ class TourConfig:
     # once no view of the surface the map shows is worth its flight, plans also weigh views of
     # the unknown space within the structure's extent (unknown cells bordering free space)
     explore: bool = True  # then also plan views that open unknown space; false: stop there
-    # with explore: from the first plan on (the plant: +2.1 points at 1,000 views, a peak 1.1 GB
-    # higher: its plans hold 2-4 x the coverage elements; docs/RESULTS.md, "Coverage levers")
-    explore_first: bool = False
+    # with explore: from the first plan on; null: on a workspace longer than 6 camera ranges
+    # (regions.is_large: the plant, +2.1 points at 1,000 views in 13 % less flight; RESULTS.md)
+    explore_first: Optional[bool] = None  # unknown space from the first plan; null: by size
     # plans first keep only views adding 2^gain_levels x min_gain, halving it each time a plan
     # keeps none; null: 3 on a workspace longer than 6 camera ranges (regions.is_large), else 0
     gain_levels: Optional[int] = within(None, 0, 20)  # the larger gains first; null: by size
@@ -152,11 +153,13 @@ class CoverageTour:
         ctx, own = self.ctx, self.settings
         if self.level is None:  # the first plan
             self.regions = Regions.of(world.workspace, own.region_size)
+            large = is_large(world.workspace, ctx.camera)
             levels = own.gain_levels
             if levels is None:  # larger gains first on a large structure only
-                levels = 3 if is_large(world.workspace, ctx.camera) else 0
+                levels = 3 if large else 0
             self.level = float(2**levels)
-            self.exploring = own.explore and own.explore_first
+            first = large if own.explore_first is None else own.explore_first
+            self.exploring = own.explore and first
         explore = explore or self.exploring or (self.regional and own.explore)
         scale = threshold_scale(world.map, ctx.planner.reference_area)
         min_gain, rate = own.min_gain * scale * self.level, own.rate * np.sqrt(scale)
