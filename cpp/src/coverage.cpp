@@ -58,15 +58,8 @@ bool touches_surface_face(const GridView& g, const int* c) {
 /// none beside it, holds only unknown cells with no solid cell on any face (a solid cell, occupied
 /// or predicted, is a written one).
 bool written_near(const GridView& g, std::size_t brick) {
-  const std::uint32_t* slots = g.cells.slots;
-  if (slots[brick]) return true;
-  const auto& nb = g.layout.bricks;
-  const std::size_t bx = brick % std::size_t(nb[0]), rest = brick / std::size_t(nb[0]);
-  const std::size_t by = rest % std::size_t(nb[1]), bz = rest / std::size_t(nb[1]);
-  const std::size_t sy = std::size_t(nb[0]), sz = sy * std::size_t(nb[1]);
-  return (bx > 0 && slots[brick - 1]) || (bx + 1 < std::size_t(nb[0]) && slots[brick + 1]) ||
-         (by > 0 && slots[brick - sy]) || (by + 1 < std::size_t(nb[1]) && slots[brick + sy]) ||
-         (bz > 0 && slots[brick - sz]) || (bz + 1 < std::size_t(nb[2]) && slots[brick + sz]);
+  return g.layout.brick_or_face_neighbour(brick,
+                                          [&](std::size_t b) { return g.cells.slots[b] != 0; });
 }
 
 }  // namespace
@@ -238,19 +231,14 @@ ExplorationTargets exploration_targets(const GridView& g, Eigen::Vector3i lo, Ei
   };
   std::mutex merge;
   std::vector<Found> all;
-  const auto& nb = g.layout.bricks;
-  const std::int64_t brick_step[3] = {1, nb[0], std::int64_t(nb[0]) * nb[1]};
   for_bricks_in(g, lo, hi, [&](std::size_t brick, int i0, int j0, int k0) {
     // passed over whole: a brick whose cells are all known, or whose cells have no known free
     // face neighbour because neither it nor a brick beside it holds a known free cell
     if (int(g.brick_open[brick]) + g.brick_occupied[brick] == 64) return;
-    bool open_near = g.brick_open[brick] != 0;
-    const int b[3] = {i0 >> 2, j0 >> 2, k0 >> 2};
-    for (int a = 0; a < 3 && !open_near; ++a) {
-      if (b[a] > 0) open_near |= g.brick_open[brick - std::size_t(brick_step[a])] != 0;
-      if (b[a] + 1 < nb[a]) open_near |= g.brick_open[brick + std::size_t(brick_step[a])] != 0;
-    }
-    if (!open_near) return;
+    const std::array<std::size_t, 3> at = {std::size_t(i0 >> 2), std::size_t(j0 >> 2),
+                                           std::size_t(k0 >> 2)};
+    auto open = [&](std::size_t b) { return g.brick_open[b] != 0; };
+    if (!open(brick) && !g.layout.face_neighbour_brick(brick, at, open)) return;
     std::vector<Found> found;
     for (int c = 0; c < 64; ++c) {
       const std::size_t id = brick << 6 | std::size_t(c);

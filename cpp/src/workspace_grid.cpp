@@ -42,12 +42,11 @@ GridLayout::GridLayout(const std::array<int, 3>& d) : dims(d) {
 }
 
 bool GridLayout::coords(std::size_t id, int& i, int& j, int& k) const {
-  const std::size_t brick = id >> 6, in = id & 63;
-  const std::size_t bx = brick % std::size_t(bricks[0]), rest = brick / std::size_t(bricks[0]);
-  const std::size_t by = rest % std::size_t(bricks[1]), bz = rest / std::size_t(bricks[1]);
-  i = int(bx << 2 | (in & 3));
-  j = int(by << 2 | ((in >> 2) & 3));
-  k = int(bz << 2 | (in >> 4));
+  const std::size_t in = id & 63;
+  const std::array<std::size_t, 3> b = brick_coords(id >> 6);
+  i = int(b[0] << 2 | (in & 3));
+  j = int(b[1] << 2 | ((in >> 2) & 3));
+  k = int(b[2] << 2 | (in >> 4));
   return contains(i, j, k);
 }
 

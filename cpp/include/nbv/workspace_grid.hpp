@@ -99,6 +99,28 @@ struct GridLayout {
   }
   /// The cell of an id; false for a padding id.
   bool coords(std::size_t id, int& i, int& j, int& k) const;
+  /// A brick's place among the bricks, per axis.
+  std::array<std::size_t, 3> brick_coords(std::size_t brick) const {
+    const std::size_t x = brick % std::size_t(bricks[0]), rest = brick / std::size_t(bricks[0]);
+    return {x, rest % std::size_t(bricks[1]), rest / std::size_t(bricks[1])};
+  }
+  /// Whether pred(b) holds for a brick b beside brick `brick` on a face; `at`: the brick's place
+  /// (brick_coords).
+  template <class Pred>
+  bool face_neighbour_brick(std::size_t brick, const std::array<std::size_t, 3>& at,
+                            Pred&& pred) const {
+    std::size_t step = 1;
+    for (int a = 0; a < 3; step *= std::size_t(bricks[a]), ++a)
+      if ((at[a] > 0 && pred(brick - step)) ||
+          (at[a] + 1 < std::size_t(bricks[a]) && pred(brick + step)))
+        return true;
+    return false;
+  }
+  /// Whether pred(b) holds for brick b = `brick` or one of the bricks beside it on a face.
+  template <class Pred>
+  bool brick_or_face_neighbour(std::size_t brick, Pred&& pred) const {
+    return pred(brick) || face_neighbour_brick(brick, brick_coords(brick), pred);
+  }
   bool contains(int i, int j, int k) const {
     return unsigned(i) < unsigned(dims[0]) && unsigned(j) < unsigned(dims[1]) &&
            unsigned(k) < unsigned(dims[2]);
