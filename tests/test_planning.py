@@ -834,7 +834,7 @@ def test_a_stranded_place_behind_a_wall_with_a_gap_narrower_than_the_vehicle_is_
     # The scene above with a second wall at x = 6 between the vehicle and the stranded view's
     # place (x = 8), holed round the line of sight: the view's rays reach the place through the
     # hole either way, but the vehicle (0.8 m collision radius) could pass only the 3.2 m one.
-    from nbvkit.planning.generators.tour import _reachable
+    from nbvkit.planning.generators.access import reachable
 
     cands = np.array([[8.1, 3.1, 2.1, math.pi], [3.0, 3.1, 2.1, 0.0]])
     owner = np.array([0, 1])
@@ -843,7 +843,7 @@ def test_a_stranded_place_behind_a_wall_with_a_gap_narrower_than_the_vehicle_is_
     place = m.storage_index(cands[:1, :3])[0]
     assert place in np.asarray(cov["elements"]) // 2  # the rays reach it through the hole
     world = _access_world(m, [3.0, 3.1, 2.1, 0.0])
-    reach = _reachable(world, 0.8)
+    reach = reachable(world, 0.8)
     assert reach[15, 15, 10] and not reach[30, 2, 2]  # by the vehicle; in the wall at x = 6
     assert reach[40, 15, 10] == credited  # the stranded view's cell
     tour = get_generator("tour", Config().with_overrides(["tour.access_weight=0.5"]))
@@ -881,7 +881,7 @@ def test_exploration_targets_are_the_unknown_face_of_known_free_space_within_the
 
 
 def test_append_elements_keeps_each_views_set_in_order():
-    from nbvkit.planning.generators.tour import _append_elements
+    from nbvkit.planning.generators.access import append_elements
 
     cov = {
         "offsets": np.array([0, 2, 2, 5]),
@@ -889,23 +889,23 @@ def test_append_elements_keeps_each_views_set_in_order():
         "weights": np.array([1.0, 2.0, 3.0, 4.0, 5.0], np.float32),
         "status": np.zeros(3, np.int8),
     }
-    out = _append_elements(cov, np.array([0, 0, 2]), np.array([10, 11, 12]), [0.1, 0.2, 0.3])
+    out = append_elements(cov, np.array([0, 0, 2]), np.array([10, 11, 12]), [0.1, 0.2, 0.3])
     assert out["offsets"].tolist() == [0, 4, 4, 8]
     assert out["elements"].tolist() == [1, 3, 10, 11, 0, 4, 9, 12]
     np.testing.assert_allclose(out["weights"], [1, 2, 0.1, 0.2, 3, 4, 5, 0.3], rtol=1e-6)
     assert out["status"] is cov["status"]
     # view_coverage's elements are int32: appended ones keep that type, or say they do not fit
     cov32 = {**cov, "elements": cov["elements"].astype(np.int32)}
-    out = _append_elements(cov32, np.array([1]), np.array([2**31 - 1]), [1.0])
+    out = append_elements(cov32, np.array([1]), np.array([2**31 - 1]), [1.0])
     assert out["elements"].dtype == np.int32 and out["elements"][2] == 2**31 - 1
     with pytest.raises(OverflowError, match="int32"):
-        _append_elements(cov32, np.array([1]), np.array([2**31]), [1.0])
+        append_elements(cov32, np.array([1]), np.array([2**31]), [1.0])
 
 
 def test_append_elements_and_elements_in_cells_equal_a_plain_construction(monkeypatch):
-    import nbvkit.planning.generators.tour as tour
+    import nbvkit.planning.generators.access as access
 
-    monkeypatch.setattr(tour, "_CHUNK", 37)  # several chunks
+    monkeypatch.setattr(access, "_CHUNK", 37)  # several chunks
     rng = np.random.default_rng(11)
     for _ in range(20):
         sizes = rng.integers(0, 9, size=rng.integers(1, 30))
@@ -916,12 +916,12 @@ def test_append_elements_and_elements_in_cells_equal_a_plain_construction(monkey
             "weights": rng.random(sizes.sum()).astype(np.float32),
         }
         cells = np.unique(rng.integers(0, 120, size=rng.integers(0, 40)))
-        hit = tour._elements_in_cells(cov["elements"], cells)
+        hit = access.elements_in_cells(cov["elements"], cells)
         np.testing.assert_array_equal(hit, np.flatnonzero(np.isin(cov["elements"] // 2, cells)))
         views = np.sort(rng.integers(0, len(sizes), size=rng.integers(0, 12)))
         extra = 200 + np.arange(len(views))
         w = rng.random(len(views))
-        out = tour._append_elements(cov, views, extra, w)
+        out = access.append_elements(cov, views, extra, w)
         want_el, want_w = [], []  # each view's set, then its extras in the order given
         for v, s in enumerate(sets):
             o = cov["offsets"][v]
