@@ -139,3 +139,36 @@ def test_the_inspection_camera_scores_one_ray_per_map_cell_at_its_near_standoff(
     ]
     spacing = np.array(across) / [cam.rays_x, cam.rays_y]
     assert np.all(spacing <= cfg.map.resolution) and np.all(spacing > 0.8 * cfg.map.resolution)
+
+
+@pytest.mark.parametrize("level_views", [1, 6])
+def test_a_plan_that_keeps_too_few_views_halves_its_level_over_the_same_coverage(
+    level_views, monkeypatch
+):
+    # The two cubes 30 m apart with a 4 m camera (a large workspace: plans start at 8 x
+    # tour.min_gain). A plan above the lowest level keeps at least tour.level_views views, else
+    # its level halves and its selection runs again over the same coverage sets: one
+    # view_coverage call per plan, however many levels it went down.
+    import nbvkit
+    from conftest import QUICK_MISSION, box_mesh
+    from nbvkit.mission import Mission
+    from nbvkit.planning.generators.tour import CoverageTour
+
+    a, b = box_mesh((0, 0, 0), (4, 4, 4)), box_mesh((30, 0, 0), (34, 4, 4))
+    mesh = nbvkit.Mesh(
+        np.vstack([a.vertices, b.vertices]), np.vstack([a.faces, b.faces + len(a.vertices)])
+    )
+    scored = []
+    coverage = CoverageTour.coverage
+    monkeypatch.setattr(
+        CoverageTour, "coverage", lambda self, w, c: scored.append(len(c)) or coverage(self, w, c)
+    )
+    more = ["camera.max_range=4", "workspace.margin_xy=5", f"tour.level_views={level_views}"]
+    s = Mission(load_config(overrides=list(QUICK_MISSION) + more), mesh=mesh).run()
+    plans, base = s["tours"], load_config().tour.min_gain
+    level = np.array([p["min_gain_m2"] / p["scale"] / base for p in plans])
+    assert level[0] <= 8 + 1e-9 and level[-1] == pytest.approx(1.0)
+    assert np.all(np.diff(level) <= 1e-9)
+    above = level > 1 + 1e-9
+    assert all(p["kept"] >= level_views for p, up in zip(plans, above) if up)
+    assert len(scored) == sum(p["candidates"] > 0 for p in plans)

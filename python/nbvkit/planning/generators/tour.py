@@ -22,7 +22,8 @@ smaller than planner.reference_area both thresholds shrink with it (parts.thresh
 
 On a large workspace (longer than 6 camera ranges: a 100 m plant, not a 35 m aircraft; by
 default) plans keep at first only views adding 2^tour.gain_levels x min_gain, halving the
-threshold each time a plan keeps none: the large gains of the whole structure are flown before
+threshold each time a plan keeps fewer than tour.level_views views (selected again over the same
+coverage sets): the large gains of the whole structure are flown before
 the small ones near the vehicle (a decreasing-threshold greedy; docs/RESULTS.md, "Large
 structures"). With tour.region_size the tours are planned region by region (regions.py: the
 region the vehicle is in, then the next of an open tour over the regions still holding value)
@@ -65,8 +66,13 @@ class TourConfig:
     # (regions.is_large: the plant, +2.1 points at 1,000 views in 13 % less flight; RESULTS.md)
     explore_first: Optional[bool] = None  # unknown space from the first plan; null: by size
     # plans first keep only views adding 2^gain_levels x min_gain, halving it each time a plan
-    # keeps none; null: 3 on a workspace longer than 6 camera ranges (regions.is_large), else 0
+    # keeps too few (level_views); null: 3 on a workspace longer than 6 camera ranges
+    # (regions.is_large), else 0
     gain_levels: Optional[int] = within(None, 0, 20)  # the larger gains first; null: by size
+    # a plan above the lowest level that keeps fewer views than this is selected again over
+    # the same coverage sets at half the level (1: only when it keeps none; 8 on the plants:
+    # about a quarter less time, 1.3-1.9 points less coverage at 1,000 views; RESULTS.md)
+    level_views: int = within(1, 1, 10**6)  # views a plan keeps before its level halves
     # with region_size, a workspace larger than it is toured region by region (regions.py),
     # exploring the unknown space of the whole workspace from the first plan
     region_size: Optional[float] = positive(None)  # m; null: one region
@@ -192,8 +198,14 @@ class CoverageTour:
         self.plans.append(record)
         views, self.aims = np.zeros((0, candidates.shape[1])), np.zeros((0, 3))
         if len(candidates):
-            choose = self._regional if self.regional else self._choose
-            views, self.aims = choose(world, candidates, owner, patches, record, min_gain, rate)
+            if self.regional:
+                views, self.aims = self._regional(
+                    world, candidates, owner, patches, record, min_gain, rate
+                )
+            else:
+                views, self.aims = self._choose(
+                    world, candidates, owner, patches, record, min_gain, rate, drop=True
+                )
             _core.release_free_memory()  # the plan's coverage sets, freed across the arenas
         return views
 
@@ -223,13 +235,36 @@ class CoverageTour:
                 break
         return np.zeros((0, candidates.shape[1])), np.zeros((0, 3))
 
-    def _choose(self, world, candidates, owner, patches, record, min_gain, rate):
+    def _choose(self, world, candidates, owner, patches, record, min_gain, rate, drop=False):
         """(views, aims) in flight order: the set of candidates the selection keeps (tour.selection
-        over their coverage), then prize-collected; `record` gets the counts."""
-        cell_m2 = world.map.resolution**2
-        pose = world.state.pose
+        over their coverage), then prize-collected; `record` gets the counts. With drop, while
+        the selection keeps fewer than tour.level_views views above the lowest level, the level
+        halves and the selection runs again over the same coverage sets."""
         coverage = self.coverage(world, candidates)  # (a large plan's walks' heap handed back)
         coverage, opens = self._access(world, coverage, candidates, owner, patches)
+        chosen, order = self._select(world, coverage, candidates, min_gain, rate)
+        while drop and len(order) < self.settings.level_views and self.level > 1:
+            min_gain /= self.level
+            self.level = max(1.0, self.level / 2)
+            min_gain *= self.level
+            chosen, order = self._select(world, coverage, candidates, min_gain, rate)
+        record["min_gain_m2"] = float(min_gain)
+        record["selected"] = len(chosen)
+        for k in chosen:  # the places a chosen view opens are not credited again
+            self.opened.update(opens.get(int(k), ()))
+        views, aims = candidates[chosen], patches.centers[owner[chosen]]
+        record["kept"] = len(order)
+        record["length_m"] = 0.0
+        if order:
+            pose = world.state.pose
+            pts = np.vstack([pose[:3], views[order, :3]])
+            record["length_m"] = float(np.linalg.norm(np.diff(pts, axis=0), axis=1).sum())
+        return views[order], aims[order]
+
+    def _select(self, world, coverage, candidates, min_gain, rate):
+        """(chosen candidates, their kept order) of tour.selection over the coverage sets."""
+        cell_m2 = world.map.resolution**2
+        pose = world.state.pose
         if self.settings.selection == "insertion":
             # anchored at the vehicle, and with the first view's transit free (a far cluster
             # that pays only as a whole); the tour worth more after prize collection is flown
@@ -248,16 +283,7 @@ class CoverageTour:
             gains = np.asarray(gains) * cell_m2
             order = _core.solve_tour(candidates[chosen, :3], pose[:3])[0] if chosen else []
             order = prize_collect(pose[:3], candidates[chosen, :3], gains, order, rate)
-        record["selected"] = len(chosen)
-        for k in chosen:  # the places a chosen view opens are not credited again
-            self.opened.update(opens.get(int(k), ()))
-        views, aims = candidates[chosen], patches.centers[owner[chosen]]
-        record["kept"] = len(order)
-        record["length_m"] = 0.0
-        if order:
-            pts = np.vstack([pose[:3], views[order, :3]])
-            record["length_m"] = float(np.linalg.norm(np.diff(pts, axis=0), axis=1).sum())
-        return views[order], aims[order]
+        return chosen, order
 
     def _access(self, world, coverage, candidates, owner, patches):
         """access.access_elements with tour.access_weight, the vehicle's collision radius and
