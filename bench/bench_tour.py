@@ -2,7 +2,7 @@
 --mesh) after its profile - the candidate views' coverage (view_coverage) and the prize-collecting
 insertion over them (select_tour, with and without charging the first transit, and both at once
 as the tour generator asks for them: select_tours, one inverse of the coverage, the two tours in
-parallel).
+parallel), and the rise of the peak resident memory the selections bring.
 
 ``--against DIR`` times both, in the same run, with the nbvkit package (and its built extension)
 of another checkout, DIR/python or DIR (e.g. a saved copy of the package before a change): each
@@ -37,9 +37,17 @@ from nbvkit import _core
 d = np.load(sys.argv[1])
 kw = json.loads(sys.argv[2])
 cov = {k: d[k] for k in ("offsets", "elements", "weights", "status")}
+positions, start = d["positions"], d["start"]
+def hwm():  # the peak resident memory since the last reset, GiB (Linux: VmHWM)
+    for line in open("/proc/self/status"):
+        if line.startswith("VmHWM:"):
+            return int(line.split()[1]) / 2**20
+with open("/proc/self/clear_refs", "w") as f:
+    f.write("5")  # the peak back to the resident memory now, the coverage loaded
+rss0 = hwm()
 out, times = [], []
 for charge in (True, False):
-    args = (cov, d["positions"], d["start"])
+    args = (cov, positions, start)
     _core.select_tour(*args, charge_transit=charge, **kw)  # warm-up
     best = float("inf")
     for _ in range(int(sys.argv[3])):
@@ -53,10 +61,11 @@ if hasattr(_core, "select_tours"):
     pair = float("inf")
     for _ in range(int(sys.argv[3])):
         t = time.perf_counter()
-        both = _core.select_tours(cov, d["positions"], d["start"], charges=[True, False], **kw)
+        both = _core.select_tours(cov, positions, start, charges=[True, False], **kw)
         pair = min(pair, time.perf_counter() - t)
     assert [[list(map(int, v)), [float(x) for x in g]] for v, g in both] == out
-print(json.dumps({"times": times, "choice": out, "pair": pair}))
+rise = hwm() - rss0
+print(json.dumps({"times": times, "choice": out, "pair": pair, "rise": rise}))
 """
 
 
@@ -79,11 +88,12 @@ print(json.dumps({"time": min(ts), "digest": digest.hexdigest()}))
 """
 
 
-def first_plan(mesh: str | None, with_again: bool = False):
+def first_plan(mesh: str | None, with_again: bool = False, level: float = 1.0):
     """The coverage of the first tour's candidates, its positions and start, the rate and minimum
     gain in the units select_tour takes, and view_coverage's time, as the tour generator computes
     them after the mission's profile and symmetry prediction (with_again: and a function that
-    computes the coverage again)."""
+    computes the coverage again); level: the gain level of the minimum gain (tour.gain_levels:
+    a large workspace's first plan is at 8)."""
     over = ["progress=false"] + ([f"mesh.path={mesh}"] if mesh else [])
     m = Mission(Config().with_overrides(over))
     w, cfg = m.world, m.config
@@ -96,7 +106,7 @@ def first_plan(mesh: str | None, with_again: bool = False):
     cov = tour.coverage(w, cands)
     t_cov = median_time(lambda: tour.coverage(w, cands), 1)
     cell = w.map.resolution**2
-    sel = {"rate": cfg.tour.rate / cell, "min_gain": cfg.tour.min_gain / cell}
+    sel = {"rate": cfg.tour.rate / cell, "min_gain": level * cfg.tour.min_gain / cell}
     if with_again:
         return cov, cands, w.state.pose, sel, t_cov, lambda: tour.coverage(w, cands)
     return cov, cands, w.state.pose, sel, t_cov
@@ -105,8 +115,9 @@ def first_plan(mesh: str | None, with_again: bool = False):
 def main():
     ap = mesh_parser(__doc__, repeat=3)
     ap.add_argument("--against", help="another checkout to time select_tour in, in the same run")
+    ap.add_argument("--level", type=float, default=1.0, help="multiple of tour.min_gain kept")
     args = ap.parse_args()
-    cov, cands, pose, sel, t_cov = first_plan(args.mesh)
+    cov, cands, pose, sel, t_cov = first_plan(args.mesh, level=args.level)
     valid = int((cov["status"] == 0).sum())
     print(
         f"first tour: {len(cands)} candidate views ({valid} valid), "
@@ -135,7 +146,10 @@ def main():
             f"  {label}: select_tour {t[0] * 1e3:.0f} ms (transit charged, {n[0]} views) + "
             f"{t[1] * 1e3:.0f} ms (first transit free, {n[1]} views), best of {args.repeat}"
         )
-        print(f"    both tours as the generator asks for them: {r['pair'] * 1e3:.0f} ms")
+        print(
+            f"    both tours as the generator asks for them: {r['pair'] * 1e3:.0f} ms; "
+            f"peak resident memory up {r.get('rise', float('nan')):.2f} GiB"
+        )
     if len(rows) == 2:
         (_, a), (_, b) = rows
         same = a["choice"] == b["choice"]
