@@ -647,10 +647,9 @@ def test_scenario_presets_yield_to_what_the_user_sets():
     assert back == c2  # a written config.yaml reproduces the run
 
 
-def test_view_coverage_sets_hold_what_the_surface_utility_credits_each_view():
-    # view_coverage walks with its own packed copy of the grid (one byte a cell); each view's
-    # set must hold the cells the surface utility credits walking the grid itself, and weigh
-    # them alike: a box seen from two sides, frontier and unknown cells all round it
+def _box_seen_from_two_sides():
+    """(map, surface, 60 candidate poses round it, the current pose, view_coverage's keywords):
+    a box seen from two sides, frontier and unknown cells all round it."""
     m = nbvkit.OccupancyMap(0.2, (-6, -6, 0), (6, 6, 5))
     cam = nbvkit.DepthCamera(box_mesh((-1.5, -1.5, 0), (1.5, 1.5, 2.5)), max_range=8.0)
     surface = _core.SurfaceObservations(m)
@@ -667,7 +666,14 @@ def test_view_coverage_sets_hold_what_the_surface_utility_credits_each_view():
         utility=dict(name="surface", require_occupied=False),
         validity=dict(collision_radius=0.0, blocked_path="plan"),
     )
-    current = [-5.0, 0.0, 1.5, 0.0]
+    return m, surface, poses, [-5.0, 0.0, 1.5, 0.0], kw
+
+
+def test_view_coverage_sets_hold_what_the_surface_utility_credits_each_view():
+    # view_coverage walks with its own packed copy of the grid (one byte a cell); each view's
+    # set must hold the cells the surface utility credits walking the grid itself, and weigh
+    # them alike
+    m, surface, poses, current, kw = _box_seen_from_two_sides()
     cov = _core.view_coverage(m, surface, poses, current, **kw)
     scores = _core.evaluate_views(m, poses, current, surface=surface, **kw)
     np.testing.assert_array_equal(cov["status"], scores["status"])
@@ -678,6 +684,38 @@ def test_view_coverage_sets_hold_what_the_surface_utility_credits_each_view():
     # each cell once per view, so the set has one element per credited cell; weights are floats
     np.testing.assert_array_equal(sizes[valid], scores["cells"][valid])
     np.testing.assert_allclose(sums[valid], scores["gain"][valid], rtol=1e-5)
+
+
+def test_view_coverage_with_a_min_gain_hands_out_only_the_sets_a_selection_could_take():
+    # A valid candidate whose weights sum below min_gain keeps its status and gets an empty set;
+    # the others keep theirs; select_tours at that min_gain or above chooses the same views, in
+    # the same order, with the same gains, as over the whole sets
+    m, surface, poses, current, kw = _box_seen_from_two_sides()
+    whole = _core.view_coverage(m, surface, poses, current, **kw)
+    sizes = np.diff(whole["offsets"])
+    sums = np.array(
+        [
+            whole["weights"][a:b].astype(float).sum()
+            for a, b in zip(whole["offsets"][:-1], whole["offsets"][1:])
+        ]
+    )
+    valid = whole["status"] == 0
+    mg = float(np.median(sums[valid & (sizes > 0)]))
+    cut = _core.view_coverage(m, surface, poses, current, min_gain=mg, **kw)
+    np.testing.assert_array_equal(cut["status"], whole["status"])
+    keep = sums >= mg
+    assert 0 < (valid & keep).sum() < (valid & (sizes > 0)).sum()
+    np.testing.assert_array_equal(np.diff(cut["offsets"]), np.where(keep, sizes, 0))
+    held = np.repeat(keep, sizes)
+    np.testing.assert_array_equal(cut["elements"], whole["elements"][held])
+    np.testing.assert_array_equal(cut["weights"], whole["weights"][held])
+    for at in (mg, 1.5 * mg):
+        a = _core.select_tours(whole, poses[:, :3], current[:3], rate=0.5, min_gain=at)
+        b = _core.select_tours(cut, poses[:, :3], current[:3], rate=0.5, min_gain=at)
+        assert [(list(v), list(g)) for v, g in a] == [(list(v), list(g)) for v, g in b]
+        assert len(a[0][0]) > 0
+    with pytest.raises(ValueError, match="min_gain"):
+        _core.view_coverage(m, surface, poses, current, min_gain=float("nan"), **kw)
 
 
 def test_the_coverage_memo_answers_as_walking_again():

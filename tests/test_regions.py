@@ -142,13 +142,11 @@ def test_the_inspection_camera_scores_one_ray_per_map_cell_at_its_near_standoff(
 
 
 @pytest.mark.parametrize("level_views", [1, 6])
-def test_a_plan_that_keeps_too_few_views_halves_its_level_over_the_same_coverage(
-    level_views, monkeypatch
-):
+def test_a_plan_that_keeps_too_few_views_halves_its_level(level_views, monkeypatch):
     # The two cubes 30 m apart with a 4 m camera (a large workspace: plans start at 8 x
     # tour.min_gain). A plan above the lowest level keeps at least tour.level_views views, else
-    # its level halves and its selection runs again over the same coverage sets: one
-    # view_coverage call per plan, however many levels it went down.
+    # its level halves and its selection runs again: over the sets of the views the lower level
+    # adds too, one view_coverage call per level (at min_gain: the views that can be chosen).
     import nbvkit
     from conftest import QUICK_MISSION, box_mesh
     from nbvkit.mission import Mission
@@ -158,17 +156,29 @@ def test_a_plan_that_keeps_too_few_views_halves_its_level_over_the_same_coverage
     mesh = nbvkit.Mesh(
         np.vstack([a.vertices, b.vertices]), np.vstack([a.faces, b.faces + len(a.vertices)])
     )
-    scored = []
+    scored, base = [], load_config().tour.min_gain
     coverage = CoverageTour.coverage
     monkeypatch.setattr(
-        CoverageTour, "coverage", lambda self, w, c: scored.append(len(c)) or coverage(self, w, c)
+        CoverageTour,
+        "coverage",
+        lambda self, w, c, g=0.0: scored.append(g / base) or coverage(self, w, c, g),
     )
     more = ["camera.max_range=4", "workspace.margin_xy=5", f"tour.level_views={level_views}"]
     s = Mission(load_config(overrides=list(QUICK_MISSION) + more), mesh=mesh).run()
-    plans, base = s["tours"], load_config().tour.min_gain
+    plans = s["tours"]
     level = np.array([p["min_gain_m2"] / p["scale"] / base for p in plans])
     assert level[0] <= 8 + 1e-9 and level[-1] == pytest.approx(1.0)
     assert np.all(np.diff(level) <= 1e-9)
     above = level > 1 + 1e-9
     assert all(p["kept"] >= level_views for p, up in zip(plans, above) if up)
-    assert len(scored) == sum(p["candidates"] > 0 for p in plans)
+    # each plan scores at the level the last one ended at, then at each half it goes down to
+    expected, start = [], 8.0
+    for p, end in zip(plans, level):
+        at = start
+        while p["candidates"]:
+            expected.append(at * p["scale"])
+            if at <= end + 1e-9:
+                break
+            at /= 2
+        start = end
+    np.testing.assert_allclose(scored, expected)

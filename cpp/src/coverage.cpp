@@ -451,7 +451,8 @@ void keep_within(const CoverageMemo& memo, std::vector<CoverageMemo::Entry>& fre
 
 ViewCoverage view_coverage(const GridView& g, const ViewPosesRef& cand, const Pose& current,
                            const ViewCameraModel& camera, const UtilityOptions& utility,
-                           const ValidityOptions& validity, CoverageMemo* memo) {
+                           const ValidityOptions& validity, CoverageMemo* memo, double min_gain) {
+  if (!std::isfinite(min_gain)) throw std::invalid_argument("view_coverage: min_gain not finite");
   g.validate();
   camera.validate();
   utility.validate();
@@ -564,10 +565,21 @@ ViewCoverage view_coverage(const GridView& g, const ViewPosesRef& cand, const Po
   const ViewScores scores = kernel::score<utility::Surface, true>(job, kernel::PackedCells(g));
   ViewCoverage out;
   out.status = scores.status;
+  // the sets handed out: a valid candidate's when its weights sum to min_gain (summed as
+  // select_tours sums them, in the set's order), none otherwise
+  std::vector<std::uint8_t> held(std::size_t(K), 1);
+  if (min_gain > 0.0)
+    for (Eigen::Index k = 0; k < K; ++k) {
+      double sum = 0.0;
+      for (const auto& [e, w] : sets[std::size_t(k)]) sum += w;
+      held[std::size_t(k)] = sum >= min_gain;
+    }
+  auto size_of = [&](Eigen::Index k) {
+    return held[std::size_t(k)] ? std::int64_t(sets[std::size_t(k)].size()) : std::int64_t(0);
+  };
   out.offsets.resize(K + 1);
   out.offsets[0] = 0;
-  for (Eigen::Index k = 0; k < K; ++k)
-    out.offsets[k + 1] = out.offsets[k] + std::int64_t(sets[std::size_t(k)].size());
+  for (Eigen::Index k = 0; k < K; ++k) out.offsets[k + 1] = out.offsets[k] + size_of(k);
   if (memo) keep_within(*memo, fresh, walked, sets);
   // The sets move into the arrays one by one, each freed as it goes, with their memo records;
   // on a large plan the heap they leave goes back every eighth of the elements, so the sets,
@@ -580,11 +592,12 @@ ViewCoverage view_coverage(const GridView& g, const ViewPosesRef& cand, const Po
   for (Eigen::Index k = 0; k < K; ++k) {
     auto& s = sets[std::size_t(k)];
     std::int64_t o = out.offsets[k];
-    for (const auto& [e, w] : s) {
-      out.elements[o] = std::int32_t(e);
-      out.weights[o] = w;
-      ++o;
-    }
+    if (held[std::size_t(k)])
+      for (const auto& [e, w] : s) {
+        out.elements[o] = std::int32_t(e);
+        out.weights[o] = w;
+        ++o;
+      }
     if (memo && walked[std::size_t(k)] == kRecord) {
       CoverageMemo::Entry& e = fresh[std::size_t(k)];
       e.elements.resize(s.size());

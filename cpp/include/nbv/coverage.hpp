@@ -166,10 +166,14 @@ class CoverageMemo {
 
 /// With a memo (kept by the caller across calls over the same map and observations), views
 /// walked in an earlier call whose record still holds are answered from it: the same arrays.
+/// With min_gain > 0 a valid candidate whose weights sum below it keeps its status and an empty
+/// set: select_tours and select_tour at that min_gain or above choose the same views and gains
+/// (they never take such a candidate), from arrays a plan at a high gain level holds a few
+/// hundred of tens of thousands of sets in.
 ViewCoverage view_coverage(const GridView& grid, const ViewPosesRef& candidates,
                            const Pose& current, const ViewCameraModel& camera,
                            const UtilityOptions& utility, const ValidityOptions& validity,
-                           CoverageMemo* memo = nullptr);
+                           CoverageMemo* memo = nullptr, double min_gain = 0.0);
 
 /// Greedy weighted set cover: repeatedly the view whose not-yet-covered elements weigh most
 /// (each element counts at most `saturation` in total: a weight once covered), until the best

@@ -22,8 +22,8 @@ smaller than planner.reference_area both thresholds shrink with it (parts.thresh
 
 On a large workspace (longer than 6 camera ranges: a 100 m plant, not a 35 m aircraft; by
 default) plans keep at first only views adding 2^tour.gain_levels x min_gain, halving the
-threshold each time a plan keeps fewer than tour.level_views views (selected again over the same
-coverage sets): the large gains of the whole structure are flown before
+threshold each time a plan keeps fewer than tour.level_views views (it selects again at the
+lower level): the large gains of the whole structure are flown before
 the small ones near the vehicle (a decreasing-threshold greedy; docs/RESULTS.md, "Large
 structures"). With tour.region_size the tours are planned region by region (regions.py: the
 region the vehicle is in, then the next of an open tour over the regions still holding value)
@@ -69,9 +69,9 @@ class TourConfig:
     # keeps too few (level_views); null: 3 on a workspace longer than 6 camera ranges
     # (regions.is_large), else 0
     gain_levels: Optional[int] = within(None, 0, 20)  # the larger gains first; null: by size
-    # a plan above the lowest level that keeps fewer views than this is selected again over
-    # the same coverage sets at half the level (1: only when it keeps none; 8 on the plants:
-    # about a quarter less time, 1.3-1.9 points less coverage at 1,000 views; RESULTS.md)
+    # a plan above the lowest level that keeps fewer views than this selects again at half
+    # the level, before any view is flown (1: only when it keeps none; 8 on the plants: 1.3-1.9
+    # points less coverage at 1,000 views; RESULTS.md)
     level_views: int = within(1, 1, 10**6)  # views a plan keeps before its level halves
     # with region_size, a workspace larger than it is toured region by region (regions.py),
     # exploring the unknown space of the whole workspace from the first plan
@@ -142,8 +142,9 @@ class CoverageTour:
             )
         return targets, patches, candidates, owner, unplaced
 
-    def coverage(self, world, candidates) -> dict:
-        """What each candidate would newly cover, from the vehicle's pose (view_coverage)."""
+    def coverage(self, world, candidates, min_gain: float = 0.0) -> dict:
+        """What each candidate would newly cover, from the vehicle's pose (view_coverage); with
+        min_gain (m^2), the sets of candidates adding less are left empty."""
         return _core.view_coverage(
             world.map,
             world.surface,
@@ -153,6 +154,7 @@ class CoverageTour:
             utility=self.ctx.utility.options(),
             validity=world.validity(blocked_path="plan"),
             memo=self.memo,
+            min_gain=min_gain / world.map.resolution**2,
         )
 
     def plan(self, world, reachable_only: bool = False, explore: bool = False) -> np.ndarray:
@@ -239,14 +241,20 @@ class CoverageTour:
         """(views, aims) in flight order: the set of candidates the selection keeps (tour.selection
         over their coverage), then prize-collected; `record` gets the counts. With drop, while
         the selection keeps fewer than tour.level_views views above the lowest level, the level
-        halves and the selection runs again over the same coverage sets."""
-        coverage = self.coverage(world, candidates)  # (a large plan's walks' heap handed back)
+        halves and the selection runs again (over the same coverage sets with tour.access_weight;
+        else over those of the views the lower level adds too)."""
+        # only the sets of views that can be chosen (a large plan's walks' heap handed back);
+        # all of them when access credit may lift a view above min_gain
+        cut = self.settings.access_weight <= 0
+        coverage = self.coverage(world, candidates, min_gain if cut else 0.0)
         coverage, opens = self._access(world, coverage, candidates, owner, patches)
         chosen, order = self._select(world, coverage, candidates, min_gain, rate)
         while drop and len(order) < self.settings.level_views and self.level > 1:
             min_gain /= self.level
             self.level = max(1.0, self.level / 2)
             min_gain *= self.level
+            if cut:  # the sets of the views below the old level too
+                coverage = self.coverage(world, candidates, min_gain)
             chosen, order = self._select(world, coverage, candidates, min_gain, rate)
         record["min_gain_m2"] = float(min_gain)
         record["selected"] = len(chosen)
