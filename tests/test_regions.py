@@ -91,20 +91,27 @@ def test_patches_follow_the_camera_range_unless_set():
     assert fixed.placement.cluster(fixed.camera) == 2.0
 
 
+def _two_cubes():
+    """Two 4 m cubes 30 m apart along x, as one mesh."""
+    import nbvkit
+    from conftest import box_mesh
+
+    a, b = box_mesh((0, 0, 0), (4, 4, 4)), box_mesh((30, 0, 0), (34, 4, 4))
+    return nbvkit.Mesh(
+        np.vstack([a.vertices, b.vertices]), np.vstack([a.faces, b.faces + len(a.vertices)])
+    )
+
+
 def test_a_workspace_of_several_regions_is_toured_region_by_region_larger_gains_first():
     # Two 4 m cubes 30 m apart, regions of 12 m and a 4 m camera (a large workspace: 6 x 4 m <
     # 44 m): the tours visit both cubes' regions, keep at first only views adding 8 x
     # tour.min_gain, and halve that each time a plan keeps none; they cover as much as the
     # one tour over the whole workspace does (the larger gains first too). (Not in fewer views:
     # from a start that sees a cube, the one tour took 31 views and the regions 39.)
-    import nbvkit
-    from conftest import QUICK_MISSION, box_mesh
+    from conftest import QUICK_MISSION
     from nbvkit.mission import Mission
 
-    a, b = box_mesh((0, 0, 0), (4, 4, 4)), box_mesh((30, 0, 0), (34, 4, 4))
-    mesh = nbvkit.Mesh(
-        np.vstack([a.vertices, b.vertices]), np.vstack([a.faces, b.faces + len(a.vertices)])
-    )
+    mesh = _two_cubes()
     quick = list(QUICK_MISSION)
     runs = {}
     for size in (12, None):
@@ -147,15 +154,11 @@ def test_a_plan_that_keeps_too_few_views_halves_its_level(level_views, monkeypat
     # tour.min_gain). A plan above the lowest level keeps at least tour.level_views views, else
     # its level halves and its selection runs again: over the sets of the views the lower level
     # adds too, one view_coverage call per level (at min_gain: the views that can be chosen).
-    import nbvkit
-    from conftest import QUICK_MISSION, box_mesh
+    from conftest import QUICK_MISSION
     from nbvkit.mission import Mission
     from nbvkit.planning.generators.tour import CoverageTour
 
-    a, b = box_mesh((0, 0, 0), (4, 4, 4)), box_mesh((30, 0, 0), (34, 4, 4))
-    mesh = nbvkit.Mesh(
-        np.vstack([a.vertices, b.vertices]), np.vstack([a.faces, b.faces + len(a.vertices)])
-    )
+    mesh = _two_cubes()
     scored, base = [], load_config().tour.min_gain
     coverage = CoverageTour.coverage
     monkeypatch.setattr(

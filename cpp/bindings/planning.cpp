@@ -172,7 +172,6 @@ Entries that none of the last keep_calls calls used are dropped, and beyond max_
       [](const OccupancyMap& map, const SurfaceObservations& surface, const py::handle& candidates,
          const py::handle& current, const py::object& camera, const py::object& utility,
          const py::object& validity, const std::shared_ptr<CoverageMemo>& memo, double min_gain) {
-        if (!std::isfinite(min_gain)) throw py::value_error("min_gain must be finite");
         const ViewPosesArg c = view_poses_arg(candidates, "candidates");
         const auto cm = c.map();
         const Pose cur = pose_arg(current, "current pose");
