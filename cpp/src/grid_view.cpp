@@ -382,7 +382,101 @@ __attribute__((target("avx2"))) bool sum_marked_avx2(const GridView& g, const st
   return _mm256_testz_si256(small, small) && gain < 4194304.0;  // 2^22
 }
 
+// step_rays4 one ray at a time: walk_ray's loop on RayStart's state.
+void step_rays4_scalar(const RayStart* starts, const bool* active, std::uint64_t* ids, int* count,
+                       int cap) {
+  for (int l = 0; l < 4; ++l) {
+    count[l] = 0;
+    if (!active[l]) continue;
+    RayStart r = starts[l];
+    for (int j = 0;;) {
+      ids[4 * j + l] = std::uint64_t(r.id);
+      count[l] = ++j;
+      if (j >= cap || std::min(std::min(r.t_next[0], r.t_next[1]), r.t_next[2]) > r.t1) break;
+      const int a = (r.t_next[0] < r.t_next[1]) & (r.t_next[0] < r.t_next[2]) ? 0
+                    : r.t_next[1] < r.t_next[2]                               ? 1
+                                                                              : 2;
+      r.t_next[a] += r.t_delta[a];
+      r.id += r.step_in[a] + ((r.countdown[a] & 3) == 0 ? r.step_cross[a] : 0);
+      if (--r.countdown[a] < r.floor[a]) break;
+    }
+  }
+}
+
+// step_rays4 in the lanes of AVX2 registers: mark_rays4_avx2's steps, writing the ids alone.
+__attribute__((target("avx2"))) void step_rays4_avx2(const RayStart* starts, const bool* active,
+                                                     std::uint64_t* ids, int* count, int cap) {
+  alignas(32) double dv[7][4];
+  alignas(32) std::int64_t iv[13][4];
+  int any = 0;  // an idle lane repeats an active one's start
+  while (any < 3 && !active[any]) ++any;
+  for (int l = 0; l < 4; ++l) {
+    const RayStart& r = starts[active[l] ? l : any];
+    for (int a = 0; a < 3; ++a) {
+      dv[a][l] = r.t_next[a];
+      dv[3 + a][l] = r.t_delta[a];
+      iv[1 + a][l] = r.countdown[a];
+      iv[4 + a][l] = r.floor[a];
+      iv[7 + a][l] = r.step_in[a];
+      iv[10 + a][l] = r.step_cross[a];
+    }
+    dv[6][l] = r.t1;
+    iv[0][l] = r.id;
+  }
+  __m256d tn0 = _mm256_load_pd(dv[0]), tn1 = _mm256_load_pd(dv[1]), tn2 = _mm256_load_pd(dv[2]);
+  const __m256d td0 = _mm256_load_pd(dv[3]), td1 = _mm256_load_pd(dv[4]);
+  const __m256d td2 = _mm256_load_pd(dv[5]), t1 = _mm256_load_pd(dv[6]);
+  __m256i id = load4(iv[0]), k0 = load4(iv[1]), k1 = load4(iv[2]), k2 = load4(iv[3]);
+  const __m256i f0 = load4(iv[4]), f1 = load4(iv[5]), f2 = load4(iv[6]);
+  const __m256i in0 = load4(iv[7]), in1 = load4(iv[8]), in2 = load4(iv[9]);
+  const __m256i cr0 = load4(iv[10]), cr1 = load4(iv[11]), cr2 = load4(iv[12]);
+  const __m256i zero = _mm256_setzero_si256(), three = _mm256_set1_epi64x(3);
+  const __m256i one = _mm256_set1_epi64x(1);
+  __m256i alive = _mm256_set_epi64x(-std::int64_t(active[3]), -std::int64_t(active[2]),
+                                    -std::int64_t(active[1]), -std::int64_t(active[0]));
+  __m256i cells = zero;  // per lane, the cells written while it was alive
+  auto* out = reinterpret_cast<__m256i*>(ids);
+  for (int steps = 0; steps < cap; ++steps) {
+    _mm256_storeu_si256(out + steps, id);
+    cells = _mm256_sub_epi64(cells, alive);
+    const __m256d t_cross = _mm256_min_pd(_mm256_min_pd(tn0, tn1), tn2);
+    alive = _mm256_and_si256(alive, _mm256_castpd_si256(_mm256_cmp_pd(t_cross, t1, _CMP_LE_OQ)));
+    const __m256d x =
+        _mm256_and_pd(_mm256_cmp_pd(tn0, tn1, _CMP_LT_OQ), _mm256_cmp_pd(tn0, tn2, _CMP_LT_OQ));
+    const __m256d y = _mm256_andnot_pd(x, _mm256_cmp_pd(tn1, tn2, _CMP_LT_OQ));
+    const __m256d xy = _mm256_or_pd(x, y);
+    tn0 = _mm256_add_pd(tn0, _mm256_and_pd(x, td0));
+    tn1 = _mm256_add_pd(tn1, _mm256_and_pd(y, td1));
+    tn2 = _mm256_add_pd(tn2, _mm256_andnot_pd(xy, td2));
+    const __m256i k = pick(x, y, k0, k1, k2);
+    const __m256i edge = _mm256_cmpeq_epi64(_mm256_and_si256(k, three), zero);
+    id = _mm256_add_epi64(id, _mm256_add_epi64(pick(x, y, in0, in1, in2),
+                                               _mm256_and_si256(edge, pick(x, y, cr0, cr1, cr2))));
+    k0 = _mm256_add_epi64(k0, _mm256_castpd_si256(x));
+    k1 = _mm256_add_epi64(k1, _mm256_castpd_si256(y));
+    k2 = _mm256_sub_epi64(_mm256_sub_epi64(k2, one), _mm256_castpd_si256(xy));
+    alive = _mm256_and_si256(alive, _mm256_cmpgt_epi64(k, pick(x, y, f0, f1, f2)));
+    if (_mm256_testz_si256(alive, alive)) break;
+  }
+  alignas(32) std::int64_t n[4];
+  _mm256_store_si256(reinterpret_cast<__m256i*>(n), cells);
+  for (int l = 0; l < 4; ++l) count[l] = active[l] ? int(n[l]) : 0;
+}
+
 }  // namespace
+
+void step_rays4(const GridView& g, const RayStart* starts, const bool* active, std::uint64_t* ids,
+                int* count, bool simd) {
+  static const bool avx2 = __builtin_cpu_supports("avx2");
+  if (!(active[0] | active[1] | active[2] | active[3])) {
+    std::fill(count, count + 4, 0);
+    return;
+  }
+  if (simd && avx2)
+    step_rays4_avx2(starts, active, ids, count, max_ray_cells(g));
+  else
+    step_rays4_scalar(starts, active, ids, count, max_ray_cells(g));
+}
 
 bool sum_marked(const GridView& g, const std::uint32_t* words, std::size_t n_words,
                 const std::uint64_t* bits, double& gain, int& cells, bool simd) {

@@ -295,6 +295,65 @@ TEST(RayWalk, FourLanesMarkTheCellsOfWalkRayUpToTheFirstOccupiedOne) {
   EXPECT_LT(stopped, int(rays.size()) - 100);
 }
 
+TEST(RayWalk, FourLanesStepTheCellsOfWalkRayInItsOrder) {
+  // A grid whose sides are not multiples of a brick; rays from inside, outside and on cell
+  // boundaries, along axes (with -0.0 components), diagonals (exact ties) and at random, with
+  // ranges that end inside, on a boundary and past the grid: step_rays4, in AVX2 lanes and one
+  // ray at a time, gives each ray's cells in walk_ray<false>'s order, to the ray's end.
+  OccupancyMap m(0.5, {-3.0, -2.0, -1.0}, {4.5, 3.5, 2.0});  // 15 x 11 x 6 cells
+  const GridView g = grid_view(m);
+  std::mt19937 rng(5);
+  std::uniform_real_distribution<double> pos(-4.0, 5.0), unit(-1.0, 1.0), range(0.0, 12.0);
+  std::vector<std::pair<Eigen::Vector3d, Eigen::Vector3d>> rays;
+  const double axis[3] = {-1.0, -0.0, 1.0};
+  for (const double ax : axis)
+    for (const double ay : axis)
+      for (const double az : axis) {
+        const Eigen::Vector3d d(ax, ay, az);
+        if (d.norm() > 0) rays.push_back({{0.0, 0.5, 0.0}, d.normalized()});  // a cell corner
+      }
+  for (int i = 0; i < 800; ++i) {
+    Eigen::Vector3d o(pos(rng), pos(rng), pos(rng) * 0.5), d(unit(rng), unit(rng), unit(rng));
+    if (i % 5 == 0) o = (o * 2.0).array().round() / 2.0;  // a cell corner
+    if (i % 7 == 0) d[i % 3] = 0.0;
+    if (i % 11 == 0) d = d.array().sign();  // a diagonal
+    if (d.norm() < 1e-3) continue;
+    rays.push_back({o, d.normalized()});
+  }
+  std::vector<std::uint64_t> ids(4 * std::size_t(max_ray_cells(g)));
+  std::size_t cells = 0;
+  int inactive = 0;
+  for (std::size_t r0 = 0; r0 < rays.size(); r0 += 4) {
+    RayStart starts[4];
+    bool active[4];
+    std::vector<std::size_t> expect[4];
+    for (int l = 0; l < 4; ++l) {
+      const std::size_t r = std::min(r0 + std::size_t(l), rays.size() - 1);
+      const double t_max = l == 3 ? 100.0 : l == 2 ? std::floor(range(rng)) : range(rng);
+      const auto& [o, d] = rays[r];
+      active[l] = ray_start(g, ray_origin(g, o), d, t_max, starts[l]);
+      walk_ray<false>(g, o, d, t_max, [&](std::size_t idx, const int*, double) {
+        expect[l].push_back(idx);
+        return true;
+      });
+      ASSERT_EQ(active[l], !expect[l].empty()) << "ray " << r;
+      cells += expect[l].size();
+      inactive += !active[l];
+    }
+    for (const bool simd : {true, false}) {
+      int count[4];
+      step_rays4(g, starts, active, ids.data(), count, simd);
+      for (int l = 0; l < 4; ++l) {
+        std::vector<std::size_t> got;
+        for (int j = 0; j < count[l]; ++j) got.push_back(std::size_t(ids[4 * j + l]));
+        ASSERT_EQ(got, expect[l]) << "ray " << r0 + l << " simd " << simd;
+      }
+    }
+  }
+  EXPECT_GT(cells, 2500u);
+  EXPECT_GT(inactive, 20);  // rays that miss the grid, and lanes beside them
+}
+
 TEST(Navigation, SpheresAndPathsStayInKnownFreeSpace) {
   OccupancyMap m(0.2, {0, 0, 0}, {6, 6, 3});
   // a known free corridor along x at y = 1.5 and one along y at x = 4.5, everything else unknown

@@ -267,6 +267,13 @@ struct MarkBuffer {
 void mark_rays4(const GridView& g, const RayStart* starts, const bool* active, CellMarks& marks,
                 const MarkBuffer& buffer, std::size_t* stop, bool simd = true);
 
+/// walk_ray<false>'s cells of four rays, each active one to its end (no stop): lane l's j-th
+/// cell id at ids[4 j + l], count[l] of them (0 for an inactive lane). Stepped in the lanes of
+/// AVX2 registers where the CPU has them (simd = true), with walk_ray's comparisons and
+/// additions; one ray at a time otherwise. ids holds 4 max_ray_cells(g).
+void step_rays4(const GridView& g, const RayStart* starts, const bool* active, std::uint64_t* ids,
+                int* count, bool simd = true);
+
 /// Adds the entropies |s[b]| of the cells b in `cells` (a word's 64) to sum in order and the
 /// nonzero ones to n, sets `small` where one is nonzero and below 2^-8, and returns the occupied
 /// cells among them.
