@@ -718,6 +718,44 @@ def test_view_coverage_with_a_min_gain_hands_out_only_the_sets_a_selection_could
         _core.view_coverage(m, surface, poses, current, min_gain=float("nan"), **kw)
 
 
+def test_view_coverage_prescreen_leaves_only_views_its_coarse_rays_estimate_below_min_gain():
+    # With coarse_stride, a view estimated below min_gain by its coarse rays (their gain and one
+    # more cell, scaled to all rays) is left unwalked (pruned, empty set); every other set is the
+    # exact one. Stride 1 walks every ray: a view is pruned where its gain and one cell fall
+    # below min_gain, and the arrays are those of the exact cut. No view is pruned without
+    # min_gain, and a negative stride is refused.
+    m, surface, poses, current, kw = _box_seen_from_two_sides()
+    whole = _core.view_coverage(m, surface, poses, current, **kw)
+    off = whole["offsets"]
+    sums = np.array([whole["weights"][a:b].astype(float).sum() for a, b in zip(off[:-1], off[1:])])
+    valid = whole["status"] == 0
+    mg = float(np.median(sums[valid & (sums > 0)]))
+    exact = _core.view_coverage(m, surface, poses, current, min_gain=mg, **kw)
+    assert not exact["pruned"].any() and not whole["pruned"].any()
+    one = _core.view_coverage(m, surface, poses, current, min_gain=mg, coarse_stride=1, **kw)
+    for key in ("offsets", "elements", "weights", "status"):
+        np.testing.assert_array_equal(one[key], exact[key])
+    np.testing.assert_array_equal(one["pruned"], valid & (sums + 1 < mg))
+    assert one["pruned"].sum() >= 5
+    coarse = _core.view_coverage(m, surface, poses, current, min_gain=mg, coarse_stride=3, **kw)
+    np.testing.assert_array_equal(coarse["status"], whole["status"])
+    pruned = coarse["pruned"]
+    assert pruned.sum() >= 5 and not pruned[~valid].any()
+    sizes, exact_sizes = np.diff(coarse["offsets"]), np.diff(exact["offsets"])
+    assert (sizes[pruned] == 0).all()
+    np.testing.assert_array_equal(sizes[~pruned], exact_sizes[~pruned])
+    held = np.repeat(~pruned, exact_sizes)
+    np.testing.assert_array_equal(coarse["elements"], exact["elements"][held])
+    np.testing.assert_array_equal(coarse["weights"], exact["weights"][held])
+    # the estimate errs high: most views below min_gain are pruned, few above it
+    below = valid & (sums < mg)
+    assert pruned[below].mean() >= 0.5 and pruned[valid & ~below].mean() <= 0.2
+    none = _core.view_coverage(m, surface, poses, current, coarse_stride=3, **kw)
+    assert not none["pruned"].any()
+    with pytest.raises(ValueError, match="coarse_stride"):
+        _core.view_coverage(m, surface, poses, current, min_gain=mg, coarse_stride=-1, **kw)
+
+
 def test_the_coverage_memo_answers_as_walking_again():
     """view_coverage with a CoverageMemo gives the arrays of a call without one, call after call,
     while the map and the camera observations change between calls: a record is used only while

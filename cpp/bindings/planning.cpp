@@ -171,7 +171,8 @@ Entries that none of the last keep_calls calls used are dropped, and beyond max_
       "view_coverage",
       [](const OccupancyMap& map, const SurfaceObservations& surface, const py::handle& candidates,
          const py::handle& current, const py::object& camera, const py::object& utility,
-         const py::object& validity, const std::shared_ptr<CoverageMemo>& memo, double min_gain) {
+         const py::object& validity, const std::shared_ptr<CoverageMemo>& memo, double min_gain,
+         int coarse_stride) {
         const ViewPosesArg c = view_poses_arg(candidates, "candidates");
         const auto cm = c.map();
         const Pose cur = pose_arg(current, "current pose");
@@ -183,18 +184,21 @@ Entries that none of the last keep_calls calls used are dropped, and beyond max_
           Reading2 reading(map, &surface);
           std::unique_lock<std::mutex> lock;  // one call at a time per memo
           if (memo) lock = std::unique_lock<std::mutex>(memo->mutex());
-          cov = view_coverage(grid_view(map, &surface), cm, cur, cam, u, v, memo.get(), min_gain);
+          cov = view_coverage(grid_view(map, &surface), cm, cur, cam, u, v, memo.get(), min_gain,
+                              coarse_stride);
         }
         py::dict d;  // the arrays handed to numpy as they are (a plant's plan: 50 M elements)
         d["offsets"] = py::cast(std::move(cov.offsets));
         d["elements"] = py::cast(std::move(cov.elements));
         d["weights"] = py::cast(std::move(cov.weights));
         d["status"] = py::cast(std::move(cov.status));
+        d["pruned"] = py::cast(Eigen::Matrix<bool, Eigen::Dynamic, 1>(cov.pruned.cast<bool>()));
         return d;
       },
       py::arg("map"), py::arg("surface"), py::arg("candidates"), py::arg("current"),
       py::arg("camera") = py::none(), py::arg("utility") = py::none(),
       py::arg("validity") = py::none(), py::arg("memo") = nullptr, py::arg("min_gain") = 0.0,
+      py::arg("coarse_stride") = 0,
       R"doc(What each candidate view ((K, 4) rows x, y, z, yaw, or (K, 5) with the gimbal's pitch,
 as evaluate_views) would newly cover, as the surface utility credits it
 (utility: its priors and cone; the name is ignored): CSR dict offsets (K + 1,), elements (int32:
@@ -202,7 +206,11 @@ cell id * 2 + the side of the cell seen, see nbv/coverage.hpp) and weights, and 
 evaluate_views. memo: a CoverageMemo kept across calls over this map and surface record (the same
 arrays, fewer walks). min_gain > 0 (in cells, as select_tours takes it): a valid candidate whose
 weights sum below it keeps its status and an empty set; select_tours at that min_gain or above
-chooses the same.)doc");
+chooses the same. coarse_stride > 0 with min_gain > 0: a candidate is first walked along every
+coarse_stride-th ray across and down, and one whose gain so estimated (the rays' gain plus one
+cell, times all rays over those) is below min_gain gets an empty set without its whole walk:
+pruned (K,) bool marks them (an estimate: surface near the camera, reached by several rays a
+cell, is estimated high; with stride 1, the arrays are those without it).)doc");
   m.def(
       "select_cover",
       [](const py::dict& coverage, double min_gain, int max_views) {

@@ -451,8 +451,10 @@ void keep_within(const CoverageMemo& memo, std::vector<CoverageMemo::Entry>& fre
 
 ViewCoverage view_coverage(const GridView& g, const ViewPosesRef& cand, const Pose& current,
                            const ViewCameraModel& camera, const UtilityOptions& utility,
-                           const ValidityOptions& validity, CoverageMemo* memo, double min_gain) {
+                           const ValidityOptions& validity, CoverageMemo* memo, double min_gain,
+                           int coarse_stride) {
   if (!std::isfinite(min_gain)) throw std::invalid_argument("view_coverage: min_gain not finite");
+  if (coarse_stride < 0) throw std::invalid_argument("view_coverage: coarse_stride below 0");
   g.validate();
   camera.validate();
   utility.validate();
@@ -562,9 +564,17 @@ ViewCoverage view_coverage(const GridView& g, const ViewPosesRef& cand, const Po
     }
     s.resize(m);
   };
+  std::vector<std::uint8_t> pruned;
+  if (min_gain > 0.0 && coarse_stride > 0) {
+    job.prune_below = min_gain;
+    job.coarse_stride = coarse_stride;
+    job.pruned = &pruned;
+  }
   const ViewScores scores = kernel::score<utility::Surface, true>(job, kernel::PackedCells(g));
   ViewCoverage out;
   out.status = scores.status;
+  out.pruned.setZero(K);
+  for (std::size_t k = 0; k < pruned.size(); ++k) out.pruned[Eigen::Index(k)] = pruned[k];
   // the sets handed out: a valid candidate's when its weights sum to min_gain (summed as
   // select_tours sums them, in the set's order), none otherwise
   std::vector<std::uint8_t> held(std::size_t(K), 1);

@@ -63,9 +63,15 @@ class PackedCells {
   float scored(std::size_t idx, const int*) const { return bytes_[idx] & kOccupied ? -1.f : 1.f; }
   float logodds(std::size_t idx, const int*) const { return g.cells.logodds_at(idx); }
   CellFlag flag(std::size_t idx, const int*) const { return CellFlag((bytes_[idx] >> 1) & 3); }
+  // c may be null (the four-lane walks give cell ids alone): then worked out from idx
   bool near_surface(std::size_t idx, const int* c) const {
     std::uint8_t v = __atomic_load_n(&bytes_[idx], __ATOMIC_RELAXED);
     if (!(v & kKnown)) {
+      int at[3];
+      if (!c) {
+        g.layout.coords(idx, at[0], at[1], at[2]);
+        c = at;
+      }
       v |= kKnown | (utility::next_to_surface(g, *this, c) ? kNear : 0);
       __atomic_store_n(&bytes_[idx], v, __ATOMIC_RELAXED);
     }
@@ -138,6 +144,14 @@ struct Job {
   /// If set, called after each walked view with the bricks its rays entered or stepped over (a
   /// set over brick ids: its words of 64 bricks, VisitedSet::touched, and their bits).
   std::function<void(Eigen::Index, const utility::VisitedSet&)> on_bricks;
+  /// If > 0 (view_coverage's min_gain): before a view's walk, a coarse walk of its rays (every
+  /// `coarse_stride`-th across and down) bounds its gain from above, as the coarse rays' gain
+  /// plus one fully weighted cell (a cell they missed), times all rays over the coarse ones; a
+  /// view whose bound is below prune_below is not walked: pruned[k] = 1, its gain the bound, no
+  /// on_view nor on_bricks. The views walked are walked as without it.
+  double prune_below = 0.0;
+  int coarse_stride = 1;
+  std::vector<std::uint8_t>* pruned = nullptr;
 };
 
 // Does the utility declare replay() (utility.hpp)?
@@ -221,13 +235,36 @@ ViewScores score(const Job& job, const Cells& cells) {
     for (Eigen::Index k = 0; k < K; ++k) keys[std::size_t(k)] = pose_key(view_pose(job.cand, k));
   }
 
+  // the coarse rays of prune_below
+  const bool prune = job.prune_below > 0.0 && job.pruned;
+  std::vector<Eigen::Index> coarse_rays;
+  if (prune) {
+    const int s = std::max(1, job.coarse_stride), nx = job.camera.rays_x;
+    for (Eigen::Index r = 0; r < dirs.rows(); ++r)
+      if ((r % nx) % s == s / 2 && (r / nx) % s == s / 2) coarse_rays.push_back(r);
+    job.pruned->assign(std::size_t(K), 0);
+  }
+  const double coarse_scale =
+      double(dirs.rows()) / double(std::max<std::size_t>(coarse_rays.size(), std::size_t(1)));
   const bool record_bricks = bool(job.on_bricks);
+  // view_coverage's walks four rays at a time (step_rays4), each ray's cells then visited in
+  // order: where the surface utility needs no cell's coordinates nor range (no density weight)
+  constexpr bool kLanes =
+      std::is_same_v<Cells, PackedCells> && std::is_same_v<Utility, utility::Surface>;
+  const bool lanes = kLanes && dense_range <= 0.0;
   parallel_chunks(static_cast<std::size_t>(K), 1, [&](std::size_t b, std::size_t e) {
     thread_local utility::VisitedSet visited;
+    thread_local utility::VisitedSet coarse_visited;  // prune_below's walks
     thread_local std::vector<utility::Credit> credits;
     thread_local utility::VisitedSet brick_set;  // with on_bricks: the bricks a view's rays passed
     thread_local std::vector<std::uint64_t> mark_cells, mark_runs;  // mark_rays4's buffers
     thread_local std::vector<std::uint8_t> mark_ends;
+    thread_local std::vector<std::uint64_t> lane_ids;   // step_rays4's cells
+    thread_local std::vector<std::uint32_t> lane_runs;  // the bricks of a ray's runs of cells
+    if (lanes) {
+      lane_ids.resize(4 * std::size_t(max_ray_cells(g)));
+      lane_runs.resize(std::size_t(max_ray_cells(g)) + 1);
+    }
     if constexpr (kMarks) {
       mark_cells.resize(4 * std::size_t(max_ray_cells(g)));
       mark_runs.resize(mark_cells.size());
@@ -314,6 +351,53 @@ ViewScores score(const Job& job, const Cells& cells) {
             }
           }
         }
+        if constexpr (kLanes && !kRecord) {
+          const RayOrigin from = lanes ? ray_origin(g, o) : RayOrigin();
+          // thread_locals' addresses, looked up once
+          std::uint64_t* const ids = lane_ids.data();
+          std::uint32_t* const runs = lane_runs.data();
+          for (Eigen::Index r0 = 0; from.inside && r0 < n_rays; r0 += 4) {
+            RayStart starts[4];
+            bool active[4] = {false, false, false, false};
+            alignas(32) double dw[3][4] = {}, range[4] = {};
+            const int n_lanes = int(std::min<Eigen::Index>(4, n_rays - r0));
+            for (int l = 0; l < n_lanes; ++l) {
+              const Eigen::Vector3d ds = dirs.row(r0 + l).transpose();
+              const Eigen::Vector3d w = R * ds;
+              for (int a = 0; a < 3; ++a) dw[a][l] = w[a];
+              range[l] = job.camera.max_range / ds.x();
+            }
+            const double* const d[3] = {dw[0], dw[1], dw[2]};
+            ray_starts4(g, from, d, range, starts, active);
+            for (int l = n_lanes; l < 4; ++l) active[l] = false;
+            int count[4];
+            step_rays4(g, starts, active, ids, count);
+            // ray by ray, walk_ray<kSkip>'s visits, in its order
+            for (int l = 0; l < n_lanes; ++l) {
+              u.begin_ray(Eigen::Vector3d(dw[0][l], dw[1][l], dw[2][l]));
+              bool first = true;
+              // the bricks of the ray's cells, one per run of its cells, into the set after it
+              std::size_t n_runs = 0, brick = kNoCell;
+              for (int j = 0; j < count[l]; ++j) {
+                const std::size_t idx = std::size_t(ids[4 * std::size_t(j) + l]);
+                if (record_bricks) {
+                  runs[n_runs] = std::uint32_t(idx >> 6);
+                  n_runs += idx >> 6 != brick;
+                  brick = idx >> 6;
+                }
+                if (kSkip && !g.brick_is_live(idx)) continue;
+                const float sc = cells.scored(idx, nullptr);
+                if (first && std::signbit(sc)) {  // the ray's first occupied cell
+                  first = false;
+                  if (cells.logodds(idx, nullptr) > occ_req) ++occ;
+                }
+                if (!u.visit(cells, idx, nullptr, 0.0, sc)) break;
+              }
+              for (std::size_t i = 0; i < n_runs; ++i) brick_marks.insert(runs[i]);
+            }
+            walked = true;
+          }
+        }
         for (Eigen::Index r = 0; r < n_rays && !walked; ++r) {
           const Eigen::Vector3d ds = dirs.row(r).transpose();
           const Eigen::Vector3d dw = R * ds;
@@ -346,7 +430,35 @@ ViewScores score(const Job& job, const Cells& cells) {
           rec.words.push_back({reached, occ, w});
         }
       };
+      // the gain of the view's coarse rays and one more cell, scaled to all rays (prune_below)
+      auto coarse_gain = [&]() {
+        const Eigen::Isometry3d T =
+            gimbal_sensor_transform(view_pose(job.cand, k), job.camera.mount);
+        const Eigen::Vector3d o = T.translation();
+        const Eigen::Matrix3d R = T.linear();
+        coarse_visited.reset(g.storage_size());
+        utility::ViewContext ctx{g, job.utility, coarse_visited, cones, nullptr, dense_range};
+        Utility u(ctx);
+        auto visit = [&](std::size_t idx, const int* c, double t) {
+          return u.visit(cells, idx, c, t, cells.scored(idx, c));
+        };
+        for (const Eigen::Index r : coarse_rays) {
+          const Eigen::Vector3d ds = dirs.row(r).transpose();
+          const Eigen::Vector3d dw = R * ds;
+          u.begin_ray(dw);
+          walk_ray<kSkip>(g, o, dw, job.camera.max_range / ds.x(), visit);
+        }
+        return (u.gain() + 1.0) * coarse_scale;
+      };
       bool scored = job.replay_view && job.replay_view(k, gain, n_cells, occ);
+      if (!scored && prune) {
+        const double estimate = coarse_gain();
+        if (estimate < job.prune_below) {
+          (*job.pruned)[kk] = 1;
+          out.gain[k] = estimate;
+          continue;  // valid, not walked
+        }
+      }
       if constexpr (kMemo) {
         if (memo && !scored) {
           const ViewMemo::Entry* entry = memo->find(keys[kk]);

@@ -80,6 +80,8 @@ struct ViewCoverage {
   Eigen::Matrix<std::int32_t, Eigen::Dynamic, 1> elements;
   Eigen::VectorXf weights;
   Eigen::Matrix<std::int8_t, Eigen::Dynamic, 1> status;  ///< (K,) ViewStatus
+  /// (K,) 1: a valid view its coarse walk estimated below min_gain, not walked (coarse_stride)
+  Eigen::Matrix<std::uint8_t, Eigen::Dynamic, 1> pruned;
 };
 
 /// A read-only view of coverage arrays (a ViewCoverage, or arrays held elsewhere: numpy's, by the
@@ -170,10 +172,18 @@ class CoverageMemo {
 /// set: select_tours and select_tour at that min_gain or above choose the same views and gains
 /// (they never take such a candidate), from arrays a plan at a high gain level holds a few
 /// hundred of tens of thousands of sets in.
+/// With min_gain > 0 and coarse_stride > 0, each candidate not answered by the memo is first
+/// walked along every coarse_stride-th ray across and down: the rays' gain plus one fully
+/// weighted cell (one they missed), times all rays over those, estimates its gain (high for
+/// surface near the camera, where several rays reach each cell; a sample at the far range). One
+/// estimated below min_gain gets an empty set without its whole walk (pruned = 1) and no memo
+/// record; the others are walked whole, as without it. With stride 1 the estimate is the gain
+/// plus one cell: the same arrays as with coarse_stride 0.
 ViewCoverage view_coverage(const GridView& grid, const ViewPosesRef& candidates,
                            const Pose& current, const ViewCameraModel& camera,
                            const UtilityOptions& utility, const ValidityOptions& validity,
-                           CoverageMemo* memo = nullptr, double min_gain = 0.0);
+                           CoverageMemo* memo = nullptr, double min_gain = 0.0,
+                           int coarse_stride = 0);
 
 /// Greedy weighted set cover: repeatedly the view whose not-yet-covered elements weigh most
 /// (each element counts at most `saturation` in total: a weight once covered), until the best

@@ -76,6 +76,10 @@ class TourConfig:
     # with region_size, a workspace larger than it is toured region by region (regions.py),
     # exploring the unknown space of the whole workspace from the first plan
     region_size: Optional[float] = positive(None)  # m; null: one region
+    # a candidate is first walked along every coarse_stride-th ray across and down; one whose
+    # gain so estimated is below the plan's min_gain is not walked whole (view_coverage; with
+    # tour.access_weight every candidate is: credit may lift it). 0: every candidate walked whole
+    coarse_stride: int = within(3, 0, 64)  # rays of the estimate before a walk; 0: off
 
 
 #: The memo of walks on a large workspace (regions.is_large), in place of 256 MiB: its exploring
@@ -144,7 +148,8 @@ class CoverageTour:
 
     def coverage(self, world, candidates, min_gain: float = 0.0) -> dict:
         """What each candidate would newly cover, from the vehicle's pose (view_coverage); with
-        min_gain (m^2), the sets of candidates adding less are left empty."""
+        min_gain (m^2), the sets of candidates adding less, or estimated to by a walk of their
+        coarse rays (tour.coarse_stride), are left empty."""
         return _core.view_coverage(
             world.map,
             world.surface,
@@ -155,6 +160,7 @@ class CoverageTour:
             validity=world.validity(blocked_path="plan"),
             memo=self.memo,
             min_gain=min_gain / world.map.resolution**2,
+            coarse_stride=self.settings.coarse_stride,
         )
 
     def plan(self, world, reachable_only: bool = False, explore: bool = False) -> np.ndarray:
