@@ -197,6 +197,18 @@ __attribute__((target("avx2"))) inline __m256i pick(__m256d x, __m256d y, __m256
   return _mm256_castpd_si256(_mm256_blendv_pd(bc, _mm256_castsi256_pd(a), x));
 }
 
+// One step of walk_ray's loop on RayStart's state, to the ray's next cell; false where the ray
+// ends at its cell (its next boundary past t1, or the step off the grid).
+inline bool step_ray(RayStart& r) {
+  if (std::min(std::min(r.t_next[0], r.t_next[1]), r.t_next[2]) > r.t1) return false;
+  const int a = (r.t_next[0] < r.t_next[1]) & (r.t_next[0] < r.t_next[2]) ? 0
+                : r.t_next[1] < r.t_next[2]                               ? 1
+                                                                          : 2;
+  r.t_next[a] += r.t_delta[a];
+  r.id += r.step_in[a] + ((r.countdown[a] & 3) == 0 ? r.step_cross[a] : 0);
+  return --r.countdown[a] >= r.floor[a];
+}
+
 // One ray at a time: walk_ray's loop on RayStart's state, each cell marked as it is entered.
 void mark_rays4_scalar(const GridView& g, const RayStart* starts, const bool* active,
                        CellMarks& marks, std::size_t* stop, int cap) {
@@ -214,64 +226,52 @@ void mark_rays4_scalar(const GridView& g, const RayStart* starts, const bool* ac
         stop[l] = id;
         break;
       }
-      if (++j >= cap || std::min(std::min(r.t_next[0], r.t_next[1]), r.t_next[2]) > r.t1) break;
-      const int a = (r.t_next[0] < r.t_next[1]) & (r.t_next[0] < r.t_next[2]) ? 0
-                    : r.t_next[1] < r.t_next[2]                               ? 1
-                                                                              : 2;
-      r.t_next[a] += r.t_delta[a];
-      r.id += r.step_in[a] + ((r.countdown[a] & 3) == 0 ? r.step_cross[a] : 0);
-      if (--r.countdown[a] < r.floor[a]) break;
+      if (++j >= cap || !step_ray(r)) break;
     }
   }
 }
 
-// Four rays in the lanes of AVX2 registers, with walk_ray's comparisons and additions (the
-// stepping axis chosen by masks). Per step, each lane writes its cell's id and its run: the
-// mask of the ray's cells so far in the current brick; and the lanes whose run ends there (the
-// ray leaves the brick or the grid) go into a byte per step. Then, ray by ray, the runs are put
-// into the set, each with one read and one write of its word; a run's cells are read only in a
-// brick that holds an occupied cell, up to the ray's first (where the ray stops, with the run
-// so far). Marked cell by cell, each mark waited on the one before it in the same word, and
-// there are about four visits for each distinct cell of a view.
-__attribute__((target("avx2"))) void mark_rays4_avx2(const GridView& g, const RayStart* starts,
-                                                     const bool* active, CellMarks& marks,
-                                                     const MarkBuffer& buffer, std::size_t* stop,
-                                                     int cap) {
-  alignas(32) double dv[7][4];
-  alignas(32) std::int64_t iv[13][4];
-  int any = 0;  // an idle lane repeats an active one's start
-  while (any < 3 && !active[any]) ++any;
-  for (int l = 0; l < 4; ++l) {
-    const RayStart& r = starts[active[l] ? l : any];
-    for (int a = 0; a < 3; ++a) {
-      dv[a][l] = r.t_next[a];
-      dv[3 + a][l] = r.t_delta[a];
-      iv[1 + a][l] = r.countdown[a];
-      iv[4 + a][l] = r.floor[a];
-      iv[7 + a][l] = r.step_in[a];
-      iv[10 + a][l] = r.step_cross[a];
+// The 3D-DDA of four rays from their RayStarts in the lanes of AVX2 registers, with walk_ray's
+// comparisons and additions (the stepping axis chosen by masks): `id` the lanes' cells, `alive`
+// the lanes still in their ray. An idle lane repeats an active one's start.
+struct Lanes {
+  __m256d tn0, tn1, tn2, td0, td1, td2, t1;
+  __m256i id, k0, k1, k2, f0, f1, f2, in0, in1, in2, cr0, cr1, cr2, alive;
+
+  __attribute__((target("avx2"))) Lanes(const RayStart* starts, const bool* active) {
+    alignas(32) double dv[7][4];
+    alignas(32) std::int64_t iv[13][4];
+    int any = 0;
+    while (any < 3 && !active[any]) ++any;
+    for (int l = 0; l < 4; ++l) {
+      const RayStart& r = starts[active[l] ? l : any];
+      for (int a = 0; a < 3; ++a) {
+        dv[a][l] = r.t_next[a];
+        dv[3 + a][l] = r.t_delta[a];
+        iv[1 + a][l] = r.countdown[a];
+        iv[4 + a][l] = r.floor[a];
+        iv[7 + a][l] = r.step_in[a];
+        iv[10 + a][l] = r.step_cross[a];
+      }
+      dv[6][l] = r.t1;
+      iv[0][l] = r.id;
     }
-    dv[6][l] = r.t1;
-    iv[0][l] = r.id;
+    tn0 = _mm256_load_pd(dv[0]), tn1 = _mm256_load_pd(dv[1]), tn2 = _mm256_load_pd(dv[2]);
+    td0 = _mm256_load_pd(dv[3]), td1 = _mm256_load_pd(dv[4]), td2 = _mm256_load_pd(dv[5]);
+    t1 = _mm256_load_pd(dv[6]);
+    id = load4(iv[0]), k0 = load4(iv[1]), k1 = load4(iv[2]), k2 = load4(iv[3]);
+    f0 = load4(iv[4]), f1 = load4(iv[5]), f2 = load4(iv[6]);
+    in0 = load4(iv[7]), in1 = load4(iv[8]), in2 = load4(iv[9]);
+    cr0 = load4(iv[10]), cr1 = load4(iv[11]), cr2 = load4(iv[12]);
+    alive = _mm256_set_epi64x(-std::int64_t(active[3]), -std::int64_t(active[2]),
+                              -std::int64_t(active[1]), -std::int64_t(active[0]));
   }
-  __m256d tn0 = _mm256_load_pd(dv[0]), tn1 = _mm256_load_pd(dv[1]), tn2 = _mm256_load_pd(dv[2]);
-  const __m256d td0 = _mm256_load_pd(dv[3]), td1 = _mm256_load_pd(dv[4]);
-  const __m256d td2 = _mm256_load_pd(dv[5]), t1 = _mm256_load_pd(dv[6]);
-  __m256i id = load4(iv[0]), k0 = load4(iv[1]), k1 = load4(iv[2]), k2 = load4(iv[3]);
-  const __m256i f0 = load4(iv[4]), f1 = load4(iv[5]), f2 = load4(iv[6]);
-  const __m256i in0 = load4(iv[7]), in1 = load4(iv[8]), in2 = load4(iv[9]);
-  const __m256i cr0 = load4(iv[10]), cr1 = load4(iv[11]), cr2 = load4(iv[12]);
-  const __m256i zero = _mm256_setzero_si256(), three = _mm256_set1_epi64x(3);
-  const __m256i one = _mm256_set1_epi64x(1), low6 = _mm256_set1_epi64x(63);
-  __m256i alive = _mm256_set_epi64x(-std::int64_t(active[3]), -std::int64_t(active[2]),
-                                    -std::int64_t(active[1]), -std::int64_t(active[0]));
-  __m256i run = _mm256_sllv_epi64(one, _mm256_and_si256(id, low6));
-  auto* cells = reinterpret_cast<__m256i*>(buffer.cells);
-  auto* runs = reinterpret_cast<__m256i*>(buffer.runs);
-  std::uint8_t* ends_at = buffer.ends;
-  int steps = 0;
-  while (steps < cap) {
-    const __m256i was = alive, here = id;
+
+  // One step of every lane to its next cell; returns the lanes whose step crossed a brick
+  // boundary. A lane whose ray ends at its cell (past t1, or off the grid) is no longer alive.
+  __attribute__((target("avx2"), always_inline)) __m256i step() {
+    const __m256i zero = _mm256_setzero_si256(), three = _mm256_set1_epi64x(3);
+    const __m256i one = _mm256_set1_epi64x(1);
     const __m256d t_cross = _mm256_min_pd(_mm256_min_pd(tn0, tn1), tn2);
     alive = _mm256_and_si256(alive, _mm256_castpd_si256(_mm256_cmp_pd(t_cross, t1, _CMP_LE_OQ)));
     const __m256d x =
@@ -289,6 +289,34 @@ __attribute__((target("avx2"))) void mark_rays4_avx2(const GridView& g, const Ra
     k1 = _mm256_add_epi64(k1, _mm256_castpd_si256(y));
     k2 = _mm256_sub_epi64(_mm256_sub_epi64(k2, one), _mm256_castpd_si256(xy));
     alive = _mm256_and_si256(alive, _mm256_cmpgt_epi64(k, pick(x, y, f0, f1, f2)));
+    return edge;
+  }
+};
+
+// Four rays in the lanes of AVX2 registers, with walk_ray's comparisons and additions (the
+// stepping axis chosen by masks). Per step, each lane writes its cell's id and its run: the
+// mask of the ray's cells so far in the current brick; and the lanes whose run ends there (the
+// ray leaves the brick or the grid) go into a byte per step. Then, ray by ray, the runs are put
+// into the set, each with one read and one write of its word; a run's cells are read only in a
+// brick that holds an occupied cell, up to the ray's first (where the ray stops, with the run
+// so far). Marked cell by cell, each mark waited on the one before it in the same word, and
+// there are about four visits for each distinct cell of a view.
+__attribute__((target("avx2"))) void mark_rays4_avx2(const GridView& g, const RayStart* starts,
+                                                     const bool* active, CellMarks& marks,
+                                                     const MarkBuffer& buffer, std::size_t* stop,
+                                                     int cap) {
+  Lanes lanes(starts, active);
+  const __m256i zero = _mm256_setzero_si256();
+  const __m256i one = _mm256_set1_epi64x(1), low6 = _mm256_set1_epi64x(63);
+  __m256i run = _mm256_sllv_epi64(one, _mm256_and_si256(lanes.id, low6));
+  auto* cells = reinterpret_cast<__m256i*>(buffer.cells);
+  auto* runs = reinterpret_cast<__m256i*>(buffer.runs);
+  std::uint8_t* ends_at = buffer.ends;
+  int steps = 0;
+  while (steps < cap) {
+    const __m256i was = lanes.alive, here = lanes.id;
+    const __m256i edge = lanes.step();
+    const __m256i alive = lanes.alive;
     // this cell's run ends where the ray leaves its brick or the grid
     const __m256i ends = _mm256_and_si256(was, _mm256_or_si256(edge, _mm256_xor_si256(was, alive)));
     _mm256_storeu_si256(cells + steps, here);
@@ -296,7 +324,7 @@ __attribute__((target("avx2"))) void mark_rays4_avx2(const GridView& g, const Ra
     ends_at[steps] = std::uint8_t(_mm256_movemask_pd(_mm256_castsi256_pd(ends)));
     ++steps;
     run = _mm256_or_si256(_mm256_andnot_si256(ends, run),
-                          _mm256_sllv_epi64(one, _mm256_and_si256(id, low6)));
+                          _mm256_sllv_epi64(one, _mm256_and_si256(lanes.id, low6)));
     if (_mm256_testz_si256(alive, alive)) break;
   }
   _mm256_storeu_si256(reinterpret_cast<__m256i*>(ends_at + steps), zero);
@@ -392,13 +420,7 @@ void step_rays4_scalar(const RayStart* starts, const bool* active, std::uint64_t
     for (int j = 0;;) {
       ids[4 * j + l] = std::uint64_t(r.id);
       count[l] = ++j;
-      if (j >= cap || std::min(std::min(r.t_next[0], r.t_next[1]), r.t_next[2]) > r.t1) break;
-      const int a = (r.t_next[0] < r.t_next[1]) & (r.t_next[0] < r.t_next[2]) ? 0
-                    : r.t_next[1] < r.t_next[2]                               ? 1
-                                                                              : 2;
-      r.t_next[a] += r.t_delta[a];
-      r.id += r.step_in[a] + ((r.countdown[a] & 3) == 0 ? r.step_cross[a] : 0);
-      if (--r.countdown[a] < r.floor[a]) break;
+      if (j >= cap || !step_ray(r)) break;
     }
   }
 }
@@ -406,57 +428,14 @@ void step_rays4_scalar(const RayStart* starts, const bool* active, std::uint64_t
 // step_rays4 in the lanes of AVX2 registers: mark_rays4_avx2's steps, writing the ids alone.
 __attribute__((target("avx2"))) void step_rays4_avx2(const RayStart* starts, const bool* active,
                                                      std::uint64_t* ids, int* count, int cap) {
-  alignas(32) double dv[7][4];
-  alignas(32) std::int64_t iv[13][4];
-  int any = 0;  // an idle lane repeats an active one's start
-  while (any < 3 && !active[any]) ++any;
-  for (int l = 0; l < 4; ++l) {
-    const RayStart& r = starts[active[l] ? l : any];
-    for (int a = 0; a < 3; ++a) {
-      dv[a][l] = r.t_next[a];
-      dv[3 + a][l] = r.t_delta[a];
-      iv[1 + a][l] = r.countdown[a];
-      iv[4 + a][l] = r.floor[a];
-      iv[7 + a][l] = r.step_in[a];
-      iv[10 + a][l] = r.step_cross[a];
-    }
-    dv[6][l] = r.t1;
-    iv[0][l] = r.id;
-  }
-  __m256d tn0 = _mm256_load_pd(dv[0]), tn1 = _mm256_load_pd(dv[1]), tn2 = _mm256_load_pd(dv[2]);
-  const __m256d td0 = _mm256_load_pd(dv[3]), td1 = _mm256_load_pd(dv[4]);
-  const __m256d td2 = _mm256_load_pd(dv[5]), t1 = _mm256_load_pd(dv[6]);
-  __m256i id = load4(iv[0]), k0 = load4(iv[1]), k1 = load4(iv[2]), k2 = load4(iv[3]);
-  const __m256i f0 = load4(iv[4]), f1 = load4(iv[5]), f2 = load4(iv[6]);
-  const __m256i in0 = load4(iv[7]), in1 = load4(iv[8]), in2 = load4(iv[9]);
-  const __m256i cr0 = load4(iv[10]), cr1 = load4(iv[11]), cr2 = load4(iv[12]);
-  const __m256i zero = _mm256_setzero_si256(), three = _mm256_set1_epi64x(3);
-  const __m256i one = _mm256_set1_epi64x(1);
-  __m256i alive = _mm256_set_epi64x(-std::int64_t(active[3]), -std::int64_t(active[2]),
-                                    -std::int64_t(active[1]), -std::int64_t(active[0]));
-  __m256i cells = zero;  // per lane, the cells written while it was alive
+  Lanes lanes(starts, active);
+  __m256i cells = _mm256_setzero_si256();  // per lane, the cells written while it was alive
   auto* out = reinterpret_cast<__m256i*>(ids);
   for (int steps = 0; steps < cap; ++steps) {
-    _mm256_storeu_si256(out + steps, id);
-    cells = _mm256_sub_epi64(cells, alive);
-    const __m256d t_cross = _mm256_min_pd(_mm256_min_pd(tn0, tn1), tn2);
-    alive = _mm256_and_si256(alive, _mm256_castpd_si256(_mm256_cmp_pd(t_cross, t1, _CMP_LE_OQ)));
-    const __m256d x =
-        _mm256_and_pd(_mm256_cmp_pd(tn0, tn1, _CMP_LT_OQ), _mm256_cmp_pd(tn0, tn2, _CMP_LT_OQ));
-    const __m256d y = _mm256_andnot_pd(x, _mm256_cmp_pd(tn1, tn2, _CMP_LT_OQ));
-    const __m256d xy = _mm256_or_pd(x, y);
-    tn0 = _mm256_add_pd(tn0, _mm256_and_pd(x, td0));
-    tn1 = _mm256_add_pd(tn1, _mm256_and_pd(y, td1));
-    tn2 = _mm256_add_pd(tn2, _mm256_andnot_pd(xy, td2));
-    const __m256i k = pick(x, y, k0, k1, k2);
-    const __m256i edge = _mm256_cmpeq_epi64(_mm256_and_si256(k, three), zero);
-    id = _mm256_add_epi64(id, _mm256_add_epi64(pick(x, y, in0, in1, in2),
-                                               _mm256_and_si256(edge, pick(x, y, cr0, cr1, cr2))));
-    k0 = _mm256_add_epi64(k0, _mm256_castpd_si256(x));
-    k1 = _mm256_add_epi64(k1, _mm256_castpd_si256(y));
-    k2 = _mm256_sub_epi64(_mm256_sub_epi64(k2, one), _mm256_castpd_si256(xy));
-    alive = _mm256_and_si256(alive, _mm256_cmpgt_epi64(k, pick(x, y, f0, f1, f2)));
-    if (_mm256_testz_si256(alive, alive)) break;
+    _mm256_storeu_si256(out + steps, lanes.id);
+    cells = _mm256_sub_epi64(cells, lanes.alive);
+    lanes.step();
+    if (_mm256_testz_si256(lanes.alive, lanes.alive)) break;
   }
   alignas(32) std::int64_t n[4];
   _mm256_store_si256(reinterpret_cast<__m256i*>(n), cells);

@@ -314,6 +314,23 @@ ViewScores score(const Job& job, const Cells& cells) {
             if (stop != kNoCell) rec->stops.push_back(std::uint32_t(stop));
         };
         const Eigen::Index n_rays = dirs.rows();
+        // rays r0.. (four at most, the lanes returned) from `from`: their starts in the grid
+        // (ray_starts4, inactive past the rays), world directions by component and ranges
+        auto lane_starts = [&](const RayOrigin& from, Eigen::Index r0, RayStart* starts,
+                               bool* active, double(&dw)[3][4]) {
+          alignas(32) double range[4] = {};
+          const int n_lanes = int(std::min<Eigen::Index>(4, n_rays - r0));
+          for (int l = 0; l < n_lanes; ++l) {
+            const Eigen::Vector3d ds = dirs.row(r0 + l).transpose();
+            const Eigen::Vector3d w = R * ds;
+            for (int a = 0; a < 3; ++a) dw[a][l] = w[a];
+            range[l] = job.camera.max_range / ds.x();
+          }
+          const double* const d[3] = {dw[0], dw[1], dw[2]};
+          ray_starts4(g, from, d, range, starts, active);
+          for (int l = n_lanes; l < 4; ++l) active[l] = false;
+          return n_lanes;
+        };
         bool walked = false;
         if constexpr (kMarks) {
           if (!record_bricks) {
@@ -323,18 +340,8 @@ ViewScores score(const Job& job, const Cells& cells) {
             for (Eigen::Index r0 = 0; r0 < n_rays; r0 += 4) {
               RayStart starts[4];
               bool active[4] = {false, false, false, false};
-              // the rays' directions in the world, by component, and their ranges
-              alignas(32) double dw[3][4] = {}, range[4] = {};
-              const int lanes = int(std::min<Eigen::Index>(4, n_rays - r0));
-              for (int l = 0; l < lanes; ++l) {
-                const Eigen::Vector3d ds = dirs.row(r0 + l).transpose();
-                const Eigen::Vector3d w = R * ds;
-                for (int a = 0; a < 3; ++a) dw[a][l] = w[a];
-                range[l] = job.camera.max_range / ds.x();
-              }
-              const double* const d[3] = {dw[0], dw[1], dw[2]};
-              ray_starts4(g, from, d, range, starts, active);
-              for (int l = lanes; l < 4; ++l) active[l] = false;
+              alignas(32) double dw[3][4] = {};
+              const int lanes = lane_starts(from, r0, starts, active, dw);
               std::size_t stop[4];
               u.mark_rays(g, starts, active, buffer, stop);
               for (int l = 0; l < lanes; ++l) {
@@ -359,17 +366,8 @@ ViewScores score(const Job& job, const Cells& cells) {
           for (Eigen::Index r0 = 0; from.inside && r0 < n_rays; r0 += 4) {
             RayStart starts[4];
             bool active[4] = {false, false, false, false};
-            alignas(32) double dw[3][4] = {}, range[4] = {};
-            const int n_lanes = int(std::min<Eigen::Index>(4, n_rays - r0));
-            for (int l = 0; l < n_lanes; ++l) {
-              const Eigen::Vector3d ds = dirs.row(r0 + l).transpose();
-              const Eigen::Vector3d w = R * ds;
-              for (int a = 0; a < 3; ++a) dw[a][l] = w[a];
-              range[l] = job.camera.max_range / ds.x();
-            }
-            const double* const d[3] = {dw[0], dw[1], dw[2]};
-            ray_starts4(g, from, d, range, starts, active);
-            for (int l = n_lanes; l < 4; ++l) active[l] = false;
+            alignas(32) double dw[3][4] = {};
+            const int n_lanes = lane_starts(from, r0, starts, active, dw);
             int count[4];
             step_rays4(g, starts, active, ids, count);
             // ray by ray, walk_ray<kSkip>'s visits, in its order
