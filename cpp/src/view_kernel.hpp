@@ -14,6 +14,7 @@
 #include <functional>
 #include <limits>
 #include <memory>
+#include <numeric>
 #include <type_traits>
 
 namespace nbv::kernel {
@@ -244,6 +245,8 @@ ViewScores score(const Job& job, const Cells& cells) {
       if ((r % nx) % s == s / 2 && (r / nx) % s == s / 2) coarse_rays.push_back(r);
     job.pruned->assign(std::size_t(K), 0);
   }
+  std::vector<Eigen::Index> all_rays(static_cast<std::size_t>(dirs.rows()));
+  std::iota(all_rays.begin(), all_rays.end(), Eigen::Index(0));
   const double coarse_scale =
       double(dirs.rows()) / double(std::max<std::size_t>(coarse_rays.size(), std::size_t(1)));
   const bool record_bricks = bool(job.on_bricks);
@@ -265,6 +268,27 @@ ViewScores score(const Job& job, const Cells& cells) {
       lane_ids.resize(4 * std::size_t(max_ray_cells(g)));
       lane_runs.resize(std::size_t(max_ray_cells(g)) + 1);
     }
+    std::uint64_t* const ids = lane_ids.data();  // thread_locals' addresses, looked up once
+    std::uint32_t* const runs = lane_runs.data();
+    // rays[0 .. n) (four at most, the lanes returned) of a camera turned by R, from `from`:
+    // their starts in the grid (ray_starts4, inactive past the rays), world directions by
+    // component, and ranges
+    auto lane_starts = [&](const Eigen::Matrix3d& R, const RayOrigin& from,
+                           const Eigen::Index* rays, std::size_t n, RayStart* starts, bool* active,
+                           double(&dw)[3][4]) {
+      alignas(32) double range[4] = {};
+      const int n_lanes = int(std::min<std::size_t>(4, n));
+      for (int l = 0; l < n_lanes; ++l) {
+        const Eigen::Vector3d ds = dirs.row(rays[l]).transpose();
+        const Eigen::Vector3d w = R * ds;
+        for (int a = 0; a < 3; ++a) dw[a][l] = w[a];
+        range[l] = job.camera.max_range / ds.x();
+      }
+      const double* const d[3] = {dw[0], dw[1], dw[2]};
+      ray_starts4(g, from, d, range, starts, active);
+      for (int l = n_lanes; l < 4; ++l) active[l] = false;
+      return n_lanes;
+    };
     if constexpr (kMarks) {
       mark_cells.resize(4 * std::size_t(max_ray_cells(g)));
       mark_runs.resize(mark_cells.size());
@@ -314,23 +338,6 @@ ViewScores score(const Job& job, const Cells& cells) {
             if (stop != kNoCell) rec->stops.push_back(std::uint32_t(stop));
         };
         const Eigen::Index n_rays = dirs.rows();
-        // rays r0.. (four at most, the lanes returned) from `from`: their starts in the grid
-        // (ray_starts4, inactive past the rays), world directions by component and ranges
-        auto lane_starts = [&](const RayOrigin& from, Eigen::Index r0, RayStart* starts,
-                               bool* active, double(&dw)[3][4]) {
-          alignas(32) double range[4] = {};
-          const int n_lanes = int(std::min<Eigen::Index>(4, n_rays - r0));
-          for (int l = 0; l < n_lanes; ++l) {
-            const Eigen::Vector3d ds = dirs.row(r0 + l).transpose();
-            const Eigen::Vector3d w = R * ds;
-            for (int a = 0; a < 3; ++a) dw[a][l] = w[a];
-            range[l] = job.camera.max_range / ds.x();
-          }
-          const double* const d[3] = {dw[0], dw[1], dw[2]};
-          ray_starts4(g, from, d, range, starts, active);
-          for (int l = n_lanes; l < 4; ++l) active[l] = false;
-          return n_lanes;
-        };
         bool walked = false;
         if constexpr (kMarks) {
           if (!record_bricks) {
@@ -341,7 +348,8 @@ ViewScores score(const Job& job, const Cells& cells) {
               RayStart starts[4];
               bool active[4] = {false, false, false, false};
               alignas(32) double dw[3][4] = {};
-              const int lanes = lane_starts(from, r0, starts, active, dw);
+              const int lanes =
+                  lane_starts(R, from, &all_rays[std::size_t(r0)], n_rays - r0, starts, active, dw);
               std::size_t stop[4];
               u.mark_rays(g, starts, active, buffer, stop);
               for (int l = 0; l < lanes; ++l) {
@@ -360,14 +368,12 @@ ViewScores score(const Job& job, const Cells& cells) {
         }
         if constexpr (kLanes && !kRecord) {
           const RayOrigin from = lanes ? ray_origin(g, o) : RayOrigin();
-          // thread_locals' addresses, looked up once
-          std::uint64_t* const ids = lane_ids.data();
-          std::uint32_t* const runs = lane_runs.data();
           for (Eigen::Index r0 = 0; from.inside && r0 < n_rays; r0 += 4) {
             RayStart starts[4];
             bool active[4] = {false, false, false, false};
             alignas(32) double dw[3][4] = {};
-            const int n_lanes = lane_starts(from, r0, starts, active, dw);
+            const int n_lanes = lane_starts(R, from, &all_rays[std::size_t(r0)],
+                                            std::size_t(n_rays - r0), starts, active, dw);
             int count[4];
             step_rays4(g, starts, active, ids, count);
             // ray by ray, walk_ray<kSkip>'s visits, in its order
@@ -440,8 +446,28 @@ ViewScores score(const Job& job, const Cells& cells) {
         auto visit = [&](std::size_t idx, const int* c, double t) {
           return u.visit(cells, idx, c, t, cells.scored(idx, c));
         };
-        for (const Eigen::Index r : coarse_rays) {
-          const Eigen::Vector3d ds = dirs.row(r).transpose();
+        const RayOrigin from = lanes ? ray_origin(g, o) : RayOrigin();
+        for (std::size_t i = 0; from.inside && i < coarse_rays.size(); i += 4) {
+          if constexpr (kLanes) {  // four rays at a time, as the whole walk
+            RayStart starts[4];
+            bool active[4] = {false, false, false, false};
+            alignas(32) double dw[3][4] = {};
+            const int n_lanes =
+                lane_starts(R, from, &coarse_rays[i], coarse_rays.size() - i, starts, active, dw);
+            int count[4];
+            step_rays4(g, starts, active, ids, count);
+            for (int l = 0; l < n_lanes; ++l) {
+              u.begin_ray(Eigen::Vector3d(dw[0][l], dw[1][l], dw[2][l]));
+              for (int j = 0; j < count[l]; ++j) {
+                const std::size_t idx = std::size_t(ids[4 * std::size_t(j) + l]);
+                if (kSkip && !g.brick_is_live(idx)) continue;
+                if (!visit(idx, nullptr, 0.0)) break;
+              }
+            }
+          }
+        }
+        for (std::size_t i = 0; !from.inside && i < coarse_rays.size(); ++i) {
+          const Eigen::Vector3d ds = dirs.row(coarse_rays[i]).transpose();
           const Eigen::Vector3d dw = R * ds;
           u.begin_ray(dw);
           walk_ray<kSkip>(g, o, dw, job.camera.max_range / ds.x(), visit);
