@@ -669,6 +669,12 @@ def _box_seen_from_two_sides():
     return m, surface, poses, [-5.0, 0.0, 1.5, 0.0], kw
 
 
+def _set_sums(cov):
+    """Each view's coverage weights summed (in double), from view_coverage's CSR arrays."""
+    off = cov["offsets"]
+    return np.array([cov["weights"][a:b].astype(float).sum() for a, b in zip(off[:-1], off[1:])])
+
+
 def test_view_coverage_sets_hold_what_the_surface_utility_credits_each_view():
     # view_coverage walks with its own packed copy of the grid (one byte a cell); each view's
     # set must hold the cells the surface utility credits walking the grid itself, and weigh
@@ -678,7 +684,7 @@ def test_view_coverage_sets_hold_what_the_surface_utility_credits_each_view():
     scores = _core.evaluate_views(m, poses, current, surface=surface, **kw)
     np.testing.assert_array_equal(cov["status"], scores["status"])
     sizes = np.diff(cov["offsets"])
-    sums = np.add.reduceat(cov["weights"].astype(float), cov["offsets"][:-1]) * (sizes > 0)
+    sums = _set_sums(cov)
     valid = scores["status"] == 0
     assert valid.sum() >= 10 and (sizes[valid] > 0).sum() >= 10
     # each cell once per view, so the set has one element per credited cell; weights are floats
@@ -692,13 +698,7 @@ def test_view_coverage_with_a_min_gain_hands_out_only_the_sets_a_selection_could
     # the same order, with the same gains, as over the whole sets
     m, surface, poses, current, kw = _box_seen_from_two_sides()
     whole = _core.view_coverage(m, surface, poses, current, **kw)
-    sizes = np.diff(whole["offsets"])
-    sums = np.array(
-        [
-            whole["weights"][a:b].astype(float).sum()
-            for a, b in zip(whole["offsets"][:-1], whole["offsets"][1:])
-        ]
-    )
+    sizes, sums = np.diff(whole["offsets"]), _set_sums(whole)
     valid = whole["status"] == 0
     mg = float(np.median(sums[valid & (sizes > 0)]))
     cut = _core.view_coverage(m, surface, poses, current, min_gain=mg, **kw)
@@ -726,8 +726,7 @@ def test_view_coverage_prescreen_leaves_only_views_its_coarse_rays_estimate_belo
     # min_gain, and a negative stride is refused.
     m, surface, poses, current, kw = _box_seen_from_two_sides()
     whole = _core.view_coverage(m, surface, poses, current, **kw)
-    off = whole["offsets"]
-    sums = np.array([whole["weights"][a:b].astype(float).sum() for a, b in zip(off[:-1], off[1:])])
+    sums = _set_sums(whole)
     valid = whole["status"] == 0
     mg = float(np.median(sums[valid & (sums > 0)]))
     exact = _core.view_coverage(m, surface, poses, current, min_gain=mg, **kw)

@@ -146,9 +146,9 @@ struct Job {
   /// set over brick ids: its words of 64 bricks, VisitedSet::touched, and their bits).
   std::function<void(Eigen::Index, const utility::VisitedSet&)> on_bricks;
   /// If > 0 (view_coverage's min_gain): before a view's walk, a coarse walk of its rays (every
-  /// `coarse_stride`-th across and down) bounds its gain from above, as the coarse rays' gain
-  /// plus one fully weighted cell (a cell they missed), times all rays over the coarse ones; a
-  /// view whose bound is below prune_below is not walked: pruned[k] = 1, its gain the bound, no
+  /// `coarse_stride`-th across and down) estimates its gain: the coarse rays' gain plus one
+  /// fully weighted cell (a cell they missed), times all rays over the coarse ones. A view
+  /// estimated below prune_below is not walked: pruned[k] = 1, its gain the estimate, no
   /// on_view nor on_bricks. The views walked are walked as without it.
   double prune_below = 0.0;
   int coarse_stride = 1;
@@ -289,6 +289,16 @@ ViewScores score(const Job& job, const Cells& cells) {
       for (int l = n_lanes; l < 4; ++l) active[l] = false;
       return n_lanes;
     };
+    // the same rays' cells, stepped four at a time (step_rays4): lane l's at ids[4 j + l],
+    // count[l] of them
+    auto step_lanes = [&](const Eigen::Matrix3d& R, const RayOrigin& from, const Eigen::Index* rays,
+                          std::size_t n, double(&dw)[3][4], int* count) {
+      RayStart starts[4];
+      bool active[4] = {false, false, false, false};
+      const int n_lanes = lane_starts(R, from, rays, n, starts, active, dw);
+      step_rays4(g, starts, active, ids, count);
+      return n_lanes;
+    };
     if constexpr (kMarks) {
       mark_cells.resize(4 * std::size_t(max_ray_cells(g)));
       mark_runs.resize(mark_cells.size());
@@ -369,13 +379,10 @@ ViewScores score(const Job& job, const Cells& cells) {
         if constexpr (kLanes && !kRecord) {
           const RayOrigin from = lanes ? ray_origin(g, o) : RayOrigin();
           for (Eigen::Index r0 = 0; from.inside && r0 < n_rays; r0 += 4) {
-            RayStart starts[4];
-            bool active[4] = {false, false, false, false};
             alignas(32) double dw[3][4] = {};
-            const int n_lanes = lane_starts(R, from, &all_rays[std::size_t(r0)],
-                                            std::size_t(n_rays - r0), starts, active, dw);
             int count[4];
-            step_rays4(g, starts, active, ids, count);
+            const int n_lanes = step_lanes(R, from, &all_rays[std::size_t(r0)],
+                                           std::size_t(n_rays - r0), dw, count);
             // ray by ray, walk_ray<kSkip>'s visits, in its order
             for (int l = 0; l < n_lanes; ++l) {
               u.begin_ray(Eigen::Vector3d(dw[0][l], dw[1][l], dw[2][l]));
@@ -447,30 +454,29 @@ ViewScores score(const Job& job, const Cells& cells) {
           return u.visit(cells, idx, c, t, cells.scored(idx, c));
         };
         const RayOrigin from = lanes ? ray_origin(g, o) : RayOrigin();
-        for (std::size_t i = 0; from.inside && i < coarse_rays.size(); i += 4) {
-          if constexpr (kLanes) {  // four rays at a time, as the whole walk
-            RayStart starts[4];
-            bool active[4] = {false, false, false, false};
-            alignas(32) double dw[3][4] = {};
-            const int n_lanes =
-                lane_starts(R, from, &coarse_rays[i], coarse_rays.size() - i, starts, active, dw);
-            int count[4];
-            step_rays4(g, starts, active, ids, count);
-            for (int l = 0; l < n_lanes; ++l) {
-              u.begin_ray(Eigen::Vector3d(dw[0][l], dw[1][l], dw[2][l]));
-              for (int j = 0; j < count[l]; ++j) {
-                const std::size_t idx = std::size_t(ids[4 * std::size_t(j) + l]);
-                if (kSkip && !g.brick_is_live(idx)) continue;
-                if (!visit(idx, nullptr, 0.0)) break;
+        if (from.inside) {  // four rays at a time, as the whole walk
+          if constexpr (kLanes)
+            for (std::size_t i = 0; i < coarse_rays.size(); i += 4) {
+              alignas(32) double dw[3][4] = {};
+              int count[4];
+              const int n_lanes =
+                  step_lanes(R, from, &coarse_rays[i], coarse_rays.size() - i, dw, count);
+              for (int l = 0; l < n_lanes; ++l) {
+                u.begin_ray(Eigen::Vector3d(dw[0][l], dw[1][l], dw[2][l]));
+                for (int j = 0; j < count[l]; ++j) {
+                  const std::size_t idx = std::size_t(ids[4 * std::size_t(j) + l]);
+                  if (kSkip && !g.brick_is_live(idx)) continue;
+                  if (!visit(idx, nullptr, 0.0)) break;
+                }
               }
             }
+        } else {
+          for (const Eigen::Index r : coarse_rays) {
+            const Eigen::Vector3d ds = dirs.row(r).transpose();
+            const Eigen::Vector3d dw = R * ds;
+            u.begin_ray(dw);
+            walk_ray<kSkip>(g, o, dw, job.camera.max_range / ds.x(), visit);
           }
-        }
-        for (std::size_t i = 0; !from.inside && i < coarse_rays.size(); ++i) {
-          const Eigen::Vector3d ds = dirs.row(coarse_rays[i]).transpose();
-          const Eigen::Vector3d dw = R * ds;
-          u.begin_ray(dw);
-          walk_ray<kSkip>(g, o, dw, job.camera.max_range / ds.x(), visit);
         }
         return (u.gain() + 1.0) * coarse_scale;
       };
