@@ -109,8 +109,12 @@ def place_views(patches: Patches, camera, placement, bounds=None) -> tuple[np.nd
     half = math.radians(camera.vfov_deg / 2 - placement.elevation_margin_deg)
     mount = math.radians(camera.mount_rpy_deg[1])  # the mount's pitch (> 0: down)
     spread = math.radians(placement.azimuth_spread_deg)
+    mount_yaw = math.radians(camera.mount_rpy_deg[2])
+    reach = [s * camera.max_range for s in placement.standoffs]
     rows, owner, bands = [], [], []
-    for i, (c, n) in enumerate(zip(patches.centers, patches.normals)):
+    # in Python floats, one patch at a time (the same arithmetic as numpy's, without its
+    # per-call cost on a few elements)
+    for i, (c, n) in enumerate(zip(patches.centers.tolist(), patches.normals.tolist())):
         h = math.hypot(n[0], n[1])
         el_n = math.atan2(n[2], h)  # elevation of the normal: the direction patch -> camera
         pitches = [0.0]
@@ -130,18 +134,19 @@ def place_views(patches: Patches, camera, placement, bounds=None) -> tuple[np.nd
                 azimuths = [0.0]
             else:
                 azimuths = [k * math.pi / 3 for k in range(6)]
+            band = (axis_el - half, axis_el + half)
             for az in azimuths:
-                u = np.array(
-                    [math.cos(el) * math.cos(az), math.cos(el) * math.sin(az), math.sin(el)]
-                )
-                yaw = az + math.pi - math.radians(camera.mount_rpy_deg[2])
-                if abs(u[0]) + abs(u[1]) > 1e-12:
-                    yaw = math.atan2(-u[1], -u[0]) - math.radians(camera.mount_rpy_deg[2])
-                for s in placement.standoffs:
-                    p = c + s * camera.max_range * u
-                    rows.append((p[0], p[1], p[2], math.remainder(yaw, 2 * math.pi), pitch))
+                ux = math.cos(el) * math.cos(az)
+                uy = math.cos(el) * math.sin(az)
+                uz = math.sin(el)
+                yaw = az + math.pi - mount_yaw
+                if abs(ux) + abs(uy) > 1e-12:
+                    yaw = math.atan2(-uy, -ux) - mount_yaw
+                yaw = math.remainder(yaw, 2 * math.pi)
+                for d in reach:
+                    rows.append((c[0] + d * ux, c[1] + d * uy, c[2] + d * uz, yaw, pitch))
                     owner.append(i)
-                    bands.append((axis_el - half, axis_el + half))
+                    bands.append(band)
     poses, owner = np.asarray(rows, float), np.asarray(owner, int)
     if bounds is not None:
         poses[:, :3] = into_bounds(
