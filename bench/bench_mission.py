@@ -41,7 +41,15 @@ def main() -> None:
     ap.add_argument("--set", nargs="*", default=[], help="config overrides for every mission")
     a = ap.parse_args()
     runs = {label: [] for label, _ in checkouts(a.against)}
-    table_header("views", "ms per view: " + ", ".join(STAGES), "wall", "peak", "digest")
+    table_header(
+        "views",
+        "ms per view: " + ", ".join(STAGES),
+        "wall",
+        "peak",
+        "cov. @0.05 m",
+        "flown",
+        "digest",
+    )
     for _ in range(a.rounds):
         for label, package in checkouts(a.against):
             r = run_snippet(FLY_SNIPPET, [a.mesh or "", *a.set], package)
@@ -49,7 +57,8 @@ def main() -> None:
             ms = ", ".join(f"{r['stages'].get(s, 0.0):.1f}" for s in STAGES)
             print(
                 f"| {label} | {r['views']} | {ms} | {r['wall_s']:.1f} s | "
-                f"{r['peak_mb']:.0f} MB | {r['digest'][:12]} |",
+                f"{r['peak_mb']:.0f} MB | {100 * r['coverage']:.2f} % | {r['distance']:.1f} m | "
+                f"{r['digest'][:12]} |",
                 flush=True,
             )
     if len(runs) == 2:

@@ -720,14 +720,19 @@ def test_view_coverage_with_a_min_gain_hands_out_only_the_sets_a_selection_could
 
 def test_view_coverage_prescreen_leaves_only_views_its_coarse_rays_estimate_below_min_gain():
     # With coarse_stride, a view estimated below min_gain by its coarse rays (their gain and one
-    # more cell, scaled to all rays) is left unwalked (pruned, empty set); every other set is the
-    # exact one. Stride 1 walks every ray: a view is pruned where its gain and one cell fall
-    # below min_gain, and the arrays are those of the exact cut. No view is pruned without
-    # min_gain, and a negative stride is refused.
+    # more cell, scaled to all rays) is left unwalked (pruned, empty set, its estimate as gain);
+    # every other set is the exact one. Stride 1 walks
+    # every ray: a view is pruned where its gain and one cell fall below min_gain, and the arrays
+    # are those of the exact cut. No view is pruned without min_gain, and a negative stride is
+    # refused. Each set is sorted by element, and a walked view's gain is its weights' sum.
     m, surface, poses, current, kw = _box_seen_from_two_sides()
     whole = _core.view_coverage(m, surface, poses, current, **kw)
     sums = _set_sums(whole)
     valid = whole["status"] == 0
+    np.testing.assert_allclose(whole["gain"][valid], sums[valid], rtol=1e-5)
+    assert (whole["gain"][~valid] == 0).all()
+    off = whole["offsets"]
+    assert all((np.diff(whole["elements"][a:b]) > 0).all() for a, b in zip(off[:-1], off[1:]))
     mg = float(np.median(sums[valid & (sums > 0)]))
     exact = _core.view_coverage(m, surface, poses, current, min_gain=mg, **kw)
     assert not exact["pruned"].any() and not whole["pruned"].any()
@@ -746,6 +751,7 @@ def test_view_coverage_prescreen_leaves_only_views_its_coarse_rays_estimate_belo
     held = np.repeat(~pruned, exact_sizes)
     np.testing.assert_array_equal(coarse["elements"], exact["elements"][held])
     np.testing.assert_array_equal(coarse["weights"], exact["weights"][held])
+    assert (coarse["gain"][pruned] < mg).all()
     # the estimate errs high: most views below min_gain are pruned, few above it
     below = valid & (sums < mg)
     assert pruned[below].mean() >= 0.5 and pruned[valid & ~below].mean() <= 0.2
@@ -755,10 +761,51 @@ def test_view_coverage_prescreen_leaves_only_views_its_coarse_rays_estimate_belo
         _core.view_coverage(m, surface, poses, current, min_gain=mg, coarse_stride=-1, **kw)
 
 
+def _unseen_wall(x, lo=(-5.0, -6.0, -4.0), hi=(11.0, 6.0, 4.0)):
+    """(map, surface record, kw): a wall of occupied cells across x = `x` that no camera has
+    seen, the camera's cell at the origin known free; a surface utility that credits the wall
+    alone (unknown cells weigh nothing), the default camera (47 x 34 rays, 60 x 45 deg, 8 m)."""
+    m = nbvkit.OccupancyMap(0.2, lo, hi)
+    y, z = np.meshgrid(np.arange(lo[1] + 0.1, hi[1], 0.2), np.arange(lo[2] + 0.1, hi[2], 0.2))
+    m.update_cells(np.column_stack([np.full(y.size, x), y.ravel(), z.ravel()]), occupied=True)
+    m.mark_free_segment((0.0, 0.0, 0.0), (0.0, 0.0, 0.0), 0.3)
+    kw = dict(
+        camera=_core.ViewCameraModel(),
+        utility=dict(name="surface", require_occupied=False, unknown_prior=0.0, frontier_prior=0.0),
+        validity=dict(collision_radius=0.0, blocked_path="plan"),
+    )
+    return m, _core.SurfaceObservations(m), kw
+
+
+def test_the_coverage_memo_keeps_a_record_through_changes_outside_its_view_only():
+    # A record holds while nothing within the view's frustum (its field of view out to
+    # max_range) changes: hits behind the camera or beyond its range keep it; one within the
+    # frustum drops it, even behind the wall its rays stop at (the memo does not know where they
+    # stopped). Every call gives the arrays of a call without the memo.
+    m, surface, kw = _unseen_wall(4.1)
+    pose = np.array([[0.0, 0.0, 0.0, 0.0]])
+    memo = _core.CoverageMemo()
+
+    def call():
+        a = _core.view_coverage(m, surface, pose, pose[0], memo=memo, **kw)
+        b = _core.view_coverage(m, surface, pose, pose[0], **kw)
+        for key in ("offsets", "elements", "weights", "status"):
+            np.testing.assert_array_equal(a[key], b[key])
+        return memo.stats()
+
+    assert call()["walked"] == 1
+    for outside in ([-3.5, 0.0, 0.0], [9.9, 0.0, 0.0], [2.0, 5.5, 0.0]):
+        m.update_cells(np.array([outside]), occupied=True)
+        stats = call()
+        assert stats["stale"] == 0 and stats["walked"] == 1, outside
+    m.update_cells(np.array([[6.0, 0.5, 0.3]]), occupied=True)  # behind the wall, in view
+    assert call() == dict(reused=stats["reused"], walked=2, stale=1, evicted=0)
+
+
 def test_the_coverage_memo_answers_as_walking_again():
     """view_coverage with a CoverageMemo gives the arrays of a call without one, call after call,
     while the map and the camera observations change between calls: a record is used only while
-    no brick near those its rays passed has changed; another map clears it."""
+    no brick near its frustum has changed; another map clears it."""
     mesh = box_mesh((-1.5, -1.5, 0), (1.5, 1.5, 2.5))
     m = nbvkit.OccupancyMap(0.2, (-6, -6, 0), (6, 6, 5))
     cam = nbvkit.DepthCamera(mesh, max_range=8.0)

@@ -156,9 +156,10 @@ sum of the directions to its free face neighbours) and lo (3,), the box's first 
   py::class_<CoverageMemo, std::shared_ptr<CoverageMemo>> coverage_memo(m, "CoverageMemo", R"doc(
 What view_coverage's walks found, kept from one call to the next over the same map and surface
 record (pass it as memo=). A view asked for again at the same pose and pitch (bit for bit) is
-answered from its record while none of the bricks of 4 x 4 x 4 cells its rays entered or stepped
-over has changed in the camera observations since, and none within one brick of them in the map:
-the same coverage set and status, without walking its rays. Validity is checked anew each call.
+answered from its record while none of the bricks of 4 x 4 x 4 cells that meet its frustum (the
+camera's field of view out to max_range) has changed in the camera observations since, and none
+within one brick of them in the map: the same coverage set and status, without walking its rays.
+Validity is checked anew each call.
 Entries that none of the last keep_calls calls used are dropped, and beyond max_bytes (default
 256 MiB) those used longest ago; another map, record, camera or utility clears it.)doc");
   coverage_memo
@@ -193,6 +194,7 @@ Entries that none of the last keep_calls calls used are dropped, and beyond max_
         d["weights"] = py::cast(std::move(cov.weights));
         d["status"] = py::cast(std::move(cov.status));
         d["pruned"] = py::cast(Eigen::Matrix<bool, Eigen::Dynamic, 1>(cov.pruned.cast<bool>()));
+        d["gain"] = py::cast(std::move(cov.gain));
         return d;
       },
       py::arg("map"), py::arg("surface"), py::arg("candidates"), py::arg("current"),
@@ -210,7 +212,9 @@ chooses the same. coarse_stride > 0 with min_gain > 0: a candidate is first walk
 coarse_stride-th ray across and down, and one whose gain so estimated (the rays' gain plus one
 cell, times all rays over those) is below min_gain gets an empty set without its whole walk:
 pruned (K,) bool marks them (an estimate: surface near the camera, reached by several rays a
-cell, is estimated high; with stride 1, the arrays are those without it).)doc");
+cell, is estimated high; with stride 1, the arrays are those without it). gain (K,) float64: a
+valid view's gain in cells (its walk's sum, as its weights'; a pruned view's estimate), 0 for
+the others.)doc");
   m.def(
       "select_cover",
       [](const py::dict& coverage, double min_gain, int max_views) {

@@ -37,6 +37,33 @@ struct Target {
 bool solid_cell(const GridView& g, std::size_t id) {
   return g.occupied(id) || g.cells.flag_at(id) == CellFlag::Predicted;
 }
+/// Sorts (key, value) pairs of distinct keys by key, as std::sort would: least significant byte
+/// first, through `tmp`, each byte's pass left out where every key has the same one (the bytes
+/// above a view's range of cells); std::sort below 256 pairs.
+template <class Pair>
+void sort_by_key(std::vector<Pair>& a, std::vector<Pair>& tmp) {
+  const std::size_t n = a.size();
+  if (n < 256) {
+    std::sort(a.begin(), a.end(), [](const Pair& x, const Pair& y) { return x.first < y.first; });
+    return;
+  }
+  tmp.resize(n);
+  std::uint32_t count[4][256] = {};
+  for (const Pair& p : a)
+    for (int b = 0; b < 4; ++b) ++count[b][(p.first >> (8 * b)) & 255];
+  Pair *from = a.data(), *to = tmp.data();
+  for (int b = 0; b < 4; ++b) {
+    std::uint32_t* c = count[b];
+    const int shift = 8 * b;
+    if (c[(from[0].first >> shift) & 255] == n) continue;  // one value of this byte
+    std::uint32_t sum = 0;
+    for (int v = 0; v < 256; ++v) sum += std::exchange(c[v], sum);
+    for (std::size_t i = 0; i < n; ++i) to[c[(from[i].first >> shift) & 255]++] = from[i];
+    std::swap(from, to);
+  }
+  if (from != a.data()) std::copy(from, from + n, a.data());
+}
+
 /// Known and not occupied.
 bool free_cell(const GridView& g, std::size_t id) {
   return g.cells.flag_at(id) != CellFlag::Unknown && !g.occupied(id);
@@ -296,8 +323,7 @@ CoverageMemo::CoverageMemo(int keep_calls, std::size_t max_bytes)
 }
 
 std::size_t CoverageMemo::entry_bytes(const Entry& e, std::size_t elements) {
-  return sizeof(e) + (4 + 4) * elements + 4 * e.brick_words.capacity() +
-         8 * e.brick_bits.capacity();
+  return sizeof(e) + (4 + 4) * elements;
 }
 
 std::size_t CoverageMemo::bytes() const {
@@ -353,21 +379,65 @@ bool CoverageMemo::begin(const GridView& g, const std::vector<double>& geometry)
   // them too
   near_grid_ = newest_nearby(g.layout, g.grid_stamps);
   seen_stamps_ = g.seen_stamps;
+  origin_ = g.origin;
+  resolution_ = g.resolution;
+  bricks_ = g.layout.bricks;
   return true;
 }
 
-const CoverageMemo::Entry* CoverageMemo::find(const Key& key) const {
+const CoverageMemo::Entry* CoverageMemo::find(const Key& key, const Eigen::Isometry3d& sensor,
+                                              const ViewCameraModel& camera) const {
   const auto it = entries_.find(key);
   if (it == entries_.end()) return nullptr;
   const Entry& e = it->second;
-  for (std::size_t i = 0; i < e.brick_words.size(); ++i) {
-    const std::size_t base = std::size_t(e.brick_words[i]) * 64;
-    for (std::uint64_t m = e.brick_bits[i]; m; m &= m - 1) {
-      const std::size_t b = base + std::size_t(__builtin_ctzll(m));
-      if (near_grid_[b] > e.grid_epoch || seen_stamps_[b] > e.seen_epoch) return nullptr;
+  return frustum_changed(sensor, camera, e.grid_epoch, e.seen_epoch) ? nullptr : &e;
+}
+
+bool CoverageMemo::frustum_changed(const Eigen::Isometry3d& sensor, const ViewCameraModel& camera,
+                                   std::uint32_t grid_epoch, std::uint32_t seen_epoch) const {
+  // The camera's frustum: depth (x) in [0, max_range], |y| <= x tan(hfov / 2) and
+  // |z| <= x tan(vfov / 2) (every ray, ViewCameraModel::directions, lies within), as five
+  // planes with inward unit normals through the apex or, the far one, at max_range.
+  const Eigen::Vector3d o = sensor.translation();
+  const Eigen::Matrix3d R = sensor.linear();
+  const double th = std::tan(camera.hfov_deg * M_PI / 360.0);
+  const double tv = std::tan(camera.vfov_deg * M_PI / 360.0);
+  const double far = camera.max_range;
+  const Eigen::Vector3d ax = R.col(0), ay = R.col(1), az = R.col(2);
+  const Eigen::Vector3d normal[4] = {
+      (th * ax - ay) / std::hypot(th, 1.0), (th * ax + ay) / std::hypot(th, 1.0),
+      (tv * ax - az) / std::hypot(tv, 1.0), (tv * ax + az) / std::hypot(tv, 1.0)};
+  // a brick meets it if its bounding sphere does (some bricks near an edge also count)
+  const double size = 4.0 * resolution_, radius = 0.5 * std::sqrt(3.0) * size;
+  Eigen::Vector3d lo = o, hi = o;
+  for (const double sy : {-1.0, 1.0})
+    for (const double sz : {-1.0, 1.0}) {
+      const Eigen::Vector3d corner = o + far * (ax + sy * th * ay + sz * tv * az);
+      lo = lo.cwiseMin(corner);
+      hi = hi.cwiseMax(corner);
     }
+  int first[3], last[3];
+  for (int a = 0; a < 3; ++a) {
+    first[a] = std::max(0, int(std::floor((lo[a] - radius - origin_[a]) / size)));
+    last[a] = std::min(bricks_[a] - 1, int(std::floor((hi[a] + radius - origin_[a]) / size)));
+    if (first[a] > last[a]) return false;
   }
-  return &e;
+  for (int k = first[2]; k <= last[2]; ++k)
+    for (int j = first[1]; j <= last[1]; ++j) {
+      const std::size_t row =
+          std::size_t(bricks_[0]) * (std::size_t(j) + std::size_t(bricks_[1]) * std::size_t(k));
+      for (int i = first[0]; i <= last[0]; ++i) {
+        const std::size_t b = row + std::size_t(i);
+        if (near_grid_[b] <= grid_epoch && seen_stamps_[b] <= seen_epoch) continue;
+        const Eigen::Vector3d d = origin_ + size * Eigen::Vector3d(i + 0.5, j + 0.5, k + 0.5) - o;
+        const double depth = d.dot(ax);
+        if (depth < -radius || depth > far + radius) continue;
+        bool inside = true;
+        for (const Eigen::Vector3d& n : normal) inside = inside && n.dot(d) >= -radius;
+        if (inside) return true;
+      }
+    }
+  return false;
 }
 
 namespace {
@@ -473,6 +543,11 @@ ViewCoverage view_coverage(const GridView& g, const ViewPosesRef& cand, const Po
   const ReleasableArray<std::uint8_t> side_axis(g.storage_size());
   Eigen::Vector3d bin_dir[26];
   for (int b = 0; b < 26; ++b) bin_dir[b] = bin_direction(b);
+  Eigen::Vector3d unit[27];  // towards neighbour (dx, dy, dz): [dx + 1 + 3 (dy + 1) + 9 (dz + 1)]
+  for (int i = 0; i < 27; ++i) {
+    const Eigen::Vector3d v(i % 3 - 1, i / 3 % 3 - 1, i / 9 - 1);
+    unit[i] = i == 13 ? v : v.normalized();
+  }
   auto side_of = [&](std::int64_t cell, int bin) {
     std::uint8_t code = __atomic_load_n(&side_axis[std::size_t(cell)], __ATOMIC_RELAXED);
     if (code == 0) {
@@ -488,7 +563,7 @@ ViewCoverage view_coverage(const GridView& g, const ViewPosesRef& cand, const Po
             if (!g.contains(a, b, e)) continue;
             const std::size_t n = g.layout.id(a, b, e);
             if (g.cells.occupied(n) && g.cells.flag_at(n) != CellFlag::Unknown) continue;
-            const Eigen::Vector3d u = Eigen::Vector3d(dx, dy, dz).normalized();
+            const Eigen::Vector3d& u = unit[dx + 1 + 3 * (dy + 1) + 9 * (dz + 1)];
             sum += u;
             spread += u.cwiseAbs();
             ++open;
@@ -525,7 +600,8 @@ ViewCoverage view_coverage(const GridView& g, const ViewPosesRef& cand, const Po
     reused.assign(std::size_t(K), 0);
     for (Eigen::Index k = 0; k < K; ++k) keys[std::size_t(k)] = pose_key(view_pose(cand, k));
     job.replay_view = [&](Eigen::Index k, double& gain, int& cells, int& occupied) {
-      const CoverageMemo::Entry* e = memo->find(keys[std::size_t(k)]);
+      const CoverageMemo::Entry* e = memo->find(
+          keys[std::size_t(k)], gimbal_sensor_transform(view_pose(cand, k), camera.mount), camera);
       if (!e) return false;
       auto& s = sets[std::size_t(k)];
       s.resize(e->elements.size());
@@ -536,33 +612,24 @@ ViewCoverage view_coverage(const GridView& g, const ViewPosesRef& cand, const Po
       reused[std::size_t(k)] = 1;
       return true;
     };
-    job.on_bricks = [&](Eigen::Index k, const utility::VisitedSet& bricks) {
+  }
+  job.on_view = [&](Eigen::Index k, const std::vector<utility::Credit>& credits) {
+    // (element, weight) sorted by element: the surface utility credits a cell once in a view,
+    // and a cell is one element (of the side it was first seen from)
+    if (memo) {  // the view's record: its set (below), gain and counts (after the walks)
       CoverageMemo::Entry& e = fresh[std::size_t(k)];
-      e.brick_words.assign(bricks.touched.begin(), bricks.touched.begin() + bricks.n_touched);
-      e.brick_bits.resize(bricks.n_touched);
-      for (std::size_t i = 0; i < bricks.n_touched; ++i)
-        e.brick_bits[i] = bricks.bits[bricks.touched[i]];
       e.grid_epoch = g.grid_epoch;
       e.seen_epoch = g.seen_epoch;
       walked[std::size_t(k)] = kRecord;
-    };
-  }
-  job.on_view = [&](Eigen::Index k, const std::vector<utility::Credit>& credits) {
-    // (element, weight) sorted by element, each element once with its largest weight in the view
-    auto& s = sets[std::size_t(k)];
-    s.clear();
-    s.reserve(credits.size());
-    for (const auto& c : credits)
-      s.emplace_back(std::uint32_t(c.cell * 2 + side_of(c.cell, c.bin)), c.weight);
-    std::sort(s.begin(), s.end());
-    std::size_t m = 0;
-    for (std::size_t i = 0; i < s.size(); ++i) {
-      if (m && s[m - 1].first == s[i].first)
-        s[m - 1].second = s[i].second;  // sorted: the later weight is the larger
-      else
-        s[m++] = s[i];
     }
-    s.resize(m);
+    auto& s = sets[std::size_t(k)];
+    s.resize(credits.size());
+    for (std::size_t i = 0; i < s.size(); ++i) {
+      const utility::Credit& c = credits[i];
+      s[i] = {std::uint32_t(c.cell * 2 + side_of(c.cell, c.bin)), c.weight};
+    }
+    thread_local std::vector<std::pair<std::uint32_t, float>> tmp;
+    sort_by_key(s, tmp);
   };
   std::vector<std::uint8_t> pruned;
   if (min_gain > 0.0 && coarse_stride > 0) {
@@ -575,6 +642,7 @@ ViewCoverage view_coverage(const GridView& g, const ViewPosesRef& cand, const Po
   out.status = scores.status;
   out.pruned.setZero(K);
   for (std::size_t k = 0; k < pruned.size(); ++k) out.pruned[Eigen::Index(k)] = pruned[k];
+  out.gain = scores.gain;
   // the sets handed out: a valid candidate's when its weights sum to min_gain (summed as
   // select_tours sums them, in the set's order), none otherwise
   std::vector<std::uint8_t> held(std::size_t(K), 1);

@@ -142,9 +142,6 @@ struct Job {
   /// If set and true for a valid view, its walk is skipped: the call gave its gain, cells and
   /// occupied rays (CoverageMemo's records).
   std::function<bool(Eigen::Index, double&, int&, int&)> replay_view;
-  /// If set, called after each walked view with the bricks its rays entered or stepped over (a
-  /// set over brick ids: its words of 64 bricks, VisitedSet::touched, and their bits).
-  std::function<void(Eigen::Index, const utility::VisitedSet&)> on_bricks;
   /// If > 0 (view_coverage's min_gain): before a view's walk, a coarse walk of its rays (every
   /// `coarse_stride`-th across and down) estimates its gain: the coarse rays' gain plus one
   /// fully weighted cell (a cell they missed), times all rays over the coarse ones. A view
@@ -249,7 +246,6 @@ ViewScores score(const Job& job, const Cells& cells) {
   std::iota(all_rays.begin(), all_rays.end(), Eigen::Index(0));
   const double coarse_scale =
       double(dirs.rows()) / double(std::max<std::size_t>(coarse_rays.size(), std::size_t(1)));
-  const bool record_bricks = bool(job.on_bricks);
   // view_coverage's walks four rays at a time (step_rays4), each ray's cells then visited in
   // order: where the surface utility needs no cell's coordinates nor range (no density weight)
   constexpr bool kLanes =
@@ -259,17 +255,11 @@ ViewScores score(const Job& job, const Cells& cells) {
     thread_local utility::VisitedSet visited;
     thread_local utility::VisitedSet coarse_visited;  // prune_below's walks
     thread_local std::vector<utility::Credit> credits;
-    thread_local utility::VisitedSet brick_set;  // with on_bricks: the bricks a view's rays passed
     thread_local std::vector<std::uint64_t> mark_cells, mark_runs;  // mark_rays4's buffers
     thread_local std::vector<std::uint8_t> mark_ends;
-    thread_local std::vector<std::uint64_t> lane_ids;   // step_rays4's cells
-    thread_local std::vector<std::uint32_t> lane_runs;  // the bricks of a ray's runs of cells
-    if (lanes) {
-      lane_ids.resize(4 * std::size_t(max_ray_cells(g)));
-      lane_runs.resize(std::size_t(max_ray_cells(g)) + 1);
-    }
-    std::uint64_t* const ids = lane_ids.data();  // thread_locals' addresses, looked up once
-    std::uint32_t* const runs = lane_runs.data();
+    thread_local std::vector<std::uint64_t> lane_ids;  // step_rays4's cells
+    if (lanes) lane_ids.resize(4 * std::size_t(max_ray_cells(g)));
+    std::uint64_t* const ids = lane_ids.data();  // the thread_local's address, looked up once
     // rays[0 .. n) (four at most, the lanes returned) of a camera turned by R, from `from`:
     // their starts in the grid (ray_starts4, inactive past the rays), world directions by
     // component, and ranges
@@ -323,14 +313,11 @@ ViewScores score(const Job& job, const Cells& cells) {
         const Eigen::Matrix3d R = T.linear();
         visited.reset(g.storage_size());
         credits.clear();
-        if (record_bricks) brick_set.reset(g.layout.num_bricks());
-        utility::VisitedSet::Marks brick_marks = brick_set.marks();
         utility::ViewContext ctx{
             g, job.utility, visited, cones, job.on_view ? &credits : nullptr, dense_range};
         Utility u(ctx);
         bool ray_occ = false;
         auto visit = [&](std::size_t idx, const int* c, double t) {
-          if (record_bricks) brick_marks.insert(idx >> 6);
           const float s = cells.scored(idx, c);
           if (!ray_occ && std::signbit(s)) {  // the ray's first occupied cell
             ray_occ = true;
@@ -339,7 +326,6 @@ ViewScores score(const Job& job, const Cells& cells) {
           return u.visit(cells, idx, c, t, s);
         };
         auto skipped = [&](std::size_t idx) {
-          if (record_bricks) brick_marks.insert(idx >> 6);
           if constexpr (kRecord) u.skipped(idx);
         };
         // a replayable utility stops a ray only at its first occupied cell
@@ -350,30 +336,28 @@ ViewScores score(const Job& job, const Cells& cells) {
         const Eigen::Index n_rays = dirs.rows();
         bool walked = false;
         if constexpr (kMarks) {
-          if (!record_bricks) {
-            // four rays at a time, their cells marked up to each one's first occupied cell
-            const RayOrigin from = ray_origin(g, o);
-            const MarkBuffer buffer{mark_cells.data(), mark_runs.data(), mark_ends.data()};
-            for (Eigen::Index r0 = 0; r0 < n_rays; r0 += 4) {
-              RayStart starts[4];
-              bool active[4] = {false, false, false, false};
-              alignas(32) double dw[3][4] = {};
-              const int lanes =
-                  lane_starts(R, from, &all_rays[std::size_t(r0)], n_rays - r0, starts, active, dw);
-              std::size_t stop[4];
-              u.mark_rays(g, starts, active, buffer, stop);
-              for (int l = 0; l < lanes; ++l) {
-                if (stop[l] != kNoCell && cells.logodds(stop[l], nullptr) > occ_req) ++occ;
-                end_ray(stop[l]);
-              }
+          // four rays at a time, their cells marked up to each one's first occupied cell
+          const RayOrigin from = ray_origin(g, o);
+          const MarkBuffer buffer{mark_cells.data(), mark_runs.data(), mark_ends.data()};
+          for (Eigen::Index r0 = 0; r0 < n_rays; r0 += 4) {
+            RayStart starts[4];
+            bool active[4] = {false, false, false, false};
+            alignas(32) double dw[3][4] = {};
+            const int lanes =
+                lane_starts(R, from, &all_rays[std::size_t(r0)], n_rays - r0, starts, active, dw);
+            std::size_t stop[4];
+            u.mark_rays(g, starts, active, buffer, stop);
+            for (int l = 0; l < lanes; ++l) {
+              if (stop[l] != kNoCell && cells.logodds(stop[l], nullptr) > occ_req) ++occ;
+              end_ray(stop[l]);
             }
-            // the gain summed over the marked cells; where that sum could differ from the one
-            // in the walk's order, the view is walked again below, cell by cell
-            walked = u.sum_marks(g);
-            if (!walked) {
-              occ = 0;
-              if constexpr (kRecord) rec->stops.clear();
-            }
+          }
+          // the gain summed over the marked cells; where that sum could differ from the one
+          // in the walk's order, the view is walked again below, cell by cell
+          walked = u.sum_marks(g);
+          if (!walked) {
+            occ = 0;
+            if constexpr (kRecord) rec->stops.clear();
           }
         }
         if constexpr (kLanes && !kRecord) {
@@ -387,15 +371,8 @@ ViewScores score(const Job& job, const Cells& cells) {
             for (int l = 0; l < n_lanes; ++l) {
               u.begin_ray(Eigen::Vector3d(dw[0][l], dw[1][l], dw[2][l]));
               bool first = true;
-              // the bricks of the ray's cells, one per run of its cells, into the set after it
-              std::size_t n_runs = 0, brick = kNoCell;
               for (int j = 0; j < count[l]; ++j) {
                 const std::size_t idx = std::size_t(ids[4 * std::size_t(j) + l]);
-                if (record_bricks) {
-                  runs[n_runs] = std::uint32_t(idx >> 6);
-                  n_runs += idx >> 6 != brick;
-                  brick = idx >> 6;
-                }
                 if (kSkip && !g.brick_is_live(idx)) continue;
                 const float sc = cells.scored(idx, nullptr);
                 if (first && std::signbit(sc)) {  // the ray's first occupied cell
@@ -404,7 +381,6 @@ ViewScores score(const Job& job, const Cells& cells) {
                 }
                 if (!u.visit(cells, idx, nullptr, 0.0, sc)) break;
               }
-              for (std::size_t i = 0; i < n_runs; ++i) brick_marks.insert(runs[i]);
             }
             walked = true;
           }
@@ -417,10 +393,6 @@ ViewScores score(const Job& job, const Cells& cells) {
           end_ray(walk_ray<kSkip>(g, o, dw, job.camera.max_range / ds.x(), visit, skipped));
         }
         if (job.on_view) job.on_view(k, credits);
-        if (record_bricks) {
-          brick_marks.keep();
-          job.on_bricks(k, brick_set);
-        }
         gain = u.gain();
         n_cells = u.cells();
       };

@@ -8,6 +8,7 @@
 #include "nbv/options.hpp"
 #include "nbv/views.hpp"
 
+#include <array>
 #include <cstdint>
 #include <mutex>
 #include <unordered_map>
@@ -82,6 +83,9 @@ struct ViewCoverage {
   Eigen::Matrix<std::int8_t, Eigen::Dynamic, 1> status;  ///< (K,) ViewStatus
   /// (K,) 1: a valid view its coarse walk estimated below min_gain, not walked (coarse_stride)
   Eigen::Matrix<std::uint8_t, Eigen::Dynamic, 1> pruned;
+  /// (K,) a valid view's gain in cells (the utility's sum over its walk; a pruned view's
+  /// estimate); 0 for the others
+  Eigen::VectorXd gain;
 };
 
 /// A read-only view of coverage arrays (a ViewCoverage, or arrays held elsewhere: numpy's, by the
@@ -99,16 +103,20 @@ struct CoverageRef {
 
 /// What view_coverage walks found, kept from one call to the next (the same answers, fewer walks).
 /// Per candidate pose, its four doubles bit for bit: the view's coverage set, gain, cell count
-/// and occupied rays, the bricks its rays entered or stepped over, and the epochs of the map's
-/// and the camera observations' stamps it was walked at (GridView). A later call over the same
-/// map and observations takes the record instead of walking while none of the bricks it lists
-/// has changed in the camera observations since, and no brick within one brick of them in the
-/// map: a view's walk reads the observations of the cells it enters, and the map's cells around
-/// them too (for the utility's frontier test, a cell's surface normal and a coverage element's
-/// side), all within one cell of a cell it entered. Validity (bounds, collision, path) is checked
-/// anew in every call. Entries that none of the last `keep_calls` calls used are dropped; a call
-/// over another map or observation record, or with another camera, grid or utility, clears the
-/// memo. Grids of 2^31 cells or more are walked every time (elements are kept in 32 bits).
+/// and occupied rays, and the epochs of the map's and the camera observations' stamps it was
+/// walked at (GridView). A later call over the same map and observations takes the record
+/// instead of walking while no brick that meets the view's frustum (its camera's field of view
+/// out to max_range) has changed in the camera observations since, and no brick within one brick
+/// of one that does in the map: a view's walk reads the observations of the cells its rays
+/// enter, all within the frustum, and the map's cells around them too (for the utility's
+/// frontier test, a cell's surface normal and a coverage element's side), all within one cell
+/// of a cell it entered. The frustum holds more than the rays reach (the space behind the
+/// surface they stop at): a record is dropped for some changes that would not change the walk,
+/// never kept through one that would, and costs the walk nothing to make. Validity (bounds,
+/// collision, path) is checked anew in every call. Entries that none of the last `keep_calls`
+/// calls used are dropped; a call over another map or observation record, or with another
+/// camera, grid or utility, clears the memo. Grids of 2^31 cells or more are walked every time
+/// (elements are kept in 32 bits).
 class CoverageMemo {
  public:
   /// max_bytes: records beyond it are dropped at the end of a call, those used longest ago
@@ -130,9 +138,6 @@ class CoverageMemo {
   struct Entry {
     std::vector<std::uint32_t> elements;
     std::vector<float> weights;
-    /// the bricks the view's rays entered or stepped over: words of 64 brick ids and their bits
-    std::vector<std::uint32_t> brick_words;
-    std::vector<std::uint64_t> brick_bits;
     double gain = 0.0;
     int cells = 0, occupied = 0;
     std::uint32_t grid_epoch = 0, seen_epoch = 0;
@@ -143,14 +148,16 @@ class CoverageMemo {
   /// clears the memo if either differs from the last call's; false if this grid cannot be kept.
   bool begin(const GridView& grid, const std::vector<double>& geometry);
   /// The entry of `key` if it holds for this call's grid, else null (a record that no longer
-  /// holds is replaced by the view's new walk, and counted stale, in end()).
-  const Entry* find(const Key& key) const;
+  /// holds is replaced by the view's new walk, and counted stale, in end()). sensor: the view's
+  /// camera pose (gimbal_sensor_transform), camera: the camera its rays are walked with.
+  const Entry* find(const Key& key, const Eigen::Isometry3d& sensor,
+                    const ViewCameraModel& camera) const;
   /// Ends a call: keeps `fresh[k]` for each walked view (walked[k] == 1; 2: walked, its record
   /// not kept, and any older one dropped), marks the reused ones used, drops the unused.
   void end(const std::vector<Key>& keys, std::vector<Entry>& fresh,
            const std::vector<std::uint8_t>& walked, const std::vector<std::uint8_t>& reused);
-  /// The bytes a record holds with `elements` coverage elements and their weights (and its
-  /// brick lists): what bytes() counts of it, and what max_bytes bounds.
+  /// The bytes a record holds with `elements` coverage elements and their weights: what bytes()
+  /// counts of it, and what max_bytes bounds.
   static std::size_t entry_bytes(const Entry& e, std::size_t elements);
 
  private:
@@ -159,8 +166,14 @@ class CoverageMemo {
   std::int64_t call_ = 0;
   std::vector<double> geometry_;
   std::uint64_t grid_id_ = 0, seen_id_ = 0;
+  /// Whether a brick that meets the frustum of the camera at `sensor` changed after the epochs.
+  bool frustum_changed(const Eigen::Isometry3d& sensor, const ViewCameraModel& camera,
+                       std::uint32_t grid_epoch, std::uint32_t seen_epoch) const;
   std::vector<std::uint32_t> near_grid_;        // per brick: the newest map stamp within one brick
   const std::uint32_t* seen_stamps_ = nullptr;  // the call's camera observation stamps
+  Eigen::Vector3d origin_ = Eigen::Vector3d::Zero();  // the call's grid: its corner, cell size
+  double resolution_ = 1.0;
+  std::array<int, 3> bricks_{0, 0, 0};  // and bricks per axis
   std::unordered_map<Key, Entry, PoseKeyHash> entries_;
   Stats stats_;
   std::mutex mutex_;
