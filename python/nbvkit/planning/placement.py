@@ -74,9 +74,12 @@ def target_patches(targets: dict, cluster_size: float) -> Patches:
         return Patches(np.zeros((0, 3)), np.zeros((0, 3)), np.zeros(0))
     axis = np.argmax(np.abs(n), axis=1)
     face = 2 * axis + (n[np.arange(len(n)), axis] < 0)
-    key = np.column_stack([np.floor(p / cluster_size).astype(np.int64), face])
-    _, inv = np.unique(key, axis=0, return_inverse=True)
-    inv = inv.ravel()
+    cube = np.floor(p / cluster_size).astype(np.int64)
+    cube -= cube.min(axis=0)
+    # one integer per (cube, face), in the order of the rows (cube x, y, z, face) sorted
+    span = cube.max(axis=0) + 1
+    key = ((cube[:, 0] * span[1] + cube[:, 1]) * span[2] + cube[:, 2]) * 6 + face
+    _, inv = np.unique(key, return_inverse=True)
     weights = np.bincount(inv, w)
     centers = np.column_stack([np.bincount(inv, p[:, a] * w) for a in range(3)])
     centers /= np.maximum(weights, 1e-12)[:, None]
