@@ -757,6 +757,22 @@ def test_view_coverage_prescreen_leaves_only_views_its_coarse_rays_estimate_belo
     assert pruned[below].mean() >= 0.5 and pruned[valid & ~below].mean() <= 0.2
     none = _core.view_coverage(m, surface, poses, current, coarse_stride=3, **kw)
     assert not none["pruned"].any()
+    # a memo keeps the estimates of the views left unwalked: a call over the same map prunes
+    # them again without their coarse walks, and at a lower min_gain walks those above it; the
+    # same arrays as without the memo each time
+    memo = _core.CoverageMemo()
+    for gain, estimated in ((mg, 0), (mg, pruned.sum()), (mg / 2, 0)):
+        a = _core.view_coverage(
+            m, surface, poses, current, min_gain=gain, coarse_stride=3, memo=memo, **kw
+        )
+        b = _core.view_coverage(m, surface, poses, current, min_gain=gain, coarse_stride=3, **kw)
+        for key in ("offsets", "elements", "weights", "status", "pruned", "gain"):
+            np.testing.assert_array_equal(a[key], b[key])
+        stats = memo.stats()
+        if estimated:
+            assert stats["estimated"] == estimated
+    assert stats["estimated"] < 2 * pruned.sum()  # at mg / 2, some views are walked instead
+    assert stats["stale"] == 0
     with pytest.raises(ValueError, match="coarse_stride"):
         _core.view_coverage(m, surface, poses, current, min_gain=mg, coarse_stride=-1, **kw)
 
@@ -799,7 +815,7 @@ def test_the_coverage_memo_keeps_a_record_through_changes_outside_its_view_only(
         stats = call()
         assert stats["stale"] == 0 and stats["walked"] == 1, outside
     m.update_cells(np.array([[6.0, 0.5, 0.3]]), occupied=True)  # behind the wall, in view
-    assert call() == dict(reused=stats["reused"], walked=2, stale=1, evicted=0)
+    assert call() == dict(reused=stats["reused"], walked=2, stale=1, evicted=0, estimated=0)
 
 
 def test_the_coverage_memo_answers_as_walking_again():
@@ -848,7 +864,7 @@ def test_the_coverage_memo_answers_as_walking_again():
     assert (first["status"] == 0).sum() >= 10
     walked = memo.stats()["walked"]
     check(m, surface)  # nothing changed: every valid view from its record
-    assert memo.stats() == dict(reused=walked, walked=walked, stale=0, evicted=0)
+    assert memo.stats() == dict(reused=walked, walked=walked, stale=0, evicted=0, estimated=0)
     held = capped.stats()
     assert held["evicted"] > 0 and 0 < held["reused"] < walked
     for pose in ([0.0, -5.0, 2.0, math.pi / 2], [5.0, 0.5, 1.0, math.pi]):

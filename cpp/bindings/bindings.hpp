@@ -122,12 +122,16 @@ void def_memo_members(py::class_<Memo, std::shared_ptr<Memo>>& c, bool evicts = 
          d["reused"] = s.reused;
          d["stale"] = s.stale;
          d["walked"] = s.walked;
-         if (evicts) d["evicted"] = s.evicted;
+         if (evicts) {
+           d["evicted"] = s.evicted;
+           d["estimated"] = s.estimated;
+         }
          return d;
        },
        "Views so far: reused (answered from their record, without a walk), stale (a record "
        "that no longer held, then walked), walked (walked and recorded, stale ones included) and, "
-       "for a memo held within max_bytes, evicted (records dropped to stay within it).")
+       "for a memo held within max_bytes, evicted (records dropped to stay within it) and "
+       "estimated (left unwalked on the estimate their record kept, without its coarse walk).")
       .def_property_readonly("entries", &Memo::entries, "Poses held.")
       .def_property_readonly("bytes", &Memo::bytes, "Memory held by the records.")
       .def_property_readonly("keep_calls", &Memo::keep_calls)

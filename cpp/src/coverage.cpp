@@ -441,29 +441,36 @@ bool CoverageMemo::frustum_changed(const Eigen::Isometry3d& sensor, const ViewCa
 }
 
 namespace {
-/// walked[k] (CoverageMemo::end) of a view whose record the memo keeps, and of one whose record
-/// it would drop at once
-constexpr std::uint8_t kRecord = 1, kWalkedOnly = 2;
+/// walked[k] (CoverageMemo::end) of a view whose record the memo keeps, of one whose record it
+/// would drop at once, and of one left unwalked on its coarse walk (its estimate kept)
+constexpr std::uint8_t kRecord = 1, kWalkedOnly = 2, kEstimate = 3;
+/// reused[k]: a view answered from its record, or left unwalked on its recorded estimate
+constexpr std::uint8_t kFromRecord = 1, kFromEstimate = 2;
 }  // namespace
 
 void CoverageMemo::end(const std::vector<Key>& keys, std::vector<Entry>& fresh,
                        const std::vector<std::uint8_t>& walked,
                        const std::vector<std::uint8_t>& reused) {
   for (std::size_t k = 0; k < keys.size(); ++k) {
-    if (reused[k]) {
-      auto it = entries_.find(keys[k]);
-      it->second.used = call_;
-      ++stats_.reused;
-    } else if (walked[k] == kRecord) {
+    // an estimate that held, its view then walked, is replaced without being stale
+    const bool from_estimate = reused[k] == kFromEstimate;
+    if (walked[k] == kRecord || walked[k] == kEstimate) {
       fresh[k].used = call_;
-      auto [it, added] = entries_.insert_or_assign(keys[k], std::move(fresh[k]));
-      (void)it;
-      stats_.stale += !added;
-      ++stats_.walked;
+      const auto it = entries_.find(keys[k]);
+      if (it != entries_.end()) {
+        stats_.stale += !from_estimate;
+        it->second = std::move(fresh[k]);
+      } else {
+        entries_.emplace(keys[k], std::move(fresh[k]));
+      }
+      stats_.walked += walked[k] == kRecord;
     } else if (walked[k] == kWalkedOnly) {  // its record dropped for max_bytes, and an older one
-      stats_.stale += entries_.erase(keys[k]);
+      stats_.stale += entries_.erase(keys[k]) && !from_estimate;
       ++stats_.walked;
       ++stats_.evicted;
+    } else if (reused[k]) {
+      entries_.find(keys[k])->second.used = call_;
+      ++(from_estimate ? stats_.estimated : stats_.reused);
     }
   }
   for (auto it = entries_.begin(); it != entries_.end();)
@@ -602,15 +609,21 @@ ViewCoverage view_coverage(const GridView& g, const ViewPosesRef& cand, const Po
     job.replay_view = [&](Eigen::Index k, double& gain, int& cells, int& occupied) {
       const CoverageMemo::Entry* e = memo->find(
           keys[std::size_t(k)], gimbal_sensor_transform(view_pose(cand, k), camera.mount), camera);
-      if (!e) return false;
+      if (!e) return int(kernel::kUnknown);
+      if (e->coarse_stride) {  // an estimate: of use to this call's prune at the same stride
+        if (e->coarse_stride != coarse_stride || !(min_gain > 0.0)) return int(kernel::kUnknown);
+        gain = e->gain;
+        reused[std::size_t(k)] = kFromEstimate;
+        return int(kernel::kEstimated);
+      }
       auto& s = sets[std::size_t(k)];
       s.resize(e->elements.size());
       for (std::size_t i = 0; i < s.size(); ++i) s[i] = {e->elements[i], e->weights[i]};
       gain = e->gain;
       cells = e->cells;
       occupied = e->occupied;
-      reused[std::size_t(k)] = 1;
-      return true;
+      reused[std::size_t(k)] = kFromRecord;
+      return int(kernel::kReplayed);
     };
   }
   job.on_view = [&](Eigen::Index k, const std::vector<utility::Credit>& credits) {
@@ -638,6 +651,16 @@ ViewCoverage view_coverage(const GridView& g, const ViewPosesRef& cand, const Po
     job.pruned = &pruned;
   }
   const ViewScores scores = kernel::score<utility::Surface, true>(job, kernel::PackedCells(g));
+  if (memo)  // the views left unwalked on a coarse walk of this call: their estimates
+    for (std::size_t k = 0; k < pruned.size(); ++k) {
+      if (!pruned[k] || reused[k] == kFromEstimate) continue;
+      CoverageMemo::Entry& e = fresh[k];
+      e.gain = scores.gain[Eigen::Index(k)];
+      e.coarse_stride = coarse_stride;
+      e.grid_epoch = g.grid_epoch;
+      e.seen_epoch = g.seen_epoch;
+      walked[k] = kEstimate;
+    }
   ViewCoverage out;
   out.status = scores.status;
   out.pruned.setZero(K);

@@ -128,6 +128,8 @@ inline ViewStatus view_validity(const GridView& g, const Eigen::Vector3d& p,
   return ViewStatus::Valid;
 }
 
+enum Replay : int { kUnknown = 0, kReplayed = 1, kEstimated = 2 };  // Job::replay_view
+
 struct Job {
   const GridView& grid;
   Candidates cand;
@@ -139,14 +141,16 @@ struct Job {
   /// If set, called after each valid view with what its utility credited (Surface records).
   std::function<void(Eigen::Index, const std::vector<utility::Credit>&)> on_view;
   ViewMemo* memo = nullptr;  ///< walks kept between calls, for utilities with replay()
-  /// If set and true for a valid view, its walk is skipped: the call gave its gain, cells and
-  /// occupied rays (CoverageMemo's records).
-  std::function<bool(Eigen::Index, double&, int&, int&)> replay_view;
+  /// If set, asked for each valid view before its walk (CoverageMemo's records): kReplayed, the
+  /// walk is skipped, the call gave its gain, cells and occupied rays; kEstimated, the call gave
+  /// the view's coarse estimate as its gain (for prune_below, in place of the coarse walk);
+  /// kUnknown, neither.
+  std::function<int(Eigen::Index, double&, int&, int&)> replay_view;
   /// If > 0 (view_coverage's min_gain): before a view's walk, a coarse walk of its rays (every
   /// `coarse_stride`-th across and down) estimates its gain: the coarse rays' gain plus one
   /// fully weighted cell (a cell they missed), times all rays over the coarse ones. A view
   /// estimated below prune_below is not walked: pruned[k] = 1, its gain the estimate, no
-  /// on_view nor on_bricks. The views walked are walked as without it.
+  /// on_view. The views walked are walked as without it.
   double prune_below = 0.0;
   int coarse_stride = 1;
   std::vector<std::uint8_t>* pruned = nullptr;
@@ -452,9 +456,10 @@ ViewScores score(const Job& job, const Cells& cells) {
         }
         return (u.gain() + 1.0) * coarse_scale;
       };
-      bool scored = job.replay_view && job.replay_view(k, gain, n_cells, occ);
+      const int known = job.replay_view ? job.replay_view(k, gain, n_cells, occ) : kUnknown;
+      bool scored = known == kReplayed;
       if (!scored && prune) {
-        const double estimate = coarse_gain();
+        const double estimate = known == kEstimated ? gain : coarse_gain();
         if (estimate < job.prune_below) {
           (*job.pruned)[kk] = 1;
           out.gain[k] = estimate;

@@ -112,7 +112,10 @@ struct CoverageRef {
 /// frontier test, a cell's surface normal and a coverage element's side), all within one cell
 /// of a cell it entered. The frustum holds more than the rays reach (the space behind the
 /// surface they stop at): a record is dropped for some changes that would not change the walk,
-/// never kept through one that would, and costs the walk nothing to make. Validity (bounds,
+/// never kept through one that would, and costs the walk nothing to make. A view left unwalked
+/// on its coarse estimate (view_coverage's coarse_stride) is kept too, as that estimate: while
+/// it holds, a later call at the same stride compares it with its min_gain without walking the
+/// coarse rays again (the same estimate). Validity (bounds,
 /// collision, path) is checked anew in every call. Entries that none of the last `keep_calls`
 /// calls used are dropped; a call over another map or observation record, or with another
 /// camera, grid or utility, clears the memo. Grids of 2^31 cells or more are walked every time
@@ -140,6 +143,9 @@ class CoverageMemo {
     std::vector<float> weights;
     double gain = 0.0;
     int cells = 0, occupied = 0;
+    /// > 0: the record of a view left unwalked at this coarse_stride: gain is its estimate, and
+    /// it holds no set
+    int coarse_stride = 0;
     std::uint32_t grid_epoch = 0, seen_epoch = 0;
     std::int64_t used = 0;  ///< the last call that used or made it
   };
@@ -153,7 +159,8 @@ class CoverageMemo {
   const Entry* find(const Key& key, const Eigen::Isometry3d& sensor,
                     const ViewCameraModel& camera) const;
   /// Ends a call: keeps `fresh[k]` for each walked view (walked[k] == 1; 2: walked, its record
-  /// not kept, and any older one dropped), marks the reused ones used, drops the unused.
+  /// not kept, and any older one dropped; 3: left unwalked, the record of its estimate), marks
+  /// the reused ones used (reused[k] == 1: its record; 2: its estimate), drops the unused.
   void end(const std::vector<Key>& keys, std::vector<Entry>& fresh,
            const std::vector<std::uint8_t>& walked, const std::vector<std::uint8_t>& reused);
   /// The bytes a record holds with `elements` coverage elements and their weights: what bytes()

@@ -150,6 +150,8 @@ struct MemoStats {
   std::int64_t stale = 0;    ///< views whose record no longer held (then walked)
   std::int64_t walked = 0;   ///< views walked and kept (stale ones included)
   std::int64_t evicted = 0;  ///< records dropped to keep the memo within its bytes (CoverageMemo)
+  /// views left unwalked on their recorded estimate, without its coarse walk (CoverageMemo)
+  std::int64_t estimated = 0;
 };
 
 /// What the paper's IG walks of candidate views found, kept from one scoring call to the next
