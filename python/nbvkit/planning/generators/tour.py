@@ -82,11 +82,6 @@ class TourConfig:
     coarse_stride: int = within(3, 0, 64)  # rays of the estimate before a walk; 0: off
 
 
-#: The memo of walks on a large workspace (regions.is_large), in place of 256 MiB: its exploring
-#: plans hold tens of millions of coverage elements, and the memo only saves time (RESULTS.md).
-LARGE_MEMO_BYTES = 64 << 20
-
-
 class CoverageTour:
     Settings = TourConfig
 
@@ -179,8 +174,6 @@ class CoverageTour:
             self.level = float(2**levels)
             first = large if own.explore_first is None else own.explore_first
             self.exploring = own.explore and first
-            if large and self.memo is not None:  # room for the plans' own coverage sets
-                self.memo = _core.CoverageMemo(max_bytes=LARGE_MEMO_BYTES)
         explore = explore or self.exploring or (self.regional and own.explore)
         scale = threshold_scale(world.map, ctx.planner.reference_area)
         min_gain, rate = own.min_gain * scale * self.level, own.rate * np.sqrt(scale)
