@@ -328,7 +328,7 @@ std::size_t CoverageMemo::entry_bytes(const Entry& e, std::size_t elements) {
 
 std::size_t CoverageMemo::bytes() const {
   std::size_t n = 0;
-  for (const auto& [k, e] : entries_) n += entry_bytes(e, e.elements.capacity());
+  for (const auto& [k, e] : entries_) n += entry_bytes(e, e.set.capacity());
   return n + 4 * near_grid_.capacity();
 }
 
@@ -483,11 +483,11 @@ void CoverageMemo::end(const std::vector<Key>& keys, std::vector<Entry>& fresh,
   for (auto it = entries_.begin(); it != entries_.end(); ++it) order.push_back(it);
   std::sort(order.begin(), order.end(), [](const auto& a, const auto& b) {
     if (a->second.used != b->second.used) return a->second.used < b->second.used;
-    return a->second.elements.size() > b->second.elements.size();
+    return a->second.set.size() > b->second.set.size();
   });
   for (const auto& it : order) {
     if (held <= max_bytes_) break;
-    held -= entry_bytes(it->second, it->second.elements.capacity());
+    held -= entry_bytes(it->second, it->second.set.capacity());
     entries_.erase(it);
     ++stats_.evicted;
   }
@@ -617,8 +617,7 @@ ViewCoverage view_coverage(const GridView& g, const ViewPosesRef& cand, const Po
         return int(kernel::kEstimated);
       }
       auto& s = sets[std::size_t(k)];
-      s.resize(e->elements.size());
-      for (std::size_t i = 0; i < s.size(); ++i) s[i] = {e->elements[i], e->weights[i]};
+      s = e->set;
       gain = e->gain;
       cells = e->cells;
       occupied = e->occupied;
@@ -682,9 +681,9 @@ ViewCoverage view_coverage(const GridView& g, const ViewPosesRef& cand, const Po
   out.offsets[0] = 0;
   for (Eigen::Index k = 0; k < K; ++k) out.offsets[k + 1] = out.offsets[k] + size_of(k);
   if (memo) keep_within(*memo, fresh, walked, sets);
-  // The sets move into the arrays one by one, each freed as it goes, with their memo records;
-  // on a large plan the heap they leave goes back every eighth of the elements, so the sets,
-  // their copy and their records are not all held at once (a 100 m plant's plans: 30-50 M).
+  // The sets are copied into the arrays one by one, each then freed or moved into its memo
+  // record; on a large plan the heap they leave goes back every eighth of the elements, so the
+  // sets and their copy are not all held at once (a 100 m plant's plans: 30-50 M).
   const std::int64_t total = out.offsets[K], trim_every = total / 8;
   const bool trim = total >= kTrimElements;
   std::int64_t next_trim = trim_every;
@@ -699,19 +698,14 @@ ViewCoverage view_coverage(const GridView& g, const ViewPosesRef& cand, const Po
         out.weights[o] = w;
         ++o;
       }
-    if (memo && walked[std::size_t(k)] == kRecord) {
+    if (memo && walked[std::size_t(k)] == kRecord) {  // the set moves into its record
       CoverageMemo::Entry& e = fresh[std::size_t(k)];
-      e.elements.resize(s.size());
-      e.weights.resize(s.size());
-      for (std::size_t i = 0; i < s.size(); ++i) {
-        e.elements[i] = s[i].first;
-        e.weights[i] = s[i].second;
-      }
+      e.set = std::move(s);
       e.gain = scores.gain[k];
       e.cells = scores.cells[k];
       e.occupied = scores.occupied_seen[k];
     }
-    std::vector<std::pair<std::uint32_t, float>>().swap(s);  // its memory back
+    std::vector<std::pair<std::uint32_t, float>>().swap(s);  // its memory back (if not moved)
     if (trim && o >= next_trim) {
       release_free_memory();
       next_trim += trim_every;

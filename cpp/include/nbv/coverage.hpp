@@ -12,6 +12,7 @@
 #include <cstdint>
 #include <mutex>
 #include <unordered_map>
+#include <utility>
 #include <vector>
 
 namespace nbv {
@@ -139,8 +140,7 @@ class CoverageMemo {
 
   // ---- for view_coverage ----
   struct Entry {
-    std::vector<std::uint32_t> elements;
-    std::vector<float> weights;
+    std::vector<std::pair<std::uint32_t, float>> set;  ///< (element, weight), by element
     double gain = 0.0;
     int cells = 0, occupied = 0;
     /// > 0: the record of a view left unwalked at this coarse_stride: gain is its estimate, and
