@@ -777,10 +777,12 @@ def test_view_coverage_prescreen_leaves_only_views_its_coarse_rays_estimate_belo
         _core.view_coverage(m, surface, poses, current, min_gain=mg, coarse_stride=-1, **kw)
 
 
-def _unseen_wall(x, lo=(-5.0, -6.0, -4.0), hi=(11.0, 6.0, 4.0)):
-    """(map, surface record, kw): a wall of occupied cells across x = `x` that no camera has
-    seen, the camera's cell at the origin known free; a surface utility that credits the wall
-    alone (unknown cells weigh nothing), the default camera (47 x 34 rays, 60 x 45 deg, 8 m)."""
+def _unseen_wall(x):
+    """(map, surface record, kw): in a 16 x 12 x 8 m map, a wall of occupied cells across
+    x = `x` that no camera has seen, the camera's cell at the origin known free; a surface
+    utility that credits the wall alone (unknown cells weigh nothing), the default camera
+    (47 x 34 rays, 60 x 45 deg, 8 m)."""
+    lo, hi = (-5.0, -6.0, -4.0), (11.0, 6.0, 4.0)
     m = nbvkit.OccupancyMap(0.2, lo, hi)
     y, z = np.meshgrid(np.arange(lo[1] + 0.1, hi[1], 0.2), np.arange(lo[2] + 0.1, hi[2], 0.2))
     m.update_cells(np.column_stack([np.full(y.size, x), y.ravel(), z.ravel()]), occupied=True)

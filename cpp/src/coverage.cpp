@@ -611,7 +611,7 @@ ViewCoverage view_coverage(const GridView& g, const ViewPosesRef& cand, const Po
           keys[std::size_t(k)], gimbal_sensor_transform(view_pose(cand, k), camera.mount), camera);
       if (!e) return int(kernel::kUnknown);
       if (e->coarse_stride) {  // an estimate: of use to this call's prune at the same stride
-        if (e->coarse_stride != coarse_stride || !(min_gain > 0.0)) return int(kernel::kUnknown);
+        if (!job.pruned || e->coarse_stride != job.coarse_stride) return int(kernel::kUnknown);
         gain = e->gain;
         reused[std::size_t(k)] = kFromEstimate;
         return int(kernel::kEstimated);
