@@ -531,6 +531,28 @@ def test_with_the_fallback_placement_every_flown_view_was_feasible_when_planned(
 
 
 @pytest.mark.slow
+def test_on_a_large_workspace_blocked_patches_get_tilted_views_once_no_other_view_is_left():
+    """placement.fallback null (shipped): on a workspace longer than 6 camera ranges (a 60 m
+    wall), the flight is the one without tilted views until a plan keeps nothing; then the plans
+    look at blocked patches from tilted directions too, and the mission goes on."""
+    over = ["max_iterations=400", *QUICK]
+    wall = box_mesh((-30, -1, 0), (30, 1, 4))
+    runs = {}
+    for fallback in ("false", "null"):
+        m = Mission(load_config(overrides=over + [f"placement.fallback={fallback}"]), mesh=wall)
+        runs[fallback] = (m.run(), [(r.x, r.y, r.z, r.yaw) for r in m.records])
+    (plain, plain_poses), (s, poses) = runs["false"], runs["null"]
+    n = len(plain["tours"])
+    assert plain["tours"][-1]["kept"] == 0 and not any(t["refit"] for t in plain["tours"])
+    assert s["tours"][:n] == plain["tours"]  # the same plans and flight up to its end
+    np.testing.assert_array_equal(poses[: len(plain_poses)], plain_poses)
+    assert len(s["tours"]) > n and all(t["refit"] for t in s["tours"][n:])
+    assert s["termination"] == "coverage_complete"
+    assert len(poses) > len(plain_poses)  # the tilted views served patches left before
+    assert s["area_coverage"]["0.05"] >= plain["area_coverage"]["0.05"]
+
+
+@pytest.mark.slow
 def test_exploration_is_planned_only_after_a_surface_plan_with_nothing_worth_flying():
     # With tour.explore, a plan over the surface the map shows that keeps no view is followed by
     # plans over views of the unknown space within the structure's extent as well; the mission

@@ -25,7 +25,9 @@ default) plans keep at first only views adding 2^tour.gain_levels x min_gain, ha
 threshold each time a plan keeps fewer than tour.level_views views (it selects again at the
 lower level): the large gains of the whole structure are flown before
 the small ones near the vehicle (a decreasing-threshold greedy; docs/RESULTS.md, "Large
-structures"). With tour.region_size the tours are planned region by region (regions.py: the
+structures"); and once no plan keeps a view, patches whose own views are all blocked get views
+from tilted directions (placement.fallback null) before the generator ends. With
+tour.region_size the tours are planned region by region (regions.py: the
 region the vehicle is in, then the next of an open tour over the regions still holding value)
 and explore the unknown space of the whole workspace from the first plan."""
 from __future__ import annotations
@@ -95,6 +97,7 @@ class CoverageTour:
         self.opened: set[int] = set()  # cells of stranded views a chosen view was credited with
         self.stop_reason = None  # why propose() gave up, when not because the surface is covered
         self.exploring = False  # plans include views of unknown space (tour.explore)
+        self.refit = bool(context.placement.fallback)  # blocked patches' tilted views planned
         # what earlier plans' walks found, for candidates asked for again (the same arrays)
         self.memo = _core.CoverageMemo()
         self.regions: Regions | None = None  # set at the first plan (tour.region_size)
@@ -119,7 +122,7 @@ class CoverageTour:
         patches = target_patches(targets, ctx.placement.cluster(ctx.camera))
         candidates, owner = place_views(patches, ctx.camera, ctx.placement, bounds)
         unplaced = np.zeros(0, int)
-        if ctx.placement.fallback:  # blocked patches from the nearest direction that can fly
+        if self.refit:  # blocked patches from the nearest direction that can fly
             candidates, owner, unplaced = refit_blocked(
                 candidates, owner, patches, ctx.camera, ctx.placement, bounds, world.can_hold
             )
@@ -195,6 +198,7 @@ class CoverageTour:
             "explore": explore,
             "min_gain_m2": float(min_gain),
             "unplaced_patches": len(unplaced),
+            "refit": self.refit,
         }
         self.plans.append(record)
         views, self.aims = np.zeros((0, candidates.shape[1])), np.zeros((0, 3))
@@ -325,10 +329,20 @@ class CoverageTour:
                 # that open the unknown space within the structure's extent compete too
                 self.exploring = True
                 self.views = self.plan(world, reach, explore=True)
+            if len(self.views) == 0 and self.last_resort_refit(world):
+                self.views = self.plan(world, reach, self.exploring)
             if len(self.views) == 0:
                 return None
         k = slice(self.next, self.next + 1)
         return Proposal(self.views[k], "tour", exclusive=True, aims=self.aims[k])
+
+    def last_resort_refit(self, world) -> bool:
+        """Whether blocked patches get their tilted views from now on (placement.fallback null:
+        on a large workspace, once no other view is left); False when they already do."""
+        if self.refit or self.ctx.placement.fallback is not None:
+            return False
+        self.refit = is_large(world.workspace, self.ctx.camera)
+        return self.refit
 
     def feedback(self, world, proposal, step):
         self.next += 1  # flown or skipped, the tour moves on
