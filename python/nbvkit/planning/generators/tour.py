@@ -98,6 +98,7 @@ class CoverageTour:
         self.stop_reason = None  # why propose() gave up, when not because the surface is covered
         self.exploring = False  # plans include views of unknown space (tour.explore)
         self.refit = bool(context.placement.fallback)  # blocked patches' tilted views planned
+        self.refit_last = False  # and from the first plan that keeps no view (set at the first)
         # what earlier plans' walks found, for candidates asked for again (the same arrays)
         self.memo = _core.CoverageMemo()
         self.regions: Regions | None = None  # set at the first plan (tour.region_size)
@@ -177,6 +178,7 @@ class CoverageTour:
             self.level = float(2**levels)
             first = large if own.explore_first is None else own.explore_first
             self.exploring = own.explore and first
+            self.refit_last = large and ctx.placement.fallback is None  # null: by size
         explore = explore or self.exploring or (self.regional and own.explore)
         scale = threshold_scale(world.map, ctx.planner.reference_area)
         min_gain, rate = own.min_gain * scale * self.level, own.rate * np.sqrt(scale)
@@ -329,20 +331,13 @@ class CoverageTour:
                 # that open the unknown space within the structure's extent compete too
                 self.exploring = True
                 self.views = self.plan(world, reach, explore=True)
-            if len(self.views) == 0 and self.last_resort_refit(world):
+            if len(self.views) == 0 and self.refit_last and not self.refit:
+                self.refit = True  # the last resort: blocked patches from tilted directions
                 self.views = self.plan(world, reach, self.exploring)
             if len(self.views) == 0:
                 return None
         k = slice(self.next, self.next + 1)
         return Proposal(self.views[k], "tour", exclusive=True, aims=self.aims[k])
-
-    def last_resort_refit(self, world) -> bool:
-        """Whether blocked patches get their tilted views from now on (placement.fallback null:
-        on a large workspace, once no other view is left); False when they already do."""
-        if self.refit or self.ctx.placement.fallback is not None:
-            return False
-        self.refit = is_large(world.workspace, self.ctx.camera)
-        return self.refit
 
     def feedback(self, world, proposal, step):
         self.next += 1  # flown or skipped, the tour moves on
