@@ -211,17 +211,14 @@ Evaluator::Evaluator(const PointsRef& gt, const EvaluationOptions& options, Eval
     std::uint32_t last_pos = 0;
     for (std::uint64_t k : keys) {  // sampling order: runs of equal keys are common
       if (k != last) {
-        const auto ins = g.index.insert(k, static_cast<std::uint32_t>(g.keys.size()));
-        if (ins.second) {
-          g.keys.push_back(k);
-          g.samples.push_back(0);
-        }
+        const auto ins = g.index.insert(k);
+        if (ins.second) g.samples.push_back(0);
         last = k;
         last_pos = ins.first;
       }
       ++g.samples[last_pos];
     }
-    g.keys.shrink_to_fit();  // held for the evaluator's life: not the doubling's spare room
+    g.index.shrink_to_fit();  // held for the evaluator's life: not the growth's spare room
     g.samples.shrink_to_fit();
     grids_.push_back(std::move(g));
   }
@@ -252,7 +249,7 @@ EvaluationResult Evaluator::empty_result(std::int64_t n_points) const {
     for (std::size_t k = 0; k < nr; ++k) {
       res.observable_cells[k] = grids_[k].observable_cells;
       res.observable_fraction[k] =
-          ratio(grids_[k].observable_cells, static_cast<std::int64_t>(grids_[k].keys.size()));
+          ratio(grids_[k].observable_cells, static_cast<std::int64_t>(grids_[k].index.size()));
     }
   }
   res.completeness.assign(nt, 0.0);
@@ -264,7 +261,7 @@ EvaluationResult Evaluator::empty_result(std::int64_t n_points) const {
 void Evaluator::score_cells(std::size_t k, const std::uint64_t* keys, std::size_t n,
                             EvaluationResult& res) const {
   const Grid& g = grids_[k];
-  res.gt_cells[k] = static_cast<std::int64_t>(g.keys.size());
+  res.gt_cells[k] = static_cast<std::int64_t>(g.index.size());
   if (n == 0) return;
   // The cloud's distinct cells, found in disjoint parts (a key's part: the top bits of a
   // multiplicative hash; 2 parts from 2 M keys, 4 from 3 M), one hash set per part, the parts in
@@ -276,29 +273,31 @@ void Evaluator::score_cells(std::size_t k, const std::uint64_t* keys, std::size_
   const auto part_of = [bits](std::uint64_t key) {
     return bits ? static_cast<std::size_t>((key * 0x9e3779b97f4a7c15ull) >> (64 - bits)) : 0;
   };
-  std::vector<std::vector<std::uint64_t>> unique(parts);
+  std::vector<VoxelIndex> unique(parts);  // each part's distinct keys: its keys()
   parallel_chunks(parts, 1, [&](std::size_t pb, std::size_t pe) {
     for (std::size_t part = pb; part < pe; ++part) {
-      VoxelHashMap cells(n / (4 * parts));
+      VoxelIndex& cells = unique[part];
+      cells.reserve(n / (4 * parts));
       std::uint64_t last = kEmptyVoxelKey;
       for (const std::uint64_t *it = keys, *end = keys + n; it != end; ++it) {
         const std::uint64_t key = *it;
         if (key == last || part_of(key) != part) continue;
         last = key;
-        if (cells.insert(key, 0).second) unique[part].push_back(key);
+        cells.insert(key);
       }
     }
   });
-  std::vector<std::uint8_t> hit(g.keys.size(), 0);  // distinct cells: no two writers share one
+  std::vector<std::uint8_t> hit(g.index.size(), 0);  // distinct cells: no two writers share one
   std::int64_t n_unique = 0;
   std::atomic<std::int64_t> in_gt{0};
-  for (const auto& u : unique) {
+  for (const VoxelIndex& part : unique) {
+    const HugeVector<std::uint64_t>& u = part.keys();
     n_unique += static_cast<std::int64_t>(u.size());
     parallel_chunks(u.size(), 1 << 13, [&](std::size_t b, std::size_t e) {
       std::int64_t c = 0;
       for (std::size_t j = b; j < e; ++j) {
         const std::uint32_t at = g.index.find(u[j]);
-        if (at == VoxelHashMap::kMissing) continue;
+        if (at == VoxelIndex::kMissing) continue;
         ++c;
         hit[at] = 1;
       }
@@ -307,7 +306,7 @@ void Evaluator::score_cells(std::size_t k, const std::uint64_t* keys, std::size_
   }
   const bool obs = !observable_.empty();
   std::atomic<std::int64_t> covered{0}, covered_samples{0}, covered_obs{0}, covered_obs_samples{0};
-  parallel_chunks(g.keys.size(), 1 << 13, [&](std::size_t b, std::size_t e) {
+  parallel_chunks(g.index.size(), 1 << 13, [&](std::size_t b, std::size_t e) {
     std::int64_t c = 0, s = 0, co = 0, so = 0;
     for (std::size_t j = b; j < e; ++j)
       if (hit[j]) {
@@ -328,7 +327,7 @@ void Evaluator::score_cells(std::size_t k, const std::uint64_t* keys, std::size_
 }
 
 void Evaluator::set_cell_figures(std::size_t k, const CellTally& t, EvaluationResult& res) const {
-  res.gt_cells[k] = static_cast<std::int64_t>(grids_[k].keys.size());
+  res.gt_cells[k] = static_cast<std::int64_t>(grids_[k].index.size());
   if (!observable_.empty()) {
     res.covered_observable_cells[k] = t.covered_obs;
     res.coverage_observable[k] = ratio(t.covered_obs, grids_[k].observable_cells);
@@ -385,7 +384,7 @@ void Evaluator::set_observable(const std::vector<std::uint8_t>& mask) {
   for (std::uint8_t v : observable_) n_observable_ += v != 0;
   for (Grid& g : grids_) {
     const std::vector<std::uint64_t> keys = gt_cell_keys(g.r);
-    g.observable_samples.assign(g.keys.size(), 0);
+    g.observable_samples.assign(g.index.size(), 0);
     for (std::size_t k = 0; k < keys.size(); ++k)
       if (observable_[k]) ++g.observable_samples[g.index.find(keys[k])];
     g.observable_cells = 0;
@@ -565,20 +564,16 @@ std::size_t CoverageTracker::bytes() const {
     for (const auto& cell : c.cell) b += cell.capacity() * sizeof(std::uint32_t);
   }
   for (const Cells& c : cells_)
-    b += c.index.bytes() + c.key.capacity() * sizeof(std::uint64_t) +
-         (c.n.capacity() + c.gt.capacity()) * sizeof(std::uint32_t);
+    b += c.index.bytes() + (c.n.capacity() + c.gt.capacity()) * sizeof(std::uint32_t);
   return b;
 }
 
 std::uint32_t CoverageTracker::cell_of(std::size_t k, std::uint64_t key) {
   Cells& c = cells_[k];
-  const auto id = static_cast<std::uint32_t>(c.key.size());
-  const auto ins = c.index.insert(key, id);
+  const auto ins = c.index.insert(key);
   if (ins.second) {
-    reserve_for(c.key, c.key.size() + 1);
-    reserve_for(c.n, c.key.size());
-    reserve_for(c.gt, c.key.size());
-    c.key.push_back(key);
+    reserve_for(c.n, c.index.size());
+    reserve_for(c.gt, c.index.size());
     c.n.push_back(0);
     c.gt.push_back(ev_.grids_[k].index.find(key));
   }
@@ -590,7 +585,7 @@ void CoverageTracker::add_point(std::size_t k, std::uint32_t id) {
   if (c.n[id]++ != 0) return;
   ++c.occupied;
   const std::uint32_t g = c.gt[id];
-  if (g == VoxelHashMap::kMissing) return;
+  if (g == VoxelIndex::kMissing) return;
   const Evaluator::Grid& grid = ev_.grids_[k];
   ++c.covered;
   c.covered_samples += grid.samples[g];
@@ -605,7 +600,7 @@ void CoverageTracker::remove_point(std::size_t k, std::uint32_t id) {
   if (--c.n[id] != 0) return;
   --c.occupied;
   const std::uint32_t g = c.gt[id];
-  if (g == VoxelHashMap::kMissing) return;
+  if (g == VoxelIndex::kMissing) return;
   const Evaluator::Grid& grid = ev_.grids_[k];
   --c.covered;
   c.covered_samples -= grid.samples[g];
@@ -620,9 +615,8 @@ void CoverageTracker::count_observable(std::size_t k) {
   const Evaluator::Grid& grid = ev_.grids_[k];
   c.covered_obs = c.covered_obs_samples = 0;
   if (grid.observable_samples.empty()) return;
-  for (std::size_t id = 0; id < c.key.size(); ++id)
-    if (c.n[id] > 0 && c.gt[id] != VoxelHashMap::kMissing &&
-        grid.observable_samples[c.gt[id]] > 0) {
+  for (std::size_t id = 0; id < c.index.size(); ++id)
+    if (c.n[id] > 0 && c.gt[id] != VoxelIndex::kMissing && grid.observable_samples[c.gt[id]] > 0) {
       ++c.covered_obs;
       c.covered_obs_samples += grid.observable_samples[c.gt[id]];
     }
@@ -666,7 +660,7 @@ EvaluationResult CoverageTracker::update(const std::vector<const SurfaceCloud*>&
           for (std::size_t k = 0; k < nr; ++k) {
             keys[k] = try_voxel_key(p.x(), p.y(), p.z(), res_m[k], inv[k]);
             if (keys[k] == kEmptyVoxelKey) too_far[k] = true;
-            if (!moved && keys[k] != cells_[k].key[seen.cell[k][i]]) moved = true;
+            if (!moved && keys[k] != cells_[k].index.key(seen.cell[k][i])) moved = true;
           }
           if (!moved) continue;
           out.point.push_back(static_cast<std::uint32_t>(i));
@@ -713,7 +707,7 @@ EvaluationResult CoverageTracker::update(const std::vector<const SurfaceCloud*>&
             const std::size_t i = blk.point[j];
             const std::uint64_t key = blk.key[j * nr + k];
             if (i < before[c]) {
-              if (cells_[k].key[cell[i]] == key) continue;
+              if (cells_[k].index.key(cell[i]) == key) continue;
               remove_point(k, cell[i]);
             }
             cell[i] = cell_of(k, key);

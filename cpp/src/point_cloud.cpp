@@ -12,46 +12,59 @@ namespace {
 constexpr std::uint64_t kFiltered = kEmptyVoxelKey - 1;
 }  // namespace
 
-// ---------------------------------------------------------------------------- VoxelHashMap
+// ---------------------------------------------------------------------------- VoxelIndex
 
-void VoxelHashMap::clear() {
-  std::fill(keys_.begin(), keys_.end(), kEmptyVoxelKey);
-  size_ = 0;
+void VoxelIndex::clear() {
+  std::fill(slots_.begin(), slots_.end(), kMissing);
+  keys_.clear();
 }
 
-void VoxelHashMap::reserve(std::size_t n) {
+std::size_t VoxelIndex::capacity_for(std::size_t n) {
   std::size_t cap = 16;
   while (3 * cap < 4 * n) cap <<= 1;
-  if (cap > keys_.size()) rehash(cap);
+  return cap;
 }
 
-void VoxelHashMap::rehash(std::size_t capacity) {
-  HugeVector<std::uint64_t> old_keys(capacity, kEmptyVoxelKey);
-  HugeVector<std::uint32_t> old_values(capacity);
-  old_keys.swap(keys_);
-  old_values.swap(values_);
+void VoxelIndex::reserve(std::size_t n) {
+  if (n > kMaxKeys) throw std::length_error("VoxelIndex: more than 3 * 2^30 keys");
+  const std::size_t cap = capacity_for(n);
+  if (cap > slots_.size()) rehash(cap);
+  // a quarter more when the keys must move: millions of keys grow a little at a time
+  if (n > keys_.capacity()) keys_.reserve(std::max(n, keys_.size() + keys_.size() / 4));
+}
+
+void VoxelIndex::shrink_to_fit() {
+  keys_.shrink_to_fit();
+  const std::size_t cap = capacity_for(keys_.size());
+  if (cap < slots_.size()) rehash(cap);
+}
+
+void VoxelIndex::rehash(std::size_t capacity) {
+  slots_ = HugeVector<std::uint32_t>();  // freed first: the keys alone rebuild the table
+  slots_.assign(capacity, kMissing);
   mask_ = capacity - 1;
-  for (std::size_t i = 0; i < old_keys.size(); ++i) {
-    const std::uint64_t k = old_keys[i];
-    if (k == kEmptyVoxelKey) continue;
-    std::size_t s = slot(k);
-    while (keys_[s] != kEmptyVoxelKey) s = (s + 1) & mask_;
-    keys_[s] = k;
-    values_[s] = old_values[i];
+  for (std::size_t id = 0; id < keys_.size(); ++id) {
+    const std::uint64_t h = hash(keys_[id]);
+    std::size_t s = h & mask_;
+    while (slots_[s] != kMissing) s = (s + 1) & mask_;
+    slots_[s] = tag_of(h) | static_cast<std::uint32_t>(id);
   }
 }
 
-std::pair<std::uint32_t, bool> VoxelHashMap::insert(std::uint64_t key, std::uint32_t value) {
-  if (4 * (size_ + 1) > 3 * keys_.size()) rehash(std::max<std::size_t>(16, 2 * keys_.size()));
-  for (std::size_t i = slot(key);; i = (i + 1) & mask_) {
-    const std::uint64_t k = keys_[i];
-    if (k == key) return {values_[i], false};
-    if (k == kEmptyVoxelKey) {
-      keys_[i] = key;
-      values_[i] = value;
-      ++size_;
-      return {value, true};
+std::pair<std::uint32_t, bool> VoxelIndex::insert(std::uint64_t key) {
+  if (4 * (keys_.size() + 1) > 3 * slots_.size()) reserve(keys_.size() + 1);
+  const std::uint64_t h = hash(key);
+  const std::uint32_t tag = tag_of(h), low = std::uint32_t(mask_);
+  for (std::size_t i = h & mask_;; i = (i + 1) & mask_) {
+    const std::uint32_t w = slots_[i];
+    if (w == kMissing) {
+      if (keys_.size() == keys_.capacity()) keys_.reserve(keys_.size() + keys_.size() / 4 + 16);
+      const auto fresh = static_cast<std::uint32_t>(keys_.size());
+      keys_.push_back(key);
+      slots_[i] = tag | fresh;
+      return {fresh, true};
     }
+    if ((w & ~low) == tag && keys_[w & low] == key) return {w & low, false};
   }
 }
 
@@ -84,7 +97,7 @@ std::size_t VoxelCentroids::add(const PointsRef& points, const std::vector<std::
   // in a table of millions of voxels most are cache misses), (2) in input order, the voxels first
   // seen here get the next ids, (3) each voxel's points are summed, in input order, by the one
   // task that owns its block of 64 voxels.
-  constexpr std::uint32_t kSkipped = VoxelHashMap::kMissing - 1;
+  constexpr std::uint32_t kSkipped = VoxelIndex::kMissing - 1;
   std::vector<std::uint32_t> id(n);
   parallel_chunks(n, 4096, [&](std::size_t b, std::size_t e) {
     std::uint64_t last_key = kEmptyVoxelKey;
@@ -105,7 +118,7 @@ std::size_t VoxelCentroids::add(const PointsRef& points, const std::vector<std::
   std::uint64_t last_key = kEmptyVoxelKey;
   std::uint32_t last = 0;
   for (std::size_t i = 0; i < n; ++i) {
-    if (id[i] != VoxelHashMap::kMissing) continue;
+    if (id[i] != VoxelIndex::kMissing) continue;
     if (keys[i] != last_key) {
       last = voxel_of(keys[i]);
       last_key = keys[i];
@@ -126,7 +139,7 @@ std::size_t VoxelCentroids::add(const PointsRef& points, const std::vector<std::
 }
 
 std::uint32_t VoxelCentroids::voxel_of(std::uint64_t key) {
-  const auto r = index_.insert(key, static_cast<std::uint32_t>(count_.size()));
+  const auto r = index_.insert(key);
   if (r.second) {
     if (count_.size() == count_.capacity()) {  // grow by a quarter, not double: millions of voxels
       const std::size_t cap = count_.size() + std::max<std::size_t>(count_.size() / 4, 4096);
@@ -164,7 +177,7 @@ Points VoxelCentroids::centroids() const {
 }
 
 void VoxelCentroids::clear() {
-  index_ = VoxelHashMap();
+  index_ = VoxelIndex();
   sum_.clear();
   sum_.shrink_to_fit();
   count_.clear();

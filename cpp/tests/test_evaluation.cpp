@@ -1,5 +1,5 @@
 // Edge cases of the point-cloud and evaluation core: voxel key arithmetic (floor, not
-// truncation; packing limits), the voxel hash map, the surface cloud's centroids, LZF decoding, and
+// truncation; packing limits), the voxel index, the surface cloud's centroids, LZF decoding, and
 // evaluation of empty / identical clouds.
 #include "nbv/evaluation.hpp"
 #include "nbv/point_cloud.hpp"
@@ -63,23 +63,36 @@ TEST(VoxelKey, FastFloorDivisionEqualsFloorOfTheQuotient) {
     EXPECT_EQ(fast_floor(q), std::floor(q)) << q;
 }
 
-TEST(VoxelHashMap, InsertFindGrow) {
-  VoxelHashMap m;
+TEST(VoxelIndex, IdsInInsertionOrderAcrossRehashes) {
+  VoxelIndex m;
   EXPECT_FALSE(m.contains(pack_voxel(0, 0, 0)));
-  for (std::uint32_t i = 0; i < 10000; ++i) {
-    const auto r = m.insert(pack_voxel(i, -static_cast<std::int64_t>(i), 3), i);
-    EXPECT_TRUE(r.second);
+  const auto key = [](std::uint32_t i) { return pack_voxel(i, -static_cast<std::int64_t>(i), 3); };
+  for (std::uint32_t i = 0; i < 10000; ++i) {  // many rehashes from 16 slots
+    const auto r = m.insert(key(i));
+    ASSERT_TRUE(r.second);
+    ASSERT_EQ(r.first, i);
   }
   EXPECT_EQ(m.size(), 10000u);
-  const auto again = m.insert(pack_voxel(5, -5, 3), 99);
+  const auto again = m.insert(key(5));
   EXPECT_FALSE(again.second);
   EXPECT_EQ(again.first, 5u);
-  for (std::uint32_t i = 0; i < 10000; ++i)
-    ASSERT_EQ(m.find(pack_voxel(i, -static_cast<std::int64_t>(i), 3)), i);
-  EXPECT_EQ(m.find(pack_voxel(1, 1, 1)), VoxelHashMap::kMissing);
+  EXPECT_EQ(m.size(), 10000u);
+  for (std::uint32_t i = 0; i < 10000; ++i) {
+    ASSERT_EQ(m.find(key(i)), i);
+    ASSERT_EQ(m.key(i), key(i));
+    ASSERT_EQ(m.keys()[i], key(i));
+  }
+  EXPECT_EQ(m.find(pack_voxel(1, 1, 1)), VoxelIndex::kMissing);
+  // reserving far ahead, then shrinking back, keeps every id
+  m.reserve(1 << 20);
+  const std::size_t big = m.bytes();
+  m.shrink_to_fit();
+  EXPECT_LT(m.bytes(), big);
+  for (std::uint32_t i = 0; i < 10000; i += 7) ASSERT_EQ(m.find(key(i)), i);
   m.clear();
   EXPECT_EQ(m.size(), 0u);
-  EXPECT_FALSE(m.contains(pack_voxel(5, -5, 3)));
+  EXPECT_FALSE(m.contains(key(5)));
+  EXPECT_EQ(m.insert(key(7)).first, 0u);  // ids start again
 }
 
 TEST(SurfaceCloud, CentroidsInFirstSeenOrderAndGroundRemoval) {

@@ -150,8 +150,7 @@ class Evaluator {
                          const std::function<Eigen::Vector3d(std::size_t)>& point) const;
   struct Grid {
     double r = 0;
-    VoxelHashMap index;                            ///< GT cell key -> position in keys / samples
-    std::vector<std::uint64_t> keys;               ///< the GT cells
+    VoxelIndex index;                              ///< GT cell key -> position in samples
     std::vector<std::int64_t> samples;             ///< GT samples in each cell
     std::vector<std::int64_t> observable_samples;  ///< observable GT samples in each cell
     std::int64_t observable_cells = 0;
@@ -201,13 +200,12 @@ class CoverageTracker {
     HugeVector<std::uint32_t> count;              ///< per point: the voxel count last seen
     std::vector<HugeVector<std::uint32_t>> cell;  ///< per resolution and point: its cell (id)
   };
-  struct Cells {                    ///< one resolution's cloud cells
-    VoxelHashMap index;             ///< key -> dense id
-    HugeVector<std::uint64_t> key;  ///< per dense id
-    HugeVector<std::uint32_t> n;    ///< points in the cell
-    HugeVector<std::uint32_t> gt;   ///< the GT cell (Evaluator::Grid position) or kMissing
-    std::int64_t occupied = 0;      ///< cells with n > 0
-    std::int64_t covered = 0;       ///< ... of which GT cells
+  struct Cells {                   ///< one resolution's cloud cells
+    VoxelIndex index;              ///< key -> dense id
+    HugeVector<std::uint32_t> n;   ///< points in the cell
+    HugeVector<std::uint32_t> gt;  ///< the GT cell (Evaluator::Grid position) or kMissing
+    std::int64_t occupied = 0;     ///< cells with n > 0
+    std::int64_t covered = 0;      ///< ... of which GT cells
     std::int64_t covered_samples = 0, covered_obs = 0, covered_obs_samples = 0;
   };
   void reset();

@@ -1,4 +1,4 @@
-// Observed surface points: origin-anchored voxel keys, a voxel hash table, and the incremental
+// Observed surface points: origin-anchored voxel keys, a voxel index, and the incremental
 // voxel-grid filtered cloud that accumulates a mission's sensor hits.
 #pragma once
 
@@ -90,52 +90,72 @@ inline std::uint64_t voxel_key(const Eigen::Vector3d& p, double size) {
   return pack_voxel(i[0], i[1], i[2]);
 }
 
-/// Open-addressing (linear probing) hash map from packed voxel keys to 32-bit values. Grows at a
-/// load factor of 3/4 (12 bytes a slot: 16-32 bytes an entry; at 1/2 a 100 m plant's 19 M-voxel
-/// camera cloud held a 64 M-slot, 800 MB table). Much faster than std::unordered_map for this use
-/// (no node allocation, one cache line per probe). Keys must not be kEmptyVoxelKey.
-class VoxelHashMap {
+/// The distinct voxel keys of a set, each with its id: 0, 1, 2, ... in the order the keys were
+/// first inserted (the dense position of whatever is kept per voxel beside it). The keys are held
+/// once, in id order (keys()); an open-addressing table (linear probing) of 32-bit slots, each an
+/// id and some bits of its key's hash (tag_of), finds them, grown at a load factor of 3/4: 13-19
+/// bytes a key in all, where a table of (key, value) slots held 16-32 and its users kept the keys a
+/// second time. A rehash reads the keys in order and holds the old and new id tables only (4 bytes
+/// a slot), not old and new keys. Keys must not be kEmptyVoxelKey; at most 3 * 2^30 keys.
+class VoxelIndex {
  public:
   static constexpr std::uint32_t kMissing = std::numeric_limits<std::uint32_t>::max();
+  /// The most keys (their table of 2^32 slots then 3/4 full).
+  static constexpr std::size_t kMaxKeys = std::size_t(3) << 30;
 
-  explicit VoxelHashMap(std::size_t expected = 0) { reserve(expected); }
+  explicit VoxelIndex(std::size_t expected = 0) { reserve(expected); }
 
-  std::size_t size() const { return size_; }
-  /// Bytes held by the table.
+  std::size_t size() const { return keys_.size(); }
+  /// The keys in id order: keys()[id] is the key of id.
+  const HugeVector<std::uint64_t>& keys() const { return keys_; }
+  std::uint64_t key(std::uint32_t id) const { return keys_[id]; }
+  /// Bytes held (the id table and the keys).
   std::size_t bytes() const {
-    return keys_.capacity() * sizeof(std::uint64_t) + values_.capacity() * sizeof(std::uint32_t);
+    return slots_.capacity() * sizeof(std::uint32_t) + keys_.capacity() * sizeof(std::uint64_t);
   }
   void clear();
-  /// Makes room for `n` entries without rehashing.
+  /// Makes room for `n` keys without rehashing.
   void reserve(std::size_t n);
-  /// The value stored for `key`, or kMissing.
+  /// Gives back the keys' spare room and the table's beyond what size() needs.
+  void shrink_to_fit();
+  /// The id of `key`, or kMissing.
   std::uint32_t find(std::uint64_t key) const {
-    if (keys_.empty()) return kMissing;
-    for (std::size_t i = slot(key);; i = (i + 1) & mask_) {
-      const std::uint64_t k = keys_[i];
-      if (k == key) return values_[i];
-      if (k == kEmptyVoxelKey) return kMissing;
+    if (slots_.empty()) return kMissing;
+    const std::uint64_t h = hash(key);
+    const std::uint32_t tag = tag_of(h), low = std::uint32_t(mask_);
+    for (std::size_t i = h & mask_;; i = (i + 1) & mask_) {
+      const std::uint32_t w = slots_[i];
+      if (w == kMissing) return kMissing;
+      if ((w & ~low) == tag && keys_[w & low] == key) return w & low;
     }
   }
   bool contains(std::uint64_t key) const { return find(key) != kMissing; }
-  /// Inserts (key, value) if the key is absent. Returns the stored value and whether it inserted.
-  std::pair<std::uint32_t, bool> insert(std::uint64_t key, std::uint32_t value);
+  /// The id of `key`, the next one (size()) if it was absent; and whether it was inserted.
+  std::pair<std::uint32_t, bool> insert(std::uint64_t key);
 
  private:
-  std::size_t slot(std::uint64_t key) const {
+  static std::uint64_t hash(std::uint64_t key) {
     key ^= key >> 33;  // murmur3 finaliser
     key *= 0xff51afd7ed558ccdull;
     key ^= key >> 33;
     key *= 0xc4ceb9fe1a85ec53ull;
     key ^= key >> 33;
-    return static_cast<std::size_t>(key) & mask_;
+    return key;
   }
+  /// A slot holds an id in its low bits (those of mask_: ids stay below the table's size) and,
+  /// in the bits above them, the same bits of the key's hash (from its upper half, not those
+  /// that chose the slot): most probes past other keys end without reading their keys.
+  std::uint32_t tag_of(std::uint64_t h) const {
+    return std::uint32_t(h >> 32) & ~std::uint32_t(mask_);
+  }
+  /// The table's size for n keys: a power of two at least 4/3 n (16 at least).
+  static std::size_t capacity_for(std::size_t n);
   void rehash(std::size_t capacity);
 
   // Tables of millions of voxels: huge pages spare a page fault per 4 KiB as they grow.
-  HugeVector<std::uint64_t> keys_;
-  HugeVector<std::uint32_t> values_;
-  std::size_t mask_ = 0, size_ = 0;
+  HugeVector<std::uint32_t> slots_;  ///< tag | id, or kMissing
+  HugeVector<std::uint64_t> keys_;   ///< by id
+  std::size_t mask_ = 0;
 };
 
 // ---------------------------------------------------------------------------- voxel centroids
@@ -163,7 +183,7 @@ class VoxelCentroids {
   /// The voxel of `key`, made (empty, with the next id) if it is new.
   std::uint32_t voxel_of(std::uint64_t key);
 
-  VoxelHashMap index_;
+  VoxelIndex index_;  ///< voxel key -> id (the position in sum_ and count_)
   HugeVector<Eigen::Vector3d> sum_;
   HugeVector<std::uint32_t> count_;
 };
