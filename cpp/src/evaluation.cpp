@@ -189,7 +189,14 @@ const PointsRef& checked_gt(const PointsRef& gt, const EvaluationOptions& option
 }  // namespace
 
 Evaluator::Evaluator(const Mesh& gt, const EvaluationOptions& options)
-    : Evaluator(sample_mesh(gt, options), options) {}
+    : Evaluator(sample_mesh(gt, options), options) {
+  const std::size_t mesh_bytes =
+      std::size_t(gt.vertices.size()) * sizeof(double) + std::size_t(gt.faces.size()) * 4;
+  if (mesh_bytes < n_gt_ * 3 * sizeof(double) / 2) {  // the samples, drawn again when needed
+    mesh_ = std::make_shared<const Mesh>(gt);
+    gt_ = Points();
+  }
+}
 
 Evaluator::Evaluator(std::pair<Points, EvaluationResult>&& sampled,
                      const EvaluationOptions& options)
@@ -291,7 +298,7 @@ void Evaluator::score_cells(std::size_t k, const std::uint64_t* keys, std::size_
   std::int64_t n_unique = 0;
   std::atomic<std::int64_t> in_gt{0};
   for (const VoxelIndex& part : unique) {
-    const HugeVector<std::uint64_t>& u = part.keys();
+    const GrowArray<std::uint64_t>& u = part.keys();
     n_unique += static_cast<std::int64_t>(u.size());
     parallel_chunks(u.size(), 1 << 13, [&](std::size_t b, std::size_t e) {
       std::int64_t c = 0;
@@ -343,7 +350,7 @@ void Evaluator::set_cell_figures(std::size_t k, const CellTally& t, EvaluationRe
 const KdTree& Evaluator::gt_tree() const {
   std::lock_guard<std::mutex> lock(tree_mutex_);
   if (!tree_) {
-    tree_ = std::make_unique<KdTree>(gt_);
+    tree_ = std::make_unique<KdTree>(redraw() ? sample_again() : gt_);
     gt_ = Points();  // the tree holds them
   }
   return *tree_;
@@ -351,17 +358,19 @@ const KdTree& Evaluator::gt_tree() const {
 
 Points Evaluator::gt_points() const {
   std::lock_guard<std::mutex> lock(tree_mutex_);
-  return tree_ ? tree_->points() : gt_;
+  if (tree_) return tree_->points();
+  return redraw() ? sample_again() : gt_;
 }
 
-Eigen::Vector3d Evaluator::gt_point(std::size_t k) const {
-  if (tree_) return tree_->point(Eigen::Index(k));
-  return gt_.row(Eigen::Index(k)).transpose();
-}
-
-std::vector<std::uint64_t> Evaluator::gt_cell_keys(double r) const {
+std::vector<std::uint64_t> Evaluator::gt_cell_keys(double r, const Points* drawn) const {
+  const Points again = redraw() && !drawn ? sample_again() : Points();
+  const Points& held = redraw() ? (drawn ? *drawn : again) : gt_;
+  if (tree_)
+    return cell_keys(
+        n_gt_, [this](std::size_t k) { return tree_->point(Eigen::Index(k)); }, r, "ground truth");
   return cell_keys(
-      n_gt_, [this](std::size_t k) { return gt_point(k); }, r, "ground truth");
+      n_gt_, [&held](std::size_t k) { return Eigen::Vector3d(held.row(Eigen::Index(k))); }, r,
+      "ground truth");
 }
 
 void Evaluator::set_observable(const std::vector<std::uint8_t>& mask) {
@@ -382,8 +391,9 @@ void Evaluator::set_observable(const std::vector<std::uint8_t>& mask) {
   observable_.assign(mask.begin(), mask.end());
   n_observable_ = 0;
   for (std::uint8_t v : observable_) n_observable_ += v != 0;
+  const Points drawn = redraw() ? sample_again() : Points();  // once for every resolution
   for (Grid& g : grids_) {
-    const std::vector<std::uint64_t> keys = gt_cell_keys(g.r);
+    const std::vector<std::uint64_t> keys = gt_cell_keys(g.r, &drawn);
     g.observable_samples.assign(g.index.size(), 0);
     for (std::size_t k = 0; k < keys.size(); ++k)
       if (observable_[k]) ++g.observable_samples[g.index.find(keys[k])];
@@ -646,7 +656,7 @@ EvaluationResult CoverageTracker::update(const std::vector<const SurfaceCloud*>&
     const Cloud& seen = same_list ? clouds_[c] : kNew;
     const bool same = same_list && seen.stamp == cloud.stamp();
     const std::size_t n = cloud.size(), m = same ? seen.count.size() : 0;
-    const HugeVector<std::uint32_t>& counts = cloud.voxel_counts();
+    const GrowArray<std::uint32_t>& counts = cloud.voxel_counts();
     std::vector<Block>& blocks = changes[c];
     blocks.resize((n + kBlock - 1) / kBlock);
     parallel_chunks(blocks.size(), 1, [&](std::size_t bb, std::size_t be) {
@@ -699,7 +709,7 @@ EvaluationResult CoverageTracker::update(const std::vector<const SurfaceCloud*>&
   parallel_chunks(nr, 1, [&](std::size_t kb, std::size_t ke) {
     for (std::size_t k = kb; k < ke; ++k)
       for (std::size_t c = 0; c < clouds.size(); ++c) {
-        HugeVector<std::uint32_t>& cell = clouds_[c].cell[k];
+        GrowArray<std::uint32_t>& cell = clouds_[c].cell[k];
         reserve_for(cell, clouds[c]->size());
         cell.resize(clouds[c]->size());
         for (const Block& blk : changes[c])

@@ -30,7 +30,7 @@ void VoxelIndex::reserve(std::size_t n) {
   const std::size_t cap = capacity_for(n);
   if (cap > slots_.size()) rehash(cap);
   // a quarter more when the keys must move: millions of keys grow a little at a time
-  if (n > keys_.capacity()) keys_.reserve(std::max(n, keys_.size() + keys_.size() / 4));
+  if (n > keys_.capacity()) keys_.reserve(std::max(n, keys_.capacity() + keys_.capacity() / 2));
 }
 
 void VoxelIndex::shrink_to_fit() {
@@ -58,7 +58,6 @@ std::pair<std::uint32_t, bool> VoxelIndex::insert(std::uint64_t key) {
   for (std::size_t i = h & mask_;; i = (i + 1) & mask_) {
     const std::uint32_t w = slots_[i];
     if (w == kMissing) {
-      if (keys_.size() == keys_.capacity()) keys_.reserve(keys_.size() + keys_.size() / 4 + 16);
       const auto fresh = static_cast<std::uint32_t>(keys_.size());
       keys_.push_back(key);
       slots_[i] = tag | fresh;
@@ -69,6 +68,16 @@ std::pair<std::uint32_t, bool> VoxelIndex::insert(std::uint64_t key) {
 }
 
 // ---------------------------------------------------------------------------- VoxelCentroids
+
+namespace {
+/// s += points.row(i), coordinate by coordinate (as Eigen's sum).
+inline void accumulate(std::array<double, 3>& s, const PointsRef& points, std::size_t i) {
+  const auto r = static_cast<Eigen::Index>(i);
+  s[0] += points(r, 0);
+  s[1] += points(r, 1);
+  s[2] += points(r, 2);
+}
+}  // namespace
 
 std::size_t VoxelCentroids::add(const PointsRef& points, const std::vector<std::uint64_t>& keys,
                                 std::uint64_t skip) {
@@ -88,7 +97,7 @@ std::size_t VoxelCentroids::add(const PointsRef& points, const std::vector<std::
         last = voxel_of(k);
         last_key = k;
       }
-      sum_[last] += points.row(static_cast<Eigen::Index>(i)).transpose();
+      accumulate(sum_[last], points, i);
       ++count_[last];
     }
     return count_.size() - before;
@@ -131,7 +140,7 @@ std::size_t VoxelCentroids::add(const PointsRef& points, const std::vector<std::
       for (std::size_t i = 0; i < n; ++i) {
         const std::uint32_t v = id[i];
         if (v == kSkipped || (v >> 6) % parts != part) continue;
-        sum_[v] += points.row(static_cast<Eigen::Index>(i)).transpose();
+        accumulate(sum_[v], points, i);
         ++count_[v];
       }
   });
@@ -141,12 +150,7 @@ std::size_t VoxelCentroids::add(const PointsRef& points, const std::vector<std::
 std::uint32_t VoxelCentroids::voxel_of(std::uint64_t key) {
   const auto r = index_.insert(key);
   if (r.second) {
-    if (count_.size() == count_.capacity()) {  // grow by a quarter, not double: millions of voxels
-      const std::size_t cap = count_.size() + std::max<std::size_t>(count_.size() / 4, 4096);
-      sum_.reserve(cap);
-      count_.reserve(cap);
-    }
-    sum_.emplace_back(Eigen::Vector3d::Zero());
+    sum_.push_back({0.0, 0.0, 0.0});
     count_.push_back(0);
   }
   return r.first;

@@ -1,6 +1,6 @@
 // Edge cases of the point-cloud and evaluation core: voxel key arithmetic (floor, not
 // truncation; packing limits), the voxel index, the surface cloud's centroids, LZF decoding, and
-// evaluation of empty / identical clouds.
+// evaluation of empty / identical clouds and of a mesh's samples drawn again.
 #include "nbv/evaluation.hpp"
 #include "nbv/point_cloud.hpp"
 
@@ -193,6 +193,38 @@ TEST(Evaluation, EmptyCloudScoresZeroWithoutChamfer) {
   for (double v : r.precision) EXPECT_EQ(v, 0.0);
   for (double v : r.fscore) EXPECT_EQ(v, 0.0);
   EXPECT_EQ(r.gt_cells[0], 3);
+}
+
+TEST(Evaluation, AMeshsSamplesDrawnAgainAreThoseOfTheConstruction) {
+  // a box of 12 triangles: its copy is far smaller than its samples, so the Evaluator keeps the
+  // mesh and draws the samples again; every figure must be that of the samples held as points
+  Points v(8, 3);
+  for (int i = 0; i < 8; ++i)
+    v.row(i) << (i & 1 ? 2.0 : -1.0), (i & 2 ? 1.5 : 0.25), (i & 4 ? 3.0 : 0.5);
+  Faces f(12, 3);
+  f << 0, 2, 1, 1, 2, 3, 4, 5, 6, 5, 7, 6, 0, 1, 4, 1, 5, 4, 2, 6, 3, 3, 6, 7, 0, 4, 2, 2, 4, 6, 1,
+      3, 5, 3, 7, 5;
+  const Mesh box = Mesh::from_arrays(v, f);
+  EvaluationOptions o;
+  o.gt_density = 2000;
+  o.seed = 7;
+  Evaluator from_mesh(box, o);
+  const Points samples = box.sample_surface(from_mesh.num_gt_points(), 7);
+  ASSERT_GT(samples.rows(), 1000);
+  Evaluator from_points(samples, o);
+  EXPECT_TRUE(from_mesh.gt_points() == samples);
+  std::vector<std::uint8_t> mask(samples.rows());
+  for (std::size_t k = 0; k < mask.size(); ++k) mask[k] = samples(Eigen::Index(k), 2) > 1.0;
+  from_mesh.set_observable(mask);
+  from_points.set_observable(mask);
+  const Points cloud = samples.topRows(samples.rows() / 3).array() + 0.01;
+  const EvaluationResult a = from_mesh.evaluate(cloud), b = from_points.evaluate(cloud);
+  EXPECT_EQ(a.coverage, b.coverage);
+  EXPECT_EQ(a.area_coverage, b.area_coverage);
+  EXPECT_EQ(a.coverage_observable, b.coverage_observable);
+  EXPECT_EQ(a.completeness, b.completeness);
+  EXPECT_EQ(a.accuracy, b.accuracy);
+  EXPECT_TRUE(from_mesh.gt_points() == samples);  // now from the distances' tree
 }
 
 TEST(Evaluation, IdenticalCloudsScoreOneAndNegativeCellsCount) {

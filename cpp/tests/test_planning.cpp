@@ -805,6 +805,37 @@ TEST(HugeVector, LargeBuffersAreHugePageAlignedAndHoldTheirValues) {
   EXPECT_EQ(std::accumulate(small.begin(), small.end(), 0), 300);
 }
 
+TEST(GrowArray, GrowsInPlaceAcrossTheMappingThresholdAndKeepsItsValues) {
+  GrowArray<std::uint32_t> a;
+  for (std::uint32_t i = 0; i < (3u << 20); ++i) a.push_back(i * 3);  // heap, then a mapping
+  ASSERT_EQ(a.size(), std::size_t(3) << 20);
+  EXPECT_GE(a.capacity(), a.size());
+  for (std::size_t i = 0; i < a.size(); i += 997) ASSERT_EQ(a[i], i * 3);
+  EXPECT_EQ(a.back(), ((3u << 20) - 1) * 3);
+  GrowArray<std::uint32_t> b = a;  // a copy of its own
+  b[5] = 1;
+  EXPECT_EQ(a[5], 15u);
+  a.resize(10);  // shrinking keeps the first elements; growing again zeroes the new ones
+  a.shrink_to_fit();
+  EXPECT_EQ(a.size(), 10u);
+  EXPECT_EQ(a[9], 27u);
+  a.resize(2000000);
+  EXPECT_EQ(a[9], 27u);
+  EXPECT_EQ(a[10], 0u);
+  EXPECT_EQ(a[1999999], 0u);
+  GrowArray<std::uint32_t> c = std::move(b);
+  EXPECT_EQ(c.size(), std::size_t(3) << 20);
+  EXPECT_EQ(c[5], 1u);
+  EXPECT_TRUE(b.empty());  // NOLINT: moved-from is empty
+  c.assign(a.begin(), a.begin() + 12);
+  EXPECT_EQ(c.size(), 12u);
+  EXPECT_EQ(c[11], 0u);
+  EXPECT_EQ(c[9], 27u);
+  c.clear();
+  c.shrink_to_fit();
+  EXPECT_EQ(c.capacity(), 0u);
+}
+
 TEST(ReleasableArray, ReadsZeroAfterReleaseAndMoves) {
   ReleasableArray<std::uint32_t> a(3 << 20);  // 12 MiB: many pages
   ASSERT_TRUE(a);

@@ -86,7 +86,9 @@ class Evaluator {
   /// Samples the mesh uniformly at options.gt_density points per m^2:
   /// Mesh::sample_surface(round(area * density), seed), capped at max_gt_points with a warning
   /// in the results. Throws std::invalid_argument for bad options or a density so low that no
-  /// sample would be drawn.
+  /// sample would be drawn. When a copy of the mesh is smaller than the samples (a large
+  /// structure's 8 M samples are 192 MB), it keeps the mesh instead and draws the same samples
+  /// again when they are next needed (gt_points, set_observable, the distances' kd-tree).
   explicit Evaluator(const Mesh& gt, const EvaluationOptions& options = {});
   /// Uses a reference (ground-truth) point cloud as is. Throws std::invalid_argument if it is
   /// empty or holds NaN/inf.
@@ -161,12 +163,16 @@ class Evaluator {
   std::uint64_t observable_version_ = 0;
   EvaluationOptions opt_;
   EvaluationResult base_;
-  /// The ground truth's point k: from gt_, or from the tree once it is built.
-  Eigen::Vector3d gt_point(std::size_t k) const;
   /// Cell keys of the ground truth's points, in order; throws if one is too far from the origin.
-  std::vector<std::uint64_t> gt_cell_keys(double r) const;
+  /// `drawn`: the samples drawn again (sample_again), when neither gt_ nor the tree holds them.
+  std::vector<std::uint64_t> gt_cell_keys(double r, const Points* drawn = nullptr) const;
+  /// Whether the samples must be drawn again (sample_again) to be read.
+  bool redraw() const { return !tree_ && mesh_ && gt_.rows() == 0; }
+  /// The mesh's samples drawn again: the same points as at construction.
+  Points sample_again() const { return mesh_->sample_surface(n_gt_, opt_.seed); }
   std::size_t n_gt_ = 0;
-  mutable Points gt_;  ///< the samples until the tree is built (then empty)
+  mutable Points gt_;  ///< the samples until the tree is built (then empty; empty with mesh_)
+  std::shared_ptr<const Mesh> mesh_;  ///< kept in place of the samples (see the constructor)
   mutable std::mutex tree_mutex_;
   mutable std::unique_ptr<KdTree> tree_;  ///< of the samples, made by gt_tree()
   std::vector<Grid> grids_;
@@ -197,8 +203,8 @@ class CoverageTracker {
  private:
   struct Cloud {
     std::uint64_t stamp = 0;
-    HugeVector<std::uint32_t> count;              ///< per point: the voxel count last seen
-    std::vector<HugeVector<std::uint32_t>> cell;  ///< per resolution and point: its cell (id)
+    GrowArray<std::uint32_t> count;              ///< per point: the voxel count last seen
+    std::vector<GrowArray<std::uint32_t>> cell;  ///< per resolution and point: its cell (id)
   };
   struct Cells {                   ///< one resolution's cloud cells
     VoxelIndex index;              ///< key -> dense id

@@ -107,7 +107,7 @@ class VoxelIndex {
 
   std::size_t size() const { return keys_.size(); }
   /// The keys in id order: keys()[id] is the key of id.
-  const HugeVector<std::uint64_t>& keys() const { return keys_; }
+  const GrowArray<std::uint64_t>& keys() const { return keys_; }
   std::uint64_t key(std::uint32_t id) const { return keys_[id]; }
   /// Bytes held (the id table and the keys).
   std::size_t bytes() const {
@@ -154,7 +154,7 @@ class VoxelIndex {
 
   // Tables of millions of voxels: huge pages spare a page fault per 4 KiB as they grow.
   HugeVector<std::uint32_t> slots_;  ///< tag | id, or kMissing
-  HugeVector<std::uint64_t> keys_;   ///< by id
+  GrowArray<std::uint64_t> keys_;    ///< by id
   std::size_t mask_ = 0;
 };
 
@@ -173,9 +173,11 @@ class VoxelCentroids {
   /// (K, 3) centroids in voxel creation order.
   Points centroids() const;
   /// Centroid of voxel i (the row centroids() holds).
-  Eigen::Vector3d centroid(std::size_t i) const { return sum_[i] / static_cast<double>(count_[i]); }
+  Eigen::Vector3d centroid(std::size_t i) const {
+    return Eigen::Vector3d(sum_[i][0], sum_[i][1], sum_[i][2]) / static_cast<double>(count_[i]);
+  }
   /// (K,) number of points in each voxel.
-  const HugeVector<std::uint32_t>& counts() const { return count_; }
+  const GrowArray<std::uint32_t>& counts() const { return count_; }
   std::size_t size() const { return count_.size(); }
   void clear();
 
@@ -183,9 +185,9 @@ class VoxelCentroids {
   /// The voxel of `key`, made (empty, with the next id) if it is new.
   std::uint32_t voxel_of(std::uint64_t key);
 
-  VoxelIndex index_;  ///< voxel key -> id (the position in sum_ and count_)
-  HugeVector<Eigen::Vector3d> sum_;
-  HugeVector<std::uint32_t> count_;
+  VoxelIndex index_;                      ///< voxel key -> id (the position in sum_ and count_)
+  GrowArray<std::array<double, 3>> sum_;  ///< per voxel: the sum of its points
+  GrowArray<std::uint32_t> count_;        ///< per voxel: its number of points
 };
 
 /// Voxel-grid centroids of points (N, 3): one point per cell floor(p / voxel_size) (grid anchored
@@ -240,7 +242,7 @@ class SurfaceCloud {
   std::uint64_t num_registered() const { return registered_; }
   /// Number of points registered in each voxel (creation order): a voxel's centroid changes
   /// exactly when its count does.
-  const HugeVector<std::uint32_t>& voxel_counts() const { return voxels_.counts(); }
+  const GrowArray<std::uint32_t>& voxel_counts() const { return voxels_.counts(); }
   /// An id unique to this cloud's history in the process: it changes when the cloud is cleared
   /// (and a copy has its own), so between two equal stamps the cloud only grew by add().
   std::uint64_t stamp() const { return stamp_; }
