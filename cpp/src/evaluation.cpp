@@ -140,13 +140,6 @@ std::vector<std::uint8_t> cloud_slabs(std::size_t n,
 
 double ratio(std::int64_t a, std::int64_t b) { return b > 0 ? static_cast<double>(a) / b : 0.0; }
 
-// Makes room in `v` for n elements, an eighth more when it must move: per-point arrays of millions
-// of points grow a little at a time, where std::vector would double them.
-template <class V>
-void reserve_for(V& v, std::size_t n) {
-  if (n > v.capacity()) v.reserve(n + n / 8);
-}
-
 }  // namespace
 
 std::pair<Points, EvaluationResult> Evaluator::sample_mesh(const Mesh& gt,
@@ -582,8 +575,6 @@ std::uint32_t CoverageTracker::cell_of(std::size_t k, std::uint64_t key) {
   Cells& c = cells_[k];
   const auto ins = c.index.insert(key);
   if (ins.second) {
-    reserve_for(c.n, c.index.size());
-    reserve_for(c.gt, c.index.size());
     c.n.push_back(0);
     c.gt.push_back(ev_.grids_[k].index.find(key));
   }
@@ -703,14 +694,12 @@ EvaluationResult CoverageTracker::update(const std::vector<const SurfaceCloud*>&
       seen.cell.resize(nr);
     }
     before[c] = seen.count.size();
-    reserve_for(seen.count, cloud.size());
     seen.count.assign(cloud.voxel_counts().begin(), cloud.voxel_counts().end());
   }
   parallel_chunks(nr, 1, [&](std::size_t kb, std::size_t ke) {
     for (std::size_t k = kb; k < ke; ++k)
       for (std::size_t c = 0; c < clouds.size(); ++c) {
         GrowArray<std::uint32_t>& cell = clouds_[c].cell[k];
-        reserve_for(cell, clouds[c]->size());
         cell.resize(clouds[c]->size());
         for (const Block& blk : changes[c])
           for (std::size_t j = 0; j < blk.point.size(); ++j) {

@@ -163,7 +163,7 @@ class GrowArray {
   void assign(It first, It last) {
     const auto n = static_cast<std::size_t>(std::distance(first, last));
     n_ = 0;
-    reserve(n);
+    if (n > cap_) grow(n);
     std::copy(first, last, p_);
     n_ = n;
   }
