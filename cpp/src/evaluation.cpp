@@ -202,6 +202,9 @@ Evaluator::Evaluator(const PointsRef& gt, const EvaluationOptions& options, Eval
     : opt_(options), base_(std::move(base)), n_gt_(std::size_t(gt.rows())), gt_(gt) {
   const auto t0 = std::chrono::steady_clock::now();
   base_.n_gt_points = static_cast<std::int64_t>(n_gt_);
+  if (n_gt_ > std::numeric_limits<std::uint32_t>::max())  // a cell's count is 32 bits
+    throw std::invalid_argument("at most 2^32 - 1 ground-truth points, got " +
+                                std::to_string(n_gt_));
   for (double r : opt_.resolutions) {
     Grid g;
     g.r = r;
@@ -391,7 +394,7 @@ void Evaluator::set_observable(const std::vector<std::uint8_t>& mask) {
     for (std::size_t k = 0; k < keys.size(); ++k)
       if (observable_[k]) ++g.observable_samples[g.index.find(keys[k])];
     g.observable_cells = 0;
-    for (std::int64_t c : g.observable_samples) g.observable_cells += c > 0;
+    for (std::uint32_t c : g.observable_samples) g.observable_cells += c > 0;
   }
 }
 

@@ -152,9 +152,9 @@ class Evaluator {
                          const std::function<Eigen::Vector3d(std::size_t)>& point) const;
   struct Grid {
     double r = 0;
-    VoxelIndex index;                              ///< GT cell key -> position in samples
-    std::vector<std::int64_t> samples;             ///< GT samples in each cell
-    std::vector<std::int64_t> observable_samples;  ///< observable GT samples in each cell
+    VoxelIndex index;                               ///< GT cell key -> position in samples
+    std::vector<std::uint32_t> samples;             ///< GT samples in each cell
+    std::vector<std::uint32_t> observable_samples;  ///< observable GT samples in each cell
     std::int64_t observable_cells = 0;
   };
   friend class CoverageTracker;
