@@ -53,6 +53,27 @@ def test_the_camera_record_holds_the_bricks_of_the_surface_seen_not_the_workspac
     assert all(m.entries == 0 and m.bytes == 0 for m in memos)
 
 
+def test_a_large_workspace_sums_its_camera_cloud_in_single_precision(two_boxes_flown):
+    # cloud.single_precision null: by size; the 154 m workspace is large, so the camera cloud
+    # holds 16 bytes a voxel and its index; the laser's keeps the exact sums (the symmetry's)
+    mission, cfg, mesh = two_boxes_flown
+    world = mission.world
+    assert cfg.cloud.single_precision is None
+    cam, laser = world.camera_cloud, world.laser_cloud
+    assert cam.options.single_precision and not laser.options.single_precision
+    exact = nbvkit.PointCloud(options=cam.options, single_precision=False)
+    assert len(cam) > 1000
+    small = Mission(load_config(overrides=[*QUICK_MISSION]), mesh=_two_boxes(10.0)).world
+    assert not small.camera_cloud.options.single_precision  # a 14 m workspace: exact sums
+    forced = load_config(overrides=[*QUICK_MISSION, "cloud.single_precision=false"])
+    assert not Mission(forced, mesh=mesh).world.camera_cloud.options.single_precision
+    # every centroid within its voxel (faces on voxel boundaries here: the boxes' at whole
+    # metres), in fewer bytes (the sums: 12 bytes a voxel against 24)
+    exact.add(cam.points)  # one point a voxel: the same voxels
+    assert len(exact) == len(cam)
+    assert exact.bytes - cam.bytes >= 12 * len(cam)
+
+
 def test_a_large_workspace_weighs_the_unknown_space_from_the_first_plan(two_boxes_flown):
     # tour.explore_first null: by size; the 154 m workspace is longer than 6 camera ranges, so
     # every plan weighs views of the unknown space, the first one included

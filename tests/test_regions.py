@@ -6,7 +6,8 @@ import numpy as np
 import pytest
 
 from nbvkit.config import load_config
-from nbvkit.planning.generators.regions import Regions, is_large
+from nbvkit.planning.generators.regions import Regions
+from nbvkit.workspace import is_large
 from nbvkit.planning.generators.exploration import exploration_targets
 from nbvkit.workspace import Workspace
 

@@ -59,6 +59,8 @@ cloud), min_z 0.3 m.)doc")
       .def_property_readonly(
           "min_z", [](const SurfaceCloud& c) { return c.options().min_z; },
           "ground removal height in metres (points below are dropped); -inf: none")
+      .def_property_readonly("bytes", &SurfaceCloud::bytes,
+                             "bytes the cloud holds (its voxel index, sums and counts)")
       .def("clear", &SurfaceCloud::clear, "Remove every point (the options stay).")
       .def("__len__", &SurfaceCloud::size);
 

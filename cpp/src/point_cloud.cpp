@@ -79,10 +79,34 @@ inline void accumulate(std::array<double, 3>& s, const PointsRef& points, std::s
 }
 }  // namespace
 
+VoxelCentroids::VoxelCentroids(double voxel_size, bool single)
+    : size_(voxel_size), single_(single) {
+  if (single && !(std::isfinite(voxel_size) && voxel_size > 0))
+    throw std::invalid_argument("voxel size must be > 0 metres, got " + std::to_string(voxel_size));
+}
+
 std::size_t VoxelCentroids::add(const PointsRef& points, const std::vector<std::uint64_t>& keys,
                                 std::uint64_t skip) {
   if (keys.size() != static_cast<std::size_t>(points.rows()))
     throw std::invalid_argument("VoxelCentroids::add: one key per point");
+  return single_ ? add_to(offsets_, points, keys, skip) : add_to(sum_, points, keys, skip);
+}
+
+template <class Sum>
+std::size_t VoxelCentroids::add_to(GrowArray<Sum>& sums, const PointsRef& points,
+                                   const std::vector<std::uint64_t>& keys, std::uint64_t skip) {
+  // s += the point (double sums), or its offset from the corner of the voxel of `key` (single)
+  const auto accumulate = [&](Sum& s, std::size_t i, std::uint64_t key) {
+    if constexpr (std::is_same_v<Sum, std::array<double, 3>>) {
+      nbv::accumulate(s, points, i);
+    } else {
+      const Eigen::Vector3d c = corner(key);
+      const auto r = static_cast<Eigen::Index>(i);
+      s[0] += static_cast<float>(points(r, 0) - c[0]);
+      s[1] += static_cast<float>(points(r, 1) - c[1]);
+      s[2] += static_cast<float>(points(r, 2) - c[2]);
+    }
+  };
   index_.reserve(count_.size() + keys.size() / 8);
   const std::size_t before = count_.size(), n = keys.size();
   const int threads = get_num_threads();
@@ -97,7 +121,7 @@ std::size_t VoxelCentroids::add(const PointsRef& points, const std::vector<std::
         last = voxel_of(k);
         last_key = k;
       }
-      accumulate(sum_[last], points, i);
+      accumulate(sums[last], i, k);
       ++count_[last];
     }
     return count_.size() - before;
@@ -140,7 +164,7 @@ std::size_t VoxelCentroids::add(const PointsRef& points, const std::vector<std::
       for (std::size_t i = 0; i < n; ++i) {
         const std::uint32_t v = id[i];
         if (v == kSkipped || (v >> 6) % parts != part) continue;
-        accumulate(sum_[v], points, i);
+        accumulate(sums[v], i, keys[i]);
         ++count_[v];
       }
   });
@@ -150,7 +174,10 @@ std::size_t VoxelCentroids::add(const PointsRef& points, const std::vector<std::
 std::uint32_t VoxelCentroids::voxel_of(std::uint64_t key) {
   const auto r = index_.insert(key);
   if (r.second) {
-    sum_.push_back({0.0, 0.0, 0.0});
+    if (single_)
+      offsets_.push_back({0.0f, 0.0f, 0.0f});
+    else
+      sum_.push_back({0.0, 0.0, 0.0});
     count_.push_back(0);
   }
   return r.first;
@@ -180,10 +207,17 @@ Points VoxelCentroids::centroids() const {
   return out;
 }
 
+std::size_t VoxelCentroids::bytes() const {
+  return index_.bytes() + sum_.capacity() * sizeof(sum_[0]) +
+         offsets_.capacity() * sizeof(offsets_[0]) + count_.capacity() * sizeof(count_[0]);
+}
+
 void VoxelCentroids::clear() {
   index_ = VoxelIndex();
   sum_.clear();
   sum_.shrink_to_fit();
+  offsets_.clear();
+  offsets_.shrink_to_fit();
   count_.clear();
   count_.shrink_to_fit();
 }
@@ -218,7 +252,8 @@ void SurfaceCloudOptions::validate() const {
   }
 }
 
-SurfaceCloud::SurfaceCloud(const SurfaceCloudOptions& options) : opt_(options) { opt_.validate(); }
+SurfaceCloud::SurfaceCloud(const SurfaceCloudOptions& options)
+    : opt_((options.validate(), options)), voxels_(opt_.voxel_size, opt_.single_precision) {}
 
 SurfaceCloud::SurfaceCloud(const SurfaceCloud& other)
     : opt_(other.opt_), voxels_(other.voxels_), registered_(other.registered_) {}

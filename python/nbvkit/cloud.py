@@ -14,6 +14,7 @@ import re
 import warnings
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Optional
 
 import numpy as np
 
@@ -51,6 +52,11 @@ class CloudConfig:
     camera_voxel: float = positive(_CLOUD.voxel_size)  # m, authors' RGB-D voxel filter
     laser_voxel: float = positive(0.1)  # m, authors' profile voxel filter
     min_z: float = _CLOUD.min_z  # m above the ground (workspace.ground_height): lower dropped
+    # the camera cloud's voxel sums in single precision, as offsets from the voxel's corner: 16
+    # bytes a voxel instead of 28 (0.45 GB less on a 100 m plant's 38 M voxels), each centroid
+    # within 1e-5 of camera_voxel of its points' mean; null: on a workspace longer than 6
+    # camera ranges (workspace.is_large), where the cloud is largest; false: the exact sums
+    single_precision: Optional[bool] = None  # single-precision voxel sums; null: by size
 
 
 class PointCloud(_core.SurfaceCloud):

@@ -77,6 +77,19 @@ class Workspace:
         }
 
 
+#: A workspace whose longest side exceeds this many camera ranges is large: its tours take the
+#: larger gains first (tour.gain_levels) and its camera cloud sums in single precision
+#: (cloud.single_precision). 6 x the paper's 8 m camera is 48 m: a 35 m aircraft's workspace
+#: (45 m) is not large, a 100 m plant's is.
+LARGE_IN_RANGES = 6.0
+
+
+def is_large(workspace, camera) -> bool:
+    """Whether the workspace's longest side exceeds LARGE_IN_RANGES x camera.max_range."""
+    side = float(np.max(np.asarray(workspace.bounds_max) - np.asarray(workspace.bounds_min)))
+    return side > LARGE_IN_RANGES * camera.max_range
+
+
 def ground_height(bounds) -> float:
     """The ground the clouds' ground removal (cloud.min_z) is measured from, and the workspace's
     floor: z = 0, the ground plane of the authors' world, unless the structure reaches below it (a

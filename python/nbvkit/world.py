@@ -19,6 +19,7 @@ from .mesh import default_mesh_path, load_mesh
 from .sensors import build_camera, build_laser, build_view_camera
 from .settings import cpp_section
 from .workspace import (
+    is_large,
     Workspace,
     ground_height,
     make_workspace,
@@ -146,13 +147,15 @@ def cloud_floor(config, mesh_bounds) -> float:
     return ground_height(mesh_bounds) + config.cloud.min_z
 
 
-def surface_clouds(config, mesh_bounds):
+def surface_clouds(config, mesh_bounds, large: bool = False):
     """(camera, laser) empty SurfaceClouds as a mission keeps them: each voxel-filtered at its
-    cloud.*_voxel, dropping points below cloud_floor."""
+    cloud.*_voxel, dropping points below cloud_floor; the camera cloud's sums in single
+    precision with cloud.single_precision (null: when the workspace is large)."""
     cl = config.cloud
     min_z = cloud_floor(config, mesh_bounds)
+    single = large if cl.single_precision is None else cl.single_precision
     return (
-        _core.SurfaceCloud(voxel_size=cl.camera_voxel, min_z=min_z),
+        _core.SurfaceCloud(voxel_size=cl.camera_voxel, min_z=min_z, single_precision=single),
         _core.SurfaceCloud(voxel_size=cl.laser_voxel, min_z=min_z),
     )
 
@@ -240,7 +243,8 @@ class World:
         start = np.array(cfg.start_pose, float) if cfg.start_pose is not None else None
         self.start_pose = start if start is not None else self.starts[cfg.start]
         self._check_start(self.start_pose)
-        self.camera_cloud, self.laser_cloud = surface_clouds(cfg, mesh.bounds)
+        large = is_large(self.workspace, cfg.camera)
+        self.camera_cloud, self.laser_cloud = surface_clouds(cfg, mesh.bounds, large)
         self.surface = _core.SurfaceObservations(self.map)
         self.view_camera = build_view_camera(cfg.camera, cfg.utility, cfg.map.resolution)
         self.state = VehicleState(pose=as_view(self.start_pose))

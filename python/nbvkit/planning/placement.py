@@ -45,7 +45,7 @@ class PlacementConfig:
     # a patch none of whose views can be flown (outside the navigation space, or the vehicle's
     # sphere there not known free) is looked at from the nearest direction that can: its
     # normal tilted by 15, 30, ... 75 deg (refit_blocked); false: such a patch waits; null: on a
-    # workspace longer than 6 camera ranges (regions.is_large), once no other view is left (plants
+    # workspace longer than 6 camera ranges (workspace.is_large), once no other view is left (plants
     # flown to the end: +1.45 and +0 points; from the first plan: -1.5 at 1,000 views; RESULTS.md)
     fallback: Optional[bool] = None
 

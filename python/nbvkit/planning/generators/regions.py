@@ -17,18 +17,6 @@ import numpy as np
 from ... import _core
 
 
-#: A workspace whose longest side exceeds this many camera ranges is large: its tours take the
-#: larger gains first (tour.gain_levels). 6 x the paper's 8 m camera is 48 m: a 35 m aircraft's
-#: workspace (45 m) is not large, a 100 m plant's is.
-LARGE_IN_RANGES = 6.0
-
-
-def is_large(workspace, camera) -> bool:
-    """Whether the workspace's longest side exceeds LARGE_IN_RANGES x camera.max_range."""
-    side = float(np.max(np.asarray(workspace.bounds_max) - np.asarray(workspace.bounds_min)))
-    return side > LARGE_IN_RANGES * camera.max_range
-
-
 class Regions:
     """The region grid over a box, and which regions are done."""
 

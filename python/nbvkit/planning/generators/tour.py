@@ -44,7 +44,8 @@ from ..parts import Proposal, threshold_scale
 from ..placement import Patches, place_views, refit_blocked, target_patches
 from .access import access_elements
 from .exploration import exploration_targets
-from .regions import Regions, is_large
+from ...workspace import is_large
+from .regions import Regions
 
 
 @dataclass(frozen=True)
@@ -65,11 +66,11 @@ class TourConfig:
     # the unknown space within the structure's extent (unknown cells bordering free space)
     explore: bool = True  # then also plan views that open unknown space; false: stop there
     # with explore: from the first plan on; null: on a workspace longer than 6 camera ranges
-    # (regions.is_large: the plant, +2.1 points at 1,000 views in 13 % less flight; RESULTS.md)
+    # (workspace.is_large: the plant, +2.1 points at 1,000 views in 13 % less flight; RESULTS.md)
     explore_first: Optional[bool] = None  # unknown space from the first plan; null: by size
     # plans first keep only views adding 2^gain_levels x min_gain, halving it each time a plan
     # keeps too few (level_views); null: 3 on a workspace longer than 6 camera ranges
-    # (regions.is_large), else 0
+    # (workspace.is_large), else 0
     gain_levels: Optional[int] = within(None, 0, 20)  # the larger gains first; null: by size
     # a plan above the lowest level that keeps fewer views than this selects again at half
     # the level, before any view is flown (1: only when it keeps none; 8 on the plants: 1.3-1.9
@@ -258,7 +259,8 @@ class CoverageTour:
             min_gain /= self.level
             self.level = max(1.0, self.level / 2)
             min_gain *= self.level
-            if cut:  # the sets of the views below the old level too
+            if cut:  # the sets of the views below the old level too (the old ones let go first)
+                coverage = None
                 coverage = self.coverage(world, candidates, min_gain)
             chosen, order = self._select(world, coverage, candidates, min_gain, rate)
         record["min_gain_m2"] = float(min_gain)
