@@ -83,6 +83,26 @@ def test_a_large_workspace_weighs_the_unknown_space_from_the_first_plan(two_boxe
     assert tour.plans and all(p["explore"] for p in tour.plans)
 
 
+def test_a_large_workspace_pools_its_plans_unknown_space_per_brick(two_boxes_flown):
+    # tour.pool_unknown null: by size; on the 154 m workspace the plans' coverage sets hold the
+    # unknown space away from surface as one element per brick (past every cell's element); on
+    # a 14 m one, one element per cell. True with access credit (which needs the cells) is
+    # refused before any work
+    mission = two_boxes_flown[0]
+    assert mission.config.tour.pool_unknown is None
+    tour = next(g for g in mission.planner.generators if hasattr(g, "plans"))
+    assert tour.pool
+    world = mission.world
+    cov = tour.coverage(world, tour.candidates(world, explore=True)[2])
+    assert (cov["elements"] >= 128 * world.map.grid_bricks[1]).sum() > 100
+    small = Mission(load_config(overrides=[*QUICK_MISSION, "max_iterations=2"]), mesh=_two_boxes(4))
+    small.run()
+    small_tour = next(g for g in small.planner.generators if hasattr(g, "plans"))
+    assert small_tour.plans and not small_tour.pool
+    with pytest.raises(ValueError, match="pool_unknown.*access_weight"):
+        load_config(overrides=["tour.pool_unknown=true", "tour.access_weight=0.5"])
+
+
 def test_starts_of_a_scene_with_an_empty_centre_face_a_structure_within_reach():
     # the inward walk towards the workspace centre finds nothing there: each start then turns
     # towards the nearest structure, and faces it from within the camera's reach

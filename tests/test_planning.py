@@ -740,6 +740,69 @@ def test_view_coverage_with_a_min_gain_hands_out_only_the_sets_a_selection_could
         _core.view_coverage(m, surface, poses, current, min_gain=float("nan"), **kw)
 
 
+def test_view_coverage_pools_unknown_space_per_brick():
+    # pool_unknown: a view's credits of unknown cells away from surface (unknown_prior) become
+    # one element per brick of 4 x 4 x 4 cells (2 x the grid's storage cells + the brick),
+    # weighing their sum; every other element is the cell's own, with its weight. Status and
+    # gain are those without pooling; a memo hands back pooled sets only to pooled calls.
+    m, surface, poses, current, kw = _box_seen_from_two_sides()
+    cells = _core.view_coverage(m, surface, poses, current, **kw)
+    pooled = _core.view_coverage(m, surface, poses, current, pool_unknown=True, **kw)
+    np.testing.assert_array_equal(pooled["status"], cells["status"])
+    np.testing.assert_array_equal(pooled["gain"], cells["gain"])
+    base = 2 * 64 * m.grid_bricks[1]
+    priors = pools = 0
+    co, po = cells["offsets"], pooled["offsets"]
+    for k in range(len(poses)):
+        ue, uw = cells["elements"][co[k] : co[k + 1]], cells["weights"][co[k] : co[k + 1]]
+        pe, pw = pooled["elements"][po[k] : po[k + 1]], pooled["weights"][po[k] : po[k + 1]]
+        assert (np.diff(pe) > 0).all()
+        own = pe < base
+        mine = np.isin(ue, pe[own])
+        np.testing.assert_array_equal(ue[mine], pe[own])
+        np.testing.assert_array_equal(uw[mine], pw[own])
+        bricks, at = np.unique(ue[~mine] // 2 // 64, return_inverse=True)
+        np.testing.assert_array_equal(pe[~own], base + bricks)
+        sums = np.bincount(at, weights=uw[~mine].astype(float), minlength=len(bricks))
+        np.testing.assert_allclose(pw[~own], sums, rtol=1e-5)
+        assert (uw[~mine] <= 0.005 + 1e-9).all()  # unknown_prior x visibility x density
+        priors, pools = priors + (~mine).sum(), pools + (~own).sum()
+    assert priors > 1000 and pools < priors / 4  # most of the sets, far fewer elements
+    memo = _core.CoverageMemo()
+    for pool in (False, True, True):  # the memo's records are of one kind of set
+        a = _core.view_coverage(m, surface, poses, current, memo=memo, pool_unknown=pool, **kw)
+        for key in ("offsets", "elements", "weights", "status", "gain"):
+            np.testing.assert_array_equal(a[key], (pooled if pool else cells)[key])
+    assert memo.stats()["reused"] > 0
+    views, gains = _core.select_tours(pooled, poses[:, :3], current[:3], rate=0.5, min_gain=5)[0]
+    assert len(views) > 0 and min(gains) >= 5
+
+
+def test_a_pooled_brick_is_covered_by_shares_of_its_cap():
+    # a cell's element adds what its weight exceeds the most it was taken with; a pooled brick
+    # (elements from pooled_from on) adds w (1 - F), F the share of its cap covered, which grows
+    # by w / cap of what is left: view 1 (0.5 of a brick 0.6 covered) adds 0.5 x 0.4 = 0.2
+    cov = dict(
+        offsets=np.array([0, 2, 3, 5]),
+        elements=np.array([1, 100, 100, 1, 2], np.int32),
+        weights=np.array([1.0, 0.6, 0.5, 0.5, 0.3], np.float32),
+        status=np.zeros(3, np.int8),
+        pooled_from=100,
+        pool_cap=1.0,
+    )
+    views, gains = _core.select_cover(cov, min_gain=0.1)
+    assert list(views) == [0, 2, 1]
+    np.testing.assert_allclose(gains, [1.6, 0.3, 0.2], rtol=1e-6)
+    here = np.zeros((3, 3))
+    found = _core.select_tours(cov, here, [0, 0, 0], rate=0.0, min_gain=0.1, charges=[True])
+    (tour, tour_gains) = found[0]
+    assert sorted(zip(tour, np.round(tour_gains, 6))) == [(0, 1.6), (1, 0.2), (2, 0.3)]
+    cells = {k: v for k, v in cov.items() if k not in ("pooled_from", "pool_cap")}
+    assert list(_core.select_cover(cells, min_gain=0.1)[0]) == [0, 2]  # 100 a cell: 0.5 < 0.6
+    with pytest.raises(ValueError, match="pool_cap"):
+        _core.select_cover(dict(cov, pool_cap=float("nan")), min_gain=0.1)
+
+
 def test_view_coverage_prescreen_leaves_only_views_its_coarse_rays_estimate_below_min_gain():
     # With coarse_stride, a view estimated below min_gain by its coarse rays (their gain and one
     # more cell, scaled to all rays) is left unwalked (pruned, empty set, its estimate as gain);

@@ -53,6 +53,13 @@ struct CoverageArg {
         weights(vector_arg<float>(coverage, "weights")),
         status(vector_arg<std::int8_t>(coverage, "status")),
         ref(as_vector(offsets), as_vector(elements), as_vector(weights), as_vector(status)) {
+    if (coverage.contains("pool_cap") && coverage.contains("pooled_from")) {
+      ref.pool_cap = coverage["pool_cap"].cast<double>();
+      ref.pooled_from = coverage["pooled_from"].cast<std::int64_t>();
+      if (!(std::isfinite(ref.pool_cap) && ref.pool_cap >= 0.0))
+        throw py::value_error("coverage['pool_cap'] must be a finite number >= 0");
+      if (ref.pool_cap == 0.0) ref.pooled_from = ViewCoverage::kNotPooled;
+    }
     const Eigen::Index n = ref.offsets.size();
     bool ok = n == ref.status.size() + 1 && ref.elements.size() == ref.weights.size() &&
               (n == 0 || (ref.offsets[0] == 0 && ref.offsets[n - 1] == ref.elements.size()));
@@ -173,7 +180,7 @@ Entries that none of the last keep_calls calls used are dropped, and beyond max_
       [](const OccupancyMap& map, const SurfaceObservations& surface, const py::handle& candidates,
          const py::handle& current, const py::object& camera, const py::object& utility,
          const py::object& validity, const std::shared_ptr<CoverageMemo>& memo, double min_gain,
-         int coarse_stride) {
+         int coarse_stride, bool pool_unknown) {
         const ViewPosesArg c = view_poses_arg(candidates, "candidates");
         const auto cm = c.map();
         const Pose cur = pose_arg(current, "current pose");
@@ -186,7 +193,7 @@ Entries that none of the last keep_calls calls used are dropped, and beyond max_
           std::unique_lock<std::mutex> lock;  // one call at a time per memo
           if (memo) lock = std::unique_lock<std::mutex>(memo->mutex());
           cov = view_coverage(grid_view(map, &surface), cm, cur, cam, u, v, memo.get(), min_gain,
-                              coarse_stride);
+                              coarse_stride, pool_unknown);
         }
         py::dict d;  // the arrays handed to numpy as they are (a plant's plan: 50 M elements)
         d["offsets"] = py::cast(std::move(cov.offsets));
@@ -195,12 +202,14 @@ Entries that none of the last keep_calls calls used are dropped, and beyond max_
         d["status"] = py::cast(std::move(cov.status));
         d["pruned"] = py::cast(Eigen::Matrix<bool, Eigen::Dynamic, 1>(cov.pruned.cast<bool>()));
         d["gain"] = py::cast(std::move(cov.gain));
+        d["pooled_from"] = cov.pool_cap > 0.0 ? cov.pooled_from : std::int64_t(-1);
+        d["pool_cap"] = cov.pool_cap;
         return d;
       },
       py::arg("map"), py::arg("surface"), py::arg("candidates"), py::arg("current"),
       py::arg("camera") = py::none(), py::arg("utility") = py::none(),
       py::arg("validity") = py::none(), py::arg("memo") = nullptr, py::arg("min_gain") = 0.0,
-      py::arg("coarse_stride") = 0,
+      py::arg("coarse_stride") = 0, py::arg("pool_unknown") = false,
       R"doc(What each candidate view ((K, 4) rows x, y, z, yaw, or (K, 5) with the gimbal's pitch,
 as evaluate_views) would newly cover, as the surface utility credits it
 (utility: its priors and cone; the name is ignored): CSR dict offsets (K + 1,), elements (int32:
@@ -214,7 +223,12 @@ cell, times all rays over those) is below min_gain gets an empty set without its
 pruned (K,) bool marks them (an estimate: surface near the camera, reached by several rays a
 cell, is estimated high; with stride 1, the arrays are those without it). gain (K,) float64: a
 valid view's gain in cells (its walk's sum, as its weights'; a pruned view's estimate), 0 for
-the others.)doc");
+the others. pool_unknown: the credits of unknown cells at the utility's unknown_prior (not next
+to surface; most of a view's elements, little of its weight) are pooled per brick of 4 x 4 x 4
+cells, one element each (2 x the grid's storage cells + the brick, past every cell's element),
+weighing their sum: the same gains and status, far fewer elements. pooled_from (int; -1 when not
+pooled) and pool_cap (float): the first pooled element, and the weight a brick holds at most;
+select_cover and select_tours count a pooled brick's cover as a share of it (nbv/coverage.hpp).)doc");
   m.def(
       "select_cover",
       [](const py::dict& coverage, double min_gain, int max_views) {

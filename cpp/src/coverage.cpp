@@ -529,7 +529,7 @@ void keep_within(const CoverageMemo& memo, std::vector<CoverageMemo::Entry>& fre
 ViewCoverage view_coverage(const GridView& g, const ViewPosesRef& cand, const Pose& current,
                            const ViewCameraModel& camera, const UtilityOptions& utility,
                            const ValidityOptions& validity, CoverageMemo* memo, double min_gain,
-                           int coarse_stride) {
+                           int coarse_stride, bool pool_unknown) {
   if (!std::isfinite(min_gain)) throw std::invalid_argument("view_coverage: min_gain not finite");
   if (coarse_stride < 0) throw std::invalid_argument("view_coverage: coarse_stride below 0");
   g.validate();
@@ -539,9 +539,10 @@ ViewCoverage view_coverage(const GridView& g, const ViewPosesRef& cand, const Po
   if (!g.observed()) throw std::invalid_argument("view_coverage needs the camera observations");
   check_view_poses(cand);
   const Eigen::Index K = cand.rows();
-  // elements cell * 2 + side fit 31 bits (OccupancyMap holds at most 400 M cells): 8 bytes per
-  // element while the sets are gathered, the largest transient of a plan on a large structure
-  if (g.storage_size() * 2 >= (std::size_t(1) << 31))
+  // elements cell * 2 + side, then the pooled bricks', fit 31 bits (OccupancyMap holds at most
+  // 400 M cells): 8 bytes per element while the sets are gathered, the largest transient of a
+  // plan on a large structure
+  if (g.storage_size() * 2 + (g.storage_size() >> 6) >= (std::size_t(1) << 31))
     throw std::invalid_argument("view_coverage: the grid holds too many cells");
   std::vector<std::vector<std::pair<std::uint32_t, float>>> sets(static_cast<std::size_t>(K));
   // per cell, lazily: the direction splitting its sides (code 1 + bin index of the side axis,
@@ -595,9 +596,10 @@ ViewCoverage view_coverage(const GridView& g, const ViewPosesRef& cand, const Po
   if (memo) {
     std::vector<double> geometry = kernel::memo_geometry(job);
     const UtilityOptions& u = utility;
-    geometry.insert(geometry.end(), {double(u.require_occupied), u.require_occupied_probability,
-                                     u.min_visibility, u.frontier_prior, u.unknown_prior,
-                                     u.coverage_cone_deg, u.dense_spacing, camera.pixel_pitch_deg});
+    geometry.insert(geometry.end(),
+                    {double(u.require_occupied), u.require_occupied_probability, u.min_visibility,
+                     u.frontier_prior, u.unknown_prior, u.coverage_cone_deg, u.dense_spacing,
+                     camera.pixel_pitch_deg, double(pool_unknown)});
     if (!memo->begin(g, geometry)) memo = nullptr;
   }
   if (memo) {
@@ -638,10 +640,24 @@ ViewCoverage view_coverage(const GridView& g, const ViewPosesRef& cand, const Po
     s.resize(credits.size());
     for (std::size_t i = 0; i < s.size(); ++i) {
       const utility::Credit& c = credits[i];
-      s[i] = {std::uint32_t(c.cell * 2 + side_of(c.cell, c.bin)), c.weight};
+      if (pool_unknown && c.prior)  // GridLayout: a brick's 64 cells are consecutive ids
+        s[i] = {pooled_element(g, std::size_t(c.cell) >> 6), c.weight};
+      else
+        s[i] = {std::uint32_t(c.cell * 2 + side_of(c.cell, c.bin)), c.weight};
     }
     thread_local std::vector<std::pair<std::uint32_t, float>> tmp;
     sort_by_key(s, tmp);
+    if (pool_unknown) {  // a pooled brick's credits summed into one element
+      std::size_t n = 0;
+      for (std::size_t i = 0; i < s.size(); ++i) {
+        if (n && s[n - 1].first == s[i].first)
+          s[n - 1].second += s[i].second;
+        else
+          s[n++] = s[i];
+      }
+      s.resize(n);
+      s.shrink_to_fit();
+    }
   };
   std::vector<std::uint8_t> pruned;
   if (min_gain > 0.0 && coarse_stride > 0) {
@@ -661,6 +677,10 @@ ViewCoverage view_coverage(const GridView& g, const ViewPosesRef& cand, const Po
       walked[k] = kEstimate;
     }
   ViewCoverage out;
+  if (pool_unknown) {
+    out.pooled_from = pooled_element(g, 0);
+    out.pool_cap = 64.0 * utility.unknown_prior;
+  }
   out.status = scores.status;
   out.pruned.setZero(K);
   for (std::size_t k = 0; k < pruned.size(); ++k) out.pruned[Eigen::Index(k)] = pruned[k];
@@ -716,17 +736,38 @@ ViewCoverage view_coverage(const GridView& g, const ViewPosesRef& cand, const Po
   return out;
 }
 
+namespace {
+
+/// What an element of weight w still adds when `have` of it is covered, and what is covered
+/// once it is taken: a cell's the most weight it was taken with; a pooled brick's (elements
+/// from pooled_from on) the share of its cap, the views' cells in it spread at random.
+struct Saturation {
+  explicit Saturation(const CoverageRef& cov)
+      : from(cov.pooled_from), inv_cap(cov.pool_cap > 0.0 ? float(1.0 / cov.pool_cap) : 0.0f) {}
+  float left(std::int64_t e, float w, float have) const {
+    return e >= from ? w * (1.0f - have) : std::max(0.0f, w - have);
+  }
+  float after(std::int64_t e, float w, float have) const {
+    return e >= from ? have + std::min(1.0f, w * inv_cap) * (1.0f - have) : std::max(have, w);
+  }
+  std::int64_t from;
+  float inv_cap;
+};
+
+}  // namespace
+
 CoverSelection select_cover(const CoverageRef& cov, double min_gain, int max_views) {
   const Eigen::Index K = cov.offsets.size() - 1;
   if (K < 0) throw std::invalid_argument("coverage has no offsets");
   CoverSelection out;
-  std::unordered_map<std::int64_t, float> covered;  // element -> weight already covered
+  const Saturation sat(cov);
+  std::unordered_map<std::int64_t, float> covered;  // element -> weight (share) covered
   auto gain_of = [&](Eigen::Index k) {
     double g = 0.0;
     for (std::int64_t o = cov.offsets[k]; o < cov.offsets[k + 1]; ++o) {
       auto it = covered.find(cov.elements[o]);
       const float have = it == covered.end() ? 0.0f : it->second;
-      g += std::max(0.0f, cov.weights[o] - have);
+      g += sat.left(cov.elements[o], cov.weights[o], have);
     }
     return g;
   };
@@ -752,7 +793,7 @@ CoverSelection select_cover(const CoverageRef& cov, double min_gain, int max_vie
     out.gains.push_back(g);
     for (std::int64_t o = cov.offsets[k]; o < cov.offsets[k + 1]; ++o) {
       float& have = covered[cov.elements[o]];
-      have = std::max(have, cov.weights[o]);
+      have = sat.after(cov.elements[o], cov.weights[o], have);
     }
   }
   return out;
@@ -848,7 +889,8 @@ CoverSelection insertion_tour(const CoverageRef& cov, const PointsRef& positions
   const std::vector<std::uint32_t>& first = holders.first;
   const HugeVector<Holders::Holder>& hold = holders.of;
   std::vector<double> gain = gain0;
-  std::vector<float> covered(rank.size(), 0.0f);  // per distinct element: weight covered
+  const Saturation sat(cov);
+  std::vector<float> covered(rank.size(), 0.0f);  // per distinct element: weight (share) covered
   std::vector<Eigen::Vector3d> stops{start};      // the open tour: start, then the chosen views
   std::vector<int> ids{-1};
   std::vector<int> inserted;  // view ids in insertion order
@@ -937,13 +979,14 @@ CoverSelection insertion_tour(const CoverageRef& cov, const PointsRef& positions
     }
     // the chosen view's elements are covered now: every holder's gain shrinks accordingly
     for (std::int64_t o = cov.offsets[best]; o < cov.offsets[best + 1]; ++o) {
-      const std::size_t e = rank(cov.elements[o]);
+      const std::int64_t el = cov.elements[o];
+      const std::size_t e = rank(el);
       float& have = covered[e];
-      const float now = std::max(have, cov.weights[o]);
+      const float now = sat.after(el, cov.weights[o], have);
       if (now == have) continue;
       for (std::size_t i = first[e]; i < first[e + 1]; ++i) {
         const float w = hold[i].weight;
-        gain[std::size_t(hold[i].candidate)] -= std::max(0.0f, w - have) - std::max(0.0f, w - now);
+        gain[std::size_t(hold[i].candidate)] -= sat.left(el, w, have) - sat.left(el, w, now);
       }
       have = now;
     }

@@ -41,11 +41,14 @@ struct Surface {
       return false;
     }
     double p;
-    if (flag == CellFlag::Predicted)
+    bool prior = false;
+    if (flag == CellFlag::Predicted) {
       p = sigmoid(cells.logodds(idx, c));
-    else
-      p = cells.near_surface(idx, c) ? ctx_.options.frontier_prior : ctx_.options.unknown_prior;
-    if (marks_.insert(idx)) credit(idx, p * density(cells, c, t, false));
+    } else {
+      prior = !cells.near_surface(idx, c);
+      p = prior ? ctx_.options.unknown_prior : ctx_.options.frontier_prior;
+    }
+    if (marks_.insert(idx)) credit(idx, p * density(cells, c, t, false), prior);
     vis_ *= 1.0 - p;
     return vis_ >= ctx_.options.min_visibility;
   }
@@ -68,10 +71,10 @@ struct Surface {
     }
     return std::min(1.0, k * cos_i / std::max(range, 1e-12));
   }
-  void credit(std::size_t idx, double p) {
+  void credit(std::size_t idx, double p, bool prior = false) {
     gain_ += vis_ * p;
     ++cells_;
-    if (ctx_.credits) ctx_.credits->push_back({std::int64_t(idx), bin_, float(vis_ * p)});
+    if (ctx_.credits) ctx_.credits->push_back({std::int64_t(idx), bin_, float(vis_ * p), prior});
   }
   ViewContext& ctx_;
   VisitedSet::Marks marks_;

@@ -95,6 +95,9 @@ struct Credit {
   std::int64_t cell;
   std::int8_t bin;
   float weight;
+  /// an unknown cell credited at the utility's unknown_prior (not next to surface): the
+  /// low-weight bulk of a view's credits, which view_coverage may pool per brick
+  bool prior = false;
 };
 
 struct ViewContext {
