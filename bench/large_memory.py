@@ -1,5 +1,6 @@
 """Peak memory of a mission on a large structure, results folder written, with this checkout and
-(--against DIR) another one, each in a process of its own, in the same run: the peak resident
+(--against DIR) another one or (--baseline OVERRIDES) this one with other settings, each in a
+process of its own, in the same run: the peak resident
 memory (ru_maxrss), what the flight reached (which must not change: the same views, the same
 coverage) and the ratio of the peaks; also how much of the surface its views were expected to
 bring they brought (realized_to_expected, new_surface_to_expected) and the time a view took.
@@ -9,6 +10,7 @@ to the end (the view cap that follows the structure).
     .venv/bin/python bench/large_memory.py --seed 1 --views 300 --against /tmp/before
     .venv/bin/python bench/large_memory.py --structure bridge --seed 3 --views 300
     .venv/bin/python bench/large_memory.py --seed 2 --views 0
+    .venv/bin/python bench/large_memory.py --seed 3 --views 1000 --baseline tour.pool_unknown=false
 
 DIR is another checkout (DIR/python) or a saved copy of a built package (its folder's parent).
 """
@@ -47,6 +49,12 @@ def main() -> None:
         "--views", type=int, default=300, help="the view cap (default 300; 0: the structure's own)"
     )
     ap.add_argument("--set", nargs="*", default=[], help="config overrides for both runs")
+    ap.add_argument(
+        "--baseline",
+        nargs="*",
+        default=[],
+        help="config overrides of a second run of this checkout to compare with (after --set)",
+    )
     a = ap.parse_args()
     rows = compare_on_structure(
         a,
@@ -71,12 +79,14 @@ def main() -> None:
         f"{r['distance']:,.0f} m | {r['views']:,} ({r['termination']}) | {r['realized']:.2f} | "
         f"{r['first_seen']:.2f} | {r['cloud_points']:,} points | {r['planning_ms']:.1f} ms | "
         f"{r['ms_per_view']:.1f} ms | {r['wall_s']:.0f} s |",
+        a.baseline,
     )
     if len(rows) == 2:
         now, then = rows
         same = all(now[k] == then[k] for k in ("coverage", "distance", "views", "cloud_points"))
         print(
-            f"peak ratio (this / {a.against}): {now['peak_mb'] / then['peak_mb']:.2f}; "
+            f"peak ratio (this / {a.against or ' '.join(a.baseline)}): "
+            f"{now['peak_mb'] / then['peak_mb']:.2f}; "
             f"the same flight: {'yes' if same else 'NO'}"
         )
 

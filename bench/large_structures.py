@@ -25,7 +25,7 @@ from pathlib import Path
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from _timing import run_each, table_header  # noqa: E402
+from _timing import run_each, run_snippet, table_header  # noqa: E402
 from unseen_structures import Builder, selected  # noqa: E402
 
 
@@ -114,16 +114,21 @@ def write_structure(name: str, seed: int, folder) -> Path:
     return path
 
 
-def compare_on_structure(a, what: str, columns, snippet: str, args, row) -> list:
+def compare_on_structure(a, what: str, columns, snippet: str, args, row, baseline=()) -> list:
     """Writes the structure of `a` (structure_parser's arguments) into a temporary folder, prints
     a title (the structure, its seed and `what`) and a table header of `columns`, and runs
     `snippet` with the mesh's path and then `args`, in this checkout and in a.against's
-    (run_each, printing row(label, result) for each): the results."""
+    (run_each, printing row(label, result) for each); with `baseline` (more arguments), once more
+    in this checkout with them after `args`: the results."""
     with tempfile.TemporaryDirectory() as tmp:
         path = write_structure(a.structure, a.seed, tmp)
         print(f"{a.structure} seed {a.seed}, {what}")
         table_header(*columns)
-        return run_each(snippet, [path, *args], a.against, row)
+        results = run_each(snippet, [path, *args], a.against, row)
+        if baseline:
+            results.append(run_snippet(snippet, [path, *args, *baseline]))
+            print(row("this checkout, " + " ".join(baseline), results[-1]), flush=True)
+        return results
 
 
 def main():
