@@ -228,7 +228,8 @@ to surface; most of a view's elements, little of its weight) are pooled per bric
 cells, one element each (2 x the grid's storage cells + the brick, past every cell's element),
 weighing their sum: the same gains and status, far fewer elements. pooled_from (int; -1 when not
 pooled) and pool_cap (float): the first pooled element, and the weight a brick holds at most;
-select_cover and select_tours count a pooled brick's cover as a share of it (nbv/coverage.hpp).)doc");
+select_cover and select_tours count a pooled brick's cover as a share of it
+(nbv/coverage.hpp).)doc");
   m.def(
       "select_cover",
       [](const py::dict& coverage, double min_gain, int max_views) {
