@@ -801,6 +801,8 @@ def test_a_pooled_brick_is_covered_by_shares_of_its_cap():
     assert list(_core.select_cover(cells, min_gain=0.1)[0]) == [0, 2]  # 100 a cell: 0.5 < 0.6
     with pytest.raises(ValueError, match="pool_cap"):
         _core.select_cover(dict(cov, pool_cap=float("nan")), min_gain=0.1)
+    with pytest.raises(ValueError, match="pooled_from"):  # every element would count as pooled
+        _core.select_cover(dict(cov, pooled_from=-1), min_gain=0.1)
 
 
 def test_view_coverage_prescreen_leaves_only_views_its_coarse_rays_estimate_below_min_gain():

@@ -58,6 +58,8 @@ struct CoverageArg {
       ref.pooled_from = coverage["pooled_from"].cast<std::int64_t>();
       if (!(std::isfinite(ref.pool_cap) && ref.pool_cap >= 0.0))
         throw py::value_error("coverage['pool_cap'] must be a finite number >= 0");
+      if (ref.pool_cap > 0.0 && ref.pooled_from < 0)
+        throw py::value_error("coverage['pooled_from'] must be >= 0 with a pool_cap above 0");
       if (ref.pool_cap == 0.0) ref.pooled_from = ViewCoverage::kNotPooled;
     }
     const Eigen::Index n = ref.offsets.size();
