@@ -2,6 +2,7 @@
 #include "bindings.hpp"
 #include "nbv/coverage.hpp"
 #include "nbv/occupancy_map.hpp"
+#include "nbv/placement.hpp"
 #include "nbv/surface_observations.hpp"
 #include "nbv/tour.hpp"
 #include "options.hpp"
@@ -277,6 +278,33 @@ collection).)doc");
       R"doc(select_tour once for each of `charges` (its charge_transit), over one inverse of the
 coverage built once, the tours in parallel: [(views, gains), ...], the same as a select_tour call
 each.)doc");
+  m.def(
+      "place_patch_views",
+      [](const py::handle& centers, const py::handle& normals,
+         const std::vector<double>& horizontal, const std::vector<double>& reach, double half,
+         double mount, double mount_yaw, double spread, bool gimbal, double lo_pitch,
+         double hi_pitch) {
+        auto c = points_arg(centers, "patch centers");
+        auto n = points_arg(normals, "patch normals");
+        const PlacementGeometry geometry{half,   mount,    mount_yaw, spread,
+                                         gimbal, lo_pitch, hi_pitch,  reach};
+        PlacedViews v;
+        {
+          py::gil_scoped_release release;
+          v = place_patch_views(c.map(), n.map(), horizontal, geometry);
+        }
+        return py::make_tuple(std::move(v.poses), py::array(py::cast(v.owner)), std::move(v.bands));
+      },
+      py::arg("centers"), py::arg("normals"), py::arg("horizontal"), py::arg("reach"),
+      py::arg("half"), py::arg("mount"), py::arg("mount_yaw"), py::arg("spread"), py::arg("gimbal"),
+      py::arg("lo_pitch"), py::arg("hi_pitch"),
+      R"doc(The views placement.place_views aims at patches (centers, unit normals (P, 3);
+horizontal (P,): math.hypot of each normal's x and y), before they are moved into the
+navigation space: (poses (K, 5) x, y, z, yaw, pitch; owner (K,) the patch of each; bands (K, 2)
+the lowest and highest elevation in view, radians). reach: the stand-offs (m); half: half the
+vertical field of view less the elevation margin; mount, mount_yaw: the mount's pitch (> 0
+down) and yaw; spread: the side views' azimuth either side of the normal (0: none); gimbal:
+also face by the gimbal's pitch, within [lo_pitch, hi_pitch], patches a level view cannot.)doc");
   m.def(
       "solve_tour",
       [](const py::handle& points, const py::handle& start, bool improve) {

@@ -48,6 +48,12 @@ struct SphereStencil {
       }
     exact = true;
   }
+  /// The tallest column's h (0 when not exact).
+  int height() const {
+    int h = 0;
+    for (const Column& c : columns) h = std::max(h, c.h);
+    return h;
+  }
 };
 
 // Index of word w (64 cells along x from x = 64 w) of row (j, k), rows of `words` words.
@@ -63,6 +69,9 @@ inline std::size_t word_at(int words, int ny, int w, int j, int k) {
 //   stencil's offsets, of the blocked words shifted by the offset, with everything outside the
 //   grid blocked (which is sphere_is_free's "the box must lie inside the grid": the stencil
 //   reaches the box's extent along each axis). 64 cells cost about what one sphere test did.
+// - Per word, the OR of the blocked words of its column within 1 .. H rows above and below it
+//   (H the stencil's tallest column), so that a stencil column costs one lookup, not 2 h + 1:
+//   a traversable word then takes about 70 lookups at 0.8 m and 0.2 m cells, not about 400.
 struct SearchScratch {
   struct Block {
     double g[64];
@@ -73,8 +82,10 @@ struct SearchScratch {
   std::deque<Block> blocks;  // a deque: a block's address never moves
   std::size_t used = 0;
   int words = 0;  // words per row along x
-  std::vector<std::uint32_t> blocked_stamp, trav_stamp;
+  std::vector<std::uint32_t> blocked_stamp, trav_stamp, column_stamp;
   std::vector<std::uint64_t> blocked_bits, trav_bits;
+  std::vector<std::uint64_t> column_bits;  // per word, H words: the OR within 1 .. H rows
+  int height = 0;                          // H: the levels column_bits holds per word
   std::uint32_t stamp = 0;
 
   void begin(const GridView& g) {
@@ -88,9 +99,18 @@ struct SearchScratch {
       trav_stamp.assign(nw, 0);
       blocked_bits.assign(nw, 0);
       trav_bits.assign(nw, 0);
+      column_stamp.assign(nw, 0);
+      column_bits.assign(nw * std::size_t(height), 0);
       stamp = 1;
     }
     used = 0;
+  }
+  /// Holds H levels of column words per word from now on (this call's stencil's tallest column).
+  void columns_up_to(int h) {
+    if (h <= height) return;
+    height = h;
+    column_bits.assign(column_stamp.size() * std::size_t(height), 0);
+    std::fill(column_stamp.begin(), column_stamp.end(), 0);
   }
   Block& block(std::size_t idx) {
     const std::size_t b = idx >> 6;
@@ -130,6 +150,30 @@ struct SearchScratch {
     if (s == 0) return lo;
     return lo >> s | blocked(g, w + 1, j, k) << (64 - s);
   }
+  /// Word w of row (j, k), k within the grid: the OR of blocked(w, j, k + dz) over |dz| <= h
+  /// (h <= height; h = 0: blocked itself).
+  std::uint64_t column(const GridView& g, int w, int j, int k, int h) {
+    if (h == 0) return blocked(g, w, j, k);
+    if (w < 0 || w >= words || j < 0 || j >= g.ny) return ~std::uint64_t(0);
+    const std::size_t at = word_at(words, g.ny, w, j, k);
+    std::uint64_t* levels = &column_bits[at * std::size_t(height)];
+    if (column_stamp[at] != stamp) {
+      column_stamp[at] = stamp;
+      std::uint64_t acc = blocked(g, w, j, k);
+      for (int d = 1; d <= height; ++d) {
+        acc |= blocked(g, w, j, k - d) | blocked(g, w, j, k + d);
+        levels[d - 1] = acc;
+      }
+    }
+    return levels[h - 1];
+  }
+  /// column's bits x0 .. x0 + 63 of row (j, k), as blocked_from.
+  std::uint64_t column_from(const GridView& g, int x0, int j, int k, int h) {
+    const int w = x0 >> 6, s = x0 & 63;
+    const std::uint64_t lo = column(g, w, j, k, h);
+    if (s == 0) return lo;
+    return lo >> s | column(g, w + 1, j, k, h) << (64 - s);
+  }
   /// Word w of row (j, k) of cells whose collision sphere (radius) is free.
   std::uint64_t traversable(const GridView& g, const SphereStencil& st, double radius, int w, int j,
                             int k) {
@@ -139,9 +183,10 @@ struct SearchScratch {
       std::uint64_t free = 0;
       if (st.exact) {
         std::uint64_t any = 0;
-        for (const SphereStencil::Column& c : st.columns)
-          for (int dz = -c.h; dz <= c.h && any != ~std::uint64_t(0); ++dz)
-            any |= blocked_from(g, 64 * w + c.dx, j + c.dy, k + dz);
+        for (const SphereStencil::Column& c : st.columns) {
+          any |= column_from(g, 64 * w + c.dx, j + c.dy, k, c.h);
+          if (any == ~std::uint64_t(0)) break;
+        }
         free = ~any;
       } else {
         for (int b = 0; b < 64 && 64 * w + b < g.nx; ++b)
@@ -311,6 +356,7 @@ std::vector<Eigen::Vector3d> plan_path(const GridView& g, const Eigen::Vector3d&
   SearchScratch& s = thread_scratch();
   s.begin(g);
   const SphereStencil stencil(radius / g.resolution);
+  s.columns_up_to(stencil.height());
   auto traversable = [&](int i, int j, int k) {
     return (s.traversable(g, stencil, radius, i >> 6, j, k) >> (i & 63) & 1) != 0;
   };
@@ -417,6 +463,7 @@ FreeComponent::FreeComponent(const GridView& g, const Eigen::Vector3d& a, double
   SearchScratch& s = thread_scratch();
   s.begin(g);
   const SphereStencil stencil(radius / g.resolution);
+  s.columns_up_to(stencil.height());
   words_ = s.words;
   ny_ = g.ny;
   auto at = [&](int w, int j, int k) { return word_at(words_, ny_, w, j, k); };

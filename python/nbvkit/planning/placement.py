@@ -111,54 +111,26 @@ def place_views(patches: Patches, camera, placement, bounds=None) -> tuple[np.nd
     gimbal = placement.gimbal and (lo_p, hi_p) != (0.0, 0.0)
     if len(patches.centers) == 0:
         return np.zeros((0, 5 if gimbal else 4)), np.zeros(0, int)
-    half = math.radians(camera.vfov_deg / 2 - placement.elevation_margin_deg)
-    mount = math.radians(camera.mount_rpy_deg[1])  # the mount's pitch (> 0: down)
-    spread = math.radians(placement.azimuth_spread_deg)
-    mount_yaw = math.radians(camera.mount_rpy_deg[2])
-    reach = [s * camera.max_range for s in placement.standoffs]
-    rows, owner, bands = [], [], []
-    # in Python floats, one patch at a time (the same arithmetic as numpy's, without its
-    # per-call cost on a few elements)
-    for i, (c, n) in enumerate(zip(patches.centers.tolist(), patches.normals.tolist())):
-        h = math.hypot(n[0], n[1])
-        el_n = math.atan2(n[2], h)  # elevation of the normal: the direction patch -> camera
-        pitches = [0.0]
-        # a patch the level camera cannot face head-on (a roof, an underside): also faced by the
-        # gimbal's pitch, clamped at its limits
-        if gimbal and abs(-el_n + mount) > half:
-            pitches.append(min(max(el_n - mount, lo_p), hi_p))
-        for pitch in pitches:
-            axis_el = -(mount + pitch)  # the optical axis' elevation
-            # the camera looks back along -u: its elevation -el must be within the FOV band
-            el = -min(max(-el_n, axis_el - half), axis_el + half)
-            head_on = abs(el - el_n) < 1e-9
-            if h > 0.3 or (head_on and h > 1e-9):
-                az0 = math.atan2(n[1], n[0])
-                azimuths = [az0] if spread == 0 else [az0, az0 - spread, az0 + spread]
-            elif head_on:  # straight up or down: one view, any yaw
-                azimuths = [0.0]
-            else:
-                azimuths = [k * math.pi / 3 for k in range(6)]
-            band = (axis_el - half, axis_el + half)
-            for az in azimuths:
-                ux = math.cos(el) * math.cos(az)
-                uy = math.cos(el) * math.sin(az)
-                uz = math.sin(el)
-                yaw = az + math.pi - mount_yaw
-                if abs(ux) + abs(uy) > 1e-12:
-                    yaw = math.atan2(-uy, -ux) - mount_yaw
-                yaw = math.remainder(yaw, 2 * math.pi)
-                for d in reach:
-                    rows.append((c[0] + d * ux, c[1] + d * uy, c[2] + d * uz, yaw, pitch))
-                    owner.append(i)
-                    bands.append(band)
-    poses, owner = np.asarray(rows, float), np.asarray(owner, int)
+    h = [math.hypot(x, y) for x, y in patches.normals[:, :2].tolist()]  # Python's rounding
+    poses, owner, bands = _core.place_patch_views(
+        patches.centers,
+        patches.normals,
+        h,
+        [s * camera.max_range for s in placement.standoffs],
+        half=math.radians(camera.vfov_deg / 2 - placement.elevation_margin_deg),
+        mount=math.radians(camera.mount_rpy_deg[1]),  # the mount's pitch (> 0: down)
+        mount_yaw=math.radians(camera.mount_rpy_deg[2]),
+        spread=math.radians(placement.azimuth_spread_deg),
+        gimbal=gimbal,
+        lo_pitch=lo_p,
+        hi_pitch=hi_p,
+    )
     if bounds is not None:
         poses[:, :3] = into_bounds(
             poses[:, :3],
             patches.centers[owner],
             bounds,
-            np.asarray(bands, float),
+            bands,
             (min(placement.standoffs) * camera.max_range / 2, camera.max_range),
         )
     return (poses if gimbal else poses[:, :4]), owner
