@@ -45,6 +45,39 @@ def flown_mission(args):
     return m
 
 
+def flown_map(args, folder) -> dict:
+    """The map a benchmark times on: with args.run, that finished mission's (its map.ot,
+    workspace, flown poses and collision radius); else flown_mission(args)'s, its map saved into
+    `folder`. A dict: path, lo, hi (the map's bounds, lists), nav (the navigation space's
+    corners), poses (N, 3) and radius."""
+    if getattr(args, "run", None):
+        run = Path(args.run).resolve()
+        ws = json.loads((run / "summary.json").read_text())["workspace"]
+        config = nbvkit.Config.from_yaml(run / "config.yaml")
+        poses = np.loadtxt(run / "trajectory.csv", delimiter=",", skiprows=1, usecols=(1, 2, 3))
+        return dict(path=run / "map.ot", lo=ws["bounds_min"], hi=ws["bounds_max"],
+                    nav=(ws["nav_min"], ws["nav_max"]), poses=np.atleast_2d(poses),
+                    radius=config.vehicle.collision_radius)  # fmt: skip
+    m = flown_mission(args)
+    path = Path(folder) / "map.ot"
+    m.world.map.save(path)
+    w = m.world.workspace
+    return dict(path=path, lo=list(map(float, w.bounds_min)), hi=list(map(float, w.bounds_max)),
+                nav=(w.nav_min, w.nav_max), radius=m.config.vehicle.collision_radius,
+                poses=np.array([row[1:4] for row in m.world.state.trajectory], float))  # fmt: skip
+
+
+def print_best(best, same: bool, what: str, same_what: str) -> None:
+    """Prints alternate()'s least times, one line a checkout ("ms `what`"), and with two
+    checkouts their ratio and whether every run gave the same result (`same_what`)."""
+    for label, t in best:
+        print(f"{label:>30}: {t * 1e3:9.2f} ms {what}")
+    if len(best) == 2:
+        print(f"ratio {best[1][1] / best[0][1]:.2f}x; {same_what}: {same}")
+    elif not same:
+        raise SystemExit("the runs differ")
+
+
 def bench_mesh(path=None):
     """(mesh, lo, hi, centre): the structure at `path` (default: the shipped airliner), its
     bounding box corners and centre."""

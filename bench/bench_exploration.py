@@ -14,9 +14,8 @@ from __future__ import annotations
 
 import json
 import tempfile
-from pathlib import Path
 
-from _timing import alternate, flown_map_parser, flown_mission
+from _timing import alternate, flown_map, flown_map_parser, print_best
 
 TIME_SNIPPET = r"""
 import hashlib, json, sys, time
@@ -49,23 +48,14 @@ def main():
     ap.add_argument("--against", help="another checkout (or a saved package) to compare with")
     args = ap.parse_args()
     with tempfile.TemporaryDirectory() as tmp:
-        if args.run:
-            run = Path(args.run).resolve()
-            path, ws = run / "map.ot", json.loads((run / "summary.json").read_text())["workspace"]
-            lo, hi = ws["bounds_min"], ws["bounds_max"]
-        else:
-            m = flown_mission(args)
-            path = Path(tmp) / "map.ot"
-            m.world.map.save(path)
-            ws = m.world.workspace
-            lo, hi = list(map(float, ws.bounds_min)), list(map(float, ws.bounds_max))
+        flown = flown_map(args, tmp)
+        path, lo, hi = flown["path"], flown["lo"], flown["hi"]
         snippet_args = [path, json.dumps(lo), json.dumps(hi), args.repeat]
         best, same = alternate(TIME_SNIPPET, snippet_args, args.against, rounds=2)
     print(f"map {path}")
-    for label, t in best:
-        print(f"{label:>30}: {t * 1e3:9.1f} ms (extent + whole workspace, least of the runs)")
-    if len(best) == 2:
-        print(f"ratio {best[1][1] / best[0][1]:.2f}x; the same targets bit for bit: {same}")
+    print_best(
+        best, same, "(extent + whole workspace, least of the runs)", "the same targets bit for bit"
+    )
 
 
 if __name__ == "__main__":

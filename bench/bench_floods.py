@@ -19,9 +19,8 @@ from pathlib import Path
 
 import numpy as np
 
-from _timing import alternate, flown_map_parser, flown_mission
+from _timing import alternate, flown_map, flown_map_parser
 from nbvkit import _core
-from nbvkit.config import Config
 
 TIME_SNIPPET = r"""
 import hashlib, json, sys, time
@@ -58,22 +57,9 @@ def main():
     ap.add_argument("--seed", type=int, default=0)
     args = ap.parse_args()
     with tempfile.TemporaryDirectory() as tmp:
-        if args.run:
-            run = Path(args.run).resolve()
-            path, summary = run / "map.ot", json.loads((run / "summary.json").read_text())
-            ws = summary["workspace"]
-            lo, hi, nav = ws["bounds_min"], ws["bounds_max"], (ws["nav_min"], ws["nav_max"])
-            poses = np.loadtxt(run / "trajectory.csv", delimiter=",", skiprows=1, usecols=(1, 2, 3))
-            radius = Config.from_yaml(run / "config.yaml").vehicle.collision_radius
-        else:
-            m = flown_mission(args)
-            path = Path(tmp) / "map.ot"
-            m.world.map.save(path)
-            w = m.world.workspace
-            lo, hi = list(map(float, w.bounds_min)), list(map(float, w.bounds_max))
-            nav = (w.nav_min, w.nav_max)
-            poses = np.array([row[1:4] for row in m.world.state.trajectory], float)
-            radius = m.config.vehicle.collision_radius
+        flown = flown_map(args, tmp)
+        path, lo, hi, nav = flown["path"], flown["lo"], flown["hi"], flown["nav"]
+        poses, radius = flown["poses"], flown["radius"]
         grid = _core.OccupancyMap.load(path, lo, hi)
         rng = np.random.default_rng(args.seed)
         goals = []

@@ -14,7 +14,7 @@ from pathlib import Path
 
 import numpy as np
 
-from _timing import alternate, flown_map_parser, flown_mission
+from _timing import alternate, flown_map_parser, flown_mission, print_best
 from nbvkit import _core
 from nbvkit.planning.parts import PlanningContext
 from nbvkit.planning.placement import target_patches
@@ -55,10 +55,7 @@ def main():
                  lo=w.workspace.nav_min, hi=w.workspace.nav_max)  # fmt: skip
         best, same = alternate(TIME_SNIPPET, [path, json.dumps(over), args.repeat], args.against, 2)
     print(f"{len(p.weights)} patches after {args.iterations} views ({args.scenario}), {over}")
-    for label, t in best:
-        print(f"{label:>30}: {t * 1e3:8.2f} ms a call (least of {args.repeat} x 2)")
-    if len(best) == 2:
-        print(f"ratio {best[1][1] / best[0][1]:.2f}x; the same views to the last bit: {same}")
+    print_best(best, same, f"a call (least of {args.repeat} x 2)", "the same views to the last bit")
 
 
 if __name__ == "__main__":
