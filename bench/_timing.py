@@ -123,15 +123,16 @@ def run_each(snippet: str, args, against: str | None, row) -> list:
     return results
 
 
-def alternate(snippet: str, args, against: str, rounds: int, key: str = "time"):
+def alternate(snippet: str, args, against: str, rounds: int, key="time"):
     """Runs `snippet` (run_snippet) in this checkout and in `against`'s, alternating, `rounds`
-    times each: ([(label, the least `key` over its runs)] for both, whether every run printed the
-    same "digest")."""
+    times each: ([(label, the least `key` over its runs)] for both - with a tuple of keys,
+    (label, the least of each) -, whether every run printed the same "digest")."""
     runs = {label: [] for label, _ in checkouts(against)}
     for _ in range(rounds):
         for label, py in checkouts(against):
             runs[label].append(run_snippet(snippet, args, py))
-    best = [(label, min(r[key] for r in rr)) for label, rr in runs.items()]
+    keys = (key,) if isinstance(key, str) else tuple(key)
+    best = [(label, *(min(r[k] for r in rr) for k in keys)) for label, rr in runs.items()]
     return best, len({r["digest"] for rr in runs.values() for r in rr}) == 1
 
 

@@ -72,11 +72,10 @@ def main():
         cases = Path(tmp) / "cases.npz"
         np.savez(cases, starts=starts, froms=froms, goals=np.array(goals))
         snippet_args = [path, json.dumps(list(lo)), json.dumps(list(hi)), radius, cases]
-        best, same = alternate(TIME_SNIPPET, snippet_args, args.against, rounds=2, key="time")
-        detail, _ = alternate(TIME_SNIPPET, snippet_args, args.against, rounds=1, key="flood")
+        best, same = alternate(TIME_SNIPPET, snippet_args, args.against, 2, ("time", "flood"))
     print(f"map {grid.shape} cells at {grid.resolution} m, collision radius {radius} m")
     print(f"{args.starts} floods and {args.goals} paths, least of 2 runs each, alternating")
-    for (label, t), (_, flood) in zip(best, detail):
+    for label, t, flood in best:
         print(f"{label:>30}: {t:8.3f} s in all; floods {flood / args.starts * 1e3:8.1f} ms each")
     if len(best) == 2:
         print(f"ratio {best[1][1] / best[0][1]:.2f}x; the same components and paths: {same}")

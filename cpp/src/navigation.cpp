@@ -143,13 +143,6 @@ struct SearchScratch {
     }
     return blocked_bits[at];
   }
-  /// Bits x0 .. x0 + 63 of row (j, k) (x0 may be negative or past the row: blocked there).
-  std::uint64_t blocked_from(const GridView& g, int x0, int j, int k) {
-    const int w = x0 >> 6, s = x0 & 63;  // arithmetic shift: floor for negative x0
-    const std::uint64_t lo = blocked(g, w, j, k);
-    if (s == 0) return lo;
-    return lo >> s | blocked(g, w + 1, j, k) << (64 - s);
-  }
   /// Word w of row (j, k), k within the grid: the OR of blocked(w, j, k + dz) over |dz| <= h
   /// (h <= height; h = 0: blocked itself).
   std::uint64_t column(const GridView& g, int w, int j, int k, int h) {
@@ -167,9 +160,10 @@ struct SearchScratch {
     }
     return levels[h - 1];
   }
-  /// column's bits x0 .. x0 + 63 of row (j, k), as blocked_from.
+  /// column's bits x0 .. x0 + 63 of row (j, k) (x0 may be negative or past the row: blocked
+  /// there).
   std::uint64_t column_from(const GridView& g, int x0, int j, int k, int h) {
-    const int w = x0 >> 6, s = x0 & 63;
+    const int w = x0 >> 6, s = x0 & 63;  // arithmetic shift: floor for negative x0
     const std::uint64_t lo = column(g, w, j, k, h);
     if (s == 0) return lo;
     return lo >> s | column(g, w + 1, j, k, h) << (64 - s);

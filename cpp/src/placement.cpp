@@ -12,8 +12,7 @@ PlacedViews place_patch_views(const PointsRef& centers, const PointsRef& normals
     throw std::invalid_argument(
         "place_patch_views: centers, normals and horizontal differ in length");
   constexpr double pi = 3.141592653589793;
-  std::vector<double> rows;  // 5 per view, 2 per band
-  std::vector<double> bands;
+  std::vector<double> rows, bands;  // row-major: 5 numbers a view, 2 a band
   PlacedViews out;
   // The same operations in the same order as the Python loop it replaces (no fused multiply-add:
   // the build never targets FMA), so the same doubles.
