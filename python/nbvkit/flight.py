@@ -1,15 +1,16 @@
 """What a run flew, how long it takes, and its split into one flight per battery.
 
 A run folder's ``flight.csv`` (written by Mission.write_results) lists every point the vehicle
-flew, in order: the start, the profiling flight, and each leg to a view with the A* waypoints
-between (stage, x, y, z, yaw, pitch, capture, distance_m). The simulated vehicle starts in the
-air at the start pose; the real one takes off from the launch point (home) on the ground below it
-(the workspace floor, summary.json) and climbs straight up to it, and lands there again.
+flew, in order: the start, the profiling flight, and each leg to a view with the A* waypoints and
+in-flight camera frames between (stage, x, y, z, yaw, pitch, capture, distance_m). The simulated
+vehicle starts in the air at the start pose; the real one takes off from the launch point (home)
+on the ground below it (the workspace floor, summary.json) and climbs straight up to it, and
+lands there again.
 
 Flight-time model (FlightModel): a straight leg takes max(horizontal distance / speed, |climb| /
 climb_rate) seconds (a multirotor flies it at its horizontal and vertical speed limits), and a
 counted view adds `hover_s` (turning the gimbal, taking the photo). In-flight camera frames (the
-profile's) add nothing.
+profile's and those on the legs to views) add nothing.
 
 Sorties (split_sorties): each starts and ends at home within budget * (1 - reserve). A sortie
 resumes where the last one stopped: at the first point of the flight that is still to be

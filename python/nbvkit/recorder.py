@@ -152,6 +152,8 @@ class Recorder:
             "sampling": cfg.lattice.method if "lattice" in cfg.planner.generators else None,
             "iterations": n_it,
             "views": world.state.views,
+            # camera frames taken in flight: the profile's and those along the legs to views
+            "camera_frames": sum(row[6] == "frame" for row in world.state.flight),
             "distance_m": world.state.distance_m,
             "entropy_initial": m.entropy_initial,
             "entropy_final": e_final,

@@ -31,6 +31,7 @@ _PAPER = {
     "planner.terminations": ["entropy"],
     "planner.min_gain": 0.0,
     "planner.travel_lambda": 0.0,
+    "planner.frame_step": 0.0,
     "utility.name": "ig",
     "vehicle.blocked_path": "reject",
     "vehicle.widen_swept_volume": False,

@@ -8,6 +8,7 @@ from dataclasses import dataclass
 from ..settings import Names, nonneg
 from ..termination import viewable_cells
 from ..timing import StageTimers
+from .legs import fly_leg, retreat
 from .parts import PlanningContext, Step, propose
 from .registry import get_generator, get_termination
 from .scoring import Scorer
@@ -25,6 +26,8 @@ class PlannerConfig:
     # on a smaller structure (mapped surface A), m^2 thresholds x A/reference_area, tour.rate x
     # its square root (parts.threshold_scale); the profiles of the 35 m airliners map 417-502 m^2
     reference_area: float = nonneg(400.0)  # m^2 of mapped surface below which thresholds shrink
+    # m between camera frames taken in flight along each leg to a view (not views); 0: none
+    frame_step: float = nonneg(1.0)  # m flown between frames on a leg; 0: at views only (paper)
 
     def check(self, key: str) -> None:
         from .registry import check_names
@@ -47,14 +50,11 @@ class Planner:
         self.selector = Selector(ctx)
         self.score = Scorer(config.utility)
         c = config.camera
-        self.c_view = viewable_cells(
-            c.hfov_deg,
-            c.vfov_deg,
-            c.min_range,
-            c.max_range,
-            ctx.resolution,
-            config.entropy.count_partial_cells,
-        )
+        fov = (c.hfov_deg, c.vfov_deg, c.min_range, c.max_range, ctx.resolution)
+        self.c_view = viewable_cells(*fov, config.entropy.count_partial_cells)
+        self.frame_step = config.planner.frame_step
+        # legs through known free space: a vehicle a scan closed in on flies back out (retreat)
+        self.radius = config.vehicle.collision_radius * (config.vehicle.blocked_path == "plan")
         self.timers = StageTimers()
         self.hooks = {"feedback": _feedback}
 
@@ -63,17 +63,18 @@ class Planner:
         returns why it stopped."""
         t = self.timers
         for iteration in range(1, max_views + 1):
+            back = t.call("motion", retreat, world, self.radius) if self.radius else 0.0
             found = self.next_view(world)  # viewpoint sampling + evaluation + selection
             if isinstance(found, str):
                 return found
             entropy_before, choice = world.map.total_entropy(), found[3]
-            leg = t.call("motion", world.fly_to, choice.pose, "nbv", choice.path)
+            leg, frame_cells = fly_leg(world, choice, self.frame_step, t)
             scan = t.call("sensing", world.scan, "view")
-            new_cells = t.call("mapping", world.integrate, scan, "view")
+            new_cells = frame_cells + t.call("mapping", world.integrate, scan, "view")
             delivered = t.call("evaluation", self.score.delivered, world, choice)
             step = Step.of(iteration, found, world, entropy_before, self.c_view, new_cells)
             step.expected_m2, step.realized_m2 = delivered
-            step.extra.update(leg_m=leg, scan=scan)
+            step.extra.update(leg_m=back + leg, scan=scan)
             for hook in self.hooks.values():
                 hook(world, step)
             for term in self.terminations:

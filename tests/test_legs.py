@@ -1,0 +1,144 @@
+"""Camera frames in flight along a leg to a view (planner.frame_step, planning/legs.py)."""
+import math
+
+import numpy as np
+import pytest
+
+from nbvkit import _core
+from nbvkit.planning.legs import leg_pieces, retreat
+
+
+def _length(pts):
+    return float(np.linalg.norm(np.diff(pts, axis=0), axis=1).sum())
+
+
+@pytest.mark.parametrize("seed", range(20))
+def test_pieces_follow_the_path_a_frame_every_step(seed):
+    rng = np.random.default_rng(seed)
+    path = np.cumsum(rng.uniform(-3, 3, size=(rng.integers(2, 7), 3)), axis=0)
+    start = np.array([*path[0], rng.uniform(-math.pi, math.pi), rng.uniform(-0.5, 1.5)])
+    target = np.array([*path[-1], rng.uniform(-math.pi, math.pi), rng.uniform(-0.5, 1.5)])
+    step = rng.uniform(0.3, 2.0)
+    pieces = leg_pieces(start, target, path, step)
+    total = _length(path)
+    # the pieces, joined, are the path: the same length, each starting where the last ended
+    assert sum(_length(w) for _, w in pieces) == pytest.approx(total)
+    np.testing.assert_allclose(pieces[0][1][0], path[0])
+    for (pose, _), (_, nxt) in zip(pieces[:-1], pieces[1:]):
+        np.testing.assert_allclose(nxt[0], pose[:3])
+    np.testing.assert_array_equal(pieces[-1][0], target)
+    # a frame every step metres flown, none within step / 2 of the view
+    frames = pieces[:-1]
+    assert len(frames) == max(0, math.floor((total - 0.5 * step) / step))
+    flown = np.cumsum([_length(w) for _, w in pieces])
+    np.testing.assert_allclose(flown[:-1], step * np.arange(1, len(frames) + 1))
+    turn = math.remainder(target[3] - start[3], 2 * math.pi)
+    for (pose, _), s in zip(frames, flown):
+        f = s / total
+        # the camera turns in proportion to the distance, the shorter way round
+        assert math.cos(pose[3] - (start[3] + f * turn)) == pytest.approx(1.0)
+        assert -math.pi <= pose[3] <= math.pi
+        assert pose[4] == pytest.approx(start[4] + f * (target[4] - start[4]))
+
+
+def test_straight_leg_and_the_yaw_across_pi():
+    pieces = leg_pieces([0, 0, 0, 3.0], [5, 0, 0, -3.0], None, 1.0)
+    assert [p[0][0] for p in pieces] == pytest.approx([1, 2, 3, 4, 5])
+    # 3.0 -> -3.0 turns 0.283 rad through pi, not 6 rad the long way
+    yaws = [p[0][3] for p in pieces[:-1]]
+    assert all(abs(math.remainder(y - 3.0, 2 * math.pi)) < 0.3 for y in yaws)
+    assert all(len(p[0]) == 5 and p[0][4] == 0.0 for p in pieces)  # 4 numbers: level
+
+
+def test_no_frames_when_off_or_the_leg_is_short():
+    path = np.array([[0.0, 0, 0], [1.2, 0, 0]])
+    for step in (0.0, 1.0):  # off; a leg under 1.5 steps
+        (only,) = leg_pieces([0, 0, 0, 0, 0], [1.2, 0, 0, 0, 0], path, step)
+        np.testing.assert_array_equal(only[1], path)
+
+
+def test_waypoints_of_a_bent_path_stay_in_their_piece():
+    path = np.array([[0.0, 0, 0], [2, 0, 0], [2, 2, 0]])
+    pieces = leg_pieces([0, 0, 0, 0, 0], [2, 2, 0, 1, 0], path, 1.5)
+    assert len(pieces) == 3
+    np.testing.assert_allclose(pieces[1][1], [[1.5, 0, 0], [2, 0, 0], [2, 1, 0]])
+
+
+def _world():
+    """A 6 x 6 x 5 m box seen from the start by the camera and the laser, at 0.4 m."""
+    from conftest import box_mesh
+    from nbvkit.config import Config
+    from nbvkit.world import World
+
+    c = Config().with_overrides(
+        ["map.resolution=0.4", "progress=false", "evaluation.gt_density=100"]
+    )
+    w = World(c, mesh=box_mesh([-3, -3, 0], [3, 3, 5]))
+    w.take_off()
+    w.sense("laser")
+    w.sense("view")
+    return w
+
+
+def test_a_vehicle_a_scan_closed_in_on_flies_back_along_its_flight():
+    w = _world()
+    r = w.config.vehicle.collision_radius
+    start = w.state.pose.copy()
+    assert retreat(w, r) == 0.0  # free where it is: it stays
+    # two legs on, then surface appears beside the last stretch of the flight (a scan finds it)
+    a = start[:3] + np.array([0.0, 0.0, 1.0])
+    b = a + np.array([2.0, 0.0, 0.0])
+    w.fly_to([*a, start[3]], "nbv")
+    w.fly_to([*b, start[3], 0.2], "nbv")
+    close = b + np.array([0.0, r * 0.5, 0.0])
+    for _ in range(10):
+        w.map.update_cells(close[None], occupied=True)
+
+    def sphere_free(p):
+        return bool(_core.spheres_are_free(w.map, np.asarray(p, float)[None], r)[0])
+
+    assert not sphere_free(b) and sphere_free(a)
+    before, rows = w.state.distance_m, len(w.state.flight)
+    flown = retreat(w, r)
+    here = w.state.pose
+    # back along its own flight to the last point whose sphere is free: the first leg's end
+    assert sphere_free(here[:3])
+    np.testing.assert_allclose(here[:3], a)
+    assert flown == pytest.approx(np.linalg.norm(b - a))
+    assert w.state.distance_m == pytest.approx(before + flown)
+    assert here[3] == pytest.approx(start[3]) and here[4] == pytest.approx(0.2)  # camera kept
+    assert len(w.state.flight) > rows  # the way back is flown and logged
+
+
+def test_no_retreat_where_no_point_of_the_flight_is_free():
+    w = _world()
+    r = w.config.vehicle.collision_radius
+    here = w.state.pose[:3].copy()
+    for _ in range(10):
+        w.map.update_cells(here[None], occupied=True)
+    assert retreat(w, r) == 0.0
+    np.testing.assert_allclose(w.state.pose[:3], here)
+
+
+def test_a_mission_takes_frames_along_its_legs(tmp_path):
+    import csv
+    import json
+
+    from nbvkit.config import Config
+    from nbvkit.mission import Mission
+
+    fast = ["map.resolution=0.4", "progress=false", "evaluation.gt_density=100"]
+    c = Config().with_overrides(fast + ["max_iterations=6", "planner.frame_step=0.5"])
+    Mission(c).run(tmp_path)
+    s = json.loads((tmp_path / "summary.json").read_text())
+    with open(tmp_path / "flight.csv") as f:
+        rows = list(csv.DictReader(f))
+    on_legs = [r for r in rows if r["stage"] == "nbv" and r["capture"] == "frame"]
+    views = [r for r in rows if r["capture"] == "view"]
+    assert len(on_legs) > 0 and len(views) == s["views"]
+    assert s["camera_frames"] == s["profile"]["camera_frames"] + len(on_legs)
+    # a frame every 0.5 m flown along a leg: 0.5 m after the frame before it
+    captured = [(r["stage"], r["capture"], float(r["distance_m"])) for r in rows if r["capture"]]
+    pairs = zip(captured, captured[1:])
+    gaps = [b[2] - a[2] for a, b in pairs if a[:2] == b[:2] == ("nbv", "frame")]
+    assert len(gaps) > 0 and gaps == pytest.approx([0.5] * len(gaps))
