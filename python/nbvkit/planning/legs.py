@@ -1,5 +1,6 @@
-"""Camera frames taken in flight along a leg to a view (planner.frame_step): where they are taken
-and which way the camera faces."""
+"""Flying a leg to a view: camera frames taken in flight on the way (planner.frame_step: where
+they are taken and which way the camera faces), and the way back out where scans closed in on
+the vehicle (retreat)."""
 from __future__ import annotations
 
 import math
