@@ -73,6 +73,22 @@ def box_mesh(lo, hi) -> nbvkit.Mesh:
     return nbvkit.Mesh(v, f)
 
 
+def seen_box_world():
+    """A World round a 6 x 6 x 5 m box at 0.4 m, which the laser and the camera have each seen
+    once from the start."""
+    from nbvkit.config import Config
+    from nbvkit.world import World
+
+    c = Config().with_overrides(
+        ["map.resolution=0.4", "progress=false", "evaluation.gt_density=100"]
+    )
+    w = World(c, mesh=box_mesh([-3, -3, 0], [3, 3, 5]))
+    w.take_off()
+    w.sense("laser")
+    w.sense("view")
+    return w
+
+
 @pytest.fixture
 def wall():
     return wall_mesh()

@@ -4,6 +4,7 @@ import math
 import numpy as np
 import pytest
 
+from conftest import seen_box_world
 from nbvkit import _core
 from nbvkit.planning.legs import leg_pieces, retreat
 
@@ -64,24 +65,8 @@ def test_waypoints_of_a_bent_path_stay_in_their_piece():
     np.testing.assert_allclose(pieces[1][1], [[1.5, 0, 0], [2, 0, 0], [2, 1, 0]])
 
 
-def _world():
-    """A 6 x 6 x 5 m box seen from the start by the camera and the laser, at 0.4 m."""
-    from conftest import box_mesh
-    from nbvkit.config import Config
-    from nbvkit.world import World
-
-    c = Config().with_overrides(
-        ["map.resolution=0.4", "progress=false", "evaluation.gt_density=100"]
-    )
-    w = World(c, mesh=box_mesh([-3, -3, 0], [3, 3, 5]))
-    w.take_off()
-    w.sense("laser")
-    w.sense("view")
-    return w
-
-
 def test_a_vehicle_a_scan_closed_in_on_flies_back_along_its_flight():
-    w = _world()
+    w = seen_box_world()
     r = w.config.vehicle.collision_radius
     start = w.state.pose.copy()
     assert retreat(w, r) == 0.0  # free where it is: it stays
@@ -111,7 +96,7 @@ def test_a_vehicle_a_scan_closed_in_on_flies_back_along_its_flight():
 
 
 def test_no_retreat_where_no_point_of_the_flight_is_free():
-    w = _world()
+    w = seen_box_world()
     r = w.config.vehicle.collision_radius
     here = w.state.pose[:3].copy()
     for _ in range(10):

@@ -8,26 +8,18 @@ import numpy as np
 import pytest
 
 import nbvkit
-from conftest import box_mesh
+from conftest import seen_box_world
 from nbvkit import _core
 from nbvkit.config import Config
 from nbvkit.planning import PythonUtility
 from nbvkit.planning.utilities import candidate_of_cells, information_gain, per_candidate
 from nbvkit.sampling import candidate_poses
-from nbvkit.world import World
 
 
 @pytest.fixture(scope="module")
 def world():
     """A 6 x 6 x 5 m box seen once by the camera and the laser from the start, at 0.4 m."""
-    c = Config().with_overrides(
-        ["map.resolution=0.4", "progress=false", "evaluation.gt_density=100"]
-    )
-    w = World(c, mesh=box_mesh([-3, -3, 0], [3, 3, 5]))
-    w.take_off()
-    w.sense("laser")
-    w.sense("view")
-    return w
+    return seen_box_world()
 
 
 def candidates(world):
