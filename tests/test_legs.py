@@ -127,3 +127,11 @@ def test_a_mission_takes_frames_along_its_legs(tmp_path):
     pairs = zip(captured, captured[1:])
     gaps = [b[2] - a[2] for a, b in pairs if a[:2] == b[:2] == ("nbv", "frame")]
     assert len(gaps) > 0 and gaps == pytest.approx([0.5] * len(gaps))
+
+
+@pytest.mark.parametrize("bad", ["-1", "0.05", "nan", "inf"])
+def test_a_bad_frame_step_is_refused_naming_the_key(bad):
+    from nbvkit.config import load_config
+
+    with pytest.raises(ValueError, match="planner.frame_step"):
+        load_config(overrides=[f"planner.frame_step={bad}"])

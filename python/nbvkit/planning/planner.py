@@ -26,13 +26,14 @@ class PlannerConfig:
     # on a smaller structure (mapped surface A), m^2 thresholds x A/reference_area, tour.rate x
     # its square root (parts.threshold_scale); the profiles of the 35 m airliners map 417-502 m^2
     reference_area: float = nonneg(400.0)  # m^2 of mapped surface below which thresholds shrink
-    # m between camera frames taken in flight along each leg to a view (not views); 0: none
     frame_step: float = nonneg(1.0)  # m flown between frames on a leg; 0: at views only (paper)
 
     def check(self, key: str) -> None:
         from .registry import check_names
 
         check_names(self.generators, self.terminations)
+        if 0 < self.frame_step < 0.1:  # a frame every few cm: thousands a leg
+            raise ValueError(f"{key}.frame_step must be 0 (none) or >= 0.1 m: {self.frame_step}")
 
 
 class Planner:
