@@ -66,19 +66,18 @@ def retreat(world, radius: float) -> float:
     once seen close up) so that neither its cell nor one beside it leaves its collision sphere
     in known free space, no path starts from where it is, and every view would be unreachable:
     it flies back along its own flight, which it has flown, to the last point whose sphere is
-    free in the map as it is now. Returns the distance flown (0 where a path can start, or no
-    point of the flight is free)."""
+    free in the map as it is now. Returns the distance flown (0 where a path can start, where no
+    point of the flight is free, or where the nearest free one is where it already is)."""
     here, m = world.state.pose, world.map
     around = m.cell_center(here[None, :3]) + m.resolution * _NEIGHBOURS
     if _core.spheres_are_free(m, around, radius).any():
         return 0.0
     back = np.array([row[1:4] for row in world.state.flight], float)[::-1]  # here to the start
     free = np.flatnonzero(_core.spheres_are_free(m, back, radius))
-    if len(free) == 0:
+    if len(free) == 0 or free[0] == 0:  # none, or the nearest is where it is: nothing to fly
         return 0.0
-    path = back[: free[0] + 1]
-    path = path[np.r_[True, np.any(np.diff(path, axis=0) != 0, axis=1)]]  # no repeated points
-    path = np.vstack([here[:3], path[1:]]) if len(path) > 1 else np.vstack([here[:3], path])
+    path = np.vstack([here[:3], back[: free[0] + 1]])
+    path = path[np.r_[True, np.any(np.diff(path, axis=0) != 0, axis=1)]]  # each point once
     return world.fly_to(np.array([*path[-1], *here[3:]]), "nbv", path)
 
 
