@@ -115,7 +115,7 @@ class VehicleState:
 
     pose: np.ndarray
     distance_m: float = 0.0
-    views: int = 0  # camera frames taken
+    views: int = 0  # counted views taken (in-flight frames are not counted)
     trajectory: list = field(default_factory=list)
     flight: list = field(default_factory=list)
 
