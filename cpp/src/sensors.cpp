@@ -91,7 +91,7 @@ DepthCamera::DepthCamera(std::shared_ptr<const RaycastScene> scene,
     }
   // Reorder into 4x4 tiles: one Embree packet of 16 rays per tile.
   tile_dirs_.resize(dirs_.rows(), 3);
-  tile_to_pixel_.resize(dirs_.rows());
+  pixel_to_tile_.resize(dirs_.rows());
   tile_tfar_.resize(dirs_.rows());
   Eigen::Index k = 0;
   for (int tv = 0; tv < H; tv += 4)
@@ -99,7 +99,7 @@ DepthCamera::DepthCamera(std::shared_ptr<const RaycastScene> scene,
       for (int v = tv; v < std::min(tv + 4, H); ++v)
         for (int u = tu; u < std::min(tu + 4, W); ++u) {
           const Eigen::Index p = static_cast<Eigen::Index>(v) * W + u;
-          tile_to_pixel_[k] = static_cast<int>(p);
+          pixel_to_tile_[p] = static_cast<int>(k);
           tile_dirs_.row(k) = dirs_.row(p);
           tile_tfar_[k] = opt_.max_range / dirs_(p, 0);  // depth limit -> distance along the ray
           ++k;
@@ -130,39 +130,42 @@ Scan DepthCamera::scan(const Eigen::Isometry3d& T) const {
   const std::uint64_t frame = frame_++;
   Scan out;
   out.origin = o;
-  out.depth.setConstant(H, W, kInf);
-  // 1. Each ray's outcome (tile order, as traced): 1 a return at depth z (kept in `depth`),
-  // 2 nothing within max depth (a free ray to the far plane), 0 a return out of range.
+  out.depth.resize(H, W);
+  double* depth = out.depth.data();  // row-major: pixel p = v * W + u
+  // 1. Each pixel's outcome, by blocks of pixels in parallel (its ray read from tile order):
+  // 1 a return at depth z (kept in `depth`), 2 nothing within max depth (a free ray to the far
+  // plane), 0 a return out of range; each block counts its hits and free rays.
   std::vector<std::uint8_t> state(static_cast<std::size_t>(n), 0);
-  parallel_chunks(static_cast<std::size_t>(n), 4096, [&](std::size_t b, std::size_t e) {
-    for (std::size_t k = b; k < e; ++k) {
-      const Eigen::Index p = tile_to_pixel_[static_cast<Eigen::Index>(k)];
-      const double tk = t[static_cast<Eigen::Index>(k)];
-      if (!std::isfinite(tk)) {
-        state[p] = 2;
-        continue;
-      }
-      double z = tk * dirs_(p, 0);  // dirs_(p, 0): the cosine to the optical axis
-      if (opt_.noise_k > 0)
-        z += opt_.noise_k * z * z * counter_normal(opt_.seed, frame, static_cast<std::uint64_t>(p));
-      // no valid return outside [min, max] depth (a relative 1e-9 tolerance keeps a surface
-      // exactly at a limit, whose depth rounds to a hair beyond it, in range)
-      if (z < opt_.min_range * (1 - 1e-9) || z > opt_.max_range * (1 + 1e-9)) continue;
-      state[p] = 1;
-      out.depth(p / W, p % W) = z;
-    }
-  });
-  // 2. The end points in pixel order, written in parallel: each block of pixels counts its hits
-  // and free rays, and writes from its offset (the order of a serial gather, deterministic).
   const std::size_t block = 8192, nb = (static_cast<std::size_t>(n) + block - 1) / block;
   std::vector<Eigen::Index> first_hit(nb + 1, 0), first_free(nb + 1, 0);
   parallel_chunks(nb, 1, [&](std::size_t bb, std::size_t be) {
-    for (std::size_t b = bb; b < be; ++b)
+    for (std::size_t b = bb; b < be; ++b) {
+      Eigen::Index hits = 0, frees = 0;
       for (std::size_t p = b * block, e = std::min<std::size_t>(n, p + block); p < e; ++p) {
-        first_hit[b + 1] += state[p] == 1;
-        first_free[b + 1] += state[p] == 2;
+        const auto pi = static_cast<Eigen::Index>(p);
+        const double tk = t[pixel_to_tile_[pi]];
+        depth[p] = kInf;
+        if (!std::isfinite(tk)) {
+          state[p] = 2;
+          ++frees;
+          continue;
+        }
+        double z = tk * dirs_(pi, 0);  // dirs_(p, 0): the cosine to the optical axis
+        if (opt_.noise_k > 0)
+          z += opt_.noise_k * z * z * counter_normal(opt_.seed, frame, static_cast<std::uint64_t>(p));
+        // no valid return outside [min, max] depth (a relative 1e-9 tolerance keeps a surface
+        // exactly at a limit, whose depth rounds to a hair beyond it, in range)
+        if (z < opt_.min_range * (1 - 1e-9) || z > opt_.max_range * (1 + 1e-9)) continue;
+        state[p] = 1;
+        depth[p] = z;
+        ++hits;
       }
+      first_hit[b + 1] = hits;
+      first_free[b + 1] = frees;
+    }
   });
+  // 2. The end points in pixel order, written in parallel: each block writes from its offset
+  // (the order of a serial gather, deterministic).
   for (std::size_t b = 0; b < nb; ++b) {
     first_hit[b + 1] += first_hit[b];
     first_free[b + 1] += first_free[b];
@@ -179,7 +182,7 @@ Scan DepthCamera::scan(const Eigen::Isometry3d& T) const {
         const double cx = dirs_(pi, 0);
         const Eigen::Vector3d dw = R * dirs_.row(pi).transpose();
         if (state[p] == 1) {
-          out.hits.row(ih) = o + dw * (out.depth(pi / W, pi % W) / cx);
+          out.hits.row(ih) = o + dw * (depth[p] / cx);
           out.hit_rays[ih++] = static_cast<int>(p);
         } else {
           out.free_ends.row(jf++) = o + dw * (opt_.max_range / cx);
