@@ -152,7 +152,8 @@ Scan DepthCamera::scan(const Eigen::Isometry3d& T) const {
         }
         double z = tk * dirs_(pi, 0);  // dirs_(p, 0): the cosine to the optical axis
         if (opt_.noise_k > 0)
-          z += opt_.noise_k * z * z * counter_normal(opt_.seed, frame, static_cast<std::uint64_t>(p));
+          z += opt_.noise_k * z * z *
+               counter_normal(opt_.seed, frame, static_cast<std::uint64_t>(p));
         // no valid return outside [min, max] depth (a relative 1e-9 tolerance keeps a surface
         // exactly at a limit, whose depth rounds to a hair beyond it, in range)
         if (z < opt_.min_range * (1 - 1e-9) || z > opt_.max_range * (1 + 1e-9)) continue;

@@ -78,8 +78,8 @@ class DepthCamera {
   std::shared_ptr<const RaycastScene> scene_;
   DepthCameraOptions opt_;
   double fx_, fy_;
-  Points dirs_;       // pixel order
-  Points tile_dirs_;  // 4x4 tile order, for coherent packets
+  Points dirs_;                    // pixel order
+  Points tile_dirs_;               // 4x4 tile order, for coherent packets
   Eigen::VectorXi pixel_to_tile_;  // pixel p's ray in tile order
   Eigen::VectorXd tile_tfar_;
   mutable std::atomic<std::uint64_t> frame_{0};
