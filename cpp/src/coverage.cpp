@@ -81,10 +81,15 @@ bool touches_surface_face(const GridView& g, const int* c) {
   return false;
 }
 
-/// Whether a brick or one beside it (a face) holds cells of its own: a brick that is not, and has
-/// none beside it, holds only unknown cells with no solid cell on any face (a solid cell, occupied
-/// or predicted, is a written one).
-bool written_near(const GridView& g, std::size_t brick) {
+/// Whether a brick can hold a surface target: it or a brick beside it (a face) holds a solid
+/// cell. A target is a solid cell or an unknown one with a solid face neighbour, which lies in
+/// the same brick or the one beside it on that face. Solid cells are the occupied ones, counted
+/// per brick, where the map holds no predicted cell; else the written ones stand in for them (a
+/// predicted cell is a written one).
+bool solid_near(const GridView& g, std::size_t brick) {
+  if (g.predicted_cells == 0)
+    return g.layout.brick_or_face_neighbour(
+        brick, [&](std::size_t b) { return g.brick_occupied[b] != 0; });
   return g.layout.brick_or_face_neighbour(brick,
                                           [&](std::size_t b) { return g.cells.slots[b] != 0; });
 }
@@ -110,12 +115,15 @@ SurfaceTargets surface_targets(const GridView& g, const SurfaceTargetOptions& op
     bins[n] = direction_bin(unit[n]);
     ++n;
   }
-  const std::size_t nb = g.layout.num_bricks();
-  std::vector<std::vector<Target>> per_brick(nb);
-  parallel_chunks(nb, 64, [&](std::size_t bb, std::size_t be) {
-    for (std::size_t brick = bb; brick < be; ++brick) {
-      if (!g.brick_live[brick]) continue;     // neutral cells only: free space
-      if (!written_near(g, brick)) continue;  // unknown cells, no solid face neighbour: none
+  // the bricks in blocks of kBlock, each block's targets in brick order
+  constexpr std::size_t kBlock = 1024;
+  const std::size_t nb = g.layout.num_bricks(), nblocks = (nb + kBlock - 1) / kBlock;
+  std::vector<std::vector<Target>> per_block(nblocks);
+  parallel_chunks(nblocks, 1, [&](std::size_t blk_begin, std::size_t blk_end) {
+    for (std::size_t brick = blk_begin * kBlock, be = std::min(nb, blk_end * kBlock); brick < be;
+         ++brick) {
+      if (!g.brick_live[brick]) continue;   // neutral cells only: free space
+      if (!solid_near(g, brick)) continue;  // no solid cell in it nor on a face: no target
       for (std::size_t id = brick << 6, end = id + 64; id < end; ++id) {
         int c[3];
         if (!g.layout.coords(id, c[0], c[1], c[2])) continue;
@@ -166,19 +174,19 @@ SurfaceTargets surface_targets(const GridView& g, const SurfaceTargetOptions& op
         if (kind == TargetKind::Frontier && !(touches_surface && touches_free)) continue;
         const double len = normal.norm();
         if (len < 1e-9) continue;  // nothing left to see from any open side
-        per_brick[brick].push_back({id, c[0], c[1], c[2], normal / len, kind, weight});
+        per_block[brick / kBlock].push_back({id, c[0], c[1], c[2], normal / len, kind, weight});
       }
     }
   });
   std::size_t total = 0;
-  for (const auto& v : per_brick) total += v.size();
+  for (const auto& v : per_block) total += v.size();
   SurfaceTargets out;
   out.positions.resize(Eigen::Index(total), 3);
   out.normals.resize(Eigen::Index(total), 3);
   out.kind.resize(Eigen::Index(total));
   out.weight.resize(Eigen::Index(total));
   Eigen::Index r = 0;
-  for (const auto& v : per_brick)
+  for (const auto& v : per_block)
     for (const Target& t : v) {
       out.positions.row(r) = g.center(t.i, t.j, t.k).transpose();
       out.normals.row(r) = t.normal.transpose();
@@ -221,6 +229,8 @@ bool structure_extent(const GridView& g, Eigen::Vector3i& lo, Eigen::Vector3i& h
   Eigen::Vector3i a = n, b = Eigen::Vector3i::Constant(-1);
   for_bricks_in(g, Eigen::Vector3i::Zero(), n, [&](std::size_t brick, int i0, int j0, int k0) {
     if (g.brick_occupied[brick] == 0) {  // the brick's flags say whether any is predicted
+      // none where the map holds no predicted cell, nor in a brick never written
+      if (g.predicted_cells == 0 || g.cells.slots[brick] == 0) return;
       bool predicted = false;
       for (int c = 0; c < 64; ++c)
         predicted |= g.cells.flag_at(brick << 6 | std::size_t(c)) == CellFlag::Predicted;
@@ -245,6 +255,21 @@ bool structure_extent(const GridView& g, Eigen::Vector3i& lo, Eigen::Vector3i& h
   return true;
 }
 
+namespace {
+/// The cells of a brick on each of its faces: [axis][0] at the low end, [axis][1] at the high.
+constexpr std::array<std::array<std::uint64_t, 2>, 3> face_cells() {
+  std::array<std::array<std::uint64_t, 2>, 3> m{};
+  for (int c = 0; c < 64; ++c)
+    for (int a = 0; a < 3; ++a) {
+      const int x = c >> (2 * a) & 3;
+      if (x == 0) m[std::size_t(a)][0] |= std::uint64_t(1) << c;
+      if (x == 3) m[std::size_t(a)][1] |= std::uint64_t(1) << c;
+    }
+  return m;
+}
+constexpr auto kFaceCells = face_cells();
+}  // namespace
+
 ExplorationTargets exploration_targets(const GridView& g, Eigen::Vector3i lo, Eigen::Vector3i hi) {
   g.validate();
   const Eigen::Vector3i n(g.nx, g.ny, g.nz);
@@ -265,9 +290,22 @@ ExplorationTargets exploration_targets(const GridView& g, Eigen::Vector3i lo, Ei
     const std::array<std::size_t, 3> at = {std::size_t(i0 >> 2), std::size_t(j0 >> 2),
                                            std::size_t(k0 >> 2)};
     auto open = [&](std::size_t b) { return g.brick_open[b] != 0; };
-    if (!open(brick) && !g.layout.face_neighbour_brick(brick, at, open)) return;
+    // the cells that can have a known free face neighbour: all of them where the brick holds
+    // one; else those on its faces toward a brick that does
+    std::uint64_t cells = ~std::uint64_t(0);
+    if (!open(brick)) {
+      cells = 0;
+      std::size_t step = 1;
+      for (int a = 0; a < 3; step *= std::size_t(g.layout.bricks[a]), ++a) {
+        if (at[a] > 0 && open(brick - step)) cells |= kFaceCells[a][0];
+        if (at[a] + 1 < std::size_t(g.layout.bricks[a]) && open(brick + step))
+          cells |= kFaceCells[a][1];
+      }
+      if (!cells) return;
+    }
     std::vector<Found> found;
-    for (int c = 0; c < 64; ++c) {
+    for (; cells; cells &= cells - 1) {
+      const int c = __builtin_ctzll(cells);
       const std::size_t id = brick << 6 | std::size_t(c);
       if (g.cells.flag_at(id) != CellFlag::Unknown) continue;
       const int x[3] = {i0 + (c & 3), j0 + (c >> 2 & 3), k0 + (c >> 4)};

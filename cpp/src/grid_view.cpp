@@ -25,6 +25,7 @@ GridView grid_view(const OccupancyMap& map, const SurfaceObservations* surface) 
   g.brick_open = w.brick_open_data();
   g.brick_occupied = w.brick_occupied_data();
   g.unknown_entropy = float(w.rule().entropy(0.0f, CellFlag::Unknown));
+  g.predicted_cells = w.counts().predicted;
   g.grid_stamps = w.stamps().data();
   g.grid_epoch = w.stamps().take_epoch();
   g.grid_id = w.stamps().id();

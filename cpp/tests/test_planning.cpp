@@ -5,6 +5,7 @@
 #include "nbv/huge_pages.hpp"
 #include "nbv/navigation.hpp"
 #include "nbv/occupancy_map.hpp"
+#include "nbv/surface_observations.hpp"
 #include "nbv/tour.hpp"
 #include "nbv/views.hpp"
 #include "nbv/workspace_grid.hpp"
@@ -491,6 +492,75 @@ TEST(Exploration, TargetsAndExtentAreTheirDefinitionCellByCell) {
   // a box beyond the grid is clipped to it: the whole grid's answer
   EXPECT_EQ(exploration_targets(g, {-4, -4, -4}, {99, 99, 99}).cells,
             exploration_targets(g, {0, 0, 0}, {g.nx, g.ny, g.nz}).cells);
+  // free space carved in the middle of unknown space, a wall in it: bricks that hold no known
+  // free cell border it on every side (their cells on the faces toward it are the frontier)
+  OccupancyMap m2(0.2, {0, 0, 0}, {7, 5.4, 3.4});
+  m2.mark_free_segment({2.1, 2.3, 1.5}, {4.9, 3.1, 1.9}, 0.9);
+  Points wall(40, 3);
+  for (int r = 0; r < 40; ++r) wall.row(r) = Eigen::Vector3d(3.5, 1.9 + 0.04 * r, 1.7).transpose();
+  m2.update_cells(wall, true);
+  const GridView g2 = grid_view(m2);
+  ASSERT_EQ(g2.predicted_cells, 0);
+  Eigen::Vector3i lo2, hi2;
+  ASSERT_TRUE(structure_extent(g2, lo2, hi2));  // the wall's cells grown by one
+  Eigen::Vector3i wa(g2.nx, g2.ny, g2.nz), wb(-1, -1, -1);
+  for (int i = 0; i < g2.nx; ++i)
+    for (int j = 0; j < g2.ny; ++j)
+      for (int k = 0; k < g2.nz; ++k)
+        if (solid(g2, g2.index(i, j, k))) {
+          wa = wa.cwiseMin(Eigen::Vector3i(i, j, k));
+          wb = wb.cwiseMax(Eigen::Vector3i(i, j, k));
+        }
+  EXPECT_EQ(lo2, (wa.array() - 1).max(0).matrix().eval());
+  EXPECT_EQ(hi2, (wb.array() + 2).min(Eigen::Array3i(g2.nx, g2.ny, g2.nz)).matrix().eval());
+  for (const auto& [blo, bhi] :
+       {std::pair<Eigen::Vector3i, Eigen::Vector3i>{{0, 0, 0}, {g2.nx, g2.ny, g2.nz}},
+        {{3, 5, 2}, {30, 13, 9}}}) {
+    const auto expect = brute(g2, blo, bhi);
+    const ExplorationTargets t = exploration_targets(g2, blo, bhi);
+    ASSERT_EQ(std::size_t(t.cells.rows()), expect.size());
+    for (std::size_t r = 0; r < expect.size(); ++r)
+      for (int c = 0; c < 3; ++c) ASSERT_EQ(t.cells(Eigen::Index(r), c), expect[r][c]) << r;
+    EXPECT_GT(expect.size(), 200u);
+  }
+}
+
+TEST(Exploration, SurfaceTargetsPassOverOnlyBricksWithNoSolidCellNear) {
+  // Without a predicted cell, surface_targets looks only at bricks with an occupied cell in
+  // them or beside them; it must find every target that looking at every written brick and
+  // those beside it finds (the filter of a map that holds predicted cells, forced here by a
+  // view that claims one): scattered surface, free space carved round it, the camera's record
+  // of some of it, frontier cells on brick faces.
+  std::mt19937 rng(23);
+  std::size_t total = 0;
+  for (int scene = 0; scene < 4; ++scene) {
+    OccupancyMap m(0.2, {0, 0, 0}, {7.4, 5.4, 3.4});  // part bricks at the edges
+    std::uniform_real_distribution<double> ux(0, 7.4), uy(0, 5.4), uz(0, 3.4);
+    auto random_points = [&](int n) {
+      Points p(n, 3);
+      for (int r = 0; r < n; ++r) p.row(r) = Eigen::Vector3d(ux(rng), uy(rng), uz(rng)).transpose();
+      return p;
+    };
+    m.mark_free_segment({0.5, 0.5, 1.7}, {6.9, 4.9, 1.7}, 0.6 + 0.3 * scene);
+    m.update_cells(random_points(200 + 300 * scene), true);
+    m.update_cells(random_points(800), false);
+    SurfaceObservations seen(m);
+    const Points hits = random_points(300);
+    seen.add_scan(Eigen::Vector3d(3.7, 2.7, 1.7), hits);
+    const GridView g = grid_view(m, &seen);
+    ASSERT_EQ(g.predicted_cells, 0);
+    GridView written = g;
+    written.predicted_cells = 1;  // the written bricks' filter
+    const SurfaceTargetOptions opt;
+    const SurfaceTargets a = surface_targets(g, opt), b = surface_targets(written, opt);
+    ASSERT_EQ(a.positions, b.positions) << "scene " << scene;
+    EXPECT_EQ(a.normals, b.normals);
+    EXPECT_EQ(a.kind, b.kind);
+    EXPECT_EQ(a.weight, b.weight);
+    total += std::size_t(a.kind.rows());
+    EXPECT_GT((a.kind.array() == std::int8_t(TargetKind::Frontier)).count(), 0);
+  }
+  EXPECT_GT(total, 1000u);
 }
 
 TEST(Navigation, FastSearchGivesTheReferencePathOnRandomScenes) {

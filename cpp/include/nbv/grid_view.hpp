@@ -30,6 +30,7 @@ struct GridView {
   const std::uint8_t* brick_open = nullptr;      ///< per brick: known, not occupied cells (64: all)
   const std::uint8_t* brick_occupied = nullptr;  ///< per brick: occupied cells
   float unknown_entropy = 0.6931472f;            ///< an unknown cell's (the largest) entropy
+  std::int64_t predicted_cells = 0;              ///< cells set by symmetry prediction
   /// Camera observations (SurfaceObservations' sparse storage), or null: per brick its block,
   /// and per block of 64 cells the bitmask of the 26 direction bins each has been seen from and
   /// the number of camera hits in it. Read them with seen(id) and hits(id).
