@@ -462,18 +462,23 @@ TEST(Exploration, TargetsAndExtentAreTheirDefinitionCellByCell) {
   m.update_cells(random_points(1500), false);
   m.update_cells(random_points(60), true);
   m.set_unknown_cells(random_points(60), 0.6);
+  // structure_extent cell by cell: the box of the solid cells grown by one, within the grid
+  auto expect_extent = [&](const GridView& v) {
+    Eigen::Vector3i elo, ehi, a(v.nx, v.ny, v.nz), b(-1, -1, -1);
+    ASSERT_TRUE(structure_extent(v, elo, ehi));
+    for (int i = 0; i < v.nx; ++i)
+      for (int j = 0; j < v.ny; ++j)
+        for (int k = 0; k < v.nz; ++k)
+          if (solid(v, v.index(i, j, k))) {
+            a = a.cwiseMin(Eigen::Vector3i(i, j, k));
+            b = b.cwiseMax(Eigen::Vector3i(i, j, k));
+          }
+    EXPECT_EQ(elo, (a.array() - 1).max(0).matrix().eval());
+    EXPECT_EQ(ehi, (b.array() + 2).min(Eigen::Array3i(v.nx, v.ny, v.nz)).matrix().eval());
+  };
   const GridView g = grid_view(m);
+  expect_extent(g);
   ASSERT_TRUE(structure_extent(g, lo, hi));
-  Eigen::Vector3i a(g.nx, g.ny, g.nz), b(-1, -1, -1);
-  for (int i = 0; i < g.nx; ++i)
-    for (int j = 0; j < g.ny; ++j)
-      for (int k = 0; k < g.nz; ++k)
-        if (solid(g, g.index(i, j, k))) {
-          a = a.cwiseMin(Eigen::Vector3i(i, j, k));
-          b = b.cwiseMax(Eigen::Vector3i(i, j, k));
-        }
-  EXPECT_EQ(lo, (a.array() - 1).max(0).matrix().eval());
-  EXPECT_EQ(hi, (b.array() + 2).min(Eigen::Array3i(g.nx, g.ny, g.nz)).matrix().eval());
   const std::vector<std::pair<Eigen::Vector3i, Eigen::Vector3i>> boxes = {
       {{0, 0, 0}, {g.nx, g.ny, g.nz}}, {lo, hi}, {{3, 5, 2}, {30, 13, 9}}, {{5, 5, 5}, {5, 9, 9}}};
   std::size_t total = 0;
@@ -501,18 +506,7 @@ TEST(Exploration, TargetsAndExtentAreTheirDefinitionCellByCell) {
   m2.update_cells(wall, true);
   const GridView g2 = grid_view(m2);
   ASSERT_EQ(g2.predicted_cells, 0);
-  Eigen::Vector3i lo2, hi2;
-  ASSERT_TRUE(structure_extent(g2, lo2, hi2));  // the wall's cells grown by one
-  Eigen::Vector3i wa(g2.nx, g2.ny, g2.nz), wb(-1, -1, -1);
-  for (int i = 0; i < g2.nx; ++i)
-    for (int j = 0; j < g2.ny; ++j)
-      for (int k = 0; k < g2.nz; ++k)
-        if (solid(g2, g2.index(i, j, k))) {
-          wa = wa.cwiseMin(Eigen::Vector3i(i, j, k));
-          wb = wb.cwiseMax(Eigen::Vector3i(i, j, k));
-        }
-  EXPECT_EQ(lo2, (wa.array() - 1).max(0).matrix().eval());
-  EXPECT_EQ(hi2, (wb.array() + 2).min(Eigen::Array3i(g2.nx, g2.ny, g2.nz)).matrix().eval());
+  expect_extent(g2);  // the wall's cells grown by one
   for (const auto& [blo, bhi] :
        {std::pair<Eigen::Vector3i, Eigen::Vector3i>{{0, 0, 0}, {g2.nx, g2.ny, g2.nz}},
         {{3, 5, 2}, {30, 13, 9}}}) {
