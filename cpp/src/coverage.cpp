@@ -295,12 +295,10 @@ ExplorationTargets exploration_targets(const GridView& g, Eigen::Vector3i lo, Ei
     std::uint64_t cells = ~std::uint64_t(0);
     if (!open(brick)) {
       cells = 0;
-      std::size_t step = 1;
-      for (int a = 0; a < 3; step *= std::size_t(g.layout.bricks[a]), ++a) {
-        if (at[a] > 0 && open(brick - step)) cells |= kFaceCells[a][0];
-        if (at[a] + 1 < std::size_t(g.layout.bricks[a]) && open(brick + step))
-          cells |= kFaceCells[a][1];
-      }
+      g.layout.any_face_neighbour(brick, at, [&](int a, int side, std::size_t b) {
+        if (open(b)) cells |= kFaceCells[std::size_t(a)][std::size_t(side)];
+        return false;  // every face
+      });
       if (!cells) return;
     }
     std::vector<Found> found;

@@ -104,17 +104,24 @@ struct GridLayout {
     const std::size_t x = brick % std::size_t(bricks[0]), rest = brick / std::size_t(bricks[0]);
     return {x, rest % std::size_t(bricks[1]), rest / std::size_t(bricks[1])};
   }
+  /// Calls f(axis, side, b) for each brick b beside brick `brick` on a face (side 0: the low
+  /// end of the axis, 1: the high), axis by axis, low side first, until f returns true; returns
+  /// whether it did. `at`: the brick's place (brick_coords).
+  template <class F>
+  bool any_face_neighbour(std::size_t brick, const std::array<std::size_t, 3>& at, F&& f) const {
+    std::size_t step = 1;
+    for (int a = 0; a < 3; step *= std::size_t(bricks[a]), ++a)
+      if ((at[a] > 0 && f(a, 0, brick - step)) ||
+          (at[a] + 1 < std::size_t(bricks[a]) && f(a, 1, brick + step)))
+        return true;
+    return false;
+  }
   /// Whether pred(b) holds for a brick b beside brick `brick` on a face; `at`: the brick's place
   /// (brick_coords).
   template <class Pred>
   bool face_neighbour_brick(std::size_t brick, const std::array<std::size_t, 3>& at,
                             Pred&& pred) const {
-    std::size_t step = 1;
-    for (int a = 0; a < 3; step *= std::size_t(bricks[a]), ++a)
-      if ((at[a] > 0 && pred(brick - step)) ||
-          (at[a] + 1 < std::size_t(bricks[a]) && pred(brick + step)))
-        return true;
-    return false;
+    return any_face_neighbour(brick, at, [&](int, int, std::size_t b) { return pred(b); });
   }
   /// Whether pred(b) holds for brick b = `brick` or one of the bricks beside it on a face.
   template <class Pred>
