@@ -44,6 +44,14 @@ std::vector<std::array<int, 3>> walk(const GridView& g, const Eigen::Vector3d& o
   return cells;
 }
 
+/// n points drawn uniformly in the box [0, hi).
+Points random_points(std::mt19937& rng, const Eigen::Vector3d& hi, int n) {
+  std::uniform_real_distribution<double> ux(0, hi.x()), uy(0, hi.y()), uz(0, hi.z());
+  Points p(n, 3);
+  for (int r = 0; r < n; ++r) p.row(r) = Eigen::Vector3d(ux(rng), uy(rng), uz(rng)).transpose();
+  return p;
+}
+
 }  // namespace
 
 TEST(GridLayout, EveryCellHasItsOwnIdAndPaddingHoldsNone) {
@@ -449,12 +457,7 @@ TEST(Exploration, TargetsAndExtentAreTheirDefinitionCellByCell) {
   };
   OccupancyMap m(0.2, {0, 0, 0}, {7, 5.4, 3.4});  // 35 x 27 x 17 cells: part bricks at the edges
   std::mt19937 rng(11);
-  std::uniform_real_distribution<double> ux(0, 7), uy(0, 5.4), uz(0, 3.4);
-  auto random_points = [&](int n) {
-    Points p(n, 3);
-    for (int r = 0; r < n; ++r) p.row(r) = Eigen::Vector3d(ux(rng), uy(rng), uz(rng)).transpose();
-    return p;
-  };
+  auto random_points = [&](int n) { return ::random_points(rng, {7, 5.4, 3.4}, n); };
   const GridView empty = grid_view(m);
   Eigen::Vector3i lo, hi;
   EXPECT_FALSE(structure_extent(empty, lo, hi));  // nothing known occupied or predicted
@@ -529,12 +532,7 @@ TEST(Exploration, SurfaceTargetsPassOverOnlyBricksWithNoSolidCellNear) {
   std::size_t total = 0;
   for (int scene = 0; scene < 4; ++scene) {
     OccupancyMap m(0.2, {0, 0, 0}, {7.4, 5.4, 3.4});  // part bricks at the edges
-    std::uniform_real_distribution<double> ux(0, 7.4), uy(0, 5.4), uz(0, 3.4);
-    auto random_points = [&](int n) {
-      Points p(n, 3);
-      for (int r = 0; r < n; ++r) p.row(r) = Eigen::Vector3d(ux(rng), uy(rng), uz(rng)).transpose();
-      return p;
-    };
+    auto random_points = [&](int n) { return ::random_points(rng, {7.4, 5.4, 3.4}, n); };
     m.mark_free_segment({0.5, 0.5, 1.7}, {6.9, 4.9, 1.7}, 0.6 + 0.3 * scene);
     m.update_cells(random_points(200 + 300 * scene), true);
     m.update_cells(random_points(800), false);
