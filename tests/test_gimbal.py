@@ -500,3 +500,32 @@ def test_the_model_planner_plans_from_the_mesh_and_flies_with_the_real_camera():
     assert s["coverage"]["0.1"] > 0.65
     assert s["tours"] and s["tours"][0]["kept"] > 0
     assert s["tours"][0]["targets"] > 200  # the whole model is a target from the first plan
+
+
+def test_the_known_model_marks_every_cell_of_its_observable_surface_occupied(monkeypatch):
+    """write_model on a box: every cell holding a sample of the box's sides (seen head-on from
+    the navigation space, which reaches 1.6 m above the box's top) is occupied before the first
+    view, though the coarse frames alone leave some free (grazing rays along the walls carve
+    them), and the box's inside stays unknown (no ray enters it)."""
+    from conftest import box_mesh
+    from nbvkit.config import load_config
+    from nbvkit.planning.generators import model
+    from nbvkit.planning.parts import PlanningContext
+    from nbvkit.world import World
+
+    cfg = load_config(overrides=["scenario=model", *QUICK_RUN])
+    mesh = box_mesh((-3.1, -2.3, 0), (2.9, 1.7, 2.5))
+    pts = mesh.sample_surface(20000, 3)
+    sides = pts[(pts[:, 2] > 0.45) & (pts[:, 2] < 2.5 - 1e-9)]  # above the lowest cells
+    free = []
+    for mark in (False, True):
+        world = World(cfg, mesh=mesh)
+        with monkeypatch.context() as m:
+            if not mark:  # the coarse frames alone
+                m.setattr(model, "mark_occupied", lambda *a, **k: None)
+            frames = model.write_model(world, cfg.model, PlanningContext.of(cfg))
+        assert frames > 0
+        free.append(np.count_nonzero(world.map.state(sides) != 1))
+        assert np.all(world.map.state(np.array([[-0.1, -0.3, 1.25]])) == -1)  # the inside
+    assert free[0] > 0.01 * len(sides)  # the frames alone miss some: what this test is about
+    assert free[1] == 0, f"{free[1]} of {len(sides)} side samples' cells not occupied"

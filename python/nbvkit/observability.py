@@ -47,7 +47,7 @@ from .limits import Bound
 from .sensors import build_camera
 from .settings import cpp_section
 
-__all__ = ["ObservableSurface", "observable_surface", "sample_normals"]
+__all__ = ["ObservableSurface", "observability_options", "observable_surface", "sample_normals"]
 
 #: bump when the method changes, so old caches are not reused
 _METHOD_VERSION = 4
@@ -208,12 +208,20 @@ def observable_surface(
     return _compute(mesh, cfg, points, normals(), ws, settings, scene)
 
 
+def observability_options(config, **changes) -> _core.ObservabilityOptions:
+    """The C++ options of the observability section with the camera's gimbal range (what a
+    pose of this vehicle can see), and `changes` (e.g. pose_spacing=4.0)."""
+    pitch = config.camera.gimbal_pitch_deg
+    return config.observability.options().copy(
+        gimbal_min_deg=pitch[0], gimbal_max_deg=pitch[1], **changes
+    )
+
+
 def _compute(mesh, cfg, points, normals, ws, settings, scene) -> ObservableSurface:
     t0 = time.perf_counter()
     scene = scene or _core.RaycastScene(mesh)
     # only its field of view, ranges and mount are used
     camera = build_camera(cfg.camera, scene, cfg.seed, width=16, height=12, noise_k=0.0)
-    o = cfg.observability
     r = _core.observable_samples(
         scene,
         points,
@@ -221,10 +229,7 @@ def _compute(mesh, cfg, points, normals, ws, settings, scene) -> ObservableSurfa
         camera,
         ws.nav_min,
         ws.nav_max,
-        options=o.options().copy(
-            gimbal_min_deg=cfg.camera.gimbal_pitch_deg[0],
-            gimbal_max_deg=cfg.camera.gimbal_pitch_deg[1],
-        ),
+        options=observability_options(cfg),
         collision_radius=cfg.vehicle.collision_radius,
     )
     mask = np.asarray(r.observable, bool)
