@@ -5,10 +5,10 @@ Before the first view the structure's mesh is written into the map as it would b
 lattice of collision-free positions reachable from outside the structure (the observable
 surface's, nbvkit._core.observable_samples), coarse noise-free depth frames in every direction
 are ray-cast against the mesh and integrated, so the map knows the free space round the
-structure; then every cell holding an observable sample of the mesh (samples a quarter cell
-apart, seen by the camera on its gimbal from one of those positions) is marked occupied, so the
-map knows all the surface a camera could see, as a model does (the coarse frames alone mark
-about two thirds of it: they pass the rest at grazing angles or carve it free). Then the
+structure; then every cell holding an observable sample of the mesh (samples an eighth of a
+cell apart, seen by the camera on its gimbal from one of those positions) is marked occupied,
+so the map knows all the surface a camera could see, as a model does (the coarse frames alone
+mark about two thirds of it: they pass the rest at grazing angles or carve it free). Then the
 coverage tours of the surface planner (tour.py: surface targets -> placement -> the surface
 utility -> set cover -> tour) plan over every surface cell of the model, legs are planned
 through the model's free space (A*), and the views are flown with the real camera: coverage,
@@ -38,7 +38,7 @@ class ModelConfig:
     frame_rays: int = within(48, 4, 1024)  # rays across each coarse 90 x 90 deg frame (square)
     # the tours' thresholds, as tour.min_gain and tour.rate; the rate dearer than the online
     # tours' (0.75): a plan over the whole surface, with frames every 0.5 m (the model preset),
-    # flies 0.74 x the online planner's distance on the aircraft, covering more (RESULTS.md)
+    # flies 0.67 x the online planner's distance on the aircraft, covering more (RESULTS.md)
     min_gain: float = nonneg(TourConfig.min_gain)  # m^2 of new surface a planned view must add
     rate: float = nonneg(0.9)  # m^2 per metre of tour a planned view must pay for
 
@@ -82,8 +82,9 @@ def write_model(world, settings: ModelConfig, ctx) -> int:
     cells of the mesh's observable samples; returns the frames integrated. The vehicle's own
     state is untouched."""
     ws, res = world.workspace, world.map.resolution
-    # samples a quarter cell apart: every cell the surface crosses holds some
-    count = int(min(MAX_SURFACE_SAMPLES, world.mesh.area / (res / 4) ** 2))
+    # samples an eighth of a cell apart: every cell the surface crosses holds some, also where it
+    # only cuts a cell's corner (a quarter cell apart leaves 4 % of the twinjet's cells empty)
+    count = int(min(MAX_SURFACE_SAMPLES, world.mesh.area / (res / 8) ** 2))
     points, faces = world.mesh.sample_surface(count, 0, return_faces=True)
     seen = _core.observable_samples(
         world.scene,
@@ -121,8 +122,8 @@ def write_model(world, settings: ModelConfig, ctx) -> int:
     return frames
 
 
-#: Mesh samples written as the model's surface at most (a quarter cell apart, 4 million cover
-#: 10,000 m^2 at the 0.2 m map, 40,000 m^2 at 0.4 m; a larger surface gets sparser samples,
+#: Mesh samples written as the model's surface at most (an eighth of a cell apart, 4 million
+#: cover 2,500 m^2 at the 0.2 m map, 10,000 m^2 at 0.4 m; a larger surface gets sparser samples,
 #: still well under a cell apart: 0.07 m on a 19,700 m^2 plant at 0.2 m).
 MAX_SURFACE_SAMPLES = 4_000_000
 
