@@ -865,6 +865,41 @@ def test_view_coverage_prescreen_leaves_only_views_its_coarse_rays_estimate_belo
         _core.view_coverage(m, surface, poses, current, min_gain=mg, coarse_stride=-1, **kw)
 
 
+
+def test_view_coverage_coarse_margin_walks_only_views_estimated_above_its_multiple():
+    # coarse_margin m: a view is walked whole only where its coarse estimate reaches m x
+    # min_gain. At 2 the views pruned are those estimated below twice min_gain (a superset of
+    # margin 1's), every walked view keeps its exact set, and a margin not finite and > 0 is
+    # refused before any work.
+    m, surface, poses, current, kw = _box_seen_from_two_sides()
+    whole = _core.view_coverage(m, surface, poses, current, **kw)
+    valid, sums = whole["status"] == 0, _set_sums(whole)
+    mg = float(np.median(sums[valid & (sums > 0)])) / 2
+    exact = _core.view_coverage(m, surface, poses, current, min_gain=mg, **kw)
+    one, two = (
+        _core.view_coverage(
+            m, surface, poses, current, min_gain=mg, coarse_stride=3, coarse_margin=c, **kw
+        )
+        for c in (1.0, 2.0)
+    )
+    estimate = np.where(two["pruned"], two["gain"], np.inf)
+    assert (estimate[two["pruned"]] < 2 * mg).all()
+    assert (one["pruned"] <= two["pruned"]).all() and two["pruned"].sum() > one["pruned"].sum()
+    # those left out at 2 and not at 1 are the views estimated between min_gain and twice it
+    newly = two["pruned"] & ~one["pruned"]
+    assert ((two["gain"][newly] >= mg) & (two["gain"][newly] < 2 * mg)).all()
+    sizes, exact_sizes = np.diff(two["offsets"]), np.diff(exact["offsets"])
+    walked = ~two["pruned"]
+    np.testing.assert_array_equal(sizes[walked], exact_sizes[walked])
+    held = np.repeat(walked, exact_sizes)
+    np.testing.assert_array_equal(two["elements"], exact["elements"][held])
+    np.testing.assert_array_equal(two["weights"], exact["weights"][held])
+    for bad in (0.0, -1.0, float("nan"), float("inf")):
+        with pytest.raises(ValueError, match="coarse_margin"):
+            _core.view_coverage(
+                m, surface, poses, current, min_gain=mg, coarse_stride=3, coarse_margin=bad, **kw
+            )
+
 def _unseen_wall(x):
     """(map, surface record, kw): in a 16 x 12 x 8 m map, a wall of occupied cells across
     x = `x` that no camera has seen, the camera's cell at the origin known free; a surface

@@ -183,7 +183,7 @@ Entries that none of the last keep_calls calls used are dropped, and beyond max_
       [](const OccupancyMap& map, const SurfaceObservations& surface, const py::handle& candidates,
          const py::handle& current, const py::object& camera, const py::object& utility,
          const py::object& validity, const std::shared_ptr<CoverageMemo>& memo, double min_gain,
-         int coarse_stride, bool pool_unknown) {
+         int coarse_stride, bool pool_unknown, double coarse_margin) {
         const ViewPosesArg c = view_poses_arg(candidates, "candidates");
         const auto cm = c.map();
         const Pose cur = pose_arg(current, "current pose");
@@ -196,7 +196,7 @@ Entries that none of the last keep_calls calls used are dropped, and beyond max_
           std::unique_lock<std::mutex> lock;  // one call at a time per memo
           if (memo) lock = std::unique_lock<std::mutex>(memo->mutex());
           cov = view_coverage(grid_view(map, &surface), cm, cur, cam, u, v, memo.get(), min_gain,
-                              coarse_stride, pool_unknown);
+                              coarse_stride, pool_unknown, coarse_margin);
         }
         py::dict d;  // the arrays handed to numpy as they are (a plant's plan: 50 M elements)
         d["offsets"] = py::cast(std::move(cov.offsets));
@@ -213,6 +213,7 @@ Entries that none of the last keep_calls calls used are dropped, and beyond max_
       py::arg("camera") = py::none(), py::arg("utility") = py::none(),
       py::arg("validity") = py::none(), py::arg("memo") = nullptr, py::arg("min_gain") = 0.0,
       py::arg("coarse_stride") = 0, py::arg("pool_unknown") = false,
+      py::arg("coarse_margin") = 1.0,
       R"doc(What each candidate view ((K, 4) rows x, y, z, yaw, or (K, 5) with the gimbal's pitch,
 as evaluate_views) would newly cover, as the surface utility credits it
 (utility: its priors and cone; the name is ignored): CSR dict offsets (K + 1,), elements (int32:
@@ -222,9 +223,10 @@ arrays, fewer walks). min_gain > 0 (in cells, as select_tours takes it): a valid
 weights sum below it keeps its status and an empty set; select_tours at that min_gain or above
 chooses the same. coarse_stride > 0 with min_gain > 0: a candidate is first walked along every
 coarse_stride-th ray across and down, and one whose gain so estimated (the rays' gain plus one
-cell, times all rays over those) is below min_gain gets an empty set without its whole walk:
-pruned (K,) bool marks them (an estimate: surface near the camera, reached by several rays a
-cell, is estimated high; with stride 1, the arrays are those without it). gain (K,) float64: a
+cell, times all rays over those) is below coarse_margin x min_gain gets an empty set without
+its whole walk: pruned (K,) bool marks them (an estimate: surface near the camera, reached by
+several rays a cell, is estimated high; with stride 1 and margin 1, the arrays are those
+without it; a margin above 1 walks fewer views, leaving out a few that would reach min_gain). gain (K,) float64: a
 valid view's gain in cells (its walk's sum, as its weights'; a pruned view's estimate), 0 for
 the others. pool_unknown: the credits of unknown cells at the utility's unknown_prior (not next
 to surface; most of a view's elements, little of its weight) are pooled per brick of 4 x 4 x 4

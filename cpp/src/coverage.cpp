@@ -565,9 +565,11 @@ void keep_within(const CoverageMemo& memo, std::vector<CoverageMemo::Entry>& fre
 ViewCoverage view_coverage(const GridView& g, const ViewPosesRef& cand, const Pose& current,
                            const ViewCameraModel& camera, const UtilityOptions& utility,
                            const ValidityOptions& validity, CoverageMemo* memo, double min_gain,
-                           int coarse_stride, bool pool_unknown) {
+                           int coarse_stride, bool pool_unknown, double coarse_margin) {
   if (!std::isfinite(min_gain)) throw std::invalid_argument("view_coverage: min_gain not finite");
   if (coarse_stride < 0) throw std::invalid_argument("view_coverage: coarse_stride below 0");
+  if (!(coarse_margin > 0.0) || !std::isfinite(coarse_margin))
+    throw std::invalid_argument("view_coverage: coarse_margin must be finite and > 0");
   g.validate();
   camera.validate();
   utility.validate();
@@ -697,7 +699,7 @@ ViewCoverage view_coverage(const GridView& g, const ViewPosesRef& cand, const Po
   };
   std::vector<std::uint8_t> pruned;
   if (min_gain > 0.0 && coarse_stride > 0) {
-    job.prune_below = min_gain;
+    job.prune_below = min_gain * coarse_margin;
     job.coarse_stride = coarse_stride;
     job.pruned = &pruned;
   }

@@ -211,9 +211,11 @@ class CoverageMemo {
 /// walked along every coarse_stride-th ray across and down: the rays' gain plus one fully
 /// weighted cell (one they missed), times all rays over those, estimates its gain (high for
 /// surface near the camera, where several rays reach each cell; a sample at the far range). One
-/// estimated below min_gain gets an empty set without its whole walk (pruned = 1) and no memo
-/// record; the others are walked whole, as without it. With stride 1 the estimate is the gain
-/// plus one cell: the same arrays as with coarse_stride 0.
+/// estimated below coarse_margin x min_gain gets an empty set without its whole walk (pruned =
+/// 1); the others are walked whole, as without it. With stride 1 and margin 1 the estimate is
+/// the gain plus one cell: the same arrays as with coarse_stride 0. A margin above 1 answers
+/// the estimate's bias (2.5-3 x the walked gain on the aircraft, docs/RESULTS.md): fewer walks
+/// that end below min_gain, and a few views that would reach it left out.
 /// With pool_unknown, the credits of unknown cells at the utility's unknown_prior (not next to
 /// surface: the bulk of a view's elements, 85-96 % on a 100 m plant, and 3-16 % of its weight)
 /// are pooled per brick of 4 x 4 x 4 cells: one element per brick a view's rays credit so, past
@@ -228,7 +230,8 @@ ViewCoverage view_coverage(const GridView& grid, const ViewPosesRef& candidates,
                            const Pose& current, const ViewCameraModel& camera,
                            const UtilityOptions& utility, const ValidityOptions& validity,
                            CoverageMemo* memo = nullptr, double min_gain = 0.0,
-                           int coarse_stride = 0, bool pool_unknown = false);
+                           int coarse_stride = 0, bool pool_unknown = false,
+                           double coarse_margin = 1.0);
 /// The coverage element of the pooled unknown space of `brick` (view_coverage's pool_unknown):
 /// 2 x the grid's cells + brick, past every cell's element (cell x 2 + side).
 inline std::uint32_t pooled_element(const GridView& grid, std::size_t brick) {
