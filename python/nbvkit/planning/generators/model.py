@@ -51,8 +51,11 @@ class ModelPlan:
     def __init__(self, settings: ModelConfig, context):
         self.settings = settings
         self.ctx = context
-        # the surface planner's tours, on the model: no exploration (nothing is unknown)
-        tour = TourConfig(min_gain=settings.min_gain, rate=settings.rate, explore=False)
+        # the surface planner's tours, on the model: no exploration (nothing is unknown), and
+        # every view that may add min_gain walked (the reference leaves none out on an estimate)
+        tour = TourConfig(
+            min_gain=settings.min_gain, rate=settings.rate, explore=False, coarse_margin=1.0
+        )
         self.tour = CoverageTour(tour, context)
         self.known = False
         self.stop_reason = None
