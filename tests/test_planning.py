@@ -865,7 +865,6 @@ def test_view_coverage_prescreen_leaves_only_views_its_coarse_rays_estimate_belo
         _core.view_coverage(m, surface, poses, current, min_gain=mg, coarse_stride=-1, **kw)
 
 
-
 def test_view_coverage_coarse_margin_walks_only_views_estimated_above_its_multiple():
     # coarse_margin m: a view is walked whole only where its coarse estimate reaches m x
     # min_gain. At 2 the views pruned are those estimated below twice min_gain (a superset of
@@ -899,6 +898,7 @@ def test_view_coverage_coarse_margin_walks_only_views_estimated_above_its_multip
             _core.view_coverage(
                 m, surface, poses, current, min_gain=mg, coarse_stride=3, coarse_margin=bad, **kw
             )
+
 
 def _unseen_wall(x):
     """(map, surface record, kw): in a 16 x 12 x 8 m map, a wall of occupied cells across

@@ -212,8 +212,7 @@ Entries that none of the last keep_calls calls used are dropped, and beyond max_
       py::arg("map"), py::arg("surface"), py::arg("candidates"), py::arg("current"),
       py::arg("camera") = py::none(), py::arg("utility") = py::none(),
       py::arg("validity") = py::none(), py::arg("memo") = nullptr, py::arg("min_gain") = 0.0,
-      py::arg("coarse_stride") = 0, py::arg("pool_unknown") = false,
-      py::arg("coarse_margin") = 1.0,
+      py::arg("coarse_stride") = 0, py::arg("pool_unknown") = false, py::arg("coarse_margin") = 1.0,
       R"doc(What each candidate view ((K, 4) rows x, y, z, yaw, or (K, 5) with the gimbal's pitch,
 as evaluate_views) would newly cover, as the surface utility credits it
 (utility: its priors and cone; the name is ignored): CSR dict offsets (K + 1,), elements (int32:
@@ -226,15 +225,15 @@ coarse_stride-th ray across and down, and one whose gain so estimated (the rays'
 cell, times all rays over those) is below coarse_margin x min_gain gets an empty set without
 its whole walk: pruned (K,) bool marks them (an estimate: surface near the camera, reached by
 several rays a cell, is estimated high; with stride 1 and margin 1, the arrays are those
-without it; a margin above 1 walks fewer views, leaving out a few that would reach min_gain). gain (K,) float64: a
-valid view's gain in cells (its walk's sum, as its weights'; a pruned view's estimate), 0 for
-the others. pool_unknown: the credits of unknown cells at the utility's unknown_prior (not next
-to surface; most of a view's elements, little of its weight) are pooled per brick of 4 x 4 x 4
-cells, one element each (2 x the grid's storage cells + the brick, past every cell's element),
-weighing their sum: the same gains and status, far fewer elements. pooled_from (int; -1 when not
-pooled) and pool_cap (float): the first pooled element, and the weight a brick holds at most;
-select_cover and select_tours count a pooled brick's cover as a share of it
-(nbv/coverage.hpp).)doc");
+without it; a margin above 1 walks fewer views, leaving out a few that would reach
+min_gain). gain (K,) float64: a valid view's gain in cells (its walk's sum, as its weights'; a
+pruned view's estimate), 0 for the others. pool_unknown: the credits of unknown cells at the
+utility's unknown_prior (not next to surface; most of a view's elements, little of its weight)
+are pooled per brick of 4 x 4 x 4 cells, one element each (2 x the grid's storage cells + the
+brick, past every cell's element), weighing their sum: the same gains and status, far fewer
+elements. pooled_from (int; -1 when not pooled) and pool_cap (float): the first pooled element,
+and the weight a brick holds at most; select_cover and select_tours count a pooled brick's cover
+as a share of it (nbv/coverage.hpp).)doc");
   m.def(
       "select_cover",
       [](const py::dict& coverage, double min_gain, int max_views) {
