@@ -82,13 +82,13 @@ class TourConfig:
     # exploring the unknown space of the whole workspace from the first plan
     region_size: Optional[float] = positive(None)  # m; null: one region
     # a candidate is first walked along every coarse_stride-th ray across and down; one whose
-    # gain so estimated is below the plan's min_gain is not walked whole (view_coverage; with
-    # tour.access_weight every candidate is: credit may lift it). 0: every candidate walked whole
+    # gain so estimated is below coarse_margin x the plan's min_gain is not walked whole
+    # (view_coverage; with tour.access_weight every candidate is: credit may lift it). 0: every
+    # candidate walked whole
     coarse_stride: int = within(3, 0, 64)  # rays of the estimate before a walk; 0: off
-    # ... walked whole only where the estimate reaches coarse_margin x min_gain: it runs 2.5-3.1
-    # x the walked gain (the median over views reaching min_gain on the airliner); at 2, 15 %
-    # less planning a view, 8 of 10 aircraft flights the same (RESULTS.md); 1: every view that
-    # might reach min_gain is walked
+    # the estimate runs 2.5-3.1 x the walked gain (the median over views reaching min_gain on
+    # the airliner); at 2, 15 % less planning a view, 8 of 10 aircraft flights the same
+    # (RESULTS.md); 1: every view that might reach min_gain is walked
     coarse_margin: float = positive(2.0)  # multiple of min_gain an estimate must reach
     # a view's credits of unknown space away from surface (utility.unknown_prior: most of its
     # coverage elements, 3-16 % of its gain on a plant) pooled per brick of 4 x 4 x 4 cells, one
