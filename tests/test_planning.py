@@ -698,6 +698,18 @@ def _set_sums(cov):
     return np.array([cov["weights"][a:b].astype(float).sum() for a, b in zip(off[:-1], off[1:])])
 
 
+def _assert_walked_sets_exact(coarse, exact):
+    """Every view `coarse` walked (not pruned) holds its set of `exact` (the call without a
+    prescreen), element for element; the pruned ones hold none."""
+    pruned = coarse["pruned"]
+    sizes, exact_sizes = np.diff(coarse["offsets"]), np.diff(exact["offsets"])
+    assert (sizes[pruned] == 0).all()
+    np.testing.assert_array_equal(sizes[~pruned], exact_sizes[~pruned])
+    held = np.repeat(~pruned, exact_sizes)
+    np.testing.assert_array_equal(coarse["elements"], exact["elements"][held])
+    np.testing.assert_array_equal(coarse["weights"], exact["weights"][held])
+
+
 def test_view_coverage_sets_hold_what_the_surface_utility_credits_each_view():
     # view_coverage walks with its own packed copy of the grid (one byte a cell); each view's
     # set must hold the cells the surface utility credits walking the grid itself, and weigh
@@ -833,12 +845,7 @@ def test_view_coverage_prescreen_leaves_only_views_its_coarse_rays_estimate_belo
     np.testing.assert_array_equal(coarse["status"], whole["status"])
     pruned = coarse["pruned"]
     assert pruned.sum() >= 5 and not pruned[~valid].any()
-    sizes, exact_sizes = np.diff(coarse["offsets"]), np.diff(exact["offsets"])
-    assert (sizes[pruned] == 0).all()
-    np.testing.assert_array_equal(sizes[~pruned], exact_sizes[~pruned])
-    held = np.repeat(~pruned, exact_sizes)
-    np.testing.assert_array_equal(coarse["elements"], exact["elements"][held])
-    np.testing.assert_array_equal(coarse["weights"], exact["weights"][held])
+    _assert_walked_sets_exact(coarse, exact)
     assert (coarse["gain"][pruned] < mg).all()
     # the estimate errs high: most views below min_gain are pruned, few above it
     below = valid & (sums < mg)
@@ -881,18 +888,12 @@ def test_view_coverage_coarse_margin_walks_only_views_estimated_above_its_multip
         )
         for c in (1.0, 2.0)
     )
-    estimate = np.where(two["pruned"], two["gain"], np.inf)
-    assert (estimate[two["pruned"]] < 2 * mg).all()
+    assert (two["gain"][two["pruned"]] < 2 * mg).all()
     assert (one["pruned"] <= two["pruned"]).all() and two["pruned"].sum() > one["pruned"].sum()
     # those left out at 2 and not at 1 are the views estimated between min_gain and twice it
     newly = two["pruned"] & ~one["pruned"]
     assert ((two["gain"][newly] >= mg) & (two["gain"][newly] < 2 * mg)).all()
-    sizes, exact_sizes = np.diff(two["offsets"]), np.diff(exact["offsets"])
-    walked = ~two["pruned"]
-    np.testing.assert_array_equal(sizes[walked], exact_sizes[walked])
-    held = np.repeat(walked, exact_sizes)
-    np.testing.assert_array_equal(two["elements"], exact["elements"][held])
-    np.testing.assert_array_equal(two["weights"], exact["weights"][held])
+    _assert_walked_sets_exact(two, exact)
     for bad in (0.0, -1.0, float("nan"), float("inf")):
         with pytest.raises(ValueError, match="coarse_margin"):
             _core.view_coverage(
