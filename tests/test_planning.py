@@ -516,6 +516,21 @@ def test_the_surface_planner_tours_and_stops_by_itself():
 
 
 @pytest.mark.slow
+def test_with_replan_views_no_tour_flies_more_views_before_the_next_plan():
+    """tour.replan_views: a tour is planned again once that many of its views were flown, so no
+    plan flies more; the box is covered as with whole tours."""
+    cfg = load_config(overrides=["max_iterations=400", "tour.replan_views=2", *QUICK])
+    m = Mission(cfg, mesh=box_mesh((-4, -3, 0), (4, 3, 5)))
+    s = m.run()
+    assert s["termination"] == "coverage_complete"
+    flown = [t["flown"] for t in s["tours"]]
+    assert max(flown) == 2 and sum(flown) == s["iterations"], flown
+    # a plan cut short kept more views than it flew: the rest was planned again
+    assert any(t["kept"] > t["flown"] == 2 for t in s["tours"]), s["tours"]
+    assert s["area_coverage"]["0.1"] > 0.7
+
+
+@pytest.mark.slow
 def test_with_the_fallback_placement_every_flown_view_was_feasible_when_planned():
     """placement.fallback in a mission: the box on the ground's lower patches get views from
     tilted directions where their own leave the navigation space; each plan reports the patches

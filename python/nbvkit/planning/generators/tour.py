@@ -8,7 +8,8 @@ cover (nbvkit._core.view_coverage: cells and the side they are seen from) -> a g
 tour.rate m^2 per metre of the detour they cause are dropped, the worst first, until every view
 pays. The tour is then proposed one view at a time (exclusive proposals): the planner re-scores
 each against the current map and skips it when it no longer adds tour.min_gain. When the tour is
-done the next plan is made from what the map shows then. With tour.explore, once a plan keeps no
+done (or once tour.replan_views of its views were flown) the next plan is made from what the map
+shows then. With tour.explore, once a plan keeps no
 view, every later plan also weighs views of the unknown space within the structure's extent
 (exploration_targets: parts of the structure nothing has shown yet hold no surface target; with
 tour.explore_first, by default on a large workspace, every plan does, the first one included); a
@@ -96,6 +97,10 @@ class TourConfig:
     # longer than 6 camera ranges (workspace.is_large); not with access_weight (which looks
     # for single unknown cells in the sets)
     pool_unknown: Optional[bool] = None  # unknown space pooled per brick; null: by size
+    # a tour is planned again from the map of the moment once this many of its views were
+    # flown (what the views and the frames of their legs saw makes the rest of it stale); 0:
+    # only when it is done
+    replan_views: int = within(0, 0, 10**6)  # views flown before the tour is planned again
 
     def __post_init__(self):
         if self.pool_unknown and self.access_weight > 0:
@@ -333,6 +338,9 @@ class CoverageTour:
 
     # ------------------------------------------------------------------ generator
     def propose(self, world):
+        every = self.settings.replan_views
+        if every and self.plans and self.plans[-1]["flown"] >= every:
+            self.next = len(self.views)  # the rest of the tour is planned again
         if self.next >= len(self.views):
             last = self.plans[-1] if self.plans else None
             unflyable = last is not None and last["kept"] and not last["flown"]
