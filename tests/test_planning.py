@@ -528,6 +528,12 @@ def test_with_replan_views_no_tour_flies_more_views_before_the_next_plan():
     # a plan cut short kept more views than it flew: the rest was planned again
     assert any(t["kept"] > t["flown"] == 2 for t in s["tours"]), s["tours"]
     assert s["area_coverage"]["0.1"] > 0.7
+    # with tour.max_plans reached, the last tour is flown to its end, not cut short
+    cfg = load_config(
+        overrides=["max_iterations=400", "tour.replan_views=2", "tour.max_plans=1", *QUICK]
+    )
+    (only,) = Mission(cfg, mesh=box_mesh((-4, -3, 0), (4, 3, 5))).run()["tours"]
+    assert only["flown"] > 2, only
 
 
 @pytest.mark.slow

@@ -338,10 +338,7 @@ class CoverageTour:
 
     # ------------------------------------------------------------------ generator
     def propose(self, world):
-        every = self.settings.replan_views
-        if every and self.plans and self.plans[-1]["flown"] >= every:
-            self.next = len(self.views)  # the rest of the tour is planned again
-        if self.next >= len(self.views):
+        if self.next >= len(self.views) or self._replan_due():
             last = self.plans[-1] if self.plans else None
             unflyable = last is not None and last["kept"] and not last["flown"]
             if unflyable and last["reachable_only"]:
@@ -373,6 +370,14 @@ class CoverageTour:
                 return None
         k = slice(self.next, self.next + 1)
         return Proposal(self.views[k], "tour", exclusive=True, aims=self.aims[k])
+
+    def _replan_due(self) -> bool:
+        """Whether the rest of the tour is planned again (tour.replan_views of it flown, and
+        tour.max_plans leaves another plan: else the tour is flown to its end)."""
+        every, cap = self.settings.replan_views, self.settings.max_plans
+        if not every or not self.plans or (cap and len(self.plans) >= cap):
+            return False
+        return self.plans[-1]["flown"] >= every
 
     def feedback(self, world, proposal, step):
         self.next += 1  # flown or skipped, the tour moves on
