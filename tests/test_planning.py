@@ -940,6 +940,64 @@ def _unseen_wall(x):
     return m, _core.SurfaceObservations(m), kw
 
 
+def test_max_incidence_credits_a_surface_cell_only_for_rays_near_its_normal():
+    # A slab 1 m thick across x = 4.1..5.1, unseen: its front cells' open faces give the normal
+    # -x. From the origin looking along +x, utility.max_incidence_deg = 20 credits exactly the
+    # cells whose rays meet the slab within 20 deg of the normal (up to a cell's width of angle
+    # at the boundary), every credit a subset of the default's (90: every cell in view), the
+    # weights unchanged; the same view turned 55 deg meets none so closely. incidence_min_hits
+    # above the cells' camera hits (none) leaves the rule off. Out of range: refused by name.
+    m, surface, kw = _unseen_wall(4.1)
+    for x in np.arange(4.3, 5.1, 0.2):
+        y, z = np.meshgrid(np.arange(-5.9, 6.0, 0.2), np.arange(-3.9, 4.0, 0.2))
+        m.update_cells(np.column_stack([np.full(y.size, x), y.ravel(), z.ravel()]), occupied=True)
+    pose = np.array([[0.0, 0.0, 0.0, 0.0]])
+
+    def credited(pose, **utility):
+        u = dict(kw["utility"], **utility)
+        c = _core.view_coverage(m, surface, pose, pose[0], **dict(kw, utility=u))
+        e, w = np.asarray(c["elements"]), np.asarray(c["weights"])
+        return dict(zip(e[w > 0].tolist(), w[w > 0].tolist()))  # the slab (unknown cells: 0)
+
+    every, near = credited(pose), credited(pose, max_incidence_deg=20.0)
+    assert len(every) > 300 and 0 < len(near) < len(every) / 2
+    assert all(every[e] == w for e, w in near.items())
+    # the credited cells' centres, by the elements' cell ids (cell * 2 + side)
+    lo, n = np.array([-5.0, -6.0, -4.0]), np.array([80, 60, 40])
+    bricks = (n + 3) // 4
+
+    def angle_deg(elements):
+        cell = np.array(sorted(elements)) // 2
+        b, r = cell >> 6, cell & 63
+        ijk = np.column_stack(
+            [
+                4 * (b % bricks[0]) + (r & 3),
+                4 * (b // bricks[0] % bricks[1]) + (r >> 2 & 3),
+                4 * (b // (bricks[0] * bricks[1])) + (r >> 4),
+            ]
+        )
+        c = lo + 0.2 * (ijk + 0.5)
+        assert np.allclose(c[:, 0], 4.1, atol=0.11)  # the front face only: rays stop there
+        return np.degrees(np.arctan2(np.hypot(c[:, 1], c[:, 2]), c[:, 0]))
+
+    assert angle_deg(near).max() <= 20.0 + 2.0
+    outside = angle_deg(set(every) - set(near))
+    assert outside.min() >= 20.0 - 2.0 and outside.max() > 30.0
+    turned = np.array([[0.0, 0.0, 0.0, math.radians(55.0)]])
+    assert len(credited(turned)) > 100 and not credited(turned, max_incidence_deg=20.0)
+    assert credited(pose, max_incidence_deg=20.0, incidence_min_hits=1) == every
+    for bad in (
+        dict(max_incidence_deg=0.0),
+        dict(max_incidence_deg=95.0),
+        dict(max_incidence_deg=float("nan")),
+        dict(incidence_min_hits=-1),
+    ):
+        with pytest.raises(ValueError, match=next(iter(bad))):
+            credited(pose, **bad)
+    with pytest.raises(ValueError, match="max_incidence_deg"):
+        load_config(overrides=["utility.max_incidence_deg=120"])
+
+
 def test_the_coverage_memo_keeps_a_record_through_changes_outside_its_view_only():
     # A record holds while nothing within the view's frustum (its field of view out to
     # max_range) changes: hits behind the camera or beyond its range keep it; one within the

@@ -637,7 +637,8 @@ ViewCoverage view_coverage(const GridView& g, const ViewPosesRef& cand, const Po
     geometry.insert(geometry.end(),
                     {double(u.require_occupied), u.require_occupied_probability, u.min_visibility,
                      u.frontier_prior, u.unknown_prior, u.coverage_cone_deg, u.dense_spacing,
-                     camera.pixel_pitch_deg, double(pool_unknown)});
+                     u.max_incidence_deg, double(u.incidence_min_hits), camera.pixel_pitch_deg,
+                     double(pool_unknown)});
     if (!memo->begin(g, geometry)) memo = nullptr;
   }
   if (memo) {

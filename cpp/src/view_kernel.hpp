@@ -216,6 +216,9 @@ ViewScores score(const Job& job, const Cells& cells) {
   const bool check_segment = v.blocked_path == "reject";
   const double dense_range =
       job.utility.dense_spacing / (job.camera.pixel_pitch_deg * M_PI / 180.0);
+  const double min_cos = job.utility.max_incidence_deg < 90.0
+                             ? std::cos(job.utility.max_incidence_deg * M_PI / 180.0)
+                             : 0.0;
 
   // four rays at a time (mark_rays4), for a utility that sums over the distinct cells its rays
   // enter up to their first occupied cell
@@ -318,7 +321,7 @@ ViewScores score(const Job& job, const Cells& cells) {
         visited.reset(g.storage_size());
         credits.clear();
         utility::ViewContext ctx{
-            g, job.utility, visited, cones, job.on_view ? &credits : nullptr, dense_range};
+            g, job.utility, visited, cones, job.on_view ? &credits : nullptr, dense_range, min_cos};
         Utility u(ctx);
         bool ray_occ = false;
         auto visit = [&](std::size_t idx, const int* c, double t) {
@@ -424,7 +427,8 @@ ViewScores score(const Job& job, const Cells& cells) {
         const Eigen::Vector3d o = T.translation();
         const Eigen::Matrix3d R = T.linear();
         coarse_visited.reset(g.storage_size());
-        utility::ViewContext ctx{g, job.utility, coarse_visited, cones, nullptr, dense_range};
+        utility::ViewContext ctx{g,       job.utility, coarse_visited, cones,
+                                 nullptr, dense_range, min_cos};
         Utility u(ctx);
         auto visit = [&](std::size_t idx, const int* c, double t) {
           return u.visit(cells, idx, c, t, cells.scored(idx, c));

@@ -134,6 +134,9 @@ void UtilityOptions::validate() const {
   check(weight_entropy, weight_entropy >= 0, "weight_entropy", ">= 0");
   check(weight_density, weight_density >= 0, "weight_density", ">= 0");
   check(dense_spacing, dense_spacing >= 0, "dense_spacing", ">= 0");
+  check(max_incidence_deg, max_incidence_deg > 0 && max_incidence_deg <= 90, "max_incidence_deg",
+        "in (0, 90]");
+  check(incidence_min_hits, incidence_min_hits >= 0, "incidence_min_hits", ">= 0");
   check(weight_prediction, weight_prediction >= 0, "weight_prediction", ">= 0");
 }
 

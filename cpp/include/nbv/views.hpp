@@ -80,7 +80,14 @@ struct ViewCameraModel {
   X(double, dense_spacing, 0.0,                                                                 \
     "surface: the sample spacing (m) that dense coverage needs; a cell the camera would see "   \
     "at range r and incidence i counts min(1, dense_spacing * cos(i) / (r * pixel pitch)) "     \
-    "(incidence from the cell's open faces; 1 where they give none); 0: no density weight")
+    "(incidence from the cell's open faces; 1 where they give none); 0: no density weight")     \
+  X(double, max_incidence_deg, 90.0,                                                            \
+    "surface: an observed surface cell counts for a ray that meets it within this angle of "    \
+    "its normal (from its open faces; a cell whose open faces give none always counts): a "     \
+    "grazing view adds no dense surface; 90: any ray")                                          \
+  X(int, incidence_min_hits, 0,                                                                 \
+    "surface: max_incidence_deg applies to cells holding at least this many camera hits (0: "   \
+    "every cell)")
 
 struct UtilityOptions {
   NBV_UTILITY_OPTIONS(NBV_DECLARE_OPTION)

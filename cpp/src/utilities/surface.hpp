@@ -7,9 +7,12 @@
 // probability p: it counts P_vis * p and lets P_vis * (1 - p) through. An unknown cell holds
 // surface with a prior - frontier_prior when a face neighbour is occupied or predicted (the
 // surface goes on into the unknown), unknown_prior elsewhere - and counts and passes on the
-// same way. Free cells pass. Each cell counts once per view (for the first ray that credits
-// it); rays end below min_visibility. With dense_spacing > 0 each credit is also weighted by how
-// densely the camera would sample the cell: min(1, dense_spacing cos(i) / (r pitch)), r the
+// same way. With max_incidence_deg < 90 an observed surface cell counts only for a ray that
+// meets it within that angle of its normal (from its open faces), and still ends the ray: a
+// grazing ray lays few samples on it (with incidence_min_hits, only once the cell holds that
+// many camera hits). Free cells pass. Each cell counts once per view (for the first ray that
+// credits it); rays end below min_visibility. With dense_spacing > 0 each credit is also weighted
+// by how densely the camera would sample the cell: min(1, dense_spacing cos(i) / (r pitch)), r the
 // range, i the incidence on the cell's surface (its normal the sum of its open face directions,
 // free or unknown neighbours; cos(i) = 1 where they give none, as for unknown cells). The result
 // is in cells of new surface: roughly the area the view would add, in units of resolution^2.
@@ -36,7 +39,7 @@ struct Surface {
     const CellFlag flag = cells.flag(idx, c);
     if (flag == CellFlag::Observed) {
       if (!std::signbit(scored)) return true;  // free
-      if ((ctx_.grid.seen(idx) & cone_) == 0 && marks_.insert(idx))
+      if ((ctx_.grid.seen(idx) & cone_) == 0 && facing(cells, idx, c) && marks_.insert(idx))
         credit(idx, density(cells, c, t, true));
       return false;
     }
@@ -70,6 +73,24 @@ struct Surface {
       if (nn > 0.0) cos_i = std::abs(n[0] * dir_.x() + n[1] * dir_.y() + n[2] * dir_.z()) / nn;
     }
     return std::min(1.0, k * cos_i / std::max(range, 1e-12));
+  }
+  /// Whether this ray meets the observed surface cell idx (at c, or null: from its id) within
+  /// max_incidence_deg of its open-face normal (always without max_incidence_deg, and where
+  /// the open faces give no normal).
+  template <class Cells>
+  bool facing(const Cells& cells, std::size_t idx, const int* c) const {
+    if (ctx_.min_cos <= 0.0 || int(ctx_.grid.hits(idx)) < ctx_.options.incidence_min_hits)
+      return true;
+    int at[3];
+    if (!c) {
+      ctx_.grid.layout.coords(idx, at[0], at[1], at[2]);
+      c = at;
+    }
+    double n[3];
+    open_face_normal(ctx_.grid, cells, c, n);
+    const double nn = std::sqrt(n[0] * n[0] + n[1] * n[1] + n[2] * n[2]);
+    if (nn <= 0.0) return true;
+    return std::abs(n[0] * dir_.x() + n[1] * dir_.y() + n[2] * dir_.z()) >= ctx_.min_cos * nn;
   }
   void credit(std::size_t idx, double p, bool prior = false) {
     gain_ += vis_ * p;

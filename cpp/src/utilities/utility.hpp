@@ -109,6 +109,9 @@ struct ViewContext {
   /// surface: dense_spacing / the camera's pixel pitch (rad), the range (m) within which a
   /// face-on cell is sampled densely enough; 0: no density weight
   double dense_range = 0.0;
+  /// surface: cos(max_incidence_deg); an observed surface cell met by a ray at a lower |cos| of
+  /// its open-face normal is not credited (0: every ray)
+  double min_cos = 0.0;
 };
 
 inline double sigmoid(double logodds) { return 1.0 / (1.0 + std::exp(-logodds)); }
