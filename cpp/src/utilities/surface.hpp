@@ -65,14 +65,17 @@ struct Surface {
   double density(const Cells& cells, const int* c, double range, bool surface) const {
     const double k = ctx_.dense_range;
     if (k <= 0.0) return 1.0;
-    double cos_i = 1.0;
-    if (surface) {
-      double n[3];
-      open_face_normal(ctx_.grid, cells, c, n);
-      const double nn = std::sqrt(n[0] * n[0] + n[1] * n[1] + n[2] * n[2]);
-      if (nn > 0.0) cos_i = std::abs(n[0] * dir_.x() + n[1] * dir_.y() + n[2] * dir_.z()) / nn;
-    }
+    const double cos_i = surface ? incidence_cos(cells, c) : 1.0;
     return std::min(1.0, k * cos_i / std::max(range, 1e-12));
+  }
+  /// |cos| of the angle between this ray and the open-face normal of the cell at c (its open
+  /// face directions summed); 1 where they give none.
+  template <class Cells>
+  double incidence_cos(const Cells& cells, const int* c) const {
+    double n[3];
+    open_face_normal(ctx_.grid, cells, c, n);
+    const double nn = std::sqrt(n[0] * n[0] + n[1] * n[1] + n[2] * n[2]);
+    return nn > 0.0 ? std::abs(n[0] * dir_.x() + n[1] * dir_.y() + n[2] * dir_.z()) / nn : 1.0;
   }
   /// Whether this ray meets the observed surface cell idx (at c, or null: from its id) within
   /// max_incidence_deg of its open-face normal (always without max_incidence_deg, and where
@@ -86,11 +89,7 @@ struct Surface {
       ctx_.grid.layout.coords(idx, at[0], at[1], at[2]);
       c = at;
     }
-    double n[3];
-    open_face_normal(ctx_.grid, cells, c, n);
-    const double nn = std::sqrt(n[0] * n[0] + n[1] * n[1] + n[2] * n[2]);
-    if (nn <= 0.0) return true;
-    return std::abs(n[0] * dir_.x() + n[1] * dir_.y() + n[2] * dir_.z()) >= ctx_.min_cos * nn;
+    return incidence_cos(cells, c) >= ctx_.min_cos;
   }
   void credit(std::size_t idx, double p, bool prior = false) {
     gain_ += vis_ * p;
