@@ -40,9 +40,10 @@ def test_the_camera_record_holds_the_bricks_of_the_surface_seen_not_the_workspac
     # a brick is a 4-cell cube: a plane crosses at most 3 bricks per brick face of its area
     surface_bricks = 3 * float(mesh.area) / (4 * res) ** 2
     assert 0 < record.allocated_bricks <= surface_bricks < bricks / 20
-    # the bytes follow the bricks held: the brick table, and 6 bytes per cell of a held brick
-    dense = seen.size * 6
-    assert record.bytes < 4 * bricks + 64 * 6 * 2 * (record.allocated_bricks + 1) < dense / 5
+    # the bytes follow the bricks held: the brick table, and 14 bytes per cell of a held brick
+    # (directions 4, hits 2, patches 8)
+    dense = seen.size * 14
+    assert record.bytes < 4 * bricks + 64 * 14 * 2 * (record.allocated_bricks + 1) < dense / 5
     # what the camera saw of one box lies in its bricks: seen cells only near the surface
     i, j, k = np.nonzero(seen)
     assert len(i) == record.seen_cells()

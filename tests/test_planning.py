@@ -940,18 +940,22 @@ def _unseen_wall(x):
     return m, _core.SurfaceObservations(m), kw
 
 
-def test_max_incidence_credits_a_surface_cell_only_for_rays_near_its_normal():
-    # A slab 1 m thick across x = 4.1..5.1, unseen: its front cells' open faces give the normal
-    # -x. From the origin looking along +x, utility.max_incidence_deg = 20 credits exactly the
-    # cells whose rays meet the slab within 20 deg of the normal (up to a cell's width of angle
-    # at the boundary), every credit a subset of the default's (90: every cell in view), the
-    # weights unchanged; the same view turned 55 deg meets none so closely. incidence_min_hits
-    # above the cells' camera hits (none) leaves the rule off. Out of range: refused by name.
+def test_max_incidence_credits_a_densely_sampled_surface_cell_only_for_rays_near_its_normal():
+    # A slab 1 m thick across x = 4.1..5.1: its front cells' open faces give the normal -x. From
+    # the origin looking along +x, with utility.max_incidence_deg = 20, a front cell whose face
+    # holds no camera hit is credited as by the default (90: every cell in view); so is one whose
+    # face holds hits in 15 of its 16 squares. Once all 16 hold one (incidence_min_patches, the
+    # default), exactly the cells whose rays meet the slab within 20 deg of the normal are
+    # credited (up to a cell's width of angle at the boundary), the weights unchanged; the same
+    # view turned 55 deg meets none so closely. incidence_min_patches=0 applies the rule to every
+    # cell. The hits come from far off to the side (their direction bin +y), outside the
+    # coverage cone of the test's rays. Out of range: refused by name.
     m, surface, kw = _unseen_wall(4.1)
     for x in np.arange(4.3, 5.1, 0.2):
         y, z = np.meshgrid(np.arange(-5.9, 6.0, 0.2), np.arange(-3.9, 4.0, 0.2))
         m.update_cells(np.column_stack([np.full(y.size, x), y.ravel(), z.ravel()]), occupied=True)
     pose = np.array([[0.0, 0.0, 0.0, 0.0]])
+    kw["utility"]["coverage_cone_deg"] = 30.0
 
     def credited(pose, **utility):
         u = dict(kw["utility"], **utility)
@@ -959,9 +963,39 @@ def test_max_incidence_credits_a_surface_cell_only_for_rays_near_its_normal():
         e, w = np.asarray(c["elements"]), np.asarray(c["weights"])
         return dict(zip(e[w > 0].tolist(), w[w > 0].tolist()))  # the slab (unknown cells: 0)
 
-    every, near = credited(pose), credited(pose, max_incidence_deg=20.0)
+    def sample_face(squares):
+        """Camera hits on the front face (x = 4.01), one at the centre of each of `squares`
+        ((u, v): quarters along y and z) of every front cell."""
+        cy, cz = np.meshgrid(np.arange(-5.9, 6.0, 0.2), np.arange(-3.9, 4.0, 0.2))
+        hits = [
+            np.column_stack(
+                [
+                    np.full(cy.size, 4.01),
+                    cy.ravel() - 0.075 + 0.05 * u,
+                    cz.ravel() - 0.075 + 0.05 * v,
+                ]
+            )
+            for u, v in squares
+        ]
+        surface.add_points((3.9, 60.0, 0.0), np.vstack(hits))
+
+    every = credited(pose)
+    assert credited(pose, max_incidence_deg=20.0) == every  # no face sampled yet
+    ruled = credited(pose, max_incidence_deg=20.0, incidence_min_patches=0)
+    squares = [(u, v) for u in range(4) for v in range(4)]
+    sample_face(squares[:15])
+    assert credited(pose, max_incidence_deg=20.0) == every  # 15 of 16 squares: not yet dense
+    sample_face(squares[15:])
+    near = credited(pose, max_incidence_deg=20.0)
+    assert near == ruled and credited(pose) == every
     assert len(every) > 300 and 0 < len(near) < len(every) / 2
     assert all(every[e] == w for e, w in near.items())
+    # where the hits fell: in a front cell, all 16 squares seen along x, and along y and z the
+    # quarter x = 0 (x = 4.01 in 4.0..4.2) by each quarter of the other axis
+    patches = surface.patches_grid()
+    front = patches[45, 30, 20]  # the cell at (4.1, 0.1, 0.1)
+    assert int(front) == 0xFFFF | 0xF << 16 | 0xF << 32
+    assert not patches[46, 30, 20] and np.count_nonzero(patches) == 60 * 40
     # the credited cells' centres, by the elements' cell ids (cell * 2 + side)
     lo, n = np.array([-5.0, -6.0, -4.0]), np.array([80, 60, 40])
     bricks = (n + 3) // 4
@@ -985,12 +1019,12 @@ def test_max_incidence_credits_a_surface_cell_only_for_rays_near_its_normal():
     assert outside.min() >= 20.0 - 2.0 and outside.max() > 30.0
     turned = np.array([[0.0, 0.0, 0.0, math.radians(55.0)]])
     assert len(credited(turned)) > 100 and not credited(turned, max_incidence_deg=20.0)
-    assert credited(pose, max_incidence_deg=20.0, incidence_min_hits=1) == every
     for bad in (
         dict(max_incidence_deg=0.0),
         dict(max_incidence_deg=95.0),
         dict(max_incidence_deg=float("nan")),
-        dict(incidence_min_hits=-1),
+        dict(incidence_min_patches=-1),
+        dict(incidence_min_patches=17),
     ):
         with pytest.raises(ValueError, match=next(iter(bad))):
             credited(pose, **bad)

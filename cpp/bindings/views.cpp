@@ -232,7 +232,16 @@ surface and four_term utilities and by surface_targets.)doc")
             return per_cell<std::uint16_t>(
                 s.layout(), [&](std::int64_t i) { return s.hits(i); }, s.access_lock());
           },
-          "(nx, ny, nz) uint16 camera hits per cell, Fortran order (copy).");
+          "(nx, ny, nz) uint16 camera hits per cell, Fortran order (copy).")
+      .def(
+          "patches_grid",
+          [](const SurfaceObservations& s) {
+            return per_cell<std::uint64_t>(
+                s.layout(), [&](std::int64_t i) { return s.patches(i); }, s.access_lock());
+          },
+          "(nx, ny, nz) uint64 masks of where each cell's hits fell, Fortran order (copy): bit "
+          "16 a + 4 u + v for the square (u, v) of the cell seen along axis a (quarters of the "
+          "cell along the other two axes, in increasing order).");
   m.def(
       "direction_bin", [](const py::handle& d) { return direction_bin(vec3_arg(d, "direction")); },
       py::arg("direction"), "The direction bin (0..25) of a vector.");

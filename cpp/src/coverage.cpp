@@ -637,7 +637,7 @@ ViewCoverage view_coverage(const GridView& g, const ViewPosesRef& cand, const Po
     geometry.insert(geometry.end(),
                     {double(u.require_occupied), u.require_occupied_probability, u.min_visibility,
                      u.frontier_prior, u.unknown_prior, u.coverage_cone_deg, u.dense_spacing,
-                     u.max_incidence_deg, double(u.incidence_min_hits), camera.pixel_pitch_deg,
+                     u.max_incidence_deg, double(u.incidence_min_patches), camera.pixel_pitch_deg,
                      double(pool_unknown)});
     if (!memo->begin(g, geometry)) memo = nullptr;
   }

@@ -35,6 +35,7 @@ GridView grid_view(const OccupancyMap& map, const SurfaceObservations* surface) 
     g.seen_blocks = surface->brick_blocks();
     g.seen_pool = surface->seen_pool();
     g.hits_pool = surface->hits_pool();
+    g.patches_pool = surface->patches_pool();
     g.seen_stamps = surface->stamps().data();
     g.seen_epoch = surface->stamps().take_epoch();
     g.seen_id = surface->stamps().id();

@@ -19,6 +19,7 @@ SurfaceObservations::SurfaceObservations(const OccupancyMap& map)
       block_(layout_.num_bricks(), 0u),
       seen_pool_(64, 0u),
       hits_pool_(64, 0u),
+      patches_pool_(64, 0u),
       stamps_(layout_.num_bricks()) {}
 
 bool SurfaceObservations::matches(const OccupancyMap& map) const {
@@ -30,6 +31,7 @@ void SurfaceObservations::clear() {
   std::fill(block_.begin(), block_.end(), 0u);
   std::vector<std::uint32_t>(64, 0u).swap(seen_pool_);  // the memory goes back
   std::vector<std::uint16_t>(64, 0u).swap(hits_pool_);
+  std::vector<std::uint64_t>(64, 0u).swap(patches_pool_);
   stamps_.touch_all();
 }
 
@@ -41,7 +43,8 @@ std::int64_t SurfaceObservations::seen_cells() const {
 
 std::size_t SurfaceObservations::bytes() const {
   return block_.capacity() * sizeof(std::uint32_t) + seen_pool_.capacity() * sizeof(std::uint32_t) +
-         hits_pool_.capacity() * sizeof(std::uint16_t);
+         hits_pool_.capacity() * sizeof(std::uint16_t) +
+         patches_pool_.capacity() * sizeof(std::uint64_t);
 }
 
 void SurfaceObservations::allocate(const std::vector<std::int64_t>& cells) {
@@ -55,6 +58,7 @@ void SurfaceObservations::allocate(const std::vector<std::int64_t>& cells) {
     b = std::uint32_t(blocks);
     seen_pool_.resize(seen_pool_.size() + 64, 0u);
     hits_pool_.resize(hits_pool_.size() + 64, std::uint16_t(0));
+    patches_pool_.resize(patches_pool_.size() + 64, std::uint64_t(0));
   }
 }
 
@@ -64,13 +68,15 @@ std::size_t SurfaceObservations::add_scan(const Eigen::Vector3d& origin, const P
   require_finite(hits, "hit points");
   const std::size_t n = std::size_t(hits.rows());
   const double rf = 1.0 / res_;  // the map's keys: OctoMap's floor(c / res) of float32 points
-  // the hits' cells (grid ids, -1 outside the workspace), in parallel; then their bricks' blocks
+  // the hits' cells (grid ids, -1 outside the workspace) and patch bits, in parallel; then their
+  // bricks' blocks
   std::vector<std::int64_t> cells(n, -1);
+  std::vector<std::uint64_t> patch(n, 0);
   const std::size_t chunk = 8192;
   parallel_chunks((n + chunk - 1) / chunk, 1, [&](std::size_t cb, std::size_t ce) {
     for (std::size_t r = cb * chunk, e = std::min(n, ce * chunk); r < e; ++r) {
       const Eigen::Index row = Eigen::Index(r);
-      int k[3];
+      int k[3], q[3];
       bool inside = true;
       for (int a = 0; a < 3; ++a) {
         const double t = rf * double(float(hits(row, a)));
@@ -80,9 +86,14 @@ std::size_t SurfaceObservations::add_scan(const Eigen::Vector3d& origin, const P
           break;
         }
         k[a] = int(f) + 32768 - min_key_[a];
+        q[a] = std::min(3, int((t - f) * 4.0));  // the quarter of the cell along a
         inside &= unsigned(k[a]) < unsigned(dims_[a]);
       }
-      if (inside) cells[r] = std::int64_t(layout_.id(k[0], k[1], k[2]));
+      if (!inside) continue;
+      cells[r] = std::int64_t(layout_.id(k[0], k[1], k[2]));
+      patch[r] = std::uint64_t(1) << (4 * q[1] + q[2]) |       // seen along x
+                 std::uint64_t(1) << (16 + 4 * q[0] + q[2]) |  // along y
+                 std::uint64_t(1) << (32 + 4 * q[0] + q[1]);   // along z
     }
   });
   allocate(cells);
@@ -93,6 +104,7 @@ std::size_t SurfaceObservations::add_scan(const Eigen::Vector3d& origin, const P
       // consecutive hits (neighbouring pixels) mostly share a cell and a bin: flush per run
       std::int64_t run_cell = -1;
       std::uint32_t run_bits = 0, run_hits = 0;
+      std::uint64_t run_patches = 0;
       auto flush = [&] {
         if (run_cell < 0) return;
         stamps_.touch(std::size_t(run_cell) >> 6);
@@ -101,6 +113,9 @@ std::size_t SurfaceObservations::add_scan(const Eigen::Vector3d& origin, const P
         if ((__atomic_load_n(s, __ATOMIC_RELAXED) & run_bits) != run_bits &&
             __atomic_fetch_or(s, run_bits, __ATOMIC_RELAXED) == 0)
           ++local_gained;  // seen by the camera for the first time
+        std::uint64_t* p = &patches_pool_[at];
+        if ((__atomic_load_n(p, __ATOMIC_RELAXED) & run_patches) != run_patches)
+          __atomic_fetch_or(p, run_patches, __ATOMIC_RELAXED);
         std::uint16_t* h = &hits_pool_[at];
         std::uint16_t cur = __atomic_load_n(h, __ATOMIC_RELAXED);
         while (cur != 65535) {
@@ -120,8 +135,10 @@ std::size_t SurfaceObservations::add_scan(const Eigen::Vector3d& origin, const P
           run_cell = cell;
           run_bits = 0;
           run_hits = 0;
+          run_patches = 0;
         }
         run_bits |= bit;
+        run_patches |= patch[r];
         ++run_hits;
       }
       flush();

@@ -136,7 +136,8 @@ void UtilityOptions::validate() const {
   check(dense_spacing, dense_spacing >= 0, "dense_spacing", ">= 0");
   check(max_incidence_deg, max_incidence_deg > 0 && max_incidence_deg <= 90, "max_incidence_deg",
         "in (0, 90]");
-  check(incidence_min_hits, incidence_min_hits >= 0, "incidence_min_hits", ">= 0");
+  check(incidence_min_patches, incidence_min_patches >= 0 && incidence_min_patches <= 16,
+        "incidence_min_patches", "in [0, 16]");
   check(weight_prediction, weight_prediction >= 0, "weight_prediction", ">= 0");
 }
 

@@ -33,10 +33,12 @@ struct GridView {
   std::int64_t predicted_cells = 0;              ///< cells set by symmetry prediction
   /// Camera observations (SurfaceObservations' sparse storage), or null: per brick its block,
   /// and per block of 64 cells the bitmask of the 26 direction bins each has been seen from and
-  /// the number of camera hits in it. Read them with seen(id) and hits(id).
+  /// the number of camera hits in it and where they fell. Read them with seen(id), hits(id) and
+  /// patches(id).
   const std::uint32_t* seen_blocks = nullptr;
   const std::uint32_t* seen_pool = nullptr;
   const std::uint16_t* hits_pool = nullptr;
+  const std::uint64_t* patches_pool = nullptr;
   /// When the bricks of the grid's cells and of the camera observations last changed, the epochs
   /// this view was taken at (every change so far stamped at most those), and whose stamps they
   /// are (BrickStamps::id): what CoverageMemo checks its records against.
@@ -60,9 +62,11 @@ struct GridView {
   bool brick_is_live(std::size_t idx) const { return brick_live[idx >> 6] != 0; }
   /// True when the view holds camera observations.
   bool observed() const { return seen_blocks != nullptr; }
-  /// Cell idx's direction-bin mask and camera hits (observed() views only).
+  /// Cell idx's direction-bin mask, camera hits and patch mask (SurfaceObservations::patches;
+  /// observed() views only).
   std::uint32_t seen(std::size_t idx) const { return seen_pool[observation_slot(idx)]; }
   std::uint16_t hits(std::size_t idx) const { return hits_pool[observation_slot(idx)]; }
+  std::uint64_t patches(std::size_t idx) const { return patches_pool[observation_slot(idx)]; }
   std::size_t observation_slot(std::size_t idx) const {
     return std::size_t(seen_blocks[idx >> 6]) << 6 | (idx & 63);
   }

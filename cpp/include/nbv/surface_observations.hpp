@@ -1,12 +1,18 @@
-// What the camera has seen of each workspace cell: the directions it was seen from and how many
-// camera hits fell in it. The surface utilities and the surface targets read it to tell surface
-// that has been observed densely, and from which side, from surface that has not.
+// What the camera has seen of each workspace cell: the directions it was seen from, how many
+// camera hits fell in it, and where in the cell they fell. The surface utilities and the surface
+// targets read it to tell surface that has been observed densely, and from which side, from surface
+// that has not.
 //
 // Directions are the 26 bins of grid_view.hpp's direction_bin (the unit vectors of the cube's
 // faces, edges and corners): a hit in cell c seen from sensor origin o marks c as seen from the
 // bin of (o - hit). A cell is "covered" for a viewing direction d when it has been seen from a
 // bin within a cone around d (UtilityOptions::coverage_cone_deg): the two faces of a thin plate,
 // 180 degrees apart, are covered separately; the same face seen again from nearby is not new.
+//
+// Where the hits fell: the cell is cut into 4 x 4 x 4 patches (a quarter of the resolution on a
+// side: 0.05 m in a 0.2 m map, the spacing dense coverage is scored at), and a hit marks its
+// patch's square in each of the three projections along the axes (16 bits each: the face of a
+// cell seen along an axis is densely sampled when its 16 squares hold hits).
 //
 // Storage is sparse, by the grid's bricks of 4 x 4 x 4 cells: a brick gets its 64 records when
 // the camera first hits a cell of it, so the record grows with the surface seen, not with the
@@ -41,11 +47,20 @@ class SurfaceObservations {
   std::uint32_t seen(std::int64_t i) const { return seen_pool_[slot(std::size_t(i))]; }
   /// Camera hits that fell in cell i (saturating at 65535).
   std::uint16_t hits(std::int64_t i) const { return hits_pool_[slot(std::size_t(i))]; }
+  /// Where cell i's hits fell: bits 16 a + 4 u + v (a the axis projected along, u and v the
+  /// quarter of the cell along the other two axes in increasing order) set for each square that
+  /// holds a hit.
+  std::uint64_t patches(std::int64_t i) const { return patches_pool_[slot(std::size_t(i))]; }
+  /// The squares of patches(i) seen along `axis` (0..2): 16 bits.
+  static std::uint16_t face(std::uint64_t patches, int axis) {
+    return std::uint16_t(patches >> (16 * axis));
+  }
   /// The storage: per brick (id >> 6) its block, and the blocks of 64 records, cell id & 63 in
   /// block b at b * 64 + (id & 63) (block 0: zeros). Valid until the next add_scan or clear.
   const std::uint32_t* brick_blocks() const { return block_.data(); }
   const std::uint32_t* seen_pool() const { return seen_pool_.data(); }
   const std::uint16_t* hits_pool() const { return hits_pool_.data(); }
+  const std::uint64_t* patches_pool() const { return patches_pool_.data(); }
   /// When each brick's records last changed (see BrickStamps).
   const BrickStamps& stamps() const { return stamps_; }
   /// Cells seen from at least one direction.
@@ -71,9 +86,10 @@ class SurfaceObservations {
   std::size_t slot(std::size_t i) const { return std::size_t(block_[i >> 6]) << 6 | (i & 63); }
   /// Gives every brick of `cells` (grid ids, -1 skipped) its block.
   void allocate(const std::vector<std::int64_t>& cells);
-  std::vector<std::uint32_t> block_;      // per brick: its block (0: none yet)
-  std::vector<std::uint32_t> seen_pool_;  // per block, 64 direction-bin masks
-  std::vector<std::uint16_t> hits_pool_;  // per block, 64 hit counts
+  std::vector<std::uint32_t> block_;         // per brick: its block (0: none yet)
+  std::vector<std::uint32_t> seen_pool_;     // per block, 64 direction-bin masks
+  std::vector<std::uint16_t> hits_pool_;     // per block, 64 hit counts
+  std::vector<std::uint64_t> patches_pool_;  // per block, 64 patch masks (see patches)
   BrickStamps stamps_;
   AccessLock access_;
 };

@@ -85,9 +85,10 @@ struct ViewCameraModel {
     "surface: an observed surface cell counts for a ray that meets it within this angle of "    \
     "its normal (from its open faces; a cell whose open faces give none always counts): a "     \
     "grazing view adds no dense surface; 90: any ray")                                          \
-  X(int, incidence_min_hits, 0,                                                                 \
-    "surface: max_incidence_deg applies to cells holding at least this many camera hits (0: "   \
-    "every cell)")
+  X(int, incidence_min_patches, 16,                                                             \
+    "surface: max_incidence_deg applies to a cell once this many of the 16 squares of its "     \
+    "face (a quarter of the resolution on a side, seen along the axis nearest its normal) "     \
+    "hold a camera hit: its face is sampled densely (0: every cell)")
 
 struct UtilityOptions {
   NBV_UTILITY_OPTIONS(NBV_DECLARE_OPTION)

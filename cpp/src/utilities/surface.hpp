@@ -9,14 +9,14 @@
 // surface goes on into the unknown), unknown_prior elsewhere - and counts and passes on the
 // same way. With max_incidence_deg < 90 an observed surface cell counts only for a ray that
 // meets it within that angle of its normal (from its open faces), and still ends the ray: a
-// grazing ray lays few samples on it (with incidence_min_hits, only once the cell holds that
-// many camera hits). Free cells pass. Each cell counts once per view (for the first ray that
-// credits it); rays end below min_visibility. With dense_spacing > 0 each credit is also weighted
-// by how densely the camera would sample the cell: min(1, dense_spacing cos(i) / (r pitch)), r the
-// range, i the incidence on the cell's surface (its normal the sum of its open face directions,
-// free or unknown neighbours; cos(i) = 1 where they give none, as for unknown cells). The result
-// is in cells of new surface: roughly the area the view would add, in units of resolution^2.
-// Needs the camera observations.
+// grazing ray lays few samples on a face the camera has already sampled densely (once at least
+// incidence_min_patches of the 16 squares of the face hold a camera hit). Free cells pass. Each
+// cell counts once per view (for the first ray that credits it); rays end below min_visibility.
+// With dense_spacing > 0 each credit is also weighted by how densely the camera would sample the
+// cell: min(1, dense_spacing cos(i) / (r pitch)), r the range, i the incidence on the cell's
+// surface (its normal the sum of its open face directions, free or unknown neighbours; cos(i) = 1
+// where they give none, as for unknown cells). The result is in cells of new surface: roughly the
+// area the view would add, in units of resolution^2. Needs the camera observations.
 #pragma once
 
 #include "utility.hpp"
@@ -68,28 +68,47 @@ struct Surface {
     const double cos_i = surface ? incidence_cos(cells, c) : 1.0;
     return std::min(1.0, k * cos_i / std::max(range, 1e-12));
   }
-  /// |cos| of the angle between this ray and the open-face normal of the cell at c (its open
-  /// face directions summed); 1 where they give none.
+  /// |cos| of the angle between this ray and the open-face normal of the cell at c; 1 where its
+  /// open faces give none.
   template <class Cells>
   double incidence_cos(const Cells& cells, const int* c) const {
     double n[3];
+    const double nn = normal(cells, c, n);
+    return nn > 0.0 ? cosine(n) / nn : 1.0;
+  }
+  /// The open-face normal of the cell at c (its open face directions summed) and its length.
+  template <class Cells>
+  double normal(const Cells& cells, const int* c, double n[3]) const {
     open_face_normal(ctx_.grid, cells, c, n);
-    const double nn = std::sqrt(n[0] * n[0] + n[1] * n[1] + n[2] * n[2]);
-    return nn > 0.0 ? std::abs(n[0] * dir_.x() + n[1] * dir_.y() + n[2] * dir_.z()) / nn : 1.0;
+    return std::sqrt(n[0] * n[0] + n[1] * n[1] + n[2] * n[2]);
+  }
+  double cosine(const double n[3]) const {
+    return std::abs(n[0] * dir_.x() + n[1] * dir_.y() + n[2] * dir_.z());
   }
   /// Whether this ray meets the observed surface cell idx (at c, or null: from its id) within
-  /// max_incidence_deg of its open-face normal (always without max_incidence_deg, and where
-  /// the open faces give no normal).
+  /// max_incidence_deg of its open-face normal. Always without max_incidence_deg, where the open
+  /// faces give no normal, and while fewer than incidence_min_patches of the 16 squares of the
+  /// cell's face (seen along the axis nearest its normal) hold a camera hit.
   template <class Cells>
   bool facing(const Cells& cells, std::size_t idx, const int* c) const {
-    if (ctx_.min_cos <= 0.0 || int(ctx_.grid.hits(idx)) < ctx_.options.incidence_min_hits)
-      return true;
+    if (ctx_.min_cos <= 0.0) return true;
+    const std::uint64_t patches = ctx_.grid.patches(idx);
+    const int need = ctx_.options.incidence_min_patches;
+    auto dense = [&](int axis) {
+      return __builtin_popcount(unsigned(std::uint16_t(patches >> (16 * axis)))) >= need;
+    };
+    if (!dense(0) && !dense(1) && !dense(2)) return true;
     int at[3];
     if (!c) {
       ctx_.grid.layout.coords(idx, at[0], at[1], at[2]);
       c = at;
     }
-    return incidence_cos(cells, c) >= ctx_.min_cos;
+    double n[3];
+    const double nn = normal(cells, c, n);
+    if (nn <= 0.0 || cosine(n) >= ctx_.min_cos * nn) return true;
+    const int axis = std::abs(n[0]) >= std::abs(n[1]) ? (std::abs(n[0]) >= std::abs(n[2]) ? 0 : 2)
+                                                      : (std::abs(n[1]) >= std::abs(n[2]) ? 1 : 2);
+    return !dense(axis);
   }
   void credit(std::size_t idx, double p, bool prior = false) {
     gain_ += vis_ * p;

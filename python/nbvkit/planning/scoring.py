@@ -36,6 +36,8 @@ UtilityConfig = cpp_section(
         "rays_x": Bound(lo=0, lo_open=True, hi=4096),
         "rays_y": Bound(lo=0, lo_open=True, hi=4096),
         "distance_lambda": Bound(lo=0),
+        "max_incidence_deg": Bound(lo=0, lo_open=True, hi=90),
+        "incidence_min_patches": Bound(lo=0, hi=16),
     },
 )
 
