@@ -14,7 +14,8 @@ view, every later plan also weighs views of the unknown space within the structu
 (exploration_targets: parts of the structure nothing has shown yet hold no surface target; with
 tour.explore_first, by default on a large workspace, every plan does, the first one included); a
 plan with no view left, or one none of whose views could be flown, ends the generator
-(tour.max_plans caps the plans). With
+(tour.max_plans caps the plans); with tour.final_rate, a plan that keeps no view at tour.rate is
+followed by plans at that lower rate first. With
 tour.access_weight > 0 a view is also credited with the surface it would give access to: patches
 whose every view fails the collision test for want of known free space, where its rays reach
 the place of such a view and the vehicle could fly there through space not known to be occupied
@@ -101,6 +102,11 @@ class TourConfig:
     # flown (what the views and the frames of their legs saw makes the rest of it stale); 0:
     # only when it is done
     replan_views: int = within(0, 0, 10**6)  # views flown before the tour is planned again
+    # once no plan keeps a view at tour.rate (the unknown space explored, the blocked patches
+    # refitted), plans go on at this rate: the views left that each add min_gain but did not pay
+    # for their flight are flown (more coverage for more flight; RESULTS.md); null: the
+    # generator ends there
+    final_rate: Optional[float] = nonneg(None)  # m^2 per metre of the last plans; null: none
 
     def __post_init__(self):
         if self.pool_unknown and self.access_weight > 0:
@@ -130,6 +136,7 @@ class CoverageTour:
         self.regions: Regions | None = None  # set at the first plan (tour.region_size)
         self.level = None  # the multiple of tour.min_gain plans keep now; None: no plan yet
         self.pool = bool(settings.pool_unknown)  # unknown space pooled per brick (first plan)
+        self.final = False  # plans at tour.final_rate (once none keeps a view at tour.rate)
 
     @property
     def regional(self) -> bool:
@@ -212,7 +219,8 @@ class CoverageTour:
                 self.pool = large and own.access_weight <= 0
         explore = explore or self.exploring or (self.regional and own.explore)
         scale = threshold_scale(world.map, ctx.planner.reference_area)
-        min_gain, rate = own.min_gain * scale * self.level, own.rate * np.sqrt(scale)
+        rate = (own.final_rate if self.final else own.rate) * np.sqrt(scale)
+        min_gain = own.min_gain * scale * self.level
         targets, patches, candidates, owner, unplaced = self.candidates(world, explore)
         if reachable_only and len(candidates):
             here = world.state.pose[:3]
@@ -232,6 +240,7 @@ class CoverageTour:
             "min_gain_m2": float(min_gain),
             "unplaced_patches": len(unplaced),
             "refit": self.refit,
+            "final": self.final,
         }
         self.plans.append(record)
         views, self.aims = np.zeros((0, candidates.shape[1])), np.zeros((0, 3))
@@ -365,6 +374,9 @@ class CoverageTour:
                 self.views = self.plan(world, reach, explore=True)
             if len(self.views) == 0 and self.refit_last and not self.refit:
                 self.refit = True  # the last resort: blocked patches from tilted directions
+                self.views = self.plan(world, reach, self.exploring)
+            if len(self.views) == 0 and self.settings.final_rate is not None and not self.final:
+                self.final = True  # what is left, at the lower rate
                 self.views = self.plan(world, reach, self.exploring)
             if len(self.views) == 0:
                 return None
