@@ -18,6 +18,7 @@ from nbvkit.planning.parts import PlanningContext
 from nbvkit.planning.registry import get_generator
 from nbvkit.planning.generators.exploration import exploration_targets
 from nbvkit.planning.generators.tour import _insertion_tour, prize_collect
+from nbvkit.planning.terminations.budget import budget_note
 from nbvkit.planning.placement import (
     Patches,
     PlacementConfig,
@@ -532,6 +533,12 @@ def test_with_a_final_rate_the_views_that_did_not_pay_for_their_flight_are_flown
     assert sum(p["flown"] for p in t["tours"][first:]) >= 1
     assert t["iterations"] > s["iterations"]
     assert t["area_coverage"]["0.1"] > s["area_coverage"]["0.1"] + 0.01
+    # the dear mission ended with views it did not fly, and says so; the other flew them all
+    left = s["tours"][-1]
+    assert left["kept"] == 0 and left["unpaid"] >= 1
+    assert left["unpaid_m2"] >= left["unpaid"] * left["min_gain_m2"]
+    assert "tour.rate" in budget_note(s) and "tour.final_rate" in budget_note(s)
+    assert t["tours"][-1]["unpaid"] == 0 and budget_note(t) is None
     with pytest.raises(ValueError, match="tour.final_rate"):
         load_config(overrides=["tour.final_rate=-1"])
 

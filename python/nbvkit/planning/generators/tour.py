@@ -241,6 +241,8 @@ class CoverageTour:
             "unplaced_patches": len(unplaced),
             "refit": self.refit,
             "final": self.final,
+            "unpaid": 0,  # views adding min_gain that no tour paid for (a plan keeping none)
+            "unpaid_m2": 0.0,
         }
         self.plans.append(record)
         views, self.aims = np.zeros((0, candidates.shape[1])), np.zeros((0, 3))
@@ -308,6 +310,13 @@ class CoverageTour:
             self.opened.update(opens.get(int(k), ()))
         views, aims = candidates[chosen], patches.centers[owner[chosen]]
         record["kept"] = len(order)
+        record["unpaid"], record["unpaid_m2"] = 0, 0.0
+        if not order and coverage is not None:  # views adding min_gain that no tour paid for
+            left, gains = _core.select_cover(
+                coverage, min_gain=min_gain / world.map.resolution**2
+            )
+            record["unpaid"] = len(left)
+            record["unpaid_m2"] = float(np.sum(gains)) * world.map.resolution**2
         record["length_m"] = 0.0
         if order:
             pose = world.state.pose

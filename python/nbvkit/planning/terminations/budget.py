@@ -68,9 +68,25 @@ def ended_by(termination: str, world) -> str:
 
 def budget_note(summary: dict) -> str | None:
     """A line for the console when a budget ended the mission, naming the budget and how to
-    raise it, or when the sensors saw nothing (NOTHING_SEEN); None otherwise."""
+    raise it; when the sensors saw nothing (NOTHING_SEEN); or when the coverage tours ended with
+    views left that each add tour.min_gain but did not pay for their flight (the last plan's
+    unpaid views), naming the rate and tour.final_rate. None otherwise."""
     if summary["termination"] == "nothing_seen":
         return NOTHING_SEEN
+    last = (summary.get("tours") or [{}])[-1]
+    if summary["termination"] == "coverage_complete" and last.get("unpaid"):
+        rate = "tour.final_rate" if last.get("final") else "tour.rate"
+        n, m2 = last["unpaid"], last["unpaid_m2"]
+        return (
+            f"{n} view{'' if n == 1 else 's'} adding {m2:.1f} m2 of surface in all "
+            f"({last['min_gain_m2']:.2f} m2 each at least) did not pay {rate} for their flight "
+            "and were not flown"
+            + (
+                ""
+                if last.get("final")
+                else " (--set tour.final_rate=R flies " "them at R m2 a metre; docs/USAGE.md)"
+            )
+        )
     key = BUDGET_KEYS.get(summary["termination"])
     if key is None:
         return None
