@@ -51,10 +51,6 @@ class SurfaceObservations {
   /// quarter of the cell along the other two axes in increasing order) set for each square that
   /// holds a hit.
   std::uint64_t patches(std::int64_t i) const { return patches_pool_[slot(std::size_t(i))]; }
-  /// The squares of patches(i) seen along `axis` (0..2): 16 bits.
-  static std::uint16_t face(std::uint64_t patches, int axis) {
-    return std::uint16_t(patches >> (16 * axis));
-  }
   /// The storage: per brick (id >> 6) its block, and the blocks of 64 records, cell id & 63 in
   /// block b at b * 64 + (id & 63) (block 0: zeros). Valid until the next add_scan or clear.
   const std::uint32_t* brick_blocks() const { return block_.data(); }

@@ -311,12 +311,10 @@ class CoverageTour:
         views, aims = candidates[chosen], patches.centers[owner[chosen]]
         record["kept"] = len(order)
         record["unpaid"], record["unpaid_m2"] = 0, 0.0
-        if not order and coverage is not None:  # views adding min_gain that no tour paid for
-            left, gains = _core.select_cover(
-                coverage, min_gain=min_gain / world.map.resolution**2
-            )
-            record["unpaid"] = len(left)
-            record["unpaid_m2"] = float(np.sum(gains)) * world.map.resolution**2
+        if not order:  # views adding min_gain that no tour paid for
+            cell_m2 = world.map.resolution**2
+            left, gains = _core.select_cover(coverage, min_gain=min_gain / cell_m2)
+            record["unpaid"], record["unpaid_m2"] = len(left), float(np.sum(gains)) * cell_m2
         record["length_m"] = 0.0
         if order:
             pose = world.state.pose

@@ -77,15 +77,12 @@ def budget_note(summary: dict) -> str | None:
     if summary["termination"] == "coverage_complete" and last.get("unpaid"):
         rate = "tour.final_rate" if last.get("final") else "tour.rate"
         n, m2 = last["unpaid"], last["unpaid_m2"]
+        how = " (--set tour.final_rate=R flies them at R m2 a metre; docs/USAGE.md)"
+        how = "" if last.get("final") else how
         return (
             f"{n} view{'' if n == 1 else 's'} adding {m2:.1f} m2 of surface in all "
             f"({last['min_gain_m2']:.2f} m2 each at least) did not pay {rate} for their flight "
-            "and were not flown"
-            + (
-                ""
-                if last.get("final")
-                else " (--set tour.final_rate=R flies " "them at R m2 a metre; docs/USAGE.md)"
-            )
+            f"and were not flown{how}"
         )
     key = BUDGET_KEYS.get(summary["termination"])
     if key is None:
