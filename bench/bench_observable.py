@@ -5,6 +5,11 @@ wall time, and draws docs/figures/observable_convergence.png. Asserts nothing.
 
     .venv/bin/python bench/bench_observable.py
     .venv/bin/python bench/bench_observable.py --spacings 2 1 0.5 --no-figure
+    .venv/bin/python bench/bench_observable.py --against /tmp/before [--mesh M] [--rounds 2]
+
+--against DIR: the default spacing only, with this checkout and another one (DIR/python, or a
+saved copy of a built package), each in a process of its own, alternating: the least time of
+each, their ratio, and whether both found the same observable samples bit for bit.
 
 The default configuration's camera, workspace and vehicle; ground truth at the default density.
 Measured (loaded 2-core machine): 8 / 4 / 2 / 1 / 0.5 m give 52.0 / 87.2 / 91.77 / 91.80 /
@@ -19,19 +24,61 @@ from pathlib import Path
 
 import numpy as np
 
+from nbvkit import default_mesh_path
 from nbvkit.config import load_config
 from nbvkit.evaluation import Evaluator
 from nbvkit.observability import observable_surface
-from _timing import bench_mesh, mesh_parser
+from _timing import alternate, bench_mesh, mesh_parser
 
 ROOT = Path(__file__).resolve().parent.parent
+
+TIME_SNIPPET = r"""
+import hashlib, json, sys, time
+import numpy as np
+from nbvkit.config import load_config
+from nbvkit.evaluation import Evaluator
+from nbvkit.mesh import load_mesh
+from nbvkit.observability import observable_surface
+mesh = load_mesh(sys.argv[1])
+cfg = load_config(None, [])
+ev = Evaluator(mesh, gt_density=cfg.evaluation.gt_density, seed=cfg.seed)
+t = time.perf_counter()
+obs = observable_surface(mesh, cfg, evaluator=ev)
+dt = time.perf_counter() - t
+mask = np.ascontiguousarray(obs.observable, dtype=np.uint8)
+print(json.dumps({"time": dt, "observable": int(mask.sum()), "samples": len(mask),
+                  "digest": hashlib.sha1(mask.tobytes()).hexdigest()}))
+"""
+
+
+def compare(args) -> None:
+    """The default spacing's observable surface with this checkout and --against's."""
+    best, same = alternate(
+        TIME_SNIPPET,
+        [str(Path(args.mesh).resolve()) if args.mesh else str(default_mesh_path())],
+        args.against,
+        rounds=args.rounds,
+    )
+    print(
+        f"structure: {args.mesh or 'shipped airliner'}, observable surface at the default spacing"
+    )
+    for label, t in best:
+        print(f"{label:>30}: {t:9.2f} s")
+    if len(best) == 2:
+        print(
+            f"ratio {best[1][1] / best[0][1]:.2f}x; the same observable samples bit for bit: {same}"
+        )
 
 
 def main() -> None:
     ap = mesh_parser(__doc__)
     ap.add_argument("--spacings", type=float, nargs="+", default=[8.0, 4.0, 2.0, 1.0, 0.5])
     ap.add_argument("--no-figure", action="store_true")
+    ap.add_argument("--against", help="another checkout (or a saved package) to compare with")
+    ap.add_argument("--rounds", type=int, default=2, help="alternating runs each (--against)")
     args = ap.parse_args()
+    if args.against:
+        return compare(args)
     mesh = bench_mesh(args.mesh)[0]
     cfg0 = load_config(None, [])
     ev = Evaluator(mesh, gt_density=cfg0.evaluation.gt_density, seed=cfg0.seed)

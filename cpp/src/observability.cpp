@@ -319,6 +319,16 @@ ObservabilityResult observable_samples(const RaycastScene& scene, const PointsRe
   const double g_hi = options.gimbal_max_deg * M_PI / 180.0;
   const bool gimbal = g_lo != 0.0 || g_hi != 0.0;
   const double axis_el = std::asin(std::clamp(axis.z(), -1.0, 1.0));
+  const double cos_ax = std::cos(axis_el), sin_ax = std::sin(axis_el);
+  const double cos_g_lo = std::cos(g_lo), sin_g_lo = std::sin(g_lo);
+  const double cos_g_hi = std::cos(g_hi), sin_g_hi = std::sin(g_hi);
+  // the sample elevations e (|e| <= 90 deg) past which the centring pitch axis_el - e is
+  // clamped, as sines: at g_lo from sin_e_hi up, at g_hi from sin_e_lo down (+-2 where never)
+  auto sin_of_elevation = [](double e) {
+    return e >= M_PI / 2 ? 2.0 : e <= -M_PI / 2 ? -2.0 : std::sin(e);
+  };
+  const double sin_e_hi = sin_of_elevation(axis_el - g_lo);
+  const double sin_e_lo = sin_of_elevation(axis_el - g_hi);
   const double sin_lo = std::sin(std::max(-M_PI / 2, el_lo - g_hi - 1e-3));
   const double sin_hi = std::sin(std::min(M_PI / 2, el_hi - g_lo + 1e-3));
 
@@ -361,17 +371,31 @@ ObservabilityResult observable_samples(const RaycastScene& scene, const PointsRe
           if (v.z() < sin_lo * dist || v.z() > sin_hi * dist) return false;
           if (has_normal && std::abs(nrm.dot(v)) < cos_inc * dist) return false;
           // v turned about z so that its azimuth is the camera axis's (the centring yaw)
-          const double vh = std::hypot(v.x(), v.y());
+          const double vh = std::sqrt(v.x() * v.x() + v.y() * v.y());
           const Eigen::Vector3d u0(vh * ca, vh * sa, v.z());
+          // the gimbal's pitch p that centres the sample vertically, within its range: a turn
+          // about z keeps the sample's elevation e, so one pitch serves every yaw offset.
+          // p = clamp(axis_el - e, g_lo, g_hi), its cosine and sine without a trigonometric
+          // call: cos e = vh / dist and sin e = v.z / dist, p clamped where e leaves [e_lo, e_hi]
+          double cp = 1.0, sp = 0.0;
+          if (gimbal) {
+            const double ce = vh / dist, se = v.z() / dist;
+            if (se >= sin_e_hi) {  // e >= axis_el - g_lo: p at g_lo
+              cp = cos_g_lo;
+              sp = sin_g_lo;
+            } else if (se <= sin_e_lo) {  // e <= axis_el - g_hi: p at g_hi
+              cp = cos_g_hi;
+              sp = sin_g_hi;
+            } else {  // p = axis_el - e
+              cp = cos_ax * ce + sin_ax * se;
+              sp = sin_ax * ce - cos_ax * se;
+            }
+          }
           bool in_view = false;
           for (const auto& [cy, sy] : yaw_cs) {
             Eigen::Vector3d u(cy * u0.x() - sy * u0.y(), sy * u0.x() + cy * u0.y(), u0.z());
-            if (gimbal) {  // pitched to centre the sample vertically, within the range
-              const double p =
-                  std::clamp(axis_el - std::atan2(u.z(), std::hypot(u.x(), u.y())), g_lo, g_hi);
-              const double cp = std::cos(p), sp = std::sin(p);
+            if (gimbal)  // and pitched by p
               u = Eigen::Vector3d(cp * u.x() - sp * u.z(), u.y(), sp * u.x() + cp * u.z());
-            }
             const Eigen::Vector3d cam = Mt * u;  // sensor frame: +x forward, y left, z up
             if (cam.x() < camera.min_range || cam.x() > camera.max_range) continue;
             if (std::abs(cam.y()) > cam.x() * th || std::abs(cam.z()) > cam.x() * tv) continue;
