@@ -135,3 +135,33 @@ def test_a_bad_frame_step_is_refused_naming_the_key(bad):
 
     with pytest.raises(ValueError, match="planner.frame_step"):
         load_config(overrides=[f"planner.frame_step={bad}"])
+
+
+def test_frames_in_flight_are_taken_at_a_stride_of_the_camera_resolution():
+    from nbvkit.config import Config
+    from nbvkit.world import World
+    from conftest import box_mesh
+
+    c = Config().with_overrides(
+        ["map.resolution=0.4", "progress=false", "camera.frame_stride=4", "camera.width=642"]
+    )
+    w = World(c, mesh=box_mesh([-3, -3, 0], [3, 3, 5]))
+    view, frame = w.scan("view"), w.scan("frame")
+    assert view.depth.shape == (480, 642) and frame.depth.shape == (120, 160)
+    # the same field of view: the frame's hits span the view's on the box's face, and lie on it
+    lo, hi = view.hits.min(axis=0), view.hits.max(axis=0)
+    np.testing.assert_allclose(frame.hits.min(axis=0), lo, atol=0.1)
+    np.testing.assert_allclose(frame.hits.max(axis=0), hi, atol=0.1)
+    assert 0.9 < 16 * len(frame.hits) / len(view.hits) < 1.1
+    # a stride of 1: the camera itself takes the frames, pixel for pixel
+    w1 = World(Config().with_overrides(["map.resolution=0.4"]), mesh=w.mesh)
+    assert w1.frame_camera is w1.camera
+    np.testing.assert_array_equal(w1.scan("frame").depth, w1.scan("view").depth)
+
+
+@pytest.mark.parametrize("bad", ["0", "65", "1.5", "nan"])
+def test_a_bad_frame_stride_is_refused_naming_the_key(bad):
+    from nbvkit.config import load_config
+
+    with pytest.raises(ValueError, match="camera.frame_stride"):
+        load_config(overrides=[f"camera.frame_stride={bad}"])

@@ -67,6 +67,7 @@ class CameraConfig:
     mount_xyz: tuple = triple((0.0, 0.0, 0.0))
     mount_rpy_deg: tuple = triple((0.0, 0.0, 0.0))
     gimbal_pitch_deg: tuple = (-30.0, 90.0)  # [min, max] deg, > 0 looks down; [0, 0]: level
+    frame_stride: int = within(1, 1, 64)  # in-flight frames at 1/N the pixels on each axis
 
     def check(self, key: str) -> None:
         check_gimbal(self.gimbal_pitch_deg, key + ".gimbal_pitch_deg")
@@ -134,6 +135,18 @@ def build_camera(camera: CameraConfig, scene, seed: int, **changes) -> _core.Dep
     (e.g. a coarse noise-free probe: width=32, height=24, noise_k=0)."""
     return _core.DepthCamera(
         scene, **{**camera_kwargs(camera), **changes}, seed=seed, mount=camera_mount(camera)
+    )
+
+
+def build_frame_camera(camera: CameraConfig, scene, seed: int):
+    """The camera of in-flight frames: camera.frame_stride times fewer pixels on each axis (at
+    least one), the same field of view, range and mount; None at frame_stride 1 (the camera
+    itself takes them)."""
+    n = camera.frame_stride
+    if n == 1:
+        return None
+    return build_camera(
+        camera, scene, seed, width=max(1, camera.width // n), height=max(1, camera.height // n)
     )
 
 

@@ -16,7 +16,7 @@ import numpy as np
 from . import _core
 from .limits import Bound, check_work
 from .mesh import default_mesh_path, load_mesh
-from .sensors import build_camera, build_laser, build_view_camera
+from .sensors import build_camera, build_frame_camera, build_laser, build_view_camera
 from .settings import cpp_section
 from .workspace import (
     is_large,
@@ -238,6 +238,7 @@ class World:
             ) from None
         self.scene = _core.RaycastScene(mesh)
         self.camera = build_camera(cfg.camera, self.scene, cfg.seed)
+        self.frame_camera = build_frame_camera(cfg.camera, self.scene, cfg.seed + 2) or self.camera
         self.laser = build_laser(cfg.laser, self.scene, cfg.seed + 1)
         self.starts = self._start_poses()
         start = np.array(cfg.start_pose, float) if cfg.start_pose is not None else None
@@ -350,7 +351,9 @@ class World:
         integrated."""
         if kind not in self.SENSOR_OF:
             raise ValueError(f"unknown capture {kind!r}; known: {', '.join(self.SENSOR_OF)}")
-        sensor = self.camera if self.SENSOR_OF[kind] == "camera" else self.laser
+        sensor = (
+            self.laser if kind == "laser" else self.frame_camera if kind == "frame" else self.camera
+        )
         return sensor.scan_pose(self.state.pose if pose is None else pose)
 
     def integrate(self, scan, kind: str = "view") -> int:
