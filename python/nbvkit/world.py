@@ -341,7 +341,8 @@ class World:
     def sense(self, kind: str = "view", pose=None):
         """One capture from `pose` (default: the vehicle's), scanned and integrated (scan, then
         integrate). kind: "view" (a camera frame that counts as a view), "frame" (a camera frame
-        taken in flight, during the profile) or "laser" (a laser scan). Returns the Scan."""
+        taken in flight, the profile's or a leg's, by frame_camera: camera.frame_stride) or
+        "laser" (a laser scan). Returns the Scan."""
         scan = self.scan(kind, pose)
         self.integrate(scan, kind)
         return scan
