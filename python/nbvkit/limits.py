@@ -76,8 +76,8 @@ MAX_PROFILE_FRAMES = 10_000
 #: takes ~1 kB while it is computed.
 MAX_OBSERVABILITY_POSES = 500_000
 #: Candidate positions x surface samples tested from them (the airliner at the default 2 m:
-#: 8e8, ~3 s; at 1 m: 7e9, ~26 s on 2 cores).
-MAX_OBSERVABILITY_PAIRS = 10**13  # the 100 m plant at 2 m: 75,625 x 8 M = 6e11, ~350 s
+#: 8e8, ~1.5 s on 2 cores).
+MAX_OBSERVABILITY_PAIRS = 10**13  # the 100 m plant at 2 m: 75,625 x 8 M = 6e11, ~29 s
 #: Memory a mission's map takes (bytes): the flat workspace grid, the octree and the per-cell
 #: state of the surface observations and the planners, ~50 bytes per workspace cell in a
 #: mission (a 9.6 M-cell workspace: 465 MB); OccupancyMap's own limit (400 M cells) is 20 GB.
