@@ -153,6 +153,9 @@ def test_frames_in_flight_are_taken_at_a_stride_of_the_camera_resolution():
     np.testing.assert_allclose(frame.hits.min(axis=0), lo, atol=0.1)
     np.testing.assert_allclose(frame.hits.max(axis=0), hi, atol=0.1)
     assert 0.9 < 16 * len(frame.hits) / len(view.hits) < 1.1
+    h = frame.hits
+    on_face = np.minimum.reduce([3 - np.abs(h[:, 0]), 3 - np.abs(h[:, 1]), h[:, 2], 5 - h[:, 2]])
+    assert np.all(np.abs(on_face) < 1e-3)
     # a stride of 1: the camera itself takes the frames, pixel for pixel
     w1 = World(Config().with_overrides(["map.resolution=0.4"]), mesh=w.mesh)
     assert w1.frame_camera is w1.camera

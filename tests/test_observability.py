@@ -230,20 +230,26 @@ def test_a_roof_seen_only_by_a_pitched_camera_is_observable_with_the_gimbal():
         _core.ObservabilityOptions(gimbal_min_deg=10, gimbal_max_deg=5)
 
 
+@pytest.mark.parametrize("mount_pitch", [0.0, 20.0, -40.0])
 @pytest.mark.parametrize(
-    "gimbal", [(0.0, 0.0), (-30.0, 90.0), (0.0, 30.0), (20.0, 60.0), (-90.0, 0.0)]
+    "gimbal", [(0.0, 0.0), (-30.0, 90.0), (0.0, 30.0), (20.0, 60.0), (-90.0, 0.0), (70.0, 80.0)]
 )
-def test_a_sample_is_seen_exactly_within_the_gimbal_range_widened_by_half_the_fov(gimbal):
+def test_a_sample_is_seen_exactly_within_the_gimbal_range_widened_by_half_the_fov(
+    gimbal, mount_pitch
+):
     """One vehicle position, samples 5 m away at depression angles every 5 deg (facing it, no
     occluder): seen exactly where the centring pitch, clamped to [min, max], brings the sample
-    within half the 45 deg vertical field of view: depressions in [min - 22.5, max + 22.5]."""
+    within half the 45 deg vertical field of view. With the camera mounted pitched m deg down:
+    depressions in [min + m - 22.5, max + m + 22.5] (the ranges that clamp at either end, and
+    mounts whose clamping bounds lie past straight up or down)."""
     far = box_mesh((90, 90, 0), (91, 91, 1))  # the scene's only surface, out of every ray's way
     scene = nbvkit.RaycastScene(far)
     dep = np.radians(np.arange(-85.0, 90.0, 5.0))  # > 0 below; 2.5 deg or more off each bound
     here = np.array([0.0, 0.0, 20.0])
     pts = here + 5.0 * np.stack([np.cos(dep), np.zeros_like(dep), -np.sin(dep)], axis=1)
     normals = (here - pts) / 5.0
-    camera = nbvkit.DepthCamera(scene, width=16, height=12, noise_k=0.0)
+    mount = _core.mount_transform((0.0, 0.0, 0.0), 0.0, mount_pitch, 0.0)
+    camera = nbvkit.DepthCamera(scene, width=16, height=12, noise_k=0.0, mount=mount)
     opts = _core.ObservabilityOptions(
         pose_spacing=1.0, gimbal_min_deg=gimbal[0], gimbal_max_deg=gimbal[1]
     )
@@ -252,5 +258,5 @@ def test_a_sample_is_seen_exactly_within_the_gimbal_range_widened_by_half_the_fo
     )
     assert len(r.poses) == 1
     d = np.degrees(dep)
-    expected = (d >= gimbal[0] - 22.5) & (d <= gimbal[1] + 22.5)
-    np.testing.assert_array_equal(np.asarray(r.observable, bool), expected)
+    lo, hi = gimbal[0] + mount_pitch - 22.5, gimbal[1] + mount_pitch + 22.5
+    np.testing.assert_array_equal(np.asarray(r.observable, bool), (d >= lo) & (d <= hi))

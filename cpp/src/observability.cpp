@@ -323,7 +323,8 @@ ObservabilityResult observable_samples(const RaycastScene& scene, const PointsRe
   const double cos_g_lo = std::cos(g_lo), sin_g_lo = std::sin(g_lo);
   const double cos_g_hi = std::cos(g_hi), sin_g_hi = std::sin(g_hi);
   // the sample elevations e (|e| <= 90 deg) past which the centring pitch axis_el - e is
-  // clamped, as sines: at g_lo from sin_e_hi up, at g_hi from sin_e_lo down (+-2 where never)
+  // clamped, as sines: at g_lo from sin_e_hi up, at g_hi from sin_e_lo down (+-2 where that
+  // elevation lies past straight up or down: the bound is never or always reached)
   auto sin_of_elevation = [](double e) {
     return e >= M_PI / 2 ? 2.0 : e <= -M_PI / 2 ? -2.0 : std::sin(e);
   };
@@ -376,7 +377,8 @@ ObservabilityResult observable_samples(const RaycastScene& scene, const PointsRe
           // the gimbal's pitch p that centres the sample vertically, within its range: a turn
           // about z keeps the sample's elevation e, so one pitch serves every yaw offset.
           // p = clamp(axis_el - e, g_lo, g_hi), its cosine and sine without a trigonometric
-          // call: cos e = vh / dist and sin e = v.z / dist, p clamped where e leaves [e_lo, e_hi]
+          // call: cos e = vh / dist and sin e = v.z / dist, p clamped where e leaves
+          // [axis_el - g_hi, axis_el - g_lo]
           double cp = 1.0, sp = 0.0;
           if (gimbal) {
             const double ce = vh / dist, se = v.z() / dist;

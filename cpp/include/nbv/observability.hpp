@@ -56,7 +56,7 @@ struct ObservabilityResult {
 /// free position from which a ray along +-x, +-y or +z escapes the mesh (the ground, below, is
 /// not part of it): positions sealed inside a closed structure are dropped.
 /// The camera sits at position + mount translation (its horizontal part ignored: yaw is free).
-/// With a gimbal (gimbal_min_deg < gimbal_max_deg), the camera turns by the pitch p that centres
+/// With a gimbal (either bound nonzero), the camera turns by the pitch p that centres
 /// the sample vertically, clamped to the range: T_body_camera = Ry(p) mount (as
 /// gimbal_transform; the mount's translation is not turned).
 ///
