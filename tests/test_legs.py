@@ -4,7 +4,7 @@ import math
 import numpy as np
 import pytest
 
-from conftest import seen_box_world
+from conftest import box_mesh, seen_box_world
 from nbvkit import _core
 from nbvkit.planning.legs import leg_pieces, retreat
 
@@ -140,7 +140,6 @@ def test_a_bad_frame_step_is_refused_naming_the_key(bad):
 def test_frames_in_flight_are_taken_at_a_stride_of_the_camera_resolution():
     from nbvkit.config import Config
     from nbvkit.world import World
-    from conftest import box_mesh
 
     c = Config().with_overrides(
         ["map.resolution=0.4", "progress=false", "camera.frame_stride=4", "camera.width=642"]

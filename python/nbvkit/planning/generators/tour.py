@@ -310,7 +310,6 @@ class CoverageTour:
             self.opened.update(opens.get(int(k), ()))
         views, aims = candidates[chosen], patches.centers[owner[chosen]]
         record["kept"] = len(order)
-        record["unpaid"], record["unpaid_m2"] = 0, 0.0
         if not order:  # views adding min_gain that no tour paid for
             cell_m2 = world.map.resolution**2
             left, gains = _core.select_cover(coverage, min_gain=min_gain / cell_m2)
