@@ -313,5 +313,11 @@ def _run_pool(specs, root, n, ncpu, rows, progress) -> None:
             p.terminate()
         for p in procs:
             p.join(5)
+        # Let the pool's manager thread see the dead workers and close its wake-up pipe now: at
+        # exit, Python 3.11 wakes it without a lock and may write to the pipe as it closes
+        # ("Bad file descriptor" printed after the sweep's last word).
+        manager = getattr(ex, "_executor_manager_thread", None)
+        if manager is not None:
+            manager.join(10)
         raise
     ex.shutdown(wait=True)
