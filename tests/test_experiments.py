@@ -207,7 +207,7 @@ def test_ctrl_c_keeps_a_run_that_finished_before_its_row_arrived(tmp_path, monke
 
     specs = [RunSpec("1", k, overrides=TINY) for k in (0, 1)]
 
-    def pool(specs, root, n, ncpu, rows, progress):  # the first run finishes, its row is lost
+    def pool(specs, root, n, ncpu, rows, failures, progress):  # the first run ends, its row lost
         ex.run_one(specs[0], root)
         raise KeyboardInterrupt
 
@@ -218,15 +218,107 @@ def test_ctrl_c_keeps_a_run_that_finished_before_its_row_arrived(tmp_path, monke
     assert e.value.total == 2
 
 
-def test_sweep_on_a_local_dask_cluster(tmp_path):
+FAILING_PART = """
+from dataclasses import dataclass
+
+import nbvkit
+
+
+@dataclass(frozen=True)
+class FailingConfig:
+    fail: bool = False  # raise at the first check
+
+
+class Failing:
+    Settings = FailingConfig
+
+    def __init__(self, settings, context):
+        self.fail = settings.fail
+
+    def check(self, world, step):
+        if self.fail:
+            raise RuntimeError("the failing part failed, as asked")
+        return None
+
+
+nbvkit.register_termination("failing", Failing)
+"""
+
+
+@pytest.fixture(scope="module")
+def failing_part(tmp_path_factory):
+    """A plugin file registering the termination `failing` (one file: a part registers once)."""
+    plugin = tmp_path_factory.mktemp("plugin") / "failing_part.py"
+    plugin.write_text(FAILING_PART)
+    return plugin
+
+
+@pytest.mark.parametrize("workers", [1, 2])
+def test_a_run_that_raises_fails_alone_and_the_sweep_says_which(
+    tmp_path, capsys, failing_part, workers
+):
+    """A run's error does not stop the others: they are flown and tabled, each failed one is
+    named with its error and leaves no folder, and the exit code is 1; the same command flies
+    the failed ones again (which fail the same way here) and keeps the others."""
+    from nbvkit.cli import main
+
+    f = tmp_path / "sweep.yaml"
+    spec = {
+        "scenarios": ["1"],
+        "starts": 2,
+        "grid": {"failing.fail": [False, True]},
+        "set": {
+            **yaml.safe_load("{" + ", ".join(o.replace("=", ": ") for o in TINY) + "}"),
+            "planner.terminations": ["failing", "budget"],
+        },
+    }
+    f.write_text(yaml.safe_dump(spec))
+    out = tmp_path / "out"
+    argv = [
+        "sweep",
+        str(f),
+        "--out",
+        str(out),
+        "--workers",
+        str(workers),
+        "--plugin",
+        str(failing_part),
+    ]
+    assert main(argv) == 1
+    err = capsys.readouterr().err
+    rows = pd.read_csv(out / "results.csv")
+    assert len(rows) == 2 and (rows["failing.fail"] == False).all()  # noqa: E712
+    finished = sorted(p.name for p in (out / "runs").iterdir() if not p.name.startswith("."))
+    assert finished == sorted(rows["run_id"])
+    assert "2 of 4 runs failed" in err and "the failing part failed, as asked" in err
+    assert "RuntimeError" in err and "2 finished" in err and "fly the failed ones again" in err
+    assert main(argv) == 1  # resumed: the finished runs kept, the failed ones flown again
+    assert "2 of 4 runs failed" in capsys.readouterr().err
+    assert sorted(pd.read_csv(out / "results.csv")["run_id"]) == finished
+
+
+def test_sweep_on_a_local_dask_cluster(tmp_path, failing_part):
+    import nbvkit
+    from nbvkit.experiments import RunsFailed
+
     distributed = pytest.importorskip("distributed")
+    nbvkit.load_plugin(failing_part)  # the workers load the parent's plugin files
+    failing = ("planner.terminations=[failing, budget]", "failing.fail=true")
     with distributed.LocalCluster(
         n_workers=2, threads_per_worker=1, processes=True, host="127.0.0.1", dashboard_address=None
     ) as cluster:
         specs = [RunSpec("1", k, overrides=TINY) for k in (0, 1)]
         rows = run_specs(specs, tmp_path, scheduler=cluster.scheduler_address)
+        # a run that raises on the cluster fails alone, named with its error
+        bad = RunSpec("1", 0, overrides=(*TINY, *failing))
+        with pytest.raises(RunsFailed) as e:
+            run_specs([bad, specs[1]], tmp_path, scheduler=cluster.scheduler_address)
     assert [r["start"] for r in rows] == [0, 1]
     assert all((tmp_path / "runs" / s.run_id / "summary.json").exists() for s in specs)
+    assert [r["run_id"] for r in e.value.rows] == [specs[1].run_id]
+    assert [run_id for run_id, _ in e.value.failures] == [bad.run_id]
+    assert "the failing part failed, as asked" in e.value.failures[0][1]
+    assert not (tmp_path / "runs" / bad.run_id).exists()
 
 
 def test_sweep_command(tmp_path):

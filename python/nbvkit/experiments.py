@@ -154,6 +154,19 @@ class Interrupted(Exception):
         self.total = total
 
 
+class RunsFailed(Exception):
+    """Some runs of run_specs raised; every other run was flown to its end. ``rows`` holds the
+    finished runs' rows (in spec order), ``failures`` a (run id, error) pair per failed run,
+    ``total`` the number of specs. A failed run leaves no folder: the next start flies it."""
+
+    def __init__(self, rows: list[dict], failures: list[tuple[str, str]], total: int):
+        first = f"{failures[0][0]}: {failures[0][1]}" if failures else ""
+        super().__init__(f"{len(failures)} of {total} runs failed ({first})")
+        self.rows = rows
+        self.failures = failures
+        self.total = total
+
+
 def clean_stale_tmp(root: str | os.PathLike) -> int:
     """Removes ``runs/.<id>.tmp<pid>`` folders left by runs that were killed (their process is
     gone); returns how many."""
@@ -242,19 +255,33 @@ def run_specs(
     (root / "runs").mkdir(parents=True, exist_ok=True)
     clean_stale_tmp(root)
     rows: list = [None] * len(specs)
+    failures: list = [None] * len(specs)  # per spec: the error of a run that raised
     try:
         with _terminate_as_interrupt():
-            _run_all(specs, root, workers, scheduler, progress, rows)
+            _run_all(specs, root, workers, scheduler, progress, rows, failures)
     except KeyboardInterrupt:
         _finished_rows(specs, root, rows)
         raise Interrupted([r for r in rows if r is not None], len(specs)) from None
+    failed = [(s.run_id, f) for s, f in zip(specs, failures) if f is not None]
+    if failed:
+        raise RunsFailed([r for r in rows if r is not None], failed, len(specs))
     return rows
 
 
-def _run_all(specs, root, workers, scheduler, progress, rows) -> None:
-    """Fills rows in place: on a Dask cluster, in this process, or in local processes."""
+def _failure(e: BaseException) -> str:
+    """A failed run's error, for the table's reader: its type and message on one line."""
+    return " ".join(f"{type(e).__name__}: {e}".split())
+
+
+def _progress(k: int, total: int, run_id: str, outcome: str) -> None:
+    print(f"[{k}/{total}] {run_id}: {outcome}", flush=True)
+
+
+def _run_all(specs, root, workers, scheduler, progress, rows, failures) -> None:
+    """Fills rows (and failures: the error of each run that raised; the others go on) in place:
+    on a Dask cluster, in this process, or in local processes."""
     if scheduler:
-        from distributed import Client
+        from distributed import Client, wait
 
         with Client(scheduler) as client:
             from .plugins import loaded
@@ -263,30 +290,39 @@ def _run_all(specs, root, workers, scheduler, progress, rows) -> None:
                 run_one, specs, root=str(root.resolve()), threads=1, plugins=loaded(), pure=False
             )
             try:
-                rows[:] = client.gather(futs)
+                wait(futs)
             except KeyboardInterrupt:
                 for i, f in enumerate(futs):
                     if f.status == "finished":
                         rows[i] = f.result()
                 client.cancel(futs)
                 raise
+            for i, f in enumerate(futs):
+                if f.status == "finished":
+                    rows[i] = f.result()
+                elif f.status == "error":
+                    failures[i] = _failure(f.exception())
+                else:  # cancelled or lost by the cluster
+                    failures[i] = f"the cluster did not finish it ({f.status})"
     elif workers == 1 or len(specs) <= 1:
         for i, s in enumerate(specs):
             t0 = time.perf_counter()
-            rows[i] = run_one(s, root)
+            try:
+                rows[i] = run_one(s, root)
+            except Exception as e:  # noqa: BLE001 (a run's own error: the others are flown)
+                failures[i] = _failure(e)
             if progress:
-                print(
-                    f"[{i + 1}/{len(specs)}] {s.run_id}: {time.perf_counter() - t0:.1f} s",
-                    flush=True,
-                )
+                done = f"{time.perf_counter() - t0:.1f} s"
+                _progress(i + 1, len(specs), s.run_id, done if rows[i] else failures[i])
     else:
         ncpu = os.cpu_count() or 1
-        _run_pool(specs, root, min(workers or ncpu, len(specs)), ncpu, rows, progress)
+        _run_pool(specs, root, min(workers or ncpu, len(specs)), ncpu, rows, failures, progress)
 
 
-def _run_pool(specs, root, n, ncpu, rows, progress) -> None:
-    """Runs specs in n spawned processes, filling rows; on Ctrl-C the queued runs are cancelled
-    and the running ones killed (their temporary folders are removed on the next start)."""
+def _run_pool(specs, root, n, ncpu, rows, failures, progress) -> None:
+    """Runs specs in n spawned processes, filling rows (and failures: a run that raised leaves its
+    error there, the others are flown); on Ctrl-C the queued runs are cancelled and the running
+    ones killed (their temporary folders are removed on the next start)."""
     import concurrent.futures as cf
     import multiprocessing as mp
 
@@ -299,13 +335,14 @@ def _run_pool(specs, root, n, ncpu, rows, progress) -> None:
     try:
         futs = {ex.submit(run_one, s, root, threads): i for i, s in enumerate(specs)}
         for k, f in enumerate(cf.as_completed(futs)):
-            rows[futs[f]] = f.result()
+            i = futs[f]
+            try:
+                rows[i] = f.result()
+            except Exception as e:  # noqa: BLE001 (a run's own error, or its worker killed)
+                failures[i] = _failure(e)
             if progress:
-                print(
-                    f"[{k + 1}/{len(specs)}] {rows[futs[f]]['run_id']}: "
-                    f"{rows[futs[f]]['wall_time_s']:.1f} s",
-                    flush=True,
-                )
+                done = f"{rows[i]['wall_time_s']:.1f} s" if rows[i] else failures[i]
+                _progress(k + 1, len(specs), specs[i].run_id, done)
     except KeyboardInterrupt:
         procs = list((getattr(ex, "_processes", None) or {}).values())
         ex.shutdown(wait=False, cancel_futures=True)

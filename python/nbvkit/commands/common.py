@@ -102,6 +102,22 @@ def report_interrupted(command: str, e, partial: str, resume: str = "the same co
     return 130
 
 
+def report_failed(command: str, e, partial: str, resume: str = "the same command") -> int:
+    """Tell the user which runs of an experiment failed and why (every other run was flown), what
+    it kept (`partial`: where the finished runs' rows are) and how to fly the failed ones again;
+    returns the exit code 1."""
+    lines = [f"  {run_id}: {error}" for run_id, error in e.failures]
+    print(
+        f"nbvkit {command}: {len(e.failures)} of {e.total} runs failed:\n"
+        + "\n".join(lines)
+        + f"\n{len(e.rows)} finished"
+        + (f" ({partial})" if e.rows else "")
+        + f"; fly the failed ones again with {resume} (finished runs are kept)",
+        file=sys.stderr,
+    )
+    return 1
+
+
 def fly_experiment(
     command: str,
     specs,
@@ -120,20 +136,23 @@ def fly_experiment(
     summary tables; returns their markdown, printed and shown in the report), `plot(out, df,
     figures_dir)` and out/report.html titled `title`. When interrupted, writes the rows and
     tables of the finished runs, says where (`partial`) and how to `resume`, and returns 130;
-    else 0."""
+    when some runs failed (every other one flown), the same with each failed run's error, and
+    returns 1; else 0."""
     import pandas as pd
 
-    from ..experiments import Interrupted, run_specs, write_table
+    from ..experiments import Interrupted, RunsFailed, run_specs, write_table
     from ..report import write_experiment_report
 
     t0 = time.perf_counter()
     try:
         rows = run_specs(specs, out, workers=workers, scheduler=scheduler)
-    except Interrupted as e:
+    except (Interrupted, RunsFailed) as e:
         if e.rows:
             write_table(e.rows, out / rows_file)
             if tables is not None:
                 tables(out, pd.DataFrame(e.rows))
+        if isinstance(e, RunsFailed):
+            return report_failed(command, e, partial, resume)
         return report_interrupted(command, e, partial, resume)
     df = pd.DataFrame(rows)
     write_table(rows, out / rows_file)
