@@ -241,3 +241,106 @@ def test_a_mission_running_in_one_thread_refuses_a_second_run():
     t.join()
     """
     assert _ok(fb.python_case(textwrap.dedent(code).format(over=fb.TINY))) == "refused"
+
+
+# ------------------------------------------------------------------------ a flight stopped
+
+STOPPING_PART = """
+from dataclasses import dataclass
+
+import nbvkit
+from nbvkit.settings import choice, within
+
+
+@dataclass(frozen=True)
+class StopAtConfig:
+    views: int = within(3, 1, 1000)  # views flown before the part stops the flight
+    how: str = choice("interrupt", ("interrupt", "error"))  # as Ctrl-C, or as a part's bug
+
+
+class StopAt:
+    Settings = StopAtConfig
+
+    def __init__(self, settings, context):
+        self.s = settings
+
+    def check(self, world, step):
+        if world.state.views >= self.s.views:
+            if self.s.how == "interrupt":
+                raise KeyboardInterrupt
+            raise ZeroDivisionError("a part's bug, as asked")
+        return None
+
+
+nbvkit.register_termination("stop_at", StopAt)
+"""
+
+
+@pytest.fixture(scope="module")
+def stopping_part(tmp_path_factory):
+    """A plugin file registering the termination `stop_at` (loaded once: a part registers once)."""
+    plugin = tmp_path_factory.mktemp("plugin") / "stopping_part.py"
+    plugin.write_text(STOPPING_PART)
+    nbvkit.load_plugin(plugin)
+    return plugin
+
+
+def _stopping(how: str, views: int = 3) -> list[str]:
+    from conftest import TINY_RUN
+
+    return [
+        *TINY_RUN,
+        "max_iterations=20",
+        "planner.terminations=[stop_at, budget]",
+        f"stop_at.views={views}",
+        f"stop_at.how={how}",
+        "progress=false",
+    ]
+
+
+@pytest.mark.parametrize(
+    "how, cause", [("interrupt", KeyboardInterrupt), ("error", ZeroDivisionError)]
+)
+def test_a_flight_stopped_by_ctrl_c_or_a_part_keeps_what_it_flew(
+    tmp_path, stopping_part, how, cause
+):
+    """Mission.run(out_dir): Ctrl-C or a part's error after the views started writes what was
+    flown (a whole run folder, its termination "interrupted" or "failed", the cause named), then
+    raises the same exception; stopped during the profile, nothing is written."""
+    from nbvkit.config import load_config
+
+    out = tmp_path / "run"
+    with pytest.raises(cause):
+        nbvkit.Mission(load_config(overrides=_stopping(how))).run(out)
+    assert is_complete_run(out)
+    s = json.loads((out / "summary.json").read_text())
+    assert s["termination"] == ("interrupted" if how == "interrupt" else "failed")
+    assert s["stopped_by"].startswith(cause.__name__) and not s["stopped_by_budget"]
+    assert s["views"] == 3 and s["iterations"] >= 2  # the first view, then two chosen ones
+    assert s["area_coverage"]["0.05"] > 0  # scored: the cloud of what was flown
+    rows = (out / "iterations.csv").read_text().strip().splitlines()
+    assert len(rows) - 1 == s["iterations"]
+    assert (out / "cloud.ply").stat().st_size > 0 and (out / "trajectory.csv").exists()
+    # stopped during the profile, before the views: nothing is written
+    early = tmp_path / "early"
+
+    def profile(self):
+        raise cause
+
+    mission = nbvkit.Mission(load_config(overrides=_stopping(how)))
+    mission._profile = profile.__get__(mission)
+    with pytest.raises(cause):
+        mission.run(early)
+    assert not early.exists()
+
+
+def test_nbvkit_run_stopped_says_where_what_it_flew_is(tmp_path, stopping_part, capsys):
+    from nbvkit.cli import main
+
+    out = tmp_path / "run"
+    sets = _stopping("interrupt", views=2)
+    assert main(["run", "--plugin", str(stopping_part), "--out", str(out), "--set", *sets]) == 130
+    err = capsys.readouterr().err
+    assert "the flight stopped after 2 views" in err and f"saved in {out}/" in err
+    assert "interrupted" in err
+    assert json.loads((out / "summary.json").read_text())["termination"] == "interrupted"

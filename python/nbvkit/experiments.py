@@ -270,7 +270,9 @@ def run_specs(
 
 def _failure(e: BaseException) -> str:
     """A failed run's error, for the table's reader: its type and message on one line."""
-    return " ".join(f"{type(e).__name__}: {e}".split())
+    from .mission import error_line
+
+    return error_line(e)
 
 
 def _progress(k: int, total: int, run_id: str, outcome: str) -> None:

@@ -7,6 +7,7 @@ nbvkit.recorder records the views and writes the results.
 """
 from __future__ import annotations
 
+import sys
 import threading
 import time
 from pathlib import Path
@@ -32,6 +33,7 @@ class Mission:
         self.config = config or Config()
         self._running = threading.Lock()
         self._ran = False
+        self._flying = None  # see run_into
         self._start(World(self.config, mesh))
 
     def _start(self, world: World) -> None:
@@ -71,9 +73,32 @@ class Mission:
 
             # before any work: a mission must not fly and then fail to save
             with RunFolder(out_dir, overwrite=overwrite, what="out_dir") as folder:
-                return self.save(folder.tmp, self._run(), finish=finish)
+                summary, stopped = self.run_into(folder.tmp, finish=finish)
+            if stopped is not None:
+                raise stopped  # what was flown is in out_dir
+            return summary
         finally:
             self._running.release()
+
+    def run_into(self, out, finish: bool = False) -> tuple[dict, BaseException | None]:
+        """Runs the mission and writes its results into the folder `out` (see save): (summary,
+        None). A flight stopped after take-off by Ctrl-C or by an error (a planner part's) is
+        not lost: what it flew is written (its termination "interrupted" or "failed", without
+        the end-of-run outputs) and (summary, the exception) returned, for the caller to raise
+        once the folder is in place. Stopped before the views started (profile, symmetry), the
+        exception propagates and nothing is written."""
+        try:
+            summary = self._run()
+        except (KeyboardInterrupt, Exception) as e:
+            if self._flying is None:
+                raise
+            why = "interrupted" if isinstance(e, KeyboardInterrupt) else "failed"
+            if self.config.progress:
+                print(f"{why}: saving what was flown (Ctrl-C again drops it)", file=sys.stderr)
+            summary = self.recorder.summary(why, time.perf_counter() - self._flying)
+            summary["stopped_by"] = error_line(e)
+            return self.save(out, summary), e
+        return self.save(out, summary, finish=finish), None
 
     def save(self, out, summary: dict, finish: bool = False, cache_dir=None) -> dict:
         """Writes this finished mission's results into the folder `out` (Recorder.write);
@@ -86,6 +111,7 @@ class Mission:
             self._start(World(self.config, self.world.mesh))
             self.world.mesh_path = mesh_path
         self._ran = True
+        self._flying = None  # when the flight started, once the views have (see run_into)
         cfg, world = self.config, self.world
         t_start = time.perf_counter()
         self.entropy_initial = world.map.total_entropy()  # the empty workspace
@@ -100,6 +126,7 @@ class Mission:
             world.sense("view")  # the first view, from where the camera stage starts
             self.planner.hooks["record"] = self.recorder.on_step  # the last hook
             self.recorder.open_progress(self.max_views, cfg.progress)
+            self._flying = t_start
             try:
                 self.termination = self.planner.run(world, self.max_views)
             finally:
@@ -134,3 +161,9 @@ class Mission:
 
             self.planner.hooks["symmetry_refresh"] = symmetry_refresh
         return summary
+
+
+def error_line(e: BaseException) -> str:
+    """An exception as one line for a reader: its type, and its message when it has one."""
+    message = " ".join(str(e).split())
+    return f"{type(e).__name__}: {message}" if message else type(e).__name__

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import sys
 
 from ..config import load_config
 from ..mission import Mission
@@ -103,7 +104,14 @@ def run(args) -> int:
     # checked (writable, not in use by another run, empty or --overwrite) before any work
     with RunFolder(out, overwrite=args.overwrite, what="--out") as folder:
         mission = Mission(cfg)
-        s = mission.save(folder.tmp, mission.run(), finish=True)
+        s, stopped = mission.run_into(folder.tmp, finish=True)
+    if stopped is not None:
+        print(
+            f"nbvkit run: the flight stopped after {s['views']} views, {s['distance_m']:.1f} m "
+            f"({s['stopped_by']}); what it flew is saved in {out}/",
+            file=sys.stderr,
+        )
+        raise stopped
     cov = s["coverage"]
     print(
         f"scenario {s['scenario']} start {s['start']}: {s['iterations']} iterations, "
