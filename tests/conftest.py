@@ -126,3 +126,22 @@ def execute_notebook(name: str, env: dict):
     return "".join(
         o.get("text", "") for c in nb.cells if c.cell_type == "code" for o in c.get("outputs", [])
     )
+
+
+def plugin_fixture_file(folder, name: str, source: str, parts: dict):
+    """A plugin file `name` holding `source`, in `folder`: yielded by a fixture, which on
+    teardown forgets it and the parts it registered (`parts`: {"generator" | "termination":
+    [names]}), so that later tests (and the run folders their fixtures write, whose config.yaml
+    would hold the parts' sections) see only the package's own parts."""
+    from nbvkit import plugins
+    from nbvkit.planning import registry
+
+    path = folder / name
+    path.write_text(source)
+    yield path
+    for kind, names in parts.items():
+        table = registry.GENERATORS if kind == "generator" else registry.TERMINATIONS
+        for n in names:
+            table.pop(n, None)
+    if str(path.resolve()) in plugins.LOADED:
+        plugins.LOADED.remove(str(path.resolve()))

@@ -7,7 +7,7 @@ import pandas as pd
 import pytest
 import yaml
 
-from conftest import TINY_RUN, execute_notebook
+from conftest import TINY_RUN, execute_notebook, plugin_fixture_file
 from nbvkit.experiments import RunSpec, run_specs, sweep_specs, table2, table2_markdown
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -247,10 +247,12 @@ nbvkit.register_termination("failing", Failing)
 
 @pytest.fixture(scope="module")
 def failing_part(tmp_path_factory):
-    """A plugin file registering the termination `failing` (one file: a part registers once)."""
-    plugin = tmp_path_factory.mktemp("plugin") / "failing_part.py"
-    plugin.write_text(FAILING_PART)
-    return plugin
+    """A plugin file registering the termination `failing` (one file: a part registers once),
+    forgotten after this module's tests."""
+    folder = tmp_path_factory.mktemp("plugin")
+    yield from plugin_fixture_file(
+        folder, "failing_part.py", FAILING_PART, {"termination": ["failing"]}
+    )
 
 
 @pytest.mark.parametrize("workers", [1, 2])

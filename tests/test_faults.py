@@ -246,6 +246,9 @@ def test_a_mission_running_in_one_thread_refuses_a_second_run():
 # ------------------------------------------------------------------------ a flight stopped
 
 STOPPING_PART = """
+import os
+import signal
+import time
 from dataclasses import dataclass
 
 import nbvkit
@@ -255,7 +258,8 @@ from nbvkit.settings import choice, within
 @dataclass(frozen=True)
 class StopAtConfig:
     views: int = within(3, 1, 1000)  # views flown before the part stops the flight
-    how: str = choice("interrupt", ("interrupt", "error"))  # as Ctrl-C, or as a part's bug
+    # as Ctrl-C, as a part's bug, or as a `kill` (SIGTERM to this process)
+    how: str = choice("interrupt", ("interrupt", "error", "sigterm"))
 
 
 class StopAt:
@@ -268,6 +272,9 @@ class StopAt:
         if world.state.views >= self.s.views:
             if self.s.how == "interrupt":
                 raise KeyboardInterrupt
+            if self.s.how == "sigterm":
+                os.kill(os.getpid(), signal.SIGTERM)
+                time.sleep(5)  # the handler raises here
             raise ZeroDivisionError("a part's bug, as asked")
         return None
 
@@ -278,11 +285,15 @@ nbvkit.register_termination("stop_at", StopAt)
 
 @pytest.fixture(scope="module")
 def stopping_part(tmp_path_factory):
-    """A plugin file registering the termination `stop_at` (loaded once: a part registers once)."""
-    plugin = tmp_path_factory.mktemp("plugin") / "stopping_part.py"
-    plugin.write_text(STOPPING_PART)
-    nbvkit.load_plugin(plugin)
-    return plugin
+    """A plugin file registering the termination `stop_at`, loaded once (a part registers once)
+    and forgotten after this module's tests."""
+    from conftest import plugin_fixture_file
+
+    folder = tmp_path_factory.mktemp("plugin")
+    parts = {"termination": ["stop_at"]}
+    for plugin in plugin_fixture_file(folder, "stopping_part.py", STOPPING_PART, parts):
+        nbvkit.load_plugin(plugin)
+        yield plugin
 
 
 def _stopping(how: str, views: int = 3) -> list[str]:
@@ -334,13 +345,24 @@ def test_a_flight_stopped_by_ctrl_c_or_a_part_keeps_what_it_flew(
     assert not early.exists()
 
 
-def test_nbvkit_run_stopped_says_where_what_it_flew_is(tmp_path, stopping_part, capsys):
-    from nbvkit.cli import main
+@pytest.mark.parametrize("how", ["interrupt", "sigterm"])
+def test_nbvkit_run_stopped_says_where_what_it_flew_is(tmp_path, stopping_part, how):
+    """Ctrl-C, or a `kill` (SIGTERM, as a batch scheduler's time limit sends), during the views
+    of `nbvkit run` (its own process): what was flown is saved, the console says where, and
+    the exit code is 130."""
+    import subprocess
 
     out = tmp_path / "run"
-    sets = _stopping("interrupt", views=2)
-    assert main(["run", "--plugin", str(stopping_part), "--out", str(out), "--set", *sets]) == 130
-    err = capsys.readouterr().err
-    assert "the flight stopped after 2 views" in err and f"saved in {out}/" in err
-    assert "interrupted" in err
+    argv = ["run", "--plugin", str(stopping_part), "--out", str(out), "--set", *_stopping(how, 2)]
+    p = subprocess.run(
+        [sys.executable, "-m", "nbvkit.cli", *argv],
+        capture_output=True,
+        text=True,
+        timeout=300,
+        env=dict(os.environ, MPLBACKEND="Agg"),
+    )
+    assert p.returncode == 130, (p.returncode, p.stderr)
+    assert "the flight stopped after 2 views" in p.stderr and f"saved in {out}/" in p.stderr
+    assert "interrupted" in p.stderr and "Traceback" not in p.stderr
+    assert is_complete_run(out)
     assert json.loads((out / "summary.json").read_text())["termination"] == "interrupted"

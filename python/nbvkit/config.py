@@ -250,7 +250,8 @@ def _build_config(data: dict) -> Config:
         if k not in static and k not in parts:
             raise KeyError(
                 f"unknown config key {shorten(str(k))}; known keys here: "
-                f"{', '.join(sorted(static | set(parts)))}"
+                f"{', '.join(sorted(static | set(parts)))} (a section of your own planner "
+                "part is known once its plugin is loaded: --plugin FILE, nbvkit.load_plugin)"
             )
     kwargs = {k: coerce(hints[k], v, k) for k, v in data.items() if k in static}
     sections = {k: build(cls, data.get(k) or {}, k + ".") for k, cls in parts.items()}

@@ -219,9 +219,11 @@ def _worker_init(plugins=()) -> None:
 
 
 @contextlib.contextmanager
-def _terminate_as_interrupt():
-    """While runs are flying, a `kill` (SIGTERM) stops them as Ctrl-C does: workers stopped,
-    finished runs kept, the partial table written. (Main thread only: signals go there.)"""
+def terminate_as_interrupt():
+    """Within it, a `kill` (SIGTERM: also what batch schedulers send at a time limit) raises
+    KeyboardInterrupt as Ctrl-C does: an experiment's workers stopped, finished runs kept, the
+    partial table written; a single run's flight kept (Mission.run_into). (Main thread only:
+    signals go there; elsewhere it does nothing.)"""
     import signal
     import threading
 
@@ -257,7 +259,7 @@ def run_specs(
     rows: list = [None] * len(specs)
     failures: list = [None] * len(specs)  # per spec: the error of a run that raised
     try:
-        with _terminate_as_interrupt():
+        with terminate_as_interrupt():
             _run_all(specs, root, workers, scheduler, progress, rows, failures)
     except KeyboardInterrupt:
         _finished_rows(specs, root, rows)

@@ -7,6 +7,7 @@ import json
 import sys
 
 from ..config import load_config
+from ..experiments import terminate_as_interrupt
 from ..mission import Mission
 from ..planning.terminations.budget import budget_note
 from ..runfolder import RunFolder
@@ -104,7 +105,8 @@ def run(args) -> int:
     # checked (writable, not in use by another run, empty or --overwrite) before any work
     with RunFolder(out, overwrite=args.overwrite, what="--out") as folder:
         mission = Mission(cfg)
-        s, stopped = mission.run_into(folder.tmp, finish=True)
+        with terminate_as_interrupt():  # a `kill` keeps the flight as Ctrl-C does
+            s, stopped = mission.run_into(folder.tmp, finish=True)
     if stopped is not None:
         print(
             f"nbvkit run: the flight stopped after {s['views']} views, {s['distance_m']:.1f} m "
