@@ -82,8 +82,8 @@ class Mission:
 
     def run_into(self, out, finish: bool = False) -> tuple[dict, BaseException | None]:
         """Runs the mission and writes its results into the folder `out` (see save): (summary,
-        None). A flight stopped after take-off by Ctrl-C or by an error (a planner part's) is
-        not lost: what it flew is written (its termination "interrupted" or "failed", without
+        None). A flight stopped once its views started, by Ctrl-C or by an error (a planner
+        part's), is not lost: what it flew is written (its termination "interrupted" or "failed", without
         the end-of-run outputs) and (summary, the exception) returned, for the caller to raise
         once the folder is in place. Stopped before the views started (profile, symmetry), the
         exception propagates and nothing is written."""
@@ -111,7 +111,7 @@ class Mission:
             self._start(World(self.config, self.world.mesh))
             self.world.mesh_path = mesh_path
         self._ran = True
-        self._flying = None  # when the flight started, once the views have (see run_into)
+        self._flying = None  # the mission's start time, set once its views start (run_into)
         cfg, world = self.config, self.world
         t_start = time.perf_counter()
         self.entropy_initial = world.map.total_entropy()  # the empty workspace
