@@ -83,10 +83,10 @@ class Mission:
     def run_into(self, out, finish: bool = False) -> tuple[dict, BaseException | None]:
         """Runs the mission and writes its results into the folder `out` (see save): (summary,
         None). A flight stopped once its views started, by Ctrl-C or by an error (a planner
-        part's), is not lost: what it flew is written (its termination "interrupted" or "failed", without
-        the end-of-run outputs) and (summary, the exception) returned, for the caller to raise
-        once the folder is in place. Stopped before the views started (profile, symmetry), the
-        exception propagates and nothing is written."""
+        part's), is not lost: what it flew is written (its termination "interrupted" or
+        "failed", without the end-of-run outputs) and (summary, the exception) returned, for
+        the caller to raise once the folder is in place. Stopped before the views started
+        (profile, symmetry), the exception propagates and nothing is written."""
         try:
             summary = self._run()
         except (KeyboardInterrupt, Exception) as e:
