@@ -52,6 +52,39 @@ def test_a_sealed_hollow_box_is_seen_outside_and_never_inside():
     assert not r.observable[floor].any()
 
 
+def _hall_with_window(w: float) -> nbvkit.Mesh:
+    """A 5.4 x 5.4 x 3.4 m hall inside 0.3 m walls, a w x w window in its +x wall at 2 m up."""
+    h = w / 2
+    return merge(
+        box_mesh((-3, -3, 0), (3, 3, 0.3)),
+        box_mesh((-3, -3, 3.7), (3, 3, 4)),
+        box_mesh((-3, -3, 0), (-2.7, 3, 4)),
+        box_mesh((-3, -3, 0), (3, -2.7, 4)),
+        box_mesh((-3, 2.7, 0), (3, 3, 4)),
+        box_mesh((2.7, -3, 0), (3, 3, 2 - h)),
+        box_mesh((2.7, -3, 2 + h), (3, 3, 4)),
+        box_mesh((2.7, -3, 2 - h), (3, -h, 2 + h)),
+        box_mesh((2.7, h, 2 - h), (3, 3, 2 + h)),
+    )
+
+
+def test_a_window_narrower_than_the_vehicle_lets_the_camera_look_in_but_not_the_vehicle_fly_in():
+    # The vehicle's collision sphere (0.8 m) passes a 2.4 m window, not a 1 m one. Through the
+    # small window only what a camera outside sees through it is observable; the hall's free
+    # positions, which see out through the window, are not reachable (they were, by a ray).
+    inner = {}
+    for w in (1.0, 2.4):
+        mesh = _hall_with_window(w)
+        p, fid = samples(mesh, 20000)
+        lo, hi = np.array([-2.7, -2.7, 0.3]) - 1e-6, np.array([2.7, 2.7, 3.7]) + 1e-6
+        walls = ((p >= lo) & (p <= hi)).all(axis=1)  # the hall's inner faces
+        r = observable_surface(mesh, cfg(), points=p, face_ids=fid)
+        inner[w] = (r.observable[walls].mean(), r.stats["unreachable"])
+    assert inner[2.4][0] > 0.99 and inner[2.4][1] == 0  # flown in: every inner face seen
+    assert inner[1.0][1] > 0  # the hall's positions: free, but the vehicle cannot get there
+    assert 0.2 < inner[1.0][0] < 0.9  # the inner faces a camera outside sees through it
+
+
 def test_a_plate_on_the_ground_has_an_unobservable_underside():
     mesh = box_mesh((-2, -2, 0.0), (2, 2, 0.1))
     p, fid = samples(mesh)

@@ -176,6 +176,11 @@ ObservabilityResult observable_samples(const RaycastScene& scene, const PointsRe
       free[f] = !mesh_within(scene, pos(i, j, k), options.collision_radius);
     }
   });
+  // an edge is flown along: the mesh does not cross it, and the vehicle's sphere fits at points
+  // along it at most half a radius apart (their union holds a capsule of 0.97 x the radius), so
+  // an opening narrower than the vehicle does not connect the positions either side of it
+  const double r = options.collision_radius;
+  const int steps = r > 0.0 ? static_cast<int>(std::ceil(s / (0.5 * r) - 1e-9)) : 1;
   parallel_chunks(static_cast<std::size_t>(total), 256, [&](std::size_t b, std::size_t e) {
     for (std::size_t f = b; f < e; ++f) {
       if (!free[f]) continue;
@@ -189,33 +194,47 @@ ObservabilityResult observable_samples(const RaycastScene& scene, const PointsRe
         std::array<std::int64_t, 3> q = ijk;
         ++q[a];
         if (!free[static_cast<std::size_t>(flat(q[0], q[1], q[2]))]) continue;
-        if (!occluded(rs, p, Eigen::Vector3d::Unit(a), 0.0, s)) bits |= std::uint8_t(1u << a);
+        const Eigen::Vector3d d = Eigen::Vector3d::Unit(a);
+        if (occluded(rs, p, d, 0.0, s)) continue;
+        bool fits = true;
+        for (int t = 1; t < steps && fits; ++t)
+          fits = !mesh_within(scene, p + d * (s * t / steps), r);
+        if (fits) bits |= std::uint8_t(1u << a);
       }
       edges[f] = bits;
     }
   });
   res.timings_s.emplace_back("collision", seconds_since(t0));
 
-  // ---- reachability: flood fill from the free lattice points that see out of the structure
-  // (a ray along +-x, +-y or +z escapes the mesh; not -z: the ground is not in the mesh)
+  // ---- reachability: flood fill from where the vehicle comes from, outside the structure: the
+  // free lattice points on the navigation box's sides and top whose ray out of the box escapes
+  // the mesh. With none (a box that hugs the structure), from every free point that sees out
+  // along +-x, +-y or +z (not -z: the ground is not in the mesh)
   t0 = clock::now();
   std::vector<std::uint8_t> reach(static_cast<std::size_t>(total), 0);
-  parallel_chunks(static_cast<std::size_t>(total), 256, [&](std::size_t b, std::size_t e) {
-    const double inf = std::numeric_limits<double>::infinity();
-    const Eigen::Vector3d dirs[5] = {Eigen::Vector3d::UnitX(), -Eigen::Vector3d::UnitX(),
-                                     Eigen::Vector3d::UnitY(), -Eigen::Vector3d::UnitY(),
-                                     Eigen::Vector3d::UnitZ()};
-    for (std::size_t f = b; f < e; ++f) {
-      if (!free[f]) continue;
-      const auto fi = static_cast<std::int64_t>(f);
-      const Eigen::Vector3d p = pos(fi % dim[0], (fi / dim[0]) % dim[1], fi / (dim[0] * dim[1]));
-      for (const auto& d : dirs)
-        if (!occluded(rs, p, d, 0.0, inf)) {
-          reach[f] = 1;
-          break;
-        }
-    }
-  });
+  const double inf = std::numeric_limits<double>::infinity();
+  const Eigen::Vector3d dirs[5] = {-Eigen::Vector3d::UnitX(), Eigen::Vector3d::UnitX(),
+                                   -Eigen::Vector3d::UnitY(), Eigen::Vector3d::UnitY(),
+                                   Eigen::Vector3d::UnitZ()};
+  auto seed = [&](bool boundary_only) {
+    parallel_chunks(static_cast<std::size_t>(total), 256, [&](std::size_t b, std::size_t e) {
+      for (std::size_t f = b; f < e; ++f) {
+        if (!free[f]) continue;
+        const auto fi = static_cast<std::int64_t>(f);
+        const std::int64_t i = fi % dim[0], j = (fi / dim[0]) % dim[1], k = fi / (dim[0] * dim[1]);
+        // the faces the point lies on, as dirs' order: -x, +x, -y, +y, +z
+        const bool on[5] = {i == 0, i == dim[0] - 1, j == 0, j == dim[1] - 1, k == dim[2] - 1};
+        const Eigen::Vector3d p = pos(i, j, k);
+        for (int w = 0; w < 5; ++w)
+          if ((on[w] || !boundary_only) && !occluded(rs, p, dirs[w], 0.0, inf)) {
+            reach[f] = 1;
+            break;
+          }
+      }
+    });
+  };
+  seed(true);
+  if (std::find(reach.begin(), reach.end(), std::uint8_t(1)) == reach.end()) seed(false);
   std::deque<std::int64_t> queue;
   for (std::int64_t f = 0; f < total; ++f)
     if (reach[static_cast<std::size_t>(f)]) queue.push_back(f);

@@ -222,7 +222,7 @@ def _worker_init(plugins=()) -> None:
 def terminate_as_interrupt():
     """Within it, a `kill` (SIGTERM: also what batch schedulers send at a time limit) raises
     KeyboardInterrupt as Ctrl-C does: an experiment's workers stopped, finished runs kept, the
-    partial table written; a single run's flight kept (Mission.run_into). (Main thread only:
+    partial table written; a single run's flight kept (Recorder.fly_into). (Main thread only:
     signals go there; elsewhere it does nothing.)"""
     import signal
     import threading
@@ -272,7 +272,7 @@ def run_specs(
 
 def _failure(e: BaseException) -> str:
     """A failed run's error, for the table's reader: its type and message on one line."""
-    from .mission import error_line
+    from .recorder import error_line
 
     return error_line(e)
 

@@ -3,11 +3,9 @@
 ``Mission(config).run(out_dir)`` flies one scenario (nbvkit.scenarios: a row of the paper's Table
 2, or one of nbvkit's planners) from one start pose and writes a results folder. The stages are
 nbvkit.profiling, nbvkit.symmetry and nbvkit.planning; the world they act on is nbvkit.world;
-nbvkit.recorder records the views and writes the results.
-"""
+nbvkit.recorder records the views and writes the results."""
 from __future__ import annotations
 
-import sys
 import threading
 import time
 from pathlib import Path
@@ -33,7 +31,6 @@ class Mission:
         self.config = config or Config()
         self._running = threading.Lock()
         self._ran = False
-        self._flying = None  # see run_into
         self._start(World(self.config, mesh))
 
     def _start(self, world: World) -> None:
@@ -57,10 +54,10 @@ class Mission:
     # ------------------------------------------------------------------ the method
     def run(self, out_dir: str | Path | None = None, overwrite: bool = False, finish=False) -> dict:
         """Runs the mission and returns its summary; with out_dir writes its results folder
-        there (Recorder.write; with `finish` also nbvkit.report's end-of-run outputs), whole or
-        not at all (nbvkit.runfolder: checked before any work; ValueError if it cannot be
-        written, another run is writing it, or it holds files and ``overwrite`` is not given).
-        A Mission may run again, from a fresh world; one run at a time (RuntimeError)."""
+        there (Recorder.write; `finish`: also nbvkit.report's end-of-run outputs) whole or not at
+        all (nbvkit.runfolder: ValueError first if it cannot be written, is being written or holds
+        files without ``overwrite``); stopped by Ctrl-C or an error once its views started, what
+        it flew (Recorder.fly_into), then the error. Reruns afresh; one at a time (RuntimeError)."""
         if not self._running.acquire(blocking=False):
             raise RuntimeError(
                 "this Mission is already running (in another thread): a Mission runs one "
@@ -73,32 +70,10 @@ class Mission:
 
             # before any work: a mission must not fly and then fail to save
             with RunFolder(out_dir, overwrite=overwrite, what="out_dir") as folder:
-                summary, stopped = self.run_into(folder.tmp, finish=finish)
-            if stopped is not None:
-                raise stopped  # what was flown is in out_dir
-            return summary
+                summary = self.recorder.fly_into(folder.tmp, finish)
+            return self.recorder.raise_stop(summary)  # once the folder is in place
         finally:
             self._running.release()
-
-    def run_into(self, out, finish: bool = False) -> tuple[dict, BaseException | None]:
-        """Runs the mission and writes its results into the folder `out` (see save): (summary,
-        None). A flight stopped once its views started, by Ctrl-C or by an error (a planner
-        part's), is not lost: what it flew is written (its termination "interrupted" or
-        "failed", without the end-of-run outputs) and (summary, the exception) returned, for
-        the caller to raise once the folder is in place. Stopped before the views started
-        (profile, symmetry), the exception propagates and nothing is written."""
-        try:
-            summary = self._run()
-        except (KeyboardInterrupt, Exception) as e:
-            if self._flying is None:
-                raise
-            why = "interrupted" if isinstance(e, KeyboardInterrupt) else "failed"
-            if self.config.progress:
-                print(f"{why}: saving what was flown (Ctrl-C again drops it)", file=sys.stderr)
-            summary = self.recorder.summary(why, time.perf_counter() - self._flying)
-            summary["stopped_by"] = error_line(e)
-            return self.save(out, summary), e
-        return self.save(out, summary, finish=finish), None
 
     def save(self, out, summary: dict, finish: bool = False, cache_dir=None) -> dict:
         """Writes this finished mission's results into the folder `out` (Recorder.write);
@@ -111,7 +86,6 @@ class Mission:
             self._start(World(self.config, self.world.mesh))
             self.world.mesh_path = mesh_path
         self._ran = True
-        self._flying = None  # the mission's start time, set once its views start (run_into)
         cfg, world = self.config, self.world
         t_start = time.perf_counter()
         self.entropy_initial = world.map.total_entropy()  # the empty workspace
@@ -125,8 +99,7 @@ class Mission:
         if cfg.planner.generators:
             world.sense("view")  # the first view, from where the camera stage starts
             self.planner.hooks["record"] = self.recorder.on_step  # the last hook
-            self.recorder.open_progress(self.max_views, cfg.progress)
-            self._flying = t_start
+            self.recorder.open_progress(self.max_views, cfg.progress, since=t_start)
             try:
                 self.termination = self.planner.run(world, self.max_views)
             finally:
@@ -161,9 +134,3 @@ class Mission:
 
             self.planner.hooks["symmetry_refresh"] = symmetry_refresh
         return summary
-
-
-def error_line(e: BaseException) -> str:
-    """An exception as one line for a reader: its type, and its message when it has one."""
-    message = " ".join(str(e).split())
-    return f"{type(e).__name__}: {message}" if message else type(e).__name__

@@ -7,10 +7,13 @@ Method (one C++ call, ``nbvkit._core.observable_samples``, Embree):
 1. *Poses.* A lattice of candidate vehicle positions of spacing ``observability.pose_spacing``
    (default 2 m) fills the navigation box (the workspace shrunk by the collision radius: where a
    mission's vehicle may be). A lattice point is dropped if the mesh comes within
-   ``vehicle.collision_radius`` of it (an Embree point query), or if it is not connected,
-   through lattice edges that the mesh does not cross (a flood fill), to a position from which
-   a ray along +-x, +-y or +z escapes the mesh (the ground below is not part of it): a closed
-   hull's inside is unreachable however large it is. The yaw is free.
+   ``vehicle.collision_radius`` of it (an Embree point query), or if the vehicle cannot fly
+   there from outside: it must be connected, through lattice edges that the mesh does not cross
+   and along which the collision sphere fits (checked every half radius), to a free position on
+   the navigation box's sides or top that sees out of it (a flood fill; the ground below is not
+   part of the mesh). A closed hull's inside is unreachable however large it is, and so is a
+   space behind an opening narrower than the vehicle (a camera outside may still see through
+   it: an office's windows, a covered rooftop). The yaw is free.
 2. *Samples.* The ground-truth samples (``Evaluator.gt_points``: the mesh sampled uniformly at
    ``evaluation.gt_density``) with their triangle's normal (either side).
 3. *Visibility.* A sample is observable if, from some kept position (samples in Morton order,
@@ -50,7 +53,7 @@ from .settings import cpp_section
 __all__ = ["ObservableSurface", "observability_options", "observable_surface", "sample_normals"]
 
 #: bump when the method changes, so old caches are not reused
-_METHOD_VERSION = 4
+_METHOD_VERSION = 5
 
 
 ObservabilityConfig = cpp_section(

@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import csv
 import resource
+import sys
 import time
 from dataclasses import dataclass, fields
 from pathlib import Path
@@ -74,9 +75,45 @@ class Recorder:
         self.records: list[IterationRecord] = []
         self.coverage_time_s = 0.0  # progress-report coverage refreshes (not a stage)
         self.bar = None
+        self.flying_since = None  # the mission's start, once its views started (open_progress)
+        self.stop = None  # what stopped the flight, once fly_into wrote what it flew
 
-    def open_progress(self, total: int, enabled: bool) -> None:
+    def open_progress(self, total: int, enabled: bool, since: float | None = None) -> None:
+        """The progress bar of the views; `since`: the mission's start (perf_counter), from
+        when a stopped flight is kept (fly_into)."""
         self.bar = _progress(total, enabled)
+        self.flying_since = since
+
+    def fly_into(self, out, finish: bool = False) -> dict:
+        """Flies the mission and writes its results into the folder `out` (Mission.save);
+        returns the summary. A flight stopped once its views started, by Ctrl-C or by an error
+        (a planner part's), is not lost: what it flew is written (termination "interrupted" or
+        "failed", `stopped_by` the cause, without the end-of-run outputs) and the exception kept
+        in `stop` for the caller to raise once the folder is in place (raise_stop). Stopped
+        before the views (profile, symmetry), the exception propagates, nothing written."""
+        m = self.mission
+        try:
+            summary = m._run()
+        except (KeyboardInterrupt, Exception) as e:
+            rec = m.recorder  # this run's (a Mission run again starts a new one)
+            if rec.flying_since is None:
+                raise
+            why = "interrupted" if isinstance(e, KeyboardInterrupt) else "failed"
+            if m.config.progress:
+                print(f"{why}: saving what was flown (Ctrl-C again drops it)", file=sys.stderr)
+            summary = rec.summary(why, time.perf_counter() - rec.flying_since)
+            summary["stopped_by"] = error_line(e)
+            rec.stop = e
+            return m.save(out, summary)
+        return m.save(out, summary, finish=finish)
+
+    def raise_stop(self, summary: dict) -> dict:
+        """Raises the exception that stopped the flight fly_into kept (if any), else returns
+        `summary`."""
+        stop = self.mission.recorder.stop
+        if stop is not None:
+            raise stop
+        return summary
 
     def close_progress(self) -> None:
         if self.bar is not None:
@@ -254,3 +291,9 @@ def _progress(total: int, enabled: bool):
     return tqdm(
         total=total, desc="views", unit="view", dynamic_ncols=True, leave=False, disable=None
     )
+
+
+def error_line(e: BaseException) -> str:
+    """An exception as one line for a reader: its type, and its message when it has one."""
+    message = " ".join(str(e).split())
+    return f"{type(e).__name__}: {message}" if message else type(e).__name__

@@ -51,10 +51,14 @@ struct ObservabilityResult {
 ///
 /// Poses: the box centre plus every multiple of options.pose_spacing along each axis, inside the
 /// box (halving the spacing keeps every position: the result only grows); a lattice point is kept
-/// if the mesh is farther than collision_radius from it (an Embree point query) and it is
-/// connected, through lattice edges whose segment the mesh does not cross (a flood fill), to a
-/// free position from which a ray along +-x, +-y or +z escapes the mesh (the ground, below, is
-/// not part of it): positions sealed inside a closed structure are dropped.
+/// if the mesh is farther than collision_radius from it (an Embree point query) and the vehicle
+/// can fly there from outside: it is connected (a flood fill) through lattice edges that the
+/// mesh does not cross and along which the collision sphere fits (checked at points at most half
+/// a radius apart) to a free position on the box's sides or top whose ray out of the box escapes
+/// the mesh (with none, to any free position from which a ray along +-x, +-y or +z escapes; the
+/// ground, below, is not part of the mesh). Positions sealed inside a closed structure, or
+/// behind an opening narrower than the vehicle, are dropped; a camera outside may still see
+/// through the opening.
 /// The camera sits at position + mount translation (its horizontal part ignored: yaw is free).
 /// With a gimbal (either bound nonzero), the camera turns by the pitch p that centres
 /// the sample vertically, clamped to the range: T_body_camera = Ry(p) mount (as

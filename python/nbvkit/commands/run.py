@@ -106,14 +106,14 @@ def run(args) -> int:
     with RunFolder(out, overwrite=args.overwrite, what="--out") as folder:
         mission = Mission(cfg)
         with terminate_as_interrupt():  # a `kill` keeps the flight as Ctrl-C does
-            s, stopped = mission.run_into(folder.tmp, finish=True)
-    if stopped is not None:
+            s = mission.recorder.fly_into(folder.tmp, finish=True)
+    if mission.recorder.stop is not None:
         print(
             f"nbvkit run: the flight stopped after {s['views']} views, {s['distance_m']:.1f} m "
             f"({s['stopped_by']}); what it flew is saved in {out}/",
             file=sys.stderr,
         )
-        raise stopped
+    mission.recorder.raise_stop(s)
     cov = s["coverage"]
     print(
         f"scenario {s['scenario']} start {s['start']}: {s['iterations']} iterations, "
