@@ -364,5 +364,6 @@ def test_nbvkit_run_stopped_says_where_what_it_flew_is(tmp_path, stopping_part, 
     assert p.returncode == 130, (p.returncode, p.stderr)
     assert "the flight stopped after 2 views" in p.stderr and f"saved in {out}/" in p.stderr
     assert "interrupted" in p.stderr and "Traceback" not in p.stderr
+    assert "termination: interrupted" in p.stdout and "area cov." in p.stdout  # what it flew
     assert is_complete_run(out)
     assert json.loads((out / "summary.json").read_text())["termination"] == "interrupted"

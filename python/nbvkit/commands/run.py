@@ -107,6 +107,7 @@ def run(args) -> int:
         mission = Mission(cfg)
         with terminate_as_interrupt():  # a `kill` keeps the flight as Ctrl-C does
             s = mission.recorder.fly_into(folder.tmp, finish=True)
+    print_summary(s, out)
     if mission.recorder.stop is not None:
         print(
             f"nbvkit run: the flight stopped after {s['views']} views, {s['distance_m']:.1f} m "
@@ -114,6 +115,12 @@ def run(args) -> int:
             file=sys.stderr,
         )
     mission.recorder.raise_stop(s)
+    return 0
+
+
+def print_summary(s: dict, out) -> None:
+    """The console's account of a run: its flight, coverage (and of the observable surface,
+    when the end-of-run outputs were written) and time."""
     cov = s["coverage"]
     print(
         f"scenario {s['scenario']} start {s['start']}: {s['iterations']} iterations, "
@@ -134,4 +141,3 @@ def run(args) -> int:
         ):
             print(f"  {name:<9} " + "  ".join(f"@{k} m {v:6.1%}" for k, v in s[key].items()))
     print(f"wall time {s['wall_time_s']:.1f} s, {s['ms_per_iteration']:.1f} ms/iteration -> {out}/")
-    return 0
