@@ -128,16 +128,18 @@ def execute_notebook(name: str, env: dict):
     )
 
 
-def plugin_fixture_file(folder, name: str, source: str, parts: dict):
-    """A plugin file `name` holding `source`, in `folder`: yielded by a fixture, which on
-    teardown forgets it and the parts it registered (`parts`: {"generator" | "termination":
-    [names]}), so that later tests (and the run folders their fixtures write, whose config.yaml
-    would hold the parts' sections) see only the package's own parts."""
-    from nbvkit import plugins
+def plugin_fixture_file(folder, name: str, source: str, parts: dict, load: bool = False):
+    """A plugin file `name` holding `source`, in `folder` (with `load`, loaded here): yielded by
+    a fixture, which on teardown forgets it and the parts it registered (`parts`: {"generator" |
+    "termination": [names]}), so that later tests (and the run folders their fixtures write,
+    whose config.yaml would hold the parts' sections) see only the package's own parts."""
+    from nbvkit import load_plugin, plugins
     from nbvkit.planning import registry
 
     path = folder / name
     path.write_text(source)
+    if load:
+        load_plugin(path)
     yield path
     for kind, names in parts.items():
         table = registry.GENERATORS if kind == "generator" else registry.TERMINATIONS

@@ -291,9 +291,7 @@ def stopping_part(tmp_path_factory):
 
     folder = tmp_path_factory.mktemp("plugin")
     parts = {"termination": ["stop_at"]}
-    for plugin in plugin_fixture_file(folder, "stopping_part.py", STOPPING_PART, parts):
-        nbvkit.load_plugin(plugin)
-        yield plugin
+    yield from plugin_fixture_file(folder, "stopping_part.py", STOPPING_PART, parts, load=True)
 
 
 def _stopping(how: str, views: int = 3) -> list[str]:

@@ -46,6 +46,7 @@ from .experiment_tables import (  # noqa: F401  (re-exported: the tables)
     write_table,
     write_table2,
 )
+from .recorder import error_line
 
 #: Poisson depth of each run's mesh.ply in experiments (table, sweep, compare) unless the
 #: configuration sets report.poisson_depth: 7 costs about a third of the default 8
@@ -222,7 +223,7 @@ def _worker_init(plugins=()) -> None:
 def terminate_as_interrupt():
     """Within it, a `kill` (SIGTERM: also what batch schedulers send at a time limit) raises
     KeyboardInterrupt as Ctrl-C does: an experiment's workers stopped, finished runs kept, the
-    partial table written; a single run's flight kept (Recorder.fly_into). (Main thread only:
+    partial table written; a single run's flight kept (recorder.fly_into). (Main thread only:
     signals go there; elsewhere it does nothing.)"""
     import signal
     import threading
@@ -270,13 +271,6 @@ def run_specs(
     return rows
 
 
-def _failure(e: BaseException) -> str:
-    """A failed run's error, for the table's reader: its type and message on one line."""
-    from .recorder import error_line
-
-    return error_line(e)
-
-
 def _progress(k: int, total: int, run_id: str, outcome: str) -> None:
     print(f"[{k}/{total}] {run_id}: {outcome}", flush=True)
 
@@ -293,28 +287,30 @@ def _run_all(specs, root, workers, scheduler, progress, rows, failures) -> None:
             futs = client.map(
                 run_one, specs, root=str(root.resolve()), threads=1, plugins=loaded(), pure=False
             )
+            stop = None
             try:
                 wait(futs)
-            except KeyboardInterrupt:
-                for i, f in enumerate(futs):
-                    if f.status == "finished":
-                        rows[i] = f.result()
-                client.cancel(futs)
-                raise
+            except KeyboardInterrupt as e:
+                stop = e
             for i, f in enumerate(futs):
                 if f.status == "finished":
                     rows[i] = f.result()
+                elif stop is not None:
+                    continue  # stopped: cancelled below
                 elif f.status == "error":
-                    failures[i] = _failure(f.exception())
+                    failures[i] = error_line(f.exception())
                 else:  # cancelled or lost by the cluster
                     failures[i] = f"the cluster did not finish it ({f.status})"
+            if stop is not None:
+                client.cancel(futs)
+                raise stop
     elif workers == 1 or len(specs) <= 1:
         for i, s in enumerate(specs):
             t0 = time.perf_counter()
             try:
                 rows[i] = run_one(s, root)
             except Exception as e:  # noqa: BLE001 (a run's own error: the others are flown)
-                failures[i] = _failure(e)
+                failures[i] = error_line(e)
             if progress:
                 done = f"{time.perf_counter() - t0:.1f} s"
                 _progress(i + 1, len(specs), s.run_id, done if rows[i] else failures[i])
@@ -343,7 +339,7 @@ def _run_pool(specs, root, n, ncpu, rows, failures, progress) -> None:
             try:
                 rows[i] = f.result()
             except Exception as e:  # noqa: BLE001 (a run's own error, or its worker killed)
-                failures[i] = _failure(e)
+                failures[i] = error_line(e)
             if progress:
                 done = f"{rows[i]['wall_time_s']:.1f} s" if rows[i] else failures[i]
                 _progress(k + 1, len(specs), specs[i].run_id, done)

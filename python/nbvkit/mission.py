@@ -14,7 +14,7 @@ from .config import Config
 from .evaluation import Evaluator
 from .planning import Planner
 from .planning.terminations.budget import ended_by, view_cap
-from .recorder import IterationRecord, Recorder
+from .recorder import IterationRecord, Recorder, fly_into, raise_stop
 from .world import MissionError, World
 
 __all__ = ["Mission", "MissionError", "IterationRecord"]
@@ -57,7 +57,7 @@ class Mission:
         there (Recorder.write; `finish`: also nbvkit.report's end-of-run outputs) whole or not at
         all (nbvkit.runfolder: ValueError first if it cannot be written, is being written or holds
         files without ``overwrite``); stopped by Ctrl-C or an error once its views started, what
-        it flew (Recorder.fly_into), then the error. Reruns afresh; one at a time (RuntimeError)."""
+        it flew (recorder.fly_into), then the error. Reruns afresh; one at a time (RuntimeError)."""
         if not self._running.acquire(blocking=False):
             raise RuntimeError(
                 "this Mission is already running (in another thread): a Mission runs one "
@@ -70,8 +70,8 @@ class Mission:
 
             # before any work: a mission must not fly and then fail to save
             with RunFolder(out_dir, overwrite=overwrite, what="out_dir") as folder:
-                summary = self.recorder.fly_into(folder.tmp, finish)
-            return self.recorder.raise_stop(summary)  # once the folder is in place
+                flown = fly_into(self, folder.tmp, finish)
+            return raise_stop(*flown)  # once the folder is in place
         finally:
             self._running.release()
 

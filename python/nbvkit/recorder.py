@@ -76,44 +76,12 @@ class Recorder:
         self.coverage_time_s = 0.0  # progress-report coverage refreshes (not a stage)
         self.bar = None
         self.flying_since = None  # the mission's start, once its views started (open_progress)
-        self.stop = None  # what stopped the flight, once fly_into wrote what it flew
 
     def open_progress(self, total: int, enabled: bool, since: float | None = None) -> None:
         """The progress bar of the views; `since`: the mission's start (perf_counter), from
         when a stopped flight is kept (fly_into)."""
         self.bar = _progress(total, enabled)
         self.flying_since = since
-
-    def fly_into(self, out, finish: bool = False) -> dict:
-        """Flies the mission and writes its results into the folder `out` (Mission.save);
-        returns the summary. A flight stopped once its views started, by Ctrl-C or by an error
-        (a planner part's), is not lost: what it flew is written (termination "interrupted" or
-        "failed", `stopped_by` the cause, without the end-of-run outputs) and the exception kept
-        in `stop` for the caller to raise once the folder is in place (raise_stop). Stopped
-        before the views (profile, symmetry), the exception propagates, nothing written."""
-        m = self.mission
-        try:
-            summary = m._run()
-        except (KeyboardInterrupt, Exception) as e:
-            rec = m.recorder  # this run's (a Mission run again starts a new one)
-            if rec.flying_since is None:
-                raise
-            why = "interrupted" if isinstance(e, KeyboardInterrupt) else "failed"
-            if m.config.progress:
-                print(f"{why}: saving what was flown (Ctrl-C again drops it)", file=sys.stderr)
-            summary = rec.summary(why, time.perf_counter() - rec.flying_since)
-            summary["stopped_by"] = error_line(e)
-            rec.stop = e
-            return m.save(out, summary)
-        return m.save(out, summary, finish=finish)
-
-    def raise_stop(self, summary: dict) -> dict:
-        """Raises the exception that stopped the flight fly_into kept (if any), else returns
-        `summary`."""
-        stop = self.mission.recorder.stop
-        if stop is not None:
-            raise stop
-        return summary
 
     def close_progress(self) -> None:
         if self.bar is not None:
@@ -291,6 +259,36 @@ def _progress(total: int, enabled: bool):
     return tqdm(
         total=total, desc="views", unit="view", dynamic_ncols=True, leave=False, disable=None
     )
+
+
+def fly_into(mission, out, finish: bool = False) -> tuple[dict, BaseException | None]:
+    """Flies `mission` and writes its results into the folder `out` (Mission.save): (summary,
+    None). A flight stopped once its views started, by Ctrl-C or by an error (a planner part's),
+    is not lost: what it flew is written (termination "interrupted" or "failed", `stopped_by`
+    the cause, without the end-of-run outputs) and (summary, the exception) returned, for the
+    caller to raise once the folder is in place (raise_stop). Stopped before the views
+    (profile, symmetry), the exception propagates and nothing is written."""
+    try:
+        summary = mission._run()
+    except (KeyboardInterrupt, Exception) as e:
+        rec = mission.recorder  # this run's (a Mission run again makes a new one)
+        if rec.flying_since is None:
+            raise
+        why = "interrupted" if isinstance(e, KeyboardInterrupt) else "failed"
+        if mission.config.progress:
+            print(f"{why}: saving what was flown (Ctrl-C again drops it)", file=sys.stderr)
+        summary = rec.summary(why, time.perf_counter() - rec.flying_since)
+        summary["stopped_by"] = error_line(e)
+        return mission.save(out, summary), e
+    return mission.save(out, summary, finish=finish), None
+
+
+def raise_stop(summary: dict, stop: BaseException | None) -> dict:
+    """fly_into's result: raises the exception that stopped the flight, if any, else returns the
+    summary."""
+    if stop is not None:
+        raise stop
+    return summary
 
 
 def error_line(e: BaseException) -> str:

@@ -10,6 +10,7 @@ from ..config import load_config
 from ..experiments import terminate_as_interrupt
 from ..mission import Mission
 from ..planning.terminations.budget import budget_note
+from ..recorder import fly_into, raise_stop
 from ..runfolder import RunFolder
 from ..scenarios import DEFAULT, SCENARIOS
 from .common import add_mesh_shift_option, add_set_option, shift_override
@@ -106,15 +107,15 @@ def run(args) -> int:
     with RunFolder(out, overwrite=args.overwrite, what="--out") as folder:
         mission = Mission(cfg)
         with terminate_as_interrupt():  # a `kill` keeps the flight as Ctrl-C does
-            s = mission.recorder.fly_into(folder.tmp, finish=True)
+            s, stop = fly_into(mission, folder.tmp, finish=True)
     print_summary(s, out)
-    if mission.recorder.stop is not None:
+    if stop is not None:
         print(
             f"nbvkit run: the flight stopped after {s['views']} views, {s['distance_m']:.1f} m "
             f"({s['stopped_by']}); what it flew is saved in {out}/",
             file=sys.stderr,
         )
-    mission.recorder.raise_stop(s)
+    raise_stop(s, stop)
     return 0
 
 
