@@ -17,7 +17,6 @@ from nbvkit.recorder import STAGES
 from nbvkit.planning.parts import PlanningContext
 from nbvkit.planning.registry import get_generator
 from nbvkit.planning.generators.exploration import exploration_targets
-from nbvkit.planning.generators.tour import _insertion_tour, prize_collect
 from nbvkit.planning.terminations.budget import budget_note
 from nbvkit.planning.placement import (
     Patches,
@@ -84,6 +83,7 @@ def test_tour_on_a_matrix_avoids_impassable_legs_and_rejects_bad_matrices():
 
 
 def test_prize_collecting_drops_views_that_do_not_pay_for_their_detour():
+    prize_collect = _core.prize_collect
     start = np.zeros(3)
     pts = np.array([[1.0, 0, 0], [2.0, 0, 0], [2.0, 10.0, 0], [3.0, 0, 0]])
     gains = np.array([5.0, 5.0, 3.0, 5.0])  # view 2 is a 20 m detour for 3 m^2
@@ -96,6 +96,57 @@ def test_prize_collecting_drops_views_that_do_not_pay_for_their_detour():
     g = np.array([5.0, 5.0, 4.0, 4.0, 4.0])
     assert prize_collect(start, far, g, [0, 1, 2, 3, 4], rate=1.0) == [0, 1]
     assert prize_collect(start, far, g, [0, 1, 2, 3, 4], rate=0.3) == [0, 1, 2, 3, 4]
+    with pytest.raises(ValueError, match="one gain per point"):
+        prize_collect(start, far, g[:3], [0, 1, 2], rate=1.0)
+    with pytest.raises(ValueError, match="order indexes past"):
+        prize_collect(start, far, g, [0, 5], rate=1.0)
+
+
+def _prize_collect_in_numpy(start, points, gains, order, rate) -> list:
+    """Prize collection as the tour generator did it in Python, numpy step for step: the
+    reference the C++ one must give back exactly (the flights of before, to the last digit)."""
+    order = list(order)
+    if rate <= 0:
+        return order
+    while order:
+        seq = np.vstack([start, points[order]])
+        leg = np.linalg.norm(np.diff(seq, axis=0), axis=1)
+        n = len(order)
+        cum_leg = np.concatenate([[0.0], np.cumsum(leg)])
+        cum_gain = np.concatenate([[0.0], np.cumsum(gains[order])])
+        best, best_ij = 0.0, None
+        for i in range(n):
+            j = np.arange(i, n)
+            inner = cum_leg[j + 1] - cum_leg[i]
+            after = np.where(j + 1 < n, leg[np.minimum(j + 1, n - 1)], 0.0)
+            bridge = np.where(
+                j + 1 < n, np.linalg.norm(seq[np.minimum(j + 2, n)] - seq[i], axis=1), 0.0
+            )
+            deficit = rate * (inner + after - bridge) - (cum_gain[j + 1] - cum_gain[i])
+            k = int(np.argmax(deficit))
+            if deficit[k] > best + 1e-12:
+                best, best_ij = float(deficit[k]), (i, int(j[k]))
+        if best_ij is None:
+            break
+        del order[best_ij[0] : best_ij[1] + 1]
+    return order
+
+
+def test_prize_collection_is_numpys_to_the_last_digit():
+    rng = np.random.default_rng(11)
+    dropped = 0
+    for trial in range(400):
+        n = int(rng.integers(0, 30))
+        pts = rng.uniform(-20, 20, (n, 3))
+        pts[rng.random(n) < 0.2] = pts[0] if n else 0.0  # repeated points: ties
+        gains = np.round(rng.uniform(0, 20, n), 1) * (rng.random(n) < 0.85)
+        order = [int(k) for k in rng.permutation(n)]
+        rate = float(rng.choice([0.0, 0.25, 0.75, 1.5, 4.0]))
+        start = rng.uniform(-25, 25, 3)
+        want = _prize_collect_in_numpy(start, pts, gains, order, rate)
+        assert _core.prize_collect(start, pts, gains, order, rate) == want
+        dropped += len(order) - len(want)
+    assert dropped > 100  # the cases drop views, not only keep them
 
 
 # ------------------------------------------------------------------ set cover
@@ -256,7 +307,7 @@ def test_select_tours_gives_select_tours_of_each_charge_from_one_inverse():
 
 
 def test_a_tour_flies_to_a_far_cluster_that_pays_for_its_transit_only_as_a_whole():
-    def tour_for(gain_per_view):
+    def plan_for(gain_per_view, selection="insertion"):
         # five views 1 m apart, 50 m from the vehicle, each adding gain_per_view new elements
         n = gain_per_view
         cov = {
@@ -265,18 +316,63 @@ def test_a_tour_flies_to_a_far_cluster_that_pays_for_its_transit_only_as_a_whole
             "weights": np.ones(5 * n, np.float32),
             "status": np.zeros(5, np.int8),
         }
-        cand = np.array([[50.0 + i, 0, 0, 0] for i in range(5)])
-        pose = np.zeros(4)
-        rate = 0.45  # m^2 per metre
-        found = _core.select_tours(cov, cand[:, :3], pose[:3], rate=rate, min_gain=1.2)
-        return [_insertion_tour(c, g, cand, pose, 1.0, rate) for c, g in found]
+        cand = np.array([[50.0 + i, 0, 0] for i in range(5)])
+        kw = dict(rate=0.45, min_gain=1.2)  # m^2 per metre; a weight of 1 is 1 m^2
+        anchored = _core.select_tour(cov, cand, np.zeros(3), charge_transit=True, **kw)
+        plan = _core.plan_tour_over(cov, cand, np.zeros(3), 1.0, selection=selection, **kw)
+        return anchored, plan
 
-    anchored, free = tour_for(6)  # 30 m^2 for 54 m: worth 30 - 0.45 x 54 = 5.7
-    assert anchored[2] == [] and anchored[3] == 0.0  # no single view pays 0.45 x 50 m
-    assert sorted(np.asarray(free[0])[free[2]]) == [0, 1, 2, 3, 4]
-    assert free[3] == pytest.approx(30 - 0.45 * 54)
-    anchored, free = tour_for(4)  # 20 m^2 for 54 m: the transit is not worth it
-    assert free[2] == [] and free[3] == 0.0
+    anchored, plan = plan_for(6)  # 30 m^2 for 54 m: worth 30 - 0.45 x 54 = 5.7
+    assert anchored == ([], [])  # no single view pays 0.45 x 50 m
+    assert sorted(plan.flight) == [0, 1, 2, 3, 4]
+    np.testing.assert_array_equal(plan.flight, plan.chosen[plan.order])
+    assert plan.value == pytest.approx(30 - 0.45 * 54) and plan.length == pytest.approx(54)
+    assert plan.gains.tolist() == [6.0] * 5 and (plan.unpaid, plan.unpaid_area) == (0, 0.0)
+    _, plan = plan_for(4)  # 20 m^2 for 54 m: the transit is not worth it
+    assert len(plan.order) == 0 and plan.value == 0.0 and plan.length == 0.0
+    assert len(plan.flight) == 0 and plan.flight.dtype.kind == "i"  # indexes an empty plan
+    assert (plan.unpaid, plan.unpaid_area) == (5, 20.0)  # what no tour paid for
+    _, cover = plan_for(6, "cover")  # a set cover, its tour prize-collected: the same views
+    assert sorted(cover.flight) == [0, 1, 2, 3, 4] and cover.length == pytest.approx(54)
+    _, cover = plan_for(4, "cover")
+    assert len(cover.order) == 0 and cover.unpaid == 5
+
+
+def test_a_tour_plan_from_the_map_is_the_plan_over_its_coverage_sets():
+    # plan_tour: view_coverage at min_gain and the plan over its sets, in one call
+    m, surface, poses, current, kw = _box_seen_from_two_sides()
+    whole = _core.view_coverage(m, surface, poses, current, **kw)
+    sums, cell = _set_sums(whole), m.resolution**2  # m^2 of a weight of 1
+    mg = float(np.median(sums[whole["status"] == 0])) * cell  # m^2
+    for selection in ("insertion", "cover"):
+        for rate in (0.0, 0.05, 0.5):
+            opts = dict(selection=selection, min_gain=mg, rate=rate)
+            plan = _core.plan_tour(m, surface, poses, current, **kw, **opts)
+            cut = _core.view_coverage(m, surface, poses, current, min_gain=mg / cell, **kw)
+            over = _core.plan_tour_over(cut, poses[:, :3], current[:3], cell, **opts)
+            assert plan.flight.tolist() == over.flight.tolist()
+            assert plan.gains.tolist() == over.gains.tolist() and plan.value == over.value
+            assert len(plan.chosen) > 0 and (rate > 0.1 or len(plan.order) > 0)
+            # each chosen view's gain is its marginal area: at most its set's, all of it for the
+            # one a set cover takes first
+            assert (plan.gains <= sums[plan.chosen] * cell * (1 + 1e-6)).all()
+            if selection == "cover":
+                assert plan.gains[0] == pytest.approx(sums[plan.chosen[0]] * cell, rel=1e-5)
+            kept = plan.gains[plan.order].sum()
+            assert plan.value == pytest.approx(kept - rate * plan.length)
+    with pytest.raises(ValueError, match="selection must be 'insertion' or 'cover'"):
+        _core.plan_tour(m, surface, poses, current, selection="greedy", **kw)
+    for bad, match in (
+        (dict(rate=-1.0), "rate must be a finite number >= 0"),
+        (dict(min_gain=float("nan")), "min_gain must be a finite number >= 0"),
+        (dict(max_views=-1), "max_views must be >= 0"),
+    ):
+        with pytest.raises(ValueError, match=match):
+            _core.plan_tour(m, surface, poses, current, **kw, **bad)
+    with pytest.raises(ValueError, match="cell_area must be a finite number > 0"):
+        _core.plan_tour_over(whole, poses[:, :3], current[:3], 0.0)
+    with pytest.raises(ValueError, match="one position per candidate"):
+        _core.plan_tour_over(whole, poses[:5, :3], current[:3], cell)
 
 
 def test_area_thresholds_shrink_with_a_structure_smaller_than_the_reference_area():

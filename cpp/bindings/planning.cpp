@@ -5,6 +5,7 @@
 #include "nbv/placement.hpp"
 #include "nbv/surface_observations.hpp"
 #include "nbv/tour.hpp"
+#include "nbv/tour_plan.hpp"
 #include "options.hpp"
 
 #include <limits>
@@ -95,6 +96,38 @@ std::vector<py::tuple> tours_arg(const py::dict& coverage, const py::handle& pos
   for (const CoverSelection& t : s)
     out.push_back(py::make_tuple(py::cast(t.views), py::cast(t.gains)));
   return out;
+}
+
+/// TourPlanOptions from the keywords of plan_tour and plan_tour_over.
+TourPlanOptions plan_options(const std::string& selection, double min_gain, double rate,
+                             double cell_area, int max_views) {
+  if (selection != "insertion" && selection != "cover")
+    throw py::value_error("selection must be 'insertion' or 'cover', got '" + selection + "'");
+  TourPlanOptions o;
+  o.insertion = selection == "insertion";
+  o.min_gain = min_gain;
+  o.rate = rate;
+  o.cell_area = cell_area;
+  o.max_views = max_views;
+  try {
+    o.validate();
+  } catch (const std::invalid_argument& e) {
+    throw py::value_error(e.what());
+  }
+  return o;
+}
+
+/// A vector as a numpy array of its type (an int index array even when empty).
+template <class T>
+py::array_t<T> array_of(const std::vector<T>& v) {
+  return py::array_t<T>(static_cast<py::ssize_t>(v.size()), v.data());
+}
+
+/// The first three columns of candidate views: their positions.
+Points positions_of(const ViewPosesRef& views) {
+  Points p(views.rows(), 3);
+  for (Eigen::Index k = 0; k < views.rows(); ++k) p.row(k) = views.block<1, 3>(k, 0);
+  return p;
 }
 
 }  // namespace
@@ -335,6 +368,111 @@ then (improve) 2-opt and Or-opt moves until none shortens it. Deterministic.)doc
       py::arg("distances"), py::arg("improve") = true,
       R"doc(The same over a symmetric distance matrix (N + 1, N + 1) whose row/column 0 is the
 start (inf: impassable). order indexes the N views (matrix index - 1).)doc");
+  py::class_<TourPlan>(m, "TourPlan", R"doc(
+A coverage tour's plan (plan_tour, plan_tour_over): the candidates the selection took, each with
+the area it adds, and the flight order of those prize collection kept.)doc")
+      .def_property_readonly(
+          "chosen", [](const TourPlan& p) { return array_of(p.chosen); },
+          "(C,) candidate indices: an insertion tour's in its insertion order, a set cover's as it "
+          "took them")
+      .def_property_readonly(
+          "gains", [](const TourPlan& p) { return array_of(p.gains); },
+          "(C,) m^2 each chosen view adds, when it was taken")
+      .def_property_readonly(
+          "order", [](const TourPlan& p) { return array_of(p.order); },
+          "(V,) the flight order of the views kept: indices into chosen")
+      .def_property_readonly(
+          "flight", [](const TourPlan& p) { return array_of(p.flight()); },
+          "(V,) the candidate indices of the kept views in flight order: chosen[order]")
+      .def_readonly("value", &TourPlan::value,
+                    "m^2: the kept views' gains - rate x the kept tour's length")
+      .def_readonly("length", &TourPlan::length,
+                    "m: from the start through the kept views, in order (0 with none)")
+      .def_readonly("unpaid", &TourPlan::unpaid,
+                    "with no view kept: the views adding min_gain that no tour paid for")
+      .def_readonly("unpaid_area", &TourPlan::unpaid_area, "m^2 those unpaid views add")
+      .def("__repr__", [](const TourPlan& p) {
+        return "TourPlan(" + std::to_string(p.order.size()) + " of " +
+               std::to_string(p.chosen.size()) + " chosen views kept, " + std::to_string(p.length) +
+               " m, value " + std::to_string(p.value) + " m^2)";
+      });
+  m.def(
+      "plan_tour",
+      [](const OccupancyMap& map, const SurfaceObservations& surface, const py::handle& candidates,
+         const py::handle& current, const py::object& camera, const py::object& utility,
+         const py::object& validity, const std::shared_ptr<CoverageMemo>& memo,
+         const std::string& selection, double min_gain, double rate, int max_views,
+         int coarse_stride, double coarse_margin, bool pool_unknown) {
+        const ViewPosesArg c = view_poses_arg(candidates, "candidates");
+        const auto cm = c.map();
+        const Pose cur = pose_arg(current, "current pose");
+        const auto cam = OptionsClass<ViewCameraModel>::from(camera, "camera");
+        auto u = OptionsClass<UtilityOptions>::from(utility, "utility");
+        const auto v = OptionsClass<ValidityOptions>::from(validity, "validity");
+        const double cell = map.resolution() * map.resolution();
+        const TourPlanOptions o = plan_options(selection, min_gain, rate, cell, max_views);
+        const Points positions = positions_of(cm);
+        TourPlan plan;
+        {
+          Reading2 reading(map, &surface);
+          std::unique_lock<std::mutex> lock;  // one call at a time per memo
+          if (memo) lock = std::unique_lock<std::mutex>(memo->mutex());
+          const ViewCoverage cov =
+              view_coverage(grid_view(map, &surface), cm, cur, cam, u, v, memo.get(),
+                            o.min_gain / cell, coarse_stride, pool_unknown, coarse_margin);
+          plan = plan_tour(CoverageRef(cov), positions, Eigen::Vector3d(cur.x, cur.y, cur.z), o);
+        }
+        return plan;
+      },
+      py::arg("map"), py::arg("surface"), py::arg("candidates"), py::arg("current"),
+      py::arg("camera") = py::none(), py::arg("utility") = py::none(),
+      py::arg("validity") = py::none(), py::arg("memo") = nullptr,
+      py::arg("selection") = "insertion", py::arg("min_gain") = 0.0, py::arg("rate") = 0.0,
+      py::arg("max_views") = 1000, py::arg("coarse_stride") = 0, py::arg("coarse_margin") = 1.0,
+      py::arg("pool_unknown") = false,
+      R"doc(A coverage tour's plan over candidate views from the vehicle's pose `current`, in one
+call: what each would newly cover (view_coverage, with the map, the surface record, camera,
+utility, validity, memo, coarse_stride, coarse_margin and pool_unknown as it takes them, at
+min_gain), then the views chosen and their flight order (plan_tour_over). min_gain: m^2 a view
+must add; rate: m^2 per metre of flight a view must pay for; a coverage weight of 1 is the
+map's cell face. Returns a TourPlan; the coverage sets are freed before it returns.)doc");
+  m.def(
+      "plan_tour_over",
+      [](const py::dict& coverage, const py::handle& positions, const py::handle& start,
+         double cell_area, const std::string& selection, double min_gain, double rate,
+         int max_views) {
+        const CoverageArg cov(coverage);
+        auto p = points_arg(positions, "candidate positions");
+        const Eigen::Vector3d st = vec3_arg(start, "tour start");
+        const TourPlanOptions o = plan_options(selection, min_gain, rate, cell_area, max_views);
+        auto pm = p.map();
+        py::gil_scoped_release release;
+        return plan_tour(cov.ref, pm, st, o);
+      },
+      py::arg("coverage"), py::arg("positions"), py::arg("start"), py::arg("cell_area"),
+      py::arg("selection") = "insertion", py::arg("min_gain") = 0.0, py::arg("rate") = 0.0,
+      py::arg("max_views") = 1000,
+      R"doc(A coverage tour's plan over view_coverage's sets (a dict, as select_tours takes it) of
+candidates at positions (K, 3), from start. selection 'insertion': the select_tours tours (the
+first transit charged, and free), each ordered by the shorter of its insertion order and
+solve_tour over its views, then prize-collected (prize_collect); the one worth more is the plan
+(ties: the one charged its transit). 'cover': select_cover's views, solve_tour, prize
+collection. min_gain (m^2), rate (m^2 per metre) and cell_area (m^2 of a weight of 1). With no
+view kept, unpaid and unpaid_area give what select_cover takes at min_gain. A TourPlan.)doc");
+  m.def(
+      "prize_collect",
+      [](const py::handle& start, const py::handle& points, const std::vector<double>& gains,
+         const std::vector<int>& order, double rate) {
+        const Eigen::Vector3d st = vec3_arg(start, "tour start");
+        auto p = points_arg(points, "tour points");
+        if (!std::isfinite(rate)) throw py::value_error("rate must be finite");
+        return prize_collect(st, p.map(), gains, order, rate);
+      },
+      py::arg("start"), py::arg("points"), py::arg("gains"), py::arg("order"), py::arg("rate"),
+      R"doc(Drops stretches of the open tour `order` (indices into points (N, 3); gains (N,) m^2)
+from start while some run of consecutive views adds less than rate m^2 per metre of the flight
+its removal saves (a single view's detour, or a far cluster's transit there and back), the worst
+deficit (rate x saving - gain) first: the kept order (a list).)doc");
 }
 
 }  // namespace nbv::bind

@@ -7,6 +7,7 @@
 #include "nbv/occupancy_map.hpp"
 #include "nbv/surface_observations.hpp"
 #include "nbv/tour.hpp"
+#include "nbv/tour_plan.hpp"
 #include "nbv/views.hpp"
 #include "nbv/workspace_grid.hpp"
 
@@ -696,6 +697,51 @@ TEST(Cover, AFarClusterFormsOnlyWithoutChargingItsTransit) {
   EXPECT_TRUE(select_tour(cov, pos, Eigen::Vector3d::Zero(), 0.45, 0.5, 10).views.empty());
   const CoverSelection all = select_tour(cov, pos, Eigen::Vector3d::Zero(), 0.45, 0.5, 10, false);
   EXPECT_EQ(all.views, (std::vector<int>{0, 1, 2, 3, 4}));
+}
+
+TEST(TourPlan, TheFarClusterIsFlownWhenItPaysAsAWholeAndReportedUnpaidWhenNot) {
+  // five views 1 m apart, 50 m away: 6 (then 4) m^2 each, against 0.45 m^2 a metre
+  for (const int n : {6, 4}) {
+    std::vector<std::vector<std::int32_t>> sets;
+    for (int v = 0; v < 5; ++v) {
+      sets.emplace_back();
+      for (int e = 0; e < n; ++e) sets.back().push_back(v * n + e);
+    }
+    const ViewCoverage cov = coverage(sets);
+    Points pos(5, 3);
+    for (int i = 0; i < 5; ++i) pos.row(i) << 50.0 + i, 0, 0;
+    TourPlanOptions o;
+    o.rate = 0.45;
+    o.min_gain = 1.2;
+    const TourPlan plan = plan_tour(cov, pos, Eigen::Vector3d::Zero(), o);
+    if (n == 6) {  // 30 m^2 for 54 m: the free-transit tour, worth 30 - 0.45 x 54
+      EXPECT_EQ(plan.flight(), (std::vector<int>{0, 1, 2, 3, 4}));
+      EXPECT_NEAR(plan.length, 54.0, 1e-12);
+      EXPECT_NEAR(plan.value, 30.0 - 0.45 * 54.0, 1e-12);
+      EXPECT_EQ(plan.unpaid, 0);
+    } else {  // 20 m^2 for 54 m: no view is kept; the five views adding 4 m^2 were unpaid
+      EXPECT_TRUE(plan.order.empty());
+      EXPECT_EQ(plan.value, 0.0);
+      EXPECT_EQ(plan.unpaid, 5);
+      EXPECT_EQ(plan.unpaid_area, 20.0);
+    }
+  }
+}
+
+TEST(TourPlan, PrizeCollectionDropsTheDetourThatDoesNotPayAndRejectsBadInput) {
+  Points pts(4, 3);
+  pts << 1, 0, 0, 2, 0, 0, 2, 10, 0, 3, 0, 0;  // view 2: a 20 m detour for 3 m^2
+  const std::vector<double> gains{5, 5, 3, 5};
+  const Eigen::Vector3d start = Eigen::Vector3d::Zero();
+  EXPECT_EQ(prize_collect(start, pts, gains, {0, 1, 2, 3}, 1.0), (std::vector<int>{0, 1, 3}));
+  EXPECT_EQ(prize_collect(start, pts, gains, {0, 1, 2, 3}, 0.1), (std::vector<int>{0, 1, 2, 3}));
+  EXPECT_THROW(prize_collect(start, pts, {1, 2}, {0, 1}, 1.0), std::invalid_argument);
+  EXPECT_THROW(prize_collect(start, pts, gains, {0, 4}, 1.0), std::invalid_argument);
+  TourPlanOptions bad;
+  bad.cell_area = 0.0;
+  const ViewCoverage cov = coverage({{1}, {2}, {3}, {4}});
+  EXPECT_THROW(plan_tour(cov, pts, start, bad), std::invalid_argument);
+  EXPECT_THROW(plan_tour(cov, Points(3, 3), start, TourPlanOptions{}), std::invalid_argument);
 }
 
 namespace {

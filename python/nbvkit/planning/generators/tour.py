@@ -1,12 +1,13 @@
 """Coverage tours (nbvkit's surface planner): plan views that together cover the surface still
 to observe, fly them in a short order, and plan again when the tour is done.
 
-A plan: surface targets -> patches -> candidate views (placement.py) -> what each would newly
-cover (nbvkit._core.view_coverage: cells and the side they are seen from) -> a greedy set cover
-(select_cover, views adding at least tour.min_gain) -> an open tour from the vehicle
-(solve_tour: nearest neighbour, 2-opt, Or-opt) -> prize collecting: views that add less than
-tour.rate m^2 per metre of the detour they cause are dropped, the worst first, until every view
-pays. The tour is then proposed one view at a time (exclusive proposals): the planner re-scores
+A plan: surface targets -> patches -> candidate views (placement.py) -> one C++ call over the
+map and the memo (nbvkit._core.plan_tour, a typed TourPlan): what each would newly cover (cells
+and the side they are seen from) -> the views that add at least tour.min_gain (tour.selection:
+prize-collecting insertion tours, or a greedy set cover) -> an open tour from the vehicle
+(nearest neighbour, 2-opt, Or-opt) -> prize collecting: views that add less than tour.rate m^2
+per metre of the detour they cause are dropped, the worst first, until every view pays. The
+tour is then proposed one view at a time (exclusive proposals): the planner re-scores
 each against the current map and skips it when it no longer adds tour.min_gain. When the tour is
 done (or once tour.replan_views of its views were flown) the next plan is made from what the map
 shows then. With tour.explore, once a plan keeps no
@@ -285,65 +286,53 @@ class CoverageTour:
         return np.zeros((0, candidates.shape[1])), np.zeros((0, 3))
 
     def _choose(self, world, candidates, owner, patches, record, min_gain, rate, drop=False):
-        """(views, aims) in flight order: the set of candidates the selection keeps (tour.selection
-        over their coverage), then prize-collected; `record` gets the counts. With drop, while
-        the selection keeps fewer than tour.level_views views above the lowest level, the level
-        halves and the selection runs again (over the same coverage sets with tour.access_weight;
-        else over those of the views the lower level adds too)."""
-        # only the sets of views that can be chosen (a large plan's walks' heap handed back);
-        # all of them when access credit may lift a view above min_gain
-        cut = self.settings.access_weight <= 0
-        coverage = self.coverage(world, candidates, min_gain if cut else 0.0)
-        coverage, opens = self._access(world, coverage, candidates, owner, patches)
-        chosen, order = self._select(world, coverage, candidates, min_gain, rate)
-        while drop and len(order) < self.settings.level_views and self.level > 1:
+        """(views, aims) in flight order: the plan over the candidates (_plan), prize-collected;
+        `record` gets the counts. With drop, while the plan keeps fewer than tour.level_views
+        views above the lowest level, the level halves and the plan is made again."""
+        coverage, opens = None, {}
+        if self.settings.access_weight > 0:  # every set: access credit may lift a view
+            coverage, opens = self._access(
+                world, self.coverage(world, candidates), candidates, owner, patches
+            )
+        plan = self._plan(world, candidates, coverage, min_gain, rate)
+        while drop and len(plan.order) < self.settings.level_views and self.level > 1:
             min_gain /= self.level
             self.level = max(1.0, self.level / 2)
             min_gain *= self.level
-            if cut:  # the sets of the views below the old level too (the old ones let go first)
-                coverage = None
-                coverage = self.coverage(world, candidates, min_gain)
-            chosen, order = self._select(world, coverage, candidates, min_gain, rate)
+            plan = None  # the sets of the views below the old level too (the old ones let go)
+            plan = self._plan(world, candidates, coverage, min_gain, rate)
         record["min_gain_m2"] = float(min_gain)
-        record["selected"] = len(chosen)
-        for k in chosen:  # the places a chosen view opens are not credited again
+        record["selected"] = len(plan.chosen)
+        for k in plan.chosen:  # the places a chosen view opens are not credited again
             self.opened.update(opens.get(int(k), ()))
-        views, aims = candidates[chosen], patches.centers[owner[chosen]]
-        record["kept"] = len(order)
-        if not order:  # views adding min_gain that no tour paid for
-            cell_m2 = world.map.resolution**2
-            left, gains = _core.select_cover(coverage, min_gain=min_gain / cell_m2)
-            record["unpaid"], record["unpaid_m2"] = len(left), float(np.sum(gains)) * cell_m2
-        record["length_m"] = 0.0
-        if order:
-            pose = world.state.pose
-            pts = np.vstack([pose[:3], views[order, :3]])
-            record["length_m"] = float(np.linalg.norm(np.diff(pts, axis=0), axis=1).sum())
-        return views[order], aims[order]
+        record["kept"] = len(plan.order)
+        record["unpaid"], record["unpaid_m2"] = plan.unpaid, plan.unpaid_area
+        record["length_m"] = plan.length
+        return candidates[plan.flight], patches.centers[owner[plan.flight]]
 
-    def _select(self, world, coverage, candidates, min_gain, rate):
-        """(chosen candidates, their kept order) of tour.selection over the coverage sets."""
-        cell_m2 = world.map.resolution**2
-        pose = world.state.pose
-        if self.settings.selection == "insertion":
-            # anchored at the vehicle, and with the first view's transit free (a far cluster
-            # that pays only as a whole); the tour worth more after prize collection is flown
-            found = _core.select_tours(  # one inverse of the coverage, the two tours at once
-                coverage,
-                candidates[:, :3],
-                pose[:3],
-                rate=rate / cell_m2,
-                min_gain=min_gain / cell_m2,
-                charges=[True, False],
-            )
-            tours = [_insertion_tour(c, g, candidates, pose, cell_m2, rate) for c, g in found]
-            chosen, gains, order = max(tours, key=lambda t: t[3])[:3]
-        else:
-            chosen, gains = _core.select_cover(coverage, min_gain=min_gain / cell_m2)
-            gains = np.asarray(gains) * cell_m2
-            order = _core.solve_tour(candidates[chosen, :3], pose[:3])[0] if chosen else []
-            order = prize_collect(pose[:3], candidates[chosen, :3], gains, order, rate)
-        return chosen, order
+    def _plan(self, world, candidates, coverage, min_gain, rate):
+        """The TourPlan of tour.selection over the candidates at min_gain (m^2) and rate (m^2 a
+        metre) from the vehicle's pose: one C++ call from the map (plan_tour, its coverage sets
+        only those of views that can be chosen), or over the given coverage sets."""
+        own, pose = self.settings, world.state.pose
+        kw = dict(selection=own.selection, min_gain=min_gain, rate=rate)
+        if coverage is not None:
+            cell_m2 = world.map.resolution**2
+            return _core.plan_tour_over(coverage, candidates[:, :3], pose[:3], cell_m2, **kw)
+        return _core.plan_tour(
+            world.map,
+            world.surface,
+            candidates,
+            pose,
+            camera=world.view_camera,
+            utility=self.ctx.utility.options(),
+            validity=world.validity(blocked_path="plan"),
+            memo=self.memo,
+            coarse_stride=own.coarse_stride,
+            coarse_margin=own.coarse_margin,
+            pool_unknown=self.pool,
+            **kw,
+        )
 
     def _access(self, world, coverage, candidates, owner, patches):
         """access.access_elements with tour.access_weight, the vehicle's collision radius and
@@ -403,60 +392,4 @@ class CoverageTour:
             self.plans[-1]["flown"] += 1
 
 
-def prize_collect(start, points, gains, order, rate) -> list:
-    """Drops stretches of an open tour `order` (indices into points (N, 3), gains (N,) in m^2)
-    while some run of consecutive views adds less than `rate` m^2 per metre of the flight its
-    removal saves - a single view's detour, or a far cluster's transit there and back - the
-    worst deficit (rate x saving - gain) first. Returns the kept order."""
-    order = list(order)
-    if rate <= 0:
-        return order
-    while order:
-        seq = np.vstack([start, points[order]])
-        leg = np.linalg.norm(np.diff(seq, axis=0), axis=1)  # leg k ends at order[k]
-        n = len(order)
-        cum_leg = np.concatenate([[0.0], np.cumsum(leg)])
-        cum_gain = np.concatenate([[0.0], np.cumsum(gains[order])])
-        best, best_ij = 0.0, None
-        for i in range(n):  # remove order[i..j]
-            j = np.arange(i, n)
-            inner = cum_leg[j + 1] - cum_leg[i]  # from the view before i through j
-            after = np.where(j + 1 < n, leg[np.minimum(j + 1, n - 1)], 0.0)
-            bridge = np.where(
-                j + 1 < n, np.linalg.norm(seq[np.minimum(j + 2, n)] - seq[i], axis=1), 0.0
-            )
-            saving = inner + after - bridge
-            deficit = rate * saving - (cum_gain[j + 1] - cum_gain[i])
-            k = int(np.argmax(deficit))
-            if deficit[k] > best + 1e-12:
-                best, best_ij = float(deficit[k]), (i, int(j[k]))
-        if best_ij is None:
-            break
-        del order[best_ij[0] : best_ij[1] + 1]
-    return order
-
-
 _PATCH_FIELDS = ("centers", "normals", "weights")
-
-
-def _insertion_tour(chosen, gains, candidates, pose, cell_m2, rate):
-    """(chosen, gains m^2, kept order into chosen, net value m^2) of a prize-collecting
-    insertion tour from the vehicle (select_tour's views and gains in cell units, paying rate
-    m^2 per metre): the shorter of its insertion order and the tour solved over its views, then
-    prize-collected; net value: the kept views' gains - rate x the length of the kept tour."""
-    if not chosen:
-        return chosen, np.zeros(0), [], 0.0
-    gains = np.asarray(gains) * cell_m2
-    points = candidates[chosen, :3]
-    order, length = _core.solve_tour(points, pose[:3])
-    kept = list(range(len(chosen)))
-    if _length(pose[:3], points, kept) <= length:
-        order = kept
-    order = prize_collect(pose[:3], points, gains, order, rate)
-    value = float(gains[order].sum()) - rate * _length(pose[:3], points, order) if order else 0.0
-    return chosen, gains, order, value
-
-
-def _length(start, points, order) -> float:
-    seq = np.vstack([start, points[order]])
-    return float(np.linalg.norm(np.diff(seq, axis=0), axis=1).sum())
