@@ -203,6 +203,21 @@ def test_the_worked_example_of_docs_plugins_flies(tmp_path):
     assert "ring:" in (out / "config.yaml").read_text()
 
 
+def test_the_tour_example_of_docs_plugins_flies_tours_that_nbvkit_plans(tmp_path):
+    # views on rings round the cube, flown as the tours nbvkit.plan_tour makes of them, plan
+    # after plan, until none pays for its flight
+    plugin = _doc_example("my_tour.py", tmp_path)
+    out = tmp_path / "orbits"
+    s = _run_with_plugin(plugin, out, "--mesh-scale", "5", "--set", *QUICK[:-1],
+                         "planner.generators=[orbits]", "orbits.rings=2",
+                         "orbits.per_ring=12")  # fmt: skip
+    assert s["generators"] == ["orbits"] and s["termination"] == "coverage_complete"
+    assert 2 <= s["iterations"] <= 24  # a tour's views, not the whole rings
+    assert s["area_coverage"]["0.5"] > 0.5
+    flown = np.loadtxt(out / "trajectory.csv", delimiter=",", skiprows=1, usecols=(1, 2, 3))
+    assert np.ptp(flown[:, 2]) > 0  # both rings flown
+
+
 def test_the_utility_example_of_docs_plugins_flies_the_papers_method(tmp_path):
     plugin = _doc_example("my_utility.py", tmp_path)
     s = _run_with_plugin(

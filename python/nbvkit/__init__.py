@@ -52,6 +52,8 @@ from .planning.registry import (  # noqa: F401  (your own planner parts: docs/PL
     register_utility,
 )
 from .plugins import load_plugin  # noqa: F401
+from .planning.generators.tour import plan_tour  # noqa: F401  (a tour over your own views)
+from ._core import TourPlan  # noqa: F401
 from .scenarios import register_scenario  # noqa: F401
 
 from ._version import __version__  # noqa: F401, E402
@@ -68,6 +70,8 @@ __all__ = [
     "register_termination",
     "register_utility",
     "load_plugin",
+    "plan_tour",
+    "TourPlan",
     "register_scenario",
     "DepthCamera",
     "DepthCameraOptions",

@@ -312,27 +312,16 @@ class CoverageTour:
 
     def _plan(self, world, candidates, coverage, min_gain, rate):
         """The TourPlan of tour.selection over the candidates at min_gain (m^2) and rate (m^2 a
-        metre) from the vehicle's pose: one C++ call from the map (plan_tour, its coverage sets
-        only those of views that can be chosen), or over the given coverage sets."""
+        metre) from the vehicle's pose (plan_tour: its coverage sets only those of views that
+        can be chosen), or over the given coverage sets."""
         own, pose = self.settings, world.state.pose
         kw = dict(selection=own.selection, min_gain=min_gain, rate=rate)
         if coverage is not None:
             cell_m2 = world.map.resolution**2
             return _core.plan_tour_over(coverage, candidates[:, :3], pose[:3], cell_m2, **kw)
-        return _core.plan_tour(
-            world.map,
-            world.surface,
-            candidates,
-            pose,
-            camera=world.view_camera,
-            utility=self.ctx.utility.options(),
-            validity=world.validity(blocked_path="plan"),
-            memo=self.memo,
-            coarse_stride=own.coarse_stride,
-            coarse_margin=own.coarse_margin,
-            pool_unknown=self.pool,
-            **kw,
-        )
+        coarse = dict(coarse_stride=own.coarse_stride, coarse_margin=own.coarse_margin)
+        utility = self.ctx.utility
+        return plan_tour(world, candidates, utility, self.memo, **coarse, **kw, pool=self.pool)
 
     def _access(self, world, coverage, candidates, owner, patches):
         """access.access_elements with tour.access_weight, the vehicle's collision radius and
@@ -393,3 +382,44 @@ class CoverageTour:
 
 
 _PATCH_FIELDS = ("centers", "normals", "weights")
+
+
+def plan_tour(
+    world,
+    candidates,
+    utility=None,
+    memo=None,
+    selection: str = "insertion",
+    min_gain: float = 1.2,
+    rate: float = 0.75,
+    coarse_stride: int = 0,
+    coarse_margin: float = 1.0,
+    pool: bool = False,
+) -> _core.TourPlan:
+    """The coverage tour over candidate views (K, 4 or 5) from where the vehicle is, in one C++
+    call over the world's map and camera observations (nbvkit._core.plan_tour): what each would
+    newly cover, as the surface utility credits it (utility: a UtilityConfig, the `utility`
+    section; None: its defaults), the views adding at least min_gain m^2 (selection
+    "insertion": prize-collecting insertion tours; "cover": a greedy set cover), their open tour
+    from the vehicle, and prize collection at rate m^2 per metre. memo: a _core.CoverageMemo
+    kept between calls (fewer walks). Views are valid as the planner's are (the navigation
+    space, the collision sphere in known free space). Returns a TourPlan: plan.flight indexes
+    candidates in flight order."""
+    from ..scoring import UtilityConfig
+
+    return _core.plan_tour(
+        world.map,
+        world.surface,
+        np.asarray(candidates, float),
+        world.state.pose,
+        camera=world.view_camera,
+        utility=(utility or UtilityConfig()).options(),
+        validity=world.validity(blocked_path="plan"),
+        memo=memo,
+        selection=selection,
+        min_gain=min_gain,
+        rate=rate,
+        coarse_stride=coarse_stride,
+        coarse_margin=coarse_margin,
+        pool_unknown=pool,
+    )
