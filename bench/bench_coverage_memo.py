@@ -1,11 +1,11 @@
 """The recommended planner's view coverage with its memo of walks (CoverageMemo) against walking
 every candidate: flies a mission of the `surface` planner (the airliner from start 0 by default:
-what `make` flies) and answers each plan's view_coverage call twice, with a memo and without,
-in alternating order, checking that both give the same arrays. Prints per plan the candidates,
-the views answered from their record and those whose record no longer held, and the seconds of
-each; then the totals and the memo's size. With --missions N it flies the whole mission N times
-each way instead (alternating), and prints wall time and tour planning per view from the
-summaries.
+what `make` flies) and makes each plan (plan_tour: its coverage sets, then the tour) twice, with
+the memo and without, in alternating order, checking that both give the same plan. Prints per
+plan the candidates, the views answered from their record and those whose record no longer held,
+and the seconds of each; then the totals and the memo's size. With --missions N it flies the
+whole mission N times each way instead (alternating), and prints wall time and tour planning per
+view from the summaries.
 
 Run: .venv/bin/python bench/bench_coverage_memo.py [--mesh PATH] [--start 0] [--missions N]
      [--keep-calls 3]
@@ -37,23 +37,23 @@ def paired_calls(args):
     memo = _core.CoverageMemo(keep_calls=args.keep_calls)
     rows = []
 
-    class Paired:  # the tour's _core, each view_coverage call made both ways
+    class Paired:  # the tour's _core, each plan made both ways
         def __getattr__(self, name):
             return getattr(_core, name)
 
         @staticmethod
-        def view_coverage(*a, memo=None, **kw):
+        def plan_tour(*a, memo=None, **kw):
             before = shared.stats()
             ways = [("memo", shared), ("walk", None)]
             spent, got = {}, {}
             for way, m in ways if len(rows) % 2 == 0 else ways[::-1]:
                 t = time.perf_counter()
-                got[way] = _core.view_coverage(*a, **kw, memo=m)
+                got[way] = _core.plan_tour(*a, **kw, memo=m)
                 spent[way] = time.perf_counter() - t
-            for k, v in got["walk"].items():
-                assert np.array_equal(v, got["memo"][k]), k
+            for k in ("chosen", "gains", "order"):
+                assert np.array_equal(getattr(got["walk"], k), getattr(got["memo"], k)), k
             after = shared.stats()
-            n = len(got["walk"]["status"])
+            n = len(a[2])  # the candidates
             reused, stale = (after[k] - before[k] for k in ("reused", "stale"))
             rows.append((n, reused, stale, spent["walk"], spent["memo"]))
             return got["memo"]
@@ -70,8 +70,8 @@ def paired_calls(args):
         print(f"{i:>4} {n:>10,} {reused:>7,} {stale:>6,} {tw:>7.2f} {tm:>7.2f}")
     tw, tm = sum(r[3] for r in rows), sum(r[4] for r in rows)
     print(
-        f"view_coverage in all: walking every view {tw:.2f} s, with the memo {tm:.2f} s -> "
-        f"{tw / tm:.2f}x; the same arrays in every call; memo at the end: {memo.entries:,} "
+        f"plan_tour in all: walking every view {tw:.2f} s, with the memo {tm:.2f} s -> "
+        f"{tw / tm:.2f}x; the same plan in every call; memo at the end: {memo.entries:,} "
         f"records, {memo.bytes / 1e6:.0f} MB"
     )
 

@@ -74,8 +74,9 @@ COVERAGE_SNIPPET = r"""
 import hashlib, json, sys, time
 import numpy as np
 sys.path.insert(0, sys.argv[1])
-from bench_tour import first_plan
+from bench_tour import arrays, first_plan
 cov, cands, pose, sel, t, again = first_plan(sys.argv[2] or None, with_again=True)
+cov = arrays(cov)
 ts = []
 for _ in range(int(sys.argv[3])):
     t0 = time.perf_counter()
@@ -86,6 +87,15 @@ same = [np.asarray(cov[k], np.int64 if k == "elements" else None) for k in keys]
 digest = hashlib.sha1(b"".join(np.ascontiguousarray(a).tobytes() for a in same))
 print(json.dumps({"time": min(ts), "digest": digest.hexdigest()}))
 """
+
+
+def arrays(coverage) -> dict:
+    """The CSR arrays of coverage sets: a CoverageSets, or the dict view_coverage returned
+    before it (another checkout, --against)."""
+    keys = ("offsets", "elements", "weights", "status")
+    if isinstance(coverage, dict):
+        return {k: coverage[k] for k in keys}
+    return {k: getattr(coverage, k) for k in keys}
 
 
 def first_plan(mesh: str | None, with_again: bool = False, level: float = 1.0):
@@ -118,6 +128,7 @@ def main():
     ap.add_argument("--level", type=float, default=1.0, help="multiple of tour.min_gain kept")
     args = ap.parse_args()
     cov, cands, pose, sel, t_cov = first_plan(args.mesh, level=args.level)
+    cov = arrays(cov)
     valid = int((cov["status"] == 0).sum())
     print(
         f"first tour: {len(cands)} candidate views ({valid} valid), "

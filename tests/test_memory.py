@@ -95,7 +95,7 @@ def test_a_large_workspace_pools_its_plans_unknown_space_per_brick(two_boxes_flo
     assert tour.pool
     world = mission.world
     cov = tour.coverage(world, tour.candidates(world, explore=True)[2])
-    assert (cov["elements"] >= 128 * world.map.grid_bricks[1]).sum() > 100
+    assert (cov.elements >= 128 * world.map.grid_bricks[1]).sum() > 100
     small = Mission(load_config(overrides=[*QUICK_MISSION, "max_iterations=2"]), mesh=_two_boxes(4))
     small.run()
     small_tour = next(g for g in small.planner.generators if hasattr(g, "plans"))

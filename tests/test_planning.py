@@ -343,7 +343,7 @@ def test_a_tour_plan_from_the_map_is_the_plan_over_its_coverage_sets():
     m, surface, poses, current, kw = _box_seen_from_two_sides()
     whole = _core.view_coverage(m, surface, poses, current, **kw)
     sums, cell = _set_sums(whole), m.resolution**2  # m^2 of a weight of 1
-    mg = float(np.median(sums[whole["status"] == 0])) * cell  # m^2
+    mg = float(np.median(sums[whole.status == 0])) * cell  # m^2
     for selection in ("insertion", "cover"):
         for rate in (0.0, 0.05, 0.5):
             opts = dict(selection=selection, min_gain=mg, rate=rate)
@@ -839,20 +839,20 @@ def _box_seen_from_two_sides():
 
 def _set_sums(cov):
     """Each view's coverage weights summed (in double), from view_coverage's CSR arrays."""
-    off = cov["offsets"]
-    return np.array([cov["weights"][a:b].astype(float).sum() for a, b in zip(off[:-1], off[1:])])
+    off = cov.offsets
+    return np.array([cov.weights[a:b].astype(float).sum() for a, b in zip(off[:-1], off[1:])])
 
 
 def _assert_walked_sets_exact(coarse, exact):
     """Every view `coarse` walked (not pruned) holds its set of `exact` (the call without a
     prescreen), element for element; the pruned ones hold none."""
-    pruned = coarse["pruned"]
-    sizes, exact_sizes = np.diff(coarse["offsets"]), np.diff(exact["offsets"])
+    pruned = coarse.pruned
+    sizes, exact_sizes = np.diff(coarse.offsets), np.diff(exact.offsets)
     assert (sizes[pruned] == 0).all()
     np.testing.assert_array_equal(sizes[~pruned], exact_sizes[~pruned])
     held = np.repeat(~pruned, exact_sizes)
-    np.testing.assert_array_equal(coarse["elements"], exact["elements"][held])
-    np.testing.assert_array_equal(coarse["weights"], exact["weights"][held])
+    np.testing.assert_array_equal(coarse.elements, exact.elements[held])
+    np.testing.assert_array_equal(coarse.weights, exact.weights[held])
 
 
 def test_view_coverage_sets_hold_what_the_surface_utility_credits_each_view():
@@ -862,8 +862,8 @@ def test_view_coverage_sets_hold_what_the_surface_utility_credits_each_view():
     m, surface, poses, current, kw = _box_seen_from_two_sides()
     cov = _core.view_coverage(m, surface, poses, current, **kw)
     scores = _core.evaluate_views(m, poses, current, surface=surface, **kw)
-    np.testing.assert_array_equal(cov["status"], scores["status"])
-    sizes = np.diff(cov["offsets"])
+    np.testing.assert_array_equal(cov.status, scores["status"])
+    sizes = np.diff(cov.offsets)
     sums = _set_sums(cov)
     valid = scores["status"] == 0
     assert valid.sum() >= 10 and (sizes[valid] > 0).sum() >= 10
@@ -878,17 +878,17 @@ def test_view_coverage_with_a_min_gain_hands_out_only_the_sets_a_selection_could
     # the same order, with the same gains, as over the whole sets
     m, surface, poses, current, kw = _box_seen_from_two_sides()
     whole = _core.view_coverage(m, surface, poses, current, **kw)
-    sizes, sums = np.diff(whole["offsets"]), _set_sums(whole)
-    valid = whole["status"] == 0
+    sizes, sums = np.diff(whole.offsets), _set_sums(whole)
+    valid = whole.status == 0
     mg = float(np.median(sums[valid & (sizes > 0)]))
     cut = _core.view_coverage(m, surface, poses, current, min_gain=mg, **kw)
-    np.testing.assert_array_equal(cut["status"], whole["status"])
+    np.testing.assert_array_equal(cut.status, whole.status)
     keep = sums >= mg
     assert 0 < (valid & keep).sum() < (valid & (sizes > 0)).sum()
-    np.testing.assert_array_equal(np.diff(cut["offsets"]), np.where(keep, sizes, 0))
+    np.testing.assert_array_equal(np.diff(cut.offsets), np.where(keep, sizes, 0))
     held = np.repeat(keep, sizes)
-    np.testing.assert_array_equal(cut["elements"], whole["elements"][held])
-    np.testing.assert_array_equal(cut["weights"], whole["weights"][held])
+    np.testing.assert_array_equal(cut.elements, whole.elements[held])
+    np.testing.assert_array_equal(cut.weights, whole.weights[held])
     for at in (mg, 1.5 * mg):
         a = _core.select_tours(whole, poses[:, :3], current[:3], rate=0.5, min_gain=at)
         b = _core.select_tours(cut, poses[:, :3], current[:3], rate=0.5, min_gain=at)
@@ -906,14 +906,14 @@ def test_view_coverage_pools_unknown_space_per_brick():
     m, surface, poses, current, kw = _box_seen_from_two_sides()
     cells = _core.view_coverage(m, surface, poses, current, **kw)
     pooled = _core.view_coverage(m, surface, poses, current, pool_unknown=True, **kw)
-    np.testing.assert_array_equal(pooled["status"], cells["status"])
-    np.testing.assert_array_equal(pooled["gain"], cells["gain"])
+    np.testing.assert_array_equal(pooled.status, cells.status)
+    np.testing.assert_array_equal(pooled.gain, cells.gain)
     base = 2 * 64 * m.grid_bricks[1]
     priors = pools = 0
-    co, po = cells["offsets"], pooled["offsets"]
+    co, po = cells.offsets, pooled.offsets
     for k in range(len(poses)):
-        ue, uw = cells["elements"][co[k] : co[k + 1]], cells["weights"][co[k] : co[k + 1]]
-        pe, pw = pooled["elements"][po[k] : po[k + 1]], pooled["weights"][po[k] : po[k + 1]]
+        ue, uw = cells.elements[co[k] : co[k + 1]], cells.weights[co[k] : co[k + 1]]
+        pe, pw = pooled.elements[po[k] : po[k + 1]], pooled.weights[po[k] : po[k + 1]]
         assert (np.diff(pe) > 0).all()
         own = pe < base
         mine = np.isin(ue, pe[own])
@@ -930,7 +930,7 @@ def test_view_coverage_pools_unknown_space_per_brick():
     for pool in (False, True, True):  # the memo's records are of one kind of set
         a = _core.view_coverage(m, surface, poses, current, memo=memo, pool_unknown=pool, **kw)
         for key in ("offsets", "elements", "weights", "status", "gain"):
-            np.testing.assert_array_equal(a[key], (pooled if pool else cells)[key])
+            np.testing.assert_array_equal(getattr(a, key), getattr(pooled if pool else cells, key))
     assert memo.stats()["reused"] > 0
     views, gains = _core.select_tours(pooled, poses[:, :3], current[:3], rate=0.5, min_gain=5)[0]
     assert len(views) > 0 and min(gains) >= 5
@@ -973,30 +973,30 @@ def test_view_coverage_prescreen_leaves_only_views_its_coarse_rays_estimate_belo
     m, surface, poses, current, kw = _box_seen_from_two_sides()
     whole = _core.view_coverage(m, surface, poses, current, **kw)
     sums = _set_sums(whole)
-    valid = whole["status"] == 0
-    np.testing.assert_allclose(whole["gain"][valid], sums[valid], rtol=1e-5)
-    assert (whole["gain"][~valid] == 0).all()
-    off = whole["offsets"]
-    assert all((np.diff(whole["elements"][a:b]) > 0).all() for a, b in zip(off[:-1], off[1:]))
+    valid = whole.status == 0
+    np.testing.assert_allclose(whole.gain[valid], sums[valid], rtol=1e-5)
+    assert (whole.gain[~valid] == 0).all()
+    off = whole.offsets
+    assert all((np.diff(whole.elements[a:b]) > 0).all() for a, b in zip(off[:-1], off[1:]))
     mg = float(np.median(sums[valid & (sums > 0)]))
     exact = _core.view_coverage(m, surface, poses, current, min_gain=mg, **kw)
-    assert not exact["pruned"].any() and not whole["pruned"].any()
+    assert not exact.pruned.any() and not whole.pruned.any()
     one = _core.view_coverage(m, surface, poses, current, min_gain=mg, coarse_stride=1, **kw)
     for key in ("offsets", "elements", "weights", "status"):
-        np.testing.assert_array_equal(one[key], exact[key])
-    np.testing.assert_array_equal(one["pruned"], valid & (sums + 1 < mg))
-    assert one["pruned"].sum() >= 5
+        np.testing.assert_array_equal(getattr(one, key), getattr(exact, key))
+    np.testing.assert_array_equal(one.pruned, valid & (sums + 1 < mg))
+    assert one.pruned.sum() >= 5
     coarse = _core.view_coverage(m, surface, poses, current, min_gain=mg, coarse_stride=3, **kw)
-    np.testing.assert_array_equal(coarse["status"], whole["status"])
-    pruned = coarse["pruned"]
+    np.testing.assert_array_equal(coarse.status, whole.status)
+    pruned = coarse.pruned
     assert pruned.sum() >= 5 and not pruned[~valid].any()
     _assert_walked_sets_exact(coarse, exact)
-    assert (coarse["gain"][pruned] < mg).all()
+    assert (coarse.gain[pruned] < mg).all()
     # the estimate errs high: most views below min_gain are pruned, few above it
     below = valid & (sums < mg)
     assert pruned[below].mean() >= 0.5 and pruned[valid & ~below].mean() <= 0.2
     none = _core.view_coverage(m, surface, poses, current, coarse_stride=3, **kw)
-    assert not none["pruned"].any()
+    assert not none.pruned.any()
     # a memo keeps the estimates of the views left unwalked: a call over the same map prunes
     # them again without their coarse walks, and at a lower min_gain walks those above it; the
     # same arrays as without the memo each time
@@ -1007,7 +1007,7 @@ def test_view_coverage_prescreen_leaves_only_views_its_coarse_rays_estimate_belo
         )
         b = _core.view_coverage(m, surface, poses, current, min_gain=gain, coarse_stride=3, **kw)
         for key in ("offsets", "elements", "weights", "status", "pruned", "gain"):
-            np.testing.assert_array_equal(a[key], b[key])
+            np.testing.assert_array_equal(getattr(a, key), getattr(b, key))
         stats = memo.stats()
         if estimated:
             assert stats["estimated"] == estimated
@@ -1024,7 +1024,7 @@ def test_view_coverage_coarse_margin_walks_only_views_estimated_above_its_multip
     # refused before any work.
     m, surface, poses, current, kw = _box_seen_from_two_sides()
     whole = _core.view_coverage(m, surface, poses, current, **kw)
-    valid, sums = whole["status"] == 0, _set_sums(whole)
+    valid, sums = whole.status == 0, _set_sums(whole)
     mg = float(np.median(sums[valid & (sums > 0)])) / 2
     exact = _core.view_coverage(m, surface, poses, current, min_gain=mg, **kw)
     one, two = (
@@ -1033,11 +1033,11 @@ def test_view_coverage_coarse_margin_walks_only_views_estimated_above_its_multip
         )
         for c in (1.0, 2.0)
     )
-    assert (two["gain"][two["pruned"]] < 2 * mg).all()
-    assert (one["pruned"] <= two["pruned"]).all() and two["pruned"].sum() > one["pruned"].sum()
+    assert (two.gain[two.pruned] < 2 * mg).all()
+    assert (one.pruned <= two.pruned).all() and two.pruned.sum() > one.pruned.sum()
     # those left out at 2 and not at 1 are the views estimated between min_gain and twice it
-    newly = two["pruned"] & ~one["pruned"]
-    assert ((two["gain"][newly] >= mg) & (two["gain"][newly] < 2 * mg)).all()
+    newly = two.pruned & ~one.pruned
+    assert ((two.gain[newly] >= mg) & (two.gain[newly] < 2 * mg)).all()
     _assert_walked_sets_exact(two, exact)
     for bad in (0.0, -1.0, float("nan"), float("inf")):
         with pytest.raises(ValueError, match="coarse_margin"):
@@ -1084,7 +1084,7 @@ def test_max_incidence_credits_a_densely_sampled_surface_cell_only_for_rays_near
     def credited(pose, **utility):
         u = dict(kw["utility"], **utility)
         c = _core.view_coverage(m, surface, pose, pose[0], **dict(kw, utility=u))
-        e, w = np.asarray(c["elements"]), np.asarray(c["weights"])
+        e, w = np.asarray(c.elements), np.asarray(c.weights)
         return dict(zip(e[w > 0].tolist(), w[w > 0].tolist()))  # the slab (unknown cells: 0)
 
     def sample_face(squares):
@@ -1169,7 +1169,7 @@ def test_the_coverage_memo_keeps_a_record_through_changes_outside_its_view_only(
         a = _core.view_coverage(m, surface, pose, pose[0], memo=memo, **kw)
         b = _core.view_coverage(m, surface, pose, pose[0], **kw)
         for key in ("offsets", "elements", "weights", "status"):
-            np.testing.assert_array_equal(a[key], b[key])
+            np.testing.assert_array_equal(getattr(a, key), getattr(b, key))
         return memo.stats()
 
     assert call()["walked"] == 1
@@ -1218,13 +1218,13 @@ def test_the_coverage_memo_answers_as_walking_again():
         b = _core.view_coverage(m, surface, poses, current, **kw)
         c = _core.view_coverage(m, surface, poses, current, memo=capped, **kw)
         for key in ("offsets", "elements", "weights", "status"):
-            np.testing.assert_array_equal(a[key], b[key])
-            np.testing.assert_array_equal(c[key], b[key])
+            np.testing.assert_array_equal(getattr(a, key), getattr(b, key))
+            np.testing.assert_array_equal(getattr(c, key), getattr(b, key))
         assert capped.bytes <= capped.max_bytes
         return a
 
     first = check(m, surface)
-    assert (first["status"] == 0).sum() >= 10
+    assert (first.status == 0).sum() >= 10
     walked = memo.stats()["walked"]
     check(m, surface)  # nothing changed: every valid view from its record
     assert memo.stats() == dict(reused=walked, walked=walked, stale=0, evicted=0, estimated=0)
@@ -1296,25 +1296,25 @@ def test_a_view_that_reaches_where_a_stranded_patchs_views_would_be_is_credited_
     )
     owner = np.array([0, 0, 1, 1])
     m, patches, cov = _stranded_scene(cands)
-    assert cov["status"].tolist() == [2, 2, 0, 0]
+    assert cov.status.tolist() == [2, 2, 0, 0]
     cfg = Config().with_overrides(["tour.access_weight=0.5"])
     tour = get_generator("tour", cfg)
     world = _access_world(m, [3.0, 3.1, 2.1, 0.0])
     out, opens = tour._access(world, cov, cands, owner, patches)
-    size = np.diff(cov["offsets"])
-    new_size = np.diff(out["offsets"])
+    size = np.diff(cov.offsets)
+    new_size = np.diff(out.offsets)
     assert new_size.tolist() == [0, 0, size[2] + 1, size[3]]
-    last = out["offsets"][3] - 1  # the facing view's extra element, after its own
-    assert out["elements"][last] > cov["elements"].max() and out["weights"][last] == 20.0
-    keep = np.delete(np.arange(len(out["elements"])), last)
-    np.testing.assert_array_equal(out["elements"][keep], cov["elements"])
+    last = out.offsets[3] - 1  # the facing view's extra element, after its own
+    assert out.elements[last] > cov.elements.max() and out.weights[last] == 20.0
+    keep = np.delete(np.arange(len(out.elements)), last)
+    np.testing.assert_array_equal(out.elements[keep], cov.elements)
     assert list(opens) == [2] and len(opens[2]) == 1  # the cell at x = 8, not the one at 9.6
     tour.opened.update(opens[2])
     again, _ = tour._access(world, cov, cands, owner, patches)
-    np.testing.assert_array_equal(again["offsets"], cov["offsets"])
+    np.testing.assert_array_equal(again.offsets, cov.offsets)
     tour_off = get_generator("tour", Config())  # access weight 0: off
     off = tour_off._access(world, cov, cands, owner, patches)[0]
-    np.testing.assert_array_equal(off["elements"], cov["elements"])
+    np.testing.assert_array_equal(off.elements, cov.elements)
 
 
 def _access_world(occupancy_map, pose):
@@ -1340,9 +1340,9 @@ def test_a_stranded_place_behind_a_wall_with_a_gap_narrower_than_the_vehicle_is_
     cands = np.array([[8.1, 3.1, 2.1, math.pi], [3.0, 3.1, 2.1, 0.0]])
     owner = np.array([0, 1])
     m, patches, cov = _stranded_scene(cands, hole=gap)
-    assert cov["status"].tolist() == [2, 0]
+    assert cov.status.tolist() == [2, 0]
     place = m.storage_index(cands[:1, :3])[0]
-    assert place in np.asarray(cov["elements"]) // 2  # the rays reach it through the hole
+    assert place in np.asarray(cov.elements) // 2  # the rays reach it through the hole
     world = _access_world(m, [3.0, 3.1, 2.1, 0.0])
     reach = reachable(world, 0.8)
     assert reach[15, 15, 10] and not reach[30, 2, 2]  # by the vehicle; in the wall at x = 6
@@ -1350,7 +1350,7 @@ def test_a_stranded_place_behind_a_wall_with_a_gap_narrower_than_the_vehicle_is_
     tour = get_generator("tour", Config().with_overrides(["tour.access_weight=0.5"]))
     out, opens = tour._access(world, cov, cands, owner, patches)
     assert (list(opens) == [1]) == credited
-    assert len(out["elements"]) == len(cov["elements"]) + int(credited)
+    assert len(out.elements) == len(cov.elements) + int(credited)
 
 
 @pytest.mark.parametrize("far_corner", [True, False])
@@ -1384,23 +1384,24 @@ def test_exploration_targets_are_the_unknown_face_of_known_free_space_within_the
 def test_append_elements_keeps_each_views_set_in_order():
     from nbvkit.planning.generators.access import append_elements
 
-    cov = {
-        "offsets": np.array([0, 2, 2, 5]),
-        "elements": np.array([1, 3, 0, 4, 9]),
-        "weights": np.array([1.0, 2.0, 3.0, 4.0, 5.0], np.float32),
-        "status": np.zeros(3, np.int8),
-    }
+    cov = _core.CoverageSets(
+        offsets=[0, 2, 2, 5],
+        elements=[1, 3, 0, 4, 9],
+        weights=np.array([1.0, 2.0, 3.0, 4.0, 5.0], np.float32),
+        status=[0, 2, 0],
+    )
     out = append_elements(cov, np.array([0, 0, 2]), np.array([10, 11, 12]), [0.1, 0.2, 0.3])
-    assert out["offsets"].tolist() == [0, 4, 4, 8]
-    assert out["elements"].tolist() == [1, 3, 10, 11, 0, 4, 9, 12]
-    np.testing.assert_allclose(out["weights"], [1, 2, 0.1, 0.2, 3, 4, 5, 0.3], rtol=1e-6)
-    assert out["status"] is cov["status"]
+    assert isinstance(out, _core.CoverageSets)
+    assert out.offsets.tolist() == [0, 4, 4, 8]
+    assert out.elements.tolist() == [1, 3, 10, 11, 0, 4, 9, 12]
+    np.testing.assert_allclose(out.weights, [1, 2, 0.1, 0.2, 3, 4, 5, 0.3], rtol=1e-6)
+    assert out.status.tolist() == [0, 2, 0]
+    np.testing.assert_allclose(out.gain, [3.3, 0.0, 12.3], rtol=1e-6)  # the valid views' sums
     # view_coverage's elements are int32: appended ones keep that type, or say they do not fit
-    cov32 = {**cov, "elements": cov["elements"].astype(np.int32)}
-    out = append_elements(cov32, np.array([1]), np.array([2**31 - 1]), [1.0])
-    assert out["elements"].dtype == np.int32 and out["elements"][2] == 2**31 - 1
+    out = append_elements(cov, np.array([1]), np.array([2**31 - 1]), [1.0])
+    assert out.elements.dtype == np.int32 and out.elements[2] == 2**31 - 1
     with pytest.raises(OverflowError, match="int32"):
-        append_elements(cov32, np.array([1]), np.array([2**31]), [1.0])
+        append_elements(cov, np.array([1]), np.array([2**31]), [1.0])
 
 
 def test_append_elements_and_elements_in_cells_equal_a_plain_construction(monkeypatch):
@@ -1411,26 +1412,27 @@ def test_append_elements_and_elements_in_cells_equal_a_plain_construction(monkey
     for _ in range(20):
         sizes = rng.integers(0, 9, size=rng.integers(1, 30))
         sets = [np.sort(rng.choice(200, size=k, replace=False)) for k in sizes]
-        cov = {
-            "offsets": np.concatenate([[0], np.cumsum(sizes)]),
-            "elements": np.concatenate(sets).astype(np.int32),
-            "weights": rng.random(sizes.sum()).astype(np.float32),
-        }
+        cov = _core.CoverageSets(
+            offsets=np.concatenate([[0], np.cumsum(sizes)]),
+            elements=np.concatenate(sets).astype(np.int32),
+            weights=rng.random(sizes.sum()).astype(np.float32),
+            status=np.zeros(len(sizes), np.int8),
+        )
         cells = np.unique(rng.integers(0, 120, size=rng.integers(0, 40)))
-        hit = access.elements_in_cells(cov["elements"], cells)
-        np.testing.assert_array_equal(hit, np.flatnonzero(np.isin(cov["elements"] // 2, cells)))
+        hit = access.elements_in_cells(cov.elements, cells)
+        np.testing.assert_array_equal(hit, np.flatnonzero(np.isin(cov.elements // 2, cells)))
         views = np.sort(rng.integers(0, len(sizes), size=rng.integers(0, 12)))
         extra = 200 + np.arange(len(views))
         w = rng.random(len(views))
         out = access.append_elements(cov, views, extra, w)
         want_el, want_w = [], []  # each view's set, then its extras in the order given
         for v, s in enumerate(sets):
-            o = cov["offsets"][v]
+            o = cov.offsets[v]
             want_el += [*s, *extra[views == v]]
-            want_w += [*cov["weights"][o : o + len(s)], *w[views == v].astype(np.float32)]
-        assert out["elements"].tolist() == want_el and out["elements"].dtype == np.int32
-        assert out["weights"].tolist() == want_w
-        assert out["offsets"].tolist() == [
+            want_w += [*cov.weights[o : o + len(s)], *w[views == v].astype(np.float32)]
+        assert out.elements.tolist() == want_el and out.elements.dtype == np.int32
+        assert out.weights.tolist() == want_w
+        assert out.offsets.tolist() == [
             0,
             *np.cumsum(sizes + np.bincount(views, minlength=len(sizes))),
         ]

@@ -157,19 +157,19 @@ def test_the_inspection_camera_scores_one_ray_per_map_cell_at_its_near_standoff(
 def test_a_plan_that_keeps_too_few_views_halves_its_level(level_views, monkeypatch):
     # The two cubes 30 m apart with a 4 m camera (a large workspace: plans start at 8 x
     # tour.min_gain). A plan above the lowest level keeps at least tour.level_views views, else
-    # its level halves and its selection runs again: over the sets of the views the lower level
-    # adds too, one view_coverage call per level (at min_gain: the views that can be chosen).
+    # its level halves and it is planned again: over the sets of the views the lower level adds
+    # too, one plan_tour call per level (at min_gain: the views that can be chosen).
     from conftest import QUICK_MISSION
     from nbvkit.mission import Mission
     from nbvkit.planning.generators.tour import CoverageTour
 
     mesh = _two_cubes()
     scored, base = [], load_config().tour.min_gain
-    coverage = CoverageTour.coverage
+    plan = CoverageTour._plan
     monkeypatch.setattr(
         CoverageTour,
-        "coverage",
-        lambda self, w, c, g=0.0: scored.append(g / base) or coverage(self, w, c, g),
+        "_plan",
+        lambda self, w, c, cov, g, r: scored.append(g / base) or plan(self, w, c, cov, g, r),
     )
     more = ["camera.max_range=4", "workspace.margin_xy=5", f"tour.level_views={level_views}"]
     s = Mission(load_config(overrides=list(QUICK_MISSION) + more), mesh=mesh).run()

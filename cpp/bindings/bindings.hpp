@@ -22,6 +22,19 @@ namespace nbv::bind {
 
 namespace py = pybind11;
 
+/// A read-only numpy view of `n` rows (each `row` values) of T at `data`, kept alive by `owner`.
+template <typename T>
+inline py::array owned_array(const py::handle& owner, const T* data, py::ssize_t n,
+                             py::ssize_t row = 0) {
+  std::vector<py::ssize_t> shape{n};
+  if (row) shape.push_back(row);
+  // no storage to point into when empty
+  py::array a =
+      n ? py::array(py::dtype::of<T>(), shape, data, owner) : py::array(py::dtype::of<T>(), shape);
+  py::detail::array_proxy(a.ptr())->flags &= ~py::detail::npy_api::NPY_ARRAY_WRITEABLE_;
+  return a;
+}
+
 /// A C-contiguous float64 array holding an (N, 3) point set; `map()` views it without a copy.
 struct PointsArg {
   py::array_t<double, py::array::c_style | py::array::forcecast> array;

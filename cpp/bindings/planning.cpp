@@ -9,6 +9,7 @@
 #include "options.hpp"
 
 #include <limits>
+#include <optional>
 #include <string>
 
 namespace nbv::bind {
@@ -46,40 +47,61 @@ Array<std::int32_t> elements_arg(const py::dict& coverage) {
   return Array<std::int32_t>::ensure(wide);
 }
 
-/// A view_coverage result (dict of CSR arrays), checked, read in place: numpy arrays of the
-/// right type are not copied (they are large: one entry per view and surface element).
+/// Throws ValueError unless the CSR arrays of `c` agree (K + 1 offsets from 0 to the element
+/// count, never decreasing; one weight per element).
+void check_coverage(const CoverageRef& c) {
+  const Eigen::Index n = c.offsets.size();
+  bool ok = n == c.status.size() + 1 && c.elements.size() == c.weights.size() &&
+            (n == 0 || (c.offsets[0] == 0 && c.offsets[n - 1] == c.elements.size()));
+  for (Eigen::Index i = 1; ok && i < n; ++i) ok = c.offsets[i] >= c.offsets[i - 1];
+  if (!ok) throw py::value_error("coverage arrays are inconsistent");
+}
+
+/// Coverage sets, read in place: a CoverageSets (view_coverage's), or a dict of its arrays as
+/// a script builds them (offsets, elements, weights, status; pooled_from and pool_cap), checked;
+/// numpy arrays of the right type are not copied (a plant's plan: 50 M elements).
 struct CoverageArg {
-  explicit CoverageArg(const py::dict& coverage)
-      : offsets(vector_arg<std::int64_t>(coverage, "offsets")),
-        elements(elements_arg(coverage)),
-        weights(vector_arg<float>(coverage, "weights")),
-        status(vector_arg<std::int8_t>(coverage, "status")),
-        ref(as_vector(offsets), as_vector(elements), as_vector(weights), as_vector(status)) {
-    if (coverage.contains("pool_cap") && coverage.contains("pooled_from")) {
-      ref.pool_cap = coverage["pool_cap"].cast<double>();
-      ref.pooled_from = coverage["pooled_from"].cast<std::int64_t>();
-      if (!(std::isfinite(ref.pool_cap) && ref.pool_cap >= 0.0))
-        throw py::value_error("coverage['pool_cap'] must be a finite number >= 0");
-      if (ref.pool_cap > 0.0 && ref.pooled_from < 0)
-        throw py::value_error("coverage['pooled_from'] must be >= 0 with a pool_cap above 0");
-      if (ref.pool_cap == 0.0) ref.pooled_from = ViewCoverage::kNotPooled;
+  explicit CoverageArg(const py::handle& coverage) {
+    if (py::isinstance<ViewCoverage>(coverage)) {
+      owner = py::reinterpret_borrow<py::object>(coverage);
+      ref.emplace(coverage.cast<const ViewCoverage&>());
+      return;
     }
-    const Eigen::Index n = ref.offsets.size();
-    bool ok = n == ref.status.size() + 1 && ref.elements.size() == ref.weights.size() &&
-              (n == 0 || (ref.offsets[0] == 0 && ref.offsets[n - 1] == ref.elements.size()));
-    for (Eigen::Index i = 1; ok && i < n; ++i) ok = ref.offsets[i] >= ref.offsets[i - 1];
-    if (!ok) throw py::value_error("coverage arrays are inconsistent");
+    if (!py::isinstance<py::dict>(coverage))
+      throw py::type_error(
+          "coverage must be a CoverageSets (view_coverage's) or a dict of its "
+          "arrays, got " +
+          std::string(py::str(py::type::of(coverage))));
+    const auto d = py::reinterpret_borrow<py::dict>(coverage);
+    offsets = vector_arg<std::int64_t>(d, "offsets");
+    elements = elements_arg(d);
+    weights = vector_arg<float>(d, "weights");
+    status = vector_arg<std::int8_t>(d, "status");
+    ref.emplace(as_vector(offsets), as_vector(elements), as_vector(weights), as_vector(status));
+    if (d.contains("pool_cap") && d.contains("pooled_from"))
+      pooled(*ref, d["pooled_from"].cast<std::int64_t>(), d["pool_cap"].cast<double>());
+    check_coverage(*ref);
   }
-  Array<std::int64_t> offsets;  // (kept alive for ref)
+  /// Sets the pooled elements of `c` (pooled_from -1 or pool_cap 0: none), checked.
+  static void pooled(CoverageRef& c, std::int64_t pooled_from, double pool_cap) {
+    if (!(std::isfinite(pool_cap) && pool_cap >= 0.0))
+      throw py::value_error("coverage pool_cap must be a finite number >= 0");
+    if (pool_cap > 0.0 && pooled_from < 0)
+      throw py::value_error("coverage pooled_from must be >= 0 with a pool_cap above 0");
+    c.pool_cap = pool_cap;
+    c.pooled_from = pool_cap > 0.0 ? pooled_from : ViewCoverage::kNotPooled;
+  }
+  py::object owner;  // (kept alive for ref)
+  Array<std::int64_t> offsets;
   Array<std::int32_t> elements;
   Array<float> weights;
   Array<std::int8_t> status;
-  CoverageRef ref;
+  std::optional<CoverageRef> ref;
 };
 
 /// select_tours over the arguments of select_tour and select_tours, checked, without the GIL:
 /// a (views, gains) tuple per charge.
-std::vector<py::tuple> tours_arg(const py::dict& coverage, const py::handle& positions,
+std::vector<py::tuple> tours_arg(const py::handle& coverage, const py::handle& positions,
                                  const py::handle& start, double rate, double min_gain,
                                  int max_views, const std::vector<bool>& charges) {
   const CoverageArg cov(coverage);
@@ -90,7 +112,7 @@ std::vector<py::tuple> tours_arg(const py::dict& coverage, const py::handle& pos
   std::vector<CoverSelection> s;
   {
     py::gil_scoped_release release;
-    s = select_tours(cov.ref, pm, st, rate, min_gain, max_views, charges);
+    s = select_tours(*cov.ref, pm, st, rate, min_gain, max_views, charges);
   }
   std::vector<py::tuple> out;
   for (const CoverSelection& t : s)
@@ -211,6 +233,98 @@ Entries that none of the last keep_calls calls used are dropped, and beyond max_
       .def_property_readonly("max_bytes", &CoverageMemo::max_bytes);
   def_memo_members(coverage_memo, true);
 
+  py::class_<ViewCoverage, std::shared_ptr<ViewCoverage>> sets(m, "CoverageSets", R"doc(
+What candidate views would newly cover (view_coverage): view k's elements (cell id * 2 + the
+side of the cell seen; past every cell's, pooled bricks of unknown space) and their weights are
+entries offsets[k]:offsets[k + 1] of elements and weights. The arrays are read-only views into
+this object (no copy). len() is the number of views. Built from arrays (a script's own sets, or
+sets with elements added): CoverageSets(offsets, elements, weights, status[, pooled_from,
+pool_cap]), copied and checked; each valid view's gain is then the sum of its weights.)doc");
+  sets.def(py::init([](const py::handle& offsets, const py::handle& elements,
+                       const py::handle& weights, const py::handle& status,
+                       std::int64_t pooled_from, double pool_cap) {
+             py::dict d;
+             d["offsets"] = offsets;
+             d["elements"] = elements;
+             d["weights"] = weights;
+             d["status"] = status;
+             d["pooled_from"] = pooled_from;
+             d["pool_cap"] = pool_cap;
+             const CoverageArg arg(d);
+             const CoverageRef& r = *arg.ref;
+             auto c = std::make_shared<ViewCoverage>();
+             c->offsets = r.offsets;
+             c->elements = r.elements;
+             c->weights = r.weights;
+             c->status = r.status;
+             c->pooled_from = r.pooled_from;
+             c->pool_cap = r.pool_cap;
+             const Eigen::Index k = r.status.size();
+             c->pruned.setZero(k);
+             c->gain.setZero(k);
+             for (Eigen::Index v = 0; v < k; ++v)
+               if (r.status[v] == 0)
+                 for (std::int64_t e = r.offsets[v]; e < r.offsets[v + 1]; ++e)
+                   c->gain[v] += r.weights[e];
+             return c;
+           }),
+           py::arg("offsets"), py::arg("elements"), py::arg("weights"), py::arg("status"),
+           py::arg("pooled_from") = -1, py::arg("pool_cap") = 0.0)
+      .def("__len__", [](const ViewCoverage& c) { return c.status.size(); })
+      .def_property_readonly(
+          "offsets",
+          [](const py::object& self) {
+            const auto& c = self.cast<const ViewCoverage&>();
+            return owned_array(self, c.offsets.data(), c.offsets.size());
+          },
+          "(K + 1,) int64: view k's entries are offsets[k]:offsets[k + 1]")
+      .def_property_readonly(
+          "elements",
+          [](const py::object& self) {
+            const auto& c = self.cast<const ViewCoverage&>();
+            return owned_array(self, c.elements.data(), c.elements.size());
+          },
+          "int32: cell id * 2 + the side seen; pooled bricks from pooled_from on")
+      .def_property_readonly(
+          "weights",
+          [](const py::object& self) {
+            const auto& c = self.cast<const ViewCoverage&>();
+            return owned_array(self, c.weights.data(), c.weights.size());
+          },
+          "float32: what each element adds to the view's gain")
+      .def_property_readonly(
+          "status",
+          [](const py::object& self) {
+            const auto& c = self.cast<const ViewCoverage&>();
+            return owned_array(self, c.status.data(), c.status.size());
+          },
+          "(K,) int8: evaluate_views' status of each view (0 valid)")
+      .def_property_readonly(
+          "pruned",
+          [](const py::object& self) {
+            const auto& c = self.cast<const ViewCoverage&>();
+            static_assert(sizeof(bool) == sizeof(std::uint8_t), "bool is a byte");
+            return owned_array(self, reinterpret_cast<const bool*>(c.pruned.data()),
+                               c.pruned.size());
+          },
+          "(K,) bool: valid views left unwalked on their coarse estimate (their sets empty)")
+      .def_property_readonly(
+          "gain",
+          [](const py::object& self) {
+            const auto& c = self.cast<const ViewCoverage&>();
+            return owned_array(self, c.gain.data(), c.gain.size());
+          },
+          "(K,) float64: a valid view's gain in cells (a pruned one's estimate); 0 otherwise")
+      .def_property_readonly(
+          "pooled_from",
+          [](const ViewCoverage& c) { return c.pool_cap > 0.0 ? c.pooled_from : std::int64_t(-1); },
+          "the first pooled element (-1: none pooled)")
+      .def_readonly("pool_cap", &ViewCoverage::pool_cap, "the weight a pooled brick holds at most")
+      .def("__repr__", [](const ViewCoverage& c) {
+        return "CoverageSets(" + std::to_string(c.status.size()) + " views, " +
+               std::to_string(c.elements.size()) + " elements)";
+      });
+
   m.def(
       "view_coverage",
       [](const OccupancyMap& map, const SurfaceObservations& surface, const py::handle& candidates,
@@ -231,16 +345,7 @@ Entries that none of the last keep_calls calls used are dropped, and beyond max_
           cov = view_coverage(grid_view(map, &surface), cm, cur, cam, u, v, memo.get(), min_gain,
                               coarse_stride, pool_unknown, coarse_margin);
         }
-        py::dict d;  // the arrays handed to numpy as they are (a plant's plan: 50 M elements)
-        d["offsets"] = py::cast(std::move(cov.offsets));
-        d["elements"] = py::cast(std::move(cov.elements));
-        d["weights"] = py::cast(std::move(cov.weights));
-        d["status"] = py::cast(std::move(cov.status));
-        d["pruned"] = py::cast(Eigen::Matrix<bool, Eigen::Dynamic, 1>(cov.pruned.cast<bool>()));
-        d["gain"] = py::cast(std::move(cov.gain));
-        d["pooled_from"] = cov.pool_cap > 0.0 ? cov.pooled_from : std::int64_t(-1);
-        d["pool_cap"] = cov.pool_cap;
-        return d;
+        return std::make_shared<ViewCoverage>(std::move(cov));  // handed to numpy as it is
       },
       py::arg("map"), py::arg("surface"), py::arg("candidates"), py::arg("current"),
       py::arg("camera") = py::none(), py::arg("utility") = py::none(),
@@ -248,34 +353,34 @@ Entries that none of the last keep_calls calls used are dropped, and beyond max_
       py::arg("coarse_stride") = 0, py::arg("pool_unknown") = false, py::arg("coarse_margin") = 1.0,
       R"doc(What each candidate view ((K, 4) rows x, y, z, yaw, or (K, 5) with the gimbal's pitch,
 as evaluate_views) would newly cover, as the surface utility credits it
-(utility: its priors and cone; the name is ignored): CSR dict offsets (K + 1,), elements (int32:
-cell id * 2 + the side of the cell seen, see nbv/coverage.hpp) and weights, and status (K,) as
-evaluate_views. memo: a CoverageMemo kept across calls over this map and surface record (the same
-arrays, fewer walks). min_gain > 0 (in cells, as select_tours takes it): a valid candidate whose
-weights sum below it keeps its status and an empty set; select_tours at that min_gain or above
-chooses the same. coarse_stride > 0 with min_gain > 0: a candidate is first walked along every
-coarse_stride-th ray across and down, and one whose gain so estimated (the rays' gain plus one
-cell, times all rays over those) is below coarse_margin x min_gain gets an empty set without
-its whole walk: pruned (K,) bool marks them (an estimate: surface near the camera, reached by
-several rays a cell, is estimated high; with stride 1 and margin 1, the arrays are those
-without it; a margin above 1 walks fewer views, leaving out a few that would reach
-min_gain). gain (K,) float64: a valid view's gain in cells (its walk's sum, as its weights'; a
-pruned view's estimate), 0 for the others. pool_unknown: the credits of unknown cells at the
-utility's unknown_prior (not next to surface; most of a view's elements, little of its weight)
-are pooled per brick of 4 x 4 x 4 cells, one element each (2 x the grid's storage cells + the
-brick, past every cell's element), weighing their sum: the same gains and status, far fewer
-elements. pooled_from (int; -1 when not pooled) and pool_cap (float): the first pooled element,
-and the weight a brick holds at most; select_cover and select_tours count a pooled brick's cover
-as a share of it (nbv/coverage.hpp).)doc");
+(utility: its priors and cone; the name is ignored), a CoverageSets: CSR arrays offsets (K +
+1,), elements (int32: cell id * 2 + the side of the cell seen, see nbv/coverage.hpp) and
+weights, and status (K,) as evaluate_views. memo: a CoverageMemo kept across calls over this map
+and surface record (the same arrays, fewer walks). min_gain > 0 (in cells, as select_tours takes
+it): a valid candidate whose weights sum below it keeps its status and an empty set;
+select_tours at that min_gain or above chooses the same. coarse_stride > 0 with min_gain > 0: a
+candidate is first walked along every coarse_stride-th ray across and down, and one whose gain
+so estimated (the rays' gain plus one cell, times all rays over those) is below coarse_margin x
+min_gain gets an empty set without its whole walk: pruned (K,) bool marks them (an estimate:
+surface near the camera, reached by several rays a cell, is estimated high; with stride 1 and
+margin 1, the arrays are those without it; a margin above 1 walks fewer views, leaving out a few
+that would reach min_gain). gain (K,) float64: a valid view's gain in cells (its walk's sum, as
+its weights'; a pruned view's estimate), 0 for the others. pool_unknown: the credits of unknown
+cells at the utility's unknown_prior (not next to surface; most of a view's elements, little of
+its weight) are pooled per brick of 4 x 4 x 4 cells, one element each (2 x the grid's storage
+cells + the brick, past every cell's element), weighing their sum: the same gains and status,
+far fewer elements. pooled_from (int; -1 when not pooled) and pool_cap (float): the first pooled
+element, and the weight a brick holds at most; select_cover and select_tours count a pooled
+brick's cover as a share of it (nbv/coverage.hpp).)doc");
   m.def(
       "select_cover",
-      [](const py::dict& coverage, double min_gain, int max_views) {
+      [](const py::handle& coverage, double min_gain, int max_views) {
         const CoverageArg cov(coverage);
         if (max_views < 0) throw py::value_error("max_views must be >= 0");
         CoverSelection s;
         {
           py::gil_scoped_release release;
-          s = select_cover(cov.ref, min_gain, max_views);
+          s = select_cover(*cov.ref, min_gain, max_views);
         }
         return py::make_tuple(py::cast(s.views), py::cast(s.gains));
       },
@@ -285,7 +390,7 @@ candidate indices in the order chosen and each one's marginal gain, until the be
 than min_gain or max_views are chosen.)doc");
   m.def(
       "select_tour",
-      [](const py::dict& coverage, const py::handle& positions, const py::handle& start,
+      [](const py::handle& coverage, const py::handle& positions, const py::handle& start,
          double rate, double min_gain, int max_views, bool charge_transit) {
         const auto tour =
             tours_arg(coverage, positions, start, rate, min_gain, max_views, {charge_transit});
@@ -302,7 +407,7 @@ its transit only as a whole can form (judge the transit afterwards, e.g. by priz
 collection).)doc");
   m.def(
       "select_tours",
-      [](const py::dict& coverage, const py::handle& positions, const py::handle& start,
+      [](const py::handle& coverage, const py::handle& positions, const py::handle& start,
          double rate, double min_gain, int max_views, const std::vector<bool>& charges) {
         return tours_arg(coverage, positions, start, rate, min_gain, max_views, charges);
       },
@@ -438,7 +543,7 @@ must add; rate: m^2 per metre of flight a view must pay for; a coverage weight o
 map's cell face. Returns a TourPlan; the coverage sets are freed before it returns.)doc");
   m.def(
       "plan_tour_over",
-      [](const py::dict& coverage, const py::handle& positions, const py::handle& start,
+      [](const py::handle& coverage, const py::handle& positions, const py::handle& start,
          double cell_area, const std::string& selection, double min_gain, double rate,
          int max_views) {
         const CoverageArg cov(coverage);
@@ -447,7 +552,7 @@ map's cell face. Returns a TourPlan; the coverage sets are freed before it retur
         const TourPlanOptions o = plan_options(selection, min_gain, rate, cell_area, max_views);
         auto pm = p.map();
         py::gil_scoped_release release;
-        return plan_tour(cov.ref, pm, st, o);
+        return plan_tour(*cov.ref, pm, st, o);
       },
       py::arg("coverage"), py::arg("positions"), py::arg("start"), py::arg("cell_area"),
       py::arg("selection") = "insertion", py::arg("min_gain") = 0.0, py::arg("rate") = 0.0,

@@ -28,18 +28,6 @@ py::array_t<T, py::array::f_style> per_cell(const GridLayout& layout, const Get&
   return a;
 }
 
-/// A read-only numpy view of `n` rows (each `row` values) of T at `data`, kept alive by `owner`.
-template <typename T>
-py::array owned_array(const py::handle& owner, const T* data, py::ssize_t n, py::ssize_t row = 0) {
-  std::vector<py::ssize_t> shape{n};
-  if (row) shape.push_back(row);
-  // no storage to point into when empty
-  py::array a =
-      n ? py::array(py::dtype::of<T>(), shape, data, owner) : py::array(py::dtype::of<T>(), shape);
-  py::detail::array_proxy(a.ptr())->flags &= ~py::detail::npy_api::NPY_ARRAY_WRITEABLE_;
-  return a;
-}
-
 /// One candidate's share of a CandidateRays (CandidateRays.view(k)).
 struct CandidateRaysView {
   std::shared_ptr<const CandidateRays> rays;

@@ -7,6 +7,8 @@ from __future__ import annotations
 import numpy as np
 from scipy import ndimage
 
+from ... import _core
+
 COLLISION = 2  # ViewStatus::Collision (_core.view_status_names)
 
 
@@ -19,7 +21,7 @@ def access_elements(world, coverage, candidates, owner, patches, weight, radius,
     (reachable: not behind walls the map shows, nor through a gap narrower than the
     vehicle); a valid view opens it when its rays reach the cell of one of those views (the
     cell is in its coverage set: unknown space the frame would make known)."""
-    status = coverage["status"]
+    status = coverage.status
     if weight <= 0 or len(status) == 0:
         return coverage, {}
     valid = status == 0
@@ -44,7 +46,7 @@ def access_elements(world, coverage, candidates, owner, patches, weight, radius,
         return coverage, {}
     order = np.argsort(cells, kind="stable")
     cells, patch = cells[order], owner[failed][order]
-    off, el = (np.asarray(coverage[k]) for k in ("offsets", "elements"))
+    off, el = coverage.offsets, coverage.elements
     hit = elements_in_cells(el, cells)
     at = el[hit] // 2
     lo, hi = np.searchsorted(cells, at, "left"), np.searchsorted(cells, at, "right")
@@ -64,12 +66,12 @@ def access_elements(world, coverage, candidates, owner, patches, weight, radius,
     return append_elements(coverage, *extra), opens
 
 
-def append_elements(coverage, views, elements, weights) -> dict:
-    """The coverage sets (offsets, elements, weights: per view, its elements in increasing order)
-    with elements[i] (larger than any of the view's own) and its weight appended to the set of
+def append_elements(coverage, views, elements, weights) -> _core.CoverageSets:
+    """The coverage sets (a CoverageSets: per view, its elements in increasing order) with
+    elements[i] (larger than any of the view's own) and its weight appended to the set of
     views[i]; views in increasing order. The sets move as blocks between the views that grow: no
     array per element beyond the new ones (a plan holds 20-46 M elements on a 100 m plant)."""
-    off, el, wt = (np.asarray(coverage[k]) for k in ("offsets", "elements", "weights"))
+    off, el, wt = coverage.offsets, coverage.elements, coverage.weights
     elements, weights = np.asarray(elements), np.asarray(weights, wt.dtype)
     if len(elements) and int(elements.max()) > np.iinfo(el.dtype).max:
         raise OverflowError(f"coverage elements beyond {el.dtype}: {int(elements.max())}")
@@ -88,9 +90,9 @@ def append_elements(coverage, views, elements, weights) -> dict:
         new_wt[end + shift : end + shift + k] = weights[j : j + k]
         src, j = end, j + k
     new_el[src + len(views) :], new_wt[src + len(views) :] = el[src:], wt[src:]
-    out = dict(coverage)
-    out.update(offsets=off + before, elements=new_el, weights=new_wt)
-    return out
+    return _core.CoverageSets(
+        off + before, new_el, new_wt, coverage.status, coverage.pooled_from, coverage.pool_cap
+    )
 
 
 #: Elements tested at a time by elements_in_cells (4 M: 16 MB of their cells).

@@ -396,24 +396,22 @@ def plan_tour(
     coarse_margin: float = 1.0,
     pool: bool = False,
 ) -> _core.TourPlan:
-    """The coverage tour over candidate views (K, 4 or 5) from where the vehicle is, in one C++
-    call over the world's map and camera observations (nbvkit._core.plan_tour): what each would
-    newly cover, as the surface utility credits it (utility: a UtilityConfig, the `utility`
-    section; None: its defaults), the views adding at least min_gain m^2 (selection
-    "insertion": prize-collecting insertion tours; "cover": a greedy set cover), their open tour
-    from the vehicle, and prize collection at rate m^2 per metre. memo: a _core.CoverageMemo
-    kept between calls (fewer walks). Views are valid as the planner's are (the navigation
-    space, the collision sphere in known free space). Returns a TourPlan: plan.flight indexes
-    candidates in flight order."""
-    from ..scoring import UtilityConfig
-
+    """The coverage tour over candidate views (K, 4 or 5) from where the vehicle is, in one C++ call
+    over the world's map and camera observations (nbvkit._core.plan_tour): what each would newly
+    cover, as the surface utility credits it (utility: a UtilityConfig, the `utility` section,
+    whose priors and cone it takes; None: the defaults), the views adding at least min_gain m^2
+    (selection "insertion": prize-collecting insertion tours; "cover": a greedy set cover),
+    their open tour from the vehicle, and prize collection at rate m^2 per metre. memo: a
+    _core.CoverageMemo kept between calls (fewer walks). Views are valid as the planner's are
+    (the navigation space, the collision sphere in known free space). Returns a TourPlan:
+    plan.flight indexes candidates in flight order."""
     return _core.plan_tour(
         world.map,
         world.surface,
         np.asarray(candidates, float),
         world.state.pose,
         camera=world.view_camera,
-        utility=(utility or UtilityConfig()).options(),
+        utility=utility.options() if utility is not None else _core.UtilityOptions(),
         validity=world.validity(blocked_path="plan"),
         memo=memo,
         selection=selection,
