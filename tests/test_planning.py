@@ -100,6 +100,10 @@ def test_prize_collecting_drops_views_that_do_not_pay_for_their_detour():
         prize_collect(start, far, g[:3], [0, 1, 2], rate=1.0)
     with pytest.raises(ValueError, match="order indexes past"):
         prize_collect(start, far, g, [0, 5], rate=1.0)
+    with pytest.raises(ValueError, match="gains must be finite"):
+        prize_collect(start, far, [5.0, np.nan, 4, 4, 4], [0, 1], rate=1.0)
+    with pytest.raises(ValueError, match="rate must be finite"):
+        prize_collect(start, far, g, [0, 1], rate=np.inf)
 
 
 def _prize_collect_in_numpy(start, points, gains, order, rate) -> list:
@@ -191,14 +195,24 @@ def test_cover_and_tour_reject_malformed_coverage_with_a_message():
         ({**good, "weights": ["a", "b", "c"]}, "weights"),
         ({**good, "elements": np.array([1, 2, 2**31], np.int64)}, "32 bits"),
         ({**good, "elements": np.array([-(2**31) - 1, 2, 2], np.int64)}, "32 bits"),
+        ({**good, "elements": np.array([1, -2, 2], np.int64)}, "elements must be >= 0"),
+        ({**good, "weights": np.array([1, np.nan, 1], np.float32)}, "finite and >= 0"),
+        ({**good, "weights": np.array([1, 1, np.inf], np.float32)}, "finite and >= 0"),
+        ({**good, "weights": np.array([-1, 1, 1], np.float32)}, "finite and >= 0"),
     ]
     for cov, message in bad:
         with pytest.raises(ValueError, match=message):
             _core.select_cover(cov)
         with pytest.raises(ValueError, match=message):
             _core.select_tour(cov, pos, start, rate=0.1)
+        with pytest.raises(ValueError, match=message):
+            _core.plan_tour_over(cov, pos, start, 0.04)
+        with pytest.raises(ValueError, match=message):  # nor built as a CoverageSets
+            _core.CoverageSets(*(cov[k] for k in ("offsets", "elements", "weights", "status")))
     with pytest.raises(KeyError):
         _core.select_tour({k: v for k, v in good.items() if k != "status"}, pos, start, rate=0.1)
+    with pytest.raises(TypeError, match="CoverageSets"):
+        _core.select_cover([good])
 
 
 # ------------------------------------------------------------------ placement and targets

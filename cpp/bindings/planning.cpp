@@ -81,6 +81,15 @@ struct CoverageArg {
     if (d.contains("pool_cap") && d.contains("pooled_from"))
       pooled(*ref, d["pooled_from"].cast<std::int64_t>(), d["pool_cap"].cast<double>());
     check_coverage(*ref);
+    for (Eigen::Index i = 0; i < ref->elements.size(); ++i) {  // a script's: each value checked
+      if (ref->elements[i] < 0)
+        throw py::value_error("coverage elements must be >= 0 (cell id * 2 + side), got " +
+                              std::to_string(ref->elements[i]));
+      const float w = ref->weights[i];
+      if (!(std::isfinite(w) && w >= 0.0f))
+        throw py::value_error("coverage weights must be finite and >= 0, got " + std::to_string(w) +
+                              " at element " + std::to_string(i));
+    }
   }
   /// Sets the pooled elements of `c` (pooled_from -1 or pool_cap 0: none), checked.
   static void pooled(CoverageRef& c, std::int64_t pooled_from, double pool_cap) {

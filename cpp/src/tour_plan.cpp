@@ -128,6 +128,8 @@ std::vector<int> prize_collect(const Eigen::Vector3d& start, const PointsRef& po
   for (int k : order)
     if (k < 0 || k >= points.rows())
       throw std::invalid_argument("prize_collect: order indexes past the points");
+  for (double g : gains)
+    if (!std::isfinite(g)) throw std::invalid_argument("prize_collect: gains must be finite");
   if (!(rate > 0)) return order;
   while (!order.empty()) {
     const std::vector<Eigen::Vector3d> seq = stops(start, points, order);
