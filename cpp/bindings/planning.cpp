@@ -148,6 +148,36 @@ TourPlanOptions plan_options(const std::string& selection, double min_gain, doub
   return o;
 }
 
+/// view_coverage over candidates `cm` from `cur`, its options from Python, checked; the map
+/// and the camera observations read-locked and the memo held, without the GIL.
+ViewCoverage coverage_call(const OccupancyMap& map, const SurfaceObservations& surface,
+                           const ViewPosesRef& cm, const Pose& cur, const py::object& camera,
+                           const py::object& utility, const py::object& validity,
+                           const std::shared_ptr<CoverageMemo>& memo, double min_gain,
+                           int coarse_stride, bool pool_unknown, double coarse_margin) {
+  const auto cam = OptionsClass<ViewCameraModel>::from(camera, "camera");
+  auto u = OptionsClass<UtilityOptions>::from(utility, "utility");
+  const auto v = OptionsClass<ValidityOptions>::from(validity, "validity");
+  Reading2 reading(map, &surface);
+  std::unique_lock<std::mutex> lock;  // one call at a time per memo
+  if (memo) lock = std::unique_lock<std::mutex>(memo->mutex());
+  return view_coverage(grid_view(map, &surface), cm, cur, cam, u, v, memo.get(), min_gain,
+                       coarse_stride, pool_unknown, coarse_margin);
+}
+
+/// A read-only array property of CoverageSets: its member `field`, viewed in place.
+template <class V>
+void def_sets_array(py::class_<ViewCoverage, std::shared_ptr<ViewCoverage>>& sets, const char* name,
+                    V ViewCoverage::*field, const char* doc) {
+  sets.def_property_readonly(
+      name,
+      [field](const py::object& self) {
+        const V& v = self.cast<const ViewCoverage&>().*field;
+        return owned_array(self, v.data(), v.size());
+      },
+      doc);
+}
+
 /// A vector as a numpy array of its type (an int index array even when empty).
 template <class T>
 py::array_t<T> array_of(const std::vector<T>& v) {
@@ -281,34 +311,6 @@ pool_cap]), copied and checked; each valid view's gain is then the sum of its we
            py::arg("pooled_from") = -1, py::arg("pool_cap") = 0.0)
       .def("__len__", [](const ViewCoverage& c) { return c.status.size(); })
       .def_property_readonly(
-          "offsets",
-          [](const py::object& self) {
-            const auto& c = self.cast<const ViewCoverage&>();
-            return owned_array(self, c.offsets.data(), c.offsets.size());
-          },
-          "(K + 1,) int64: view k's entries are offsets[k]:offsets[k + 1]")
-      .def_property_readonly(
-          "elements",
-          [](const py::object& self) {
-            const auto& c = self.cast<const ViewCoverage&>();
-            return owned_array(self, c.elements.data(), c.elements.size());
-          },
-          "int32: cell id * 2 + the side seen; pooled bricks from pooled_from on")
-      .def_property_readonly(
-          "weights",
-          [](const py::object& self) {
-            const auto& c = self.cast<const ViewCoverage&>();
-            return owned_array(self, c.weights.data(), c.weights.size());
-          },
-          "float32: what each element adds to the view's gain")
-      .def_property_readonly(
-          "status",
-          [](const py::object& self) {
-            const auto& c = self.cast<const ViewCoverage&>();
-            return owned_array(self, c.status.data(), c.status.size());
-          },
-          "(K,) int8: evaluate_views' status of each view (0 valid)")
-      .def_property_readonly(
           "pruned",
           [](const py::object& self) {
             const auto& c = self.cast<const ViewCoverage&>();
@@ -317,13 +319,6 @@ pool_cap]), copied and checked; each valid view's gain is then the sum of its we
                                c.pruned.size());
           },
           "(K,) bool: valid views left unwalked on their coarse estimate (their sets empty)")
-      .def_property_readonly(
-          "gain",
-          [](const py::object& self) {
-            const auto& c = self.cast<const ViewCoverage&>();
-            return owned_array(self, c.gain.data(), c.gain.size());
-          },
-          "(K,) float64: a valid view's gain in cells (a pruned one's estimate); 0 otherwise")
       .def_property_readonly(
           "pooled_from",
           [](const ViewCoverage& c) { return c.pool_cap > 0.0 ? c.pooled_from : std::int64_t(-1); },
@@ -334,6 +329,18 @@ pool_cap]), copied and checked; each valid view's gain is then the sum of its we
                std::to_string(c.elements.size()) + " elements)";
       });
 
+  def_sets_array(sets, "offsets", &ViewCoverage::offsets,
+                 "(K + 1,) int64: view k's entries are offsets[k]:offsets[k + 1]");
+  def_sets_array(sets, "elements", &ViewCoverage::elements,
+                 "int32: cell id * 2 + the side seen; pooled bricks from pooled_from on");
+  def_sets_array(sets, "weights", &ViewCoverage::weights,
+                 "float32: what each element adds to the view's gain");
+  def_sets_array(sets, "status", &ViewCoverage::status,
+                 "(K,) int8: evaluate_views' status of each view (0 valid)");
+  def_sets_array(
+      sets, "gain", &ViewCoverage::gain,
+      "(K,) float64: a valid view's gain in cells (a pruned one's estimate); 0 otherwise");
+
   m.def(
       "view_coverage",
       [](const OccupancyMap& map, const SurfaceObservations& surface, const py::handle& candidates,
@@ -341,19 +348,9 @@ pool_cap]), copied and checked; each valid view's gain is then the sum of its we
          const py::object& validity, const std::shared_ptr<CoverageMemo>& memo, double min_gain,
          int coarse_stride, bool pool_unknown, double coarse_margin) {
         const ViewPosesArg c = view_poses_arg(candidates, "candidates");
-        const auto cm = c.map();
-        const Pose cur = pose_arg(current, "current pose");
-        const auto cam = OptionsClass<ViewCameraModel>::from(camera, "camera");
-        auto u = OptionsClass<UtilityOptions>::from(utility, "utility");
-        const auto v = OptionsClass<ValidityOptions>::from(validity, "validity");
-        ViewCoverage cov;
-        {
-          Reading2 reading(map, &surface);
-          std::unique_lock<std::mutex> lock;  // one call at a time per memo
-          if (memo) lock = std::unique_lock<std::mutex>(memo->mutex());
-          cov = view_coverage(grid_view(map, &surface), cm, cur, cam, u, v, memo.get(), min_gain,
-                              coarse_stride, pool_unknown, coarse_margin);
-        }
+        ViewCoverage cov =
+            coverage_call(map, surface, c.map(), pose_arg(current, "current pose"), camera, utility,
+                          validity, memo, min_gain, coarse_stride, pool_unknown, coarse_margin);
         return std::make_shared<ViewCoverage>(std::move(cov));  // handed to numpy as it is
       },
       py::arg("map"), py::arg("surface"), py::arg("candidates"), py::arg("current"),
@@ -520,23 +517,14 @@ the area it adds, and the flight order of those prize collection kept.)doc")
         const ViewPosesArg c = view_poses_arg(candidates, "candidates");
         const auto cm = c.map();
         const Pose cur = pose_arg(current, "current pose");
-        const auto cam = OptionsClass<ViewCameraModel>::from(camera, "camera");
-        auto u = OptionsClass<UtilityOptions>::from(utility, "utility");
-        const auto v = OptionsClass<ValidityOptions>::from(validity, "validity");
         const double cell = map.resolution() * map.resolution();
         const TourPlanOptions o = plan_options(selection, min_gain, rate, cell, max_views);
         const Points positions = positions_of(cm);
-        TourPlan plan;
-        {
-          Reading2 reading(map, &surface);
-          std::unique_lock<std::mutex> lock;  // one call at a time per memo
-          if (memo) lock = std::unique_lock<std::mutex>(memo->mutex());
-          const ViewCoverage cov =
-              view_coverage(grid_view(map, &surface), cm, cur, cam, u, v, memo.get(),
-                            o.min_gain / cell, coarse_stride, pool_unknown, coarse_margin);
-          plan = plan_tour(CoverageRef(cov), positions, Eigen::Vector3d(cur.x, cur.y, cur.z), o);
-        }
-        return plan;
+        const ViewCoverage cov =
+            coverage_call(map, surface, cm, cur, camera, utility, validity, memo, o.min_gain / cell,
+                          coarse_stride, pool_unknown, coarse_margin);
+        py::gil_scoped_release release;
+        return plan_tour(CoverageRef(cov), positions, Eigen::Vector3d(cur.x, cur.y, cur.z), o);
       },
       py::arg("map"), py::arg("surface"), py::arg("candidates"), py::arg("current"),
       py::arg("camera") = py::none(), py::arg("utility") = py::none(),
