@@ -402,7 +402,7 @@ def plan_tour(
     whose priors and cone it takes; None: the defaults), the views adding at least min_gain m^2
     (selection "insertion": prize-collecting insertion tours; "cover": a greedy set cover),
     their open tour from the vehicle, and prize collection at rate m^2 per metre. memo: a
-    _core.CoverageMemo kept between calls (fewer walks). Views are valid as the planner's are
+    CoverageMemo kept between calls (fewer walks). Views are valid as the planner's are
     (the navigation space, the collision sphere in known free space). Returns a TourPlan:
     plan.flight indexes candidates in flight order."""
     return _core.plan_tour(
