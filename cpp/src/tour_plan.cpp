@@ -3,6 +3,7 @@
 #include "nbv/tour.hpp"
 
 #include <cmath>
+#include <optional>
 #include <stdexcept>
 #include <string>
 
@@ -74,31 +75,28 @@ Points rows_of(const PointsRef& points, const std::vector<int>& rows) {
   return out;
 }
 
-/// A plan's value: its kept views' gains - rate x the length of its tour through them (0 with
-/// none); pts: the chosen views' positions.
-double value_of(const TourPlan& p, const PointsRef& pts, const Eigen::Vector3d& start,
-                double rate) {
-  if (p.order.empty()) return 0.0;
-  std::vector<double> g;
-  for (int k : p.order) g.push_back(p.gains[static_cast<std::size_t>(k)]);
-  return numpy_sum(g) - rate * tour_length(start, pts, p.order);
-}
-
-/// An insertion tour (select_tours' views and gains, in cells) as a plan: ordered by the shorter
-/// of its insertion order and solve_tour over it, prize-collected, valued.
-TourPlan insertion_plan(const CoverSelection& s, const PointsRef& positions,
-                        const Eigen::Vector3d& start, const TourPlanOptions& o) {
+/// A selection (its views and gains in cells) as a plan: its views' tour from `start`
+/// (solve_tour's; an insertion tour keeps its own order where that is no longer), prize-collected,
+/// measured and valued (the kept views' gains - rate x the kept tour's length).
+TourPlan plan_of(const CoverSelection& s, const PointsRef& positions, const Eigen::Vector3d& start,
+                 const TourPlanOptions& o) {
   TourPlan p;
   p.chosen = s.views;
   for (double g : s.gains) p.gains.push_back(g * o.cell_area);
   if (p.chosen.empty()) return p;
   const Points pts = rows_of(positions, p.chosen);
   Tour t = solve_tour(pts, start);
-  std::vector<int> kept(p.chosen.size());
-  for (std::size_t i = 0; i < kept.size(); ++i) kept[i] = static_cast<int>(i);
-  if (tour_length(start, pts, kept) <= t.length) t.order = kept;
+  if (o.insertion) {
+    std::vector<int> kept(p.chosen.size());
+    for (std::size_t i = 0; i < kept.size(); ++i) kept[i] = static_cast<int>(i);
+    if (tour_length(start, pts, kept) <= t.length) t.order = kept;
+  }
   p.order = prize_collect(start, pts, p.gains, std::move(t.order), o.rate);
-  p.value = value_of(p, pts, start, o.rate);
+  if (p.order.empty()) return p;
+  p.length = tour_length(start, pts, p.order);
+  std::vector<double> g;
+  for (int k : p.order) g.push_back(p.gains[static_cast<std::size_t>(k)]);
+  p.value = numpy_sum(g) - o.rate * p.length;
   return p;
 }
 
@@ -169,31 +167,24 @@ TourPlan plan_tour(const CoverageRef& coverage, const PointsRef& positions,
     throw std::invalid_argument("tour plan: one position per candidate of the coverage sets");
   const double min_gain = o.min_gain / o.cell_area;  // in coverage weight
   TourPlan plan;
+  std::optional<CoverSelection> cover;  // select_cover's views at min_gain, once made
   if (o.insertion) {
     // anchored at the vehicle, and with the first view's transit free (a far cluster that pays
     // only as a whole): the tour worth more after prize collection is flown
     const auto tours = select_tours(coverage, positions, start, o.rate / o.cell_area, min_gain,
                                     o.max_views, {true, false});
     for (std::size_t t = 0; t < tours.size(); ++t) {
-      TourPlan p = insertion_plan(tours[t], positions, start, o);
+      TourPlan p = plan_of(tours[t], positions, start, o);
       if (t == 0 || p.value > plan.value) plan = std::move(p);
     }
   } else {
-    const CoverSelection s = select_cover(coverage, min_gain, o.max_views);
-    plan.chosen = s.views;
-    for (double g : s.gains) plan.gains.push_back(g * o.cell_area);
-    if (!plan.chosen.empty()) {
-      const Points pts = rows_of(positions, plan.chosen);
-      plan.order = prize_collect(start, pts, plan.gains, solve_tour(pts, start).order, o.rate);
-    }
+    cover = select_cover(coverage, min_gain, o.max_views);
+    plan = plan_of(*cover, positions, start, o);
   }
-  if (!o.insertion) plan.value = value_of(plan, rows_of(positions, plan.chosen), start, o.rate);
   if (plan.order.empty()) {  // views adding min_gain that no tour paid for
-    const CoverSelection left = select_cover(coverage, min_gain, o.max_views);
-    plan.unpaid = static_cast<int>(left.views.size());
-    plan.unpaid_area = numpy_sum(left.gains) * o.cell_area;
-  } else {
-    plan.length = tour_length(start, rows_of(positions, plan.chosen), plan.order);
+    if (!cover) cover = select_cover(coverage, min_gain, o.max_views);
+    plan.unpaid = static_cast<int>(cover->views.size());
+    plan.unpaid_area = numpy_sum(cover->gains) * o.cell_area;
   }
   return plan;
 }

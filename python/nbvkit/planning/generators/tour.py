@@ -180,22 +180,16 @@ class CoverageTour:
             )
         return targets, patches, candidates, owner, unplaced
 
-    def coverage(self, world, candidates, min_gain: float = 0.0) -> dict:
-        """What each candidate would newly cover, from the vehicle's pose (view_coverage); with
-        min_gain (m^2), the sets of candidates adding less, or estimated to by a walk of their
-        coarse rays (tour.coarse_stride), are left empty."""
+    def coverage(self, world, candidates) -> _core.CoverageSets:
+        """What each candidate would newly cover, from the vehicle's pose (view_coverage): the
+        sets of every candidate, as the access credit reads them."""
         return _core.view_coverage(
             world.map,
             world.surface,
             candidates,
             world.state.pose,
-            camera=world.view_camera,
-            utility=self.ctx.utility.options(),
-            validity=world.validity(blocked_path="plan"),
+            **_walk_options(world, self.ctx.utility),
             memo=self.memo,
-            min_gain=min_gain / world.map.resolution**2,
-            coarse_stride=self.settings.coarse_stride,
-            coarse_margin=self.settings.coarse_margin,
             pool_unknown=self.pool,
         )
 
@@ -299,7 +293,6 @@ class CoverageTour:
             min_gain /= self.level
             self.level = max(1.0, self.level / 2)
             min_gain *= self.level
-            plan = None  # the sets of the views below the old level too (the old ones let go)
             plan = self._plan(world, candidates, coverage, min_gain, rate)
         record["min_gain_m2"] = float(min_gain)
         record["selected"] = len(plan.chosen)
@@ -410,9 +403,7 @@ def plan_tour(
         world.surface,
         np.asarray(candidates, float),
         world.state.pose,
-        camera=world.view_camera,
-        utility=utility.options() if utility is not None else _core.UtilityOptions(),
-        validity=world.validity(blocked_path="plan"),
+        **_walk_options(world, utility),
         memo=memo,
         selection=selection,
         min_gain=min_gain,
@@ -420,4 +411,13 @@ def plan_tour(
         coarse_stride=coarse_stride,
         coarse_margin=coarse_margin,
         pool_unknown=pool,
+    )
+
+
+def _walk_options(world, utility) -> dict:
+    """The camera, utility and validity of view_coverage and plan_tour: the world's view camera,
+    the utility section's priors and cone (None: the defaults) and the planner's validity."""
+    options = utility.options() if utility is not None else _core.UtilityOptions()
+    return dict(
+        camera=world.view_camera, utility=options, validity=world.validity(blocked_path="plan")
     )
