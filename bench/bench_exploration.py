@@ -33,9 +33,11 @@ for name, box in (("extent", None), ("workspace", (lo, hi))):
         t_ = exploration_targets(m, box)
         ts.append(time.perf_counter() - t)
     out[name] = min(ts)
-    out[name + "_targets"] = len(t_["weight"])
+    # a SurfaceTargets, or (code before it) a dict of its arrays
+    field = t_.__getitem__ if isinstance(t_, dict) else lambda k: getattr(t_, k)
+    out[name + "_targets"] = len(field("weight"))
     for k in ("positions", "normals", "weight"):
-        digest.update(np.ascontiguousarray(t_[k]).tobytes())
+        digest.update(np.ascontiguousarray(field(k)).tobytes())
 out["time"] = out["extent"] + out["workspace"]
 out["digest"] = digest.hexdigest()
 print(json.dumps(out))

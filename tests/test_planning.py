@@ -465,6 +465,32 @@ def test_patches_group_targets_by_cell_and_side():
     p = target_patches(t, 1.0)
     assert len(p.weights) == 3  # the two sides of the first cell stay apart
     assert sorted(p.weights.tolist()) == [0.5, 1.0, 2.0]
+    # the same arrays as a SurfaceTargets (what surface_targets returns): the same patches
+    typed = _core.SurfaceTargets(t["positions"], t["normals"], t["weight"])
+    assert len(typed) == 4 and (typed.kind == 0).all()
+    q = target_patches(typed, 1.0)
+    for f in ("centers", "normals", "weights"):
+        np.testing.assert_array_equal(getattr(q, f), getattr(p, f))
+    with pytest.raises(ValueError, match="read-only"):
+        typed.weight[0] = 2.0  # a view into the object, not a copy to edit
+
+
+@pytest.mark.parametrize(
+    "change, message",
+    [
+        (dict(normals=np.zeros((3, 3))), "2 positions but 3 normals"),
+        (dict(weight=np.ones(3)), "weight must be"),
+        (dict(weight=[1.0, -1.0]), "finite and >= 0"),
+        (dict(weight=[1.0, np.nan]), "finite and >= 0"),
+        (dict(positions=[[0, 0, np.inf], [0, 0, 0]]), "positions"),
+        (dict(kind=[0, 4]), "kind 4 is not 0-3"),
+        (dict(kind=[0]), "kind must be"),
+    ],
+)
+def test_script_built_targets_are_checked(change, message):
+    args = dict(positions=np.zeros((2, 3)), normals=[[1.0, 0, 0]] * 2, weight=[1.0, 0.5])
+    with pytest.raises(ValueError, match=message):
+        _core.SurfaceTargets(**{**args, **change})
 
 
 def test_surface_targets_of_a_wall_seen_from_the_front_are_on_its_back():
@@ -476,13 +502,13 @@ def test_surface_targets_of_a_wall_seen_from_the_front_are_on_its_back():
         m.integrate(scan)
         surface.add_scan(scan)
     t = _core.surface_targets(m, surface, dict(frontier=False, predicted=False))
-    kinds = t["kind"]
+    kinds = t.kind
     assert len(kinds) > 0 and np.all(kinds == 0)
     # the front was seen from the camera's side: what is left faces away from it (+x)
-    assert np.all(t["normals"][:, 0] > 0.5)
+    assert np.all(t.normals[:, 0] > 0.5)
     t2 = _core.surface_targets(m, surface)
-    assert (t2["kind"] == 2).any()  # unknown space behind the wall borders its surface
-    fr = t2["normals"][t2["kind"] == 2]
+    assert (t2.kind == 2).any()  # unknown space behind the wall borders its surface
+    fr = t2.normals[t2.kind == 2]
     # frontier cells are seen from known free space: the camera's side or past the wall's edges,
     # never from the unknown space behind the wall
     assert np.all(fr[:, 0] <= 1e-9) and (fr[:, 0] < -0.5).any()
@@ -500,8 +526,8 @@ def test_frontier_targets_in_bricks_never_written_are_found_beside_written_ones(
     m.update_cells(cell(3, 4, 5), occupied=False)
     assert m.grid_bricks == (2, 125)
     t = _core.surface_targets(m, _core.SurfaceObservations(m))
-    assert np.all(t["kind"] == 2)  # frontier
-    found = sorted(map(tuple, np.round(t["positions"] / 0.2 - 0.5).astype(int)))
+    assert np.all(t.kind == 2)  # frontier
+    found = sorted(map(tuple, np.round(t.positions / 0.2 - 0.5).astype(int)))
     assert found == [(3, 3, 5), (4, 4, 5)]
 
 
@@ -770,7 +796,7 @@ def test_an_exploring_plan_adds_views_facing_the_unknown_after_the_surfaces(monk
     t = next(g for g in m.planner.generators if hasattr(g, "plans"))
     _, patches, surface, owner, _ = t.candidates(m.world)
     cell = np.array([[6.2, 0.2, 2.6]])
-    fake = {"positions": cell, "normals": np.array([[-1.0, 0.0, 0.0]]), "weight": np.ones(1)}
+    fake = _core.SurfaceTargets(cell, [[-1.0, 0.0, 0.0]], np.ones(1), kind=[3])
     monkeypatch.setattr(tour_module, "exploration_targets", lambda _map, _box=None: fake)
     _, both, views, of, _ = t.candidates(m.world, explore=True)
     k = len(surface)
@@ -1385,14 +1411,15 @@ def test_exploration_targets_are_the_unknown_face_of_known_free_space_within_the
     m.update_cells(np.array(solid), occupied=True)
     t = exploration_targets(m)
     if not far_corner:
-        assert len(t["weight"]) == 0
+        assert len(t) == 0
         return
-    assert len(t["weight"]) == 97
-    assert (t["positions"][:, 0] == 2.75).all()
+    assert len(t) == 97 and isinstance(t, _core.SurfaceTargets)
+    assert (t.kind == 3).all()  # exploration
+    assert (t.positions[:, 0] == 2.75).all()
     for beside in ([2.75, 4.75, 4.25], [2.75, 4.25, 4.75]):
-        assert not np.isclose(t["positions"], beside).all(axis=1).any()
-    np.testing.assert_array_equal(t["normals"], np.tile([-1.0, 0.0, 0.0], (97, 1)))
-    np.testing.assert_array_equal(t["weight"], np.ones(97))
+        assert not np.isclose(t.positions, beside).all(axis=1).any()
+    np.testing.assert_array_equal(t.normals, np.tile([-1.0, 0.0, 0.0], (97, 1)))
+    np.testing.assert_array_equal(t.weight, np.ones(97))
 
 
 def test_append_elements_keeps_each_views_set_in_order():

@@ -59,16 +59,16 @@ def test_exploration_within_a_box_needs_no_known_structure():
 
     m = nbvkit.OccupancyMap(0.5, (0, 0, 0), (10, 10, 10))
     # nothing known occupied: without a box there is no extent to explore
-    assert len(exploration_targets(m)["weight"]) == 0
+    assert len(exploration_targets(m)) == 0
     m.mark_free_segment((2.0, 5.0, 5.0), (4.0, 5.0, 5.0), 1.0)  # a flight through the open
     t = exploration_targets(m, ((0, 0, 0), (10, 10, 10)))
-    free = m.state(t["positions"] + t["normals"] * 0.5)
-    assert len(t["weight"]) > 0 and np.all(m.state(t["positions"]) == m.UNKNOWN)
+    free = m.state(t.positions + t.normals * 0.5)
+    assert len(t) > 0 and np.all(m.state(t.positions) == m.UNKNOWN)
     assert np.all(free == m.FREE)  # each looks out of the unknown towards the free space
-    assert np.all(np.linalg.norm(t["positions"] - [3.0, 5.0, 5.0], axis=1) < 3.0)
+    assert np.all(np.linalg.norm(t.positions - [3.0, 5.0, 5.0], axis=1) < 3.0)
     inner = exploration_targets(m, ((0, 0, 0), (3, 10, 10)))  # only within the box
-    assert 0 < len(inner["weight"]) < len(t["weight"])
-    assert np.all(inner["positions"][:, 0] <= 3.0 + m.resolution)
+    assert 0 < len(inner) < len(t)
+    assert np.all(inner.positions[:, 0] <= 3.0 + m.resolution)
 
 
 def test_exploration_box_must_be_whole_and_finite():
@@ -80,7 +80,7 @@ def test_exploration_box_must_be_whole_and_finite():
     with pytest.raises(ValueError, match="hi"):
         nbvkit._core.exploration_targets(m, (0, 0, 0), (np.nan, 5, 5))
     far = nbvkit._core.exploration_targets(m, (40, 40, 40), (50, 50, 50))  # beyond the grid
-    assert far["cells"].shape == (0, 3)
+    assert len(far) == 0 and far.positions.shape == (0, 3)
 
 
 def test_patches_follow_the_camera_range_unless_set():

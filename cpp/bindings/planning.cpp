@@ -201,28 +201,95 @@ void init_planning(py::module_& m) {
     NBV_SURFACE_TARGET_OPTIONS(NBV_BIND_FIELD)
     binder.finish();
   }
+  py::class_<SurfaceTargets, std::shared_ptr<SurfaceTargets>> targets(m, "SurfaceTargets", R"doc(
+Cells to place views at (surface_targets, exploration_targets), in grid order: positions (T, 3)
+(cell centres), normals (T, 3) (unit: the direction from which the cell can still add surface),
+kind (T,) int8 (0 observed surface not yet covered from an open side, 1 predicted, 2 frontier:
+unknown between known free space and surface, 3 exploration: unknown space on the face of known
+free space, away from the surface) and weight (T,) (1, the predicted probability, or
+frontier_weight). The arrays are read-only views into this object (no copy); len() is T. Built
+from arrays (a script's own targets): SurfaceTargets(positions, normals, weight[, kind]),
+copied and checked (finite, weights >= 0, kind 0-3, default 0).)doc");
+  targets
+      .def(py::init([](const py::handle& positions, const py::handle& normals,
+                       const py::handle& weight, const py::object& kind) {
+             auto t = std::make_shared<SurfaceTargets>();
+             t->positions = points_arg(positions, "positions").map();
+             t->normals = points_arg(normals, "normals").map();
+             const Eigen::Index n = t->positions.rows();
+             if (t->normals.rows() != n)
+               throw py::value_error("SurfaceTargets: " + std::to_string(n) + " positions but " +
+                                     std::to_string(t->normals.rows()) + " normals");
+             const auto w = py::array_t<double, py::array::forcecast>::ensure(weight);
+             if (!w || w.ndim() != 1 || w.shape(0) != n)
+               throw py::value_error("SurfaceTargets: weight must be (" + std::to_string(n) +
+                                     ",) numbers, one per position");
+             t->weight = Eigen::Map<const Eigen::VectorXd>(w.data(), n);
+             if (!(t->weight.array().isFinite() && t->weight.array() >= 0).all())
+               throw py::value_error("SurfaceTargets: weights must be finite and >= 0");
+             t->kind.setZero(n);
+             if (!kind.is_none()) {
+               const auto k = py::array_t<std::int64_t, py::array::forcecast>::ensure(kind);
+               if (!k || k.ndim() != 1 || k.shape(0) != n)
+                 throw py::value_error("SurfaceTargets: kind must be (" + std::to_string(n) +
+                                       ",) integers, one per position");
+               for (Eigen::Index i = 0; i < n; ++i) {
+                 if (k.at(i) < 0 || k.at(i) > std::int64_t(TargetKind::Exploration))
+                   throw py::value_error("SurfaceTargets: kind " + std::to_string(k.at(i)) +
+                                         " is not 0-3");
+                 t->kind[i] = std::int8_t(k.at(i));
+               }
+             }
+             return t;
+           }),
+           py::arg("positions"), py::arg("normals"), py::arg("weight"),
+           py::arg("kind") = py::none())
+      .def("__len__", [](const SurfaceTargets& t) { return t.weight.size(); })
+      .def_property_readonly(
+          "positions",
+          [](const py::object& self) {
+            const auto& t = self.cast<const SurfaceTargets&>();
+            return owned_array(self, t.positions.data(), t.positions.rows(), 3);
+          },
+          "(T, 3) float64: the cells' centres")
+      .def_property_readonly(
+          "normals",
+          [](const py::object& self) {
+            const auto& t = self.cast<const SurfaceTargets&>();
+            return owned_array(self, t.normals.data(), t.normals.rows(), 3);
+          },
+          "(T, 3) float64: unit directions from which each cell can still add surface")
+      .def_property_readonly(
+          "kind",
+          [](const py::object& self) {
+            const auto& t = self.cast<const SurfaceTargets&>();
+            return owned_array(self, t.kind.data(), t.kind.size());
+          },
+          "(T,) int8: 0 observed, 1 predicted, 2 frontier, 3 exploration")
+      .def_property_readonly(
+          "weight",
+          [](const py::object& self) {
+            const auto& t = self.cast<const SurfaceTargets&>();
+            return owned_array(self, t.weight.data(), t.weight.size());
+          },
+          "(T,) float64: each cell's weight")
+      .def("__repr__", [](const SurfaceTargets& t) {
+        return "SurfaceTargets(" + std::to_string(t.weight.size()) + " cells)";
+      });
   m.def(
       "surface_targets",
       [](const OccupancyMap& map, const SurfaceObservations& surface, const py::object& options) {
         const auto o = OptionsClass<SurfaceTargetOptions>::from(options, "options");
-        SurfaceTargets t;
+        auto t = std::make_shared<SurfaceTargets>();
         {
           Reading2 reading(map, &surface);
-          t = surface_targets(grid_view(map, &surface), o);
+          *t = surface_targets(grid_view(map, &surface), o);
         }
-        py::dict d;
-        d["positions"] = t.positions;
-        d["normals"] = t.normals;
-        d["kind"] = t.kind;
-        d["weight"] = t.weight;
-        return d;
+        return t;
       },
       py::arg("map"), py::arg("surface"), py::arg("options") = py::none(),
-      R"doc(Cells whose surface still needs observing, in grid order: a dict of positions (T, 3)
-(cell centres), normals (T, 3) (unit: the direction from which the cell can still add surface),
-kind (T,) int8 (0 observed surface not yet covered from an open side, 1 predicted, 2 frontier:
-unknown between known free space and surface) and weight (T,) (1, the predicted probability, or
-frontier_weight).)doc");
+      R"doc(Cells whose surface still needs observing, in grid order, as a SurfaceTargets (kinds 0
+observed surface not yet covered from an open side, 1 predicted, 2 frontier).)doc");
   m.def(
       "exploration_targets",
       [](const OccupancyMap& map, const py::object& lo, const py::object& hi) {
@@ -237,26 +304,24 @@ frontier_weight).)doc");
             b[k] = int(std::clamp(std::floor(hb[k]), -1.0, 1e9));
           }
         }
-        ExplorationTargets t;
+        auto out = std::make_shared<SurfaceTargets>();
         {
           Reading lock(map);  // releases the GIL
           const GridView g = grid_view(map);
           if (lo.is_none() && !structure_extent(g, a, b)) a = b = Eigen::Vector3i::Zero();
-          t = exploration_targets(g, a, b);
+          *out = exploration_as_targets(exploration_targets(g, a, b), map.bounds_min(), a,
+                                        map.resolution());
         }
-        py::dict d;
-        d["cells"] = t.cells;
-        d["free_sides"] = t.free_sides;
-        d["lo"] = a;
-        return d;
+        return out;
       },
       py::arg("map"), py::arg("lo") = py::none(), py::arg("hi") = py::none(),
       R"doc(The unknown space a view could open, in one pass over the map's bricks: unknown cells
 with a known free face neighbour and no occupied or predicted one, among the cells of the box
 [lo, hi) (cell indices, clipped to the grid; neighbours outside it count as neither). Without a
 box, the box of the cells known occupied or predicted grown by one cell (empty when there are
-none). A dict of cells (T, 3) int32 in C order of (i, j, k), free_sides (T, 3) int8 (per cell the
-sum of the directions to its free face neighbours) and lo (3,), the box's first cell as used.)doc");
+none). A SurfaceTargets of kind 3 (exploration), weight 1: each cell's centre, looked at from the
+unit sum of the directions to its free face neighbours (cells free on opposite faces only, with
+no such side, are left out).)doc");
   py::class_<CoverageMemo, std::shared_ptr<CoverageMemo>> coverage_memo(m, "CoverageMemo", R"doc(
 What view_coverage's walks found, kept from one call to the next over the same map and surface
 record (pass it as memo=). A view asked for again at the same pose and pitch (bit for bit) is

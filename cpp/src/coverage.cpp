@@ -349,6 +349,35 @@ ExplorationTargets exploration_targets(const GridView& g, Eigen::Vector3i lo, Ei
   return out;
 }
 
+SurfaceTargets exploration_as_targets(const ExplorationTargets& t, const Eigen::Vector3d& origin,
+                                      const Eigen::Vector3i& start, double resolution) {
+  std::vector<Eigen::Index> keep;
+  std::vector<double> norm;
+  for (Eigen::Index r = 0; r < t.free_sides.rows(); ++r) {
+    const double x = t.free_sides(r, 0), y = t.free_sides(r, 1), z = t.free_sides(r, 2);
+    const double n = std::sqrt(x * x + y * y + z * z);
+    if (n > 0) {
+      keep.push_back(r);
+      norm.push_back(n);
+    }
+  }
+  const auto n = Eigen::Index(keep.size());
+  SurfaceTargets out;
+  out.positions.resize(n, 3);
+  out.normals.resize(n, 3);
+  out.kind.setConstant(n, std::int8_t(TargetKind::Exploration));
+  out.weight.setOnes(n);
+  for (Eigen::Index i = 0; i < n; ++i) {
+    const Eigen::Index r = keep[std::size_t(i)];
+    for (int a = 0; a < 3; ++a) {
+      const double lo = origin[a] + double(start[a]) * resolution;
+      out.positions(i, a) = lo + (double(t.cells(r, a) - start[a]) + 0.5) * resolution;
+      out.normals(i, a) = double(t.free_sides(r, a)) / norm[std::size_t(i)];
+    }
+  }
+  return out;
+}
+
 // ---- CoverageMemo ----------------------------------------------------------------------------
 
 CoverageMemo::CoverageMemo(int keep_calls, std::size_t max_bytes)

@@ -34,8 +34,9 @@ struct SurfaceTargetOptions {
   void validate() const;
 };
 
-/// Target kinds.
-enum class TargetKind : std::int8_t { Observed = 0, Predicted = 1, Frontier = 2 };
+/// Target kinds. Exploration: unknown space on the face of known free space, away from the
+/// surface (exploration_targets).
+enum class TargetKind : std::int8_t { Observed = 0, Predicted = 1, Frontier = 2, Exploration = 3 };
 
 /// Cells whose surface still needs observing, in grid id order. normal: the unit direction from
 /// which the cell can still add surface (the sum of its open neighbour directions not yet
@@ -69,6 +70,14 @@ bool structure_extent(const GridView& grid, Eigen::Vector3i& lo, Eigen::Vector3i
 /// pass, without a copy of the grid.
 ExplorationTargets exploration_targets(const GridView& grid, Eigen::Vector3i lo,
                                        Eigen::Vector3i hi);
+
+/// Exploration targets as targets to place views at (kind Exploration, weight 1): each cell's
+/// centre, origin + (cell + 0.5) * resolution (as origin + start * resolution + (cell - start +
+/// 0.5) * resolution, start the box's first cell), looked at from the unit sum of the directions
+/// to its free neighbours; cells free on opposite faces only (no such side) are left out.
+SurfaceTargets exploration_as_targets(const ExplorationTargets& targets,
+                                      const Eigen::Vector3d& origin, const Eigen::Vector3i& start,
+                                      double resolution);
 
 /// What each candidate view would newly cover, as the surface utility credits it: elements
 /// (cell id * 2 + the side of the cell it is seen from) with their expected weight (P_vis *

@@ -68,10 +68,13 @@ class Patches:
     weights: np.ndarray  # (P,) summed target weights
 
 
-def target_patches(targets: dict, cluster_size: float) -> Patches:
-    """Groups targets (positions (T, 3), normals (T, 3), weight (T,)) per cube of
-    `cluster_size` metres and per face (6) of their normal, in a deterministic order."""
-    p, n, w = (np.asarray(targets[k], float) for k in ("positions", "normals", "weight"))
+def target_patches(targets, cluster_size: float) -> Patches:
+    """Groups targets (a SurfaceTargets, or a dict of its arrays positions (T, 3), normals
+    (T, 3), weight (T,)) per cube of `cluster_size` metres and per face (6) of their normal, in
+    a deterministic order."""
+    if isinstance(targets, dict):  # checked as SurfaceTargets checks a script's arrays
+        targets = _core.SurfaceTargets(**targets)
+    p, n, w = targets.positions, targets.normals, targets.weight
     if len(p) == 0:
         return Patches(np.zeros((0, 3)), np.zeros((0, 3)), np.zeros(0))
     axis = np.argmax(np.abs(n), axis=1)

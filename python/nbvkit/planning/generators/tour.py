@@ -224,7 +224,7 @@ class CoverageTour:
             candidates, owner = candidates[reach], owner[reach]
         record = {
             "scale": float(scale),
-            "targets": int(len(targets["weight"])),
+            "targets": len(targets),
             "candidates": int(len(candidates)),
             "selected": 0,
             "kept": 0,
