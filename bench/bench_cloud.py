@@ -4,6 +4,9 @@ to a fresh cloud, on 1 thread and on all, best of --repeat. Prints ms per frame 
 the resulting centroids and counts.
 
     .venv/bin/python bench/bench_cloud.py [--iterations 250] [--mesh M] [--against DIR]
+    .venv/bin/python bench/bench_cloud.py --scenario surface --iterations 40 --mesh PLANT.obj
+
+``--scenario`` flies another scenario (default 5); its in-flight frames are recorded too.
 
 ``--against DIR`` replays the same frames, in the same run, with the nbvkit package of another
 checkout (DIR/python or DIR) and prints the ratio and whether the clouds are the same bit for bit.
@@ -47,26 +50,29 @@ print(json.dumps({"ms": out, "voxels": len(cloud), "digest": digest}))
 
 
 def record_frames(args, path: Path) -> int:
-    """Flies Scenario 5 for --iterations views and saves every camera frame's hits; returns the
-    number of frames."""
-    over = ["scenario=5", "progress=false", "report.enabled=false"]
+    """Flies --scenario for --iterations views and saves every camera frame's hits (views and
+    in-flight frames); returns the number of frames."""
+    over = [f"scenario={args.scenario}", "progress=false", "report.enabled=false"]
     over += [f"max_iterations={args.iterations}"]
     if args.mesh:
         over.append(f"mesh.path={args.mesh}")
     m = Mission(Config().with_overrides(over))
     frames = []
-    camera = m.world.camera
 
-    class Recording:  # the world's camera, keeping a copy of each frame's hits
+    class Recording:  # a camera of the world, keeping a copy of each frame's hits
+        def __init__(self, camera):
+            self.camera = camera
+
         def scan_pose(self, pose):
-            scan = camera.scan_pose(pose)
+            scan = self.camera.scan_pose(pose)
             frames.append(np.array(scan.hits, copy=True))
             return scan
 
         def __getattr__(self, name):
-            return getattr(camera, name)
+            return getattr(self.camera, name)
 
-    m.world.camera = Recording()
+    m.world.camera = Recording(m.world.camera)
+    m.world.frame_camera = Recording(m.world.frame_camera)
     m.run()
     np.savez(path, *frames)
     return len(frames)
@@ -74,13 +80,17 @@ def record_frames(args, path: Path) -> int:
 
 def main():
     ap = mesh_parser(__doc__, repeat=3)
-    ap.add_argument("--iterations", type=int, default=250, help="views of Scenario 5 recorded")
+    ap.add_argument("--iterations", type=int, default=250, help="views recorded")
+    ap.add_argument("--scenario", default="5", help="the scenario flown (default 5)")
     ap.add_argument("--against", help="another checkout to replay the frames in, in the same run")
     args = ap.parse_args()
     with tempfile.TemporaryDirectory() as tmp:
         path = Path(tmp) / "frames.npz"
         n = record_frames(args, path)
-        print(f"{n} camera frames of Scenario 5 (start 0), replayed into a fresh camera cloud:")
+        print(
+            f"{n} camera frames of scenario {args.scenario} (start 0), replayed into a fresh "
+            "camera cloud:"
+        )
         rows = [
             (label, run_snippet(REPLAY_SNIPPET, (path, args.repeat), py))
             for label, py in checkouts(args.against)

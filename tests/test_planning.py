@@ -794,7 +794,12 @@ def test_an_exploring_plan_adds_views_facing_the_unknown_after_the_surfaces(monk
     m = Mission(cfg, mesh=box_mesh((-4, -3, 0), (4, 3, 5)))
     m.run()
     t = next(g for g in m.planner.generators if hasattr(g, "plans"))
-    _, patches, surface, owner, _ = t.candidates(m.world)
+    targets, patches, surface, owner, _ = t.candidates(m.world)
+    # what a plugin reads (docs/PLUGINS.md): the same targets the tour's candidates aim at
+    mine = nbvkit.surface_targets(m.world.map, m.world.surface, t.ctx.targets)
+    assert isinstance(mine, nbvkit.SurfaceTargets) and len(mine) == len(targets) > 0
+    np.testing.assert_array_equal(mine.positions, targets.positions)
+    np.testing.assert_allclose(np.linalg.norm(mine.normals, axis=1), 1.0)
     cell = np.array([[6.2, 0.2, 2.6]])
     fake = _core.SurfaceTargets(cell, [[-1.0, 0.0, 0.0]], np.ones(1), kind=[3])
     monkeypatch.setattr(tour_module, "exploration_targets", lambda _map, _box=None: fake)

@@ -131,11 +131,14 @@ std::size_t VoxelCentroids::add_to(GrowArray<Sum>& sums, const PointsRef& points
   // seen here get the next ids, (3) each voxel's points are summed, in input order, by the one
   // task that owns its block of 64 voxels.
   constexpr std::uint32_t kSkipped = VoxelIndex::kMissing - 1;
+  constexpr std::size_t kAhead = 16;  // the slot of the point this far ahead is loaded first
   std::vector<std::uint32_t> id(n);
   parallel_chunks(n, 4096, [&](std::size_t b, std::size_t e) {
     std::uint64_t last_key = kEmptyVoxelKey;
     std::uint32_t last = 0;
     for (std::size_t i = b; i < e; ++i) {
+      if (i + kAhead < e && keys[i + kAhead] != keys[i + kAhead - 1])
+        index_.prefetch(keys[i + kAhead]);
       const std::uint64_t k = keys[i];
       if (k == skip) {
         id[i] = kSkipped;
@@ -151,6 +154,9 @@ std::size_t VoxelCentroids::add_to(GrowArray<Sum>& sums, const PointsRef& points
   std::uint64_t last_key = kEmptyVoxelKey;
   std::uint32_t last = 0;
   for (std::size_t i = 0; i < n; ++i) {
+    if (i + kAhead < n && id[i + kAhead] == VoxelIndex::kMissing &&
+        keys[i + kAhead] != keys[i + kAhead - 1])
+      index_.prefetch(keys[i + kAhead]);
     if (id[i] != VoxelIndex::kMissing) continue;
     if (keys[i] != last_key) {
       last = voxel_of(keys[i]);

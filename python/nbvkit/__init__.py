@@ -53,7 +53,7 @@ from .planning.registry import (  # noqa: F401  (your own planner parts: docs/PL
 )
 from .plugins import load_plugin  # noqa: F401
 from .planning.generators.tour import plan_tour  # noqa: F401  (a tour over your own views)
-from ._core import CoverageMemo, SurfaceTargets, TourPlan  # noqa: F401
+from ._core import CoverageMemo, SurfaceTargets, TourPlan, surface_targets  # noqa: F401
 from .scenarios import register_scenario  # noqa: F401
 
 from ._version import __version__  # noqa: F401, E402
@@ -74,6 +74,7 @@ __all__ = [
     "TourPlan",
     "CoverageMemo",
     "SurfaceTargets",
+    "surface_targets",
     "register_scenario",
     "DepthCamera",
     "DepthCameraOptions",

@@ -130,6 +130,11 @@ class VoxelIndex {
     }
   }
   bool contains(std::uint64_t key) const { return find(key) != kMissing; }
+  /// Starts loading the table slot where a find or insert of `key` begins (a hint: in a table of
+  /// millions of voxels that slot is a cache miss; asked for ahead of time, the probe waits less).
+  void prefetch(std::uint64_t key) const {
+    if (!slots_.empty()) __builtin_prefetch(slots_.data() + (hash(key) & mask_));
+  }
   /// The id of `key`, the next one (size()) if it was absent; and whether it was inserted.
   std::pair<std::uint32_t, bool> insert(std::uint64_t key);
 
