@@ -165,15 +165,20 @@ ViewCoverage coverage_call(const OccupancyMap& map, const SurfaceObservations& s
                        coarse_stride, pool_unknown, coarse_margin);
 }
 
-/// A read-only array property of CoverageSets: its member `field`, viewed in place.
-template <class V>
-void def_sets_array(py::class_<ViewCoverage, std::shared_ptr<ViewCoverage>>& sets, const char* name,
-                    V ViewCoverage::*field, const char* doc) {
-  sets.def_property_readonly(
+/// A read-only array property of a bound class: its member `field` (a vector, an Eigen vector or
+/// an Eigen (N, C) row-major matrix), viewed in place.
+template <class C, class V>
+void def_array_view(py::class_<C, std::shared_ptr<C>>& cls, const char* name, V C::*field,
+                    const char* doc) {
+  cls.def_property_readonly(
       name,
       [field](const py::object& self) {
-        const V& v = self.cast<const ViewCoverage&>().*field;
-        return owned_array(self, v.data(), v.size());
+        const V& v = self.cast<const C&>().*field;
+        if constexpr (std::is_base_of_v<Eigen::EigenBase<V>, V>) {
+          if constexpr (V::ColsAtCompileTime != 1)
+            return owned_array(self, v.data(), v.rows(), v.cols());
+        }
+        return owned_array(self, v.data(), py::ssize_t(v.size()));
       },
       doc);
 }
@@ -245,37 +250,16 @@ copied and checked (finite, weights >= 0, kind 0-3, default 0).)doc");
            py::arg("positions"), py::arg("normals"), py::arg("weight"),
            py::arg("kind") = py::none())
       .def("__len__", [](const SurfaceTargets& t) { return t.weight.size(); })
-      .def_property_readonly(
-          "positions",
-          [](const py::object& self) {
-            const auto& t = self.cast<const SurfaceTargets&>();
-            return owned_array(self, t.positions.data(), t.positions.rows(), 3);
-          },
-          "(T, 3) float64: the cells' centres")
-      .def_property_readonly(
-          "normals",
-          [](const py::object& self) {
-            const auto& t = self.cast<const SurfaceTargets&>();
-            return owned_array(self, t.normals.data(), t.normals.rows(), 3);
-          },
-          "(T, 3) float64: unit directions from which each cell can still add surface")
-      .def_property_readonly(
-          "kind",
-          [](const py::object& self) {
-            const auto& t = self.cast<const SurfaceTargets&>();
-            return owned_array(self, t.kind.data(), t.kind.size());
-          },
-          "(T,) int8: 0 observed, 1 predicted, 2 frontier, 3 exploration")
-      .def_property_readonly(
-          "weight",
-          [](const py::object& self) {
-            const auto& t = self.cast<const SurfaceTargets&>();
-            return owned_array(self, t.weight.data(), t.weight.size());
-          },
-          "(T,) float64: each cell's weight")
       .def("__repr__", [](const SurfaceTargets& t) {
         return "SurfaceTargets(" + std::to_string(t.weight.size()) + " cells)";
       });
+  def_array_view(targets, "positions", &SurfaceTargets::positions,
+                 "(T, 3) float64: the cells' centres");
+  def_array_view(targets, "normals", &SurfaceTargets::normals,
+                 "(T, 3) float64: unit directions from which each cell can still add surface");
+  def_array_view(targets, "kind", &SurfaceTargets::kind,
+                 "(T,) int8: 0 observed, 1 predicted, 2 frontier, 3 exploration");
+  def_array_view(targets, "weight", &SurfaceTargets::weight, "(T,) float64: each cell's weight");
   m.def(
       "surface_targets",
       [](const OccupancyMap& map, const SurfaceObservations& surface, const py::object& options) {
@@ -394,15 +378,15 @@ pool_cap]), copied and checked; each valid view's gain is then the sum of its we
                std::to_string(c.elements.size()) + " elements)";
       });
 
-  def_sets_array(sets, "offsets", &ViewCoverage::offsets,
+  def_array_view(sets, "offsets", &ViewCoverage::offsets,
                  "(K + 1,) int64: view k's entries are offsets[k]:offsets[k + 1]");
-  def_sets_array(sets, "elements", &ViewCoverage::elements,
+  def_array_view(sets, "elements", &ViewCoverage::elements,
                  "int32: cell id * 2 + the side seen; pooled bricks from pooled_from on");
-  def_sets_array(sets, "weights", &ViewCoverage::weights,
+  def_array_view(sets, "weights", &ViewCoverage::weights,
                  "float32: what each element adds to the view's gain");
-  def_sets_array(sets, "status", &ViewCoverage::status,
+  def_array_view(sets, "status", &ViewCoverage::status,
                  "(K,) int8: evaluate_views' status of each view (0 valid)");
-  def_sets_array(
+  def_array_view(
       sets, "gain", &ViewCoverage::gain,
       "(K,) float64: a valid view's gain in cells (a pruned one's estimate); 0 otherwise");
 
