@@ -9,6 +9,7 @@ import pytest
 
 import nbvkit
 from nbvkit import _core
+from nbvkit.config import load_config
 
 RES = 0.2
 LN2 = math.log(2.0)
@@ -281,3 +282,70 @@ def test_every_utility_scores_grid_and_octree_alike(name):
     b = _core.evaluate_views(m, pose, [0.1, 0.5, 0.5, 0.0], backend="octree", **kw)
     np.testing.assert_allclose(a["gain"], b["gain"], rtol=1e-6)
     np.testing.assert_array_equal(a["cells"], b["cells"])
+
+
+# ------------------------------------------------------------------ saturation
+
+
+def _square_hits(x=0.1):
+    """16 points at x in the cell [0, 0.2)^3, one in each 0.05 m square of its face along x."""
+    q = (np.arange(4) + 0.5) * 0.05
+    y, z = np.meshgrid(q, q, indexing="ij")
+    return np.column_stack([np.full(16, x), y.ravel(), z.ravel()])
+
+
+def test_a_cell_is_saturated_when_a_new_side_finds_no_new_square():
+    m = _core.OccupancyMap(0.2, (-4, -4, -4), (4, 4, 4))
+    s = _core.SurfaceObservations(m, saturation_hits=8)
+    hits = _square_hits()
+    front, side, top = (-3.0, 0.1, 0.1), (-3.0, 3.0, 0.1), (-3.0, 0.1, 3.0)
+    s.add_points(front, hits)  # every square new
+    s.add_points(front, hits)  # nothing new, but from the same side: not yet
+    assert s.saturated_cells() == 0
+    s.add_points(side, hits[:4])  # a new side finds no new square, with too few hits
+    assert s.saturated_cells() == 0
+    s.add_points(top, hits)  # a new side, 16 hits, every one in a square already hit
+    assert s.saturated_cells() == 1
+    # a scan that finds a square nobody had hit (another quarter of the cell along x) clears it
+    s.add_points((-3.0, -3.0, 0.1), _square_hits(x=0.02)[:1])
+    assert s.saturated_cells() == 0
+    never = _core.SurfaceObservations(m)  # saturation_hits 0: never marked
+    for o in (front, front, side, top):
+        never.add_points(o, hits)
+    assert never.saturated_cells() == 0 and never.saturation_hits == 0
+
+
+def test_a_saturated_cell_is_no_target_and_earns_no_view_credit():
+    # a wall cell seen from the front and then from a second side that found nothing new: with
+    # saturation it leaves the surface targets and a view of it is credited nothing for it
+    m = _core.OccupancyMap(0.2, (-4, -4, -4), (4, 4, 4))
+    hits = _square_hits()
+    view = np.array([[0.1, -3.0, 0.1, math.pi / 2]])  # from -y: a side none of the scans saw
+    m.mark_free_segment(view[0, :3], (0.1, -0.35, 0.1), 0.3)  # known free up to the wall
+    m.mark_free_segment((-3.0, 0.1, 0.1), (-0.35, 0.1, 0.1), 0.3)  # and in front of it
+    m.update_cells(hits, occupied=True)
+    plain, sat = _core.SurfaceObservations(m), _core.SurfaceObservations(m, saturation_hits=8)
+    for s in (plain, sat):
+        s.add_points((-3.0, 0.1, 0.1), hits)
+        s.add_points((-3.0, 0.1, 3.0), hits)
+    assert sat.saturated_cells() == 1
+    opts = dict(frontier=False, predicted=False)
+    t_plain, t_sat = (_core.surface_targets(m, s, opts) for s in (plain, sat))
+    cell = m.cell_center(hits[:1])[0]
+    assert (np.linalg.norm(t_plain.positions - cell, axis=1) < 1e-9).any()
+    assert not (np.linalg.norm(t_sat.positions - cell, axis=1) < 1e-9).any()
+    a, b = (
+        _core.evaluate_views(m, view, view[0], utility=_core.UtilityOptions(name="surface"),
+                             validity=_core.ValidityOptions(collision_radius=0.0), surface=s)
+        for s in (plain, sat)
+    )  # fmt: skip
+    assert a["status"][0] == 0 and a["gain"][0] >= 1.0
+    assert b["gain"][0] == pytest.approx(a["gain"][0] - 1.0)
+
+
+def test_saturation_hits_out_of_range_is_refused():
+    m = _core.OccupancyMap(0.2, (-4, -4, -4), (4, 4, 4))
+    with pytest.raises(ValueError, match="saturation_hits"):
+        _core.SurfaceObservations(m, saturation_hits=-1)
+    with pytest.raises(ValueError, match="saturation_hits"):
+        load_config(overrides=["utility.saturation_hits=-1"])

@@ -157,10 +157,26 @@ free space, and (blocked_path 'reject') its straight flight from the current pos
 What the camera has seen of each workspace cell of an OccupancyMap: the bitmask of the 26
 direction bins (cube faces, edges, corners) it was seen from, and the number of camera hits in
 it. SurfaceObservations(map); add_scan(scan) after integrating each camera scan. Read by the
-surface and four_term utilities and by surface_targets.)doc")
-      .def(py::init(
-               [](const OccupancyMap& map) { return std::make_shared<SurfaceObservations>(map); }),
-           py::arg("map"))
+surface and four_term utilities and by surface_targets. saturation_hits > 0: a scan that puts at
+least that many hits in a cell, none in a 0.05 m square (a quarter of the map's resolution) that
+held none before, marks the cell saturated; a later scan that adds a square clears the mark. The
+surface utility credits no view for a saturated cell and surface_targets leaves it out.)doc")
+      .def(py::init([](const OccupancyMap& map, int saturation_hits) {
+             try {
+               return std::make_shared<SurfaceObservations>(map, saturation_hits);
+             } catch (const std::invalid_argument& e) {
+               throw py::value_error(e.what());
+             }
+           }),
+           py::arg("map"), py::arg("saturation_hits") = 0)
+      .def_property_readonly("saturation_hits", &SurfaceObservations::saturation_hits)
+      .def(
+          "saturated_cells",
+          [](const SurfaceObservations& s) {
+            Reading lock(s);
+            return s.saturated_cells();
+          },
+          "Number of cells marked saturated.")
       .def(
           "add_scan",
           [](SurfaceObservations& s, const Scan& scan) {

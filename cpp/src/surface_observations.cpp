@@ -4,14 +4,16 @@
 #include "nbv/occupancy_map.hpp"
 #include "nbv/parallel.hpp"
 
+#include <algorithm>
 #include <atomic>
 #include <cmath>
 #include <limits>
 #include <stdexcept>
+#include <string>
 
 namespace nbv {
 
-SurfaceObservations::SurfaceObservations(const OccupancyMap& map)
+SurfaceObservations::SurfaceObservations(const OccupancyMap& map, int saturation_hits)
     : res_(map.resolution()),
       min_key_{map.min_key()[0], map.min_key()[1], map.min_key()[2]},
       dims_(map.dims()),
@@ -20,7 +22,13 @@ SurfaceObservations::SurfaceObservations(const OccupancyMap& map)
       seen_pool_(64, 0u),
       hits_pool_(64, 0u),
       patches_pool_(64, 0u),
-      stamps_(layout_.num_bricks()) {}
+      stamps_(layout_.num_bricks()),
+      saturation_hits_(saturation_hits),
+      scan_pool_(saturation_hits > 0 ? 64 : 0, 0u) {
+  if (saturation_hits < 0 || saturation_hits > 16383)
+    throw std::invalid_argument("saturation_hits must be in [0, 16383], got " +
+                                std::to_string(saturation_hits));
+}
 
 bool SurfaceObservations::matches(const OccupancyMap& map) const {
   return map.resolution() == res_ && map.dims() == dims_ && map.min_key()[0] == min_key_[0] &&
@@ -32,7 +40,14 @@ void SurfaceObservations::clear() {
   std::vector<std::uint32_t>(64, 0u).swap(seen_pool_);  // the memory goes back
   std::vector<std::uint16_t>(64, 0u).swap(hits_pool_);
   std::vector<std::uint64_t>(64, 0u).swap(patches_pool_);
+  std::vector<std::uint32_t>(saturation_hits_ > 0 ? 64 : 0, 0u).swap(scan_pool_);
   stamps_.touch_all();
+}
+
+std::int64_t SurfaceObservations::saturated_cells() const {
+  std::int64_t n = 0;
+  for (std::size_t i = 64; i < patches_pool_.size(); ++i) n += (patches_pool_[i] & kSaturated) != 0;
+  return n;
 }
 
 std::int64_t SurfaceObservations::seen_cells() const {
@@ -44,7 +59,8 @@ std::int64_t SurfaceObservations::seen_cells() const {
 std::size_t SurfaceObservations::bytes() const {
   return block_.capacity() * sizeof(std::uint32_t) + seen_pool_.capacity() * sizeof(std::uint32_t) +
          hits_pool_.capacity() * sizeof(std::uint16_t) +
-         patches_pool_.capacity() * sizeof(std::uint64_t);
+         patches_pool_.capacity() * sizeof(std::uint64_t) +
+         scan_pool_.capacity() * sizeof(std::uint32_t);
 }
 
 void SurfaceObservations::allocate(const std::vector<std::int64_t>& cells) {
@@ -59,6 +75,7 @@ void SurfaceObservations::allocate(const std::vector<std::int64_t>& cells) {
     seen_pool_.resize(seen_pool_.size() + 64, 0u);
     hits_pool_.resize(hits_pool_.size() + 64, std::uint16_t(0));
     patches_pool_.resize(patches_pool_.size() + 64, std::uint64_t(0));
+    if (saturation_hits_ > 0) scan_pool_.resize(scan_pool_.size() + 64, 0u);
   }
 }
 
@@ -97,8 +114,13 @@ std::size_t SurfaceObservations::add_scan(const Eigen::Vector3d& origin, const P
     }
   });
   allocate(cells);
+  const bool saturating = saturation_hits_ > 0;
+  if (saturating && ++scan_ == 0) scan_ = 1;  // 0: no scan yet
+  const std::uint32_t scan = scan_;
   std::atomic<std::size_t> gained{0};
-  parallel_chunks((n + chunk - 1) / chunk, 1, [&](std::size_t cb, std::size_t ce) {
+  const std::size_t nchunks = (n + chunk - 1) / chunk;
+  std::vector<std::vector<std::size_t>> touched(saturating ? nchunks : 0);  // slots, per chunk
+  parallel_chunks(nchunks, 1, [&](std::size_t cb, std::size_t ce) {
     std::size_t local_gained = 0;
     for (std::size_t c = cb; c < ce; ++c) {
       // consecutive hits (neighbouring pixels) mostly share a cell and a bin: flush per run
@@ -110,12 +132,25 @@ std::size_t SurfaceObservations::add_scan(const Eigen::Vector3d& origin, const P
         stamps_.touch(std::size_t(run_cell) >> 6);
         const std::size_t at = slot(std::size_t(run_cell));
         std::uint32_t* s = &seen_pool_[at];
-        if ((__atomic_load_n(s, __ATOMIC_RELAXED) & run_bits) != run_bits &&
-            __atomic_fetch_or(s, run_bits, __ATOMIC_RELAXED) == 0)
+        const bool new_side = (__atomic_load_n(s, __ATOMIC_RELAXED) & run_bits) != run_bits;
+        if (new_side && __atomic_fetch_or(s, run_bits, __ATOMIC_RELAXED) == 0)
           ++local_gained;  // seen by the camera for the first time
         std::uint64_t* p = &patches_pool_[at];
-        if ((__atomic_load_n(p, __ATOMIC_RELAXED) & run_patches) != run_patches)
-          __atomic_fetch_or(p, run_patches, __ATOMIC_RELAXED);
+        const bool added = (__atomic_load_n(p, __ATOMIC_RELAXED) & run_patches) != run_patches;
+        if (added) __atomic_fetch_or(p, run_patches, __ATOMIC_RELAXED);
+        if (saturating) {  // this scan's hits in the cell, and whether a run added a square
+          std::uint32_t* r = &scan_pool_[at];
+          std::uint32_t cur = __atomic_load_n(r, __ATOMIC_RELAXED), next;
+          const std::uint32_t flags = std::uint32_t(added) | std::uint32_t(new_side) << 1;
+          do {
+            const bool same = (cur >> 16) == scan;
+            const std::uint32_t before = same ? (cur >> 2) & 0x3fffu : 0u;
+            const std::uint32_t now = std::min<std::uint32_t>(0x3fffu, before + run_hits);
+            next = scan << 16 | now << 2 | (same ? cur & 3u : 0u) | flags;
+          } while (!__atomic_compare_exchange_n(r, &cur, next, false, __ATOMIC_RELAXED,
+                                                __ATOMIC_RELAXED));
+          touched[c].push_back(at);
+        }
         std::uint16_t* h = &hits_pool_[at];
         std::uint16_t cur = __atomic_load_n(h, __ATOMIC_RELAXED);
         while (cur != 65535) {
@@ -145,6 +180,18 @@ std::size_t SurfaceObservations::add_scan(const Eigen::Vector3d& origin, const P
     }
     gained += local_gained;
   });
+  // the cells this scan hit: saturated if it saw them from a direction bin they had not been seen
+  // from, put saturation_hits hits there and no run added a square; no longer if a run added one
+  // (the same marks in any order of the runs)
+  const std::uint32_t need = std::uint32_t(saturation_hits_);
+  for (const auto& slots : touched)
+    for (const std::size_t at : slots) {
+      const std::uint32_t r = scan_pool_[at];
+      if (r & 1u)
+        patches_pool_[at] &= ~kSaturated;
+      else if ((r & 2u) && ((r >> 2) & 0x3fffu) >= need)
+        patches_pool_[at] |= kSaturated;
+    }
   return gained.load();
 }
 

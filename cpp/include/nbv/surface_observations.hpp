@@ -14,6 +14,13 @@
 // patch's square in each of the three projections along the axes (16 bits each: the face of a
 // cell seen along an axis is densely sampled when its 16 squares hold hits).
 //
+// Saturation (with saturation_hits > 0): a camera scan that puts at least saturation_hits hits
+// in a cell, none of them in a square that held none before the scan, has found no part of the
+// cell's surface its earlier scans had not already sampled: the cell is marked saturated (bit 63
+// of patches), and a later scan that adds a square clears the mark. The surface utility credits
+// no view for a saturated cell, and surface_targets leaves it out: views are not planned for
+// surface whose 0.05 m squares hold every hit the camera lays there.
+//
 // Storage is sparse, by the grid's bricks of 4 x 4 x 4 cells: a brick gets its 64 records when
 // the camera first hits a cell of it, so the record grows with the surface seen, not with the
 // workspace box (a 100 m plant's box holds 75 million cells, its surface about 1 % of them).
@@ -34,7 +41,11 @@ class OccupancyMap;
 class SurfaceObservations {
  public:
   /// An empty record over `map`'s workspace grid (same cells, same keys as the map).
-  explicit SurfaceObservations(const OccupancyMap& map);
+  /// saturation_hits: the hits a scan must put in a cell, none in a new square, to mark it
+  /// saturated (0: never; see above).
+  explicit SurfaceObservations(const OccupancyMap& map, int saturation_hits = 0);
+  /// Bit of patches() marking a saturated cell.
+  static constexpr std::uint64_t kSaturated = std::uint64_t(1) << 63;
 
   /// Records one camera scan: hits (N, 3) world-frame points seen from `origin`. Hits outside
   /// the workspace are ignored. Parallel; throws std::invalid_argument for non-finite input.
@@ -49,7 +60,7 @@ class SurfaceObservations {
   std::uint16_t hits(std::int64_t i) const { return hits_pool_[slot(std::size_t(i))]; }
   /// Where cell i's hits fell: bits 16 a + 4 u + v (a the axis projected along, u and v the
   /// quarter of the cell along the other two axes in increasing order) set for each square that
-  /// holds a hit.
+  /// holds a hit; bit 63 (kSaturated) for a saturated cell.
   std::uint64_t patches(std::int64_t i) const { return patches_pool_[slot(std::size_t(i))]; }
   /// The storage: per brick (id >> 6) its block, and the blocks of 64 records, cell id & 63 in
   /// block b at b * 64 + (id & 63) (block 0: zeros). Valid until the next add_scan or clear.
@@ -59,6 +70,9 @@ class SurfaceObservations {
   const std::uint64_t* patches_pool() const { return patches_pool_.data(); }
   /// When each brick's records last changed (see BrickStamps).
   const BrickStamps& stamps() const { return stamps_; }
+  int saturation_hits() const { return saturation_hits_; }
+  /// Cells marked saturated.
+  std::int64_t saturated_cells() const;
   /// Cells seen from at least one direction.
   std::int64_t seen_cells() const;
   /// Bricks holding records (hit by the camera at least once since the last clear).
@@ -87,6 +101,12 @@ class SurfaceObservations {
   std::vector<std::uint16_t> hits_pool_;     // per block, 64 hit counts
   std::vector<std::uint64_t> patches_pool_;  // per block, 64 patch masks (see patches)
   BrickStamps stamps_;
+  // with saturation_hits: per block, 64 records of the last scan that hit the cell: its number
+  // (16 bits), its hits in the cell (14 bits, saturating), whether it saw the cell from a bin
+  // it had not been seen from (1 bit) and whether it added a square (1 bit)
+  int saturation_hits_ = 0;
+  std::uint16_t scan_ = 0;
+  std::vector<std::uint32_t> scan_pool_;
   AccessLock access_;
 };
 

@@ -10,7 +10,8 @@
 // same way. With max_incidence_deg < 90 an observed surface cell counts only for a ray that
 // meets it within that angle of its normal (from its open faces), and still ends the ray: a
 // grazing ray lays few samples on a face the camera has already sampled densely (once at least
-// incidence_min_patches of the 16 squares of the face hold a camera hit). Free cells pass. Each
+// incidence_min_patches of the 16 squares of the face hold a camera hit). A cell the camera
+// observations mark saturated (their saturation_hits) counts for no ray. Free cells pass. Each
 // cell counts once per view (for the first ray that credits it); rays end below min_visibility.
 // With dense_spacing > 0 each credit is also weighted by how densely the camera would sample the
 // cell: min(1, dense_spacing cos(i) / (r pitch)), r the range, i the incidence on the cell's
@@ -19,6 +20,7 @@
 // area the view would add, in units of resolution^2. Needs the camera observations.
 #pragma once
 
+#include "nbv/surface_observations.hpp"
 #include "utility.hpp"
 
 namespace nbv::utility {
@@ -39,7 +41,8 @@ struct Surface {
     const CellFlag flag = cells.flag(idx, c);
     if (flag == CellFlag::Observed) {
       if (!std::signbit(scored)) return true;  // free
-      if ((ctx_.grid.seen(idx) & cone_) == 0 && facing(cells, idx, c) && marks_.insert(idx))
+      if ((ctx_.grid.seen(idx) & cone_) == 0 && !saturated(idx) && facing(cells, idx, c) &&
+          marks_.insert(idx))
         credit(idx, density(cells, c, t, true));
       return false;
     }
@@ -84,6 +87,11 @@ struct Surface {
   }
   double cosine(const double n[3]) const {
     return std::abs(n[0] * dir_.x() + n[1] * dir_.y() + n[2] * dir_.z());
+  }
+  /// Whether the camera's scans of cell idx stopped finding new squares (SurfaceObservations'
+  /// saturation): it is sampled wherever the camera reaches it.
+  bool saturated(std::size_t idx) const {
+    return (ctx_.grid.patches(idx) & SurfaceObservations::kSaturated) != 0;
   }
   /// Whether this ray meets the observed surface cell idx (at c, or null: from its id) within
   /// max_incidence_deg of its open-face normal. Always without max_incidence_deg, where the open
