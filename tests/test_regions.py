@@ -120,7 +120,9 @@ def test_a_workspace_of_several_regions_is_toured_region_by_region_larger_gains_
         # and without frames on the legs, which the one tour gains more from here (68.8 against
         # 64.6 %): what is compared is the tours
         more = ["camera.max_range=4", "workspace.margin_xy=5", "placement.fallback=false"]
-        more += ["planner.frame_step=0"]
+        # at the rate the regions were measured at: at the cheaper default (0.5) the one tour
+        # covers 72.5 % here and the regions 64.4 % (docs/RESULTS.md)
+        more += ["planner.frame_step=0", "tour.rate=0.75"]
         more += [f"tour.region_size={size}"] if size else []
         m = Mission(load_config(overrides=quick + more), mesh=mesh)
         runs[size] = (m, m.run())

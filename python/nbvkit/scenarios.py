@@ -33,6 +33,7 @@ _PAPER = {
     "planner.travel_lambda": 0.0,
     "planner.frame_step": 0.0,
     "utility.name": "ig",
+    "utility.saturation_hits": 0,
     "vehicle.blocked_path": "reject",
     "vehicle.widen_swept_volume": False,
     "profiling.method": "circular",
@@ -119,8 +120,8 @@ SCENARIOS: dict[str, Scenario] = {
             "profiling.enabled": False,
             "symmetry.mode": "none",
             "planner.generators": ["model"],
-            # frames every 0.5 m: with the whole surface known a dearer model.rate (0.9) keeps
-            # fewer views, and the frames on the legs see what they would have (RESULTS.md)
+            # frames every 0.5 m: with the whole surface known the frames on the legs see what
+            # views left out would have (RESULTS.md)
             "planner.frame_step": 0.5,
         },
     ),

@@ -246,7 +246,7 @@ class World:
         self._check_start(self.start_pose)
         large = is_large(self.workspace, cfg.camera)
         self.camera_cloud, self.laser_cloud = surface_clouds(cfg, mesh.bounds, large)
-        self.surface = _core.SurfaceObservations(self.map)
+        self.surface = _core.SurfaceObservations(self.map, cfg.utility.saturation_hits)
         self.view_camera = build_view_camera(cfg.camera, cfg.utility, cfg.map.resolution)
         self.state = VehicleState(pose=as_view(self.start_pose))
         self.state.trajectory.append(("start", *self.state.pose.tolist(), 0.0))

@@ -30,11 +30,20 @@ UtilityConfig = cpp_section(
             "rays across the horizontal FOV; null: one per map cell on the far plane (47 at 0.2 m)",
         ),
         ("rays_y", Optional[int], None, "rays across the vertical FOV; null: 34 at 0.2 m"),
+        (
+            "saturation_hits",
+            int,
+            16,
+            "surface: a cell is done once a camera scan from a side it had not been seen from "
+            "puts this many hits in it, none in a square (a quarter of the map's cells on a side) "
+            "that held none: no view is credited for it, it is no target (RESULTS.md); 0: never",
+        ),
     ],
     choices={"name": utility_names},
     bounds={
         "rays_x": Bound(lo=0, lo_open=True, hi=4096),
         "rays_y": Bound(lo=0, lo_open=True, hi=4096),
+        "saturation_hits": Bound(lo=0, hi=16383),
         "distance_lambda": Bound(lo=0),
         "max_incidence_deg": Bound(lo=0, lo_open=True, hi=90),
         "incidence_min_patches": Bound(lo=0, hi=16),

@@ -36,11 +36,12 @@ class ModelConfig:
 
     pose_spacing: float = positive(4.0, 100)  # m between the positions the model is seen from
     frame_rays: int = within(48, 4, 1024)  # rays across each coarse 90 x 90 deg frame (square)
-    # the tours' thresholds, as tour.min_gain and tour.rate; the rate dearer than the online
-    # tours' (0.75): a plan over the whole surface, with frames every 0.5 m (the model preset),
-    # flies 0.67 x the online planner's distance on the aircraft, covering more (RESULTS.md)
+    # the tours' thresholds, as tour.min_gain and tour.rate: a plan over the whole surface, with
+    # frames every 0.5 m (the model preset) and cells done once their scans stop finding new
+    # squares (utility.saturation_hits), flies 0.63-0.71 x the online planner's distance on the
+    # aircraft, covering more (RESULTS.md)
     min_gain: float = nonneg(TourConfig.min_gain)  # m^2 of new surface a planned view must add
-    rate: float = nonneg(0.9)  # m^2 per metre of tour a planned view must pay for
+    rate: float = nonneg(0.45)  # m^2 per metre of tour a planned view must pay for
 
 
 class ModelPlan:

@@ -62,7 +62,7 @@ class TourConfig:
     # (prize-collecting: new surface - rate x added tour length, by cheapest insertion)
     selection: str = choice("insertion", ("cover", "insertion"))
     min_gain: float = nonneg(1.2)  # m^2 of new surface a view must add to enter a plan (RESULTS.md)
-    rate: float = nonneg(0.75)  # m^2 of new surface per metre of tour a planned view must pay for
+    rate: float = nonneg(0.5)  # m^2 of new surface per metre of tour a planned view must pay for
     max_plans: int = within(0, 0, 10**6)  # tours planned at most (0: until a plan is empty)
     # a stranded patch: all its views fail the collision test for want of known free space;
     # a view whose rays reach where they would be gets this share of its weight
