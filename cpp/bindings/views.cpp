@@ -170,6 +170,10 @@ surface utility credits no view for a saturated cell and surface_targets leaves 
            }),
            py::arg("map"), py::arg("saturation_hits") = 0)
       .def_property_readonly("saturation_hits", &SurfaceObservations::saturation_hits)
+      .def_property_readonly_static(
+          "MAX_SATURATION_HITS",
+          [](const py::object&) { return SurfaceObservations::kMaxSaturationHits; },
+          "the largest saturation_hits")
       .def(
           "saturated_cells",
           [](const SurfaceObservations& s) {

@@ -2,7 +2,6 @@
 
 #include "nbv/huge_pages.hpp"
 #include "nbv/parallel.hpp"
-#include "nbv/surface_observations.hpp"
 #include "view_kernel.hpp"
 
 #include <algorithm>
@@ -133,7 +132,7 @@ SurfaceTargets surface_targets(const GridView& g, const SurfaceTargetOptions& op
         TargetKind kind;
         double weight;
         if (f == CellFlag::Observed && occ) {
-          if (!opt.observed || (g.patches(id) & SurfaceObservations::kSaturated)) continue;
+          if (!opt.observed || g.saturated(id)) continue;
           kind = TargetKind::Observed;
           weight = 1.0;
         } else if (f == CellFlag::Predicted) {

@@ -13,6 +13,16 @@
 
 namespace nbv {
 
+namespace {
+// A cell's record of the last scan that hit it (saturation): the scan's number (bits 16-31), its
+// hits in the cell (bits 2-15, saturating), whether it saw the cell from a direction bin it had
+// not been seen from (kNewSide) and whether it added a square (kAddedSquare).
+constexpr std::uint32_t kAddedSquare = 1u, kNewSide = 2u;
+constexpr std::uint32_t kHitsMask = std::uint32_t(SurfaceObservations::kMaxSaturationHits);
+std::uint32_t scan_of(std::uint32_t record) { return record >> 16; }
+std::uint32_t hits_of(std::uint32_t record) { return (record >> 2) & kHitsMask; }
+}  // namespace
+
 SurfaceObservations::SurfaceObservations(const OccupancyMap& map, int saturation_hits)
     : res_(map.resolution()),
       min_key_{map.min_key()[0], map.min_key()[1], map.min_key()[2]},
@@ -25,8 +35,9 @@ SurfaceObservations::SurfaceObservations(const OccupancyMap& map, int saturation
       stamps_(layout_.num_bricks()),
       saturation_hits_(saturation_hits),
       scan_pool_(saturation_hits > 0 ? 64 : 0, 0u) {
-  if (saturation_hits < 0 || saturation_hits > 16383)
-    throw std::invalid_argument("saturation_hits must be in [0, 16383], got " +
+  if (saturation_hits < 0 || saturation_hits > kMaxSaturationHits)
+    throw std::invalid_argument("saturation_hits must be in [0, " +
+                                std::to_string(kMaxSaturationHits) + "], got " +
                                 std::to_string(saturation_hits));
 }
 
@@ -141,12 +152,11 @@ std::size_t SurfaceObservations::add_scan(const Eigen::Vector3d& origin, const P
         if (saturating) {  // this scan's hits in the cell, and whether a run added a square
           std::uint32_t* r = &scan_pool_[at];
           std::uint32_t cur = __atomic_load_n(r, __ATOMIC_RELAXED), next;
-          const std::uint32_t flags = std::uint32_t(added) | std::uint32_t(new_side) << 1;
+          const std::uint32_t flags = (added ? kAddedSquare : 0u) | (new_side ? kNewSide : 0u);
           do {
-            const bool same = (cur >> 16) == scan;
-            const std::uint32_t before = same ? (cur >> 2) & 0x3fffu : 0u;
-            const std::uint32_t now = std::min<std::uint32_t>(0x3fffu, before + run_hits);
-            next = scan << 16 | now << 2 | (same ? cur & 3u : 0u) | flags;
+            const bool same = scan_of(cur) == scan;
+            const std::uint32_t now = std::min(kHitsMask, (same ? hits_of(cur) : 0u) + run_hits);
+            next = scan << 16 | now << 2 | (same ? cur & (kAddedSquare | kNewSide) : 0u) | flags;
           } while (!__atomic_compare_exchange_n(r, &cur, next, false, __ATOMIC_RELAXED,
                                                 __ATOMIC_RELAXED));
           touched[c].push_back(at);
@@ -187,9 +197,9 @@ std::size_t SurfaceObservations::add_scan(const Eigen::Vector3d& origin, const P
   for (const auto& slots : touched)
     for (const std::size_t at : slots) {
       const std::uint32_t r = scan_pool_[at];
-      if (r & 1u)
+      if (r & kAddedSquare)
         patches_pool_[at] &= ~kSaturated;
-      else if ((r & 2u) && ((r >> 2) & 0x3fffu) >= need)
+      else if ((r & kNewSide) && hits_of(r) >= need)
         patches_pool_[at] |= kSaturated;
     }
   return gained.load();

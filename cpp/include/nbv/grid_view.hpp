@@ -3,6 +3,7 @@
 #pragma once
 
 #include "nbv/common.hpp"
+#include "nbv/surface_observations.hpp"
 #include "nbv/workspace_grid.hpp"
 
 #include <algorithm>
@@ -67,6 +68,10 @@ struct GridView {
   std::uint32_t seen(std::size_t idx) const { return seen_pool[observation_slot(idx)]; }
   std::uint16_t hits(std::size_t idx) const { return hits_pool[observation_slot(idx)]; }
   std::uint64_t patches(std::size_t idx) const { return patches_pool[observation_slot(idx)]; }
+  /// Whether the observations mark cell idx saturated (SurfaceObservations::kSaturated).
+  bool saturated(std::size_t idx) const {
+    return (patches(idx) & SurfaceObservations::kSaturated) != 0;
+  }
   std::size_t observation_slot(std::size_t idx) const {
     return std::size_t(seen_blocks[idx >> 6]) << 6 | (idx & 63);
   }

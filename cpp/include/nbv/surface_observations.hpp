@@ -46,6 +46,8 @@ class SurfaceObservations {
   explicit SurfaceObservations(const OccupancyMap& map, int saturation_hits = 0);
   /// Bit of patches() marking a saturated cell.
   static constexpr std::uint64_t kSaturated = std::uint64_t(1) << 63;
+  /// The largest saturation_hits (a scan's hits in a cell are counted in 14 bits).
+  static constexpr int kMaxSaturationHits = 0x3fff;
 
   /// Records one camera scan: hits (N, 3) world-frame points seen from `origin`. Hits outside
   /// the workspace are ignored. Parallel; throws std::invalid_argument for non-finite input.

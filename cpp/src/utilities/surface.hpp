@@ -20,7 +20,6 @@
 // area the view would add, in units of resolution^2. Needs the camera observations.
 #pragma once
 
-#include "nbv/surface_observations.hpp"
 #include "utility.hpp"
 
 namespace nbv::utility {
@@ -41,8 +40,8 @@ struct Surface {
     const CellFlag flag = cells.flag(idx, c);
     if (flag == CellFlag::Observed) {
       if (!std::signbit(scored)) return true;  // free
-      if ((ctx_.grid.seen(idx) & cone_) == 0 && !saturated(idx) && facing(cells, idx, c) &&
-          marks_.insert(idx))
+      if ((ctx_.grid.seen(idx) & cone_) == 0 && !ctx_.grid.saturated(idx) &&
+          facing(cells, idx, c) && marks_.insert(idx))
         credit(idx, density(cells, c, t, true));
       return false;
     }
@@ -87,11 +86,6 @@ struct Surface {
   }
   double cosine(const double n[3]) const {
     return std::abs(n[0] * dir_.x() + n[1] * dir_.y() + n[2] * dir_.z());
-  }
-  /// Whether the camera's scans of cell idx stopped finding new squares (SurfaceObservations'
-  /// saturation): it is sampled wherever the camera reaches it.
-  bool saturated(std::size_t idx) const {
-    return (ctx_.grid.patches(idx) & SurfaceObservations::kSaturated) != 0;
   }
   /// Whether this ray meets the observed surface cell idx (at c, or null: from its id) within
   /// max_incidence_deg of its open-face normal. Always without max_incidence_deg, where the open

@@ -43,7 +43,7 @@ UtilityConfig = cpp_section(
     bounds={
         "rays_x": Bound(lo=0, lo_open=True, hi=4096),
         "rays_y": Bound(lo=0, lo_open=True, hi=4096),
-        "saturation_hits": Bound(lo=0, hi=16383),
+        "saturation_hits": Bound(lo=0, hi=_core.SurfaceObservations.MAX_SATURATION_HITS),
         "distance_lambda": Bound(lo=0),
         "max_incidence_deg": Bound(lo=0, lo_open=True, hi=90),
         "incidence_min_patches": Bound(lo=0, hi=16),
