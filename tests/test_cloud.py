@@ -8,7 +8,7 @@ import pytest
 
 import nbvkit
 from nbvkit import PointCloud, read_points, write_points
-from nbvkit.cloud import DEFAULT_MIN_Z, DEFAULT_VOXEL_SIZE, LASER_VOXEL_SIZE
+from nbvkit.cloud import DEFAULT_MIN_Z, DEFAULT_VOXEL_SIZE, LASER_VOXEL_SIZE, NESTED_VOXEL_SIZE
 
 NO_GROUND = float("-inf")  # min_z that disables ground removal
 
@@ -45,10 +45,36 @@ def test_config_defaults_match_the_core():
         pytest.skip("no CloudConfig in nbvkit.config")
     cc = config.CloudConfig()
     assert (cc.camera_voxel, cc.laser_voxel, cc.min_z) == (
-        DEFAULT_VOXEL_SIZE,
+        NESTED_VOXEL_SIZE,
         LASER_VOXEL_SIZE,
         DEFAULT_MIN_Z,
     )
+
+
+@pytest.mark.parametrize("single", [False, True])
+def test_the_missions_voxel_keeps_a_point_in_every_coverage_cell_a_hit_fell_in(single):
+    # a tilted plane sampled densely: its raw hits fall in a set of 0.05 m cells; the cloud's
+    # centroids at NESTED_VOXEL_SIZE fall in exactly those cells at every paper resolution
+    # (coverage counts a cell with a point), while the authors' 0.02 m voxel, which straddles
+    # 0.05 m cells, moves some centroids into a neighbouring cell: cells the camera hit are empty
+    from nbvkit import Evaluator
+
+    rng = np.random.default_rng(3)
+    uv = rng.uniform(0, 4, size=(400_000, 2))
+    raw = np.c_[uv[:, 0], uv[:, 1], 0.37 * uv[:, 0] + 0.21 * uv[:, 1] + 1.003] + [-3.1, 7.7, 0]
+    ev = Evaluator(raw, resolutions=(0.05, 0.1, 0.5))  # the hits themselves are the truth
+
+    def cells(points, r):
+        return {tuple(k) for k in np.floor(points / r).astype(np.int64)}
+
+    nested = PointCloud(raw, voxel_size=NESTED_VOXEL_SIZE, min_z=NO_GROUND, single_precision=single)
+    for r in (0.05, 0.1, 0.5):
+        assert cells(nested.points, r) == cells(raw, r), r
+    authors = PointCloud(raw, voxel_size=DEFAULT_VOXEL_SIZE, min_z=NO_GROUND)
+    assert cells(authors.points, 0.05) != cells(raw, 0.05)
+    nested, authors = ev.evaluate(nested.points), ev.evaluate(authors.points)
+    assert nested["coverage"] == {"0.05": 1.0, "0.1": 1.0, "0.5": 1.0}
+    assert authors["coverage"]["0.05"] < 0.995
 
 
 def test_one_point_per_voxel_at_the_centroid():

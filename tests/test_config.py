@@ -30,7 +30,10 @@ def test_python_defaults_equal_cpp_defaults():
     )
     cl = _core.SurfaceCloudOptions()
     assert c.cloud.min_z == pytest.approx(cl.min_z)
-    assert c.cloud.camera_voxel == pytest.approx(cl.voxel_size)
+    # the missions' camera voxel nests in the finest coverage cell; the paper's keeps the core's
+    assert cl.voxel_size == 0.02
+    assert c.cloud.camera_voxel == min(_core.EvaluationOptions().resolutions) / 2 == 0.025
+    assert load_config(overrides=["scenario=3"]).cloud.camera_voxel == cl.voxel_size
     assert (
         c.map.resolution == _core.OccupancyMap.DEFAULT_RESOLUTION == _core.OccupancyMap().resolution
     )

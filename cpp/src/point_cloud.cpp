@@ -80,7 +80,7 @@ inline void accumulate(std::array<double, 3>& s, const PointsRef& points, std::s
 }  // namespace
 
 VoxelCentroids::VoxelCentroids(double voxel_size, bool single)
-    : size_(voxel_size), single_(single) {
+    : size_(voxel_size), inv_(1.0 / voxel_size), single_(single) {
   if (single && !(std::isfinite(voxel_size) && voxel_size > 0))
     throw std::invalid_argument("voxel size must be > 0 metres, got " + std::to_string(voxel_size));
 }

@@ -11,6 +11,8 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 
+from .cloud import DEFAULT_VOXEL_SIZE
+
 
 @dataclass(frozen=True)
 class Scenario:
@@ -36,6 +38,7 @@ _PAPER = {
     "utility.saturation_hits": 0,
     "vehicle.blocked_path": "reject",
     "vehicle.widen_swept_volume": False,
+    "cloud.camera_voxel": DEFAULT_VOXEL_SIZE,
     "profiling.method": "circular",
     "profiling.waypoints": 5,
     "profiling.camera_step": 0.0,

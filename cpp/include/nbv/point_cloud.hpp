@@ -171,8 +171,9 @@ class VoxelIndex {
 /// coordinates in double precision. With `single`, the sums are of the points' offsets from the
 /// voxel's lowest corner, in single precision (PCL's VoxelGrid sums in single precision too): 16
 /// bytes a voxel, and a centroid is the mean of its points to within 1e-6 of the voxel's size
-/// with tens of points and 1e-5 with 200,000 (a GoogleTest); never below the voxel's corner, so a
-/// face on a voxel boundary keeps its centroids in its voxels. Centroids come out in the order
+/// with tens of points and 1e-5 with 200,000 (a GoogleTest), and always inside the voxel (floor(c /
+/// size) is the voxel's coordinate), so a face on a voxel boundary keeps its centroids in its
+/// voxels. Centroids come out in the order
 /// their voxels were first seen, so the result is deterministic for a given sequence of points.
 class VoxelCentroids {
  public:
@@ -189,9 +190,11 @@ class VoxelCentroids {
   Eigen::Vector3d centroid(std::size_t i) const {
     const double n = static_cast<double>(count_[i]);
     if (!single_) return Eigen::Vector3d(sum_[i][0], sum_[i][1], sum_[i][2]) / n;
-    const Eigen::Vector3d c = corner(index_.keys()[i]);
-    return {c[0] + double(offsets_[i][0]) / n, c[1] + double(offsets_[i][1]) / n,
-            c[2] + double(offsets_[i][2]) / n};
+    const auto v = unpack_voxel(index_.keys()[i]);
+    Eigen::Vector3d out;
+    for (int a = 0; a < 3; ++a)
+      out[a] = into_voxel(double(v[a]) * size_ + double(offsets_[i][a]) / n, v[a]);
+    return out;
   }
   /// (K,) number of points in each voxel.
   const GrowArray<std::uint32_t>& counts() const { return count_; }
@@ -206,6 +209,18 @@ class VoxelCentroids {
                      const std::vector<std::uint64_t>& keys, std::uint64_t skip);
   /// The voxel of `key`, made (empty, with the next id) if it is new.
   std::uint32_t voxel_of(std::uint64_t key);
+  /// x moved to the nearest coordinate of voxel coordinate k (floor(x / size) == k) if it is
+  /// outside: a mean of offsets just under the voxel's size, summed in single precision, can round
+  /// up to it (float(0.025) > 0.025), which would put the centroid in the next voxel.
+  double into_voxel(double x, std::int64_t k) const {
+    const double q = floor_div(x, size_, inv_);
+    if (q == double(k)) return x;
+    const bool above = q > double(k);
+    double b = double(above ? k + 1 : k) * size_;  // the boundary, within an ulp or two
+    const double toward = above ? -HUGE_VAL : HUGE_VAL;
+    while (floor_div(b, size_, inv_) != double(k)) b = std::nextafter(b, toward);
+    return b;
+  }
   /// The lowest corner of the voxel of `key`.
   Eigen::Vector3d corner(std::uint64_t key) const {
     const auto v = unpack_voxel(key);
@@ -213,6 +228,7 @@ class VoxelCentroids {
   }
 
   double size_ = 0.0;                     ///< the voxel size, m (single precision only)
+  double inv_ = 0.0;                      ///< 1 / size_
   bool single_ = false;                   ///< the sums are offsets_, else sum_
   VoxelIndex index_;                      ///< voxel key -> id (the position in the sums and count_)
   GrowArray<std::array<double, 3>> sum_;  ///< per voxel: the sum of its points
