@@ -129,6 +129,17 @@ TEST(VoxelgridSampling, CentroidsPerCellInFirstSeenOrder) {
   EXPECT_EQ(cloud.points(), v);  // bit for bit
 }
 
+namespace {
+/// A cloud of voxel `size` without ground removal, its sums in single precision.
+SurfaceCloudOptions single_precision_options(double size) {
+  SurfaceCloudOptions o;
+  o.voxel_size = size;
+  o.min_z = -std::numeric_limits<double>::infinity();
+  o.single_precision = true;
+  return o;
+}
+}  // namespace
+
 // Sums in single precision (SurfaceCloudOptions::single_precision): a voxel far from the origin
 // with 200,000 points has the mean of its points within 1e-5 of the voxel's size, and a cloud of
 // random points (about 60 a voxel) every centroid within 1e-6 of it, in the same voxels and order
@@ -141,10 +152,7 @@ TEST(VoxelCentroids, SinglePrecisionSumsGiveTheMeansWithinTheirBound) {
   Points p(200000, 3);
   for (Eigen::Index i = 0; i < p.rows(); ++i)
     p.row(i) = (corner + Eigen::Vector3d(u(rng), u(rng), 0.2 * u(rng))).transpose();
-  SurfaceCloudOptions o;
-  o.voxel_size = size;
-  o.min_z = -std::numeric_limits<double>::infinity();
-  o.single_precision = true;
+  SurfaceCloudOptions o = single_precision_options(size);
   SurfaceCloud one(o);
   one.add(p);
   ASSERT_EQ(one.size(), 1u);
@@ -179,11 +187,7 @@ TEST(VoxelCentroids, SinglePrecisionCentroidsStayInTheirVoxels) {
     const double x = (i % 2 ? 4.0 : -3.0) - 1e-12 * double(1 + i % 7);
     p.row(i) << x, 0.01 * double(i % 200), 0.5 + 0.01 * double(i / 200);
   }
-  SurfaceCloudOptions o;
-  o.voxel_size = size;
-  o.min_z = -std::numeric_limits<double>::infinity();
-  o.single_precision = true;
-  SurfaceCloud single(o);
+  SurfaceCloud single(single_precision_options(size));
   single.add(p);
   const Points c = single.points();
   for (Eigen::Index i = 0; i < c.rows(); ++i) {
