@@ -218,6 +218,18 @@ def test_the_tour_example_of_docs_plugins_flies_tours_that_nbvkit_plans(tmp_path
     assert np.ptp(flown[:, 2]) > 0  # both rings flown
 
 
+def test_plan_tour_defaults_to_the_tour_sections_settings():
+    # a part calling nbvkit.plan_tour without settings plans as the recommended planner's tours
+    import inspect
+
+    from nbvkit.planning.generators.tour import TourConfig
+
+    defaults = inspect.signature(nbvkit.plan_tour).parameters
+    tour = TourConfig()
+    for key in ("selection", "min_gain", "rate"):
+        assert defaults[key].default == getattr(tour, key), key
+
+
 def test_the_utility_example_of_docs_plugins_flies_the_papers_method(tmp_path):
     plugin = _doc_example("my_utility.py", tmp_path)
     s = _run_with_plugin(

@@ -377,14 +377,17 @@ class CoverageTour:
 _PATCH_FIELDS = ("centers", "normals", "weights")
 
 
+_TOUR = TourConfig()  # plan_tour's defaults: the tour section's
+
+
 def plan_tour(
     world,
     candidates,
     utility=None,
     memo=None,
-    selection: str = "insertion",
-    min_gain: float = 1.2,
-    rate: float = 0.75,
+    selection: str = _TOUR.selection,
+    min_gain: float = _TOUR.min_gain,
+    rate: float = _TOUR.rate,
     coarse_stride: int = 0,
     coarse_margin: float = 1.0,
     pool: bool = False,
@@ -394,7 +397,8 @@ def plan_tour(
     cover, as the surface utility credits it (utility: a UtilityConfig, the `utility` section,
     whose priors and cone it takes; None: the defaults), the views adding at least min_gain m^2
     (selection "insertion": prize-collecting insertion tours; "cover": a greedy set cover),
-    their open tour from the vehicle, and prize collection at rate m^2 per metre. memo: a
+    their open tour from the vehicle, and prize collection at rate m^2 per metre (selection,
+    min_gain and rate default to the tour section's, tour.*, unscaled). memo: a
     CoverageMemo kept between calls (fewer walks). Views are valid as the planner's are
     (the navigation space, the collision sphere in known free space). Returns a TourPlan:
     plan.flight indexes candidates in flight order."""
