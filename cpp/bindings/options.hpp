@@ -141,7 +141,7 @@ class OptionsClass {
         [member, n](T& o, const py::handle& v) {
           T copy = o;
           copy.*member = OptionField<F>::set(v, n);
-          validate(copy);
+          copy.validate();
           o = copy;
         },
         doc);
@@ -168,7 +168,7 @@ class OptionsClass {
         }
         it->second(o, item.second);
       }
-      validate(o);
+      o.validate();
     };
     cls_.def(py::init([apply](const py::kwargs& kw) {
                T o;
@@ -237,14 +237,6 @@ class OptionsClass {
   }
 
  private:
-  static void validate(const T& o) {
-    try {
-      o.validate();
-    } catch (const std::invalid_argument& e) {
-      throw py::value_error(e.what());
-    }
-  }
-
   py::class_<T> cls_;
   std::vector<std::string> names_;
   std::map<std::string, std::string> docs_;

@@ -140,11 +140,7 @@ TourPlanOptions plan_options(const std::string& selection, double min_gain, doub
   o.rate = rate;
   o.cell_area = cell_area;
   o.max_views = max_views;
-  try {
-    o.validate();
-  } catch (const std::invalid_argument& e) {
-    throw py::value_error(e.what());
-  }
+  o.validate();  // std::invalid_argument: pybind11 raises ValueError
   return o;
 }
 

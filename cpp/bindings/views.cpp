@@ -162,11 +162,7 @@ least that many hits in a cell, none in a 0.05 m square (a quarter of the map's 
 held none before, marks the cell saturated; a later scan that adds a square clears the mark. The
 surface utility credits no view for a saturated cell and surface_targets leaves it out.)doc")
       .def(py::init([](const OccupancyMap& map, int saturation_hits) {
-             try {
-               return std::make_shared<SurfaceObservations>(map, saturation_hits);
-             } catch (const std::invalid_argument& e) {
-               throw py::value_error(e.what());
-             }
+             return std::make_shared<SurfaceObservations>(map, saturation_hits);
            }),
            py::arg("map"), py::arg("saturation_hits") = 0)
       .def_property_readonly("saturation_hits", &SurfaceObservations::saturation_hits)
