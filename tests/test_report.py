@@ -76,6 +76,28 @@ def test_coverage_classes():
     assert coverage_classes(pts, np.zeros((0, 3))).tolist() == [1, 1, 1]
 
 
+def test_coverage_classes_by_slices_of_the_cloud(monkeypatch):
+    # The cloud looked up a slice at a time (7 points here) gives the classes of one lookup of
+    # its whole set of cells (np.isin), on points and clouds spread over negative and positive
+    # coordinates.
+    import nbvkit.coverage_view as cv
+
+    rng = np.random.default_rng(3)
+    pts = rng.uniform(-2, 2, (500, 3))
+    cloud = np.vstack([pts[:150] + rng.normal(0, 0.03, (150, 3)), rng.uniform(-2, 2, (150, 3))])
+    obs = rng.random(500) < 0.8
+
+    def keys(p):
+        k = np.floor(p / 0.1).astype(np.int64) + (1 << 20)
+        return (k[:, 0] << 42) | (k[:, 1] << 21) | k[:, 2]
+
+    want = np.where(np.isin(keys(pts), keys(cloud)), 0, 1)
+    want[~obs] = 2
+    monkeypatch.setattr(cv, "_SLICE", 7)
+    got = cv.coverage_classes(pts, cloud, obs)
+    assert got.tolist() == want.tolist() and 0 < (got == 0).sum() < (obs).sum()
+
+
 def test_a_run_writes_mesh_figures_and_report(tiny_run):
     s = json.loads((tiny_run / "summary.json").read_text())
     for k in ("coverage_observable", "area_coverage_observable", "observable_fraction"):
