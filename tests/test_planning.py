@@ -805,7 +805,9 @@ def test_an_exploring_plan_adds_views_facing_the_unknown_after_the_surfaces(monk
     np.testing.assert_allclose(np.linalg.norm(mine.normals, axis=1), 1.0)
     cell = np.array([[6.2, 0.2, 2.6]])
     fake = _core.SurfaceTargets(cell, [[-1.0, 0.0, 0.0]], np.ones(1), kind=[3])
-    monkeypatch.setattr(tour_module, "exploration_targets", lambda _map, _box=None: fake)
+    monkeypatch.setattr(
+        tour_module, "exploration_targets", lambda _map, _box=None, _within=None: fake
+    )
     _, both, views, of, _ = t.candidates(m.world, explore=True)
     k = len(surface)
     np.testing.assert_array_equal(views[:k], surface)
@@ -1428,6 +1430,46 @@ def test_exploration_targets_are_the_unknown_face_of_known_free_space_within_the
         assert not np.isclose(t.positions, beside).all(axis=1).any()
     np.testing.assert_array_equal(t.normals, np.tile([-1.0, 0.0, 0.0], (97, 1)))
     np.testing.assert_array_equal(t.weight, np.ones(97))
+
+
+def test_exploration_targets_within_a_distance_of_the_mapped_surface():
+    # The cube above with both occupied cells: its box holds 97 targets on the face x = 2.75 m.
+    # Within 1 m of an occupied cell only 3 remain, all beside the far corner's cell (2.75, 4.75,
+    # 4.75): (4.25, 4.25) at 0.71 m, (4.75, 3.75) and (3.75, 4.75) at 1 m in (y, z) (its face
+    # neighbours are surface_targets' frontier, not exploration targets); the near corner's cell
+    # is farther than 2.5 m from the face.
+    m = _core.OccupancyMap(0.5, (0, 0, 0), (5, 5, 5))
+    g = (np.arange(10) + 0.5) * 0.5
+    cells = np.stack(np.meshgrid(g, g, g, indexing="ij"), -1).reshape(-1, 3)
+    m.update_cells(cells[cells[:, 0] < 2.5], occupied=False)
+    m.update_cells(np.array([[0.25, 0.25, 0.25], [2.75, 4.75, 4.75]]), occupied=True)
+    assert len(exploration_targets(m)) == 97
+    t = exploration_targets(m, within=1.0)
+    assert isinstance(t, _core.SurfaceTargets) and (t.kind == 3).all()
+    got = sorted(map(tuple, t.positions[:, 1:].tolist()))
+    assert got == [(3.75, 4.75), (4.25, 4.25), (4.75, 3.75)]
+    np.testing.assert_array_equal(t.normals, np.tile([-1.0, 0.0, 0.0], (3, 1)))
+    assert len(exploration_targets(m, within=0.4)) == 0
+
+
+def test_near_surface_is_the_distance_to_the_occupied_cells_within_its_grid():
+    # Random occupied cells and points: a point is kept when its distance to the nearest
+    # occupied cell centre is within `within`, up to the grid of within / 4 (a quarter of
+    # `within` times sqrt(3) either way); an empty map keeps nothing.
+    from nbvkit.planning.generators.exploration import near_surface
+
+    rng = np.random.default_rng(5)
+    m = _core.OccupancyMap(0.2, (-10, -10, 0), (10, 10, 6))
+    solid = m.cell_center(rng.uniform((-9, -9, 0.5), (9, 9, 5.5), (40, 3)))
+    pts = rng.uniform((-10, -10, 0), (10, 10, 6), (3000, 3))
+    assert not near_surface(m, pts, 3.0).any()
+    m.update_cells(solid, occupied=True)
+    for within in (1.0, 3.0):
+        keep = near_surface(m, pts, within)
+        d = np.linalg.norm(pts[:, None] - solid[None], axis=2).min(axis=1)
+        slack = within / 4 * np.sqrt(3)
+        assert (d[keep] <= within + slack).all() and (d[~keep] >= within - slack).all()
+        assert keep.any() and (~keep).any()
 
 
 def test_append_elements_keeps_each_views_set_in_order():

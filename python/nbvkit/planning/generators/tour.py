@@ -12,7 +12,8 @@ each against the current map and skips it when it no longer adds tour.min_gain. 
 done (or once tour.replan_views of its views were flown) the next plan is made from what the map
 shows then. With tour.explore, once a plan keeps no
 view, every later plan also weighs views of the unknown space within the structure's extent
-(exploration_targets: parts of the structure nothing has shown yet hold no surface target; with
+and within tour.explore_range camera ranges of the surface the map shows (exploration_targets:
+parts of the structure nothing has shown yet hold no surface target; with
 tour.explore_first, by default on a large workspace, every plan does, the first one included); a
 plan with no view left, or one none of whose views could be flown, ends the generator
 (tour.max_plans caps the plans); with tour.final_rate, a plan that keeps no view at tour.rate is
@@ -73,6 +74,10 @@ class TourConfig:
     # with explore: from the first plan on; null: on a workspace longer than 6 camera ranges
     # (workspace.is_large: the plant, +2.1 points at 1,000 views in 13 % less flight; RESULTS.md)
     explore_first: Optional[bool] = None  # unknown space from the first plan; null: by size
+    # the unknown space explored lies within this many camera ranges of a cell the map holds
+    # occupied or predicted, not anywhere in the box round them (a diagonal bridge's box is
+    # mostly empty air: RESULTS.md); 0: the whole box
+    explore_range: float = nonneg(1.0)  # camera ranges from the mapped surface; 0: its box
     # plans first keep only views adding 2^gain_levels x min_gain, halving it each time a plan
     # keeps too few (level_views); null: 3 on a workspace longer than 6 camera ranges
     # (workspace.is_large), else 0
@@ -170,7 +175,8 @@ class CoverageTour:
             box = None  # touring by regions: the whole workspace; else the structure's extent
             if self.regional:
                 box = (world.workspace.bounds_min, world.workspace.bounds_max)
-            more = target_patches(exploration_targets(world.map, box), size)
+            near = self.settings.explore_range * ctx.camera.max_range or None
+            more = target_patches(exploration_targets(world.map, box, near), size)
             straight = dataclasses.replace(ctx.placement, azimuth_spread_deg=0.0)
             views, of = place_views(more, ctx.camera, straight, bounds)
             candidates = np.vstack([candidates, views])
