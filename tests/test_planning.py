@@ -806,7 +806,7 @@ def test_an_exploring_plan_adds_views_facing_the_unknown_after_the_surfaces(monk
     cell = np.array([[6.2, 0.2, 2.6]])
     fake = _core.SurfaceTargets(cell, [[-1.0, 0.0, 0.0]], np.ones(1), kind=[3])
     monkeypatch.setattr(
-        tour_module, "exploration_targets", lambda _map, _box=None, _hull=None: fake
+        tour_module, "exploration_targets", lambda _map, _box=None, _within=None: fake
     )
     _, both, views, of, _ = t.candidates(m.world, explore=True)
     k = len(surface)
@@ -1432,45 +1432,44 @@ def test_exploration_targets_are_the_unknown_face_of_known_free_space_within_the
     np.testing.assert_array_equal(t.weight, np.ones(97))
 
 
-def test_exploration_targets_within_the_hull_of_a_diagonal_structure():
-    # The cube above, its half x < 2.5 m known free, with a structure lying along its diagonal
-    # (cells (i, i) and (i + 1, i) in x, y at the bottom and top layers): the box round it is
-    # the whole cube, and the targets on the unknown face x = 2.75 m span it. Within its convex
-    # hull only those near the diagonal remain: the same as an independent inside test
-    # (scipy's Delaunay) of the box's targets.
-    from scipy.spatial import Delaunay
-
+def test_exploration_targets_within_a_distance_of_the_mapped_surface():
+    # The cube above with both occupied cells: its box holds 97 targets on the face x = 2.75 m.
+    # Within 1 m of an occupied cell only 3 remain, all beside the far corner's cell (2.75, 4.75,
+    # 4.75): (4.25, 4.25) at 0.71 m, (4.75, 3.75) and (3.75, 4.75) at 1 m in (y, z) (its face
+    # neighbours are surface_targets' frontier, not exploration targets); the near corner's cell
+    # is farther than 2.5 m from the face.
     m = _core.OccupancyMap(0.5, (0, 0, 0), (5, 5, 5))
     g = (np.arange(10) + 0.5) * 0.5
     cells = np.stack(np.meshgrid(g, g, g, indexing="ij"), -1).reshape(-1, 3)
     m.update_cells(cells[cells[:, 0] < 2.5], occupied=False)
-    solid = np.array([(g[i + d], g[i], g[k]) for i in range(9) for d in (0, 1) for k in (0, 9)])
-    m.update_cells(solid, occupied=True)
-    box = exploration_targets(m)
-    assert len(box) > 40 and np.ptp(box.positions[:, 1]) == 4.5  # across the whole face
-    t = exploration_targets(m, hull_margin=1e-6)
+    m.update_cells(np.array([[0.25, 0.25, 0.25], [2.75, 4.75, 4.75]]), occupied=True)
+    assert len(exploration_targets(m)) == 97
+    t = exploration_targets(m, within=1.0)
     assert isinstance(t, _core.SurfaceTargets) and (t.kind == 3).all()
-    inside = Delaunay(m.occupied_cells()).find_simplex(box.positions) >= 0
-    assert 0 < inside.sum() < len(box) / 2
-    np.testing.assert_array_equal(t.positions, box.positions[inside])
-    np.testing.assert_array_equal(t.normals, box.normals[inside])
-    # grown by a cell, a few more
-    assert len(t) < len(exploration_targets(m, hull_margin=0.5)) < len(box)
+    got = sorted(map(tuple, t.positions[:, 1:].tolist()))
+    assert got == [(3.75, 4.75), (4.25, 4.25), (4.75, 3.75)]
+    np.testing.assert_array_equal(t.normals, np.tile([-1.0, 0.0, 0.0], (3, 1)))
+    assert len(exploration_targets(m, within=0.4)) == 0
 
 
-def test_within_hull_keeps_every_point_of_a_flat_or_tiny_structure():
-    from nbvkit.planning.generators.exploration import within_hull
+def test_near_surface_is_the_distance_to_the_occupied_cells_within_its_grid():
+    # Random occupied cells and points: a point is kept when its distance to the nearest
+    # occupied cell centre is within `within`, up to the grid of within / 4 (a quarter of
+    # `within` times sqrt(3) either way); an empty map keeps nothing.
+    from nbvkit.planning.generators.exploration import near_surface
 
-    m = _core.OccupancyMap(0.2, (-5, -5, 0), (5, 5, 5))
-    pts = np.random.default_rng(5).uniform((-5, -5, 0), (5, 5, 5), (200, 3))
-    assert within_hull(m, pts, 0.2).all()  # nothing mapped
-    m.update_cells(np.array([[0.1, 0.1, 1.1], [2.1, 0.1, 1.1], [0.1, 0.1, 3.1]]), occupied=True)
-    assert within_hull(m, pts, 0.2).all()  # three cells
-    wall = np.array([[x, 0.1, z] for x in np.arange(-3, 3, 0.2) + 0.1 for z in (1.1, 2.1, 3.1)])
-    m.update_cells(wall, occupied=True)
-    assert within_hull(m, pts, 0.2).all()  # one plane (y = 0.1 m)
-    m.update_cells(np.array([[0.1, 2.1, 3.1]]), occupied=True)  # now a volume
-    assert 0 < within_hull(m, pts, 0.2).sum() < len(pts)
+    rng = np.random.default_rng(5)
+    m = _core.OccupancyMap(0.2, (-10, -10, 0), (10, 10, 6))
+    solid = m.cell_center(rng.uniform((-9, -9, 0.5), (9, 9, 5.5), (40, 3)))
+    pts = rng.uniform((-10, -10, 0), (10, 10, 6), (3000, 3))
+    assert not near_surface(m, pts, 3.0).any()
+    m.update_cells(solid, occupied=True)
+    for within in (1.0, 3.0):
+        keep = near_surface(m, pts, within)
+        d = np.linalg.norm(pts[:, None] - solid[None], axis=2).min(axis=1)
+        slack = within / 4 * np.sqrt(3)
+        assert (d[keep] <= within + slack).all() and (d[~keep] >= within - slack).all()
+        assert keep.any() and (~keep).any()
 
 
 def test_append_elements_keeps_each_views_set_in_order():
