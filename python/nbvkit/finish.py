@@ -11,6 +11,7 @@ from pathlib import Path
 
 import numpy as np
 
+from . import _core
 from .coverage_view import plot_coverage, view_classes
 from .flight import FlightModel, estimate, run_flight
 from .observability import observable_surface
@@ -83,6 +84,7 @@ def _observable_figures(mission, summary: dict, cache_dir) -> np.ndarray:
     # the coverage tracker that call built (0.7 GB for a 100 m plant's 19 M points): the mesh
     # and the report that follow do not read it
     ev.forget_clouds()
+    _core.release_free_memory()  # and the heap it held, before the mesh's cloud is stacked
     for k in (
         "coverage_observable",
         "area_coverage_observable",
