@@ -184,6 +184,20 @@ def test_grid_layout_is_x_fastest_fortran_order():
     np.testing.assert_array_equal(m.occupied_cells(), [[1.25, 0.75, 0.25]])
 
 
+def test_occupied_cells_lists_every_occupied_cell_in_grid_order():
+    # a grid whose sides are not whole bricks (4 cells), with occupied cells scattered by rays
+    m = OccupancyMap(0.25, (-1.3, -0.7, 0.0), (2.2, 1.9, 1.45))
+    rng = np.random.default_rng(5)
+    lo, hi = np.asarray(m.bounds[0]), np.asarray(m.bounds[1])
+    for origin in rng.uniform(lo + 0.1, hi - 0.1, (6, 3)):
+        m.integrate(origin, rng.uniform(lo + 0.01, hi - 0.01, (40, 3)))
+    g = m.state_grid()  # (nx, ny, nz); C order of the cells is k, then j, then i fastest
+    kji = np.argwhere(g.transpose(2, 1, 0) == CellState.OCCUPIED)
+    expected = lo + (kji[:, ::-1] + 0.5) * m.resolution
+    assert len(expected) > 20 and len(expected) < g.size / 2
+    np.testing.assert_allclose(m.occupied_cells(), expected, atol=1e-9)
+
+
 def test_query_shapes_are_preserved():
     m = small_map()
     pts = np.zeros((4, 5, 3))
