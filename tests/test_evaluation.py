@@ -244,6 +244,8 @@ def test_a_centroid_that_moves_to_another_cell_uncovers_the_cell_it_left():
     assert second["covered_cells"]["0.5"] == 1 and second["cloud_cells"]["0.5"] == 1
     assert second == ev.coverage(cloud.points)  # the cell it left is no longer covered
     assert ev._tracker is not None  # served by the tracker kept between calls
+    ev.forget_clouds()
+    assert ev.coverage([cloud], track=False) == second and ev._tracker is None  # one pass
 
 
 def test_progress_refreshes_of_growing_clouds_equal_a_fresh_count(cube):

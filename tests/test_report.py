@@ -67,6 +67,11 @@ def test_poisson_reconstructs_a_sphere_and_scores_it():
 def test_too_few_points_give_a_clear_message_and_no_mesh():
     mesh, info = reconstruct_mesh(sphere_points(MIN_MESH_POINTS - 1))
     assert mesh is None and f"at least {MIN_MESH_POINTS}" in info["message"]
+    # non-finite rows are dropped before the count (and the finite ones are used as they are)
+    pts = sphere_points(MIN_MESH_POINTS + 5)
+    pts[:6, 1] = [np.nan, np.inf, -np.inf, np.nan, np.nan, np.inf]
+    mesh, info = reconstruct_mesh(pts)
+    assert mesh is None and f"has {MIN_MESH_POINTS - 1} points" in info["message"]
 
 
 def test_coverage_classes():
@@ -96,6 +101,29 @@ def test_coverage_classes_by_slices_of_the_cloud(monkeypatch):
     monkeypatch.setattr(cv, "_SLICE", 7)
     got = cv.coverage_classes(pts, cloud, obs)
     assert got.tolist() == want.tolist() and 0 < (got == 0).sum() < (obs).sum()
+    # the same cloud as SurfaceClouds read in place (slices that end inside either cloud)
+    a = nbvkit._core.SurfaceCloud(voxel_size=1e-3, min_z=-10.0)
+    b = nbvkit._core.SurfaceCloud(voxel_size=1e-3, min_z=-10.0)
+    a.add(cloud[:100])
+    b.add(cloud[100:])
+    np.testing.assert_allclose(nbvkit._core.stack_points([a, b]), cloud, atol=1e-12)
+    assert cv.coverage_classes(pts, [a, b], obs).tolist() == want.tolist()
+
+
+def test_mesh_of_clouds_read_in_place_equals_mesh_of_their_points():
+    # clouds thinned a part at a time (voxelgrid_sampling_of) and whole: the same mesh
+    pts = sphere_points(12000)
+    a = nbvkit._core.SurfaceCloud(voxel_size=0.01, min_z=-10.0)
+    b = nbvkit._core.SurfaceCloud(voxel_size=0.02, min_z=-10.0)
+    a.add(pts[:8000])
+    b.add(pts[8000:])
+    stacked = nbvkit._core.stack_points([a, b])
+    around = [[0, 0, 15], [0, 0, -5], [10, 0, 5], [-10, 0, 5], [0, 10, 5], [0, -10, 5]]
+    for max_points in (3000, 10**6):  # thinned, and kept whole
+        one, info1 = reconstruct_mesh(stacked, depth=6, max_points=max_points, viewpoints=around)
+        two, info2 = reconstruct_mesh([a, b], depth=6, max_points=max_points, viewpoints=around)
+        assert info1 == info2 and info1["points_used"] <= max_points
+        np.testing.assert_array_equal(np.asarray(one.vertices), np.asarray(two.vertices))
 
 
 def test_a_run_writes_mesh_figures_and_report(tiny_run):

@@ -94,6 +94,17 @@ cloud), min_z 0.3 m.)doc")
       "point.");
 
   m.def(
+      "voxelgrid_sampling_of",
+      [](const std::vector<const SurfaceCloud*>& clouds, double voxel_size) {
+        check_clouds(clouds);
+        py::gil_scoped_release release;
+        return voxelgrid_sampling(clouds, voxel_size);
+      },
+      py::arg("clouds"), py::arg("voxel_size"),
+      "voxelgrid_sampling(stack_points(clouds), voxel_size): the same centroids, in the same "
+      "order, reading the clouds a part at a time instead of holding their stack.");
+
+  m.def(
       "_lzf_decompress",
       [](const py::bytes& data, std::size_t out_size) {
         const std::string s = data;

@@ -228,15 +228,43 @@ void VoxelCentroids::clear() {
   count_.shrink_to_fit();
 }
 
-Points voxelgrid_sampling(const PointsRef& points, double voxel_size) {
+namespace {
+void check_voxel_size(double voxel_size) {
   if (!(std::isfinite(voxel_size) && voxel_size > 0))
     throw std::invalid_argument("voxel size must be > 0 metres, got " + std::to_string(voxel_size));
-  require_finite(points, "points");
-  std::vector<std::uint64_t> keys(static_cast<std::size_t>(points.rows()));
+}
+
+/// Adds points to v, each to its voxel of size voxel_size (keys: scratch).
+void add_to_voxels(VoxelCentroids& v, const PointsRef& points, double voxel_size,
+                   std::vector<std::uint64_t>& keys) {
+  keys.resize(static_cast<std::size_t>(points.rows()));
   for (Eigen::Index i = 0; i < points.rows(); ++i)
     keys[static_cast<std::size_t>(i)] = voxel_key(points.row(i).transpose(), voxel_size);
-  VoxelCentroids v;
   v.add(points, keys);
+}
+}  // namespace
+
+Points voxelgrid_sampling(const PointsRef& points, double voxel_size) {
+  check_voxel_size(voxel_size);
+  require_finite(points, "points");
+  VoxelCentroids v;
+  std::vector<std::uint64_t> keys;
+  add_to_voxels(v, points, voxel_size, keys);
+  return v.centroids();
+}
+
+Points voxelgrid_sampling(const std::vector<const SurfaceCloud*>& clouds, double voxel_size,
+                          std::size_t chunk) {
+  check_voxel_size(voxel_size);
+  chunk = std::max<std::size_t>(chunk, 1);
+  std::size_t n = 0;
+  for (const SurfaceCloud* c : clouds) n += c->size();
+  VoxelCentroids v;
+  std::vector<std::uint64_t> keys;
+  for (std::size_t start = 0; start < n; start += chunk) {
+    const Points part = stack_points(clouds, start, start + chunk);
+    add_to_voxels(v, part, voxel_size, keys);
+  }
   return v.centroids();
 }
 

@@ -197,6 +197,29 @@ TEST(VoxelCentroids, SinglePrecisionCentroidsStayInTheirVoxels) {
   EXPECT_EQ(voxelgrid_sampling(c, size).rows(), c.rows());
 }
 
+TEST(VoxelgridSampling, OfCloudsReadAChunkAtATimeEqualsOfTheirStack) {
+  // Two clouds (double and single precision sums) thinned a chunk at a time, with chunks that
+  // end inside either cloud: the centroids of their stack, bit for bit, in the same order.
+  std::mt19937 rng(11);
+  std::uniform_real_distribution<double> u(-3.0, 3.0);
+  Points p(4000, 3);
+  for (Eigen::Index i = 0; i < p.rows(); ++i) p.row(i) << u(rng), u(rng), u(rng);
+  SurfaceCloudOptions o;
+  o.voxel_size = 0.05;
+  o.min_z = -std::numeric_limits<double>::infinity();
+  SurfaceCloud a(o), b(single_precision_options(0.02));
+  a.add(p.topRows(2500));
+  b.add(p.bottomRows(1500));
+  const std::vector<const SurfaceCloud*> both = {&a, &b};
+  const Points stacked = voxelgrid_sampling(stack_points(both), 0.4);
+  ASSERT_GT(stacked.rows(), 100);
+  for (std::size_t chunk :
+       {std::size_t(1), std::size_t(7), std::size_t(2500), std::size_t(1) << 20})
+    EXPECT_EQ(voxelgrid_sampling(both, 0.4, chunk), stacked) << chunk;
+  EXPECT_EQ(voxelgrid_sampling(std::vector<const SurfaceCloud*>{}, 0.4).rows(), 0);
+  EXPECT_THROW(voxelgrid_sampling(both, 0.0), std::invalid_argument);
+}
+
 TEST(VoxelgridSampling, EdgeCases) {
   EXPECT_EQ(voxelgrid_sampling(Points(0, 3), 0.1).rows(), 0);
   Points one(1, 3);

@@ -228,7 +228,7 @@ class Evaluator:
     def has_observable(self) -> bool:
         return self._core.has_observable
 
-    def coverage(self, cloud) -> dict:
+    def coverage(self, cloud, track: bool = True) -> dict:
         """The cell figures of ``evaluate`` alone (``coverage``, ``area_coverage``, ``precision``,
         their cell counts, and the observable figures when set) at a fraction of its cost: no
         kd-tree, no distances. ``cloud``: points, or a list of ``SurfaceCloud`` objects read in
@@ -237,8 +237,12 @@ class Evaluator:
 
         For a list of clouds the evaluator keeps a ``CoverageTracker``: a later call with the same
         clouds, grown since, looks again only at the voxels added or moved (the same figures; it
-        holds 4 bytes per cloud point and 4 more per resolution)."""
-        if _is_cloud_list(cloud):
+        holds 4 bytes per cloud point and 4 more per resolution). ``track=False``: one pass
+        instead, per cloud cell only, that keeps nothing (a last call: a quarter of the tracker's
+        memory, in half its time)."""
+        if _is_cloud_list(cloud) and not track:
+            d = _to_dict(self._core.evaluate_cells_of(list(cloud)))
+        elif _is_cloud_list(cloud):
             if self._tracker is None:
                 self._tracker = _core.CoverageTracker(self._core)
             d = _to_dict(self._tracker.update(list(cloud)))

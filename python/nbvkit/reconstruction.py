@@ -21,6 +21,7 @@ from pathlib import Path
 import numpy as np
 
 from . import _core
+from .cloud import _is_cloud_list
 
 __all__ = ["MIN_MESH_POINTS", "reconstruct_mesh", "score_mesh", "write_mesh_ply"]
 
@@ -39,9 +40,11 @@ def reconstruct_mesh(
 ):
     """Screened Poisson surface reconstruction of a cloud (open3d), trimmed of its bubbles.
 
-    points: (N, 3) world-frame cloud. It is voxel-thinned to about ``max_points`` points,
-    normals are estimated (20 neighbours) and oriented toward the nearest of ``viewpoints``
-    (K, 3; e.g. the trajectory) or, without them, by open3d's tangent-plane propagation.
+    points: (N, 3) world-frame cloud, or a list of SurfaceClouds read in place (a mission's
+    ``world.clouds``: the same mesh as of their points stacked). It is voxel-thinned to about
+    ``max_points`` points, normals are estimated (20 neighbours) and oriented toward the nearest
+    of ``viewpoints`` (K, 3; e.g. the trajectory) or, without them, by open3d's tangent-plane
+    propagation.
     Poisson at octree ``depth`` on ``threads`` threads (default 1: open3d's OpenMP Poisson
     runs several times slower when its threads outnumber the free cores, as in a sweep's
     worker processes: 22 s on 2 threads against 6 s on 1 for the airliner on the loaded 2-core
@@ -54,14 +57,25 @@ def reconstruct_mesh(
     """
     import open3d as o3d
 
-    pts = np.asarray(points, float).reshape(-1, 3)
-    pts = pts[np.isfinite(pts).all(axis=1)]
-    if len(pts) < MIN_MESH_POINTS:
+    if _is_cloud_list(points):  # read in place, never stacked whole (their points are finite)
+        clouds = list(points)
+        n = sum(len(c) for c in clouds)
+        whole = (lambda: _core.stack_points(clouds)) if n <= max_points else None
+        thin = lambda voxel: _core.voxelgrid_sampling_of(clouds, voxel)  # noqa: E731
+    else:
+        pts = np.asarray(points, float).reshape(-1, 3)
+        finite = np.isfinite(pts).all(axis=1)
+        if not finite.all():  # a copy only then (a 100 m plant's cloud is 0.6 GB)
+            pts = pts[finite]
+        del finite
+        n, whole = len(pts), (lambda: pts)
+        thin = lambda voxel: _core.voxelgrid_sampling(pts, voxel)  # noqa: E731
+    if n < MIN_MESH_POINTS:
         return None, {
-            "message": f"the cloud has {len(pts)} points; at least {MIN_MESH_POINTS} are "
+            "message": f"the cloud has {n} points; at least {MIN_MESH_POINTS} are "
             "needed to reconstruct a mesh"
         }
-    pts, voxel = _thinned(pts, max_points)
+    pts, voxel = (whole(), 0.0) if n <= max_points else _thinned(thin, n, max_points)
     pcd = _oriented_cloud(pts, voxel, viewpoints)
     if threads is None:
         threads = 1
@@ -86,22 +100,20 @@ def reconstruct_mesh(
     }
 
 
-def _thinned(pts: np.ndarray, max_points: int) -> tuple[np.ndarray, float]:
-    """The cloud voxel-thinned to at most about max_points points, and the voxel (m; 0: kept
-    whole)."""
-    if len(pts) <= max_points:
-        return pts, 0.0
+def _thinned(thin, n: int, max_points: int) -> tuple[np.ndarray, float]:
+    """A cloud of n > max_points points voxel-thinned (thin(voxel): its voxel centroids) to at
+    most about max_points points, and the voxel (m)."""
     # a surface's voxel count falls with the square of the voxel: the first size from the
     # point count (a camera cloud holds about one point per 0.02 m cell), then refined from
     # the count it gave. (A first pass at the cloud's own 0.02 m, as before, took 5.8 of the
     # 11.2 s on an airliner mission's cloud, 163 s at twice its size: bench/bench_mesh.py.)
-    voxel = 0.02 * math.sqrt(len(pts) / max_points)
+    voxel = 0.02 * math.sqrt(n / max_points)
     for _ in range(6):
-        thin = _core.voxelgrid_sampling(pts, voxel)
-        if len(thin) <= max_points:
+        out = thin(voxel)
+        if len(out) <= max_points:
             break
-        voxel *= max(1.05, math.sqrt(len(thin) / max_points) * 1.02)
-    return thin, voxel
+        voxel *= max(1.05, math.sqrt(len(out) / max_points) * 1.02)
+    return out, voxel
 
 
 def _oriented_cloud(pts: np.ndarray, voxel: float, viewpoints):

@@ -314,6 +314,12 @@ class SurfaceCloud {
 Points stack_points(const std::vector<const SurfaceCloud*>& clouds, std::size_t start = 0,
                     std::size_t stop = std::numeric_limits<std::size_t>::max());
 
+/// voxelgrid_sampling(stack_points(clouds), voxel_size), the same centroids in the same order,
+/// reading the clouds `chunk` points at a time instead of holding their stack (a 100 m
+/// structure's 26 M points: 0.6 GB).
+Points voxelgrid_sampling(const std::vector<const SurfaceCloud*>& clouds, double voxel_size,
+                          std::size_t chunk = std::size_t(1) << 20);
+
 // ---------------------------------------------------------------------------- file helpers
 
 /// Decompresses an LZF block (the codec of PCD "binary_compressed" files, liblzf format) into
