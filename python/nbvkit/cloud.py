@@ -187,13 +187,10 @@ def write_points(path, points, ascii: bool = False, dtype=None) -> None:
     dtype = np.dtype(dtype)
     if dtype not in (np.dtype(np.float32), np.dtype(np.float64)):
         raise ValueError(f"dtype must be float32 or float64, got {dtype}")
-    if _is_cloud_list(points):  # finite by construction: SurfaceCloud refuses NaN/inf
-        clouds = list(points)
-        n = sum(len(c) for c in clouds)
-        parts = (_core.stack_points(clouds, b, b + _WRITE_PART) for b in range(0, n, _WRITE_PART))
-    else:
-        pts = _check_points(points, "points")
-        n, parts = len(pts), [pts]
+    # a list of clouds is finite by construction: SurfaceCloud refuses NaN/inf
+    n, parts = _parts(
+        points if _is_cloud_list(points) else _check_points(points, "points"), _WRITE_PART
+    )
     with open(path, "wb") as f:
         f.write(_points_header(suffix, n, dtype, ascii))
         for part in parts:
@@ -208,9 +205,20 @@ def write_points(path, points, ascii: bool = False, dtype=None) -> None:
 _WRITE_PART = 1 << 20
 
 
+def _parts(points, size: int):
+    """(n, parts): the number of points of `points` and an iterator over them in order, `size`
+    at a time. points: a list of SurfaceClouds, read in place (rows of their stack,
+    ``_core.stack_points``: never the whole stack at once), or an (N, 3) array (its slices)."""
+    if _is_cloud_list(points):
+        clouds = list(points)
+        n = sum(len(c) for c in clouds)
+        return n, (_core.stack_points(clouds, b, b + size) for b in range(0, n, size))
+    return len(points), (points[b : b + size] for b in range(0, len(points), size))
+
+
 def _is_cloud_list(points) -> bool:
-    """Whether `points` is a list (or tuple) of SurfaceClouds, read in place (by write_points and
-    the evaluator) rather than as one array."""
+    """Whether `points` is a list (or tuple) of SurfaceClouds, read in place (by write_points,
+    the evaluator, the mesh and the coverage classes) rather than as one array."""
     return isinstance(points, (list, tuple)) and all(
         isinstance(c, _core.SurfaceCloud) for c in points
     )

@@ -8,8 +8,7 @@ from pathlib import Path
 
 import numpy as np
 
-from . import _core
-from .cloud import _is_cloud_list
+from .cloud import _is_cloud_list, _parts
 from .figures import _plt
 
 __all__ = ["CLASS_COLOURS", "CLASS_NAMES", "coverage_classes", "view_classes", "plot_coverage"]
@@ -29,13 +28,8 @@ def coverage_classes(points, cloud, observable=None, resolution: float = 0.1) ->
     2 unobservable (``observable`` False). Without ``observable`` every point is observable.
     cloud: (M, 3) points or a list of SurfaceClouds (read in place)."""
     points = np.asarray(points, float).reshape(-1, 3)
-    if _is_cloud_list(cloud):  # SurfaceClouds, read a slice of their stack at a time
-        clouds = list(cloud)
-        n = sum(len(c) for c in clouds)
-        part = lambda i: _core.stack_points(clouds, i, i + _SLICE)  # noqa: E731
-    else:
+    if not _is_cloud_list(cloud):
         cloud = np.asarray(cloud, float).reshape(-1, 3)
-        n, part = len(cloud), (lambda i: cloud[i : i + _SLICE])
 
     def keys(p):
         k = np.floor(p / resolution).astype(np.int64) + (1 << 20)
@@ -45,8 +39,8 @@ def coverage_classes(points, cloud, observable=None, resolution: float = 0.1) ->
     # at a time: a 100 m structure's cloud of 25 M points would take 1.2 GB of keys at once
     cells = np.unique(keys(points))
     hit = np.zeros(len(cells), bool)
-    for i in range(0, n if len(cells) else 0, _SLICE):
-        k = keys(part(i))
+    for part in _parts(cloud, _SLICE)[1] if len(cells) else ():
+        k = keys(part)
         j = np.minimum(np.searchsorted(cells, k), len(cells) - 1)
         hit[j[cells[j] == k]] = True
     covered = hit[np.searchsorted(cells, keys(points))]

@@ -240,14 +240,14 @@ class Evaluator:
         holds 4 bytes per cloud point and 4 more per resolution). ``track=False``: one pass
         instead, per cloud cell only, that keeps nothing (a last call: a quarter of the tracker's
         memory, in half its time)."""
-        if _is_cloud_list(cloud) and not track:
+        if not _is_cloud_list(cloud):
+            d = _to_dict(self._core.evaluate_cells(_as_points(cloud)))
+        elif not track:
             d = _to_dict(self._core.evaluate_cells_of(list(cloud)))
-        elif _is_cloud_list(cloud):
+        else:
             if self._tracker is None:
                 self._tracker = _core.CoverageTracker(self._core)
             d = _to_dict(self._tracker.update(list(cloud)))
-        else:
-            d = _to_dict(self._core.evaluate_cells(_as_points(cloud)))
         keep = (
             "coverage",
             "area_coverage",

@@ -50,13 +50,13 @@ def finish_run(mission, out, summary: dict, cache_dir=None) -> dict:
     rep = cfg.report
     # the final clouds, read in place: never stacked whole (26 M points, 0.6 GB, on a 100 m
     # structure)
-    cloud = mission.world.clouds
+    clouds = mission.world.clouds
     if rep.enabled and rep.mesh:
-        _mesh_outputs(mission, out, summary, cloud, timings)
+        _mesh_outputs(mission, out, summary, clouds, timings)
 
     if rep.enabled:
         t0 = time.perf_counter()
-        classes, pts = view_classes(mission.evaluator, cloud, mask, rep.view_points, cfg.seed)
+        classes, pts = view_classes(mission.evaluator, clouds, mask, rep.view_points, cfg.seed)
         plot_coverage(pts, classes, out / "figures" / "coverage.png")
         timings["coverage_png"] = time.perf_counter() - t0
         if rep.html:
@@ -84,7 +84,7 @@ def _observable_figures(mission, summary: dict, cache_dir) -> np.ndarray:
     # hold 1.4 GiB at its peak for the 26 M points of a 100 m plant, against 0.4 GiB
     ev.forget_clouds()
     cov = ev.coverage(mission.world.clouds, track=False)
-    _core.release_free_memory()  # the heap it held, before the mesh's cloud is stacked
+    _core.release_free_memory()  # the heap the count held, before the mesh
     for k in (
         "coverage_observable",
         "area_coverage_observable",
@@ -102,13 +102,13 @@ def _observable_figures(mission, summary: dict, cache_dir) -> np.ndarray:
     return mask
 
 
-def _mesh_outputs(mission, out: Path, summary: dict, cloud, timings: dict) -> None:
-    """Reconstructs mesh.ply from the final cloud, writes and scores it (or says why not) into
-    summary["reconstructed_mesh"]; the stages' seconds go into timings."""
+def _mesh_outputs(mission, out: Path, summary: dict, clouds, timings: dict) -> None:
+    """Reconstructs mesh.ply from the final clouds (read in place), writes and scores it (or
+    says why not) into summary["reconstructed_mesh"]; the stages' seconds go into timings."""
     rep = mission.config.report
     t0 = time.perf_counter()
     mesh, info = reconstruct_mesh(
-        cloud,
+        clouds,
         depth=rep.poisson_depth,
         max_points=rep.mesh_max_points,
         density_quantile=rep.density_quantile,

@@ -60,7 +60,7 @@ def reconstruct_mesh(
     if _is_cloud_list(points):  # read in place, never stacked whole (their points are finite)
         clouds = list(points)
         n = sum(len(c) for c in clouds)
-        whole = (lambda: _core.stack_points(clouds)) if n <= max_points else None
+        whole = lambda: _core.stack_points(clouds)  # noqa: E731
         thin = lambda voxel: _core.voxelgrid_sampling_of(clouds, voxel)  # noqa: E731
     else:
         pts = np.asarray(points, float).reshape(-1, 3)
