@@ -424,7 +424,7 @@ def test_area_thresholds_shrink_with_a_structure_smaller_than_the_reference_area
     assert Selector(PlanningContext.of(absolute)).choose(small, poses, scores) is None
 
 
-def test_selection_passes_over_views_outside_the_free_component_after_a_failed_search():
+def test_selection_floods_the_free_component_only_after_a_search_cut_short_by_its_cap():
     from types import SimpleNamespace
 
     from nbvkit.planning.selection import Selector
@@ -432,28 +432,39 @@ def test_selection_passes_over_views_outside_the_free_component_after_a_failed_s
     m = nbvkit.OccupancyMap(0.2, (0, 0, 0), (12, 12, 4))
     m.mark_free_segment((2, 2, 2), (10, 2, 2), 1.5)  # the vehicle's corridor
     m.mark_free_segment((2, 9, 2), (10, 9, 2), 1.5)  # another, apart from it
-    searched = []
-
-    def plan_path(target):
-        searched.append(tuple(target[:3]))
-        p = _core.plan_path(m, (3, 2, 2), target[:3], 0.8)
-        return p if len(p) else None
-
-    world = SimpleNamespace(map=m, state=SimpleNamespace(pose=np.array([3, 2, 2, 0.0])))
-    world.plan_path = plan_path
-    cfg = load_config(overrides=["vehicle.blocked_path=plan"])
     poses = np.array([[9, 9, 2, 0], [5, 9, 2, 0], [9, 2, 2, 0.0]])  # two apart, one reachable
     utility = np.array([9.0, 8.0, 1.0])  # the views apart are worth more
     scores = {"status": np.zeros(3, np.int8), "gain": np.full(3, 1e3), "utility": utility}
-    selector = Selector(PlanningContext.of(cfg))
-    selector.begin()
-    choice = selector.choose(world, poses, scores)
-    assert choice.index == 2  # the only reachable view, whatever its utility
-    # one view apart is searched and fails; the other is passed over without a search
-    assert len(searched) == 2 and searched[0][1] == 9 and searched[1] == (9, 2, 2)
-    selector.begin()  # a new step: the map may have changed, every view is searched again
-    searched.clear()
-    assert selector.choose(world, poses, scores).index == 2 and len(searched) == 2
+    cfg = load_config(overrides=["vehicle.blocked_path=plan"])
+    for cap in (5, 200000):
+        searched = []
+
+        def search_path(target, max_expansions=None):
+            searched.append(tuple(target[:3]))
+            return _core.search_path(m, (3, 2, 2), target[:3], 0.8, max_expansions or cap)
+
+        def plan_path(target, max_expansions=None):
+            path = search_path(target, max_expansions).path
+            return path if len(path) else None
+
+        world = SimpleNamespace(map=m, state=SimpleNamespace(pose=np.array([3, 2, 2, 0.0])))
+        world.search_path, world.plan_path = search_path, plan_path
+        selector = Selector(PlanningContext.of(cfg))
+        selector.begin()
+        choice = selector.choose(world, poses, scores)
+        assert choice.index == 2  # the only reachable view, whatever its utility
+        if cap == 5:
+            # the first view apart is searched, cut short by the cap; the flood that follows
+            # holds neither view apart: the other is passed over without a search
+            assert selector.component is not None
+            assert len(searched) == 2 and searched[0][1] == 9 and searched[1] == (9, 2, 2)
+            selector.begin()  # a new step: the map may have changed, every view is searched again
+            searched.clear()
+            assert selector.choose(world, poses, scores).index == 2 and len(searched) == 2
+        else:
+            # each search to a view apart fails for good: no flood, the next view is searched
+            assert selector.component is None
+            assert sorted(searched[:2]) == [(5, 9, 2), (9, 9, 2)] and searched[2] == (9, 2, 2)
 
 
 def test_patches_group_targets_by_cell_and_side():

@@ -492,6 +492,49 @@ ValueError for a bad shape, non-finite values or bad options.)doc");
       "A* through known free space; (P, 3) waypoints from a to b, or (0, 3) when there is none.\n"
       "reference=True runs the first implementation (the same path, slower), for tests and\n"
       "benchmarks.");
+  struct PathSearch {
+    Points path;
+    PathSearchStats stats;
+  };
+  py::class_<PathSearch>(m, "PathSearch", R"doc(
+One A* search of search_path: its path, and why it found none (read `capped`).)doc")
+      .def_readonly("path", &PathSearch::path,
+                    "(P, 3) waypoints from a to b, or (0, 3) when the search found none")
+      .def_property_readonly(
+          "expansions", [](const PathSearch& s) { return s.stats.expansions; }, "cells expanded")
+      .def_property_readonly(
+          "flood_ended", [](const PathSearch& s) { return s.stats.flood_ended; },
+          "the flood from b ended the search: b's free component is closed without a")
+      .def_property_readonly(
+          "capped", [](const PathSearch& s) { return s.stats.capped; },
+          "the search stopped at max_expansions with cells left to expand: a longer search may\n"
+          "find a path; any other failure is final")
+      .def("__repr__", [](const PathSearch& s) {
+        return "<nbvkit.PathSearch " + std::to_string(s.path.rows()) + " waypoints, " +
+               std::to_string(s.stats.expansions) + " expansions" +
+               (s.stats.capped ? ", capped>" : ">");
+      });
+  m.def(
+      "search_path",
+      [](const OccupancyMap& map, const py::handle& a, const py::handle& b, double r,
+         std::size_t max_expansions) {
+        const Eigen::Vector3d pa = vec3_arg(a, "path start"), pb = vec3_arg(b, "path end");
+        if (!(r >= 0) || !std::isfinite(r)) throw py::value_error("radius must be finite and >= 0");
+        PathSearch out;
+        std::vector<Eigen::Vector3d> path;
+        {
+          Reading lock(map);
+          path = plan_path(grid_view(map), pa, pb, r, max_expansions, &out.stats);
+        }
+        out.path.resize(static_cast<Eigen::Index>(path.size()), 3);
+        for (std::size_t i = 0; i < path.size(); ++i)
+          out.path.row(static_cast<Eigen::Index>(i)) = path[i];
+        return out;
+      },
+      py::arg("map"), py::arg("a"), py::arg("b"), py::arg("radius"),
+      py::arg("max_expansions") = kDefaultPathExpansions,
+      "plan_path's search with what it did: a PathSearch (path, expansions, flood_ended,\n"
+      "capped). A failed search that is not capped is final: no path exists.");
   py::class_<FreeComponent>(m, "FreeComponent", R"doc(
 The cells plan_path can reach from `start` through known free space (collision sphere of
 `radius`), found by one flood. Valid while `map` is unchanged: ask it about many targets of one

@@ -434,7 +434,7 @@ std::vector<Eigen::Vector3d> plan_path(const GridView& g, const Eigen::Vector3d&
           }
     }
   }
-  if (stats) *stats = {expansions, flood.size(), false};
+  if (stats) *stats = {expansions, flood.size(), false, !found && !open.empty()};
   if (!found) return {};
   std::vector<Eigen::Vector3d> cells;
   for (std::size_t idx = ib;; idx = s.block(idx).parent[idx & 63]) {

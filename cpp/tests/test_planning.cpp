@@ -612,17 +612,44 @@ TEST(Navigation, AGoalInAClosedPocketCostsThePocketNotTheWholeFreeSpace) {
   PathSearchStats stats;
   EXPECT_TRUE(plan_path(g, a, b, 0.35, 200000, &stats).empty());
   EXPECT_TRUE(stats.flood_ended);
+  EXPECT_FALSE(stats.capped);  // a final failure: no longer search can find a way
   EXPECT_LT(stats.expansions, 1024u + stats.flooded + 30);  // the flood's pace: one per expansion
   EXPECT_TRUE(plan_path_reference(g, a, b, 0.35).empty());
   PathSearchStats whole;  // a goal in the hall: found by the search, the flood not needed
   EXPECT_FALSE(plan_path(g, a, {9.2, 4.2, 2.4}, 0.35, 200000, &whole).empty());
   EXPECT_FALSE(whole.flood_ended);
+  EXPECT_FALSE(whole.capped);
+  // under a cap of 5 expanded cells the goal in the pocket fails before the flood starts: the
+  // search was capped, not final
+  PathSearchStats pocket;
+  EXPECT_TRUE(plan_path(g, a, b, 0.35, 5, &pocket).empty());
+  EXPECT_TRUE(pocket.capped);
+  EXPECT_FALSE(pocket.flood_ended);
   // exhausting the hall, as the search alone would, costs several times what the flood took
   int hall = 0;
   for (int k = 0; k < g.nz; ++k)
     for (int j = 0; j < g.ny; ++j)
       for (int i = 0; i < 55; ++i) hall += sphere_is_free(g, g.center(i, j, k), 0.35);
   EXPECT_GT(hall, 3 * int(stats.expansions));
+}
+
+TEST(Navigation, OnlyASearchStoppedByItsCapIsNotFinal) {
+  // an L-shaped corridor: the goal round its corner takes A* well over 5 expanded cells
+  OccupancyMap m(0.2, {0, 0, 0}, {12, 12, 4});
+  m.mark_free_segment({2, 2, 2}, {10, 2, 2}, 1.2);
+  m.mark_free_segment({10, 2, 2}, {10, 10, 2}, 1.2);
+  const GridView g = grid_view(m);
+  const Eigen::Vector3d a(2.5, 2, 2), b(10, 9.5, 2);
+  PathSearchStats cut, whole, beyond;
+  EXPECT_TRUE(plan_path(g, a, b, 0.35, 5, &cut).empty());
+  EXPECT_TRUE(cut.capped);
+  EXPECT_EQ(cut.expansions, 5u);
+  EXPECT_FALSE(plan_path(g, a, b, 0.35, 200000, &whole).empty());
+  EXPECT_FALSE(whole.capped);
+  EXPECT_GT(whole.expansions, 5u);
+  // a goal in unknown space past the corridor's end: no path however long the search
+  EXPECT_TRUE(plan_path(g, a, {10, 11.8, 2}, 0.35, 200000, &beyond).empty());
+  EXPECT_FALSE(beyond.capped);
 }
 
 TEST(Tour, IsAPermutationNoLongerThanNearestNeighbourAndEmptyForNoPoints) {

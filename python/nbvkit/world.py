@@ -440,16 +440,21 @@ class World:
         """A* path (P, 3) from the vehicle to target's position through known free space, or
         None when there is none within max_expansions expanded cells (default
         vehicle.path_expansions)."""
+        path = self.search_path(target, max_expansions).path
+        return path if len(path) else None
+
+    def search_path(self, target, max_expansions: int | None = None):
+        """plan_path's search as a _core.PathSearch: its path ((0, 3) when none was found) and
+        whether it stopped at its cap (`capped`: only then may a longer search find a way)."""
         if max_expansions is None:
             max_expansions = self.config.vehicle.path_expansions
-        path = _core.plan_path(
+        return _core.search_path(
             self.map,
             self.state.pose[:3],
             np.asarray(target, float)[:3],
             self.config.vehicle.collision_radius,
             max_expansions=max_expansions,
         )
-        return path if len(path) else None
 
     def enter_navigation_space(self, stage: str) -> float:
         """After a flight outside the navigation bounds (a wide profiling circle), fly straight

@@ -17,11 +17,13 @@ bool sphere_is_free(const GridView& grid, const Eigen::Vector3d& center, double 
 bool segment_is_free(const GridView& grid, const Eigen::Vector3d& a, const Eigen::Vector3d& b,
                      double radius);
 
-/// What a plan_path search did: cells it expanded, cells its flood from b reached, and whether
-/// the flood ended it (b's free component closed without a).
+/// What a plan_path search did: cells it expanded, cells its flood from b reached, whether the
+/// flood ended it (b's free component closed without a), and whether it stopped at its cap on
+/// expanded cells with cells still to expand (capped: only then may a longer search find a path
+/// where this one found none; any other failure is final).
 struct PathSearchStats {
   std::size_t expansions = 0, flooded = 0;
-  bool flood_ended = false;
+  bool flood_ended = false, capped = false;
 };
 
 /// Cells an A* search expands at most unless told (vehicle.path_expansions's default, bound as

@@ -9,11 +9,12 @@ exp(-travel_lambda * d) wins, d the length of the flight to it: straight (vehicl
 top one's path is known. Ties go to the lower index, so the paper's scenarios (travel_lambda 0,
 straight legs) choose exactly the best valid utility as before.
 
-Within one planning step (begin() to the next begin(): the map does not change) the first failed
-search floods the vehicle's free component once (_core.FreeComponent); a later candidate outside
-it is passed over without a search. It changes no choice: a search to such a view always fails.
-A failed search to a view inside the component was cut short by its cap on expanded cells (on a
-large map the way round a structure can take more): it is searched again without one.
+A failed search is final unless it stopped at its cap on expanded cells (vehicle.path_expansions;
+on a large map the way round a structure can take more). Within one planning step (begin() to the
+next begin(): the map does not change) the first search cut short by its cap floods the vehicle's
+free component once (_core.FreeComponent): a view inside it is searched again without the cap,
+and a later candidate outside it is passed over without a search. It changes no choice: a search
+to such a view always fails.
 """
 from __future__ import annotations
 
@@ -69,13 +70,15 @@ class Selector:
                     path,
                     d,
                 )
-            reach = self._reachable(world, poses[k])
-            path = world.plan_path(poses[k]) if reach else None
-            if path is None and reach:
-                if self.component is None:
-                    self.component = _core.FreeComponent(world.map, here, self.radius)
-                if self._reachable(world, poses[k]):  # cut short by its cap: search it all
-                    path = world.plan_path(poses[k], max_expansions=world.map.num_cells)
+            path = None
+            if self._reachable(world, poses[k]):
+                search = world.search_path(poses[k])
+                path = search.path if len(search.path) else None
+                if search.capped:  # cut short by its cap: search it all if it can end there
+                    if self.component is None:
+                        self.component = _core.FreeComponent(world.map, here, self.radius)
+                    if self._reachable(world, poses[k]):
+                        path = world.plan_path(poses[k], max_expansions=world.map.num_cells)
             if path is None:  # no way there through known free space
                 continue
             length = float(np.linalg.norm(np.diff(path, axis=0), axis=1).sum())
