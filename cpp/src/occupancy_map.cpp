@@ -4,6 +4,8 @@
 
 #include <octomap/AbstractOcTree.h>
 
+#include <immintrin.h>
+
 #include <algorithm>
 #include <atomic>
 #include <cctype>
@@ -468,74 +470,182 @@ IntegrationStats OccupancyMap::integrate(const Eigen::Vector3d& origin, const Po
   return stats;
 }
 
+namespace detail {
+namespace {
+
+// One row at a time (rows i0 to n), the reference of end_cells_avx2.
+void end_cells_scalar(const double* rows, std::size_t stride, std::size_t i0, std::size_t n,
+                      double rf, int k, const EndCellBlock& out) {
+  const double kd = k, inv_k = 1.0 / k;
+  for (std::size_t i = i0; i < n; ++i) {
+    const double* r = rows + i * stride;
+    bool finite = true, inside = true;
+    double d2 = 0;
+    int sub = 0;
+    for (int a = 2; a >= 0; --a) {
+      const double c = r[a];
+      finite = finite && std::isfinite(c);
+      const double t = rf * double(float(c));
+      const bool ok = std::fabs(t) < 1e9;
+      int fl = ok ? int(t) : 0;
+      fl -= double(fl) > t;  // floor, without a libm call
+      const int kv = fl + kTreeMaxVal;
+      inside = inside && ok && kv >= 0 && kv < 2 * kTreeMaxVal;
+      const double frac = t - fl;  // position within the cell, [0, 1)
+      const int sa = ok ? std::min(k - 1, int(frac * kd)) : 0;
+      const double dc = frac - (sa + 0.5) * inv_k;
+      d2 += dc * dc;
+      sub = sub * k + sa;
+      out.key[a][i] = kv;
+    }
+    out.sub[i] = sub;
+    out.d2[i] = d2;
+    out.state[i] = finite ? std::uint8_t(inside) : std::uint8_t(2);
+  }
+}
+
+// Four rows at a time in AVX2 lanes: the same operations in the same order (no fused
+// multiply-add), so the same numbers to the bit.
+__attribute__((target("avx2"))) void end_cells_avx2(const double* rows, std::size_t stride,
+                                                    std::size_t n, double rf, int k,
+                                                    const EndCellBlock& out) {
+  const __m256d vrf = _mm256_set1_pd(rf), vkd = _mm256_set1_pd(double(k));
+  const __m256d vinv = _mm256_set1_pd(1.0 / k), half = _mm256_set1_pd(0.5);
+  const __m256d abs_mask = _mm256_castsi256_pd(_mm256_set1_epi64x(0x7fffffffffffffffLL));
+  const __m256d limit = _mm256_set1_pd(1e9), zero = _mm256_setzero_pd();
+  const __m128i vk = _mm_set1_epi32(k), km1 = _mm_set1_epi32(k - 1);
+  const __m128i max_val = _mm_set1_epi32(kTreeMaxVal), key_end = _mm_set1_epi32(2 * kTreeMaxVal);
+  const __m128i minus1 = _mm_set1_epi32(-1);
+  std::size_t i = 0;
+  for (; i + 4 <= n; i += 4) {
+    const double* r = rows + i * stride;
+    __m256d d2 = zero;
+    __m128i sub = _mm_setzero_si128(), inside = minus1;
+    __m256d finite = _mm256_castsi256_pd(_mm256_set1_epi64x(-1));
+    for (int a = 2; a >= 0; --a) {
+      const __m256d c = _mm256_set_pd(r[3 * stride + a], r[2 * stride + a], r[stride + a], r[a]);
+      finite = _mm256_and_pd(finite, _mm256_cmp_pd(_mm256_sub_pd(c, c), zero, _CMP_EQ_OQ));
+      const __m256d t = _mm256_mul_pd(vrf, _mm256_cvtps_pd(_mm256_cvtpd_ps(c)));
+      const __m256d ok = _mm256_cmp_pd(_mm256_and_pd(t, abs_mask), limit, _CMP_LT_OQ);
+      const __m256d tc = _mm256_and_pd(t, ok);  // 0 where out of range (never used there)
+      const __m256d fl = _mm256_floor_pd(tc);   // = int(t) - (int(t) > t) for |t| < 1e9
+      const __m128i fli = _mm256_cvttpd_epi32(fl);
+      const __m128i kv = _mm_add_epi32(fli, max_val);
+      const __m128i ok32 = _mm256_cvtpd_epi32(_mm256_and_pd(ok, _mm256_set1_pd(-1.0)));
+      const __m128i in_range =
+          _mm_andnot_si128(_mm_cmpgt_epi32(_mm_setzero_si128(), kv), _mm_cmpgt_epi32(key_end, kv));
+      inside = _mm_and_si128(inside, _mm_and_si128(in_range, ok32));
+      const __m256d frac = _mm256_sub_pd(tc, fl);
+      const __m128i sa = _mm_min_epi32(km1, _mm256_cvttpd_epi32(_mm256_mul_pd(frac, vkd)));
+      const __m256d dc =
+          _mm256_sub_pd(frac, _mm256_mul_pd(_mm256_add_pd(_mm256_cvtepi32_pd(sa), half), vinv));
+      d2 = _mm256_add_pd(d2, _mm256_mul_pd(dc, dc));
+      sub = _mm_add_epi32(_mm_mullo_epi32(sub, vk), sa);
+      _mm_storeu_si128(reinterpret_cast<__m128i*>(out.key[a] + i), kv);
+    }
+    _mm_storeu_si128(reinterpret_cast<__m128i*>(out.sub + i), sub);
+    _mm256_storeu_pd(out.d2 + i, d2);
+    const int fin = _mm256_movemask_pd(finite);
+    const int ins = _mm_movemask_ps(_mm_castsi128_ps(inside));
+    for (int l = 0; l < 4; ++l)
+      out.state[i + std::size_t(l)] = (fin >> l & 1) ? std::uint8_t(ins >> l & 1) : std::uint8_t(2);
+  }
+  end_cells_scalar(rows, stride, i, n, rf, k, out);
+}
+
+}  // namespace
+
+void end_cells(const double* rows, std::size_t stride, std::size_t n, double rf, int k,
+               const EndCellBlock& out, bool simd) {
+  static const bool avx2 = __builtin_cpu_supports("avx2");
+  if (simd && avx2)
+    end_cells_avx2(rows, stride, n, rf, k, out);
+  else
+    end_cells_scalar(rows, stride, 0, n, rf, k, out);
+}
+
+}  // namespace detail
+
 std::vector<std::vector<OccupancyMap::EndPoint>> OccupancyMap::collect_end_points(
     const octomap::point3d& o, const PointsRef& hits, const PointsRef& free_ends,
     double max_range) const {
   // Per ray (parallel over fixed chunks): its end point (cut at max_range as OctoMap does), the
   // end cell's key (OctoMap's coordToKeyChecked: floor(resolution_factor * c) + 32768) and the
-  // sub-cell of the end point. Consecutive rays ending in the same sub-cell (neighbouring
-  // pixels) merge on the fly into one candidate.
+  // sub-cell of the end point, for a chunk's rays at once (detail::end_cells). Then, in ray
+  // order, consecutive rays ending in the same sub-cell (neighbouring pixels) merge into one
+  // candidate.
   const std::size_t nh = std::size_t(hits.rows()), n = nh + std::size_t(free_ends.rows());
   const bool cut = std::isfinite(max_range);
   const bool dedup = opt_.deduplicate_end_points;
   const int k = dedup ? opt_.end_point_subdivision : 1;
   const double rf = 1.0 / res_;  // OctoMap's resolution_factor
-  const double kd = k, inv_k = 1.0 / k;
   const std::size_t chunk = 4096, nchunks = (n + chunk - 1) / chunk;
   std::vector<std::vector<EndPoint>> out(nchunks);
   std::atomic<int> non_finite{0};  // 1: a hit, 2: a free end is NaN or infinite
   parallel_chunks(nchunks, 1, [&](std::size_t cb, std::size_t ce) {
+    std::vector<std::int32_t> keys(3 * chunk), subs(chunk);
+    std::vector<double> d2s(chunk), cut_rows(cut ? 3 * chunk : 0);
+    std::vector<std::uint8_t> states(chunk), cut_flags(cut ? chunk : 0);
+    const detail::EndCellBlock block{{keys.data(), keys.data() + chunk, keys.data() + 2 * chunk},
+                                     subs.data(),
+                                     d2s.data(),
+                                     states.data()};
     for (std::size_t c = cb; c < ce; ++c) {
       std::vector<EndPoint>& cands = out[c];
       cands.reserve(dedup ? 1024 : chunk);
-      for (std::size_t r = c * chunk, e = std::min(n, (c + 1) * chunk); r < e; ++r) {
-        const bool is_hit = r < nh;
-        const auto row = is_hit ? hits.row(Eigen::Index(r)) : free_ends.row(Eigen::Index(r - nh));
-        if (!(std::isfinite(row(0)) && std::isfinite(row(1)) && std::isfinite(row(2)))) {
-          non_finite.store(is_hit ? 1 : 2, std::memory_order_relaxed);
-          continue;
-        }
-        octomap::point3d p = row_point3d(row);
-        std::uint8_t flag = is_hit ? kHitFlag : kFreeEndFlag;
-        if (cut && (p - o).norm() > max_range) {  // OctoMap's maxrange rule (computeUpdate)
-          const octomap::point3d dir = (p - o).normalized();
-          p = o + dir * float(max_range);
-          flag = 0;  // the ray clears the cells before its cut end, nothing else
-        }
-        Key key;
-        int sub = 0;
-        double d2 = 0;
-        bool inside = true;
-        for (int a = 2; a >= 0; --a) {
-          const double t = rf * double(p(a));
-          if (!(std::fabs(t) < 1e9)) {
-            inside = false;
-            break;
+      const std::size_t b = c * chunk, e = std::min(n, (c + 1) * chunk);
+      // the chunk's rays in each of the two arrays it may span, hits first
+      for (int part = 0; part < 2; ++part) {
+        const bool is_hit = part == 0;
+        const PointsRef& pts = is_hit ? hits : free_ends;
+        const std::size_t off = is_hit ? 0 : nh, stop = is_hit ? nh : n;
+        if (std::min(e, stop) <= std::max(b, off)) continue;
+        const std::size_t r0 = std::max(b, off) - off, m = std::min(e, stop) - off - r0;
+        const std::uint8_t flag = is_hit ? kHitFlag : kFreeEndFlag;
+        const double* rows = pts.data() + std::ptrdiff_t(r0) * pts.outerStride();
+        std::size_t stride = std::size_t(pts.outerStride());
+        if (cut) {  // OctoMap's maxrange rule (computeUpdate), in float
+          for (std::size_t i = 0; i < m; ++i) {
+            const auto row = pts.row(Eigen::Index(r0 + i));
+            octomap::point3d p = row_point3d(row);
+            cut_flags[i] = flag;
+            if (row.allFinite() && (p - o).norm() > max_range) {
+              p = o + (p - o).normalized() * float(max_range);
+              cut_flags[i] = 0;  // the ray clears the cells before its cut end, nothing else
+            }
+            for (int a = 0; a < 3; ++a) {     // a non-finite row stays so (end_cells flags it);
+              const double v = double(p(a));  // a float overflow is beyond OctoMap's range
+              cut_rows[3 * i + std::size_t(a)] = !std::isfinite(row(a)) ? row(a)
+                                                 : std::isfinite(v)     ? v
+                                                                        : 1e300;
+            }
           }
-          int fl = int(t);
-          fl -= double(fl) > t;  // floor, without a libm call
-          const int kv = fl + kTreeMaxVal;
-          if (kv < 0 || kv >= 2 * kTreeMaxVal) {
-            inside = false;
-            break;
-          }
-          key[a] = octomap::key_type(kv);
-          const double frac = t - fl;  // position within the cell, [0, 1)
-          const int sa = std::min(k - 1, int(frac * kd));
-          const double dc = frac - (sa + 0.5) * inv_k;
-          d2 += dc * dc;
-          sub = sub * k + sa;
+          rows = cut_rows.data();
+          stride = 3;
         }
-        if (!inside) continue;  // OctoMap skips rays whose end it cannot address
-        if (dedup && !cands.empty() && cands.back().key == key && cands.back().sub == sub) {
-          EndPoint& cd = cands.back();
-          if (float(d2) < cd.d2) {
-            cd.d2 = float(d2);
-            cd.rep = p;
+        detail::end_cells(rows, stride, m, rf, k, block);
+        for (std::size_t i = 0; i < m; ++i) {
+          if (states[i] != 1) {
+            if (states[i] == 2) non_finite.store(is_hit ? 1 : 2, std::memory_order_relaxed);
+            continue;  // OctoMap skips rays whose end it cannot address
           }
-          cd.flags |= flag;
-        } else {
-          cands.push_back(EndPoint{p, float(d2), key, std::uint16_t(sub), flag});
+          const std::int32_t sub = subs[i];
+          const float d2 = float(d2s[i]);
+          const std::uint8_t f = cut ? cut_flags[i] : flag;
+          Key key;
+          for (int a = 0; a < 3; ++a) key[a] = octomap::key_type(keys[std::size_t(a) * chunk + i]);
+          const double* r = rows + i * stride;
+          const octomap::point3d p{float(r[0]), float(r[1]), float(r[2])};
+          if (dedup && !cands.empty() && cands.back().key == key && cands.back().sub == sub) {
+            EndPoint& cd = cands.back();
+            if (d2 < cd.d2) {
+              cd.d2 = d2;
+              cd.rep = p;
+            }
+            cd.flags |= f;
+          } else {
+            cands.push_back(EndPoint{p, d2, key, std::uint16_t(sub), f});
+          }
         }
       }
     }

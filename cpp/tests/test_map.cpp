@@ -6,6 +6,7 @@
 
 #include <cerrno>
 #include <cmath>
+#include <cstring>
 #include <filesystem>
 #include <random>
 #include <set>
@@ -267,6 +268,124 @@ TEST(MapUpdate, BatchedUpdateBuildsTheSameOctreeAsUpdateNode) {
   for (auto it = fast.octree().begin_leafs(); it != fast.octree().end_leafs(); ++it)
     coarse += it.getDepth() < 16;
   EXPECT_GT(coarse, 0u);
+}
+
+TEST(MapKeys, EndCellsFourAtATimeAreOneAtATimesToTheBit) {
+  // integrate's first step finds the end points' cells four rays at a time (AVX2 where the CPU
+  // has it): keys, sub-cells, distances and states must be those found one ray at a time, on
+  // points on cell and sub-cell boundaries, at +-0, beyond OctoMap's addressable range, beyond a
+  // float, not finite, in rows 4 doubles apart, a count not a multiple of four, k = 1 to 4.
+  std::mt19937 rng(17);
+  std::normal_distribution<double> g(0.0, 20.0);
+  std::uniform_int_distribution<int> cell(-400, 400), pick(0, 11);
+  const std::size_t n = 4099;
+  std::vector<double> rows(4 * n);
+  for (std::size_t i = 0; i < n; ++i)
+    for (int a = 0; a < 3; ++a) {
+      double& c = rows[4 * i + std::size_t(a)];
+      switch (pick(rng)) {
+        case 0:
+          c = cell(rng) * 0.2;
+          break;  // cell boundaries (0.2 m cells)
+        case 1:
+          c = cell(rng) * 0.05;
+          break;  // sub-cell boundaries, k = 2 and 4
+        case 2:
+          c = i % 2 ? -0.0 : 0.0;
+          break;
+        case 3:
+          c = (i % 2 ? -1 : 1) * 6553.7;
+          break;  // just beyond the addressable range
+        case 4:
+          c = i % 3 ? 1e39 : -1e300;
+          break;  // beyond a float
+        case 5:
+          c = i % 5 ? std::numeric_limits<double>::quiet_NaN() : -INFINITY;
+          break;
+        default:
+          c = g(rng);
+      }
+    }
+  for (int k = 1; k <= 4; ++k) {
+    std::vector<std::int32_t> key[2], sub[2];
+    std::vector<double> d2[2];
+    std::vector<std::uint8_t> state[2];
+    for (int simd = 0; simd < 2; ++simd) {
+      key[simd].assign(3 * n, -7);
+      sub[simd].assign(n, -7);
+      d2[simd].assign(n, -1.0);
+      state[simd].assign(n, 9);
+      const nbv::detail::EndCellBlock out{
+          {key[simd].data(), key[simd].data() + n, key[simd].data() + 2 * n},
+          sub[simd].data(),
+          d2[simd].data(),
+          state[simd].data()};
+      nbv::detail::end_cells(rows.data(), 4, n, 1.0 / 0.2, k, out, simd == 1);
+    }
+    std::size_t kinds[3] = {0, 0, 0};
+    for (std::size_t i = 0; i < n; ++i) {
+      ASSERT_EQ(state[0][i], state[1][i]) << "k " << k << " row " << i;
+      ASSERT_LE(state[0][i], 2);
+      ++kinds[state[0][i]];
+      if (state[0][i] != 1) continue;  // keys of rays that are skipped are not read
+      for (int a = 0; a < 3; ++a) ASSERT_EQ(key[0][a * n + i], key[1][a * n + i]) << i;
+      ASSERT_EQ(sub[0][i], sub[1][i]) << i;
+      ASSERT_LT(sub[0][i], k * k * k);
+      ASSERT_EQ(std::memcmp(&d2[0][i], &d2[1][i], sizeof(double)), 0) << i;
+    }
+    EXPECT_GT(kinds[0], 100u);  // every state is exercised
+    EXPECT_GT(kinds[1], 1000u);
+    EXPECT_GT(kinds[2], 100u);
+  }
+}
+
+TEST(MapUpdate, ACutNoRayReachesBuildsTheSameMap) {
+  // With a range cut the end points go through the cut first (in float, as OctoMap's
+  // computeUpdate), then the same key step: a cut no ray reaches must build the same map as no
+  // cut, over more rays than a chunk holds (4,096, the hits ending inside a chunk), with points
+  // on cell boundaries and beyond OctoMap's addressable range, rows 4 doubles apart.
+  OccupancyMapOptions unclipped;
+  unclipped.clip_to_workspace = false;
+  OccupancyMap no_cut(0.2, {-3, -3, -3}, {3, 3, 3}, unclipped),
+      cut(0.2, {-3, -3, -3}, {3, 3, 3}, unclipped);
+  std::mt19937 rng(19);
+  std::normal_distribution<double> g(0.0, 2.0);
+  std::uniform_int_distribution<int> cell(-40, 40), pick(0, 9);
+  for (int s = 0; s < 12; ++s) {
+    const Eigen::Vector3d o(g(rng) * 0.3, g(rng) * 0.3, g(rng) * 0.3);
+    const Eigen::Index nh = 5003 + s, nf = 1499 + 2 * s;
+    Eigen::Matrix<double, Eigen::Dynamic, 4, Eigen::RowMajor> wide(nh, 4);
+    Points free_ends(nf, 3);
+    auto point = [&](Eigen::Index r) {
+      Eigen::RowVector3d p(g(rng), g(rng), g(rng));
+      const int kind = pick(rng);
+      if (kind == 0) p << cell(rng) * 0.2, cell(rng) * 0.1, cell(rng) * 0.05;  // boundaries
+      if (kind == 1 && r % 7 == 0) p(r % 3) = (r % 2 ? -1 : 1) * 7000.0;       // not addressable
+      return p;
+    };
+    for (Eigen::Index r = 0; r < nh; ++r) wide.row(r) << point(r), 99.0;
+    for (Eigen::Index r = 0; r < nf; ++r) free_ends.row(r) = point(r);
+    const nbv::PointsRef hits(wide.leftCols<3>());  // rows 4 doubles apart
+    ASSERT_EQ(hits.outerStride(), 4);
+    const auto a = no_cut.integrate(o, hits, free_ends, std::numeric_limits<double>::infinity());
+    const auto b = cut.integrate(o, hits, free_ends, 1e8);
+    ASSERT_EQ(a.traced_rays, b.traced_rays) << "scan " << s;
+    ASSERT_EQ(a.free_cells, b.free_cells) << "scan " << s;
+    ASSERT_EQ(a.occupied_cells, b.occupied_cells) << "scan " << s;
+    ASSERT_TRUE(no_cut.octree() == cut.octree()) << "scan " << s;
+  }
+  EXPECT_EQ(no_cut.total_entropy(), cut.total_entropy());
+  // a non-finite end point is refused either way, naming the array it is in
+  Points bad = rows({{1, 1, 1}, {1, 2, 1}, {1, 3, 1}, {1, 4, 1}, {1, 5, 1}});
+  bad(3, 1) = std::numeric_limits<double>::quiet_NaN();
+  for (double max_range : {std::numeric_limits<double>::infinity(), 1e8}) {
+    try {
+      cut.integrate({0, 0, 0}, kNone, bad, max_range);
+      FAIL() << "a NaN free end was integrated";
+    } catch (const std::invalid_argument& e) {
+      EXPECT_NE(std::string(e.what()).find("free-space ray ends"), std::string::npos);
+    }
+  }
 }
 
 TEST(MapUpdate, PredictionIsDiscardedByObservation) {

@@ -387,4 +387,21 @@ bool OccupancyMap::walk_ray_keys(const octomap::OcTree& tree, const octomap::poi
   return true;
 }
 
+namespace detail {
+/// Where ray end points fall, OccupancyMap::integrate's first step: for n rows of `rows` (3
+/// doubles each, `stride` doubles apart) each end cell's key along each axis (OctoMap's
+/// coordToKeyChecked of the point in float: floor(rf * c) + 32768), its sub-cell among k^3 and
+/// its squared distance to the sub-cell's centre (cell units), and its state: 1 addressable, 0
+/// beyond OctoMap's range, 2 not finite. simd: four rows at a time in AVX2 lanes where the CPU
+/// has them (the same numbers to the bit); false: one at a time.
+struct EndCellBlock {
+  std::int32_t* key[3];  // per axis, n keys
+  std::int32_t* sub;
+  double* d2;
+  std::uint8_t* state;
+};
+void end_cells(const double* rows, std::size_t stride, std::size_t n, double rf, int k,
+               const EndCellBlock& out, bool simd = true);
+}  // namespace detail
+
 }  // namespace nbv
