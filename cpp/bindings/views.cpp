@@ -117,6 +117,18 @@ void def_cell_arrays(Class& cls, Get get) {
           "(N,) uint16 camera hits in each cell (surface= given), else None");
 }
 
+/// A collision sphere's radius as the navigation calls take it: ValueError unless finite, >= 0.
+void check_radius(double r) {
+  if (!(r >= 0) || !std::isfinite(r)) throw py::value_error("radius must be finite and >= 0");
+}
+
+/// A path's waypoints as (P, 3) rows.
+Points path_rows(const std::vector<Eigen::Vector3d>& path) {
+  Points out(static_cast<Eigen::Index>(path.size()), 3);
+  for (std::size_t i = 0; i < path.size(); ++i) out.row(static_cast<Eigen::Index>(i)) = path[i];
+  return out;
+}
+
 }  // namespace
 
 void init_views(py::module_& m) {
@@ -438,7 +450,7 @@ ValueError for a bad shape, non-finite values or bad options.)doc");
       "sphere_is_free",
       [](const OccupancyMap& map, const py::handle& c, double r) {
         const Eigen::Vector3d p = vec3_arg(c, "centre");
-        if (!(r >= 0) || !std::isfinite(r)) throw py::value_error("radius must be finite and >= 0");
+        check_radius(r);
         Reading lock(map);
         return sphere_is_free(grid_view(map), p, r);
       },
@@ -448,7 +460,7 @@ ValueError for a bad shape, non-finite values or bad options.)doc");
       "spheres_are_free",
       [](const OccupancyMap& map, const py::handle& c, double r) {
         const PointsArg centres = points_arg(c, "centres");
-        if (!(r >= 0) || !std::isfinite(r)) throw py::value_error("radius must be finite and >= 0");
+        check_radius(r);
         const auto pts = centres.map();
         py::array_t<bool> out(static_cast<py::ssize_t>(pts.rows()));
         auto o = out.mutable_unchecked<1>();
@@ -464,7 +476,7 @@ ValueError for a bad shape, non-finite values or bad options.)doc");
       "segment_is_free",
       [](const OccupancyMap& map, const py::handle& a, const py::handle& b, double r) {
         const Eigen::Vector3d pa = vec3_arg(a, "segment start"), pb = vec3_arg(b, "segment end");
-        if (!(r >= 0) || !std::isfinite(r)) throw py::value_error("radius must be finite and >= 0");
+        check_radius(r);
         Reading lock(map);
         return segment_is_free(grid_view(map), pa, pb, r);
       },
@@ -475,17 +487,14 @@ ValueError for a bad shape, non-finite values or bad options.)doc");
       [](const OccupancyMap& map, const py::handle& a, const py::handle& b, double r,
          std::size_t max_expansions, bool reference) {
         const Eigen::Vector3d pa = vec3_arg(a, "path start"), pb = vec3_arg(b, "path end");
-        if (!(r >= 0) || !std::isfinite(r)) throw py::value_error("radius must be finite and >= 0");
+        check_radius(r);
         std::vector<Eigen::Vector3d> path;
         {
           Reading lock(map);
           path = reference ? plan_path_reference(grid_view(map), pa, pb, r, max_expansions)
                            : plan_path(grid_view(map), pa, pb, r, max_expansions);
         }
-        Points out(static_cast<Eigen::Index>(path.size()), 3);
-        for (std::size_t i = 0; i < path.size(); ++i)
-          out.row(static_cast<Eigen::Index>(i)) = path[i];
-        return out;
+        return path_rows(path);
       },
       py::arg("map"), py::arg("a"), py::arg("b"), py::arg("radius"),
       py::arg("max_expansions") = kDefaultPathExpansions, py::arg("reference") = false,
@@ -519,16 +528,14 @@ One A* search of search_path: its path, and why it found none (read `capped`).)d
       [](const OccupancyMap& map, const py::handle& a, const py::handle& b, double r,
          std::size_t max_expansions) {
         const Eigen::Vector3d pa = vec3_arg(a, "path start"), pb = vec3_arg(b, "path end");
-        if (!(r >= 0) || !std::isfinite(r)) throw py::value_error("radius must be finite and >= 0");
+        check_radius(r);
         PathSearch out;
         std::vector<Eigen::Vector3d> path;
         {
           Reading lock(map);
           path = plan_path(grid_view(map), pa, pb, r, max_expansions, &out.stats);
         }
-        out.path.resize(static_cast<Eigen::Index>(path.size()), 3);
-        for (std::size_t i = 0; i < path.size(); ++i)
-          out.path.row(static_cast<Eigen::Index>(i)) = path[i];
+        out.path = path_rows(path);
         return out;
       },
       py::arg("map"), py::arg("a"), py::arg("b"), py::arg("radius"),
@@ -541,8 +548,7 @@ The cells plan_path can reach from `start` through known free space (collision s
 planning step instead of searching a path to each.)doc")
       .def(py::init([](const OccupancyMap& map, const py::handle& a, double r) {
              const Eigen::Vector3d pa = vec3_arg(a, "start");
-             if (!(r >= 0) || !std::isfinite(r))
-               throw py::value_error("radius must be finite and >= 0");
+             check_radius(r);
              Reading lock(map);
              return FreeComponent(grid_view(map), pa, r);
            }),
