@@ -6,8 +6,10 @@ start 0).
 
     .venv/bin/python bench/bench_mission.py --against /tmp/before --rounds 2
     .venv/bin/python bench/bench_mission.py --mesh M --set scenario=5 start=1
+    .venv/bin/python bench/bench_mission.py --mesh M --against-set planner.frame_novelty=0
 
-DIR is another checkout (DIR/python) or a saved copy of a built package (its folder's parent).
+DIR is another checkout (DIR/python) or a saved copy of a built package (its folder's parent);
+--against-set flies this checkout again with more overrides (a setting against its default).
 """
 from __future__ import annotations
 
@@ -37,10 +39,16 @@ STAGES = ("sampling", "sensing", "mapping", "selection")
 def main() -> None:
     ap = mesh_parser(__doc__)
     ap.add_argument("--against", help="another checkout (or saved package) to fly, alternating")
+    ap.add_argument(
+        "--against-set", nargs="*", default=[], help="or this checkout with these overrides too"
+    )
     ap.add_argument("--rounds", type=int, default=1, help="missions each way (default 1)")
     ap.add_argument("--set", nargs="*", default=[], help="config overrides for every mission")
     a = ap.parse_args()
-    runs = {label: [] for label, _ in checkouts(a.against)}
+    arms = [(label, package, []) for label, package in checkouts(a.against)]
+    if a.against_set:
+        arms.append(("with " + " ".join(a.against_set), None, a.against_set))
+    runs = {label: [] for label, _, _ in arms}
     table_header(
         "views",
         "ms per view: " + ", ".join(STAGES),
@@ -51,8 +59,8 @@ def main() -> None:
         "digest",
     )
     for _ in range(a.rounds):
-        for label, package in checkouts(a.against):
-            r = run_snippet(FLY_SNIPPET, [a.mesh or "", *a.set], package)
+        for label, package, extra in arms:
+            r = run_snippet(FLY_SNIPPET, [a.mesh or "", *a.set, *extra], package)
             runs[label].append(r)
             ms = ", ".join(f"{r['stages'].get(s, 0.0):.1f}" for s in STAGES)
             print(
@@ -64,8 +72,11 @@ def main() -> None:
     if len(runs) == 2:
         (la, ra), (lb, rb) = runs.items()
         same = len({r["digest"] for rr in runs.values() for r in rr}) == 1
-        for stage in ("sampling", "wall_s"):
-            get = (lambda r: r["wall_s"]) if stage == "wall_s" else (lambda r: r["stages"][stage])
+        for stage in ("sampling", "view", "wall_s"):
+            get = {
+                "wall_s": lambda r: r["wall_s"],
+                "view": lambda r: sum(r["stages"].get(s, 0.0) for s in STAGES),
+            }.get(stage, lambda r: r["stages"][stage])
             best_a, best_b = min(map(get, ra)), min(map(get, rb))
             print(f"{stage}: best {best_a:.2f} against {best_b:.2f} -> {best_b / best_a:.2f}x")
         print(f"the same flight in every mission: {same}")

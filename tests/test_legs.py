@@ -167,3 +167,66 @@ def test_a_bad_frame_stride_is_refused_naming_the_key(bad):
 
     with pytest.raises(ValueError, match="camera.frame_stride"):
         load_config(overrides=[f"camera.frame_stride={bad}"])
+
+
+def test_novelty_is_the_share_of_a_preview_the_record_lacks():
+    from nbvkit.config import Config
+    from nbvkit.world import World
+
+    c = Config().with_overrides(["map.resolution=0.4", "progress=false"])
+    w = World(c, mesh=box_mesh([-3, -3, 0], [3, 3, 5]))
+    here = np.array([-7.0, 0.0, 2.5, 0.0, 0.0])  # facing the box's -x face from 4 m
+    across = np.array([7.0, 0.0, 2.5, math.pi, 0.0])  # its +x face
+    preview = w.preview_camera.scan_pose(here)
+    assert preview.depth.shape == (60, 80)
+    assert w.novelty(here) == 1.0  # nothing seen yet: every hit is new
+    w.fly_to(here, "nbv")
+    w.sense("frame")
+    assert w.novelty(here) < 0.01  # the frame saw what its preview would
+    assert w.novelty(across) > 0.99  # the other face: never seen
+    assert w.state.views == 0 and len(w.camera_cloud) > 0  # novelty integrates nothing
+    n = len(w.camera_cloud)
+    w.novelty(across)
+    assert len(w.camera_cloud) == n
+
+
+def test_a_legs_frames_are_skipped_where_their_previews_find_too_little_new():
+    from types import SimpleNamespace
+
+    from nbvkit.planning.legs import fly_leg
+    from nbvkit.timing import StageTimers
+
+    w = seen_box_world()
+    start = w.state.pose.copy()
+    there = start.copy()
+    there[1] += 3.0  # 3 m sideways along the face the view saw: frames at 1 and 2 m
+    choice = SimpleNamespace(pose=there, path=None)
+    flown, _ = fly_leg(w, choice, 1.0, 0.5, StageTimers())  # half of a preview new: none is
+    assert flown == pytest.approx(3.0) and w.state.frames_skipped == 2
+    assert not any(row[6] == "frame" for row in w.state.flight)
+    flown, _ = fly_leg(w, SimpleNamespace(pose=start, path=None), 1.0, 0.0, StageTimers())
+    assert w.state.frames_skipped == 2  # novelty 0: every frame taken, none previewed
+    assert sum(row[6] == "frame" for row in w.state.flight) == 2
+
+
+def test_a_mission_reports_the_leg_frames_it_skipped(tmp_path):
+    import json
+
+    from nbvkit.config import Config
+    from nbvkit.mission import Mission
+
+    fast = ["map.resolution=0.4", "progress=false", "evaluation.gt_density=100"]
+    c = Config().with_overrides(fast + ["max_iterations=6", "planner.frame_step=0.5"])
+    Mission(c.with_overrides(["planner.frame_novelty=0.05"])).run(tmp_path / "skip")
+    s = json.loads((tmp_path / "skip" / "summary.json").read_text())
+    assert s["frames_skipped"] > 0 and s["camera_frames"] > s["profile"]["camera_frames"]
+    Mission(c).run(tmp_path / "all")
+    assert json.loads((tmp_path / "all" / "summary.json").read_text())["frames_skipped"] == 0
+
+
+@pytest.mark.parametrize("bad", ["-0.1", "1.5", "nan"])
+def test_a_bad_frame_novelty_is_refused_naming_the_key(bad):
+    from nbvkit.config import load_config
+
+    with pytest.raises(ValueError, match="planner.frame_novelty"):
+        load_config(overrides=[f"planner.frame_novelty={bad}"])

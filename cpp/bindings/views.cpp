@@ -208,6 +208,20 @@ surface utility credits no view for a saturated cell and surface_targets leaves 
             return s.add_scan(o, hm);
           },
           py::arg("origin"), py::arg("hits"), "add_scan from an origin (3,) and hits (N, 3).")
+      .def(
+          "novel_hits",
+          [](const SurfaceObservations& s, const py::handle& origin, const py::handle& hits,
+             double cone_deg) {
+            const Eigen::Vector3d o = vec3_arg(origin, "origin");
+            auto h = points_arg(hits, "hits");
+            auto hm = h.map();
+            Reading lock(s);
+            return s.novel_hits(o, hm, cone_deg);
+          },
+          py::arg("origin"), py::arg("hits"), py::arg("cone_deg"),
+          "How many of the hits (N, 3) seen from origin (3,) would add to the record: in a cell "
+          "whose side facing the sensor (no direction bin within cone_deg of theirs) is unseen, "
+          "or marking a square no earlier hit marked. Reads only (a preview of a frame).")
       .def("clear",
            [](SurfaceObservations& s) {
              Writing lock(s);

@@ -90,39 +90,56 @@ void SurfaceObservations::allocate(const std::vector<std::int64_t>& cells) {
   }
 }
 
+std::int64_t SurfaceObservations::key_hit(const PointsRef& hits, Eigen::Index row,
+                                          std::uint64_t& patch) const {
+  const double rf = 1.0 / res_;  // the map's keys: OctoMap's floor(c / res) of float32 points
+  int k[3], q[3];
+  for (int a = 0; a < 3; ++a) {
+    const double t = rf * double(float(hits(row, a)));
+    const double f = std::floor(t);
+    if (!(std::fabs(f) < 1e9)) return -1;
+    k[a] = int(f) + 32768 - min_key_[a];
+    q[a] = std::min(3, int((t - f) * 4.0));  // the quarter of the cell along a
+    if (unsigned(k[a]) >= unsigned(dims_[a])) return -1;
+  }
+  patch = std::uint64_t(1) << (4 * q[1] + q[2]) |       // seen along x
+          std::uint64_t(1) << (16 + 4 * q[0] + q[2]) |  // along y
+          std::uint64_t(1) << (32 + 4 * q[0] + q[1]);   // along z
+  return std::int64_t(layout_.id(k[0], k[1], k[2]));
+}
+
+std::size_t SurfaceObservations::novel_hits(const Eigen::Vector3d& origin, const PointsRef& hits,
+                                            double cone_deg) const {
+  if (!origin.allFinite())
+    throw std::invalid_argument("scan origin contains NaN or infinite values");
+  require_finite(hits, "hit points");
+  std::array<std::uint32_t, 26> cone;
+  for (int b = 0; b < 26; ++b) cone[std::size_t(b)] = bin_cone(b, cone_deg);
+  std::size_t novel = 0;
+  for (Eigen::Index r = 0; r < hits.rows(); ++r) {
+    std::uint64_t patch = 0;
+    const std::int64_t cell = key_hit(hits, r, patch);
+    if (cell < 0) continue;
+    const std::size_t at = slot(std::size_t(cell));
+    const int bin = direction_bin(origin - hits.row(r).transpose());
+    novel += (seen_pool_[at] & cone[std::size_t(bin)]) == 0 || (patches_pool_[at] & patch) != patch;
+  }
+  return novel;
+}
+
 std::size_t SurfaceObservations::add_scan(const Eigen::Vector3d& origin, const PointsRef& hits) {
   if (!origin.allFinite())
     throw std::invalid_argument("scan origin contains NaN or infinite values");
   require_finite(hits, "hit points");
   const std::size_t n = std::size_t(hits.rows());
-  const double rf = 1.0 / res_;  // the map's keys: OctoMap's floor(c / res) of float32 points
   // the hits' cells (grid ids, -1 outside the workspace) and patch bits, in parallel; then their
   // bricks' blocks
   std::vector<std::int64_t> cells(n, -1);
   std::vector<std::uint64_t> patch(n, 0);
   const std::size_t chunk = 8192;
   parallel_chunks((n + chunk - 1) / chunk, 1, [&](std::size_t cb, std::size_t ce) {
-    for (std::size_t r = cb * chunk, e = std::min(n, ce * chunk); r < e; ++r) {
-      const Eigen::Index row = Eigen::Index(r);
-      int k[3], q[3];
-      bool inside = true;
-      for (int a = 0; a < 3; ++a) {
-        const double t = rf * double(float(hits(row, a)));
-        const double f = std::floor(t);
-        if (!(std::fabs(f) < 1e9)) {
-          inside = false;
-          break;
-        }
-        k[a] = int(f) + 32768 - min_key_[a];
-        q[a] = std::min(3, int((t - f) * 4.0));  // the quarter of the cell along a
-        inside &= unsigned(k[a]) < unsigned(dims_[a]);
-      }
-      if (!inside) continue;
-      cells[r] = std::int64_t(layout_.id(k[0], k[1], k[2]));
-      patch[r] = std::uint64_t(1) << (4 * q[1] + q[2]) |       // seen along x
-                 std::uint64_t(1) << (16 + 4 * q[0] + q[2]) |  // along y
-                 std::uint64_t(1) << (32 + 4 * q[0] + q[1]);   // along z
-    }
+    for (std::size_t r = cb * chunk, e = std::min(n, ce * chunk); r < e; ++r)
+      cells[r] = key_hit(hits, Eigen::Index(r), patch[r]);
   });
   allocate(cells);
   const bool saturating = saturation_hits_ > 0;

@@ -556,6 +556,50 @@ TEST(Exploration, SurfaceTargetsPassOverOnlyBricksWithNoSolidCellNear) {
   EXPECT_GT(total, 1000u);
 }
 
+TEST(SurfaceObservations, NovelHitsAreThoseTheRecordLacks) {
+  // A plate of hits at z = 2.03 seen from above, recorded: the same hits are not novel again,
+  // nor seen from a little aside (the same side within the cone); seen from below (the other
+  // side), in cells never seen, or in a square of a seen cell no hit marked, they are. Hits
+  // outside the workspace never are. After any scan is recorded, none of its hits is novel.
+  OccupancyMap m(0.2, {0, 0, 0}, {4, 4, 4});
+  SurfaceObservations seen(m);
+  std::mt19937 rng(5);
+  std::uniform_real_distribution<double> u(1.6, 2.4);  // seen along z from above and below
+  Points plate(500, 3);
+  for (int r = 0; r < 500; ++r) plate.row(r) << u(rng), u(rng), 2.03;
+  const Eigen::Vector3d above(2, 2, 3.9), aside(2.4, 1.8, 3.9), below(2, 2, 0.1);
+  EXPECT_EQ(seen.novel_hits(above, plate, 75.0), 500u);  // an empty record lacks everything
+  seen.add_scan(above, plate);
+  EXPECT_EQ(seen.novel_hits(above, plate, 75.0), 0u);
+  EXPECT_EQ(seen.novel_hits(aside, plate, 75.0), 0u);
+  EXPECT_EQ(seen.novel_hits(below, plate, 75.0), 500u);
+  Points beyond = plate;
+  beyond.col(2).setConstant(1.03);  // the cells one layer down: never seen
+  EXPECT_EQ(seen.novel_hits(above, beyond, 75.0), 500u);
+  Points outside = plate;
+  outside.col(0).array() += 10.0;
+  EXPECT_EQ(seen.novel_hits(above, outside, 75.0), 0u);
+  // one cell, one hit in its first quarter on every axis: a hit in the same squares is not
+  // novel, one a quarter over along x is (it marks new squares in two projections)
+  SurfaceObservations one(m);
+  Points a(1, 3), same(1, 3), over(1, 3);
+  a << 0.21, 0.21, 0.21;
+  same << 0.22, 0.23, 0.24;
+  over << 0.27, 0.21, 0.21;
+  one.add_scan(above, a);
+  EXPECT_EQ(one.novel_hits(above, same, 75.0), 0u);
+  EXPECT_EQ(one.novel_hits(above, over, 75.0), 1u);
+  for (int scan = 0; scan < 20; ++scan) {
+    const Points hits = random_points(rng, {4, 4, 4}, 200);
+    const Eigen::Vector3d o = random_points(rng, {4, 4, 4}, 1).row(0).transpose();
+    seen.add_scan(o, hits);
+    ASSERT_EQ(seen.novel_hits(o, hits, 75.0), 0u) << "scan " << scan;
+  }
+  Points bad = plate;
+  bad(3, 1) = std::nan("");
+  EXPECT_THROW(seen.novel_hits(above, bad, 75.0), std::invalid_argument);
+}
+
 TEST(Navigation, FastSearchGivesTheReferencePathOnRandomScenes) {
   // Known free tunnels of random radii through unknown space, occupied blobs in them: the fast
   // search must return plan_path_reference's path exactly, reachable or not (and FreeComponent

@@ -159,6 +159,8 @@ class Recorder:
             "views": world.state.views,
             # camera frames taken in flight: the profile's and those along the legs to views
             "camera_frames": sum(row[6] == "frame" for row in world.state.flight),
+            # leg frames whose previews found less than planner.frame_novelty new (not taken)
+            "frames_skipped": world.state.frames_skipped,
             "distance_m": world.state.distance_m,
             "entropy_initial": m.entropy_initial,
             "entropy_final": e_final,

@@ -150,6 +150,18 @@ def build_frame_camera(camera: CameraConfig, scene, seed: int):
     )
 
 
+#: A preview (World.novelty) takes 1 pixel in PREVIEW_STRIDE on each axis: 80 x 60 of 640 x 480.
+PREVIEW_STRIDE = 8
+
+
+def build_preview_camera(camera: CameraConfig, scene):
+    """The camera of a frame's preview (World.novelty): PREVIEW_STRIDE times fewer pixels on
+    each axis (at least one), the same field of view, range and mount, no noise."""
+    n = PREVIEW_STRIDE
+    w, h = max(1, camera.width // n), max(1, camera.height // n)
+    return build_camera(camera, scene, 0, width=w, height=h, noise_k=0.0)
+
+
 def build_laser(laser: LaserConfig, scene, seed: int) -> _core.LaserScanner:
     """The laser scanner of a laser section over `scene`, on its fixed mount."""
     mount = _core.mount_transform(laser.mount_xyz, *laser.mount_rpy_deg)

@@ -16,7 +16,13 @@ import numpy as np
 from . import _core
 from .limits import Bound, check_work
 from .mesh import default_mesh_path, load_mesh
-from .sensors import build_camera, build_frame_camera, build_laser, build_view_camera
+from .sensors import (
+    build_camera,
+    build_frame_camera,
+    build_laser,
+    build_preview_camera,
+    build_view_camera,
+)
 from .settings import cpp_section
 from .workspace import (
     is_large,
@@ -116,6 +122,7 @@ class VehicleState:
     pose: np.ndarray
     distance_m: float = 0.0
     views: int = 0  # counted views taken (in-flight frames are not counted)
+    frames_skipped: int = 0  # leg frames not taken: their previews found too little new
     trajectory: list = field(default_factory=list)
     flight: list = field(default_factory=list)
 
@@ -239,6 +246,7 @@ class World:
         self.scene = _core.RaycastScene(mesh)
         self.camera = build_camera(cfg.camera, self.scene, cfg.seed)
         self.frame_camera = build_frame_camera(cfg.camera, self.scene, cfg.seed + 2) or self.camera
+        self.preview_camera = build_preview_camera(cfg.camera, self.scene)
         self.laser = build_laser(cfg.laser, self.scene, cfg.seed + 1)
         self.starts = self._start_poses()
         start = np.array(cfg.start_pose, float) if cfg.start_pose is not None else None
@@ -356,6 +364,22 @@ class World:
             self.laser if kind == "laser" else self.frame_camera if kind == "frame" else self.camera
         )
         return sensor.scan_pose(self.state.pose if pose is None else pose)
+
+    def novelty(self, pose) -> float:
+        """The share of a coarse, noise-free preview of a camera frame from `pose`
+        (preview_camera) whose rays would add to what is known: hits the camera observations
+        lack (a side unseen within utility.coverage_cone_deg, or a square no hit has marked:
+        SurfaceObservations.novel_hits) and rays ending at max range in an unknown workspace
+        cell. Nothing is integrated."""
+        scan = self.preview_camera.scan_pose(pose)
+        cone = self.config.utility.coverage_cone_deg
+        novel = self.surface.novel_hits(scan.origin, scan.hits, cone)
+        ends = scan.free_ends
+        if len(ends):
+            ends = ends[np.asarray(self.map.in_workspace(ends), bool)]
+            novel += int(np.count_nonzero(self.map.state(ends) == -1))
+        rays = scan.depth.size
+        return novel / rays if rays else 0.0
 
     def integrate(self, scan, kind: str = "view") -> int:
         """Integrates a capture's Scan (see sense): into the map, and the camera cloud and

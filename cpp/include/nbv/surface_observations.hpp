@@ -53,6 +53,13 @@ class SurfaceObservations {
   /// the workspace are ignored. Parallel; throws std::invalid_argument for non-finite input.
   /// Returns the number of cells the camera saw for the first time.
   std::size_t add_scan(const Eigen::Vector3d& origin, const PointsRef& hits);
+  /// The hits (N, 3) seen from `origin` that would add to the record (read only): those in a
+  /// workspace cell not yet seen from a direction bin within cone_deg of theirs (the cell's side
+  /// facing the sensor unseen, as the surface utility's cone reads it) or that would mark a
+  /// square of the cell no earlier hit marked. Serial: for a few thousand hits (a coarse preview
+  /// of a frame). Throws std::invalid_argument for non-finite input.
+  std::size_t novel_hits(const Eigen::Vector3d& origin, const PointsRef& hits,
+                         double cone_deg) const;
   /// Forgets everything.
   void clear();
 
@@ -96,6 +103,9 @@ class SurfaceObservations {
   std::array<int, 3> dims_;
   GridLayout layout_;
   std::size_t slot(std::size_t i) const { return std::size_t(block_[i >> 6]) << 6 | (i & 63); }
+  /// Hit `row`'s cell (a grid id; -1 outside the workspace) and its squares' bits (`patch`: one
+  /// per projection along an axis, see patches).
+  std::int64_t key_hit(const PointsRef& hits, Eigen::Index row, std::uint64_t& patch) const;
   /// Gives every brick of `cells` (grid ids, -1 skipped) its block.
   void allocate(const std::vector<std::int64_t>& cells);
   std::vector<std::uint32_t> block_;         // per brick: its block (0: none yet)

@@ -48,14 +48,18 @@ def leg_pieces(start, target, path, step: float) -> list:
     return pieces
 
 
-def fly_leg(world, choice, step: float, timers) -> tuple:
+def fly_leg(world, choice, step: float, novelty: float, timers) -> tuple:
     """Flies to the chosen view, taking a camera frame every `step` metres on the way
-    (leg_pieces; each in the timers' motion, sensing and mapping stages); returns (the distance
-    flown, the surface cells the frames saw first)."""
+    (leg_pieces; each in the timers' motion, sensing and mapping stages) where its preview finds
+    at least the share `novelty` of its rays new (World.novelty; 0: every frame, unpreviewed);
+    returns (the distance flown, the surface cells the frames saw first)."""
     flown, cells = 0.0, 0
     pieces = leg_pieces(world.state.pose, choice.pose, choice.path, step)
     for pose, waypoints in pieces[:-1]:
         flown += timers.call("motion", world.fly_to, pose, "nbv", waypoints)
+        if novelty > 0 and timers.call("sensing", world.novelty, pose) < novelty:
+            world.state.frames_skipped += 1  # it would add (almost) nothing: not taken
+            continue
         scan = timers.call("sensing", world.scan, "frame")
         cells += timers.call("mapping", world.integrate, scan, "frame")
     return flown + timers.call("motion", world.fly_to, choice.pose, "nbv", pieces[-1][1]), cells

@@ -5,7 +5,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-from ..settings import Names, nonneg
+from ..settings import Names, nonneg, within
 from ..termination import viewable_cells
 from ..timing import StageTimers
 from .legs import fly_leg, retreat
@@ -27,6 +27,7 @@ class PlannerConfig:
     # its square root (parts.threshold_scale); the profiles of the 35 m airliners map 417-502 m^2
     reference_area: float = nonneg(400.0)  # m^2 of mapped surface below which thresholds shrink
     frame_step: float = nonneg(1.0)  # m flown between frames on a leg; 0: at views only (paper)
+    frame_novelty: float = within(0.0, 0.0, 1.0)  # new share a leg frame's preview needs; 0: all
 
     def check(self, key: str) -> None:
         from .registry import check_names
@@ -41,8 +42,7 @@ class Planner:
     planner.terminations name the parts, registry.py; each is built from its own section).
     ``hooks``: name -> hook(world, step), run after every view in order ("feedback": the
     generators that proposed the view learn of it, e.g. AGVS's scale); a mission adds its own
-    (the symmetry refresh, the recorder). ``timers``: each stage's wall time, taken around the
-    parts' calls."""
+    (the symmetry refresh, the recorder). ``timers``: each stage's time around the parts' calls."""
 
     def __init__(self, config):
         ctx = PlanningContext.of(config)
@@ -53,7 +53,7 @@ class Planner:
         c = config.camera
         fov = (c.hfov_deg, c.vfov_deg, c.min_range, c.max_range, ctx.resolution)
         self.c_view = viewable_cells(*fov, config.entropy.count_partial_cells)
-        self.frame_step = config.planner.frame_step
+        self.frames = (config.planner.frame_step, config.planner.frame_novelty)
         # legs through known free space: a vehicle a scan closed in on flies back out (retreat)
         self.radius = config.vehicle.collision_radius * (config.vehicle.blocked_path == "plan")
         self.timers = StageTimers()
@@ -69,7 +69,7 @@ class Planner:
             if isinstance(found, str):
                 return found
             entropy_before, choice = world.map.total_entropy(), found[3]
-            leg, frame_cells = fly_leg(world, choice, self.frame_step, t)
+            leg, frame_cells = fly_leg(world, choice, *self.frames, t)
             scan = t.call("sensing", world.scan, "view")
             new_cells = frame_cells + t.call("mapping", world.integrate, scan, "view")
             delivered = t.call("evaluation", self.score.delivered, world, choice)
