@@ -100,8 +100,7 @@ SurfaceTargets surface_targets(const GridView& g, const SurfaceTargetOptions& op
   g.validate();
   opt.validate();
   if (!g.observed()) throw std::invalid_argument("surface_targets needs the camera observations");
-  std::uint32_t cones[26];
-  for (int b = 0; b < 26; ++b) cones[b] = bin_cone(b, opt.coverage_cone_deg);
+  const std::array<std::uint32_t, 26> cones = bin_cones(opt.coverage_cone_deg);
   // the 26 neighbour offsets, their unit directions and direction bins
   int off[26][3];
   Eigen::Vector3d unit[26];

@@ -505,6 +505,12 @@ Eigen::Vector3d bin_direction(int b) {
   return Eigen::Vector3d(v % 3 - 1, (v / 3) % 3 - 1, v / 9 - 1).normalized();
 }
 
+std::array<std::uint32_t, 26> bin_cones(double cone_deg) {
+  std::array<std::uint32_t, 26> cones;
+  for (int b = 0; b < 26; ++b) cones[std::size_t(b)] = bin_cone(b, cone_deg);
+  return cones;
+}
+
 std::uint32_t bin_cone(int b, double cone_deg) {
   const double c = std::cos(cone_deg * M_PI / 180.0) - 1e-12;
   const Eigen::Vector3d d = bin_direction(b);

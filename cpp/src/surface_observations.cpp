@@ -113,8 +113,7 @@ std::size_t SurfaceObservations::novel_hits(const Eigen::Vector3d& origin, const
   if (!origin.allFinite())
     throw std::invalid_argument("scan origin contains NaN or infinite values");
   require_finite(hits, "hit points");
-  std::array<std::uint32_t, 26> cone;
-  for (int b = 0; b < 26; ++b) cone[std::size_t(b)] = bin_cone(b, cone_deg);
+  const std::array<std::uint32_t, 26> cone = bin_cones(cone_deg);
   std::size_t novel = 0;
   for (Eigen::Index r = 0; r < hits.rows(); ++r) {
     std::uint64_t patch = 0;

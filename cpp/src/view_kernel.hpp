@@ -209,8 +209,7 @@ ViewScores score(const Job& job, const Cells& cells) {
   const double occ_req = job.utility.require_occupied_probability > 0
                              ? logit(job.utility.require_occupied_probability)
                              : -kInf;
-  std::uint32_t cones[26];
-  for (int b = 0; b < 26; ++b) cones[b] = bin_cone(b, job.utility.coverage_cone_deg);
+  const std::array<std::uint32_t, 26> cones = bin_cones(job.utility.coverage_cone_deg);
   const Eigen::Vector3d here(job.current.x, job.current.y, job.current.z);
   const ValidityOptions& v = job.validity;
   const bool check_segment = v.blocked_path == "reject";
@@ -321,7 +320,8 @@ ViewScores score(const Job& job, const Cells& cells) {
         visited.reset(g.storage_size());
         credits.clear();
         utility::ViewContext ctx{
-            g, job.utility, visited, cones, job.on_view ? &credits : nullptr, dense_range, min_cos};
+            g,           job.utility, visited, cones.data(), job.on_view ? &credits : nullptr,
+            dense_range, min_cos};
         Utility u(ctx);
         bool ray_occ = false;
         auto visit = [&](std::size_t idx, const int* c, double t) {
@@ -427,7 +427,7 @@ ViewScores score(const Job& job, const Cells& cells) {
         const Eigen::Vector3d o = T.translation();
         const Eigen::Matrix3d R = T.linear();
         coarse_visited.reset(g.storage_size());
-        utility::ViewContext ctx{g,       job.utility, coarse_visited, cones,
+        utility::ViewContext ctx{g,       job.utility, coarse_visited, cones.data(),
                                  nullptr, dense_range, min_cos};
         Utility u(ctx);
         auto visit = [&](std::size_t idx, const int* c, double t) {

@@ -143,11 +143,7 @@ def build_frame_camera(camera: CameraConfig, scene, seed: int):
     least one), the same field of view, range and mount; None at frame_stride 1 (the camera
     itself takes them)."""
     n = camera.frame_stride
-    if n == 1:
-        return None
-    return build_camera(
-        camera, scene, seed, width=max(1, camera.width // n), height=max(1, camera.height // n)
-    )
+    return None if n == 1 else build_camera(camera, scene, seed, **_strided(camera, n))
 
 
 #: A preview (World.novelty) takes 1 pixel in PREVIEW_STRIDE on each axis: 80 x 60 of 640 x 480.
@@ -157,9 +153,12 @@ PREVIEW_STRIDE = 8
 def build_preview_camera(camera: CameraConfig, scene):
     """The camera of a frame's preview (World.novelty): PREVIEW_STRIDE times fewer pixels on
     each axis (at least one), the same field of view, range and mount, no noise."""
-    n = PREVIEW_STRIDE
-    w, h = max(1, camera.width // n), max(1, camera.height // n)
-    return build_camera(camera, scene, 0, width=w, height=h, noise_k=0.0)
+    return build_camera(camera, scene, 0, **_strided(camera, PREVIEW_STRIDE), noise_k=0.0)
+
+
+def _strided(camera: CameraConfig, n: int) -> dict:
+    """width and height of 1 pixel in n of the camera's on each axis (at least one)."""
+    return dict(width=max(1, camera.width // n), height=max(1, camera.height // n))
 
 
 def build_laser(laser: LaserConfig, scene, seed: int) -> _core.LaserScanner:

@@ -7,6 +7,7 @@
 #include "nbv/workspace_grid.hpp"
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <cstddef>
 #include <cstdint>
@@ -318,5 +319,7 @@ int direction_bin(const Eigen::Vector3d& d);
 Eigen::Vector3d bin_direction(int b);
 /// Bitmask of the bins whose direction is within `cone_deg` of bin b's (b included).
 std::uint32_t bin_cone(int b, double cone_deg);
+/// bin_cone of every bin b (the table the surface utility and targets read cones from).
+std::array<std::uint32_t, 26> bin_cones(double cone_deg);
 
 }  // namespace nbv
