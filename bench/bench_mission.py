@@ -52,6 +52,7 @@ def main() -> None:
     table_header(
         "views",
         "ms per view: " + ", ".join(STAGES),
+        "every stage",
         "wall",
         "peak",
         "cov. @0.05 m",
@@ -64,7 +65,8 @@ def main() -> None:
             runs[label].append(r)
             ms = ", ".join(f"{r['stages'].get(s, 0.0):.1f}" for s in STAGES)
             print(
-                f"| {label} | {r['views']} | {ms} | {r['wall_s']:.1f} s | "
+                f"| {label} | {r['views']} | {ms} | {sum(r['stages'].values()):.1f} | "
+                f"{r['wall_s']:.1f} s | "
                 f"{r['peak_mb']:.0f} MB | {100 * r['coverage']:.2f} % | {r['distance']:.1f} m | "
                 f"{r['digest'][:12]} |",
                 flush=True,
@@ -72,10 +74,11 @@ def main() -> None:
     if len(runs) == 2:
         (la, ra), (lb, rb) = runs.items()
         same = len({r["digest"] for rr in runs.values() for r in rr}) == 1
-        for stage in ("sampling", "view", "wall_s"):
+        for stage in ("sampling", "view", "every stage", "wall_s"):
             get = {
                 "wall_s": lambda r: r["wall_s"],
                 "view": lambda r: sum(r["stages"].get(s, 0.0) for s in STAGES),
+                "every stage": lambda r: sum(r["stages"].values()),
             }.get(stage, lambda r: r["stages"][stage])
             best_a, best_b = min(map(get, ra)), min(map(get, rb))
             print(f"{stage}: best {best_a:.2f} against {best_b:.2f} -> {best_b / best_a:.2f}x")

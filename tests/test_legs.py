@@ -230,3 +230,68 @@ def test_a_bad_frame_novelty_is_refused_naming_the_key(bad):
 
     with pytest.raises(ValueError, match="planner.frame_novelty"):
         load_config(overrides=[f"planner.frame_novelty={bad}"])
+
+
+def _noisy_box_world():
+    from nbvkit.config import Config
+    from nbvkit.world import World
+
+    c = Config().with_overrides(["map.resolution=0.4", "progress=false", "camera.noise_k=0.0025"])
+    w = World(c, mesh=box_mesh([-3, -3, 0], [3, 3, 5]))
+    w.take_off()
+    w.sense("view")
+    return w
+
+
+def test_a_leg_takes_each_next_frame_while_it_integrates_the_last():
+    # Noisy frames: the leg flown with each next capture taken ahead must draw the camera's
+    # noise in the same order as one capture after the other, and keep the same map, cloud,
+    # observations and flight.
+    from types import SimpleNamespace
+
+    from nbvkit.planning.legs import fly_leg
+    from nbvkit.timing import StageTimers
+
+    ahead, turn = _noisy_box_world(), _noisy_box_world()
+    there = ahead.state.pose.copy()
+    there[1] += 3.5  # frames at 1, 2 and 3 m, then the view
+    there[3] += 0.4
+    fly_leg(ahead, SimpleNamespace(pose=there, path=None), 1.0, 0.0, StageTimers())
+    assert ahead._ahead[0] == "view"  # the view's frame, taken while the last frame went in
+    ahead.integrate(ahead.scan("view"), "view")
+    assert ahead._ahead is None
+    for pose, waypoints in leg_pieces(turn.state.pose, there, None, 1.0)[:-1]:
+        turn.fly_to(pose, "nbv", waypoints)
+        turn.integrate(turn.scan("frame"), "frame")
+    turn.fly_to(there, "nbv")
+    turn.integrate(turn.scan("view"), "view")
+    assert sum(row[6] == "frame" for row in ahead.state.flight) == 3
+    assert ahead.state.flight == turn.state.flight
+    np.testing.assert_array_equal(ahead.camera_cloud.points, turn.camera_cloud.points)
+    assert ahead.map.total_entropy() == turn.map.total_entropy()
+    np.testing.assert_array_equal(ahead.surface.seen_grid(), turn.surface.seen_grid())
+    # a capture taken ahead and asked for at another pose is dropped, not returned
+    ahead.integrate(ahead.scan("frame"), "frame", ("frame", ahead.state.pose))
+    elsewhere = ahead.state.pose + np.array([0.5, 0, 0, 0, 0])
+    scan = ahead.scan("frame", elsewhere)
+    np.testing.assert_allclose(scan.origin, elsewhere[:3])
+
+
+def test_a_frame_any_part_would_refuse_changes_nothing():
+    w = _noisy_box_world()
+    scan = w.scan("frame")
+    entropy, points, seen = w.map.total_entropy(), len(w.camera_cloud), w.surface.seen_cells()
+    for bad in ([float("nan"), 0, 2, 0], [0, 0, 2, 0, 2.0]):  # not a number; beyond the gimbal
+        with pytest.raises(ValueError):
+            _core.integrate_frame(
+                w.map, w.camera_cloud, w.surface, scan, next_camera=w.camera, next_pose=bad
+            )
+    with pytest.raises(ValueError, match="camera and a pose"):
+        _core.integrate_frame(w.map, w.camera_cloud, w.surface, scan, next_camera=w.camera)
+    assert (w.map.total_entropy(), len(w.camera_cloud), w.surface.seen_cells()) == (
+        entropy,
+        points,
+        seen,
+    )
+    done = _core.integrate_frame(w.map, w.camera_cloud, w.surface, scan)
+    assert done.next_scan is None and done.map.rays == len(scan.hits) + len(scan.free_ends)

@@ -2,12 +2,16 @@
 // and navigation (nbv/navigation.hpp).
 #include "nbv/views.hpp"
 #include "bindings.hpp"
+#include "nbv/frame_integration.hpp"
 #include "nbv/navigation.hpp"
 #include "nbv/occupancy_map.hpp"
 #include "nbv/surface_observations.hpp"
 #include "options.hpp"
 
+#include <limits>
 #include <mutex>
+#include <optional>
+#include <string>
 
 namespace nbv::bind {
 namespace {
@@ -278,6 +282,43 @@ surface utility credits no view for a saturated cell and surface_targets leaves 
   m.def("bin_direction", &bin_direction, py::arg("bin"), "Unit vector of a direction bin.");
   m.def("bin_cone", &bin_cone, py::arg("bin"), py::arg("cone_deg"),
         "Bitmask of the bins within cone_deg of a bin.");
+
+  py::class_<FrameIntegration>(m, "FrameIntegration", "What one integrate_frame call changed.")
+      .def_readonly("map", &FrameIntegration::map, "the map's IntegrationStats")
+      .def_readonly("cloud_voxels", &FrameIntegration::cloud_voxels,
+                    "voxels the camera cloud gained")
+      .def_readonly("new_cells", &FrameIntegration::new_cells,
+                    "cells the camera saw for the first time")
+      .def_readonly("next_scan", &FrameIntegration::next_scan,
+                    "the next frame's Scan where one was asked for (next_camera, next_pose), "
+                    "else None")
+      .def("__repr__", [](const FrameIntegration& f) {
+        return "<FrameIntegration new_cells=" + std::to_string(f.new_cells) +
+               " cloud_voxels=" + std::to_string(f.cloud_voxels) +
+               " traced_rays=" + std::to_string(f.map.traced_rays) + ">";
+      });
+  m.def(
+      "integrate_frame",
+      [](OccupancyMap& map, SurfaceCloud& cloud, SurfaceObservations& surface, const Scan& scan,
+         double max_range, const DepthCamera* next_camera, const py::handle& next_pose) {
+        std::optional<Pose> pose;
+        if (!next_pose.is_none()) pose = pose_arg(next_pose, "next_pose");
+        py::gil_scoped_release release;
+        std::unique_lock<std::shared_mutex> a(map.access_lock()), b(surface.access_lock());
+        return integrate_frame(map, cloud, surface, scan, max_range, next_camera,
+                               pose ? &*pose : nullptr);
+      },
+      py::arg("map"), py::arg("cloud"), py::arg("surface"), py::arg("scan"),
+      py::arg("max_range") = std::numeric_limits<double>::infinity(),
+      py::arg("next_camera") = nullptr, py::arg("next_pose") = py::none(),
+      "A camera Scan integrated into the map, the camera cloud and the camera observations at "
+      "once: map.integrate(scan, max_range), cloud.add(scan.hits) and surface.add_scan(scan), "
+      "with their results, the map's update beside the other two. With next_camera (a "
+      "DepthCamera) and next_pose (x, y, z, yaw[, pitch]), the next frame is cast meanwhile "
+      "(next_camera.scan_pose(next_pose)) and returned as next_scan. A frame any of them would "
+      "refuse (a non-finite or unaddressable origin, a non-finite point, a hit beyond the "
+      "cloud's range, a bad next pose) raises ValueError before anything changes. Returns a "
+      "FrameIntegration.");
 
   py::class_<ViewMemo, std::shared_ptr<ViewMemo>> view_memo(m, "ViewMemo", R"doc(
 What the paper's IG walks of candidate views found, kept from one evaluate_views call to the next

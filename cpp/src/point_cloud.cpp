@@ -307,11 +307,10 @@ std::uint64_t SurfaceCloud::new_stamp() {
   return next.fetch_add(1, std::memory_order_relaxed);
 }
 
-std::size_t SurfaceCloud::add(const PointsRef& points) {
+std::vector<std::uint64_t> SurfaceCloud::voxel_keys(const PointsRef& points) const {
   const Eigen::Index n = points.rows();
   const double s = opt_.voxel_size, inv = 1.0 / s;
-  // Pass 1 (parallel): keys, kEmptyVoxelKey for filtered-out points. Nothing is modified until
-  // every key is known to be valid.
+  // In parallel: keys, kFiltered for filtered-out points, kEmptyVoxelKey out of range.
   std::vector<std::uint64_t> keys(static_cast<std::size_t>(n));
   std::atomic<bool> out_of_range{false}, non_finite{false};
   const auto key_range = [&](std::size_t b, std::size_t e) {
@@ -344,6 +343,11 @@ std::size_t SurfaceCloud::add(const PointsRef& points) {
     for (Eigen::Index i = 0; i < n; ++i)
       if (keys[static_cast<std::size_t>(i)] == kEmptyVoxelKey)
         voxel_index(points.row(i).transpose(), s);  // throws naming the coordinate
+  return keys;
+}
+
+std::size_t SurfaceCloud::add_keyed(const PointsRef& points,
+                                    const std::vector<std::uint64_t>& keys) {
   const std::size_t added = voxels_.add(points, keys, kFiltered);
   registered_ += static_cast<std::uint64_t>(
       std::count_if(keys.begin(), keys.end(), [](std::uint64_t k) { return k != kFiltered; }));

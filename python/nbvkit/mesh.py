@@ -1,7 +1,8 @@
-"""Mesh loading (assimp; PLY by nbvkit's strict reader), conversion to and from open3d, and the
-shipped default structure."""
+"""Mesh loading (assimp; PLY by nbvkit's strict reader), conversion to and from open3d, the
+shipped default structure, and rays through a structure's surface (its crossings)."""
 from __future__ import annotations
 
+import math
 import os
 from dataclasses import dataclass
 from pathlib import Path
@@ -94,3 +95,36 @@ def default_mesh_path() -> Path:
     raise FileNotFoundError(
         2, "The default airliner mesh is not installed", str(here / "data" / "airliner.obj")
     )
+
+
+def fibonacci_sphere(n: int) -> np.ndarray:
+    """(n, 3) unit vectors spread evenly over the sphere (a Fibonacci lattice)."""
+    i = np.arange(n) + 0.5
+    phi = np.arccos(1 - 2 * i / n)
+    th = math.pi * (1 + 5**0.5) * i
+    return np.stack([np.cos(th) * np.sin(phi), np.sin(th) * np.sin(phi), np.cos(phi)], axis=1)
+
+
+def surface_crossings(scene, bounds, origin, dirs, max_crossings: int = 64):
+    """(count, first): (N,) times each ray from `origin` (3,) along `dirs` (N, 3) crosses the
+    surface of `scene` (a RaycastScene over a mesh whose `bounds` are (lo, hi)), and (N,) the
+    distance to its first crossing (inf: none). Faces met at the same point (a shared edge,
+    coincident faces) count once: the next search starts 1e-6 of the structure's size past each
+    hit."""
+    lo, hi = np.asarray(bounds, float)
+    eps = 1e-6 * max(float(np.max(hi - lo)), 1e-3)
+    count = np.zeros(len(dirs), int)
+    o = np.repeat(np.asarray(origin, float).reshape(1, 3), len(dirs), axis=0)
+    live = np.arange(len(dirs))
+    first = None
+    for _ in range(max_crossings):
+        t, prim = scene.intersect(o[live], dirs[live], 0.0, np.inf)
+        if first is None:
+            first = t
+        hit = prim >= 0
+        live = live[hit]
+        if len(live) == 0:
+            break
+        count[live] += 1
+        o[live] += (t[hit] + eps)[:, None] * dirs[live]
+    return count, first

@@ -63,9 +63,9 @@ from typing import Optional
 import numpy as np
 from scipy.spatial import QhullError
 
+from .mesh import fibonacci_sphere
 from .profile_curves import _Circle, _GrownHull, _segments
 from .settings import choice, nonneg, positive, within
-from .world import _fibonacci_sphere
 
 
 @dataclass(frozen=True)
@@ -117,7 +117,7 @@ class Profiler:
         self.radius = r
         self.collision_radius = world.config.vehicle.collision_radius
         self.blocked = 0  # steps the range check stopped
-        self._around = _fibonacci_sphere(32)
+        self._around = fibonacci_sphere(32)
         self.camera_frames = 0
         self._since_frame = 0.0
         self.waypoints: list[list[float]] = []

@@ -15,7 +15,7 @@ import numpy as np
 
 from . import _core
 from .limits import Bound, check_work
-from .mesh import default_mesh_path, load_mesh
+from .mesh import default_mesh_path, fibonacci_sphere, load_mesh, surface_crossings
 from .sensors import (
     build_camera,
     build_frame_camera,
@@ -248,6 +248,7 @@ class World:
         self.frame_camera = build_frame_camera(cfg.camera, self.scene, cfg.seed + 2) or self.camera
         self.preview_camera = build_preview_camera(cfg.camera, self.scene)
         self.laser = build_laser(cfg.laser, self.scene, cfg.seed + 1)
+        self._ahead = None  # (kind, pose, Scan) of a capture integrate took ahead
         self.starts = self._start_poses()
         start = np.array(cfg.start_pose, float) if cfg.start_pose is not None else None
         self.start_pose = start if start is not None else self.starts[cfg.start]
@@ -307,8 +308,8 @@ class World:
                 f"{ws.nav_min.round(3).tolist()} - {ws.nav_max.round(3).tolist()}"
             )
         r = self.config.vehicle.collision_radius
-        dirs = _fibonacci_sphere(200)
-        count, first = self._crossings(pose[:3], dirs)
+        dirs = fibonacci_sphere(200)
+        count, first = surface_crossings(self.scene, self.mesh.bounds, pose[:3], dirs)
         if np.any(first <= max(r, 1e-6)):
             return f"is within the collision radius ({r} m) of the structure"
         # Inside test, by the parity of each ray's crossings: a ray from inside a closed surface
@@ -318,29 +319,6 @@ class World:
         if (count % 2 == 1).sum() > 0.5 * len(dirs):
             return "is inside the structure"
         return None
-
-    def _crossings(self, origin, dirs, max_crossings: int = 64):
-        """(count, first): (N,) times each ray from `origin` (3,) along `dirs` (N, 3) crosses the
-        structure's surface, and (N,) the distance to its first crossing (inf: none). Faces met
-        at the same point (a shared edge, coincident faces) count once: the next search starts
-        1e-6 of the structure's size past each hit."""
-        lo, hi = self.mesh.bounds
-        eps = 1e-6 * max(float(np.max(hi - lo)), 1e-3)
-        count = np.zeros(len(dirs), int)
-        o = np.repeat(np.asarray(origin, float).reshape(1, 3), len(dirs), axis=0)
-        live = np.arange(len(dirs))
-        first = None
-        for _ in range(max_crossings):
-            t, prim = self.scene.intersect(o[live], dirs[live], 0.0, np.inf)
-            if first is None:
-                first = t
-            hit = prim >= 0
-            live = live[hit]
-            if len(live) == 0:
-                break
-            count[live] += 1
-            o[live] += (t[hit] + eps)[:, None] * dirs[live]
-        return count, first
 
     # ------------------------------------------------------------------ sensing
     #: what a capture is: the sensor that takes it
@@ -357,13 +335,20 @@ class World:
 
     def scan(self, kind: str = "view", pose=None):
         """The Scan of a capture (see sense) from `pose` (default: the vehicle's); nothing is
-        integrated."""
+        integrated. The capture that integrate(then=...) took ahead is returned where it is the
+        one asked for (the same kind and pose); asked for another, it is dropped."""
         if kind not in self.SENSOR_OF:
             raise ValueError(f"unknown capture {kind!r}; known: {', '.join(self.SENSOR_OF)}")
-        sensor = (
+        pose = self.state.pose if pose is None else as_view(pose)
+        ahead, self._ahead = self._ahead, None
+        if ahead is not None and ahead[0] == kind and np.array_equal(ahead[1], pose):
+            return ahead[2]
+        return self._sensor(kind).scan_pose(pose)
+
+    def _sensor(self, kind: str):
+        return (
             self.laser if kind == "laser" else self.frame_camera if kind == "frame" else self.camera
         )
-        return sensor.scan_pose(self.state.pose if pose is None else pose)
 
     def novelty(self, pose) -> float:
         """The share of a coarse, noise-free preview of a camera frame from `pose`
@@ -381,18 +366,26 @@ class World:
         rays = scan.depth.size
         return novel / rays if rays else 0.0
 
-    def integrate(self, scan, kind: str = "view") -> int:
+    def integrate(self, scan, kind: str = "view", then=None) -> int:
         """Integrates a capture's Scan (see sense): into the map, and the camera cloud and
         camera observations (a camera frame, also marked on the flight) or the laser cloud.
-        Returns the surface cells the camera saw for the first time (0 for a laser scan)."""
-        self.map.integrate(scan)
+        Returns the surface cells the camera saw for the first time (0 for a laser scan). A camera
+        frame goes into all three at once (_core.integrate_frame: the same as one after the
+        other, the map's update beside the other two). then: (kind, pose) of the camera capture
+        to come next, where it is known (a leg's next frame, or its view): taken meanwhile, and
+        returned by the scan that asks for it."""
         if self.SENSOR_OF[kind] == "laser":
+            self.map.integrate(scan)
             self.laser_cloud.add(scan.hits)
             return 0
-        self.camera_cloud.add(scan.hits)
-        new_cells = self.surface.add_scan(scan)
+        ahead = {} if then is None else {"next_camera": self._sensor(then[0])}
+        if then is not None:
+            ahead["next_pose"] = as_view(then[1])
+        done = _core.integrate_frame(self.map, self.camera_cloud, self.surface, scan, **ahead)
+        if then is not None:
+            self._ahead = (then[0], ahead["next_pose"], done.next_scan)
         self.state.capture(kind)
-        return new_cells
+        return done.new_cells
 
     @property
     def clouds(self) -> list:
@@ -489,10 +482,3 @@ class World:
         if np.allclose(q, p[:3]):
             return 0.0
         return self.fly_to(np.array([*q, *p[3:]]), stage)
-
-
-def _fibonacci_sphere(n: int) -> np.ndarray:
-    i = np.arange(n) + 0.5
-    phi = np.arccos(1 - 2 * i / n)
-    th = math.pi * (1 + 5**0.5) * i
-    return np.stack([np.cos(th) * np.sin(phi), np.sin(th) * np.sin(phi), np.cos(phi)], axis=1)

@@ -280,7 +280,12 @@ class SurfaceCloud {
   const SurfaceCloudOptions& options() const { return opt_; }
   /// Registers points (N, 3), world frame. Returns the number of new voxels they created.
   /// Throws std::invalid_argument (nothing registered) if any point is NaN or infinite.
-  std::size_t add(const PointsRef& points);
+  std::size_t add(const PointsRef& points) { return add_keyed(points, voxel_keys(points)); }
+  /// add's two steps: each point's voxel key (a marker where ground removal or the crop drops
+  /// it), checked (throws std::invalid_argument for a NaN, infinite or out-of-range point)...
+  std::vector<std::uint64_t> voxel_keys(const PointsRef& points) const;
+  /// ...and the points registered under those keys (what voxel_keys returned for them).
+  std::size_t add_keyed(const PointsRef& points, const std::vector<std::uint64_t>& keys);
   /// (K, 3) voxel centroids in voxel creation order.
   Points points() const;
   /// Voxel i's centroid (row i of points(), without building the array).

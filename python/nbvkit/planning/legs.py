@@ -52,16 +52,21 @@ def fly_leg(world, choice, step: float, novelty: float, timers) -> tuple:
     """Flies to the chosen view, taking a camera frame every `step` metres on the way
     (leg_pieces; each in the timers' motion, sensing and mapping stages) where its preview finds
     at least the share `novelty` of its rays new (World.novelty; 0: every frame, unpreviewed);
-    returns (the distance flown, the surface cells the frames saw first)."""
+    returns (the distance flown, the surface cells the frames saw first). Unpreviewed, each
+    frame's integration takes the next frame (or the view) meanwhile (World.integrate's then:
+    their sensing is timed in the mapping stage)."""
     flown, cells = 0.0, 0
     pieces = leg_pieces(world.state.pose, choice.pose, choice.path, step)
-    for pose, waypoints in pieces[:-1]:
+    for k, (pose, waypoints) in enumerate(pieces[:-1]):
         flown += timers.call("motion", world.fly_to, pose, "nbv", waypoints)
         if novelty > 0 and timers.call("sensing", world.novelty, pose) < novelty:
             world.state.frames_skipped += 1  # it would add (almost) nothing: not taken
             continue
         scan = timers.call("sensing", world.scan, "frame")
-        cells += timers.call("mapping", world.integrate, scan, "frame")
+        then = (
+            None if novelty > 0 else ("frame" if k + 2 < len(pieces) else "view", pieces[k + 1][0])
+        )
+        cells += timers.call("mapping", world.integrate, scan, "frame", then)
     return flown + timers.call("motion", world.fly_to, choice.pose, "nbv", pieces[-1][1]), cells
 
 
