@@ -7,6 +7,7 @@
 
 #include <gtest/gtest.h>
 
+#include <array>
 #include <cmath>
 #include <limits>
 #include <memory>
@@ -17,14 +18,20 @@ using namespace nbv;
 
 namespace {
 
-// A floor, a wall and a slanted block top in a 12 x 8 x 6 m box.
+// A room's corner in a 12 x 8 x 6 m box: a floor, two walls and a slanted board, as quads.
 std::shared_ptr<const RaycastScene> scene() {
-  Points v(12, 3);
-  v << 0, 0, 0.3, 12, 0, 0.3, 12, 8, 0.3, 0, 8, 0.3,   // floor
-      10.5, 0, 0, 10.5, 8, 0, 10.5, 8, 6, 10.5, 0, 6,  // wall
-      6, 2, 1, 8, 2, 1, 8, 6, 2.5, 6, 6, 2.5;          // a slanted block top
-  Faces f(6, 3);
-  f << 0, 1, 2, 0, 2, 3, 4, 5, 6, 4, 6, 7, 8, 9, 10, 8, 10, 11;
+  const std::vector<std::array<Eigen::Vector3d, 4>> quads{
+      {{{0, 0, 0.3}, {12, 0, 0.3}, {12, 8, 0.3}, {0, 8, 0.3}}},         // floor
+      {{{10.5, 0, 0}, {10.5, 8, 0}, {10.5, 8, 6}, {10.5, 0, 6}}},       // wall across x
+      {{{0, 7.5, 0}, {10.5, 7.5, 0}, {10.5, 7.5, 5}, {0, 7.5, 5}}},     // wall across y
+      {{{5, 1.5, 0.8}, {7.5, 1.5, 0.8}, {7.5, 5, 2.8}, {5, 5, 2.8}}}};  // slanted board
+  Points v(Eigen::Index(4 * quads.size()), 3);
+  Faces f(Eigen::Index(2 * quads.size()), 3);
+  for (Eigen::Index q = 0; q < Eigen::Index(quads.size()); ++q) {
+    for (int c = 0; c < 4; ++c) v.row(4 * q + c) = quads[std::size_t(q)][std::size_t(c)];
+    f.row(2 * q) << 4 * q, 4 * q + 1, 4 * q + 2;
+    f.row(2 * q + 1) << 4 * q, 4 * q + 2, 4 * q + 3;
+  }
   return std::make_shared<RaycastScene>(Mesh::from_arrays(v, f));
 }
 
