@@ -286,6 +286,8 @@ def test_a_frame_any_part_would_refuse_changes_nothing():
             _core.integrate_frame(
                 w.map, w.camera_cloud, w.surface, scan, next_camera=w.camera, next_pose=bad
             )
+    with pytest.raises(ValueError, match="camera capture"):
+        w.integrate(scan, "frame", ("laser", w.state.pose))
     with pytest.raises(ValueError, match="camera and a pose"):
         _core.integrate_frame(w.map, w.camera_cloud, w.surface, scan, next_camera=w.camera)
     assert (w.map.total_entropy(), len(w.camera_cloud), w.surface.seen_cells()) == (

@@ -378,9 +378,11 @@ class World:
             self.map.integrate(scan)
             self.laser_cloud.add(scan.hits)
             return 0
-        ahead = {} if then is None else {"next_camera": self._sensor(then[0])}
+        ahead = {}
         if then is not None:
-            ahead["next_pose"] = as_view(then[1])
+            if self.SENSOR_OF.get(then[0]) != "camera":
+                raise ValueError(f"then must be a camera capture (view, frame), not {then[0]!r}")
+            ahead = {"next_camera": self._sensor(then[0]), "next_pose": as_view(then[1])}
         done = _core.integrate_frame(self.map, self.camera_cloud, self.surface, scan, **ahead)
         if then is not None:
             self._ahead = (then[0], ahead["next_pose"], done.next_scan)
