@@ -4,9 +4,7 @@
 
 #include <tbb/parallel_invoke.h>
 
-#include <cmath>
 #include <stdexcept>
-#include <string>
 
 namespace nbv {
 
@@ -14,24 +12,17 @@ FrameIntegration integrate_frame(OccupancyMap& map, SurfaceCloud& cloud,
                                  SurfaceObservations& surface, const Scan& scan, double max_range,
                                  const DepthCamera* next_camera, const Pose* next_pose) {
   // Checked first: what any of the three would refuse (the map's origin and points, the cloud's
-  // keys, which also check the hits; the observations need finite hits and origin).
-  OccupancyMap::Key origin_key;
-  if (!scan.origin.allFinite())
-    throw std::invalid_argument("sensor origin contains NaN or infinite values");
-  if (!map.coord_to_key(scan.origin, origin_key))
-    throw std::invalid_argument("sensor origin is outside OctoMap's addressable range");
+  // keys, which also check the hits; the observations need finite hits and origin), and the
+  // next frame's pose as the camera's scan checks it.
+  map.check_sensor_origin(scan.origin, max_range);
   require_finite(scan.free_ends, "free-space ray ends");
-  if (std::isnan(max_range) || !(max_range > 0))
-    throw std::invalid_argument("max_range must be > 0 (inf = no limit), got " +
-                                std::to_string(max_range));
   if (bool(next_camera) != bool(next_pose))
     throw std::invalid_argument("integrate_frame: a next frame needs both a camera and a pose");
   Eigen::Isometry3d next_T = Eigen::Isometry3d::Identity();
   if (next_camera) {
     require_pitch(next_pose->pitch, "next camera view");
     next_T = gimbal_sensor_transform(*next_pose, next_camera->options().mount);
-    if (!next_T.matrix().allFinite())
-      throw std::invalid_argument("integrate_frame: the next pose contains NaN or infinite values");
+    check_sensor_pose(next_T);
   }
   const std::vector<std::uint64_t> keys = cloud.voxel_keys(scan.hits);
   FrameIntegration out;

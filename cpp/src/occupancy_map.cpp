@@ -440,6 +440,14 @@ struct OccupancyMap::EndPoint {
   std::uint8_t flags;    // some ray of the group is a hit / a free end in range
 };
 
+void OccupancyMap::check_sensor_origin(const Eigen::Vector3d& origin, double max_range) const {
+  check_integrate_args(origin, PointsRef(kNoPoints), PointsRef(kNoPoints), max_range);
+  Key key;
+  if (!tree_->coordToKeyChecked(to_point3d(origin), key))
+    throw std::invalid_argument("sensor origin " + fmt_vec(origin) +
+                                " is outside OctoMap's addressable range");
+}
+
 IntegrationStats OccupancyMap::integrate(const Scan& scan, double max_range) {
   return integrate(scan.origin, scan.hits, scan.free_ends, max_range);
 }
@@ -447,12 +455,8 @@ IntegrationStats OccupancyMap::integrate(const Scan& scan, double max_range) {
 IntegrationStats OccupancyMap::integrate(const Eigen::Vector3d& origin, const PointsRef& hits,
                                          const PointsRef& free_ends, double max_range) {
   // points are checked for NaN/inf inside collect_end_points (before anything changes)
-  check_integrate_args(origin, PointsRef(kNoPoints), PointsRef(kNoPoints), max_range);
+  check_sensor_origin(origin, max_range);
   const octomap::point3d o = to_point3d(origin);
-  Key okey;
-  if (!tree_->coordToKeyChecked(o, okey))
-    throw std::invalid_argument("sensor origin " + fmt_vec(origin) +
-                                " is outside OctoMap's addressable range");
   IntegrationStats stats;
   stats.rays = std::size_t(hits.rows() + free_ends.rows());
   if (stats.rays == 0) return stats;
@@ -815,11 +819,8 @@ void OccupancyMap::trace_free_cells(const octomap::point3d& o, const std::vector
 IntegrationStats OccupancyMap::integrate_exact(const Eigen::Vector3d& origin, const PointsRef& hits,
                                                const PointsRef& free_ends, double max_range) {
   check_integrate_args(origin, hits, free_ends, max_range);
+  check_sensor_origin(origin, max_range);
   const octomap::point3d o = to_point3d(origin);
-  Key okey;
-  if (!tree_->coordToKeyChecked(o, okey))
-    throw std::invalid_argument("sensor origin " + fmt_vec(origin) +
-                                " is outside OctoMap's addressable range");
   sync_octree();
   IntegrationStats stats;
   stats.rays = std::size_t(hits.rows() + free_ends.rows());

@@ -22,12 +22,6 @@ void require(bool ok, const std::string& msg) {
   if (!ok) throw std::invalid_argument(msg);
 }
 
-void check_pose(const Eigen::Isometry3d& T) {
-  if (!T.matrix().allFinite())
-    throw std::invalid_argument("sensor pose T_world_sensor contains NaN or infinite values");
-  require_representable(T.translation(), "sensor pose: position");
-}
-
 // Gathers rays flagged 1 (hit) or 2 (free) into a Scan, in ray order (deterministic).
 void compact(const std::vector<std::uint8_t>& state, const std::vector<Eigen::Vector3d>& pts,
              Scan& out) {
@@ -48,6 +42,12 @@ void compact(const std::vector<std::uint8_t>& state, const std::vector<Eigen::Ve
 }
 
 }  // namespace
+
+void check_sensor_pose(const Eigen::Isometry3d& T) {
+  if (!T.matrix().allFinite())
+    throw std::invalid_argument("sensor pose T_world_sensor contains NaN or infinite values");
+  require_representable(T.translation(), "sensor pose: position");
+}
 
 double counter_normal(std::uint64_t seed, std::uint64_t frame, std::uint64_t index) {
   const std::uint64_t a = splitmix64(seed ^ splitmix64(frame * 0xD1B54A32D192ED03ull + index));
@@ -118,7 +118,7 @@ void DepthCamera::reset_noise(std::uint64_t seed) {
 }
 
 Scan DepthCamera::scan(const Eigen::Isometry3d& T) const {
-  check_pose(T);
+  check_sensor_pose(T);
   const int W = opt_.width, H = opt_.height;
   const Eigen::Index n = static_cast<Eigen::Index>(W) * H;
   const Eigen::Vector3d o = T.translation();
@@ -241,7 +241,7 @@ void LaserScanner::reset_noise(std::uint64_t seed) {
 }
 
 Scan LaserScanner::scan(const Eigen::Isometry3d& T) const {
-  check_pose(T);
+  check_sensor_pose(T);
   const Eigen::Index n = dirs_.rows();
   const Eigen::Vector3d o = T.translation();
   const Eigen::Matrix3d R = T.linear();

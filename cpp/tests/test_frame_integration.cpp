@@ -133,7 +133,8 @@ TEST(FrameIntegration, ARefusedFrameChangesNothing) {
   bad_origin.origin.x() = nan;
   far_origin.origin.x() = 1e7;  // beyond OctoMap's addressable range
   const double inf = std::numeric_limits<double>::infinity();
-  const Pose steep{2, 4, 3, 0, 2.0}, lost{nan, 4, 3, 0};  // beyond the gimbal; not a number
+  // beyond the gimbal; not a number; finite but beyond any usable position
+  const Pose steep{2, 4, 3, 0, 2.0}, lost{nan, 4, 3, 0}, remote{1e300, 4, 3, 0};
   for (const Scan* s : {&bad_hit, &bad_end, &bad_origin, &far_origin}) {
     EXPECT_THROW(integrate_frame(kept.map, kept.cloud, kept.surface, *s), std::invalid_argument);
     EXPECT_THROW(integrate_frame(kept.map, kept.cloud, kept.surface, good, 0.0),
@@ -141,6 +142,8 @@ TEST(FrameIntegration, ARefusedFrameChangesNothing) {
     EXPECT_THROW(integrate_frame(kept.map, kept.cloud, kept.surface, good, inf, &cam, &steep),
                  std::invalid_argument);
     EXPECT_THROW(integrate_frame(kept.map, kept.cloud, kept.surface, good, inf, &cam, &lost),
+                 std::invalid_argument);
+    EXPECT_THROW(integrate_frame(kept.map, kept.cloud, kept.surface, good, inf, &cam, &remote),
                  std::invalid_argument);
     EXPECT_THROW(integrate_frame(kept.map, kept.cloud, kept.surface, good, inf, &cam, nullptr),
                  std::invalid_argument);  // a camera without a pose

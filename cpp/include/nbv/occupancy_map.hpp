@@ -137,6 +137,10 @@ class OccupancyMap {
   /// the touched cells agree (tests, bench/bench_map.cpp). With deduplicate_end_points = false
   /// every ray is traced and the result is identical.
   /// Throws std::invalid_argument for non-finite input or an origin outside the addressable range.
+  /// What integrate checks of a scan's origin and max_range before it changes anything: throws
+  /// std::invalid_argument for a non-finite origin, one outside OctoMap's addressable range, or a
+  /// max_range not > 0.
+  void check_sensor_origin(const Eigen::Vector3d& origin, double max_range) const;
   IntegrationStats integrate(const Eigen::Vector3d& origin, const PointsRef& hits,
                              const PointsRef& free_ends,
                              double max_range = std::numeric_limits<double>::infinity());

@@ -28,6 +28,10 @@ struct Scan {
   Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor> depth;
 };
 
+/// Throws std::invalid_argument for a sensor pose no sensor scans from (what scan checks first):
+/// a non-finite transform or a position beyond the representable range.
+void check_sensor_pose(const Eigen::Isometry3d& T_world_sensor);
+
 /// Bounds on derived ray counts (a typo must not become a multi-gigabyte allocation).
 constexpr std::int64_t kMaxCameraPixels = 16'000'000;
 constexpr int kMaxLaserBeams = 1'000'000;
