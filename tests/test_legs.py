@@ -161,6 +161,36 @@ def test_frames_in_flight_are_taken_at_a_stride_of_the_camera_resolution():
     np.testing.assert_array_equal(w1.scan("frame").depth, w1.scan("view").depth)
 
 
+def test_refined_frames_are_full_resolution_where_new_and_coarse_where_known():
+    from nbvkit.config import Config
+    from nbvkit.world import World
+
+    c = Config().with_overrides(
+        ["map.resolution=0.4", "camera.frame_stride=2", "camera.frame_refine=true"]
+    )
+    w = World(c, mesh=box_mesh([-3, -3, 0], [3, 3, 5]))
+    view, coarse = w.scan("view"), w.frame_camera.scan_pose(w.state.pose)
+    # nothing seen yet: the frame is the camera's own, hit for hit
+    first = w.scan("frame")
+    assert first.depth.shape == view.depth.shape
+    order = np.argsort(first.hit_rays)
+    np.testing.assert_array_equal(first.hit_rays[order], view.hit_rays)
+    np.testing.assert_array_equal(first.hits[order], view.hits)
+    w.integrate(first, "frame")
+    # seen from here: the squares it marked stand coarse, each hit the coarse frame's or the
+    # camera's own
+    again = w.scan("frame")
+    assert len(coarse.hits) <= len(again.hits) < 0.6 * len(view.hits)
+    ours = {tuple(p) for p in np.vstack([coarse.hits, view.hits])}
+    assert all(tuple(p) in ours for p in again.hits)
+    # taken ahead (coarse, while the last capture went in), it is refined when asked for
+    w2 = World(c, mesh=w.mesh)
+    w2.integrate(w2.scan("view"), "view", ("frame", w2.state.pose))
+    cone = c.utility.coverage_cone_deg
+    expected = _core.refine_frame(w2.camera, coarse, w2.state.pose, w2.surface, cone)
+    np.testing.assert_array_equal(w2.scan("frame").hits, expected.hits)
+
+
 @pytest.mark.parametrize("bad", ["0", "65", "1.5", "nan"])
 def test_a_bad_frame_stride_is_refused_naming_the_key(bad):
     from nbvkit.config import load_config

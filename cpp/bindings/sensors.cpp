@@ -69,12 +69,14 @@ Embree ray-casting scene over a mesh (build once, share between sensors); `optio
   py::class_<Scan>(m, "Scan", R"doc(
 One sensor reading, world frame. origin (3,); hits (N, 3) surface points within range; free_ends
 (M, 3) ends at max range of rays that hit nothing within range (to clear free space); hit_rays (N,)
-the ray index of each hit; depth: camera (H, W) depth along the optical axis, laser (1, R) range
-along each beam, inf where there is no valid return.)doc")
+and free_rays (M,) the ray index of each hit and free end (camera: v * width + u); depth: camera
+(H, W) depth along the optical axis, laser (1, R) range along each beam, inf where there is no
+valid return.)doc")
       .def_readonly("origin", &Scan::origin)
       .def_readonly("hits", &Scan::hits)
       .def_readonly("free_ends", &Scan::free_ends)
       .def_readonly("hit_rays", &Scan::hit_rays)
+      .def_readonly("free_rays", &Scan::free_rays)
       .def_readonly("depth", &Scan::depth)
       .def("__repr__", [](const Scan& s) {
         return "<nbvkit.Scan " + std::to_string(s.hits.rows()) + " hits, " +
@@ -131,6 +133,33 @@ The sensor looks along its +x (y left, z up); pixel (u, v) looks along
            "that pitches it (radians, > 0 looks down, |pitch| <= pi/2) before its mount:\n"
            "T_world_sensor = T(x, y, z) Rz(yaw) Ry(pitch) mount (gimbal_transform). 4 numbers\n"
            "mean pitch 0, the level camera.")
+      .def(
+          "scan_pixels",
+          [](const DepthCamera& c, const py::handle& T, const py::handle& pixels) {
+            const Eigen::Isometry3d Tws = transform_arg(T, "T_world_sensor");
+            const py::array a = py::array::ensure(pixels);
+            if (!a || a.ndim() != 1 ||
+                (a.size() && a.dtype().kind() != 'i' && a.dtype().kind() != 'u'))
+              throw py::value_error("camera pixels must be a 1-D array of integer indices");
+            const auto p = py::array_t<std::int64_t, py::array::forcecast>::ensure(a);
+            Eigen::VectorXi px(p.size());
+            for (py::ssize_t i = 0; i < p.size(); ++i) {
+              const std::int64_t v = p.at(i);
+              if (v < 0 || v >= std::int64_t(c.directions().rows()))
+                throw py::value_error("camera pixel " + std::to_string(v) + " is outside the " +
+                                      std::to_string(c.options().width) + " x " +
+                                      std::to_string(c.options().height) + " image");
+              px[i] = int(v);
+            }
+            py::gil_scoped_release release;
+            return c.scan_pixels(Tws, px);
+          },
+          py::arg("T_world_sensor"), py::arg("pixels"),
+          "Scan of only the listed pixels (v * width + u) from a 4x4 sensor pose, as scan casts\n"
+          "them (the next frame of noise): hits and free ends in the pixels' order, hit_rays and\n"
+          "free_rays the pixel of each, depth (1, K) each listed pixel's. ValueError for a pixel "
+          "outside\n"
+          "the image.")
       .def(
           "reset_noise",
           [](DepthCamera& c, const py::object& seed) { c.reset_noise(seed_arg(seed)); },

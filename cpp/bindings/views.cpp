@@ -319,6 +319,29 @@ surface utility credits no view for a saturated cell and surface_targets leaves 
       "refuse (a non-finite or unaddressable origin, a non-finite point, a hit beyond the "
       "cloud's range, a bad next pose) raises ValueError before anything changes. Returns a "
       "FrameIntegration.");
+  m.def(
+      "refine_frame",
+      [](const DepthCamera& camera, const Scan& coarse, const py::handle& pose,
+         const SurfaceObservations& surface, double cone_deg) {
+        const Pose p = pose_arg(pose, "frame pose");
+        py::gil_scoped_release release;
+        std::shared_lock<std::shared_mutex> lock(surface.access_lock());
+        return refine_frame(camera, coarse, p, surface, cone_deg);
+      },
+      py::arg("camera"), py::arg("coarse"), py::arg("pose"), py::arg("surface"),
+      py::arg("cone_deg"),
+      "A frame taken at 1/N of camera's pixels on each axis (coarse: the Scan of a camera of the "
+      "same field of view, range and mount at width/N x height/N, from pose (x, y, z, yaw[, "
+      "pitch])), refined to camera's full resolution where it could see something new: each "
+      "coarse hit with which a denser frame could add to the camera observations (a side unseen "
+      "within cone_deg, a square unmarked, or a cell none of whose projections along the axes "
+      "has all its squares marked) has the block of full-resolution pixels its coarse pixel "
+      "spans, and the 8 neighbouring blocks, cast again (camera.scan_pixels), replacing their "
+      "coarse rays; elsewhere the coarse rays stand. Returns one Scan: the coarse hits kept then "
+      "the refined pixels' hits, the coarse free ends kept then the refined ones (hit_rays, "
+      "free_rays: full-resolution pixels), depth (height, width). Reads surface only. ValueError "
+      "for a coarse frame finer than the camera's or a "
+      "pose the camera cannot take.");
 
   py::class_<ViewMemo, std::shared_ptr<ViewMemo>> view_memo(m, "ViewMemo", R"doc(
 What the paper's IG walks of candidate views found, kept from one evaluate_views call to the next

@@ -30,13 +30,15 @@ void compact(const std::vector<std::uint8_t>& state, const std::vector<Eigen::Ve
   out.hits.resize(nh, 3);
   out.free_ends.resize(nf, 3);
   out.hit_rays.resize(nh);
+  out.free_rays.resize(nf);
   Eigen::Index ih = 0, jf = 0;
   for (std::size_t i = 0; i < state.size(); ++i) {
     if (state[i] == 1) {
       out.hits.row(ih) = pts[i];
       out.hit_rays[ih++] = static_cast<int>(i);
     } else if (state[i] == 2) {
-      out.free_ends.row(jf++) = pts[i];
+      out.free_ends.row(jf) = pts[i];
+      out.free_rays[jf++] = static_cast<int>(i);
     }
   }
 }
@@ -117,6 +119,68 @@ void DepthCamera::reset_noise(std::uint64_t seed) {
   frame_ = 0;
 }
 
+double DepthCamera::pixel_depth(double t, Eigen::Index p, std::uint64_t frame, bool& free) const {
+  free = !std::isfinite(t);
+  if (free) return kInf;
+  double z = t * dirs_(p, 0);  // dirs_(p, 0): the cosine to the optical axis
+  if (opt_.noise_k > 0)
+    z += opt_.noise_k * z * z * counter_normal(opt_.seed, frame, static_cast<std::uint64_t>(p));
+  // no valid return outside [min, max] depth (a relative 1e-9 tolerance keeps a surface exactly
+  // at a limit, whose depth rounds to a hair beyond it, in range)
+  if (z < opt_.min_range * (1 - 1e-9) || z > opt_.max_range * (1 + 1e-9)) return kInf;
+  return z;
+}
+
+Scan DepthCamera::scan_pixels(const Eigen::Isometry3d& T,
+                              const Eigen::Ref<const Eigen::VectorXi>& pixels) const {
+  check_sensor_pose(T);
+  const Eigen::Index n = pixels.size(), npix = dirs_.rows();
+  Points d(n, 3);
+  Eigen::VectorXd tfar(n);
+  for (Eigen::Index i = 0; i < n; ++i) {
+    const int p = pixels[i];
+    if (p < 0 || p >= npix)
+      throw std::invalid_argument("camera pixel " + std::to_string(p) + " is outside the " +
+                                  std::to_string(opt_.width) + " x " + std::to_string(opt_.height) +
+                                  " image");
+    d.row(i) = dirs_.row(p);
+    tfar[i] = opt_.max_range / dirs_(p, 0);
+  }
+  const Eigen::Vector3d o = T.translation();
+  const Eigen::Matrix3d R = T.linear();
+  Eigen::VectorXd t;
+  Eigen::VectorXi prim;
+  scene_->intersect_coherent(o, R, d, tfar, t, prim);
+  const std::uint64_t frame = frame_++;
+  Scan out;
+  out.origin = o;
+  out.depth.resize(1, n);
+  std::vector<bool> free(static_cast<std::size_t>(n));
+  Eigen::Index hits = 0, frees = 0;
+  for (Eigen::Index i = 0; i < n; ++i) {
+    bool f = false;
+    out.depth(0, i) = pixel_depth(t[i], pixels[i], frame, f);
+    free[std::size_t(i)] = f;
+    frees += f;
+    hits += std::isfinite(out.depth(0, i));
+  }
+  out.hits.resize(hits, 3);
+  out.free_ends.resize(frees, 3);
+  out.hit_rays.resize(hits);
+  out.free_rays.resize(frees);
+  for (Eigen::Index i = 0, ih = 0, jf = 0; i < n; ++i) {
+    const double cx = d(i, 0);
+    if (free[std::size_t(i)]) {
+      out.free_ends.row(jf) = o + R * d.row(i).transpose() * (opt_.max_range / cx);
+      out.free_rays[jf++] = pixels[i];
+    } else if (std::isfinite(out.depth(0, i))) {
+      out.hits.row(ih) = o + R * d.row(i).transpose() * (out.depth(0, i) / cx);
+      out.hit_rays[ih++] = pixels[i];
+    }
+  }
+  return out;
+}
+
 Scan DepthCamera::scan(const Eigen::Isometry3d& T) const {
   check_sensor_pose(T);
   const int W = opt_.width, H = opt_.height;
@@ -143,23 +207,11 @@ Scan DepthCamera::scan(const Eigen::Isometry3d& T) const {
       Eigen::Index hits = 0, frees = 0;
       for (std::size_t p = b * block, e = std::min<std::size_t>(n, p + block); p < e; ++p) {
         const auto pi = static_cast<Eigen::Index>(p);
-        const double tk = t[pixel_to_tile_[pi]];
-        depth[p] = kInf;
-        if (!std::isfinite(tk)) {
-          state[p] = 2;
-          ++frees;
-          continue;
-        }
-        double z = tk * dirs_(pi, 0);  // dirs_(p, 0): the cosine to the optical axis
-        if (opt_.noise_k > 0)
-          z += opt_.noise_k * z * z *
-               counter_normal(opt_.seed, frame, static_cast<std::uint64_t>(p));
-        // no valid return outside [min, max] depth (a relative 1e-9 tolerance keeps a surface
-        // exactly at a limit, whose depth rounds to a hair beyond it, in range)
-        if (z < opt_.min_range * (1 - 1e-9) || z > opt_.max_range * (1 + 1e-9)) continue;
-        state[p] = 1;
-        depth[p] = z;
-        ++hits;
+        bool free = false;
+        depth[p] = pixel_depth(t[pixel_to_tile_[pi]], pi, frame, free);
+        state[p] = free ? 2 : std::isfinite(depth[p]) ? 1 : 0;
+        frees += free;
+        hits += state[p] == 1;
       }
       first_hit[b + 1] = hits;
       first_free[b + 1] = frees;
@@ -174,6 +226,7 @@ Scan DepthCamera::scan(const Eigen::Isometry3d& T) const {
   out.hits.resize(first_hit[nb], 3);
   out.free_ends.resize(first_free[nb], 3);
   out.hit_rays.resize(first_hit[nb]);
+  out.free_rays.resize(first_free[nb]);
   parallel_chunks(nb, 1, [&](std::size_t bb, std::size_t be) {
     for (std::size_t b = bb; b < be; ++b) {
       Eigen::Index ih = first_hit[b], jf = first_free[b];
@@ -186,7 +239,8 @@ Scan DepthCamera::scan(const Eigen::Isometry3d& T) const {
           out.hits.row(ih) = o + dw * (depth[p] / cx);
           out.hit_rays[ih++] = static_cast<int>(p);
         } else {
-          out.free_ends.row(jf++) = o + dw * (opt_.max_range / cx);
+          out.free_ends.row(jf) = o + dw * (opt_.max_range / cx);
+          out.free_rays[jf++] = static_cast<int>(p);
         }
       }
     }

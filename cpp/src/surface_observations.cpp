@@ -110,20 +110,34 @@ std::int64_t SurfaceObservations::key_hit(const PointsRef& hits, Eigen::Index ro
 
 std::size_t SurfaceObservations::novel_hits(const Eigen::Vector3d& origin, const PointsRef& hits,
                                             double cone_deg) const {
+  const std::vector<std::uint8_t> mask = novel_mask(origin, hits, cone_deg);
+  return std::size_t(std::count(mask.begin(), mask.end(), std::uint8_t(1)));
+}
+
+std::vector<std::uint8_t> SurfaceObservations::novel_mask(const Eigen::Vector3d& origin,
+                                                          const PointsRef& hits, double cone_deg,
+                                                          bool whole_face) const {
   if (!origin.allFinite())
     throw std::invalid_argument("scan origin contains NaN or infinite values");
   require_finite(hits, "hit points");
   const std::array<std::uint32_t, 26> cone = bin_cones(cone_deg);
-  std::size_t novel = 0;
+  std::vector<std::uint8_t> mask(std::size_t(hits.rows()), 0);
   for (Eigen::Index r = 0; r < hits.rows(); ++r) {
     std::uint64_t patch = 0;
     const std::int64_t cell = key_hit(hits, r, patch);
     if (cell < 0) continue;
     const std::size_t at = slot(std::size_t(cell));
     const int bin = direction_bin(origin - hits.row(r).transpose());
-    novel += (seen_pool_[at] & cone[std::size_t(bin)]) == 0 || (patches_pool_[at] & patch) != patch;
+    bool novel =
+        (seen_pool_[at] & cone[std::size_t(bin)]) == 0 || (patches_pool_[at] & patch) != patch;
+    if (!novel && whole_face) {  // no projection of the cell with all its 16 squares marked
+      const std::uint64_t p = patches_pool_[at];
+      novel = (p & 0xffffu) != 0xffffu && (p >> 16 & 0xffffu) != 0xffffu &&
+              (p >> 32 & 0xffffu) != 0xffffu;
+    }
+    mask[std::size_t(r)] = novel;
   }
-  return novel;
+  return mask;
 }
 
 std::size_t SurfaceObservations::add_scan(const Eigen::Vector3d& origin, const PointsRef& hits) {

@@ -10,7 +10,9 @@
 #include <array>
 #include <cmath>
 #include <limits>
+#include <map>
 #include <memory>
+#include <tuple>
 #include <utility>
 #include <vector>
 
@@ -152,4 +154,147 @@ TEST(FrameIntegration, ARefusedFrameChangesNothing) {
     EXPECT_EQ(kept.surface.seen_cells(), seen);
   }
   EXPECT_GT(integrate_frame(kept.map, kept.cloud, kept.surface, good).new_cells, 0u);
+}
+
+namespace {
+
+// The full-resolution scan's point for each of its rays, hits and free ends: pixel -> (point,
+// whether a hit).
+std::map<int, std::pair<Eigen::Vector3d, bool>> by_pixel(const Scan& s) {
+  std::map<int, std::pair<Eigen::Vector3d, bool>> m;
+  for (Eigen::Index r = 0; r < s.hits.rows(); ++r)
+    m[s.hit_rays[r]] = {s.hits.row(r).transpose(), true};
+  for (Eigen::Index r = 0; r < s.free_ends.rows(); ++r)
+    m[s.free_rays[r]] = {s.free_ends.row(r).transpose(), false};
+  return m;
+}
+
+}  // namespace
+
+TEST(FrameRefinement, ScanPixelsCastsTheListedPixelsAsTheWholeScanDoes) {
+  DepthCameraOptions co;
+  co.width = 96;
+  co.height = 72;
+  const DepthCamera cam(scene(), co);
+  const Eigen::Isometry3d T = gimbal_sensor_transform(Pose{3, 2, 4, 0.6, 0.5}, co.mount);
+  const Scan whole = cam.scan(T);
+  const auto rays = by_pixel(whole);
+  ASSERT_GT(whole.hits.rows(), 1000);
+  ASSERT_GT(whole.free_ends.rows(), 100);
+  // every third pixel, backwards: the order given is the order returned
+  std::vector<int> px;
+  for (int p = co.width * co.height - 1; p >= 0; p -= 3) px.push_back(p);
+  const Scan some = cam.scan_pixels(T, Eigen::Map<const Eigen::VectorXi>(px.data(), px.size()));
+  ASSERT_EQ(some.depth.cols(), Eigen::Index(px.size()));
+  Eigen::Index cast = 0;
+  for (std::size_t i = 0; i < px.size(); ++i) {
+    EXPECT_EQ(some.depth(0, Eigen::Index(i)), whole.depth(px[i] / co.width, px[i] % co.width));
+    cast += rays.count(px[i]);
+  }
+  ASSERT_EQ(some.hits.rows() + some.free_ends.rows(), cast);
+  for (const auto& [pts, ids, hit] : {std::tuple{&some.hits, &some.hit_rays, true},
+                                      std::tuple{&some.free_ends, &some.free_rays, false}})
+    for (Eigen::Index r = 0; r < pts->rows(); ++r) {
+      const auto& [p, was_hit] = rays.at((*ids)[r]);
+      EXPECT_EQ(was_hit, hit);
+      EXPECT_EQ(Eigen::Vector3d(pts->row(r).transpose()), p);
+      if (r) EXPECT_LT((*ids)[r], (*ids)[r - 1]);  // in the order listed
+    }
+  std::vector<int> outside{0, co.width * co.height};
+  EXPECT_THROW(cam.scan_pixels(T, Eigen::Map<const Eigen::VectorXi>(outside.data(), 2)),
+               std::invalid_argument);
+}
+
+TEST(FrameRefinement, FullResolutionWhereNewCoarseWhereKnown) {
+  DepthCameraOptions co;
+  co.width = 120;
+  co.height = 90;
+  const auto sc = scene();
+  DepthCameraOptions cc = co;
+  cc.width = co.width / 3;  // 1 pixel in 3 on each axis
+  cc.height = co.height / 3;
+  const DepthCamera cam(sc, co), coarse_cam(sc, cc);
+  const Pose pose{3, 2, 4, 0.6, 0.5};
+  const Scan whole = cam.scan_pose(pose), coarse = coarse_cam.scan_pose(pose);
+  Kept kept;
+  // Nothing seen yet: every block with a hit, and its neighbours, is cast again, so the frame is
+  // the full-resolution one: each of its hits at the same pixel, at the same point.
+  const Scan fresh = refine_frame(cam, coarse, pose, kept.surface, 30.0);
+  ASSERT_EQ(fresh.depth.rows(), co.height);
+  ASSERT_EQ(fresh.depth.cols(), co.width);
+  ASSERT_EQ(fresh.hits.rows(), whole.hits.rows());
+  const auto rays = by_pixel(whole);
+  for (Eigen::Index r = 0; r < fresh.hits.rows(); ++r) {
+    const auto& [p, hit] = rays.at(fresh.hit_rays[r]);
+    ASSERT_TRUE(hit);
+    ASSERT_EQ(Eigen::Vector3d(fresh.hits.row(r).transpose()), p);
+  }
+  EXPECT_LT(fresh.free_ends.rows(), whole.free_ends.rows());  // far from a hit: coarse
+  // A wall filling the view whose every square is recorded as seen from here: nothing a denser
+  // frame could add, so the coarse frame stands as it was, its rays renamed to their blocks'
+  // first pixels.
+  {
+    Points v(4, 3);
+    v << 10.1, -30, -30, 10.1, 30, -30, 10.1, 30, 30, 10.1, -30, 30;
+    Faces f(2, 3);
+    f << 0, 1, 2, 0, 2, 3;
+    const auto wall = std::make_shared<RaycastScene>(Mesh::from_arrays(v, f));
+    const DepthCamera wcam(wall, co), wcoarse_cam(wall, cc);
+    const Pose ahead{4, 4, 3, 0};
+    const Scan wcoarse = wcoarse_cam.scan_pose(ahead);
+    ASSERT_EQ(wcoarse.hits.rows(), cc.width * cc.height);
+    Points dense(800 * 600, 3);  // every 1 cm of the wall within the workspace
+    for (int i = 0; i < 800; ++i)
+      for (int j = 0; j < 600; ++j)
+        dense.row(i * 600 + j) << 10.1, 0.005 + 0.01 * i, 0.005 + 0.01 * j;
+    Kept seen;
+    seen.surface.add_scan(Eigen::Vector3d(4, 4, 3), dense);
+    const Scan known = refine_frame(wcam, wcoarse, ahead, seen.surface, 30.0);
+    EXPECT_EQ(known.hits, wcoarse.hits);
+    EXPECT_EQ(known.free_ends.rows(), 0);
+    for (Eigen::Index r = 0; r < known.hits.rows(); ++r) {
+      const int pc = wcoarse.hit_rays[r];
+      EXPECT_EQ(known.hit_rays[r], (pc / cc.width) * 3 * co.width + (pc % cc.width) * 3);
+      EXPECT_EQ(known.depth((pc / cc.width) * 3 + 2, (pc % cc.width) * 3 + 1),
+                wcoarse.depth(pc / cc.width, pc % cc.width));
+    }
+    // one column of squares unmarked: the hits on it, and their neighbours, are cast again
+    Kept holed;
+    Points part(0, 3);
+    std::vector<Eigen::Index> rows;
+    for (Eigen::Index r = 0; r < dense.rows(); ++r)
+      if (dense(r, 1) < 3.8 || dense(r, 1) > 3.85) rows.push_back(r);
+    part.resize(Eigen::Index(rows.size()), 3);
+    for (std::size_t i = 0; i < rows.size(); ++i) part.row(Eigen::Index(i)) = dense.row(rows[i]);
+    holed.surface.add_scan(Eigen::Vector3d(4, 4, 3), part);
+    const Scan around = refine_frame(wcam, wcoarse, ahead, holed.surface, 30.0);
+    EXPECT_GT(around.hits.rows(), wcoarse.hits.rows());
+    EXPECT_LT(around.hits.rows(), wcam.scan_pose(ahead).hits.rows() / 2);
+  }
+  kept.surface.add_scan(coarse.origin, coarse.hits);
+  // The board seen, not the walls: the walls' blocks are refined, the board's are not.
+  Kept board;
+  Points on_board(0, 3);
+  std::vector<Eigen::Index> rows;
+  for (Eigen::Index r = 0; r < whole.hits.rows(); ++r)
+    if (whole.hits(r, 2) > 0.9 && whole.hits(r, 0) < 7.4 && whole.hits(r, 0) > 5.1 &&
+        whole.hits(r, 1) > 1.6 && whole.hits(r, 1) < 4.9)
+      rows.push_back(r);
+  on_board.resize(Eigen::Index(rows.size()), 3);
+  for (std::size_t i = 0; i < rows.size(); ++i)
+    on_board.row(Eigen::Index(i)) = whole.hits.row(rows[i]);
+  ASSERT_GT(on_board.rows(), 500);
+  board.surface.add_scan(whole.origin, on_board);
+  const Scan part = refine_frame(cam, coarse, pose, board.surface, 30.0);
+  EXPECT_GT(part.hits.rows(), coarse.hits.rows());
+  EXPECT_LT(part.hits.rows(), whole.hits.rows());
+  // bad input: a coarse frame finer than the camera's, rays that do not match the points
+  EXPECT_THROW(refine_frame(coarse_cam, whole, pose, kept.surface, 30.0), std::invalid_argument);
+  Scan broken = coarse;
+  broken.hit_rays[0] = cc.width * cc.height;
+  EXPECT_THROW(refine_frame(cam, broken, pose, kept.surface, 30.0), std::invalid_argument);
+  broken.hit_rays.resize(1);
+  EXPECT_THROW(refine_frame(cam, broken, pose, kept.surface, 30.0), std::invalid_argument);
+  EXPECT_THROW(refine_frame(cam, coarse, Pose{3, 2, 4, 0, 2.0}, kept.surface, 30.0),
+               std::invalid_argument);  // beyond the gimbal
 }

@@ -68,6 +68,7 @@ class CameraConfig:
     mount_rpy_deg: tuple = triple((0.0, 0.0, 0.0))
     gimbal_pitch_deg: tuple = (-30.0, 90.0)  # [min, max] deg, > 0 looks down; [0, 0]: level
     frame_stride: int = within(1, 1, 64)  # in-flight frames at 1/N the pixels on each axis
+    frame_refine: bool = False  # with frame_stride > 1: full resolution where a frame could add
 
     def check(self, key: str) -> None:
         check_gimbal(self.gimbal_pitch_deg, key + ".gimbal_pitch_deg")

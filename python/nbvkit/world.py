@@ -342,8 +342,17 @@ class World:
         pose = self.state.pose if pose is None else as_view(pose)
         ahead, self._ahead = self._ahead, None
         if ahead is not None and ahead[0] == kind and np.array_equal(ahead[1], pose):
-            return ahead[2]
-        return self._sensor(kind).scan_pose(pose)
+            scan = ahead[2]
+        else:
+            scan = self._sensor(kind).scan_pose(pose)
+        if (
+            kind == "frame"
+            and self.config.camera.frame_refine
+            and self.frame_camera is not self.camera
+        ):
+            cone = self.config.utility.coverage_cone_deg
+            scan = _core.refine_frame(self.camera, scan, pose, self.surface, cone)
+        return scan
 
     def _sensor(self, kind: str):
         return (

@@ -38,4 +38,23 @@ FrameIntegration integrate_frame(OccupancyMap& map, SurfaceCloud& cloud,
                                  const DepthCamera* next_camera = nullptr,
                                  const Pose* next_pose = nullptr);
 
+/// A frame taken at 1/N of the camera's pixels on each axis (`coarse`, from a camera of the same
+/// field of view, range and mount at W/N x H/N pixels, at `pose`), refined to the full
+/// resolution where it could see something new: each coarse hit that a denser frame could add to
+/// the camera observations with (SurfaceObservations::novel_mask with cone_deg and whole_face: a
+/// side unseen, a square unmarked, or a cell none of whose projections along the axes has all its
+/// squares marked) has the block of the image its coarse pixel spans, and the 8
+/// neighbouring blocks (a new surface's edges), cast again pixel by pixel with `camera`
+/// (DepthCamera::scan_pixels);
+/// their pixels replace the coarse rays. Where the frame adds nothing, its coarse rays stand: the
+/// map is cleared and known surface resampled as by the coarse frame. Returns the frame as one
+/// Scan: the coarse hits kept then the refined pixels' hits, the coarse free ends kept then the
+/// refined ones, hit_rays and free_rays as full-resolution pixels (a coarse ray: its block's
+/// first pixel) and depth (H, W), each pixel its own depth where refined, its block's coarse
+/// depth elsewhere. Reads the observations only. Throws std::invalid_argument for a coarse frame
+/// finer than the camera's or whose rays do not match its points, or a pose the camera cannot
+/// take.
+Scan refine_frame(const DepthCamera& camera, const Scan& coarse, const Pose& pose,
+                  const SurfaceObservations& surface, double cone_deg);
+
 }  // namespace nbv

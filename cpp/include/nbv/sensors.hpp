@@ -20,9 +20,10 @@ namespace nbv {
 /// One sensor reading in the world frame.
 struct Scan {
   Eigen::Vector3d origin = Eigen::Vector3d::Zero();  ///< sensor origin, world frame
-  Points hits;               ///< (N, 3) surface points hit within range, world frame
-  Points free_ends;          ///< (M, 3) ends (at max range) of rays that hit nothing within range
-  Eigen::VectorXi hit_rays;  ///< (N,) ray index of each hit (camera: v * width + u)
+  Points hits;                ///< (N, 3) surface points hit within range, world frame
+  Points free_ends;           ///< (M, 3) ends (at max range) of rays that hit nothing within range
+  Eigen::VectorXi hit_rays;   ///< (N,) ray index of each hit (camera: v * width + u)
+  Eigen::VectorXi free_rays;  ///< (M,) ray index of each free end
   /// Camera: (H, W) depth along the optical axis in metres, inf where no valid return.
   /// Laser: (1, R) range along each beam in metres, inf where no valid return.
   Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor> depth;
@@ -76,9 +77,19 @@ class DepthCamera {
     require_pitch(view.pitch, "camera view");
     return scan(gimbal_sensor_transform(view, opt_.mount));
   }
+  /// Scans only the listed pixels (v * W + u, each in [0, W*H), in the order given; listing
+  /// neighbours together keeps Embree's packets coherent) as scan would: the same rays, range
+  /// limits and noise (the next frame of it). Returns their hits and free ray ends in that order,
+  /// hit_rays and free_rays the pixel of each, and depth (1, K) each listed pixel's depth. Throws
+  /// std::invalid_argument for a pixel outside the image.
+  Scan scan_pixels(const Eigen::Isometry3d& T_world_sensor,
+                   const Eigen::Ref<const Eigen::VectorXi>& pixels) const;
   void reset_noise(std::uint64_t seed);
 
  private:
+  /// Pixel p's depth from its ray's distance t of frame `frame`'s noise (inf: no valid return);
+  /// `free` is set where the ray hit nothing within the far plane.
+  double pixel_depth(double t, Eigen::Index p, std::uint64_t frame, bool& free) const;
   std::shared_ptr<const RaycastScene> scene_;
   DepthCameraOptions opt_;
   double fx_, fy_;

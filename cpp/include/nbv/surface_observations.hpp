@@ -60,6 +60,11 @@ class SurfaceObservations {
   /// of a frame). Throws std::invalid_argument for non-finite input.
   std::size_t novel_hits(const Eigen::Vector3d& origin, const PointsRef& hits,
                          double cone_deg) const;
+  /// Which of the hits novel_hits counts: 1 per hit that would add to the record, else 0. With
+  /// whole_face, also each hit in a cell none of whose three projections has all its 16 squares
+  /// marked (no face of its surface sampled whole: a denser scan could add to it).
+  std::vector<std::uint8_t> novel_mask(const Eigen::Vector3d& origin, const PointsRef& hits,
+                                       double cone_deg, bool whole_face = false) const;
   /// Forgets everything.
   void clear();
 
