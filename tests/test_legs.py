@@ -142,7 +142,13 @@ def test_frames_in_flight_are_taken_at_a_stride_of_the_camera_resolution():
     from nbvkit.world import World
 
     c = Config().with_overrides(
-        ["map.resolution=0.4", "progress=false", "camera.frame_stride=4", "camera.width=642"]
+        [
+            "map.resolution=0.4",
+            "progress=false",
+            "camera.frame_stride=4",
+            "camera.width=642",
+            "camera.frame_refine=false",
+        ]
     )
     w = World(c, mesh=box_mesh([-3, -3, 0], [3, 3, 5]))
     view, frame = w.scan("view"), w.scan("frame")
@@ -156,7 +162,9 @@ def test_frames_in_flight_are_taken_at_a_stride_of_the_camera_resolution():
     on_face = np.minimum.reduce([3 - np.abs(h[:, 0]), 3 - np.abs(h[:, 1]), h[:, 2], 5 - h[:, 2]])
     assert np.all(np.abs(on_face) < 1e-3)
     # a stride of 1: the camera itself takes the frames, pixel for pixel
-    w1 = World(Config().with_overrides(["map.resolution=0.4"]), mesh=w.mesh)
+    w1 = World(
+        Config().with_overrides(["map.resolution=0.4", "camera.frame_stride=1"]), mesh=w.mesh
+    )
     assert w1.frame_camera is w1.camera
     np.testing.assert_array_equal(w1.scan("frame").depth, w1.scan("view").depth)
 

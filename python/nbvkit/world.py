@@ -246,6 +246,7 @@ class World:
         self.scene = _core.RaycastScene(mesh)
         self.camera = build_camera(cfg.camera, self.scene, cfg.seed)
         self.frame_camera = build_frame_camera(cfg.camera, self.scene, cfg.seed + 2) or self.camera
+        self._refine = cfg.camera.frame_refine
         self.preview_camera = build_preview_camera(cfg.camera, self.scene)
         self.laser = build_laser(cfg.laser, self.scene, cfg.seed + 1)
         self._ahead = None  # (kind, pose, Scan) of a capture integrate took ahead
@@ -327,8 +328,8 @@ class World:
     def sense(self, kind: str = "view", pose=None):
         """One capture from `pose` (default: the vehicle's), scanned and integrated (scan, then
         integrate). kind: "view" (a camera frame that counts as a view), "frame" (a camera frame
-        taken in flight, the profile's or a leg's, by frame_camera: camera.frame_stride) or
-        "laser" (a laser scan). Returns the Scan."""
+        taken in flight, the profile's or a leg's, by frame_camera at camera.frame_stride,
+        refined where it could add: camera.frame_refine) or "laser". Returns the Scan."""
         scan = self.scan(kind, pose)
         self.integrate(scan, kind)
         return scan
@@ -336,7 +337,9 @@ class World:
     def scan(self, kind: str = "view", pose=None):
         """The Scan of a capture (see sense) from `pose` (default: the vehicle's); nothing is
         integrated. The capture that integrate(then=...) took ahead is returned where it is the
-        one asked for (the same kind and pose); asked for another, it is dropped."""
+        one asked for (the same kind and pose); asked for another, it is dropped. A frame at
+        camera.frame_stride is refined against the camera observations as they are now
+        (_core.refine_frame, with camera.frame_refine)."""
         if kind not in self.SENSOR_OF:
             raise ValueError(f"unknown capture {kind!r}; known: {', '.join(self.SENSOR_OF)}")
         pose = self.state.pose if pose is None else as_view(pose)
@@ -345,11 +348,7 @@ class World:
             scan = ahead[2]
         else:
             scan = self._sensor(kind).scan_pose(pose)
-        if (
-            kind == "frame"
-            and self.config.camera.frame_refine
-            and self.frame_camera is not self.camera
-        ):
+        if kind == "frame" and self.frame_camera is not self.camera and self._refine:
             cone = self.config.utility.coverage_cone_deg
             scan = _core.refine_frame(self.camera, scan, pose, self.surface, cone)
         return scan
