@@ -77,6 +77,9 @@ valid return.)doc")
       .def_readonly("free_ends", &Scan::free_ends)
       .def_readonly("hit_rays", &Scan::hit_rays)
       .def_readonly("free_rays", &Scan::free_rays)
+      .def_readonly("sparse_hits", &Scan::sparse_hits,
+                    "the leading hits a coarse frame kept (refine_frame; 0 for a scan as cast): "
+                    "the camera observations' saturation does not count them")
       .def_readonly("depth", &Scan::depth)
       .def("__repr__", [](const Scan& s) {
         return "<nbvkit.Scan " + std::to_string(s.hits.rows()) + " hits, " +

@@ -197,7 +197,7 @@ surface utility credits no view for a saturated cell and surface_targets leaves 
           "add_scan",
           [](SurfaceObservations& s, const Scan& scan) {
             Writing lock(s);
-            return s.add_scan(scan.origin, scan.hits);
+            return s.add_scan(scan.origin, scan.hits, scan.sparse_hits);
           },
           py::arg("scan"),
           "Record a camera Scan (its hits, seen from its origin). Returns the number of cells "

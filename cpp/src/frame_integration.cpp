@@ -33,7 +33,7 @@ FrameIntegration integrate_frame(OccupancyMap& map, SurfaceCloud& cloud,
   const auto integrate_map = [&] { out.map = map.integrate(scan, max_range); };
   const auto add_points = [&] {
     out.cloud_voxels = cloud.add_keyed(scan.hits, keys);
-    out.new_cells = surface.add_scan(scan.origin, scan.hits);
+    out.new_cells = surface.add_scan(scan.origin, scan.hits, scan.sparse_hits);
   };
   core_arena()->execute([&] {
     if (next_camera)
@@ -112,6 +112,7 @@ Scan refine_frame(const DepthCamera& camera, const Scan& coarse, const Pose& pos
   Scan out;
   out.origin = coarse.origin;
   keep(coarse.hits, coarse.hit_rays, fine.hits, fine.hit_rays, out.hits, out.hit_rays);
+  out.sparse_hits = out.hits.rows() - fine.hits.rows();
   keep(coarse.free_ends, coarse.free_rays, fine.free_ends, fine.free_rays, out.free_ends,
        out.free_rays);
   out.depth.resize(H, W);

@@ -140,7 +140,8 @@ std::vector<std::uint8_t> SurfaceObservations::novel_mask(const Eigen::Vector3d&
   return mask;
 }
 
-std::size_t SurfaceObservations::add_scan(const Eigen::Vector3d& origin, const PointsRef& hits) {
+std::size_t SurfaceObservations::add_scan(const Eigen::Vector3d& origin, const PointsRef& hits,
+                                          Eigen::Index sparse_hits) {
   if (!origin.allFinite())
     throw std::invalid_argument("scan origin contains NaN or infinite values");
   require_finite(hits, "hit points");
@@ -166,14 +167,16 @@ std::size_t SurfaceObservations::add_scan(const Eigen::Vector3d& origin, const P
     for (std::size_t c = cb; c < ce; ++c) {
       // consecutive hits (neighbouring pixels) mostly share a cell and a bin: flush per run
       std::int64_t run_cell = -1;
-      std::uint32_t run_bits = 0, run_hits = 0;
+      // run_dense_*: the run's hits from sparse_hits on, the only ones saturation counts
+      std::uint32_t run_bits = 0, run_hits = 0, run_dense_bits = 0, run_dense_hits = 0;
       std::uint64_t run_patches = 0;
       auto flush = [&] {
         if (run_cell < 0) return;
         stamps_.touch(std::size_t(run_cell) >> 6);
         const std::size_t at = slot(std::size_t(run_cell));
         std::uint32_t* s = &seen_pool_[at];
-        const bool new_side = (__atomic_load_n(s, __ATOMIC_RELAXED) & run_bits) != run_bits;
+        const std::uint32_t before = __atomic_load_n(s, __ATOMIC_RELAXED);
+        const bool new_side = (before & run_bits) != run_bits;
         if (new_side && __atomic_fetch_or(s, run_bits, __ATOMIC_RELAXED) == 0)
           ++local_gained;  // seen by the camera for the first time
         std::uint64_t* p = &patches_pool_[at];
@@ -182,10 +185,13 @@ std::size_t SurfaceObservations::add_scan(const Eigen::Vector3d& origin, const P
         if (saturating) {  // this scan's hits in the cell, and whether a run added a square
           std::uint32_t* r = &scan_pool_[at];
           std::uint32_t cur = __atomic_load_n(r, __ATOMIC_RELAXED), next;
-          const std::uint32_t flags = (added ? kAddedSquare : 0u) | (new_side ? kNewSide : 0u);
+          const bool dense_new_side = (before & run_dense_bits) != run_dense_bits;
+          const std::uint32_t flags =
+              (added ? kAddedSquare : 0u) | (dense_new_side ? kNewSide : 0u);
           do {
             const bool same = scan_of(cur) == scan;
-            const std::uint32_t now = std::min(kHitsMask, (same ? hits_of(cur) : 0u) + run_hits);
+            const std::uint32_t now =
+                std::min(kHitsMask, (same ? hits_of(cur) : 0u) + run_dense_hits);
             next = scan << 16 | now << 2 | (same ? cur & (kAddedSquare | kNewSide) : 0u) | flags;
           } while (!__atomic_compare_exchange_n(r, &cur, next, false, __ATOMIC_RELAXED,
                                                 __ATOMIC_RELAXED));
@@ -210,11 +216,17 @@ std::size_t SurfaceObservations::add_scan(const Eigen::Vector3d& origin, const P
           run_cell = cell;
           run_bits = 0;
           run_hits = 0;
+          run_dense_bits = 0;
+          run_dense_hits = 0;
           run_patches = 0;
         }
         run_bits |= bit;
         run_patches |= patch[r];
         ++run_hits;
+        if (row >= sparse_hits) {
+          run_dense_bits |= bit;
+          ++run_dense_hits;
+        }
       }
       flush();
     }

@@ -298,3 +298,67 @@ TEST(FrameRefinement, FullResolutionWhereNewCoarseWhereKnown) {
   EXPECT_THROW(refine_frame(cam, coarse, Pose{3, 2, 4, 0, 2.0}, kept.surface, 30.0),
                std::invalid_argument);  // beyond the gimbal
 }
+
+TEST(FrameRefinement, ACoarseFramesKeptHitsDoNotSaturate) {
+  // A wall's cells sampled every centimetre, then the same points seen from a new side, once as
+  // a dense frame's hits and once as a coarse frame's kept ones (Scan::sparse_hits): both mark
+  // the same sides and squares; only the dense hits are evidence that the cells are sampled
+  // whole (saturated: no views planned for them).
+  Points wall(200 * 200, 3);
+  for (int i = 0; i < 200; ++i)
+    for (int j = 0; j < 200; ++j) wall.row(i * 200 + j) << 10.1, 2.005 + 0.01 * i, 2.005 + 0.01 * j;
+  Kept dense, sparse;
+  for (Kept* k : {&dense, &sparse}) k->surface.add_scan(Eigen::Vector3d(4, 3, 3), wall);
+  ASSERT_EQ(dense.surface.saturated_cells(), 0);  // the first scan added every square
+  const Eigen::Vector3d aside(6, 9, 3);           // another direction bin
+  dense.surface.add_scan(aside, wall);
+  sparse.surface.add_scan(aside, wall, wall.rows());
+  EXPECT_GT(dense.surface.saturated_cells(), 50);
+  EXPECT_EQ(sparse.surface.saturated_cells(), 0);
+  std::int64_t differ = 0;
+  for (std::int64_t i = 0; i < dense.map.grid().num_cells(); ++i)
+    differ += dense.surface.seen(i) != sparse.surface.seen(i) ||
+              (dense.surface.patches(i) & ~SurfaceObservations::kSaturated) !=
+                  sparse.surface.patches(i) ||
+              dense.surface.hits(i) != sparse.surface.hits(i);
+  EXPECT_EQ(differ, 0);
+  // a refined frame names its kept coarse hits: the leading ones. A wall recorded every
+  // centimetre but for one column of squares: the hits on and around that column are refined.
+  Points v(4, 3);
+  v << 10.1, -30, -30, 10.1, 30, -30, 10.1, 30, 30, 10.1, -30, 30;
+  Faces f(2, 3);
+  f << 0, 1, 2, 0, 2, 3;
+  const auto sc = std::make_shared<RaycastScene>(Mesh::from_arrays(v, f));
+  DepthCameraOptions co;
+  co.width = 120;
+  co.height = 90;
+  DepthCameraOptions cc = co;
+  cc.width = 40;
+  cc.height = 30;
+  const DepthCamera cam(sc, co), coarse_cam(sc, cc);
+  const Pose pose{4, 4, 3, 0};
+  const Scan coarse = coarse_cam.scan_pose(pose);
+  EXPECT_EQ(coarse.sparse_hits, 0);
+  Points most(0, 3);
+  std::vector<Eigen::Index> rows;
+  for (int i = 0; i < 800; ++i)
+    for (int j = 0; j < 600; ++j)
+      if (0.005 + 0.01 * i < 3.8 || 0.005 + 0.01 * i > 3.85) rows.push_back(i * 600 + j);
+  most.resize(Eigen::Index(rows.size()), 3);
+  for (std::size_t k = 0; k < rows.size(); ++k) {
+    const Eigen::Index i = rows[k] / 600, j = rows[k] % 600;
+    most.row(Eigen::Index(k)) << 10.1, 0.005 + 0.01 * i, 0.005 + 0.01 * j;
+  }
+  Kept holed;
+  holed.surface.add_scan(Eigen::Vector3d(4, 4, 3), most);
+  const Scan refined = refine_frame(cam, coarse, pose, holed.surface, 30.0);
+  EXPECT_GT(refined.sparse_hits, coarse.hits.rows() / 2);
+  EXPECT_LT(refined.sparse_hits, coarse.hits.rows());
+  for (Eigen::Index r = 0; r < refined.hits.rows(); ++r) {
+    const double y = refined.hits(r, 1);  // kept: away from the column; refined: near it
+    if (r < refined.sparse_hits)
+      EXPECT_TRUE(y < 3.8 || y >= 4.0) << y;
+    else
+      EXPECT_TRUE(y > 3.3 && y < 4.5) << y;
+  }
+}

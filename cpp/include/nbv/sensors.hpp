@@ -24,6 +24,9 @@ struct Scan {
   Points free_ends;           ///< (M, 3) ends (at max range) of rays that hit nothing within range
   Eigen::VectorXi hit_rays;   ///< (N,) ray index of each hit (camera: v * width + u)
   Eigen::VectorXi free_rays;  ///< (M,) ray index of each free end
+  /// The leading hits a coarse frame kept where refine_frame found nothing a denser frame could
+  /// add (0 for a scan as cast): SurfaceObservations::add_scan's saturation does not count them.
+  Eigen::Index sparse_hits = 0;
   /// Camera: (H, W) depth along the optical axis in metres, inf where no valid return.
   /// Laser: (1, R) range along each beam in metres, inf where no valid return.
   Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor> depth;

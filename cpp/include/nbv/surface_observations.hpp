@@ -51,8 +51,12 @@ class SurfaceObservations {
 
   /// Records one camera scan: hits (N, 3) world-frame points seen from `origin`. Hits outside
   /// the workspace are ignored. Parallel; throws std::invalid_argument for non-finite input.
-  /// Returns the number of cells the camera saw for the first time.
-  std::size_t add_scan(const Eigen::Vector3d& origin, const PointsRef& hits);
+  /// Returns the number of cells the camera saw for the first time. The first sparse_hits hits
+  /// are a coarse frame's (Scan::sparse_hits): recorded like the others, but saturation counts
+  /// neither them nor a side only they saw (a coarse resampling of known surface is no evidence
+  /// that a cell's surface is sampled whole).
+  std::size_t add_scan(const Eigen::Vector3d& origin, const PointsRef& hits,
+                       Eigen::Index sparse_hits = 0);
   /// The hits (N, 3) seen from `origin` that would add to the record (read only): those in a
   /// workspace cell not yet seen from a direction bin within cone_deg of theirs (the cell's side
   /// facing the sensor unseen, as the surface utility's cone reads it) or that would mark a
