@@ -933,6 +933,31 @@ def test_view_coverage_sets_hold_what_the_surface_utility_credits_each_view():
     np.testing.assert_allclose(sums[valid], scores["gain"][valid], rtol=1e-5)
 
 
+def test_view_coverage_reads_each_map_afresh_after_a_call_on_another():
+    # the packed grid's buffer is kept from one call to the next and filled brick by brick as
+    # the walks read it: calls alternating between two maps of the same size (another box, seen
+    # from other sides) each credit what the surface utility credits walking that map's grid
+    m, surface, poses, current, kw = _box_seen_from_two_sides()
+    other = nbvkit.OccupancyMap(0.2, (-6, -6, 0), (6, 6, 5))
+    cam = nbvkit.DepthCamera(box_mesh((-0.5, -2.5, 0), (2.5, 0.5, 4.0)), max_range=8.0)
+    other_surface = _core.SurfaceObservations(other)
+    for pose in ([5.0, 0.0, 2.0, math.pi], [0.0, 5.0, 1.0, -math.pi / 2]):
+        other.mark_free_segment(pose[:3], pose[:3], 1.0)
+        scan = cam.scan_pose(pose)
+        other.integrate(scan)
+        other_surface.add_scan(scan)
+    sums = []
+    for grid, seen in ((m, surface), (other, other_surface)) * 2:
+        cov = _core.view_coverage(grid, seen, poses, current, **kw)
+        scores = _core.evaluate_views(grid, poses, current, surface=seen, **kw)
+        valid = scores["status"] == 0
+        assert valid.sum() >= 10
+        np.testing.assert_array_equal(np.diff(cov.offsets)[valid], scores["cells"][valid])
+        np.testing.assert_allclose(_set_sums(cov)[valid], scores["gain"][valid], rtol=1e-5)
+        sums.append(_set_sums(cov))
+    assert not np.array_equal(sums[0], sums[1])
+
+
 def test_view_coverage_with_a_min_gain_hands_out_only_the_sets_a_selection_could_take():
     # A valid candidate whose weights sum below min_gain keeps its status and gets an empty set;
     # the others keep theirs; select_tours at that min_gain or above chooses the same views, in

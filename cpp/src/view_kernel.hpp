@@ -10,10 +10,12 @@
 #include "utilities/registry.hpp"
 
 #include <cmath>
+#include <cstdlib>
 #include <cstring>
 #include <functional>
 #include <limits>
 #include <memory>
+#include <mutex>
 #include <numeric>
 #include <type_traits>
 
@@ -40,33 +42,27 @@ struct GridCells {
 
 // The grid as one byte per cell, for a call that walks many views with a utility that reads
 // only whether a cell is occupied (the sign of `scored`: +-1 here), its flag, and log-odds
-// where it stops (Surface, view_coverage): made once per call, it lets the walks read one cache
-// line per brick of 64 cells where they read a float and a flag per cell. near_surface is
-// worked out the first time a walk asks and kept in the cell's byte for the rest of the call,
-// in which the grid does not change: two threads may both work it out, and store the same byte.
+// where it stops (Surface, view_coverage): it lets the walks read one cache line per brick of
+// 64 cells where they read a float and a flag per cell. A brick's bytes are filled the first
+// time a walk reads one of them (a large structure's grid holds tens of millions of cells, of
+// which a call reads a few: filling them all cost a plant's call 80 MB written and faulted in),
+// in a buffer kept from one call to the next and zeroed where the call filled it. near_surface
+// is worked out the first time a walk asks and kept in the cell's byte for the rest of the
+// call, in which the grid does not change. Two threads may both fill a brick, or work a cell
+// out, and store the same bytes (a refill only forgets what near_surface kept).
 class PackedCells {
  public:
-  explicit PackedCells(const GridView& g) : g(g), bytes_(new std::uint8_t[g.storage_size()]) {
-    parallel_chunks(g.storage_size() >> 6, 256, [&](std::size_t b, std::size_t e) {
-      for (std::size_t brick = b; brick < e; ++brick) {
-        std::uint8_t* out = &bytes_[brick << 6];
-        if (g.cells.slots[brick] == 0) {  // the shared brick: unknown cells, not occupied
-          std::memset(out, 0, 64);
-          continue;
-        }
-        const float* scored = g.cells.brick_scored(brick);
-        const CellFlag* flags = g.cells.brick_flags(brick);
-        for (int i = 0; i < 64; ++i)
-          out[i] = std::uint8_t(std::signbit(scored[i])) | std::uint8_t(flags[i]) << 1;
-      }
-    });
-  }
-  float scored(std::size_t idx, const int*) const { return bytes_[idx] & kOccupied ? -1.f : 1.f; }
+  explicit PackedCells(const GridView& g) : g(g), buf_(take(g.storage_size())) {}
+  ~PackedCells() { give_back(std::move(buf_)); }
+  PackedCells(const PackedCells&) = delete;
+  PackedCells& operator=(const PackedCells&) = delete;
+
+  float scored(std::size_t idx, const int*) const { return byte(idx) & kOccupied ? -1.f : 1.f; }
   float logodds(std::size_t idx, const int*) const { return g.cells.logodds_at(idx); }
-  CellFlag flag(std::size_t idx, const int*) const { return CellFlag((bytes_[idx] >> 1) & 3); }
+  CellFlag flag(std::size_t idx, const int*) const { return CellFlag((byte(idx) >> 1) & 3); }
   // c may be null (the four-lane walks give cell ids alone): then worked out from idx
   bool near_surface(std::size_t idx, const int* c) const {
-    std::uint8_t v = __atomic_load_n(&bytes_[idx], __ATOMIC_RELAXED);
+    std::uint8_t v = byte(idx);
     if (!(v & kKnown)) {
       int at[3];
       if (!c) {
@@ -74,15 +70,86 @@ class PackedCells {
         c = at;
       }
       v |= kKnown | (utility::next_to_surface(g, *this, c) ? kNear : 0);
-      __atomic_store_n(&bytes_[idx], v, __ATOMIC_RELAXED);
+      __atomic_store_n(&buf_.bytes[idx], v, __ATOMIC_RELAXED);
     }
     return v & kNear;
   }
   const GridView& g;
 
  private:
-  static constexpr std::uint8_t kOccupied = 1, kKnown = 8, kNear = 16;  // flag: bits 1-2
-  std::unique_ptr<std::uint8_t[]> bytes_;
+  static constexpr std::uint8_t kOccupied = 1, kKnown = 8, kNear = 16, kFilled = 32;  // flag: 1-2
+  struct Free {
+    void operator()(std::uint8_t* p) const { std::free(p); }
+  };
+  using Bytes = std::unique_ptr<std::uint8_t[], Free>;
+  // Zero where no call is filling it; calloc'd, so pages no call has read stay unmapped.
+  struct Buffer {
+    std::size_t cells = 0;
+    Bytes bytes;   // a byte per cell
+    Bytes filled;  // a byte per brick: 1 where this call filled it
+  };
+
+  std::uint8_t byte(std::size_t idx) const {
+    const std::uint8_t v = __atomic_load_n(&buf_.bytes[idx], __ATOMIC_RELAXED);
+    return v & kFilled ? v : fill(idx);
+  }
+  // Fills the brick of cell idx; returns the cell's byte.
+  std::uint8_t fill(std::size_t idx) const {
+    const std::size_t brick = idx >> 6;
+    std::uint8_t* out = &buf_.bytes[brick << 6];
+    if (g.cells.slots[brick] == 0) {  // the shared brick: unknown cells, not occupied
+      for (int i = 0; i < 64; ++i) __atomic_store_n(&out[i], kFilled, __ATOMIC_RELAXED);
+    } else {
+      const float* scored = g.cells.brick_scored(brick);
+      const CellFlag* flags = g.cells.brick_flags(brick);
+      for (int i = 0; i < 64; ++i)
+        __atomic_store_n(&out[i],
+                         std::uint8_t(kFilled | std::uint8_t(std::signbit(scored[i])) |
+                                      std::uint8_t(flags[i]) << 1),
+                         __ATOMIC_RELAXED);
+    }
+    __atomic_store_n(&buf_.filled[brick], std::uint8_t(1), __ATOMIC_RELAXED);
+    return __atomic_load_n(&out[idx & 63], __ATOMIC_RELAXED);
+  }
+
+  // One buffer kept between calls (calls at once each take their own).
+  static std::mutex& pool_mutex() {
+    static std::mutex m;
+    return m;
+  }
+  static Buffer& pooled() {
+    static Buffer b;
+    return b;
+  }
+  static Buffer take(std::size_t cells) {
+    {
+      std::lock_guard<std::mutex> lock(pool_mutex());
+      Buffer& b = pooled();
+      if (b.bytes && b.cells == cells) return std::move(b);
+    }
+    Buffer b;
+    b.cells = cells;
+    b.bytes.reset(static_cast<std::uint8_t*>(std::calloc(std::max<std::size_t>(cells, 1), 1)));
+    b.filled.reset(static_cast<std::uint8_t*>(std::calloc((cells >> 6) + 1, 1)));
+    if (!b.bytes || !b.filled) throw std::bad_alloc();
+    return b;
+  }
+  static void give_back(Buffer&& b) {
+    if (!b.bytes) return;
+    std::uint8_t* bytes = b.bytes.get();
+    std::uint8_t* filled = b.filled.get();
+    parallel_chunks(b.cells >> 6, 1 << 14, [&](std::size_t lo, std::size_t hi) {
+      for (std::size_t brick = lo; brick < hi; ++brick)
+        if (filled[brick]) {
+          std::memset(bytes + (brick << 6), 0, 64);
+          filled[brick] = 0;
+        }
+    });
+    std::lock_guard<std::mutex> lock(pool_mutex());
+    pooled() = std::move(b);
+  }
+
+  Buffer buf_;
 };
 
 struct OctreeCells {
