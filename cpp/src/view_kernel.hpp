@@ -91,10 +91,10 @@ class PackedCells {
 
   std::uint8_t byte(std::size_t idx) const {
     const std::uint8_t v = __atomic_load_n(&buf_.bytes[idx], __ATOMIC_RELAXED);
-    return v & kFilled ? v : fill(idx);
+    return __builtin_expect(v & kFilled, kFilled) ? v : fill(idx);
   }
   // Fills the brick of cell idx; returns the cell's byte.
-  std::uint8_t fill(std::size_t idx) const {
+  [[gnu::noinline, gnu::cold]] std::uint8_t fill(std::size_t idx) const {
     const std::size_t brick = idx >> 6;
     std::uint8_t* out = &buf_.bytes[brick << 6];
     if (g.cells.slots[brick] == 0) {  // the shared brick: unknown cells, not occupied
