@@ -933,11 +933,9 @@ def test_view_coverage_sets_hold_what_the_surface_utility_credits_each_view():
     np.testing.assert_allclose(sums[valid], scores["gain"][valid], rtol=1e-5)
 
 
-def test_view_coverage_reads_each_map_afresh_after_a_call_on_another():
-    # the packed grid's buffer is kept from one call to the next and filled brick by brick as
-    # the walks read it: calls alternating between two maps of the same size (another box, seen
-    # from other sides) each credit what the surface utility credits walking that map's grid
-    m, surface, poses, current, kw = _box_seen_from_two_sides()
+def _other_box_seen_from_two_sides():
+    """(map, surface) of the same size as _box_seen_from_two_sides', another box seen from other
+    sides."""
     other = nbvkit.OccupancyMap(0.2, (-6, -6, 0), (6, 6, 5))
     cam = nbvkit.DepthCamera(box_mesh((-0.5, -2.5, 0), (2.5, 0.5, 4.0)), max_range=8.0)
     other_surface = _core.SurfaceObservations(other)
@@ -946,6 +944,15 @@ def test_view_coverage_reads_each_map_afresh_after_a_call_on_another():
         scan = cam.scan_pose(pose)
         other.integrate(scan)
         other_surface.add_scan(scan)
+    return other, other_surface
+
+
+def test_view_coverage_reads_each_map_afresh_after_a_call_on_another():
+    # the packed grid's buffer is kept from one call to the next and filled brick by brick as
+    # the walks read it: calls alternating between two maps of the same size each credit what
+    # the surface utility credits walking that map's grid
+    m, surface, poses, current, kw = _box_seen_from_two_sides()
+    other, other_surface = _other_box_seen_from_two_sides()
     sums = []
     for grid, seen in ((m, surface), (other, other_surface)) * 2:
         cov = _core.view_coverage(grid, seen, poses, current, **kw)
@@ -956,6 +963,25 @@ def test_view_coverage_reads_each_map_afresh_after_a_call_on_another():
         np.testing.assert_allclose(_set_sums(cov)[valid], scores["gain"][valid], rtol=1e-5)
         sums.append(_set_sums(cov))
     assert not np.array_equal(sums[0], sums[1])
+
+
+def test_view_coverage_calls_at_once_on_two_maps_answer_as_one_after_the_other():
+    # the calls release the GIL: run at once from threads, each takes its own packed buffer
+    from concurrent.futures import ThreadPoolExecutor
+
+    m, surface, poses, current, kw = _box_seen_from_two_sides()
+    other, other_surface = _other_box_seen_from_two_sides()
+    maps = [(m, surface), (other, other_surface)] * 4
+
+    def call(pair):
+        return _core.view_coverage(pair[0], pair[1], poses, current, **kw)
+
+    alone = [call(pair) for pair in maps[:2]]
+    with ThreadPoolExecutor(max_workers=4) as pool:
+        together = list(pool.map(call, maps))
+    for k, cov in enumerate(together):
+        for field in ("offsets", "elements", "weights", "status"):
+            np.testing.assert_array_equal(getattr(cov, field), getattr(alone[k % 2], field))
 
 
 def test_view_coverage_with_a_min_gain_hands_out_only_the_sets_a_selection_could_take():
