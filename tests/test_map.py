@@ -526,6 +526,11 @@ def test_bad_input_for_every_entry_point(box_scene_scans):
             method(box_scene_scans[0], [[1.0, 0, 0]])  # a Scan and hits
         with pytest.raises(ValueError, match="origin"):
             method((1e9, 0, 0), [[1.0, 0, 0]])  # beyond OctoMap's addressable range
+        # finite, but infinite in OctoMap's single precision: the exact path dropped the ray
+        with pytest.raises(ValueError, match="free-space ray ends lie beyond"):
+            method((0, 0, 0), [[1.0, 0, 0]], [[1e300, 0, 0]])
+        with pytest.raises(ValueError, match="hit points lie beyond"):
+            method((0, 0, 0), [[1.0, 0, 0], [0, -2e9, 0]])
     for query in (
         m.state,
         m.probability,

@@ -150,6 +150,13 @@ def test_bad_arguments_raise_value_errors():
         _core.observable_samples(scene, p, p, cam, [0, 0, 0], [1, 1, 1], pose_spacing=0)
     with pytest.raises(ValueError, match="navigation box"):
         _core.observable_samples(scene, p, p, cam, [0, 0, 0], [-1, 1, 1])
+    # finite, but beyond any position the ray caster takes (Embree aborted the process)
+    for lo, hi in (([-1e300, 0, 0], [1, 1, 1]), ([0, 0, 0], [1e19, 1, 1])):
+        with pytest.raises(ValueError, match="nav_m.. .*not a usable position"):
+            _core.observable_samples(scene, p, p, cam, lo, hi)
+    # a usable box whose lattice would overflow a 64-bit count: refused by its size
+    with pytest.raises(ValueError, match="candidate positions"):
+        _core.observable_samples(scene, p, p, cam, [-1e9] * 3, [1e9] * 3, pose_spacing=1e-3)
 
 
 def test_the_evaluator_counts_coverage_relative_to_the_observable_samples():

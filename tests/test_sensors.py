@@ -191,6 +191,12 @@ def test_bad_input_is_rejected():
         scene.intersect(np.zeros((2, 3)), np.ones((3, 3)))
     with pytest.raises(ValueError, match="NaN"):
         scene.intersect([[0, 0, 0]], [[np.nan, 0, 0]])
+    # finite, but beyond what Embree takes in single precision (it aborted the process)
+    for d in ([1e300, 0, 0], [0, -1e19, 0]):
+        with pytest.raises(ValueError, match="ray direction 1 .*too long"):
+            scene.intersect([[0, 0, 0]], [[1, 0, 0], d])
+    t, prim = scene.intersect([[0, 0, 0]], [[0, 0, 0], [1e-300, 0, 0]])  # no length: no hit
+    assert np.isinf(t).all() and (prim == -1).all()
     with pytest.raises(ValueError, match="t_near"):
         scene.intersect([[0, 0, 0]], [[1, 0, 0]], 2.0, 1.0)
     with pytest.raises(ValueError):

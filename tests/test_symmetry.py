@@ -566,6 +566,9 @@ def test_bad_input_raises_value_error():
         sym.mean_shift_planes(np.zeros((3, 3)), [0, 0, 0], 1.0)
     with pytest.raises(ValueError):
         sym.mean_shift_planes(np.zeros((3, 4)), [0, 0, 0], 0.0)
+    for radius in (0.0, -1.0, float("nan"), float("inf")):  # inf searched the whole cloud, forever
+        with pytest.raises(ValueError, match="radius"):
+            sym.compute_fpfh(good, [0, 1], radius=radius)
 
 
 def test_degenerate_clouds_report_no_plane():

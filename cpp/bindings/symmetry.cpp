@@ -3,6 +3,7 @@
 #include "bindings.hpp"
 #include "options.hpp"
 
+#include <cmath>
 #include <string>
 
 namespace nbv::bind {
@@ -233,8 +234,8 @@ residual_rotation_deg, timings (dict stage -> seconds).)doc")
         for (int i : indices)
           if (i < 0 || i >= n)
             throw py::value_error("index " + std::to_string(i) + " out of range");
-        if (normal_k < 3 || !(radius > 0))
-          throw py::value_error("normal_k must be >= 3 and radius > 0");
+        if (normal_k < 3 || !(radius > 0) || !std::isfinite(radius))
+          throw py::value_error("normal_k must be >= 3 and radius a finite number > 0");
         py::gil_scoped_release release;
         const auto nc = detail::estimate_normals(a.map(), normal_k, 0.0);
         return detail::compute_fpfh(a.map(), nc.normals, indices, radius);

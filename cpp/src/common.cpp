@@ -159,6 +159,14 @@ void require_representable(const Eigen::Vector3d& p, const std::string& what) {
   throw std::invalid_argument(s.str());
 }
 
+void require_coordinates(const PointsRef& points, const char* what) {
+  if ((points.array().abs() <= kMaxCoordinate).all()) return;  // false for NaN too
+  require_finite(points, what);
+  throw std::invalid_argument(std::string(what) + " lie beyond +-" +
+                              std::to_string(long(kMaxCoordinate)) +
+                              " m of the origin: not usable positions");
+}
+
 void require_finite(const PointsRef& points, const char* what) {
   if (!points.allFinite())
     throw std::invalid_argument(std::string(what) + " contains NaN or infinite values");

@@ -19,7 +19,8 @@ FrameIntegration integrate_frame(OccupancyMap& map, SurfaceCloud& cloud,
   // keys, which also check the hits; the observations need finite hits and origin), and the
   // next frame's pose as the camera's scan checks it.
   map.check_sensor_origin(scan.origin, max_range);
-  require_finite(scan.free_ends, "free-space ray ends");
+  require_coordinates(scan.hits, "hit points");
+  require_coordinates(scan.free_ends, "free-space ray ends");
   if (bool(next_camera) != bool(next_pose))
     throw std::invalid_argument("integrate_frame: a next frame needs both a camera and a pose");
   Eigen::Isometry3d next_T = Eigen::Isometry3d::Identity();

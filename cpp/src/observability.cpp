@@ -136,6 +136,8 @@ ObservabilityResult observable_samples(const RaycastScene& scene, const PointsRe
                                 std::to_string(normals.rows()));
   if (!nav_min.allFinite() || !nav_max.allFinite() || (nav_max.array() < nav_min.array()).any())
     throw std::invalid_argument("the navigation box needs finite nav_min <= nav_max");
+  require_representable(nav_min, "nav_min");  // positions the ray caster can take
+  require_representable(nav_max, "nav_max");
 
   ObservabilityResult res;
   const auto n = static_cast<std::size_t>(points.rows());
@@ -146,6 +148,12 @@ ObservabilityResult observable_samples(const RaycastScene& scene, const PointsRe
   // spacing keeps every position and adds more: the observable set can only grow)
   std::array<std::int64_t, 3> dim{};
   Eigen::Vector3d origin;
+  double lattice = 1.0;  // counted in floating point first: no integer overflows
+  for (int a = 0; a < 3; ++a)
+    lattice *= 2.0 * std::floor(0.5 * (nav_max[a] - nav_min[a]) / s + 1e-9) + 1.0;
+  if (!(lattice <= 2e8))
+    throw std::invalid_argument("pose_spacing " + fmt(s) + " m gives " + fmt(lattice) +
+                                " candidate positions (at most 2e8): use a coarser spacing");
   for (int a = 0; a < 3; ++a) {
     const double half = 0.5 * (nav_max[a] - nav_min[a]);
     const auto kmax = static_cast<std::int64_t>(std::floor(half / s + 1e-9));
@@ -153,9 +161,6 @@ ObservabilityResult observable_samples(const RaycastScene& scene, const PointsRe
     origin[a] = 0.5 * (nav_min[a] + nav_max[a]) - static_cast<double>(kmax) * s;
   }
   const std::int64_t total = dim[0] * dim[1] * dim[2];
-  if (total > 200'000'000)
-    throw std::invalid_argument("pose_spacing " + fmt(s) + " m gives " + std::to_string(total) +
-                                " candidate positions (at most 2e8): use a coarser spacing");
   res.lattice_points = total;
   auto flat = [&](std::int64_t i, std::int64_t j, std::int64_t k) {
     return (k * dim[1] + j) * dim[0] + i;

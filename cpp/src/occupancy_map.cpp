@@ -49,8 +49,8 @@ void check_integrate_args(const Eigen::Vector3d& origin, const PointsRef& hits,
                           const PointsRef& free_ends, double max_range) {
   if (!origin.allFinite())
     throw std::invalid_argument("sensor origin contains NaN or infinite values");
-  require_finite(hits, "hit points");
-  require_finite(free_ends, "free-space ray ends");
+  require_coordinates(hits, "hit points");
+  require_coordinates(free_ends, "free-space ray ends");
   if (std::isnan(max_range) || !(max_range > 0))
     throw std::invalid_argument("max_range must be > 0 (inf = no limit), got " +
                                 std::to_string(max_range));
@@ -454,8 +454,9 @@ IntegrationStats OccupancyMap::integrate(const Scan& scan, double max_range) {
 
 IntegrationStats OccupancyMap::integrate(const Eigen::Vector3d& origin, const PointsRef& hits,
                                          const PointsRef& free_ends, double max_range) {
-  // points are checked for NaN/inf inside collect_end_points (before anything changes)
   check_sensor_origin(origin, max_range);
+  require_coordinates(hits, "hit points");  // NaN, inf or beyond +-kMaxCoordinate: refused
+  require_coordinates(free_ends, "free-space ray ends");
   const octomap::point3d o = to_point3d(origin);
   IntegrationStats stats;
   stats.rays = std::size_t(hits.rows() + free_ends.rows());
@@ -585,7 +586,6 @@ std::vector<std::vector<OccupancyMap::EndPoint>> OccupancyMap::collect_end_point
   const double rf = 1.0 / res_;  // OctoMap's resolution_factor
   const std::size_t chunk = 4096, nchunks = (n + chunk - 1) / chunk;
   std::vector<std::vector<EndPoint>> out(nchunks);
-  std::atomic<int> non_finite{0};  // 1: a hit, 2: a free end is NaN or infinite
   parallel_chunks(nchunks, 1, [&](std::size_t cb, std::size_t ce) {
     std::vector<std::int32_t> keys(3 * chunk), subs(chunk);
     std::vector<double> d2s(chunk), cut_rows(cut ? 3 * chunk : 0);
@@ -613,15 +613,13 @@ std::vector<std::vector<OccupancyMap::EndPoint>> OccupancyMap::collect_end_point
             const auto row = pts.row(Eigen::Index(r0 + i));
             octomap::point3d p = row_point3d(row);
             cut_flags[i] = flag;
-            if (row.allFinite() && (p - o).norm() > max_range) {
+            if ((p - o).norm() > max_range) {
               p = o + (p - o).normalized() * float(max_range);
               cut_flags[i] = 0;  // the ray clears the cells before its cut end, nothing else
             }
-            for (int a = 0; a < 3; ++a) {     // a non-finite row stays so (end_cells flags it);
-              const double v = double(p(a));  // a float overflow is beyond OctoMap's range
-              cut_rows[3 * i + std::size_t(a)] = !std::isfinite(row(a)) ? row(a)
-                                                 : std::isfinite(v)     ? v
-                                                                        : 1e300;
+            for (int a = 0; a < 3; ++a) {  // a float overflow is beyond OctoMap's range
+              const double v = double(p(a));
+              cut_rows[3 * i + std::size_t(a)] = std::isfinite(v) ? v : 1e300;
             }
           }
           rows = cut_rows.data();
@@ -629,10 +627,7 @@ std::vector<std::vector<OccupancyMap::EndPoint>> OccupancyMap::collect_end_point
         }
         detail::end_cells(rows, stride, m, rf, k, block);
         for (std::size_t i = 0; i < m; ++i) {
-          if (states[i] != 1) {
-            if (states[i] == 2) non_finite.store(is_hit ? 1 : 2, std::memory_order_relaxed);
-            continue;  // OctoMap skips rays whose end it cannot address
-          }
+          if (states[i] != 1) continue;  // OctoMap skips rays whose end it cannot address
           const std::int32_t sub = subs[i];
           const float d2 = float(d2s[i]);
           const std::uint8_t f = cut ? cut_flags[i] : flag;
@@ -654,9 +649,6 @@ std::vector<std::vector<OccupancyMap::EndPoint>> OccupancyMap::collect_end_point
       }
     }
   });
-  if (const int bad = non_finite.load())
-    throw std::invalid_argument(bad == 1 ? "hit points contain NaN or infinite values"
-                                         : "free-space ray ends contain NaN or infinite values");
   return out;
 }
 

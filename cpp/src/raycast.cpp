@@ -3,6 +3,7 @@
 
 #include <cmath>
 #include <limits>
+#include <sstream>
 #include <string>
 
 namespace nbv {
@@ -86,6 +87,17 @@ void RaycastScene::intersect(const PointsRef& origins, const PointsRef& directio
   for (Eigen::Index i = 0; i < origins.rows(); ++i)
     require_representable(origins.row(i).transpose(), "ray origin " + std::to_string(i));
   require_finite(directions, "ray directions");
+  // Embree takes a ray only with every component of its direction within about 1.8e18 in single
+  // precision (and aborts the process otherwise)
+  for (Eigen::Index i = 0; i < n; ++i)
+    if (directions.row(i).cwiseAbs().maxCoeff() > kMaxDirection) {
+      std::ostringstream s;
+      s.precision(6);
+      s << "ray direction " << i << " (" << directions(i, 0) << ", " << directions(i, 1) << ", "
+        << directions(i, 2) << ") is too long: components must be within +-" << kMaxDirection
+        << " (a unit vector gives t in metres)";
+      throw std::invalid_argument(s.str());
+    }
   t.setConstant(n, std::numeric_limits<double>::infinity());
   prim.setConstant(n, -1);
   const bool shared = origins.rows() == 1;

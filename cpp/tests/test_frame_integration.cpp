@@ -129,15 +129,18 @@ TEST(FrameIntegration, ARefusedFrameChangesNothing) {
   const Scan good = cam.scan_pose(Pose{4, 6, 3.5, -0.4, 0.2});
   ASSERT_GT(good.hits.rows(), 10);
   ASSERT_GT(good.free_ends.rows(), 0);
-  Scan bad_hit = good, bad_end = good, bad_origin = good, far_origin = good;
+  Scan bad_hit = good, bad_end = good, bad_origin = good, far_origin = good, far_hit = good,
+       far_end = good;
   bad_hit.hits(good.hits.rows() - 1, 2) = nan;  // the last hit: the others come first
   bad_end.free_ends(0, 0) = std::numeric_limits<double>::infinity();
+  far_hit.hits(good.hits.rows() - 1, 1) = 1e300;  // finite, infinite in single precision
+  far_end.free_ends(good.free_ends.rows() - 1, 0) = -2e9;
   bad_origin.origin.x() = nan;
   far_origin.origin.x() = 1e7;  // beyond OctoMap's addressable range
   const double inf = std::numeric_limits<double>::infinity();
   // beyond the gimbal; not a number; finite but beyond any usable position
   const Pose steep{2, 4, 3, 0, 2.0}, lost{nan, 4, 3, 0}, remote{1e300, 4, 3, 0};
-  for (const Scan* s : {&bad_hit, &bad_end, &bad_origin, &far_origin}) {
+  for (const Scan* s : {&bad_hit, &bad_end, &bad_origin, &far_origin, &far_hit, &far_end}) {
     EXPECT_THROW(integrate_frame(kept.map, kept.cloud, kept.surface, *s), std::invalid_argument);
     EXPECT_THROW(integrate_frame(kept.map, kept.cloud, kept.surface, good, 0.0),
                  std::invalid_argument);  // max_range must be > 0

@@ -184,3 +184,20 @@ TEST(Sensors, CameraTileOrderCoversEveryPixelOnce) {
   for (int c : seen) EXPECT_EQ(c, 1);
   for (Eigen::Index i = 0; i < s.hits.rows(); ++i) EXPECT_NEAR(s.hits(i, 0), 4.0, 1e-9);
 }
+
+TEST(Raycast, DirectionBeyondSinglePrecisionRangeIsRefused) {
+  Points v(3, 3);
+  v << 5, -1, -1, 5, 1, -1, 5, 0, 1;
+  nbv::Faces f(1, 3);
+  f << 0, 1, 2;
+  nbv::RaycastScene scene(Mesh::from_arrays(v, f));
+  Points o = Points::Zero(1, 3), d(2, 3);
+  d << 1, 0, 0, 1e300, 0, 0;  // finite, but Embree aborts on a component beyond ~1.8e18
+  Eigen::VectorXd t;
+  Eigen::VectorXi prim;
+  EXPECT_THROW(scene.intersect(o, d, 0.0, 100.0, t, prim), std::invalid_argument);
+  d.row(1) << 0, 0, -nbv::RaycastScene::kMaxDirection;  // the largest taken: no hit behind
+  scene.intersect(o, d, 0.0, 100.0, t, prim);
+  EXPECT_NEAR(t[0], 5.0, 1e-12);
+  EXPECT_EQ(prim[1], -1);
+}

@@ -105,6 +105,9 @@ void require_representable(const Eigen::Vector3d& p, const std::string& what);
 
 /// Throws std::invalid_argument (-> ValueError) naming `what` if any entry is NaN or inf.
 void require_finite(const PointsRef& points, const char* what);
+/// As require_finite, and also if any entry lies beyond +-kMaxCoordinate (points given as
+/// positions: single precision, which OctoMap and Embree work in, would make them infinite).
+void require_coordinates(const PointsRef& points, const char* what);
 /// Converts a 4x4 homogeneous matrix to a rigid transform; throws std::invalid_argument naming
 /// `what` if it holds non-finite values, its rotation part is not a rotation, or its last row is
 /// not [0, 0, 0, 1].

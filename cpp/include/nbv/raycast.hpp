@@ -33,9 +33,14 @@ class RaycastScene {
   const Mesh& mesh() const { return mesh_; }
   RTCScene handle() const { return scene_; }
 
+  /// The largest magnitude of a ray direction's component that intersect takes.
+  static constexpr double kMaxDirection = 1e18;
+
   /// Casts rays o_i + t d_i, t in [t_near, t_far] (d_i need not be unit; t is then in units of
   /// |d_i|... use unit directions to get metres). Writes t (inf where nothing is hit) and the hit
   /// triangle (-1 where nothing is hit). `origins` is (1, 3) for a shared origin or (N, 3).
+  /// Throws std::invalid_argument for non-finite rays, an origin beyond kMaxCoordinate or a
+  /// direction's component beyond kMaxDirection.
   void intersect(const PointsRef& origins, const PointsRef& directions, double t_near, double t_far,
                  Eigen::VectorXd& t, Eigen::VectorXi& prim) const;
 
