@@ -211,7 +211,9 @@ def main():
     import argparse
 
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    ap.add_argument("tests", nargs="*", help="test files (default: %(default)s)")
+    ap.add_argument(
+        "tests", nargs="*", help="test files (default: " + " ".join(DEFAULT_TESTS) + ")"
+    )
     ap.add_argument("--per", type=int, default=2, help="calls kept per function (default 2)")
     ap.add_argument("--limit", type=int, default=30, help="seconds a call may take (default 30)")
     ap.add_argument("--json", help="write the findings here")
