@@ -146,19 +146,20 @@ ObservabilityResult observable_samples(const RaycastScene& scene, const PointsRe
 
   // ---- the lattice of candidate positions: centre + k * spacing inside the box (so halving the
   // spacing keeps every position and adds more: the observable set can only grow)
-  std::array<std::int64_t, 3> dim{};
-  Eigen::Vector3d origin;
-  double lattice = 1.0;  // counted in floating point first: no integer overflows
-  for (int a = 0; a < 3; ++a)
-    lattice *= 2.0 * std::floor(0.5 * (nav_max[a] - nav_min[a]) / s + 1e-9) + 1.0;
+  std::array<double, 3> kmax{};  // positions each side of the centre, per axis
+  double lattice = 1.0;          // counted in floating point first: no integer overflows
+  for (int a = 0; a < 3; ++a) {
+    kmax[a] = std::floor(0.5 * (nav_max[a] - nav_min[a]) / s + 1e-9);
+    lattice *= 2.0 * kmax[a] + 1.0;
+  }
   if (!(lattice <= 2e8))
     throw std::invalid_argument("pose_spacing " + fmt(s) + " m gives " + fmt(lattice) +
                                 " candidate positions (at most 2e8): use a coarser spacing");
+  std::array<std::int64_t, 3> dim{};
+  Eigen::Vector3d origin;
   for (int a = 0; a < 3; ++a) {
-    const double half = 0.5 * (nav_max[a] - nav_min[a]);
-    const auto kmax = static_cast<std::int64_t>(std::floor(half / s + 1e-9));
-    dim[a] = 2 * kmax + 1;
-    origin[a] = 0.5 * (nav_min[a] + nav_max[a]) - static_cast<double>(kmax) * s;
+    dim[a] = 2 * static_cast<std::int64_t>(kmax[a]) + 1;
+    origin[a] = 0.5 * (nav_min[a] + nav_max[a]) - kmax[a] * s;
   }
   const std::int64_t total = dim[0] * dim[1] * dim[2];
   res.lattice_points = total;

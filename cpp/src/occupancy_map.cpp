@@ -454,9 +454,8 @@ IntegrationStats OccupancyMap::integrate(const Scan& scan, double max_range) {
 
 IntegrationStats OccupancyMap::integrate(const Eigen::Vector3d& origin, const PointsRef& hits,
                                          const PointsRef& free_ends, double max_range) {
+  check_integrate_args(origin, hits, free_ends, max_range);
   check_sensor_origin(origin, max_range);
-  require_coordinates(hits, "hit points");  // NaN, inf or beyond +-kMaxCoordinate: refused
-  require_coordinates(free_ends, "free-space ray ends");
   const octomap::point3d o = to_point3d(origin);
   IntegrationStats stats;
   stats.rays = std::size_t(hits.rows() + free_ends.rows());

@@ -86,18 +86,19 @@ void RaycastScene::intersect(const PointsRef& origins, const PointsRef& directio
   require_finite(origins, "ray origins");
   for (Eigen::Index i = 0; i < origins.rows(); ++i)
     require_representable(origins.row(i).transpose(), "ray origin " + std::to_string(i));
-  require_finite(directions, "ray directions");
   // Embree takes a ray only with every component of its direction within about 1.8e18 in single
-  // precision (and aborts the process otherwise)
-  for (Eigen::Index i = 0; i < n; ++i)
-    if (directions.row(i).cwiseAbs().maxCoeff() > kMaxDirection) {
-      std::ostringstream s;
-      s.precision(6);
-      s << "ray direction " << i << " (" << directions(i, 0) << ", " << directions(i, 1) << ", "
-        << directions(i, 2) << ") is too long: components must be within +-" << kMaxDirection
-        << " (a unit vector gives t in metres)";
-      throw std::invalid_argument(s.str());
-    }
+  // precision (and aborts the process otherwise); one pass, false for NaN too
+  if (!(directions.array().abs() <= kMaxDirection).all()) {
+    require_finite(directions, "ray directions");
+    Eigen::Index i = 0;
+    while (directions.row(i).cwiseAbs().maxCoeff() <= kMaxDirection) ++i;
+    std::ostringstream s;
+    s.precision(6);
+    s << "ray direction " << i << " (" << directions(i, 0) << ", " << directions(i, 1) << ", "
+      << directions(i, 2) << ") is too long: components must be within +-" << kMaxDirection
+      << " (a unit vector gives t in metres)";
+    throw std::invalid_argument(s.str());
+  }
   t.setConstant(n, std::numeric_limits<double>::infinity());
   prim.setConstant(n, -1);
   const bool shared = origins.rows() == 1;
