@@ -15,12 +15,11 @@ namespace nbv {
 FrameIntegration integrate_frame(OccupancyMap& map, SurfaceCloud& cloud,
                                  SurfaceObservations& surface, const Scan& scan, double max_range,
                                  const DepthCamera* next_camera, const Pose* next_pose) {
-  // Checked first: what any of the three would refuse (the map's origin and points, the cloud's
-  // keys, which also check the hits; the observations need finite hits and origin), and the
-  // next frame's pose as the camera's scan checks it.
-  map.check_sensor_origin(scan.origin, max_range);
-  require_coordinates(scan.hits, "hit points");
-  require_coordinates(scan.free_ends, "free-space ray ends");
+  // Checked first, once: what any of the three would refuse (the map's origin and points, which
+  // its update, run beside the others, does not read again; the cloud's keys, which also check
+  // the hits; the observations need finite hits and origin), and the next frame's pose as the
+  // camera's scan checks it.
+  map.check_scan(scan.origin, scan.hits, scan.free_ends, max_range);
   if (bool(next_camera) != bool(next_pose))
     throw std::invalid_argument("integrate_frame: a next frame needs both a camera and a pose");
   Eigen::Isometry3d next_T = Eigen::Isometry3d::Identity();
@@ -31,7 +30,7 @@ FrameIntegration integrate_frame(OccupancyMap& map, SurfaceCloud& cloud,
   }
   const std::vector<std::uint64_t> keys = cloud.voxel_keys(scan.hits);
   FrameIntegration out;
-  const auto integrate_map = [&] { out.map = map.integrate(scan, max_range); };
+  const auto integrate_map = [&] { out.map = map.integrate_checked(scan, max_range); };
   const auto add_points = [&] {
     out.cloud_voxels = cloud.add_keyed(scan.hits, keys);
     out.new_cells = surface.add_scan(scan.origin, scan.hits, scan.sparse_hits);

@@ -28,7 +28,6 @@ using KeyHash = octomap::OcTreeKey::KeyHash;
 
 constexpr int kTreeMaxVal = 32768;  // OctoMap's tree_max_val at depth 16
 constexpr double kSnap = 1e-6;      // bounds within this many cells of a grid plane snap to it
-const Points kNoPoints(0, 3);
 
 std::string fmt_vec(const Eigen::Vector3d& v) {
   std::ostringstream s;
@@ -440,8 +439,9 @@ struct OccupancyMap::EndPoint {
   std::uint8_t flags;    // some ray of the group is a hit / a free end in range
 };
 
-void OccupancyMap::check_sensor_origin(const Eigen::Vector3d& origin, double max_range) const {
-  check_integrate_args(origin, PointsRef(kNoPoints), PointsRef(kNoPoints), max_range);
+void OccupancyMap::check_scan(const Eigen::Vector3d& origin, const PointsRef& hits,
+                              const PointsRef& free_ends, double max_range) const {
+  check_integrate_args(origin, hits, free_ends, max_range);
   Key key;
   if (!tree_->coordToKeyChecked(to_point3d(origin), key))
     throw std::invalid_argument("sensor origin " + fmt_vec(origin) +
@@ -454,8 +454,17 @@ IntegrationStats OccupancyMap::integrate(const Scan& scan, double max_range) {
 
 IntegrationStats OccupancyMap::integrate(const Eigen::Vector3d& origin, const PointsRef& hits,
                                          const PointsRef& free_ends, double max_range) {
-  check_integrate_args(origin, hits, free_ends, max_range);
-  check_sensor_origin(origin, max_range);
+  check_scan(origin, hits, free_ends, max_range);
+  return integrate_points(origin, hits, free_ends, max_range);
+}
+
+IntegrationStats OccupancyMap::integrate_checked(const Scan& scan, double max_range) {
+  return integrate_points(scan.origin, scan.hits, scan.free_ends, max_range);
+}
+
+IntegrationStats OccupancyMap::integrate_points(const Eigen::Vector3d& origin,
+                                                const PointsRef& hits, const PointsRef& free_ends,
+                                                double max_range) {
   const octomap::point3d o = to_point3d(origin);
   IntegrationStats stats;
   stats.rays = std::size_t(hits.rows() + free_ends.rows());
@@ -809,8 +818,7 @@ void OccupancyMap::trace_free_cells(const octomap::point3d& o, const std::vector
 
 IntegrationStats OccupancyMap::integrate_exact(const Eigen::Vector3d& origin, const PointsRef& hits,
                                                const PointsRef& free_ends, double max_range) {
-  check_integrate_args(origin, hits, free_ends, max_range);
-  check_sensor_origin(origin, max_range);
+  check_scan(origin, hits, free_ends, max_range);
   const octomap::point3d o = to_point3d(origin);
   sync_octree();
   IntegrationStats stats;

@@ -137,15 +137,19 @@ class OccupancyMap {
   /// the touched cells agree (tests, bench/bench_map.cpp). With deduplicate_end_points = false
   /// every ray is traced and the result is identical.
   /// Throws std::invalid_argument for non-finite input or an origin outside the addressable range.
-  /// What integrate checks of a scan's origin and max_range before it changes anything: throws
-  /// std::invalid_argument for a non-finite origin, one outside OctoMap's addressable range, or a
-  /// max_range not > 0.
-  void check_sensor_origin(const Eigen::Vector3d& origin, double max_range) const;
+  /// What integrate and integrate_exact check of a scan before they change anything: throws
+  /// std::invalid_argument for a non-finite origin or one outside OctoMap's addressable range,
+  /// hits or free ends NaN, infinite or beyond +-kMaxCoordinate, or a max_range not > 0.
+  void check_scan(const Eigen::Vector3d& origin, const PointsRef& hits, const PointsRef& free_ends,
+                  double max_range) const;
   IntegrationStats integrate(const Eigen::Vector3d& origin, const PointsRef& hits,
                              const PointsRef& free_ends,
                              double max_range = std::numeric_limits<double>::infinity());
   IntegrationStats integrate(const Scan& scan,
                              double max_range = std::numeric_limits<double>::infinity());
+  /// integrate for a scan that check_scan has passed (integrate_frame checks a frame once, up
+  /// front, before the map's update runs beside the other two): the points are not read again.
+  IntegrationStats integrate_checked(const Scan& scan, double max_range);
   /// Same semantics through OctoMap's own code: octomap::OcTree::computeUpdate (the key sets
   /// insertPointCloud builds), free rays added with computeRayKeys, then insertPointCloud's
   /// update loop (updateNode per cell: misses, then hits). The reference the fast path is held to.
@@ -281,7 +285,9 @@ class OccupancyMap {
   /// Every page of the scratch back to the kernel (it reads zero), the stamps from the start.
   void release_scratch();
 
-  // the steps of integrate
+  // integrate after check_scan, and its steps
+  IntegrationStats integrate_points(const Eigen::Vector3d& origin, const PointsRef& hits,
+                                    const PointsRef& free_ends, double max_range);
   std::vector<std::vector<EndPoint>> collect_end_points(const octomap::point3d& origin,
                                                         const PointsRef& hits,
                                                         const PointsRef& free_ends,
