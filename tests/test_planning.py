@@ -1518,20 +1518,50 @@ def test_near_surface_is_the_distance_to_the_occupied_cells_within_its_grid():
     # Random occupied cells and points: a point is kept when its distance to the nearest
     # occupied cell centre is within `within`, up to the grid of within / 4 (a quarter of
     # `within` times sqrt(3) either way); an empty map keeps nothing.
-    from nbvkit.planning.generators.exploration import near_surface
-
     rng = np.random.default_rng(5)
     m = _core.OccupancyMap(0.2, (-10, -10, 0), (10, 10, 6))
     solid = m.cell_center(rng.uniform((-9, -9, 0.5), (9, 9, 5.5), (40, 3)))
     pts = rng.uniform((-10, -10, 0), (10, 10, 6), (3000, 3))
-    assert not near_surface(m, pts, 3.0).any()
+    assert not _core.near_surface(m, pts, 3.0).any()
     m.update_cells(solid, occupied=True)
     for within in (1.0, 3.0):
-        keep = near_surface(m, pts, within)
+        keep = _core.near_surface(m, pts, within)
         d = np.linalg.norm(pts[:, None] - solid[None], axis=2).min(axis=1)
         slack = within / 4 * np.sqrt(3)
         assert (d[keep] <= within + slack).all() and (d[~keep] >= within - slack).all()
         assert keep.any() and (~keep).any()
+
+
+def test_near_surface_is_scipys_distance_transform_on_its_grid():
+    # The reference: scipy's exact Euclidean distance transform of the occupied cells on the
+    # grid of max(within / 4, resolution) that spans them and the points. Fewer points than
+    # occupied cells (each point's ball searched) and more (each cell's ball filled) alike.
+    from scipy import ndimage
+
+    def reference(m, points, within):
+        occupied = m.occupied_cells()
+        step = max(within / 4.0, m.resolution)
+        lo = np.minimum(occupied.min(axis=0), points.min(axis=0))
+        hi = np.maximum(occupied.max(axis=0), points.max(axis=0))
+        solid = np.zeros(np.floor((hi - lo) / step).astype(int) + 1, bool)
+        solid[tuple(np.floor((occupied - lo) / step).astype(int).T)] = True
+        distance = ndimage.distance_transform_edt(~solid, sampling=step)
+        return distance[tuple(np.floor((points - lo) / step).astype(int).T)] <= within
+
+    rng = np.random.default_rng(11)
+    for cells, points in ((300, 40), (30, 4000)):
+        for res in (0.1, 0.5):
+            m = _core.OccupancyMap(res, (-10, -10, 0), (10, 10, 6))
+            m.update_cells(rng.uniform((-9, -9, 0.5), (9, 9, 5.5), (cells, 3)), occupied=True)
+            pts = rng.uniform((-12, -12, -1), (12, 12, 7), (points, 3))
+            for within in (0.3, res, 2.0, 3.7):
+                got = _core.near_surface(m, pts, within)
+                np.testing.assert_array_equal(got, reference(m, pts, within))
+    for within in (0.0, -1.0, float("nan")):
+        with pytest.raises(ValueError, match="within"):
+            _core.near_surface(m, pts, within)
+    with pytest.raises(ValueError, match="points"):
+        _core.near_surface(m, [[0.0, np.inf, 1.0]], 1.0)
 
 
 def test_append_elements_keeps_each_views_set_in_order():

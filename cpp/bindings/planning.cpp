@@ -192,6 +192,26 @@ Points positions_of(const ViewPosesRef& views) {
   return p;
 }
 
+/// The targets within `within` metres of the map's occupied cells (near_points).
+SurfaceTargets near_surface(const OccupancyMap& map, const SurfaceTargets& t, double within) {
+  const std::vector<std::uint8_t> keep =
+      near_points(map.occupied_cells(false), t.positions, within, map.resolution());
+  const auto n = Eigen::Index(std::count(keep.begin(), keep.end(), std::uint8_t(1)));
+  SurfaceTargets out;
+  out.positions.resize(n, 3);
+  out.normals.resize(n, 3);
+  out.kind.resize(n);
+  out.weight.resize(n);
+  for (Eigen::Index r = 0, i = 0; r < t.positions.rows(); ++r) {
+    if (!keep[std::size_t(r)]) continue;
+    out.positions.row(i) = t.positions.row(r);
+    out.normals.row(i) = t.normals.row(r);
+    out.kind[i] = t.kind[r];
+    out.weight[i++] = t.weight[r];
+  }
+  return out;
+}
+
 }  // namespace
 
 void init_planning(py::module_& m) {
@@ -272,7 +292,8 @@ copied and checked (finite, weights >= 0, kind 0-3, default 0).)doc");
 observed surface not yet covered from an open side, 1 predicted, 2 frontier).)doc");
   m.def(
       "exploration_targets",
-      [](const OccupancyMap& map, const py::object& lo, const py::object& hi) {
+      [](const OccupancyMap& map, const py::object& lo, const py::object& hi,
+         const py::object& within) {
         if (lo.is_none() != hi.is_none())
           throw py::value_error("exploration_targets: give both lo and hi, or neither");
         Eigen::Vector3i a = Eigen::Vector3i::Zero(), b = Eigen::Vector3i::Zero();
@@ -284,6 +305,7 @@ observed surface not yet covered from an open side, 1 predicted, 2 frontier).)do
             b[k] = int(std::clamp(std::floor(hb[k]), -1.0, 1e9));
           }
         }
+        const double reach = within.is_none() ? 0.0 : within.cast<double>();
         auto out = std::make_shared<SurfaceTargets>();
         {
           Reading lock(map);  // releases the GIL
@@ -291,17 +313,39 @@ observed surface not yet covered from an open side, 1 predicted, 2 frontier).)do
           if (lo.is_none() && !structure_extent(g, a, b)) a = b = Eigen::Vector3i::Zero();
           *out = exploration_as_targets(exploration_targets(g, a, b), map.bounds_min(), a,
                                         map.resolution());
+          if (!within.is_none()) *out = near_surface(map, *out, reach);
         }
         return out;
       },
       py::arg("map"), py::arg("lo") = py::none(), py::arg("hi") = py::none(),
+      py::arg("within") = py::none(),
       R"doc(The unknown space a view could open, in one pass over the map's bricks: unknown cells
 with a known free face neighbour and no occupied or predicted one, among the cells of the box
 [lo, hi) (cell indices, clipped to the grid; neighbours outside it count as neither). Without a
 box, the box of the cells known occupied or predicted grown by one cell (empty when there are
 none). A SurfaceTargets of kind 3 (exploration), weight 1: each cell's centre, looked at from the
 unit sum of the directions to its free face neighbours (cells free on opposite faces only, with
-no such side, are left out).)doc");
+no such side, are left out). within (metres): only the cells near the surface the map shows, as
+near_surface keeps them.)doc");
+  m.def(
+      "near_surface",
+      [](const OccupancyMap& map, const py::handle& points, double within) {
+        const PointsArg pts = points_arg(points, "points");
+        std::vector<std::uint8_t> keep;
+        {
+          Reading lock(map);  // releases the GIL
+          keep = near_points(map.occupied_cells(false), pts.map(), within, map.resolution());
+        }
+        py::array_t<bool> out(static_cast<py::ssize_t>(keep.size()));
+        std::copy(keep.begin(), keep.end(), out.mutable_data());
+        return out;
+      },
+      py::arg("map"), py::arg("points"), py::arg("within"),
+      R"doc((N,) bool: whether each point (N, 3) lies within about `within` metres (> 0) of a cell
+the map holds occupied (its observed and predicted surface; none: all False). Distances are
+measured on a grid of max(within / 4, resolution) cells, from a point's cell to the nearest
+occupied one (as scipy's distance_transform_edt measures them there: exact to a quarter of
+`within` times the square root of 3).)doc");
   py::class_<CoverageMemo, std::shared_ptr<CoverageMemo>> coverage_memo(m, "CoverageMemo", R"doc(
 What view_coverage's walks found, kept from one call to the next over the same map and surface
 record (pass it as memo=). A view asked for again at the same pose and pitch (bit for bit) is

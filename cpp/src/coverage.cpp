@@ -10,6 +10,7 @@
 #include <limits>
 #include <queue>
 #include <stdexcept>
+#include <string>
 #include <unordered_map>
 #include <utility>
 
@@ -346,6 +347,86 @@ ExplorationTargets exploration_targets(const GridView& g, Eigen::Vector3i lo, Ei
     for (int a = 0; a < 3; ++a) out.free_sides(row, a) = all[r].side[a];
   }
   return out;
+}
+
+std::vector<std::uint8_t> near_points(const PointsRef& solid, const PointsRef& points,
+                                      double within, double resolution) {
+  if (!(std::isfinite(within) && within > 0))
+    throw std::invalid_argument("within must be a finite distance > 0 metres, got " +
+                                std::to_string(within));
+  if (!(std::isfinite(resolution) && resolution > 0))
+    throw std::invalid_argument("resolution must be > 0 metres, got " + std::to_string(resolution));
+  require_finite(solid, "solid points");
+  require_finite(points, "points");
+  const Eigen::Index n = points.rows();
+  std::vector<std::uint8_t> keep(std::size_t(n), 0);
+  if (n == 0 || solid.rows() == 0) return keep;
+  const double step = std::max(within / 4.0, resolution);
+  Eigen::Vector3d lo;
+  std::array<std::int64_t, 3> shape;
+  double total = 1;
+  for (int a = 0; a < 3; ++a) {
+    lo[a] = std::min(solid.col(a).minCoeff(), points.col(a).minCoeff());
+    const double hi = std::max(solid.col(a).maxCoeff(), points.col(a).maxCoeff());
+    shape[std::size_t(a)] = std::int64_t(std::floor((hi - lo[a]) / step)) + 1;
+    total *= double(shape[std::size_t(a)]);
+  }
+  if (total > 4e9)
+    throw std::invalid_argument("near_points: the points span " + std::to_string(total) +
+                                " cells of " + std::to_string(step) + " m; give a larger within");
+  const auto flat = [&](std::int64_t i, std::int64_t j, std::int64_t k) {
+    return std::size_t((i * shape[1] + j) * shape[2] + k);
+  };
+  const auto cell_of = [&](const PointsRef& p, Eigen::Index r) {
+    std::array<std::int64_t, 3> c;
+    for (int a = 0; a < 3; ++a)
+      c[std::size_t(a)] = std::int64_t(std::floor((p(r, a) - lo[a]) / step));
+    return c;
+  };
+  std::vector<std::uint8_t> filled(std::size_t(total), 0);
+  std::vector<std::array<std::int64_t, 3>> cells;  // the solid cells, each once
+  for (Eigen::Index r = 0; r < solid.rows(); ++r) {
+    const auto c = cell_of(solid, r);
+    std::uint8_t& f = filled[flat(c[0], c[1], c[2])];
+    if (!f) cells.push_back(c);
+    f = 1;
+  }
+  // the offsets within reach, their distance summed as scipy sums it (metres, x + y + z)
+  const int R = int(std::ceil(within / step));
+  std::vector<std::array<int, 3>> ball;
+  for (int dx = -R; dx <= R; ++dx)
+    for (int dy = -R; dy <= R; ++dy)
+      for (int dz = -R; dz <= R; ++dz) {
+        const double ex = double(dx) * step, ey = double(dy) * step, ez = double(dz) * step;
+        if (std::sqrt(ex * ex + ey * ey + ez * ez) <= within) ball.push_back({dx, dy, dz});
+      }
+  const auto inside = [&](std::int64_t v, int a) { return v >= 0 && v < shape[std::size_t(a)]; };
+  if (std::size_t(n) < cells.size()) {  // round each point: a solid cell in its ball
+    parallel_chunks(std::size_t(n), 1024, [&](std::size_t b, std::size_t e) {
+      for (std::size_t r = b; r < e; ++r) {
+        const auto c = cell_of(points, Eigen::Index(r));
+        for (const auto& d : ball) {
+          const std::int64_t i = c[0] + d[0], j = c[1] + d[1], k = c[2] + d[2];
+          if (inside(i, 0) && inside(j, 1) && inside(k, 2) && filled[flat(i, j, k)]) {
+            keep[r] = 1;
+            break;
+          }
+        }
+      }
+    });
+    return keep;
+  }
+  std::vector<std::uint8_t> near(filled.size(), 0);  // round each solid cell: its ball
+  for (const auto& c : cells)
+    for (const auto& d : ball) {
+      const std::int64_t i = c[0] + d[0], j = c[1] + d[1], k = c[2] + d[2];
+      if (inside(i, 0) && inside(j, 1) && inside(k, 2)) near[flat(i, j, k)] = 1;
+    }
+  for (Eigen::Index r = 0; r < n; ++r) {
+    const auto c = cell_of(points, r);
+    keep[std::size_t(r)] = near[flat(c[0], c[1], c[2])];
+  }
+  return keep;
 }
 
 SurfaceTargets exploration_as_targets(const ExplorationTargets& t, const Eigen::Vector3d& origin,

@@ -1007,7 +1007,7 @@ Eigen::Matrix<bool, Eigen::Dynamic, 1> OccupancyMap::predicted(const PointsRef& 
   return out;
 }
 
-Points OccupancyMap::occupied_cells() const {
+Points OccupancyMap::occupied_cells(bool in_order) const {
   // the bricks that hold an occupied cell (a few percent of a large workspace's), then their
   // cells in C order (i fastest), as a scan of every cell would list them
   const GridLayout& layout = grid_.layout();
@@ -1023,7 +1023,7 @@ Points OccupancyMap::occupied_cells() const {
         order.push_back((std::int64_t(k) * d[1] + j) * d[0] + i);
     }
   }
-  std::sort(order.begin(), order.end());
+  if (in_order) std::sort(order.begin(), order.end());
   Points out(Eigen::Index(order.size()), 3);
   for (std::size_t r = 0; r < order.size(); ++r) {
     const std::int64_t c = order[r];

@@ -71,6 +71,15 @@ bool structure_extent(const GridView& grid, Eigen::Vector3i& lo, Eigen::Vector3i
 ExplorationTargets exploration_targets(const GridView& grid, Eigen::Vector3i lo,
                                        Eigen::Vector3i hi);
 
+/// Whether each of `points` (N, 3) lies within `within` metres (finite, > 0) of one of `solid`
+/// (M, 3), measured as scipy's distance_transform_edt measures it on a grid of cells of
+/// max(within / 4, resolution) spanning both: from a point's cell to the nearest cell holding a
+/// solid point, centre to centre (exact to a quarter of `within` times the square root of 3 either
+/// way). Nothing is kept when `solid` is empty. Through the ball of that radius: round each point
+/// where there are fewer points than solid cells, else round each solid cell.
+std::vector<std::uint8_t> near_points(const PointsRef& solid, const PointsRef& points,
+                                      double within, double resolution);
+
 /// Exploration targets as targets to place views at (kind Exploration, weight 1): each cell's
 /// centre, origin + (cell + 0.5) * resolution (as origin + start * resolution + (cell - start +
 /// 0.5) * resolution, start the box's first cell), looked at from the unit sum of the directions

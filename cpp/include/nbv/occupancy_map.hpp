@@ -194,8 +194,9 @@ class OccupancyMap {
   /// Same, recomputed by a sweep over the grid (equal to total_entropy() exactly).
   double recompute_total_entropy() const { return grid_.recompute_total_entropy(); }
   CellCounts counts() const { return grid_.counts(); }
-  /// Centres (M, 3) of the occupied workspace cells, in flat-index order.
-  Points occupied_cells() const;
+  /// Centres (M, 3) of the occupied workspace cells, in flat-index order (in_order = false: in
+  /// the grid's brick order, without the sort).
+  Points occupied_cells(bool in_order = true) const;
   /// The workspace grid (cell values, flags, entropies, brick summary).
   const WorkspaceGrid& grid() const { return grid_; }
   /// Number of workspace cells whose grid value disagrees with the octree (0 when in sync;
