@@ -556,6 +556,47 @@ TEST(Exploration, SurfaceTargetsPassOverOnlyBricksWithNoSolidCellNear) {
   EXPECT_GT(total, 1000u);
 }
 
+TEST(Exploration, NearPointsIsTheDistanceBetweenGridCellsByEitherBall) {
+  // Brute force: a point's cell against every solid point's cell on the grid of max(within / 4,
+  // resolution) spanning both, centre to centre. Fewer points than solid cells (each point's
+  // ball) and more (each solid cell's ball).
+  std::mt19937 rng(3);
+  std::uniform_real_distribution<double> u(-6.0, 6.0);
+  const auto random_points = [&](int n) {
+    Points p(n, 3);
+    for (int r = 0; r < n; ++r)
+      for (int a = 0; a < 3; ++a) p(r, a) = u(rng);
+    return p;
+  };
+  bool kept_some = false, dropped_some = false;
+  for (const auto& [ns, np] : {std::pair<int, int>{200, 30}, {20, 600}})
+    for (const double within : {0.3, 1.0, 2.5}) {
+      const double res = 0.2, step = std::max(within / 4.0, res);
+      const Points solid = random_points(ns), pts = random_points(np);
+      Eigen::Vector3d lo;
+      for (int a = 0; a < 3; ++a) lo[a] = std::min(solid.col(a).minCoeff(), pts.col(a).minCoeff());
+      const auto cell = [&](const Points& p, int r) {
+        return ((p.row(r).transpose() - lo) / step).array().floor().matrix().eval();
+      };
+      const std::vector<std::uint8_t> keep = near_points(solid, pts, within, res);
+      ASSERT_EQ(keep.size(), std::size_t(np));
+      int kept = 0;
+      for (int r = 0; r < np; ++r) {
+        double best = 1e300;
+        for (int s = 0; s < ns; ++s)
+          best = std::min(best, ((cell(pts, r) - cell(solid, s)) * step).norm());
+        EXPECT_EQ(bool(keep[std::size_t(r)]), best <= within)
+            << "point " << r << " within " << within;
+        kept += keep[std::size_t(r)];
+      }
+      kept_some = kept_some || kept > 0;
+      dropped_some = dropped_some || kept < np;
+    }
+  EXPECT_TRUE(kept_some && dropped_some);
+  EXPECT_EQ(near_points(Points(0, 3), random_points(5), 1.0, 0.2), std::vector<std::uint8_t>(5, 0));
+  EXPECT_THROW(near_points(random_points(3), random_points(3), 0.0, 0.2), std::invalid_argument);
+}
+
 TEST(SurfaceObservations, NovelHitsAreThoseTheRecordLacks) {
   // A plate of hits at z = 2.03 seen from above, recorded: the same hits are not novel again,
   // nor seen from a little aside (the same side within the cone); seen from below (the other
