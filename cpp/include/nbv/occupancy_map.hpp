@@ -360,40 +360,48 @@ bool OccupancyMap::walk_ray_keys(const octomap::OcTree& tree, const octomap::poi
   const float length = (float)direction.norm();
   direction /= length;
 
+  // The state per axis in scalars (an array indexed by the axis stepped lives in memory, and
+  // reading a whole key back after writing one of its 16-bit parts stalls every step).
   const double resolution = tree.getResolution();
-  int step[3];
-  double tMax[3];
-  double tDelta[3];
-  Key current_key = key_origin;
-  for (unsigned i = 0; i < 3; ++i) {
-    if (direction(i) > 0.0)
-      step[i] = 1;
-    else if (direction(i) < 0.0)
-      step[i] = -1;
-    else
-      step[i] = 0;
-    if (step[i] != 0) {
-      double voxelBorder = tree.keyToCoord(current_key[i]);
-      voxelBorder += (float)(step[i] * resolution * 0.5);
-      tMax[i] = (voxelBorder - origin(i)) / direction(i);
-      tDelta[i] = resolution / std::fabs(direction(i));
+  const auto start = [&](unsigned i, int& step, double& t_max, double& t_delta) {
+    step = direction(i) > 0.0 ? 1 : direction(i) < 0.0 ? -1 : 0;
+    if (step != 0) {
+      double voxelBorder = tree.keyToCoord(key_origin[i]);
+      voxelBorder += (float)(step * resolution * 0.5);
+      t_max = (voxelBorder - origin(i)) / direction(i);
+      t_delta = resolution / std::fabs(direction(i));
     } else {
-      tMax[i] = std::numeric_limits<double>::max();
-      tDelta[i] = std::numeric_limits<double>::max();
+      t_max = std::numeric_limits<double>::max();
+      t_delta = std::numeric_limits<double>::max();
     }
-  }
+  };
+  int s0, s1, s2;
+  double t0, t1, t2, d0, d1, d2;
+  start(0, s0, t0, d0);
+  start(1, s1, t1, d1);
+  start(2, s2, t2, d2);
+  int k0 = key_origin[0], k1 = key_origin[1], k2 = key_origin[2];
+  const int e0 = key_end[0], e1 = key_end[1], e2 = key_end[2];
   while (true) {
-    // OctoMap's choice of axis (ties go to the later axis), written to compile branch-free
-    const bool a01 = tMax[0] < tMax[1], a02 = tMax[0] < tMax[2], a12 = tMax[1] < tMax[2];
-    const unsigned dim = a01 ? (a02 ? 0u : 2u) : (a12 ? 1u : 2u);
-    const int next = int(current_key[dim]) + step[dim];
-    if (next < 0 || next > 0xFFFF) break;  // OctoMap asserts here; never reached in practice
-    current_key[dim] = static_cast<octomap::key_type>(next);
-    tMax[dim] += tDelta[dim];
-    if (current_key == key_end) break;
-    const double dist_from_origin = std::min(std::min(tMax[0], tMax[1]), tMax[2]);
+    // OctoMap's choice of axis (ties go to the later axis)
+    const bool a01 = t0 < t1, a02 = t0 < t2, a12 = t1 < t2;
+    if (a01 ? a02 : false) {
+      if (unsigned(k0 + s0) > 0xFFFFu) break;  // OctoMap asserts here; never reached in practice
+      k0 += s0;
+      t0 += d0;
+    } else if (!a01 && a12) {
+      if (unsigned(k1 + s1) > 0xFFFFu) break;
+      k1 += s1;
+      t1 += d1;
+    } else {
+      if (unsigned(k2 + s2) > 0xFFFFu) break;
+      k2 += s2;
+      t2 += d2;
+    }
+    if (k0 == e0 && k1 == e1 && k2 == e2) break;
+    const double dist_from_origin = std::min(std::min(t0, t1), t2);
     if (dist_from_origin > length) break;
-    if (!go_on(current_key)) break;
+    if (!go_on(Key(octomap::key_type(k0), octomap::key_type(k1), octomap::key_type(k2)))) break;
   }
   return true;
 }
