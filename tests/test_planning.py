@@ -1562,6 +1562,8 @@ def test_near_surface_is_scipys_distance_transform_on_its_grid():
             _core.near_surface(m, pts, within)
     with pytest.raises(ValueError, match="points"):
         _core.near_surface(m, [[0.0, np.inf, 1.0]], 1.0)
+    with pytest.raises(ValueError, match="larger within"):  # a grid too big to hold
+        _core.near_surface(m, [[5e4, 5e4, 5e4]], 0.4)
 
 
 def test_append_elements_keeps_each_views_set_in_order():

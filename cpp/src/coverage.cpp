@@ -349,6 +349,10 @@ ExplorationTargets exploration_targets(const GridView& g, Eigen::Vector3i lo, Ei
   return out;
 }
 
+namespace {
+constexpr double kMaxNearCells = 5e8;  // two bytes a cell: 1 GB at most
+}  // namespace
+
 std::vector<std::uint8_t> near_points(const PointsRef& solid, const PointsRef& points,
                                       double within, double resolution) {
   if (!(std::isfinite(within) && within > 0))
@@ -371,9 +375,11 @@ std::vector<std::uint8_t> near_points(const PointsRef& solid, const PointsRef& p
     shape[std::size_t(a)] = std::int64_t(std::floor((hi - lo[a]) / step)) + 1;
     total *= double(shape[std::size_t(a)]);
   }
-  if (total > 4e9)
-    throw std::invalid_argument("near_points: the points span " + std::to_string(total) +
-                                " cells of " + std::to_string(step) + " m; give a larger within");
+  if (total > kMaxNearCells)
+    throw std::invalid_argument(
+        "near_points: the points and the solid points span " + std::to_string(std::int64_t(total)) +
+        " cells of " + std::to_string(step) + " m, more than " +
+        std::to_string(std::int64_t(kMaxNearCells)) + "; give a larger within");
   const auto flat = [&](std::int64_t i, std::int64_t j, std::int64_t k) {
     return std::size_t((i * shape[1] + j) * shape[2] + k);
   };
