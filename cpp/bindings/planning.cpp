@@ -293,7 +293,7 @@ observed surface not yet covered from an open side, 1 predicted, 2 frontier).)do
   m.def(
       "exploration_targets",
       [](const OccupancyMap& map, const py::object& lo, const py::object& hi,
-         const py::object& within) {
+         std::optional<double> within) {
         if (lo.is_none() != hi.is_none())
           throw py::value_error("exploration_targets: give both lo and hi, or neither");
         Eigen::Vector3i a = Eigen::Vector3i::Zero(), b = Eigen::Vector3i::Zero();
@@ -305,7 +305,6 @@ observed surface not yet covered from an open side, 1 predicted, 2 frontier).)do
             b[k] = int(std::clamp(std::floor(hb[k]), -1.0, 1e9));
           }
         }
-        const double reach = within.is_none() ? 0.0 : within.cast<double>();
         auto out = std::make_shared<SurfaceTargets>();
         {
           Reading lock(map);  // releases the GIL
@@ -313,7 +312,7 @@ observed surface not yet covered from an open side, 1 predicted, 2 frontier).)do
           if (lo.is_none() && !structure_extent(g, a, b)) a = b = Eigen::Vector3i::Zero();
           *out = exploration_as_targets(exploration_targets(g, a, b), map.bounds_min(), a,
                                         map.resolution());
-          if (!within.is_none()) *out = near_surface(map, *out, reach);
+          if (within) *out = near_surface(map, *out, *within);
         }
         return out;
       },

@@ -350,7 +350,7 @@ ExplorationTargets exploration_targets(const GridView& g, Eigen::Vector3i lo, Ei
 }
 
 namespace {
-constexpr double kMaxNearCells = 5e8;  // two bytes a cell: 1 GB at most
+constexpr double kMaxNearCells = 5e8;  // a byte a cell: 500 MB at most
 }  // namespace
 
 std::vector<std::uint8_t> near_points(const PointsRef& solid, const PointsRef& points,
@@ -422,15 +422,14 @@ std::vector<std::uint8_t> near_points(const PointsRef& solid, const PointsRef& p
     });
     return keep;
   }
-  std::vector<std::uint8_t> near(filled.size(), 0);  // round each solid cell: its ball
-  for (const auto& c : cells)
+  for (const auto& c : cells)  // round each solid cell: its ball, filled in place
     for (const auto& d : ball) {
       const std::int64_t i = c[0] + d[0], j = c[1] + d[1], k = c[2] + d[2];
-      if (inside(i, 0) && inside(j, 1) && inside(k, 2)) near[flat(i, j, k)] = 1;
+      if (inside(i, 0) && inside(j, 1) && inside(k, 2)) filled[flat(i, j, k)] = 1;
     }
   for (Eigen::Index r = 0; r < n; ++r) {
     const auto c = cell_of(points, r);
-    keep[std::size_t(r)] = near[flat(c[0], c[1], c[2])];
+    keep[std::size_t(r)] = filled[flat(c[0], c[1], c[2])];
   }
   return keep;
 }

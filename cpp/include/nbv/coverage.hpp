@@ -77,7 +77,7 @@ ExplorationTargets exploration_targets(const GridView& grid, Eigen::Vector3i lo,
 /// solid point, centre to centre (exact to a quarter of `within` times the square root of 3 either
 /// way). Nothing is kept when `solid` is empty. Through the ball of that radius: round each point
 /// where there are fewer points than solid cells, else round each solid cell. A grid of more
-/// than 5e8 cells (two bytes each) is refused (std::invalid_argument naming `within`).
+/// than 5e8 cells (a byte each) is refused (std::invalid_argument naming `within`).
 std::vector<std::uint8_t> near_points(const PointsRef& solid, const PointsRef& points,
                                       double within, double resolution);
 

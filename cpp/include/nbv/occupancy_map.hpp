@@ -385,7 +385,7 @@ bool OccupancyMap::walk_ray_keys(const octomap::OcTree& tree, const octomap::poi
   while (true) {
     // OctoMap's choice of axis (ties go to the later axis)
     const bool a01 = t0 < t1, a02 = t0 < t2, a12 = t1 < t2;
-    if (a01 ? a02 : false) {
+    if (a01 && a02) {
       if (unsigned(k0 + s0) > 0xFFFFu) break;  // OctoMap asserts here; never reached in practice
       k0 += s0;
       t0 += d0;
