@@ -487,18 +487,6 @@ void mark_rays4(const GridView& g, const RayStart* starts, const bool* active, C
     mark_rays4_scalar(g, starts, active, marks, stop, max_ray_cells(g));
 }
 
-int direction_bin(const Eigen::Vector3d& d) {
-  // Each component becomes -1, 0 or 1: 0 where it is small against the largest
-  // (|d_a| <= tan(22.5 deg) max|d|), so in each coordinate plane the bin is the nearest of the
-  // eight directions; elsewhere it approximates the nearest of the 26.
-  constexpr double kTan22_5 = 0.41421356237309503;
-  const Eigen::Vector3d a = d.cwiseAbs();
-  const double t = kTan22_5 * a.maxCoeff();
-  int b = 0, mul = 1;
-  for (int k = 0; k < 3; ++k, mul *= 3) b += mul * (a[k] > t ? (d[k] > 0 ? 2 : 0) : 1);
-  return b < 13 ? b : b - 1;  // 13 is the zero vector
-}
-
 Eigen::Vector3d bin_direction(int b) {
   if (b < 0 || b > 25) throw std::invalid_argument("direction bin must be in 0..25");
   const int v = b < 13 ? b : b + 1;

@@ -139,53 +139,60 @@ void RaycastScene::intersect(const PointsRef& origins, const PointsRef& directio
 
 void RaycastScene::intersect_coherent(const Eigen::Vector3d& o, const Eigen::Matrix3d& R,
                                       const Points& dirs_sensor, const Eigen::VectorXd& t_far,
-                                      Eigen::VectorXd& t, Eigen::VectorXi& prim,
-                                      bool parallel) const {
+                                      Eigen::VectorXd& t, bool parallel) const {
   const Eigen::Index n = dirs_sensor.rows();
-  t.setConstant(n, std::numeric_limits<double>::infinity());
-  prim.setConstant(n, -1);
+  t.resize(n);  // every ray's entry is written below, once
   const std::size_t packets = static_cast<std::size_t>((n + 15) / 16);
   const Eigen::Matrix3f Rf = R.cast<float>();
+  const float ox = static_cast<float>(o.x()), oy = static_cast<float>(o.y()),
+              oz = static_cast<float>(o.z());
+  const double* dirs = dirs_sensor.data();  // row-major: ray i's direction at 3 i
   auto body = [&](std::size_t pb, std::size_t pe) {
     RTCIntersectContext ctx;
     rtcInitIntersectContext(&ctx);
     ctx.flags = RTC_INTERSECT_CONTEXT_FLAG_COHERENT;
     alignas(64) int valid[16];
     alignas(64) RTCRayHit16 rh;
+    // what no ray of a packet changes: set once
+    for (int k = 0; k < 16; ++k) {
+      rh.ray.org_x[k] = ox;
+      rh.ray.org_y[k] = oy;
+      rh.ray.org_z[k] = oz;
+      rh.ray.tnear[k] = 0.0f;
+      rh.ray.time[k] = 0.0f;
+      rh.ray.mask[k] = 0xFFFFFFFFu;
+      rh.ray.id[k] = static_cast<unsigned>(k);
+      rh.ray.flags[k] = 0;
+    }
     for (std::size_t p = pb; p < pe; ++p) {
       const Eigen::Index base = static_cast<Eigen::Index>(p * 16);
+      const int lanes = static_cast<int>(std::min<Eigen::Index>(16, n - base));
       for (int k = 0; k < 16; ++k) {
-        const Eigen::Index i = base + k;
-        valid[k] = i < n ? -1 : 0;
-        const Eigen::Index j = i < n ? i : n - 1;
-        const Eigen::Vector3f d = Rf * dirs_sensor.row(j).transpose().cast<float>();
-        rh.ray.org_x[k] = static_cast<float>(o.x());
-        rh.ray.org_y[k] = static_cast<float>(o.y());
-        rh.ray.org_z[k] = static_cast<float>(o.z());
+        const Eigen::Index j = k < lanes ? base + k : n - 1;
+        valid[k] = k < lanes ? -1 : 0;
+        const double* s = dirs + 3 * j;
+        const Eigen::Vector3f d =
+            Rf * Eigen::Vector3f(static_cast<float>(s[0]), static_cast<float>(s[1]),
+                                 static_cast<float>(s[2]));
         rh.ray.dir_x[k] = d.x();
         rh.ray.dir_y[k] = d.y();
         rh.ray.dir_z[k] = d.z();
-        rh.ray.tnear[k] = 0.0f;
         // A hair beyond t_far so that a hit exactly at the limit survives float rounding; the
         // double-refined distance is checked against t_far below.
         rh.ray.tfar[k] = static_cast<float>(t_far[j]) * (1.0f + 1e-5f);
-        rh.ray.time[k] = 0.0f;
-        rh.ray.mask[k] = 0xFFFFFFFFu;
-        rh.ray.id[k] = static_cast<unsigned>(k);
-        rh.ray.flags[k] = 0;
         rh.hit.geomID[k] = RTC_INVALID_GEOMETRY_ID;
         rh.hit.instID[0][k] = RTC_INVALID_GEOMETRY_ID;
       }
       rtcIntersect16(valid, scene_, &ctx, &rh);
-      for (int k = 0; k < 16; ++k) {
+      for (int k = 0; k < lanes; ++k) {
         const Eigen::Index i = base + k;
-        if (i >= n || rh.hit.geomID[k] == RTC_INVALID_GEOMETRY_ID) continue;
-        const Eigen::Vector3d d = R * dirs_sensor.row(i).transpose();
-        const double tr = refine(o, d, static_cast<int>(rh.hit.primID[k]), rh.ray.tfar[k]);
-        if (tr >= 0 && tr <= t_far[i] * (1.0 + 1e-9)) {  // a hit at the limit is in range
-          t[i] = tr;
-          prim[i] = static_cast<int>(rh.hit.primID[k]);
+        double ti = std::numeric_limits<double>::infinity();
+        if (rh.hit.geomID[k] != RTC_INVALID_GEOMETRY_ID) {
+          const Eigen::Vector3d d = R * dirs_sensor.row(i).transpose();
+          const double tr = refine(o, d, static_cast<int>(rh.hit.primID[k]), rh.ray.tfar[k]);
+          if (tr >= 0 && tr <= t_far[i] * (1.0 + 1e-9)) ti = tr;  // a hit at the limit is in range
         }
+        t[i] = ti;
       }
     }
   };

@@ -106,6 +106,7 @@ DepthCamera::DepthCamera(std::shared_ptr<const RaycastScene> scene,
           tile_tfar_[k] = opt_.max_range / dirs_(p, 0);  // depth limit -> distance along the ray
           ++k;
         }
+  cos_ = dirs_.col(0);
 }
 
 double DepthCamera::frustum_volume() const {
@@ -149,8 +150,7 @@ Scan DepthCamera::scan_pixels(const Eigen::Isometry3d& T,
   const Eigen::Vector3d o = T.translation();
   const Eigen::Matrix3d R = T.linear();
   Eigen::VectorXd t;
-  Eigen::VectorXi prim;
-  scene_->intersect_coherent(o, R, d, tfar, t, prim);
+  scene_->intersect_coherent(o, R, d, tfar, t);
   const std::uint64_t frame = frame_++;
   Scan out;
   out.origin = o;
@@ -188,8 +188,7 @@ Scan DepthCamera::scan(const Eigen::Isometry3d& T) const {
   const Eigen::Vector3d o = T.translation();
   const Eigen::Matrix3d R = T.linear();
   Eigen::VectorXd t;
-  Eigen::VectorXi prim;
-  scene_->intersect_coherent(o, R, tile_dirs_, tile_tfar_, t, prim);
+  scene_->intersect_coherent(o, R, tile_dirs_, tile_tfar_, t);
 
   const std::uint64_t frame = frame_++;
   Scan out;
@@ -200,17 +199,33 @@ Scan DepthCamera::scan(const Eigen::Isometry3d& T) const {
   // 1 a return at depth z (kept in `depth`), 2 nothing within max depth (a free ray to the far
   // plane), 0 a return out of range; each block counts its hits and free rays.
   std::vector<std::uint8_t> state(static_cast<std::size_t>(n), 0);
+  const bool noisy = opt_.noise_k > 0;
+  const double lo = opt_.min_range * (1 - 1e-9), hi = opt_.max_range * (1 + 1e-9);
+  const int* tile_of = pixel_to_tile_.data();
+  const double* cos = cos_.data();
   const std::size_t block = 8192, nb = (static_cast<std::size_t>(n) + block - 1) / block;
   std::vector<Eigen::Index> first_hit(nb + 1, 0), first_free(nb + 1, 0);
   parallel_chunks(nb, 1, [&](std::size_t bb, std::size_t be) {
     for (std::size_t b = bb; b < be; ++b) {
       Eigen::Index hits = 0, frees = 0;
-      for (std::size_t p = b * block, e = std::min<std::size_t>(n, p + block); p < e; ++p) {
-        const auto pi = static_cast<Eigen::Index>(p);
-        bool free = false;
-        depth[p] = pixel_depth(t[pixel_to_tile_[pi]], pi, frame, free);
-        state[p] = free ? 2 : std::isfinite(depth[p]) ? 1 : 0;
-        frees += free;
+      const std::size_t e = std::min<std::size_t>(n, (b + 1) * block);
+      if (noisy) {
+        for (std::size_t p = b * block; p < e; ++p) {
+          const auto pi = static_cast<Eigen::Index>(p);
+          bool free = false;
+          depth[p] = pixel_depth(t[tile_of[p]], pi, frame, free);
+          state[p] = free ? 2 : std::isfinite(depth[p]) ? 1 : 0;
+        }
+      } else {  // pixel_depth without noise, inline: the depth along the optical axis, in range
+        for (std::size_t p = b * block; p < e; ++p) {
+          const double tp = t[tile_of[p]], z = tp * cos[p];
+          const bool free = !std::isfinite(tp), hit = !free && z >= lo && z <= hi;
+          depth[p] = hit ? z : kInf;
+          state[p] = std::uint8_t(free ? 2 : hit ? 1 : 0);
+        }
+      }
+      for (std::size_t p = b * block; p < e; ++p) {
+        frees += state[p] == 2;
         hits += state[p] == 1;
       }
       first_hit[b + 1] = hits;
@@ -300,8 +315,7 @@ Scan LaserScanner::scan(const Eigen::Isometry3d& T) const {
   const Eigen::Vector3d o = T.translation();
   const Eigen::Matrix3d R = T.linear();
   Eigen::VectorXd t;
-  Eigen::VectorXi prim;
-  scene_->intersect_coherent(o, R, dirs_, tfar_, t, prim, /*parallel=*/false);
+  scene_->intersect_coherent(o, R, dirs_, tfar_, t, /*parallel=*/false);
   const std::uint64_t frame = frame_++;
   Scan out;
   out.origin = o;

@@ -90,8 +90,9 @@ void SurfaceObservations::allocate(const std::vector<std::int64_t>& cells) {
   }
 }
 
-std::int64_t SurfaceObservations::key_hit(const PointsRef& hits, Eigen::Index row,
-                                          std::uint64_t& patch) const {
+// inline: once a hit in the loops below
+inline std::int64_t SurfaceObservations::key_hit(const PointsRef& hits, Eigen::Index row,
+                                                 std::uint64_t& patch) const {
   const double rf = 1.0 / res_;  // the map's keys: OctoMap's floor(c / res) of float32 points
   int k[3], q[3];
   for (int a = 0; a < 3; ++a) {

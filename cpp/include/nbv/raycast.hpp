@@ -47,10 +47,10 @@ class RaycastScene {
   /// Casts rays from one origin `o` along R * d_i (d_i unit directions in a sensor frame, rows of
   /// `dirs_sensor`) in packets of 16 with Embree's coherent flag; ray i is valid for
   /// t in [0, t_far[i]]. Consecutive rows should be spatially coherent (e.g. 4x4 pixel tiles).
-  /// Writes t (double-refined, inf where nothing is hit) and the hit triangle (-1 where none).
+  /// Writes t (double-refined, inf where nothing is hit).
   void intersect_coherent(const Eigen::Vector3d& o, const Eigen::Matrix3d& R,
                           const Points& dirs_sensor, const Eigen::VectorXd& t_far,
-                          Eigen::VectorXd& t, Eigen::VectorXi& prim, bool parallel = true) const;
+                          Eigen::VectorXd& t, bool parallel = true) const;
 
   /// Exact (double precision) distance along o + t d to the plane of triangle `prim`.
   double refine(const Eigen::Vector3d& o, const Eigen::Vector3d& d, int prim, double t_float) const;

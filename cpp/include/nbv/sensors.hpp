@@ -100,6 +100,7 @@ class DepthCamera {
   Points tile_dirs_;               // 4x4 tile order, for coherent packets
   Eigen::VectorXi pixel_to_tile_;  // pixel p's ray in tile order
   Eigen::VectorXd tile_tfar_;
+  Eigen::VectorXd cos_;  // pixel order: each ray's cosine to the optical axis (depth / distance)
   mutable std::atomic<std::uint64_t> frame_{0};
 };
 
