@@ -2,15 +2,18 @@
 #include "nbv/parallel.hpp"
 
 #ifdef __GLIBC__
+#include <emmintrin.h>
 #include <malloc.h>
 #endif
 #include <fcntl.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <cerrno>
 #include <cmath>
 #include <cstdio>
 #include <cstring>
+#include <limits>
 #include <memory>
 #include <mutex>
 #include <ostream>
@@ -159,8 +162,35 @@ void require_representable(const Eigen::Vector3d& p, const std::string& what) {
   throw std::invalid_argument(s.str());
 }
 
+namespace {
+// Whether |x| <= bound for every coordinate x of the points (false for NaN): a branch-free test
+// over blocks of coordinates, two a step in SSE2 (Eigen's all() tests one at a time).
+bool all_within(const PointsRef& points, double bound) {
+  const auto block = [bound](const double* x, std::size_t n) {
+    const __m128d b = _mm_set1_pd(bound), sign = _mm_set1_pd(-0.0);
+    __m128d ok = _mm_cmpeq_pd(b, b);  // all bits set (bound is not NaN)
+    std::size_t i = 0;
+    for (; i + 2 <= n; i += 2)  // an ordered compare: false for NaN
+      ok = _mm_and_pd(ok, _mm_cmple_pd(_mm_andnot_pd(sign, _mm_loadu_pd(x + i)), b));
+    bool all = _mm_movemask_pd(ok) == 3;
+    for (; i < n; ++i) all &= std::fabs(x[i]) <= bound;
+    return all;
+  };
+  const std::size_t rows = std::size_t(points.rows());
+  if (points.outerStride() == 3) {  // contiguous rows: one run of 3 rows coordinates
+    const std::size_t n = 3 * rows, kBlock = 3072;
+    for (std::size_t b = 0; b < n; b += kBlock)
+      if (!block(points.data() + b, std::min(kBlock, n - b))) return false;
+    return true;
+  }
+  for (std::size_t r = 0; r < rows; ++r)
+    if (!block(points.data() + r * std::size_t(points.outerStride()), 3)) return false;
+  return true;
+}
+}  // namespace
+
 void require_coordinates(const PointsRef& points, const char* what) {
-  if ((points.array().abs() <= kMaxCoordinate).all()) return;  // false for NaN too
+  if (all_within(points, kMaxCoordinate)) return;
   require_finite(points, what);
   throw std::invalid_argument(std::string(what) + " lie beyond +-" +
                               std::to_string(long(kMaxCoordinate)) +
@@ -168,7 +198,7 @@ void require_coordinates(const PointsRef& points, const char* what) {
 }
 
 void require_finite(const PointsRef& points, const char* what) {
-  if (!points.allFinite())
+  if (!all_within(points, std::numeric_limits<double>::max()))
     throw std::invalid_argument(std::string(what) + " contains NaN or infinite values");
 }
 

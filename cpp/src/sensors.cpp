@@ -242,21 +242,29 @@ Scan DepthCamera::scan(const Eigen::Isometry3d& T) const {
   out.free_ends.resize(first_free[nb], 3);
   out.hit_rays.resize(first_hit[nb]);
   out.free_rays.resize(first_free[nb]);
+  // (a free ray's end: its distance to the far plane, tile_tfar_, the same max_range / cosine)
+  const double* far = tile_tfar_.data();
+  double* hits = out.hits.data();
+  double* free_ends = out.free_ends.data();
+  int* hit_rays = out.hit_rays.data();
+  int* free_rays = out.free_rays.data();
   parallel_chunks(nb, 1, [&](std::size_t bb, std::size_t be) {
     for (std::size_t b = bb; b < be; ++b) {
       Eigen::Index ih = first_hit[b], jf = first_free[b];
       for (std::size_t p = b * block, e = std::min<std::size_t>(n, p + block); p < e; ++p) {
         if (!state[p]) continue;
         const auto pi = static_cast<Eigen::Index>(p);
-        const double cx = dirs_(pi, 0);
         const Eigen::Vector3d dw = R * dirs_.row(pi).transpose();
-        if (state[p] == 1) {
-          out.hits.row(ih) = o + dw * (depth[p] / cx);
-          out.hit_rays[ih++] = static_cast<int>(p);
-        } else {
-          out.free_ends.row(jf) = o + dw * (opt_.max_range / cx);
-          out.free_rays[jf++] = static_cast<int>(p);
-        }
+        const bool hit = state[p] == 1;
+        const Eigen::Vector3d q = o + dw * (hit ? depth[p] / cos[p] : far[tile_of[p]]);
+        double* row = hit ? hits + 3 * ih : free_ends + 3 * jf;
+        row[0] = q.x();
+        row[1] = q.y();
+        row[2] = q.z();
+        if (hit)
+          hit_rays[ih++] = static_cast<int>(p);
+        else
+          free_rays[jf++] = static_cast<int>(p);
       }
     }
   });
