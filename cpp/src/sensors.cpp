@@ -123,13 +123,10 @@ void DepthCamera::reset_noise(std::uint64_t seed) {
 double DepthCamera::pixel_depth(double t, Eigen::Index p, std::uint64_t frame, bool& free) const {
   free = !std::isfinite(t);
   if (free) return kInf;
-  double z = t * dirs_(p, 0);  // dirs_(p, 0): the cosine to the optical axis
+  double z = t * cos_[p];
   if (opt_.noise_k > 0)
     z += opt_.noise_k * z * z * counter_normal(opt_.seed, frame, static_cast<std::uint64_t>(p));
-  // no valid return outside [min, max] depth (a relative 1e-9 tolerance keeps a surface exactly
-  // at a limit, whose depth rounds to a hair beyond it, in range)
-  if (z < opt_.min_range * (1 - 1e-9) || z > opt_.max_range * (1 + 1e-9)) return kInf;
-  return z;
+  return in_range(z) ? z : kInf;
 }
 
 Scan DepthCamera::scan_pixels(const Eigen::Isometry3d& T,
@@ -200,7 +197,6 @@ Scan DepthCamera::scan(const Eigen::Isometry3d& T) const {
   // plane), 0 a return out of range; each block counts its hits and free rays.
   std::vector<std::uint8_t> state(static_cast<std::size_t>(n), 0);
   const bool noisy = opt_.noise_k > 0;
-  const double lo = opt_.min_range * (1 - 1e-9), hi = opt_.max_range * (1 + 1e-9);
   const int* tile_of = pixel_to_tile_.data();
   const double* cos = cos_.data();
   const std::size_t block = 8192, nb = (static_cast<std::size_t>(n) + block - 1) / block;
@@ -219,7 +215,7 @@ Scan DepthCamera::scan(const Eigen::Isometry3d& T) const {
       } else {  // pixel_depth without noise, inline: the depth along the optical axis, in range
         for (std::size_t p = b * block; p < e; ++p) {
           const double tp = t[tile_of[p]], z = tp * cos[p];
-          const bool free = !std::isfinite(tp), hit = !free && z >= lo && z <= hi;
+          const bool free = !std::isfinite(tp), hit = !free && in_range(z);
           depth[p] = hit ? z : kInf;
           state[p] = std::uint8_t(free ? 2 : hit ? 1 : 0);
         }

@@ -93,6 +93,11 @@ class DepthCamera {
   /// Pixel p's depth from its ray's distance t of frame `frame`'s noise (inf: no valid return);
   /// `free` is set where the ray hit nothing within the far plane.
   double pixel_depth(double t, Eigen::Index p, std::uint64_t frame, bool& free) const;
+  /// Whether a depth is a valid return: within [min, max] depth (a relative 1e-9 tolerance keeps
+  /// a surface exactly at a limit, whose depth rounds to a hair beyond it, in range).
+  bool in_range(double z) const {
+    return z >= opt_.min_range * (1 - 1e-9) && z <= opt_.max_range * (1 + 1e-9);
+  }
   std::shared_ptr<const RaycastScene> scene_;
   DepthCameraOptions opt_;
   double fx_, fy_;
