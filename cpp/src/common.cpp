@@ -2,9 +2,9 @@
 #include "nbv/parallel.hpp"
 
 #ifdef __GLIBC__
-#include <emmintrin.h>
 #include <malloc.h>
 #endif
+#include <emmintrin.h>
 #include <fcntl.h>
 #include <unistd.h>
 

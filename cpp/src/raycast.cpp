@@ -1,6 +1,7 @@
 #include "nbv/raycast.hpp"
 #include "nbv/parallel.hpp"
 
+#include <algorithm>
 #include <cmath>
 #include <limits>
 #include <sstream>

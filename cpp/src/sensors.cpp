@@ -198,7 +198,7 @@ Scan DepthCamera::scan(const Eigen::Isometry3d& T) const {
   std::vector<std::uint8_t> state(static_cast<std::size_t>(n), 0);
   const bool noisy = opt_.noise_k > 0;
   const int* tile_of = pixel_to_tile_.data();
-  const double* cos = cos_.data();
+  const double* cosine = cos_.data();
   const std::size_t block = 8192, nb = (static_cast<std::size_t>(n) + block - 1) / block;
   std::vector<Eigen::Index> first_hit(nb + 1, 0), first_free(nb + 1, 0);
   parallel_chunks(nb, 1, [&](std::size_t bb, std::size_t be) {
@@ -214,10 +214,10 @@ Scan DepthCamera::scan(const Eigen::Isometry3d& T) const {
         }
       } else {  // pixel_depth without noise, inline: the depth along the optical axis, in range
         for (std::size_t p = b * block; p < e; ++p) {
-          const double tp = t[tile_of[p]], z = tp * cos[p];
-          const bool free = !std::isfinite(tp), hit = !free && in_range(z);
-          depth[p] = hit ? z : kInf;
-          state[p] = std::uint8_t(free ? 2 : hit ? 1 : 0);
+          const double tp = t[tile_of[p]], z = tp * cosine[p];
+          const bool free = !std::isfinite(tp);
+          depth[p] = free || !in_range(z) ? kInf : z;
+          state[p] = std::uint8_t(free ? 2 : std::isfinite(depth[p]) ? 1 : 0);
         }
       }
       for (std::size_t p = b * block; p < e; ++p) {
@@ -252,7 +252,7 @@ Scan DepthCamera::scan(const Eigen::Isometry3d& T) const {
         const auto pi = static_cast<Eigen::Index>(p);
         const Eigen::Vector3d dw = R * dirs_.row(pi).transpose();
         const bool hit = state[p] == 1;
-        const Eigen::Vector3d q = o + dw * (hit ? depth[p] / cos[p] : far[tile_of[p]]);
+        const Eigen::Vector3d q = o + dw * (hit ? depth[p] / cosine[p] : far[tile_of[p]]);
         double* row = hit ? hits + 3 * ih : free_ends + 3 * jf;
         row[0] = q.x();
         row[1] = q.y();

@@ -344,16 +344,17 @@ def _run_pool(specs, root, n, ncpu, rows, failures, progress) -> None:
                 done = f"{rows[i]['wall_time_s']:.1f} s" if rows[i] else failures[i]
                 _progress(k + 1, len(specs), specs[i].run_id, done)
     except KeyboardInterrupt:
+        # the workers and the pool's manager thread, taken before shutdown forgets them
         procs = list((getattr(ex, "_processes", None) or {}).values())
+        manager = getattr(ex, "_executor_manager_thread", None)
         ex.shutdown(wait=False, cancel_futures=True)
         for p in procs:
             p.terminate()
         for p in procs:
             p.join(5)
-        # Let the pool's manager thread see the dead workers and close its wake-up pipe now: at
-        # exit, Python 3.11 wakes it without a lock and may write to the pipe as it closes
-        # ("Bad file descriptor" printed after the sweep's last word).
-        manager = getattr(ex, "_executor_manager_thread", None)
+        # Let the manager thread see the dead workers and close its wake-up pipe now: at exit,
+        # Python 3.11 wakes it without a lock and may write to the pipe as it closes ("Bad file
+        # descriptor" printed after the sweep's last word).
         if manager is not None:
             manager.join(10)
         raise

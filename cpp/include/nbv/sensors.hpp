@@ -96,7 +96,7 @@ class DepthCamera {
   /// Whether a depth is a valid return: within [min, max] depth (a relative 1e-9 tolerance keeps
   /// a surface exactly at a limit, whose depth rounds to a hair beyond it, in range).
   bool in_range(double z) const {
-    return z >= opt_.min_range * (1 - 1e-9) && z <= opt_.max_range * (1 + 1e-9);
+    return !(z < opt_.min_range * (1 - 1e-9) || z > opt_.max_range * (1 + 1e-9));
   }
   std::shared_ptr<const RaycastScene> scene_;
   DepthCameraOptions opt_;

@@ -114,7 +114,8 @@ class SurfaceObservations {
   std::size_t slot(std::size_t i) const { return std::size_t(block_[i >> 6]) << 6 | (i & 63); }
   /// Hit `row`'s cell (a grid id; -1 outside the workspace) and its squares' bits (`patch`: one
   /// per projection along an axis, see patches).
-  std::int64_t key_hit(const PointsRef& hits, Eigen::Index row, std::uint64_t& patch) const;
+  inline std::int64_t key_hit(const PointsRef& hits, Eigen::Index row,
+                              std::uint64_t& patch) const;  // defined in its .cpp
   /// Gives every brick of `cells` (grid ids, -1 skipped) its block.
   void allocate(const std::vector<std::int64_t>& cells);
   std::vector<std::uint32_t> block_;         // per brick: its block (0: none yet)
