@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import json
 import math
+import time
 from dataclasses import fields
 from types import SimpleNamespace
 
@@ -569,6 +570,27 @@ def test_bad_input_raises_value_error():
     for radius in (0.0, -1.0, float("nan"), float("inf")):  # inf searched the whole cloud, forever
         with pytest.raises(ValueError, match="radius"):
             sym.compute_fpfh(good, [0, 1], radius=radius)
+
+
+def test_a_radius_spanning_the_cloud_is_refused_at_once_with_one_that_fits():
+    # 27,000 points 1 m apart: a search radius spanning them puts every point in every
+    # neighbourhood (7.3e8 pairs, minutes of FPFH); refused before any work, naming the option
+    # and a radius within the limit, which then runs
+    g = np.arange(30.0)
+    lattice = np.stack(np.meshgrid(g, g, g, indexing="ij"), -1).reshape(-1, 3)
+    for key, opts in (
+        ("fpfh_radius", {"fpfh_radius": 1e12}),
+        ("normal_radius", {"normal_radius": 1e6}),
+        ("iss_salient_radius", {"keypoints": "iss", "iss_salient_radius": 500.0}),
+    ):
+        t = time.perf_counter()
+        with pytest.raises(ValueError, match=f"{key} = .* quadratic .* use {key} about") as e:
+            nbvkit.detect_symmetry(lattice, **opts)
+        assert time.perf_counter() - t < 5.0, key  # not a search of minutes
+        fits = float(str(e.value).split(f"use {key} about ")[1].split()[0])
+        assert 1.0 < fits < 30.0
+    with pytest.raises(ValueError, match="radius = 1e\\+19 m"):
+        sym.compute_fpfh(lattice, [0, 1], radius=1e19)
 
 
 def test_degenerate_clouds_report_no_plane():

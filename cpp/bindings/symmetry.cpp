@@ -237,6 +237,7 @@ residual_rotation_deg, timings (dict stage -> seconds).)doc")
         if (normal_k < 3 || !(radius > 0) || !std::isfinite(radius))
           throw py::value_error("normal_k must be >= 3 and radius a finite number > 0");
         py::gil_scoped_release release;
+        if (!indices.empty()) detail::check_neighbourhoods(a.map(), radius, "radius");
         const auto nc = detail::estimate_normals(a.map(), normal_k, 0.0);
         return detail::compute_fpfh(a.map(), nc.normals, indices, radius);
       },

@@ -231,6 +231,63 @@ Fpfh mirror_fpfh(const Fpfh& d) {
 
 namespace detail {
 
+void check_neighbourhoods(const PointsRef& points, double radius, const std::string& key) {
+  const std::size_t n = std::size_t(points.rows());
+  if (n == 0) return;
+  const std::size_t samples = std::min<std::size_t>(n, 64);
+  const double r2 = radius * radius;
+  // the histogram's top: r2, or the squared diagonal of the cloud's box where that is less
+  const double top = std::min(
+      r2, (points.colwise().maxCoeff() - points.colwise().minCoeff()).squaredNorm() * 1.0001);
+  // Each sample's points within the radius (exact, the sample itself included), counted without
+  // storing distances (n may be millions); where too many, again into a histogram of log2 of
+  // the squared distance below `top` (bins of 1/16 of a power of two, down to 2^-40 of it).
+  constexpr int kBins = 640;
+  const auto count = [&](bool histogram) {
+    std::vector<std::vector<double>> part(samples);
+    parallel_chunks(samples, 1, [&](std::size_t b, std::size_t e) {
+      for (std::size_t s = b; s < e; ++s) {
+        const Eigen::Vector3d q = points.row(Eigen::Index(s * n / samples)).transpose();
+        std::vector<double>& h = part[s];
+        h.assign(histogram ? kBins + 1 : 1, 0.0);
+        for (std::size_t i = 0; i < n; ++i) {
+          const double d2 = (points.row(Eigen::Index(i)).transpose() - q).squaredNorm();
+          if (!(d2 <= r2)) continue;
+          if (!histogram) {
+            h[0] += 1;
+            continue;
+          }
+          const double x = d2 > 0 ? (std::log2(d2 / top) + 40.0) * 16.0 : 0.0;
+          h[std::size_t(std::clamp(x, 0.0, double(kBins)))] += 1;
+        }
+      }
+    });
+    std::vector<double> total(part[0].size(), 0.0);
+    for (const auto& h : part)
+      for (std::size_t i = 0; i < h.size(); ++i) total[i] += h[i];
+    return total;
+  };
+  const double scale = double(n) / double(samples);  // a sample's count stands for n / samples
+  const double pairs = count(false)[0] * scale;
+  if (pairs <= kMaxNeighbourPairs) return;
+  // the largest radius within the limit: the upper edge of the last bin the pairs stay within
+  const std::vector<double> hist = count(true);
+  double sum = 0.0, fits = 0.0;
+  for (int i = 0; i <= kBins; ++i) {
+    sum += hist[std::size_t(i)] * scale;
+    if (sum > kMaxNeighbourPairs) break;
+    fits = std::min(radius, std::sqrt(top) * std::exp2(0.5 * (double(i + 1) / 16.0 - 40.0)));
+  }
+  const std::string advice =
+      fits > 0 ? "about " + fmt(fits) + " m or less" : "smaller, or a coarser voxel_size";
+  throw std::invalid_argument(
+      "symmetry: " + key + " = " + fmt(radius) + " m puts about " +
+      std::to_string(std::llround(pairs / double(n))) + " of the " + std::to_string(n) +
+      " downsampled points in each neighbourhood (" + fmt(pairs) + " neighbours in all, at most " +
+      fmt(kMaxNeighbourPairs) + "): a search that wide is quadratic in the cloud; use " + key +
+      " " + advice);
+}
+
 Eigen::Vector4d refine_plane(const PointsRef& points, const KdTree& tree, const Points& normals,
                              const Eigen::Vector4d& plane, int iterations, double max_distance,
                              double min_distance) {
@@ -645,7 +702,14 @@ SymmetryResult detect_symmetry(const PointsRef& points, const SymmetryOptions& o
     return res;
   }
 
-  // 2. normals, 3. keypoints (those without a normal cannot be matched), 4. descriptors
+  // 2. normals, 3. keypoints (those without a normal cannot be matched), 4. descriptors; each
+  // radius search first checked against the cloud (a radius spanning it is quadratic)
+  if (o.normal_radius > 0) detail::check_neighbourhoods(P, o.normal_radius, "normal_radius");
+  if (o.keypoints == SymmetryKeypoints::Iss) {
+    detail::check_neighbourhoods(P, o.iss_salient_radius, "iss_salient_radius");
+    detail::check_neighbourhoods(P, o.iss_non_max_radius, "iss_non_max_radius");
+  }
+  detail::check_neighbourhoods(P, o.fpfh_radius, "fpfh_radius");
   const auto nc = detail::estimate_normals(P, o.normal_k, o.normal_radius);
   sw.lap("normals");
   std::vector<int> kp = detail::detect_keypoints(P, nc, o);

@@ -7,6 +7,8 @@
 #include <cmath>
 #include <limits>
 #include <random>
+#include <stdexcept>
+#include <string>
 
 using nbv::Planes;
 using nbv::Points;
@@ -208,4 +210,44 @@ TEST(Symmetry, DetectsThePlaneOfASymmetricPointSet) {
   EXPECT_TRUE(r.accepted) << r.reason;
   EXPECT_LT(nbv::plane_angle_deg(r.plane, Eigen::Vector4d(1, 0, 0, 2)), 1.0);
   EXPECT_NEAR(std::abs(r.plane[3]), 2.0, 0.05);
+}
+
+TEST(Symmetry, NeighbourhoodsSpanningTheCloudAreRefusedWithARadiusThatFits) {
+  // a 30 x 30 x 30 lattice at 1 m: 27,000 points, 7.3e8 pairs within a radius spanning it
+  Points P(27000, 3);
+  for (int i = 0; i < 27000; ++i) P.row(i) << i % 30, (i / 30) % 30, i / 900;
+  EXPECT_NO_THROW(nbv::detail::check_neighbourhoods(P, 0.5, "fpfh_radius"));  // itself alone
+  EXPECT_NO_THROW(nbv::detail::check_neighbourhoods(P, 1.0, "fpfh_radius"));  // and 6 others
+  std::string what;
+  try {
+    nbv::detail::check_neighbourhoods(P, 1e12, "fpfh_radius");
+  } catch (const std::invalid_argument& e) {
+    what = e.what();
+  }
+  ASSERT_NE(what.find("fpfh_radius = 1e+12 m"), std::string::npos) << what;
+  ASSERT_NE(what.find("27000 of the 27000"), std::string::npos) << what;
+  // the radius it offers holds: within the limit, and a tenth more is not
+  const std::string tag = "use fpfh_radius about ";
+  const std::size_t at = what.find(tag);
+  ASSERT_NE(at, std::string::npos) << what;
+  const double fits = std::stod(what.substr(at + tag.size()));
+  EXPECT_GT(fits, 1.0);
+  EXPECT_LT(fits, 30.0);
+  EXPECT_NO_THROW(nbv::detail::check_neighbourhoods(P, fits, "fpfh_radius"));
+  EXPECT_THROW(nbv::detail::check_neighbourhoods(P, fits * 1.1, "fpfh_radius"),
+               std::invalid_argument);
+  // through detect_symmetry, named by its option, before any descriptor
+  nbv::SymmetryOptions o;
+  o.voxel_size = 0.0;
+  o.fpfh_radius = 1e3;
+  EXPECT_THROW(
+      {
+        try {
+          nbv::detect_symmetry(P, o);
+        } catch (const std::invalid_argument& e) {
+          EXPECT_NE(std::string(e.what()).find("fpfh_radius"), std::string::npos);
+          throw;
+        }
+      },
+      std::invalid_argument);
 }
