@@ -283,7 +283,7 @@ void check_neighbourhoods(const PointsRef& points, double radius, const std::str
   throw std::invalid_argument(
       "symmetry: " + key + " = " + fmt(radius) + " m puts about " +
       std::to_string(std::llround(pairs / double(n))) + " of the " + std::to_string(n) +
-      " downsampled points in each neighbourhood (" + fmt(pairs) + " neighbours in all, at most " +
+      " points searched in each neighbourhood (" + fmt(pairs) + " neighbours in all, at most " +
       fmt(kMaxNeighbourPairs) + "): a search that wide is quadratic in the cloud; use " + key +
       " " + advice);
 }
