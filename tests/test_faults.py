@@ -365,3 +365,114 @@ def test_nbvkit_run_stopped_says_where_what_it_flew_is(tmp_path, stopping_part, 
     assert "termination: interrupted" in p.stdout and "area cov." in p.stdout  # what it flew
     assert is_complete_run(out)
     assert json.loads((out / "summary.json").read_text())["termination"] == "interrupted"
+
+
+@pytest.mark.parametrize("cause", [KeyboardInterrupt, ZeroDivisionError])
+def test_a_flight_stopped_while_saving_keeps_the_whole_flight(tmp_path, monkeypatch, cause):
+    """Ctrl-C (or an error) during the end-of-run outputs, after the flight ended on its own:
+    Mission.run(out_dir, finish=True) writes the whole flight without them (a half-written
+    report.html removed), its own termination kept and `stopped_during: saving`, then raises."""
+    import nbvkit.finish
+    from conftest import TINY_RUN
+    from nbvkit.config import load_config
+
+    def stopped_report(out, *args, **kwargs):
+        (Path(out) / "report.html").write_text("<html><body>half a rep")  # then stopped
+        raise cause
+
+    monkeypatch.setattr(nbvkit.finish, "write_run_report", stopped_report)
+    out = tmp_path / "run"
+    cfg = load_config(overrides=[*TINY_RUN, "max_iterations=3", "progress=false"])
+    with pytest.raises(cause):
+        nbvkit.Mission(cfg).run(out, finish=True)
+    assert is_complete_run(out)
+    s = json.loads((out / "summary.json").read_text())
+    assert s["termination"] not in ("interrupted", "failed")  # the flight ended on its own
+    assert s["stopped_during"] == "saving" and s["stopped_by"].startswith(cause.__name__)
+    assert s["views"] >= 3 and s["area_coverage"]["0.05"] > 0
+    assert not (out / "report.html").exists() and not (out / "mesh.ply").exists()
+    rows = (out / "iterations.csv").read_text().strip().splitlines()
+    assert len(rows) - 1 == s["iterations"] and (out / "cloud.ply").stat().st_size > 0
+
+
+@pytest.mark.parametrize("signum", ["SIGINT", "SIGTERM"])
+def test_nbvkit_run_killed_while_saving_keeps_the_flight(tmp_path, signum):
+    """A real signal to `nbvkit run` once the flight is over, while the flight's files and
+    then while the end-of-run outputs are written: the folder holds the whole flight, the
+    console says so, exit 130."""
+    import subprocess
+
+    from conftest import TINY_RUN
+
+    for stage, patch in (
+        ("files", "nbvkit.cloud.write_points"),
+        ("finish", "nbvkit.finish.write_run_report"),
+    ):
+        out = tmp_path / stage
+        # the signal comes once, from inside the named writer, as a user's or a scheduler's
+        script = textwrap.dedent(
+            f"""
+            import os, signal, sys, time
+            import nbvkit.cloud, nbvkit.finish
+            from nbvkit.cli import main
+            mod, name = {patch!r}.rsplit(".", 1)
+            module = sys.modules[mod]
+            real = getattr(module, name)
+            sent = []
+            def signalled(*args, **kwargs):
+                if not sent:
+                    sent.append(1)
+                    os.kill(os.getpid(), signal.{signum})
+                    time.sleep(5)  # the handler raises here
+                return real(*args, **kwargs)
+            setattr(module, name, signalled)
+            sys.exit(main(sys.argv[1:]))
+            """
+        )
+        argv = ["run", "--out", str(out), "--set", *TINY_RUN, "max_iterations=3"]
+        p = subprocess.run(
+            [sys.executable, "-c", script, *argv],
+            capture_output=True,
+            text=True,
+            timeout=300,
+            env=dict(os.environ, MPLBACKEND="Agg"),
+        )
+        assert p.returncode == 130, (stage, p.returncode, p.stderr)
+        assert "saving was stopped after the flight" in p.stderr, (stage, p.stderr)
+        assert f"saved in {out}/" in p.stderr and "Traceback" not in p.stderr
+        assert is_complete_run(out), stage
+        s = json.loads((out / "summary.json").read_text())
+        assert s["stopped_during"] == "saving" and s["termination"] != "interrupted"
+        assert (out / "cloud.ply").stat().st_size > 0 and not (out / "report.html").exists()
+
+
+def test_ctrl_c_during_the_open3d_import_is_an_interrupt():
+    """open3d's extension turns a Ctrl-C during its (seconds-long) import into
+    ImportError("initialization failed"); nbvkit's import of it raises KeyboardInterrupt, so
+    the run keeps what it flew and exits 130 rather than reading as open3d missing."""
+    import subprocess
+
+    script = textwrap.dedent(
+        """
+        import builtins, sys
+        real = builtins.__import__
+        def interrupted(name, *args, **kwargs):
+            if name == "open3d":  # as open3d's extension reports a Ctrl-C in its init
+                try:
+                    raise KeyboardInterrupt
+                except KeyboardInterrupt as e:
+                    raise ImportError("initialization failed") from e
+            return real(name, *args, **kwargs)
+        builtins.__import__ = interrupted
+        from nbvkit._open3d import open3d
+        try:
+            open3d()
+        except KeyboardInterrupt:
+            print("KeyboardInterrupt")
+        builtins.__import__ = real
+        print(open3d().__name__)  # not interrupted: the module
+        """
+    )
+    p = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True, timeout=120)
+    assert p.returncode == 0, p.stderr
+    assert p.stdout.split() == ["KeyboardInterrupt", "open3d"]

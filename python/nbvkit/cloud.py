@@ -19,6 +19,7 @@ from typing import Optional
 import numpy as np
 
 from . import _core
+from ._open3d import open3d
 from .limits import MAX_DATA_FILE_BYTES, check_input_file
 from .settings import positive
 
@@ -137,7 +138,7 @@ class PointCloud(_core.SurfaceCloud):
 
     def to_open3d(self):
         """An ``open3d.geometry.PointCloud`` of the points (open3d is imported only here)."""
-        import open3d as o3d
+        o3d = open3d()
 
         return o3d.geometry.PointCloud(o3d.utility.Vector3dVector(self.points))
 

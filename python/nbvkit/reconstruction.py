@@ -21,6 +21,7 @@ from pathlib import Path
 import numpy as np
 
 from . import _core
+from ._open3d import open3d
 from .cloud import _is_cloud_list
 
 __all__ = ["MIN_MESH_POINTS", "reconstruct_mesh", "score_mesh", "write_mesh_ply"]
@@ -55,7 +56,7 @@ def reconstruct_mesh(
     than ``MIN_MESH_POINTS`` points or nothing is left) and a dict: ``message`` (why not, if
     None), ``vertices``, ``triangles``, ``points_used``, ``voxel_m``, ``area_m2``.
     """
-    import open3d as o3d
+    o3d = open3d()
 
     if _is_cloud_list(points):  # read in place, never stacked whole (their points are finite)
         clouds = list(points)
@@ -119,7 +120,7 @@ def _thinned(thin, n: int, max_points: int) -> tuple[np.ndarray, float]:
 def _oriented_cloud(pts: np.ndarray, voxel: float, viewpoints):
     """An open3d PointCloud of pts with normals (20 neighbours) turned toward the nearest of
     the viewpoints, or without them oriented by open3d's tangent-plane propagation."""
-    import open3d as o3d
+    o3d = open3d()
 
     pcd = o3d.geometry.PointCloud(o3d.utility.Vector3dVector(pts))
     spacing = max(voxel, 0.02)
@@ -198,7 +199,7 @@ def write_mesh_ply(path, mesh) -> Path:
     False, and on a full disk may leave a short file)."""
     import os
 
-    import open3d as o3d
+    o3d = open3d()
 
     path = Path(path)
     tmp = path.with_name(f".{path.name}.tmp{os.getpid()}.ply")

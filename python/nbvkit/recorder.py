@@ -199,12 +199,54 @@ class Recorder:
         trajectory.csv, flight.csv, cloud.ply, map.ot, figures/*.png; with `finish` the
         end-of-run outputs (nbvkit.report.finish_run: observable surface, mesh.ply, report.html,
         whose figures join the summary); summary.json last, once. Returns the summary written.
-        Any write error (a full disk) raises OSError."""
+        Any write error (a full disk) raises OSError. The end-of-run outputs stopped (Ctrl-C,
+        a `kill`, an error) do not lose the flight: its files and a summary.json naming the
+        cause (`stopped_by`, `stopped_during`) are written without them, then the exception is
+        raised (write_keeping returns it instead)."""
+        summary, stop = self.write_keeping(out, summary, finish, cache_dir)
+        if stop is not None:
+            raise stop
+        return summary
+
+    def write_keeping(
+        self, out: Path, summary: dict, finish: bool = False, cache_dir=None
+    ) -> tuple[dict, BaseException | None]:
+        """write, returning (summary written, the exception that stopped the end-of-run
+        outputs or None) rather than raising it. Ctrl-C (or a `kill`) while the flight's own
+        files are written finishes them (once more, whole) without the end-of-run outputs;
+        a second one, or one when the flight itself was stopped, drops them."""
+        out = Path(out)
+        try:
+            self._write_flight(out)
+        except KeyboardInterrupt as e:
+            if "stopped_by" in summary:  # the flight's stop was the first Ctrl-C
+                raise
+            self._say("interrupted while saving: finishing the flight's files")
+            self._write_flight(out)
+            return self._stopped(out, summary, e), e
+        if not finish:
+            write_json_atomic(out / "summary.json", summary)
+            return summary, None
+        from .report import finish_run
+
+        try:
+            summary = finish_run(self.mission, out, summary, cache_dir=cache_dir)
+        except (KeyboardInterrupt, Exception) as e:
+            why = "interrupted" if isinstance(e, KeyboardInterrupt) else "failed"
+            self._say(f"end-of-run outputs {why}: saving the flight without them")
+            for name in FINISH_OUTPUTS:  # a part of them would read as all of them
+                (out / name).unlink(missing_ok=True)
+            return self._stopped(out, summary, e), e
+        write_json_atomic(out / "summary.json", summary)
+        return summary, None
+
+    def _write_flight(self, out: Path) -> None:
+        """The flight's files, each whole (atomic): all but summary.json and the end-of-run
+        outputs."""
         from .cloud import write_points
         from .plots import plot_mission
 
         m = self.mission
-        out = Path(out)
         out.mkdir(parents=True, exist_ok=True)
         write_text_atomic(out / "config.yaml", m.config.to_yaml())
         names = [f.name for f in fields(IterationRecord)]
@@ -224,12 +266,21 @@ class Recorder:
         write_points(out / "cloud.ply", m.world.clouds)  # streamed: no stacked copy
         m.world.map.save(str(out / "map.ot"))
         plot_mission(m, out / "figures")
-        if finish:
-            from .report import finish_run
 
-            summary = finish_run(m, out, summary, cache_dir=cache_dir)
+    def _stopped(self, out: Path, summary: dict, e: BaseException) -> dict:
+        """summary.json of a whole flight whose saving was stopped after it, by `e`."""
+        summary = {**summary, "stopped_by": error_line(e), "stopped_during": "saving"}
         write_json_atomic(out / "summary.json", summary)
         return summary
+
+    def _say(self, line: str) -> None:
+        if self.mission.config.progress:
+            print(f"{line} (Ctrl-C again drops it)", file=sys.stderr)
+
+
+# what finish_run writes beside the flight's files (its cache of the observable surface stays:
+# a cache, valid whole or absent)
+FINISH_OUTPUTS = ("mesh.ply", "figures/coverage.png", "report.html")
 
 
 def _gain_accounting(records) -> dict:
@@ -268,8 +319,10 @@ def fly_into(mission, out, finish: bool = False) -> tuple[dict, BaseException | 
     None). A flight stopped once its views started, by Ctrl-C or by an error (a planner part's),
     is not lost: what it flew is written (termination "interrupted" or "failed", `stopped_by`
     the cause, without the end-of-run outputs) and (summary, the exception) returned, for the
-    caller to raise once the folder is in place (raise_stop). Stopped before the views
-    (profile, symmetry), the exception propagates and nothing is written."""
+    caller to raise once the folder is in place (raise_stop); so is a whole flight whose saving
+    was stopped (its end-of-run outputs: Recorder.write_keeping, `stopped_during` "saving").
+    Stopped before the views (profile, symmetry), the exception propagates and nothing is
+    written."""
     try:
         summary = mission._run()
     except (KeyboardInterrupt, Exception) as e:
@@ -277,12 +330,13 @@ def fly_into(mission, out, finish: bool = False) -> tuple[dict, BaseException | 
         if rec.flying_since is None:
             raise
         why = "interrupted" if isinstance(e, KeyboardInterrupt) else "failed"
-        if mission.config.progress:
-            print(f"{why}: saving what was flown (Ctrl-C again drops it)", file=sys.stderr)
+        rec._say(f"{why}: saving what was flown")
         summary = rec.summary(why, time.perf_counter() - rec.flying_since)
         summary["stopped_by"] = error_line(e)
+        summary["stopped_during"] = "flight"
         return mission.save(out, summary), e
-    return mission.save(out, summary, finish=finish), None
+    # stopped during the end-of-run outputs, the whole flight is kept without them
+    return mission.recorder.write_keeping(Path(out), summary, finish=finish)
 
 
 def raise_stop(summary: dict, stop: BaseException | None) -> dict:

@@ -7,6 +7,7 @@ from pathlib import Path
 
 import numpy as np
 
+from ._open3d import open3d
 from ._core import SymmetricPrediction, reflect_points
 from .figures import _plt  # one headless matplotlib set-up for all figures
 
@@ -145,7 +146,7 @@ def symmetry_geometries(profile, result, predicted=None, plane_size: float | Non
     """open3d geometries of Fig. 3 (imports open3d lazily): the profile (grey), its reflection
     about the (corrected) plane (green), the prediction (red) and the plane as a thin blue square.
     """
-    import open3d as o3d
+    o3d = open3d()
 
     prof = np.asarray(profile, float).reshape(-1, 3)
     plane = _plane_of(predicted) if isinstance(predicted, SymmetricPrediction) else None
@@ -187,7 +188,7 @@ def symmetry_geometries(profile, result, predicted=None, plane_size: float | Non
 def show_symmetry_open3d(profile, result, predicted=None, window_name: str = "nbvkit symmetry"):
     """Opens an open3d window with :func:`symmetry_geometries` (needs a display; for notebooks).
     Returns the geometries."""
-    import open3d as o3d
+    o3d = open3d()
 
     geoms = symmetry_geometries(profile, result, predicted)
     o3d.visualization.draw_geometries(geoms, window_name=window_name)

@@ -109,7 +109,14 @@ def run(args) -> int:
         with terminate_as_interrupt():  # a `kill` keeps the flight as Ctrl-C does
             s, stop = fly_into(mission, folder.tmp, finish=True)
     print_summary(s, out)
-    if stop is not None:
+    if stop is not None and s.get("stopped_during") == "saving":
+        print(
+            f"nbvkit run: saving was stopped after the flight ({s['stopped_by']}); the whole "
+            f"flight ({s['views']} views, {s['distance_m']:.1f} m) is saved in {out}/ without "
+            "the end-of-run outputs (mesh.ply, report.html)",
+            file=sys.stderr,
+        )
+    elif stop is not None:
         print(
             f"nbvkit run: the flight stopped after {s['views']} views, {s['distance_m']:.1f} m "
             f"({s['stopped_by']}); what it flew is saved in {out}/",
