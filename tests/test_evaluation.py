@@ -639,3 +639,16 @@ def test_the_ground_truth_is_the_same_before_and_after_its_tree_is_built():
     assert ev.coverage(cloud) == before
     assert {k: full[k] for k in before} == before
     np.testing.assert_allclose(ev._core.nearest_to_gt(gt[:5]), 0.0, atol=0)
+
+
+def test_cli_evaluate_refuses_observable_settings_without_observable(cube_files, capsys):
+    """--set, --config and --cache define only the observable surface: given without
+    --observable they would be ignored silently, so they are refused, named."""
+    from nbvkit.cli import main
+
+    args = ["evaluate", "--mesh", str(cube_files / "cube.obj"), str(cube_files / "face.ply")]
+    assert main([*args, "--gt-density", "500", "--set", "camera.max_range=20"]) == 2
+    err = capsys.readouterr().err
+    assert "--set defines only the observable surface" in err and "--observable" in err
+    assert main([*args, "--gt-density", "500", "--cache", str(cube_files / "c")]) == 2
+    assert "--cache defines only" in capsys.readouterr().err

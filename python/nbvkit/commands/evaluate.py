@@ -135,6 +135,13 @@ def run(args) -> int:
         raise ValueError("give either --mesh or --reference-cloud, not both")
     if args.observable and args.reference_cloud:
         raise ValueError("--observable needs the ground-truth mesh, not --reference-cloud")
+    given = [f for f in ("set", "config", "cache") if getattr(args, f)]
+    if given and not args.observable:
+        names = " and ".join(f"--{f}" for f in given)
+        raise ValueError(
+            f"{names} {'define' if len(given) > 1 else 'defines'} only the observable surface: "
+            "add --observable (the other figures do not read a mission configuration)"
+        )
     if args.gt_density is None or not args.gt_density > 0:
         raise ValueError(f"--gt-density must be > 0, got {args.gt_density}")
     if args.json:
