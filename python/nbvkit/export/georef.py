@@ -14,6 +14,14 @@ from dataclasses import dataclass
 import numpy as np
 
 ALTITUDE_REFS = ("amsl", "ellipsoid")
+#: |latitude| of the origin beyond which the export refuses (degrees). The local tangent plane
+#: and the per-waypoint bearings stay exact near a pole, but north is undefined at the pole
+#: itself and turns by 360 degrees round it: at 89.9 degrees the pole is 11.1 km from the
+#: origin, farther than any site nbvkit plans (a waypoint there keeps a defined north).
+MAX_ABS_LATITUDE = 89.9
+#: the origin altitude's accepted range (m, either reference): below the Dead Sea shore
+#: (-430 m) to above Everest (8849 m); the geoid departs from the ellipsoid by -106..+85 m.
+ALTITUDE_RANGE = (-500.0, 10000.0)
 _NAMES = {
     "lat": "origin latitude",
     "lon": "origin longitude",
@@ -46,6 +54,18 @@ class GeoFrame:
                 raise ValueError(f"{what} must be a finite number, got {v!r}")
         if not -90.0 <= self.lat <= 90.0:
             raise ValueError(f"origin latitude must be within [-90, 90] degrees, got {self.lat}")
+        if abs(self.lat) > MAX_ABS_LATITUDE:
+            raise ValueError(
+                f"origin latitude {self.lat} is within {90 - abs(self.lat):.4g} degrees of a "
+                f"pole: the export accepts |latitude| <= {MAX_ABS_LATITUDE} (north, and so every "
+                "heading, is undefined at the pole and turns fully round it)"
+            )
+        lo, hi = ALTITUDE_RANGE
+        if not lo <= self.alt <= hi:
+            raise ValueError(
+                f"origin altitude must be within [{lo:g}, {hi:g}] m ({self.altitude_ref}), "
+                f"got {self.alt}"
+            )
         if not -180.0 <= self.lon <= 180.0:
             raise ValueError(f"origin longitude must be within [-180, 180] degrees, got {self.lon}")
         if self.altitude_ref not in ALTITUDE_REFS:
@@ -100,6 +120,32 @@ class GeoFrame:
         b = math.degrees(math.atan2(e, n)) % 360.0
         return 0.0 if b >= 360.0 else b  # -1e-15 % 360 rounds to 360
 
+    def local_enu(self, direction, lat: float, lon: float) -> np.ndarray:
+        """A mesh-frame direction (3,) in the East-North-Up frame at (lat, lon) (degrees): the
+        local north and up there, not the origin's (they differ by the meridians' convergence,
+        a large angle near a pole)."""
+        from pymap3d.ecef import enu2uvw, uvw2enu
+
+        e, n, u = self.mesh_to_enu(np.asarray(direction, float))
+        return np.array(uvw2enu(*enu2uvw(e, n, u, self.lat, self.lon), lat, lon), float)
+
+    def local_bearing(self, direction, lat: float, lon: float) -> float:
+        """The compass bearing (degrees in [0, 360), clockwise from the local north at (lat,
+        lon)) of a mesh-frame direction (3,), from its horizontal part."""
+        e, n, _ = self.local_enu(direction, lat, lon)
+        b = math.degrees(math.atan2(e, n)) % 360.0
+        return 0.0 if b >= 360.0 else b
+
+    def ellipsoid_height(self, lat, lon, alt) -> np.ndarray:
+        """Heights above the WGS84 ellipsoid (m) of points with altitudes `alt` in the origin's
+        reference: the same with an ellipsoidal origin; with an AMSL origin, alt + the EGM96
+        geoid height at (lat, lon) (pyproj and PROJ's egm96_15.gtx grid, Debian python3-pyproj
+        and proj-data). ValueError when that grid is not at hand."""
+        alt = np.asarray(alt, float)
+        if self.altitude_ref == "ellipsoid":
+            return alt.copy()
+        return alt + egm96_geoid_height(lat, lon)
+
     def to_dict(self) -> dict:
         return {
             "latitude_deg": self.lat,
@@ -108,3 +154,29 @@ class GeoFrame:
             "altitude_reference": self.altitude_ref,
             "heading_deg": self.heading_deg,
         }
+
+
+def egm96_geoid_height(lat, lon) -> np.ndarray:
+    """The EGM96 geoid's height above the WGS84 ellipsoid (m) at (lat, lon) (degrees), from
+    PROJ's egm96_15.gtx grid through pyproj. ValueError naming what is missing when pyproj or
+    the grid is not installed (PROJ would then silently apply no geoid at all: checked against
+    the grid's value at (0, 0), +17.16 m)."""
+    try:
+        import pyproj
+    except ImportError:
+        raise ValueError(
+            "heights above the ellipsoid from an AMSL origin need the EGM96 geoid: install "
+            "pyproj with PROJ's egm96_15.gtx grid (Debian python3-pyproj and proj-data), or give "
+            "the origin's height above the ellipsoid with --altitude-ref ellipsoid"
+        ) from None
+    t = pyproj.Transformer.from_crs("EPSG:4326+5773", "EPSG:4979", always_xy=True)
+    _, _, n0 = t.transform(0.0, 0.0, 0.0)
+    if not abs(n0 - 17.16) < 0.1:
+        raise ValueError(
+            "PROJ applies no EGM96 geoid (its egm96_15.gtx grid is missing: Debian proj-data); "
+            "give the origin's height above the ellipsoid with --altitude-ref ellipsoid"
+        )
+    lat = np.asarray(lat, float)
+    lon = np.asarray(lon, float)
+    _, _, h = t.transform(lon, lat, np.zeros_like(lat))
+    return np.asarray(h, float)
