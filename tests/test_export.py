@@ -127,6 +127,19 @@ def _to_mesh(lat, lon, alt):
     return _frame().to_mesh(lat, lon, alt)
 
 
+def _azimuth_along(xyz, yaw, frame=None):
+    """The compass bearing (pymap3d's azimuth at the point) of the direction `yaw` (rad, mesh
+    frame) at the mesh point xyz: the bearing of a point 1 m along it."""
+    import pymap3d
+
+    f = frame or _frame()
+    p = np.asarray(xyz, float)
+    q = p + [math.cos(yaw), math.sin(yaw), 0.0]
+    la, lo, al = f.to_geodetic(np.array([p, q]))
+    az, _, _ = pymap3d.geodetic2aer(la[1], lo[1], al[1], la[0], lo[0], al[0])
+    return float(az) % 360.0
+
+
 def test_qgc_plan_read_back_flies_the_flight(exported, run_dir):
     out, s = exported
     plan = json.loads((out / "mission.plan").read_text())
@@ -143,19 +156,32 @@ def test_qgc_plan_read_back_flies_the_flight(exported, run_dir):
     np.testing.assert_allclose(_to_mesh(*home[:, None]).ravel(), s["launch_point_mesh"], atol=0.01)
     top = np.array(s["climb_top_mesh"])
     assert top[2] == pytest.approx(fl.start[2]) and s["launch_point_mesh"][:2] == list(top[:2])
-    # per view: a waypoint that holds, a gimbal pitch (1000, horizon-locked) and one image (2000)
-    views = [k for k, it in enumerate(items) if it["command"] == 2000]
+    # per capture (view or in-flight frame): its gimbal pitch (1000, horizon-locked) before its
+    # waypoint, the waypoint with the capture's heading, one image (2000) right after it; a
+    # view's waypoint holds the settle (1 s of the 2 s hover), its rest (93) follows the image
+    rows = _csv(out / "mission.csv")
+    caps = [k for k, it in enumerate(items) if it["command"] == 2000]
     n_views = sum(c == "view" for c in fl.capture)
     n_frames = sum(c == "frame" for c in fl.capture)
-    assert len(views) == n_views + n_frames
-    gimbal = [k for k, it in enumerate(items) if it["command"] == 1000]
-    assert len(gimbal) == n_views
-    for k in gimbal:
-        wp, g, cap = items[k - 1], items[k], items[k + 1]
-        assert wp["command"] == 16 and wp["params"][0] == 2.0 and wp["params"][3] is not None
-        assert g["frame"] == 2 and g["params"][0] == pytest.approx(0.0, abs=1e-9)  # level view
-        assert g["params"][4] == 8
-        assert cap["command"] == 2000 and cap["params"][2] == 1  # one image
+    assert len(caps) == n_views + n_frames
+    assert sum(it["command"] == 1000 for it in items) == len(caps)
+    cap_rows = [r for r in rows if r["action"] in ("view", "frame")]
+    assert [r["action"] for r in cap_rows] == [c for c in fl.capture if c]
+    for k, r in zip(caps, cap_rows):
+        wp, g, cap = items[k - 1], items[k - 2], items[k]
+        assert wp["command"] == 16 and g["command"] == 1000
+        assert wp["params"][3] == pytest.approx(float(r["heading_deg"]), abs=1e-3)
+        assert g["frame"] == 2 and g["params"][4] == 8
+        assert g["params"][0] == pytest.approx(float(r["gimbal_pitch_deg"]), abs=1e-3)
+        assert cap["params"][2] == 1  # one image
+        if r["action"] == "view":
+            assert wp["params"][0] == 1.0
+            assert items[k + 1]["command"] == 93 and items[k + 1]["params"][0] == 1.0
+        else:
+            assert wp["params"][0] == 0.0 and items[k + 1]["command"] != 93
+    # sequence numbers: unique and increasing over the whole mission (views and frames)
+    assert [items[k]["params"][3] for k in caps] == list(range(1, len(caps) + 1))
+    assert items[1]["command"] == 178 and items[1]["params"][:2] == [1.0, 5.0]  # cruise speed
     # the navigation items, back in the mesh frame, are the CSV's waypoints (same order)
     nav = [it for it in items if it["frame"] == 3]
     lat = np.array([it["params"][4] for it in nav])
@@ -177,10 +203,12 @@ def test_qgc_plan_read_back_flies_the_flight(exported, run_dir):
         assert kb == ka + 1
         for i in range(ra + 1, rb):
             assert _off_segment(flight[i], xyz[ka], xyz[kb]) < 0.01
-    # headings: the vehicle's yaw as a compass bearing
+    # headings: the vehicle's yaw as a compass bearing from the local north at the waypoint
     for k in on_flight:
-        yaw = fl.yaw[int(rows[k]["flight_row"])]
-        assert nav[k]["params"][3] == pytest.approx((HEADING - math.degrees(yaw)) % 360, abs=1e-6)
+        i = int(rows[k]["flight_row"])
+        want = _azimuth_along(fl.xyz[i], fl.yaw[i])
+        got = nav[k]["params"][3]
+        assert abs((got - want + 180) % 360 - 180) < 1e-4
     # starts and ends above the launch point
     assert np.abs(xyz[0] - top).max() < 0.01 and np.abs(xyz[-1] - top).max() < 0.01
 
@@ -195,11 +223,114 @@ def test_qgc_wpl_text_mission(exported):
     assert rows[0][1] == "1" and rows[0][2] == "0"  # home, absolute altitude
     cmds = [int(r[3]) for r in rows]
     assert cmds[1] == 22 and cmds[-1] == 20
-    # ArduPilot turns by CONDITION_YAW before each view's waypoint
-    assert cmds.count(115) == cmds.count(1000)
-    for k, c in enumerate(cmds):
-        if c == 115:
-            assert cmds[k + 1] == 16 and cmds[k + 2] == 1000 and cmds[k + 3] == 2000
+    caps = [r for r in _csv(out / "mission.csv") if r["action"] in ("view", "frame")]
+    photos = _fly_ardupilot(rows, speed=5.0)
+    assert len(photos) == len(caps) == cmds.count(2000)
+    assert [p["seq"] for p in photos] == list(range(1, len(caps) + 1))  # unique, increasing
+    turned = early = 0
+    for p, r in zip(photos, caps):
+        # taken at the capture's point, facing its heading, with its gimbal pitch commanded
+        # before the arrival
+        assert p["pos"][:2] == pytest.approx((float(r["latitude_deg"]), float(r["longitude_deg"])))
+        assert p["heading"] is not None, f"{r['action']} {r['seq']}: heading not held"
+        assert abs((p["heading"] - float(r["heading_deg"]) + 180) % 360 - 180) < 1e-3
+        assert p["pitch"] == pytest.approx(float(r["gimbal_pitch_deg"]), abs=1e-3)
+        assert p["pitch_t"] <= p["arrive"] + 1e-9
+        turned += p["yaw_t"] > p["leg_start"] + 1e-9
+        if r["action"] == "view":
+            # settled (1 s after the arrival and the turn) before the photo, and the aircraft
+            # stays the whole hover (2 s), the rest of it after the photo
+            assert p["t"] - max(p["arrive"], p["yaw_t"]) >= 1.0 - 1e-9
+            assert p["depart"] == pytest.approx(max(p["arrive"] + 2.0, p["t"]))
+            early += p["t"] < p["arrive"] + 2.0 - 1e-9
+    assert turned > 0  # the check saw turns
+    assert early > 0  # and photos taken before the end of the hover
+
+
+NAV_LAST = 95  # MAV_CMD_NAV_LAST: ArduPilot's AP_Mission::is_nav_cmd is id <= 95 (or 213)
+
+
+def _fly_ardupilot(rows, speed, slew=60.0):
+    """Each photo (IMAGE_START_CAPTURE) of a QGC WPL mission as ArduPilot's copter runs it, read
+    from its source (libraries/AP_Mission/AP_Mission.cpp advance_current_nav_cmd /
+    advance_current_do_cmd, ArduCopter/mode_auto.cpp wp_start, do_yaw, verify_yaw,
+    verify_nav_wp, do_nav_delay): the do/conditional commands after a nav command start, one
+    after the other, when it completes (its hold over), together with the next nav command; a
+    conditional command (CONDITION_YAW) holds back the later ones until it is done; a
+    NAV_WAYPOINT's start resets the yaw to the default (along the track) unless a CONDITION_YAW
+    of its leg sets it again (verify_yaw); NAV_DELAY keeps position and yaw. The copter flies a
+    leg in its horizontal length / speed (its quickest) and turns at CONDITION_YAW's rate (param
+    2; 0: `slew`), from an unknown heading (180 degrees away) after a reset. Returns per photo:
+    t, pos (lat, lon), heading (None unless held at the target), pitch and pitch_t (the last
+    gimbal command and its time), arrive, leg_start, yaw_t (when the heading was reached),
+    depart, seq."""
+    import pymap3d
+
+    items = [(int(r[3]), [float(v) for v in r[4:11]]) for r in rows[1:]]  # row 0: home
+    t, pos, arrive, leg_start = 0.0, None, 0.0, 0.0
+    yaw = None  # (time reached, target) while the heading is held
+    pitch = pitch_t = None
+    photos = []
+    k = 0
+    while k < len(items):
+        cmd, p = items[k]
+        if cmd > NAV_LAST:  # the do commands after the last nav command, started at t
+            j = k
+            while j < len(items) and items[j][0] > NAV_LAST:
+                j += 1
+            t_do, held = t, False
+            for c, q in items[k:j]:
+                if c == 2000:
+                    h = yaw[1] if yaw is not None and yaw[0] <= t_do + 1e-9 else None
+                    photos.append(
+                        dict(
+                            t=t_do,
+                            pos=pos,
+                            heading=h,
+                            pitch=pitch,
+                            pitch_t=pitch_t,
+                            arrive=arrive,
+                            leg_start=leg_start,
+                            yaw_t=yaw[0] if yaw else math.inf,
+                            depart=None,
+                            seq=int(q[3]),
+                        )
+                    )
+                elif c == 1000:
+                    pitch, pitch_t = q[0], t_do
+                elif c == 115:
+                    turn = 180.0
+                    if yaw is not None:
+                        turn = abs((q[0] - yaw[1] + 180) % 360 - 180)
+                    t_do += turn / (q[1] or slew)  # held back until the heading is reached
+                    yaw, held = (t_do, q[0]), True
+            k = j
+            if k == len(items):
+                break
+            cmd, p = items[k]
+        else:
+            held = False
+        if cmd == 22:
+            pos, yaw = (p[4], p[5], p[6]), None
+        elif cmd == 16:
+            if photos and photos[-1]["depart"] is None:
+                photos[-1]["depart"] = t
+            if not held:
+                yaw = None  # wp_start: the default yaw, along the track
+            e, n, _ = pymap3d.geodetic2enu(p[4], p[5], 0.0, pos[0], pos[1], 0.0)
+            leg_start = t
+            arrive = t + math.hypot(e, n) / speed
+            t = arrive + int(p[0])  # the hold: whole seconds (loiter_time_max = p1)
+            pos = (p[4], p[5], p[6])
+        elif cmd == 93:
+            t += p[0]
+            if photos:
+                photos[-1]["depart"] = t
+        elif cmd == 20:
+            if photos and photos[-1]["depart"] is None:
+                photos[-1]["depart"] = t
+        k += 1
+    return photos
 
 
 def test_wpml_kmz_read_back(exported, run_dir):
@@ -236,15 +367,52 @@ def test_wpml_kmz_read_back(exported, run_dir):
             [[float(r["latitude_deg"]), float(r["longitude_deg"])] for r in rows],
             atol=1e-9,
         )
-        funcs = [
-            a.findtext("wpml:actionActuatorFunc", namespaces=ns)
-            for a in root.iter("{http://www.dji.com/wpmz/1.0.2}action")
-        ]
-        assert funcs.count("gimbalRotate") == n_views
-        assert funcs.count("takePhoto") == sum(bool(c) for c in fl.capture)
+        # every capture: gimbal pitch, (a view: 1 s settle,) photo (wide lens), (rest of the
+        # 2 s hover); the photo's heading is the waypoint's
+        n_caps = 0
+        for p, r in zip(pms, rows):
+            acts = p.findall("wpml:actionGroup/wpml:action", ns)
+            funcs = [a.findtext("wpml:actionActuatorFunc", namespaces=ns) for a in acts]
+            if r["action"] not in ("view", "frame"):
+                assert funcs == []
+                continue
+            n_caps += 1
+            want = ["gimbalRotate", "takePhoto"]
+            if r["action"] == "view":
+                want = ["gimbalRotate", "hover", "takePhoto", "hover"]
+                hovers = [a.findtext(".//wpml:hoverTime", namespaces=ns) for a in acts]
+                assert [float(h) for h in hovers if h is not None] == [1.0, 2.0 - 1.0]
+            assert funcs == want
+            gim = acts[0].find("wpml:actionActuatorFuncParam", ns)
+            par = {e.tag.split("}")[1]: e.text for e in gim}
+            assert par["gimbalPitchRotateEnable"] == "1"
+            assert float(par["gimbalPitchRotateAngle"]) == pytest.approx(
+                float(r["gimbal_pitch_deg"]), abs=1e-3
+            )
+            photo = acts[funcs.index("takePhoto")].find("wpml:actionActuatorFuncParam", ns)
+            assert photo.findtext("wpml:useGlobalPayloadLensIndex", namespaces=ns) == "0"
+            assert photo.findtext("wpml:payloadLensIndex", namespaces=ns) == "wide"
+            a = p.findtext("wpml:waypointHeadingParam/wpml:waypointHeadingAngle", namespaces=ns)
+            assert abs((float(a) - float(r["heading_deg"]) + 180) % 360 - 180) < 1e-3
+        assert n_caps == sum(bool(c) for c in fl.capture) and n_views < n_caps
         for p in pms:
             a = p.findtext("wpml:waypointHeadingParam/wpml:waypointHeadingAngle", namespaces=ns)
             assert a is None or -180 <= float(a) < 180
+    # template.kml: each point's height above the WGS84 ellipsoid too (required with
+    # useGlobalHeight 0), and the take-off point's: AMSL + the EGM96 geoid height, which is
+    # 47.4 m at Zurich (NGA's EGM96 tables; 47.3-47.4 m around 47.4 N 8.5 E)
+    tk = docs["wpmz/template.kml"]
+    pms = tk.findall("k:Document/k:Folder/k:Placemark", ns)
+    assert all(p.findtext("wpml:useGlobalHeight", namespaces=ns) == "0" for p in pms)
+    ell = np.array([float(p.findtext("wpml:ellipsoidHeight", namespaces=ns)) for p in pms])
+    n = ell - np.array([float(r["altitude_m"]) for r in rows])
+    assert np.all((n > 46.8) & (n < 48.0)) and np.ptp(n) < 0.05
+    plan = json.loads((out / "mission.plan").read_text())["mission"]
+    ref = tk.findtext("k:Document/wpml:missionConfig/wpml:takeOffRefPoint", namespaces=ns)
+    lat, lon, h = map(float, ref.split(","))
+    home = plan["plannedHomePosition"]
+    assert (lat, lon) == pytest.approx(home[:2], abs=1e-9)
+    assert h - home[2] == pytest.approx(n.mean(), abs=0.05)
     wl = docs["wpmz/waylines.wpml"]
     assert wl.findtext("k:Document/k:Folder/wpml:executeHeightMode", namespaces=ns) == (
         "relativeToStartPoint"
@@ -358,7 +526,7 @@ def test_a_budget_splits_the_flight_into_sorties_from_and_to_home(run_dir, tmp_p
     assert len(budget["sorties"]) == 3
     assert budget["unreachable"] == []
     usable = budget["budget"]["usable_min"] * 60
-    captured = []
+    captured, seqs = [], []
     frame = _frame()
     home = None
     for srt in budget["sorties"]:
@@ -383,8 +551,11 @@ def test_a_budget_splits_the_flight_into_sorties_from_and_to_home(run_dir, tmp_p
         plan = json.loads((out / f"sortie_{srt['sortie']:02d}.plan").read_text())["mission"]
         assert plan["items"][0]["command"] == 22 and plan["items"][-1]["command"] == 20
         home = home or plan["plannedHomePosition"]
+        seqs += [it["params"][3] for it in plan["items"] if it["command"] == 2000]
         assert plan["plannedHomePosition"] == home
     assert sorted(captured) == view_rows  # every view exactly once
+    # the photos' sequence numbers run on over the sorties: unique and increasing
+    assert len(seqs) > 0 and seqs == sorted(set(seqs))
     table = _csv(out / "sorties.csv")
     assert [int(r["sortie"]) for r in table] == [1, 2, 3]
     assert sum(int(r["views"]) for r in table) == len(view_rows)
@@ -423,6 +594,11 @@ def test_a_view_beyond_one_battery_is_reported_not_dropped(run_dir, tmp_path):
         ({"flight_time_min": 0.05}, ValueError, "too short for any view"),
         ({"flight_time_min": -1.0}, ValueError, "flight time"),
         ({"speed": 0.0}, ValueError, "speed"),
+        ({"speed": 15.5}, ValueError, "above the export's maximum of 15 m/s"),
+        ({"origin": (89.95, 8.5, 400.0)}, ValueError, "latitude 89.95 .* pole"),
+        ({"origin": (-89.91, 8.5, 400.0)}, ValueError, "pole.*<= 89.9"),
+        ({"origin": (47.0, 8.5, 1e12)}, ValueError, r"altitude must be within \[-500, 10000\]"),
+        ({"origin": (47.0, 8.5, -600.0)}, ValueError, "altitude must be within"),
     ],
 )
 def test_bad_input_names_the_problem_and_writes_nothing(run_dir, tmp_path, kwargs, exc, words):
@@ -495,15 +671,22 @@ def test_the_report_shows_the_flight_time_and_the_sorties(run_dir, tmp_path):
 
     sec = flight_section(estimate_flight(run_dir))
     assert sec.startswith(FLIGHT_BEGIN) and "estimated flight time" in sec
-    (run_dir / "report.html").write_text(f"<html><body>{sec}</body></html>")
+    report, manifest = run_dir / "report.html", run_dir / "manifest.json"
+    original = report.read_bytes() if report.is_file() else None
+    listed = manifest.read_bytes()  # the export lists the report it updates
+    report.write_text(f"<html><body>{sec}</body></html>")
     try:
         s = export_mission(run_dir, "csv", ORIGIN, HEADING, tmp_path / "x", flight_time_min=3.0)
         assert s["report_updated"]
         text = (run_dir / "report.html").read_text()
         assert text.count(FLIGHT_BEGIN) == 1 and text.count(FLIGHT_END) == 1
         assert "sortie 1" in text and "#1f77b4" in text
-    finally:
-        (run_dir / "report.html").unlink()
+    finally:  # the run folder as it was, complete, for the tests after this one
+        if original is None:
+            report.unlink()
+        else:
+            report.write_bytes(original)
+        manifest.write_bytes(listed)
 
 
 def test_a_blocked_climb_below_the_start_moves_the_launch_point(run_dir, monkeypatch):
@@ -533,3 +716,107 @@ def test_a_blocked_climb_below_the_start_moves_the_launch_point(run_dir, monkeyp
     monkeypatch.setattr(plan, "_column_clear", lambda *a: False)
     with pytest.raises(ValueError, match="no launch point"):
         plan.find_launch(fl, occ, plan.FlightModel())
+
+
+# ------------------------------------------------------------------ anywhere on the Earth
+@pytest.mark.parametrize(
+    "origin, heading", [((89.85, -120.0, 0.0), 250.0), ((-33.9, 151.2, 5.0), 100.0)]
+)
+def test_headings_are_bearings_from_the_local_north(run_dir, tmp_path, origin, heading):
+    """Near a pole the meridians converge fast: 16.7 km from the north pole the north of a
+    point 50 m east of the origin is 0.17 degrees off the origin's."""
+    export_mission(run_dir, "csv,qgc", origin, heading, tmp_path / "ex")
+    fl = read_run(run_dir)
+    frame = GeoFrame(*origin, heading)
+    rows = [r for r in _csv(tmp_path / "ex" / "mission.csv") if int(r["flight_row"]) >= 0]
+    worst = 0.0
+    for r in rows:
+        i = int(r["flight_row"])
+        want = _azimuth_along(fl.xyz[i], fl.yaw[i], frame)
+        worst = max(worst, abs((float(r["heading_deg"]) - want + 180) % 360 - 180))
+    assert worst < 5e-4 + 1e-9  # the CSV's 3 decimals
+    lines = (tmp_path / "ex" / "mission.waypoints").read_text().splitlines()[1:]
+    photos = _fly_ardupilot([ln.split("\t") for ln in lines], speed=5.0)
+    caps = [r for r in rows if r["action"] in ("view", "frame")]
+    np.testing.assert_allclose(
+        [p["heading"] for p in photos], [float(r["heading_deg"]) for r in caps], atol=5e-4 + 1e-9
+    )
+
+
+def test_angles_are_written_without_numerical_noise(exported):
+    out, _ = exported
+    items = json.loads((out / "mission.plan").read_text())["mission"]["items"]
+    angles = [it["params"][k] for it in items if it["command"] == 1000 for k in (0, 1)]
+    angles += [it["params"][3] for it in items if it["command"] in (16, 22)]
+    angles = [v for v in angles if v is not None]
+    assert angles and all(v == 0 or abs(v) >= 1e-6 for v in angles)
+    assert all(math.copysign(1.0, v) > 0 for v in angles if v == 0)  # no -0.0
+    # the captures look straight ahead of the nose, level: gimbal pitch and yaw exactly 0
+    gimbal = [it["params"][:2] for it in items if it["command"] == 1000]
+    assert gimbal and all(g == [0.0, 0.0] for g in gimbal)
+
+
+def test_split_antimeridian_cuts_a_line_where_it_crosses():
+    from nbvkit.export.writers import split_antimeridian
+
+    west = split_antimeridian([[-179.9, 0.0, 0.0], [179.9, 1.0, 10.0]])
+    assert west == [
+        [[-179.9, 0.0, 0.0], [-180.0, 0.5, 5.0]],
+        [[180.0, 0.5, 5.0], [179.9, 1.0, 10.0]],
+    ]
+    east = split_antimeridian([[179.0, 10.0, 0.0], [179.5, 10.0, 0.0], [-179.5, 12.0, 4.0]])
+    assert east == [
+        [[179.0, 10.0, 0.0], [179.5, 10.0, 0.0], [180.0, 11.0, 2.0]],
+        [[-180.0, 11.0, 2.0], [-179.5, 12.0, 4.0]],
+    ]
+    assert split_antimeridian([[10.0, 0.0, 0.0], [11.0, 1.0, 0.0]]) == [
+        [[10.0, 0.0, 0.0], [11.0, 1.0, 0.0]]
+    ]
+
+
+def test_geojson_flight_over_the_antimeridian_is_a_multilinestring(run_dir, tmp_path):
+    out = tmp_path / "ex"
+    export_mission(run_dir, "geojson,csv", (-16.5, 180.0, 10.0), 45.0, out)
+    gj = json.loads((out / "mission.geojson").read_text())
+    line = gj["features"][0]["geometry"]
+    assert line["type"] == "MultiLineString" and len(line["coordinates"]) >= 2
+    rows = _csv(out / "mission.csv")
+    flown = []
+    for part in line["coordinates"]:
+        lons = [c[0] for c in part]
+        assert all(-180 <= x <= 180 for x in lons)
+        assert all(abs(a - b) <= 180 for a, b in zip(lons, lons[1:]))  # no part crosses
+        flown += [c for c in part if abs(c[0]) != 180.0]
+    for a, b in zip(line["coordinates"], line["coordinates"][1:]):
+        assert abs(a[-1][0]) == 180.0 and b[0][0] == -a[-1][0]  # cut on the antimeridian
+        assert a[-1][1:] == b[0][1:]
+    want = [[float(r[k]) for k in ("longitude_deg", "latitude_deg", "altitude_m")] for r in rows]
+    flown, want = np.array(flown), np.array(want)
+    assert flown.shape == want.shape
+    np.testing.assert_allclose(flown[:, :2], want[:, :2], atol=1e-8)
+    np.testing.assert_allclose(flown[:, 2], want[:, 2], atol=5e-4 + 1e-9)  # CSV: 3 decimals
+
+
+def test_wpml_heights_from_an_ellipsoidal_origin_and_without_a_geoid(
+    run_dir, tmp_path, monkeypatch
+):
+    import sys
+
+    from lxml import etree
+
+    monkeypatch.setitem(sys.modules, "pyproj", None)  # no geoid model at hand
+    with pytest.raises(ValueError, match="EGM96 geoid.*--altitude-ref ellipsoid"):
+        export_mission(run_dir, "wpml", ORIGIN, HEADING, tmp_path / "amsl")
+    assert not (tmp_path / "amsl").exists()
+    out = tmp_path / "ell"
+    export_mission(run_dir, "wpml,csv", ORIGIN, HEADING, out, altitude_ref="ellipsoid")
+    with zipfile.ZipFile(out / "mission.kmz") as z:
+        tk = etree.fromstring(z.read("wpmz/template.kml"))
+    ns = {"k": "http://www.opengis.net/kml/2.2", "wpml": "http://www.dji.com/wpmz/1.0.2"}
+    ell = [float(e.text) for e in tk.iterfind(".//wpml:ellipsoidHeight", ns)]
+    rows = _csv(out / "mission.csv")
+    np.testing.assert_allclose(ell, [float(r["altitude_m"]) for r in rows], atol=1e-3)
+    ref = tk.findtext("k:Document/wpml:missionConfig/wpml:takeOffRefPoint", namespaces=ns)
+    s = json.loads((out / "export.json").read_text())
+    home = GeoFrame(*ORIGIN, HEADING, "ellipsoid").to_geodetic(np.array([s["launch_point_mesh"]]))
+    assert float(ref.split(",")[2]) == pytest.approx(float(home[2][0]), abs=1e-3)

@@ -31,7 +31,8 @@ def register(sub) -> argparse.ArgumentParser:
         type=float,
         required=True,
         metavar=("LAT", "LON", "ALT"),
-        help="WGS84 latitude and longitude (degrees) and altitude (m) of the mesh frame's origin",
+        help="WGS84 latitude and longitude (degrees; |LAT| <= 89.9) and altitude (m, within "
+        "[-500, 10000]) of the mesh frame's origin",
     )
     p.add_argument(
         "--altitude-ref",
@@ -46,7 +47,13 @@ def register(sub) -> argparse.ArgumentParser:
         metavar="DEG",
         help="bearing of the mesh's +x axis, degrees clockwise from true north (default 0)",
     )
-    p.add_argument("--speed", type=float, default=5.0, metavar="M_S", help="cruise speed (5)")
+    p.add_argument(
+        "--speed",
+        type=float,
+        default=5.0,
+        metavar="M_S",
+        help="cruise speed (default 5, at most 15: DJI WPML's limit, see docs/EXPORT.md)",
+    )
     p.add_argument(
         "--climb-rate", type=float, default=2.0, metavar="M_S", help="climb/descent rate (2)"
     )

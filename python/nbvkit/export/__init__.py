@@ -65,6 +65,21 @@ def _budget(flight_time_min, reserve_pct):
     return 60.0 * flight_time_min * (1.0 - reserve_pct / 100.0)
 
 
+def _check_speed(speed) -> None:
+    """ValueError for a cruise speed above writers.MAX_SPEED_M_S (the lower bounds are
+    FlightModel's)."""
+    try:
+        v = float(speed)
+    except (TypeError, ValueError):
+        raise ValueError(f"speed must be a number of m/s, got {speed!r}") from None
+    if math.isfinite(v) and v > writers.MAX_SPEED_M_S:
+        raise ValueError(
+            f"speed {v:g} m/s is above the export's maximum of {writers.MAX_SPEED_M_S:g} m/s "
+            "(DJI WPML's transitional speed range [0, 15] m/s; route speeds may not pass the "
+            "aircraft's maximum: see docs/EXPORT.md)"
+        )
+
+
 def _planner(run_dir, model: FlightModel, need_all_returns: bool, occ_map=None):
     """The flight of a run folder and its SortiePlanner (nbvkit.flight.sortie_planner)."""
     fl = read_run(run_dir)
@@ -78,8 +93,10 @@ def estimate_flight(run_dir, speed=5.0, climb_rate=2.0, hover_s=2.0, occ_map=Non
     return estimate(read_run(run_dir), FlightModel(speed, climb_rate, hover_s), occ_map)
 
 
-def _geo(fl, sortie, frame: GeoFrame, speed, hover_s, numbers, name) -> writers.GeoWaypoints:
-    """The sortie's waypoints on the Earth, with headings and gimbal angles."""
+def _geo(fl, sortie, frame: GeoFrame, speed, hover_s, numbers, name, seqs=None):
+    """The sortie's waypoints on the Earth, with headings and gimbal angles: bearings from the
+    local north at each waypoint (exact near a pole, where the origin's north is far off),
+    numerical noise rounded off (writers.clean_angle)."""
     from .. import _core
 
     cfg = fl.config
@@ -87,15 +104,21 @@ def _geo(fl, sortie, frame: GeoFrame, speed, hover_s, numbers, name) -> writers.
     wps = sortie.waypoints
     xyz = np.array([w.xyz for w in wps], float)
     lat, lon, alt = frame.to_geodetic(xyz)
+    lon = (lon + 180.0) % 360.0 - 180.0  # [-180, 180)
     heading, pitch, gyaw = [], [], []
-    for w in wps:
+    for k, w in enumerate(wps):
         T_body = _core.pose_to_transform([*w.xyz, w.yaw])
         T = T_body @ _core.mount_transform([0, 0, 0], 0.0, math.degrees(w.pitch), 0.0) @ cam
-        h = frame.bearing(T_body[:3, 0])
-        fwd = T[:3, 0]
-        heading.append(h)
-        pitch.append(math.degrees(math.asin(max(-1.0, min(1.0, fwd[2])))))
-        gyaw.append(writers._signed(frame.bearing(fwd) - h) if np.hypot(*fwd[:2]) > 1e-9 else 0.0)
+        h = frame.local_bearing(T_body[:3, 0], lat[k], lon[k])
+        fwd = T[:3, 0]  # the camera's axis, mesh frame
+        heading.append(writers.clean_angle(h) % 360.0)
+        # pitch above the mesh's horizontal plane (the structure's frame; the local horizon
+        # departs from it by distance / Earth radius: 0.0009 degrees at 100 m)
+        pitch.append(writers.clean_angle(math.degrees(math.asin(max(-1.0, min(1.0, fwd[2]))))))
+        gy = 0.0
+        if np.hypot(*fwd[:2]) > 1e-9:
+            gy = writers._signed(frame.local_bearing(fwd, lat[k], lon[k]) - h)
+        gyaw.append(writers.clean_angle(gy))
     hlat, hlon, halt = frame.to_geodetic(fl.home)
     return writers.GeoWaypoints(
         lat=lat,
@@ -109,11 +132,12 @@ def _geo(fl, sortie, frame: GeoFrame, speed, hover_s, numbers, name) -> writers.
         stage=[w.stage for w in wps],
         row=[w.row for w in wps],
         number=[numbers.get(w.row, 0) for w in wps],
-        home=(float(hlat[0]), float(hlon[0]), float(halt[0])),
+        home=(float(hlat[0]), float((hlon[0] + 180.0) % 360.0 - 180.0), float(halt[0])),
         speed=float(speed),
         hover_s=float(hover_s),
         altitude_ref=frame.altitude_ref,
         name=name,
+        seq=[(seqs or {}).get(w.row, 0) for w in wps],
     )
 
 
@@ -166,6 +190,7 @@ def export_mission(
     when all are written: on an error nothing is left half-written.
     """
     fmts = _formats(formats)
+    _check_speed(speed)
     if origin is None or len(origin) != 3:
         raise ValueError(f"origin must be (latitude, longitude, altitude), got {origin!r}")
     frame = GeoFrame(*(float(v) for v in origin), float(heading_deg), altitude_ref)
@@ -270,19 +295,23 @@ def _summary(run, frame, fl, model, whole, budget, sorties, unreachable, fmts) -
 def _write_formats(tmp: Path, fmts, fl, sorties, names, frame, model, drone, payload) -> list:
     """Writes each sortie (named `names`) in each format into tmp; returns the files' names."""
     numbers, count = {}, {VIEW: 0, FRAME: 0}  # each capture's number of its kind
+    seqs = {}  # each capture's number among all captures of the flight (IMAGE_START_CAPTURE)
     for i, c in enumerate(fl.capture):
         if c:
             count[c] += 1
             numbers[i] = count[c]
+            seqs[i] = len(seqs) + 1
     created_ms = int(time.time() * 1000)
     files = []
     for s, name in zip(sorties, names):
-        g = _geo(fl, s, frame, model.speed, model.hover_s, numbers, name)
+        g = _geo(fl, s, frame, model.speed, model.hover_s, numbers, name, seqs)
         if "qgc" in fmts:
             writers.write_qgc_plan(g, tmp / f"{name}.plan")
             writers.write_qgc_wpl(g, tmp / f"{name}.waypoints")
             files += [f"{name}.plan", f"{name}.waypoints"]
         if "wpml" in fmts:
+            g.ell_alt = frame.ellipsoid_height(g.lat, g.lon, g.alt)
+            g.home_ell = float(frame.ellipsoid_height([g.home[0]], [g.home[1]], [g.home[2]])[0])
             write_wpml_kmz(g, tmp / f"{name}.kmz", drone, payload, created_ms)
             files.append(f"{name}.kmz")
         if "kml" in fmts:

@@ -5,9 +5,13 @@ from __future__ import annotations
 import zipfile
 from xml.etree import ElementTree as ET
 
-from .writers import KML_NS, WPML_NS, GeoWaypoints, _f, _signed
+from .writers import KML_NS, SETTLE_S, WPML_NS, GeoWaypoints, _f, _signed, clean_angle
 
-__all__ = ["write_wpml_kmz"]
+__all__ = ["write_wpml_kmz", "LENS"]
+
+#: takePhoto's payloadLensIndex: the visible wide camera (the M30's main camera; nbvkit
+#: simulates one visible camera)
+LENS = "wide"
 
 
 def _el(parent, tag, text=None, ns=WPML_NS):
@@ -25,8 +29,8 @@ def _mission_config(doc, g: GeoWaypoints, drone, payload, template: bool):
     _el(mc, "executeRCLostAction", "goBack")
     takeoff_h = float(g.rel_alt[0])
     _el(mc, "takeOffSecurityHeight", _f(min(max(takeoff_h, 1.2), 1500.0), 3))
-    if template:
-        _el(mc, "takeOffRefPoint", f"{_f(g.home[0], 9)},{_f(g.home[1], 9)},{_f(g.home[2], 3)}")
+    if template:  # "the height of the ellipsoid shall be used"
+        _el(mc, "takeOffRefPoint", f"{_f(g.home[0], 9)},{_f(g.home[1], 9)},{_f(g.home_ell, 3)}")
     _el(mc, "globalTransitionalSpeed", _f(min(g.speed, 15.0), 2))
     _el(mc, "globalRTHHeight", _f(takeoff_h, 3))
     di = _el(mc, "droneInfo")
@@ -45,14 +49,15 @@ def _placemark(folder, g: GeoWaypoints, k: int, index: int, template: bool, grou
     ).text = f"{_f(float(g.lon[k]), 9)},{_f(float(g.lat[k]), 9)}"
     _el(pm, "index", index)
     if template:
+        # both required with useGlobalHeight 0: the same point above the take-off point and
+        # above the WGS84 ellipsoid
+        _el(pm, "ellipsoidHeight", _f(float(g.ell_alt[k]), 3))
         _el(pm, "height", _f(float(g.rel_alt[k]), 3))
-        if g.altitude_ref == "ellipsoid":
-            _el(pm, "ellipsoidHeight", _f(float(g.alt[k]), 3))
         _el(pm, "useGlobalHeight", 0)
         _el(pm, "useGlobalSpeed", 0)
         _el(pm, "useGlobalHeadingParam", 0)
         _el(pm, "useGlobalTurnParam", 0)
-        _el(pm, "gimbalPitchAngle", _f(float(g.gimbal_pitch[k]), 3))
+        _el(pm, "gimbalPitchAngle", _f(clean_angle(g.gimbal_pitch[k], 3), 3))
     else:
         _el(pm, "executeHeight", _f(float(g.rel_alt[k]), 3))
     _el(pm, "waypointSpeed", _f(g.speed, 2))
@@ -61,7 +66,7 @@ def _placemark(folder, g: GeoWaypoints, k: int, index: int, template: bool, grou
         _el(hp, "waypointHeadingMode", "followWayline")
     else:
         _el(hp, "waypointHeadingMode", "smoothTransition")
-        _el(hp, "waypointHeadingAngle", _f(_signed(float(g.heading[k])), 3))
+        _el(hp, "waypointHeadingAngle", _f(clean_angle(_signed(float(g.heading[k])), 3), 3))
     _el(hp, "waypointHeadingPathMode", "followBadArc")
     tp = _el(pm, "waypointTurnParam")
     _el(tp, "waypointTurnMode", "toPointAndStopWithDiscontinuityCurvature")
@@ -75,36 +80,44 @@ def _placemark(folder, g: GeoWaypoints, k: int, index: int, template: bool, grou
     _el(ag, "actionGroupEndIndex", index)
     _el(ag, "actionGroupMode", "sequence")
     _el(_el(ag, "actionTrigger"), "actionTriggerType", "reachPoint")
+    # every capture: the gimbal's pitch, then (a view) a short settle, the photo, the rest of
+    # the hover; the heading is reached on the way (smoothTransition)
+    settle = min(g.hover_s, SETTLE_S) if a == "view" else 0.0
+    rest = g.hover_s - settle if a == "view" else 0.0
     aid = 0
-    if a == "view":
+    act = _el(ag, "action")
+    _el(act, "actionId", aid)
+    aid += 1
+    _el(act, "actionActuatorFunc", "gimbalRotate")
+    p = _el(act, "actionActuatorFuncParam")
+    _el(p, "gimbalHeadingYawBase", "north")
+    _el(p, "gimbalRotateMode", "absoluteAngle")
+    _el(p, "gimbalPitchRotateEnable", 1)
+    _el(p, "gimbalPitchRotateAngle", _f(clean_angle(g.gimbal_pitch[k], 3), 3))
+    _el(p, "gimbalRollRotateEnable", 0)
+    _el(p, "gimbalRollRotateAngle", 0)
+    _el(p, "gimbalYawRotateEnable", 0)
+    _el(p, "gimbalYawRotateAngle", 0)
+    _el(p, "gimbalRotateTimeEnable", 0)
+    _el(p, "gimbalRotateTime", 0)
+    _el(p, "payloadPositionIndex", 0)
+    for step in ("settle", "photo", "rest"):
+        hover = {"settle": settle, "rest": rest}.get(step)
+        if hover is not None and hover <= 0:
+            continue
         act = _el(ag, "action")
         _el(act, "actionId", aid)
         aid += 1
-        _el(act, "actionActuatorFunc", "gimbalRotate")
-        p = _el(act, "actionActuatorFuncParam")
-        _el(p, "gimbalHeadingYawBase", "north")
-        _el(p, "gimbalRotateMode", "absoluteAngle")
-        _el(p, "gimbalPitchRotateEnable", 1)
-        _el(p, "gimbalPitchRotateAngle", _f(float(g.gimbal_pitch[k]), 3))
-        _el(p, "gimbalRollRotateEnable", 0)
-        _el(p, "gimbalRollRotateAngle", 0)
-        _el(p, "gimbalYawRotateEnable", 0)
-        _el(p, "gimbalYawRotateAngle", 0)
-        _el(p, "gimbalRotateTimeEnable", 0)
-        _el(p, "gimbalRotateTime", 0)
-        _el(p, "payloadPositionIndex", 0)
-        if g.hover_s > 0:
-            act = _el(ag, "action")
-            _el(act, "actionId", aid)
-            aid += 1
+        if step == "photo":
+            _el(act, "actionActuatorFunc", "takePhoto")
+            p = _el(act, "actionActuatorFuncParam")
+            _el(p, "fileSuffix", f"{a}{int(g.number[k]):04d}")
+            _el(p, "payloadPositionIndex", 0)
+            _el(p, "useGlobalPayloadLensIndex", 0)
+            _el(p, "payloadLensIndex", LENS)
+        else:
             _el(act, "actionActuatorFunc", "hover")
-            _el(_el(act, "actionActuatorFuncParam"), "hoverTime", _f(g.hover_s, 3))
-    act = _el(ag, "action")
-    _el(act, "actionId", aid)
-    _el(act, "actionActuatorFunc", "takePhoto")
-    p = _el(act, "actionActuatorFuncParam")
-    _el(p, "fileSuffix", f"{a}{int(g.number[k]):04d}")
-    _el(p, "payloadPositionIndex", 0)
+            _el(_el(act, "actionActuatorFuncParam"), "hoverTime", _f(hover, 3))
     return group + 1
 
 

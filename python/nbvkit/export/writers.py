@@ -19,7 +19,9 @@ import numpy as np
 MAV_CMD_NAV_WAYPOINT = 16
 MAV_CMD_NAV_RETURN_TO_LAUNCH = 20
 MAV_CMD_NAV_TAKEOFF = 22
+MAV_CMD_NAV_DELAY = 93
 MAV_CMD_CONDITION_YAW = 115
+MAV_CMD_DO_CHANGE_SPEED = 178
 MAV_CMD_DO_GIMBAL_MANAGER_PITCHYAW = 1000
 MAV_CMD_IMAGE_START_CAPTURE = 2000
 MAV_FRAME_GLOBAL = 0
@@ -29,6 +31,19 @@ GIMBAL_MANAGER_FLAGS_PITCH_LOCK = 8  # pitch relative to the horizon
 MAV_AUTOPILOT_ARDUPILOTMEGA, MAV_AUTOPILOT_PX4 = 3, 12
 MAV_TYPE_QUADROTOR = 2
 QGC_ALTITUDE_MODE_RELATIVE = 1  # QGroundControl's AltMode: AltitudeModeRelative
+
+SPEED_TYPE_GROUND = 1  # DO_CHANGE_SPEED param 1
+
+#: the highest cruise speed the export writes (m/s): DJI WPML's globalTransitionalSpeed range is
+#: [0, 15] and its route speeds may not pass the aircraft's maximum; PX4's default
+#: MPC_XY_VEL_MAX is 12 m/s, ArduPilot's WPNAV_SPEED at most 20 m/s. See docs/EXPORT.md.
+MAX_SPEED_M_S = 15.0
+#: the turn rate the ArduPilot file asks CONDITION_YAW for (deg/s, its param 2): known, so that
+#: each capture's hold can cover the turn (ArduPilot's own default is ATC_SLEW_YAW, 60 deg/s)
+YAW_RATE_DEG_S = 30.0
+#: the hold between the arrival at a view and its photo (s; at most --hover, the rest of the
+#: hover follows the photo): the aircraft brakes and the gimbal settles
+SETTLE_S = 1.0
 
 KML_NS = "http://www.opengis.net/kml/2.2"
 WPML_NS = "http://www.dji.com/wpmz/1.0.2"
@@ -40,8 +55,10 @@ class GeoWaypoints:
     origin's reference), rel_alt (m above the launch point), heading (deg clockwise from north,
     [0, 360)), gimbal_pitch (deg, positive up), gimbal_yaw (deg, relative to the vehicle's nose,
     positive right), action, stage, row (flight row or -1) - each (N,); home: (lat, lon, alt)
-    of the launch point; views: the 1-based number of each view/frame in the whole flight (0
-    else)."""
+    of the launch point; number: the 1-based number of each view/frame among its kind in the
+    whole flight (0 else); seq: the 1-based number of each capture among all captures of the
+    whole flight, views and frames together, in flight order (0 else); ell_alt (N,) and
+    home_ell: heights above the WGS84 ellipsoid (filled for the DJI route only)."""
 
     lat: np.ndarray
     lon: np.ndarray
@@ -59,6 +76,9 @@ class GeoWaypoints:
     hover_s: float
     altitude_ref: str
     name: str
+    seq: list = None
+    ell_alt: np.ndarray = None
+    home_ell: float = None
 
     def __len__(self):
         return len(self.lat)
@@ -73,55 +93,128 @@ def _signed(deg: float) -> float:
     return (deg + 180.0) % 360.0 - 180.0
 
 
+def clean_angle(deg: float, nd: int = 9) -> float:
+    """An angle rounded to `nd` decimals, without a negative zero: numerical noise such as
+    2.8e-14 is written as 0."""
+    v = round(float(deg), nd)
+    return 0.0 if v == 0 else v
+
+
 # ---------------------------------------------------------------------- MAVLink missions
-def mavlink_items(g: GeoWaypoints, condition_yaw: bool = False) -> list[dict]:
+def _leg_s(g: GeoWaypoints, k: int) -> float:
+    """A lower bound on the seconds of the leg into waypoint k: its horizontal length at the
+    cruise speed (the aircraft starts it from a stop or slower)."""
+    import pymap3d
+
+    if k == 0:
+        return 0.0
+    e, n, _ = pymap3d.geodetic2enu(g.lat[k], g.lon[k], 0.0, g.lat[k - 1], g.lon[k - 1], 0.0)
+    return float(math.hypot(e, n)) / g.speed
+
+
+def capture_holds(g: GeoWaypoints, ardupilot: bool) -> tuple[np.ndarray, np.ndarray]:
+    """(hold, rest) seconds (N,) of each waypoint: hold from the arrival to the photo, rest
+    after it (a NAV_DELAY). A view holds min(--hover, SETTLE_S) and rests the remainder of
+    --hover; a frame neither. ardupilot: the heading is turned by CONDITION_YAW at YAW_RATE_DEG_S
+    from the start of the leg, so a capture's hold also covers the part of the turn (from the
+    previous waypoint's heading; 180 degrees after a take-off or a transit leg, whose heading
+    is not commanded) that the leg (at most its length at the cruise speed) does not, plus the
+    settle, rounded up to whole seconds (ArduPilot keeps NAV_WAYPOINT's hold as integer
+    seconds)."""
+    n = len(g)
+    hold, rest = np.zeros(n), np.zeros(n)
+    for k in range(n):
+        a = g.action[k]
+        if a not in ("view", "frame"):
+            continue
+        base = min(g.hover_s, SETTLE_S) if a == "view" else 0.0
+        h = base
+        if ardupilot:
+            prev = g.action[k - 1] if k > 0 else "takeoff"
+            turn = 180.0
+            if prev not in ("takeoff", "transit"):
+                turn = abs(_signed(float(g.heading[k]) - float(g.heading[k - 1])))
+            h = max(base, turn / YAW_RATE_DEG_S - _leg_s(g, k) + base)
+            h = float(math.ceil(h - 1e-9))
+        hold[k] = h
+        if a == "view":
+            rest[k] = max(0.0, g.hover_s - h)
+    return hold, rest
+
+
+def mavlink_items(g: GeoWaypoints, ardupilot: bool = False) -> list[dict]:
     """The mission as MAVLink items (command, frame, params p1..p7 with None for NaN): take-off,
-    a waypoint per point (views: hold for the hover, then the gimbal pitch and one image), and
-    return to launch. condition_yaw: also a MAV_CMD_CONDITION_YAW before each view's waypoint
-    (ArduPilot turns by it; it ignores NAV_WAYPOINT's yaw)."""
+    the cruise speed (DO_CHANGE_SPEED), a waypoint per point and return to launch. Each capture
+    (view or in-flight frame): its gimbal pitch (DO_GIMBAL_MANAGER_PITCHYAW) before its
+    waypoint, so that the gimbal turns on the way there; the waypoint, with the capture's heading
+    as its yaw and its hold (capture_holds); then the photo (IMAGE_START_CAPTURE, the capture's
+    mission-wide sequence number) and, at a view, a NAV_DELAY for the rest of the hover. A
+    mission runs the commands that follow a waypoint when it is reached and its hold is over,
+    so the photo is taken after the settle, at the point. ardupilot (the .waypoints file): also a
+    MAV_CMD_CONDITION_YAW before every waypoint whose heading the flight plans (all but transit
+    legs): ArduPilot's copter ignores NAV_WAYPOINT's yaw and resets the yaw at the start of each
+    waypoint, and runs the commands between two waypoints from the start of the leg to the
+    second (docs/EXPORT.md)."""
+    hold, rest = capture_holds(g, ardupilot)
+    seq = g.seq if g.seq is not None else g.number
     items = []
     for k in range(len(g)):
         a = g.action[k]
         lat, lon, rel = float(g.lat[k]), float(g.lon[k]), float(g.rel_alt[k])
-        yaw = None if a == "transit" else float(g.heading[k])
+        yaw = None if a == "transit" else clean_angle(g.heading[k])
         if a == "takeoff":
             items.append(
                 (MAV_CMD_NAV_TAKEOFF, MAV_FRAME_GLOBAL_RELATIVE_ALT, [0, 0, 0, yaw, lat, lon, rel])
             )
-            continue
-        if a == "view" and condition_yaw:
             items.append(
-                (MAV_CMD_CONDITION_YAW, MAV_FRAME_MISSION, [float(g.heading[k]), 0, 0, 0, 0, 0, 0])
-            )
-        hold = g.hover_s if a == "view" else 0.0
-        items.append(
-            (MAV_CMD_NAV_WAYPOINT, MAV_FRAME_GLOBAL_RELATIVE_ALT, [hold, 0, 0, yaw, lat, lon, rel])
-        )
-        if a in ("view", "frame"):
-            if a == "view":
-                items.append(
-                    (
-                        MAV_CMD_DO_GIMBAL_MANAGER_PITCHYAW,
-                        MAV_FRAME_MISSION,
-                        [
-                            float(g.gimbal_pitch[k]),
-                            float(g.gimbal_yaw[k]),
-                            None,
-                            None,
-                            GIMBAL_MANAGER_FLAGS_PITCH_LOCK,
-                            0,
-                            0,
-                        ],
-                    )
+                (
+                    MAV_CMD_DO_CHANGE_SPEED,
+                    MAV_FRAME_MISSION,
+                    [SPEED_TYPE_GROUND, float(g.speed), -1, 0, 0, 0, 0],
                 )
-            # one image: interval 0, total images 1, sequence number = the capture's number
+            )
+            continue
+        capture = a in ("view", "frame")
+        if capture:
+            items.append(
+                (
+                    MAV_CMD_DO_GIMBAL_MANAGER_PITCHYAW,
+                    MAV_FRAME_MISSION,
+                    [
+                        clean_angle(g.gimbal_pitch[k]),
+                        clean_angle(g.gimbal_yaw[k]),
+                        None,
+                        None,
+                        GIMBAL_MANAGER_FLAGS_PITCH_LOCK,
+                        0,
+                        0,
+                    ],
+                )
+            )
+        if ardupilot and yaw is not None:
+            items.append(
+                (MAV_CMD_CONDITION_YAW, MAV_FRAME_MISSION, [yaw, YAW_RATE_DEG_S, 0, 0, 0, 0, 0])
+            )
+        items.append(
+            (
+                MAV_CMD_NAV_WAYPOINT,
+                MAV_FRAME_GLOBAL_RELATIVE_ALT,
+                [float(hold[k]), 0, 0, yaw, lat, lon, rel],
+            )
+        )
+        if capture:
+            # one image: interval 0, total images 1, sequence number unique in the mission
             items.append(
                 (
                     MAV_CMD_IMAGE_START_CAPTURE,
                     MAV_FRAME_MISSION,
-                    [0, 0, 1, int(g.number[k]), 0, 0, None],
+                    [0, 0, 1, int(seq[k]), 0, 0, None],
                 )
             )
+            if rest[k] > 0:
+                items.append(
+                    (MAV_CMD_NAV_DELAY, MAV_FRAME_MISSION, [float(rest[k]), -1, -1, -1, 0, 0, 0])
+                )
     items.append((MAV_CMD_NAV_RETURN_TO_LAUNCH, MAV_FRAME_MISSION, [0, 0, 0, 0, 0, 0, 0]))
     return [{"command": c, "frame": f, "params": p} for c, f, p in items]
 
@@ -173,7 +266,7 @@ def write_qgc_wpl(g: GeoWaypoints, path) -> None:
     lines = ["QGC WPL 110"]
     home = [0, 1, MAV_FRAME_GLOBAL, MAV_CMD_NAV_WAYPOINT, 0, 0, 0, 0, *g.home, 1]
     rows = [home]
-    for i, it in enumerate(mavlink_items(g, condition_yaw=True), start=1):
+    for i, it in enumerate(mavlink_items(g, ardupilot=True), start=1):
         p = [0.0 if v is None else float(v) for v in it["params"]]
         rows.append([i, 0, it["frame"], it["command"], *p, 1])
     for r in rows:
@@ -227,17 +320,45 @@ def write_kml(g: GeoWaypoints, path) -> None:
     ET.ElementTree(kml).write(path, encoding="UTF-8", xml_declaration=True)
 
 
+def split_antimeridian(coords: list) -> list[list]:
+    """A line's positions ([lon, lat, alt], ...) cut where a leg crosses the antimeridian (its
+    longitudes more than 180 degrees apart: it goes the short way round), RFC 7946 section 3.1.9:
+    each part ends (or starts) on +-180 degrees at the latitude and altitude interpolated along
+    the leg. One part when the line does not cross."""
+    parts = [[list(coords[0])]]
+    for a, b in zip(coords, coords[1:]):
+        d = b[0] - a[0]
+        if abs(d) > 180.0:
+            edge = 180.0 if d < 0 else -180.0  # eastwards over +180 or westwards over -180
+            b_lon = b[0] + (360.0 if d < 0 else -360.0)  # b on a's side of the antimeridian
+            t = (edge - a[0]) / (b_lon - a[0])
+            lat = a[1] + t * (b[1] - a[1])
+            alt = a[2] + t * (b[2] - a[2])
+            if parts[-1][-1] != [edge, lat, alt]:
+                parts[-1].append([edge, lat, alt])
+            parts.append([[-edge, lat, alt]])
+        if parts[-1][-1] != list(b):
+            parts[-1].append(list(b))
+    return [p for p in parts if len(p) >= 2] or [parts[0] * 2]
+
+
 def write_geojson(g: GeoWaypoints, path) -> None:
-    """GeoJSON (RFC 7946): a LineString of the flight and a Point per view/frame, positions
-    [lon, lat, alt]."""
+    """GeoJSON (RFC 7946): the flight as a LineString (a MultiLineString cut at the antimeridian
+    when it crosses it) and a Point per view/frame, positions [lon, lat, alt]."""
 
     def pos(i):
         return [float(g.lon[i]), float(g.lat[i]), float(g.alt[i])]
 
+    parts = split_antimeridian([pos(i) for i in range(len(g))])
+    line = (
+        {"type": "LineString", "coordinates": parts[0]}
+        if len(parts) == 1
+        else {"type": "MultiLineString", "coordinates": parts}
+    )
     feats = [
         {
             "type": "Feature",
-            "geometry": {"type": "LineString", "coordinates": [pos(i) for i in range(len(g))]},
+            "geometry": line,
             "properties": {"kind": "flight", "name": g.name, "altitude_reference": g.altitude_ref},
         }
     ]
@@ -251,8 +372,8 @@ def write_geojson(g: GeoWaypoints, path) -> None:
                         "kind": g.action[i],
                         "number": int(g.number[i]),
                         "flight_row": int(g.row[i]),
-                        "heading_deg": float(g.heading[i]),
-                        "gimbal_pitch_deg": float(g.gimbal_pitch[i]),
+                        "heading_deg": clean_angle(g.heading[i]),
+                        "gimbal_pitch_deg": clean_angle(g.gimbal_pitch[i]),
                         "rel_alt_m": float(g.rel_alt[i]),
                         "altitude_reference": g.altitude_ref,
                     },
