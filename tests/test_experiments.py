@@ -379,3 +379,126 @@ def test_shipped_example_sweep_is_valid():
     spec = yaml.safe_load((ROOT / "configs" / "sweep_example.yaml").read_text())
     specs = sweep_specs(spec)
     assert len(specs) == 2 * 2 * 2 * 3
+
+
+# ------------------------------------------------------------ one source of truth for the mesh
+
+
+def _sha1(path) -> str:
+    import hashlib
+
+    return hashlib.sha1(Path(path).read_bytes()).hexdigest()
+
+
+def test_mesh_keys_in_the_overrides_or_config_file_are_the_mesh_flown(tmp_path):
+    """mesh.path / mesh.scale / mesh.up set by --set, a sweep's set or grid, or the config file
+    are flown (not replaced by the spec's defaults), and the run id and the resume digest follow
+    the mesh flown."""
+    import shutil
+
+    from nbvkit.experiments import _resolved
+
+    tower = tmp_path / "tower.obj"
+    shutil.copy(ROOT / "meshes" / "mast.obj", tower)
+    spec = RunSpec("1", 0, overrides=(f"mesh.path={tower}", "mesh.scale=2", "mesh.up=y"))
+    cfg, digest = _resolved(spec)
+    assert (cfg.mesh.path, cfg.mesh.scale, cfg.mesh.up) == (str(tower), 2.0, "y")
+    assert spec.flown_mesh == (str(tower), 2.0, "y")
+    assert spec.run_id.startswith("tower_s1_start0_") and digest == _sha1(tower)
+    airliner = RunSpec("1", 0)
+    assert _resolved(airliner)[1] == _sha1(ROOT / "meshes" / "airliner.obj") != digest
+    # the mesh flown decides the id: another scale, another run
+    assert RunSpec("1", 0, overrides=(f"mesh.path={tower}",)).run_id != spec.run_id
+    # spelled as the spec's fields, the same mesh is flown and named
+    assert RunSpec("1", 0, str(tower), 2.0, "y").flown_mesh == spec.flown_mesh
+    # a config file's mesh section holds too (the spec gives no mesh key)
+    conf = tmp_path / "conf.yaml"
+    conf.write_text(f"mesh: {{path: {tower}, scale: 3.0, up: y}}\n")
+    from_file = RunSpec("1", 0, config_file=str(conf))
+    assert from_file.flown_mesh == (str(tower), 3.0, "y")
+    assert from_file.run_id.startswith("tower_") and _resolved(from_file)[1] == _sha1(tower)
+    # ... and a key the spec gives wins over the file's (as --mesh-scale over run --config)
+    assert RunSpec("1", 0, mesh_scale=0.5, config_file=str(conf)).flown_mesh[1] == 0.5
+    # a sweep: set and grid over the mesh keys
+    specs = sweep_specs({"set": {"mesh.path": str(tower)}, "grid": {"mesh.scale": [1, 2]}})
+    assert [s.flown_mesh for s in specs] == [(str(tower), 1.0, "z"), (str(tower), 2.0, "z")]
+    assert all(s.run_id.startswith("tower_") for s in specs)
+    assert len({s.run_id for s in specs}) == 2
+
+
+def test_a_mesh_key_given_twice_is_refused(tmp_path, capsys):
+    from nbvkit.cli import main
+
+    with pytest.raises(ValueError, match="mesh.path is given twice"):
+        RunSpec("1", 0, "a.obj", overrides=("mesh.path=b.obj",)).config()
+    with pytest.raises(ValueError, match="mesh.scale is given twice"):
+        RunSpec("1", 0, mesh_scale=2.0, overrides=("mesh={scale: 3}",)).config()
+    with pytest.raises(ValueError, match="mesh.up is given twice"):
+        sweep_specs({"meshes": [{"path": None, "up": "y"}], "grid": {"mesh.up": ["z"]}})
+    out = tmp_path / "out"
+    for args in (
+        ["--mesh", "meshes/mast.obj", "--set", "mesh.path=meshes/airliner.obj"],
+        ["--mesh-scale", "2", "--set", "mesh.scale=3"],
+        ["--mesh-shift", "1", "0", "0", "--set", "mesh.shift=[2,0,0]"],
+    ):
+        assert main(["compare", "--planners", "1", *args, "--out", str(out)]) == 2
+        assert "given twice" in capsys.readouterr().err
+        assert main(["table", *args, "--out", str(out)]) == 2
+        assert "given twice" in capsys.readouterr().err
+    assert not out.exists()
+
+
+def test_compare_flies_and_labels_the_mesh_set_by_overrides(tmp_path):
+    import json
+    import shutil
+
+    from nbvkit.cli import main
+    from nbvkit.experiments import row_of
+
+    tower = tmp_path / "tower.obj"
+    shutil.copy(ROOT / "meshes" / "mast.obj", tower)
+    out = tmp_path / "cmp"
+    args = ["compare", "--planners", "1", "--starts", "1", "--workers", "1", "--out", str(out)]
+    assert main([*args, "--set", *TINY, f"mesh.path={tower}", "mesh.scale=0.5"]) == 0
+    runs = pd.read_csv(out / "runs.csv")
+    assert len(runs) == 1
+    row = runs.iloc[0]
+    assert (row["mesh"], row["mesh_scale"], row["mesh_up"]) == (str(tower), 0.5, "z")
+    assert row["run_id"].startswith("tower_s1_start0_")
+    run = out / "runs" / row["run_id"]
+    flown = yaml.safe_load((run / "config.yaml").read_text())["mesh"]
+    assert (flown["path"], flown["scale"]) == (str(tower), 0.5)
+    spec = json.loads((run / "spec.json").read_text())
+    assert spec["mesh_sha1"] == _sha1(tower)
+    # a folder written before spec.json recorded the mesh flown: labelled from config.yaml
+    del spec["flown_mesh"]
+    (run / "spec.json").write_text(json.dumps(spec))
+    assert (row_of(run)["mesh"], row_of(run)["mesh_scale"]) == (str(tower), 0.5)
+
+
+def test_duplicates_and_empty_lists_are_refused(tmp_path, capsys):
+    from nbvkit.cli import main
+
+    assert main(["compare", "--planners", "1,surface,1", "--out", str(tmp_path / "c")]) == 2
+    assert "'1' named more than once" in capsys.readouterr().err
+    for sweep, needle in (
+        ({"grid": {"map.resolution": [0.4, 0.2, 0.4]}}, "grid 'map.resolution' lists 0.4"),
+        ({"grid": {"max_iterations": [2, 2.0]}}, "grid 'max_iterations' lists"),
+        ({"scenarios": ["1", 1]}, "'scenarios' lists '1'"),
+        ({"starts": [0, 1, 0]}, "'starts' lists 0"),
+        ({"meshes": ["meshes/mast.obj", {"path": "meshes/mast.obj"}]}, "twice"),
+        ({"grid": {"map.resolution": []}}, "grid 'map.resolution' is empty"),
+        ({"grid": {"map.resolution": [0.4], "lattice.delta_d": []}}, "'lattice.delta_d' is empty"),
+        ({"scenarios": []}, "'scenarios' is empty"),
+        ({"starts": 0}, "'starts' is empty"),
+        ({"starts": []}, "'starts' is empty"),
+        ({"meshes": []}, "'meshes' is empty"),
+    ):
+        with pytest.raises(ValueError, match=needle):
+            sweep_specs(sweep)
+    f = tmp_path / "sweep.yaml"
+    f.write_text(yaml.safe_dump({"grid": {"map.resolution": []}}))
+    out = tmp_path / "out"
+    assert main(["sweep", str(f), "--out", str(out)]) == 2
+    assert "sweep grid 'map.resolution' is empty" in capsys.readouterr().err
+    assert not out.exists()

@@ -13,46 +13,140 @@ from pathlib import Path
 from .limits import shorten
 
 
+#: The mesh keys a RunSpec may give (RunSpec field -> config key).
+MESH_FIELDS = (("mesh", "mesh.path"), ("mesh_scale", "mesh.scale"), ("mesh_up", "mesh.up"))
+
+
 @dataclass(frozen=True)
 class RunSpec:
-    """One mission: a scenario from a start on a structure, with config overrides."""
+    """One mission: a scenario from a start on a structure, with config overrides.
+
+    The mesh flown is the resolved configuration's ``mesh`` section: the defaults (the shipped
+    airliner, scale 1, up z), then the config file, then ``mesh``/``mesh_scale``/``mesh_up``
+    where given (not None), then the overrides. A mesh key given both here and in the overrides
+    (``--mesh X`` with ``--set mesh.path=Y``, a sweep's mesh entry with ``set``/``grid``
+    ``mesh.path``) is refused: ValueError. The run id, the table's mesh columns and the resume
+    digest all follow the mesh flown (``flown_mesh``)."""
 
     scenario: str
     start: int
-    mesh: str | None = None  # None: the shipped airliner
-    mesh_scale: float = 1.0
-    mesh_up: str = "z"
+    mesh: str | None = None  # None: the configuration's (the shipped airliner unless set)
+    mesh_scale: float | None = None  # None: the configuration's (1 unless set)
+    mesh_up: str | None = None  # None: the configuration's ("z" unless set)
     overrides: tuple = ()  # ("key=value", ...)
     config_file: str | None = None
     labels: tuple = field(default=())  # (("name", value), ...) extra columns for the tidy table
 
     @property
     def run_id(self) -> str:
-        name = Path(self.mesh).stem if self.mesh else "airliner"
+        path, scale, up = self.flown_mesh
+        name = Path(path).stem if path else "airliner"
         h = hashlib.sha1(
-            json.dumps(
-                [self.mesh, self.mesh_scale, self.mesh_up, list(self.overrides), self.config_file]
-            ).encode()
+            json.dumps([path, scale, up, list(self.overrides), self.config_file]).encode()
         ).hexdigest()[:8]
         return f"{name}_s{self.scenario}_start{self.start}_{h}"
+
+    @property
+    def flown_mesh(self) -> tuple:
+        """(path or None for the shipped airliner, scale, up) of the resolved configuration."""
+        return _flown_mesh(
+            self.mesh, self.mesh_scale, self.mesh_up, tuple(self.overrides), self.config_file
+        )
+
+    def mesh_overrides(self) -> list[str]:
+        """The overrides of the mesh keys this spec gives; ValueError when the overrides give
+        one of them too."""
+        given = {
+            key: getattr(self, name) for name, key in MESH_FIELDS if getattr(self, name) is not None
+        }
+        if not given:
+            return []
+        also = _override_mesh_keys(self.overrides)
+        both = [k for k in given if k in also]
+        if both:
+            k = both[0]
+            raise ValueError(
+                f"{k} is given twice: {shorten(given[k])} by the spec (--mesh/--mesh-scale/"
+                f"--mesh-up, or a sweep's 'meshes' entry) and {also[k]} by the overrides "
+                "(--set, or a sweep's set/grid); give it once"
+            )
+        over = []
+        if self.mesh is not None:
+            over.append(f"mesh.path={json.dumps(str(self.mesh))}")
+        if self.mesh_scale is not None:
+            over.append(f"mesh.scale={float(self.mesh_scale)!r}")
+        if self.mesh_up is not None:
+            over.append(f"mesh.up={json.dumps(str(self.mesh_up))}")
+        return over
 
     def config(self):
         from .config import load_config
 
         over = [
             *self.overrides,
+            *self.mesh_overrides(),  # after the overrides: a whole `mesh={...}` keeps them
             f"scenario={json.dumps(self.scenario)}",
             f"start={self.start}",
-            f"mesh.scale={self.mesh_scale}",
-            f"mesh.up={self.mesh_up}",
             "progress=false",
         ]
-        if self.mesh:
-            over.append(f"mesh.path={json.dumps(str(self.mesh))}")
         return load_config(self.config_file, over)
 
 
+def _override_mesh_keys(overrides) -> dict:
+    """{mesh key: the override setting it} of the mesh keys (mesh.path, mesh.scale, mesh.up)
+    that overrides set, a whole ``mesh={...}`` included."""
+    from .config import _split
+
+    out = {}
+    for o in overrides:
+        key, value = _split(o)
+        key = key.strip()
+        if key == "mesh" and isinstance(value, dict):
+            for sub in value:
+                out[f"mesh.{sub}"] = o
+        elif key.startswith("mesh."):
+            out[key] = o
+    return {k: shorten(v) for k, v in out.items()}
+
+
+def with_mesh_shift(overrides, shift: list, option: str = "--mesh-shift") -> list:
+    """overrides followed by `shift` (the override of --mesh-shift, or []); ValueError when the
+    overrides set mesh.shift too (one would silently replace the other)."""
+    if shift and "mesh.shift" in _override_mesh_keys(overrides):
+        raise ValueError(
+            f"mesh.shift is given twice: by {option} and by "
+            f"{_override_mesh_keys(overrides)['mesh.shift']} (--set); give it once"
+        )
+    return [*overrides, *shift]
+
+
+#: _flown_mesh's answers: (mesh, scale, up, overrides, config file, its stat) -> flown mesh
+_FLOWN: dict = {}
+
+
+def _flown_mesh(mesh, scale, up, overrides: tuple, config_file) -> tuple:
+    """(path or None, scale, up) that a spec's resolved configuration flies, cached (scenario and
+    start do not change the mesh; the config file by its size and time)."""
+    stat = None
+    if config_file is not None:
+        try:
+            st = Path(config_file).stat()
+            stat = (st.st_size, st.st_mtime_ns)
+        except OSError:
+            pass
+    key = (mesh, scale, up, overrides, config_file, stat)
+    if key not in _FLOWN:
+        if len(_FLOWN) > 100_000:
+            _FLOWN.clear()
+        m = RunSpec("1", 0, mesh, scale, up, overrides, config_file).config().mesh
+        _FLOWN[key] = (m.path, float(m.scale), m.up)
+    return _FLOWN[key]
+
+
 def _spec_dict(spec: RunSpec) -> dict:
+    """The spec as given, and the mesh it flies ("flown_mesh": path (None: the shipped airliner),
+    scale, up of the resolved configuration: what the tables label the run with)."""
+    path, scale, up = spec.flown_mesh
     return {
         "scenario": spec.scenario,
         "start": spec.start,
@@ -62,11 +156,13 @@ def _spec_dict(spec: RunSpec) -> dict:
         "overrides": list(spec.overrides),
         "config_file": spec.config_file,
         "labels": [list(x) for x in spec.labels],
+        "flown_mesh": {"path": path, "scale": scale, "up": up},
     }
 
 
-def table2_specs(mesh=None, mesh_scale=1.0, mesh_up="z", starts=5, overrides=()) -> list[RunSpec]:
-    """The Profile row and Scenarios 1-5, each from `starts` predefined starts."""
+def table2_specs(mesh=None, mesh_scale=None, mesh_up=None, starts=5, overrides=()) -> list[RunSpec]:
+    """The Profile row and Scenarios 1-5, each from `starts` predefined starts (mesh, mesh_scale,
+    mesh_up: None for the configuration's, see RunSpec)."""
     return [
         RunSpec(sc, k, mesh, mesh_scale, mesh_up, tuple(overrides))
         for sc in ("profile", "1", "2", "3", "4", "5")
@@ -97,12 +193,18 @@ def sweep_specs(sweep: dict) -> list[RunSpec]:
     unknown = set(sweep) - set(SWEEP_KEYS)
     if unknown:
         raise KeyError(f"unknown sweep key(s) {sorted(unknown)}; known: {sorted(SWEEP_KEYS)}")
+    if sweep.get("config") is not None and not isinstance(sweep["config"], str):
+        raise ValueError(
+            f"sweep 'config' must be a config file's path, got {shorten(sweep['config'])}"
+        )
     meshes = _sweep_meshes(sweep)
     scenarios = _sweep_scenarios(sweep)
     starts = _sweep_starts(sweep)
     grid, fixed = _sweep_grid(sweep)
     keys = list(grid)
     runs = len(meshes) * len(scenarios) * len(starts) * math.prod(len(grid[k]) for k in keys)
+    if runs == 0:  # each list was checked non-empty: cannot happen, but never fly "0 runs"
+        raise ValueError("the sweep makes no run")
     if runs > MAX_SWEEP_RUNS:
         raise ValueError(
             f"the sweep makes {runs:,} runs (meshes x scenarios x starts x grid values), more "
@@ -121,20 +223,75 @@ def sweep_specs(sweep: dict) -> list[RunSpec]:
                             sc,
                             int(st),
                             m.get("path"),
-                            float(m.get("scale", 1.0)),
-                            m.get("up", "z"),
+                            None if m.get("scale") is None else float(m["scale"]),
+                            m.get("up"),
                             tuple(over),
                             sweep.get("config"),
                             labels,
                         )
                     )
     validate_specs(specs)
+    _check_distinct_runs(specs, "the sweep")
     return specs
 
 
+def _duplicates(values: list) -> list:
+    """The values that occur more than once in values (each once, in order; == equality, a
+    bool never equal to a number)."""
+    seen: list = []
+    dup: list = []
+    for v in values:
+        k = (type(v) is bool, v)
+        if k in seen:
+            if k not in dup:
+                dup.append(k)
+        else:
+            seen.append(k)
+    return [v for _, v in dup]
+
+
+def _refuse_duplicates(what: str, values: list) -> None:
+    dup = _duplicates(values)
+    if dup:
+        raise ValueError(
+            f"{what} lists {', '.join(shorten(v) for v in dup)} more than once: each run would "
+            "be flown and counted twice; give each value once"
+        )
+
+
+def _refuse_empty(what: str, values: list) -> None:
+    if not values:
+        raise ValueError(f"{what} is empty: the sweep would fly no run; give at least one value")
+
+
+def _check_distinct_runs(specs: list[RunSpec], what: str) -> None:
+    """Two specs of one experiment that fly the same run (spelled differently: a mesh given as a
+    path and as {path: ...}, 1 and 1.0) are refused."""
+    seen: dict = {}
+    for s in specs:
+        first = seen.setdefault(s.run_id, s)
+        if first is not s:
+            raise ValueError(
+                f"{what} describes the run {s.run_id} twice ({_describe(first)} and "
+                f"{_describe(s)}); give each once"
+            )
+
+
+def _describe(spec: RunSpec) -> str:
+    labels = ", ".join(f"{k}={shorten(v)}" for k, v in spec.labels)
+    mesh = spec.mesh if spec.mesh is not None else "the configuration's mesh"
+    return f"scenario {spec.scenario}, start {spec.start}, {mesh}" + (
+        f", {labels}" if labels else ""
+    )
+
+
 def _sweep_meshes(sweep: dict) -> list:
-    """The sweep's meshes: paths, mappings (path, scale, up) or None (the shipped airliner)."""
-    meshes = sweep.get("meshes") or [None]
+    """The sweep's meshes: paths, mappings (path, scale, up; a key left out or null: the
+    configuration's) or None (the configuration's mesh: the shipped airliner unless the config
+    file, set or grid says otherwise)."""
+    meshes = sweep.get("meshes")
+    if meshes is None:
+        meshes = [None]
     if not isinstance(meshes, list):
         raise ValueError(
             f"sweep 'meshes' must be a list of paths or mappings, got {shorten(meshes)}"
@@ -147,11 +304,18 @@ def _sweep_meshes(sweep: dict) -> list:
                     f"unknown key(s) {sorted(bad)} in sweep mesh entry {shorten(m)}; "
                     "known: ['path', 'scale', 'up']"
                 )
-            scale = m.get("scale", 1.0)
-            if isinstance(scale, bool) or not isinstance(scale, (int, float)):
+            for k in ("path", "up"):
+                if m.get(k) is not None and not isinstance(m[k], str):
+                    raise ValueError(f"sweep mesh entry {shorten(m)}: {k!r} must be a string")
+            scale = m.get("scale")
+            if scale is not None and (
+                isinstance(scale, bool) or not isinstance(scale, (int, float))
+            ):
                 raise ValueError(f"sweep mesh entry {shorten(m)}: 'scale' must be a number")
         elif m is not None and not isinstance(m, str):
             raise ValueError(f"sweep mesh entry {shorten(m)} must be a path, a mapping or null")
+    _refuse_empty("sweep 'meshes'", meshes)
+    _refuse_duplicates("sweep 'meshes'", meshes)
     return meshes
 
 
@@ -161,7 +325,10 @@ def _sweep_scenarios(sweep: dict) -> list[str]:
         raise ValueError(
             f'sweep \'scenarios\' must be a list (e.g. ["1", "5"]), got {shorten(scenarios)}'
         )
-    return [str(s) for s in scenarios]
+    scenarios = [str(s) for s in scenarios]
+    _refuse_empty("sweep 'scenarios'", scenarios)
+    _refuse_duplicates("sweep 'scenarios'", scenarios)
+    return scenarios
 
 
 def _sweep_starts(sweep: dict) -> list:
@@ -178,6 +345,8 @@ def _sweep_starts(sweep: dict) -> list:
         raise ValueError(
             f"sweep 'starts' must be a count or a list of start indices, got {shorten(starts)}"
         )
+    _refuse_empty("sweep 'starts'", starts)
+    _refuse_duplicates("sweep 'starts'", starts)
     return starts
 
 
@@ -187,6 +356,9 @@ def _sweep_grid(sweep: dict) -> tuple[dict, list]:
     grid = sweep.get("grid") or {}
     if not isinstance(grid, dict) or not all(isinstance(v, list) for v in grid.values()):
         raise ValueError("sweep 'grid' must map config keys to lists of values")
+    for k, values in grid.items():
+        _refuse_empty(f"sweep grid {k!r}", values)
+        _refuse_duplicates(f"sweep grid {k!r}", values)
     fixed_set = sweep.get("set") or {}
     if not isinstance(fixed_set, dict):
         raise ValueError(
@@ -197,19 +369,29 @@ def _sweep_grid(sweep: dict) -> tuple[dict, list]:
 
 
 def validate_specs(specs: list[RunSpec]) -> None:
-    """Builds each distinct configuration once, so that a bad key or value fails before any run."""
-    for s in {(sp.mesh, sp.overrides, sp.config_file) for sp in specs}:
-        RunSpec("1", 0, s[0], overrides=s[1], config_file=s[2]).config()
+    """Builds each distinct configuration once, so that a bad key or value (or a mesh key given
+    twice) fails before any run."""
+    for s in {
+        (sp.mesh, sp.mesh_scale, sp.mesh_up, tuple(sp.overrides), sp.config_file) for sp in specs
+    }:
+        _flown_mesh(*s)
 
 
-def compare_specs(planners, mesh=None, mesh_scale=1.0, mesh_up="z", starts=5, overrides=()):
-    """Every planner (scenario name) from `starts` predefined starts, with the same overrides.
-    Progress coverage is sampled every 5 views (the coverage-vs-distance figure)."""
+def compare_specs(planners, mesh=None, mesh_scale=None, mesh_up=None, starts=5, overrides=()):
+    """Every planner (scenario name) from `starts` predefined starts, with the same overrides
+    (mesh, mesh_scale, mesh_up: None for the configuration's, see RunSpec). Progress coverage is
+    sampled every 5 views (the coverage-vs-distance figure). A planner named twice is refused
+    (ValueError): its runs would be counted twice."""
     from .scenarios import SCENARIOS
 
     for p in planners:
         if p not in SCENARIOS:
             raise ValueError(f"unknown planner {p!r}; known: {', '.join(SCENARIOS)}")
+    dup = _duplicates(list(planners))
+    if dup:
+        raise ValueError(
+            f"planner(s) {', '.join(map(repr, dup))} named more than once; name each planner once"
+        )
     over = ("evaluation.coverage_every=5", *overrides)
     return [
         RunSpec(p, k, mesh, mesh_scale, mesh_up, tuple(over))

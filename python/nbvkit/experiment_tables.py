@@ -22,7 +22,7 @@ def row_of(run_dir: Path) -> dict:
         "run_id": run_dir.name,
         "scenario": s["scenario"],
         "start": s["start"],
-        "mesh": spec.get("mesh") or "airliner",
+        **_mesh_columns(run_dir, spec),
         "overrides": " ".join(spec.get("overrides", [])),
         "iterations": s["iterations"],
         "views": s.get("views", s["iterations"]),
@@ -61,6 +61,27 @@ def row_of(run_dir: Path) -> dict:
     for name, value in spec.get("labels", []):
         row[name] = value
     return row
+
+
+def _mesh_columns(run_dir: Path, spec: dict) -> dict:
+    """mesh (its path, or "airliner" for the shipped one), mesh_scale and mesh_up of the mesh the
+    run flew: the spec's flown_mesh, else (a folder from before it was recorded) the run's
+    resolved config.yaml."""
+    m = spec.get("flown_mesh")
+    if not isinstance(m, dict):
+        import yaml
+
+        try:
+            m = (yaml.safe_load((run_dir / "config.yaml").read_text()) or {}).get("mesh") or {}
+        except (OSError, ValueError, AttributeError, yaml.YAMLError):
+            m = {}
+        if not isinstance(m, dict):
+            m = {}
+    return {
+        "mesh": m.get("path") or "airliner",
+        "mesh_scale": m.get("scale", 1.0),
+        "mesh_up": m.get("up", "z"),
+    }
 
 
 def write_table(rows: list[dict], path: str | os.PathLike) -> None:

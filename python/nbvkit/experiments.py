@@ -113,9 +113,10 @@ def _finished_rows(specs: list[RunSpec], root: Path, rows: list) -> None:
 
 def _finished_with(run_dir: Path, cfg, mesh_sha1: str | None) -> bool:
     """Whether run_dir holds a finished run of exactly this resolved configuration on the mesh
-    file whose content has this SHA-1 (_mesh_digest). The run id hashes the spec (mesh path,
-    overrides, config file name), not the defaults it resolves to, the config file's content nor
-    the mesh's: a run kept from before one of them changed is flown again."""
+    file whose content has this SHA-1 (_mesh_digest). The run id hashes the mesh flown (path,
+    scale, up of the resolved configuration), the overrides and the config file's name, not the
+    other defaults it resolves to, the config file's content nor the mesh file's: a run kept from
+    before one of them changed is flown again."""
     from .runfolder import is_complete_run
 
     try:

@@ -24,20 +24,25 @@ def register(sub) -> argparse.ArgumentParser:
         "views, wall time), figures/"
         "coverage_vs_distance.png (coverage at 0.05 m against distance per planner, the "
         "paper's Scenario 5 end point marked) and each run's folder under DIR/runs/. "
-        "Interrupted comparisons resume: finished runs are kept.",
+        "Interrupted comparisons resume: finished runs are kept. The mesh may be given by "
+        "--mesh/--mesh-scale/--mesh-up or by --set mesh.path=... (each key once: both is "
+        "refused); runs are labelled with the mesh flown.",
     )
     add_mesh_options(p)
+    # None: not given, the configuration decides (mesh.* in --set; given twice is refused)
+    p.set_defaults(mesh_scale=None, mesh_up=None)
     p.add_argument(
         "--planners",
         default="surface,5",
         metavar="A,B,...",
-        help="comma-separated scenarios to compare (default: surface,5)",
+        help="comma-separated scenarios to compare, each named once (default: surface,5)",
     )
     add_experiment_options(p, "planner", "runs/compare")
     return p
 
 
 def run(args) -> int:
+    from ..experiment_specs import with_mesh_shift
     from ..experiments import compare_markdown, compare_specs, compare_table, validate_specs
     from ..plots import plot_compare
 
@@ -45,7 +50,7 @@ def run(args) -> int:
     planners = [p.strip() for p in args.planners.split(",") if p.strip()]
     if not planners:
         raise ValueError("--planners names no planner")
-    overrides = [*args.set, *shift_override(args)]
+    overrides = with_mesh_shift(args.set, shift_override(args))
     specs = compare_specs(
         planners, args.mesh, args.mesh_scale, args.mesh_up, args.starts, overrides
     )

@@ -9,8 +9,8 @@ from ..paths import check_output_dir
 from .common import fly_experiment
 
 EXAMPLE = """example sweep file:
-  meshes:                       # default: the shipped airliner
-    - null
+  meshes:                       # default: [null], the configuration's mesh
+    - null                      # (the shipped airliner unless config/set/grid set mesh.*)
     - {path: ../shared/meshes/boat_yup.obj, scale: 4.5, up: y}
   scenarios: ["1", "5"]
   starts: [0, 1, 2]             # or a count: 3
@@ -18,9 +18,15 @@ EXAMPLE = """example sweep file:
     map.resolution: [0.2, 0.4]
     lattice.delta_d: [1.0, 2.0]
   set: {max_iterations: 200}    # fixed overrides for every run
+  config: null                  # optional config file under every run (meshes/set/grid win)
   out: runs/my_sweep            # optional; --out wins
   workers: 2                    # optional; --workers wins
   scheduler: null               # optional Dask scheduler address; --scheduler wins
+
+Every list names each value once and none is empty (refused: a run counted twice, or no run).
+A mesh key (mesh.path, mesh.scale, mesh.up) given by a 'meshes' entry and by set/grid too is
+refused; set/grid alone may give it (e.g. grid: {mesh.path: [a.obj, b.obj]}). The tables label
+each run with the mesh it flew (mesh, mesh_scale, mesh_up).
 """
 
 

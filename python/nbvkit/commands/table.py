@@ -24,16 +24,19 @@ def register(sub) -> argparse.ArgumentParser:
         "folder under DIR/runs/. Interrupted tables resume: finished runs are kept.",
     )
     add_mesh_options(p)
+    # None: not given, the configuration decides (mesh.* in --set; given twice is refused)
+    p.set_defaults(mesh_scale=None, mesh_up=None)
     add_experiment_options(p, "scenario", "runs/table2")
     return p
 
 
 def run(args) -> int:
+    from ..experiment_specs import with_mesh_shift
     from ..experiments import table2_specs, validate_specs, write_table2
     from ..plots import plot_experiment
 
     check_starts(args.starts)
-    overrides = [*args.set, *shift_override(args)]
+    overrides = with_mesh_shift(args.set, shift_override(args))
     specs = table2_specs(args.mesh, args.mesh_scale, args.mesh_up, args.starts, overrides)
     validate_specs(specs)
     out = check_output_dir(args.out, "--out")
