@@ -820,3 +820,46 @@ def test_wpml_heights_from_an_ellipsoidal_origin_and_without_a_geoid(
     s = json.loads((out / "export.json").read_text())
     home = GeoFrame(*ORIGIN, HEADING, "ellipsoid").to_geodetic(np.array([s["launch_point_mesh"]]))
     assert float(ref.split(",")[2]) == pytest.approx(float(home[2][0]), abs=1e-3)
+
+
+def test_a_turn_at_a_capture_is_held_until_done_before_the_photo():
+    """Two views 1 m apart, the second turned 150 degrees: the ArduPilot file holds the second
+    until the turn (5 s at 30 deg/s, less the 0.2 s leg) and the settle (1 s) are done."""
+    from nbvkit.export import writers
+
+    lat = np.array([47.0, 47.0, 47.000009, 47.000009])
+    lon = np.array([8.0, 8.0, 8.0, 8.0])
+    g = writers.GeoWaypoints(
+        lat=lat,
+        lon=lon,
+        alt=np.full(4, 410.0),
+        rel_alt=np.full(4, 10.0),
+        heading=np.array([0.0, 0.0, 150.0, 150.0]),
+        gimbal_pitch=np.array([0.0, -30.0, -10.0, 0.0]),
+        gimbal_yaw=np.zeros(4),
+        action=["takeoff", "view", "view", "home"],
+        stage=["", "nbv", "nbv", ""],
+        row=[-1, 1, 2, -1],
+        number=[0, 1, 2, 0],
+        home=(47.0, 8.0, 400.0),
+        speed=5.0,
+        hover_s=2.0,
+        altitude_ref="amsl",
+        name="t",
+    )
+    hold, rest = writers.capture_holds(g, ardupilot=True)
+    assert list(hold) == [0.0, 7.0, 6.0, 0.0]  # 180 deg after the take-off; 150 deg - 0.2 s
+    assert list(rest) == [0.0, 0.0, 0.0, 0.0]
+    px4_hold, px4_rest = writers.capture_holds(g, ardupilot=False)
+    assert list(px4_hold) == [0.0, 1.0, 1.0, 0.0] and list(px4_rest) == [0.0, 1.0, 1.0, 0.0]
+    items = writers.mavlink_items(g, ardupilot=True)
+    rows = [["0", "1", "0", "16"] + ["0"] * 8]
+    rows += [[str(i), "0", str(it["frame"]), str(it["command"])] for i, it in enumerate(items, 1)]
+    for r, it in zip(rows[1:], items):
+        r += [f"{0.0 if v is None else float(v):.9f}" for v in it["params"]] + ["1"]
+    photos = _fly_ardupilot(rows, speed=5.0)
+    assert [p["seq"] for p in photos] == [1, 2]  # numbered without GeoWaypoints.seq too
+    assert [p["heading"] for p in photos] == [0.0, 150.0]
+    assert [p["pitch"] for p in photos] == [-30.0, -10.0]
+    for p in photos:
+        assert p["t"] - max(p["arrive"], p["yaw_t"]) >= 1.0 - 1e-9

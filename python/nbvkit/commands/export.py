@@ -57,7 +57,13 @@ def register(sub) -> argparse.ArgumentParser:
     p.add_argument(
         "--climb-rate", type=float, default=2.0, metavar="M_S", help="climb/descent rate (2)"
     )
-    p.add_argument("--hover", type=float, default=2.0, metavar="S", help="hover per view (2 s)")
+    p.add_argument(
+        "--hover",
+        type=float,
+        default=2.0,
+        metavar="S",
+        help="hover per view: a settle of up to 1 s, the photo, the rest (default 2 s)",
+    )
     p.add_argument(
         "--flight-time",
         type=float,

@@ -156,7 +156,9 @@ def mavlink_items(g: GeoWaypoints, ardupilot: bool = False) -> list[dict]:
     waypoint, and runs the commands between two waypoints from the start of the leg to the
     second (docs/EXPORT.md)."""
     hold, rest = capture_holds(g, ardupilot)
-    seq = g.seq if g.seq is not None else g.number
+    seq = g.seq
+    if seq is None:  # number the captures of these waypoints, views and frames together
+        seq = list(np.cumsum([a in ("view", "frame") for a in g.action]))
     items = []
     for k in range(len(g)):
         a = g.action[k]
