@@ -14,7 +14,8 @@ APT_PACKAGES := build-essential cmake ninja-build pybind11-dev libeigen3-dev lib
   python3-pytest python3-open3d python3-matplotlib python3-tqdm python3-yaml python3-scipy \
   python3-nbformat python3-nbclient python3-ipykernel python3-nbconvert \
   python3-dask python3-distributed python3-pandas xvfb python3-plotly chromium \
-  clang-format black python3-flake8 python3-pymap3d python3-fastkml python3-lxml
+  clang-format black python3-flake8 python3-pymap3d python3-fastkml python3-lxml \
+  python3-pyproj proj-data
 
 .PHONY: all deps venv install demo test test-cpp test-asan test-py lint format bench clean
 

@@ -159,9 +159,9 @@ def run_problems(folder) -> list:
 
 
 def leftovers(folder) -> list:
-    """Temporary folders of runs on `folder` left beside it."""
+    """Temporary folders and lock files of runs on `folder` left beside it."""
     folder = Path(folder)
-    return [p.name for p in folder.parent.glob(f".{folder.name}.*") if p.is_dir()]
+    return [p.name for p in folder.parent.glob(f".{folder.name}.*")]
 
 
 def summaries_under(root) -> list:

@@ -104,9 +104,46 @@ def test_two_runs_on_one_folder_cannot_both_succeed(tmp_path):
             RunFolder(out, what="--out").__enter__()
         with pytest.raises(IncompleteRunError, match="being written by an nbvkit run"):
             require_complete_run(out)
-    assert is_complete_run(out)
+    assert is_complete_run(out) and fb.leftovers(out) == []  # no lock file stays
     with pytest.raises(ValueError, match="already holds a complete run.*--overwrite"):
         RunFolder(out).__enter__()
+
+
+def _count_under_lock(path: str, counter: str, times: int) -> None:
+    from nbvkit.runfolder import FileLock
+
+    for _ in range(times):
+        with FileLock(path):
+            n = int(Path(counter).read_text())  # read, wait, write: lost updates unless held
+            time.sleep(0.001)
+            Path(counter).write_text(str(n + 1))
+
+
+def test_a_lock_removed_by_its_holder_still_excludes(tmp_path):
+    """FileLock removes its file before letting go; processes that opened the old file meanwhile
+    lock the name again, so 4 processes x 40 read-modify-writes under it lose none, and no
+    lock file is left."""
+    import multiprocessing
+
+    from nbvkit.runfolder import FileLock
+
+    lock, counter = tmp_path / ".x.lock", tmp_path / "n"
+    counter.write_text("0")
+    ctx = multiprocessing.get_context("spawn")
+    procs = [
+        ctx.Process(target=_count_under_lock, args=(str(lock), str(counter), 40)) for _ in "abcd"
+    ]
+    for p in procs:
+        p.start()
+    for p in procs:
+        p.join(120)
+    assert [p.exitcode for p in procs] == [0, 0, 0, 0]
+    assert counter.read_text() == "160" and not lock.exists()
+    held = FileLock(lock)
+    assert held.acquire(wait=False) and FileLock(lock).acquire(wait=False) is False
+    assert held.holder() == f"pid {os.getpid()}"
+    held.release()
+    assert not lock.exists()
 
 
 def test_cli_two_runs_at_once_and_a_rerun(tmp_path):

@@ -193,6 +193,7 @@ def test_the_cache_is_reused_and_keyed_by_the_settings(tmp_path):
         cache_dir=tmp_path,
     )
     assert not d.cached and len(list(tmp_path.glob("observable-*.npz"))) == 2
+    assert sorted(p.suffix for p in tmp_path.iterdir()) == [".npz", ".npz"]  # no lock file left
 
 
 def test_cli_evaluate_observable_json(tmp_path):

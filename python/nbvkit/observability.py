@@ -47,6 +47,7 @@ import numpy as np
 
 from . import _core
 from .limits import Bound
+from .runfolder import FileLock
 from .sensors import build_camera
 from .settings import cpp_section
 
@@ -201,7 +202,7 @@ def observable_surface(
         if hit is not None:
             return hit
         path.parent.mkdir(parents=True, exist_ok=True)
-        with _locked(path.with_suffix(".lock")):
+        with FileLock(path.with_suffix(".lock")):
             hit = _load(path, points)  # another process may have computed it meanwhile
             if hit is not None:
                 return hit
@@ -285,23 +286,3 @@ def _load(path: Path, points) -> ObservableSurface | None:
     if len(mask) != len(points):
         return None
     return ObservableSurface(points, mask, poses, stats, cached=True)
-
-
-class _locked:
-    """An exclusive advisory lock on a file (POSIX flock) while in the block."""
-
-    def __init__(self, path: Path):
-        self.path = path
-
-    def __enter__(self):
-        import fcntl
-
-        self.f = open(self.path, "a")
-        fcntl.flock(self.f, fcntl.LOCK_EX)
-        return self
-
-    def __exit__(self, *exc):
-        import fcntl
-
-        fcntl.flock(self.f, fcntl.LOCK_UN)
-        self.f.close()

@@ -15,8 +15,9 @@ folder (evaluate, compare, sweep resume, export) call ``require_complete_run`` f
 While a run is written, it holds an exclusive lock (``flock``) on ``.<name>.lock`` beside the
 target: a second run on the same folder fails at once with a message naming the first one's
 process (or, for the experiment runner, waits and then reuses it). The kernel drops the lock
-when its process dies, so a killed run never blocks the next. The lock file stays (an empty,
-hidden file): removing it could let two runs lock two different files.
+when its process dies, so a killed run never blocks the next. The lock file is removed by the
+run that holds it, before it lets go (``FileLock``: a run that opened the removed file locks it
+again by its name), so only a killed run leaves one, which the next run on that target removes.
 
 A folder that already holds anything is refused unless ``overwrite`` is given; an overwrite
 replaces it whole (no old file stays beside the new ones) and only when it holds nothing but
@@ -236,49 +237,92 @@ def _lock_holder(path: Path) -> str | None:
         os.close(fd)
 
 
-class _RunLock:
-    def __init__(self, path: Path, what: str, wait: bool):
-        self.path, self.what, self.wait = path, what, wait
-        self.fd = None
+class FileLock:
+    """An exclusive advisory lock (POSIX ``flock``) on the file `path`, created for it and
+    removed by its holder before it lets go, so that no lock file stays behind. The holder's
+    pid is written in it (for messages). `acquire(wait=False)` returns False at once when
+    another process holds it. A process that opened the file before the holder removed it
+    finds, once it has the lock, that the name now leads elsewhere (or nowhere) and tries
+    again on the name: two processes never hold two different files of one name."""
 
-    def acquire(self) -> None:
+    def __init__(self, path):
+        self.path = Path(path)
+        self.fd: int | None = None
+
+    def acquire(self, wait: bool = True) -> bool:
         import fcntl
 
-        lp = _lock_path(self.path)
-        try:
-            fd = os.open(lp, os.O_RDWR | os.O_CREAT, 0o644)
-        except OSError as e:
-            raise ValueError(
-                f"{self.what} {self.path} cannot be written: its folder {self.path.parent}: "
-                f"{e.strerror or e}"
-            ) from None
-        try:
-            fcntl.flock(fd, fcntl.LOCK_EX | (0 if self.wait else fcntl.LOCK_NB))
-        except OSError as e:
-            holder = os.pread(fd, 64, 0).decode("ascii", "replace").strip()
-            os.close(fd)
-            if e.errno not in (errno.EWOULDBLOCK, errno.EAGAIN):
+        while True:
+            fd = os.open(self.path, os.O_RDWR | os.O_CREAT, 0o644)
+            try:
+                fcntl.flock(fd, fcntl.LOCK_EX | (0 if wait else fcntl.LOCK_NB))
+            except OSError as e:
+                os.close(fd)
+                if e.errno in (errno.EWOULDBLOCK, errno.EAGAIN):
+                    return False
                 raise
-            who = f"pid {holder}" if holder.isdigit() else "another process"
-            raise ValueError(
-                f"{self.what} {self.path} is being written by another nbvkit run ({who}): two "
-                "runs cannot share a folder; wait for it or choose another folder"
-            ) from None
-        os.ftruncate(fd, 0)
-        os.pwrite(fd, str(os.getpid()).encode(), 0)
-        self.fd = fd
+            try:
+                held, named = os.fstat(fd), os.stat(self.path)
+                same = (held.st_dev, held.st_ino) == (named.st_dev, named.st_ino)
+            except FileNotFoundError:
+                same = False
+            if same:
+                os.ftruncate(fd, 0)
+                os.pwrite(fd, str(os.getpid()).encode(), 0)
+                self.fd = fd
+                return True
+            os.close(fd)  # removed by its holder meanwhile: lock the name again
+
+    def holder(self) -> str:
+        """'pid N' of the process holding the lock, as written in its file."""
+        try:
+            text = self.path.read_bytes()[:64].decode("ascii", "replace").strip()
+        except OSError:
+            text = ""
+        return f"pid {text}" if text.isdigit() else "another process"
 
     def release(self) -> None:
         import fcntl
 
         if self.fd is not None:
             try:
-                os.ftruncate(self.fd, 0)
+                self.path.unlink(missing_ok=True)  # while held: see the class's note
             except OSError:
                 pass
             fcntl.flock(self.fd, fcntl.LOCK_UN)
             os.close(self.fd)
             self.fd = None
+
+    def __enter__(self):
+        self.acquire(wait=True)
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.release()
+
+
+class _RunLock:
+    def __init__(self, path: Path, what: str, wait: bool):
+        self.path, self.what, self.wait = path, what, wait
+        self.lock = FileLock(_lock_path(path))
+
+    def acquire(self) -> None:
+        try:
+            got = self.lock.acquire(wait=self.wait)
+        except OSError as e:
+            raise ValueError(
+                f"{self.what} {self.path} cannot be written: its folder {self.path.parent}: "
+                f"{e.strerror or e}"
+            ) from None
+        if not got:
+            raise ValueError(
+                f"{self.what} {self.path} is being written by another nbvkit run "
+                f"({self.lock.holder()}): two runs cannot share a folder; wait for it or choose "
+                "another folder"
+            )
+
+    def release(self) -> None:
+        self.lock.release()
 
 
 # ---------------------------------------------------------------------------------- writing
