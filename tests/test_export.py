@@ -625,6 +625,34 @@ def test_a_run_folder_without_a_trajectory_is_named(run_dir, tmp_path):
     assert sorted(p.name for p in tmp_path.iterdir()) == ["empty", "run"]
 
 
+@pytest.mark.parametrize(
+    "name, damage",
+    [
+        ("flight.csv", lambda b: b[:40] + b'"' + b"x" * (len(b) - 41)),  # an unclosed quote
+        ("flight.csv", lambda b: b[:40] + b"\xff" * (len(b) - 40)),  # not text
+        ("summary.json", lambda b: b"\xff" * len(b)),
+        ("summary.json", lambda b: b"[" + b" " * (len(b) - 2) + b"]"),  # JSON, not an object
+    ],
+)
+def test_a_damaged_run_file_of_the_same_size_is_named(run_dir, tmp_path, capsys, name, damage):
+    """A run file damaged in place keeps its size, so the manifest passes it: export names the
+    file and the damage (exit 2) rather than a csv or utf-8 traceback."""
+    import shutil
+
+    from nbvkit.cli import main
+
+    run = tmp_path / "run"
+    shutil.copytree(run_dir, run, ignore=shutil.ignore_patterns("export"))
+    before = (run / name).read_bytes()
+    (run / name).write_bytes(damage(before))
+    assert len((run / name).read_bytes()) == len(before)
+    argv = ["export", str(run), "--origin", *map(str, ORIGIN), "--out", str(tmp_path / "ex")]
+    assert main(argv) == 2
+    err = capsys.readouterr().err
+    assert f"{run / name} is damaged" in err and "Traceback" not in err
+    assert not (tmp_path / "ex").exists()
+
+
 def test_cli_export_and_its_errors(run_dir, tmp_path, capsys):
     from nbvkit.cli import main
 

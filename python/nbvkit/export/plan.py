@@ -45,8 +45,11 @@ def read_run(run_dir) -> RunFlight:
     for name in ("summary.json", "config.yaml"):
         if not (run / name).is_file():
             raise FileNotFoundError(f"{run / name} not found (a run folder of `nbvkit run`?)")
-    with open(flight, newline="") as f:
-        rows = list(csv.DictReader(f))
+    try:
+        with open(flight, newline="", encoding="utf-8") as f:
+            rows = list(csv.DictReader(f))
+    except (csv.Error, UnicodeDecodeError) as e:  # a damaged file (same size: manifest passes)
+        raise ValueError(f"{flight} is damaged, not a flight table ({e}); fly the run again")
     need = ("stage", "x", "y", "z", "yaw", "capture")
     if not rows or any(k not in rows[0] for k in need):
         raise ValueError(f"{flight}: expected a header with {', '.join(need)} and at least one row")
@@ -54,7 +57,12 @@ def read_run(run_dir) -> RunFlight:
         arrays = flight_arrays(rows)
     except ValueError as e:
         raise ValueError(f"{flight}: {e}") from None
-    summary = json.loads((run / "summary.json").read_text())
+    try:
+        summary = json.loads((run / "summary.json").read_text(encoding="utf-8"))
+    except (ValueError, UnicodeDecodeError) as e:
+        raise ValueError(f"{run / 'summary.json'} is damaged, not JSON ({e}); fly the run again")
+    if not isinstance(summary, dict):
+        raise ValueError(f"{run / 'summary.json'} is damaged: not a JSON object")
     ws = summary.get("workspace") or {}
     if "bounds_min" not in ws:
         raise ValueError(f"{run / 'summary.json'} has no workspace bounds")
