@@ -1,0 +1,295 @@
+#include "nbv/obj.hpp"
+
+#include <algorithm>
+#include <charconv>
+#include <cmath>
+#include <cstdint>
+#include <filesystem>
+#include <fstream>
+#include <limits>
+#include <stdexcept>
+#include <string_view>
+#include <vector>
+
+namespace nbv {
+
+namespace {
+
+constexpr double kPi = 3.14159265358979323846;
+
+[[noreturn]] void fail(std::size_t line, const std::string& why) {
+  throw std::invalid_argument("line " + std::to_string(line) + ": " + why);
+}
+
+std::string quote(std::string_view tok) {
+  return "'" + printable_ascii(std::string(tok.substr(0, 40))) + "'";
+}
+
+bool is_space(char c) { return c == ' ' || c == '\t' || c == '\v' || c == '\f' || c == '\r'; }
+
+// Splits `s` at whitespace into `out` (views into s).
+void tokens(std::string_view s, std::vector<std::string_view>& out) {
+  out.clear();
+  std::size_t i = 0;
+  while (i < s.size()) {
+    while (i < s.size() && is_space(s[i])) ++i;
+    const std::size_t j = i;
+    while (i < s.size() && !is_space(s[i])) ++i;
+    if (i > j) out.push_back(s.substr(j, i - j));
+  }
+}
+
+bool parse_double(std::string_view t, double& v) {
+  if (!t.empty() && t[0] == '+') t.remove_prefix(1);
+  const auto r = std::from_chars(t.data(), t.data() + t.size(), v);
+  return !t.empty() && r.ec == std::errc() && r.ptr == t.data() + t.size();
+}
+
+bool parse_int(std::string_view t, long long& v) {
+  if (!t.empty() && t[0] == '+') t.remove_prefix(1);
+  const auto r = std::from_chars(t.data(), t.data() + t.size(), v);
+  return !t.empty() && r.ec == std::errc() && r.ptr == t.data() + t.size();
+}
+
+struct V2 {
+  double x, y;
+};
+
+double cross(const V2& o, const V2& a, const V2& b) {
+  return (a.x - o.x) * (b.y - o.y) - (a.y - o.y) * (b.x - o.x);
+}
+
+// Appends the triangles of polygon `poly` (n >= 3 indices into xyz) to `out`, keeping its
+// winding. Returns false for a non-convex polygon of more than kObjMaxEarClipVertices vertices.
+bool triangulate(const std::int32_t* poly, std::size_t n, const std::vector<double>& xyz,
+                 std::vector<std::int32_t>& out) {
+  const auto fan = [&](const std::vector<std::size_t>& L) {
+    for (std::size_t i = 1; i + 1 < L.size(); ++i)
+      out.insert(out.end(), {poly[L[0]], poly[L[i]], poly[L[i + 1]]});
+  };
+  std::vector<std::size_t> L(n);
+  for (std::size_t i = 0; i < n; ++i) L[i] = i;
+  if (n == 3) {
+    fan(L);
+    return true;
+  }
+  // Coordinates relative to the first vertex (georeferenced files keep their digits), the
+  // polygon's Newell normal, and its projection onto the plane of the normal's largest axis.
+  const auto P = [&](std::size_t i, int k) {
+    return xyz[3 * static_cast<std::size_t>(poly[i]) + k] -
+           xyz[3 * static_cast<std::size_t>(poly[0]) + k];
+  };
+  double N[3] = {0, 0, 0};
+  for (std::size_t i = 0; i < n; ++i) {
+    const std::size_t j = (i + 1) % n;
+    for (int k = 0; k < 3; ++k) {
+      const int a = (k + 1) % 3, b = (k + 2) % 3;
+      N[k] += (P(i, a) - P(j, a)) * (P(i, b) + P(j, b));
+    }
+  }
+  int k = 0;
+  for (int c = 1; c < 3; ++c)
+    if (std::abs(N[c]) > std::abs(N[k])) k = c;
+  if (!(std::abs(N[k]) > 0) || !std::isfinite(N[k])) {  // no area: any triangulation will do
+    fan(L);
+    return true;
+  }
+  const int a = (k + 1) % 3, b = (k + 2) % 3;
+  const double s = N[k] > 0 ? 1.0 : -1.0;  // counter-clockwise in the (a, b) plane after this
+  std::vector<V2> q(n);
+  for (std::size_t i = 0; i < n; ++i) q[i] = {P(i, a), s * P(i, b)};
+
+  // Convex (every turn to the left or straight, turning once around): a fan is exact.
+  bool convex = true;
+  double turning = 0;
+  for (std::size_t i = 0; i < n && convex; ++i) {
+    const V2 &p = q[(i + n - 1) % n], &c = q[i], &d = q[(i + 1) % n];
+    const double ex = c.x - p.x, ey = c.y - p.y, fx = d.x - c.x, fy = d.y - c.y;
+    const double cr = ex * fy - ey * fx, dt = ex * fx + ey * fy;
+    if (cr < -1e-12 * std::hypot(ex, ey) * std::hypot(fx, fy)) convex = false;
+    turning += std::atan2(cr, dt);
+  }
+  if (convex && std::abs(turning - 2 * kPi) < 1e-6) {
+    fan(L);
+    return true;
+  }
+  if (n > kObjMaxEarClipVertices) return false;
+
+  // Ear clipping: cut off a convex corner whose triangle holds no other remaining vertex.
+  const auto inside = [&](const V2& p, const V2& A, const V2& B, const V2& C) {
+    return cross(A, B, p) >= 0 && cross(B, C, p) >= 0 && cross(C, A, p) >= 0;
+  };
+  const auto same = [](const V2& u, const V2& v) { return u.x == v.x && u.y == v.y; };
+  std::size_t i = 0, misses = 0;
+  while (L.size() > 3) {
+    const std::size_t m = L.size();
+    const std::size_t ia = L[(i + m - 1) % m], ib = L[i % m], ic = L[(i + 1) % m];
+    const V2 &A = q[ia], &B = q[ib], &C = q[ic];
+    bool ear = cross(A, B, C) > 0;
+    for (std::size_t j = 0; ear && j < m; ++j) {
+      const V2& p = q[L[j]];
+      if (L[j] == ia || L[j] == ib || L[j] == ic || same(p, A) || same(p, B) || same(p, C))
+        continue;
+      ear = !inside(p, A, B, C);
+    }
+    if (ear) {
+      out.insert(out.end(), {poly[ia], poly[ib], poly[ic]});
+      L.erase(L.begin() + static_cast<std::ptrdiff_t>(i % m));
+      i = i % (m - 1);
+      misses = 0;
+    } else {
+      i = (i + 1) % m;
+      if (++misses > m) break;  // self-intersecting or degenerate: fan what is left
+    }
+  }
+  fan(L);
+  return true;
+}
+
+}  // namespace
+
+ObjData parse_obj(const char* data, std::size_t size) {
+  std::vector<double> xyz;              // 3 per vertex, file order
+  std::vector<std::int32_t> index;      // polygons' vertex indices (0-based, resolved)
+  std::vector<std::size_t> start;       // polygon p is index[start[p], start[p + 1])
+  std::vector<std::size_t> first_line;  // the line of each polygon (for messages)
+  long long max_index = 0;              // the largest positive index (1-based) and its line
+  std::size_t max_index_line = 0;
+  std::vector<std::string_view> tok;
+  std::string joined;  // a line continued by backslashes
+  std::size_t line_no = 0, pos = 0;
+  constexpr long long kMaxVertices = std::numeric_limits<std::int32_t>::max();
+
+  while (pos < size) {
+    // The next logical line: physical lines joined where one ends in a backslash.
+    std::size_t eol = pos;
+    while (eol < size && data[eol] != '\n') ++eol;
+    std::string_view line(data + pos, eol - pos);
+    pos = eol + 1;
+    const std::size_t this_line = ++line_no;
+    auto rstrip = [](std::string_view v) {
+      while (!v.empty() && is_space(v.back())) v.remove_suffix(1);
+      return v;
+    };
+    if (!rstrip(line).empty() && rstrip(line).back() == '\\') {
+      joined.clear();
+      while (true) {
+        std::string_view l = rstrip(line);
+        if (l.empty() || l.back() != '\\') {
+          joined.append(l);
+          break;
+        }
+        l.remove_suffix(1);
+        joined.append(l).push_back(' ');
+        if (pos >= size) break;
+        eol = pos;
+        while (eol < size && data[eol] != '\n') ++eol;
+        line = std::string_view(data + pos, eol - pos);
+        pos = eol + 1;
+        ++line_no;
+      }
+      line = joined;
+    }
+    if (const auto hash = line.find('#'); hash != std::string_view::npos)
+      line = line.substr(0, hash);
+    tokens(line, tok);
+    if (tok.empty()) continue;
+    if (tok[0] == "v") {
+      if (tok.size() < 4) fail(this_line, "a vertex needs three coordinates (v x y z)");
+      if (static_cast<long long>(xyz.size() / 3) >= kMaxVertices)
+        fail(this_line, "more than 2^31 - 1 vertices");
+      for (int k = 1; k <= 3; ++k) {
+        double v;
+        if (!parse_double(tok[k], v))
+          fail(this_line, "vertex coordinate " + quote(tok[k]) + " is not a number");
+        xyz.push_back(v);
+      }
+    } else if (tok[0] == "f") {
+      const long long nv = static_cast<long long>(xyz.size() / 3);
+      if (tok.size() < 4) continue;  // a line or a point: not a surface (as assimp)
+      start.push_back(index.size());
+      first_line.push_back(this_line);
+      for (std::size_t t = 1; t < tok.size(); ++t) {
+        const std::string_view v = tok[t].substr(0, tok[t].find('/'));
+        long long i = 0;
+        if (!parse_int(v, i))
+          fail(this_line, "face vertex " + quote(tok[t]) + " does not start with an integer index");
+        if (i == 0) fail(this_line, "face vertex index 0 (OBJ counts from 1)");
+        if (i < 0) {
+          if (-i > nv)
+            fail(this_line, "face vertex index " + std::to_string(i) +
+                                " reaches before the first vertex (" + std::to_string(nv) +
+                                " read so far)");
+          index.push_back(static_cast<std::int32_t>(nv + i));
+        } else {
+          if (i > kMaxVertices)
+            fail(this_line, "face vertex index " + std::to_string(i) + " is out of range");
+          if (i > max_index) max_index = i, max_index_line = this_line;
+          index.push_back(static_cast<std::int32_t>(i - 1));
+        }
+      }
+    }
+  }
+  start.push_back(index.size());
+  const long long nv = static_cast<long long>(xyz.size() / 3);
+  if (max_index > nv)
+    fail(max_index_line, "face vertex index " + std::to_string(max_index) +
+                             " is out of range: the file has " + std::to_string(nv) + " vertices");
+
+  // Used vertices: none may be NaN or infinite.
+  std::vector<std::int32_t> remap(static_cast<std::size_t>(nv), -1);
+  for (const std::int32_t i : index) remap[static_cast<std::size_t>(i)] = 0;
+  std::size_t bad = 0, kept = 0;
+  std::string first_bad;
+  for (std::size_t v = 0; v < remap.size(); ++v) {
+    if (remap[v] < 0) continue;
+    const double* p = &xyz[3 * v];
+    if (!(std::isfinite(p[0]) && std::isfinite(p[1]) && std::isfinite(p[2])) && bad++ == 0)
+      first_bad = "vertex " + std::to_string(v + 1) + " is (" + fmt(p[0]) + ", " + fmt(p[1]) +
+                  ", " + fmt(p[2]) + ")";
+    remap[v] = static_cast<std::int32_t>(kept++);
+  }
+  if (bad)
+    throw std::invalid_argument(std::to_string(bad) +
+                                " vertices of its faces have a NaN or infinite coordinate (" +
+                                first_bad + ")");
+
+  std::vector<std::int32_t> tri;
+  tri.reserve(3 * (index.size() - 2 * (start.size() - 1)));
+  for (std::size_t p = 0; p + 1 < start.size(); ++p) {
+    const std::size_t n = start[p + 1] - start[p];
+    if (!triangulate(&index[start[p]], n, xyz, tri))
+      fail(first_line[p], "a non-convex polygon of " + std::to_string(n) +
+                              " vertices: nbvkit triangulates non-convex polygons of at most " +
+                              std::to_string(kObjMaxEarClipVertices) +
+                              " (triangulate the mesh before exporting it)");
+  }
+  ObjData out;
+  out.vertices.resize(static_cast<Eigen::Index>(kept), 3);
+  for (std::size_t v = 0; v < remap.size(); ++v)
+    if (remap[v] >= 0)
+      for (int k = 0; k < 3; ++k) out.vertices(remap[v], k) = xyz[3 * v + k];
+  out.faces.resize(static_cast<Eigen::Index>(tri.size() / 3), 3);
+  for (std::size_t t = 0; t < tri.size(); ++t)
+    out.faces(static_cast<Eigen::Index>(t / 3), static_cast<Eigen::Index>(t % 3)) =
+        remap[static_cast<std::size_t>(tri[t])];
+  return out;
+}
+
+ObjData read_obj(const std::string& path) {
+  std::ifstream f(path, std::ios::binary);
+  if (!f) throw std::invalid_argument("cannot read OBJ '" + path + "': cannot open it");
+  f.seekg(0, std::ios::end);
+  const std::streamoff n = f.tellg();
+  f.seekg(0, std::ios::beg);
+  std::string buf(n > 0 ? static_cast<std::size_t>(n) : 0, '\0');
+  f.read(buf.data(), static_cast<std::streamsize>(buf.size()));
+  buf.resize(static_cast<std::size_t>(f.gcount()));
+  try {
+    return parse_obj(buf.data(), buf.size());
+  } catch (const std::invalid_argument& e) {
+    throw std::invalid_argument("cannot read OBJ '" + path + "': " + e.what());
+  }
+}
+
+}  // namespace nbv
