@@ -1,6 +1,9 @@
 #include "nbv/mesh.hpp"
+#include "nbv/obj.hpp"
 #include "nbv/ply.hpp"
 
+#include <assimp/DefaultIOStream.h>
+#include <assimp/DefaultIOSystem.h>
 #include <assimp/postprocess.h>
 #include <assimp/scene.h>
 #include <assimp/Importer.hpp>
@@ -8,13 +11,19 @@
 #include <algorithm>
 #include <cctype>
 #include <cmath>
+#include <cstdio>
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
 #include <iterator>
+#include <limits>
 #include <optional>
 #include <random>
 #include <vector>
+
+#include <fcntl.h>
+#include <sys/stat.h>
+#include <unistd.h>
 
 namespace nbv {
 
@@ -84,30 +93,100 @@ Points Mesh::sample_surface(std::size_t n, std::uint64_t seed, Eigen::VectorXi* 
 
 namespace {
 
-// Mesh files must be regular files (a FIFO would block the reader forever, a device such as
+// Mesh files, and every file a mesh file refers to (an OBJ's material library, a glTF's
+// buffers), must be regular files (a FIFO would block the reader forever, a device such as
 // /dev/zero never ends) of at most kMaxMeshFileBytes: what a file may make us allocate grows with
-// its size.
+// its size. Returns why `st` is not such a file, or "" if it is.
+std::string not_a_mesh_file(const std::filesystem::file_status& st, std::uintmax_t size) {
+  namespace fs = std::filesystem;
+  if (!fs::is_regular_file(st))
+    return std::string("it is ") +
+           (fs::is_directory(st)        ? "a directory"
+            : fs::is_fifo(st)           ? "a FIFO (named pipe)"
+            : fs::is_character_file(st) ? "a character device"
+            : fs::is_block_file(st)     ? "a block device"
+            : fs::is_socket(st)         ? "a socket"
+                                        : "not a regular file") +
+           ": nbvkit reads regular files only";
+  if (size > kMaxMeshFileBytes)
+    return std::to_string(size) + " bytes, more than the " + std::to_string(kMaxMeshFileBytes) +
+           " bytes nbvkit reads";
+  return "";
+}
+
 void check_file_size(const std::string& path) {
   namespace fs = std::filesystem;
   std::error_code ec;
   const fs::file_status st = fs::status(path, ec);
   if (ec) throw std::invalid_argument("cannot read mesh '" + path + "': " + ec.message());
-  if (!fs::is_regular_file(st))
-    throw std::invalid_argument("cannot read mesh '" + path + "': it is " +
-                                (fs::is_directory(st)        ? "a directory"
-                                 : fs::is_fifo(st)           ? "a FIFO (named pipe)"
-                                 : fs::is_character_file(st) ? "a character device"
-                                 : fs::is_block_file(st)     ? "a block device"
-                                 : fs::is_socket(st)         ? "a socket"
-                                                             : "not a regular file") +
-                                ": nbvkit reads regular files only");
-  const auto size = fs::file_size(path, ec);
-  if (ec) throw std::invalid_argument("cannot read mesh '" + path + "': " + ec.message());
-  if (size > kMaxMeshFileBytes)
-    throw std::invalid_argument("cannot read mesh '" + path + "': " + std::to_string(size) +
-                                " bytes, more than the " + std::to_string(kMaxMeshFileBytes) +
-                                " bytes nbvkit reads");
+  std::uintmax_t size = 0;
+  if (fs::is_regular_file(st)) {
+    size = fs::file_size(path, ec);
+    if (ec) throw std::invalid_argument("cannot read mesh '" + path + "': " + ec.message());
+  }
+  const std::string why = not_a_mesh_file(st, size);
+  if (!why.empty()) throw std::invalid_argument("cannot read mesh '" + path + "': " + why);
 }
+
+// The file system assimp sees: every file it asks about or opens (the mesh file, and any file
+// the mesh file names) must be a regular file of at most kMaxMeshFileBytes. Any other is reported
+// missing to assimp and remembered, and load_mesh refuses the mesh naming it: assimp's own
+// DefaultIOSystem opened a FIFO named by an OBJ's `mtllib` or a glTF's buffer and blocked forever
+// (with SIGINT ignored). Files are opened with O_NONBLOCK and checked with fstat on the open
+// descriptor, so a path swapped for a FIFO between the check and the open cannot block either.
+class RegularFileIOSystem : public Assimp::DefaultIOSystem {
+ public:
+  bool Exists(const char* file) const override {
+    struct stat st;
+    if (::stat(file, &st) != 0) return false;
+    return accept(file, st);
+  }
+
+  Assimp::IOStream* Open(const char* file, const char* mode = "rb") override {
+    if (std::string(mode).find_first_of("wa+") != std::string::npos) return nullptr;
+    const int fd = ::open(file, O_RDONLY | O_NONBLOCK | O_CLOEXEC);
+    if (fd < 0) return nullptr;
+    struct stat st;
+    if (::fstat(fd, &st) != 0 || !accept(file, st)) {
+      ::close(fd);
+      return nullptr;
+    }
+    ::fcntl(fd, F_SETFL, ::fcntl(fd, F_GETFL) & ~O_NONBLOCK);
+    FILE* f = ::fdopen(fd, "rb");
+    if (!f) {
+      ::close(fd);
+      return nullptr;
+    }
+    return new Stream(f, file);
+  }
+
+  /// The first file refused and why ("" if none).
+  const std::string& refused() const { return refused_; }
+  const std::string& refused_why() const { return refused_why_; }
+
+ private:
+  struct Stream : Assimp::DefaultIOStream {
+    Stream(FILE* f, const std::string& name) : Assimp::DefaultIOStream(f, name) {}
+  };
+
+  bool accept(const char* file, const struct stat& st) const {
+    namespace fs = std::filesystem;
+    const fs::file_type type = S_ISREG(st.st_mode)    ? fs::file_type::regular
+                               : S_ISDIR(st.st_mode)  ? fs::file_type::directory
+                               : S_ISFIFO(st.st_mode) ? fs::file_type::fifo
+                               : S_ISCHR(st.st_mode)  ? fs::file_type::character
+                               : S_ISBLK(st.st_mode)  ? fs::file_type::block
+                               : S_ISSOCK(st.st_mode) ? fs::file_type::socket
+                                                      : fs::file_type::unknown;
+    const std::string why =
+        not_a_mesh_file(fs::file_status(type), static_cast<std::uintmax_t>(st.st_size));
+    if (why.empty()) return true;
+    if (refused_.empty()) refused_ = file, refused_why_ = why;
+    return false;
+  }
+
+  mutable std::string refused_, refused_why_;
+};
 
 // A loaded mesh: Mesh::validate, and at least one triangle with an area (a mesh of degenerate
 // triangles alone has no surface to see, sample or score).
@@ -168,6 +247,99 @@ Mesh load_ply_mesh(const std::string& path, double scale, char up) {
   out.faces = std::move(ply.faces);
   validate_loaded(out, path);
   return out;
+}
+
+// OBJ files go through nbvkit's own reader (nbv/obj.hpp) in double precision: assimp keeps
+// float32, and a georeferenced file lost its digits before mesh.shift could be applied.
+Mesh load_obj_mesh(const std::string& path, double scale, char up) {
+  check_file_size(path);
+  ObjData obj;
+  try {
+    obj = read_obj(path);
+  } catch (const std::invalid_argument& e) {
+    // read_obj names the file as an OBJ; say mesh like the other readers.
+    const std::string what = e.what(), prefix = "cannot read OBJ '" + path + "': ";
+    if (what.rfind(prefix, 0) != 0) throw;
+    const std::string why = what.substr(prefix.size());
+    if (why.find("NaN or infinite") != std::string::npos)
+      throw std::invalid_argument("mesh file '" + path + "': " + why);
+    throw std::invalid_argument("cannot read mesh '" + path + "': " + why);
+  }
+  if (obj.faces.rows() == 0)
+    throw std::invalid_argument("mesh file '" + path + "' contains no triangles");
+  Mesh out;
+  out.vertices.resize(obj.vertices.rows(), 3);
+  const bool y_up = (up == 'y' || up == 'Y');
+  for (Eigen::Index i = 0; i < obj.vertices.rows(); ++i) {
+    const Eigen::Vector3d p = obj.vertices.row(i).transpose();
+    out.vertices.row(i) = scale * (y_up ? Eigen::Vector3d(p.x(), -p.z(), p.y()) : p);
+  }
+  out.faces = std::move(obj.faces);
+  validate_loaded(out, path);
+  return out;
+}
+
+// Files assimp reads arrive in float32 (Debian's assimp has ai_real = float). Refuses a mesh
+// whose coordinates are large enough that float32 rounds them by more than
+// kMaxFloat32RoundingMetres (after `scale`): half the float32 spacing at the largest magnitude.
+// At scale 1 that is every coordinate of magnitude 32768 m (2^15) or more (spacing 3.9 mm); up
+// to there the rounding is at most 0.98 mm. The message says whether the file itself stores
+// float32 (binary STL, glTF) or assimp dropped the file's digits (text formats).
+void check_float32_precision(const aiScene& scene, const std::string& path, const std::string& ext,
+                             double scale) {
+  float amax = 0;
+  for (unsigned m = 0; m < scene.mNumMeshes; ++m) {
+    const aiMesh* mesh = scene.mMeshes[m];
+    if (!(mesh->mPrimitiveTypes & aiPrimitiveType_TRIANGLE)) continue;
+    for (unsigned v = 0; v < mesh->mNumVertices; ++v) {
+      const aiVector3D& p = mesh->mVertices[v];
+      amax = std::max({amax, std::abs(static_cast<float>(p.x)), std::abs(static_cast<float>(p.y)),
+                       std::abs(static_cast<float>(p.z))});
+    }
+  }
+  if (!std::isfinite(amax)) return;  // validate_loaded refuses it
+  const double spacing =
+      static_cast<double>(std::nextafter(amax, std::numeric_limits<float>::infinity())) - amax;
+  const double rounding = 0.5 * spacing * scale;
+  if (rounding <= kMaxFloat32RoundingMetres) return;
+  bool binary_stl = false;
+  if (ext == ".stl") {
+    std::ifstream f(path, std::ios::binary);
+    unsigned char head[84] = {};
+    f.read(reinterpret_cast<char*>(head), 84);
+    const std::uint64_t n =
+        head[80] | head[81] << 8 | head[82] << 16 | static_cast<std::uint64_t>(head[83]) << 24;
+    std::error_code ec;
+    binary_stl = f.gcount() == 84 && std::filesystem::file_size(path, ec) == 84 + 50 * n;
+  }
+  const bool gltf = ext == ".gltf" || ext == ".glb";
+  const std::string near =
+      "with coordinates near the origin (subtract a local origin from every vertex and give it "
+      "back with mesh.shift / --mesh-shift, which nbvkit adds in double precision)";
+  const std::string dbl = "as PLY or OBJ, which nbvkit reads in double precision";
+  std::string why;
+  if (binary_stl)
+    why =
+        "binary STL stores float32 coordinates, so the file itself has already lost this "
+        "precision: export the mesh again from its source, " +
+        near + " or " + dbl;
+  else if (gltf)
+    why =
+        "glTF stores positions in float32 and assimp applies node transforms in float32: "
+        "export the mesh again from its source, " +
+        near + " or " + dbl;
+  else
+    why = "assimp, which reads '" + printable_ascii(ext) +
+          "' files for nbvkit, keeps coordinates in float32 (the file's own digits are finer): "
+          "save the mesh " +
+          near + " or " + dbl;
+  char reach[64];
+  std::snprintf(reach, sizeof reach, "%.1f", static_cast<double>(amax));
+  throw std::invalid_argument(
+      "cannot read mesh '" + path + "': its coordinates reach " + reach +
+      " (file units; mesh scale " + fmt(scale) + "), where float32 numbers are " +
+      fmt(spacing * scale) + " m apart: vertices would be off by up to " + fmt(rounding) +
+      " m, more than the " + fmt(kMaxFloat32RoundingMetres) + " m nbvkit accepts; " + why);
 }
 
 bool all_digits(const std::string& v) {
@@ -295,10 +467,21 @@ Mesh load_mesh(const std::string& path, double scale, char up) {
   std::transform(ext.begin(), ext.end(), ext.begin(),
                  [](unsigned char c) { return std::tolower(c); });
   if (ext == ".ply") return load_ply_mesh(path, scale, up);
+  if (ext == ".obj") return load_obj_mesh(path, scale, up);
   check_file_size(path);
   if (ext == ".dae" || ext == ".xml" || head_contains(path, "<COLLADA")) check_collada(path);
 
   Assimp::Importer importer;
+  auto* io = new RegularFileIOSystem;  // owned by the importer
+  importer.SetIOHandler(io);
+  const auto refused = [&] {
+    if (!io->refused().empty())
+      throw std::invalid_argument(
+          "cannot read mesh '" + path + "': " +
+          (io->refused() == path ? std::string()
+                                 : "it refers to '" + printable_ascii(io->refused()) + "': ") +
+          io->refused_why());
+  };
   // Keep the file's own axes: the caller says which way is up (also for Collada files).
   importer.SetPropertyBool(AI_CONFIG_IMPORT_COLLADA_IGNORE_UP_DIRECTION, true);
   importer.SetPropertyInteger(AI_CONFIG_PP_SBP_REMOVE,
@@ -309,6 +492,7 @@ Mesh load_mesh(const std::string& path, double scale, char up) {
   // coordinate into another vertex (NaN compares equal to nothing, assimp's hashing takes it for
   // a neighbour), and the mesh would load with the wrong shape and area.
   const aiScene* scene = importer.ReadFile(path, 0);
+  refused();
   if (!scene)
     throw std::invalid_argument("cannot read mesh '" + path +
                                 "': " + printable_ascii(importer.GetErrorString()));
@@ -326,6 +510,7 @@ Mesh load_mesh(const std::string& path, double scale, char up) {
     for (unsigned f = 0; f < mesh->mNumFaces; ++f) nf += mesh->mFaces[f].mNumIndices == 3;
   }
   if (nf == 0) throw std::invalid_argument("mesh file '" + path + "' contains no triangles");
+  check_float32_precision(*scene, path, ext, scale);
 
   Mesh out;
   out.vertices.resize(static_cast<Eigen::Index>(nv), 3);

@@ -1,5 +1,6 @@
-"""Mesh loading (assimp; PLY by nbvkit's strict reader), conversion to and from open3d, the
-shipped default structure, and rays through a structure's surface (its crossings)."""
+"""Mesh loading (PLY and OBJ by nbvkit's own readers in double precision, the rest by assimp),
+conversion to and from open3d, the shipped default structure, and rays through a structure's
+surface (its crossings)."""
 from __future__ import annotations
 
 import math
@@ -29,19 +30,27 @@ class MeshConfig:
 
 
 def load_mesh(path: str | os.PathLike, scale: float = 1.0, up: str = "z", shift=None) -> Mesh:
-    """Load a mesh file (OBJ, STL, PLY, DAE, glTF/GLB, ...) as one triangle soup: PLY with
-    nbvkit's strict reader (declared counts and face indices checked), the rest with assimp.
+    """Load a mesh file (OBJ, STL, PLY, DAE, glTF/GLB, ...) as one triangle soup: PLY and OBJ
+    with nbvkit's own strict readers, in double precision (PLY: declared counts and face indices
+    checked; OBJ: ``v``/``f`` geometry only, polygons triangulated, materials never opened), the
+    rest with assimp.
 
     All parts of the file are merged, each node's transform applied. ``up`` is the file's up axis:
     ``"z"`` keeps coordinates, ``"y"`` rotates file +y onto +z ((x, y, z) -> (x, -z, y)). ``scale``
     multiplies coordinates (e.g. 0.001 for a millimetre file). ``shift`` (x, y, z), in metres,
-    is then added to every vertex: a georeferenced mesh (UTM coordinates) is flown near the origin,
-    where OctoMap can address it (+-6.5 km at 0.2 m) and Embree's float32 keeps millimetres.
+    is then added to every vertex, in double precision: a georeferenced mesh (UTM coordinates)
+    is flown near the origin, where OctoMap can address it (+-6.5 km at 0.2 m) and Embree's
+    float32 keeps millimetres. A georeferenced PLY or OBJ keeps every digit of its file.
+    Formats read through assimp arrive in float32 (assimp's ``ai_real``; binary STL and glTF
+    store float32 anyway): a file whose coordinates float32 would round by more than 1 mm (after
+    ``scale``: from 32,768 m at scale 1) is refused with a ValueError saying how far off it would
+    be and how to fix it (coordinates near the origin in the file plus ``shift``, or PLY/OBJ).
     ``path``: any path the OS accepts (str, bytes, os.PathLike; also not UTF-8). Raises
     FileNotFoundError for a missing path and ValueError naming the file for anything but a
-    regular file of at most 2 GiB (a directory, a FIFO, a device), for unreadable or malformed
-    files, a vertex of a face with a NaN or infinite coordinate, no triangle with an area, or
-    naming a bad scale, up axis or shift (docs/USAGE.md, "Errors").
+    regular file of at most 2 GiB (a directory, a FIFO, a device), also for any file the mesh
+    file refers to that assimp would open (a glTF's buffer, a material library), for unreadable
+    or malformed files, a vertex of a face with a NaN or infinite coordinate, no triangle with an
+    area, or naming a bad scale, up axis or shift (docs/USAGE.md, "Errors").
     """
     if up not in _UP:
         raise ValueError(f"mesh up axis must be 'y' or 'z', got {up!r}")

@@ -33,9 +33,17 @@ struct Mesh {
 /// Largest mesh file load_mesh reads (bytes): 2 GiB.
 constexpr std::uintmax_t kMaxMeshFileBytes = std::uintmax_t(2) << 30;
 
-/// Loads every mesh of a file (OBJ, STL, PLY, DAE, glTF/GLB, ... whatever assimp reads; PLY through
-/// nbvkit's own strict reader, nbv/ply.hpp), with each
-/// node's transform applied, merged into one triangle soup. `up` names the file's up axis: 'z'
+/// Largest rounding (m, after scale) accepted from a file read through assimp in float32:
+/// 1 mm, i.e. coordinates below 32768 (2^15) at scale 1.
+constexpr double kMaxFloat32RoundingMetres = 1e-3;
+
+/// Loads every mesh of a file (OBJ, STL, PLY, DAE, glTF/GLB, ... whatever assimp reads; PLY and
+/// OBJ through nbvkit's own readers in double precision, nbv/ply.hpp and nbv/obj.hpp), with each
+/// node's transform applied, merged into one triangle soup. Files read through assimp arrive in
+/// float32: a mesh whose coordinates float32 rounds by more than kMaxFloat32RoundingMetres is
+/// refused (std::invalid_argument saying why and how to fix it). Every file assimp opens (the
+/// mesh file and any file it names: materials, buffers) must be a regular file of at most
+/// kMaxMeshFileBytes, else the mesh is refused naming that file. `up` names the file's up axis: 'z'
 /// (kept) or 'y' (rotated so file +y becomes +z: (x, y, z) -> (x, -z, y)). `scale` multiplies all
 /// coordinates after the rotation. Throws FileNotFound for a missing path and
 /// std::invalid_argument naming the file for unreadable or triangle-less files.
