@@ -13,6 +13,7 @@ import numpy as np
 
 from . import _core
 from ._core import Mesh
+from ._open3d import open3d
 from .limits import MAX_DATA_FILE_BYTES, check_input_file
 from .settings import choice, positive, triple
 
@@ -81,7 +82,7 @@ def mesh_from_open3d(o3d_mesh) -> Mesh:
 
 def mesh_to_open3d(mesh: Mesh):
     """An ``open3d.geometry.TriangleMesh`` of a Mesh (with vertex normals, for viewing)."""
-    import open3d as o3d
+    o3d = open3d()
 
     m = o3d.geometry.TriangleMesh(  # (open3d takes writeable arrays only: copies)
         o3d.utility.Vector3dVector(np.array(mesh.vertices)),

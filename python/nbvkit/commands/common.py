@@ -13,9 +13,8 @@ def add_mesh_options(p: argparse.ArgumentParser, required: bool = False) -> None
         "--mesh",
         metavar="PATH",
         required=required,
-        help="structure mesh (OBJ, STL, DAE, glTF, ... read with assimp; PLY with nbvkit's "
-        "strict reader); "
-        "default: the shipped generated airliner",
+        help="structure mesh (PLY and OBJ read by nbvkit's own readers in double precision; "
+        "STL, DAE, glTF, ... with assimp); default: the shipped generated airliner",
     )
     p.add_argument(
         "--mesh-scale",
