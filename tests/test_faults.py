@@ -110,7 +110,7 @@ def test_two_runs_on_one_folder_cannot_both_succeed(tmp_path):
 
 
 def _count_under_lock(path: str, counter: str, times: int) -> None:
-    from nbvkit.runfolder import FileLock
+    from nbvkit.locks import FileLock
 
     for _ in range(times):
         with FileLock(path):
@@ -125,7 +125,7 @@ def test_a_lock_removed_by_its_holder_still_excludes(tmp_path):
     lock file is left."""
     import multiprocessing
 
-    from nbvkit.runfolder import FileLock
+    from nbvkit.locks import FileLock
 
     lock, counter = tmp_path / ".x.lock", tmp_path / "n"
     counter.write_text("0")

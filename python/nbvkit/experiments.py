@@ -172,12 +172,13 @@ class RunsFailed(Exception):
 def clean_stale_tmp(root: str | os.PathLike) -> int:
     """Removes ``runs/.<id>.tmp<pid>`` folders left by runs that were killed (their process is
     gone); returns how many."""
-    from .runfolder import _lock_holder, run_name
+    from .locks import lock_holder
+    from .runfolder import run_name
 
     n = 0
     for d in (Path(root) / "runs").glob(".*.tmp*"):
         pid = d.name.rsplit(".tmp", 1)[-1]
-        if _lock_holder(d.parent / run_name(d)) is not None:
+        if lock_holder(d.parent / run_name(d)) is not None:
             continue  # its run is being written (by a process this one cannot see, too)
         if d.is_dir() and pid.isdigit() and not _alive(int(pid)):
             shutil.rmtree(d, ignore_errors=True)

@@ -47,7 +47,7 @@ import numpy as np
 
 from . import _core
 from .limits import Bound
-from .runfolder import FileLock
+from .locks import FileLock
 from .sensors import build_camera
 from .settings import cpp_section
 

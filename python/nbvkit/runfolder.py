@@ -16,8 +16,9 @@ While a run is written, it holds an exclusive lock (``flock``) on ``.<name>.lock
 target: a second run on the same folder fails at once with a message naming the first one's
 process (or, for the experiment runner, waits and then reuses it). The kernel drops the lock
 when its process dies, so a killed run never blocks the next. The lock file is removed by the
-run that holds it, before it lets go (``FileLock``: a run that opened the removed file locks it
-again by its name), so only a killed run leaves one, which the next run on that target removes.
+run that holds it, before it lets go (``nbvkit.locks.FileLock``: a run that opened the removed
+file locks it again by its name), so only a killed run leaves one, which the next run on that
+target removes.
 
 A folder that already holds anything is refused unless ``overwrite`` is given; an overwrite
 replaces it whole (no old file stays beside the new ones) and only when it holds nothing but
@@ -27,7 +28,6 @@ from __future__ import annotations
 
 import contextlib
 import ctypes
-import errno
 import json
 import math
 import os
@@ -39,6 +39,7 @@ from pathlib import Path
 import numpy as np
 
 from ._version import __version__
+from .locks import RunLock, lock_holder
 from .output_paths import check_output_dir
 
 __all__ = [
@@ -107,7 +108,7 @@ def _listed_files(folder: Path) -> dict:
 def _problem(path: Path, check_lock: bool = True) -> str | None:
     """Why path is not a complete run folder, or None. (check_lock=False: by the run that holds
     its lock.)"""
-    holder = _lock_holder(path) if check_lock else None
+    holder = lock_holder(path) if check_lock else None
     if holder:
         return f"is being written by an nbvkit run ({holder}); wait for it to finish"
     if not path.exists():
@@ -150,7 +151,7 @@ def looks_like_run(folder) -> bool:
         (f / MANIFEST).exists()
         or (f / "summary.json").exists()
         or re.fullmatch(r"\.(.+)\.tmp\d+", f.name) is not None
-        or _lock_holder(f) is not None
+        or lock_holder(f) is not None
     )
 
 
@@ -209,122 +210,6 @@ def _fsync_path(p: Path) -> None:
         os.close(fd)
 
 
-# ---------------------------------------------------------------------------------- the lock
-
-
-def _lock_path(path: Path) -> Path:
-    return path.parent / f".{path.name}.lock"
-
-
-def _lock_holder(path: Path) -> str | None:
-    """'pid N' of the live process holding path's run lock, or None."""
-    import fcntl
-
-    lp = _lock_path(path)
-    try:
-        fd = os.open(lp, os.O_RDONLY)
-    except OSError:
-        return None
-    try:
-        try:
-            fcntl.flock(fd, fcntl.LOCK_SH | fcntl.LOCK_NB)
-        except OSError:
-            text = os.pread(fd, 64, 0).decode("ascii", "replace").strip()
-            return f"pid {text}" if text.isdigit() else "another process"
-        fcntl.flock(fd, fcntl.LOCK_UN)
-        return None
-    finally:
-        os.close(fd)
-
-
-class FileLock:
-    """An exclusive advisory lock (POSIX ``flock``) on the file `path`, created for it and
-    removed by its holder before it lets go, so that no lock file stays behind. The holder's
-    pid is written in it (for messages). `acquire(wait=False)` returns False at once when
-    another process holds it. A process that opened the file before the holder removed it
-    finds, once it has the lock, that the name now leads elsewhere (or nowhere) and tries
-    again on the name: two processes never hold two different files of one name."""
-
-    def __init__(self, path):
-        self.path = Path(path)
-        self.fd: int | None = None
-
-    def acquire(self, wait: bool = True) -> bool:
-        import fcntl
-
-        while True:
-            fd = os.open(self.path, os.O_RDWR | os.O_CREAT, 0o644)
-            try:
-                fcntl.flock(fd, fcntl.LOCK_EX | (0 if wait else fcntl.LOCK_NB))
-            except OSError as e:
-                os.close(fd)
-                if e.errno in (errno.EWOULDBLOCK, errno.EAGAIN):
-                    return False
-                raise
-            try:
-                held, named = os.fstat(fd), os.stat(self.path)
-                same = (held.st_dev, held.st_ino) == (named.st_dev, named.st_ino)
-            except FileNotFoundError:
-                same = False
-            if same:
-                os.ftruncate(fd, 0)
-                os.pwrite(fd, str(os.getpid()).encode(), 0)
-                self.fd = fd
-                return True
-            os.close(fd)  # removed by its holder meanwhile: lock the name again
-
-    def holder(self) -> str:
-        """'pid N' of the process holding the lock, as written in its file."""
-        try:
-            text = self.path.read_bytes()[:64].decode("ascii", "replace").strip()
-        except OSError:
-            text = ""
-        return f"pid {text}" if text.isdigit() else "another process"
-
-    def release(self) -> None:
-        import fcntl
-
-        if self.fd is not None:
-            try:
-                self.path.unlink(missing_ok=True)  # while held: see the class's note
-            except OSError:
-                pass
-            fcntl.flock(self.fd, fcntl.LOCK_UN)
-            os.close(self.fd)
-            self.fd = None
-
-    def __enter__(self):
-        self.acquire(wait=True)
-        return self
-
-    def __exit__(self, *exc) -> None:
-        self.release()
-
-
-class _RunLock:
-    def __init__(self, path: Path, what: str, wait: bool):
-        self.path, self.what, self.wait = path, what, wait
-        self.lock = FileLock(_lock_path(path))
-
-    def acquire(self) -> None:
-        try:
-            got = self.lock.acquire(wait=self.wait)
-        except OSError as e:
-            raise ValueError(
-                f"{self.what} {self.path} cannot be written: its folder {self.path.parent}: "
-                f"{e.strerror or e}"
-            ) from None
-        if not got:
-            raise ValueError(
-                f"{self.what} {self.path} is being written by another nbvkit run "
-                f"({self.lock.holder()}): two runs cannot share a folder; wait for it or choose "
-                "another folder"
-            )
-
-    def release(self) -> None:
-        self.lock.release()
-
-
 # ---------------------------------------------------------------------------------- writing
 
 
@@ -374,7 +259,7 @@ class RunFolder:
             raise ValueError(f"{what} {p} is the root folder: choose a folder to hold the run")
         self.path, self.overwrite, self.what, self.carry = p, overwrite, what, tuple(carry)
         self._carried: list = []
-        self._lock = _RunLock(p, what, wait)
+        self._lock = RunLock(p, what, wait)
         self.tmp: Path | None = None
         self._cancelled = False
 
