@@ -160,7 +160,7 @@ def _doc_example(name: str, tmp_path):
     import re
 
     doc = (ROOT / "docs" / "PLUGINS.md").read_text()
-    code = re.search(rf"`{re.escape(name)}`[^`]*?```python\n(.*?)```", doc, flags=re.S).group(1)
+    code = re.search(rf"`{re.escape(name)}`.*?```python\n(.*?)```", doc, flags=re.S).group(1)
     path = tmp_path / name
     path.write_text(code)
     return path
@@ -239,3 +239,216 @@ def test_the_utility_example_of_docs_plugins_flies_the_papers_method(tmp_path):
         "observability.enabled=false", "utility.name=near_unknown",
     )  # fmt: skip
     assert s["utility"] == "near_unknown" and s["iterations"] >= 1
+
+
+# ------------------------------------------------------------------ hostile parts (issue: audit)
+BOX = ((-2, -2, 0), (2, 2, 3))
+
+
+def _fly(out=None, generator=None, termination=None, extra=()):
+    """A 4-view mission round a box with a generator / termination of this test registered as
+    'hostile' / 'hostile_stop'; its summary."""
+    keys = ["max_iterations=4", *extra]
+    try:
+        if generator is not None:
+            registry.register_generator("hostile", generator)
+            keys.append("planner.generators=[hostile]")
+        if termination is not None:
+            registry.register_termination("hostile_stop", termination)
+            keys.append("planner.terminations=[hostile_stop,budget]")
+        cfg = load_config(overrides=QUICK + keys)
+        m = nbvkit.Mission(cfg, mesh=box_mesh(*BOX))
+        return m, m.run(out)
+    finally:
+        registry.GENERATORS.pop("hostile", None)
+        registry.TERMINATIONS.pop("hostile_stop", None)
+
+
+def _proposing(fn):
+    """A ring generator whose propose returns fn(self, world, the ring's proposal)."""
+
+    class Hostile(RingGenerator):
+        calls = 0
+
+        def propose(self, world):
+            Hostile.calls += 1
+            return fn(self, world, super().propose(world))
+
+    return Hostile
+
+
+def _ring_poses(p):
+    return p.poses
+
+
+@pytest.mark.parametrize(
+    "fn, error, match",
+    [
+        (lambda s, w, p: Proposal(np.zeros((0, 4)), "x"), ValueError, "has no views"),
+        (lambda s, w, p: Proposal(np.zeros((0, 4)), "x", exclusive=True), ValueError, "no views"),
+        (lambda s, w, p: Proposal(p.poses * np.nan, "x"), ValueError, "pose 0 is not finite"),
+        (lambda s, w, p: Proposal(p.poses[:, :3], "x"), ValueError, r"shape \(8, 3\), not"),
+        (lambda s, w, p: Proposal(p.poses[0], "x"), ValueError, r"shape \(4,\), not"),
+        (lambda s, w, p: p.poses, TypeError, "returned ndarray, not a"),
+        (lambda s, w, p: Proposal([["a"] * 4], "x"), TypeError, "are not numbers"),
+        (
+            lambda s, w, p: Proposal(np.column_stack([p.poses, np.full(8, 3.0)]), "x"),
+            ValueError,
+            "pose 0 has pitch 3.0",
+        ),
+        (lambda s, w, p: Proposal(p.poses, 7), TypeError, "source must be a str"),
+        (lambda s, w, p: Proposal(p.poses, "x", aims=np.zeros((2, 3))), ValueError, "aims"),
+        (lambda s, w, p: 1 / 0, ZeroDivisionError, "division by zero"),
+    ],
+    ids=["empty", "empty-exclusive", "nan", "k3", "1d", "array", "strings", "pitch", "source",
+         "aims", "raises"],
+)  # fmt: skip
+def test_a_hostile_generator_is_an_exception_naming_it(fn, error, match):
+    with pytest.raises(error, match=match) as e:
+        _fly(generator=_proposing(fn))
+    if error is not ZeroDivisionError or sys.version_info >= (3, 11):
+        assert "generator 'hostile'" in _said(e.value)
+
+
+def _said(e: BaseException) -> str:
+    """An exception's message and notes (the part a plugin's own exception came from)."""
+    return "\n".join([str(e), *getattr(e, "__notes__", [])])
+
+
+def test_a_generators_views_the_vehicle_cannot_take_are_masked_not_flown():
+    # outside the workspace, or inside the structure's known occupied cells: invalid candidates,
+    # masked like any (the mission ends no_valid_viewpoint); a list of numbers is an array
+    outside = _proposing(lambda s, w, p: Proposal(p.poses + [500, 0, 0, 0], "x"))
+    m, s = _fly(generator=outside)
+    assert s["termination"] == "no_valid_viewpoint" and s["iterations"] == 0
+    inside = _proposing(lambda s, w, p: Proposal([[0.0, 0.0, 1.5, 0.0]], "x"))
+    m, s = _fly(generator=inside, extra=["vehicle.start_clear_radius=3"])
+    assert s["termination"] == "no_valid_viewpoint" and s["iterations"] == 0
+    listed = _proposing(lambda s, w, p: Proposal(p.poses.tolist(), "x"))
+    m, s = _fly(generator=listed)
+    assert s["iterations"] == 4
+
+
+def test_an_exclusive_proposal_asked_again_unchanged_is_an_error_not_a_hang():
+    # a tour-like generator that ignores feedback(step=None) would be asked forever
+    stuck = _proposing(lambda s, w, p: Proposal([[0.0, 0.0, 1.5, 0.0]], "x", exclusive=True))
+    with pytest.raises(RuntimeError, match="'hostile' proposed again the exclusive views"):
+        _fly(generator=stuck, extra=["vehicle.start_clear_radius=3"])
+    assert stuck.calls == 2
+
+
+class _Stop:
+    def __init__(self, settings, context):
+        pass
+
+
+@pytest.mark.parametrize("reason", [True, False, 1, np.bool_(True), {"a": 1}, ""], ids=repr)
+def test_a_termination_returns_a_reason_or_none(reason):
+    stop = type("Stop", (_Stop,), {"check": lambda self, w, s: reason})
+    with pytest.raises(TypeError, match=r"termination 'hostile_stop': check returned"):
+        _fly(termination=stop)
+    raising = type("Stop", (_Stop,), {"check": lambda self, w, s: {}["key"]})
+    with pytest.raises(KeyError) as e:  # the part's own exception, as it raised it
+        _fly(termination=raising)
+    if sys.version_info >= (3, 11):
+        assert "by the termination 'hostile_stop' (registered from a script) in check()" in (
+            _said(e.value)
+        )
+
+
+def test_a_part_failing_mid_mission_keeps_the_flight(tmp_path):
+    """A plugin's error after views were flown: the run folder holds what was flown (summary
+    termination 'failed', stopped_by its error), then the error is raised, noted with the
+    part's name."""
+    late = _proposing(lambda s, w, p: p if s.flown.__len__() < 2 else 1 / 0)
+    with pytest.raises(ZeroDivisionError) as e:
+        _fly(tmp_path / "run", generator=late)
+    if sys.version_info >= (3, 11):
+        assert "by the generator 'hostile' (registered from a script) in propose()" in (
+            _said(e.value)
+        )
+    s = json.loads((tmp_path / "run" / "summary.json").read_text())
+    assert s["termination"] == "failed" and s["iterations"] == 2
+    assert s["stopped_by"].startswith("ZeroDivisionError: division by zero")
+    rows = (tmp_path / "run" / "iterations.csv").read_text().splitlines()
+    assert len(rows) == 3  # header + the two views flown
+    assert (tmp_path / "run" / "cloud.ply").stat().st_size > 0
+
+
+def test_a_plugin_part_reads_as_its_own_object():
+    # the planner holds a plugin's part checked; its attributes are still the part's
+    m, s = _fly(generator=RingGenerator)
+    g = m.planner.generators[0]
+    assert g.part.__class__ is RingGenerator and len(g.flown) == 4 and g.s.count == 8
+    assert "generator 'hostile'" in repr(g)
+
+
+def test_registering_checks_the_part():
+    with pytest.raises(TypeError, match="'x' must be a class"):
+        registry.register_generator("x", 3)
+    with pytest.raises(TypeError, match=r"has no method feedback\(\)"):
+        registry.register_generator("x", type("G", (), {"propose": lambda self, w: None}))
+    with pytest.raises(TypeError, match=r"termination 'x': T has no method check\(\)"):
+        registry.register_termination("x", type("T", (), {}))
+    with pytest.raises(TypeError, match="Settings must be a dataclass"):
+        registry.register_generator("x", type("G", (RingGenerator,), {"Settings": dict}))
+    with pytest.raises(ValueError, match="registered already \\(one of nbvkit's own\\)"):
+        registry.register_generator("tour", RingGenerator)
+    with pytest.raises(ValueError, match="registered already \\(one of nbvkit's own\\)"):
+        registry.register_utility("ig", lambda rays: 0)
+    assert "x" not in registry.GENERATORS and "x" not in registry.TERMINATIONS
+    with pytest.raises(ValueError, match="register it first"):
+        load_config(overrides=["planner.terminations=[nope]"])
+
+
+def test_the_python_example_of_docs_plugins_runs(tmp_path, monkeypatch):
+    """The page's "From Python" block, run as written from a folder holding my_parts.py (the
+    configuration it loads made small: the cube, a coarse map)."""
+    import re
+
+    _doc_example("my_parts.py", tmp_path)
+    doc = (ROOT / "docs" / "PLUGINS.md").read_text()
+    block = re.search(r"From Python:\n\n```python\n(.*?)```", doc, flags=re.S).group(1)
+    real = nbvkit.load_config
+    small = [*QUICK, f"mesh.path={CUBE}", "mesh.scale=5", "ring.distance=2"]
+    monkeypatch.setattr(nbvkit, "load_config", lambda overrides=(): real(overrides=[*small,
+                        *overrides]))  # fmt: skip
+    monkeypatch.chdir(tmp_path)
+    try:
+        scope: dict = {}
+        exec(compile(block, "PLUGINS.md", "exec"), scope)
+    finally:
+        registry.GENERATORS.pop("ring", None)
+        from nbvkit.scenarios import SCENARIOS
+
+        SCENARIOS.pop("ring", None)
+    s = scope["summary"]
+    assert s["scenario"] == "ring" and s["termination"] == "coverage_complete"
+    assert s["iterations"] == 16
+    assert "ring:" in (tmp_path / "runs" / "ring" / "config.yaml").read_text()
+
+
+def test_ctrl_c_in_a_slow_utility_keeps_the_flight(tmp_path):
+    """Ctrl-C while a utility of a script's runs (a slow one, say) stops the mission as anywhere
+    else: what was flown is written, then KeyboardInterrupt is raised (not noted, not wrapped)."""
+    from nbvkit.planning.utilities import per_candidate
+
+    calls = []
+
+    def slow(rays):
+        calls.append(1)
+        if len(calls) == 3:
+            raise KeyboardInterrupt  # as Ctrl-C in the middle of its work
+        return per_candidate(rays, (rays.state == -1) * 1.0)
+
+    registry.register_utility("slow", slow)
+    try:
+        cfg = load_config(overrides=QUICK + ["planner.generators=[lattice]", "utility.name=slow"])
+        with pytest.raises(KeyboardInterrupt) as e:
+            nbvkit.Mission(cfg, mesh=box_mesh(*BOX)).run(tmp_path / "run")
+    finally:
+        registry.UTILITIES.pop("slow")
+    assert not getattr(e.value, "__notes__", None)
+    s = json.loads((tmp_path / "run" / "summary.json").read_text())
+    assert s["termination"] == "interrupted" and s["iterations"] == 2
+    assert s["stopped_by"] == "KeyboardInterrupt" and s["utility"] == "slow"

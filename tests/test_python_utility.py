@@ -289,3 +289,67 @@ def test_a_mission_flies_on_a_registered_python_utility_as_on_the_ig_utility():
         valid = theirs["status"] == 0
         assert valid.any()
         np.testing.assert_allclose(ours["utility"][valid], theirs["utility"][valid], rtol=1e-6)
+
+
+@pytest.mark.parametrize(
+    "out, error, match",
+    [
+        (lambda r: np.full(len(r), np.nan), ValueError, "non-finite gain"),
+        (lambda r: np.full(len(r), np.inf), ValueError, "non-finite gain"),
+        (lambda r: -np.ones(len(r)), ValueError, r"negative gain \(-1.0\) for valid candidate"),
+        (lambda r: np.ones(len(r) + 1), ValueError, r"gains of shape \(\d+,\), not"),
+        (lambda r: np.ones((len(r), 1)), ValueError, r"gains of shape \(\d+, 1\), not"),
+        (lambda r: 1.0, ValueError, r"gains of shape \(\), not"),
+        (lambda r: None, TypeError, "returned NoneType gains"),
+        (lambda r: "abc", TypeError, "returned str gains"),
+        (lambda r: (np.ones(len(r)),) * 3, TypeError, "returned a tuple of 3"),
+        (lambda r: (np.ones(len(r)), np.ones(2)), ValueError, r"cells of shape \(2,\)"),
+    ],
+    ids=["nan", "inf", "negative", "long", "2d", "scalar", "none", "str", "3-tuple",
+         "cells-short"],
+)  # fmt: skip
+def test_a_registered_utility_returning_nonsense_is_an_error_naming_it(world, out, error, match):
+    from nbvkit.planning import registry
+    from nbvkit.planning.scoring import Scorer
+
+    registry.register_utility("hostile_u", out)
+    try:
+        scorer = Scorer(Config().with_overrides(["utility.name=hostile_u"]).utility)
+        with pytest.raises(error, match=match) as e:
+            scorer(world, candidates(world))
+    finally:
+        registry.UTILITIES.pop("hostile_u")
+    assert "utility 'hostile_u'" in str(e.value)
+
+
+def test_a_registered_utility_is_free_on_invalid_candidates_and_named_when_it_raises(world):
+    """Gains of invalid candidates (status != 0) are not read: NaN there is no error; an
+    exception of the utility's own propagates as it is, noted with its name."""
+    import sys
+
+    from nbvkit.planning import registry
+    from nbvkit.planning.scoring import Scorer
+
+    def nan_where_invalid(rays):
+        return np.where(rays.status == 0, 1.0, np.nan)
+
+    def raising(rays):
+        raise KeyError("cell")
+
+    registry.register_utility("nan_invalid", nan_where_invalid)
+    registry.register_utility("raising", raising)
+    try:
+        poses = candidates(world)
+        s = Scorer(Config().with_overrides(["utility.name=nan_invalid"]).utility)(world, poses)
+        valid = s["status"] == 0
+        assert valid.any() and (~valid).any()
+        np.testing.assert_array_equal(s["utility"][valid], 1.0)
+        assert np.all(s["utility"][~valid] == -np.inf)
+        scorer = Scorer(Config().with_overrides(["utility.name=raising"]).utility)
+        with pytest.raises(KeyError, match="cell") as e:
+            scorer(world, poses)
+        if sys.version_info >= (3, 11):
+            assert "by the utility 'raising' (registered from a script)" in e.value.__notes__[0]
+    finally:
+        registry.UTILITIES.pop("nan_invalid")
+        registry.UTILITIES.pop("raising")

@@ -171,3 +171,141 @@ class Generator(Protocol):
 class Termination(Protocol):
     def check(self, world, step: Step) -> Optional[str]:
         """The reason to stop after `step`, or None."""
+
+
+# ---------------------------------------------------------------- parts registered from a script
+
+
+def _named(kind: str, name: str, call: str, fn, *args):
+    """fn(*args) of the part `name` registered from a script. An exception of its own propagates
+    as it is (a script may catch its own types; a mission that raises it after its views started
+    keeps what it flew, recorder.fly_into), with a note naming the part and the call (Python
+    3.11+: printed under the traceback's last line, in ``e.__notes__``)."""
+    try:
+        return fn(*args)
+    except Exception as e:
+        if hasattr(e, "add_note"):
+            e.add_note(f"raised by the {kind} {name!r} (registered from a script) in {call}")
+        raise
+
+
+def check_proposal(p, who: str) -> Proposal:
+    """`p` (what a generator's propose returned, not None) checked for the planner: a Proposal
+    whose poses are a finite (K, 4) or (K, 5) array (made float64, C-contiguous) with K >= 1 and
+    pitch within +-pi/2, a str source, aims None or (K, 3). TypeError / ValueError naming the
+    generator `who` otherwise."""
+    if not isinstance(p, Proposal):
+        raise TypeError(
+            f"generator {who!r}: propose returned {type(p).__name__}, not a "
+            "nbvkit.planning.parts.Proposal or None"
+        )
+    try:
+        poses = np.ascontiguousarray(p.poses, dtype=np.float64)
+    except (TypeError, ValueError) as e:
+        raise TypeError(f"generator {who!r}: its proposal's poses are not numbers ({e})") from None
+    if poses.ndim != 2 or poses.shape[1] not in (4, 5):
+        raise ValueError(
+            f"generator {who!r}: its proposal's poses have shape {poses.shape}, not (K, 4) "
+            "[x, y, z, yaw] or (K, 5) [x, y, z, yaw, pitch]"
+        )
+    if len(poses) == 0:
+        raise ValueError(
+            f"generator {who!r}: its proposal has no views (K = 0); propose returns None when "
+            "the generator has none"
+        )
+    bad = ~np.isfinite(poses).all(axis=1)
+    if bad.any():
+        k = int(np.flatnonzero(bad)[0])
+        raise ValueError(
+            f"generator {who!r}: its proposal's pose {k} is not finite: {poses[k].tolist()}"
+        )
+    if poses.shape[1] == 5 and np.any(np.abs(poses[:, 4]) > np.pi / 2):
+        k = int(np.flatnonzero(np.abs(poses[:, 4]) > np.pi / 2)[0])
+        raise ValueError(
+            f"generator {who!r}: its proposal's pose {k} has pitch {poses[k, 4]} rad, beyond "
+            "+-pi/2 (> 0 looks down)"
+        )
+    if not isinstance(p.source, str):
+        raise TypeError(
+            f"generator {who!r}: its proposal's source must be a str, got {type(p.source).__name__}"
+        )
+    if p.aims is not None:
+        aims = np.asarray(p.aims, dtype=np.float64)
+        if aims.shape != (len(poses), 3):
+            raise ValueError(
+                f"generator {who!r}: its proposal's aims have shape {aims.shape}, not "
+                f"({len(poses)}, 3)"
+            )
+    p.poses = poses
+    return p
+
+
+#: Proposals a generator registered from a script may have rejected (no valid view, feedback with
+#: step None) in one planning step before it is taken to be looping: an exclusive proposal is
+#: tried, then its generator asked again, until one is flown.
+MAX_REJECTED = 10000
+
+
+class PluginPart:
+    """A generator or termination registered from a script, as the planner holds it: its calls
+    checked and named (check_proposal; a termination's reason a non-empty str or None; an
+    exception of its own noted with its name, _named). Any other attribute is the part's own
+    (``.part``)."""
+
+    def __init__(self, kind: str, name: str, part):
+        needs = ("propose", "feedback") if kind == "generator" else ("check",)
+        missing = [m for m in needs if not callable(getattr(part, m, None))]
+        if missing:
+            raise TypeError(
+                f"{kind} {name!r} ({type(part).__name__}) has no method "
+                + " or ".join(f"{m}()" for m in missing)
+            )
+        self.__dict__.update(kind=kind, name=name, part=part, _rejected=None, _tries=0)
+
+    def __getattr__(self, attr):
+        return getattr(self.part, attr)
+
+    def __setattr__(self, attr, value):
+        setattr(self.part, attr, value)
+
+    def __repr__(self):
+        return f"<{self.kind} {self.name!r}: {self.part!r}>"
+
+    def propose(self, world):
+        p = _named(self.kind, self.name, "propose()", self.part.propose, world)
+        if p is None:
+            return None
+        p = check_proposal(p, self.name)
+        last = self.__dict__["_rejected"]
+        if last is not None and p.exclusive and np.array_equal(p.poses, last):
+            raise RuntimeError(
+                f"generator {self.name!r} proposed again the exclusive views it was just told "
+                "none of was valid and worth flying (feedback with step None): it would be "
+                "asked forever; move on from them in feedback, or return None"
+            )
+        return p
+
+    def feedback(self, world, proposal, step):
+        d = self.__dict__
+        if step is None:
+            d["_tries"] += 1
+            d["_rejected"] = proposal.poses if proposal.exclusive else None
+            if d["_tries"] > MAX_REJECTED:
+                raise RuntimeError(
+                    f"generator {self.name!r}: {MAX_REJECTED} proposals in a row had no valid "
+                    "view worth flying; it seems to loop (return None when it has no views left)"
+                )
+        else:
+            d["_rejected"], d["_tries"] = None, 0
+        _named(self.kind, self.name, "feedback()", self.part.feedback, world, proposal, step)
+
+    def check(self, world, step):
+        reason = _named(self.kind, self.name, "check()", self.part.check, world, step)
+        if reason is None:
+            return None
+        if not isinstance(reason, str) or not reason:
+            raise TypeError(
+                f"termination {self.name!r}: check returned {reason!r}; it returns the reason "
+                "to stop (a non-empty str, e.g. 'distance_cap') or None to go on"
+            )
+        return reason

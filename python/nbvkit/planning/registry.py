@@ -28,6 +28,10 @@ TERMINATIONS = {
     "budget": Budget,  # distance / views / time limits
 }
 
+#: The parts nbvkit ships (the others were registered from a script: their calls are checked and
+#: their errors named, parts.PluginPart).
+BUILT_IN = frozenset(GENERATORS) | frozenset(TERMINATIONS)
+
 #: Utilities written in Python (name -> function of nbvkit.CandidateRays, see
 #: planning/utilities.py); the C++ core's are nbvkit._core.utility_names().
 UTILITIES: dict = {}
@@ -46,7 +50,41 @@ def _check_new(name: str, kind: str, taken) -> None:
     if name in RESERVED:
         raise ValueError(f"{kind} name {name!r} is a section of the configuration; choose another")
     if name in taken:
-        raise ValueError(f"a {kind} named {name!r} is registered already")
+        raise ValueError(
+            f"a {kind} named {name!r} is registered already"
+            + (" (one of nbvkit's own)" if name in BUILT_IN or name in _core_utilities() else "")
+            + "; choose another name"
+        )
+
+
+def _core_utilities() -> tuple:
+    from .. import _core
+
+    return tuple(_core.utility_names())
+
+
+def _check_part(name: str, kind: str, cls, methods) -> None:
+    """TypeError unless `cls` can be built as cls(settings, context) into a part with `methods`,
+    and its Settings (if any) is a dataclass."""
+    import dataclasses
+
+    if not callable(cls):
+        raise TypeError(f"{kind} {name!r} must be a class, got {type(cls).__name__}")
+    if isinstance(cls, type):
+        missing = [m for m in methods if not callable(getattr(cls, m, None))]
+        if missing:
+            raise TypeError(
+                f"{kind} {name!r}: {cls.__name__} has no method "
+                + " or ".join(f"{m}()" for m in missing)
+            )
+    settings = getattr(cls, "Settings", None)
+    if settings is not None and not (
+        isinstance(settings, type) and dataclasses.is_dataclass(settings)
+    ):
+        raise TypeError(
+            f"{kind} {name!r}: its Settings must be a dataclass (frozen, nbvkit.settings' "
+            f"helpers for checks), got {settings!r}"
+        )
 
 
 def register_generator(name: str, cls) -> None:
@@ -54,6 +92,7 @@ def register_generator(name: str, cls) -> None:
     proposal, step) (parts.Generator); `cls.Settings` (optional) is the dataclass of its
     configuration section `name`."""
     _check_new(name, "generator", {**GENERATORS, **TERMINATIONS})
+    _check_part(name, "generator", cls, ("propose", "feedback"))
     GENERATORS[name] = cls
 
 
@@ -61,18 +100,74 @@ def register_termination(name: str, cls) -> None:
     """Adds a termination: `cls(settings, context)` with check(world, step) -> reason or None
     (parts.Termination); `cls.Settings` (optional) as for a generator."""
     _check_new(name, "termination", {**GENERATORS, **TERMINATIONS})
+    _check_part(name, "termination", cls, ("check",))
     TERMINATIONS[name] = cls
 
 
 def register_utility(name: str, fn) -> None:
     """Adds a utility written in Python: `fn(rays)` -> (K,) gains of K candidate views from what
-    their rays reach (nbvkit.CandidateRays); named by ``utility.name``."""
-    from .. import _core
-
+    their rays reach (nbvkit.CandidateRays), each finite and >= 0 for a valid candidate (or a
+    tuple (gains, cells)); named by ``utility.name``. What it returns is checked, and an
+    exception of its own noted with its name (checked_utility)."""
     if not callable(fn):
         raise TypeError(f"utility {name!r} must be callable, got {type(fn).__name__}")
-    _check_new(name, "utility", {**UTILITIES, **dict.fromkeys(_core.utility_names())})
-    UTILITIES[name] = fn
+    _check_new(name, "utility", {**UTILITIES, **dict.fromkeys(_core_utilities())})
+    UTILITIES[name] = checked_utility(name, fn)
+
+
+def checked_utility(name: str, fn):
+    """`fn(rays)` as the planner calls a utility registered as `name`: its exceptions noted with
+    its name (parts._named); TypeError / ValueError naming it unless it returned (K,) gains (or a
+    tuple (gains (K,), cells (K,))) of numbers, finite and >= 0 for the valid candidates
+    (rays.status 0; the others' are not read). Returns (gains float64, cells or None)."""
+    import functools
+
+    import numpy as np
+
+    from .parts import _named
+
+    @functools.wraps(fn)
+    def utility(rays):
+        out = _named("utility", name, "its call on the candidates' rays", fn, rays)
+        k = len(rays)
+        if isinstance(out, tuple) and len(out) != 2:
+            raise TypeError(
+                f"utility {name!r} returned a tuple of {len(out)}; it returns gains (K,) or "
+                "(gains (K,), cells (K,))"
+            )
+        gains, cells = out if isinstance(out, tuple) else (out, None)
+        arrays = {"gains": gains} if cells is None else {"gains": gains, "cells": cells}
+        for what, a in arrays.items():
+            try:
+                arr = np.asarray(a)
+                ok = arr.dtype.kind in "biuf"
+            except Exception:
+                ok = False
+            if a is None or not ok:
+                raise TypeError(
+                    f"utility {name!r} returned {type(a).__name__} {what}, not an array of "
+                    f"numbers, one a candidate ({k},)"
+                )
+            if arr.shape != (k,):
+                raise ValueError(
+                    f"utility {name!r} returned {what} of shape {arr.shape}, not ({k},): one "
+                    "a candidate"
+                )
+        gains = np.asarray(gains, dtype=np.float64)
+        valid = np.asarray(rays.status) == 0
+        for bad, what in ((~np.isfinite(gains), "non-finite"), (gains < 0, "negative")):
+            bad &= valid
+            if bad.any():
+                j = int(np.flatnonzero(bad)[0])
+                raise ValueError(
+                    f"utility {name!r} returned a {what} gain ({gains[j]}) for valid candidate "
+                    f"{j} ({int(bad.sum())} such of {k} candidates); gains are finite and >= 0 "
+                    "(the planner ranks gain x a travel discount)"
+                )
+        return gains if cells is None else (gains, cells)
+
+    utility.__name__ = name
+    return utility
 
 
 def part_settings() -> dict:
@@ -88,21 +183,25 @@ def part_settings() -> dict:
 
 
 def get_generator(name: str, config, context=None):
-    """The generator `name` built from its own section of `config` and the shared context."""
-    from .parts import PlanningContext
+    """The generator `name` built from its own section of `config` and the shared context (one
+    registered from a script: in a parts.PluginPart, its calls checked and its errors named)."""
+    return _build("generator", GENERATORS, name, config, context)
 
-    cls = GENERATORS[name]
+
+def _build(kind: str, table: dict, name: str, config, context):
+    from .parts import PlanningContext, PluginPart, _named
+
+    cls = table[name]
     settings = config.section(name) if getattr(cls, "Settings", None) else None
-    return cls(settings, context or PlanningContext.of(config))
+    context = context or PlanningContext.of(config)
+    if name in BUILT_IN:
+        return cls(settings, context)
+    return PluginPart(kind, name, _named(kind, name, "its construction", cls, settings, context))
 
 
 def get_termination(name: str, config, context=None):
     """The termination `name` built from its own section of `config` and the shared context."""
-    from .parts import PlanningContext
-
-    cls = TERMINATIONS[name]
-    settings = config.section(name) if getattr(cls, "Settings", None) else None
-    return cls(settings, context or PlanningContext.of(config))
+    return _build("termination", TERMINATIONS, name, config, context)
 
 
 def check_names(generators, terminations) -> None:
@@ -113,4 +212,7 @@ def check_names(generators, terminations) -> None:
     ):
         for n in names:
             if n not in known:
-                raise ValueError(f"unknown planner {kind} {n!r}; known: {', '.join(known)}")
+                raise ValueError(
+                    f"unknown planner {kind} {n!r}; known: {', '.join(known)} (a part of your "
+                    "own: register it first, e.g. nbvkit.load_plugin(FILE) or --plugin FILE)"
+                )
