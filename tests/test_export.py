@@ -347,7 +347,9 @@ def test_wpml_kmz_read_back(exported, run_dir):
     for name, root in docs.items():
         assert root.tag == "{http://www.opengis.net/kml/2.2}kml"
         mc = root.find("k:Document/wpml:missionConfig", ns)
-        assert mc.findtext("wpml:finishAction", namespaces=ns) == "goHome"
+        # the route ends straight above the launch point and lands there (goHome would first
+        # climb to the return height)
+        assert mc.findtext("wpml:finishAction", namespaces=ns) == "autoLand"
         assert mc.find("wpml:droneInfo/wpml:droneEnumValue", ns) is not None
         pms = root.findall("k:Document/k:Folder/k:Placemark", ns)
         assert len(pms) == len(rows)
@@ -377,9 +379,9 @@ def test_wpml_kmz_read_back(exported, run_dir):
                 assert funcs == []
                 continue
             n_caps += 1
-            want = ["gimbalRotate", "takePhoto"]
+            want = ["gimbalRotate", "rotateYaw", "takePhoto"]
             if r["action"] == "view":
-                want = ["gimbalRotate", "hover", "takePhoto", "hover"]
+                want = ["gimbalRotate", "rotateYaw", "hover", "takePhoto", "hover"]
                 hovers = [a.findtext(".//wpml:hoverTime", namespaces=ns) for a in acts]
                 assert [float(h) for h in hovers if h is not None] == [1.0, 2.0 - 1.0]
             assert funcs == want
@@ -388,6 +390,16 @@ def test_wpml_kmz_read_back(exported, run_dir):
             assert par["gimbalPitchRotateEnable"] == "1"
             assert float(par["gimbalPitchRotateAngle"]) == pytest.approx(
                 float(r["gimbal_pitch_deg"]), abs=1e-3
+            )
+            # the heading is turned to (rotateYaw) before the photo, whatever the leg's
+            # heading mode (a leg from a transit point arrives facing along its course)
+            yaw = acts[funcs.index("rotateYaw")].find("wpml:actionActuatorFuncParam", ns)
+            ah = float(yaw.findtext("wpml:aircraftHeading", namespaces=ns))
+            assert -180 <= ah <= 180
+            assert abs((ah - float(r["heading_deg"]) + 180) % 360 - 180) < 1e-3
+            assert yaw.findtext("wpml:aircraftPathMode", namespaces=ns) in (
+                "clockwise",
+                "counterClockwise",
             )
             photo = acts[funcs.index("takePhoto")].find("wpml:actionActuatorFuncParam", ns)
             assert photo.findtext("wpml:useGlobalPayloadLensIndex", namespaces=ns) == "0"
@@ -852,7 +864,7 @@ def test_wpml_heights_from_an_ellipsoidal_origin_and_without_a_geoid(
 
 def test_a_turn_at_a_capture_is_held_until_done_before_the_photo():
     """Two views 1 m apart, the second turned 150 degrees: the ArduPilot file holds the second
-    until the turn (5 s at 30 deg/s, less the 0.2 s leg) and the settle (1 s) are done."""
+    until the turn (5 s at 30 deg/s) and the settle (1 s) are done."""
     from nbvkit.export import writers
 
     lat = np.array([47.0, 47.0, 47.000009, 47.000009])
@@ -876,8 +888,12 @@ def test_a_turn_at_a_capture_is_held_until_done_before_the_photo():
         name="t",
     )
     hold, rest = writers.capture_holds(g, ardupilot=True)
-    assert list(hold) == [0.0, 7.0, 6.0, 0.0]  # 180 deg after the take-off; 150 deg - 0.2 s
+    assert list(hold) == [0.0, 7.0, 6.0, 0.0]  # 180 deg after the take-off; 150 deg
     assert list(rest) == [0.0, 0.0, 0.0, 0.0]
+    # the leg's time is not taken off the turn (the copter may fly faster than --speed): 10 m
+    # apart (2 s at 5 m/s), the hold is still ceil(150 / 30 + 1) = 6 s
+    far = writers.GeoWaypoints(**{**g.__dict__, "lat": np.array([47.0, 47.0, 47.00009, 47.00009])})
+    assert list(writers.capture_holds(far, ardupilot=True)[0]) == [0.0, 7.0, 6.0, 0.0]
     px4_hold, px4_rest = writers.capture_holds(g, ardupilot=False)
     assert list(px4_hold) == [0.0, 1.0, 1.0, 0.0] and list(px4_rest) == [0.0, 1.0, 1.0, 0.0]
     items = writers.mavlink_items(g, ardupilot=True)
@@ -891,3 +907,188 @@ def test_a_turn_at_a_capture_is_held_until_done_before_the_photo():
     assert [p["pitch"] for p in photos] == [-30.0, -10.0]
     for p in photos:
         assert p["t"] - max(p["arrive"], p["yaw_t"]) >= 1.0 - 1e-9
+
+
+# ------------------------------------------------------------------ what the files command
+def _nav_legs_s(points, speed, climb):
+    """Seconds of straight legs between (lat, lon, rel_alt) points at the time model's speeds,
+    horizontal distances from pymap3d (east, north)."""
+    import pymap3d
+
+    t = 0.0
+    for a, b in zip(points, points[1:]):
+        e, n, _ = pymap3d.geodetic2enu(b[0], b[1], 0.0, a[0], a[1], 0.0)
+        t += max(math.hypot(e, n) / speed, abs(b[2] - a[2]) / climb)
+    return t
+
+
+def _waypoints_time(path, speed=5.0, climb=2.0):
+    """A .waypoints mission's seconds read back: the climb from the ground, the legs between its
+    navigation items, every hold (NAV_WAYPOINT p1, whole seconds) and NAV_DELAY, the descent."""
+    rows = [ln.split("\t") for ln in path.read_text().splitlines()[1:]]
+    items = [(int(r[3]), [float(v) for v in r[4:11]]) for r in rows[1:]]
+    nav = [(p[4], p[5], p[6]) for c, p in items if c in (16, 22)]
+    waits = sum(int(p[0]) for c, p in items if c == 16) + sum(p[0] for c, p in items if c == 93)
+    return nav[0][2] / climb + _nav_legs_s(nav, speed, climb) + waits + nav[-1][2] / climb
+
+
+def _kmz_time(path, speed=5.0, climb=2.0):
+    """A DJI route's seconds read back from waylines.wpml: the climb, the legs, every hover, and
+    every rotateYaw at 30 deg/s from the heading the aircraft arrives with (the previous
+    point's waypointHeadingAngle; along the leg's course after a followWayline point)."""
+    import pymap3d
+    from lxml import etree
+
+    ns = {"k": "http://www.opengis.net/kml/2.2", "wpml": "http://www.dji.com/wpmz/1.0.2"}
+    with zipfile.ZipFile(path) as z:
+        root = etree.fromstring(z.read("wpmz/waylines.wpml"))
+    pts, t, prev = [], 0.0, None
+    for pm in root.iterfind(".//k:Placemark", ns):
+        lon, lat = map(float, pm.findtext("k:Point/k:coordinates", namespaces=ns).split(","))
+        pts.append((lat, lon, float(pm.findtext("wpml:executeHeight", namespaces=ns))))
+        arrive = prev
+        if prev is None or prev == "course":
+            arrive = None
+            if len(pts) > 1:
+                e, n, _ = pymap3d.geodetic2enu(lat, lon, 0.0, pts[-2][0], pts[-2][1], 0.0)
+                arrive = math.degrees(math.atan2(e, n))
+        for a in pm.iterfind("wpml:actionGroup/wpml:action", ns):
+            f = a.findtext("wpml:actionActuatorFunc", namespaces=ns)
+            if f == "hover":
+                t += float(a.findtext(".//wpml:hoverTime", namespaces=ns))
+            elif f == "rotateYaw":
+                h = float(a.findtext(".//wpml:aircraftHeading", namespaces=ns))
+                t += (180.0 if arrive is None else abs((h - arrive + 180) % 360 - 180)) / 30.0
+        mode = pm.findtext("wpml:waypointHeadingParam/wpml:waypointHeadingMode", namespaces=ns)
+        prev = (
+            "course"
+            if mode == "followWayline"
+            else float(
+                pm.findtext("wpml:waypointHeadingParam/wpml:waypointHeadingAngle", namespaces=ns)
+            )
+        )
+    return pts[0][2] / climb + _nav_legs_s(pts, speed, climb) + t + pts[-1][2] / climb
+
+
+def _plan_time(path, speed=5.0, climb=2.0):
+    items = json.loads(path.read_text())["mission"]["items"]
+    nav = [tuple(it["params"][4:7]) for it in items if it["command"] in (16, 22)]
+    waits = sum(it["params"][0] for it in items if it["command"] in (16, 93))
+    return nav[0][2] / climb + _nav_legs_s(nav, speed, climb) + waits + nav[-1][2] / climb
+
+
+def test_no_sortie_file_waits_past_the_battery(run_dir, tmp_path):
+    """The reviewer's case (--flight-time 0.6 --reserve 0): each sortie's .waypoints, .plan and
+    .kmz, read back and flown at the model's speeds with every hold, delay, hover and turn they
+    command, fit the 36 s; export.json reports each file's time (the longest is the sortie's)."""
+    out = tmp_path / "b"
+    s = export_mission(
+        run_dir, "qgc,wpml,csv", ORIGIN, HEADING, out, flight_time_min=0.6, reserve_pct=0
+    )
+    assert len(s["sorties"]) >= 2
+    for srt in s["sorties"]:
+        name = f"sortie_{srt['sortie']:02d}"
+        got = {
+            "ardupilot": _waypoints_time(out / f"{name}.waypoints"),
+            "px4": _plan_time(out / f"{name}.plan"),
+            "dji": _kmz_time(out / f"{name}.kmz"),
+        }
+        for k, v in got.items():
+            assert v <= 36.0 + 0.05, f"{name}.{k}: {v:.1f} s in a 36 s battery"
+        by = srt["time_s_by_file"]
+        for k, v in got.items():
+            assert v <= by[k] + 0.05, (name, k, v, by[k])
+        assert srt["time_s"] == max(by.values()) <= 36.0
+        assert got["ardupilot"] > got["px4"]  # the turns' holds counted
+    # the whole mission's waits per file in export.json too
+    assert set(s["mission"]["time_s_by_file"]) == {"px4", "ardupilot", "dji"}
+
+
+def test_ardupilot_file_sets_the_speed_after_the_first_waypoint_and_no_nan(exported):
+    """ArduCopter before 4.5 drops a DO_CHANGE_SPEED run during the take-off (issue #21080): the
+    speed is set again after the first NAV_WAYPOINT. Every parameter is a number (AP_Mission's
+    sanity_check_params refuses NaN), the gimbal's rates 0 (ArduPilot reads none when both
+    angles are set); the .plan is PX4's (firmwareType 12) and keeps them NaN (unset)."""
+    out, _ = exported
+    rows = [ln.split("\t") for ln in (out / "mission.waypoints").read_text().splitlines()[1:]]
+    cmds = [int(r[3]) for r in rows]
+    first_wp = cmds.index(16, 1)
+    assert cmds[2] == 178 and 178 in cmds[first_wp + 1 :]
+    after = [float(v) for v in rows[cmds.index(178, first_wp + 1)][4:7]]
+    assert after == [1.0, 5.0, -1.0]
+    assert all(math.isfinite(float(v)) for r in rows for v in r[4:11])
+    gimbal = [r for r in rows if r[3] == "1000"]
+    assert gimbal and all(float(r[6]) == 0.0 and float(r[7]) == 0.0 for r in gimbal)
+    plan = json.loads((out / "mission.plan").read_text())["mission"]
+    assert plan["firmwareType"] == 12
+    pg = [it for it in plan["items"] if it["command"] == 1000]
+    assert pg and all(it["params"][2] is None and it["params"][3] is None for it in pg)
+
+
+def test_hover_0_still_stops_and_settles_at_every_view(run_dir, tmp_path):
+    from lxml import etree
+
+    out = tmp_path / "h0"
+    export_mission(run_dir, "qgc,wpml,csv", ORIGIN, HEADING, out, hover_s=0.0)
+    rows = [ln.split("\t") for ln in (out / "mission.waypoints").read_text().splitlines()[1:]]
+    views = [r for r in _csv(out / "mission.csv") if r["action"] == "view"]
+    items = json.loads((out / "mission.plan").read_text())["mission"]["items"]
+    caps = [k for k, it in enumerate(items) if it["command"] == 2000]
+    plan_holds = [items[k - 1]["params"][0] for k in caps]
+    wpl = [int(r[3]) for r in rows]
+    wpl_holds = [float(rows[k - 1][4]) for k in range(len(rows)) if wpl[k] == 2000]
+    kinds = [r["action"] for r in _csv(out / "mission.csv") if r["action"] in ("view", "frame")]
+    assert len(plan_holds) == len(kinds) == len(wpl_holds)
+    for kind, ph, wh in zip(kinds, plan_holds, wpl_holds):
+        if kind == "view":
+            assert ph >= 1.0 and wh >= 1.0  # ArduCopter stops only when the hold is > 0
+    ns = {"wpml": "http://www.dji.com/wpmz/1.0.2"}
+    with zipfile.ZipFile(out / "mission.kmz") as z:
+        root = etree.fromstring(z.read("wpmz/waylines.wpml"))
+    settles = 0
+    for ag in root.iterfind(".//wpml:actionGroup", ns):
+        funcs = [a.findtext("wpml:actionActuatorFunc", namespaces=ns) for a in ag]
+        funcs = [f for f in funcs if f]
+        if "hover" in funcs:
+            assert funcs.index("hover") < funcs.index("takePhoto")
+            settles += 1
+    assert settles == len(views)
+
+
+def test_dji_route_values_in_their_ranges_and_rth_above_the_structure(exported, run_dir):
+    from lxml import etree
+
+    out, _ = exported
+    ns = {"k": "http://www.opengis.net/kml/2.2", "wpml": "http://www.dji.com/wpmz/1.0.2"}
+    ws = json.loads((run_dir / "summary.json").read_text())["workspace"]
+    launch = json.loads((out / "export.json").read_text())["launch_point_mesh"]
+    top = ws["bounds_max"][2] - launch[2]
+    with zipfile.ZipFile(out / "mission.kmz") as z:
+        for n in z.namelist():
+            root = etree.fromstring(z.read(n))
+            # waypointTurnDampingDist's range is (0, segment]; not needed with a stop at points
+            for d in root.iterfind(".//wpml:waypointTurnDampingDist", ns):
+                assert float(d.text) > 0
+            rth = float(root.findtext(".//wpml:globalRTHHeight", namespaces=ns))
+            heights = [float(e.text) for e in root.iterfind(".//wpml:executeHeight", ns)]
+            heights += [float(e.text) for e in root.iterfind(".//k:Placemark/wpml:height", ns)]
+            assert rth >= top + 5.0 and rth >= max(heights) + 5.0 and rth <= 1500.0
+
+
+def test_mavlink_home_is_above_mean_sea_level_from_an_ellipsoidal_origin(run_dir, tmp_path):
+    """The .waypoints home row (MAV_FRAME_GLOBAL) and the .plan's plannedHomePosition are AMSL:
+    from the same place given as an ellipsoidal height (AMSL + the EGM96 geoid height, 47.3 to
+    47.4 m round Zurich: NGA's EGM96 tables) they are the AMSL export's."""
+    from nbvkit.export.georef import egm96_geoid_height
+
+    n = float(egm96_geoid_height([ORIGIN[0]], [ORIGIN[1]])[0])
+    assert 47.2 < n < 47.5
+    homes = []
+    for ref, alt in (("amsl", ORIGIN[2]), ("ellipsoid", ORIGIN[2] + n)):
+        out = tmp_path / ref
+        export_mission(run_dir, "qgc", ORIGIN[:2] + (alt,), HEADING, out, altitude_ref=ref)
+        home_row = (out / "mission.waypoints").read_text().splitlines()[1].split("\t")
+        plan = json.loads((out / "mission.plan").read_text())["mission"]
+        homes.append((float(home_row[10]), plan["plannedHomePosition"][2]))
+    assert homes[1][0] == pytest.approx(homes[0][0], abs=0.02)
+    assert homes[1][1] == pytest.approx(homes[0][1], abs=0.02)

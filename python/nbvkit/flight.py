@@ -8,9 +8,11 @@ on the ground below it (the workspace floor, summary.json) and climbs straight u
 lands there again.
 
 Flight-time model (FlightModel): a straight leg takes max(horizontal distance / speed, |climb| /
-climb_rate) seconds (a multirotor flies it at its horizontal and vertical speed limits), and a
-counted view adds `hover_s` (turning the gimbal, taking the photo). In-flight camera frames (the
-profile's and those on the legs to views) add nothing.
+climb_rate) seconds (a multirotor flies it at its horizontal and vertical speed limits), and each
+capture adds the waits the written missions command there (capture_waits: the settle, the photo,
+the rest of `hover_s`, and in the ArduPilot and DJI files the turn to the capture's heading). A
+sortie's time is that of the format that waits longest (the .waypoints file as a rule); the times
+per format are reported too.
 
 Sorties (split_sorties): each starts and ends at home within budget * (1 - reserve). A sortie
 resumes where the last one stopped: at the first point of the flight that is still to be
@@ -38,11 +40,66 @@ import numpy as np
 #: capture kinds of a flight row
 VIEW, FRAME = "view", "frame"
 
+#: the turn rate the ArduPilot file asks CONDITION_YAW for (deg/s, its param 2); the time model
+#: also bounds the DJI route's rotateYaw by it (ArduPilot's own default is ATC_SLEW_YAW, 60 deg/s)
+YAW_RATE_DEG_S = 30.0
+#: the hold between the arrival at a view and its photo (s), whatever --hover is: the aircraft
+#: stops (ArduCopter stops at a waypoint only when its hold is > 0) and the gimbal settles
+SETTLE_S = 1.0
+#: the mission files whose waits capture_waits models: the .plan (PX4), the .waypoints
+#: (ArduPilot) and the DJI .kmz
+TARGETS = ("px4", "ardupilot", "dji")
+
+
+def _signed_deg(deg: float) -> float:
+    return (deg + 180.0) % 360.0 - 180.0
+
+
+def capture_waits(actions, headings_deg, hover_s: float) -> dict:
+    """The waits of each waypoint (N,) in each mission file (TARGETS), the one function both the
+    time model and the writers use: target -> (hold, rest, turn_s), arrays (N,) of seconds.
+
+    hold: from the arrival to the photo; rest: after the photo (NAV_DELAY, a DJI hover); turn_s:
+    the DJI route's rotateYaw before the photo, bounded at YAW_RATE_DEG_S (0 elsewhere). Only
+    captures (view, frame) wait. A view settles SETTLE_S (1 s) before its photo whatever
+    `hover_s` is and stays max(hover_s, its hold) in all; a frame does not settle. The turn of a
+    capture: from the previous waypoint's heading, 180 degrees after a take-off or a transit leg
+    (their heading is not commanded). px4: hold = the settle, rest = hover_s - settle.
+    ardupilot: CONDITION_YAW turns at YAW_RATE_DEG_S, and the hold covers the whole turn and the
+    settle, ceil(turn / 30 + settle) whole seconds (ArduPilot keeps NAV_WAYPOINT's hold in whole
+    seconds; the leg's time is not counted: the copter may fly faster than --speed), rest =
+    hover_s - hold. dji: rotateYaw (turn / 30 at most), the settle, the photo, the rest of
+    hover_s. headings_deg: the heading of each waypoint (degrees, any origin: only differences
+    count)."""
+    n = len(actions)
+    out = {t: (np.zeros(n), np.zeros(n), np.zeros(n)) for t in TARGETS}
+    for k in range(n):
+        a = actions[k]
+        if a not in (VIEW, FRAME):
+            continue
+        settle = SETTLE_S if a == VIEW else 0.0
+        prev = actions[k - 1] if k > 0 else "takeoff"
+        turn = 180.0
+        if prev not in ("takeoff", "transit"):
+            turn = abs(_signed_deg(float(headings_deg[k]) - float(headings_deg[k - 1])))
+        turn_s = turn / YAW_RATE_DEG_S
+        hover = max(float(hover_s), settle) if a == VIEW else 0.0
+        ap = float(math.ceil(turn_s + settle - 1e-9))
+        out["px4"][0][k], out["px4"][1][k] = settle, hover - settle
+        out["ardupilot"][0][k], out["ardupilot"][1][k] = ap, max(0.0, hover - ap)
+        out["dji"][0][k], out["dji"][1][k], out["dji"][2][k] = settle, hover - settle, turn_s
+    return out
+
+
+def waits_s(waits: dict) -> dict:
+    """target -> the seconds a mission file waits in all (capture_waits' sum)."""
+    return {t: float(sum(float(np.sum(v)) for v in waits[t])) for t in TARGETS}
+
 
 @dataclass(frozen=True)
 class FlightModel:
     """Flight-time model: speed (m/s, horizontal), climb_rate (m/s, up and down), hover_s
-    (seconds per counted view)."""
+    (seconds per counted view, at least SETTLE_S: capture_waits)."""
 
     speed: float = 5.0
     climb_rate: float = 2.0
@@ -319,6 +376,10 @@ class Sortie:
     distance_m: float = 0.0
     time_s: float = 0.0
     legs: dict = field(default_factory=dict)
+    #: the seconds of the sortie in each mission file (TARGETS); time_s is the longest
+    times: dict = field(default_factory=dict)
+    #: capture_waits of its waypoints: the holds, rests and turns the writers write
+    waits: dict = field(default_factory=dict)
 
     def to_dict(self) -> dict:
         return {
@@ -332,6 +393,7 @@ class Sortie:
             "time_s": round(self.time_s, 1),
             "time_min": round(self.time_s / 60.0, 2),
             **{k: round(v, 1) for k, v in self.legs.items()},
+            "time_s_by_file": {k: round(v, 1) for k, v in self.times.items()},
         }
 
 
@@ -342,14 +404,29 @@ class SortiePlanner:
         self.fl, self.model, self.returns = fl, model, returns
         leg = np.concatenate([[0.0], model.leg_times(fl.xyz)])
         self.cum = np.cumsum(leg)  # s from row 0 along the flight
-        hov = np.array([model.hover_s if c == VIEW else 0.0 for c in fl.capture])
-        self.cum_hover = np.cumsum(hov)
+        # an estimate of each capture's longest wait (capture_waits over the flight's rows: the
+        # turn from the previous row), and first: the same after a transit leg (a sortie's first
+        # row); split() checks each sortie against the waits of its own waypoints
+        deg = np.degrees(fl.yaw)
+        acts = [c or "waypoint" for c in fl.capture]
+        self.wait_row = self._longest(capture_waits(acts, deg, model.hover_s))
+        self.wait_first = np.zeros(len(acts))
+        for i, c in enumerate(fl.capture):
+            if c:
+                w = capture_waits(["transit", c], [0.0, deg[i]], model.hover_s)
+                self.wait_first[i] = self._longest(w)[1]
+        self.cum_wait = np.cumsum(self.wait_row)
         if fl.launch is None:
             fl.launch, fl.launch_path = fl.start.copy(), fl.start[None, :].copy()
         #: seconds from the ground to the start (climb, then the way over) and back
         self.climb_s = float(abs(fl.launch[2] - fl.home[2]) / model.climb_rate)
         self.climb_s += model.path_time(fl.launch_path)
         self.work = self.work_rows(fl)
+
+    @staticmethod
+    def _longest(waits: dict) -> np.ndarray:
+        """(N,) the longest of the mission files' waits at each waypoint."""
+        return np.max([sum(waits[t]) for t in TARGETS], axis=0)
 
     @staticmethod
     def work_rows(fl: RunFlight) -> np.ndarray:
@@ -361,11 +438,12 @@ class SortiePlanner:
         )
 
     def cost(self, r: int, e: int) -> float:
-        """Seconds of a sortie flying rows r..e: climb, out, along, hovers, back, descent."""
+        """Estimated seconds of a sortie flying rows r..e: climb, out, along, the captures'
+        waits, back, descent (the sortie itself counts the waits of its own waypoints)."""
         R = self.returns.cost
         along = self.cum[e] - self.cum[r]
-        hover = self.cum_hover[e] - (self.cum_hover[r - 1] if r > 0 else 0.0)
-        return 2 * self.climb_s + R[r] + along + hover + R[e]
+        wait = self.wait_first[r] + self.cum_wait[e] - self.cum_wait[r]
+        return 2 * self.climb_s + R[r] + along + wait + R[e]
 
     def sortie(self, number: int, r: int, e: int) -> Sortie:
         fl = self.fl
@@ -399,13 +477,18 @@ class SortiePlanner:
         s.views = sum(1 for i in range(r, e + 1) if fl.capture[i] == VIEW)
         s.frames = sum(1 for i in range(r, e + 1) if fl.capture[i] == FRAME)
         s.distance_m = float(np.linalg.norm(np.diff(pts, axis=0), axis=1).sum())
-        s.time_s = self.cost(r, e)
+        # the waits the mission files write at these waypoints (the same function as theirs)
+        s.waits = capture_waits(
+            [w.action for w in wps], [math.degrees(w.yaw) for w in wps], self.model.hover_s
+        )
+        waits = waits_s(s.waits)
+        fly = 2 * self.climb_s + self.returns.cost[r] + self.cum[e] - self.cum[r]
+        fly += self.returns.cost[e]
+        s.times = {t: fly + waits[t] for t in TARGETS}
+        s.time_s = max(s.times.values())
         s.legs = {
             "out_s": self.climb_s + self.returns.cost[r],
-            "along_s": self.cum[e]
-            - self.cum[r]
-            + self.cum_hover[e]
-            - (self.cum_hover[r - 1] if r > 0 else 0.0),
+            "along_s": self.cum[e] - self.cum[r] + max(waits.values()),
             "back_s": self.returns.cost[e] + self.climb_s,
         }
         return s
@@ -440,7 +523,25 @@ class SortiePlanner:
                 )
                 k += 1
                 continue
-            sorties.append(self.sortie(len(sorties) + 1, r, int(work[best])))
+            # the sortie's own waits (its waypoints' turns) may pass the estimate: fly less
+            s = None
+            while best is not None:
+                s = self.sortie(len(sorties) + 1, r, int(work[best]))
+                if s.time_s <= usable_s + 1e-9:
+                    break
+                best = best - 1 if best > k else None
+            if best is None:
+                unreachable.append(
+                    {
+                        "row": r,
+                        "capture": self.fl.capture[r],
+                        "stage": self.fl.stage[r],
+                        "needed_s": round(s.time_s, 1),
+                    }
+                )
+                k += 1
+                continue
+            sorties.append(s)
             k = best + 1
         return sorties, unreachable
 

@@ -23,7 +23,9 @@ def register(sub) -> argparse.ArgumentParser:
         "--format",
         default="qgc",
         metavar="FORMAT[,FORMAT...]",
-        help=f"any of {', '.join(FORMATS)} (default qgc: a .plan and a QGC WPL 110 .waypoints)",
+        help=f"any of {', '.join(FORMATS)} (default qgc: a .plan for PX4 and a QGC WPL 110 "
+        ".waypoints for ArduPilot 4.4 or later, which runs IMAGE_START_CAPTURE in missions; "
+        "wpml: a DJI .kmz route)",
     )
     p.add_argument(
         "--origin",
@@ -62,7 +64,8 @@ def register(sub) -> argparse.ArgumentParser:
         type=float,
         default=2.0,
         metavar="S",
-        help="hover per view: a settle of up to 1 s, the photo, the rest (default 2 s)",
+        help="hover per view: a settle of 1 s (always, even with --hover 0), the photo, the "
+        "rest (default 2 s)",
     )
     p.add_argument(
         "--flight-time",
@@ -103,6 +106,13 @@ def run(args) -> int:
         f"mission: {m['views']} views, {m['distance_m']:.0f} m, {m['time_min']:.1f} min "
         f"(speed {args.speed:g} m/s, climb {args.climb_rate:g} m/s, hover {args.hover:g} s)"
     )
+    by = m.get("time_s_by_file") or {}
+    if by:  # the files wait differently: the longest is the mission's (and a sortie's) time
+        names = {"px4": ".plan (PX4)", "ardupilot": ".waypoints (ArduPilot)", "dji": ".kmz (DJI)"}
+        print(
+            "  time by file: "
+            + ", ".join(f"{names.get(k, k)} {v / 60:.1f} min" for k, v in by.items())
+        )
     if s["budget"] is not None:
         print(f"{'sortie':>6} {'views':>6} {'distance_m':>11} {'time_min':>9}")
         for r in s["sorties"]:

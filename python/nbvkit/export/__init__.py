@@ -138,7 +138,33 @@ def _geo(fl, sortie, frame: GeoFrame, speed, hover_s, numbers, name, seqs=None):
         altitude_ref=frame.altitude_ref,
         name=name,
         seq=[(seqs or {}).get(w.row, 0) for w in wps],
+        waits=sortie.waits or None,
+        rth_height=_structure_top(fl),
     )
+
+
+def _structure_top(fl) -> float | None:
+    """The top of the run's workspace (the structure and the air round it) above the launch
+    point (m), or None when the workspace has no top."""
+    top = (fl.workspace or {}).get("bounds_max")
+    return None if top is None else float(top[2]) - float(fl.home[2])
+
+
+def _home_amsl(frame: GeoFrame, home: tuple) -> float:
+    """The launch point's altitude above mean sea level: home's own with an AMSL origin; with an
+    ellipsoidal one its height less the EGM96 geoid height there."""
+    if frame.altitude_ref != "ellipsoid":
+        return float(home[2])
+    from .georef import egm96_geoid_height
+
+    try:
+        n = float(egm96_geoid_height([home[0]], [home[1]])[0])
+    except ValueError as e:
+        raise ValueError(
+            f"the .plan and .waypoints home is above mean sea level; from an ellipsoidal origin "
+            f"that needs the EGM96 geoid ({e})"
+        ) from None
+    return float(home[2]) - n
 
 
 def camera_poses(fl) -> list:
@@ -283,6 +309,7 @@ def _summary(run, frame, fl, model, whole, budget, sorties, unreachable, fmts) -
             "distance_m": round(whole.distance_m, 3),
             "views": whole.views,
             "frames": whole.frames,
+            "time_s_by_file": {k: round(v, 1) for k, v in whole.times.items()},
         },
         "budget": budget,
         "sorties": [s.to_dict() for s in sorties],
@@ -306,6 +333,7 @@ def _write_formats(tmp: Path, fmts, fl, sorties, names, frame, model, drone, pay
     for s, name in zip(sorties, names):
         g = _geo(fl, s, frame, model.speed, model.hover_s, numbers, name, seqs)
         if "qgc" in fmts:
+            g.home_amsl = _home_amsl(frame, g.home)
             writers.write_qgc_plan(g, tmp / f"{name}.plan")
             writers.write_qgc_wpl(g, tmp / f"{name}.waypoints")
             files += [f"{name}.plan", f"{name}.waypoints"]

@@ -5,7 +5,16 @@ from __future__ import annotations
 import zipfile
 from xml.etree import ElementTree as ET
 
-from .writers import KML_NS, SETTLE_S, WPML_NS, GeoWaypoints, _f, _signed, clean_angle
+import math
+
+from .writers import KML_NS, WPML_NS, GeoWaypoints, _f, _signed, clean_angle, waits
+
+#: the return-to-home height's margin above the highest of the structure's workspace and the
+#: flight (m)
+RTH_MARGIN_M = 10.0
+#: the highest globalRTHHeight written (m above the take-off point): DJI's height range, as for
+#: takeOffSecurityHeight [1.2, 1500] (WPML gives globalRTHHeight no range of its own)
+RTH_MAX_M = 1500.0
 
 __all__ = ["write_wpml_kmz", "LENS"]
 
@@ -21,10 +30,30 @@ def _el(parent, tag, text=None, ns=WPML_NS):
     return e
 
 
+def rth_height(g: GeoWaypoints) -> float:
+    """The return-to-home height (m above the take-off point; the aircraft climbs to it before
+    it flies home in a straight line, on a lost link or at the end): above the structure's top
+    (g.rth_height: the run's workspace top, or the highest waypoint) by RTH_MARGIN_M, at most
+    RTH_MAX_M."""
+    top = float(max(g.rel_alt)) if g.rth_height is None else float(g.rth_height)
+    return min(max(top, float(max(g.rel_alt))) + RTH_MARGIN_M, RTH_MAX_M)
+
+
+def _course(g: GeoWaypoints, k: int) -> float:
+    """The bearing (deg) of the leg into waypoint k: the heading a followWayline leg arrives
+    with."""
+    import pymap3d
+
+    e, n, _ = pymap3d.geodetic2enu(g.lat[k], g.lon[k], 0.0, g.lat[k - 1], g.lon[k - 1], 0.0)
+    return math.degrees(math.atan2(e, n)) % 360.0
+
+
 def _mission_config(doc, g: GeoWaypoints, drone, payload, template: bool):
     mc = _el(doc, "missionConfig")
     _el(mc, "flyToWaylineMode", "safely")
-    _el(mc, "finishAction", "goHome")
+    # the last waypoint is straight above the launch point: land there (goHome would first
+    # climb to the return height, out of the time model)
+    _el(mc, "finishAction", "autoLand")
     _el(mc, "exitOnRCLost", "executeLostAction")
     _el(mc, "executeRCLostAction", "goBack")
     takeoff_h = float(g.rel_alt[0])
@@ -32,7 +61,7 @@ def _mission_config(doc, g: GeoWaypoints, drone, payload, template: bool):
     if template:  # "the height of the ellipsoid shall be used"
         _el(mc, "takeOffRefPoint", f"{_f(g.home[0], 9)},{_f(g.home[1], 9)},{_f(g.home_ell, 3)}")
     _el(mc, "globalTransitionalSpeed", _f(min(g.speed, 15.0), 2))
-    _el(mc, "globalRTHHeight", _f(takeoff_h, 3))
+    _el(mc, "globalRTHHeight", _f(rth_height(g), 3))
     di = _el(mc, "droneInfo")
     _el(di, "droneEnumValue", drone[0])
     _el(di, "droneSubEnumValue", drone[1])
@@ -69,8 +98,9 @@ def _placemark(folder, g: GeoWaypoints, k: int, index: int, template: bool, grou
         _el(hp, "waypointHeadingAngle", _f(clean_angle(_signed(float(g.heading[k])), 3), 3))
     _el(hp, "waypointHeadingPathMode", "followBadArc")
     tp = _el(pm, "waypointTurnParam")
+    # no waypointTurnDampingDist: its range is (0, segment], and it is required only with
+    # coordinateTurn or toPointAndPassWithContinuityCurvature and useStraightLine 1
     _el(tp, "waypointTurnMode", "toPointAndStopWithDiscontinuityCurvature")
-    _el(tp, "waypointTurnDampingDist", 0)
     a = g.action[k]
     if a not in ("view", "frame"):
         return group
@@ -80,10 +110,11 @@ def _placemark(folder, g: GeoWaypoints, k: int, index: int, template: bool, grou
     _el(ag, "actionGroupEndIndex", index)
     _el(ag, "actionGroupMode", "sequence")
     _el(_el(ag, "actionTrigger"), "actionTriggerType", "reachPoint")
-    # every capture: the gimbal's pitch, then (a view) a short settle, the photo, the rest of
-    # the hover; the heading is reached on the way (smoothTransition)
-    settle = min(g.hover_s, SETTLE_S) if a == "view" else 0.0
-    rest = g.hover_s - settle if a == "view" else 0.0
+    # every capture: the gimbal's pitch, the aircraft's heading (rotateYaw: the leg into a
+    # capture after a transit point is flown facing along the course, followWayline), then (a
+    # view) the settle, the photo, the rest of the hover (nbvkit.flight.capture_waits)
+    hold, rest_s, _ = waits(g)["dji"]
+    settle, rest = float(hold[k]), float(rest_s[k])
     aid = 0
     act = _el(ag, "action")
     _el(act, "actionId", aid)
@@ -101,6 +132,16 @@ def _placemark(folder, g: GeoWaypoints, k: int, index: int, template: bool, grou
     _el(p, "gimbalRotateTimeEnable", 0)
     _el(p, "gimbalRotateTime", 0)
     _el(p, "payloadPositionIndex", 0)
+    heading = clean_angle(_signed(float(g.heading[k])), 3)
+    before = g.heading[k - 1] if g.action[k - 1] not in ("transit",) else _course(g, k)
+    turn = _signed(float(g.heading[k]) - float(before))
+    act = _el(ag, "action")
+    _el(act, "actionId", aid)
+    aid += 1
+    _el(act, "actionActuatorFunc", "rotateYaw")
+    p = _el(act, "actionActuatorFuncParam")
+    _el(p, "aircraftHeading", _f(heading, 3))
+    _el(p, "aircraftPathMode", "clockwise" if turn >= 0 else "counterClockwise")
     for step in ("settle", "photo", "rest"):
         hover = {"settle": settle, "rest": rest}.get(step)
         if hover is not None and hover <= 0:

@@ -15,6 +15,8 @@ from xml.etree import ElementTree as ET
 
 import numpy as np
 
+from ..flight import SETTLE_S, YAW_RATE_DEG_S, capture_waits  # noqa: F401  (re-exported)
+
 # MAVLink common message set (mavlink/mavlink message_definitions/v1.0/common.xml)
 MAV_CMD_NAV_WAYPOINT = 16
 MAV_CMD_NAV_RETURN_TO_LAUNCH = 20
@@ -38,13 +40,8 @@ SPEED_TYPE_GROUND = 1  # DO_CHANGE_SPEED param 1
 #: [0, 15] and its route speeds may not pass the aircraft's maximum; PX4's default
 #: MPC_XY_VEL_MAX is 12 m/s, ArduPilot's WPNAV_SPEED at most 20 m/s. See docs/EXPORT.md.
 MAX_SPEED_M_S = 15.0
-#: the turn rate the ArduPilot file asks CONDITION_YAW for (deg/s, its param 2): known, so that
-#: each capture's hold can cover the turn (ArduPilot's own default is ATC_SLEW_YAW, 60 deg/s)
-YAW_RATE_DEG_S = 30.0
-#: the hold between the arrival at a view and its photo (s; at most --hover, the rest of the
-#: hover follows the photo): the aircraft brakes and the gimbal settles
-SETTLE_S = 1.0
-
+# the turn rate of CONDITION_YAW and the settle before a view's photo: nbvkit.flight, whose
+# capture_waits gives the time model and these writers the same holds
 KML_NS = "http://www.opengis.net/kml/2.2"
 WPML_NS = "http://www.dji.com/wpmz/1.0.2"
 
@@ -58,7 +55,11 @@ class GeoWaypoints:
     of the launch point; number: the 1-based number of each view/frame among its kind in the
     whole flight (0 else); seq: the 1-based number of each capture among all captures of the
     whole flight, views and frames together, in flight order (0 else); ell_alt (N,) and
-    home_ell: heights above the WGS84 ellipsoid (filled for the DJI route only)."""
+    home_ell: heights above the WGS84 ellipsoid (filled for the DJI route only); waits: the
+    sortie's nbvkit.flight.capture_waits (None: computed from the headings); home_amsl: the
+    launch point's altitude above mean sea level (None: home's own, an AMSL origin);
+    rth_height: the DJI route's return-to-home height above the take-off point (None: the
+    highest waypoint's + RTH_MARGIN_M)."""
 
     lat: np.ndarray
     lon: np.ndarray
@@ -79,6 +80,9 @@ class GeoWaypoints:
     seq: list = None
     ell_alt: np.ndarray = None
     home_ell: float = None
+    waits: dict = None
+    home_amsl: float = None
+    rth_height: float = None
 
     def __len__(self):
         return len(self.lat)
@@ -101,51 +105,27 @@ def clean_angle(deg: float, nd: int = 9) -> float:
 
 
 # ---------------------------------------------------------------------- MAVLink missions
-def _leg_s(g: GeoWaypoints, k: int) -> float:
-    """A lower bound on the seconds of the leg into waypoint k: its horizontal length at the
-    cruise speed (the aircraft starts it from a stop or slower)."""
-    import pymap3d
-
-    if k == 0:
-        return 0.0
-    e, n, _ = pymap3d.geodetic2enu(g.lat[k], g.lon[k], 0.0, g.lat[k - 1], g.lon[k - 1], 0.0)
-    return float(math.hypot(e, n)) / g.speed
+def waits(g: GeoWaypoints) -> dict:
+    """The sortie's capture_waits (target -> (hold, rest, turn_s)): those the time model
+    counted, or computed from the headings when g has none."""
+    if g.waits is not None:
+        return g.waits
+    return capture_waits(list(g.action), [float(h) for h in g.heading], g.hover_s)
 
 
 def capture_holds(g: GeoWaypoints, ardupilot: bool) -> tuple[np.ndarray, np.ndarray]:
-    """(hold, rest) seconds (N,) of each waypoint: hold from the arrival to the photo, rest
-    after it (a NAV_DELAY). A view holds min(--hover, SETTLE_S) and rests the remainder of
-    --hover; a frame neither. ardupilot: the heading is turned by CONDITION_YAW at YAW_RATE_DEG_S
-    from the start of the leg, so a capture's hold also covers the part of the turn (from the
-    previous waypoint's heading; 180 degrees after a take-off or a transit leg, whose heading
-    is not commanded) that the leg (at most its length at the cruise speed) does not, plus the
-    settle, rounded up to whole seconds (ArduPilot keeps NAV_WAYPOINT's hold as integer
-    seconds)."""
-    n = len(g)
-    hold, rest = np.zeros(n), np.zeros(n)
-    for k in range(n):
-        a = g.action[k]
-        if a not in ("view", "frame"):
-            continue
-        base = min(g.hover_s, SETTLE_S) if a == "view" else 0.0
-        h = base
-        if ardupilot:
-            prev = g.action[k - 1] if k > 0 else "takeoff"
-            turn = 180.0
-            if prev not in ("takeoff", "transit"):
-                turn = abs(_signed(float(g.heading[k]) - float(g.heading[k - 1])))
-            h = max(base, turn / YAW_RATE_DEG_S - _leg_s(g, k) + base)
-            h = float(math.ceil(h - 1e-9))
-        hold[k] = h
-        if a == "view":
-            rest[k] = max(0.0, g.hover_s - h)
+    """(hold, rest) seconds (N,) of each waypoint in the ArduPilot file (ardupilot) or the .plan
+    (PX4): hold from the arrival to the photo (NAV_WAYPOINT p1), rest after it (a NAV_DELAY);
+    nbvkit.flight.capture_waits."""
+    hold, rest, _ = waits(g)["ardupilot" if ardupilot else "px4"]
     return hold, rest
 
 
 def mavlink_items(g: GeoWaypoints, ardupilot: bool = False) -> list[dict]:
     """The mission as MAVLink items (command, frame, params p1..p7 with None for NaN): take-off,
-    the cruise speed (DO_CHANGE_SPEED), a waypoint per point and return to launch. Each capture
-    (view or in-flight frame): its gimbal pitch (DO_GIMBAL_MANAGER_PITCHYAW) before its
+    the cruise speed (DO_CHANGE_SPEED, again after the first waypoint's items: ArduCopter
+    before 4.5 drops the first, issue #21080), a waypoint per point and return to launch. Each
+    capture (view or in-flight frame): its gimbal pitch (DO_GIMBAL_MANAGER_PITCHYAW) before its
     waypoint, so that the gimbal turns on the way there; the waypoint, with the capture's heading
     as its yaw and its hold (capture_holds); then the photo (IMAGE_START_CAPTURE, the capture's
     mission-wide sequence number) and, at a view, a NAV_DELAY for the rest of the hover. A
@@ -154,8 +134,12 @@ def mavlink_items(g: GeoWaypoints, ardupilot: bool = False) -> list[dict]:
     MAV_CMD_CONDITION_YAW before every waypoint whose heading the flight plans (all but transit
     legs): ArduPilot's copter ignores NAV_WAYPOINT's yaw and resets the yaw at the start of each
     waypoint, and runs the commands between two waypoints from the start of the leg to the
-    second (docs/EXPORT.md)."""
+    second (docs/EXPORT.md); the gimbal's rates 0, not NaN (AP_Mission refuses NaN there)."""
     hold, rest = capture_holds(g, ardupilot)
+    # gimbal rates: NaN ("unset" in common.xml) for PX4; ArduPilot's AP_Mission rejects NaN
+    # there on upload (sanity_check_params) and reads no rate when both angles are set
+    rate = 0.0 if ardupilot else None
+    speed_after_first_wp = True  # ArduCopter < 4.5 drops the one after the take-off (#21080)
     seq = g.seq
     if seq is None:  # number the captures of these waypoints, views and frames together
         seq = list(np.cumsum([a in ("view", "frame") for a in g.action]))
@@ -185,8 +169,8 @@ def mavlink_items(g: GeoWaypoints, ardupilot: bool = False) -> list[dict]:
                     [
                         clean_angle(g.gimbal_pitch[k]),
                         clean_angle(g.gimbal_yaw[k]),
-                        None,
-                        None,
+                        rate,
+                        rate,
                         GIMBAL_MANAGER_FLAGS_PITCH_LOCK,
                         0,
                         0,
@@ -217,12 +201,31 @@ def mavlink_items(g: GeoWaypoints, ardupilot: bool = False) -> list[dict]:
                 items.append(
                     (MAV_CMD_NAV_DELAY, MAV_FRAME_MISSION, [float(rest[k]), -1, -1, -1, 0, 0, 0])
                 )
+        if speed_after_first_wp:
+            # again after the first waypoint's items: runs when it is done, after the next
+            # waypoint's start, which keeps it (ArduPilot issue #21080)
+            items.append(
+                (
+                    MAV_CMD_DO_CHANGE_SPEED,
+                    MAV_FRAME_MISSION,
+                    [SPEED_TYPE_GROUND, float(g.speed), -1, 0, 0, 0, 0],
+                )
+            )
+            speed_after_first_wp = False
     items.append((MAV_CMD_NAV_RETURN_TO_LAUNCH, MAV_FRAME_MISSION, [0, 0, 0, 0, 0, 0, 0]))
     return [{"command": c, "frame": f, "params": p} for c, f, p in items]
 
 
+def _home_amsl(g: GeoWaypoints) -> tuple:
+    """The launch point (lat, lon, altitude above mean sea level): MAV_FRAME_GLOBAL and the
+    .plan's plannedHomePosition are AMSL, whatever the origin's reference."""
+    alt = g.home[2] if g.home_amsl is None else g.home_amsl
+    return (g.home[0], g.home[1], alt)
+
+
 def write_qgc_plan(g: GeoWaypoints, path, firmware: int = MAV_AUTOPILOT_PX4) -> None:
-    """QGroundControl .plan (JSON): mission items as SimpleItems, relative altitudes."""
+    """QGroundControl .plan (JSON) for PX4 (firmwareType 12; ArduPilot: the .waypoints file):
+    mission items as SimpleItems, relative altitudes, the home AMSL."""
     items = []
     for i, it in enumerate(mavlink_items(g), start=1):
         item = {
@@ -251,7 +254,7 @@ def write_qgc_plan(g: GeoWaypoints, path, firmware: int = MAV_AUTOPILOT_PX4) -> 
             "cruiseSpeed": g.speed,
             "hoverSpeed": g.speed,
             "globalPlanAltitudeMode": QGC_ALTITUDE_MODE_RELATIVE,
-            "plannedHomePosition": [float(x) for x in g.home],
+            "plannedHomePosition": [float(x) for x in _home_amsl(g)],
             "items": items,
         },
         "geoFence": {"circles": [], "polygons": [], "version": 2},
@@ -263,10 +266,11 @@ def write_qgc_plan(g: GeoWaypoints, path, firmware: int = MAV_AUTOPILOT_PX4) -> 
 
 
 def write_qgc_wpl(g: GeoWaypoints, path) -> None:
-    """The plain-text `QGC WPL 110` mission (Mission Planner, ArduPilot): line 0 the home (absolute
-    altitude), then the items, tab-separated; NaN parameters written as 0."""
+    """The plain-text `QGC WPL 110` mission for ArduPilot (Mission Planner; IMAGE_START_CAPTURE
+    needs ArduPilot 4.4 or later): line 0 the home (altitude above mean sea level), then the
+    items, tab-separated; NaN parameters written as 0."""
     lines = ["QGC WPL 110"]
-    home = [0, 1, MAV_FRAME_GLOBAL, MAV_CMD_NAV_WAYPOINT, 0, 0, 0, 0, *g.home, 1]
+    home = [0, 1, MAV_FRAME_GLOBAL, MAV_CMD_NAV_WAYPOINT, 0, 0, 0, 0, *_home_amsl(g), 1]
     rows = [home]
     for i, it in enumerate(mavlink_items(g, ardupilot=True), start=1):
         p = [0.0 if v is None else float(v) for v in it["params"]]
