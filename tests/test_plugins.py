@@ -452,3 +452,35 @@ def test_ctrl_c_in_a_slow_utility_keeps_the_flight(tmp_path):
     s = json.loads((tmp_path / "run" / "summary.json").read_text())
     assert s["termination"] == "interrupted" and s["iterations"] == 2
     assert s["stopped_by"] == "KeyboardInterrupt" and s["utility"] == "slow"
+
+
+def test_a_plugin_file_that_fails_registers_nothing_and_loads_again_once_fixed(tmp_path):
+    """A file that registers parts and then raises leaves none of them registered: fixed, it
+    loads under the same names (the names were taken: 'registered already')."""
+    from nbvkit.plugins import LOADED, load_plugin
+    from nbvkit.scenarios import SCENARIOS
+
+    f = tmp_path / "half.py"
+    source = (
+        "import math\nimport numpy as np\nimport nbvkit\n"
+        "from nbvkit.planning.utilities import per_candidate\n"
+        + _source(RingSettings, RingGenerator)
+        + "\nnbvkit.register_generator('half_ring', RingGenerator)\n"
+        "nbvkit.register_utility('half_u', lambda rays: per_candidate(rays, rays.range))\n"
+        "nbvkit.register_scenario('half', 'a half-written plugin', {})\n"
+    )
+    f.write_text(source + "raise RuntimeError('a bug after registering')\n")
+    try:
+        with pytest.raises(RuntimeError, match="a bug after registering"):
+            load_plugin(f)
+        assert "half_ring" not in registry.GENERATORS and "half_u" not in registry.UTILITIES
+        assert "half" not in SCENARIOS and str(f.resolve()) not in LOADED
+        f.write_text(source)
+        load_plugin(f)
+        assert "half_ring" in registry.GENERATORS and "half_u" in registry.UTILITIES
+    finally:
+        registry.GENERATORS.pop("half_ring", None)
+        registry.UTILITIES.pop("half_u", None)
+        SCENARIOS.pop("half", None)
+        if str(f.resolve()) in LOADED:
+            LOADED.remove(str(f.resolve()))

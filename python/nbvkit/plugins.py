@@ -17,7 +17,8 @@ LOADED: list[str] = []
 
 def load_plugin(path) -> None:
     """Imports the Python file `path` once (FileNotFoundError if missing; its own errors
-    propagate, with the file named in the traceback)."""
+    propagate, with the file named in the traceback, and what it registered before it failed
+    is forgotten: the file fixed loads again under the same names)."""
     p = check_input_file(path, "plugin file").resolve()
     if str(p) in LOADED:
         return
@@ -27,12 +28,25 @@ def load_plugin(path) -> None:
         raise ValueError(f"plugin file {p} is not a Python module")
     module = importlib.util.module_from_spec(spec)
     sys.modules[name] = module
+    tables = _tables()
+    before = [set(t) for t in tables]
     try:
         spec.loader.exec_module(module)
     except BaseException:
         del sys.modules[name]
+        for table, had in zip(tables, before):  # what it registered before it failed
+            for key in set(table) - had:
+                del table[key]
         raise
     LOADED.append(str(p))
+
+
+def _tables() -> tuple:
+    """The tables a plugin file registers into (parts, utilities, scenarios)."""
+    from .planning import registry
+    from .scenarios import SCENARIOS
+
+    return registry.GENERATORS, registry.TERMINATIONS, registry.UTILITIES, SCENARIOS
 
 
 def load_plugins(paths) -> None:
