@@ -284,6 +284,7 @@ def test_a_mission_running_in_one_thread_refuses_a_second_run():
 
 STOPPING_PART = """
 import os
+import sys
 import signal
 import time
 from dataclasses import dataclass
@@ -296,7 +297,7 @@ from nbvkit.settings import choice, within
 class StopAtConfig:
     views: int = within(3, 1, 1000)  # views flown before the part stops the flight
     # as Ctrl-C, as a part's bug, or as a `kill` (SIGTERM to this process)
-    how: str = choice("interrupt", ("interrupt", "error", "sigterm"))
+    how: str = choice("interrupt", ("interrupt", "error", "sigterm", "exit"))
 
 
 class StopAt:
@@ -309,6 +310,8 @@ class StopAt:
         if world.state.views >= self.s.views:
             if self.s.how == "interrupt":
                 raise KeyboardInterrupt
+            if self.s.how == "exit":
+                sys.exit(3)  # a part that ends the process
             if self.s.how == "sigterm":
                 os.kill(os.getpid(), signal.SIGTERM)
                 time.sleep(5)  # the handler raises here
@@ -345,7 +348,8 @@ def _stopping(how: str, views: int = 3) -> list[str]:
 
 
 @pytest.mark.parametrize(
-    "how, cause", [("interrupt", KeyboardInterrupt), ("error", ZeroDivisionError)]
+    "how, cause",
+    [("interrupt", KeyboardInterrupt), ("error", ZeroDivisionError), ("exit", SystemExit)],
 )
 def test_a_flight_stopped_by_ctrl_c_or_a_part_keeps_what_it_flew(
     tmp_path, stopping_part, how, cause
@@ -360,7 +364,7 @@ def test_a_flight_stopped_by_ctrl_c_or_a_part_keeps_what_it_flew(
         nbvkit.Mission(load_config(overrides=_stopping(how))).run(out)
     assert is_complete_run(out)
     s = json.loads((out / "summary.json").read_text())
-    assert s["termination"] == ("interrupted" if how == "interrupt" else "failed")
+    assert s["termination"] == ("failed" if how == "error" else "interrupted")
     assert s["stopped_by"].startswith(cause.__name__) and not s["stopped_by_budget"]
     assert s["views"] == 3 and s["iterations"] >= 2  # the first view, then two chosen ones
     assert s["area_coverage"]["0.05"] > 0  # scored: the cloud of what was flown

@@ -16,6 +16,10 @@ from .planning.terminations.budget import BUDGET_REASONS
 from .runfolder import atomic_open, write_json_atomic, write_text_atomic
 from .world import FLIGHT_COLUMNS
 
+# what stops a flight or its saving and leaves what was flown kept: Ctrl-C (and a `kill` handled
+# as it), sys.exit() from a part, any error
+STOPS = (KeyboardInterrupt, SystemExit, Exception)
+
 #: The per-view stages timed in every iteration (ms_per_stage in the summary).
 STAGES = ("sampling", "evaluation", "selection", "motion", "sensing", "mapping")
 
@@ -231,8 +235,8 @@ class Recorder:
 
         try:
             summary = finish_run(self.mission, out, summary, cache_dir=cache_dir)
-        except (KeyboardInterrupt, Exception) as e:
-            why = "interrupted" if isinstance(e, KeyboardInterrupt) else "failed"
+        except STOPS as e:
+            why = "failed" if isinstance(e, Exception) else "interrupted"
             self._say(f"end-of-run outputs {why}: saving the flight without them")
             for name in FINISH_OUTPUTS:  # a part of them would read as all of them
                 (out / name).unlink(missing_ok=True)
@@ -316,7 +320,7 @@ def _progress(total: int, enabled: bool):
 
 def fly_into(mission, out, finish: bool = False) -> tuple[dict, BaseException | None]:
     """Flies `mission` and writes its results into the folder `out` (Mission.save): (summary,
-    None). A flight stopped once its views started, by Ctrl-C or by an error (a planner part's),
+    None). A flight stopped once its views started, by Ctrl-C, sys.exit() or an error (a part's),
     is not lost: what it flew is written (termination "interrupted" or "failed", `stopped_by`
     the cause, without the end-of-run outputs) and (summary, the exception) returned, for the
     caller to raise once the folder is in place (raise_stop); so is a whole flight whose saving
@@ -325,11 +329,11 @@ def fly_into(mission, out, finish: bool = False) -> tuple[dict, BaseException | 
     written."""
     try:
         summary = mission._run()
-    except (KeyboardInterrupt, Exception) as e:
+    except STOPS as e:
         rec = mission.recorder  # this run's (a Mission run again makes a new one)
         if rec.flying_since is None:
             raise
-        why = "interrupted" if isinstance(e, KeyboardInterrupt) else "failed"
+        why = "failed" if isinstance(e, Exception) else "interrupted"
         rec._say(f"{why}: saving what was flown")
         summary = rec.summary(why, time.perf_counter() - rec.flying_since)
         summary["stopped_by"] = error_line(e)
@@ -350,4 +354,6 @@ def raise_stop(summary: dict, stop: BaseException | None) -> dict:
 def error_line(e: BaseException) -> str:
     """An exception as one line for a reader: its type, and its message when it has one."""
     message = " ".join(str(e).split())
-    return f"{type(e).__name__}: {message}" if message else type(e).__name__
+    line = f"{type(e).__name__}: {message}" if message else type(e).__name__
+    notes = [" ".join(str(n).split()) for n in getattr(e, "__notes__", ())]
+    return "; ".join([line, *notes])
