@@ -1773,3 +1773,29 @@ def test_a_blocked_patch_is_looked_at_from_the_nearest_direction_that_can_fly_or
 
 def _anywhere(p):
     return np.ones(len(p), bool)
+
+
+def test_a_view_search_over_ever_new_rejected_proposals_ends():
+    """A generator whose exclusive proposals are all rejected, each with new poses (inside the
+    structure), is tried a bounded number of times: next_view answers "no_valid_viewpoint"
+    rather than looping for ever."""
+    from nbvkit.planning.parts import Proposal
+
+    cfg = load_config(overrides=["max_iterations=0", *QUICK])
+    m = Mission(cfg, mesh=box_mesh((-4, -3, 0), (4, 3, 5)))
+    m.run()
+
+    class Endless:
+        calls = 0
+
+        def propose(self, world):
+            self.calls += 1  # a pose inside the box, a little different each time
+            return Proposal(np.array([[1e-4 * self.calls, 0.0, 2.5, 0.0]]), "x", exclusive=True)
+
+        def feedback(self, world, proposal, step):
+            pass
+
+    endless = Endless()
+    m.planner.generators = [endless]
+    assert m.planner.next_view(m.world) == "no_valid_viewpoint"
+    assert endless.calls == 10_000

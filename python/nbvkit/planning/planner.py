@@ -38,11 +38,10 @@ class PlannerConfig:
 
 
 class Planner:
-    """The loop of Fig. 1 over a World. config: a resolved nbvkit.Config (planner.generators /
-    planner.terminations name the parts, registry.py; each is built from its own section).
-    ``hooks``: name -> hook(world, step), run after every view in order ("feedback": the
-    generators that proposed the view learn of it, e.g. AGVS's scale); a mission adds its own
-    (the symmetry refresh, the recorder). ``timers``: each stage's time around the parts' calls."""
+    """The loop of Fig. 1 over a World; its parts named by config.planner (registry.py), each
+    built from its own section. ``hooks``: name -> hook(world, step), run after every view in
+    order ("feedback": the generators that proposed the view learn of it, e.g. AGVS's scale); a
+    mission adds its own (symmetry, recorder). ``timers``: each stage's time round the parts."""
 
     def __init__(self, config):
         ctx = PlanningContext.of(config)
@@ -93,11 +92,11 @@ class Planner:
         tried in turn. Otherwise the non-exclusive proposals are scored together."""
         t = self.timers
         self.selector.begin()
-        while True:
+        for _ in range(10_000):  # proposals rejected in a row before the search gives up
             proposal, makers = t.call("sampling", propose, self.generators, world)
             if proposal is None:
-                reasons = (getattr(g, "stop_reason", None) for g in self.generators)
-                return next((r for r in reasons if r), "coverage_complete")
+                why = [getattr(g, "stop_reason", None) for g in self.generators]
+                return next(filter(None, why), "coverage_complete")
             scores = t.call("evaluation", self.score, world, proposal.poses)
             choice = t.call("selection", self.selector.choose, world, proposal.poses, scores)
             if choice is not None:
@@ -105,7 +104,8 @@ class Planner:
             for g in makers:
                 g.feedback(world, proposal, None)
             if not proposal.exclusive:
-                return "no_valid_viewpoint"
+                break
+        return "no_valid_viewpoint"
 
 
 def _feedback(world, step: Step) -> None:
