@@ -207,3 +207,20 @@ def test_renamed_keys_still_load_with_a_deprecation_warning(tmp_path):
         Config.from_dict({"sampling": {"sigma": 2.0}, "lattice": {"sigma": 3.0}})
     # the resolved configuration is written under the current names only
     assert "sampling" not in c.to_dict() and "lattice" in c.to_dict()
+
+
+def test_a_registered_scenario_setting_an_unknown_key_is_named(monkeypatch):
+    """A script's scenario preset naming a key no section has: KeyError naming the scenario
+    and the key when a configuration uses it (not an AttributeError from inside Config)."""
+    import nbvkit
+    from nbvkit.scenarios import SCENARIOS, Scenario
+
+    for bad in ("nope.key", "planner.nope"):
+        monkeypatch.setitem(SCENARIOS, "x", Scenario("a typo", {bad: 1}))
+        with pytest.raises(KeyError, match=f"scenario 'x' sets '{bad}', which is not a config"):
+            load_config(overrides=["scenario=x"])
+    del SCENARIOS["x"]
+    nbvkit.register_scenario("x", "a typo", {"nope.key": 1})  # through the public call
+    with pytest.raises(KeyError, match="sets 'nope.key'"):
+        load_config(overrides=["scenario=x"])
+    del SCENARIOS["x"]

@@ -100,7 +100,13 @@ class Config:
             )
         for key, value in SCENARIOS[self.scenario].settings.items():
             if not _has_dotted(self._user, key):
-                _set_field(self, key, value)
+                try:
+                    _set_field(self, key, value)
+                except (AttributeError, KeyError, TypeError):  # a registered scenario's
+                    raise KeyError(
+                        f"scenario {self.scenario!r} sets {key!r}, which is not a config key (a "
+                        "part's section exists once the part is registered)"
+                    ) from None
         # then the named camera's keys (and its stand-off room), under what the user set
         for key, value in CAMERA_PRESETS.get(self.camera.preset, {}).items():
             if not _has_dotted(self._user, key):
