@@ -15,7 +15,8 @@ from pathlib import Path
 import numpy as np
 
 from .georef import ALTITUDE_REFS, GeoFrame  # noqa: F401
-from ..flight import FRAME, VIEW, FlightModel, estimate, sortie_planner
+from ..flight import estimate, sortie_planner
+from ..flight_time import FRAME, VIEW, FlightModel
 from ..run_report import update_flight_section
 from ..runfolder import require_complete_run
 from .plan import read_run
@@ -88,7 +89,7 @@ def _planner(run_dir, model: FlightModel, need_all_returns: bool, occ_map=None):
 
 def estimate_flight(run_dir, speed=5.0, climb_rate=2.0, hover_s=2.0, occ_map=None) -> dict:
     """The whole mission's estimated flight (one battery, no limit) of a run folder: time_s,
-    distance_m, views, frames (see nbvkit.flight for the model). occ_map: the run's final
+    distance_m, views, frames (see nbvkit.flight_time for the model). occ_map: the run's final
     OccupancyMap when at hand (default: read from its map.ot)."""
     return estimate(read_run(run_dir), FlightModel(speed, climb_rate, hover_s), occ_map)
 

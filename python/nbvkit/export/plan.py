@@ -1,5 +1,6 @@
 """A run folder's flight (read_run: flight.csv, summary.json, config.yaml, map.ot), for the
-flight-time model and the sorties of nbvkit.flight (whose names are importable from here too).
+flight-time model of nbvkit.flight_time and the sorties of nbvkit.flight (whose names are
+importable from here too).
 """
 from __future__ import annotations
 
@@ -8,9 +9,6 @@ import json
 from pathlib import Path
 
 from ..flight import (  # noqa: F401  (re-exported)
-    FRAME,
-    VIEW,
-    FlightModel,
     ReturnPaths,
     RunFlight,
     Sortie,
@@ -23,6 +21,7 @@ from ..flight import (  # noqa: F401  (re-exported)
     simplify,
     sortie_planner,
 )
+from ..flight_time import FRAME, VIEW, FlightModel  # noqa: F401  (re-exported)
 
 
 def read_run(run_dir) -> RunFlight:

@@ -71,6 +71,18 @@ def _mission_config(doc, g: GeoWaypoints, drone, payload, template: bool):
 
 
 def _placemark(folder, g: GeoWaypoints, k: int, index: int, template: bool, group: int):
+    """Waypoint k's Placemark (the point, its height, speed, heading and turn) and, at a capture,
+    its action group (number `group`); the next action group's number."""
+    pm = _placemark_point(folder, g, k, index, template)
+    if g.action[k] not in ("view", "frame"):
+        return group
+    _capture_actions(pm, g, k, index, group)
+    return group + 1
+
+
+def _placemark_point(folder, g: GeoWaypoints, k: int, index: int, template: bool):
+    """The Placemark of waypoint k without actions: where, how high, how fast, its heading and
+    its turn."""
     pm = ET.SubElement(folder, f"{{{KML_NS}}}Placemark")
     pt = ET.SubElement(pm, f"{{{KML_NS}}}Point")
     ET.SubElement(
@@ -101,26 +113,31 @@ def _placemark(folder, g: GeoWaypoints, k: int, index: int, template: bool, grou
     # no waypointTurnDampingDist: its range is (0, segment], and it is required only with
     # coordinateTurn or toPointAndPassWithContinuityCurvature and useStraightLine 1
     _el(tp, "waypointTurnMode", "toPointAndStopWithDiscontinuityCurvature")
-    a = g.action[k]
-    if a not in ("view", "frame"):
-        return group
+    return pm
+
+
+def _action(ag, aid: int, func: str):
+    """Action number aid of the action group ag, running `func`: its actionActuatorFuncParam."""
+    act = _el(ag, "action")
+    _el(act, "actionId", aid)
+    _el(act, "actionActuatorFunc", func)
+    return _el(act, "actionActuatorFuncParam")
+
+
+def _capture_actions(pm, g: GeoWaypoints, k: int, index: int, group: int) -> None:
+    """The action group of capture k, run on reaching it: every capture: the gimbal's pitch, the
+    aircraft's heading (rotateYaw: the leg into a capture after a transit point is flown facing
+    along the course, followWayline), then (a view) the settle, the photo, the rest of the hover
+    (nbvkit.flight_time.capture_waits)."""
     ag = _el(pm, "actionGroup")
     _el(ag, "actionGroupId", group)
     _el(ag, "actionGroupStartIndex", index)
     _el(ag, "actionGroupEndIndex", index)
     _el(ag, "actionGroupMode", "sequence")
     _el(_el(ag, "actionTrigger"), "actionTriggerType", "reachPoint")
-    # every capture: the gimbal's pitch, the aircraft's heading (rotateYaw: the leg into a
-    # capture after a transit point is flown facing along the course, followWayline), then (a
-    # view) the settle, the photo, the rest of the hover (nbvkit.flight.capture_waits)
     hold, rest_s, _ = waits(g)["dji"]
     settle, rest = float(hold[k]), float(rest_s[k])
-    aid = 0
-    act = _el(ag, "action")
-    _el(act, "actionId", aid)
-    aid += 1
-    _el(act, "actionActuatorFunc", "gimbalRotate")
-    p = _el(act, "actionActuatorFuncParam")
+    p = _action(ag, 0, "gimbalRotate")
     _el(p, "gimbalHeadingYawBase", "north")
     _el(p, "gimbalRotateMode", "absoluteAngle")
     _el(p, "gimbalPitchRotateEnable", 1)
@@ -135,31 +152,23 @@ def _placemark(folder, g: GeoWaypoints, k: int, index: int, template: bool, grou
     heading = clean_angle(_signed(float(g.heading[k])), 3)
     before = g.heading[k - 1] if g.action[k - 1] not in ("transit",) else _course(g, k)
     turn = _signed(float(g.heading[k]) - float(before))
-    act = _el(ag, "action")
-    _el(act, "actionId", aid)
-    aid += 1
-    _el(act, "actionActuatorFunc", "rotateYaw")
-    p = _el(act, "actionActuatorFuncParam")
+    p = _action(ag, 1, "rotateYaw")
     _el(p, "aircraftHeading", _f(heading, 3))
     _el(p, "aircraftPathMode", "clockwise" if turn >= 0 else "counterClockwise")
+    aid = 2
     for step in ("settle", "photo", "rest"):
         hover = {"settle": settle, "rest": rest}.get(step)
         if hover is not None and hover <= 0:
             continue
-        act = _el(ag, "action")
-        _el(act, "actionId", aid)
-        aid += 1
         if step == "photo":
-            _el(act, "actionActuatorFunc", "takePhoto")
-            p = _el(act, "actionActuatorFuncParam")
-            _el(p, "fileSuffix", f"{a}{int(g.number[k]):04d}")
+            p = _action(ag, aid, "takePhoto")
+            _el(p, "fileSuffix", f"{g.action[k]}{int(g.number[k]):04d}")
             _el(p, "payloadPositionIndex", 0)
             _el(p, "useGlobalPayloadLensIndex", 0)
             _el(p, "payloadLensIndex", LENS)
         else:
-            _el(act, "actionActuatorFunc", "hover")
-            _el(_el(act, "actionActuatorFuncParam"), "hoverTime", _f(hover, 3))
-    return group + 1
+            _el(_action(ag, aid, "hover"), "hoverTime", _f(hover, 3))
+        aid += 1
 
 
 def _wpml_doc(g: GeoWaypoints, drone, payload, template: bool, created_ms: int) -> bytes:

@@ -15,7 +15,7 @@ from xml.etree import ElementTree as ET
 
 import numpy as np
 
-from ..flight import SETTLE_S, YAW_RATE_DEG_S, capture_waits  # noqa: F401  (re-exported)
+from ..flight_time import SETTLE_S, YAW_RATE_DEG_S, capture_waits  # noqa: F401  (re-exported)
 
 # MAVLink common message set (mavlink/mavlink message_definitions/v1.0/common.xml)
 MAV_CMD_NAV_WAYPOINT = 16
@@ -40,7 +40,7 @@ SPEED_TYPE_GROUND = 1  # DO_CHANGE_SPEED param 1
 #: [0, 15] and its route speeds may not pass the aircraft's maximum; PX4's default
 #: MPC_XY_VEL_MAX is 12 m/s, ArduPilot's WPNAV_SPEED at most 20 m/s. See docs/EXPORT.md.
 MAX_SPEED_M_S = 15.0
-# the turn rate of CONDITION_YAW and the settle before a view's photo: nbvkit.flight, whose
+# the turn rate of CONDITION_YAW and the settle before a view's photo: nbvkit.flight_time, whose
 # capture_waits gives the time model and these writers the same holds
 KML_NS = "http://www.opengis.net/kml/2.2"
 WPML_NS = "http://www.dji.com/wpmz/1.0.2"
@@ -56,7 +56,7 @@ class GeoWaypoints:
     whole flight (0 else); seq: the 1-based number of each capture among all captures of the
     whole flight, views and frames together, in flight order (0 else); ell_alt (N,) and
     home_ell: heights above the WGS84 ellipsoid (filled for the DJI route only); waits: the
-    sortie's nbvkit.flight.capture_waits (None: computed from the headings); home_amsl: the
+    sortie's nbvkit.flight_time.capture_waits (None: computed from the headings); home_amsl: the
     launch point's altitude above mean sea level (None: home's own, an AMSL origin);
     rth_height: the DJI route's return-to-home height above the take-off point (None: the
     highest waypoint's + RTH_MARGIN_M)."""
@@ -116,7 +116,7 @@ def waits(g: GeoWaypoints) -> dict:
 def capture_holds(g: GeoWaypoints, ardupilot: bool) -> tuple[np.ndarray, np.ndarray]:
     """(hold, rest) seconds (N,) of each waypoint in the ArduPilot file (ardupilot) or the .plan
     (PX4): hold from the arrival to the photo (NAV_WAYPOINT p1), rest after it (a NAV_DELAY);
-    nbvkit.flight.capture_waits."""
+    nbvkit.flight_time.capture_waits."""
     hold, rest, _ = waits(g)["ardupilot" if ardupilot else "px4"]
     return hold, rest
 
@@ -136,84 +136,85 @@ def mavlink_items(g: GeoWaypoints, ardupilot: bool = False) -> list[dict]:
     waypoint, and runs the commands between two waypoints from the start of the leg to the
     second (docs/EXPORT.md); the gimbal's rates 0, not NaN (AP_Mission refuses NaN there)."""
     hold, rest = capture_holds(g, ardupilot)
-    # gimbal rates: NaN ("unset" in common.xml) for PX4; ArduPilot's AP_Mission rejects NaN
-    # there on upload (sanity_check_params) and reads no rate when both angles are set
-    rate = 0.0 if ardupilot else None
-    speed_after_first_wp = True  # ArduCopter < 4.5 drops the one after the take-off (#21080)
     seq = g.seq
     if seq is None:  # number the captures of these waypoints, views and frames together
         seq = list(np.cumsum([a in ("view", "frame") for a in g.action]))
+    speed_after_first_wp = True  # ArduCopter < 4.5 drops the one after the take-off (#21080)
     items = []
     for k in range(len(g)):
-        a = g.action[k]
-        lat, lon, rel = float(g.lat[k]), float(g.lon[k]), float(g.rel_alt[k])
-        yaw = None if a == "transit" else clean_angle(g.heading[k])
-        if a == "takeoff":
-            items.append(
-                (MAV_CMD_NAV_TAKEOFF, MAV_FRAME_GLOBAL_RELATIVE_ALT, [0, 0, 0, yaw, lat, lon, rel])
-            )
-            items.append(
-                (
-                    MAV_CMD_DO_CHANGE_SPEED,
-                    MAV_FRAME_MISSION,
-                    [SPEED_TYPE_GROUND, float(g.speed), -1, 0, 0, 0, 0],
-                )
-            )
+        if g.action[k] == "takeoff":
+            items += [_takeoff_item(g, k), _change_speed_item(g)]
             continue
-        capture = a in ("view", "frame")
-        if capture:
-            items.append(
-                (
-                    MAV_CMD_DO_GIMBAL_MANAGER_PITCHYAW,
-                    MAV_FRAME_MISSION,
-                    [
-                        clean_angle(g.gimbal_pitch[k]),
-                        clean_angle(g.gimbal_yaw[k]),
-                        rate,
-                        rate,
-                        GIMBAL_MANAGER_FLAGS_PITCH_LOCK,
-                        0,
-                        0,
-                    ],
-                )
-            )
-        if ardupilot and yaw is not None:
-            items.append(
-                (MAV_CMD_CONDITION_YAW, MAV_FRAME_MISSION, [yaw, YAW_RATE_DEG_S, 0, 0, 0, 0, 0])
-            )
-        items.append(
-            (
-                MAV_CMD_NAV_WAYPOINT,
-                MAV_FRAME_GLOBAL_RELATIVE_ALT,
-                [float(hold[k]), 0, 0, yaw, lat, lon, rel],
-            )
-        )
-        if capture:
-            # one image: interval 0, total images 1, sequence number unique in the mission
-            items.append(
-                (
-                    MAV_CMD_IMAGE_START_CAPTURE,
-                    MAV_FRAME_MISSION,
-                    [0, 0, 1, int(seq[k]), 0, 0, None],
-                )
-            )
-            if rest[k] > 0:
-                items.append(
-                    (MAV_CMD_NAV_DELAY, MAV_FRAME_MISSION, [float(rest[k]), -1, -1, -1, 0, 0, 0])
-                )
+        items += _waypoint_items(g, k, hold, rest, seq, ardupilot)
         if speed_after_first_wp:
             # again after the first waypoint's items: runs when it is done, after the next
             # waypoint's start, which keeps it (ArduPilot issue #21080)
-            items.append(
-                (
-                    MAV_CMD_DO_CHANGE_SPEED,
-                    MAV_FRAME_MISSION,
-                    [SPEED_TYPE_GROUND, float(g.speed), -1, 0, 0, 0, 0],
-                )
-            )
+            items.append(_change_speed_item(g))
             speed_after_first_wp = False
     items.append((MAV_CMD_NAV_RETURN_TO_LAUNCH, MAV_FRAME_MISSION, [0, 0, 0, 0, 0, 0, 0]))
     return [{"command": c, "frame": f, "params": p} for c, f, p in items]
+
+
+def _yaw(g: GeoWaypoints, k: int):
+    """Waypoint k's heading as a MAVLink yaw (deg), None on a transit leg (not commanded)."""
+    return None if g.action[k] == "transit" else clean_angle(g.heading[k])
+
+
+def _takeoff_item(g: GeoWaypoints, k: int) -> tuple:
+    lat, lon, rel = float(g.lat[k]), float(g.lon[k]), float(g.rel_alt[k])
+    return (
+        MAV_CMD_NAV_TAKEOFF,
+        MAV_FRAME_GLOBAL_RELATIVE_ALT,
+        [0, 0, 0, _yaw(g, k), lat, lon, rel],
+    )
+
+
+def _change_speed_item(g: GeoWaypoints) -> tuple:
+    """DO_CHANGE_SPEED to the cruise speed (ground speed)."""
+    params = [SPEED_TYPE_GROUND, float(g.speed), -1, 0, 0, 0, 0]
+    return (MAV_CMD_DO_CHANGE_SPEED, MAV_FRAME_MISSION, params)
+
+
+def _gimbal_item(g: GeoWaypoints, k: int, ardupilot: bool) -> tuple:
+    """DO_GIMBAL_MANAGER_PITCHYAW to capture k's gimbal pitch and yaw."""
+    # gimbal rates: NaN ("unset" in common.xml) for PX4; ArduPilot's AP_Mission rejects NaN
+    # there on upload (sanity_check_params) and reads no rate when both angles are set
+    rate = 0.0 if ardupilot else None
+    pitch, yaw = clean_angle(g.gimbal_pitch[k]), clean_angle(g.gimbal_yaw[k])
+    params = [pitch, yaw, rate, rate, GIMBAL_MANAGER_FLAGS_PITCH_LOCK, 0, 0]
+    return (MAV_CMD_DO_GIMBAL_MANAGER_PITCHYAW, MAV_FRAME_MISSION, params)
+
+
+def _waypoint_items(g: GeoWaypoints, k: int, hold, rest, seq, ardupilot: bool) -> list:
+    """The items of waypoint k (not the take-off), in mavlink_items' order: at a capture the
+    gimbal; in the ArduPilot file CONDITION_YAW to a planned heading; the waypoint with its hold;
+    at a capture the photo (seq: the captures' mission-wide numbers) and the rest of the hover
+    (hold, rest: capture_holds)."""
+    lat, lon, rel = float(g.lat[k]), float(g.lon[k]), float(g.rel_alt[k])
+    yaw = _yaw(g, k)
+    capture = g.action[k] in ("view", "frame")
+    items = [_gimbal_item(g, k, ardupilot)] if capture else []
+    if ardupilot and yaw is not None:
+        items.append(
+            (MAV_CMD_CONDITION_YAW, MAV_FRAME_MISSION, [yaw, YAW_RATE_DEG_S, 0, 0, 0, 0, 0])
+        )
+    items.append(
+        (
+            MAV_CMD_NAV_WAYPOINT,
+            MAV_FRAME_GLOBAL_RELATIVE_ALT,
+            [float(hold[k]), 0, 0, yaw, lat, lon, rel],
+        )
+    )
+    if capture:
+        # one image: interval 0, total images 1, sequence number unique in the mission
+        items.append(
+            (MAV_CMD_IMAGE_START_CAPTURE, MAV_FRAME_MISSION, [0, 0, 1, int(seq[k]), 0, 0, None])
+        )
+        if rest[k] > 0:
+            items.append(
+                (MAV_CMD_NAV_DELAY, MAV_FRAME_MISSION, [float(rest[k]), -1, -1, -1, 0, 0, 0])
+            )
+    return items
 
 
 def _home_amsl(g: GeoWaypoints) -> tuple:
