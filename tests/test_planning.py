@@ -1799,3 +1799,21 @@ def test_a_view_search_over_ever_new_rejected_proposals_ends():
     m.planner.generators = [endless]
     assert m.planner.next_view(m.world) == "no_valid_viewpoint"
     assert endless.calls == 10_000
+
+
+@pytest.mark.parametrize("radius", [30.0, 3.0])
+def test_the_take_off_clearing_stops_short_of_the_structure(radius):
+    """vehicle.start_clear_radius marks the start's surroundings free, never the structure:
+    with a radius reaching past a box, the box's inside stays unknown (probability 0.5) and
+    the free sphere stops a cell short of its nearest face; half way there is free."""
+    cfg = load_config(overrides=[*QUICK, f"vehicle.start_clear_radius={radius}"])
+    m = Mission(cfg, mesh=box_mesh((-2, -2, 0), (2, 2, 4)))
+    w = m.world
+    p = w.start_pose[:3]
+    d = np.linalg.norm(p[:2]) - 2.0  # the start is beside the box, level with its middle
+    assert 0 < d < radius or radius == 3.0
+    w.take_off()
+    inside = np.array([[0.0, 0.0, 2.0], [1.5, 0.0, 1.0], [0.0, -1.5, 3.0]])
+    np.testing.assert_allclose(w.map.probability(inside), 0.5)
+    toward = p - (p - [0.0, 0.0, p[2]]) / np.linalg.norm(p[:2]) * min(radius, d) * 0.5
+    assert w.map.probability(toward[None])[0] < 0.5  # cleared, half way to the box

@@ -46,7 +46,8 @@ VehicleConfig = cpp_section(
             "m; unknown cells this near the start are known free before the first scan: the "
             "vehicle took off there (with less than ~2 m the strict collision rule leaves a "
             "camera-only start only yaw turns: every 1 m step's sphere reaches outside the "
-            "camera's 45 deg vertical FOV); 0 disables",
+            "camera's 45 deg vertical FOV); never past the structure's surface (a map cell "
+            "short of it); 0 disables",
         ),
         (
             "clear_swept_volume",
@@ -266,10 +267,15 @@ class World:
 
     def take_off(self) -> None:
         """Unknown cells within vehicle.start_clear_radius of the start become known free: the
-        vehicle took off there (no sensor sees its own surroundings)."""
+        vehicle took off there (no sensor sees its own surroundings). The sphere stops a map
+        cell short of the structure's nearest surface (2,000 rays): reaching it, it would mark
+        the cells inside the structure free."""
         r = self.config.vehicle.start_clear_radius
         if r > 0:
             p = self.start_pose[:3]
+            _, first = surface_crossings(self.scene, self.mesh.bounds, p, fibonacci_sphere(2000))
+            r = min(r, float(np.min(first)) - self.config.map.resolution)
+        if r > 0:
             self.map.mark_free_segment(p, p, r)
 
     # ------------------------------------------------------------------ starts
