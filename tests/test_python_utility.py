@@ -239,6 +239,13 @@ def test_bad_input_raises_value_error_naming_the_problem(world):
         PythonUtility(lambda r: np.zeros(3)).score(world, poses)
     with pytest.raises(ValueError, match="non-finite gain"):
         PythonUtility(lambda r: np.full(len(r), np.nan)).score(world, poses)
+    # used directly, not registered: checked as a registered utility is, by its name
+    with pytest.raises(ValueError, match="'mine' returned a negative gain"):
+        PythonUtility(lambda r: -np.ones(len(r)), name="mine").score(world, poses)
+    with pytest.raises(TypeError, match="'mine' returned NoneType gains"):
+        PythonUtility(lambda r: None, name="mine").score(world, poses)
+    with pytest.raises(TypeError, match="'mine' returned str gains"):
+        PythonUtility(lambda r: "high", name="mine").score(world, poses)
     with pytest.raises(ValueError, match="distance_lambda"):
         PythonUtility(lambda r: 0, distance_lambda=-1)
     with pytest.raises(ValueError, match="require_occupied_probability"):

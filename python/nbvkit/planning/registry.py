@@ -167,6 +167,7 @@ def checked_utility(name: str, fn):
         return gains if cells is None else (gains, cells)
 
     utility.__name__ = name
+    utility.checked = True  # PythonUtility does not check it twice
     return utility
 
 

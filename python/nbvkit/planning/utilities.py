@@ -127,8 +127,11 @@ class PythonUtility:
             raise TypeError(f"PythonUtility needs a callable fn(rays), got {type(fn).__name__}")
         if not (math.isfinite(distance_lambda) and distance_lambda >= 0):
             raise ValueError(f"distance_lambda must be finite and >= 0, got {distance_lambda}")
-        self.fn = fn
+        from .registry import checked_utility
+
         self.name = name or getattr(fn, "__name__", "python_utility")
+        # its gains checked as a registered utility's (numbers, (K,), finite and >= 0)
+        self.fn = fn if getattr(fn, "checked", False) else checked_utility(self.name, fn)
         self.distance_lambda = float(distance_lambda)
         # validated by the core (require_occupied_probability in [0, 1))
         self.options = _core.UtilityOptions(
@@ -154,29 +157,12 @@ class PythonUtility:
     def score_rays(self, rays, poses=None, current=None) -> dict:
         """The scores dict from CandidateRays already computed (`poses` and `current` only for
         the distance weight)."""
-        out = self.fn(rays)
+        out = self.fn(rays)  # checked: (K,) numbers, finite and >= 0 where valid
         gain, cells = out if isinstance(out, tuple) else (out, None)
-        k = len(rays)
         gain = np.array(gain, dtype=np.float64)
-        if gain.shape != (k,):
-            raise ValueError(
-                f"utility {self.name} returned gains of shape {gain.shape}, not ({k},)"
-            )
-        if cells is None:
-            cells = np.diff(rays.offsets)
-        cells = np.array(cells, dtype=np.int32)
-        if cells.shape != (k,):
-            raise ValueError(
-                f"utility {self.name} returned cells of shape {cells.shape}, not ({k},)"
-            )
+        cells = np.array(np.diff(rays.offsets) if cells is None else cells, dtype=np.int32)
         status = np.array(rays.status)
         valid = status == 0
-        bad = valid & ~np.isfinite(gain)
-        if bad.any():
-            raise ValueError(
-                f"utility {self.name} returned a non-finite gain for valid candidate "
-                f"{int(np.flatnonzero(bad)[0])}"
-            )
         value = gain.copy()
         if self.distance_lambda > 0:
             d = np.linalg.norm(
