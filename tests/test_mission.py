@@ -183,7 +183,7 @@ def test_bad_input_fails_before_any_work():
         Mission(cfg("scenario=1", "start_pose=[0.0, 0.0, 3.5, 0.0]"))  # inside the fuselage
     with pytest.raises(MissionError, match="outside the navigation bounds"):
         Mission(cfg("scenario=1", "start_pose=[100.0, 0.0, 5.0, 0.0]"))
-    with pytest.raises(ValueError, match="utility.name"):
+    with pytest.raises(ValueError, match=r"utility.name.*surface \(one of your own: register it"):
         cfg("utility.name=nope")
     with pytest.raises(KeyError, match="bogus"):
         cfg("bogus=1")

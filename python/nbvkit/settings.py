@@ -247,10 +247,17 @@ def validate(obj, prefix: str) -> None:
         v = getattr(obj, f.name)
         options = f.metadata.get("choices")
         if options is not None:
-            options = tuple(options() if callable(options) else options)
+            # names registered at run time: a script's own part is registered before it is named
+            mine = (
+                " (one of your own: register it first, e.g. nbvkit.load_plugin(FILE) or "
+                "--plugin FILE)"
+            )
+            late = callable(options)
+            options = tuple(options() if late else options)
             if v not in options:
                 raise ValueError(
-                    f"config key {key!r} must be one of {', '.join(options)}; got {shorten(v)}"
+                    f"config key {key!r} must be one of {', '.join(options)}"
+                    f"{mine if late else ''}; got {shorten(v)}"
                 )
         field_bound(type(obj), f).check(key, v)
         if f.metadata.get("triple") and v is not None:
