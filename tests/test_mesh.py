@@ -91,6 +91,9 @@ def test_up_axis_and_scale(tmp_path):
     np.testing.assert_allclose(m.bounds, [[0, 0, 0], [2, 0, 6]], atol=1e-12)
     m = nbvkit.load_mesh(p, up="z")
     np.testing.assert_allclose(m.bounds, [[0, 0, 0], [1, 3, 0]], atol=1e-12)
+    # a scale that shrinks every triangle's area to nothing is named as the likely cause
+    with pytest.raises(ValueError, match=r"no area .* at mesh scale 1e-300: is the scale right"):
+        nbvkit.load_mesh(p, scale=1e-300)
 
 
 def test_boat_is_y_up():
