@@ -70,14 +70,9 @@ class RunSpec:
                 f"--mesh-up, or a sweep's 'meshes' entry) and {also[k]} by the overrides "
                 "(--set, or a sweep's set/grid); give it once"
             )
-        over = []
-        if self.mesh is not None:
-            over.append(f"mesh.path={json.dumps(str(self.mesh))}")
-        if self.mesh_scale is not None:
-            over.append(f"mesh.scale={float(self.mesh_scale)!r}")
-        if self.mesh_up is not None:
-            over.append(f"mesh.up={json.dumps(str(self.mesh_up))}")
-        return over
+        from .mesh import mesh_overrides
+
+        return mesh_overrides(self.mesh, self.mesh_scale, self.mesh_up)
 
     def config(self):
         from .config import load_config

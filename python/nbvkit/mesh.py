@@ -30,6 +30,19 @@ class MeshConfig:
     shift: tuple = triple((0.0, 0.0, 0.0))  # m added after scale and up: results in that frame
 
 
+def mesh_overrides(path=None, scale=None, up=None) -> list[str]:
+    """The configuration overrides ("mesh.path=...", ...) of the mesh keys given (not None): what
+    --mesh, --mesh-scale and --mesh-up add, for one run or each run of an experiment."""
+    import json
+
+    over = [] if path is None else [f"mesh.path={json.dumps(str(path))}"]
+    if scale is not None:
+        over.append(f"mesh.scale={float(scale)!r}")
+    if up is not None:
+        over.append(f"mesh.up={json.dumps(str(up))}")
+    return over
+
+
 def load_mesh(path: str | os.PathLike, scale: float = 1.0, up: str = "z", shift=None) -> Mesh:
     """Load a mesh file (OBJ, STL, PLY, DAE, glTF/GLB, ...) as one triangle soup: PLY and OBJ
     with nbvkit's own strict readers, in double precision (PLY: declared counts and face indices

@@ -8,6 +8,7 @@ import sys
 
 from ..config import load_config
 from ..experiments import terminate_as_interrupt
+from ..mesh import mesh_overrides
 from ..mission import Mission
 from ..planning.terminations.budget import budget_note
 from ..recorder import fly_into, raise_stop
@@ -83,13 +84,7 @@ def register(sub) -> argparse.ArgumentParser:
 
 
 def config_from_args(args):
-    overrides = list(args.set)
-    if args.mesh is not None:
-        overrides.append(f"mesh.path={json.dumps(str(args.mesh))}")
-    if args.mesh_scale is not None:
-        overrides.append(f"mesh.scale={args.mesh_scale}")
-    if args.mesh_up is not None:
-        overrides.append(f"mesh.up={args.mesh_up}")
+    overrides = [*args.set, *mesh_overrides(args.mesh, args.mesh_scale, args.mesh_up)]
     overrides += shift_override(args)
     if args.scenario is not None:
         overrides.append(f"scenario={json.dumps(args.scenario)}")
