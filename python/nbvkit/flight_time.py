@@ -30,7 +30,8 @@ SETTLE_S = 1.0
 TARGETS = ("px4", "ardupilot", "dji")
 
 
-def _signed_deg(deg: float) -> float:
+def signed_deg(deg: float) -> float:
+    """An angle in [-180, 180)."""
     return (deg + 180.0) % 360.0 - 180.0
 
 
@@ -60,7 +61,7 @@ def capture_waits(actions, headings_deg, hover_s: float) -> dict:
         prev = actions[k - 1] if k > 0 else "takeoff"
         turn = 180.0
         if prev not in ("takeoff", "transit"):
-            turn = abs(_signed_deg(float(headings_deg[k]) - float(headings_deg[k - 1])))
+            turn = abs(signed_deg(float(headings_deg[k]) - float(headings_deg[k - 1])))
         turn_s = turn / YAW_RATE_DEG_S
         hover = max(float(hover_s), settle) if a == VIEW else 0.0
         ap = float(math.ceil(turn_s + settle - 1e-9))

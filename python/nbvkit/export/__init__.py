@@ -16,7 +16,7 @@ import numpy as np
 
 from .georef import ALTITUDE_REFS, GeoFrame  # noqa: F401
 from ..flight import estimate, sortie_planner
-from ..flight_time import FRAME, VIEW, FlightModel
+from ..flight_time import FRAME, VIEW, FlightModel, signed_deg
 from ..run_report import update_flight_section
 from ..runfolder import require_complete_run
 from .plan import read_run
@@ -118,7 +118,7 @@ def _geo(fl, sortie, frame: GeoFrame, speed, hover_s, numbers, name, seqs=None):
         pitch.append(writers.clean_angle(math.degrees(math.asin(max(-1.0, min(1.0, fwd[2]))))))
         gy = 0.0
         if np.hypot(*fwd[:2]) > 1e-9:
-            gy = writers._signed(frame.local_bearing(fwd, lat[k], lon[k]) - h)
+            gy = signed_deg(frame.local_bearing(fwd, lat[k], lon[k]) - h)
         gyaw.append(writers.clean_angle(gy))
     hlat, hlon, halt = frame.to_geodetic(fl.home)
     return writers.GeoWaypoints(

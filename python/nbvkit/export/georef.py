@@ -8,6 +8,7 @@ pymap3d's (WGS84 ellipsoid); only the turn by the heading, a rotation about up, 
 """
 from __future__ import annotations
 
+import functools
 import math
 from dataclasses import dataclass
 
@@ -116,9 +117,7 @@ class GeoFrame:
     def bearing(self, direction) -> float:
         """The compass bearing (degrees in [0, 360), clockwise from the origin's north) of a
         mesh-frame direction (3,), from its horizontal part."""
-        e, n, _ = self.mesh_to_enu(np.asarray(direction, float))
-        b = math.degrees(math.atan2(e, n)) % 360.0
-        return 0.0 if b >= 360.0 else b  # -1e-15 % 360 rounds to 360
+        return self.local_bearing(direction, self.lat, self.lon)
 
     def local_enu(self, direction, lat: float, lon: float) -> np.ndarray:
         """A mesh-frame direction (3,) in the East-North-Up frame at (lat, lon) (degrees): the
@@ -134,7 +133,7 @@ class GeoFrame:
         lon)) of a mesh-frame direction (3,), from its horizontal part."""
         e, n, _ = self.local_enu(direction, lat, lon)
         b = math.degrees(math.atan2(e, n)) % 360.0
-        return 0.0 if b >= 360.0 else b
+        return 0.0 if b >= 360.0 else b  # -1e-15 % 360 rounds to 360
 
     def ellipsoid_height(self, lat, lon, alt) -> np.ndarray:
         """Heights above the WGS84 ellipsoid (m) of points with altitudes `alt` in the origin's
@@ -156,6 +155,19 @@ class GeoFrame:
         }
 
 
+@functools.lru_cache(maxsize=1)
+def _egm96_transformer(pyproj):
+    """EGM96 heights to WGS84 ellipsoidal ones, built and checked once a process."""
+    t = pyproj.Transformer.from_crs("EPSG:4326+5773", "EPSG:4979", always_xy=True)
+    _, _, n0 = t.transform(0.0, 0.0, 0.0)
+    if not abs(n0 - 17.16) < 0.1:
+        raise ValueError(
+            "PROJ applies no EGM96 geoid (its egm96_15.gtx grid is missing: Debian proj-data); "
+            "give the origin's height above the ellipsoid with --altitude-ref ellipsoid"
+        )
+    return t
+
+
 def egm96_geoid_height(lat, lon) -> np.ndarray:
     """The EGM96 geoid's height above the WGS84 ellipsoid (m) at (lat, lon) (degrees), from
     PROJ's egm96_15.gtx grid through pyproj. ValueError naming what is missing when pyproj or
@@ -169,13 +181,7 @@ def egm96_geoid_height(lat, lon) -> np.ndarray:
             "pyproj with PROJ's egm96_15.gtx grid (Debian python3-pyproj and proj-data), or give "
             "the origin's height above the ellipsoid with --altitude-ref ellipsoid"
         ) from None
-    t = pyproj.Transformer.from_crs("EPSG:4326+5773", "EPSG:4979", always_xy=True)
-    _, _, n0 = t.transform(0.0, 0.0, 0.0)
-    if not abs(n0 - 17.16) < 0.1:
-        raise ValueError(
-            "PROJ applies no EGM96 geoid (its egm96_15.gtx grid is missing: Debian proj-data); "
-            "give the origin's height above the ellipsoid with --altitude-ref ellipsoid"
-        )
+    t = _egm96_transformer(pyproj)
     lat = np.asarray(lat, float)
     lon = np.asarray(lon, float)
     _, _, h = t.transform(lon, lat, np.zeros_like(lat))

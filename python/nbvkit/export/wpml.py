@@ -7,7 +7,8 @@ from xml.etree import ElementTree as ET
 
 import math
 
-from .writers import KML_NS, WPML_NS, GeoWaypoints, _f, _signed, clean_angle, waits
+from ..flight_time import signed_deg
+from .writers import MAX_SPEED_M_S, KML_NS, WPML_NS, GeoWaypoints, _f, clean_angle, waits
 
 #: the return-to-home height's margin above the highest of the structure's workspace and the
 #: flight (m)
@@ -60,7 +61,7 @@ def _mission_config(doc, g: GeoWaypoints, drone, payload, template: bool):
     _el(mc, "takeOffSecurityHeight", _f(min(max(takeoff_h, 1.2), 1500.0), 3))
     if template:  # "the height of the ellipsoid shall be used"
         _el(mc, "takeOffRefPoint", f"{_f(g.home[0], 9)},{_f(g.home[1], 9)},{_f(g.home_ell, 3)}")
-    _el(mc, "globalTransitionalSpeed", _f(min(g.speed, 15.0), 2))
+    _el(mc, "globalTransitionalSpeed", _f(min(g.speed, MAX_SPEED_M_S), 2))
     _el(mc, "globalRTHHeight", _f(rth_height(g), 3))
     di = _el(mc, "droneInfo")
     _el(di, "droneEnumValue", drone[0])
@@ -70,13 +71,14 @@ def _mission_config(doc, g: GeoWaypoints, drone, payload, template: bool):
     _el(pi, "payloadPositionIndex", 0)
 
 
-def _placemark(folder, g: GeoWaypoints, k: int, index: int, template: bool, group: int):
+def _placemark(folder, g: GeoWaypoints, k: int, index: int, template: bool, group: int, dji):
     """Waypoint k's Placemark (the point, its height, speed, heading and turn) and, at a capture,
-    its action group (number `group`); the next action group's number."""
+    its action group (number `group`; dji: the sortie's waits, capture_waits' "dji"); the next
+    action group's number."""
     pm = _placemark_point(folder, g, k, index, template)
     if g.action[k] not in ("view", "frame"):
         return group
-    _capture_actions(pm, g, k, index, group)
+    _capture_actions(pm, g, k, index, group, dji)
     return group + 1
 
 
@@ -107,7 +109,7 @@ def _placemark_point(folder, g: GeoWaypoints, k: int, index: int, template: bool
         _el(hp, "waypointHeadingMode", "followWayline")
     else:
         _el(hp, "waypointHeadingMode", "smoothTransition")
-        _el(hp, "waypointHeadingAngle", _f(clean_angle(_signed(float(g.heading[k])), 3), 3))
+        _el(hp, "waypointHeadingAngle", _f(clean_angle(signed_deg(float(g.heading[k])), 3), 3))
     _el(hp, "waypointHeadingPathMode", "followBadArc")
     tp = _el(pm, "waypointTurnParam")
     # no waypointTurnDampingDist: its range is (0, segment], and it is required only with
@@ -124,7 +126,7 @@ def _action(ag, aid: int, func: str):
     return _el(act, "actionActuatorFuncParam")
 
 
-def _capture_actions(pm, g: GeoWaypoints, k: int, index: int, group: int) -> None:
+def _capture_actions(pm, g: GeoWaypoints, k: int, index: int, group: int, dji) -> None:
     """The action group of capture k, run on reaching it: every capture: the gimbal's pitch, the
     aircraft's heading (rotateYaw: the leg into a capture after a transit point is flown facing
     along the course, followWayline), then (a view) the settle, the photo, the rest of the hover
@@ -135,7 +137,7 @@ def _capture_actions(pm, g: GeoWaypoints, k: int, index: int, group: int) -> Non
     _el(ag, "actionGroupEndIndex", index)
     _el(ag, "actionGroupMode", "sequence")
     _el(_el(ag, "actionTrigger"), "actionTriggerType", "reachPoint")
-    hold, rest_s, _ = waits(g)["dji"]
+    hold, rest_s, _ = dji
     settle, rest = float(hold[k]), float(rest_s[k])
     p = _action(ag, 0, "gimbalRotate")
     _el(p, "gimbalHeadingYawBase", "north")
@@ -149,9 +151,9 @@ def _capture_actions(pm, g: GeoWaypoints, k: int, index: int, group: int) -> Non
     _el(p, "gimbalRotateTimeEnable", 0)
     _el(p, "gimbalRotateTime", 0)
     _el(p, "payloadPositionIndex", 0)
-    heading = clean_angle(_signed(float(g.heading[k])), 3)
+    heading = clean_angle(signed_deg(float(g.heading[k])), 3)
     before = g.heading[k - 1] if g.action[k - 1] not in ("transit",) else _course(g, k)
-    turn = _signed(float(g.heading[k]) - float(before))
+    turn = signed_deg(float(g.heading[k]) - float(before))
     p = _action(ag, 1, "rotateYaw")
     _el(p, "aircraftHeading", _f(heading, 3))
     _el(p, "aircraftPathMode", "clockwise" if turn >= 0 else "counterClockwise")
@@ -201,9 +203,9 @@ def _wpml_doc(g: GeoWaypoints, drone, payload, template: bool, created_ms: int) 
         _el(gh, "waypointHeadingPathMode", "followBadArc")
         _el(folder, "globalWaypointTurnMode", "toPointAndStopWithDiscontinuityCurvature")
         _el(folder, "globalUseStraightLine", 0)
-    group = 0
+    group, dji = 0, waits(g)["dji"]  # once for the sortie
     for index, k in enumerate(range(len(g))):
-        group = _placemark(folder, g, k, index, template, group)
+        group = _placemark(folder, g, k, index, template, group, dji)
     return ET.tostring(kml, encoding="UTF-8", xml_declaration=True)
 
 

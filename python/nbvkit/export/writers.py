@@ -15,7 +15,7 @@ from xml.etree import ElementTree as ET
 
 import numpy as np
 
-from ..flight_time import SETTLE_S, YAW_RATE_DEG_S, capture_waits  # noqa: F401  (re-exported)
+from ..flight_time import SETTLE_S, YAW_RATE_DEG_S, capture_waits, signed_deg  # noqa: F401
 
 # MAVLink common message set (mavlink/mavlink message_definitions/v1.0/common.xml)
 MAV_CMD_NAV_WAYPOINT = 16
@@ -90,11 +90,6 @@ class GeoWaypoints:
 
 def _f(x: float, nd: int) -> str:
     return f"{x:.{nd}f}"
-
-
-def _signed(deg: float) -> float:
-    """An angle in [-180, 180)."""
-    return (deg + 180.0) % 360.0 - 180.0
 
 
 def clean_angle(deg: float, nd: int = 9) -> float:
