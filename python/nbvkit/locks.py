@@ -11,6 +11,12 @@ def _lock_path(path: Path) -> Path:
     return path.parent / f".{path.name}.lock"
 
 
+def _holder_named(pid: bytes) -> str:
+    """'pid N' from the pid its holder wrote in a lock file, or "another process"."""
+    text = pid.decode("ascii", "replace").strip()
+    return f"pid {text}" if text.isdigit() else "another process"
+
+
 def lock_holder(path: Path) -> str | None:
     """'pid N' of the live process holding path's run lock, or None."""
     import fcntl
@@ -24,8 +30,7 @@ def lock_holder(path: Path) -> str | None:
         try:
             fcntl.flock(fd, fcntl.LOCK_SH | fcntl.LOCK_NB)
         except OSError:
-            text = os.pread(fd, 64, 0).decode("ascii", "replace").strip()
-            return f"pid {text}" if text.isdigit() else "another process"
+            return _holder_named(os.pread(fd, 64, 0))
         fcntl.flock(fd, fcntl.LOCK_UN)
         return None
     finally:
@@ -71,10 +76,9 @@ class FileLock:
     def holder(self) -> str:
         """'pid N' of the process holding the lock, as written in its file."""
         try:
-            text = self.path.read_bytes()[:64].decode("ascii", "replace").strip()
+            return _holder_named(self.path.read_bytes()[:64])
         except OSError:
-            text = ""
-        return f"pid {text}" if text.isdigit() else "another process"
+            return _holder_named(b"")
 
     def release(self) -> None:
         import fcntl

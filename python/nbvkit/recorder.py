@@ -20,6 +20,12 @@ from .world import FLIGHT_COLUMNS
 # as it), sys.exit() from a part, any error
 STOPS = (KeyboardInterrupt, SystemExit, Exception)
 
+
+def stop_kind(e: BaseException) -> str:
+    """How `e` (one of STOPS) stopped a flight: "failed" (an error) or "interrupted"."""
+    return "failed" if isinstance(e, Exception) else "interrupted"
+
+
 #: The per-view stages timed in every iteration (ms_per_stage in the summary).
 STAGES = ("sampling", "evaluation", "selection", "motion", "sensing", "mapping")
 
@@ -236,8 +242,7 @@ class Recorder:
         try:
             summary = finish_run(self.mission, out, summary, cache_dir=cache_dir)
         except STOPS as e:
-            why = "failed" if isinstance(e, Exception) else "interrupted"
-            self._say(f"end-of-run outputs {why}: saving the flight without them")
+            self._say(f"end-of-run outputs {stop_kind(e)}: saving the flight without them")
             for name in FINISH_OUTPUTS:  # a part of them would read as all of them
                 (out / name).unlink(missing_ok=True)
             return self._stopped(out, summary, e), e
@@ -333,7 +338,7 @@ def fly_into(mission, out, finish: bool = False) -> tuple[dict, BaseException | 
         rec = mission.recorder  # this run's (a Mission run again makes a new one)
         if rec.flying_since is None:
             raise
-        why = "failed" if isinstance(e, Exception) else "interrupted"
+        why = stop_kind(e)
         rec._say(f"{why}: saving what was flown")
         summary = rec.summary(why, time.perf_counter() - rec.flying_since)
         summary["stopped_by"] = error_line(e)
