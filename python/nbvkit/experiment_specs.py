@@ -198,8 +198,6 @@ def sweep_specs(sweep: dict) -> list[RunSpec]:
     grid, fixed = _sweep_grid(sweep)
     keys = list(grid)
     runs = len(meshes) * len(scenarios) * len(starts) * math.prod(len(grid[k]) for k in keys)
-    if runs == 0:  # each list was checked non-empty: cannot happen, but never fly "0 runs"
-        raise ValueError("the sweep makes no run")
     if runs > MAX_SWEEP_RUNS:
         raise ValueError(
             f"the sweep makes {runs:,} runs (meshes x scenarios x starts x grid values), more "

@@ -47,6 +47,10 @@ def within(default, lo, hi):
     return bounded(default, Bound(lo=lo, hi=hi))
 
 
+#: How a name of one's own part (registered at run time) becomes known, for messages.
+REGISTER_FIRST = "register it first, e.g. nbvkit.load_plugin(FILE) or --plugin FILE"
+
+
 def choice(default, options):
     """A field whose value must be one of `options` (a tuple of names, or a function returning
     them, for names that are registered at run time)."""
@@ -248,10 +252,7 @@ def validate(obj, prefix: str) -> None:
         options = f.metadata.get("choices")
         if options is not None:
             # names registered at run time: a script's own part is registered before it is named
-            mine = (
-                " (one of your own: register it first, e.g. nbvkit.load_plugin(FILE) or "
-                "--plugin FILE)"
-            )
+            mine = f" (one of your own: {REGISTER_FIRST})"
             late = callable(options)
             options = tuple(options() if late else options)
             if v not in options:

@@ -240,12 +240,6 @@ def check_proposal(p, who: str) -> Proposal:
     return p
 
 
-#: Proposals a generator registered from a script may have rejected (no valid view, feedback with
-#: step None) in one planning step before it is taken to be looping: an exclusive proposal is
-#: tried, then its generator asked again, until one is flown.
-MAX_REJECTED = 10000
-
-
 class PluginPart:
     """A generator or termination registered from a script, as the planner holds it: its calls
     checked and named (check_proposal; a termination's reason a non-empty str or None; an
@@ -260,7 +254,7 @@ class PluginPart:
                 f"{kind} {name!r} ({type(part).__name__}) has no method "
                 + " or ".join(f"{m}()" for m in missing)
             )
-        self.__dict__.update(kind=kind, name=name, part=part, _rejected=None, _tries=0)
+        self.__dict__.update(kind=kind, name=name, part=part, _rejected=None)
 
     def __getattr__(self, attr):
         return getattr(self.part, attr)
@@ -286,17 +280,9 @@ class PluginPart:
         return p
 
     def feedback(self, world, proposal, step):
-        d = self.__dict__
-        if step is None:
-            d["_tries"] += 1
-            d["_rejected"] = proposal.poses if proposal.exclusive else None
-            if d["_tries"] > MAX_REJECTED:
-                raise RuntimeError(
-                    f"generator {self.name!r}: {MAX_REJECTED} proposals in a row had no valid "
-                    "view worth flying; it seems to loop (return None when it has no views left)"
-                )
-        else:
-            d["_rejected"], d["_tries"] = None, 0
+        # (proposals rejected in a row are bounded by Planner.next_view)
+        rejected = step is None and proposal.exclusive
+        self.__dict__["_rejected"] = proposal.poses if rejected else None
         _named(self.kind, self.name, "feedback()", self.part.feedback, world, proposal, step)
 
     def check(self, world, step):

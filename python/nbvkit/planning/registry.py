@@ -14,6 +14,7 @@ from .generators.tour import CoverageTour
 from .terminations.budget import Budget
 from .terminations.entropy import EntropyChange
 from .terminations.stall import SurfaceStall
+from ..settings import REGISTER_FIRST
 
 GENERATORS = {
     "lattice": LatticeGenerator,  # the paper's CGVS / AGVS lattice around the vehicle
@@ -215,5 +216,5 @@ def check_names(generators, terminations) -> None:
             if n not in known:
                 raise ValueError(
                     f"unknown planner {kind} {n!r}; known: {', '.join(known)} (a part of your "
-                    "own: register it first, e.g. nbvkit.load_plugin(FILE) or --plugin FILE)"
+                    f"own: {REGISTER_FIRST})"
                 )
