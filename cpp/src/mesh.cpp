@@ -19,6 +19,7 @@
 #include <limits>
 #include <optional>
 #include <random>
+#include <sstream>
 #include <vector>
 
 #include <fcntl.h>
@@ -189,18 +190,38 @@ class RegularFileIOSystem : public Assimp::DefaultIOSystem {
 };
 
 // A loaded mesh: Mesh::validate, and at least one triangle with an area (a mesh of degenerate
-// triangles alone has no surface to see, sample or score).
-void validate_loaded(const Mesh& m, const std::string& path) {
+// triangles alone has no surface to see, sample or score; after a scale other than 1, the scale
+// is named as the likely cause).
+void validate_loaded(const Mesh& m, const std::string& path, double scale) {
   try {
     m.validate();
   } catch (const std::invalid_argument& e) {
     throw std::invalid_argument("mesh file '" + path + "': " + e.what());
   }
   const double area = m.area();
-  if (!(area > 0) || !std::isfinite(area))
-    throw std::invalid_argument(
-        "mesh file '" + path + "': its " + std::to_string(m.faces.rows()) + " triangles have " +
-        (area > 0 ? "an infinite area (coordinates too large)" : "no area (all degenerate)"));
+  if (area > 0 && std::isfinite(area)) return;
+  std::ostringstream msg;
+  msg << "mesh file '" << path << "': its " << m.faces.rows() << " triangles have "
+      << (area > 0 ? "an infinite area (coordinates too large)" : "no area (all degenerate)");
+  if (!(area > 0) && scale != 1.0) msg << " at mesh scale " << scale << ": is the scale right?";
+  throw std::invalid_argument(msg.str());
+}
+
+// A mesh read in double precision by nbvkit's own readers (PLY, OBJ): at least one face, scaled,
+// turned z up, validated.
+Mesh loaded_mesh(Points vertices, Faces faces, const std::string& path, double scale, char up) {
+  if (faces.rows() == 0)
+    throw std::invalid_argument("mesh file '" + path + "' contains no triangles");
+  Mesh out;
+  out.vertices.resize(vertices.rows(), 3);
+  const bool y_up = (up == 'y' || up == 'Y');
+  for (Eigen::Index i = 0; i < vertices.rows(); ++i) {
+    const Eigen::Vector3d p = vertices.row(i).transpose();
+    out.vertices.row(i) = scale * (y_up ? Eigen::Vector3d(p.x(), -p.z(), p.y()) : p);
+  }
+  out.faces = std::move(faces);
+  validate_loaded(out, path, scale);
+  return out;
 }
 
 // Refuses a file whose faces (of any polygon size) use a vertex with a NaN or infinite
@@ -235,18 +256,7 @@ void check_finite_vertices(const aiScene& scene, const std::string& path) {
 Mesh load_ply_mesh(const std::string& path, double scale, char up) {
   check_file_size(path);
   PlyData ply = read_ply(path, /*read_faces=*/true);
-  if (ply.faces.rows() == 0)
-    throw std::invalid_argument("mesh file '" + path + "' contains no triangles");
-  Mesh out;
-  out.vertices.resize(ply.vertices.rows(), 3);
-  const bool y_up = (up == 'y' || up == 'Y');
-  for (Eigen::Index i = 0; i < ply.vertices.rows(); ++i) {
-    const Eigen::Vector3d p = ply.vertices.row(i).transpose();
-    out.vertices.row(i) = scale * (y_up ? Eigen::Vector3d(p.x(), -p.z(), p.y()) : p);
-  }
-  out.faces = std::move(ply.faces);
-  validate_loaded(out, path);
-  return out;
+  return loaded_mesh(std::move(ply.vertices), std::move(ply.faces), path, scale, up);
 }
 
 // OBJ files go through nbvkit's own reader (nbv/obj.hpp) in double precision: assimp keeps
@@ -265,18 +275,7 @@ Mesh load_obj_mesh(const std::string& path, double scale, char up) {
       throw std::invalid_argument("mesh file '" + path + "': " + why);
     throw std::invalid_argument("cannot read mesh '" + path + "': " + why);
   }
-  if (obj.faces.rows() == 0)
-    throw std::invalid_argument("mesh file '" + path + "' contains no triangles");
-  Mesh out;
-  out.vertices.resize(obj.vertices.rows(), 3);
-  const bool y_up = (up == 'y' || up == 'Y');
-  for (Eigen::Index i = 0; i < obj.vertices.rows(); ++i) {
-    const Eigen::Vector3d p = obj.vertices.row(i).transpose();
-    out.vertices.row(i) = scale * (y_up ? Eigen::Vector3d(p.x(), -p.z(), p.y()) : p);
-  }
-  out.faces = std::move(obj.faces);
-  validate_loaded(out, path);
-  return out;
+  return loaded_mesh(std::move(obj.vertices), std::move(obj.faces), path, scale, up);
 }
 
 // Files assimp reads arrive in float32 (Debian's assimp has ai_real = float). Refuses a mesh
@@ -535,7 +534,7 @@ Mesh load_mesh(const std::string& path, double scale, char up) {
     }
     vbase += mesh->mNumVertices;
   }
-  validate_loaded(out, path);
+  validate_loaded(out, path, scale);
   return out;
 }
 

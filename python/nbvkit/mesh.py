@@ -80,12 +80,7 @@ def load_mesh(path: str | os.PathLike, scale: float = 1.0, up: str = "z", shift=
         if not np.isfinite(shift).all():
             raise ValueError(f"mesh shift must be finite, got {shift.tolist()}")
     p = check_input_file(path, "mesh file", MAX_DATA_FILE_BYTES)
-    try:
-        mesh = _core._load_mesh(os.fsencode(p), scale, _UP[up])
-    except ValueError as e:
-        if scale != 1.0 and "no area" in str(e):  # a scale that shrank every area to nothing
-            raise ValueError(f"{e} at mesh scale {scale:g}: is the scale right?") from None
-        raise
+    mesh = _core._load_mesh(os.fsencode(p), scale, _UP[up])
     if shift is not None and shift.any():
         mesh = Mesh(np.asarray(mesh.vertices) + shift, mesh.faces)
     return mesh
