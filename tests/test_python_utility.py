@@ -320,6 +320,7 @@ def test_a_registered_utility_returning_nonsense_is_an_error_naming_it(world, ou
     from nbvkit.planning.scoring import Scorer
 
     registry.register_utility("hostile_u", out)
+    assert registry.UTILITIES["hostile_u"] is out  # registered as it is, checked where called
     try:
         scorer = Scorer(Config().with_overrides(["utility.name=hostile_u"]).utility)
         with pytest.raises(error, match=match) as e:

@@ -108,68 +108,12 @@ def register_termination(name: str, cls) -> None:
 def register_utility(name: str, fn) -> None:
     """Adds a utility written in Python: `fn(rays)` -> (K,) gains of K candidate views from what
     their rays reach (nbvkit.CandidateRays), each finite and >= 0 for a valid candidate (or a
-    tuple (gains, cells)); named by ``utility.name``. What it returns is checked, and an
-    exception of its own noted with its name (checked_utility)."""
+    tuple (gains, cells)); named by ``utility.name``. What it returns is checked where it is
+    called, and an exception of its own noted with its name (utilities.PythonUtility)."""
     if not callable(fn):
         raise TypeError(f"utility {name!r} must be callable, got {type(fn).__name__}")
     _check_new(name, "utility", {**UTILITIES, **dict.fromkeys(_core_utilities())})
-    UTILITIES[name] = checked_utility(name, fn)
-
-
-def checked_utility(name: str, fn):
-    """`fn(rays)` as the planner calls a utility registered as `name`: its exceptions noted with
-    its name (parts._named); TypeError / ValueError naming it unless it returned (K,) gains (or a
-    tuple (gains (K,), cells (K,))) of numbers, finite and >= 0 for the valid candidates
-    (rays.status 0; the others' are not read). Returns (gains float64, cells or None)."""
-    import functools
-
-    import numpy as np
-
-    from .parts import _named
-
-    @functools.wraps(fn)
-    def utility(rays):
-        out = _named("utility", name, "its call on the candidates' rays", fn, rays)
-        k = len(rays)
-        if isinstance(out, tuple) and len(out) != 2:
-            raise TypeError(
-                f"utility {name!r} returned a tuple of {len(out)}; it returns gains (K,) or "
-                "(gains (K,), cells (K,))"
-            )
-        gains, cells = out if isinstance(out, tuple) else (out, None)
-        arrays = {"gains": gains} if cells is None else {"gains": gains, "cells": cells}
-        for what, a in arrays.items():
-            try:
-                arr = np.asarray(a)
-                ok = arr.dtype.kind in "biuf"
-            except Exception:
-                ok = False
-            if a is None or not ok:
-                raise TypeError(
-                    f"utility {name!r} returned {type(a).__name__} {what}, not an array of "
-                    f"numbers, one a candidate ({k},)"
-                )
-            if arr.shape != (k,):
-                raise ValueError(
-                    f"utility {name!r} returned {what} of shape {arr.shape}, not ({k},): one "
-                    "a candidate"
-                )
-        gains = np.asarray(gains, dtype=np.float64)
-        valid = np.asarray(rays.status) == 0
-        for bad, what in ((~np.isfinite(gains), "non-finite"), (gains < 0, "negative")):
-            bad &= valid
-            if bad.any():
-                j = int(np.flatnonzero(bad)[0])
-                raise ValueError(
-                    f"utility {name!r} returned a {what} gain ({gains[j]}) for valid candidate "
-                    f"{j} ({int(bad.sum())} such of {k} candidates); gains are finite and >= 0 "
-                    "(the planner ranks gain x a travel discount)"
-                )
-        return gains if cells is None else (gains, cells)
-
-    utility.__name__ = name
-    utility.checked = True  # PythonUtility does not check it twice
-    return utility
+    UTILITIES[name] = fn
 
 
 def part_settings() -> dict:

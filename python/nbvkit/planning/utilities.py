@@ -109,7 +109,8 @@ class PythonUtility:
     require_occupied / require_occupied_probability: the paper's constraint, as UtilityOptions
     has it (a view must see an occupied cell; status 4 otherwise). distance_lambda (1/m): if > 0,
     the utility is gain * exp(-distance_lambda * d), d the straight distance from the vehicle to
-    the view (as ig_distance weighs it); the gain is returned unweighted.
+    the view (as ig_distance weighs it); the gain is returned unweighted. name: how its errors
+    name it (None: fn's __name__). What `fn` returns is checked at each call (:meth:`gains`).
 
     :meth:`score` has the signature and dict of a planner's ``Scorer``; to fly a planner on `fn`,
     register it by name (``nbvkit.register_utility``; see :func:`score_python`)."""
@@ -127,11 +128,8 @@ class PythonUtility:
             raise TypeError(f"PythonUtility needs a callable fn(rays), got {type(fn).__name__}")
         if not (math.isfinite(distance_lambda) and distance_lambda >= 0):
             raise ValueError(f"distance_lambda must be finite and >= 0, got {distance_lambda}")
-        from .registry import checked_utility
-
         self.name = name or getattr(fn, "__name__", "python_utility")
-        # its gains checked as a registered utility's (numbers, (K,), finite and >= 0)
-        self.fn = fn if getattr(fn, "checked", False) else checked_utility(self.name, fn)
+        self.fn = fn  # called by gains(), which checks what it returns
         self.distance_lambda = float(distance_lambda)
         # validated by the core (require_occupied_probability in [0, 1))
         self.options = _core.UtilityOptions(
@@ -154,12 +152,55 @@ class PythonUtility:
             utility=self.options,
         )
 
+    def gains(self, rays):
+        """(gains (K,) float64, cells (K,) or None): `fn(rays)`, its exceptions noted with the
+        utility's name (parts._named); TypeError / ValueError naming it unless it returned (K,)
+        gains (or a tuple (gains (K,), cells (K,))) of numbers, finite and >= 0 for the valid
+        candidates (rays.status 0; the others' are not read)."""
+        from .parts import _named
+
+        name, k = self.name, len(rays)
+        out = _named("utility", name, "its call on the candidates' rays", self.fn, rays)
+        if isinstance(out, tuple) and len(out) != 2:
+            raise TypeError(
+                f"utility {name!r} returned a tuple of {len(out)}; it returns gains (K,) or "
+                "(gains (K,), cells (K,))"
+            )
+        gains, cells = out if isinstance(out, tuple) else (out, None)
+        arrays = {"gains": gains} if cells is None else {"gains": gains, "cells": cells}
+        for what, a in arrays.items():
+            try:
+                arr = np.asarray(a)
+                ok = arr.dtype.kind in "biuf"
+            except Exception:
+                ok = False
+            if a is None or not ok:
+                raise TypeError(
+                    f"utility {name!r} returned {type(a).__name__} {what}, not an array of "
+                    f"numbers, one a candidate ({k},)"
+                )
+            if arr.shape != (k,):
+                raise ValueError(
+                    f"utility {name!r} returned {what} of shape {arr.shape}, not ({k},): one "
+                    "a candidate"
+                )
+        gains = np.array(gains, dtype=np.float64)
+        valid = np.asarray(rays.status) == 0
+        for bad, what in ((~np.isfinite(gains), "non-finite"), (gains < 0, "negative")):
+            bad &= valid
+            if bad.any():
+                j = int(np.flatnonzero(bad)[0])
+                raise ValueError(
+                    f"utility {name!r} returned a {what} gain ({gains[j]}) for valid candidate "
+                    f"{j} ({int(bad.sum())} such of {k} candidates); gains are finite and >= 0 "
+                    "(the planner ranks gain x a travel discount)"
+                )
+        return gains, cells
+
     def score_rays(self, rays, poses=None, current=None) -> dict:
         """The scores dict from CandidateRays already computed (`poses` and `current` only for
         the distance weight)."""
-        out = self.fn(rays)  # checked: (K,) numbers, finite and >= 0 where valid
-        gain, cells = out if isinstance(out, tuple) else (out, None)
-        gain = np.array(gain, dtype=np.float64)
+        gain, cells = self.gains(rays)
         cells = np.array(np.diff(rays.offsets) if cells is None else cells, dtype=np.int32)
         status = np.array(rays.status)
         valid = status == 0
@@ -185,16 +226,22 @@ class PythonUtility:
         return self.score_rays(self.rays(world, poses), poses, world.state.pose)
 
 
-def score_python(fn: Callable, world, poses, options=None) -> dict:
+def score_python(fn: Callable, world, poses, options=None, name: str | None = None) -> dict:
     """The scores dict of candidate views `poses` (K, 4 or 5) by a utility written in Python,
     `fn(rays) -> gains (K,)` (or ``(gains, cells)``), from where the vehicle is: the entry a
     planner's scoring calls for a utility registered from Python (``register_utility``).
     `options`: UtilityOptions (None: the defaults), of which require_occupied and
     require_occupied_probability are read (the paper's constraint, status 4); no distance
-    weight (see PythonUtility for one)."""
+    weight (see PythonUtility for one). `name` (its errors name it): None, the name `fn` is
+    registered under (its own __name__ if it is not registered)."""
+    from .registry import UTILITIES
+
     o = options if options is not None else _core.UtilityOptions()
+    if name is None:
+        name = next((n for n, f in UTILITIES.items() if f is fn), None)
     return PythonUtility(
         fn,
         require_occupied=o.require_occupied,
         require_occupied_probability=o.require_occupied_probability,
+        name=name,
     ).score(world, poses)
