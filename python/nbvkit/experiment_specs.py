@@ -3,6 +3,7 @@ config overrides) and the spec lists of Table 2 (table2_specs), a sweep file (sw
 planner comparison (compare_specs). Re-exported by nbvkit.experiments."""
 from __future__ import annotations
 
+import functools
 import hashlib
 import itertools
 import json
@@ -115,10 +116,6 @@ def with_mesh_shift(overrides, shift: list, option: str = "--mesh-shift") -> lis
     return [*overrides, *shift]
 
 
-#: _flown_mesh's answers: (mesh, scale, up, overrides, config file, its stat) -> flown mesh
-_FLOWN: dict = {}
-
-
 def _flown_mesh(mesh, scale, up, overrides: tuple, config_file) -> tuple:
     """(path or None, scale, up) that a spec's resolved configuration flies, cached (scenario and
     start do not change the mesh; the config file by its size and time)."""
@@ -129,13 +126,14 @@ def _flown_mesh(mesh, scale, up, overrides: tuple, config_file) -> tuple:
             stat = (st.st_size, st.st_mtime_ns)
         except OSError:
             pass
-    key = (mesh, scale, up, overrides, config_file, stat)
-    if key not in _FLOWN:
-        if len(_FLOWN) > 100_000:
-            _FLOWN.clear()
-        m = RunSpec("1", 0, mesh, scale, up, overrides, config_file).config().mesh
-        _FLOWN[key] = (m.path, float(m.scale), m.up)
-    return _FLOWN[key]
+    return _resolved_mesh(mesh, scale, up, overrides, config_file, stat)
+
+
+@functools.lru_cache(maxsize=65536)
+def _resolved_mesh(mesh, scale, up, overrides: tuple, config_file, stat) -> tuple:
+    """_flown_mesh's answer, by the config file's `stat` too (a changed file: resolved again)."""
+    m = RunSpec("1", 0, mesh, scale, up, overrides, config_file).config().mesh
+    return (m.path, float(m.scale), m.up)
 
 
 def _spec_dict(spec: RunSpec) -> dict:
