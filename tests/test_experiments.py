@@ -426,6 +426,36 @@ def test_mesh_keys_in_the_overrides_or_config_file_are_the_mesh_flown(tmp_path):
     assert len({s.run_id for s in specs}) == 2
 
 
+def test_a_scenario_that_sets_the_mesh_labels_its_runs_by_that_mesh(tmp_path):
+    """A registered scenario's mesh keys are the mesh flown (under the spec's own): the run id and
+    the tables' mesh columns follow it, not the mesh of another scenario."""
+    import shutil
+
+    from nbvkit.experiment_specs import _spec_dict
+    from nbvkit.experiments import _resolved
+    from nbvkit.scenarios import SCENARIOS, register_scenario
+
+    tower = tmp_path / "tower.obj"
+    shutil.copy(ROOT / "meshes" / "mast.obj", tower)
+    register_scenario("on_tower", "scenario 1 on the tower", {"mesh.path": str(tower)})
+    try:
+        spec = RunSpec("on_tower", 0, mesh_scale=2.0)
+        m = spec.config().mesh
+        assert spec.flown_mesh == (m.path, m.scale, m.up) == (str(tower), 2.0, "z")
+        assert spec.run_id.startswith("tower_son_tower_start0_")
+        assert _spec_dict(spec)["flown_mesh"] == {"path": str(tower), "scale": 2.0, "up": "z"}
+        assert _resolved(spec)[1] == _sha1(tower)
+        # the spec's mesh wins over the scenario's, as --set over any preset
+        assert RunSpec("on_tower", 0, "meshes/mast.obj").flown_mesh[0] == "meshes/mast.obj"
+        # registered again (a plugin file fixed and loaded again) with another mesh: that one
+        SCENARIOS.pop("on_tower")
+        register_scenario("on_tower", "scenario 1 on the airliner", {"mesh.scale": 3.0})
+        assert RunSpec("on_tower", 0).flown_mesh == (None, 3.0, "z")
+        assert RunSpec("1", 0).flown_mesh == (None, 1.0, "z")
+    finally:
+        SCENARIOS.pop("on_tower")
+
+
 def test_a_mesh_key_given_twice_is_refused(tmp_path, capsys):
     from nbvkit.cli import main
 

@@ -23,7 +23,8 @@ class RunSpec:
     """One mission: a scenario from a start on a structure, with config overrides.
 
     The mesh flown is the resolved configuration's ``mesh`` section: the defaults (the shipped
-    airliner, scale 1, up z), then the config file, then ``mesh``/``mesh_scale``/``mesh_up``
+    airliner, scale 1, up z), then the scenario's preset (a registered one may set mesh keys),
+    then the config file, then ``mesh``/``mesh_scale``/``mesh_up``
     where given (not None), then the overrides. A mesh key given both here and in the overrides
     (``--mesh X`` with ``--set mesh.path=Y``, a sweep's mesh entry with ``set``/``grid``
     ``mesh.path``) is refused: ValueError. The run id, the table's mesh columns and the resume
@@ -51,7 +52,12 @@ class RunSpec:
     def flown_mesh(self) -> tuple:
         """(path or None for the shipped airliner, scale, up) of the resolved configuration."""
         return _flown_mesh(
-            self.mesh, self.mesh_scale, self.mesh_up, tuple(self.overrides), self.config_file
+            self.scenario,
+            self.mesh,
+            self.mesh_scale,
+            self.mesh_up,
+            tuple(self.overrides),
+            self.config_file,
         )
 
     def mesh_overrides(self) -> list[str]:
@@ -116,9 +122,10 @@ def with_mesh_shift(overrides, shift: list, option: str = "--mesh-shift") -> lis
     return [*overrides, *shift]
 
 
-def _flown_mesh(mesh, scale, up, overrides: tuple, config_file) -> tuple:
-    """(path or None, scale, up) that a spec's resolved configuration flies, cached (scenario and
-    start do not change the mesh; the config file by its size and time)."""
+def _flown_mesh(scenario, mesh, scale, up, overrides: tuple, config_file) -> tuple:
+    """(path or None, scale, up) that a spec's resolved configuration flies, cached (the start
+    does not change the mesh, nor the scenario unless its preset sets mesh keys; the config file
+    by its size and time)."""
     stat = None
     if config_file is not None:
         try:
@@ -126,13 +133,31 @@ def _flown_mesh(mesh, scale, up, overrides: tuple, config_file) -> tuple:
             stat = (st.st_size, st.st_mtime_ns)
         except OSError:
             pass
-    return _resolved_mesh(mesh, scale, up, overrides, config_file, stat)
+    preset = _mesh_preset(scenario)
+    return _resolved_mesh(
+        scenario if preset else "1", preset, mesh, scale, up, overrides, config_file, stat
+    )
+
+
+def _mesh_preset(scenario) -> tuple:
+    """The mesh keys the scenario's preset sets ((key, JSON value), ...; () for none, as every
+    shipped scenario, or an unknown scenario)."""
+    from .scenarios import SCENARIOS
+
+    sc = SCENARIOS.get(scenario)
+    settings = sc.settings if sc is not None else {}
+    return tuple(
+        (k, json.dumps(v, sort_keys=True, default=str))
+        for k, v in sorted(settings.items())
+        if k == "mesh" or k.startswith("mesh.")
+    )
 
 
 @functools.lru_cache(maxsize=65536)
-def _resolved_mesh(mesh, scale, up, overrides: tuple, config_file, stat) -> tuple:
-    """_flown_mesh's answer, by the config file's `stat` too (a changed file: resolved again)."""
-    m = RunSpec("1", 0, mesh, scale, up, overrides, config_file).config().mesh
+def _resolved_mesh(scenario, preset, mesh, scale, up, overrides: tuple, config_file, stat):
+    """_flown_mesh's answer, by the scenario's mesh `preset` and the config file's `stat` too (a
+    scenario registered again, a changed file: resolved again)."""
+    m = RunSpec(scenario, 0, mesh, scale, up, overrides, config_file).config().mesh
     return (m.path, float(m.scale), m.up)
 
 
@@ -363,7 +388,8 @@ def validate_specs(specs: list[RunSpec]) -> None:
     """Builds each distinct configuration once, so that a bad key or value (or a mesh key given
     twice) fails before any run."""
     for s in {
-        (sp.mesh, sp.mesh_scale, sp.mesh_up, tuple(sp.overrides), sp.config_file) for sp in specs
+        (sp.scenario, sp.mesh, sp.mesh_scale, sp.mesh_up, tuple(sp.overrides), sp.config_file)
+        for sp in specs
     }:
         _flown_mesh(*s)
 
