@@ -470,12 +470,24 @@ def test_a_mesh_key_given_twice_is_refused(tmp_path, capsys):
         ["--mesh", "meshes/mast.obj", "--set", "mesh.path=meshes/airliner.obj"],
         ["--mesh-scale", "2", "--set", "mesh.scale=3"],
         ["--mesh-shift", "1", "0", "0", "--set", "mesh.shift=[2,0,0]"],
+        ["--mesh-up", "y", "--set", "mesh={up: z}"],
     ):
         assert main(["compare", "--planners", "1", *args, "--out", str(out)]) == 2
         assert "given twice" in capsys.readouterr().err
         assert main(["table", *args, "--out", str(out)]) == 2
         assert "given twice" in capsys.readouterr().err
+        # one run too: its option does not silently win over --set
+        assert main(["run", *args, "--out", str(out)]) == 2
+        err = capsys.readouterr().err
+        assert err.startswith("nbvkit run: error: mesh.") and "given twice" in err
     assert not out.exists()
+    # each key once (or given only by --set) is flown
+    from nbvkit.cli import build_parser
+    from nbvkit.commands.run import config_from_args
+
+    args = ["run", "--mesh", "meshes/mast.obj", "--set", "mesh.scale=2", "mesh.up=y"]
+    mesh = config_from_args(build_parser().parse_args(args)).mesh
+    assert (mesh.path, mesh.scale, mesh.up) == ("meshes/mast.obj", 2.0, "y")
 
 
 def test_compare_flies_and_labels_the_mesh_set_by_overrides(tmp_path):

@@ -62,24 +62,8 @@ class RunSpec:
 
     def mesh_overrides(self) -> list[str]:
         """The overrides of the mesh keys this spec gives; ValueError when the overrides give
-        one of them too."""
-        given = {
-            key: getattr(self, name) for name, key in MESH_FIELDS if getattr(self, name) is not None
-        }
-        if not given:
-            return []
-        also = _override_mesh_keys(self.overrides)
-        both = [k for k in given if k in also]
-        if both:
-            k = both[0]
-            raise ValueError(
-                f"{k} is given twice: {shorten(given[k])} by the spec (--mesh/--mesh-scale/"
-                f"--mesh-up, or a sweep's 'meshes' entry) and {also[k]} by the overrides "
-                "(--set, or a sweep's set/grid); give it once"
-            )
-        from .mesh import mesh_overrides
-
-        return mesh_overrides(self.mesh, self.mesh_scale, self.mesh_up)
+        one of them too (mesh_overrides_once)."""
+        return mesh_overrides_once(self.overrides, self.mesh, self.mesh_scale, self.mesh_up)
 
     def config(self):
         from .config import load_config
@@ -92,6 +76,32 @@ class RunSpec:
             "progress=false",
         ]
         return load_config(self.config_file, over)
+
+
+def mesh_overrides_once(
+    overrides,
+    mesh=None,
+    scale=None,
+    up=None,
+    by: str = "the spec (--mesh/--mesh-scale/--mesh-up, or a sweep's 'meshes' entry)",
+) -> list[str]:
+    """The overrides of the mesh keys given (not None: mesh.path, mesh.scale, mesh.up; `by`
+    names where they come from); ValueError when `overrides` set one of them too (one would
+    silently replace the other): nbvkit run, compare, table and sweep refuse it alike."""
+    given = {
+        key: value for (_, key), value in zip(MESH_FIELDS, (mesh, scale, up)) if value is not None
+    }
+    also = _override_mesh_keys(overrides) if given else {}
+    both = [k for k in given if k in also]
+    if both:
+        k = both[0]
+        raise ValueError(
+            f"{k} is given twice: {shorten(given[k])} by {by} and {also[k]} by the overrides "
+            "(--set, or a sweep's set/grid); give it once"
+        )
+    from .mesh import mesh_overrides
+
+    return mesh_overrides(mesh, scale, up)
 
 
 def _override_mesh_keys(overrides) -> dict:

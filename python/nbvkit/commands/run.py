@@ -8,7 +8,7 @@ import sys
 
 from ..config import load_config
 from ..experiments import terminate_as_interrupt
-from ..mesh import mesh_overrides
+from ..experiment_specs import mesh_overrides_once, with_mesh_shift
 from ..mission import Mission
 from ..planning.terminations.budget import budget_note
 from ..recorder import fly_into, raise_stop
@@ -26,7 +26,8 @@ def register(sub) -> argparse.ArgumentParser:
         "trajectory.csv, mesh.ply, figures/*.png and report.html (open it in a browser), and "
         "manifest.json last: the folder appears whole once the run is complete (a failed or "
         "killed run leaves no partial folder), and a folder that already holds files is "
-        "refused unless --overwrite. "
+        "refused unless --overwrite. The mesh may be given by --mesh/--mesh-scale/--mesh-up/"
+        "--mesh-shift or by --set mesh.path=... (each key once: both is refused). "
         f"Without --scenario: {DEFAULT}, the recommended planner.",
         formatter_class=argparse.RawDescriptionHelpFormatter,
         epilog="scenarios (--scenario, or --planner for nbvkit's own):\n"
@@ -84,8 +85,12 @@ def register(sub) -> argparse.ArgumentParser:
 
 
 def config_from_args(args):
-    overrides = [*args.set, *mesh_overrides(args.mesh, args.mesh_scale, args.mesh_up)]
-    overrides += shift_override(args)
+    """The resolved configuration of `nbvkit run`'s arguments; ValueError for a mesh key given
+    both by its option (--mesh, --mesh-scale, --mesh-up, --mesh-shift) and by --set."""
+    by = "--mesh/--mesh-scale/--mesh-up"
+    mesh = mesh_overrides_once(args.set, args.mesh, args.mesh_scale, args.mesh_up, by=by)
+    # after --set: a whole `mesh={...}` keeps them
+    overrides = with_mesh_shift([*args.set, *mesh], shift_override(args))
     if args.scenario is not None:
         overrides.append(f"scenario={json.dumps(args.scenario)}")
     if args.start is not None:
