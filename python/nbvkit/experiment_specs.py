@@ -414,11 +414,9 @@ def compare_specs(planners, mesh=None, mesh_scale=None, mesh_up=None, starts=5, 
     for p in planners:
         if p not in SCENARIOS:
             raise ValueError(f"unknown planner {p!r}; known: {', '.join(SCENARIOS)}")
-    dup = _duplicates(list(planners))
-    if dup:
-        raise ValueError(
-            f"planner(s) {', '.join(map(repr, dup))} named more than once; name each planner once"
-        )
+    # as a sweep's lists: the runs of different planners differ by their scenario in the run
+    # id, so this also keeps two specs from flying the same run (_check_distinct_runs)
+    _refuse_duplicates("--planners", list(planners))
     over = ("evaluation.coverage_every=5", *overrides)
     return [
         RunSpec(p, k, mesh, mesh_scale, mesh_up, tuple(over))
