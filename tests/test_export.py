@@ -796,6 +796,50 @@ def test_angles_are_written_without_numerical_noise(exported):
     assert gimbal and all(g == [0.0, 0.0] for g in gimbal)
 
 
+def test_numbers_are_written_without_a_negative_zero(tmp_path):
+    """Numerical noise below a field's last decimal (-1e-12 degrees, -1e-7 m) is written as 0,
+    never as -0: in the .waypoints, CSV, KML and DJI route files."""
+    import re
+
+    from nbvkit.export import writers
+    from nbvkit.export.wpml import write_wpml_kmz
+
+    assert writers._f(-1e-7, 3) == "0.000" and writers._f(-0.0, 6) == "0.000000"
+    assert writers._f(-0.4, 0) == "0" and writers._f(-0.0006, 3) == "-0.001"
+    assert writers._f(-12.5, 1) == "-12.5" and writers._f(-1e-12, 9) == "0.000000000"
+    tiny = np.full(4, -1e-12)
+    g = writers.GeoWaypoints(
+        lat=tiny,
+        lon=tiny,
+        alt=np.array([10.0, 10.0, -1e-7, 10.0]),
+        rel_alt=np.array([10.0, 10.0, -1e-7, 10.0]),
+        heading=np.array([0.0, 90.0, 359.9999999, 0.0]),
+        gimbal_pitch=np.array([0.0, -1e-7, -30.0, 0.0]),
+        gimbal_yaw=np.zeros(4),
+        action=["takeoff", "view", "view", "home"],
+        stage=["", "nbv", "nbv", ""],
+        row=[-1, 1, 2, -1],
+        number=[0, 1, 2, 0],
+        home=(-1e-12, -1e-12, -1e-7),
+        speed=5.0,
+        hover_s=2.0,
+        altitude_ref="ellipsoid",
+        name="t",
+        ell_alt=np.array([10.0, 10.0, -1e-7, 10.0]),
+        home_ell=-1e-7,
+    )
+    writers.write_qgc_wpl(g, tmp_path / "t.waypoints")
+    writers.write_csv(g, tmp_path / "t.csv")
+    writers.write_kml(g, tmp_path / "t.kml")
+    write_wpml_kmz(g, tmp_path / "t.kmz")
+    texts = [(tmp_path / n).read_text() for n in ("t.waypoints", "t.csv", "t.kml")]
+    with zipfile.ZipFile(tmp_path / "t.kmz") as z:
+        texts += [z.read(n).decode() for n in z.namelist()]
+    for text in texts:
+        numbers = re.findall(r"(?<![\w.])-\d+(?:\.\d+)?", text)
+        assert numbers and all(float(v) != 0 for v in numbers), numbers
+
+
 def test_split_antimeridian_cuts_a_line_where_it_crosses():
     from nbvkit.export.writers import split_antimeridian
 

@@ -89,7 +89,9 @@ class GeoWaypoints:
 
 
 def _f(x: float, nd: int) -> str:
-    return f"{x:.{nd}f}"
+    """x to `nd` decimals, never a negative zero ("-0.000" for -1e-7 is written "0.000")."""
+    s = f"{x:.{nd}f}"
+    return s[1:] if s[0] == "-" and not s.strip("-0.") else s
 
 
 def clean_angle(deg: float, nd: int = 9) -> float:
@@ -311,8 +313,8 @@ def write_kml(g: GeoWaypoints, path) -> None:
         pm = ET.SubElement(folder, k("Placemark"))
         ET.SubElement(pm, k("name")).text = f"{g.action[i]} {int(g.number[i])}"
         ET.SubElement(pm, k("description")).text = (
-            f"heading {g.heading[i]:.1f} deg, gimbal pitch {g.gimbal_pitch[i]:.1f} deg, "
-            f"{g.rel_alt[i]:.2f} m above the launch point"
+            f"heading {_f(g.heading[i], 1)} deg, gimbal pitch {_f(g.gimbal_pitch[i], 1)} deg, "
+            f"{_f(g.rel_alt[i], 2)} m above the launch point"
         )
         pt = ET.SubElement(pm, k("Point"))
         ET.SubElement(pt, k("altitudeMode")).text = "absolute"
