@@ -86,7 +86,7 @@ class Scorer:
         if self.python is not None:
             from .utilities import score_python
 
-            return score_python(self.python, world, poses, self.options)
+            return score_python(self.python, world, poses, self.options, name=self.name)
         return _core.evaluate_views(
             world.map,
             poses,

@@ -232,13 +232,9 @@ def score_python(fn: Callable, world, poses, options=None, name: str | None = No
     planner's scoring calls for a utility registered from Python (``register_utility``).
     `options`: UtilityOptions (None: the defaults), of which require_occupied and
     require_occupied_probability are read (the paper's constraint, status 4); no distance
-    weight (see PythonUtility for one). `name` (its errors name it): None, the name `fn` is
-    registered under (its own __name__ if it is not registered)."""
-    from .registry import UTILITIES
-
+    weight (see PythonUtility for one). `name`: the name its errors give (None: fn's own
+    __name__)."""
     o = options if options is not None else _core.UtilityOptions()
-    if name is None:
-        name = next((n for n, f in UTILITIES.items() if f is fn), None)
     return PythonUtility(
         fn,
         require_occupied=o.require_occupied,
