@@ -94,10 +94,17 @@ def estimate_flight(run_dir, speed=5.0, climb_rate=2.0, hover_s=2.0, occ_map=Non
     return estimate(read_run(run_dir), FlightModel(speed, climb_rate, hover_s), occ_map)
 
 
+def clean_angle(deg: float) -> float:
+    """An angle rounded to 1e-9 degree, without a negative zero: numerical noise such as 2.8e-14
+    is written as 0."""
+    v = round(float(deg), 9)
+    return 0.0 if v == 0 else v
+
+
 def _geo(fl, sortie, frame: GeoFrame, speed, hover_s, numbers, name, seqs=None):
     """The sortie's waypoints on the Earth, with headings and gimbal angles: bearings from the
     local north at each waypoint (exact near a pole, where the origin's north is far off),
-    numerical noise rounded off (writers.clean_angle)."""
+    numerical noise rounded off (clean_angle: here only; the writers write them as they are)."""
     from .. import _core
 
     cfg = fl.config
@@ -112,14 +119,14 @@ def _geo(fl, sortie, frame: GeoFrame, speed, hover_s, numbers, name, seqs=None):
         T = T_body @ _core.mount_transform([0, 0, 0], 0.0, math.degrees(w.pitch), 0.0) @ cam
         h = frame.local_bearing(T_body[:3, 0], lat[k], lon[k])
         fwd = T[:3, 0]  # the camera's axis, mesh frame
-        heading.append(writers.clean_angle(h) % 360.0)
+        heading.append(clean_angle(h) % 360.0)  # h in [0, 360): 360 only when rounded
         # pitch above the mesh's horizontal plane (the structure's frame; the local horizon
         # departs from it by distance / Earth radius: 0.0009 degrees at 100 m)
-        pitch.append(writers.clean_angle(math.degrees(math.asin(max(-1.0, min(1.0, fwd[2]))))))
+        pitch.append(clean_angle(math.degrees(math.asin(max(-1.0, min(1.0, fwd[2]))))))
         gy = 0.0
         if np.hypot(*fwd[:2]) > 1e-9:
             gy = signed_deg(frame.local_bearing(fwd, lat[k], lon[k]) - h)
-        gyaw.append(writers.clean_angle(gy))
+        gyaw.append(clean_angle(gy))
     hlat, hlon, halt = frame.to_geodetic(fl.home)
     return writers.GeoWaypoints(
         lat=lat,

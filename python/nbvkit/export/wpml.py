@@ -8,7 +8,7 @@ from xml.etree import ElementTree as ET
 import math
 
 from ..flight_time import signed_deg
-from .writers import MAX_SPEED_M_S, KML_NS, WPML_NS, GeoWaypoints, _f, clean_angle, waits
+from .writers import MAX_SPEED_M_S, KML_NS, WPML_NS, GeoWaypoints, _f, waits
 
 #: the return-to-home height's margin above the highest of the structure's workspace and the
 #: flight (m)
@@ -100,7 +100,7 @@ def _placemark_point(folder, g: GeoWaypoints, k: int, index: int, template: bool
         _el(pm, "useGlobalSpeed", 0)
         _el(pm, "useGlobalHeadingParam", 0)
         _el(pm, "useGlobalTurnParam", 0)
-        _el(pm, "gimbalPitchAngle", _f(clean_angle(g.gimbal_pitch[k], 3), 3))
+        _el(pm, "gimbalPitchAngle", _f(float(g.gimbal_pitch[k]), 3))
     else:
         _el(pm, "executeHeight", _f(float(g.rel_alt[k]), 3))
     _el(pm, "waypointSpeed", _f(g.speed, 2))
@@ -109,7 +109,7 @@ def _placemark_point(folder, g: GeoWaypoints, k: int, index: int, template: bool
         _el(hp, "waypointHeadingMode", "followWayline")
     else:
         _el(hp, "waypointHeadingMode", "smoothTransition")
-        _el(hp, "waypointHeadingAngle", _f(clean_angle(signed_deg(float(g.heading[k])), 3), 3))
+        _el(hp, "waypointHeadingAngle", _f(signed_deg(float(g.heading[k])), 3))
     _el(hp, "waypointHeadingPathMode", "followBadArc")
     tp = _el(pm, "waypointTurnParam")
     # no waypointTurnDampingDist: its range is (0, segment], and it is required only with
@@ -143,7 +143,7 @@ def _capture_actions(pm, g: GeoWaypoints, k: int, index: int, group: int, dji) -
     _el(p, "gimbalHeadingYawBase", "north")
     _el(p, "gimbalRotateMode", "absoluteAngle")
     _el(p, "gimbalPitchRotateEnable", 1)
-    _el(p, "gimbalPitchRotateAngle", _f(clean_angle(g.gimbal_pitch[k], 3), 3))
+    _el(p, "gimbalPitchRotateAngle", _f(float(g.gimbal_pitch[k]), 3))
     _el(p, "gimbalRollRotateEnable", 0)
     _el(p, "gimbalRollRotateAngle", 0)
     _el(p, "gimbalYawRotateEnable", 0)
@@ -151,7 +151,7 @@ def _capture_actions(pm, g: GeoWaypoints, k: int, index: int, group: int, dji) -
     _el(p, "gimbalRotateTimeEnable", 0)
     _el(p, "gimbalRotateTime", 0)
     _el(p, "payloadPositionIndex", 0)
-    heading = clean_angle(signed_deg(float(g.heading[k])), 3)
+    heading = signed_deg(float(g.heading[k]))
     before = g.heading[k - 1] if g.action[k - 1] not in ("transit",) else _course(g, k)
     turn = signed_deg(float(g.heading[k]) - float(before))
     p = _action(ag, 1, "rotateYaw")

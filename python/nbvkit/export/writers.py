@@ -51,13 +51,15 @@ class GeoWaypoints:
     """A sortie's waypoints with everything a format needs: lat, lon (deg), alt (m, in the
     origin's reference), rel_alt (m above the launch point), heading (deg clockwise from north,
     [0, 360)), gimbal_pitch (deg, positive up), gimbal_yaw (deg, relative to the vehicle's nose,
-    positive right), action, stage, row (flight row or -1) - each (N,); home: (lat, lon, alt)
-    of the launch point; number: the 1-based number of each view/frame among its kind in the
-    whole flight (0 else); seq: the 1-based number of each capture among all captures of the
-    whole flight, views and frames together, in flight order (0 else); ell_alt (N,) and
-    home_ell: heights above the WGS84 ellipsoid (filled for the DJI route only); waits: the
-    sortie's nbvkit.flight_time.capture_waits (None: computed from the headings); home_amsl: the
-    launch point's altitude above mean sea level (None: home's own, an AMSL origin);
+    positive right), action, stage, row (flight row or -1) - each (N,); the writers write the
+    angles as they are (nbvkit.export's _geo rounds their numerical noise off: clean_angle);
+    home: (lat, lon, alt) of the launch point; number: the 1-based number of each view/frame
+    among its kind in the whole flight (0 else); seq: the 1-based number of each capture among
+    all captures of the whole flight, views and frames together, in flight order (0 else);
+    ell_alt (N,) and home_ell: heights above the WGS84 ellipsoid (filled for the DJI route
+    only); waits: the sortie's nbvkit.flight_time.capture_waits (None: computed from the
+    headings); home_amsl: the launch point's altitude above mean sea level (None: home's own, an
+    AMSL origin);
     rth_height: the DJI route's return-to-home height above the take-off point (None: the
     highest waypoint's + RTH_MARGIN_M)."""
 
@@ -92,13 +94,6 @@ def _f(x: float, nd: int) -> str:
     """x to `nd` decimals, never a negative zero ("-0.000" for -1e-7 is written "0.000")."""
     s = f"{x:.{nd}f}"
     return s[1:] if s[0] == "-" and not s.strip("-0.") else s
-
-
-def clean_angle(deg: float, nd: int = 9) -> float:
-    """An angle rounded to `nd` decimals, without a negative zero: numerical noise such as
-    2.8e-14 is written as 0."""
-    v = round(float(deg), nd)
-    return 0.0 if v == 0 else v
 
 
 # ---------------------------------------------------------------------- MAVLink missions
@@ -154,7 +149,7 @@ def mavlink_items(g: GeoWaypoints, ardupilot: bool = False) -> list[dict]:
 
 def _yaw(g: GeoWaypoints, k: int):
     """Waypoint k's heading as a MAVLink yaw (deg), None on a transit leg (not commanded)."""
-    return None if g.action[k] == "transit" else clean_angle(g.heading[k])
+    return None if g.action[k] == "transit" else float(g.heading[k])
 
 
 def _takeoff_item(g: GeoWaypoints, k: int) -> tuple:
@@ -177,7 +172,7 @@ def _gimbal_item(g: GeoWaypoints, k: int, ardupilot: bool) -> tuple:
     # gimbal rates: NaN ("unset" in common.xml) for PX4; ArduPilot's AP_Mission rejects NaN
     # there on upload (sanity_check_params) and reads no rate when both angles are set
     rate = 0.0 if ardupilot else None
-    pitch, yaw = clean_angle(g.gimbal_pitch[k]), clean_angle(g.gimbal_yaw[k])
+    pitch, yaw = float(g.gimbal_pitch[k]), float(g.gimbal_yaw[k])
     params = [pitch, yaw, rate, rate, GIMBAL_MANAGER_FLAGS_PITCH_LOCK, 0, 0]
     return (MAV_CMD_DO_GIMBAL_MANAGER_PITCHYAW, MAV_FRAME_MISSION, params)
 
@@ -376,8 +371,8 @@ def write_geojson(g: GeoWaypoints, path) -> None:
                         "kind": g.action[i],
                         "number": int(g.number[i]),
                         "flight_row": int(g.row[i]),
-                        "heading_deg": clean_angle(g.heading[i]),
-                        "gimbal_pitch_deg": clean_angle(g.gimbal_pitch[i]),
+                        "heading_deg": float(g.heading[i]),
+                        "gimbal_pitch_deg": float(g.gimbal_pitch[i]),
                         "rel_alt_m": float(g.rel_alt[i]),
                         "altitude_reference": g.altitude_ref,
                     },
