@@ -158,23 +158,6 @@ def _structure_top(fl) -> float | None:
     return None if top is None else float(top[2]) - float(fl.home[2])
 
 
-def _home_amsl(frame: GeoFrame, home: tuple) -> float:
-    """The launch point's altitude above mean sea level: home's own with an AMSL origin; with an
-    ellipsoidal one its height less the EGM96 geoid height there."""
-    if frame.altitude_ref != "ellipsoid":
-        return float(home[2])
-    from .georef import egm96_geoid_height
-
-    try:
-        n = float(egm96_geoid_height([home[0]], [home[1]])[0])
-    except ValueError as e:
-        raise ValueError(
-            f"the .plan and .waypoints home is above mean sea level; from an ellipsoidal origin "
-            f"that needs the EGM96 geoid ({e})"
-        ) from None
-    return float(home[2]) - n
-
-
 def camera_poses(fl) -> list:
     """(name, T_world_sensor (4, 4)) of every capture of the flight, in order: view_0001.png ...,
     frame_0001.png ... (numbered per kind)."""
@@ -341,7 +324,6 @@ def _write_formats(tmp: Path, fmts, fl, sorties, names, frame, model, drone, pay
     for s, name in zip(sorties, names):
         g = _geo(fl, s, frame, model.speed, model.hover_s, numbers, name, seqs)
         if "qgc" in fmts:
-            g.home_amsl = _home_amsl(frame, g.home)
             writers.write_qgc_plan(g, tmp / f"{name}.plan")
             writers.write_qgc_wpl(g, tmp / f"{name}.waypoints")
             files += [f"{name}.plan", f"{name}.waypoints"]

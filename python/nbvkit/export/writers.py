@@ -58,8 +58,7 @@ class GeoWaypoints:
     all captures of the whole flight, views and frames together, in flight order (0 else);
     ell_alt (N,) and home_ell: heights above the WGS84 ellipsoid (filled for the DJI route
     only); waits: the sortie's nbvkit.flight_time.capture_waits (None: computed from the
-    headings); home_amsl: the launch point's altitude above mean sea level (None: home's own, an
-    AMSL origin);
+    headings);
     rth_height: the DJI route's return-to-home height above the take-off point (None: the
     highest waypoint's + RTH_MARGIN_M)."""
 
@@ -83,7 +82,6 @@ class GeoWaypoints:
     ell_alt: np.ndarray = None
     home_ell: float = None
     waits: dict = None
-    home_amsl: float = None
     rth_height: float = None
 
     def __len__(self):
@@ -211,9 +209,22 @@ def _waypoint_items(g: GeoWaypoints, k: int, hold, rest, seq, ardupilot: bool) -
 
 def _home_amsl(g: GeoWaypoints) -> tuple:
     """The launch point (lat, lon, altitude above mean sea level): MAV_FRAME_GLOBAL and the
-    .plan's plannedHomePosition are AMSL, whatever the origin's reference."""
-    alt = g.home[2] if g.home_amsl is None else g.home_amsl
-    return (g.home[0], g.home[1], alt)
+    .plan's plannedHomePosition are AMSL, whatever the origin's reference: home's own altitude
+    with an AMSL origin; with an ellipsoidal one its height less the EGM96 geoid height there
+    (ValueError when the geoid is not at hand)."""
+    lat, lon, alt = g.home
+    if g.altitude_ref != "ellipsoid":
+        return (lat, lon, float(alt))
+    from .georef import egm96_geoid_height
+
+    try:
+        n = float(egm96_geoid_height([lat], [lon])[0])
+    except ValueError as e:
+        raise ValueError(
+            f"the .plan and .waypoints home is above mean sea level; from an ellipsoidal origin "
+            f"that needs the EGM96 geoid ({e})"
+        ) from None
+    return (lat, lon, float(alt) - n)
 
 
 def write_qgc_plan(g: GeoWaypoints, path, firmware: int = MAV_AUTOPILOT_PX4) -> None:
