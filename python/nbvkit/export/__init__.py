@@ -147,13 +147,13 @@ def _geo(fl, sortie, frame: GeoFrame, speed, hover_s, numbers, name, seqs=None):
         name=name,
         seq=[(seqs or {}).get(w.row, 0) for w in wps],
         waits=sortie.waits or None,
-        rth_height=_structure_top(fl),
+        workspace_top_rel_alt=_workspace_top_rel_alt(fl),
     )
 
 
-def _structure_top(fl) -> float | None:
-    """The top of the run's workspace (the structure and the air round it) above the launch
-    point (m), or None when the workspace has no top."""
+def _workspace_top_rel_alt(fl) -> float | None:
+    """The top of the run's workspace (the structure and the air round it), m above the launch
+    point, or None when the workspace has no top."""
     top = (fl.workspace or {}).get("bounds_max")
     return None if top is None else float(top[2]) - float(fl.home[2])
 

@@ -31,13 +31,15 @@ def _el(parent, tag, text=None, ns=WPML_NS):
     return e
 
 
-def rth_height(g: GeoWaypoints) -> float:
-    """The return-to-home height (m above the take-off point; the aircraft climbs to it before
-    it flies home in a straight line, on a lost link or at the end): above the structure's top
-    (g.rth_height: the run's workspace top, or the highest waypoint) by RTH_MARGIN_M, at most
-    RTH_MAX_M."""
-    top = float(max(g.rel_alt)) if g.rth_height is None else float(g.rth_height)
-    return min(max(top, float(max(g.rel_alt))) + RTH_MARGIN_M, RTH_MAX_M)
+def rth_rel_alt(g: GeoWaypoints) -> float:
+    """The return-to-home height, m above the take-off point (the launch point: the aircraft
+    climbs to it before it flies home in a straight line, on a lost link or at the end): above
+    the higher of the run's workspace top (g.workspace_top_rel_alt) and the highest waypoint by
+    RTH_MARGIN_M, at most RTH_MAX_M."""
+    top = float(max(g.rel_alt))
+    if g.workspace_top_rel_alt is not None:
+        top = max(float(g.workspace_top_rel_alt), top)
+    return min(top + RTH_MARGIN_M, RTH_MAX_M)
 
 
 def _course(g: GeoWaypoints, k: int) -> float:
@@ -62,7 +64,7 @@ def _mission_config(doc, g: GeoWaypoints, drone, payload, template: bool):
     if template:  # "the height of the ellipsoid shall be used"
         _el(mc, "takeOffRefPoint", f"{_f(g.home[0], 9)},{_f(g.home[1], 9)},{_f(g.home_ell, 3)}")
     _el(mc, "globalTransitionalSpeed", _f(min(g.speed, MAX_SPEED_M_S), 2))
-    _el(mc, "globalRTHHeight", _f(rth_height(g), 3))
+    _el(mc, "globalRTHHeight", _f(rth_rel_alt(g), 3))
     di = _el(mc, "droneInfo")
     _el(di, "droneEnumValue", drone[0])
     _el(di, "droneSubEnumValue", drone[1])

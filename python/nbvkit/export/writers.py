@@ -58,9 +58,9 @@ class GeoWaypoints:
     all captures of the whole flight, views and frames together, in flight order (0 else);
     ell_alt (N,) and home_ell: heights above the WGS84 ellipsoid (filled for the DJI route
     only); waits: the sortie's nbvkit.flight_time.capture_waits (None: computed from the
-    headings);
-    rth_height: the DJI route's return-to-home height above the take-off point (None: the
-    highest waypoint's + RTH_MARGIN_M)."""
+    headings); workspace_top_rel_alt: the top of the run's workspace (the structure and the air
+    round it), m above the launch point, which the DJI route's return-to-home height clears
+    (nbvkit.export.wpml.rth_rel_alt; None: no top known, the highest waypoint instead)."""
 
     lat: np.ndarray
     lon: np.ndarray
@@ -82,7 +82,7 @@ class GeoWaypoints:
     ell_alt: np.ndarray = None
     home_ell: float = None
     waits: dict = None
-    rth_height: float = None
+    workspace_top_rel_alt: float = None
 
     def __len__(self):
         return len(self.lat)
