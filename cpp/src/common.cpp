@@ -6,6 +6,7 @@
 #endif
 #include <emmintrin.h>
 #include <fcntl.h>
+#include <sys/stat.h>
 #include <unistd.h>
 
 #include <algorithm>
@@ -151,6 +152,76 @@ std::string printable_ascii(const std::string& s) {
       out += hex[c & 15];
     }
   return out;
+}
+
+std::string why_not_readable(unsigned st_mode, std::uintmax_t size, std::uintmax_t max_bytes) {
+  if (!S_ISREG(st_mode))
+    return std::string("it is ") +
+           (S_ISDIR(st_mode)    ? "a directory"
+            : S_ISFIFO(st_mode) ? "a FIFO (named pipe)"
+            : S_ISCHR(st_mode)  ? "a character device"
+            : S_ISBLK(st_mode)  ? "a block device"
+            : S_ISSOCK(st_mode) ? "a socket"
+                                : "not a regular file") +
+           ": nbvkit reads regular files only";
+  if (size > max_bytes)
+    return std::to_string(size) + " bytes, more than the " + std::to_string(max_bytes) +
+           " bytes nbvkit reads";
+  return "";
+}
+
+namespace {
+// At most `limit` bytes of `path` (read_whole_file, read_file_head).
+std::string read_file(const std::string& path, std::size_t limit, const std::string& what,
+                      std::uintmax_t max_bytes) {
+  const auto fail = [&](const std::string& why) {
+    throw std::invalid_argument("cannot read " + what + " '" + path + "': " + why);
+  };
+  const int fd = ::open(path.c_str(), O_RDONLY | O_NONBLOCK | O_CLOEXEC);
+  if (fd < 0) {
+    if (errno == ENOENT) throw FileNotFound(path);
+    fail(std::strerror(errno));
+  }
+  struct Closer {
+    int fd;
+    ~Closer() { ::close(fd); }
+  } closer{fd};
+  struct stat st;
+  if (::fstat(fd, &st) != 0) fail(std::strerror(errno));
+  const std::string why =
+      why_not_readable(st.st_mode, static_cast<std::uintmax_t>(st.st_size), max_bytes);
+  if (!why.empty()) fail(why);
+  ::fcntl(fd, F_SETFL, ::fcntl(fd, F_GETFL) & ~O_NONBLOCK);
+  const auto read_some = [&](char* buf, std::size_t n) {
+    ssize_t r;
+    while ((r = ::read(fd, buf, n)) < 0 && errno == EINTR) {
+    }
+    if (r < 0) fail(std::strerror(errno));
+    return static_cast<std::size_t>(r);
+  };
+  std::string out(std::min<std::uintmax_t>(limit, static_cast<std::uintmax_t>(st.st_size)), '\0');
+  std::size_t got = 0;
+  for (std::size_t r = 1; got < out.size() && r > 0; got += r)
+    r = read_some(&out[got], out.size() - got);
+  out.resize(got);
+  char more[4096];  // a file that grew since fstat: read on to its end, within the limits
+  for (std::size_t r = 1; got < limit && r > 0; got += r) {
+    r = read_some(more, std::min(sizeof more, limit - got));
+    out.append(more, r);
+    if (out.size() > max_bytes) fail(why_not_readable(st.st_mode, out.size(), max_bytes));
+  }
+  return out;
+}
+}  // namespace
+
+std::string read_whole_file(const std::string& path, const std::string& what,
+                            std::uintmax_t max_bytes) {
+  return read_file(path, std::numeric_limits<std::size_t>::max(), what, max_bytes);
+}
+
+std::string read_file_head(const std::string& path, std::size_t n, const std::string& what,
+                           std::uintmax_t max_bytes) {
+  return read_file(path, n, what, max_bytes);
 }
 
 void require_representable(const Eigen::Vector3d& p, const std::string& what) {

@@ -14,8 +14,6 @@
 #include <cstdio>
 #include <cstdlib>
 #include <filesystem>
-#include <fstream>
-#include <iterator>
 #include <limits>
 #include <optional>
 #include <random>
@@ -94,41 +92,6 @@ Points Mesh::sample_surface(std::size_t n, std::uint64_t seed, Eigen::VectorXi* 
 
 namespace {
 
-// Mesh files, and every file a mesh file refers to (an OBJ's material library, a glTF's
-// buffers), must be regular files (a FIFO would block the reader forever, a device such as
-// /dev/zero never ends) of at most kMaxMeshFileBytes: what a file may make us allocate grows with
-// its size. Returns why `st` is not such a file, or "" if it is.
-std::string not_a_mesh_file(const std::filesystem::file_status& st, std::uintmax_t size) {
-  namespace fs = std::filesystem;
-  if (!fs::is_regular_file(st))
-    return std::string("it is ") +
-           (fs::is_directory(st)        ? "a directory"
-            : fs::is_fifo(st)           ? "a FIFO (named pipe)"
-            : fs::is_character_file(st) ? "a character device"
-            : fs::is_block_file(st)     ? "a block device"
-            : fs::is_socket(st)         ? "a socket"
-                                        : "not a regular file") +
-           ": nbvkit reads regular files only";
-  if (size > kMaxMeshFileBytes)
-    return std::to_string(size) + " bytes, more than the " + std::to_string(kMaxMeshFileBytes) +
-           " bytes nbvkit reads";
-  return "";
-}
-
-void check_file_size(const std::string& path) {
-  namespace fs = std::filesystem;
-  std::error_code ec;
-  const fs::file_status st = fs::status(path, ec);
-  if (ec) throw std::invalid_argument("cannot read mesh '" + path + "': " + ec.message());
-  std::uintmax_t size = 0;
-  if (fs::is_regular_file(st)) {
-    size = fs::file_size(path, ec);
-    if (ec) throw std::invalid_argument("cannot read mesh '" + path + "': " + ec.message());
-  }
-  const std::string why = not_a_mesh_file(st, size);
-  if (!why.empty()) throw std::invalid_argument("cannot read mesh '" + path + "': " + why);
-}
-
 // The file system assimp sees: every file it asks about or opens (the mesh file, and any file
 // the mesh file names) must be a regular file of at most kMaxMeshFileBytes. Any other is reported
 // missing to assimp and remembered, and load_mesh refuses the mesh naming it: assimp's own
@@ -171,22 +134,46 @@ class RegularFileIOSystem : public Assimp::DefaultIOSystem {
   };
 
   bool accept(const char* file, const struct stat& st) const {
-    namespace fs = std::filesystem;
-    const fs::file_type type = S_ISREG(st.st_mode)    ? fs::file_type::regular
-                               : S_ISDIR(st.st_mode)  ? fs::file_type::directory
-                               : S_ISFIFO(st.st_mode) ? fs::file_type::fifo
-                               : S_ISCHR(st.st_mode)  ? fs::file_type::character
-                               : S_ISBLK(st.st_mode)  ? fs::file_type::block
-                               : S_ISSOCK(st.st_mode) ? fs::file_type::socket
-                                                      : fs::file_type::unknown;
     const std::string why =
-        not_a_mesh_file(fs::file_status(type), static_cast<std::uintmax_t>(st.st_size));
+        why_not_readable(st.st_mode, static_cast<std::uintmax_t>(st.st_size), kMaxMeshFileBytes);
     if (why.empty()) return true;
     if (refused_.empty()) refused_ = file, refused_why_ = why;
     return false;
   }
 
   mutable std::string refused_, refused_why_;
+};
+
+// The vertices that faces use and that have a NaN or infinite coordinate, over the parts of a
+// file; refuse() throws naming the file, how many and the first. Checked on the vertices as read:
+// assimp's JoinIdenticalVertices would merge such a vertex into another, and a scale could hide
+// or make one.
+class NonFiniteVertices {
+ public:
+  // The vertices of one part that `used` marks; at(v) is vertex v (an Eigen::Vector3d). `part`
+  // follows the first one's number in the message (" of part 2", or "").
+  template <class At>
+  void add(const std::vector<char>& used, const At& at, const std::string& part = "") {
+    for (std::size_t v = 0; v < used.size(); ++v) {
+      if (!used[v]) continue;
+      const Eigen::Vector3d p = at(v);
+      if (p.allFinite()) continue;
+      if (count_++ == 0)
+        first_ = "vertex " + std::to_string(v) + part + " is (" + fmt(p.x()) + ", " + fmt(p.y()) +
+                 ", " + fmt(p.z()) + ")";
+    }
+  }
+
+  void refuse(const std::string& path) const {
+    if (count_)
+      throw std::invalid_argument("mesh file '" + path + "': " + std::to_string(count_) +
+                                  " vertices of its faces have a NaN or infinite coordinate (" +
+                                  first_ + ")");
+  }
+
+ private:
+  std::size_t count_ = 0;
+  std::string first_;
 };
 
 // A loaded mesh: Mesh::validate, and at least one triangle with an area (a mesh of degenerate
@@ -207,11 +194,17 @@ void validate_loaded(const Mesh& m, const std::string& path, double scale) {
   throw std::invalid_argument(msg.str());
 }
 
-// A mesh read in double precision by nbvkit's own readers (PLY, OBJ): at least one face, scaled,
-// turned z up, validated.
+// A mesh read in double precision by nbvkit's own readers (PLY, OBJ): at least one face, the
+// vertices of faces finite, scaled, turned z up, validated.
 Mesh loaded_mesh(Points vertices, Faces faces, const std::string& path, double scale, char up) {
   if (faces.rows() == 0)
     throw std::invalid_argument("mesh file '" + path + "' contains no triangles");
+  std::vector<char> used(static_cast<std::size_t>(vertices.rows()), 0);
+  for (Eigen::Index i = 0; i < faces.size(); ++i)  // indices in range: the readers checked them
+    used[static_cast<std::size_t>(faces.data()[i])] = 1;
+  NonFiniteVertices bad;
+  bad.add(used, [&](std::size_t v) { return Eigen::Vector3d(vertices.row(Eigen::Index(v))); });
+  bad.refuse(path);
   Mesh out;
   out.vertices.resize(vertices.rows(), 3);
   const bool y_up = (up == 'y' || up == 'Y');
@@ -225,10 +218,9 @@ Mesh loaded_mesh(Points vertices, Faces faces, const std::string& path, double s
 }
 
 // Refuses a file whose faces (of any polygon size) use a vertex with a NaN or infinite
-// coordinate, naming how many and the first one.
+// coordinate.
 void check_finite_vertices(const aiScene& scene, const std::string& path) {
-  std::size_t bad = 0;
-  std::string first;
+  NonFiniteVertices bad;
   for (unsigned m = 0; m < scene.mNumMeshes; ++m) {
     const aiMesh* mesh = scene.mMeshes[m];
     std::vector<char> used(mesh->mNumVertices, 0);
@@ -238,23 +230,17 @@ void check_finite_vertices(const aiScene& scene, const std::string& path) {
       for (unsigned k = 0; k < face.mNumIndices; ++k)
         if (face.mIndices[k] < mesh->mNumVertices) used[face.mIndices[k]] = 1;
     }
-    for (unsigned v = 0; v < mesh->mNumVertices; ++v) {
+    const auto at = [&](std::size_t v) {
       const aiVector3D& p = mesh->mVertices[v];
-      if (!used[v] || (std::isfinite(p.x) && std::isfinite(p.y) && std::isfinite(p.z))) continue;
-      if (bad++ == 0)
-        first = "vertex " + std::to_string(v) + " of part " + std::to_string(m) + " is (" +
-                std::to_string(p.x) + ", " + std::to_string(p.y) + ", " + std::to_string(p.z) + ")";
-    }
+      return Eigen::Vector3d(p.x, p.y, p.z);
+    };
+    bad.add(used, at, " of part " + std::to_string(m));
   }
-  if (bad)
-    throw std::invalid_argument("mesh file '" + path + "': " + std::to_string(bad) +
-                                " vertices of its faces have a NaN or infinite coordinate (" +
-                                first + ")");
+  bad.refuse(path);
 }
 
 // PLY files go through nbvkit's own strict reader (nbv/ply.hpp), never through assimp.
 Mesh load_ply_mesh(const std::string& path, double scale, char up) {
-  check_file_size(path);
   PlyData ply = read_ply(path, /*read_faces=*/true);
   return loaded_mesh(std::move(ply.vertices), std::move(ply.faces), path, scale, up);
 }
@@ -262,19 +248,7 @@ Mesh load_ply_mesh(const std::string& path, double scale, char up) {
 // OBJ files go through nbvkit's own reader (nbv/obj.hpp) in double precision: assimp keeps
 // float32, and a georeferenced file lost its digits before mesh.shift could be applied.
 Mesh load_obj_mesh(const std::string& path, double scale, char up) {
-  check_file_size(path);
-  ObjData obj;
-  try {
-    obj = read_obj(path);
-  } catch (const std::invalid_argument& e) {
-    // read_obj names the file as an OBJ; say mesh like the other readers.
-    const std::string what = e.what(), prefix = "cannot read OBJ '" + path + "': ";
-    if (what.rfind(prefix, 0) != 0) throw;
-    const std::string why = what.substr(prefix.size());
-    if (why.find("NaN or infinite") != std::string::npos)
-      throw std::invalid_argument("mesh file '" + path + "': " + why);
-    throw std::invalid_argument("cannot read mesh '" + path + "': " + why);
-  }
+  ObjData obj = read_obj(path);
   return loaded_mesh(std::move(obj.vertices), std::move(obj.faces), path, scale, up);
 }
 
@@ -283,9 +257,10 @@ Mesh load_obj_mesh(const std::string& path, double scale, char up) {
 // kMaxFloat32RoundingMetres (after `scale`): half the float32 spacing at the largest magnitude.
 // At scale 1 that is every coordinate of magnitude 32768 m (2^15) or more (spacing 3.9 mm); up
 // to there the rounding is at most 0.98 mm. The message says whether the file itself stores
-// float32 (binary STL, glTF) or assimp dropped the file's digits (text formats).
+// float32 (binary STL, glTF) or assimp dropped the file's digits (text formats); `head` is the
+// file's start (at least 84 bytes of a binary STL).
 void check_float32_precision(const aiScene& scene, const std::string& path, const std::string& ext,
-                             double scale) {
+                             const std::string& head, double scale) {
   float amax = 0;
   for (unsigned m = 0; m < scene.mNumMeshes; ++m) {
     const aiMesh* mesh = scene.mMeshes[m];
@@ -302,14 +277,11 @@ void check_float32_precision(const aiScene& scene, const std::string& path, cons
   const double rounding = 0.5 * spacing * scale;
   if (rounding <= kMaxFloat32RoundingMetres) return;
   bool binary_stl = false;
-  if (ext == ".stl") {
-    std::ifstream f(path, std::ios::binary);
-    unsigned char head[84] = {};
-    f.read(reinterpret_cast<char*>(head), 84);
-    const std::uint64_t n =
-        head[80] | head[81] << 8 | head[82] << 16 | static_cast<std::uint64_t>(head[83]) << 24;
+  if (ext == ".stl" && head.size() >= 84) {
+    const auto b = [&](int i) { return static_cast<std::uint64_t>(std::uint8_t(head[i])); };
+    const std::uint64_t n = b(80) | b(81) << 8 | b(82) << 16 | b(83) << 24;
     std::error_code ec;
-    binary_stl = f.gcount() == 84 && std::filesystem::file_size(path, ec) == 84 + 50 * n;
+    binary_stl = std::filesystem::file_size(path, ec) == 84 + 50 * n;
   }
   const bool gltf = ext == ".gltf" || ext == ".glb";
   const std::string near =
@@ -362,21 +334,12 @@ std::optional<std::string> attribute(const std::string& tag, const std::string& 
   return std::nullopt;
 }
 
-bool head_contains(const std::string& path, const std::string& what) {
-  std::ifstream f(path, std::ios::binary);
-  std::string head(4096, '\0');
-  f.read(&head[0], static_cast<std::streamsize>(head.size()));
-  head.resize(static_cast<std::size_t>(f.gcount()));
-  return head.find(what) != std::string::npos;
-}
-
 // Collada files: assimp 5.2's reader writes out of bounds for a <float_array> whose count is
 // missing or wrong, and loops forever on a token that is not an unsigned integer in an index list
 // (<p>, <vcount>, <v>, <h>). Such files are refused here, before assimp sees them; so are count,
 // stride, offset and set attributes that are not unsigned integers.
 void check_collada(const std::string& path) {
-  std::ifstream f(path, std::ios::binary);
-  const std::string s((std::istreambuf_iterator<char>(f)), std::istreambuf_iterator<char>());
+  const std::string s = read_whole_file(path, "mesh", kMaxMeshFileBytes);
   const auto fail = [&](const std::string& why) {
     throw std::invalid_argument("cannot read mesh '" + path + "': " + printable_ascii(why));
   };
@@ -467,8 +430,9 @@ Mesh load_mesh(const std::string& path, double scale, char up) {
                  [](unsigned char c) { return std::tolower(c); });
   if (ext == ".ply") return load_ply_mesh(path, scale, up);
   if (ext == ".obj") return load_obj_mesh(path, scale, up);
-  check_file_size(path);
-  if (ext == ".dae" || ext == ".xml" || head_contains(path, "<COLLADA")) check_collada(path);
+  const std::string head = read_file_head(path, 4096, "mesh", kMaxMeshFileBytes);
+  if (ext == ".dae" || ext == ".xml" || head.find("<COLLADA") != std::string::npos)
+    check_collada(path);
 
   Assimp::Importer importer;
   auto* io = new RegularFileIOSystem;  // owned by the importer
@@ -509,7 +473,7 @@ Mesh load_mesh(const std::string& path, double scale, char up) {
     for (unsigned f = 0; f < mesh->mNumFaces; ++f) nf += mesh->mFaces[f].mNumIndices == 3;
   }
   if (nf == 0) throw std::invalid_argument("mesh file '" + path + "' contains no triangles");
-  check_float32_precision(*scene, path, ext, scale);
+  check_float32_precision(*scene, path, ext, head, scale);
 
   Mesh out;
   out.vertices.resize(static_cast<Eigen::Index>(nv), 3);

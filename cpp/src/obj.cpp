@@ -1,11 +1,10 @@
 #include "nbv/obj.hpp"
+#include "nbv/mesh.hpp"
 
 #include <algorithm>
 #include <charconv>
 #include <cmath>
 #include <cstdint>
-#include <filesystem>
-#include <fstream>
 #include <limits>
 #include <stdexcept>
 #include <string_view>
@@ -236,23 +235,12 @@ ObjData parse_obj(const char* data, std::size_t size) {
     fail(max_index_line, "face vertex index " + std::to_string(max_index) +
                              " is out of range: the file has " + std::to_string(nv) + " vertices");
 
-  // Used vertices: none may be NaN or infinite.
+  // The vertices faces use, renumbered in file order (finiteness is the loader's check).
   std::vector<std::int32_t> remap(static_cast<std::size_t>(nv), -1);
   for (const std::int32_t i : index) remap[static_cast<std::size_t>(i)] = 0;
-  std::size_t bad = 0, kept = 0;
-  std::string first_bad;
-  for (std::size_t v = 0; v < remap.size(); ++v) {
-    if (remap[v] < 0) continue;
-    const double* p = &xyz[3 * v];
-    if (!(std::isfinite(p[0]) && std::isfinite(p[1]) && std::isfinite(p[2])) && bad++ == 0)
-      first_bad = "vertex " + std::to_string(v + 1) + " is (" + fmt(p[0]) + ", " + fmt(p[1]) +
-                  ", " + fmt(p[2]) + ")";
-    remap[v] = static_cast<std::int32_t>(kept++);
-  }
-  if (bad)
-    throw std::invalid_argument(std::to_string(bad) +
-                                " vertices of its faces have a NaN or infinite coordinate (" +
-                                first_bad + ")");
+  std::size_t kept = 0;
+  for (std::int32_t& r : remap)
+    if (r == 0) r = static_cast<std::int32_t>(kept++);
 
   std::vector<std::int32_t> tri;
   tri.reserve(3 * (index.size() - 2 * (start.size() - 1)));
@@ -277,16 +265,9 @@ ObjData parse_obj(const char* data, std::size_t size) {
 }
 
 ObjData read_obj(const std::string& path) {
-  std::ifstream f(path, std::ios::binary);
-  if (!f) throw std::invalid_argument("cannot read OBJ '" + path + "': cannot open it");
-  f.seekg(0, std::ios::end);
-  const std::streamoff n = f.tellg();
-  f.seekg(0, std::ios::beg);
-  std::string buf(n > 0 ? static_cast<std::size_t>(n) : 0, '\0');
-  f.read(buf.data(), static_cast<std::streamsize>(buf.size()));
-  buf.resize(static_cast<std::size_t>(f.gcount()));
+  const std::string text = read_whole_file(path, "OBJ", kMaxMeshFileBytes);
   try {
-    return parse_obj(buf.data(), buf.size());
+    return parse_obj(text.data(), text.size());
   } catch (const std::invalid_argument& e) {
     throw std::invalid_argument("cannot read OBJ '" + path + "': " + e.what());
   }

@@ -1,12 +1,11 @@
 #include "nbv/ply.hpp"
+#include "nbv/mesh.hpp"
 
 #include <algorithm>
 #include <cerrno>
 #include <cmath>
 #include <cstdlib>
 #include <cstring>
-#include <filesystem>
-#include <fstream>
 #include <limits>
 #include <vector>
 
@@ -368,17 +367,9 @@ PlyData parse_ply(const std::uint8_t* data, std::size_t size, bool read_faces) {
 }
 
 PlyData read_ply(const std::string& path, bool read_faces) {
-  namespace fs = std::filesystem;
-  std::error_code ec;
-  if (!fs::exists(path, ec)) throw FileNotFound(path);
-  if (fs::is_directory(path, ec))
-    throw std::invalid_argument("cannot read PLY '" + path + "': it is a directory");
-  std::ifstream f(path, std::ios::binary);
-  if (!f) throw std::invalid_argument("cannot read PLY '" + path + "': cannot open it");
-  std::vector<std::uint8_t> buf((std::istreambuf_iterator<char>(f)),
-                                std::istreambuf_iterator<char>());
+  const std::string data = read_whole_file(path, "PLY", kMaxMeshFileBytes);
   try {
-    return parse_ply(buf.data(), buf.size(), read_faces);
+    return parse_ply(reinterpret_cast<const std::uint8_t*>(data.data()), data.size(), read_faces);
   } catch (const std::invalid_argument& e) {
     throw std::invalid_argument("cannot read PLY '" + path + "': " + e.what());
   }

@@ -1,6 +1,8 @@
-// nbvkit's OBJ reader (nbv/obj.hpp): double precision, index forms, triangulation of convex and
-// non-convex polygons, and bad files that must throw naming the line.
+// nbvkit's OBJ reader (nbv/obj.hpp): double precision, index forms, ignored statements, used
+// vertices only, triangulation of convex and non-convex polygons, and bad files that must throw
+// naming the line. tests/test_mesh.py checks what load_mesh makes of it (the file named).
 #include "nbv/obj.hpp"
+#include "test_util.hpp"
 
 #include <gtest/gtest.h>
 
@@ -22,14 +24,7 @@ double area(const nbv::ObjData& d) {
   return a;
 }
 
-std::string error_of(const std::string& s) {
-  try {
-    parse(s);
-  } catch (const std::invalid_argument& e) {
-    return e.what();
-  }
-  return "";
-}
+using nbv_test::error_of;
 
 TEST(Obj, KeepsDoublePrecision) {
   const auto d = parse(
@@ -47,18 +42,56 @@ TEST(Obj, IndexFormsAndPolygons) {
       "v 0 0 5\nv 2 0 5\nv 2 1 5\nv 1 1 5\nv 1 2 5\nv 0 2 5\nf 5 6 7 8 9 10\n");
   EXPECT_EQ(d.faces.rows(), 2 + 4);
   EXPECT_NEAR(area(d), 4.0 + 3.0, 1e-12);
+  for (Eigen::Index i = 0; i < d.faces.rows(); ++i) {  // the polygons' winding (+z) is kept
+    const Eigen::Vector3d p0 = d.vertices.row(d.faces(i, 0)), p1 = d.vertices.row(d.faces(i, 1)),
+                          p2 = d.vertices.row(d.faces(i, 2));
+    EXPECT_GT((p1 - p0).cross(p2 - p0).z(), 0) << i;
+  }
   // a concave quad (an arrowhead): the fan from its first vertex would cover the notch
   const auto q = parse("v 0 0 0\nv 2 1 0\nv 4 0 0\nv 2 3 0\nf 1 2 3 4\n");
   EXPECT_NEAR(area(q), 4.0, 1e-12);  // 6 (the hull triangle) - 2 (the notch)
 }
 
+TEST(Obj, OtherStatementsAreIgnoredAndOnlyUsedVerticesKept) {
+  // comments, materials, groups, texture and normal lines, w and colours after x y z, a line
+  // continued by a backslash, lines and points (faces of fewer than three vertices)
+  const auto d = parse(
+      "# comment\nmtllib none.mtl\no square\nv 0 0 0 1\nv 2 0 0 1 0.5 0.5 0.5\nv 2 2 0\n"
+      "v 0 \\\n 2 0\nvt 0 0\nvn 0 0 1\nusemtl x\ns off\n"
+      "f -4/1/1 -3/1/1 -2/1/1 -1/1/1  # a quad, relative indices\nl 1 2\nf 1 2\np 3\n");
+  EXPECT_EQ(d.faces.rows(), 2);
+  EXPECT_NEAR(area(d), 4.0, 1e-12);
+  // a forward reference; the unused vertex is dropped, the others keep their file order
+  const auto f = parse("f 2 3 4\nv 9 9 9\nv 0 0 0\nv 1 0 0\nv 0 1 0\n");
+  Eigen::Matrix3d expected;
+  expected << 0, 0, 0, 1, 0, 0, 0, 1, 0;
+  EXPECT_EQ(f.vertices, expected);
+}
+
+TEST(Obj, NonFiniteCoordinatesAreLeftToTheLoader) {
+  // load_mesh checks the vertices of faces for every format (test_raycast.cpp)
+  const auto d = parse("v inf 0 0\nv 1 0 0\nv 0 1 0\nv nan 0 0\nf 1 2 3\n");
+  ASSERT_EQ(d.vertices.rows(), 3);  // the unused NaN vertex is dropped
+  EXPECT_TRUE(std::isinf(d.vertices(0, 0)));
+}
+
 TEST(Obj, BadFilesNameTheLine) {
-  EXPECT_NE(error_of("v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 4\n").find("line 4"), std::string::npos);
-  EXPECT_NE(error_of("v 0 0 0\nv 1 x 0\n").find("line 2"), std::string::npos);
-  EXPECT_NE(error_of("v 0 0 0\nf -2 1 1\n").find("before the first vertex"), std::string::npos);
-  EXPECT_NE(error_of("v 0 0 0\nv 1 0 0\nv 0 1 0\nf 0 1 2\n").find("index 0"), std::string::npos);
-  EXPECT_NE(error_of("v inf 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n").find("NaN or infinite"),
+  EXPECT_EQ(error_of(parse, "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 4\n"),
+            "line 4: face vertex index 4 is out of range: the file has 3 vertices");
+  EXPECT_EQ(error_of(parse, "v 0 0 0\nv 1 zero 0\n"),
+            "line 2: vertex coordinate 'zero' is not a number");
+  EXPECT_NE(error_of(parse, "v 0 0\n").find("line 1: a vertex needs three coordinates"),
             std::string::npos);
+  EXPECT_NE(error_of(parse, "v 0 0 0\nf -2 1 1\n").find("before the first vertex"),
+            std::string::npos);
+  EXPECT_NE(error_of(parse, "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 0 1 2\n").find("index 0"),
+            std::string::npos);
+  EXPECT_NE(
+      error_of(parse, "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 x\n").find("'x' does not start with an"),
+      std::string::npos);
+  EXPECT_NE(
+      error_of(parse, "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3 99999999999\n").find("out of range"),
+      std::string::npos);
   // a non-convex polygon of too many vertices (a comb): refused, not left to a slow clipper
   std::string comb;
   const int teeth = static_cast<int>(nbv::kObjMaxEarClipVertices);
@@ -66,7 +99,7 @@ TEST(Obj, BadFilesNameTheLine) {
     comb += "v " + std::to_string(i) + " " + (i % 2 ? "1" : "3") + " 0\n";
   comb += "v " + std::to_string(teeth - 1) + " 0 0\nv 0 0 0\nf";
   for (int i = 1; i <= teeth + 2; ++i) comb += " " + std::to_string(i);
-  EXPECT_NE(error_of(comb + "\n").find("non-convex polygon"), std::string::npos);
+  EXPECT_NE(error_of(parse, comb + "\n").find("non-convex polygon"), std::string::npos);
 }
 
 }  // namespace

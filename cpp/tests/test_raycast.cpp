@@ -2,6 +2,7 @@
 #include "nbv/mesh.hpp"
 #include "nbv/raycast.hpp"
 #include "nbv/sensors.hpp"
+#include "test_util.hpp"
 
 #include <gtest/gtest.h>
 
@@ -49,12 +50,7 @@ TEST(Mesh, MissingFileThrowsFileNotFound) {
 namespace {
 // The message of load_mesh(path)'s std::invalid_argument, or "" when it loads.
 std::string load_error(const std::string& path) {
-  try {
-    nbv::load_mesh(path);
-  } catch (const std::invalid_argument& e) {
-    return e.what();
-  }
-  return "";
+  return nbv_test::error_of(nbv::load_mesh, path, 1.0, 'z');
 }
 
 std::string write_obj(const std::string& name, const std::string& text) {

@@ -90,6 +90,23 @@ void write_file(const std::string& path, const std::function<void(std::ostream&)
 /// error message must be valid UTF-8 to cross into Python.
 std::string printable_ascii(const std::string& s);
 
+/// Why a file of stat mode `st_mode` and `size` bytes is not one nbvkit reads, or "" if it is: a
+/// regular file (a FIFO would block a reader forever, a device such as /dev/zero never ends) of
+/// at most `max_bytes` (what a file may make a reader allocate grows with its size). Reads e.g.
+/// "it is a FIFO (named pipe): nbvkit reads regular files only".
+std::string why_not_readable(unsigned st_mode, std::uintmax_t size, std::uintmax_t max_bytes);
+
+/// The bytes of the file `path`: all of them (read_whole_file) or its first `n` (read_file_head;
+/// fewer if the file is shorter). The file must pass why_not_readable; it is opened without
+/// blocking and checked on the open descriptor, so a FIFO or a device (even one swapped in for
+/// the path after a check) can neither block nor flood the reader. Throws FileNotFound for a
+/// missing path and std::invalid_argument "cannot read WHAT 'PATH': REASON" for anything else
+/// (not a regular file, too large, no permission, a read error).
+std::string read_whole_file(const std::string& path, const std::string& what,
+                            std::uintmax_t max_bytes);
+std::string read_file_head(const std::string& path, std::size_t n, const std::string& what,
+                           std::uintmax_t max_bytes);
+
 /// A number as an error message shows it (shortest round-trip-ish form, "inf", "nan").
 std::string fmt(double v);
 

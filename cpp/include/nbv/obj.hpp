@@ -10,8 +10,9 @@
 // other statement (vt, vn, o, g, s, usemtl, mtllib, l, p, ...) are ignored: no other file is ever
 // opened. A trailing backslash continues a line; `#` starts a comment.
 //
-// Only vertices used by a triangle are kept, in file order. Every problem throws
-// std::invalid_argument naming the line (the caller adds the file name).
+// Only vertices used by a triangle are kept, in file order; whether they are finite is left to
+// the mesh loader (load_mesh checks every format's face vertices the same way). Every problem
+// throws std::invalid_argument naming the line (read_obj adds the file name).
 #pragma once
 
 #include "nbv/common.hpp"
@@ -32,7 +33,9 @@ struct ObjData {
 /// Parses OBJ text held in memory.
 ObjData parse_obj(const char* data, std::size_t size);
 
-/// Reads and parses an OBJ file; std::invalid_argument ("cannot read OBJ 'path': reason").
+/// Reads (read_whole_file: a regular file of at most kMaxMeshFileBytes) and parses an OBJ file;
+/// FileNotFound for a missing path, std::invalid_argument ("cannot read OBJ 'path': reason") for
+/// anything else.
 ObjData read_obj(const std::string& path);
 
 }  // namespace nbv

@@ -23,8 +23,9 @@ struct PlyData {
 /// element (a point cloud). Throws std::invalid_argument naming the problem.
 PlyData parse_ply(const std::uint8_t* data, std::size_t size, bool read_faces = true);
 
-/// Reads and parses a PLY file; FileNotFound for a missing path, std::invalid_argument
-/// ("cannot read PLY 'path': reason") for anything else.
+/// Reads (read_whole_file: a regular file of at most kMaxMeshFileBytes) and parses a PLY file;
+/// FileNotFound for a missing path, std::invalid_argument ("cannot read PLY 'path': reason") for
+/// anything else.
 PlyData read_ply(const std::string& path, bool read_faces = true);
 
 }  // namespace nbv
