@@ -53,28 +53,38 @@ F = [
 ]
 
 
-def _obj() -> bytes:
-    lines = ["o cube"] + [f"v {x} {y} {z}" for x, y, z in V]
-    lines += [f"f {a + 1} {b + 1} {c + 1}" for a, b, c in F]
+# The builders below write the seed cube (V, F) by default; tests/test_mesh.py writes its own
+# vertices (numbers or numpy scalars) and faces (0-based) with them.
+
+
+def _plain(verts) -> list:
+    """`verts` as lists of Python numbers (numpy scalars converted; ints stay ints)."""
+    return [[c.item() if hasattr(c, "item") else c for c in v] for v in verts]
+
+
+def _obj(verts=V, faces=F) -> bytes:
+    lines = ["o cube"] + [f"v {x} {y} {z}" for x, y, z in _plain(verts)]
+    lines += [f"f {a + 1} {b + 1} {c + 1}" for a, b, c in faces]
     return ("\n".join(lines) + "\n").encode()
 
 
-def _stl_binary() -> bytes:
-    out = b"nbvkit fuzz cube".ljust(80, b" ") + struct.pack("<I", len(F))
-    for f in F:
+def _stl_binary(verts=V, faces=F) -> bytes:
+    out = b"nbvkit fuzz cube".ljust(80, b" ") + struct.pack("<I", len(faces))
+    for f in faces:
         out += struct.pack("<3f", 0, 0, 0)
         for i in f:
-            out += struct.pack("<3f", *V[i])
+            out += struct.pack("<3f", *verts[i])
         out += b"\0\0"
     return out
 
 
-def _stl_ascii() -> bytes:
+def _stl_ascii(verts=V, faces=F) -> bytes:
+    verts = _plain(verts)
     s = "solid cube\n"
-    for f in F:
+    for f in faces:
         s += " facet normal 0 0 0\n  outer loop\n"
         for i in f:
-            s += "   vertex {} {} {}\n".format(*V[i])
+            s += "   vertex {} {} {}\n".format(*verts[i])
         s += "  endloop\n endfacet\n"
     return (s + "endsolid cube\n").encode()
 
@@ -97,45 +107,47 @@ def cube_ply(fmt: str = "binary_little_endian", nv: int | None = None, faces=F) 
     return head + body
 
 
-def _gltf() -> bytes:
-    vb = b"".join(struct.pack("<3f", *v) for v in V)
-    ib = b"".join(struct.pack("<3H", *f) for f in F)
-    ib += b"\0" * (-len(ib) % 4)
-    buf = vb + ib
+def _gltf_buffer(verts=V, faces=F) -> bytes:
+    """The binary buffer of _gltf: float32 positions, then uint16 indices padded to 4."""
+    ib = b"".join(struct.pack("<3H", *f) for f in faces)
+    return b"".join(struct.pack("<3f", *v) for v in verts) + ib + b"\0" * (-len(ib) % 4)
+
+
+def _gltf(verts=V, faces=F, uri=None) -> bytes:
+    """A glTF of one mesh; its buffer (_gltf_buffer) embedded, or in the file `uri` names."""
+    buf, nvb = _gltf_buffer(verts, faces), 12 * len(verts)
+    if uri is None:
+        uri = "data:application/octet-stream;base64," + base64.b64encode(buf).decode()
+    verts = _plain(verts)
     doc = {
         "asset": {"version": "2.0"},
         "scene": 0,
         "scenes": [{"nodes": [0]}],
         "nodes": [{"mesh": 0}],
         "meshes": [{"primitives": [{"attributes": {"POSITION": 0}, "indices": 1}]}],
-        "buffers": [
-            {
-                "byteLength": len(buf),
-                "uri": "data:application/octet-stream;base64," + base64.b64encode(buf).decode(),
-            }
-        ],
+        "buffers": [{"byteLength": len(buf), "uri": uri}],
         "bufferViews": [
-            {"buffer": 0, "byteOffset": 0, "byteLength": len(vb), "target": 34962},
-            {"buffer": 0, "byteOffset": len(vb), "byteLength": 3 * 2 * len(F), "target": 34963},
+            {"buffer": 0, "byteOffset": 0, "byteLength": nvb, "target": 34962},
+            {"buffer": 0, "byteOffset": nvb, "byteLength": 3 * 2 * len(faces), "target": 34963},
         ],
         "accessors": [
             {
                 "bufferView": 0,
                 "componentType": 5126,
-                "count": len(V),
+                "count": len(verts),
                 "type": "VEC3",
-                "min": [0, 0, 0],
-                "max": [1, 1, 1],
+                "min": [min(v[a] for v in verts) for a in range(3)],
+                "max": [max(v[a] for v in verts) for a in range(3)],
             },
-            {"bufferView": 1, "componentType": 5123, "count": 3 * len(F), "type": "SCALAR"},
+            {"bufferView": 1, "componentType": 5123, "count": 3 * len(faces), "type": "SCALAR"},
         ],
     }
     return json.dumps(doc, indent=1).encode()
 
 
-def _dae() -> bytes:
-    pos = " ".join(f"{c}" for v in V for c in v)
-    idx = " ".join(str(i) for f in F for i in f)
+def _dae(verts=V, faces=F) -> bytes:
+    pos = " ".join(f"{c}" for v in _plain(verts) for c in v)
+    idx = " ".join(str(i) for f in faces for i in f)
     return f"""<?xml version="1.0" encoding="utf-8"?>
 <COLLADA xmlns="http://www.collada.org/2005/11/COLLADASchema" version="1.4.1">
   <asset><unit name="meter" meter="1"/><up_axis>Z_UP</up_axis></asset>
@@ -143,16 +155,16 @@ def _dae() -> bytes:
     <geometry id="cube" name="cube">
       <mesh>
         <source id="cube-pos">
-          <float_array id="cube-pos-array" count="{3 * len(V)}">{pos}</float_array>
+          <float_array id="cube-pos-array" count="{3 * len(verts)}">{pos}</float_array>
           <technique_common>
-            <accessor source="#cube-pos-array" count="{len(V)}" stride="3">
+            <accessor source="#cube-pos-array" count="{len(verts)}" stride="3">
               <param name="X" type="float"/><param name="Y" type="float"/>
               <param name="Z" type="float"/>
             </accessor>
           </technique_common>
         </source>
         <vertices id="cube-vtx"><input semantic="POSITION" source="#cube-pos"/></vertices>
-        <triangles count="{len(F)}">
+        <triangles count="{len(faces)}">
           <input semantic="VERTEX" source="#cube-vtx" offset="0"/>
           <p>{idx}</p>
         </triangles>

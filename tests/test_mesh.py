@@ -1,11 +1,24 @@
 """Mesh loading through assimp (formats, merging, up axis, scale), sampling, and bad input."""
 from __future__ import annotations
 
+import sys
+from pathlib import Path
+
 import numpy as np
 import pytest
 
 import nbvkit
 from conftest import box_mesh, shared_mesh
+
+sys.path.insert(0, str(Path(__file__).resolve().parent.parent / "bench"))
+
+from fuzz_meshes import (  # noqa: E402  (the fuzz's file builders)
+    _dae,
+    _gltf,
+    _gltf_buffer,
+    _obj,
+    _stl_binary,
+)
 
 TRI_OBJ = """# two parts
 o first
@@ -200,18 +213,14 @@ def test_default_airliner_matches_spec():
 # ------------------------------------------------------------ georeferenced coordinates (float64)
 
 UTM = np.array([500_000.3, 5_000_000.3, 100.7])  # an offset float32 cannot hold (0.5 m spacing)
-
-
-def _write_obj(path, v, faces, extra=""):
-    lines = [f"v {x!r} {y!r} {z!r}" for x, y, z in v] + [extra]
-    lines += ["f " + " ".join(str(i) for i in f) for f in faces]
-    path.write_text("\n".join(lines) + "\n")
+TRI = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0]], float)  # one triangle, TRI_F
+TRI_F = [(0, 1, 2)]
 
 
 def test_georeferenced_obj_keeps_its_digits_and_shifts_exactly(tmp_path):
     local = np.array([[0, 0, 0], [1.25, 0, 0], [0, 2.5, 0], [0.001, 0.002, 3.0]])
     p = tmp_path / "utm.obj"
-    _write_obj(p, local + UTM, [(1, 2, 3), (1, 2, 4)])
+    p.write_bytes(_obj(local + UTM, [(0, 1, 2), (0, 1, 3)]))
     raw = nbvkit.load_mesh(p)
     # the file's digits, not float32's (5,000,000.3 had come out 5,000,000.5)
     np.testing.assert_array_equal(np.sort(raw.vertices[:, 1]), np.sort((local + UTM)[:, 1]))
@@ -223,46 +232,28 @@ def test_georeferenced_obj_keeps_its_digits_and_shifts_exactly(tmp_path):
     np.testing.assert_allclose(m.vertices, 1000.0 * local[:, [0, 2, 1]] * [1, -1, 1], atol=1e-6)
 
 
-def test_obj_reader_statements_indices_and_polygons(tmp_path):
-    p = tmp_path / "poly.obj"
-    p.write_text(
-        "# comment\nmtllib none.mtl\no square\nv 0 0 0 1\nv 2 0 0 1 0.5 0.5 0.5\nv 2 2 0\n"
-        "v 0 \\\n 2 0\nvt 0 0\nvn 0 0 1\nusemtl x\ns off\n"
-        "f -4/1/1 -3/1/1 -2/1/1 -1/1/1  # a quad, relative indices\n"
-        "l 1 2\nf 1 2\np 3\n"
-        # an L-shaped (non-convex) hexagon at z = 5, area 3, corners in order
-        "v 0 0 5\nv 2 0 5\nv 2 1 5\nv 1 1 5\nv 1 2 5\nv 0 2 5\nf 5//1 6//1 7//1 8//1 9//1 10//1\n"
-    )
-    m = nbvkit.load_mesh(p)
-    assert m.num_triangles == 2 + 4
-    assert m.area == pytest.approx(4.0 + 3.0)
-    n = np.cross(*(m.vertices[m.faces[:, 1:]] - m.vertices[m.faces[:, :1]]).transpose(1, 0, 2))
-    assert np.all(n[:, 2] > 0)  # every triangle keeps the polygons' counter-clockwise winding
-    # forward references, and only the vertices faces use are kept (in file order)
-    p.write_text("f 2 3 4\nv 9 9 9\nv 0 0 0\nv 1 0 0\nv 0 1 0\n")
-    m = nbvkit.load_mesh(p)
-    np.testing.assert_array_equal(m.vertices, [[0, 0, 0], [1, 0, 0], [0, 1, 0]])
-
-
+# The parser's cases (statements, index forms, polygons, every bad line) are GoogleTests
+# (cpp/tests/test_obj.cpp); here: what a user reads, the file named.
 @pytest.mark.parametrize(
     "text, needle",
     [
-        ("v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 4\n", "line 4: face vertex index 4 is out of range"),
-        ("v 0 0 0\nv 1 0 0\nv 0 1 0\nf 0 1 2\n", "index 0"),
-        ("v 0 0 0\nv 1 0 0\nv 0 1 0\nf -4 -2 -1\n", "before the first vertex"),
-        ("v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 x\n", "'x' does not start with an integer"),
-        ("v 0 0 0\nv 1 zero 0\n", "line 2: vertex coordinate 'zero' is not a number"),
-        ("v 0 0\n", "three coordinates"),
-        ("v 0 0 0\nv nan 0 0\nv 0 1 0\nf 1 2 3\n", "1 vertices of its faces have a NaN"),
-        ("v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3 99999999999\n", "out of range"),
+        (
+            "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 4\n",
+            "cannot read OBJ '{}': line 4: face vertex index 4 is out of range",
+        ),
+        (
+            "v 0 0 0\nv nan 0 0\nv 0 1 0\nf 1 2 3\n",
+            "mesh file '{}': 1 vertices of its faces have a NaN or infinite coordinate "
+            "(vertex 1 is (nan, 0, 0))",
+        ),
     ],
 )
-def test_obj_reader_refuses_bad_files_naming_the_line(tmp_path, text, needle):
+def test_obj_errors_name_the_file_and_the_problem(tmp_path, text, needle):
     p = tmp_path / "bad.obj"
     p.write_text(text)
-    with pytest.raises(ValueError, match="bad.obj") as e:
+    with pytest.raises(ValueError) as e:
         nbvkit.load_mesh(p)
-    assert needle in str(e.value)
+    assert needle.format(p) in str(e.value)
 
 
 def test_obj_unused_nan_vertex_is_ignored(tmp_path):
@@ -271,69 +262,23 @@ def test_obj_unused_nan_vertex_is_ignored(tmp_path):
     assert nbvkit.load_mesh(p).vertices.shape == (3, 3)
 
 
-def _dae_triangle(offset):
-    x, y, z = offset
-    pts = " ".join(f"{v!r}" for v in (x, y, z, x + 1, y, z, x, y + 1, z))
-    return DAE.replace("0 0 0 1 0 0 0 1 0", pts).replace(
-        '<node id="b"><matrix>1 0 0 10 0 1 0 0 0 0 1 0 0 0 0 1</matrix>\n'
-        '      <instance_geometry url="#tri"/></node>\n',
-        "",
-    )
-
-
 def _gltf_triangle(tmp_path, offset, uri=None):
-    """A one-triangle glTF whose positions (float32) lie at `offset`; its buffer in `uri` (a file
-    beside it) or embedded."""
-    import base64
-    import json
-    import struct
-
-    v = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0]], np.float32) + np.float32(offset)
-    data = v.tobytes() + struct.pack("<3H", 0, 1, 2) + b"\0\0"
-    if uri is None:
-        uri = "data:application/octet-stream;base64," + base64.b64encode(data).decode()
-    doc = {
-        "asset": {"version": "2.0"},
-        "scene": 0,
-        "scenes": [{"nodes": [0]}],
-        "nodes": [{"mesh": 0}],
-        "meshes": [{"primitives": [{"attributes": {"POSITION": 0}, "indices": 1}]}],
-        "buffers": [{"uri": uri, "byteLength": len(data)}],
-        "bufferViews": [
-            {"buffer": 0, "byteOffset": 0, "byteLength": 36},
-            {"buffer": 0, "byteOffset": 36, "byteLength": 6},
-        ],
-        "accessors": [
-            {
-                "bufferView": 0,
-                "componentType": 5126,
-                "count": 3,
-                "type": "VEC3",
-                "min": v.min(0).tolist(),
-                "max": v.max(0).tolist(),
-            },
-            {"bufferView": 1, "componentType": 5123, "count": 3, "type": "SCALAR"},
-        ],
-    }
+    """A one-triangle glTF (tri.gltf) whose positions (float32) lie at `offset`; its buffer in
+    `uri` (a file beside it) or embedded."""
     p = tmp_path / "tri.gltf"
-    p.write_text(json.dumps(doc))
-    return p, data
+    p.write_bytes(_gltf(TRI.astype(np.float32) + np.float32(offset), TRI_F, uri=uri))
+    return p
 
 
 def _binary_stl(path, offset):
-    import struct
-
-    v = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0]], np.float32) + np.float32(offset)
-    path.write_bytes(
-        b"x" * 80 + struct.pack("<I", 1) + struct.pack("<12f", 0, 0, 1, *v.ravel()) + b"\0\0"
-    )
+    path.write_bytes(_stl_binary(TRI.astype(np.float32) + np.float32(offset), TRI_F))
 
 
 def test_float32_formats_at_georeferenced_coordinates_are_refused(tmp_path):
     """DAE, STL and glTF arrive in float32 (assimp's ai_real); at 5,000,000 m float32 numbers are
     0.5 m apart. Refused, saying why and what to do, rather than loaded 0.25 m off."""
     dae = tmp_path / "utm.dae"
-    dae.write_text(_dae_triangle(UTM))
+    dae.write_bytes(_dae(TRI + UTM, TRI_F))
     with pytest.raises(ValueError) as e:
         nbvkit.load_mesh(dae, shift=-UTM)
     msg = str(e.value)
@@ -351,7 +296,7 @@ def test_float32_formats_at_georeferenced_coordinates_are_refused(tmp_path):
     _binary_stl(stl, UTM)
     with pytest.raises(ValueError, match="binary STL stores float32.*already lost"):
         nbvkit.load_mesh(stl)
-    gltf, _ = _gltf_triangle(tmp_path, UTM)
+    gltf = _gltf_triangle(tmp_path, UTM)
     with pytest.raises(ValueError, match="tri.gltf.*glTF stores positions in float32"):
         nbvkit.load_mesh(gltf)
     # the threshold is the rounding in metres: coordinates from 32768 m (2^15) at scale 1 (the
@@ -366,7 +311,7 @@ def test_float32_formats_at_georeferenced_coordinates_are_refused(tmp_path):
     _binary_stl(stl, (5e6, 0, 0))
     assert nbvkit.load_mesh(stl, scale=0.001).bounds[0][0] == pytest.approx(5000.0)
     # near the origin these formats load as before
-    dae.write_text(_dae_triangle((1000.0, 2000.0, 3.0)))
+    dae.write_bytes(_dae(TRI + (1000.0, 2000.0, 3.0), TRI_F))
     np.testing.assert_allclose(nbvkit.load_mesh(dae).bounds[0], [1000, 2000, 3], atol=1e-4)
 
 
@@ -412,7 +357,7 @@ def test_referenced_files_that_are_not_regular_are_refused_without_hanging(tmp_p
     else:
         target.mkdir()
     # a glTF whose buffer is that file: refused naming it
-    gltf, _ = _gltf_triangle(tmp_path, (0, 0, 0), uri="ref.bin")
+    gltf = _gltf_triangle(tmp_path, (0, 0, 0), uri="ref.bin")
     out = _load_in_subprocess(gltf)
     why = {"fifo": "a FIFO", "dev_zero": "a character device", "directory": "a directory"}[kind]
     assert out.startswith("VALUEERROR") and "tri.gltf" in out and "ref.bin" in out, out
@@ -424,6 +369,6 @@ def test_referenced_files_that_are_not_regular_are_refused_without_hanging(tmp_p
 
 
 def test_gltf_with_a_regular_buffer_file_loads(tmp_path):
-    gltf, data = _gltf_triangle(tmp_path, (0, 0, 0), uri="ref.bin")
-    (tmp_path / "ref.bin").write_bytes(data)
+    gltf = _gltf_triangle(tmp_path, (0, 0, 0), uri="ref.bin")
+    (tmp_path / "ref.bin").write_bytes(_gltf_buffer(TRI.astype(np.float32), TRI_F))
     assert nbvkit.load_mesh(gltf).num_triangles == 1
