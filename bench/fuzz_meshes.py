@@ -22,6 +22,7 @@ from __future__ import annotations
 import argparse
 import base64
 import json
+import math
 import os
 import random
 import re
@@ -53,8 +54,9 @@ F = [
 ]
 
 
-# The builders below write the seed cube (V, F) by default; tests/test_mesh.py writes its own
-# vertices (numbers or numpy scalars) and faces (0-based) with them.
+# The builders below write the seed cube (V, F) by default; tests/test_mesh.py,
+# tests/test_hostile.py and bench/hostile_battery.py write their own vertices (numbers or numpy
+# scalars, NaN and inf too) and faces (0-based) with them.
 
 
 def _plain(verts) -> list:
@@ -62,13 +64,13 @@ def _plain(verts) -> list:
     return [[c.item() if hasattr(c, "item") else c for c in v] for v in verts]
 
 
-def _obj(verts=V, faces=F) -> bytes:
+def obj_file(verts=V, faces=F) -> bytes:
     lines = ["o cube"] + [f"v {x} {y} {z}" for x, y, z in _plain(verts)]
     lines += [f"f {a + 1} {b + 1} {c + 1}" for a, b, c in faces]
     return ("\n".join(lines) + "\n").encode()
 
 
-def _stl_binary(verts=V, faces=F) -> bytes:
+def stl_binary_file(verts=V, faces=F) -> bytes:
     out = b"nbvkit fuzz cube".ljust(80, b" ") + struct.pack("<I", len(faces))
     for f in faces:
         out += struct.pack("<3f", 0, 0, 0)
@@ -78,7 +80,7 @@ def _stl_binary(verts=V, faces=F) -> bytes:
     return out
 
 
-def _stl_ascii(verts=V, faces=F) -> bytes:
+def stl_ascii_file(verts=V, faces=F) -> bytes:
     verts = _plain(verts)
     s = "solid cube\n"
     for f in faces:
@@ -107,18 +109,18 @@ def cube_ply(fmt: str = "binary_little_endian", nv: int | None = None, faces=F) 
     return head + body
 
 
-def _gltf_buffer(verts=V, faces=F) -> bytes:
-    """The binary buffer of _gltf: float32 positions, then uint16 indices padded to 4."""
+def gltf_buffer(verts=V, faces=F) -> bytes:
+    """The binary buffer of gltf_file: float32 positions, then uint16 indices padded to 4."""
     ib = b"".join(struct.pack("<3H", *f) for f in faces)
     return b"".join(struct.pack("<3f", *v) for v in verts) + ib + b"\0" * (-len(ib) % 4)
 
 
-def _gltf(verts=V, faces=F, uri=None) -> bytes:
-    """A glTF of one mesh; its buffer (_gltf_buffer) embedded, or in the file `uri` names."""
-    buf, nvb = _gltf_buffer(verts, faces), 12 * len(verts)
+def gltf_file(verts=V, faces=F, uri=None) -> bytes:
+    """A glTF of one mesh; its buffer (gltf_buffer) embedded, or in the file `uri` names."""
+    buf, nvb = gltf_buffer(verts, faces), 12 * len(verts)
     if uri is None:
         uri = "data:application/octet-stream;base64," + base64.b64encode(buf).decode()
-    verts = _plain(verts)
+    finite = [v for v in _plain(verts) if all(math.isfinite(c) for c in v)]  # JSON has no NaN
     doc = {
         "asset": {"version": "2.0"},
         "scene": 0,
@@ -136,8 +138,8 @@ def _gltf(verts=V, faces=F, uri=None) -> bytes:
                 "componentType": 5126,
                 "count": len(verts),
                 "type": "VEC3",
-                "min": [min(v[a] for v in verts) for a in range(3)],
-                "max": [max(v[a] for v in verts) for a in range(3)],
+                "min": [min(v[a] for v in finite) for a in range(3)],
+                "max": [max(v[a] for v in finite) for a in range(3)],
             },
             {"bufferView": 1, "componentType": 5123, "count": 3 * len(faces), "type": "SCALAR"},
         ],
@@ -145,7 +147,7 @@ def _gltf(verts=V, faces=F, uri=None) -> bytes:
     return json.dumps(doc, indent=1).encode()
 
 
-def _dae(verts=V, faces=F) -> bytes:
+def dae_file(verts=V, faces=F) -> bytes:
     pos = " ".join(f"{c}" for v in _plain(verts) for c in v)
     idx = " ".join(str(i) for f in faces for i in f)
     return f"""<?xml version="1.0" encoding="utf-8"?>
@@ -182,14 +184,14 @@ def _dae(verts=V, faces=F) -> bytes:
 
 
 SEEDS = {
-    "obj": (".obj", _obj),
-    "stl_binary": (".stl", _stl_binary),
-    "stl_ascii": (".stl", _stl_ascii),
+    "obj": (".obj", obj_file),
+    "stl_binary": (".stl", stl_binary_file),
+    "stl_ascii": (".stl", stl_ascii_file),
     "ply_binary": (".ply", lambda: cube_ply("binary_little_endian")),
     "ply_binary_be": (".ply", lambda: cube_ply("binary_big_endian")),
     "ply_ascii": (".ply", lambda: cube_ply("ascii")),
-    "gltf": (".gltf", _gltf),
-    "dae": (".dae", _dae),
+    "gltf": (".gltf", gltf_file),
+    "dae": (".dae", dae_file),
 }
 
 # ------------------------------------------------------------------------------------ mutation

@@ -23,7 +23,6 @@ from __future__ import annotations
 
 import argparse
 import json
-import math
 import os
 import signal
 import subprocess
@@ -35,6 +34,8 @@ import time
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, field
 from pathlib import Path
+
+from fuzz_meshes import gltf_file, obj_file, stl_ascii_file
 
 ROOT = Path(__file__).resolve().parent.parent
 CUBE = ROOT / "meshes" / "fixtures" / "cube.obj"
@@ -219,53 +220,17 @@ CUBE_F = [(0, 2, 1), (1, 2, 3), (4, 5, 6), (5, 7, 6), (0, 1, 4), (1, 5, 4), (2, 
           (0, 4, 2), (2, 4, 6), (1, 3, 5), (3, 7, 5)]  # fmt: skip
 
 
+# The meshes' files as text (tests/test_bounds.py writes them too).
 def obj_text(verts, faces) -> str:
-    lines = [f"v {x} {y} {z}" for x, y, z in verts]
-    lines += [f"f {a + 1} {b + 1} {c + 1}" for a, b, c in faces]
-    return "\n".join(lines) + "\n"
+    return obj_file(verts, faces).decode()
 
 
 def stl_text(verts, faces) -> str:
-    out = ["solid s"]
-    for f in faces:
-        out += ["facet normal 0 0 0", "outer loop"]
-        out += [f"vertex {' '.join(str(c) for c in verts[i])}" for i in f]
-        out += ["endloop", "endfacet"]
-    return "\n".join(out + ["endsolid s"]) + "\n"
+    return stl_ascii_file(verts, faces).decode()
 
 
 def gltf_text(verts, faces) -> str:
-    import base64
-    import struct
-
-    vb = b"".join(struct.pack("<3f", *v) for v in verts)
-    ib = b"".join(struct.pack("<3I", *f) for f in faces)
-    buf = vb + ib
-    finite = [v for v in verts if all(math.isfinite(c) for c in v)]
-    lo = [min(v[a] for v in finite) for a in range(3)]
-    hi = [max(v[a] for v in finite) for a in range(3)]
-    doc = {
-        "asset": {"version": "2.0"},
-        "scenes": [{"nodes": [0]}],
-        "nodes": [{"mesh": 0}],
-        "meshes": [{"primitives": [{"attributes": {"POSITION": 0}, "indices": 1}]}],
-        "buffers": [
-            {
-                "byteLength": len(buf),
-                "uri": "data:application/octet-stream;base64," + base64.b64encode(buf).decode(),
-            }
-        ],
-        "bufferViews": [
-            {"buffer": 0, "byteOffset": 0, "byteLength": len(vb)},
-            {"buffer": 0, "byteOffset": len(vb), "byteLength": len(ib)},
-        ],
-        "accessors": [
-            {"bufferView": 0, "componentType": 5126, "count": len(verts), "type": "VEC3",
-             "min": lo, "max": hi},
-            {"bufferView": 1, "componentType": 5125, "count": 3 * len(faces), "type": "SCALAR"},
-        ],
-    }  # fmt: skip
-    return json.dumps(doc)
+    return gltf_file(verts, faces).decode()
 
 
 def _loads_with_wrong_area(name):

@@ -22,7 +22,7 @@ from conftest import TINY_RUN
 ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT / "bench"))
 
-from fuzz_meshes import F as CUBE_F, cube_ply  # noqa: E402  (the fuzz's seed cube)
+from fuzz_meshes import F as CUBE_F, V as CUBE_V, cube_ply, dae_file, obj_file  # noqa: E402
 
 
 def cli(*args, timeout=120, cwd=None):
@@ -98,9 +98,7 @@ def test_case1_hostile_ply_files_give_clean_errors(tmp_path):
 def test_case1_collada_files_that_crash_or_hang_assimp_are_refused(tmp_path):
     """Found by bench/fuzz_meshes.py: assimp 5.2 segfaults on a <float_array> with a missing or
     wrong count and loops forever on a non-integer index; they are refused before assimp."""
-    from fuzz_meshes import _dae
-
-    good = _dae().decode()
+    good = dae_file().decode()
     cases = {
         "nocount.dae": (good.replace(' count="24"', ' counT="24"'), "without a count"),
         "count0.dae": (good.replace(' count="24"', ' count="0"'), "count=0"),
@@ -190,15 +188,9 @@ def test_case4_huge_mesh_scale_fails_fast_on_the_map_size(tmp_path):
         expect_error(rc, err, "workspace", needle)
 
 
-def test_case4_a_georeferenced_mesh_is_told_its_shift_and_flies_with_it(tmp_path, cube_obj):
-    far = tmp_path / "utm_cube.obj"
-    lines = []
-    for line in cube_obj.read_text().splitlines():
-        if line.startswith("v "):
-            x, y, z = map(float, line.split()[1:])
-            line = f"v {x + 500000:.1f} {y + 4000000:.1f} {z:.1f}"
-        lines.append(line)
-    far.write_text("\n".join(lines) + "\n")
+def test_case4_a_georeferenced_mesh_is_told_its_shift_and_flies_with_it(tmp_path):
+    far = tmp_path / "utm_cube.obj"  # the unit cube (fixtures/cube.obj's) in UTM coordinates
+    far.write_bytes(obj_file([(x + 500000.0, y + 4000000.0, float(z)) for x, y, z in CUBE_V]))
     common = (
         "--mesh",
         far,

@@ -13,11 +13,11 @@ from conftest import box_mesh, shared_mesh
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent / "bench"))
 
 from fuzz_meshes import (  # noqa: E402  (the fuzz's file builders)
-    _dae,
-    _gltf,
-    _gltf_buffer,
-    _obj,
-    _stl_binary,
+    dae_file,
+    gltf_buffer,
+    gltf_file,
+    obj_file,
+    stl_binary_file,
 )
 
 TRI_OBJ = """# two parts
@@ -220,7 +220,7 @@ TRI_F = [(0, 1, 2)]
 def test_georeferenced_obj_keeps_its_digits_and_shifts_exactly(tmp_path):
     local = np.array([[0, 0, 0], [1.25, 0, 0], [0, 2.5, 0], [0.001, 0.002, 3.0]])
     p = tmp_path / "utm.obj"
-    p.write_bytes(_obj(local + UTM, [(0, 1, 2), (0, 1, 3)]))
+    p.write_bytes(obj_file(local + UTM, [(0, 1, 2), (0, 1, 3)]))
     raw = nbvkit.load_mesh(p)
     # the file's digits, not float32's (5,000,000.3 had come out 5,000,000.5)
     np.testing.assert_array_equal(np.sort(raw.vertices[:, 1]), np.sort((local + UTM)[:, 1]))
@@ -266,19 +266,19 @@ def _gltf_triangle(tmp_path, offset, uri=None):
     """A one-triangle glTF (tri.gltf) whose positions (float32) lie at `offset`; its buffer in
     `uri` (a file beside it) or embedded."""
     p = tmp_path / "tri.gltf"
-    p.write_bytes(_gltf(TRI.astype(np.float32) + np.float32(offset), TRI_F, uri=uri))
+    p.write_bytes(gltf_file(TRI.astype(np.float32) + np.float32(offset), TRI_F, uri=uri))
     return p
 
 
 def _binary_stl(path, offset):
-    path.write_bytes(_stl_binary(TRI.astype(np.float32) + np.float32(offset), TRI_F))
+    path.write_bytes(stl_binary_file(TRI.astype(np.float32) + np.float32(offset), TRI_F))
 
 
 def test_float32_formats_at_georeferenced_coordinates_are_refused(tmp_path):
     """DAE, STL and glTF arrive in float32 (assimp's ai_real); at 5,000,000 m float32 numbers are
     0.5 m apart. Refused, saying why and what to do, rather than loaded 0.25 m off."""
     dae = tmp_path / "utm.dae"
-    dae.write_bytes(_dae(TRI + UTM, TRI_F))
+    dae.write_bytes(dae_file(TRI + UTM, TRI_F))
     with pytest.raises(ValueError) as e:
         nbvkit.load_mesh(dae, shift=-UTM)
     msg = str(e.value)
@@ -311,7 +311,7 @@ def test_float32_formats_at_georeferenced_coordinates_are_refused(tmp_path):
     _binary_stl(stl, (5e6, 0, 0))
     assert nbvkit.load_mesh(stl, scale=0.001).bounds[0][0] == pytest.approx(5000.0)
     # near the origin these formats load as before
-    dae.write_bytes(_dae(TRI + (1000.0, 2000.0, 3.0), TRI_F))
+    dae.write_bytes(dae_file(TRI + (1000.0, 2000.0, 3.0), TRI_F))
     np.testing.assert_allclose(nbvkit.load_mesh(dae).bounds[0], [1000, 2000, 3], atol=1e-4)
 
 
@@ -370,5 +370,5 @@ def test_referenced_files_that_are_not_regular_are_refused_without_hanging(tmp_p
 
 def test_gltf_with_a_regular_buffer_file_loads(tmp_path):
     gltf = _gltf_triangle(tmp_path, (0, 0, 0), uri="ref.bin")
-    (tmp_path / "ref.bin").write_bytes(_gltf_buffer(TRI.astype(np.float32), TRI_F))
+    (tmp_path / "ref.bin").write_bytes(gltf_buffer(TRI.astype(np.float32), TRI_F))
     assert nbvkit.load_mesh(gltf).num_triangles == 1
