@@ -242,9 +242,10 @@ def test_georeferenced_obj_keeps_its_digits_and_shifts_exactly(tmp_path):
             "cannot read OBJ '{}': line 4: face vertex index 4 is out of range",
         ),
         (
-            "v 0 0 0\nv nan 0 0\nv 0 1 0\nf 1 2 3\n",
+            # named by its number in the file (OBJ counts from 1; the unused first is dropped)
+            "v 9 9 9\nv 0 0 0\nv nan 0 0\nv 0 1 0\nf 2 3 4\n",
             "mesh file '{}': 1 vertices of its faces have a NaN or infinite coordinate "
-            "(vertex 1 is (nan, 0, 0))",
+            "(vertex 3 is (nan, 0, 0))",
         ),
     ],
 )

@@ -150,17 +150,19 @@ class RegularFileIOSystem : public Assimp::DefaultIOSystem {
 // or make one.
 class NonFiniteVertices {
  public:
-  // The vertices of one part that `used` marks; at(v) is vertex v (an Eigen::Vector3d). `part`
-  // follows the first one's number in the message (" of part 2", or "").
+  // The vertices of one part that `used` marks; at(v) is vertex v (an Eigen::Vector3d). The
+  // message names the first as the file does: vertex number[v] (v where `number` is empty) and
+  // `part` (" of part 2", or "").
   template <class At>
-  void add(const std::vector<char>& used, const At& at, const std::string& part = "") {
+  void add(const std::vector<char>& used, const At& at, const std::string& part = "",
+           const std::vector<std::int64_t>& number = {}) {
     for (std::size_t v = 0; v < used.size(); ++v) {
       if (!used[v]) continue;
       const Eigen::Vector3d p = at(v);
       if (p.allFinite()) continue;
       if (count_++ == 0)
-        first_ = "vertex " + std::to_string(v) + part + " is (" + fmt(p.x()) + ", " + fmt(p.y()) +
-                 ", " + fmt(p.z()) + ")";
+        first_ = "vertex " + std::to_string(number.empty() ? std::int64_t(v) : number[v]) + part +
+                 " is (" + fmt(p.x()) + ", " + fmt(p.y()) + ", " + fmt(p.z()) + ")";
     }
   }
 
@@ -195,15 +197,19 @@ void validate_loaded(const Mesh& m, const std::string& path, double scale) {
 }
 
 // A mesh read in double precision by nbvkit's own readers (PLY, OBJ): at least one face, the
-// vertices of faces finite, scaled, turned z up, validated.
-Mesh loaded_mesh(Points vertices, Faces faces, const std::string& path, double scale, char up) {
+// vertices of faces finite, scaled, turned z up, validated. `number`: each vertex's number in the
+// file, for the messages (empty: its row).
+Mesh loaded_mesh(Points vertices, Faces faces, const std::string& path, double scale, char up,
+                 const std::vector<std::int64_t>& number = {}) {
   if (faces.rows() == 0)
     throw std::invalid_argument("mesh file '" + path + "' contains no triangles");
   std::vector<char> used(static_cast<std::size_t>(vertices.rows()), 0);
   for (Eigen::Index i = 0; i < faces.size(); ++i)  // indices in range: the readers checked them
     used[static_cast<std::size_t>(faces.data()[i])] = 1;
   NonFiniteVertices bad;
-  bad.add(used, [&](std::size_t v) { return Eigen::Vector3d(vertices.row(Eigen::Index(v))); });
+  bad.add(
+      used, [&](std::size_t v) { return Eigen::Vector3d(vertices.row(Eigen::Index(v))); }, "",
+      number);
   bad.refuse(path);
   Mesh out;
   out.vertices.resize(vertices.rows(), 3);
@@ -249,7 +255,8 @@ Mesh load_ply_mesh(const std::string& path, double scale, char up) {
 // float32, and a georeferenced file lost its digits before mesh.shift could be applied.
 Mesh load_obj_mesh(const std::string& path, double scale, char up) {
   ObjData obj = read_obj(path);
-  return loaded_mesh(std::move(obj.vertices), std::move(obj.faces), path, scale, up);
+  return loaded_mesh(std::move(obj.vertices), std::move(obj.faces), path, scale, up,
+                     obj.file_number);
 }
 
 // Files assimp reads arrive in float32 (Debian's assimp has ai_real = float). Refuses a mesh

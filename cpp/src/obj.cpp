@@ -254,9 +254,12 @@ ObjData parse_obj(const char* data, std::size_t size) {
   }
   ObjData out;
   out.vertices.resize(static_cast<Eigen::Index>(kept), 3);
+  out.file_number.resize(kept);
   for (std::size_t v = 0; v < remap.size(); ++v)
-    if (remap[v] >= 0)
+    if (remap[v] >= 0) {
       for (int k = 0; k < 3; ++k) out.vertices(remap[v], k) = xyz[3 * v + k];
+      out.file_number[static_cast<std::size_t>(remap[v])] = static_cast<std::int64_t>(v) + 1;
+    }
   out.faces.resize(static_cast<Eigen::Index>(tri.size() / 3), 3);
   for (std::size_t t = 0; t < tri.size(); ++t)
     out.faces(static_cast<Eigen::Index>(t / 3), static_cast<Eigen::Index>(t % 3)) =

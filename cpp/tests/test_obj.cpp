@@ -75,6 +75,12 @@ TEST(Obj, NonFiniteCoordinatesAreLeftToTheLoader) {
   EXPECT_TRUE(std::isinf(d.vertices(0, 0)));
 }
 
+TEST(Obj, KeptVerticesKeepTheirNumberInTheFile) {  // for the loader's messages
+  const auto d = parse("v 9 9 9\nv 0 0 0\nv 1 0 0\nv 7 7 7\nv 0 1 0\nf 2 3 5\n");
+  ASSERT_EQ(d.vertices.rows(), 3);
+  EXPECT_EQ(d.file_number, (std::vector<std::int64_t>{2, 3, 5}));
+}
+
 TEST(Obj, BadFilesNameTheLine) {
   EXPECT_EQ(error_of(parse, "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 4\n"),
             "line 4: face vertex index 4 is out of range: the file has 3 vertices");

@@ -18,7 +18,9 @@
 #include "nbv/common.hpp"
 
 #include <cstddef>
+#include <cstdint>
 #include <string>
+#include <vector>
 
 namespace nbv {
 
@@ -28,6 +30,7 @@ constexpr std::size_t kObjMaxEarClipVertices = 256;
 struct ObjData {
   Points vertices;  ///< (N, 3) the used vertices, in file order, as the file's digits (float64)
   Faces faces;      ///< (M, 3) triangles; may be empty
+  std::vector<std::int64_t> file_number;  ///< each vertex's number in the file (1: the first `v`)
 };
 
 /// Parses OBJ text held in memory.
