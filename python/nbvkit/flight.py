@@ -348,13 +348,17 @@ class SortiePlanner:
             [i for i in range(n) if i == 0 or fl.stage[i] == "profile" or fl.capture[i]], int
         )
 
+    def fly_s(self, r: int, e: int, back: bool = True) -> float:
+        """Seconds a sortie flying rows r..e is in the air, its captures' waits left out: the
+        climb and the descent, the way out to row r, along the flight to row e and (back) the
+        way back from it; without the way back a bound that only grows with e (split's stop)."""
+        s = 2 * self.climb_s + self.returns.cost[r] + self.cum[e] - self.cum[r]
+        return s + self.returns.cost[e] if back else s
+
     def cost(self, r: int, e: int) -> float:
-        """Estimated seconds of a sortie flying rows r..e: climb, out, along, the captures'
-        waits, back, descent (the sortie itself counts the waits of its own waypoints)."""
-        R = self.returns.cost
-        along = self.cum[e] - self.cum[r]
-        wait = self.wait_first[r] + self.cum_wait[e] - self.cum_wait[r]
-        return 2 * self.climb_s + R[r] + along + wait + R[e]
+        """Estimated seconds of a sortie flying rows r..e: fly_s and the captures' waits (the
+        sortie itself counts the waits of its own waypoints)."""
+        return self.fly_s(r, e) + self.wait_first[r] + self.cum_wait[e] - self.cum_wait[r]
 
     def sortie(self, number: int, r: int, e: int) -> Sortie:
         fl = self.fl
@@ -393,8 +397,7 @@ class SortiePlanner:
             [w.action for w in wps], [math.degrees(w.yaw) for w in wps], self.model.hover_s
         )
         waits = waits_s(s.waits)
-        fly = 2 * self.climb_s + self.returns.cost[r] + self.cum[e] - self.cum[r]
-        fly += self.returns.cost[e]
+        fly = self.fly_s(r, e)
         s.times = {t: fly + waits[t] for t in TARGETS}
         s.time_s = max(s.times.values())
         s.legs = {
@@ -411,50 +414,41 @@ class SortiePlanner:
     def split(self, usable_s: float):
         """(sorties, unreachable): sorties within usable_s seconds each, and the rows no sortie
         can fly (dicts: row, capture, stage, needed_s)."""
-        work = self.work
         sorties, unreachable = [], []
         k = 0  # index into work: the next row to fly
-        while k < len(work):
-            r = int(work[k])
-            best = None
-            for j in range(k, len(work)):
-                e = int(work[j])
-                if 2 * self.climb_s + self.returns.cost[r] + self.cum[e] - self.cum[r] > usable_s:
-                    break  # the way along alone is too long from here on
-                if self.cost(r, e) <= usable_s:
-                    best = j
-            if best is None:
-                unreachable.append(
-                    {
-                        "row": r,
-                        "capture": self.fl.capture[r],
-                        "stage": self.fl.stage[r],
-                        "needed_s": round(self.cost(r, r), 1),
-                    }
-                )
-                k += 1
-                continue
-            # the sortie's own waits (its waypoints' turns) may pass the estimate: fly less
-            s = None
-            while best is not None:
-                s = self.sortie(len(sorties) + 1, r, int(work[best]))
-                if s.time_s <= usable_s + 1e-9:
-                    break
-                best = best - 1 if best > k else None
-            if best is None:
-                unreachable.append(
-                    {
-                        "row": r,
-                        "capture": self.fl.capture[r],
-                        "stage": self.fl.stage[r],
-                        "needed_s": round(s.time_s, 1),
-                    }
-                )
+        while k < len(self.work):
+            j, s = self._sortie_from(k, len(sorties) + 1, usable_s)
+            if j is None:  # no sortie from this row fits: it is left out, the next one tried
+                r = int(self.work[k])
+                where = {"row": r, "capture": self.fl.capture[r], "stage": self.fl.stage[r]}
+                unreachable.append({**where, "needed_s": round(s, 1)})
                 k += 1
                 continue
             sorties.append(s)
-            k = best + 1
+            k = j + 1
         return sorties, unreachable
+
+    def _sortie_from(self, k: int, number: int, usable_s: float):
+        """(j, sortie `number` flying work[k..j]): the longest from work[k] within usable_s; or
+        (None, the seconds the shortest one needs) when none fits."""
+        work, r = self.work, int(self.work[k])
+        best = None
+        for j in range(k, len(work)):
+            e = int(work[j])
+            if self.fly_s(r, e, back=False) > usable_s:
+                break  # the way along alone is too long from here on
+            if self.cost(r, e) <= usable_s:
+                best = j
+        if best is None:
+            return None, self.cost(r, r)
+        # the sortie's own waits (its waypoints' turns) may pass the estimate: fly less
+        while True:
+            s = self.sortie(number, r, int(work[best]))
+            if s.time_s <= usable_s + 1e-9:
+                return best, s
+            if best == k:
+                return None, s.time_s
+            best -= 1
 
 
 def sortie_planner(fl: RunFlight, model: FlightModel, need_all_returns: bool, occ_map=None):
