@@ -299,9 +299,17 @@ def _ring_poses(p):
         (lambda s, w, p: Proposal(p.poses, 7), TypeError, "source must be a str"),
         (lambda s, w, p: Proposal(p.poses, "x", aims=np.zeros((2, 3))), ValueError, "aims"),
         (lambda s, w, p: 1 / 0, ZeroDivisionError, "division by zero"),
+        # complex poses were cut to their real part (a NumPy warning), aims never checked
+        (lambda s, w, p: Proposal(p.poses + 1j, "x"), TypeError, r"poses are not numbers \(comp"),
+        (
+            lambda s, w, p: Proposal(p.poses, "x", aims=np.full((8, 3), np.nan)),
+            ValueError,
+            "aim 0 is not finite",
+        ),
+        (lambda s, w, p: Proposal(p.poses, "x", aims=[["a"] * 3] * 8), TypeError, "aims are not"),
     ],
     ids=["empty", "empty-exclusive", "nan", "k3", "1d", "array", "strings", "pitch", "source",
-         "aims", "raises"],
+         "aims", "raises", "complex", "aims-nan", "aims-strings"],
 )  # fmt: skip
 def test_a_hostile_generator_is_an_exception_naming_it(fn, error, match):
     with pytest.raises(error, match=match) as e:
@@ -342,7 +350,7 @@ class _Stop:
         pass
 
 
-@pytest.mark.parametrize("reason", [True, False, 1, np.bool_(True), {"a": 1}, ""], ids=repr)
+@pytest.mark.parametrize("reason", [True, False, 1, np.bool_(True), {"a": 1}, "", "  "], ids=repr)
 def test_a_termination_returns_a_reason_or_none(reason):
     stop = type("Stop", (_Stop,), {"check": lambda self, w, s: reason})
     with pytest.raises(TypeError, match=r"termination 'hostile_stop': check returned"):
@@ -491,3 +499,169 @@ def test_a_plugin_file_that_fails_registers_nothing_and_loads_again_once_fixed(t
         SCENARIOS.pop("half", None)
         if str(f.resolve()) in LOADED:
             LOADED.remove(str(f.resolve()))
+
+
+# ------------------------------------------------------------ a researcher's mistakes (audit 2)
+
+
+def test_a_part_may_not_take_a_name_the_configuration_uses():
+    """A generator named 'check' or 'section' got the configuration's own method as its settings
+    (config.section(name)), a name starting with _ its private fields; all are refused, and the
+    reserved names cover every key and method the configuration has."""
+    from nbvkit.config import Config
+
+    for name in ("check", "section", "to_dict", "with_overrides", "_parts", "__init__"):
+        with pytest.raises(ValueError, match=repr(name)):
+            registry.register_generator(name, RingGenerator)
+    assert {n for n in dir(Config) if not n.startswith("_")} <= registry.RESERVED
+
+
+def test_settings_that_do_not_build_from_their_defaults_are_refused_when_registered():
+    # a field without a default made every later load_config fail, naming no part
+    @dataclass(frozen=True)
+    class Required:
+        count: int
+
+    try:
+        with pytest.raises(TypeError, match=r"generator 'req': its Settings\(\) must build"):
+            registry.register_generator("req", type("G", (RingGenerator,), {"Settings": Required}))
+        assert "req" not in registry.GENERATORS
+    finally:
+        registry.GENERATORS.pop("req", None)  # (registered, it broke every later test)
+    load_config(overrides=["map.resolution=0.4"])
+
+
+def test_an_exclusive_generator_may_write_its_views_into_the_same_array():
+    """A tour-like generator that moves on in feedback but writes each next view into one
+    buffer was told it 'proposed again' the views it had just moved on from."""
+
+    class Buffered(RingGenerator):
+        def __init__(self, settings, context):
+            super().__init__(settings, context)
+            self.buf, self.k = np.zeros((1, 4)), 0
+
+        def propose(self, world):
+            if self.k == self.s.count:
+                return None
+            ring = super().propose(world).poses
+            ring[:2, :3] = 0.0  # the first two views inside the box: rejected
+            self.buf[:] = ring[self.k]
+            return Proposal(self.buf, "buffered", exclusive=True)
+
+        def feedback(self, world, proposal, step):
+            self.k += 1
+
+    m, s = _fly(generator=Buffered, extra=["vehicle.start_clear_radius=3"])
+    assert s["iterations"] == 4 and m.planner.generators[0].k == 6
+
+
+def test_a_stop_reason_is_a_str_or_none():
+    # True reached the planner as a 'view' (TypeError: 'bool' object is not subscriptable)
+    done = type("Done", (RingGenerator,), {"propose": lambda self, w: None})
+    with pytest.raises(TypeError, match="generator 'hostile': its stop_reason is True"):
+        _fly(generator=type("G", (done,), {"stop_reason": True}))
+    m, s = _fly(generator=type("G", (done,), {"stop_reason": "ring_unreachable"}))
+    assert s["termination"] == "ring_unreachable"
+
+
+@pytest.mark.parametrize("reason", ["failed", "interrupted"])
+def test_a_termination_may_not_claim_nbvkits_own_failure(reason):
+    stop = type("Stop", (_Stop,), {"check": lambda self, w, s: reason})
+    with pytest.raises(ValueError, match=f"check returned '{reason}', which nbvkit"):
+        _fly(termination=stop)
+
+
+def test_a_plugin_part_copies():
+    import copy
+
+    m, s = _fly(generator=RingGenerator)
+    g = copy.copy(m.planner.generators[0])  # was a RecursionError (__getattr__ before __init__)
+    assert g.part is m.planner.generators[0].part and g.name == "hostile"
+
+
+def test_with_other_generators_feedback_is_of_its_own_views():
+    """Scored with the lattice's views, the ring's feedback had the union's step: its
+    choice.index a row of the union (an IndexError, or the wrong view marked flown)."""
+    told = []
+
+    class Told(RingGenerator):
+        def feedback(self, world, proposal, step):
+            told.append((proposal, step))
+            super().feedback(world, proposal, step)
+
+    registry.register_generator("told", Told)
+    try:
+        cfg = load_config(
+            overrides=QUICK + ["max_iterations=6", "planner.generators=[lattice,told]"]
+        )
+        s = nbvkit.Mission(cfg, mesh=box_mesh(*BOX)).run()
+    finally:
+        registry.GENERATORS.pop("told")
+    assert s["iterations"] == 6 and len(told) == 6
+    mine = [(p, st) for p, st in told if st is not None]
+    assert 0 < len(mine) < 6  # the lattice's views flown too, the ring told None for them
+    for proposal, step in told:
+        assert proposal.source == "ring" and len(proposal.poses) <= 8
+        if step is not None:
+            assert step.proposal is proposal
+            assert np.allclose(proposal.poses[step.choice.index], step.choice.pose[:4])
+
+
+def test_a_view_whose_feedback_raised_is_recorded(tmp_path):
+    late = type(
+        "Late",
+        (RingGenerator,),
+        {"feedback": lambda self, w, p, st: self.flown.add(0) if not self.flown else 1 / 0},
+    )
+    with pytest.raises(ZeroDivisionError):
+        _fly(tmp_path / "run", generator=late)
+    s = json.loads((tmp_path / "run" / "summary.json").read_text())
+    rows = (tmp_path / "run" / "iterations.csv").read_text().splitlines()
+    assert s["termination"] == "failed" and s["iterations"] == 2 and len(rows) == 3
+
+
+@pytest.mark.parametrize("cells", [np.nan, -1.0, 0.5], ids=repr)
+def test_a_utilitys_cells_are_counts(cells):
+    from nbvkit.planning.utilities import per_candidate
+
+    registry.register_utility(
+        "counted", lambda r: (per_candidate(r, r.range), np.full(len(r), cells))
+    )
+    try:
+        cfg = load_config(
+            overrides=QUICK + ["planner.generators=[lattice]", "utility.name=counted"]
+        )
+        with pytest.raises(ValueError, match="utility 'counted' returned cells"):
+            nbvkit.Mission(cfg, mesh=box_mesh(*BOX)).run()
+    finally:
+        registry.UTILITIES.pop("counted")
+
+
+def test_a_plugin_file_imports_its_neighbours_and_loads_once_imported(tmp_path, monkeypatch):
+    """A plugin that imports a module beside it failed (ModuleNotFoundError); one imported first
+    (import my_parts) and then given to load_plugin, for the workers, was 'registered already'."""
+    import importlib
+
+    from nbvkit.plugins import LOADED, load_plugin
+
+    (tmp_path / "ring_helpers.py").write_text("COUNT = 5\n")
+    (tmp_path / "audit_ring.py").write_text(
+        "import math\nimport numpy as np\nimport nbvkit\nfrom ring_helpers import COUNT\n"
+        + _source(RingSettings, RingGenerator)
+        + "\nnbvkit.register_generator('audit_ring', RingGenerator)\n"
+    )
+    monkeypatch.setattr(sys, "path", list(sys.path))
+    files = [str(tmp_path / "audit_ring.py")]
+    try:
+        load_plugin(tmp_path / "audit_ring.py")
+        assert "audit_ring" in registry.GENERATORS
+        del registry.GENERATORS["audit_ring"], LOADED[LOADED.index(files[0])]
+        sys.modules.pop("audit_ring", None)
+        importlib.import_module("audit_ring")  # the folder is on sys.path now
+        load_plugin(tmp_path / "audit_ring.py")
+        assert LOADED[-1] == files[0]
+    finally:
+        registry.GENERATORS.pop("audit_ring", None)
+        sys.modules.pop("audit_ring", None)
+        if files[0] in LOADED:
+            LOADED.remove(files[0])

@@ -8,6 +8,7 @@ from __future__ import annotations
 import hashlib
 import importlib.util
 import sys
+from pathlib import Path
 
 from .limits import check_input_file
 
@@ -18,9 +19,16 @@ LOADED: list[str] = []
 def load_plugin(path) -> None:
     """Imports the Python file `path` once (FileNotFoundError if missing; its own errors
     propagate, with the file named in the traceback, and what it registered before it failed
-    is forgotten: the file fixed loads again under the same names)."""
+    is forgotten: the file fixed loads again under the same names). A file already imported as
+    a module (``import my_parts``) is not run again, only noted for the sweeps' workers. Its
+    folder is put on sys.path, as Python does for a script: the file imports its neighbours."""
     p = check_input_file(path, "plugin file").resolve()
     if str(p) in LOADED:
+        return
+    if str(p.parent) not in sys.path:
+        sys.path.append(str(p.parent))
+    if any(_same_file(m, p) for m in list(sys.modules.values())):
+        LOADED.append(str(p))
         return
     name = "nbvkit_plugin_" + hashlib.sha1(str(p).encode()).hexdigest()[:12]
     spec = importlib.util.spec_from_file_location(name, p)
@@ -39,6 +47,15 @@ def load_plugin(path) -> None:
                 del table[key]
         raise
     LOADED.append(str(p))
+
+
+def _same_file(module, path) -> bool:
+    """Whether `module` was imported from the file `path`."""
+    f = getattr(module, "__file__", None)
+    try:
+        return f is not None and Path(f).resolve() == path
+    except (OSError, ValueError, TypeError):
+        return False
 
 
 def _tables() -> tuple:

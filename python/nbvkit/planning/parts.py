@@ -152,7 +152,24 @@ def propose(generators, world):
         return (merged[0] if merged else None), makers
     width = max(p.poses.shape[1] for p in merged)  # level (K, 4) beside (K, 5): pitch 0
     poses = np.vstack([np.pad(p.poses, ((0, 0), (0, width - p.poses.shape[1]))) for p in merged])
-    return Proposal(poses, "+".join(p.source for p in merged)), makers
+    union = Proposal(poses, "+".join(p.source for p in merged))
+    starts = np.cumsum([0] + [len(p.poses) for p in merged])
+    union.members = list(zip(makers, starts.tolist(), merged))  # (generator, first row, its own)
+    return union, makers
+
+
+def run_hooks(hooks: dict, world, step: Step) -> None:
+    """Each hook(world, step) in order. One that raises (a generator's feedback) does not keep
+    the later ones (the recorder's) from running: the view was flown, and is recorded, before
+    the first error propagates (Ctrl-C at once)."""
+    error = None
+    for hook in hooks.values():
+        try:
+            hook(world, step)
+        except Exception as e:
+            error = error or e
+    if error is not None:
+        raise error
 
 
 class Generator(Protocol):
@@ -199,10 +216,7 @@ def check_proposal(p, who: str) -> Proposal:
             f"generator {who!r}: propose returned {type(p).__name__}, not a "
             "nbvkit.planning.parts.Proposal or None"
         )
-    try:
-        poses = np.ascontiguousarray(p.poses, dtype=np.float64)
-    except (TypeError, ValueError) as e:
-        raise TypeError(f"generator {who!r}: its proposal's poses are not numbers ({e})") from None
+    poses = _numbers(p.poses, who, "poses")
     if poses.ndim != 2 or poses.shape[1] not in (4, 5):
         raise ValueError(
             f"generator {who!r}: its proposal's poses have shape {poses.shape}, not (K, 4) "
@@ -230,14 +244,30 @@ def check_proposal(p, who: str) -> Proposal:
             f"generator {who!r}: its proposal's source must be a str, got {type(p.source).__name__}"
         )
     if p.aims is not None:
-        aims = np.asarray(p.aims, dtype=np.float64)
+        aims = _numbers(p.aims, who, "aims")
         if aims.shape != (len(poses), 3):
             raise ValueError(
                 f"generator {who!r}: its proposal's aims have shape {aims.shape}, not "
                 f"({len(poses)}, 3)"
             )
+        if not np.isfinite(aims).all():
+            k = int(np.flatnonzero(~np.isfinite(aims).all(axis=1))[0])
+            raise ValueError(f"generator {who!r}: its proposal's aim {k} is not finite: {aims[k]}")
+        p.aims = aims
     p.poses = poses
     return p
+
+
+def _numbers(a, who: str, what: str) -> np.ndarray:
+    """`a` as a C-contiguous float64 array; TypeError naming the generator `who` unless it holds
+    real numbers (complex ones are refused, not cut to their real part)."""
+    try:
+        arr = np.asarray(a)
+        if arr.dtype.kind == "c" or (arr.dtype == object and any(map(np.iscomplexobj, arr.flat))):
+            raise TypeError("complex numbers")
+        return np.ascontiguousarray(arr, dtype=np.float64)
+    except (TypeError, ValueError) as e:
+        raise TypeError(f"generator {who!r}: its proposal's {what} are not numbers ({e})") from None
 
 
 class PluginPart:
@@ -257,6 +287,8 @@ class PluginPart:
         self.__dict__.update(kind=kind, name=name, part=part, _rejected=None)
 
     def __getattr__(self, attr):
+        if attr in ("kind", "name", "part", "_rejected") or attr.startswith("__"):
+            raise AttributeError(attr)  # not built yet (copy, pickle): not the part's
         return getattr(self.part, attr)
 
     def __setattr__(self, attr, value):
@@ -279,19 +311,53 @@ class PluginPart:
             )
         return p
 
+    @property
+    def stop_reason(self):
+        """The part's own stop_reason (optional): None, or why it proposes nothing, a
+        non-empty str (TypeError otherwise)."""
+        reason = getattr(self.part, "stop_reason", None)
+        if reason is not None and not (isinstance(reason, str) and reason.strip()):
+            raise TypeError(
+                f"generator {self.name!r}: its stop_reason is {reason!r}; it is None or why it "
+                "proposes nothing, a non-empty str (e.g. 'no_reachable_view')"
+            )
+        return reason
+
     def feedback(self, world, proposal, step):
         # (proposals rejected in a row are bounded by Planner.next_view)
+        proposal, step = _own(self, proposal, step)
         rejected = step is None and proposal.exclusive
-        self.__dict__["_rejected"] = proposal.poses if rejected else None
+        # a copy: a generator may write its next views into the same array
+        self.__dict__["_rejected"] = proposal.poses.copy() if rejected else None
         _named(self.kind, self.name, "feedback()", self.part.feedback, world, proposal, step)
 
     def check(self, world, step):
         reason = _named(self.kind, self.name, "check()", self.part.check, world, step)
         if reason is None:
             return None
-        if not isinstance(reason, str) or not reason:
+        if not isinstance(reason, str) or not reason.strip():
             raise TypeError(
                 f"termination {self.name!r}: check returned {reason!r}; it returns the reason "
                 "to stop (a non-empty str, e.g. 'distance_cap') or None to go on"
             )
+        if reason in ("failed", "interrupted"):  # a run stopped by an error or Ctrl-C
+            raise ValueError(
+                f"termination {self.name!r}: check returned {reason!r}, which nbvkit's summary "
+                "keeps for a run stopped by an error or Ctrl-C; name your own reason"
+            )
         return reason
+
+
+def _own(part, proposal, step):
+    """(proposal, step) as the generator `part` is told of them: where its views were scored
+    with other generators' (one proposal, parts.propose), its own proposal, and the step only if
+    the view flown is one of its own, with choice.index its row there (None otherwise)."""
+    from dataclasses import replace
+
+    for g, start, own in getattr(proposal, "members", ()):
+        if g is part:
+            i = -1 if step is None else step.choice.index - start
+            if not 0 <= i < len(own.poses):
+                return own, None
+            return own, replace(step, choice=replace(step.choice, index=i), proposal=own)
+    return proposal, step

@@ -9,7 +9,7 @@ from ..settings import Names, nonneg, within
 from ..termination import viewable_cells
 from ..timing import StageTimers
 from .legs import fly_leg, retreat
-from .parts import PlanningContext, Step, propose
+from .parts import PlanningContext, Step, propose, run_hooks
 from .registry import get_generator, get_termination
 from .scoring import Scorer
 from .selection import Selector
@@ -75,8 +75,7 @@ class Planner:
             step = Step.of(iteration, found, world, entropy_before, self.c_view, new_cells)
             step.expected_m2, step.realized_m2 = delivered
             step.extra.update(leg_m=back + leg, scan=scan)
-            for hook in self.hooks.values():
-                hook(world, step)
+            run_hooks(self.hooks, world, step)  # all of them, then a part's error
             for term in self.terminations:
                 reason = term.check(world, step)
                 if reason:

@@ -37,19 +37,24 @@ BUILT_IN = frozenset(GENERATORS) | frozenset(TERMINATIONS)
 #: planning/utilities.py); the C++ core's are nbvkit._core.utility_names().
 UTILITIES: dict = {}
 
-#: Section names a part may not take: the configuration's own.
+#: Section names a part may not take: the configuration's own (its keys and sections, and its
+#: methods: config.section(name) would be one; tests/test_plugins.py checks they are all here).
 RESERVED = frozenset(
     "seed scenario start start_pose max_iterations progress mesh workspace map camera laser "
     "cloud vehicle utility targets placement planner profiling symmetry evaluation "
-    "observability report sampling termination".split()
+    "observability report sampling termination "
+    "check section sections from_dict from_yaml with_overrides to_dict to_yaml".split()
 )
 
 
 def _check_new(name: str, kind: str, taken) -> None:
-    if not isinstance(name, str) or not name.isidentifier():
-        raise ValueError(f"a {kind} name must be an identifier, got {name!r}")
+    if not isinstance(name, str) or not name.isidentifier() or name.startswith("_"):
+        raise ValueError(f"a {kind} name must be an identifier not starting with _, got {name!r}")
     if name in RESERVED:
-        raise ValueError(f"{kind} name {name!r} is a section of the configuration; choose another")
+        raise ValueError(
+            f"{kind} name {name!r} is a section of the configuration (or one of its keys or "
+            "methods); choose another"
+        )
     if name in taken:
         raise ValueError(
             f"a {kind} named {name!r} is registered already"
@@ -86,6 +91,14 @@ def _check_part(name: str, kind: str, cls, methods) -> None:
             f"{kind} {name!r}: its Settings must be a dataclass (frozen, nbvkit.settings' "
             f"helpers for checks), got {settings!r}"
         )
+    if settings is not None:  # every configuration builds its section from the defaults
+        try:
+            settings()
+        except Exception as e:
+            raise TypeError(
+                f"{kind} {name!r}: its Settings() must build from the defaults alone (each field "
+                f"with a default): {type(e).__name__}: {e}"
+            ) from None
 
 
 def register_generator(name: str, cls) -> None:

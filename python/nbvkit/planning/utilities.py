@@ -155,8 +155,8 @@ class PythonUtility:
     def gains(self, rays):
         """(gains (K,) float64, cells (K,) or None): `fn(rays)`, its exceptions noted with the
         utility's name (parts._named); TypeError / ValueError naming it unless it returned (K,)
-        gains (or a tuple (gains (K,), cells (K,))) of numbers, finite and >= 0 for the valid
-        candidates (rays.status 0; the others' are not read)."""
+        gains (or a tuple (gains (K,), cells (K,))) of real numbers, finite and >= 0 for the
+        valid candidates (rays.status 0; the others' are not read), cells whole numbers."""
         from .parts import _named
 
         name, k = self.name, len(rays)
@@ -175,9 +175,10 @@ class PythonUtility:
             except Exception:
                 ok = False
             if a is None or not ok:
+                kind = f" of {arr.dtype}" if isinstance(a, np.ndarray) else ""
                 raise TypeError(
-                    f"utility {name!r} returned {type(a).__name__} {what}, not an array of "
-                    f"numbers, one a candidate ({k},)"
+                    f"utility {name!r} returned {type(a).__name__}{kind} {what}, not an array "
+                    f"of real numbers, one a candidate ({k},)"
                 )
             if arr.shape != (k,):
                 raise ValueError(
@@ -195,6 +196,17 @@ class PythonUtility:
                     f"{j} ({int(bad.sum())} such of {k} candidates); gains are finite and >= 0 "
                     "(the planner ranks gain x a travel discount)"
                 )
+        if cells is not None:
+            c = np.array(cells, dtype=np.float64)
+            with np.errstate(invalid="ignore"):
+                bad = ~(np.isfinite(c) & (c >= 0) & (c == np.round(c)) & (c < 2**31))
+            if (bad & valid).any():
+                j = int(np.flatnonzero(bad & valid)[0])
+                raise ValueError(
+                    f"utility {name!r} returned cells {c[j]} for valid candidate {j}; cells are "
+                    "counts (whole numbers >= 0) of the cells that added to each gain"
+                )
+            cells = np.where(bad, 0, c).astype(np.int32)  # invalid candidates': not read
         return gains, cells
 
     def score_rays(self, rays, poses=None, current=None) -> dict:
