@@ -307,9 +307,15 @@ def _ring_poses(p):
             "aim 0 is not finite",
         ),
         (lambda s, w, p: Proposal(p.poses, "x", aims=[["a"] * 3] * 8), TypeError, "aims are not"),
+        # beyond the gimbal's -30 deg: flown, it failed in World.fly_to naming a leg frame's pitch
+        (
+            lambda s, w, p: Proposal(np.column_stack([p.poses, np.full(8, -1.4)]), "x"),
+            ValueError,
+            r"pose 0 has pitch -80.2141 deg, outside camera.gimbal_pitch_deg \[-30, 90\]",
+        ),
     ],
     ids=["empty", "empty-exclusive", "nan", "k3", "1d", "array", "strings", "pitch", "source",
-         "aims", "raises", "complex", "aims-nan", "aims-strings"],
+         "aims", "raises", "complex", "aims-nan", "aims-strings", "gimbal"],
 )  # fmt: skip
 def test_a_hostile_generator_is_an_exception_naming_it(fn, error, match):
     with pytest.raises(error, match=match) as e:
@@ -665,3 +671,22 @@ def test_a_plugin_file_imports_its_neighbours_and_loads_once_imported(tmp_path, 
         sys.modules.pop("audit_ring", None)
         if files[0] in LOADED:
             LOADED.remove(files[0])
+
+
+def test_plan_tour_names_a_wrong_memo_or_utility():
+    # a dict as memo was pybind11's page of signatures, a camera section as utility an
+    # AttributeError about .options
+    said = []
+
+    def wrong(s, world, p):
+        for kw in ({"memo": {}}, {"utility": s.ctx.camera}):
+            with pytest.raises(TypeError) as e:
+                nbvkit.plan_tour(world, p.poses, **kw)
+            said.append(str(e.value))
+
+    _fly(generator=_proposing(wrong))
+    assert said == [
+        "plan_tour: memo is a nbvkit.CoverageMemo or None, not dict",
+        "plan_tour: utility is the configuration's utility section (context.utility) or None, "
+        "not CameraConfig",
+    ]

@@ -302,6 +302,15 @@ class PluginPart:
         if p is None:
             return None
         p = check_proposal(p, self.name)
+        if p.poses.shape[1] == 5:  # the gimbal's range, as the vehicle flies it (World.fly_to)
+            lo, hi = world.config.camera.gimbal_pitch_deg
+            deg = np.degrees(p.poses[:, 4])
+            out = np.flatnonzero((deg < lo - 1e-9) | (deg > hi + 1e-9))
+            if len(out):
+                raise ValueError(
+                    f"generator {self.name!r}: its proposal's pose {out[0]} has pitch "
+                    f"{deg[out[0]]:g} deg, outside camera.gimbal_pitch_deg [{lo:g}, {hi:g}] deg"
+                )
         last = self.__dict__["_rejected"]
         if last is not None and p.exclusive and np.array_equal(p.poses, last):
             raise RuntimeError(

@@ -409,6 +409,10 @@ def plan_tour(
     CoverageMemo kept between calls (fewer walks). Views are valid as the planner's are
     (the navigation space, the collision sphere in known free space). Returns a TourPlan:
     plan.flight indexes candidates in flight order."""
+    if memo is not None and not isinstance(memo, _core.CoverageMemo):
+        raise TypeError(
+            f"plan_tour: memo is a nbvkit.CoverageMemo or None, not {type(memo).__name__}"
+        )
     return _core.plan_tour(
         world.map,
         world.surface,
@@ -428,6 +432,11 @@ def plan_tour(
 def _walk_options(world, utility) -> dict:
     """The camera, utility and validity of view_coverage and plan_tour: the world's view camera,
     the utility section's priors and cone (None: the defaults) and the planner's validity."""
+    if utility is not None and not callable(getattr(utility, "options", None)):
+        raise TypeError(
+            "plan_tour: utility is the configuration's utility section (context.utility) or None, "
+            f"not {type(utility).__name__}"
+        )
     options = utility.options() if utility is not None else _core.UtilityOptions()
     return dict(
         camera=world.view_camera, utility=options, validity=world.validity(blocked_path="plan")
