@@ -690,3 +690,24 @@ def test_plan_tour_names_a_wrong_memo_or_utility():
         "plan_tour: utility is the configuration's utility section (context.utility) or None, "
         "not CameraConfig",
     ]
+
+
+def test_a_scenario_naming_an_unknown_part_is_an_error_naming_it():
+    # a registered scenario's preset is not checked as a key the user sets: the mission raised
+    # a bare KeyError: 'nonexistent'
+    from nbvkit.scenarios import SCENARIOS
+
+    nbvkit.register_scenario(
+        "audit_unknown",
+        "names a part never registered",
+        {"planner.generators": ["nonexistent"], "planner.terminations": ["nonexistent_stop"]},
+    )
+    try:
+        cfg = load_config(overrides=[*QUICK, "scenario=audit_unknown"])
+        with pytest.raises(ValueError, match="unknown planner generator 'nonexistent'; known: "):
+            nbvkit.Mission(cfg, mesh=box_mesh(*BOX))
+        cfg = load_config(overrides=[*QUICK, "scenario=audit_unknown", "planner.generators=[]"])
+        with pytest.raises(ValueError, match="unknown planner termination 'nonexistent_stop'"):
+            nbvkit.Mission(cfg, mesh=box_mesh(*BOX))
+    finally:
+        SCENARIOS.pop("audit_unknown")

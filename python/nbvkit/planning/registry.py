@@ -150,6 +150,8 @@ def get_generator(name: str, config, context=None):
 def _build(kind: str, table: dict, name: str, config, context):
     from .parts import PlanningContext, PluginPart, _named
 
+    if name not in table:  # a scenario's preset is not checked as a key the user set
+        check_names(*([name], []) if kind == "generator" else ([], [name]))
     cls = table[name]
     settings = config.section(name) if getattr(cls, "Settings", None) else None
     context = context or PlanningContext.of(config)
