@@ -600,7 +600,9 @@ def test_with_other_generators_feedback_is_of_its_own_views():
         cfg = load_config(
             overrides=QUICK + ["max_iterations=6", "planner.generators=[lattice,told]"]
         )
-        s = nbvkit.Mission(cfg, mesh=box_mesh(*BOX)).run()
+        m, unions = nbvkit.Mission(cfg, mesh=box_mesh(*BOX)), []
+        m.planner.hooks["keep"] = lambda world, step: unions.append(step.proposal)
+        s = m.run()
     finally:
         registry.GENERATORS.pop("told")
     assert s["iterations"] == 6 and len(told) == 6
@@ -611,6 +613,13 @@ def test_with_other_generators_feedback_is_of_its_own_views():
         if step is not None:
             assert step.proposal is proposal
             assert np.allclose(proposal.poses[step.choice.index], step.choice.pose[:4])
+    # the union's record of whose rows are whose holds the generators: not pickled or copied
+    import copy
+    import pickle
+
+    assert unions[0].source == "lattice+ring" and len(unions[0].members) == 2
+    assert pickle.loads(pickle.dumps(unions[0])).source == "lattice+ring"
+    assert not hasattr(copy.deepcopy(unions[0]), "members")
 
 
 def test_a_view_whose_feedback_raised_is_recorded(tmp_path):

@@ -59,6 +59,9 @@ class Proposal:
     exclusive: bool = False
     aims: Optional[np.ndarray] = None  # (K, 3) the point each candidate is aimed at, if any
 
+    def __getstate__(self):  # a union's members (its generators, see propose) stay behind
+        return {k: v for k, v in self.__dict__.items() if k != "members"}
+
 
 @dataclass
 class Choice:
