@@ -224,3 +224,37 @@ def test_a_registered_scenario_setting_an_unknown_key_is_named(monkeypatch):
     with pytest.raises(KeyError, match="sets 'nope.key'"):
         load_config(overrides=["scenario=x"])
     del SCENARIOS["x"]
+
+
+def test_a_config_pickles_and_copies():
+    """A Config (so a Mission, a plugin part holding one) pickles: the sections generated from
+    C++ options (settings.cpp_section) name the module that defines them, not nbvkit.settings."""
+    import copy
+    import pickle
+
+    c = load_config(overrides=["scenario=3", "map.resolution=0.4", "lattice.sigma=2"])
+    for name, section in c.sections():
+        cls = type(section)
+        if hasattr(cls, "OPTIONS"):
+            assert pickle.loads(pickle.dumps(cls)) is cls, name
+    for back in (pickle.loads(pickle.dumps(c)), copy.deepcopy(c), copy.copy(c)):
+        assert back.to_dict() == c.to_dict() and back == c
+    assert pickle.loads(pickle.dumps(c)).with_overrides(["start=2"]).to_dict() == (
+        c.with_overrides(["start=2"]).to_dict()
+    )
+
+
+def test_bound_options_and_a_planning_context_pickle_and_copy():
+    """The C++ options of a configuration's sections (a PlanningContext holds the surface-target
+    options) pickle and copy with every field."""
+    import copy
+    import pickle
+
+    from nbvkit.planning.parts import PlanningContext
+
+    ctx = PlanningContext.of(load_config(overrides=["targets.frontier_weight=0.25"]))
+    for back in (pickle.loads(pickle.dumps(ctx)), copy.deepcopy(ctx), copy.copy(ctx)):
+        assert back.targets == ctx.targets and back.targets.frontier_weight == 0.25
+        assert back.utility == ctx.utility
+    opts = load_config(overrides=["map.prob_hit=0.8"]).map.options()
+    assert copy.deepcopy(opts) == opts and pickle.loads(pickle.dumps(opts)).prob_hit == 0.8

@@ -12,7 +12,9 @@ module is what the parts import, so that no part imports the configuration.
 """
 from __future__ import annotations
 
+import copyreg
 import math
+import sys
 import typing
 from dataclasses import field, fields, is_dataclass, make_dataclass
 from typing import Tuple
@@ -88,6 +90,7 @@ def cpp_section(
     extra=(),
     bounds=None,
     choices=None,
+    module=None,
 ):
     """A frozen config dataclass whose keys mirror a bound C++ options class: their names,
     defaults and documentation come from it (``options_cls.fields()``); `only` keeps some of them.
@@ -98,7 +101,10 @@ def cpp_section(
     names it may take (see ``choice``). The class gets
     ``FIELD_DOCS`` (key -> documentation), ``OPTIONS`` (the first bound class), ``OPTIONS_ALL``
     (all of them), ``options()`` (the first C++ options built from this section) and
-    ``options_for(cls)`` (any of them)."""
+    ``options_for(cls)`` (any of them). The class lives in `module` (default: the caller's; bind
+    it to `name` there, ``MapConfig = cpp_section("MapConfig", ...)``: pickle finds it by that
+    name), and its bound classes pickle and copy (``picklable_options``)."""
+    module = module or sys._getframe(1).f_globals.get("__name__", __name__)
     classes = (options_cls,) + tuple(extra)
     keys = {
         cls: [f for f in cls.fields() if cls is not options_cls or only is None or f in only]
@@ -133,6 +139,8 @@ def cpp_section(
             f"{name}: bounds or choices of unknown keys {sorted({**bounds, **choices})}"
         )
     cpp_fields = [f for cls in classes for f in keys[cls]]
+    for cls in classes:
+        picklable_options(cls)
 
     def options_for(self, cls):
         return cls(**{f: getattr(self, f) for f in keys[cls]})
@@ -152,9 +160,24 @@ def cpp_section(
             "options": options,
             "options_for": options_for,
             "CPP_FIELDS": tuple(cpp_fields),
-            "__module__": __name__,
+            "__module__": module,
         },
     )
+
+
+def _options_from(cls, values: dict):
+    return cls(**values)
+
+
+def _reduce_options(obj):
+    return _options_from, (type(obj), obj.to_dict())
+
+
+def picklable_options(cls) -> None:
+    """Lets a bound C++ options class (nbvkit._core: ``to_dict()`` of every field, a keyword
+    constructor) pickle and copy, as its fields; the binding itself defines neither."""
+    if cls not in copyreg.dispatch_table:
+        copyreg.pickle(cls, _reduce_options)
 
 
 def build(cls, data, prefix: str):
