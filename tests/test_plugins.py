@@ -720,3 +720,59 @@ def test_a_scenario_naming_an_unknown_part_is_an_error_naming_it():
             nbvkit.Mission(cfg, mesh=box_mesh(*BOX))
     finally:
         SCENARIOS.pop("audit_unknown")
+
+
+@dataclass(frozen=True)
+class WideRingSettings:
+    count: int = within(5, 1, 360)
+    distance: float = positive(6.0)
+
+
+class WideRing(RingGenerator):
+    Settings = WideRingSettings
+
+
+def test_a_part_or_scenario_registered_again_with_replace_takes_the_name(parts):
+    # a notebook cell run again: "registered already" unless told to replace what the user put
+    from nbvkit.scenarios import SCENARIOS
+
+    with pytest.raises(ValueError, match="registered already.*replace=True"):
+        nbvkit.register_generator("ring", WideRing)
+    nbvkit.register_generator("ring", WideRing, replace=True)
+    cfg = load_config(overrides=["ring.distance=7"])
+    assert cfg.ring == WideRingSettings(5, 7.0)
+    assert type(registry.get_generator("ring", cfg).part) is WideRing  # the planner's lookup
+    nbvkit.register_termination("distance_cap", DistanceCap, replace=True)
+
+    def near(rays):
+        return np.zeros(len(rays.offsets) - 1)
+
+    nbvkit.register_utility("audit_u", lambda rays: 0)
+    nbvkit.register_scenario("audit_s", "one", {"ring.count": 3})
+    try:
+        with pytest.raises(ValueError, match="registered already"):
+            nbvkit.register_utility("audit_u", near)
+        nbvkit.register_utility("audit_u", near, replace=True)
+        assert registry.UTILITIES["audit_u"] is near
+        with pytest.raises(ValueError, match="registered already"):
+            nbvkit.register_scenario("audit_s", "two", {"ring.count": 4})
+        nbvkit.register_scenario("audit_s", "two", {"ring.count": 4}, replace=True)
+        assert load_config(overrides=["scenario=audit_s"]).ring.count == 4
+        # nbvkit's own are never replaced, nor a name of another kind
+        for call in (
+            lambda: nbvkit.register_generator("tour", WideRing, replace=True),
+            lambda: nbvkit.register_termination("budget", DistanceCap, replace=True),
+            lambda: nbvkit.register_utility("ig", near, replace=True),
+            lambda: nbvkit.register_scenario("surface", "mine", {}, replace=True),
+        ):
+            with pytest.raises(ValueError, match="nbvkit's own.*cannot be replaced"):
+                call()
+        with pytest.raises(ValueError, match="a generator named 'ring'.*not a termination"):
+            nbvkit.register_termination("ring", DistanceCap, replace=True)
+        with pytest.raises(TypeError):  # the checks hold, and the name keeps its part
+            nbvkit.register_generator("ring", 3, replace=True)
+        assert registry.GENERATORS["ring"] is WideRing
+        assert load_config(overrides=["scenario=surface"]).utility.name == "surface"
+    finally:
+        registry.UTILITIES.pop("audit_u", None)
+        SCENARIOS.pop("audit_s", None)

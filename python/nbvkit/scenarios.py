@@ -146,10 +146,26 @@ TABLE2 = ("profile", "1", "2", "3", "4", "5")
 DEFAULT = "surface"
 
 
-def register_scenario(name: str, description: str, settings: dict) -> None:
+#: The scenarios nbvkit ships (those registered from a script may be replaced).
+BUILT_IN = frozenset(SCENARIOS)
+
+
+def register_scenario(name: str, description: str, settings: dict, *, replace=False) -> None:
     """Adds a scenario (a preset of dotted config keys, e.g. a plugin's planner:
     {"planner.generators": ["ring"]}); `nbvkit run --planner`, `nbvkit compare --planners` and
-    the configuration accept its name."""
-    if not isinstance(name, str) or not name or name in SCENARIOS:
-        raise ValueError(f"scenario {name!r} is registered already or not a name")
+    the configuration accept its name. `replace`: `name` may be a scenario registered before
+    from a script (a notebook cell run again), which this one replaces; never one of nbvkit's."""
+    if not isinstance(name, str) or not name:
+        raise ValueError(f"a scenario name must be a non-empty str, got {name!r}")
+    if name in BUILT_IN:
+        raise ValueError(
+            f"scenario {name!r} is one of nbvkit's own"
+            + (" and cannot be replaced" if replace else ": registered already")
+            + "; choose another name"
+        )
+    if name in SCENARIOS and not replace:
+        raise ValueError(
+            f"scenario {name!r} is registered already; choose another name, or replace=True to "
+            "replace it"
+        )
     SCENARIOS[name] = Scenario(description, dict(settings))

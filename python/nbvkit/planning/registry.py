@@ -47,7 +47,9 @@ RESERVED = frozenset(
 )
 
 
-def _check_new(name: str, kind: str, taken) -> None:
+def _check_new(name: str, kind: str, taken, replace: bool = False, table=None) -> None:
+    """ValueError unless `name` is free for a `kind`, or (`replace`) names one of the user's own
+    parts of that kind in `table` (never nbvkit's own, nor a part of another kind)."""
     if not isinstance(name, str) or not name.isidentifier() or name.startswith("_"):
         raise ValueError(f"a {kind} name must be an identifier not starting with _, got {name!r}")
     if name in RESERVED:
@@ -55,11 +57,25 @@ def _check_new(name: str, kind: str, taken) -> None:
             f"{kind} name {name!r} is a section of the configuration (or one of its keys or "
             "methods); choose another"
         )
-    if name in taken:
+    if name not in taken:
+        return
+    own = name in BUILT_IN or name in _core_utilities()
+    if own and replace:
+        raise ValueError(f"{kind} {name!r} is one of nbvkit's own and cannot be replaced")
+    if replace and name not in table:
+        other = "generator" if name in GENERATORS else "termination"
+        raise ValueError(
+            f"a {other} named {name!r} is registered, not a {kind}: replace=True replaces a "
+            f"{kind} of your own; choose another name"
+        )
+    if not replace:
         raise ValueError(
             f"a {kind} named {name!r} is registered already"
-            + (" (one of nbvkit's own)" if name in BUILT_IN or name in _core_utilities() else "")
-            + "; choose another name"
+            + (
+                " (one of nbvkit's own); choose another name"
+                if own
+                else "; choose another name, or replace=True to replace it"
+            )
         )
 
 
@@ -101,31 +117,35 @@ def _check_part(name: str, kind: str, cls, methods) -> None:
             ) from None
 
 
-def register_generator(name: str, cls) -> None:
+def register_generator(name: str, cls, *, replace: bool = False) -> None:
     """Adds a generator: `cls(settings, context)` with propose(world) and feedback(world,
     proposal, step) (parts.Generator); `cls.Settings` (optional) is the dataclass of its
-    configuration section `name`."""
-    _check_new(name, "generator", {**GENERATORS, **TERMINATIONS})
+    configuration section `name`. `replace`: `name` may be a generator registered before from a
+    script (a notebook cell run again), which this one replaces; never one of nbvkit's own."""
+    _check_new(name, "generator", {**GENERATORS, **TERMINATIONS}, replace, GENERATORS)
     _check_part(name, "generator", cls, ("propose", "feedback"))
     GENERATORS[name] = cls
 
 
-def register_termination(name: str, cls) -> None:
+def register_termination(name: str, cls, *, replace: bool = False) -> None:
     """Adds a termination: `cls(settings, context)` with check(world, step) -> reason or None
-    (parts.Termination); `cls.Settings` (optional) as for a generator."""
-    _check_new(name, "termination", {**GENERATORS, **TERMINATIONS})
+    (parts.Termination); `cls.Settings` (optional) and `replace` as for a generator."""
+    _check_new(name, "termination", {**GENERATORS, **TERMINATIONS}, replace, TERMINATIONS)
     _check_part(name, "termination", cls, ("check",))
     TERMINATIONS[name] = cls
 
 
-def register_utility(name: str, fn) -> None:
+def register_utility(name: str, fn, *, replace: bool = False) -> None:
     """Adds a utility written in Python: `fn(rays)` -> (K,) gains of K candidate views from what
     their rays reach (nbvkit.CandidateRays), each finite and >= 0 for a valid candidate (or a
     tuple (gains, cells)); named by ``utility.name``. What it returns is checked where it is
-    called, and an exception of its own noted with its name (utilities.PythonUtility)."""
+    called, and an exception of its own noted with its name (utilities.PythonUtility).
+    `replace` as for a generator (the C++ utilities are nbvkit's own)."""
     if not callable(fn):
         raise TypeError(f"utility {name!r} must be callable, got {type(fn).__name__}")
-    _check_new(name, "utility", {**UTILITIES, **dict.fromkeys(_core_utilities())})
+    _check_new(
+        name, "utility", {**UTILITIES, **dict.fromkeys(_core_utilities())}, replace, UTILITIES
+    )
     UTILITIES[name] = fn
 
 
