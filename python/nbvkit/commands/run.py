@@ -112,18 +112,31 @@ def run(args) -> int:
     if stop is not None and s.get("stopped_during") == "saving":
         print(
             f"nbvkit run: saving was stopped after the flight ({s['stopped_by']}); the whole "
-            f"flight ({s['views']} views, {s['distance_m']:.1f} m) is saved in {out}/ without "
+            f"flight ({flown(s)}, {s['distance_m']:.1f} m) is saved in {out}/ without "
             "the end-of-run outputs (mesh.ply, report.html)",
             file=sys.stderr,
         )
     elif stop is not None:
         print(
-            f"nbvkit run: the flight stopped after {s['views']} views, {s['distance_m']:.1f} m "
+            f"nbvkit run: the flight stopped after {flown(s)}, {s['distance_m']:.1f} m "
             f"({s['stopped_by']}); what it flew is saved in {out}/",
             file=sys.stderr,
         )
     raise_stop(s, stop)
     return 0
+
+
+def flown(s: dict) -> str:
+    """The views a summary counts, as its keys do: `iterations` the planned views (the rows of
+    iterations.csv), `views` every camera view, the first one (from where the camera stage
+    starts, before any planning) included."""
+    n, views = s["iterations"], s["views"]
+    text = f"{n} iteration{'s' if n != 1 else ''}"
+    if views == n + 1:
+        text += f" ({views} views: the first, where the camera stage starts, and {n} planned)"
+    elif views != n:
+        text += f" ({views} camera views)"
+    return text
 
 
 def print_summary(s: dict, out) -> None:
