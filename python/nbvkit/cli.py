@@ -69,8 +69,23 @@ def main(argv: list[str] | None = None) -> int:
         return 130
     except (FileNotFoundError, ValueError, KeyError, RuntimeError, OSError) as e:
         msg = e.args[0] if isinstance(e, KeyError) and e.args else e
+        _plugin_traceback(e)
         print(f"nbvkit {args.command}: error: {msg}", file=sys.stderr)
         return 2
+
+
+def _plugin_traceback(e: BaseException) -> None:
+    """For an error a plugin's part raised: the traceback's frames in the plugin files (or the
+    whole traceback, for a part from another file) and its notes, before the one-line error.
+    nbvkit's own errors (a bad key, a missing file) print nothing here."""
+    from .plugins import plugin_traceback
+
+    lines = plugin_traceback(e)
+    if lines:
+        print("Traceback (the plugin's frames, most recent call last):", file=sys.stderr)
+        print("".join(lines).rstrip("\n"), file=sys.stderr)
+        for note in getattr(e, "__notes__", ()):
+            print(note, file=sys.stderr)
 
 
 if __name__ == "__main__":

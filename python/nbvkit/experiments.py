@@ -56,16 +56,33 @@ SWEEP_POISSON_DEPTH = 7
 def run_one(spec: RunSpec, root: str | os.PathLike, threads: int = 0, plugins=()) -> dict:
     """Runs one spec into ``root/runs/<run_id>`` unless it is already there; returns its row.
     plugins: plugin files to load first (a Dask worker's process has not loaded them)."""
-    from ._core import set_num_threads
-    from .mission import Mission
     from .plugins import load_plugins
 
     load_plugins(plugins)
+    try:
+        return _run_one(spec, Path(root), threads)
+    except Exception as e:
+        _note_plugin_frame(e)  # the traceback does not cross to the parent process
+        raise
 
+
+def _note_plugin_frame(e: BaseException) -> None:
+    """Notes on `e` where in a plugin file it was raised (recorder.error_line then names it in
+    the failed run's record, in whichever process it is read)."""
+    from .plugins import plugin_frame
+
+    where = plugin_frame(e)
+    if where is not None and hasattr(e, "add_note") and where not in getattr(e, "__notes__", ()):
+        e.add_note(where)
+
+
+def _run_one(spec: RunSpec, root: Path, threads: int) -> dict:
+    from ._core import set_num_threads
+    from .mission import Mission
+    from .plugins import loaded_files
     from .runfolder import write_json_atomic as _write_json_atomic
     from .runfolder import RunFolder
 
-    root = Path(root)
     final = root / "runs" / spec.run_id
     cfg, mesh_sha1 = _resolved(spec)
     if _finished_with(final, cfg, mesh_sha1):
@@ -80,8 +97,11 @@ def run_one(spec: RunSpec, root: str | os.PathLike, threads: int = 0, plugins=()
             mission = Mission(cfg)
             # one observable-surface cache for the whole experiment: once per structure
             mission.save(folder.tmp, mission.run(), finish=True, cache_dir=root / "cache")
+            # the plugin files loaded (their content's SHA-256): only when there are, so that a
+            # run without them keeps the spec.json (and resumes) as before
+            plugins = {"plugins": loaded_files()} if loaded_files() else {}
             _write_json_atomic(
-                folder.tmp / "spec.json", {**_spec_dict(spec), "mesh_sha1": mesh_sha1}
+                folder.tmp / "spec.json", {**_spec_dict(spec), "mesh_sha1": mesh_sha1, **plugins}
             )
     return row_of(final)
 
@@ -113,18 +133,24 @@ def _finished_rows(specs: list[RunSpec], root: Path, rows: list) -> None:
 
 def _finished_with(run_dir: Path, cfg, mesh_sha1: str | None) -> bool:
     """Whether run_dir holds a finished run of exactly this resolved configuration on the mesh
-    file whose content has this SHA-1 (_mesh_digest). The run id hashes the mesh flown (path,
-    scale, up of the resolved configuration), the overrides and the config file's name, not the
-    other defaults it resolves to, the config file's content nor the mesh file's: a run kept from
-    before one of them changed is flown again."""
+    file whose content has this SHA-1 (_mesh_digest), with the plugin files loaded in this
+    process of the same content (plugins.loaded_files; none for a run flown without them). The
+    run id hashes the mesh flown (path, scale, up of the resolved configuration), the overrides
+    and the config file's name, not the other defaults it resolves to, the config file's content,
+    the mesh file's nor the plugin files': a run kept from before one of them changed is flown
+    again."""
+    from .plugins import loaded_files
     from .runfolder import is_complete_run
 
     try:
+        if not is_complete_run(run_dir):
+            return False
+        spec = json.loads((run_dir / "spec.json").read_text())
         return (
-            is_complete_run(run_dir)
-            and (run_dir / "config.yaml").read_text() == cfg.to_yaml()
+            (run_dir / "config.yaml").read_text() == cfg.to_yaml()
             and mesh_sha1 is not None
-            and json.loads((run_dir / "spec.json").read_text()).get("mesh_sha1") == mesh_sha1
+            and spec.get("mesh_sha1") == mesh_sha1
+            and spec.get("plugins", []) == loaded_files()
         )
     except (OSError, ValueError):
         return False
@@ -257,6 +283,8 @@ def run_specs(
     Dask distributed scheduler ("tcp://host:8786") to run on that cluster instead.
     """
     root = Path(root)
+    if scheduler or not (workers == 1 or len(specs) <= 1):
+        refuse_script_parts(specs)
     (root / "runs").mkdir(parents=True, exist_ok=True)
     clean_stale_tmp(root)
     rows: list = [None] * len(specs)
@@ -271,6 +299,36 @@ def run_specs(
     if failed:
         raise RunsFailed([r for r in rows if r is not None], failed, len(specs))
     return rows
+
+
+def refuse_script_parts(specs: list[RunSpec]) -> None:
+    """ValueError when a spec names a scenario or part (its scenario, planner.generators,
+    planner.terminations, utility.name, a section it sets) registered in this process by no
+    plugin file: worker processes know only nbvkit's and the plugin files' (each run would fail
+    there, naming the scenario or key but not why)."""
+    from .plugins import script_only
+
+    names = script_only()
+    if not names:
+        return
+    for key in {(s.scenario, tuple(s.overrides), s.config_file) for s in specs}:
+        used = [key[0]] if key[0] in names else []
+        if not used:
+            try:
+                cfg = RunSpec(key[0], 0, overrides=key[1], config_file=key[2]).config()
+            except (ValueError, KeyError, OSError):
+                continue  # refused where it runs, naming the problem
+            p = cfg.planner
+            used = [n for n in (*p.generators, *p.terminations, cfg.utility.name, *cfg._user)
+                    if n in names]  # fmt: skip
+        if used:
+            n = used[0]
+            raise ValueError(
+                f"the {names[n]} {n!r} was registered in this process, not by a plugin file: the "
+                "worker processes cannot know it, and every run naming it would fail there. Put "
+                "it in a file and load it with nbvkit.load_plugin(path) (nbvkit compare / sweep: "
+                "--plugin FILE), or run with workers=1 (in this process)"
+            )
 
 
 def _progress(k: int, total: int, run_id: str, outcome: str) -> None:

@@ -8,12 +8,21 @@ from __future__ import annotations
 import hashlib
 import importlib.util
 import sys
+import traceback
 from pathlib import Path
 
 from .limits import check_input_file
+from .scenarios import SCENARIOS as _SCENARIOS
 
 #: The plugin files loaded in this process, in order (the sweeps' workers load them too).
 LOADED: list[str] = []
+#: path -> SHA-256 of the content each file had when it was loaded (recorded with each run).
+DIGESTS: dict[str, str] = {}
+#: path -> the names (generator, termination, utility, scenario) each file registered as it ran;
+#: a file found imported already (not run again) registered what its module holds.
+REGISTERED: dict[str, set] = {}
+#: The scenarios nbvkit ships: those there when nbvkit was imported (before any script's).
+BUILT_IN_SCENARIOS = frozenset(_SCENARIOS)
 
 
 def load_plugin(path) -> None:
@@ -27,8 +36,12 @@ def load_plugin(path) -> None:
         return
     if str(p.parent) not in sys.path:
         sys.path.append(str(p.parent))
-    if any(_same_file(m, p) for m in list(sys.modules.values())):
+    digest = hashlib.sha256(p.read_bytes()).hexdigest()
+    imported = [m for m in list(sys.modules.values()) if _same_file(m, p)]
+    if imported:
         LOADED.append(str(p))
+        DIGESTS[str(p)] = digest
+        REGISTERED[str(p)] = _held_by(imported[0])
         return
     name = "nbvkit_plugin_" + hashlib.sha1(str(p).encode()).hexdigest()[:12]
     spec = importlib.util.spec_from_file_location(name, p)
@@ -47,6 +60,8 @@ def load_plugin(path) -> None:
                 del table[key]
         raise
     LOADED.append(str(p))
+    DIGESTS[str(p)] = digest
+    REGISTERED[str(p)] = set().union(*(set(t) - had for t, had in zip(tables, before)))
 
 
 def _same_file(module, path) -> bool:
@@ -64,6 +79,77 @@ def _tables() -> tuple:
     from .scenarios import SCENARIOS
 
     return registry.GENERATORS, registry.TERMINATIONS, registry.UTILITIES, SCENARIOS
+
+
+def _held_by(module) -> set:
+    """The registered names whose part (class or function) the module `module` holds (defined or
+    imported there): what a file imported before it was loaded registered. Its scenarios cannot
+    be told from others: all that are not nbvkit's count as its (never refused wrongly)."""
+    held = {id(v) for v in vars(module).values()}
+    names = {name for t in _tables()[:3] for name, obj in t.items() if id(obj) in held}
+    return names | (set(_SCENARIOS) - BUILT_IN_SCENARIOS)
+
+
+def script_only() -> dict:
+    """{name: kind} of the parts (generator, termination, utility) and scenarios registered in
+    this process but by no plugin file: the worker processes of a sweep cannot know them."""
+    from .planning import registry
+
+    known = set().union(*REGISTERED.values())
+    out = {}
+    for kind, table, shipped in (
+        ("generator", registry.GENERATORS, registry.BUILT_IN),
+        ("termination", registry.TERMINATIONS, registry.BUILT_IN),
+        ("utility", registry.UTILITIES, ()),
+        ("scenario", _SCENARIOS, BUILT_IN_SCENARIOS),
+    ):
+        for n in table:
+            if n not in shipped and n not in known:
+                out.setdefault(n, kind)
+    return out
+
+
+def loaded_files() -> list[dict]:
+    """The plugin files loaded in this process: [{"path", "sha256" (of the content loaded)}]."""
+    return [{"path": p, "sha256": DIGESTS[p]} for p in LOADED]
+
+
+def plugin_frame(e: BaseException) -> str | None:
+    """Where in a loaded plugin file `e` was raised: "plugin file PATH, line N, in FUNCTION" of
+    the innermost frame of its traceback in one of them; None when none is."""
+    frames = _plugin_frames(e)
+    if not frames:
+        return None
+    f = frames[-1]
+    return f"plugin file {f.filename}, line {f.lineno}, in {f.name}"
+
+
+def plugin_traceback(e: BaseException) -> list[str]:
+    """The traceback lines a reader needs of an error raised by a plugin's part: the frames in
+    the plugin files, or the whole traceback when the part was registered from a file nbvkit did
+    not load (a note names it) and no frame is in a plugin file; [] for nbvkit's own errors."""
+    frames = _plugin_frames(e)
+    if not frames and any("registered from a script" in str(n) for n in _notes(e)):
+        frames = traceback.extract_tb(e.__traceback__)
+    return traceback.format_list(frames) if frames else []
+
+
+def _notes(e: BaseException) -> list:
+    return list(getattr(e, "__notes__", ()) or ())
+
+
+def _plugin_frames(e: BaseException) -> list:
+    if not LOADED or e.__traceback__ is None:
+        return []
+    files = set(LOADED)
+    out = []
+    for f in traceback.extract_tb(e.__traceback__):
+        try:
+            if f.filename in files or str(Path(f.filename).resolve()) in files:
+                out.append(f)
+        except (OSError, ValueError):
+            continue
+    return out
 
 
 def load_plugins(paths) -> None:

@@ -202,6 +202,10 @@ class Recorder:
             out["symmetry"] = m.symmetry_summary
         if tour is not None:
             out["tours"] = tour.plans
+        from .plugins import loaded_files
+
+        if loaded_files():  # the plugin files loaded, and the content each had (its SHA-256)
+            out["plugins"] = loaded_files()
         return out
 
     def write(self, out: Path, summary: dict, finish: bool = False, cache_dir=None) -> dict:
@@ -357,8 +361,15 @@ def raise_stop(summary: dict, stop: BaseException | None) -> dict:
 
 
 def error_line(e: BaseException) -> str:
-    """An exception as one line for a reader: its type, and its message when it has one."""
+    """An exception as one line for a reader: its type, and its message when it has one, its
+    notes (the plugin part that raised it), and where in a plugin file it was raised (the
+    innermost frame there: plugins.plugin_frame)."""
+    from .plugins import plugin_frame
+
     message = " ".join(str(e).split())
     line = f"{type(e).__name__}: {message}" if message else type(e).__name__
     notes = [" ".join(str(n).split()) for n in getattr(e, "__notes__", ())]
+    where = plugin_frame(e)
+    if where is not None and where not in notes:
+        notes.append(where)
     return "; ".join([line, *notes])

@@ -1,0 +1,178 @@
+"""Runs of plugin parts: which plugin files (and content) produced a run, resumed only while they
+are unchanged; a plugin's error shown where it was raised; parts registered from a script refused
+by the sweeps' worker processes up front; the console's count of views as the summary's."""
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+
+import pytest
+
+from conftest import ROOT, plugin_fixture_file
+from nbvkit.experiments import RunSpec, RunsFailed, run_specs
+
+CUBE = ROOT / "meshes" / "fixtures" / "cube.obj"
+SMALL = ("map.resolution=0.4", "max_iterations=3", "progress=false", "report.enabled=false",
+         "evaluation.gt_density=50", "profiling.waypoints=3", "planner.min_gain=0")  # fmt: skip
+
+PLUGIN = """
+import math
+
+import numpy as np
+
+import nbvkit
+from nbvkit.planning.parts import Proposal
+
+RADIUS = {radius}  # m beyond the structure's half diagonal
+FAIL_AT = {fail_at}  # the call of propose that raises (0: none)
+
+
+class Orbit:
+    def __init__(self, settings, context):
+        self.n = 0
+
+    def propose(self, world):
+        self.n += 1
+        if self.n == FAIL_AT:
+            np.vstack([np.zeros(3), np.zeros(4)])  # the plugin's own bug
+        lo, hi = world.mesh.bounds
+        c = (lo + hi) / 2
+        r = np.linalg.norm(hi[:2] - lo[:2]) / 2 + RADIUS
+        a = 2 * math.pi * self.n / 8
+        xyz = np.clip([c[0] + r * math.cos(a), c[1] + r * math.sin(a), c[2]],
+                      world.workspace.nav_min, world.workspace.nav_max)
+        return Proposal(np.array([[*xyz, a + math.pi]]), "orbit")
+
+    def feedback(self, world, proposal, step):
+        pass
+
+
+nbvkit.register_generator({name!r}, Orbit)
+{scenario}
+"""
+FAIL_LINE = 20  # the line of np.vstack in PLUGIN
+
+
+def _plugin(path, name="orbit", radius=2.0, fail_at=0, scenario=True):
+    sc = (f"nbvkit.register_scenario({name!r}, 'an orbit', "
+          f"{{'planner.generators': [{name!r}]}})") if scenario else ""  # fmt: skip
+    path.write_text(PLUGIN.format(name=name, radius=radius, fail_at=fail_at, scenario=sc))
+    assert path.read_text().splitlines()[FAIL_LINE - 1].strip().startswith("np.vstack")
+    return path
+
+
+def _nbvkit(*args):
+    return subprocess.run(
+        [sys.executable, "-m", "nbvkit.cli", *map(str, args)],
+        capture_output=True, text=True, timeout=300,
+    )  # fmt: skip
+
+
+def test_a_changed_plugin_file_flies_its_runs_again(tmp_path):
+    """compare --plugin again after the file changed: its runs are flown anew (they were kept,
+    and so the old figures); unchanged, they are kept. The summary names the files and content."""
+    plugin = _plugin(tmp_path / "evolving.py")
+    out = tmp_path / "cmp"
+    argv = ["compare", "--plugin", plugin, "--planners", "orbit", "--starts", "1", "--workers",
+            "1", "--mesh", CUBE, "--out", out, "--set", *SMALL]  # fmt: skip
+
+    def fly():
+        p = _nbvkit(*argv)
+        assert p.returncode == 0, p.stderr
+        (run,) = (out / "runs").iterdir()
+        return run.name, (run / "summary.json").stat().st_mtime_ns, run
+
+    run_id, first, run = fly()
+    import hashlib
+
+    def recorded():
+        s = json.loads((run / "summary.json").read_text())
+        sha = hashlib.sha256(plugin.read_bytes()).hexdigest()
+        assert s["plugins"] == [{"path": str(plugin.resolve()), "sha256": sha}]
+        return s
+
+    d0 = recorded()["distance_m"]
+    assert fly()[:2] == (run_id, first)  # unchanged: resumed
+    _plugin(plugin, radius=4.0)
+    again = fly()
+    assert again[0] == run_id and again[1] != first  # changed: flown again, in the same folder
+    assert recorded()["distance_m"] != d0
+
+
+def test_a_run_without_plugins_records_none_and_keeps_its_spec(tmp_path):
+    """Without plugin files a run's spec.json and summary are as before (earlier run folders
+    resume: their spec.json has no plugins either)."""
+    from nbvkit.plugins import LOADED
+
+    assert not LOADED
+    spec = RunSpec("1", 0, overrides=(*SMALL, f"mesh.path={json.dumps(str(CUBE))}"))
+    run_specs([spec], tmp_path, workers=1, progress=False)
+    run = tmp_path / "runs" / spec.run_id
+    assert "plugins" not in json.loads((run / "spec.json").read_text())
+    assert "plugins" not in json.loads((run / "summary.json").read_text())
+
+
+def test_a_plugins_error_shows_its_frames_and_a_builtin_error_its_line(tmp_path):
+    plugin = _plugin(tmp_path / "buggy.py", fail_at=3)
+    out = tmp_path / "run"
+    p = _nbvkit("run", "--plugin", plugin, "--planner", "orbit", "--mesh", CUBE, "--out", out,
+                "--set", *SMALL)  # fmt: skip
+    assert p.returncode == 2
+    err = p.stderr.strip().splitlines()
+    assert f'File "{plugin.resolve()}", line {FAIL_LINE}, in propose' in p.stderr
+    assert "np.vstack([np.zeros(3), np.zeros(4)])" in p.stderr
+    assert err[-1].startswith("nbvkit run: error: all the input array dimensions")
+    s = json.loads((out / "summary.json").read_text())
+    assert f"plugin file {plugin.resolve()}, line {FAIL_LINE}, in propose" in s["stopped_by"]
+    # the console counts the views as the summary does (the first, before any planning, too)
+    assert s["iterations"] == 2 and s["views"] == 3
+    assert "the flight stopped after 2 iterations (3 views: the first" in p.stderr
+    bad = _nbvkit("run", "--plugin", plugin, "--mesh", CUBE, "--out", tmp_path / "bad", "--set",
+                  "map.nope=1")  # fmt: skip
+    assert bad.returncode == 2 and "Traceback" not in bad.stderr
+    assert bad.stderr.strip().splitlines() == [bad.stderr.strip()]  # one line
+
+
+@pytest.fixture
+def buggy(tmp_path):
+    yield from plugin_fixture_file(
+        tmp_path, "buggy_part.py", "", {"generator": ["buggy_orbit"]}, load=False
+    )
+
+
+@pytest.mark.parametrize("workers", [1, 2])
+def test_a_failed_runs_record_names_the_plugin_file_and_line(tmp_path, buggy, workers):
+    import nbvkit
+
+    _plugin(buggy, name="buggy_orbit", fail_at=1, scenario=False)
+    nbvkit.load_plugin(buggy)
+    over = (*SMALL, "planner.generators=[buggy_orbit]", f"mesh.path={json.dumps(str(CUBE))}")
+    specs = [RunSpec("1", k, overrides=over) for k in (0, 1)]
+    with pytest.raises(RunsFailed) as e:
+        run_specs(specs, tmp_path / "out", workers=workers, progress=False)
+    for _, error in e.value.failures:
+        assert f"plugin file {buggy.resolve()}, line {FAIL_LINE}, in propose" in error, error
+
+
+def test_a_part_registered_from_no_file_is_refused_by_worker_processes(tmp_path):
+    """Workers know only the plugin files' parts: a part or scenario registered in this process
+    from no file is refused before any run (it failed in every worker, naming no plugin)."""
+    from nbvkit.planning import registry
+    from nbvkit.scenarios import SCENARIOS, register_scenario
+    from test_plugins import RingGenerator
+
+    registry.register_generator("script_ring", RingGenerator)
+    register_scenario("script_orbit", "a ring", {"planner.generators": ["script_ring"]})
+    try:
+        by_scenario = [RunSpec("script_orbit", k, overrides=SMALL) for k in (0, 1)]
+        by_key = [RunSpec("1", k, overrides=(*SMALL, "planner.generators=[script_ring]"))
+                  for k in (0, 1)]  # fmt: skip
+        for specs, what in ((by_scenario, "scenario 'script_orbit'"),
+                            (by_key, "generator 'script_ring'")):  # fmt: skip
+            with pytest.raises(ValueError, match=rf"the {what} .*load_plugin"):
+                run_specs(specs, tmp_path, workers=2, progress=False)
+        assert not (tmp_path / "runs").exists()  # refused before any run
+    finally:
+        registry.GENERATORS.pop("script_ring")
+        SCENARIOS.pop("script_orbit")
