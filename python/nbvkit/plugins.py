@@ -51,6 +51,7 @@ def load_plugin(path) -> None:
     sys.modules[name] = module
     tables = _tables()
     before = [set(t) for t in tables]
+    objects = [dict(t) for t in tables]
     try:
         spec.loader.exec_module(module)
     except BaseException:
@@ -61,7 +62,13 @@ def load_plugin(path) -> None:
         raise
     LOADED.append(str(p))
     DIGESTS[str(p)] = digest
-    REGISTERED[str(p)] = set().union(*(set(t) - had for t, had in zip(tables, before)))
+    # what it registered: new names, and names it took over (replace=True) from a script
+    REGISTERED[str(p)] = {
+        k
+        for t, was in zip(tables, objects)
+        for k, v in t.items()
+        if k not in was or was[k] is not v
+    }
 
 
 def _same_file(module, path) -> bool:
