@@ -776,3 +776,34 @@ def test_a_part_or_scenario_registered_again_with_replace_takes_the_name(parts):
     finally:
         registry.UTILITIES.pop("audit_u", None)
         SCENARIOS.pop("audit_s", None)
+
+
+@dataclass(frozen=True)
+class EvenSettings:
+    count: int = 4
+    spread: float = 1.0
+
+    def __post_init__(self):
+        if self.count % 2:
+            raise ValueError(f"count must be even, got {self.count}")
+        if self.spread > self.count:
+            raise ValueError("the spread may not exceed the count")
+
+
+class Even(RingGenerator):
+    Settings = EvenSettings
+
+
+def test_a_settings_post_init_error_names_its_section_and_key():
+    # a ValueError of a part's own __post_init__ named neither the section nor the key
+    nbvkit.register_generator("audit_even", Even)
+    try:
+        with pytest.raises(ValueError, match=r"^config key 'audit_even.count' must be even, got 3"):
+            load_config(overrides=["audit_even.count=3"])
+        with pytest.raises(
+            ValueError, match=r"^config section 'audit_even': the spread may not exceed the count"
+        ) as e:
+            load_config(overrides=["audit_even.spread=9"])
+        assert "audit_even.spread = 9" in str(e.value)  # what was set there
+    finally:
+        registry.GENERATORS.pop("audit_even", None)

@@ -98,12 +98,10 @@ def cpp_section(
     options classes whose every field is a key too (after the first class's; names must not
     clash). `bounds`: key -> Bound of the keys whose range is checked here (beyond the C++
     options' own checks; every integer key also gets limits.MAX_INT). `choices`: key -> the
-    names it may take (see ``choice``). The class gets
-    ``FIELD_DOCS`` (key -> documentation), ``OPTIONS`` (the first bound class), ``OPTIONS_ALL``
-    (all of them), ``options()`` (the first C++ options built from this section) and
-    ``options_for(cls)`` (any of them). The class lives in `module` (default: the caller's; bind
-    it to `name` there, ``MapConfig = cpp_section("MapConfig", ...)``: pickle finds it by that
-    name), and its bound classes pickle and copy (``picklable_options``)."""
+    names it may take (see ``choice``). The class gets ``FIELD_DOCS`` (key -> documentation),
+    ``OPTIONS`` (the first bound class), ``OPTIONS_ALL`` (all of them), ``options()`` (the first
+    C++ options built from this section) and ``options_for(cls)`` (any of them). It lives in
+    `module` (the caller's unless given), bound there to `name` (pickle finds it so)."""
     module = module or sys._getframe(1).f_globals.get("__name__", __name__)
     classes = (options_cls,) + tuple(extra)
     keys = {
@@ -139,8 +137,7 @@ def cpp_section(
             f"{name}: bounds or choices of unknown keys {sorted({**bounds, **choices})}"
         )
     cpp_fields = [f for cls in classes for f in keys[cls]]
-    for cls in classes:
-        picklable_options(cls)
+    list(map(picklable_options, classes))  # the C++ options pickle and copy too
 
     def options_for(self, cls):
         return cls(**{f: getattr(self, f) for f in keys[cls]})
@@ -194,7 +191,13 @@ def build(cls, data, prefix: str):
                 f"unknown config key {shorten(prefix + str(k))}; known keys here: "
                 f"{', '.join(sorted(known))}"
             )
-    obj = cls(**{name: coerce(hints[name], value, prefix + name) for name, value in data.items()})
+    values = {name: coerce(hints[name], value, prefix + name) for name, value in data.items()}
+    try:
+        obj = cls(**values)
+    except (ValueError, TypeError) as e:  # a section's own __post_init__: named as its checks
+        set_here = ", ".join(f"{prefix}{k} = {shorten(v)}" for k, v in values.items())
+        extra = f" (set here: {set_here})" if set_here else ""
+        raise section_error(cls, prefix.rstrip("."), e, extra) from e
     validate(obj, prefix)
     return obj
 
