@@ -258,3 +258,28 @@ def test_bound_options_and_a_planning_context_pickle_and_copy():
         assert back.utility == ctx.utility
     opts = load_config(overrides=["map.prob_hit=0.8"]).map.options()
     assert copy.deepcopy(opts) == opts and pickle.loads(pickle.dumps(opts)).prob_hit == 0.8
+
+
+@pytest.mark.parametrize(
+    "key, value, match",
+    [
+        # blamed the utility section
+        ("map.resolution", -1, r"config key 'map.resolution' must be positive, got -1"),
+        ("map.prob_hit", 2.0, r"config key 'map.prob_hit'"),  # was accepted
+        ("lattice.sigma", -5, r"config key 'lattice.sigma'"),  # was accepted
+        ("map.resolution", "fine", r"config key 'map.resolution' must be a number"),
+        ("max_iterations", -3, r"config key 'max_iterations'"),
+    ],
+)
+def test_a_scenarios_preset_is_checked_naming_the_scenario_and_key(monkeypatch, key, value, match):
+    from nbvkit import scenarios
+
+    monkeypatch.setitem(scenarios.SCENARIOS, "audit_bad", scenarios.Scenario("bad", {key: value}))
+    with pytest.raises(ValueError, match=f"^scenario 'audit_bad' sets {key} = .*: {match}"):
+        load_config(overrides=["scenario=audit_bad"])
+    # a value the user sets wins over the preset's
+    default = Config().to_dict()
+    for part in key.split("."):
+        default = default[part]
+    fix = f"{key}={3 if default is None else default}"
+    assert load_config(overrides=["scenario=audit_bad", fix]).scenario == "audit_bad"

@@ -702,8 +702,8 @@ def test_plan_tour_names_a_wrong_memo_or_utility():
 
 
 def test_a_scenario_naming_an_unknown_part_is_an_error_naming_it():
-    # a registered scenario's preset is not checked as a key the user sets: the mission raised
-    # a bare KeyError: 'nonexistent'
+    # a registered scenario's preset was not checked as a key the user sets: the mission raised
+    # a bare KeyError: 'nonexistent'; its sections are now checked when it is loaded
     from nbvkit.scenarios import SCENARIOS
 
     nbvkit.register_scenario(
@@ -712,14 +712,23 @@ def test_a_scenario_naming_an_unknown_part_is_an_error_naming_it():
         {"planner.generators": ["nonexistent"], "planner.terminations": ["nonexistent_stop"]},
     )
     try:
-        cfg = load_config(overrides=[*QUICK, "scenario=audit_unknown"])
-        with pytest.raises(ValueError, match="unknown planner generator 'nonexistent'; known: "):
-            nbvkit.Mission(cfg, mesh=box_mesh(*BOX))
-        cfg = load_config(overrides=[*QUICK, "scenario=audit_unknown", "planner.generators=[]"])
+        with pytest.raises(
+            ValueError,
+            match="^scenario 'audit_unknown' sets planner.generators = .*: unknown planner "
+            "generator 'nonexistent'; known: ",
+        ):
+            load_config(overrides=[*QUICK, "scenario=audit_unknown"])
         with pytest.raises(ValueError, match="unknown planner termination 'nonexistent_stop'"):
+            load_config(overrides=[*QUICK, "scenario=audit_unknown", "planner.generators=[]"])
+        # a part gone since the configuration was loaded: named when the planner is built
+        nbvkit.register_generator("audit_gone", RingGenerator)
+        cfg = load_config(overrides=[*QUICK, "planner.generators=[audit_gone]"])
+        del registry.GENERATORS["audit_gone"]
+        with pytest.raises(ValueError, match="unknown planner generator 'audit_gone'; known: "):
             nbvkit.Mission(cfg, mesh=box_mesh(*BOX))
     finally:
         SCENARIOS.pop("audit_unknown")
+        registry.GENERATORS.pop("audit_gone", None)
 
 
 @dataclass(frozen=True)
@@ -796,6 +805,8 @@ class Even(RingGenerator):
 
 def test_a_settings_post_init_error_names_its_section_and_key():
     # a ValueError of a part's own __post_init__ named neither the section nor the key
+    from nbvkit.scenarios import SCENARIOS
+
     nbvkit.register_generator("audit_even", Even)
     try:
         with pytest.raises(ValueError, match=r"^config key 'audit_even.count' must be even, got 3"):
@@ -805,5 +816,9 @@ def test_a_settings_post_init_error_names_its_section_and_key():
         ) as e:
             load_config(overrides=["audit_even.spread=9"])
         assert "audit_even.spread = 9" in str(e.value)  # what was set there
+        nbvkit.register_scenario("audit_odd", "odd", {"audit_even.count": 5})
+        with pytest.raises(ValueError, match="scenario 'audit_odd' sets audit_even.count = 5: "):
+            load_config(overrides=["scenario=audit_odd"])
     finally:
         registry.GENERATORS.pop("audit_even", None)
+        SCENARIOS.pop("audit_odd", None)

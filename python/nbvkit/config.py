@@ -98,15 +98,7 @@ class Config:
                 f"config key 'scenario' must be one of {', '.join(SCENARIOS)}; "
                 f"got {shorten(self.scenario)}"
             )
-        for key, value in SCENARIOS[self.scenario].settings.items():
-            if not _has_dotted(self._user, key):
-                try:
-                    _set_field(self, key, value)
-                except (AttributeError, KeyError, TypeError):  # a registered scenario's
-                    raise KeyError(
-                        f"scenario {self.scenario!r} sets {key!r}, which is not a config key (a "
-                        "part's section exists once the part is registered)"
-                    ) from None
+        _apply_preset(self)
         # then the named camera's keys (and its stand-off room), under what the user set
         for key, value in CAMERA_PRESETS.get(self.camera.preset, {}).items():
             if not _has_dotted(self._user, key):
@@ -198,6 +190,43 @@ class Config:
 
     def to_yaml(self) -> str:
         return yaml.safe_dump(self.to_dict(), sort_keys=False)
+
+
+def _apply_preset(cfg: Config) -> None:
+    """Sets the scenario's preset on every key the user did not set, then checks the sections
+    it set (they were built before it: their checks, named with the scenario and its keys)."""
+    name, applied = cfg.scenario, {}
+    for key, value in SCENARIOS[name].settings.items():
+        if _has_dotted(cfg._user, key):
+            continue
+        try:
+            _set_field(cfg, key, value)
+        except (AttributeError, KeyError, TypeError):  # a registered scenario's
+            raise KeyError(
+                f"scenario {name!r} sets {key!r}, which is not a config key (a part's section "
+                "exists once the part is registered)"
+            ) from None
+        except ValueError as e:  # not of the key's type, or a section's own __post_init__
+            raise ValueError(f"scenario {name!r} sets {key} = {shorten(value)}: {e}") from e
+        applied.setdefault(_current_key(key).split(".")[0], []).append((key, value))
+    top = {f.name: f for f in fields(cfg)}
+    for head, keys in applied.items():
+        try:
+            if head in top and not is_dataclass(getattr(cfg, head)):
+                field_bound(Config, top[head]).check(head, getattr(cfg, head))
+            else:
+                validate(getattr(cfg, head), head + ".")
+        except ValueError as e:
+            sets = ", ".join(f"{k} = {shorten(v)}" for k, v in keys)
+            raise ValueError(f"scenario {name!r} sets {sets}: {e}") from e
+
+
+def _current_key(key: str) -> str:
+    """A dotted key under its current name (RENAMED), without the warning."""
+    for old, new in RENAMED.items():
+        if key == old or key.startswith(old + "."):
+            return new + key[len(old) :]
+    return key
 
 
 def _deprecated(old: str) -> None:
