@@ -507,6 +507,29 @@ def test_a_plugin_file_that_fails_registers_nothing_and_loads_again_once_fixed(t
             LOADED.remove(str(f.resolve()))
 
 
+def test_a_plugin_file_that_fails_after_replacing_a_name_puts_the_old_part_back(tmp_path):
+    """A file that replaces (replace=True) a name registered from a script and then raises
+    leaves the script's part registered, not its own."""
+    from nbvkit.plugins import LOADED, load_plugin
+
+    def mine(rays):
+        return rays.range
+
+    nbvkit.register_utility("swap_u", mine)
+    f = tmp_path / "swap.py"
+    f.write_text(
+        "import nbvkit\n"
+        "nbvkit.register_utility('swap_u', lambda rays: rays.range, replace=True)\n"
+        "raise RuntimeError('a bug after replacing')\n"
+    )
+    try:
+        with pytest.raises(RuntimeError, match="a bug after replacing"):
+            load_plugin(f)
+        assert registry.UTILITIES["swap_u"] is mine and str(f.resolve()) not in LOADED
+    finally:
+        registry.UTILITIES.pop("swap_u", None)
+
+
 # ------------------------------------------------------------ a researcher's mistakes (audit 2)
 
 

@@ -50,15 +50,14 @@ def load_plugin(path) -> None:
     module = importlib.util.module_from_spec(spec)
     sys.modules[name] = module
     tables = _tables()
-    before = [set(t) for t in tables]
     objects = [dict(t) for t in tables]
     try:
         spec.loader.exec_module(module)
     except BaseException:
         del sys.modules[name]
-        for table, had in zip(tables, before):  # what it registered before it failed
-            for key in set(table) - had:
-                del table[key]
+        for table, was in zip(tables, objects):  # what it registered or replaced before it failed
+            table.clear()
+            table.update(was)
         raise
     LOADED.append(str(p))
     DIGESTS[str(p)] = digest
