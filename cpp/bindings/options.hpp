@@ -7,8 +7,9 @@
 //
 // gives a Python class with one property per field (documented from the list), a keyword-only
 // constructor starting from the C++ defaults (an unknown keyword raises TypeError naming it),
-// `to_dict()`, `fields()` (name -> documentation), `copy(**changes)`, equality and a repr, and
-// runs the struct's validate() (ValueError) whenever it is built or changed through them.
+// `to_dict()`, `fields()` (name -> documentation), `copy(**changes)`, equality, a repr and
+// pickling (copy.copy / copy.deepcopy too), and runs the struct's validate() (ValueError)
+// whenever it is built or changed through them.
 // options_arg() accepts an instance, a dict of fields or None wherever a binding takes options.
 #pragma once
 
@@ -185,14 +186,19 @@ class OptionsClass {
           return c;
         },
         "A copy with some fields changed (keyword arguments, as the constructor).");
-    cls_.def(
-        "to_dict",
-        [names, getters](const T& o) {
-          py::dict d;
-          for (const auto& n : names) d[py::str(n)] = getters.at(n)(o);
-          return d;
-        },
-        "Every field by name (vectors as numpy arrays).");
+    auto to_dict = [names, getters](const T& o) {
+      py::dict d;
+      for (const auto& n : names) d[py::str(n)] = getters.at(n)(o);
+      return d;
+    };
+    cls_.def("to_dict", to_dict, "Every field by name (vectors as numpy arrays).");
+    // pickle, copy.copy and copy.deepcopy: as its fields, rebuilt (and validated) as the
+    // constructor does
+    cls_.def(py::pickle(to_dict, [apply](const py::dict& d) {
+      T o;
+      apply(o, d);
+      return o;
+    }));
     cls_.def_static(
         "fields",
         [names, docs]() {

@@ -12,7 +12,6 @@ module is what the parts import, so that no part imports the configuration.
 """
 from __future__ import annotations
 
-import copyreg
 import math
 import sys
 import typing
@@ -137,7 +136,6 @@ def cpp_section(
             f"{name}: bounds or choices of unknown keys {sorted({**bounds, **choices})}"
         )
     cpp_fields = [f for cls in classes for f in keys[cls]]
-    list(map(picklable_options, classes))  # the C++ options pickle and copy too
 
     def options_for(self, cls):
         return cls(**{f: getattr(self, f) for f in keys[cls]})
@@ -160,21 +158,6 @@ def cpp_section(
             "__module__": module,
         },
     )
-
-
-def _options_from(cls, values: dict):
-    return cls(**values)
-
-
-def _reduce_options(obj):
-    return _options_from, (type(obj), obj.to_dict())
-
-
-def picklable_options(cls) -> None:
-    """Lets a bound C++ options class (nbvkit._core: ``to_dict()`` of every field, a keyword
-    constructor) pickle and copy, as its fields; the binding itself defines neither."""
-    if cls not in copyreg.dispatch_table:
-        copyreg.pickle(cls, _reduce_options)
 
 
 def build(cls, data, prefix: str):
