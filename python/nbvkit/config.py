@@ -208,7 +208,7 @@ def _apply_preset(cfg: Config) -> None:
             ) from None
         except ValueError as e:  # not of the key's type, or a section's own __post_init__
             raise ValueError(f"scenario {name!r} sets {key} = {shorten(value)}: {e}") from e
-        applied.setdefault(_current_key(key).split(".")[0], []).append((key, value))
+        applied.setdefault(_renamed_key(key, warn=False).split(".")[0], []).append((key, value))
     top = {f.name: f for f in fields(cfg)}
     for head, keys in applied.items():
         try:
@@ -221,14 +221,6 @@ def _apply_preset(cfg: Config) -> None:
             raise ValueError(f"scenario {name!r} sets {sets}: {e}") from e
 
 
-def _current_key(key: str) -> str:
-    """A dotted key under its current name (RENAMED), without the warning."""
-    for old, new in RENAMED.items():
-        if key == old or key.startswith(old + "."):
-            return new + key[len(old) :]
-    return key
-
-
 def _deprecated(old: str) -> None:
     warnings.warn(
         f"config key {old!r} is now {RENAMED[old]!r}; the old name works until the next release",
@@ -237,11 +229,12 @@ def _deprecated(old: str) -> None:
     )
 
 
-def _renamed_key(key: str) -> str:
-    """A dotted key under its current name (a renamed one warns)."""
+def _renamed_key(key: str, warn: bool = True) -> str:
+    """A dotted key under its current name (a renamed one warns, if `warn`)."""
     for old, new in RENAMED.items():
         if key == old or key.startswith(old + "."):
-            _deprecated(old)
+            if warn:
+                _deprecated(old)
             return new + key[len(old) :]
     return key
 

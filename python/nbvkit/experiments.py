@@ -99,7 +99,7 @@ def _run_one(spec: RunSpec, root: Path, threads: int) -> dict:
             mission.save(folder.tmp, mission.run(), finish=True, cache_dir=root / "cache")
             # the plugin files loaded (their content's SHA-256): only when there are, so that a
             # run without them keeps the spec.json (and resumes) as before
-            plugins = {"plugins": loaded_files()} if loaded_files() else {}
+            plugins = {"plugins": files} if (files := loaded_files()) else {}
             _write_json_atomic(
                 folder.tmp / "spec.json", {**_spec_dict(spec), "mesh_sha1": mesh_sha1, **plugins}
             )

@@ -12,6 +12,7 @@ import traceback
 from pathlib import Path
 
 from .limits import check_input_file
+from .scenarios import BUILT_IN as BUILT_IN_SCENARIOS
 from .scenarios import SCENARIOS as _SCENARIOS
 
 #: The plugin files loaded in this process, in order (the sweeps' workers load them too).
@@ -21,8 +22,6 @@ DIGESTS: dict[str, str] = {}
 #: path -> the names (generator, termination, utility, scenario) each file registered as it ran;
 #: a file found imported already (not run again) registered what its module holds.
 REGISTERED: dict[str, set] = {}
-#: The scenarios nbvkit ships: those there when nbvkit was imported (before any script's).
-BUILT_IN_SCENARIOS = frozenset(_SCENARIOS)
 
 
 def load_plugin(path) -> None:

@@ -204,8 +204,8 @@ class Recorder:
             out["tours"] = tour.plans
         from .plugins import loaded_files
 
-        if loaded_files():  # the plugin files loaded, and the content each had (its SHA-256)
-            out["plugins"] = loaded_files()
+        if files := loaded_files():  # the plugin files loaded, and each one's content SHA-256
+            out["plugins"] = files
         return out
 
     def write(self, out: Path, summary: dict, finish: bool = False, cache_dir=None) -> dict:
