@@ -175,3 +175,91 @@ def test_a_part_registered_from_no_file_is_refused_by_worker_processes(tmp_path)
     finally:
         registry.GENERATORS.pop("script_ring")
         SCENARIOS.pop("script_orbit")
+
+
+@pytest.fixture
+def evolving(tmp_path):
+    yield from plugin_fixture_file(
+        tmp_path, "evolving_part.py", "", {"generator": ["evolving_orbit"]}, load=False
+    )
+
+
+def _orbit_radius():
+    from nbvkit.planning import registry
+
+    return registry.GENERATORS["evolving_orbit"].propose.__globals__["RADIUS"]
+
+
+def test_a_plugin_file_changed_since_it_loaded_loads_again(evolving):
+    """load_plugin of an edited file runs it anew, its parts replacing the ones it registered (a
+    notebook's edit, a long-lived worker's); unchanged, it is not run again."""
+    import nbvkit
+    from nbvkit import plugins
+
+    _plugin(evolving, name="evolving_orbit", radius=2.0, scenario=False)
+    nbvkit.load_plugin(evolving)
+    first = nbvkit.planning.registry.GENERATORS["evolving_orbit"]
+    nbvkit.load_plugin(evolving)
+    assert nbvkit.planning.registry.GENERATORS["evolving_orbit"] is first  # not run again
+    _plugin(evolving, name="evolving_orbit", radius=4.0, scenario=False)
+    nbvkit.load_plugin(evolving)
+    assert _orbit_radius() == 4.0
+    assert plugins.loaded().count(str(evolving.resolve())) == 1
+    assert plugins.loaded_files()[-1]["sha256"] == _sha256(evolving)
+    evolving.write_text(evolving.read_text() + "\nraise RuntimeError('half edited')\n")
+    with pytest.raises(RuntimeError, match="half edited"):
+        nbvkit.load_plugin(evolving)  # a failed load leaves the last good one as it was
+    assert _orbit_radius() == 4.0 and plugins.loaded_files()[-1]["sha256"] != _sha256(evolving)
+
+
+def _sha256(path):
+    import hashlib
+
+    return hashlib.sha256(path.read_bytes()).hexdigest()
+
+
+def test_runs_are_refused_while_a_loaded_plugin_file_differs_from_its_content(tmp_path, evolving):
+    """A file edited after it was loaded: the runs would fly the old parts in this process and
+    the new ones in fresh workers, each recorded under its own hash. Refused before any run, in
+    every mode, naming the file; a worker handed the parent's hash refuses a file that differs."""
+    import nbvkit
+    from nbvkit.experiments import run_one
+
+    _plugin(evolving, name="evolving_orbit", scenario=False)
+    nbvkit.load_plugin(evolving)
+    loaded = nbvkit.plugins.loaded_files()
+    _plugin(evolving, name="evolving_orbit", radius=4.0, scenario=False)
+    over = (*SMALL, "planner.generators=[evolving_orbit]", f"mesh.path={json.dumps(str(CUBE))}")
+    spec = RunSpec("surface", 0, overrides=over)
+    for workers in (1, 2):
+        with pytest.raises(ValueError, match=rf"plugin file {evolving.resolve()} changed.*again"):
+            run_specs([spec, spec], tmp_path, workers=workers, progress=False)
+    assert not (tmp_path / "runs").exists()
+    with pytest.raises(ValueError, match="the runs were started with"):
+        run_one(spec, tmp_path, plugins=loaded)  # as in a worker, with the parent's hashes
+    assert _orbit_radius() == 2.0  # nothing loaded
+
+
+def test_a_long_lived_dask_worker_flies_the_plugin_file_as_it_is_now(tmp_path, evolving):
+    """The same Dask cluster before and after the file changed (and was loaded again here):
+    its workers fly the new content and record its hash, not the version they loaded first."""
+    import nbvkit
+
+    distributed = pytest.importorskip("distributed")
+    over = (*SMALL, "planner.generators=[evolving_orbit]", f"mesh.path={json.dumps(str(CUBE))}")
+    specs = [RunSpec("surface", 0, overrides=over)]
+    with distributed.LocalCluster(
+        n_workers=1, threads_per_worker=1, processes=True, host="127.0.0.1", dashboard_address=None
+    ) as cluster:
+        flown = []
+        for radius in (2.0, 4.0):
+            _plugin(evolving, name="evolving_orbit", radius=radius, scenario=False)
+            nbvkit.load_plugin(evolving)
+            (row,) = run_specs(specs, tmp_path, scheduler=cluster.scheduler_address)
+            s = json.loads((tmp_path / "runs" / row["run_id"] / "summary.json").read_text())
+            assert s["plugins"][-1] == {
+                "path": str(evolving.resolve()),
+                "sha256": _sha256(evolving),
+            }
+            flown.append(s["distance_m"])
+    assert flown[0] != flown[1]  # the wider orbit flown the second time

@@ -47,6 +47,7 @@ from .experiment_tables import (  # noqa: F401  (re-exported: the tables)
     write_table2,
 )
 from .recorder import error_line
+from .plugins import check_unchanged, load_plugins, loaded_files, plugin_frame, script_only
 
 #: Poisson depth of each run's mesh.ply in experiments (table, sweep, compare) unless the
 #: configuration sets report.poisson_depth: 7 costs about a third of the default 8
@@ -55,9 +56,9 @@ SWEEP_POISSON_DEPTH = 7
 
 def run_one(spec: RunSpec, root: str | os.PathLike, threads: int = 0, plugins=()) -> dict:
     """Runs one spec into ``root/runs/<run_id>`` unless it is already there; returns its row.
-    plugins: plugin files to load first (a Dask worker's process has not loaded them)."""
-    from .plugins import load_plugins
-
+    plugins: plugin files to load first (a worker process has not loaded them), as paths or as
+    plugins.loaded_files() entries, whose content must then be the same (a file changed in the
+    meantime is a ValueError: this run fails, naming it)."""
     load_plugins(plugins)
     try:
         return _run_one(spec, Path(root), threads)
@@ -69,8 +70,6 @@ def run_one(spec: RunSpec, root: str | os.PathLike, threads: int = 0, plugins=()
 def _note_plugin_frame(e: BaseException) -> None:
     """Notes on `e` where in a plugin file it was raised (recorder.error_line then names it in
     the failed run's record, in whichever process it is read)."""
-    from .plugins import plugin_frame
-
     where = plugin_frame(e)
     if where is not None and hasattr(e, "add_note") and where not in getattr(e, "__notes__", ()):
         e.add_note(where)
@@ -79,7 +78,6 @@ def _note_plugin_frame(e: BaseException) -> None:
 def _run_one(spec: RunSpec, root: Path, threads: int) -> dict:
     from ._core import set_num_threads
     from .mission import Mission
-    from .plugins import loaded_files
     from .runfolder import write_json_atomic as _write_json_atomic
     from .runfolder import RunFolder
 
@@ -139,7 +137,6 @@ def _finished_with(run_dir: Path, cfg, mesh_sha1: str | None) -> bool:
     and the config file's name, not the other defaults it resolves to, the config file's content,
     the mesh file's nor the plugin files': a run kept from before one of them changed is flown
     again."""
-    from .plugins import loaded_files
     from .runfolder import is_complete_run
 
     try:
@@ -224,15 +221,12 @@ def _alive(pid: int) -> bool:
     return True
 
 
-def _worker_init(plugins=()) -> None:
-    """Pool workers load the parent's plugin files (their parts and sections); leave Ctrl-C to
-    the parent, which stops them; and die with the parent, should it be killed outright (Linux:
-    the parent-death signal), instead of flying on unseen."""
+def _worker_init() -> None:
+    """Pool workers leave Ctrl-C to the parent, which stops them, and die with the parent, should
+    it be killed outright (Linux: the parent-death signal), instead of flying on unseen. (Each
+    run loads the parent's plugin files first: run_one.)"""
     import signal
 
-    from .plugins import load_plugins
-
-    load_plugins(plugins)
     signal.signal(signal.SIGINT, signal.SIG_IGN)
     try:
         import ctypes
@@ -285,6 +279,7 @@ def run_specs(
     root = Path(root)
     if scheduler or not (workers == 1 or len(specs) <= 1):
         refuse_script_parts(specs)
+    check_unchanged()  # a plugin file edited since it was loaded: load it again first
     (root / "runs").mkdir(parents=True, exist_ok=True)
     clean_stale_tmp(root)
     rows: list = [None] * len(specs)
@@ -306,8 +301,6 @@ def refuse_script_parts(specs: list[RunSpec]) -> None:
     planner.terminations, utility.name, a section it sets) registered in this process by no
     plugin file: worker processes know only nbvkit's and the plugin files' (each run would fail
     there, naming the scenario or key but not why)."""
-    from .plugins import script_only
-
     names = script_only()
     if not names:
         return
@@ -342,10 +335,9 @@ def _run_all(specs, root, workers, scheduler, progress, rows, failures) -> None:
         from distributed import Client, wait
 
         with Client(scheduler) as client:
-            from .plugins import loaded
-
+            files = loaded_files()
             futs = client.map(
-                run_one, specs, root=str(root.resolve()), threads=1, plugins=loaded(), pure=False
+                run_one, specs, root=str(root.resolve()), threads=1, plugins=files, pure=False
             )
             stop = None
             try:
@@ -387,13 +379,10 @@ def _run_pool(specs, root, n, ncpu, rows, failures, progress) -> None:
     import multiprocessing as mp
 
     threads = max(1, ncpu // n)
-    from .plugins import loaded
-
-    ex = cf.ProcessPoolExecutor(
-        n, mp_context=mp.get_context("spawn"), initializer=_worker_init, initargs=(loaded(),)
-    )
+    files = loaded_files()
+    ex = cf.ProcessPoolExecutor(n, mp_context=mp.get_context("spawn"), initializer=_worker_init)
     try:
-        futs = {ex.submit(run_one, s, root, threads): i for i, s in enumerate(specs)}
+        futs = {ex.submit(run_one, s, root, threads, files): i for i, s in enumerate(specs)}
         for k, f in enumerate(cf.as_completed(futs)):
             i = futs[f]
             try:

@@ -24,49 +24,85 @@ DIGESTS: dict[str, str] = {}
 REGISTERED: dict[str, set] = {}
 
 
-def load_plugin(path) -> None:
-    """Imports the Python file `path` once (FileNotFoundError if missing; its own errors
-    propagate, with the file named in the traceback, and what it registered before it failed
-    is forgotten: the file fixed loads again under the same names). A file already imported as
-    a module (``import my_parts``) is not run again, only noted for the sweeps' workers. Its
-    folder is put on sys.path, as Python does for a script: the file imports its neighbours."""
+def load_plugin(path, sha256: str | None = None) -> None:
+    """Imports the Python file `path` (FileNotFoundError if missing; its own errors propagate,
+    with the file named in the traceback, and what it registered before it failed is as it was:
+    the file fixed loads again under the same names). A file loaded before is not run again
+    unless its content changed since: then it runs anew, its parts replacing those it had
+    registered (a notebook's edited file, a long-lived worker's). A file already imported as a
+    module (``import my_parts``) is not run again, only noted for the sweeps' workers. Its folder
+    is put on sys.path, as Python does for a script: the file imports its neighbours.
+    `sha256`: the content expected (a sweep's worker, the parent's): a ValueError if it differs."""
     p = check_input_file(path, "plugin file").resolve()
-    if str(p) in LOADED:
+    key = str(p)
+    digest = hashlib.sha256(p.read_bytes()).hexdigest()
+    if sha256 is not None and digest != sha256:
+        raise ValueError(_changed(p, sha256, digest, "the runs were started with"))
+    again = key in LOADED  # loaded before (and changed since, or it is not run again)
+    if again and DIGESTS[key] == digest:
         return
     if str(p.parent) not in sys.path:
         sys.path.append(str(p.parent))
-    digest = hashlib.sha256(p.read_bytes()).hexdigest()
     imported = [m for m in list(sys.modules.values()) if _same_file(m, p)]
-    if imported:
-        LOADED.append(str(p))
-        DIGESTS[str(p)] = digest
-        REGISTERED[str(p)] = _held_by(imported[0])
+    if imported and not again:
+        LOADED.append(key)
+        DIGESTS[key] = digest
+        REGISTERED[key] = _held_by(imported[0])
         return
-    name = "nbvkit_plugin_" + hashlib.sha1(str(p).encode()).hexdigest()[:12]
+    name = "nbvkit_plugin_" + hashlib.sha1(key.encode()).hexdigest()[:12]
     spec = importlib.util.spec_from_file_location(name, p)
     if spec is None or spec.loader is None:
         raise ValueError(f"plugin file {p} is not a Python module")
     module = importlib.util.module_from_spec(spec)
+    before = sys.modules.get(name)
     sys.modules[name] = module
     tables = _tables()
     objects = [dict(t) for t in tables]
+    for t in tables:  # loaded again: its names are free for it
+        for n in REGISTERED[key] if again else ():
+            t.pop(n, None)
     try:
         spec.loader.exec_module(module)
     except BaseException:
-        del sys.modules[name]
+        if before is None:
+            del sys.modules[name]
+        else:
+            sys.modules[name] = before
         for table, was in zip(tables, objects):  # what it registered or replaced before it failed
             table.clear()
             table.update(was)
         raise
-    LOADED.append(str(p))
-    DIGESTS[str(p)] = digest
+    if not again:
+        LOADED.append(key)
+    DIGESTS[key] = digest
     # what it registered: new names, and names it took over (replace=True) from a script
-    REGISTERED[str(p)] = {
+    REGISTERED[key] = {
         k
         for t, was in zip(tables, objects)
         for k, v in t.items()
         if k not in was or was[k] is not v
     }
+
+
+def _changed(p: Path, was: str, now: str, what: str) -> str:
+    return (
+        f"plugin file {p} changed: its content's SHA-256 is {now[:12]}..., {what} {was[:12]}...;"
+        f" load it again (nbvkit.load_plugin({str(p)!r}), or --plugin) and start the runs again"
+    )
+
+
+def check_unchanged() -> None:
+    """ValueError naming the first plugin file loaded in this process whose content changed since
+    (runs started now would fly the old parts under the new file's name, or the new ones in
+    workers)."""
+    for key in LOADED:
+        p = Path(key)
+        try:
+            now = hashlib.sha256(p.read_bytes()).hexdigest()
+        except OSError as e:
+            raise ValueError(f"plugin file {p} can no longer be read: {e.strerror}") from None
+        if now != DIGESTS[key]:
+            raise ValueError(_changed(p, DIGESTS[key], now, "this process loaded"))
 
 
 def _same_file(module, path) -> bool:
@@ -157,9 +193,14 @@ def _plugin_frames(e: BaseException) -> list:
     return out
 
 
-def load_plugins(paths) -> None:
-    for p in paths or ():
-        load_plugin(p)
+def load_plugins(files) -> None:
+    """Loads each of `files`: paths, or loaded_files() entries ({"path", "sha256"}: the content
+    expected, as the process that started the runs loaded it)."""
+    for f in files or ():
+        if isinstance(f, dict):
+            load_plugin(f["path"], f["sha256"])
+        else:
+            load_plugin(f)
 
 
 def loaded() -> tuple[str, ...]:
