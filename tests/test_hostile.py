@@ -188,6 +188,39 @@ def test_case4_huge_mesh_scale_fails_fast_on_the_map_size(tmp_path):
         expect_error(rc, err, "workspace", needle)
 
 
+def test_case4_a_mesh_in_another_unit_is_told_the_scale_that_flies_it_in_metres(tmp_path):
+    """A CAD mesh in millimetres (a 20 m cube written as 20,000 units) fails on the map's size,
+    a model normalized to a quarter of a metre on the ground removal: each error says how large
+    the structure is and the mesh.scale to fly it in metres. Sizes a metre makes likely keep
+    their errors as they were, hint-free."""
+    from nbvkit.world import MissionError, World
+
+    mm = tmp_path / "cube_mm.obj"
+    mm.write_bytes(obj_file([(20000.0 * x, 20000.0 * y, 20000.0 * z) for x, y, z in CUBE_V]))
+    rc, _, err = cli("run", "--mesh", mm, "--out", tmp_path / "r", timeout=120)
+    expect_error(rc, err, "too large for the map", "the structure is 20,000 m across")
+    assert "millimetres, mesh.scale = 0.001 makes it 20 m across" in err
+    cube = ROOT / "meshes" / "fixtures" / "cube.obj"
+    for path, scale, kind, needle in (
+        (mm, 0.001, None, None),  # as the hint says: 20 m, flown
+        (cube, 0.25, MissionError, "0.25 m across at mesh.scale = 0.25 (nbvkit works in metres"),
+        (cube, 1.0, MissionError, None),  # 1 m: the ground removal's error alone
+        (cube, 300.0, ValueError, None),  # 300 m: the map's limit alone
+    ):
+        over = [f"mesh.path={path}", f"mesh.scale={scale}", "cloud.min_z=0.3"]
+        if scale == 1.0:
+            over.append("cloud.min_z=2")
+        if scale == 300.0:
+            over.append("map.resolution=0.05")
+        cfg = load_config(overrides=over)
+        if kind is None:
+            assert World(cfg).mesh.bounds[1][0] == pytest.approx(20.0)
+            continue
+        with pytest.raises(kind) as e:
+            World(cfg)
+        assert (needle in str(e.value)) if needle else "across" not in str(e.value), e.value
+
+
 def test_case4_a_georeferenced_mesh_is_told_its_shift_and_flies_with_it(tmp_path):
     far = tmp_path / "utm_cube.obj"  # the unit cube (fixtures/cube.obj's) in UTM coordinates
     far.write_bytes(obj_file([(x + 500000.0, y + 4000000.0, float(z)) for x, y, z in CUBE_V]))

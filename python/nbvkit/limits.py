@@ -24,10 +24,12 @@ from pathlib import Path
 
 __all__ = [
     "Bound",
+    "MissionError",
     "check_input_file",
     "check_samples",
     "check_work",
     "shorten",
+    "units_hint",
     "MAX_TEXT_FILE_BYTES",
     "MAX_DATA_FILE_BYTES",
     "MAX_YAML_NODES",
@@ -210,6 +212,31 @@ def check_input_file(path, what: str = "file", max_bytes: int = MAX_DATA_FILE_BY
 
 
 # ---------------------------------------------------------------------------- work
+
+
+class MissionError(ValueError):
+    """A mission that cannot start: bad start pose, unknown option, missing stage."""
+
+
+def units_hint(mesh_bounds, scale: float) -> str:
+    """ "; the structure is E m across ..." for an error about a structure whose size makes a unit
+    other than the metre likely (over 1 km, or under 1 m, across), naming the mesh.scale that
+    flies it in metres; "" for any other size."""
+    e = max(float(b) - float(a) for a, b in zip(*mesh_bounds))
+    if 1.0 <= e <= 1000.0:
+        return ""
+    across = f"{e:,.0f}" if e > 1000.0 else f"{e:.3g}"
+    hint = f"; the structure is {across} m across at mesh.scale = {scale:g} (nbvkit works in metres"
+    if e > 1000.0:
+        return (
+            f"{hint}: if the mesh is in millimetres, mesh.scale = {scale / 1000:g} makes it "
+            f"{e / 1000:,.3g} m across; in centimetres, {scale / 100:g} makes it {e / 100:,.3g} m; "
+            "--mesh-scale S on the command line)"
+        )
+    return (
+        f"{hint}: a model in another unit, or normalized to a unit size, needs the mesh.scale "
+        "that gives its real size; --mesh-scale S on the command line)"
+    )
 
 
 def _refuse(thing: str, unit: str, n: float, limit: int, key: str, value, fits: str) -> None:

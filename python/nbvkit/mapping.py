@@ -11,12 +11,21 @@ from __future__ import annotations
 
 import enum
 
+import numpy as np
+
 from . import _core
 from ._core import IntegrationStats, OccupancyMap, OccupancyMapOptions
-from .limits import Bound
+from .limits import Bound, MissionError
 from .settings import cpp_section
 
-__all__ = ["CellFlag", "CellState", "IntegrationStats", "OccupancyMap", "OccupancyMapOptions"]
+__all__ = [
+    "CellFlag",
+    "CellState",
+    "IntegrationStats",
+    "OccupancyMap",
+    "OccupancyMapOptions",
+    "new_map",
+]
 
 
 MapConfig = cpp_section(
@@ -45,3 +54,30 @@ class CellFlag(enum.IntEnum):
     UNKNOWN = 0  # never observed
     OBSERVED = 1  # integrated from sensor data, or loaded from a file
     PREDICTED = 2  # set by set_unknown_cells; an observation of the cell replaces it
+
+
+def new_map(cfg, mesh_bounds, ws) -> OccupancyMap:
+    """A mission's empty map of the workspace `ws` at cfg.map; a workspace beyond OctoMap's
+    range is a MissionError saying whether the structure is too large for the resolution or
+    lies too far from the origin (then with the mesh.shift that brings it near)."""
+    m = cfg.map
+    try:
+        return OccupancyMap(m.resolution, ws.bounds_min, ws.bounds_max, options=m.options())
+    except ValueError as e:
+        if "addressable range" not in str(e):
+            raise
+        if np.any(ws.bounds_max - ws.bounds_min > 32767 * m.resolution):  # OctoMap's keys
+            raise MissionError(  # too large, wherever it lies
+                f"{e}: the structure (mesh.scale = {cfg.mesh.scale:g}) and its workspace "
+                f"(workspace.margin_xy = {cfg.workspace.margin_xy:g}, margin_z = "
+                f"{cfg.workspace.margin_z} m) are too large for the map at map.resolution = "
+                f"{m.resolution:g} m"
+            ) from None
+        c = np.round(-(np.asarray(mesh_bounds[0]) + np.asarray(mesh_bounds[1])) / 2)
+        c[2] = 0.0
+        shift = ",".join(f"{x:.0f}" for x in c + np.asarray(cfg.mesh.shift, float))
+        raise MissionError(
+            f"{e}: the structure lies too far from the origin for the map; fly it in a frame "
+            f"near the origin with mesh.shift (e.g. --set mesh.shift=[{shift}]: its "
+            "results are then in that frame)"
+        ) from None

@@ -14,7 +14,8 @@ from typing import Optional
 import numpy as np
 
 from . import _core
-from .limits import Bound, check_work
+from .limits import Bound, MissionError, check_work, units_hint
+from .mapping import new_map
 from .mesh import default_mesh_path, fibonacci_sphere, load_mesh, surface_crossings
 from .sensors import (
     build_camera,
@@ -87,10 +88,6 @@ VehicleConfig = cpp_section(
         "min_altitude": Bound(lo=0, hi=10_000),
     },
 )
-
-
-class MissionError(ValueError):
-    """A mission that cannot start: bad start pose, unknown option, missing stage."""
 
 
 #: The columns of VehicleState.flight (and of a run's flight.csv).
@@ -210,39 +207,19 @@ class World:
                 f"the structure's mesh ({self.mesh_path}) has no surface: its "
                 f"{mesh.num_triangles} triangles have {area} area"
             )
-        _check_above_ground_removal(cfg, mesh.bounds)
-        self.workspace: Workspace = make_workspace(mesh.bounds, cfg)
-        # What the configuration asks of this structure (map memory, profile scans and legs,
-        # ground-truth samples, observability lattice): refused before any work (nbvkit.limits).
-        check_work(cfg, mesh, self.workspace)
-        # The map first: its size check (cells, OctoMap's range) comes before any search.
-        m = cfg.map
         try:
-            self.map = _core.OccupancyMap(
-                m.resolution,
-                self.workspace.bounds_min,
-                self.workspace.bounds_max,
-                options=m.options(),
-            )
-        except ValueError as e:
-            ws = self.workspace
-            reach = 32767 * m.resolution  # OctoMap's keys, each way from the origin
-            if "addressable range" not in str(e):
+            _check_above_ground_removal(cfg, mesh.bounds)
+            self.workspace: Workspace = make_workspace(mesh.bounds, cfg)
+            # What the configuration asks of this structure (map memory, profile scans and legs,
+            # ground-truth samples, observability lattice): refused before any work (limits).
+            check_work(cfg, mesh, self.workspace)
+            # The map first: its size check (cells, OctoMap's range) comes before any search.
+            self.map = new_map(cfg, mesh.bounds, self.workspace)
+        except ValueError as e:  # a structure of a size the metre makes unlikely: say so
+            if not (hint := units_hint(mesh.bounds, cfg.mesh.scale)):
                 raise
-            if np.any(ws.bounds_max - ws.bounds_min > reach):  # too large, wherever it lies
-                raise MissionError(
-                    f"{e}: the structure (mesh.scale = {cfg.mesh.scale:g}) and its workspace "
-                    f"(workspace.margin_xy = {cfg.workspace.margin_xy:g}, margin_z = "
-                    f"{cfg.workspace.margin_z} m) are too large for the map at map.resolution = "
-                    f"{m.resolution:g} m"
-                ) from None
-            c = np.round(-(mesh.bounds[0] + mesh.bounds[1]) / 2)
-            c[2] = 0.0
-            shift = ",".join(f"{x:.0f}" for x in c + np.asarray(cfg.mesh.shift, float))
-            raise MissionError(
-                f"{e}: the structure lies too far from the origin for the map; fly it in a frame "
-                f"near the origin with mesh.shift (e.g. --set mesh.shift=[{shift}]: its "
-                "results are then in that frame)"
+            raise (MissionError if isinstance(e, MissionError) else ValueError)(
+                f"{e}{hint}"
             ) from None
         self.scene = _core.RaycastScene(mesh)
         self.camera = build_camera(cfg.camera, self.scene, cfg.seed)
