@@ -16,7 +16,8 @@ import numpy as np
 import pytest
 
 import nbvkit
-from nbvkit.config import Config, bounds_table, documented_yaml, load_config, read_yaml_file
+from nbvkit.config import Config, load_config, read_yaml_file
+from nbvkit.config_docs import bounds_table, documented_yaml
 from nbvkit.limits import MAX_INT, check_input_file
 
 ROOT = Path(__file__).resolve().parent.parent

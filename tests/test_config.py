@@ -174,7 +174,7 @@ def test_overrides_and_rejections(tmp_path):
 
 
 def test_shipped_yaml_is_generated_from_the_dataclasses():
-    from nbvkit.config import documented_yaml
+    from nbvkit.config_docs import documented_yaml
 
     assert (ROOT / "configs" / "default.yaml").read_text() == documented_yaml()
 
