@@ -13,6 +13,8 @@ from conftest import box_mesh, shared_mesh
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent / "bench"))
 
 from fuzz_meshes import (  # noqa: E402  (the fuzz's file builders)
+    F as CUBE_F,
+    V as CUBE_V,
     dae_file,
     gltf_buffer,
     gltf_file,
@@ -91,10 +93,52 @@ def test_formats_written_by_open3d(tmp_path, ext):
     om.compute_vertex_normals()
     p = tmp_path / f"box{ext}"
     assert o3d.io.write_triangle_mesh(str(p), om)
-    m = nbvkit.load_mesh(p)
+    # open3d writes its coordinates as they are; a glTF is y-up by its specification, which
+    # mesh.up=auto (the default) follows: the box as written needs up="z"
+    m = nbvkit.load_mesh(p, up="z")
     assert m.num_triangles == 12
     assert m.area == pytest.approx(box.area, rel=1e-5)
     np.testing.assert_allclose(m.bounds, [[1, 2, 3], [2, 4, 7]], atol=1e-5)
+    auto = [[1, -7, 2], [2, -3, 4]] if ext == ".gltf" else [[1, 2, 3], [2, 4, 7]]
+    np.testing.assert_allclose(nbvkit.load_mesh(p).bounds, auto, atol=1e-5)
+
+
+def _dae_up(verts, up_axis) -> bytes:
+    """A Collada cube giving `up_axis` (None: no <up_axis>, which the specification reads Y_UP)."""
+    text = dae_file(verts, CUBE_F).decode()
+    tag = "" if up_axis is None else f"<up_axis>{up_axis}</up_axis>"
+    return text.replace("<up_axis>Z_UP</up_axis>", tag).encode()
+
+
+def test_an_auto_up_axis_is_the_one_the_files_format_defines(tmp_path):
+    """mesh.up=auto (the default): a glTF (y-up by its specification) and a Collada file saying
+    Y_UP, or nothing, are turned z-up; a Collada Z_UP file and formats that record no up axis
+    (OBJ, STL, PLY) keep their coordinates; an explicit y or z wins. X_UP is named."""
+    tall = [(x, 5.0 * y, z) for x, y, z in CUBE_V]  # 1 x 5 x 1: tall along +y (up when y-up)
+    turned, kept = [[0, -1, 0], [1, 0, 5]], [[0, 0, 0], [1, 5, 1]]
+    files = {
+        "y.gltf": (gltf_file(tall, CUBE_F), "y"),
+        "y_up.dae": (_dae_up(tall, "Y_UP"), "y"),
+        "none.dae": (_dae_up(tall, None), "y"),
+        "z_up.dae": (_dae_up(tall, "Z_UP"), "z"),
+        "z.obj": (obj_file(tall, CUBE_F), "z"),
+    }
+    for name, (data, axis) in files.items():
+        p = tmp_path / name
+        p.write_bytes(data)
+        assert nbvkit.file_up_axis(p) == axis, name
+        np.testing.assert_allclose(
+            nbvkit.load_mesh(p).bounds, turned if axis == "y" else kept, atol=1e-6, err_msg=name
+        )
+        for given, bounds in (("z", kept), ("y", turned)):
+            np.testing.assert_allclose(nbvkit.load_mesh(p, up=given).bounds, bounds, atol=1e-6)
+    x_up = tmp_path / "x_up.dae"
+    x_up.write_bytes(_dae_up(tall, "X_UP"))
+    with pytest.raises(ValueError, match=r"x_up.dae: its <up_axis> is X_UP.*set mesh.up"):
+        nbvkit.load_mesh(x_up)
+    assert nbvkit.load_mesh(x_up, up="z").num_triangles == 12
+    with pytest.raises(ValueError, match="mesh up axis must be 'auto', 'y' or 'z', got 'x'"):
+        nbvkit.load_mesh(x_up, up="x")
 
 
 def test_up_axis_and_scale(tmp_path):

@@ -28,7 +28,8 @@ from ._core import (  # noqa: F401  (re-exported)
     pose_to_transform,
     set_num_threads,
 )
-from .mesh import default_mesh_path, load_mesh, mesh_from_open3d, mesh_to_open3d
+from .mesh import default_mesh_path, file_up_axis, load_mesh, mesh_from_open3d, mesh_to_open3d
+from ._core import MAX_COORDINATE  # noqa: F401  (the largest coordinate a pose may have, m)
 from ._core import nearest_distances  # noqa: F401
 from .cloud import PointCloud, read_points, write_points  # noqa: F401
 from .evaluation import Evaluator, evaluate  # noqa: F401
@@ -87,6 +88,8 @@ __all__ = [
     "default_mesh_path",
     "get_num_threads",
     "load_mesh",
+    "file_up_axis",
+    "MAX_COORDINATE",
     "mesh_from_open3d",
     "mesh_to_open3d",
     "gimbal_transform",

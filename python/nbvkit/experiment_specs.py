@@ -23,7 +23,7 @@ class RunSpec:
     """One mission: a scenario from a start on a structure, with config overrides.
 
     The mesh flown is the resolved configuration's ``mesh`` section: the defaults (the shipped
-    airliner, scale 1, up z), then the scenario's preset (a registered one may set mesh keys),
+    airliner, scale 1, up auto), then the scenario's preset (a registered one may set mesh keys),
     then the config file, then ``mesh``/``mesh_scale``/``mesh_up``
     where given (not None), then the overrides. A mesh key given both here and in the overrides
     (``--mesh X`` with ``--set mesh.path=Y``, a sweep's mesh entry with ``set``/``grid``
@@ -34,7 +34,7 @@ class RunSpec:
     start: int
     mesh: str | None = None  # None: the configuration's (the shipped airliner unless set)
     mesh_scale: float | None = None  # None: the configuration's (1 unless set)
-    mesh_up: str | None = None  # None: the configuration's ("z" unless set)
+    mesh_up: str | None = None  # None: the configuration's ("auto" unless set)
     overrides: tuple = ()  # ("key=value", ...)
     config_file: str | None = None
     labels: tuple = field(default=())  # (("name", value), ...) extra columns for the tidy table
@@ -167,8 +167,14 @@ def _mesh_preset(scenario) -> tuple:
 def _resolved_mesh(scenario, preset, mesh, scale, up, overrides: tuple, config_file, stat):
     """_flown_mesh's answer, by the scenario's mesh `preset` and the config file's `stat` too (a
     scenario registered again, a changed file: resolved again)."""
+    from .mesh import default_mesh_path, file_up_axis
+
     m = RunSpec(scenario, 0, mesh, scale, up, overrides, config_file).config().mesh
-    return (m.path, float(m.scale), m.up)
+    try:  # the axis the file is turned by ("auto" read from it: the same run whichever is given)
+        axis = file_up_axis(m.path or default_mesh_path(), m.up)
+    except (OSError, ValueError):
+        axis = m.up  # unreadable here: the run itself names the problem
+    return (m.path, float(m.scale), axis)
 
 
 def _spec_dict(spec: RunSpec) -> dict:

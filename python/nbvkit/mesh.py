@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import math
 import os
+import re
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Optional
@@ -17,7 +18,9 @@ from ._open3d import open3d
 from .limits import MAX_DATA_FILE_BYTES, check_input_file
 from .settings import choice, positive, triple
 
-_UP = {"z": "z", "y": "y", "Z": "z", "Y": "y"}
+_UP = {"z": "z", "y": "y", "Z": "z", "Y": "y", "auto": "auto"}
+#: Collada's up axis, in the <asset> at the head of the file
+_DAE_UP = re.compile(rb"<up_axis>\s*([A-Za-z_]+)\s*</up_axis>")
 
 
 @dataclass(frozen=True)
@@ -26,7 +29,7 @@ class MeshConfig:
 
     path: Optional[str] = None  # None: the shipped generated airliner
     scale: float = positive(1.0)
-    up: str = choice("z", ("y", "z"))  # the file's up axis: "z" or "y"
+    up: str = choice("auto", ("auto", "y", "z"))  # file's up axis; auto: glTF y, DAE its, else z
     shift: tuple = triple((0.0, 0.0, 0.0))  # m added after scale and up: results in that frame
 
 
@@ -43,14 +46,15 @@ def mesh_overrides(path=None, scale=None, up=None) -> list[str]:
     return over
 
 
-def load_mesh(path: str | os.PathLike, scale: float = 1.0, up: str = "z", shift=None) -> Mesh:
+def load_mesh(path: str | os.PathLike, scale: float = 1.0, up: str = "auto", shift=None) -> Mesh:
     """Load a mesh file (OBJ, STL, PLY, DAE, glTF/GLB, ...) as one triangle soup: PLY and OBJ
     with nbvkit's own strict readers, in double precision (PLY: declared counts and face indices
     checked; OBJ: ``v``/``f`` geometry only, polygons triangulated, materials never opened), the
     rest with assimp.
 
     All parts of the file are merged, each node's transform applied. ``up`` is the file's up axis:
-    ``"z"`` keeps coordinates, ``"y"`` rotates file +y onto +z ((x, y, z) -> (x, -z, y)). ``scale``
+    ``"z"`` keeps coordinates, ``"y"`` rotates file +y onto +z ((x, y, z) -> (x, -z, y)),
+    ``"auto"`` takes the one its format defines (``file_up_axis``: glTF y, DAE its own). ``scale``
     multiplies coordinates (e.g. 0.001 for a millimetre file). ``shift`` (x, y, z), in metres,
     is then added to every vertex, in double precision: a georeferenced mesh (UTM coordinates)
     is flown near the origin, where OctoMap can address it (+-6.5 km at 0.2 m) and Embree's
@@ -67,7 +71,7 @@ def load_mesh(path: str | os.PathLike, scale: float = 1.0, up: str = "z", shift=
     area, or naming a bad scale, up axis or shift (docs/USAGE.md, "Errors").
     """
     if up not in _UP:
-        raise ValueError(f"mesh up axis must be 'y' or 'z', got {up!r}")
+        raise ValueError(f"mesh up axis must be 'auto', 'y' or 'z', got {up!r}")
     try:
         scale = float(scale)
     except (TypeError, ValueError):
@@ -80,10 +84,36 @@ def load_mesh(path: str | os.PathLike, scale: float = 1.0, up: str = "z", shift=
         if not np.isfinite(shift).all():
             raise ValueError(f"mesh shift must be finite, got {shift.tolist()}")
     p = check_input_file(path, "mesh file", MAX_DATA_FILE_BYTES)
-    mesh = _core._load_mesh(os.fsencode(p), scale, _UP[up])
+    mesh = _core._load_mesh(os.fsencode(p), scale, file_up_axis(p, up))
     if shift is not None and shift.any():
         mesh = Mesh(np.asarray(mesh.vertices) + shift, mesh.faces)
     return mesh
+
+
+def file_up_axis(path, up: str = "auto") -> str:
+    """The up axis ("y" or "z") the mesh file `path` is loaded with: `up` itself unless it is
+    "auto"; then the one the file's format defines: glTF and GLB y (the glTF 2.0 specification:
+    +Y is up), Collada (DAE) its ``<asset><up_axis>`` (Y_UP where it gives none, as the Collada
+    specification has it), any other format (OBJ, STL, PLY, ..., which record none) z. A DAE
+    whose up axis is X_UP is a ValueError naming it (set mesh.up to load it)."""
+    if _UP.get(up) is None:
+        raise ValueError(f"mesh up axis must be 'auto', 'y' or 'z', got {up!r}")
+    if _UP[up] != "auto":
+        return _UP[up]
+    suffix = Path(os.fsdecode(path)).suffix.lower()
+    if suffix in (".gltf", ".glb"):
+        return "y"
+    if suffix != ".dae":
+        return "z"
+    with open(path, "rb") as f:
+        found = _DAE_UP.search(f.read(1 << 20))  # the <asset> opens the file
+    axis = found.group(1).upper() if found else b"Y_UP"
+    if axis in (b"Y_UP", b"Z_UP"):
+        return axis[:1].decode().lower()
+    raise ValueError(
+        f"mesh file {os.fsdecode(path)}: its <up_axis> is {axis.decode(errors='replace')[:20]}, "
+        "and nbvkit turns y-up and z-up files only: set mesh.up (--mesh-up) y or z to load it"
+    )
 
 
 def mesh_from_open3d(o3d_mesh) -> Mesh:

@@ -25,9 +25,10 @@ def add_mesh_options(p: argparse.ArgumentParser, required: bool = False) -> None
     )
     p.add_argument(
         "--mesh-up",
-        choices=("y", "z"),
-        default="z",
-        help="the mesh file's up axis; y-up files are rotated to z-up (default z)",
+        choices=("auto", "y", "z"),
+        default="auto",
+        help="the mesh file's up axis; y-up files are rotated to z-up (default auto: as its "
+        "format defines it, glTF/GLB y, DAE its <up_axis>, others z)",
     )
     add_mesh_shift_option(p)
 

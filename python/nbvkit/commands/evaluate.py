@@ -256,7 +256,7 @@ def read_reconstruction(path: Path, density: float, seed: int = 0):
 
         from ..limits import check_samples
 
-        mesh = load_mesh(path)
+        mesh = load_mesh(path, up="z")  # as it is: a reconstruction is in the world frame
         check_samples(mesh.area, density, "--gt-density")
         n = max(1, round(mesh.area * density))
         return mesh.sample_surface(n, seed), f"mesh, {mesh.area:.1f} m^2 sampled at {density:g}/m^2"

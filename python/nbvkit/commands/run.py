@@ -45,7 +45,12 @@ def register(sub) -> argparse.ArgumentParser:
     p.add_argument(
         "--mesh-scale", metavar="S", type=float, default=None, help="multiply mesh coordinates by S"
     )
-    p.add_argument("--mesh-up", choices=("y", "z"), default=None, help="the mesh file's up axis")
+    p.add_argument(
+        "--mesh-up",
+        choices=("auto", "y", "z"),
+        default=None,
+        help="the mesh file's up axis (default auto: glTF/GLB y, DAE its <up_axis>, others z)",
+    )
     add_mesh_shift_option(p)
     p.add_argument(
         "--scenario",
