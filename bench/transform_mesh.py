@@ -39,7 +39,9 @@ def main():
     ap.add_argument("--scale", type=float, default=1.0)
     ap.add_argument("--shift", type=float, nargs=3, default=(0.0, 0.0, 0.0))
     ap.add_argument("--ground", action="store_true", help="lowest point to z = 0 at the end")
-    ap.add_argument("--up", choices=("y", "z"), default="z", help="the input file's up axis")
+    ap.add_argument(
+        "--up", choices=("auto", "y", "z"), default="auto", help="the input file's up axis"
+    )
     args = ap.parse_args()
     mesh = nbvkit.load_mesh(args.mesh, up=args.up)
     v = np.asarray(mesh.vertices) @ rotation(args.roll, args.pitch, args.yaw).T

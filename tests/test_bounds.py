@@ -186,6 +186,29 @@ def test_point_cloud_and_mesh_readers_refuse_fifos_devices_and_folders(tmp_path)
             assert needle in str(result["e"]) and str(path) in str(result["e"])
 
 
+def test_a_fifo_named_as_collada_names_no_run_and_does_not_block(tmp_path):
+    """The run id of a spec reads a Collada file's up axis: a FIFO there neither blocks it nor
+    the axis query, which refuses it naming the FIFO (the run then fails naming it)."""
+    from nbvkit.experiment_specs import RunSpec
+
+    fifo = tmp_path / "m.dae"
+    os.mkfifo(fifo)
+    result = {}
+
+    def call():
+        result["id"] = RunSpec("1", 0, mesh=str(fifo)).run_id
+        try:
+            nbvkit.file_up_axis(fifo)
+        except ValueError as e:
+            result["e"] = e
+
+    t = threading.Thread(target=call, daemon=True)
+    t.start()
+    t.join(10)
+    assert not t.is_alive(), "blocked on the FIFO"
+    assert result["id"].startswith("m_s1_start0_") and "FIFO" in str(result["e"])
+
+
 def test_the_cpp_mesh_loader_refuses_non_regular_files_too(tmp_path):
     fifo = tmp_path / "m.obj"
     os.mkfifo(fifo)

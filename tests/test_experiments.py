@@ -426,6 +426,20 @@ def test_mesh_keys_in_the_overrides_or_config_file_are_the_mesh_flown(tmp_path):
     assert len({s.run_id for s in specs}) == 2
 
 
+def test_an_up_axis_given_or_read_from_the_file_is_the_same_run(tmp_path):
+    """mesh.up=auto on an OBJ flies it as it is, as mesh.up=z does: one run id, one recorded
+    configuration (config.yaml says the axis flown), so either resumes the other's run."""
+    cube = str(ROOT / "meshes" / "fixtures" / "cube.obj")
+    given, auto = (RunSpec("1", 0, mesh=cube, mesh_up=u, overrides=TINY) for u in ("z", None))
+    assert given.run_id == auto.run_id and auto.flown_mesh[2] == "z"
+    (row,) = run_specs([given], tmp_path, workers=1, progress=False)
+    run = tmp_path / "runs" / row["run_id"]
+    first = (run / "summary.json").stat().st_mtime_ns
+    assert yaml.safe_load((run / "config.yaml").read_text())["mesh"]["up"] == "z"
+    run_specs([auto], tmp_path, workers=1, progress=False)
+    assert (run / "summary.json").stat().st_mtime_ns == first  # resumed, not flown again
+
+
 def test_a_scenario_that_sets_the_mesh_labels_its_runs_by_that_mesh(tmp_path):
     """A registered scenario's mesh keys are the mesh flown (under the spec's own): the run id and
     the tables' mesh columns follow it, not the mesh of another scenario."""

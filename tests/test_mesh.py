@@ -110,6 +110,23 @@ def _dae_up(verts, up_axis) -> bytes:
     return text.replace("<up_axis>Z_UP</up_axis>", tag).encode()
 
 
+def _glb(verts) -> bytes:
+    """The glTF of gltf_file as a binary GLB (JSON chunk, then its buffer as the BIN chunk)."""
+    import json
+    import struct
+
+    doc = json.loads(gltf_file(verts, CUBE_F))
+    buf = gltf_buffer(verts, CUBE_F)
+    del doc["buffers"][0]["uri"]  # the GLB's own BIN chunk
+
+    def chunk(data: bytes, kind: bytes, pad: bytes) -> bytes:
+        data += pad * (-len(data) % 4)
+        return struct.pack("<I", len(data)) + kind + data
+
+    body = chunk(json.dumps(doc).encode(), b"JSON", b" ") + chunk(buf, b"BIN\0", b"\0")
+    return b"glTF" + struct.pack("<II", 2, 12 + len(body)) + body
+
+
 def test_an_auto_up_axis_is_the_one_the_files_format_defines(tmp_path):
     """mesh.up=auto (the default): a glTF (y-up by its specification) and a Collada file saying
     Y_UP, or nothing, are turned z-up; a Collada Z_UP file and formats that record no up axis
@@ -132,6 +149,22 @@ def test_an_auto_up_axis_is_the_one_the_files_format_defines(tmp_path):
         )
         for given, bounds in (("z", kept), ("y", turned)):
             np.testing.assert_allclose(nbvkit.load_mesh(p, up=given).bounds, bounds, atol=1e-6)
+    # the root's <asset> alone: not a comment's, not a nested asset's; Collada as the loader
+    # tells it (.xml, or <COLLADA in its head); a binary glTF (GLB)
+    z_up = _dae_up(tall, "Z_UP")
+    odd = {
+        "commented.dae": z_up.replace(b"<asset>", b"<!-- <up_axis>Y_UP</up_axis> --><asset>", 1),
+        "nested.dae": _dae_up(tall, None).replace(
+            b"<mesh>", b"<asset><up_axis>X_UP</up_axis></asset><mesh>", 1
+        ),
+        "collada.xml": _dae_up(tall, None),
+        "collada.model": _dae_up(tall, None),
+        "binary.glb": _glb(tall),
+    }
+    for name, data in odd.items():
+        (tmp_path / name).write_bytes(data)
+    assert [nbvkit.file_up_axis(tmp_path / n) for n in odd] == ["z", "y", "y", "y", "y"]
+    np.testing.assert_allclose(nbvkit.load_mesh(tmp_path / "binary.glb").bounds, turned, atol=1e-6)
     x_up = tmp_path / "x_up.dae"
     x_up.write_bytes(_dae_up(tall, "X_UP"))
     with pytest.raises(ValueError, match=r"x_up.dae: its <up_axis> is X_UP.*set mesh.up"):

@@ -204,12 +204,69 @@ def test_a_plugin_file_changed_since_it_loaded_loads_again(evolving):
     _plugin(evolving, name="evolving_orbit", radius=4.0, scenario=False)
     nbvkit.load_plugin(evolving)
     assert _orbit_radius() == 4.0
-    assert plugins.loaded().count(str(evolving.resolve())) == 1
+    assert plugins.LOADED.count(str(evolving.resolve())) == 1
     assert plugins.loaded_files()[-1]["sha256"] == _sha256(evolving)
     evolving.write_text(evolving.read_text() + "\nraise RuntimeError('half edited')\n")
     with pytest.raises(RuntimeError, match="half edited"):
         nbvkit.load_plugin(evolving)  # a failed load leaves the last good one as it was
     assert _orbit_radius() == 4.0 and plugins.loaded_files()[-1]["sha256"] != _sha256(evolving)
+
+
+def test_an_edit_of_the_same_size_and_time_loads_again(evolving, monkeypatch):
+    """The content run is the content hashed: an edit that keeps the file's size and time (which
+    Python's bytecode cache takes for unchanged) is loaded as it now is."""
+    import os
+
+    import nbvkit
+
+    monkeypatch.setattr(sys, "dont_write_bytecode", False)
+    _plugin(evolving, name="evolving_orbit", radius=2.0, scenario=False)
+    nbvkit.load_plugin(evolving)
+    st = evolving.stat()
+    _plugin(evolving, name="evolving_orbit", radius=4.0, scenario=False)
+    os.utime(evolving, ns=(st.st_atime_ns, st.st_mtime_ns))
+    assert evolving.stat().st_size == st.st_size
+    nbvkit.load_plugin(evolving)
+    assert _orbit_radius() == 4.0
+
+
+def test_loading_again_a_file_first_imported_keeps_what_it_did_not_register(tmp_path, monkeypatch):
+    """A file imported as a module, then loaded, is credited with what its module holds (a built-in
+    class it imports, every scenario from elsewhere): loaded again after an edit, it takes back
+    its own names only; nbvkit's parts and another file's scenario stay."""
+    import importlib
+
+    import nbvkit
+    from nbvkit import plugins
+    from nbvkit.planning import registry
+    from nbvkit.scenarios import SCENARIOS
+
+    monkeypatch.setattr(sys, "path", [str(tmp_path), *sys.path])
+    mod = tmp_path / "imported_parts.py"
+    src = (
+        "import nbvkit\n"
+        "from nbvkit.planning.generators.lattice import LatticeGenerator\n"
+        "class Mine(LatticeGenerator):\n    N = {n}\n"
+        "nbvkit.register_generator('imported_mine', Mine, replace=True)\n"
+    )
+    mod.write_text(src.format(n=1))
+    other = tmp_path / "other_scenario.py"
+    other.write_text("import nbvkit\nnbvkit.register_scenario('other_sc', 'x', {'seed': 3})\n")
+    try:
+        nbvkit.load_plugin(other)
+        importlib.import_module("imported_parts")
+        nbvkit.load_plugin(mod)
+        mod.write_text(src.format(n=2))
+        nbvkit.load_plugin(mod)
+        assert registry.GENERATORS["imported_mine"].N == 2
+        assert "lattice" in registry.GENERATORS and "other_sc" in SCENARIOS
+    finally:
+        registry.GENERATORS.pop("imported_mine", None)
+        SCENARIOS.pop("other_sc", None)
+        sys.modules.pop("imported_parts", None)
+        for p in (mod, other):
+            if str(p.resolve()) in plugins.LOADED:
+                plugins.LOADED.remove(str(p.resolve()))
 
 
 def _sha256(path):
@@ -218,7 +275,9 @@ def _sha256(path):
     return hashlib.sha256(path.read_bytes()).hexdigest()
 
 
-def test_runs_are_refused_while_a_loaded_plugin_file_differs_from_its_content(tmp_path, evolving):
+def test_runs_are_refused_while_a_loaded_plugin_file_differs_from_its_content(
+    tmp_path, evolving, monkeypatch
+):
     """A file edited after it was loaded: the runs would fly the old parts in this process and
     the new ones in fresh workers, each recorded under its own hash. Refused before any run, in
     every mode, naming the file; a worker handed the parent's hash refuses a file that differs."""
@@ -235,8 +294,11 @@ def test_runs_are_refused_while_a_loaded_plugin_file_differs_from_its_content(tm
         with pytest.raises(ValueError, match=rf"plugin file {evolving.resolve()} changed.*again"):
             run_specs([spec, spec], tmp_path, workers=workers, progress=False)
     assert not (tmp_path / "runs").exists()
-    with pytest.raises(ValueError, match="the runs were started with"):
-        run_one(spec, tmp_path, plugins=loaded)  # as in a worker, with the parent's hashes
+    with monkeypatch.context() as m:  # a fresh worker, handed the parent's hashes
+        m.setattr("nbvkit.plugins.LOADED", [])
+        m.setattr("nbvkit.plugins.DIGESTS", {})
+        with pytest.raises(ValueError, match="the runs were started with"):
+            run_one(spec, tmp_path, plugins=loaded)
     assert _orbit_radius() == 2.0  # nothing loaded
 
 

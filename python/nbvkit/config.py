@@ -405,3 +405,7 @@ def load_config(
     """The default configuration, updated from a YAML file and then from overrides."""
     cfg = Config.from_yaml(path) if path else Config()
     return cfg.with_overrides(overrides)
+
+
+if __name__ == "__main__":  # the generator of configs/default.yaml moved
+    raise SystemExit("configs/default.yaml is written by: python -m nbvkit.config_docs")

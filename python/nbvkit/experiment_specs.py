@@ -12,6 +12,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from .limits import shorten
+from .mesh import default_mesh_path, file_up_axis
 
 
 #: The mesh keys a RunSpec may give (RunSpec field -> config key).
@@ -133,7 +134,8 @@ def with_mesh_shift(overrides, shift: list, option: str = "--mesh-shift") -> lis
 
 
 def _flown_mesh(scenario, mesh, scale, up, overrides: tuple, config_file) -> tuple:
-    """(path or None, scale, up) that a spec's resolved configuration flies, cached (the start
+    """(path or None, scale, up axis: y or z, mesh.up=auto read from the file) that a spec's
+    resolved configuration flies; the configuration's part cached (the start
     does not change the mesh, nor the scenario unless its preset sets mesh keys; the config file
     by its size and time)."""
     stat = None
@@ -144,9 +146,14 @@ def _flown_mesh(scenario, mesh, scale, up, overrides: tuple, config_file) -> tup
         except OSError:
             pass
     preset = _mesh_preset(scenario)
-    return _resolved_mesh(
+    path, scale, up = _resolved_mesh(
         scenario if preset else "1", preset, mesh, scale, up, overrides, config_file, stat
     )
+    try:  # the axis the file is turned by ("auto" read from it, now: a file may change)
+        up = file_up_axis(path or default_mesh_path(), up)
+    except (OSError, ValueError):
+        pass  # unreadable here: the run itself names the problem
+    return path, scale, up
 
 
 def _mesh_preset(scenario) -> tuple:
@@ -167,14 +174,8 @@ def _mesh_preset(scenario) -> tuple:
 def _resolved_mesh(scenario, preset, mesh, scale, up, overrides: tuple, config_file, stat):
     """_flown_mesh's answer, by the scenario's mesh `preset` and the config file's `stat` too (a
     scenario registered again, a changed file: resolved again)."""
-    from .mesh import default_mesh_path, file_up_axis
-
     m = RunSpec(scenario, 0, mesh, scale, up, overrides, config_file).config().mesh
-    try:  # the axis the file is turned by ("auto" read from it: the same run whichever is given)
-        axis = file_up_axis(m.path or default_mesh_path(), m.up)
-    except (OSError, ValueError):
-        axis = m.up  # unreadable here: the run itself names the problem
-    return (m.path, float(m.scale), axis)
+    return (m.path, float(m.scale), m.up)
 
 
 def _spec_dict(spec: RunSpec) -> dict:

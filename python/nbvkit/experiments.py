@@ -109,9 +109,13 @@ def _resolved(spec: RunSpec):
     from .config import _has_dotted
 
     cfg = spec.config()
+    over = []
     if not _has_dotted(cfg._user, "report.poisson_depth"):
         # sweeps: a cheaper mesh per run (a look, not a result) unless the user set it
-        cfg = cfg.with_overrides([f"report.poisson_depth={SWEEP_POISSON_DEPTH}"])
+        over.append(f"report.poisson_depth={SWEEP_POISSON_DEPTH}")
+    if cfg.mesh.up == "auto" and (up := spec.flown_mesh[2]) != "auto":
+        over.append(f"mesh.up={up}")  # recorded as flown: the same run whichever is given
+    cfg = cfg.with_overrides(over) if over else cfg
     return cfg, _mesh_digest(cfg)
 
 

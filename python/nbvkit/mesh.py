@@ -19,8 +19,10 @@ from .limits import MAX_DATA_FILE_BYTES, check_input_file
 from .settings import choice, positive, triple
 
 _UP = {"z": "z", "y": "y", "Z": "z", "Y": "y", "auto": "auto"}
-#: Collada's up axis, in the <asset> at the head of the file
+#: Collada's up axis, in the root's <asset> (the first, at the head of the file; comments out)
 _DAE_UP = re.compile(rb"<up_axis>\s*([A-Za-z_]+)\s*</up_axis>")
+_DAE_ASSET = re.compile(rb"<asset[\s>].*?</asset>", re.S)
+_XML_COMMENT = re.compile(rb"<!--.*?-->", re.S)
 
 
 @dataclass(frozen=True)
@@ -93,9 +95,11 @@ def load_mesh(path: str | os.PathLike, scale: float = 1.0, up: str = "auto", shi
 def file_up_axis(path, up: str = "auto") -> str:
     """The up axis ("y" or "z") the mesh file `path` is loaded with: `up` itself unless it is
     "auto"; then the one the file's format defines: glTF and GLB y (the glTF 2.0 specification:
-    +Y is up), Collada (DAE) its ``<asset><up_axis>`` (Y_UP where it gives none, as the Collada
-    specification has it), any other format (OBJ, STL, PLY, ..., which record none) z. A DAE
-    whose up axis is X_UP is a ValueError naming it (set mesh.up to load it)."""
+    +Y is up), Collada its root ``<asset><up_axis>`` (Y_UP where it gives none, as the Collada
+    specification has it; a file is Collada as the loader tells it: .dae, .xml, or ``<COLLADA``
+    in its head), any other format z: OBJ, STL and PLY record none, and FBX, 3DS and the rest
+    assimp reads are taken as they are. A Collada file whose up axis is X_UP is a ValueError
+    naming it (set mesh.up to load it)."""
     if _UP.get(up) is None:
         raise ValueError(f"mesh up axis must be 'auto', 'y' or 'z', got {up!r}")
     if _UP[up] != "auto":
@@ -103,10 +107,15 @@ def file_up_axis(path, up: str = "auto") -> str:
     suffix = Path(os.fsdecode(path)).suffix.lower()
     if suffix in (".gltf", ".glb"):
         return "y"
-    if suffix != ".dae":
+    if suffix in (".ply", ".obj"):  # nbvkit's own readers
         return "z"
-    with open(path, "rb") as f:
-        found = _DAE_UP.search(f.read(1 << 20))  # the <asset> opens the file
+    p = check_input_file(path, "mesh file", MAX_DATA_FILE_BYTES)  # not a FIFO, a device, ...
+    with open(p, "rb") as f:
+        head = f.read(1 << 20)
+    if suffix not in (".dae", ".xml") and b"<COLLADA" not in head[:4096]:
+        return "z"
+    asset = _DAE_ASSET.search(_XML_COMMENT.sub(b"", head))  # the root's: the first one
+    found = _DAE_UP.search(asset.group(0)) if asset else None
     axis = found.group(1).upper() if found else b"Y_UP"
     if axis in (b"Y_UP", b"Z_UP"):
         return axis[:1].decode().lower()

@@ -244,7 +244,7 @@ def _mesh_of(run_dir: Path):
     return load_mesh(
         m.get("path") or default_mesh_path(),
         scale=m.get("scale", 1.0),
-        up=m.get("up", "auto"),
+        up=m.get("up", "z"),  # a record without it: flown as it was
         shift=m.get("shift"),
     )
 

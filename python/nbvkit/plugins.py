@@ -8,6 +8,7 @@ from __future__ import annotations
 import hashlib
 import importlib.util
 import sys
+import threading
 import traceback
 from pathlib import Path
 
@@ -22,6 +23,9 @@ DIGESTS: dict[str, str] = {}
 #: path -> the names (generator, termination, utility, scenario) each file registered as it ran;
 #: a file found imported already (not run again) registered what its module holds.
 REGISTERED: dict[str, set] = {}
+#: the files found imported already: their REGISTERED is what their module holds, a guess
+GUESSED: set[str] = set()
+_LOCK = threading.RLock()
 
 
 def load_plugin(path, sha256: str | None = None) -> None:
@@ -32,15 +36,25 @@ def load_plugin(path, sha256: str | None = None) -> None:
     registered (a notebook's edited file, a long-lived worker's). A file already imported as a
     module (``import my_parts``) is not run again, only noted for the sweeps' workers. Its folder
     is put on sys.path, as Python does for a script: the file imports its neighbours.
-    `sha256`: the content expected (a sweep's worker, the parent's): a ValueError if it differs."""
-    p = check_input_file(path, "plugin file").resolve()
+    `sha256`: the content expected (a sweep's worker, the parent's): a ValueError if it differs.
+    The content run is the content hashed (read once; no cached bytecode)."""
+    with _LOCK:  # a Dask worker's threads may load at once
+        p = check_input_file(path, "plugin file").resolve()
+        key = str(p)
+        if key in LOADED and sha256 is not None and DIGESTS[key] == sha256:
+            return  # the content expected is the one loaded (the file may have changed since)
+        source = p.read_bytes()
+        digest = hashlib.sha256(source).hexdigest()
+        if sha256 is not None and digest != sha256:
+            raise ValueError(_changed(p, sha256, digest, "the runs were started with"))
+        if key not in LOADED or DIGESTS[key] != digest:
+            _run_file(p, source, digest)
+
+
+def _run_file(p: Path, source: bytes, digest: str) -> None:
+    """load_plugin's import of `p` (`source`, its content, of SHA-256 `digest`)."""
     key = str(p)
-    digest = hashlib.sha256(p.read_bytes()).hexdigest()
-    if sha256 is not None and digest != sha256:
-        raise ValueError(_changed(p, sha256, digest, "the runs were started with"))
-    again = key in LOADED  # loaded before (and changed since, or it is not run again)
-    if again and DIGESTS[key] == digest:
-        return
+    again = key in LOADED
     if str(p.parent) not in sys.path:
         sys.path.append(str(p.parent))
     imported = [m for m in list(sys.modules.values()) if _same_file(m, p)]
@@ -48,6 +62,7 @@ def load_plugin(path, sha256: str | None = None) -> None:
         LOADED.append(key)
         DIGESTS[key] = digest
         REGISTERED[key] = _held_by(imported[0])
+        GUESSED.add(key)
         return
     name = "nbvkit_plugin_" + hashlib.sha1(key.encode()).hexdigest()[:12]
     spec = importlib.util.spec_from_file_location(name, p)
@@ -58,11 +73,12 @@ def load_plugin(path, sha256: str | None = None) -> None:
     sys.modules[name] = module
     tables = _tables()
     objects = [dict(t) for t in tables]
+    mine = _own_names(key) if again else set()
     for t in tables:  # loaded again: its names are free for it
-        for n in REGISTERED[key] if again else ():
+        for n in mine:
             t.pop(n, None)
     try:
-        spec.loader.exec_module(module)
+        exec(compile(source, key, "exec", dont_inherit=True), module.__dict__)
     except BaseException:
         if before is None:
             del sys.modules[name]
@@ -72,6 +88,12 @@ def load_plugin(path, sha256: str | None = None) -> None:
             table.clear()
             table.update(was)
         raise
+    if key in GUESSED:  # what an imported module only held, it did not register: kept
+        for t, was in zip(tables, objects):
+            for n in mine:
+                if n in was and n not in t:
+                    t[n] = was[n]
+        GUESSED.discard(key)
     if not again:
         LOADED.append(key)
     DIGESTS[key] = digest
@@ -82,6 +104,14 @@ def load_plugin(path, sha256: str | None = None) -> None:
         for k, v in t.items()
         if k not in was or was[k] is not v
     }
+
+
+def _own_names(key: str) -> set:
+    """The names the loaded file `key` registered that are neither nbvkit's nor another file's."""
+    from .planning import registry
+
+    others = set().union(*(v for k, v in REGISTERED.items() if k != key and k in LOADED))
+    return REGISTERED[key] - others - set(registry.BUILT_IN) - BUILT_IN_SCENARIOS
 
 
 def _changed(p: Path, was: str, now: str, what: str) -> str:
@@ -126,9 +156,11 @@ def _held_by(module) -> set:
     """The registered names whose part (class or function) the module `module` holds (defined or
     imported there): what a file imported before it was loaded registered. Its scenarios cannot
     be told from others: all that are not nbvkit's count as its (never refused wrongly)."""
+    from .planning import registry
+
     held = {id(v) for v in vars(module).values()}
     names = {name for t in _tables()[:3] for name, obj in t.items() if id(obj) in held}
-    return names | (set(_SCENARIOS) - BUILT_IN_SCENARIOS)
+    return (names - set(registry.BUILT_IN)) | (set(_SCENARIOS) - BUILT_IN_SCENARIOS)
 
 
 def script_only() -> dict:
@@ -201,7 +233,3 @@ def load_plugins(files) -> None:
             load_plugin(f["path"], f["sha256"])
         else:
             load_plugin(f)
-
-
-def loaded() -> tuple[str, ...]:
-    return tuple(LOADED)

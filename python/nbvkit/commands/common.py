@@ -28,7 +28,7 @@ def add_mesh_options(p: argparse.ArgumentParser, required: bool = False) -> None
         choices=("auto", "y", "z"),
         default="auto",
         help="the mesh file's up axis; y-up files are rotated to z-up (default auto: as its "
-        "format defines it, glTF/GLB y, DAE its <up_axis>, others z)",
+        "format defines it, glTF/GLB y, DAE its <up_axis>, others as they are: z)",
     )
     add_mesh_shift_option(p)
 

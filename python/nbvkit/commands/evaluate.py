@@ -11,6 +11,7 @@ import numpy as np
 
 from ..paths import check_output_file, require_complete_run
 from ..cloud import read_points
+from ..mesh import default_mesh_path, file_up_axis
 from ..evaluation import (
     DEFAULT_GT_DENSITY,
     DEFAULT_RESOLUTIONS,
@@ -156,7 +157,7 @@ def run(args) -> int:
         gt_desc = {
             "mesh": str(args.mesh) if args.mesh else "default (shipped airliner)",
             "mesh_scale": args.mesh_scale,
-            "mesh_up": args.mesh_up,
+            "mesh_up": file_up_axis(args.mesh or default_mesh_path(), args.mesh_up),
             "mesh_shift": args.mesh_shift,
         }
     if args.seed < 0:

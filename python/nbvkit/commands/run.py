@@ -49,7 +49,8 @@ def register(sub) -> argparse.ArgumentParser:
         "--mesh-up",
         choices=("auto", "y", "z"),
         default=None,
-        help="the mesh file's up axis (default auto: glTF/GLB y, DAE its <up_axis>, others z)",
+        help="the mesh file's up axis (default auto: glTF/GLB y, DAE its <up_axis>, others as they "
+        "are: z)",
     )
     add_mesh_shift_option(p)
     p.add_argument(
