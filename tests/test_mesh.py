@@ -113,11 +113,18 @@ def _dae_up(verts, up_axis) -> bytes:
 def _glb(verts) -> bytes:
     """The glTF of gltf_file as a binary GLB (JSON chunk, then its buffer as the BIN chunk)."""
     import json
+
+    return _glb_of(json.loads(gltf_file(verts, CUBE_F)))
+
+
+def _glb_of(doc: dict) -> bytes:
+    """The glTF `doc` (gltf_file's, its buffer embedded) as a GLB: its buffer as the BIN chunk."""
+    import base64
+    import json
     import struct
 
-    doc = json.loads(gltf_file(verts, CUBE_F))
-    buf = gltf_buffer(verts, CUBE_F)
-    del doc["buffers"][0]["uri"]  # the GLB's own BIN chunk
+    doc = json.loads(json.dumps(doc))
+    buf = base64.b64decode(doc["buffers"][0].pop("uri").split(",", 1)[1])
 
     def chunk(data: bytes, kind: bytes, pad: bytes) -> bytes:
         data += pad * (-len(data) % 4)
@@ -450,3 +457,55 @@ def test_gltf_with_a_regular_buffer_file_loads(tmp_path):
     gltf = _gltf_triangle(tmp_path, (0, 0, 0), uri="ref.bin")
     (tmp_path / "ref.bin").write_bytes(gltf_buffer(TRI.astype(np.float32), TRI_F))
     assert nbvkit.load_mesh(gltf).num_triangles == 1
+
+
+def test_a_gltf_requiring_an_extension_its_reader_lacks_is_refused(tmp_path):
+    """glTF's rule: a loader refuses a file whose required extensions it cannot read. assimp 5.2
+    read KHR_mesh_quantization's integer positions as floats (a 10 m box came out 1e-26 m across,
+    without a word); extensions of the look alone (materials, textures, lights) are no matter."""
+    import json
+
+    cases = {"KHR_mesh_quantization": False, "EXT_meshopt_compression": False,
+             "KHR_materials_unlit": True, "KHR_texture_transform": True}  # fmt: skip
+    for required, ok in cases.items():
+        doc = json.loads(gltf_file(CUBE_V, CUBE_F))
+        doc["extensionsUsed"] = doc["extensionsRequired"] = [required]
+        for name, data in (("q.gltf", json.dumps(doc).encode()), ("q.glb", _glb_of(doc))):
+            p = tmp_path / name
+            p.write_bytes(data)
+            if ok:
+                assert nbvkit.load_mesh(p).num_triangles == 12
+            else:
+                with pytest.raises(
+                    ValueError, match=f"q.gl.*requires the glTF extension {required}"
+                ):
+                    nbvkit.load_mesh(p)
+
+
+def test_zipped_collada_is_refused_and_unused_non_finite_ply_vertices_are_dropped(tmp_path):
+    """A .zae went past the Collada guard into assimp (a missing count crashed the process); a
+    PLY's unused NaN vertex (as PCL's organized meshes write) was refused, where OBJ drops it."""
+    import zipfile
+
+    zae = tmp_path / "m.zae"
+    with zipfile.ZipFile(zae, "w") as z:
+        z.writestr("m.dae", dae_file(CUBE_V, CUBE_F))
+    with pytest.raises(ValueError, match=r"m.zae.*zipped Collada \(.zae\) is not read; unzip it"):
+        nbvkit.load_mesh(zae)
+    verts = [(float("nan"),) * 3, *CUBE_V]
+    faces = [(a + 1, b + 1, c + 1) for a, b, c in CUBE_F]
+    head = ("ply\nformat ascii 1.0\nelement vertex 9\nproperty float x\nproperty float y\n"
+            "property float z\nelement face 12\nproperty list uchar int vertex_indices\n"
+            "end_header\n")  # fmt: skip
+    body = "".join(f"{x} {y} {z}\n" for x, y, z in verts)
+    p = tmp_path / "organized.ply"
+    p.write_text(head + body + "".join(f"3 {a} {b} {c}\n" for a, b, c in faces))
+    m = nbvkit.load_mesh(p)
+    assert m.vertices.shape == (8, 3) and np.isfinite(m.vertices).all()
+    np.testing.assert_allclose(m.bounds, [[0, 0, 0], [1, 1, 1]])
+    used = tmp_path / "used.ply"
+    used.write_text(
+        head + body + "3 0 1 2\n" + "".join(f"3 {a} {b} {c}\n" for a, b, c in faces[1:])
+    )
+    with pytest.raises(ValueError, match="NaN or infinite"):
+        nbvkit.load_mesh(used)

@@ -211,6 +211,18 @@ Mesh loaded_mesh(Points vertices, Faces faces, const std::string& path, double s
       used, [&](std::size_t v) { return Eigen::Vector3d(vertices.row(Eigen::Index(v))); }, "",
       number);
   bad.refuse(path);
+  if (!vertices.allFinite()) {  // unused vertices with NaN (a PCL organized cloud's): dropped
+    std::vector<std::int32_t> keep(used.size(), -1);
+    Eigen::Index kept = 0;
+    for (std::size_t v = 0; v < used.size(); ++v)
+      if (used[v]) {
+        keep[v] = static_cast<std::int32_t>(kept);
+        vertices.row(kept++) = vertices.row(static_cast<Eigen::Index>(v));
+      }
+    vertices.conservativeResize(kept, 3);
+    for (Eigen::Index i = 0; i < faces.size(); ++i)
+      faces.data()[i] = keep[static_cast<std::size_t>(faces.data()[i])];
+  }
   Mesh out;
   out.vertices.resize(vertices.rows(), 3);
   const bool y_up = (up == 'y' || up == 'Y');
@@ -437,6 +449,10 @@ Mesh load_mesh(const std::string& path, double scale, char up) {
                  [](unsigned char c) { return std::tolower(c); });
   if (ext == ".ply") return load_ply_mesh(path, scale, up);
   if (ext == ".obj") return load_obj_mesh(path, scale, up);
+  if (ext == ".zae")  // assimp reads the zipped file past check_collada's guard
+    throw std::invalid_argument("cannot read mesh '" + path +
+                                "': zipped Collada (.zae) is not read; unzip it and load the "
+                                ".dae file inside");
   const std::string head = read_file_head(path, 4096, "mesh", kMaxMeshFileBytes);
   if (ext == ".dae" || ext == ".xml" || head.find("<COLLADA") != std::string::npos)
     check_collada(path);

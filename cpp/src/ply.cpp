@@ -1,5 +1,6 @@
 #include "nbv/ply.hpp"
 #include "nbv/mesh.hpp"
+#include "nbv/polygon.hpp"
 
 #include <algorithm>
 #include <cerrno>
@@ -268,6 +269,15 @@ PlyData parse_ply(const std::uint8_t* data, std::size_t size, bool read_faces) {
   bool have_vertices = false;
   Body body(data + pos, body_size, mode);
   std::vector<std::int32_t> tri;  // flat triangles
+  // Polygons of more than 3 vertices, triangulated once the vertices are read (a face element
+  // may come first): their n - 2 triangles' place in tri, their face number and vertices.
+  struct Pending {
+    std::size_t at;
+    std::uint64_t face;
+    std::size_t first, n;
+  };
+  std::vector<Pending> pending;
+  std::vector<std::int32_t> polys;
   std::int64_t nv = -1;
   for (const auto& el : elements) {
     if (!read_faces && have_vertices) break;
@@ -343,18 +353,33 @@ PlyData parse_ply(const std::uint8_t* data, std::size_t size, bool read_faces) {
           if (v != std::floor(v)) fail("non-integer face index in " + where);
           poly.push_back(v);
         }
-        for (std::int64_t j = 2; j < k; ++j)  // a polygon as a fan; points and lines dropped
-          for (double v : {poly[0], poly[static_cast<std::size_t>(j) - 1],
-                           poly[static_cast<std::size_t>(j)]}) {
-            if (v < 0 || v > 2147483647.0)
-              fail("face " + std::to_string(r) + ": vertex index " +
-                   std::to_string(static_cast<long long>(v)) + " out of range");
-            tri.push_back(static_cast<std::int32_t>(v));
-          }
+        if (k < 3) continue;  // points and lines dropped
+        for (double v : poly)
+          if (v < 0 || v > 2147483647.0)
+            fail("face " + std::to_string(r) + ": vertex index " +
+                 std::to_string(static_cast<long long>(v)) + " out of range");
+        if (k > 3) {
+          pending.push_back({tri.size(), r, polys.size(), static_cast<std::size_t>(k)});
+          for (double v : poly) polys.push_back(static_cast<std::int32_t>(v));
+          tri.resize(tri.size() + 3 * static_cast<std::size_t>(k - 2));
+          continue;
+        }
+        for (double v : poly) tri.push_back(static_cast<std::int32_t>(v));
       }
   }
   if (!tri.empty()) {
     if (!have_vertices) fail("the PLY file has faces but no vertex element");
+    std::vector<std::int32_t> cut;
+    for (const Pending& p : pending) {
+      for (std::size_t j = p.first; j < p.first + p.n; ++j)
+        if (polys[j] >= nv)
+          fail("face " + std::to_string(p.face) + ": vertex index " + std::to_string(polys[j]) +
+               " out of range (" + std::to_string(nv) + " vertices)");
+      cut.clear();
+      if (!triangulate_polygon(&polys[p.first], p.n, out.vertices.data(), cut))
+        fail("face " + std::to_string(p.face) + ": " + polygon_too_large(p.n));
+      std::copy(cut.begin(), cut.end(), tri.begin() + static_cast<std::ptrdiff_t>(p.at));
+    }
     out.faces.resize(static_cast<Eigen::Index>(tri.size() / 3), 3);
     for (std::size_t i = 0; i < tri.size(); ++i) {
       if (tri[i] >= nv)

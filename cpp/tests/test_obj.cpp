@@ -2,6 +2,7 @@
 // vertices only, triangulation of convex and non-convex polygons, and bad files that must throw
 // naming the line. tests/test_mesh.py checks what load_mesh makes of it (the file named).
 #include "nbv/obj.hpp"
+#include "nbv/polygon.hpp"
 #include "test_util.hpp"
 
 #include <gtest/gtest.h>
@@ -52,6 +53,14 @@ TEST(Obj, IndexFormsAndPolygons) {
   EXPECT_NEAR(area(q), 4.0, 1e-12);  // 6 (the hull triangle) - 2 (the notch)
 }
 
+TEST(Obj, AByteOrderMarkIsNotPartOfTheFirstStatement) {
+  // "\xEF\xBB\xBFv" read as a statement of its own dropped vertex 1 and moved every index
+  const auto d = parse("\xEF\xBB\xBFv 0 0 0\nv 1 0 0\nv 0 1 0\nv 5 5 5\nf 1 2 3\n");
+  ASSERT_EQ(d.vertices.rows(), 3);
+  EXPECT_NEAR(area(d), 0.5, 1e-12);
+  EXPECT_EQ(d.vertices.maxCoeff(), 1.0);
+}
+
 TEST(Obj, OtherStatementsAreIgnoredAndOnlyUsedVerticesKept) {
   // comments, materials, groups, texture and normal lines, w and colours after x y z, a line
   // continued by a backslash, lines and points (faces of fewer than three vertices)
@@ -100,7 +109,7 @@ TEST(Obj, BadFilesNameTheLine) {
       std::string::npos);
   // a non-convex polygon of too many vertices (a comb): refused, not left to a slow clipper
   std::string comb;
-  const int teeth = static_cast<int>(nbv::kObjMaxEarClipVertices);
+  const int teeth = static_cast<int>(nbv::kMaxEarClipVertices);
   for (int i = 0; i < teeth; ++i)
     comb += "v " + std::to_string(i) + " " + (i % 2 ? "1" : "3") + " 0\n";
   comb += "v " + std::to_string(teeth - 1) + " 0 0\nv 0 0 0\nf";

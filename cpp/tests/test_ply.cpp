@@ -92,6 +92,51 @@ TEST(Ply, PolygonsBecomeFansAndOtherPropertiesAreSkipped) {
   EXPECT_EQ(d.faces(1, 2), 3);
 }
 
+double area(const nbv::PlyData& d) {
+  double a = 0;
+  for (Eigen::Index i = 0; i < d.faces.rows(); ++i) {
+    const Eigen::Vector3d p0 = d.vertices.row(d.faces(i, 0)), p1 = d.vertices.row(d.faces(i, 1)),
+                          p2 = d.vertices.row(d.faces(i, 2));
+    a += 0.5 * (p1 - p0).cross(p2 - p0).norm();
+  }
+  return a;
+}
+
+TEST(Ply, NonConvexPolygonsAreCutAsTheObjReaderCutsThem) {
+  // a dart (area 1.5) and an L-shaped hexagon (area 5), from every start vertex: a fan from the
+  // first vertex covered ground outside them (2.5 and 9); faces before the vertices, too
+  const std::vector<std::vector<double>> shapes = {{0, 0, 2, 1, 0, 2, 0.5, 1},
+                                                   {0, 0, 3, 0, 3, 1, 1, 1, 1, 3, 0, 3}};
+  const double areas[2] = {1.5, 5.0};
+  for (int s = 0; s < 2; ++s) {
+    const std::size_t n = shapes[s].size() / 2;
+    for (std::size_t start = 0; start < n; ++start)
+      for (bool faces_first : {false, true}) {
+        std::string verts, face = std::to_string(n);
+        for (std::size_t i = 0; i < n; ++i) {
+          verts += std::to_string(shapes[s][2 * i]) + " " + std::to_string(shapes[s][2 * i + 1]) +
+                   " 0\n";
+          face += " " + std::to_string((start + i) % n);
+        }
+        const std::string v_el = "element vertex " + std::to_string(n) +
+                                 "\nproperty double x\nproperty double y\nproperty double z\n";
+        const std::string f_el = "element face 1\nproperty list uchar int vertex_indices\n";
+        const std::string text = "ply\nformat ascii 1.0\n" +
+                                 (faces_first ? f_el + v_el : v_el + f_el) + "end_header\n" +
+                                 (faces_first ? face + "\n" + verts : verts + face + "\n");
+        const auto d = parse(text);
+        ASSERT_EQ(d.faces.rows(), static_cast<Eigen::Index>(n - 2));
+        EXPECT_NEAR(area(d), areas[s], 1e-12) << s << " from " << start;
+        for (Eigen::Index i = 0; i < d.faces.rows(); ++i) {  // the winding (+z) is kept
+          const Eigen::Vector3d p0 = d.vertices.row(d.faces(i, 0)),
+                                p1 = d.vertices.row(d.faces(i, 1)),
+                                p2 = d.vertices.row(d.faces(i, 2));
+          EXPECT_GT((p1 - p0).cross(p2 - p0).z(), 0);
+        }
+      }
+  }
+}
+
 TEST(Ply, TruncatedDataThrows) {
   const std::string b = binary_square(false);
   for (std::size_t n = b.find("end_header") + 11; n < b.size(); ++n)

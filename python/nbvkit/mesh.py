@@ -86,10 +86,41 @@ def load_mesh(path: str | os.PathLike, scale: float = 1.0, up: str = "auto", shi
         if not np.isfinite(shift).all():
             raise ValueError(f"mesh shift must be finite, got {shift.tolist()}")
     p = check_input_file(path, "mesh file", MAX_DATA_FILE_BYTES)
+    if p.suffix.lower() in (".gltf", ".glb"):
+        _check_gltf_extensions(p)
     mesh = _core._load_mesh(os.fsencode(p), scale, file_up_axis(p, up))
     if shift is not None and shift.any():
         mesh = Mesh(np.asarray(mesh.vertices) + shift, mesh.faces)
     return mesh
+
+
+#: glTF extensions that change only a structure's appearance (materials, textures, lights):
+#: assimp may ignore them, required or not, with the geometry intact
+_GLTF_LOOKS = re.compile(r"^(KHR|EXT|MSFT|ADOBE)_(materials?|texture|lights)_")
+_GLTF_REQUIRED = re.compile(rb'"extensionsRequired"\s*:\s*\[([^\]]*)\]')
+
+
+def _check_gltf_extensions(p: Path) -> None:
+    """ValueError for a glTF or GLB file that requires an extension other than its look's: the
+    glTF specification has a loader refuse what it cannot read, and assimp 5.2 reads quantized
+    (KHR_mesh_quantization), meshopt- or Draco-compressed and instanced meshes wrongly or not at
+    all, without a word."""
+    import mmap
+
+    with open(p, "rb") as f:
+        if os.fstat(f.fileno()).st_size == 0:
+            return  # the loader names an empty file
+        with mmap.mmap(f.fileno(), 0, access=mmap.ACCESS_READ) as data:
+            found = _GLTF_REQUIRED.search(data)
+            names = re.findall(rb'"([^"]*)"', found.group(1)) if found else []
+    for name in (n.decode(errors="replace") for n in names):
+        if not _GLTF_LOOKS.match(name):
+            raise ValueError(
+                f"cannot read mesh '{p}': it requires the glTF extension {name[:60]}, which "
+                "nbvkit's glTF reader (assimp) does not read: its geometry would come out wrong. "
+                "Write the file without it (e.g. gltf-transform dequantize, or a decoder of the "
+                "compression)"
+            )
 
 
 def file_up_axis(path, up: str = "auto") -> str:

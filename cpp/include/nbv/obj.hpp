@@ -5,10 +5,11 @@
 // file's digits as doubles. It reads `v x y z [...]` (the first three numbers; `w` and vertex
 // colours are ignored) and `f` faces (`v`, `v/vt`, `v//vn`, `v/vt/vn`; negative indices count back
 // from the last vertex read; forward references are allowed). Polygons are triangulated keeping
-// their winding: convex ones as fans, non-convex ones (up to kObjMaxEarClipVertices vertices) by
-// ear clipping in their plane. Faces of fewer than three vertices (lines, points) and every
-// other statement (vt, vn, o, g, s, usemtl, mtllib, l, p, ...) are ignored: no other file is ever
-// opened. A trailing backslash continues a line; `#` starts a comment.
+// their winding (triangulate_polygon: convex ones as fans, non-convex ones of up to
+// kMaxEarClipVertices vertices by ear clipping in their plane). Faces of fewer than three vertices
+// (lines, points) and every other statement (vt, vn, o, g, s, usemtl, mtllib, l, p, ...) are
+// ignored: no other file is ever opened. A trailing backslash continues a line; `#` starts a
+// comment.
 //
 // Only vertices used by a triangle are kept, in file order; whether they are finite is left to
 // the mesh loader (load_mesh checks every format's face vertices the same way). Every problem
@@ -23,9 +24,6 @@
 #include <vector>
 
 namespace nbv {
-
-/// Non-convex polygons with more vertices than this are refused (ear clipping is quadratic).
-constexpr std::size_t kObjMaxEarClipVertices = 256;
 
 struct ObjData {
   Points vertices;  ///< (N, 3) the used vertices, in file order, as the file's digits (float64)

@@ -16,7 +16,7 @@ namespace nbv {
 
 struct PlyData {
   Points vertices;  ///< (N, 3) x y z of the "vertex" element; (0, 3) if the file has none
-  Faces faces;      ///< (M, 3) triangles of the "face" element (polygons as fans); may be empty
+  Faces faces;      ///< (M, 3) triangles of the "face" element (triangulate_polygon); may be empty
 };
 
 /// Parses a PLY file held in memory. With `read_faces` false the reader stops after the vertex
