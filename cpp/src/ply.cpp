@@ -140,6 +140,17 @@ class Body {
     pos_ += k;
   }
 
+  // ASCII: the end of a record's line (one record a line): more values on it throw, naming the
+  // record (a vertex count one short read the next vertex as a face). Binary: nothing to check.
+  void end_record(std::uint64_t r, const std::string& where) {
+    if (mode_ != 0) return;
+    while (pos_ < n_ && p_[pos_] != '\n' && std::isspace(p_[pos_])) ++pos_;
+    if (pos_ < n_ && p_[pos_] != '\n')
+      fail(where + ", record " + std::to_string(r) +
+           ": more values than its properties (an ASCII PLY holds one record a line; are the "
+           "header's counts and properties right?)");
+  }
+
  private:
   double ascii(const std::string& where) {
     while (pos_ < n_ && std::isspace(p_[pos_])) ++pos_;
@@ -308,12 +319,14 @@ PlyData parse_ply(const std::uint8_t* data, std::size_t size, bool read_faces) {
           fail(std::string("the PLY vertex element has no '") + static_cast<char>('x' + a) +
                "' property");
       out.vertices.resize(count, 3);
-      for (Eigen::Index r = 0; r < count; ++r)
+      for (Eigen::Index r = 0; r < count; ++r) {
         for (std::size_t i = 0; i < el.props.size(); ++i) {
           const double v = body.value(el.props[i].type, where);
           for (int a = 0; a < 3; ++a)
             if (col[a] == static_cast<int>(i)) out.vertices(r, a) = v;
         }
+        body.end_record(static_cast<std::uint64_t>(r), where);
+      }
       have_vertices = true;
       nv = count;
       continue;
@@ -329,7 +342,7 @@ PlyData parse_ply(const std::uint8_t* data, std::size_t size, bool read_faces) {
     if (faces && !is_integer(el.props[static_cast<std::size_t>(idx)].type))
       fail("PLY face indices must be of an integer type");
     std::vector<double> poly;
-    for (std::uint64_t r = 0; r < el.count; ++r)
+    for (std::uint64_t r = 0; r < el.count; ++r) {
       for (std::size_t i = 0; i < el.props.size(); ++i) {
         const Property& p = el.props[i];
         if (!p.list) {
@@ -366,6 +379,8 @@ PlyData parse_ply(const std::uint8_t* data, std::size_t size, bool read_faces) {
         }
         for (double v : poly) tri.push_back(static_cast<std::int32_t>(v));
       }
+      body.end_record(r, where);
+    }
   }
   if (!tri.empty()) {
     if (!have_vertices) fail("the PLY file has faces but no vertex element");

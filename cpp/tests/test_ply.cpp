@@ -192,6 +192,26 @@ TEST(Ply, BadHeadersThrow) {
   EXPECT_NE(error_of(parse_mesh, nonascii), "");
 }
 
+TEST(Ply, AnAsciiRecordIsOneLine) {
+  // a vertex count one short read the last vertex line as the face "3 1 2" plus a stray 0 ...
+  const std::string rows = "0 0 0\n1 0 0\n0 1 0\n5 5 5\n3 0 1 2\n";
+  const std::string short_count =
+      "ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\n"
+      "property float z\nelement face 2\nproperty list uchar int vertex_indices\nend_header\n";
+  EXPECT_NE(error_of([&] { parse(short_count + rows); })
+                .find("element 'face', record 0: more "
+                      "values than its properties"),
+            std::string::npos);
+  // ... and a vertex line holding more values than the properties says so, naming the record
+  EXPECT_NE(error_of([&] {
+              parse(header("ascii", 4, 1) + "0 0 0\n1 0 0 7\n1 1 0\n0 1 0\n3 0 1 2\n");
+            }).find("element 'vertex', record 1"),
+            std::string::npos);
+  // trailing blanks, CRLF and blank lines between records stay fine
+  const auto d = parse(header("ascii", 4, 1) + "0 0 0 \r\n1 0 0\t\r\n\n1 1 0\n0 1 0\n3 0 1 2  \n");
+  EXPECT_EQ(d.faces.rows(), 1);
+}
+
 TEST(Ply, CloudReadStopsAfterTheVertices) {
   const std::string s = binary_square(false);
   const std::string cut = s.substr(0, s.size() - 5);  // faces truncated, vertices whole
