@@ -15,15 +15,7 @@ namespace {
 
 nbv::ObjData parse(const std::string& s) { return nbv::parse_obj(s.data(), s.size()); }
 
-double area(const nbv::ObjData& d) {
-  double a = 0;
-  for (Eigen::Index i = 0; i < d.faces.rows(); ++i) {
-    const Eigen::Vector3d p0 = d.vertices.row(d.faces(i, 0)), p1 = d.vertices.row(d.faces(i, 1)),
-                          p2 = d.vertices.row(d.faces(i, 2));
-    a += 0.5 * (p1 - p0).cross(p2 - p0).norm();
-  }
-  return a;
-}
+using nbv_test::area_of;
 
 using nbv_test::error_of;
 
@@ -42,7 +34,7 @@ TEST(Obj, IndexFormsAndPolygons) {
       "v 0 0 0\nv 2 0 0\nv 2 2 0\nv 0 2 0\nvt 0 0\nvn 0 0 1\nf -4/1/1 -3/1/1 -2//1 -1/1\n"
       "v 0 0 5\nv 2 0 5\nv 2 1 5\nv 1 1 5\nv 1 2 5\nv 0 2 5\nf 5 6 7 8 9 10\n");
   EXPECT_EQ(d.faces.rows(), 2 + 4);
-  EXPECT_NEAR(area(d), 4.0 + 3.0, 1e-12);
+  EXPECT_NEAR(area_of(d), 4.0 + 3.0, 1e-12);
   for (Eigen::Index i = 0; i < d.faces.rows(); ++i) {  // the polygons' winding (+z) is kept
     const Eigen::Vector3d p0 = d.vertices.row(d.faces(i, 0)), p1 = d.vertices.row(d.faces(i, 1)),
                           p2 = d.vertices.row(d.faces(i, 2));
@@ -50,14 +42,14 @@ TEST(Obj, IndexFormsAndPolygons) {
   }
   // a concave quad (an arrowhead): the fan from its first vertex would cover the notch
   const auto q = parse("v 0 0 0\nv 2 1 0\nv 4 0 0\nv 2 3 0\nf 1 2 3 4\n");
-  EXPECT_NEAR(area(q), 4.0, 1e-12);  // 6 (the hull triangle) - 2 (the notch)
+  EXPECT_NEAR(area_of(q), 4.0, 1e-12);  // 6 (the hull triangle) - 2 (the notch)
 }
 
 TEST(Obj, AByteOrderMarkIsNotPartOfTheFirstStatement) {
   // "\xEF\xBB\xBFv" read as a statement of its own dropped vertex 1 and moved every index
   const auto d = parse("\xEF\xBB\xBFv 0 0 0\nv 1 0 0\nv 0 1 0\nv 5 5 5\nf 1 2 3\n");
   ASSERT_EQ(d.vertices.rows(), 3);
-  EXPECT_NEAR(area(d), 0.5, 1e-12);
+  EXPECT_NEAR(area_of(d), 0.5, 1e-12);
   EXPECT_EQ(d.vertices.maxCoeff(), 1.0);
 }
 
@@ -69,7 +61,7 @@ TEST(Obj, OtherStatementsAreIgnoredAndOnlyUsedVerticesKept) {
       "v 0 \\\n 2 0\nvt 0 0\nvn 0 0 1\nusemtl x\ns off\n"
       "f -4/1/1 -3/1/1 -2/1/1 -1/1/1  # a quad, relative indices\nl 1 2\nf 1 2\np 3\n");
   EXPECT_EQ(d.faces.rows(), 2);
-  EXPECT_NEAR(area(d), 4.0, 1e-12);
+  EXPECT_NEAR(area_of(d), 4.0, 1e-12);
   // a forward reference; the unused vertex is dropped, the others keep their file order
   const auto f = parse("f 2 3 4\nv 9 9 9\nv 0 0 0\nv 1 0 0\nv 0 1 0\n");
   Eigen::Matrix3d expected;

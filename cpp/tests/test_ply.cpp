@@ -92,15 +92,7 @@ TEST(Ply, PolygonsBecomeFansAndOtherPropertiesAreSkipped) {
   EXPECT_EQ(d.faces(1, 2), 3);
 }
 
-double area(const nbv::PlyData& d) {
-  double a = 0;
-  for (Eigen::Index i = 0; i < d.faces.rows(); ++i) {
-    const Eigen::Vector3d p0 = d.vertices.row(d.faces(i, 0)), p1 = d.vertices.row(d.faces(i, 1)),
-                          p2 = d.vertices.row(d.faces(i, 2));
-    a += 0.5 * (p1 - p0).cross(p2 - p0).norm();
-  }
-  return a;
-}
+using nbv_test::area_of;
 
 TEST(Ply, NonConvexPolygonsAreCutAsTheObjReaderCutsThem) {
   // a dart (area 1.5) and an L-shaped hexagon (area 5), from every start vertex: a fan from the
@@ -126,7 +118,7 @@ TEST(Ply, NonConvexPolygonsAreCutAsTheObjReaderCutsThem) {
                                  (faces_first ? face + "\n" + verts : verts + face + "\n");
         const auto d = parse(text);
         ASSERT_EQ(d.faces.rows(), static_cast<Eigen::Index>(n - 2));
-        EXPECT_NEAR(area(d), areas[s], 1e-12) << s << " from " << start;
+        EXPECT_NEAR(area_of(d), areas[s], 1e-12) << s << " from " << start;
         for (Eigen::Index i = 0; i < d.faces.rows(); ++i) {  // the winding (+z) is kept
           const Eigen::Vector3d p0 = d.vertices.row(d.faces(i, 0)),
                                 p1 = d.vertices.row(d.faces(i, 1)),

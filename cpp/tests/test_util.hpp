@@ -1,6 +1,8 @@
 // Helpers shared by the GoogleTest files.
 #pragma once
 
+#include <Eigen/Dense>
+
 #include <functional>
 #include <stdexcept>
 #include <string>
@@ -18,6 +20,18 @@ std::string error_of(F&& f, Args&&... args) {
     return e.what();
   }
   return "";
+}
+
+/// The summed area of a mesh reader's triangles (`d.faces` into `d.vertices`: ObjData, PlyData).
+template <class Data>
+double area_of(const Data& d) {
+  double a = 0;
+  for (Eigen::Index i = 0; i < d.faces.rows(); ++i) {
+    const Eigen::Vector3d p0 = d.vertices.row(d.faces(i, 0)), p1 = d.vertices.row(d.faces(i, 1)),
+                          p2 = d.vertices.row(d.faces(i, 2));
+    a += 0.5 * (p1 - p0).cross(p2 - p0).norm();
+  }
+  return a;
 }
 
 }  // namespace nbv_test
