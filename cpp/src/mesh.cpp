@@ -449,11 +449,13 @@ Mesh load_mesh(const std::string& path, double scale, char up) {
                  [](unsigned char c) { return std::tolower(c); });
   if (ext == ".ply") return load_ply_mesh(path, scale, up);
   if (ext == ".obj") return load_obj_mesh(path, scale, up);
-  if (ext == ".zae")  // assimp reads the zipped file past check_collada's guard
-    throw std::invalid_argument("cannot read mesh '" + path +
-                                "': zipped Collada (.zae) is not read; unzip it and load the "
-                                ".dae file inside");
   const std::string head = read_file_head(path, 4096, "mesh", kMaxMeshFileBytes);
+  // A zip archive (zipped Collada, whatever its name) would reach assimp past check_collada's
+  // guard: refused, but for 3MF, which is a zip by its format.
+  if (ext != ".3mf" && (head.rfind("PK\x03\x04", 0) == 0 || head.rfind("PK\x05\x06", 0) == 0))
+    throw std::invalid_argument("cannot read mesh '" + path +
+                                "': it is a zip archive (zipped Collada, .zae, or another); "
+                                "unzip it and load the mesh file inside");
   if (ext == ".dae" || ext == ".xml" || head.find("<COLLADA") != std::string::npos)
     check_collada(path);
 

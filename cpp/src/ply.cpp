@@ -140,21 +140,37 @@ class Body {
     pos_ += k;
   }
 
-  // ASCII: the end of a record's line (one record a line): more values on it throw, naming the
-  // record (a vertex count one short read the next vertex as a face). Binary: nothing to check.
+  // ASCII: the end of a record's line (one record a line, ended by LF, CRLF or CR): more values
+  // on it throw, naming the record, as a record running onto the next line does (ascii). Binary:
+  // nothing to check.
   void end_record(std::uint64_t r, const std::string& where) {
     if (mode_ != 0) return;
-    while (pos_ < n_ && p_[pos_] != '\n' && std::isspace(p_[pos_])) ++pos_;
-    if (pos_ < n_ && p_[pos_] != '\n')
+    while (pos_ < n_ && (p_[pos_] == ' ' || p_[pos_] == '\t')) ++pos_;
+    if (pos_ < n_ && p_[pos_] != '\n' && p_[pos_] != '\r')
       fail(where + ", record " + std::to_string(r) +
            ": more values than its properties (an ASCII PLY holds one record a line; are the "
            "header's counts and properties right?)");
+    record_ = r + 1;
+    in_record_ = false;
+  }
+
+  // An element's records begin (ASCII messages count its records from 0).
+  void start_element() {
+    record_ = 0;
+    in_record_ = false;
   }
 
  private:
   double ascii(const std::string& where) {
-    while (pos_ < n_ && std::isspace(p_[pos_])) ++pos_;
+    bool crossed = false;  // a line's end between two values of one record
+    for (; pos_ < n_ && std::isspace(p_[pos_]); ++pos_)
+      crossed = crossed || p_[pos_] == '\n' || p_[pos_] == '\r';
     if (pos_ == n_) fail("truncated in " + where);
+    if (in_record_ && crossed)
+      fail(where + ", record " + std::to_string(record_) +
+           ": fewer values than its properties (an ASCII PLY holds one record a line; are the "
+           "header's counts and properties right?)");
+    in_record_ = true;
     std::size_t e = pos_;
     while (e < n_ && !std::isspace(p_[e])) ++e;
     if (e - pos_ > 64) fail("bad number in " + where);
@@ -172,7 +188,9 @@ class Body {
 
   const std::uint8_t* p_;
   std::size_t n_, pos_ = 0;
-  int mode_;  // 0 ascii, 1 binary little endian, 2 binary big endian
+  int mode_;                  // 0 ascii, 1 binary little endian, 2 binary big endian
+  std::uint64_t record_ = 0;  // ASCII: the record being read (its element's), for messages
+  bool in_record_ = false;    // ASCII: a value of the record was read
 };
 
 // Smallest number of bytes one record of `e` takes in the body.
@@ -280,8 +298,8 @@ PlyData parse_ply(const std::uint8_t* data, std::size_t size, bool read_faces) {
   bool have_vertices = false;
   Body body(data + pos, body_size, mode);
   std::vector<std::int32_t> tri;  // flat triangles
-  // Polygons of more than 3 vertices, triangulated once the vertices are read (a face element
-  // may come first): their n - 2 triangles' place in tri, their face number and vertices.
+  // Faces read before the vertex element, cut once the vertices are read: their n - 2
+  // triangles' place in tri, their face number and their vertices in `polys`.
   struct Pending {
     std::size_t at;
     std::uint64_t face;
@@ -290,6 +308,23 @@ PlyData parse_ply(const std::uint8_t* data, std::size_t size, bool read_faces) {
   std::vector<Pending> pending;
   std::vector<std::int32_t> polys;
   std::int64_t nv = -1;
+  // A face's polygon (indices in range of 32 bits) into tri: cut now when the vertices are read
+  // (indices checked against them), else its slots kept for later.
+  const auto add_face = [&](const std::vector<std::int32_t>& idx, std::uint64_t face) {
+    const std::size_t n = idx.size();
+    if (!have_vertices) {
+      pending.push_back({tri.size(), face, polys.size(), n});
+      polys.insert(polys.end(), idx.begin(), idx.end());
+      tri.resize(tri.size() + 3 * (n - 2));
+      return;
+    }
+    for (const std::int32_t v : idx)
+      if (v >= nv)
+        fail("face " + std::to_string(face) + ": vertex index " + std::to_string(v) +
+             " out of range (" + std::to_string(nv) + " vertices)");
+    if (!triangulate_polygon(idx.data(), n, out.vertices.data(), tri))
+      fail("face " + std::to_string(face) + ": " + polygon_too_large(n));
+  };
   for (const auto& el : elements) {
     if (!read_faces && have_vertices) break;
     if (el.props.empty() || el.count == 0) {
@@ -319,6 +354,7 @@ PlyData parse_ply(const std::uint8_t* data, std::size_t size, bool read_faces) {
           fail(std::string("the PLY vertex element has no '") + static_cast<char>('x' + a) +
                "' property");
       out.vertices.resize(count, 3);
+      body.start_element();
       for (Eigen::Index r = 0; r < count; ++r) {
         for (std::size_t i = 0; i < el.props.size(); ++i) {
           const double v = body.value(el.props[i].type, where);
@@ -341,7 +377,8 @@ PlyData parse_ply(const std::uint8_t* data, std::size_t size, bool read_faces) {
     if (faces && idx < 0) fail("the PLY face element has no 'vertex_indices' list");
     if (faces && !is_integer(el.props[static_cast<std::size_t>(idx)].type))
       fail("PLY face indices must be of an integer type");
-    std::vector<double> poly;
+    std::vector<std::int32_t> poly;
+    body.start_element();
     for (std::uint64_t r = 0; r < el.count; ++r) {
       for (std::size_t i = 0; i < el.props.size(); ++i) {
         const Property& p = el.props[i];
@@ -364,44 +401,30 @@ PlyData parse_ply(const std::uint8_t* data, std::size_t size, bool read_faces) {
         for (std::int64_t j = 0; j < k; ++j) {
           const double v = body.value(p.type, where);
           if (v != std::floor(v)) fail("non-integer face index in " + where);
-          poly.push_back(v);
-        }
-        if (k < 3) continue;  // points and lines dropped
-        for (double v : poly)
           if (v < 0 || v > 2147483647.0)
             fail("face " + std::to_string(r) + ": vertex index " +
                  std::to_string(static_cast<long long>(v)) + " out of range");
-        if (k > 3) {
-          pending.push_back({tri.size(), r, polys.size(), static_cast<std::size_t>(k)});
-          for (double v : poly) polys.push_back(static_cast<std::int32_t>(v));
-          tri.resize(tri.size() + 3 * static_cast<std::size_t>(k - 2));
-          continue;
+          poly.push_back(static_cast<std::int32_t>(v));
         }
-        for (double v : poly) tri.push_back(static_cast<std::int32_t>(v));
+        if (k >= 3) add_face(poly, r);  // points and lines dropped
       }
       body.end_record(r, where);
     }
   }
   if (!tri.empty()) {
     if (!have_vertices) fail("the PLY file has faces but no vertex element");
-    std::vector<std::int32_t> cut;
-    for (const Pending& p : pending) {
-      for (std::size_t j = p.first; j < p.first + p.n; ++j)
-        if (polys[j] >= nv)
-          fail("face " + std::to_string(p.face) + ": vertex index " + std::to_string(polys[j]) +
-               " out of range (" + std::to_string(nv) + " vertices)");
+    std::vector<std::int32_t> cut, idx;
+    for (const Pending& p : pending) {  // the faces before the vertices, in their places
+      const auto first = polys.begin() + static_cast<std::ptrdiff_t>(p.first);
+      idx.assign(first, first + static_cast<std::ptrdiff_t>(p.n));
       cut.clear();
-      if (!triangulate_polygon(&polys[p.first], p.n, out.vertices.data(), cut))
-        fail("face " + std::to_string(p.face) + ": " + polygon_too_large(p.n));
+      cut.swap(tri);  // tri empty: add_face appends the face's triangles there
+      add_face(idx, p.face);
+      tri.swap(cut);  // cut: those triangles; tri: all of them, their slots waiting
       std::copy(cut.begin(), cut.end(), tri.begin() + static_cast<std::ptrdiff_t>(p.at));
     }
     out.faces.resize(static_cast<Eigen::Index>(tri.size() / 3), 3);
-    for (std::size_t i = 0; i < tri.size(); ++i) {
-      if (tri[i] >= nv)
-        fail("face " + std::to_string(i / 3) + ": vertex index " + std::to_string(tri[i]) +
-             " out of range (" + std::to_string(nv) + " vertices)");
-      out.faces(static_cast<Eigen::Index>(i / 3), static_cast<Eigen::Index>(i % 3)) = tri[i];
-    }
+    std::copy(tri.begin(), tri.end(), out.faces.data());
   }
   return out;
 }

@@ -185,23 +185,33 @@ TEST(Ply, BadHeadersThrow) {
 }
 
 TEST(Ply, AnAsciiRecordIsOneLine) {
-  // a vertex count one short read the last vertex line as the face "3 1 2" plus a stray 0 ...
-  const std::string rows = "0 0 0\n1 0 0\n0 1 0\n5 5 5\n3 0 1 2\n";
-  const std::string short_count =
-      "ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\n"
-      "property float z\nelement face 2\nproperty list uchar int vertex_indices\nend_header\n";
-  EXPECT_NE(error_of([&] { parse(short_count + rows); })
-                .find("element 'face', record 0: more "
-                      "values than its properties"),
+  const auto error = [](const std::string& text) { return error_of([&] { parse(text); }); };
+  const std::string xyz = "property float x\nproperty float y\nproperty float z\n";
+  const std::string face = "element face 1\nproperty list uchar int vertex_indices\n";
+  // a face line one value short ran onto the next line: the triangle (1, 2, 3) of the wrong
+  // vertices, loaded without a word
+  EXPECT_NE(error("ply\nformat ascii 1.0\nelement vertex 5\n" + xyz + face + "end_header\n" +
+                  "0 0 0\n1 0 0\n0 1 0\n5 5 5\n9 9 9\n3 1 2\n3 0 1 2\n")
+                .find("element 'face', record 0: fewer values than its properties"),
             std::string::npos);
-  // ... and a vertex line holding more values than the properties says so, naming the record
-  EXPECT_NE(error_of([&] {
-              parse(header("ascii", 4, 1) + "0 0 0\n1 0 0 7\n1 1 0\n0 1 0\n3 0 1 2\n");
-            }).find("element 'vertex', record 1"),
+  // normals declared and not written: every vertex took the next one's values
+  EXPECT_NE(error("ply\nformat ascii 1.0\nelement vertex 3\n" + xyz +
+                  "property float nx\nproperty float ny\nproperty float nz\nelement face 3\n"
+                  "property list uchar int vertex_indices\nend_header\n0 0 0\n1 0 0\n0 1 0\n" +
+                  "3 0 1 2\n3 0 1 2\n3 0 1 2\n")
+                .find("element 'vertex', record 0: fewer values"),
             std::string::npos);
-  // trailing blanks, CRLF and blank lines between records stay fine
-  const auto d = parse(header("ascii", 4, 1) + "0 0 0 \r\n1 0 0\t\r\n\n1 1 0\n0 1 0\n3 0 1 2  \n");
-  EXPECT_EQ(d.faces.rows(), 1);
+  // a vertex line holding more values than the properties
+  EXPECT_NE(error(header("ascii", 4, 1) + "0 0 0\n1 0 0 7\n1 1 0\n0 1 0\n3 0 1 2\n")
+                .find("element 'vertex', record 1: more values"),
+            std::string::npos);
+  // trailing blanks, CRLF, CR alone and blank lines between records stay fine
+  for (const std::string body : {std::string("0 0 0 \r\n1 0 0\t\r\n\n1 1 0\n0 1 0\n3 0 1 2  \n"),
+                                 std::string("0 0 0\r1 0 0\r1 1 0\r0 1 0\r3 0 1 2\r")}) {
+    const auto d = parse(header("ascii", 4, 1) + body);
+    EXPECT_EQ(d.faces.rows(), 1);
+    EXPECT_DOUBLE_EQ(d.vertices(2, 1), 1.0);
+  }
 }
 
 TEST(Ply, CloudReadStopsAfterTheVertices) {

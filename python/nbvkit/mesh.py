@@ -86,7 +86,7 @@ def load_mesh(path: str | os.PathLike, scale: float = 1.0, up: str = "auto", shi
         if not np.isfinite(shift).all():
             raise ValueError(f"mesh shift must be finite, got {shift.tolist()}")
     p = check_input_file(path, "mesh file", MAX_DATA_FILE_BYTES)
-    if p.suffix.lower() in (".gltf", ".glb"):
+    if p.suffix.lower() not in (".ply", ".obj"):  # assimp's: a glTF told by its content
         _check_gltf_extensions(p)
     mesh = _core._load_mesh(os.fsencode(p), scale, file_up_axis(p, up))
     if shift is not None and shift.any():
@@ -95,26 +95,43 @@ def load_mesh(path: str | os.PathLike, scale: float = 1.0, up: str = "auto", shi
 
 
 #: glTF extensions that change only a structure's appearance (materials, textures, lights):
-#: assimp may ignore them, required or not, with the geometry intact
-_GLTF_LOOKS = re.compile(r"^(KHR|EXT|MSFT|ADOBE)_(materials?|texture|lights)_")
-_GLTF_REQUIRED = re.compile(rb'"extensionsRequired"\s*:\s*\[([^\]]*)\]')
+#: assimp may ignore them, required or not, with the geometry intact; Draco it decodes
+_GLTF_READ = re.compile(r"^((KHR|EXT|MSFT|ADOBE)_(materials?|texture|lights)_|KHR_draco_mesh_)")
+#: a glTF's JSON is parsed for its required extensions up to this size (larger: not checked)
+_GLTF_JSON_MAX = 512 << 20
+
+
+def _gltf_json(p: Path) -> dict | None:
+    """The JSON of a glTF file (a .gltf's text, a GLB's first chunk), told by its content, as
+    assimp tells it; None for any other file, or one too large or malformed to tell."""
+    import json
+    import struct
+
+    with open(p, "rb") as f:
+        head = f.read(20)
+        if head[:4] == b"glTF" and len(head) == 20:  # GLB: header, then the JSON chunk's
+            n, kind = struct.unpack("<I4s", head[12:20])
+            text = f.read(n) if kind == b"JSON" and n <= _GLTF_JSON_MAX else b""
+        elif head.lstrip()[:1] == b"{" and os.fstat(f.fileno()).st_size <= _GLTF_JSON_MAX:
+            text = head + f.read()
+        else:
+            return None
+    try:
+        doc = json.loads(text)
+    except ValueError:
+        return None  # the loader names what is wrong with it
+    return doc if isinstance(doc, dict) and "asset" in doc else None
 
 
 def _check_gltf_extensions(p: Path) -> None:
-    """ValueError for a glTF or GLB file that requires an extension other than its look's: the
-    glTF specification has a loader refuse what it cannot read, and assimp 5.2 reads quantized
-    (KHR_mesh_quantization), meshopt- or Draco-compressed and instanced meshes wrongly or not at
-    all, without a word."""
-    import mmap
-
-    with open(p, "rb") as f:
-        if os.fstat(f.fileno()).st_size == 0:
-            return  # the loader names an empty file
-        with mmap.mmap(f.fileno(), 0, access=mmap.ACCESS_READ) as data:
-            found = _GLTF_REQUIRED.search(data)
-            names = re.findall(rb'"([^"]*)"', found.group(1)) if found else []
-    for name in (n.decode(errors="replace") for n in names):
-        if not _GLTF_LOOKS.match(name):
+    """ValueError for a glTF or GLB file whose top-level extensionsRequired names an extension
+    assimp does not read (but for its look's): the glTF specification has a loader refuse what
+    it cannot read, and assimp 5.2 reads quantized (KHR_mesh_quantization), meshopt-compressed
+    and instanced meshes wrongly or not at all, without a word."""
+    doc = _gltf_json(p)
+    required = doc.get("extensionsRequired") if doc else None
+    for name in required if isinstance(required, list) else ():
+        if isinstance(name, str) and not _GLTF_READ.match(name):
             raise ValueError(
                 f"cannot read mesh '{p}': it requires the glTF extension {name[:60]}, which "
                 "nbvkit's glTF reader (assimp) does not read: its geometry would come out wrong. "
