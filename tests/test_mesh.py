@@ -167,10 +167,12 @@ def test_an_auto_up_axis_is_the_one_the_files_format_defines(tmp_path):
         "collada.xml": _dae_up(tall, None),
         "collada.model": _dae_up(tall, None),
         "binary.glb": _glb(tall),
+        "gltf.json": gltf_file(tall, CUBE_F),  # a glTF by its content, as assimp reads it
     }
     for name, data in odd.items():
         (tmp_path / name).write_bytes(data)
-    assert [nbvkit.file_up_axis(tmp_path / n) for n in odd] == ["z", "y", "y", "y", "y"]
+    assert [nbvkit.file_up_axis(tmp_path / n) for n in odd] == ["z", "y", "y", "y", "y", "y"]
+    np.testing.assert_allclose(nbvkit.load_mesh(tmp_path / "gltf.json").bounds, turned, atol=1e-6)
     np.testing.assert_allclose(nbvkit.load_mesh(tmp_path / "binary.glb").bounds, turned, atol=1e-6)
     x_up = tmp_path / "x_up.dae"
     x_up.write_bytes(_dae_up(tall, "X_UP"))

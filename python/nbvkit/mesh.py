@@ -86,7 +86,7 @@ def load_mesh(path: str | os.PathLike, scale: float = 1.0, up: str = "auto", shi
         if not np.isfinite(shift).all():
             raise ValueError(f"mesh shift must be finite, got {shift.tolist()}")
     p = check_input_file(path, "mesh file", MAX_DATA_FILE_BYTES)
-    if p.suffix.lower() not in (".ply", ".obj"):  # assimp's: a glTF told by its content
+    if _format_of(p) == "gltf":
         _check_gltf_extensions(p)
     mesh = _core._load_mesh(os.fsencode(p), scale, file_up_axis(p, up))
     if shift is not None and shift.any():
@@ -101,9 +101,27 @@ _GLTF_READ = re.compile(r"^((KHR|EXT|MSFT|ADOBE)_(materials?|texture|lights)_|KH
 _GLTF_JSON_MAX = 512 << 20
 
 
+def _format_of(p: Path) -> str:
+    """ "gltf", "collada" or "" (any other) for the mesh file `p` (a regular file), told as the
+    loader tells it: by its suffix, else its head (a GLB's magic, a JSON object naming its
+    "asset", ``<COLLADA``). PLY and OBJ are nbvkit's own readers' whatever they hold."""
+    suffix = p.suffix.lower()
+    if suffix in (".ply", ".obj"):
+        return ""
+    if suffix in (".gltf", ".glb"):
+        return "gltf"
+    if suffix in (".dae", ".xml"):
+        return "collada"
+    with open(p, "rb") as f:
+        head = f.read(4096)
+    if head[:4] == b"glTF" or (head.lstrip()[:1] == b"{" and b'"asset"' in head):
+        return "gltf"
+    return "collada" if b"<COLLADA" in head else ""
+
+
 def _gltf_json(p: Path) -> dict | None:
-    """The JSON of a glTF file (a .gltf's text, a GLB's first chunk), told by its content, as
-    assimp tells it; None for any other file, or one too large or malformed to tell."""
+    """The JSON of a glTF file (a .gltf's text, a GLB's first chunk); None for one too large or
+    malformed to tell."""
     import json
     import struct
 
@@ -142,26 +160,24 @@ def _check_gltf_extensions(p: Path) -> None:
 
 def file_up_axis(path, up: str = "auto") -> str:
     """The up axis ("y" or "z") the mesh file `path` is loaded with: `up` itself unless it is
-    "auto"; then the one the file's format defines: glTF and GLB y (the glTF 2.0 specification:
-    +Y is up), Collada its root ``<asset><up_axis>`` (Y_UP where it gives none, as the Collada
-    specification has it; a file is Collada as the loader tells it: .dae, .xml, or ``<COLLADA``
-    in its head), any other format z: OBJ, STL and PLY record none, and FBX, 3DS and the rest
+    "auto"; then the one the file's format defines (told as the loader tells it: _format_of):
+    glTF and GLB y (the glTF 2.0 specification: +Y is up), Collada its root
+    ``<asset><up_axis>`` (Y_UP where it gives none, as the Collada specification has it), any
+    other format z: OBJ, STL and PLY record none, and FBX, 3DS and the rest
     assimp reads are taken as they are. A Collada file whose up axis is X_UP is a ValueError
     naming it (set mesh.up to load it)."""
     if _UP.get(up) is None:
         raise ValueError(f"mesh up axis must be 'auto', 'y' or 'z', got {up!r}")
     if _UP[up] != "auto":
         return _UP[up]
-    suffix = Path(os.fsdecode(path)).suffix.lower()
-    if suffix in (".gltf", ".glb"):
-        return "y"
-    if suffix in (".ply", ".obj"):  # nbvkit's own readers
-        return "z"
+    if Path(os.fsdecode(path)).suffix.lower() in (".ply", ".obj"):
+        return "z"  # nbvkit's own readers, whatever the file holds: nothing to read
     p = check_input_file(path, "mesh file", MAX_DATA_FILE_BYTES)  # not a FIFO, a device, ...
+    kind = _format_of(p)
+    if kind != "collada":
+        return "y" if kind == "gltf" else "z"
     with open(p, "rb") as f:
         head = f.read(1 << 20)
-    if suffix not in (".dae", ".xml") and b"<COLLADA" not in head[:4096]:
-        return "z"
     asset = _DAE_ASSET.search(_XML_COMMENT.sub(b"", head))  # the root's: the first one
     found = _DAE_UP.search(asset.group(0)) if asset else None
     axis = found.group(1).upper() if found else b"Y_UP"
