@@ -81,6 +81,52 @@ def test_collada_node_transforms_are_applied(tmp_path):
     assert xs.min() == pytest.approx(0.0) and xs.max() == pytest.approx(11.0)
 
 
+def _outward(m, centres) -> bool:
+    """Whether every triangle of `m` faces away from the nearest of `centres` (convex parts)."""
+    v, f = m.vertices, m.faces
+    a, b, c = v[f[:, 0]], v[f[:, 1]], v[f[:, 2]]
+    mid = (a + b + c) / 3
+    near = centres[np.argmin(np.linalg.norm(mid[:, None] - centres[None], axis=2), axis=1)]
+    return bool(np.all(np.einsum("ij,ij->i", np.cross(b - a, c - a), mid - near) > 0))
+
+
+def test_mirroring_node_transforms_keep_parts_outside_out(tmp_path):
+    """Nested glTF nodes (a parent's translation, a child mirrored in x, another rotated) and a
+    Collada <matrix> of determinant -1 place their parts where the transforms, composed here in
+    numpy, put them; every part's triangles still face outwards (the seed cube's do)."""
+    import json
+
+    cube = np.array(CUBE_V, float)
+    assert _outward(nbvkit.Mesh(cube, np.array(CUBE_F, np.int32)), np.array([[0.5] * 3]))
+    doc = json.loads(gltf_file(CUBE_V, CUBE_F))
+    doc["scenes"] = [{"nodes": [0]}]
+    s = np.sqrt(0.5)  # a quarter turn about x: (x, y, z) -> (x, -z, y)
+    doc["nodes"] = [
+        {"translation": [5, 0, 0], "children": [1, 2]},
+        {"mesh": 0, "scale": [-1, 1, 1]},
+        {"mesh": 0, "rotation": [s, 0, 0, s], "translation": [0, 3, 0]},
+    ]
+    p = tmp_path / "mirrored.gltf"
+    p.write_text(json.dumps(doc))
+    mirrored = cube * [-1, 1, 1] + [5, 0, 0]
+    turned = cube[:, [0, 2, 1]] * [1, -1, 1] + [5, 3, 0]
+    m = nbvkit.load_mesh(p, up="z")
+    assert m.num_triangles == 24
+    np.testing.assert_allclose(m.bounds, [[4, 0, 0], [6, 3, 1]], atol=1e-6)
+    centres = np.array([mirrored.mean(axis=0), turned.mean(axis=0)])
+    for part in (mirrored, turned):  # every vertex of each placed cube is a vertex of the mesh
+        assert np.min(np.linalg.norm(m.vertices[None] - part[:, None], axis=2), axis=1).max() < 1e-6
+    assert _outward(m, centres)
+    assert m.area == pytest.approx(12.0)
+
+    dae = tmp_path / "mirrored.dae"
+    matrix = "<matrix>-1 0 0 0 0 1 0 0 0 0 1 0 0 0 0 1</matrix>"
+    dae.write_bytes(dae_file().replace(b'<node id="n">', f'<node id="n">{matrix}'.encode()))
+    m = nbvkit.load_mesh(dae)
+    np.testing.assert_allclose(m.bounds, [[-1, 0, 0], [0, 1, 1]], atol=1e-6)
+    assert _outward(m, np.array([[-0.5, 0.5, 0.5]]))
+
+
 # (.glb written by open3d 0.16 is rejected by assimp 5.2.5: "buffer view out of range")
 @pytest.mark.parametrize("ext", [".stl", ".ply", ".obj", ".gltf"])
 def test_formats_written_by_open3d(tmp_path, ext):

@@ -271,25 +271,16 @@ Mesh load_obj_mesh(const std::string& path, double scale, char up) {
                      obj.file_number);
 }
 
-// Files assimp reads arrive in float32 (Debian's assimp has ai_real = float). Refuses a mesh
-// whose coordinates are large enough that float32 rounds them by more than
-// kMaxFloat32RoundingMetres (after `scale`): half the float32 spacing at the largest magnitude.
-// At scale 1 that is every coordinate of magnitude 32768 m (2^15) or more (spacing 3.9 mm); up
-// to there the rounding is at most 0.98 mm. The message says whether the file itself stores
-// float32 (binary STL, glTF) or assimp dropped the file's digits (text formats); `head` is the
-// file's start (at least 84 bytes of a binary STL).
-void check_float32_precision(const aiScene& scene, const std::string& path, const std::string& ext,
+// Files assimp reads arrive in float32 (Debian's assimp has ai_real = float), node transforms
+// too. Refuses a mesh whose placed coordinates (`placed`, in file units) are large enough that
+// float32 rounds them by more than kMaxFloat32RoundingMetres (after `scale`): half the float32
+// spacing at the largest magnitude. At scale 1 that is every coordinate of magnitude 32768 m (2^15)
+// or more (spacing 3.9 mm); up to there the rounding is at most 0.98 mm. The message says whether
+// the file itself stores float32 (binary STL, glTF) or assimp dropped the file's digits (text
+// formats); `head` is the file's start (at least 84 bytes of a binary STL).
+void check_float32_precision(const Points& placed, const std::string& path, const std::string& ext,
                              const std::string& head, double scale) {
-  float amax = 0;
-  for (unsigned m = 0; m < scene.mNumMeshes; ++m) {
-    const aiMesh* mesh = scene.mMeshes[m];
-    if (!(mesh->mPrimitiveTypes & aiPrimitiveType_TRIANGLE)) continue;
-    for (unsigned v = 0; v < mesh->mNumVertices; ++v) {
-      const aiVector3D& p = mesh->mVertices[v];
-      amax = std::max({amax, std::abs(static_cast<float>(p.x)), std::abs(static_cast<float>(p.y)),
-                       std::abs(static_cast<float>(p.z))});
-    }
-  }
+  const float amax = placed.rows() ? static_cast<float>(placed.cwiseAbs().maxCoeff()) : 0.0f;
   if (!std::isfinite(amax)) return;  // validate_loaded refuses it
   const double spacing =
       static_cast<double>(std::nextafter(amax, std::numeric_limits<float>::infinity())) - amax;
@@ -330,6 +321,69 @@ void check_float32_precision(const aiScene& scene, const std::string& path, cons
       " (file units; mesh scale " + fmt(scale) + "), where float32 numbers are " +
       fmt(spacing * scale) + " m apart: vertices would be off by up to " + fmt(rounding) +
       " m, more than the " + fmt(kMaxFloat32RoundingMetres) + " m nbvkit accepts; " + why);
+}
+
+// The triangles of every mesh instance in the node tree, placed by the node's accumulated
+// transform (in double precision) and in file units: `vertices` (N, 3), `faces` (M, 3). A
+// transform that mirrors (negative determinant) turns the winding: its triangles are written
+// reversed, so a mirrored part is not inside-out (assimp's PreTransformVertices keeps the
+// winding). Deep node trees are walked without recursion; a scene placing more vertices than
+// int32 indices address is refused.
+void place_instances(const aiScene& scene, const std::string& path, Points& vertices,
+                     Faces& faces) {
+  using Matrix = Eigen::Matrix4d;
+  const auto matrix = [](const aiMatrix4x4& a) {
+    Matrix m;
+    for (int r = 0; r < 4; ++r)
+      for (int c = 0; c < 4; ++c) m(r, c) = a[r][c];
+    return m;
+  };
+  struct Instance {
+    const aiMesh* mesh;
+    Matrix m;
+  };
+  std::vector<Instance> instances;
+  std::int64_t nv = 0, nf = 0;
+  std::vector<std::pair<const aiNode*, Matrix>> stack;
+  if (scene.mRootNode)
+    stack.emplace_back(scene.mRootNode, matrix(scene.mRootNode->mTransformation));
+  while (!stack.empty()) {
+    const auto [node, m] = stack.back();
+    stack.pop_back();
+    for (unsigned i = 0; i < node->mNumMeshes; ++i) {
+      if (node->mMeshes[i] >= scene.mNumMeshes) continue;
+      const aiMesh* mesh = scene.mMeshes[node->mMeshes[i]];
+      if (!(mesh->mPrimitiveTypes & aiPrimitiveType_TRIANGLE)) continue;
+      instances.push_back({mesh, m});
+      nv += mesh->mNumVertices;
+      for (unsigned f = 0; f < mesh->mNumFaces; ++f) nf += mesh->mFaces[f].mNumIndices == 3;
+      if (nv > std::numeric_limits<std::int32_t>::max())
+        throw std::invalid_argument("cannot read mesh '" + path +
+                                    "': its nodes place more than 2^31 vertices");
+    }
+    for (unsigned c = node->mNumChildren; c-- > 0;)  // children in file order
+      stack.emplace_back(node->mChildren[c], m * matrix(node->mChildren[c]->mTransformation));
+  }
+  vertices.resize(nv, 3);
+  faces.resize(nf, 3);
+  Eigen::Index vbase = 0, fi = 0;
+  for (const Instance& in : instances) {
+    const Eigen::Matrix3d linear = in.m.topLeftCorner<3, 3>();
+    const Eigen::Vector3d shift = in.m.topRightCorner<3, 1>();
+    const bool mirrored = linear.determinant() < 0;
+    for (unsigned v = 0; v < in.mesh->mNumVertices; ++v) {
+      const aiVector3D& p = in.mesh->mVertices[v];
+      vertices.row(vbase + v) = (linear * Eigen::Vector3d(p.x, p.y, p.z) + shift).transpose();
+    }
+    for (unsigned f = 0; f < in.mesh->mNumFaces; ++f) {
+      const aiFace& face = in.mesh->mFaces[f];
+      if (face.mNumIndices != 3) continue;
+      for (int k = 0; k < 3; ++k)
+        faces(fi, mirrored && k ? 3 - k : k) = static_cast<std::int32_t>(vbase + face.mIndices[k]);
+      ++fi;
+    }
+    vbase += in.mesh->mNumVertices;
+  }
 }
 
 bool all_digits(const std::string& v) {
@@ -474,8 +528,9 @@ Mesh load_mesh(const std::string& path, double scale, char up) {
   importer.SetPropertyBool(AI_CONFIG_IMPORT_COLLADA_IGNORE_UP_DIRECTION, true);
   importer.SetPropertyInteger(AI_CONFIG_PP_SBP_REMOVE,
                               aiPrimitiveType_POINT | aiPrimitiveType_LINE);
-  const unsigned flags = aiProcess_Triangulate | aiProcess_PreTransformVertices |
-                         aiProcess_SortByPType | aiProcess_JoinIdenticalVertices;
+  // Node transforms are applied by place_instances, not by aiProcess_PreTransformVertices.
+  const unsigned flags =
+      aiProcess_Triangulate | aiProcess_SortByPType | aiProcess_JoinIdenticalVertices;
   // Read first without post-processing: JoinIdenticalVertices would merge a vertex with a NaN
   // coordinate into another vertex (NaN compares equal to nothing, assimp's hashing takes it for
   // a neighbour), and the mesh would load with the wrong shape and area.
@@ -490,41 +545,11 @@ Mesh load_mesh(const std::string& path, double scale, char up) {
     throw std::invalid_argument("cannot read mesh '" + path +
                                 "': " + printable_ascii(importer.GetErrorString()));
 
-  std::size_t nv = 0, nf = 0;
-  for (unsigned m = 0; m < scene->mNumMeshes; ++m) {
-    const aiMesh* mesh = scene->mMeshes[m];
-    if (!(mesh->mPrimitiveTypes & aiPrimitiveType_TRIANGLE)) continue;
-    nv += mesh->mNumVertices;
-    for (unsigned f = 0; f < mesh->mNumFaces; ++f) nf += mesh->mFaces[f].mNumIndices == 3;
-  }
-  if (nf == 0) throw std::invalid_argument("mesh file '" + path + "' contains no triangles");
-  check_float32_precision(*scene, path, ext, head, scale);
-
-  Mesh out;
-  out.vertices.resize(static_cast<Eigen::Index>(nv), 3);
-  out.faces.resize(static_cast<Eigen::Index>(nf), 3);
-  const bool y_up = (up == 'y' || up == 'Y');
-  Eigen::Index vbase = 0, fi = 0;
-  for (unsigned m = 0; m < scene->mNumMeshes; ++m) {
-    const aiMesh* mesh = scene->mMeshes[m];
-    if (!(mesh->mPrimitiveTypes & aiPrimitiveType_TRIANGLE)) continue;
-    for (unsigned v = 0; v < mesh->mNumVertices; ++v) {
-      const aiVector3D& p = mesh->mVertices[v];
-      const Eigen::Vector3d q =
-          y_up ? Eigen::Vector3d(p.x, -p.z, p.y) : Eigen::Vector3d(p.x, p.y, p.z);
-      out.vertices.row(vbase + v) = scale * q;
-    }
-    for (unsigned f = 0; f < mesh->mNumFaces; ++f) {
-      const aiFace& face = mesh->mFaces[f];
-      if (face.mNumIndices != 3) continue;
-      for (int k = 0; k < 3; ++k)
-        out.faces(fi, k) = static_cast<std::int32_t>(vbase + face.mIndices[k]);
-      ++fi;
-    }
-    vbase += mesh->mNumVertices;
-  }
-  validate_loaded(out, path, scale);
-  return out;
+  Points placed;
+  Faces faces;
+  place_instances(*scene, path, placed, faces);
+  check_float32_precision(placed, path, ext, head, scale);
+  return loaded_mesh(std::move(placed), std::move(faces), path, scale, up);
 }
 
 }  // namespace nbv
