@@ -121,6 +121,21 @@ def test_shipped_yaml_is_the_default_and_round_trips(tmp_path):
     assert back.map.resolution == 0.4 and back.scenario == "1"
 
 
+def test_a_section_given_as_a_mapping_is_merged_into_what_is_set(tmp_path):
+    """``--set mesh.scale=2 --set mesh={up: y}`` keeps the scale (it was reset to 1), also over a
+    config file's section and a later with_overrides; a key given again wins; a non-mapping for a
+    section is still refused."""
+    c = load_config(None, ["mesh.scale=2", "mesh={up: y}"])
+    assert (c.mesh.scale, c.mesh.up) == (2.0, "y")
+    f = tmp_path / "c.yaml"
+    f.write_text("mesh: {scale: 3, shift: [1, 2, 3]}\nprofiling: {margin: 7}\n")
+    c = load_config(f, ["mesh={up: y, scale: 4}"]).with_overrides({"mesh": {"up": "z"}})
+    assert (c.mesh.scale, c.mesh.up, c.mesh.shift) == (4.0, "z", (1.0, 2.0, 3.0))
+    assert c.profiling.margin == 7
+    with pytest.raises(ValueError, match="mesh must be a mapping"):
+        load_config(None, ["mesh.scale=2", "mesh=3"])
+
+
 def test_overrides_and_rejections(tmp_path):
     c = load_config(
         None,

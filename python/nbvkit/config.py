@@ -323,13 +323,26 @@ def _check_dotted(key: str) -> None:
 
 
 def _put_dotted(data: dict, key: str, value: Any) -> None:
+    """Sets `key` in `data`; a mapping given for a section is merged into what is set there
+    (``mesh.scale=2 mesh={up: y}`` keeps the scale)."""
     parts = key.split(".")
     node = data
     for part in parts[:-1]:
         node = node.setdefault(part, {})
         if not isinstance(node, dict):
             raise ValueError(f"config key {key!r}: {part!r} is not a section")
-    node[parts[-1]] = value
+    old = node.get(parts[-1])
+    node[parts[-1]] = _merged(old, value) if isinstance(old, dict) else value
+
+
+def _merged(old: dict, new: Any) -> Any:
+    """`new` laid over `old`, section by section (`new` itself unless it is a mapping)."""
+    if not isinstance(new, dict):
+        return new
+    out = _deep_copy(old)
+    for k, v in new.items():
+        out[k] = _merged(out[k], v) if isinstance(out.get(k), dict) else v
+    return out
 
 
 def _has_dotted(data: dict, key: str) -> bool:
