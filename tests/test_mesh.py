@@ -1,6 +1,7 @@
 """Mesh loading through assimp (formats, merging, up axis, scale), sampling, and bad input."""
 from __future__ import annotations
 
+import json
 import sys
 from pathlib import Path
 
@@ -94,7 +95,6 @@ def test_mirroring_node_transforms_keep_parts_outside_out(tmp_path):
     """Nested glTF nodes (a parent's translation, a child mirrored in x, another rotated) and a
     Collada <matrix> of determinant -1 place their parts where the transforms, composed here in
     numpy, put them; every part's triangles still face outwards (the seed cube's do)."""
-    import json
 
     cube = np.array(CUBE_V, float)
     assert _outward(nbvkit.Mesh(cube, np.array(CUBE_F, np.int32)), np.array([[0.5] * 3]))
@@ -158,7 +158,6 @@ def _dae_up(verts, up_axis) -> bytes:
 
 def _glb(verts) -> bytes:
     """The glTF of gltf_file as a binary GLB (JSON chunk, then its buffer as the BIN chunk)."""
-    import json
 
     return _glb_of(json.loads(gltf_file(verts, CUBE_F)))
 
@@ -166,7 +165,6 @@ def _glb(verts) -> bytes:
 def _glb_of(doc: dict) -> bytes:
     """The glTF `doc` (gltf_file's, its buffer embedded) as a GLB: its buffer as the BIN chunk."""
     import base64
-    import json
     import struct
 
     doc = json.loads(json.dumps(doc))
@@ -302,6 +300,17 @@ def test_unreadable_and_triangle_less_files(tmp_path):
         nbvkit.load_mesh(empty)
     with pytest.raises(ValueError, match="directory"):
         nbvkit.load_mesh(tmp_path)
+    # lines only (assimp's own words were "No meshes remaining")
+    doc = json.loads(gltf_file(CUBE_V, CUBE_F))
+    doc["meshes"][0]["primitives"][0]["mode"] = 1  # LINES
+    (tmp_path / "lines.gltf").write_text(json.dumps(doc))
+    dae = dae_file().replace(b'<triangles count="12">', b'<lines count="18">')
+    (tmp_path / "lines.dae").write_bytes(dae.replace(b"</triangles>", b"</lines>"))
+    for name in ("lines.gltf", "lines.dae"):
+        with pytest.raises(
+            ValueError, match=f"{name}' contains no triangles .only points or lines"
+        ):
+            nbvkit.load_mesh(tmp_path / name)
 
 
 def test_bad_arrays_and_arguments(tmp_path):
@@ -511,7 +520,6 @@ def test_a_gltf_requiring_an_extension_its_reader_lacks_is_refused(tmp_path):
     """glTF's rule: a loader refuses a file whose required extensions it cannot read. assimp 5.2
     read KHR_mesh_quantization's integer positions as floats (a 10 m box came out 1e-26 m across,
     without a word); extensions of the look alone (materials, textures, lights) are no matter."""
-    import json
 
     cases = {"KHR_mesh_quantization": False, "EXT_meshopt_compression": False,
              "KHR_materials_unlit": True, "KHR_texture_transform": True,

@@ -540,6 +540,14 @@ Mesh load_mesh(const std::string& path, double scale, char up) {
     throw std::invalid_argument("cannot read mesh '" + path +
                                 "': " + printable_ascii(importer.GetErrorString()));
   check_finite_vertices(*scene, path);
+  const bool has_polygons =
+      std::any_of(scene->mMeshes, scene->mMeshes + scene->mNumMeshes, [](const aiMesh* mesh) {
+        return std::any_of(mesh->mFaces, mesh->mFaces + mesh->mNumFaces,
+                           [](const aiFace& f) { return f.mNumIndices >= 3; });
+      });
+  if (!has_polygons)  // assimp's post-processing would say "No meshes remaining"
+    throw std::invalid_argument("mesh file '" + path +
+                                "' contains no triangles (only points or lines, or nothing)");
   scene = importer.ApplyPostProcessing(flags);
   if (!scene)
     throw std::invalid_argument("cannot read mesh '" + path +
