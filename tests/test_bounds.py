@@ -277,6 +277,46 @@ def test_mesh_arrays_are_read_only_and_rebuilt_meshes_are_checked():
         nbvkit.Mesh(v, m.faces)
 
 
+def test_arrays_reach_the_core_as_their_values_or_are_refused(tmp_path):
+    """Index and kind arrays: any integer dtype (width, byte order) or whole floats are read as
+    their values; a value the core's type cannot hold or a fraction is refused (numpy's cast
+    wrapped 2**32 to 0 and cut 0.9 to 0). Weights in a strided view are read by their strides
+    (they were read as if contiguous, past the array's end for a reversed view), and
+    observable_surface keeps a copy of the points it is given."""
+    from nbvkit import _core
+
+    v = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0]], float)
+    for faces in ([[0, 1, 2]], np.array([[0, 1, 2]], ">i8"), np.array([[0, 1, 2]], np.uint64)):
+        assert nbvkit.Mesh(v, faces).faces.tolist() == [[0, 1, 2]]
+    assert nbvkit.Mesh(v, np.array([[0.0, 1.0, 2.0]])).faces.tolist() == [[0, 1, 2]]
+    for faces, needle in (
+        (np.array([[2**32, 1, 2]]), "mesh faces: 4294967296 does not fit int32"),
+        (np.array([[2**32, 1, 2]], np.uint64), "4294967296 does not fit int32"),
+        (np.array([[0.9, 1.5, 2.99]]), "mesh faces: 0.9 is not an integer"),
+        (np.array([[0, 1, 2]], complex), "mesh faces must be integers.*complex128"),
+        ([["a", "b", "c"]], "mesh faces must be integers"),
+    ):
+        with pytest.raises(ValueError, match=needle):
+            nbvkit.Mesh(v, faces)
+
+    pos, nrm, w = np.zeros((3, 3)), np.tile([1.0, 0, 0], (3, 1)), np.array([1.0, 2.0, 3.0])
+    table = np.stack([w, w + 7], axis=1)
+    for weight in (np.repeat(w, 2)[::2], table[:, 0], w[::-1].copy()[::-1], w.astype(">f8")):
+        np.testing.assert_array_equal(_core.SurfaceTargets(pos, nrm, weight).weight, w)
+    kind = np.array([1, 0, 3], np.uint8)
+    np.testing.assert_array_equal(_core.SurfaceTargets(pos, nrm, w, kind).kind, [1, 0, 3])
+    with pytest.raises(ValueError, match="kind: 1.7 is not an integer"):
+        _core.SurfaceTargets(pos, nrm, w, np.array([1.7, 0, 0]))
+
+    mesh = nbvkit.Mesh(np.array(CUBE_V, float), np.array(CUBE_F, np.int32))
+    pts, fid = mesh.sample_surface(50, 0, return_faces=True)
+    cfg = load_config(None, ["observability.pose_spacing=0.5"])
+    r = nbvkit.observable_surface(mesh, cfg, points=pts, face_ids=fid)
+    before = r.points.copy()
+    pts[:] = 0
+    np.testing.assert_array_equal(r.points, before)
+
+
 def test_non_utf8_mesh_paths_load(tmp_path):
     raw = os.path.join(os.fsencode(str(tmp_path)), b"m\xff\xfe.obj")
     with open(raw, "wb") as f:

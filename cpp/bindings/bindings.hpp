@@ -9,6 +9,8 @@
 #include <pybind11/pybind11.h>
 #include <pybind11/stl.h>
 
+#include <cmath>
+#include <limits>
 #include <memory>
 #include <mutex>
 #include <shared_mutex>
@@ -33,6 +35,59 @@ inline py::array owned_array(const py::handle& owner, const T* data, py::ssize_t
       n ? py::array(py::dtype::of<T>(), shape, data, owner) : py::array(py::dtype::of<T>(), shape);
   py::detail::array_proxy(a.ptr())->flags &= ~py::detail::npy_api::NPY_ARRAY_WRITEABLE_;
   return a;
+}
+
+/// An array-like of integers as a C-contiguous array of T: an array of T as it is (no copy, no
+/// pass); any other integer or bool dtype (any width, either byte order) and whole-number floats
+/// converted once every value is checked to fit T. A fraction, a non-finite or complex value, a
+/// value T cannot hold (numpy's cast would wrap or truncate it without a word) or a non-numeric
+/// array raises ValueError naming `what`.
+template <typename T>
+py::array_t<T, py::array::c_style | py::array::forcecast> integer_array(const py::handle& obj,
+                                                                        const std::string& what) {
+  using Out = py::array_t<T, py::array::c_style | py::array::forcecast>;
+  py::array given;
+  try {
+    given = py::array::ensure(obj);
+  } catch (const py::error_already_set&) {
+  }
+  if (!given) throw py::value_error(what + " must be an array of integers");
+  if (given.dtype().is(py::dtype::of<T>())) return Out::ensure(given);
+  const char kind = given.dtype().kind();
+  const auto lo = static_cast<double>(std::numeric_limits<T>::min()),
+             hi = static_cast<double>(std::numeric_limits<T>::max());
+  const auto refuse = [&](const std::string& v, const std::string& why) {
+    throw py::value_error(what + ": " + v + " " + why);
+  };
+  const std::string fits = std::string("does not fit ") + (sizeof(T) == 1   ? "int8"
+                                                           : sizeof(T) == 4 ? "int32"
+                                                                            : "int64");
+  if (kind == 'u') {
+    const auto u =
+        py::array_t<std::uint64_t, py::array::c_style | py::array::forcecast>::ensure(given);
+    for (py::ssize_t i = 0; i < u.size(); ++i)
+      if (u.data()[i] > static_cast<std::uint64_t>(std::numeric_limits<T>::max()))
+        refuse(std::to_string(u.data()[i]), fits);
+  } else if (kind == 'i' || kind == 'b') {
+    const auto v =
+        py::array_t<std::int64_t, py::array::c_style | py::array::forcecast>::ensure(given);
+    for (py::ssize_t i = 0; i < v.size(); ++i)
+      if (v.data()[i] < std::numeric_limits<T>::min() ||
+          v.data()[i] > std::numeric_limits<T>::max())
+        refuse(std::to_string(v.data()[i]), fits);
+  } else if (kind == 'f') {
+    const auto d = py::array_t<double, py::array::c_style | py::array::forcecast>::ensure(given);
+    for (py::ssize_t i = 0; i < d.size(); ++i) {
+      const double x = d.data()[i];
+      if (!std::isfinite(x) || x != std::floor(x))
+        refuse(py::str(py::float_(x)), "is not an integer");
+      if (x < lo || x > hi) refuse(py::str(py::float_(x)), fits);
+    }
+  } else {
+    throw py::value_error(what + " must be integers, got an array of dtype " +
+                          std::string(py::str(given.dtype())));
+  }
+  return Out::ensure(given);
 }
 
 /// A C-contiguous float64 array holding an (N, 3) point set; `map()` views it without a copy.

@@ -20,9 +20,8 @@ vertices: (N, 3) float64; faces: (M, 3) int32, 0-based. Build with nbvkit.load_m
 Mesh(vertices, faces) or Mesh.from_open3d(o3d_mesh).)doc")
       .def(py::init([](const py::handle& v, const py::handle& f) {
              auto va = points_arg(v, "mesh vertices");
-             auto fa =
-                 py::array_t<std::int32_t, py::array::c_style | py::array::forcecast>::ensure(f);
-             if (!fa || fa.ndim() != 2 || fa.shape(1) != 3)
+             const auto fa = integer_array<std::int32_t>(f, "mesh faces");
+             if (fa.ndim() != 2 || fa.shape(1) != 3)
                throw py::value_error("mesh faces must have shape (M, 3) of integer indices");
              Eigen::Map<const Faces> fm(fa.data(), fa.shape(0), 3);
              return std::make_shared<Mesh>(Mesh::from_arrays(va.map(), fm));

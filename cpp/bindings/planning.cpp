@@ -20,31 +20,19 @@ using Array = py::array_t<T, py::array::c_style | py::array::forcecast>;
 
 template <class T>
 Array<T> vector_arg(const py::dict& coverage, const char* key) {
-  Array<T> a = Array<T>::ensure(coverage[key]);
-  if (!a || a.ndim() != 1)
-    throw py::value_error(std::string("coverage['") + key + "'] must be a 1-D numeric array");
+  const std::string what = std::string("coverage['") + key + "']";
+  Array<T> a;
+  if constexpr (std::is_integral_v<T>)
+    a = integer_array<T>(coverage[key], what);
+  else
+    a = Array<T>::ensure(coverage[key]);
+  if (!a || a.ndim() != 1) throw py::value_error(what + " must be a 1-D numeric array");
   return a;
 }
 
 template <class T>
 Eigen::Map<const Eigen::Matrix<T, Eigen::Dynamic, 1>> as_vector(const Array<T>& a) {
   return {a.data(), Eigen::Index(a.size())};
-}
-
-/// coverage["elements"] as int32: an int32 array as it is; other integers (int64, as a script
-/// would build them) converted once their values are checked to fit.
-Array<std::int32_t> elements_arg(const py::dict& coverage) {
-  const py::array given = py::array::ensure(coverage["elements"]);
-  if (given && given.dtype().is(py::dtype::of<std::int32_t>()))
-    return vector_arg<std::int32_t>(coverage, "elements");
-  const Array<std::int64_t> wide = vector_arg<std::int64_t>(coverage, "elements");
-  const std::int64_t* v = wide.data();
-  for (py::ssize_t i = 0; i < wide.size(); ++i)
-    if (v[i] < std::numeric_limits<std::int32_t>::min() ||
-        v[i] > std::numeric_limits<std::int32_t>::max())
-      throw py::value_error("coverage['elements'] must fit 32 bits (int32); element " +
-                            std::to_string(v[i]) + " does not");
-  return Array<std::int32_t>::ensure(wide);
 }
 
 /// Throws ValueError unless the CSR arrays of `c` agree (K + 1 offsets from 0 to the element
@@ -74,7 +62,7 @@ struct CoverageArg {
           std::string(py::str(py::type::of(coverage))));
     const auto d = py::reinterpret_borrow<py::dict>(coverage);
     offsets = vector_arg<std::int64_t>(d, "offsets");
-    elements = elements_arg(d);
+    elements = vector_arg<std::int32_t>(d, "elements");
     weights = vector_arg<float>(d, "weights");
     status = vector_arg<std::int8_t>(d, "status");
     ref.emplace(as_vector(offsets), as_vector(elements), as_vector(weights), as_vector(status));
@@ -241,7 +229,7 @@ copied and checked (finite, weights >= 0, kind 0-3, default 0).)doc");
              if (t->normals.rows() != n)
                throw py::value_error("SurfaceTargets: " + std::to_string(n) + " positions but " +
                                      std::to_string(t->normals.rows()) + " normals");
-             const auto w = py::array_t<double, py::array::forcecast>::ensure(weight);
+             const auto w = Array<double>::ensure(weight);
              if (!w || w.ndim() != 1 || w.shape(0) != n)
                throw py::value_error("SurfaceTargets: weight must be (" + std::to_string(n) +
                                      ",) numbers, one per position");
@@ -250,8 +238,8 @@ copied and checked (finite, weights >= 0, kind 0-3, default 0).)doc");
                throw py::value_error("SurfaceTargets: weights must be finite and >= 0");
              t->kind.setZero(n);
              if (!kind.is_none()) {
-               const auto k = py::array_t<std::int64_t, py::array::forcecast>::ensure(kind);
-               if (!k || k.ndim() != 1 || k.shape(0) != n)
+               const auto k = integer_array<std::int64_t>(kind, "SurfaceTargets: kind");
+               if (k.ndim() != 1 || k.shape(0) != n)
                  throw py::value_error("SurfaceTargets: kind must be (" + std::to_string(n) +
                                        ",) integers, one per position");
                for (Eigen::Index i = 0; i < n; ++i) {

@@ -180,7 +180,9 @@ def observable_surface(
     if points is None:
         ev = evaluator or Evaluator(mesh, gt_density=cfg.evaluation.gt_density, seed=cfg.seed)
         points = ev.gt_points
-    points = np.ascontiguousarray(points, np.float64)
+    else:  # a copy: the result must not change with the caller's array
+        points = np.array(points, np.float64, order="C")
+        points.flags.writeable = False
     if points.ndim != 2 or points.shape[1] != 3:
         raise ValueError(f"points must be (N, 3), got {points.shape}")
 
