@@ -573,3 +573,63 @@ def test_zipped_collada_is_refused_and_unused_non_finite_ply_vertices_are_droppe
     )
     with pytest.raises(ValueError, match="NaN or infinite"):
         nbvkit.load_mesh(used)
+
+
+# ------------------------------------------------------------ STL (nbvkit's own reader)
+# The parser's cases are GoogleTests (cpp/tests/test_stl.cpp); here: files as exporters write
+# them, through load_mesh, with the file named in every refusal.
+
+
+def _ascii_stl(facets, case=str.lower, eol="\n", lead="") -> bytes:
+    """An ASCII STL of `facets` (lists of vertices), keywords in `case`."""
+    k = case
+    s = lead + k("solid") + " part" + eol
+    for f in facets:
+        s += f" {k('facet normal')} 0 0 0{eol}  {k('outer loop')}{eol}"
+        s += "".join(f"   {k('vertex')} {x!r} {y!r} {z!r}{eol}" for x, y, z in f)
+        s += f"  {k('endloop')}{eol} {k('endfacet')}{eol}"
+    return (s + k("endsolid") + " part" + eol).encode()
+
+
+def test_stl_files_as_exporters_write_them(tmp_path):
+    cube = [[CUBE_V[i] for i in f] for f in CUBE_F]
+    p = tmp_path / "cube.stl"
+    for case, eol, lead in (
+        (str.lower, "\n", ""),
+        (str.upper, "\r\n", ""),  # upper case (older CAD exporters), Windows line ends
+        (str.lower, "\r", "\n\n"),  # blank lines first, old Mac line ends
+        (str.lower, "\n", "\ufeff"),  # a UTF-8 byte order mark
+    ):
+        p.write_bytes(_ascii_stl(cube, case, eol, lead))
+        m = nbvkit.load_mesh(p)
+        assert (m.num_triangles, m.vertices.shape[0]) == (12, 8), (case, eol, lead)
+        assert m.area == pytest.approx(6.0) and _outward(m, np.array([[0.5] * 3]))
+    # a binary file whose 80-byte header begins with "solid", as many exporters write it
+    p.write_bytes(b"solid " + stl_binary_file(CUBE_V, CUBE_F)[6:])
+    m = nbvkit.load_mesh(p)
+    assert m.num_triangles == 12 and m.area == pytest.approx(6.0)
+    assert _outward(m, np.array([[0.5] * 3]))
+    # a facet of four vertices, an L-shaped six: cut keeping their area (the fourth was dropped)
+    dart = [(0.0, 0.0, 0.0), (2.0, 1.0, 0.0), (0.0, 2.0, 0.0), (1.0, 1.0, 0.0)]  # area 1
+    ell = [(0.0, 0.0, 1.0), (3.0, 0.0, 1.0), (3.0, 1.0, 1.0), (1.0, 1.0, 1.0), (1.0, 3.0, 1.0)]
+    ell.append((0.0, 3.0, 1.0))  # area 5
+    p.write_bytes(_ascii_stl([dart, ell]))
+    m = nbvkit.load_mesh(p)
+    assert m.num_triangles == 2 + 4 and m.area == pytest.approx(6.0)
+    assert np.all(np.cross(*np.diff(m.vertices[m.faces], axis=1).transpose(1, 0, 2))[:, 2] > 0)
+
+
+def test_ascii_stl_keeps_its_digits_and_binary_stl_counts_are_checked(tmp_path):
+    p = tmp_path / "utm.stl"
+    p.write_bytes(_ascii_stl([list(map(tuple, TRI + UTM))]))
+    np.testing.assert_array_equal(nbvkit.load_mesh(p).vertices[:, 1], (TRI + UTM)[:, 1])
+    np.testing.assert_allclose(nbvkit.load_mesh(p, shift=-UTM).vertices, TRI, rtol=0, atol=1e-9)
+    good = stl_binary_file(CUBE_V, CUBE_F)
+    for name, data, needle in (
+        ("short.stl", good[:-50], "truncated"),
+        ("long.stl", good + b"\0" * 50, "more bytes"),
+        ("junk.stl", good[:84] + b"x" * 7, "12 facets"),
+    ):
+        (tmp_path / name).write_bytes(data)
+        with pytest.raises(ValueError, match=f"{name}.*{needle}|{needle}.*{name}"):
+            nbvkit.load_mesh(tmp_path / name)

@@ -1,6 +1,7 @@
 #include "nbv/mesh.hpp"
 #include "nbv/obj.hpp"
 #include "nbv/ply.hpp"
+#include "nbv/stl.hpp"
 
 #include <assimp/DefaultIOStream.h>
 #include <assimp/DefaultIOSystem.h>
@@ -277,22 +278,16 @@ Mesh load_obj_mesh(const std::string& path, double scale, char up) {
 // spacing at the largest magnitude. At scale 1 that is every coordinate of magnitude 32768 m (2^15)
 // or more (spacing 3.9 mm); up to there the rounding is at most 0.98 mm. The message says whether
 // the file itself stores float32 (binary STL, glTF) or assimp dropped the file's digits (text
-// formats); `head` is the file's start (at least 84 bytes of a binary STL).
+// formats).
 void check_float32_precision(const Points& placed, const std::string& path, const std::string& ext,
-                             const std::string& head, double scale) {
+                             double scale) {
   const float amax = placed.rows() ? static_cast<float>(placed.cwiseAbs().maxCoeff()) : 0.0f;
   if (!std::isfinite(amax)) return;  // validate_loaded refuses it
   const double spacing =
       static_cast<double>(std::nextafter(amax, std::numeric_limits<float>::infinity())) - amax;
   const double rounding = 0.5 * spacing * scale;
   if (rounding <= kMaxFloat32RoundingMetres) return;
-  bool binary_stl = false;
-  if (ext == ".stl" && head.size() >= 84) {
-    const auto b = [&](int i) { return static_cast<std::uint64_t>(std::uint8_t(head[i])); };
-    const std::uint64_t n = b(80) | b(81) << 8 | b(82) << 16 | b(83) << 24;
-    std::error_code ec;
-    binary_stl = std::filesystem::file_size(path, ec) == 84 + 50 * n;
-  }
+  const bool binary_stl = ext == ".stl";  // only binary STL comes here as .stl
   const bool gltf = ext == ".gltf" || ext == ".glb";
   const std::string near =
       "with coordinates near the origin (subtract a local origin from every vertex and give it "
@@ -321,6 +316,15 @@ void check_float32_precision(const Points& placed, const std::string& path, cons
       " (file units; mesh scale " + fmt(scale) + "), where float32 numbers are " +
       fmt(spacing * scale) + " m apart: vertices would be off by up to " + fmt(rounding) +
       " m, more than the " + fmt(kMaxFloat32RoundingMetres) + " m nbvkit accepts; " + why);
+}
+
+// STL files go through nbvkit's own reader (nbv/stl.hpp): ASCII STL in double precision, any
+// case and line end, facets of more than three vertices cut (assimp kept three of four). A
+// binary STL stores float32, so its coordinates are checked as assimp's are.
+Mesh load_stl_mesh(const std::string& path, double scale, char up) {
+  StlData stl = read_stl(path);
+  if (stl.binary) check_float32_precision(stl.vertices, path, ".stl", scale);
+  return loaded_mesh(std::move(stl.vertices), std::move(stl.faces), path, scale, up);
 }
 
 // The triangles of every mesh instance in the node tree, placed by the node's accumulated
@@ -503,6 +507,7 @@ Mesh load_mesh(const std::string& path, double scale, char up) {
                  [](unsigned char c) { return std::tolower(c); });
   if (ext == ".ply") return load_ply_mesh(path, scale, up);
   if (ext == ".obj") return load_obj_mesh(path, scale, up);
+  if (ext == ".stl") return load_stl_mesh(path, scale, up);
   const std::string head = read_file_head(path, 4096, "mesh", kMaxMeshFileBytes);
   // A zip archive (zipped Collada, whatever its name) would reach assimp past check_collada's
   // guard: refused, but for 3MF, which is a zip by its format.
@@ -556,7 +561,7 @@ Mesh load_mesh(const std::string& path, double scale, char up) {
   Points placed;
   Faces faces;
   place_instances(*scene, path, placed, faces);
-  check_float32_precision(placed, path, ext, head, scale);
+  check_float32_precision(placed, path, ext, scale);
   return loaded_mesh(std::move(placed), std::move(faces), path, scale, up);
 }
 
