@@ -301,3 +301,22 @@ def test_a_sample_is_seen_exactly_within_the_gimbal_range_widened_by_half_the_fo
     d = np.degrees(dep)
     lo, hi = gimbal[0] + mount_pitch - 22.5, gimbal[1] + mount_pitch + 22.5
     np.testing.assert_array_equal(np.asarray(r.observable, bool), (d >= lo) & (d <= hi))
+
+
+def test_sample_normals_are_their_triangles_unit_normals_with_few_or_many_samples():
+    """Per sample when there are fewer samples than triangles (a scanned mesh), per triangle
+    when there are more: the unit normals of the samples' triangles, outwards on a box, each
+    either way, and zero for a degenerate triangle."""
+    from nbvkit.observability import sample_normals
+
+    box = box_mesh((0, 0, 0), (2, 3, 4))
+    flat = nbvkit.Mesh(np.vstack([box.vertices, [[5, 5, 5]]]), np.vstack([box.faces, [[8, 8, 8]]]))
+    centre = np.array([1.0, 1.5, 2.0])
+    for n in (3, 5000):  # fewer and more samples than the 13 triangles
+        p, fid = flat.sample_surface(n, 2, return_faces=True)
+        fid = np.append(fid, 12)  # the degenerate one too
+        got = sample_normals(flat, fid)
+        np.testing.assert_allclose(np.linalg.norm(got[:-1], axis=1), 1.0)
+        assert np.all(np.einsum("ij,ij->i", got[:-1], p - centre) > 0)  # outwards
+        np.testing.assert_array_equal(got[-1], 0.0)
+        np.testing.assert_array_equal(got, sample_normals(flat, fid[::-1])[::-1])

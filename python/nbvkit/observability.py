@@ -101,14 +101,18 @@ class ObservableSurface:
 
 def sample_normals(mesh, face_ids) -> np.ndarray:
     """(N, 3) unit normals of the triangles ``face_ids`` (N,) of ``mesh`` (zero if degenerate)."""
-    # per triangle once, then gathered: the same numbers as per sample, without the (N, 3, 3)
-    # corners and their differences (3.4 GB transient for 20 million samples)
-    v, f = np.asarray(mesh.vertices), np.asarray(mesh.faces)
+    # per triangle once, then gathered, when there are fewer triangles than samples: the same
+    # numbers as per sample, without the (N, 3, 3) corners and their differences (3.4 GB
+    # transient for 20 million samples); per sample when there are fewer samples (a scanned
+    # mesh of millions of triangles)
+    v, f, ids = np.asarray(mesh.vertices), np.asarray(mesh.faces), np.asarray(face_ids)
+    if len(ids) < len(f):
+        f, ids = f[ids], np.arange(len(ids))
     tri = v[f]
     n = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
     norm = np.linalg.norm(n, axis=1, keepdims=True)
     unit = np.divide(n, norm, out=np.zeros_like(n), where=norm > 0)
-    return unit[np.asarray(face_ids)]
+    return unit[ids]
 
 
 def _settings(config, workspace) -> dict:
