@@ -10,6 +10,7 @@ import subprocess
 import sys
 import threading
 import time
+import warnings
 from pathlib import Path
 
 import numpy as np
@@ -307,6 +308,11 @@ def test_arrays_reach_the_core_as_their_values_or_are_refused(tmp_path):
     np.testing.assert_array_equal(_core.SurfaceTargets(pos, nrm, w, kind).kind, [1, 0, 3])
     with pytest.raises(ValueError, match="kind: 1.7 is not an integer"):
         _core.SurfaceTargets(pos, nrm, w, np.array([1.7, 0, 0]))
+    with warnings.catch_warnings():  # numpy's cast warning as an error crashed the process
+        warnings.simplefilter("error")
+        for kind in (np.array([2.0**63, 0, 0]), np.array([2**64 - 1, 0, 0], np.uint64)):
+            with pytest.raises(ValueError, match="does not fit int64"):
+                _core.SurfaceTargets(pos, nrm, w, kind)
 
     mesh = nbvkit.Mesh(np.array(CUBE_V, float), np.array(CUBE_F, np.int32))
     pts, fid = mesh.sample_surface(50, 0, return_faces=True)

@@ -119,6 +119,20 @@ def test_mirroring_node_transforms_keep_parts_outside_out(tmp_path):
     assert _outward(m, centres)
     assert m.area == pytest.approx(12.0)
 
+    # a mesh placed by more nodes than nbvkit takes from instancing: refused before placing
+    n = 224  # a 224 x 224 grid: 99,458 triangles, placed 202 times (20.09 M)
+    grid = np.stack(np.meshgrid(np.arange(n), np.arange(n), indexing="ij"), -1).reshape(-1, 2)
+    q = np.arange(n * n).reshape(n, n)[:-1, :-1].ravel()
+    tris = np.vstack([np.stack([q, q + n, q + 1], 1), np.stack([q + 1, q + n, q + n + 1], 1)])
+    many = json.loads(gltf_file(np.hstack([grid, np.zeros((n * n, 1))]).astype(np.float32), tris))
+    many["scenes"] = [{"nodes": list(range(202))}]
+    many["nodes"] = [{"mesh": 0, "translation": [0, 0, k]} for k in range(202)]
+    p.write_text(json.dumps(many))
+    with pytest.raises(
+        ValueError, match="nodes place 202 copies of its meshes, more than 20000000"
+    ):
+        nbvkit.load_mesh(p)
+
     dae = tmp_path / "mirrored.dae"
     matrix = "<matrix>-1 0 0 0 0 1 0 0 0 0 1 0 0 0 0 1</matrix>"
     dae.write_bytes(dae_file().replace(b'<node id="n">', f'<node id="n">{matrix}'.encode()))
@@ -604,11 +618,14 @@ def test_stl_files_as_exporters_write_them(tmp_path):
         m = nbvkit.load_mesh(p)
         assert (m.num_triangles, m.vertices.shape[0]) == (12, 8), (case, eol, lead)
         assert m.area == pytest.approx(6.0) and _outward(m, np.array([[0.5] * 3]))
-    # a binary file whose 80-byte header begins with "solid", as many exporters write it
-    p.write_bytes(b"solid " + stl_binary_file(CUBE_V, CUBE_F)[6:])
-    m = nbvkit.load_mesh(p)
-    assert m.num_triangles == 12 and m.area == pytest.approx(6.0)
-    assert _outward(m, np.array([[0.5] * 3]))
+    # a binary file whose 80-byte header begins with "solid", as many exporters write it, or
+    # "glTF" (an STL whatever its header holds: z up, not turned as a glTF)
+    for magic in (b"solid ", b"glTF"):
+        p.write_bytes(magic + stl_binary_file(CUBE_V, CUBE_F)[len(magic) :])
+        m = nbvkit.load_mesh(p)
+        assert m.num_triangles == 12 and m.area == pytest.approx(6.0)
+        assert _outward(m, np.array([[0.5] * 3]))
+        np.testing.assert_array_equal(m.bounds, [[0, 0, 0], [1, 1, 1]])
     # a facet of four vertices, an L-shaped six: cut keeping their area (the fourth was dropped)
     dart = [(0.0, 0.0, 0.0), (2.0, 1.0, 0.0), (0.0, 2.0, 0.0), (1.0, 1.0, 0.0)]  # area 1
     ell = [(0.0, 0.0, 1.0), (3.0, 0.0, 1.0), (3.0, 1.0, 1.0), (1.0, 1.0, 1.0), (1.0, 3.0, 1.0)]

@@ -52,42 +52,58 @@ py::array_t<T, py::array::c_style | py::array::forcecast> integer_array(const py
   } catch (const py::error_already_set&) {
   }
   if (!given) throw py::value_error(what + " must be an array of integers");
-  if (given.dtype().is(py::dtype::of<T>())) return Out::ensure(given);
-  const char kind = given.dtype().kind();
-  const auto lo = static_cast<double>(std::numeric_limits<T>::min()),
-             hi = static_cast<double>(std::numeric_limits<T>::max());
+  // an array of T (its dtype equal, not only the same object: a pickled array's is another)
+  if (py::isinstance<py::array_t<T>>(given)) {
+    if (Out out = Out::ensure(given)) return out;
+    PyErr_Clear();
+    throw py::value_error(what + " could not be read as integers");
+  }
   const auto refuse = [&](const std::string& v, const std::string& why) {
     throw py::value_error(what + ": " + v + " " + why);
   };
   const std::string fits = std::string("does not fit ") + (sizeof(T) == 1   ? "int8"
                                                            : sizeof(T) == 4 ? "int32"
                                                                             : "int64");
+  // the values are checked in the array they are cast from (wider ints or float64)
+  py::array checked;
+  const char kind = given.dtype().kind();
   if (kind == 'u') {
     const auto u =
         py::array_t<std::uint64_t, py::array::c_style | py::array::forcecast>::ensure(given);
-    for (py::ssize_t i = 0; i < u.size(); ++i)
+    for (py::ssize_t i = 0; u && i < u.size(); ++i)
       if (u.data()[i] > static_cast<std::uint64_t>(std::numeric_limits<T>::max()))
         refuse(std::to_string(u.data()[i]), fits);
+    checked = u;
   } else if (kind == 'i' || kind == 'b') {
     const auto v =
         py::array_t<std::int64_t, py::array::c_style | py::array::forcecast>::ensure(given);
-    for (py::ssize_t i = 0; i < v.size(); ++i)
+    for (py::ssize_t i = 0; v && i < v.size(); ++i)
       if (v.data()[i] < std::numeric_limits<T>::min() ||
           v.data()[i] > std::numeric_limits<T>::max())
         refuse(std::to_string(v.data()[i]), fits);
+    checked = v;
   } else if (kind == 'f') {
     const auto d = py::array_t<double, py::array::c_style | py::array::forcecast>::ensure(given);
-    for (py::ssize_t i = 0; i < d.size(); ++i) {
+    // [-2^(b-1), 2^(b-1)): both bounds exact in double (T's max itself may round up to 2^63)
+    const double lo = static_cast<double>(std::numeric_limits<T>::min()), hi = -lo;
+    for (py::ssize_t i = 0; d && i < d.size(); ++i) {
       const double x = d.data()[i];
       if (!std::isfinite(x) || x != std::floor(x))
         refuse(py::str(py::float_(x)), "is not an integer");
-      if (x < lo || x > hi) refuse(py::str(py::float_(x)), fits);
+      if (x < lo || x >= hi) refuse(py::str(py::float_(x)), fits);
     }
+    checked = d;
   } else {
     throw py::value_error(what + " must be integers, got an array of dtype " +
                           std::string(py::str(given.dtype())));
   }
-  return Out::ensure(given);
+  Out out;
+  if (checked) out = Out::ensure(checked);
+  if (!out) {
+    PyErr_Clear();
+    throw py::value_error(what + " could not be read as integers");
+  }
+  return out;
 }
 
 /// A C-contiguous float64 array holding an (N, 3) point set; `map()` views it without a copy.

@@ -327,12 +327,17 @@ Mesh load_stl_mesh(const std::string& path, double scale, char up) {
   return loaded_mesh(std::move(stl.vertices), std::move(stl.faces), path, scale, up);
 }
 
+// Triangles the node tree may place when it places more than the file stores (a mesh referenced
+// by many nodes): a 380 KB glTF placing one mesh 10,000 times held 4.5 GB.
+constexpr std::int64_t kMaxInstancedTriangles = 20'000'000;
+
 // The triangles of every mesh instance in the node tree, placed by the node's accumulated
 // transform (in double precision) and in file units: `vertices` (N, 3), `faces` (M, 3). A
 // transform that mirrors (negative determinant) turns the winding: its triangles are written
 // reversed, so a mirrored part is not inside-out (assimp's PreTransformVertices keeps the
-// winding). Deep node trees are walked without recursion; a scene placing more vertices than
-// int32 indices address is refused.
+// winding). Deep node trees are walked without recursion. Refused: a face index outside its
+// part, a scene placing more vertices than int32 indices address, or more than
+// kMaxInstancedTriangles triangles by instancing.
 void place_instances(const aiScene& scene, const std::string& path, Points& vertices,
                      Faces& faces) {
   using Matrix = Eigen::Matrix4d;
@@ -347,7 +352,8 @@ void place_instances(const aiScene& scene, const std::string& path, Points& vert
     Matrix m;
   };
   std::vector<Instance> instances;
-  std::int64_t nv = 0, nf = 0;
+  std::int64_t nv = 0, nf = 0, stored = 0;  // placed vertices and triangles; triangles stored
+  for (unsigned m = 0; m < scene.mNumMeshes; ++m) stored += scene.mMeshes[m]->mNumFaces;
   std::vector<std::pair<const aiNode*, Matrix>> stack;
   if (scene.mRootNode)
     stack.emplace_back(scene.mRootNode, matrix(scene.mRootNode->mTransformation));
@@ -361,9 +367,12 @@ void place_instances(const aiScene& scene, const std::string& path, Points& vert
       instances.push_back({mesh, m});
       nv += mesh->mNumVertices;
       for (unsigned f = 0; f < mesh->mNumFaces; ++f) nf += mesh->mFaces[f].mNumIndices == 3;
-      if (nv > std::numeric_limits<std::int32_t>::max())
-        throw std::invalid_argument("cannot read mesh '" + path +
-                                    "': its nodes place more than 2^31 vertices");
+      if (nv > std::numeric_limits<std::int32_t>::max() ||
+          (nf > kMaxInstancedTriangles && nf > stored))
+        throw std::invalid_argument(
+            "cannot read mesh '" + path + "': its nodes place " + std::to_string(instances.size()) +
+            " copies of its meshes, more than " + std::to_string(kMaxInstancedTriangles) +
+            " triangles (or 2^31 vertices) in all; nbvkit takes up to that many from instancing");
     }
     for (unsigned c = node->mNumChildren; c-- > 0;)  // children in file order
       stack.emplace_back(node->mChildren[c], m * matrix(node->mChildren[c]->mTransformation));
@@ -382,6 +391,11 @@ void place_instances(const aiScene& scene, const std::string& path, Points& vert
     for (unsigned f = 0; f < in.mesh->mNumFaces; ++f) {
       const aiFace& face = in.mesh->mFaces[f];
       if (face.mNumIndices != 3) continue;
+      for (int k = 0; k < 3; ++k)
+        if (face.mIndices[k] >= in.mesh->mNumVertices)
+          throw std::invalid_argument("cannot read mesh '" + path + "': a face uses vertex " +
+                                      std::to_string(face.mIndices[k]) + " of a part of " +
+                                      std::to_string(in.mesh->mNumVertices));
       for (int k = 0; k < 3; ++k)
         faces(fi, mirrored && k ? 3 - k : k) = static_cast<std::int32_t>(vbase + face.mIndices[k]);
       ++fi;

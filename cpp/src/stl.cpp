@@ -7,7 +7,9 @@
 #include <cmath>
 #include <cstdint>
 #include <cstring>
+#include <initializer_list>
 #include <limits>
+#include <random>
 #include <stdexcept>
 #include <string_view>
 #include <vector>
@@ -70,9 +72,16 @@ float le_float(const std::uint8_t* b) {
 // The merged vertices: identical positions (exact doubles, -0.0 equal to 0.0) share one index,
 // in order of first use; a position with a NaN coordinate is a vertex of its own. An open
 // addressing table of indices into xyz, kept at most half full.
+// The hash is keyed by a random seed drawn per table: a file crafted so that its distinct
+// positions collide under a fixed hash made merging quadratic (8 MB: 23 s).
 class VertexTable {
  public:
   std::vector<double> xyz;  // 3 per vertex
+
+  VertexTable() {
+    std::random_device rd;
+    seed_ = (std::uint64_t(rd()) << 32 | rd()) | 1;
+  }
 
   std::int32_t add(const double p[3]) {
     if (std::isnan(p[0]) || std::isnan(p[1]) || std::isnan(p[2])) return append(p);
@@ -97,14 +106,16 @@ class VertexTable {
     return u;
   }
 
-  static std::size_t hash(const double p[3]) {
-    std::uint64_t h = 0x9E3779B97F4A7C15ull;
+  std::size_t hash(const double p[3]) const {
+    std::uint64_t h = seed_;
     for (int k = 0; k < 3; ++k) {
       h ^= bits(p[k]);
       h *= 0xBF58476D1CE4E5B9ull;
       h ^= h >> 31;
+      h *= 0x94D049BB133111EBull;
+      h ^= h >> 29;
     }
-    return static_cast<std::size_t>(h ^ (h >> 29));
+    return static_cast<std::size_t>(h);
   }
 
   std::int32_t append(const double p[3]) {
@@ -129,6 +140,7 @@ class VertexTable {
   }
 
   std::vector<std::int32_t> slots_;  // -1: empty; a power of two of them
+  std::uint64_t seed_ = 0;
   std::size_t mask_ = 0;
   std::size_t used_ = 0;
 };
@@ -177,9 +189,22 @@ class Lexer {
     return std::string_view(p_ + start, pos_ - start);
   }
 
-  // Skips the rest of the current line (a solid's name).
-  void skip_line() {
-    while (pos_ < n_ && p_[pos_] != '\n' && p_[pos_] != '\r') ++pos_;
+  // Skips a solid's name: the rest of its line, or up to a keyword of `stop` found on it (a
+  // whole file written on one line).
+  void skip_name(std::initializer_list<std::string_view> stop) {
+    while (pos_ < n_ && p_[pos_] != '\n' && p_[pos_] != '\r') {
+      if (is_space(p_[pos_])) {
+        ++pos_;
+        continue;
+      }
+      const std::size_t start = pos_;
+      while (pos_ < n_ && !is_space(p_[pos_])) ++pos_;
+      const std::string_view tok(p_ + start, pos_ - start);
+      if (std::any_of(stop.begin(), stop.end(), [&](auto k) { return iequals(tok, k); })) {
+        pos_ = start;
+        return;
+      }
+    }
   }
 
   // The line of the last token read (at the end of the data: of the last token in the file).
@@ -219,7 +244,7 @@ StlData parse_ascii(const char* data, std::size_t size, std::size_t start) {
     if (!iequals(tok, "solid"))  // the first token is "solid" (ascii_start)
       fail(lex.line(),
            "expected 'solid' or the end of the file after 'endsolid', found " + quote(tok));
-    lex.skip_line();  // the solid's name
+    lex.skip_name({"facet", "endsolid"});
     while (true) {
       tok = lex.next();
       if (iequals(tok, "endsolid")) break;
@@ -248,8 +273,10 @@ StlData parse_ascii(const char* data, std::size_t size, std::size_t start) {
       if (!triangulate_polygon(poly.data(), poly.size(), table.xyz.data(), tri))
         fail(facet_line, "facet " + std::to_string(facet) + ": " + polygon_too_large(poly.size()));
     }
-    lex.skip_line();  // the name after endsolid
+    lex.skip_name({"solid"});
     tok = lex.next();
+    while (!tok.empty() && tok.find_first_not_of('\0') == std::string_view::npos)
+      tok = lex.next();  // NUL padding after the last solid, as some exporters write
     if (tok.empty()) break;
   }
   return finish(table, tri, false);

@@ -173,6 +173,9 @@ TEST(Stl, AsciiSpellingsAssimpRefused) {
   std::string one_line = text;  // every token on one line but the solid's name
   for (std::size_t i = one_line.find('\n') + 1; i < one_line.size(); ++i)
     if (one_line[i] == '\n') one_line[i] = ' ';
+  std::string all_on_one_line = text;  // the name too: it ends at the first facet
+  for (char& c : all_on_one_line)
+    if (c == '\n') c = ' ';
   const std::vector<std::pair<const char*, std::string>> cases = {
       {"upper case", upper},
       {"mixed case", mixed},
@@ -183,6 +186,10 @@ TEST(Stl, AsciiSpellingsAssimpRefused) {
       {"BOM and blank line", "\xEF\xBB\xBF\n" + text},
       {"tabs", tabs},
       {"one line", one_line},
+      {"all on one line", all_on_one_line},
+      {"two solids on one line", "solid a endsolid a " + all_on_one_line},
+      {"NUL padding after endsolid", text + std::string(37, '\0')},
+      {"NUL padding and spaces", text + std::string(5, '\0') + " \n" + std::string(3, '\0')},
       {"no final newline", text.substr(0, text.size() - 1)},
       {"no names",
        "solid\n" + text.substr(text.find('\n') + 1, text.rfind("endsolid") - text.find('\n') - 1) +
@@ -194,6 +201,20 @@ TEST(Stl, AsciiSpellingsAssimpRefused) {
     EXPECT_FALSE(d.binary);
     expect_cube(d);
   }
+}
+
+TEST(Stl, MergingIsTheSameWhateverTheTablesSeed) {
+  // each table draws its own hash seed (a fixed hash let a crafted file make merging quadratic):
+  // the merged vertices and faces do not depend on it
+  std::vector<Triangle> tris;
+  for (int i = 0; i < 3000; ++i) {
+    const double x = i % 50, y = i / 50;
+    tris.push_back({x, y, 0, x + 1, y, 0, x, y + 1, 0});
+  }
+  const auto a = parse(binary_stl(tris)), b = parse(binary_stl(tris));
+  EXPECT_EQ(a.vertices.rows(), 3000 + 60 + 50);  // the 50 x 60 corners, x = 50 and y = 60
+  EXPECT_TRUE(a.vertices == b.vertices);
+  EXPECT_TRUE(a.faces == b.faces);
 }
 
 TEST(Stl, LineNumbersCountEveryKindOfLineEnd) {

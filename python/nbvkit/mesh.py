@@ -49,22 +49,25 @@ def mesh_overrides(path=None, scale=None, up=None) -> list[str]:
 
 
 def load_mesh(path: str | os.PathLike, scale: float = 1.0, up: str = "auto", shift=None) -> Mesh:
-    """Load a mesh file (OBJ, STL, PLY, DAE, glTF/GLB, ...) as one triangle soup: PLY and OBJ
-    with nbvkit's own strict readers, in double precision (PLY: declared counts and face indices
-    checked; OBJ: ``v``/``f`` geometry only, polygons triangulated, materials never opened), the
-    rest with assimp.
+    """Load a mesh file (OBJ, STL, PLY, DAE, glTF/GLB, ...) as one triangle soup: PLY, OBJ and
+    STL with nbvkit's own strict readers, in double precision (PLY: declared counts and face
+    indices checked; OBJ: ``v``/``f`` geometry only, polygons triangulated, materials never
+    opened; STL: binary or ASCII told by the file's size, facets of more vertices
+    triangulated), the rest with assimp.
 
-    All parts of the file are merged, each node's transform applied. ``up`` is the file's up axis:
+    All parts of the file are merged, each node's transform applied (in double precision; a
+    mirroring one reverses its triangles' winding). ``up`` is the file's up axis:
     ``"z"`` keeps coordinates, ``"y"`` rotates file +y onto +z ((x, y, z) -> (x, -z, y)),
     ``"auto"`` takes the one its format defines (``file_up_axis``: glTF y, DAE its own). ``scale``
     multiplies coordinates (e.g. 0.001 for a millimetre file). ``shift`` (x, y, z), in metres,
     is then added to every vertex, in double precision: a georeferenced mesh (UTM coordinates)
     is flown near the origin, where OctoMap can address it (+-6.5 km at 0.2 m) and Embree's
-    float32 keeps millimetres. A georeferenced PLY or OBJ keeps every digit of its file.
-    Formats read through assimp arrive in float32 (assimp's ``ai_real``; binary STL and glTF
-    store float32 anyway): a file whose coordinates float32 would round by more than 1 mm (after
-    ``scale``: from 32,768 m at scale 1) is refused with a ValueError saying how far off it would
-    be and how to fix it (coordinates near the origin in the file plus ``shift``, or PLY/OBJ).
+    float32 keeps millimetres. A georeferenced PLY, OBJ or ASCII STL keeps every digit of its
+    file. Binary STL stores float32 and formats read through assimp arrive in float32 (assimp's
+    ``ai_real``; glTF stores float32 anyway): a file whose coordinates float32 would round by
+    more than 1 mm (after ``scale``: from 32,768 m at scale 1) is refused with a ValueError
+    saying how far off it would be and how to fix it (coordinates near the origin in the file
+    plus ``shift``, or PLY/OBJ).
     ``path``: any path the OS accepts (str, bytes, os.PathLike; also not UTF-8). Raises
     FileNotFoundError for a missing path and ValueError naming the file for anything but a
     regular file of at most 2 GiB (a directory, a FIFO, a device), also for any file the mesh
@@ -101,12 +104,17 @@ _GLTF_READ = re.compile(r"^((KHR|EXT|MSFT|ADOBE)_(materials?|texture|lights)_|KH
 _GLTF_JSON_MAX = 512 << 20
 
 
+#: suffixes nbvkit's own readers take, whatever the file holds (a binary STL's free 80-byte
+#: header may begin "glTF")
+_OWN_READERS = (".ply", ".obj", ".stl")
+
+
 def _format_of(p: Path) -> str:
     """ "gltf", "collada" or "" (any other) for the mesh file `p` (a regular file), told as the
     loader tells it: by its suffix, else its head (a GLB's magic, a JSON object naming its
-    "asset", ``<COLLADA``). PLY and OBJ are nbvkit's own readers' whatever they hold."""
+    "asset", ``<COLLADA``). PLY, OBJ and STL are nbvkit's own readers' whatever they hold."""
     suffix = p.suffix.lower()
-    if suffix in (".ply", ".obj"):
+    if suffix in _OWN_READERS:
         return ""
     if suffix in (".gltf", ".glb"):
         return "gltf"
@@ -170,7 +178,7 @@ def file_up_axis(path, up: str = "auto") -> str:
         raise ValueError(f"mesh up axis must be 'auto', 'y' or 'z', got {up!r}")
     if _UP[up] != "auto":
         return _UP[up]
-    if Path(os.fsdecode(path)).suffix.lower() in (".ply", ".obj"):
+    if Path(os.fsdecode(path)).suffix.lower() in _OWN_READERS:
         return "z"  # nbvkit's own readers, whatever the file holds: nothing to read
     p = check_input_file(path, "mesh file", MAX_DATA_FILE_BYTES)  # not a FIFO, a device, ...
     kind = _format_of(p)

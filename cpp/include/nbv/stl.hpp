@@ -17,8 +17,9 @@
 // CRLF, a lone CR, blank lines) separates the tokens of
 //   solid [name]  { facet normal nx ny nz  outer loop  vertex x y z (3 or more)  endloop
 //   endfacet }  endsolid [name]
-// with one or more solids one after another and nothing but whitespace after the last. A name
-// is the rest of its line (it may be empty or hold spaces). Numbers are read as doubles
+// with one or more solids one after another and nothing but whitespace or NUL bytes (padding)
+// after the last. A name is the rest of its line (it may be empty or hold spaces), up to a
+// 'facet' or 'endsolid' on that line (a file written on one line). Numbers are read as doubles
 // (std::from_chars; nan and inf are numbers here, the mesh loader refuses non-finite vertices of
 // faces). The facet normal is read and ignored: the vertices' winding is the truth. A facet of
 // more than three vertices is triangulated keeping its winding (triangulate_polygon); one of
@@ -27,7 +28,9 @@
 //
 // Identical positions are merged into one vertex (STL repeats each vertex in every facet that
 // uses it), comparing the exact doubles, -0.0 equal to 0.0; a vertex with a NaN coordinate is
-// never merged. Vertices are kept in the order of their first use, every index fits int32.
+// never merged. Vertices are kept in the order of their first use, every index fits int32; the
+// merging's hash is keyed by a random seed (the result does not depend on it), so no file can
+// make it quadratic.
 #pragma once
 
 #include "nbv/common.hpp"
