@@ -7,6 +7,7 @@ import json
 import math
 import subprocess
 import sys
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -15,6 +16,8 @@ import nbvkit
 from nbvkit import Evaluator, evaluate
 from nbvkit.evaluation import DEFAULT_GT_DENSITY, SUMMARY_KEYS as KEYS
 from conftest import box_mesh as box, shared_mesh
+
+ROOT = Path(__file__).resolve().parent.parent
 
 
 def square_x(x, lo, hi):
@@ -652,3 +655,37 @@ def test_cli_evaluate_refuses_observable_settings_without_observable(cube_files,
     assert "--set defines only the observable surface" in err and "--observable" in err
     assert main([*args, "--gt-density", "500", "--cache", str(cube_files / "c")]) == 2
     assert "--cache defines only" in capsys.readouterr().err
+
+
+def test_cli_evaluate_of_a_run_folder_scores_it_against_the_mesh_it_flew(
+    tmp_path, monkeypatch, capsys
+):
+    """A run's folder names its mesh (config.yaml: path, scale, up, shift): evaluate scores the
+    cloud against it (it took the default airliner, and a cube inside the airliner's box scored
+    0 % without a warning), reproducing the run's own figures; mesh options without --mesh, or
+    a mesh not found from here, are refused."""
+    import shutil
+
+    from conftest import TINY_RUN
+    from nbvkit import cli
+
+    (tmp_path / "m").mkdir()
+    shutil.copy(ROOT / "meshes" / "fixtures" / "cube.obj", tmp_path / "m" / "cube.obj")
+    monkeypatch.chdir(tmp_path)
+    out = tmp_path / "run"
+    argv = ["run", "--mesh", "m/cube.obj", "--mesh-scale", "2", "--no-progress", "--out", str(out)]
+    assert cli.main([*argv, "--set", *TINY_RUN, "report.enabled=false"]) == 0
+    flown = json.loads((out / "summary.json").read_text())
+    j = tmp_path / "e.json"
+    assert cli.main(["evaluate", str(out), "--gt-density", "50", "--json", str(j)]) == 0
+    e = json.loads(j.read_text())
+    assert (e["mesh"], e["mesh_scale"]) == ("m/cube.obj", 2.0)
+    assert e["coverage"] == flown["coverage"] and min(e["coverage"].values()) > 0
+    capsys.readouterr()
+    assert cli.main(["evaluate", str(out), "--mesh-scale", "3"]) == 2
+    assert "give --mesh too" in capsys.readouterr().err
+    monkeypatch.chdir(tmp_path / "m")
+    assert cli.main(["evaluate", str(out)]) == 2
+    assert "flew the mesh 'm/cube.obj' (its config.yaml), which is not found" in (
+        capsys.readouterr().err
+    )

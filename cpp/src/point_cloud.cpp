@@ -4,9 +4,15 @@
 #include <algorithm>
 #include <atomic>
 #include <cmath>
+#include <random>
 #include <string>
 
 namespace nbv {
+
+std::uint64_t draw_hash_seed() {
+  std::random_device rd;
+  return std::uint64_t(rd()) << 32 ^ rd();
+}
 namespace {
 // Marks a point dropped by ground removal or cropping (pack_voxel never sets bit 63).
 constexpr std::uint64_t kFiltered = kEmptyVoxelKey - 1;

@@ -97,6 +97,10 @@ inline std::uint64_t voxel_key(const Eigen::Vector3d& p, double size) {
 /// bytes a key in all, where a table of (key, value) slots held 16-32 and its users kept the keys a
 /// second time. A rehash reads the keys in order and holds the old and new id tables only (4 bytes
 /// a slot), not old and new keys. Keys must not be kEmptyVoxelKey; at most 3 * 2^30 keys.
+/// A random 64-bit number drawn once a process (std::random_device): the key of VoxelIndex's
+/// hash. Which slot a voxel takes never reaches a result (ids are given in insertion order).
+std::uint64_t draw_hash_seed();
+
 class VoxelIndex {
  public:
   static constexpr std::uint32_t kMissing = std::numeric_limits<std::uint32_t>::max();
@@ -140,6 +144,9 @@ class VoxelIndex {
 
  private:
   static std::uint64_t hash(std::uint64_t key) {
+    // keyed by a seed drawn per process: a cloud crafted so that its voxels' keys collide under
+    // a fixed hash (it is invertible) would make every insert probe them all
+    key ^= kHashSeed;
     key ^= key >> 33;  // murmur3 finaliser
     key *= 0xff51afd7ed558ccdull;
     key ^= key >> 33;
@@ -157,6 +164,7 @@ class VoxelIndex {
   static std::size_t capacity_for(std::size_t n);
   void rehash(std::size_t capacity);
 
+  static inline const std::uint64_t kHashSeed = draw_hash_seed();
   // Tables of millions of voxels: huge pages spare a page fault per 4 KiB as they grow.
   HugeVector<std::uint32_t> slots_;  ///< tag | id, or kMissing
   GrowArray<std::uint64_t> keys_;    ///< by id

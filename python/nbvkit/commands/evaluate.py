@@ -32,7 +32,9 @@ def register(sub) -> argparse.ArgumentParser:
         "precision, completeness / accuracy / F-score at each distance threshold, and "
         "the Chamfer distance. The ground truth is the mesh's surface sampled "
         "uniformly (--gt-density, --seed) or a reference point cloud "
-        "(--reference-cloud). Prints a table; --json writes every figure.",
+        "(--reference-cloud). A run's cloud (a run folder, or a file in one) is scored "
+        "against the mesh the run flew (its config.yaml: path, scale, up, shift) unless --mesh "
+        "or --reference-cloud names another. Prints a table; --json writes every figure.",
     )
     add_mesh_options(p)
     _add_inputs(p)
@@ -148,6 +150,8 @@ def run(args) -> int:
     if args.json:
         check_output_file(args.json, "--json")
     cloud_path = run_cloud(Path(os.fspath(args.cloud)).expanduser())
+    if not (args.mesh or args.reference_cloud):
+        _mesh_of_run(args, cloud_path.parent)
     cloud, cloud_kind = read_reconstruction(cloud_path, args.gt_density, args.seed)
     if args.reference_cloud:
         gt = read_points(args.reference_cloud)
@@ -201,6 +205,39 @@ def run(args) -> int:
         Path(args.json).expanduser().write_text(text + "\n")
         print(f"results -> {args.json}")
     return 0
+
+
+def _mesh_of_run(args, folder: Path) -> None:
+    """A run's cloud is scored against the mesh the run flew (its config.yaml's mesh: path,
+    scale, up, shift) unless --mesh or --reference-cloud names another ground truth; it was
+    scored against the default airliner. Sets args.mesh and its options; ValueError for mesh
+    options given without --mesh, or a mesh file that cannot be found from here."""
+    from ..runfolder import looks_like_run
+    from ..yamlio import read_yaml_file
+
+    if not (looks_like_run(folder) and (folder / "config.yaml").is_file()):
+        return
+    mesh = (read_yaml_file(folder / "config.yaml", "the run's config.yaml") or {}).get("mesh")
+    if not isinstance(mesh, dict):
+        return
+    if args.mesh_scale != 1.0 or args.mesh_up != "auto" or args.mesh_shift is not None:
+        raise ValueError(
+            f"the run {folder} flew the mesh its config.yaml names, with its scale, up axis and "
+            "shift: give --mesh too to score its cloud against another mesh"
+        )
+    if mesh.get("path") is None:  # the default airliner
+        return
+    path = Path(os.fspath(mesh["path"])).expanduser()
+    if not path.exists():
+        raise ValueError(
+            f"the run {folder} flew the mesh '{path}' (its config.yaml), which is not found from "
+            f"here ({Path.cwd()}): give the mesh with --mesh"
+        )
+    args.mesh = path
+    args.mesh_scale = float(mesh.get("scale", 1.0))
+    args.mesh_up = str(mesh.get("up", "auto"))
+    shift = mesh.get("shift")
+    args.mesh_shift = [float(x) for x in shift] if shift and any(shift) else None
 
 
 def run_cloud(path: Path) -> Path:
