@@ -319,6 +319,18 @@ def test_a_list_of_clouds_is_written_a_part_at_a_time_as_its_stacked_points(
         nbvkit._core.stack_points([camera], -1)
 
 
+def test_points_beyond_float32_are_not_written_as_float32(tmp_path):
+    """A .pcd (float32 by default) or dtype=float32 of a coordinate float32 cannot hold is
+    refused, nothing written (it wrote inf, which reading dropped); float64 keeps it."""
+    pts = np.array([[1e300, 0, 0], [1, 2, 3]])
+    for name, kw in (("big.pcd", {}), ("big.ply", {"dtype": np.float32})):
+        with pytest.raises(ValueError, match="reaches 1e.300, beyond float32's range"):
+            write_points(tmp_path / name, pts, **kw)
+        assert not (tmp_path / name).exists()
+    write_points(tmp_path / "big64.pcd", pts, dtype=np.float64)
+    np.testing.assert_array_equal(read_points(tmp_path / "big64.pcd"), pts)
+
+
 def test_open3d_reads_our_files(tmp_path):
     o3d = pytest.importorskip("open3d")
     pts = sample_points()

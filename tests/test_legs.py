@@ -335,3 +335,36 @@ def test_a_frame_any_part_would_refuse_changes_nothing():
     )
     done = _core.integrate_frame(w.map, w.camera_cloud, w.surface, scan)
     assert done.next_scan is None and done.map.rays == len(scan.hits) + len(scan.free_ends)
+
+
+def test_the_step_api_refuses_steps_its_record_would_misstate():
+    """A script's steps (World.fly_to, sense, integrate) keep the flight record true: a capture
+    is recorded where the vehicle is (sense from another pose was recorded at the vehicle's), a
+    laser scan is not integrated as a photo, a path starts here and ends at the target (the
+    distance summed one path while the vehicle moved to another), a target is finite and a
+    pitch within what the camera takes (90 deg + 1e-10 was flown, then refused by the camera)."""
+    w = seen_box_world()
+    p = w.state.pose.copy()
+    views, rows, dist = w.state.views, len(w.state.flight), w.state.distance_m
+    with pytest.raises(ValueError, match="sense records a capture where the vehicle is"):
+        w.sense("view", pose=[p[0] + 1, p[1], p[2], 0.3])
+    with pytest.raises(ValueError, match="'view' capture must be a camera scan; .* 1 x"):
+        w.integrate(w.scan("laser"), "view")
+    with pytest.raises(ValueError, match="'laser' capture must be a laser scan"):
+        w.integrate(w.scan("view"), "laser")
+    far = [p[0] + 10, p[1], p[2]]
+    with pytest.raises(ValueError, match="path must start where the vehicle is"):
+        w.fly_to([p[0] + 2, p[1], p[2], 0], "nbv", path=[far, [p[0] + 2, p[1], p[2]]])
+    with pytest.raises(ValueError, match="path must end at the target"):
+        w.fly_to([p[0] + 2, p[1], p[2], 0], "nbv", path=[p[:3], far])
+    for bad in ([p[0], p[1], p[2], math.nan], [math.inf, p[1], p[2], 0]):
+        with pytest.raises(ValueError, match="target must be finite"):
+            w.fly_to(bad, "nbv")
+    with pytest.raises(ValueError, match="outside camera.gimbal_pitch_deg"):
+        w.fly_to([*p[:4], math.radians(90.0000000001)], "nbv")
+    assert (w.state.views, len(w.state.flight), w.state.distance_m) == (views, rows, dist)
+    # the same steps done right are recorded
+    w.sense("view", pose=p)
+    assert w.state.views == views + 1 and w.state.flight[-1][6] == "view"
+    w.fly_to([p[0], p[1] - 0.5, p[2], p[3]], "nbv", path=[p[:3], [p[0], p[1] - 0.5, p[2]]])
+    assert w.state.distance_m == pytest.approx(dist + 0.5)

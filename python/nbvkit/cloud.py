@@ -189,9 +189,15 @@ def write_points(path, points, ascii: bool = False, dtype=None) -> None:
     if dtype not in (np.dtype(np.float32), np.dtype(np.float64)):
         raise ValueError(f"dtype must be float32 or float64, got {dtype}")
     # a list of clouds is finite by construction: SurfaceCloud refuses NaN/inf
-    n, parts = _parts(
-        points if _is_cloud_list(points) else _check_points(points, "points"), _WRITE_PART
-    )
+    if not _is_cloud_list(points):
+        points = _check_points(points, "points")
+        big = float(np.abs(points).max()) if points.size else 0.0
+        if dtype == np.float32 and big > np.finfo(np.float32).max:  # it would write inf
+            raise ValueError(
+                f"cannot write point cloud '{path}' in float32: a coordinate reaches {big:.3g}, "
+                "beyond float32's range; write it with dtype=np.float64"
+            )
+    n, parts = _parts(points, _WRITE_PART)
     with open(path, "wb") as f:
         f.write(_points_header(suffix, n, dtype, ascii))
         for part in parts:

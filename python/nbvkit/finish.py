@@ -17,7 +17,7 @@ from .flight import FlightModel, estimate, run_flight
 from .observability import observable_surface
 from .reconstruction import reconstruct_mesh, score_mesh, write_mesh_ply
 from .run_report import write_run_report
-from .world import FLIGHT_COLUMNS
+from .vehicle import FLIGHT_COLUMNS
 
 __all__ = ["finish_run", "flight_estimate"]
 

@@ -14,7 +14,7 @@ from . import _core
 from .evaluation import SUMMARY_KEYS
 from .planning.terminations.budget import BUDGET_REASONS
 from .runfolder import atomic_open, write_json_atomic, write_text_atomic
-from .world import FLIGHT_COLUMNS
+from .vehicle import FLIGHT_COLUMNS
 
 # what stops a flight or its saving and leaves what was flown kept: Ctrl-C (and a `kill` handled
 # as it), sys.exit() from a part, any error

@@ -8,12 +8,12 @@ from __future__ import annotations
 
 import dataclasses
 import math
-from dataclasses import dataclass, field
 from typing import Optional
 
 import numpy as np
 
 from . import _core
+from ._core import MAX_COORDINATE
 from .limits import Bound, MissionError, check_work, units_hint
 from .mapping import new_map
 from .mesh import default_mesh_path, fibonacci_sphere, load_mesh, surface_crossings
@@ -25,6 +25,7 @@ from .sensors import (
     build_view_camera,
 )
 from .settings import cpp_section
+from .vehicle import VehicleState, as_view
 from .workspace import (
     is_large,
     Workspace,
@@ -88,62 +89,6 @@ VehicleConfig = cpp_section(
         "min_altitude": Bound(lo=0, hi=10_000),
     },
 )
-
-
-#: The columns of VehicleState.flight (and of a run's flight.csv).
-FLIGHT_COLUMNS = ("stage", "x", "y", "z", "yaw", "pitch", "capture", "distance_m")
-
-
-def as_view(pose) -> np.ndarray:
-    """A pose (x, y, z, yaw) or view (x, y, z, yaw, pitch) as a view (5,) float64: 4 numbers
-    mean the level camera (pitch 0). The pitch is the camera gimbal's, radians, > 0 looks
-    down (camera.gimbal_pitch_deg)."""
-    p = np.asarray(pose, float).reshape(-1)
-    if len(p) == 4:
-        return np.append(p, 0.0)
-    if len(p) != 5:
-        raise ValueError(
-            f"a pose must be 4 numbers (x, y, z, yaw) or 5 (x, y, z, yaw, pitch), got {len(p)}"
-        )
-    return p.copy()
-
-
-@dataclass
-class VehicleState:
-    """Where the vehicle is and has been: pose (x, y, z, yaw, pitch) (the camera gimbal's pitch,
-    radians, > 0 looks down), distance flown (m), the trajectory rows (stage, x, y, z, yaw,
-    pitch, distance_m: the start and each leg's end), and the flight rows (FLIGHT_COLUMNS: every
-    point flown, the A* waypoints between the legs' ends included; capture "view" where a
-    counted view was taken, "frame" where an in-flight camera frame was, else "": one capture
-    per row)."""
-
-    pose: np.ndarray
-    distance_m: float = 0.0
-    views: int = 0  # counted views taken (in-flight frames are not counted)
-    frames_skipped: int = 0  # leg frames not taken: their previews found too little new
-    trajectory: list = field(default_factory=list)
-    flight: list = field(default_factory=list)
-
-    def record_leg(self, stage: str, pts: np.ndarray, d0: float) -> None:
-        """Flight rows of a leg flown along `pts` (P, 3; first = where it started) from the
-        distance d0 to the current pose: the waypoints in between, then the pose."""
-        pitch = float(self.pose[4]) if len(self.pose) > 4 else 0.0
-        yaw = float(self.pose[3])
-        d = d0
-        for a, b in zip(pts[:-2], pts[1:-1]):
-            d += float(np.linalg.norm(b - a))
-            self.flight.append([stage, *map(float, b), yaw, pitch, "", d])
-        p = self.pose
-        self.flight.append([stage, *map(float, p[:3]), yaw, pitch, "", self.distance_m])
-
-    def capture(self, kind: str = "view") -> None:
-        """Marks the last flight row (where the vehicle is) as a camera capture: a counted view
-        ("view", which also counts in `views`) or an in-flight frame ("frame")."""
-        if kind == "view":
-            self.views += 1
-        if self.flight[-1][6]:  # a second capture here: a row of its own
-            self.flight.append(list(self.flight[-1]))
-        self.flight[-1][6] = kind
 
 
 def cloud_floor(config, mesh_bounds) -> float:
@@ -313,6 +258,12 @@ class World:
         integrate). kind: "view" (a camera frame that counts as a view), "frame" (a camera frame
         taken in flight, the profile's or a leg's, by frame_camera at camera.frame_stride,
         refined where it could add: camera.frame_refine) or "laser". Returns the Scan."""
+        if pose is not None and not np.allclose(as_view(pose), self.state.pose, rtol=0, atol=1e-9):
+            raise ValueError(
+                f"sense records a capture where the vehicle is, {self.state.pose.tolist()}, not "
+                f"at {as_view(pose).tolist()}: fly_to that pose first, or scan(kind, pose) to look "
+                "from it without recording anything"
+            )
         scan = self.scan(kind, pose)
         self.integrate(scan, kind)
         return scan
@@ -365,6 +316,7 @@ class World:
         other, the map's update beside the other two). then: (kind, pose) of the camera capture
         to come next, where it is known (a leg's next frame, or its view): taken meanwhile, and
         returned by the scan that asks for it."""
+        self._check_sensor(scan, kind)
         if self.SENSOR_OF[kind] == "laser":
             self.map.integrate(scan)
             self.laser_cloud.add(scan.hits)
@@ -379,6 +331,22 @@ class World:
             self._ahead = (then[0], ahead["next_pose"], done.next_scan)
         self.state.capture(kind)
         return done.new_cells
+
+    def _check_sensor(self, scan, kind: str) -> None:
+        """ValueError unless `scan` is an image of the sensor `kind` names (a laser scan
+        integrated as a view went into the camera cloud and counted as a photo)."""
+        if kind not in self.SENSOR_OF:
+            raise ValueError(f"unknown capture {kind!r}; known: {', '.join(self.SENSOR_OF)}")
+        shape = tuple(np.shape(scan.depth))
+        if self.SENSOR_OF[kind] == "laser":
+            fits = shape == (1, self.laser.num_beams)
+        else:
+            fits = shape in {(c.height, c.width) for c in (self.camera, self.frame_camera)}
+        if not fits:
+            raise ValueError(
+                f"a {kind!r} capture must be a {self.SENSOR_OF[kind]} scan; this one holds "
+                f"{' x '.join(map(str, shape))} rays"
+            )
 
     @property
     def clouds(self) -> list:
@@ -397,9 +365,21 @@ class World:
         the distance flown. The swept volume becomes known free (vehicle.clear_swept_volume).
         Raises ValueError for a pitch outside camera.gimbal_pitch_deg."""
         target = as_view(target)
+        if not np.isfinite(target).all() or np.abs(target[:3]).max() > MAX_COORDINATE:
+            raise ValueError(f"fly_to target must be finite coordinates, got {target.tolist()}")
         self._check_pitch(target[4])
         cur = self.state.pose
         pts = np.asarray(path if path is not None and len(path) else [cur[:3], target[:3]], float)
+        if pts.ndim != 2 or pts.shape[1] != 3 or not np.isfinite(pts).all():
+            raise ValueError(f"fly_to path must be (P, 3) finite waypoints, got shape {pts.shape}")
+        for end, where, what in (
+            (pts[0], cur, "start where the vehicle is"),
+            (pts[-1], target, "end at the target"),
+        ):
+            if not np.allclose(end, where[:3], rtol=0, atol=1e-6):
+                raise ValueError(
+                    f"fly_to path must {what}, {where[:3].tolist()}; it gives {end.tolist()}"
+                )
         d = float(np.linalg.norm(np.diff(pts, axis=0), axis=1).sum())
         v = self.config.vehicle
         if v.clear_swept_volume:
@@ -418,7 +398,8 @@ class World:
     def _check_pitch(self, pitch: float) -> None:
         lo, hi = self.config.camera.gimbal_pitch_deg
         deg = math.degrees(pitch)
-        if not (math.isfinite(pitch) and lo - 1e-9 <= deg <= hi + 1e-9):
+        within = lo - 1e-9 <= deg <= hi + 1e-9 and abs(pitch) <= math.pi / 2  # the camera's
+        if not (math.isfinite(pitch) and within):
             raise ValueError(
                 f"view pitch {pitch!r} rad ({deg:g} deg) is outside camera.gimbal_pitch_deg "
                 f"[{lo:g}, {hi:g}] deg"

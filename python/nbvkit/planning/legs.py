@@ -8,7 +8,7 @@ import math
 import numpy as np
 
 from .. import _core
-from ..world import as_view
+from ..vehicle import as_view
 
 
 def leg_pieces(start, target, path, step: float) -> list:
