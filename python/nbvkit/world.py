@@ -315,7 +315,8 @@ class World:
         frame goes into all three at once (_core.integrate_frame: the same as one after the
         other, the map's update beside the other two). then: (kind, pose) of the camera capture
         to come next, where it is known (a leg's next frame, or its view): taken meanwhile, and
-        returned by the scan that asks for it."""
+        returned by the scan that asks for it. The scan is of the sensor `kind` names, taken
+        where the vehicle is (scan(kind)): the capture is recorded there."""
         self._check_sensor(scan, kind)
         if self.SENSOR_OF[kind] == "laser":
             self.map.integrate(scan)
@@ -363,7 +364,9 @@ class World:
         """Move the vehicle along `path` ((P, 3) waypoints, first = here; default straight) to
         `target` (x, y, z, yaw) or (x, y, z, yaw, pitch) (4 numbers: the camera level); returns
         the distance flown. The swept volume becomes known free (vehicle.clear_swept_volume).
-        Raises ValueError for a pitch outside camera.gimbal_pitch_deg."""
+        Raises ValueError for a non-finite target, a pitch outside camera.gimbal_pitch_deg, or
+        a path that does not start here and end at the target. Nothing checks the target
+        against the structure or the workspace: that is the planner's part (can_hold)."""
         target = as_view(target)
         if not np.isfinite(target).all() or np.abs(target[:3]).max() > MAX_COORDINATE:
             raise ValueError(f"fly_to target must be finite coordinates, got {target.tolist()}")
