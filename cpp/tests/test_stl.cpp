@@ -24,6 +24,7 @@ namespace {
 
 using nbv_test::area_of;
 using nbv_test::error_of;
+using nbv_test::volume_of;
 
 using Triangle = std::array<double, 9>;  // x y z of three vertices
 
@@ -53,18 +54,6 @@ std::vector<Triangle> reversed(std::vector<Triangle> tris) {
   for (auto& t : tris)
     for (int k = 0; k < 3; ++k) std::swap(t[3 + k], t[6 + k]);
   return tris;
-}
-
-// The signed volume a closed mesh encloses: positive when its triangles face outwards.
-template <class Data>
-double volume_of(const Data& d) {
-  double v = 0;
-  for (Eigen::Index i = 0; i < d.faces.rows(); ++i) {
-    const Eigen::Vector3d p0 = d.vertices.row(d.faces(i, 0)), p1 = d.vertices.row(d.faces(i, 1)),
-                          p2 = d.vertices.row(d.faces(i, 2));
-    v += p0.dot(p1.cross(p2)) / 6;
-  }
-  return v;
 }
 
 void put_u32(std::string& s, std::uint32_t v) {
