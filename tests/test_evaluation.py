@@ -677,9 +677,9 @@ def test_cli_evaluate_of_a_run_folder_scores_it_against_the_mesh_it_flew(
     assert cli.main([*argv, "--set", *TINY_RUN, "report.enabled=false"]) == 0
     flown = json.loads((out / "summary.json").read_text())
     j = tmp_path / "e.json"
-    assert cli.main(["evaluate", str(out), "--gt-density", "50", "--json", str(j)]) == 0
+    assert cli.main(["evaluate", str(out), "--json", str(j)]) == 0  # the run's density, seed
     e = json.loads(j.read_text())
-    assert (e["mesh"], e["mesh_scale"]) == ("m/cube.obj", 2.0)
+    assert (e["mesh"], e["mesh_scale"], e["gt_density"]) == ("m/cube.obj", 2.0, 50.0)
     assert e["coverage"] == flown["coverage"] and min(e["coverage"].values()) > 0
     capsys.readouterr()
     assert cli.main(["evaluate", str(out), "--mesh-scale", "3"]) == 2
@@ -689,3 +689,30 @@ def test_cli_evaluate_of_a_run_folder_scores_it_against_the_mesh_it_flew(
     assert "flew the mesh 'm/cube.obj' (its config.yaml), which is not found" in (
         capsys.readouterr().err
     )
+
+
+def test_a_run_of_the_default_mesh_or_an_in_memory_one_is_scored_as_it_was_flown(tmp_path):
+    """The default airliner at the run's scale, up axis and shift (they were dropped with the
+    path); a run flown on an in-memory mesh names no file, so a ground truth must be given."""
+    from argparse import Namespace
+
+    from nbvkit.commands.evaluate import _settings_of_run
+
+    run = tmp_path / "run"
+    run.mkdir()
+    (run / "summary.json").write_text('{"mesh": "airliner.obj", "gt_density": 80, "seed": 3}')
+    (run / "config.yaml").write_text("mesh: {path: null, scale: 0.5, up: y, shift: [0, 0, 5]}\n")
+    keys = ("mesh", "mesh_scale", "mesh_up", "mesh_shift", "reference_cloud", "gt_density", "seed")
+    args = Namespace(**{**dict.fromkeys(keys), "mesh_scale": 1.0, "mesh_up": "auto"})
+    _settings_of_run(args, run)
+    assert (args.mesh, args.mesh_scale, args.mesh_up, args.mesh_shift) == (
+        None,
+        0.5,
+        "y",
+        [0, 0, 5],
+    )
+    assert (args.gt_density, args.seed) == (80.0, 3)
+    (run / "summary.json").write_text('{"mesh": "<in-memory mesh>"}')
+    args = Namespace(**{**dict.fromkeys(keys), "mesh_scale": 1.0, "mesh_up": "auto"})
+    with pytest.raises(ValueError, match="flew a mesh given in memory"):
+        _settings_of_run(args, run)

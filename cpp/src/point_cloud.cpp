@@ -3,6 +3,7 @@
 
 #include <algorithm>
 #include <atomic>
+#include <chrono>
 #include <cmath>
 #include <random>
 #include <string>
@@ -10,8 +11,13 @@
 namespace nbv {
 
 std::uint64_t draw_hash_seed() {
-  std::random_device rd;
-  return std::uint64_t(rd()) << 32 ^ rd();
+  try {
+    std::random_device rd;
+    return std::uint64_t(rd()) << 32 ^ rd();
+  } catch (const std::exception&) {  // no entropy source: the clock (at import, never a throw)
+    return static_cast<std::uint64_t>(std::chrono::steady_clock::now().time_since_epoch().count() *
+                                      0x9E3779B97F4A7C15ull);
+  }
 }
 namespace {
 // Marks a point dropped by ground removal or cropping (pack_voxel never sets bit 63).

@@ -191,8 +191,8 @@ def write_points(path, points, ascii: bool = False, dtype=None) -> None:
     # a list of clouds is finite by construction: SurfaceCloud refuses NaN/inf
     if not _is_cloud_list(points):
         points = _check_points(points, "points")
-        big = float(np.abs(points).max()) if points.size else 0.0
-        if dtype == np.float32 and big > np.finfo(np.float32).max:  # it would write inf
+        big = max(points.max(), -points.min()) if dtype == np.float32 and points.size else 0.0
+        if big > np.finfo(np.float32).max:  # it would write inf
             raise ValueError(
                 f"cannot write point cloud '{path}' in float32: a coordinate reaches {big:.3g}, "
                 "beyond float32's range; write it with dtype=np.float64"

@@ -25,7 +25,7 @@ from .sensors import (
     build_view_camera,
 )
 from .settings import cpp_section
-from .vehicle import VehicleState, as_view
+from .vehicle import FLIGHT_COLUMNS, VehicleState, as_view  # noqa: F401  (re-exported)
 from .workspace import (
     is_large,
     Workspace,
@@ -254,10 +254,12 @@ class World:
     SENSOR_OF = {"view": "camera", "frame": "camera", "laser": "laser"}
 
     def sense(self, kind: str = "view", pose=None):
-        """One capture from `pose` (default: the vehicle's), scanned and integrated (scan, then
-        integrate). kind: "view" (a camera frame that counts as a view), "frame" (a camera frame
-        taken in flight, the profile's or a leg's, by frame_camera at camera.frame_stride,
-        refined where it could add: camera.frame_refine) or "laser". Returns the Scan."""
+        """One capture where the vehicle is, scanned and integrated (scan, then integrate);
+        `pose`, if given, must be the vehicle's (fly_to it first; scan(kind, pose) looks from
+        elsewhere without recording). kind: "view" (a camera frame that counts as a view),
+        "frame" (a camera frame taken in flight, the profile's or a leg's, by frame_camera at
+        camera.frame_stride, refined where it could add: camera.frame_refine) or "laser".
+        Returns the Scan."""
         if pose is not None and not np.allclose(as_view(pose), self.state.pose, rtol=0, atol=1e-9):
             raise ValueError(
                 f"sense records a capture where the vehicle is, {self.state.pose.tolist()}, not "

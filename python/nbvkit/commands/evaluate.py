@@ -100,17 +100,18 @@ def _add_scoring_options(p) -> None:
     p.add_argument(
         "--gt-density",
         type=float,
-        default=DEFAULT_GT_DENSITY,
+        default=None,
         metavar="D",
-        help=f"ground-truth samples per m^2 of mesh surface (default {DEFAULT_GT_DENSITY:g}; "
-        "coverage depends on it, area coverage does not)",
+        help="ground-truth samples per m^2 of mesh surface (default: a run's own, for a run's "
+        f"cloud; else {DEFAULT_GT_DENSITY:g}; coverage depends on it, area coverage does not)",
     )
     p.add_argument(
         "--seed",
         type=int,
-        default=0,
+        default=None,
         metavar="N",
-        help="seed of the ground-truth surface sampling (default 0; same seed, same numbers)",
+        help="seed of the ground-truth surface sampling (default: a run's own, for a run's "
+        "cloud; else 0; same seed, same numbers)",
     )
     p.add_argument(
         "--resolutions",
@@ -145,13 +146,12 @@ def run(args) -> int:
             f"{names} {'define' if len(given) > 1 else 'defines'} only the observable surface: "
             "add --observable (the other figures do not read a mission configuration)"
         )
-    if args.gt_density is None or not args.gt_density > 0:
-        raise ValueError(f"--gt-density must be > 0, got {args.gt_density}")
     if args.json:
         check_output_file(args.json, "--json")
     cloud_path = run_cloud(Path(os.fspath(args.cloud)).expanduser())
-    if not (args.mesh or args.reference_cloud):
-        _mesh_of_run(args, cloud_path.parent)
+    _settings_of_run(args, cloud_path.parent)
+    if not args.gt_density > 0:
+        raise ValueError(f"--gt-density must be > 0, got {args.gt_density}")
     cloud, cloud_kind = read_reconstruction(cloud_path, args.gt_density, args.seed)
     if args.reference_cloud:
         gt = read_points(args.reference_cloud)
@@ -207,15 +207,22 @@ def run(args) -> int:
     return 0
 
 
-def _mesh_of_run(args, folder: Path) -> None:
-    """A run's cloud is scored against the mesh the run flew (its config.yaml's mesh: path,
-    scale, up, shift) unless --mesh or --reference-cloud names another ground truth; it was
-    scored against the default airliner. Sets args.mesh and its options; ValueError for mesh
-    options given without --mesh, or a mesh file that cannot be found from here."""
+def _settings_of_run(args, folder: Path) -> None:
+    """A run's cloud is scored as the run scored it: against the mesh it flew (its config.yaml's
+    mesh: path, scale, up, shift) unless --mesh or --reference-cloud names another ground truth,
+    at its ground-truth density and seed (summary.json) unless --gt-density / --seed are given.
+    Anything else: the defaults. Sets args; ValueError for mesh options given without --mesh, a
+    run flown on an in-memory mesh, or a mesh file that cannot be found from here."""
     from ..runfolder import looks_like_run
     from ..yamlio import read_yaml_file
 
-    if not (looks_like_run(folder) and (folder / "config.yaml").is_file()):
+    run = looks_like_run(folder) and (folder / "config.yaml").is_file()
+    summary = json.loads((folder / "summary.json").read_text()) if run else {}
+    if args.gt_density is None:
+        args.gt_density = float(summary.get("gt_density") or DEFAULT_GT_DENSITY)
+    if args.seed is None:
+        args.seed = int(summary.get("seed") or 0)
+    if not run or args.mesh or args.reference_cloud:
         return
     mesh = (read_yaml_file(folder / "config.yaml", "the run's config.yaml") or {}).get("mesh")
     if not isinstance(mesh, dict):
@@ -225,7 +232,16 @@ def _mesh_of_run(args, folder: Path) -> None:
             f"the run {folder} flew the mesh its config.yaml names, with its scale, up axis and "
             "shift: give --mesh too to score its cloud against another mesh"
         )
-    if mesh.get("path") is None:  # the default airliner
+    if summary.get("mesh") == "<in-memory mesh>":
+        raise ValueError(
+            f"the run {folder} flew a mesh given in memory, which its folder does not hold: give "
+            "the ground truth with --mesh or --reference-cloud"
+        )
+    args.mesh_scale = float(mesh.get("scale", 1.0))
+    args.mesh_up = str(mesh.get("up", "auto"))
+    shift = mesh.get("shift")
+    args.mesh_shift = [float(x) for x in shift] if shift and any(shift) else None
+    if mesh.get("path") is None:  # the default airliner, at the run's scale, up and shift
         return
     path = Path(os.fspath(mesh["path"])).expanduser()
     if not path.exists():
@@ -234,10 +250,6 @@ def _mesh_of_run(args, folder: Path) -> None:
             f"here ({Path.cwd()}): give the mesh with --mesh"
         )
     args.mesh = path
-    args.mesh_scale = float(mesh.get("scale", 1.0))
-    args.mesh_up = str(mesh.get("up", "auto"))
-    shift = mesh.get("shift")
-    args.mesh_shift = [float(x) for x in shift] if shift and any(shift) else None
 
 
 def run_cloud(path: Path) -> Path:
