@@ -91,6 +91,10 @@ VehicleConfig = cpp_section(
 )
 
 
+#: World.mesh_path (and a summary's "mesh") of a mesh given in memory, not read from a file
+IN_MEMORY_MESH = "<in-memory mesh>"
+
+
 def cloud_floor(config, mesh_bounds) -> float:
     """The height below which the clouds drop points: cloud.min_z above the structure's ground
     (workspace.ground_height)."""
@@ -144,7 +148,7 @@ class World:
         else:
             if not isinstance(mesh, _core.Mesh):
                 raise TypeError(f"mesh must be an nbvkit.Mesh, got {type(mesh).__name__}")
-            self.mesh_path = "<in-memory mesh>"
+            self.mesh_path = IN_MEMORY_MESH
         self.mesh = mesh
         if not mesh.area > 0 or not math.isfinite(mesh.area):
             area = "no" if not mesh.area > 0 else "an infinite"

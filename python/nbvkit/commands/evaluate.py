@@ -213,8 +213,9 @@ def _settings_of_run(args, folder: Path) -> None:
     at its ground-truth density and seed (summary.json) unless --gt-density / --seed are given.
     Anything else: the defaults. Sets args; ValueError for mesh options given without --mesh, a
     run flown on an in-memory mesh, or a mesh file that cannot be found from here."""
+    from ..config import load_config
     from ..runfolder import looks_like_run
-    from ..yamlio import read_yaml_file
+    from ..world import IN_MEMORY_MESH
 
     run = looks_like_run(folder) and (folder / "config.yaml").is_file()
     summary = json.loads((folder / "summary.json").read_text()) if run else {}
@@ -224,26 +225,22 @@ def _settings_of_run(args, folder: Path) -> None:
         args.seed = int(summary.get("seed") or 0)
     if not run or args.mesh or args.reference_cloud:
         return
-    mesh = (read_yaml_file(folder / "config.yaml", "the run's config.yaml") or {}).get("mesh")
-    if not isinstance(mesh, dict):
-        return
     if args.mesh_scale != 1.0 or args.mesh_up != "auto" or args.mesh_shift is not None:
         raise ValueError(
             f"the run {folder} flew the mesh its config.yaml names, with its scale, up axis and "
             "shift: give --mesh too to score its cloud against another mesh"
         )
-    if summary.get("mesh") == "<in-memory mesh>":
+    if summary.get("mesh") == IN_MEMORY_MESH:
         raise ValueError(
             f"the run {folder} flew a mesh given in memory, which its folder does not hold: give "
             "the ground truth with --mesh or --reference-cloud"
         )
-    args.mesh_scale = float(mesh.get("scale", 1.0))
-    args.mesh_up = str(mesh.get("up", "auto"))
-    shift = mesh.get("shift")
-    args.mesh_shift = [float(x) for x in shift] if shift and any(shift) else None
-    if mesh.get("path") is None:  # the default airliner, at the run's scale, up and shift
+    mesh = load_config(folder / "config.yaml").mesh
+    args.mesh_scale, args.mesh_up = mesh.scale, mesh.up
+    args.mesh_shift = list(mesh.shift) if any(mesh.shift) else None
+    if mesh.path is None:  # the default airliner, at the run's scale, up and shift
         return
-    path = Path(os.fspath(mesh["path"])).expanduser()
+    path = Path(os.fspath(mesh.path)).expanduser()
     if not path.exists():
         raise ValueError(
             f"the run {folder} flew the mesh '{path}' (its config.yaml), which is not found from "
