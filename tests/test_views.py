@@ -283,3 +283,39 @@ def test_the_memo_keeps_only_recent_records_and_refuses_bad_use():
     score(m, [[5, 0, 5, 0.0]], memo=memo, utility="average_entropy")
     score(m, [[5, 0, 5, 0.0]], memo=memo, utility="average_entropy")
     assert memo.entries == 0
+
+
+def test_collision_checks_keep_off_cells_the_camera_hit_that_the_map_holds_free():
+    """Rays passing beside a surface that cuts a cell can carve the cell free in the map; given
+    the camera observations, every collision check treats a cell holding a camera hit as
+    blocked, so the sphere keeps off the surface points seen (a flight planned on the map alone
+    passed 0.57 m from the airliner with a 0.8 m radius)."""
+    slab = box_mesh((4, 4, 1.9), (8, 8, 2.03))  # its top face cuts the cells of z in [2.0, 2.2)
+    scan = nbvkit.DepthCamera(slab, width=160, height=120).scan_pose([6, 6, 5, 0, math.pi / 2])
+    m = nbvkit.OccupancyMap(0.2, (0, 0, 0), (12, 12, 6))
+    surface = _core.SurfaceObservations(m)
+    assert surface.add_scan(scan) > 0
+    assert np.all(np.abs(scan.hits[:, 2] - 2.03) < 1e-6)
+    m.mark_free_segment((6, 6, 3.2), (6, 6, 3.2), 1.6)  # the slab's top cells held free
+    low, high, r = (6, 6, 2.9), (6, 6, 3.3), 0.8  # the sphere reaches 2.1 and 2.5 m
+    assert _core.sphere_is_free(m, low, r)  # the map alone: all known free
+    assert not _core.sphere_is_free(m, low, r, surface=surface)
+    assert _core.sphere_is_free(m, high, r, surface=surface)  # above the hit cells: free
+    many = _core.spheres_are_free(m, [low, high], r, surface=surface)
+    assert many.tolist() == [False, True]
+    assert _core.segment_is_free(m, (5.6, 6, 2.9), (6.4, 6, 2.9), r)
+    assert not _core.segment_is_free(m, (5.6, 6, 2.9), (6.4, 6, 2.9), r, surface=surface)
+    path = _core.plan_path(m, (5.6, 6, 3.3), (6.4, 6, 3.3), r, surface=surface)
+    assert len(path) == 2  # straight, above them
+    for reference in (False, True):  # down to the hit cells: only on the map alone
+        args = (m, (5.6, 6, 3.3), (6.4, 6, 2.9), r)
+        assert len(_core.plan_path(*args, reference=reference)) > 0
+        assert len(_core.plan_path(*args, reference=reference, surface=surface)) == 0
+    search = _core.search_path(m, (5.6, 6, 3.3), (6.4, 6, 2.9), r, surface=surface)
+    assert len(search.path) == 0 and not search.capped
+    component = _core.FreeComponent(m, high, r, surface=surface)
+    assert component.contains(m, [high, low, (6.2, 6, 3.4)]).tolist() == [True, False, True]
+    assert _core.FreeComponent(m, high, r).contains(m, [low]).tolist() == [True]
+    other = nbvkit.OccupancyMap(0.2, (0, 0, 0), (10, 12, 6))  # observations of another grid
+    with pytest.raises(ValueError):
+        _core.sphere_is_free(other, low, r, surface=surface)

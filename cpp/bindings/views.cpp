@@ -16,6 +16,15 @@
 namespace nbv::bind {
 namespace {
 
+/// The camera observations a collision check may read (None: the map alone).
+using SurfacePtr = std::shared_ptr<SurfaceObservations>;
+
+/// A FreeComponent and the camera observations it was flooded with, which its contains reads.
+struct BoundComponent {
+  FreeComponent component;
+  SurfacePtr surface;
+};
+
 /// An (nx, ny, nz) Fortran-ordered copy of a per-cell value, get(grid id), of a grid layout.
 template <typename T, typename Get>
 py::array_t<T, py::array::f_style> per_cell(const GridLayout& layout, const Get& get,
@@ -526,56 +535,60 @@ ValueError for a bad shape, non-finite values or bad options.)doc");
 
   m.def(
       "sphere_is_free",
-      [](const OccupancyMap& map, const py::handle& c, double r) {
+      [](const OccupancyMap& map, const py::handle& c, double r, const SurfacePtr& surface) {
         const Eigen::Vector3d p = vec3_arg(c, "centre");
         check_radius(r);
-        Reading lock(map);
-        return sphere_is_free(grid_view(map), p, r);
+        Reading2 lock(map, surface.get());
+        return sphere_is_free(grid_view(map, surface.get()), p, r);
       },
-      py::arg("map"), py::arg("center"), py::arg("radius"),
-      "True if every workspace cell touching the sphere is known and not occupied.");
+      py::arg("map"), py::arg("center"), py::arg("radius"), py::arg("surface") = nullptr,
+      "True if every workspace cell touching the sphere is known and not occupied, and (with the\n"
+      "camera observations `surface`) holds no camera hit: the collision checks' rule.");
   m.def(
       "spheres_are_free",
-      [](const OccupancyMap& map, const py::handle& c, double r) {
+      [](const OccupancyMap& map, const py::handle& c, double r, const SurfacePtr& surface) {
         const PointsArg centres = points_arg(c, "centres");
         check_radius(r);
         const auto pts = centres.map();
         py::array_t<bool> out(static_cast<py::ssize_t>(pts.rows()));
         auto o = out.mutable_unchecked<1>();
-        Reading lock(map);  // releases the GIL
-        const GridView grid = grid_view(map);
+        Reading2 lock(map, surface.get());  // releases the GIL
+        const GridView grid = grid_view(map, surface.get());
         for (Eigen::Index i = 0; i < pts.rows(); ++i)
           o(py::ssize_t(i)) = sphere_is_free(grid, pts.row(i).transpose(), r);
         return out;
       },
-      py::arg("map"), py::arg("centres"), py::arg("radius"),
+      py::arg("map"), py::arg("centres"), py::arg("radius"), py::arg("surface") = nullptr,
       "(N,) bool per centre (N, 3): sphere_is_free of each (one call for many views).");
   m.def(
       "segment_is_free",
-      [](const OccupancyMap& map, const py::handle& a, const py::handle& b, double r) {
+      [](const OccupancyMap& map, const py::handle& a, const py::handle& b, double r,
+         const SurfacePtr& surface) {
         const Eigen::Vector3d pa = vec3_arg(a, "segment start"), pb = vec3_arg(b, "segment end");
         check_radius(r);
-        Reading lock(map);
-        return segment_is_free(grid_view(map), pa, pb, r);
+        Reading2 lock(map, surface.get());
+        return segment_is_free(grid_view(map, surface.get()), pa, pb, r);
       },
-      py::arg("map"), py::arg("a"), py::arg("b"), py::arg("radius"),
+      py::arg("map"), py::arg("a"), py::arg("b"), py::arg("radius"), py::arg("surface") = nullptr,
       "True if the sphere swept along a-b stays in known free space.");
   m.def(
       "plan_path",
       [](const OccupancyMap& map, const py::handle& a, const py::handle& b, double r,
-         std::size_t max_expansions, bool reference) {
+         std::size_t max_expansions, bool reference, const SurfacePtr& surface) {
         const Eigen::Vector3d pa = vec3_arg(a, "path start"), pb = vec3_arg(b, "path end");
         check_radius(r);
         std::vector<Eigen::Vector3d> path;
         {
-          Reading lock(map);
-          path = reference ? plan_path_reference(grid_view(map), pa, pb, r, max_expansions)
-                           : plan_path(grid_view(map), pa, pb, r, max_expansions);
+          Reading2 lock(map, surface.get());
+          const GridView g = grid_view(map, surface.get());
+          path = reference ? plan_path_reference(g, pa, pb, r, max_expansions)
+                           : plan_path(g, pa, pb, r, max_expansions);
         }
         return path_rows(path);
       },
       py::arg("map"), py::arg("a"), py::arg("b"), py::arg("radius"),
       py::arg("max_expansions") = kDefaultPathExpansions, py::arg("reference") = false,
+      py::arg("surface") = nullptr,
       "A* through known free space; (P, 3) waypoints from a to b, or (0, 3) when there is none.\n"
       "reference=True runs the first implementation (the same path, slower), for tests and\n"
       "benchmarks.");
@@ -604,41 +617,43 @@ One A* search of search_path: its path, and why it found none (read `capped`).)d
   m.def(
       "search_path",
       [](const OccupancyMap& map, const py::handle& a, const py::handle& b, double r,
-         std::size_t max_expansions) {
+         std::size_t max_expansions, const SurfacePtr& surface) {
         const Eigen::Vector3d pa = vec3_arg(a, "path start"), pb = vec3_arg(b, "path end");
         check_radius(r);
         PathSearch out;
         std::vector<Eigen::Vector3d> path;
         {
-          Reading lock(map);
-          path = plan_path(grid_view(map), pa, pb, r, max_expansions, &out.stats);
+          Reading2 lock(map, surface.get());
+          path = plan_path(grid_view(map, surface.get()), pa, pb, r, max_expansions, &out.stats);
         }
         out.path = path_rows(path);
         return out;
       },
       py::arg("map"), py::arg("a"), py::arg("b"), py::arg("radius"),
-      py::arg("max_expansions") = kDefaultPathExpansions,
+      py::arg("max_expansions") = kDefaultPathExpansions, py::arg("surface") = nullptr,
       "plan_path's search with what it did: a PathSearch (path, expansions, flood_ended,\n"
       "capped). A failed search that is not capped is final: no path exists.");
-  py::class_<FreeComponent>(m, "FreeComponent", R"doc(
+  py::class_<BoundComponent>(m, "FreeComponent", R"doc(
 The cells plan_path can reach from `start` through known free space (collision sphere of
-`radius`), found by one flood. Valid while `map` is unchanged: ask it about many targets of one
+`radius`; with the camera observations `surface`, off every cell the camera has hit), found by
+one flood. Valid while `map` and `surface` are unchanged: ask it about many targets of one
 planning step instead of searching a path to each.)doc")
-      .def(py::init([](const OccupancyMap& map, const py::handle& a, double r) {
+      .def(py::init([](const OccupancyMap& map, const py::handle& a, double r,
+                       const SurfacePtr& surface) {
              const Eigen::Vector3d pa = vec3_arg(a, "start");
              check_radius(r);
-             Reading lock(map);
-             return FreeComponent(grid_view(map), pa, r);
+             Reading2 lock(map, surface.get());
+             return BoundComponent{FreeComponent(grid_view(map, surface.get()), pa, r), surface};
            }),
-           py::arg("map"), py::arg("start"), py::arg("radius"))
+           py::arg("map"), py::arg("start"), py::arg("radius"), py::arg("surface") = nullptr)
       .def(
           "contains",
-          [](const FreeComponent& c, const OccupancyMap& map, const py::handle& targets) {
+          [](const BoundComponent& c, const OccupancyMap& map, const py::handle& targets) {
             const PointsArg t = points_arg(targets, "targets");
             std::vector<std::uint8_t> ok;
             {
-              Reading lock(map);
-              ok = c.contains(grid_view(map), t.map());
+              Reading2 lock(map, c.surface.get());
+              ok = c.component.contains(grid_view(map, c.surface.get()), t.map());
             }
             py::array_t<bool> out(static_cast<py::ssize_t>(ok.size()));
             auto o = out.mutable_unchecked<1>();

@@ -137,7 +137,7 @@ struct SearchScratch {
           break;
         }
         const std::size_t idx = g.index(x, j, k);
-        bits |= std::uint64_t(g.cells.flag_at(idx) == CellFlag::Unknown || g.occupied(idx)) << b;
+        bits |= std::uint64_t(g.blocked(idx)) << b;
       }
       blocked_bits[at] = bits;
     }
@@ -212,7 +212,7 @@ bool sphere_is_free(const GridView& g, const Eigen::Vector3d& center, double rad
   for (int bk = lo.z() >> 2; bk <= hi.z() >> 2; ++bk)
     for (int bj = lo.y() >> 2; bj <= hi.y() >> 2; ++bj)
       for (int bi = lo.x() >> 2; bi <= hi.x() >> 2; ++bi) {
-        if (g.brick_open[g.index(4 * bi, 4 * bj, 4 * bk) >> 6] == 64) continue;
+        if (g.brick_clear(g.index(4 * bi, 4 * bj, 4 * bk) >> 6)) continue;
         for (int k = std::max(lo.z(), 4 * bk); k <= std::min(hi.z(), 4 * bk + 3); ++k) {
           const double dz = std::max({k - q.z(), 0.0, q.z() - (k + 1)});
           for (int j = std::max(lo.y(), 4 * bj); j <= std::min(hi.y(), 4 * bj + 3); ++j) {
@@ -221,7 +221,7 @@ bool sphere_is_free(const GridView& g, const Eigen::Vector3d& center, double rad
               const double dx = std::max({i - q.x(), 0.0, q.x() - (i + 1)});
               if (dx * dx + dy * dy + dz * dz > r2) continue;  // the cell does not touch it
               const std::size_t idx = g.index(i, j, k);
-              if (g.cells.flag_at(idx) == CellFlag::Unknown || g.occupied(idx)) return false;
+              if (g.blocked(idx)) return false;
             }
           }
         }

@@ -412,17 +412,41 @@ TEST(Navigation, SphereTestsPassOpenBricksAsTheirCellsWould) {
   Points h(Eigen::Index(hits.size()), 3);
   for (std::size_t n = 0; n < hits.size(); ++n) h.row(Eigen::Index(n)) = hits[n];
   m.update_cells(h, true);
-  const GridView g = grid_view(m);
-  int open = 0;
+  // camera hits in cells the map holds free: with the observations they block the sphere too
+  SurfaceObservations seen(m);
+  const Points camera_hits = random_points(rng, {7, 5.4, 3.4}, 10);
+  seen.add_scan({3.5, 2.7, 1.7}, camera_hits);
+  std::set<std::array<int, 3>> hit_cells;
+  for (Eigen::Index n = 0; n < camera_hits.rows(); ++n)
+    hit_cells.insert({int(std::floor(camera_hits(n, 0) / 0.2)),
+                      int(std::floor(camera_hits(n, 1) / 0.2)),
+                      int(std::floor(camera_hits(n, 2) / 0.2))});
+  const auto near_hit = [&](const Eigen::Vector3d& c, double radius) {
+    for (const auto& h : hit_cells) {  // the box distance from the centre to the hit's cell
+      double d2 = 0;
+      for (int a = 0; a < 3; ++a) {
+        const double lo = 0.2 * h[a], d = std::max({lo - c[a], 0.0, c[a] - (lo + 0.2)});
+        d2 += d * d;
+      }
+      if (d2 <= radius * radius) return true;
+    }
+    return false;
+  };
+  const GridView g = grid_view(m), observed = grid_view(m, &seen);
+  int open = 0, hit_blocked = 0;
   for (int n = 0; n < 20000; ++n) {
     const Eigen::Vector3d c(ux(rng), uy(rng), uz(rng));
     const double r = n % 50 == 0 ? 0.0 : ur(rng);
     const bool expect = brute(g, c, r);
     open += expect;
     ASSERT_EQ(sphere_is_free(g, c, r), expect) << c.transpose() << " r " << r;
+    const bool off_hits = expect && !near_hit(c, r);
+    hit_blocked += expect && !off_hits;
+    ASSERT_EQ(sphere_is_free(observed, c, r), off_hits) << c.transpose() << " r " << r;
   }
   EXPECT_GT(open, 1000);  // both answers are common
   EXPECT_LT(open, 19000);
+  EXPECT_GT(hit_blocked, 50);  // free on the map alone, blocked by a camera hit
 }
 
 TEST(Exploration, TargetsAndExtentAreTheirDefinitionCellByCell) {
@@ -660,7 +684,12 @@ TEST(Navigation, FastSearchGivesTheReferencePathOnRandomScenes) {
     Points blobs(12, 3);
     for (Eigen::Index k = 0; k < blobs.rows(); ++k) blobs.row(k) << ux(rng), uy(rng), uz(rng);
     m.update_cells(blobs, true);
-    const GridView g = grid_view(m);
+    SurfaceObservations seen(m);  // camera hits beside the tunnels' nodes, in free cells
+    Points camera_hits(Eigen::Index(nodes.size()), 3);
+    for (std::size_t n = 0; n < nodes.size(); ++n)
+      camera_hits.row(Eigen::Index(n)) = (nodes[n] + Eigen::Vector3d(0.5, 0.4, 0.3)).transpose();
+    seen.add_scan(nodes[0], camera_hits);
+    const GridView g = scene % 2 ? grid_view(m, &seen) : grid_view(m);
     for (double radius : {0.8, 0.35, 0.5})
       for (std::size_t cap : {std::size_t(200000), std::size_t(300)})
         for (int q = 0; q < 12; ++q) {

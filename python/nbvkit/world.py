@@ -432,9 +432,21 @@ class World:
         inside = self.workspace.contains_each(p)
         ok = np.zeros(len(p), bool)
         if inside.any():
-            radius = self.config.vehicle.collision_radius
-            ok[inside] = _core.spheres_are_free(self.map, p[inside], radius)
+            ok[inside] = self.spheres_are_free(p[inside])
         return ok
+
+    def spheres_are_free(self, centres) -> np.ndarray:
+        """(K,) bool per centre (K, 3): the vehicle's collision sphere there touches only known
+        free cells, none holding a camera hit (the map alone may call a cell free through which
+        a surface cuts: the collision checks keep off every surface point the camera has seen)."""
+        radius = self.config.vehicle.collision_radius
+        return _core.spheres_are_free(self.map, centres, radius, surface=self.surface)
+
+    def free_component(self):
+        """The cells A* can reach from the vehicle (a _core.FreeComponent, by the collision
+        checks' rule of spheres_are_free), valid until the map or the observations change."""
+        radius = self.config.vehicle.collision_radius
+        return _core.FreeComponent(self.map, self.state.pose[:3], radius, surface=self.surface)
 
     def plan_path(self, target, max_expansions: int | None = None):
         """A* path (P, 3) from the vehicle to target's position through known free space, or
@@ -454,6 +466,7 @@ class World:
             np.asarray(target, float)[:3],
             self.config.vehicle.collision_radius,
             max_expansions=max_expansions,
+            surface=self.surface,
         )
 
     def enter_navigation_space(self, stage: str) -> float:

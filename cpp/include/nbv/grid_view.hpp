@@ -77,6 +77,19 @@ struct GridView {
     return std::size_t(seen_blocks[idx >> 6]) << 6 | (idx & 63);
   }
   bool occupied(std::size_t idx) const { return cells.occupied(idx); }
+  /// Whether cell idx keeps the vehicle out: unknown, occupied, or (observed() views) holding a
+  /// camera hit. A cell the camera has hit holds surface even where the map's log-odds call it
+  /// free (rays passing beside a surface that cuts the cell carve it), so the collision checks
+  /// keep the vehicle's sphere off every surface point seen, not only off occupied cells.
+  bool blocked(std::size_t idx) const {
+    return cells.flag_at(idx) == CellFlag::Unknown || occupied(idx) ||
+           (observed() && hits(idx) != 0);
+  }
+  /// Whether none of brick b's 64 cells is blocked() for certain without reading them: all known
+  /// and not occupied, and no camera observation in it.
+  bool brick_clear(std::size_t b) const {
+    return brick_open[b] == 64 && (!observed() || seen_blocks[b] == 0);
+  }
   /// Throws std::invalid_argument when the view is incomplete.
   void validate() const;
 };

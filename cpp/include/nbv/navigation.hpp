@@ -1,5 +1,6 @@
 // Where the vehicle may be and how it gets there: collision checks against the map (a sphere
-// must touch only known free cells) and A* paths through known free space.
+// must touch only known free cells, none of them holding a camera hit when the grid view has the
+// camera observations: GridView::blocked) and A* paths through known free space.
 #pragma once
 
 #include "nbv/common.hpp"
@@ -10,8 +11,9 @@
 
 namespace nbv {
 
-/// True if every cell that intersects the sphere (center, radius) is known and not occupied
-/// (false when part of it is outside the grid: unknown).
+/// True if every cell that intersects the sphere (center, radius) is known and not occupied, and
+/// (observed grid views) holds no camera hit: none is GridView::blocked (false when part of it is
+/// outside the grid: unknown).
 bool sphere_is_free(const GridView& grid, const Eigen::Vector3d& center, double radius);
 /// True if spheres every resolution/2 along the segment a-b are all free.
 bool segment_is_free(const GridView& grid, const Eigen::Vector3d& a, const Eigen::Vector3d& b,

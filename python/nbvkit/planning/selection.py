@@ -23,7 +23,6 @@ import math
 
 import numpy as np
 
-from .. import _core
 from .parts import Choice, threshold_scale
 
 
@@ -76,7 +75,7 @@ class Selector:
                 path = search.path if len(search.path) else None
                 if search.capped:  # cut short by its cap: search it all if it can end there
                     if self.component is None:
-                        self.component = _core.FreeComponent(world.map, here, self.radius)
+                        self.component = world.free_component()
                     if self._reachable(world, poses[k]):
                         path = world.plan_path(poses[k], max_expansions=world.map.num_cells)
             if path is None:  # no way there through known free space

@@ -225,8 +225,7 @@ class CoverageTour:
         min_gain = own.min_gain * scale * self.level
         targets, patches, candidates, owner, unplaced = self.candidates(world, explore)
         if reachable_only and len(candidates):
-            here = world.state.pose[:3]
-            component = _core.FreeComponent(world.map, here, ctx.vehicle.collision_radius)
+            component = world.free_component()
             reach = np.asarray(component.contains(world.map, candidates[:, :3]), bool)
             candidates, owner = candidates[reach], owner[reach]
         record = {
