@@ -316,6 +316,10 @@ def test_collision_checks_keep_off_cells_the_camera_hit_that_the_map_holds_free(
     component = _core.FreeComponent(m, high, r, surface=surface)
     assert component.contains(m, [high, low, (6.2, 6, 3.4)]).tolist() == [True, False, True]
     assert _core.FreeComponent(m, high, r).contains(m, [low]).tolist() == [True]
+    # a view there: a collision unless keep_off_hits is off (the paper's scenarios)
+    for keep, status in ((True, 2), (False, 4)):  # 4: walked, sees no occupied cell
+        s = score(m, [[*low, 0.0]], current=(*high, 0.0), surface=surface, keep_off_hits=keep)
+        assert s["status"][0] == status
     other = nbvkit.OccupancyMap(0.2, (0, 0, 0), (10, 12, 6))  # observations of another grid
     with pytest.raises(ValueError):
         _core.sphere_is_free(other, low, r, surface=surface)

@@ -182,13 +182,16 @@ struct OctreeCells {
 };
 
 // Whether a view at p can be flown to before its rays are walked: inside the navigation bounds,
-// its collision sphere known and free, and (check_segment) the straight flight from `here` clear.
+// its collision sphere known and free (off the camera's hits too with keep_off_hits), and
+// (check_segment) the straight flight from `here` clear.
 // The status of evaluate_views and candidate_rays alike (SeesNoOccupied comes after the walk).
 inline ViewStatus view_validity(const GridView& g, const Eigen::Vector3d& p,
                                 const Eigen::Vector3d& here, const ValidityOptions& v,
                                 bool check_segment) {
   if ((p.array() < v.bounds_min.array()).any() || (p.array() > v.bounds_max.array()).any())
     return ViewStatus::OutOfBounds;
+  if (!v.keep_off_hits && g.observed())
+    return view_validity(g.map_only(), p, here, v, check_segment);
   if (!sphere_is_free(g, p, v.collision_radius)) return ViewStatus::Collision;
   if (check_segment && !segment_is_free(g, here, p, v.collision_radius))
     return ViewStatus::PathBlocked;

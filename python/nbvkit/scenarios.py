@@ -12,6 +12,7 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 from .cloud import DEFAULT_VOXEL_SIZE
+from .origins import caller, clash
 
 
 @dataclass(frozen=True)

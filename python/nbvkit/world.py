@@ -39,7 +39,7 @@ VehicleConfig = cpp_section(
     "VehicleConfig",
     _core.ValidityOptions,
     "The UAV: collision sphere and how it flies between views.",
-    only=("collision_radius", "blocked_path"),
+    only=("collision_radius", "blocked_path", "keep_off_hits"),
     after=[
         (
             "start_clear_radius",
@@ -423,6 +423,7 @@ class World:
             bounds_min=ws.nav_min,
             bounds_max=ws.nav_max,
             blocked_path=blocked_path or v.blocked_path,
+            keep_off_hits=v.keep_off_hits,
         )
 
     def can_hold(self, positions) -> np.ndarray:
@@ -437,16 +438,23 @@ class World:
 
     def spheres_are_free(self, centres) -> np.ndarray:
         """(K,) bool per centre (K, 3): the vehicle's collision sphere there touches only known
-        free cells, none holding a camera hit (the map alone may call a cell free through which
-        a surface cuts: the collision checks keep off every surface point the camera has seen)."""
+        free cells, none holding a camera hit (vehicle.keep_off_hits: the map alone may call a
+        cell free through which a surface cuts; the checks keep off every surface point seen)."""
         radius = self.config.vehicle.collision_radius
-        return _core.spheres_are_free(self.map, centres, radius, surface=self.surface)
+        return _core.spheres_are_free(self.map, centres, radius, surface=self.hits_to_avoid)
 
     def free_component(self):
         """The cells A* can reach from the vehicle (a _core.FreeComponent, by the collision
         checks' rule of spheres_are_free), valid until the map or the observations change."""
         radius = self.config.vehicle.collision_radius
-        return _core.FreeComponent(self.map, self.state.pose[:3], radius, surface=self.surface)
+        start = self.state.pose[:3]
+        return _core.FreeComponent(self.map, start, radius, surface=self.hits_to_avoid)
+
+    @property
+    def hits_to_avoid(self):
+        """The camera observations the collision checks keep off (vehicle.keep_off_hits), or
+        None: the map alone."""
+        return self.surface if self.config.vehicle.keep_off_hits else None
 
     def plan_path(self, target, max_expansions: int | None = None):
         """A* path (P, 3) from the vehicle to target's position through known free space, or
@@ -466,7 +474,7 @@ class World:
             np.asarray(target, float)[:3],
             self.config.vehicle.collision_radius,
             max_expansions=max_expansions,
-            surface=self.surface,
+            surface=self.hits_to_avoid,
         )
 
     def enter_navigation_space(self, stage: str) -> float:

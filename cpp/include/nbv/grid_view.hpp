@@ -85,6 +85,14 @@ struct GridView {
     return cells.flag_at(idx) == CellFlag::Unknown || occupied(idx) ||
            (observed() && hits(idx) != 0);
   }
+  /// This view without the camera observations (observed() false): blocked() of the map alone.
+  GridView map_only() const {
+    GridView g = *this;
+    g.seen_blocks = g.seen_pool = nullptr;
+    g.hits_pool = nullptr;
+    g.patches_pool = nullptr;
+    return g;
+  }
   /// Whether none of brick b's 64 cells is blocked() for certain without reading them: all known
   /// and not occupied, and no camera observation in it.
   bool brick_clear(std::size_t b) const {

@@ -95,17 +95,21 @@ struct UtilityOptions {
   void validate() const;  ///< throws std::invalid_argument naming the bad field or utility
 };
 
-#define NBV_VALIDITY_OPTIONS(X)                                                              \
-  X(double, collision_radius, 0.8,                                                           \
-    "m: every cell within this distance of the view must be known and free")                 \
-  X(Eigen::Vector3d, bounds_min, Eigen::Vector3d::Constant(-1e300),                          \
-    "navigation bounds, lower corner (m)")                                                   \
-  X(Eigen::Vector3d, bounds_max, Eigen::Vector3d::Constant(1e300),                           \
-    "navigation bounds, upper corner (m)")                                                   \
-  X(std::string, blocked_path, "reject",                                                     \
-    "a view whose straight flight from the current pose crosses occupied or unknown space: " \
-    "'reject' it, or 'plan' (not checked here: the caller plans a path through known free "  \
-    "space)")
+#define NBV_VALIDITY_OPTIONS(X)                                                                \
+  X(double, collision_radius, 0.8,                                                             \
+    "m: every cell within this distance of the view must be known and free")                   \
+  X(Eigen::Vector3d, bounds_min, Eigen::Vector3d::Constant(-1e300),                            \
+    "navigation bounds, lower corner (m)")                                                     \
+  X(Eigen::Vector3d, bounds_max, Eigen::Vector3d::Constant(1e300),                             \
+    "navigation bounds, upper corner (m)")                                                     \
+  X(std::string, blocked_path, "reject",                                                       \
+    "a view whose straight flight from the current pose crosses occupied or unknown space: "   \
+    "'reject' it, or 'plan' (not checked here: the caller plans a path through known free "    \
+    "space)")                                                                                  \
+  X(bool, keep_off_hits, true,                                                                 \
+    "given the camera observations, the collision sphere also keeps off every cell the "       \
+    "camera has hit (rays passing beside a surface that cuts a cell can carve it free in the " \
+    "map); false: off unknown and occupied cells alone (the paper's scenarios)")
 
 struct ValidityOptions {
   NBV_VALIDITY_OPTIONS(NBV_DECLARE_OPTION)

@@ -79,10 +79,10 @@ def retreat(world, radius: float) -> float:
     point of the flight is free, or where the nearest free one is where it already is)."""
     here, m = world.state.pose, world.map
     around = m.cell_center(here[None, :3]) + m.resolution * _NEIGHBOURS
-    if _core.spheres_are_free(m, around, radius, surface=world.surface).any():
+    if _core.spheres_are_free(m, around, radius, surface=world.hits_to_avoid).any():
         return 0.0
     back = np.array([row[1:4] for row in world.state.flight], float)[::-1]  # here to the start
-    free = np.flatnonzero(_core.spheres_are_free(m, back, radius, surface=world.surface))
+    free = np.flatnonzero(_core.spheres_are_free(m, back, radius, surface=world.hits_to_avoid))
     if len(free) == 0 or free[0] == 0:  # none, or the nearest is where it is: nothing to fly
         return 0.0
     path = np.vstack([here[:3], back[: free[0] + 1]])
