@@ -170,7 +170,7 @@ def test_qgc_plan_read_back_flies_the_flight(exported, run_dir):
     for k, r in zip(caps, cap_rows):
         wp, g, cap = items[k - 1], items[k - 2], items[k]
         assert wp["command"] == 16 and g["command"] == 1000
-        assert wp["params"][3] == pytest.approx(float(r["heading_deg"]), abs=1e-3)
+        assert abs((wp["params"][3] - float(r["heading_deg"]) + 180) % 360 - 180) < 1e-3
         assert g["frame"] == 2 and g["params"][4] == 8
         assert g["params"][0] == pytest.approx(float(r["gimbal_pitch_deg"]), abs=1e-3)
         assert cap["params"][2] == 1  # one image
@@ -260,7 +260,10 @@ def _fly_ardupilot(rows, speed, slew=60.0):
     NAV_WAYPOINT's start resets the yaw to the default (along the track) unless a CONDITION_YAW
     of its leg sets it again (verify_yaw); NAV_DELAY keeps position and yaw. The copter flies a
     leg in its horizontal length / speed (its quickest) and turns at CONDITION_YAW's rate (param
-    2; 0: `slew`), from an unknown heading (180 degrees away) after a reset. Returns per photo:
+    2; 0: `slew`) the shortest way from the heading it has when the command starts: where a turn
+    still under way was stopped (the next waypoint reached first), along the track after a
+    waypoint's start without one (WP_YAW_BEHAVIOR's default: face the next waypoint), 180
+    degrees away after the take-off. Returns per photo:
     t, pos (lat, lon), heading (None unless held at the target), pitch and pitch_t (the last
     gimbal command and its time), arrive, leg_start, yaw_t (when the heading was reached),
     depart, seq."""
@@ -268,7 +271,14 @@ def _fly_ardupilot(rows, speed, slew=60.0):
 
     items = [(int(r[3]), [float(v) for v in r[4:11]]) for r in rows[1:]]  # row 0: home
     t, pos, arrive, leg_start = 0.0, None, 0.0, 0.0
-    yaw = None  # (time reached, target) while the heading is held
+    yaw = None  # (time reached, target) of the last turn
+    turn = None  # (start time, start heading, target, rate): the heading at any time
+
+    def heading_at(when):
+        t0, y0, y1, rate = turn
+        d = (y1 - y0 + 180) % 360 - 180
+        return y0 + math.copysign(min(abs(d), rate * max(0.0, when - t0)), d)
+
     pitch = pitch_t = None
     photos = []
     k = 0
@@ -299,10 +309,9 @@ def _fly_ardupilot(rows, speed, slew=60.0):
                 elif c == 1000:
                     pitch, pitch_t = q[0], t_do
                 elif c == 115:
-                    turn = 180.0
-                    if yaw is not None:
-                        turn = abs((q[0] - yaw[1] + 180) % 360 - 180)
-                    t_do += turn / (q[1] or slew)  # held back until the heading is reached
+                    y0 = q[0] + 180.0 if turn is None else heading_at(t_do)
+                    turn = (t_do, y0, q[0], q[1] or slew)
+                    t_do += abs((q[0] - y0 + 180) % 360 - 180) / turn[3]  # held back till done
                     yaw, held = (t_do, q[0]), True
             k = j
             if k == len(items):
@@ -311,13 +320,16 @@ def _fly_ardupilot(rows, speed, slew=60.0):
         else:
             held = False
         if cmd == 22:
-            pos, yaw = (p[4], p[5], p[6]), None
+            pos, yaw, turn = (p[4], p[5], p[6]), None, None
         elif cmd == 16:
             if photos and photos[-1]["depart"] is None:
                 photos[-1]["depart"] = t
-            if not held:
-                yaw = None  # wp_start: the default yaw, along the track
             e, n, _ = pymap3d.geodetic2enu(p[4], p[5], 0.0, pos[0], pos[1], 0.0)
+            if not held:  # wp_start: the default yaw, along the track (at once: the quickest)
+                yaw = None
+                if math.hypot(e, n) > 1e-6:
+                    track = math.degrees(math.atan2(e, n))
+                    turn = (t, track, track, slew)
             leg_start = t
             arrive = t + math.hypot(e, n) / speed
             t = arrive + int(p[0])  # the hold: whole seconds (loiter_time_max = p1)
@@ -462,9 +474,10 @@ def test_kml_and_geojson_read_back(exported, run_dir):
     assert ls["type"] == "LineString" and len(ls["coordinates"]) == len(rows)
     pts = [f for f in gj["features"] if f["geometry"]["type"] == "Point"]
     assert len(pts) == n_caps
+    n = _egm96(ORIGIN[0], ORIGIN[1])  # heights above the ellipsoid (RFC 7946)
     for f in pts:
         lon, lat, alt = f["geometry"]["coordinates"]
-        p = _to_mesh([lat], [lon], [alt])[0]
+        p = _to_mesh([lat], [lon], [alt - n])[0]
         assert np.abs(p - fl.xyz[f["properties"]["flight_row"]]).max() < 0.01
 
 
@@ -602,6 +615,9 @@ def test_a_view_beyond_one_battery_is_reported_not_dropped(run_dir, tmp_path):
         ({"origin": (47.0, 8.5, float("nan"))}, ValueError, "altitude must be a finite"),
         ({"origin": (float("inf"), 8.5, 400.0)}, ValueError, "latitude must be a finite"),
         ({"heading_deg": float("nan")}, ValueError, "heading"),
+        # 1e20 degrees: a float cannot hold its remainder modulo 360 (it turned into 162)
+        ({"heading_deg": 1e20}, ValueError, r"heading \(--heading\) must be within \[-360, 360\]"),
+        ({"heading_deg": -360.5}, ValueError, r"heading \(--heading\) must be within"),
         ({"formats": "qgc,shapefile"}, ValueError, "unknown export format 'shapefile'"),
         ({"flight_time_min": 0.05}, ValueError, "too short for any view"),
         ({"flight_time_min": -1.0}, ValueError, "flight time"),
@@ -878,7 +894,9 @@ def test_geojson_flight_over_the_antimeridian_is_a_multilinestring(run_dir, tmp_
     flown, want = np.array(flown), np.array(want)
     assert flown.shape == want.shape
     np.testing.assert_allclose(flown[:, :2], want[:, :2], atol=1e-8)
-    np.testing.assert_allclose(flown[:, 2], want[:, 2], atol=5e-4 + 1e-9)  # CSV: 3 decimals
+    # heights above the ellipsoid: the CSV's AMSL altitudes + the geoid height at the origin
+    n = _egm96(-16.5, 180.0)
+    np.testing.assert_allclose(flown[:, 2], want[:, 2] + n, atol=5e-4 + 1e-9)  # CSV: 3 decimals
 
 
 def test_wpml_heights_from_an_ellipsoidal_origin_and_without_a_geoid(
@@ -978,39 +996,34 @@ def _waypoints_time(path, speed=5.0, climb=2.0):
 
 def _kmz_time(path, speed=5.0, climb=2.0):
     """A DJI route's seconds read back from waylines.wpml: the climb, the legs, every hover, and
-    every rotateYaw at 30 deg/s from the heading the aircraft arrives with (the previous
-    point's waypointHeadingAngle; along the leg's course after a followWayline point)."""
-    import pymap3d
+    every rotateYaw at 30 deg/s from the farthest heading the aircraft may arrive with: the last
+    rotateYaw's or a waypointHeadingAngle since (a turn over a short leg may not be done), any
+    (180 degrees) after a followWayline point (the leg flown facing its course) or the
+    take-off."""
     from lxml import etree
 
     ns = {"k": "http://www.opengis.net/kml/2.2", "wpml": "http://www.dji.com/wpmz/1.0.2"}
     with zipfile.ZipFile(path) as z:
         root = etree.fromstring(z.read("wpmz/waylines.wpml"))
-    pts, t, prev = [], 0.0, None
+    pts, t, may_face = [], 0.0, None  # the headings it may face; None: any
     for pm in root.iterfind(".//k:Placemark", ns):
         lon, lat = map(float, pm.findtext("k:Point/k:coordinates", namespaces=ns).split(","))
         pts.append((lat, lon, float(pm.findtext("wpml:executeHeight", namespaces=ns))))
-        arrive = prev
-        if prev is None or prev == "course":
-            arrive = None
-            if len(pts) > 1:
-                e, n, _ = pymap3d.geodetic2enu(lat, lon, 0.0, pts[-2][0], pts[-2][1], 0.0)
-                arrive = math.degrees(math.atan2(e, n))
         for a in pm.iterfind("wpml:actionGroup/wpml:action", ns):
             f = a.findtext("wpml:actionActuatorFunc", namespaces=ns)
             if f == "hover":
                 t += float(a.findtext(".//wpml:hoverTime", namespaces=ns))
             elif f == "rotateYaw":
                 h = float(a.findtext(".//wpml:aircraftHeading", namespaces=ns))
-                t += (180.0 if arrive is None else abs((h - arrive + 180) % 360 - 180)) / 30.0
+                turns = [abs((h - y + 180) % 360 - 180) for y in may_face or []]
+                t += (max(turns) if may_face else 180.0) / 30.0
+                may_face = [h]
         mode = pm.findtext("wpml:waypointHeadingParam/wpml:waypointHeadingMode", namespaces=ns)
-        prev = (
-            "course"
-            if mode == "followWayline"
-            else float(
-                pm.findtext("wpml:waypointHeadingParam/wpml:waypointHeadingAngle", namespaces=ns)
-            )
-        )
+        if mode == "followWayline":
+            may_face = None
+        elif may_face is not None:
+            a = pm.findtext("wpml:waypointHeadingParam/wpml:waypointHeadingAngle", namespaces=ns)
+            may_face.append(float(a))
     return pts[0][2] / climb + _nav_legs_s(pts, speed, climb) + t + pts[-1][2] / climb
 
 
@@ -1136,3 +1149,239 @@ def test_mavlink_home_is_above_mean_sea_level_from_an_ellipsoidal_origin(run_dir
         homes.append((float(home_row[10]), plan["plannedHomePosition"][2]))
     assert homes[1][0] == pytest.approx(homes[0][0], abs=0.02)
     assert homes[1][1] == pytest.approx(homes[0][1], abs=0.02)
+
+
+def test_a_sortie_resuming_at_a_plain_point_after_a_transit_leg_turns_before_its_photo(
+    run_dir, tmp_path
+):
+    """A battery split where sorties resume at a plain profile point straight after the transit
+    leg out (the audit's case: the heading commanded there cannot be reached over a leg of a few
+    centimetres): flown through ArduPilot's rules from the course the copter arrives with, every
+    photo is taken facing its heading (and a view settled 1 s after the turn); every sortie's
+    files, re-timed with the turns from the heading the vehicle may arrive with, fit the
+    battery."""
+    usable = 29.0
+    out = tmp_path / "b"
+    s = export_mission(
+        run_dir, "qgc,wpml,csv", ORIGIN, HEADING, out, flight_time_min=usable / 60, reserve_pct=0
+    )
+    resumed = 0
+    for srt in s["sorties"]:
+        name = f"sortie_{srt['sortie']:02d}"
+        rows = _csv(out / f"{name}.csv")
+        first = next(k for k, r in enumerate(rows) if int(r["flight_row"]) >= 0)
+        resumed += rows[first]["action"] == "waypoint" and rows[first - 1]["action"] == "transit"
+        wpl = [ln.split("\t") for ln in (out / f"{name}.waypoints").read_text().splitlines()[1:]]
+        caps = [r for r in rows if r["action"] in ("view", "frame")]
+        photos = _fly_ardupilot(wpl, speed=5.0)
+        assert len(photos) == len(caps)
+        for p, r in zip(photos, caps):
+            assert p["heading"] is not None, f"{name} row {r['flight_row']}: photo mid-turn"
+            assert abs((p["heading"] - float(r["heading_deg"]) + 180) % 360 - 180) < 1e-3
+            if r["action"] == "view":
+                assert p["t"] - max(p["arrive"], p["yaw_t"]) >= 1.0 - 1e-9
+        got = {
+            "ardupilot": _waypoints_time(out / f"{name}.waypoints"),
+            "px4": _plan_time(out / f"{name}.plan"),
+            "dji": _kmz_time(out / f"{name}.kmz"),
+        }
+        for k, v in got.items():
+            assert v <= usable + 0.05, f"{name}.{k}: {v:.1f} s in a {usable:g} s battery"
+            assert v <= srt["time_s_by_file"][k] + 0.05, (name, k, v, srt["time_s_by_file"])
+    assert resumed >= 1  # the case is there
+
+
+def _scaled_run(run_dir, dst, factor):
+    """A copy of the run folder with its flight and workspace stretched `factor` times
+    horizontally (no map: the way back retraces the flight)."""
+    import shutil
+
+    from nbvkit.runfolder import write_manifest
+
+    shutil.copytree(run_dir, dst)
+    (dst / "map.ot").unlink()
+    (dst / "manifest.json").unlink()
+    rows = _read_flight(dst)
+    for r in rows:
+        r["x"], r["y"] = repr(float(r["x"]) * factor), repr(float(r["y"]) * factor)
+    with open(dst / "flight.csv", "w", newline="") as f:
+        w = csv.DictWriter(f, fieldnames=list(rows[0]))
+        w.writeheader()
+        w.writerows(rows)
+    summary = json.loads((dst / "summary.json").read_text())
+    for k in ("bounds_min", "bounds_max"):
+        b = summary["workspace"][k]
+        summary["workspace"][k] = [b[0] * factor, b[1] * factor, b[2]]
+    (dst / "summary.json").write_text(json.dumps(summary))
+    write_manifest(dst)
+    return dst
+
+
+def test_relative_and_absolute_altitudes_are_of_the_same_point_on_a_large_site(run_dir, tmp_path):
+    """The flight stretched 400 times (points up to several km from the origin, where the
+    Earth's curvature puts the local tangent plane metres above the ellipsoid): in every format
+    the absolute altitude less the launch point's equals the relative altitude (within the
+    files' rounding), and the absolute altitude is the mesh point's (pymap3d)."""
+    from lxml import etree
+
+    big = _scaled_run(run_dir, tmp_path / "big", 400.0)
+    out = tmp_path / "ex"
+    s = export_mission(big, "qgc,wpml,kml,geojson,csv", ORIGIN, HEADING, out)
+    rows = _csv(out / "mission.csv")
+    alt = np.array([float(r["altitude_m"]) for r in rows])
+    rel = np.array([float(r["rel_altitude_m"]) for r in rows])
+    home = json.loads((out / "mission.plan").read_text())["mission"]["plannedHomePosition"][2]
+    # the absolute altitudes are the mesh points' (pymap3d's local tangent plane)
+    flight = np.array([[float(r[k]) for k in "xyz"] for r in _read_flight(big)])
+    on = [k for k, r in enumerate(rows) if int(r["flight_row"]) >= 0]
+    xyz = _to_mesh(
+        *(
+            np.array([float(rows[k][c]) for k in on])
+            for c in ("latitude_deg", "longitude_deg", "altitude_m")
+        )
+    )
+    assert np.abs(xyz - flight[[int(rows[k]["flight_row"]) for k in on]]).max() < 0.01
+    launch = np.array(s["launch_point_mesh"])
+    lift = np.array(
+        [alt[k] - home - (flight[int(rows[k]["flight_row"]), 2] - launch[2]) for k in on]
+    )
+    assert np.abs(lift).max() > 1.0  # metres of curvature: the case is there
+    # CSV
+    assert np.abs(alt - home - rel).max() <= 1.5e-3
+    # .plan (PX4) and .waypoints (ArduPilot): frame 3, relative to home (their home: AMSL)
+    nav = [
+        it
+        for it in json.loads((out / "mission.plan").read_text())["mission"]["items"]
+        if it["frame"] == 3
+    ]
+    np.testing.assert_allclose([home + it["params"][6] for it in nav], alt, atol=1.5e-3)
+    wpl = [ln.split("\t") for ln in (out / "mission.waypoints").read_text().splitlines()[1:]]
+    wp_home = float(wpl[0][10])
+    wp_nav = [float(r[10]) for r in wpl[1:] if r[2] == "3"]
+    np.testing.assert_allclose(wp_home + np.array(wp_nav), alt, atol=2e-3)
+    # DJI: ellipsoidHeight - the take-off point's ellipsoidal height = height (both files)
+    ns = {"k": "http://www.opengis.net/kml/2.2", "wpml": "http://www.dji.com/wpmz/1.0.2"}
+    with zipfile.ZipFile(out / "mission.kmz") as z:
+        tk = etree.fromstring(z.read("wpmz/template.kml"))
+        wl = etree.fromstring(z.read("wpmz/waylines.wpml"))
+    ref = tk.findtext("k:Document/wpml:missionConfig/wpml:takeOffRefPoint", namespaces=ns)
+    h0 = float(ref.split(",")[2])
+    ell = np.array([float(e.text) for e in tk.iterfind(".//k:Placemark/wpml:ellipsoidHeight", ns)])
+    hgt = np.array([float(e.text) for e in tk.iterfind(".//k:Placemark/wpml:height", ns)])
+    exe = np.array([float(e.text) for e in wl.iterfind(".//k:Placemark/wpml:executeHeight", ns)])
+    assert np.abs(ell - h0 - hgt).max() <= 1.5e-3 and np.abs(exe - hgt).max() <= 1e-9
+    np.testing.assert_allclose(hgt, rel, atol=1e-9)
+    # GeoJSON (heights above the ellipsoid) less the take-off point's: rel_alt_m
+    gj = json.loads((out / "mission.geojson").read_text())
+    for f in gj["features"][1:]:
+        z = f["geometry"]["coordinates"][2]
+        assert abs(z - h0 - f["properties"]["rel_alt_m"]) <= 1e-3
+    # KML: absolute (the CSV's) and, per capture, the height above the launch point
+    km = etree.fromstring((out / "mission.kml").read_bytes())
+    for pm in km.iterfind(".//k:Folder/k:Placemark", ns):
+        a = float(pm.findtext("k:Point/k:coordinates", namespaces=ns).split(",")[2])
+        r = float(pm.findtext("k:description", namespaces=ns).split(", ")[-1].split(" m ")[0])
+        assert abs(a - home - r) <= 6e-3
+
+
+def test_dji_hover_times_are_above_0_as_written(run_dir, tmp_path):
+    """--hover 1.0001: the rest of the hover after the 1 s settle is 0.0001 s, 0.000 at the
+    file's millisecond: DJI's hoverTime must be > 0, so no such hover is written."""
+    from lxml import etree
+
+    out = tmp_path / "h"
+    export_mission(run_dir, "wpml", ORIGIN, HEADING, out, hover_s=1.0001)
+    ns = {"wpml": "http://www.dji.com/wpmz/1.0.2"}
+    with zipfile.ZipFile(out / "mission.kmz") as z:
+        for n in z.namelist():
+            times = [e.text for e in etree.fromstring(z.read(n)).iterfind(".//wpml:hoverTime", ns)]
+            assert times and all(float(t) > 0 for t in times), sorted(set(times))
+
+
+def _egm96(lat, lon):
+    """The EGM96 geoid height (m) through pyproj: EGM96 height 0 as a WGS84 ellipsoidal one."""
+    import pyproj
+
+    t = pyproj.Transformer.from_crs("EPSG:4326+5773", "EPSG:4979", always_xy=True)
+    return t.transform(lon, lat, 0.0)[2]
+
+
+def test_geojson_heights_are_above_the_ellipsoid_from_an_amsl_origin(
+    run_dir, tmp_path, monkeypatch
+):
+    """RFC 7946 section 3.1.1: a position's third element is the height above the WGS84
+    ellipsoid. From the default AMSL origin the GeoJSON heights are the CSV's AMSL altitudes plus
+    the EGM96 geoid height at the origin (47.3 to 47.4 m at Zurich), the AMSL one a property;
+    from an ellipsoidal origin the origin's heights; without a geoid an AMSL origin is refused."""
+    import sys
+
+    n = _egm96(ORIGIN[0], ORIGIN[1])
+    assert 47.2 < n < 47.5
+    for ref, origin, geoid in (
+        ("amsl", ORIGIN, n),
+        ("ellipsoid", ORIGIN[:2] + (ORIGIN[2] + n,), 0),
+    ):
+        out = tmp_path / ref
+        export_mission(run_dir, "geojson,csv", origin, HEADING, out, altitude_ref=ref)
+        rows = _csv(out / "mission.csv")
+        gj = json.loads((out / "mission.geojson").read_text())
+        z = [c[2] for c in gj["features"][0]["geometry"]["coordinates"]]
+        np.testing.assert_allclose(z, [float(r["altitude_m"]) + geoid for r in rows], atol=1e-3)
+        caps = [r for r in rows if r["action"] in ("view", "frame")]
+        for f, r in zip(gj["features"][1:], caps):
+            assert f["properties"]["height_reference"] == "WGS84 ellipsoid"
+            assert f["properties"]["altitude_reference"] == ref
+            assert f["properties"]["altitude_m"] == pytest.approx(float(r["altitude_m"]), abs=1e-3)
+            assert f["geometry"]["coordinates"][2] == pytest.approx(
+                float(r["altitude_m"]) + geoid, abs=1e-3
+            )
+    monkeypatch.setitem(sys.modules, "pyproj", None)  # no geoid model at hand
+    with pytest.raises(
+        ValueError, match="geojson format writes heights above the WGS84 ellipsoid.*EGM96"
+    ):
+        export_mission(run_dir, "geojson", ORIGIN, HEADING, tmp_path / "none")
+    assert not (tmp_path / "none").exists()
+
+
+def test_headings_are_written_within_their_ranges_after_rounding(tmp_path):
+    """359.96 degrees reads 0.0 at one decimal (not 360.0), 359.96 at two; WPML's signed angles
+    stay within [-180, 180); a KML description says so too."""
+    from lxml import etree
+
+    from nbvkit.export import writers
+
+    assert writers.bearing_text(359.96, 1) == "0.0"
+    assert writers.bearing_text(359.96, 2) == "359.96"
+    assert writers.bearing_text(359.9999996, 6) == "0.000000"
+    assert writers.bearing_text(-0.04, 1) == "0.0"
+    assert writers.signed_angle_text(179.9996, 3) == "-180.000"
+    assert writers.signed_angle_text(-179.9996, 3) == "-180.000"
+    g = writers.GeoWaypoints(
+        lat=np.array([47.0, 47.00001]),
+        lon=np.array([8.0, 8.0]),
+        alt=np.array([410.0, 410.0]),
+        rel_alt=np.array([10.0, 10.0]),
+        heading=np.array([359.96, 359.96]),
+        gimbal_pitch=np.zeros(2),
+        gimbal_yaw=np.zeros(2),
+        action=["takeoff", "view"],
+        stage=["", "nbv"],
+        row=[-1, 1],
+        number=[0, 1],
+        home=(47.0, 8.0, 400.0),
+        speed=5.0,
+        hover_s=2.0,
+        altitude_ref="amsl",
+        name="t",
+    )
+    writers.write_kml(g, tmp_path / "t.kml")
+    root = etree.parse(str(tmp_path / "t.kml")).getroot()
+    ns = {"k": "http://www.opengis.net/kml/2.2"}
+    desc = root.findtext(".//k:Folder/k:Placemark/k:description", namespaces=ns)
+    assert desc.startswith("heading 0.0 deg,"), desc
+
+
+@pytest.mark.parametrize("heading", [-360.0, 360.0, 359.96])
+def test_headings_of_a_full_turn_are_accepted(heading):
+    b = GeoFrame(*ORIGIN, heading).bearing([1.0, 0.0, 0.0])
+    assert abs((b - heading + 180.0) % 360.0 - 180.0) < 1e-9

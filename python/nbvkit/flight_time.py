@@ -35,6 +35,33 @@ def signed_deg(deg: float) -> float:
     return (deg + 180.0) % 360.0 - 180.0
 
 
+def _turn_bound(possible, target: float) -> float:
+    """The largest turn (degrees, the shortest way) to `target` from any heading within
+    `possible`: an arc (lo, hi) of unwrapped degrees, lo <= hi, or None (any heading: 180).
+    """
+    if possible is None:
+        return 180.0
+    lo, hi = possible
+    if lo + (target + 180.0 - lo) % 360.0 <= hi:  # the opposite heading is within the arc
+        return 180.0
+    return max(abs(signed_deg(target - lo)), abs(signed_deg(target - hi)))
+
+
+def _towards(possible, heading: float):
+    """The headings possible after a turn towards `heading` (the shortest way) started from any
+    heading within `possible` and stopped anywhere (a plain waypoint holds nothing: its turn may
+    be cut short by the next leg's): the arc widened to reach `heading`; None (any) when the
+    turns from it go both ways round or the arc closes."""
+    if possible is None:
+        return None
+    lo, hi = possible
+    if lo + (heading + 180.0 - lo) % 360.0 <= hi:
+        return None
+    h = lo + signed_deg(heading - lo)  # the same turn's end from every heading of the arc
+    lo, hi = min(lo, h), max(hi, h)
+    return None if hi - lo >= 360.0 else (lo, hi)
+
+
 def capture_waits(actions, headings_deg, hover_s: float) -> dict:
     """The waits of each waypoint (N,) in each mission file (TARGETS), the one function both the
     time model and the writers use: target -> (hold, rest, turn_s), arrays (N,) of seconds.
@@ -43,31 +70,41 @@ def capture_waits(actions, headings_deg, hover_s: float) -> dict:
     the DJI route's rotateYaw before the photo, bounded at YAW_RATE_DEG_S (0 elsewhere). Only
     captures (view, frame) wait. A view settles SETTLE_S (1 s) before its photo whatever
     `hover_s` is and stays max(hover_s, its hold) in all; a frame does not settle. The turn of a
-    capture: from the previous waypoint's heading, 180 degrees after a take-off or a transit leg
-    (their heading is not commanded). px4: hold = the settle, rest = hover_s - settle.
-    ardupilot: CONDITION_YAW turns at YAW_RATE_DEG_S, and the hold covers the whole turn and the
-    settle, ceil(turn / 30 + settle) whole seconds (ArduPilot keeps NAV_WAYPOINT's hold in whole
-    seconds; the leg's time is not counted: the copter may fly faster than --speed), rest =
-    hover_s - hold. dji: rotateYaw (turn / 30 at most), the settle, the photo, the rest of
-    hover_s. headings_deg: the heading of each waypoint (degrees, any origin: only differences
-    count)."""
+    capture: the largest from a heading the vehicle may hold on arriving there. A capture's wait
+    ends facing its heading; a take-off or a transit leg (their heading is not commanded) leaves
+    any heading (180 degrees to turn); a plain waypoint holds nothing (no wait: its turn may be
+    cut short), so after one the vehicle may face any heading between those it held and turned
+    to since the last capture (180 degrees when those turns go both ways round): the turn after
+    a take-off or transit leg is counted at the first capture, whatever points come first.
+    px4: hold = the settle, rest = hover_s - settle. ardupilot: CONDITION_YAW turns at
+    YAW_RATE_DEG_S, and the hold covers the whole turn and the settle, ceil(turn / 30 + settle)
+    whole seconds (ArduPilot keeps NAV_WAYPOINT's hold in whole seconds; the leg's time is not
+    counted: the copter may fly faster than --speed), rest = hover_s - hold. dji: rotateYaw
+    (turn / 30 at most), the settle, the photo, the rest of hover_s. headings_deg: the heading
+    of each waypoint (degrees, any origin: only differences count)."""
     n = len(actions)
     out = {t: (np.zeros(n), np.zeros(n), np.zeros(n)) for t in TARGETS}
+    possible = None  # before the take-off: any heading
     for k in range(n):
-        a = actions[k]
+        a, h = actions[k], float(headings_deg[k])
+        if a in ("takeoff", "transit"):
+            possible = None
+            continue
         if a not in (VIEW, FRAME):
+            possible = _towards(possible, h)
             continue
         settle = SETTLE_S if a == VIEW else 0.0
-        prev = actions[k - 1] if k > 0 else "takeoff"
-        turn = 180.0
-        if prev not in ("takeoff", "transit"):
-            turn = abs(signed_deg(float(headings_deg[k]) - float(headings_deg[k - 1])))
-        turn_s = turn / YAW_RATE_DEG_S
+        turn_s = _turn_bound(possible, h) / YAW_RATE_DEG_S
+        possible = (h, h)  # the capture's wait ends facing its heading
         hover = max(float(hover_s), settle) if a == VIEW else 0.0
         ap = float(math.ceil(turn_s + settle - 1e-9))
         out["px4"][0][k], out["px4"][1][k] = settle, hover - settle
         out["ardupilot"][0][k], out["ardupilot"][1][k] = ap, max(0.0, hover - ap)
-        out["dji"][0][k], out["dji"][1][k], out["dji"][2][k] = settle, hover - settle, turn_s
+        out["dji"][0][k], out["dji"][1][k], out["dji"][2][k] = (
+            settle,
+            hover - settle,
+            turn_s,
+        )
     return out
 
 

@@ -20,7 +20,7 @@ from ..flight_time import FRAME, VIEW, FlightModel, signed_deg
 from ..run_report import update_flight_section
 from ..runfolder import require_complete_run
 from .plan import read_run
-from . import writers
+from . import colmap, writers
 from .wpml import write_wpml_kmz
 
 __all__ = ["FORMATS", "export_mission", "estimate_flight", "GeoFrame", "FlightModel"]
@@ -132,7 +132,11 @@ def _geo(fl, sortie, frame: GeoFrame, speed, hover_s, numbers, name, seqs=None):
         lat=lat,
         lon=lon,
         alt=alt,
-        rel_alt=xyz[:, 2] - fl.home[2],
+        # the height above the launch point of the same point the absolute altitude places:
+        # the difference of the geodetic heights (pymap3d's, which put a point of the local
+        # tangent plane d^2 / 2R higher at a distance d: mesh z - home z would be 0.8 m lower at
+        # 3 km, 8 m at 10 km)
+        rel_alt=alt - float(halt[0]),
         heading=np.array(heading),
         gimbal_pitch=np.array(pitch),
         gimbal_yaw=np.array(gyaw),
@@ -327,9 +331,18 @@ def _write_formats(tmp: Path, fmts, fl, sorties, names, frame, model, drone, pay
             writers.write_qgc_plan(g, tmp / f"{name}.plan")
             writers.write_qgc_wpl(g, tmp / f"{name}.waypoints")
             files += [f"{name}.plan", f"{name}.waypoints"]
+        ell_fmts = [f for f in ("wpml", "geojson") if f in fmts]
+        if ell_fmts:  # heights above the WGS84 ellipsoid (DJI's ellipsoidHeight, RFC 7946)
+            try:
+                g.ell_alt = frame.ellipsoid_height(g.alt)
+            except ValueError as e:
+                raise ValueError(
+                    f"the {' and '.join(ell_fmts)} "
+                    + ("formats write" if len(ell_fmts) > 1 else "format writes")
+                    + f" heights above the WGS84 ellipsoid: {e}"
+                ) from None
+            g.home_ell = float(frame.ellipsoid_height([g.home[2]])[0])
         if "wpml" in fmts:
-            g.ell_alt = frame.ellipsoid_height(g.lat, g.lon, g.alt)
-            g.home_ell = float(frame.ellipsoid_height([g.home[0]], [g.home[1]], [g.home[2]])[0])
             write_wpml_kmz(g, tmp / f"{name}.kmz", drone, payload, created_ms)
             files.append(f"{name}.kmz")
         if "kml" in fmts:
@@ -343,7 +356,7 @@ def _write_formats(tmp: Path, fmts, fl, sorties, names, frame, model, drone, pay
             files.append(f"{name}.csv")
     if "colmap" in fmts:
         (tmp / "colmap").mkdir()
-        writers.write_colmap(tmp / "colmap", writers.camera_intrinsics(fl.config), camera_poses(fl))
+        colmap.write_colmap(tmp / "colmap", colmap.camera_intrinsics(fl.config), camera_poses(fl))
         files += [f"colmap/{n}" for n in ("cameras.txt", "images.txt", "points3D.txt")]
     return files
 

@@ -23,11 +23,15 @@ MAX_ABS_LATITUDE = 89.9
 #: the origin altitude's accepted range (m, either reference): below the Dead Sea shore
 #: (-430 m) to above Everest (8849 m); the geoid departs from the ellipsoid by -106..+85 m.
 ALTITUDE_RANGE = (-500.0, 10000.0)
+#: the largest |heading| accepted (degrees): one full turn either way. A bearing is an angle of a
+#: circle; a larger number is a typing error, and beyond about 1e16 degrees a float cannot even
+#: hold its remainder modulo 360 (1e20 turned into 162 degrees instead of 280).
+MAX_ABS_HEADING_DEG = 360.0
 _NAMES = {
     "lat": "origin latitude",
     "lon": "origin longitude",
     "alt": "origin altitude",
-    "heading_deg": "heading",
+    "heading_deg": "heading (--heading)",
 }
 
 
@@ -60,6 +64,12 @@ class GeoFrame:
                 f"origin latitude {self.lat} is within {90 - abs(self.lat):.4g} degrees of a "
                 f"pole: the export accepts |latitude| <= {MAX_ABS_LATITUDE} (north, and so every "
                 "heading, is undefined at the pole and turns fully round it)"
+            )
+        if abs(self.heading_deg) > MAX_ABS_HEADING_DEG:
+            raise ValueError(
+                f"heading (--heading) must be within [-{MAX_ABS_HEADING_DEG:g}, "
+                f"{MAX_ABS_HEADING_DEG:g}] degrees (the bearing of the mesh's +x axis), "
+                f"got {self.heading_deg!r}"
             )
         lo, hi = ALTITUDE_RANGE
         if not lo <= self.alt <= hi:
@@ -135,15 +145,22 @@ class GeoFrame:
         b = math.degrees(math.atan2(e, n)) % 360.0
         return 0.0 if b >= 360.0 else b  # -1e-15 % 360 rounds to 360
 
-    def ellipsoid_height(self, lat, lon, alt) -> np.ndarray:
-        """Heights above the WGS84 ellipsoid (m) of points with altitudes `alt` in the origin's
-        reference: the same with an ellipsoidal origin; with an AMSL origin, alt + the EGM96
-        geoid height at (lat, lon) (pyproj and PROJ's egm96_15.gtx grid, Debian python3-pyproj
-        and proj-data). ValueError when that grid is not at hand."""
+    def ellipsoid_height(self, alt) -> np.ndarray:
+        """Heights above the WGS84 ellipsoid (m) of points with altitudes `alt` (to_geodetic's,
+        in the origin's reference): the same with an ellipsoidal origin; with an AMSL origin,
+        alt + the EGM96 geoid height **at the origin** (geoid_height_at_origin). One constant
+        for every point: to_geodetic places the points from the origin's height, so this is the
+        ellipsoidal height of the same points, and differences of heights (the files' relative
+        altitudes) are the same in both references. ValueError when the geoid is not at hand."""
         alt = np.asarray(alt, float)
         if self.altitude_ref == "ellipsoid":
             return alt.copy()
-        return alt + egm96_geoid_height(lat, lon)
+        return alt + self.geoid_height_at_origin()
+
+    def geoid_height_at_origin(self) -> float:
+        """The EGM96 geoid's height above the WGS84 ellipsoid at the origin (m; egm96_geoid_height:
+        ValueError without pyproj and PROJ's grid)."""
+        return float(egm96_geoid_height([self.lat], [self.lon])[0])
 
     def to_dict(self) -> dict:
         return {

@@ -8,7 +8,15 @@ from xml.etree import ElementTree as ET
 import math
 
 from ..flight_time import signed_deg
-from .writers import MAX_SPEED_M_S, KML_NS, WPML_NS, GeoWaypoints, _f, waits
+from .writers import (
+    KML_NS,
+    MAX_SPEED_M_S,
+    WPML_NS,
+    GeoWaypoints,
+    _f,
+    signed_angle_text,
+    waits,
+)
 
 #: the return-to-home height's margin above the highest of the structure's workspace and the
 #: flight (m)
@@ -111,7 +119,7 @@ def _placemark_point(folder, g: GeoWaypoints, k: int, index: int, template: bool
         _el(hp, "waypointHeadingMode", "followWayline")
     else:
         _el(hp, "waypointHeadingMode", "smoothTransition")
-        _el(hp, "waypointHeadingAngle", _f(signed_deg(float(g.heading[k])), 3))
+        _el(hp, "waypointHeadingAngle", signed_angle_text(g.heading[k], 3))
     _el(hp, "waypointHeadingPathMode", "followBadArc")
     tp = _el(pm, "waypointTurnParam")
     # no waypointTurnDampingDist: its range is (0, segment], and it is required only with
@@ -153,17 +161,16 @@ def _capture_actions(pm, g: GeoWaypoints, k: int, index: int, group: int, dji) -
     _el(p, "gimbalRotateTimeEnable", 0)
     _el(p, "gimbalRotateTime", 0)
     _el(p, "payloadPositionIndex", 0)
-    heading = signed_deg(float(g.heading[k]))
     before = g.heading[k - 1] if g.action[k - 1] not in ("transit",) else _course(g, k)
     turn = signed_deg(float(g.heading[k]) - float(before))
     p = _action(ag, 1, "rotateYaw")
-    _el(p, "aircraftHeading", _f(heading, 3))
+    _el(p, "aircraftHeading", signed_angle_text(g.heading[k], 3))
     _el(p, "aircraftPathMode", "clockwise" if turn >= 0 else "counterClockwise")
     aid = 2
     for step in ("settle", "photo", "rest"):
         hover = {"settle": settle, "rest": rest}.get(step)
-        if hover is not None and hover <= 0:
-            continue
+        if hover is not None and not float(_f(hover, 3)) > 0:
+            continue  # hoverTime must be > 0 as written (a rest of 0.0001 s reads 0.000)
         if step == "photo":
             p = _action(ag, aid, "takePhoto")
             _el(p, "fileSuffix", f"{g.action[k]}{int(g.number[k]):04d}")

@@ -1,7 +1,7 @@
 """Writers of the export formats, from the facts in docs/EXPORT.md (each with its source).
 
 Every writer takes the geo-located waypoints of one sortie (GeoWaypoints) and writes one file;
-colmap writes the camera model of the whole flight. Numbers are written in full (JSON) or to
+COLMAP poses are nbvkit.export.colmap. Numbers are written in full (JSON) or to
 1e-9 degree (about 0.1 mm) and 1 mm. The DJI WPML route's writer is nbvkit.export.wpml.
 """
 from __future__ import annotations
@@ -9,7 +9,6 @@ from __future__ import annotations
 import csv
 import io
 import json
-import math
 from dataclasses import dataclass
 from xml.etree import ElementTree as ET
 
@@ -92,6 +91,20 @@ def _f(x: float, nd: int) -> str:
     """x to `nd` decimals, never a negative zero ("-0.000" for -1e-7 is written "0.000")."""
     s = f"{x:.{nd}f}"
     return s[1:] if s[0] == "-" and not s.strip("-0.") else s
+
+
+def bearing_text(deg: float, nd: int) -> str:
+    """A bearing (degrees) written to `nd` decimals within [0, 360): rounded first, then wrapped,
+    so 359.96 reads "0.0" at one decimal, not "360.0" (and 359.96 at two)."""
+    v = round(float(deg) % 360.0, nd)
+    return _f(v - 360.0 if v >= 360.0 else v, nd)
+
+
+def signed_angle_text(deg: float, nd: int) -> str:
+    """An angle (degrees) written to `nd` decimals within [-180, 180): rounded first, then
+    wrapped, so 179.9996 reads "-180.000" at three decimals, not "180.000"."""
+    v = round(signed_deg(float(deg)), nd)
+    return _f(v - 360.0 if v >= 180.0 else v, nd)
 
 
 # ---------------------------------------------------------------------- MAVLink missions
@@ -284,6 +297,11 @@ def write_qgc_wpl(g: GeoWaypoints, path) -> None:
         p = r[4:11]
         out = [str(idx), str(cur), str(frame), str(cmd)]
         out += [_f(v, 6) for v in p[:4]]
+        # headings within [0, 360) as written: CONDITION_YAW's angle (p1), a waypoint's yaw (p4)
+        if cmd == MAV_CMD_CONDITION_YAW:
+            out[4] = bearing_text(p[0], 6)
+        elif cmd in (MAV_CMD_NAV_WAYPOINT, MAV_CMD_NAV_TAKEOFF) and idx > 0:
+            out[7] = bearing_text(p[3], 6)
         out += [_f(p[4], 9), _f(p[5], 9), _f(p[6], 3), str(r[11])]
         lines.append("\t".join(out))
     with open(path, "w") as f:
@@ -319,7 +337,8 @@ def write_kml(g: GeoWaypoints, path) -> None:
         pm = ET.SubElement(folder, k("Placemark"))
         ET.SubElement(pm, k("name")).text = f"{g.action[i]} {int(g.number[i])}"
         ET.SubElement(pm, k("description")).text = (
-            f"heading {_f(g.heading[i], 1)} deg, gimbal pitch {_f(g.gimbal_pitch[i], 1)} deg, "
+            f"heading {bearing_text(g.heading[i], 1)} deg, "
+            f"gimbal pitch {_f(g.gimbal_pitch[i], 1)} deg, "
             f"{_f(g.rel_alt[i], 2)} m above the launch point"
         )
         pt = ET.SubElement(pm, k("Point"))
@@ -354,10 +373,18 @@ def split_antimeridian(coords: list) -> list[list]:
 
 def write_geojson(g: GeoWaypoints, path) -> None:
     """GeoJSON (RFC 7946): the flight as a LineString (a MultiLineString cut at the antimeridian
-    when it crosses it) and a Point per view/frame, positions [lon, lat, alt]."""
+    when it crosses it) and a Point per view/frame, positions [lon, lat, height] with the height
+    above the WGS84 ellipsoid (RFC 7946 section 3.1.1: g.ell_alt, whatever the origin's
+    reference); the altitude in the origin's reference and the height above the launch point are
+    properties of each Point. ValueError when g has no ellipsoidal heights."""
+    if g.ell_alt is None:
+        raise ValueError(
+            "GeoJSON positions are heights above the WGS84 ellipsoid (RFC 7946): the waypoints "
+            "have none (GeoWaypoints.ell_alt)"
+        )
 
     def pos(i):
-        return [float(g.lon[i]), float(g.lat[i]), float(g.alt[i])]
+        return [float(g.lon[i]), float(g.lat[i]), float(g.ell_alt[i])]
 
     parts = split_antimeridian([pos(i) for i in range(len(g))])
     line = (
@@ -365,11 +392,12 @@ def write_geojson(g: GeoWaypoints, path) -> None:
         if len(parts) == 1
         else {"type": "MultiLineString", "coordinates": parts}
     )
+    height = "WGS84 ellipsoid"  # the third element of every position
     feats = [
         {
             "type": "Feature",
             "geometry": line,
-            "properties": {"kind": "flight", "name": g.name, "altitude_reference": g.altitude_ref},
+            "properties": {"kind": "flight", "name": g.name, "height_reference": height},
         }
     ]
     for i in range(len(g)):
@@ -385,6 +413,8 @@ def write_geojson(g: GeoWaypoints, path) -> None:
                         "heading_deg": float(g.heading[i]),
                         "gimbal_pitch_deg": float(g.gimbal_pitch[i]),
                         "rel_alt_m": float(g.rel_alt[i]),
+                        "height_reference": height,
+                        "altitude_m": float(g.alt[i]),
                         "altitude_reference": g.altitude_ref,
                     },
                 }
@@ -425,72 +455,9 @@ def write_csv(g: GeoWaypoints, path) -> None:
                 _f(float(g.lon[i]), 9),
                 _f(float(g.alt[i]), 3),
                 _f(float(g.rel_alt[i]), 3),
-                _f(float(g.heading[i]), 3),
+                bearing_text(g.heading[i], 3),
                 _f(float(g.gimbal_pitch[i]), 3),
             ]
         )
     with open(path, "w", newline="") as f:
         f.write(buf.getvalue())
-
-
-# ---------------------------------------------------------------------- COLMAP
-#: COLMAP's camera axes in nbvkit's sensor frame (x forward, y left, z up): x right = -y,
-#: y down = -z, z forward = +x.
-R_COLMAP_SENSOR = np.array([[0.0, -1.0, 0.0], [0.0, 0.0, -1.0], [1.0, 0.0, 0.0]])
-
-
-def colmap_pose(T_world_sensor: np.ndarray):
-    """(qw, qx, qy, qz), (tx, ty, tz): COLMAP's world-to-camera pose of a sensor pose (4, 4)."""
-    from scipy.spatial.transform import Rotation
-
-    R_ws, t = T_world_sensor[:3, :3], T_world_sensor[:3, 3]
-    R_cw = R_COLMAP_SENSOR @ R_ws.T
-    t_cw = -R_cw @ t
-    x, y, z, w = Rotation.from_matrix(R_cw).as_quat()
-    q = np.array([w, x, y, z])
-    if q[0] < 0:
-        q = -q
-    return q, t_cw
-
-
-def write_colmap(folder, camera: dict, images: list) -> None:
-    """COLMAP text model: cameras.txt (one PINHOLE camera), images.txt (a pose per image, no 2D
-    points) and an empty points3D.txt. camera: width, height, fx, fy, cx, cy; images: (name,
-    T_world_sensor (4, 4)) in order."""
-    c = camera
-    with open(folder / "cameras.txt", "w") as f:
-        f.write("# Camera list with one line of data per camera:\n")
-        f.write("#   CAMERA_ID, MODEL, WIDTH, HEIGHT, PARAMS[]\n")
-        f.write("# Number of cameras: 1\n")
-        f.write(
-            f"1 PINHOLE {c['width']} {c['height']} {c['fx']!r} {c['fy']!r} "
-            f"{c['cx']!r} {c['cy']!r}\n"
-        )
-    with open(folder / "images.txt", "w") as f:
-        f.write("# Image list with two lines of data per image:\n")
-        f.write("#   IMAGE_ID, QW, QX, QY, QZ, TX, TY, TZ, CAMERA_ID, NAME\n")
-        f.write("#   POINTS2D[] as (X, Y, POINT3D_ID)\n")
-        f.write(f"# Number of images: {len(images)}, mean observations per image: 0\n")
-        for i, (name, T) in enumerate(images, start=1):
-            q, t = colmap_pose(np.asarray(T, float))
-            f.write(" ".join([str(i), *(repr(float(v)) for v in (*q, *t)), "1", name]) + "\n\n")
-    with open(folder / "points3D.txt", "w") as f:
-        f.write("# 3D point list with one line of data per point:\n")
-        f.write("#   POINT3D_ID, X, Y, Z, R, G, B, ERROR, TRACK[] as (IMAGE_ID, POINT2D_IDX)\n")
-        f.write("# Number of points: 0, mean track length: 0\n")
-
-
-def camera_intrinsics(config) -> dict:
-    """PINHOLE intrinsics of the run's DepthCamera (cpp/src/sensors.cpp: fx = (W/2) /
-    tan(hfov/2), fy = (H/2) / tan(vfov/2); pixel (u, v) looks through its centre, (u + 0.5,
-    v + 0.5) in COLMAP's image coordinates, so cx = W/2, cy = H/2)."""
-    c = config.camera
-    w, h = int(c.width), int(c.height)
-    return {
-        "width": w,
-        "height": h,
-        "fx": (w / 2.0) / math.tan(math.radians(c.hfov_deg) / 2.0),
-        "fy": (h / 2.0) / math.tan(math.radians(c.vfov_deg) / 2.0),
-        "cx": w / 2.0,
-        "cy": h / 2.0,
-    }
