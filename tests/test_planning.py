@@ -1645,7 +1645,7 @@ def test_the_vehicle_can_plan_its_way_back_along_its_own_flight():
         m = Mission(Config().with_overrides(over + ["start_pose=[-4.93,-5.07,2.13,0.0]"]), mesh)
         w = m.world
         start = w.state.pose.copy()
-        flown = sum(w.fly_to(np.array(p), "test") for p in legs)
+        flown = sum(w.fly_to(np.array(p), "nbv") for p in legs)
         path = w.plan_path(start)
         if not widen:
             assert path is None
@@ -1673,7 +1673,7 @@ def test_a_search_cut_short_by_its_cap_is_searched_again_when_the_view_is_reacha
         w = m.world
         start = w.state.pose.copy()
         for p in legs:
-            w.fly_to(np.array(p), "test")
+            w.fly_to(np.array(p), "nbv")
         assert (w.plan_path(start) is None) == (cap == 5)
         sel = Selector(PlanningContext.of(m.config))
         sel.begin()

@@ -155,6 +155,13 @@ def _run_with_plugin(plugin, out, *args) -> dict:
     return json.loads((out / "summary.json").read_text())
 
 
+def _nbvkit(*args):
+    return subprocess.run(
+        [sys.executable, "-m", "nbvkit.cli", *map(str, args)],
+        capture_output=True, text=True, timeout=300,
+    )  # fmt: skip
+
+
 def _doc_example(name: str, tmp_path):
     """The python block of docs/PLUGINS.md introduced by `name`, written to tmp_path/name."""
     import re
@@ -201,6 +208,18 @@ def test_the_worked_example_of_docs_plugins_flies(tmp_path):
     assert s["scenario"] == "ring" and s["generators"] == ["ring"]
     assert s["termination"] == "coverage_complete" and s["iterations"] == 5
     assert "ring:" in (out / "config.yaml").read_text()
+    # the commands that read the run's config.yaml take --plugin too (they knew no 'ring' key);
+    # without it the error names the plugin file the run was flown with
+    export = ["export", out, "--origin", "47.3977", "8.5456", "488", "--heading", "30"]
+    for cmd in (export, ["evaluate", out]):
+        p = _nbvkit(*cmd)
+        assert p.returncode == 2 and "unknown config key 'ring'" in p.stderr
+        assert f"was flown with the plugin file {plugin.resolve()}: give it with --plugin" in (
+            p.stderr
+        )
+        p = _nbvkit(*cmd, "--plugin", plugin)
+        assert p.returncode == 0, p.stderr
+    assert (out / "export").is_dir() and "Chamfer distance" in p.stdout
 
 
 def test_the_tour_example_of_docs_plugins_flies_tours_that_nbvkit_plans(tmp_path):
@@ -239,6 +258,32 @@ def test_the_utility_example_of_docs_plugins_flies_the_papers_method(tmp_path):
         "observability.enabled=false", "utility.name=near_unknown",
     )  # fmt: skip
     assert s["utility"] == "near_unknown" and s["iterations"] >= 1
+    assert s["utility_only_checks"] == []  # the lattice's views are ranked by it
+
+
+def test_a_utility_the_tours_only_check_is_said_so(capsys):
+    """Under the default planner the coverage tours plan by the surface they would cover and the
+    utility only checks the next view: the summary said `utility: spy` as if it ranked them."""
+    from nbvkit.commands.run import print_summary
+
+    from nbvkit.planning.utilities import per_candidate
+
+    nbvkit.register_utility("spy", lambda rays: per_candidate(rays, (rays.state == -1) * 1.0))
+    try:
+        cfg = load_config(overrides=QUICK + ["max_iterations=2", "utility.name=spy"])
+        s = nbvkit.Mission(cfg, mesh=box_mesh(*BOX)).run()
+    finally:
+        registry.UTILITIES.pop("spy")
+    assert s["generators"] == ["tour"] and s["utility"] == "spy"
+    assert s["utility_only_checks"] == ["tour"]
+    print_summary(s, "out")
+    said = capsys.readouterr().out
+    assert (
+        "note: the tour generator plans its views by the surface they would newly cover; " in said
+    )
+    assert "utility spy only checked each view (valid, worth planner.min_gain" in said
+    cfg = load_config(overrides=QUICK + ["max_iterations=1"])  # the surface utility: no note
+    assert registry.utility_only_checks(cfg) == [] and cfg.utility.name == "surface"
 
 
 # ------------------------------------------------------------------ hostile parts (issue: audit)
@@ -593,11 +638,26 @@ def test_a_stop_reason_is_a_str_or_none():
     assert s["termination"] == "ring_unreachable"
 
 
-@pytest.mark.parametrize("reason", ["failed", "interrupted"])
+RESERVED_REASONS = ["failed", "interrupted", "budget_time", "budget_views", "max_iterations"]
+
+
+@pytest.mark.parametrize("reason", RESERVED_REASONS)
 def test_a_termination_may_not_claim_nbvkits_own_failure(reason):
     stop = type("Stop", (_Stop,), {"check": lambda self, w, s: reason})
     with pytest.raises(ValueError, match=f"check returned '{reason}', which nbvkit"):
         _fly(termination=stop)
+
+
+@pytest.mark.parametrize("reason", RESERVED_REASONS)
+def test_a_stop_reason_may_not_claim_nbvkits_own_words(tmp_path, reason):
+    # "failed" from a generator's stop_reason was the summary's termination with stopped_by
+    # None; "budget_time" set stopped_by_budget
+    done = type("Done", (RingGenerator,), {"propose": lambda self, w: None})
+    with pytest.raises(ValueError, match=f"generator 'hostile': its stop_reason is '{reason}'"):
+        _fly(tmp_path / "run", generator=type("G", (done,), {"stop_reason": reason}))
+    s = json.loads((tmp_path / "run" / "summary.json").read_text())
+    assert s["termination"] == "failed" and not s["stopped_by_budget"]
+    assert "its stop_reason is" in s["stopped_by"]
 
 
 def test_a_plugin_part_copies():
@@ -642,6 +702,9 @@ def test_with_other_generators_feedback_is_of_its_own_views():
 
     assert unions[0].source == "lattice+ring" and len(unions[0].members) == 2
     assert pickle.loads(pickle.dumps(unions[0])).source == "lattice+ring"
+    # each record names the generator whose view was flown, not the union's "lattice+ring"
+    sources = [r.source for r in m.records]
+    assert sources.count("ring") == len(mine) and sources.count("lattice") == 6 - len(mine)
     assert not hasattr(copy.deepcopy(unions[0]), "members")
 
 
@@ -845,3 +908,127 @@ def test_a_settings_post_init_error_names_its_section_and_key():
     finally:
         registry.GENERATORS.pop("audit_even", None)
         SCENARIOS.pop("audit_odd", None)
+
+
+# ------------------------------------------------------------ loading and the World (audit 3)
+
+
+@pytest.fixture
+def plugin_dir(tmp_path, monkeypatch):
+    """tmp_path on sys.path; on teardown the parts, scenarios, plugin files and modules the test
+    loaded from it are forgotten."""
+    from nbvkit import plugins
+    from nbvkit.scenarios import SCENARIOS
+
+    monkeypatch.setattr(sys, "path", [str(tmp_path), *sys.path])
+    tables = [dict(t) for t in (registry.GENERATORS, registry.TERMINATIONS, registry.UTILITIES)]
+    scenarios = dict(SCENARIOS)
+    yield tmp_path
+    for t, was in zip((registry.GENERATORS, registry.TERMINATIONS, registry.UTILITIES), tables):
+        for n in set(t) - set(was):
+            t.pop(n)
+    for n in set(SCENARIOS) - set(scenarios):
+        SCENARIOS.pop(n)
+    for key in [k for k in plugins.LOADED if k.startswith(str(tmp_path.resolve()))]:
+        plugins.LOADED.remove(key)
+    for name in [
+        n for n, m in sys.modules.items() if str(tmp_path) in str(getattr(m, "__file__", ""))
+    ]:
+        sys.modules.pop(name)
+
+
+ONE_MODULE = """
+import nbvkit
+
+
+class Boom(Exception):
+    pass
+
+
+def booming(rays):
+    raise Boom("the plugin's own error")
+
+
+class Gen:
+    def __init__(self, settings, context):
+        pass
+
+    def propose(self, world):
+        return None
+
+    def feedback(self, world, proposal, step):
+        pass
+
+
+nbvkit.register_generator("one_gen", Gen)
+nbvkit.register_utility("one_u", booming)
+"""
+
+
+def test_a_plugin_file_loaded_and_imported_is_one_module(plugin_dir):
+    """load_plugin ran the file under a made-up module name: `import one_module` then ran it
+    again ('a generator named ... is registered already'), and the plugin's own exception types
+    were two classes, so `except one_module.Boom` did not catch what its part raised."""
+    import importlib
+
+    (plugin_dir / "one_module.py").write_text(ONE_MODULE)
+    (plugin_dir / "uses_one.py").write_text(
+        "import nbvkit\nfrom one_module import Gen\nnbvkit.register_generator('uses_gen', Gen)\n"
+    )
+    nbvkit.load_plugin(plugin_dir / "one_module.py")
+    one_module = importlib.import_module("one_module")  # not run again
+    assert registry.GENERATORS["one_gen"] is one_module.Gen
+    nbvkit.load_plugin(plugin_dir / "uses_one.py")  # another plugin file imports it
+    assert registry.GENERATORS["uses_gen"] is one_module.Gen
+    with pytest.raises(one_module.Boom, match="the plugin's own error"):
+        registry.UTILITIES["one_u"](None)
+
+
+def test_a_name_registered_by_two_files_is_an_error_naming_both(plugin_dir):
+    a, b = plugin_dir / "first_gen.py", plugin_dir / "second_gen.py"
+    for f in (a, b):
+        f.write_text(ONE_MODULE)
+    nbvkit.load_plugin(a)
+    with pytest.raises(ValueError, match="a generator named 'one_gen' is registered already") as e:
+        nbvkit.load_plugin(b)
+    assert f"registered from {a}; this one from {b}" in str(e.value)
+    # the same file run a second time under another module name says so
+    import importlib.util
+
+    spec = importlib.util.spec_from_file_location("other_name", a)
+    with pytest.raises(ValueError, match="from the same file, run a second time as module"):
+        spec.loader.exec_module(importlib.util.module_from_spec(spec))
+
+
+def test_a_failed_load_forgets_the_helper_modules_it_imported(plugin_dir):
+    """A plugin that imported a helper registering a part, then failed: the helper's part was
+    rolled back but its module stayed imported, so once the plugin was fixed the import found
+    it and the part was silently missing."""
+    (plugin_dir / "ring_helper.py").write_text(
+        ONE_MODULE.replace("one_gen", "helper_gen").replace("one_u", "helper_u")
+    )
+    f = plugin_dir / "uses_helper.py"
+    f.write_text("import ring_helper\nraise RuntimeError('a bug after the import')\n")
+    with pytest.raises(RuntimeError, match="a bug after the import"):
+        nbvkit.load_plugin(f)
+    assert "helper_gen" not in registry.GENERATORS and "ring_helper" not in sys.modules
+    assert "uses_helper" not in sys.modules and "numpy" in sys.modules  # installed ones stay
+    f.write_text("import ring_helper\n")
+    nbvkit.load_plugin(f)
+    assert "helper_gen" in registry.GENERATORS and "helper_u" in registry.UTILITIES
+
+
+def test_the_world_names_a_wrong_shape_of_positions_and_an_unknown_stage():
+    from nbvkit.vehicle import STAGES
+
+    cfg = load_config(overrides=QUICK + ["max_iterations=1"])
+    w = nbvkit.Mission(cfg, mesh=box_mesh(*BOX)).world
+    with pytest.raises(ValueError, match=r"must be \(K, 3\) positions .* got shape \(2, 4\)"):
+        w.can_hold(np.zeros((2, 4)))  # was numpy's reshape error (or 8 / 3 rows silently)
+    assert w.can_hold(np.zeros(3)).shape == (1,) and w.can_hold(np.zeros((0, 3))).shape == (0,)
+    for stage in (123, "views", None):
+        with pytest.raises(ValueError, match=r"stage must be one of profile, nbv, got"):
+            w.fly_to(w.state.pose, stage)  # 123 was written into the trajectory
+    rows = len(w.state.trajectory)
+    w.fly_to(w.state.pose, STAGES[1])
+    assert len(w.state.trajectory) == rows + 1 and w.state.trajectory[-1][0] == "nbv"

@@ -8,8 +8,9 @@ import sys
 from .plugins import load_plugins
 
 # name -> module in nbvkit.commands; each module defines register(subparsers) and run(args).
-#: The commands that fly missions: they take --plugin FILE (your own planner parts).
-FLYING = ("run", "compare", "sweep", "table")
+#: The commands that fly missions or read a run's configuration: they take --plugin FILE (your
+#: own planner parts; a run flown with them has their sections in its config.yaml).
+PLUGIN_COMMANDS = ("run", "compare", "sweep", "table", "export", "evaluate")
 COMMANDS = {
     "scan": "scan",
     "evaluate": "evaluate",
@@ -32,7 +33,7 @@ def build_parser() -> argparse.ArgumentParser:
         mod = importlib.import_module(f"nbvkit.commands.{module}")
         p = mod.register(sub)
         p.set_defaults(_run=mod.run)
-        if name in FLYING:
+        if name in PLUGIN_COMMANDS:
             p.add_argument(
                 "--plugin",
                 action="append",
@@ -40,7 +41,8 @@ def build_parser() -> argparse.ArgumentParser:
                 metavar="FILE",
                 help="a Python file that registers your own planner parts "
                 "(nbvkit.register_generator / register_termination / register_utility) before "
-                "the configuration is read; repeatable (docs/PLUGINS.md)",
+                "the configuration is read (a run flown with it: to read its config.yaml); "
+                "repeatable (docs/PLUGINS.md)",
             )
     return parser
 

@@ -155,13 +155,24 @@ class Config:
 
     @classmethod
     def from_yaml(cls, path: str | Path) -> "Config":
+        """A run folder's config.yaml names in its errors the plugin files the run was flown
+        with (its summary.json's `plugins`) that this process has not loaded."""
         p = Path(path)
         data = read_yaml_file(p, "config file") or {}
         if not isinstance(data, dict):
             raise ValueError(
                 f"config file {p} must hold a mapping of keys, got {type(data).__name__}"
             )
-        return cls.from_dict(data)
+        try:
+            return cls.from_dict(data)
+        except (KeyError, ValueError) as e:
+            from .plugins import run_plugins_hint
+
+            hint = run_plugins_hint(p.parent)
+            if not hint:
+                raise
+            msg = e.args[0] if isinstance(e, KeyError) and e.args else str(e)
+            raise (KeyError if isinstance(e, KeyError) else ValueError)(f"{msg}; {hint}") from e
 
     def with_overrides(self, overrides: list[str] | dict | None) -> "Config":
         """Apply ``key=value`` strings (dotted keys for nested sections; values parsed as YAML)

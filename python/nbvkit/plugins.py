@@ -35,7 +35,9 @@ def load_plugin(path, sha256: str | None = None) -> None:
     unless its content changed since: then it runs anew, its parts replacing those it had
     registered (a notebook's edited file, a long-lived worker's). A file already imported as a
     module (``import my_parts``) is not run again, only noted for the sweeps' workers. Its folder
-    is put on sys.path, as Python does for a script: the file imports its neighbours.
+    is put on sys.path, as Python does for a script: the file imports its neighbours. It runs as
+    the module of its own name when that is free (_module_name): ``import my_parts`` after it is
+    the same module. A load that fails forgets the modules of yours it imported (_roll_back).
     `sha256`: the content expected (a sweep's worker, the parent's): a ValueError if it differs.
     The content run is the content hashed (read once; no cached bytecode)."""
     with _LOCK:  # a Dask worker's threads may load at once
@@ -64,15 +66,16 @@ def _run_file(p: Path, source: bytes, digest: str) -> None:
         REGISTERED[key] = _held_by(imported[0])
         GUESSED.add(key)
         return
-    name = "nbvkit_plugin_" + hashlib.sha1(key.encode()).hexdigest()[:12]
+    name = _module_name(p)
     spec = importlib.util.spec_from_file_location(name, p)
     if spec is None or spec.loader is None:
         raise ValueError(f"plugin file {p} is not a Python module")
     module = importlib.util.module_from_spec(spec)
-    before = sys.modules.get(name)
+    modules = dict(sys.modules)
     sys.modules[name] = module
     tables = _tables()
     objects = [dict(t) for t in tables]
+    state = (list(LOADED), dict(DIGESTS), dict(REGISTERED), set(GUESSED))
     mine = _own_names(key) if again else set()
     for t in tables:  # loaded again: its names are free for it
         for n in mine:
@@ -80,13 +83,13 @@ def _run_file(p: Path, source: bytes, digest: str) -> None:
     try:
         exec(compile(source, key, "exec", dont_inherit=True), module.__dict__)
     except BaseException:
-        if before is None:
-            del sys.modules[name]
-        else:
-            sys.modules[name] = before
+        _roll_back(modules, name)
         for table, was in zip(tables, objects):  # what it registered or replaced before it failed
             table.clear()
             table.update(was)
+        for now, was in zip((LOADED, DIGESTS, REGISTERED, GUESSED), state):
+            now.clear()  # a plugin file it loaded is unloaded with it
+            (now.extend if isinstance(now, list) else now.update)(was)
         raise
     if key in GUESSED:  # what an imported module only held, it did not register: kept
         for t, was in zip(tables, objects):
@@ -106,6 +109,48 @@ def _run_file(p: Path, source: bytes, digest: str) -> None:
     }
 
 
+def _module_name(p: Path) -> str:
+    """The module name a plugin file runs as: its own (``my_parts``) when ``import my_parts``
+    would find this very file (its folder is on sys.path) and no other module holds that name,
+    so that importing it after loading it (or from another plugin file) gives the same module
+    (its parts registered once, its types the same); else a name of its own."""
+    stem = p.stem
+    held = sys.modules.get(stem)
+    if stem.isidentifier() and (held is None or _same_file(held, p)):
+        importlib.invalidate_caches()  # a file written since the folder was last listed
+        try:
+            spec = importlib.util.find_spec(stem) if held is None else held.__spec__
+            if spec is not None and spec.origin and Path(spec.origin).resolve() == p:
+                return stem
+        except (ImportError, ValueError, AttributeError, OSError):
+            pass
+    return "nbvkit_plugin_" + hashlib.sha1(str(p).encode()).hexdigest()[:12]
+
+
+def _roll_back(modules: dict, name: str) -> None:
+    """After a plugin file failed to load: sys.modules as it was (`modules`) for the module it
+    ran as (`name`) and for the modules of your own it imported (files outside the Python
+    installation and nbvkit), so that once fixed they run again and register their parts anew.
+    Modules of installed packages it imported stay (some cannot be imported twice)."""
+    import sysconfig
+
+    lib = [v for k, v in sysconfig.get_paths().items() if "lib" in k]
+    installed = {Path(d).resolve() for d in (*lib, sys.prefix, sys.base_prefix)}
+    installed.add(Path(__file__).resolve().parent)
+    for m in [m for m in sys.modules if m not in modules or sys.modules[m] is not modules[m]]:
+        f = getattr(sys.modules[m], "__file__", None)
+        try:
+            ours = f is not None and str(f).endswith(".py")
+            ours = ours and not any(d in Path(f).resolve().parents for d in installed)
+        except (OSError, ValueError, TypeError):
+            ours = False
+        if m == name or ours:
+            if m in modules:
+                sys.modules[m] = modules[m]
+            else:
+                del sys.modules[m]
+
+
 def _own_names(key: str) -> set:
     """The names the loaded file `key` registered that are neither nbvkit's nor another file's."""
     from .planning import registry
@@ -118,6 +163,28 @@ def _changed(p: Path, was: str, now: str, what: str) -> str:
     return (
         f"plugin file {p} changed: its content's SHA-256 is {now[:12]}..., {what} {was[:12]}...;"
         f" load it again (nbvkit.load_plugin({str(p)!r}), or --plugin) and start the runs again"
+    )
+
+
+def run_plugins_hint(folder) -> str:
+    """What reading the run folder `folder`'s config.yaml needs and this process lacks: "the run
+    FOLDER was flown with the plugin file(s) A, B: give them with --plugin ..." naming the files
+    its summary.json records (`plugins`) that are not loaded here; "" when none is."""
+    import json
+
+    try:
+        recorded = json.loads((Path(folder) / "summary.json").read_text()).get("plugins") or []
+        paths = [str(f["path"]) for f in recorded]
+    except (OSError, ValueError, TypeError, KeyError, AttributeError):
+        return ""
+    missing = [f for f in paths if f not in LOADED]
+    if not missing:
+        return ""
+    files = ", ".join(missing)
+    return (
+        f"the run {folder} was flown with the plugin file{'s' if len(missing) > 1 else ''} "
+        f"{files}: give {'each' if len(missing) > 1 else 'it'} with --plugin FILE "
+        "(in Python: nbvkit.load_plugin(FILE)) to read its configuration"
     )
 
 

@@ -12,6 +12,7 @@ from pathlib import Path
 
 from . import _core
 from .evaluation import SUMMARY_KEYS
+from .planning.registry import utility_only_checks
 from .planning.terminations.budget import BUDGET_REASONS
 from .runfolder import atomic_open, write_json_atomic, write_text_atomic
 from .vehicle import FLIGHT_COLUMNS
@@ -164,6 +165,8 @@ class Recorder:
             "symmetry_prediction": cfg.symmetry.mode == "predict",
             "generators": list(cfg.planner.generators),
             "utility": cfg.utility.name,
+            # generators whose views the utility only checks (valid, worth min_gain), not ranks
+            "utility_only_checks": utility_only_checks(cfg),
             "sampling": cfg.lattice.method if "lattice" in cfg.planner.generators else None,
             "iterations": n_it,
             "views": world.state.views,

@@ -20,6 +20,7 @@ class Scenario:
     description: str
     settings: dict = field(default_factory=dict)  # dotted config key -> value
     table2: tuple | None = None  # (profiling, symmetry, sampling) columns of the paper's Table 2
+    origin: str | None = field(default=None, compare=False)  # the file that registered it
 
 
 # The paper's method (sec. 3): the CGVS/AGVS lattice scored by information gain, straight legs
@@ -39,6 +40,7 @@ _PAPER = {
     "utility.saturation_hits": 0,
     "vehicle.blocked_path": "reject",
     "vehicle.widen_swept_volume": False,
+    "vehicle.keep_off_hits": False,
     "cloud.camera_voxel": DEFAULT_VOXEL_SIZE,
     "profiling.method": "circular",
     "profiling.waypoints": 5,
@@ -166,7 +168,7 @@ def register_scenario(name: str, description: str, settings: dict, *, replace=Fa
         )
     if name in SCENARIOS and not replace:
         raise ValueError(
-            f"scenario {name!r} is registered already; choose another name, or replace=True to "
-            "replace it"
+            f"scenario {name!r} is registered already{clash(SCENARIOS[name].origin)}; choose "
+            "another name, or replace=True to replace it"
         )
-    SCENARIOS[name] = Scenario(description, dict(settings))
+    SCENARIOS[name] = Scenario(description, dict(settings), origin=caller()[0])

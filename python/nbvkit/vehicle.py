@@ -11,6 +11,28 @@ import numpy as np
 FLIGHT_COLUMNS = ("stage", "x", "y", "z", "yaw", "pitch", "capture", "distance_m")
 
 
+#: The stages of a flight (the trajectory's and flight.csv's `stage`): the laser's profile, then
+#: the next-best views.
+STAGES = ("profile", "nbv")
+
+
+def check_stage(stage) -> None:
+    """ValueError unless `stage` is one of STAGES."""
+    if not isinstance(stage, str) or stage not in STAGES:
+        raise ValueError(f"stage must be one of {', '.join(STAGES)}, got {stage!r}")
+
+
+def as_positions(positions, what: str) -> np.ndarray:
+    """`positions` as (K, 3) float64 (one position (3,): K = 1); ValueError naming `what` and
+    the shape expected for any other shape."""
+    p = np.asarray(positions, float)
+    if p.ndim == 1 and p.size in (0, 3):
+        return p.reshape(-1, 3)
+    if p.ndim != 2 or p.shape[1] != 3:
+        raise ValueError(f"{what} must be (K, 3) positions (x, y, z), got shape {p.shape}")
+    return p
+
+
 def as_view(pose) -> np.ndarray:
     """A pose (x, y, z, yaw) or view (x, y, z, yaw, pitch) as a view (5,) float64: 4 numbers
     mean the level camera (pitch 0). The pitch is the camera gimbal's, radians, > 0 looks

@@ -25,7 +25,7 @@ from .sensors import (
     build_view_camera,
 )
 from .settings import cpp_section
-from .vehicle import FLIGHT_COLUMNS, VehicleState, as_view  # noqa: F401  (re-exported)
+from .vehicle import FLIGHT_COLUMNS, VehicleState, as_positions, as_view, check_stage  # noqa: F401
 from .workspace import (
     is_large,
     Workspace,
@@ -370,9 +370,11 @@ class World:
         """Move the vehicle along `path` ((P, 3) waypoints, first = here; default straight) to
         `target` (x, y, z, yaw) or (x, y, z, yaw, pitch) (4 numbers: the camera level); returns
         the distance flown. The swept volume becomes known free (vehicle.clear_swept_volume).
-        Raises ValueError for a non-finite target, a pitch outside camera.gimbal_pitch_deg, or
-        a path that does not start here and end at the target. Nothing checks the target
-        against the structure or the workspace: that is the planner's part (can_hold)."""
+        Raises ValueError for a stage not in vehicle.STAGES, a non-finite target, a pitch outside
+        camera.gimbal_pitch_deg, or a path that does not start here and end at the target.
+        Nothing checks the target against the structure or the workspace: that is the planner's
+        part (can_hold)."""
+        check_stage(stage)
         target = as_view(target)
         if not np.isfinite(target).all() or np.abs(target[:3]).max() > MAX_COORDINATE:
             raise ValueError(f"fly_to target must be finite coordinates, got {target.tolist()}")
@@ -429,7 +431,7 @@ class World:
     def can_hold(self, positions) -> np.ndarray:
         """(K,) bool per position (K, 3): within the navigation space, with the vehicle's
         collision sphere in known free space (what a view there needs to be flown)."""
-        p = np.asarray(positions, float).reshape(-1, 3)
+        p = as_positions(positions, "can_hold's positions")
         inside = self.workspace.contains_each(p)
         ok = np.zeros(len(p), bool)
         if inside.any():

@@ -104,7 +104,7 @@ class Step:
         return cls(
             iteration,
             choice,
-            proposal.source,
+            _source_of(proposal, choice.index),
             len(proposal.poses),
             int((scores["status"] == 0).sum()),
             entropy_before,
@@ -115,6 +115,15 @@ class Step:
             proposal=proposal,
             makers=makers,
         )
+
+
+def _source_of(proposal, index: int) -> str:
+    """The source of the view `index` of `proposal`: in a union of several generators' proposals
+    (parts.propose), that of the generator whose view it is."""
+    for _, start, own in getattr(proposal, "members", ()):
+        if start <= index < start + len(own.poses):
+            return own.source
+    return proposal.source
 
 
 #: The smallest factor threshold_scale gives: at a tenth of the thresholds (0.12 m^2 of new
@@ -333,6 +342,8 @@ class PluginPart:
                 f"generator {self.name!r}: its stop_reason is {reason!r}; it is None or why it "
                 "proposes nothing, a non-empty str (e.g. 'no_reachable_view')"
             )
+        if reason is not None:
+            _not_reserved(f"generator {self.name!r}: its stop_reason is", reason)
         return reason
 
     def feedback(self, world, proposal, step):
@@ -352,12 +363,24 @@ class PluginPart:
                 f"termination {self.name!r}: check returned {reason!r}; it returns the reason "
                 "to stop (a non-empty str, e.g. 'distance_cap') or None to go on"
             )
-        if reason in ("failed", "interrupted"):  # a run stopped by an error or Ctrl-C
-            raise ValueError(
-                f"termination {self.name!r}: check returned {reason!r}, which nbvkit's summary "
-                "keeps for a run stopped by an error or Ctrl-C; name your own reason"
-            )
+        _not_reserved(f"termination {self.name!r}: check returned", reason)
         return reason
+
+
+def _not_reserved(said: str, reason: str) -> None:
+    """ValueError (`said` REASON, ...) when a part's reason to stop is one nbvkit's summary keeps
+    for itself: a run stopped by an error or Ctrl-C, or by a budget (`stopped_by_budget`)."""
+    from .terminations.budget import BUDGET_KEYS
+
+    if reason in ("failed", "interrupted"):
+        why = "a run stopped by an error or Ctrl-C"
+    elif reason in BUDGET_KEYS:
+        why = f"a run stopped by its budget ({BUDGET_KEYS[reason]})"
+    else:
+        return
+    raise ValueError(
+        f"{said} {reason!r}, which nbvkit's summary keeps for {why}; name your own reason"
+    )
 
 
 def _own(part, proposal, step):

@@ -33,6 +33,20 @@ TERMINATIONS = {
 #: their errors named, parts.PluginPart).
 BUILT_IN = frozenset(GENERATORS) | frozenset(TERMINATIONS)
 
+#: nbvkit's generators that plan their views by the surface they would newly cover
+#: (nbvkit.plan_tour) and propose them one at a time: the configured utility only checks each
+#: (valid, worth planner.min_gain in its units), it does not rank them (utility_only_checks).
+OWN_RANKING = ("tour", "model")
+
+
+def utility_only_checks(config) -> list:
+    """The generators of `config` (planner.generators) whose views its utility only checks, not
+    ranks (OWN_RANKING), when the utility is another than the surface coverage they plan by."""
+    if config.utility.name == "surface":
+        return []
+    return [g for g in config.planner.generators if g in OWN_RANKING]
+
+
 #: Utilities written in Python (name -> function of nbvkit.CandidateRays, see
 #: planning/utilities.py); the C++ core's are nbvkit._core.utility_names().
 UTILITIES: dict = {}
@@ -69,8 +83,11 @@ def _check_new(name: str, kind: str, taken, replace: bool = False, table=None) -
             f"{kind} of your own; choose another name"
         )
     if not replace:
+        from ..origins import clash, defined_in
+
         raise ValueError(
             f"a {kind} named {name!r} is registered already"
+            + ("" if own else clash(defined_in(taken[name])))
             + (
                 " (one of nbvkit's own); choose another name"
                 if own
