@@ -47,7 +47,8 @@ def register(sub) -> argparse.ArgumentParser:
         type=float,
         default=0.0,
         metavar="DEG",
-        help="bearing of the mesh's +x axis, degrees clockwise from true north (default 0)",
+        help="bearing of the mesh's +x axis, degrees clockwise from true north, within "
+        "[-360, 360] (default 0)",
     )
     p.add_argument(
         "--speed",
