@@ -1032,3 +1032,30 @@ def test_the_world_names_a_wrong_shape_of_positions_and_an_unknown_stage():
     rows = len(w.state.trajectory)
     w.fly_to(w.state.pose, STAGES[1])
     assert len(w.state.trajectory) == rows + 1 and w.state.trajectory[-1][0] == "nbv"
+
+
+def test_what_a_generator_sets_on_its_step_does_not_change_the_record():
+    """A generator told of its view gets its own copy of the step: setting its choice's gain, its
+    new surface or its distance (or writing into its pose) left iterations.csv recording those
+    values; its `extra` columns are still the record's."""
+
+    class Meddler(RingGenerator):
+        def feedback(self, world, proposal, step):
+            super().feedback(world, proposal, step)
+            if step is not None:
+                step.choice.gain, step.new_surface_m2, step.distance_m = math.nan, -5.0, 1e9
+                step.choice.pose[:] = 0.0
+                step.extra["meddled"] = True
+
+    registry.register_generator("meddler", Meddler)
+    try:
+        cfg = load_config(overrides=QUICK + ["max_iterations=3", "planner.generators=[meddler]"])
+        m = nbvkit.Mission(cfg, mesh=box_mesh(*BOX))
+        s = m.run()
+    finally:
+        registry.GENERATORS.pop("meddler")
+    assert len(m.records) == s["iterations"] == 3
+    for r in m.records:
+        assert math.isfinite(r.gain) and r.new_surface_m2 >= 0 and r.distance_m < 1e3
+        assert max(abs(r.x), abs(r.y), abs(r.z)) > 0
+    assert s["distance_m"] < 1e3

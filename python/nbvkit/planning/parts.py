@@ -386,13 +386,22 @@ def _not_reserved(said: str, reason: str) -> None:
 def _own(part, proposal, step):
     """(proposal, step) as the generator `part` is told of them: where its views were scored
     with other generators' (one proposal, parts.propose), its own proposal, and the step only if
-    the view flown is one of its own, with choice.index its row there (None otherwise)."""
+    the view flown is one of its own, with choice.index its row there (None otherwise). The step
+    is the generator's copy (its choice, pose and path too): what it sets there does not change
+    the mission's record of the view, but for `extra`, shared: a generator's own columns of
+    iterations.csv (the lattice's alpha)."""
     from dataclasses import replace
+
+    def told(step, index, proposal):
+        c = step.choice
+        path = None if c.path is None else np.array(c.path)
+        choice = replace(c, index=index, pose=np.array(c.pose), path=path)
+        return replace(step, choice=choice, proposal=proposal)
 
     for g, start, own in getattr(proposal, "members", ()):
         if g is part:
             i = -1 if step is None else step.choice.index - start
             if not 0 <= i < len(own.poses):
                 return own, None
-            return own, replace(step, choice=replace(step.choice, index=i), proposal=own)
-    return proposal, step
+            return own, told(step, i, own)
+    return proposal, None if step is None else told(step, step.choice.index, proposal)
