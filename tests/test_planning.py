@@ -458,6 +458,7 @@ def test_selection_floods_the_free_component_only_after_a_search_cut_short_by_it
 
         world = SimpleNamespace(map=m, state=SimpleNamespace(pose=np.array([3, 2, 2, 0.0])))
         world.search_path, world.plan_path = search_path, plan_path
+        world.free_component = lambda: _core.FreeComponent(m, (3, 2, 2), 0.8)
         selector = Selector(PlanningContext.of(cfg))
         selector.begin()
         choice = selector.choose(world, poses, scores)
