@@ -35,15 +35,20 @@ def signed_deg(deg: float) -> float:
     return (deg + 180.0) % 360.0 - 180.0
 
 
+def _holds_opposite(possible, heading: float) -> bool:
+    """Whether the arc `possible` (lo, hi) of unwrapped degrees holds the heading opposite
+    `heading`: from there a turn to it is 180 degrees, either way round."""
+    lo, hi = possible
+    return lo + (heading + 180.0 - lo) % 360.0 <= hi
+
+
 def _turn_bound(possible, target: float) -> float:
     """The largest turn (degrees, the shortest way) to `target` from any heading within
     `possible`: an arc (lo, hi) of unwrapped degrees, lo <= hi, or None (any heading: 180).
     """
-    if possible is None:
+    if possible is None or _holds_opposite(possible, target):
         return 180.0
     lo, hi = possible
-    if lo + (target + 180.0 - lo) % 360.0 <= hi:  # the opposite heading is within the arc
-        return 180.0
     return max(abs(signed_deg(target - lo)), abs(signed_deg(target - hi)))
 
 
@@ -52,11 +57,9 @@ def _towards(possible, heading: float):
     heading within `possible` and stopped anywhere (a plain waypoint holds nothing: its turn may
     be cut short by the next leg's): the arc widened to reach `heading`; None (any) when the
     turns from it go both ways round or the arc closes."""
-    if possible is None:
+    if possible is None or _holds_opposite(possible, heading):
         return None
     lo, hi = possible
-    if lo + (heading + 180.0 - lo) % 360.0 <= hi:
-        return None
     h = lo + signed_deg(heading - lo)  # the same turn's end from every heading of the arc
     lo, hi = min(lo, h), max(hi, h)
     return None if hi - lo >= 360.0 else (lo, hi)
