@@ -77,6 +77,37 @@ def test_incomplete_folders_are_refused_with_the_reason(tmp_path, finished_run):
     assert public is require_complete_run
 
 
+@pytest.mark.parametrize("text", ["{not json", "[1, 2]", "\udcff"])
+def test_a_damaged_summary_is_named_by_every_reader(tmp_path, finished_run, capsys, text):
+    """A summary.json that is not a JSON object (garbled, a list, not UTF-8) is named by each
+    reader of run folders - export, evaluate, the experiments' rows, the notebook's look - with a
+    clear ValueError; the plugin hint, a best effort, gives nothing. Its size kept, so the
+    manifest still holds: only reading it tells."""
+    import shutil
+
+    from nbvkit.cli import main
+    from nbvkit.experiment_tables import row_of
+    from nbvkit.export.plan import read_run
+    from nbvkit.plugins import run_plugins_hint
+    from nbvkit.runfolder import read_summary
+
+    out = tmp_path / "r"
+    shutil.copytree(finished_run[0], out)
+    f = out / "summary.json"
+    data = text.encode("utf-8", "surrogateescape")
+    f.write_bytes(data + b" " * (f.stat().st_size - len(data)))
+    assert is_complete_run(out)
+    why = "not JSON" if text != "[1, 2]" else "not a JSON object"
+    for read in (read_summary, read_run, row_of):
+        with pytest.raises(ValueError, match=f"{f}.* is damaged.*{why}"):
+            read(out)
+    assert main(["evaluate", str(out)]) == 2
+    assert f"{f} is damaged" in capsys.readouterr().err
+    assert run_plugins_hint(out) == ""
+    with pytest.raises(FileNotFoundError, match="summary.json not found"):
+        read_summary(tmp_path)
+
+
 def test_a_failing_run_leaves_nothing_and_the_old_run_stays(tmp_path, finished_run):
     import shutil
 

@@ -9,12 +9,14 @@ from pathlib import Path
 
 import numpy as np
 
+from .runfolder import read_summary
+
 # ------------------------------------------------------------------ the runs table
 
 
 def row_of(run_dir: Path) -> dict:
     """One tidy row from a finished run folder."""
-    s = json.loads((run_dir / "summary.json").read_text())
+    s = read_summary(run_dir)
     spec = (
         json.loads((run_dir / "spec.json").read_text()) if (run_dir / "spec.json").exists() else {}
     )

@@ -170,10 +170,10 @@ def run_plugins_hint(folder) -> str:
     """What reading the run folder `folder`'s config.yaml needs and this process lacks: "the run
     FOLDER was flown with the plugin file(s) A, B: give them with --plugin ..." naming the files
     its summary.json records (`plugins`) that are not loaded here; "" when none is."""
-    import json
+    from .runfolder import read_summary
 
     try:
-        recorded = json.loads((Path(folder) / "summary.json").read_text()).get("plugins") or []
+        recorded = read_summary(folder).get("plugins") or []
         paths = [str(f["path"]) for f in recorded]
     except (OSError, ValueError, TypeError, KeyError, AttributeError):
         return ""

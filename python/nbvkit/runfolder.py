@@ -51,6 +51,7 @@ __all__ = [
     "looks_like_run",
     "require_complete_run",
     "mark_incomplete",
+    "read_summary",
     "run_name",
     "write_manifest",
 ]
@@ -141,6 +142,22 @@ def _problem(path: Path, check_lock: bool = True) -> str | None:
                 "changed since; run it again"
             )
     return None
+
+
+def read_summary(folder) -> dict:
+    """The run folder `folder`'s summary.json as a dict. FileNotFoundError naming the file when
+    it is missing; ValueError naming it when it is not a JSON object (damaged, or not nbvkit's).
+    Reads it as it is: require_complete_run first where the run must be whole."""
+    path = Path(os.fspath(folder)).expanduser() / "summary.json"
+    if not path.is_file():
+        raise FileNotFoundError(f"{path} not found (a run folder of `nbvkit run`?)")
+    try:
+        summary = json.loads(path.read_text(encoding="utf-8"))
+    except (UnicodeDecodeError, ValueError) as e:
+        raise ValueError(f"{path} is damaged, not JSON ({e}); fly the run again") from None
+    if not isinstance(summary, dict):
+        raise ValueError(f"{path} is damaged: not a JSON object; fly the run again")
+    return summary
 
 
 def looks_like_run(folder) -> bool:

@@ -3,15 +3,13 @@ colouring rebuilt from config.yaml and cloud.ply. Above nbvkit.config (it loads 
 configuration), so not part of nbvkit.report."""
 from __future__ import annotations
 
-import json
-
 from .cloud import read_points
 from .config import load_config
 from .coverage_view import view_classes
 from .evaluation import Evaluator
 from .mesh import default_mesh_path, load_mesh
 from .observability import observable_surface
-from .runfolder import require_complete_run
+from .runfolder import read_summary, require_complete_run
 
 __all__ = ["run_view"]
 
@@ -29,5 +27,5 @@ def run_view(run_dir, view_points: int = 60000):
     cache = run_dir / "cache" if (run_dir / "cache").exists() else run_dir.parent.parent / "cache"
     mask = observable_surface(mesh, cfg, evaluator=ev, cache_dir=cache).observable
     classes, pts = view_classes(ev, read_points(run_dir / "cloud.ply"), mask, view_points, cfg.seed)
-    summary = json.loads((run_dir / "summary.json").read_text())
+    summary = read_summary(run_dir)
     return pts, classes, summary

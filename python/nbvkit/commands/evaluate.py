@@ -214,11 +214,11 @@ def _settings_of_run(args, folder: Path) -> None:
     Anything else: the defaults. Sets args; ValueError for mesh options given without --mesh, a
     run flown on an in-memory mesh, or a mesh file that cannot be found from here."""
     from ..config import load_config
-    from ..runfolder import looks_like_run
+    from ..runfolder import looks_like_run, read_summary
     from ..world import IN_MEMORY_MESH
 
     run = looks_like_run(folder) and (folder / "config.yaml").is_file()
-    summary = json.loads((folder / "summary.json").read_text()) if run else {}
+    summary = read_summary(folder) if run else {}
     if args.gt_density is None:
         args.gt_density = float(summary.get("gt_density") or DEFAULT_GT_DENSITY)
     if args.seed is None:

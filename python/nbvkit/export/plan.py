@@ -5,7 +5,6 @@ importable from here too).
 from __future__ import annotations
 
 import csv
-import json
 from pathlib import Path
 
 from ..flight import (  # noqa: F401  (re-exported)
@@ -22,6 +21,7 @@ from ..flight import (  # noqa: F401  (re-exported)
     sortie_planner,
 )
 from ..flight_time import FRAME, VIEW, FlightModel  # noqa: F401  (re-exported)
+from ..runfolder import read_summary
 
 
 def read_run(run_dir) -> RunFlight:
@@ -56,12 +56,7 @@ def read_run(run_dir) -> RunFlight:
         arrays = flight_arrays(rows)
     except ValueError as e:
         raise ValueError(f"{flight}: {e}") from None
-    try:
-        summary = json.loads((run / "summary.json").read_text(encoding="utf-8"))
-    except (ValueError, UnicodeDecodeError) as e:
-        raise ValueError(f"{run / 'summary.json'} is damaged, not JSON ({e}); fly the run again")
-    if not isinstance(summary, dict):
-        raise ValueError(f"{run / 'summary.json'} is damaged: not a JSON object")
+    summary = read_summary(run)
     ws = summary.get("workspace") or {}
     if "bounds_min" not in ws:
         raise ValueError(f"{run / 'summary.json'} has no workspace bounds")
