@@ -37,15 +37,23 @@ def test_table_command_writes_one_report_linking_every_run(tiny_table):
     assert len(list((tiny_table / "cache").glob("observable-*.npz"))) == 1
 
 
-def test_compare_command_writes_its_table_from_the_runs(tmp_path):
+def test_compare_command_writes_its_table_from_the_runs(tmp_path, capsys):
     # two planners from two starts: compare.md / compare.csv hold each planner's mean and spread
-    # of the runs in runs.csv, observable area coverage included, and the figure is written
+    # of the runs in runs.csv, observable area coverage included, and the figure is written; the
+    # console says how many runs the view cap stopped, as nbvkit run says of one
     from nbvkit.cli import main
 
     out = tmp_path / "cmp"
     args = ["compare", "--planners", "surface,1", "--starts", "2", "--workers", "2"]
     assert main([*args, "--set", *TINY, "--out", str(out)]) == 0
     runs = pd.read_csv(out / "runs.csv")
+    capped = runs[runs["termination"] == "max_iterations"]
+    assert len(capped) > 0 and runs["utility_only_checks"].isna().all()
+    notes = [ln for ln in capsys.readouterr().out.splitlines() if ln.startswith("note: ")]
+    assert len(notes) == 1 and notes[0].startswith(
+        f"note: {len(capped)} of 4 runs stopped by max_iterations, not because the structure"
+    )
+    assert all(rid in notes[0] for rid in capped["run_id"])
     t = pd.read_csv(out / "compare.csv")
     assert list(t["Planner"].astype(str)) == ["surface", "1"]
     for planner in ("surface", "1"):
@@ -559,3 +567,31 @@ def test_duplicates_and_empty_lists_are_refused(tmp_path, capsys):
     assert main(["sweep", str(f), "--out", str(out)]) == 2
     assert "sweep grid 'map.resolution' is empty" in capsys.readouterr().err
     assert not out.exists()
+
+
+def test_experiment_notes_name_the_budgets_and_the_utilities_only_checked():
+    """The notes a sweep or compare prints of its finished runs: per budget, how many runs it
+    stopped and which; the runs whose tour generators only checked another utility's views."""
+    from nbvkit.commands.common import experiment_notes
+
+    rows = [
+        {"run_id": f"r{i}", "termination": t, "utility": u, "utility_only_checks": g}
+        for i, (t, u, g) in enumerate(
+            [
+                ("max_iterations", "surface", ""),
+                ("coverage_complete", "ig", "tour"),
+                ("budget_distance", "ig", "tour access"),
+                ("max_iterations", "surface", ""),
+            ]
+        )
+    ]
+    notes = experiment_notes(rows)
+    assert notes[0].startswith("2 of 4 runs stopped by max_iterations, not because")
+    assert "(r0, r3)" in notes[0] and "--set max_iterations=" in notes[0]
+    assert (
+        notes[1].startswith("1 of 4 runs stopped by budget.max_distance_m") and "(r2)" in notes[1]
+    )
+    assert notes[2].startswith("in 2 of 4 runs (r1, r2) the access and tour generators plan")
+    assert "utility ig only checked" in notes[2] and len(notes) == 3
+    assert experiment_notes(rows[1:2])[0].startswith("in 1 of 1 runs (r1) the tour generator plans")
+    assert experiment_notes([{"run_id": "a", "termination": "coverage_complete"}]) == []

@@ -31,6 +31,8 @@ def row_of(run_dir: Path) -> dict:
         "distance_m": s["distance_m"],
         "entropy_reduction": s["entropy_reduction"],
         "termination": s["termination"],
+        "utility": s.get("utility", ""),
+        "utility_only_checks": " ".join(s.get("utility_only_checks") or []),
         "wall_time_s": s["wall_time_s"],
         "ms_per_iteration": s["ms_per_iteration"],
         "cloud_points": s["cloud_points"],

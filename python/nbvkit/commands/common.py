@@ -118,6 +118,40 @@ def report_failed(command: str, e, partial: str, resume: str = "the same command
     return 1
 
 
+def _run_ids(rows) -> str:
+    ids = [str(r["run_id"]) for r in rows]
+    return ", ".join(ids[:5]) + (f" and {len(ids) - 5} more" if len(ids) > 5 else "")
+
+
+def experiment_notes(rows) -> list:
+    """The console's notes on an experiment's finished runs (`rows`, as row_of makes them), as
+    `nbvkit run` prints for one: the runs a budget stopped before the structure was covered, per
+    budget, and the runs whose generators plan by the surface they cover, their utility only
+    checking each view."""
+    from ..planning.terminations.budget import BUDGET_KEYS
+
+    notes = []
+    for reason, key in BUDGET_KEYS.items():
+        hit = [r for r in rows if r.get("termination") == reason]
+        if hit:
+            notes.append(
+                f"{len(hit)} of {len(rows)} runs stopped by {key}, not because the structure is "
+                f"covered ({_run_ids(hit)}): their coverage is what the budget allowed (raise it "
+                f"with --set {key}=...)"
+            )
+    checked = [r for r in rows if r.get("utility_only_checks")]
+    if checked:
+        gens = sorted({g for r in checked for g in str(r["utility_only_checks"]).split()})
+        utilities = sorted({str(r.get("utility") or "?") for r in checked})
+        notes.append(
+            f"in {len(checked)} of {len(rows)} runs ({_run_ids(checked)}) the "
+            f"{' and '.join(gens)} generator{'s plan' if len(gens) > 1 else ' plans'} views by "
+            f"the surface they would newly cover; utility {', '.join(utilities)} only checked "
+            "each view, it did not rank them (column utility_only_checks; docs/PLUGINS.md)"
+        )
+    return notes
+
+
 def fly_experiment(
     command: str,
     specs,
@@ -162,5 +196,7 @@ def fly_experiment(
     write_experiment_report(out, df, title, markdown)
     if markdown is not None:
         print(markdown)
+    for note in experiment_notes(rows):
+        print("note: " + note)
     print(f"{len(rows)} runs in {time.perf_counter() - t0:.0f} s -> {out}/")
     return 0
