@@ -349,3 +349,36 @@ def test_saturation_hits_out_of_range_is_refused():
         _core.SurfaceObservations(m, saturation_hits=-1)
     with pytest.raises(ValueError, match="saturation_hits"):
         load_config(overrides=["utility.saturation_hits=-1"])
+
+
+@pytest.mark.parametrize("utility", ["ig", "surface"])
+def test_scorer_in_parts_scores_as_one_call(monkeypatch, utility):
+    """A proposal longer than SCORE_CHUNK is scored in parts (so Ctrl-C stops it within a part):
+    every array the same as one call over the whole proposal, in its order, the memo shared."""
+    from conftest import seen_box_world
+    from nbvkit.config import Config
+    from nbvkit.planning import scoring
+
+    world = seen_box_world()
+    rng = np.random.default_rng(4)
+    n = 157
+    poses = np.column_stack(
+        [rng.uniform(-9, 9, n), rng.uniform(-9, 9, n), rng.uniform(0.5, 8, n)]
+        + [rng.uniform(-math.pi, math.pi, n), rng.uniform(-0.5, 1.2, n)]
+    )
+    cfg = Config().with_overrides([f"utility.name={utility}"]).utility
+    whole = scoring.Scorer(cfg)(world, poses)
+    calls = []
+    real = _core.evaluate_views
+    monkeypatch.setattr(scoring, "SCORE_CHUNK", 20)
+    monkeypatch.setattr(
+        scoring._core,
+        "evaluate_views",
+        lambda m, p, *a, **k: calls.append(len(p)) or real(m, p, *a, **k),
+    )
+    parts = scoring.Scorer(cfg)(world, poses)
+    assert calls == [20] * 7 + [17]
+    assert set(parts) == set(whole)
+    assert (whole["status"] == 0).any() and (whole["gain"] > 0).any()
+    for k in whole:
+        np.testing.assert_array_equal(parts[k], whole[k], err_msg=k)

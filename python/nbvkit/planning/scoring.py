@@ -1,9 +1,12 @@
 """Scoring candidate views: the utility's settings (section `utility`) and the one scoring entry
-of a planner, ``Scorer``: one C++ call (nbvkit._core.evaluate_views) over all candidates with the
-planner's memo, or a utility written in Python (register_utility)."""
+of a planner, ``Scorer``: C++ calls (nbvkit._core.evaluate_views) over the candidates, in parts
+of SCORE_CHUNK views, with the planner's memo, or a utility written in Python
+(register_utility)."""
 from __future__ import annotations
 
 from typing import Optional
+
+import numpy as np
 
 from .. import _core
 from ..limits import Bound
@@ -66,6 +69,11 @@ UtilityConfig.options_for = _options_for
 UtilityConfig.options = lambda self: _options_for(self, UtilityConfig.OPTIONS)
 
 
+#: candidate views scored per core call: a proposal of millions is scored in parts of about a
+#: second each, so Ctrl-C (or a kill) stops it within a part, not after the whole proposal
+SCORE_CHUNK = 1 << 16
+
+
 class Scorer:
     """A planner's one scoring entry: the utility's scores of candidate views `poses` (K, 4 or
     5) from where the vehicle is, in one call, with one memo kept across calls (the paper's IG
@@ -87,16 +95,22 @@ class Scorer:
             from .utilities import score_python
 
             return score_python(self.python, world, poses, self.options, name=self.name)
-        return _core.evaluate_views(
-            world.map,
-            poses,
-            world.state.pose,
+        kw = dict(
             camera=world.view_camera,
             utility=self.options,
             validity=world.validity(),
             surface=world.surface,
             memo=self.memo,
         )
+        here = world.state.pose
+        if len(poses) <= SCORE_CHUNK:
+            return _core.evaluate_views(world.map, poses, here, **kw)
+        poses = np.asarray(poses)
+        parts = [
+            _core.evaluate_views(world.map, poses[i : i + SCORE_CHUNK], here, **kw)
+            for i in range(0, len(poses), SCORE_CHUNK)
+        ]
+        return {k: np.concatenate([p[k] for p in parts]) for k in parts[0]}
 
     def delivered(self, world, choice):
         """(expected, realized) m^2 of the view just flown, in the surface utility's own terms
