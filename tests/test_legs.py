@@ -368,3 +368,27 @@ def test_the_step_api_refuses_steps_its_record_would_misstate():
     assert w.state.views == views + 1 and w.state.flight[-1][6] == "view"
     w.fly_to([p[0], p[1] - 0.5, p[2], p[3]], "nbv", path=[p[:3], [p[0], p[1] - 0.5, p[2]]])
     assert w.state.distance_m == pytest.approx(dist + 0.5)
+
+
+def test_fly_to_refuses_a_path_through_the_structure():
+    """A leg that meets the structure's surface is a crash, not a flight: fly_to raises naming the
+    leg and the point where it meets the surface, and nothing moves (pose, distance, flight
+    record, and the map: the swept volume would have carved the box's inside free). The same
+    target reached over the box is flown."""
+    w = seen_box_world()  # the box [-3, 3] x [-3, 3] x [0, 5]
+    p = w.state.pose.copy()
+    across = np.array([-p[0], -p[1], 2.5])  # the far side, through the box's middle
+    before = (w.state.distance_m, len(w.state.flight), w.state.pose.tolist())
+    inside = w.map.probability(np.zeros((1, 3)) + [0, 0, 2.5])[0]
+    with pytest.raises(ValueError, match=r"passes through the structure: its leg 0 .* meets"):
+        w.fly_to([*across, 0.0], "nbv", path=[p[:3], across])
+    over = [[p[0], p[1], 8.0], [-p[0], -p[1], 8.0], across]
+    with pytest.raises(ValueError, match=r"its leg 1 .* meets its surface at \[.*\]"):
+        w.fly_to([*across, 0.0], "nbv", path=[p[:3], over[0], [0.0, 0.0, 2.0], *over[1:]])
+    assert (w.state.distance_m, len(w.state.flight), w.state.pose.tolist()) == before
+    assert w.map.probability(np.zeros((1, 3)) + [0, 0, 2.5])[0] == inside
+    flown = w.fly_to([*across, 0.0], "nbv", path=[p[:3], *over])
+    assert flown == pytest.approx(
+        float(np.linalg.norm(np.diff([p[:3], *over], axis=0), axis=1).sum())
+    )
+    np.testing.assert_allclose(w.state.pose[:3], across)

@@ -371,9 +371,10 @@ class World:
         `target` (x, y, z, yaw) or (x, y, z, yaw, pitch) (4 numbers: the camera level); returns
         the distance flown. The swept volume becomes known free (vehicle.clear_swept_volume).
         Raises ValueError for a stage not in vehicle.STAGES, a non-finite target, a pitch outside
-        camera.gimbal_pitch_deg, or a path that does not start here and end at the target.
-        Nothing checks the target against the structure or the workspace: that is the planner's
-        part (can_hold)."""
+        camera.gimbal_pitch_deg, a path that does not start here and end at the target, or one
+        that passes through the structure's surface (the vehicle would crash; nothing moves).
+        Nothing checks the collision radius or the workspace: that is the planner's part
+        (can_hold)."""
         check_stage(stage)
         target = as_view(target)
         if not np.isfinite(target).all() or np.abs(target[:3]).max() > MAX_COORDINATE:
@@ -391,6 +392,7 @@ class World:
                 raise ValueError(
                     f"fly_to path must {what}, {where[:3].tolist()}; it gives {end.tolist()}"
                 )
+        self._check_through_structure(pts)
         d = float(np.linalg.norm(np.diff(pts, axis=0), axis=1).sum())
         v = self.config.vehicle
         if v.clear_swept_volume:
@@ -405,6 +407,25 @@ class World:
         self.state.trajectory.append((stage, *self.state.pose.tolist(), self.state.distance_m))
         self.state.record_leg(stage, pts, d0)
         return d
+
+    def _check_through_structure(self, pts) -> None:
+        """ValueError when a leg of the path `pts` (P, 3) meets the structure's surface."""
+        a, b = pts[:-1], pts[1:]
+        length = np.linalg.norm(b - a, axis=1)
+        legs = np.flatnonzero(length > 0)
+        if not len(legs):
+            return
+        dirs = (b - a)[legs] / length[legs, None]
+        t, prim = self.scene.intersect(a[legs], dirs, 0.0, np.inf)
+        through = np.flatnonzero((prim >= 0) & (t <= length[legs]))
+        if len(through):
+            i = through[0]
+            at = a[legs[i]] + t[i] * dirs[i]
+            raise ValueError(
+                f"fly_to path passes through the structure: its leg {legs[i]} from "
+                f"{np.round(a[legs[i]], 3).tolist()} to {np.round(b[legs[i]], 3).tolist()} meets "
+                f"its surface at {np.round(at, 3).tolist()}; the vehicle did not move"
+            )
 
     def _check_pitch(self, pitch: float) -> None:
         lo, hi = self.config.camera.gimbal_pitch_deg
