@@ -95,6 +95,24 @@ def test_scenario1_runs_end_to_end_and_writes_results(tmp_path):
     assert back.counts()["occupied"] > 0
 
 
+def test_a_mission_saved_after_its_run_is_a_complete_run_folder(tmp_path):
+    """Mission.save writes the folder as run(out_dir) does, manifest last: export reads it (it
+    refused a saved folder as an unfinished run); a folder holding files is refused unless
+    overwrite is given."""
+    from nbvkit.export.plan import read_run
+    from nbvkit.runfolder import require_complete_run
+
+    m = Mission(cfg("scenario=surface", "max_iterations=2"))
+    s = m.run()
+    assert m.save(tmp_path / "a", s) == json.loads((tmp_path / "a" / "summary.json").read_text())
+    require_complete_run(tmp_path / "a")
+    assert len(read_run(tmp_path / "a").xyz) >= 2
+    with pytest.raises(ValueError, match="out .*a .*(overwrite|holds)"):
+        m.save(tmp_path / "a", s)
+    m.save(tmp_path / "a", s, overwrite=True)
+    require_complete_run(tmp_path / "a")
+
+
 def test_same_seed_same_mission():
     a = Mission(cfg("scenario=1", "max_iterations=6")).run()
     b = Mission(cfg("scenario=1", "max_iterations=6")).run()

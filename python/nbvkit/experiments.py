@@ -94,7 +94,8 @@ def _run_one(spec: RunSpec, root: Path, threads: int) -> dict:
             set_num_threads(threads)
             mission = Mission(cfg)
             # one observable-surface cache for the whole experiment: once per structure
-            mission.save(folder.tmp, mission.run(), finish=True, cache_dir=root / "cache")
+            summary = mission.run()
+            mission.recorder.write(folder.tmp, summary, finish=True, cache_dir=root / "cache")
             # the plugin files loaded (their content's SHA-256): only when there are, so that a
             # run without them keeps the spec.json (and resumes) as before
             plugins = {"plugins": files} if (files := loaded_files()) else {}

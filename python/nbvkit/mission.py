@@ -75,10 +75,17 @@ class Mission:
         finally:
             self._running.release()
 
-    def save(self, out, summary: dict, finish: bool = False, cache_dir=None) -> dict:
-        """Writes this finished mission's results into the folder `out` (Recorder.write);
-        returns the summary written."""
-        return self.recorder.write(Path(out), summary, finish=finish, cache_dir=cache_dir)
+    def save(
+        self, out, summary: dict, finish: bool = False, cache_dir=None, overwrite: bool = False
+    ) -> dict:
+        """Writes this finished mission's results (Recorder.write) as the run folder `out`, whole
+        or not at all, as run(out_dir) does: its manifest last, so that export, evaluate and
+        the experiments read it (ValueError first if it cannot be written, is being written or
+        holds files without `overwrite`). Returns the summary written."""
+        from .runfolder import RunFolder
+
+        with RunFolder(out, overwrite=overwrite, what="out") as folder:
+            return self.recorder.write(folder.tmp, summary, finish=finish, cache_dir=cache_dir)
 
     def _run(self) -> dict:
         if self._ran:  # a second run starts from a fresh world, as a new Mission would

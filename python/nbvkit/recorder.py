@@ -331,7 +331,7 @@ def _progress(total: int, enabled: bool):
 
 
 def fly_into(mission, out, finish: bool = False) -> tuple[dict, BaseException | None]:
-    """Flies `mission` and writes its results into the folder `out` (Mission.save): (summary,
+    """Flies `mission` and writes its results into the folder `out` (Recorder.write): (summary,
     None). A flight stopped once its views started, by Ctrl-C, sys.exit() or an error (a part's),
     is not lost: what it flew is written (termination "interrupted" or "failed", `stopped_by`
     the cause, without the end-of-run outputs) and (summary, the exception) returned, for the
@@ -350,7 +350,7 @@ def fly_into(mission, out, finish: bool = False) -> tuple[dict, BaseException | 
         summary = rec.summary(why, time.perf_counter() - rec.flying_since)
         summary["stopped_by"] = error_line(e)
         summary["stopped_during"] = "flight"
-        return mission.save(out, summary), e
+        return rec.write(Path(out), summary), e
     # stopped during the end-of-run outputs, the whole flight is kept without them
     return mission.recorder.write_keeping(Path(out), summary, finish=finish)
 
