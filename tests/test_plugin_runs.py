@@ -325,3 +325,32 @@ def test_a_long_lived_dask_worker_flies_the_plugin_file_as_it_is_now(tmp_path, e
             }
             flown.append(s["distance_m"])
     assert flown[0] != flown[1]  # the wider orbit flown the second time
+
+
+def test_a_sweep_file_names_its_plugin_files(tmp_path):
+    """A sweep file's `plugins` are loaded before its runs are made, as --plugin files are: the
+    sweep of a plugin's scenario flies from the file alone, and the same command resumes it
+    (the run kept). Without them the scenario is unknown; a `plugins` that is not a list of
+    paths is refused by name."""
+    import yaml
+
+    plugin = _plugin(tmp_path / "sweep_parts.py", name="orbit_sw")
+    sweep = {"meshes": [str(CUBE)], "scenarios": ["orbit_sw"], "starts": 1, "workers": 1,
+             "set": {k: yaml.safe_load(v) for k, v in (kv.split("=") for kv in SMALL)},
+             "plugins": [str(plugin)]}  # fmt: skip
+    f = tmp_path / "sweep.yaml"
+    f.write_text(yaml.safe_dump(sweep))
+    out = tmp_path / "out"
+    for _ in range(2):
+        r = _nbvkit("sweep", f, "--out", out)
+        assert r.returncode == 0, r.stderr
+        rows = (out / "results.csv").read_text().splitlines()
+        assert len(rows) == 2 and ",orbit_sw," in rows[1]
+    (run,) = (out / "runs").iterdir()
+    assert json.loads((run / "summary.json").read_text())["plugins"][0]["path"] == str(plugin)
+    f.write_text(yaml.safe_dump({**sweep, "plugins": None}))
+    r = _nbvkit("sweep", f, "--out", tmp_path / "out2")
+    assert r.returncode == 2 and "orbit_sw" in r.stderr
+    f.write_text(yaml.safe_dump({**sweep, "plugins": str(plugin)}))
+    r = _nbvkit("sweep", f, "--out", tmp_path / "out3")
+    assert r.returncode == 2 and "sweep 'plugins' must be a list of plugin file paths" in r.stderr

@@ -219,6 +219,7 @@ SWEEP_KEYS = (
     "out",
     "workers",
     "scheduler",
+    "plugins",
 )
 
 
@@ -361,6 +362,14 @@ def _sweep_scenarios(sweep: dict) -> list[str]:
     scenarios = [str(s) for s in scenarios]
     _refuse_empty("sweep 'scenarios'", scenarios)
     _refuse_duplicates("sweep 'scenarios'", scenarios)
+    from .scenarios import SCENARIOS
+
+    for s in scenarios:
+        if s not in SCENARIOS:
+            raise ValueError(
+                f"unknown sweep scenario {s!r}; known: {', '.join(SCENARIOS)} (a plugin's "
+                "scenario needs its file: the sweep's 'plugins' or --plugin)"
+            )
     return scenarios
 
 

@@ -5,7 +5,9 @@ import argparse
 from pathlib import Path
 
 from ..config import read_yaml_file
+from ..limits import shorten
 from ..paths import check_output_dir
+from ..plugins import load_plugins
 from .common import fly_experiment
 
 EXAMPLE = """example sweep file:
@@ -22,6 +24,7 @@ EXAMPLE = """example sweep file:
   out: runs/my_sweep            # optional; --out wins
   workers: 2                    # optional; --workers wins
   scheduler: null               # optional Dask scheduler address; --scheduler wins
+  plugins: [my_parts.py]        # optional plugin files loaded first, as with --plugin
 
 Every list names each value once and none is empty (refused: a run counted twice, or no run).
 A mesh key (mesh.path, mesh.scale, mesh.up) given by a 'meshes' entry and by set/grid too is
@@ -59,6 +62,12 @@ def run(args) -> int:
     sweep = read_yaml_file(path, "sweep file") or {}
     if not isinstance(sweep, dict):
         raise ValueError(f"sweep file {path} must hold a mapping")
+    files = sweep.get("plugins") or []
+    if not isinstance(files, list) or not all(isinstance(f, str) and f for f in files):
+        raise ValueError(
+            f"sweep 'plugins' must be a list of plugin file paths, got {shorten(files)}"
+        )
+    load_plugins(files)  # before the specs: their parts' scenarios, sections and names
     specs = sweep_specs(sweep)
     out = check_output_dir(args.out or sweep.get("out") or f"runs/{path.stem}", "--out")
     workers = args.workers if args.workers is not None else sweep.get("workers") or 0
