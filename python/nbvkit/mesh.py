@@ -239,6 +239,26 @@ def fibonacci_sphere(n: int) -> np.ndarray:
     return np.stack([np.cos(th) * np.sin(phi), np.sin(th) * np.sin(phi), np.cos(phi)], axis=1)
 
 
+def check_path_clear(scene, pts, what: str = "path") -> None:
+    """ValueError when a leg of the path `pts` (P, 3) meets the surface of `scene` (a
+    RaycastScene): a flight through the structure. Names the leg and where it meets it."""
+    a, b = pts[:-1], pts[1:]
+    length = np.linalg.norm(b - a, axis=1)
+    legs = np.flatnonzero(length > 0)
+    if not len(legs):
+        return
+    dirs = (b - a)[legs] / length[legs, None]
+    t, prim = scene.intersect(a[legs], dirs, 0.0, np.inf)
+    through = np.flatnonzero((prim >= 0) & (t <= length[legs]))
+    if len(through):
+        i, leg = through[0], legs[through[0]]
+        raise ValueError(
+            f"{what} passes through the structure: its leg {leg} from "
+            f"{np.round(a[leg], 3).tolist()} to {np.round(b[leg], 3).tolist()} meets its surface "
+            f"at {np.round(a[leg] + t[i] * dirs[i], 3).tolist()}; the vehicle did not move"
+        )
+
+
 def surface_crossings(scene, bounds, origin, dirs, max_crossings: int = 64):
     """(count, first): (N,) times each ray from `origin` (3,) along `dirs` (N, 3) crosses the
     surface of `scene` (a RaycastScene over a mesh whose `bounds` are (lo, hi)), and (N,) the

@@ -16,7 +16,8 @@ from . import _core
 from ._core import MAX_COORDINATE
 from .limits import Bound, MissionError, check_work, units_hint
 from .mapping import new_map
-from .mesh import default_mesh_path, fibonacci_sphere, load_mesh, surface_crossings
+from .mesh import check_path_clear, default_mesh_path, fibonacci_sphere, load_mesh
+from .mesh import surface_crossings
 from .sensors import (
     build_camera,
     build_frame_camera,
@@ -392,7 +393,7 @@ class World:
                 raise ValueError(
                     f"fly_to path must {what}, {where[:3].tolist()}; it gives {end.tolist()}"
                 )
-        self._check_through_structure(pts)
+        check_path_clear(self.scene, pts, "fly_to path")
         d = float(np.linalg.norm(np.diff(pts, axis=0), axis=1).sum())
         v = self.config.vehicle
         if v.clear_swept_volume:
@@ -407,25 +408,6 @@ class World:
         self.state.trajectory.append((stage, *self.state.pose.tolist(), self.state.distance_m))
         self.state.record_leg(stage, pts, d0)
         return d
-
-    def _check_through_structure(self, pts) -> None:
-        """ValueError when a leg of the path `pts` (P, 3) meets the structure's surface."""
-        a, b = pts[:-1], pts[1:]
-        length = np.linalg.norm(b - a, axis=1)
-        legs = np.flatnonzero(length > 0)
-        if not len(legs):
-            return
-        dirs = (b - a)[legs] / length[legs, None]
-        t, prim = self.scene.intersect(a[legs], dirs, 0.0, np.inf)
-        through = np.flatnonzero((prim >= 0) & (t <= length[legs]))
-        if len(through):
-            i = through[0]
-            at = a[legs[i]] + t[i] * dirs[i]
-            raise ValueError(
-                f"fly_to path passes through the structure: its leg {legs[i]} from "
-                f"{np.round(a[legs[i]], 3).tolist()} to {np.round(b[legs[i]], 3).tolist()} meets "
-                f"its surface at {np.round(at, 3).tolist()}; the vehicle did not move"
-            )
 
     def _check_pitch(self, pitch: float) -> None:
         lo, hi = self.config.camera.gimbal_pitch_deg
