@@ -213,6 +213,19 @@ def test_qgc_plan_read_back_flies_the_flight(exported, run_dir):
     assert np.abs(xyz[0] - top).max() < 0.01 and np.abs(xyz[-1] - top).max() < 0.01
 
 
+def test_the_export_folder_is_made_as_any_folder_is(exported, tmp_path):
+    """The export's folders (moved into place from a temporary one) have the mode a new folder
+    gets under this process's umask, not a private temporary folder's 0700."""
+    import stat
+
+    (tmp_path / "plain").mkdir()
+    want = stat.S_IMODE((tmp_path / "plain").stat().st_mode)
+    out, _ = exported
+    assert want != 0o700 and stat.S_IMODE(out.stat().st_mode) == want
+    assert stat.S_IMODE((out / "colmap").stat().st_mode) == want
+    assert not list(out.parent.glob(".nbvkit-export-*"))
+
+
 def test_qgc_wpl_text_mission(exported):
     out, _ = exported
     lines = (out / "mission.waypoints").read_text().splitlines()

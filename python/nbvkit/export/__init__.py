@@ -7,8 +7,8 @@ from __future__ import annotations
 import json
 import math
 import os
+import secrets
 import shutil
-import tempfile
 import time
 from pathlib import Path
 
@@ -242,13 +242,27 @@ def export_mission(
     return summary
 
 
+def _new_folder(parent: Path, prefix: str) -> Path:
+    """A new empty folder in `parent` named `prefix` + a random suffix, made with the process's
+    umask as any folder (tempfile.mkdtemp's is private, 0700, and moved into place as the
+    export it stayed so)."""
+    for _ in range(100):
+        tmp = parent / f"{prefix}{secrets.token_hex(6)}"
+        try:
+            tmp.mkdir()
+            return tmp
+        except FileExistsError:
+            continue
+    raise FileExistsError(f"no free temporary folder name {prefix}* in {parent}")
+
+
 def _write_into(out: Path, summary: dict, fl, sorties, frame, model, dji, budget: bool) -> None:
     """Writes the export (every format, sorties.csv with a budget, export.json) into a temporary
     folder beside `out`, then moves it into place; on an error nothing is left half-written."""
     anchor = out.parent
     while not anchor.exists():
         anchor = anchor.parent
-    tmp = Path(tempfile.mkdtemp(prefix=".nbvkit-export-", dir=anchor))
+    tmp = _new_folder(anchor, ".nbvkit-export-")
     try:
         names = [f"sortie_{s.number:02d}" for s in sorties] if budget else ["mission"]
         files = _write_formats(tmp, summary["formats"], fl, sorties, names, frame, model, *dji)
