@@ -44,11 +44,13 @@ def documented_yaml() -> str:
     def comments(cls):
         if hasattr(cls, "FIELD_DOCS"):  # generated from C++ options: their documentation
             return dict(cls.FIELD_DOCS)
-        out = {}
+        out, above = {}, []  # above: the comment lines right above a field
         for line in inspect.getsource(cls).splitlines():
             m = re.match(r"\s+(\w+): [^=]+= ([^#]*)(#\s*(.*))?$", line)
             if m:
-                out[m.group(1)] = (m.group(4) or "").strip()
+                out[m.group(1)] = (m.group(4) or "").strip() or " ".join(above)
+            c = re.match(r"\s+#\s?(.*)$", line)
+            above = above + [c.group(1).strip()] if c else []
         return out
 
     def flow(k, v):

@@ -83,7 +83,7 @@ class ProfilingConfig:
     # sweep bounds; None: the navigation floor, and the structure's top + 2.5 m less the
     # vehicle's clearance (the paper's sweep, whatever the flight envelope above the top)
     z_min: Optional[float] = None
-    z_max: Optional[float] = None
+    z_max: Optional[float] = None  # the sweeps' top, m (null: as above)
     max_segment: float = positive(7.0)  # arcs are flown as straight segments of at most this, m
     flight_margin: float = within(30.0, 0, 1e4)  # the flight volume: workspace grown by this, m
     # fly the last arc back to the first waypoint after the last sweep (Algorithm 1's loop)

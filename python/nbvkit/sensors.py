@@ -59,13 +59,13 @@ class CameraConfig:
     preset: str = choice("rgbd", tuple(CAMERA_PRESETS))  # named camera: rgbd (paper), inspection
     width: int = within(_CAM.width, 1, 16_000)
     height: int = within(_CAM.height, 1, 16_000)
-    hfov_deg: float = _CAM.hfov_deg
-    vfov_deg: float = _CAM.vfov_deg
-    min_range: float = _CAM.min_range
+    hfov_deg: float = _CAM.hfov_deg  # horizontal field of view, deg
+    vfov_deg: float = _CAM.vfov_deg  # vertical field of view, deg
+    min_range: float = _CAM.min_range  # m; nearer surface gives no depth
     max_range: float = positive(_CAM.max_range, 1000)
     noise_k: float = nonneg(_CAM.noise_k)  # the authors used 0.0025 (sigma = k z^2)
-    mount_xyz: tuple = triple((0.0, 0.0, 0.0))
-    mount_rpy_deg: tuple = triple((0.0, 0.0, 0.0))
+    mount_xyz: tuple = triple((0.0, 0.0, 0.0))  # m, the camera on the gimbal (body frame)
+    mount_rpy_deg: tuple = triple((0.0, 0.0, 0.0))  # roll, pitch (> 0 down), yaw of the mount, deg
     gimbal_pitch_deg: tuple = (-30.0, 90.0)  # [min, max] deg, > 0 looks down; [0, 0]: level
     frame_stride: int = within(1, 1, 64)  # in-flight frames at 1/N the pixels on each axis
     frame_refine: bool = False  # with frame_stride > 1: full resolution where a frame could add
@@ -78,12 +78,12 @@ class CameraConfig:
 class LaserConfig:
     """The 2D laser scanner (paper Table 1)."""
 
-    fov_deg: float = _LAS.fov_deg
-    resolution_deg: float = _LAS.resolution_deg
-    min_range: float = _LAS.min_range
+    fov_deg: float = _LAS.fov_deg  # the scan's fan, deg
+    resolution_deg: float = _LAS.resolution_deg  # deg between beams
+    min_range: float = _LAS.min_range  # m; nearer surface gives no return
     max_range: float = positive(_LAS.max_range, 1000)
     noise_sigma: float = nonneg(_LAS.noise_sigma)
-    mount_xyz: tuple = triple((0.0, 0.0, 0.0))
+    mount_xyz: tuple = triple((0.0, 0.0, 0.0))  # m, the scanner on the body
     mount_rpy_deg: tuple = triple((0.0, 10.0, 0.0))  # pitched 10 deg down (Table 1)
 
 

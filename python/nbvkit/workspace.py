@@ -26,9 +26,9 @@ class WorkspaceConfig:
 
     margin_xy: float = nonneg(2.5)
     margin_z: Optional[float] = nonneg(2.5)  # m above the top; null: the camera's far stand-off
-    square: bool = True
-    bounds_min: Optional[tuple] = triple(None)
-    bounds_max: Optional[tuple] = triple(None)
+    square: bool = True  # the footprint squared up to its longer side (the paper's 40 x 40 m)
+    bounds_min: Optional[tuple] = triple(None)  # (x, y, z) m; with bounds_max: the workspace
+    bounds_max: Optional[tuple] = triple(None)  # (x, y, z) m; null: the margins above
 
     def check(self, key: str) -> None:
         if (self.bounds_min is None) != (self.bounds_max is None):
