@@ -15,6 +15,7 @@ from .evaluation import Evaluator
 from .planning import Planner
 from .planning.terminations.budget import ended_by, view_cap
 from .recorder import IterationRecord, Recorder, fly_into, raise_stop
+from .runfolder import RunFolder
 from .world import MissionError, World
 
 __all__ = ["Mission", "MissionError", "IterationRecord"]
@@ -66,8 +67,6 @@ class Mission:
         try:
             if out_dir is None:
                 return self._run()
-            from .runfolder import RunFolder
-
             # before any work: a mission must not fly and then fail to save
             with RunFolder(out_dir, overwrite=overwrite, what="out_dir") as folder:
                 flown = fly_into(self, folder.tmp, finish)
@@ -75,15 +74,10 @@ class Mission:
         finally:
             self._running.release()
 
-    def save(
-        self, out, summary: dict, finish: bool = False, cache_dir=None, overwrite: bool = False
-    ) -> dict:
+    def save(self, out, summary: dict, finish=False, cache_dir=None, overwrite=False) -> dict:
         """Writes this finished mission's results (Recorder.write) as the run folder `out`, whole
-        or not at all, as run(out_dir) does: its manifest last, so that export, evaluate and
-        the experiments read it (ValueError first if it cannot be written, is being written or
-        holds files without `overwrite`). Returns the summary written."""
-        from .runfolder import RunFolder
-
+        or not at all, as run(out_dir) does (manifest last: export and evaluate read it);
+        ValueError as run's. Returns the summary written."""
         with RunFolder(out, overwrite=overwrite, what="out") as folder:
             return self.recorder.write(folder.tmp, summary, finish=finish, cache_dir=cache_dir)
 
