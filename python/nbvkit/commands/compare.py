@@ -25,8 +25,8 @@ def register(sub) -> argparse.ArgumentParser:
         "coverage_vs_distance.png (coverage at 0.05 m against distance per planner, the "
         "paper's Scenario 5 end point marked) and each run's folder under DIR/runs/. "
         "Interrupted comparisons resume: finished runs are kept. The mesh may be given by "
-        "--mesh/--mesh-scale/--mesh-up or by --set mesh.path=... (each key once: both is "
-        "refused); runs are labelled with the mesh flown.",
+        "--mesh/--mesh-scale/--mesh-up/--mesh-shift or by --set mesh.path=... (each key "
+        "once: both is refused); runs are labelled with the mesh flown.",
     )
     add_mesh_options(p)
     # None: not given, the configuration decides (mesh.* in --set; given twice is refused)

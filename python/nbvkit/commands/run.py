@@ -23,7 +23,8 @@ def register(sub) -> argparse.ArgumentParser:
         help="run one reconstruction mission and write its results folder",
         description="Fly one scenario on a structure from one of its five predefined starts, and "
         "write DIR/summary.json, iterations.csv, config.yaml (resolved), cloud.ply, map.ot, "
-        "trajectory.csv, mesh.ply, figures/*.png and report.html (open it in a browser), and "
+        "trajectory.csv, flight.csv (every point flown), mesh.ply, figures/*.png and "
+        "report.html (open it in a browser), and "
         "manifest.json last: the folder appears whole once the run is complete (a failed or "
         "killed run leaves no partial folder), and a folder that already holds files is "
         "refused unless --overwrite. The mesh may be given by --mesh/--mesh-scale/--mesh-up/"

@@ -50,7 +50,13 @@ def register(sub) -> argparse.ArgumentParser:
         default=None,
         help="output folder (default: the file's out, " "else runs/<file name>)",
     )
-    p.add_argument("--workers", type=int, default=None, metavar="N", help="local worker processes")
+    p.add_argument(
+        "--workers",
+        type=int,
+        default=None,
+        metavar="N",
+        help="local worker processes (default: the file's workers, else one per core; 1 = serial)",
+    )
     p.add_argument("--scheduler", metavar="ADDRESS", default=None, help="Dask scheduler address")
     return p
 
