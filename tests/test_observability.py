@@ -320,3 +320,47 @@ def test_sample_normals_are_their_triangles_unit_normals_with_few_or_many_sample
         assert np.all(np.einsum("ij,ij->i", got[:-1], p - centre) > 0)  # outwards
         np.testing.assert_array_equal(got[-1], 0.0)
         np.testing.assert_array_equal(got, sample_normals(flat, fid[::-1])[::-1])
+
+
+def test_a_small_structure_gets_a_lattice_fine_enough_to_see_its_top(monkeypatch):
+    """A small structure's lattice is finer than observability.pose_spacing (its box's diagonal
+    / 16, not under 0.5 m): a 7 x 7 x 2 m block's top is seen from above, every sample of it
+    observable, where the 2 m lattice holds one level of positions, 0.3 m above the top, and
+    counts the top's middle unseeable (seen only at grazing incidence). A large structure's
+    spacing is the configured one."""
+    from nbvkit.observability import pose_spacing
+
+    block = box_mesh((-3.5, -3.5, 0.0), (3.5, 3.5, 2.0))
+    c = load_config(None, [])
+    assert c.observability.pose_spacing == 2.0
+    assert pose_spacing(c, block.bounds) == pytest.approx(np.sqrt(7**2 + 7**2 + 2**2) / 16)
+    assert pose_spacing(c, ((0, 0, 0), (1, 1, 1))) == 0.5
+    assert pose_spacing(c, ((0, 0, 0), (60, 40, 10))) == 2.0
+    assert pose_spacing(cfg(), block.bounds) == 0.5  # finer when asked
+    p, fid = samples(block, 3000)
+    top = fid == 3  # box_mesh's faces 2, 3: the top
+    assert np.allclose(p[top | (fid == 2), 2], 2.0) and top.sum() > 100
+    r = observable_surface(block, c, points=p, face_ids=fid)
+    assert r.stats["settings"]["pose_spacing"] == pytest.approx(0.6312, abs=1e-4)
+    assert r.observable[top].all()
+    from nbvkit import limits
+
+    monkeypatch.setattr(limits, "MIN_POSE_SPACING", 2.0)  # the 2 m lattice as it was
+    coarse = observable_surface(block, c, points=p, face_ids=fid)
+    assert coarse.stats["settings"]["pose_spacing"] == 2.0
+    assert coarse.observable[top].mean() < 0.9
+
+
+def test_covered_surface_the_mask_counts_unseeable_is_reported():
+    """covered_unobservable_fraction: the share of the area in covered cells that the mask
+    holds unobservable (0 for a mask that holds every covered sample)."""
+    plate = box_mesh((0, 0, 0), (4, 4, 0.1))
+    ev = nbvkit.Evaluator(plate, gt_density=200, seed=0)
+    pts = ev.gt_points
+    cloud = pts[pts[:, 2] > 0.05]  # the top seen
+    ev.set_observable(pts[:, 2] > 0.05)
+    assert ev.evaluate(cloud)["covered_unobservable_fraction"]["0.05"] == 0.0
+    ev.set_observable(pts[:, 0] < 2)  # half the top held unseeable: a quarter of the area or so
+    r = ev.evaluate(cloud)
+    on_top_beyond = ((pts[:, 2] > 0.05) & (pts[:, 0] >= 2)).mean()
+    assert r["covered_unobservable_fraction"]["0.05"] == pytest.approx(on_top_beyond, abs=0.02)

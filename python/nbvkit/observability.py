@@ -5,8 +5,9 @@ wing root inside its fuselage can never be seen, whatever the planner).
 Method (one C++ call, ``nbvkit._core.observable_samples``, Embree):
 
 1. *Poses.* A lattice of candidate vehicle positions of spacing ``observability.pose_spacing``
-   (default 2 m) fills the navigation box (the workspace shrunk by the collision radius: where a
-   mission's vehicle may be). A lattice point is dropped if the mesh comes within
+   (default 2 m; finer for a small structure: ``nbvkit.limits.pose_spacing``) fills the
+   navigation box (the workspace shrunk by the collision radius: where a mission's vehicle may
+   be). A lattice point is dropped if the mesh comes within
    ``vehicle.collision_radius`` of it (an Embree point query), or if the vehicle cannot fly
    there from outside: it must be connected, through lattice edges that the mesh does not cross
    and along which the collision sphere fits (checked every half radius), to a free position on
@@ -46,7 +47,7 @@ from pathlib import Path
 import numpy as np
 
 from . import _core
-from .limits import Bound
+from .limits import Bound, pose_spacing
 from .locks import FileLock
 from .sensors import build_camera
 from .settings import cpp_section
@@ -54,7 +55,7 @@ from .settings import cpp_section
 __all__ = ["ObservableSurface", "observability_options", "observable_surface", "sample_normals"]
 
 #: bump when the method changes, so old caches are not reused
-_METHOD_VERSION = 5
+_METHOD_VERSION = 6
 
 
 ObservabilityConfig = cpp_section(
@@ -115,7 +116,7 @@ def sample_normals(mesh, face_ids) -> np.ndarray:
     return unit[ids]
 
 
-def _settings(config, workspace) -> dict:
+def _settings(config, workspace, mesh_bounds) -> dict:
     c, o = config.camera, config.observability
     return {
         "camera": {
@@ -129,7 +130,7 @@ def _settings(config, workspace) -> dict:
         "nav_min": [round(float(x), 9) for x in workspace.nav_min],
         "nav_max": [round(float(x), 9) for x in workspace.nav_max],
         "collision_radius": config.vehicle.collision_radius,
-        "pose_spacing": o.pose_spacing,
+        "pose_spacing": pose_spacing(config, mesh_bounds),
         "max_incidence_deg": o.max_incidence_deg,
         "yaw_steps": o.yaw_steps,
         "gimbal_pitch_deg": list(map(float, c.gimbal_pitch_deg)),
@@ -200,7 +201,7 @@ def observable_surface(
                 fid = f
         return sample_normals(mesh, fid) if fid is not None else np.zeros_like(points)
 
-    settings = _settings(cfg, ws)
+    settings = _settings(cfg, ws, mesh.bounds)
     path = None
     if cache_dir is not None:
         path = Path(cache_dir) / f"observable-{_cache_key(mesh, points, settings)}.npz"
@@ -218,10 +219,13 @@ def observable_surface(
     return _compute(mesh, cfg, points, normals(), ws, settings, scene)
 
 
-def observability_options(config, **changes) -> _core.ObservabilityOptions:
+def observability_options(config, mesh_bounds=None, **changes) -> _core.ObservabilityOptions:
     """The C++ options of the observability section with the camera's gimbal range (what a
-    pose of this vehicle can see), and `changes` (e.g. pose_spacing=4.0)."""
+    pose of this vehicle can see), the lattice's spacing for a structure of `mesh_bounds`
+    (pose_spacing; None: the configured one), and `changes` (e.g. pose_spacing=4.0)."""
     pitch = config.camera.gimbal_pitch_deg
+    if mesh_bounds is not None:
+        changes = {"pose_spacing": pose_spacing(config, mesh_bounds), **changes}
     return config.observability.options().copy(
         gimbal_min_deg=pitch[0], gimbal_max_deg=pitch[1], **changes
     )
@@ -239,7 +243,7 @@ def _compute(mesh, cfg, points, normals, ws, settings, scene) -> ObservableSurfa
         camera,
         ws.nav_min,
         ws.nav_max,
-        options=observability_options(cfg),
+        options=observability_options(cfg, mesh.bounds),
         collision_radius=cfg.vehicle.collision_radius,
     )
     mask = np.asarray(r.observable, bool)
