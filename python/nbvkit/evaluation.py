@@ -153,7 +153,10 @@ def evaluate(gt, cloud, options=None, **kw) -> dict:
     samples in covered cells ÷ observable samples) and ``observable_fraction`` (cells holding an
     observable sample ÷ GT cells: the observable share of the surface measured in cells of that
     size), plus ``observable_area_fraction`` (observable samples ÷ samples: the observable share
-    of the area) and the cell counts ``observable_cells``, ``covered_observable_cells``.
+    of the area), ``covered_unobservable_fraction`` (per resolution: samples in covered cells
+    that the mask holds unobservable ÷ samples: what the camera saw though the mask says it
+    could not, 0 for an exact mask) and the cell counts ``observable_cells``,
+    ``covered_observable_cells``.
 
     An empty cloud scores 0 everywhere with ``chamfer_m`` None. Raises ValueError for NaN/inf in
     either input (naming which), non-positive or duplicate resolutions or taus, an unknown
@@ -284,6 +287,7 @@ _OBSERVABLE_KEYS = (
     "observable_area_fraction",
     "observable_cells",
     "covered_observable_cells",
+    "covered_unobservable_fraction",
 )
 
 
@@ -305,6 +309,12 @@ def _to_dict(r) -> dict:
         out["observable_area_fraction"] = float(r.observable_area_fraction)
         out["observable_cells"] = per_int(rk, r.observable_cells)
         out["covered_observable_cells"] = per_int(rk, r.covered_observable_cells)
+        # the share of the area covered though the observable surface counts it unseeable: the
+        # camera saw it, so the observable surface (a lattice's lower bound) missed it
+        out["covered_unobservable_fraction"] = {
+            k: max(0.0, out["area_coverage"][k] - cov * out["observable_area_fraction"])
+            for k, cov in out["area_coverage_observable"].items()
+        }
     return out
 
 

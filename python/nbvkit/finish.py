@@ -90,11 +90,12 @@ def _observable_figures(mission, summary: dict, cache_dir) -> np.ndarray:
         "area_coverage_observable",
         "observable_fraction",
         "observable_area_fraction",
+        "covered_unobservable_fraction",
     ):
         summary[k] = cov[k]
     summary["observability"] = {
         k: obs.stats[k]
-        for k in ("samples", "observable_samples", "poses", "lattice_points")
+        for k in ("samples", "observable_samples", "poses", "lattice_points", "settings")
         if k in obs.stats
     }
     summary["observability"]["cached"] = obs.cached
