@@ -367,18 +367,27 @@ def test_scorer_in_parts_scores_as_one_call(monkeypatch, utility):
         + [rng.uniform(-math.pi, math.pi, n), rng.uniform(-0.5, 1.2, n)]
     )
     cfg = Config().with_overrides([f"utility.name={utility}"]).utility
-    whole = scoring.Scorer(cfg)(world, poses)
+    one = scoring.Scorer(cfg)
+    whole = one(world, poses)
     calls = []
     real = _core.evaluate_views
-    monkeypatch.setattr(scoring, "SCORE_CHUNK", 20)
+    monkeypatch.setattr(scoring, "SCORE_CHUNK", 10)  # 16 parts: more than the memo's 8 calls
     monkeypatch.setattr(
         scoring._core,
         "evaluate_views",
         lambda m, p, *a, **k: calls.append(len(p)) or real(m, p, *a, **k),
     )
-    parts = scoring.Scorer(cfg)(world, poses)
-    assert calls == [20] * 7 + [17]
+    in_parts = scoring.Scorer(cfg)
+    parts = in_parts(world, poses)
+    assert calls == [10] * 15 + [7]
     assert set(parts) == set(whole)
     assert (whole["status"] == 0).any() and (whole["gain"] > 0).any()
     for k in whole:
         np.testing.assert_array_equal(parts[k], whole[k], err_msg=k)
+    if utility != "ig":
+        return  # the memo holds the ig walks only
+    # the memo keeps its records over the proposals, as one call's does (each part is a call)
+    for _ in range(3):
+        one(world, poses), in_parts(world, poses)
+    a, b = in_parts.memo.stats(), one.memo.stats()
+    assert a["walked"] <= b["walked"] and a["reused"] >= b["reused"] > 0, (a, b)

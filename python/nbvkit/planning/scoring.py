@@ -72,6 +72,8 @@ UtilityConfig.options = lambda self: _options_for(self, UtilityConfig.OPTIONS)
 #: candidate views scored per core call: a proposal of millions is scored in parts of about a
 #: second each, so Ctrl-C (or a kill) stops it within a part, not after the whole proposal
 SCORE_CHUNK = 1 << 16
+#: proposals a Scorer's memo keeps a record unused for (each part of a proposal is a call)
+KEEP_CALLS = 8
 
 
 class Scorer:
@@ -87,7 +89,7 @@ class Scorer:
         self.surface = utility.name == "surface"  # its gain: cells of new surface
         self.python = UTILITIES.get(utility.name)
         self.options = utility.options()  # for a Python utility: its occupied constraint
-        self.memo = _core.ViewMemo()
+        self.memo = _core.ViewMemo(keep_calls=KEEP_CALLS)
 
     def __call__(self, world, poses) -> dict:
         """dict of (K,) arrays: utility, gain, cells, occupied_seen, status (evaluate_views)."""
@@ -106,6 +108,9 @@ class Scorer:
         if len(poses) <= SCORE_CHUNK:
             return _core.evaluate_views(world.map, poses, here, **kw)
         poses = np.asarray(poses)
+        n = -(-len(poses) // SCORE_CHUNK)
+        if self.memo.keep_calls < KEEP_CALLS * n:  # records kept over KEEP_CALLS proposals
+            self.memo = _core.ViewMemo(keep_calls=KEEP_CALLS * n)
         parts = [
             _core.evaluate_views(world.map, poses[i : i + SCORE_CHUNK], here, **kw)
             for i in range(0, len(poses), SCORE_CHUNK)
