@@ -341,14 +341,46 @@ def test_a_small_structure_gets_a_lattice_fine_enough_to_see_its_top(monkeypatch
     top = fid == 3  # box_mesh's faces 2, 3: the top
     assert np.allclose(p[top | (fid == 2), 2], 2.0) and top.sum() > 100
     r = observable_surface(block, c, points=p, face_ids=fid)
-    assert r.stats["settings"]["pose_spacing"] == pytest.approx(0.6312, abs=1e-4)
+    assert r.stats["settings"]["pose_spacing"] == 2.0
+    assert r.stats["settings"]["fine_pose_spacing"] == pytest.approx(0.6312, abs=1e-4)
     assert r.observable[top].all()
     from nbvkit import limits
 
     monkeypatch.setattr(limits, "MIN_POSE_SPACING", 2.0)  # the 2 m lattice as it was
     coarse = observable_surface(block, c, points=p, face_ids=fid)
-    assert coarse.stats["settings"]["pose_spacing"] == 2.0
+    assert coarse.stats["settings"]["fine_pose_spacing"] == 2.0
     assert coarse.observable[top].mean() < 0.9
+    assert not (coarse.observable & ~r.observable).any()  # the fine search only adds
+
+
+def test_the_fine_lattice_adds_to_the_configured_one_and_keeps_within_the_limits():
+    """A 12 m cube: the fine lattice's highest level (1.3 m apart) lies 0.45 m above the top,
+    nearer than the camera's 0.5 m, but the configured 2 m lattice's positions are searched
+    too: the top is seen whole. A small structure in a huge workspace: the fine lattice backs
+    off to what the limits allow (it was refused, and no pose_spacing could help)."""
+    from nbvkit.limits import MAX_OBSERVABILITY_POSES, pose_spacing
+
+    cube = box_mesh((-6, -6, 0), (6, 6, 12))
+    p, fid = samples(cube, 3000)
+    top = fid == 3
+    r = observable_surface(cube, load_config(None, []), points=p, face_ids=fid)
+    assert r.stats["settings"]["fine_pose_spacing"] == pytest.approx(np.sqrt(3 * 144) / 16)
+    assert r.observable[top].all()
+    wide = load_config(
+        None, ["workspace.bounds_min=[-60,-60,0]", "workspace.bounds_max=[60,60,40]"]
+    )
+    from nbvkit.limits import check_work
+    from nbvkit.workspace import make_workspace
+
+    mesh = box_mesh((-4, -1, 0), (4, 1, 2))
+    ws = make_workspace(mesh.bounds, wide)
+    nav = list(ws.nav_max - ws.nav_min)
+    assert nav[0] > 118
+    step = pose_spacing(wide, mesh.bounds, nav, 1000)
+    assert 0.5 < step < 2.0
+    n = np.prod([2 * np.floor(s / 2 / step + 1e-9) + 1 for s in nav])
+    assert MAX_OBSERVABILITY_POSES / 1.2 < n <= MAX_OBSERVABILITY_POSES
+    check_work(wide, mesh, ws)  # the configured 2 m lattice fits; the fine one is kept to fit
 
 
 def test_covered_surface_the_mask_counts_unseeable_is_reported():

@@ -377,30 +377,47 @@ POSES_ALONG_DIAGONAL = 16
 MIN_POSE_SPACING = 0.5
 
 
-def pose_spacing(config, mesh_bounds) -> float:
-    """The observable-surface lattice's spacing for a structure of bounds (lo, hi):
-    observability.pose_spacing, or finer for a small structure: its box's diagonal /
-    POSES_ALONG_DIAGONAL, not under MIN_POSE_SPACING (an 8 m boat's 2 m lattice held 76
-    positions, and 11 % of its surface, seen by the camera in flight, counted as unobservable)."""
+def _lattice_positions(size, step: float) -> int:
+    """Positions of the lattice of spacing `step` over a box of `size` (centre + multiples)."""
+    return math.prod(2 * math.floor(s / 2 / step + 1e-9) + 1 for s in size)
+
+
+def _lattice_fit(size, samples: float) -> tuple[float, float]:
+    """(positions, spacing): the most lattice positions the limits allow with `samples` tested
+    from each, and about the spacing over a box of `size` that keeps within them."""
+    fit = min(MAX_OBSERVABILITY_POSES, MAX_OBSERVABILITY_PAIRS / max(samples, 1))
+    return fit, (math.prod(size) / fit) ** (1 / 3) * 1.05
+
+
+def pose_spacing(config, mesh_bounds, nav_size=None, samples: float = 1) -> float:
+    """The spacing of the observable surface's fine lattice for a structure of bounds (lo, hi):
+    its box's diagonal / POSES_ALONG_DIAGONAL, not under MIN_POSE_SPACING, nor finer than the
+    limits allow over a navigation box of `nav_size` with `samples` tested; at most
+    observability.pose_spacing, whose lattice is always searched too (an 8 m boat's 2 m lattice
+    alone held 76 positions, and 11 % of its surface, seen by the camera in flight, counted as
+    unobservable)."""
     lo, hi = mesh_bounds
     diagonal = math.dist([float(x) for x in lo], [float(x) for x in hi])
     fine = max(MIN_POSE_SPACING, diagonal / POSES_ALONG_DIAGONAL)
+    if nav_size is not None:
+        fit, spacing = _lattice_fit(nav_size, samples)
+        while _lattice_positions(nav_size, fine) > fit:
+            fine = max(fine * 1.05, spacing)
     return min(config.observability.pose_spacing, fine)
 
 
-def check_observability(cfg, ws, samples: float, mesh_bounds) -> None:
-    """ValueError when the observable-surface lattice (its spacing for a structure of
-    `mesh_bounds` over the navigation box) holds more than MAX_OBSERVABILITY_POSES positions, or
-    its positions times the `samples` tested from them exceed MAX_OBSERVABILITY_PAIRS."""
+def check_observability(cfg, ws, samples: float) -> None:
+    """ValueError when the observable-surface lattice (observability.pose_spacing over the
+    navigation box) holds more than MAX_OBSERVABILITY_POSES positions, or its positions times
+    the `samples` tested from them exceed MAX_OBSERVABILITY_PAIRS. (A small structure's finer
+    lattice, pose_spacing, is kept within them.)"""
     o = cfg.observability
     if not o.enabled:
         return
     size = [float(b - a) for a, b in zip(ws.nav_min, ws.nav_max)]
-    step = pose_spacing(cfg, mesh_bounds)
-    n = math.prod(2 * math.floor(s / 2 / step + 1e-9) + 1 for s in size)
-    fit = min(MAX_OBSERVABILITY_POSES, MAX_OBSERVABILITY_PAIRS / max(samples, 1))
+    n = _lattice_positions(size, o.pose_spacing)
+    fit, spacing = _lattice_fit(size, samples)
     if n > fit:
-        spacing = (math.prod(size) / fit) ** (1 / 3) * 1.05
         if n > MAX_OBSERVABILITY_POSES:
             unit, limit, count = "candidate positions", MAX_OBSERVABILITY_POSES, n
         else:
@@ -409,7 +426,7 @@ def check_observability(cfg, ws, samples: float, mesh_bounds) -> None:
         fits = f"observability.pose_spacing >= {spacing:.3g} would fit (or observability."
         fits += "enabled=false)"
         key = "observability.pose_spacing"
-        _refuse("the observable surface", unit, count, limit, key, step, fits)
+        _refuse("the observable surface", unit, count, limit, key, o.pose_spacing, fits)
 
 
 def check_map(cfg, ws) -> bool:
@@ -442,4 +459,4 @@ def check_work(cfg, mesh, ws) -> None:
         return  # beyond OctoMap's range: the map names it (and the shift that brings it near)
     check_profile(cfg, mesh.bounds, ws)
     samples = check_gt_samples(cfg, float(mesh.area))
-    check_observability(cfg, ws, samples, mesh.bounds)
+    check_observability(cfg, ws, samples)

@@ -2,19 +2,19 @@
 all from the navigation space, so that coverage can be told apart from geometry (an aircraft's
 wing root inside its fuselage can never be seen, whatever the planner).
 
-Method (one C++ call, ``nbvkit._core.observable_samples``, Embree):
+Method (C++ calls, ``nbvkit._core.observable_samples``, Embree):
 
 1. *Poses.* A lattice of candidate vehicle positions of spacing ``observability.pose_spacing``
-   (default 2 m; finer for a small structure: ``nbvkit.limits.pose_spacing``) fills the
-   navigation box (the workspace shrunk by the collision radius: where a mission's vehicle may
-   be). A lattice point is dropped if the mesh comes within
-   ``vehicle.collision_radius`` of it (an Embree point query), or if the vehicle cannot fly
-   there from outside: it must be connected, through lattice edges that the mesh does not cross
-   and along which the collision sphere fits (checked every half radius), to a free position on
-   the navigation box's sides or top that sees out of it (a flood fill; the ground below is not
-   part of the mesh). A closed hull's inside is unreachable however large it is, and so is a
-   space behind an opening narrower than the vehicle (a camera outside may still see through
-   it: an office's windows, a covered rooftop). The yaw is free.
+   (default 2 m; for a small structure a second, finer lattice searched for what the first left
+   unseen: ``nbvkit.limits.pose_spacing``) fills the navigation box (the workspace shrunk by the
+   collision radius: where a mission's vehicle may be). A lattice point is dropped if the mesh comes
+   within ``vehicle.collision_radius`` of it (an Embree point query), or if the vehicle cannot fly
+   there from outside: it must be connected, through lattice edges that the mesh does not cross and
+   along which the collision sphere fits (checked every half radius), to a free position on the
+   navigation box's sides or top that sees out of it (a flood fill; the ground below is not part of
+   the mesh). A closed hull's inside is unreachable however large it is, and so is a space behind an
+   opening narrower than the vehicle (a camera outside may still see through it: an office's
+   windows, a covered rooftop). The yaw is free.
 2. *Samples.* The ground-truth samples (``Evaluator.gt_points``: the mesh sampled uniformly at
    ``evaluation.gt_density``) with their triangle's normal (either side).
 3. *Visibility.* A sample is observable if, from some kept position (samples in Morton order,
@@ -116,7 +116,14 @@ def sample_normals(mesh, face_ids) -> np.ndarray:
     return unit[ids]
 
 
-def _settings(config, workspace, mesh_bounds) -> dict:
+def _fine_spacing(config, workspace, mesh_bounds, samples: int) -> float:
+    """The spacing of the fine lattice searched beside the configured one (limits.pose_spacing;
+    the configured spacing when it is no finer)."""
+    size = [float(b - a) for a, b in zip(workspace.nav_min, workspace.nav_max)]
+    return pose_spacing(config, mesh_bounds, size, samples)
+
+
+def _settings(config, workspace, mesh_bounds, samples: int) -> dict:
     c, o = config.camera, config.observability
     return {
         "camera": {
@@ -130,7 +137,8 @@ def _settings(config, workspace, mesh_bounds) -> dict:
         "nav_min": [round(float(x), 9) for x in workspace.nav_min],
         "nav_max": [round(float(x), 9) for x in workspace.nav_max],
         "collision_radius": config.vehicle.collision_radius,
-        "pose_spacing": pose_spacing(config, mesh_bounds),
+        "pose_spacing": o.pose_spacing,
+        "fine_pose_spacing": _fine_spacing(config, workspace, mesh_bounds, samples),
         "max_incidence_deg": o.max_incidence_deg,
         "yaw_steps": o.yaw_steps,
         "gimbal_pitch_deg": list(map(float, c.gimbal_pitch_deg)),
@@ -201,7 +209,7 @@ def observable_surface(
                 fid = f
         return sample_normals(mesh, fid) if fid is not None else np.zeros_like(points)
 
-    settings = _settings(cfg, ws, mesh.bounds)
+    settings = _settings(cfg, ws, mesh.bounds, len(points))
     path = None
     if cache_dir is not None:
         path = Path(cache_dir) / f"observable-{_cache_key(mesh, points, settings)}.npz"
@@ -219,13 +227,10 @@ def observable_surface(
     return _compute(mesh, cfg, points, normals(), ws, settings, scene)
 
 
-def observability_options(config, mesh_bounds=None, **changes) -> _core.ObservabilityOptions:
+def observability_options(config, **changes) -> _core.ObservabilityOptions:
     """The C++ options of the observability section with the camera's gimbal range (what a
-    pose of this vehicle can see), the lattice's spacing for a structure of `mesh_bounds`
-    (pose_spacing; None: the configured one), and `changes` (e.g. pose_spacing=4.0)."""
+    pose of this vehicle can see), and `changes` (e.g. pose_spacing=4.0)."""
     pitch = config.camera.gimbal_pitch_deg
-    if mesh_bounds is not None:
-        changes = {"pose_spacing": pose_spacing(config, mesh_bounds), **changes}
     return config.observability.options().copy(
         gimbal_min_deg=pitch[0], gimbal_max_deg=pitch[1], **changes
     )
@@ -236,29 +241,43 @@ def _compute(mesh, cfg, points, normals, ws, settings, scene) -> ObservableSurfa
     scene = scene or _core.RaycastScene(mesh)
     # only its field of view, ranges and mount are used
     camera = build_camera(cfg.camera, scene, cfg.seed, width=16, height=12, noise_k=0.0)
-    r = _core.observable_samples(
-        scene,
-        points,
-        normals,
-        camera,
-        ws.nav_min,
-        ws.nav_max,
-        options=observability_options(cfg, mesh.bounds),
-        collision_radius=cfg.vehicle.collision_radius,
-    )
-    mask = np.asarray(r.observable, bool)
+
+    def search(which, spacing):
+        return _core.observable_samples(
+            scene,
+            points[which],
+            normals[which],
+            camera,
+            ws.nav_min,
+            ws.nav_max,
+            options=observability_options(cfg, pose_spacing=spacing),
+            collision_radius=cfg.vehicle.collision_radius,
+        )
+
+    # the configured lattice, then a small structure's finer one for what it left unseen: a
+    # finer lattice's levels need not hold every position a coarser one does
+    runs = [search(np.arange(len(points)), settings["pose_spacing"])]
+    mask = np.asarray(runs[0].observable, bool)
+    if settings["fine_pose_spacing"] < settings["pose_spacing"] and not mask.all():
+        left = np.flatnonzero(~mask)
+        runs.append(search(left, settings["fine_pose_spacing"]))
+        mask[left] = np.asarray(runs[1].observable, bool)
+    timings: dict = {}
+    for r in runs:
+        for k, v in r.timings_s:
+            timings[k] = timings.get(k, 0.0) + float(v)
     stats = {
         "settings": settings,
         "samples": int(len(mask)),
         "observable_samples": int(mask.sum()),
-        "lattice_points": int(r.lattice_points),
-        "colliding": int(r.colliding),
-        "unreachable": int(r.unreachable),
-        "poses": int(len(r.poses)),
-        "timings_s": {k: float(v) for k, v in r.timings_s},
+        **{k: sum(int(getattr(r, k)) for r in runs) for k in ("lattice_points", "colliding")},
+        "unreachable": sum(int(r.unreachable) for r in runs),
+        "poses": sum(len(r.poses) for r in runs),
+        "timings_s": timings,
         "wall_time_s": time.perf_counter() - t0,
     }
-    return ObservableSurface(points, mask, np.asarray(r.poses), stats)
+    poses = np.vstack([np.asarray(r.poses).reshape(-1, 3) for r in runs])
+    return ObservableSurface(points, mask, poses, stats)
 
 
 def _save(path: Path, out: ObservableSurface) -> None:

@@ -187,6 +187,6 @@ def print_summary(s: dict, out) -> None:
             print(
                 f"note: {missed:.1%} of the area that the observable surface counts unseeable was "
                 "covered (its 0.05 m cell holds camera points): that surface is a lower bound "
-                "here; a finer --set observability.pose_spacing=S counts more of it"
+                "here; a finer --set observability.pose_spacing=S may count more of it"
             )
     print(f"wall time {s['wall_time_s']:.1f} s, {s['ms_per_iteration']:.1f} ms/iteration -> {out}/")
