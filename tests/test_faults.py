@@ -94,18 +94,31 @@ def test_a_damaged_summary_is_named_by_every_reader(tmp_path, finished_run, caps
     out = tmp_path / "r"
     shutil.copytree(finished_run[0], out)
     f = out / "summary.json"
+    whole = f.read_bytes()
     data = text.encode("utf-8", "surrogateescape")
     f.write_bytes(data + b" " * (f.stat().st_size - len(data)))
     assert is_complete_run(out)
     why = "not JSON" if text != "[1, 2]" else "not a JSON object"
     for read in (read_summary, read_run, row_of):
-        with pytest.raises(ValueError, match=f"{f}.* is damaged.*{why}"):
+        with pytest.raises(ValueError, match=f"run summary {f}.* is damaged.*{why}"):
             read(out)
     assert main(["evaluate", str(out)]) == 2
     assert f"{f} is damaged" in capsys.readouterr().err
     assert run_plugins_hint(out) == ""
-    with pytest.raises(FileNotFoundError, match="summary.json not found"):
+    with pytest.raises(FileNotFoundError, match="No such run summary"):
         read_summary(tmp_path)
+    f.unlink()
+    f.mkdir()  # a folder, or a device, is named, not read
+    with pytest.raises(ValueError, match="run summary .*summary.json is a directory"):
+        read_summary(out)
+    f.rmdir()
+    f.write_text("[" * 3 + " " * (5 << 20) + "]" * 3)  # too large to be nbvkit's
+    with pytest.raises(ValueError, match="run summary .* bytes, more than the"):
+        read_summary(out)
+    f.write_bytes(whole)
+    (out / "spec.json").write_text("{garbled")
+    with pytest.raises(ValueError, match="run spec .*spec.json is damaged, not JSON"):
+        row_of(out)
 
 
 def test_a_failing_run_leaves_nothing_and_the_old_run_stays(tmp_path, finished_run):

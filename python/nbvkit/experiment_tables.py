@@ -3,13 +3,12 @@ as CSV, the paper's Table 2 (means and spreads over the starts, as Markdown, bes
 and the planner comparison. Re-exported by nbvkit.experiments."""
 from __future__ import annotations
 
-import json
 import os
 from pathlib import Path
 
 import numpy as np
 
-from .runfolder import read_summary
+from .runfolder import read_json_object, read_summary
 
 # ------------------------------------------------------------------ the runs table
 
@@ -18,7 +17,9 @@ def row_of(run_dir: Path) -> dict:
     """One tidy row from a finished run folder."""
     s = read_summary(run_dir)
     spec = (
-        json.loads((run_dir / "spec.json").read_text()) if (run_dir / "spec.json").exists() else {}
+        read_json_object(run_dir / "spec.json", "run spec")
+        if (run_dir / "spec.json").exists()
+        else {}
     )
     row = {
         "run_id": run_dir.name,

@@ -39,6 +39,7 @@ from pathlib import Path
 import numpy as np
 
 from ._version import __version__
+from .limits import MAX_TEXT_FILE_BYTES, check_input_file
 from .locks import RunLock, lock_holder
 from .output_paths import check_output_dir
 
@@ -144,20 +145,25 @@ def _problem(path: Path, check_lock: bool = True) -> str | None:
     return None
 
 
-def read_summary(folder) -> dict:
-    """The run folder `folder`'s summary.json as a dict. FileNotFoundError naming the file when
-    it is missing; ValueError naming it when it is not a JSON object (damaged, or not nbvkit's).
-    Reads it as it is: require_complete_run first where the run must be whole."""
-    path = Path(os.fspath(folder)).expanduser() / "summary.json"
-    if not path.is_file():
-        raise FileNotFoundError(f"{path} not found (a run folder of `nbvkit run`?)")
+def read_json_object(path, what: str) -> dict:
+    """The JSON object in the file `path` that a run wrote (`what`: "run summary", ...).
+    FileNotFoundError naming it when it is missing; ValueError naming it when it is not a
+    regular file of at most MAX_TEXT_FILE_BYTES, or not a JSON object (damaged, or not
+    nbvkit's)."""
+    path = check_input_file(path, what, MAX_TEXT_FILE_BYTES)
     try:
-        summary = json.loads(path.read_text(encoding="utf-8"))
+        data = json.loads(path.read_text(encoding="utf-8"))
     except (UnicodeDecodeError, ValueError) as e:
-        raise ValueError(f"{path} is damaged, not JSON ({e}); fly the run again") from None
-    if not isinstance(summary, dict):
-        raise ValueError(f"{path} is damaged: not a JSON object; fly the run again")
-    return summary
+        raise ValueError(f"{what} {path} is damaged, not JSON ({e}); fly the run again") from None
+    if not isinstance(data, dict):
+        raise ValueError(f"{what} {path} is damaged: not a JSON object; fly the run again")
+    return data
+
+
+def read_summary(folder) -> dict:
+    """The run folder `folder`'s summary.json as a dict (read_json_object). Reads it as it is:
+    require_complete_run first where the run must be whole."""
+    return read_json_object(Path(os.fspath(folder)).expanduser() / "summary.json", "run summary")
 
 
 def looks_like_run(folder) -> bool:
