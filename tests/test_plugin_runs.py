@@ -351,6 +351,14 @@ def test_a_sweep_file_names_its_plugin_files(tmp_path):
     f.write_text(yaml.safe_dump({**sweep, "plugins": None}))
     r = _nbvkit("sweep", f, "--out", tmp_path / "out2")
     assert r.returncode == 2 and "orbit_sw" in r.stderr
-    f.write_text(yaml.safe_dump({**sweep, "plugins": str(plugin)}))
+    for bad in (str(plugin), {}, False, ""):
+        f.write_text(yaml.safe_dump({**sweep, "plugins": bad}))
+        r = _nbvkit("sweep", f, "--out", tmp_path / "out3")
+        assert (
+            r.returncode == 2 and "sweep 'plugins' must be a list of plugin file paths" in r.stderr
+        )
+    f.write_text(yaml.safe_dump({**sweep, "plugins": ["not_here.py"]}))
     r = _nbvkit("sweep", f, "--out", tmp_path / "out3")
-    assert r.returncode == 2 and "sweep 'plugins' must be a list of plugin file paths" in r.stderr
+    assert r.returncode == 2
+    assert f"sweep file {f}: plugin file not_here.py not found" in r.stderr
+    assert "paths from the folder nbvkit runs in" in r.stderr

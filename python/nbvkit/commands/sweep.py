@@ -2,6 +2,7 @@
 from __future__ import annotations
 
 import argparse
+import os
 from pathlib import Path
 
 from ..config import read_yaml_file
@@ -68,12 +69,19 @@ def run(args) -> int:
     sweep = read_yaml_file(path, "sweep file") or {}
     if not isinstance(sweep, dict):
         raise ValueError(f"sweep file {path} must hold a mapping")
-    files = sweep.get("plugins") or []
+    files = sweep.get("plugins")
+    files = [] if files is None else files
     if not isinstance(files, list) or not all(isinstance(f, str) and f for f in files):
         raise ValueError(
             f"sweep 'plugins' must be a list of plugin file paths, got {shorten(files)}"
         )
-    load_plugins(files)  # before the specs: their parts' scenarios, sections and names
+    try:  # before the specs: their parts' scenarios, sections and names
+        load_plugins(files)
+    except FileNotFoundError as e:
+        raise FileNotFoundError(
+            f"sweep file {path}: plugin file {e.filename} not found (its 'plugins' are paths "
+            f"from the folder nbvkit runs in, {os.getcwd()})"
+        ) from None
     specs = sweep_specs(sweep)
     out = check_output_dir(args.out or sweep.get("out") or f"runs/{path.stem}", "--out")
     workers = args.workers if args.workers is not None else sweep.get("workers") or 0
