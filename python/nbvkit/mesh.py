@@ -241,7 +241,11 @@ def fibonacci_sphere(n: int) -> np.ndarray:
 
 def check_path_clear(scene, pts, what: str = "path") -> None:
     """ValueError when a leg of the path `pts` (P, 3) meets the surface of `scene` (a
-    RaycastScene): a flight through the structure. Names the leg and where it meets it."""
+    RaycastScene): a flight through the structure. Names the leg and where it meets it; a path
+    that is not (P, 3) finite points is a ValueError too."""
+    pts = np.asarray(pts, float)
+    if pts.ndim != 2 or pts.shape[1] != 3 or not np.isfinite(pts).all():
+        raise ValueError(f"{what} must be (P, 3) finite points, got shape {pts.shape}")
     a, b = pts[:-1], pts[1:]
     length = np.linalg.norm(b - a, axis=1)
     legs = np.flatnonzero(length > 0)
