@@ -362,15 +362,22 @@ def _sweep_scenarios(sweep: dict) -> list[str]:
     scenarios = [str(s) for s in scenarios]
     _refuse_empty("sweep 'scenarios'", scenarios)
     _refuse_duplicates("sweep 'scenarios'", scenarios)
+    _refuse_unknown("sweep scenario", scenarios, "the sweep's 'plugins' or --plugin")
+    return scenarios
+
+
+def _refuse_unknown(what: str, names, plugins: str) -> None:
+    """ValueError naming the first of `names` that is no registered scenario (`what`: "sweep
+    scenario", "planner"), the known ones, and where a plugin's scenario comes from
+    (`plugins`)."""
     from .scenarios import SCENARIOS
 
-    for s in scenarios:
+    for s in names:
         if s not in SCENARIOS:
             raise ValueError(
-                f"unknown sweep scenario {s!r}; known: {', '.join(SCENARIOS)} (a plugin's "
-                "scenario needs its file: the sweep's 'plugins' or --plugin)"
+                f"unknown {what} {s!r}; known: {', '.join(SCENARIOS)} (a plugin's scenario "
+                f"needs its file: {plugins})"
             )
-    return scenarios
 
 
 def _sweep_starts(sweep: dict) -> list:
@@ -425,11 +432,7 @@ def compare_specs(planners, mesh=None, mesh_scale=None, mesh_up=None, starts=5, 
     (mesh, mesh_scale, mesh_up: None for the configuration's, see RunSpec). Progress coverage is
     sampled every 5 views (the coverage-vs-distance figure). A planner named twice is refused
     (ValueError): its runs would be counted twice."""
-    from .scenarios import SCENARIOS
-
-    for p in planners:
-        if p not in SCENARIOS:
-            raise ValueError(f"unknown planner {p!r}; known: {', '.join(SCENARIOS)}")
+    _refuse_unknown("planner", planners, "--plugin or nbvkit.load_plugin")
     # as a sweep's lists: the runs of different planners differ by their scenario in the run
     # id, so this also keeps two specs from flying the same run (_check_distinct_runs)
     _refuse_duplicates("--planners", list(planners))
