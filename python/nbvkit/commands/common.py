@@ -128,26 +128,23 @@ def experiment_notes(rows) -> list:
     `nbvkit run` prints for one: the runs a budget stopped before the structure was covered, per
     budget, and the runs whose generators plan by the surface they cover, their utility only
     checking each view."""
-    from ..planning.terminations.budget import BUDGET_KEYS
+    from ..planning.registry import checks_only_words
+    from ..planning.terminations.budget import BUDGET_KEYS, stopped_by_budget
 
     notes = []
     for reason, key in BUDGET_KEYS.items():
         hit = [r for r in rows if r.get("termination") == reason]
         if hit:
-            notes.append(
-                f"{len(hit)} of {len(rows)} runs stopped by {key}, not because the structure is "
-                f"covered ({_run_ids(hit)}): their coverage is what the budget allowed (raise it "
-                f"with --set {key}=...)"
-            )
+            runs = f" ({_run_ids(hit)})"
+            notes.append(f"{len(hit)} of {len(rows)} runs " + stopped_by_budget(key, key, runs))
     checked = [r for r in rows if r.get("utility_only_checks")]
     if checked:
         gens = sorted({g for r in checked for g in str(r["utility_only_checks"]).split()})
-        utilities = sorted({str(r.get("utility") or "?") for r in checked})
+        utilities = ", ".join(sorted({str(r.get("utility") or "?") for r in checked}))
+        more = "; column utility_only_checks"
         notes.append(
-            f"in {len(checked)} of {len(rows)} runs ({_run_ids(checked)}) the "
-            f"{' and '.join(gens)} generator{'s plan' if len(gens) > 1 else ' plans'} views by "
-            f"the surface they would newly cover; utility {', '.join(utilities)} only checked "
-            "each view, it did not rank them (column utility_only_checks; docs/PLUGINS.md)"
+            f"in {len(checked)} of {len(rows)} runs ({_run_ids(checked)}) "
+            + checks_only_words(gens, utilities, more)
         )
     return notes
 

@@ -10,6 +10,7 @@ from ..config import load_config
 from ..experiments import terminate_as_interrupt
 from ..experiment_specs import mesh_overrides_once, with_mesh_shift
 from ..mission import Mission
+from ..planning.registry import checks_only_words
 from ..planning.terminations.budget import budget_note
 from ..recorder import fly_into, raise_stop
 from ..runfolder import RunFolder
@@ -146,18 +147,6 @@ def flown(s: dict) -> str:
     return text
 
 
-def checks_only_note(s: dict) -> str:
-    """The console's line for a run whose generators (summary `utility_only_checks`) plan their
-    views by the surface coverage: the utility only checked them (docs/PLUGINS.md)."""
-    gens = s["utility_only_checks"]
-    return (
-        f"the {' and '.join(gens)} generator{'s plan their' if len(gens) > 1 else ' plans its'} "
-        f"views by the surface they would newly cover; utility {s['utility']} only checked each "
-        "view (valid, worth planner.min_gain in its units), it did not rank them "
-        "(docs/PLUGINS.md)"
-    )
-
-
 def print_summary(s: dict, out) -> None:
     """The console's account of a run: its flight, coverage (and of the observable surface,
     when the end-of-run outputs were written) and time."""
@@ -172,7 +161,7 @@ def print_summary(s: dict, out) -> None:
     if note:
         print("note: " + note)
     if s.get("utility_only_checks"):
-        print("note: " + checks_only_note(s))
+        print("note: " + checks_only_words(s["utility_only_checks"], s["utility"]))
     print("coverage  " + "  ".join(f"@{k} m {v:6.1%}" for k, v in cov.items()))
     print("area cov. " + "  ".join(f"@{k} m {v:6.1%}" for k, v in s["area_coverage"].items()))
     if "coverage_observable" in s:

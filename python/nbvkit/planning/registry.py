@@ -47,6 +47,17 @@ def utility_only_checks(config) -> list:
     return [g for g in config.planner.generators if g in OWN_RANKING]
 
 
+def checks_only_words(gens, utility: str, more: str = "") -> str:
+    """The console's words for the generators `gens` (utility_only_checks) whose views
+    `utility` only checked (`more`: said after the check, in the parentheses)."""
+    return (
+        f"the {' and '.join(gens)} generator{'s plan their' if len(gens) > 1 else ' plans its'} "
+        f"views by the surface they would newly cover; utility {utility} only checked each view "
+        f"(valid, worth planner.min_gain in its units{more}), it did not rank them "
+        "(docs/PLUGINS.md)"
+    )
+
+
 #: Utilities written in Python (name -> function of nbvkit.CandidateRays, see
 #: planning/utilities.py); the C++ core's are nbvkit._core.utility_names().
 UTILITIES: dict = {}

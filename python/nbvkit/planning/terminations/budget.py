@@ -92,8 +92,14 @@ def budget_note(summary: dict) -> str | None:
         what = f"the view cap ({n} view{'' if n == 1 else 's'})"
     else:
         what = f"the budget {key}"
+    return stopped_by_budget(what, key)
+
+
+def stopped_by_budget(what: str, key: str, runs: str = "") -> str:
+    """The console's words for runs a budget stopped: `what` stopped them (`runs`: which), and
+    the key that raises it."""
     return (
-        f"stopped by {what}, not because the structure is covered: the coverage is what the "
+        f"stopped by {what}, not because the structure is covered{runs}: the coverage is what the "
         f"budget allowed (raise it with --set {key}=...)"
     )
 
