@@ -236,6 +236,10 @@ def observability_options(config, **changes) -> _core.ObservabilityOptions:
     )
 
 
+#: the counts of a lattice search (observable_samples) that a run's stats sum over its lattices
+LATTICE_COUNTS = ("lattice_points", "colliding", "unreachable")
+
+
 def _compute(mesh, cfg, points, normals, ws, settings, scene) -> ObservableSurface:
     t0 = time.perf_counter()
     scene = scene or _core.RaycastScene(mesh)
@@ -270,8 +274,7 @@ def _compute(mesh, cfg, points, normals, ws, settings, scene) -> ObservableSurfa
         "settings": settings,
         "samples": int(len(mask)),
         "observable_samples": int(mask.sum()),
-        **{k: sum(int(getattr(r, k)) for r in runs) for k in ("lattice_points", "colliding")},
-        "unreachable": sum(int(r.unreachable) for r in runs),
+        **{k: sum(int(getattr(r, k)) for r in runs) for k in LATTICE_COUNTS},
         "poses": sum(len(r.poses) for r in runs),
         "timings_s": timings,
         "wall_time_s": time.perf_counter() - t0,
