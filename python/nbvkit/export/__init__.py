@@ -347,15 +347,15 @@ def _write_formats(tmp: Path, fmts, fl, sorties, names, frame, model, drone, pay
             files += [f"{name}.plan", f"{name}.waypoints"]
         ell_fmts = [f for f in ("wpml", "geojson") if f in fmts]
         if ell_fmts:  # heights above the WGS84 ellipsoid (DJI's ellipsoidHeight, RFC 7946)
-            try:
-                g.ell_alt = frame.ellipsoid_height(g.alt)
+            try:  # one geoid lookup: the waypoints' and the home's heights
+                ell = frame.ellipsoid_height(np.append(g.alt, g.home[2]))
             except ValueError as e:
                 raise ValueError(
                     f"the {' and '.join(ell_fmts)} "
                     + ("formats write" if len(ell_fmts) > 1 else "format writes")
                     + f" heights above the WGS84 ellipsoid: {e}"
                 ) from None
-            g.home_ell = float(frame.ellipsoid_height([g.home[2]])[0])
+            g.ell_alt, g.home_ell = ell[:-1], float(ell[-1])
         if "wpml" in fmts:
             write_wpml_kmz(g, tmp / f"{name}.kmz", drone, payload, created_ms)
             files.append(f"{name}.kmz")
