@@ -396,3 +396,57 @@ def test_covered_surface_the_mask_counts_unseeable_is_reported():
     r = ev.evaluate(cloud)
     on_top_beyond = ((pts[:, 2] > 0.05) & (pts[:, 0] >= 2)).mean()
     assert r["covered_unobservable_fraction"]["0.05"] == pytest.approx(on_top_beyond, abs=0.02)
+
+
+def _covered_unobservable(pts, cloud, observable, r=0.05):
+    """(covered unobservable, of which in cells that hold an observable sample), counted here
+    from the cells' keys (floor(p / r)), independently of the evaluator."""
+    cell = [tuple(k) for k in np.floor(pts / r).astype(np.int64)]
+    covered_cells = {tuple(k) for k in np.floor(cloud / r).astype(np.int64)}
+    seen_cells = {c for c, o in zip(cell, observable) if o}
+    covered = np.array([c in covered_cells for c in cell])
+    shared = np.array([c in seen_cells for c in cell])
+    hidden = covered & ~observable
+    return hidden.mean(), (hidden & shared).mean()
+
+
+def test_covered_unobservable_surface_is_split_by_whether_its_cell_holds_observable_surface():
+    """covered_unobservable_shared_fraction: the part of covered_unobservable_fraction in cells
+    that also hold an observable sample (a part thinner than the cell: its far face shares the
+    seen face's cells; an edge), told apart from unseeable surface in cells of its own."""
+    from nbvkit.evaluation import unobservable_note
+
+    def split(ev, cloud, observable):
+        ev.set_observable(observable)
+        r = ev.evaluate(cloud)
+        got = [
+            r[k]["0.05"]
+            for k in ("covered_unobservable_fraction", "covered_unobservable_shared_fraction")
+        ]
+        assert got == pytest.approx(
+            _covered_unobservable(ev.gt_points, cloud, observable), abs=1e-9
+        )
+        return r, got
+
+    thin = box_mesh((0, 0, 0.01), (1, 1, 0.03))  # within one layer of 0.05 m cells
+    ev = nbvkit.Evaluator(thin, gt_density=8000, seed=0)  # 20 samples a cell's face
+    pts = ev.gt_points
+    top = pts[:, 2] > 0.02
+    r, (total, shared) = split(ev, pts[top], top)  # the cloud is the top; the rest unseeable
+    assert total == pytest.approx((~top).mean(), abs=0.01)  # the underside, about half
+    assert shared == pytest.approx(total, abs=0.01)  # every underside cell holds top surface
+    words = unobservable_note(r)
+    assert words.startswith(f"{total:.1%} of the area")
+    assert f"{shared:.1%} in cells that also hold" in words
+    assert "note: " + words in nbvkit.evaluation.format_report(r)  # nbvkit evaluate's table
+
+    thick = box_mesh((0, 0, 0), (1, 1, 1.0))
+    ev = nbvkit.Evaluator(thick, gt_density=8000, seed=0)
+    pts = ev.gt_points
+    top = pts[:, 2] > 0.99
+    r, (total, shared) = split(ev, pts[top], top & (pts[:, 0] < 0.5))  # half the top unseeable
+    beyond = (top & (pts[:, 0] >= 0.5)).mean()
+    # in cells of their own: the unseeable half of the top, and the sides' top edge beside it
+    assert beyond <= total - shared <= beyond + 0.025
+    assert shared < 0.3 * beyond  # the top's edges and seam: cells shared with the sides
+    assert unobservable_note({"covered_unobservable_fraction": {"0.05": 0.01}}) is None

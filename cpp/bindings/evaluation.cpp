@@ -29,6 +29,8 @@ void init_evaluation(py::module_& m) {
       .def_readonly("has_observable", &EvaluationResult::has_observable)
       .def_readonly("coverage_observable", &EvaluationResult::coverage_observable)
       .def_readonly("area_coverage_observable", &EvaluationResult::area_coverage_observable)
+      .def_readonly("area_coverage_observable_cells",
+                    &EvaluationResult::area_coverage_observable_cells)
       .def_readonly("observable_fraction", &EvaluationResult::observable_fraction)
       .def_readonly("observable_cells", &EvaluationResult::observable_cells)
       .def_readonly("covered_observable_cells", &EvaluationResult::covered_observable_cells)

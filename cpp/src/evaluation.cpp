@@ -244,6 +244,7 @@ EvaluationResult Evaluator::empty_result(std::int64_t n_points) const {
     res.has_observable = true;
     res.coverage_observable.assign(nr, 0.0);
     res.area_coverage_observable.assign(nr, 0.0);
+    res.area_coverage_observable_cells.assign(nr, 0.0);
     res.observable_fraction.assign(nr, 0.0);
     res.observable_cells.assign(nr, 0);
     res.covered_observable_cells.assign(nr, 0);
@@ -308,9 +309,10 @@ void Evaluator::score_cells(std::size_t k, const std::uint64_t* keys, std::size_
     });
   }
   const bool obs = !observable_.empty();
-  std::atomic<std::int64_t> covered{0}, covered_samples{0}, covered_obs{0}, covered_obs_samples{0};
+  std::atomic<std::int64_t> covered{0}, covered_samples{0}, covered_obs{0}, covered_obs_samples{0},
+      covered_obs_cell_samples{0};
   parallel_chunks(g.index.size(), 1 << 13, [&](std::size_t b, std::size_t e) {
-    std::int64_t c = 0, s = 0, co = 0, so = 0;
+    std::int64_t c = 0, s = 0, co = 0, so = 0, sc = 0;
     for (std::size_t j = b; j < e; ++j)
       if (hit[j]) {
         ++c;
@@ -318,14 +320,18 @@ void Evaluator::score_cells(std::size_t k, const std::uint64_t* keys, std::size_
         if (obs && g.observable_samples[j] > 0) {
           ++co;
           so += g.observable_samples[j];
+          sc += g.samples[j];
         }
       }
     covered += c;
     covered_samples += s;
     covered_obs += co;
     covered_obs_samples += so;
+    covered_obs_cell_samples += sc;
   });
-  set_cell_figures(k, {n_unique, in_gt, covered, covered_samples, covered_obs, covered_obs_samples},
+  set_cell_figures(k,
+                   {n_unique, in_gt, covered, covered_samples, covered_obs, covered_obs_samples,
+                    covered_obs_cell_samples},
                    res);
 }
 
@@ -335,6 +341,8 @@ void Evaluator::set_cell_figures(std::size_t k, const CellTally& t, EvaluationRe
     res.covered_observable_cells[k] = t.covered_obs;
     res.coverage_observable[k] = ratio(t.covered_obs, grids_[k].observable_cells);
     res.area_coverage_observable[k] = ratio(t.covered_obs_samples, n_observable_);
+    res.area_coverage_observable_cells[k] =
+        ratio(t.covered_obs_cell_samples, static_cast<std::int64_t>(n_gt_));
   }
   res.cloud_cells[k] = t.cloud_cells;
   res.covered_cells[k] = t.covered;
@@ -596,6 +604,7 @@ void CoverageTracker::add_point(std::size_t k, std::uint32_t id) {
   if (!grid.observable_samples.empty() && grid.observable_samples[g] > 0) {
     ++c.covered_obs;
     c.covered_obs_samples += grid.observable_samples[g];
+    c.covered_obs_cell_samples += grid.samples[g];
   }
 }
 
@@ -611,18 +620,20 @@ void CoverageTracker::remove_point(std::size_t k, std::uint32_t id) {
   if (!grid.observable_samples.empty() && grid.observable_samples[g] > 0) {
     --c.covered_obs;
     c.covered_obs_samples -= grid.observable_samples[g];
+    c.covered_obs_cell_samples -= grid.samples[g];
   }
 }
 
 void CoverageTracker::count_observable(std::size_t k) {
   Cells& c = cells_[k];
   const Evaluator::Grid& grid = ev_.grids_[k];
-  c.covered_obs = c.covered_obs_samples = 0;
+  c.covered_obs = c.covered_obs_samples = c.covered_obs_cell_samples = 0;
   if (grid.observable_samples.empty()) return;
   for (std::size_t id = 0; id < c.index.size(); ++id)
     if (c.n[id] > 0 && c.gt[id] != VoxelIndex::kMissing && grid.observable_samples[c.gt[id]] > 0) {
       ++c.covered_obs;
       c.covered_obs_samples += grid.observable_samples[c.gt[id]];
+      c.covered_obs_cell_samples += grid.samples[c.gt[id]];
     }
 }
 
@@ -725,10 +736,10 @@ EvaluationResult CoverageTracker::update(const std::vector<const SurfaceCloud*>&
   EvaluationResult res = ev_.empty_result(static_cast<std::int64_t>(n_points));
   for (std::size_t k = 0; k < nr; ++k) {
     const Cells& c = cells_[k];  // a covered cell is a cloud cell found in the ground truth
-    ev_.set_cell_figures(
-        k,
-        {c.occupied, c.covered, c.covered, c.covered_samples, c.covered_obs, c.covered_obs_samples},
-        res);
+    ev_.set_cell_figures(k,
+                         {c.occupied, c.covered, c.covered, c.covered_samples, c.covered_obs,
+                          c.covered_obs_samples, c.covered_obs_cell_samples},
+                         res);
   }
   res.timings_s.emplace_back("cells", seconds_since(t0));
   res.timings_s.emplace_back("scan", scan_s);  // of which pass 1

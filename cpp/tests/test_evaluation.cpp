@@ -343,5 +343,6 @@ TEST(CoverageTracker, EqualsACountFromScratchAsCloudsGrowMoveAndAreCleared) {
     EXPECT_EQ(got.precision, want.precision) << step;
     EXPECT_EQ(got.covered_observable_cells, want.covered_observable_cells) << step;
     EXPECT_EQ(got.area_coverage_observable, want.area_coverage_observable) << step;
+    EXPECT_EQ(got.area_coverage_observable_cells, want.area_coverage_observable_cells) << step;
   }
 }

@@ -154,9 +154,11 @@ def evaluate(gt, cloud, options=None, **kw) -> dict:
     observable sample ÷ GT cells: the observable share of the surface measured in cells of that
     size), plus ``observable_area_fraction`` (observable samples ÷ samples: the observable share
     of the area), ``covered_unobservable_fraction`` (per resolution: samples in covered cells
-    that the mask holds unobservable ÷ samples: what the camera saw though the mask says it
-    could not, 0 for an exact mask) and the cell counts ``observable_cells``,
-    ``covered_observable_cells``.
+    that the mask holds unobservable ÷ samples), ``covered_unobservable_shared_fraction`` (the
+    part of it in cells that also hold an observable sample: a part thinner than the cell, an
+    edge, where the cell's points may all lie on the observable side; the rest lies in cells of
+    its own: seen at a grazing angle the mask does not count, or from where the mask's lattice
+    has no position) and the cell counts ``observable_cells``, ``covered_observable_cells``.
 
     An empty cloud scores 0 everywhere with ``chamfer_m`` None. Raises ValueError for NaN/inf in
     either input (naming which), non-positive or duplicate resolutions or taus, an unknown
@@ -288,7 +290,25 @@ _OBSERVABLE_KEYS = (
     "observable_cells",
     "covered_observable_cells",
     "covered_unobservable_fraction",
+    "covered_unobservable_shared_fraction",
 )
+
+
+def unobservable_note(result: dict, resolution: str = "0.05", above: float = 0.02) -> str | None:
+    """The words for a result (an evaluation's or a run's summary) whose covered cells hold more
+    than `above` of the area that the observable surface counts unseeable; None otherwise."""
+    total = result.get("covered_unobservable_fraction", {}).get(resolution, 0.0)
+    if total <= above:
+        return None
+    shared = result.get("covered_unobservable_shared_fraction", {}).get(resolution, 0.0)
+    return (
+        f"{total:.1%} of the area lies in covered {resolution} m cells though the observable "
+        f"surface counts it unseeable: {shared:.1%} in cells that also hold observable surface (a "
+        f"part thinner than the cell, an edge: their camera points may all lie on the seen side), "
+        f"{total - shared:.1%} in cells of its own (seen at a grazing angle beyond "
+        "observability.max_incidence_deg, or from where the observable surface's lattice has no "
+        "position: a finer --set observability.pose_spacing=S counts more of those)"
+    )
 
 
 def _to_dict(r) -> dict:
@@ -309,11 +329,17 @@ def _to_dict(r) -> dict:
         out["observable_area_fraction"] = float(r.observable_area_fraction)
         out["observable_cells"] = per_int(rk, r.observable_cells)
         out["covered_observable_cells"] = per_int(rk, r.covered_observable_cells)
-        # the share of the area covered though the observable surface counts it unseeable: the
-        # camera saw it, so the observable surface (a lattice's lower bound) missed it
+        # the share of the area in covered cells though the observable surface counts it
+        # unseeable, and the part of it whose cells also hold observable samples
+        seen = {
+            k: c * out["observable_area_fraction"]
+            for k, c in out["area_coverage_observable"].items()
+        }
         out["covered_unobservable_fraction"] = {
-            k: max(0.0, out["area_coverage"][k] - cov * out["observable_area_fraction"])
-            for k, cov in out["area_coverage_observable"].items()
+            k: max(0.0, out["area_coverage"][k] - v) for k, v in seen.items()
+        }
+        out["covered_unobservable_shared_fraction"] = {
+            k: max(0.0, c - seen[k]) for k, c in zip(rk, r.area_coverage_observable_cells)
         }
     return out
 
@@ -382,6 +408,9 @@ def format_report(result: dict) -> str:
                 f"{_pct(result['area_coverage_observable'][k]):>9}  "
                 f"{_pct(result['observable_fraction'][k]):>10}"
             )
+        note = unobservable_note(result)
+        if note:
+            out.append("note: " + note)
         out.append("")
     out.append(f"{'tau':>10}  {'complete.':>9}  {'accuracy':>9}  {'F-score':>9}")
     for k in result["completeness"]:

@@ -91,6 +91,7 @@ def _observable_figures(mission, summary: dict, cache_dir) -> np.ndarray:
         "observable_fraction",
         "observable_area_fraction",
         "covered_unobservable_fraction",
+        "covered_unobservable_shared_fraction",
     ):
         summary[k] = cov[k]
     summary["observability"] = {

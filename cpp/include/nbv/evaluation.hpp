@@ -56,7 +56,11 @@ struct EvaluationResult {
   bool has_observable = false;
   std::vector<double> coverage_observable;       ///< covered observable cells / observable cells
   std::vector<double> area_coverage_observable;  ///< observable samples in covered cells / obs.
-  std::vector<double> observable_fraction;       ///< observable cells / GT cells
+  /// every GT sample (observable or not) in the covered cells that hold an observable sample / GT
+  /// samples: with area_coverage and area_coverage_observable it splits the covered unobservable
+  /// samples into those sharing a cell with observable ones (a thin part's far face) and the rest
+  std::vector<double> area_coverage_observable_cells;
+  std::vector<double> observable_fraction;  ///< observable cells / GT cells
   std::vector<std::int64_t> observable_cells, covered_observable_cells;
   double observable_area_fraction = 0;  ///< observable GT samples / GT samples (area share)
   // Per tau:
@@ -140,6 +144,7 @@ class Evaluator {
     std::int64_t in_gt = 0;        ///< ... that are GT cells
     std::int64_t covered = 0;      ///< GT cells holding a cloud point
     std::int64_t covered_samples = 0, covered_obs = 0, covered_obs_samples = 0;
+    std::int64_t covered_obs_cell_samples = 0;  ///< every sample of the covered observable cells
   };
   /// Writes res's cell figures of resolution k (res from empty_result).
   void set_cell_figures(std::size_t k, const CellTally& t, EvaluationResult& res) const;
@@ -213,6 +218,7 @@ class CoverageTracker {
     std::int64_t occupied = 0;     ///< cells with n > 0
     std::int64_t covered = 0;      ///< ... of which GT cells
     std::int64_t covered_samples = 0, covered_obs = 0, covered_obs_samples = 0;
+    std::int64_t covered_obs_cell_samples = 0;  ///< every sample of the covered observable cells
   };
   void reset();
   std::uint32_t cell_of(std::size_t k, std::uint64_t key);

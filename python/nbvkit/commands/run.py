@@ -7,6 +7,7 @@ import json
 import sys
 
 from ..config import load_config
+from ..evaluation import unobservable_note
 from ..experiments import terminate_as_interrupt
 from ..experiment_specs import mesh_overrides_once, with_mesh_shift
 from ..mission import Mission
@@ -171,11 +172,7 @@ def print_summary(s: dict, out) -> None:
             ("area cov.", "area_coverage_observable"),
         ):
             print(f"  {name:<9} " + "  ".join(f"@{k} m {v:6.1%}" for k, v in s[key].items()))
-        missed = s.get("covered_unobservable_fraction", {}).get("0.05", 0.0)
-        if missed > 0.02:
-            print(
-                f"note: {missed:.1%} of the area that the observable surface counts unseeable was "
-                "covered (its 0.05 m cell holds camera points): that surface is a lower bound "
-                "here; a finer --set observability.pose_spacing=S may count more of it"
-            )
+        note = unobservable_note(s)
+        if note:
+            print("note: " + note)
     print(f"wall time {s['wall_time_s']:.1f} s, {s['ms_per_iteration']:.1f} ms/iteration -> {out}/")
