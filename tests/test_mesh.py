@@ -142,7 +142,7 @@ def test_mirroring_node_transforms_keep_parts_outside_out(tmp_path):
 
 
 # (.glb written by open3d 0.16 is rejected by assimp 5.2.5: "buffer view out of range")
-@pytest.mark.parametrize("ext", [".stl", ".ply", ".obj", ".gltf"])
+@pytest.mark.parametrize("ext", [".stl", ".ply", ".obj", ".gltf", ".off"])
 def test_formats_written_by_open3d(tmp_path, ext):
     o3d = pytest.importorskip("open3d")
     box = box_mesh((1, 2, 3), (2, 4, 7))
@@ -190,6 +190,15 @@ def _glb_of(doc: dict) -> bytes:
 
     body = chunk(json.dumps(doc).encode(), b"JSON", b" ") + chunk(buf, b"BIN\0", b"\0")
     return b"glTF" + struct.pack("<II", 2, 12 + len(body)) + body
+
+
+def test_off_index_out_of_range_is_refused_naming_the_file(tmp_path):
+    # assimp's OFF reader clamped index 9 to the last vertex and read -7 as 0: a wrong mesh, no error
+    for bad in ("9", "-7"):
+        p = tmp_path / "x.off"
+        p.write_text(f"OFF\n3 1 0\n0 0 0\n1 0 1\n0 1 1\n3 0 1 {bad}\n")
+        with pytest.raises(ValueError, match=f"x.off': line 6: face vertex index {bad} is out of"):
+            nbvkit.load_mesh(p)
 
 
 def test_an_auto_up_axis_is_the_one_the_files_format_defines(tmp_path):

@@ -199,5 +199,11 @@ def test_bad_input_is_rejected():
     assert np.isinf(t).all() and (prim == -1).all()
     with pytest.raises(ValueError, match="t_near"):
         scene.intersect([[0, 0, 0]], [[1, 0, 0]], 2.0, 1.0)
-    with pytest.raises(ValueError):
-        nbvkit.set_num_threads(-1)
+    for n in (
+        -1,
+        nbvkit._core.MAX_THREADS + 1,
+        10**7,
+        2**31 - 1,
+    ):  # TBB's arena crashed at 10**7
+        with pytest.raises(ValueError, match="number of threads must be in"):
+            nbvkit.set_num_threads(n)

@@ -125,8 +125,10 @@ void init_common(py::module_& m) {
     }
   });
   m.attr("MAX_COORDINATE") = kMaxCoordinate;
+  m.attr("MAX_THREADS") = kMaxThreads;
   m.def("set_num_threads", &set_num_threads, py::arg("n"),
-        "Worker threads of the core's parallel loops (0 = all hardware threads). Process-wide;\n"
+        "Worker threads of the core's parallel loops (0 = all hardware threads; at most\n"
+        "MAX_THREADS, else ValueError). Process-wide;\n"
         "safe to call while other threads scan or score views: their running calls finish on\n"
         "the threads they started with, later calls use the new count.");
   m.def("get_num_threads", &get_num_threads);

@@ -306,7 +306,9 @@ bool release_free_memory() {
 }
 
 void set_num_threads(int n) {
-  if (n < 0) throw std::invalid_argument("number of threads must be >= 0 (0 = all)");
+  if (n < 0 || n > kMaxThreads)
+    throw std::invalid_argument("number of threads must be in [0, " + std::to_string(kMaxThreads) +
+                                "] (0 = all hardware threads), got " + std::to_string(n));
   std::shared_ptr<tbb::task_arena> old;  // released outside the lock
   std::lock_guard<std::mutex> lock(g_arena_mutex);
   if (n == g_threads && g_arena) return;  // unchanged: keep the arena (and its threads)

@@ -264,10 +264,11 @@ Mesh load_ply_mesh(const std::string& path, double scale, char up) {
   return loaded_mesh(std::move(ply.vertices), std::move(ply.faces), path, scale, up);
 }
 
-// OBJ files go through nbvkit's own reader (nbv/obj.hpp) in double precision: assimp keeps
-// float32, and a georeferenced file lost its digits before mesh.shift could be applied.
-Mesh load_obj_mesh(const std::string& path, double scale, char up) {
-  ObjData obj = read_obj(path);
+// OBJ and OFF files go through nbvkit's own readers (nbv/obj.hpp) in double precision: assimp
+// keeps float32, and a georeferenced file lost its digits before mesh.shift could be applied;
+// assimp's OFF reader also clamps a face's out-of-range index to the last vertex.
+Mesh load_obj_mesh(const std::string& path, double scale, char up, bool off) {
+  ObjData obj = off ? read_off(path) : read_obj(path);
   return loaded_mesh(std::move(obj.vertices), std::move(obj.faces), path, scale, up,
                      obj.file_number);
 }
@@ -520,7 +521,7 @@ Mesh load_mesh(const std::string& path, double scale, char up) {
   std::transform(ext.begin(), ext.end(), ext.begin(),
                  [](unsigned char c) { return std::tolower(c); });
   if (ext == ".ply") return load_ply_mesh(path, scale, up);
-  if (ext == ".obj") return load_obj_mesh(path, scale, up);
+  if (ext == ".obj" || ext == ".off") return load_obj_mesh(path, scale, up, ext == ".off");
   if (ext == ".stl") return load_stl_mesh(path, scale, up);
   const std::string head = read_file_head(path, 4096, "mesh", kMaxMeshFileBytes);
   // A zip archive (zipped Collada, whatever its name) would reach assimp past check_collada's

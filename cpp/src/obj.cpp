@@ -49,6 +49,10 @@ bool parse_int(std::string_view t, long long& v) {
   return !t.empty() && r.ec == std::errc() && r.ptr == t.data() + t.size();
 }
 
+ObjData polygons_to_mesh(const std::vector<double>& xyz, const std::vector<std::int32_t>& index,
+                         const std::vector<std::size_t>& start,
+                         const std::vector<std::size_t>& first_line, std::int64_t first_number);
+
 }  // namespace
 
 ObjData parse_obj(const char* data, std::size_t size) {
@@ -139,7 +143,18 @@ ObjData parse_obj(const char* data, std::size_t size) {
   if (max_index > nv)
     fail(max_index_line, "face vertex index " + std::to_string(max_index) +
                              " is out of range: the file has " + std::to_string(nv) + " vertices");
+  return polygons_to_mesh(xyz, index, start, first_line, 1);
+}
 
+namespace {
+
+// The triangles of polygons (vertex `index`es in [0, xyz.size() / 3), polygon p being
+// index[start[p], start[p + 1]), on line first_line[p]), keeping only the vertices they use,
+// renumbered in file order; `first_number` is the file's number of its first vertex.
+ObjData polygons_to_mesh(const std::vector<double>& xyz, const std::vector<std::int32_t>& index,
+                         const std::vector<std::size_t>& start,
+                         const std::vector<std::size_t>& first_line, std::int64_t first_number) {
+  const long long nv = static_cast<long long>(xyz.size() / 3);
   // The vertices faces use, renumbered in file order (finiteness is the loader's check).
   std::vector<std::int32_t> remap(static_cast<std::size_t>(nv), -1);
   for (const std::int32_t i : index) remap[static_cast<std::size_t>(i)] = 0;
@@ -160,13 +175,122 @@ ObjData parse_obj(const char* data, std::size_t size) {
   for (std::size_t v = 0; v < remap.size(); ++v)
     if (remap[v] >= 0) {
       for (int k = 0; k < 3; ++k) out.vertices(remap[v], k) = xyz[3 * v + k];
-      out.file_number[static_cast<std::size_t>(remap[v])] = static_cast<std::int64_t>(v) + 1;
+      out.file_number[static_cast<std::size_t>(remap[v])] =
+          static_cast<std::int64_t>(v) + first_number;
     }
   out.faces.resize(static_cast<Eigen::Index>(tri.size() / 3), 3);
   for (std::size_t t = 0; t < tri.size(); ++t)
     out.faces(static_cast<Eigen::Index>(t / 3), static_cast<Eigen::Index>(t % 3)) =
         remap[static_cast<std::size_t>(tri[t])];
   return out;
+}
+
+// The next logical line of OFF text from `pos` (comments after '#' removed) split into `tok`;
+// false at the end of the text. Blank lines are skipped; `line_no` counts physical lines.
+bool next_tokens(const char* data, std::size_t size, std::size_t& pos, std::size_t& line_no,
+                 std::vector<std::string_view>& tok) {
+  while (pos < size) {
+    std::size_t eol = pos;
+    while (eol < size && data[eol] != '\n') ++eol;
+    std::string_view line(data + pos, eol - pos);
+    pos = eol + 1;
+    ++line_no;
+    if (const auto hash = line.find('#'); hash != std::string_view::npos)
+      line = line.substr(0, hash);
+    tokens(line, tok);
+    if (!tok.empty()) return true;
+  }
+  return false;
+}
+
+long long off_count(std::string_view t, std::size_t line, const char* what) {
+  long long v = 0;
+  if (!parse_int(t, v) || v < 0)
+    fail(line, std::string(what) + " count " + quote(t) + " is not a non-negative integer");
+  return v;
+}
+
+}  // namespace
+
+ObjData parse_off(const char* data, std::size_t size) {
+  std::vector<std::string_view> tok;
+  std::size_t pos = 0, line = 0;
+  if (size >= 3 && std::string_view(data, 3) == "\xEF\xBB\xBF") pos = 3;  // a UTF-8 BOM
+  if (!next_tokens(data, size, pos, line, tok)) fail(1, "empty file (no OFF header)");
+  // [ST][C][N]OFF: texture coordinates, colours, normals after a vertex's x y z (ignored)
+  const std::string_view key = tok[0];
+  const bool off = key.size() >= 3 && key.substr(key.size() - 3) == "OFF" &&
+                   key.substr(0, key.size() - 3).find_first_not_of("STCN") == std::string::npos;
+  if (!off)
+    fail(line, "the first word is " + quote(key) +
+                   ", not an OFF header (OFF, COFF, NOFF, STOFF, ...; 4OFF and nOFF are not read)");
+  std::size_t at = 1;
+  if (tok.size() > 1 && tok[1] == "BINARY") fail(line, "binary OFF is not read (text OFF only)");
+  if (tok.size() == 1) {  // the counts on their own line
+    if (!next_tokens(data, size, pos, line, tok)) fail(line, "no vertex and face counts");
+    at = 0;
+  }
+  if (tok.size() < at + 2) fail(line, "the header needs vertex and face counts (V F [E])");
+  const long long nv = off_count(tok[at], line, "vertex");
+  const long long nf = off_count(tok[at + 1], line, "face");
+  if (nv > std::numeric_limits<std::int32_t>::max()) fail(line, "more than 2^31 - 1 vertices");
+  // at least a few bytes a vertex and a face: a count the file cannot hold allocates nothing
+  if (static_cast<double>(nv) + static_cast<double>(nf) > static_cast<double>(size))
+    fail(line, "the header declares " + std::to_string(nv) + " vertices and " + std::to_string(nf) +
+                   " faces, more than the file's " + std::to_string(size) + " bytes hold");
+  std::vector<double> xyz;
+  xyz.reserve(3 * static_cast<std::size_t>(nv));
+  for (long long v = 0; v < nv; ++v) {
+    if (!next_tokens(data, size, pos, line, tok))
+      fail(line, "the file ends after " + std::to_string(v) + " of its " + std::to_string(nv) +
+                     " vertices");
+    if (tok.size() < 3) fail(line, "a vertex needs three coordinates (x y z)");
+    for (int k = 0; k < 3; ++k) {
+      double c;
+      if (!parse_double(tok[k], c))
+        fail(line, "vertex coordinate " + quote(tok[k]) + " is not a number");
+      xyz.push_back(c);
+    }
+  }
+  std::vector<std::int32_t> index;
+  std::vector<std::size_t> start, first_line;
+  for (long long f = 0; f < nf; ++f) {
+    if (!next_tokens(data, size, pos, line, tok))
+      fail(line,
+           "the file ends after " + std::to_string(f) + " of its " + std::to_string(nf) + " faces");
+    long long n = 0;
+    if (!parse_int(tok[0], n) || n < 0)
+      fail(line, "a face's vertex count " + quote(tok[0]) + " is not a non-negative integer");
+    if (static_cast<long long>(tok.size()) < n + 1)
+      fail(line, "a face of " + std::to_string(n) + " vertices lists " +
+                     std::to_string(tok.size() - 1) + " indices");
+    if (n < 3) continue;  // a point or a line: not a surface (as the OBJ reader)
+    start.push_back(index.size());
+    first_line.push_back(line);
+    for (long long k = 1; k <= n; ++k) {  // a colour may follow the indices: ignored
+      long long i = 0;
+      if (!parse_int(tok[static_cast<std::size_t>(k)], i))
+        fail(line,
+             "face vertex index " + quote(tok[static_cast<std::size_t>(k)]) + " is not an integer");
+      if (i < 0 || i >= nv)
+        fail(line, "face vertex index " + std::to_string(i) + " is out of range: the file has " +
+                       std::to_string(nv) + " vertices (OFF counts from 0)");
+      index.push_back(static_cast<std::int32_t>(i));
+    }
+  }
+  if (next_tokens(data, size, pos, line, tok))
+    fail(line, "more data after the " + std::to_string(nf) + " faces the header declares");
+  start.push_back(index.size());
+  return polygons_to_mesh(xyz, index, start, first_line, 0);
+}
+
+ObjData read_off(const std::string& path) {
+  const std::string text = read_whole_file(path, "OFF", kMaxMeshFileBytes);
+  try {
+    return parse_off(text.data(), text.size());
+  } catch (const std::invalid_argument& e) {
+    throw std::invalid_argument("cannot read OFF '" + path + "': " + e.what());
+  }
 }
 
 ObjData read_obj(const std::string& path) {

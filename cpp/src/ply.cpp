@@ -154,6 +154,17 @@ class Body {
     in_record_ = false;
   }
 
+  // After the last element: only whitespace may follow (a line end, padding). More data means
+  // the header declares fewer records than the file holds: read alone, half a cloud would load.
+  void check_end() const {
+    std::size_t i = pos_;
+    while (i < n_ && std::isspace(p_[i])) ++i;
+    if (i < n_)
+      fail(std::to_string(n_ - pos_) +
+           " bytes of data after the last record the header "
+           "declares (are its element counts right?)");
+  }
+
   // An element's records begin (ASCII messages count its records from 0).
   void start_element() {
     record_ = 0;
@@ -325,8 +336,12 @@ PlyData parse_ply(const std::uint8_t* data, std::size_t size, bool read_faces) {
     if (!triangulate_polygon(idx.data(), n, out.vertices.data(), tri))
       fail("face " + std::to_string(face) + ": " + polygon_too_large(n));
   };
+  bool read_all = true;  // every element's records read (not stopped after the vertices)
   for (const auto& el : elements) {
-    if (!read_faces && have_vertices) break;
+    if (!read_faces && have_vertices) {
+      read_all = false;
+      break;
+    }
     if (el.props.empty() || el.count == 0) {
       if (el.name == "vertex") {
         for (const char* a : {"x", "y", "z"})
@@ -411,6 +426,7 @@ PlyData parse_ply(const std::uint8_t* data, std::size_t size, bool read_faces) {
       body.end_record(r, where);
     }
   }
+  if (read_all) body.check_end();
   if (!tri.empty()) {
     if (!have_vertices) fail("the PLY file has faces but no vertex element");
     std::vector<std::int32_t> cut, idx;

@@ -110,3 +110,42 @@ TEST(Obj, BadFilesNameTheLine) {
 }
 
 }  // namespace
+
+namespace {
+nbv::ObjData parse_off(const std::string& s) { return nbv::parse_off(s.data(), s.size()); }
+}  // namespace
+
+TEST(Off, ReadsPolygonsCommentsColoursAndVariants) {
+  // a unit square as a quad (0-based indices), a face colour, comments, blank lines, a triangle
+  // with a point face beside it (ignored); then the same as COFF with vertex colours
+  const std::string off =
+      "OFF\n# a comment\n5 3 0\n0 0 0\n1 0 0\n1 1 0\n0 1 0\n\n0 0 7.25\n"
+      "4 0 1 2 3 255 0 0\n1 4\n3 0 1 4  # the last face\n";
+  const auto d = parse_off(off);
+  EXPECT_EQ(d.faces.rows(), 2 + 1);
+  EXPECT_NEAR(area_of(d), 1.0 + 0.5 * 7.25, 1e-12);
+  EXPECT_EQ(d.file_number.front(), 0);  // OFF counts vertices from 0
+  const auto c = parse_off("COFF 3 1 0\n0 0 0 1 1 1 1\n2 0 0 1 1 1 1\n0 2 0 1 1 1 1\n3 0 1 2\n");
+  EXPECT_NEAR(area_of(c), 2.0, 1e-12);
+}
+
+TEST(Off, BadFilesThrowNamingTheLine) {
+  const auto err = [](const std::string& s) { return error_of(parse_off, s); };
+  const std::string head = "OFF\n3 1 0\n0 0 0\n1 0 1\n0 1 1\n";
+  EXPECT_EQ(err(head + "3 0 1 2\n"), "");
+  // assimp's OFF reader clamped an index past the last vertex, and read -7 as 0
+  EXPECT_NE(err(head + "3 0 1 9\n").find("line 6: face vertex index 9 is out of range"),
+            std::string::npos);
+  EXPECT_NE(err(head + "3 0 1 -7\n").find("index -7 is out of range"), std::string::npos);
+  EXPECT_NE(err(head + "3 0 1\n").find("a face of 3 vertices lists 2 indices"), std::string::npos);
+  EXPECT_NE(err(head).find("ends after 0 of its 1 faces"), std::string::npos);
+  EXPECT_NE(err(head + "3 0 1 2\n3 0 1 2\n").find("more data after the 1 faces"),
+            std::string::npos);
+  EXPECT_NE(err("OFF\n3 1\n0 0 0\n1 0 x\n0 1 1\n3 0 1 2\n").find("line 4: vertex coordinate 'x'"),
+            std::string::npos);
+  EXPECT_NE(err("PLY\n3 1 0\n").find("not an OFF header"), std::string::npos);
+  EXPECT_NE(err("4OFF\n3 1 0\n").find("not an OFF header"), std::string::npos);
+  EXPECT_NE(err("OFF BINARY\n").find("binary OFF"), std::string::npos);
+  EXPECT_NE(err("OFF\n99999999 1 0\n").find("more than the file's"), std::string::npos);
+  EXPECT_NE(err("").find("no OFF header"), std::string::npos);
+}

@@ -137,6 +137,22 @@ TEST(Ply, TruncatedDataThrows) {
   EXPECT_NE(error_of(parse_mesh, a.substr(0, a.size() - 8)).find("truncated"), std::string::npos);
 }
 
+TEST(Ply, DataAfterTheDeclaredRecordsThrows) {
+  // a header whose counts declare fewer records than the file holds would load part of it
+  for (const bool big : {false, true}) {
+    std::string b = binary_square(big);
+    EXPECT_EQ(error_of(parse_mesh, b + "\n"), "");  // a line end after the data: padding
+    b.replace(b.find("element face 2"), 14, "element face 1");
+    EXPECT_NE(error_of(parse_mesh, b).find("bytes of data after the last record"),
+              std::string::npos);
+  }
+  std::string a = ascii_square();
+  a.replace(a.find("element face 2"), 14, "element face 1");
+  EXPECT_NE(error_of(parse_mesh, a).find("after the last record"), std::string::npos);
+  // a cloud read stops after its vertices: what follows them is not read, nor checked
+  EXPECT_EQ(parse(a, /*faces=*/false).vertices.rows(), 4);
+}
+
 TEST(Ply, TruncatedHeaderThrowsAndDoesNotLoop) {
   const std::string b = binary_square(false);
   for (std::size_t n = 0; n < b.find("end_header") + 10; ++n)

@@ -149,6 +149,8 @@ class AccessLock {
 /// Number of worker threads used by the core's parallel loops (0 = all hardware threads).
 /// Process-wide; safe to call while other threads run parallel loops: those finish on the
 /// threads they started with, and every later loop uses the new count.
+/// The most threads set_num_threads accepts (TBB's arena fails far above it).
+constexpr int kMaxThreads = 4096;
 void set_num_threads(int n);
 int get_num_threads();
 

@@ -1,4 +1,4 @@
-// nbvkit's own Wavefront OBJ geometry reader, in double precision.
+// nbvkit's own Wavefront OBJ (and OFF, parse_off) geometry readers, in double precision.
 //
 // assimp (Debian's build) keeps coordinates in float32: a georeferenced vertex at 5,000,000.3 m
 // came out 5,000,000.5 m before mesh.shift could bring it near the origin. This reader keeps the
@@ -33,6 +33,17 @@ struct ObjData {
 
 /// Parses OBJ text held in memory.
 ObjData parse_obj(const char* data, std::size_t size);
+
+/// Parses OFF text held in memory (the Geomview/Princeton format: an `OFF` header, optionally
+/// `C`/`N`/`ST`-prefixed, whose per-vertex extras are ignored; `V F [E]` counts; V vertex lines
+/// `x y z ...`; F face lines `n i0 .. i(n-1) [colour]`, indices from 0). Polygons are
+/// triangulated as OBJ's; faces of fewer than three vertices are ignored. Every index out of
+/// range, a count the file does not hold, and data after the last face throw naming the line.
+/// file_number holds each vertex's 0-based OFF index.
+ObjData parse_off(const char* data, std::size_t size);
+
+/// read_obj for OFF files ("cannot read OFF 'path': reason").
+ObjData read_off(const std::string& path);
 
 /// Reads (read_whole_file: a regular file of at most kMaxMeshFileBytes) and parses an OBJ file;
 /// FileNotFound for a missing path, std::invalid_argument ("cannot read OBJ 'path': reason") for
