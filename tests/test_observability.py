@@ -175,6 +175,11 @@ def test_the_evaluator_counts_coverage_relative_to_the_observable_samples():
     assert ev(gt[:2])["coverage_observable"]["0.1"] == 1.0
     with pytest.raises(ValueError, match="shape"):
         ev.set_observable([True])
+    for bad in ([0.5, 1, 0, 0], [np.nan, 1, 0, 0], ["yes", "", "", ""]):
+        with pytest.raises(ValueError, match="must be bool"):
+            ev.set_observable(bad)
+    ev.set_observable([1, 1, 0, 0])  # 0/1 is bool's meaning
+    assert ev(gt[:2])["coverage_observable"]["0.1"] == 1.0
     ev.set_observable(None)
     assert "coverage_observable" not in ev(gt)
 

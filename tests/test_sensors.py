@@ -186,7 +186,15 @@ def test_bad_input_is_rejected():
         nbvkit.DepthCamera("not a mesh")
     with pytest.raises(ValueError, match="rigid|NaN"):
         nbvkit.DepthCamera(mesh, mount=np.full((4, 4), np.nan))
+    camera = nbvkit.DepthCamera(mesh)
+    for pose in (np.array([0, -12, 3, np.pi / 2 + 1j]), [0, -12j, 3, 0]):  # not dropped: refused
+        with pytest.raises(ValueError, match="must be real numbers, got complex"):
+            camera.scan_pose(pose)
+    with pytest.raises(ValueError, match="must be real numbers, got complex"):
+        camera.scan(np.eye(4, dtype=complex))
     scene = nbvkit.RaycastScene(mesh)
+    with pytest.raises(ValueError, match="must be real numbers, got complex"):
+        scene.intersect(np.zeros((1, 3), complex), [[1, 0, 0]])
     with pytest.raises(ValueError, match="origins"):
         scene.intersect(np.zeros((2, 3)), np.ones((3, 3)))
     with pytest.raises(ValueError, match="NaN"):

@@ -5,15 +5,40 @@
 
 namespace nbv::bind {
 
+namespace {
+
+using DoubleArray = py::array_t<double, py::array::c_style | py::array::forcecast>;
+
+// `obj` as a C-contiguous float64 array; an empty one (false) if it cannot be read as real
+// numbers. Complex input raises ValueError naming `what`: numpy's cast would drop the imaginary
+// parts with a warning and go on with the real ones.
+DoubleArray double_array(const py::handle& obj, const std::string& what) {
+  py::array given;
+  try {
+    given = py::array::ensure(obj);
+  } catch (const py::error_already_set&) {
+    return {};
+  }
+  if (!given) {
+    PyErr_Clear();
+    return {};
+  }
+  if (given.dtype().kind() == 'c')
+    throw py::value_error(what + " must be real numbers, got complex (dtype " +
+                          std::string(py::str(given.dtype())) + ")");
+  try {
+    return DoubleArray::ensure(given);
+  } catch (const py::error_already_set&) {
+    return {};
+  }
+}
+
+}  // namespace
+
 PointsArg points_arg(const py::handle& obj, const char* what, bool allow_nonfinite) {
   if (obj.is_none())
     throw py::value_error(std::string(what) + " must be an (N, 3) array, got None");
-  py::array_t<double, py::array::c_style | py::array::forcecast> a;
-  try {
-    a = py::array_t<double, py::array::c_style | py::array::forcecast>::ensure(obj);
-  } catch (const py::error_already_set&) {
-    a = {};
-  }
+  DoubleArray a = double_array(obj, what);
   if (!a) throw py::value_error(std::string(what) + " must be an (N, 3) array of numbers");
   if (a.ndim() == 1 && a.shape(0) == 0) {  // an empty list: zero points
     a = py::array_t<double, py::array::c_style | py::array::forcecast>(
@@ -30,7 +55,7 @@ PointsArg points_arg(const py::handle& obj, const char* what, bool allow_nonfini
 }
 
 Eigen::Isometry3d transform_arg(const py::handle& obj, const char* what) {
-  auto a = py::array_t<double, py::array::c_style | py::array::forcecast>::ensure(obj);
+  DoubleArray a = double_array(obj, what);
   if (!a || a.ndim() != 2 || a.shape(0) != 4 || a.shape(1) != 4)
     throw py::value_error(std::string(what) + " must be a 4x4 homogeneous transform");
   Eigen::Matrix4d M = Eigen::Map<const Eigen::Matrix<double, 4, 4, Eigen::RowMajor>>(a.data());
@@ -38,12 +63,7 @@ Eigen::Isometry3d transform_arg(const py::handle& obj, const char* what) {
 }
 
 Pose pose_arg(const py::handle& obj, const char* what) {
-  py::array_t<double, py::array::c_style | py::array::forcecast> a;
-  try {
-    a = py::array_t<double, py::array::c_style | py::array::forcecast>::ensure(obj);
-  } catch (const py::error_already_set&) {
-    a = {};
-  }
+  DoubleArray a = double_array(obj, what);
   if (!a || a.ndim() != 1 || (a.shape(0) != 4 && a.shape(0) != 5))
     throw py::value_error(std::string(what) +
                           " must be 4 numbers (x, y, z, yaw) or 5 (x, y, z, yaw, pitch)");
@@ -58,12 +78,7 @@ Pose pose_arg(const py::handle& obj, const char* what) {
 }
 
 ViewPosesArg view_poses_arg(const py::handle& obj, const char* what) {
-  py::array_t<double, py::array::c_style | py::array::forcecast> a;
-  try {
-    a = py::array_t<double, py::array::c_style | py::array::forcecast>::ensure(obj);
-  } catch (const py::error_already_set&) {
-    a = {};
-  }
+  DoubleArray a = double_array(obj, what);
   if (!a || a.ndim() != 2 || (a.shape(1) != 4 && a.shape(1) != 5))
     throw py::value_error(std::string(what) +
                           " must have shape (K, 4): rows x, y, z, yaw, or (K, 5): rows x, y, z, "
@@ -96,12 +111,7 @@ void check_clouds(const std::vector<const SurfaceCloud*>& clouds) {
 }
 
 Eigen::Vector3d vec3_arg(const py::handle& obj, const char* what) {
-  py::array_t<double, py::array::c_style | py::array::forcecast> a;
-  try {
-    a = py::array_t<double, py::array::c_style | py::array::forcecast>::ensure(obj);
-  } catch (const py::error_already_set&) {
-    a = {};
-  }
+  DoubleArray a = double_array(obj, what);
   if (!a || a.size() != 3 || (a.ndim() != 1 && !(a.ndim() == 2 && a.shape(0) == 1)))
     throw py::value_error(std::string(what) + " must be 3 numbers (x, y, z)");
   Eigen::Vector3d v(a.data()[0], a.data()[1], a.data()[2]);

@@ -222,6 +222,10 @@ class Evaluator:
             raise ValueError(
                 f"observable mask must have shape ({self.num_gt_points},), got {mask.shape}"
             )
+        if mask.dtype != bool and not (
+            mask.dtype.kind in "iuf" and np.isin(mask, (0, 1)).all()
+        ):  # 0.5 or NaN is no answer to "observable?": refused, not rounded
+            raise ValueError(f"observable mask must be bool (or 0/1), got dtype {mask.dtype}")
         self._core.set_observable(mask.astype(bool))
 
     @property
