@@ -9,6 +9,7 @@ from pathlib import Path
 
 import numpy as np
 
+from ..output_paths import check_not_input
 from ..paths import check_output_file, require_complete_run
 from ..cloud import read_points
 from ..mesh import default_mesh_path, file_up_axis
@@ -150,6 +151,8 @@ def run(args) -> int:
         check_output_file(args.json, "--json")
     cloud_path = run_cloud(Path(os.fspath(args.cloud)).expanduser())
     _settings_of_run(args, cloud_path.parent)
+    if args.json:
+        _check_json_not_input(args, cloud_path)
     if not args.gt_density > 0:
         raise ValueError(f"--gt-density must be > 0, got {args.gt_density}")
     cloud, cloud_kind = read_reconstruction(cloud_path, args.gt_density, args.seed)
@@ -205,6 +208,17 @@ def run(args) -> int:
         Path(args.json).expanduser().write_text(text + "\n")
         print(f"results -> {args.json}")
     return 0
+
+
+def _check_json_not_input(args, cloud_path: Path) -> None:
+    """ValueError when --json would overwrite an input (output_paths.check_not_input)."""
+    inputs = [
+        ("the reconstruction", cloud_path),
+        ("the mesh", args.mesh or (None if args.reference_cloud else default_mesh_path())),
+        ("the reference cloud", args.reference_cloud),
+        ("the configuration", args.config),
+    ]
+    check_not_input(args.json, inputs, "--json")
 
 
 def _settings_of_run(args, folder: Path) -> None:

@@ -9,6 +9,8 @@ import numpy as np
 
 from .._core import MAX_COORDINATE, DepthCamera, LaserScanner, RaycastScene
 from ..cloud import write_points
+from ..mesh import default_mesh_path
+from ..output_paths import check_not_input
 from ..paths import check_output_file
 from .common import add_mesh_options, mesh_from_args
 
@@ -70,6 +72,7 @@ def run(args) -> int:
     if Path(args.out).suffix.lower() not in (".ply", ".pcd", ".npy"):
         raise ValueError(f"--out {args.out}: unknown extension (use .ply, .pcd or .npy)")
     check_output_file(args.out, "--out")
+    check_not_input(args.out, [("the mesh", args.mesh or default_mesh_path())], "--out")
     scene = RaycastScene(mesh_from_args(args))
     if args.sensor == "camera":
         sensor = DepthCamera(scene, noise_k=args.noise, seed=args.seed)
