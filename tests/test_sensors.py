@@ -192,6 +192,11 @@ def test_bad_input_is_rejected():
             camera.scan_pose(pose)
     with pytest.raises(ValueError, match="must be real numbers, got complex"):
         camera.scan(np.eye(4, dtype=complex))
+    far = nbvkit.load_mesh(nbvkit.default_mesh_path(), shift=(1e300, 0, 0))
+    with pytest.raises(
+        ValueError, match=r"mesh vertices reach 1e\+300 m, beyond"
+    ):  # not 301 digits
+        nbvkit.RaycastScene(far)
     scene = nbvkit.RaycastScene(mesh)
     with pytest.raises(ValueError, match="must be real numbers, got complex"):
         scene.intersect(np.zeros((1, 3), complex), [[1, 0, 0]])

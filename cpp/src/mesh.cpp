@@ -507,8 +507,7 @@ void check_collada(const std::string& path) {
 
 Mesh load_mesh(const std::string& path, double scale, char up) {
   if (!std::isfinite(scale) || scale <= 0)
-    throw std::invalid_argument("mesh scale must be a positive finite number, got " +
-                                std::to_string(scale));
+    throw std::invalid_argument("mesh scale must be a positive finite number, got " + fmt(scale));
   if (up != 'z' && up != 'y' && up != 'Z' && up != 'Y')
     throw std::invalid_argument(std::string("mesh up axis must be 'y' or 'z', got '") + up + "'");
   namespace fs = std::filesystem;

@@ -51,8 +51,7 @@ void check_integrate_args(const Eigen::Vector3d& origin, const PointsRef& hits,
   require_coordinates(hits, "hit points");
   require_coordinates(free_ends, "free-space ray ends");
   if (std::isnan(max_range) || !(max_range > 0))
-    throw std::invalid_argument("max_range must be > 0 (inf = no limit), got " +
-                                std::to_string(max_range));
+    throw std::invalid_argument("max_range must be > 0 (inf = no limit), got " + fmt(max_range));
 }
 
 std::string lower_extension(const std::string& path) {
@@ -131,17 +130,15 @@ void OccupancyMap::init_geometry(const Eigen::Vector3d& bmin, const Eigen::Vecto
     const double lo = bmin[a] / res_, hi = bmax[a] / res_;
     if (std::fabs(lo) > 2.0 * kTreeMaxVal || std::fabs(hi) > 2.0 * kTreeMaxVal)
       throw std::invalid_argument("workspace bounds " + fmt_vec(bmin) + " - " + fmt_vec(bmax) +
-                                  " exceed OctoMap's addressable range +-" +
-                                  std::to_string(range_m) + " m at resolution " +
-                                  std::to_string(res_));
+                                  " exceed OctoMap's addressable range +-" + fmt(range_m) +
+                                  " m at resolution " + fmt(res_));
     kmin[a] = std::int64_t(std::floor(lo + kSnap));
     kmax[a] = std::int64_t(std::ceil(hi - kSnap));
     if (kmax[a] <= kmin[a]) kmax[a] = kmin[a] + 1;  // a box thinner than a cell: its one cell
     if (kmin[a] + kTreeMaxVal < 0 || kmax[a] + kTreeMaxVal > 2 * kTreeMaxVal)
       throw std::invalid_argument("workspace bounds " + fmt_vec(bmin) + " - " + fmt_vec(bmax) +
-                                  " exceed OctoMap's addressable range +-" +
-                                  std::to_string(range_m) + " m at resolution " +
-                                  std::to_string(res_));
+                                  " exceed OctoMap's addressable range +-" + fmt(range_m) +
+                                  " m at resolution " + fmt(res_));
   }
   const std::int64_t nx = kmax[0] - kmin[0], ny = kmax[1] - kmin[1], nz = kmax[2] - kmin[2];
   const double cells = double(nx) * double(ny) * double(nz);

@@ -28,8 +28,7 @@ void check(RTCDevice device, const char* what) {
 RaycastScene::RaycastScene(const Mesh& mesh, const RaycastOptions& options) : mesh_(mesh) {
   mesh_.validate();
   if (mesh_.vertices.cwiseAbs().maxCoeff() > kMaxCoordinate)
-    throw std::invalid_argument("mesh vertices reach " +
-                                std::to_string(mesh_.vertices.cwiseAbs().maxCoeff()) +
+    throw std::invalid_argument("mesh vertices reach " + fmt(mesh_.vertices.cwiseAbs().maxCoeff()) +
                                 " m, beyond the +-1e9 m the ray caster can represent");
   device_ = rtcNewDevice(nullptr);
   if (!device_) throw std::runtime_error("Embree: cannot create a device");
