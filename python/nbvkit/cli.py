@@ -5,7 +5,7 @@ import argparse
 import importlib
 import sys
 
-from .plugins import load_plugins
+from .plugins import PluginLoadError, load_plugins
 
 # name -> module in nbvkit.commands; each module defines register(subparsers) and run(args).
 #: The commands that fly missions or read a run's configuration: they take --plugin FILE (your
@@ -57,10 +57,15 @@ def _plugin_files(argv) -> list:
 
 def main(argv: list[str] | None = None) -> int:
     argv = sys.argv[1:] if argv is None else list(argv)
-    try:
-        load_plugins(_plugin_files(argv))
-    except (FileNotFoundError, ValueError, OSError) as e:
-        print(f"nbvkit: error: {e}", file=sys.stderr)
+    first = next((a for a in argv if not a.startswith("-")), None)
+    prog = f"nbvkit {first}" if first in COMMANDS else "nbvkit"
+    try:  # a plugin file's own errors (and its exit) are PluginLoadError, naming it
+        load_plugins(_plugin_files(argv), wrap=True)
+    except KeyboardInterrupt:
+        print(f"{prog}: interrupted", file=sys.stderr)
+        return 130
+    except (FileNotFoundError, ValueError, OSError, PluginLoadError) as e:
+        print(f"{prog}: error: {e}", file=sys.stderr)
         return 2
     parser = build_parser()
     args = parser.parse_args(argv)

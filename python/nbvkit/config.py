@@ -136,6 +136,11 @@ class Config:
         """What spans several sections, and what a mission derives from the configuration alone
         (sensor options, the view camera), checked before any work."""
         _check_start_pose(self)
+        if self.mesh.path is not None and not self.mesh.path.strip():
+            raise ValueError(
+                f"config key 'mesh.path' is empty ({self.mesh.path!r}): give a mesh file's path, "
+                "or null (leave it out) for the shipped airliner"
+            )
         if not self.planner.generators and not self.profiling.enabled:
             from .planning.registry import GENERATORS
 
@@ -190,8 +195,9 @@ class Config:
             raise TypeError("overrides must be a list of 'key=value' strings")
         items = overrides.items() if isinstance(overrides, dict) else [_split(o) for o in overrides]
         data = _deep_copy(self._user)
-        for key, value in items:
-            key = _renamed_key(key)
+        for given, value in items:
+            key = _renamed_key(given)
+            _check_renamed_section(given, key, value)
             _check_dotted(key)
             _put_dotted(data, key, value)
         return Config.from_dict(data)
@@ -265,10 +271,24 @@ def _renamed(data: dict) -> dict:
         for p in path:
             node = node[p]
         value = node.pop(last)
+        _check_renamed_section(old, new, value)
         if path and not node:
             _pop_empty(out, path)
         _put_dotted(out, new, value)
     return out
+
+
+def _check_renamed_section(given: str, key: str, value) -> None:
+    """ValueError naming the key the user wrote (`given`, a renamed section's old name, now
+    `key`) when its value is neither a mapping of the section's keys nor null."""
+    if given == key or "." in key or value is None or isinstance(value, dict):
+        return
+    hint = typing.get_type_hints(Config).get(key)
+    if key in part_settings() or is_dataclass(hint):
+        raise ValueError(
+            f"config section {given!r} (now {key!r}) must be a mapping of its keys, "
+            f"got {shorten(value)}"
+        )
 
 
 def _pop_empty(data: dict, path: list) -> None:
@@ -293,10 +313,16 @@ def _build_config(data: dict) -> Config:
                 "part is known once its plugin is loaded: --plugin FILE, nbvkit.load_plugin)"
             )
     kwargs = {k: coerce(hints[k], v, k) for k, v in data.items() if k in static}
-    sections = {k: build(cls, data.get(k) or {}, k + ".") for k, cls in parts.items()}
+    sections = {k: build(cls, _or_empty(data.get(k)), k + ".") for k, cls in parts.items()}
     obj = Config(**kwargs, _parts=sections, _user=_deep_copy(data))
     validate(obj, "")
     return obj
+
+
+def _or_empty(value):
+    """A section's value: {} for null (every key its default); anything else as given (a
+    non-mapping, even 0 or [], is refused by settings.build, naming the section)."""
+    return {} if value is None else value
 
 
 def _split(item: str) -> tuple[str, Any]:

@@ -79,6 +79,32 @@ class RunSpec:
         return load_config(self.config_file, over)
 
 
+#: The config keys RunSpec.config sets on every run itself (an override of one would be replaced,
+#: the run labelled with the spec's value), and what gives them instead, by experiment. (It sets
+#: progress=false too: a progress setting changes no result, and is allowed.)
+SPEC_KEYS = ("scenario", "start")
+_SPEC_KEYS_BY = {
+    "sweep": "the sweep file's 'scenarios:' and 'starts:' lists",
+    "compare": "--planners (each a scenario) and --starts",
+    "table": "--starts (Table 2 flies the Profile row and Scenarios 1-5 itself)",
+}
+
+
+def refuse_spec_keys(keys, by: str, experiment: str) -> None:
+    """ValueError when one of the config `keys` (as given: dotted, or a whole override
+    "key=value") is one RunSpec.config sets on every run itself (SPEC_KEYS): `by` names where
+    it was given ("sweep 'grid'", "--set"), `experiment` ("sweep", "compare", "table") what
+    gives it instead."""
+    for k in keys:
+        key = str(k).split("=", 1)[0].strip()
+        if key in SPEC_KEYS:
+            raise ValueError(
+                f"{by} sets {key!r}, which each run of the {experiment} sets itself (the "
+                f"value given there would not be the one flown): give it with "
+                f"{_SPEC_KEYS_BY[experiment]}"
+            )
+
+
 def mesh_overrides_once(
     overrides,
     mesh=None,
@@ -198,6 +224,7 @@ def _spec_dict(spec: RunSpec) -> dict:
 def table2_specs(mesh=None, mesh_scale=None, mesh_up=None, starts=5, overrides=()) -> list[RunSpec]:
     """The Profile row and Scenarios 1-5, each from `starts` predefined starts (mesh, mesh_scale,
     mesh_up: None for the configuration's, see RunSpec)."""
+    refuse_spec_keys(overrides, "--set", "table")
     return [
         RunSpec(sc, k, mesh, mesh_scale, mesh_up, tuple(overrides))
         for sc in ("profile", "1", "2", "3", "4", "5")
@@ -405,6 +432,7 @@ def _sweep_grid(sweep: dict) -> tuple[dict, list]:
     grid = sweep.get("grid") or {}
     if not isinstance(grid, dict) or not all(isinstance(v, list) for v in grid.values()):
         raise ValueError("sweep 'grid' must map config keys to lists of values")
+    refuse_spec_keys(grid, "sweep 'grid'", "sweep")
     for k, values in grid.items():
         _refuse_empty(f"sweep grid {k!r}", values)
         _refuse_duplicates(f"sweep grid {k!r}", values)
@@ -414,6 +442,7 @@ def _sweep_grid(sweep: dict) -> tuple[dict, list]:
             f"sweep 'set' must map config keys to values (e.g. {{max_iterations: 200}}), "
             f"got {shorten(fixed_set)}"
         )
+    refuse_spec_keys(fixed_set, "sweep 'set'", "sweep")
     return grid, [f"{k}={json.dumps(v)}" for k, v in fixed_set.items()]
 
 
@@ -436,6 +465,7 @@ def compare_specs(planners, mesh=None, mesh_scale=None, mesh_up=None, starts=5, 
     # as a sweep's lists: the runs of different planners differ by their scenario in the run
     # id, so this also keeps two specs from flying the same run (_check_distinct_runs)
     _refuse_duplicates("--planners", list(planners))
+    refuse_spec_keys(overrides, "--set", "compare")
     over = ("evaluation.coverage_every=5", *overrides)
     return [
         RunSpec(p, k, mesh, mesh_scale, mesh_up, tuple(over))

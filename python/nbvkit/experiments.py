@@ -17,6 +17,7 @@ from __future__ import annotations
 import contextlib
 import hashlib
 import json
+import operator
 import os
 import shutil
 import time
@@ -269,6 +270,19 @@ def terminate_as_interrupt():
         signal.signal(signal.SIGTERM, previous)
 
 
+def _worker_count(workers) -> int:
+    """run_specs' `workers` as an int; ValueError unless it is a count >= 0."""
+    try:
+        n = None if isinstance(workers, bool) else operator.index(workers)
+    except TypeError:
+        n = None
+    if n is None or n < 0:
+        raise ValueError(
+            f"workers must be a count >= 0 (0: one per core, 1: in this process), got {workers!r}"
+        )
+    return n
+
+
 def run_specs(
     specs: list[RunSpec],
     root: str | os.PathLike,
@@ -281,6 +295,7 @@ def run_specs(
     workers: local processes (0: one per core, 1: in this process); scheduler: the address of a
     Dask distributed scheduler ("tcp://host:8786") to run on that cluster instead.
     """
+    workers = _worker_count(workers)
     root = Path(root)
     if scheduler or not (workers == 1 or len(specs) <= 1):
         refuse_script_parts(specs)

@@ -12,7 +12,7 @@ import threading
 import traceback
 from pathlib import Path
 
-from .limits import check_input_file
+from .limits import check_input_file, shorten
 from .scenarios import BUILT_IN as BUILT_IN_SCENARIOS
 from .scenarios import SCENARIOS as _SCENARIOS
 
@@ -28,7 +28,38 @@ GUESSED: set[str] = set()
 _LOCK = threading.RLock()
 
 
-def load_plugin(path, sha256: str | None = None) -> None:
+class PluginLoadError(RuntimeError):
+    """A plugin file's own code failed as it was loaded, or exited (SystemExit): "plugin file
+    PATH failed to load: TYPE: message (line N)". `path`: the file; the error is its
+    __cause__."""
+
+    def __init__(self, path, error: BaseException):
+        self.path = str(path)
+        super().__init__(f"plugin file {path} failed to load: {_load_problem(path, error)}")
+
+
+def _load_problem(path, e: BaseException) -> str:
+    """The "TYPE: message (line N)" of the error `e` a plugin file's code raised as it loaded:
+    the line is the file's innermost frame in the traceback (or the SyntaxError's own place,
+    its file named when it is another: a module the plugin imported)."""
+    key = str(path)
+    if isinstance(e, SyntaxError):
+        text, filename, line = e.msg, e.filename, e.lineno
+    else:
+        text, filename, line = str(e), None, None
+        for f in traceback.extract_tb(e.__traceback__):
+            if f.filename == key:
+                filename, line = f.filename, f.lineno
+    text = text if len(text) <= 300 else text[:300] + "..."  # a hostile message may be huge
+    what = type(e).__name__ + (f": {text}" if text else "")
+    if isinstance(e, SystemExit):
+        what = f"SystemExit({shorten(e.code)})"
+    if line is not None:
+        what += f" (line {line})" if filename == key else f" ({filename}, line {line})"
+    return what + (": a plugin file must not exit" if isinstance(e, SystemExit) else "")
+
+
+def load_plugin(path, sha256: str | None = None, wrap: bool = False) -> None:
     """Imports the Python file `path` (FileNotFoundError if missing; its own errors propagate,
     with the file named in the traceback, and what it registered before it failed is as it was:
     the file fixed loads again under the same names). A file loaded before is not run again
@@ -39,7 +70,10 @@ def load_plugin(path, sha256: str | None = None) -> None:
     the module of its own name when that is free (_module_name): ``import my_parts`` after it is
     the same module. A load that fails forgets the modules of yours it imported (_roll_back).
     `sha256`: the content expected (a sweep's worker, the parent's): a ValueError if it differs.
-    The content run is the content hashed (read once; no cached bytecode)."""
+    The content run is the content hashed (read once; no cached bytecode). A file that exits
+    as it loads (SystemExit) is a PluginLoadError naming it, never an exit of this process; with
+    `wrap`, so is every error its code raises (the command line's message; KeyboardInterrupt
+    stays an interrupt)."""
     with _LOCK:  # a Dask worker's threads may load at once
         p = check_input_file(path, "plugin file").resolve()
         key = str(p)
@@ -50,11 +84,12 @@ def load_plugin(path, sha256: str | None = None) -> None:
         if sha256 is not None and digest != sha256:
             raise ValueError(_changed(p, sha256, digest, "the runs were started with"))
         if key not in LOADED or DIGESTS[key] != digest:
-            _run_file(p, source, digest)
+            _run_file(p, source, digest, wrap)
 
 
-def _run_file(p: Path, source: bytes, digest: str) -> None:
-    """load_plugin's import of `p` (`source`, its content, of SHA-256 `digest`)."""
+def _run_file(p: Path, source: bytes, digest: str, wrap: bool = False) -> None:
+    """load_plugin's import of `p` (`source`, its content, of SHA-256 `digest`; `wrap`: see
+    load_plugin)."""
     key = str(p)
     again = key in LOADED
     if str(p.parent) not in sys.path:
@@ -82,7 +117,7 @@ def _run_file(p: Path, source: bytes, digest: str) -> None:
             t.pop(n, None)
     try:
         exec(compile(source, key, "exec", dont_inherit=True), module.__dict__)
-    except BaseException:
+    except BaseException as e:
         _roll_back(modules, name)
         for table, was in zip(tables, objects):  # what it registered or replaced before it failed
             table.clear()
@@ -90,7 +125,11 @@ def _run_file(p: Path, source: bytes, digest: str) -> None:
         for now, was in zip((LOADED, DIGESTS, REGISTERED, GUESSED), state):
             now.clear()  # a plugin file it loaded is unloaded with it
             (now.extend if isinstance(now, list) else now.update)(was)
-        raise
+        if isinstance(e, PluginLoadError) or not (
+            isinstance(e, SystemExit) or (wrap and isinstance(e, Exception))
+        ):
+            raise
+        raise PluginLoadError(p, e) from e
     if key in GUESSED:  # what an imported module only held, it did not register: kept
         for t, was in zip(tables, objects):
             for n in mine:
@@ -292,11 +331,11 @@ def _plugin_frames(e: BaseException) -> list:
     return out
 
 
-def load_plugins(files) -> None:
+def load_plugins(files, wrap: bool = False) -> None:
     """Loads each of `files`: paths, or loaded_files() entries ({"path", "sha256"}: the content
-    expected, as the process that started the runs loaded it)."""
+    expected, as the process that started the runs loaded it); `wrap`: see load_plugin."""
     for f in files or ():
         if isinstance(f, dict):
-            load_plugin(f["path"], f["sha256"])
+            load_plugin(f["path"], f["sha256"], wrap)
         else:
-            load_plugin(f)
+            load_plugin(f, wrap=wrap)

@@ -165,7 +165,10 @@ def build(cls, data, prefix: str):
     value coerced to its field's type and checked; KeyError names an unknown key with its full
     dotted name, ValueError a bad value."""
     if not isinstance(data, dict):
-        raise ValueError(f"config section {prefix.rstrip('.') or '<root>'} must be a mapping")
+        raise ValueError(
+            f"config section {prefix.rstrip('.') or '<root>'} must be a mapping of its keys, "
+            f"got {shorten(data)}"
+        )
     hints = typing.get_type_hints(cls)
     known = {f.name for f in fields(cls) if not f.name.startswith("_")}
     for k in data:

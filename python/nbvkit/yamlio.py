@@ -1,5 +1,6 @@
 """YAML as nbvkit reads it: numbers such as 1e-4 read as numbers (YAML 1.2), a document's size
-bounded through its aliases (a "billion laughs" is refused), errors naming the file and line."""
+bounded through its aliases (a "billion laughs" is refused), a key given twice in one mapping
+refused (PyYAML keeps the last silently), errors naming the file and line."""
 from __future__ import annotations
 
 import re
@@ -43,9 +44,45 @@ def _expanded_nodes(node, limit: int, memo: dict) -> int:
     return n
 
 
+_MERGE = "tag:yaml.org,2002:merge"
+
+
+def _duplicate_key(loader: YamlLoader, root, source: str) -> str | None:
+    """The message ("source:LINE: duplicate key ...") of a mapping of the composed document
+    `root` that gives a key twice (keys compared as constructed: 'a' and "a" are one), or None.
+    Merge keys' entries (``<<: *base``) are not compared: the mapping's own keys override them."""
+    seen_nodes, stack = set(), [root]
+    while stack:
+        node = stack.pop()
+        if id(node) in seen_nodes:
+            continue
+        seen_nodes.add(id(node))
+        if isinstance(node, yaml.SequenceNode):
+            stack.extend(node.value)
+        elif isinstance(node, yaml.MappingNode):
+            first: dict = {}
+            for key_node, value_node in node.value:
+                stack.extend((key_node, value_node))
+                if not isinstance(key_node, yaml.ScalarNode) or key_node.tag == _MERGE:
+                    continue
+                key = loader.construct_object(key_node)
+                try:
+                    was = first.setdefault(key, key_node)
+                except TypeError:  # an unhashable key: the constructor names it
+                    continue
+                if was is not key_node:
+                    return (
+                        f"{source}:{key_node.start_mark.line + 1}: duplicate key "
+                        f"{shorten(key)} (first given on line {was.start_mark.line + 1}); "
+                        "give each key once"
+                    )
+    return None
+
+
 def parse_yaml(text: str, source: str = "<string>"):
-    """YAML text parsed with YamlLoader; ValueError "source:line: problem" on a syntax error, and
-    for a document whose aliases expand to more than MAX_YAML_NODES nodes (a "billion laughs")."""
+    """YAML text parsed with YamlLoader; ValueError "source:line: problem" on a syntax error, a key
+    given twice in one mapping (at any depth), and for a document whose aliases expand to more
+    than MAX_YAML_NODES nodes (a "billion laughs")."""
     try:
         loader = YamlLoader(text)
         try:
@@ -55,6 +92,9 @@ def parse_yaml(text: str, source: str = "<string>"):
                     f"{source}: the YAML document expands (through its aliases) to more than "
                     f"{MAX_YAML_NODES:,} values, the limit of a configuration"
                 )
+            duplicate = None if node is None else _duplicate_key(loader, node, source)
+            if duplicate is not None:
+                raise ValueError(duplicate)
             return loader.construct_document(node) if node is not None else None
         finally:
             loader.dispose()

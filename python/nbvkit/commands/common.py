@@ -12,6 +12,7 @@ def add_mesh_options(p: argparse.ArgumentParser, required: bool = False) -> None
     p.add_argument(
         "--mesh",
         metavar="PATH",
+        type=mesh_path,
         required=required,
         help="structure mesh (PLY and OBJ read by nbvkit's own readers in double precision; "
         "STL, DAE, glTF, ... with assimp); default: the shipped generated airliner",
@@ -33,8 +34,19 @@ def add_mesh_options(p: argparse.ArgumentParser, required: bool = False) -> None
     add_mesh_shift_option(p)
 
 
+def mesh_path(text: str) -> str:
+    """argparse type of --mesh: a path, never empty (an empty one is no file: refused, rather
+    than flying the default mesh)."""
+    if not text.strip():
+        raise argparse.ArgumentTypeError(
+            f"is empty ({text!r}): give a mesh file's path, or leave --mesh out for the "
+            "shipped airliner"
+        )
+    return text
+
+
 def mesh_from_args(args):
-    path = args.mesh if args.mesh else default_mesh_path()
+    path = args.mesh if args.mesh is not None else default_mesh_path()
     return load_mesh(path, scale=args.mesh_scale, up=args.mesh_up, shift=args.mesh_shift)
 
 
@@ -57,6 +69,24 @@ def shift_override(args) -> list:
     return ["mesh.shift=[" + ",".join(repr(float(x)) for x in args.mesh_shift) + "]"]
 
 
+def worker_count(text: str) -> int:
+    """argparse type of --workers: a count >= 1 (argparse names the option in its error)."""
+    try:
+        n = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"must be a whole number >= 1, got {text!r}") from None
+    if n < 1:
+        raise argparse.ArgumentTypeError(
+            f"must be >= 1 (1 = serial; leave it out for one per core), got {n}"
+        )
+    return n
+
+
+def add_workers_option(p: argparse.ArgumentParser, default, help: str) -> None:
+    """--workers N: local worker processes, a count >= 1 (refused otherwise, naming --workers)."""
+    p.add_argument("--workers", type=worker_count, default=default, metavar="N", help=help)
+
+
 def add_set_option(p: argparse.ArgumentParser, help: str) -> None:
     """--set KEY=VALUE ...: config overrides (repeatable; every one given counts)."""
     p.add_argument("--set", nargs="+", action="extend", default=[], metavar="KEY=VALUE", help=help)
@@ -69,13 +99,7 @@ def add_experiment_options(p: argparse.ArgumentParser, what: str, out: str) -> N
         "--starts", type=int, default=5, metavar="K", help=f"starts per {what}, 1..5 (default 5)"
     )
     add_set_option(p, "config overrides applied to every run (e.g. max_iterations=100)")
-    p.add_argument(
-        "--workers",
-        type=int,
-        default=0,
-        metavar="N",
-        help="local worker processes (default: one per core; 1 = serial)",
-    )
+    add_workers_option(p, 0, "local worker processes (default: one per core; 1 = serial)")
     p.add_argument(
         "--scheduler",
         metavar="ADDRESS",

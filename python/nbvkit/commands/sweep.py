@@ -9,7 +9,7 @@ from ..config import read_yaml_file
 from ..limits import shorten
 from ..paths import check_output_dir
 from ..plugins import load_plugins
-from .common import fly_experiment
+from .common import add_workers_option, fly_experiment
 
 EXAMPLE = """example sweep file:
   meshes:                       # default: [null], the configuration's mesh
@@ -51,12 +51,10 @@ def register(sub) -> argparse.ArgumentParser:
         default=None,
         help="output folder (default: the file's out, " "else runs/<file name>)",
     )
-    p.add_argument(
-        "--workers",
-        type=int,
-        default=None,
-        metavar="N",
-        help="local worker processes (default: the file's workers, else one per core; 1 = serial)",
+    add_workers_option(
+        p,
+        None,
+        "local worker processes (default: the file's workers, else one per core; 1 = serial)",
     )
     p.add_argument("--scheduler", metavar="ADDRESS", default=None, help="Dask scheduler address")
     return p
@@ -76,7 +74,7 @@ def run(args) -> int:
             f"sweep 'plugins' must be a list of plugin file paths, got {shorten(files)}"
         )
     try:  # before the specs: their parts' scenarios, sections and names
-        load_plugins(files)
+        load_plugins(files, wrap=True)  # a file's own error: PluginLoadError, naming it
     except FileNotFoundError as e:
         raise FileNotFoundError(
             f"sweep file {path}: plugin file {e.filename} not found (its 'plugins' are paths "
@@ -84,9 +82,14 @@ def run(args) -> int:
         ) from None
     specs = sweep_specs(sweep)
     out = check_output_dir(args.out or sweep.get("out") or f"runs/{path.stem}", "--out")
-    workers = args.workers if args.workers is not None else sweep.get("workers") or 0
-    if isinstance(workers, bool) or not isinstance(workers, int) or workers < 0:
-        raise ValueError(f"sweep 'workers' must be a count >= 0, got {workers!r}")
+    workers = args.workers if args.workers is not None else sweep.get("workers")
+    if workers is None:
+        workers = 0  # one per core
+    elif isinstance(workers, bool) or not isinstance(workers, int) or workers < 1:
+        raise ValueError(
+            f"sweep 'workers' must be a count >= 1 (1 = serial; leave it out for one per core), "
+            f"got {shorten(workers)}"
+        )
     resume = f"the same command: nbvkit sweep {args.config}" + (
         f" --out {args.out}" if args.out else ""
     )

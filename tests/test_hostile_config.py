@@ -1,0 +1,248 @@
+"""Hostile configurations (audit): each case gets a clear error naming the problem, exit 2 and no
+traceback from the command line, never a silent wrong answer. Each test fails if its fix is
+undone. Cases that once ended the process (a plugin's SystemExit) run in a subprocess."""
+from __future__ import annotations
+
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+from nbvkit.cli import main
+from nbvkit.config import Config, load_config
+from nbvkit.experiment_specs import compare_specs, sweep_specs, table2_specs
+from nbvkit.yamlio import parse_yaml, read_yaml_file
+
+ROOT = Path(__file__).resolve().parent.parent
+CUBE = ROOT / "meshes" / "fixtures" / "cube.obj"
+
+
+def cli(*args, cwd=None):
+    """`nbvkit ARGS` in a subprocess: (returncode, stderr)."""
+    env = dict(os.environ, MPLBACKEND="Agg")
+    p = subprocess.run(
+        [sys.executable, "-m", "nbvkit.cli", *map(str, args)],
+        capture_output=True,
+        text=True,
+        timeout=120,
+        cwd=cwd,
+        env=env,
+    )
+    return p.returncode, p.stderr
+
+
+def refused(capsys, argv, *needles) -> str:
+    """main(argv) fails cleanly: exit 2 (returned, or argparse's exit), its message naming the
+    problem; returns stderr."""
+    try:
+        rc = main([str(a) for a in argv])
+    except SystemExit as e:  # argparse's own errors
+        rc = e.code
+    err = capsys.readouterr().err
+    assert rc == 2, err
+    assert "Traceback" not in err, err
+    for n in needles:
+        assert n in err, (n, err)
+    return err
+
+
+# ------------------------------------------------------------ 1. map.resolution has a maximum
+@pytest.mark.parametrize("value", ["1e300", "1e200", "10.5"])
+def test_a_huge_map_resolution_is_refused_naming_the_key(value):
+    with pytest.raises(ValueError, match=r"'map.resolution' .* more than its limit 10"):
+        load_config(overrides=[f"map.resolution={value}"])
+
+
+def test_the_largest_map_resolution_loads():
+    assert load_config(overrides=["map.resolution=10"]).map.resolution == 10
+
+
+def test_nbvkit_run_refuses_a_huge_map_resolution(tmp_path, capsys):
+    argv = ["run", "--mesh", CUBE, "--set", "map.resolution=1e300", "max_iterations=5"]
+    refused(capsys, [*argv, "--out", tmp_path / "o"], "nbvkit run: error:", "map.resolution")
+
+
+# ------------------------------------------------- 2. the keys each run of an experiment sets
+@pytest.mark.parametrize("where", ["grid", "set"])
+@pytest.mark.parametrize("key, value", [("scenario", "5"), ("start", 2)])
+def test_a_sweep_may_not_set_what_each_run_sets(where, key, value):
+    sweep = {"scenarios": ["surface"], "starts": [0]}
+    sweep[where] = {key: [value]} if where == "grid" else {key: value}
+    with pytest.raises(ValueError, match=f"sweep '{where}' sets '{key}'"):
+        sweep_specs(sweep)
+
+
+def test_the_sweep_file_says_to_list_scenarios_and_starts(tmp_path, capsys):
+    f = tmp_path / "s.yaml"
+    f.write_text(f"scenarios: [surface]\nstarts: [0]\ngrid: {{scenario: [5]}}\nout: {tmp_path}/o\n")
+    refused(capsys, ["sweep", f], "nbvkit sweep: error:", "'scenario'", "'scenarios:'")
+    assert not (tmp_path / "o").exists()
+
+
+def test_compare_and_table_refuse_set_scenario_or_start(tmp_path, capsys):
+    with pytest.raises(ValueError, match="--set sets 'scenario'.*--planners"):
+        compare_specs(["surface"], starts=1, overrides=["scenario=1"])
+    with pytest.raises(ValueError, match="--set sets 'start'.*--starts"):
+        table2_specs(starts=1, overrides=[" start =3"])
+    refused(capsys, ["compare", "--set", "scenario=1", "--out", tmp_path / "c"], "'scenario'")
+    refused(capsys, ["table", "--set", "start=1", "--out", tmp_path / "t"], "'start'")
+
+
+def test_a_sweep_grid_of_other_keys_still_labels_its_runs():
+    sweep = {"scenarios": ["surface"], "meshes": [str(CUBE)], "grid": {"max_iterations": [3, 4]}}
+    specs = sweep_specs({**sweep, "set": {"progress": False}})  # the runs' own value: allowed
+    assert [s.labels for s in specs] == [(("max_iterations", 3),), (("max_iterations", 4),)]
+
+
+# ----------------------------------------------------------------- 3. duplicate YAML keys
+@pytest.mark.parametrize(
+    "text, key, line, first",
+    [
+        ("map:\n  resolution: 0.4\nmax_iterations: 3\nmap:\n  prob_hit: 0.7\n", "'map'", 4, 1),
+        ("max_iterations: 3\nmax_iterations: 4\n", "'max_iterations'", 2, 1),
+        ("scenarios: ['1']\nstarts: [0]\nscenarios: ['5']\n", "'scenarios'", 3, 1),
+        ("map:\n  resolution: 0.4\n  resolution: 0.2\n", "'resolution'", 3, 2),
+        ("grid: {a: [1], a: [2]}\n", "'a'", 1, 1),
+        ("x:\n  - y: 1\n    'y': 2\n", "'y'", 3, 2),
+        ("1: a\n1.0: b\n", "1.0", 2, 1),
+    ],
+)
+def test_a_yaml_key_given_twice_is_refused_naming_it_and_its_lines(text, key, line, first):
+    with pytest.raises(ValueError) as e:
+        parse_yaml(text, "f.yaml")
+    assert str(e.value) == (
+        f"f.yaml:{line}: duplicate key {key} (first given on line {first}); give each key once"
+    )
+
+
+def test_merge_keys_and_the_same_key_in_other_mappings_are_not_duplicates():
+    text = "base: &b {a: 1, c: 2}\nd:\n  <<: *b\n  a: 3\ne: {a: 4}\n"
+    assert parse_yaml(text) == {"base": {"a": 1, "c": 2}, "d": {"a": 3, "c": 2}, "e": {"a": 4}}
+
+
+def test_config_and_sweep_files_refuse_a_duplicate_key(tmp_path, capsys):
+    cfg = tmp_path / "c.yaml"
+    cfg.write_text("map: {resolution: 0.4}\nmax_iterations: 3\nmap: {prob_hit: 0.7}\n")
+    with pytest.raises(ValueError, match=f"{cfg}:3: duplicate key 'map'"):
+        Config.from_yaml(cfg)
+    with pytest.raises(ValueError, match="duplicate key 'map'"):
+        read_yaml_file(cfg)
+    refused(capsys, ["run", "--config", cfg, "--out", tmp_path / "r"], "duplicate key 'map'")
+    sweep = tmp_path / "s.yaml"
+    sweep.write_text("scenarios: ['1']\nscenarios: ['5']\n")
+    refused(capsys, ["sweep", sweep], "s.yaml:2: duplicate key 'scenarios'")
+    with pytest.raises(ValueError, match="duplicate key 'a'"):
+        load_config(overrides=["map={a: 1, a: 2}"])
+
+
+# --------------------------------------------------------------- 4. plugins that fail to load
+@pytest.mark.parametrize(
+    "source, message",
+    [
+        ("def f(:\n", "failed to load: SyntaxError: invalid syntax (line 1)"),
+        ("x = 1\n{}['nope']\n", "failed to load: KeyError: 'nope' (line 2)"),
+        ("import sys\nraise SystemExit(0)\n", "failed to load: SystemExit(0) (line 2): a plugin"),
+        ("import sys\nsys.exit('bye')\n", "failed to load: SystemExit('bye') (line 2): a plugin"),
+    ],
+)
+def test_a_plugin_that_fails_to_load_is_an_error_naming_it(tmp_path, source, message):
+    plugin = tmp_path / "bad_plugin.py"
+    plugin.write_text(source)
+    rc, err = cli("run", "--plugin", plugin, "--mesh", CUBE, "--out", tmp_path / "o")
+    assert rc == 2, err
+    assert "Traceback" not in err, err
+    assert f"nbvkit run: error: plugin file {plugin} {message}" in err, err
+    assert not (tmp_path / "o").exists()
+
+
+def test_a_sweep_files_plugin_that_fails_is_an_error_naming_it(tmp_path):
+    plugin = tmp_path / "bad_plugin.py"
+    plugin.write_text("raise SystemExit(0)\n")
+    sweep = tmp_path / "s.yaml"
+    sweep.write_text(f"plugins: [{plugin}]\nout: {tmp_path / 'o'}\n")
+    rc, err = cli("sweep", sweep)
+    assert rc == 2 and "Traceback" not in err, err
+    assert (
+        f"nbvkit sweep: error: plugin file {plugin} failed to load: SystemExit(0) (line 1)" in err
+    ), err
+
+
+def test_load_plugin_keeps_its_error_types_but_never_exits(tmp_path):
+    from nbvkit.plugins import LOADED, PluginLoadError, load_plugin
+
+    bad = tmp_path / "raising_plugin.py"
+    bad.write_text("{}['nope']\n")
+    with pytest.raises(KeyError, match="nope"):
+        load_plugin(bad)
+    exits = tmp_path / "exiting_plugin.py"
+    exits.write_text("import nbvkit\nnbvkit.register_scenario('exits_x', 'x', {})\nexit(3)\n")
+    with pytest.raises(
+        PluginLoadError, match=r"exiting_plugin.py failed to load: SystemExit\(3\) \(line 3\)"
+    ) as e:
+        load_plugin(exits)
+    assert isinstance(e.value.__cause__, SystemExit)
+    from nbvkit.scenarios import SCENARIOS
+
+    assert "exits_x" not in SCENARIOS and str(exits.resolve()) not in LOADED  # rolled back
+
+
+def test_an_interrupt_while_a_plugin_loads_stays_an_interrupt(tmp_path, capsys):
+    from nbvkit.plugins import load_plugin
+
+    plugin = tmp_path / "interrupted_plugin.py"
+    plugin.write_text("raise KeyboardInterrupt\n")
+    assert main(["run", "--plugin", str(plugin), "--out", str(tmp_path / "o")]) == 130
+    assert "nbvkit run: interrupted" in capsys.readouterr().err
+    with pytest.raises(KeyboardInterrupt):
+        load_plugin(plugin)
+
+
+# ----------------------------------------------------------- 5. messages name what was given
+def test_a_renamed_section_that_is_no_mapping_is_named_as_written():
+    with pytest.warns(DeprecationWarning):
+        with pytest.raises(ValueError, match=r"section 'termination' \(now 'entropy'\).*\['a'\]"):
+            load_config(overrides=["termination=[a]"])
+    with pytest.warns(DeprecationWarning):
+        with pytest.raises(ValueError, match=r"section 'sampling' \(now 'lattice'\)"):
+            Config.from_dict({"sampling": 3})
+
+
+@pytest.mark.parametrize("value", ["0", "[]", "''", "false"])
+def test_a_part_section_given_an_empty_non_mapping_is_refused(value):
+    with pytest.raises(ValueError, match="config section entropy must be a mapping"):
+        load_config(overrides=[f"entropy={value}"])
+
+
+@pytest.mark.parametrize("command", ["compare", "table", "sweep"])
+@pytest.mark.parametrize("workers", ["-1", "0", "two"])
+def test_workers_below_one_are_refused_naming_the_option(tmp_path, capsys, command, workers):
+    first = [tmp_path / "none.yaml"] if command == "sweep" else ["--out", tmp_path / "o"]
+    refused(capsys, [command, *first, "--workers", workers], "argument --workers: must be")
+
+
+def test_a_sweep_files_workers_below_one_and_run_specs_negative_workers_are_refused(
+    tmp_path, capsys
+):
+    from nbvkit.experiments import run_specs
+
+    f = tmp_path / "s.yaml"
+    f.write_text(f"workers: 0\nscenarios: ['1']\nout: {tmp_path / 'o'}\n")
+    refused(capsys, ["sweep", f], "sweep 'workers' must be a count >= 1")
+    with pytest.raises(ValueError, match="workers must be a count >= 0"):
+        run_specs([], tmp_path / "r", workers=-1)
+
+
+# ------------------------------------------------------------------- 6. an empty mesh path
+@pytest.mark.parametrize("value", ["''", "' '"])
+def test_an_empty_mesh_path_is_refused(value):
+    with pytest.raises(ValueError, match="config key 'mesh.path' is empty"):
+        load_config(overrides=[f"mesh.path={value}"])
+
+
+def test_the_commands_refuse_an_empty_mesh_path(tmp_path, capsys):
+    refused(capsys, ["run", "--mesh", "", "--out", tmp_path / "r"], "'mesh.path' is empty")
+    refused(capsys, ["run", "--set", "mesh.path=''", "--out", tmp_path / "r"], "mesh.path")
+    refused(capsys, ["compare", "--mesh", "", "--out", tmp_path / "c"], "argument --mesh: is empty")
+    assert load_config(overrides=["mesh.path=null"]).mesh.path is None
