@@ -451,7 +451,10 @@ def test_nbvkit_run_stopped_says_where_what_it_flew_is(tmp_path, stopping_part, 
     assert "interrupted" in p.stderr and "Traceback" not in p.stderr
     assert "termination: interrupted" in p.stdout and "area cov." in p.stdout  # what it flew
     assert is_complete_run(out)
-    assert json.loads((out / "summary.json").read_text())["termination"] == "interrupted"
+    s = json.loads((out / "summary.json").read_text())
+    assert s["termination"] == "interrupted"
+    named = "Terminated: SIGTERM" if how == "sigterm" else "KeyboardInterrupt"
+    assert s["stopped_by"].startswith(named)  # a kill is not recorded as a Ctrl-C
 
 
 @pytest.mark.parametrize("cause", [KeyboardInterrupt, ZeroDivisionError])

@@ -247,12 +247,17 @@ def _worker_init() -> None:
         os._exit(1)  # the parent died while this worker was starting
 
 
+class Terminated(KeyboardInterrupt):
+    """SIGTERM received within terminate_as_interrupt: stops as Ctrl-C does, named apart."""
+
+
 @contextlib.contextmanager
 def terminate_as_interrupt():
     """Within it, a `kill` (SIGTERM: also what batch schedulers send at a time limit) raises
-    KeyboardInterrupt as Ctrl-C does: an experiment's workers stopped, finished runs kept, the
-    partial table written; a single run's flight kept (recorder.fly_into). (Main thread only:
-    signals go there; elsewhere it does nothing.)"""
+    Terminated, a KeyboardInterrupt, as Ctrl-C does: an experiment's workers stopped, finished
+    runs kept, the partial table written; a single run's flight kept (recorder.fly_into), its
+    summary's stopped_by naming the signal. (Main thread only: signals go there; elsewhere it
+    does nothing.)"""
     import signal
     import threading
 
@@ -261,7 +266,7 @@ def terminate_as_interrupt():
         return
 
     def interrupt(signum, frame):
-        raise KeyboardInterrupt
+        raise Terminated("SIGTERM (a kill, or a batch scheduler's time limit)")
 
     previous = signal.signal(signal.SIGTERM, interrupt)
     try:
