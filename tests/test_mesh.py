@@ -193,7 +193,7 @@ def _glb_of(doc: dict) -> bytes:
 
 
 def test_off_index_out_of_range_is_refused_naming_the_file(tmp_path):
-    # assimp's OFF reader clamped index 9 to the last vertex and read -7 as 0: a wrong mesh, no error
+    # assimp's OFF reader clamped index 9 to the last vertex and read -7 as 0: no error
     for bad in ("9", "-7"):
         p = tmp_path / "x.off"
         p.write_text(f"OFF\n3 1 0\n0 0 0\n1 0 1\n0 1 1\n3 0 1 {bad}\n")
