@@ -100,6 +100,50 @@ def test_a_changed_plugin_file_flies_its_runs_again(tmp_path):
     assert recorded()["distance_m"] != d0
 
 
+BROKEN = """
+import nbvkit
+
+
+class Broken:
+    def __init__(self, settings, context):
+        pass
+
+    def propose(self, world):
+        if {bug!r} == "zero":
+            return 1 / 0
+        return [[0.0, -6.0, 1.0, 0.0]]  # a list, not a Proposal
+
+    def feedback(self, world, proposal, step):
+        pass
+
+
+nbvkit.register_generator("broken", Broken)
+"""
+
+
+@pytest.mark.parametrize(
+    "bug, said",
+    [
+        ("zero", "nbvkit run: error: ZeroDivisionError: division by zero"),
+        ("list", "nbvkit run: error: generator 'broken': propose returned list, not a"),
+    ],
+)
+def test_a_parts_own_exception_or_wrong_return_is_one_line_not_nbvkits_traceback(
+    tmp_path, bug, said
+):
+    """A part's own bug (any exception type) or a broken contract (a list for a Proposal): rc 2,
+    the plugin's frames and one line naming it; no frame of nbvkit's own code."""
+    plugin = tmp_path / "broken.py"
+    plugin.write_text(BROKEN.format(bug=bug))
+    p = _nbvkit("run", "--plugin", plugin, "--mesh", CUBE, "--out", tmp_path / "run", "--set",
+                *SMALL, "planner.generators=[broken]")  # fmt: skip
+    assert p.returncode == 2, p.stderr
+    assert p.stderr.strip().splitlines()[-1].startswith(said)
+    assert "nbvkit/planning" not in p.stderr and "nbvkit/mission.py" not in p.stderr
+    if bug == "zero":  # its own frame shown
+        assert f'File "{plugin.resolve()}", line 11, in propose' in p.stderr
+
+
 def test_a_run_without_plugins_records_none_and_keeps_its_spec(tmp_path, monkeypatch):
     """Without plugin files a run's spec.json and summary are as before (earlier run folders
     resume: their spec.json has no plugins either)."""

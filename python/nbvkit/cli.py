@@ -74,11 +74,28 @@ def main(argv: list[str] | None = None) -> int:
     except KeyboardInterrupt:
         print(f"nbvkit {args.command}: interrupted", file=sys.stderr)
         return 130
-    except (FileNotFoundError, ValueError, KeyError, RuntimeError, OSError) as e:
+    except Exception as e:
+        from .planning.parts import PartContractError
+
+        own = _raised_by_a_part(e)  # its own ZeroDivisionError, AttributeError, ...
+        if not (isinstance(e, (*_CLEAN, PartContractError)) or own):
+            raise  # nbvkit's own bug: its whole traceback
         msg = e.args[0] if isinstance(e, KeyError) and e.args else e
+        if own and not isinstance(e, _CLEAN):
+            msg = f"{type(e).__name__}: {e}"  # its type is part of the news
         _plugin_traceback(e)
         print(f"nbvkit {args.command}: error: {msg}", file=sys.stderr)
         return 2
+
+
+#: the errors a command reports in one line (bad input, a missing file, a failed write); also
+#: a planner part's broken contract (PartContractError) and any exception a part raised
+_CLEAN = (FileNotFoundError, ValueError, KeyError, RuntimeError, OSError)
+
+
+def _raised_by_a_part(e: BaseException) -> bool:
+    """Whether a planner part of yours raised `e` (planning.parts._named notes it)."""
+    return any(str(n).startswith("raised by the ") for n in getattr(e, "__notes__", ()) or ())
 
 
 def _plugin_traceback(e: BaseException) -> None:

@@ -205,6 +205,11 @@ class Termination(Protocol):
 # ---------------------------------------------------------------- parts registered from a script
 
 
+class PartContractError(TypeError):
+    """A planner part (yours) returned what the planner cannot take: the wrong type (a list for
+    a Proposal, True for a reason to stop, strings for gains). The message names the part."""
+
+
 def _named(kind: str, name: str, call: str, fn, *args):
     """fn(*args) of the part `name` registered from a script. An exception of its own propagates
     as it is (a script may catch its own types; a mission that raises it after its views started
@@ -224,7 +229,7 @@ def check_proposal(p, who: str) -> Proposal:
     pitch within +-pi/2, a str source, aims None or (K, 3). TypeError / ValueError naming the
     generator `who` otherwise."""
     if not isinstance(p, Proposal):
-        raise TypeError(
+        raise PartContractError(
             f"generator {who!r}: propose returned {type(p).__name__}, not a "
             "nbvkit.planning.parts.Proposal or None"
         )
@@ -252,7 +257,7 @@ def check_proposal(p, who: str) -> Proposal:
             "+-pi/2 (> 0 looks down)"
         )
     if not isinstance(p.source, str):
-        raise TypeError(
+        raise PartContractError(
             f"generator {who!r}: its proposal's source must be a str, got {type(p.source).__name__}"
         )
     if p.aims is not None:
@@ -279,7 +284,9 @@ def _numbers(a, who: str, what: str) -> np.ndarray:
             raise TypeError("complex numbers")
         return np.ascontiguousarray(arr, dtype=np.float64)
     except (TypeError, ValueError) as e:
-        raise TypeError(f"generator {who!r}: its proposal's {what} are not numbers ({e})") from None
+        raise PartContractError(
+            f"generator {who!r}: its proposal's {what} are not numbers ({e})"
+        ) from None
 
 
 class PluginPart:
@@ -338,7 +345,7 @@ class PluginPart:
         non-empty str (TypeError otherwise)."""
         reason = getattr(self.part, "stop_reason", None)
         if reason is not None and not (isinstance(reason, str) and reason.strip()):
-            raise TypeError(
+            raise PartContractError(
                 f"generator {self.name!r}: its stop_reason is {reason!r}; it is None or why it "
                 "proposes nothing, a non-empty str (e.g. 'no_reachable_view')"
             )
@@ -359,7 +366,7 @@ class PluginPart:
         if reason is None:
             return None
         if not isinstance(reason, str) or not reason.strip():
-            raise TypeError(
+            raise PartContractError(
                 f"termination {self.name!r}: check returned {reason!r}; it returns the reason "
                 "to stop (a non-empty str, e.g. 'distance_cap') or None to go on"
             )

@@ -157,26 +157,27 @@ class PythonUtility:
         utility's name (parts._named); TypeError / ValueError naming it unless it returned (K,)
         gains (or a tuple (gains (K,), cells (K,))) of real numbers, finite and >= 0 for the
         valid candidates (rays.status 0; the others' are not read), cells whole numbers."""
-        from .parts import _named
+        from .parts import PartContractError, _named
 
         name, k = self.name, len(rays)
         out = _named("utility", name, "its call on the candidates' rays", self.fn, rays)
         if isinstance(out, tuple) and len(out) != 2:
-            raise TypeError(
+            raise PartContractError(
                 f"utility {name!r} returned a tuple of {len(out)}; it returns gains (K,) or "
                 "(gains (K,), cells (K,))"
             )
         gains, cells = out if isinstance(out, tuple) else (out, None)
         arrays = {"gains": gains} if cells is None else {"gains": gains, "cells": cells}
         for what, a in arrays.items():
+            arr = None
             try:
                 arr = np.asarray(a)
                 ok = arr.dtype.kind in "biuf"
             except Exception:
                 ok = False
             if a is None or not ok:
-                kind = f" of {arr.dtype}" if isinstance(a, np.ndarray) else ""
-                raise TypeError(
+                kind = f" of dtype {arr.dtype}" if arr is not None and a is not None else ""
+                raise PartContractError(
                     f"utility {name!r} returned {type(a).__name__}{kind} {what}, not an array "
                     f"of real numbers, one a candidate ({k},)"
                 )
