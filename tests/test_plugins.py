@@ -326,6 +326,21 @@ def _ring_poses(p):
     return p.poses
 
 
+def test_a_mission_whose_candidates_are_all_refused_says_why_nothing_was_flown(capsys):
+    """Every view inside the box: no view is valid, the mission ends at 0 iterations and the
+    console says what refuses a candidate (it ended silently, exit 0)."""
+    from nbvkit.commands.run import NOTHING_FLOWN, print_summary
+
+    inside = _proposing(lambda self, world, p: Proposal(np.array([[0.0, 0.0, 1.5, 0.0]]), "ring"))
+    _, s = _fly(generator=inside)
+    assert s["iterations"] == 0 and s["termination"] == "no_valid_viewpoint"
+    print_summary(s, "out")
+    assert "note: " + NOTHING_FLOWN in capsys.readouterr().out
+    _, s = _fly(generator=RingGenerator)  # views round it are flown: no such note
+    print_summary(s, "out")
+    assert s["iterations"] > 0 and NOTHING_FLOWN not in capsys.readouterr().out
+
+
 @pytest.mark.parametrize(
     "fn, error, match",
     [

@@ -148,6 +148,15 @@ def flown(s: dict) -> str:
     return text
 
 
+#: why a mission may plan no view at all (its generators' candidates all refused)
+NOTHING_FLOWN = (
+    "no planned view was flown: every candidate was invalid (in occupied or unknown space, "
+    "within vehicle.collision_radius of it, outside the workspace, or not reachable: with "
+    "vehicle.blocked_path=reject a straight leg must cross known free space) or worth less than "
+    "planner.min_gain (in the utility's own units)"
+)
+
+
 def print_summary(s: dict, out) -> None:
     """The console's account of a run: its flight, coverage (and of the observable surface,
     when the end-of-run outputs were written) and time."""
@@ -163,6 +172,8 @@ def print_summary(s: dict, out) -> None:
         print("note: " + note)
     if s.get("utility_only_checks"):
         print("note: " + checks_only_words(s["utility_only_checks"], s["utility"]))
+    if s["iterations"] == 0 and s["termination"] in ("no_valid_viewpoint", "no_reachable_view"):
+        print("note: " + NOTHING_FLOWN)
     print("coverage  " + "  ".join(f"@{k} m {v:6.1%}" for k, v in cov.items()))
     print("area cov. " + "  ".join(f"@{k} m {v:6.1%}" for k, v in s["area_coverage"].items()))
     if "coverage_observable" in s:
