@@ -21,6 +21,20 @@ TINY_RUN = (
     "profiling.waypoints=3",
 )
 
+CUBE_MESH = ROOT / "meshes" / "fixtures" / "cube.obj"
+
+
+@pytest.fixture(scope="session")
+def tiny_cube_run(tmp_path_factory):
+    """A tiny finished run (`nbvkit run`, TINY_RUN, no report) on the cube fixture: read it, or
+    copy it to change it."""
+    from nbvkit.cli import main
+
+    out = tmp_path_factory.mktemp("tiny_cube") / "run"
+    argv = ["run", "--mesh", str(CUBE_MESH), "--no-progress", "--out", str(out), "--set"]
+    assert main([*argv, *TINY_RUN, "report.enabled=false"]) == 0
+    return out
+
 
 #: Config overrides of a short mission on a small analytic scene (a coarse map and ground truth).
 QUICK_MISSION = (

@@ -9,22 +9,17 @@ import shutil
 
 import pytest
 
-from conftest import ROOT, TINY_RUN
 from nbvkit.cli import main
 from nbvkit.runfolder import MANIFEST, write_manifest
 
-CUBE = ROOT / "meshes" / "fixtures" / "cube.obj"
 ORIGIN = ["47.3977", "8.5456", "488.0"]
 ROW = 2  # the flight row replaced (a profile point); line 4 of the file
 
 
-@pytest.fixture(scope="module")
-def run_dir(tmp_path_factory):
-    """A tiny finished run on the cube fixture."""
-    out = tmp_path_factory.mktemp("garbled") / "run"
-    argv = ["run", "--mesh", str(CUBE), "--no-progress", "--out", str(out), "--set", *TINY_RUN]
-    assert main([*argv, "report.enabled=false"]) == 0
-    return out
+@pytest.fixture
+def run_dir(tiny_cube_run):
+    """A tiny finished run on the cube fixture (conftest's, shared)."""
+    return tiny_cube_run
 
 
 def _with_row(run_dir, dst, line: str):

@@ -8,11 +8,11 @@ from pathlib import Path
 
 import pytest
 
-from conftest import ROOT, TINY_RUN
+from conftest import CUBE_MESH
 from nbvkit.cli import main
 from nbvkit.runfolder import require_complete_run
 
-CUBE = ROOT / "meshes" / "fixtures" / "cube.obj"
+CUBE = CUBE_MESH
 POSE = ["0", "-5", "0.5", "1.57"]
 TRIANGLE_PLY = """ply
 format ascii 1.0
@@ -30,13 +30,10 @@ end_header
 """
 
 
-@pytest.fixture(scope="module")
-def run_dir(tmp_path_factory):
-    """A tiny finished run on the cube fixture."""
-    out = tmp_path_factory.mktemp("outin") / "run"
-    argv = ["run", "--mesh", str(CUBE), "--no-progress", "--out", str(out), "--set", *TINY_RUN]
-    assert main([*argv, "report.enabled=false"]) == 0
-    return out
+@pytest.fixture
+def run_dir(tiny_cube_run):
+    """A tiny finished run on the cube fixture (conftest's, shared)."""
+    return tiny_cube_run
 
 
 @pytest.fixture
