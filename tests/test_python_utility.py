@@ -309,11 +309,12 @@ def test_a_mission_flies_on_a_registered_python_utility_as_on_the_ig_utility():
         (lambda r: 1.0, ValueError, r"gains of shape \(\), not"),
         (lambda r: None, TypeError, "returned NoneType gains"),
         (lambda r: "abc", TypeError, "returned str gains"),
+        (lambda r: ["a"] * len(r), TypeError, "returned list of dtype <U1 gains"),  # not floats
         (lambda r: (np.ones(len(r)),) * 3, TypeError, "returned a tuple of 3"),
         (lambda r: (np.ones(len(r)), np.ones(2)), ValueError, r"cells of shape \(2,\)"),
     ],
-    ids=["nan", "inf", "negative", "long", "2d", "scalar", "none", "str", "3-tuple",
-         "cells-short"],
+    ids=["nan", "inf", "negative", "long", "2d", "scalar", "none", "str", "str-list",
+         "3-tuple", "cells-short"],
 )  # fmt: skip
 def test_a_registered_utility_returning_nonsense_is_an_error_naming_it(world, out, error, match):
     from nbvkit.planning import registry

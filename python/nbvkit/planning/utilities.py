@@ -176,7 +176,8 @@ class PythonUtility:
             except Exception:
                 ok = False
             if a is None or not ok:
-                kind = f" of dtype {arr.dtype}" if arr is not None and a is not None else ""
+                seq = arr is not None and isinstance(a, (list, tuple, np.ndarray))
+                kind = f" of dtype {arr.dtype}" if seq else ""
                 raise PartContractError(
                     f"utility {name!r} returned {type(a).__name__}{kind} {what}, not an array "
                     f"of real numbers, one a candidate ({k},)"
