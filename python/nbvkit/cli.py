@@ -75,9 +75,9 @@ def main(argv: list[str] | None = None) -> int:
         print(f"nbvkit {args.command}: interrupted", file=sys.stderr)
         return 130
     except Exception as e:
-        from .planning.parts import PartContractError
+        from .planning.parts import PartContractError, raised_by_a_part
 
-        own = _raised_by_a_part(e)  # its own ZeroDivisionError, AttributeError, ...
+        own = raised_by_a_part(e)  # its own ZeroDivisionError, AttributeError, ...
         if not (isinstance(e, (*_CLEAN, PartContractError)) or own):
             raise  # nbvkit's own bug: its whole traceback
         msg = e.args[0] if isinstance(e, KeyError) and e.args else e
@@ -91,11 +91,6 @@ def main(argv: list[str] | None = None) -> int:
 #: the errors a command reports in one line (bad input, a missing file, a failed write); also
 #: a planner part's broken contract (PartContractError) and any exception a part raised
 _CLEAN = (FileNotFoundError, ValueError, KeyError, RuntimeError, OSError)
-
-
-def _raised_by_a_part(e: BaseException) -> bool:
-    """Whether a planner part of yours raised `e` (planning.parts._named notes it)."""
-    return any(str(n).startswith("raised by the ") for n in getattr(e, "__notes__", ()) or ())
 
 
 def _plugin_traceback(e: BaseException) -> None:

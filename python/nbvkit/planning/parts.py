@@ -210,6 +210,14 @@ class PartContractError(TypeError):
     a Proposal, True for a reason to stop, strings for gains). The message names the part."""
 
 
+_RAISED_BY = "raised by the "  # the start of the note _named adds
+
+
+def raised_by_a_part(e: BaseException) -> bool:
+    """Whether a part registered from a script raised `e` (_named noted it)."""
+    return any(str(n).startswith(_RAISED_BY) for n in getattr(e, "__notes__", ()) or ())
+
+
 def _named(kind: str, name: str, call: str, fn, *args):
     """fn(*args) of the part `name` registered from a script. An exception of its own propagates
     as it is (a script may catch its own types; a mission that raises it after its views started
@@ -219,7 +227,7 @@ def _named(kind: str, name: str, call: str, fn, *args):
         return fn(*args)
     except Exception as e:
         if hasattr(e, "add_note"):
-            e.add_note(f"raised by the {kind} {name!r} (registered from a script) in {call}")
+            e.add_note(f"{_RAISED_BY}{kind} {name!r} (registered from a script) in {call}")
         raise
 
 
