@@ -406,3 +406,67 @@ def test_a_sweep_file_names_its_plugin_files(tmp_path):
     assert r.returncode == 2
     assert f"sweep file {f}: plugin file not_here.py not found" in r.stderr
     assert "paths from the folder nbvkit runs in" in r.stderr
+
+
+def test_compare_from_python_flies_a_script_part_beside_the_papers_and_writes_the_tables(tmp_path):
+    """nbvkit.compare: a part registered in this script flown (workers=1) beside Scenario 1 from
+    the same start; it writes what nbvkit compare writes and returns the table it wrote; a
+    second call reuses the finished runs; workers that cannot know the part are refused."""
+    import pandas as pd
+
+    import nbvkit
+    from nbvkit.planning import registry
+    from nbvkit.scenarios import SCENARIOS
+    from test_plugins import RingGenerator
+
+    nbvkit.register_generator("script_ring", RingGenerator)
+    nbvkit.register_scenario("script_orbit", "a ring", {"planner.generators": ["script_ring"]})
+    small = {"map.resolution": 0.4, "max_iterations": 3, "progress": False,
+             "report.enabled": False, "evaluation.gt_density": 50, "profiling.waypoints": 3,
+             "planner.min_gain": 0}  # fmt: skip
+    try:
+        out = tmp_path / "cmp"
+        t = nbvkit.compare(["script_orbit", 1], out, mesh=CUBE, starts=1, overrides=small,
+                           workers=1, progress=False)  # fmt: skip
+        runs = pd.read_csv(out / "runs.csv")
+        assert list(runs["scenario"].astype(str)) == ["script_orbit", "1"]
+        assert (runs["mesh"] == str(CUBE)).all() and (runs["start"] == 0).all()
+        assert list(t["Planner"]) == ["script_orbit", "1"] and list(t["runs"]) == [1, 1]
+        pd.testing.assert_frame_equal(t, pd.read_csv(out / "compare.csv"), check_dtype=False)
+        for _, r in runs.iterrows():  # one start: the mean is the run's own figure
+            row = t[t["Planner"] == str(r["scenario"])].iloc[0]
+            assert row["Distance (m)"] == pytest.approx(r["distance_m"])
+            assert row["Views"] == r["views"]
+            cfg = (out / "runs" / r["run_id"] / "config.yaml").read_text()
+            assert "resolution: 0.4" in cfg and "max_iterations: 3" in cfg
+        assert "| script_orbit |" in (out / "compare.md").read_text()
+        assert (out / "report.html").exists()
+        assert (out / "figures" / "coverage_vs_distance.png").stat().st_size > 0
+        flown = {p: p.stat().st_mtime_ns for p in (out / "runs").glob("*/manifest.json")}
+        assert len(flown) == 2
+        again = nbvkit.compare(["script_orbit", "1"], out, mesh=CUBE, starts=1,
+                               overrides=small, workers=1, progress=False)  # fmt: skip
+        pd.testing.assert_frame_equal(again, t)
+        assert {p: p.stat().st_mtime_ns for p in flown} == flown  # not flown again
+        with pytest.raises(ValueError, match="script_orbit' was registered in this process"):
+            nbvkit.compare(["script_orbit", "1"], tmp_path / "w2", mesh=CUBE, starts=1,
+                           overrides=small, workers=2, progress=False)  # fmt: skip
+    finally:
+        registry.GENERATORS.pop("script_ring")
+        SCENARIOS.pop("script_orbit")
+    for bad, err, words in (
+        (dict(planners="surface,5"), TypeError, "planners must be a list"),
+        (dict(planners=5), TypeError, "planners must be a list"),
+        (dict(planners=[True]), TypeError, "planners must be a list"),
+        (dict(starts=0), ValueError, "starts must be 1..5"),
+        (dict(starts=True), ValueError, "starts must be 1..5"),
+        (dict(overrides="max_iterations=3"), TypeError, "overrides must be a list"),
+        (dict(overrides={"max_iterations": object()}), TypeError, "overrides 'max_iterations'"),
+        (dict(overrides={"max_iteration": 3}), KeyError, "max_iteration"),
+        (dict(planners=["surface", "surface"]), ValueError, "more than once"),
+        (dict(planners=["nope"]), ValueError, "nope"),
+    ):
+        kw = {"planners": ["1"], "out": tmp_path / "bad", "starts": 1, **bad}
+        with pytest.raises(err, match=words):
+            nbvkit.compare(**kw, mesh=CUBE, progress=False)
+        assert not (tmp_path / "bad").exists()  # refused before any work

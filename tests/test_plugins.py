@@ -479,8 +479,10 @@ def test_registering_checks_the_part():
 
 def test_the_python_example_of_docs_plugins_runs(tmp_path, monkeypatch):
     """The page's "From Python" block, run as written from a folder holding my_parts.py (the
-    configuration it loads made small: the cube, a coarse map)."""
+    configuration it loads made small: the cube, a coarse map; its comparison one start each)."""
     import re
+
+    from nbvkit.experiment_specs import override_strings
 
     _doc_example("my_parts.py", tmp_path)
     doc = (ROOT / "docs" / "PLUGINS.md").read_text()
@@ -489,6 +491,13 @@ def test_the_python_example_of_docs_plugins_runs(tmp_path, monkeypatch):
     small = [*QUICK, f"mesh.path={CUBE}", "mesh.scale=5", "ring.distance=2"]
     monkeypatch.setattr(nbvkit, "load_config", lambda overrides=(): real(overrides=[*small,
                         *overrides]))  # fmt: skip
+    real_compare = nbvkit.compare
+
+    def compare(planners, out, starts, overrides):  # one start each, in this process, small
+        over = [*small, "max_iterations=3", *override_strings(overrides)]
+        return real_compare(planners, out, starts=1, overrides=over, workers=1, progress=False)
+
+    monkeypatch.setattr(nbvkit, "compare", compare)
     monkeypatch.chdir(tmp_path)
     try:
         scope: dict = {}
@@ -507,6 +516,12 @@ def test_the_python_example_of_docs_plugins_runs(tmp_path, monkeypatch):
     )
     assert 8 <= s["iterations"] <= 16
     assert "ring:" in (tmp_path / "runs" / "ring" / "config.yaml").read_text()
+    t = scope["table"]  # and the comparison: what compare.csv holds, one row per planner
+    assert list(t["Planner"]) == ["ring", "surface", "5"] and (t["Views"] >= 1).all()
+    assert "| ring |" in (tmp_path / "runs" / "cmp" / "compare.md").read_text()
+    flown = [p.read_text() for p in (tmp_path / "runs" / "cmp" / "runs").glob("*/config.yaml")]
+    assert len(flown) == 3
+    assert [c for c in flown if "scenario: ring" in c and "count: 16" in c]
 
 
 def test_ctrl_c_in_a_slow_utility_keeps_the_flight(tmp_path):

@@ -56,6 +56,7 @@ from .plugins import load_plugin  # noqa: F401
 from .planning.generators.tour import plan_tour  # noqa: F401  (a tour over your own views)
 from ._core import CoverageMemo, SurfaceTargets, TourPlan, surface_targets  # noqa: F401
 from .scenarios import register_scenario  # noqa: F401
+from .experiment_compare import compare  # noqa: F401  (planners side by side: nbvkit compare)
 
 from ._version import __version__  # noqa: F401, E402
 
@@ -77,6 +78,7 @@ __all__ = [
     "SurfaceTargets",
     "surface_targets",
     "register_scenario",
+    "compare",
     "DepthCamera",
     "DepthCameraOptions",
     "LaserScanner",

@@ -443,7 +443,28 @@ def _sweep_grid(sweep: dict) -> tuple[dict, list]:
             f"got {shorten(fixed_set)}"
         )
     refuse_spec_keys(fixed_set, "sweep 'set'", "sweep")
-    return grid, [f"{k}={json.dumps(v)}" for k, v in fixed_set.items()]
+    return grid, override_strings(fixed_set)
+
+
+def override_strings(overrides) -> list[str]:
+    """Config overrides as RunSpec holds them, "key=value" strings: a list of them as it is, a
+    {key: value} dict's values written as JSON (which the configuration reads back as YAML), None
+    as none. TypeError for anything else, or a value JSON cannot write."""
+    if isinstance(overrides, dict):
+        out = []
+        for k, v in overrides.items():
+            try:  # numpy numbers and arrays as their lists
+                out.append(f"{k}={json.dumps(v, default=lambda o: o.tolist())}")
+            except (AttributeError, TypeError, ValueError):
+                raise TypeError(f"overrides {k!r}: {shorten(v)} is not a YAML value") from None
+        return out
+    if overrides is None or (
+        isinstance(overrides, (list, tuple)) and all(isinstance(o, str) for o in overrides)
+    ):
+        return list(overrides or ())
+    raise TypeError(
+        f"overrides must be a list of 'key=value' strings or a dict, got {shorten(overrides)}"
+    )
 
 
 def validate_specs(specs: list[RunSpec]) -> None:

@@ -302,3 +302,34 @@ def compare_markdown(t) -> str:
         cells = [fmt(n, r[n], r[n + " sd"]) for n in names]
         lines.append(f"| {r['Planner']} | " + " | ".join(cells) + f" | {int(r['runs'])} |")
     return "\n".join(lines) + "\n"
+
+
+def write_compare(out: Path, df) -> str:
+    """compare.csv and compare.md (compare_table of the runs table `df`) into the folder `out`;
+    returns the markdown."""
+    t = compare_table(df)
+    t.to_csv(Path(out) / "compare.csv", index=False)
+    (Path(out) / "compare.md").write_text(compare_markdown(t))
+    return (Path(out) / "compare.md").read_text()
+
+
+def write_results(
+    root, rows, title: str, rows_file="runs.csv", tables=None, plot=None, report=True
+):
+    """An experiment's results into the folder `root`: its rows (one per run) in root/rows_file,
+    then `tables(root, df)` (its summary tables; returns their markdown), `plot(root, df,
+    root/figures)` and, with `report`, root/report.html titled `title`. Returns the tables'
+    markdown (or None). Of an unfinished experiment: its rows and tables (report=False)."""
+    import pandas as pd
+
+    from .experiment_report import write_experiment_report
+
+    root = Path(root)
+    df = pd.DataFrame(rows)
+    write_table(rows, root / rows_file)
+    markdown = tables(root, df) if tables is not None else None
+    if plot is not None:
+        plot(root, df, root / "figures")
+    if report:
+        write_experiment_report(root, df, title, markdown)
+    return markdown

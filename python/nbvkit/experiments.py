@@ -44,6 +44,8 @@ from .experiment_tables import (  # noqa: F401  (re-exported: the tables)
     row_of,
     table2,
     table2_markdown,
+    write_compare,
+    write_results,
     write_table,
     write_table2,
 )

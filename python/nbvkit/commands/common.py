@@ -193,28 +193,18 @@ def fly_experiment(
     tables of the finished runs, says where (`partial`) and how to `resume`, and returns 130;
     when some runs failed (every other one flown), the same with each failed run's error, and
     returns 1; else 0."""
-    import pandas as pd
-
-    from ..experiments import Interrupted, RunsFailed, run_specs, write_table
-    from ..report import write_experiment_report
+    from ..experiments import Interrupted, RunsFailed, run_specs, write_results
 
     t0 = time.perf_counter()
     try:
         rows = run_specs(specs, out, workers=workers, scheduler=scheduler)
     except (Interrupted, RunsFailed) as e:
         if e.rows:
-            write_table(e.rows, out / rows_file)
-            if tables is not None:
-                tables(out, pd.DataFrame(e.rows))
+            write_results(out, e.rows, title, rows_file, tables, report=False)
         if isinstance(e, RunsFailed):
             return report_failed(command, e, partial, resume)
         return report_interrupted(command, e, partial, resume)
-    df = pd.DataFrame(rows)
-    write_table(rows, out / rows_file)
-    markdown = tables(out, df) if tables is not None else None
-    if plot is not None:
-        plot(out, df, out / "figures")
-    write_experiment_report(out, df, title, markdown)
+    markdown = write_results(out, rows, title, rows_file, tables, plot)
     if markdown is not None:
         print(markdown)
     for note in experiment_notes(rows):

@@ -43,7 +43,7 @@ def register(sub) -> argparse.ArgumentParser:
 
 def run(args) -> int:
     from ..experiment_specs import with_mesh_shift
-    from ..experiments import compare_markdown, compare_specs, compare_table, validate_specs
+    from ..experiments import compare_specs, validate_specs, write_compare
     from ..plots import plot_compare
 
     check_starts(args.starts)
@@ -57,12 +57,6 @@ def run(args) -> int:
     validate_specs(specs)
     out = check_output_dir(args.out, "--out")
 
-    def tables(out, df) -> str:
-        t = compare_table(df)
-        t.to_csv(out / "compare.csv", index=False)
-        (out / "compare.md").write_text(compare_markdown(t))
-        return (out / "compare.md").read_text()
-
     return fly_experiment(
         "compare",
         specs,
@@ -70,7 +64,7 @@ def run(args) -> int:
         f"nbvkit compare: {', '.join(planners)}",
         args.workers,
         args.scheduler,
-        tables=tables,
+        tables=write_compare,
         plot=plot_compare,
         partial=f"partial tables: {out / 'runs.csv'}, {out / 'compare.md'}",
     )
