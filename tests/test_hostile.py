@@ -522,3 +522,43 @@ def test_case12_messages_instead_of_tracebacks(tmp_path, cube_obj):
         load_config(overrides="max_iterations=5")
     with pytest.raises(TypeError, match="overrides"):
         load_config(overrides=[5])
+
+
+def test_api_arguments_of_a_wrong_type_are_named_not_read(cube_obj):
+    """Every callable nbvkit exports, given None, a string, a number, a list, an array or an
+    object for one required argument (the others valid, or None), raises TypeError / ValueError
+    (or a file error for a path): never Python's AttributeError from deep inside."""
+    import inspect
+
+    import numpy as np
+
+    cfg = load_config(overrides=[f"mesh.path={cube_obj}", "map.resolution=0.4"])
+    mesh = nbvkit.load_mesh(cube_obj)
+    world = nbvkit.World(cfg)
+    valid = {"mesh": mesh, "config": cfg, "world": world}
+    checked = []
+    for name in nbvkit.__all__:
+        fn = getattr(nbvkit, name)
+        try:
+            sig = inspect.signature(fn)
+        except (TypeError, ValueError):
+            continue  # a C++ class or function: pybind11 checks its argument types
+        required = [p.name for p in sig.parameters.values() if p.default is p.empty
+                    and p.kind in (p.POSITIONAL_ONLY, p.POSITIONAL_OR_KEYWORD)]  # fmt: skip
+        for i, arg in enumerate(required):
+            for bad in (None, "x", 3, [1, 2], np.zeros((2, 2)), object()):
+                args = [bad if j == i else valid.get(a) for j, a in enumerate(required)]
+                try:
+                    fn(*args)
+                except (TypeError, ValueError, KeyError, OSError):
+                    pass
+                checked.append(f"{name}({arg})")
+    # the functions that read attributes of what they are given are among those checked
+    for call in ("World(config)", "observable_surface(mesh)", "observable_surface(config)",
+                 "plan_tour(world)", "mesh_to_open3d(mesh)",
+                 "mesh_from_open3d(o3d_mesh)"):  # fmt: skip
+        assert call in checked
+    with pytest.raises(TypeError, match="config must be an nbvkit.Config"):
+        nbvkit.observable_surface(mesh, {"camera": {}})
+    with pytest.raises(TypeError, match="world must be an nbvkit.World"):
+        nbvkit.plan_tour(None, np.zeros((1, 4)))

@@ -28,6 +28,8 @@ __all__ = [
     "check_input_file",
     "check_samples",
     "check_work",
+    "require_config",
+    "require_type",
     "shorten",
     "units_hint",
     "MAX_TEXT_FILE_BYTES",
@@ -102,6 +104,23 @@ def shorten(value, limit: int = 120) -> str:
 
 
 # ---------------------------------------------------------------------------- config bounds
+
+
+def require_type(value, cls, what: str, name: str) -> None:
+    """TypeError "`what` must be `name`, got <its type>" unless `value` is a `cls` (a class or a
+    tuple of them): an argument of the Python API, checked where it is taken rather than where
+    Python first reads an attribute of it."""
+    if not isinstance(value, cls):
+        raise TypeError(f"{what} must be {name}, got {type(value).__name__}")
+
+
+def require_config(value, what: str = "config") -> None:
+    """require_type for an nbvkit.Config, by the sections every reader takes (the modules below
+    nbvkit.config cannot import its class)."""
+    if not all(hasattr(value, s) for s in ("mesh", "camera", "workspace", "vehicle", "map")):
+        raise TypeError(
+            f"{what} must be an nbvkit.Config (nbvkit.load_config()), got {type(value).__name__}"
+        )
 
 
 def _fmt(x) -> str:

@@ -15,7 +15,7 @@ import numpy as np
 from . import _core
 from ._core import Mesh
 from ._open3d import open3d
-from .limits import MAX_DATA_FILE_BYTES, check_input_file
+from .limits import MAX_DATA_FILE_BYTES, check_input_file, require_type
 from .settings import choice, positive, triple
 
 _UP = {"z": "z", "y": "y", "Z": "z", "Y": "y", "auto": "auto"}
@@ -199,6 +199,10 @@ def file_up_axis(path, up: str = "auto") -> str:
 
 def mesh_from_open3d(o3d_mesh) -> Mesh:
     """Build a Mesh from an ``open3d.geometry.TriangleMesh``."""
+    if not (hasattr(o3d_mesh, "vertices") and hasattr(o3d_mesh, "triangles")):
+        raise TypeError(
+            f"o3d_mesh must be an open3d.geometry.TriangleMesh, got {type(o3d_mesh).__name__}"
+        )
     v = np.asarray(o3d_mesh.vertices, dtype=np.float64)
     f = np.asarray(o3d_mesh.triangles, dtype=np.int32)
     return Mesh(v, f)
@@ -206,6 +210,7 @@ def mesh_from_open3d(o3d_mesh) -> Mesh:
 
 def mesh_to_open3d(mesh: Mesh):
     """An ``open3d.geometry.TriangleMesh`` of a Mesh (with vertex normals, for viewing)."""
+    require_type(mesh, Mesh, "mesh", "an nbvkit.Mesh")
     o3d = open3d()
 
     m = o3d.geometry.TriangleMesh(  # (open3d takes writeable arrays only: copies)

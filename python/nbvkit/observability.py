@@ -47,7 +47,7 @@ from pathlib import Path
 import numpy as np
 
 from . import _core
-from .limits import Bound, pose_spacing
+from .limits import Bound, pose_spacing, require_config, require_type
 from .locks import FileLock
 from .sensors import build_camera
 from .settings import cpp_section
@@ -187,6 +187,12 @@ def observable_surface(
     from .evaluation import Evaluator
     from .workspace import make_workspace
 
+    require_type(mesh, _core.Mesh, "mesh", "an nbvkit.Mesh")
+    require_config(config)
+    if evaluator is not None:
+        require_type(evaluator, Evaluator, "evaluator", "an nbvkit.Evaluator or None")
+    if scene is not None:
+        require_type(scene, _core.RaycastScene, "scene", "an nbvkit.RaycastScene or None")
     cfg = config
     ws = make_workspace(mesh.bounds, cfg)
     ev = None

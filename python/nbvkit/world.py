@@ -14,7 +14,7 @@ import numpy as np
 
 from . import _core
 from ._core import MAX_COORDINATE
-from .limits import Bound, MissionError, check_work, units_hint
+from .limits import Bound, MissionError, check_work, require_config, require_type, units_hint
 from .mapping import new_map
 from .mesh import check_path_clear, default_mesh_path, fibonacci_sphere, load_mesh
 from .mesh import surface_crossings
@@ -140,6 +140,7 @@ class World:
     """
 
     def __init__(self, config, mesh=None):
+        require_config(config)
         self.config = cfg = config
         if mesh is None:
             self.mesh_path = str(cfg.mesh.path or default_mesh_path())
@@ -147,8 +148,7 @@ class World:
                 self.mesh_path, scale=cfg.mesh.scale, up=cfg.mesh.up, shift=cfg.mesh.shift
             )
         else:
-            if not isinstance(mesh, _core.Mesh):
-                raise TypeError(f"mesh must be an nbvkit.Mesh, got {type(mesh).__name__}")
+            require_type(mesh, _core.Mesh, "mesh", "an nbvkit.Mesh")
             self.mesh_path = IN_MEMORY_MESH
         self.mesh = mesh
         if not mesh.area > 0 or not math.isfinite(mesh.area):

@@ -45,12 +45,14 @@ from typing import Optional
 import numpy as np
 
 from ... import _core
+from ...limits import require_type
 from ...settings import choice, nonneg, positive, within
 from ..parts import Proposal, threshold_scale
 from ..placement import Patches, place_views, refit_blocked, target_patches
 from .access import access_elements
 from .exploration import exploration_targets
 from ...workspace import is_large
+from ...world import World
 from .regions import Regions
 
 
@@ -408,6 +410,7 @@ def plan_tour(
     CoverageMemo kept between calls (fewer walks). Views are valid as the planner's are
     (the navigation space, the collision sphere in known free space). Returns a TourPlan:
     plan.flight indexes candidates in flight order."""
+    require_type(world, World, "plan_tour: world", "an nbvkit.World (a mission's: Mission.world)")
     if memo is not None and not isinstance(memo, _core.CoverageMemo):
         raise TypeError(
             f"plan_tour: memo is a nbvkit.CoverageMemo or None, not {type(memo).__name__}"
