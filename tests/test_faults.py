@@ -279,11 +279,34 @@ def test_write_errors_raise(tmp_path):
         m.save(str(missing) + ".ot")
     with pytest.raises(OSError):
         write_points(str(missing) + ".ply", np.zeros((3, 3)))
-    if Path("/dev/full").exists():  # a file on a full disk
+    if Path("/dev/full").exists():  # a file on a full disk: the error names it
         full = tmp_path / "full.ply"
         full.symlink_to("/dev/full")
-        with pytest.raises(OSError, match="No space left"):
+        with pytest.raises(OSError, match=f"No space left on device: '{full}'"):
             write_points(full, np.zeros((3, 3)))
+
+
+def test_a_write_that_does_not_fit_names_the_file_and_leaves_none(tmp_path):
+    """evaluate --json and scan --out past the file-size limit (as a full disk: the write fails):
+    the error names the file; the JSON, written whole or not at all, is not there."""
+    import subprocess
+
+    cube_obj = ROOT / "meshes" / "fixtures" / "cube.obj"
+    np.save(tmp_path / "c.npy", np.random.default_rng(0).uniform(0, 1, (50, 3)))
+    for args, out in (
+        (["evaluate", "--mesh", cube_obj, tmp_path / "c.npy", "--json"], tmp_path / "e.json"),
+        (["scan", "--mesh", cube_obj, "--pose", "-3", "0.5", "0.5", "0", "--out"],
+         tmp_path / "s.ply"),  # fmt: skip
+    ):
+        p = subprocess.run(
+            [sys.executable, "-m", "nbvkit.cli", *map(str, args), str(out)],
+            capture_output=True, text=True, timeout=120, env=fb._env(),
+            preexec_fn=fb._fsize_limit(256),
+        )  # fmt: skip
+        assert p.returncode == 2, p.stderr
+        assert f"File too large: '{out}'" in p.stderr.strip().splitlines()[-1], p.stderr
+        if out.suffix == ".json":
+            assert not out.exists() and not list(tmp_path.glob(".e.json.tmp*"))
 
 
 # ------------------------------------------------------------------------ threads

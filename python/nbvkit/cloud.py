@@ -21,6 +21,7 @@ import numpy as np
 from . import _core
 from ._open3d import open3d
 from .limits import MAX_DATA_FILE_BYTES, check_input_file
+from .output_paths import naming_the_file
 from .settings import positive
 
 __all__ = [
@@ -198,7 +199,7 @@ def write_points(path, points, ascii: bool = False, dtype=None) -> None:
                 "beyond float32's range; write it with dtype=np.float64"
             )
     n, parts = _parts(points, _WRITE_PART)
-    with open(path, "wb") as f:
+    with naming_the_file(path), open(path, "wb") as f:
         f.write(_points_header(suffix, n, dtype, ascii))
         for part in parts:
             data = np.ascontiguousarray(part, dtype=dtype.newbyteorder("<"))

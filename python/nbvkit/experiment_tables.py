@@ -8,6 +8,7 @@ from pathlib import Path
 
 import numpy as np
 
+from .output_paths import naming_the_file
 from .runfolder import read_json_object, read_summary
 
 # ------------------------------------------------------------------ the runs table
@@ -93,7 +94,8 @@ def write_table(rows: list[dict], path: str | os.PathLike) -> None:
     """Writes rows as a CSV (the tidy table every plotting helper reads)."""
     import pandas as pd
 
-    pd.DataFrame(rows).to_csv(path, index=False)
+    with naming_the_file(path):
+        pd.DataFrame(rows).to_csv(path, index=False)
 
 
 def read_table(path: str | os.PathLike):

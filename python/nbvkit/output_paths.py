@@ -2,11 +2,24 @@
 fail to write its results. (Imported by nbvkit.runfolder; users import these from nbvkit.paths.)"""
 from __future__ import annotations
 
+import contextlib
 import os
 import tempfile
 from pathlib import Path
 
-__all__ = ["check_output_dir", "check_output_file"]
+__all__ = ["check_output_dir", "check_output_file", "naming_the_file"]
+
+
+@contextlib.contextmanager
+def naming_the_file(path):
+    """An OSError raised inside that names no file (a write to a full disk says only "No space
+    left on device") raised again naming `path`, as an error of the same kind."""
+    try:
+        yield
+    except OSError as e:
+        if e.filename is not None or e.errno is None:
+            raise
+        raise OSError(e.errno, e.strerror or str(e), os.fspath(path)) from e
 
 
 def check_output_dir(path, what: str = "output folder") -> Path:

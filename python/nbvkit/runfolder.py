@@ -41,7 +41,7 @@ import numpy as np
 from ._version import __version__
 from .limits import MAX_TEXT_FILE_BYTES, check_input_file
 from .locks import RunLock, lock_holder
-from .output_paths import check_output_dir
+from .output_paths import check_output_dir, naming_the_file
 
 __all__ = [
     "check_not_input",
@@ -411,7 +411,7 @@ def atomic_open(path: Path, mode: str = "w", **kw):
     path = Path(path)
     tmp = path.with_name(f".{path.name}.tmp{os.getpid()}")
     try:
-        with open(tmp, mode, **kw) as f:
+        with naming_the_file(path), open(tmp, mode, **kw) as f:
             yield f
         os.replace(tmp, path)
     except BaseException:
