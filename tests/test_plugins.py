@@ -468,6 +468,26 @@ def test_registering_checks_the_part():
         registry.register_termination("x", type("T", (), {}))
     with pytest.raises(TypeError, match="Settings must be a dataclass"):
         registry.register_generator("x", type("G", (RingGenerator,), {"Settings": dict}))
+    from dataclasses import dataclass
+
+    @dataclass
+    class Loose:  # not frozen: a part could change the settings its run records
+        count: int = 3
+
+    with pytest.raises(TypeError, match="Settings must be a frozen dataclass"):
+        registry.register_generator("x", type("G", (RingGenerator,), {"Settings": Loose}))
+    for init, words in ((lambda self, settings: None, "too many positional arguments"),
+                        (lambda self, s, c, world: None, "missing a required argument: 'world'"),
+                        (lambda self, *, settings, context: None,
+                         "too many positional")):  # fmt: skip
+        cls = type("G", (RingGenerator,), {"__init__": init})
+        with pytest.raises(TypeError, match=rf"generator 'x': G cannot be built as "
+                           rf"cls\(settings, context\): {words}"):  # fmt: skip
+            registry.register_generator("x", cls)
+    # a constructor that takes more, with defaults, or *args, is fine: registered and removed
+    for init in (lambda self, s, c, extra=1: None, lambda self, *a: None):
+        registry.register_termination("x_ok", type("T", (), {"__init__": init, "check": min}))
+        registry.TERMINATIONS.pop("x_ok")
     with pytest.raises(ValueError, match="registered already \\(one of nbvkit's own\\)"):
         registry.register_generator("tour", RingGenerator)
     with pytest.raises(ValueError, match="registered already \\(one of nbvkit's own\\)"):

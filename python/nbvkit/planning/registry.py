@@ -117,6 +117,7 @@ def _check_part(name: str, kind: str, cls, methods) -> None:
     """TypeError unless `cls` can be built as cls(settings, context) into a part with `methods`,
     and its Settings (if any) is a dataclass."""
     import dataclasses
+    import inspect
 
     if not callable(cls):
         raise TypeError(f"{kind} {name!r} must be a class, got {type(cls).__name__}")
@@ -127,6 +128,15 @@ def _check_part(name: str, kind: str, cls, methods) -> None:
                 f"{kind} {name!r}: {cls.__name__} has no method "
                 + " or ".join(f"{m}()" for m in missing)
             )
+    try:  # built as cls(settings, context) at each mission's start: say so now
+        inspect.signature(cls).bind(None, None)
+    except TypeError as e:
+        raise TypeError(
+            f"{kind} {name!r}: {getattr(cls, '__name__', cls)!s} cannot be built as "
+            f"cls(settings, context): {e}"
+        ) from None
+    except ValueError:
+        pass  # no signature to read (a builtin): its first call says
     settings = getattr(cls, "Settings", None)
     if settings is not None and not (
         isinstance(settings, type) and dataclasses.is_dataclass(settings)
@@ -134,6 +144,11 @@ def _check_part(name: str, kind: str, cls, methods) -> None:
         raise TypeError(
             f"{kind} {name!r}: its Settings must be a dataclass (frozen, nbvkit.settings' "
             f"helpers for checks), got {settings!r}"
+        )
+    if settings is not None and not settings.__dataclass_params__.frozen:
+        raise TypeError(
+            f"{kind} {name!r}: its Settings must be a frozen dataclass (@dataclass(frozen=True)):"
+            " the configuration a run records is the one its parts flew"
         )
     if settings is not None:  # every configuration builds its section from the defaults
         try:
