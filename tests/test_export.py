@@ -1398,3 +1398,19 @@ def test_headings_are_written_within_their_ranges_after_rounding(tmp_path):
 def test_headings_of_a_full_turn_are_accepted(heading):
     b = GeoFrame(*ORIGIN, heading).bearing([1.0, 0.0, 0.0])
     assert abs((b - heading + 180.0) % 360.0 - 180.0) < 1e-9
+
+
+def test_an_export_again_into_a_relative_folder_removes_the_previous_files(
+    run_dir, tmp_path, monkeypatch
+):
+    """A relative --out (as USAGE shows): the sorties of the previous export (a tighter budget,
+    more sorties) are removed, not left beside the new mission."""
+    monkeypatch.chdir(tmp_path)
+    whole = export_mission(run_dir, "csv", ORIGIN, HEADING, tmp_path / "w")["mission"]
+    split = export_mission(
+        run_dir, "csv,qgc", ORIGIN, HEADING, "again", flight_time_min=whole["time_min"] / 1.5
+    )
+    assert len(split["sorties"]) >= 2 and (tmp_path / "again" / "sortie_02.plan").exists()
+    export_mission(run_dir, "csv", ORIGIN, HEADING, "again")
+    left = sorted(p.name for p in (tmp_path / "again").iterdir())
+    assert left == ["export.json", "mission.csv"], left

@@ -402,7 +402,7 @@ def _move_into_place(tmp: Path, out: Path, files: list) -> None:
             previous = []
         for name in previous:
             p = out / name
-            if name not in files and p.is_file() and out in p.resolve().parents:
+            if name not in files and p.is_file() and out.resolve() in p.resolve().parents:
                 p.unlink()
     for name in files:
         dst = out / name
