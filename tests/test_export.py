@@ -469,7 +469,7 @@ def test_kml_and_geojson_read_back(exported, run_dir):
     feats = {f.name: f for f in doc.features()}
     line = feats["flight"].geometry
     assert line.geom_type == "LineString" and len(line.coords) == len(rows)
-    views = list(feats["views"].features())
+    views = list(feats["captures"].features())
     assert all(v.geometry.geom_type == "Point" for v in views)
     assert len(views) == n_caps
     c = np.array(line.coords)
@@ -1414,3 +1414,36 @@ def test_an_export_again_into_a_relative_folder_removes_the_previous_files(
     export_mission(run_dir, "csv", ORIGIN, HEADING, "again")
     left = sorted(p.name for p in (tmp_path / "again").iterdir())
     assert left == ["export.json", "mission.csv"], left
+
+
+def test_dji_headings_turn_the_camera_of_a_yawed_mount_where_the_run_looked(tmp_path):
+    """A camera yawed 45 deg on its mount: the DJI aircraft, whose camera faces forward, faces
+    where the run's camera looked (waypointHeadingAngle and aircraftHeading), from the run's
+    poses and mount alone (bearing = HEADING - the direction's angle from mesh +x)."""
+    from lxml import etree
+
+    run = tmp_path / "run"
+    over = [*FAST, "max_iterations=3", "camera.mount_rpy_deg=[0,10,45]"]
+    Mission(Config().with_overrides(over)).run(run)
+    export_mission(run, "wpml,csv,geojson", ORIGIN, HEADING, tmp_path / "ex")
+    with zipfile.ZipFile(tmp_path / "ex" / "mission.kmz") as z:
+        root = etree.fromstring(z.read("wpmz/waylines.wpml"))
+    ns = {"k": "http://www.opengis.net/kml/2.2", "wpml": "http://www.dji.com/wpmz/1.0.2"}
+    got = [float(a.text) for a in root.iterfind(".//wpml:aircraftHeading", ns)]
+    mount = _core.mount_transform([0, 0, 0], 0.0, 10.0, 45.0)
+    want = []
+    for r in _read_flight(run):
+        if r["capture"] in ("view", "frame"):
+            pose = [float(r[k]) for k in ("x", "y", "z", "yaw")]
+            fwd = (_core.gimbal_transform([*pose, float(r["pitch"])]) @ mount)[:3, 0]
+            want.append(HEADING - math.degrees(math.atan2(fwd[1], fwd[0])))
+    assert len(got) == len(want) > 3
+    diff = (np.array(got) - np.array(want) + 180.0) % 360.0 - 180.0
+    assert np.abs(diff).max() < 0.01, diff
+    # the files without a gimbal command give the camera's yaw on the vehicle (positive right)
+    rows = [r for r in _csv(tmp_path / "ex" / "mission.csv") if r["action"] in ("view", "frame")]
+    assert len(rows) == len(want)
+    assert all(float(r["gimbal_yaw_deg"]) == pytest.approx(-45.0, abs=0.01) for r in rows)
+    geo = json.loads((tmp_path / "ex" / "mission.geojson").read_text())["features"][1:]
+    yaws = [f["properties"]["gimbal_yaw_deg"] for f in geo]
+    np.testing.assert_allclose(yaws, [float(r["gimbal_yaw_deg"]) for r in rows], atol=1e-3)

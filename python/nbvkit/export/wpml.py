@@ -50,6 +50,13 @@ def rth_rel_alt(g: GeoWaypoints) -> float:
     return min(top + RTH_MARGIN_M, RTH_MAX_M)
 
 
+def _camera_heading(g: GeoWaypoints, k: int) -> float:
+    """The bearing (deg) the aircraft faces at waypoint k so that its camera, which faces forward
+    on a DJI aircraft (the gimbal's yaw left at 0), looks where the run's camera looked: the
+    vehicle's heading plus the camera's yaw on its mount (camera.mount_rpy_deg)."""
+    return (float(g.heading[k]) + float(g.gimbal_yaw[k])) % 360.0
+
+
 def _course(g: GeoWaypoints, k: int) -> float:
     """The bearing (deg) of the leg into waypoint k: the heading a followWayline leg arrives
     with."""
@@ -119,7 +126,7 @@ def _placemark_point(folder, g: GeoWaypoints, k: int, index: int, template: bool
         _el(hp, "waypointHeadingMode", "followWayline")
     else:
         _el(hp, "waypointHeadingMode", "smoothTransition")
-        _el(hp, "waypointHeadingAngle", signed_angle_text(g.heading[k], 3))
+        _el(hp, "waypointHeadingAngle", signed_angle_text(_camera_heading(g, k), 3))
     _el(hp, "waypointHeadingPathMode", "followBadArc")
     tp = _el(pm, "waypointTurnParam")
     # no waypointTurnDampingDist: its range is (0, segment], and it is required only with
@@ -161,10 +168,10 @@ def _capture_actions(pm, g: GeoWaypoints, k: int, index: int, group: int, dji) -
     _el(p, "gimbalRotateTimeEnable", 0)
     _el(p, "gimbalRotateTime", 0)
     _el(p, "payloadPositionIndex", 0)
-    before = g.heading[k - 1] if g.action[k - 1] not in ("transit",) else _course(g, k)
-    turn = signed_deg(float(g.heading[k]) - float(before))
+    before = _camera_heading(g, k - 1) if g.action[k - 1] != "transit" else _course(g, k)
+    turn = signed_deg(_camera_heading(g, k) - float(before))
     p = _action(ag, 1, "rotateYaw")
-    _el(p, "aircraftHeading", signed_angle_text(g.heading[k], 3))
+    _el(p, "aircraftHeading", signed_angle_text(_camera_heading(g, k), 3))
     _el(p, "aircraftPathMode", "clockwise" if turn >= 0 else "counterClockwise")
     aid = 2
     for step in ("settle", "photo", "rest"):

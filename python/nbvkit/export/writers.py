@@ -330,7 +330,7 @@ def write_kml(g: GeoWaypoints, path) -> None:
         for i in range(len(g))
     )
     folder = ET.SubElement(doc, k("Folder"))
-    ET.SubElement(folder, k("name")).text = "views"
+    ET.SubElement(folder, k("name")).text = "captures"
     for i in range(len(g)):
         if g.action[i] not in ("view", "frame"):
             continue
@@ -339,7 +339,8 @@ def write_kml(g: GeoWaypoints, path) -> None:
         ET.SubElement(pm, k("description")).text = (
             f"heading {bearing_text(g.heading[i], 1)} deg, "
             f"gimbal pitch {_f(g.gimbal_pitch[i], 1)} deg, "
-            f"{_f(g.rel_alt[i], 2)} m above the launch point"
+            + (f"gimbal yaw {_f(g.gimbal_yaw[i], 1)} deg, " if g.gimbal_yaw[i] else "")
+            + f"{_f(g.rel_alt[i], 2)} m above the launch point"
         )
         pt = ET.SubElement(pm, k("Point"))
         ET.SubElement(pt, k("altitudeMode")).text = "absolute"
@@ -412,6 +413,7 @@ def write_geojson(g: GeoWaypoints, path) -> None:
                         "flight_row": int(g.row[i]),
                         "heading_deg": float(g.heading[i]),
                         "gimbal_pitch_deg": float(g.gimbal_pitch[i]),
+                        "gimbal_yaw_deg": float(g.gimbal_yaw[i]),
                         "rel_alt_m": float(g.rel_alt[i]),
                         "height_reference": height,
                         "altitude_m": float(g.alt[i]),
@@ -435,6 +437,7 @@ CSV_COLUMNS = (
     "rel_altitude_m",
     "heading_deg",
     "gimbal_pitch_deg",
+    "gimbal_yaw_deg",
 )
 
 
@@ -457,6 +460,7 @@ def write_csv(g: GeoWaypoints, path) -> None:
                 _f(float(g.rel_alt[i]), 3),
                 bearing_text(g.heading[i], 3),
                 _f(float(g.gimbal_pitch[i]), 3),
+                _f(float(g.gimbal_yaw[i]), 3),
             ]
         )
     with open(path, "w", newline="") as f:
