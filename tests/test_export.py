@@ -1447,3 +1447,37 @@ def test_dji_headings_turn_the_camera_of_a_yawed_mount_where_the_run_looked(tmp_
     geo = json.loads((tmp_path / "ex" / "mission.geojson").read_text())["features"][1:]
     yaws = [f["properties"]["gimbal_yaw_deg"] for f in geo]
     np.testing.assert_allclose(yaws, [float(r["gimbal_yaw_deg"]) for r in rows], atol=1e-3)
+
+
+def test_mission_items_are_counted_and_a_file_over_its_autopilots_limit_is_named(
+    run_dir, tmp_path, capsys, monkeypatch
+):
+    """export.json counts each MAVLink file's mission items (as an independent read of the file
+    counts them); a file holding more than its autopilot keeps is a warning on the console
+    naming the file and the limit, one at the limit is not."""
+    import nbvkit.export as ex
+    from nbvkit.cli import main
+
+    s = export_mission(run_dir, "qgc", ORIGIN, HEADING, tmp_path / "a")
+    plan = len(json.loads((tmp_path / "a" / "mission.plan").read_text())["mission"]["items"])
+    with open(tmp_path / "a" / "mission.waypoints") as f:
+        wpl = sum(1 for ln in f.read().splitlines()[1:] if int(ln.split("\t")[0]) > 0)
+    assert s["mission_items"] == {"mission.plan": plan, "mission.waypoints": wpl}
+    saved = json.loads((tmp_path / "a" / "export.json").read_text())
+    assert saved["mission_items"] == s["mission_items"]
+    limits = {".plan": ("PX4", plan), ".waypoints": ("ArduPilot on a Pixhawk 1", wpl - 1)}
+    monkeypatch.setattr(ex, "MAX_MISSION_ITEMS", limits)
+    assert ex.item_warnings(s["mission_items"]) == [
+        f"1 of 1 .waypoints files hold more mission items than ArduPilot on a Pixhawk 1 keeps "
+        f"({wpl - 1:,}; mission.waypoints: {wpl:,}): its upload fails there. Split the flight "
+        "(a shorter --flight-time), or fly a run with fewer in-flight frames "
+        "(planner.frame_step, profiling.camera_step)"
+    ]
+    monkeypatch.setattr(ex, "MAX_MISSION_ITEMS", {k: (w, 5) for k, (w, _) in limits.items()})
+    args = ["export", str(run_dir), "--origin", *map(str, ORIGIN), "--out", str(tmp_path / "b")]
+    assert main([*args, "--flight-time", str(s["mission"]["time_min"] / 3)]) == 0
+    err = capsys.readouterr().err.splitlines()
+    b = json.loads((tmp_path / "b" / "export.json").read_text())
+    assert len(b["sorties"]) >= 3 and b["warnings"] == [ln[9:] for ln in err]
+    for suffix in (".plan", ".waypoints"):
+        assert sum(f"of {len(b['sorties'])} {suffix} files hold more" in ln for ln in err) == 1

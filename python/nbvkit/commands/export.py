@@ -2,6 +2,10 @@
 from __future__ import annotations
 
 import argparse
+import sys
+
+#: The captures beyond the battery listed one by one on the console (export.json lists all).
+SHOWN = 10
 
 
 def register(sub) -> argparse.ArgumentParser:
@@ -120,11 +124,15 @@ def run(args) -> int:
             print(
                 f"{r['sortie']:>6} {r['views']:>6} {r['distance_m']:>11.1f} {r['time_min']:>9.2f}"
             )
-        for u in s["unreachable"]:
+        for u in s["unreachable"][:SHOWN]:
             what = u["capture"] or f"{u['stage']} point"
             print(
                 f"not flown: {what} at flight row {u['row']} needs {u['needed_s'] / 60:.2f} min "
                 "out, along and back, more than one battery"
             )
+        if len(s["unreachable"]) > SHOWN:
+            print(f"not flown: {len(s['unreachable']) - SHOWN:,} more (export.json: unreachable)")
+    for w in s["warnings"]:
+        print(f"warning: {w}", file=sys.stderr)
     print(f"{len(s['files'])} files -> {s['out']}/")
     return 0

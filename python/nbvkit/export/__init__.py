@@ -256,6 +256,42 @@ def _new_folder(parent: Path, prefix: str) -> Path:
     raise FileExistsError(f"no free temporary folder name {prefix}* in {parent}")
 
 
+#: The mission items an autopilot keeps: PX4 on NuttX boards (NUM_MISSIONS_SUPPORTED, its
+#: navigator's navigation.h), ArduPilot on a Pixhawk 1 (its StorageManager: "718 waypoints";
+#: boards with more storage keep more).
+MAX_MISSION_ITEMS = {".plan": ("PX4", 2000), ".waypoints": ("ArduPilot on a Pixhawk 1", 718)}
+
+
+def _mission_items(folder: Path, files) -> dict:
+    """file -> the mission items it holds (its MAVLink commands: a .plan's items, a .waypoints'
+    lines after the home line), of each MAVLink file among `files`."""
+    out = {}
+    for name in files:
+        path = folder / name
+        if path.suffix == ".plan":
+            out[name] = len(json.loads(path.read_text())["mission"]["items"])
+        elif path.suffix == ".waypoints":
+            out[name] = len(path.read_text().splitlines()) - 2  # the header, the home
+    return out
+
+
+def item_warnings(items: dict) -> list:
+    """The export's warnings on `items` (_mission_items): each MAVLink file with more mission
+    items than its autopilot keeps (MAX_MISSION_ITEMS), the upload would be refused."""
+    out = []
+    for suffix, (who, limit) in MAX_MISSION_ITEMS.items():
+        over = {n: k for n, k in items.items() if n.endswith(suffix) and k > limit}
+        if over:
+            worst = max(over, key=over.get)
+            out.append(
+                f"{len(over)} of {sum(n.endswith(suffix) for n in items)} {suffix} files hold "
+                f"more mission items than {who} keeps ({limit:,}; {worst}: {over[worst]:,}): "
+                "its upload fails there. Split the flight (a shorter --flight-time), or fly a "
+                "run with fewer in-flight frames (planner.frame_step, profiling.camera_step)"
+            )
+    return out
+
+
 def _write_into(out: Path, summary: dict, fl, sorties, frame, model, dji, budget: bool) -> None:
     """Writes the export (every format, sorties.csv with a budget, export.json) into a temporary
     folder beside `out`, then moves it into place; on an error nothing is left half-written."""
@@ -271,6 +307,8 @@ def _write_into(out: Path, summary: dict, fl, sorties, frame, model, dji, budget
             files.append("sorties.csv")
         files.append("export.json")
         summary["files"] = files
+        summary["mission_items"] = _mission_items(tmp, files)
+        summary["warnings"] = item_warnings(summary["mission_items"])
         summary["out"] = str(out)
         (tmp / "export.json").write_text(json.dumps(summary, indent=2, allow_nan=False) + "\n")
         _move_into_place(tmp, out, files)
