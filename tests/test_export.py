@@ -1481,3 +1481,21 @@ def test_mission_items_are_counted_and_a_file_over_its_autopilots_limit_is_named
     assert len(b["sorties"]) >= 3 and b["warnings"] == [ln[9:] for ln in err]
     for suffix in (".plan", ".waypoints"):
         assert sum(f"of {len(b['sorties'])} {suffix} files hold more" in ln for ln in err) == 1
+
+
+def test_the_ways_back_searched_in_threads_are_the_serial_ones(run_dir):
+    """ReturnPaths' A* searches run in threads (each releases the GIL): the same costs, the same
+    ways back and the same choice of A* or retrace as one search after another."""
+    from nbvkit.export.plan import FlightModel, ReturnPaths, SortiePlanner, find_launch, load_map
+
+    fl, model = read_run(run_dir), FlightModel()
+    occ = load_map(fl)
+    find_launch(fl, occ, model)
+    caps = [i for i in SortiePlanner.work_rows(fl) if fl.capture[i]]
+    one = ReturnPaths(fl, model, occ, caps, workers=1)
+    four = ReturnPaths(fl, model, occ, caps, workers=4)
+    assert len(one.astar) > 0 and one.astar.keys() == four.astar.keys()
+    np.testing.assert_array_equal(one.cost, four.cost)
+    np.testing.assert_array_equal(one.back, four.back)
+    for i in caps:
+        np.testing.assert_array_equal(one.path(i), four.path(i))

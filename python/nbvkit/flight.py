@@ -165,9 +165,9 @@ class ReturnPaths:
     """For each point of the flight, the cheapest known-safe way back to the start (see the
     module's docstring): its time (s) and its points (first = the point, last = the start)."""
 
-    def __init__(self, fl: RunFlight, model: FlightModel, occ_map, targets, max_expansions=None):
-        from . import _core
-
+    def __init__(
+        self, fl: RunFlight, model: FlightModel, occ_map, targets, max_expansions=None, workers=0
+    ):
         if max_expansions is None:  # the run's own A* cap (vehicle.path_expansions)
             max_expansions = fl.config.vehicle.path_expansions
 
@@ -175,29 +175,20 @@ class ReturnPaths:
         self.fl, self.model = fl, model
         leg = np.concatenate([[0.0], model.leg_times(fl.xyz)])
         self.cost = np.zeros(n)
-        self.astar: dict[int, np.ndarray] = {}
         self.back = np.full(n, -1)  # previous point along the retrace, or -1: A* (or the start)
-        targets = set(int(t) for t in targets)
-        for i in range(1, n):
+        self.astar: dict[int, np.ndarray] = {}
+        todo = [] if occ_map is None else sorted({int(t) for t in targets if 1 <= int(t) < n})
+        found = dict(zip(todo, _searches(occ_map, fl, todo, max_expansions, workers)))
+        for i in range(1, n):  # the retrace to the point before, or the A* way when shorter
             self.cost[i] = leg[i] + self.cost[i - 1]
             self.back[i] = i - 1
-            if occ_map is None or i not in targets:
+            path = found.get(i)
+            if path is None or not len(path):
                 continue
-            if np.allclose(fl.xyz[i], fl.start):
-                self.cost[i], self.back[i] = 0.0, -1
-                self.astar[i] = fl.start[None, :]
-                continue
-            try:
-                path = _core.plan_path(
-                    occ_map, fl.xyz[i], fl.start, fl.radius, max_expansions=max_expansions
-                )
-            except ValueError:  # outside the map (a wide profiling circle)
-                continue
-            if len(path) >= 2:
-                t = model.path_time(path)
-                if t < self.cost[i]:
-                    self.cost[i], self.back[i] = t, -1
-                    self.astar[i] = np.asarray(path, float)
+            t = 0.0 if len(path) == 1 else model.path_time(path)  # 1 point: the start itself
+            if len(path) == 1 or t < self.cost[i]:
+                self.cost[i], self.back[i] = t, -1
+                self.astar[i] = path
 
     def path(self, i: int) -> np.ndarray:
         """(P, 3) the way back from flight point i to the start (i itself first)."""
@@ -210,6 +201,32 @@ class ReturnPaths:
         else:
             pts.extend(self.astar[i])
         return np.asarray(pts, float)
+
+
+def _searches(occ_map, fl: RunFlight, points: list, max_expansions: int, workers: int) -> list:
+    """The A* path (P, 3) from each flight point to the start through known free space (the
+    start itself: its one point; none: (0, 3)), searched in `workers` threads (0: one per
+    thread of nbvkit.get_num_threads; each search releases the GIL)."""
+    from concurrent.futures import ThreadPoolExecutor
+
+    from . import _core
+
+    def search(i: int) -> np.ndarray:
+        if np.allclose(fl.xyz[i], fl.start):
+            return fl.start[None, :]
+        try:
+            path = _core.plan_path(
+                occ_map, fl.xyz[i], fl.start, fl.radius, max_expansions=max_expansions
+            )
+        except ValueError:  # outside the map (a wide profiling circle)
+            return np.zeros((0, 3))
+        return np.asarray(path, float) if len(path) >= 2 else np.zeros((0, 3))
+
+    n = workers or _core.get_num_threads()
+    if n <= 1 or len(points) <= 1:
+        return [search(i) for i in points]
+    with ThreadPoolExecutor(min(n, len(points))) as pool:
+        return list(pool.map(search, points))
 
 
 @dataclass
