@@ -309,6 +309,31 @@ def test_a_write_that_does_not_fit_names_the_file_and_leaves_none(tmp_path):
             assert not out.exists() and not list(tmp_path.glob(".e.json.tmp*"))
 
 
+def test_evaluate_json_into_a_pipe_or_the_shells_stdout_file_keeps_everything(tmp_path):
+    """evaluate --json /dev/stdout: into a pipe the JSON arrives (no temporary file beside a
+    pipe can be renamed over it), and into the file the shell redirected stdout to, the table
+    printed before it stays (a rename would have replaced the file)."""
+    import subprocess
+
+    cube_obj = ROOT / "meshes" / "fixtures" / "cube.obj"
+    np.save(tmp_path / "c.npy", np.random.default_rng(0).uniform(0, 1, (50, 3)))
+    cmd = [sys.executable, "-m", "nbvkit.cli", "evaluate", "--mesh", str(cube_obj)]
+    cmd += [str(tmp_path / "c.npy"), "--json", "/dev/stdout"]
+    piped = subprocess.run(cmd, capture_output=True, text=True, timeout=120, env=fb._env())
+    assert piped.returncode == 0, piped.stderr
+    log = tmp_path / "log.txt"
+    with open(log, "w") as f:
+        p = subprocess.run(cmd, stdout=f, stderr=subprocess.PIPE, text=True, timeout=120,
+                           env=fb._env())  # fmt: skip
+    assert p.returncode == 0, p.stderr
+    for text in (piped.stdout, log.read_text()):
+        lines = text.splitlines()
+        start, end = lines.index("{"), lines.index("}")
+        data = json.loads("\n".join(lines[start : end + 1]))
+        assert data["cloud_path"] == str(tmp_path / "c.npy") and "covered_cells" in data
+        assert any("ground-truth file" in ln for ln in lines[:start])  # the table before it
+
+
 # ------------------------------------------------------------------------ threads
 
 

@@ -33,6 +33,7 @@ import math
 import os
 import re
 import shutil
+import sys
 import time
 from pathlib import Path
 
@@ -423,6 +424,29 @@ def atomic_open(path: Path, mode: str = "w", **kw):
 def write_text_atomic(path: Path, text: str) -> None:
     with atomic_open(path) as f:
         f.write(text)
+
+
+def write_text_output(path, text: str) -> None:
+    """Writes a user's output file: whole or not at all (atomic_open at its target, through a
+    link) where a file can be swapped in; through this process's own stdout or stderr where the
+    path is that file (/dev/stdout: what was printed there stays, in order); else in place: a
+    pipe, a device (a name under /dev or /proc), or a file in a folder nbvkit may not create
+    files in."""
+    given = Path(os.fspath(path)).expanduser()
+    target = given.resolve()
+    for stream in (sys.stdout, sys.stderr):
+        with contextlib.suppress(OSError, ValueError, AttributeError):
+            if target.exists() and os.path.samestat(os.fstat(stream.fileno()), target.stat()):
+                stream.write(text)
+                stream.flush()
+                return
+    special = str(given.absolute()).startswith(("/dev/", "/proc/"))
+    special = special or (target.exists() and not target.is_file())
+    if special or not os.access(target.parent, os.W_OK | os.X_OK):
+        with naming_the_file(given), open(given, "w") as f:
+            f.write(text)
+    else:
+        write_text_atomic(target, text)
 
 
 def write_json_atomic(path: Path, data: dict) -> None:

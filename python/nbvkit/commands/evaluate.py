@@ -9,7 +9,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..runfolder import check_not_input, write_text_atomic
+from ..runfolder import check_not_input, write_text_output
 from ..paths import check_output_file, require_complete_run
 from ..cloud import read_points
 from ..mesh import default_mesh_path, file_up_axis
@@ -205,8 +205,7 @@ def run(args) -> int:
             out["observability"] = obs_stats
         out.update(gt_desc)
         text = json.dumps(out, indent=2, allow_nan=False)
-        # whole or not at all (a full disk); through a link, its target
-        write_text_atomic(Path(args.json).expanduser().resolve(), text + "\n")
+        write_text_output(args.json, text + "\n")  # whole or not at all where it can be
         print(f"results -> {args.json}")
     return 0
 
