@@ -43,6 +43,8 @@ def compare(
             "planners must be a list of scenario names, e.g. ['surface', '5'], "
             f"got {shorten(planners)}"
         )
+    if not planners:
+        raise ValueError("planners names no planner: give one or more, e.g. ['surface', '5']")
     if isinstance(starts, bool) or not isinstance(starts, int) or not 1 <= starts <= 5:
         raise ValueError(f"starts must be 1..5, got {starts!r}")
     mesh = None if mesh is None else os.fspath(mesh)

@@ -454,7 +454,7 @@ def override_strings(overrides) -> list[str]:
         out = []
         for k, v in overrides.items():
             try:  # numpy numbers and arrays as their lists
-                out.append(f"{k}={json.dumps(v, default=lambda o: o.tolist())}")
+                out.append(f"{k}={json.dumps(v, default=lambda o: o.tolist(), allow_nan=False)}")
             except (AttributeError, TypeError, ValueError):
                 raise TypeError(f"overrides {k!r}: {shorten(v)} is not a YAML value") from None
         return out
