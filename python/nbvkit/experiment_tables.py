@@ -200,8 +200,10 @@ def table2_markdown(t) -> str:
 
 def write_table2(df, out: Path) -> None:
     t = table2(df)
-    t.to_csv(out / "table2.csv", index=False)
-    (out / "table2.md").write_text(table2_markdown(t))
+    with naming_the_file(out / "table2.csv"):
+        t.to_csv(out / "table2.csv", index=False)
+    with naming_the_file(out / "table2.md"):
+        (out / "table2.md").write_text(table2_markdown(t))
 
 
 def compare_with_paper(t, paper_csv) -> str:
@@ -310,9 +312,12 @@ def write_compare(out: Path, df) -> str:
     """compare.csv and compare.md (compare_table of the runs table `df`) into the folder `out`;
     returns the markdown."""
     t = compare_table(df)
-    t.to_csv(Path(out) / "compare.csv", index=False)
-    (Path(out) / "compare.md").write_text(compare_markdown(t))
-    return (Path(out) / "compare.md").read_text()
+    md = compare_markdown(t)
+    with naming_the_file(Path(out) / "compare.csv"):
+        t.to_csv(Path(out) / "compare.csv", index=False)
+    with naming_the_file(Path(out) / "compare.md"):
+        (Path(out) / "compare.md").write_text(md)
+    return md
 
 
 def write_results(
