@@ -1453,7 +1453,7 @@ def test_mission_items_are_counted_and_a_file_over_its_autopilots_limit_is_named
     run_dir, tmp_path, capsys, monkeypatch
 ):
     """export.json counts each MAVLink file's mission items (as an independent read of the file
-    counts them); a file holding more than its autopilot keeps is a warning on the console
+    counts them, home included in the .waypoints' upload); a file holding more than its autopilot keeps is a warning on the console
     naming the file and the limit, one at the limit is not."""
     import nbvkit.export as ex
     from nbvkit.cli import main
@@ -1461,7 +1461,10 @@ def test_mission_items_are_counted_and_a_file_over_its_autopilots_limit_is_named
     s = export_mission(run_dir, "qgc", ORIGIN, HEADING, tmp_path / "a")
     plan = len(json.loads((tmp_path / "a" / "mission.plan").read_text())["mission"]["items"])
     with open(tmp_path / "a" / "mission.waypoints") as f:
-        wpl = sum(1 for ln in f.read().splitlines()[1:] if int(ln.split("\t")[0]) > 0)
+        wpl = sum(1 for ln in f.read().splitlines()[1:] if int(ln.split("\t")[0]) >= 0)
+    # the upload's items: ArduPilot counts home (sequence 0) among them
+    assert wpl == 1 + sum(1 for ln in open(tmp_path / "a" / "mission.waypoints") if ln[0] != "Q"
+                          and int(ln.split("\t")[0]) > 0)  # fmt: skip
     assert s["mission_items"] == {"mission.plan": plan, "mission.waypoints": wpl}
     saved = json.loads((tmp_path / "a" / "export.json").read_text())
     assert saved["mission_items"] == s["mission_items"]

@@ -257,21 +257,22 @@ def _new_folder(parent: Path, prefix: str) -> Path:
 
 
 #: The mission items an autopilot keeps: PX4 on NuttX boards (NUM_MISSIONS_SUPPORTED, its
-#: navigator's navigation.h), ArduPilot on a Pixhawk 1 (its StorageManager: "718 waypoints";
-#: boards with more storage keep more).
+#: navigator's navigation.h), ArduPilot on a Pixhawk 1 (its StorageManager: "718 waypoints",
+#: home the first of them; boards with more storage keep more).
 MAX_MISSION_ITEMS = {".plan": ("PX4", 2000), ".waypoints": ("ArduPilot on a Pixhawk 1", 718)}
 
 
 def _mission_items(folder: Path, files) -> dict:
-    """file -> the mission items it holds (its MAVLink commands: a .plan's items, a .waypoints'
-    lines after the home line), of each MAVLink file among `files`."""
+    """file -> the mission items its upload holds, of each MAVLink file among `files`: a
+    .plan's items (PX4 keeps home apart), a .waypoints' lines after its header (the home line
+    included: ArduPilot uploads and stores home as item 0)."""
     out = {}
     for name in files:
         path = folder / name
         if path.suffix == ".plan":
             out[name] = len(json.loads(path.read_text())["mission"]["items"])
         elif path.suffix == ".waypoints":
-            out[name] = len(path.read_text().splitlines()) - 2  # the header, the home
+            out[name] = len(path.read_text().splitlines()) - 1  # the header
     return out
 
 
