@@ -1453,8 +1453,9 @@ def test_mission_items_are_counted_and_a_file_over_its_autopilots_limit_is_named
     run_dir, tmp_path, capsys, monkeypatch
 ):
     """export.json counts each MAVLink file's mission items (as an independent read of the file
-    counts them, home included in the .waypoints' upload); a file holding more than its autopilot keeps is a warning on the console
-    naming the file and the limit, one at the limit is not."""
+    counts them, home included in the .waypoints' upload); a file holding more than its
+    autopilot keeps is a warning on the console naming the file and the limit, one at the limit
+    is not."""
     import nbvkit.export as ex
     from nbvkit.cli import main
 
@@ -1469,14 +1470,14 @@ def test_mission_items_are_counted_and_a_file_over_its_autopilots_limit_is_named
     saved = json.loads((tmp_path / "a" / "export.json").read_text())
     assert saved["mission_items"] == s["mission_items"]
     limits = {".plan": ("PX4", plan), ".waypoints": ("ArduPilot on a Pixhawk 1", wpl - 1)}
-    monkeypatch.setattr(ex, "MAX_MISSION_ITEMS", limits)
-    assert ex.item_warnings(s["mission_items"]) == [
+    monkeypatch.setattr(ex.items, "MAX_MISSION_ITEMS", limits)
+    assert ex.items.item_warnings(s["mission_items"]) == [
         f"1 of 1 .waypoints files hold more mission items than ArduPilot on a Pixhawk 1 keeps "
         f"({wpl - 1:,}; mission.waypoints: {wpl:,}): its upload fails there. Split the flight "
-        "(a shorter --flight-time), or fly a run with fewer in-flight frames "
-        "(planner.frame_step, profiling.camera_step)"
+        f"(--max-items {wpl - 1:,}, or a shorter --flight-time), or fly a run with fewer "
+        "in-flight frames (planner.frame_step, profiling.camera_step)"
     ]
-    monkeypatch.setattr(ex, "MAX_MISSION_ITEMS", {k: (w, 5) for k, (w, _) in limits.items()})
+    monkeypatch.setattr(ex.items, "MAX_MISSION_ITEMS", {k: (w, 5) for k, (w, _) in limits.items()})
     args = ["export", str(run_dir), "--origin", *map(str, ORIGIN), "--out", str(tmp_path / "b")]
     assert main([*args, "--flight-time", str(s["mission"]["time_min"] / 3)]) == 0
     err = capsys.readouterr().err.splitlines()
@@ -1486,19 +1487,75 @@ def test_mission_items_are_counted_and_a_file_over_its_autopilots_limit_is_named
         assert sum(f"of {len(b['sorties'])} {suffix} files hold more" in ln for ln in err) == 1
 
 
-def test_the_ways_back_searched_in_threads_are_the_serial_ones(run_dir):
-    """ReturnPaths' A* searches run in threads (each releases the GIL): the same costs, the same
-    ways back and the same choice of A* or retrace as one search after another."""
+def test_max_items_splits_the_flight_into_sorties_whose_files_an_autopilot_keeps(
+    run_dir, tmp_path, capsys
+):
+    """--max-items N: every .plan and .waypoints file holds at most N mission items (read back
+    as QGroundControl and Mission Planner read them: JSON items, lines after the header), every
+    capture is flown in exactly one sortie, and no file warns; with a battery too, the sorties
+    keep both limits. Bad values are refused by name before any file is written."""
+    from nbvkit.cli import main
+
+    whole = export_mission(run_dir, "qgc", ORIGIN, HEADING, tmp_path / "whole")
+    n = max(whole["mission_items"].values()) // 3
+    args = ["export", str(run_dir), "--origin", *map(str, ORIGIN), "--format", "qgc,csv"]
+    assert main([*args, "--max-items", str(n), "--out", str(tmp_path / "a")]) == 0
+    printed = capsys.readouterr()
+    s = json.loads((tmp_path / "a" / "export.json").read_text())
+    assert s["budget"]["max_items"] == n and s["budget"]["usable_min"] is None
+    assert len(s["sorties"]) >= 3 and s["unreachable"] == [] and s["warnings"] == []
+    assert "warning" not in printed.err
+    caps = []
+    for k in range(1, len(s["sorties"]) + 1):
+        plan = json.loads((tmp_path / "a" / f"sortie_{k:02d}.plan").read_text())
+        assert len(plan["mission"]["items"]) <= n
+        with open(tmp_path / "a" / f"sortie_{k:02d}.waypoints") as f:
+            assert len(f.read().splitlines()) - 1 <= n  # home included
+        with open(tmp_path / "a" / f"sortie_{k:02d}.csv", newline="") as f:
+            caps += [r["flight_row"] for r in csv.DictReader(f) if r["action"] in ("view", "frame")]
+    fl = read_run(run_dir)
+    assert sorted(map(int, caps)) == [i for i, c in enumerate(fl.capture) if c]
+    half = whole["mission"]["time_min"] / 2
+    both = export_mission(
+        run_dir, "qgc", ORIGIN, HEADING, tmp_path / "b", flight_time_min=half, max_items=n
+    )
+    assert len(both["sorties"]) >= 3 and max(both["mission_items"].values()) <= n
+    usable_s = both["budget"]["usable_min"] * 60
+    assert all(x["time_s"] <= usable_s + 1e-6 for x in both["sorties"])
+    for bad, words in ((9, "at least 10"), (12.5, "whole number"), (True, "whole number")):
+        with pytest.raises(ValueError, match=words):
+            export_mission(run_dir, "qgc", ORIGIN, HEADING, tmp_path / "c", max_items=bad)
+    assert not (tmp_path / "c").exists()
+
+
+def test_the_ways_back_from_one_search_are_what_a_search_from_each_capture_finds(run_dir):
+    """ReturnPaths finds the A* ways back of all captures by one search out from the start: each
+    capture has one exactly where plan_path from it finds one, as cheap (the cells' path cost
+    equal), from the capture to the start; and the choice of A* or retrace follows the
+    cheaper."""
     from nbvkit.export.plan import FlightModel, ReturnPaths, SortiePlanner, find_launch, load_map
 
     fl, model = read_run(run_dir), FlightModel()
     occ = load_map(fl)
     find_launch(fl, occ, model)
     caps = [i for i in SortiePlanner.work_rows(fl) if fl.capture[i]]
-    one = ReturnPaths(fl, model, occ, caps, workers=1)
-    four = ReturnPaths(fl, model, occ, caps, workers=4)
-    assert len(one.astar) > 0 and one.astar.keys() == four.astar.keys()
-    np.testing.assert_array_equal(one.cost, four.cost)
-    np.testing.assert_array_equal(one.back, four.back)
-    for i in caps:
-        np.testing.assert_array_equal(one.path(i), four.path(i))
+    rp = ReturnPaths(fl, model, occ, caps)
+    all_ = _core.plan_paths_to(occ, fl.xyz[caps], fl.start, fl.radius)
+    searched = 0
+    for k, i in enumerate(caps):
+        one = _core.search_path(occ, fl.xyz[i], fl.start, fl.radius, max_expansions=10**8)
+        assert (len(all_.paths[k]) > 0) == (len(one.path) > 0), i
+        if not len(one.path):
+            continue
+        np.testing.assert_array_equal(all_.paths[k][0], fl.xyz[i])
+        np.testing.assert_array_equal(all_.paths[k][-1], fl.start)
+        if len(one.path) > 2:  # searched: the cells' paths cost the same; shortening them
+            searched += 1  # adds at most the pieces from the capture and to the start
+            assert all_.cells_cost[k] == pytest.approx(one.cells_cost, abs=1e-9)
+            length = np.linalg.norm(np.diff(all_.paths[k], axis=0), axis=1).sum()
+            assert length <= all_.cells_cost[k] + math.sqrt(3) * occ.resolution + 1e-9, i
+        t_all = model.path_time(all_.paths[k])
+        retrace = rp.cost[i - 1] + model.leg_times(fl.xyz[i - 1 : i + 1])[0]
+        assert rp.cost[i] == pytest.approx(min(t_all, retrace)), i
+        assert (i in rp.astar) == (t_all < retrace), i
+    assert searched > 0 and len(rp.astar) > 0

@@ -1658,6 +1658,34 @@ def test_the_vehicle_can_plan_its_way_back_along_its_own_flight():
         assert (w.map.state(path) == 0).all()  # waypoints in known free cells
 
 
+def test_paths_to_one_goal_refuse_bad_input_by_name_and_answer_each_start():
+    """plan_paths_to (many starts, one goal, one search): a ValueError naming what is wrong; no
+    starts, no paths; a start in sight of the goal flies straight, one round a corner of an L
+    corridor by a searched path, one in unknown space has none - each as plan_path answers."""
+    m = _core.OccupancyMap(0.2, (0, 0, 0), (12, 12, 4))
+    m.mark_free_segment((2, 2, 2), (10, 2, 2), 1.2)
+    m.mark_free_segment((10, 2, 2), (10, 10, 2), 1.2)
+    goal = (2.5, 2, 2)
+    for starts, g, r, words in (
+        ([[np.nan, 1, 1]], goal, 0.35, "starts contains NaN"),
+        ([[1, 1]], goal, 0.35, "starts must have shape"),
+        ([[3, 2, 2]], (np.inf, 1, 1), 0.35, "goal contains NaN"),
+        ([[3, 2, 2]], goal, -1.0, "radius must be finite"),
+    ):
+        with pytest.raises(ValueError, match=words):
+            _core.plan_paths_to(m, starts, g, r)
+    assert _core.plan_paths_to(m, np.zeros((0, 3)), goal, 0.35).paths == []
+    starts = np.array([[6, 2, 2], [10, 9.5, 2], [6, 8, 2]])
+    found = _core.plan_paths_to(m, starts, goal, 0.35)
+    for k, a in enumerate(starts):
+        one = _core.plan_path(m, a, goal, 0.35)
+        assert len(found.paths[k]) == len(one) if len(one) <= 2 else len(found.paths[k]) > 2
+    assert [len(p) for p in found.paths][::2] == [2, 0]
+    assert found.cells_cost[1] == pytest.approx(
+        _core.search_path(m, starts[1], goal, 0.35).cells_cost
+    )
+
+
 def test_a_search_cut_short_by_its_cap_is_searched_again_when_the_view_is_reachable():
     # The way back along two legs flown through unknown space (as above) takes A* more than 5
     # expanded cells. With vehicle.path_expansions = 5 the first search fails; the view lies in

@@ -606,6 +606,14 @@ One A* search of search_path: its path, and why it found none (read `capped`).)d
           "flood_ended", [](const PathSearch& s) { return s.stats.flood_ended; },
           "the flood from b ended the search: b's free component is closed without a")
       .def_property_readonly(
+          "cells_cost",
+          [](const PathSearch& s) {
+            // a searched path has 3 points at least (the straight flight, 2, was not free)
+            return s.path.rows() > 2 ? s.stats.cost : std::numeric_limits<double>::quiet_NaN();
+          },
+          "the cost (m) of the cells' path the path was shortened from (NaN where the straight\n"
+          "flight was free or there is no path)")
+      .def_property_readonly(
           "capped", [](const PathSearch& s) { return s.stats.capped; },
           "the search stopped at max_expansions with cells left to expand: a longer search may\n"
           "find a path; any other failure is final")
@@ -633,6 +641,56 @@ One A* search of search_path: its path, and why it found none (read `capped`).)d
       py::arg("max_expansions") = kDefaultPathExpansions, py::arg("surface") = nullptr,
       "plan_path's search with what it did: a PathSearch (path, expansions, flood_ended,\n"
       "capped). A failed search that is not capped is final: no path exists.");
+  struct PathsTo {
+    std::vector<Points> paths;
+    Eigen::VectorXd cells_cost;
+    std::size_t expansions = 0;
+    bool capped = false;
+  };
+  py::class_<PathsTo>(m, "PathsToGoal", R"doc(
+The paths of plan_paths_to: one per start, from one search.)doc")
+      .def_readonly(
+          "paths", &PathsTo::paths,
+          "per start, (P, 3) waypoints from it to the goal, or (0, 3) where there is none")
+      .def_readonly("cells_cost", &PathsTo::cells_cost,
+                    "(N,) per start, the cost (m) of the cells' path its path was shortened from\n"
+                    "(NaN where the straight flight is free or there is no path)")
+      .def_readonly("expansions", &PathsTo::expansions, "cells the search expanded")
+      .def_readonly("capped", &PathsTo::capped,
+                    "the search stopped at max_expansions with starts still to reach")
+      .def("__repr__", [](const PathsTo& p) {
+        std::size_t found = 0;
+        for (const Points& q : p.paths) found += q.rows() > 0;
+        return "<nbvkit.PathsToGoal " + std::to_string(found) + " of " +
+               std::to_string(p.paths.size()) + " found, " + std::to_string(p.expansions) +
+               " expansions" + (p.capped ? ", capped>" : ">");
+      });
+  m.def(
+      "plan_paths_to",
+      [](const OccupancyMap& map, const py::handle& starts, const py::handle& goal, double r,
+         std::size_t max_expansions, const SurfacePtr& surface) {
+        const PointsArg a = points_arg(starts, "starts");
+        const Eigen::Vector3d pb = vec3_arg(goal, "goal");
+        check_radius(r);
+        PathsToGoal found;
+        {
+          Reading2 lock(map, surface.get());
+          found = plan_paths_to(grid_view(map, surface.get()), a.map(), pb, r, max_expansions);
+        }
+        PathsTo out;
+        for (const auto& p : found.paths) out.paths.push_back(path_rows(p));
+        out.cells_cost = Eigen::Map<const Eigen::VectorXd>(found.cells_cost.data(),
+                                                           Eigen::Index(found.cells_cost.size()));
+        out.expansions = found.expansions;
+        out.capped = found.capped;
+        return out;
+      },
+      py::arg("map"), py::arg("starts"), py::arg("goal"), py::arg("radius"),
+      py::arg("max_expansions") = 0, py::arg("surface") = nullptr,
+      "What plan_path finds from each start (N, 3) to `goal` with no cap, by one search from the\n"
+      "goal (a cheapest path where several tie may differ from plan_path's): a PathsToGoal.\n"
+      "max_expansions: cells the search expands at most (0: until every start is reached or\n"
+      "none is left to reach).");
   py::class_<BoundComponent>(m, "FreeComponent", R"doc(
 The cells plan_path can reach from `start` through known free space (collision sphere of
 `radius`; with the camera observations `surface`, off every cell the camera has hit), found by

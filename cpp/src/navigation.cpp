@@ -1,10 +1,13 @@
 #include "nbv/navigation.hpp"
 
+#include "nbv/parallel.hpp"
+
 #include <algorithm>
 #include <array>
 #include <cmath>
 #include <cstdint>
 #include <deque>
+#include <limits>
 #include <queue>
 #include <unordered_map>
 
@@ -436,6 +439,7 @@ std::vector<Eigen::Vector3d> plan_path(const GridView& g, const Eigen::Vector3d&
   }
   if (stats) *stats = {expansions, flood.size(), false, !found && !open.empty()};
   if (!found) return {};
+  if (stats) stats->cost = s.block(ib).g[ib & 63];
   std::vector<Eigen::Vector3d> cells;
   for (std::size_t idx = ib;; idx = s.block(idx).parent[idx & 63]) {
     int i, j, k;
@@ -528,6 +532,147 @@ std::vector<std::uint8_t> FreeComponent::contains(const GridView& g,
         (cb == start_cell_ && sphere_is_free(g, g.center(cb.x(), cb.y(), cb.z()), radius_));
     out[std::size_t(n)] = in && segment_is_free(g, g.center(cb.x(), cb.y(), cb.z()), b, radius_);
   }
+  return out;
+}
+
+PathsToGoal plan_paths_to(const GridView& g, const PointsRef& starts, const Eigen::Vector3d& goal,
+                          double radius, std::size_t max_expansions) {
+  // plan_path from every start at once: its tests (the straight flight, the goal's cell
+  // traversable and in sight of the goal), then its search run backwards, from the goal's cell
+  // outwards: a start's cell is reached when the search settles it (a start's cell need not be
+  // traversable: it is reached, never passed through, as plan_path leaves it)
+  g.validate();
+  require_finite(starts, "path starts");
+  const std::size_t n = std::size_t(starts.rows());
+  PathsToGoal out;
+  out.paths.resize(n);
+  out.cells_cost.assign(n, std::numeric_limits<double>::quiet_NaN());
+  auto start = [&](std::size_t i) { return Eigen::Vector3d(starts.row(Eigen::Index(i))); };
+  std::vector<std::uint8_t> direct(n, 0);
+  parallel_chunks(n, 8, [&](std::size_t b, std::size_t e) {
+    for (std::size_t i = b; i < e; ++i) direct[i] = segment_is_free(g, start(i), goal, radius);
+  });
+  constexpr std::size_t kNone = std::numeric_limits<std::size_t>::max();
+  std::vector<std::size_t> cell(n, kNone);  // the start's cell, where it is searched
+  for (std::size_t i = 0; i < n; ++i) {
+    Eigen::Vector3i c;
+    if (direct[i])
+      out.paths[i] = {start(i), goal};
+    else if (g.cell_of(start(i), c))
+      cell[i] = g.index(c);
+  }
+  Eigen::Vector3i cb;
+  if (!g.cell_of(goal, cb)) return out;
+  SearchScratch& s = thread_scratch();
+  s.begin(g);
+  const SphereStencil stencil(radius / g.resolution);
+  s.columns_up_to(stencil.height());
+  auto traversable = [&](int i, int j, int k) {
+    return (s.traversable(g, stencil, radius, i >> 6, j, k) >> (i & 63) & 1) != 0;
+  };
+  if (!traversable(cb.x(), cb.y(), cb.z()) ||
+      !segment_is_free(g, g.center(cb.x(), cb.y(), cb.z()), goal, radius))
+    return out;
+  std::vector<std::size_t> targets;
+  for (std::size_t c : cell)
+    if (c != kNone) targets.push_back(c);
+  std::sort(targets.begin(), targets.end());
+  targets.erase(std::unique(targets.begin(), targets.end()), targets.end());
+  if (targets.empty()) return out;
+  std::vector<std::uint8_t> target_brick(g.storage_size() >> 6, 0);
+  for (std::size_t t : targets) target_brick[t >> 6] = 1;
+  auto is_target = [&](std::size_t idx) {
+    return target_brick[idx >> 6] && std::binary_search(targets.begin(), targets.end(), idx);
+  };
+  double step[27];
+  for (int d = 0; d < 27; ++d) {
+    const int dx = d % 3 - 1, dy = d / 3 % 3 - 1, dz = d / 9 - 1;
+    step[d] = g.resolution * std::sqrt(double(dx * dx + dy * dy + dz * dz));
+  }
+  // A* towards the box of the starts' cells: the distance to a box never drops by more than a
+  // move costs (a consistent heuristic), so a cell's cost is final when it leaves the queue, as
+  // in Dijkstra's search; for one start it is plan_path's search backwards
+  Eigen::Vector3d lo = Eigen::Vector3d::Constant(std::numeric_limits<double>::infinity());
+  Eigen::Vector3d hi = -lo;
+  for (std::size_t t : targets) {
+    int x, y, z;
+    g.layout.coords(t, x, y, z);
+    lo = lo.cwiseMin(g.center(x, y, z));
+    hi = hi.cwiseMax(g.center(x, y, z));
+  }
+  auto h = [&](int i, int j, int k) {
+    const Eigen::Vector3d p = g.center(i, j, k);
+    return (lo - p).cwiseMax(p - hi).cwiseMax(0.0).norm();
+  };
+  struct Node {
+    double f, g;
+    std::size_t idx;
+    int i, j, k;
+    bool operator>(const Node& o) const { return f > o.f; }
+  };
+  std::priority_queue<Node, std::vector<Node>, std::greater<Node>> open;
+  const std::size_t ib = g.index(cb);
+  {
+    SearchScratch::Block& blk = s.block(ib);
+    blk.g[ib & 63] = 0.0;
+    blk.parent[ib & 63] = ib;
+    blk.has_g |= std::uint64_t(1) << (ib & 63);
+  }
+  open.push({h(cb.x(), cb.y(), cb.z()), 0.0, ib, cb.x(), cb.y(), cb.z()});
+  std::size_t remaining = targets.size();
+  while (!open.empty() && remaining) {
+    const Node cur = open.top();
+    open.pop();
+    SearchScratch::Block& here = s.block(cur.idx);
+    const std::uint64_t cur_bit = std::uint64_t(1) << (cur.idx & 63);
+    if (here.reached & cur_bit) continue;  // settled before: a stale entry
+    here.reached |= cur_bit;               // settled: its cost is final
+    if (is_target(cur.idx) && --remaining == 0) break;
+    if (!traversable(cur.i, cur.j, cur.k)) continue;  // a start's cell: an end, not a way
+    if (max_expansions && out.expansions == max_expansions) {
+      out.capped = true;
+      break;
+    }
+    ++out.expansions;
+    for (int d = 0; d < 27; ++d) {
+      if (d == 13) continue;  // the cell itself
+      const int ni = cur.i + d % 3 - 1, nj = cur.j + d / 3 % 3 - 1, nk = cur.k + d / 9 - 1;
+      if (!g.contains(ni, nj, nk)) continue;
+      const std::size_t nidx = g.index(ni, nj, nk);
+      if (!traversable(ni, nj, nk) && !is_target(nidx)) continue;
+      SearchScratch::Block& blk = s.block(nidx);
+      const std::uint64_t bit = std::uint64_t(1) << (nidx & 63);
+      const double ng = cur.g + step[d];
+      if ((blk.reached & bit) || ((blk.has_g & bit) && blk.g[nidx & 63] <= ng)) continue;
+      blk.g[nidx & 63] = ng;
+      blk.has_g |= bit;
+      blk.parent[nidx & 63] = cur.idx;
+      open.push({ng + h(ni, nj, nk), ng, nidx, ni, nj, nk});
+    }
+  }
+  // the settled starts' cells back to the goal's, shortened as plan_path shortens (read only:
+  // the blocks belong to this thread's scratch and stay put until its next search)
+  auto settled = [&](std::size_t idx) -> const SearchScratch::Block* {
+    const std::size_t b = idx >> 6;
+    if (s.brick_stamp[b] != s.stamp) return nullptr;
+    const SearchScratch::Block& blk = s.blocks[s.brick_block[b]];
+    return (blk.reached >> (idx & 63) & 1) ? &blk : nullptr;
+  };
+  parallel_chunks(n, 4, [&](std::size_t b, std::size_t e) {
+    for (std::size_t i = b; i < e; ++i) {
+      const SearchScratch::Block* blk = cell[i] == kNone ? nullptr : settled(cell[i]);
+      if (!blk) continue;
+      std::vector<Eigen::Vector3d> cells;
+      for (std::size_t idx = cell[i];; idx = settled(idx)->parent[idx & 63]) {
+        int x, y, z;
+        g.layout.coords(idx, x, y, z);
+        cells.push_back(g.center(x, y, z));
+        if (idx == ib) break;
+      }
+      out.cells_cost[i] = blk->g[cell[i] & 63];
+      out.paths[i] = shortened(g, start(i), cells, goal, radius);
+    }
+  });
   return out;
 }
 

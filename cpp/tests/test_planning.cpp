@@ -715,6 +715,89 @@ TEST(Navigation, FastSearchGivesTheReferencePathOnRandomScenes) {
   EXPECT_GT(unreachable, 40);
 }
 
+TEST(Navigation, PathsToOneGoalAreWhatASearchFromEachStartFinds) {
+  // Random tunnel scenes as above: plan_paths_to's one search from the goal must reach exactly
+  // the starts plan_path reaches, each by a cells' path of plan_path's cost (both are cheapest),
+  // and return its path from the start to the goal shortened as plan_path shortens (every
+  // segment in sight or one step between neighbouring cells), the straight flight where
+  // plan_path takes it.
+  std::mt19937 rng(17);
+  std::uniform_real_distribution<double> ux(0.5, 15.5), uy(0.5, 7.5), uz(0.5, 4.5), ur(0.6, 1.6);
+  int found = 0, none = 0, straight = 0;
+  for (int scene = 0; scene < 6; ++scene) {
+    OccupancyMap m(0.2, {0, 0, 0}, {16, 8, 5});
+    std::vector<Eigen::Vector3d> nodes;
+    for (int n = 0; n < 7; ++n) nodes.emplace_back(ux(rng), uy(rng), uz(rng));
+    for (std::size_t n = 1; n < nodes.size(); ++n)
+      if (n % 3 != 0) m.mark_free_segment(nodes[n - 1], nodes[n], ur(rng));
+    Points blobs(12, 3);
+    for (Eigen::Index k = 0; k < blobs.rows(); ++k) blobs.row(k) << ux(rng), uy(rng), uz(rng);
+    m.update_cells(blobs, true);
+    const GridView g = grid_view(m);
+    for (double radius : {0.8, 0.35, 0.5}) {
+      const Eigen::Vector3d goal = nodes[rng() % nodes.size()];
+      Points starts(30, 3);  // near the nodes (some blocked cells among them), and anywhere
+      for (Eigen::Index q = 0; q < starts.rows(); ++q)
+        starts.row(q) =
+            q % 3
+                ? (nodes[rng() % nodes.size()] + Eigen::Vector3d(ux(rng), uy(rng), uz(rng)) * 0.05)
+                      .transpose()
+                : Eigen::RowVector3d(ux(rng), uy(rng), uz(rng));
+      const PathsToGoal all = plan_paths_to(g, starts, goal, radius);
+      ASSERT_EQ(all.paths.size(), 30u);
+      EXPECT_FALSE(all.capped);
+      for (Eigen::Index q = 0; q < starts.rows(); ++q) {
+        const Eigen::Vector3d a = starts.row(q).transpose();
+        PathSearchStats one;
+        const auto ref = plan_path(g, a, goal, radius, 10000000, &one);
+        const auto& p = all.paths[std::size_t(q)];
+        ASSERT_EQ(p.empty(), ref.empty()) << "scene " << scene << " radius " << radius;
+        if (ref.empty()) {
+          ++none;
+          continue;
+        }
+        EXPECT_EQ(p.front(), a);
+        EXPECT_EQ(p.back(), goal);
+        for (std::size_t i = 1; i < p.size(); ++i)  // in sight, or one step of the cells
+          EXPECT_TRUE(segment_is_free(g, p[i - 1], p[i], radius) ||
+                      (p[i] - p[i - 1]).norm() <= std::sqrt(3.0) * 0.2 + 1e-9)
+              << "segment " << i << " of " << p.size() - 1;
+        if (ref.size() == 2) {  // the straight flight
+          EXPECT_EQ(p.size(), 2u);
+          EXPECT_TRUE(std::isnan(all.cells_cost[std::size_t(q)]));
+          ++straight;
+        } else {
+          EXPECT_NEAR(all.cells_cost[std::size_t(q)], one.cost, 1e-9);
+          ++found;
+        }
+      }
+    }
+  }
+  EXPECT_GT(found, 40);  // all three outcomes are exercised
+  EXPECT_GT(none, 40);
+  EXPECT_GT(straight, 10);
+  // a cap of 3 expanded cells stops the search with starts unreached; the goal out of the grid
+  // or blocked reaches none but the straight flights
+  OccupancyMap m(0.2, {0, 0, 0}, {12, 12, 4});
+  m.mark_free_segment({2, 2, 2}, {10, 2, 2}, 1.2);
+  m.mark_free_segment({10, 2, 2}, {10, 10, 2}, 1.2);
+  const GridView g = grid_view(m);
+  Points corner(2, 3);
+  corner << 10, 9.5, 2, 2.6, 2, 2;
+  const PathsToGoal cut = plan_paths_to(g, corner, {2.5, 2, 2}, 0.35, 3);
+  EXPECT_TRUE(cut.capped);
+  EXPECT_EQ(cut.expansions, 3u);
+  EXPECT_TRUE(cut.paths[0].empty());
+  EXPECT_EQ(cut.paths[1].size(), 2u);  // in sight of the goal
+  const PathsToGoal whole = plan_paths_to(g, corner, {2.5, 2, 2}, 0.35);
+  EXPECT_FALSE(whole.capped);
+  EXPECT_GE(whole.paths[0].size(), 3u);
+  EXPECT_TRUE(plan_paths_to(g, corner, {30, 2, 2}, 0.35).paths[0].empty());
+  EXPECT_TRUE(plan_paths_to(g, corner, {6, 8, 2}, 0.35).paths[0].empty());  // in unknown space
+  corner(1, 0) = std::nan("");
+  EXPECT_THROW(plan_paths_to(g, corner, {2.5, 2, 2}, 0.35), std::invalid_argument);
+}
+
 TEST(Navigation, AGoalInAClosedPocketCostsThePocketNotTheWholeFreeSpace) {
   // a large known free hall and, apart from it, a small free pocket: the search from the hall
   // ends when the flood from the pocket closes, long before the hall is exhausted

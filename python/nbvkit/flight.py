@@ -163,14 +163,13 @@ def find_launch(fl: RunFlight, occ_map, model: FlightModel) -> None:
 
 class ReturnPaths:
     """For each point of the flight, the cheapest known-safe way back to the start (see the
-    module's docstring): its time (s) and its points (first = the point, last = the start)."""
+    module's docstring): its time (s) and its points (first = the point, last = the start).
 
-    def __init__(
-        self, fl: RunFlight, model: FlightModel, occ_map, targets, max_expansions=None, workers=0
-    ):
-        if max_expansions is None:  # the run's own A* cap (vehicle.path_expansions)
-            max_expansions = fl.config.vehicle.path_expansions
+    The A* ways back of all targets come from one search out from the start
+    (nbvkit.plan_paths_to: what an A* search from each finds), which expands at most what the
+    run's capped A* searches (vehicle.path_expansions cells) from each would have together."""
 
+    def __init__(self, fl: RunFlight, model: FlightModel, occ_map, targets):
         n = len(fl.xyz)
         self.fl, self.model = fl, model
         leg = np.concatenate([[0.0], model.leg_times(fl.xyz)])
@@ -178,7 +177,7 @@ class ReturnPaths:
         self.back = np.full(n, -1)  # previous point along the retrace, or -1: A* (or the start)
         self.astar: dict[int, np.ndarray] = {}
         todo = [] if occ_map is None else sorted({int(t) for t in targets if 1 <= int(t) < n})
-        found = dict(zip(todo, _searches(occ_map, fl, todo, max_expansions, workers)))
+        found = dict(zip(todo, _searches(occ_map, fl, todo)))
         for i in range(1, n):  # the retrace to the point before, or the A* way when shorter
             self.cost[i] = leg[i] + self.cost[i - 1]
             self.back[i] = i - 1
@@ -203,30 +202,24 @@ class ReturnPaths:
         return np.asarray(pts, float)
 
 
-def _searches(occ_map, fl: RunFlight, points: list, max_expansions: int, workers: int) -> list:
+def _searches(occ_map, fl: RunFlight, points: list) -> list:
     """The A* path (P, 3) from each flight point to the start through known free space (the
-    start itself: its one point; none: (0, 3)), searched in `workers` threads (0: one per
-    thread of nbvkit.get_num_threads; each search releases the GIL)."""
-    from concurrent.futures import ThreadPoolExecutor
-
+    start itself: its one point; none: (0, 3)), by one search out from the start (a point outside
+    the map, on a wide profiling circle, has none)."""
     from . import _core
 
-    def search(i: int) -> np.ndarray:
-        if np.allclose(fl.xyz[i], fl.start):
-            return fl.start[None, :]
-        try:
-            path = _core.plan_path(
-                occ_map, fl.xyz[i], fl.start, fl.radius, max_expansions=max_expansions
-            )
-        except ValueError:  # outside the map (a wide profiling circle)
-            return np.zeros((0, 3))
-        return np.asarray(path, float) if len(path) >= 2 else np.zeros((0, 3))
-
-    n = workers or _core.get_num_threads()
-    if n <= 1 or len(points) <= 1:
-        return [search(i) for i in points]
-    with ThreadPoolExecutor(min(n, len(points))) as pool:
-        return list(pool.map(search, points))
+    if not points:
+        return []
+    xyz = fl.xyz[points]
+    at_start = np.all(np.isclose(xyz, fl.start), axis=1)
+    ask = np.flatnonzero(~at_start)
+    out = [fl.start[None, :] if s else np.zeros((0, 3)) for s in at_start]
+    if len(ask):
+        cap = int(fl.config.vehicle.path_expansions) * len(ask)
+        found = _core.plan_paths_to(occ_map, xyz[ask], fl.start, fl.radius, max_expansions=cap)
+        for k, path in zip(ask, found.paths):
+            out[k] = np.asarray(path, float) if len(path) >= 2 else np.zeros((0, 3))
+    return out
 
 
 @dataclass
@@ -417,44 +410,64 @@ class SortiePlanner:
         """The whole mission in one flight (no battery limit)."""
         return self.sortie(1, 0, int(self.work[-1]))
 
-    def split(self, usable_s: float):
-        """(sorties, unreachable): sorties within usable_s seconds each, and the rows no sortie
-        can fly (dicts: row, capture, stage, needed_s)."""
+    def split(self, usable_s: float, fits=None):
+        """(sorties, unreachable): sorties within usable_s seconds each (math.inf: no limit) for
+        which fits(sortie) holds (None: any), and the rows no sortie can fly (dicts: row,
+        capture, stage, needed_s; reason: "flight time" or "fits", the limit it broke)."""
         sorties, unreachable = [], []
         k = 0  # index into work: the next row to fly
         while k < len(self.work):
-            j, s = self._sortie_from(k, len(sorties) + 1, usable_s)
+            j, s = self._sortie_from(k, len(sorties) + 1, usable_s, fits)
             if j is None:  # no sortie from this row fits: it is left out, the next one tried
                 r = int(self.work[k])
                 where = {"row": r, "capture": self.fl.capture[r], "stage": self.fl.stage[r]}
-                unreachable.append({**where, "needed_s": round(s, 1)})
+                reason = "flight time" if s.time_s > usable_s + 1e-9 else "fits"
+                unreachable.append({**where, "needed_s": round(s.time_s, 1), "reason": reason})
                 k += 1
                 continue
             sorties.append(s)
             k = j + 1
         return sorties, unreachable
 
-    def _sortie_from(self, k: int, number: int, usable_s: float):
-        """(j, sortie `number` flying work[k..j]): the longest from work[k] within usable_s; or
-        (None, the seconds the shortest one needs) when none fits."""
+    def _sortie_from(self, k: int, number: int, usable_s: float, fits=None):
+        """(j, sortie `number` flying work[k..j]): the longest from work[k] within usable_s (and
+        fits); or (None, the shortest one, what it needs) when none fits."""
         work, r = self.work, int(self.work[k])
-        best = None
+        best = k
         for j in range(k, len(work)):
             e = int(work[j])
             if self.fly_s(r, e, back=False) > usable_s:
                 break  # the way along alone is too long from here on
             if self.cost(r, e) <= usable_s:
                 best = j
-        if best is None:
-            return None, self.cost(r, r)
-        # the sortie's own waits (its waypoints' turns) may pass the estimate: fly less
-        while True:
-            s = self.sortie(number, r, int(work[best]))
-            if s.time_s <= usable_s + 1e-9:
-                return best, s
-            if best == k:
-                return None, s.time_s
+
+        def ok(j: int):
+            s = self.sortie(number, r, int(work[j]))
+            return s.time_s <= usable_s + 1e-9 and (fits is None or fits(s)), s
+
+        # the sortie's own waits (its waypoints' turns) may pass the estimate: fly less, one
+        # row at a time; where fits does not hold, by galloping from work[k], then halving
+        good, s = ok(best)
+        while not good and best > k and fits is None:
             best -= 1
+            good, s = ok(best)
+        if good or fits is None:
+            return (best if good else None), s
+        good, s = ok(k)
+        if not good:
+            return None, s
+        lo, hi, step = k, best, 1  # lo fits, hi does not
+        while lo + step < hi:  # each try costs about what the sortie found will
+            g, s_next = ok(lo + step)
+            if not g:
+                hi = lo + step
+                break
+            lo, s, step = lo + step, s_next, 2 * step
+        while hi - lo > 1:
+            mid = (lo + hi) // 2
+            g, s_mid = ok(mid)
+            lo, hi, s = (mid, hi, s_mid) if g else (lo, mid, s)
+        return lo, s
 
 
 def sortie_planner(fl: RunFlight, model: FlightModel, need_all_returns: bool, occ_map=None):

@@ -26,6 +26,7 @@ bool segment_is_free(const GridView& grid, const Eigen::Vector3d& a, const Eigen
 struct PathSearchStats {
   std::size_t expansions = 0, flooded = 0;
   bool flood_ended = false, capped = false;
+  double cost = 0.0;  ///< the found cells' path cost (m, a's cell to b's, before shortening)
 };
 
 /// Cells an A* search expands at most unless told (vehicle.path_expansions's default, bound as
@@ -42,6 +43,28 @@ std::vector<Eigen::Vector3d> plan_path(const GridView& grid, const Eigen::Vector
                                        const Eigen::Vector3d& b, double radius,
                                        std::size_t max_expansions = kDefaultPathExpansions,
                                        PathSearchStats* stats = nullptr);
+
+/// The paths from many points to one goal (plan_paths_to): per start, its waypoints (the start
+/// first, the goal last; empty where there is none) and the cost of the cells' path it was
+/// shortened from (m; NaN where the straight flight was free or there is no path).
+struct PathsToGoal {
+  std::vector<std::vector<Eigen::Vector3d>> paths;
+  std::vector<double> cells_cost;
+  std::size_t expansions = 0;  ///< cells the search expanded
+  bool capped = false;         ///< it stopped at max_expansions with starts still to reach
+};
+
+/// What plan_path(grid, start, goal, radius) finds from each row of `starts`, uncapped, by one
+/// search: the straight flight where it is free, else a cheapest path over the traversable cells
+/// (the same cost as plan_path's; where several tie, perhaps another of them) shortened greedily
+/// by line of sight, or none. One search from the goal's cell (the moves are symmetric; A*
+/// towards the box of the starts' cells, Dijkstra's search where the goal is inside it) runs
+/// until it has reached every start's cell, exhausted the goal's free component, or expanded
+/// max_expansions cells (0: no cap); the straight-flight tests and the shortening run in
+/// parallel.
+PathsToGoal plan_paths_to(const GridView& grid, const PointsRef& starts,
+                          const Eigen::Vector3d& goal, double radius,
+                          std::size_t max_expansions = 0);
 
 /// The cells plan_path can reach from a: a's free component (traversable cells, 26-connected,
 /// reached from a's neighbours as the search expands them), found by one flood. Valid for the
