@@ -293,9 +293,13 @@ def flight_section(flight=None, export: dict | None = None, paths=None) -> str:
     body = [f"<h2>Flight</h2>{table(rows)}"]
     if export is not None and export.get("budget"):
         b = export["budget"]
+        limits = []
+        if b.get("flight_time_min") is not None:
+            limits.append(f"a {b['flight_time_min']:g} min battery ({b['reserve_pct']:g}% reserve)")
+        if b.get("max_items") is not None:
+            limits.append(f"at most {b['max_items']:,} mission items a file")
         body.append(
-            f"<p>Sorties for a {b['flight_time_min']:g} min battery ({b['reserve_pct']:g}% "
-            f"reserve): {len(export['sorties'])}"
+            f"<p>Sorties for {' and '.join(limits)}: {len(export['sorties'])}"
             + (f"; not flown: {len(export['unreachable'])} points" if export["unreachable"] else "")
             + "</p>"
         )

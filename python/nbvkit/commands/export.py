@@ -86,6 +86,14 @@ def register(sub) -> argparse.ArgumentParser:
         metavar="PCT",
         help="battery reserve kept unused, percent of --flight-time (default 20)",
     )
+    p.add_argument(
+        "--max-items",
+        type=int,
+        default=None,
+        metavar="N",
+        help="split the flight into sorties whose MAVLink files hold at most N mission items "
+        "(PX4 keeps 2000, ArduPilot on a Pixhawk 1 718)",
+    )
     p.add_argument("--out", metavar="DIR", default=None, help="output folder (RUN_DIR/export)")
     return p
 
@@ -104,6 +112,7 @@ def run(args) -> int:
         hover_s=args.hover,
         flight_time_min=args.flight_time,
         reserve_pct=args.reserve,
+        max_items=args.max_items,
         altitude_ref=args.altitude_ref,
     )
     m = s["mission"]
@@ -127,8 +136,12 @@ def run(args) -> int:
         for u in s["unreachable"][:SHOWN]:
             what = u["capture"] or f"{u['stage']} point"
             print(
-                f"not flown: {what} at flight row {u['row']} needs {u['needed_s'] / 60:.2f} min "
-                "out, along and back, more than one battery"
+                f"not flown: {what} at flight row {u['row']} needs "
+                + (
+                    f"{u['needed_s'] / 60:.2f} min out, along and back, more than one battery"
+                    if u["reason"] == "flight time"
+                    else f"more than --max-items {s['budget']['max_items']} mission items"
+                )
             )
         if len(s["unreachable"]) > SHOWN:
             print(f"not flown: {len(s['unreachable']) - SHOWN:,} more (export.json: unreachable)")

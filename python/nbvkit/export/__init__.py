@@ -20,7 +20,7 @@ from ..flight_time import FRAME, VIEW, FlightModel, signed_deg
 from ..run_report import update_flight_section
 from ..runfolder import require_complete_run
 from .plan import read_run
-from . import colmap, writers
+from . import colmap, items, writers
 from .wpml import write_wpml_kmz
 
 __all__ = ["FORMATS", "export_mission", "estimate_flight", "GeoFrame", "FlightModel"]
@@ -194,6 +194,7 @@ def export_mission(
     altitude_ref: str = "amsl",
     dji_drone=(67, 0),
     dji_payload: int = 52,
+    max_items: int | None = None,
 ) -> dict:
     """Writes a run folder's flight in `formats` (FORMATS; a list or "qgc,kml,...") to `out_dir`
     (default RUN_DIR/export) and returns the export's summary (also out_dir/export.json).
@@ -203,7 +204,10 @@ def export_mission(
     (m/s), climb_rate (m/s), hover_s (s per view): the flight-time model. flight_time_min: one
     battery's flight time; with it the flight is split into sorties within flight_time_min *
     (1 - reserve_pct / 100) each, one file per sortie per format. dji_drone / dji_payload: the
-    WPML droneEnumValue/droneSubEnumValue and payloadEnumValue (default: M30).
+    WPML droneEnumValue/droneSubEnumValue and payloadEnumValue (default: M30). max_items: the
+    most mission items one MAVLink file may hold (nbvkit.export.items.MAX_MISSION_ITEMS: what
+    autopilots keep); with it the flight is split into sorties whose files hold no more (within
+    the battery too, with flight_time_min).
 
     Raises ValueError naming a bad value (latitude, longitude, non-finite numbers, an unknown
     format, a budget too small for any view), FileNotFoundError for a run folder without a
@@ -217,26 +221,25 @@ def export_mission(
     frame = GeoFrame(*(float(v) for v in origin), float(heading_deg), altitude_ref)
     model = FlightModel(float(speed), float(climb_rate), float(hover_s))
     usable = _budget(flight_time_min, float(reserve_pct))
+    max_items = items.check_max_items(max_items)
+    split = usable is not None or max_items is not None
     run = require_complete_run(Path(run_dir).expanduser())  # whole, not half-written
     out = Path(out_dir).expanduser() if out_dir is not None else run / "export"
     if out.exists() and not out.is_dir():
         raise ValueError(f"output folder {out} exists and is not a folder")
 
-    fl, sp = _planner(run, model, need_all_returns=usable is not None)
+    fl, sp = _planner(run, model, need_all_returns=split)
     whole = sp.whole()
-    if usable is None:
-        sorties, unreachable = [whole], []
-    else:
-        sorties, unreachable = _split(fl, sp, usable, flight_time_min, reserve_pct)
-    budget = None
-    if usable is not None:
+    sorties, unreachable, budget = [whole], [], None
+    if split:
+        fits = None if max_items is None else _fits_items(fl, frame, model, max_items)
+        sorties, unreachable = _split(fl, sp, usable, flight_time_min, reserve_pct, fits)
         budget = {"flight_time_min": flight_time_min, "reserve_pct": reserve_pct}
-        budget["usable_min"] = round(usable / 60, 3)
+        budget["usable_min"] = None if usable is None else round(usable / 60, 3)
+        budget["max_items"] = max_items
     summary = _summary(run, frame, fl, model, whole, budget, sorties, unreachable, fmts)
 
-    _write_into(
-        out, summary, fl, sorties, frame, model, (dji_drone, dji_payload), usable is not None
-    )
+    _write_into(out, summary, fl, sorties, frame, model, (dji_drone, dji_payload), split)
     paths = [np.array([fl.home, *[w.xyz for w in s.waypoints], fl.home]) for s in sorties]
     summary["report_updated"] = update_flight_section(run, summary, paths)
     return summary
@@ -256,43 +259,6 @@ def _new_folder(parent: Path, prefix: str) -> Path:
     raise FileExistsError(f"no free temporary folder name {prefix}* in {parent}")
 
 
-#: The mission items an autopilot keeps: PX4 on NuttX boards (NUM_MISSIONS_SUPPORTED, its
-#: navigator's navigation.h), ArduPilot on a Pixhawk 1 (its StorageManager: "718 waypoints",
-#: home the first of them; boards with more storage keep more).
-MAX_MISSION_ITEMS = {".plan": ("PX4", 2000), ".waypoints": ("ArduPilot on a Pixhawk 1", 718)}
-
-
-def _mission_items(folder: Path, files) -> dict:
-    """file -> the mission items its upload holds, of each MAVLink file among `files`: a
-    .plan's items (PX4 keeps home apart), a .waypoints' lines after its header (the home line
-    included: ArduPilot uploads and stores home as item 0)."""
-    out = {}
-    for name in files:
-        path = folder / name
-        if path.suffix == ".plan":
-            out[name] = len(json.loads(path.read_text())["mission"]["items"])
-        elif path.suffix == ".waypoints":
-            out[name] = len(path.read_text().splitlines()) - 1  # the header
-    return out
-
-
-def item_warnings(items: dict) -> list:
-    """The export's warnings on `items` (_mission_items): each MAVLink file with more mission
-    items than its autopilot keeps (MAX_MISSION_ITEMS), the upload would be refused."""
-    out = []
-    for suffix, (who, limit) in MAX_MISSION_ITEMS.items():
-        over = {n: k for n, k in items.items() if n.endswith(suffix) and k > limit}
-        if over:
-            worst = max(over, key=over.get)
-            out.append(
-                f"{len(over)} of {sum(n.endswith(suffix) for n in items)} {suffix} files hold "
-                f"more mission items than {who} keeps ({limit:,}; {worst}: {over[worst]:,}): "
-                "its upload fails there. Split the flight (a shorter --flight-time), or fly a "
-                "run with fewer in-flight frames (planner.frame_step, profiling.camera_step)"
-            )
-    return out
-
-
 def _write_into(out: Path, summary: dict, fl, sorties, frame, model, dji, budget: bool) -> None:
     """Writes the export (every format, sorties.csv with a budget, export.json) into a temporary
     folder beside `out`, then moves it into place; on an error nothing is left half-written."""
@@ -308,8 +274,8 @@ def _write_into(out: Path, summary: dict, fl, sorties, frame, model, dji, budget
             files.append("sorties.csv")
         files.append("export.json")
         summary["files"] = files
-        summary["mission_items"] = _mission_items(tmp, files)
-        summary["warnings"] = item_warnings(summary["mission_items"])
+        summary["mission_items"] = items.mission_items(tmp, files)
+        summary["warnings"] = items.item_warnings(summary["mission_items"])
         summary["out"] = str(out)
         (tmp / "export.json").write_text(json.dumps(summary, indent=2, allow_nan=False) + "\n")
         _move_into_place(tmp, out, files)
@@ -318,12 +284,24 @@ def _write_into(out: Path, summary: dict, fl, sorties, frame, model, dji, budget
         raise
 
 
-def _split(fl, sp, usable: float, flight_time_min, reserve_pct):
-    """(sorties, unreachable) of the flight within `usable` seconds each; ValueError when the
-    budget is too short for any view."""
-    sorties, unreachable = sp.split(usable)
+def _fits_items(fl, frame, model, max_items: int):
+    """fits(sortie) for SortiePlanner.split: its MAVLink files hold at most max_items items."""
+
+    def fits(sortie) -> bool:
+        g = _geo(fl, sortie, frame, model.speed, model.hover_s, {}, "fits")
+        return items.sortie_items(g) <= max_items
+
+    return fits
+
+
+def _split(fl, sp, usable, flight_time_min, reserve_pct, fits=None):
+    """(sorties, unreachable) of the flight within `usable` seconds (None: no limit) and fits
+    each; ValueError when the budget is too short for any view."""
+    sorties, unreachable = sp.split(math.inf if usable is None else usable, fits)
     n_views = int((np.asarray(fl.capture) == VIEW).sum())
     flown = sum(s.views for s in sorties)
+    if usable is None and (not sorties or (n_views and flown == 0)):
+        raise ValueError("no view's sortie fits within max_items mission items")
     if not sorties or (n_views and flown == 0):
         need = min((u["needed_s"] for u in unreachable if u["capture"] == VIEW), default=None)
         raise ValueError(
