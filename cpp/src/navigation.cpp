@@ -203,6 +203,30 @@ __attribute__((noinline)) SearchScratch& thread_scratch() {
 
 }  // namespace
 
+namespace {
+// One search's traversable cells: this thread's scratch begun on g, the collision sphere's
+// stencil, and the test of a cell (its bit in its word of 64 cells along x).
+struct Traversal {
+  const GridView& g;
+  double radius;
+  SearchScratch& s;
+  SphereStencil stencil;
+  Traversal(const GridView& grid, double r)
+      : g(grid), radius(r), s(thread_scratch()), stencil(r / grid.resolution) {
+    s.begin(g);
+    s.columns_up_to(stencil.height());
+  }
+  bool operator()(int i, int j, int k) const {
+    return (s.traversable(g, stencil, radius, i >> 6, j, k) >> (i & 63) & 1) != 0;
+  }
+  /// Whether a search may end at cell c for the point p: c traversable, its centre in sight of p.
+  bool ends_at(const Eigen::Vector3i& c, const Eigen::Vector3d& p) const {
+    return (*this)(c.x(), c.y(), c.z()) &&
+           segment_is_free(g, g.center(c.x(), c.y(), c.z()), p, radius);
+  }
+};
+}  // namespace
+
 bool sphere_is_free(const GridView& g, const Eigen::Vector3d& center, double radius) {
   const double r = radius / g.resolution;
   const Eigen::Vector3d q = (center - g.origin) / g.resolution;
@@ -350,17 +374,10 @@ std::vector<Eigen::Vector3d> plan_path(const GridView& g, const Eigen::Vector3d&
   if (segment_is_free(g, a, b, radius)) return {a, b};
   Eigen::Vector3i ca, cb;
   if (!g.cell_of(a, ca) || !g.cell_of(b, cb)) return {};
-  SearchScratch& s = thread_scratch();
-  s.begin(g);
-  const SphereStencil stencil(radius / g.resolution);
-  s.columns_up_to(stencil.height());
-  auto traversable = [&](int i, int j, int k) {
-    return (s.traversable(g, stencil, radius, i >> 6, j, k) >> (i & 63) & 1) != 0;
-  };
+  const Traversal traversable(g, radius);
+  SearchScratch& s = traversable.s;
   const std::size_t ia = g.index(ca), ib = g.index(cb);
-  if (!traversable(cb.x(), cb.y(), cb.z()) ||
-      !segment_is_free(g, g.center(cb.x(), cb.y(), cb.z()), b, radius))
-    return {};
+  if (!traversable.ends_at(cb, b)) return {};
   struct Node {
     double f;
     std::size_t idx;
@@ -563,16 +580,9 @@ PathsToGoal plan_paths_to(const GridView& g, const PointsRef& starts, const Eige
   }
   Eigen::Vector3i cb;
   if (!g.cell_of(goal, cb)) return out;
-  SearchScratch& s = thread_scratch();
-  s.begin(g);
-  const SphereStencil stencil(radius / g.resolution);
-  s.columns_up_to(stencil.height());
-  auto traversable = [&](int i, int j, int k) {
-    return (s.traversable(g, stencil, radius, i >> 6, j, k) >> (i & 63) & 1) != 0;
-  };
-  if (!traversable(cb.x(), cb.y(), cb.z()) ||
-      !segment_is_free(g, g.center(cb.x(), cb.y(), cb.z()), goal, radius))
-    return out;
+  const Traversal traversable(g, radius);
+  SearchScratch& s = traversable.s;
+  if (!traversable.ends_at(cb, goal)) return out;
   std::vector<std::size_t> targets;
   for (std::size_t c : cell)
     if (c != kNone) targets.push_back(c);
