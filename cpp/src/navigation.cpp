@@ -660,28 +660,32 @@ PathsToGoal plan_paths_to(const GridView& g, const PointsRef& starts, const Eige
       open.push({ng + h(ni, nj, nk), ng, nidx, ni, nj, nk});
     }
   }
-  // the settled starts' cells back to the goal's, shortened as plan_path shortens (read only:
-  // the blocks belong to this thread's scratch and stay put until its next search)
+  // the settled starts' cells back to the goal's, read here from this thread's scratch (no
+  // other thread touches it), then shortened in parallel as plan_path shortens
   auto settled = [&](std::size_t idx) -> const SearchScratch::Block* {
     const std::size_t b = idx >> 6;
     if (s.brick_stamp[b] != s.stamp) return nullptr;
     const SearchScratch::Block& blk = s.blocks[s.brick_block[b]];
     return (blk.reached >> (idx & 63) & 1) ? &blk : nullptr;
   };
-  parallel_chunks(n, 4, [&](std::size_t b, std::size_t e) {
-    for (std::size_t i = b; i < e; ++i) {
-      const SearchScratch::Block* blk = cell[i] == kNone ? nullptr : settled(cell[i]);
-      if (!blk) continue;
-      std::vector<Eigen::Vector3d> cells;
-      for (std::size_t idx = cell[i];; idx = settled(idx)->parent[idx & 63]) {
-        int x, y, z;
-        g.layout.coords(idx, x, y, z);
-        cells.push_back(g.center(x, y, z));
-        if (idx == ib) break;
-      }
-      out.cells_cost[i] = blk->g[cell[i] & 63];
-      out.paths[i] = shortened(g, start(i), cells, goal, radius);
+  std::vector<std::vector<Eigen::Vector3d>> chains(n);
+  for (std::size_t i = 0; i < n; ++i) {
+    const SearchScratch::Block* blk = cell[i] == kNone ? nullptr : settled(cell[i]);
+    if (!blk) continue;
+    for (std::size_t idx = cell[i];; idx = settled(idx)->parent[idx & 63]) {
+      int x, y, z;
+      g.layout.coords(idx, x, y, z);
+      chains[i].push_back(g.center(x, y, z));
+      if (idx == ib) break;
     }
+    out.cells_cost[i] = blk->g[cell[i] & 63];
+  }
+  parallel_chunks(n, 4, [&](std::size_t b, std::size_t e) {
+    for (std::size_t i = b; i < e; ++i)
+      if (!chains[i].empty()) {
+        out.paths[i] = shortened(g, start(i), chains[i], goal, radius);
+        std::vector<Eigen::Vector3d>().swap(chains[i]);
+      }
   });
   return out;
 }

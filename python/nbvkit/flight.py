@@ -446,18 +446,19 @@ class SortiePlanner:
             return s.time_s <= usable_s + 1e-9 and (fits is None or fits(s)), s
 
         # the sortie's own waits (its waypoints' turns) may pass the estimate: fly less, one
-        # row at a time; where fits does not hold, by galloping from work[k], then halving
-        good, s = ok(best)
-        while not good and best > k and fits is None:
-            best -= 1
+        # row at a time; with fits, gallop from work[k] (each try costs about what the sortie
+        # found will), then halve
+        if fits is None:
             good, s = ok(best)
-        if good or fits is None:
+            while not good and best > k:
+                best -= 1
+                good, s = ok(best)
             return (best if good else None), s
         good, s = ok(k)
         if not good:
             return None, s
-        lo, hi, step = k, best, 1  # lo fits, hi does not
-        while lo + step < hi:  # each try costs about what the sortie found will
+        lo, hi, step = k, best + 1, 1  # lo fits; hi does not, or is past best
+        while lo + step < hi:
             g, s_next = ok(lo + step)
             if not g:
                 hi = lo + step
