@@ -1522,7 +1522,7 @@ def test_max_items_splits_the_flight_into_sorties_whose_files_an_autopilot_keeps
     assert len(both["sorties"]) >= 3 and max(both["mission_items"].values()) <= n
     usable_s = both["budget"]["usable_min"] * 60
     assert all(x["time_s"] <= usable_s + 1e-6 for x in both["sorties"])
-    for bad, words in ((9, "at least 10"), (12.5, "whole number"), (True, "whole number")):
+    for bad, words in ((11, "at least 12"), (12.5, "whole number"), (True, "whole number")):
         with pytest.raises(ValueError, match=words):
             export_mission(run_dir, "qgc", ORIGIN, HEADING, tmp_path / "c", max_items=bad)
     assert not (tmp_path / "c").exists()

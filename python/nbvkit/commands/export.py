@@ -72,6 +72,13 @@ def register(sub) -> argparse.ArgumentParser:
         help="hover per view: a settle of 1 s (always, even with --hover 0), the photo, the "
         "rest (default 2 s)",
     )
+    _add_split_options(p)
+    p.add_argument("--out", metavar="DIR", default=None, help="output folder (RUN_DIR/export)")
+    return p
+
+
+def _add_split_options(p) -> None:
+    """The options that split the flight into sorties: a battery, a mission size."""
     p.add_argument(
         "--flight-time",
         type=float,
@@ -94,8 +101,6 @@ def register(sub) -> argparse.ArgumentParser:
         help="split the flight into sorties whose MAVLink files hold at most N mission items "
         "(PX4 keeps 2000, ArduPilot on a Pixhawk 1 718)",
     )
-    p.add_argument("--out", metavar="DIR", default=None, help="output folder (RUN_DIR/export)")
-    return p
 
 
 def run(args) -> int:

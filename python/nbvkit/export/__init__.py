@@ -233,7 +233,8 @@ def export_mission(
     sorties, unreachable, budget = [whole], [], None
     if split:
         fits = None if max_items is None else _fits_items(fl, frame, model, max_items)
-        sorties, unreachable = _split(fl, sp, usable, flight_time_min, reserve_pct, fits)
+        limits = (flight_time_min, reserve_pct, fits, max_items)
+        sorties, unreachable = _split(fl, sp, usable, *limits)
         budget = {"flight_time_min": flight_time_min, "reserve_pct": reserve_pct}
         budget["usable_min"] = None if usable is None else round(usable / 60, 3)
         budget["max_items"] = max_items
@@ -294,15 +295,17 @@ def _fits_items(fl, frame, model, max_items: int):
     return fits
 
 
-def _split(fl, sp, usable, flight_time_min, reserve_pct, fits=None):
+def _split(fl, sp, usable, flight_time_min, reserve_pct, fits=None, max_items=None):
     """(sorties, unreachable) of the flight within `usable` seconds (None: no limit) and fits
     each; ValueError when the budget is too short for any view."""
     sorties, unreachable = sp.split(math.inf if usable is None else usable, fits)
     n_views = int((np.asarray(fl.capture) == VIEW).sum())
     flown = sum(s.views for s in sorties)
-    if usable is None and (not sorties or (n_views and flown == 0)):
-        raise ValueError("no view's sortie fits within max_items mission items")
-    if not sorties or (n_views and flown == 0):
+    none = not sorties or (n_views and flown == 0)
+    views_left = {u["reason"] for u in unreachable if u["capture"] == VIEW}
+    if none and (usable is None or views_left == {"fits"}):
+        raise ValueError(f"no view's sortie fits within {max_items} mission items a file")
+    if none:
         need = min((u["needed_s"] for u in unreachable if u["capture"] == VIEW), default=None)
         raise ValueError(
             f"flight time {flight_time_min:g} min ({usable / 60:.2f} min usable after the "

@@ -12,9 +12,10 @@ from . import writers
 #: home the first of them; boards with more storage keep more).
 MAX_MISSION_ITEMS = {".plan": ("PX4", 2000), ".waypoints": ("ArduPilot on a Pixhawk 1", 718)}
 
-#: The fewest items a sortie's file can hold: take-off, two speed changes, return to launch,
-#: ArduPilot's home, and a view's five (gimbal, heading, waypoint, photo, rest).
-MIN_ITEMS = 10
+#: The fewest items a sortie's file can hold: take-off, two speed changes, a view's five (gimbal,
+#: heading, waypoint, photo, rest), the way home (a waypoint and its heading), return to launch,
+#: and ArduPilot's home.
+MIN_ITEMS = 12
 
 
 def mission_items(folder: Path, files) -> dict:
@@ -63,7 +64,7 @@ def item_warnings(items: dict) -> list:
             out.append(
                 f"{len(over)} of {sum(n.endswith(suffix) for n in items)} {suffix} files hold "
                 f"more mission items than {who} keeps ({limit:,}; {worst}: {over[worst]:,}): "
-                f"its upload fails there. Split the flight (--max-items {limit:,}, or a shorter "
+                f"its upload fails there. Split the flight (--max-items {limit}, or a shorter "
                 "--flight-time), or fly a run with fewer in-flight frames (planner.frame_step, "
                 "profiling.camera_step)"
             )
