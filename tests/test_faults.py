@@ -319,12 +319,13 @@ def test_evaluate_json_into_a_pipe_or_the_shells_stdout_file_keeps_everything(tm
     np.save(tmp_path / "c.npy", np.random.default_rng(0).uniform(0, 1, (50, 3)))
     cmd = [sys.executable, "-m", "nbvkit.cli", "evaluate", "--mesh", str(cube_obj)]
     cmd += [str(tmp_path / "c.npy"), "--json", "/dev/stdout"]
-    piped = subprocess.run(cmd, capture_output=True, text=True, timeout=120, env=fb._env())
+    env = {k: v for k, v in fb._env().items() if k != "PYTHONUNBUFFERED"}  # stdout buffered
+    piped = subprocess.run(cmd, capture_output=True, text=True, timeout=120, env=env)
     assert piped.returncode == 0, piped.stderr
     log = tmp_path / "log.txt"
     with open(log, "w") as f:
         p = subprocess.run(cmd, stdout=f, stderr=subprocess.PIPE, text=True, timeout=120,
-                           env=fb._env())  # fmt: skip
+                           env=env)  # fmt: skip
     assert p.returncode == 0, p.stderr
     for text in (piped.stdout, log.read_text()):
         lines = text.splitlines()

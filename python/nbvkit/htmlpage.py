@@ -10,7 +10,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .runfolder import write_text_atomic
+from .output_paths import write_text_atomic
 
 __all__ = [
     "plotly_js",
@@ -108,7 +108,7 @@ def rounded(a, nd=3):
 
 
 def write_text(path, text: str) -> None:
-    """Writes the page whole (nbvkit.runfolder.write_text_atomic)."""
+    """Writes the page whole (nbvkit.output_paths.write_text_atomic)."""
     write_text_atomic(Path(path), text)
 
 

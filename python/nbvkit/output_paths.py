@@ -4,6 +4,8 @@ from __future__ import annotations
 
 import contextlib
 import os
+import stat
+import sys
 import tempfile
 from pathlib import Path
 
@@ -68,3 +70,52 @@ def check_output_file(path, what: str = "output file") -> Path:
     if not existed:
         p.unlink()
     return p
+
+
+@contextlib.contextmanager
+def atomic_open(path: Path, mode: str = "w", **kw):
+    """A file opened for writing at a temporary name beside `path`, renamed over it once closed
+    without error (a write error, e.g. a full disk, raises OSError and leaves `path` as it was)."""
+    path = Path(path)
+    tmp = path.with_name(f".{path.name}.tmp{os.getpid()}")
+    try:
+        with naming_the_file(path), open(tmp, mode, **kw) as f:
+            yield f
+        os.replace(tmp, path)
+    except BaseException:
+        with contextlib.suppress(OSError):
+            tmp.unlink()
+        raise
+
+
+def write_text_atomic(path: Path, text: str) -> None:
+    with atomic_open(path) as f:
+        f.write(text)
+
+
+def write_text_output(path, text: str) -> None:
+    """Writes a user's output file: whole or not at all (atomic_open at its target, through a
+    link) where a file can be swapped in; through this process's own stdout or stderr where the
+    path is that file or pipe (/dev/stdout: what was printed there stays, in order); else in
+    place, after what was printed: a pipe, a device, or a file in a folder nbvkit may not create
+    files in."""
+    given = Path(os.fspath(path)).expanduser()
+    try:
+        st = os.stat(given)  # through /dev/stdout -> /proc/self/fd/1: the stream's own file
+    except OSError:
+        st = None
+    for stream in (sys.stdout, sys.stderr):
+        with contextlib.suppress(OSError, ValueError, AttributeError):
+            if st is not None and os.path.samestat(os.fstat(stream.fileno()), st):
+                stream.write(text)
+                stream.flush()
+                return
+    sys.stdout.flush()
+    sys.stderr.flush()
+    target = given.resolve()
+    regular = st is None or stat.S_ISREG(st.st_mode)
+    if not regular or not os.access(target.parent, os.W_OK | os.X_OK):
+        with naming_the_file(given), open(given, "w") as f:
+            f.write(text)
+    else:
+        write_text_atomic(target, text)

@@ -14,7 +14,8 @@ from . import _core
 from .evaluation import SUMMARY_KEYS
 from .planning.registry import utility_only_checks
 from .planning.terminations.budget import BUDGET_REASONS
-from .runfolder import atomic_open, write_json_atomic, write_text_atomic
+from .output_paths import atomic_open, write_text_atomic
+from .runfolder import write_json_atomic
 from .vehicle import FLIGHT_COLUMNS
 
 # what stops a flight or its saving and leaves what was flown kept: Ctrl-C (and a `kill` handled

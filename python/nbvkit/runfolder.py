@@ -26,14 +26,12 @@ nbvkit's own outputs (``OUTPUT_NAMES``): ``--overwrite`` never removes a user's 
 """
 from __future__ import annotations
 
-import contextlib
 import ctypes
 import json
 import math
 import os
 import re
 import shutil
-import sys
 import time
 from pathlib import Path
 
@@ -42,7 +40,7 @@ import numpy as np
 from ._version import __version__
 from .limits import MAX_TEXT_FILE_BYTES, check_input_file
 from .locks import RunLock, lock_holder
-from .output_paths import check_output_dir, naming_the_file
+from .output_paths import check_output_dir, write_text_atomic
 
 __all__ = [
     "check_not_input",
@@ -405,50 +403,6 @@ def _glob_escape(name: str) -> str:
 
 
 # ------------------------------------------------------------------ atomic files
-@contextlib.contextmanager
-def atomic_open(path: Path, mode: str = "w", **kw):
-    """A file opened for writing at a temporary name beside `path`, renamed over it once closed
-    without error (a write error, e.g. a full disk, raises OSError and leaves `path` as it was)."""
-    path = Path(path)
-    tmp = path.with_name(f".{path.name}.tmp{os.getpid()}")
-    try:
-        with naming_the_file(path), open(tmp, mode, **kw) as f:
-            yield f
-        os.replace(tmp, path)
-    except BaseException:
-        with contextlib.suppress(OSError):
-            tmp.unlink()
-        raise
-
-
-def write_text_atomic(path: Path, text: str) -> None:
-    with atomic_open(path) as f:
-        f.write(text)
-
-
-def write_text_output(path, text: str) -> None:
-    """Writes a user's output file: whole or not at all (atomic_open at its target, through a
-    link) where a file can be swapped in; through this process's own stdout or stderr where the
-    path is that file (/dev/stdout: what was printed there stays, in order); else in place: a
-    pipe, a device (a name under /dev or /proc), or a file in a folder nbvkit may not create
-    files in."""
-    given = Path(os.fspath(path)).expanduser()
-    target = given.resolve()
-    for stream in (sys.stdout, sys.stderr):
-        with contextlib.suppress(OSError, ValueError, AttributeError):
-            if target.exists() and os.path.samestat(os.fstat(stream.fileno()), target.stat()):
-                stream.write(text)
-                stream.flush()
-                return
-    special = str(given.absolute()).startswith(("/dev/", "/proc/"))
-    special = special or (target.exists() and not target.is_file())
-    if special or not os.access(target.parent, os.W_OK | os.X_OK):
-        with naming_the_file(given), open(given, "w") as f:
-            f.write(text)
-    else:
-        write_text_atomic(target, text)
-
-
 def write_json_atomic(path: Path, data: dict) -> None:
     write_text_atomic(path, json.dumps(_jsonable(data), indent=2, allow_nan=False))
 

@@ -9,7 +9,8 @@ from pathlib import Path
 
 import numpy as np
 
-from ..runfolder import check_not_input, write_text_output
+from ..output_paths import write_text_output
+from ..runfolder import check_not_input
 from ..paths import check_output_file, require_complete_run
 from ..cloud import read_points
 from ..mesh import default_mesh_path, file_up_axis
