@@ -9,7 +9,12 @@
 #include <deque>
 #include <limits>
 #include <queue>
+#include <string>
 #include <unordered_map>
+
+#ifdef __GLIBC__
+#include <malloc.h>
+#endif
 
 namespace nbv {
 
@@ -115,6 +120,17 @@ struct SearchScratch {
     column_bits.assign(column_stamp.size() * std::size_t(height), 0);
     std::fill(column_stamp.begin(), column_stamp.end(), 0);
   }
+  /// After a search: frees the blocks past the first `keep` (a search over much of a large grid
+  /// holds hundreds of MB of them). The next search's begin() makes its blocks anew.
+  void trim(std::size_t keep) {
+    if (blocks.size() <= keep) return;
+    blocks.resize(keep);
+    blocks.shrink_to_fit();
+    used = 0;
+#ifdef __GLIBC__
+    malloc_trim(0);  // the blocks went back to malloc's lists: hand their pages to the system
+#endif
+  }
   Block& block(std::size_t idx) {
     const std::size_t b = idx >> 6;
     if (brick_stamp[b] != stamp) {
@@ -195,6 +211,10 @@ struct SearchScratch {
   }
 };
 
+// The blocks a thread keeps between searches: 4,096 blocks (about 4 MB), the cells of a capped
+// plan_path search (200,000 cells) in compact regions and more; a larger search frees the rest.
+constexpr std::size_t kKeptBlocks = 4096;
+
 // Out of line: where the search's lambdas named a thread_local, each use looked its address up.
 __attribute__((noinline)) SearchScratch& thread_scratch() {
   static thread_local SearchScratch s;
@@ -225,6 +245,32 @@ struct Traversal {
            segment_is_free(g, g.center(c.x(), c.y(), c.z()), p, radius);
   }
 };
+
+// An A* queue entry in 16 bytes: f and the cell's (i, j, k) packed 21 bits each (its index and
+// its cost are read from the grid and the scratch). A search's queue holds millions of entries
+// on a large structure: a third of the bytes of f, g, the index and (i, j, k) each is fewer
+// cache misses on every push and pop.
+struct QueueNode {
+  double f;
+  std::uint64_t ijk;
+  static constexpr int kBits = 21;
+  static constexpr std::uint64_t kMask = (std::uint64_t(1) << kBits) - 1;
+  QueueNode(double f_, int i, int j, int k)
+      : f(f_), ijk(std::uint64_t(i) | std::uint64_t(j) << kBits | std::uint64_t(k) << 2 * kBits) {}
+  int i() const { return int(ijk & kMask); }
+  int j() const { return int(ijk >> kBits & kMask); }
+  int k() const { return int(ijk >> 2 * kBits); }
+  bool operator>(const QueueNode& o) const { return f > o.f; }
+};
+using OpenQueue = std::priority_queue<QueueNode, std::vector<QueueNode>, std::greater<QueueNode>>;
+
+// A search's queue packs cells in 21 bits an axis (2,097,152 cells: 419 km at 0.2 m).
+void require_queue_fits(const GridView& g) {
+  const int most = std::max({g.nx, g.ny, g.nz});
+  if (most > int(QueueNode::kMask) + 1)
+    throw std::invalid_argument("path search: the grid has " + std::to_string(most) +
+                                " cells along an axis, more than 2,097,152");
+}
 }  // namespace
 
 bool sphere_is_free(const GridView& g, const Eigen::Vector3d& center, double radius) {
@@ -378,20 +424,15 @@ std::vector<Eigen::Vector3d> plan_path(const GridView& g, const Eigen::Vector3d&
   SearchScratch& s = traversable.s;
   const std::size_t ia = g.index(ca), ib = g.index(cb);
   if (!traversable.ends_at(cb, b)) return {};
-  struct Node {
-    double f;
-    std::size_t idx;
-    int i, j, k;
-    bool operator>(const Node& o) const { return f > o.f; }
-  };
-  std::priority_queue<Node, std::vector<Node>, std::greater<Node>> open;
+  require_queue_fits(g);
+  OpenQueue open;
   const Eigen::Vector3d goal = g.center(cb.x(), cb.y(), cb.z());
   {
     SearchScratch::Block& blk = s.block(ia);
     blk.g[ia & 63] = 0.0;
     blk.has_g |= std::uint64_t(1) << (ia & 63);
   }
-  open.push({(g.center(ca.x(), ca.y(), ca.z()) - goal).norm(), ia, ca.x(), ca.y(), ca.z()});
+  open.push({(g.center(ca.x(), ca.y(), ca.z()) - goal).norm(), ca.x(), ca.y(), ca.z()});
   // the flood from b: breadth first over traversable cells; it proves b unreachable when it
   // runs out without touching a's cell (the search's moves are symmetric)
   constexpr std::size_t kFloodAfter = 1024;  // expansions before the flood starts
@@ -402,11 +443,13 @@ std::vector<Eigen::Vector3d> plan_path(const GridView& g, const Eigen::Vector3d&
   std::size_t expansions = 0;
   bool found = false;
   while (!open.empty() && expansions < max_expansions) {
-    const Node cur = open.top();
+    const QueueNode top = open.top();
     open.pop();
-    const double gc = s.block(cur.idx).g[cur.idx & 63];
-    if (cur.f > gc + (g.center(cur.i, cur.j, cur.k) - goal).norm() + 1e-9) continue;  // stale
-    if (cur.idx == ib) {
+    const int ci = top.i(), cj = top.j(), ck = top.k();
+    const std::size_t cidx = g.index(ci, cj, ck);
+    const double gc = s.block(cidx).g[cidx & 63];
+    if (top.f > gc + (g.center(ci, cj, ck) - goal).norm() + 1e-9) continue;  // stale
+    if (cidx == ib) {
       found = true;
       break;
     }
@@ -415,7 +458,7 @@ std::vector<Eigen::Vector3d> plan_path(const GridView& g, const Eigen::Vector3d&
       for (int dy = -1; dy <= 1; ++dy)
         for (int dx = -1; dx <= 1; ++dx) {
           if (!dx && !dy && !dz) continue;
-          const int ni = cur.i + dx, nj = cur.j + dy, nk = cur.k + dz;
+          const int ni = ci + dx, nj = cj + dy, nk = ck + dz;
           if (!g.contains(ni, nj, nk)) continue;
           const std::size_t nidx = g.index(ni, nj, nk);
           if (!traversable(ni, nj, nk)) continue;
@@ -426,8 +469,8 @@ std::vector<Eigen::Vector3d> plan_path(const GridView& g, const Eigen::Vector3d&
           if ((blk.has_g & bit) && blk.g[nidx & 63] <= ng) continue;
           blk.g[nidx & 63] = ng;
           blk.has_g |= bit;
-          blk.parent[nidx & 63] = cur.idx;
-          open.push({ng + (g.center(ni, nj, nk) - goal).norm(), nidx, ni, nj, nk});
+          blk.parent[nidx & 63] = cidx;
+          open.push({ng + (g.center(ni, nj, nk) - goal).norm(), ni, nj, nk});
         }
     if (!flood_done && expansions > kFloodAfter) {  // one step of the flood
       if (flood_head == flood.size()) {             // b's component is closed and lacks a
@@ -614,13 +657,8 @@ PathsToGoal plan_paths_to(const GridView& g, const PointsRef& starts, const Eige
     const Eigen::Vector3d p = g.center(i, j, k);
     return (lo - p).cwiseMax(p - hi).cwiseMax(0.0).norm();
   };
-  struct Node {
-    double f, g;
-    std::size_t idx;
-    int i, j, k;
-    bool operator>(const Node& o) const { return f > o.f; }
-  };
-  std::priority_queue<Node, std::vector<Node>, std::greater<Node>> open;
+  require_queue_fits(g);
+  OpenQueue open;  // a cell's first entry out of the queue holds its least cost (h is its own)
   const std::size_t ib = g.index(cb);
   {
     SearchScratch::Block& blk = s.block(ib);
@@ -628,36 +666,39 @@ PathsToGoal plan_paths_to(const GridView& g, const PointsRef& starts, const Eige
     blk.parent[ib & 63] = ib;
     blk.has_g |= std::uint64_t(1) << (ib & 63);
   }
-  open.push({h(cb.x(), cb.y(), cb.z()), 0.0, ib, cb.x(), cb.y(), cb.z()});
+  open.push({h(cb.x(), cb.y(), cb.z()), cb.x(), cb.y(), cb.z()});
   std::size_t remaining = targets.size();
   while (!open.empty() && remaining) {
-    const Node cur = open.top();
+    const QueueNode top = open.top();
     open.pop();
-    SearchScratch::Block& here = s.block(cur.idx);
-    const std::uint64_t cur_bit = std::uint64_t(1) << (cur.idx & 63);
+    const int ci = top.i(), cj = top.j(), ck = top.k();
+    const std::size_t cidx = g.index(ci, cj, ck);
+    SearchScratch::Block& here = s.block(cidx);
+    const std::uint64_t cur_bit = std::uint64_t(1) << (cidx & 63);
     if (here.reached & cur_bit) continue;  // settled before: a stale entry
     here.reached |= cur_bit;               // settled: its cost is final
-    if (is_target(cur.idx) && --remaining == 0) break;
-    if (!traversable(cur.i, cur.j, cur.k)) continue;  // a start's cell: an end, not a way
+    if (is_target(cidx) && --remaining == 0) break;
+    if (!traversable(ci, cj, ck)) continue;  // a start's cell: an end, not a way
     if (max_expansions && out.expansions == max_expansions) {
       out.capped = true;
       break;
     }
     ++out.expansions;
+    const double gc = here.g[cidx & 63];
     for (int d = 0; d < 27; ++d) {
       if (d == 13) continue;  // the cell itself
-      const int ni = cur.i + d % 3 - 1, nj = cur.j + d / 3 % 3 - 1, nk = cur.k + d / 9 - 1;
+      const int ni = ci + d % 3 - 1, nj = cj + d / 3 % 3 - 1, nk = ck + d / 9 - 1;
       if (!g.contains(ni, nj, nk)) continue;
       const std::size_t nidx = g.index(ni, nj, nk);
       if (!traversable(ni, nj, nk) && !is_target(nidx)) continue;
       SearchScratch::Block& blk = s.block(nidx);
       const std::uint64_t bit = std::uint64_t(1) << (nidx & 63);
-      const double ng = cur.g + step[d];
+      const double ng = gc + step[d];
       if ((blk.reached & bit) || ((blk.has_g & bit) && blk.g[nidx & 63] <= ng)) continue;
       blk.g[nidx & 63] = ng;
       blk.has_g |= bit;
-      blk.parent[nidx & 63] = cur.idx;
-      open.push({ng + h(ni, nj, nk), ng, nidx, ni, nj, nk});
+      blk.parent[nidx & 63] = cidx;
+      open.push({ng + h(ni, nj, nk), ni, nj, nk});
     }
   }
   // the settled starts' cells back to the goal's, read here from this thread's scratch (no
@@ -680,6 +721,7 @@ PathsToGoal plan_paths_to(const GridView& g, const PointsRef& starts, const Eige
     }
     out.cells_cost[i] = blk->g[cell[i] & 63];
   }
+  s.trim(kKeptBlocks);  // the chains are read: the search's blocks are not needed any more
   parallel_chunks(n, 4, [&](std::size_t b, std::size_t e) {
     for (std::size_t i = b; i < e; ++i)
       if (!chains[i].empty()) {

@@ -798,6 +798,39 @@ TEST(Navigation, PathsToOneGoalAreWhatASearchFromEachStartFinds) {
   EXPECT_THROW(plan_paths_to(g, corner, {2.5, 2, 2}, 0.35), std::invalid_argument);
 }
 
+TEST(Navigation, SearchesAfterALargeOneFindTheSameWays) {
+  // A search from the corners of a wide free hall to a goal behind a wall (a door at its far
+  // end) touches more bricks than a thread keeps between searches (it frees the rest): the
+  // searches after it find what they found before it.
+  OccupancyMap m(0.2, {0, 0, 0}, {48, 48, 3});
+  for (double y = 1.5; y <= 47; y += 2) m.mark_free_segment({1.5, y, 1.5}, {46.5, y, 1.5}, 1.4);
+  Points wall(int(24 / 0.2) * int(3 / 0.2), 3);
+  for (Eigen::Index r = 0; r < wall.rows(); ++r)
+    wall.row(r) << 24.1, 0.1 + 0.2 * double(r / 15), 0.1 + 0.2 * double(r % 15);
+  m.update_cells(wall, true);
+  const GridView g = grid_view(m);
+  Points small(2, 3), wide(4, 3);
+  small << 2, 2, 1.5, 8, 6, 1.5;
+  wide << 2, 2, 1.5, 22, 46, 1.5, 2, 46, 1.5, 22, 2, 1.5;
+  const Eigen::Vector3d goal(36, 2, 1.5);
+  const PathsToGoal before = plan_paths_to(g, small, goal, 0.5);
+  PathSearchStats one_before;
+  const auto way_before = plan_path(g, {2, 2, 1.5}, goal, 0.5, 10000000, &one_before);
+  const PathsToGoal big = plan_paths_to(g, wide, goal, 0.5);
+  EXPECT_GT(big.expansions, 64u * 4096u);  // past the blocks kept: the trim is exercised
+  for (const auto& p : big.paths) EXPECT_FALSE(p.empty());
+  for (int round = 0; round < 2; ++round) {
+    const PathsToGoal after = plan_paths_to(g, small, goal, 0.5);
+    PathSearchStats one_after;
+    const auto way_after = plan_path(g, {2, 2, 1.5}, goal, 0.5, 10000000, &one_after);
+    EXPECT_EQ(after.paths, before.paths);
+    EXPECT_EQ(after.expansions, before.expansions);
+    EXPECT_EQ(way_after, way_before);
+    EXPECT_EQ(one_after.cost, one_before.cost);
+    EXPECT_FALSE(way_after.empty());
+  }
+}
+
 TEST(Navigation, AGoalInAClosedPocketCostsThePocketNotTheWholeFreeSpace) {
   // a large known free hall and, apart from it, a small free pocket: the search from the hall
   // ends when the flood from the pocket closes, long before the hall is exhausted
