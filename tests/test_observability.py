@@ -6,7 +6,7 @@ import json
 
 import numpy as np
 import pytest
-from conftest import box_mesh
+from conftest import CUBE_MESH, TINY_RUN, box_mesh
 
 import nbvkit
 from nbvkit import _core
@@ -234,6 +234,33 @@ def test_cli_evaluate_observable_json(tmp_path):
     # observability needs the mesh
     ref = str(tmp_path / "top.npy")
     assert main(["evaluate", "--reference-cloud", ref, ref, "--observable"]) != 0
+
+
+def test_cli_evaluate_observable_of_a_run_uses_the_runs_settings(tmp_path):
+    """A run's cloud scored with --observable and no --config: the observable surface is the
+    one the run computed (its own camera, workspace and gimbal), not the default
+    configuration's."""
+    from nbvkit.cli import main
+
+    run = tmp_path / "level"
+    level = ["camera.gimbal_pitch_deg=[0,0]", "report.enabled=false"]
+    argv = ["run", "--mesh", str(CUBE_MESH), "--no-progress", "--out", str(run), "--set"]
+    assert main([*argv, *TINY_RUN, *level]) == 0
+    summary = json.loads((run / "summary.json").read_text())
+    out = tmp_path / "e.json"
+    assert main(["evaluate", str(run), "--observable", "--json", str(out)]) == 0
+    r = json.loads(out.read_text())
+    assert r["observability"]["settings"] == summary["observability"]["settings"]
+    assert r["observability"]["settings"]["gimbal_pitch_deg"] == [0.0, 0.0]
+    assert r["observable_fraction"] == summary["observable_fraction"]
+    # --config still names another configuration: the default one's gimbal
+    default = tmp_path / "default.yaml"
+    default.write_text("seed: 0\n")
+    assert (
+        main(["evaluate", str(run), "--observable", "--config", str(default), "--json", str(out)])
+        == 0
+    )
+    assert json.loads(out.read_text())["observability"]["settings"]["gimbal_pitch_deg"] == [-30, 90]
 
 
 def test_python_defaults_equal_the_cpp_defaults():

@@ -79,7 +79,8 @@ def _add_observable_options(p) -> None:
         "--config",
         metavar="FILE",
         help="mission configuration (YAML) whose camera, workspace, vehicle and observability "
-        "sections define the observable surface (default: the default configuration)",
+        "sections define the observable surface (default: a run's own config.yaml, for a run's "
+        "cloud scored against its mesh; else the default configuration)",
     )
     add_set_option(p, "override config keys for --observable (e.g. observability.pose_spacing=0.5)")
     p.add_argument(
@@ -226,8 +227,10 @@ def _settings_of_run(args, folder: Path) -> None:
     """A run's cloud is scored as the run scored it: against the mesh it flew (its config.yaml's
     mesh: path, scale, up, shift) unless --mesh or --reference-cloud names another ground truth,
     at its ground-truth density and seed (summary.json) unless --gt-density / --seed are given.
-    Anything else: the defaults. Sets args; ValueError for mesh options given without --mesh, a
-    run flown on an in-memory mesh, or a mesh file that cannot be found from here."""
+    With --observable and no --config, the observable surface is the run's own (its config.yaml's
+    camera, workspace, vehicle and observability). Anything else: the defaults. Sets args;
+    ValueError for mesh options given without --mesh, a run flown on an in-memory mesh, or a mesh
+    file that cannot be found from here."""
     from ..config import load_config
     from ..runfolder import looks_like_run, read_summary
     from ..world import IN_MEMORY_MESH
@@ -251,6 +254,8 @@ def _settings_of_run(args, folder: Path) -> None:
             "the ground truth with --mesh or --reference-cloud"
         )
     mesh = load_config(folder / "config.yaml").mesh
+    if args.observable and args.config is None:
+        args.config = str(folder / "config.yaml")
     args.mesh_scale, args.mesh_up = mesh.scale, mesh.up
     args.mesh_shift = list(mesh.shift) if any(mesh.shift) else None
     if mesh.path is None:  # the default airliner, at the run's scale, up and shift
