@@ -2,6 +2,8 @@
 from __future__ import annotations
 
 import math
+import subprocess
+import sys
 
 import pytest
 import yaml
@@ -192,6 +194,11 @@ def test_shipped_yaml_is_generated_from_the_dataclasses():
     from nbvkit.config_docs import documented_yaml
 
     assert (ROOT / "configs" / "default.yaml").read_text() == documented_yaml()
+    # the command the file's header names makes it
+    cmd = [sys.executable, "-m", "nbvkit.config_docs"]
+    made = subprocess.run(cmd, capture_output=True, text=True, check=True).stdout
+    assert made == documented_yaml()
+    assert "python -m nbvkit.config_docs" in "".join(made.splitlines()[:2])
 
 
 def test_core_type_stub_is_current():

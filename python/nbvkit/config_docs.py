@@ -104,10 +104,6 @@ def documented_yaml() -> str:
     return "\n".join(lines) + "\n"
 
 
-if __name__ == "__main__":
-    print(documented_yaml(), end="")
-
-
 def _unpreset() -> str:
     """The default scenario's own keys as their fields declare them ("key value, ...")."""
     from dataclasses import MISSING
@@ -121,3 +117,7 @@ def _unpreset() -> str:
         value = f.default if f.default is not MISSING else f.default_factory()
         shown.append(f"{key} {yaml.safe_dump(value).splitlines()[0]}")
     return ", ".join(shown)
+
+
+if __name__ == "__main__":
+    print(documented_yaml(), end="")
