@@ -89,7 +89,7 @@ class LaserConfig:
 
 def check_gimbal(pitch_range, key: str = "camera.gimbal_pitch_deg") -> None:
     """Raises ValueError unless camera.gimbal_pitch_deg is [min, max], finite, within [-90, 90]
-    deg, min <= max, and holds 0 (the planners fly level views until they choose pitches)."""
+    deg, min <= max, and holds 0 (level: a pose of 4 numbers, start_pose's among them)."""
     if len(pitch_range) != 2:
         raise ValueError(
             f"config key {key!r} must be 2 numbers [min, max] (deg, > 0 looks down), "
@@ -107,8 +107,8 @@ def check_gimbal(pitch_range, key: str = "camera.gimbal_pitch_deg") -> None:
         raise ValueError(f"config key {key!r}: min {lo:g} > max {hi:g} deg")
     if not lo <= 0.0 <= hi:
         raise ValueError(
-            f"config key {key!r} must include 0 (level): nbvkit's planners fly level views "
-            f"until they choose pitches, got {list(pitch_range)!r}"
+            f"config key {key!r} must include 0 (level: a pose of 4 numbers, as start_pose "
+            f"may be), got {list(pitch_range)!r}"
         )
 
 
