@@ -703,6 +703,7 @@ def test_a_run_of_the_default_mesh_or_an_in_memory_one_is_scored_as_it_was_flown
     (run / "summary.json").write_text('{"mesh": "airliner.obj", "gt_density": 80, "seed": 3}')
     (run / "config.yaml").write_text("mesh: {path: null, scale: 0.5, up: y, shift: [0, 0, 5]}\n")
     keys = ("mesh", "mesh_scale", "mesh_up", "mesh_shift", "reference_cloud", "gt_density", "seed")
+    keys += ("observable", "config")
     args = Namespace(**{**dict.fromkeys(keys), "mesh_scale": 1.0, "mesh_up": "auto"})
     _settings_of_run(args, run)
     assert (args.mesh, args.mesh_scale, args.mesh_up, args.mesh_shift) == (
