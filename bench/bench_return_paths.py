@@ -35,6 +35,12 @@ def searched_each(occ_map, fl, points: list) -> list:
         return list(pool.map(one, points))
 
 
+def resident_gb() -> float:
+    """This process's resident memory now (VmRSS), GB."""
+    with open("/proc/self/status") as f:
+        return next(int(line.split()[1]) for line in f if line.startswith("VmRSS")) / 1e6
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("run", help="a run folder of nbvkit run (with map.ot)")
@@ -53,6 +59,7 @@ def main() -> None:
         try:
             t0 = time.perf_counter()
             out[label] = ReturnPaths(fl, model, occ, caps), time.perf_counter() - t0
+            print(f"  resident after {label}: {resident_gb():.2f} GB")
         finally:
             flight._searches = now_searches
     print(f"{args.run}: {len(caps)} captures, {get_num_threads()} threads")
