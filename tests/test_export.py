@@ -1559,3 +1559,37 @@ def test_the_ways_back_from_one_search_are_what_a_search_from_each_capture_finds
         assert rp.cost[i] == pytest.approx(min(t_all, retrace)), i
         assert (i in rp.astar) == (t_all < retrace), i
     assert searched > 0 and len(rp.astar) > 0
+
+
+def test_a_report_that_cannot_be_rewritten_leaves_the_run_whole(run_dir, tmp_path, monkeypatch):
+    """A full disk (or a read-only run folder) while export rewrites report.html's flight
+    section: the export is written and says so in a warning; the run keeps its report and its
+    manifest as they were (evaluate and export still read it), no report.html.tmp left."""
+    import errno
+    import pathlib
+    import shutil
+
+    from nbvkit.export import estimate_flight
+    from nbvkit.report import flight_section
+    from nbvkit.runfolder import is_complete_run, write_manifest
+
+    run = tmp_path / "run"
+    shutil.copytree(run_dir, run)
+    report = run / "report.html"
+    report.write_text(f"<html><body>{flight_section(estimate_flight(run))}</body></html>")
+    write_manifest(run)
+    before = {p.name: p.read_bytes() for p in (report, run / "manifest.json")}
+    real = pathlib.Path.write_text
+
+    def full_disk(self, *args, **kwargs):
+        if self.name == "report.html.tmp":
+            real(self, "<html><body>half a rep")
+            raise OSError(errno.ENOSPC, "No space left on device", str(self))
+        return real(self, *args, **kwargs)
+
+    monkeypatch.setattr(pathlib.Path, "write_text", full_disk)
+    s = export_mission(run, "csv", ORIGIN, HEADING, tmp_path / "x", flight_time_min=3.0)
+    assert not s["report_updated"] and (tmp_path / "x" / "export.json").is_file()
+    assert any("report.html not updated" in w and "No space" in w for w in s["warnings"])
+    assert {p.name: p.read_bytes() for p in (report, run / "manifest.json")} == before
+    assert is_complete_run(run) and not (run / "report.html.tmp").exists()

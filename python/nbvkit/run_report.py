@@ -332,7 +332,8 @@ def flight_section(flight=None, export: dict | None = None, paths=None) -> str:
 
 def update_flight_section(out, export: dict, paths=None) -> bool:
     """Replaces the flight section of ``out/report.html`` (if there) with one for ``export``;
-    True if the report was updated."""
+    True if the report was updated. Raises OSError if the new report cannot be written, with
+    the folder (report and manifest) left as it was."""
     path = Path(out) / "report.html"
     if not path.is_file():
         return False
@@ -341,9 +342,13 @@ def update_flight_section(out, export: dict, paths=None) -> bool:
     if a < 0 or b < a:
         return False
     new = text[:a] + flight_section(export=export, paths=paths) + text[b + len(FLIGHT_END) :]
-    was_complete = mark_incomplete(out)  # the manifest lists report.html's size
     tmp = path.with_suffix(".html.tmp")
-    tmp.write_text(new)
+    try:  # written whole before the folder is touched: a full disk or a read-only folder
+        tmp.write_text(new)  # leaves the run as it was, its manifest kept
+    except BaseException:
+        tmp.unlink(missing_ok=True)
+        raise
+    was_complete = mark_incomplete(out)  # the manifest lists report.html's size
     tmp.replace(path)
     if was_complete:
         write_manifest(out)

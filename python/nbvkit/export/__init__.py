@@ -242,7 +242,11 @@ def export_mission(
 
     _write_into(out, summary, fl, sorties, frame, model, (dji_drone, dji_payload), split)
     paths = [np.array([fl.home, *[w.xyz for w in s.waypoints], fl.home]) for s in sorties]
-    summary["report_updated"] = update_flight_section(run, summary, paths)
+    try:
+        summary["report_updated"] = update_flight_section(run, summary, paths)
+    except OSError as e:  # the export is written; the run folder is left as it was
+        summary["report_updated"] = False
+        summary["warnings"].append(f"{run}/report.html not updated with the flight: {e}")
     return summary
 
 
