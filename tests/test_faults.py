@@ -389,8 +389,8 @@ from nbvkit.settings import choice, within
 @dataclass(frozen=True)
 class StopAtConfig:
     views: int = within(3, 1, 1000)  # views flown before the part stops the flight
-    # as Ctrl-C, as a part's bug, or as a `kill` (SIGTERM to this process)
-    how: str = choice("interrupt", ("interrupt", "error", "sigterm", "exit"))
+    # as Ctrl-C, as a part's bug, as a `kill` (SIGTERM to this process) or a hang-up (SIGHUP)
+    how: str = choice("interrupt", ("interrupt", "error", "sigterm", "sighup", "exit"))
 
 
 class StopAt:
@@ -405,8 +405,8 @@ class StopAt:
                 raise KeyboardInterrupt
             if self.s.how == "exit":
                 sys.exit(3)  # a part that ends the process
-            if self.s.how == "sigterm":
-                os.kill(os.getpid(), signal.SIGTERM)
+            if self.s.how in ("sigterm", "sighup"):
+                os.kill(os.getpid(), signal.Signals[self.s.how.upper()])
                 time.sleep(5)  # the handler raises here
             raise ZeroDivisionError("a part's bug, as asked")
         return None
@@ -477,11 +477,11 @@ def test_a_flight_stopped_by_ctrl_c_or_a_part_keeps_what_it_flew(
     assert not early.exists()
 
 
-@pytest.mark.parametrize("how", ["interrupt", "sigterm"])
+@pytest.mark.parametrize("how", ["interrupt", "sigterm", "sighup"])
 def test_nbvkit_run_stopped_says_where_what_it_flew_is(tmp_path, stopping_part, how):
-    """Ctrl-C, or a `kill` (SIGTERM, as a batch scheduler's time limit sends), during the views
-    of `nbvkit run` (its own process): what was flown is saved, the console says where, and
-    the exit code is 130."""
+    """Ctrl-C, a `kill` (SIGTERM, as a batch scheduler's time limit sends) or a hang-up (SIGHUP:
+    the terminal closed) during the views of `nbvkit run` (its own process): what was flown is
+    saved, the console says where, and the exit code is 130."""
     import subprocess
 
     out = tmp_path / "run"
@@ -502,7 +502,7 @@ def test_nbvkit_run_stopped_says_where_what_it_flew_is(tmp_path, stopping_part, 
     assert is_complete_run(out)
     s = json.loads((out / "summary.json").read_text())
     assert s["termination"] == "interrupted"
-    named = "Terminated: SIGTERM" if how == "sigterm" else "KeyboardInterrupt"
+    named = f"Terminated: {how.upper()}" if how.startswith("sig") else "KeyboardInterrupt"
     assert s["stopped_by"].startswith(named)  # a kill is not recorded as a Ctrl-C
 
 
@@ -615,3 +615,31 @@ def test_ctrl_c_during_the_open3d_import_is_an_interrupt():
     p = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True, timeout=120)
     assert p.returncode == 0, p.stderr
     assert p.stdout.split() == ["KeyboardInterrupt", "open3d"]
+
+
+def test_a_signal_ignored_before_stays_ignored_within_terminate_as_interrupt():
+    """`nohup nbvkit run` (SIGHUP ignored when it starts) flies on when the terminal closes;
+    without nohup a hang-up stops it as a kill does; the handlers before come back after."""
+    import signal
+
+    from nbvkit.experiments import Terminated, terminate_as_interrupt
+
+    before = signal.getsignal(signal.SIGHUP), signal.getsignal(signal.SIGTERM)
+    try:
+        signal.signal(signal.SIGHUP, signal.SIG_IGN)
+        with terminate_as_interrupt():
+            os.kill(os.getpid(), signal.SIGHUP)  # ignored: nothing raised
+            with pytest.raises(Terminated, match="SIGTERM"):
+                os.kill(os.getpid(), signal.SIGTERM)
+                time.sleep(5)
+        assert signal.getsignal(signal.SIGHUP) is signal.SIG_IGN
+        signal.signal(signal.SIGHUP, signal.SIG_DFL)
+        with terminate_as_interrupt():
+            with pytest.raises(Terminated, match="SIGHUP .the terminal"):
+                os.kill(os.getpid(), signal.SIGHUP)
+                time.sleep(5)
+        assert signal.getsignal(signal.SIGHUP) is signal.SIG_DFL
+        assert signal.getsignal(signal.SIGTERM) is before[1]
+    finally:
+        signal.signal(signal.SIGHUP, before[0])
+        signal.signal(signal.SIGTERM, before[1])

@@ -250,16 +250,24 @@ def _worker_init() -> None:
 
 
 class Terminated(KeyboardInterrupt):
-    """SIGTERM received within terminate_as_interrupt: stops as Ctrl-C does, named apart."""
+    """SIGTERM or SIGHUP received within terminate_as_interrupt: stops as Ctrl-C does, named
+    apart."""
+
+
+STOPPING_SIGNALS = {
+    "SIGTERM": "a kill, or a batch scheduler's time limit",
+    "SIGHUP": "the terminal or the ssh session closed",
+}
 
 
 @contextlib.contextmanager
 def terminate_as_interrupt():
-    """Within it, a `kill` (SIGTERM: also what batch schedulers send at a time limit) raises
-    Terminated, a KeyboardInterrupt, as Ctrl-C does: an experiment's workers stopped, finished
-    runs kept, the partial table written; a single run's flight kept (recorder.fly_into), its
-    summary's stopped_by naming the signal. (Main thread only: signals go there; elsewhere it
-    does nothing.)"""
+    """Within it, a `kill` (SIGTERM: also what batch schedulers send at a time limit) or a
+    hang-up (SIGHUP: the terminal or ssh session closed) raises Terminated, a
+    KeyboardInterrupt, as Ctrl-C does: an experiment's workers stopped, finished runs kept, the
+    partial table written; a single run's flight kept (recorder.fly_into), its summary's
+    stopped_by naming the signal. A signal ignored on entry (`nohup` ignores SIGHUP) stays
+    ignored. (Main thread only: signals go there; elsewhere it does nothing.)"""
     import signal
     import threading
 
@@ -268,13 +276,19 @@ def terminate_as_interrupt():
         return
 
     def interrupt(signum, frame):
-        raise Terminated("SIGTERM (a kill, or a batch scheduler's time limit)")
+        name = signal.Signals(signum).name
+        raise Terminated(f"{name} ({STOPPING_SIGNALS[name]})")
 
-    previous = signal.signal(signal.SIGTERM, interrupt)
+    previous = {}
+    for name in STOPPING_SIGNALS:
+        signum = getattr(signal, name, None)  # (no SIGHUP on Windows)
+        if signum is not None and signal.getsignal(signum) is not signal.SIG_IGN:
+            previous[signum] = signal.signal(signum, interrupt)
     try:
         yield
     finally:
-        signal.signal(signal.SIGTERM, previous)
+        for signum, handler in previous.items():
+            signal.signal(signum, handler)
 
 
 def _worker_count(workers) -> int:
