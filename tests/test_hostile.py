@@ -325,6 +325,7 @@ def _start_table(out) -> subprocess.Popen:
         stderr=subprocess.PIPE,
         text=True,
         env=dict(os.environ, MPLBACKEND="Agg"),
+        start_new_session=True,  # its own process group, as a terminal's job
     )
 
 
@@ -405,6 +406,19 @@ def test_case6_kill_stops_a_table_and_its_workers(tmp_path):
     while time.perf_counter() - t0 < 10 and any(_alive(w) for w in workers):
         time.sleep(0.2)
     assert not [w for w in workers if _alive(w)], "workers flew on after their parent was killed"
+
+
+@pytest.mark.skipif(not Path("/proc/self/task").is_dir(), reason="needs Linux /proc")
+def test_case6_a_hang_up_stops_a_table_and_its_workers(tmp_path):
+    # the terminal closed: SIGHUP to the whole process group; the table stops as on a kill
+    out = tmp_path / "h"
+    p, workers = _table_with_workers(out)
+    os.killpg(p.pid, signal.SIGHUP)
+    _, err = p.communicate(timeout=60)
+    assert p.returncode == 130 and "Traceback" not in err, (p.returncode, err)
+    assert "interrupted" in err and "resume" in err
+    time.sleep(1)
+    assert not [w for w in workers if _alive(w)], "workers outlived the table"
 
 
 def test_case7_whole_config_is_validated_before_any_work(tmp_path):

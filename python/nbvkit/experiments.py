@@ -230,12 +230,15 @@ def _alive(pid: int) -> bool:
 
 
 def _worker_init() -> None:
-    """Pool workers leave Ctrl-C to the parent, which stops them, and die with the parent, should
-    it be killed outright (Linux: the parent-death signal), instead of flying on unseen. (Each
-    run loads the parent's plugin files first: run_one.)"""
+    """Pool workers leave Ctrl-C and a hang-up (sent to the terminal's whole process group) to
+    the parent, which stops them, and die with the parent, should it be killed outright (Linux:
+    the parent-death signal), instead of flying on unseen. (Each run loads the parent's plugin
+    files first: run_one.)"""
     import signal
 
     signal.signal(signal.SIGINT, signal.SIG_IGN)
+    if hasattr(signal, "SIGHUP"):
+        signal.signal(signal.SIGHUP, signal.SIG_IGN)
     try:
         import ctypes
         import multiprocessing
@@ -412,6 +415,21 @@ def _run_all(specs, root, workers, scheduler, progress, rows, failures) -> None:
         _run_pool(specs, root, min(workers or ncpu, len(specs)), ncpu, rows, failures, progress)
 
 
+def _start_resource_tracker() -> None:
+    """Starts multiprocessing's resource tracker (the pool's locks would) with a hang-up blocked:
+    it ignores Ctrl-C and a kill itself, but SIGHUP (a closed terminal, sent to the whole process
+    group) killed it, and the tracker started again in its place failed with a traceback."""
+    import signal
+    from multiprocessing import resource_tracker
+
+    hup = {signal.SIGHUP} if hasattr(signal, "SIGHUP") else set()
+    old = signal.pthread_sigmask(signal.SIG_BLOCK, hup)  # the child inherits the mask
+    try:
+        resource_tracker.ensure_running()
+    finally:
+        signal.pthread_sigmask(signal.SIG_SETMASK, old)  # one that came meanwhile arrives now
+
+
 def _run_pool(specs, root, n, ncpu, rows, failures, progress) -> None:
     """Runs specs in n spawned processes, filling rows (and failures: a run that raised leaves its
     error there, the others are flown); on Ctrl-C the queued runs are cancelled and the running
@@ -421,6 +439,7 @@ def _run_pool(specs, root, n, ncpu, rows, failures, progress) -> None:
 
     threads = max(1, ncpu // n)
     files = loaded_files()
+    _start_resource_tracker()
     ex = cf.ProcessPoolExecutor(n, mp_context=mp.get_context("spawn"), initializer=_worker_init)
     try:
         futs = {ex.submit(run_one, s, root, threads, files): i for i, s in enumerate(specs)}
