@@ -694,6 +694,32 @@ def test_a_damaged_run_file_of_the_same_size_is_named(run_dir, tmp_path, capsys,
     assert not (tmp_path / "ex").exists()
 
 
+@pytest.mark.parametrize(
+    "bounds", ["[true, -5, 0]", '"abc"', "[1, 2]", "[Infinity, 0, 0]", "[0, 0, 1000]", "null"]
+)
+def test_a_summary_with_bad_workspace_bounds_is_named(run_dir, tmp_path, capsys, bounds):
+    """summary.json's workspace.bounds_min edited in place (the same size: the manifest passes
+    it) to the wrong type, shape, a non-finite number or above bounds_max: export names the
+    file and the key (exit 2), no traceback, nothing written."""
+    import re
+    import shutil
+
+    from nbvkit.cli import main
+
+    run = tmp_path / "run"
+    shutil.copytree(run_dir, run, ignore=shutil.ignore_patterns("export"))
+    text = (run / "summary.json").read_text()
+    m = re.search(r'"bounds_min": (\[[^\]]*\])', text)
+    assert m and len(bounds) <= len(m.group(1))
+    edited = text[: m.start(1)] + bounds.ljust(len(m.group(1))) + text[m.end(1) :]
+    (run / "summary.json").write_text(edited)
+    argv = ["export", str(run), "--origin", *map(str, ORIGIN), "--out", str(tmp_path / "ex")]
+    assert main(argv) == 2
+    err = capsys.readouterr().err
+    assert f"{run / 'summary.json'}" in err and "workspace.bounds_m" in err, err
+    assert "Traceback" not in err and not (tmp_path / "ex").exists()
+
+
 def test_cli_export_and_its_errors(run_dir, tmp_path, capsys):
     from nbvkit.cli import main
 

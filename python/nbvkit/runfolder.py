@@ -166,6 +166,27 @@ def read_summary(folder) -> dict:
     return read_json_object(Path(os.fspath(folder)).expanduser() / "summary.json", "run summary")
 
 
+def run_workspace(summary: dict, source) -> dict:
+    """The workspace of a run's summary (`source`: its summary.json), its bounds_min and
+    bounds_max checked: three finite numbers each, min below max on every axis; ValueError
+    naming the file and the key otherwise (a summary edited or damaged at the same size)."""
+    ws = summary.get("workspace")
+    if not isinstance(ws, dict) or "bounds_min" not in ws or "bounds_max" not in ws:
+        raise ValueError(f"{source} has no workspace bounds (workspace.bounds_min/bounds_max)")
+    for key in ("bounds_min", "bounds_max"):
+        v = ws[key]
+        if not (
+            isinstance(v, list)
+            and len(v) == 3
+            and all(isinstance(x, (int, float)) and not isinstance(x, bool) for x in v)
+            and all(math.isfinite(x) for x in v)
+        ):
+            raise ValueError(f"{source}: workspace.{key} must be three finite numbers, got {v!r}")
+    if not all(a < b for a, b in zip(ws["bounds_min"], ws["bounds_max"])):
+        raise ValueError(f"{source}: workspace.bounds_min must lie below bounds_max on each axis")
+    return ws
+
+
 def looks_like_run(folder) -> bool:
     """Whether folder is (or is becoming) an nbvkit run folder: it holds a manifest or a summary,
     is a run's temporary folder, or a run is writing it."""

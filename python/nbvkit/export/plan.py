@@ -21,7 +21,7 @@ from ..flight import (  # noqa: F401  (re-exported)
     sortie_planner,
 )
 from ..flight_time import FRAME, VIEW, FlightModel  # noqa: F401  (re-exported)
-from ..runfolder import read_summary
+from ..runfolder import read_summary, run_workspace
 
 
 def read_run(run_dir) -> RunFlight:
@@ -56,10 +56,7 @@ def read_run(run_dir) -> RunFlight:
         arrays = flight_arrays(rows)
     except ValueError as e:
         raise ValueError(f"{flight}: {e}") from None
-    summary = read_summary(run)
-    ws = summary.get("workspace") or {}
-    if "bounds_min" not in ws:
-        raise ValueError(f"{run / 'summary.json'} has no workspace bounds")
+    ws = run_workspace(read_summary(run), run / "summary.json")
     cfg = load_config(run / "config.yaml")
     map_path = run / "map.ot"
     return run_flight(run, rows, ws, cfg, map_path if map_path.is_file() else None, arrays)
