@@ -234,6 +234,35 @@ def test_a_sweep_files_workers_below_one_and_run_specs_negative_workers_are_refu
         run_specs([], tmp_path / "r", workers=-1)
 
 
+@pytest.mark.parametrize(
+    "text, needle",
+    [
+        ("out: 5\n", "'out' must be a folder path, got 5"),
+        ("out: ''\n", "'out' must be a folder path"),
+        ("scheduler: 5\n", "'scheduler' must be a Dask scheduler address, got 5"),
+        ("# all commented out\n", "is empty"),
+    ],
+)
+def test_a_sweep_files_out_and_scheduler_and_an_empty_file_are_refused_before_any_work(
+    tmp_path, monkeypatch, capsys, text, needle
+):
+    monkeypatch.chdir(tmp_path)  # (an empty file once flew the default job into runs/s)
+    f = tmp_path / "s.yaml"
+    f.write_text(text)
+    refused(capsys, ["sweep", f], f"sweep file {f}", needle)
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["s.yaml"]
+
+
+def test_an_empty_config_file_is_refused(tmp_path, capsys):
+    f = tmp_path / "c.yaml"
+    f.write_text("\n# nothing here\n")
+    with pytest.raises(ValueError, match=f"config file {f} is empty"):
+        Config.from_yaml(f)
+    refused(capsys, ["run", "--config", f, "--out", tmp_path / "r"], "is empty")
+    f.write_text("{}\n")  # the defaults, said so
+    assert Config.from_yaml(f) == Config()
+
+
 # ------------------------------------------------------------------- 6. an empty mesh path
 @pytest.mark.parametrize("value", ["''", "' '"])
 def test_an_empty_mesh_path_is_refused(value):

@@ -163,7 +163,9 @@ class Config:
         """A run folder's config.yaml names in its errors the plugin files the run was flown
         with (its summary.json's `plugins`) that this process has not loaded."""
         p = Path(path)
-        data = read_yaml_file(p, "config file") or {}
+        data = read_yaml_file(p, "config file")
+        if data is None:  # a wrong or truncated file, not the defaults flown in its place
+            raise ValueError(f"config file {p} is empty (for the defaults write {{}} in it)")
         if not isinstance(data, dict):
             raise ValueError(
                 f"config file {p} must hold a mapping of keys, got {type(data).__name__}"

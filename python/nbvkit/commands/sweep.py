@@ -64,9 +64,18 @@ def run(args) -> int:
     from ..experiments import sweep_specs
 
     path = Path(args.config)
-    sweep = read_yaml_file(path, "sweep file") or {}
+    sweep = read_yaml_file(path, "sweep file")
+    if sweep is None:  # not the default job flown in its place
+        raise ValueError(f"sweep file {path} is empty (configs/sweep_example.yaml shows one)")
     if not isinstance(sweep, dict):
         raise ValueError(f"sweep file {path} must hold a mapping")
+    for key in ("out", "scheduler"):
+        if sweep.get(key) is not None and not (isinstance(sweep[key], str) and sweep[key].strip()):
+            raise ValueError(
+                f"sweep file {path}: '{key}' must be a "
+                + ("folder path" if key == "out" else "Dask scheduler address")
+                + f", got {shorten(sweep[key])}"
+            )
     files = sweep.get("plugins")
     files = [] if files is None else files
     if not isinstance(files, list) or not all(isinstance(f, str) and f for f in files):
