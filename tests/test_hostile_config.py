@@ -253,6 +253,33 @@ def test_a_sweep_files_out_and_scheduler_and_an_empty_file_are_refused_before_an
     assert sorted(p.name for p in tmp_path.iterdir()) == ["s.yaml"]
 
 
+@pytest.mark.parametrize(
+    "argv",
+    [
+        ["run", "--out", ""],
+        ["run", "--config", " "],
+        ["evaluate", "CLOUD", "--json", ""],
+        ["evaluate", "CLOUD", "--config", "", "--observable"],
+        ["evaluate", "CLOUD", "--cache", ""],
+        ["evaluate", "CLOUD", "--reference-cloud", ""],
+        ["sweep", "s.yaml", "--out", ""],
+        ["table", "--out", ""],
+        ["compare", "--out", ""],
+        ["export", "RUN", "--out", ""],
+        ["scan", "--out", ""],
+    ],
+)
+def test_an_empty_path_option_is_refused_not_replaced_by_its_default(
+    tmp_path, monkeypatch, capsys, argv
+):
+    """`run --out ""` flew into runs/..., `evaluate --json ""` wrote nothing and exited 0:
+    an empty path is refused by the option's name before any work."""
+    monkeypatch.chdir(tmp_path)
+    option = next(a for a in argv if a.startswith("--") and a != "--observable")
+    refused(capsys, argv, f"argument {option}: is empty")
+    assert not list(tmp_path.iterdir())
+
+
 def test_an_empty_config_file_is_refused(tmp_path, capsys):
     f = tmp_path / "c.yaml"
     f.write_text("\n# nothing here\n")

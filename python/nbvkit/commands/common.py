@@ -45,6 +45,14 @@ def mesh_path(text: str) -> str:
     return text
 
 
+def path_arg(text: str) -> str:
+    """argparse type of a file or folder option: never empty (an empty path is no file, and
+    `or` would replace it with the option's default: refused instead)."""
+    if not text.strip():
+        raise argparse.ArgumentTypeError(f"is empty ({text!r}): give a path, or leave it out")
+    return text
+
+
 def mesh_from_args(args):
     path = args.mesh if args.mesh is not None else default_mesh_path()
     return load_mesh(path, scale=args.mesh_scale, up=args.mesh_up, shift=args.mesh_shift)
@@ -106,7 +114,9 @@ def add_experiment_options(p: argparse.ArgumentParser, what: str, out: str) -> N
         default=None,
         help="run on a Dask distributed cluster at this scheduler address instead",
     )
-    p.add_argument("--out", metavar="DIR", default=out, help=f"output folder (default {out})")
+    p.add_argument(
+        "--out", metavar="DIR", type=path_arg, default=out, help=f"output folder (default {out})"
+    )
 
 
 def check_starts(starts: int) -> None:

@@ -21,7 +21,7 @@ from ..evaluation import (
     Evaluator,
     format_report,
 )
-from .common import add_mesh_options, add_set_option, mesh_from_args
+from .common import add_mesh_options, add_set_option, mesh_from_args, path_arg
 
 
 def register(sub) -> argparse.ArgumentParser:
@@ -50,6 +50,7 @@ def _add_inputs(p) -> None:
     p.add_argument(
         "--reference-cloud",
         metavar="PATH",
+        type=path_arg,
         help="use this ground-truth point cloud (.ply, .pcd or .npy) as is instead of "
         "sampling a mesh (as the authors evaluated); excludes --mesh, and "
         "--mesh-scale / --mesh-up / --mesh-shift / --gt-density / --seed do not apply to it",
@@ -78,6 +79,7 @@ def _add_observable_options(p) -> None:
     p.add_argument(
         "--config",
         metavar="FILE",
+        type=path_arg,
         help="mission configuration (YAML) whose camera, workspace, vehicle and observability "
         "sections define the observable surface (default: a run's own config.yaml, for a run's "
         "cloud scored against its mesh; else the default configuration)",
@@ -86,6 +88,7 @@ def _add_observable_options(p) -> None:
     p.add_argument(
         "--cache",
         metavar="DIR",
+        type=path_arg,
         default=None,
         help="cache folder of the observable surface (default: none, computed every time)",
     )
@@ -96,6 +99,7 @@ def _add_scoring_options(p) -> None:
     p.add_argument(
         "--json",
         metavar="OUT",
+        type=path_arg,
         help="also write the results as JSON to OUT (keys: coverage, area_coverage, "
         "precision, completeness, accuracy, fscore, chamfer_m, n_points, "
         "gt_density, and more)",

@@ -4,6 +4,8 @@ from __future__ import annotations
 import argparse
 import sys
 
+from .common import path_arg
+
 #: The captures beyond the battery listed one by one on the console (export.json lists all).
 SHOWN = 10
 
@@ -73,7 +75,9 @@ def register(sub) -> argparse.ArgumentParser:
         "rest (default 2 s)",
     )
     _add_split_options(p)
-    p.add_argument("--out", metavar="DIR", default=None, help="output folder (RUN_DIR/export)")
+    p.add_argument(
+        "--out", metavar="DIR", type=path_arg, default=None, help="output folder (RUN_DIR/export)"
+    )
     return p
 
 

@@ -16,7 +16,7 @@ from ..planning.terminations.budget import budget_note
 from ..recorder import fly_into, raise_stop
 from ..runfolder import RunFolder
 from ..scenarios import DEFAULT, SCENARIOS
-from .common import add_mesh_shift_option, add_set_option, shift_override
+from .common import add_mesh_shift_option, add_set_option, path_arg, shift_override
 
 
 def register(sub) -> argparse.ArgumentParser:
@@ -42,6 +42,7 @@ def register(sub) -> argparse.ArgumentParser:
     p.add_argument(
         "--config",
         metavar="FILE",
+        type=path_arg,
         help="YAML configuration (see configs/default.yaml); " "unknown keys are rejected",
     )
     p.add_argument("--mesh", metavar="PATH", help="structure mesh (default: the shipped airliner)")
@@ -80,6 +81,7 @@ def register(sub) -> argparse.ArgumentParser:
     p.add_argument(
         "--out",
         metavar="DIR",
+        type=path_arg,
         default=None,
         help="results folder (default runs/scenario<S>_start<K>)",
     )

@@ -12,7 +12,7 @@ from ..cloud import write_points
 from ..mesh import default_mesh_path
 from ..runfolder import check_not_input
 from ..paths import check_output_file
-from .common import add_mesh_options, mesh_from_args
+from .common import add_mesh_options, mesh_from_args, path_arg
 
 
 def register(sub) -> argparse.ArgumentParser:
@@ -52,7 +52,13 @@ def register(sub) -> argparse.ArgumentParser:
         "laser range noise sigma = K metres (default 0: exact)",
     )
     p.add_argument("--seed", type=int, default=0, help="noise seed (default 0)")
-    p.add_argument("--out", required=True, metavar="FILE", help="output cloud: .ply, .pcd or .npy")
+    p.add_argument(
+        "--out",
+        required=True,
+        metavar="FILE",
+        type=path_arg,
+        help="output cloud: .ply, .pcd or .npy",
+    )
     return p
 
 

@@ -9,7 +9,7 @@ from ..config import read_yaml_file
 from ..limits import shorten
 from ..paths import check_output_dir
 from ..plugins import load_plugins
-from .common import add_workers_option, fly_experiment
+from .common import add_workers_option, fly_experiment, path_arg
 
 EXAMPLE = """example sweep file:
   meshes:                       # default: [null], the configuration's mesh
@@ -48,6 +48,7 @@ def register(sub) -> argparse.ArgumentParser:
     p.add_argument(
         "--out",
         metavar="DIR",
+        type=path_arg,
         default=None,
         help="output folder (default: the file's out, " "else runs/<file name>)",
     )
