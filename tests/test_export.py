@@ -1619,3 +1619,27 @@ def test_a_report_that_cannot_be_rewritten_leaves_the_run_whole(run_dir, tmp_pat
     assert any("report.html not updated" in w and "No space" in w for w in s["warnings"])
     assert {p.name: p.read_bytes() for p in (report, run / "manifest.json")} == before
     assert is_complete_run(run) and not (run / "report.html.tmp").exists()
+
+
+@pytest.mark.parametrize(
+    "option, value, needle",
+    [
+        ("--speed", "1e-320", "speed must be a finite number >= 0.1 m/s"),
+        ("--speed", "1e-300", "speed must be a finite number >= 0.1 m/s"),
+        ("--climb-rate", "1e-320", "climb rate must be a finite number >= 0.1 m/s"),
+        ("--hover", "1e308", "hover must be 0..3600 s a view"),
+    ],
+)
+def test_flight_model_values_beyond_any_drone_are_refused_by_name(
+    run_dir, tmp_path, capsys, option, value, needle
+):
+    """A crawl or an hour-long hover overflowed the mission's times to inf (a JSON error that
+    named no option), or wrote cruiseSpeed 1e-300 into the .plan: refused before any file."""
+    from nbvkit.cli import main
+
+    out = tmp_path / "ex"
+    argv = ["export", str(run_dir), "--origin", *map(str, ORIGIN), "--out", str(out)]
+    assert main([*argv, option, value]) == 2
+    err = capsys.readouterr().err
+    assert needle in err and "Traceback" not in err, err
+    assert not out.exists()

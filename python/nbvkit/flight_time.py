@@ -25,6 +25,10 @@ YAW_RATE_DEG_S = 30.0
 #: the hold between the arrival at a view and its photo (s), whatever --hover is: the aircraft
 #: stops (ArduCopter stops at a waypoint only when its hold is > 0) and the gimbal settles
 SETTLE_S = 1.0
+#: The slowest horizontal speed and climb rate of the flight-time model (m/s), and the longest
+#: hover at a view (s): beyond them no drone's mission, and the times overflowed.
+MIN_SPEED_M_S = 0.1
+MAX_HOVER_S = 3600.0
 #: the mission files whose waits capture_waits models: the .plan (PX4), the .waypoints
 #: (ArduPilot) and the DJI .kmz
 TARGETS = ("px4", "ardupilot", "dji")
@@ -126,12 +130,15 @@ class FlightModel:
     hover_s: float = 2.0
 
     def __post_init__(self):
-        for name, lo in (("speed", 0.0), ("climb_rate", 0.0)):
+        for name in ("speed", "climb_rate"):  # (slower, a mission's times overflowed to inf)
             v = getattr(self, name)
-            if not (math.isfinite(v) and v > lo):
-                raise ValueError(f"{name.replace('_', ' ')} must be a finite number > 0, got {v}")
-        if not (math.isfinite(self.hover_s) and self.hover_s >= 0):
-            raise ValueError(f"hover must be a finite number >= 0 s, got {self.hover_s}")
+            if not (math.isfinite(v) and v >= MIN_SPEED_M_S):
+                raise ValueError(
+                    f"{name.replace('_', ' ')} must be a finite number >= {MIN_SPEED_M_S:g} m/s, "
+                    f"got {v:g}"
+                )
+        if not (math.isfinite(self.hover_s) and 0 <= self.hover_s <= MAX_HOVER_S):
+            raise ValueError(f"hover must be 0..{MAX_HOVER_S:g} s a view, got {self.hover_s:g}")
 
     def leg_times(self, pts: np.ndarray) -> np.ndarray:
         """(P-1,) seconds of the straight legs between consecutive points (P, 3)."""
