@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import json
 import math
+import numbers
 import os
 import secrets
 import shutil
@@ -23,6 +24,8 @@ from .plan import read_run
 from . import colmap, items, writers
 from .wpml import write_wpml_kmz
 
+GEO_NAMES = ("latitude", "longitude", "altitude")
+
 __all__ = ["FORMATS", "export_mission", "estimate_flight", "GeoFrame", "FlightModel"]
 
 #: format -> the files it writes per sortie (colmap: one model of the whole flight)
@@ -39,6 +42,8 @@ FORMATS = {
 def _formats(formats) -> list[str]:
     if isinstance(formats, str):
         formats = formats.split(",")
+    if not isinstance(formats, (list, tuple)):
+        raise ValueError(f"formats must be a list or 'qgc,kml,...', got {formats!r}")
     out = []
     for f in formats:
         f = str(f).strip().lower()
@@ -66,13 +71,47 @@ def _budget(flight_time_min, reserve_pct):
     return 60.0 * flight_time_min * (1.0 - reserve_pct / 100.0)
 
 
-def _check_speed(speed) -> None:
+def _number(name: str, value) -> float:
+    """value as a float; ValueError naming the argument `name` unless it is a real number (a
+    string or a bool is not)."""
+    if isinstance(value, bool) or not isinstance(value, numbers.Real):
+        raise ValueError(f"{name} must be a number, got {value!r}")
+    return float(value)
+
+
+def _enum(name: str, value) -> int:
+    """A WPML enumeration value (droneEnumValue, payloadEnumValue...): a whole number >= 0."""
+    if isinstance(value, bool) or not isinstance(value, numbers.Integral) or value < 0:
+        raise ValueError(f"{name} must be a whole number >= 0 (a WPML enum value), got {value!r}")
+    return int(value)
+
+
+def _checked(origin, heading_deg, speed, climb_rate, hover_s, altitude_ref, dji_drone, dji_payload):
+    """export_mission's geo frame, flight model and DJI (drone, payload), each argument checked
+    by name."""
+    if not _pair_or_triple(origin, 3):
+        raise ValueError(f"origin must be (latitude, longitude, altitude), got {origin!r}")
+    latlonalt = [_number(f"origin's {n}", v) for n, v in zip(GEO_NAMES, origin)]
+    frame = GeoFrame(*latlonalt, _number("heading_deg", heading_deg), altitude_ref)
+    speed = _number("speed", speed)
+    _check_speed(speed)
+    model = FlightModel(speed, _number("climb_rate", climb_rate), _number("hover_s", hover_s))
+    if not _pair_or_triple(dji_drone, 2):
+        raise ValueError(
+            f"dji_drone must be (droneEnumValue, droneSubEnumValue), got {dji_drone!r}"
+        )
+    drone = (_enum("dji_drone[0]", dji_drone[0]), _enum("dji_drone[1]", dji_drone[1]))
+    return frame, model, (drone, _enum("dji_payload", dji_payload))
+
+
+def _pair_or_triple(value, n: int) -> bool:
+    """Whether value is a sequence of n items (a string is not)."""
+    return not isinstance(value, (str, bytes)) and hasattr(value, "__len__") and len(value) == n
+
+
+def _check_speed(v: float) -> None:
     """ValueError for a cruise speed above writers.MAX_SPEED_M_S (the lower bounds are
     FlightModel's)."""
-    try:
-        v = float(speed)
-    except (TypeError, ValueError):
-        raise ValueError(f"speed must be a number of m/s, got {speed!r}") from None
     if math.isfinite(v) and v > writers.MAX_SPEED_M_S:
         raise ValueError(
             f"speed {v:g} m/s is above the export's maximum of {writers.MAX_SPEED_M_S:g} m/s "
@@ -215,15 +254,17 @@ def export_mission(
     when all are written: on an error nothing is left half-written.
     """
     fmts = _formats(formats)
-    _check_speed(speed)
-    if origin is None or len(origin) != 3:
-        raise ValueError(f"origin must be (latitude, longitude, altitude), got {origin!r}")
-    frame = GeoFrame(*(float(v) for v in origin), float(heading_deg), altitude_ref)
-    model = FlightModel(float(speed), float(climb_rate), float(hover_s))
-    usable = _budget(flight_time_min, float(reserve_pct))
+    dji = (dji_drone, dji_payload)
+    frame, model, dji = _checked(
+        origin, heading_deg, speed, climb_rate, hover_s, altitude_ref, *dji
+    )
+    minutes = None if flight_time_min is None else _number("flight_time_min", flight_time_min)
+    usable = _budget(minutes, _number("reserve_pct", reserve_pct))
     max_items = items.check_max_items(max_items)
     split = usable is not None or max_items is not None
     run = require_complete_run(Path(run_dir).expanduser())  # whole, not half-written
+    if out_dir is not None and not os.fspath(out_dir).strip():
+        raise ValueError("out_dir is empty: give a folder, or None for RUN_DIR/export")
     out = Path(out_dir).expanduser() if out_dir is not None else run / "export"
     if out.exists() and not out.is_dir():
         raise ValueError(f"output folder {out} exists and is not a folder")
@@ -240,7 +281,7 @@ def export_mission(
         budget["max_items"] = max_items
     summary = _summary(run, frame, fl, model, whole, budget, sorties, unreachable, fmts)
 
-    _write_into(out, summary, fl, sorties, frame, model, (dji_drone, dji_payload), split)
+    _write_into(out, summary, fl, sorties, frame, model, dji, split)
     paths = [np.array([fl.home, *[w.xyz for w in s.waypoints], fl.home]) for s in sorties]
     try:
         summary["report_updated"] = update_flight_section(run, summary, paths)

@@ -3,6 +3,7 @@ sortie's count before it is written (``nbvkit export --max-items``)."""
 from __future__ import annotations
 
 import json
+import numbers
 from pathlib import Path
 
 from . import writers
@@ -43,7 +44,9 @@ def check_max_items(max_items) -> int | None:
     of at least MIN_ITEMS."""
     if max_items is None:
         return None
-    if isinstance(max_items, bool) or not float(max_items).is_integer():
+    if isinstance(max_items, bool) or not isinstance(max_items, numbers.Real):
+        raise ValueError(f"max_items must be a whole number, got {max_items!r}")
+    if not float(max_items).is_integer():
         raise ValueError(f"max_items must be a whole number, got {max_items!r}")
     if int(max_items) < MIN_ITEMS:
         raise ValueError(
