@@ -302,3 +302,16 @@ def test_the_commands_refuse_an_empty_mesh_path(tmp_path, capsys):
     refused(capsys, ["run", "--set", "mesh.path=''", "--out", tmp_path / "r"], "mesh.path")
     refused(capsys, ["compare", "--mesh", "", "--out", tmp_path / "c"], "argument --mesh: is empty")
     assert load_config(overrides=["mesh.path=null"]).mesh.path is None
+
+
+def test_negative_numbers_in_exponent_form_are_values_not_options():
+    """argparse took -5e-1 for an option (it knows -5 and -0.5 only): --mesh-shift -5e-1 0 0."""
+    from nbvkit.cli import build_parser
+
+    p = build_parser()
+    args = p.parse_args(["run", "--mesh-shift", "-5e-1", "0", "-1E+2"])
+    assert args.mesh_shift == [-0.5, 0.0, -100.0]
+    args = p.parse_args(["export", "R", "--origin", "-3.3e1", "-7e1", "1e2", "--heading", "-15e1"])
+    assert args.origin == [-33.0, -70.0, 100.0] and args.heading == -150.0
+    with pytest.raises(SystemExit):  # an option is still an option
+        p.parse_args(["run", "--mesh-shift", "-5e-1", "0", "--bogus"])

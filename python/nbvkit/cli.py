@@ -3,6 +3,7 @@ from __future__ import annotations
 
 import argparse
 import importlib
+import re
 import sys
 
 from .plugins import PluginLoadError, load_plugins
@@ -22,8 +23,17 @@ COMMANDS = {
 }
 
 
+class _Parser(argparse.ArgumentParser):
+    """argparse, reading -5e-1 and -1.5E3 as negative numbers, not options, as it reads -5 and
+    -0.5 (--mesh-shift -5e-1 0 0, --origin -3.3e1 ...). Its subcommands' parsers are of it too."""
+
+    def __init__(self, *args, **kwargs):
+        super().__init__(*args, **kwargs)
+        self._negative_number_matcher = re.compile(r"^-(\d+\.?\d*|\.\d+)([eE][-+]?\d+)?$")
+
+
 def build_parser() -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(
+    parser = _Parser(
         prog="nbvkit",
         description="Next-best-view reconstruction of large structures by a simulated UAV.",
     )
