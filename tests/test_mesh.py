@@ -396,6 +396,20 @@ def test_georeferenced_obj_keeps_its_digits_and_shifts_exactly(tmp_path):
     np.testing.assert_allclose(m.vertices, 1000.0 * local[:, [0, 2, 1]] * [1, -1, 1], atol=1e-6)
 
 
+def test_a_shift_too_far_for_float64_is_refused_by_its_precision(tmp_path):
+    """A shift of 1e17 m rounds every coordinate by metres (the mesh collapsed, and the error
+    came later as workspace bounds beyond the map): refused naming the shift and the rounding;
+    a shift to a far but exact place is kept to the micrometre."""
+    p = tmp_path / "tri.obj"
+    p.write_bytes(obj_file(0.3 * TRI, TRI_F))
+    with pytest.raises(ValueError, match=r"mesh shift \[1e\+17, 0.0, 0.0\].*rounds .* by up to"):
+        nbvkit.load_mesh(p, shift=[1e17, 0, 0])
+    with pytest.raises(ValueError, match="nearer the origin"):
+        nbvkit.load_mesh(p, shift=[-3e14, 0, 0])  # float64 spacing there: 6 cm
+    m = nbvkit.load_mesh(p, shift=UTM)
+    np.testing.assert_allclose(m.vertices - UTM, 0.3 * TRI, rtol=0, atol=1e-6)
+
+
 # The parser's cases (statements, index forms, polygons, every bad line) are GoogleTests
 # (cpp/tests/test_obj.cpp); here: what a user reads, the file named.
 @pytest.mark.parametrize(

@@ -93,8 +93,21 @@ def load_mesh(path: str | os.PathLike, scale: float = 1.0, up: str = "auto", shi
         _check_gltf_extensions(p)
     mesh = _core._load_mesh(os.fsencode(p), scale, file_up_axis(p, up))
     if shift is not None and shift.any():
-        mesh = Mesh(np.asarray(mesh.vertices) + shift, mesh.faces)
+        v = np.asarray(mesh.vertices)
+        moved = v + shift
+        lost = float(np.max(np.abs((moved - shift) - v), initial=0.0))  # float64's rounding
+        if lost > SHIFT_TOLERANCE_M:
+            raise ValueError(
+                f"mesh shift {shift.tolist()} moves the structure so far that float64 rounds its "
+                f"coordinates by up to {lost:.3g} m (more than {SHIFT_TOLERANCE_M * 1e3:g} mm): "
+                "shift it nearer the origin"
+            )
+        mesh = Mesh(moved, mesh.faces)
     return mesh
+
+
+#: the most a mesh shift may round a vertex by (float64 at the shifted coordinates), m
+SHIFT_TOLERANCE_M = 1e-3
 
 
 #: glTF extensions that change only a structure's appearance (materials, textures, lights):
