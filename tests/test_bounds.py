@@ -403,6 +403,10 @@ def test_sweep_files_are_bounded():
         sweep_specs({"starts": 10**12})
     with pytest.raises(ValueError, match="runs"):
         sweep_specs({"starts": 5, "grid": {f"k{i}": list(range(10)) for i in range(8)}})
+    for starts in ([7], [0, -1]):  # refused before any run, not each run failing alone
+        with pytest.raises(ValueError, match=r"'starts' are indices 0..4 .*got \[(7|-1)\]"):
+            sweep_specs({"starts": starts})
+    assert [s.start for s in sweep_specs({"starts": [4, 0]})] == [4, 0]
 
 
 def test_cpp_option_errors_name_the_dotted_key():

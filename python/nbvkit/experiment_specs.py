@@ -423,6 +423,9 @@ def _sweep_starts(sweep: dict) -> list:
         )
     _refuse_empty("sweep 'starts'", starts)
     _refuse_duplicates("sweep 'starts'", starts)
+    bad = [s for s in starts if not 0 <= s <= 4]
+    if bad:  # before any run (each had failed on its own)
+        raise ValueError(f"sweep 'starts' are indices 0..4 (five predefined starts), got {bad}")
     return starts
 
 
