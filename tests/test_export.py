@@ -1661,3 +1661,17 @@ def test_flight_model_values_beyond_any_drone_are_refused_by_name(
     err = capsys.readouterr().err
     assert needle in err and "Traceback" not in err, err
     assert not out.exists()
+
+
+def test_a_camera_looking_over_the_nose_has_no_gimbal_yaw_at_pitched_views(tmp_path):
+    """A camera pitched 20 deg down on its mount, looking over the nose: the gimbal's yaw is 0
+    at every capture (the bearings in the local horizon gave up to 1.6e-4 degrees)."""
+    run = tmp_path / "run"
+    over = [*FAST, "max_iterations=3", "camera.mount_rpy_deg=[0,20,0]"]
+    Mission(Config().with_overrides(over)).run(run)
+    export_mission(run, "csv,geojson", ORIGIN, HEADING, tmp_path / "ex")
+    rows = [r for r in _csv(tmp_path / "ex" / "mission.csv") if r["action"] in ("view", "frame")]
+    assert len(rows) > 3 and all(float(r["gimbal_pitch_deg"]) < -19.0 for r in rows)
+    assert {float(r["gimbal_yaw_deg"]) for r in rows} == {0.0}
+    geo = json.loads((tmp_path / "ex" / "mission.geojson").read_text())["features"][1:]
+    assert {f["properties"]["gimbal_yaw_deg"] for f in geo} == {0.0}

@@ -17,7 +17,7 @@ import numpy as np
 
 from .georef import ALTITUDE_REFS, GeoFrame  # noqa: F401
 from ..flight import estimate, sortie_planner
-from ..flight_time import FRAME, VIEW, FlightModel, signed_deg
+from ..flight_time import FRAME, VIEW, FlightModel
 from ..run_report import update_flight_section
 from ..runfolder import require_complete_run
 from .plan import read_run
@@ -162,9 +162,10 @@ def _geo(fl, sortie, frame: GeoFrame, speed, hover_s, numbers, name, seqs=None):
         # pitch above the mesh's horizontal plane (the structure's frame; the local horizon
         # departs from it by distance / Earth radius: 0.0009 degrees at 100 m)
         pitch.append(clean_angle(math.degrees(math.asin(max(-1.0, min(1.0, fwd[2]))))))
-        gy = 0.0
-        if np.hypot(*fwd[:2]) > 1e-9:
-            gy = signed_deg(frame.local_bearing(fwd, lat[k], lon[k]) - h)
+        # the camera axis's yaw from the nose, positive right, in the same plane (the local
+        # horizon's bearings tilted a pitched axis: up to 1.6e-4 degrees where it is 0)
+        ahead, left = float(T_body[:3, 0] @ fwd), float(T_body[:3, 1] @ fwd)
+        gy = -math.degrees(math.atan2(left, ahead)) if math.hypot(ahead, left) > 1e-9 else 0.0
         gyaw.append(clean_angle(gy))
     hlat, hlon, halt = frame.to_geodetic(fl.home)
     return writers.GeoWaypoints(
