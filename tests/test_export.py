@@ -1675,3 +1675,36 @@ def test_a_camera_looking_over_the_nose_has_no_gimbal_yaw_at_pitched_views(tmp_p
     assert {float(r["gimbal_yaw_deg"]) for r in rows} == {0.0}
     geo = json.loads((tmp_path / "ex" / "mission.geojson").read_text())["features"][1:]
     assert {f["properties"]["gimbal_yaw_deg"] for f in geo} == {0.0}
+
+
+@pytest.mark.parametrize("signum", ["SIGTERM", "SIGHUP"])
+def test_an_export_killed_while_writing_leaves_nothing_half_written(run_dir, tmp_path, signum):
+    """A kill or a hang-up while the files are written: the temporary folder is removed as on
+    Ctrl-C (a killed process left .nbvkit-export-* behind), nothing at --out, exit 130."""
+    import subprocess
+    import sys
+    import textwrap
+
+    script = textwrap.dedent(
+        f"""
+        import os, signal, sys, time
+        import nbvkit.export.writers as w
+        from nbvkit.cli import main
+        def killed(*args, **kwargs):
+            os.kill(os.getpid(), signal.{signum})
+            time.sleep(5)  # the handler raises here
+        w.write_kml = killed
+        sys.exit(main(sys.argv[1:]))
+        """
+    )
+    out = tmp_path / "ex"
+    argv = ["export", str(run_dir), "--origin", *map(str, ORIGIN), "--out", str(out)]
+    p = subprocess.run(
+        [sys.executable, "-c", script, *argv, "--format", "qgc,kml"],
+        capture_output=True,
+        text=True,
+        timeout=120,
+    )
+    assert p.returncode == 130, (p.returncode, p.stderr)
+    assert f"nbvkit export: interrupted by {signum}" in p.stderr and "Traceback" not in p.stderr
+    assert list(tmp_path.iterdir()) == []

@@ -6,6 +6,7 @@ import importlib
 import re
 import sys
 
+from .experiments import Terminated, terminate_as_interrupt
 from .plugins import PluginLoadError, load_plugins
 
 # name -> module in nbvkit.commands; each module defines register(subparsers) and run(args).
@@ -80,9 +81,11 @@ def main(argv: list[str] | None = None) -> int:
     parser = build_parser()
     args = parser.parse_args(argv)
     try:
-        return int(args._run(args) or 0)
-    except KeyboardInterrupt:
-        print(f"nbvkit {args.command}: interrupted", file=sys.stderr)
+        with terminate_as_interrupt():  # a kill or a hang-up cleans up as Ctrl-C does
+            return int(args._run(args) or 0)
+    except KeyboardInterrupt as e:
+        by = f" by {e}" if isinstance(e, Terminated) else ""
+        print(f"nbvkit {args.command}: interrupted{by}", file=sys.stderr)
         return 130
     except Exception as e:
         from .planning.parts import PartContractError, raised_by_a_part
