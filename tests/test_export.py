@@ -1708,3 +1708,35 @@ def test_an_export_killed_while_writing_leaves_nothing_half_written(run_dir, tmp
     assert p.returncode == 130, (p.returncode, p.stderr)
     assert f"nbvkit export: interrupted by {signum}" in p.stderr and "Traceback" not in p.stderr
     assert list(tmp_path.iterdir()) == []
+
+
+def test_the_way_out_and_back_is_flown_in_few_items(run_dir, tmp_path):
+    """The ways out and back retrace the flight in steps of centimetres: their straight stretches
+    are one item each (simplify drops "transit" points on the line as it drops plain ones), so
+    a sortie's items go to the work: at 60 items a file every profile point and capture is
+    flown (161 were not, on the airliner of 8 views)."""
+    from nbvkit.export.plan import Waypoint, simplify
+
+    line = [Waypoint(np.array([0.0, 0.0, z]), 0.5, 0.0, "transit", -1, "back") for z in range(5)]
+    kept = simplify([*line, Waypoint(np.array([1.0, 0, 4]), 0.5, 0.0, "home", -1, "back")])
+    assert [float(w.xyz[2]) for w in kept] == [0.0, 4.0, 4.0]
+    turned = [Waypoint(w.xyz, 0.5 + 0.1 * (k == 2), 0.0, w.action, -1, "back") for k, w in
+              enumerate(line)]  # fmt: skip
+    assert len(simplify(turned)) == 4  # a heading of its own is kept (and the point before it)
+    s = export_mission(run_dir, "qgc,csv", ORIGIN, HEADING, tmp_path / "ex", max_items=60)
+    assert s["unreachable"] == [] and max(s["mission_items"].values()) <= 60
+    for k in range(1, len(s["sorties"]) + 1):  # no transit point on its neighbours' line
+        rows = _csv(tmp_path / "ex" / f"sortie_{k:02d}.csv")
+        ll = np.array([[float(r[c]) for c in ("latitude_deg", "longitude_deg")] for r in rows])
+        p = np.column_stack(  # local metres (an equirectangular plane: 0.1 mm over this site)
+            [
+                (ll[:, 1] - ORIGIN[1]) * 111_320.0 * math.cos(math.radians(ORIGIN[0])),
+                (ll[:, 0] - ORIGIN[0]) * 111_132.0,
+                [float(r["rel_altitude_m"]) for r in rows],
+            ]
+        )
+        for j, r in enumerate(rows[1:-1], 1):
+            if r["action"] == "transit" and rows[j + 1]["heading_deg"] == r["heading_deg"]:
+                a, b, c = p[j - 1], p[j], p[j + 1]
+                t = np.clip((b - a) @ (c - a) / max((c - a) @ (c - a), 1e-18), 0.0, 1.0)
+                assert np.linalg.norm(a + t * (c - a) - b) > 5e-4, (k, j)

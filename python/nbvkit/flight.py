@@ -239,10 +239,10 @@ class Waypoint:
 
 
 def simplify(wps: list, tol: float = 1e-3) -> list:
-    """The waypoints without the plain ones ("waypoint": no capture) that lie within `tol` (m) of
-    the straight line between their neighbours and have the next kept point's yaw and pitch: the
-    same path and headings in fewer items (the profile's sweep is flown in steps of a few
-    centimetres)."""
+    """The waypoints without the plain ones ("waypoint", "transit": no capture) that lie within
+    `tol` (m) of the straight line between their neighbours and have the next kept point's yaw
+    and pitch: the same path and headings in fewer items (the profile's sweep is flown, and
+    retraced out and back, in steps of a few centimetres)."""
     if len(wps) < 3:
         return list(wps)
     keep = [wps[0]]
@@ -250,7 +250,7 @@ def simplify(wps: list, tol: float = 1e-3) -> list:
     for k in range(1, len(wps) - 1):
         w, nxt = wps[k], wps[k + 1]
         droppable = (
-            w.action == "waypoint"
+            w.action in ("waypoint", "transit")
             and abs(w.yaw - nxt.yaw) < 1e-12
             and abs(w.pitch - nxt.pitch) < 1e-12
             and _off_segment(np.array([*run, w.xyz]), keep[-1].xyz, nxt.xyz).max() <= tol
