@@ -1190,22 +1190,31 @@ def test_dji_route_values_in_their_ranges_and_rth_above_the_structure(exported, 
 
 
 def test_mavlink_home_is_above_mean_sea_level_from_an_ellipsoidal_origin(run_dir, tmp_path):
-    """The .waypoints home row (MAV_FRAME_GLOBAL) and the .plan's plannedHomePosition are AMSL:
+    """The .waypoints home row (MAV_FRAME_GLOBAL), the .plan's plannedHomePosition and the KML's
+    absolute altitudes are AMSL:
     from the same place given as an ellipsoidal height (AMSL + the EGM96 geoid height, 47.3 to
     47.4 m round Zurich: NGA's EGM96 tables) they are the AMSL export's."""
     from nbvkit.export.georef import egm96_geoid_height
 
     n = float(egm96_geoid_height([ORIGIN[0]], [ORIGIN[1]])[0])
     assert 47.2 < n < 47.5
-    homes = []
+    from lxml import etree
+
+    homes, kml = [], []
     for ref, alt in (("amsl", ORIGIN[2]), ("ellipsoid", ORIGIN[2] + n)):
         out = tmp_path / ref
-        export_mission(run_dir, "qgc", ORIGIN[:2] + (alt,), HEADING, out, altitude_ref=ref)
+        export_mission(run_dir, "qgc,kml", ORIGIN[:2] + (alt,), HEADING, out, altitude_ref=ref)
         home_row = (out / "mission.waypoints").read_text().splitlines()[1].split("\t")
         plan = json.loads((out / "mission.plan").read_text())["mission"]
         homes.append((float(home_row[10]), plan["plannedHomePosition"][2]))
+        # KML's absolute: "altitude relative to sea level" (OGC 07-147r2), whatever the origin
+        root = etree.parse(str(out / "mission.kml"))
+        text = root.findtext(".//{http://www.opengis.net/kml/2.2}coordinates")
+        kml.append(np.array([[float(v) for v in c.split(",")] for c in text.split()]))
     assert homes[1][0] == pytest.approx(homes[0][0], abs=0.02)
     assert homes[1][1] == pytest.approx(homes[0][1], abs=0.02)
+    assert kml[0].shape == kml[1].shape and len(kml[0]) > 10
+    assert np.abs(kml[1][:, 2] - kml[0][:, 2]).max() < 0.02  # not 47.3 m higher
 
 
 def test_a_sortie_resuming_at_a_plain_point_after_a_transit_leg_turns_before_its_photo(

@@ -226,18 +226,25 @@ def _home_amsl(g: GeoWaypoints) -> tuple:
     with an AMSL origin; with an ellipsoidal one its height less the EGM96 geoid height there
     (ValueError when the geoid is not at hand)."""
     lat, lon, alt = g.home
+    return (lat, lon, float(alt) - _geoid_at_home(g, "the .plan and .waypoints home is"))
+
+
+def _geoid_at_home(g: GeoWaypoints, what: str) -> float:
+    """What to take from g's altitudes for heights above mean sea level: 0 with an AMSL origin,
+    the EGM96 geoid height at the launch point with an ellipsoidal one (one constant: the
+    altitudes' differences kept). ValueError naming `what` needs it when the geoid is not at
+    hand."""
     if g.altitude_ref != "ellipsoid":
-        return (lat, lon, float(alt))
+        return 0.0
     from .georef import egm96_geoid_height
 
     try:
-        n = float(egm96_geoid_height([lat], [lon])[0])
+        return float(egm96_geoid_height([g.home[0]], [g.home[1]])[0])
     except ValueError as e:
         raise ValueError(
-            f"the .plan and .waypoints home is above mean sea level; from an ellipsoidal origin "
-            f"that needs the EGM96 geoid ({e})"
+            f"{what} above mean sea level; from an ellipsoidal origin that needs the EGM96 "
+            f"geoid ({e})"
         ) from None
-    return (lat, lon, float(alt) - n)
 
 
 def write_qgc_plan(g: GeoWaypoints, path, firmware: int = MAV_AUTOPILOT_PX4) -> None:
@@ -310,23 +317,27 @@ def write_qgc_wpl(g: GeoWaypoints, path) -> None:
 
 # ---------------------------------------------------------------------- KML, GeoJSON, CSV
 def write_kml(g: GeoWaypoints, path) -> None:
-    """KML 2.2: the flight line (LineString) and a Point per view/frame, altitudeMode absolute."""
+    """KML 2.2: the flight line (LineString) and a Point per view/frame, altitudeMode absolute:
+    above mean sea level (from an ellipsoidal origin: less the EGM96 geoid height at the launch
+    point)."""
     ET.register_namespace("", KML_NS)
     k = lambda tag: f"{{{KML_NS}}}{tag}"  # noqa: E731
+    n = _geoid_at_home(g, "KML's absolute altitudes are")
+    alt = np.asarray(g.alt, float) - n
     kml = ET.Element(k("kml"))
     doc = ET.SubElement(kml, k("Document"))
     ET.SubElement(doc, k("name")).text = g.name
-    ET.SubElement(doc, k("description")).text = (
-        f"nbvkit flight; altitudes absolute ({g.altitude_ref}"
-        + (": KML reads them as above sea level" if g.altitude_ref == "ellipsoid" else "")
-        + ")"
+    ET.SubElement(doc, k("description")).text = "nbvkit flight; altitudes above mean sea level" + (
+        f" (the ellipsoidal heights less the EGM96 geoid height {n:.3f} m at the launch point)"
+        if g.altitude_ref == "ellipsoid"
+        else ""
     )
     line = ET.SubElement(doc, k("Placemark"))
     ET.SubElement(line, k("name")).text = "flight"
     ls = ET.SubElement(line, k("LineString"))
     ET.SubElement(ls, k("altitudeMode")).text = "absolute"
     ET.SubElement(ls, k("coordinates")).text = " ".join(
-        f"{_f(float(g.lon[i]), 9)},{_f(float(g.lat[i]), 9)},{_f(float(g.alt[i]), 3)}"
+        f"{_f(float(g.lon[i]), 9)},{_f(float(g.lat[i]), 9)},{_f(float(alt[i]), 3)}"
         for i in range(len(g))
     )
     folder = ET.SubElement(doc, k("Folder"))
@@ -346,7 +357,7 @@ def write_kml(g: GeoWaypoints, path) -> None:
         ET.SubElement(pt, k("altitudeMode")).text = "absolute"
         ET.SubElement(
             pt, k("coordinates")
-        ).text = f"{_f(float(g.lon[i]), 9)},{_f(float(g.lat[i]), 9)},{_f(float(g.alt[i]), 3)}"
+        ).text = f"{_f(float(g.lon[i]), 9)},{_f(float(g.lat[i]), 9)},{_f(float(alt[i]), 3)}"
     ET.ElementTree(kml).write(path, encoding="UTF-8", xml_declaration=True)
 
 
