@@ -1352,16 +1352,27 @@ def test_relative_and_absolute_altitudes_are_of_the_same_point_on_a_large_site(r
 
 def test_dji_hover_times_are_above_0_as_written(run_dir, tmp_path):
     """--hover 1.0001: the rest of the hover after the 1 s settle is 0.0001 s, 0.000 at the
-    file's millisecond: DJI's hoverTime must be > 0, so no such hover is written."""
+    file's millisecond: DJI's hoverTime must be > 0, so no such hover is written; nor is a
+    MAVLink NAV_DELAY of 0.0001 s (every format waits to the millisecond alike), while 7.25 s
+    writes a rest of 6.25 s in each."""
     from lxml import etree
 
-    out = tmp_path / "h"
-    export_mission(run_dir, "wpml", ORIGIN, HEADING, out, hover_s=1.0001)
     ns = {"wpml": "http://www.dji.com/wpmz/1.0.2"}
-    with zipfile.ZipFile(out / "mission.kmz") as z:
-        for n in z.namelist():
-            times = [e.text for e in etree.fromstring(z.read(n)).iterfind(".//wpml:hoverTime", ns)]
-            assert times and all(float(t) > 0 for t in times), sorted(set(times))
+    for hover, rest in ((1.0001, None), (7.25, 6.25)):
+        out = tmp_path / f"h{hover}"
+        export_mission(run_dir, "wpml,qgc", ORIGIN, HEADING, out, hover_s=hover)
+        with zipfile.ZipFile(out / "mission.kmz") as z:
+            for n in z.namelist():
+                root = etree.fromstring(z.read(n))
+                times = [e.text for e in root.iterfind(".//wpml:hoverTime", ns)]
+                assert times and all(float(t) > 0 for t in times), sorted(set(times))
+        items = json.loads((out / "mission.plan").read_text())["mission"]["items"]
+        delays = {it["params"][0] for it in items if it["command"] == 93}
+        with open(out / "mission.waypoints") as f:
+            rows = [line.split("\t") for line in f.read().splitlines()[1:]]
+        assert delays == ({rest} if rest else set())
+        ap = [float(r[4]) for r in rows if r[3] == "93"]  # after holds of whole seconds
+        assert all(0 < x <= hover - 1 and round(x, 3) == x for x in ap) and bool(ap) == bool(rest)
 
 
 def _egm96(lat, lon):

@@ -105,13 +105,10 @@ def capture_waits(actions, headings_deg, hover_s: float) -> dict:
         possible = (h, h)  # the capture's wait ends facing its heading
         hover = max(float(hover_s), settle) if a == VIEW else 0.0
         ap = float(math.ceil(turn_s + settle - 1e-9))
-        out["px4"][0][k], out["px4"][1][k] = settle, hover - settle
-        out["ardupilot"][0][k], out["ardupilot"][1][k] = ap, max(0.0, hover - ap)
-        out["dji"][0][k], out["dji"][1][k], out["dji"][2][k] = (
-            settle,
-            hover - settle,
-            turn_s,
-        )
+        rest = round(hover - settle, 3)  # to the millisecond, as the DJI route writes it: no
+        out["px4"][0][k], out["px4"][1][k] = settle, rest  # NAV_DELAY of 0.0004 s
+        out["ardupilot"][0][k], out["ardupilot"][1][k] = ap, max(0.0, round(hover - ap, 3))
+        out["dji"][0][k], out["dji"][1][k], out["dji"][2][k] = settle, rest, turn_s
     return out
 
 
