@@ -430,3 +430,27 @@ def test_view_camera_rays_are_bounded_with_the_range_that_fits():
 def test_an_empty_sweep_range_names_the_profiling_keys():
     msg = _mission_error(["profiling.z_max=0"])
     assert "'profiling.z_max'" in msg and "z_max > z_min" in msg
+
+
+def test_the_core_refuses_sizes_no_structure_has_naming_them():
+    """From a review of the Python API: values a unit's mistake gives were taken silently
+    (evaluate at a 1e308 m grid read 100 % coverage, a 1e308 m map of one cell, a distance of
+    1e200 m came back inf, a complex query point kept its real part)."""
+    from nbvkit import _core
+
+    mesh = nbvkit.load_mesh(nbvkit.default_mesh_path())
+    pts = np.asarray(mesh.vertices)[:10]
+    for key, bad in (("resolutions", 1e308), ("resolutions", 1e-300), ("taus", 1e308)):
+        with pytest.raises(ValueError, match=f"{key} must be within"):
+            nbvkit.evaluate(mesh, pts, gt_density=50, **{key: [bad]})
+    for res in (1e308, 1e-9):
+        with pytest.raises(ValueError, match=r"resolution must be within \[0.0001, 100\] m"):
+            _core.OccupancyMap(res, [-3, -3, -3], [3, 3, 3])
+    with pytest.raises(ValueError, match="queries"):
+        _core.nearest_distances([[0, 0, 0]], [[1e200, 0, 0]])
+    with pytest.raises(ValueError, match="targets"):
+        _core.nearest_distances([[1e200, 0, 0]], [[0, 0, 0]])
+    m = _core.OccupancyMap(0.5, [-3, -3, -3], [3, 3, 3])
+    with pytest.raises(ValueError, match="query points must be real numbers, got complex"):
+        m.probability(np.array([[0 + 5j, 0, 0]]))
+    assert m.probability(np.zeros((1, 3))) == pytest.approx([0.5])

@@ -27,6 +27,10 @@ NdPoints nd_points(const py::handle& obj, const char* what) {
     throw py::value_error(std::string(what) + " must be an (N, 3) array, got None");
   CArray a;
   try {
+    const py::array given = py::array::ensure(obj);  // complex: refused, not its real part kept
+    if (given && given.dtype().kind() == 'c')
+      throw py::value_error(std::string(what) + " must be real numbers, got complex (dtype " +
+                            std::string(py::str(given.dtype())) + ")");
     a = CArray::ensure(obj);
   } catch (const py::error_already_set&) {
     a = {};

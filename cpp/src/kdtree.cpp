@@ -227,12 +227,12 @@ std::vector<double> tree_nearest(const KdTree& targets, const KdTree& queries) {
 }
 
 Eigen::VectorXd nearest_distances(const PointsRef& targets, const PointsRef& queries) {
-  require_finite(targets, "targets");
+  require_coordinates(targets, "targets");  // beyond +-1e9 m the squares overflowed to inf
   return nearest_distances(KdTree(targets), queries);
 }
 
 Eigen::VectorXd nearest_distances(const KdTree& targets, const PointsRef& queries) {
-  require_finite(queries, "queries");
+  require_coordinates(queries, "queries");
   const KdTree q(queries);  // for a cache-friendly query order
   const std::vector<double> d = tree_nearest(targets, q);
   Eigen::VectorXd out(static_cast<Eigen::Index>(d.size()));

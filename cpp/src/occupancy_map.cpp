@@ -92,9 +92,9 @@ void OccupancyMapOptions::validate() const {
 OccupancyMap::OccupancyMap(double resolution, const Eigen::Vector3d& bounds_min,
                            const Eigen::Vector3d& bounds_max, const OccupancyMapOptions& options)
     : opt_(options) {
-  if (!std::isfinite(resolution) || !(resolution > 0))
-    throw std::invalid_argument("resolution must be a finite number > 0 (metres), got " +
-                                std::to_string(resolution));
+  if (!(resolution >= 1e-4 && resolution <= 100))  // (a 1e308 m map of one cell was built)
+    throw std::invalid_argument("resolution must be within [0.0001, 100] m, got " +
+                                fmt(resolution));
   opt_.validate();
   res_ = resolution;
   tree_ = std::make_unique<octomap::OcTree>(resolution);

@@ -51,9 +51,9 @@ inline std::array<std::int64_t, 3> voxel_index(const Eigen::Vector3d& p, double 
   for (int a = 0; a < 3; ++a) {
     const double c = std::floor(p[a] / size);
     if (!(c >= -double(kVoxelCoordLimit) && c < double(kVoxelCoordLimit)))
-      throw std::invalid_argument("point coordinate " + std::to_string(p[a]) +
+      throw std::invalid_argument("point coordinate " + fmt(p[a]) +
                                   " is too far from the origin for a grid of cell size " +
-                                  std::to_string(size) + " m (at most 2^20 cells per axis)");
+                                  fmt(size) + " m (at most 2^20 cells per axis)");
     out[a] = static_cast<std::int64_t>(c);
   }
   return out;
