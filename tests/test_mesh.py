@@ -408,6 +408,9 @@ def test_a_shift_too_far_for_float64_is_refused_by_its_precision(tmp_path):
         nbvkit.load_mesh(p, shift=[-3e14, 0, 0])  # float64 spacing there: 6 cm
     m = nbvkit.load_mesh(p, shift=UTM)
     np.testing.assert_allclose(m.vertices - UTM, 0.3 * TRI, rtol=0, atol=1e-6)
+    for kwargs in ({"scale": 1e30}, {"shift": [0, 2e9, 0]}):  # exact, but beyond the core's
+        with pytest.raises(ValueError, match=r"mesh coordinates reach .* beyond 1e\+09 m"):
+            nbvkit.load_mesh(p, **kwargs)
 
 
 # The parser's cases (statements, index forms, polygons, every bad line) are GoogleTests

@@ -103,11 +103,19 @@ def load_mesh(path: str | os.PathLike, scale: float = 1.0, up: str = "auto", shi
                 "shift it nearer the origin"
             )
         mesh = Mesh(moved, mesh.faces)
+    reach = float(np.max(np.abs(np.asarray(mesh.vertices)), initial=0.0))
+    if reach > MAX_COORDINATE_M:  # (the ray caster refused it later, naming no argument)
+        raise ValueError(
+            f"mesh coordinates reach {reach:.3g} m after scale {scale:g} and shift, beyond "
+            f"{MAX_COORDINATE_M:g} m: a wrong scale (0.001 reads millimetres as metres)?"
+        )
     return mesh
 
 
 #: the most a mesh shift may round a vertex by (float64 at the shifted coordinates), m
 SHIFT_TOLERANCE_M = 1e-3
+#: the farthest a loaded mesh's vertex may lie from the origin (the core's kMaxCoordinate), m
+MAX_COORDINATE_M = 1e9
 
 
 #: glTF extensions that change only a structure's appearance (materials, textures, lights):
