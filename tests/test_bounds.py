@@ -17,9 +17,10 @@ import numpy as np
 import pytest
 
 import nbvkit
-from nbvkit.config import Config, load_config, read_yaml_file
+from nbvkit.config import Config, load_config
 from nbvkit.config_docs import bounds_table, documented_yaml
 from nbvkit.limits import MAX_INT, check_input_file
+from nbvkit.yamlio import read_yaml_file
 
 ROOT = Path(__file__).resolve().parent.parent
 CUBE = ROOT / "meshes" / "fixtures" / "cube.obj"
@@ -257,9 +258,8 @@ def test_a_mesh_without_a_triangle_of_area_is_an_error(tmp_path):
     with pytest.raises(ValueError, match="no area"):
         nbvkit.load_mesh(p)
     v = np.array([[0, 0, 0], [1, 0, 0], [2, 0, 0]], float)
-    flat = nbvkit.Mesh(v, np.array([[0, 1, 2]], np.int32))  # arrays: allowed (C++ tests use it)
-    with pytest.raises(ValueError, match="no surface"):
-        nbvkit.Mission(load_config(overrides=["max_iterations=1"]), mesh=flat)
+    with pytest.raises(ValueError, match=r"mesh: its 1 triangles have no area \(all degenerate"):
+        nbvkit.Mesh(v, np.array([[0, 1, 2]], np.int32))
 
 
 def test_mesh_arrays_are_read_only_and_rebuilt_meshes_are_checked():
@@ -454,3 +454,19 @@ def test_the_core_refuses_sizes_no_structure_has_naming_them():
     with pytest.raises(ValueError, match="query points must be real numbers, got complex"):
         m.probability(np.array([[0 + 5j, 0, 0]]))
     assert m.probability(np.zeros((1, 3))) == pytest.approx([0.5])
+
+
+def test_bool_arrays_are_not_read_as_numbers_by_the_core():
+    # (a mask given for indices or coordinates was read as 0 and 1: a mesh of one degenerate
+    # triangle from bool faces, a query at (1, 1, 1))
+    v = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0]], float)
+    with pytest.raises(ValueError, match=r"mesh faces must be integers, got bools \(dtype bool\)"):
+        nbvkit.Mesh(v, np.array([[False, True, True]]))
+    with pytest.raises(ValueError, match="mesh vertices must be numbers, got bools"):
+        nbvkit.Mesh(v.astype(bool), np.array([[0, 1, 2]]))
+    m = nbvkit._core.OccupancyMap(0.5, [-3, -3, -3], [3, 3, 3])
+    with pytest.raises(ValueError, match="query points must be numbers, got bools"):
+        m.probability(np.ones((1, 3), bool))
+    with pytest.raises(ValueError, match="option 'crop_min' must be numbers, got bools"):
+        nbvkit._core.SurfaceCloudOptions(crop_min=np.array([True, False, True]))
+    assert nbvkit.Mesh(v, np.array([[0, 1, 2]], np.uint8)).num_triangles == 1  # integers: read

@@ -122,9 +122,11 @@ def test_voxelgrid_sampling_gives_the_cloud_filter_centroids_and_rejects_bad_inp
     pts = rng.uniform(-3, 3, size=(5000, 3))
     ref, _ = voxel_reference(pts, 0.4, min_z=-np.inf)
     np.testing.assert_allclose(nbvkit._core.voxelgrid_sampling(pts, 0.4), ref, rtol=0, atol=1e-12)
-    for bad in (0.0, -1.0, float("nan")):
-        with pytest.raises(ValueError, match="voxel size"):
+    for bad in (0.0, -1.0, float("nan"), 1e-300, 1e308):  # a unit's mistake: not one voxel key
+        with pytest.raises(ValueError, match=r"voxel size must be within \[1e-06, 1000\] m"):
             nbvkit._core.voxelgrid_sampling(pts, bad)
+        with pytest.raises(ValueError, match=r"voxel_size must be within \[1e-06, 1000\] m"):
+            PointCloud(voxel_size=bad)  # (its first add blamed the points)
     with pytest.raises(ValueError, match="points"):
         nbvkit._core.voxelgrid_sampling(np.array([[0.0, np.nan, 0.0]]), 0.1)
 

@@ -220,3 +220,24 @@ def test_bad_input_is_rejected():
     ):  # TBB's arena crashed at 10**7
         with pytest.raises(ValueError, match="number of threads must be in"):
             nbvkit.set_num_threads(n)
+
+
+def test_sensor_ranges_noises_and_mounts_a_units_mistake_gives_are_refused_by_name():
+    mesh = box_mesh([-1, -1, 0], [1, 1, 2])
+    # (each was taken: rays and noise to 1e308 m made points no map can hold)
+    with pytest.raises(ValueError, match=r"camera max_range must be at most 1e\+09 m"):
+        nbvkit.DepthCamera(mesh, max_range=1e308)
+    with pytest.raises(ValueError, match=r"laser max_range must be at most 1e\+09 m"):
+        nbvkit.LaserScanner(mesh, max_range=1e308)
+    with pytest.raises(ValueError, match=r"noise_k = 0.2 gives a depth noise sigma of 12.8 m"):
+        nbvkit.DepthCamera(mesh, max_range=8.0, noise_k=0.2)
+    nbvkit.DepthCamera(mesh, max_range=8.0, noise_k=0.125)  # sigma at 8 m: 8 m, the bound
+    with pytest.raises(ValueError, match=r"noise_sigma = 1e\+308 m must not exceed max_range"):
+        nbvkit.LaserScanner(mesh, noise_sigma=1e308)
+    far = np.eye(4)
+    far[0, 3] = 1e308
+    for sensor in (nbvkit.DepthCamera, nbvkit.LaserScanner):
+        with pytest.raises(ValueError, match=r"mount: offset \(1e\+308, 0, 0\)"):
+            sensor(mesh, mount=far)
+    with pytest.raises(ValueError, match=r"mount_transform: xyz \(1e\+308, 0, 0\)"):
+        nbvkit.mount_transform([1e308, 0, 0])

@@ -37,8 +37,18 @@ inline py::array owned_array(const py::handle& owner, const T* data, py::ssize_t
   return a;
 }
 
+/// Throws ValueError naming `what` if `given` holds complex numbers (numpy's cast would keep the
+/// real parts with only a warning) or bools (a mask is not numbers: True read as 1).
+inline void require_real_dtype(const py::array& given, const std::string& what) {
+  const char kind = given.dtype().kind();
+  if (kind == 'c' || kind == 'b')
+    throw py::value_error(what + " must be " +
+                          (kind == 'c' ? "real numbers, got complex" : "numbers, got bools") +
+                          " (dtype " + std::string(py::str(given.dtype())) + ")");
+}
+
 /// An array-like of integers as a C-contiguous array of T: an array of T as it is (no copy, no
-/// pass); any other integer or bool dtype (any width, either byte order) and whole-number floats
+/// pass); any other integer dtype (any width, either byte order) and whole-number floats
 /// converted once every value is checked to fit T. A fraction, a non-finite or complex value, a
 /// value T cannot hold (numpy's cast would wrap or truncate it without a word) or a non-numeric
 /// array raises ValueError naming `what`.
@@ -52,6 +62,8 @@ py::array_t<T, py::array::c_style | py::array::forcecast> integer_array(const py
   } catch (const py::error_already_set&) {
   }
   if (!given) throw py::value_error(what + " must be an array of integers");
+  if (given.dtype().kind() == 'b')  // a mask is not indices: True read as 1
+    throw py::value_error(what + " must be integers, got bools (dtype bool)");
   // an array of T (its dtype equal, not only the same object: a pickled array's is another)
   if (py::isinstance<py::array_t<T>>(given)) {
     if (Out out = Out::ensure(given)) return out;
@@ -74,7 +86,7 @@ py::array_t<T, py::array::c_style | py::array::forcecast> integer_array(const py
       if (u.data()[i] > static_cast<std::uint64_t>(std::numeric_limits<T>::max()))
         refuse(std::to_string(u.data()[i]), fits);
     checked = u;
-  } else if (kind == 'i' || kind == 'b') {
+  } else if (kind == 'i') {
     const auto v =
         py::array_t<std::int64_t, py::array::c_style | py::array::forcecast>::ensure(given);
     for (py::ssize_t i = 0; v && i < v.size(); ++i)

@@ -10,8 +10,7 @@ namespace {
 using DoubleArray = py::array_t<double, py::array::c_style | py::array::forcecast>;
 
 // `obj` as a C-contiguous float64 array; an empty one (false) if it cannot be read as real
-// numbers. Complex input raises ValueError naming `what`: numpy's cast would drop the imaginary
-// parts with a warning and go on with the real ones.
+// numbers. Complex or bool input raises ValueError naming `what` (require_real_dtype).
 DoubleArray double_array(const py::handle& obj, const std::string& what) {
   py::array given;
   try {
@@ -23,9 +22,7 @@ DoubleArray double_array(const py::handle& obj, const std::string& what) {
     PyErr_Clear();
     return {};
   }
-  if (given.dtype().kind() == 'c')
-    throw py::value_error(what + " must be real numbers, got complex (dtype " +
-                          std::string(py::str(given.dtype())) + ")");
+  require_real_dtype(given, what);
   try {
     return DoubleArray::ensure(given);
   } catch (const py::error_already_set&) {
@@ -171,6 +168,7 @@ void init_common(py::module_& m) {
         if (!xyz.allFinite() || !std::isfinite(roll) || !std::isfinite(pitch) ||
             !std::isfinite(yaw))
           throw py::value_error("mount_transform arguments must be finite");
+        require_representable(xyz, "mount_transform: xyz");
         return mount_transform(xyz, roll, pitch, yaw).matrix();
       },
       py::arg("xyz") = Eigen::Vector3d::Zero(), py::arg("roll_deg") = 0.0,

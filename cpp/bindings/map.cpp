@@ -27,10 +27,8 @@ NdPoints nd_points(const py::handle& obj, const char* what) {
     throw py::value_error(std::string(what) + " must be an (N, 3) array, got None");
   CArray a;
   try {
-    const py::array given = py::array::ensure(obj);  // complex: refused, not its real part kept
-    if (given && given.dtype().kind() == 'c')
-      throw py::value_error(std::string(what) + " must be real numbers, got complex (dtype " +
-                            std::string(py::str(given.dtype())) + ")");
+    const py::array given = py::array::ensure(obj);
+    if (given) require_real_dtype(given, what);
     a = CArray::ensure(obj);
   } catch (const py::error_already_set&) {
     a = {};

@@ -95,6 +95,8 @@ struct OptionField<Eigen::Vector3d> {
   static Eigen::Vector3d set(const py::handle& h, const std::string& name) {
     py::array_t<double, py::array::c_style | py::array::forcecast> a;
     try {
+      const py::array given = py::array::ensure(h);
+      if (given) require_real_dtype(given, "option '" + name + "'");
       a = py::array_t<double, py::array::c_style | py::array::forcecast>::ensure(h);
     } catch (const py::error_already_set&) {
       a = {};

@@ -224,6 +224,12 @@ std::string read_file_head(const std::string& path, std::size_t n, const std::st
   return read_file(path, n, what, max_bytes);
 }
 
+void require_cell_size(double v, const std::string& what) {
+  if (!(v >= kMinCellSize && v <= kMaxCellSize))
+    throw std::invalid_argument(what + " must be within [" + fmt(kMinCellSize) + ", " +
+                                fmt(kMaxCellSize) + "] m, got " + fmt(v));
+}
+
 void require_representable(const Eigen::Vector3d& p, const std::string& what) {
   if (p.allFinite() && p.cwiseAbs().maxCoeff() <= kMaxCoordinate) return;
   std::ostringstream s;

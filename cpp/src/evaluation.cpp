@@ -27,13 +27,8 @@ constexpr double kInf = std::numeric_limits<double>::infinity();
 
 void EvaluationOptions::validate() const {
   // a micrometre to a kilometre: beyond, a unit's mistake (1e308 m read as 100 % coverage)
-  constexpr double kLo = 1e-6, kHi = 1e3;
-  for (double r : resolutions)
-    if (!(r >= kLo && r <= kHi))
-      throw std::invalid_argument("resolutions must be within [1e-06, 1000] m, got " + fmt(r));
-  for (double t : taus)
-    if (!(t >= kLo && t <= kHi))
-      throw std::invalid_argument("taus must be within [1e-06, 1000] m, got " + fmt(t));
+  for (double r : resolutions) require_cell_size(r, "resolutions");
+  for (double t : taus) require_cell_size(t, "taus");
   for (const auto* v : {&resolutions, &taus})
     for (std::size_t i = 0; i < v->size(); ++i)
       if (std::find(v->begin(), v->begin() + i, (*v)[i]) != v->begin() + i)

@@ -27,11 +27,24 @@
 
 namespace nbv {
 
+namespace {
+// Why a valid mesh has no surface to see, sample or score ("" if it has one): all its triangles
+// degenerate, or an area too large for double.
+std::string area_problem(const Mesh& m) {
+  const double area = m.area();
+  if (area > 0 && std::isfinite(area)) return "";
+  return "its " + std::to_string(m.faces.rows()) + " triangles have " +
+         (area > 0 ? "an infinite area (coordinates too large)" : "no area (all degenerate)");
+}
+}  // namespace
+
 Mesh Mesh::from_arrays(const PointsRef& vertices, const Eigen::Ref<const Faces>& faces) {
   Mesh m;
   m.vertices = vertices;
   m.faces = faces;
   m.validate();
+  if (const std::string why = area_problem(m); !why.empty())
+    throw std::invalid_argument("mesh: " + why);
   return m;
 }
 
@@ -188,12 +201,11 @@ void validate_loaded(const Mesh& m, const std::string& path, double scale) {
   } catch (const std::invalid_argument& e) {
     throw std::invalid_argument("mesh file '" + path + "': " + e.what());
   }
-  const double area = m.area();
-  if (area > 0 && std::isfinite(area)) return;
+  const std::string why = area_problem(m);
+  if (why.empty()) return;
   std::ostringstream msg;
-  msg << "mesh file '" << path << "': its " << m.faces.rows() << " triangles have "
-      << (area > 0 ? "an infinite area (coordinates too large)" : "no area (all degenerate)");
-  if (!(area > 0) && scale != 1.0) msg << " at mesh scale " << scale << ": is the scale right?";
+  msg << "mesh file '" << path << "': " << why;
+  if (!(m.area() > 0) && scale != 1.0) msg << " at mesh scale " << scale << ": is the scale right?";
   throw std::invalid_argument(msg.str());
 }
 

@@ -93,8 +93,7 @@ inline void accumulate(std::array<double, 3>& s, const PointsRef& points, std::s
 
 VoxelCentroids::VoxelCentroids(double voxel_size, bool single)
     : size_(voxel_size), inv_(1.0 / voxel_size), single_(single) {
-  if (single && !(std::isfinite(voxel_size) && voxel_size > 0))
-    throw std::invalid_argument("voxel size must be > 0 metres, got " + std::to_string(voxel_size));
+  if (single) require_cell_size(voxel_size, "voxel size");
 }
 
 std::size_t VoxelCentroids::add(const PointsRef& points, const std::vector<std::uint64_t>& keys,
@@ -241,10 +240,7 @@ void VoxelCentroids::clear() {
 }
 
 namespace {
-void check_voxel_size(double voxel_size) {
-  if (!(std::isfinite(voxel_size) && voxel_size > 0))
-    throw std::invalid_argument("voxel size must be > 0 metres, got " + std::to_string(voxel_size));
-}
+void check_voxel_size(double voxel_size) { require_cell_size(voxel_size, "voxel size"); }
 
 /// Adds points to v, each to its voxel of size voxel_size (keys: scratch).
 void add_to_voxels(VoxelCentroids& v, const PointsRef& points, double voxel_size,
@@ -283,9 +279,7 @@ Points voxelgrid_sampling(const std::vector<const SurfaceCloud*>& clouds, double
 // ---------------------------------------------------------------------------- SurfaceCloud
 
 void SurfaceCloudOptions::validate() const {
-  if (!(std::isfinite(voxel_size) && voxel_size > 0))
-    throw std::invalid_argument("voxel_size must be a positive number of metres, got " +
-                                std::to_string(voxel_size));
+  require_cell_size(voxel_size, "voxel_size");
   if (std::isnan(min_z) || min_z == std::numeric_limits<double>::infinity())
     throw std::invalid_argument(
         "min_z must be a number of metres or -inf (no ground removal), got " +

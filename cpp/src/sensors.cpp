@@ -22,6 +22,12 @@ void require(bool ok, const std::string& msg) {
   if (!ok) throw std::invalid_argument(msg);
 }
 
+// A sensor's mount: finite, its offset from the body a usable position.
+void check_mount(const Eigen::Isometry3d& mount, const std::string& sensor) {
+  require(mount.matrix().allFinite(), sensor + " mount contains NaN or infinite values");
+  require_representable(mount.translation(), sensor + " mount: offset");
+}
+
 // Gathers rays flagged 1 (hit) or 2 (free) into a Scan, in ray order (deterministic).
 void compact(const std::vector<std::uint8_t>& state, const std::vector<Eigen::Vector3d>& pts,
              Scan& out) {
@@ -73,8 +79,15 @@ void DepthCameraOptions::validate() const {
   require(std::isfinite(min_range) && min_range >= 0, "camera min_range must be >= 0");
   require(std::isfinite(max_range) && max_range > min_range,
           "camera max_range must exceed min_range");
+  require(max_range <= kMaxCoordinate,
+          "camera max_range must be at most " + fmt(kMaxCoordinate) + " m, got " + fmt(max_range));
   require(std::isfinite(noise_k) && noise_k >= 0, "camera noise_k must be >= 0");
-  require(mount.matrix().allFinite(), "camera mount contains NaN or infinite values");
+  // (noise_k 1e308 put depths at +-inf; a noise wider than the depth itself measures nothing)
+  require(noise_k * max_range <= 1.0,
+          "camera noise_k = " + fmt(noise_k) + " gives a depth noise sigma of " +
+              fmt(noise_k * max_range * max_range) + " m at max_range " + fmt(max_range) +
+              " m: it must not exceed the depth (noise_k <= 1 / max_range)");
+  check_mount(mount, "camera");
 }
 
 DepthCamera::DepthCamera(std::shared_ptr<const RaycastScene> scene,
@@ -286,9 +299,13 @@ void LaserScannerOptions::validate() const {
   require(std::isfinite(min_range) && min_range >= 0, "laser min_range must be >= 0");
   require(std::isfinite(max_range) && max_range > min_range,
           "laser max_range must exceed min_range");
+  require(max_range <= kMaxCoordinate,
+          "laser max_range must be at most " + fmt(kMaxCoordinate) + " m, got " + fmt(max_range));
   require(std::isfinite(noise_sigma) && noise_sigma >= 0, "laser noise_sigma must be >= 0");
+  require(noise_sigma <= max_range, "laser noise_sigma = " + fmt(noise_sigma) +
+                                        " m must not exceed max_range = " + fmt(max_range) + " m");
   num_beams();  // throws naming resolution_deg if the beam count is out of bounds
-  require(mount.matrix().allFinite(), "laser mount contains NaN or infinite values");
+  check_mount(mount, "laser");
 }
 
 LaserScanner::LaserScanner(std::shared_ptr<const RaycastScene> scene,

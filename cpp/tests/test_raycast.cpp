@@ -93,12 +93,15 @@ TEST(Mesh, FileWithoutAreaFifoAndDeviceAreRefused) {
   EXPECT_NE(load_error("/dev/zero").find("character device"), std::string::npos);
 }
 
-TEST(Mesh, ZeroAreaMeshCannotBeSampled) {
+TEST(Mesh, ZeroAreaMeshIsRefusedAndCannotBeSampled) {
   Points v(3, 3);
   v << 0, 0, 0, 1, 0, 0, 2, 0, 0;  // collinear: a degenerate triangle
   nbv::Faces f(1, 3);
   f << 0, 1, 2;
-  const Mesh m = Mesh::from_arrays(v, f);
+  EXPECT_THROW(Mesh::from_arrays(v, f), std::invalid_argument);
+  Mesh m;  // built field by field, unchecked
+  m.vertices = v;
+  m.faces = f;
   EXPECT_DOUBLE_EQ(m.area(), 0.0);
   EXPECT_THROW(m.sample_surface(10, 0), std::invalid_argument);
 }

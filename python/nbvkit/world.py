@@ -151,12 +151,6 @@ class World:
             require_type(mesh, _core.Mesh, "mesh", "an nbvkit.Mesh")
             self.mesh_path = IN_MEMORY_MESH
         self.mesh = mesh
-        if not mesh.area > 0 or not math.isfinite(mesh.area):
-            area = "no" if not mesh.area > 0 else "an infinite"
-            raise MissionError(
-                f"the structure's mesh ({self.mesh_path}) has no surface: its "
-                f"{mesh.num_triangles} triangles have {area} area"
-            )
         try:
             _check_above_ground_removal(cfg, mesh.bounds)
             self.workspace: Workspace = make_workspace(mesh.bounds, cfg)

@@ -116,6 +116,13 @@ double seconds_since(std::chrono::steady_clock::time_point t0);
 /// Largest |coordinate| (metres) a position may have: the ray caster works in float32, whose
 /// spacing at 1e9 m is already 64 m, and Embree asserts on origins near 2e18.
 constexpr double kMaxCoordinate = 1e9;
+/// Smallest and largest length (m) of a voxel grid's cell, a coverage resolution or a distance
+/// threshold: beyond, a unit's mistake (1e308 m read as 100 % coverage; 1e-300 m put every point
+/// beyond the grid's keys).
+constexpr double kMinCellSize = 1e-6, kMaxCellSize = 1e3;
+/// Throws std::invalid_argument (-> ValueError) "`what` must be within [1e-06, 1000] m, got v"
+/// unless kMinCellSize <= v <= kMaxCellSize.
+void require_cell_size(double v, const std::string& what);
 /// Throws std::invalid_argument (-> ValueError) naming `what` and the value if `p` holds NaN, inf
 /// or a coordinate beyond +-kMaxCoordinate.
 void require_representable(const Eigen::Vector3d& p, const std::string& what);

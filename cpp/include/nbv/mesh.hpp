@@ -14,7 +14,8 @@ struct Mesh {
   Points vertices;
   Faces faces;
 
-  /// Builds a mesh from arrays and validates it (std::invalid_argument on bad input).
+  /// Builds a mesh from arrays and validates it (std::invalid_argument on bad input, or when its
+  /// triangles have no area: all degenerate).
   static Mesh from_arrays(const PointsRef& vertices, const Eigen::Ref<const Faces>& faces);
 
   void validate() const;
