@@ -44,7 +44,7 @@ from .settings import build, choice, coerce, field_bound, validate, within
 from .symmetry import SymmetryConfig
 from .workspace import WorkspaceConfig
 from .world import VehicleConfig
-from .yamlio import parse_yaml, read_yaml_file
+from .yamlio import parse_yaml, read_yaml_mapping
 
 #: Keys renamed in this release: old dotted key (or section) -> new. The old names still load,
 #: with a DeprecationWarning, until the next release.
@@ -163,13 +163,7 @@ class Config:
         """A run folder's config.yaml names in its errors the plugin files the run was flown
         with (its summary.json's `plugins`) that this process has not loaded."""
         p = Path(path)
-        data = read_yaml_file(p, "config file")
-        if data is None:  # a wrong or truncated file, not the defaults flown in its place
-            raise ValueError(f"config file {p} is empty (for the defaults write {{}} in it)")
-        if not isinstance(data, dict):
-            raise ValueError(
-                f"config file {p} must hold a mapping of keys, got {type(data).__name__}"
-            )
+        data = read_yaml_mapping(p, "config file", "for the defaults write {} in it")
         try:
             return cls.from_dict(data)
         except (KeyError, ValueError) as e:

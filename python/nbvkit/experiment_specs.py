@@ -11,7 +11,7 @@ import math
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from .limits import shorten
+from .limits import is_number, shorten
 from .mesh import default_mesh_path, file_up_axis
 
 
@@ -369,9 +369,7 @@ def _sweep_meshes(sweep: dict) -> list:
                 if m.get(k) is not None and not isinstance(m[k], str):
                     raise ValueError(f"sweep mesh entry {shorten(m)}: {k!r} must be a string")
             scale = m.get("scale")
-            if scale is not None and (
-                isinstance(scale, bool) or not isinstance(scale, (int, float))
-            ):
+            if scale is not None and not is_number(scale):
                 raise ValueError(f"sweep mesh entry {shorten(m)}: 'scale' must be a number")
         elif m is not None and not isinstance(m, str):
             raise ValueError(f"sweep mesh entry {shorten(m)} must be a path, a mapping or null")

@@ -17,6 +17,7 @@ The limits are documented in docs/HOSTILE.md ("Inputs").
 from __future__ import annotations
 
 import math
+import numbers
 import os
 import stat
 from dataclasses import dataclass
@@ -121,6 +122,12 @@ def require_config(value, what: str = "config") -> None:
         raise TypeError(
             f"{what} must be an nbvkit.Config (nbvkit.load_config()), got {type(value).__name__}"
         )
+
+
+def is_number(x) -> bool:
+    """Whether x is a real number: an int or a float, numpy's too; not a bool (True is no 1 in
+    a file or an argument; numpy's bool is no number either), not a string."""
+    return isinstance(x, numbers.Real) and not isinstance(x, bool)
 
 
 def _fmt(x) -> str:

@@ -38,7 +38,7 @@ from pathlib import Path
 import numpy as np
 
 from ._version import __version__
-from .limits import MAX_TEXT_FILE_BYTES, check_input_file
+from .limits import MAX_TEXT_FILE_BYTES, check_input_file, is_number
 from .locks import RunLock, lock_holder
 from .output_paths import check_output_dir, write_text_atomic
 
@@ -178,7 +178,7 @@ def run_workspace(summary: dict, source) -> dict:
         if not (
             isinstance(v, list)
             and len(v) == 3
-            and all(isinstance(x, (int, float)) and not isinstance(x, bool) for x in v)
+            and all(is_number(x) for x in v)
             and all(math.isfinite(x) for x in v)
         ):
             raise ValueError(f"{source}: workspace.{key} must be three finite numbers, got {v!r}")

@@ -13,6 +13,7 @@ module is what the parts import, so that no part imports the configuration.
 from __future__ import annotations
 
 import math
+import numbers
 import sys
 import typing
 from dataclasses import field, fields, is_dataclass, make_dataclass
@@ -20,7 +21,7 @@ from typing import Tuple
 
 import numpy as np
 
-from .limits import Bound, shorten
+from .limits import Bound, is_number, shorten
 
 #: A list of names in the configuration (YAML list of strings).
 Names = Tuple[str, ...]
@@ -202,22 +203,21 @@ def coerce(tp, value, key):
             return value
         raise ValueError(f"config key {key!r} must be true or false, got {shorten(value)}")
     if tp is int:
-        if (
-            isinstance(value, bool)
-            or not isinstance(value, (int, float))
-            or (isinstance(value, float) and not (math.isfinite(value) and value == int(value)))
+        if not is_number(value) or (
+            not isinstance(value, numbers.Integral)
+            and not (math.isfinite(value) and value == int(value))
         ):
             raise ValueError(f"config key {key!r} must be an integer, got {shorten(value)}")
         return int(value)
     if tp is float:
-        if isinstance(value, bool) or not isinstance(value, (int, float)):
+        if not is_number(value):
             raise ValueError(f"config key {key!r} must be a number, got {shorten(value)}")
         try:
             return float(value)
         except OverflowError:  # an integer past 1e308
             raise ValueError(f"config key {key!r} must be finite, got {shorten(value)}") from None
     if tp is str:
-        if isinstance(value, (int, float)) and not isinstance(value, bool):
+        if is_number(value):
             return str(value)  # e.g. scenario: 5
         if not isinstance(value, str):
             raise ValueError(f"config key {key!r} must be a string, got {shorten(value)}")
@@ -234,7 +234,7 @@ def coerce(tp, value, key):
         if (
             not isinstance(value, (list, tuple))
             or len(value) > 16
-            or not all(isinstance(x, (int, float)) and not isinstance(x, bool) for x in value)
+            or not all(is_number(x) for x in value)
         ):
             raise ValueError(f"config key {key!r} must be a list of numbers, got {shorten(value)}")
         try:

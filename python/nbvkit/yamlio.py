@@ -117,3 +117,15 @@ def read_yaml_file(path, what: str = "YAML file"):
     except (OSError, UnicodeDecodeError) as e:
         raise ValueError(f"cannot read {what} {p}: {shorten(str(e), 200)}") from None
     return parse_yaml(text, str(p))
+
+
+def read_yaml_mapping(path, what: str, empty_hint: str) -> dict:
+    """read_yaml_file of a file that must hold a mapping of keys: ValueError naming the file if
+    it holds something else, or nothing (a wrong or truncated file, not the defaults taken in its
+    place; `empty_hint` says what to write instead)."""
+    data = read_yaml_file(path, what)
+    if data is None:
+        raise ValueError(f"{what} {path} is empty ({empty_hint})")
+    if not isinstance(data, dict):
+        raise ValueError(f"{what} {path} must hold a mapping of keys, got {type(data).__name__}")
+    return data

@@ -37,19 +37,14 @@ def add_mesh_options(p: argparse.ArgumentParser, required: bool = False) -> None
 def mesh_path(text: str) -> str:
     """argparse type of --mesh: a path, never empty (an empty one is no file: refused, rather
     than flying the default mesh)."""
-    if not text.strip():
-        raise argparse.ArgumentTypeError(
-            f"is empty ({text!r}): give a mesh file's path, or leave --mesh out for the "
-            "shipped airliner"
-        )
-    return text
+    return path_arg(text, "give a mesh file's path, or leave --mesh out for the shipped airliner")
 
 
-def path_arg(text: str) -> str:
+def path_arg(text: str, hint: str = "give a path, or leave it out") -> str:
     """argparse type of a file or folder option: never empty (an empty path is no file, and
-    `or` would replace it with the option's default: refused instead)."""
+    `or` would replace it with the option's default: refused instead, with `hint`)."""
     if not text.strip():
-        raise argparse.ArgumentTypeError(f"is empty ({text!r}): give a path, or leave it out")
+        raise argparse.ArgumentTypeError(f"is empty ({text!r}): {hint}")
     return text
 
 

@@ -5,7 +5,7 @@ import argparse
 import os
 from pathlib import Path
 
-from ..config import read_yaml_file
+from ..yamlio import read_yaml_mapping
 from ..limits import shorten
 from ..paths import check_output_dir
 from ..plugins import load_plugins
@@ -65,11 +65,7 @@ def run(args) -> int:
     from ..experiments import sweep_specs
 
     path = Path(args.config)
-    sweep = read_yaml_file(path, "sweep file")
-    if sweep is None:  # not the default job flown in its place
-        raise ValueError(f"sweep file {path} is empty (configs/sweep_example.yaml shows one)")
-    if not isinstance(sweep, dict):
-        raise ValueError(f"sweep file {path} must hold a mapping")
+    sweep = read_yaml_mapping(path, "sweep file", "configs/sweep_example.yaml shows one")
     for key in ("out", "scheduler"):
         if sweep.get(key) is not None and not (isinstance(sweep[key], str) and sweep[key].strip()):
             raise ValueError(

@@ -19,6 +19,7 @@ from .georef import ALTITUDE_REFS, GeoFrame  # noqa: F401
 from ..flight import estimate, sortie_planner
 from ..flight_time import FRAME, VIEW, FlightModel
 from ..run_report import update_flight_section
+from ..limits import is_number
 from ..runfolder import require_complete_run
 from .plan import read_run
 from . import colmap, items, writers
@@ -74,7 +75,7 @@ def _budget(flight_time_min, reserve_pct):
 def _number(name: str, value) -> float:
     """value as a float; ValueError naming the argument `name` unless it is a real number (a
     string or a bool is not)."""
-    if isinstance(value, bool) or not isinstance(value, numbers.Real):
+    if not is_number(value):
         raise ValueError(f"{name} must be a number, got {value!r}")
     return float(value)
 

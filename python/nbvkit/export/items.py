@@ -3,10 +3,10 @@ sortie's count before it is written (``nbvkit export --max-items``)."""
 from __future__ import annotations
 
 import json
-import numbers
 from pathlib import Path
 
 from . import writers
+from ..limits import is_number
 
 #: The mission items an autopilot keeps: PX4 on NuttX boards (NUM_MISSIONS_SUPPORTED, its
 #: navigator's navigation.h), ArduPilot on a Pixhawk 1 (its StorageManager: "718 waypoints",
@@ -44,7 +44,7 @@ def check_max_items(max_items) -> int | None:
     of at least MIN_ITEMS."""
     if max_items is None:
         return None
-    if isinstance(max_items, bool) or not isinstance(max_items, numbers.Real):
+    if not is_number(max_items):
         raise ValueError(f"max_items must be a whole number, got {max_items!r}")
     if not float(max_items).is_integer():
         raise ValueError(f"max_items must be a whole number, got {max_items!r}")
