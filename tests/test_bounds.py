@@ -85,6 +85,20 @@ def test_integer_keys_say_integer_for_fractions_and_negatives_are_named():
         load_config(overrides=["profiling.waypoints=-1"])
 
 
+def test_numpy_numbers_are_read_as_numbers_and_bools_as_none():
+    # a script's numpy scalars: read by their values (an int64 was refused as no integer, a
+    # float32 fraction would have been cut); a bool is no number, numpy's neither
+    cfg = Config.from_dict(
+        {"camera": {"width": np.int64(64)}, "map": {"resolution": np.float32(0.25)}}
+    )
+    assert cfg.camera.width == 64 and type(cfg.camera.width) is int and cfg.map.resolution == 0.25
+    with pytest.raises(ValueError, match="'camera.width' must be an integer, got 1.5"):
+        Config.from_dict({"camera": {"width": np.float32(1.5)}})
+    for flag in (True, np.bool_(True)):
+        with pytest.raises(ValueError, match="'map.resolution' must be a number"):
+            Config.from_dict({"map": {"resolution": flag}})
+
+
 def test_bounds_are_declared_on_fields_and_documented_in_default_yaml():
     text = documented_yaml()
     assert "waypoints: 4  # N, points around the structure (authors: 5) [1..1000]" in text
