@@ -3,6 +3,7 @@ errors."""
 from __future__ import annotations
 
 import math
+import os
 from pathlib import Path
 
 import numpy as np
@@ -444,6 +445,44 @@ def test_load_errors(tmp_path: Path):
     with pytest.raises(ValueError, match="bounds"):
         OccupancyMap.load(empty)
     assert OccupancyMap.load(empty, (0, 0, 0), (1, 1, 1)).counts()["unknown"] == 125
+
+
+@pytest.mark.parametrize("ext", [".ot", ".bt"])
+def test_a_damaged_map_file_is_refused_not_loaded_as_another_map(tmp_path: Path, ext):
+    # OctoMap's readers check neither the node count nor the stream's end: a file cut short
+    # loaded as a smaller map (3 cells turned unknown), a NaN log-odds as a free cell (the
+    # entropy -1.15e9), a 1e-9 m resolution gave bounds of +-4.5e31 m; a named pipe blocked.
+    m = OccupancyMap(0.2, (-3, -3, 0), (3, 3, 3))
+    hits = np.random.default_rng(0).uniform((-2.5, -2.5, 0.2), (2.5, 2.5, 2.8), (500, 3))
+    m.integrate((0, 0, 1.5), hits)
+    path = tmp_path / f"m{ext}"
+    m.save(path)
+    data = path.read_bytes()
+    n = int(data.split(b"size ")[1].split(b"\n")[0])
+    assert OccupancyMap.load(path, (-3, -3, 0), (3, 3, 3)).counts() == m.counts()  # whole: the map
+    start = data.index(b"data\n") + 5
+    damaged = {
+        "cut": (data[:-1], f"ends in node {n - (ext == '.bt')} of the {n} its header counts"),
+        "half": (data[: len(data) // 2], "its header counts: a truncated file"),
+        "padded": (data + b"\0", f"goes on after its last node \\({n} nodes\\)"),
+        "recounted": (
+            data.replace(b"size ", b"size 1", 1),
+            f"holds {n} nodes where its header counts 1{n}",
+        ),
+        "res": (data.replace(b"res 0.2", b"res 1e-09"), r"must be within \[0.0001, 100\] m"),
+    }
+    if ext == ".ot":  # the root's log-odds
+        nan = np.float32(np.nan).tobytes()
+        damaged["nan"] = (data[:start] + nan + data[start + 4 :], "log-odds value of nan")
+    for name, (content, needle) in damaged.items():
+        bad = tmp_path / f"{name}{ext}"
+        bad.write_bytes(content)
+        with pytest.raises(ValueError, match=f"{name}{ext}'.* {needle}"):
+            OccupancyMap.load(bad)
+    fifo = tmp_path / f"pipe{ext}"
+    os.mkfifo(fifo)
+    with pytest.raises(ValueError, match="is not a regular file"):
+        OccupancyMap.load(fifo)
 
 
 # ---- options and bad input ------------------------------------------------------------------

@@ -1,5 +1,6 @@
 #include "nbv/occupancy_map.hpp"
 
+#include "nbv/map_file.hpp"
 #include "nbv/parallel.hpp"
 
 #include <octomap/AbstractOcTree.h>
@@ -89,12 +90,18 @@ void OccupancyMapOptions::validate() const {
 
 // ---- construction --------------------------------------------------------------------------
 
+namespace {
+// (a 1e308 m map of one cell was built; a file's 1e-9 m one gave bounds of +-4.5e31 m)
+void check_resolution(double resolution, const std::string& what) {
+  if (!(resolution >= 1e-4 && resolution <= 100))
+    throw std::invalid_argument(what + " must be within [0.0001, 100] m, got " + fmt(resolution));
+}
+}  // namespace
+
 OccupancyMap::OccupancyMap(double resolution, const Eigen::Vector3d& bounds_min,
                            const Eigen::Vector3d& bounds_max, const OccupancyMapOptions& options)
     : opt_(options) {
-  if (!(resolution >= 1e-4 && resolution <= 100))  // (a 1e308 m map of one cell was built)
-    throw std::invalid_argument("resolution must be within [0.0001, 100] m, got " +
-                                fmt(resolution));
+  check_resolution(resolution, "resolution");
   opt_.validate();
   res_ = resolution;
   tree_ = std::make_unique<octomap::OcTree>(resolution);
@@ -1082,6 +1089,8 @@ OccupancyMap OccupancyMap::load(const std::string& path,
   if (!std::filesystem::exists(path, ec)) throw FileNotFound(path);
   if (std::filesystem::is_directory(path, ec))
     throw std::invalid_argument("map file '" + path + "' is a directory");
+  const MapFileHeader header = check_map_file(path, ext == ".bt");
+  check_resolution(header.res, "map file '" + path + "': its resolution");
   // OctoMap reports progress and errors on std::cerr: keep it for the error message instead.
   struct CerrCapture {
     std::ostringstream text;

@@ -249,7 +249,9 @@ class OccupancyMap {
   /// Reads a `.ot` / `.bt` file. Without bounds the workspace is the tree's metric bounding box.
   /// Coarse (pruned) leaves are expanded to their resolution cells in the grid; every cell read
   /// is flagged observed (files do not record predictions). Throws FileNotFound for a missing
-  /// file, std::invalid_argument naming the file for an unknown extension or unreadable data.
+  /// file, std::invalid_argument naming the file for an unknown extension, unreadable data, a
+  /// damaged file (check_map_file: cut short, padded, miscounted, NaN log-odds; not a regular
+  /// file) or a resolution outside [1e-4, 100] m.
   static OccupancyMap load(const std::string& path,
                            const std::optional<Eigen::Vector3d>& bounds_min = std::nullopt,
                            const std::optional<Eigen::Vector3d>& bounds_max = std::nullopt,
