@@ -314,7 +314,7 @@ def test_every_bound_options_class_pickles_and_copies_with_its_fields():
     "key, value, match",
     [
         # blamed the utility section
-        ("map.resolution", -1, r"config key 'map.resolution' must be positive, got -1"),
+        ("map.resolution", -1, r"config key 'map.resolution' must be >= 0.0001, got -1"),
         ("map.prob_hit", 2.0, r"config key 'map.prob_hit'"),  # was accepted
         ("lattice.sigma", -5, r"config key 'lattice.sigma'"),  # was accepted
         ("map.resolution", "fine", r"config key 'map.resolution' must be a number"),

@@ -3,11 +3,14 @@ traceback from the command line, never a silent wrong answer. Each test fails if
 undone. Cases that once ended the process (a plugin's SystemExit) run in a subprocess."""
 from __future__ import annotations
 
+import dataclasses
 import os
+import re
 import subprocess
 import sys
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 from nbvkit.cli import main
@@ -315,3 +318,36 @@ def test_negative_numbers_in_exponent_form_are_values_not_options():
     assert args.origin == [-33.0, -70.0, 100.0] and args.heading == -150.0
     with pytest.raises(SystemExit):  # an option is still an option
         p.parse_args(["run", "--mesh-shift", "-5e-1", "0", "--bogus"])
+
+
+def test_a_config_built_directly_is_checked_as_one_from_a_file():
+    # (Config(max_iterations=-5) flew and ended "max_iterations"; Config(map=5) and start=99
+    # failed later on an AttributeError and an IndexError)
+    for kwargs, needle in (
+        ({"max_iterations": -5}, "config key 'max_iterations' must be >= 0, got -5"),
+        ({"max_iterations": "abc"}, "config key 'max_iterations' must be an integer"),
+        ({"start": 99}, "config key 'start' = 99 is more than its limit 4"),
+        ({"seed": -3}, "config key 'seed' must be >= 0"),
+        ({"map": 5}, "config section 'map' must be a MapConfig"),
+    ):
+        with pytest.raises(ValueError, match=re.escape(needle)):
+            Config(**kwargs)
+    with pytest.raises(ValueError, match="'max_iterations' must be >= 0, got -7"):
+        dataclasses.replace(Config(), max_iterations=-7)
+    assert type(Config(max_iterations=3.0).max_iterations) is int
+    assert Config(progress=np.bool_(False)).progress is False
+
+
+def test_config_inputs_of_the_wrong_shape_are_named():
+    for data in ([1, 2], "max_iterations: 3", [("max_iterations", 3)]):
+        with pytest.raises(ValueError, match="config must be a mapping of keys"):
+            Config.from_dict(data)
+    for overrides in ({1: 2}, {None: 2}, [("max_iterations", 3)]):
+        with pytest.raises(TypeError, match="a dict of dotted keys, got"):
+            Config().with_overrides(overrides)
+    with pytest.raises(ValueError, match=r"'max_iterations' = ~1e5000 is more than its limit"):
+        Config.from_dict({"max_iterations": 10**5000})  # (the message's str() failed)
+    with pytest.raises(ValueError, match=r"^big.yaml: .*4300 digits"):
+        parse_yaml("seed: " + "9" * 5000, "big.yaml")
+    with pytest.raises(ValueError, match=r"'map.resolution' must be >= 0.0001"):
+        Config.from_dict({"map": {"resolution": 5e-324}})  # (an OverflowError)

@@ -90,6 +90,7 @@ class Config:
     _user: dict = field(default_factory=dict, repr=False, compare=False)
 
     def __post_init__(self):
+        _check_fields(self)
         for name, cls in part_settings().items():  # every registered part's section
             self._parts.setdefault(name, cls())
         # the scenario's preset fills every key the user did not set (Config() resolves too)
@@ -103,6 +104,7 @@ class Config:
         for key, value in CAMERA_PRESETS.get(self.camera.preset, {}).items():
             if not _has_dotted(self._user, key):
                 _set_field(self, key, value)
+        validate(self, "")
 
     def __getattr__(self, name: str):
         """A planner part's section (``config.<name>``); a renamed section by its old name."""
@@ -156,6 +158,8 @@ class Config:
     def from_dict(cls, data: dict | None) -> "Config":
         """A configuration from a nested dict of the keys to set; the rest come from the
         scenario's preset and the defaults."""
+        if data is not None and not isinstance(data, dict):  # (dict() took a list of pairs)
+            raise ValueError(f"config must be a mapping of keys, got {type(data).__name__}")
         return _build_config(dict(data or {}))
 
     @classmethod
@@ -187,8 +191,11 @@ class Config:
             )
         if not overrides:
             return self
-        if not isinstance(overrides, dict) and not all(isinstance(o, str) for o in overrides):
-            raise TypeError("overrides must be a list of 'key=value' strings")
+        if not all(isinstance(o, str) for o in overrides):  # a dict's keys too
+            raise TypeError(
+                "overrides must be a list of 'key=value' strings or a dict of dotted keys, "
+                f"got {shorten(next(o for o in overrides if not isinstance(o, str)))}"
+            )
         items = overrides.items() if isinstance(overrides, dict) else [_split(o) for o in overrides]
         data = _deep_copy(self._user)
         for given, value in items:
@@ -310,9 +317,27 @@ def _build_config(data: dict) -> Config:
             )
     kwargs = {k: coerce(hints[k], v, k) for k, v in data.items() if k in static}
     sections = {k: build(cls, _or_empty(data.get(k)), k + ".") for k, cls in parts.items()}
-    obj = Config(**kwargs, _parts=sections, _user=_deep_copy(data))
-    validate(obj, "")
-    return obj
+    return Config(**kwargs, _parts=sections, _user=_deep_copy(data))
+
+
+def _check_fields(cfg: Config) -> None:
+    """A Config built directly (``Config(...)``, ``dataclasses.replace``) as from_dict builds
+    one: each key of its type, each section of its class and checked (``Config(max_iterations=-5)``
+    flew; ``Config(map=5)`` failed later on an AttributeError)."""
+    hints = typing.get_type_hints(Config)
+    for f in fields(cfg):
+        if f.name.startswith("_"):
+            continue
+        value, tp = getattr(cfg, f.name), hints[f.name]
+        if not is_dataclass(tp):
+            object.__setattr__(cfg, f.name, coerce(tp, value, f.name))
+        elif isinstance(value, tp):
+            validate(value, f.name + ".")
+        else:
+            raise ValueError(
+                f"config section {f.name!r} must be a {tp.__name__} (a mapping goes to "
+                f"Config.from_dict), got {shorten(value)}"
+            )
 
 
 def _or_empty(value):

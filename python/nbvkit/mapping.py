@@ -35,7 +35,7 @@ MapConfig = cpp_section(
     before=[
         ("resolution", float, _core.OccupancyMap.DEFAULT_RESOLUTION, "cell edge, m (authors: 0.2)")
     ],
-    bounds={"resolution": Bound(lo=0, lo_open=True, hi=10)},
+    bounds={"resolution": Bound(lo=1e-4, hi=10)},  # (the core: within [1e-4, 100] m)
     choices={"entropy_unit": ("nats", "bits")},
 )
 

@@ -199,8 +199,8 @@ def coerce(tp, value, key):
         (inner,) = [a for a in typing.get_args(tp) if a is not type(None)]  # noqa: E721
         return coerce(inner, value, key)
     if tp is bool:
-        if isinstance(value, bool):
-            return value
+        if isinstance(value, (bool, np.bool_)):  # (numpy's read as its value)
+            return bool(value)
         raise ValueError(f"config key {key!r} must be true or false, got {shorten(value)}")
     if tp is int:
         if not is_number(value) or (

@@ -105,6 +105,10 @@ def parse_yaml(text: str, source: str = "<string>"):
         raise ValueError(f"{where}: {shorten(problem, 200)}") from None
     except RecursionError:
         raise ValueError(f"{source}: the YAML document is nested too deeply") from None
+    except ValueError as e:  # PyYAML's own int(): a number of over 4,300 digits
+        if str(e).startswith(source):
+            raise
+        raise ValueError(f"{source}: {shorten(str(e), 200)}") from None
 
 
 def read_yaml_file(path, what: str = "YAML file"):
