@@ -159,6 +159,29 @@ def test_bad_arguments_raise_value_errors():
         _core.observable_samples(scene, p, p, cam, [-1e9] * 3, [1e9] * 3, pose_spacing=1e-3)
 
 
+def test_another_meshs_evaluator_or_scene_and_bad_face_ids_are_refused():
+    # (another mesh's scene gave 1.0 observable where 0.835 was; a negative face id picked a
+    # triangle from the end)
+    mesh = box_mesh((-1, -1, 0), (1, 1, 2))
+    bigger = nbvkit.Mesh(np.asarray(mesh.vertices) * 2, mesh.faces)
+    cfg = load_config(overrides=["evaluation.gt_density=20"])
+    with pytest.raises(ValueError, match="evaluator was built of another mesh: its surface is 96"):
+        observable_surface(mesh, cfg, evaluator=nbvkit.Evaluator(bigger, gt_density=20))
+    with pytest.raises(ValueError, match="scene was built of another mesh"):
+        observable_surface(mesh, cfg, scene=nbvkit.RaycastScene(bigger))
+    p = np.array(mesh.sample_surface(3, 0))
+    for ids, needle in (
+        ([-1, -2, 0], r"in \[0, 12\), got -2..0"),
+        ([0, 1, 12], r"in \[0, 12\), got 0..12"),
+        ([0, 1], r"must be \(3,\) integers, one triangle a point, got shape \(2,\)"),
+        ([0.5, 1, 2], "got shape .3,. of float64"),
+    ):
+        with pytest.raises(ValueError, match=needle):
+            observable_surface(mesh, cfg, points=p, face_ids=ids)
+    same = nbvkit.RaycastScene(nbvkit.Mesh(mesh.vertices, mesh.faces))  # an equal mesh: its own
+    assert observable_surface(mesh, cfg, scene=same).observable.shape == (20 * 24,)
+
+
 def test_the_evaluator_counts_coverage_relative_to_the_observable_samples():
     gt = np.array([[0.05, 0.05, 0.05], [1.05, 0.05, 0.05], [2.05, 0.05, 0.05], [3.05, 0.05, 0.05]])
     ev = nbvkit.Evaluator(gt, resolutions=(0.1, 0.5), taus=(0.05,))

@@ -39,6 +39,7 @@ from __future__ import annotations
 
 import hashlib
 import json
+import math
 import os
 import time
 from dataclasses import dataclass, field
@@ -154,6 +155,46 @@ def _cache_key(mesh, points, settings) -> str:
     return h.hexdigest()[:20]
 
 
+def _check_of_mesh(mesh, evaluator, scene) -> None:
+    """TypeError/ValueError unless evaluator and scene (each optional) were built of `mesh`
+    (another mesh's gave its samples or its walls: 1.0 observable where 0.835 was)."""
+    from .evaluation import Evaluator
+
+    if evaluator is not None:
+        require_type(evaluator, Evaluator, "evaluator", "an nbvkit.Evaluator or None")
+        info = evaluator._core.gt_info
+        if info.from_mesh and not math.isclose(info.gt_area, mesh.area, rel_tol=1e-9):
+            raise ValueError(
+                f"evaluator was built of another mesh: its surface is {info.gt_area:.6g} m^2, "
+                f"the mesh's {mesh.area:.6g} m^2"
+            )
+    if scene is not None:
+        require_type(scene, _core.RaycastScene, "scene", "an nbvkit.RaycastScene or None")
+        other = scene.mesh
+        if other is not mesh and not (
+            np.array_equal(other.faces, mesh.faces)
+            and np.array_equal(other.vertices, mesh.vertices)
+        ):
+            raise ValueError("scene was built of another mesh: give a RaycastScene(mesh)")
+
+
+def _checked_face_ids(face_ids, n: int, triangles: int) -> np.ndarray:
+    """face_ids as (n,) int64 of triangles [0, triangles); ValueError naming what is wrong (a
+    negative id picked a triangle from the end)."""
+    f = np.asarray(face_ids)
+    if f.shape != (n,) or (f.size and f.dtype.kind not in "iu"):
+        raise ValueError(
+            f"face_ids must be ({n},) integers, one triangle a point, got shape {f.shape} "
+            f"of {f.dtype}"
+        )
+    if f.size and (f.min() < 0 or f.max() >= triangles):
+        raise ValueError(
+            f"face_ids must be triangles of the mesh, in [0, {triangles}), got "
+            f"{int(f.min())}..{int(f.max())}"
+        )
+    return f.astype(np.int64)
+
+
 def observable_surface(
     mesh,
     config,
@@ -189,10 +230,7 @@ def observable_surface(
 
     require_type(mesh, _core.Mesh, "mesh", "an nbvkit.Mesh")
     require_config(config)
-    if evaluator is not None:
-        require_type(evaluator, Evaluator, "evaluator", "an nbvkit.Evaluator or None")
-    if scene is not None:
-        require_type(scene, _core.RaycastScene, "scene", "an nbvkit.RaycastScene or None")
+    _check_of_mesh(mesh, evaluator, scene)
     cfg = config
     ws = make_workspace(mesh.bounds, cfg)
     ev = None
@@ -204,6 +242,8 @@ def observable_surface(
         points.flags.writeable = False
     if points.ndim != 2 or points.shape[1] != 3:
         raise ValueError(f"points must be (N, 3), got {points.shape}")
+    if face_ids is not None:
+        face_ids = _checked_face_ids(face_ids, len(points), mesh.num_triangles)
 
     def normals():  # only a computation needs them (a cache hit does not)
         fid = face_ids
