@@ -103,7 +103,18 @@ def test_a_mission_saved_after_its_run_is_a_complete_run_folder(tmp_path):
     from nbvkit.runfolder import require_complete_run
 
     m = Mission(cfg("scenario=surface", "max_iterations=2"))
+    with pytest.raises(RuntimeError, match="run\\(\\) it first"):  # (an empty folder was written)
+        m.save(tmp_path / "a", {})
     s = m.run()
+    for summary in ("notadict", None):  # (a summary.json no reader took)
+        with pytest.raises(TypeError, match="summary must be the dict run"):
+            m.save(tmp_path / "a", summary)
+    for flag in ("no", 1):  # ("no" is true: the folder was overwritten)
+        with pytest.raises(TypeError, match="overwrite must be True or False"):
+            m.save(tmp_path / "a", s, overwrite=flag)
+    with pytest.raises(TypeError, match="out must be a folder path, got int"):
+        m.save(123, s)
+    assert not (tmp_path / "a").exists()
     assert m.save(tmp_path / "a", s) == json.loads((tmp_path / "a" / "summary.json").read_text())
     require_complete_run(tmp_path / "a")
     assert len(read_run(tmp_path / "a").xyz) >= 2
