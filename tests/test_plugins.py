@@ -659,6 +659,25 @@ def test_settings_that_do_not_build_from_their_defaults_are_refused_when_registe
     load_config(overrides=["map.resolution=0.4"])
 
 
+def test_settings_whose_defaults_fail_their_checks_are_refused_when_registered():
+    # a NaN default registered, then every configuration failed on 'nanx.x', named or not
+    @dataclass(frozen=True)
+    class NotFinite:
+        x: float = float("nan")
+
+    try:
+        with pytest.raises(
+            ValueError, match=r"generator 'nanx': its Settings' defaults fail .*nanx.x"
+        ):
+            registry.register_generator(
+                "nanx", type("G", (RingGenerator,), {"Settings": NotFinite})
+            )
+        assert "nanx" not in registry.GENERATORS
+    finally:
+        registry.GENERATORS.pop("nanx", None)
+    load_config(overrides=["map.resolution=0.4"])
+
+
 def test_an_exclusive_generator_may_write_its_views_into_the_same_array():
     """A tour-like generator that moves on in feedback but writes each next view into one
     buffer was told it 'proposed again' the views it had just moved on from."""

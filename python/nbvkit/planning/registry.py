@@ -14,7 +14,7 @@ from .generators.tour import CoverageTour
 from .terminations.budget import Budget
 from .terminations.entropy import EntropyChange
 from .terminations.stall import SurfaceStall
-from ..settings import REGISTER_FIRST
+from ..settings import REGISTER_FIRST, validate
 
 GENERATORS = {
     "lattice": LatticeGenerator,  # the paper's CGVS / AGVS lattice around the vehicle
@@ -152,12 +152,16 @@ def _check_part(name: str, kind: str, cls, methods) -> None:
         )
     if settings is not None:  # every configuration builds its section from the defaults
         try:
-            settings()
+            defaults = settings()
         except Exception as e:
             raise TypeError(
                 f"{kind} {name!r}: its Settings() must build from the defaults alone (each field "
                 f"with a default): {type(e).__name__}: {e}"
             ) from None
+        try:  # (a NaN default broke every configuration after, the part named or not)
+            validate(defaults, name + ".")
+        except ValueError as e:
+            raise ValueError(f"{kind} {name!r}: its Settings' defaults fail their checks: {e}")
 
 
 def register_generator(name: str, cls, *, replace: bool = False) -> None:
