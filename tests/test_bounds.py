@@ -484,3 +484,23 @@ def test_bool_arrays_are_not_read_as_numbers_by_the_core():
     with pytest.raises(ValueError, match="option 'crop_min' must be numbers, got bools"):
         nbvkit._core.SurfaceCloudOptions(crop_min=np.array([True, False, True]))
     assert nbvkit.Mesh(v, np.array([[0, 1, 2]], np.uint8)).num_triangles == 1  # integers: read
+
+
+def test_paths_of_the_wrong_type_or_with_a_nul_byte_are_named(tmp_path):
+    # (a bare "expected str, bytes or os.PathLike object, not int", "embedded null byte" and a
+    # FileExistsError from mkdir, none naming what was wrong)
+    with pytest.raises(TypeError, match="config file path must be a str, bytes or os.PathLike"):
+        Config.from_yaml(5)
+    with pytest.raises(
+        TypeError, match="map file path must be a str or os.PathLike of str, got int"
+    ):
+        nbvkit.OccupancyMap.load(5)
+    with pytest.raises(ValueError, match="map file path holds a NUL byte"):
+        nbvkit.OccupancyMap.load("a\0b.ot")
+    with pytest.raises(ValueError, match=r"mesh file path 'a\\x00b' holds a NUL byte"):
+        nbvkit.load_mesh("a\0b")
+    taken = tmp_path / "file"
+    taken.write_text("x")
+    mesh = nbvkit.load_mesh(CUBE)
+    with pytest.raises(ValueError, match="cache_dir .*file exists and is not a folder"):
+        nbvkit.observable_surface(mesh, load_config(), cache_dir=taken)

@@ -62,9 +62,15 @@ py::array_t<T> shaped(const std::vector<py::ssize_t>& lead, const T* data, std::
 }
 
 std::string path_arg(const py::handle& obj) {
-  py::object p = py::module_::import("os").attr("fspath")(obj);
-  if (!py::isinstance<py::str>(p)) throw py::type_error("path must be a str or os.PathLike of str");
-  return p.cast<std::string>();
+  const bool pathlike = py::isinstance<py::str>(obj) || py::hasattr(obj, "__fspath__");
+  py::object p = pathlike ? py::module_::import("os").attr("fspath")(obj) : py::none();
+  if (!py::isinstance<py::str>(p))
+    throw py::type_error("map file path must be a str or os.PathLike of str, got " +
+                         std::string(py::str(py::type::of(obj).attr("__name__"))));
+  const std::string s = p.cast<std::string>();
+  if (s.find('\0') != std::string::npos)
+    throw py::value_error("map file path holds a NUL byte: no file has such a name");
+  return s;
 }
 
 IntegrationStats integrate_any(OccupancyMap& m, const py::handle& scan_or_origin,

@@ -17,6 +17,7 @@ renamed in this release (``RENAMED``) still work, with a DeprecationWarning.
 from __future__ import annotations
 
 import math
+import os
 import typing
 import warnings
 from dataclasses import dataclass, field, fields, is_dataclass, replace
@@ -166,8 +167,8 @@ class Config:
     def from_yaml(cls, path: str | Path) -> "Config":
         """A run folder's config.yaml names in its errors the plugin files the run was flown
         with (its summary.json's `plugins`) that this process has not loaded."""
-        p = Path(path)
-        data = read_yaml_mapping(p, "config file", "for the defaults write {} in it")
+        data = read_yaml_mapping(path, "config file", "for the defaults write {} in it")
+        p = Path(os.fsdecode(path))
         try:
             return cls.from_dict(data)
         except (KeyError, ValueError) as e:

@@ -209,6 +209,8 @@ def check_input_file(path, what: str = "file", max_bytes: int = MAX_DATA_FILE_BY
         name = os.fsdecode(path)
     except TypeError:
         raise TypeError(f"{what} path must be a str, bytes or os.PathLike, got {path!r}") from None
+    if "\0" in name:  # (os.stat: "embedded null byte", naming nothing)
+        raise ValueError(f"{what} path {name!r} holds a NUL byte: no file has such a name")
     p = Path(name).expanduser()
     try:
         st = os.stat(p)

@@ -48,6 +48,7 @@ from pathlib import Path
 import numpy as np
 
 from . import _core
+from .output_paths import check_output_dir
 from .limits import Bound, pose_spacing, require_config, require_type
 from .locks import FileLock
 from .sensors import build_camera
@@ -257,8 +258,10 @@ def observable_surface(
 
     settings = _settings(cfg, ws, mesh.bounds, len(points))
     path = None
-    if cache_dir is not None:
-        path = Path(cache_dir) / f"observable-{_cache_key(mesh, points, settings)}.npz"
+    if cache_dir is not None:  # (a file there: FileExistsError from mkdir)
+        path = check_output_dir(cache_dir, "cache_dir") / (
+            f"observable-{_cache_key(mesh, points, settings)}.npz"
+        )
         hit = _load(path, points)
         if hit is not None:
             return hit
