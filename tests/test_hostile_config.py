@@ -351,3 +351,24 @@ def test_config_inputs_of_the_wrong_shape_are_named():
         parse_yaml("seed: " + "9" * 5000, "big.yaml")
     with pytest.raises(ValueError, match=r"'map.resolution' must be >= 0.0001"):
         Config.from_dict({"map": {"resolution": 5e-324}})  # (an OverflowError)
+
+
+def test_an_empty_config_path_a_part_named_twice_and_a_nul_plugin_are_named(tmp_path):
+    from nbvkit.plugins import load_plugin
+
+    with pytest.raises(ValueError, match="config path is empty"):  # (the defaults were flown)
+        load_config("")
+    with pytest.raises(ValueError, match="planner generator 'tour' is named twice"):
+        load_config(overrides=["planner.generators=[tour, tour]"])
+    bad = tmp_path / "nul_plugin.py"
+    bad.write_bytes(b"x = 1\0\n")
+    with pytest.raises(ValueError, match=r"plugin file .*nul_plugin.py holds a NUL byte"):
+        load_plugin(bad)
+
+
+def test_complex_sample_points_are_refused_not_cut_to_their_real_parts():
+    from nbvkit import load_mesh, observable_surface
+    from nbvkit.mesh import default_mesh_path
+
+    with pytest.raises(ValueError, match="points must be real numbers, got complex"):
+        observable_surface(load_mesh(default_mesh_path()), load_config(), points=[[1j, 0, 0]])

@@ -475,7 +475,9 @@ def load_config(
     path: str | Path | None = None, overrides: list[str] | dict | None = None
 ) -> Config:
     """The default configuration, updated from a YAML file and then from overrides."""
-    cfg = Config.from_yaml(path) if path else Config()
+    if isinstance(path, str) and not path.strip():  # (the defaults were flown in its place)
+        raise ValueError(f"config path is empty ({path!r}): give a file, or None for the defaults")
+    cfg = Config.from_yaml(path) if path is not None else Config()
     return cfg.with_overrides(overrides)
 
 

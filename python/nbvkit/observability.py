@@ -239,6 +239,8 @@ def observable_surface(
         ev = evaluator or Evaluator(mesh, gt_density=cfg.evaluation.gt_density, seed=cfg.seed)
         points = ev.gt_points
     else:  # a copy: the result must not change with the caller's array
+        if np.iscomplexobj(points):  # (the real parts were kept, with only a warning)
+            raise ValueError("points must be real numbers, got complex")
         points = np.array(points, np.float64, order="C")
         points.flags.writeable = False
     if points.ndim != 2 or points.shape[1] != 3:

@@ -90,6 +90,8 @@ def load_plugin(path, sha256: str | None = None, wrap: bool = False) -> None:
 def _run_file(p: Path, source: bytes, digest: str, wrap: bool = False) -> None:
     """load_plugin's import of `p` (`source`, its content, of SHA-256 `digest`; `wrap`: see
     load_plugin)."""
+    if b"\0" in source:  # (compile's error named no file)
+        raise ValueError(f"plugin file {p} holds a NUL byte: it is no Python source")
     key = str(p)
     again = key in LOADED
     if str(p.parent) not in sys.path:

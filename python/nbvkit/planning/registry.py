@@ -233,12 +233,14 @@ def get_termination(name: str, config, context=None):
 
 
 def check_names(generators, terminations) -> None:
-    """ValueError naming any unknown generator or termination."""
+    """ValueError naming any unknown generator or termination, or one named twice."""
     for kind, names, known in (
         ("generator", generators, GENERATORS),
         ("termination", terminations, TERMINATIONS),
     ):
-        for n in names:
+        for i, n in enumerate(names):
+            if n in names[:i]:  # (two instances of one part, on one section)
+                raise ValueError(f"planner {kind} {n!r} is named twice: {', '.join(names)}")
             if n not in known:
                 raise ValueError(
                     f"unknown planner {kind} {n!r}; known: {', '.join(known)} (a part of your "
