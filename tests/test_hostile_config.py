@@ -351,6 +351,14 @@ def test_config_inputs_of_the_wrong_shape_are_named():
         parse_yaml("seed: " + "9" * 5000, "big.yaml")
     with pytest.raises(ValueError, match=r"'map.resolution' must be >= 0.0001"):
         Config.from_dict({"map": {"resolution": 5e-324}})  # (an OverflowError)
+    loop = {"map": {}}
+    loop["map"]["again"] = loop
+    deep = {}
+    for _ in range(100_000):
+        deep = {"map": deep}
+    for data in (loop, deep):  # (a RecursionError traceback)
+        with pytest.raises(ValueError, match="nested too deeply, or holds itself"):
+            Config.from_dict(data)
 
 
 def test_an_empty_config_path_a_part_named_twice_and_a_nul_plugin_are_named(tmp_path):

@@ -161,7 +161,10 @@ class Config:
         scenario's preset and the defaults."""
         if data is not None and not isinstance(data, dict):  # (dict() took a list of pairs)
             raise ValueError(f"config must be a mapping of keys, got {type(data).__name__}")
-        return _build_config(dict(data or {}))
+        try:
+            return _build_config(dict(data or {}))
+        except RecursionError:  # (a traceback from the copy of what the user set)
+            raise ValueError("config is nested too deeply, or holds itself") from None
 
     @classmethod
     def from_yaml(cls, path: str | Path) -> "Config":
