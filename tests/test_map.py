@@ -479,6 +479,16 @@ def test_a_damaged_map_file_is_refused_not_loaded_as_another_map(tmp_path: Path,
         bad.write_bytes(content)
         with pytest.raises(ValueError, match=f"{name}{ext}'.* {needle}"):
             OccupancyMap.load(bad)
+    if ext == ".ot":  # another tree type: its nodes hold more than a log-odds
+        other = tmp_path / "color.ot"
+        other.write_bytes(data.replace(b"id OcTree", b"id ColorOcTree"))
+        with pytest.raises(ValueError, match="holds a ColorOcTree, not an OcTree"):
+            OccupancyMap.load(other)
+    else:  # the root's child 0 inner (code 11), itself without children: log-odds -FLT_MAX
+        hollow = tmp_path / "hollow.bt"
+        hollow.write_bytes(data[:start].replace(f"size {n}".encode(), b"size 2") + b"\x03\0\0\0")
+        with pytest.raises(ValueError, match="has an inner node without children"):
+            OccupancyMap.load(hollow)
     fifo = tmp_path / f"pipe{ext}"
     os.mkfifo(fifo)
     with pytest.raises(ValueError, match="is not a regular file"):

@@ -120,7 +120,7 @@ def test_a_mission_saved_after_its_run_is_a_complete_run_folder(tmp_path):
     assert len(read_run(tmp_path / "a").xyz) >= 2
     with pytest.raises(ValueError, match="out .*a .*(overwrite|holds)"):
         m.save(tmp_path / "a", s)
-    m.save(tmp_path / "a", s, overwrite=True)
+    m.save(tmp_path / "a", s, overwrite=np.bool_(True))  # numpy's bool is a bool
     require_complete_run(tmp_path / "a")
 
 

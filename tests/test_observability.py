@@ -178,6 +178,8 @@ def test_another_meshs_evaluator_or_scene_and_bad_face_ids_are_refused():
     ):
         with pytest.raises(ValueError, match=needle):
             observable_surface(mesh, cfg, points=p, face_ids=ids)
+    whole = observable_surface(mesh, cfg, points=p, face_ids=[0.0, 1.0, 2.0])  # as the core takes
+    assert whole.observable.shape == (3,)
     same = nbvkit.RaycastScene(nbvkit.Mesh(mesh.vertices, mesh.faces))  # an equal mesh: its own
     assert observable_surface(mesh, cfg, scene=same).observable.shape == (20 * 24,)
 

@@ -21,8 +21,10 @@ MapFileHeader read_header(std::istream& in, const std::string& path, bool binary
   const std::string first = binary ? "# Octomap OcTree binary file" : "# Octomap OcTree file";
   std::string line;
   if (!std::getline(in, line) || line.rfind(first, 0) != 0)
-    refuse(path, std::string("is not a readable OctoMap ") + (binary ? ".bt" : ".ot") +
-                     " file (its first line is not '" + first + "')");
+    refuse(path,
+           std::string("is not a readable OctoMap ") + (binary ? ".bt" : ".ot") +
+               " file (its first line is not '" + first + "'" +
+               (binary ? "; a .bt of OctoMap 1.0 has none: convert it with convert_octree)" : ")"));
   MapFileHeader h;
   bool size = false, res = false;
   while (std::getline(in, line)) {
@@ -85,6 +87,10 @@ class NodeWalk {
         else
           ++count_;  // a leaf: no bytes of its own
       }
+      // an inner node without children: OctoMap gives it a log-odds of -FLT_MAX
+      if (depth > 0 && bytes[0] == 0 && bytes[1] == 0)
+        refuse(path_, "has an inner node without children (node " + std::to_string(count_) +
+                          "): a damaged file");
     } else {
       read(bytes, 5);
       float value;
@@ -122,7 +128,10 @@ MapFileHeader check_map_file(const std::string& path, bool binary) {
     refuse(path, "is not a regular file");
   std::ifstream in(path, std::ios::binary);
   if (!in) refuse(path, "cannot be opened: " + std::string(std::strerror(errno)));
-  const MapFileHeader h = read_header(in, path, binary);
+  MapFileHeader h = read_header(in, path, binary);
+  if (h.id.empty()) h.id = "OcTree";  // (as OctoMap reads a header without one)
+  if (h.id != "OcTree")               // another tree's nodes hold more than a log-odds
+    refuse(path, "holds a " + h.id.substr(0, 40) + ", not an OcTree");
   NodeWalk(*in.rdbuf(), path, h.size, binary).run();
   return h;
 }

@@ -18,7 +18,6 @@ from __future__ import annotations
 
 import math
 import os
-import typing
 import warnings
 from dataclasses import dataclass, field, fields, is_dataclass, replace
 from pathlib import Path
@@ -41,7 +40,7 @@ from .report import ReportConfig
 from .scenarios import DEFAULT as DEFAULT_SCENARIO
 from .scenarios import SCENARIOS
 from .sensors import CAMERA_PRESETS, CameraConfig, LaserConfig, check_view_camera
-from .settings import build, choice, coerce, field_bound, validate, within
+from .settings import build, choice, coerce, field_bound, type_hints, validate, within
 from .symmetry import SymmetryConfig
 from .workspace import WorkspaceConfig
 from .world import VehicleConfig
@@ -290,7 +289,7 @@ def _check_renamed_section(given: str, key: str, value) -> None:
     `key`) when its value is neither a mapping of the section's keys nor null."""
     if given == key or "." in key or value is None or isinstance(value, dict):
         return
-    hint = typing.get_type_hints(Config).get(key)
+    hint = type_hints(Config).get(key)
     if key in part_settings() or is_dataclass(hint):
         raise ValueError(
             f"config section {given!r} (now {key!r}) must be a mapping of its keys, "
@@ -309,7 +308,7 @@ def _build_config(data: dict) -> Config:
     if not isinstance(data, dict):
         raise ValueError("config section <root> must be a mapping")
     data = _renamed(data)
-    hints = typing.get_type_hints(Config)
+    hints = type_hints(Config)
     static = {f.name for f in fields(Config) if not f.name.startswith("_")}
     parts = part_settings()
     for k in data:
@@ -328,7 +327,7 @@ def _check_fields(cfg: Config) -> None:
     """A Config built directly (``Config(...)``, ``dataclasses.replace``) as from_dict builds
     one: each key of its type, each section of its class and checked (``Config(max_iterations=-5)``
     flew; ``Config(map=5)`` failed later on an AttributeError)."""
-    hints = typing.get_type_hints(Config)
+    hints = type_hints(Config)
     for f in fields(cfg):
         if f.name.startswith("_"):
             continue
@@ -422,7 +421,7 @@ def _set_field(cfg, key: str, value) -> None:
     chain = [cfg]
     for part in parts[:-1]:
         chain.append(getattr(chain[-1], part))
-    hint = typing.get_type_hints(type(chain[-1]))[parts[-1]]
+    hint = type_hints(type(chain[-1]))[parts[-1]]
     if len(chain) == 1:
         object.__setattr__(cfg, parts[-1], coerce(hint, value, key))
         return

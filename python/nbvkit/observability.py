@@ -183,7 +183,8 @@ def _checked_face_ids(face_ids, n: int, triangles: int) -> np.ndarray:
     """face_ids as (n,) int64 of triangles [0, triangles); ValueError naming what is wrong (a
     negative id picked a triangle from the end)."""
     f = np.asarray(face_ids)
-    if f.shape != (n,) or (f.size and f.dtype.kind not in "iu"):
+    whole = f.dtype.kind == "f" and bool(np.all(np.isfinite(f) & (f == np.round(f))))
+    if f.shape != (n,) or (f.size and f.dtype.kind not in "iu" and not whole):
         raise ValueError(
             f"face_ids must be ({n},) integers, one triangle a point, got shape {f.shape} "
             f"of {f.dtype}"
@@ -260,13 +261,12 @@ def observable_surface(
 
     settings = _settings(cfg, ws, mesh.bounds, len(points))
     path = None
-    if cache_dir is not None:  # (a file there: FileExistsError from mkdir)
-        path = check_output_dir(cache_dir, "cache_dir") / (
-            f"observable-{_cache_key(mesh, points, settings)}.npz"
-        )
-        hit = _load(path, points)
+    if cache_dir is not None:
+        path = Path(cache_dir) / f"observable-{_cache_key(mesh, points, settings)}.npz"
+        hit = _load(path, points)  # (a read-only folder serves its hits)
         if hit is not None:
             return hit
+        check_output_dir(path.parent, "cache_dir")  # (a file there: FileExistsError from mkdir)
         path.parent.mkdir(parents=True, exist_ok=True)
         with FileLock(path.with_suffix(".lock")):
             hit = _load(path, points)  # another process may have computed it meanwhile

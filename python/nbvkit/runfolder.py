@@ -296,8 +296,9 @@ class RunFolder:
     ):
         if isinstance(path, bytes) or not isinstance(path, (str, os.PathLike)):
             raise TypeError(f"{what} must be a folder path, got {type(path).__name__}")
-        if not isinstance(overwrite, bool):  # ("no" is true)
+        if not isinstance(overwrite, (bool, np.bool_)):  # ("no" is true)
             raise TypeError(f"overwrite must be True or False, got {overwrite!r}")
+        overwrite = bool(overwrite)
         p = Path(os.fspath(path)).expanduser()
         if p.is_symlink():
             p = Path(os.path.realpath(p))

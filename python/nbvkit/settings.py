@@ -12,6 +12,7 @@ module is what the parts import, so that no part imports the configuration.
 """
 from __future__ import annotations
 
+import functools
 import math
 import numbers
 import sys
@@ -170,7 +171,7 @@ def build(cls, data, prefix: str):
             f"config section {prefix.rstrip('.') or '<root>'} must be a mapping of its keys, "
             f"got {shorten(data)}"
         )
-    hints = typing.get_type_hints(cls)
+    hints = type_hints(cls)
     known = {f.name for f in fields(cls) if not f.name.startswith("_")}
     for k in data:
         if k not in known:
@@ -244,10 +245,16 @@ def coerce(tp, value, key):
     return value
 
 
+@functools.lru_cache(maxsize=None)
+def type_hints(cls) -> dict:
+    """typing.get_type_hints(cls), once a class (every configuration reads them; read only)."""
+    return typing.get_type_hints(cls)
+
+
 def field_bound(cls, f) -> Bound:
     """The range of field `f` of config class `cls` (its declared Bound; an integer key without
     a maximum gets limits.MAX_INT; NaN and infinities are refused unless it says so)."""
-    hint = typing.get_type_hints(cls)[f.name]
+    hint = type_hints(cls)[f.name]
     if typing.get_origin(hint) is typing.Union:  # Optional[X]
         (hint,) = [a for a in typing.get_args(hint) if a is not type(None)]  # noqa: E721
     return f.metadata.get("bound", Bound()).for_type(hint)
