@@ -12,7 +12,6 @@ from pathlib import Path
 
 from .config import Config
 from .evaluation import Evaluator
-from .limits import require_type
 from .planning import Planner
 from .planning.terminations.budget import ended_by, view_cap
 from .recorder import IterationRecord, Recorder, fly_into, raise_stop
@@ -79,9 +78,6 @@ class Mission:
         """Writes this finished mission's results (Recorder.write) as the run folder `out`, whole
         or not at all, as run(out_dir) does (manifest last: export and evaluate read it);
         ValueError as run's. Returns the summary written."""
-        if not self._ran:  # (an empty folder that looked complete)
-            raise RuntimeError("save writes a flown mission: run() it first, or run(out_dir)")
-        require_type(summary, dict, "summary", "the dict run() returned")
         with RunFolder(out, overwrite=overwrite, what="out") as folder:
             return self.recorder.write(folder.tmp, summary, finish=finish, cache_dir=cache_dir)
 

@@ -12,6 +12,7 @@ from pathlib import Path
 
 from . import _core
 from .evaluation import SUMMARY_KEYS
+from .limits import require_type
 from .planning.registry import utility_only_checks
 from .planning.terminations.budget import BUDGET_REASONS
 from .output_paths import atomic_open, write_text_atomic
@@ -221,6 +222,9 @@ class Recorder:
         a `kill`, an error) do not lose the flight: its files and a summary.json naming the
         cause (`stopped_by`, `stopped_during`) are written without them, then the exception is
         raised (write_keeping returns it instead)."""
+        if self.mission.termination == "not_run":  # (an empty folder that looked complete)
+            raise RuntimeError("save writes a flown mission: run() it first, or run(out_dir)")
+        require_type(summary, dict, "summary", "the dict run() returned")
         summary, stop = self.write_keeping(out, summary, finish, cache_dir)
         if stop is not None:
             raise stop
