@@ -131,9 +131,9 @@ def is_number(x) -> bool:
 
 
 def _fmt(x) -> str:
-    if isinstance(x, int) and not isinstance(x, bool) and x.bit_length() > 100:
-        return f"{'-' if x < 0 else ''}~1e{int(x.bit_length() * math.log10(2))}"  # (str() fails)
     if isinstance(x, int) and not isinstance(x, bool):
+        if x.bit_length() > 100:  # (str() fails past 4,300 digits)
+            return f"{'-' if x < 0 else ''}~1e{int(x.bit_length() * math.log10(2))}"
         return f"{x:,}".replace(",", "_") if abs(x) >= 100_000 else str(x)
     return f"{x:g}"
 

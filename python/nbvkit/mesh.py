@@ -115,7 +115,7 @@ def load_mesh(path: str | os.PathLike, scale: float = 1.0, up: str = "auto", shi
 #: the most a mesh shift may round a vertex by (float64 at the shifted coordinates), m
 SHIFT_TOLERANCE_M = 1e-3
 #: the farthest a loaded mesh's vertex may lie from the origin (the core's kMaxCoordinate), m
-MAX_COORDINATE_M = 1e9
+MAX_COORDINATE_M = _core.MAX_COORDINATE
 
 
 #: glTF extensions that change only a structure's appearance (materials, textures, lights):
