@@ -1,8 +1,8 @@
-"""The ways back of a battery split (nbvkit.flight.ReturnPaths): one search out from the start
-for every capture a sortie may end at (nbvkit.plan_paths_to, now), against one capped A* search
-from each capture in threads (the code before, vehicle.path_expansions cells at most each), in
-the same run, on the same run folder. Prints the seconds, the ways back each found, and what
-the ways back cost (the mean of the cheaper of A* and retrace, in flight seconds).
+"""The ways back of a battery split (nbvkit.flight_home.ReturnPaths): one search out from
+the start for every capture a sortie may end at (nbvkit.plan_paths_to, now), against one capped
+A* search from each capture in threads (the code before, vehicle.path_expansions cells at most
+each), in the same run, on the same run folder. Prints the seconds, the ways back each found, and
+what the ways back cost (the mean of the cheaper of A* and retrace, in flight seconds).
 
     .venv/bin/python bench/bench_return_paths.py runs/plant11 --captures 400
     .venv/bin/python bench/bench_return_paths.py runs/surface
@@ -15,13 +15,13 @@ from concurrent.futures import ThreadPoolExecutor
 
 import numpy as np
 
-from nbvkit import _core, flight, get_num_threads
+from nbvkit import _core, flight_home, get_num_threads
 from nbvkit.export.plan import FlightModel, ReturnPaths, SortiePlanner, find_launch, load_map
 from nbvkit.export.plan import read_run
 
 
 def searched_each(occ_map, fl, points: list) -> list:
-    """The code before (flight._searches): plan_path from each point to the start in threads,
+    """The code before (flight_home._searches): plan_path from each point to the start in threads,
     vehicle.path_expansions cells at most each."""
     cap = fl.config.vehicle.path_expansions
 
@@ -52,16 +52,16 @@ def main() -> None:
     find_launch(fl, occ, model)
     caps = [i for i in SortiePlanner.work_rows(fl) if fl.capture[i]]
     caps = caps[: args.captures] if args.captures else caps
-    now_searches = flight._searches
+    now_searches = flight_home._searches
     out = {}
-    for label, searches in (("before", searched_each), ("now", flight._searches)):
-        flight._searches = searches
+    for label, searches in (("before", searched_each), ("now", flight_home._searches)):
+        flight_home._searches = searches
         try:
             t0 = time.perf_counter()
             out[label] = ReturnPaths(fl, model, occ, caps), time.perf_counter() - t0
             print(f"  resident after {label}: {resident_gb():.2f} GB")
         finally:
-            flight._searches = now_searches
+            flight_home._searches = now_searches
     print(f"{args.run}: {len(caps)} captures, {get_num_threads()} threads")
     t_before = out["before"][1]
     for label, what in (("before", "a capped A* from each"), ("now", "one search from the start")):

@@ -803,32 +803,33 @@ def test_the_report_shows_the_flight_time_and_the_sorties(run_dir, tmp_path):
 
 
 def test_a_blocked_climb_below_the_start_moves_the_launch_point(run_dir, monkeypatch):
-    from nbvkit import flight as plan  # the flight-time model, the launch point, the sorties
+    from nbvkit import flight as plan  # the flight-time model, the sorties
+    from nbvkit import flight_home as home  # the launch point, the ways home
 
     fl = read_run(run_dir)
-    occ = plan.load_map(fl)
+    occ = home.load_map(fl)
     s = fl.start
-    real = plan._column_clear
+    real = home._column_clear
     # pretend the structure stands over the ground below the start (as a wing can)
     blocked = lambda f, m, x, y, top: (  # noqa: E731
         np.hypot(x - s[0], y - s[1]) > 1.0 and real(f, m, x, y, top)
     )
-    monkeypatch.setattr(plan, "_column_clear", blocked)
-    plan.find_launch(fl, occ, plan.FlightModel())
+    monkeypatch.setattr(home, "_column_clear", blocked)
+    home.find_launch(fl, occ, plan.FlightModel())
     assert np.hypot(*(fl.launch[:2] - s[:2])) > 1.0 and fl.launch[2] == s[2]
     assert np.allclose(fl.launch_path[0], fl.launch) and np.allclose(fl.launch_path[-1], s)
     assert np.allclose(fl.home, [*fl.launch[:2], fl.workspace["bounds_min"][2]])
     for a, b in zip(fl.launch_path[:-1], fl.launch_path[1:]):
         assert _core.segment_is_free(occ, a, b, fl.radius)
     sp = plan.SortiePlanner(
-        fl, plan.FlightModel(), plan.ReturnPaths(fl, plan.FlightModel(), occ, [])
+        fl, plan.FlightModel(), home.ReturnPaths(fl, plan.FlightModel(), occ, [])
     )
     w = sp.whole().waypoints
     assert w[0].action == "takeoff" and np.allclose(w[0].xyz, fl.launch)
     assert w[-1].action == "home" and np.allclose(w[-1].xyz, fl.launch)
-    monkeypatch.setattr(plan, "_column_clear", lambda *a: False)
+    monkeypatch.setattr(home, "_column_clear", lambda *a: False)
     with pytest.raises(ValueError, match="no launch point"):
-        plan.find_launch(fl, occ, plan.FlightModel())
+        home.find_launch(fl, occ, plan.FlightModel())
 
 
 # ------------------------------------------------------------------ anywhere on the Earth

@@ -13,7 +13,9 @@ import numpy as np
 
 from . import _core
 from .coverage_view import plot_coverage, view_classes
-from .flight import FlightModel, estimate, run_flight
+from .flight import estimate
+from .flight_rows import run_flight
+from .flight_time import FlightModel
 from .observability import observable_surface
 from .reconstruction import reconstruct_mesh, score_mesh, write_mesh_ply
 from .run_report import write_run_report

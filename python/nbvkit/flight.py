@@ -1,225 +1,28 @@
-"""What a run flew, how long it takes, and its split into one flight per battery.
+"""A run's flight split into one flight per battery (sorties), and its whole estimate.
 
-A run folder's ``flight.csv`` (written by Mission.write_results) lists every point the vehicle
-flew, in order: the start, the profiling flight, and each leg to a view with the A* waypoints and
-in-flight camera frames between (stage, x, y, z, yaw, pitch, capture, distance_m). The simulated
-vehicle starts in the air at the start pose; the real one takes off from the launch point (home)
-on the ground below it (the workspace floor, summary.json) and climbs straight up to it, and
-lands there again.
-
-Flight-time model (FlightModel) and the waits at each capture (capture_waits): nbvkit.flight_time.
+What a run flew: nbvkit.flight_rows (RunFlight, read from flight.csv). The launch point and the
+ways home from each point: nbvkit.flight_home. Flight-time model (FlightModel) and the waits at
+each capture (capture_waits): nbvkit.flight_time.
 
 Sorties (split_sorties): each starts and ends at home within budget * (1 - reserve). A sortie
 resumes where the last one stopped: at the first point of the flight that is still to be
 flown and counts - a view, an in-flight frame, or a point of the profiling flight (the laser
 sweeps along all of it); the transit waypoints of a leg to a view are not flown again, the
 sortie flies out to the view directly. The way out to a point and back from it is the cheapest
-of (a) an A* path (nbvkit's ``plan_path``, the vehicle's collision radius) through the known free
-space of the run's final map (map.ot) between the point and the start pose, and (b) the flight
-itself flown backwards to an earlier point and (a) or (b) from there: both stay in space the
-simulation flew or knew free. A point whose way out, hover and way back alone do not fit in one
-battery is reported (``unreachable``), not dropped silently.
-
-A RunFlight comes from a run folder (nbvkit.export.plan.read_run: flight.csv, summary.json,
-config.yaml) or from a finished Mission in memory (run_flight: the end-of-run report, written
-before summary.json); this module loads no configuration, so the report can use it.
+known-safe one (flight_home.ReturnPaths: an A* path through the run's final map's known free
+space, or the flight itself flown backwards). A point whose way out, hover and way back alone do
+not fit in one battery is reported (``unreachable``), not dropped silently.
 """
 from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
-from pathlib import Path
 
 import numpy as np
 
-from .flight_rows import flight_arrays
+from .flight_home import ReturnPaths, find_launch, load_map
+from .flight_rows import RunFlight
 from .flight_time import FRAME, TARGETS, VIEW, FlightModel, capture_waits, waits_s
-
-
-@dataclass
-class RunFlight:
-    """The flight of a run folder: rows (N, 3) xyz, yaw and pitch (N,) radians, stage and capture
-    (N,) strings; home (3,): the launch point on the ground (find_launch); radius: the
-    vehicle's collision radius; config: the run's Config; map_path: its map.ot (or None)."""
-
-    run_dir: Path
-    xyz: np.ndarray
-    yaw: np.ndarray
-    pitch: np.ndarray
-    stage: list
-    capture: list
-    home: np.ndarray
-    radius: float
-    config: object
-    map_path: Path | None
-    workspace: dict
-    launch: np.ndarray | None = None  # top of the take-off climb (find_launch)
-    launch_path: np.ndarray | None = None  # (P, 3) launch -> start through known free space
-
-    @property
-    def start(self) -> np.ndarray:
-        return self.xyz[0]
-
-    def views(self) -> np.ndarray:
-        return np.array([i for i, c in enumerate(self.capture) if c == VIEW], int)
-
-
-def run_flight(run_dir, rows, workspace: dict, config, map_path=None, arrays=None) -> RunFlight:
-    """The RunFlight of a run from its flight rows (flight.csv's, or a Mission's
-    ``world.state.flight`` as mappings), its workspace (summary.json's "workspace": the ground is
-    its floor) and its Config; map_path: its map.ot or None; arrays: flight_arrays(rows) when
-    already read."""
-    if not len(rows):
-        raise ValueError("the run flew no point")
-    xyz, yaw, pitch = flight_arrays(rows) if arrays is None else arrays
-    if "bounds_min" not in workspace:
-        raise ValueError("the run's workspace has no bounds")
-    ground = float(workspace["bounds_min"][2])
-    home = np.array([xyz[0, 0], xyz[0, 1], ground])
-    return RunFlight(
-        Path(run_dir),
-        xyz,
-        yaw,
-        pitch,
-        [r["stage"] for r in rows],
-        [r["capture"] for r in rows],
-        home,
-        float(config.vehicle.collision_radius),
-        config,
-        map_path,
-        workspace,
-    )
-
-
-def load_map(fl: RunFlight):
-    """The run's final OccupancyMap (map.ot in its workspace), or None without one."""
-    if fl.map_path is None:
-        return None
-    from . import _core
-
-    ws = fl.workspace
-    return _core.OccupancyMap.load(
-        str(fl.map_path), ws["bounds_min"], ws["bounds_max"], options=fl.config.map.options()
-    )
-
-
-def _column_clear(fl: RunFlight, occ_map, x: float, y: float, top: float) -> bool:
-    """Whether the vertical line at (x, y) from the ground to `top` stays farther than the
-    collision radius from every cell the run's map holds occupied (unknown cells pass: near the
-    ground the simulation never looked; the launch site is the user's to check)."""
-    ground = fl.home[2]
-    res = occ_map.resolution
-    n = max(2, int(math.ceil((top - ground) / (0.5 * res))) + 1)
-    z = np.linspace(ground, top, n)
-    ring = [(0.0, 0.0)] + [
-        (fl.radius * math.cos(t), fl.radius * math.sin(t))
-        for t in np.linspace(0, 2 * math.pi, 9)[:-1]
-    ]
-    pts = np.array([[x + dx, y + dy, zz] for zz in z for dx, dy in ring])
-    lo, hi = np.asarray(fl.workspace["bounds_min"]), np.asarray(fl.workspace["bounds_max"])
-    pts = pts[np.all((pts >= lo) & (pts <= hi), axis=1)]
-    return not (len(pts) and np.any(occ_map.state(pts) == 1))
-
-
-def find_launch(fl: RunFlight, occ_map, model: FlightModel) -> None:
-    """Sets fl.launch (the top of the take-off climb, at the start's height) and fl.home (the
-    launch point on the ground below it) and fl.launch_path (launch -> start).
-
-    The launch point is the ground below the start when the climb there is clear of the
-    structure (_column_clear); otherwise the nearest point of the workspace floor, on rings
-    round the start, whose climb is clear and from whose top an A* path through the map's known
-    free space reaches the start. ValueError when there is none. Without a map: below the
-    start."""
-    from . import _core
-
-    s = fl.start
-    fl.launch, fl.launch_path = s.copy(), s[None, :].copy()
-    fl.home = np.array([s[0], s[1], fl.home[2]])
-    if occ_map is None or _column_clear(fl, occ_map, s[0], s[1], s[2]):
-        return
-    nav_lo = np.asarray(fl.workspace.get("nav_min", fl.workspace["bounds_min"]), float)
-    nav_hi = np.asarray(fl.workspace.get("nav_max", fl.workspace["bounds_max"]), float)
-    step = max(occ_map.resolution, 0.5)
-    reach = float(np.max(nav_hi[:2] - nav_lo[:2]))
-    for r in np.arange(step, reach + step, step):
-        n = max(8, int(math.ceil(2 * math.pi * r / step)))
-        for t in np.arange(n) * (2 * math.pi / n):
-            q = np.array([s[0] + r * math.cos(t), s[1] + r * math.sin(t), s[2]])
-            if np.any(q[:2] < nav_lo[:2]) or np.any(q[:2] > nav_hi[:2]):
-                continue
-            if not _column_clear(fl, occ_map, q[0], q[1], q[2]):
-                continue
-            path = _core.plan_path(occ_map, q, s, fl.radius)
-            if len(path) >= 2:
-                fl.launch, fl.launch_path = q, np.asarray(path, float)
-                fl.home = np.array([q[0], q[1], fl.home[2]])
-                return
-    raise ValueError(
-        f"no launch point: the climb from the ground below the start {np.round(s, 2).tolist()} "
-        "meets the structure, and no point of the workspace floor has a clear climb and a "
-        "known-free way to the start"
-    )
-
-
-class ReturnPaths:
-    """For each point of the flight, the cheapest known-safe way back to the start (see the
-    module's docstring): its time (s) and its points (first = the point, last = the start).
-
-    The A* ways back of all targets come from one search out from the start
-    (nbvkit.plan_paths_to: what an A* search from each finds), which expands at most what the
-    run's capped A* searches (vehicle.path_expansions cells) from each would have together."""
-
-    def __init__(self, fl: RunFlight, model: FlightModel, occ_map, targets):
-        n = len(fl.xyz)
-        self.fl, self.model = fl, model
-        leg = np.concatenate([[0.0], model.leg_times(fl.xyz)])
-        self.cost = np.zeros(n)
-        self.back = np.full(n, -1)  # previous point along the retrace, or -1: A* (or the start)
-        self.astar: dict[int, np.ndarray] = {}
-        todo = [] if occ_map is None else sorted({int(t) for t in targets if 1 <= int(t) < n})
-        found = dict(zip(todo, _searches(occ_map, fl, todo)))
-        for i in range(1, n):  # the retrace to the point before, or the A* way when shorter
-            self.cost[i] = leg[i] + self.cost[i - 1]
-            self.back[i] = i - 1
-            path = found.get(i)
-            if path is None or not len(path):
-                continue
-            t = 0.0 if len(path) == 1 else model.path_time(path)  # 1 point: the start itself
-            if len(path) == 1 or t < self.cost[i]:
-                self.cost[i], self.back[i] = t, -1
-                self.astar[i] = path
-
-    def path(self, i: int) -> np.ndarray:
-        """(P, 3) the way back from flight point i to the start (i itself first)."""
-        pts = []
-        while i > 0 and self.back[i] >= 0:
-            pts.append(self.fl.xyz[i])
-            i = int(self.back[i])
-        if i == 0:
-            pts.append(self.fl.xyz[0])
-        else:
-            pts.extend(self.astar[i])
-        return np.asarray(pts, float)
-
-
-def _searches(occ_map, fl: RunFlight, points: list) -> list:
-    """The A* path (P, 3) from each flight point to the start through known free space (the
-    start itself: its one point; none: (0, 3)), by one search out from the start (a point outside
-    the map, on a wide profiling circle, has none)."""
-    from . import _core
-
-    if not points:
-        return []
-    xyz = fl.xyz[points]
-    at_start = np.all(np.isclose(xyz, fl.start), axis=1)
-    ask = np.flatnonzero(~at_start)
-    out = [fl.start[None, :] if s else np.zeros((0, 3)) for s in at_start]
-    if len(ask):
-        cap = int(fl.config.vehicle.path_expansions) * len(ask)
-        found = _core.plan_paths_to(occ_map, xyz[ask], fl.start, fl.radius, max_expansions=cap)
-        for k, path in zip(ask, found.paths):
-            out[k] = np.asarray(path, float) if len(path) >= 2 else np.zeros((0, 3))
-    return out
 
 
 @dataclass

@@ -1,25 +1,15 @@
 """A run folder's flight (read_run: flight.csv, summary.json, config.yaml, map.ot), for the
-flight-time model of nbvkit.flight_time and the sorties of nbvkit.flight (whose names are
-importable from here too).
+flight-time model of nbvkit.flight_time, the launch point and ways home of nbvkit.flight_home
+and the sorties of nbvkit.flight (whose names are importable from here too).
 """
 from __future__ import annotations
 
 import csv
 from pathlib import Path
 
-from ..flight import (  # noqa: F401  (re-exported)
-    ReturnPaths,
-    RunFlight,
-    Sortie,
-    SortiePlanner,
-    Waypoint,
-    find_launch,
-    flight_arrays,
-    load_map,
-    run_flight,
-    simplify,
-    sortie_planner,
-)
+from ..flight import Sortie, SortiePlanner, Waypoint, simplify, sortie_planner  # noqa: F401
+from ..flight_home import ReturnPaths, find_launch, load_map  # noqa: F401  (re-exported)
+from ..flight_rows import RunFlight, flight_arrays, run_flight
 from ..flight_time import FRAME, VIEW, FlightModel  # noqa: F401  (re-exported)
 from ..runfolder import read_summary, run_workspace
 
