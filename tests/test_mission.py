@@ -109,9 +109,11 @@ def test_a_mission_saved_after_its_run_is_a_complete_run_folder(tmp_path):
     for summary in ("notadict", None):  # (a summary.json no reader took)
         with pytest.raises(TypeError, match="summary must be the dict run"):
             m.save(tmp_path / "a", summary)
-    for flag in ("no", 1):  # ("no" is true: the folder was overwritten)
+    for flag in ("no", 1):  # ("no" is true: the folder was overwritten, the report written)
         with pytest.raises(TypeError, match="overwrite must be True or False"):
             m.save(tmp_path / "a", s, overwrite=flag)
+        with pytest.raises(TypeError, match="finish must be True or False"):
+            m.save(tmp_path / "a", s, finish=flag)
     with pytest.raises(TypeError, match="out must be a folder path, got int"):
         m.save(123, s)
     assert not (tmp_path / "a").exists()
@@ -122,6 +124,15 @@ def test_a_mission_saved_after_its_run_is_a_complete_run_folder(tmp_path):
         m.save(tmp_path / "a", s)
     m.save(tmp_path / "a", s, overwrite=np.bool_(True))  # numpy's bool is a bool
     require_complete_run(tmp_path / "a")
+
+
+def test_run_refuses_a_finish_flag_not_a_bool_before_flying(tmp_path):
+    """Mission.run(out, finish="no") wrote the end-of-run outputs ("no" is true); now it is
+    refused before any flight, and nothing is written."""
+    m = Mission(cfg("scenario=surface", "max_iterations=2"))
+    with pytest.raises(TypeError, match="finish must be True or False, got 'no'"):
+        m.run(tmp_path / "r", finish="no")
+    assert m.termination == "not_run" and not (tmp_path / "r").exists()
 
 
 def test_same_seed_same_mission():

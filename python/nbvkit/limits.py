@@ -23,6 +23,8 @@ import stat
 from dataclasses import dataclass
 from pathlib import Path
 
+import numpy as np
+
 __all__ = [
     "Bound",
     "MissionError",
@@ -122,6 +124,19 @@ def require_config(value, what: str = "config") -> None:
         raise TypeError(
             f"{what} must be an nbvkit.Config (nbvkit.load_config()), got {type(value).__name__}"
         )
+
+
+def is_bool(x) -> bool:
+    """Whether x is True or False, numpy's too (a string such as "no", which is true, or 0 and 1
+    are not)."""
+    return isinstance(x, (bool, np.bool_))
+
+
+def require_bool(value, name: str) -> bool:
+    """value as a bool; TypeError naming the argument `name` unless is_bool(value)."""
+    if not is_bool(value):
+        raise TypeError(f"{name} must be True or False, got {shorten(value)}")
+    return bool(value)
 
 
 def is_number(x) -> bool:

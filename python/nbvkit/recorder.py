@@ -12,7 +12,7 @@ from pathlib import Path
 
 from . import _core
 from .evaluation import SUMMARY_KEYS
-from .limits import require_type
+from .limits import require_bool, require_type
 from .planning.registry import utility_only_checks
 from .planning.terminations.budget import BUDGET_REASONS
 from .output_paths import atomic_open, write_text_atomic
@@ -225,6 +225,7 @@ class Recorder:
         if self.mission.termination == "not_run":  # (an empty folder that looked complete)
             raise RuntimeError("save writes a flown mission: run() it first, or run(out_dir)")
         require_type(summary, dict, "summary", "the dict run() returned")
+        finish = require_bool(finish, "finish")
         summary, stop = self.write_keeping(out, summary, finish, cache_dir)
         if stop is not None:
             raise stop
@@ -343,7 +344,8 @@ def fly_into(mission, out, finish: bool = False) -> tuple[dict, BaseException | 
     caller to raise once the folder is in place (raise_stop); so is a whole flight whose saving
     was stopped (its end-of-run outputs: Recorder.write_keeping, `stopped_during` "saving").
     Stopped before the views (profile, symmetry), the exception propagates and nothing is
-    written."""
+    written. TypeError for a `finish` not True or False, before any flight."""
+    finish = require_bool(finish, "finish")
     try:
         summary = mission._run()
     except STOPS as e:

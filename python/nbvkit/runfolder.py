@@ -38,7 +38,7 @@ from pathlib import Path
 import numpy as np
 
 from ._version import __version__
-from .limits import MAX_TEXT_FILE_BYTES, check_input_file, is_number
+from .limits import MAX_TEXT_FILE_BYTES, check_input_file, is_number, require_bool
 from .locks import RunLock, lock_holder
 from .output_paths import check_output_dir, write_text_atomic
 
@@ -296,9 +296,7 @@ class RunFolder:
     ):
         if isinstance(path, bytes) or not isinstance(path, (str, os.PathLike)):
             raise TypeError(f"{what} must be a folder path, got {type(path).__name__}")
-        if not isinstance(overwrite, (bool, np.bool_)):  # ("no" is true)
-            raise TypeError(f"overwrite must be True or False, got {overwrite!r}")
-        overwrite = bool(overwrite)
+        overwrite = require_bool(overwrite, "overwrite")
         p = Path(os.fspath(path)).expanduser()
         if p.is_symlink():
             p = Path(os.path.realpath(p))

@@ -22,7 +22,7 @@ from typing import Tuple
 
 import numpy as np
 
-from .limits import Bound, is_number, shorten
+from .limits import Bound, is_bool, is_number, shorten
 
 #: A list of names in the configuration (YAML list of strings).
 Names = Tuple[str, ...]
@@ -200,7 +200,7 @@ def coerce(tp, value, key):
         (inner,) = [a for a in typing.get_args(tp) if a is not type(None)]  # noqa: E721
         return coerce(inner, value, key)
     if tp is bool:
-        if isinstance(value, (bool, np.bool_)):  # (numpy's read as its value)
+        if is_bool(value):  # (numpy's read as its value)
             return bool(value)
         raise ValueError(f"config key {key!r} must be true or false, got {shorten(value)}")
     if tp is int:
