@@ -383,7 +383,7 @@ def test_the_value_that_would_fit_fits():
     msg = _mission_error(["evaluation.gt_density=1e12"])
     fit = float(msg.rsplit("<= ", 1)[1].split()[0])
     cfg = load_config(overrides=["map.resolution=0.4", f"evaluation.gt_density={fit}"])
-    from nbvkit.limits import check_work
+    from nbvkit.work_limits import check_work
     from nbvkit.workspace import make_workspace
 
     mesh = nbvkit.load_mesh(CUBE)

@@ -80,11 +80,11 @@ def test_a_budget_that_ended_the_mission_is_said_on_the_console_and_in_the_files
 
 
 def test_a_100_m_structure_at_the_defaults_is_not_refused_but_an_explicit_excess_is():
-    # The work checks (nbvkit.limits) refuse what would not fit in memory, not a large structure
-    # at the default 0.2 m map: a 100 x 70 x 48 m plant's box holds about 77 M cells; its
+    # The work checks (nbvkit.work_limits) refuse what would not fit in memory, not a large
+    # structure at the default 0.2 m map: a 100 x 70 x 48 m plant's box holds about 77 M cells; its
     # default ground truth is capped at MAX_GT_SAMPLES (the evaluator warns), while a density
     # the user sets beyond it is refused with what would fit.
-    from nbvkit.limits import MAX_GT_SAMPLES, check_gt_samples, check_work
+    from nbvkit.work_limits import MAX_GT_SAMPLES, check_gt_samples, check_work
     from nbvkit.workspace import make_workspace
 
     mesh = box_mesh((0, 0, 0), (100, 70, 48))  # 30,320 m^2

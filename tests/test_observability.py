@@ -401,7 +401,7 @@ def test_a_small_structure_gets_a_lattice_fine_enough_to_see_its_top(monkeypatch
     assert r.stats["settings"]["pose_spacing"] == 2.0
     assert r.stats["settings"]["fine_pose_spacing"] == pytest.approx(0.6312, abs=1e-4)
     assert r.observable[top].all()
-    from nbvkit import limits
+    from nbvkit import work_limits as limits
 
     monkeypatch.setattr(limits, "MIN_POSE_SPACING", 2.0)  # the 2 m lattice as it was
     coarse = observable_surface(block, c, points=p, face_ids=fid)
@@ -415,7 +415,7 @@ def test_the_fine_lattice_adds_to_the_configured_one_and_keeps_within_the_limits
     nearer than the camera's 0.5 m, but the configured 2 m lattice's positions are searched
     too: the top is seen whole. A small structure in a huge workspace: the fine lattice backs
     off to what the limits allow (it was refused, and no pose_spacing could help)."""
-    from nbvkit.limits import MAX_OBSERVABILITY_POSES, pose_spacing
+    from nbvkit.work_limits import MAX_OBSERVABILITY_POSES, pose_spacing
 
     cube = box_mesh((-6, -6, 0), (6, 6, 12))
     p, fid = samples(cube, 3000)
@@ -426,7 +426,7 @@ def test_the_fine_lattice_adds_to_the_configured_one_and_keeps_within_the_limits
     wide = load_config(
         None, ["workspace.bounds_min=[-60,-60,0]", "workspace.bounds_max=[60,60,40]"]
     )
-    from nbvkit.limits import check_work
+    from nbvkit.work_limits import check_work
     from nbvkit.workspace import make_workspace
 
     mesh = box_mesh((-4, -1, 0), (4, 1, 2))

@@ -15,7 +15,8 @@ import numpy as np
 
 from . import _core
 from ._core import IntegrationStats, OccupancyMap, OccupancyMapOptions
-from .limits import Bound, MissionError
+from .limits import Bound
+from .work_limits import MissionError
 from .settings import cpp_section
 
 __all__ = [

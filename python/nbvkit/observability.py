@@ -6,11 +6,11 @@ Method (C++ calls, ``nbvkit._core.observable_samples``, Embree):
 
 1. *Poses.* A lattice of candidate vehicle positions of spacing ``observability.pose_spacing``
    (default 2 m; for a small structure a second, finer lattice searched for what the first left
-   unseen: ``nbvkit.limits.pose_spacing``) fills the navigation box (the workspace shrunk by the
-   collision radius: where a mission's vehicle may be). A lattice point is dropped if the mesh comes
-   within ``vehicle.collision_radius`` of it (an Embree point query), or if the vehicle cannot fly
-   there from outside: it must be connected, through lattice edges that the mesh does not cross and
-   along which the collision sphere fits (checked every half radius), to a free position on the
+   unseen: ``nbvkit.work_limits.pose_spacing``) fills the navigation box (the workspace shrunk by
+   the collision radius: where a mission's vehicle may be). A lattice point is dropped if the mesh
+   comes within ``vehicle.collision_radius`` of it (an Embree point query), or if the vehicle cannot
+   fly there from outside: it must be connected, through lattice edges that the mesh does not cross
+   and along which the collision sphere fits (checked every half radius), to a free position on the
    navigation box's sides or top that sees out of it (a flood fill; the ground below is not part of
    the mesh). A closed hull's inside is unreachable however large it is, and so is a space behind an
    opening narrower than the vehicle (a camera outside may still see through it: an office's
@@ -49,7 +49,8 @@ import numpy as np
 
 from . import _core
 from .output_paths import check_output_dir
-from .limits import Bound, pose_spacing, require_config, require_type
+from .limits import Bound, require_config, require_type
+from .work_limits import pose_spacing
 from .locks import FileLock
 from .sensors import build_camera
 from .settings import cpp_section
@@ -119,7 +120,7 @@ def sample_normals(mesh, face_ids) -> np.ndarray:
 
 
 def _fine_spacing(config, workspace, mesh_bounds, samples: int) -> float:
-    """The spacing of the fine lattice searched beside the configured one (limits.pose_spacing;
+    """The spacing of the fine lattice searched beside the configured one (work_limits.pose_spacing;
     the configured spacing when it is no finer)."""
     size = [float(b - a) for a, b in zip(workspace.nav_min, workspace.nav_max)]
     return pose_spacing(config, mesh_bounds, size, samples)

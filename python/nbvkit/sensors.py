@@ -20,7 +20,7 @@ import math
 from dataclasses import dataclass
 
 from . import _core
-from .limits import MAX_VIEW_RAYS
+from .work_limits import MAX_VIEW_RAYS
 from .settings import choice, nonneg, positive, section_error, triple, within
 
 _CAM = _core.DepthCameraOptions()

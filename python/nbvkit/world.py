@@ -14,7 +14,8 @@ import numpy as np
 
 from . import _core
 from ._core import MAX_COORDINATE
-from .limits import Bound, MissionError, check_work, require_config, require_type, units_hint
+from .limits import Bound, require_config, require_type
+from .work_limits import MissionError, check_work, units_hint
 from .mapping import new_map
 from .mesh import check_path_clear, default_mesh_path, fibonacci_sphere, load_mesh
 from .mesh import surface_crossings

@@ -176,7 +176,7 @@ def run(args) -> int:
     if args.seed < 0:
         raise ValueError(f"--seed must be >= 0, got {args.seed}")
     if not args.reference_cloud:
-        from ..limits import check_samples
+        from ..work_limits import check_samples
 
         check_samples(gt.area, args.gt_density, "--gt-density")
     ev = Evaluator(
@@ -325,7 +325,7 @@ def read_reconstruction(path: Path, density: float, seed: int = 0):
     if suffix in MESH_SUFFIXES or (suffix == ".ply" and _ply_has_faces(path)):
         from ..mesh import load_mesh
 
-        from ..limits import check_samples
+        from ..work_limits import check_samples
 
         mesh = load_mesh(path, up="z")  # as it is: a reconstruction is in the world frame
         check_samples(mesh.area, density, "--gt-density")
