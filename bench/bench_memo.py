@@ -20,7 +20,7 @@ import nbvkit
 from nbvkit import _core
 from nbvkit.config import Config
 from nbvkit.mission import Mission
-from nbvkit.planning import planner
+from nbvkit.planning import scoring
 
 
 def main():
@@ -38,7 +38,7 @@ def main():
     calls = [0]
     last = {}
 
-    class Paired:  # the planner's _core, each scoring call made both ways
+    class Paired:  # the scorer's _core, each scoring call made both ways
         def __getattr__(self, name):
             return getattr(_core, name)
 
@@ -69,7 +69,7 @@ def main():
                 assert np.allclose(ref["gain"], walked["gain"], rtol=1e-6), f"call {calls[0]}"
             return with_memo
 
-    planner._core = Paired()
+    scoring._core = Paired()
     over = [
         f"scenario={args.scenario}",
         f"start={args.start}",

@@ -18,7 +18,7 @@ import numpy as np
 from nbvkit import _core
 from nbvkit.config import Config
 from nbvkit.mission import Mission
-from nbvkit.planning import planner
+from nbvkit.planning import scoring
 
 
 def main():
@@ -30,7 +30,7 @@ def main():
     args = ap.parse_args()
     calls = []
 
-    class Recording:  # the planner's _core, recording each scoring call
+    class Recording:  # the scorer's _core, recording each scoring call
         def __getattr__(self, name):
             return getattr(_core, name)
 
@@ -40,7 +40,7 @@ def main():
             calls.append((np.array(poses), np.array(r["gain"]), np.array(r["status"])))
             return r
 
-    planner._core = Recording()
+    scoring._core = Recording()
     over = [
         f"scenario={args.scenario}",
         f"start={args.start}",

@@ -1,9 +1,8 @@
 """What a mission's mapping stage is made of: a mission flown under cProfile, and the time per
-camera frame of each core call the planner's mapping stage makes - integrating the frame into the
-occupancy map (OccupancyMap.integrate), registering its points in the camera cloud
-(SurfaceCloud.add) and in the surface observations (SurfaceObservations.add_scan). The profile's
-laser scans (world.sense("laser")) and the first frame (world.sense("view")) are counted apart.
-Prints figures; asserts nothing.
+call of each core call that maps a scan - a camera frame into the occupancy map, the camera cloud
+and the surface observations at once (integrate_frame, World.integrate's), and the laser's scans
+into the map (OccupancyMap.integrate) and the laser cloud (SurfaceCloud.add), each counted where
+it was called from. Prints figures; asserts nothing.
 
     .venv/bin/python bench/mapping_split.py                   # Scenario 5, start 0, airliner
     .venv/bin/python bench/mapping_split.py --scenario surface --mesh ../shared/meshes/twinjet.obj
@@ -17,7 +16,12 @@ import pstats
 from nbvkit.config import load_config
 from nbvkit.mission import Mission
 
-CALLS = {"integrate": "map integration", "add": "camera cloud", "add_scan": "surface observations"}
+CALLS = {
+    "integrate_frame": "camera frame (all 3)",
+    "integrate": "map integration",
+    "add": "cloud",
+    "add_scan": "surface observations",
+}
 
 
 def main():
@@ -31,10 +35,12 @@ def main():
         over.append(f"mesh.path={args.mesh}")
     mission = Mission(load_config(overrides=over))
     prof = cProfile.Profile()
-    prof.runcall(mission.run)
+    s = prof.runcall(mission.run)
     stats = pstats.Stats(prof).stats  # (file, line, name) -> (cc, nc, tt, ct, callers)
-    frames = len(mission.records)
-    print(f"scenario {args.scenario}, start {args.start}: {frames} camera frames in the loop")
+    print(
+        f"scenario {args.scenario}, start {args.start}: {s['iterations']} views, "
+        f"{s['camera_frames']} camera frames in flight"
+    )
     for (_, _, name), (_, _, _, _, callers) in stats.items():
         short = name.split(".")[-1].rstrip(">")
         if not (name.startswith("<built-in method nbvkit._core.") and short in CALLS):
