@@ -493,6 +493,10 @@ def test_a_damaged_map_file_is_refused_not_loaded_as_another_map(tmp_path: Path,
     os.mkfifo(fifo)
     with pytest.raises(ValueError, match="is not a regular file"):
         OccupancyMap.load(fifo)
+    folder = tmp_path / f"folder{ext}"
+    folder.mkdir()
+    with pytest.raises(ValueError, match=f"map file '.*folder{ext}' is a directory"):
+        OccupancyMap.load(folder)
 
 
 # ---- options and bad input ------------------------------------------------------------------

@@ -124,6 +124,7 @@ class NodeWalk {
 
 MapFileHeader check_map_file(const std::string& path, bool binary) {
   std::error_code ec;
+  if (std::filesystem::is_directory(path, ec)) refuse(path, "is a directory");
   if (!std::filesystem::is_regular_file(path, ec))  // (a named pipe blocked OctoMap's reader)
     refuse(path, "is not a regular file");
   std::ifstream in(path, std::ios::binary);

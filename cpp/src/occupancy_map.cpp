@@ -1087,8 +1087,6 @@ OccupancyMap OccupancyMap::load(const std::string& path,
                                 "' (expected .ot or .bt)");
   std::error_code ec;
   if (!std::filesystem::exists(path, ec)) throw FileNotFound(path);
-  if (std::filesystem::is_directory(path, ec))
-    throw std::invalid_argument("map file '" + path + "' is a directory");
   const MapFileHeader header = check_map_file(path, ext == ".bt");
   check_resolution(header.res, "map file '" + path + "': its resolution");
   // OctoMap reports progress and errors on std::cerr: keep it for the error message instead.
