@@ -9,11 +9,13 @@ whose free/occupied/unknown state is the same), and the time of total_entropy().
 The C++ benchmark bench/bench_map.cpp also times a bare octomap::OcTree (no mirror).
 
 --mission flies a mission instead (Scenario 5, start 0, on the structure; --scenario to change)
-with a shadow map beside the mission's: every scan the mission integrates (the profile's laser
-scans and every camera frame) is also integrated into the shadow with integrate_exact, and every
-other change of the map (the vehicle's free path, predicted cells) is made in both. The shadow's
-octree is brought up to date before each timed call. Prints ms per camera frame of the loop for
-both and their ratio: the issue's baseline on the mission's own frames and maps.
+with two shadow maps beside the mission's: every scan the mission integrates (the profile's laser
+scans, and every camera frame, which the mission's map takes through integrate_frame with the
+camera cloud and observations) is also integrated into one shadow with the fast path and into
+the other with integrate_exact, and every other change of the map (the vehicle's free path,
+predicted cells) is made in all three. The shadows' octrees are brought up to date before each
+timed call. Prints ms per camera frame for both and their ratio: the issue's baseline on the
+mission's own frames and maps.
 
 --against DIR times the fast path in this checkout and in another one (DIR/python, or a saved
 package), alternating, in the same run: the 8 frames integrated again and again into one map
@@ -80,40 +82,54 @@ def agreement(a: nbvkit.OccupancyMap, b: nbvkit.OccupancyMap) -> float:
 
 
 def mission(args) -> None:
-    """The camera frames of a mission, integrated by the mission's map and by a shadow map with
-    integrate_exact (see the module's doc)."""
+    """The camera frames of a mission, integrated by two shadow maps beside the mission's own:
+    one with the fast path, one with integrate_exact (see the module's doc)."""
+    from nbvkit import _core
     from nbvkit.config import Config
     from nbvkit.mission import Mission
 
     cls = nbvkit.OccupancyMap
     real = {k: getattr(cls, k) for k in ("integrate", "mark_free_segment", "set_unknown_cells")}
-    state = {"map": None, "shadow": None}
+    real_frame = _core.integrate_frame  # the mission's camera frames: map, cloud, observations
+    state = {"map": None, "fast": None, "exact": None}
     ms = {"fast": [], "exact": []}
 
-    def integrate(self, scan, *a, **kw):
-        if self is not state["map"]:
-            return real["integrate"](self, scan, *a, **kw)
-        shadow = state["shadow"]
-        shadow.octree_num_nodes  # brings the shadow's octree up to date (not timed)
+    def shadows(scan, *a, **kw):
+        """The scan into both shadows, each timed (a camera frame's times kept)."""
+        fast, exact = state["fast"], state["exact"]
+        fast.octree_num_nodes  # brings the octrees up to date (not timed)
+        exact.octree_num_nodes
         t0 = time.perf_counter()
-        out = real["integrate"](self, scan, *a, **kw)
+        real["integrate"](fast, scan, *a, **kw)
         t1 = time.perf_counter()
-        shadow.integrate_exact(scan, *a, **kw)
+        exact.integrate_exact(scan, *a, **kw)
         t2 = time.perf_counter()
         if len(scan.hits) + len(scan.free_ends) > 10000:  # a camera frame, not a laser scan
             ms["fast"].append((t1 - t0) * 1e3)
             ms["exact"].append((t2 - t1) * 1e3)
-        return out
+
+    def integrate(self, scan, *a, **kw):
+        if self is state["map"]:
+            shadows(scan, *a, **kw)
+        return real["integrate"](self, scan, *a, **kw)
+
+    def integrate_frame(occ_map, cloud, surface, scan, **kw):
+        if occ_map is state["map"]:
+            extra = {"max_range": kw["max_range"]} if "max_range" in kw else {}
+            shadows(scan, **extra)
+        return real_frame(occ_map, cloud, surface, scan, **kw)
 
     def both(name):
         def call(self, *a, **kw):
             if self is state["map"]:
-                real[name](state["shadow"], *a, **kw)
+                real[name](state["fast"], *a, **kw)
+                real[name](state["exact"], *a, **kw)
             return real[name](self, *a, **kw)
 
         return call
 
     cls.integrate = integrate
+    _core.integrate_frame = integrate_frame
     cls.mark_free_segment = both("mark_free_segment")
     cls.set_unknown_cells = both("set_unknown_cells")
     over = [f"scenario={args.scenario}", "start=0", "progress=false", "report.enabled=false"]
@@ -123,12 +139,16 @@ def mission(args) -> None:
     fm = m.world.map
     lo, hi = fm.bounds
     state["map"] = fm
-    state["shadow"] = nbvkit.OccupancyMap(fm.resolution, lo, hi, options=fm.options)
-    m.run()
-    for k, v in real.items():
-        setattr(cls, k, v)
+    for k in ("fast", "exact"):
+        state[k] = nbvkit.OccupancyMap(fm.resolution, lo, hi, options=fm.options)
+    try:
+        m.run()
+    finally:
+        for k, v in real.items():
+            setattr(cls, k, v)
+        _core.integrate_frame = real_frame
     f, e = np.array(ms["fast"]), np.array(ms["exact"])
-    agree = agreement(fm, state["shadow"])
+    agree = agreement(state["fast"], state["exact"])
     print(
         f"scenario {args.scenario}, start 0: {len(f)} camera frames, "
         f"{nbvkit.get_num_threads()} threads; final maps agree on {100 * agree:.3f}% of the "
