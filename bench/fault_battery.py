@@ -120,8 +120,10 @@ def _csv_rows(path: Path) -> int:
         return sum(1 for _ in csv.reader(f)) - 1
 
 
-def run_problems(folder) -> list:
-    """What is wrong with folder as a complete run (empty: a complete, consistent run)."""
+def run_problems(folder, finished: bool = True) -> list:
+    """What is wrong with folder as a complete run (empty: a complete, consistent run). With
+    finished=False, a flight kept without its end-of-run outputs (saving stopped by the fault:
+    summary.json's stopped_during "saving", no mesh.ply or report.html)."""
     import yaml
 
     from nbvkit.runfolder import _problem
@@ -145,6 +147,24 @@ def run_problems(folder) -> list:
         nbvkit.OccupancyMap.load(folder / "map.ot")
     except Exception as e:  # noqa: BLE001
         bad.append(f"map.ot does not load: {e}")
+    if finished:
+        bad += _end_output_problems(folder, s, cfg)
+    else:
+        if s.get("stopped_during") != "saving":
+            bad.append(f"kept, but stopped_during is {s.get('stopped_during')!r}, not 'saving'")
+        held = [n for n in ("mesh.ply", "report.html") if (folder / n).exists()]
+        if held:
+            bad.append(f"kept without its end-of-run outputs, but holds {held}")
+    stray = [p.name for p in folder.rglob("*") if ".tmp" in p.name]
+    if stray:
+        bad.append(f"temporary files inside: {stray}")
+    return bad
+
+
+def _end_output_problems(folder: Path, s: dict, cfg: dict) -> list:
+    """Whether a finished run's mesh.ply and report.html are there as its summary and its
+    configuration say."""
+    bad = []
     written = (s.get("reconstructed_mesh") or {}).get("written", False)
     if (folder / "mesh.ply").exists() != bool(written):
         bad.append("mesh.ply does not match summary.json's reconstructed_mesh")
@@ -152,9 +172,6 @@ def run_problems(folder) -> list:
     want_html = rep.get("enabled", True) and rep.get("html", True)
     if (folder / "report.html").exists() != bool(want_html):
         bad.append("report.html does not match the configuration's report section")
-    stray = [p.name for p in folder.rglob("*") if ".tmp" in p.name]
-    if stray:
-        bad.append(f"temporary files inside: {stray}")
     return bad
 
 
@@ -305,8 +322,11 @@ def _disk_full_outcome(rc, err, d: Path, out: Path) -> tuple:
     e = clean_error(rc, err)
     if e:
         return e, ""
-    if out.exists():
-        return f"a partial folder {out} stays: {sorted(os.listdir(out))}", ""
+    if out.exists():  # only a whole flight whose end-of-run outputs did not fit may stay
+        bad = run_problems(out, finished=False) + leftovers(out)
+        if bad:
+            return f"a partial folder {out} stays: {sorted(os.listdir(out))}: {bad}", ""
+        return None, "the flight kept without its end-of-run outputs"
     s = summaries_under(d)
     if s:
         return f"a summary.json stays: {s}", ""

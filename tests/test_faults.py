@@ -259,8 +259,10 @@ def mount_ok():
     return fb.can_mount_tmpfs()
 
 
-@pytest.mark.parametrize("size", ["64k", "1m"])
+@pytest.mark.parametrize("size", ["64k", "1m", "4m"])
 def test_a_full_disk_leaves_no_summary_claiming_a_finished_run(tmp_path, mount_ok, size):
+    """A full disk leaves no folder, or (4 MB: the flight's files fit, the report does not) the
+    whole flight kept without its end-of-run outputs, summary.json saying saving stopped."""
     note = _ok(fb.disk_full_case(tmp_path, size, mount_ok))
     assert note != "fitted", f"{size} held the whole run: the test tried nothing"
 
