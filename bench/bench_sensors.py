@@ -10,6 +10,13 @@ alternating, in the same run: 48 frames from rings round the structure (3 height
 5 m outside its bounding box, each facing its centre), on one thread and on all; and checks both
 return the same scans bit for bit.
 
+A frame's result (about 12 MB of arrays) is allocated anew by every scan. Where glibc hands such
+blocks back to the system between scans, their pages are faulted in again each time, and on
+some virtual machines that dominates: on 2026-12-05 on this 2-core machine, 43.5 ms a frame
+(1 thread) against 5.3 ms with MALLOC_MMAP_THRESHOLD_=268435456 MALLOC_TRIM_THRESHOLD_=536870912
+in the environment (3.4 ms facing away, no hits, either way). A mission keeps its memory and
+sees no such gain (plant, 150 views: 134.7-146.6 against 136.6-137.7 ms a view).
+
 Run: .venv/bin/python bench/bench_sensors.py [--mesh PATH] [--repeat N]
      .venv/bin/python bench/bench_sensors.py --against /tmp/before [--mesh PATH] [--rounds N]
 """
