@@ -68,7 +68,7 @@ def missing_names(source: str) -> list[str]:
             and not isinstance(node.ctx, ast.Del)
         ):
             mod = modules[node.value.id]
-            if not hasattr(mod, node.attr) and _resolve(mod.__name__, node.attr) is None:
+            if _resolve(mod.__name__, node.attr) is None:
                 out.append(f"line {node.lineno}: {mod.__name__}.{node.attr}")
     return out
 
