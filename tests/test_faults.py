@@ -6,6 +6,7 @@ from __future__ import annotations
 import json
 import os
 import random
+import re
 import sys
 import textwrap
 import time
@@ -477,6 +478,28 @@ def test_a_flight_stopped_by_ctrl_c_or_a_part_keeps_what_it_flew(
     with pytest.raises(cause):
         mission.run(early)
     assert not early.exists()
+
+
+@pytest.mark.parametrize(
+    "how, said",
+    [
+        ("interrupt", r"interrupted: saving what was flown \(Ctrl-C again drops it\)"),
+        ("exit", r"interrupted \(SystemExit: 3; plugin file .*stopping_part\.py, line \d+, in"),
+        ("error", r"failed \(ZeroDivisionError: a part's bug, as asked; raised by the termination"),
+    ],
+)
+def test_the_console_names_what_stopped_a_flight(tmp_path, stopping_part, capsys, how, said):
+    """The console's line as a stopped flight is saved names the cause, and says "Ctrl-C again"
+    only after a Ctrl-C: a part's sys.exit() is not reported as if the user had pressed it."""
+    from nbvkit.config import load_config
+
+    config = load_config(overrides=[*_stopping(how), "progress=true"])
+    with pytest.raises((KeyboardInterrupt, SystemExit, ZeroDivisionError)):
+        nbvkit.Mission(config).run(tmp_path / "run")
+    err = capsys.readouterr().err
+    assert re.search(said, err), err
+    assert err.count("saving what was flown (Ctrl-C") == 1
+    assert ("again" in err) == (how == "interrupt")
 
 
 @pytest.mark.parametrize("how", ["interrupt", "sigterm", "sighup"])

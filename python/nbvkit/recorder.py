@@ -244,7 +244,7 @@ class Recorder:
         except KeyboardInterrupt as e:
             if "stopped_by" in summary:  # the flight's stop was the first Ctrl-C
                 raise
-            self._say("interrupted while saving: finishing the flight's files")
+            self._say("interrupted while saving", e, "finishing the flight's files")
             self._write_flight(out)
             return self._stopped(out, summary, e), e
         if not finish:
@@ -255,7 +255,7 @@ class Recorder:
         try:
             summary = finish_run(self.mission, out, summary, cache_dir=cache_dir)
         except STOPS as e:
-            self._say(f"end-of-run outputs {stop_kind(e)}: saving the flight without them")
+            self._say(f"end-of-run outputs {stop_kind(e)}", e, "saving the flight without them")
             for name in FINISH_OUTPUTS:  # a part of them would read as all of them
                 (out / name).unlink(missing_ok=True)
             return self._stopped(out, summary, e), e
@@ -295,9 +295,14 @@ class Recorder:
         write_json_atomic(out / "summary.json", summary)
         return summary
 
-    def _say(self, line: str) -> None:
+    def _say(self, what: str, e: BaseException, doing: str) -> None:
+        """The console's word that `e` stopped `what` and nbvkit is `doing` (saving): the cause
+        named unless it was a Ctrl-C, which alone makes a further one "again"."""
         if self.mission.config.progress:
-            print(f"{line} (Ctrl-C again drops it)", file=sys.stderr)
+            ctrl_c = type(e) is KeyboardInterrupt
+            cause = "" if ctrl_c else f" ({error_line(e)})"
+            again = "again " if ctrl_c else ""
+            print(f"{what}{cause}: {doing} (Ctrl-C {again}drops it)", file=sys.stderr)
 
 
 # what finish_run writes beside the flight's files (its cache of the observable surface stays:
@@ -353,7 +358,7 @@ def fly_into(mission, out, finish: bool = False) -> tuple[dict, BaseException | 
         if rec.flying_since is None:
             raise
         why = stop_kind(e)
-        rec._say(f"{why}: saving what was flown")
+        rec._say(why, e, "saving what was flown")
         summary = rec.summary(why, time.perf_counter() - rec.flying_since)
         summary["stopped_by"] = error_line(e)
         summary["stopped_during"] = "flight"
