@@ -1,5 +1,5 @@
 """An output file that is one of the command's own inputs, or lies in a finished run folder, is
-refused before any work (nbvkit.runfolder.check_not_input): the input is left byte for byte
+refused before any work (nbvkit.output_paths.check_not_input): the input is left byte for byte
 as it was, and the error names both paths."""
 from __future__ import annotations
 

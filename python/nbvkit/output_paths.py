@@ -1,15 +1,28 @@
 """Output paths checked before any work: a mission or a sweep must not run for minutes and then
-fail to write its results. (Imported by nbvkit.runfolder; users import these from nbvkit.paths.)"""
+fail to write its results, nor a command overwrite one of its inputs or a finished run's files
+(check_not_input). (Imported by nbvkit.runfolder; users import these from nbvkit.paths.)"""
 from __future__ import annotations
 
 import contextlib
+import json
 import os
 import stat
 import sys
 import tempfile
 from pathlib import Path
 
-__all__ = ["check_output_dir", "check_output_file", "naming_the_file"]
+from .limits import MAX_TEXT_FILE_BYTES, check_input_file
+
+__all__ = [
+    "MANIFEST",
+    "check_not_input",
+    "check_output_dir",
+    "check_output_file",
+    "naming_the_file",
+]
+
+#: a run folder's completion marker (every file and its size), written last (nbvkit.runfolder)
+MANIFEST = "manifest.json"
 
 
 @contextlib.contextmanager
@@ -119,3 +132,43 @@ def write_text_output(path, text: str) -> None:
             f.write(text)
     else:
         write_text_atomic(target, text)
+
+
+def check_not_input(path, inputs, what: str = "output file") -> None:
+    """ValueError naming both paths when writing the file `path` would overwrite one of the
+    command's `inputs` ((description, path or None) pairs: the same file, also through a
+    symbolic or hard link) or change a finished nbvkit run: `path` lies in a folder holding a
+    run's manifest (nbvkit.runfolder)."""
+    p = Path(os.fspath(path)).expanduser()
+    for desc, src in inputs:
+        if src is not None and _same_file(p, Path(os.fspath(src)).expanduser()):
+            raise ValueError(
+                f"{what} {p} is {desc} {src}, an input of this command: choose another file"
+            )
+    run = _run_folder_holding(p)
+    if run is not None:
+        raise ValueError(
+            f"{what} {p} lies in the nbvkit run folder {run}, whose files are the run's "
+            "results: choose a file outside it"
+        )
+
+
+def _same_file(a: Path, b: Path) -> bool:
+    try:
+        return os.path.samefile(a, b)
+    except OSError:  # one of them does not exist (yet): compare where their links lead
+        return os.path.realpath(a) == os.path.realpath(b)
+
+
+def _run_folder_holding(p: Path) -> Path | None:
+    """The innermost folder above the file p (symbolic links resolved) holding an nbvkit run's
+    manifest (a JSON object listing "files", as nbvkit.runfolder writes it), or None."""
+    for folder in Path(os.path.realpath(p)).parents:
+        try:
+            m = check_input_file(folder / MANIFEST, "run manifest", MAX_TEXT_FILE_BYTES)
+            manifest = json.loads(m.read_text())
+        except (OSError, UnicodeDecodeError, ValueError):
+            continue
+        if isinstance(manifest, dict) and "files" in manifest:
+            return folder
+    return None

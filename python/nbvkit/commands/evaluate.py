@@ -10,7 +10,7 @@ from pathlib import Path
 import numpy as np
 
 from ..output_paths import write_text_output
-from ..runfolder import check_not_input
+from ..output_paths import check_not_input
 from ..paths import check_output_file, require_complete_run
 from ..cloud import read_points
 from ..mesh import default_mesh_path, file_up_axis
@@ -217,7 +217,7 @@ def run(args) -> int:
 
 
 def _check_json_not_input(args, cloud_path: Path) -> None:
-    """ValueError when --json would overwrite an input (runfolder.check_not_input)."""
+    """ValueError when --json would overwrite an input (output_paths.check_not_input)."""
     inputs = [
         ("the reconstruction", cloud_path),
         ("the mesh", args.mesh or (None if args.reference_cloud else default_mesh_path())),

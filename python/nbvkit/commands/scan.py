@@ -10,7 +10,7 @@ import numpy as np
 from .._core import MAX_COORDINATE, DepthCamera, LaserScanner, RaycastScene
 from ..cloud import write_points
 from ..mesh import default_mesh_path
-from ..runfolder import check_not_input
+from ..output_paths import check_not_input
 from ..paths import check_output_file
 from .common import add_mesh_options, mesh_from_args, path_arg
 
