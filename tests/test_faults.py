@@ -7,6 +7,7 @@ import json
 import os
 import random
 import re
+import signal
 import sys
 import textwrap
 import time
@@ -140,6 +141,77 @@ def test_a_failing_run_leaves_nothing_and_the_old_run_stays(tmp_path, finished_r
         (rf.tmp / "summary.json").write_text("{}")
     assert sorted(os.listdir(out)) == ["cache", MANIFEST, "summary.json"]  # the cache is carried
     assert fb.leftovers(out) == []
+
+
+def test_checkpoints_are_complete_runs_put_in_place_until_the_run_is(tmp_path, finished_run):
+    """RunFolder.checkpoint puts a complete folder in place of the old run while the run goes on;
+    one whose writing fails leaves the last in place; the run's own commit replaces them, and
+    nothing is left beside the target."""
+    import shutil
+
+    from nbvkit.runfolder import _problem
+
+    out = tmp_path / "r"
+    shutil.copytree(finished_run[0], out)
+
+    def checkpoint_of(k):
+        def write(folder):
+            (folder / "summary.json").write_text(json.dumps({"k": k}))
+
+        return write
+
+    def kept():
+        return json.loads((out / "summary.json").read_text())
+
+    def whole():  # as a reader finds it once the run's lock is gone (a kill drops it)
+        return _problem(out, check_lock=False) is None
+
+    with RunFolder(out, overwrite=True) as rf:
+        rf.checkpoint(checkpoint_of(1))
+        assert "being written" in _problem(out)  # while the run goes on, readers wait
+        assert whole() and kept() == {"k": 1} and not (out / "map.ot").exists()
+        rf.checkpoint(checkpoint_of(2))
+        assert kept() == {"k": 2}
+
+        def full_disk(folder):
+            checkpoint_of(3)(folder)
+            raise OSError(28, "No space left on device")
+
+        with pytest.raises(OSError, match="No space"):
+            rf.checkpoint(full_disk)
+        assert whole() and kept() == {"k": 2}  # the last one stays
+        assert [x.name for x in tmp_path.glob(".r.ckpt*")] == []
+        (rf.tmp / "summary.json").write_text(json.dumps({"k": "final"}))
+    assert is_complete_run(out) and kept() == {"k": "final"}
+    assert sorted(x.name for x in tmp_path.iterdir()) == ["r"]
+
+
+def test_checkpoints_change_nothing_in_the_flight(tmp_path, monkeypatch):
+    """A mission checkpointed after every view flies exactly as one without checkpoints (their
+    summaries drop the planner's memos: the same answers without them); one whose checkpoints
+    cannot be written (a full disk) warns and flies on to its own results."""
+    from conftest import TINY_RUN
+    from nbvkit.config import load_config
+
+    def fly(minutes, out):
+        over = [*TINY_RUN, "max_iterations=6", "progress=false", f"checkpoint_minutes={minutes}"]
+        s = nbvkit.Mission(load_config(overrides=over)).run(out)
+        return s, (out / "trajectory.csv").read_text()
+
+    s0, flight0 = fly(0, tmp_path / "none")
+    s1, flight1 = fly(1e-9, tmp_path / "each")
+    assert s1["checkpoints"] == s1["iterations"] > 2 and s0["checkpoints"] == 0
+    assert flight1 == flight0
+    same = ("views", "distance_m", "entropy_final", "coverage", "area_coverage", "cloud_points")
+    assert {k: s1[k] for k in same} == {k: s0[k] for k in same}
+
+    def full_disk(self, write):
+        raise OSError(28, "No space left on device")
+
+    monkeypatch.setattr(RunFolder, "checkpoint", full_disk)
+    with pytest.warns(RuntimeWarning, match="checkpoint not saved, the flight goes on: .*space"):
+        s2, flight2 = fly(1e-9, tmp_path / "full")
+    assert flight2 == flight0 and s2["checkpoints"] == 0 and is_complete_run(tmp_path / "full")
 
 
 def test_two_runs_on_one_folder_cannot_both_succeed(tmp_path):
@@ -393,7 +465,7 @@ from nbvkit.settings import choice, within
 class StopAtConfig:
     views: int = within(3, 1, 1000)  # views flown before the part stops the flight
     # as Ctrl-C, as a part's bug, as a `kill` (SIGTERM to this process) or a hang-up (SIGHUP)
-    how: str = choice("interrupt", ("interrupt", "error", "sigterm", "sighup", "exit"))
+    how: str = choice("interrupt", ("interrupt", "error", "sigterm", "sighup", "exit", "sigkill"))
 
 
 class StopAt:
@@ -408,6 +480,8 @@ class StopAt:
                 raise KeyboardInterrupt
             if self.s.how == "exit":
                 sys.exit(3)  # a part that ends the process
+            if self.s.how == "sigkill":  # as the out-of-memory killer: no handler runs
+                os.kill(os.getpid(), signal.SIGKILL)
             if self.s.how in ("sigterm", "sighup"):
                 os.kill(os.getpid(), signal.Signals[self.s.how.upper()])
                 time.sleep(5)  # the handler raises here
@@ -529,6 +603,54 @@ def test_nbvkit_run_stopped_says_where_what_it_flew_is(tmp_path, stopping_part, 
     assert s["termination"] == "interrupted"
     named = f"Terminated: {how.upper()}" if how.startswith("sig") else "KeyboardInterrupt"
     assert s["stopped_by"].startswith(named)  # a kill is not recorded as a Ctrl-C
+
+
+def test_a_killed_run_leaves_its_last_checkpoint(tmp_path, stopping_part):
+    """SIGKILL during the views (as the out-of-memory killer sends: no handler runs, nothing is
+    saved at the end): `nbvkit run` leaves its last checkpoint, a complete run folder of what was
+    flown until it, that says it is one and that evaluate reads; without checkpoints the same
+    kill leaves nothing. The next run on the folder replaces it, leaving nothing beside it."""
+    import subprocess
+
+    from nbvkit.recorder import CHECKPOINT_STOP
+
+    def nbvkit_cli(*argv):
+        return subprocess.run(
+            [sys.executable, "-m", "nbvkit.cli", *argv],
+            capture_output=True,
+            text=True,
+            timeout=300,
+            env=dict(os.environ, MPLBACKEND="Agg"),
+        )
+
+    runs = {}
+    for minutes in ("0", "1e-9"):  # none; one after every view
+        out = runs[minutes] = tmp_path / f"run{minutes}"
+        over = [*_stopping("sigkill", 4), f"checkpoint_minutes={minutes}"]
+        p = nbvkit_cli("run", "--plugin", str(stopping_part), "--out", str(out), "--set", *over)
+        assert p.returncode == -signal.SIGKILL, (p.returncode, p.stderr)
+    assert not runs["0"].exists()  # killed before its own save: nothing in place
+    out = runs["1e-9"]
+    require_complete_run(out)
+    s = json.loads((out / "summary.json").read_text())
+    assert s["checkpoint"] is True and s["stopped_by"] == CHECKPOINT_STOP
+    assert s["termination"] == "interrupted" and s["stopped_during"] == "flight"
+    assert s["views"] == 4 and s["checkpoints"] == s["iterations"] - 1  # this one not counted
+    rows = (out / "iterations.csv").read_text().strip().splitlines()
+    assert len(rows) - 1 == s["iterations"]
+    assert s["area_coverage"]["0.05"] > 0 and (out / "map.ot").stat().st_size > 0
+    scored = tmp_path / "scored.json"
+    density = ["--gt-density", "50", "--seed", str(s["seed"])]  # as the run scored it
+    p = nbvkit_cli("evaluate", "--mesh", s["mesh"], *density, str(out), "--json", str(scored))
+    assert p.returncode == 0, p.stderr
+    assert json.loads(scored.read_text())["coverage"] == pytest.approx(s["coverage"])
+    # the next run on it: in place whole, no checkpoint or temporary folder left beside it
+    over = [*_stopping("error", 100), "checkpoint_minutes=1e-9", "max_iterations=3"]
+    argv = ["run", "--plugin", str(stopping_part), "--out", str(out), "--overwrite", "--set"]
+    assert nbvkit_cli(*argv, *over).returncode == 0
+    s = json.loads((out / "summary.json").read_text())
+    assert "checkpoint" not in s and s["termination"] == "max_iterations"
+    assert [x.name for x in tmp_path.glob(f".{out.name}*")] == []
 
 
 @pytest.mark.parametrize("cause", [KeyboardInterrupt, ZeroDivisionError])

@@ -68,6 +68,8 @@ class Config:
     start_pose: Optional[tuple] = None  # (x, y, z, yaw[, pitch]) instead of a predefined start
     max_iterations: Optional[int] = within(None, 0, 10**6)  # views; null: 0.5 per m^2 of surface
     progress: bool = True  # progress bar on stderr
+    # minutes between checkpoints of the run folder (what a kill loses at most); 0: none
+    checkpoint_minutes: float = within(10.0, 0.0, 1e6)
     mesh: MeshConfig = field(default_factory=MeshConfig)
     workspace: WorkspaceConfig = field(default_factory=WorkspaceConfig)
     map: MapConfig = field(default_factory=MapConfig)

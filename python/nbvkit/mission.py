@@ -69,7 +69,7 @@ class Mission:
                 return self._run()
             # before any work: a mission must not fly and then fail to save
             with RunFolder(out_dir, overwrite=overwrite, what="out_dir") as folder:
-                flown = fly_into(self, folder.tmp, finish)
+                flown = fly_into(self, folder, finish)
             return raise_stop(*flown)  # once the folder is in place
         finally:
             self._running.release()

@@ -3,10 +3,12 @@ planner's steps), the summary, and the run folder's files, each written once (su
 last, after the end-of-run outputs of nbvkit.report when asked for)."""
 from __future__ import annotations
 
+import contextvars
 import csv
 import resource
 import sys
 import time
+import warnings
 from dataclasses import dataclass, fields
 from pathlib import Path
 
@@ -16,12 +18,21 @@ from .limits import require_bool, require_type
 from .planning.registry import utility_only_checks
 from .planning.terminations.budget import BUDGET_REASONS
 from .output_paths import atomic_open, write_text_atomic
-from .runfolder import write_json_atomic
+from .runfolder import RunFolder, write_json_atomic
 from .vehicle import FLIGHT_COLUMNS
 
 # what stops a flight or its saving and leaves what was flown kept: Ctrl-C (and a `kill` handled
 # as it), sys.exit() from a part, any error
 STOPS = (KeyboardInterrupt, SystemExit, Exception)
+
+#: (the mission, the RunFolder it is written into) while fly_into flies it: its checkpoints' place
+_CHECKPOINTS = contextvars.ContextVar("nbvkit_checkpoints", default=None)
+
+#: a checkpoint's stopped_by: what a run folder left by a killed run says of its end
+CHECKPOINT_STOP = (
+    "not known: this is the run's last checkpoint, saved while it was still flying (a kill, an "
+    "out-of-memory kill or a power loss ended it before it saved its own results)"
+)
 
 
 def stop_kind(e: BaseException) -> str:
@@ -89,6 +100,8 @@ class Recorder:
         self.coverage_time_s = 0.0  # progress-report coverage refreshes (not a stage)
         self.bar = None
         self.flying_since = None  # the mission's start, once its views started (open_progress)
+        self.checkpoints, self.checkpoint_time_s = 0, 0.0  # checkpoints put in place, their time
+        self._last_checkpoint = None
 
     def open_progress(self, total: int, enabled: bool, since: float | None = None) -> None:
         """The progress bar of the views; `since`: the mission's start (perf_counter), from
@@ -142,6 +155,32 @@ class Recorder:
                 f"{step.distance_m:.0f} m H={step.entropy_after:,.0f}"
                 + (f" cov0.05={cov[0.05]:.1%}" if cov else "")
             )
+        self._checkpoint()
+
+    def _checkpoint(self) -> None:
+        """Every config.checkpoint_minutes of the mission, what was flown so far put in place as
+        its run folder (RunFolder.checkpoint) when fly_into flies it: a complete run whose
+        summary says it is a checkpoint (`checkpoint`, `stopped_by`), for a kill to leave. A
+        write error (a full disk) skips it, with a warning: the flight goes on."""
+        flying, minutes = _CHECKPOINTS.get(), self.mission.config.checkpoint_minutes
+        if flying is None or flying[0] is not self.mission or minutes <= 0:
+            return
+        now = time.perf_counter()
+        if now - (self._last_checkpoint or self.flying_since) < 60.0 * minutes:
+            return
+        try:
+            flying[1].checkpoint(lambda out: self._write_checkpoint(out, now - self.flying_since))
+            self.checkpoints += 1
+        except OSError as e:
+            warnings.warn(f"checkpoint not saved, the flight goes on: {e}", RuntimeWarning)
+        self._last_checkpoint = time.perf_counter()
+        self.checkpoint_time_s += self._last_checkpoint - now
+
+    def _write_checkpoint(self, out: Path, wall: float) -> None:
+        summary = self.summary("interrupted", wall)
+        summary.update(stopped_by=CHECKPOINT_STOP, stopped_during="flight", checkpoint=True)
+        self._write_flight(out)
+        write_json_atomic(out / "summary.json", summary)
 
     def summary(self, termination: str, wall: float) -> dict:
         m = self.mission
@@ -190,6 +229,9 @@ class Recorder:
             "ms_per_stage": per_stage,
             "final_plan_ms": final_plan_ms,
             "coverage_refresh_s": self.coverage_time_s,
+            # checkpoints of the run folder put in place while it flew, and the seconds they took
+            "checkpoints": self.checkpoints,
+            "checkpoint_s": self.checkpoint_time_s,
             # the process's peak resident memory so far (Linux ru_maxrss, KiB): in a sweep worker
             # that has flown several runs, the largest of them
             "peak_memory_mb": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0,
@@ -343,14 +385,19 @@ def _progress(total: int, enabled: bool):
 
 def fly_into(mission, out, finish: bool = False) -> tuple[dict, BaseException | None]:
     """Flies `mission` and writes its results into the folder `out` (Recorder.write): (summary,
-    None). A flight stopped once its views started, by Ctrl-C, sys.exit() or an error (a part's),
-    is not lost: what it flew is written (termination "interrupted" or "failed", `stopped_by`
-    the cause, without the end-of-run outputs) and (summary, the exception) returned, for the
-    caller to raise once the folder is in place (raise_stop); so is a whole flight whose saving
-    was stopped (its end-of-run outputs: Recorder.write_keeping, `stopped_during` "saving").
-    Stopped before the views (profile, symmetry), the exception propagates and nothing is
-    written. TypeError for a `finish` not True or False, before any flight."""
+    None). `out` a RunFolder: into its temporary folder, and its checkpoints put in place as the
+    mission flies (every config.checkpoint_minutes: Recorder._checkpoint). A flight stopped
+    once its views started, by Ctrl-C, sys.exit() or an error (a part's), is not lost: what it
+    flew is written (termination "interrupted" or "failed", `stopped_by` the cause, without the
+    end-of-run outputs) and (summary, the exception) returned, for the caller to raise once the
+    folder is in place (raise_stop); so is a whole flight whose saving was stopped (its
+    end-of-run outputs: Recorder.write_keeping, `stopped_during` "saving"). Stopped before the
+    views (profile, symmetry), the exception propagates and nothing is written. TypeError for
+    a `finish` not True or False, before any flight."""
     finish = require_bool(finish, "finish")
+    folder = out if isinstance(out, RunFolder) else None
+    out = folder.tmp if folder is not None else out
+    token = _CHECKPOINTS.set(None if folder is None else (mission, folder))
     try:
         summary = mission._run()
     except STOPS as e:
@@ -363,6 +410,8 @@ def fly_into(mission, out, finish: bool = False) -> tuple[dict, BaseException | 
         summary["stopped_by"] = error_line(e)
         summary["stopped_during"] = "flight"
         return rec.write(Path(out), summary), e
+    finally:
+        _CHECKPOINTS.reset(token)
     # stopped during the end-of-run outputs, the whole flight is kept without them
     return mission.recorder.write_keeping(Path(out), summary, finish=finish)
 

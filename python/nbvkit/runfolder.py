@@ -6,7 +6,9 @@ place when complete: the last file written into it is ``manifest.json`` (every o
 its size), then the temporary folder is renamed onto the target (swapped with an old run in one
 step where the file system can, with ``renameat2(RENAME_EXCHANGE)``). So a crash, a kill or a full
 disk leaves the target as it was (absent, or the previous whole run) plus a hidden temporary
-folder that the next run on that target removes.
+folder that the next run on that target removes. A long mission also puts checkpoints in place
+as it flies (``RunFolder.checkpoint``; every ``checkpoint_minutes``): each a complete run of what
+was flown so far, so a kill loses at most that much of the flight.
 
 ``manifest.json`` is the completion marker: a folder is a complete run when it holds one and
 every file it lists has the listed size (``require_complete_run``). Commands that read a run
@@ -27,6 +29,7 @@ nbvkit's own outputs (``OUTPUT_NAMES``): ``--overwrite`` never removes a user's 
 from __future__ import annotations
 
 import ctypes
+import glob
 import json
 import math
 import os
@@ -40,10 +43,9 @@ import numpy as np
 from ._version import __version__
 from .limits import MAX_TEXT_FILE_BYTES, check_input_file, is_number, require_bool
 from .locks import RunLock, lock_holder
-from .output_paths import check_output_dir, write_text_atomic
+from .output_paths import MANIFEST, check_output_dir, write_text_atomic
 
 __all__ = [
-    "check_not_input",
     "MANIFEST",
     "OUTPUT_NAMES",
     "IncompleteRunError",
@@ -56,9 +58,6 @@ __all__ = [
     "run_name",
     "write_manifest",
 ]
-
-#: the completion marker, written last
-MANIFEST = "manifest.json"
 
 #: every name nbvkit writes at the top of a run folder (an overwrite removes only these)
 OUTPUT_NAMES = frozenset(
@@ -362,12 +361,28 @@ class RunFolder:
     def _remove_stale(self) -> None:
         """Temporary folders of earlier runs on this target (killed: we hold the lock now)."""
         p = self.path
-        for d in p.parent.glob(f".{_glob_escape(p.name)}.tmp*"):
-            if d.is_dir() and d.name[len(p.name) + 5 :].isdigit():
-                shutil.rmtree(d, ignore_errors=True)
-        for d in p.parent.glob(f".{_glob_escape(p.name)}.old*"):
-            if d.is_dir() and d.name[len(p.name) + 5 :].isdigit():
-                shutil.rmtree(d, ignore_errors=True)
+        for kind in ("tmp", "old", "ckpt"):
+            prefix = f".{p.name}.{kind}"
+            for d in p.parent.glob(f"{glob.escape(prefix)}*"):
+                if d.is_dir() and d.name[len(prefix) :].isdigit():
+                    shutil.rmtree(d, ignore_errors=True)
+
+    def checkpoint(self, write) -> None:
+        """Puts a complete run in place as the target while this one goes on: what
+        ``write(folder)`` writes into a fresh hidden folder, its manifest last, swapped onto the
+        target as a commit is (replacing the previous checkpoint). A run killed later leaves the
+        last checkpoint in place of nothing; one that finishes replaces it. An exception while
+        writing it drops the checkpoint (the target stays as it was) and propagates."""
+        p = self.path
+        ck = p.parent / f".{p.name}.ckpt{os.getpid()}"
+        shutil.rmtree(ck, ignore_errors=True)
+        try:
+            ck.mkdir()
+            write(ck)
+            write_manifest(ck)
+            self._place(ck)
+        finally:
+            shutil.rmtree(ck, ignore_errors=True)  # (after a swap: the previous checkpoint)
 
     def __exit__(self, exc_type, exc, tb) -> None:
         try:
@@ -376,7 +391,7 @@ class RunFolder:
                 return
             try:
                 write_manifest(self.tmp)
-                self._commit()
+                self._place(self.tmp)
             except BaseException:
                 self._discard()
                 raise
@@ -393,23 +408,24 @@ class RunFolder:
                 pass
         shutil.rmtree(self.tmp, ignore_errors=True)
 
-    def _commit(self) -> None:
-        p, tmp = self.path, self.tmp
+    def _place(self, src: Path) -> None:
+        """Moves the folder `src` onto the target in one step (the old one removed)."""
+        p = self.path
         if p.exists() and os.listdir(p):
-            if _exchange(tmp, p):  # tmp now holds the old run
-                shutil.rmtree(tmp, ignore_errors=True)
+            if _exchange(src, p):  # src now holds the old run
+                shutil.rmtree(src, ignore_errors=True)
                 _fsync_path(p.parent)
                 return
             old = p.parent / f".{p.name}.old{os.getpid()}"
             os.rename(p, old)
             try:
-                os.rename(tmp, p)
+                os.rename(src, p)
             except OSError:
                 os.rename(old, p)  # the old run back in place
                 raise
             shutil.rmtree(old, ignore_errors=True)
         else:
-            os.rename(tmp, p)  # onto an absent or empty folder
+            os.rename(src, p)  # onto an absent or empty folder
         _fsync_path(p.parent)
 
 
@@ -418,12 +434,6 @@ def run_name(folder) -> str:
     name = Path(folder).name
     m = re.fullmatch(r"\.(.+)\.tmp\d+", name)
     return m.group(1) if m else name
-
-
-def _glob_escape(name: str) -> str:
-    import glob
-
-    return glob.escape(name)
 
 
 # ------------------------------------------------------------------ atomic files
@@ -443,43 +453,3 @@ def _jsonable(x):
     if isinstance(x, np.ndarray):
         return _jsonable(x.tolist())
     return x
-
-
-def check_not_input(path, inputs, what: str = "output file") -> None:
-    """ValueError naming both paths when writing the file `path` would overwrite one of the
-    command's `inputs` ((description, path or None) pairs: the same file, also through a
-    symbolic or hard link) or change a finished nbvkit run: `path` lies in a folder holding a
-    run's manifest (nbvkit.runfolder)."""
-    p = Path(os.fspath(path)).expanduser()
-    for desc, src in inputs:
-        if src is not None and _same_file(p, Path(os.fspath(src)).expanduser()):
-            raise ValueError(
-                f"{what} {p} is {desc} {src}, an input of this command: choose another file"
-            )
-    run = _run_folder_holding(p)
-    if run is not None:
-        raise ValueError(
-            f"{what} {p} lies in the nbvkit run folder {run}, whose files are the run's "
-            "results: choose a file outside it"
-        )
-
-
-def _same_file(a: Path, b: Path) -> bool:
-    try:
-        return os.path.samefile(a, b)
-    except OSError:  # one of them does not exist (yet): compare where their links lead
-        return os.path.realpath(a) == os.path.realpath(b)
-
-
-def _run_folder_holding(p: Path) -> Path | None:
-    """The innermost folder above the file p (symbolic links resolved) holding an nbvkit run's
-    manifest (a JSON object listing "files", as nbvkit.runfolder writes it), or None."""
-    for folder in Path(os.path.realpath(p)).parents:
-        try:
-            m = check_input_file(folder / MANIFEST, "run manifest", MAX_TEXT_FILE_BYTES)
-            manifest = json.loads(m.read_text())
-        except (OSError, UnicodeDecodeError, ValueError):
-            continue
-        if isinstance(manifest, dict) and "files" in manifest:
-            return folder
-    return None

@@ -118,7 +118,7 @@ def run(args) -> int:
     with RunFolder(out, overwrite=args.overwrite, what="--out") as folder:
         mission = Mission(cfg)
         with terminate_as_interrupt():  # a `kill` keeps the flight as Ctrl-C does
-            s, stop = fly_into(mission, folder.tmp, finish=True)
+            s, stop = fly_into(mission, folder, finish=True)
     print_summary(s, out)
     if stop is not None and s.get("stopped_during") == "saving":
         print(
