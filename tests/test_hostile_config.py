@@ -58,6 +58,25 @@ def test_a_huge_map_resolution_is_refused_naming_the_key(value):
         load_config(overrides=[f"map.resolution={value}"])
 
 
+@pytest.mark.parametrize(
+    "key",
+    [
+        "cloud.camera_voxel",
+        "cloud.laser_voxel",
+        "symmetry.voxel_size",
+        "symmetry.icp_voxel_size",
+        "symmetry.uniform_leaf",
+    ],
+)
+def test_a_voxel_grid_cell_over_1000_m_is_refused_naming_the_key(key):
+    """Cells the voxel grids refuse (over 1000 m) are refused by their key before any work: they
+    once failed only where used (ICP after a plane was found), naming no key."""
+    with pytest.raises(ValueError, match=rf"'{key}' = 1e\+12 is more than its limit 1000"):
+        load_config(overrides=[f"{key}=1e12"])
+    section, name = key.split(".")
+    assert getattr(getattr(load_config(overrides=[f"{key}=1000"]), section), name) == 1000
+
+
 def test_the_largest_map_resolution_loads():
     assert load_config(overrides=["map.resolution=10"]).map.resolution == 10
 

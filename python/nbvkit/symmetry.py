@@ -93,6 +93,10 @@ SymmetryConfig = cpp_section(
         "refine_max_points": Bound(hi=10**7),
         "icp_normal_k": Bound(hi=1000),
         "icp_max_iterations": Bound(hi=100_000),
+        # voxel grids' cells (voxelgrid_sampling takes up to 1000 m): named here, before any work
+        "voxel_size": Bound(hi=1000),
+        "icp_voxel_size": Bound(hi=1000),
+        "uniform_leaf": Bound(hi=1000),
     },
 )
 
