@@ -65,9 +65,9 @@ UTILITIES: dict = {}
 #: Section names a part may not take: the configuration's own (its keys and sections, and its
 #: methods: config.section(name) would be one; tests/test_plugins.py checks they are all here).
 RESERVED = frozenset(
-    "seed scenario start start_pose max_iterations progress mesh workspace map camera laser "
-    "cloud vehicle utility targets placement planner profiling symmetry evaluation "
-    "observability report sampling termination "
+    "seed scenario start start_pose max_iterations progress checkpoint_minutes mesh workspace "
+    "map camera laser cloud vehicle utility targets placement planner profiling symmetry "
+    "evaluation observability report sampling termination "
     "check section sections from_dict from_yaml with_overrides to_dict to_yaml".split()
 )
 
