@@ -177,10 +177,13 @@ class Recorder:
         self.checkpoint_time_s += self._last_checkpoint - now
 
     def _write_checkpoint(self, out: Path, wall: float) -> None:
-        summary = self.summary("interrupted", wall)
-        summary.update(stopped_by=CHECKPOINT_STOP, stopped_during="flight", checkpoint=True)
+        summary = {**self.kept_flight("interrupted", CHECKPOINT_STOP, wall), "checkpoint": True}
         self._write_flight(out)
         write_json_atomic(out / "summary.json", summary)
+
+    def kept_flight(self, why: str, stopped_by: str, wall: float) -> dict:
+        """The summary of a flight kept before it ended (`why`: its termination)."""
+        return {**self.summary(why, wall), "stopped_by": stopped_by, "stopped_during": "flight"}
 
     def summary(self, termination: str, wall: float) -> dict:
         m = self.mission
@@ -383,21 +386,20 @@ def _progress(total: int, enabled: bool):
     )
 
 
-def fly_into(mission, out, finish: bool = False) -> tuple[dict, BaseException | None]:
-    """Flies `mission` and writes its results into the folder `out` (Recorder.write): (summary,
-    None). `out` a RunFolder: into its temporary folder, and its checkpoints put in place as the
-    mission flies (every config.checkpoint_minutes: Recorder._checkpoint). A flight stopped
-    once its views started, by Ctrl-C, sys.exit() or an error (a part's), is not lost: what it
-    flew is written (termination "interrupted" or "failed", `stopped_by` the cause, without the
-    end-of-run outputs) and (summary, the exception) returned, for the caller to raise once the
-    folder is in place (raise_stop); so is a whole flight whose saving was stopped (its
-    end-of-run outputs: Recorder.write_keeping, `stopped_during` "saving"). Stopped before the
-    views (profile, symmetry), the exception propagates and nothing is written. TypeError for
-    a `finish` not True or False, before any flight."""
+def fly_into(mission, folder: RunFolder, finish: bool = False) -> tuple[dict, BaseException | None]:
+    """Flies `mission` and writes its results into the run folder being written, `folder`
+    (Recorder.write into its temporary folder): (summary, None); its checkpoints are put in
+    place as the mission flies (every config.checkpoint_minutes: Recorder._checkpoint). A
+    flight stopped once its views started, by Ctrl-C, sys.exit() or an error (a part's), is not
+    lost: what it flew is written (termination "interrupted" or "failed", `stopped_by` the
+    cause, without the end-of-run outputs) and (summary, the exception) returned, for the caller
+    to raise once the folder is in place (raise_stop); so is a whole flight whose saving was
+    stopped (its end-of-run outputs: Recorder.write_keeping, `stopped_during` "saving").
+    Stopped before the views (profile, symmetry), the exception propagates and nothing is
+    written. TypeError for a `finish` not True or False, before any flight."""
     finish = require_bool(finish, "finish")
-    folder = out if isinstance(out, RunFolder) else None
-    out = folder.tmp if folder is not None else out
-    token = _CHECKPOINTS.set(None if folder is None else (mission, folder))
+    out = Path(folder.tmp)
+    token = _CHECKPOINTS.set((mission, folder))
     try:
         summary = mission._run()
     except STOPS as e:
@@ -406,14 +408,12 @@ def fly_into(mission, out, finish: bool = False) -> tuple[dict, BaseException | 
             raise
         why = stop_kind(e)
         rec._say(why, e, "saving what was flown")
-        summary = rec.summary(why, time.perf_counter() - rec.flying_since)
-        summary["stopped_by"] = error_line(e)
-        summary["stopped_during"] = "flight"
-        return rec.write(Path(out), summary), e
+        summary = rec.kept_flight(why, error_line(e), time.perf_counter() - rec.flying_since)
+        return rec.write(out, summary), e
     finally:
         _CHECKPOINTS.reset(token)
     # stopped during the end-of-run outputs, the whole flight is kept without them
-    return mission.recorder.write_keeping(Path(out), summary, finish=finish)
+    return mission.recorder.write_keeping(out, summary, finish=finish)
 
 
 def raise_stop(summary: dict, stop: BaseException | None) -> dict:
