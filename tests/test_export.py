@@ -1731,6 +1731,50 @@ def test_an_export_killed_while_writing_leaves_nothing_half_written(run_dir, tmp
     assert list(tmp_path.iterdir()) == []
 
 
+def _simplify_by_measuring_each_run_again(wps, tol=1e-3):
+    """simplify's rule read literally: a plain point is dropped when it and every point dropped
+    since the last kept one lie within tol of the segment from that point to the next."""
+    keep, run = [wps[0]], []
+    for k in range(1, len(wps) - 1):
+        w, nxt = wps[k], wps[k + 1]
+        same = abs(w.yaw - nxt.yaw) < 1e-12 and abs(w.pitch - nxt.pitch) < 1e-12
+        pts, a, b = np.array([*run, w.xyz]), keep[-1].xyz, nxt.xyz
+        t = np.clip((pts - a) @ (b - a) / max((b - a) @ (b - a), 1e-300), 0.0, 1.0)
+        if w.action in ("waypoint", "transit") and same:
+            if np.linalg.norm(pts - (a + t[:, None] * (b - a)), axis=1).max() <= tol:
+                run.append(w.xyz)
+                continue
+        keep.append(w)
+        run = []
+    return keep + [wps[-1]]
+
+
+def test_simplify_keeps_what_measuring_every_dropped_point_again_keeps():
+    """simplify bounds a run's distance instead of measuring it again at every point: the same
+    waypoints kept, on random paths of straight runs in centimetre steps with jitter around the
+    tolerance, bends, turns of heading and captures."""
+    from nbvkit.export.plan import Waypoint, simplify
+
+    rng = np.random.default_rng(7)
+    for trial in range(40):
+        p, yaw, wps = np.zeros(3), 0.0, []
+        for _ in range(int(rng.integers(1, 6))):  # straight stretches
+            d = rng.normal(size=3)
+            d /= np.linalg.norm(d)
+            jitter = float(rng.choice([0.0, 1e-4, 4e-4, 1e-3]))
+            for _ in range(int(rng.integers(2, 400))):
+                p = p + 0.03 * d
+                yaw = yaw + (0.1 if rng.random() < 0.01 else 0.0)
+                action = "view" if rng.random() < 0.01 else str(rng.choice(["waypoint", "transit"]))
+                xyz = p + rng.normal(scale=jitter, size=3)
+                wps.append(Waypoint(xyz, yaw, 0.0, action, -1, "nbv"))
+        kept, want = simplify(wps), _simplify_by_measuring_each_run_again(wps)
+        assert [id(w) for w in kept] == [id(w) for w in want], trial
+    line = [Waypoint(np.array([0.0, 0.0, 0.03 * k]), 0.0, 0.0, "transit", -1, "out")
+            for k in range(20000)]  # fmt: skip
+    assert [float(w.xyz[2]) for w in simplify(line)] == [0.0, 0.03 * 19999]
+
+
 def test_the_way_out_and_back_is_flown_in_few_items(run_dir, tmp_path):
     """The ways out and back retrace the flight in steps of centimetres: their straight stretches
     are one item each (simplify drops "transit" points on the line as it drops plain ones), so
