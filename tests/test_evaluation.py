@@ -7,6 +7,7 @@ import json
 import math
 import subprocess
 import sys
+import warnings
 from pathlib import Path
 
 import numpy as np
@@ -413,6 +414,27 @@ def test_cli_evaluate_warns_when_the_cloud_is_in_another_frame(cube_files, capsy
     assert main([*args, str(tmp_path / "moved.ply")]) == 0
     err = capsys.readouterr().err
     assert "same frame" in err and "--mesh-shift" in err
+
+
+def test_cli_prints_its_own_warnings_in_one_line(cube_files, capsys, tmp_path):
+    """A warning of nbvkit's own reaches the console as its errors do ("nbvkit evaluate:
+    warning: ..."), not as Python's file, line and source of nbvkit's code; and a warning is not
+    lost: the points it names are dropped and the rest scored."""
+    from nbvkit.cli import main
+
+    face = nbvkit.read_points(cube_files / "face.ply")
+    body = "".join(f"{x!r} {y!r} {z!r}\n" for x, y, z in face[:500])
+    header = "VERSION 0.7\nFIELDS x y z\nSIZE 4 4 4\nTYPE F F F\nCOUNT 1 1 1\n"
+    n = 501
+    pcd = header + f"WIDTH {n}\nHEIGHT 1\nPOINTS {n}\nDATA ascii\n" + body + "nan 0 0\n"
+    (tmp_path / "nan.pcd").write_text(pcd)
+    args = ["evaluate", "--mesh", str(cube_files / "cube.obj"), "--gt-density", "500"]
+    with warnings.catch_warnings():
+        warnings.simplefilter("always")  # whatever filter pytest set
+        assert main([*args, str(tmp_path / "nan.pcd")]) == 0
+    err = capsys.readouterr().err
+    line = f"nbvkit evaluate: warning: {tmp_path / 'nan.pcd'}: dropped 1 points with NaN"
+    assert line in err and "RuntimeWarning" not in err and ".py:" not in err, err
 
 
 def test_cli_evaluate_writes_json(cube_files, capsys):

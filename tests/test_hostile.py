@@ -10,6 +10,7 @@ import subprocess
 import sys
 import textwrap
 import time
+import warnings
 from pathlib import Path
 
 import pytest
@@ -243,6 +244,37 @@ def test_case4_a_georeferenced_mesh_is_told_its_shift_and_flies_with_it(tmp_path
     assert rc == 0, err
     cfg = yaml.safe_load((tmp_path / "b" / "config.yaml").read_text())
     assert cfg["mesh"]["shift"] == [-500000.0, -4000000.0, 0.0]
+
+
+def test_case4_a_mesh_given_in_altitudes_is_told_the_shift_that_grounds_it(tmp_path):
+    """A structure whose z is an altitude (the unit cube 300 m up, far from the origin): the
+    map's error gives the shift that brings it near and onto the ground; near the origin but
+    still 300 m up, it flies with a warning naming that shift; grounded, without one. A cube on
+    the ground, or on a mast of its own height, is not warned about."""
+    from nbvkit import World
+
+    def cube_at(name, dx, dy, dz, size=1.0):
+        path = tmp_path / name
+        v = [(size * x + dx, size * y + dy, size * z + dz) for x, y, z in CUBE_V]
+        path.write_bytes(obj_file(v))
+        return path
+
+    far = cube_at("utm_alt.obj", 500000.0, 4000000.0, 300.0)
+    rc, _, err = cli("run", "--mesh", far, "--out", tmp_path / "a", timeout=120)
+    expect_error(rc, err, "addressable range", "mesh.shift=[-500000,-4000000,-300]")
+    over = ["cloud.min_z=0.3", "profiling.enabled=false"]
+    with pytest.warns(
+        RuntimeWarning, match=r"lies 300 m above .*mesh.shift=\[-500000,-4000000,-300\]"
+    ):
+        World(load_config(overrides=[f"mesh.path={far}", "mesh.shift=[-500000,-4000000,0]", *over]))
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")  # grounded as told: no warning
+        w = World(
+            load_config(overrides=[f"mesh.path={far}", "mesh.shift=[-500000,-4000000,-300]", *over])
+        )
+        assert w.workspace.bounds_max[2] < 10.0 and w.mesh.bounds[0][2] == pytest.approx(0.0)
+        for name, dz, size in (("ground.obj", 0.0, 1.0), ("mast.obj", 12.0, 12.0)):
+            World(load_config(overrides=[f"mesh.path={cube_at(name, 0, 0, dz, size)}", *over]))
 
 
 # ------------------------------------------------------------------------ 5-7: lost results

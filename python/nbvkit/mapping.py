@@ -18,6 +18,7 @@ from ._core import IntegrationStats, OccupancyMap, OccupancyMapOptions
 from .limits import Bound
 from .work_limits import MissionError
 from .settings import cpp_section
+from .workspace import grounding_shift
 
 __all__ = [
     "CellFlag",
@@ -74,9 +75,11 @@ def new_map(cfg, mesh_bounds, ws) -> OccupancyMap:
                 f"{cfg.workspace.margin_z} m) are too large for the map at map.resolution = "
                 f"{m.resolution:g} m"
             ) from None
+        # the centre to the origin, and a floating or sunken structure onto the ground
         c = np.round(-(np.asarray(mesh_bounds[0]) + np.asarray(mesh_bounds[1])) / 2)
         c[2] = 0.0
-        shift = ",".join(f"{x:.0f}" for x in c + np.asarray(cfg.mesh.shift, float))
+        shift = np.round(grounding_shift(mesh_bounds, np.asarray(cfg.mesh.shift, float) + c))
+        shift = ",".join(f"{x:.0f}" for x in shift)
         raise MissionError(
             f"{e}: the structure lies too far from the origin for the map; fly it in a frame "
             f"near the origin with mesh.shift (e.g. --set mesh.shift=[{shift}]: its "

@@ -34,6 +34,7 @@ from .workspace import (
     ground_height,
     make_workspace,
     start_poses,
+    warn_floating,
 )
 
 
@@ -160,6 +161,7 @@ class World:
             check_work(cfg, mesh, self.workspace)
             # The map first: its size check (cells, OctoMap's range) comes before any search.
             self.map = new_map(cfg, mesh.bounds, self.workspace)
+            warn_floating(mesh.bounds, cfg)  # a structure given in altitudes
         except ValueError as e:  # a structure of a size the metre makes unlikely: say so
             if not (hint := units_hint(mesh.bounds, cfg.mesh.scale)):
                 raise
