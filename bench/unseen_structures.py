@@ -1,6 +1,6 @@
-"""Writes ten structures unlike the ones the planner's settings were measured on, to fly it on
+"""Writes eleven structures unlike the ones the planner's settings were measured on, to fly it on
 shapes it was never tuned for (docs/RESULTS.md, "Six structures built after the settings" and
-"Three more: a domed drum, a guyed chimney, solar rows"):
+"Three more: a domed drum, a guyed chimney, solar rows", "An open top"):
 
 - station: a 14 x 10 x 5 m shop with a flat roof behind 0.8 m parapets, a 30 x 12 m forecourt
   slab 0.25 m thick and a canopy on four columns 4.5 m up over it, turned 20 degrees and moved
@@ -20,11 +20,14 @@ shapes it was never tuned for (docs/RESULTS.md, "Six structures built after the 
   porches (one large curved surface, seen mostly at grazing angles from a level camera);
 - chimney: a 40 m chimney, 3 m across, with a gallery at 30 m and three guy wires 6 cm thick
   (thinner than a map cell) down to anchors 20 m out (tall, with members the map barely holds);
+- flue: an open-topped stack 60 m tall, 7 m across at its foot, its wall 0.4 m thick (its inside
+  observable from within, through the top), a boiler house and a duct, turned -35 degrees and
+  moved 40 m east and 25 m south;
 - solar: four rows of solar panels, 16 x 2 m and 5 cm thick, tilted 25 degrees on posts, moved
   to x = -120 m and turned 15 degrees (wide, flat and low, thin plates seen from both sides).
 
-Each part is a closed triangle mesh (boxes, capped cylinders or cones, a sphere); parts overlap
-where they join, as in a modelled structure. The output is deterministic.
+Each part is a closed triangle mesh (boxes, capped cylinders or cones, a sphere, a cup); parts
+overlap where they join, as in a modelled structure. The output is deterministic.
 
     .venv/bin/python bench/unseen_structures.py runs/unseen            # writes runs/unseen/*.obj
     .venv/bin/nbvkit run --mesh runs/unseen/ship.obj --out runs/ship
@@ -36,6 +39,10 @@ import math
 from pathlib import Path
 
 import numpy as np
+
+
+def _angles(n: int) -> list:
+    return [2 * math.pi * k / n for k in range(n)]
 
 
 class Builder:
@@ -76,6 +83,23 @@ class Builder:
         for k in range(n):
             j = (k + 1) % n
             f += [(k, j, n + k), (j, n + j, n + k), (2 * n, j, k), (2 * n + 1, n + k, n + j)]
+        self.add(v, f)
+
+    def cup(self, z0, z1, r_out, r_in, taper=1.0, n=32):
+        """An upright tube open at its top (z1), its wall r_out - r_in thick, on a floor at z0:
+        outer and inner walls (radii times `taper` at the top), the top's ring, the floor."""
+        v = []
+        for r in (r_out, r_in):
+            for z, t in ((z0, 1.0), (z1, taper)):
+                v += [(r * t * math.cos(a), r * t * math.sin(a), z) for a in _angles(n)]
+        v.append((0.0, 0.0, z0))
+        f = []
+        for k in range(n):
+            j = (k + 1) % n
+            f += [(k, j, n + k), (j, n + j, n + k)]  # outer wall, facing out
+            f += [(2 * n + k, 3 * n + k, 2 * n + j), (2 * n + j, 3 * n + k, 3 * n + j)]  # inner
+            f += [(n + k, n + j, 3 * n + k), (n + j, 3 * n + j, 3 * n + k)]  # the top's ring
+            f += [(4 * n, j, k)]  # the floor, facing down
         self.add(v, f)
 
     def sphere(self, c, r, n=16, upper_half=False):
@@ -244,6 +268,14 @@ def chimney() -> Builder:
     return m
 
 
+def flue() -> Builder:
+    m = Builder()
+    m.cup(0.0, 60.0, 3.5, 3.1, taper=0.7, n=40)  # open at the top: its inside seen from within
+    m.box([4.0, -5.0, 0.0], [16.0, 5.0, 7.0])  # boiler house
+    m.cylinder([3.0, 0.0, 4.0], [4.5, 0.0, 4.0], 0.8, n=16)  # flue duct into the stack
+    return m.place(-35.0, (40.0, -25.0, 0.0))
+
+
 def solar() -> Builder:
     m, tilt = Builder(), math.radians(25)
     for row in range(4):
@@ -301,6 +333,7 @@ STRUCTURES = {
     "dome": dome,
     "chimney": chimney,
     "solar": solar,
+    "flue": flue,
 }
 
 

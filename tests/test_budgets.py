@@ -79,6 +79,38 @@ def test_a_budget_that_ended_the_mission_is_said_on_the_console_and_in_the_files
     assert rows and all(float(r["expected_m2"]) >= float(r["realized_m2"]) >= 0 for r in rows)
 
 
+def test_a_tour_that_ends_as_complete_missing_much_of_the_observable_area_says_so(capsys):
+    """Coverage tours that find nothing more to fly to while over 10 % of the observable area is
+    missed (an open chimney's inside with level views) say so under the observable figures, and
+    name surface_gimbal when the views were level; a budget's end, a run above 90 %, one without
+    the observable surface or without coverage tours gets no such note."""
+    from nbvkit.commands.run import COMPLETE_BELOW, missed_note, print_summary
+
+    s = {
+        "scenario": "surface", "start": 0, "iterations": 138, "distance_m": 1597.7,
+        "entropy_reduction": 7.8e6, "entropy_unit": "nats", "termination": "coverage_complete",
+        "generators": ["tour"], "coverage": {"0.05": 0.55}, "area_coverage": {"0.05": 0.553},
+        "coverage_observable": {"0.05": 0.563}, "area_coverage_observable": {"0.05": 0.566},
+        "observable_area_fraction": 0.977, "wall_time_s": 59.6, "ms_per_iteration": 155.2,
+    }  # fmt: skip
+    print_summary(s, "out", level=True)
+    said = capsys.readouterr().out.splitlines()
+    at = said.index("of the observable surface (97.7% of the area):")
+    assert said[at + 3].startswith("note: the coverage tours found nothing more worth flying to, "
+                                   "yet 43.4% of the observable area was missed; its views were "
+                                   "level")  # fmt: skip
+    assert "--planner surface_gimbal" in said[at + 3]
+    gimbal = missed_note(s, level=False)
+    assert "43.4% of the observable area" in gimbal and "surface_gimbal" not in gimbal
+    for change in (
+        {"termination": "max_iterations"},
+        {"area_coverage_observable": {"0.05": COMPLETE_BELOW}},
+        {"area_coverage_observable": {}},
+        {"generators": ["frontier"]},
+    ):
+        assert missed_note({**s, **change}, level=True) is None, change
+
+
 def test_a_100_m_structure_at_the_defaults_is_not_refused_but_an_explicit_excess_is():
     # The work checks (nbvkit.work_limits) refuse what would not fit in memory, not a large
     # structure at the default 0.2 m map: a 100 x 70 x 48 m plant's box holds about 77 M cells; its
