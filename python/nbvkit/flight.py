@@ -47,8 +47,9 @@ def simplify(wps: list, tol: float = 1e-3) -> list:
     and pitch: the same path and headings in fewer items (the profile's sweep is flown, and
     retraced out and back, in steps of a few centimetres). A point is dropped when every point
     dropped since the last kept one, and itself, lies within `tol` of the segment from the last
-    kept point to the next point (_Run: linear in the points on a straight run, where measuring
-    each run again was quadratic: 64 s for a 310 m climb in centimetre steps)."""
+    kept point to the next point (_Run: about linear in the points of a straight run, where
+    measuring each run again was quadratic: 62 s of 108,377 waypoints, a building's flight
+    estimate flown 310 m above the ground, in centimetre steps)."""
     if len(wps) < 3:
         return list(wps)
     keep = [wps[0]]
