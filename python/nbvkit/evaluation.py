@@ -77,6 +77,7 @@ SUMMARY_KEYS: tuple = (
     "chamfer_m",
     "n_points",
     "gt_density",
+    "gt_area_m2",
 )
 
 
