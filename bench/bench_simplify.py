@@ -15,7 +15,7 @@ import numpy as np
 
 import nbvkit.export as export
 from nbvkit import flight
-from nbvkit.flight import Waypoint, _off_segment
+from nbvkit.flight import Waypoint, _off_segment, plain_as_next
 
 
 def measured_again(wps: list, tol: float = 1e-3) -> list:
@@ -23,13 +23,8 @@ def measured_again(wps: list, tol: float = 1e-3) -> list:
     keep, run = [wps[0]], []
     for k in range(1, len(wps) - 1):
         w, nxt = wps[k], wps[k + 1]
-        droppable = (
-            w.action in ("waypoint", "transit")
-            and abs(w.yaw - nxt.yaw) < 1e-12
-            and abs(w.pitch - nxt.pitch) < 1e-12
-            and _off_segment(np.array([*run, w.xyz]), keep[-1].xyz, nxt.xyz).max() <= tol
-        )
-        if droppable:
+        pts = np.array([*run, w.xyz])
+        if plain_as_next(w, nxt) and _off_segment(pts, keep[-1].xyz, nxt.xyz).max() <= tol:
             run.append(w.xyz)
         else:
             keep.append(w)

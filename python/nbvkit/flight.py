@@ -56,19 +56,23 @@ def simplify(wps: list, tol: float = 1e-3) -> list:
     run = _Run()  # positions dropped since the last kept point
     for k in range(1, len(wps) - 1):
         w, nxt = wps[k], wps[k + 1]
-        droppable = (
-            w.action in ("waypoint", "transit")
-            and abs(w.yaw - nxt.yaw) < 1e-12
-            and abs(w.pitch - nxt.pitch) < 1e-12
-            and run.within(w.xyz, keep[-1].xyz, nxt.xyz, tol)
-        )
-        if droppable:
+        if plain_as_next(w, nxt) and run.within(w.xyz, keep[-1].xyz, nxt.xyz, tol):
             run.add(w.xyz)
         else:
             keep.append(w)
             run = _Run()
     keep.append(wps[-1])
     return keep
+
+
+def plain_as_next(w: Waypoint, nxt: Waypoint) -> bool:
+    """Whether w captures nothing ("waypoint", "transit") and has the next point's yaw and
+    pitch: simplify may drop it where it lies on the line."""
+    return (
+        w.action in ("waypoint", "transit")
+        and abs(w.yaw - nxt.yaw) < 1e-12
+        and abs(w.pitch - nxt.pitch) < 1e-12
+    )
 
 
 class _Run:
