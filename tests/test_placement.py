@@ -19,7 +19,9 @@ def reference_views(centers, normals, reach, half, mount, mount_yaw, spread, gim
         el_n = math.atan2(n[2], h)
         pitches = [0.0]
         if gimbal and abs(-el_n + mount) > half:
-            pitches.append(min(max(el_n - mount, lo_p), hi_p))
+            pitch = min(max(el_n - mount, lo_p), hi_p)
+            if pitch != 0.0:  # clamped to level: the level view is there already
+                pitches.append(pitch)
         for pitch in pitches:
             axis_el = -(mount + pitch)
             el = -min(max(-el_n, axis_el - half), axis_el + half)
@@ -65,6 +67,7 @@ def _normals(rng, n):
         (True, 0.0, 30.0, (-30.0, 90.0)),
         (True, 10.0, 0.0, (-30.0, 60.0)),
         (False, -5.0, 45.0, (0.0, 0.0)),
+        (True, 0.0, 30.0, (0.0, 90.0)),  # looking down only (placement.explore_gimbal)
     ],
 )
 def test_views_match_the_python_loop_bit_for_bit(gimbal, mount_deg, spread_deg, limits_deg):
@@ -89,6 +92,8 @@ def test_views_match_the_python_loop_bit_for_bit(gimbal, mount_deg, spread_deg, 
     assert np.array_equal(bands, ref[2])
     if gimbal:
         assert np.any(poses[:, 4] != 0)  # roofs and undersides faced by the gimbal
+    # no view twice: a pitch clamped to level is the level view
+    assert len(np.unique(np.column_stack([poses, owner]), axis=0)) == len(poses)
 
 
 def test_bad_patch_arrays_are_refused_with_a_message():

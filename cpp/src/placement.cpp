@@ -23,8 +23,10 @@ PlacedViews place_patch_views(const PointsRef& centers, const PointsRef& normals
     const double el_n = std::atan2(n2, h);  // the normal's elevation: the direction patch -> camera
     double pitches[2] = {0.0, 0.0};
     int n_pitch = 1;
-    if (p.gimbal && std::abs(-el_n + p.mount) > p.half)
-      pitches[n_pitch++] = std::min(std::max(el_n - p.mount, p.lo_pitch), p.hi_pitch);
+    if (p.gimbal && std::abs(-el_n + p.mount) > p.half) {
+      const double pitch = std::min(std::max(el_n - p.mount, p.lo_pitch), p.hi_pitch);
+      if (pitch != 0.0) pitches[n_pitch++] = pitch;  // clamped to level: the level view's twin
+    }
     for (int q = 0; q < n_pitch; ++q) {
       const double pitch = pitches[q];
       const double axis_el = -(p.mount + pitch);  // the optical axis' elevation
