@@ -542,3 +542,71 @@ def test_the_known_model_marks_every_cell_of_its_observable_surface_occupied(mon
         assert np.all(world.map.state(np.array([[-0.1, -0.3, 1.25]])) == -1)  # the inside
     assert free[0] > 0.01 * len(sides)  # the frames alone miss some: what this test is about
     assert free[1] == 0, f"{free[1]} of {len(sides)} side samples' cells not occupied"
+
+
+def well_mesh(inner=3.6, wall=0.3, height=5.0):
+    """An open-topped square well on the ground: four walls `wall` thick round an `inner` x
+    `inner` m shaft `height` m deep, on a floor slab 0.3 m thick; (mesh, inside) where inside
+    is a function of points (N, 3) -> bool: on the shaft's walls or its floor."""
+    from conftest import box_mesh
+
+    a, b = inner / 2, inner / 2 + wall
+    parts = [
+        box_mesh((-b, -b, 0), (b, -a, height)),
+        box_mesh((-b, a, 0), (b, b, height)),
+        box_mesh((-b, -a, 0), (-a, a, height)),
+        box_mesh((a, -a, 0), (b, a, height)),
+        box_mesh((-a, -a, 0), (a, a, 0.3)),
+    ]
+    v = np.vstack([p.vertices for p in parts])
+    f = np.vstack([p.faces + 8 * k for k, p in enumerate(parts)])
+
+    def inside(p):
+        within = np.all(np.abs(p[:, :2]) < a + 1e-6, axis=1)
+        return within & (p[:, 2] > 0.3 - 1e-6) & (p[:, 2] < height - 1e-6)
+
+    return nbvkit.Mesh(v, f), inside
+
+
+def test_views_of_unknown_space_look_down_into_an_open_top():
+    """An open-topped well 5 m deep (its shaft 3.6 m across): the recommended planner's level
+    views see only the shaft's top; with placement.explore_gimbal (the default) its views of
+    the unknown space look down into it, never up, and the camera covers the shaft's walls and
+    floor. Other views stay level."""
+    from nbvkit.config import load_config
+
+    mesh, inside = well_mesh()
+    pts = mesh.sample_surface(20000, 5)
+    shaft = pts[inside(pts)]
+    seen = {}
+    for on in (False, True):
+        flag = f"placement.explore_gimbal={str(on).lower()}"
+        m = Mission(load_config(overrides=["scenario=surface", *QUICK_RUN, flag]), mesh=mesh)
+        m.run()
+        seen[on] = float(np.mean(_core.nearest_distances(m.world.cloud_points(), shaft) < 0.1))
+        pitch = np.array([r.pitch for r in m.records])
+        if on:  # down into the shaft, never up
+            assert np.any(pitch > 0.3) and np.all(pitch >= 0.0), pitch
+        else:
+            assert np.all(pitch == 0.0)
+        assert np.any(pitch == 0.0)  # the surface's views
+    assert seen[True] > seen[False] + 0.3, seen
+
+
+def test_views_of_unknown_space_are_pitched_down_only_where_the_gimbal_can():
+    """explore_placement: the recommended planner's views of unknown space take the gimbal's
+    range above level, straight on; surface_gimbal's keep its whole range; a camera that cannot
+    look down, and the paper's level camera, stay level."""
+    from nbvkit.config import load_config
+    from nbvkit.planning.placement import explore_placement
+
+    def of(*sets):
+        cfg = load_config(overrides=list(sets))
+        at, cam = explore_placement(cfg.placement, cfg.camera)
+        return at.gimbal, tuple(cam.gimbal_pitch_deg), at.azimuth_spread_deg
+
+    assert of("scenario=surface") == (True, (0.0, 90.0), 0.0)
+    assert of("scenario=surface_gimbal") == (True, (-30.0, 90.0), 0.0)
+    assert of("scenario=surface", "placement.explore_gimbal=false")[0] is False
+    assert of("scenario=surface", "camera.gimbal_pitch_deg=[-30,0]")[0] is False
+    assert of("scenario=5")[1] == (0.0, 0.0)  # place_views keeps it level

@@ -119,7 +119,7 @@ def run(args) -> int:
         mission = Mission(cfg)
         with terminate_as_interrupt():  # a `kill` keeps the flight as Ctrl-C does
             s, stop = fly_into(mission, folder, finish=True)
-    print_summary(s, out, level=not cfg.placement.gimbal)
+    print_summary(s, out, level=not (cfg.placement.gimbal or cfg.placement.explore_gimbal))
     if stop is not None and s.get("stopped_during") == "saving":
         print(
             f"nbvkit run: saving was stopped after the flight ({s['stopped_by']}); the whole "
@@ -166,9 +166,10 @@ COMPLETE_BELOW = 0.9
 
 def missed_note(s: dict, level: bool) -> str | None:
     """The console's words for a coverage tour that found nothing more to fly to while a large
-    share of the observable surface is missed, and, when its views were level (`level`:
-    placement.gimbal off), the planner that pitches the camera (an open chimney: 56.6 % of the
-    observable area with level views, 99.1 % with surface_gimbal); None otherwise, and None
+    share of the observable surface is missed, and, when no view could look down (`level`:
+    placement.gimbal and placement.explore_gimbal off), the planner that pitches the camera (an
+    open chimney: 56.6 % of the observable area with level views, 99.1 % with surface_gimbal);
+    None otherwise, and None
     where the views the last plan left for their flight (budget_note) would add half of what
     was missed (a 3 m aircraft: 0.8 m2 of its 0.9 m2)."""
     cov = s.get("area_coverage_observable", {}).get("0.05")

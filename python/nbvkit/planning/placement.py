@@ -42,6 +42,11 @@ class PlacementConfig:
     # also face the patches the level camera cannot face head-on (roofs, undersides) by the
     # gimbal's pitch (camera.gimbal_pitch_deg); false: level views (docs/RESULTS.md, "gimbal")
     gimbal: bool = False
+    # views of the unknown space (tour.explore) also look down into it by the gimbal's pitch
+    # (never up) while the surface's views stay level: a level camera cannot open a shaft or an
+    # open top from above (a 100 m open chimney: 55 -> 98 % of its area; RESULTS.md, "Looking
+    # down into an open top"); false: level
+    explore_gimbal: bool = True
     # a patch none of whose views can be flown (outside the navigation space, or the vehicle's
     # sphere there not known free) is looked at from the nearest direction that can: its
     # normal tilted by 15, 30, ... 75 deg (refit_blocked); false: such a patch waits; null: on a
@@ -137,6 +142,20 @@ def place_views(patches: Patches, camera, placement, bounds=None) -> tuple[np.nd
             (min(placement.standoffs) * camera.max_range / 2, camera.max_range),
         )
     return (poses if gimbal else poses[:, :4]), owner
+
+
+def explore_placement(placement, camera):
+    """(placement, camera) for views of the unknown space (tour.explore): straight on
+    (azimuth_spread_deg 0); with placement.gimbal pitched either way as the surface's views are,
+    else with placement.explore_gimbal pitched down only (the camera's gimbal range above
+    level: an open top is opened from above; unknown space under a structure is seen from its
+    sides). Level when the gimbal cannot look down."""
+    straight = dataclasses.replace(placement, azimuth_spread_deg=0.0)
+    lo, hi = camera.gimbal_pitch_deg
+    if placement.gimbal or not placement.explore_gimbal or hi <= 0:
+        return straight, camera
+    down = dataclasses.replace(camera, gimbal_pitch_deg=(max(lo, 0.0), hi))
+    return dataclasses.replace(straight, gimbal=True), down
 
 
 def into_bounds(positions, aims, bounds, band, distances) -> np.ndarray:

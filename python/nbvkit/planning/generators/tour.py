@@ -38,7 +38,6 @@ region the vehicle is in, then the next of an open tour over the regions still h
 and explore the unknown space of the whole workspace from the first plan."""
 from __future__ import annotations
 
-import dataclasses
 from dataclasses import dataclass
 from typing import Optional
 
@@ -48,7 +47,7 @@ from ... import _core
 from ...limits import require_type
 from ...settings import choice, nonneg, positive, within
 from ..parts import Proposal, threshold_scale
-from ..placement import Patches, place_views, refit_blocked, target_patches
+from ..placement import Patches, explore_placement, place_views, refit_blocked, target_patches
 from .access import access_elements
 from .exploration import exploration_targets
 from ...workspace import is_large
@@ -180,8 +179,10 @@ class CoverageTour:
                 box = (world.workspace.bounds_min, world.workspace.bounds_max)
             near = self.settings.explore_range * ctx.camera.max_range or None
             more = target_patches(exploration_targets(world.map, box, near), size)
-            straight = dataclasses.replace(ctx.placement, azimuth_spread_deg=0.0)
-            views, of = place_views(more, ctx.camera, straight, bounds)
+            explore_at, camera = explore_placement(ctx.placement, ctx.camera)
+            views, of = place_views(more, camera, explore_at, bounds)
+            if views.shape[1] > candidates.shape[1]:  # the surface's level, the unknown's pitched
+                candidates = np.column_stack([candidates, np.zeros(len(candidates))])
             candidates = np.vstack([candidates, views])
             owner = np.concatenate([owner, of + len(patches.weights)])
             patches = Patches(
