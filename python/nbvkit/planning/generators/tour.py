@@ -157,8 +157,10 @@ class CoverageTour:
         feasible view looks at (placement.fallback; none without it)) over the surface
         still to observe that the map shows now; with explore, also over the unknown space
         within the structure's extent that borders known free space (exploration_targets,
-        grouped per cube of the camera's nearer stand-off, each looked at straight on; their
-        patches follow the surface's)."""
+        grouped per cube of the camera's nearer stand-off, each looked at straight on, and
+        down by the gimbal with placement.explore_gimbal (explore_placement); their patches
+        follow the surface's; with pitched views of the unknown space and level views of the
+        surface, the surface's get a pitch of 0)."""
         ctx = self.ctx
         bounds = (world.workspace.nav_min, world.workspace.nav_max)
         targets = _core.surface_targets(world.map, world.surface, ctx.targets)
@@ -181,7 +183,9 @@ class CoverageTour:
             more = target_patches(exploration_targets(world.map, box, near), size)
             explore_at, camera = explore_placement(ctx.placement, ctx.camera)
             views, of = place_views(more, camera, explore_at, bounds)
-            if views.shape[1] > candidates.shape[1]:  # the surface's level, the unknown's pitched
+            if views.shape[1] > candidates.shape[1] and not np.any(views[:, 4]):
+                views = views[:, :4]  # all level: 4 numbers, as the surface's
+            elif views.shape[1] > candidates.shape[1]:  # the surface's level, some pitched
                 candidates = np.column_stack([candidates, np.zeros(len(candidates))])
             candidates = np.vstack([candidates, views])
             owner = np.concatenate([owner, of + len(patches.weights)])
