@@ -595,3 +595,21 @@ def test_experiment_notes_name_the_budgets_and_the_utilities_only_checked():
     assert "utility ig only checked" in notes[2] and len(notes) == 3
     assert experiment_notes(rows[1:2])[0].startswith("in 1 of 1 runs (r1) the tour generator plans")
     assert experiment_notes([{"run_id": "a", "termination": "coverage_complete"}]) == []
+
+
+def test_a_workers_warnings_print_in_one_line_as_the_commands(tmp_path, capfd):
+    """A warning of nbvkit's own raised in a pool worker (`compare --workers 2`: a cube floating
+    20 m above the ground, workspace.warn_floating) reaches the console as the command's own
+    warnings do ("nbvkit compare: warning: ..."), not with nbvkit's file and line."""
+    from conftest import CUBE_MESH
+    from nbvkit.cli import main
+
+    args = ["compare", "--planners", "1", "--starts", "2", "--workers", "2"]
+    args += ["--mesh", str(CUBE_MESH), "--mesh-shift", "0", "0", "20", "--out", str(tmp_path / "c")]
+    off = ["report.enabled=false", "observability.enabled=false", "progress=false"]
+    assert main([*args, "--set", *TINY, *off]) == 0
+    err = capfd.readouterr().err
+    lines = [ln for ln in err.splitlines() if "lowest point lies" in ln]
+    assert len(lines) == 2, err  # one a run, each in its worker
+    assert all(ln.startswith("nbvkit compare: warning: the structure's") for ln in lines), err
+    assert "RuntimeWarning" not in err and ".py:" not in err, err

@@ -2,13 +2,11 @@
 from __future__ import annotations
 
 import argparse
-import contextlib
 import importlib
 import re
 import sys
-import warnings
-from pathlib import Path
 
+from .console import own_warnings
 from .experiments import Terminated, terminate_as_interrupt
 from .plugins import PluginLoadError, load_plugins
 
@@ -84,7 +82,7 @@ def main(argv: list[str] | None = None) -> int:
     parser = build_parser()
     args = parser.parse_args(argv)
     try:
-        with terminate_as_interrupt(), _own_warnings(f"nbvkit {args.command}"):
+        with terminate_as_interrupt(), own_warnings(f"nbvkit {args.command}"):
             # a kill or a hang-up cleans up as Ctrl-C does
             return int(args._run(args) or 0)
     except KeyboardInterrupt as e:
@@ -103,25 +101,6 @@ def main(argv: list[str] | None = None) -> int:
         _plugin_traceback(e)
         print(f"nbvkit {args.command}: error: {msg}", file=sys.stderr)
         return 2
-
-
-@contextlib.contextmanager
-def _own_warnings(prog: str):
-    """nbvkit's own warnings printed as its errors are, one line each ("nbvkit run: warning:
-    ..."), not with the file and line of nbvkit's code that raised them; a plugin's warning
-    (raised in its own file) as Python prints it."""
-    show, package = warnings.showwarning, str(Path(__file__).resolve().parent)
-
-    def one_line(message, category, filename, lineno, file=None, line=None):
-        if not str(Path(filename).resolve()).startswith(package):
-            return show(message, category, filename, lineno, file, line)
-        print(f"{prog}: warning: {message}", file=sys.stderr if file is None else file)
-
-    warnings.showwarning = one_line
-    try:
-        yield
-    finally:
-        warnings.showwarning = show
 
 
 #: the errors a command reports in one line (bad input, a missing file, a failed write); also

@@ -49,6 +49,7 @@ from .experiment_tables import (  # noqa: F401  (re-exported: the tables)
     write_table,
     write_table2,
 )
+from . import console
 from .recorder import error_line
 from .plugins import check_unchanged, load_plugins, loaded_files, plugin_frame, script_only
 
@@ -229,13 +230,15 @@ def _alive(pid: int) -> bool:
     return True
 
 
-def _worker_init() -> None:
-    """Pool workers leave Ctrl-C and a hang-up (sent to the terminal's whole process group) to
+def _worker_init(prog=None) -> None:
+    """Pool workers print nbvkit's warnings as their command does (`prog`: console.install),
+    leave Ctrl-C and a hang-up (sent to the terminal's whole process group) to
     the parent, which stops them, and die with the parent, should it be killed outright (Linux:
     the parent-death signal), instead of flying on unseen. (Each run loads the parent's plugin
     files first: run_one.)"""
     import signal
 
+    console.install(prog)
     signal.signal(signal.SIGINT, signal.SIG_IGN)
     if hasattr(signal, "SIGHUP"):
         signal.signal(signal.SIGHUP, signal.SIG_IGN)
@@ -440,7 +443,12 @@ def _run_pool(specs, root, n, ncpu, rows, failures, progress) -> None:
     threads = max(1, ncpu // n)
     files = loaded_files()
     _start_resource_tracker()
-    ex = cf.ProcessPoolExecutor(n, mp_context=mp.get_context("spawn"), initializer=_worker_init)
+    ex = cf.ProcessPoolExecutor(
+        n,
+        mp_context=mp.get_context("spawn"),
+        initializer=_worker_init,
+        initargs=(console.current_prog(),),
+    )
     try:
         futs = {ex.submit(run_one, s, root, threads, files): i for i, s in enumerate(specs)}
         for k, f in enumerate(cf.as_completed(futs)):
