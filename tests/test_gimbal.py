@@ -544,9 +544,9 @@ def test_the_known_model_marks_every_cell_of_its_observable_surface_occupied(mon
     assert free[1] == 0, f"{free[1]} of {len(sides)} side samples' cells not occupied"
 
 
-def well_mesh(inner=3.6, wall=0.3, height=5.0):
+def well_mesh(inner=3.6, wall=0.3, height=5.0, floor=0.3):
     """An open-topped square well on the ground: four walls `wall` thick round an `inner` x
-    `inner` m shaft `height` m deep, on a floor slab 0.3 m thick; (mesh, inside) where inside
+    `inner` m shaft `height` m deep, on a floor slab `floor` m thick; (mesh, inside) where inside
     is a function of points (N, 3) -> bool: on the shaft's walls or its floor."""
     from conftest import box_mesh
 
@@ -556,14 +556,14 @@ def well_mesh(inner=3.6, wall=0.3, height=5.0):
         box_mesh((-b, a, 0), (b, b, height)),
         box_mesh((-b, -a, 0), (-a, a, height)),
         box_mesh((a, -a, 0), (b, a, height)),
-        box_mesh((-a, -a, 0), (a, a, 0.3)),
+        box_mesh((-a, -a, 0), (a, a, floor)),
     ]
     v = np.vstack([p.vertices for p in parts])
     f = np.vstack([p.faces + 8 * k for k, p in enumerate(parts)])
 
     def inside(p):
         within = np.all(np.abs(p[:, :2]) < a + 1e-6, axis=1)
-        return within & (p[:, 2] > 0.3 - 1e-6) & (p[:, 2] < height - 1e-6)
+        return within & (p[:, 2] > floor - 1e-6) & (p[:, 2] < height - 1e-6)
 
     return nbvkit.Mesh(v, f), inside
 
@@ -591,6 +591,22 @@ def test_views_of_unknown_space_look_down_into_an_open_top():
             assert np.all(pitch == 0.0)
         assert np.any(pitch == 0.0)  # the surface's views
     assert seen[True] > seen[False] + 0.3, seen
+
+
+def test_a_floor_at_the_ground_is_reconstructed_where_the_papers_drop_it_as_ground():
+    """The same well on a floor 0.1 m thick: the simulated world has no ground, and the
+    recommended planner's clouds drop nothing as ground, so the camera cloud holds the shaft's
+    floor; the paper's ground removal (cloud.min_z = 0.3 m) would drop all of it."""
+    from nbvkit.config import load_config
+
+    mesh, inside = well_mesh(floor=0.1)
+    pts = mesh.sample_surface(20000, 5)
+    floor = pts[inside(pts) & (pts[:, 2] < 0.1 + 1e-6)]
+    m = Mission(load_config(overrides=["scenario=surface", *QUICK_RUN]), mesh=mesh)
+    m.run()
+    cloud = m.world.cloud_points()
+    assert float(np.mean(_core.nearest_distances(cloud, floor) < 0.1)) > 0.8
+    assert np.all(cloud[:, 2] >= -1e-6) and np.any(cloud[:, 2] < 0.3)
 
 
 def test_views_of_unknown_space_are_pitched_down_only_where_the_gimbal_can():

@@ -157,6 +157,25 @@ def test_a_structure_wholly_within_the_ground_removal_is_refused_before_any_work
     assert s["cloud_points"] > 0 and s["coverage"]["0.5"] > 0
 
 
+def test_nbvkits_planners_keep_the_surface_near_the_ground_that_the_papers_drop_as_ground():
+    from conftest import box_mesh
+    from nbvkit.world import World
+
+    # the simulated world has no ground: a ground removal drops only the structure's own surface
+    low = np.array([[0.0, 0.0, 0.05], [0.0, 0.0, 0.29], [0.0, 0.0, 0.31], [0.0, 0.0, 2.0]])
+    slab = box_mesh([-3.0, -3.0, 0.0], [3.0, 3.0, 0.2])  # wholly within the paper's 0.3 m
+    kept = {}
+    for scenario in ("surface", "1"):
+        world = World(cfg(f"scenario={scenario}"), mesh=box_mesh([-3, -3, 0], [3, 3, 5]))
+        for cloud in world.clouds:
+            cloud.add(low)
+        kept[scenario] = [len(c) for c in world.clouds]
+    assert kept == {"surface": [4, 4], "1": [2, 2]}  # the paper's: the authors' 0.3 m
+    World(cfg(), mesh=slab)  # a slab 0.2 m tall is flown by default; the paper's refuse it
+    with pytest.raises(MissionError, match="ground removal"):
+        World(cfg("scenario=1"), mesh=slab)
+
+
 def test_a_georeferenced_mesh_is_named_too_far_and_flies_as_at_the_origin_with_mesh_shift(tmp_path):
     from conftest import box_mesh
 
@@ -312,7 +331,7 @@ def test_ground_removal_is_measured_from_z0_or_from_a_structure_reaching_below_i
     assert ground_height([[-1, -1, 0.03], [1, 1, 7.5]]) == 0.0  # standing on z = 0: z = 0
     assert ground_height([[-1, -1, 15.0], [1, 1, 25.0]]) == 0.0  # floating: still z = 0
     assert ground_height([[-1, -1, -5.0], [1, 1, 5.0]]) == -5.0  # centred on its origin
-    c = Config().with_overrides(FAST)
+    c = Config().with_overrides(FAST + ["cloud.min_z=0.3"])  # (the default: no ground removal)
     # a structure centred on its origin keeps its lower half: only 0.3 m above its base is ground
     world = World(c, mesh=box_mesh([-3, -3, -5], [3, 3, 5]))
     for cloud in (world.camera_cloud, world.laser_cloud):

@@ -11,7 +11,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 
-from .cloud import DEFAULT_VOXEL_SIZE
+from .cloud import DEFAULT_MIN_Z, DEFAULT_VOXEL_SIZE
 from .origins import caller, clash
 
 
@@ -42,6 +42,7 @@ _PAPER = {
     "vehicle.widen_swept_volume": False,
     "vehicle.keep_off_hits": False,
     "cloud.camera_voxel": DEFAULT_VOXEL_SIZE,
+    "cloud.min_z": DEFAULT_MIN_Z,  # the authors' ground removal (their world had a ground)
     "profiling.method": "circular",
     "profiling.waypoints": 5,
     "profiling.camera_step": 0.0,

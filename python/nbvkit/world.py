@@ -100,7 +100,9 @@ IN_MEMORY_MESH = "<in-memory mesh>"
 
 def cloud_floor(config, mesh_bounds) -> float:
     """The height below which the clouds drop points: cloud.min_z above the structure's ground
-    (workspace.ground_height)."""
+    (workspace.ground_height); -inf (none dropped) where cloud.min_z is null."""
+    if config.cloud.min_z is None:
+        return -math.inf
     return ground_height(mesh_bounds) + config.cloud.min_z
 
 
@@ -122,7 +124,7 @@ def _check_above_ground_removal(config, mesh_bounds) -> None:
     (below cloud_floor): every point of it would be dropped, and a mission would end at once
     with nothing covered."""
     top = float(np.asarray(mesh_bounds, float)[1][2])
-    if top <= cloud_floor(config, mesh_bounds):
+    if top <= cloud_floor(config, mesh_bounds):  # never without a ground removal (null)
         raise MissionError(
             f"the structure's top (z = {top:g} m) is not above the clouds' ground removal "
             f"(cloud.min_z = {config.cloud.min_z:g} m above the ground at z = "
