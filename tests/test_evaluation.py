@@ -27,13 +27,21 @@ def square_x(x, lo, hi):
     return nbvkit.Mesh(v, np.array([[0, 1, 2], [0, 2, 3]], np.int32))
 
 
+def cell_of(p, r):
+    """The integer cell of each point at cell size r, as evaluate defines it: floor(p / r), with a
+    coordinate within 1e-9 (relative) of a cell boundary in the cell above."""
+    q = np.asarray(p, float) / r
+    c = np.floor(q)
+    return (c + (c + 1.0 - q < 1e-9 * (np.abs(q) + 1.0))).astype(np.int64)
+
+
 def reference_metrics(gt, cloud, resolutions, taus):
     """The definitions, in plain numpy with brute-force distances (small inputs only)."""
     out = {k: {} for k in ("coverage", "area_coverage", "precision", "completeness", "accuracy")}
     for r in resolutions:
-        kg = {tuple(k) for k in np.floor(gt / r).astype(np.int64)}
-        kc = {tuple(k) for k in np.floor(cloud / r).astype(np.int64)}
-        per_sample = [tuple(k) in kc for k in np.floor(gt / r).astype(np.int64)]
+        kg = {tuple(k) for k in cell_of(gt, r)}
+        kc = {tuple(k) for k in cell_of(cloud, r)}
+        per_sample = [tuple(k) in kc for k in cell_of(gt, r)]
         out["coverage"][f"{r:g}"] = len(kg & kc) / len(kg)
         out["area_coverage"][f"{r:g}"] = float(np.mean(per_sample))
         out["precision"][f"{r:g}"] = len(kg & kc) / len(kc)
@@ -230,6 +238,37 @@ def test_cell_figures_alone_equal_the_full_evaluation(cube, cube_face_cloud):
 
 
 CELL_KEYS = ("coverage", "area_coverage", "precision", "gt_cells", "cloud_cells", "covered_cells")
+
+
+def test_a_face_on_a_cell_boundary_is_one_layer_of_cells_whatever_the_last_bits():
+    """A face on a boundary plane of the grid (z = 12.4: cell 248 at 0.05 m; x = -3: cell -60), as
+    modelled structures have them: its ground-truth samples and the points reconstructed on it
+    are off the plane by a few ulps, either way (interpolation, ray casting). Each is counted
+    in the cell above the plane, so the face is covered; floor(p / r) alone split both between
+    two layers and left about half the face uncovered. A point a micrometre below the plane
+    stays below it."""
+    rng = np.random.default_rng(3)
+    ulps = rng.integers(-4, 5, size=(4000, 2))  # each point's offset from the plane, in ulps
+    for axis, at in ((2, 12.4), (0, -3.0)):
+        uv = rng.uniform(0.0, 2.0, size=(4000, 2)) + 0.0123
+        pts = np.insert(uv, axis, at, axis=1)
+        gt, cloud = pts.copy(), pts.copy()
+        gt[:, axis] += ulps[:, 0] * np.spacing(at)
+        cloud[:, axis] += ulps[:, 1] * np.spacing(at)
+        assert len(np.unique(np.floor(gt[:, axis] / 0.05))) == 2  # both sides of the plane
+        r = evaluate(gt, cloud, resolutions=(0.05, 0.1), taus=(0.05,))
+        for res in ("0.05", "0.1"):
+            assert r["area_coverage"][res] == 1.0 and r["coverage"][res] == 1.0, (axis, res)
+        layer = len(np.unique(np.floor(np.delete(gt, axis, axis=1) / 0.05), axis=0))
+        assert r["gt_cells"]["0.05"] == layer  # one layer of cells
+        # the same count kept between calls (a camera cloud read in place)
+        camera = nbvkit._core.SurfaceCloud(voxel_size=0.025, min_z=float("-inf"))
+        camera.add(cloud)
+        ev = Evaluator(gt, resolutions=(0.05,), taus=(0.05,))
+        assert ev.coverage([camera])["area_coverage"]["0.05"] == 1.0
+        below = pts[:1].copy()
+        below[0, axis] -= 1e-6
+        assert evaluate(pts[:1], below, resolutions=(0.05,), taus=(0.05,))["coverage"]["0.05"] == 0
 
 
 def test_a_centroid_that_moves_to_another_cell_uncovers_the_cell_it_left():
@@ -620,7 +659,7 @@ def _cell_figures(gt, cloud, r):
     """coverage, area coverage and precision at cell size r from their definitions (numpy)."""
 
     def keys(p):  # the integer cell of each point, packed in one int64 (21 bits an axis)
-        c = np.floor(p / r).astype(np.int64) + (1 << 20)
+        c = cell_of(p, r) + (1 << 20)
         return (c[:, 0] << 42) | (c[:, 1] << 21) | c[:, 2]
 
     kg, kc = keys(gt), np.unique(keys(cloud))

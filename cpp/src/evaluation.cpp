@@ -52,7 +52,7 @@ bool fill_cell_keys(std::uint64_t* out, std::size_t n, const PointAt& point_at, 
   parallel_chunks(n, 1 << 14, [&](std::size_t b, std::size_t e) {
     for (std::size_t k = b; k < e; ++k) {
       const Eigen::Vector3d p = point_at(k);
-      out[k] = try_voxel_key(p.x(), p.y(), p.z(), r, inv);
+      out[k] = try_cell_key(p.x(), p.y(), p.z(), r, inv);
       if (out[k] == kEmptyVoxelKey) bad = true;
     }
   });
@@ -670,7 +670,7 @@ EvaluationResult CoverageTracker::update(const std::vector<const SurfaceCloud*>&
           const Eigen::Vector3d p = cloud.point(i);
           bool moved = i >= m;
           for (std::size_t k = 0; k < nr; ++k) {
-            keys[k] = try_voxel_key(p.x(), p.y(), p.z(), res_m[k], inv[k]);
+            keys[k] = try_cell_key(p.x(), p.y(), p.z(), res_m[k], inv[k]);
             if (keys[k] == kEmptyVoxelKey) too_far[k] = true;
             if (!moved && keys[k] != cells_[k].index.key(seen.cell[k][i])) moved = true;
           }

@@ -10,6 +10,8 @@
 #include <limits>
 #include <random>
 #include <tuple>
+#include <utility>
+#include <vector>
 
 using namespace nbv;
 
@@ -61,6 +63,24 @@ TEST(VoxelKey, FastFloorDivisionEqualsFloorOfTheQuotient) {
   }
   for (double q : {-2.5, -2.0, -0.0, 0.0, 0.5, 3.0, -1e-300, 1e17, -1e17})
     EXPECT_EQ(fast_floor(q), std::floor(q)) << q;
+}
+
+TEST(VoxelKey, EvaluationCellsPutAValueOnABoundaryInTheCellAbove) {
+  // a face on a boundary plane: its coordinates off the plane by a few ulps either way
+  const std::vector<std::pair<double, double>> planes = {
+      {12.4, 0.05}, {12.4, 0.1}, {-3.0, 0.05}, {-3.0, 0.5}, {0.35, 0.05}, {1000.05, 0.05}};
+  for (const auto& [at, size] : planes) {
+    const double inv = 1.0 / size, cell = std::round(at / size);
+    double v = at;
+    for (int k = 0; k < 4; ++k) v = std::nextafter(v, -1e9);
+    for (int k = 0; k < 9; ++k, v = std::nextafter(v, 1e9))
+      EXPECT_EQ(snapped_floor_div(v, size, inv), cell) << v << " / " << size;
+    // truly below (a tenth of a millimetre) or inside a cell: floor
+    EXPECT_EQ(snapped_floor_div(at - 1e-4, size, inv), cell - 1.0) << at;
+    EXPECT_EQ(snapped_floor_div(at + 0.3 * size, size, inv), cell) << at;
+  }
+  EXPECT_EQ(try_cell_key(0.0, 12.399999999999999, -2.9999999999999996, 0.05, 20.0),
+            pack_voxel(0, 248, -60));
 }
 
 TEST(VoxelIndex, IdsInInsertionOrderAcrossRehashes) {

@@ -126,7 +126,10 @@ def evaluate(gt, cloud, options=None, **kw) -> dict:
 
     Returns a dict (JSON-ready: plain floats/ints, ``None`` instead of NaN). Per resolution r,
     keyed ``f"{r:g}"`` ("0.05", "0.1", "0.5"), with every point in cell ``floor(p / r)`` of one
-    grid anchored at the origin:
+    grid anchored at the origin; a coordinate within 1e-9 (relative) of a cell boundary lies on
+    it, in the cell above, so that a face on a boundary plane (an axis-aligned face at a
+    multiple of r) keeps its samples and the points reconstructed on it in one cell whatever
+    the last bits of their coordinates (floor alone split them between two layers of cells):
 
     - ``coverage``: the paper's metric — GT cells also holding a cloud point ÷ GT cells.
     - ``area_coverage``: the fraction of GT surface area whose cell holds a cloud point, i.e.

@@ -43,6 +43,19 @@ inline double floor_div(double v, double size, double inv) {
   return c;
 }
 
+/// The cell of v on a grid of cell `size` as the evaluation counts cells: floor(v / size), except
+/// that a value within 1e-9 (relative) of a cell boundary lies on it and is counted in the cell
+/// above. A face on a boundary plane (an axis-aligned face at a multiple of the size, common in
+/// modelled structures) then keeps its ground-truth samples and the points reconstructed on it in
+/// one cell, whatever the last bits of their coordinates (12.399999999999999 and
+/// 12.400000000000002 are both in cell 248 at 0.05 m).
+inline double snapped_floor_div(double v, double size, double inv) {
+  const double q = v * inv;
+  const double c = fast_floor(q);
+  // (just above a boundary, or away from one, floor(v * inv): floor(v / size) as floor_div)
+  return c + 1.0 - q < 1e-9 * (std::abs(q) + 1.0) ? c + 1.0 : c;
+}
+
 /// Cell of `p` on the grid of cell size `size` anchored at the origin: floor(p / size) per axis
 /// (floor, not truncation: -0.01 at 0.05 m is cell -1). Throws std::invalid_argument if a
 /// coordinate falls outside [-2^20, 2^20) cells (a point too far from the origin for `size`).
@@ -78,6 +91,18 @@ inline std::uint64_t try_voxel_key(double x, double y, double z, double size, do
   constexpr double lim = static_cast<double>(kVoxelCoordLimit);
   const double cx = floor_div(x, size, inv), cy = floor_div(y, size, inv),
                cz = floor_div(z, size, inv);
+  if (!(cx >= -lim && cx < lim && cy >= -lim && cy < lim && cz >= -lim && cz < lim))
+    return kEmptyVoxelKey;
+  return pack_voxel(static_cast<std::int64_t>(cx), static_cast<std::int64_t>(cy),
+                    static_cast<std::int64_t>(cz));
+}
+
+/// try_voxel_key with the evaluation's cells (snapped_floor_div): a value on a cell boundary, up
+/// to rounding, in the cell above.
+inline std::uint64_t try_cell_key(double x, double y, double z, double size, double inv) {
+  constexpr double lim = static_cast<double>(kVoxelCoordLimit);
+  const double cx = snapped_floor_div(x, size, inv), cy = snapped_floor_div(y, size, inv),
+               cz = snapped_floor_div(z, size, inv);
   if (!(cx >= -lim && cx < lim && cy >= -lim && cy < lim && cz >= -lim && cz < lim))
     return kEmptyVoxelKey;
   return pack_voxel(static_cast<std::int64_t>(cx), static_cast<std::int64_t>(cy),
