@@ -87,26 +87,23 @@ inline std::array<std::int64_t, 3> unpack_voxel(std::uint64_t key) {
           static_cast<std::int64_t>((key >> 21) & m) - kVoxelCoordLimit,
           static_cast<std::int64_t>(key & m) - kVoxelCoordLimit};
 }
-inline std::uint64_t try_voxel_key(double x, double y, double z, double size, double inv) {
+/// pack_voxel of the cells (cx, cy, cz), or kEmptyVoxelKey if one is outside [-2^20, 2^20).
+inline std::uint64_t pack_cells(double cx, double cy, double cz) {
   constexpr double lim = static_cast<double>(kVoxelCoordLimit);
-  const double cx = floor_div(x, size, inv), cy = floor_div(y, size, inv),
-               cz = floor_div(z, size, inv);
   if (!(cx >= -lim && cx < lim && cy >= -lim && cy < lim && cz >= -lim && cz < lim))
     return kEmptyVoxelKey;
   return pack_voxel(static_cast<std::int64_t>(cx), static_cast<std::int64_t>(cy),
                     static_cast<std::int64_t>(cz));
 }
+inline std::uint64_t try_voxel_key(double x, double y, double z, double size, double inv) {
+  return pack_cells(floor_div(x, size, inv), floor_div(y, size, inv), floor_div(z, size, inv));
+}
 
 /// try_voxel_key with the evaluation's cells (snapped_floor_div): a value on a cell boundary, up
 /// to rounding, in the cell above.
 inline std::uint64_t try_cell_key(double x, double y, double z, double size, double inv) {
-  constexpr double lim = static_cast<double>(kVoxelCoordLimit);
-  const double cx = snapped_floor_div(x, size, inv), cy = snapped_floor_div(y, size, inv),
-               cz = snapped_floor_div(z, size, inv);
-  if (!(cx >= -lim && cx < lim && cy >= -lim && cy < lim && cz >= -lim && cz < lim))
-    return kEmptyVoxelKey;
-  return pack_voxel(static_cast<std::int64_t>(cx), static_cast<std::int64_t>(cy),
-                    static_cast<std::int64_t>(cz));
+  return pack_cells(snapped_floor_div(x, size, inv), snapped_floor_div(y, size, inv),
+                    snapped_floor_div(z, size, inv));
 }
 
 /// pack_voxel(voxel_index(p, size)).
