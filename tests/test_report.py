@@ -79,6 +79,10 @@ def test_coverage_classes():
     cls = coverage_classes(pts, pts[:1] + 0.01, observable=[True, True, False])
     assert cls.tolist() == [0, 1, 2]
     assert coverage_classes(pts, np.zeros((0, 3))).tolist() == [1, 1, 1]
+    # on a cell boundary plane (z = 12.4), a few ulps apart: one cell, as nbvkit.evaluate counts
+    on = np.array([[0.31, 0.52, 12.4 - 2 * np.spacing(12.4)], [0.77, 0.12, 12.4]])
+    near = on + [[0.0, 0.0, 3 * np.spacing(12.4)], [0.0, 0.0, -np.spacing(12.4)]]
+    assert coverage_classes(on, near, resolution=0.05).tolist() == [0, 0]
 
 
 def test_coverage_classes_by_slices_of_the_cloud(monkeypatch):

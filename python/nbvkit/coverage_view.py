@@ -34,7 +34,7 @@ def coverage_classes(points, cloud, observable=None, resolution: float = 0.1) ->
     def keys(p):  # a value on a cell boundary, up to rounding, in the cell above (as evaluate)
         q = p / resolution
         k = np.floor(q)
-        k += k + 1.0 - q < 1e-9 * (np.abs(q) + 1.0)
+        k += (k + 1.0 - q) < 1e-9 * (np.abs(q) + 1.0)
         k = k.astype(np.int64) + (1 << 20)
         return (k[:, 0] << 42) | (k[:, 1] << 21) | k[:, 2]
 
