@@ -62,6 +62,15 @@ def wall_mesh(x: float = 5.0, half: float = 50.0) -> nbvkit.Mesh:
     return nbvkit.Mesh(v, f)
 
 
+def eval_cells(p, r):
+    """(N, 3) integer cells of points p at cell size r as nbvkit.evaluate defines them, written
+    here independently: floor(p / r), with a coordinate within 1e-9 (relative) of a cell
+    boundary in the cell above."""
+    q = np.asarray(p, float) / r
+    c = np.floor(q)
+    return (c + ((c + 1.0 - q) < 1e-9 * (np.abs(q) + 1.0))).astype(np.int64)
+
+
 def box_mesh(lo, hi) -> nbvkit.Mesh:
     """An axis-aligned box [lo, hi] as 12 outward-facing triangles."""
     lo, hi = np.asarray(lo, float), np.asarray(hi, float)

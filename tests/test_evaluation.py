@@ -16,7 +16,7 @@ import pytest
 import nbvkit
 from nbvkit import Evaluator, evaluate
 from nbvkit.evaluation import DEFAULT_GT_DENSITY, SUMMARY_KEYS as KEYS
-from conftest import box_mesh as box, shared_mesh
+from conftest import box_mesh as box, eval_cells, shared_mesh
 
 ROOT = Path(__file__).resolve().parent.parent
 
@@ -27,21 +27,13 @@ def square_x(x, lo, hi):
     return nbvkit.Mesh(v, np.array([[0, 1, 2], [0, 2, 3]], np.int32))
 
 
-def cell_of(p, r):
-    """The integer cell of each point at cell size r, as evaluate defines it: floor(p / r), with a
-    coordinate within 1e-9 (relative) of a cell boundary in the cell above."""
-    q = np.asarray(p, float) / r
-    c = np.floor(q)
-    return (c + (c + 1.0 - q < 1e-9 * (np.abs(q) + 1.0))).astype(np.int64)
-
-
 def reference_metrics(gt, cloud, resolutions, taus):
     """The definitions, in plain numpy with brute-force distances (small inputs only)."""
     out = {k: {} for k in ("coverage", "area_coverage", "precision", "completeness", "accuracy")}
     for r in resolutions:
-        kg = {tuple(k) for k in cell_of(gt, r)}
-        kc = {tuple(k) for k in cell_of(cloud, r)}
-        per_sample = [tuple(k) in kc for k in cell_of(gt, r)]
+        kg = {tuple(k) for k in eval_cells(gt, r)}
+        kc = {tuple(k) for k in eval_cells(cloud, r)}
+        per_sample = [tuple(k) in kc for k in eval_cells(gt, r)]
         out["coverage"][f"{r:g}"] = len(kg & kc) / len(kg)
         out["area_coverage"][f"{r:g}"] = float(np.mean(per_sample))
         out["precision"][f"{r:g}"] = len(kg & kc) / len(kc)
@@ -659,7 +651,7 @@ def _cell_figures(gt, cloud, r):
     """coverage, area coverage and precision at cell size r from their definitions (numpy)."""
 
     def keys(p):  # the integer cell of each point, packed in one int64 (21 bits an axis)
-        c = cell_of(p, r) + (1 << 20)
+        c = eval_cells(p, r) + (1 << 20)
         return (c[:, 0] << 42) | (c[:, 1] << 21) | c[:, 2]
 
     kg, kc = keys(gt), np.unique(keys(cloud))

@@ -457,9 +457,11 @@ def test_covered_surface_the_mask_counts_unseeable_is_reported():
 
 def _covered_unobservable(pts, cloud, observable, r=0.05):
     """(covered unobservable, of which in cells that hold an observable sample), counted here
-    from the cells' keys (floor(p / r)), independently of the evaluator."""
-    cell = [tuple(k) for k in np.floor(pts / r).astype(np.int64)]
-    covered_cells = {tuple(k) for k in np.floor(cloud / r).astype(np.int64)}
+    from the cells' keys (conftest.eval_cells), independently of the evaluator."""
+    from conftest import eval_cells
+
+    cell = [tuple(k) for k in eval_cells(pts, r)]
+    covered_cells = {tuple(k) for k in eval_cells(cloud, r)}
     seen_cells = {c for c, o in zip(cell, observable) if o}
     covered = np.array([c in covered_cells for c in cell])
     shared = np.array([c in seen_cells for c in cell])

@@ -745,7 +745,9 @@ def test_on_a_large_workspace_blocked_patches_get_tilted_views_once_no_other_vie
     saturation, and tour.rate 0.75, as measured: at the defaults the plain plans leave no blocked
     patch that a tilted view still pays for.)"""
     over = ["max_iterations=400", "planner.frame_step=0", "utility.saturation_hits=0"]
-    over += ["tour.rate=0.75", *QUICK]
+    # and the ground removal it was measured with: without it the plain plans fly 74 views (83 %
+    # of the area, against 24 views and 70 %) and leave no blocked patch a tilted view pays for
+    over += ["tour.rate=0.75", "cloud.min_z=0.3", *QUICK]
     wall = box_mesh((-30, -1, 0), (30, 1, 4))
     runs = {}
     for fallback in ("false", "null"):
