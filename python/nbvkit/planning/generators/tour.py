@@ -183,10 +183,11 @@ class CoverageTour:
             more = target_patches(exploration_targets(world.map, box, near), size)
             explore_at, camera = explore_placement(ctx.placement, ctx.camera)
             views, of = place_views(more, camera, explore_at, bounds)
-            if views.shape[1] > candidates.shape[1] and not np.any(views[:, 4]):
-                views = views[:, :4]  # all level: 4 numbers, as the surface's
-            elif views.shape[1] > candidates.shape[1]:  # the surface's level, some pitched
-                candidates = np.column_stack([candidates, np.zeros(len(candidates))])
+            if views.shape[1] > candidates.shape[1]:  # the surface's views level
+                if np.any(views[:, 4]):  # some of the unknown's pitched: the surface's at 0
+                    candidates = np.column_stack([candidates, np.zeros(len(candidates))])
+                else:  # all level: 4 numbers, as the surface's
+                    views = views[:, :4]
             candidates = np.vstack([candidates, views])
             owner = np.concatenate([owner, of + len(patches.weights)])
             patches = Patches(
