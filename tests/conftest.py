@@ -1,6 +1,7 @@
 """Shared fixtures: small analytic meshes and the optional third-party meshes in ../shared."""
 from __future__ import annotations
 
+import signal
 from pathlib import Path
 
 import numpy as np
@@ -22,6 +23,13 @@ TINY_RUN = (
 )
 
 CUBE_MESH = ROOT / "meshes" / "fixtures" / "cube.obj"
+
+
+def as_from_a_terminal() -> None:
+    """preexec_fn of a child process that a test hangs up on (SIGHUP): the signal at its default,
+    as in a process a terminal started. Under `nohup pytest` the tests' own process ignores it,
+    the children inherit that, and nbvkit keeps a hang-up ignored where it was (a nohup run)."""
+    signal.signal(signal.SIGHUP, signal.SIG_DFL)
 
 
 @pytest.fixture(scope="session")

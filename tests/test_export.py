@@ -1706,6 +1706,8 @@ def test_an_export_killed_while_writing_leaves_nothing_half_written(run_dir, tmp
     import sys
     import textwrap
 
+    from conftest import as_from_a_terminal
+
     script = textwrap.dedent(
         f"""
         import os, signal, sys, time
@@ -1725,6 +1727,7 @@ def test_an_export_killed_while_writing_leaves_nothing_half_written(run_dir, tmp
         capture_output=True,
         text=True,
         timeout=120,
+        preexec_fn=as_from_a_terminal,
     )
     assert p.returncode == 130, (p.returncode, p.stderr)
     assert f"nbvkit export: interrupted by {signum}" in p.stderr and "Traceback" not in p.stderr

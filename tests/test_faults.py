@@ -583,6 +583,8 @@ def test_nbvkit_run_stopped_says_where_what_it_flew_is(tmp_path, stopping_part, 
     saved, the console says where, and the exit code is 130."""
     import subprocess
 
+    from conftest import as_from_a_terminal
+
     out = tmp_path / "run"
     argv = ["run", "--plugin", str(stopping_part), "--out", str(out), "--set", *_stopping(how, 2)]
     p = subprocess.run(
@@ -591,6 +593,7 @@ def test_nbvkit_run_stopped_says_where_what_it_flew_is(tmp_path, stopping_part, 
         text=True,
         timeout=300,
         env=dict(os.environ, MPLBACKEND="Agg"),
+        preexec_fn=as_from_a_terminal,
     )
     assert p.returncode == 130, (p.returncode, p.stderr)
     # counted as the summary counts: 1 planned view (iterations), 2 views with the first

@@ -18,7 +18,7 @@ import yaml
 
 import nbvkit
 from nbvkit.config import load_config
-from conftest import TINY_RUN
+from conftest import TINY_RUN, as_from_a_terminal
 
 ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT / "bench"))
@@ -360,6 +360,7 @@ def _start_table(out) -> subprocess.Popen:
         text=True,
         env=dict(os.environ, MPLBACKEND="Agg"),
         start_new_session=True,  # its own process group, as a terminal's job
+        preexec_fn=as_from_a_terminal,  # hung up on below (case 6), as a terminal's job is
     )
 
 
