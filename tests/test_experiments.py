@@ -600,7 +600,8 @@ def test_experiment_notes_name_the_budgets_and_the_utilities_only_checked():
 def test_a_workers_warnings_print_in_one_line_as_the_commands(tmp_path, capfd):
     """A warning of nbvkit's own raised in a pool worker (`compare --workers 2`: a cube floating
     20 m above the ground, workspace.warn_floating) reaches the console as the command's own
-    warnings do ("nbvkit compare: warning: ..."), not with nbvkit's file and line."""
+    warnings do ("nbvkit compare: warning: run RUN_ID: ..."), naming the run it came from, not
+    with nbvkit's file and line."""
     from conftest import CUBE_MESH
     from nbvkit.cli import main
 
@@ -611,5 +612,9 @@ def test_a_workers_warnings_print_in_one_line_as_the_commands(tmp_path, capfd):
     err = capfd.readouterr().err
     lines = [ln for ln in err.splitlines() if "lowest point lies" in ln]
     assert len(lines) == 2, err  # one a run, each in its worker
-    assert all(ln.startswith("nbvkit compare: warning: the structure's") for ln in lines), err
+    runs = sorted(d.name for d in (tmp_path / "c" / "runs").iterdir())
+    named = sorted(ln.split(": ")[2].removeprefix("run ") for ln in lines)
+    assert len(runs) == 2 and named == runs, (runs, err)  # each run's own warning, named
+    assert all(ln.split(": ", 3)[3].startswith("the structure's") for ln in lines), err
+    assert all(ln.startswith("nbvkit compare: warning: run ") for ln in lines), err
     assert "RuntimeWarning" not in err and ".py:" not in err, err

@@ -65,7 +65,8 @@ def run_one(spec: RunSpec, root: str | os.PathLike, threads: int = 0, plugins=()
     meantime is a ValueError: this run fails, naming it)."""
     load_plugins(plugins)
     try:
-        return _run_one(spec, Path(root), threads)
+        with console.for_run(spec.run_id):
+            return _run_one(spec, Path(root), threads)
     except Exception as e:
         _note_plugin_frame(e)  # the traceback does not cross to the parent process
         raise
