@@ -357,6 +357,9 @@ def test_a_mission_whose_candidates_are_all_refused_says_why_nothing_was_flown(c
             "pose 0 has pitch 3.0",
         ),
         (lambda s, w, p: Proposal(p.poses, 7), TypeError, "source must be a str"),
+        # a column of iterations.csv and of the report: one on two lines split its rows
+        (lambda s, w, p: Proposal(p.poses, "a\nb"), ValueError, "source must be a name on one"),
+        (lambda s, w, p: Proposal(p.poses, ""), ValueError, r"\(printable, not empty\), got ''"),
         (lambda s, w, p: Proposal(p.poses, "x", aims=np.zeros((2, 3))), ValueError, "aims"),
         (lambda s, w, p: 1 / 0, ZeroDivisionError, "division by zero"),
         # complex poses were cut to their real part (a NumPy warning), aims never checked
@@ -375,7 +378,8 @@ def test_a_mission_whose_candidates_are_all_refused_says_why_nothing_was_flown(c
         ),
     ],
     ids=["empty", "empty-exclusive", "nan", "k3", "1d", "array", "strings", "pitch", "source",
-         "aims", "raises", "complex", "aims-nan", "aims-strings", "gimbal"],
+         "source-lines", "source-empty", "aims", "raises", "complex", "aims-nan", "aims-strings",
+         "gimbal"],
 )  # fmt: skip
 def test_a_hostile_generator_is_an_exception_naming_it(fn, error, match):
     with pytest.raises(error, match=match) as e:

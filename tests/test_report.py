@@ -263,3 +263,33 @@ def test_report_renders_in_headless_chromium(tiny_run, tmp_path):
 def test_run_notebook_executes_headless(tiny_run):
     text = execute_notebook("run.ipynb", {"NBVKIT_RUN": str(tiny_run)})
     assert "showing the plotly view" in text and "observable but missed" in text
+
+
+def test_a_plots_strings_cannot_end_its_script_element():
+    """A trace's text is written into the page's <script> (a plugin generator's source, a file's
+    name): one holding `</script>` ended the element and opened the rest as markup. Read back by
+    an independent HTML parser, the page has the one script element, and its JSON the strings."""
+    from html.parser import HTMLParser
+
+    from nbvkit.htmlpage import plot_div
+
+    hostile = "ring</script><script>document.title='pwned'</script><!-- & <b>"
+
+    class Scripts(HTMLParser):
+        def __init__(self):
+            super().__init__()
+            self.scripts, self.tags = [], []
+
+        def handle_starttag(self, tag, attrs):
+            self.tags.append(tag)
+
+        def handle_data(self, data):
+            if self.tags and self.tags[-1] == "script":
+                self.scripts.append(data)
+
+    page = Scripts()
+    page.feed(plot_div("d", [{"type": "scatter", "text": [hostile], "name": hostile}], {}))
+    assert page.tags == ["div", "script"], page.tags
+    (script,) = page.scripts
+    data = script.split("Plotly.newPlot('d', ", 1)[1].rsplit(", {}, {responsive", 1)[0]
+    assert json.loads(data) == [{"type": "scatter", "text": [hostile], "name": hostile}]

@@ -70,10 +70,16 @@ def page(title: str, body: str, plotly: bool = True) -> str:
     )
 
 
+def script_json(value) -> str:
+    """JSON written inside a <script> element: its <, > and & as JavaScript escapes, so that no
+    string in it (a plugin's name, a file's) can end the element or open another."""
+    text = json.dumps(value, separators=(",", ":"), allow_nan=False)
+    return text.replace("&", "\\u0026").replace("<", "\\u003c").replace(">", "\\u003e")
+
+
 def plot_div(div: str, traces: list, layout: dict, cls: str = "plot") -> str:
     """A plotly figure (traces, layout) in the element `div` of class `cls`."""
-    data = json.dumps(traces, separators=(",", ":"), allow_nan=False)
-    lay = json.dumps(layout, separators=(",", ":"), allow_nan=False)
+    data, lay = script_json(traces), script_json(layout)
     return (
         f"<div id='{div}' class='{cls}'></div><script>Plotly.newPlot('{div}', {data}, {lay}, "
         "{responsive: true});</script>"

@@ -268,6 +268,11 @@ def check_proposal(p, who: str) -> Proposal:
         raise PartContractError(
             f"generator {who!r}: its proposal's source must be a str, got {type(p.source).__name__}"
         )
+    if not p.source or not p.source.isprintable():  # a column of iterations.csv, the report's
+        raise ValueError(
+            f"generator {who!r}: its proposal's source must be a name on one line (printable, "
+            f"not empty), got {p.source!r}"
+        )
     if p.aims is not None:
         aims = _numbers(p.aims, who, "aims")
         if aims.shape != (len(poses), 3):
