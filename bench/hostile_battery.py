@@ -15,8 +15,9 @@ Each outcome is classified:
 - ``silent``: exit 0 with a result known to be wrong (checked where the case can tell).
 
 Usage: python bench/hostile_battery.py [--jobs 2] [--timeout 120] [--only SUBSTRING ...]
-    [--groups GROUP ...] [--md FILE] [--json FILE]. Prints a summary table (and every case that
-    is not ok / error) in markdown.
+    [--groups GROUP ...] [--mesh MESH] [--md FILE] [--json FILE]. Prints a summary table (and
+    every case that is not ok / error) in markdown. --mesh flies the configuration keys' cases on
+    another structure than the unit cube (an absolute path).
 The numeric keys are enumerated from the configuration's dataclasses (nbvkit.config), not listed.
 """
 from __future__ import annotations
@@ -39,6 +40,7 @@ from fuzz_meshes import gltf_file, obj_file, stl_ascii_file
 
 ROOT = Path(__file__).resolve().parent.parent
 CUBE = ROOT / "meshes" / "fixtures" / "cube.obj"
+KEY_MESH = [CUBE]  # the structure the configuration keys' cases fly (--mesh)
 VALUES = ("0", "-1", "nan", "inf", "1e12")
 KILL_RSS = int(2.5 * 2**30)  # killed above this (so that one case cannot take the machine)
 LIMIT_RSS = 2 * 2**30  # ">2GB" above this peak
@@ -116,7 +118,7 @@ def nbvkit(*args) -> list:
 
 
 def run_cmd(key: str | None = None, value: str | None = None, extra=()) -> list:
-    """`nbvkit run` of a tiny mission on the unit cube with `key=value` set."""
+    """`nbvkit run` of a tiny mission on the unit cube (--mesh: KEY_MESH) with `key=value` set."""
     sets = {k: v for k, v in TINY.items() if k != key}
     # the report (7 s of a 9 s run) only where its keys are tried
     sets["report.enabled"] = "true" if key and key.startswith("report.") else "false"
@@ -124,7 +126,7 @@ def run_cmd(key: str | None = None, value: str | None = None, extra=()) -> list:
         sets[key] = value
     scenario = SCENARIO_OF.get(key.split(".")[0], "surface") if key else "surface"
     return nbvkit(
-        "run", "--mesh", CUBE, "--scenario", scenario, "--no-progress", "--out", "out",
+        "run", "--mesh", KEY_MESH[0], "--scenario", scenario, "--no-progress", "--out", "out",
         "--set", *[f"{k}={v}" for k, v in sets.items()], *extra,
     )  # fmt: skip
 
@@ -483,7 +485,10 @@ def main(argv=None) -> int:
     ap.add_argument("--groups", nargs="+", default=None, help="only these groups")
     ap.add_argument("--md", default=None, help="also write the table to this file")
     ap.add_argument("--json", default=None, help="write every case's outcome to this file")
+    ap.add_argument("--mesh", default=None, help="the configuration keys' structure (a path)")
     args = ap.parse_args(argv)
+    if args.mesh:
+        KEY_MESH[0] = Path(args.mesh).resolve()
     cases = key_cases() + file_cases() + mesh_cases() + api_cases()
     if args.only:
         cases = [c for c in cases if any(s in c.name for s in args.only)]
