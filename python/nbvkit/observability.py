@@ -152,7 +152,7 @@ def _cache_key(mesh, points, settings) -> str:
     h = hashlib.sha256()
     h.update(np.ascontiguousarray(mesh.vertices, np.float64).tobytes())
     h.update(np.ascontiguousarray(mesh.faces, np.int32).tobytes())
-    h.update(np.ascontiguousarray(points, np.float64).tobytes())
+    h.update(memoryview(np.ascontiguousarray(points, np.float64)))  # (tobytes: a copy)
     h.update(json.dumps([_METHOD_VERSION, settings], sort_keys=True).encode())
     return h.hexdigest()[:20]
 
@@ -298,11 +298,12 @@ def _compute(mesh, cfg, points, normals, ws, settings, scene) -> ObservableSurfa
     # only its field of view, ranges and mount are used
     camera = build_camera(cfg.camera, scene, cfg.seed, width=16, height=12, noise_k=0.0)
 
-    def search(which, spacing):
+    def search(which, spacing):  # which: the samples' indices, or None for all (not copied)
+        pts, nrm = (points, normals) if which is None else (points[which], normals[which])
         return _core.observable_samples(
             scene,
-            points[which],
-            normals[which],
+            pts,
+            nrm,
             camera,
             ws.nav_min,
             ws.nav_max,
@@ -312,7 +313,7 @@ def _compute(mesh, cfg, points, normals, ws, settings, scene) -> ObservableSurfa
 
     # the configured lattice, then a small structure's finer one for what it left unseen: a
     # finer lattice's levels need not hold every position a coarser one does
-    runs = [search(np.arange(len(points)), settings["pose_spacing"])]
+    runs = [search(None, settings["pose_spacing"])]
     mask = np.asarray(runs[0].observable, bool)
     if settings["fine_pose_spacing"] < settings["pose_spacing"] and not mask.all():
         left = np.flatnonzero(~mask)
