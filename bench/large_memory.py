@@ -1,4 +1,5 @@
-"""Peak memory of a mission on a large structure, results folder written, with this checkout and
+"""Peak memory of a mission on a large structure, results folder written (the end-of-run outputs
+but the report: the observable surface computed anew), with this checkout and
 (--against DIR) another one or (--baseline OVERRIDES) this one with other settings, each in a
 process of its own, in the same run: the peak resident
 memory (ru_maxrss), what the flight reached (which must not change: the same views, the same
@@ -29,13 +30,13 @@ from nbvkit.config import load_config
 from nbvkit.mission import Mission
 cfg = load_config(overrides=[
     f"mesh.path={sys.argv[1]}", f"max_iterations={sys.argv[2]}", "progress=false",
-    "report.enabled=false", "observability.enabled=false", *sys.argv[3:]])
+    "report.enabled=false", *sys.argv[3:]])
 t = time.perf_counter()
-with tempfile.TemporaryDirectory() as tmp:
-    s = Mission(cfg).run(Path(tmp) / "run")
+with tempfile.TemporaryDirectory() as tmp:  # the end-of-run outputs: the observable surface
+    s = Mission(cfg).run(Path(tmp) / "run", finish=True)
 print(json.dumps({
     "peak_mb": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024,
-    "mission_peak_mb": s["peak_memory_mb"], "coverage": s["area_coverage"]["0.05"],
+    "summary_peak_mb": s["peak_memory_mb"], "coverage": s["area_coverage"]["0.05"],
     "distance": s["distance_m"], "views": s["views"], "cloud_points": s["cloud_points"],
     "realized": s["realized_to_expected"], "first_seen": s["new_surface_to_expected"],
     "planning_ms": s["ms_per_stage"]["sampling"], "ms_per_view": s["ms_per_iteration"],
@@ -61,7 +62,7 @@ def main() -> None:
         f"{a.views or 'its own cap of'} views at most, results folder written",
         (
             "peak (end of run)",
-            "peak (mission)",
+            "summary.json's",
             "area cov. @0.05 m",
             "flown",
             "views",
@@ -75,7 +76,7 @@ def main() -> None:
         FLY_SNIPPET,
         [a.views or "null", *a.set],
         lambda label, r: f"| {label} | {r['peak_mb'] / 1024:.2f} GB | "
-        f"{r['mission_peak_mb'] / 1024:.2f} GB | {100 * r['coverage']:.2f} % | "
+        f"{r['summary_peak_mb'] / 1024:.2f} GB | {100 * r['coverage']:.2f} % | "
         f"{r['distance']:,.0f} m | {r['views']:,} ({r['termination']}) | {r['realized']:.2f} | "
         f"{r['first_seen']:.2f} | {r['cloud_points']:,} points | {r['planning_ms']:.1f} ms | "
         f"{r['ms_per_view']:.1f} ms | {r['wall_s']:.0f} s |",
