@@ -128,8 +128,8 @@ def test_a_mission_saved_after_its_run_is_a_complete_run_folder(tmp_path):
 
 def test_the_summarys_peak_memory_includes_the_end_of_run_outputs(tmp_path):
     """summary.json's peak_memory_mb is the run's, its end-of-run outputs included: it was taken
-    as the summary was made, before them, and a 100 m plant read 2.70 GB where the process
-    peaked at 3.77 GB (the observable surface). Here the observable surface's step touches
+    as the summary was made, before them, and a 100 m plant read 2.83 GB where the process
+    peaked at 3.86 GB (the observable surface). Here the observable surface's step touches
     300 MiB more (in a process of its own: the peak is the process's)."""
     import subprocess
     import sys
