@@ -40,7 +40,6 @@ from fuzz_meshes import gltf_file, obj_file, stl_ascii_file
 
 ROOT = Path(__file__).resolve().parent.parent
 CUBE = ROOT / "meshes" / "fixtures" / "cube.obj"
-KEY_MESH = [CUBE]  # the structure the configuration keys' cases fly (--mesh)
 VALUES = ("0", "-1", "nan", "inf", "1e12")
 KILL_RSS = int(2.5 * 2**30)  # killed above this (so that one case cannot take the machine)
 LIMIT_RSS = 2 * 2**30  # ">2GB" above this peak
@@ -117,8 +116,8 @@ def nbvkit(*args) -> list:
     return [sys.executable, "-m", "nbvkit.cli", *map(str, args)]
 
 
-def run_cmd(key: str | None = None, value: str | None = None, extra=()) -> list:
-    """`nbvkit run` of a tiny mission on the unit cube (--mesh: KEY_MESH) with `key=value` set."""
+def run_cmd(key: str | None = None, value: str | None = None, extra=(), mesh: Path = CUBE) -> list:
+    """`nbvkit run` of a tiny mission on `mesh` (the unit cube) with `key=value` set."""
     sets = {k: v for k, v in TINY.items() if k != key}
     # the report (7 s of a 9 s run) only where its keys are tried
     sets["report.enabled"] = "true" if key and key.startswith("report.") else "false"
@@ -126,17 +125,18 @@ def run_cmd(key: str | None = None, value: str | None = None, extra=()) -> list:
         sets[key] = value
     scenario = SCENARIO_OF.get(key.split(".")[0], "surface") if key else "surface"
     return nbvkit(
-        "run", "--mesh", KEY_MESH[0], "--scenario", scenario, "--no-progress", "--out", "out",
+        "run", "--mesh", mesh, "--scenario", scenario, "--no-progress", "--out", "out",
         "--set", *[f"{k}={v}" for k, v in sets.items()], *extra,
     )  # fmt: skip
 
 
-def key_cases() -> list[Case]:
+def key_cases(mesh: Path = CUBE) -> list[Case]:
+    """Each numeric configuration key at each hostile value, flown on `mesh`."""
     cases = []
     for key, _ in numeric_keys():
         for v in VALUES:
             leaf = key.rsplit(".", 1)[-1]  # a message naming the option: "prob_hit must be"
-            cases.append(Case("config keys", f"{key}={v}", run_cmd(key, v), (key, leaf)))
+            cases.append(Case("config keys", f"{key}={v}", run_cmd(key, v, mesh=mesh), (key, leaf)))
     return cases
 
 
@@ -487,9 +487,8 @@ def main(argv=None) -> int:
     ap.add_argument("--json", default=None, help="write every case's outcome to this file")
     ap.add_argument("--mesh", default=None, help="the configuration keys' structure (a path)")
     args = ap.parse_args(argv)
-    if args.mesh:
-        KEY_MESH[0] = Path(args.mesh).resolve()
-    cases = key_cases() + file_cases() + mesh_cases() + api_cases()
+    mesh = Path(args.mesh).resolve() if args.mesh else CUBE
+    cases = key_cases(mesh) + file_cases() + mesh_cases() + api_cases()
     if args.only:
         cases = [c for c in cases if any(s in c.name for s in args.only)]
     if args.groups:

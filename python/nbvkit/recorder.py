@@ -179,7 +179,7 @@ class Recorder:
     def _write_checkpoint(self, out: Path, wall: float) -> None:
         summary = {**self.kept_flight("interrupted", CHECKPOINT_STOP, wall), "checkpoint": True}
         self._write_flight(out)
-        write_json_atomic(out / "summary.json", summary)
+        _write_summary(out, summary)
 
     def kept_flight(self, why: str, stopped_by: str, wall: float) -> dict:
         """The summary of a flight kept before it ended (`why`: its termination)."""
@@ -236,7 +236,7 @@ class Recorder:
             "checkpoints": self.checkpoints,
             "checkpoint_s": self.checkpoint_time_s,
             # the process's peak resident memory (Linux ru_maxrss), taken again as summary.json
-            # is written, end-of-run outputs included (_with_peak); in a sweep worker that has
+            # is written, end-of-run outputs included (_write_summary); in a sweep worker that has
             # flown several runs, the largest of them
             "peak_memory_mb": _peak_mb(),
             "cloud_points": int(ev["n_points"]),
@@ -294,9 +294,7 @@ class Recorder:
             self._write_flight(out)
             return self._stopped(out, summary, e), e
         if not finish:
-            summary = _with_peak(summary)
-            write_json_atomic(out / "summary.json", summary)
-            return summary, None
+            return _write_summary(out, summary), None
         from .report import finish_run
 
         try:
@@ -306,9 +304,7 @@ class Recorder:
             for name in FINISH_OUTPUTS:  # a part of them would read as all of them
                 (out / name).unlink(missing_ok=True)
             return self._stopped(out, summary, e), e
-        summary = _with_peak(summary)
-        write_json_atomic(out / "summary.json", summary)
-        return summary, None
+        return _write_summary(out, summary), None
 
     def _write_flight(self, out: Path) -> None:
         """The flight's files, each whole (atomic): all but summary.json and the end-of-run
@@ -339,9 +335,9 @@ class Recorder:
 
     def _stopped(self, out: Path, summary: dict, e: BaseException) -> dict:
         """summary.json of a whole flight whose saving was stopped after it, by `e`."""
-        summary = {**_with_peak(summary), "stopped_by": error_line(e), "stopped_during": "saving"}
-        write_json_atomic(out / "summary.json", summary)
-        return summary
+        return _write_summary(
+            out, {**summary, "stopped_by": error_line(e), "stopped_during": "saving"}
+        )
 
     def _say(self, what: str, e: BaseException, doing: str) -> None:
         """The console's word that `e` stopped `what` and nbvkit is `doing` (saving): the cause
@@ -358,10 +354,13 @@ def _peak_mb() -> float:
     return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0
 
 
-def _with_peak(summary: dict) -> dict:
-    """`summary` with its peak memory taken again as it is written: the end-of-run outputs (the
-    observable surface: 0.6 GB more on a 100 m structure) come after the summary was made."""
-    return {**summary, "peak_memory_mb": _peak_mb()}
+def _write_summary(out: Path, summary: dict) -> dict:
+    """Write out/summary.json whole, its peak memory taken again as it is written (the end-of-run
+    outputs, e.g. the observable surface: 0.6 GB more on a 100 m structure, and the flight's
+    files come after the summary was made); returns what was written."""
+    summary = {**summary, "peak_memory_mb": _peak_mb()}
+    write_json_atomic(out / "summary.json", summary)
+    return summary
 
 
 # what finish_run writes beside the flight's files (its cache of the observable surface stays:
