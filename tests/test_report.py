@@ -85,6 +85,35 @@ def test_coverage_classes():
     assert coverage_classes(on, near, resolution=0.05).tolist() == [0, 0]
 
 
+def test_cell_keys_are_the_evaluation_cells():
+    # a point at the middle of cell (i, j, k) has the key of (i, j, k), packed as the C++ core
+    # packs voxels (21 bits an axis, offset by 2^20); points a few ulps either side of a boundary
+    # plane share the cell above it
+    r = 0.05
+    ijk = np.array([[0, 0, 0], [-1, 2, 3], [1000, -2000, 7], [-(2**20), 2**20 - 1, 0]])
+    k = ijk + (1 << 20)
+    want = (k[:, 0] << 42) | (k[:, 1] << 21) | k[:, 2]
+    assert nbvkit._core.cell_keys((ijk + 0.5) * r, r).tolist() == want.tolist()
+    z = 12.4  # cell 248 at 0.05 m
+    on = [[0.01, 0.01, z - 2 * np.spacing(z)], [0.01, 0.01, z], [0.01, 0.01, z + np.spacing(z)]]
+    keys = nbvkit._core.cell_keys(np.array(on), r)
+    assert len(set(keys.tolist())) == 1 and (int(keys[0]) & (2**21 - 1)) == 248 + (1 << 20)
+    for bad, words in (([[2**20 * r + r, 0, 0]], "too far from the origin"),
+                       ([[np.nan, 0, 0]], "NaN")):  # fmt: skip
+        with pytest.raises(ValueError, match=words):
+            nbvkit._core.cell_keys(np.array(bad), r)
+    with pytest.raises(ValueError, match="positive"):
+        nbvkit._core.cell_keys(np.zeros((1, 3)), 0.0)
+
+
+def test_coverage_classes_refuse_points_beyond_the_grid():
+    # a point past 2^20 cells from the origin has no cell of the evaluation's grid: its class
+    # would alias another cell's, so the classes are refused, naming the cause
+    pts = np.array([[0.05, 0.05, 0.05], [2**20 * 0.1 + 0.05, 0.05, 0.05]])
+    with pytest.raises(ValueError, match="too far from the origin"):
+        coverage_classes(pts, pts[:1])
+
+
 def test_coverage_classes_by_slices_of_the_cloud(monkeypatch):
     # The cloud looked up a slice at a time (7 points here) gives the classes of one lookup of
     # its whole set of cells (np.isin), on points and clouds spread over negative and positive

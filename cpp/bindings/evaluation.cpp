@@ -163,6 +163,26 @@ evaluate_cells_of to the last bit. Keeps the evaluator alive.)doc")
       .def_property_readonly("bytes", &CoverageTracker::bytes, "bytes of per-point and cell state");
 
   m.def(
+      "cell_keys",
+      [](const py::handle& points, double resolution) {
+        auto p = points_arg(points, "points");
+        std::vector<std::uint64_t> keys;
+        {
+          py::gil_scoped_release release;
+          keys = point_cell_keys(p.map(), resolution, "points");
+        }
+        py::array_t<std::uint64_t> out(static_cast<py::ssize_t>(keys.size()));
+        std::copy(keys.begin(), keys.end(), out.mutable_data());
+        return out;
+      },
+      py::arg("points"), py::arg("resolution"),
+      "(N,) uint64: the key of each of the (N, 3) points' cell on the evaluation's grid of cell\n"
+      "`resolution` (m) anchored at the origin, as evaluate counts cells: a coordinate on a cell\n"
+      "boundary, up to rounding, is in the cell above. Two points share a cell exactly when\n"
+      "their keys are equal. ValueError for a point too far from the origin for the grid (2^20\n"
+      "cells per axis) or a resolution that is not a positive number.");
+
+  m.def(
       "nearest_distances",
       [](const py::handle& targets, const py::handle& queries) {
         auto t = points_arg(targets, "targets");

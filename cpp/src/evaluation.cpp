@@ -72,15 +72,6 @@ std::vector<std::uint64_t> cell_keys(std::size_t n, const PointAt& point_at, dou
   return keys;
 }
 
-// Cell keys of points in input order; throws naming `what` if one is too far from the origin
-// for the grid.
-std::vector<std::uint64_t> point_cell_keys(const PointsRef& pts, double r, const char* what) {
-  return cell_keys(
-      std::size_t(pts.rows()),
-      [&](std::size_t k) { return Eigen::Vector3d(pts.row(Eigen::Index(k)).transpose()); }, r,
-      what);
-}
-
 // The slab of each point of a cloud of n points (point(i)) along the axis of its bounding box's
 // longest side, each slab of at most `most` points unless one of 4096 equal bins along the axis
 // holds more (at most 256 slabs; each holds a point). Deterministic: bins
@@ -551,6 +542,16 @@ EvaluationResult evaluate_points(const PointsRef& gt, const PointsRef& cloud,
                                  const EvaluationOptions& options) {
   require_finite(cloud, "cloud");
   return Evaluator(gt, options).evaluate(cloud);
+}
+
+std::vector<std::uint64_t> point_cell_keys(const PointsRef& pts, double r, const char* what) {
+  if (!(std::isfinite(r) && r > 0))
+    throw std::invalid_argument(std::string("cell size must be a positive number of metres, got ") +
+                                fmt(r));
+  return cell_keys(
+      std::size_t(pts.rows()),
+      [&](std::size_t k) { return Eigen::Vector3d(pts.row(Eigen::Index(k)).transpose()); }, r,
+      what);
 }
 
 }  // namespace nbv

@@ -8,6 +8,7 @@ from pathlib import Path
 
 import numpy as np
 
+from . import _core
 from .cloud import _is_cloud_list, _parts
 from .figures import _plt
 
@@ -31,12 +32,8 @@ def coverage_classes(points, cloud, observable=None, resolution: float = 0.1) ->
     if not _is_cloud_list(cloud):
         cloud = np.asarray(cloud, float).reshape(-1, 3)
 
-    def keys(p):  # a value on a cell boundary, up to rounding, in the cell above (as evaluate)
-        q = p / resolution
-        k = np.floor(q)
-        k += (k + 1.0 - q) < 1e-9 * (np.abs(q) + 1.0)
-        k = k.astype(np.int64) + (1 << 20)
-        return (k[:, 0] << 42) | (k[:, 1] << 21) | k[:, 2]
+    def keys(p):  # the cells as evaluate counts them (a value on a boundary: the cell above)
+        return _core.cell_keys(p, resolution)
 
     # the points' cells, then which of them the cloud's points fall in, a slice of the cloud
     # at a time: a 100 m structure's cloud of 25 M points would take 1.2 GB of keys at once

@@ -241,4 +241,10 @@ EvaluationResult evaluate(const Mesh& gt, const PointsRef& cloud,
 EvaluationResult evaluate_points(const PointsRef& gt, const PointsRef& cloud,
                                  const EvaluationOptions& options = {});
 
+/// The packed key (pack_voxel) of each point's cell on the evaluation's grid of cell r (m),
+/// anchored at the origin: a coordinate on a cell boundary, up to rounding, is in the cell above
+/// (try_cell_key). Throws std::invalid_argument naming `what` if a point is too far from the
+/// origin for the grid (2^20 cells per axis) and for an r that is not a positive number.
+std::vector<std::uint64_t> point_cell_keys(const PointsRef& points, double r, const char* what);
+
 }  // namespace nbv
