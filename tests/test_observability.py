@@ -410,6 +410,34 @@ def test_a_small_structure_gets_a_lattice_fine_enough_to_see_its_top(monkeypatch
     assert not (coarse.observable & ~r.observable).any()  # the fine search only adds
 
 
+def test_no_fine_lattice_of_nearly_the_configured_spacing():
+    """A fine lattice that would not hold twice the configured one's positions is not searched:
+    a structure whose diagonal / 16 is 0.79 of the 2 m spacing or more gets the 2 m lattice
+    alone (one search of its samples), one under it its own diagonal / 16."""
+    from nbvkit.work_limits import pose_spacing
+
+    c = load_config(None, [])
+    edge = 2.0 * 2 ** (-1 / 3) * 16 / np.sqrt(3)  # a cube whose diagonal / 16 is 0.79 x 2 m
+    assert pose_spacing(c, ((0, 0, 0), (edge * 1.01,) * 3)) == 2.0
+    assert pose_spacing(c, ((0, 0, 0), (edge * 0.99,) * 3)) == pytest.approx(
+        edge * 0.99 * np.sqrt(3) / 16
+    )
+    assert pose_spacing(c, ((0, 0, 0), (20, 20, 10))) == 2.0  # 1.875 m: nearly 2
+    slab = box_mesh((-8.0, -8.0, 0.0), (8.0, 8.0, 6.0))  # diagonal 23.4 m: 1.46 m, within
+    p, fid = samples(slab, 500)
+    r = observable_surface(slab, c, points=p, face_ids=fid)
+    assert r.stats["settings"]["fine_pose_spacing"] == pytest.approx(np.sqrt(2 * 256 + 36) / 16)
+    wide = box_mesh((-10.0, -10.0, 0.0), (10.0, 10.0, 8.0))  # 29.4 m: 1.84 m, not searched
+    p, fid = samples(wide, 500)
+    r = observable_surface(wide, c, points=p, face_ids=fid)
+    assert r.stats["settings"]["fine_pose_spacing"] == 2.0
+    from nbvkit.workspace import make_workspace
+
+    ws = make_workspace(wide.bounds, c)  # one lattice searched: the 2 m one's positions alone
+    nav = ws.nav_max - ws.nav_min
+    assert r.stats["lattice_points"] == np.prod([2 * np.floor(s / 4 + 1e-9) + 1 for s in nav])
+
+
 def test_the_fine_lattice_adds_to_the_configured_one_and_keeps_within_the_limits():
     """A 12 m cube: the fine lattice's highest level (1.3 m apart) lies 0.45 m above the top,
     nearer than the camera's 0.5 m, but the configured 2 m lattice's positions are searched

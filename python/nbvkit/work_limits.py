@@ -223,6 +223,12 @@ def check_gt_samples(cfg, area: float) -> float:
 #: most it is)
 POSES_ALONG_DIAGONAL = 16
 MIN_POSE_SPACING = 0.5
+#: the fine lattice is searched only where it holds at least this many times the positions of the
+#: configured one (its spacing at most FINE_LATTICE_GAIN^(-1/3) of it: 0.79). One of nearly the
+#: same spacing searches every unobservable sample again, the costly ones, for a handful of
+#: positions between: on a 31 m office building (a 1.95 m lattice beside the 2 m one) 48 of the
+#: 83 s, for 391 more observable samples of 1.95 M (0.02 %)
+FINE_LATTICE_GAIN = 2.0
 
 
 def _lattice_positions(size, step: float) -> int:
@@ -243,7 +249,8 @@ def pose_spacing(config, mesh_bounds, nav_size=None, samples: float = 1) -> floa
     limits allow over a navigation box of `nav_size` with `samples` tested; at most
     observability.pose_spacing, whose lattice is always searched too (an 8 m boat's 2 m lattice
     alone held 76 positions, and 11 % of its surface, seen by the camera in flight, counted as
-    unobservable)."""
+    unobservable); observability.pose_spacing itself (no fine lattice) where the fine one would
+    not hold FINE_LATTICE_GAIN times its positions."""
     lo, hi = mesh_bounds
     diagonal = math.dist([float(x) for x in lo], [float(x) for x in hi])
     fine = max(MIN_POSE_SPACING, diagonal / POSES_ALONG_DIAGONAL)
@@ -251,7 +258,8 @@ def pose_spacing(config, mesh_bounds, nav_size=None, samples: float = 1) -> floa
         fit, spacing = _lattice_fit(nav_size, samples)
         while _lattice_positions(nav_size, fine) > fit:
             fine = max(fine * 1.05, spacing)
-    return min(config.observability.pose_spacing, fine)
+    configured = config.observability.pose_spacing
+    return fine if fine <= configured * FINE_LATTICE_GAIN ** (-1 / 3) else configured
 
 
 def check_observability(cfg, ws, samples: float) -> None:
