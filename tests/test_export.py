@@ -213,6 +213,27 @@ def test_qgc_plan_read_back_flies_the_flight(exported, run_dir):
     assert np.abs(xyz[0] - top).max() < 0.01 and np.abs(xyz[-1] - top).max() < 0.01
 
 
+def test_qgc_plan_captures_are_reached_at_their_points(exported):
+    # PX4 counts a waypoint reached within its p2 (NAV_ACC_RAD, 2 m by default, where p2 is 0)
+    # and then runs the photo after it: each capture's waypoint has its own radius of at most
+    # 0.5 m, and two consecutive captures' radii never meet (read with json and pymap3d's ENU)
+    import pymap3d
+
+    out, _ = exported
+    items = json.loads((out / "mission.plan").read_text())["mission"]["items"]
+    nav = [k for k, it in enumerate(items) if it["command"] == 16]
+    capture = [k + 1 < len(items) and items[k + 1]["command"] == 2000 for k in nav]
+    radius = np.array([items[k]["params"][1] for k in nav])
+    assert sum(capture) > 20
+    assert all(0.001 < r <= 0.5 if c else r == 0 for r, c in zip(radius, capture))
+    lat, lon, rel = (np.array([items[k]["params"][i] for k in nav]) for i in (4, 5, 6))
+    enu = np.column_stack(pymap3d.geodetic2enu(lat, lon, rel, lat[0], lon[0], 0.0))
+    gap = np.linalg.norm(np.diff(enu, axis=0), axis=1)
+    both = np.array(capture[:-1]) & np.array(capture[1:])
+    assert both.sum() > 10 and (gap[both] > radius[:-1][both] + radius[1:][both]).all()
+    assert (gap[both] < 4.0).sum() > 5  # captures nearer than two default radii: it matters
+
+
 def test_the_export_folder_is_made_as_any_folder_is(exported, tmp_path):
     """The export's folders (moved into place from a temporary one) have the mode a new folder
     gets under this process's umask, not a private temporary folder's 0700."""

@@ -193,6 +193,7 @@ def _geo(fl, sortie, frame: GeoFrame, speed, hover_s, numbers, name, seqs=None):
         seq=[(seqs or {}).get(w.row, 0) for w in wps],
         waits=sortie.waits or None,
         workspace_top_rel_alt=_workspace_top_rel_alt(fl),
+        gap_m=np.r_[0.0, np.linalg.norm(np.diff(xyz.reshape(-1, 3), axis=0), axis=1)][: len(wps)],
     )
 
 

@@ -34,6 +34,10 @@ MAV_TYPE_QUADROTOR = 2
 QGC_ALTITUDE_MODE_RELATIVE = 1  # QGroundControl's AltMode: AltitudeModeRelative
 
 SPEED_TYPE_GROUND = 1  # DO_CHANGE_SPEED param 1
+#: the .plan's acceptance radius (NAV_WAYPOINT p2, m) at a capture, at most: PX4 counts a
+#: waypoint reached within p2 of it (NAV_ACC_RAD, 2 m by default, where p2 is 0) and runs its
+#: photo then; less where the capture's neighbours are nearer (capture_radii)
+CAPTURE_RADIUS_M = 0.5
 
 #: the highest cruise speed the export writes (m/s): DJI WPML's globalTransitionalSpeed range is
 #: [0, 15] and its route speeds may not pass the aircraft's maximum; PX4's default
@@ -59,7 +63,8 @@ class GeoWaypoints:
     only); waits: the sortie's nbvkit.flight_time.capture_waits (None: computed from the
     headings); workspace_top_rel_alt: the top of the run's workspace (the structure and the air
     round it), m above the launch point, which the DJI route's return-to-home height clears
-    (nbvkit.export.wpml.rth_rel_alt; None: no top known, the highest waypoint instead)."""
+    (nbvkit.export.wpml.rth_rel_alt; None: no top known, the highest waypoint instead);
+    gap_m (N,): the distance from the previous waypoint, m (the first's: 0; None: unknown)."""
 
     lat: np.ndarray
     lon: np.ndarray
@@ -82,6 +87,7 @@ class GeoWaypoints:
     home_ell: float = None
     waits: dict = None
     workspace_top_rel_alt: float = None
+    gap_m: np.ndarray = None
 
     def __len__(self):
         return len(self.lat)
@@ -124,6 +130,24 @@ def capture_holds(g: GeoWaypoints, ardupilot: bool) -> tuple[np.ndarray, np.ndar
     return hold, rest
 
 
+def capture_radii(g: GeoWaypoints) -> np.ndarray:
+    """(N,) the .plan's acceptance radius (NAV_WAYPOINT p2, m) of each waypoint: at a capture
+    CAPTURE_RADIUS_M, or 0.45 of the distance to the nearer neighbouring waypoint where that is
+    less (two captures' radii never meet: reaching one never counts the next reached, which
+    would fire its photo at once, off its point), not under 0.01 m; 0 (the autopilot's
+    NAV_ACC_RAD) elsewhere. Without g.gap_m, CAPTURE_RADIUS_M at every capture."""
+    n = len(g)
+    capture = np.array([a in ("view", "frame") for a in g.action], bool)
+    r = np.where(capture, CAPTURE_RADIUS_M, 0.0)
+    if g.gap_m is None or n == 0:
+        return r
+    gap = np.asarray(g.gap_m, float)
+    before = np.where(np.arange(n) > 0, gap, np.inf)  # the first has no waypoint before it
+    after = np.append(gap[1:], np.inf)
+    near = 0.45 * np.minimum(before, after)
+    return np.where(capture, np.clip(near, 0.01, CAPTURE_RADIUS_M), 0.0)
+
+
 def mavlink_items(g: GeoWaypoints, ardupilot: bool = False) -> list[dict]:
     """The mission as MAVLink items (command, frame, params p1..p7 with None for NaN): take-off,
     the cruise speed (DO_CHANGE_SPEED, again after the first waypoint's items: ArduCopter
@@ -139,6 +163,8 @@ def mavlink_items(g: GeoWaypoints, ardupilot: bool = False) -> list[dict]:
     waypoint, and runs the commands between two waypoints from the start of the leg to the
     second (docs/EXPORT.md); the gimbal's rates 0, not NaN (AP_Mission refuses NaN there)."""
     hold, rest = capture_holds(g, ardupilot)
+    # ArduPilot counts a waypoint reached when its path's target gets there: p2 0
+    radius = np.zeros(len(g)) if ardupilot else capture_radii(g)
     seq = g.seq
     if seq is None:  # number the captures of these waypoints, views and frames together
         seq = list(np.cumsum([a in ("view", "frame") for a in g.action]))
@@ -148,7 +174,7 @@ def mavlink_items(g: GeoWaypoints, ardupilot: bool = False) -> list[dict]:
         if g.action[k] == "takeoff":
             items += [_takeoff_item(g, k), _change_speed_item(g)]
             continue
-        items += _waypoint_items(g, k, hold, rest, seq, ardupilot)
+        items += _waypoint_items(g, k, (hold, rest, radius), seq, ardupilot)
         if speed_after_first_wp:
             # again after the first waypoint's items: runs when it is done, after the next
             # waypoint's start, which keeps it (ArduPilot issue #21080)
@@ -188,11 +214,12 @@ def _gimbal_item(g: GeoWaypoints, k: int, ardupilot: bool) -> tuple:
     return (MAV_CMD_DO_GIMBAL_MANAGER_PITCHYAW, MAV_FRAME_MISSION, params)
 
 
-def _waypoint_items(g: GeoWaypoints, k: int, hold, rest, seq, ardupilot: bool) -> list:
+def _waypoint_items(g: GeoWaypoints, k: int, waits, seq, ardupilot: bool) -> list:
     """The items of waypoint k (not the take-off), in mavlink_items' order: at a capture the
-    gimbal; in the ArduPilot file CONDITION_YAW to a planned heading; the waypoint with its hold;
-    at a capture the photo (seq: the captures' mission-wide numbers) and the rest of the hover
-    (hold, rest: capture_holds)."""
+    gimbal; in the ArduPilot file CONDITION_YAW to a planned heading; the waypoint with its hold
+    and acceptance radius; at a capture the photo (seq: the captures' mission-wide numbers) and
+    the rest of the hover (waits: hold, rest (capture_holds) and radius (capture_radii))."""
+    hold, rest, radius = waits
     lat, lon, rel = float(g.lat[k]), float(g.lon[k]), float(g.rel_alt[k])
     yaw = _yaw(g, k)
     capture = g.action[k] in ("view", "frame")
@@ -205,7 +232,7 @@ def _waypoint_items(g: GeoWaypoints, k: int, hold, rest, seq, ardupilot: bool) -
         (
             MAV_CMD_NAV_WAYPOINT,
             MAV_FRAME_GLOBAL_RELATIVE_ALT,
-            [float(hold[k]), 0, 0, yaw, lat, lon, rel],
+            [float(hold[k]), float(radius[k]), 0, yaw, lat, lon, rel],
         )
     )
     if capture:
