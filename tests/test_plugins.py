@@ -9,7 +9,7 @@ import math
 import subprocess
 import sys
 import textwrap
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 import pytest
@@ -680,6 +680,62 @@ def test_settings_whose_defaults_fail_their_checks_are_refused_when_registered()
     finally:
         registry.GENERATORS.pop("nanx", None)
     load_config(overrides=["map.resolution=0.4"])
+
+
+@dataclass(frozen=True)
+class _Lists:
+    """A part's settings with container and PEP 604 fields (the module's own annotations are
+    strings: `from __future__ import annotations`)."""
+
+    counts: tuple[int, ...] = (1, 2)
+    gains: list[float] = field(default_factory=lambda: [0.5])
+    pair: tuple[int, str] = (1, "a")
+    limit: float | None = None
+
+
+def test_container_and_optional_settings_are_checked_item_by_item():
+    # tuple[int, ...] took [1.5] and "hello", list[float] anything, and `float | None` any value
+    try:
+        registry.register_generator("lists", type("G", (RingGenerator,), {"Settings": _Lists}))
+        for over, words in (
+            ("lists.counts=[1.5]", r"'lists.counts\[0\]' must be an integer"),
+            ("lists.counts=hello", "'lists.counts' must be a list"),
+            ("lists.gains=[true]", r"'lists.gains\[0\]' must be a number"),
+            ("lists.pair=[3]", "'lists.pair' must be a list of 2 items"),
+            ("lists.limit=abc", "'lists.limit' must be a number"),
+        ):
+            with pytest.raises(ValueError, match=words):
+                load_config(overrides=[over])
+        s = load_config(
+            overrides=["lists.counts=[3, 4, 5]", "lists.gains=[1, 2]", "lists.pair=[7, 8]"]
+        ).section("lists")
+        assert s.counts == (3, 4, 5) and s.gains == [1.0, 2.0] and s.pair == (7, "8")
+        assert all(type(x) is float for x in s.gains)
+        assert load_config(overrides=["lists.limit=2"]).section("lists").limit == 2.0
+    finally:
+        registry.GENERATORS.pop("lists", None)
+
+
+def test_settings_of_types_a_configuration_cannot_check_are_refused_when_registered():
+    @dataclass(frozen=True)
+    class Loose:
+        table: dict = None
+
+    @dataclass(frozen=True)
+    class Unreadable:
+        x: "NoSuchType" = 1  # noqa: F821
+
+    try:
+        for name, cls, words in (
+            ("loose", Loose, r"generator 'loose': its Settings: field 'table' is of type"),
+            ("unread", Unreadable, "generator 'unread': its Settings: its annotations cannot"),
+        ):
+            with pytest.raises(TypeError, match=words):
+                registry.register_generator(name, type("G", (RingGenerator,), {"Settings": cls}))
+            assert name not in registry.GENERATORS
+    finally:
+        registry.GENERATORS.pop("loose", None)
+        registry.GENERATORS.pop("unread", None)
 
 
 def test_an_exclusive_generator_may_write_its_views_into_the_same_array():

@@ -10,7 +10,7 @@ from dataclasses import fields, is_dataclass
 import yaml
 
 from .config import DEFAULT_SCENARIO, Config
-from .settings import field_bound
+from .settings import UNIONS, field_bound
 
 
 def bounds_table() -> list[tuple[str, str, str, str]]:
@@ -23,7 +23,7 @@ def bounds_table() -> list[tuple[str, str, str, str]]:
                 continue
             hint = typing.get_type_hints(type(obj))[f.name]
             inner = hint
-            if typing.get_origin(hint) is typing.Union:
+            if typing.get_origin(hint) in UNIONS:
                 (inner,) = [a for a in typing.get_args(hint) if a is not type(None)]  # noqa: E721
             if inner in (int, float):
                 rng = field_bound(type(obj), f).describe() or "any finite"
@@ -62,7 +62,7 @@ def documented_yaml() -> str:
         integer's maximum)."""
         f = {x.name: x for x in fields(cls)}[name]
         hint = typing.get_type_hints(cls)[name]
-        if typing.get_origin(hint) is typing.Union:
+        if typing.get_origin(hint) in UNIONS:
             hint = next(a for a in typing.get_args(hint) if a is not type(None))  # noqa: E721
         if hint not in (int, float) or ("bound" not in f.metadata and hint is not int):
             return comment

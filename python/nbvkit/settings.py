@@ -16,6 +16,7 @@ import functools
 import math
 import numbers
 import sys
+import types
 import typing
 from dataclasses import field, fields, is_dataclass, make_dataclass
 from typing import Tuple
@@ -26,6 +27,8 @@ from .limits import Bound, is_bool, is_number, shorten
 
 #: A list of names in the configuration (YAML list of strings).
 Names = Tuple[str, ...]
+#: the origins of an Optional[X] annotation: typing's, and X | None's (PEP 604)
+UNIONS = (typing.Union, types.UnionType)
 
 
 def bounded(default, bound: Bound):
@@ -194,7 +197,7 @@ def coerce(tp, value, key):
     origin = typing.get_origin(tp)
     if is_dataclass(tp):
         return build(tp, value if value is not None else {}, key + ".")
-    if origin is typing.Union:  # Optional[X]
+    if origin in UNIONS:  # Optional[X], X | None
         if value is None:
             return None
         (inner,) = [a for a in typing.get_args(tp) if a is not type(None)]  # noqa: E721
@@ -242,7 +245,65 @@ def coerce(tp, value, key):
             return tuple(float(x) for x in value)
         except OverflowError:
             raise ValueError(f"config key {key!r} must be finite, got {shorten(value)}") from None
+    if typing.get_origin(tp) in (tuple, list):
+        return _coerce_items(tp, value, key)
     return value
+
+
+def _coerce_items(tp, value, key):
+    """A key of type tuple[T, ...], tuple[T1, T2, ...] or list[T]: a list whose items are each
+    coerced to their type (as a key of that type: f"{key}[i]"), as a tuple or a list."""
+    args, origin = typing.get_args(tp), typing.get_origin(tp)
+    if isinstance(value, (str, bytes)) or not isinstance(value, (list, tuple)):
+        raise ValueError(f"config key {key!r} must be a list, got {shorten(value)}")
+    if origin is list or (len(args) == 2 and args[1] is Ellipsis):
+        types = [args[0]] * len(value)
+    else:
+        types = list(args)
+        if len(value) != len(types):
+            raise ValueError(
+                f"config key {key!r} must be a list of {len(types)} items, got {shorten(value)}"
+            )
+    items = [coerce(t, v, f"{key}[{i}]") for i, (t, v) in enumerate(zip(types, value))]
+    return items if origin is list else tuple(items)
+
+
+#: the item types of a tuple[...] or list[...] key that coerce checks
+_ITEM_TYPES = (bool, int, float, str)
+
+
+def check_field_types(cls, what: str) -> None:
+    """TypeError naming `what` unless every field of the dataclass `cls` (its own, not starting
+    with _) is of a type coerce checks: bool, int, float, str, tuple (of numbers), tuple[T, ...],
+    tuple[T1, T2, ...] or list[T] of those scalars, Optional of any of these, or a dataclass
+    of such fields (a value of another type would be taken as the YAML gave it, unchecked)."""
+    try:
+        hints = typing.get_type_hints(cls)
+    except Exception as e:  # (a name the annotation uses is not defined where it was written)
+        raise TypeError(
+            f"{what}: its annotations cannot be read: {type(e).__name__}: {e}"
+        ) from None
+    for f in fields(cls):
+        if f.name.startswith("_"):
+            continue
+        tp = hints[f.name]
+        if typing.get_origin(tp) in UNIONS:
+            args = [a for a in typing.get_args(tp) if a is not type(None)]  # noqa: E721
+            tp = args[0] if len(args) == 1 else tp
+        if is_dataclass(tp) and isinstance(tp, type):
+            check_field_types(tp, f"{what}, field {f.name!r}")
+            continue
+        origin, args = typing.get_origin(tp), typing.get_args(tp)
+        items = args[:1] if origin is tuple and len(args) == 2 and args[1] is Ellipsis else args
+        if tp in (*_ITEM_TYPES, tuple) or (
+            origin in (tuple, list) and items and all(a in _ITEM_TYPES for a in items)
+        ):
+            continue
+        raise TypeError(
+            f"{what}: field {f.name!r} is of type {tp!r}, which a configuration cannot check: "
+            "use bool, int, float, str, tuple (numbers), tuple[T, ...], tuple[T1, T2] or list[T] "
+            "(T one of bool, int, float, str), Optional[...] of one, or a dataclass"
+        )
 
 
 @functools.lru_cache(maxsize=None)
@@ -255,7 +316,7 @@ def field_bound(cls, f) -> Bound:
     """The range of field `f` of config class `cls` (its declared Bound; an integer key without
     a maximum gets limits.MAX_INT; NaN and infinities are refused unless it says so)."""
     hint = type_hints(cls)[f.name]
-    if typing.get_origin(hint) is typing.Union:  # Optional[X]
+    if typing.get_origin(hint) in UNIONS:  # Optional[X], X | None
         (hint,) = [a for a in typing.get_args(hint) if a is not type(None)]  # noqa: E721
     return f.metadata.get("bound", Bound()).for_type(hint)
 

@@ -14,7 +14,7 @@ from .generators.tour import CoverageTour
 from .terminations.budget import Budget
 from .terminations.entropy import EntropyChange
 from .terminations.stall import SurfaceStall
-from ..settings import REGISTER_FIRST, validate
+from ..settings import REGISTER_FIRST, check_field_types, validate
 
 GENERATORS = {
     "lattice": LatticeGenerator,  # the paper's CGVS / AGVS lattice around the vehicle
@@ -150,6 +150,8 @@ def _check_part(name: str, kind: str, cls, methods) -> None:
             f"{kind} {name!r}: its Settings must be a frozen dataclass (@dataclass(frozen=True)):"
             " the configuration a run records is the one its parts flew"
         )
+    if settings is not None:
+        check_field_types(settings, f"{kind} {name!r}: its Settings")
     if settings is not None:  # every configuration builds its section from the defaults
         try:
             defaults = settings()
