@@ -111,6 +111,8 @@ class Broken:
     def propose(self, world):
         if {bug!r} == "zero":
             return 1 / 0
+        if {bug!r} == "key":
+            return {{}}["spacing"]
         return [[0.0, -6.0, 1.0, 0.0]]  # a list, not a Proposal
 
     def feedback(self, world, proposal, step):
@@ -125,6 +127,7 @@ nbvkit.register_generator("broken", Broken)
     "bug, said",
     [
         ("zero", "nbvkit run: error: ZeroDivisionError: division by zero"),
+        ("key", "nbvkit run: error: KeyError: spacing"),  # (was "error: spacing")
         ("list", "nbvkit run: error: generator 'broken': propose returned list, not a"),
     ],
 )

@@ -96,8 +96,8 @@ def main(argv: list[str] | None = None) -> int:
         if not (isinstance(e, (*_CLEAN, PartContractError)) or own):
             raise  # nbvkit's own bug: its whole traceback
         msg = e.args[0] if isinstance(e, KeyError) and e.args else e
-        if own and not isinstance(e, _CLEAN):
-            msg = f"{type(e).__name__}: {e}"  # its type is part of the news
+        if own and (isinstance(e, KeyError) or not isinstance(e, _CLEAN)):
+            msg = f"{type(e).__name__}: {msg}"  # its type is part of the news ("foo": a key)
         _plugin_traceback(e)
         print(f"nbvkit {args.command}: error: {msg}", file=sys.stderr)
         return 2
