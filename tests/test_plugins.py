@@ -130,6 +130,11 @@ def test_registering_checks_the_name(parts):
         registry.register_termination("two words", DistanceCap)
     with pytest.raises(ValueError, match="unknown planner generator 'rings'"):
         load_config(overrides=["planner.generators=[rings]"])
+    # a termination named as a generator: the generator is named, and replace=True (which
+    # replaces one's own part of the same kind only) is not offered
+    with pytest.raises(ValueError, match="a generator named 'ring' is registered") as e:
+        registry.register_termination("ring", DistanceCap)
+    assert "replace=True" not in str(e.value)
 
 
 def test_the_configuration_module_names_no_part():

@@ -88,7 +88,7 @@ def _check_new(name: str, kind: str, taken, replace: bool = False, table=None) -
     if own and replace:
         raise ValueError(f"{kind} {name!r} is one of nbvkit's own and cannot be replaced")
     if replace and name not in table:
-        other = "generator" if name in GENERATORS else "termination"
+        other = _kind_of(name)
         raise ValueError(
             f"a {other} named {name!r} is registered, not a {kind}: replace=True replaces a "
             f"{kind} of your own; choose another name"
@@ -96,15 +96,22 @@ def _check_new(name: str, kind: str, taken, replace: bool = False, table=None) -
     if not replace:
         from ..origins import clash, defined_in
 
+        # (a generator and a termination share the configuration's sections: one name, one kind)
+        held = kind if table is None or name in table else _kind_of(name)
         raise ValueError(
-            f"a {kind} named {name!r} is registered already"
+            f"a {held} named {name!r} is registered already"
             + ("" if own else clash(defined_in(taken[name])))
             + (
                 " (one of nbvkit's own); choose another name"
                 if own
-                else "; choose another name, or replace=True to replace it"
+                else "; choose another name"
+                + (", or replace=True to replace it" if held == kind else "")
             )
         )
+
+
+def _kind_of(name: str) -> str:
+    return "generator" if name in GENERATORS else "termination"
 
 
 def _core_utilities() -> tuple:
