@@ -629,7 +629,7 @@ def test_a_view_beyond_one_battery_is_reported_not_dropped(run_dir, tmp_path):
     model = FlightModel()
     sp = SortiePlanner(fl, model, ReturnPaths(fl, model, None, []))  # retrace only: far views
     views = [i for i, c in enumerate(fl.capture) if c == "view"]
-    usable = sp.cost(views[0], views[0]) + 1.0  # enough for the first view, not the farthest
+    usable = sp.sortie(1, views[0], views[0]).time_s + 1.0  # the first view's, not the last's
     sorties, unreachable = sp.split(usable)
     flown = [
         i for s in sorties for i in range(s.first_row, s.last_row + 1) if fl.capture[i] == "view"
@@ -1051,15 +1051,24 @@ def test_a_turn_at_a_capture_is_held_until_done_before_the_photo():
 
 
 # ------------------------------------------------------------------ what the files command
+def _stop_s(d, v, a=2.5):
+    """Seconds to fly d metres from a stop to a stop at most at v, accelerating and braking at a
+    (2.5 m/s^2: ArduPilot's WPNAV_ACCEL): v is reached after v^2 / (2a) metres."""
+    if d >= v * v / a:
+        return (d - v * v / a) / v + 2 * v / a
+    return 2 * math.sqrt(d / a)
+
+
 def _nav_legs_s(points, speed, climb):
     """Seconds of straight legs between (lat, lon, rel_alt) points at the time model's speeds,
+    stopping at each (a DJI route stops at every waypoint; an autopilot at most there),
     horizontal distances from pymap3d (east, north)."""
     import pymap3d
 
     t = 0.0
     for a, b in zip(points, points[1:]):
         e, n, _ = pymap3d.geodetic2enu(b[0], b[1], 0.0, a[0], a[1], 0.0)
-        t += max(math.hypot(e, n) / speed, abs(b[2] - a[2]) / climb)
+        t += max(_stop_s(math.hypot(e, n), speed), _stop_s(abs(b[2] - a[2]), climb))
     return t
 
 
@@ -1070,7 +1079,8 @@ def _waypoints_time(path, speed=5.0, climb=2.0):
     items = [(int(r[3]), [float(v) for v in r[4:11]]) for r in rows[1:]]
     nav = [(p[4], p[5], p[6]) for c, p in items if c in (16, 22)]
     waits = sum(int(p[0]) for c, p in items if c == 16) + sum(p[0] for c, p in items if c == 93)
-    return nav[0][2] / climb + _nav_legs_s(nav, speed, climb) + waits + nav[-1][2] / climb
+    up, down = _stop_s(nav[0][2], climb), _stop_s(nav[-1][2], climb)
+    return up + _nav_legs_s(nav, speed, climb) + waits + down
 
 
 def _kmz_time(path, speed=5.0, climb=2.0):
@@ -1103,14 +1113,16 @@ def _kmz_time(path, speed=5.0, climb=2.0):
         elif may_face is not None:
             a = pm.findtext("wpml:waypointHeadingParam/wpml:waypointHeadingAngle", namespaces=ns)
             may_face.append(float(a))
-    return pts[0][2] / climb + _nav_legs_s(pts, speed, climb) + t + pts[-1][2] / climb
+    up, down = _stop_s(pts[0][2], climb), _stop_s(pts[-1][2], climb)
+    return up + _nav_legs_s(pts, speed, climb) + t + down
 
 
 def _plan_time(path, speed=5.0, climb=2.0):
     items = json.loads(path.read_text())["mission"]["items"]
     nav = [tuple(it["params"][4:7]) for it in items if it["command"] in (16, 22)]
     waits = sum(it["params"][0] for it in items if it["command"] in (16, 93))
-    return nav[0][2] / climb + _nav_legs_s(nav, speed, climb) + waits + nav[-1][2] / climb
+    up, down = _stop_s(nav[0][2], climb), _stop_s(nav[-1][2], climb)
+    return up + _nav_legs_s(nav, speed, climb) + waits + down
 
 
 def test_no_sortie_file_waits_past_the_battery(run_dir, tmp_path):
@@ -1122,6 +1134,7 @@ def test_no_sortie_file_waits_past_the_battery(run_dir, tmp_path):
         run_dir, "qgc,wpml,csv", ORIGIN, HEADING, out, flight_time_min=0.6, reserve_pct=0
     )
     assert len(s["sorties"]) >= 2
+    turns_held = False
     for srt in s["sorties"]:
         name = f"sortie_{srt['sortie']:02d}"
         got = {
@@ -1135,7 +1148,9 @@ def test_no_sortie_file_waits_past_the_battery(run_dir, tmp_path):
         for k, v in got.items():
             assert v <= by[k] + 0.05, (name, k, v, by[k])
         assert srt["time_s"] == max(by.values()) <= 36.0
-        assert got["ardupilot"] > got["px4"]  # the turns' holds counted
+        assert got["ardupilot"] >= got["px4"] - 1e-3
+        turns_held |= got["ardupilot"] > got["px4"] + 0.5  # the turns' holds counted
+    assert turns_held
     # the whole mission's waits per file in export.json too
     assert set(s["mission"]["time_s_by_file"]) == {"px4", "ardupilot", "dji"}
 
@@ -1620,6 +1635,7 @@ def test_the_ways_back_from_one_search_are_what_a_search_from_each_capture_finds
     equal), from the capture to the start; and the choice of A* or retrace follows the
     cheaper."""
     from nbvkit.export.plan import FlightModel, ReturnPaths, SortiePlanner, find_launch, load_map
+    from nbvkit.flight_home import stop_rows
 
     fl, model = read_run(run_dir), FlightModel()
     occ = load_map(fl)
@@ -1641,7 +1657,7 @@ def test_the_ways_back_from_one_search_are_what_a_search_from_each_capture_finds
             length = np.linalg.norm(np.diff(all_.paths[k], axis=0), axis=1).sum()
             assert length <= all_.cells_cost[k] + math.sqrt(3) * occ.resolution + 1e-9, i
         t_all = model.path_time(all_.paths[k])
-        retrace = rp.cost[i - 1] + model.leg_times(fl.xyz[i - 1 : i + 1])[0]
+        retrace = rp.cost[i - 1] + model.leg_times(fl.xyz, stop_rows(fl))[i - 1]
         assert rp.cost[i] == pytest.approx(min(t_all, retrace)), i
         assert (i in rp.astar) == (t_all < retrace), i
     assert searched > 0 and len(rp.astar) > 0

@@ -154,8 +154,7 @@ class SortiePlanner:
 
     def __init__(self, fl: RunFlight, model: FlightModel, returns: ReturnPaths):
         self.fl, self.model, self.returns = fl, model, returns
-        leg = np.concatenate([[0.0], model.leg_times(fl.xyz)])
-        self.cum = np.cumsum(leg)  # s from row 0 along the flight
+        self.cum = np.cumsum(returns.leg)  # s from row 0 along the flight (an estimate: sortie())
         # an estimate of each capture's longest wait (capture_waits over the flight's rows: the
         # turn from the previous row), and first: the same after a transit leg (a sortie's first
         # row); split() checks each sortie against the waits of its own waypoints
@@ -171,7 +170,7 @@ class SortiePlanner:
         if fl.launch is None:
             fl.launch, fl.launch_path = fl.start.copy(), fl.start[None, :].copy()
         #: seconds from the ground to the start (climb, then the way over) and back
-        self.climb_s = float(abs(fl.launch[2] - fl.home[2]) / model.climb_rate)
+        self.climb_s = float(model.stop_leg_s(fl.launch - fl.home)[0])
         self.climb_s += model.path_time(fl.launch_path)
         self.work = self.work_rows(fl)
 
@@ -238,13 +237,16 @@ class SortiePlanner:
             [w.action for w in wps], [math.degrees(w.yaw) for w in wps], self.model.hover_s
         )
         waits = waits_s(s.waits)
-        fly = self.fly_s(r, e)
-        s.times = {t: fly + waits[t] for t in TARGETS}
+        # its legs as written: each from a stop to a stop (flight_time's module docstring)
+        leg = self.model.stop_leg_s(np.diff(pts, axis=0))
+        rows = [k for k, w in enumerate(wps) if w.row >= 0] or [len(wps) - 1]
+        a, b = rows[0] + 1, rows[-1] + 1  # the first and last flight rows' legs end there
+        s.times = {t: float(leg.sum()) + waits[t] for t in TARGETS}
         s.time_s = max(s.times.values())
         s.legs = {
-            "out_s": self.climb_s + self.returns.cost[r],
-            "along_s": self.cum[e] - self.cum[r] + max(waits.values()),
-            "back_s": self.returns.cost[e] + self.climb_s,
+            "out_s": float(leg[:a].sum()),
+            "along_s": float(leg[a:b].sum()) + max(waits.values()),
+            "back_s": float(leg[b:].sum()),
         }
         return s
 

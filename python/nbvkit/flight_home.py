@@ -88,6 +88,15 @@ def find_launch(fl: RunFlight, occ_map, model: FlightModel) -> None:
     )
 
 
+def stop_rows(fl: RunFlight) -> np.ndarray:
+    """(N,) bool: the rows of the flight a written mission stops at besides its corners
+    (FlightModel.leg_times): the captures, and the points whose heading or camera pitch is not
+    the next point's (nbvkit.flight.simplify keeps them)."""
+    yaw, pitch = np.asarray(fl.yaw, float), np.asarray(fl.pitch, float)
+    turns = (np.abs(np.diff(yaw)) >= 1e-12) | (np.abs(np.diff(pitch)) >= 1e-12)
+    return np.r_[turns, True] | np.array([bool(c) for c in fl.capture], bool)
+
+
 class ReturnPaths:
     """For each point of the flight, the cheapest known-safe way back to the start (see the
     module's docstring): its time (s) and its points (first = the point, last = the start).
@@ -99,7 +108,8 @@ class ReturnPaths:
     def __init__(self, fl: RunFlight, model: FlightModel, occ_map, targets):
         n = len(fl.xyz)
         self.fl, self.model = fl, model
-        leg = np.concatenate([[0.0], model.leg_times(fl.xyz)])
+        #: (N,) s of the leg to each point along the flight (0 for the first)
+        self.leg = leg = np.concatenate([[0.0], model.leg_times(fl.xyz, stop_rows(fl))])
         self.cost = np.zeros(n)
         self.back = np.full(n, -1)  # previous point along the retrace, or -1: A* (or the start)
         self.astar: dict[int, np.ndarray] = {}

@@ -2,8 +2,14 @@
 command at each capture (capture_waits), the one place both the time model (nbvkit.flight's
 sorties) and the mission writers (nbvkit.export) take them from.
 
-A straight leg takes max(horizontal distance / speed, |climb| / climb_rate) seconds (a
-multirotor flies it at its horizontal and vertical speed limits), and each capture adds the waits
+A straight leg between two stops takes the longer of its horizontal and its vertical flight,
+each accelerating at `accel` up to its speed limit (speed, climb_rate), cruising, and braking
+to the stop: d / v + v / accel, or 2 sqrt(d / accel) on a leg too short to reach v (stop_leg_s).
+A mission file stops at every waypoint it writes (the DJI route's
+toPointAndStopWithDiscontinuityCurvature; ArduPilot and PX4 slow down at each corner and stop
+at each hold): the exported sortie is timed so, from its written waypoints. Points along a
+straight line are flown through (leg_times: the flight's rows and the ways home, where the
+corners, captures and heading changes are the stops). Each capture adds the waits
 the written missions command there (capture_waits: the settle, the photo, the rest of `hover_s`,
 and in the ArduPilot and DJI files the turn to the capture's heading). A sortie's time is that of
 the format that waits longest (the .waypoints file as a rule); the times per format are reported
@@ -19,6 +25,12 @@ import numpy as np
 #: capture kinds of a flight row
 VIEW, FRAME = "view", "frame"
 
+#: the acceleration and braking of the time model (m/s^2, horizontal and vertical): ArduPilot's
+#: default WPNAV_ACCEL (2.5 m/s^2), the lowest of the autopilots' (PX4's MPC_ACC_HOR: 3)
+ACCEL_M_S2 = 2.5
+#: points off the line between their neighbours by less than this (m) are flown through
+#: (nbvkit.flight.simplify drops them from the written waypoints with the same tolerance)
+LINE_TOL_M = 1e-3
 #: the turn rate the ArduPilot file asks CONDITION_YAW for (deg/s, its param 2); the time model
 #: also bounds the DJI route's rotateYaw by it (ArduPilot's own default is ATC_SLEW_YAW, 60 deg/s)
 YAW_RATE_DEG_S = 30.0
@@ -137,12 +149,58 @@ class FlightModel:
         if not (math.isfinite(self.hover_s) and 0 <= self.hover_s <= MAX_HOVER_S):
             raise ValueError(f"hover must be 0..{MAX_HOVER_S:g} s a view, got {self.hover_s:g}")
 
-    def leg_times(self, pts: np.ndarray) -> np.ndarray:
-        """(P-1,) seconds of the straight legs between consecutive points (P, 3)."""
-        d = np.diff(np.asarray(pts, float).reshape(-1, 3), axis=0)
+    def stop_leg_s(self, d: np.ndarray) -> np.ndarray:
+        """(L,) seconds of straight legs d (L, 3) each flown from a stop to a stop (module
+        docstring)."""
+        d = np.asarray(d, float).reshape(-1, 3)
         return np.maximum(
-            np.hypot(d[:, 0], d[:, 1]) / self.speed, np.abs(d[:, 2]) / self.climb_rate
+            _accelerated(np.hypot(d[:, 0], d[:, 1]), self.speed, ACCEL_M_S2),
+            _accelerated(np.abs(d[:, 2]), self.climb_rate, ACCEL_M_S2),
         )
 
-    def path_time(self, pts) -> float:
-        return float(self.leg_times(pts).sum())
+    def leg_times(self, pts: np.ndarray, stops=None) -> np.ndarray:
+        """(P-1,) seconds of the legs between consecutive points (P, 3), flown through the points
+        on a straight line and stopping at the others (corners(pts)), and at those `stops`
+        (a (P,) bool mask) marks: each run between two stops takes stop_leg_s of its length,
+        shared among its legs by their length."""
+        pts = np.asarray(pts, float).reshape(-1, 3)
+        if len(pts) < 2:
+            return np.zeros(0)
+        stop = corners(pts)
+        if stops is not None:
+            stop |= np.asarray(stops, bool)
+        ends = np.flatnonzero(stop)  # the first and the last are stops
+        d = np.diff(pts, axis=0)
+        length = np.linalg.norm(d, axis=1)
+        run = self.stop_leg_s(pts[ends[1:]] - pts[ends[:-1]])  # each run's time
+        of = np.searchsorted(ends, np.arange(len(d)), side="right") - 1  # each leg's run
+        total = np.add.reduceat(length, ends[:-1])[of]
+        legs = np.diff(ends)[of]
+        return np.where(
+            total > 0, run[of] * length / np.where(total > 0, total, 1.0), run[of] / legs
+        )
+
+    def path_time(self, pts, stops=None) -> float:
+        return float(self.leg_times(pts, stops).sum())
+
+
+def _accelerated(d: np.ndarray, v: float, a: float) -> np.ndarray:
+    """Seconds to fly d from a stop to a stop, at most at speed v and accelerating and braking
+    at a: d / v + v / a when d reaches v (d >= v^2 / a), else 2 sqrt(d / a)."""
+    return np.where(d >= v * v / a, d / v + v / a, 2.0 * np.sqrt(d / a))
+
+
+def corners(pts: np.ndarray, tol: float = LINE_TOL_M) -> np.ndarray:
+    """(P,) bool: the points (P, 3) a flight stops at: the first, the last, and each farther
+    than tol from the segment between its neighbours (a corner) or at one of them (a point
+    flown twice, a turn back)."""
+    pts = np.asarray(pts, float).reshape(-1, 3)
+    out = np.ones(len(pts), bool)
+    if len(pts) < 3:
+        return out
+    a, p, b = pts[:-2], pts[1:-1], pts[2:]
+    ab = b - a
+    t = np.einsum("ij,ij->i", p - a, ab) / np.maximum(np.einsum("ij,ij->i", ab, ab), 1e-300)
+    off = np.linalg.norm(a + np.clip(t, 0.0, 1.0)[:, None] * ab - p, axis=1)
+    out[1:-1] = (off > tol) | (t <= 0.0) | (t >= 1.0)
+    return out
