@@ -3,8 +3,8 @@ command at each capture (capture_waits), the one place both the time model (nbvk
 sorties) and the mission writers (nbvkit.export) take them from.
 
 A straight leg between two stops takes the longer of its horizontal and its vertical flight,
-each accelerating at `accel` up to its speed limit (speed, climb_rate), cruising, and braking
-to the stop: d / v + v / accel, or 2 sqrt(d / accel) on a leg too short to reach v (stop_leg_s).
+each accelerating at a = ACCEL_M_S2 up to its speed limit v (speed, climb_rate), cruising, and
+braking to the stop: d / v + v / a, or 2 sqrt(d / a) on a leg too short to reach v (stop_leg_s).
 A mission file stops at every waypoint it writes (the DJI route's
 toPointAndStopWithDiscontinuityCurvature; ArduPilot and PX4 slow down at each corner and stop
 at each hold): the exported sortie is timed so, from its written waypoints. Points along a
