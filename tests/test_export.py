@@ -688,6 +688,16 @@ def test_bad_input_names_the_problem_and_writes_nothing(run_dir, tmp_path, kwarg
     assert list(tmp_path.iterdir()) == []  # no output folder, no temporary folder
 
 
+def test_an_output_folder_that_cannot_be_made_is_named_before_the_work(run_dir, tmp_path):
+    # a file on its path: "[Errno 20] Not a directory: '.../afile/.nbvkit-export-...'", a
+    # temporary folder's name, once the sorties were planned
+    (tmp_path / "afile").write_text("")
+    out = tmp_path / "afile" / "sub"
+    with pytest.raises(ValueError, match=f"output folder {out} cannot be written"):
+        export_mission(run_dir, "qgc", ORIGIN, HEADING, out)
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["afile"]
+
+
 def test_a_run_folder_without_a_trajectory_is_named(run_dir, tmp_path):
     import shutil
 

@@ -20,6 +20,7 @@ from ..flight import estimate, sortie_planner
 from ..flight_time import FRAME, VIEW, FlightModel
 from ..run_report import update_flight_section
 from ..limits import is_number
+from ..output_paths import check_output_dir
 from ..runfolder import require_complete_run
 from .plan import read_run
 from . import colmap, items, writers
@@ -269,8 +270,7 @@ def export_mission(
     if out_dir is not None and not os.fspath(out_dir).strip():
         raise ValueError("out_dir is empty: give a folder, or None for RUN_DIR/export")
     out = Path(out_dir).expanduser() if out_dir is not None else run / "export"
-    if out.exists() and not out.is_dir():
-        raise ValueError(f"output folder {out} exists and is not a folder")
+    check_output_dir(out, "output folder")  # before the work (a file on its path, no rights)
 
     fl, sp = _planner(run, model, need_all_returns=split)
     whole = sp.whole()
