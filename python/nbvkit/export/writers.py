@@ -34,9 +34,8 @@ MAV_TYPE_QUADROTOR = 2
 QGC_ALTITUDE_MODE_RELATIVE = 1  # QGroundControl's AltMode: AltitudeModeRelative
 
 SPEED_TYPE_GROUND = 1  # DO_CHANGE_SPEED param 1
-#: the .plan's acceptance radius (NAV_WAYPOINT p2, m) at a capture, at most: PX4 counts a
-#: waypoint reached within p2 of it (NAV_ACC_RAD, 2 m by default, where p2 is 0) and runs its
-#: photo then; less where the capture's neighbours are nearer (capture_radii)
+#: the .plan's acceptance radius at a capture, at most (NAV_WAYPOINT p2, m; capture_radii): PX4
+#: counts a waypoint reached within p2 (NAV_ACC_RAD, 2 m, where p2 is 0), then runs its photo
 CAPTURE_RADIUS_M = 0.5
 
 #: the highest cruise speed the export writes (m/s): DJI WPML's globalTransitionalSpeed range is
@@ -63,8 +62,8 @@ class GeoWaypoints:
     only); waits: the sortie's nbvkit.flight_time.capture_waits (None: computed from the
     headings); workspace_top_rel_alt: the top of the run's workspace (the structure and the air
     round it), m above the launch point, which the DJI route's return-to-home height clears
-    (nbvkit.export.wpml.rth_rel_alt; None: no top known, the highest waypoint instead);
-    gap_m (N,): the distance from the previous waypoint, m (the first's: 0; None: unknown)."""
+    (nbvkit.export.wpml.rth_rel_alt; None: no top known, the highest waypoint instead); gap_m
+    (N,): m from the previous waypoint (the first's: 0; None: unknown)."""
 
     lat: np.ndarray
     lon: np.ndarray
@@ -131,20 +130,16 @@ def capture_holds(g: GeoWaypoints, ardupilot: bool) -> tuple[np.ndarray, np.ndar
 
 
 def capture_radii(g: GeoWaypoints) -> np.ndarray:
-    """(N,) the .plan's acceptance radius (NAV_WAYPOINT p2, m) of each waypoint: at a capture
-    CAPTURE_RADIUS_M, or 0.45 of the distance to the nearer neighbouring waypoint where that is
-    less (two captures' radii never meet: reaching one never counts the next reached, which
-    would fire its photo at once, off its point), not under 0.01 m; 0 (the autopilot's
-    NAV_ACC_RAD) elsewhere. Without g.gap_m, CAPTURE_RADIUS_M at every capture."""
-    n = len(g)
+    """(N,) the .plan's p2 (m) of each waypoint: at a capture CAPTURE_RADIUS_M or, if less, 0.45
+    of the distance to its nearer neighbour (no two radii meet: one reached never counts the
+    next reached, its photo fired off its point), at least 0.01 m (without g.gap_m:
+    CAPTURE_RADIUS_M); 0 (NAV_ACC_RAD) elsewhere."""
     capture = np.array([a in ("view", "frame") for a in g.action], bool)
-    r = np.where(capture, CAPTURE_RADIUS_M, 0.0)
-    if g.gap_m is None or n == 0:
-        return r
+    if g.gap_m is None or len(g) == 0:
+        return np.where(capture, CAPTURE_RADIUS_M, 0.0)
     gap = np.asarray(g.gap_m, float)
-    before = np.where(np.arange(n) > 0, gap, np.inf)  # the first has no waypoint before it
-    after = np.append(gap[1:], np.inf)
-    near = 0.45 * np.minimum(before, after)
+    before = np.where(np.arange(len(g)) > 0, gap, np.inf)  # the first has none before it
+    near = 0.45 * np.minimum(before, np.append(gap[1:], np.inf))
     return np.where(capture, np.clip(near, 0.01, CAPTURE_RADIUS_M), 0.0)
 
 
@@ -163,8 +158,7 @@ def mavlink_items(g: GeoWaypoints, ardupilot: bool = False) -> list[dict]:
     waypoint, and runs the commands between two waypoints from the start of the leg to the
     second (docs/EXPORT.md); the gimbal's rates 0, not NaN (AP_Mission refuses NaN there)."""
     hold, rest = capture_holds(g, ardupilot)
-    # ArduPilot counts a waypoint reached when its path's target gets there: p2 0
-    radius = np.zeros(len(g)) if ardupilot else capture_radii(g)
+    radius = np.zeros(len(g)) if ardupilot else capture_radii(g)  # ArduPilot: its target's
     seq = g.seq
     if seq is None:  # number the captures of these waypoints, views and frames together
         seq = list(np.cumsum([a in ("view", "frame") for a in g.action]))
@@ -215,10 +209,9 @@ def _gimbal_item(g: GeoWaypoints, k: int, ardupilot: bool) -> tuple:
 
 
 def _waypoint_items(g: GeoWaypoints, k: int, waits, seq, ardupilot: bool) -> list:
-    """The items of waypoint k (not the take-off), in mavlink_items' order: at a capture the
-    gimbal; in the ArduPilot file CONDITION_YAW to a planned heading; the waypoint with its hold
-    and acceptance radius; at a capture the photo (seq: the captures' mission-wide numbers) and
-    the rest of the hover (waits: hold, rest (capture_holds) and radius (capture_radii))."""
+    """Waypoint k's items (not the take-off's), in mavlink_items' order: at a capture the gimbal;
+    in the ArduPilot file CONDITION_YAW to a planned heading; the waypoint (waits: hold, rest,
+    radius); at a capture the photo (seq: its mission-wide number) and the rest of the hover."""
     hold, rest, radius = waits
     lat, lon, rel = float(g.lat[k]), float(g.lon[k]), float(g.rel_alt[k])
     yaw = _yaw(g, k)
