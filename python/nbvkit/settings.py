@@ -257,14 +257,14 @@ def _coerce_items(tp, value, key):
     if isinstance(value, (str, bytes)) or not isinstance(value, (list, tuple)):
         raise ValueError(f"config key {key!r} must be a list, got {shorten(value)}")
     if origin is list or (len(args) == 2 and args[1] is Ellipsis):
-        types = [args[0]] * len(value)
+        kinds = [args[0]] * len(value)
     else:
-        types = list(args)
-        if len(value) != len(types):
+        kinds = list(args)
+        if len(value) != len(kinds):
             raise ValueError(
-                f"config key {key!r} must be a list of {len(types)} items, got {shorten(value)}"
+                f"config key {key!r} must be a list of {len(kinds)} items, got {shorten(value)}"
             )
-    items = [coerce(t, v, f"{key}[{i}]") for i, (t, v) in enumerate(zip(types, value))]
+    items = [coerce(t, v, f"{key}[{i}]") for i, (t, v) in enumerate(zip(kinds, value))]
     return items if origin is list else tuple(items)
 
 

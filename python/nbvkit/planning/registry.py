@@ -157,9 +157,8 @@ def _check_part(name: str, kind: str, cls, methods) -> None:
             f"{kind} {name!r}: its Settings must be a frozen dataclass (@dataclass(frozen=True)):"
             " the configuration a run records is the one its parts flew"
         )
-    if settings is not None:
-        check_field_types(settings, f"{kind} {name!r}: its Settings")
     if settings is not None:  # every configuration builds its section from the defaults
+        check_field_types(settings, f"{kind} {name!r}: its Settings")
         try:
             defaults = settings()
         except Exception as e:
