@@ -22,7 +22,16 @@ import numpy as np
 
 from .flight_home import ReturnPaths, find_launch, load_map
 from .flight_rows import RunFlight
-from .flight_time import FRAME, TARGETS, VIEW, FlightModel, capture_waits, waits_s
+from .flight_time import (
+    FRAME,
+    LINE_TOL_M,
+    TARGETS,
+    VIEW,
+    FlightModel,
+    capture_waits,
+    off_segment,
+    waits_s,
+)
 
 
 @dataclass
@@ -41,7 +50,7 @@ class Waypoint:
     stage: str
 
 
-def simplify(wps: list, tol: float = 1e-3) -> list:
+def simplify(wps: list, tol: float = LINE_TOL_M) -> list:
     """The waypoints without the plain ones ("waypoint", "transit": no capture) that lie within
     `tol` (m) of the straight line between their neighbours and have the next kept point's yaw
     and pitch: the same path and headings in fewer items (the profile's sweep is flown, and
@@ -90,11 +99,11 @@ class _Run:
 
     def within(self, w, a, b, tol: float) -> bool:
         """Whether the points and w all lie within tol of the segment a-b."""
-        step = float(_off_segment(np.asarray(w, float)[None], a, b)[0])
+        step = float(off_segment(np.asarray(w, float)[None], a, b)[0])
         if self.n and self.bound + step <= tol - 1e-9:  # clearly within, as measured exactly
             self.bound += step
             return True
-        d = max(step, float(_off_segment(self.pts[: self.n], a, b).max())) if self.n else step
+        d = max(step, float(off_segment(self.pts[: self.n], a, b).max())) if self.n else step
         self.bound = d
         return d <= tol
 
@@ -104,14 +113,6 @@ class _Run:
             self.pts = np.concatenate([self.pts, np.empty_like(self.pts)])
         self.pts[self.n] = p
         self.n += 1
-
-
-def _off_segment(p: np.ndarray, a, b) -> np.ndarray:
-    """(N,) distances (m) of the points p (N, 3) from the segment a-b."""
-    ab = b - a
-    n = float(ab @ ab)
-    t = np.zeros(len(p)) if n == 0 else np.clip((p - a) @ ab / n, 0.0, 1.0)
-    return np.linalg.norm(p - (a + t[:, None] * ab), axis=1)
 
 
 @dataclass
@@ -231,14 +232,15 @@ class SortiePlanner:
         s = Sortie(number, wps, r, e)
         s.views = sum(1 for i in range(r, e + 1) if fl.capture[i] == VIEW)
         s.frames = sum(1 for i in range(r, e + 1) if fl.capture[i] == FRAME)
-        s.distance_m = float(np.linalg.norm(np.diff(pts, axis=0), axis=1).sum())
+        legs = np.diff(pts, axis=0)
+        s.distance_m = float(np.linalg.norm(legs, axis=1).sum())
         # the waits the mission files write at these waypoints (the same function as theirs)
         s.waits = capture_waits(
             [w.action for w in wps], [math.degrees(w.yaw) for w in wps], self.model.hover_s
         )
         waits = waits_s(s.waits)
         # its legs as written: each from a stop to a stop (flight_time's module docstring)
-        leg = self.model.stop_leg_s(np.diff(pts, axis=0))
+        leg = self.model.stop_leg_s(legs)
         rows = [k for k, w in enumerate(wps) if w.row >= 0] or [len(wps) - 1]
         a, b = rows[0] + 1, rows[-1] + 1  # the first and last flight rows' legs end there
         s.times = {t: float(leg.sum()) + waits[t] for t in TARGETS}

@@ -190,17 +190,22 @@ def _accelerated(d: np.ndarray, v: float, a: float) -> np.ndarray:
     return np.where(d >= v * v / a, d / v + v / a, 2.0 * np.sqrt(d / a))
 
 
+def off_segment(p, a, b) -> np.ndarray:
+    """(N,) distances (m) of the points p (N, 3) from the segment a-b (each (3,)), or from the
+    segments a[i]-b[i] (each (N, 3))."""
+    p, a, b = (np.asarray(x, float) for x in (p, a, b))
+    ab = b - a
+    n = np.einsum("...i,...i->...", ab, ab)
+    t = np.einsum("...i,...i->...", p - a, ab) / np.where(n > 0, n, 1.0)
+    t = np.clip(np.where(n > 0, t, 0.0), 0.0, 1.0)
+    return np.linalg.norm(p - (a + t[..., None] * ab), axis=-1)
+
+
 def corners(pts: np.ndarray, tol: float = LINE_TOL_M) -> np.ndarray:
     """(P,) bool: the points (P, 3) a flight stops at: the first, the last, and each farther
-    than tol from the segment between its neighbours (a corner) or at one of them (a point
-    flown twice, a turn back)."""
+    than tol from the segment between its neighbours (a corner, or a turn back)."""
     pts = np.asarray(pts, float).reshape(-1, 3)
     out = np.ones(len(pts), bool)
-    if len(pts) < 3:
-        return out
-    a, p, b = pts[:-2], pts[1:-1], pts[2:]
-    ab = b - a
-    t = np.einsum("ij,ij->i", p - a, ab) / np.maximum(np.einsum("ij,ij->i", ab, ab), 1e-300)
-    off = np.linalg.norm(a + np.clip(t, 0.0, 1.0)[:, None] * ab - p, axis=1)
-    out[1:-1] = (off > tol) | (t <= 0.0) | (t >= 1.0)
+    if len(pts) >= 3:
+        out[1:-1] = off_segment(pts[1:-1], pts[:-2], pts[2:]) > tol
     return out
