@@ -15,7 +15,8 @@ import numpy as np
 
 import nbvkit.export as export
 from nbvkit import flight
-from nbvkit.flight import Waypoint, _off_segment, plain_as_next
+from nbvkit.flight import Waypoint, plain_as_next
+from nbvkit.flight_time import off_segment
 
 
 def measured_again(wps: list, tol: float = 1e-3) -> list:
@@ -24,7 +25,7 @@ def measured_again(wps: list, tol: float = 1e-3) -> list:
     for k in range(1, len(wps) - 1):
         w, nxt = wps[k], wps[k + 1]
         pts = np.array([*run, w.xyz])
-        if plain_as_next(w, nxt) and _off_segment(pts, keep[-1].xyz, nxt.xyz).max() <= tol:
+        if plain_as_next(w, nxt) and off_segment(pts, keep[-1].xyz, nxt.xyz).max() <= tol:
             run.append(w.xyz)
         else:
             keep.append(w)
