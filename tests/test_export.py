@@ -1082,14 +1082,37 @@ def _nav_legs_s(points, speed, climb):
     return t
 
 
+def _descent_s(h, speed_at, step=1e-3):
+    """Seconds to come down h metres at speed_at(height) m/s, summed in `step` m slices."""
+    z = np.arange(0.0, h, step) + step / 2
+    return float(np.sum(np.minimum(step, h - z + step / 2) / np.vectorize(speed_at)(z)))
+
+
+def _ardupilot_rtl_s(h, climb):
+    """ArduCopter's return to launch from h m straight above home, its default parameters
+    (ardupilot.org Copter parameter list): RTL_LOIT_TIME 5000 ms, then the landing at
+    WPNAV_SPEED_DN 150 cm/s (LAND_SPEED_HIGH 0) above LAND_ALT_LOW 1000 cm, LAND_SPEED 50 cm/s
+    below; never faster than the model's climb rate."""
+    return 5.0 + _descent_s(h, lambda z: min(climb, 1.5 if z > 10.0 else 0.5))
+
+
+def _px4_rtl_s(h, climb):
+    """PX4's return to launch from h m above home, its defaults (RTL_LAND_DELAY 0 s): the landing
+    speed MPC_Z_V_AUTO_DN 1.5 m/s above MPC_LAND_ALT1 10 m, MPC_LAND_SPEED 0.7 m/s below
+    MPC_LAND_ALT2 5 m, interpolated between (FlightTaskAuto's math::gradual)."""
+    return _descent_s(h, lambda z: min(climb, float(np.interp(z, [5.0, 10.0], [0.7, 1.5]))))
+
+
 def _waypoints_time(path, speed=5.0, climb=2.0):
-    """A .waypoints mission's seconds read back: the climb from the ground, the legs between its
-    navigation items, every hold (NAV_WAYPOINT p1, whole seconds) and NAV_DELAY, the descent."""
+    """A .waypoints mission's seconds read back: the take-off (WPNAV_SPEED_UP 2.5 m/s at most),
+    the legs between its navigation items, every hold (NAV_WAYPOINT p1, whole seconds) and
+    NAV_DELAY, the return to launch (_ardupilot_rtl_s)."""
     rows = [ln.split("\t") for ln in path.read_text().splitlines()[1:]]
     items = [(int(r[3]), [float(v) for v in r[4:11]]) for r in rows[1:]]
     nav = [(p[4], p[5], p[6]) for c, p in items if c in (16, 22)]
     waits = sum(int(p[0]) for c, p in items if c == 16) + sum(p[0] for c, p in items if c == 93)
-    up, down = _stop_s(nav[0][2], climb), _stop_s(nav[-1][2], climb)
+    assert int(rows[-1][3]) == 20  # NAV_RETURN_TO_LAUNCH
+    up, down = _stop_s(nav[0][2], min(climb, 2.5)), _ardupilot_rtl_s(nav[-1][2], climb)
     return up + _nav_legs_s(nav, speed, climb) + waits + down
 
 
@@ -1131,7 +1154,9 @@ def _plan_time(path, speed=5.0, climb=2.0):
     items = json.loads(path.read_text())["mission"]["items"]
     nav = [tuple(it["params"][4:7]) for it in items if it["command"] in (16, 22)]
     waits = sum(it["params"][0] for it in items if it["command"] in (16, 93))
-    up, down = _stop_s(nav[0][2], climb), _stop_s(nav[-1][2], climb)
+    assert items[-1]["command"] == 20  # NAV_RETURN_TO_LAUNCH
+    # the take-off at MPC_TKO_SPEED (1.5 m/s) at most; the return to launch (_px4_rtl_s)
+    up, down = _stop_s(nav[0][2], min(climb, 1.5)), _px4_rtl_s(nav[-1][2], climb)
     return up + _nav_legs_s(nav, speed, climb) + waits + down
 
 
@@ -1273,7 +1298,7 @@ def test_a_sortie_resuming_at_a_plain_point_after_a_transit_leg_turns_before_its
     photo is taken facing its heading (and a view settled 1 s after the turn); every sortie's
     files, re-timed with the turns from the heading the vehicle may arrive with, fit the
     battery."""
-    usable = 29.0
+    usable = 39.0
     out = tmp_path / "b"
     s = export_mission(
         run_dir, "qgc,wpml,csv", ORIGIN, HEADING, out, flight_time_min=usable / 60, reserve_pct=0

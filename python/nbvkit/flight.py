@@ -170,9 +170,12 @@ class SortiePlanner:
         self.cum_wait = np.cumsum(self.wait_row)
         if fl.launch is None:
             fl.launch, fl.launch_path = fl.start.copy(), fl.start[None, :].copy()
-        #: seconds from the ground to the start (climb, then the way over) and back
-        self.climb_s = float(model.stop_leg_s(fl.launch - fl.home)[0])
-        self.climb_s += model.path_time(fl.launch_path)
+        #: each file's (take-off, landing) seconds (FlightModel.ends_s)
+        self.ends = model.ends_s(float(fl.launch[2] - fl.home[2]))
+        #: seconds from the ground to the start (climb, then the way over) and back, the
+        #: longest file's
+        self.ends_total_s = max(up + down for up, down in self.ends.values())
+        self.ends_total_s += 2 * model.path_time(fl.launch_path)
         self.work = self.work_rows(fl)
 
     @staticmethod
@@ -193,7 +196,7 @@ class SortiePlanner:
         """Seconds a sortie flying rows r..e is in the air, its captures' waits left out: the
         climb and the descent, the way out to row r, along the flight to row e and (back) the
         way back from it; without the way back a bound that only grows with e (split's stop)."""
-        s = 2 * self.climb_s + self.returns.cost[r] + self.cum[e] - self.cum[r]
+        s = self.ends_total_s + self.returns.cost[r] + self.cum[e] - self.cum[r]
         return s + self.returns.cost[e] if back else s
 
     def cost(self, r: int, e: int) -> float:
@@ -239,16 +242,19 @@ class SortiePlanner:
             [w.action for w in wps], [math.degrees(w.yaw) for w in wps], self.model.hover_s
         )
         waits = waits_s(s.waits)
-        # its legs as written: each from a stop to a stop (flight_time's module docstring)
+        # its legs as written: each from a stop to a stop (flight_time's module docstring), but
+        # the take-off and the landing, each file's own (self.ends)
         leg = self.model.stop_leg_s(legs)
+        leg[0] = leg[-1] = 0.0
         rows = [k for k, w in enumerate(wps) if w.row >= 0] or [len(wps) - 1]
         a, b = rows[0] + 1, rows[-1] + 1  # the first and last flight rows' legs end there
-        s.times = {t: float(leg.sum()) + waits[t] for t in TARGETS}
+        s.times = {t: float(leg.sum()) + sum(self.ends[t]) + waits[t] for t in TARGETS}
         s.time_s = max(s.times.values())
+        longest = max(TARGETS, key=s.times.get)
         s.legs = {
-            "out_s": float(leg[:a].sum()),
-            "along_s": float(leg[a:b].sum()) + max(waits.values()),
-            "back_s": float(leg[b:].sum()),
+            "out_s": float(leg[:a].sum()) + self.ends[longest][0],
+            "along_s": float(leg[a:b].sum()) + waits[longest],
+            "back_s": float(leg[b:].sum()) + self.ends[longest][1],
         }
         return s
 

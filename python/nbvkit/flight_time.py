@@ -13,7 +13,9 @@ corners, captures and heading changes are the stops). Each capture adds the wait
 the written missions command there (capture_waits: the settle, the photo, the rest of `hover_s`,
 and in the ArduPilot and DJI files the turn to the capture's heading). A sortie's time is that of
 the format that waits longest (the .waypoints file as a rule); the times per format are reported
-too.
+too. The take-off and the landing at each end of a sortie are each file's own (ends_s): the
+autopilots' automatic take-off and landing at their default parameters, which descend slower
+near the ground than any --climb-rate.
 """
 from __future__ import annotations
 
@@ -44,6 +46,19 @@ MAX_HOVER_S = 3600.0
 #: the mission files whose waits capture_waits models: the .plan (PX4), the .waypoints
 #: (ArduPilot) and the DJI .kmz
 TARGETS = ("px4", "ardupilot", "dji")
+
+#: ArduCopter's return to launch from straight above home (the .waypoints file's last item,
+#: NAV_RETURN_TO_LAUNCH), at its default parameters: it waits RTL_LOIT_TIME (5000 ms) above home,
+#: then lands at WPNAV_SPEED_DN (150 cm/s, LAND_SPEED_HIGH being 0) down to LAND_ALT_LOW (1000
+#: cm) and at LAND_SPEED (50 cm/s) below it. Its take-off climbs at WPNAV_SPEED_UP (250 cm/s).
+AP_RTL_LOITER_S, AP_DESCENT_M_S, AP_LAND_ALT_LOW_M, AP_LAND_SPEED_M_S = 5.0, 1.5, 10.0, 0.5
+AP_TAKEOFF_M_S = 2.5
+#: PX4's return to launch from straight above home (the .plan's last item), at its default
+#: parameters: RTL_LAND_DELAY 0 s, then the landing at MPC_Z_V_AUTO_DN (1.5 m/s) above
+#: MPC_LAND_ALT1 (10 m), slowing linearly with the height to MPC_LAND_SPEED (0.7 m/s) at
+#: MPC_LAND_ALT2 (5 m) and at that speed below it. Its take-off climbs at MPC_TKO_SPEED (1.5 m/s).
+PX4_DESCENT_M_S, PX4_LAND_ALT1_M, PX4_LAND_ALT2_M, PX4_LAND_SPEED_M_S = 1.5, 10.0, 5.0, 0.7
+PX4_TAKEOFF_M_S = 1.5
 
 
 def signed_deg(deg: float) -> float:
@@ -182,6 +197,47 @@ class FlightModel:
 
     def path_time(self, pts, stops=None) -> float:
         return float(self.leg_times(pts, stops).sum())
+
+    def ends_s(self, height: float) -> dict:
+        """target -> (take-off, landing) seconds of a sortie that climbs `height` m straight up
+        from the launch point and comes down the same line. The DJI route (autoLand: DJI
+        publishes no landing profile) at climb_rate both ways, as any vertical leg; the
+        MAVLink files at their autopilot's defaults, never faster than climb_rate: ArduPilot's
+        and PX4's take-off speeds (AP_TAKEOFF_M_S, PX4_TAKEOFF_M_S) and the return to launch of
+        each, which descends slower near the ground (AP_*, PX4_*)."""
+        h = max(float(height), 0.0)
+        up = {t: self._vertical_s(h, self.climb_rate) for t in TARGETS}
+        up["ardupilot"] = self._vertical_s(h, min(self.climb_rate, AP_TAKEOFF_M_S))
+        up["px4"] = self._vertical_s(h, min(self.climb_rate, PX4_TAKEOFF_M_S))
+        fast = min(h, max(h - AP_LAND_ALT_LOW_M, 0.0))
+        ap = AP_RTL_LOITER_S + fast / min(self.climb_rate, AP_DESCENT_M_S)
+        ap += (h - fast) / min(self.climb_rate, AP_LAND_SPEED_M_S)
+        down = {"dji": up["dji"], "ardupilot": ap, "px4": _px4_landing_s(h, self.climb_rate)}
+        return {t: (up[t], down[t]) for t in TARGETS}
+
+    @staticmethod
+    def _vertical_s(h: float, v: float) -> float:
+        return float(_accelerated(np.array([h]), v, ACCEL_M_S2)[0])
+
+
+def _px4_landing_s(h: float, climb_rate: float) -> float:
+    """Seconds of PX4's landing from h m (its speed at each height, by PX4_*, never above
+    climb_rate): the parts above MPC_LAND_ALT1 and below MPC_LAND_ALT2 at constant speeds, the
+    part between at a speed rising linearly with the height, dz / v(z) integrated in closed
+    form (where climb_rate caps it, at the cap)."""
+    lo, hi = PX4_LAND_ALT2_M, PX4_LAND_ALT1_M
+    v_lo, v_hi = min(PX4_LAND_SPEED_M_S, climb_rate), min(PX4_DESCENT_M_S, climb_rate)
+    t = min(h, lo) / v_lo + max(h - hi, 0.0) / v_hi
+    top = min(max(h, lo), hi)  # the ramp from lo to top
+    if top <= lo:
+        return t
+    slope = (PX4_DESCENT_M_S - PX4_LAND_SPEED_M_S) / (hi - lo)
+    cap = lo + (climb_rate - PX4_LAND_SPEED_M_S) / slope  # where the ramp reaches climb_rate
+    if climb_rate <= PX4_LAND_SPEED_M_S:
+        return t + (top - lo) / climb_rate
+    ramp_top = min(top, cap)
+    t += math.log((PX4_LAND_SPEED_M_S + slope * (ramp_top - lo)) / PX4_LAND_SPEED_M_S) / slope
+    return t + max(top - ramp_top, 0.0) / min(climb_rate, v_hi)
 
 
 def _accelerated(d: np.ndarray, v: float, a: float) -> np.ndarray:
