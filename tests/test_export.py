@@ -1732,6 +1732,39 @@ def test_a_report_that_cannot_be_rewritten_leaves_the_run_whole(run_dir, tmp_pat
     assert is_complete_run(run) and not (run / "report.html.tmp").exists()
 
 
+def test_an_export_interrupted_while_it_replaces_the_report_leaves_the_run_complete(
+    run_dir, tmp_path, monkeypatch
+):
+    """Ctrl-C in the moment the export replaces report.html (its manifest taken off, for the
+    report's new size): the run keeps a manifest that vouches for its files (evaluate and export
+    still read it), the report it had, and no report.html.tmp."""
+    import pathlib
+    import shutil
+
+    from nbvkit.export import estimate_flight
+    from nbvkit.report import flight_section
+    from nbvkit.runfolder import is_complete_run, write_manifest
+
+    run = tmp_path / "run"
+    shutil.copytree(run_dir, run)
+    report = run / "report.html"
+    report.write_text(f"<html><body>{flight_section(estimate_flight(run))}</body></html>")
+    write_manifest(run)
+    before = report.read_bytes()
+    real = pathlib.Path.replace
+
+    def interrupted(self, target):
+        if self.name == "report.html.tmp":
+            raise KeyboardInterrupt
+        return real(self, target)
+
+    monkeypatch.setattr(pathlib.Path, "replace", interrupted)
+    with pytest.raises(KeyboardInterrupt):
+        export_mission(run, "csv", ORIGIN, HEADING, tmp_path / "x")
+    assert (run / "manifest.json").is_file() and is_complete_run(run)
+    assert report.read_bytes() == before and not (run / "report.html.tmp").exists()
+
+
 @pytest.mark.parametrize(
     "option, value, needle",
     [

@@ -100,6 +100,12 @@ class FileLock:
         self.release()
 
 
+def folder_lock(path) -> FileLock:
+    """The lock a run takes on its folder `path` (RunLock's file), for a change to a finished
+    run's files: two exports updating one run's report take turns."""
+    return FileLock(_lock_path(Path(path)))
+
+
 class RunLock:
     def __init__(self, path: Path, what: str, wait: bool):
         self.path, self.what, self.wait = path, what, wait

@@ -13,6 +13,7 @@ import numpy as np
 
 from .coverage_view import CLASS_COLOURS, CLASS_NAMES
 from .htmlpage import img, page, plot_div, rounded, table, write_text
+from .locks import folder_lock
 from .runfolder import mark_incomplete, run_name, write_manifest
 
 __all__ = [
@@ -337,21 +338,25 @@ def update_flight_section(out, export: dict, paths=None) -> bool:
     path = Path(out) / "report.html"
     if not path.is_file():
         return False
-    text = path.read_text()
-    a, b = text.find(FLIGHT_BEGIN), text.find(FLIGHT_END)
-    if a < 0 or b < a:
-        return False
-    new = text[:a] + flight_section(export=export, paths=paths) + text[b + len(FLIGHT_END) :]
-    tmp = path.with_suffix(".html.tmp")
-    try:  # written whole before the folder is touched: a full disk or a read-only folder
-        tmp.write_text(new)  # leaves the run as it was, its manifest kept
-    except BaseException:
-        tmp.unlink(missing_ok=True)
-        raise
-    was_complete = mark_incomplete(out)  # the manifest lists report.html's size
-    tmp.replace(path)
-    if was_complete:
-        write_manifest(out)
+    with folder_lock(out):  # another export of the run waits (its report.html.tmp is ours)
+        text = path.read_text()
+        a, b = text.find(FLIGHT_BEGIN), text.find(FLIGHT_END)
+        if a < 0 or b < a:
+            return False
+        new = text[:a] + flight_section(export=export, paths=paths) + text[b + len(FLIGHT_END) :]
+        tmp = path.with_suffix(".html.tmp")
+        try:  # written whole before the folder is touched: a full disk or a read-only folder
+            tmp.write_text(new)  # leaves the run as it was, its manifest kept
+        except BaseException:
+            tmp.unlink(missing_ok=True)
+            raise
+        was_complete = mark_incomplete(out)  # the manifest lists report.html's size
+        try:
+            tmp.replace(path)
+        finally:  # the manifest written again, the report replaced or not (an interrupt)
+            tmp.unlink(missing_ok=True)
+            if was_complete:
+                write_manifest(out)
     return True
 
 
