@@ -275,6 +275,35 @@ def test_a_sweep_files_out_and_scheduler_and_an_empty_file_are_refused_before_an
     assert sorted(p.name for p in tmp_path.iterdir()) == ["s.yaml"]
 
 
+@pytest.mark.parametrize("command", ["compare", "table", "sweep", "api"])
+@pytest.mark.parametrize("inside", [False, True])
+def test_an_experiment_into_a_finished_runs_folder_is_refused_before_any_work(
+    tmp_path, monkeypatch, capsys, command, inside
+):
+    """compare (or table, sweep) --out at a finished run's folder wrote its own report.html over
+    the run's, whose manifest then refused it (evaluate, export): the folder, or one in it, is
+    refused, naming the run, and the run's files are left as they were."""
+    from nbvkit.runfolder import is_complete_run, write_manifest
+
+    monkeypatch.chdir(tmp_path)
+    run = tmp_path / "run"
+    run.mkdir()
+    (run / "report.html").write_text("<html>the run's report</html>")
+    write_manifest(run)
+    before = sorted(p.name for p in run.iterdir())
+    out = run / "more" if inside else run
+    if command == "api":
+        import nbvkit
+
+        with pytest.raises(ValueError, match="finished nbvkit run's folder"):
+            nbvkit.compare(["surface"], out)
+    else:
+        (tmp_path / "s.yaml").write_text("scenarios: [surface]\nstarts: [0]\n")
+        argv = [command, *(["s.yaml"] if command == "sweep" else []), "--out", out]
+        refused(capsys, argv, "finished nbvkit run's folder", str(run))
+    assert sorted(p.name for p in run.iterdir()) == before and is_complete_run(run)
+
+
 @pytest.mark.parametrize(
     "argv",
     [

@@ -7,7 +7,7 @@ from .experiment_specs import compare_specs, override_strings, validate_specs
 from .experiment_tables import compare_table, write_compare, write_results
 from .experiments import Interrupted, RunsFailed, run_specs
 from .limits import shorten
-from .output_paths import check_output_dir
+from .output_paths import check_experiment_dir
 
 
 def compare(
@@ -51,7 +51,7 @@ def compare(
     names = [str(p) for p in planners]
     specs = compare_specs(names, mesh, None, None, starts, override_strings(overrides))
     validate_specs(specs)
-    out = check_output_dir(out, "out")
+    out = check_experiment_dir(out, "out")
     try:
         rows = run_specs(specs, out, workers=workers, scheduler=scheduler, progress=progress)
     except (Interrupted, RunsFailed) as e:

@@ -15,6 +15,7 @@ from .limits import MAX_TEXT_FILE_BYTES, check_input_file
 
 __all__ = [
     "MANIFEST",
+    "check_experiment_dir",
     "check_not_input",
     "check_output_dir",
     "check_output_file",
@@ -62,6 +63,21 @@ def check_output_dir(path, what: str = "output folder") -> Path:
                 c.rmdir()
             except OSError:
                 break
+    return p
+
+
+def check_experiment_dir(path, what: str = "output folder") -> Path:
+    """check_output_dir, and ValueError naming `what` when the folder is (or lies in) a finished
+    nbvkit run's folder: an experiment (compare, table, sweep) writes its own report.html,
+    runs.csv and runs/ there, and the run's manifest no longer vouches for its files."""
+    p = check_output_dir(path, what)
+    run = _run_folder_holding(p / "report.html")
+    if run is not None:
+        where = "is" if _same_file(run, p) else f"lies in {run},"
+        raise ValueError(
+            f"{what} {p} {where} a finished nbvkit run's folder: an experiment's report and "
+            "runs would be written over its files; choose another folder"
+        )
     return p
 
 

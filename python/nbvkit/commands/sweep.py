@@ -7,7 +7,7 @@ from pathlib import Path
 
 from ..yamlio import read_yaml_mapping
 from ..limits import shorten
-from ..paths import check_output_dir
+from ..paths import check_experiment_dir
 from ..plugins import load_plugins
 from .common import add_workers_option, fly_experiment, path_arg
 
@@ -87,7 +87,7 @@ def run(args) -> int:
             f"from the folder nbvkit runs in, {os.getcwd()})"
         ) from None
     specs = sweep_specs(sweep)
-    out = check_output_dir(args.out or sweep.get("out") or f"runs/{path.stem}", "--out")
+    out = check_experiment_dir(args.out or sweep.get("out") or f"runs/{path.stem}", "--out")
     workers = args.workers if args.workers is not None else sweep.get("workers")
     if workers is None:
         workers = 0  # one per core

@@ -3,7 +3,7 @@ from __future__ import annotations
 
 import argparse
 
-from ..paths import check_output_dir
+from ..paths import check_experiment_dir
 from .common import (
     add_experiment_options,
     add_mesh_options,
@@ -39,7 +39,7 @@ def run(args) -> int:
     overrides = with_mesh_shift(args.set, shift_override(args))
     specs = table2_specs(args.mesh, args.mesh_scale, args.mesh_up, args.starts, overrides)
     validate_specs(specs)
-    out = check_output_dir(args.out, "--out")
+    out = check_experiment_dir(args.out, "--out")
 
     def tables(out, df) -> str:
         write_table2(df, out)
