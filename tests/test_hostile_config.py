@@ -4,6 +4,7 @@ undone. Cases that once ended the process (a plugin's SystemExit) run in a subpr
 from __future__ import annotations
 
 import dataclasses
+import math
 import os
 import re
 import subprocess
@@ -273,6 +274,36 @@ def test_a_sweep_files_out_and_scheduler_and_an_empty_file_are_refused_before_an
     f.write_text(text)
     refused(capsys, ["sweep", f], f"sweep file {f}", needle)
     assert sorted(p.name for p in tmp_path.iterdir()) == ["s.yaml"]
+
+
+@pytest.mark.parametrize(
+    "text, value",
+    [
+        ("010", 10),  # YAML 1.1: 8 (octal)
+        ("0o10", 8),
+        ("0x1f", 31),
+        ("-007", -7),
+        ("1_000", 1000),
+        ("1:30", "1:30"),  # YAML 1.1: 90 (base 60)
+        ("1:30.5", "1:30.5"),
+        ("190:20:30", "190:20:30"),
+        ("1e-4", 1e-4),
+        ("-.inf", -math.inf),
+        ("0b101", "0b101"),
+    ],
+)
+def test_numbers_are_read_as_yaml_1_2_reads_them(text, value):
+    """max_iterations=010 flew 8 views, checkpoint_minutes=1:30 wrote one every 90 minutes: YAML
+    1.2's numbers, in config files and --set alike (a string where the key wants a number is
+    then refused by name)."""
+    got = parse_yaml(f"a: {text}")["a"]
+    assert got == value and type(got) is type(value)
+
+
+def test_a_base_60_time_for_a_number_is_refused_and_leading_zeros_are_decimal():
+    assert load_config(overrides=["max_iterations=010"]).max_iterations == 10
+    with pytest.raises(ValueError, match="'checkpoint_minutes' must be a number, got '1:30'"):
+        load_config(overrides=["checkpoint_minutes=1:30"])
 
 
 @pytest.mark.parametrize("command", ["compare", "table", "sweep", "api"])

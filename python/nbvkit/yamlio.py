@@ -11,15 +11,41 @@ from .limits import MAX_TEXT_FILE_BYTES, MAX_YAML_NODES, check_input_file, short
 
 
 class YamlLoader(yaml.SafeLoader):
-    """PyYAML's safe loader, also reading 1e-4 / 2E5 as numbers (YAML 1.2; PyYAML's YAML 1.1
-    resolver wants a dot and a signed exponent, and reads 1e-4 as a string)."""
+    """PyYAML's safe loader with YAML 1.2's numbers: 1e-4 / 2E5 are numbers (PyYAML's YAML 1.1
+    resolver wants a dot and a signed exponent, and reads 1e-4 as a string), 010 is ten (YAML
+    1.1: eight, octal; 0o10 is eight) and 1:30 a string (YAML 1.1: 90, base 60)."""
 
 
+_INT, _FLOAT = "tag:yaml.org,2002:int", "tag:yaml.org,2002:float"
+YamlLoader.yaml_implicit_resolvers = {
+    first: [(tag, rx) for tag, rx in resolvers if tag not in (_INT, _FLOAT)]
+    for first, resolvers in yaml.SafeLoader.yaml_implicit_resolvers.items()
+}
 YamlLoader.add_implicit_resolver(
-    "tag:yaml.org,2002:float",
-    re.compile(r"^[-+]?(?:[0-9][0-9_]*(?:\.[0-9_]*)?|\.[0-9_]+)[eE][-+]?[0-9]+$"),
+    _INT,
+    re.compile(r"^(?:[-+]?[0-9][0-9_]*|0x[0-9a-fA-F_]+|0o[0-7_]+)$"),
+    list("-+0123456789"),
+)
+YamlLoader.add_implicit_resolver(
+    _FLOAT,
+    re.compile(
+        r"^(?:[-+]?(?:[0-9][0-9_]*\.[0-9_]*|\.[0-9_]+)(?:[eE][-+]?[0-9]+)?"
+        r"|[-+]?[0-9][0-9_]*[eE][-+]?[0-9]+|[-+]?\.(?:inf|Inf|INF)|\.(?:nan|NaN|NAN))$"
+    ),
     list("-+0123456789."),
 )
+
+
+def _construct_int(loader: YamlLoader, node) -> int:
+    """An int as YAML 1.2 reads it: decimal (leading zeros too), 0x hexadecimal, 0o octal."""
+    text = loader.construct_scalar(node).replace("_", "")
+    sign = -1 if text.startswith("-") else 1
+    body = text.lstrip("+-")
+    base = {"0x": 16, "0o": 8}.get(body[:2], 10)
+    return sign * int(body[2:] if base != 10 else body, base)
+
+
+YamlLoader.add_constructor(_INT, _construct_int)
 
 
 def _expanded_nodes(node, limit: int, memo: dict) -> int:
