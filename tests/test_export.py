@@ -234,6 +234,38 @@ def test_qgc_plan_captures_are_reached_at_their_points(exported):
     assert (gap[both] < 4.0).sum() > 5  # captures nearer than two default radii: it matters
 
 
+def test_qgc_plan_photos_on_vertical_legs_wait_until_the_vehicle_is_there(exported):
+    """PX4 counts a multicopter's waypoint reached within p2 horizontally and NAV_MC_ALT_RAD
+    (0.8 m) vertically, then runs the photo after the hold p1: on the profile's vertical sweeps
+    (frames 0.82 m apart) the photo fired 0.8 m early. Each capture whose reached point, flown
+    straight from the waypoint before, is over 0.5 m from it holds at least the rest of the leg
+    flown from a stop to a stop (this file's _stop_s at the model's 5 m/s and 2 m/s)."""
+    import pymap3d
+
+    out, _ = exported
+    items = json.loads((out / "mission.plan").read_text())["mission"]["items"]
+    nav = [k for k, it in enumerate(items) if it["command"] in (16, 22)]
+    lat, lon, rel = (np.array([items[k]["params"][i] for k in nav]) for i in (4, 5, 6))
+    enu = np.column_stack(pymap3d.geodetic2enu(lat, lon, rel, lat[0], lon[0], 0.0))
+    early = 0
+    for j in range(1, len(nav)):
+        k = nav[j]
+        if not (k + 1 < len(items) and items[k + 1]["command"] == 2000):
+            continue
+        hold, p2 = items[k]["params"][0], items[k]["params"][1]
+        leg = enu[j] - enu[j - 1]
+        h, v = math.hypot(leg[0], leg[1]), abs(leg[2])
+        t = np.linspace(0.0, 1.0, 20001)  # along the leg: the first point PX4 counts reached
+        ok = ((1 - t) * h <= p2 + 1e-9) & ((1 - t) * v <= 0.8 + 1e-9)
+        left = 1 - t[np.argmax(ok)]
+        if left * math.hypot(h, v) <= 0.5 + 1e-6:
+            continue
+        early += 1
+        need = max(_stop_s(left * h, 5.0), _stop_s(left * v, 2.0))
+        assert hold >= need - 1e-3, (j, hold, need, left * math.hypot(h, v))
+    assert early > 5  # the profile's sweeps: the case is there
+
+
 def test_the_export_folder_is_made_as_any_folder_is(exported, tmp_path):
     """The export's folders (moved into place from a temporary one) have the mode a new folder
     gets under this process's umask, not a private temporary folder's 0700."""

@@ -30,6 +30,7 @@ from .flight_time import (
     FlightModel,
     capture_waits,
     off_segment,
+    px4_reach_s,
     waits_s,
 )
 
@@ -238,9 +239,9 @@ class SortiePlanner:
         legs = np.diff(pts, axis=0)
         s.distance_m = float(np.linalg.norm(legs, axis=1).sum())
         # the waits the mission files write at these waypoints (the same function as theirs)
-        s.waits = capture_waits(
-            [w.action for w in wps], [math.degrees(w.yaw) for w in wps], self.model.hover_s
-        )
+        acts = [w.action for w in wps]
+        reach = px4_reach_s(acts, [w.xyz for w in wps], self.model)
+        s.waits = capture_waits(acts, [math.degrees(w.yaw) for w in wps], self.model.hover_s, reach)
         waits = waits_s(s.waits)
         # its legs as written: each from a stop to a stop (flight_time's module docstring), but
         # the take-off and the landing, each file's own (self.ends)

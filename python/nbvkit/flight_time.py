@@ -47,6 +47,13 @@ MAX_HOVER_S = 3600.0
 #: (ArduPilot) and the DJI .kmz
 TARGETS = ("px4", "ardupilot", "dji")
 
+#: the .plan's acceptance radius at a capture, at most (NAV_WAYPOINT p2, m; capture_radii): PX4
+#: counts a waypoint reached within p2 (NAV_ACC_RAD, 2 m, where p2 is 0), then runs its photo
+CAPTURE_RADIUS_M = 0.5
+#: PX4's altitude acceptance of a multicopter's waypoint (NAV_MC_ALT_RAD's default, m): within it
+#: and p2 a waypoint counts reached, whatever p2 is (px4_reach_s)
+PX4_ALT_RAD_M = 0.8
+
 #: ArduCopter's return to launch from straight above home (the .waypoints file's last item,
 #: NAV_RETURN_TO_LAUNCH), at its default parameters: it waits RTL_LOIT_TIME (5000 ms) above home,
 #: then lands at WPNAV_SPEED_DN (150 cm/s, LAND_SPEED_HIGH being 0) down to LAND_ALT_LOW (1000
@@ -96,7 +103,44 @@ def _towards(possible, heading: float):
     return None if hi - lo >= 360.0 else (lo, hi)
 
 
-def capture_waits(actions, headings_deg, hover_s: float) -> dict:
+def capture_radii(actions, gaps) -> np.ndarray:
+    """(N,) the .plan's p2 (m) of each waypoint: at a capture CAPTURE_RADIUS_M or, if less, 0.45
+    of the distance to its nearer neighbour (no two radii meet: one reached never counts the
+    next reached, its photo fired off its point), at least 0.01 m (gaps None:
+    CAPTURE_RADIUS_M); 0 (NAV_ACC_RAD) elsewhere. gaps (N,): m from the previous waypoint (the
+    first's not read)."""
+    capture = np.array([a in (VIEW, FRAME) for a in actions], bool)
+    if gaps is None or len(capture) == 0:
+        return np.where(capture, CAPTURE_RADIUS_M, 0.0)
+    gap = np.asarray(gaps, float)
+    before = np.where(np.arange(len(gap)) > 0, gap, np.inf)  # the first has none before it
+    near = 0.45 * np.minimum(before, np.append(gap[1:], np.inf))
+    return np.where(capture, np.clip(near, 0.01, CAPTURE_RADIUS_M), 0.0)
+
+
+def px4_reach_s(actions, xyz, model: "FlightModel") -> np.ndarray:
+    """(N,) seconds the .plan's hold (p1) adds at each capture of the waypoints xyz (N, 3) for
+    the vehicle to get there before its photo. PX4 counts a waypoint reached once within p2
+    horizontally (capture_radii) and PX4_ALT_RAD_M vertically, and runs the photo then (after
+    the hold); on a leg mostly up or down (a profile's vertical sweep: frames 0.82 m apart) the
+    altitude test passes almost at once, 0.8 m short. Where the point so counted reached lies
+    farther than CAPTURE_RADIUS_M from the capture, its hold covers the rest of the leg, flown
+    from a stop to a stop (stop_leg_s), rounded up to 0.1 s: PX4 flies on to the waypoint while
+    it holds. 0 elsewhere."""
+    xyz = np.asarray(xyz, float).reshape(-1, 3)
+    d = np.diff(xyz, axis=0, prepend=xyz[:1])
+    h, v = np.hypot(d[:, 0], d[:, 1]), np.abs(d[:, 2])
+    radii = capture_radii(actions, np.linalg.norm(d, axis=1))
+    with np.errstate(divide="ignore", invalid="ignore"):
+        by_xy = np.where(h > 0, radii / h, np.inf)
+        by_z = np.where(v > 0, PX4_ALT_RAD_M / v, np.inf)
+    left = np.minimum(1.0, np.minimum(by_xy, by_z))  # the share of the leg left when reached
+    short = (radii > 0) & (left * np.hypot(h, v) > CAPTURE_RADIUS_M + 1e-9)
+    rest = model.stop_leg_s(left[:, None] * d)
+    return np.where(short, np.ceil(10.0 * rest - 1e-9) / 10.0, 0.0)
+
+
+def capture_waits(actions, headings_deg, hover_s: float, reach=None) -> dict:
     """The waits of each waypoint (N,) in each mission file (TARGETS), the one function both the
     time model and the writers use: target -> (hold, rest, turn_s), arrays (N,) of seconds.
 
@@ -110,7 +154,8 @@ def capture_waits(actions, headings_deg, hover_s: float) -> dict:
     cut short), so after one the vehicle may face any heading between those it held and turned
     to since the last capture (180 degrees when those turns go both ways round): the turn after
     a take-off or transit leg is counted at the first capture, whatever points come first.
-    px4: hold = the settle, rest = hover_s - settle. ardupilot: CONDITION_YAW turns at
+    px4: hold = the settle + reach (px4_reach_s, (N,) or None: 0), rest = hover_s - settle.
+    ardupilot: CONDITION_YAW turns at
     YAW_RATE_DEG_S, and the hold covers the whole turn and the settle, ceil(turn / 30 + settle)
     whole seconds (ArduPilot keeps NAV_WAYPOINT's hold in whole seconds; the leg's time is not
     counted: the copter may fly faster than --speed), rest = hover_s - hold. dji: rotateYaw
@@ -133,7 +178,8 @@ def capture_waits(actions, headings_deg, hover_s: float) -> dict:
         hover = max(float(hover_s), settle) if a == VIEW else 0.0
         ap = float(math.ceil(turn_s + settle - 1e-9))
         rest = round(hover - settle, 3)  # to the millisecond, as the DJI route writes it: no
-        out["px4"][0][k], out["px4"][1][k] = settle, rest  # NAV_DELAY of 0.0004 s
+        reach_s = 0.0 if reach is None else float(reach[k])
+        out["px4"][0][k], out["px4"][1][k] = settle + reach_s, rest  # NAV_DELAY of 0.0004 s
         out["ardupilot"][0][k], out["ardupilot"][1][k] = ap, max(0.0, round(hover - ap, 3))
         out["dji"][0][k], out["dji"][1][k], out["dji"][2][k] = settle, rest, turn_s
     return out

@@ -15,6 +15,7 @@ from xml.etree import ElementTree as ET
 import numpy as np
 
 from ..flight_time import SETTLE_S, YAW_RATE_DEG_S, capture_waits, signed_deg  # noqa: F401
+from ..flight_time import capture_radii as flight_capture_radii
 
 # MAVLink common message set (mavlink/mavlink message_definitions/v1.0/common.xml)
 MAV_CMD_NAV_WAYPOINT = 16
@@ -34,10 +35,6 @@ MAV_TYPE_QUADROTOR = 2
 QGC_ALTITUDE_MODE_RELATIVE = 1  # QGroundControl's AltMode: AltitudeModeRelative
 
 SPEED_TYPE_GROUND = 1  # DO_CHANGE_SPEED param 1
-#: the .plan's acceptance radius at a capture, at most (NAV_WAYPOINT p2, m; capture_radii): PX4
-#: counts a waypoint reached within p2 (NAV_ACC_RAD, 2 m, where p2 is 0), then runs its photo
-CAPTURE_RADIUS_M = 0.5
-
 #: the highest cruise speed the export writes (m/s): DJI WPML's globalTransitionalSpeed range is
 #: [0, 15] and its route speeds may not pass the aircraft's maximum; PX4's default
 #: MPC_XY_VEL_MAX is 12 m/s, ArduPilot's WPNAV_SPEED at most 20 m/s. See docs/EXPORT.md.
@@ -115,7 +112,8 @@ def signed_angle_text(deg: float, nd: int) -> str:
 # ---------------------------------------------------------------------- MAVLink missions
 def waits(g: GeoWaypoints) -> dict:
     """The sortie's capture_waits (target -> (hold, rest, turn_s)): those the time model
-    counted, or computed from the headings when g has none."""
+    counted, or computed from the headings when g has none (without PX4's reach holds:
+    px4_reach_s needs the model's climb rate)."""
     if g.waits is not None:
         return g.waits
     return capture_waits(list(g.action), [float(h) for h in g.heading], g.hover_s)
@@ -130,17 +128,8 @@ def capture_holds(g: GeoWaypoints, ardupilot: bool) -> tuple[np.ndarray, np.ndar
 
 
 def capture_radii(g: GeoWaypoints) -> np.ndarray:
-    """(N,) the .plan's p2 (m) of each waypoint: at a capture CAPTURE_RADIUS_M or, if less, 0.45
-    of the distance to its nearer neighbour (no two radii meet: one reached never counts the
-    next reached, its photo fired off its point), at least 0.01 m (without g.gap_m:
-    CAPTURE_RADIUS_M); 0 (NAV_ACC_RAD) elsewhere."""
-    capture = np.array([a in ("view", "frame") for a in g.action], bool)
-    if g.gap_m is None or len(g) == 0:
-        return np.where(capture, CAPTURE_RADIUS_M, 0.0)
-    gap = np.asarray(g.gap_m, float)
-    before = np.where(np.arange(len(g)) > 0, gap, np.inf)  # the first has none before it
-    near = 0.45 * np.minimum(before, np.append(gap[1:], np.inf))
-    return np.where(capture, np.clip(near, 0.01, CAPTURE_RADIUS_M), 0.0)
+    """(N,) the .plan's p2 (m) of each waypoint: nbvkit.flight_time.capture_radii of g.gap_m."""
+    return flight_capture_radii(g.action, g.gap_m)
 
 
 def mavlink_items(g: GeoWaypoints, ardupilot: bool = False) -> list[dict]:
