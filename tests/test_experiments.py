@@ -1,6 +1,7 @@
 """Experiments: Table 2 layout, resumable sweeps, a Dask cluster on loopback, the notebook."""
 from __future__ import annotations
 
+import json
 from pathlib import Path
 
 import pandas as pd
@@ -206,6 +207,21 @@ def test_a_kept_run_of_another_configuration_or_mesh_is_flown_again(tmp_path):
     with open(mesh, "a") as f:
         f.write("# edited in place\n")
     assert fly() != again  # the same path, another file: flown again
+
+
+@pytest.mark.parametrize("damage", [("{", "X"), ('"scenario"', '"scenariX"')])
+def test_a_kept_run_whose_summary_was_damaged_at_its_size_is_flown_again(tmp_path, damage):
+    """A finished run's summary.json changed at the same size (its manifest cannot tell): every
+    start of the sweep failed on it ("damaged, not JSON", KeyError 'scenario') and told the user
+    to run the same command again; it is flown again instead."""
+    spec = RunSpec("1", 0, overrides=TINY)
+    run_specs([spec], tmp_path, workers=1, progress=False)
+    summary = tmp_path / "runs" / spec.run_id / "summary.json"
+    text = summary.read_text()
+    summary.write_text(text.replace(*damage, 1))
+    assert len(summary.read_text()) == len(text)
+    rows = run_specs([spec], tmp_path, workers=1, progress=False)
+    assert rows[0]["scenario"] == "1" and json.loads(summary.read_text())["scenario"] == "1"
 
 
 def test_ctrl_c_keeps_a_run_that_finished_before_its_row_arrived(tmp_path, monkeypatch):

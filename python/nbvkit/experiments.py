@@ -88,12 +88,12 @@ def _run_one(spec: RunSpec, root: Path, threads: int) -> dict:
 
     final = root / "runs" / spec.run_id
     cfg, mesh_sha1 = _resolved(spec)
-    if _finished_with(final, cfg, mesh_sha1):
-        return row_of(final)
-    # A kept folder that is incomplete or of another configuration is replaced whole; another
-    # worker flying the same run holds its lock: wait for it, then reuse what it wrote.
+    if (row := _kept_row(final, cfg, mesh_sha1)) is not None:
+        return row
+    # A kept folder that is incomplete, of another configuration or damaged is replaced whole;
+    # another worker flying the same run holds its lock: wait for it, then reuse what it wrote.
     with RunFolder(final, overwrite=True, wait=True, carry=()) as folder:
-        if _finished_with(final, cfg, mesh_sha1):
+        if _kept_row(final, cfg, mesh_sha1) is not None:
             folder.cancel()
         else:
             set_num_threads(threads)
@@ -108,6 +108,18 @@ def _run_one(spec: RunSpec, root: Path, threads: int) -> dict:
                 folder.tmp / "spec.json", {**_spec_dict(spec), "mesh_sha1": mesh_sha1, **plugins}
             )
     return row_of(final)
+
+
+def _kept_row(run_dir: Path, cfg, mesh_sha1: str | None) -> dict | None:
+    """The row of the finished run of this configuration kept at run_dir (_finished_with), or
+    None: none, another, or one whose summary no longer reads (changed at its size since, which
+    its manifest cannot tell): that one is flown again, not refused at every start."""
+    if not _finished_with(run_dir, cfg, mesh_sha1):
+        return None
+    try:
+        return row_of(run_dir)
+    except (OSError, ValueError, KeyError, TypeError):
+        return None
 
 
 def _resolved(spec: RunSpec):
@@ -133,8 +145,7 @@ def _finished_rows(specs: list[RunSpec], root: Path, rows: list) -> None:
         final = root / "runs" / spec.run_id
         if rows[i] is None and final.is_dir():
             try:
-                if _finished_with(final, *_resolved(spec)):
-                    rows[i] = row_of(final)
+                rows[i] = _kept_row(final, *_resolved(spec))
             except (OSError, ValueError, KeyError):
                 pass  # unreadable: left for the next start to run again
 
