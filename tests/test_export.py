@@ -429,6 +429,13 @@ def test_wpml_kmz_read_back(exported, run_dir):
         # climb to the return height)
         assert mc.findtext("wpml:finishAction", namespaces=ns) == "autoLand"
         assert mc.find("wpml:droneInfo/wpml:droneEnumValue", ns) is not None
+        # the template's payload parameters: both elements the spec requires in it
+        pp = root.find("k:Document/k:Folder/wpml:payloadParam", ns)
+        if name.endswith("template.kml"):
+            assert pp.findtext("wpml:payloadPositionIndex", namespaces=ns) == "0"
+            assert pp.findtext("wpml:imageFormat", namespaces=ns) == "wide"
+        else:
+            assert pp is None  # waylines.wpml has none
         pms = root.findall("k:Document/k:Folder/k:Placemark", ns)
         assert len(pms) == len(rows)
         assert [int(p.findtext("wpml:index", namespaces=ns)) for p in pms] == list(range(len(pms)))

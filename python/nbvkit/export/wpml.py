@@ -222,6 +222,10 @@ def _wpml_doc(g: GeoWaypoints, drone, payload, template: bool, created_ms: int) 
     group, dji = 0, waits(g)["dji"]  # once for the sortie
     for index, k in enumerate(range(len(g))):
         group = _placemark(folder, g, k, index, template, group, dji)
+    if template:  # the camera's photos: the main gimbal's, its wide lens (as DJI Pilot 2 writes)
+        pp = _el(folder, "payloadParam")
+        _el(pp, "payloadPositionIndex", 0)
+        _el(pp, "imageFormat", LENS)
     return ET.tostring(kml, encoding="UTF-8", xml_declaration=True)
 
 
