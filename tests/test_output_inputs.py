@@ -10,7 +10,7 @@ import pytest
 
 from conftest import CUBE_MESH
 from nbvkit.cli import main
-from nbvkit.runfolder import require_complete_run
+from nbvkit.runfolder import require_complete_run, write_manifest
 
 CUBE = CUBE_MESH
 POSE = ["0", "-5", "0.5", "1.57"]
@@ -124,3 +124,27 @@ def test_scan_out_into_a_run_folder_is_refused(files, capsys):
     _refused(argv, run / "manifest.json", capsys, out, run)
     assert not out.exists()
     require_complete_run(run)
+
+
+@pytest.mark.parametrize(
+    "key, value",
+    [("gt_density", '"abcd"'), ("gt_density", "NaN"), ("seed", "NaN"), ("seed", "-1")],
+)
+def test_evaluate_names_a_run_summary_value_changed_since_the_run(files, capsys, key, value):
+    """evaluate RUN scores at the run's own ground-truth density and seed (summary.json): a
+    value no run records (the file changed at its size since) is named with the file and key,
+    not blamed on --gt-density or --seed, which the user never gave."""
+    import json
+    import re
+
+    run = files / "run"
+    summary = run / "summary.json"
+    text = summary.read_text()
+    was = json.dumps(json.loads(text)[key])
+    new = re.sub(rf'"{key}": {re.escape(was)}', f'"{key}": {value}', text, count=1)
+    assert new != text
+    summary.write_text(new)
+    write_manifest(run)  # the manifest vouches for sizes only: as if changed at its size
+    assert main(["evaluate", str(run)]) == 2
+    err = capsys.readouterr().err
+    assert str(summary) in err and f"'{key}'" in err and "Traceback" not in err, err

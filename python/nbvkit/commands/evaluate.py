@@ -227,6 +227,26 @@ def _check_json_not_input(args, cloud_path: Path) -> None:
     check_not_input(args.json, inputs, "--json")
 
 
+def _recorded(summary: dict, folder: Path, key: str, default: float) -> float:
+    """The run's summary.json `key` (gt_density: a number > 0; seed: a whole number >= 0), the
+    default where it has none; ValueError naming the file and the key for any other value (a
+    summary changed since the run)."""
+    from ..limits import fmt_number, is_number
+
+    v = summary.get(key)
+    if v is None:
+        return default
+    ok = is_number(v) and np.isfinite(v)
+    ok = ok and (v > 0 if key == "gt_density" else (v >= 0 and float(v).is_integer()))
+    if not ok:
+        shown = fmt_number(v) if is_number(v) else repr(v)
+        raise ValueError(
+            f"{folder / 'summary.json'}: its {key!r} is {shown}, not what a run records (changed "
+            f"since the run?): give --{key.replace('_', '-')}, or fly the run again"
+        )
+    return float(v)
+
+
 def _settings_of_run(args, folder: Path) -> None:
     """A run's cloud is scored as the run scored it: against the mesh it flew (its config.yaml's
     mesh: path, scale, up, shift) unless --mesh or --reference-cloud names another ground truth,
@@ -242,9 +262,9 @@ def _settings_of_run(args, folder: Path) -> None:
     run = looks_like_run(folder) and (folder / "config.yaml").is_file()
     summary = read_summary(folder) if run else {}
     if args.gt_density is None:
-        args.gt_density = float(summary.get("gt_density") or DEFAULT_GT_DENSITY)
+        args.gt_density = _recorded(summary, folder, "gt_density", DEFAULT_GT_DENSITY)
     if args.seed is None:
-        args.seed = int(summary.get("seed") or 0)
+        args.seed = int(_recorded(summary, folder, "seed", 0))
     if not run or args.mesh or args.reference_cloud:
         return
     if args.mesh_scale != 1.0 or args.mesh_up != "auto" or args.mesh_shift is not None:
