@@ -15,7 +15,6 @@ nbvkit.experiment_specs (RunSpec, sweep_specs, ...) and the tables are nbvkit.ex
 from __future__ import annotations
 
 import contextlib
-import hashlib
 import json
 import operator
 import os
@@ -177,17 +176,9 @@ def _finished_with(run_dir: Path, cfg, mesh_sha1: str | None) -> bool:
 def _mesh_digest(cfg) -> str | None:
     """SHA-1 of the mesh file a configuration flies (the shipped airliner when mesh.path is
     None); None when it cannot be read (the mission then fails on it, naming the problem)."""
-    from .mesh import default_mesh_path
+    from .mesh import default_mesh_path, mesh_file_sha1
 
-    from .limits import check_input_file
-
-    path = cfg.mesh.path if cfg.mesh.path is not None else default_mesh_path()
-    try:
-        path = check_input_file(path, "mesh file")  # a FIFO would block open() forever
-        with open(path, "rb") as f:
-            return hashlib.file_digest(f, "sha1").hexdigest()
-    except (OSError, ValueError):
-        return None
+    return mesh_file_sha1(cfg.mesh.path if cfg.mesh.path is not None else default_mesh_path())
 
 
 class Interrupted(Exception):

@@ -3,6 +3,7 @@ conversion to and from open3d, the shipped default structure, and rays through a
 surface (its crossings)."""
 from __future__ import annotations
 
+import hashlib
 import math
 import os
 import re
@@ -244,6 +245,17 @@ def mesh_to_open3d(mesh: Mesh):
 
 Mesh.from_open3d = staticmethod(mesh_from_open3d)
 Mesh.to_open3d = mesh_to_open3d
+
+
+def mesh_file_sha1(path) -> str | None:
+    """SHA-1 of the mesh file at `path` (its own bytes: a .gltf's buffer files are not read),
+    or None where it cannot be read."""
+    try:
+        p = check_input_file(path, "mesh file")  # a FIFO would block open() forever
+        with open(p, "rb") as f:
+            return hashlib.file_digest(f, "sha1").hexdigest()
+    except (OSError, ValueError):
+        return None
 
 
 def default_mesh_path() -> Path:

@@ -205,6 +205,7 @@ class Recorder:
             "start": cfg.start,
             "start_pose": [float(x) for x in world.start_pose],
             "mesh": world.mesh_path,
+            "mesh_sha1": world.mesh_sha1,
             "profiling": cfg.profiling.enabled,
             "symmetry_prediction": cfg.symmetry.mode == "predict",
             "generators": list(cfg.planner.generators),

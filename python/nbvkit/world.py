@@ -18,6 +18,7 @@ from .limits import Bound, require_config, require_type
 from .work_limits import MissionError, check_work, units_hint
 from .mapping import new_map
 from .mesh import check_path_clear, default_mesh_path, fibonacci_sphere, load_mesh
+from .mesh import mesh_file_sha1
 from .mesh import surface_crossings
 from .sensors import (
     build_camera,
@@ -148,12 +149,13 @@ class World:
         self.config = cfg = config
         if mesh is None:
             self.mesh_path = str(cfg.mesh.path or default_mesh_path())
+            self.mesh_sha1 = mesh_file_sha1(self.mesh_path)  # evaluate checks it is the same
             mesh = load_mesh(
                 self.mesh_path, scale=cfg.mesh.scale, up=cfg.mesh.up, shift=cfg.mesh.shift
             )
         else:
             require_type(mesh, _core.Mesh, "mesh", "an nbvkit.Mesh")
-            self.mesh_path = IN_MEMORY_MESH
+            self.mesh_path, self.mesh_sha1 = IN_MEMORY_MESH, None
         self.mesh = mesh
         try:
             _check_above_ground_removal(cfg, mesh.bounds)

@@ -13,7 +13,7 @@ from ..output_paths import write_text_output
 from ..output_paths import check_not_input
 from ..paths import check_output_file, require_complete_run
 from ..cloud import read_points
-from ..mesh import default_mesh_path, file_up_axis
+from ..mesh import default_mesh_path, file_up_axis, mesh_file_sha1
 from ..evaluation import (
     DEFAULT_GT_DENSITY,
     DEFAULT_RESOLUTIONS,
@@ -282,15 +282,21 @@ def _settings_of_run(args, folder: Path) -> None:
         args.config = str(folder / "config.yaml")
     args.mesh_scale, args.mesh_up = mesh.scale, mesh.up
     args.mesh_shift = list(mesh.shift) if any(mesh.shift) else None
-    if mesh.path is None:  # the default airliner, at the run's scale, up and shift
-        return
-    path = Path(os.fspath(mesh.path)).expanduser()
+    path = default_mesh_path() if mesh.path is None else Path(os.fspath(mesh.path)).expanduser()
     if not path.exists():
         raise ValueError(
             f"the run {folder} flew the mesh '{path}' (its config.yaml), which is not found from "
             f"here ({Path.cwd()}): give the mesh with --mesh"
         )
-    args.mesh = path
+    flown = summary.get("mesh_sha1")  # (runs before it was recorded: none)
+    if flown is not None and mesh_file_sha1(path) != flown:
+        raise ValueError(
+            f"the mesh file '{path}' the run {folder} flew has changed since (its SHA-1 is not "
+            "the one summary.json records): the run's cloud would be scored against another "
+            "structure; give the mesh it flew with --mesh"
+        )
+    if mesh.path is not None:  # (the default airliner: no --mesh, at the run's scale and up)
+        args.mesh = path
 
 
 def run_cloud(path: Path) -> Path:
