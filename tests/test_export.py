@@ -5,6 +5,7 @@ from __future__ import annotations
 import csv
 import json
 import math
+import os
 import zipfile
 
 import numpy as np
@@ -1876,6 +1877,45 @@ def test_an_export_killed_while_writing_leaves_nothing_half_written(run_dir, tmp
     assert p.returncode == 130, (p.returncode, p.stderr)
     assert f"nbvkit export: interrupted by {signum}" in p.stderr and "Traceback" not in p.stderr
     assert list(tmp_path.iterdir()) == []
+
+
+def test_an_export_killed_outright_leaves_a_temporary_folder_the_next_one_removes(
+    run_dir, tmp_path
+):
+    """SIGKILL while the files are written leaves no time to clean up: its temporary folder
+    stayed in the run's folder for good (and `run --overwrite` then refused the folder as holding
+    files nbvkit did not write). The next export removes it (its process is gone), and keeps
+    one whose process lives."""
+    import shutil
+    import signal
+    import subprocess
+    import sys
+    import textwrap
+
+    run = tmp_path / "run"
+    shutil.copytree(run_dir, run)
+    script = textwrap.dedent(
+        """
+        import os, signal, sys
+        import nbvkit.export.writers as w
+        from nbvkit.cli import main
+        def killed(*args, **kwargs):
+            os.kill(os.getpid(), signal.SIGKILL)
+        w.write_kml = killed
+        sys.exit(main(sys.argv[1:]))
+        """
+    )
+    argv = ["export", str(run), "--origin", *map(str, ORIGIN), "--format", "qgc,kml"]
+    p = subprocess.run([sys.executable, "-c", script, *argv], capture_output=True, timeout=120)
+    assert p.returncode == -signal.SIGKILL
+    left = list(run.glob(".nbvkit-export-*"))
+    assert len(left) == 1 and (left[0] / "mission.plan").is_file()
+    alive = run / f".nbvkit-export-{os.getppid()}-0a0b0c0d0e0f"  # a live process's
+    alive.mkdir()
+    export_mission(run, "csv", ORIGIN, HEADING)
+    assert (
+        list(run.glob(".nbvkit-export-*")) == [alive] and (run / "export" / "mission.csv").exists()
+    )
 
 
 def _simplify_by_measuring_each_run_again(wps, tol=1e-3):

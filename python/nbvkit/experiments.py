@@ -207,7 +207,7 @@ class RunsFailed(Exception):
 def clean_stale_tmp(root: str | os.PathLike) -> int:
     """Removes ``runs/.<id>.tmp<pid>`` folders left by runs that were killed (their process is
     gone); returns how many."""
-    from .locks import lock_holder
+    from .locks import lock_holder, pid_alive
     from .runfolder import run_name
 
     n = 0
@@ -215,22 +215,11 @@ def clean_stale_tmp(root: str | os.PathLike) -> int:
         pid = d.name.rsplit(".tmp", 1)[-1]
         if lock_holder(d.parent / run_name(d)) is not None:
             continue  # its run is being written (by a process this one cannot see, too)
-        if d.is_dir() and pid.isdigit() and not _alive(int(pid)):
+        # (this process starts no run before cleaning: its own are stale too)
+        if d.is_dir() and pid.isdigit() and not pid_alive(int(pid), os.getpid()):
             shutil.rmtree(d, ignore_errors=True)
             n += 1
     return n
-
-
-def _alive(pid: int) -> bool:
-    if pid == os.getpid():
-        return False  # this process starts no run before cleaning
-    try:
-        os.kill(pid, 0)
-    except ProcessLookupError:
-        return False
-    except PermissionError:
-        return True
-    return True
 
 
 def _worker_init(prog=None) -> None:

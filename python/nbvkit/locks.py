@@ -100,6 +100,20 @@ class FileLock:
         self.release()
 
 
+def pid_alive(pid: int, but: int | None = None) -> bool:
+    """Whether the process `pid` lives (another user's too), `but` counted as gone: the owner
+    of a temporary folder named by its pid that a killed process left."""
+    if pid == but:
+        return False
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except PermissionError:
+        return True
+    return True
+
+
 def folder_lock(path) -> FileLock:
     """The lock a run takes on its folder `path` (RunLock's file), for a change to a finished
     run's files: two exports updating one run's report take turns."""

@@ -20,6 +20,7 @@ from ..flight import estimate, sortie_planner
 from ..flight_time import FRAME, VIEW, FlightModel
 from ..run_report import update_flight_section
 from ..limits import is_number
+from ..locks import pid_alive
 from ..output_paths import check_output_dir
 from ..runfolder import require_complete_run
 from .plan import read_run
@@ -294,6 +295,20 @@ def export_mission(
     return summary
 
 
+#: an export's temporary folder: TMP_PREFIX<pid>-<random>, beside its output folder
+TMP_PREFIX = ".nbvkit-export-"
+
+
+def _remove_stale_temporaries(parent: Path) -> None:
+    """Removes the temporary folders in `parent` of exports whose process is gone (killed
+    outright while writing: SIGKILL leaves no time to clean up), which a run's --overwrite
+    then refused as files nbvkit did not write."""
+    for d in parent.glob(f"{TMP_PREFIX}*-*"):
+        pid = d.name[len(TMP_PREFIX) :].split("-", 1)[0]
+        if d.is_dir() and pid.isdigit() and not pid_alive(int(pid)):  # (threads share one)
+            shutil.rmtree(d, ignore_errors=True)
+
+
 def _new_folder(parent: Path, prefix: str) -> Path:
     """A new empty folder in `parent` named `prefix` + a random suffix, made with the process's
     umask as any folder (tempfile.mkdtemp's is private, 0700, and moved into place as the
@@ -314,7 +329,8 @@ def _write_into(out: Path, summary: dict, fl, sorties, frame, model, dji, budget
     anchor = out.parent
     while not anchor.exists():
         anchor = anchor.parent
-    tmp = _new_folder(anchor, ".nbvkit-export-")
+    _remove_stale_temporaries(anchor)
+    tmp = _new_folder(anchor, f"{TMP_PREFIX}{os.getpid()}-")
     try:
         names = [f"sortie_{s.number:02d}" for s in sorties] if budget else ["mission"]
         files = _write_formats(tmp, summary["formats"], fl, sorties, names, frame, model, *dji)
