@@ -520,6 +520,17 @@ def test_case9_negative_seed_is_named(tmp_path, cube_obj):
         nbvkit.load_mesh(cube_obj).sample_surface(10, seed=-1)
 
 
+def test_a_sample_count_past_the_int32_face_ids_is_refused(cube_obj):
+    """sample_surface(10**12) raised MemoryError (std::bad_alloc) after trying; its face ids
+    are int32: a count past them is refused by name before any work."""
+    mesh = nbvkit.load_mesh(cube_obj)
+    with pytest.raises(ValueError, match="number of samples must be at most 2147483647"):
+        mesh.sample_surface(10**12)
+    with pytest.raises(ValueError, match="at most 2147483647"):
+        mesh.sample_surface(2**31, return_faces=True)
+    assert len(mesh.sample_surface(5, return_faces=True)[1]) == 5
+
+
 def test_case10_bad_yaml_gives_file_and_line(tmp_path):
     bad = tmp_path / "bad.yaml"
     bad.write_text("max_iterations: 5\nmap:\n  resolution: [0.2\n")

@@ -1,6 +1,9 @@
 #include "nbv/mesh.hpp"
 #include "bindings.hpp"
 
+#include <limits>
+#include <string>
+
 namespace nbv::bind {
 
 namespace {
@@ -54,6 +57,9 @@ Mesh(vertices, faces) or Mesh.from_open3d(o3d_mesh).)doc")
           [](const Mesh& s, long long n, const py::object& seed_obj,
              bool return_faces) -> py::object {
             if (n < 0) throw py::value_error("number of samples must be >= 0");
+            if (n > std::numeric_limits<int>::max())  // (face ids are int32)
+              throw py::value_error("number of samples must be at most 2147483647, got " +
+                                    std::to_string(n));
             const std::uint64_t seed = seed_arg(seed_obj);
             Eigen::VectorXi fid;
             Points p;
