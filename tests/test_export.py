@@ -1115,16 +1115,23 @@ def _stop_s(d, v, a=2.5):
 
 
 def _nav_legs_s(points, speed, climb):
-    """Seconds of straight legs between (lat, lon, rel_alt) points at the time model's speeds,
-    stopping at each (a DJI route stops at every waypoint; an autopilot at most there),
+    """Seconds of straight legs between (lat, lon, rel_alt) points at the time model's speeds
+    (vertically _vertical_s), stopping at each (a DJI route stops at every waypoint; an autopilot at most there),
     horizontal distances from pymap3d (east, north)."""
     import pymap3d
 
     t = 0.0
     for a, b in zip(points, points[1:]):
         e, n, _ = pymap3d.geodetic2enu(b[0], b[1], 0.0, a[0], a[1], 0.0)
-        t += max(_stop_s(math.hypot(e, n), speed), _stop_s(abs(b[2] - a[2]), climb))
+        t += max(_stop_s(math.hypot(e, n), speed), _vertical_s(b[2] - a[2], climb))
     return t
+
+
+def _vertical_s(dz, climb):
+    """Seconds of a vertical leg dz m (up > 0) from a stop to a stop: up at the model's climb
+    rate, down never faster than the autopilots' default descent speed (ArduCopter's
+    WPNAV_SPEED_DN 150 cm/s, PX4's MPC_Z_V_AUTO_DN 1.5 m/s)."""
+    return _stop_s(dz, climb) if dz >= 0 else _stop_s(-dz, min(climb, 1.5))
 
 
 def _descent_s(h, speed_at, step=1e-3):
@@ -1191,7 +1198,7 @@ def _kmz_time(path, speed=5.0, climb=2.0):
         elif may_face is not None:
             a = pm.findtext("wpml:waypointHeadingParam/wpml:waypointHeadingAngle", namespaces=ns)
             may_face.append(float(a))
-    up, down = _stop_s(pts[0][2], climb), _stop_s(pts[-1][2], climb)
+    up, down = _vertical_s(pts[0][2], climb), _vertical_s(-pts[-1][2], climb)
     return up + _nav_legs_s(pts, speed, climb) + t + down
 
 

@@ -3,8 +3,9 @@ command at each capture (capture_waits), the one place both the time model (nbvk
 sorties) and the mission writers (nbvkit.export) take them from.
 
 A straight leg between two stops takes the longer of its horizontal and its vertical flight,
-each accelerating at a = ACCEL_M_S2 up to its speed limit v (speed, climb_rate), cruising, and
-braking to the stop: d / v + v / a, or 2 sqrt(d / a) on a leg too short to reach v (stop_leg_s).
+each accelerating at a = ACCEL_M_S2 up to its speed limit v (speed; climb_rate up, and down
+never faster than DESCENT_M_S, the autopilots' default descent speed), cruising, and braking to
+the stop: d / v + v / a, or 2 sqrt(d / a) on a leg too short to reach v (stop_leg_s).
 A mission file stops at every waypoint it writes (the DJI route's
 toPointAndStopWithDiscontinuityCurvature; ArduPilot and PX4 slow down at each corner and stop
 at each hold): the exported sortie is timed so, from its written waypoints. Points along a
@@ -66,6 +67,9 @@ AP_TAKEOFF_M_S = 2.5
 #: MPC_LAND_ALT2 (5 m) and at that speed below it. Its take-off climbs at MPC_TKO_SPEED (1.5 m/s).
 PX4_DESCENT_M_S, PX4_LAND_ALT1_M, PX4_LAND_ALT2_M, PX4_LAND_SPEED_M_S = 1.5, 10.0, 5.0, 0.7
 PX4_TAKEOFF_M_S = 1.5
+#: the fastest descent of the time model (m/s): ArduCopter's WPNAV_SPEED_DN and PX4's
+#: MPC_Z_V_AUTO_DN (150 cm/s and 1.5 m/s by default), on every leg down and not only the landing
+DESCENT_M_S = min(AP_DESCENT_M_S, PX4_DESCENT_M_S)
 
 
 def signed_deg(deg: float) -> float:
@@ -192,8 +196,9 @@ def waits_s(waits: dict) -> dict:
 
 @dataclass(frozen=True)
 class FlightModel:
-    """Flight-time model: speed (m/s, horizontal), climb_rate (m/s, up and down), hover_s
-    (seconds per counted view, at least SETTLE_S: capture_waits)."""
+    """Flight-time model: speed (m/s, horizontal), climb_rate (m/s, up, and down at most
+    DESCENT_M_S: descent_rate), hover_s (seconds per counted view, at least SETTLE_S:
+    capture_waits)."""
 
     speed: float = 5.0
     climb_rate: float = 2.0
@@ -214,10 +219,16 @@ class FlightModel:
         """(L,) seconds of straight legs d (L, 3) each flown from a stop to a stop (module
         docstring)."""
         d = np.asarray(d, float).reshape(-1, 3)
+        up = _accelerated(np.maximum(d[:, 2], 0.0), self.climb_rate, ACCEL_M_S2)
+        down = _accelerated(np.maximum(-d[:, 2], 0.0), self.descent_rate, ACCEL_M_S2)
         return np.maximum(
-            _accelerated(np.hypot(d[:, 0], d[:, 1]), self.speed, ACCEL_M_S2),
-            _accelerated(np.abs(d[:, 2]), self.climb_rate, ACCEL_M_S2),
+            _accelerated(np.hypot(d[:, 0], d[:, 1]), self.speed, ACCEL_M_S2), np.maximum(up, down)
         )
+
+    @property
+    def descent_rate(self) -> float:
+        """m/s down on a leg: climb_rate, at most DESCENT_M_S."""
+        return min(self.climb_rate, DESCENT_M_S)
 
     def leg_times(self, pts: np.ndarray, stops=None) -> np.ndarray:
         """(P-1,) seconds of the legs between consecutive points (P, 3), flown through the points
@@ -247,7 +258,7 @@ class FlightModel:
     def ends_s(self, height: float) -> dict:
         """target -> (take-off, landing) seconds of a sortie that climbs `height` m straight up
         from the launch point and comes down the same line. The DJI route (autoLand: DJI
-        publishes no landing profile) at climb_rate both ways, as any vertical leg; the
+        publishes no landing profile) as any vertical leg (climb_rate, descent_rate); the
         MAVLink files at their autopilot's defaults, never faster than climb_rate: ArduPilot's
         and PX4's take-off speeds (AP_TAKEOFF_M_S, PX4_TAKEOFF_M_S) and the return to launch of
         each, which descends slower near the ground (AP_*, PX4_*)."""
@@ -258,7 +269,8 @@ class FlightModel:
         fast = min(h, max(h - AP_LAND_ALT_LOW_M, 0.0))
         ap = AP_RTL_LOITER_S + fast / min(self.climb_rate, AP_DESCENT_M_S)
         ap += (h - fast) / min(self.climb_rate, AP_LAND_SPEED_M_S)
-        down = {"dji": up["dji"], "ardupilot": ap, "px4": _px4_landing_s(h, self.climb_rate)}
+        dji = self._vertical_s(h, self.descent_rate)
+        down = {"dji": dji, "ardupilot": ap, "px4": _px4_landing_s(h, self.climb_rate)}
         return {t: (up[t], down[t]) for t in TARGETS}
 
     @staticmethod

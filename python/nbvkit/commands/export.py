@@ -64,7 +64,11 @@ def register(sub) -> argparse.ArgumentParser:
         help="cruise speed (default 5, at most 15: DJI WPML's limit, see docs/EXPORT.md)",
     )
     p.add_argument(
-        "--climb-rate", type=float, default=2.0, metavar="M_S", help="climb/descent rate (2)"
+        "--climb-rate",
+        type=float,
+        default=2.0,
+        metavar="M_S",
+        help="climb rate (2); descents at most 1.5",
     )
     p.add_argument(
         "--hover",
