@@ -43,6 +43,21 @@ def test_the_paper_scenarios_workspace_is_the_papers_for_the_airliner():
     )  # (0, -19.1): authors' (0, -20)
 
 
+def test_a_workspace_beside_the_structure_is_refused_before_any_work(tmp_path):
+    """Explicit workspace bounds that hold no part of the structure: refused by name before
+    any work (a mission there saw nothing and blamed its start), part of it flies."""
+    box = ["workspace.bounds_min=[100,100,0]", "workspace.bounds_max=[130,130,10]"]
+    with pytest.raises(ValueError, match="holds no part of the structure"):
+        Mission(cfg(*box)).run(tmp_path / "out")
+    assert not (tmp_path / "out").exists()
+    mesh = nbvkit.load_mesh(nbvkit.default_mesh_path())
+    lo, hi = np.asarray(mesh.bounds[0]), np.asarray(mesh.bounds[1])
+    part = Config().with_overrides(
+        [f"workspace.bounds_min={(lo - 3).tolist()}", f"workspace.bounds_max={[0, 0, 8]}"]
+    )
+    assert make_workspace(mesh.bounds, part).contains(np.array([-1.0, -1.0, 1.0]))
+
+
 def test_scenario1_runs_end_to_end_and_writes_results(tmp_path):
     m = Mission(cfg("scenario=1"))
     m.run(tmp_path)

@@ -173,6 +173,12 @@ def make_workspace(mesh_bounds, cfg) -> Workspace:
             raise ValueError(
                 f"workspace bounds_max {bmax.tolist()} must exceed bounds_min {bmin.tolist()}"
             )
+        if np.any(bmin >= hi) or np.any(bmax <= lo):  # (a mission would see nothing)
+            raise ValueError(
+                f"the workspace {bmin.tolist()}..{bmax.tolist()} (workspace.bounds_min, "
+                f"bounds_max) holds no part of the structure, which spans "
+                f"{lo.round(3).tolist()}..{hi.round(3).tolist()} m"
+            )
     else:
         c = (lo + hi) / 2
         half = (hi - lo)[:2] / 2 + w.margin_xy
