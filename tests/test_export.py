@@ -606,6 +606,34 @@ def test_colmap_pose_reprojects_mesh_points_to_the_pixels_the_camera_saw(exporte
     assert checked >= 50
 
 
+def test_colmap_images_named_as_the_camera_numbers_its_photos(run_dir, tmp_path):
+    """--photo-names: the k-th COLMAP image (in images.txt's order) is the photo the mission
+    files trigger k-th, named by the pattern from --photo-first: its number read back from the
+    .plan's IMAGE_START_CAPTURE (param 4) and the CSV's photo."""
+    from nbvkit.cli import main
+
+    out = tmp_path / "ex"
+    argv = ["export", str(run_dir), "--origin", *map(str, ORIGIN), "--out", str(out)]
+    argv += ["--format", "qgc,csv,colmap", "--photo-names", "DJI_{:04d}.JPG"]
+    assert main(argv + ["--photo-first", "101"]) == 0
+    lines = [
+        ln for ln in (out / "colmap/images.txt").read_text().splitlines() if not ln.startswith("#")
+    ]
+    names = [ln.split()[9] for ln in lines[0::2]]
+    items = json.loads((out / "mission.plan").read_text())["mission"]["items"]
+    fired = [int(it["params"][3]) for it in items if it["command"] == 2000]
+    with open(out / "mission.csv", newline="") as f:
+        seqs = [int(r["photo"]) for r in csv.DictReader(f) if r["action"] in ("view", "frame")]
+    assert len(names) == len(fired) == len(seqs) == sum(1 for c in read_run(run_dir).capture if c)
+    assert (
+        names
+        == [f"DJI_{n + 100:04d}.JPG" for n in fired]
+        == [f"DJI_{n + 100:04d}.JPG" for n in seqs]
+    )
+    assert names[0] == "DJI_0101.JPG"
+    assert json.loads((out / "export.json").read_text())["photo_names"] == ["DJI_{:04d}.JPG", 101]
+
+
 # ------------------------------------------------------------------ one flight per battery
 def test_a_budget_splits_the_flight_into_sorties_from_and_to_home(run_dir, tmp_path):
     from nbvkit.export import _planner
@@ -724,6 +752,14 @@ def test_a_view_beyond_one_battery_is_reported_not_dropped(run_dir, tmp_path):
         ({"dji_payload": -1}, ValueError, "dji_payload must be a whole number >= 0"),
         ({"dji_payload": "a<b>&"}, ValueError, "dji_payload must be a whole number"),
         ({"out_dir": ""}, ValueError, "out_dir is empty"),
+        ({"photo_names": "DJI.JPG"}, ValueError, "one field for the photo's number"),
+        ({"photo_names": "DJI_{}_{}.JPG"}, ValueError, "one field for the photo's number"),
+        ({"photo_names": "DJI_{:s}.JPG"}, ValueError, "one field for the photo's number"),
+        ({"photo_names": "DJI_{name}.JPG"}, ValueError, "one field for the photo's number"),
+        ({"photo_names": "my photo {}.jpg"}, ValueError, "without spaces"),
+        ({"photo_names": "../{}.jpg"}, ValueError, "relative to its image folder"),
+        ({"photo_names": "DJI_{}.JPG", "photo_first": -1}, ValueError, "first photo's number"),
+        ({"photo_names": 7}, ValueError, "photo names must be a string"),
     ],
 )
 def test_bad_input_names_the_problem_and_writes_nothing(run_dir, tmp_path, kwargs, exc, words):

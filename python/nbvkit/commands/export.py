@@ -80,6 +80,21 @@ def register(sub) -> argparse.ArgumentParser:
     )
     _add_split_options(p)
     p.add_argument(
+        "--photo-names",
+        default=None,
+        metavar="PATTERN",
+        help="name the COLMAP images as the aircraft's camera names its photos, numbered in "
+        "flight order: a pattern with one field, e.g. 'DJI_{:04d}.JPG' (default "
+        "view_0001.png ..., frame_0001.png ...)",
+    )
+    p.add_argument(
+        "--photo-first",
+        type=int,
+        default=1,
+        metavar="N",
+        help="the number of the flight's first photo in --photo-names (default 1)",
+    )
+    p.add_argument(
         "--out", metavar="DIR", type=path_arg, default=None, help="output folder (RUN_DIR/export)"
     )
     return p
@@ -127,6 +142,8 @@ def run(args) -> int:
         reserve_pct=args.reserve,
         max_items=args.max_items,
         altitude_ref=args.altitude_ref,
+        photo_names=args.photo_names,
+        photo_first=args.photo_first,
     )
     m = s["mission"]
     print(

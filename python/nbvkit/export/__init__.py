@@ -206,24 +206,6 @@ def _workspace_top_rel_alt(fl) -> float | None:
     return None if top is None else float(top[2]) - float(fl.home[2])
 
 
-def camera_poses(fl) -> list:
-    """(name, T_world_sensor (4, 4)) of every capture of the flight, in order: view_0001.png ...,
-    frame_0001.png ... (numbered per kind)."""
-    from .. import _core
-
-    cfg = fl.config
-    cam = _core.mount_transform(cfg.camera.mount_xyz, *cfg.camera.mount_rpy_deg)
-    out, count = [], {VIEW: 0, FRAME: 0}
-    for i, c in enumerate(fl.capture):
-        if not c:
-            continue
-        count[c] += 1
-        T_body = _core.pose_to_transform([*fl.xyz[i], fl.yaw[i]])
-        T = T_body @ _core.mount_transform([0, 0, 0], 0.0, math.degrees(fl.pitch[i]), 0.0) @ cam
-        out.append((f"{c}_{count[c]:04d}.png", T))
-    return out
-
-
 def export_mission(
     run_dir,
     formats=("qgc",),
@@ -239,6 +221,8 @@ def export_mission(
     dji_drone=(67, 0),
     dji_payload: int = 52,
     max_items: int | None = None,
+    photo_names: str | None = None,
+    photo_first: int = 1,
 ) -> dict:
     """Writes a run folder's flight in `formats` (FORMATS; a list or "qgc,kml,...") to `out_dir`
     (default RUN_DIR/export) and returns the export's summary (also out_dir/export.json).
@@ -251,7 +235,9 @@ def export_mission(
     WPML droneEnumValue/droneSubEnumValue and payloadEnumValue (default: M30). max_items: the
     most mission items one MAVLink file may hold (nbvkit.export.items.MAX_MISSION_ITEMS: what
     autopilots keep); with it the flight is split into sorties whose files hold no more (within
-    the battery too, with flight_time_min).
+    the battery too, with flight_time_min). photo_names: the COLMAP images' names, a pattern
+    with one field for each photo's number in flight order, from photo_first ("DJI_{:04d}.JPG";
+    default view_0001.png ..., frame_0001.png ...).
 
     Raises ValueError naming a bad value (latitude, longitude, non-finite numbers, an unknown
     format, a budget too small for any view), FileNotFoundError for a run folder without a
@@ -266,6 +252,7 @@ def export_mission(
     minutes = None if flight_time_min is None else _number("flight_time_min", flight_time_min)
     usable = _budget(minutes, _number("reserve_pct", reserve_pct))
     max_items = items.check_max_items(max_items)
+    photos = colmap.check_photo_names(photo_names, photo_first)
     split = usable is not None or max_items is not None
     run = require_complete_run(Path(run_dir).expanduser())  # whole, not half-written
     if out_dir is not None and not os.fspath(out_dir).strip():
@@ -284,6 +271,7 @@ def export_mission(
         budget["usable_min"] = None if usable is None else round(usable / 60, 3)
         budget["max_items"] = max_items
     summary = _summary(run, frame, fl, model, whole, budget, sorties, unreachable, fmts)
+    summary["photo_names"] = None if photos is None else list(photos)
 
     _write_into(out, summary, fl, sorties, frame, model, dji, split)
     paths = [np.array([fl.home, *[w.xyz for w in s.waypoints], fl.home]) for s in sorties]
@@ -333,7 +321,7 @@ def _write_into(out: Path, summary: dict, fl, sorties, frame, model, dji, budget
     tmp = _new_folder(anchor, f"{TMP_PREFIX}{os.getpid()}-")
     try:
         names = [f"sortie_{s.number:02d}" for s in sorties] if budget else ["mission"]
-        files = _write_formats(tmp, summary["formats"], fl, sorties, names, frame, model, *dji)
+        files = _write_formats(tmp, summary, fl, sorties, names, frame, model, *dji)
         if budget:
             _write_sortie_table(tmp / "sorties.csv", summary)
             files.append("sorties.csv")
@@ -412,8 +400,10 @@ def _summary(run, frame, fl, model, whole, budget, sorties, unreachable, fmts) -
     }
 
 
-def _write_formats(tmp: Path, fmts, fl, sorties, names, frame, model, drone, payload) -> list:
-    """Writes each sortie (named `names`) in each format into tmp; returns the files' names."""
+def _write_formats(tmp: Path, summary, fl, sorties, names, frame, model, drone, payload) -> list:
+    """Writes each sortie (named `names`) in each format of the export's summary into tmp;
+    returns the files' names."""
+    fmts, photo_names = summary["formats"], summary["photo_names"]
     numbers, count = {}, {VIEW: 0, FRAME: 0}  # each capture's number of its kind
     seqs = {}  # each capture's number among all captures of the flight (IMAGE_START_CAPTURE)
     for i, c in enumerate(fl.capture):
@@ -454,7 +444,8 @@ def _write_formats(tmp: Path, fmts, fl, sorties, names, frame, model, drone, pay
             files.append(f"{name}.csv")
     if "colmap" in fmts:
         (tmp / "colmap").mkdir()
-        colmap.write_colmap(tmp / "colmap", colmap.camera_intrinsics(fl.config), camera_poses(fl))
+        poses = colmap.camera_poses(fl, photo_names)
+        colmap.write_colmap(tmp / "colmap", colmap.camera_intrinsics(fl.config), poses)
         files += [f"colmap/{n}" for n in ("cameras.txt", "images.txt", "points3D.txt")]
     return files
 

@@ -4,8 +4,11 @@ to start from the planned poses."""
 from __future__ import annotations
 
 import math
+import string
 
 import numpy as np
+
+from ..flight_time import FRAME, VIEW
 
 #: COLMAP's camera axes in nbvkit's sensor frame (x forward, y left, z up): x right = -y,
 #: y down = -z, z forward = +x.
@@ -67,3 +70,68 @@ def camera_intrinsics(config) -> dict:
         "cx": w / 2.0,
         "cy": h / 2.0,
     }
+
+
+def camera_poses(fl, photo_names=None) -> list:
+    """(name, T_world_sensor (4, 4)) of every capture of the flight, in order. Named view_0001.png
+    ..., frame_0001.png ... (numbered per kind), or, given photo_names (pattern, first), by the
+    pattern formatted with each capture's number among all captures (the mission files'
+    IMAGE_START_CAPTURE number, the CSV's photo) plus first - 1 (photo_name)."""
+    from .. import _core
+
+    cfg = fl.config
+    cam = _core.mount_transform(cfg.camera.mount_xyz, *cfg.camera.mount_rpy_deg)
+    out, count = [], {VIEW: 0, FRAME: 0}
+    for i, c in enumerate(fl.capture):
+        if not c:
+            continue
+        count[c] += 1
+        T_body = _core.pose_to_transform([*fl.xyz[i], fl.yaw[i]])
+        T = T_body @ _core.mount_transform([0, 0, 0], 0.0, math.degrees(fl.pitch[i]), 0.0) @ cam
+        seq = len(out) + 1
+        name = f"{c}_{count[c]:04d}.png" if photo_names is None else photo_name(*photo_names, seq)
+        out.append((name, T))
+    return out
+
+
+def check_photo_names(pattern, first) -> tuple | None:
+    """(pattern, first) of camera_poses, checked (photo_name; first a whole number >= 0), or
+    None for pattern None."""
+    if pattern is None:
+        return None
+    if not isinstance(pattern, str):
+        raise ValueError(
+            f"photo names must be a string such as 'DJI_{{:04d}}.JPG', got {pattern!r}"
+        )
+    if isinstance(first, bool) or not isinstance(first, (int, np.integer)) or first < 0:
+        raise ValueError(f"the first photo's number must be a whole number >= 0, got {first!r}")
+    photo_name(pattern, int(first), 1)
+    return pattern, int(first)
+
+
+def photo_name(pattern: str, first: int, seq: int) -> str:
+    """The name of the seq-th photo (1-based) by `pattern`, a file name with one replacement
+    field for a whole number ("DJI_{:04d}.JPG"), numbered from `first`. ValueError naming the
+    pattern where it has not exactly one such field or makes a name COLMAP cannot read (its
+    images.txt separates fields by spaces; a name is a path relative to the image folder)."""
+    fields = [f for _, f, _, _ in string.Formatter().parse(pattern) if f is not None]
+    try:
+        if fields not in ([""], ["0"]):
+            raise ValueError("one replacement field, {} or {:04d}")
+        name = pattern.format(first + seq - 1)
+    except (ValueError, IndexError, KeyError) as e:
+        raise ValueError(
+            f"photo names {pattern!r}: a file name with one field for the photo's number, such "
+            f"as 'DJI_{{:04d}}.JPG' ({e})"
+        ) from None
+    if (
+        not name
+        or any(ch.isspace() for ch in name)
+        or name.startswith("/")
+        or ".." in name.split("/")
+    ):
+        raise ValueError(
+            f"photo names {pattern!r} give {name!r}: COLMAP reads a name without spaces, "
+            "relative to its image folder"
+        )
+    return name

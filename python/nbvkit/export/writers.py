@@ -88,6 +88,10 @@ class GeoWaypoints:
     def __len__(self):
         return len(self.lat)
 
+    def photos(self) -> list:
+        """seq, or where not given the captures of these waypoints numbered together."""
+        return self.seq or list(np.cumsum([a in ("view", "frame") for a in self.action]))
+
 
 def _f(x: float, nd: int) -> str:
     """x to `nd` decimals, never a negative zero ("-0.000" for -1e-7 is written "0.000")."""
@@ -148,9 +152,7 @@ def mavlink_items(g: GeoWaypoints, ardupilot: bool = False) -> list[dict]:
     second (docs/EXPORT.md); the gimbal's rates 0, not NaN (AP_Mission refuses NaN there)."""
     hold, rest = capture_holds(g, ardupilot)
     radius = np.zeros(len(g)) if ardupilot else capture_radii(g)  # ArduPilot: its target's
-    seq = g.seq
-    if seq is None:  # number the captures of these waypoints, views and frames together
-        seq = list(np.cumsum([a in ("view", "frame") for a in g.action]))
+    seq = g.photos()
     speed_after_first_wp = True  # ArduCopter < 4.5 drops the one after the take-off (#21080)
     items = []
     for k in range(len(g)):
@@ -458,12 +460,15 @@ CSV_COLUMNS = (
     "heading_deg",
     "gimbal_pitch_deg",
     "gimbal_yaw_deg",
+    "photo",
 )
 
 
 def write_csv(g: GeoWaypoints, path) -> None:
     """One row per waypoint: CSV_COLUMNS (altitude_m in the origin's reference; rel_altitude_m
-    above the launch point; action takeoff / waypoint / view / frame / transit / home)."""
+    above the launch point; action takeoff / waypoint / view / frame / transit / home; photo:
+    a capture's number among the flight's photos, IMAGE_START_CAPTURE's, empty elsewhere)."""
+    seq = g.photos()
     buf = io.StringIO()
     w = csv.writer(buf)
     w.writerow(CSV_COLUMNS)
@@ -481,6 +486,7 @@ def write_csv(g: GeoWaypoints, path) -> None:
                 bearing_text(g.heading[i], 3),
                 _f(float(g.gimbal_pitch[i]), 3),
                 _f(float(g.gimbal_yaw[i]), 3),
+                int(seq[i]) if g.action[i] in ("view", "frame") else "",
             ]
         )
     with open(path, "w", newline="") as f:
