@@ -114,8 +114,8 @@ def photo_name(pattern: str, first: int, seq: int) -> str:
     field for a whole number ("DJI_{:04d}.JPG"), numbered from `first`. ValueError naming the
     pattern where it has not exactly one such field or makes a name COLMAP cannot read (its
     images.txt separates fields by spaces; a name is a path relative to the image folder)."""
-    fields = [f for _, f, _, _ in string.Formatter().parse(pattern) if f is not None]
     try:
+        fields = [f for _, f, _, _ in string.Formatter().parse(pattern) if f is not None]
         if fields not in ([""], ["0"]):
             raise ValueError("one replacement field, {} or {:04d}")
         name = pattern.format(first + seq - 1)
@@ -125,7 +125,7 @@ def photo_name(pattern: str, first: int, seq: int) -> str:
             f"as 'DJI_{{:04d}}.JPG' ({e})"
         ) from None
     if (
-        not name
+        not 0 < len(name) <= 255
         or any(ch.isspace() for ch in name)
         or name.startswith("/")
         or ".." in name.split("/")
