@@ -131,7 +131,7 @@ def photo_name(pattern: str, first: int, seq: int) -> str:
         or ".." in name.split("/")
     ):
         raise ValueError(
-            f"photo names {pattern!r} give {name!r}: COLMAP reads a name without spaces, "
-            "relative to its image folder"
+            f"photo names {pattern!r} give {name[:80]!r}: COLMAP reads a file name (at most 255 "
+            "characters, no spaces) relative to its image folder"
         )
     return name
