@@ -758,7 +758,7 @@ def test_a_view_beyond_one_battery_is_reported_not_dropped(run_dir, tmp_path):
         ({"photo_names": "DJI_{name}.JPG"}, ValueError, "one field for the photo's number"),
         ({"photo_names": "DJI_{.JPG"}, ValueError, "one field for the photo's number"),
         ({"photo_names": "{:0300d}"}, ValueError, "relative to its image folder"),
-        ({"photo_names": "my photo {}.jpg"}, ValueError, "without spaces"),
+        ({"photo_names": "my photo {}.jpg"}, ValueError, "no spaces"),
         ({"photo_names": "../{}.jpg"}, ValueError, "relative to its image folder"),
         ({"photo_names": "DJI_{}.JPG", "photo_first": -1}, ValueError, "first photo's number"),
         ({"photo_names": 7}, ValueError, "photo names must be a string"),
