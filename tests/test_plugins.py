@@ -242,16 +242,23 @@ def test_the_tour_example_of_docs_plugins_flies_tours_that_nbvkit_plans(tmp_path
     assert np.ptp(flown[:, 2]) > 0  # both rings flown
 
 
-def test_plan_tour_defaults_to_the_tour_sections_settings():
-    # a part calling nbvkit.plan_tour without settings plans as the recommended planner's tours
-    import inspect
-
-    from nbvkit.planning.generators.tour import TourConfig
-
-    defaults = inspect.signature(nbvkit.plan_tour).parameters
-    tour = TourConfig()
-    for key in ("selection", "min_gain", "rate"):
-        assert defaults[key].default == getattr(tour, key), key
+def test_plan_tour_defaults_to_the_worlds_tour_and_utility_settings():
+    """A part calling nbvkit.plan_tour without settings plans as the mission's own tours: the
+    world's tour.* (it took the class defaults, so --set tour.rate=... never reached it)."""
+    cfg = load_config(
+        overrides=["map.resolution=0.4", "progress=false", "tour.rate=0.0", "tour.min_gain=0.1"]
+    )
+    w = nbvkit.World(cfg, mesh=box_mesh(*BOX))
+    w.take_off()
+    w.sense("view")
+    views = np.tile(np.asarray(w.state.pose)[:4], (9, 1))
+    views[:, 0] += np.linspace(-4, 4, 9)
+    t = cfg.tour
+    mine = nbvkit.plan_tour(w, views, cfg.utility, selection=t.selection, min_gain=0.1, rate=0.0)
+    plain = nbvkit.plan_tour(w, views)
+    assert list(plain.flight) == list(mine.flight) and plain.length == mine.length
+    unpaid = nbvkit.plan_tour(w, views, rate=50.0)  # the rate given still wins
+    assert len(unpaid.flight) < len(mine.flight)
 
 
 def test_the_utility_example_of_docs_plugins_flies_the_papers_method(tmp_path):
@@ -685,6 +692,53 @@ def test_settings_whose_defaults_fail_their_checks_are_refused_when_registered()
     finally:
         registry.GENERATORS.pop("nanx", None)
     load_config(overrides=["map.resolution=0.4"])
+
+
+@pytest.mark.parametrize(
+    "annotation, default, words",
+    [
+        (int, 2.5, r"'wrongx.v' must be an integer, got 2.5"),
+        (str, 3, r"'wrongx.v' defaults to 3 \(int\), which a configuration file reads back as '3'"),
+        (bool, 1, r"'wrongx.v' must be true or false"),
+        (tuple, ("a",), r"'wrongx.v' must be a list of numbers"),
+    ],
+)
+def test_settings_whose_defaults_would_not_read_back_are_refused(annotation, default, words):
+    """count: int = 2.5 registered and flew, and its run's config.yaml was then refused by
+    `nbvkit evaluate` and load_config; label: str = 3 read back as '3'."""
+    import dataclasses
+
+    Wrong = dataclasses.make_dataclass(
+        "Wrong", [("v", annotation, dataclasses.field(default=default))], frozen=True
+    )
+    try:
+        with pytest.raises(ValueError, match=words):
+            registry.register_generator("wrongx", type("G", (RingGenerator,), {"Settings": Wrong}))
+        assert "wrongx" not in registry.GENERATORS
+    finally:
+        registry.GENERATORS.pop("wrongx", None)
+    Fine = dataclasses.make_dataclass(  # an int for a float reads back as its float
+        "Fine", [("v", float, dataclasses.field(default=2))], frozen=True
+    )
+    try:
+        registry.register_generator("finex", type("G", (RingGenerator,), {"Settings": Fine}))
+        assert load_config(overrides=["finex.v=2.0"]).finex.v == 2.0
+    finally:
+        registry.GENERATORS.pop("finex", None)
+
+
+def test_nbvkits_own_settings_read_back_as_themselves():
+    """Every section of the default configuration passes the check a part's Settings meets."""
+    import dataclasses
+
+    from nbvkit.settings import check_defaults
+
+    cfg = load_config()
+    sections = [getattr(cfg, f.name) for f in dataclasses.fields(cfg)]
+    sections = [s for s in sections if dataclasses.is_dataclass(s)]
+    assert len(sections) > 10
+    for section in sections:
+        check_defaults(section, "")
 
 
 @dataclass(frozen=True)

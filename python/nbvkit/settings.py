@@ -306,6 +306,26 @@ def check_field_types(cls, what: str) -> None:
         )
 
 
+def check_defaults(obj, prefix: str) -> None:
+    """ValueError naming the key unless each value of the section `obj` reads back from a
+    configuration file as itself (coerce): a default of the wrong type (count: int = 2.5,
+    label: str = 3) flew, and its run's config.yaml was then refused or read back otherwise."""
+    import dataclasses
+
+    hints = type_hints(type(obj))
+    for f in fields(obj):
+        if f.name.startswith("_"):
+            continue
+        v, key = getattr(obj, f.name), prefix + f.name
+        raw = dataclasses.asdict(v) if is_dataclass(v) and not isinstance(v, type) else v
+        back = coerce(hints[f.name], raw, key)  # ValueError naming the key
+        if back != v or type(back) is not type(v) and not isinstance(back, float):
+            raise ValueError(
+                f"config key {key!r} defaults to {shorten(v)} ({type(v).__name__}), which a "
+                f"configuration file reads back as {shorten(back)} ({type(back).__name__})"
+            )
+
+
 @functools.lru_cache(maxsize=None)
 def type_hints(cls) -> dict:
     """typing.get_type_hints(cls), once a class (every configuration reads them; read only)."""

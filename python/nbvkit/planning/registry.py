@@ -14,7 +14,7 @@ from .generators.tour import CoverageTour
 from .terminations.budget import Budget
 from .terminations.entropy import EntropyChange
 from .terminations.stall import SurfaceStall
-from ..settings import REGISTER_FIRST, check_field_types, validate
+from ..settings import REGISTER_FIRST, check_defaults, check_field_types, validate
 
 GENERATORS = {
     "lattice": LatticeGenerator,  # the paper's CGVS / AGVS lattice around the vehicle
@@ -167,6 +167,7 @@ def _check_part(name: str, kind: str, cls, methods) -> None:
                 f"with a default): {type(e).__name__}: {e}"
             ) from None
         try:  # (a NaN default broke every configuration after, the part named or not)
+            check_defaults(defaults, name + ".")  # (its run read back otherwise, or refused)
             validate(defaults, name + ".")
         except ValueError as e:
             raise ValueError(f"{kind} {name!r}: its Settings' defaults fail their checks: {e}")

@@ -391,17 +391,14 @@ class CoverageTour:
 _PATCH_FIELDS = ("centers", "normals", "weights")
 
 
-_TOUR = TourConfig()  # plan_tour's defaults: the tour section's
-
-
 def plan_tour(
     world,
     candidates,
     utility=None,
     memo=None,
-    selection: str = _TOUR.selection,
-    min_gain: float = _TOUR.min_gain,
-    rate: float = _TOUR.rate,
+    selection: str | None = None,
+    min_gain: float | None = None,
+    rate: float | None = None,
     coarse_stride: int = 0,
     coarse_margin: float = 1.0,
     pool: bool = False,
@@ -409,10 +406,11 @@ def plan_tour(
     """The coverage tour over candidate views (K, 4 or 5) from where the vehicle is, in one C++ call
     over the world's map and camera observations (nbvkit._core.plan_tour): what each would newly
     cover, as the surface utility credits it (utility: a UtilityConfig, the `utility` section,
-    whose priors and cone it takes; None: the defaults), the views adding at least min_gain m^2
-    (selection "insertion": prize-collecting insertion tours; "cover": a greedy set cover),
-    their open tour from the vehicle, and prize collection at rate m^2 per metre (selection,
-    min_gain and rate default to the tour section's, tour.*, unscaled). memo: a
+    whose priors and cone it takes; None: the world's configuration's), the views adding at
+    least min_gain m^2 (selection "insertion": prize-collecting insertion tours; "cover": a
+    greedy set cover), their open tour from the vehicle, and prize collection at rate m^2 per
+    metre (selection, min_gain and rate: None takes the world's configuration's tour.*,
+    unscaled). memo: a
     CoverageMemo kept between calls (fewer walks). Views are valid as the planner's are
     (the navigation space, the collision sphere in known free space). Returns a TourPlan:
     plan.flight indexes candidates in flight order."""
@@ -421,16 +419,17 @@ def plan_tour(
         raise TypeError(
             f"plan_tour: memo is a nbvkit.CoverageMemo or None, not {type(memo).__name__}"
         )
+    tour = world.config.tour
     return _core.plan_tour(
         world.map,
         world.surface,
         np.asarray(candidates, float),
         world.state.pose,
-        **_walk_options(world, utility),
+        **_walk_options(world, world.config.utility if utility is None else utility),
         memo=memo,
-        selection=selection,
-        min_gain=min_gain,
-        rate=rate,
+        selection=tour.selection if selection is None else selection,
+        min_gain=tour.min_gain if min_gain is None else min_gain,
+        rate=tour.rate if rate is None else rate,
         coarse_stride=coarse_stride,
         coarse_margin=coarse_margin,
         pool_unknown=pool,
