@@ -5,6 +5,7 @@ from __future__ import annotations
 import itertools
 import json
 import math
+import warnings
 
 import numpy as np
 import pytest
@@ -417,6 +418,7 @@ def test_area_thresholds_shrink_with_a_structure_smaller_than_the_reference_area
     assert threshold_scale(large.map, 300.0) == 1.0  # at least the reference: as set
     assert threshold_scale(small.map, 0.0) == 1.0  # reference 0: as set at any size
     assert threshold_scale(small.map, 4000.0) == 0.1  # never below a tenth
+    assert threshold_scale(small.map, 4000.0, 1e-4) == pytest.approx(100 / 4000)  # the rate's
 
     # planner.min_gain 0.8 m^2 = 20 cells; on the 100 m^2 structure a quarter of it, 5 cells
     cfg = load_config(overrides=["vehicle.blocked_path=reject"])
@@ -431,6 +433,28 @@ def test_area_thresholds_shrink_with_a_structure_smaller_than_the_reference_area
     assert Selector(PlanningContext.of(cfg)).choose(large, poses, scores) is None
     absolute = load_config(overrides=["vehicle.blocked_path=reject", "planner.reference_area=0"])
     assert Selector(PlanningContext.of(absolute)).choose(small, poses, scores) is None
+
+
+def test_a_structure_a_metre_across_is_toured_and_a_map_too_coarse_for_it_is_named(tmp_path):
+    """The airliner at 1 m (mesh.scale 0.03): tour.rate stopped shrinking at a tenth of the
+    structure's scale, so no view paid for its detour and the mission ended after the profile
+    at 74.9 % of the observable surface; the rate now follows the structure down. The 0.2 m map
+    spans it in 5 cells: a warning names a resolution that fits it."""
+    cfg = load_config(overrides=["mesh.scale=0.03", "progress=false", "report.enabled=false"])
+    with pytest.warns(
+        RuntimeWarning, match=r"spans 1\.05 m, 5\.2 cells of the 0\.2 m map.*map\.resolution=0\.05"
+    ):
+        s = Mission(cfg.with_overrides(["max_iterations=20"])).run(tmp_path, finish=True)
+    assert s["tours"][0]["scale"] == 0.1  # the area thresholds keep their floor
+    assert s["iterations"] >= 2
+    written = json.loads((tmp_path / "summary.json").read_text())  # with the end-of-run outputs
+    assert written["area_coverage_observable"]["0.05"] >= 0.85
+    from nbvkit.workspace import warn_coarse
+
+    fine = cfg.with_overrides(["map.resolution=0.05"])
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        warn_coarse(nbvkit.load_mesh(nbvkit.default_mesh_path(), scale=0.03).bounds, fine)
 
 
 def test_selection_floods_the_free_component_only_after_a_search_cut_short_by_its_cap():

@@ -506,8 +506,11 @@ def test_registering_checks_the_part():
         registry.TERMINATIONS.pop("x_ok")
     with pytest.raises(ValueError, match="registered already \\(one of nbvkit's own\\)"):
         registry.register_generator("tour", RingGenerator)
-    with pytest.raises(ValueError, match="registered already \\(one of nbvkit's own\\)"):
-        registry.register_utility("ig", lambda rays: 0)
+    for name in ("ig", "surface"):  # (it said "a termination named 'ig'")
+        with pytest.raises(
+            ValueError, match=f"^a utility named '{name}' is registered already \\(one of nbvkit's"
+        ):
+            registry.register_utility(name, lambda rays: 0)
     assert "x" not in registry.GENERATORS and "x" not in registry.TERMINATIONS
     with pytest.raises(ValueError, match="register it first"):
         load_config(overrides=["planner.terminations=[nope]"])
@@ -977,6 +980,18 @@ def test_plan_tour_names_a_wrong_memo_or_utility():
         "plan_tour: utility is the configuration's utility section (context.utility) or None, "
         "not CameraConfig",
     ]
+
+
+def test_a_scenario_preset_may_not_set_the_scenario():
+    """{"scenario": "5", ...} registered, and the user's scenario name always won over it: the
+    preset's own planner flew, silently, instead of Scenario 5's."""
+    from nbvkit.scenarios import SCENARIOS
+
+    with pytest.raises(ValueError, match="scenario 'my5' sets 'scenario': a preset names"):
+        nbvkit.register_scenario("my5", "Scenario 5, tweaked", {"scenario": "5", "tour.rate": 0})
+    with pytest.raises(ValueError, match="settings must be a mapping of dotted config keys"):
+        nbvkit.register_scenario("my5", "a list", [("tour.rate", 0)])
+    assert "my5" not in SCENARIOS
 
 
 def test_a_scenario_naming_an_unknown_part_is_an_error_naming_it():

@@ -173,4 +173,16 @@ def register_scenario(name: str, description: str, settings: dict, *, replace=Fa
             f"scenario {name!r} is registered already{clash(SCENARIOS[name].origin)}; choose "
             "another name, or replace=True to replace it"
         )
+    from collections.abc import Mapping
+
+    if not isinstance(settings, Mapping) or not all(isinstance(k, str) for k in settings):
+        raise ValueError(
+            f"scenario {name!r}: settings must be a mapping of dotted config keys, got "
+            f"{type(settings).__name__}"
+        )
+    if "scenario" in settings:  # (the user's scenario is set: the preset's was never read)
+        raise ValueError(
+            f"scenario {name!r} sets 'scenario': a preset names config keys, not another "
+            "scenario; copy that scenario's settings (nbvkit.scenarios.SCENARIOS[...].settings)"
+        )
     SCENARIOS[name] = Scenario(description, dict(settings), origin=caller()[0])

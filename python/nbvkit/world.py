@@ -35,6 +35,7 @@ from .workspace import (
     ground_height,
     make_workspace,
     start_poses,
+    warn_coarse,
     warn_floating,
 )
 
@@ -166,6 +167,7 @@ class World:
             # The map first: its size check (cells, OctoMap's range) comes before any search.
             self.map = new_map(cfg, mesh.bounds, self.workspace)
             warn_floating(mesh.bounds, cfg)  # a structure given in altitudes
+            warn_coarse(mesh.bounds, cfg)  # a structure a few cells across
         except ValueError as e:  # a structure of a size the metre makes unlikely: say so
             if not (hint := units_hint(mesh.bounds, cfg.mesh.scale)):
                 raise

@@ -97,7 +97,7 @@ def _check_new(name: str, kind: str, taken, replace: bool = False, table=None) -
         from ..origins import clash, defined_in
 
         # (a generator and a termination share the configuration's sections: one name, one kind)
-        held = kind if table is None or name in table else _kind_of(name)
+        held = kind if table is None or name in table or kind == "utility" else _kind_of(name)
         raise ValueError(
             f"a {held} named {name!r} is registered already"
             + ("" if own else clash(defined_in(taken[name])))

@@ -46,7 +46,7 @@ import numpy as np
 from ... import _core
 from ...limits import require_type
 from ...settings import choice, nonneg, positive, within
-from ..parts import Proposal, threshold_scale
+from ..parts import MIN_RATE_SCALE, Proposal, threshold_scale
 from ..placement import Patches, explore_placement, place_views, refit_blocked, target_patches
 from .access import access_elements
 from .exploration import exploration_targets
@@ -229,7 +229,8 @@ class CoverageTour:
                 self.pool = large and own.access_weight <= 0
         explore = explore or self.exploring or (self.regional and own.explore)
         scale = threshold_scale(world.map, ctx.planner.reference_area)
-        rate = (own.final_rate if self.final else own.rate) * np.sqrt(scale)
+        rate_scale = threshold_scale(world.map, ctx.planner.reference_area, MIN_RATE_SCALE)
+        rate = (own.final_rate if self.final else own.rate) * np.sqrt(rate_scale)
         min_gain = own.min_gain * scale * self.level
         targets, patches, candidates, owner, unplaced = self.candidates(world, explore)
         if reachable_only and len(candidates):
@@ -423,7 +424,7 @@ def plan_tour(
     return _core.plan_tour(
         world.map,
         world.surface,
-        np.asarray(candidates, float),
+        candidates,  # (converted and checked there: complex or bool views are refused)
         world.state.pose,
         **_walk_options(world, world.config.utility if utility is None else utility),
         memo=memo,
