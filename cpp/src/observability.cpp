@@ -61,15 +61,16 @@ bool within_callback(RTCPointQueryFunctionArguments* args) {
 }
 
 // True if the segment from o along unit d over (t_near, t_far) hits the mesh.
-bool occluded(RTCScene scene, const Eigen::Vector3d& o, const Eigen::Vector3d& d, double t_near,
-              double t_far) {
+bool occluded(const RaycastScene& scene, const Eigen::Vector3d& o, const Eigen::Vector3d& d,
+              double t_near, double t_far) {
   if (!(t_far > t_near)) return false;
   RTCIntersectContext ctx;
   rtcInitIntersectContext(&ctx);
   RTCRay ray;
-  ray.org_x = static_cast<float>(o.x());
-  ray.org_y = static_cast<float>(o.y());
-  ray.org_z = static_cast<float>(o.z());
+  const Eigen::Vector3d local = o - scene.origin();  // Embree's coordinates
+  ray.org_x = static_cast<float>(local.x());
+  ray.org_y = static_cast<float>(local.y());
+  ray.org_z = static_cast<float>(local.z());
   ray.dir_x = static_cast<float>(d.x());
   ray.dir_y = static_cast<float>(d.y());
   ray.dir_z = static_cast<float>(d.z());
@@ -79,7 +80,7 @@ bool occluded(RTCScene scene, const Eigen::Vector3d& o, const Eigen::Vector3d& d
   ray.mask = 0xFFFFFFFFu;
   ray.id = 0;
   ray.flags = 0;
-  rtcOccluded1(scene, &ctx, &ray);
+  rtcOccluded1(scene.handle(), &ctx, &ray);
   return ray.tfar < 0.0f;  // -inf when something was hit
 }
 
@@ -109,9 +110,10 @@ void ObservabilityOptions::validate() const {
 bool mesh_within(const RaycastScene& scene, const Eigen::Vector3d& p, double radius) {
   WithinQuery q{&scene.mesh(), p, radius * radius};
   RTCPointQuery pq;
-  pq.x = static_cast<float>(p.x());
-  pq.y = static_cast<float>(p.y());
-  pq.z = static_cast<float>(p.z());
+  const Eigen::Vector3d local = p - scene.origin();  // Embree's coordinates
+  pq.x = static_cast<float>(local.x());
+  pq.y = static_cast<float>(local.y());
+  pq.z = static_cast<float>(local.z());
   pq.time = 0.0f;
   pq.radius = static_cast<float>(radius) * 1.0001f + 1e-6f;
   RTCPointQueryContext ctx;
@@ -171,7 +173,6 @@ ObservabilityResult observable_samples(const RaycastScene& scene, const PointsRe
   };
 
   auto t0 = clock::now();
-  RTCScene rs = scene.handle();
   std::vector<std::uint8_t> free(static_cast<std::size_t>(total), 0);
   // bit a set: the edge to the +a neighbour does not cross the mesh
   std::vector<std::uint8_t> edges(static_cast<std::size_t>(total), 0);
@@ -201,7 +202,7 @@ ObservabilityResult observable_samples(const RaycastScene& scene, const PointsRe
         ++q[a];
         if (!free[static_cast<std::size_t>(flat(q[0], q[1], q[2]))]) continue;
         const Eigen::Vector3d d = Eigen::Vector3d::Unit(a);
-        if (occluded(rs, p, d, 0.0, s)) continue;
+        if (occluded(scene, p, d, 0.0, s)) continue;
         bool fits = true;
         for (int t = 1; t < steps && fits; ++t)
           fits = !mesh_within(scene, p + d * (s * t / steps), r);
@@ -232,7 +233,7 @@ ObservabilityResult observable_samples(const RaycastScene& scene, const PointsRe
         const bool on[5] = {i == 0, i == dim[0] - 1, j == 0, j == dim[1] - 1, k == dim[2] - 1};
         const Eigen::Vector3d p = pos(i, j, k);
         for (int w = 0; w < 5; ++w)
-          if ((on[w] || !boundary_only) && !occluded(rs, p, dirs[w], 0.0, inf)) {
+          if ((on[w] || !boundary_only) && !occluded(scene, p, dirs[w], 0.0, inf)) {
             reach[f] = 1;
             break;
           }
@@ -431,7 +432,7 @@ ObservabilityResult observable_samples(const RaycastScene& scene, const PointsRe
           }
           if (!in_view) return false;
           const Eigen::Vector3d dir = -v / dist;  // sample -> camera
-          return !occluded(rs, x, dir, kSurfaceEps, dist - kSurfaceEps);
+          return !occluded(scene, x, dir, kSurfaceEps, dist - kSurfaceEps);
         };
         if (witness >= 0 &&
             sees(witness % dim[0], (witness / dim[0]) % dim[1], witness / (dim[0] * dim[1]))) {

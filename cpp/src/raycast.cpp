@@ -30,6 +30,10 @@ RaycastScene::RaycastScene(const Mesh& mesh, const RaycastOptions& options) : me
   if (mesh_.vertices.cwiseAbs().maxCoeff() > kMaxCoordinate)
     throw std::invalid_argument("mesh vertices reach " + fmt(mesh_.vertices.cwiseAbs().maxCoeff()) +
                                 " m, beyond the +-1e9 m the ray caster can represent");
+  if (mesh_.vertices.rows() && mesh_.vertices.cwiseAbs().maxCoeff() > kLocalExtent)
+    origin_ =
+        0.5 *
+        (mesh_.vertices.colwise().minCoeff() + mesh_.vertices.colwise().maxCoeff()).transpose();
   device_ = rtcNewDevice(nullptr);
   if (!device_) throw std::runtime_error("Embree: cannot create a device");
   rtcSetDeviceErrorFunction(device_, device_error, nullptr);
@@ -46,7 +50,8 @@ RaycastScene::RaycastScene(const Mesh& mesh, const RaycastOptions& options) : me
       geom, RTC_BUFFER_TYPE_INDEX, 0, RTC_FORMAT_UINT3, 3 * sizeof(unsigned), nf));
   check(device_, "rtcSetNewGeometryBuffer");
   for (std::size_t i = 0; i < nv; ++i)
-    for (int k = 0; k < 3; ++k) v[3 * i + k] = static_cast<float>(mesh_.vertices(i, k));
+    for (int k = 0; k < 3; ++k)
+      v[3 * i + k] = static_cast<float>(mesh_.vertices(i, k) - origin_[k]);
   for (std::size_t i = 0; i < nf; ++i)
     for (int k = 0; k < 3; ++k) f[3 * i + k] = static_cast<unsigned>(mesh_.faces(i, k));
   rtcSetGeometryMask(geom, 0xFFFFFFFFu);
@@ -111,9 +116,9 @@ void RaycastScene::intersect(const PointsRef& origins, const PointsRef& directio
       const Eigen::Vector3d o = origins.row(shared ? 0 : static_cast<Eigen::Index>(i));
       const Eigen::Vector3d d = directions.row(static_cast<Eigen::Index>(i));
       RTCRayHit rh;
-      rh.ray.org_x = static_cast<float>(o.x());
-      rh.ray.org_y = static_cast<float>(o.y());
-      rh.ray.org_z = static_cast<float>(o.z());
+      rh.ray.org_x = static_cast<float>(o.x() - origin_.x());
+      rh.ray.org_y = static_cast<float>(o.y() - origin_.y());
+      rh.ray.org_z = static_cast<float>(o.z() - origin_.z());
       rh.ray.dir_x = static_cast<float>(d.x());
       rh.ray.dir_y = static_cast<float>(d.y());
       rh.ray.dir_z = static_cast<float>(d.z());
@@ -144,8 +149,9 @@ void RaycastScene::intersect_coherent(const Eigen::Vector3d& o, const Eigen::Mat
   t.resize(n);  // every ray's entry is written below, once
   const std::size_t packets = static_cast<std::size_t>((n + 15) / 16);
   const Eigen::Matrix3f Rf = R.cast<float>();
-  const float ox = static_cast<float>(o.x()), oy = static_cast<float>(o.y()),
-              oz = static_cast<float>(o.z());
+  const float ox = static_cast<float>(o.x() - origin_.x()),
+              oy = static_cast<float>(o.y() - origin_.y()),
+              oz = static_cast<float>(o.z() - origin_.z());
   const double* dirs = dirs_sensor.data();  // row-major: ray i's direction at 3 i
   auto body = [&](std::size_t pb, std::size_t pe) {
     RTCIntersectContext ctx;

@@ -22,7 +22,10 @@ struct RaycastOptions {
 };
 /// An Embree scene over one mesh. Thread-safe for concurrent queries after construction.
 /// Hit distances are refined in double precision against the hit triangle, so a hit point
-/// `o + t d` lies on the triangle to ~1e-9 m even far from the origin.
+/// `o + t d` lies on the triangle to ~1e-9 m even far from the origin. Embree holds float32
+/// coordinates relative to origin(): zero for a mesh within kLocalExtent of the world's origin,
+/// else its bounding box's centre (at UTM coordinates float32 is 0.5 m apart, and hits there
+/// fell on the planes of triangles the rays passed beside: up to 6.8 cm off the surface).
 class RaycastScene {
  public:
   explicit RaycastScene(const Mesh& mesh, const RaycastOptions& options = {});
@@ -31,7 +34,14 @@ class RaycastScene {
   RaycastScene& operator=(const RaycastScene&) = delete;
 
   const Mesh& mesh() const { return mesh_; }
+  /// The Embree scene, in coordinates relative to origin(): subtract it from every point given.
   RTCScene handle() const { return scene_; }
+  const Eigen::Vector3d& origin() const { return origin_; }
+
+  /// m: a mesh whose coordinates all lie within this of the world's origin is given to Embree
+  /// as it is (float32 rounds them by at most 0.98 mm), one reaching farther relative to its
+  /// centre.
+  static constexpr double kLocalExtent = 32768.0;
 
   /// The largest magnitude of a ray direction's component that intersect takes.
   static constexpr double kMaxDirection = 1e18;
@@ -57,6 +67,7 @@ class RaycastScene {
 
  private:
   Mesh mesh_;
+  Eigen::Vector3d origin_ = Eigen::Vector3d::Zero();
   RTCDevice device_ = nullptr;
   RTCScene scene_ = nullptr;
 };
