@@ -201,6 +201,30 @@ def test_off_index_out_of_range_is_refused_naming_the_file(tmp_path):
             nbvkit.load_mesh(p)
 
 
+def test_a_gltf_assimp_reads_only_in_part_is_refused_naming_what_it_dropped(tmp_path):
+    """assimp drops a glTF face that indexes past the vertices, and the rest of an index count
+    that is no multiple of 3, with only a log line: the mesh flew with half its faces."""
+    import json
+
+    doc = json.loads(gltf_file(CUBE_V, CUBE_F))
+    good = tmp_path / "cube.gltf"
+    good.write_text(json.dumps(doc))
+    assert nbvkit.load_mesh(good).num_triangles == len(CUBE_F)
+    bad_index = [f if i != 3 else (0, 2, 9) for i, f in enumerate(CUBE_F)]  # 8 vertices
+    oor = tmp_path / "oor.gltf"
+    oor.write_bytes(gltf_file(CUBE_V, bad_index))
+    with pytest.raises(ValueError, match=r"oor.gltf' is damaged: .*out-of-range indices"):
+        nbvkit.load_mesh(oor)
+    short = dict(doc)
+    short["accessors"] = [dict(a) for a in doc["accessors"]]
+    short["accessors"][1]["count"] -= 1  # 35 indices
+    five = tmp_path / "short.gltf"
+    five.write_text(json.dumps(short))
+    with pytest.raises(ValueError, match=r"short.gltf' is damaged: .*vertices were dropped"):
+        nbvkit.load_mesh(five)
+    assert nbvkit.load_mesh(good).num_triangles == len(CUBE_F)  # the next read is not refused
+
+
 def test_an_auto_up_axis_is_the_one_the_files_format_defines(tmp_path):
     """mesh.up=auto (the default): a glTF (y-up by its specification) and a Collada file saying
     Y_UP, or nothing, are turned z-up; a Collada Z_UP file and formats that record no up axis

@@ -7,7 +7,9 @@
 #include <assimp/DefaultIOSystem.h>
 #include <assimp/postprocess.h>
 #include <assimp/scene.h>
+#include <assimp/DefaultLogger.hpp>
 #include <assimp/Importer.hpp>
+#include <assimp/LogStream.hpp>
 
 #include <algorithm>
 #include <cctype>
@@ -16,6 +18,7 @@
 #include <cstdlib>
 #include <filesystem>
 #include <limits>
+#include <mutex>
 #include <optional>
 #include <random>
 #include <sstream>
@@ -517,6 +520,48 @@ void check_collada(const std::string& path) {
 
 }  // namespace
 
+namespace {
+
+// assimp's warnings and errors while one file is read: the importers drop data they cannot use
+// with only a log line (a glTF face indexing past its vertices: "Some faces had out-of-range
+// indices. Those faces were dropped."), which nbvkit refuses. assimp's logger is one per
+// process, so reads through it take turns.
+class DroppedData : public Assimp::LogStream {
+ public:
+  DroppedData() : lock_(mutex()) {
+    Assimp::DefaultLogger::create("", Assimp::Logger::NORMAL, 0);
+    Assimp::DefaultLogger::get()->attachStream(this, Assimp::Logger::Warn | Assimp::Logger::Err);
+  }
+  ~DroppedData() override {
+    Assimp::DefaultLogger::get()->detachStream(this, Assimp::Logger::Warn | Assimp::Logger::Err);
+    Assimp::DefaultLogger::kill();
+  }
+  void write(const char* message) override {
+    std::string m = message;  // "Warn,  T0: Some faces ... dropped.\n"
+    while (!m.empty() && std::isspace(static_cast<unsigned char>(m.back()))) m.pop_back();
+    const std::size_t head = m.find(": ");
+    if (head != std::string::npos && head < 16) m.erase(0, head + 2);
+    if (m.find("dropped") != std::string::npos && dropped_.size() < 400)
+      dropped_ += " " + printable_ascii(m);
+  }
+  // std::invalid_argument naming what assimp dropped from `path`, if it dropped anything.
+  void refuse(const std::string& path) const {
+    if (!dropped_.empty())
+      throw std::invalid_argument("mesh file '" + path + "' is damaged: assimp read it without" +
+                                  " part of its data:" + dropped_);
+  }
+
+ private:
+  static std::mutex& mutex() {
+    static std::mutex m;
+    return m;
+  }
+  std::lock_guard<std::mutex> lock_;
+  std::string dropped_;
+};
+
+}  // namespace
+
 Mesh load_mesh(const std::string& path, double scale, char up) {
   if (!std::isfinite(scale) || scale <= 0)
     throw std::invalid_argument("mesh scale must be a positive finite number, got " + fmt(scale));
@@ -565,8 +610,10 @@ Mesh load_mesh(const std::string& path, double scale, char up) {
   // Read first without post-processing: JoinIdenticalVertices would merge a vertex with a NaN
   // coordinate into another vertex (NaN compares equal to nothing, assimp's hashing takes it for
   // a neighbour), and the mesh would load with the wrong shape and area.
+  DroppedData dropped;
   const aiScene* scene = importer.ReadFile(path, 0);
   refused();
+  dropped.refuse(path);
   if (!scene)
     throw std::invalid_argument("cannot read mesh '" + path +
                                 "': " + printable_ascii(importer.GetErrorString()));
@@ -580,6 +627,7 @@ Mesh load_mesh(const std::string& path, double scale, char up) {
     throw std::invalid_argument("mesh file '" + path +
                                 "' contains no triangles (only points or lines, or nothing)");
   scene = importer.ApplyPostProcessing(flags);
+  dropped.refuse(path);
   if (!scene)
     throw std::invalid_argument("cannot read mesh '" + path +
                                 "': " + printable_ascii(importer.GetErrorString()));
