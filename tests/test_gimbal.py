@@ -90,6 +90,15 @@ def test_four_numbers_are_pitch_zero_bit_for_bit():
         np.testing.assert_array_equal(nbvkit.gimbal_transform(pose), T)
 
 
+def test_a_pitch_past_90_degrees_by_a_hair_shows_the_digits_that_refuse_it():
+    """A float32 pi/2 is 4e-8 rad past pi/2: the message read "got 1.5708 rad (90 deg)"."""
+    with pytest.raises(ValueError, match=r"got 1\.5707963705062866 rad \(90\.0000025\d* deg\)"):
+        nbvkit.gimbal_transform([0, 0, 0, 0, float(np.float32(np.pi / 2))])
+    with pytest.raises(ValueError, match=r"got 1\.7 rad \(97\.4028 deg\)"):  # short where it can
+        nbvkit.gimbal_transform([0, 0, 0, 0, 1.7])
+    nbvkit.gimbal_transform([0, 0, 0, 0, np.pi / 2])  # pi/2 itself is within
+
+
 def test_gimbal_transform_is_yaw_then_pitch_then_mount():
     mount = nbvkit.mount_transform([0.3, -0.1, 0.2], 1.0, 8.0, -4.0)
     for view in ([1, 2, 3, 0.4, 0.3], [-5, 0, 2, -2.0, -0.5], [0, 0, 9, 3.0, math.pi / 2]):

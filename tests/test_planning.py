@@ -518,6 +518,9 @@ def test_patches_group_targets_by_cell_and_side():
         np.testing.assert_array_equal(getattr(q, f), getattr(p, f))
     with pytest.raises(ValueError, match="read-only"):
         typed.weight[0] = 2.0  # a view into the object, not a copy to edit
+    for size in (0, -1.0, float("nan"), float("inf"), "1", True):  # 0 and NaN gave 5 patches
+        with pytest.raises(ValueError, match="cluster_size must be a finite number > 0"):
+            target_patches(t, size)
 
 
 @pytest.mark.parametrize(

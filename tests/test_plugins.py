@@ -432,7 +432,11 @@ class _Stop:
         pass
 
 
-@pytest.mark.parametrize("reason", [True, False, 1, np.bool_(True), {"a": 1}, "", "  "], ids=repr)
+@pytest.mark.parametrize(
+    "reason",
+    [True, False, 1, np.bool_(True), {"a": 1}, "", "  ", "stop\n| injected | row |"],
+    ids=repr,
+)
 def test_a_termination_returns_a_reason_or_none(reason):
     stop = type("Stop", (_Stop,), {"check": lambda self, w, s: reason})
     with pytest.raises(TypeError, match=r"termination 'hostile_stop': check returned"):

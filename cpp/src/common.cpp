@@ -13,6 +13,7 @@
 #include <cerrno>
 #include <cmath>
 #include <cstdio>
+#include <cstdlib>
 #include <cstring>
 #include <limits>
 #include <memory>
@@ -31,10 +32,12 @@ Eigen::Isometry3d pose_to_transform(const Pose& p) {
 }
 
 void require_pitch(double pitch, const std::string& what) {
-  if (!std::isfinite(pitch) || std::abs(pitch) > kMaxGimbalPitch)
-    throw std::invalid_argument(
-        what + ": pitch must be finite and within +-pi/2 rad (+-90 deg), got " + fmt(pitch) +
-        " rad" + (std::isfinite(pitch) ? " (" + fmt(pitch * 180 / M_PI) + " deg)" : ""));
+  if (std::isfinite(pitch) && std::abs(pitch) <= kMaxGimbalPitch) return;
+  std::string deg = fmt(pitch * 180 / M_PI);  // all the digits only where 6 read +-90
+  if (deg == "90" || deg == "-90") deg = fmt_exact(pitch * 180 / M_PI);
+  throw std::invalid_argument(
+      what + ": pitch must be finite and within +-pi/2 rad (+-90 deg), got " + fmt_exact(pitch) +
+      " rad" + (std::isfinite(pitch) ? " (" + deg + " deg)" : ""));
 }
 
 Eigen::Isometry3d gimbal_mount(double pitch, const Eigen::Isometry3d& mount) {
@@ -338,6 +341,16 @@ std::string fmt(double v) {
   std::ostringstream s;
   s << v;
   return s.str();
+}
+
+std::string fmt_exact(double v) {
+  if (!std::isfinite(v)) return fmt(v);
+  for (int digits = 6;; ++digits) {  // the shortest that reads back as v: 1.5707963705062866
+    std::ostringstream s;
+    s.precision(digits);
+    s << v;
+    if (digits >= 17 || std::strtod(s.str().c_str(), nullptr) == v) return s.str();
+  }
 }
 
 double seconds_since(std::chrono::steady_clock::time_point t0) {

@@ -382,7 +382,10 @@ class World:
         check_stage(stage)
         target = as_view(target)
         if not np.isfinite(target).all() or np.abs(target[:3]).max() > MAX_COORDINATE:
-            raise ValueError(f"fly_to target must be finite coordinates, got {target.tolist()}")
+            raise ValueError(
+                f"fly_to target must be finite coordinates within +-{MAX_COORDINATE:g} m, got "
+                f"{target.tolist()}"
+            )
         self._check_pitch(target[4])
         cur = self.state.pose
         pts = np.asarray(path if path is not None and len(path) else [cur[:3], target[:3]], float)

@@ -109,6 +109,9 @@ std::string read_file_head(const std::string& path, std::size_t n, const std::st
 
 /// A number as an error message shows it (shortest round-trip-ish form, "inf", "nan").
 std::string fmt(double v);
+/// A number in the fewest digits (6 at least) that read back as it: a value refused by a hair
+/// (a float32 pi/2) shows why.
+std::string fmt_exact(double v);
 
 /// Seconds elapsed since `t0` (steady clock), for the stage timings results report.
 double seconds_since(std::chrono::steady_clock::time_point t0);

@@ -385,10 +385,10 @@ class PluginPart:
         reason = _named(self.kind, self.name, "check()", self.part.check, world, step)
         if reason is None:
             return None
-        if not isinstance(reason, str) or not reason.strip():
-            raise PartContractError(
+        if not isinstance(reason, str) or not reason.strip() or not reason.isprintable():
+            raise PartContractError(  # (a summary field, a console line, a table's cell)
                 f"termination {self.name!r}: check returned {reason!r}; it returns the reason "
-                "to stop (a non-empty str, e.g. 'distance_cap') or None to go on"
+                "to stop (a non-empty str on one line, e.g. 'distance_cap') or None to go on"
             )
         _not_reserved(f"termination {self.name!r}: check returned", reason)
         return reason

@@ -76,7 +76,15 @@ class Patches:
 def target_patches(targets, cluster_size: float) -> Patches:
     """Groups targets (a SurfaceTargets, or a dict of its arrays positions (T, 3), normals
     (T, 3), weight (T,)) per cube of `cluster_size` metres and per face (6) of their normal, in
-    a deterministic order."""
+    a deterministic order. ValueError unless cluster_size is a finite number > 0."""
+    if isinstance(cluster_size, bool) or not (
+        isinstance(cluster_size, (int, float, np.integer, np.floating))
+        and np.isfinite(cluster_size)
+        and cluster_size > 0
+    ):
+        raise ValueError(
+            f"target_patches: cluster_size must be a finite number > 0 m, got {cluster_size!r}"
+        )
     if isinstance(targets, dict):  # checked as SurfaceTargets checks a script's arrays
         targets = _core.SurfaceTargets(**targets)
     p, n, w = targets.positions, targets.normals, targets.weight
