@@ -1154,8 +1154,8 @@ def _stop_s(d, v, a=2.5):
 
 def _nav_legs_s(points, speed, climb):
     """Seconds of straight legs between (lat, lon, rel_alt) points at the time model's speeds
-    (vertically _vertical_s), stopping at each (a DJI route stops at every waypoint; an autopilot at most there),
-    horizontal distances from pymap3d (east, north)."""
+    (vertically _vertical_s), stopping at each (a DJI route stops at every waypoint; an
+    autopilot at most there), horizontal distances from pymap3d (east, north)."""
     import pymap3d
 
     t = 0.0
