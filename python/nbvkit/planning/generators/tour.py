@@ -411,10 +411,9 @@ def plan_tour(
     least min_gain m^2 (selection "insertion": prize-collecting insertion tours; "cover": a
     greedy set cover), their open tour from the vehicle, and prize collection at rate m^2 per
     metre (selection, min_gain and rate: None takes the world's configuration's tour.*,
-    unscaled). memo: a
-    CoverageMemo kept between calls (fewer walks). Views are valid as the planner's are
-    (the navigation space, the collision sphere in known free space). Returns a TourPlan:
-    plan.flight indexes candidates in flight order."""
+    unscaled). memo: a CoverageMemo kept between calls (fewer walks). Views are valid as the
+    planner's are (the navigation space, the collision sphere in known free space). Returns a
+    TourPlan: plan.flight indexes candidates in flight order."""
     require_type(world, World, "plan_tour: world", "an nbvkit.World (a mission's: Mission.world)")
     if memo is not None and not isinstance(memo, _core.CoverageMemo):
         raise TypeError(
