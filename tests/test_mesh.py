@@ -16,6 +16,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parent.parent / "bench"))
 from fuzz_meshes import (  # noqa: E402  (the fuzz's file builders)
     F as CUBE_F,
     V as CUBE_V,
+    cube_ply,
     dae_file,
     gltf_buffer,
     gltf_file,
@@ -223,6 +224,22 @@ def test_a_gltf_assimp_reads_only_in_part_is_refused_naming_what_it_dropped(tmp_
     with pytest.raises(ValueError, match=r"short.gltf' is damaged: .*vertices were dropped"):
         nbvkit.load_mesh(five)
     assert nbvkit.load_mesh(good).num_triangles == len(CUBE_F)  # the next read is not refused
+
+
+def test_a_mesh_file_named_for_another_format_says_which_it_looks_like(tmp_path):
+    """A PLY or a glTF named .obj read as OBJ found no faces: "contains no triangles", and no
+    word of what the file is."""
+    for body, name, words in (
+        (cube_ply("ascii"), "a.obj", "looks like a PLY file: name it .ply"),
+        (gltf_file(CUBE_V, CUBE_F), "b.obj", "looks like a glTF file: name it .gltf"),
+    ):
+        p = tmp_path / name
+        p.write_bytes(body)
+        with pytest.raises(ValueError, match=f"{name}' contains no triangles \\(it {words}"):
+            nbvkit.load_mesh(p)
+        right = p.with_suffix(words.rsplit(" ", 1)[1])
+        p.rename(right)
+        assert nbvkit.load_mesh(right).num_triangles == len(CUBE_F)
 
 
 def test_an_auto_up_axis_is_the_one_the_files_format_defines(tmp_path):

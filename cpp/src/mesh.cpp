@@ -212,13 +212,45 @@ void validate_loaded(const Mesh& m, const std::string& path, double scale) {
   throw std::invalid_argument(msg.str());
 }
 
+// " (it looks like a PLY file: ...)" for a file whose first bytes are another mesh format's
+// than its extension says (a PLY named .obj read as OBJ found no faces); "" otherwise.
+std::string other_format(const std::string& path) {
+  std::string head;
+  try {
+    head = read_file_head(path, 512, "mesh", kMaxMeshFileBytes);
+  } catch (const std::exception&) {
+    return "";
+  }
+  const auto starts = [&](const char* magic) { return head.rfind(magic, 0) == 0; };
+  std::string name, ext;
+  if (starts("ply\n") || starts("ply\r"))
+    name = "PLY", ext = ".ply";
+  else if (starts("glTF"))
+    name = "binary glTF", ext = ".glb";
+  else if (starts("{") && head.find("\"asset\"") != std::string::npos)
+    name = "glTF", ext = ".gltf";
+  else if (starts("<?xml") || head.find("<COLLADA") != std::string::npos)
+    name = "Collada (XML)", ext = ".dae";
+  else if (starts("solid ") || starts("solid\n") || starts("solid\r"))
+    name = "ASCII STL", ext = ".stl";
+  else if (starts("OFF\n") || starts("OFF\r") || starts("OFF "))
+    name = "OFF", ext = ".off";
+  std::string own = std::filesystem::path(path).extension().string();
+  std::transform(own.begin(), own.end(), own.begin(),
+                 [](unsigned char c) { return std::tolower(c); });
+  if (name.empty() || own == ext) return "";
+  return " (it looks like a " + name + " file: name it " + ext +
+         ", the extension nbvkit reads it by)";
+}
+
 // A mesh read in double precision by nbvkit's own readers (PLY, OBJ): at least one face, the
 // vertices of faces finite, scaled, turned z up, validated. `number`: each vertex's number in the
 // file, for the messages (empty: its row).
 Mesh loaded_mesh(Points vertices, Faces faces, const std::string& path, double scale, char up,
                  const std::vector<std::int64_t>& number = {}) {
   if (faces.rows() == 0)
-    throw std::invalid_argument("mesh file '" + path + "' contains no triangles");
+    throw std::invalid_argument("mesh file '" + path + "' contains no triangles" +
+                                other_format(path));
   std::vector<char> used(static_cast<std::size_t>(vertices.rows()), 0);
   for (Eigen::Index i = 0; i < faces.size(); ++i)  // indices in range: the readers checked them
     used[static_cast<std::size_t>(faces.data()[i])] = 1;

@@ -79,6 +79,15 @@ def register(sub) -> argparse.ArgumentParser:
         "rest (default 2 s)",
     )
     _add_split_options(p)
+    _add_photo_options(p)
+    p.add_argument(
+        "--out", metavar="DIR", type=path_arg, default=None, help="output folder (RUN_DIR/export)"
+    )
+    return p
+
+
+def _add_photo_options(p) -> None:
+    """The options that name the flight's photos (the COLMAP images)."""
     p.add_argument(
         "--photo-names",
         default=None,
@@ -94,10 +103,6 @@ def register(sub) -> argparse.ArgumentParser:
         metavar="N",
         help="the number of the flight's first photo in --photo-names (default 1)",
     )
-    p.add_argument(
-        "--out", metavar="DIR", type=path_arg, default=None, help="output folder (RUN_DIR/export)"
-    )
-    return p
 
 
 def _add_split_options(p) -> None:
