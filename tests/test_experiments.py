@@ -561,7 +561,7 @@ def test_duplicates_and_empty_lists_are_refused(tmp_path, capsys):
     from nbvkit.cli import main
 
     assert main(["compare", "--planners", "1,surface,1", "--out", str(tmp_path / "c")]) == 2
-    assert "--planners lists '1' more than once" in capsys.readouterr().err
+    assert "planners (--planners) lists '1' more than once" in capsys.readouterr().err
     for sweep, needle in (
         ({"grid": {"map.resolution": [0.4, 0.2, 0.4]}}, "grid 'map.resolution' lists 0.4"),
         ({"grid": {"max_iterations": [2, 2.0]}}, "grid 'max_iterations' lists"),

@@ -105,9 +105,11 @@ def test_the_sweep_file_says_to_list_scenarios_and_starts(tmp_path, capsys):
 
 
 def test_compare_and_table_refuse_set_scenario_or_start(tmp_path, capsys):
-    with pytest.raises(ValueError, match="--set sets 'scenario'.*--planners"):
+    with pytest.raises(
+        ValueError, match=r"overrides \(--set\) sets 'scenario'.*planners \(--planners"
+    ):
         compare_specs(["surface"], starts=1, overrides=["scenario=1"])
-    with pytest.raises(ValueError, match="--set sets 'start'.*--starts"):
+    with pytest.raises(ValueError, match=r"overrides \(--set\) sets 'start'.*starts \(--starts"):
         table2_specs(starts=1, overrides=[" start =3"])
     refused(capsys, ["compare", "--set", "scenario=1", "--out", tmp_path / "c"], "'scenario'")
     refused(capsys, ["table", "--set", "start=1", "--out", tmp_path / "t"], "'start'")

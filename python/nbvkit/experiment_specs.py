@@ -85,8 +85,8 @@ class RunSpec:
 SPEC_KEYS = ("scenario", "start")
 _SPEC_KEYS_BY = {
     "sweep": "the sweep file's 'scenarios:' and 'starts:' lists",
-    "compare": "--planners (each a scenario) and --starts",
-    "table": "--starts (Table 2 flies the Profile row and Scenarios 1-5 itself)",
+    "compare": "the planners (--planners, each a scenario) and starts (--starts)",
+    "table": "starts (--starts; Table 2 flies the Profile row and Scenarios 1-5 itself)",
 }
 
 
@@ -224,7 +224,7 @@ def _spec_dict(spec: RunSpec) -> dict:
 def table2_specs(mesh=None, mesh_scale=None, mesh_up=None, starts=5, overrides=()) -> list[RunSpec]:
     """The Profile row and Scenarios 1-5, each from `starts` predefined starts (mesh, mesh_scale,
     mesh_up: None for the configuration's, see RunSpec)."""
-    refuse_spec_keys(overrides, "--set", "table")
+    refuse_spec_keys(overrides, "overrides (--set)", "table")
     return [
         RunSpec(sc, k, mesh, mesh_scale, mesh_up, tuple(overrides))
         for sc in ("profile", "1", "2", "3", "4", "5")
@@ -486,8 +486,8 @@ def compare_specs(planners, mesh=None, mesh_scale=None, mesh_up=None, starts=5, 
     _refuse_unknown("planner", planners, "--plugin or nbvkit.load_plugin")
     # as a sweep's lists: the runs of different planners differ by their scenario in the run
     # id, so this also keeps two specs from flying the same run (_check_distinct_runs)
-    _refuse_duplicates("--planners", list(planners))
-    refuse_spec_keys(overrides, "--set", "compare")
+    _refuse_duplicates("planners (--planners)", list(planners))
+    refuse_spec_keys(overrides, "overrides (--set)", "compare")
     over = ("evaluation.coverage_every=5", *overrides)
     return [
         RunSpec(p, k, mesh, mesh_scale, mesh_up, tuple(over))

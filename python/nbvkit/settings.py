@@ -18,7 +18,7 @@ import numbers
 import sys
 import types
 import typing
-from dataclasses import field, fields, is_dataclass, make_dataclass
+from dataclasses import asdict, field, fields, is_dataclass, make_dataclass
 from typing import Tuple
 
 import numpy as np
@@ -310,16 +310,14 @@ def check_defaults(obj, prefix: str) -> None:
     """ValueError naming the key unless each value of the section `obj` reads back from a
     configuration file as itself (coerce): a default of the wrong type (count: int = 2.5,
     label: str = 3) flew, and its run's config.yaml was then refused or read back otherwise."""
-    import dataclasses
-
     hints = type_hints(type(obj))
     for f in fields(obj):
         if f.name.startswith("_"):
             continue
         v, key = getattr(obj, f.name), prefix + f.name
-        raw = dataclasses.asdict(v) if is_dataclass(v) and not isinstance(v, type) else v
+        raw = asdict(v) if is_dataclass(v) and not isinstance(v, type) else v
         back = coerce(hints[f.name], raw, key)  # ValueError naming the key
-        if back != v or type(back) is not type(v) and not isinstance(back, float):
+        if back != v or (type(back) is not type(v) and not isinstance(back, float)):
             raise ValueError(
                 f"config key {key!r} defaults to {shorten(v)} ({type(v).__name__}), which a "
                 f"configuration file reads back as {shorten(back)} ({type(back).__name__})"

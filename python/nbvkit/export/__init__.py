@@ -17,7 +17,7 @@ import numpy as np
 
 from .georef import ALTITUDE_REFS, GeoFrame  # noqa: F401
 from ..flight import estimate, sortie_planner
-from ..flight_time import FRAME, VIEW, FlightModel
+from ..flight_time import VIEW, FlightModel
 from ..run_report import update_flight_section
 from ..limits import is_number
 from ..locks import pid_alive
@@ -404,13 +404,9 @@ def _write_formats(tmp: Path, summary, fl, sorties, names, frame, model, drone, 
     """Writes each sortie (named `names`) in each format of the export's summary into tmp;
     returns the files' names."""
     fmts, photo_names = summary["formats"], summary["photo_names"]
-    numbers, count = {}, {VIEW: 0, FRAME: 0}  # each capture's number of its kind
-    seqs = {}  # each capture's number among all captures of the flight (IMAGE_START_CAPTURE)
-    for i, c in enumerate(fl.capture):
-        if c:
-            count[c] += 1
-            numbers[i] = count[c]
-            seqs[i] = len(seqs) + 1
+    captures = colmap.capture_numbers(fl.capture)
+    numbers = {i: n for i, (_, n, _) in captures.items()}  # each capture's number of its kind
+    seqs = {i: seq for i, (_, _, seq) in captures.items()}  # among all (IMAGE_START_CAPTURE)
     created_ms = int(time.time() * 1000)
     files = []
     for s, name in zip(sorties, names):

@@ -72,24 +72,32 @@ def camera_intrinsics(config) -> dict:
     }
 
 
+def capture_numbers(capture) -> dict:
+    """{row: (kind, number of its kind, number among all captures)} of each capture row of a
+    flight (`capture`: each row's kind, VIEW, FRAME or ''), in flight order; numbers from 1. The
+    second is the mission files' IMAGE_START_CAPTURE number and the CSV's photo."""
+    out, count = {}, {VIEW: 0, FRAME: 0}
+    for i, c in enumerate(capture):
+        if c:
+            count[c] += 1
+            out[i] = (c, count[c], len(out) + 1)
+    return out
+
+
 def camera_poses(fl, photo_names=None) -> list:
     """(name, T_world_sensor (4, 4)) of every capture of the flight, in order. Named view_0001.png
     ..., frame_0001.png ... (numbered per kind), or, given photo_names (pattern, first), by the
-    pattern formatted with each capture's number among all captures (the mission files'
-    IMAGE_START_CAPTURE number, the CSV's photo) plus first - 1 (photo_name)."""
+    pattern formatted with each capture's number among all captures (capture_numbers) plus
+    first - 1 (photo_name)."""
     from .. import _core
 
     cfg = fl.config
     cam = _core.mount_transform(cfg.camera.mount_xyz, *cfg.camera.mount_rpy_deg)
-    out, count = [], {VIEW: 0, FRAME: 0}
-    for i, c in enumerate(fl.capture):
-        if not c:
-            continue
-        count[c] += 1
+    out = []
+    for i, (c, n, seq) in capture_numbers(fl.capture).items():
         T_body = _core.pose_to_transform([*fl.xyz[i], fl.yaw[i]])
         T = T_body @ _core.mount_transform([0, 0, 0], 0.0, math.degrees(fl.pitch[i]), 0.0) @ cam
-        seq = len(out) + 1
-        name = f"{c}_{count[c]:04d}.png" if photo_names is None else photo_name(*photo_names, seq)
+        name = f"{c}_{n:04d}.png" if photo_names is None else photo_name(*photo_names, seq)
         out.append((name, T))
     return out
 
