@@ -634,6 +634,57 @@ def test_colmap_images_named_as_the_camera_numbers_its_photos(run_dir, tmp_path)
     assert json.loads((out / "export.json").read_text())["photo_names"] == ["DJI_{:04d}.JPG", 101]
 
 
+def test_captures_left_unreachable_take_no_photo_number_and_no_colmap_image(run_dir, tmp_path):
+    """A budget that leaves captures unflown: the photos the sorties take are numbered 1, 2, ...
+    with no gap (the camera numbers the photos it takes one after another), and COLMAP lists
+    those photos only, each at the position of the capture that takes it (read back from the
+    CSV's flight_row and flight.csv). Before, an unflown capture kept its number and its image:
+    DJI_0069.JPG was given the pose of a capture never flown."""
+    from nbvkit.export import _planner
+    from nbvkit.export.plan import FlightModel
+
+    _, sp = _planner(run_dir, FlightModel(), need_all_returns=True)
+    views = sum(1 for c in read_run(run_dir).capture if c == "view")
+    minutes = None
+    for t in np.arange(0.3, 5.0, 0.1):  # a budget some views lie beyond, some within
+        sorties, unreachable = sp.split(60 * t * 0.8)
+        if 0 < sum(u["capture"] == "view" for u in unreachable) < views:
+            minutes = float(t)
+            break
+    assert minutes is not None
+    out = tmp_path / "ex"
+    s = export_mission(
+        run_dir, "qgc,csv,colmap", ORIGIN, HEADING, out, flight_time_min=minutes, reserve_pct=20
+    )
+    assert s["unreachable"]
+    fired, rows = [], []
+    for srt in s["sorties"]:
+        plan = json.loads((out / f"sortie_{srt['sortie']:02d}.plan").read_text())["mission"]
+        fired += [int(it["params"][3]) for it in plan["items"] if it["command"] == 2000]
+        csv_rows = _csv(out / f"sortie_{srt['sortie']:02d}.csv")
+        rows += [(int(r["photo"]), int(r["flight_row"])) for r in csv_rows if r["photo"]]
+    assert fired == list(range(1, len(fired) + 1))
+    assert [p for p, _ in rows] == fired
+    lines = [
+        ln for ln in (out / "colmap/images.txt").read_text().splitlines() if not ln.startswith("#")
+    ]
+    assert len(lines[0::2]) == len(fired)  # the photos taken, not every capture planned
+    flight = _csv(run_dir / "flight.csv")
+    for ln, (_, row) in zip(lines[0::2], rows):
+        q = np.array(ln.split()[1:5], float)  # world-to-camera (qw first), t
+        t = np.array(ln.split()[5:8], float)
+        w, x, y, z = q / np.linalg.norm(q)
+        R = np.array(
+            [
+                [1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)],
+                [2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)],
+                [2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)],
+            ]
+        )
+        at = np.array([float(flight[row][k]) for k in ("x", "y", "z")])
+        assert np.abs(-R.T @ t - at).max() < 1e-6
+
+
 # ------------------------------------------------------------------ one flight per battery
 def test_a_budget_splits_the_flight_into_sorties_from_and_to_home(run_dir, tmp_path):
     from nbvkit.export import _planner

@@ -404,7 +404,8 @@ def _write_formats(tmp: Path, summary, fl, sorties, names, frame, model, drone, 
     """Writes each sortie (named `names`) in each format of the export's summary into tmp;
     returns the files' names."""
     fmts, photo_names = summary["formats"], summary["photo_names"]
-    captures = colmap.capture_numbers(fl.capture)
+    # the captures the sorties fly (not those left unreachable by the budget), numbered
+    captures = colmap.capture_numbers(fl.capture, {w.row for s in sorties for w in s.waypoints})
     numbers = {i: n for i, (_, n, _) in captures.items()}  # each capture's number of its kind
     seqs = {i: seq for i, (_, _, seq) in captures.items()}  # among all (IMAGE_START_CAPTURE)
     created_ms = int(time.time() * 1000)
@@ -440,7 +441,7 @@ def _write_formats(tmp: Path, summary, fl, sorties, names, frame, model, drone, 
             files.append(f"{name}.csv")
     if "colmap" in fmts:
         (tmp / "colmap").mkdir()
-        poses = colmap.camera_poses(fl, photo_names)
+        poses = colmap.camera_poses(fl, photo_names, set(captures))
         colmap.write_colmap(tmp / "colmap", colmap.camera_intrinsics(fl.config), poses)
         files += [f"colmap/{n}" for n in ("cameras.txt", "images.txt", "points3D.txt")]
     return files

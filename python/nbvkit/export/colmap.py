@@ -72,29 +72,34 @@ def camera_intrinsics(config) -> dict:
     }
 
 
-def capture_numbers(capture) -> dict:
-    """{row: (kind, number of its kind, number among all captures)} of each capture row of a
-    flight (`capture`: each row's kind, VIEW, FRAME or ''), in flight order; numbers from 1. The
-    second is the mission files' IMAGE_START_CAPTURE number and the CSV's photo."""
+def capture_numbers(capture, flown=None) -> dict:
+    """{row: (kind, number of its kind, photo number)} of each capture row of a flight that is
+    flown (`capture`: each row's kind, VIEW, FRAME or ''; `flown`: the rows the mission files fly,
+    None for all), in flight order; numbers from 1. The number of its kind is the run's (view 7
+    stays view 7); the photo number counts the photos taken, as the camera numbers them: the
+    mission files' IMAGE_START_CAPTURE number and the CSV's photo. A capture no sortie flies (the
+    export's unreachable) takes no photo, and no number after it is skipped."""
     out, count = {}, {VIEW: 0, FRAME: 0}
     for i, c in enumerate(capture):
         if c:
             count[c] += 1
-            out[i] = (c, count[c], len(out) + 1)
+            if flown is None or i in flown:
+                out[i] = (c, count[c], len(out) + 1)
     return out
 
 
-def camera_poses(fl, photo_names=None) -> list:
-    """(name, T_world_sensor (4, 4)) of every capture of the flight, in order. Named view_0001.png
-    ..., frame_0001.png ... (numbered per kind), or, given photo_names (pattern, first), by the
-    pattern formatted with each capture's number among all captures (capture_numbers) plus
-    first - 1 (photo_name)."""
+def camera_poses(fl, photo_names=None, flown=None) -> list:
+    """(name, T_world_sensor (4, 4)) of every capture of the flight that is flown (`flown`: the
+    rows flown, None for all; capture_numbers), in order. Named view_0001.png ..., frame_0001.png
+    ... (numbered per kind, as in the run), or, given photo_names (pattern, first), by the
+    pattern formatted with each capture's photo number (capture_numbers) plus first - 1
+    (photo_name)."""
     from .. import _core
 
     cfg = fl.config
     cam = _core.mount_transform(cfg.camera.mount_xyz, *cfg.camera.mount_rpy_deg)
     out = []
-    for i, (c, n, seq) in capture_numbers(fl.capture).items():
+    for i, (c, n, seq) in capture_numbers(fl.capture, flown).items():
         T_body = _core.pose_to_transform([*fl.xyz[i], fl.yaw[i]])
         T = T_body @ _core.mount_transform([0, 0, 0], 0.0, math.degrees(fl.pitch[i]), 0.0) @ cam
         name = f"{c}_{n:04d}.png" if photo_names is None else photo_name(*photo_names, seq)
