@@ -746,6 +746,41 @@ def test_a_budget_splits_the_flight_into_sorties_from_and_to_home(run_dir, tmp_p
     assert not (out / "mission.csv").exists()  # the previous export's files were replaced
 
 
+def test_a_flight_planned_closer_than_gnss_error_is_warned_of(run_dir, tmp_path, capsys):
+    """The run's stand-off (vehicle.collision_radius 0.8 m, 0.9 m above the ground) is in
+    export.json and warned of on the console: a drone without RTK errs by 1-2 m. A run planned
+    2 m clear is exported without the warning. export.json records the run's mesh shift (the
+    frame --origin places)."""
+    from nbvkit.cli import main
+
+    args = ["export", str(run_dir), "--origin", *map(str, ORIGIN), "--out", str(tmp_path / "a")]
+    assert main(args) == 0
+    err = capsys.readouterr().err
+    s = json.loads((tmp_path / "a" / "export.json").read_text())
+    assert s["clearance"] == {"structure_m": 0.8, "ground_m": 0.9}
+    assert s["mesh_shift"] == [0.0, 0.0, 0.0]
+    assert "warning: the run was planned 0.8 m from the structure" in err and "RTK" in err
+    far = Mission(
+        Config().with_overrides([*FAST, "vehicle.collision_radius=2", "mesh.shift=[40,-25,0]"])
+    )
+    far.run(tmp_path / "far")
+    far_ex = tmp_path / "far_ex"
+    assert main(["export", str(tmp_path / "far"), *args[2:-2], "--out", str(far_ex)]) == 0
+    s = json.loads((far_ex / "export.json").read_text())
+    assert s["clearance"] == {"structure_m": 2.0, "ground_m": 2.1}
+    assert s["mesh_shift"] == [40.0, -25.0, 0.0]
+    assert s["warnings"] == [] and "warning" not in capsys.readouterr().err
+
+
+def test_sortie_files_list_by_name_in_flight_order():
+    from nbvkit.export.plan import sortie_names
+
+    assert sortie_names([1, 2, 3]) == ["sortie_01", "sortie_02", "sortie_03"]
+    names = sortie_names(list(range(1, 161)))  # 160 sorties: a 1-minute battery's airliner
+    assert names[0] == "sortie_001" and names[-1] == "sortie_160"
+    assert sorted(names) == names
+
+
 def test_a_view_beyond_one_battery_is_reported_not_dropped(run_dir, tmp_path):
     from nbvkit.export.plan import FlightModel, ReturnPaths, SortiePlanner
 
@@ -773,6 +808,7 @@ def test_a_view_beyond_one_battery_is_reported_not_dropped(run_dir, tmp_path):
         ({"origin": (47.0, 8.5, float("nan"))}, ValueError, "altitude must be a finite"),
         ({"origin": (float("inf"), 8.5, 400.0)}, ValueError, "latitude must be a finite"),
         ({"heading_deg": float("nan")}, ValueError, "heading"),
+        ({"climb_rate": 100.0}, ValueError, "climb rate 100 m/s is above the export's maximum"),
         # 1e20 degrees: a float cannot hold its remainder modulo 360 (it turned into 162)
         ({"heading_deg": 1e20}, ValueError, r"heading \(--heading\) must be within \[-360, 360\]"),
         ({"heading_deg": -360.5}, ValueError, r"heading \(--heading\) must be within"),
@@ -1399,7 +1435,24 @@ def test_dji_route_values_in_their_ranges_and_rth_above_the_structure(exported, 
             rth = float(root.findtext(".//wpml:globalRTHHeight", namespaces=ns))
             heights = [float(e.text) for e in root.iterfind(".//wpml:executeHeight", ns)]
             heights += [float(e.text) for e in root.iterfind(".//k:Placemark/wpml:height", ns)]
-            assert rth >= top + 5.0 and rth >= max(heights) + 5.0 and rth <= 1500.0
+            assert rth >= top + 5.0 and rth >= max(heights) + 5.0 and 20.0 <= rth <= 500.0
+
+
+def test_dji_return_height_within_dji_range_or_refused():
+    """globalRTHHeight: 10 m above the flight and its workspace, at least 20 m (a 3 m flight:
+    13 m was written, below the 20 m DJI's aircraft take); a flight whose return would pass
+    500 m is refused, not capped below its top."""
+    from types import SimpleNamespace
+
+    from nbvkit.export.wpml import rth_rel_alt
+
+    low = SimpleNamespace(rel_alt=np.array([1.0, 3.0]), workspace_top_rel_alt=4.0)
+    assert rth_rel_alt(low) == 20.0
+    mid = SimpleNamespace(rel_alt=np.array([1.0, 43.0]), workspace_top_rel_alt=40.0)
+    assert rth_rel_alt(mid) == 53.0
+    high = SimpleNamespace(rel_alt=np.array([1.0, 495.0]), workspace_top_rel_alt=None)
+    with pytest.raises(ValueError, match="495.0 m above the take-off point.*500 m"):
+        rth_rel_alt(high)
 
 
 def test_mavlink_home_is_above_mean_sea_level_from_an_ellipsoidal_origin(run_dir, tmp_path):
@@ -1780,8 +1833,9 @@ def test_max_items_splits_the_flight_into_sorties_whose_files_an_autopilot_keeps
     printed = capsys.readouterr()
     s = json.loads((tmp_path / "a" / "export.json").read_text())
     assert s["budget"]["max_items"] == n and s["budget"]["usable_min"] is None
-    assert len(s["sorties"]) >= 3 and s["unreachable"] == [] and s["warnings"] == []
-    assert "warning" not in printed.err
+    assert len(s["sorties"]) >= 3 and s["unreachable"] == []
+    assert not any("mission items" in w for w in s["warnings"])
+    assert "mission items" not in printed.err
     caps = []
     for k in range(1, len(s["sorties"]) + 1):
         plan = json.loads((tmp_path / "a" / f"sortie_{k:02d}.plan").read_text())

@@ -19,7 +19,8 @@ def register(sub) -> argparse.ArgumentParser:
         "and COLMAP poses",
         description="Write what a run flew (RUN_DIR/flight.csv: the profile, the A* legs and the "
         "views) as files a ground station, a DJI aircraft or a photogrammetry tool reads. The "
-        "mesh frame is local East-North-Up at --origin turned by --heading. With --flight-time "
+        "mesh frame's origin is at --origin, +z up, +x along --heading (0: +x north, +y west; "
+        "90: +x east, +y north, East-North-Up). With --flight-time "
         "the flight is split into sorties from and back to the launch point (below the start), "
         "one file per sortie per format, plus sorties.csv. Format facts and sources: "
         "docs/EXPORT.md.",
@@ -54,7 +55,7 @@ def register(sub) -> argparse.ArgumentParser:
         default=0.0,
         metavar="DEG",
         help="bearing of the mesh's +x axis, degrees clockwise from true north, within "
-        "[-360, 360] (default 0)",
+        "[-360, 360] (default 0: +x north, +y west; 90 for a mesh in East-North-Up, +x east)",
     )
     p.add_argument(
         "--speed",
@@ -68,7 +69,7 @@ def register(sub) -> argparse.ArgumentParser:
         type=float,
         default=2.0,
         metavar="M_S",
-        help="climb rate (2); descents at most 1.5",
+        help="climb rate (default 2, at most 10); descents at most 1.5",
     )
     p.add_argument(
         "--hover",

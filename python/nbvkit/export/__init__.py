@@ -24,7 +24,7 @@ from ..locks import pid_alive
 from ..output_paths import check_output_dir
 from ..runfolder import require_complete_run
 from .plan import read_run
-from . import colmap, items, writers
+from . import clearance, colmap, items, plan, writers
 from .wpml import write_wpml_kmz
 
 GEO_NAMES = ("latitude", "longitude", "altitude")
@@ -96,9 +96,9 @@ def _checked(origin, heading_deg, speed, climb_rate, hover_s, altitude_ref, dji_
         raise ValueError(f"origin must be (latitude, longitude, altitude), got {origin!r}")
     latlonalt = [_number(f"origin's {n}", v) for n, v in zip(GEO_NAMES, origin)]
     frame = GeoFrame(*latlonalt, _number("heading_deg", heading_deg), altitude_ref)
-    speed = _number("speed", speed)
-    _check_speed(speed)
-    model = FlightModel(speed, _number("climb_rate", climb_rate), _number("hover_s", hover_s))
+    speed, climb_rate = _number("speed", speed), _number("climb_rate", climb_rate)
+    _check_speed(speed, climb_rate)
+    model = FlightModel(speed, climb_rate, _number("hover_s", hover_s))
     if not _pair_or_triple(dji_drone, 2):
         raise ValueError(
             f"dji_drone must be (droneEnumValue, droneSubEnumValue), got {dji_drone!r}"
@@ -112,14 +112,25 @@ def _pair_or_triple(value, n: int) -> bool:
     return not isinstance(value, (str, bytes)) and hasattr(value, "__len__") and len(value) == n
 
 
-def _check_speed(v: float) -> None:
-    """ValueError for a cruise speed above writers.MAX_SPEED_M_S (the lower bounds are
-    FlightModel's)."""
+#: the fastest climb rate the export takes (m/s): above any inspection drone's ascent (DJI M30
+#: and M350 6 m/s, Mavic 3 8 m/s; PX4's MPC_Z_V_AUTO_UP 3 m/s); no file commands it, so a
+#: faster one only shortened the time estimate and the battery's sorties
+MAX_CLIMB_M_S = 10.0
+
+
+def _check_speed(v: float, climb: float) -> None:
+    """ValueError for a cruise speed above writers.MAX_SPEED_M_S or a climb rate above
+    MAX_CLIMB_M_S (the lower bounds are FlightModel's)."""
     if math.isfinite(v) and v > writers.MAX_SPEED_M_S:
         raise ValueError(
             f"speed {v:g} m/s is above the export's maximum of {writers.MAX_SPEED_M_S:g} m/s "
             "(DJI WPML's transitional speed range [0, 15] m/s; route speeds may not pass the "
             "aircraft's maximum: see docs/EXPORT.md)"
+        )
+    if math.isfinite(climb) and climb > MAX_CLIMB_M_S:
+        raise ValueError(
+            f"climb rate {climb:g} m/s is above the export's maximum of {MAX_CLIMB_M_S:g} m/s "
+            "(faster than any inspection drone climbs: the flight times would be too short)"
         )
 
 
@@ -320,7 +331,7 @@ def _write_into(out: Path, summary: dict, fl, sorties, frame, model, dji, budget
     _remove_stale_temporaries(anchor)
     tmp = _new_folder(anchor, f"{TMP_PREFIX}{os.getpid()}-")
     try:
-        names = [f"sortie_{s.number:02d}" for s in sorties] if budget else ["mission"]
+        names = plan.sortie_names([s.number for s in sorties]) if budget else ["mission"]
         files = _write_formats(tmp, summary, fl, sorties, names, frame, model, *dji)
         if budget:
             _write_sortie_table(tmp / "sorties.csv", summary)
@@ -328,7 +339,9 @@ def _write_into(out: Path, summary: dict, fl, sorties, frame, model, dji, budget
         files.append("export.json")
         summary["files"] = files
         summary["mission_items"] = items.mission_items(tmp, files)
-        summary["warnings"] = items.item_warnings(summary["mission_items"])
+        summary["clearance"] = clearance.clearance(fl.config)
+        summary["warnings"] = clearance.clearance_warnings(summary["clearance"])
+        summary["warnings"] += items.item_warnings(summary["mission_items"])
         summary["out"] = str(out)
         (tmp / "export.json").write_text(json.dumps(summary, indent=2, allow_nan=False) + "\n")
         _move_into_place(tmp, out, files)
@@ -373,10 +386,12 @@ def _summary(run, frame, fl, model, whole, budget, sorties, unreachable, fmts) -
         "run": str(run),
         "origin": frame.to_dict(),
         "frames_note": (
-            "mesh frame = local East-North-Up at the origin turned by heading_deg (the bearing "
-            "of the mesh's +x axis); altitudes in the origin's reference, relative altitudes "
-            "above the launch point"
+            "mesh frame: origin at the origin, +z up, +x along heading_deg (degrees clockwise "
+            "from true north; 0: +x north, +y west; 90: East-North-Up); altitudes in the "
+            "origin's reference, relative altitudes above the launch point; the mesh frame is "
+            "the mesh file's moved by mesh_shift (the run's mesh.shift)"
         ),
+        "mesh_shift": [float(v) for v in fl.config.mesh.shift],
         "launch_point_mesh": [float(v) for v in fl.home],
         "climb_top_mesh": [float(v) for v in fl.launch],
         "model": {

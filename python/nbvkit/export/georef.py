@@ -1,4 +1,4 @@
-"""Geo-referencing of the mesh frame: local East-North-Up at a WGS84 origin, turned by a heading.
+"""Geo-referencing of the mesh frame: origin at a WGS84 point, +z up, +x along a heading.
 
 The mesh frame's origin (0, 0, 0) is at the geodetic `origin` (latitude, longitude in degrees,
 altitude in metres); its +z is up (the ellipsoid normal there) and its +x points along the

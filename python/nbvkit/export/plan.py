@@ -50,3 +50,11 @@ def read_run(run_dir) -> RunFlight:
     cfg = load_config(run / "config.yaml")
     map_path = run / "map.ot"
     return run_flight(run, rows, ws, cfg, map_path if map_path.is_file() else None, arrays)
+
+
+def sortie_names(numbers) -> list:
+    """The files' names of sorties `numbers` (1, 2, ...): numbered to one width, two digits at
+    least (sortie_01 ... sortie_09; sortie_001 ... sortie_120), so that they list by name in
+    flight order (sortie_100 came between sortie_10 and sortie_11)."""
+    width = max(2, len(str(max(numbers, default=0))))
+    return [f"sortie_{n:0{width}d}" for n in numbers]

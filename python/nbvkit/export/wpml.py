@@ -21,9 +21,10 @@ from .writers import (
 #: the return-to-home height's margin above the highest of the structure's workspace and the
 #: flight (m)
 RTH_MARGIN_M = 10.0
-#: the highest globalRTHHeight written (m above the take-off point): DJI's height range, as for
-#: takeOffSecurityHeight [1.2, 1500] (WPML gives globalRTHHeight no range of its own)
-RTH_MAX_M = 1500.0
+#: globalRTHHeight's range (m above the take-off point): WPML gives it none of its own; DJI's
+#: aircraft take a return-to-home altitude of 20 to 500 m (the M30's rth_altitude property,
+#: {min: 20, max: 500}, DJI Cloud API; DJI Pilot 2's setting), and may refuse or change another
+RTH_MIN_M, RTH_MAX_M = 20.0, 500.0
 
 __all__ = ["write_wpml_kmz", "LENS"]
 
@@ -43,11 +44,17 @@ def rth_rel_alt(g: GeoWaypoints) -> float:
     """The return-to-home height, m above the take-off point (the launch point: the aircraft
     climbs to it before it flies home in a straight line, on a lost link or at the end): above
     the higher of the run's workspace top (g.workspace_top_rel_alt) and the highest waypoint by
-    RTH_MARGIN_M, at most RTH_MAX_M."""
+    RTH_MARGIN_M, at least RTH_MIN_M; ValueError where that is above RTH_MAX_M (a return below
+    the flight's top could cross the structure)."""
     top = float(max(g.rel_alt))
     if g.workspace_top_rel_alt is not None:
         top = max(float(g.workspace_top_rel_alt), top)
-    return min(top + RTH_MARGIN_M, RTH_MAX_M)
+    if top + RTH_MARGIN_M > RTH_MAX_M:
+        raise ValueError(
+            f"the flight or its workspace reaches {top:.1f} m above the take-off point: a DJI "
+            f"return-to-home height {RTH_MARGIN_M:g} m above it would pass DJI's {RTH_MAX_M:g} m"
+        )
+    return max(top + RTH_MARGIN_M, RTH_MIN_M)
 
 
 def _camera_heading(g: GeoWaypoints, k: int) -> float:

@@ -1,0 +1,35 @@
+"""The stand-off a run's flight keeps from the structure and the ground, as the export states it:
+the planner keeps the vehicle's collision sphere (vehicle.collision_radius) off every occupied or
+unknown cell, and its centre vehicle.min_altitude (the radius + 0.1 m by default) above the
+ground, so a flown point may lie that close to the surface. Without RTK, a drone's GNSS and
+barometer place it within about 1-2 m; a flight planned closer than that is a simulation's, not a
+real one's."""
+from __future__ import annotations
+
+#: m: the position error of a drone without RTK (GNSS horizontally, the barometer vertically)
+#: below which a planned stand-off is warned of
+GNSS_ERROR_M = 2.0
+
+
+def clearance(config) -> dict:
+    """{"structure_m", "ground_m"}: the least distance the run's flight keeps from the structure
+    (its collision radius) and its centre's least height above the ground (workspace.py)."""
+    radius = float(config.vehicle.collision_radius)
+    ground = radius + 0.1
+    if config.vehicle.min_altitude is not None:
+        ground = max(ground, float(config.vehicle.min_altitude))
+    return {"structure_m": round(radius, 3), "ground_m": round(ground, 3)}
+
+
+def clearance_warnings(c: dict) -> list:
+    """The export's warning where clearance `c` is within GNSS_ERROR_M."""
+    if min(c["structure_m"], c["ground_m"]) >= GNSS_ERROR_M:
+        return []
+    return [
+        f"the run was planned {c['structure_m']:g} m from the structure "
+        f"(vehicle.collision_radius) and {c['ground_m']:g} m above the ground "
+        f"(vehicle.min_altitude): a drone without RTK is placed within about "
+        f"{GNSS_ERROR_M:g} m. Fly it with RTK positioning and obstacle sensing on, or fly the "
+        f"run again with --set vehicle.collision_radius={GNSS_ERROR_M:g} (and "
+        f"vehicle.min_altitude) for a flight that keeps clear"
+    ]
