@@ -56,10 +56,14 @@ CAPTURE_RADIUS_M = 0.5
 PX4_ALT_RAD_M = 0.8
 
 #: ArduCopter's return to launch from straight above home (the .waypoints file's last item,
-#: NAV_RETURN_TO_LAUNCH), at its default parameters: it waits RTL_LOIT_TIME (5000 ms) above home,
-#: then lands at WPNAV_SPEED_DN (150 cm/s, LAND_SPEED_HIGH being 0) down to LAND_ALT_LOW (1000
-#: cm) and at LAND_SPEED (50 cm/s) below it. Its take-off climbs at WPNAV_SPEED_UP (250 cm/s).
+#: NAV_RETURN_TO_LAUNCH), at its default parameters: it first climbs, below RTL_ALT (1500 cm),
+#: RTL_ABS_MIN_CLIMB (250 cm) at most towards it (mode_rtl.cpp compute_return_target: at no
+#: distance from home RTL_CONE_SLOPE leaves that much), at WPNAV_SPEED_UP; waits RTL_LOIT_TIME
+#: (5000 ms) above home, then lands at WPNAV_SPEED_DN (150 cm/s, LAND_SPEED_HIGH being 0) down to
+#: LAND_ALT_LOW (1000 cm) and at LAND_SPEED (50 cm/s) below it. Its take-off climbs at
+#: WPNAV_SPEED_UP (250 cm/s).
 AP_RTL_LOITER_S, AP_DESCENT_M_S, AP_LAND_ALT_LOW_M, AP_LAND_SPEED_M_S = 5.0, 1.5, 10.0, 0.5
+AP_RTL_ALT_M, AP_RTL_MIN_CLIMB_M = 15.0, 2.5
 AP_TAKEOFF_M_S = 2.5
 #: PX4's return to launch from straight above home (the .plan's last item), at its default
 #: parameters: RTL_LAND_DELAY 0 s, then the landing at MPC_Z_V_AUTO_DN (1.5 m/s) above
@@ -266,9 +270,11 @@ class FlightModel:
         up = {t: self._vertical_s(h, self.climb_rate) for t in TARGETS}
         up["ardupilot"] = self._vertical_s(h, min(self.climb_rate, AP_TAKEOFF_M_S))
         up["px4"] = self._vertical_s(h, min(self.climb_rate, PX4_TAKEOFF_M_S))
-        fast = min(h, max(h - AP_LAND_ALT_LOW_M, 0.0))
-        ap = AP_RTL_LOITER_S + fast / min(self.climb_rate, AP_DESCENT_M_S)
-        ap += (h - fast) / min(self.climb_rate, AP_LAND_SPEED_M_S)
+        top = h if h >= AP_RTL_ALT_M else min(AP_RTL_ALT_M, h + AP_RTL_MIN_CLIMB_M)
+        ap = self._vertical_s(top - h, min(self.climb_rate, AP_TAKEOFF_M_S)) + AP_RTL_LOITER_S
+        fast = max(top - AP_LAND_ALT_LOW_M, 0.0)
+        ap += fast / min(self.climb_rate, AP_DESCENT_M_S)
+        ap += (top - fast) / min(self.climb_rate, AP_LAND_SPEED_M_S)
         dji = self._vertical_s(h, self.descent_rate)
         down = {"dji": dji, "ardupilot": ap, "px4": _px4_landing_s(h, self.climb_rate)}
         return {t: (up[t], down[t]) for t in TARGETS}
