@@ -424,7 +424,7 @@ def rerun_case(tmp: Path) -> tuple:
     # a folder holding a user's other files is never overwritten
     (out / "notes.txt").write_text("mine")
     rc, _, err = run(run_argv(out, "--overwrite"))
-    e = clean_error(rc, err, "holds files nbvkit does not write", "notes.txt")
+    e = clean_error(rc, err, "holds files nbvkit did not write", "notes.txt")
     if e:
         return f"--overwrite over a user's file: {e}", ""
     return None, f"mesh.ply before: {had_mesh}"

@@ -324,16 +324,25 @@ def test_a_list_of_clouds_is_written_a_part_at_a_time_as_its_stacked_points(
         nbvkit._core.stack_points([camera], -1)
 
 
-def test_points_beyond_float32_are_not_written_as_float32(tmp_path):
-    """A .pcd (float32 by default) or dtype=float32 of a coordinate float32 cannot hold is
-    refused, nothing written (it wrote inf, which reading dropped); float64 keeps it."""
-    pts = np.array([[1e300, 0, 0], [1, 2, 3]])
-    for name, kw in (("big.pcd", {}), ("big.ply", {"dtype": np.float32})):
-        with pytest.raises(ValueError, match="reaches 1e.300, beyond float32's range"):
-            write_points(tmp_path / name, pts, **kw)
-        assert not (tmp_path / name).exists()
-    write_points(tmp_path / "big64.pcd", pts, dtype=np.float64)
-    np.testing.assert_array_equal(read_points(tmp_path / "big64.pcd"), pts)
+def test_points_float32_would_round_are_not_written_as_float32(tmp_path):
+    """A .pcd (float32 by default) of a georeferenced cloud (5,000,000 m: float32 rounded it by
+    0.2 m, silently) or of a coordinate float32 cannot hold (it wrote inf) is written as F 8 with
+    a warning, read back exactly (an independent reader: the header's SIZE/TYPE); an explicit
+    dtype=float32 is refused, nothing written."""
+    for pts in (np.array([[5_000_000.3, 4_000_000.7, 300.11], [1, 2, 3]]),
+                np.array([[1e300, 0, 0], [1, 2, 3]])):  # fmt: skip
+        with pytest.warns(RuntimeWarning, match="written as F 8"):
+            write_points(tmp_path / "far.pcd", pts)
+        head = (tmp_path / "far.pcd").read_bytes().split(b"DATA")[0].decode()
+        assert "SIZE 8 8 8" in head and "TYPE F F F" in head
+        np.testing.assert_array_equal(read_points(tmp_path / "far.pcd"), pts)
+        for name in ("far32.pcd", "far32.ply"):
+            with pytest.raises(ValueError, match="float32 rounds by more than 1 mm"):
+                write_points(tmp_path / name, pts, dtype=np.float32)
+            assert not (tmp_path / name).exists()
+    near = np.array([[16383.0, 0.1, 0.2]])  # within 1 mm in float32: F 4 as before
+    write_points(tmp_path / "near.pcd", near)
+    assert "SIZE 4 4 4" in (tmp_path / "near.pcd").read_bytes().split(b"DATA")[0].decode()
 
 
 def test_open3d_reads_our_files(tmp_path):

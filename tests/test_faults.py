@@ -144,15 +144,14 @@ def test_a_failing_run_leaves_nothing_and_the_old_run_stays(tmp_path, finished_r
 
 
 def test_checkpoints_are_complete_runs_put_in_place_until_the_run_is(tmp_path, finished_run):
-    """RunFolder.checkpoint puts a complete folder in place of the old run while the run goes on;
-    one whose writing fails leaves the last in place; the run's own commit replaces them, and
-    nothing is left beside the target."""
+    """RunFolder.checkpoint puts a complete folder in place while the run goes on; one whose
+    writing fails leaves the last in place; the run's own commit replaces them, and nothing is
+    left beside the target. Over a complete run (--overwrite) they go beside it, in
+    r.interrupted, and the old run stays until the new one is whole (a kill after a checkpoint
+    replaced a finished run with a few views of the new one)."""
     import shutil
 
     from nbvkit.runfolder import _problem
-
-    out = tmp_path / "r"
-    shutil.copytree(finished_run[0], out)
 
     def checkpoint_of(k):
         def write(folder):
@@ -160,30 +159,126 @@ def test_checkpoints_are_complete_runs_put_in_place_until_the_run_is(tmp_path, f
 
         return write
 
-    def kept():
-        return json.loads((out / "summary.json").read_text())
+    def kept(where):
+        return json.loads((where / "summary.json").read_text())
 
-    def whole():  # as a reader finds it once the run's lock is gone (a kill drops it)
-        return _problem(out, check_lock=False) is None
+    def whole(where):  # as a reader finds it once the run's lock is gone (a kill drops it)
+        return _problem(where, check_lock=False) is None
 
+    for over_a_run in (False, True):
+        out = tmp_path / "r"
+        shutil.rmtree(out, ignore_errors=True)
+        if over_a_run:
+            shutil.copytree(finished_run[0], out)
+        old = None if not over_a_run else (out / "summary.json").read_bytes()
+        at = out if not over_a_run else tmp_path / "r.interrupted"
+        with RunFolder(out, overwrite=True) as rf:
+            rf.checkpoint(checkpoint_of(1))
+            assert "being written" in _problem(out)  # while the run goes on, readers wait
+            assert whole(at) and kept(at) == {"k": 1} and rf.placed == at
+            if over_a_run:
+                assert (out / "summary.json").read_bytes() == old and whole(out)
+            rf.checkpoint(checkpoint_of(2))
+            assert kept(at) == {"k": 2}
+
+            def full_disk(folder):
+                checkpoint_of(3)(folder)
+                raise OSError(28, "No space left on device")
+
+            with pytest.raises(OSError, match="No space"):
+                rf.checkpoint(full_disk)
+            assert whole(at) and kept(at) == {"k": 2}  # the last one stays
+            assert [x.name for x in tmp_path.glob(".r.ckpt*")] == []
+            (rf.tmp / "summary.json").write_text(json.dumps({"k": "final"}))
+        assert is_complete_run(out) and kept(out) == {"k": "final"} and rf.placed == out
+        assert sorted(x.name for x in tmp_path.iterdir()) == ["r"]
+
+
+def test_a_stopped_run_over_a_complete_run_goes_beside_it(tmp_path, finished_run):
+    """--overwrite of a complete run by a run that is stopped (Ctrl-C, an error, the end-of-run
+    outputs failing: RunFolder.partial): the old run stays whole, what the new one flew is put
+    beside it in r.interrupted (a previous r.interrupted replaced; a user's folder of that name
+    kept, r.interrupted<pid> used)."""
+    import shutil
+
+    out = tmp_path / "r"
+    shutil.copytree(finished_run[0], out)
+    old = (out / "summary.json").read_bytes()
+    for _ in range(2):
+        with RunFolder(out, overwrite=True) as rf:
+            (rf.tmp / "summary.json").write_text("{}")
+            rf.partial = True
+        assert (out / "summary.json").read_bytes() == old and is_complete_run(out)
+        assert rf.placed == tmp_path / "r.interrupted" and is_complete_run(rf.placed)
+    (tmp_path / "r.interrupted" / MANIFEST).unlink()
+    (tmp_path / "r.interrupted" / "notes.txt").write_text("mine")
+    shutil.rmtree(tmp_path / "r.interrupted" / "cache", ignore_errors=True)
+    for f in (tmp_path / "r.interrupted").iterdir():
+        if f.name != "notes.txt":
+            f.unlink() if f.is_file() else shutil.rmtree(f)
     with RunFolder(out, overwrite=True) as rf:
-        rf.checkpoint(checkpoint_of(1))
-        assert "being written" in _problem(out)  # while the run goes on, readers wait
-        assert whole() and kept() == {"k": 1} and not (out / "map.ot").exists()
-        rf.checkpoint(checkpoint_of(2))
-        assert kept() == {"k": 2}
+        (rf.tmp / "summary.json").write_text("{}")
+        rf.partial = True
+    assert rf.placed == tmp_path / f"r.interrupted{os.getpid()}"
+    assert (tmp_path / "r.interrupted" / "notes.txt").read_text() == "mine"
+    # a fresh target takes a stopped run in place
+    with RunFolder(tmp_path / "new") as rf:
+        (rf.tmp / "summary.json").write_text("{}")
+        rf.partial = True
+    assert rf.placed == tmp_path / "new" and is_complete_run(tmp_path / "new")
 
-        def full_disk(folder):
-            checkpoint_of(3)(folder)
-            raise OSError(28, "No space left on device")
 
-        with pytest.raises(OSError, match="No space"):
-            rf.checkpoint(full_disk)
-        assert whole() and kept() == {"k": 2}  # the last one stays
-        assert [x.name for x in tmp_path.glob(".r.ckpt*")] == []
-        (rf.tmp / "summary.json").write_text(json.dumps({"k": "final"}))
-    assert is_complete_run(out) and kept() == {"k": "final"}
-    assert sorted(x.name for x in tmp_path.iterdir()) == ["r"]
+def test_overwrite_removes_only_what_a_run_wrote(tmp_path, finished_run):
+    """--overwrite refuses a folder holding a file its manifest does not list (figures/mine.png),
+    a folder of nbvkit's names without a manifest (a user's config.yaml and report.html), and a
+    folder holding the run's own mesh or configuration file; nothing is removed."""
+    import shutil
+
+    run = tmp_path / "run"
+    shutil.copytree(finished_run[0], run)
+    (run / "figures").mkdir(exist_ok=True)
+    (run / "figures" / "mine.png").write_bytes(b"x")
+    with pytest.raises(ValueError, match=r"files nbvkit did not write \(figures/mine.png\)"):
+        RunFolder(run, overwrite=True).__enter__()
+    assert (run / "figures" / "mine.png").exists()
+    (run / "figures" / "mine.png").unlink()
+    with pytest.raises(ValueError, match="holds this run's input .*config.yaml"):
+        RunFolder(run, overwrite=True, inputs=(run / "config.yaml",)).__enter__()
+    user = tmp_path / "user"
+    user.mkdir()
+    (user / "config.yaml").write_text("seed: 3  # mine\n")
+    (user / "report.html").write_text("<html>")
+    with pytest.raises(ValueError, match="no manifest.json: not an nbvkit run folder"):
+        RunFolder(user, overwrite=True).__enter__()
+    assert (user / "config.yaml").read_text() == "seed: 3  # mine\n"
+    with RunFolder(run, overwrite=True) as rf:  # the run's own files alone: replaced
+        (rf.tmp / "summary.json").write_text("{}")
+    assert is_complete_run(run)
+
+
+def test_a_mount_point_is_refused_before_any_work(monkeypatch, tmp_path, mount_ok):
+    """A target that is a mount point (a container's volume): the rename onto it at the end
+    fails (EBUSY), which lost a whole mission; refused by name at the start (a real tmpfs where
+    this test may mount one, else os.path.ismount saying so), and so is an export into it."""
+    import subprocess
+
+    target = tmp_path / "vol"
+    target.mkdir()
+    if mount_ok:
+        subprocess.run(["mount", "-t", "tmpfs", "-o", "size=1m", "tmpfs", target], check=True)
+    else:
+        real = os.path.ismount
+        monkeypatch.setattr(os.path, "ismount", lambda p: os.fspath(p) == str(target) or real(p))
+    try:
+        with pytest.raises(ValueError, match="is a mount point.*give a folder inside it"):
+            RunFolder(target)
+        from nbvkit.output_paths import check_output_dir
+
+        with pytest.raises(ValueError, match="is a mount point"):
+            check_output_dir(target, "output folder", whole_folder=True)
+    finally:
+        if mount_ok:
+            subprocess.run(["umount", target], check=True)
 
 
 def test_checkpoints_change_nothing_in_the_flight(tmp_path, monkeypatch):
@@ -654,6 +749,45 @@ def test_a_killed_run_leaves_its_last_checkpoint(tmp_path, stopping_part):
     s = json.loads((out / "summary.json").read_text())
     assert "checkpoint" not in s and s["termination"] == "max_iterations"
     assert [x.name for x in tmp_path.glob(f".{out.name}*")] == []
+
+
+def test_a_run_stopped_over_a_complete_run_keeps_it(tmp_path, stopping_part):
+    """`nbvkit run --overwrite` over a complete run, stopped by a `kill` (SIGTERM) after
+    checkpoints: the old run stays whole and unchanged; what the new one flew is a complete run
+    in NAME.interrupted, which the console names. Before, the stopped run (and each checkpoint)
+    took the old run's place. A whole rerun then replaces the old run; NAME.interrupted, what a
+    run flew, stays until the user removes it."""
+    import subprocess
+
+    def nbvkit_cli(*argv):
+        return subprocess.run(
+            [sys.executable, "-m", "nbvkit.cli", *argv],
+            capture_output=True,
+            text=True,
+            timeout=300,
+            env=dict(os.environ, MPLBACKEND="Agg"),
+        )
+
+    out = tmp_path / "run"
+    base = ["run", "--plugin", str(stopping_part), "--out", str(out), "--set"]
+    whole = [*_stopping("error", 100), "max_iterations=2", "report.enabled=false"]
+    assert nbvkit_cli(*base, *whole).returncode == 0
+    old = (out / "summary.json").read_bytes()
+    p = nbvkit_cli(*base[:-1], "--overwrite", "--set", *_stopping("sigterm", 3),
+                   "checkpoint_minutes=1e-9")  # fmt: skip
+    assert p.returncode == 130, p.stderr
+    assert (out / "summary.json").read_bytes() == old and is_complete_run(out)
+    beside = tmp_path / "run.interrupted"
+    assert f"saved in {beside}/" in p.stderr
+    s = json.loads((beside / "summary.json").read_text())
+    assert is_complete_run(beside) and s["termination"] == "interrupted" and s["views"] == 3
+    # its export says it flies part of a mission
+    p = nbvkit_cli(
+        "export", str(beside), "--origin", "47.4", "8.5", "400", "--out", str(beside.parent / "ex")
+    )
+    assert p.returncode == 0 and "warning: the run was stopped after 3 views" in p.stderr
+    assert nbvkit_cli(*base[:-1], "--overwrite", "--set", *whole).returncode == 0
+    assert (out / "summary.json").read_bytes() != old and is_complete_run(beside)
 
 
 @pytest.mark.parametrize("cause", [KeyboardInterrupt, ZeroDivisionError])

@@ -46,6 +46,8 @@ LASER_VOXEL_SIZE: float = 0.1
 DEFAULT_MIN_Z: float = _DEFAULTS.min_z
 
 _SUFFIXES = (".ply", ".pcd", ".npy")
+#: m: the largest coordinate float32 holds to within 1 mm (its spacing there is 2 mm)
+FLOAT32_EXACT_M = 16384.0
 
 
 _CLOUD = _core.SurfaceCloudOptions()
@@ -171,7 +173,9 @@ def write_points(path, points, ascii: bool = False, dtype=None) -> None:
       default — no precision lost; open3d, PCL, MeshLab and CloudCompare read it.
     - ``.pcd``: PCL PCD v0.7, ``DATA binary`` (or ``ascii``), fields ``x y z`` as ``F 4``
       (float32) by default, so ``pcl::io::loadPCDFile<pcl::PointXYZ>`` reads it directly
-      (float32 keeps ~4 µm at 35 m); ``dtype=np.float64`` writes ``F 8``.
+      (float32 keeps ~4 µm at 35 m); ``dtype=np.float64`` writes ``F 8``. A cloud reaching
+      16,384 m (FLOAT32_EXACT_M: float32 rounds it by more than 1 mm, a georeferenced one by
+      0.25 m) is written as ``F 8`` with a RuntimeWarning, or refused for ``dtype=np.float32``.
     - ``.npy``: the ``(N, 3)`` array as float64 (or ``dtype``).
 
     ``points`` may also be a list of ``SurfaceCloud`` objects: their points one cloud after the
@@ -187,19 +191,28 @@ def write_points(path, points, ascii: bool = False, dtype=None) -> None:
             f"cannot write point cloud '{path}': unknown extension "
             f"'{path.suffix}' (use .ply, .pcd or .npy)"
         )
-    if dtype is None:
-        dtype = np.float32 if suffix == ".pcd" else np.float64
-    dtype = np.dtype(dtype)
+    chosen = dtype is not None
+    dtype = np.dtype(dtype if chosen else np.float32 if suffix == ".pcd" else np.float64)
     if dtype not in (np.dtype(np.float32), np.dtype(np.float64)):
         raise ValueError(f"dtype must be float32 or float64, got {dtype}")
     # a list of clouds is finite by construction: SurfaceCloud refuses NaN/inf
     if not _is_cloud_list(points):
         points = _check_points(points, "points")
         big = max(points.max(), -points.min()) if dtype == np.float32 and points.size else 0.0
-        if big > np.finfo(np.float32).max:  # it would write inf
+        if big >= FLOAT32_EXACT_M and not chosen:  # a georeferenced cloud: F 8, said
+            warnings.warn(
+                f"point cloud '{path}': a coordinate reaches {big:.6g} m, which float32 (PCD's "
+                f"F 4, PCL's PointXYZ) rounds by up to {big * 2.0**-24 * 1000:.3g} mm: written "
+                "as F 8 (double); shift the cloud near the origin for F 4",
+                RuntimeWarning,
+                stacklevel=2,
+            )
+            dtype = np.dtype(np.float64)
+        elif big >= FLOAT32_EXACT_M:
             raise ValueError(
-                f"cannot write point cloud '{path}' in float32: a coordinate reaches {big:.3g}, "
-                "beyond float32's range; write it with dtype=np.float64"
+                f"cannot write point cloud '{path}' in float32: a coordinate reaches {big:.3g} "
+                f"m, which float32 rounds by more than 1 mm (from {FLOAT32_EXACT_M:,.0f} m); "
+                "write it with dtype=np.float64 or shift it near the origin"
             )
     n, parts = _parts(points, _WRITE_PART)
     with naming_the_file(path), open(path, "wb") as f:

@@ -55,10 +55,9 @@ class Mission:
     # ------------------------------------------------------------------ the method
     def run(self, out_dir: str | Path | None = None, overwrite: bool = False, finish=False) -> dict:
         """Runs the mission and returns its summary; with out_dir writes its results folder
-        there (Recorder.write; `finish`: also nbvkit.report's end-of-run outputs) whole or not at
-        all (nbvkit.runfolder: ValueError first if it cannot be written, is being written or holds
-        files without ``overwrite``); stopped by Ctrl-C or an error once its views started, what
-        it flew (recorder.fly_into), then the error. Reruns afresh; one at a time (RuntimeError)."""
+        there (`finish`: with the end-of-run outputs) whole or not at all (nbvkit.runfolder);
+        stopped once its views started, what it flew (fly_into), then the error. Reruns afresh;
+        one at a time (RuntimeError)."""
         if not self._running.acquire(blocking=False):
             raise RuntimeError(
                 "this Mission is already running (in another thread): a Mission runs one "
@@ -68,7 +67,8 @@ class Mission:
             if out_dir is None:
                 return self._run()
             # before any work: a mission must not fly and then fail to save
-            with RunFolder(out_dir, overwrite=overwrite, what="out_dir") as folder:
+            inputs = (self.config.mesh.path,)  # which an overwrite may not replace
+            with RunFolder(out_dir, overwrite=overwrite, what="out_dir", inputs=inputs) as folder:
                 flown = fly_into(self, folder, finish)
             return raise_stop(*flown)  # once the folder is in place
         finally:

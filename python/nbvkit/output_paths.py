@@ -38,14 +38,21 @@ def naming_the_file(path):
         raise OSError(e.errno, e.strerror or str(e), os.fspath(path)) from e
 
 
-def check_output_dir(path, what: str = "output folder") -> Path:
-    """ValueError naming `what` unless `path` is (or can be created as) a writable folder.
+def check_output_dir(path, what: str = "output folder", whole_folder: bool = False) -> Path:
+    """ValueError naming `what` unless `path` is (or can be created as) a writable folder; with
+    `whole_folder` (a folder written beside it and renamed into place: a run, an export) also
+    when it is a mount point, which no rename reaches.
 
     Checks by creating it (and any missing parents) and a probe file in it; whatever the check
     created is removed again, so a later failure leaves nothing behind."""
     p = Path(os.fspath(path)).expanduser()
     if p.exists() and not p.is_dir():
         raise ValueError(f"{what} {p} exists and is not a folder")
+    if whole_folder and os.path.ismount(p):
+        raise ValueError(
+            f"{what} {p} is a mount point: its results are written beside it and renamed onto "
+            f"it, which a mount point refuses; give a folder inside it ({p / 'run'})"
+        )
     created = []
     q = p
     while not q.exists() and q != q.parent:

@@ -423,11 +423,22 @@ def fly_into(mission, folder: RunFolder, finish: bool = False) -> tuple[dict, Ba
         why = stop_kind(e)
         rec._say(why, e, "saving what was flown")
         summary = rec.kept_flight(why, error_line(e), time.perf_counter() - rec.flying_since)
-        return rec.write(out, summary), e
+        folder.partial = True  # (beside a complete run an overwrite keeps)
+        return rec.write(out, summary), _saved_in(e, folder)
     finally:
         _CHECKPOINTS.reset(token)
     # stopped during the end-of-run outputs, the whole flight is kept without them
-    return mission.recorder.write_keeping(out, summary, finish=finish)
+    summary, e = mission.recorder.write_keeping(out, summary, finish=finish)
+    folder.partial = e is not None
+    return summary, _saved_in(e, folder)
+
+
+def _saved_in(e: BaseException | None, folder: RunFolder) -> BaseException | None:
+    """e with a note of where what was flown is saved, when a complete run an overwrite kept
+    holds the target (RunFolder.placed; the note is read once the folder is in place)."""
+    if e is not None and folder.partial and folder._keep_old:
+        e.add_note(f"what was flown is saved beside the run kept in {folder.path}")
+    return e
 
 
 def raise_stop(summary: dict, stop: BaseException | None) -> dict:

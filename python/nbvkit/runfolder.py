@@ -23,8 +23,14 @@ file locks it again by its name), so only a killed run leaves one, which the nex
 target removes.
 
 A folder that already holds anything is refused unless ``overwrite`` is given; an overwrite
-replaces it whole (no old file stays beside the new ones) and only when it holds nothing but
-nbvkit's own outputs (``OUTPUT_NAMES``): ``--overwrite`` never removes a user's other files.
+replaces it whole (no old file stays beside the new ones) and only when it is a run folder
+(its manifest) holding nothing but the files its manifest lists (and nbvkit's caches and
+export): ``--overwrite`` never removes a user's other files, nor a run's own inputs (``inputs``:
+its mesh or configuration file inside the folder). A run that replaces a complete run and is
+stopped (Ctrl-C, a kill, an error, its end-of-run outputs failing) keeps the old run: its
+checkpoints and what it flew go beside it, in ``<name>.interrupted`` (``RunFolder.placed``). A
+mount point is refused as a target (a folder renamed onto it fails at the end: give a folder
+inside it).
 """
 from __future__ import annotations
 
@@ -104,6 +110,16 @@ def _listed_files(folder: Path) -> dict:
                 continue
             out[rel] = os.stat(os.path.join(root, name)).st_size
     return dict(sorted(out.items()))
+
+
+def _unlisted_files(folder: Path) -> list:
+    """The files in run folder `folder` that its manifest does not list (not caches, not the
+    export): a user's (all of them where there is no manifest: not a run folder)."""
+    try:
+        listed = read_json_object(folder / MANIFEST, "manifest").get("files", {})
+    except (OSError, ValueError):
+        listed = {}
+    return [rel for rel in _listed_files(folder) if rel not in listed]
 
 
 def _problem(path: Path, check_lock: bool = True) -> str | None:
@@ -292,6 +308,7 @@ class RunFolder:
         wait: bool = False,
         what: str = "run folder",
         carry: tuple = ("cache",),
+        inputs: tuple = (),
     ):
         if isinstance(path, bytes) or not isinstance(path, (str, os.PathLike)):
             raise TypeError(f"{what} must be a folder path, got {type(path).__name__}")
@@ -299,11 +316,18 @@ class RunFolder:
         p = Path(os.fspath(path)).expanduser()
         if p.is_symlink():
             p = Path(os.path.realpath(p))
-        check_output_dir(p, what)  # the old checks and messages: a file, an unwritable place
         p = Path(os.path.abspath(p))
         if p.parent == p:
             raise ValueError(f"{what} {p} is the root folder: choose a folder to hold the run")
+        check_output_dir(p, what, whole_folder=True)  # a file, an unwritable place, a mount
         self.path, self.overwrite, self.what, self.carry = p, overwrite, what, tuple(carry)
+        self.inputs = tuple(Path(os.path.realpath(os.fspath(i))) for i in inputs if i)
+        #: set by the writer when what it writes is a stopped run (fly_into): with a complete
+        #: run in the target it goes beside it (`placed`), as its checkpoints do
+        self.partial = False
+        #: where the results were put (the target, or beside a complete run it kept)
+        self.placed: Path | None = None
+        self._keep_old = False
         self._carried: list = []
         self._lock = RunLock(p, what, wait)
         self.tmp: Path | None = None
@@ -315,6 +339,8 @@ class RunFolder:
         self._lock.acquire()
         try:
             self._check_target()
+            # a complete run overwritten is replaced only by a whole new one
+            self._keep_old = p.exists() and _problem(p, check_lock=False) is None
             self._remove_stale()
             self.tmp = p.parent / f".{p.name}.tmp{os.getpid()}"
             try:
@@ -351,12 +377,26 @@ class RunFolder:
                 "overwrite=True) to replace it, or choose another folder"
             )
         foreign = [e for e in entries if e not in OUTPUT_NAMES]
+        if not foreign and not (p / MANIFEST).is_file():
+            raise ValueError(
+                f"{self.what} {p} holds files but no {MANIFEST}: not an nbvkit run folder (or "
+                "one whose files were changed), not overwriting it; move them away or choose "
+                "another folder"
+            )
+        if not foreign:
+            foreign = _unlisted_files(p)
         if foreign:
             shown = ", ".join(foreign[:5]) + (", ..." if len(foreign) > 5 else "")
             raise ValueError(
-                f"{self.what} {p} holds files nbvkit does not write ({shown}): not overwriting "
+                f"{self.what} {p} holds files nbvkit did not write ({shown}): not overwriting "
                 "it; move them away or choose another folder"
             )
+        for i in self.inputs:
+            if i.is_relative_to(p):
+                raise ValueError(
+                    f"{self.what} {p} holds this run's input {i}: overwriting the folder would "
+                    "replace it; copy it elsewhere first or choose another folder"
+                )
 
     def _remove_stale(self) -> None:
         """Temporary folders of earlier runs on this target (killed: we hold the lock now)."""
@@ -366,6 +406,18 @@ class RunFolder:
             for d in p.parent.glob(f"{glob.escape(prefix)}*"):
                 if d.is_dir() and d.name[len(prefix) :].isdigit():
                     shutil.rmtree(d, ignore_errors=True)
+
+    def _destination(self) -> Path:
+        """Where results go: the target, or beside the complete run it holds for a stopped run
+        (<name>.interrupted, or <name>.interrupted<pid> where a folder not a run has that
+        name)."""
+        p = self.path
+        if not (self.partial and self._keep_old):
+            return p
+        beside = p.parent / f"{p.name}.interrupted"
+        if beside.exists() and os.listdir(beside) and not looks_like_run(beside):
+            beside = p.parent / f"{p.name}.interrupted{os.getpid()}"
+        return beside
 
     def checkpoint(self, write) -> None:
         """Puts a complete run in place as the target while this one goes on: what
@@ -380,7 +432,12 @@ class RunFolder:
             ck.mkdir()
             write(ck)
             write_manifest(ck)
-            self._place(ck)
+            partial, self.partial = self.partial, True  # a checkpoint is a stopped run
+            try:
+                self.placed = self._destination()
+            finally:
+                self.partial = partial
+            self._place(ck, self.placed)
         finally:
             shutil.rmtree(ck, ignore_errors=True)  # (after a swap: the previous checkpoint)
 
@@ -391,7 +448,11 @@ class RunFolder:
                 return
             try:
                 write_manifest(self.tmp)
-                self._place(self.tmp)
+                beside = self.placed if self.placed != self.path else None  # a checkpoint's
+                self.placed = self._destination()
+                self._place(self.tmp, self.placed)
+                if beside is not None and self.placed == self.path:  # whole: no checkpoint
+                    shutil.rmtree(beside, ignore_errors=True)
             except BaseException:
                 self._discard()
                 raise
@@ -408,9 +469,9 @@ class RunFolder:
                 pass
         shutil.rmtree(self.tmp, ignore_errors=True)
 
-    def _place(self, src: Path) -> None:
-        """Moves the folder `src` onto the target in one step (the old one removed)."""
-        p = self.path
+    def _place(self, src: Path, p: Path) -> None:
+        """Moves the folder `src` onto `p` (the target, or beside it) in one step (the old one
+        removed)."""
         if p.exists() and os.listdir(p):
             if _exchange(src, p):  # src now holds the old run
                 shutil.rmtree(src, ignore_errors=True)

@@ -115,10 +115,12 @@ def run(args) -> int:
     cfg = config_from_args(args)
     out = args.out or f"runs/scenario{cfg.scenario}_start{cfg.start}"
     # checked (writable, not in use by another run, empty or --overwrite) before any work
-    with RunFolder(out, overwrite=args.overwrite, what="--out") as folder:
+    inputs = (cfg.mesh.path, args.config)  # which an overwrite may not replace
+    with RunFolder(out, overwrite=args.overwrite, what="--out", inputs=inputs) as folder:
         mission = Mission(cfg)
         with terminate_as_interrupt():  # a `kill` keeps the flight as Ctrl-C does
             s, stop = fly_into(mission, folder, finish=True)
+    out = folder.placed  # beside a complete run --overwrite kept, for a stopped one
     print_summary(s, out, level=not (cfg.placement.gimbal or cfg.placement.explore_gimbal))
     if stop is not None and s.get("stopped_during") == "saving":
         print(

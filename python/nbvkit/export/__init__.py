@@ -22,9 +22,9 @@ from ..run_report import update_flight_section
 from ..limits import is_number
 from ..locks import pid_alive
 from ..output_paths import check_output_dir
-from ..runfolder import require_complete_run
+from ..runfolder import read_summary, require_complete_run
 from .plan import read_run
-from . import clearance, colmap, items, plan, writers
+from . import cautions, colmap, items, plan, writers
 from .wpml import write_wpml_kmz
 
 GEO_NAMES = ("latitude", "longitude", "altitude")
@@ -269,7 +269,7 @@ def export_mission(
     if out_dir is not None and not os.fspath(out_dir).strip():
         raise ValueError("out_dir is empty: give a folder, or None for RUN_DIR/export")
     out = Path(out_dir).expanduser() if out_dir is not None else run / "export"
-    check_output_dir(out, "output folder")  # before the work (a file on its path, no rights)
+    check_output_dir(out, "output folder", whole_folder=True)  # before the work (a file, a mount)
 
     fl, sp = _planner(run, model, need_all_returns=split)
     whole = sp.whole()
@@ -339,8 +339,9 @@ def _write_into(out: Path, summary: dict, fl, sorties, frame, model, dji, budget
         files.append("export.json")
         summary["files"] = files
         summary["mission_items"] = items.mission_items(tmp, files)
-        summary["clearance"] = clearance.clearance(fl.config)
-        summary["warnings"] = clearance.clearance_warnings(summary["clearance"])
+        summary["clearance"] = cautions.clearance(fl.config)
+        summary["warnings"] = cautions.stopped_warnings(read_summary(fl.run_dir))
+        summary["warnings"] += cautions.clearance_warnings(summary["clearance"])
         summary["warnings"] += items.item_warnings(summary["mission_items"])
         summary["out"] = str(out)
         (tmp / "export.json").write_text(json.dumps(summary, indent=2, allow_nan=False) + "\n")

@@ -4,6 +4,7 @@ to start from the planned poses."""
 from __future__ import annotations
 
 import math
+import re
 import string
 
 import numpy as np
@@ -128,9 +129,21 @@ def photo_name(pattern: str, first: int, seq: int) -> str:
     pattern where it has not exactly one such field or makes a name COLMAP cannot read (its
     images.txt separates fields by spaces; a name is a path relative to the image folder)."""
     try:
-        fields = [f for _, f, _, _ in string.Formatter().parse(pattern) if f is not None]
-        if fields not in ([""], ["0"]):
+        parsed = [(f, spec, conv) for _, f, spec, conv in string.Formatter().parse(pattern)]
+        fields = [(f, spec, conv) for f, spec, conv in parsed if f is not None]
+        if [f for f, _, _ in fields] not in ([""], ["0"]):
             raise ValueError("one replacement field, {} or {:04d}")
+        _, spec, conv = fields[0]
+        # a whole number's digits, zero-padded to at most 32 (distinct numbers, distinct names:
+        # '{:.1e}' named 11 photos IMG_1.6e+02.JPG; '{:>999999999d}' built a gigabyte first)
+        if (
+            conv is not None
+            or not re.fullmatch(r"(0?[1-9]\d?)?d?", spec or "")
+            or (spec and int(re.sub(r"\D", "", spec) or 0) > 32)
+        ):
+            raise ValueError(
+                "its field must write the number's digits: {}, {:d} or {:04d}, at most 32 wide"
+            )
         name = pattern.format(first + seq - 1)
     except (ValueError, IndexError, KeyError) as e:
         raise ValueError(
