@@ -863,6 +863,15 @@ def test_bad_input_names_the_problem_and_writes_nothing(run_dir, tmp_path, kwarg
     assert list(tmp_path.iterdir()) == []  # no output folder, no temporary folder
 
 
+def test_an_export_into_a_run_folder_is_refused(run_dir, tmp_path):
+    """An export's files among a run's (--out another run's folder, or the run's own) made
+    --overwrite refuse the run as holding files nbvkit did not write."""
+    before = sorted(p.name for p in run_dir.iterdir())
+    with pytest.raises(ValueError, match="is a run folder: give a folder of its own"):
+        export_mission(run_dir, "qgc", ORIGIN, HEADING, run_dir)
+    assert sorted(p.name for p in run_dir.iterdir()) == before
+
+
 def test_an_output_folder_that_cannot_be_made_is_named_before_the_work(run_dir, tmp_path):
     # a file on its path: "[Errno 20] Not a directory: '.../afile/.nbvkit-export-...'", a
     # temporary folder's name, once the sorties were planned

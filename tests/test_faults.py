@@ -251,9 +251,20 @@ def test_overwrite_removes_only_what_a_run_wrote(tmp_path, finished_run):
     with pytest.raises(ValueError, match="no manifest.json: not an nbvkit run folder"):
         RunFolder(user, overwrite=True).__enter__()
     assert (user / "config.yaml").read_text() == "seed: 3  # mine\n"
+    # a killed export's temporary folder (its process gone) does not block it; a live one does
+    import subprocess
+
+    dead = subprocess.Popen([sys.executable, "-c", "pass"])
+    dead.wait()
+    (run / f".nbvkit-export-{dead.pid}-0a1b2c3d4e5f").mkdir()
+    (run / f".nbvkit-export-{dead.pid}-0a1b2c3d4e5f" / "mission.plan").write_text("{}")
+    (run / f".nbvkit-export-{os.getpid()}-0a1b2c3d4e5f").mkdir()
+    with pytest.raises(ValueError, match=f"did not write \\(.nbvkit-export-{os.getpid()}-"):
+        RunFolder(run, overwrite=True).__enter__()
+    (run / f".nbvkit-export-{os.getpid()}-0a1b2c3d4e5f").rmdir()
     with RunFolder(run, overwrite=True) as rf:  # the run's own files alone: replaced
         (rf.tmp / "summary.json").write_text("{}")
-    assert is_complete_run(run)
+    assert is_complete_run(run) and not any(x.name.startswith(".nbvkit") for x in run.iterdir())
 
 
 def test_a_mount_point_is_refused_before_any_work(monkeypatch, tmp_path, mount_ok):
@@ -732,6 +743,8 @@ def test_a_killed_run_leaves_its_last_checkpoint(tmp_path, stopping_part):
     require_complete_run(out)
     s = json.loads((out / "summary.json").read_text())
     assert s["checkpoint"] is True and s["stopped_by"] == CHECKPOINT_STOP
+    with pytest.raises(ValueError, match="already holds a checkpoint of a run that was killed"):
+        RunFolder(out).__enter__()
     assert s["termination"] == "interrupted" and s["stopped_during"] == "flight"
     assert s["views"] == 4 and s["checkpoints"] == s["iterations"] - 1  # this one not counted
     rows = (out / "iterations.csv").read_text().strip().splitlines()

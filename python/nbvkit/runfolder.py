@@ -48,7 +48,7 @@ import numpy as np
 
 from ._version import __version__
 from .limits import MAX_TEXT_FILE_BYTES, check_input_file, is_number, require_bool
-from .locks import RunLock, lock_holder
+from .locks import RunLock, lock_holder, pid_alive
 from .output_paths import MANIFEST, check_output_dir, write_text_atomic
 
 __all__ = [
@@ -119,7 +119,26 @@ def _unlisted_files(folder: Path) -> list:
         listed = read_json_object(folder / MANIFEST, "manifest").get("files", {})
     except (OSError, ValueError):
         listed = {}
-    return [rel for rel in _listed_files(folder) if rel not in listed]
+    return [
+        rel
+        for rel in _listed_files(folder)
+        if rel not in listed and not _stale_export(rel.split("/", 1)[0])
+    ]
+
+
+def _stale_export(name: str) -> bool:
+    """Whether `name` is the temporary folder of an export into the run folder (its export/)
+    whose process is gone (killed while writing: nbvkit.export.TMP_PREFIX)."""
+    m = re.fullmatch(r"\.nbvkit-export-(\d+)-[0-9a-f]+", name)
+    return m is not None and not pid_alive(int(m.group(1)))
+
+
+def _is_checkpoint(folder: Path) -> bool:
+    """Whether complete run folder `folder` is a checkpoint a killed run left."""
+    try:
+        return read_summary(folder).get("checkpoint") is True
+    except (OSError, ValueError):
+        return False
 
 
 def _problem(path: Path, check_lock: bool = True) -> str | None:
@@ -372,11 +391,13 @@ class RunFolder:
         if not self.overwrite:
             complete = _problem(p, check_lock=False) is None
             state = "a complete run" if complete else "files (an unfinished run?)"
+            if complete and _is_checkpoint(p):
+                state = "a checkpoint of a run that was killed (what it flew until then)"
             raise ValueError(
                 f"{self.what} {p} already holds {state}: pass --overwrite (Python: "
                 "overwrite=True) to replace it, or choose another folder"
             )
-        foreign = [e for e in entries if e not in OUTPUT_NAMES]
+        foreign = [e for e in entries if e not in OUTPUT_NAMES and not _stale_export(e)]
         if not foreign and not (p / MANIFEST).is_file():
             raise ValueError(
                 f"{self.what} {p} holds files but no {MANIFEST}: not an nbvkit run folder (or "

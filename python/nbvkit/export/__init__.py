@@ -22,7 +22,7 @@ from ..run_report import update_flight_section
 from ..limits import is_number
 from ..locks import pid_alive
 from ..output_paths import check_output_dir
-from ..runfolder import read_summary, require_complete_run
+from ..runfolder import looks_like_run, read_summary, require_complete_run
 from .plan import read_run
 from . import cautions, colmap, items, plan, writers
 from .wpml import write_wpml_kmz
@@ -107,8 +107,7 @@ def _checked(origin, heading_deg, speed, climb_rate, hover_s, altitude_ref, dji_
     return frame, model, (drone, _enum("dji_payload", dji_payload))
 
 
-def _pair_or_triple(value, n: int) -> bool:
-    """Whether value is a sequence of n items (a string is not)."""
+def _pair_or_triple(value, n: int) -> bool:  # a sequence of n items (a string is not)
     return not isinstance(value, (str, bytes)) and hasattr(value, "__len__") and len(value) == n
 
 
@@ -270,6 +269,8 @@ def export_mission(
         raise ValueError("out_dir is empty: give a folder, or None for RUN_DIR/export")
     out = Path(out_dir).expanduser() if out_dir is not None else run / "export"
     check_output_dir(out, "output folder", whole_folder=True)  # before the work (a file, a mount)
+    if looks_like_run(out):  # its files would lie among a run's, which --overwrite then refused
+        raise ValueError(f"output folder {out} is a run folder: give a folder of its own")
 
     fl, sp = _planner(run, model, need_all_returns=split)
     whole = sp.whole()
@@ -374,7 +375,7 @@ def _split(fl, sp, usable, flight_time_min, reserve_pct, fits=None, max_items=No
     if none:
         need = min((u["needed_s"] for u in unreachable if u["capture"] == VIEW), default=None)
         raise ValueError(
-            f"flight time {flight_time_min:g} min ({usable / 60:.2f} min usable after the "
+            f"flight time {flight_time_min:g} min ({usable / 60:.3g} min usable after the "
             f"{reserve_pct:g}% reserve) is too short for any view"
             + (f": the nearest view needs {need / 60:.2f} min out, hover and back" if need else "")
         )
