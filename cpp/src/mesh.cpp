@@ -550,7 +550,6 @@ void check_collada(const std::string& path) {
   }
 }
 
-
 // assimp's warnings and errors while one file is read: the importers drop data they cannot use
 // with only a log line (a glTF face indexing past its vertices: "Some faces had out-of-range
 // indices. Those faces were dropped."), which nbvkit refuses. assimp's logger is one per
