@@ -795,9 +795,11 @@ def test_a_run_stopped_over_a_complete_run_keeps_it(tmp_path, stopping_part):
     s = json.loads((beside / "summary.json").read_text())
     assert is_complete_run(beside) and s["termination"] == "interrupted" and s["views"] == 3
     # its export says it flies part of a mission
-    p = nbvkit_cli(
-        "export", str(beside), "--origin", "47.4", "8.5", "400", "--out", str(beside.parent / "ex")
-    )
+    plugin = ["--plugin", str(stopping_part)]
+    ex = ["--origin", "47.4", "8.5", "400", "--out", str(beside.parent / "ex")]
+    p = nbvkit_cli("export", str(beside), *plugin, *ex)
+    assert p.returncode == 0 and "warning: the run was stopped after 3 views" in p.stderr
+    p = nbvkit_cli("evaluate", str(beside), *plugin, "--mesh", s["mesh"], "--gt-density", "50")
     assert p.returncode == 0 and "warning: the run was stopped after 3 views" in p.stderr
     assert nbvkit_cli(*base[:-1], "--overwrite", "--set", *whole).returncode == 0
     assert (out / "summary.json").read_bytes() != old and is_complete_run(beside)

@@ -216,3 +216,19 @@ def _fsync_path(p: Path) -> None:
         os.fsync(fd)
     finally:
         os.close(fd)
+
+
+def stopped_note(summary: dict) -> str | None:
+    """What a reader of a run's results (export, evaluate) is told where its summary says it was
+    stopped before its end (Ctrl-C, a kill, an error; a checkpoint a kill left): it flew part of
+    its mission. None for a whole run."""
+    if summary.get("termination") not in ("interrupted", "failed") and not summary.get(
+        "checkpoint"
+    ):
+        return None
+    what = "is a checkpoint, left by a kill" if summary.get("checkpoint") else "was stopped"
+    return (
+        f"the run {what} after {summary.get('views', '?')} views "
+        f"({summary.get('stopped_by') or summary.get('termination')}): it flew part of its "
+        "mission"
+    )

@@ -62,6 +62,7 @@ from .run_manifest import (  # noqa: F401  (re-exported: the readers import them
     read_summary,
     require_complete_run,
     run_workspace,
+    stopped_note,
     write_manifest,
 )
 

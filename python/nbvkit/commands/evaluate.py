@@ -202,6 +202,9 @@ def run(args) -> int:
     apart = _frames_apart(np.asarray(cloud), ev.gt_points, max(args.taus))
     if apart:
         print(f"warning: {apart}", file=sys.stderr)
+    stopped = _stopped_run(cloud_path.parent)
+    if stopped:
+        print(f"warning: {stopped}", file=sys.stderr)
     print(format_report(result))
     if args.json:
         out = dict(result)
@@ -297,6 +300,18 @@ def _settings_of_run(args, folder: Path) -> None:
         )
     if mesh.path is not None:  # (the default airliner: no --mesh, at the run's scale and up)
         args.mesh = path
+
+
+def _stopped_run(folder: Path) -> str | None:
+    """run_manifest.stopped_note of the run folder holding the cloud, if it is one."""
+    from ..runfolder import read_summary, stopped_note
+
+    if not (folder / "summary.json").is_file():
+        return None
+    try:
+        return stopped_note(read_summary(folder))
+    except (OSError, ValueError):
+        return None
 
 
 def run_cloud(path: Path) -> Path:

@@ -22,7 +22,7 @@ from ..run_report import update_flight_section
 from ..limits import is_number
 from ..locks import pid_alive
 from ..output_paths import check_output_dir
-from ..runfolder import looks_like_run, read_summary, require_complete_run
+from ..runfolder import looks_like_run, read_summary, require_complete_run, stopped_note
 from .plan import read_run
 from . import cautions, colmap, items, plan, writers
 from .wpml import write_wpml_kmz
@@ -341,7 +341,7 @@ def _write_into(out: Path, summary: dict, fl, sorties, frame, model, dji, budget
         summary["files"] = files
         summary["mission_items"] = items.mission_items(tmp, files)
         summary["clearance"] = cautions.clearance(fl.config)
-        summary["warnings"] = cautions.stopped_warnings(read_summary(fl.run_dir))
+        summary["warnings"] = [w for w in [stopped_note(read_summary(fl.run_dir))] if w]
         summary["warnings"] += cautions.clearance_warnings(summary["clearance"])
         summary["warnings"] += items.item_warnings(summary["mission_items"])
         summary["out"] = str(out)

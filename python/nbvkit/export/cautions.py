@@ -1,14 +1,9 @@
-"""What the export warns of in the run it flies.
-
-The stand-off a run's flight keeps from the structure and the ground, as the export states it:
+"""The stand-off a run's flight keeps from the structure and the ground, as the export states it:
 the planner keeps the vehicle's collision sphere (vehicle.collision_radius) off every occupied or
 unknown cell, and its centre vehicle.min_altitude (the radius + 0.1 m by default) above the
 ground, so a flown point may lie that close to the surface. Without RTK, a drone's GNSS and
 barometer place it within about 1-2 m; a flight planned closer than that is a simulation's, not a
-real one's.
-
-A run that was stopped (Ctrl-C, a kill, an error; a checkpoint left by a kill) flew part of its
-mission: its export flies that part."""
+real one's."""
 from __future__ import annotations
 
 #: m: the position error of a drone without RTK (GNSS horizontally, the barometer vertically)
@@ -37,18 +32,4 @@ def clearance_warnings(c: dict) -> list:
         f"{GNSS_ERROR_M:g} m. Fly it with RTK positioning and obstacle sensing on, or fly the "
         f"run again with --set vehicle.collision_radius={GNSS_ERROR_M:g} (and "
         f"vehicle.min_altitude) for a flight that keeps clear"
-    ]
-
-
-def stopped_warnings(summary: dict) -> list:
-    """The export's warning where the run's summary says it was stopped before its end."""
-    if summary.get("termination") not in ("interrupted", "failed") and not summary.get(
-        "checkpoint"
-    ):
-        return []
-    what = "is a checkpoint, left by a kill" if summary.get("checkpoint") else "was stopped"
-    return [
-        f"the run {what} after {summary.get('views', '?')} views "
-        f"({summary.get('stopped_by') or summary.get('termination')}): the export flies the "
-        "part of the mission it flew, not a whole mission"
     ]
