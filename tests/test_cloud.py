@@ -340,6 +340,14 @@ def test_points_float32_would_round_are_not_written_as_float32(tmp_path):
             with pytest.raises(ValueError, match="float32 rounds by more than 1 mm"):
                 write_points(tmp_path / name, pts, dtype=np.float32)
             assert not (tmp_path / name).exists()
+    # a list of SurfaceClouds (what a run writes) is checked as an array is
+    c = nbvkit._core.SurfaceCloud(voxel_size=0.5)
+    c.add(np.array([[500000.3, 100.3, 5.1], [500001.3, 100.3, 5.1]]))  # above min_z
+    with pytest.warns(RuntimeWarning, match="rounds by up to 15.6 mm: written as F 8"):
+        write_points(tmp_path / "list.pcd", [c])
+    np.testing.assert_array_equal(read_points(tmp_path / "list.pcd"), c.points)
+    with pytest.raises(ValueError, match="float32 rounds by more than 1 mm"):
+        write_points(tmp_path / "list32.pcd", [c], dtype=np.float32)
     near = np.array([[16383.0, 0.1, 0.2]])  # within 1 mm in float32: F 4 as before
     write_points(tmp_path / "near.pcd", near)
     assert "SIZE 4 4 4" in (tmp_path / "near.pcd").read_bytes().split(b"DATA")[0].decode()

@@ -869,6 +869,8 @@ def test_an_export_into_a_run_folder_is_refused(run_dir, tmp_path):
     before = sorted(p.name for p in run_dir.iterdir())
     with pytest.raises(ValueError, match="is a run folder: give a folder of its own"):
         export_mission(run_dir, "qgc", ORIGIN, HEADING, run_dir)
+    with pytest.raises(ValueError, match=f"lies in {run_dir}, a run folder"):
+        export_mission(run_dir, "qgc", ORIGIN, HEADING, run_dir / "figures" / "ex")
     assert sorted(p.name for p in run_dir.iterdir()) == before
 
 

@@ -196,35 +196,43 @@ def test_checkpoints_are_complete_runs_put_in_place_until_the_run_is(tmp_path, f
 
 def test_a_stopped_run_over_a_complete_run_goes_beside_it(tmp_path, finished_run):
     """--overwrite of a complete run by a run that is stopped (Ctrl-C, an error, the end-of-run
-    outputs failing: RunFolder.partial): the old run stays whole, what the new one flew is put
-    beside it in r.interrupted (a previous r.interrupted replaced; a user's folder of that name
-    kept, r.interrupted<pid> used)."""
+    outputs failing: RunFolder.partial): the old run stays whole with its cache, what the new
+    one flew is put beside it in the first free of r.interrupted, r.interrupted<pid>, ... (what
+    an earlier stopped run left there, or a file of that name, is kept); where no such folder
+    can be made (a name too long), it is kept in its temporary folder, which `placed` names."""
     import shutil
 
     out = tmp_path / "r"
     shutil.copytree(finished_run[0], out)
+    (out / "cache").mkdir(exist_ok=True)
     old = (out / "summary.json").read_bytes()
-    for _ in range(2):
-        with RunFolder(out, overwrite=True) as rf:
-            (rf.tmp / "summary.json").write_text("{}")
+
+    def stopped(target, text):
+        with RunFolder(target, overwrite=True) as rf:
+            (rf.tmp / "summary.json").write_text(text)
             rf.partial = True
-        assert (out / "summary.json").read_bytes() == old and is_complete_run(out)
-        assert rf.placed == tmp_path / "r.interrupted" and is_complete_run(rf.placed)
-    (tmp_path / "r.interrupted" / MANIFEST).unlink()
-    (tmp_path / "r.interrupted" / "notes.txt").write_text("mine")
-    shutil.rmtree(tmp_path / "r.interrupted" / "cache", ignore_errors=True)
-    for f in (tmp_path / "r.interrupted").iterdir():
-        if f.name != "notes.txt":
-            f.unlink() if f.is_file() else shutil.rmtree(f)
-    with RunFolder(out, overwrite=True) as rf:
-        (rf.tmp / "summary.json").write_text("{}")
-        rf.partial = True
-    assert rf.placed == tmp_path / f"r.interrupted{os.getpid()}"
-    assert (tmp_path / "r.interrupted" / "notes.txt").read_text() == "mine"
+        return rf
+
+    first = stopped(out, '{"k": 1}')
+    assert first.placed == tmp_path / "r.interrupted" and is_complete_run(first.placed)
+    second = stopped(out, '{"k": 2}')
+    assert second.placed == tmp_path / f"r.interrupted{os.getpid()}"
+    assert json.loads((tmp_path / "r.interrupted" / "summary.json").read_text()) == {"k": 1}
+    assert (out / "summary.json").read_bytes() == old and is_complete_run(out)
+    assert (out / "cache").is_dir()  # the kept run keeps its cache
+    shutil.rmtree(second.placed)
+    shutil.rmtree(tmp_path / "r.interrupted")
+    (tmp_path / "r.interrupted").write_text("mine")  # a file of that name
+    assert stopped(out, "{}").placed == tmp_path / f"r.interrupted{os.getpid()}"
+    assert (tmp_path / "r.interrupted").read_text() == "mine"
+    # a name too long for "<name>.interrupted": kept where it was written, not lost
+    long = tmp_path / ("n" * 245)
+    shutil.copytree(finished_run[0], long)
+    rf = stopped(long, '{"k": 3}')
+    assert rf.placed == rf.tmp and json.loads((rf.tmp / "summary.json").read_text()) == {"k": 3}
+    assert is_complete_run(long)
     # a fresh target takes a stopped run in place
-    with RunFolder(tmp_path / "new") as rf:
-        (rf.tmp / "summary.json").write_text("{}")
-        rf.partial = True
+    rf = stopped(tmp_path / "new", "{}")
     assert rf.placed == tmp_path / "new" and is_complete_run(tmp_path / "new")
 
 
@@ -244,11 +252,23 @@ def test_overwrite_removes_only_what_a_run_wrote(tmp_path, finished_run):
     (run / "figures" / "mine.png").unlink()
     with pytest.raises(ValueError, match="holds this run's input .*config.yaml"):
         RunFolder(run, overwrite=True, inputs=(run / "config.yaml",)).__enter__()
+    (tmp_path / "link").symlink_to(tmp_path)  # the folder reached through a symlinked parent
+    with pytest.raises(ValueError, match="holds this run's input .*config.yaml"):
+        RunFolder(
+            tmp_path / "link" / "run", overwrite=True, inputs=(run / "config.yaml",)
+        ).__enter__()
+    manifest = (run / MANIFEST).read_text()
+    (run / MANIFEST).write_text('{"files": [')  # damaged: nothing tells its files apart
+    with pytest.raises(ValueError, match="no readable manifest.json"):
+        RunFolder(run, overwrite=True).__enter__()
+    with RunFolder(run, overwrite=True, own=True) as rf:  # an experiment's runs/: replaced
+        rf.cancel()
+    (run / MANIFEST).write_text(manifest)
     user = tmp_path / "user"
     user.mkdir()
     (user / "config.yaml").write_text("seed: 3  # mine\n")
     (user / "report.html").write_text("<html>")
-    with pytest.raises(ValueError, match="no manifest.json: not an nbvkit run folder"):
+    with pytest.raises(ValueError, match="no readable manifest.json .not a run folder"):
         RunFolder(user, overwrite=True).__enter__()
     assert (user / "config.yaml").read_text() == "seed: 3  # mine\n"
     # a killed export's temporary folder (its process gone) does not block it; a live one does
@@ -289,6 +309,18 @@ def test_a_mount_point_is_refused_before_any_work(monkeypatch, tmp_path, mount_o
             check_output_dir(target, "output folder", whole_folder=True)
     finally:
         if mount_ok:
+            subprocess.run(["umount", target], check=True)
+    if mount_ok:  # a bind mount of a folder on the same file system (os.path.ismount: False)
+        (tmp_path / "src").mkdir()
+        subprocess.run(["mount", "--bind", tmp_path / "src", target], check=True)
+        try:
+            (tmp_path / "link").symlink_to(target)
+            for p in (target, tmp_path / "link"):
+                with pytest.raises(ValueError, match="is a mount point"):
+                    RunFolder(p)
+                with pytest.raises(ValueError, match="is a mount point"):
+                    check_output_dir(p, "output folder", whole_folder=True)
+        finally:
             subprocess.run(["umount", target], check=True)
 
 

@@ -9,6 +9,7 @@ MeshLab write, and write files those tools read.
 from __future__ import annotations
 
 import io
+import math
 import os
 import re
 import warnings
@@ -198,17 +199,20 @@ def write_points(path, points, ascii: bool = False, dtype=None) -> None:
     # a list of clouds is finite by construction: SurfaceCloud refuses NaN/inf
     if not _is_cloud_list(points):
         points = _check_points(points, "points")
-        big = max(points.max(), -points.min()) if dtype == np.float32 and points.size else 0.0
-        if big >= FLOAT32_EXACT_M and not chosen:  # a georeferenced cloud: F 8, said
+    big = _largest(points) if dtype == np.float32 else 0.0
+    if big >= FLOAT32_EXACT_M:
+        # float32's rounding there: half its spacing (inf beyond its range)
+        off = float(np.spacing(np.float32(big))) / 2 if big < 3e38 else math.inf
+        if not chosen:  # a georeferenced cloud: F 8, said
             warnings.warn(
                 f"point cloud '{path}': a coordinate reaches {big:.6g} m, which float32 (PCD's "
-                f"F 4, PCL's PointXYZ) rounds by up to {big * 2.0**-24 * 1000:.3g} mm: written "
-                "as F 8 (double); shift the cloud near the origin for F 4",
+                f"F 4, PCL's PointXYZ) rounds by up to {off * 1000:.3g} mm: written as F 8 "
+                "(double); shift the cloud near the origin for F 4",
                 RuntimeWarning,
                 stacklevel=2,
             )
             dtype = np.dtype(np.float64)
-        elif big >= FLOAT32_EXACT_M:
+        else:
             raise ValueError(
                 f"cannot write point cloud '{path}' in float32: a coordinate reaches {big:.3g} "
                 f"m, which float32 rounds by more than 1 mm (from {FLOAT32_EXACT_M:,.0f} m); "
@@ -238,6 +242,13 @@ def _parts(points, size: int):
         n = sum(len(c) for c in clouds)
         return n, (_core.stack_points(clouds, b, b + size) for b in range(0, n, size))
     return len(points), (points[b : b + size] for b in range(0, len(points), size))
+
+
+def _largest(points) -> float:
+    """The largest |coordinate| of `points` (an (N, 3) array, or a list of SurfaceClouds read in
+    parts as _parts reads them), 0 for none."""
+    _, parts = _parts(points, _WRITE_PART)
+    return max((float(np.abs(q).max()) for q in parts if len(q)), default=0.0)
 
 
 def _is_cloud_list(points) -> bool:

@@ -91,7 +91,7 @@ def _run_one(spec: RunSpec, root: Path, threads: int) -> dict:
         return row
     # A kept folder that is incomplete, of another configuration or damaged is replaced whole;
     # another worker flying the same run holds its lock: wait for it, then reuse what it wrote.
-    with RunFolder(final, overwrite=True, wait=True, carry=()) as folder:
+    with RunFolder(final, overwrite=True, wait=True, carry=(), own=True) as folder:
         if _kept_row(final, cfg, mesh_sha1) is not None:
             folder.cancel()
         else:

@@ -70,7 +70,7 @@ class Mission:
             inputs = (self.config.mesh.path,)  # which an overwrite may not replace
             with RunFolder(out_dir, overwrite=overwrite, what="out_dir", inputs=inputs) as folder:
                 flown = fly_into(self, folder, finish)
-            return raise_stop(*flown)  # once the folder is in place
+            return raise_stop(*flown, folder)  # once the folder is in place
         finally:
             self._running.release()
 

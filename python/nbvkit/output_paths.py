@@ -4,8 +4,10 @@ fail to write its results, nor a command overwrite one of its inputs or a finish
 from __future__ import annotations
 
 import contextlib
+import functools
 import json
 import os
+import re
 import stat
 import sys
 import tempfile
@@ -38,6 +40,23 @@ def naming_the_file(path):
         raise OSError(e.errno, e.strerror or str(e), os.fspath(path)) from e
 
 
+def is_mount_point(path) -> bool:
+    """Whether `path` (resolved: a symlink to one counts) is a mount point: another file system
+    (os.path.ismount), or any mount the kernel lists (/proc/self/mountinfo: a bind mount of a
+    folder of the same file system, which os.path.ismount does not see)."""
+    real = os.path.realpath(os.fspath(path))
+    if os.path.ismount(real):
+        return True
+    try:
+        with open("/proc/self/mountinfo", encoding="utf-8", errors="replace") as f:
+            points = [line.split()[4] for line in f if len(line.split()) > 4]
+    except OSError:
+        return False
+    # the mount point field escapes space, tab, newline and backslash as octal (\040 ...)
+    unescape = functools.partial(re.sub, r"\\([0-7]{3})", lambda m: chr(int(m.group(1), 8)))
+    return real in {unescape(p) for p in points}
+
+
 def check_output_dir(path, what: str = "output folder", whole_folder: bool = False) -> Path:
     """ValueError naming `what` unless `path` is (or can be created as) a writable folder; with
     `whole_folder` (a folder written beside it and renamed into place: a run, an export) also
@@ -48,7 +67,7 @@ def check_output_dir(path, what: str = "output folder", whole_folder: bool = Fal
     p = Path(os.fspath(path)).expanduser()
     if p.exists() and not p.is_dir():
         raise ValueError(f"{what} {p} exists and is not a folder")
-    if whole_folder and os.path.ismount(p):
+    if whole_folder and is_mount_point(p):
         raise ValueError(
             f"{what} {p} is a mount point: its results are written beside it and renamed onto "
             f"it, which a mount point refuses; give a folder inside it ({p / 'run'})"
@@ -181,6 +200,17 @@ def _same_file(a: Path, b: Path) -> bool:
         return os.path.samefile(a, b)
     except OSError:  # one of them does not exist (yet): compare where their links lead
         return os.path.realpath(a) == os.path.realpath(b)
+
+
+def check_export_dir(out: Path) -> None:
+    """ValueError where the export folder `out` is a run folder or lies in one other than in
+    its export/ (symbolic links resolved): its files would lie among the run's, which
+    --overwrite then refused as not nbvkit's."""
+    real = Path(os.path.realpath(out))
+    run = _run_folder_holding(real / "x")  # real itself or a folder above it
+    if run is not None and not real.is_relative_to(run / "export"):
+        where = "is" if run == real else f"lies in {run},"
+        raise ValueError(f"output folder {out} {where} a run folder: give a folder of its own")
 
 
 def _run_folder_holding(p: Path) -> Path | None:

@@ -424,27 +424,22 @@ def fly_into(mission, folder: RunFolder, finish: bool = False) -> tuple[dict, Ba
         rec._say(why, e, "saving what was flown")
         summary = rec.kept_flight(why, error_line(e), time.perf_counter() - rec.flying_since)
         folder.partial = True  # (beside a complete run an overwrite keeps)
-        return rec.write(out, summary), _saved_in(e, folder)
+        return rec.write(out, summary), e
     finally:
         _CHECKPOINTS.reset(token)
     # stopped during the end-of-run outputs, the whole flight is kept without them
     summary, e = mission.recorder.write_keeping(out, summary, finish=finish)
     folder.partial = e is not None
-    return summary, _saved_in(e, folder)
+    return summary, e
 
 
-def _saved_in(e: BaseException | None, folder: RunFolder) -> BaseException | None:
-    """e with a note of where what was flown is saved, when a complete run an overwrite kept
-    holds the target (RunFolder.placed; the note is read once the folder is in place)."""
-    if e is not None and folder.partial and folder._keep_old:
-        e.add_note(f"what was flown is saved beside the run kept in {folder.path}")
-    return e
-
-
-def raise_stop(summary: dict, stop: BaseException | None) -> dict:
+def raise_stop(summary: dict, stop: BaseException | None, folder: RunFolder | None = None):
     """fly_into's result: raises the exception that stopped the flight, if any, else returns the
-    summary."""
+    summary. With the run `folder`, once in place: the exception notes where what was flown is
+    saved when that is not the target (RunFolder.placed: beside a complete run kept)."""
     if stop is not None:
+        if folder is not None and folder.placed not in (None, folder.path):
+            stop.add_note(f"what was flown is saved in {folder.placed} ({folder.path} kept)")
         raise stop
     return summary
 

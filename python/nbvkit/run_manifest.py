@@ -42,13 +42,15 @@ def _listed_files(folder: Path) -> dict:
     return dict(sorted(out.items()))
 
 
-def _unlisted_files(folder: Path) -> list:
+def _unlisted_files(folder: Path) -> list | None:
     """The files in run folder `folder` that its manifest does not list (not caches, not the
-    export): a user's (all of them where there is no manifest: not a run folder)."""
+    export): a user's; None where there is no readable manifest (nothing tells them apart)."""
     try:
-        listed = read_json_object(folder / MANIFEST, "manifest").get("files", {})
+        listed = read_json_object(folder / MANIFEST, "manifest").get("files")
     except (OSError, ValueError):
-        listed = {}
+        return None
+    if not isinstance(listed, dict):
+        return None
     return [
         rel
         for rel in _listed_files(folder)

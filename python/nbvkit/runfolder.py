@@ -141,6 +141,7 @@ class RunFolder:
         what: str = "run folder",
         carry: tuple = ("cache",),
         inputs: tuple = (),
+        own: bool = False,
     ):
         if isinstance(path, bytes) or not isinstance(path, (str, os.PathLike)):
             raise TypeError(f"{what} must be a folder path, got {type(path).__name__}")
@@ -154,12 +155,14 @@ class RunFolder:
         check_output_dir(p, what, whole_folder=True)  # a file, an unwritable place, a mount
         self.path, self.overwrite, self.what, self.carry = p, overwrite, what, tuple(carry)
         self.inputs = tuple(Path(os.path.realpath(os.fspath(i))) for i in inputs if i)
+        self.own = own  # a folder only nbvkit writes (an experiment's runs/): any state replaced
         #: set by the writer when what it writes is a stopped run (fly_into): with a complete
         #: run in the target it goes beside it (`placed`), as its checkpoints do
         self.partial = False
         #: where the results were put (the target, or beside a complete run it kept)
         self.placed: Path | None = None
         self._keep_old = False
+        self._beside: Path | None = None  # the folder beside a kept run this run put in place
         self._carried: list = []
         self._lock = RunLock(p, what, wait)
         self.tmp: Path | None = None
@@ -172,7 +175,7 @@ class RunFolder:
         try:
             self._check_target()
             # a complete run overwritten is replaced only by a whole new one
-            self._keep_old = p.exists() and _problem(p, check_lock=False) is None
+            self._keep_old = not self.own and p.exists() and _problem(p, check_lock=False) is None
             self._remove_stale()
             self.tmp = p.parent / f".{p.name}.tmp{os.getpid()}"
             try:
@@ -211,22 +214,24 @@ class RunFolder:
                 "overwrite=True) to replace it, or choose another folder"
             )
         foreign = [e for e in entries if e not in OUTPUT_NAMES and not _stale_export(e)]
-        if not foreign and not (p / MANIFEST).is_file():
-            raise ValueError(
-                f"{self.what} {p} holds files but no {MANIFEST}: not an nbvkit run folder (or "
-                "one whose files were changed), not overwriting it; move them away or choose "
-                "another folder"
-            )
-        if not foreign:
+        if not foreign and not self.own:
             foreign = _unlisted_files(p)
+            if foreign is None:
+                raise ValueError(
+                    f"{self.what} {p} holds files but no readable {MANIFEST} (not a run folder, "
+                    "or one whose manifest was lost or damaged): nbvkit cannot tell its files "
+                    "from others, so it does not overwrite it; move them away or choose another "
+                    "folder"
+                )
         if foreign:
             shown = ", ".join(foreign[:5]) + (", ..." if len(foreign) > 5 else "")
             raise ValueError(
                 f"{self.what} {p} holds files nbvkit did not write ({shown}): not overwriting "
                 "it; move them away or choose another folder"
             )
+        real = Path(os.path.realpath(p))
         for i in self.inputs:
-            if i.is_relative_to(p):
+            if i.is_relative_to(real):
                 raise ValueError(
                     f"{self.what} {p} holds this run's input {i}: overwriting the folder would "
                     "replace it; copy it elsewhere first or choose another folder"
@@ -242,16 +247,21 @@ class RunFolder:
                     shutil.rmtree(d, ignore_errors=True)
 
     def _destination(self) -> Path:
-        """Where results go: the target, or beside the complete run it holds for a stopped run
-        (<name>.interrupted, or <name>.interrupted<pid> where a folder not a run has that
-        name)."""
+        """Where results go: the target, or, for a stopped run, beside the complete run the
+        target holds: the first of <name>.interrupted, <name>.interrupted<pid>, ... that is
+        free (chosen once: this run's checkpoints and stopped run replace each other there,
+        never what another run left)."""
         p = self.path
         if not (self.partial and self._keep_old):
             return p
-        beside = p.parent / f"{p.name}.interrupted"
-        if beside.exists() and os.listdir(beside) and not looks_like_run(beside):
-            beside = p.parent / f"{p.name}.interrupted{os.getpid()}"
-        return beside
+        if self._beside is None:
+            names = [f"{p.name}.interrupted", f"{p.name}.interrupted{os.getpid()}"]
+            names += [f"{p.name}.interrupted{os.getpid()}-{k}" for k in range(1, 100)]
+            self._beside = next(
+                (p.parent / n for n in names if not os.path.lexists(p.parent / n)),
+                p.parent / names[-1],
+            )
+        return self._beside
 
     def checkpoint(self, write) -> None:
         """Puts a complete run in place as the target while this one goes on: what
@@ -271,7 +281,7 @@ class RunFolder:
                 self.placed = self._destination()
             finally:
                 self.partial = partial
-            self._place(ck, self.placed)
+            self._place(ck, self.placed)  # (an OSError: the checkpoint is dropped)
         finally:
             shutil.rmtree(ck, ignore_errors=True)  # (after a swap: the previous checkpoint)
 
@@ -282,11 +292,15 @@ class RunFolder:
                 return
             try:
                 write_manifest(self.tmp)
-                beside = self.placed if self.placed != self.path else None  # a checkpoint's
                 self.placed = self._destination()
-                self._place(self.tmp, self.placed)
-                if beside is not None and self.placed == self.path:  # whole: no checkpoint
-                    shutil.rmtree(beside, ignore_errors=True)
+                if self.placed != self.path:  # beside the kept run: it keeps its cache
+                    self._give_back()
+                    if not self._place_beside():
+                        return  # kept in self.tmp (placed), which the caller names
+                else:
+                    self._place(self.tmp, self.placed)
+                    if self._beside is not None:  # a checkpoint of this run: the run is whole
+                        shutil.rmtree(self._beside, ignore_errors=True)
             except BaseException:
                 self._discard()
                 raise
@@ -295,13 +309,29 @@ class RunFolder:
 
     def _discard(self) -> None:
         """Drops the temporary folder, giving back what was carried over from the target."""
+        self._give_back()
+        shutil.rmtree(self.tmp, ignore_errors=True)
+
+    def _give_back(self) -> None:
+        """Moves what was carried over from the target (its cache) back into it."""
         for name in self._carried:
             try:
                 if self.path.is_dir() and not (self.path / name).exists():
                     os.rename(self.tmp / name, self.path / name)
             except OSError:
                 pass
-        shutil.rmtree(self.tmp, ignore_errors=True)
+        self._carried = []
+
+    def _place_beside(self) -> bool:
+        """Puts a stopped run beside the kept one (placed); where that fails (a name too long,
+        a folder that refuses), leaves it in its temporary folder, which `placed` then names
+        (False), rather than losing it."""
+        try:
+            self._place(self.tmp, self.placed)
+            return True
+        except OSError:
+            self.placed = self.tmp
+            return False
 
     def _place(self, src: Path, p: Path) -> None:
         """Moves the folder `src` onto `p` (the target, or beside it) in one step (the old one

@@ -121,6 +121,12 @@ def run(args) -> int:
         with terminate_as_interrupt():  # a `kill` keeps the flight as Ctrl-C does
             s, stop = fly_into(mission, folder, finish=True)
     out = folder.placed  # beside a complete run --overwrite kept, for a stopped one
+    if folder.placed == folder.tmp:  # which could not be put there: kept where it was written
+        print(
+            f"nbvkit run: the stopped run could not be put beside {folder.path}; it is kept in "
+            f"{folder.tmp}: move it away before the next run on {folder.path}",
+            file=sys.stderr,
+        )
     print_summary(s, out, level=not (cfg.placement.gimbal or cfg.placement.explore_gimbal))
     if stop is not None and s.get("stopped_during") == "saving":
         print(

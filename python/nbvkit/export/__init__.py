@@ -21,8 +21,8 @@ from ..flight_time import VIEW, FlightModel
 from ..run_report import update_flight_section
 from ..limits import is_number
 from ..locks import pid_alive
-from ..output_paths import check_output_dir
-from ..runfolder import looks_like_run, read_summary, require_complete_run, stopped_note
+from ..output_paths import check_export_dir, check_output_dir
+from ..runfolder import read_summary, require_complete_run, stopped_note
 from .plan import read_run
 from . import cautions, colmap, items, plan, writers
 from .wpml import write_wpml_kmz
@@ -269,8 +269,7 @@ def export_mission(
         raise ValueError("out_dir is empty: give a folder, or None for RUN_DIR/export")
     out = Path(out_dir).expanduser() if out_dir is not None else run / "export"
     check_output_dir(out, "output folder", whole_folder=True)  # before the work (a file, a mount)
-    if looks_like_run(out):  # its files would lie among a run's, which --overwrite then refused
-        raise ValueError(f"output folder {out} is a run folder: give a folder of its own")
+    check_export_dir(out)  # not among a run's files (--overwrite then refused the run)
 
     fl, sp = _planner(run, model, need_all_returns=split)
     whole = sp.whole()
