@@ -42,7 +42,7 @@ install: venv
 	@$(PY) -c "import nbvkit, sys; print('nbvkit', nbvkit.__version__, 'installed in', sys.prefix)"
 
 demo:
-	$(VENV)/bin/nbvkit run --out runs/main
+	$(VENV)/bin/nbvkit run --out runs/main --overwrite  # make again: the run again, in its place
 
 test: install test-cpp test-py
 

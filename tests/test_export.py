@@ -772,6 +772,18 @@ def test_a_flight_planned_closer_than_gnss_error_is_warned_of(run_dir, tmp_path,
     assert s["warnings"] == [] and "warning" not in capsys.readouterr().err
 
 
+def test_the_console_times_only_the_files_written(run_dir, tmp_path, capsys):
+    from nbvkit.cli import main
+
+    args = ["export", str(run_dir), "--origin", *map(str, ORIGIN), "--format"]
+    assert main([*args, "qgc", "--out", str(tmp_path / "q")]) == 0
+    line = next(ln for ln in capsys.readouterr().out.splitlines() if "time by file" in ln)
+    assert ".plan (PX4)" in line and ".waypoints" in line and ".kmz" not in line
+    assert main([*args, "wpml", "--out", str(tmp_path / "w")]) == 0
+    line = next(ln for ln in capsys.readouterr().out.splitlines() if "time by file" in ln)
+    assert ".kmz (DJI)" in line and ".plan" not in line
+
+
 def test_sortie_files_list_by_name_in_flight_order():
     from nbvkit.export.plan import sortie_names
 

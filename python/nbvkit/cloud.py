@@ -174,14 +174,12 @@ def write_points(path, points, ascii: bool = False, dtype=None) -> None:
       default — no precision lost; open3d, PCL, MeshLab and CloudCompare read it.
     - ``.pcd``: PCL PCD v0.7, ``DATA binary`` (or ``ascii``), fields ``x y z`` as ``F 4``
       (float32) by default, so ``pcl::io::loadPCDFile<pcl::PointXYZ>`` reads it directly
-      (float32 keeps ~4 µm at 35 m); ``dtype=np.float64`` writes ``F 8``. A cloud reaching
-      16,384 m (FLOAT32_EXACT_M: float32 rounds it by more than 1 mm, a georeferenced one by
-      0.25 m) is written as ``F 8`` with a RuntimeWarning, or refused for ``dtype=np.float32``.
+      (float32 keeps ~4 µm at 35 m); ``dtype=np.float64`` writes ``F 8``, as does a cloud past
+      FLOAT32_EXACT_M (with a RuntimeWarning; refused for ``dtype=np.float32``).
     - ``.npy``: the ``(N, 3)`` array as float64 (or ``dtype``).
 
     ``points`` may also be a list of ``SurfaceCloud`` objects: their points one cloud after the
-    other (``_core.stack_points``), written a million at a time rather than copied whole (a 100 m
-    structure's cloud: 22 M points, 0.5 GB as one array).
+    other (``_core.stack_points``), written a million at a time rather than copied whole.
 
     Raises ValueError for a bad shape, NaN/inf points or an unknown extension.
     """
@@ -201,15 +199,14 @@ def write_points(path, points, ascii: bool = False, dtype=None) -> None:
         points = _check_points(points, "points")
     big = _largest(points) if dtype == np.float32 else 0.0
     if big >= FLOAT32_EXACT_M:
-        # float32's rounding there: half its spacing (inf beyond its range)
-        off = float(np.spacing(np.float32(big))) / 2 if big < 3e38 else math.inf
+        off = float(np.spacing(np.float32(big))) / 2 if big < 3e38 else math.inf  # its rounding
         if not chosen:  # a georeferenced cloud: F 8, said
             warnings.warn(
                 f"point cloud '{path}': a coordinate reaches {big:.6g} m, which float32 (PCD's "
                 f"F 4, PCL's PointXYZ) rounds by up to {off * 1000:.3g} mm: written as F 8 "
                 "(double); shift the cloud near the origin for F 4",
                 RuntimeWarning,
-                stacklevel=2,
+                2,
             )
             dtype = np.dtype(np.float64)
         else:
@@ -245,8 +242,7 @@ def _parts(points, size: int):
 
 
 def _largest(points) -> float:
-    """The largest |coordinate| of `points` (an (N, 3) array, or a list of SurfaceClouds read in
-    parts as _parts reads them), 0 for none."""
+    """The largest |coordinate| of `points` (an array, or SurfaceClouds read in parts), or 0."""
     _, parts = _parts(points, _WRITE_PART)
     return max((float(np.abs(q).max()) for q in parts if len(q)), default=0.0)
 

@@ -66,7 +66,9 @@ class Config:
     scenario: str = choice(DEFAULT_SCENARIO, lambda: tuple(SCENARIOS))
     start: int = within(0, 0, 4)  # which of the five predefined start poses
     start_pose: Optional[tuple] = None  # (x, y, z, yaw[, pitch]) instead of a predefined start
-    max_iterations: Optional[int] = within(None, 0, 10**6)  # views; null: 0.5 per m^2 of surface
+    # planned views after the first (iterations; views = iterations + 1); null: 0.5 per m^2 of
+    # surface, at least 1000
+    max_iterations: Optional[int] = within(None, 0, 10**6)
     progress: bool = True  # progress bar on stderr
     # minutes between checkpoints of the run folder (what a kill loses at most); 0: none
     checkpoint_minutes: float = within(10.0, 0.0, 1e6)

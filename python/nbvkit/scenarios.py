@@ -107,8 +107,8 @@ SCENARIOS: dict[str, Scenario] = {
     "surface": Scenario(
         "nbvkit's recommended planner: a profile round the structure's grown hull (the laser, "
         "and a camera frame every metre flown), symmetry prediction, then coverage tours of "
-        "the surface still to observe (set cover of views, ordered as a shortest tour, each "
-        "view paying for its detour; level views of the surface, and views of the unknown space "
+        "the surface still to observe (views chosen and ordered by cheapest insertion, each "
+        "paying for its detour; level views of the surface, and views of the unknown space "
         "pitched down into it) until no planned view is worth its flight",
         _SURFACE,
     ),

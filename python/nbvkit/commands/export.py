@@ -156,7 +156,8 @@ def run(args) -> int:
         f"mission: {m['views']} views, {m['distance_m']:.0f} m, {m['time_min']:.1f} min "
         f"(speed {args.speed:g} m/s, climb {args.climb_rate:g} m/s, hover {args.hover:g} s)"
     )
-    by = m.get("time_s_by_file") or {}
+    written = {"px4": "qgc", "ardupilot": "qgc", "dji": "wpml"}  # the files of those formats
+    by = {k: v for k, v in (m.get("time_s_by_file") or {}).items() if written[k] in s["formats"]}
     if by:  # the files wait differently: the longest is the mission's (and a sortie's) time
         names = {"px4": ".plan (PX4)", "ardupilot": ".waypoints (ArduPilot)", "dji": ".kmz (DJI)"}
         print(

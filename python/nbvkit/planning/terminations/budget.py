@@ -89,7 +89,7 @@ def budget_note(summary: dict) -> str | None:
         return None
     if key == "max_iterations":
         n = summary.get("max_views")
-        what = f"the view cap ({n} view{'' if n == 1 else 's'})"
+        what = f"the view cap ({n} planned view{'' if n == 1 else 's'} after the first)"
     else:
         what = f"the budget {key}"
     return stopped_by_budget(what, key)
