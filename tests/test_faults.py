@@ -746,29 +746,31 @@ def test_nbvkit_run_stopped_says_where_what_it_flew_is(tmp_path, stopping_part, 
     assert s["stopped_by"].startswith(named)  # a kill is not recorded as a Ctrl-C
 
 
+def _nbvkit_cli(*argv):
+    """`python -m nbvkit.cli ARGV` in its own process (a signal there is not this one's)."""
+    import subprocess
+
+    return subprocess.run(
+        [sys.executable, "-m", "nbvkit.cli", *argv],
+        capture_output=True,
+        text=True,
+        timeout=300,
+        env=dict(os.environ, MPLBACKEND="Agg"),
+    )
+
+
 def test_a_killed_run_leaves_its_last_checkpoint(tmp_path, stopping_part):
     """SIGKILL during the views (as the out-of-memory killer sends: no handler runs, nothing is
     saved at the end): `nbvkit run` leaves its last checkpoint, a complete run folder of what was
     flown until it, that says it is one and that evaluate reads; without checkpoints the same
     kill leaves nothing. The next run on the folder replaces it, leaving nothing beside it."""
-    import subprocess
-
     from nbvkit.recorder import CHECKPOINT_STOP
-
-    def nbvkit_cli(*argv):
-        return subprocess.run(
-            [sys.executable, "-m", "nbvkit.cli", *argv],
-            capture_output=True,
-            text=True,
-            timeout=300,
-            env=dict(os.environ, MPLBACKEND="Agg"),
-        )
 
     runs = {}
     for minutes in ("0", "1e-9"):  # none; one after every view
         out = runs[minutes] = tmp_path / f"run{minutes}"
         over = [*_stopping("sigkill", 4), f"checkpoint_minutes={minutes}"]
-        p = nbvkit_cli("run", "--plugin", str(stopping_part), "--out", str(out), "--set", *over)
+        p = _nbvkit_cli("run", "--plugin", str(stopping_part), "--out", str(out), "--set", *over)
         assert p.returncode == -signal.SIGKILL, (p.returncode, p.stderr)
     assert not runs["0"].exists()  # killed before its own save: nothing in place
     out = runs["1e-9"]
@@ -784,13 +786,13 @@ def test_a_killed_run_leaves_its_last_checkpoint(tmp_path, stopping_part):
     assert s["area_coverage"]["0.05"] > 0 and (out / "map.ot").stat().st_size > 0
     scored = tmp_path / "scored.json"
     density = ["--gt-density", "50", "--seed", str(s["seed"])]  # as the run scored it
-    p = nbvkit_cli("evaluate", "--mesh", s["mesh"], *density, str(out), "--json", str(scored))
+    p = _nbvkit_cli("evaluate", "--mesh", s["mesh"], *density, str(out), "--json", str(scored))
     assert p.returncode == 0, p.stderr
     assert json.loads(scored.read_text())["coverage"] == pytest.approx(s["coverage"])
     # the next run on it: in place whole, no checkpoint or temporary folder left beside it
     over = [*_stopping("error", 100), "checkpoint_minutes=1e-9", "max_iterations=3"]
     argv = ["run", "--plugin", str(stopping_part), "--out", str(out), "--overwrite", "--set"]
-    assert nbvkit_cli(*argv, *over).returncode == 0
+    assert _nbvkit_cli(*argv, *over).returncode == 0
     s = json.loads((out / "summary.json").read_text())
     assert "checkpoint" not in s and s["termination"] == "max_iterations"
     assert [x.name for x in tmp_path.glob(f".{out.name}*")] == []
@@ -802,24 +804,13 @@ def test_a_run_stopped_over_a_complete_run_keeps_it(tmp_path, stopping_part):
     in NAME.interrupted, which the console names. Before, the stopped run (and each checkpoint)
     took the old run's place. A whole rerun then replaces the old run; NAME.interrupted, what a
     run flew, stays until the user removes it."""
-    import subprocess
-
-    def nbvkit_cli(*argv):
-        return subprocess.run(
-            [sys.executable, "-m", "nbvkit.cli", *argv],
-            capture_output=True,
-            text=True,
-            timeout=300,
-            env=dict(os.environ, MPLBACKEND="Agg"),
-        )
-
     out = tmp_path / "run"
     base = ["run", "--plugin", str(stopping_part), "--out", str(out), "--set"]
     whole = [*_stopping("error", 100), "max_iterations=2", "report.enabled=false"]
-    assert nbvkit_cli(*base, *whole).returncode == 0
+    assert _nbvkit_cli(*base, *whole).returncode == 0
     old = (out / "summary.json").read_bytes()
-    p = nbvkit_cli(*base[:-1], "--overwrite", "--set", *_stopping("sigterm", 3),
-                   "checkpoint_minutes=1e-9")  # fmt: skip
+    stop = [*_stopping("sigterm", 3), "checkpoint_minutes=1e-9"]
+    p = _nbvkit_cli(*base[:-1], "--overwrite", "--set", *stop)
     assert p.returncode == 130, p.stderr
     assert (out / "summary.json").read_bytes() == old and is_complete_run(out)
     beside = tmp_path / "run.interrupted"
@@ -829,11 +820,11 @@ def test_a_run_stopped_over_a_complete_run_keeps_it(tmp_path, stopping_part):
     # its export says it flies part of a mission
     plugin = ["--plugin", str(stopping_part)]
     ex = ["--origin", "47.4", "8.5", "400", "--out", str(beside.parent / "ex")]
-    p = nbvkit_cli("export", str(beside), *plugin, *ex)
+    p = _nbvkit_cli("export", str(beside), *plugin, *ex)
     assert p.returncode == 0 and "warning: the run was stopped after 3 views" in p.stderr
-    p = nbvkit_cli("evaluate", str(beside), *plugin, "--mesh", s["mesh"], "--gt-density", "50")
+    p = _nbvkit_cli("evaluate", str(beside), *plugin, "--mesh", s["mesh"], "--gt-density", "50")
     assert p.returncode == 0 and "warning: the run was stopped after 3 views" in p.stderr
-    assert nbvkit_cli(*base[:-1], "--overwrite", "--set", *whole).returncode == 0
+    assert _nbvkit_cli(*base[:-1], "--overwrite", "--set", *whole).returncode == 0
     assert (out / "summary.json").read_bytes() != old and is_complete_run(beside)
 
 
