@@ -234,3 +234,14 @@ def stopped_note(summary: dict) -> str | None:
         f"({summary.get('stopped_by') or summary.get('termination')}): it flew part of its "
         "mission"
     )
+
+
+def stopped_note_of(folder) -> str | None:
+    """stopped_note of the run folder `folder`'s summary; None where it has none readable (a
+    cloud file outside a run folder)."""
+    if not (Path(os.fspath(folder)) / "summary.json").is_file():
+        return None
+    try:
+        return stopped_note(read_summary(folder))
+    except (OSError, ValueError):
+        return None

@@ -63,6 +63,7 @@ from .run_manifest import (  # noqa: F401  (re-exported: the readers import them
     require_complete_run,
     run_workspace,
     stopped_note,
+    stopped_note_of,
     write_manifest,
 )
 
@@ -246,13 +247,13 @@ class RunFolder:
                 if d.is_dir() and d.name[len(prefix) :].isdigit():
                     shutil.rmtree(d, ignore_errors=True)
 
-    def _destination(self) -> Path:
-        """Where results go: the target, or, for a stopped run, beside the complete run the
-        target holds: the first of <name>.interrupted, <name>.interrupted<pid>, ... that is
+    def _destination(self, partial: bool) -> Path:
+        """Where results go: the target, or, for a stopped run (partial), beside the complete
+        run the target holds: the first of <name>.interrupted, <name>.interrupted<pid>, ... that is
         free (chosen once: this run's checkpoints and stopped run replace each other there,
         never what another run left)."""
         p = self.path
-        if not (self.partial and self._keep_old):
+        if not (partial and self._keep_old):
             return p
         if self._beside is None:
             names = [f"{p.name}.interrupted", f"{p.name}.interrupted{os.getpid()}"]
@@ -276,11 +277,7 @@ class RunFolder:
             ck.mkdir()
             write(ck)
             write_manifest(ck)
-            partial, self.partial = self.partial, True  # a checkpoint is a stopped run
-            try:
-                self.placed = self._destination()
-            finally:
-                self.partial = partial
+            self.placed = self._destination(partial=True)  # a checkpoint is a stopped run
             self._place(ck, self.placed)  # (an OSError: the checkpoint is dropped)
         finally:
             shutil.rmtree(ck, ignore_errors=True)  # (after a swap: the previous checkpoint)
@@ -292,7 +289,7 @@ class RunFolder:
                 return
             try:
                 write_manifest(self.tmp)
-                self.placed = self._destination()
+                self.placed = self._destination(self.partial)
                 if self.placed != self.path:  # beside the kept run: it keeps its cache
                     self._give_back()
                     if not self._place_beside():

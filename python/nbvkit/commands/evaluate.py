@@ -12,6 +12,7 @@ import numpy as np
 from ..output_paths import write_text_output
 from ..output_paths import check_not_input
 from ..paths import check_output_file, require_complete_run
+from ..run_manifest import stopped_note_of
 from ..cloud import read_points
 from ..mesh import default_mesh_path, file_up_axis, mesh_file_sha1
 from ..evaluation import (
@@ -202,7 +203,7 @@ def run(args) -> int:
     apart = _frames_apart(np.asarray(cloud), ev.gt_points, max(args.taus))
     if apart:
         print(f"warning: {apart}", file=sys.stderr)
-    stopped = _stopped_run(cloud_path.parent)
+    stopped = stopped_note_of(cloud_path.parent)
     if stopped:
         print(f"warning: {stopped}", file=sys.stderr)
     print(format_report(result))
@@ -300,18 +301,6 @@ def _settings_of_run(args, folder: Path) -> None:
         )
     if mesh.path is not None:  # (the default airliner: no --mesh, at the run's scale and up)
         args.mesh = path
-
-
-def _stopped_run(folder: Path) -> str | None:
-    """run_manifest.stopped_note of the run folder holding the cloud, if it is one."""
-    from ..runfolder import read_summary, stopped_note
-
-    if not (folder / "summary.json").is_file():
-        return None
-    try:
-        return stopped_note(read_summary(folder))
-    except (OSError, ValueError):
-        return None
 
 
 def run_cloud(path: Path) -> Path:

@@ -22,7 +22,7 @@ from ..run_report import update_flight_section
 from ..limits import is_number
 from ..locks import pid_alive
 from ..output_paths import check_export_dir, check_output_dir
-from ..runfolder import read_summary, require_complete_run, stopped_note
+from ..runfolder import require_complete_run, stopped_note_of
 from .plan import read_run
 from . import cautions, colmap, items, plan, writers
 from .wpml import write_wpml_kmz
@@ -153,10 +153,12 @@ def clean_angle(deg: float) -> float:
     return 0.0 if v == 0 else v
 
 
-def _geo(fl, sortie, frame: GeoFrame, speed, hover_s, numbers, name, seqs=None):
+def _geo(fl, sortie, frame: GeoFrame, speed, hover_s, captures, name):
     """The sortie's waypoints on the Earth, with headings and gimbal angles: bearings from the
     local north at each waypoint (exact near a pole, where the origin's north is far off),
-    numerical noise rounded off (clean_angle: here only; the writers write them as they are)."""
+    numerical noise rounded off (clean_angle: here only; the writers write them as they are).
+    captures: colmap.capture_numbers (a waypoint's capture's number among its kind, and among
+    all photos: IMAGE_START_CAPTURE's); 0 for waypoints not in it."""
     from .. import _core
 
     cfg = fl.config
@@ -196,13 +198,13 @@ def _geo(fl, sortie, frame: GeoFrame, speed, hover_s, numbers, name, seqs=None):
         action=[w.action for w in wps],
         stage=[w.stage for w in wps],
         row=[w.row for w in wps],
-        number=[numbers.get(w.row, 0) for w in wps],
+        number=[captures[w.row][1] if w.row in captures else 0 for w in wps],
         home=(float(hlat[0]), float((hlon[0] + 180.0) % 360.0 - 180.0), float(halt[0])),
         speed=float(speed),
         hover_s=float(hover_s),
         altitude_ref=frame.altitude_ref,
         name=name,
-        seq=[(seqs or {}).get(w.row, 0) for w in wps],
+        seq=[captures[w.row][2] if w.row in captures else 0 for w in wps],
         waits=sortie.waits or None,
         workspace_top_rel_alt=_workspace_top_rel_alt(fl),
         gap_m=np.r_[0.0, np.linalg.norm(np.diff(xyz.reshape(-1, 3), axis=0), axis=1)][: len(wps)],
@@ -340,7 +342,7 @@ def _write_into(out: Path, summary: dict, fl, sorties, frame, model, dji, budget
         summary["files"] = files
         summary["mission_items"] = items.mission_items(tmp, files)
         summary["clearance"] = cautions.clearance(fl.config)
-        summary["warnings"] = [w for w in [stopped_note(read_summary(fl.run_dir))] if w]
+        summary["warnings"] = [w for w in [stopped_note_of(fl.run_dir)] if w]
         summary["warnings"] += cautions.clearance_warnings(summary["clearance"])
         summary["warnings"] += items.item_warnings(summary["mission_items"])
         summary["out"] = str(out)
@@ -422,12 +424,10 @@ def _write_formats(tmp: Path, summary, fl, sorties, names, frame, model, drone, 
     fmts, photo_names = summary["formats"], summary["photo_names"]
     # the captures the sorties fly (not those left unreachable by the budget), numbered
     captures = colmap.capture_numbers(fl.capture, {w.row for s in sorties for w in s.waypoints})
-    numbers = {i: n for i, (_, n, _) in captures.items()}  # each capture's number of its kind
-    seqs = {i: seq for i, (_, _, seq) in captures.items()}  # among all (IMAGE_START_CAPTURE)
     created_ms = int(time.time() * 1000)
     files = []
     for s, name in zip(sorties, names):
-        g = _geo(fl, s, frame, model.speed, model.hover_s, numbers, name, seqs)
+        g = _geo(fl, s, frame, model.speed, model.hover_s, captures, name)
         if "qgc" in fmts:
             writers.write_qgc_plan(g, tmp / f"{name}.plan")
             writers.write_qgc_wpl(g, tmp / f"{name}.waypoints")

@@ -129,8 +129,7 @@ def photo_name(pattern: str, first: int, seq: int) -> str:
     pattern where it has not exactly one such field or makes a name COLMAP cannot read (its
     images.txt separates fields by spaces; a name is a path relative to the image folder)."""
     try:
-        parsed = [(f, spec, conv) for _, f, spec, conv in string.Formatter().parse(pattern)]
-        fields = [(f, spec, conv) for f, spec, conv in parsed if f is not None]
+        fields = [(f, s, c) for _, f, s, c in string.Formatter().parse(pattern) if f is not None]
         if [f for f, _, _ in fields] not in ([""], ["0"]):
             raise ValueError("one replacement field, {} or {:04d}")
         _, spec, conv = fields[0]
