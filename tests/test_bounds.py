@@ -504,3 +504,44 @@ def test_paths_of_the_wrong_type_or_with_a_nul_byte_are_named(tmp_path):
     mesh = nbvkit.load_mesh(CUBE)
     with pytest.raises(ValueError, match="cache_dir .*file exists and is not a folder"):
         nbvkit.observable_surface(mesh, load_config(), cache_dir=taken)
+
+
+@pytest.mark.parametrize("section", ["utility", "targets"])
+def test_documented_ranges_of_cpp_sections_are_the_ranges_the_core_enforces(section):
+    """Each range default.yaml shows for a key of a C++ options class (limits.Bound on the
+    section) is the one the core's validate() enforces: both accept each end the range holds and
+    both refuse a value just past each end (a documented range the core disagreed with would
+    be a wrong document, or a value passed to the core unchecked)."""
+    import dataclasses
+
+    from nbvkit.config import Config
+
+    cls = type(getattr(Config(), section))
+    opts = getattr(Config(), section).options()
+    checked = 0
+    for f in dataclasses.fields(cls):
+        b = f.metadata.get("bound")
+        if b is None or f.name not in opts.fields():
+            continue
+        whole = isinstance(getattr(opts, f.name), int)
+        step = 1 if whole else 1e-6
+        cases = []
+        for end, is_open, sign in ((b.lo, b.lo_open, -1), (b.hi, b.hi_open, 1)):
+            if end is not None:
+                cases += [(end, not is_open), (end + sign * step, False)]
+        for value, ok in cases:
+            value = int(value) if whole else float(value)
+            key = f"{section}.{f.name}"
+            try:
+                opts.copy(**{f.name: value})
+                core_ok = True
+            except ValueError:
+                core_ok = False
+            try:
+                load_config(overrides=[f"{key}={value!r}"])
+                py_ok = True
+            except ValueError:
+                py_ok = False
+            assert (core_ok, py_ok) == (ok, ok), (key, value, b.describe())
+            checked += 1
+    assert checked >= (20 if section == "utility" else 2)

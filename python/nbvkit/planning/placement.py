@@ -11,7 +11,7 @@ from typing import Optional
 import numpy as np
 
 from .. import _core
-from ..limits import shorten
+from ..limits import Bound, shorten
 from ..settings import cpp_section, positive, within
 
 
@@ -21,6 +21,7 @@ TargetsConfig = cpp_section(
     "Surface still to observe, which the surface planners aim views at (the cone within which "
     "a side counts as seen is the utility's: utility.coverage_cone_deg).",
     only=[f for f in _core.SurfaceTargetOptions.fields() if f != "coverage_cone_deg"],
+    bounds={"frontier_weight": Bound(lo=0, hi=1)},
 )
 
 
@@ -36,7 +37,7 @@ class PlacementConfig:
 
     # a patch keeps its share of the camera's footprint: 1.5 m for the paper's 8 m camera
     cluster_size: Optional[float] = positive(None)  # m, cubes of targets; null: 0.1875 x range
-    standoffs: tuple = (0.45, 0.7)  # view distances from a target patch, x camera.max_range
+    standoffs: tuple = (0.45, 0.7)  # view distances from a patch, x camera.max_range (0, 1]
     azimuth_spread_deg: float = within(30.0, 0, 180)  # views this far either side of the normal
     elevation_margin_deg: float = within(4.0, 0, 90)  # patches kept this far inside vertical FOV
     # also face the patches the level camera cannot face head-on (roofs, undersides) by the
