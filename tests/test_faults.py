@@ -7,6 +7,7 @@ import json
 import os
 import random
 import re
+import shutil
 import signal
 import sys
 import textwrap
@@ -61,8 +62,6 @@ def test_a_run_folder_is_complete_and_consistent(finished_run):
 
 
 def test_incomplete_folders_are_refused_with_the_reason(tmp_path, finished_run):
-    import shutil
-
     out = tmp_path / "r"
     shutil.copytree(finished_run[0], out)
     (out / "iterations.csv").write_text("iteration\n")  # changed since the run wrote it
@@ -85,7 +84,6 @@ def test_a_damaged_summary_is_named_by_every_reader(tmp_path, finished_run, caps
     reader of run folders - export, evaluate, the experiments' rows, the notebook's look - with a
     clear ValueError; the plugin hint, a best effort, gives nothing. Its size kept, so the
     manifest still holds: only reading it tells."""
-    import shutil
 
     from nbvkit.cli import main
     from nbvkit.experiment_tables import row_of
@@ -124,8 +122,6 @@ def test_a_damaged_summary_is_named_by_every_reader(tmp_path, finished_run, caps
 
 
 def test_a_failing_run_leaves_nothing_and_the_old_run_stays(tmp_path, finished_run):
-    import shutil
-
     out = tmp_path / "r"
     shutil.copytree(finished_run[0], out)
     before = (out / "summary.json").read_bytes()
@@ -149,7 +145,6 @@ def test_checkpoints_are_complete_runs_put_in_place_until_the_run_is(tmp_path, f
     left beside the target. Over a complete run (--overwrite) they go beside it, in
     r.interrupted, and the old run stays until the new one is whole (a kill after a checkpoint
     replaced a finished run with a few views of the new one)."""
-    import shutil
 
     from nbvkit.runfolder import _problem
 
@@ -200,7 +195,6 @@ def test_a_stopped_run_over_a_complete_run_goes_beside_it(tmp_path, finished_run
     one flew is put beside it in the first free of r.interrupted, r.interrupted<pid>, ... (what
     an earlier stopped run left there, or a file of that name, is kept); where no such folder
     can be made (a name too long), it is kept in its temporary folder, which `placed` names."""
-    import shutil
 
     out = tmp_path / "r"
     shutil.copytree(finished_run[0], out)
@@ -240,7 +234,6 @@ def test_overwrite_removes_only_what_a_run_wrote(tmp_path, finished_run):
     """--overwrite refuses a folder holding a file its manifest does not list (figures/mine.png),
     a folder of nbvkit's names without a manifest (a user's config.yaml and report.html), and a
     folder holding the run's own mesh or configuration file; nothing is removed."""
-    import shutil
 
     run = tmp_path / "run"
     shutil.copytree(finished_run[0], run)
@@ -591,6 +584,7 @@ def test_a_mission_running_in_one_thread_refuses_a_second_run():
 STOPPING_PART = """
 import os
 import sys
+import shutil
 import signal
 import time
 from dataclasses import dataclass
@@ -965,3 +959,23 @@ def test_a_signal_ignored_before_stays_ignored_within_terminate_as_interrupt():
     finally:
         signal.signal(signal.SIGHUP, before[0])
         signal.signal(signal.SIGTERM, before[1])
+
+
+def test_an_error_naming_a_removed_temporary_file_says_so(tmp_path, finished_run):
+    """A write that fails inside the run folder's temporary folder (a full disk): the error
+    names a file of a folder that is removed on the way out; a note says so and that the
+    target is as it was (here a complete run an overwrite kept)."""
+    out = tmp_path / "r"
+    shutil.copytree(finished_run[0], out)
+    old = (out / "summary.json").read_bytes()
+    with pytest.raises(OSError) as e:
+        with RunFolder(out, overwrite=True) as rf:
+            bad = rf.tmp / "cloud.ply"
+            raise OSError(28, "No space left on device", str(bad))
+    notes = " ".join(getattr(e.value, "__notes__", ()))
+    assert not bad.parent.exists() and f"{bad.parent.name}, beside {out}" in notes, notes
+    assert f"{out} is as it was" in notes and (out / "summary.json").read_bytes() == old
+    with pytest.raises(OSError) as e:  # an error naming another file gets no such note
+        with RunFolder(out, overwrite=True):
+            raise OSError(28, "No space left on device", str(tmp_path / "elsewhere"))
+    assert not getattr(e.value, "__notes__", ())

@@ -286,6 +286,7 @@ class RunFolder:
         try:
             if exc_type is not None or self._cancelled:
                 self._discard()
+                self._note_discarded(exc)
                 return
             try:
                 write_manifest(self.tmp)
@@ -298,11 +299,22 @@ class RunFolder:
                     self._place(self.tmp, self.placed)
                     if self._beside is not None:  # a checkpoint of this run: the run is whole
                         shutil.rmtree(self._beside, ignore_errors=True)
-            except BaseException:
+            except BaseException as e:
                 self._discard()
+                self._note_discarded(e)
                 raise
         finally:
             self._lock.release()
+
+    def _note_discarded(self, exc) -> None:
+        """An error naming a file of the temporary folder, which _discard removed, says so
+        (a reader would look for it there)."""
+        names = [getattr(exc, a, None) for a in ("filename", "filename2")]
+        if any(isinstance(n, str) and n.startswith(os.fspath(self.tmp)) for n in names):
+            exc.add_note(
+                f"(a file of the results being written in {self.tmp.name}, beside {self.path}, "
+                f"which was removed; {self.path} is as it was)"
+            )
 
     def _discard(self) -> None:
         """Drops the temporary folder, giving back what was carried over from the target."""
