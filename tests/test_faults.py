@@ -740,6 +740,31 @@ def test_nbvkit_run_stopped_says_where_what_it_flew_is(tmp_path, stopping_part, 
     assert s["stopped_by"].startswith(named)  # a kill is not recorded as a Ctrl-C
 
 
+def test_a_script_killed_keeps_what_it_flew(tmp_path, stopping_part):
+    """A script's Mission.run(out) stopped by a `kill` (SIGTERM: a batch scheduler's time
+    limit) keeps what was flown, as `nbvkit run` does (it lost the whole flight: the default
+    handler ended the process); the signal's default comes back after the run."""
+    import subprocess
+
+    out = tmp_path / "run"
+    script = textwrap.dedent(
+        f"""
+        import signal, nbvkit
+        nbvkit.load_plugin({str(stopping_part)!r})
+        cfg = nbvkit.load_config(overrides={_stopping("sigterm", 2)!r})
+        try:
+            nbvkit.Mission(cfg).run({str(out)!r})
+        except KeyboardInterrupt as e:
+            print(type(e).__name__, signal.getsignal(signal.SIGTERM) is signal.SIG_DFL)
+        """
+    )
+    p = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True, timeout=300)
+    assert p.stdout.split() == ["Terminated", "True"], (p.returncode, p.stderr[-2000:])
+    s = json.loads((out / "summary.json").read_text())
+    assert is_complete_run(out) and s["termination"] == "interrupted"
+    assert s["stopped_by"].startswith("Terminated: SIGTERM")
+
+
 def _nbvkit_cli(*argv):
     """`python -m nbvkit.cli ARGV` in its own process (a signal there is not this one's)."""
     import subprocess
@@ -956,6 +981,11 @@ def test_a_signal_ignored_before_stays_ignored_within_terminate_as_interrupt():
                 time.sleep(5)
         assert signal.getsignal(signal.SIGHUP) is signal.SIG_DFL
         assert signal.getsignal(signal.SIGTERM) is before[1]
+        mine = lambda signum, frame: None  # noqa: E731  (a script's own handler stays its own)
+        signal.signal(signal.SIGTERM, mine)
+        with terminate_as_interrupt(only_default=True):
+            assert signal.getsignal(signal.SIGTERM) is mine
+            assert signal.getsignal(signal.SIGHUP) is not signal.SIG_DFL  # (the default: taken)
     finally:
         signal.signal(signal.SIGHUP, before[0])
         signal.signal(signal.SIGTERM, before[1])

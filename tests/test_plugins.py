@@ -757,6 +757,7 @@ class _Lists:
     gains: list[float] = field(default_factory=lambda: [0.5])
     pair: tuple[int, str] = (1, "a")
     limit: float | None = None
+    plain: tuple = (1.0,)
 
 
 def test_container_and_optional_settings_are_checked_item_by_item():
@@ -769,6 +770,10 @@ def test_container_and_optional_settings_are_checked_item_by_item():
             ("lists.gains=[true]", r"'lists.gains\[0\]' must be a number"),
             ("lists.pair=[3]", "'lists.pair' must be a list of 2 items"),
             ("lists.limit=abc", "'lists.limit' must be a number"),
+            # items are keys of their type: finite, as a float key is (they took NaN and inf)
+            ("lists.gains=[1, .nan]", r"'lists.gains\[1\]' must be a finite number"),
+            ("lists.gains=[1e999]", r"'lists.gains\[0\]' must be finite"),
+            ("lists.plain=[1, .inf]", "'lists.plain' must be finite numbers"),
         ):
             with pytest.raises(ValueError, match=words):
                 load_config(overrides=[over])

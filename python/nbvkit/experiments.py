@@ -259,13 +259,14 @@ STOPPING_SIGNALS = {
 
 
 @contextlib.contextmanager
-def terminate_as_interrupt():
+def terminate_as_interrupt(only_default: bool = False):
     """Within it, a `kill` (SIGTERM: also what batch schedulers send at a time limit) or a
     hang-up (SIGHUP: the terminal or ssh session closed) raises Terminated, a
     KeyboardInterrupt, as Ctrl-C does: an experiment's workers stopped, finished runs kept, the
     partial table written; a single run's flight kept (recorder.fly_into), its summary's
     stopped_by naming the signal. A signal ignored on entry (`nohup` ignores SIGHUP) stays
-    ignored. (Main thread only: signals go there; elsewhere it does nothing.)"""
+    ignored; with only_default, so does one with a handler of its own (a script's). (Main
+    thread only: signals go there; elsewhere it does nothing.)"""
     import signal
     import threading
 
@@ -280,8 +281,12 @@ def terminate_as_interrupt():
     previous = {}
     for name in STOPPING_SIGNALS:
         signum = getattr(signal, name, None)  # (no SIGHUP on Windows)
-        if signum is not None and signal.getsignal(signum) is not signal.SIG_IGN:
-            previous[signum] = signal.signal(signum, interrupt)
+        if signum is None:
+            continue
+        now = signal.getsignal(signum)
+        if now is signal.SIG_IGN or (only_default and now is not signal.SIG_DFL):
+            continue
+        previous[signum] = signal.signal(signum, interrupt)
     try:
         yield
     finally:

@@ -410,8 +410,17 @@ def fly_into(mission, folder: RunFolder, finish: bool = False) -> tuple[dict, Ba
     to raise once the folder is in place (raise_stop); so is a whole flight whose saving was
     stopped (its end-of-run outputs: Recorder.write_keeping, `stopped_during` "saving").
     Stopped before the views (profile, symmetry), the exception propagates and nothing is
-    written. TypeError for a `finish` not True or False, before any flight."""
+    written. TypeError for a `finish` not True or False, before any flight. A `kill` or a
+    hang-up stops it as Ctrl-C does (experiments.terminate_as_interrupt) where the signal has
+    no handler of its own: from a script too (the command line's takes them already)."""
+    from .experiments import terminate_as_interrupt
+
     finish = require_bool(finish, "finish")
+    with terminate_as_interrupt(only_default=True):
+        return _fly_into(mission, folder, finish)
+
+
+def _fly_into(mission, folder: RunFolder, finish: bool) -> tuple[dict, BaseException | None]:
     out = Path(folder.tmp)
     token = _CHECKPOINTS.set((mission, folder))
     try:

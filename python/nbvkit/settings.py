@@ -242,9 +242,12 @@ def coerce(tp, value, key):
         ):
             raise ValueError(f"config key {key!r} must be a list of numbers, got {shorten(value)}")
         try:
-            return tuple(float(x) for x in value)
+            items = tuple(float(x) for x in value)
         except OverflowError:
-            raise ValueError(f"config key {key!r} must be finite, got {shorten(value)}") from None
+            items = (math.inf,)
+        if not all(math.isfinite(x) for x in items):
+            raise ValueError(f"config key {key!r} must be finite numbers, got {shorten(value)}")
+        return items
     if typing.get_origin(tp) in (tuple, list):
         return _coerce_items(tp, value, key)
     return value
@@ -265,6 +268,9 @@ def _coerce_items(tp, value, key):
                 f"config key {key!r} must be a list of {len(kinds)} items, got {shorten(value)}"
             )
     items = [coerce(t, v, f"{key}[{i}]") for i, (t, v) in enumerate(zip(kinds, value))]
+    for i, x in enumerate(items):  # each item a key of its type: finite (Bound's default)
+        if isinstance(x, float):
+            Bound().check(f"{key}[{i}]", x)
     return items if origin is list else tuple(items)
 
 
