@@ -569,6 +569,10 @@ if __name__ == "__main__":
     flown = [p.read_text() for p in (tmp_path / "runs" / "cmp_py" / "runs").glob("*/config.yaml")]
     assert len(flown) == 3
     assert [c for c in flown if "scenario: ring" in c and "count: 16" in c]
+    # the runs that flew none of the plugin's parts hold no section of them: they read back
+    # without it (evaluate and export knew no 'ring' key)
+    assert [c for c in flown if "scenario: ring" not in c and "ring:" not in c]
+    assert not [c for c in flown if "scenario: ring" not in c and "ring:" in c]
 
 
 def test_ctrl_c_in_a_slow_utility_keeps_the_flight(tmp_path):
@@ -1214,6 +1218,12 @@ def test_a_name_registered_by_two_files_is_an_error_naming_both(plugin_dir):
     spec = importlib.util.spec_from_file_location("other_name", a)
     with pytest.raises(ValueError, match="from the same file, run a second time as module"):
         spec.loader.exec_module(importlib.util.module_from_spec(spec))
+    # a file that registers one name twice says that, not that it ran twice (it did not)
+    twice = plugin_dir / "twice_gen.py"
+    mine = ONE_MODULE.replace("one_gen", "twice_gen").replace("one_u", "twice_u")
+    twice.write_text(mine + 'nbvkit.register_generator("twice_gen", Gen)\n')
+    with pytest.raises(ValueError, match=f"registered from {twice}, which registers the name tw"):
+        nbvkit.load_plugin(twice)
 
 
 def test_a_failed_load_forgets_the_helper_modules_it_imported(plugin_dir):

@@ -33,7 +33,7 @@ from .mesh import MeshConfig
 from .observability import ObservabilityConfig
 from .planning.placement import PlacementConfig, TargetsConfig
 from .planning.planner import PlannerConfig
-from .planning.registry import part_settings
+from .planning.registry import BUILT_IN, part_settings
 from .planning.scoring import UtilityConfig
 from .profiling import ProfilingConfig
 from .report import ReportConfig
@@ -212,8 +212,17 @@ class Config:
             _put_dotted(data, key, value)
         return Config.from_dict(data)
 
-    def to_dict(self) -> dict:
-        return {name: _to_plain(value) for name, value in self.sections()}
+    def to_dict(self, every_part: bool = False) -> dict:
+        """Every section (a run's config.yaml), less those of parts registered from a script or
+        a plugin that this configuration does not fly (not in planner.generators nor
+        planner.terminations) unless `every_part`: a run flown without a plugin's parts reads
+        back where it is not loaded."""
+        used = {*BUILT_IN, *self.planner.generators, *self.planner.terminations}
+        return {
+            name: _to_plain(value)
+            for name, value in self.sections()
+            if every_part or name not in self._parts or name in used
+        }
 
     def to_yaml(self) -> str:
         return yaml.safe_dump(self.to_dict(), sort_keys=False)
@@ -384,7 +393,7 @@ def _set_dotted(data: dict, key: str, value: Any) -> None:
 
 def _check_dotted(key: str) -> None:
     """KeyError naming `key` unless it is a key of the configuration."""
-    _set_dotted(Config().to_dict(), key, None)
+    _set_dotted(Config().to_dict(every_part=True), key, None)
 
 
 def _put_dotted(data: dict, key: str, value: Any) -> None:

@@ -86,7 +86,7 @@ def documented_yaml() -> str:
         "",
     ]
     cfg = Config()
-    data = cfg.to_dict()
+    data = cfg.to_dict(every_part=True)
     top = comments(Config)
     for name, section in cfg.sections():
         v = data[name]

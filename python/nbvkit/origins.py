@@ -33,10 +33,11 @@ def defined_in(obj) -> str | None:
         return None
 
 
-def clash(first: str | None) -> str:
+def clash(first: str | None, first_module: str | None = None) -> str:
     """For a name registered twice: " (registered from FIRST; this one from FILE)", FIRST where
-    the registered one came from and FILE the caller's (the same file: run a second time, as the
-    module it runs as now); "" when neither is known."""
+    the registered one came from and FILE the caller's; from the same file, as the same module
+    (`first_module`, where known): the file registers the name twice, else it runs a second time
+    as the module it runs as now; "" when neither file is known."""
     now, module = caller()
     if first is None and now is None:
         return ""
@@ -46,6 +47,8 @@ def clash(first: str | None) -> str:
         )
     except (OSError, ValueError):
         same = False
+    if same and first_module is not None and first_module == module:
+        return f" (registered from {first}, which registers the name twice)"
     if same:
         again = f" as module {module!r}" if module else ""
         return f" (registered from {first}; this one from the same file, run a second time{again})"

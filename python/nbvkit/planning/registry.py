@@ -100,7 +100,11 @@ def _check_new(name: str, kind: str, taken, replace: bool = False, table=None) -
         held = kind if table is None or name in table or kind == "utility" else _kind_of(name)
         raise ValueError(
             f"a {held} named {name!r} is registered already"
-            + ("" if own else clash(defined_in(taken[name])))
+            + (
+                ""
+                if own
+                else clash(defined_in(taken[name]), getattr(taken[name], "__module__", None))
+            )
             + (
                 " (one of nbvkit's own); choose another name"
                 if own
