@@ -227,6 +227,29 @@ def test_the_worked_example_of_docs_plugins_flies(tmp_path):
     assert (out / "export").is_dir() and "Chamfer distance" in p.stdout
 
 
+def test_a_run_of_parts_an_import_registered_names_their_file(tmp_path):
+    """A script that registers its parts by `import my_parts` (not load_plugin) and flies them:
+    the run recorded no plugin, so evaluate's error named none. Its summary's parts_from names
+    where each part it flew came from; the script's own file is not offered as a plugin."""
+    mod = _doc_example("my_parts.py", tmp_path)
+    out = tmp_path / "run"
+    script = tmp_path / "fly.py"
+    script.write_text(
+        "import sys, nbvkit\n"
+        f"sys.path.insert(0, {str(tmp_path)!r})\n"
+        "import my_parts\n"
+        f"cfg = nbvkit.load_config(overrides={[*QUICK, 'scenario=ring', 'ring.count=3']!r})\n"
+        f"nbvkit.Mission(cfg).run({str(out)!r})\n"
+    )
+    p = subprocess.run([sys.executable, str(script)], capture_output=True, text=True, timeout=300)
+    assert p.returncode == 0, p.stderr[-2000:]
+    s = json.loads((out / "summary.json").read_text())
+    assert "plugins" not in s and s["parts_from"]["generator ring"] == str(mod.resolve())
+    p = _nbvkit("evaluate", out)
+    assert p.returncode == 2 and f"flown with the plugin file {mod.resolve()}: give" in p.stderr
+    assert _nbvkit("evaluate", out, "--plugin", mod).returncode == 0
+
+
 def test_the_tour_example_of_docs_plugins_flies_tours_that_nbvkit_plans(tmp_path):
     # views on rings round the cube, flown as the tours nbvkit.plan_tour makes of them, plan
     # after plan, until none pays for its flight

@@ -214,11 +214,14 @@ def run_plugins_hint(folder) -> str:
     from .runfolder import read_summary
 
     try:
-        recorded = read_summary(folder).get("plugins") or []
-        paths = [str(f["path"]) for f in recorded]
+        summary = read_summary(folder)
+        paths = [str(f["path"]) for f in summary.get("plugins") or []]
+        # parts registered by a module the run's process imported (recorder: parts_from)
+        paths += [str(f) for f in (summary.get("parts_from") or {}).values()]
     except (OSError, ValueError, TypeError, KeyError, AttributeError):
         return ""
-    missing = [f for f in paths if f not in LOADED]
+    missing = [f for f in paths if f not in LOADED and not f.startswith("a script")]
+    missing = list(dict.fromkeys(missing))
     if not missing:
         return ""
     files = ", ".join(missing)

@@ -254,10 +254,13 @@ class Recorder:
             out["symmetry"] = m.symmetry_summary
         if tour is not None:
             out["tours"] = tour.plans
+        from .planning.registry import part_sources
         from .plugins import loaded_files
 
         if files := loaded_files():  # the plugin files loaded, and each one's content SHA-256
             out["plugins"] = files
+        if parts := part_sources(cfg):  # where the parts flown that are not nbvkit's came from
+            out["parts_from"] = parts
         return out
 
     def write(self, out: Path, summary: dict, finish: bool = False, cache_dir=None) -> dict:

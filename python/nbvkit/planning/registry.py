@@ -47,6 +47,42 @@ def utility_only_checks(config) -> list:
     return [g for g in config.planner.generators if g in OWN_RANKING]
 
 
+def part_sources(config) -> dict:
+    """{"KIND NAME": file} of the parts `config` flies that are not nbvkit's own (generators,
+    terminations, a utility written in Python, a registered scenario): the file that defined
+    each; "a script" (with its file, where known) for the program's own (its __main__: not a
+    file to load again). A run's summary records them (`parts_from`): a run flown with parts
+    that `import my_parts` registered names the file its config.yaml needs."""
+    import os
+    import sys
+
+    from ..origins import defined_in
+    from ..scenarios import BUILT_IN as OWN_SCENARIOS
+    from ..scenarios import SCENARIOS
+
+    main = getattr(sys.modules.get("__main__"), "__file__", None)
+
+    def where(file):
+        if file is None:
+            return "a script"
+        if main is not None and os.path.realpath(file) == os.path.realpath(main):
+            return f"a script ({file})"
+        return file
+
+    out = {}
+    for kind, names, table in (
+        ("generator", config.planner.generators, GENERATORS),
+        ("termination", config.planner.terminations, TERMINATIONS),
+        ("utility", [config.utility.name], UTILITIES),
+    ):
+        for n in names:
+            if n not in BUILT_IN and n in table:
+                out[f"{kind} {n}"] = where(defined_in(table[n]))
+    if config.scenario not in OWN_SCENARIOS and config.scenario in SCENARIOS:
+        out[f"scenario {config.scenario}"] = where(SCENARIOS[config.scenario].origin)
+    return out
+
+
 def checks_only_words(gens, utility: str, more: str = "") -> str:
     """The console's words for the generators `gens` (utility_only_checks) whose views
     `utility` only checked (`more`: said after the check, in the parentheses)."""
