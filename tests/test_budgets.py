@@ -99,8 +99,10 @@ def test_a_tour_that_ends_as_complete_missing_much_of_the_observable_area_says_s
         "gt_area_m2": 4265.0,
         "tours": [{"unpaid": 35, "unpaid_m2": 71.5, "min_gain_m2": 1.2, "final": False}],
     }  # fmt: skip
-    print_summary(s, "out", level=True)
+    print_summary({**s, "finish_s": {"total": 28.04}}, "out", level=True)
     said = capsys.readouterr().out.splitlines()
+    # the end-of-run outputs' time, which the wall time leaves out, is said beside it
+    assert said[-1].startswith("wall time 59.6 s + 28.0 s end-of-run outputs (off: --set report.")
     at = said.index("of the observable surface (97.7% of the area):")
     assert said[at + 3].startswith("note: the coverage tours found nothing more worth flying to, "
                                    "yet 43.4% of the observable area was missed; its views were "
