@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import math
 import os
+import re
 import subprocess
 import sys
 import threading
@@ -379,15 +380,34 @@ def test_keys_that_size_work_are_checked_before_any_work(override, key):
     assert key in msg and "limit" in msg and "would fit" in msg, msg
 
 
-def test_the_value_that_would_fit_fits():
-    msg = _mission_error(["evaluation.gt_density=1e12"])
-    fit = float(msg.rsplit("<= ", 1)[1].split()[0])
-    cfg = load_config(overrides=["map.resolution=0.4", f"evaluation.gt_density={fit}"])
+@pytest.mark.parametrize(
+    "override, key, mesh_scale",
+    [
+        ("evaluation.gt_density=1e12", "evaluation.gt_density", 1),
+        ("profiling.sweep_step=1e-6", "profiling.sweep_step", 1),
+        ("profiling.camera_step=1e-4", "profiling.camera_step", 1),
+        ("profiling.max_segment=1e-5", "profiling.max_segment", 1),
+        ("observability.pose_spacing=0.05", "observability.pose_spacing", 1),
+        # the reviews' cases: a fit shown rounded to nearest was refused in turn (0.25 for
+        # 0.24997; 9.772e+04 for 97,719.3), on a structure 400 m across
+        ("evaluation.gt_density=1e9", "evaluation.gt_density", 400),
+        ("profiling.sweep_step=0.01", "profiling.sweep_step", 400),
+    ],
+)
+def test_the_value_that_would_fit_fits(override, key, mesh_scale):
+    """The value an error says would fit is accepted for its key when given back."""
     from nbvkit.work_limits import check_work
     from nbvkit.workspace import make_workspace
 
-    mesh = nbvkit.load_mesh(CUBE)
-    check_work(cfg, mesh, make_workspace(mesh.bounds, cfg))
+    mesh = nbvkit.load_mesh(CUBE, scale=mesh_scale)
+    res = f"map.resolution={0.4 if mesh_scale == 1 else 1}"  # (a map that fits the structure)
+    msg = _mission_error([res, override], mesh=mesh)
+    fit = float(re.search(rf"{re.escape(key)} [<>]= ([0-9.e+-]+) ", msg).group(1))
+    cfg = load_config(overrides=[res, f"{key}={fit}"])
+    try:
+        check_work(cfg, mesh, make_workspace(mesh.bounds, cfg))
+    except ValueError as e:  # another key's limit may follow; this key's is met
+        assert f"{key} = " not in str(e), str(e)
 
 
 def _obj_mesh(tmp_path, verts, faces):
@@ -408,6 +428,20 @@ def test_a_structure_too_large_or_thin_for_the_map_is_refused_before_any_work(tm
     tower = _obj_mesh(tmp_path, [(2 * x, 2 * y, 2000 * z) for x, y, z in CUBE_V], CUBE_F)
     with pytest.raises(ValueError, match="would fit"):
         nbvkit.Mission(cfg, mesh=tower)
+
+
+def test_limits_name_a_floating_structure_and_offer_no_resolution_past_its_range(tmp_path):
+    """A structure given in altitudes (5 km up): the profile's sweeps down to the ground passed
+    the scan limit, and the error blamed the sweep step alone; it now names the height and the
+    mesh.shift that grounds it. A 10 km structure's map would fit at 20 m, past map.resolution's
+    range (10 m): the error offered it; it now offers the workspace and the mesh's scale."""
+    high = _obj_mesh(tmp_path, [(x, y, z + 5000) for x, y, z in CUBE_V], CUBE_F)
+    msg = _mission_error([], mesh=high)
+    assert "profiling.sweep_step" in msg and "lies 5000 m above the ground" in msg, msg
+    assert "mesh.shift=[0,0,-5000]" in msg
+    huge = _obj_mesh(tmp_path, [(1e4 * x, 1e4 * y, 1e4 * z) for x, y, z in CUBE_V], CUBE_F)
+    msg = _mission_error(["map.resolution=10"], mesh=huge)
+    assert "map.resolution >=" not in msg and "a smaller mesh.scale" in msg, msg
 
 
 def test_sweep_files_are_bounded():

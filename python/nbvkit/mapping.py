@@ -16,7 +16,7 @@ import numpy as np
 from . import _core
 from ._core import IntegrationStats, OccupancyMap, OccupancyMapOptions
 from .limits import Bound
-from .work_limits import MissionError
+from .work_limits import MAX_RESOLUTION, MissionError
 from .settings import cpp_section
 from .workspace import grounding_shift
 
@@ -37,7 +37,7 @@ MapConfig = cpp_section(
     before=[
         ("resolution", float, _core.OccupancyMap.DEFAULT_RESOLUTION, "cell edge, m (authors: 0.2)")
     ],
-    bounds={"resolution": Bound(lo=1e-4, hi=10)},  # (the core: within [1e-4, 100] m)
+    bounds={"resolution": Bound(lo=1e-4, hi=MAX_RESOLUTION)},  # (the core: [1e-4, 100] m)
     choices={"entropy_unit": ("nats", "bits")},
 )
 

@@ -127,6 +127,28 @@ def _profile_plan(cfg, mesh_bounds, ws) -> dict:
     )  # fmt: skip
 
 
+#: map.resolution's upper bound (mapping.MapConfig's): no resolution above it fits
+MAX_RESOLUTION = 10.0
+
+
+def at_least(v: float, digits: int = 3) -> str:
+    """`v` (a lower bound that fits) with 1 % to spare, rounded up to `digits` significant
+    digits: the value shown fits when it is given back (rounded to nearest it did not)."""
+    return _rounded(v * 1.01, digits, math.ceil)
+
+
+def at_most(v: float, digits: int = 4) -> str:
+    """`v` (an upper bound that fits) with 1 % to spare, rounded down likewise."""
+    return _rounded(v / 1.01, digits, math.floor)
+
+
+def _rounded(v: float, digits: int, direction) -> str:
+    if not (math.isfinite(v) and v > 0):
+        return f"{v:.{digits}g}"
+    q = 10.0 ** (math.floor(math.log10(v)) - digits + 1)
+    return f"{direction(v / q) * q:.{digits}g}"
+
+
 def check_profile(cfg, mesh_bounds, ws) -> None:
     """ValueError naming the key when the profile flight of `cfg` round a structure with
     bounds `mesh_bounds` in workspace `ws` would take more scans, rays, legs or frames than the
@@ -142,12 +164,6 @@ def check_profile(cfg, mesh_bounds, ws) -> None:
             f"(null: the navigation box's {float(ws.nav_min[2]):g} / {float(ws.nav_max[2]):g} m), "
             f"got {w['z_min']:g}..{w['z_max']:g}"
         )
-    if not w["z_max"] > w["z_min"]:
-        raise ValueError(
-            f"config keys 'profiling.z_min' / 'profiling.z_max': the sweeps need z_max > z_min "
-            f"(null: the navigation box's {float(ws.nav_min[2]):g} / {float(ws.nav_max[2]):g} m), "
-            f"got {w['z_min']:g}..{w['z_max']:g}"
-        )
     if w["scans"] > MAX_PROFILE_SCANS:
         fit_per_sweep = MAX_PROFILE_SCANS / w["sweeps"] - 1  # scans per sweep that would fit
         nav_height = float(ws.nav_max[2] - ws.nav_min[2])
@@ -155,7 +171,7 @@ def check_profile(cfg, mesh_bounds, ws) -> None:
         if zkeys and w["height"] > nav_height:
             key = zkeys[0]
             fits = (
-                f"a sweep of at most {fit_per_sweep * p.sweep_step:.4g} m (z_max - z_min, now "
+                f"a sweep of at most {at_most(fit_per_sweep * p.sweep_step)} m (z_max - z_min, now "
                 f"{w['height']:.4g} m; the navigation box is {nav_height:.4g} m tall) would fit"
             )
             value = getattr(p, key)
@@ -165,29 +181,29 @@ def check_profile(cfg, mesh_bounds, ws) -> None:
             fits += " would fit"
         else:
             key, value = "sweep_step", p.sweep_step
-            fits = f"profiling.sweep_step >= {w['height'] / fit_per_sweep:.3g} would fit"
+            fits = f"profiling.sweep_step >= {at_least(w['height'] / fit_per_sweep)} would fit"
         _refuse(what, "laser scans", w["scans"], MAX_PROFILE_SCANS, "profiling." + key, value, fits)
     rays = w["scans"] * w["beams"]
     if rays > MAX_PROFILE_LASER_RAYS:
         res = cfg.laser.fov_deg / (MAX_PROFILE_LASER_RAYS / w["scans"] - 1)
         _refuse(
             what, "laser rays", rays, MAX_PROFILE_LASER_RAYS, "laser.resolution_deg",
-            cfg.laser.resolution_deg, f"laser.resolution_deg >= {res:.3g} would fit",
+            cfg.laser.resolution_deg, f"laser.resolution_deg >= {at_least(res)} would fit",
         )  # fmt: skip
     if w["legs"] > MAX_PROFILE_LEGS:
         chords = MAX_PROFILE_LEGS / 2  # chords of the curve that would fit
         if p.method != "circular" and p.margin / 2 < p.max_segment:
             key, value = "profiling.margin", p.margin  # the grown hull's chords: margin / 2
-            fits = f"profiling.margin >= {2 * w['perimeter'] / chords:.3g} would fit"
+            fits = f"profiling.margin >= {at_least(2 * w['perimeter'] / chords)} would fit"
         else:
             key, value = "profiling.max_segment", p.max_segment
-            fits = f"profiling.max_segment >= {w['perimeter'] / chords:.3g} would fit"
+            fits = f"profiling.max_segment >= {at_least(w['perimeter'] / chords)} would fit"
         _refuse(what, "legs", w["legs"], MAX_PROFILE_LEGS, key, value, fits)
     if w["frames"] > MAX_PROFILE_FRAMES:
         step = w["length"] / MAX_PROFILE_FRAMES
         _refuse(
             what, "camera frames", w["frames"], MAX_PROFILE_FRAMES, "profiling.camera_step",
-            p.camera_step, f"profiling.camera_step >= {step:.3g} (or 0: none) would fit",
+            p.camera_step, f"profiling.camera_step >= {at_least(step)} (or 0: none) would fit",
         )  # fmt: skip
 
 
@@ -200,7 +216,7 @@ def check_samples(area: float, density: float, key: str, shown=None) -> None:
             f"the ground-truth samples: {key} = {shown or fmt_number(density)} points/m^2 on the "
             f"structure's {area:,.1f} m^2 makes {n:,.0f} samples, more than the limit "
             f"{MAX_GT_SAMPLES:,} (checked before any work); {key} <= "
-            f"{MAX_GT_SAMPLES / area:.4g} would fit"
+            f"{at_most(MAX_GT_SAMPLES / area)} would fit"
         )
 
 
@@ -279,7 +295,7 @@ def check_observability(cfg, ws, samples: float) -> None:
         else:
             unit = f"tests ({n:,} candidate positions x {samples:,.0f} surface samples)"
             limit, count = MAX_OBSERVABILITY_PAIRS, n * samples
-        fits = f"observability.pose_spacing >= {spacing:.3g} would fit (or observability."
+        fits = f"observability.pose_spacing >= {at_least(spacing)} would fit (or observability."
         fits += "enabled=false)"
         key = "observability.pose_spacing"
         _refuse("the observable surface", unit, count, limit, key, o.pose_spacing, fits)
@@ -297,13 +313,18 @@ def check_map(cfg, ws) -> bool:
     cells = math.prod(max(math.ceil(s / r), 1) for s in size)
     limit = MAX_MAP_BYTES // MAP_BYTES_PER_CELL
     if cells > limit:
-        fit = r * (cells / limit) ** (1 / 3)
+        fit = at_least(r * (cells / limit) ** (1 / 3))
+        coarser = f"map.resolution >= {fit} would fit, or " if float(fit) <= MAX_RESOLUTION else ""
         raise ValueError(
             f"the map: workspace {[round(s, 3) for s in size]} m at map.resolution = {r:g} m "
             f"holds {cells:,} cells (~{cells * MAP_BYTES_PER_CELL / 2**30:.1f} GiB), more than "
-            f"the limit {limit:,} cells (checked before any work); map.resolution >= "
-            f"{fit * 1.01:.3g} would fit, or a smaller workspace (workspace.bounds_min / "
-            "bounds_max, workspace.square=false for a long structure)"
+            f"the limit {limit:,} cells (checked before any work); {coarser}a smaller workspace "
+            "(workspace.bounds_min / bounds_max, workspace.square=false for a long structure)"
+            + (
+                ""
+                if coarser
+                else f", or a smaller mesh.scale (map.resolution <= {MAX_RESOLUTION:g})"
+            )
         )
     return True
 

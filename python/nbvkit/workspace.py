@@ -126,18 +126,32 @@ def grounding_shift(bounds, shift) -> list:
 def warn_floating(bounds, cfg) -> None:
     """A RuntimeWarning, with the mesh.shift that grounds it, for a floating structure
     (floating_gap) whose workspace reaches down to the ground (no explicit workspace bounds)."""
+    if note := _floating(bounds, cfg):
+        warnings.warn(note, RuntimeWarning, stacklevel=3)
+
+
+def structure_hint(bounds, cfg) -> str:
+    """What an error about the work on the structure adds of the structure itself: its size in
+    another unit (work_limits.units_hint) and warn_floating's words, "; ..." each (a profile's
+    sweeps or a map reaching down to the ground from a structure given in altitudes)."""
+    from .work_limits import units_hint
+
+    note = _floating(bounds, cfg)
+    return units_hint(bounds, cfg.mesh.scale) + (f"; {note}" if note else "")
+
+
+def _floating(bounds, cfg) -> str:
     gap = floating_gap(bounds)
-    if gap and cfg.workspace.bounds_min is None:
-        shift = grounding_shift(bounds, cfg.mesh.shift)
-        shift = ",".join(np.format_float_positional(v, 3, trim="-") for v in shift)
-        warnings.warn(
-            f"the structure's lowest point lies {gap:g} m above the ground (z = 0): the workspace, "
-            f"the profile's sweeps and the flight reach down to the ground. If its z is an "
-            f"altitude rather than a height above the ground, stand it on the ground with --set "
-            f"mesh.shift=[{shift}]",
-            RuntimeWarning,
-            stacklevel=3,
-        )
+    if not gap or cfg.workspace.bounds_min is not None:
+        return ""
+    shift = grounding_shift(bounds, cfg.mesh.shift)
+    shift = ",".join(np.format_float_positional(v, 3, trim="-") for v in shift)
+    return (
+        f"the structure's lowest point lies {gap:g} m above the ground (z = 0): the workspace, "
+        f"the profile's sweeps and the flight reach down to the ground. If its z is an "
+        f"altitude rather than a height above the ground, stand it on the ground with --set "
+        f"mesh.shift=[{shift}]"
+    )
 
 
 #: cells of the map across the structure's largest extent below which it is mapped too coarsely
@@ -150,7 +164,11 @@ SUGGESTED_CELLS = 20
 
 def warn_coarse(bounds, cfg) -> None:
     """A RuntimeWarning, with a map.resolution that fits it, for a structure spanning fewer than
-    COARSE_CELLS cells of the map along its largest extent."""
+    COARSE_CELLS cells of the map along its largest extent; under a metre, first the mesh.scale
+    of a model in another unit (work_limits.units_hint: a finer map alone met the limits of an
+    8 m camera's rays and of the workspace's cells)."""
+    from .work_limits import units_hint
+
     extent = float(np.max(np.asarray(bounds[1], float) - np.asarray(bounds[0], float)))
     res = cfg.map.resolution
     if extent >= COARSE_CELLS * res:
@@ -159,7 +177,7 @@ def warn_coarse(bounds, cfg) -> None:
     warnings.warn(
         f"the structure spans {extent:.3g} m, {extent / res:.1f} cells of the {res:g} m map: "
         f"too coarse a map to plan views of its surface on; --set map.resolution={fit:g} maps "
-        f"it in {extent / fit:.0f} cells",
+        f"it in {extent / fit:.0f} cells" + units_hint(bounds, cfg.mesh.scale),
         RuntimeWarning,
         stacklevel=3,
     )

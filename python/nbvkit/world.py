@@ -15,7 +15,7 @@ import numpy as np
 from . import _core
 from ._core import MAX_COORDINATE
 from .limits import Bound, require_config, require_type
-from .work_limits import MissionError, check_work, units_hint
+from .work_limits import MissionError, check_work
 from .mapping import new_map
 from .mesh import check_path_clear, default_mesh_path, fibonacci_sphere, load_mesh
 from .mesh import mesh_file_sha1
@@ -35,6 +35,7 @@ from .workspace import (
     ground_height,
     make_workspace,
     start_poses,
+    structure_hint,
     warn_coarse,
     warn_floating,
 )
@@ -168,8 +169,8 @@ class World:
             self.map = new_map(cfg, mesh.bounds, self.workspace)
             warn_floating(mesh.bounds, cfg)  # a structure given in altitudes
             warn_coarse(mesh.bounds, cfg)  # a structure a few cells across
-        except ValueError as e:  # a structure of a size the metre makes unlikely: say so
-            if not (hint := units_hint(mesh.bounds, cfg.mesh.scale)):
+        except ValueError as e:  # a structure of a size or height the metre makes unlikely
+            if not (hint := structure_hint(mesh.bounds, cfg)):
                 raise
             raise (MissionError if isinstance(e, MissionError) else ValueError)(
                 f"{e}{hint}"
