@@ -275,6 +275,9 @@ def test_a_mesh_without_a_triangle_of_area_is_an_error(tmp_path):
     v = np.array([[0, 0, 0], [1, 0, 0], [2, 0, 0]], float)
     with pytest.raises(ValueError, match=r"mesh: its 1 triangles have no area \(all degenerate"):
         nbvkit.Mesh(v, np.array([[0, 1, 2]], np.int32))
+    # a scale that overflows the triangles' areas (inf - inf: NaN) was called degenerate
+    with pytest.raises(ValueError, match=r"infinite area \(coordinates too large\) at mesh scale"):
+        nbvkit.load_mesh(CUBE, scale=1e300)
 
 
 def test_mesh_arrays_are_read_only_and_rebuilt_meshes_are_checked():

@@ -36,8 +36,10 @@ namespace {
 std::string area_problem(const Mesh& m) {
   const double area = m.area();
   if (area > 0 && std::isfinite(area)) return "";
+  // (finite vertices: a NaN area is an overflow, inf - inf in a cross product)
+  const bool overflow = area > 0 || std::isnan(area);
   return "its " + std::to_string(m.faces.rows()) + " triangles have " +
-         (area > 0 ? "an infinite area (coordinates too large)" : "no area (all degenerate)");
+         (overflow ? "an infinite area (coordinates too large)" : "no area (all degenerate)");
 }
 }  // namespace
 
@@ -208,7 +210,7 @@ void validate_loaded(const Mesh& m, const std::string& path, double scale) {
   if (why.empty()) return;
   std::ostringstream msg;
   msg << "mesh file '" << path << "': " << why;
-  if (!(m.area() > 0) && scale != 1.0) msg << " at mesh scale " << scale << ": is the scale right?";
+  if (scale != 1.0) msg << " at mesh scale " << scale << ": is the scale right?";
   throw std::invalid_argument(msg.str());
 }
 
