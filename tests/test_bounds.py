@@ -445,6 +445,13 @@ def test_limits_name_a_floating_structure_and_offer_no_resolution_past_its_range
     huge = _obj_mesh(tmp_path, [(1e4 * x, 1e4 * y, 1e4 * z) for x, y, z in CUBE_V], CUBE_F)
     msg = _mission_error(["map.resolution=10"], mesh=huge)
     assert "map.resolution >=" not in msg and "a smaller mesh.scale" in msg, msg
+    # where the key's largest value fits (9.95 m needed), it is offered, not dropped
+    near = _obj_mesh(tmp_path, [(5030 * x, 5030 * y, 5030 * z) for x, y, z in CUBE_V], CUBE_F)
+    msg = _mission_error(["map.resolution=5", "profiling.enabled=false"], mesh=near)
+    assert "map.resolution >= 10 would fit" in msg, msg
+    # a value refused past a limit is shown with the digits that put it there
+    with pytest.raises(ValueError, match="= 180.0001 is more than its limit 180"):
+        load_config(overrides=["utility.coverage_cone_deg=180.0001"])
 
 
 def test_sweep_files_are_bounded():

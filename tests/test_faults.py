@@ -765,6 +765,34 @@ def test_a_script_killed_keeps_what_it_flew(tmp_path, stopping_part):
     assert s["stopped_by"].startswith("Terminated: SIGTERM")
 
 
+def test_a_kill_while_a_run_is_put_in_place_comes_after_it(tmp_path):
+    """A script's kill (the default handler: the process ends) arriving while a whole run is
+    renamed into place ended the process there, the run left in its temporary folder; it is
+    held until the run is in place (interrupts.signals_held), then ends the process."""
+    import subprocess
+
+    from conftest import TINY_RUN
+
+    out = tmp_path / "run"
+    script = textwrap.dedent(
+        f"""
+        import os, signal, nbvkit
+        from nbvkit.runfolder import RunFolder
+        place = RunFolder._place
+        def killed_while_placing(self, src, dst):
+            os.kill(os.getpid(), signal.SIGTERM)
+            return place(self, src, dst)
+        RunFolder._place = killed_while_placing
+        cfg = nbvkit.load_config(overrides={[*TINY_RUN, "progress=false"]!r})
+        nbvkit.Mission(cfg).run({str(out)!r})
+        print("not reached")
+        """
+    )
+    p = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True, timeout=300)
+    assert p.returncode == -signal.SIGTERM and "not reached" not in p.stdout, p.stderr[-2000:]
+    assert is_complete_run(out) and not list(tmp_path.glob(".run.tmp*"))
+
+
 def _nbvkit_cli(*argv):
     """`python -m nbvkit.cli ARGV` in its own process (a signal there is not this one's)."""
     import subprocess

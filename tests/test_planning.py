@@ -457,8 +457,11 @@ def test_a_structure_a_metre_across_is_toured_and_a_map_too_coarse_for_it_is_nam
         warn_coarse(nbvkit.load_mesh(nbvkit.default_mesh_path(), scale=0.03).bounds, fine)
     # under a metre, the unit comes first: its finer map alone was refused for the camera's rays
     tiny = cfg.with_overrides(["mesh.scale=0.006"])
-    with pytest.warns(RuntimeWarning, match=r"0\.21 m across at mesh\.scale = 0\.006 \(nbvkit"):
+    with pytest.warns(
+        RuntimeWarning, match=r"0\.21 m across at mesh\.scale = 0\.006 \(nbvkit"
+    ) as w:
         warn_coarse(nbvkit.load_mesh(nbvkit.default_mesh_path(), scale=0.006).bounds, tiny)
+    assert "map.resolution=" not in str(w[0].message)  # (refused for the camera's rays)
 
 
 def test_selection_floods_the_free_component_only_after_a_search_cut_short_by_its_cap():

@@ -250,6 +250,36 @@ def test_a_run_of_parts_an_import_registered_names_their_file(tmp_path):
     assert _nbvkit("evaluate", out, "--plugin", mod).returncode == 0
 
 
+def test_parts_from_names_the_file_that_registered_a_part(tmp_path, monkeypatch):
+    """A part defined in one module and registered by another is recorded with the one that
+    registered it (the file --plugin must run); one registered by code of no file (`python -c`,
+    exec) or by the program's own script is "a script", no file to offer."""
+    from nbvkit.planning.registry import part_sources
+
+    (tmp_path / "partlib_x.py").write_text(
+        "class Quiet:\n    def __init__(self, s, c): pass\n"
+        "    def propose(self, world): return None\n"
+        "    def feedback(self, world, proposal, step): pass\n"
+    )
+    reg = tmp_path / "regmod_x.py"
+    reg.write_text(
+        "import nbvkit\nfrom partlib_x import Quiet\n"
+        "nbvkit.register_generator('quiet_x', Quiet)\n"
+    )
+    monkeypatch.syspath_prepend(str(tmp_path))
+    try:
+        import regmod_x  # noqa: F401
+
+        exec(compile("import nbvkit\nnbvkit.register_utility('exec_u', len)", "<string>", "exec"))
+        cfg = load_config(overrides=["planner.generators=[quiet_x]", "utility.name=exec_u"])
+        assert part_sources(cfg) == {"generator quiet_x": str(reg), "utility exec_u": "a script"}
+    finally:
+        registry.GENERATORS.pop("quiet_x", None)
+        registry.UTILITIES.pop("exec_u", None)
+        for m in ("regmod_x", "partlib_x"):
+            sys.modules.pop(m, None)
+
+
 def test_the_tour_example_of_docs_plugins_flies_tours_that_nbvkit_plans(tmp_path):
     # views on rings round the cube, flown as the tours nbvkit.plan_tour makes of them, plan
     # after plan, until none pays for its flight
@@ -801,6 +831,7 @@ def test_container_and_optional_settings_are_checked_item_by_item():
             ("lists.gains=[1, .nan]", r"'lists.gains\[1\]' must be a finite number"),
             ("lists.gains=[1e999]", r"'lists.gains\[0\]' must be finite"),
             ("lists.plain=[1, .inf]", "'lists.plain' must be finite numbers"),
+            ("lists.counts=[100000000000000000000000000]", r"'lists.counts\[0\]' .* limit"),
         ):
             with pytest.raises(ValueError, match=words):
                 load_config(overrides=[over])

@@ -7,7 +7,7 @@ import re
 import sys
 
 from .console import own_warnings
-from .experiments import Terminated, terminate_as_interrupt
+from .interrupts import Terminated, terminate_as_interrupt
 from .plugins import PluginLoadError, load_plugins
 
 # name -> module in nbvkit.commands; each module defines register(subparsers) and run(args).

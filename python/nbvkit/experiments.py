@@ -14,7 +14,6 @@ nbvkit.experiment_specs (RunSpec, sweep_specs, ...) and the tables are nbvkit.ex
 """
 from __future__ import annotations
 
-import contextlib
 import json
 import operator
 import os
@@ -51,6 +50,7 @@ from .experiment_tables import (  # noqa: F401  (re-exported: the tables)
 from . import console
 from .recorder import error_line
 from .plugins import check_unchanged, load_plugins, loaded_files, plugin_frame, script_only
+from .interrupts import STOPPING_SIGNALS, Terminated, terminate_as_interrupt  # noqa: F401
 
 #: Poisson depth of each run's mesh.ply in experiments (table, sweep, compare) unless the
 #: configuration sets report.poisson_depth: 7 costs about a third of the default 8
@@ -245,53 +245,6 @@ def _worker_init(prog=None) -> None:
     parent = multiprocessing.parent_process()
     if parent is not None and os.getppid() != parent.pid:
         os._exit(1)  # the parent died while this worker was starting
-
-
-class Terminated(KeyboardInterrupt):
-    """SIGTERM or SIGHUP received within terminate_as_interrupt: stops as Ctrl-C does, named
-    apart."""
-
-
-STOPPING_SIGNALS = {
-    "SIGTERM": "a kill, or a batch scheduler's time limit",
-    "SIGHUP": "the terminal or the ssh session closed",
-}
-
-
-@contextlib.contextmanager
-def terminate_as_interrupt(only_default: bool = False):
-    """Within it, a `kill` (SIGTERM: also what batch schedulers send at a time limit) or a
-    hang-up (SIGHUP: the terminal or ssh session closed) raises Terminated, a
-    KeyboardInterrupt, as Ctrl-C does: an experiment's workers stopped, finished runs kept, the
-    partial table written; a single run's flight kept (recorder.fly_into), its summary's
-    stopped_by naming the signal. A signal ignored on entry (`nohup` ignores SIGHUP) stays
-    ignored; with only_default, so does one with a handler of its own (a script's). (Main
-    thread only: signals go there; elsewhere it does nothing.)"""
-    import signal
-    import threading
-
-    if threading.current_thread() is not threading.main_thread():
-        yield
-        return
-
-    def interrupt(signum, frame):
-        name = signal.Signals(signum).name
-        raise Terminated(f"{name} ({STOPPING_SIGNALS[name]})")
-
-    previous = {}
-    for name in STOPPING_SIGNALS:
-        signum = getattr(signal, name, None)  # (no SIGHUP on Windows)
-        if signum is None:
-            continue
-        now = signal.getsignal(signum)
-        if now is signal.SIG_IGN or (only_default and now is not signal.SIG_DFL):
-            continue
-        previous[signum] = signal.signal(signum, interrupt)
-    try:
-        yield
-    finally:
-        for signum, handler in previous.items():
-            signal.signal(signum, handler)
 
 
 def _worker_count(workers) -> int:

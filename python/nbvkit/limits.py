@@ -104,12 +104,14 @@ def is_number(x) -> bool:
 
 def fmt_number(x) -> str:
     """A key's value as a message shows it: integers whole (in _-grouped thousands from 100,000;
-    ~1eN past 100 bits), floats as %g."""
+    ~1eN past 100 bits), floats as %g where that reads back as the value, else all its digits
+    (180.0001 refused past a limit of 180 showed as 180)."""
     if isinstance(x, int) and not isinstance(x, bool):
         if x.bit_length() > 100:  # (str() fails past 4,300 digits)
             return f"{'-' if x < 0 else ''}~1e{int(x.bit_length() * math.log10(2))}"
         return f"{x:,}".replace(",", "_") if abs(x) >= 100_000 else str(x)
-    return f"{x:g}"
+    short = f"{x:g}"
+    return short if not isinstance(x, float) or float(short) == x else repr(x)
 
 
 @dataclass(frozen=True)

@@ -53,3 +53,24 @@ def clash(first: str | None, first_module: str | None = None) -> str:
         again = f" as module {module!r}" if module else ""
         return f" (registered from {first}; this one from the same file, run a second time{again})"
     return f" (registered from {first or 'a script'}; this one from {now or 'a script'})"
+
+
+#: (kind, name) -> (file, module) of the register_* call that registered each part or scenario
+#: of the user's (caller: a plugin file, a module imported, a script)
+REGISTERED: dict = {}
+
+
+def note(kind: str, name: str) -> None:
+    """Records who registers the part or scenario `name` of `kind` now (its register_* call)."""
+    REGISTERED[(kind, name)] = caller()
+
+
+def source(kind: str, name: str) -> str:
+    """Where the part `name` of `kind` was registered, as a run's summary records it
+    (parts_from): the file whose code called register_* (a plugin file, a module an import ran);
+    "a script" for the program's own code (__main__: a script, `python -c`, a notebook's cell,
+    with its file where it has one), which is no file to load again."""
+    file, module = REGISTERED.get((kind, name), (None, None))
+    if file is None or file.startswith("<"):
+        return "a script"
+    return f"a script ({file})" if module == "__main__" else file

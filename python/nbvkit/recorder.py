@@ -20,6 +20,7 @@ from .planning.terminations.budget import BUDGET_REASONS
 from .output_paths import atomic_open, write_text_atomic
 from .runfolder import RunFolder, write_json_atomic
 from .vehicle import FLIGHT_COLUMNS
+from .interrupts import terminate_as_interrupt
 
 # what stops a flight or its saving and leaves what was flown kept: Ctrl-C (and a `kill` handled
 # as it), sys.exit() from a part, any error
@@ -416,8 +417,6 @@ def fly_into(mission, folder: RunFolder, finish: bool = False) -> tuple[dict, Ba
     written. TypeError for a `finish` not True or False, before any flight. A `kill` or a
     hang-up stops it as Ctrl-C does (experiments.terminate_as_interrupt) where the signal has
     no handler of its own: from a script too (the command line's takes them already)."""
-    from .experiments import terminate_as_interrupt
-
     finish = require_bool(finish, "finish")
     with terminate_as_interrupt(only_default=True):
         return _fly_into(mission, folder, finish)

@@ -48,6 +48,7 @@ import numpy as np
 from .limits import require_bool
 from .locks import RunLock
 from .output_paths import MANIFEST, check_output_dir, write_text_atomic
+from .interrupts import signals_held
 from .run_manifest import (  # noqa: F401  (re-exported: the readers import them from here)
     IncompleteRunError,
     _fsync_path,
@@ -283,6 +284,10 @@ class RunFolder:
             shutil.rmtree(ck, ignore_errors=True)  # (after a swap: the previous checkpoint)
 
     def __exit__(self, exc_type, exc, tb) -> None:
+        with signals_held():  # a run whole in its temporary folder is put in place, then they come
+            self._exit(exc_type, exc)
+
+    def _exit(self, exc_type, exc) -> None:
         try:
             if exc_type is not None or self._cancelled:
                 self._discard()

@@ -12,7 +12,7 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 from .cloud import DEFAULT_MIN_Z, DEFAULT_VOXEL_SIZE
-from .origins import caller, clash
+from .origins import caller, clash, note
 
 
 @dataclass(frozen=True)
@@ -186,3 +186,4 @@ def register_scenario(name: str, description: str, settings: dict, *, replace=Fa
             "scenario; copy that scenario's settings (nbvkit.scenarios.SCENARIOS[...].settings)"
         )
     SCENARIOS[name] = Scenario(description, dict(settings), origin=caller()[0])
+    note("scenario", name)

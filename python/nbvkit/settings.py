@@ -268,9 +268,9 @@ def _coerce_items(tp, value, key):
                 f"config key {key!r} must be a list of {len(kinds)} items, got {shorten(value)}"
             )
     items = [coerce(t, v, f"{key}[{i}]") for i, (t, v) in enumerate(zip(kinds, value))]
-    for i, x in enumerate(items):  # each item a key of its type: finite (Bound's default)
-        if isinstance(x, float):
-            Bound().check(f"{key}[{i}]", x)
+    for i, (t, x) in enumerate(zip(kinds, items)):  # each a key of its type: finite, or an
+        if t in (int, float):  # integer within MAX_INT (Bound's defaults)
+            Bound().for_type(t).check(f"{key}[{i}]", x)
     return items if origin is list else tuple(items)
 
 

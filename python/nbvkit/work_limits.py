@@ -313,8 +313,9 @@ def check_map(cfg, ws) -> bool:
     cells = math.prod(max(math.ceil(s / r), 1) for s in size)
     limit = MAX_MAP_BYTES // MAP_BYTES_PER_CELL
     if cells > limit:
-        fit = at_least(r * (cells / limit) ** (1 / 3))
-        coarser = f"map.resolution >= {fit} would fit, or " if float(fit) <= MAX_RESOLUTION else ""
+        need = r * (cells / limit) ** (1 / 3)
+        fit = at_least(need) if float(at_least(need)) <= MAX_RESOLUTION else f"{MAX_RESOLUTION:g}"
+        coarser = f"map.resolution >= {fit} would fit, or " if need <= MAX_RESOLUTION else ""
         raise ValueError(
             f"the map: workspace {[round(s, 3) for s in size]} m at map.resolution = {r:g} m "
             f"holds {cells:,} cells (~{cells * MAP_BYTES_PER_CELL / 2**30:.1f} GiB), more than "

@@ -174,10 +174,12 @@ def warn_coarse(bounds, cfg) -> None:
     if extent >= COARSE_CELLS * res:
         return
     fit = float(f"{extent / SUGGESTED_CELLS:.1g}")
+    finer = f"--set map.resolution={fit:g} maps it in {extent / fit:.0f} cells"
+    if unit := units_hint(bounds, cfg.mesh.scale):  # (under a metre) the unit first
+        finer = f"{unit[2:]}; a finer map alone needs a camera and a workspace of its scale"
     warnings.warn(
         f"the structure spans {extent:.3g} m, {extent / res:.1f} cells of the {res:g} m map: "
-        f"too coarse a map to plan views of its surface on; --set map.resolution={fit:g} maps "
-        f"it in {extent / fit:.0f} cells" + units_hint(bounds, cfg.mesh.scale),
+        f"too coarse a map to plan views of its surface on; {finer}",
         RuntimeWarning,
         stacklevel=3,
     )

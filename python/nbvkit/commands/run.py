@@ -8,7 +8,7 @@ import sys
 
 from ..config import load_config
 from ..evaluation import unobservable_note
-from ..experiments import terminate_as_interrupt
+from ..interrupts import terminate_as_interrupt
 from ..experiment_specs import mesh_overrides_once, with_mesh_shift
 from ..mission import Mission
 from ..planning.registry import checks_only_words

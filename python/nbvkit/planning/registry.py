@@ -14,6 +14,7 @@ from .generators.tour import CoverageTour
 from .terminations.budget import Budget
 from .terminations.entropy import EntropyChange
 from .terminations.stall import SurfaceStall
+from ..origins import note
 from ..settings import REGISTER_FIRST, check_defaults, check_field_types, validate
 
 GENERATORS = {
@@ -48,26 +49,13 @@ def utility_only_checks(config) -> list:
 
 
 def part_sources(config) -> dict:
-    """{"KIND NAME": file} of the parts `config` flies that are not nbvkit's own (generators,
-    terminations, a utility written in Python, a registered scenario): the file that defined
-    each; "a script" (with its file, where known) for the program's own (its __main__: not a
-    file to load again). A run's summary records them (`parts_from`): a run flown with parts
+    """{"KIND NAME": where} of the parts `config` flies that are not nbvkit's own (generators,
+    terminations, a utility written in Python, a registered scenario): the file that registered
+    each (origins.source). A run's summary records them (`parts_from`): a run flown with parts
     that `import my_parts` registered names the file its config.yaml needs."""
-    import os
-    import sys
-
-    from ..origins import defined_in
+    from ..origins import source
     from ..scenarios import BUILT_IN as OWN_SCENARIOS
     from ..scenarios import SCENARIOS
-
-    main = getattr(sys.modules.get("__main__"), "__file__", None)
-
-    def where(file):
-        if file is None:
-            return "a script"
-        if main is not None and os.path.realpath(file) == os.path.realpath(main):
-            return f"a script ({file})"
-        return file
 
     out = {}
     for kind, names, table in (
@@ -77,9 +65,9 @@ def part_sources(config) -> dict:
     ):
         for n in names:
             if n not in BUILT_IN and n in table:
-                out[f"{kind} {n}"] = where(defined_in(table[n]))
+                out[f"{kind} {n}"] = source(kind, n)
     if config.scenario not in OWN_SCENARIOS and config.scenario in SCENARIOS:
-        out[f"scenario {config.scenario}"] = where(SCENARIOS[config.scenario].origin)
+        out[f"scenario {config.scenario}"] = source("scenario", config.scenario)
     return out
 
 
@@ -221,6 +209,7 @@ def register_generator(name: str, cls, *, replace: bool = False) -> None:
     _check_new(name, "generator", {**GENERATORS, **TERMINATIONS}, replace, GENERATORS)
     _check_part(name, "generator", cls, ("propose", "feedback"))
     GENERATORS[name] = cls
+    note("generator", name)
 
 
 def register_termination(name: str, cls, *, replace: bool = False) -> None:
@@ -229,6 +218,7 @@ def register_termination(name: str, cls, *, replace: bool = False) -> None:
     _check_new(name, "termination", {**GENERATORS, **TERMINATIONS}, replace, TERMINATIONS)
     _check_part(name, "termination", cls, ("check",))
     TERMINATIONS[name] = cls
+    note("termination", name)
 
 
 def register_utility(name: str, fn, *, replace: bool = False) -> None:
@@ -243,6 +233,7 @@ def register_utility(name: str, fn, *, replace: bool = False) -> None:
         name, "utility", {**UTILITIES, **dict.fromkeys(_core_utilities())}, replace, UTILITIES
     )
     UTILITIES[name] = fn
+    note("utility", name)
 
 
 def part_settings() -> dict:
