@@ -284,7 +284,7 @@ class RunFolder:
             shutil.rmtree(ck, ignore_errors=True)  # (after a swap: the previous checkpoint)
 
     def __exit__(self, exc_type, exc, tb) -> None:
-        with signals_held():  # a run whole in its temporary folder is put in place, then they come
+        with signals_held():  # Ctrl-C or a kill meanwhile comes once the run is in place
             self._exit(exc_type, exc)
 
     def _exit(self, exc_type, exc) -> None:

@@ -314,8 +314,8 @@ def check_map(cfg, ws) -> bool:
     limit = MAX_MAP_BYTES // MAP_BYTES_PER_CELL
     if cells > limit:
         need = r * (cells / limit) ** (1 / 3)
-        fit = at_least(need) if float(at_least(need)) <= MAX_RESOLUTION else f"{MAX_RESOLUTION:g}"
-        coarser = f"map.resolution >= {fit} would fit, or " if need <= MAX_RESOLUTION else ""
+        fit = min(float(at_least(need)), MAX_RESOLUTION)  # (the key's largest, where it fits)
+        coarser = f"map.resolution >= {fit:g} would fit, or " if need <= MAX_RESOLUTION else ""
         raise ValueError(
             f"the map: workspace {[round(s, 3) for s in size]} m at map.resolution = {r:g} m "
             f"holds {cells:,} cells (~{cells * MAP_BYTES_PER_CELL / 2**30:.1f} GiB), more than "

@@ -9,6 +9,7 @@ from typing import Optional
 import numpy as np
 
 from .settings import nonneg, triple
+from .work_limits import units_hint
 
 
 @dataclass(frozen=True)
@@ -134,8 +135,6 @@ def structure_hint(bounds, cfg) -> str:
     """What an error about the work on the structure adds of the structure itself: its size in
     another unit (work_limits.units_hint) and warn_floating's words, "; ..." each (a profile's
     sweeps or a map reaching down to the ground from a structure given in altitudes)."""
-    from .work_limits import units_hint
-
     note = _floating(bounds, cfg)
     return units_hint(bounds, cfg.mesh.scale) + (f"; {note}" if note else "")
 
@@ -167,8 +166,6 @@ def warn_coarse(bounds, cfg) -> None:
     COARSE_CELLS cells of the map along its largest extent; under a metre, first the mesh.scale
     of a model in another unit (work_limits.units_hint: a finer map alone met the limits of an
     8 m camera's rays and of the workspace's cells)."""
-    from .work_limits import units_hint
-
     extent = float(np.max(np.asarray(bounds[1], float) - np.asarray(bounds[0], float)))
     res = cfg.map.resolution
     if extent >= COARSE_CELLS * res:
