@@ -415,7 +415,7 @@ def fly_into(mission, folder: RunFolder, finish: bool = False) -> tuple[dict, Ba
     stopped (its end-of-run outputs: Recorder.write_keeping, `stopped_during` "saving").
     Stopped before the views (profile, symmetry), the exception propagates and nothing is
     written. TypeError for a `finish` not True or False, before any flight. A `kill` or a
-    hang-up stops it as Ctrl-C does (experiments.terminate_as_interrupt) where the signal has
+    hang-up stops it as Ctrl-C does (interrupts.terminate_as_interrupt) where the signal has
     no handler of its own: from a script too (the command line's takes them already)."""
     finish = require_bool(finish, "finish")
     with terminate_as_interrupt(only_default=True):

@@ -14,7 +14,7 @@ from .generators.tour import CoverageTour
 from .terminations.budget import Budget
 from .terminations.entropy import EntropyChange
 from .terminations.stall import SurfaceStall
-from ..origins import note
+from ..origins import note, source
 from ..settings import REGISTER_FIRST, check_defaults, check_field_types, validate
 
 GENERATORS = {
@@ -53,7 +53,6 @@ def part_sources(config) -> dict:
     terminations, a utility written in Python, a registered scenario): the file that registered
     each (origins.source). A run's summary records them (`parts_from`): a run flown with parts
     that `import my_parts` registered names the file its config.yaml needs."""
-    from ..origins import source
     from ..scenarios import BUILT_IN as OWN_SCENARIOS
     from ..scenarios import SCENARIOS
 
