@@ -991,7 +991,7 @@ def test_a_signal_ignored_before_stays_ignored_within_terminate_as_interrupt():
     without nohup a hang-up stops it as a kill does; the handlers before come back after."""
     import signal
 
-    from nbvkit.experiments import Terminated, terminate_as_interrupt
+    from nbvkit.interrupts import Terminated, terminate_as_interrupt
 
     before = signal.getsignal(signal.SIGHUP), signal.getsignal(signal.SIGTERM)
     try:

@@ -71,18 +71,25 @@ def _nbvkit(*args):
 
 def test_a_changed_plugin_file_flies_its_runs_again(tmp_path):
     """compare --plugin again after the file changed: its runs are flown anew (they were kept,
-    and so the old figures); unchanged, they are kept. The summary names the files and content."""
+    and so the old figures); unchanged, they are kept. The summary names the files and content.
+    The run of nbvkit's own scenario beside them depends on no plugin file: it stays kept."""
     plugin = _plugin(tmp_path / "evolving.py")
     out = tmp_path / "cmp"
-    argv = ["compare", "--plugin", plugin, "--planners", "orbit", "--starts", "1", "--workers",
+    argv = ["compare", "--plugin", plugin, "--planners", "orbit,1", "--starts", "1", "--workers",
             "1", "--mesh", CUBE, "--out", out, "--set", *SMALL]  # fmt: skip
 
     def fly():
         p = _nbvkit(*argv)
         assert p.returncode == 0, p.stderr
-        (run,) = (out / "runs").iterdir()
+        runs = {r.name: r for r in (out / "runs").iterdir()}
+        (run,) = (r for r in runs.values() if "orbit" in r.name)
+        (own,) = (r for r in runs.values() if r is not run)
+        assert "plugins" not in json.loads((own / "spec.json").read_text())
+        assert "plugins" not in json.loads((own / "summary.json").read_text())
+        kept.append((own / "summary.json").stat().st_mtime_ns)
         return run.name, (run / "summary.json").stat().st_mtime_ns, run
 
+    kept = []
     run_id, first, run = fly()
     import hashlib
 
@@ -98,6 +105,7 @@ def test_a_changed_plugin_file_flies_its_runs_again(tmp_path):
     again = fly()
     assert again[0] == run_id and again[1] != first  # changed: flown again, in the same folder
     assert recorded()["distance_m"] != d0
+    assert kept == kept[:1] * 3  # nbvkit's own scenario 1: flown once, kept since
 
 
 BROKEN = """

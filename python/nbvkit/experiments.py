@@ -49,8 +49,15 @@ from .experiment_tables import (  # noqa: F401  (re-exported: the tables)
 )
 from . import console
 from .recorder import error_line
-from .plugins import check_unchanged, load_plugins, loaded_files, plugin_frame, script_only
-from .interrupts import STOPPING_SIGNALS, Terminated, terminate_as_interrupt  # noqa: F401
+from .plugins import (
+    check_unchanged,
+    flown_files,
+    load_plugins,
+    loaded_files,
+    plugin_frame,
+    script_only,
+)
+from .interrupts import terminate_as_interrupt
 
 #: Poisson depth of each run's mesh.ply in experiments (table, sweep, compare) unless the
 #: configuration sets report.poisson_depth: 7 costs about a third of the default 8
@@ -100,9 +107,9 @@ def _run_one(spec: RunSpec, root: Path, threads: int) -> dict:
             # one observable-surface cache for the whole experiment: once per structure
             summary = mission.run()
             mission.recorder.write(folder.tmp, summary, finish=True, cache_dir=root / "cache")
-            # the plugin files loaded (their content's SHA-256): only when there are, so that a
-            # run without them keeps the spec.json (and resumes) as before
-            plugins = {"plugins": files} if (files := loaded_files()) else {}
+            # the plugin files of its parts (their content's SHA-256): only when there are, so
+            # that a run without them keeps the spec.json (and resumes) as before
+            plugins = {"plugins": files} if (files := flown_files(cfg)) else {}
             _write_json_atomic(
                 folder.tmp / "spec.json", {**_spec_dict(spec), "mesh_sha1": mesh_sha1, **plugins}
             )
@@ -151,8 +158,9 @@ def _finished_rows(specs: list[RunSpec], root: Path, rows: list) -> None:
 
 def _finished_with(run_dir: Path, cfg, mesh_sha1: str | None) -> bool:
     """Whether run_dir holds a finished run of exactly this resolved configuration on the mesh
-    file whose content has this SHA-1 (_mesh_digest), with the plugin files loaded in this
-    process of the same content (plugins.loaded_files; none for a run flown without them). The
+    file whose content has this SHA-1 (_mesh_digest), with the plugin files its parts came from
+    of the same content as loaded in this process (plugins.flown_files; none for a run of
+    nbvkit's own parts, which a changed plugin file leaves kept). The
     run id hashes the mesh flown (path, scale, up of the resolved configuration), the overrides
     and the config file's name, not the other defaults it resolves to, the config file's content,
     the mesh file's nor the plugin files': a run kept from before one of them changed is flown
@@ -167,7 +175,7 @@ def _finished_with(run_dir: Path, cfg, mesh_sha1: str | None) -> bool:
             (run_dir / "config.yaml").read_text() == cfg.to_yaml()
             and mesh_sha1 is not None
             and spec.get("mesh_sha1") == mesh_sha1
-            and spec.get("plugins", []) == loaded_files()
+            and spec.get("plugins", []) == flown_files(cfg)
         )
     except (OSError, ValueError):
         return False

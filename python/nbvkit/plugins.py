@@ -298,6 +298,20 @@ def loaded_files() -> list[dict]:
     return [{"path": p, "sha256": DIGESTS[p]} for p in LOADED]
 
 
+def flown_files(config) -> list[dict]:
+    """The loaded plugin files (loaded_files) a run of `config` depends on: those that registered
+    the parts it flies that are not nbvkit's own (registry.part_sources); [] when it flies only
+    nbvkit's own, so that a built-in run is kept while a plugin file changes. Every loaded file
+    where a part came from elsewhere (a script, a module a plugin file imported)."""
+    from .planning.registry import part_sources
+
+    sources = set(part_sources(config).values())
+    files = loaded_files()
+    if not sources <= {f["path"] for f in files}:
+        return files if sources else []
+    return [f for f in files if f["path"] in sources]
+
+
 def plugin_frame(e: BaseException) -> str | None:
     """Where in a loaded plugin file `e` was raised: "plugin file PATH, line N, in FUNCTION" of
     the innermost frame of its traceback in one of them; None when none is."""

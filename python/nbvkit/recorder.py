@@ -256,9 +256,9 @@ class Recorder:
         if tour is not None:
             out["tours"] = tour.plans
         from .planning.registry import part_sources
-        from .plugins import loaded_files
+        from .plugins import flown_files
 
-        if files := loaded_files():  # the plugin files loaded, and each one's content SHA-256
+        if files := flown_files(cfg):  # the plugin files of its parts, each one's SHA-256
             out["plugins"] = files
         if parts := part_sources(cfg):  # where the parts flown that are not nbvkit's came from
             out["parts_from"] = parts
