@@ -9,7 +9,7 @@ import pytest
 
 import nbvkit
 from nbvkit.sampling import LATTICE, AdaptiveScale, candidate_poses, lattice_offsets, wrap_angle
-from nbvkit.termination import EntropyTermination, viewable_cells
+from nbvkit.termination import viewable_cells
 
 
 def test_lattice_has_80_offsets_with_the_paper_values():
@@ -74,20 +74,26 @@ def test_oscillation_counts_as_stuck_when_asked():
 
 
 def test_termination_fires_exactly_after_n_quiet_iterations():
-    t = EntropyTermination(c_view=1000.0, threshold=0.001, window=5)
+    """The mission's `entropy` termination: done at the window-th |dE_v| < threshold in a row;
+    a loud iteration restarts the count, whichever the sign of the change (entropy may rise)."""
+    from types import SimpleNamespace
+
+    from nbvkit.planning.terminations.entropy import EntropyChange, EntropyConfig
+
+    def run(entropies, c_view=1000.0, window=5):
+        t = EntropyChange(EntropyConfig(threshold=0.001, window=window))
+        steps = [
+            SimpleNamespace(delta_ev=(a - b) / c_view) for a, b in itertools.pairwise(entropies)
+        ]
+        return [t.check(None, s) == "entropy_converged" for s in steps]
+
     E = [100.0, 90.0, 89.9995, 89.999, 89.9985, 89.998, 89.9975]  # dE_v 0.01, then 5e-7 each
-    done = [t.update(a, b)[1] for a, b in zip(E[:-1], E[1:])]
-    assert done == [False, False, False, False, False, True]
-    t2 = EntropyTermination(c_view=1000.0, threshold=0.001, window=5)
-    seq = [0.0] * 4 + [5.0] + [0.0] * 5  # a loud iteration in between restarts the count
-    out = []
-    e = 1000.0
-    for d in seq:
-        out.append(t2.update(e, e - d)[1])
-        e -= d
-    assert out.index(True) == 9
-    dev, _ = EntropyTermination(c_view=10.0).update(5.0, 7.0)  # entropy rose
-    assert dev == pytest.approx(-0.2)
+    assert run(E) == [False, False, False, False, False, True]
+    assert run(E, window=6) == [False] * 6
+    e = list(itertools.accumulate([1000.0] + [-0.0] * 4 + [-5.0] + [-0.0] * 5))  # a loud fall at 5
+    assert run(e).index(True) == 9
+    rise = [1000.0, 1000.0, 1000.0, 1002.0, 1002.0]  # entropy rose by 2 (|dE_v| 0.002): loud
+    assert run(rise, window=2) == [False, True, False, False]
 
 
 def test_c_view_matches_the_closed_form_frustum():

@@ -1,7 +1,8 @@
 """Termination by entropy change per viewable voxel (paper sec. 3.5, Eq. 4-6).
 
 dE_v = (E_{n-1} - E_n) / C_view, C_view = V_frustum / V_cell (Eq. 5). The mission stops when
-|dE_v| < threshold for `window` consecutive iterations (paper: 0.001 and N = 5).
+|dE_v| < threshold for `window` consecutive iterations (paper: 0.001 and N = 5), counted by the
+`entropy` termination (planning/terminations/entropy.py).
 C_view counts the cells a frustum touches, partial boundary cells included (the paper's note):
 nbvkit.viewable_cells(..., count_partial=True) computes vol(frustum (+) cell) / V_cell, the
 volume of the frustum's Minkowski sum with one cell -- the expected number of cells a frustum at
@@ -23,22 +24,3 @@ def viewable_cells(
 ) -> float:
     """C_view of Eq. 5 for a camera and map resolution (see the module docstring)."""
     return _core.viewable_cells(hfov_deg, vfov_deg, min_range, max_range, resolution, count_partial)
-
-
-class EntropyTermination:
-    """Counts consecutive quiet iterations: done once `window` in a row have |dE_v| < threshold."""
-
-    def __init__(self, c_view: float, threshold: float = 0.001, window: int = 5):
-        if not c_view > 0 or not threshold > 0 or window < 1:
-            raise ValueError("termination needs c_view > 0, threshold > 0 and window >= 1")
-        self.c_view, self.threshold, self.window = c_view, threshold, window
-        self.quiet = 0
-
-    def delta_ev(self, entropy_prev: float, entropy_now: float) -> float:
-        return (entropy_prev - entropy_now) / self.c_view
-
-    def update(self, entropy_prev: float, entropy_now: float) -> tuple[float, bool]:
-        """Record one iteration; returns (dE_v, done)."""
-        d = self.delta_ev(entropy_prev, entropy_now)
-        self.quiet = self.quiet + 1 if abs(d) < self.threshold else 0
-        return d, self.quiet >= self.window

@@ -8,6 +8,12 @@ from .common import path_arg
 
 #: The captures beyond the battery listed one by one on the console (export.json lists all).
 SHOWN = 10
+#: Each firmware's mission file, as the console names it, and the --format that writes it.
+FIRMWARE_FILES = {
+    "px4": (".plan (PX4)", "qgc"),
+    "ardupilot": (".waypoints (ArduPilot)", "qgc"),
+    "dji": (".kmz (DJI)", "wpml"),
+}
 
 
 def register(sub) -> argparse.ArgumentParser:
@@ -156,14 +162,13 @@ def run(args) -> int:
         f"mission: {m['views']} views, {m['distance_m']:.0f} m, {m['time_min']:.1f} min "
         f"(speed {args.speed:g} m/s, climb {args.climb_rate:g} m/s, hover {args.hover:g} s)"
     )
-    written = {"px4": "qgc", "ardupilot": "qgc", "dji": "wpml"}  # the files of those formats
-    by = {k: v for k, v in (m.get("time_s_by_file") or {}).items() if written[k] in s["formats"]}
+    by = [
+        f"{FIRMWARE_FILES[k][0]} {v / 60:.1f} min"
+        for k, v in (m.get("time_s_by_file") or {}).items()
+        if FIRMWARE_FILES[k][1] in s["formats"]
+    ]
     if by:  # the files wait differently: the longest is the mission's (and a sortie's) time
-        names = {"px4": ".plan (PX4)", "ardupilot": ".waypoints (ArduPilot)", "dji": ".kmz (DJI)"}
-        print(
-            "  time by file: "
-            + ", ".join(f"{names.get(k, k)} {v / 60:.1f} min" for k, v in by.items())
-        )
+        print("  time by file: " + ", ".join(by))
     if s["budget"] is not None:
         print(f"{'sortie':>6} {'views':>6} {'distance_m':>11} {'time_min':>9}")
         for r in s["sorties"]:

@@ -14,7 +14,9 @@ class EntropyConfig:
     |dE_v| < threshold for `window` iterations."""
 
     threshold: float = positive(0.001)  # |dE_v| (paper)
-    window: int = within(5, 1, 10**6)  # consecutive iterations (paper)
+    # consecutive quiet iterations that end the mission (paper: N = 5, the authors' window;
+    # the paper's "true for more than N consecutive iterations" read literally is 6)
+    window: int = within(5, 1, 10**6)
     count_partial_cells: bool = True  # C_view counts cells the frustum touches partially
 
 
