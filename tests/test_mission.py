@@ -429,3 +429,26 @@ def test_stage_timers_lap_counts_every_run_of_a_stage_since_the_last_lap(monkeyp
         pass
     assert t.lap() == {"evaluation": 1.0, "sensing": 0.0}
     assert t.total == {"evaluation": 4.0, "sensing": 1.0}
+
+
+def test_each_rows_entropy_change_is_the_maps_since_the_row_before(tmp_path):
+    """iterations.csv: `entropy_change` is the map's change since the row before, so that it
+    sums with `entropy`; a change an after-view hook makes between two views (a symmetry
+    re-prediction: unknown cells set to 0.6) counts in the next row, not in none."""
+    rng = np.random.default_rng(0)
+    marked = []
+
+    def predict(world, step):
+        lo, hi = world.workspace.nav_min, world.workspace.nav_max
+        marked.append(world.map.set_unknown_cells(rng.uniform(lo, hi, (200, 3)), 0.6))
+
+    m = Mission(cfg("max_iterations=6"))
+    m.planner.hooks["predict"] = predict
+    m.run(tmp_path)
+    rows = list(csv.DictReader(open(tmp_path / "iterations.csv")))
+    entropy = np.array([float(r["entropy"]) for r in rows])
+    change = np.array([float(r["entropy_change"]) for r in rows])
+    assert len(rows) >= 3 and sum(marked[:-1]) > 0
+    np.testing.assert_allclose(change[1:], np.diff(entropy), rtol=0, atol=1e-6 * entropy[0])
+    c_view = float(rows[0]["entropy_change"]) / -float(rows[0]["delta_ev"])
+    assert [float(r["delta_ev"]) for r in rows] == pytest.approx(-change / c_view)

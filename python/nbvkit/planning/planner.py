@@ -59,21 +59,20 @@ class Planner:
         self.hooks = {"feedback": _feedback}
 
     def run(self, world, max_views: int) -> str:
-        """Flies views until a termination fires or max_views are flown ("max_iterations");
-        returns why it stopped."""
-        t = self.timers
+        """Flies views until a termination fires, else max_views ("max_iterations"); says why."""
+        t, entropy_before = self.timers, world.map.total_entropy()
         for iteration in range(1, max_views + 1):
             back = t.call("motion", retreat, world, self.radius) if self.radius else 0.0
             found = self.next_view(world)  # viewpoint sampling + evaluation + selection
             if isinstance(found, str):
                 return found
-            entropy_before, choice = world.map.total_entropy(), found[3]
-            leg, frame_cells = fly_leg(world, choice, *self.frames, t)
+            leg, frame_cells = fly_leg(world, found[3], *self.frames, t)
             scan = t.call("sensing", world.scan, "view")
             new_cells = frame_cells + t.call("mapping", world.integrate, scan, "view")
-            delivered = t.call("evaluation", self.score.delivered, world, choice)
+            delivered = t.call("evaluation", self.score.delivered, world, found[3])
             step = Step.of(iteration, found, world, entropy_before, self.c_view, new_cells)
             step.expected_m2, step.realized_m2 = delivered
+            entropy_before = step.entropy_after  # the next row's change: all since this one's
             step.extra.update(leg_m=back + leg, scan=scan)
             run_hooks(self.hooks, world, step)  # all of them, then a part's error
             for term in self.terminations:
