@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import json
 import math
+import re
 import time
 from dataclasses import fields
 from types import SimpleNamespace
@@ -456,6 +457,12 @@ def test_run_symmetry_prediction_writes_the_map(airliner, tmp_path):
     assert flagged.sum() > 0.5 * summary["cells_set"]  # (several points can share a cell)
     np.testing.assert_allclose(m.probability(pred[flagged]), 0.6, atol=1e-6)
     np.testing.assert_array_equal(mission.symmetry_profile, cloud.points)
+    line = sym.summary_line(summary)  # the console's: the plane, as the summary gives it
+    a, b, c, d = (round(v, 3) + 0.0 for v in summary["plane"])
+    assert line.startswith(f"symmetry: mirror plane {a:.3f} x {b:+.3f} y {c:+.3f} z {d:+.2f} = 0")
+    assert line.endswith(f"{summary['support']} pairs), {summary['cells_set']:,} cells predicted")
+    assert sym.summary_line({**summary, "written": False}).endswith("pairs), nothing written")
+    assert "-0.000" not in sym.summary_line({**summary, "plane": [-1e-9, 1.0, -1e-9, -1e-9]})
     # later observations override predictions: fly the full 10-waypoint profile
     _, more = simulate_profile(mesh, waypoints=10, radius=28.0)
     for s in more:
@@ -475,6 +482,9 @@ def test_run_symmetry_prediction_rejects_without_touching_the_map():
     assert not summary["accepted"] and summary["plane"] is None
     assert summary["cells_set"] == 0 and summary["predicted_points"] == 0
     assert m.total_entropy() == total
+    said = sym.summary_line(summary)  # why, with its numbers short: 0.41, not 0.412345
+    assert said.startswith("symmetry: no mirror plane accepted (") and "nothing predicted" in said
+    assert summary["reason"] and not re.search(r"\.\d{3,}", said), (summary["reason"], said)
     # too few points: reported, not raised
     empty = SimpleNamespace(config=Config(), laser_cloud=_core.SurfaceCloud(voxel_size=0.1), map=m)
     out = sym.run_symmetry_prediction(empty)

@@ -40,6 +40,7 @@ translation) and predicts the reflected points that no observed point explains.
 from __future__ import annotations
 
 import math
+import re
 import time
 from typing import Any
 
@@ -321,3 +322,19 @@ __all__ = [
     "detection_options",
     "prediction_options",
 ]
+
+
+def summary_line(sym: dict) -> str:
+    """The console's line for a run's symmetry step (its summary's `symmetry`): the mirror plane
+    and the cells it predicted, or why no plane was accepted (then nothing was predicted)."""
+    if not sym.get("accepted"):
+        why = re.sub(r"\d+\.\d{3,}", lambda m: f"{float(m.group()):.2f}", sym.get("reason") or "")
+        return f"symmetry: no mirror plane accepted ({why or 'none found'}): nothing predicted"
+    a, b, c, d = (round(v, 3) + 0.0 for v in sym["plane"])  # (+ 0.0: no "-0.000")
+    said = f"{sym['cells_set']:,} cells predicted" if sym.get("written") else "nothing written"
+    if sym.get("refreshed_cells"):
+        said += f", {sym['refreshed_cells']:,} more from the camera's views"
+    return (
+        f"symmetry: mirror plane {a:.3f} x {b:+.3f} y {c:+.3f} z {d:+.2f} = 0 "
+        f"(confidence {sym['confidence']:.2f}, {sym['support']} pairs), {said}"
+    )

@@ -16,6 +16,7 @@ from ..planning.terminations.budget import budget_note
 from ..recorder import fly_into, raise_stop
 from ..runfolder import RunFolder
 from ..scenarios import DEFAULT, SCENARIOS
+from .. import symmetry
 from .common import add_mesh_shift_option, add_set_option, path_arg, shift_override
 
 
@@ -214,6 +215,8 @@ def print_summary(s: dict, out, level: bool = False) -> None:
         f"{s['entropy_reduction']:,.0f} {s['entropy_unit']}, "
         f"termination: {s['termination']}"
     )
+    if s.get("symmetry"):
+        print(symmetry.summary_line(s["symmetry"]))
     note = budget_note(s)
     if note:
         print("note: " + note)
