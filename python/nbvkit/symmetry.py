@@ -330,7 +330,7 @@ def summary_line(sym: dict) -> str:
     if not sym.get("accepted"):
         why = re.sub(r"\d+\.\d{3,}", lambda m: f"{float(m.group()):.2f}", sym.get("reason") or "")
         return f"symmetry: no mirror plane accepted ({why or 'none found'}): nothing predicted"
-    a, b, c, d = (round(v, 3) + 0.0 for v in sym["plane"])  # (+ 0.0: no "-0.000")
+    a, b, c, d = (round(v, n) + 0.0 for v, n in zip(sym["plane"], (3, 3, 3, 2)))  # no "-0.00"
     said = f"{sym['cells_set']:,} cells predicted" if sym.get("written") else "nothing written"
     if sym.get("refreshed_cells"):
         said += f", {sym['refreshed_cells']:,} more from the camera's views"
