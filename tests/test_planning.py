@@ -433,6 +433,11 @@ def test_area_thresholds_shrink_with_a_structure_smaller_than_the_reference_area
     assert Selector(PlanningContext.of(cfg)).choose(large, poses, scores) is None
     absolute = load_config(overrides=["vehicle.blocked_path=reject", "planner.reference_area=0"])
     assert Selector(PlanningContext.of(absolute)).choose(small, poses, scores) is None
+    refusing = Selector(PlanningContext.of(cfg))  # why none was chosen, counted by cause
+    assert refusing.choose(large, poses, {**scores, "status": np.int8([0, 2])}) is None
+    assert +refusing.refused == {"below_min_gain": 1, "collision": 1}
+    refusing.begin()  # a new planning step counts anew
+    assert +refusing.refused == {}
 
 
 def test_a_structure_a_metre_across_is_toured_and_a_map_too_coarse_for_it_is_named(tmp_path):
@@ -506,6 +511,9 @@ def test_selection_floods_the_free_component_only_after_a_search_cut_short_by_it
             # each search to a view apart fails for good: no flood, the next view is searched
             assert selector.component is None
             assert sorted(searched[:2]) == [(5, 9, 2), (9, 9, 2)] and searched[2] == (9, 2, 2)
+        apart = {k: v[:2] for k, v in scores.items()}  # only the views apart: no way to either
+        assert selector.choose(world, poses[:2], apart) is None
+        assert +selector.refused == {"no_path": 2}
 
 
 def test_patches_group_targets_by_cell_and_side():

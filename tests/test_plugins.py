@@ -393,17 +393,27 @@ def _ring_poses(p):
 
 def test_a_mission_whose_candidates_are_all_refused_says_why_nothing_was_flown(capsys):
     """Every view inside the box: no view is valid, the mission ends at 0 iterations and the
-    console says what refuses a candidate (it ended silently, exit 0)."""
+    console says what refuses a candidate (it ended silently, exit 0), and how many candidates
+    each cause refused (summary: refused_views)."""
     from nbvkit.commands.run import NOTHING_FLOWN, print_summary
 
     inside = _proposing(lambda self, world, p: Proposal(np.array([[0.0, 0.0, 1.5, 0.0]]), "ring"))
     _, s = _fly(generator=inside)
     assert s["iterations"] == 0 and s["termination"] == "no_valid_viewpoint"
+    assert s["refused_views"] == {"collision": 1}
     print_summary(s, "out")
-    assert "note: " + NOTHING_FLOWN in capsys.readouterr().out
+    out = capsys.readouterr().out
+    assert "note: " + NOTHING_FLOWN in out
+    assert "candidates were refused: 1 within vehicle.collision_radius of occupied" in out
     _, s = _fly(generator=RingGenerator)  # views round it are flown: no such note
     print_summary(s, "out")
-    assert s["iterations"] > 0 and NOTHING_FLOWN not in capsys.readouterr().out
+    out = capsys.readouterr().out
+    assert s["iterations"] > 0 and NOTHING_FLOWN not in out
+    assert (
+        ("refused_views" in s)
+        == ("were refused" in out)
+        == (s["termination"] == "no_valid_viewpoint")
+    )
 
 
 @pytest.mark.parametrize(

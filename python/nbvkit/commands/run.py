@@ -12,6 +12,7 @@ from ..interrupts import terminate_as_interrupt
 from ..experiment_specs import mesh_overrides_once, with_mesh_shift
 from ..mission import Mission
 from ..planning.registry import checks_only_words
+from ..planning.selection import refusal_words
 from ..planning.terminations.budget import budget_note
 from ..recorder import fly_into, raise_stop
 from ..runfolder import RunFolder
@@ -224,6 +225,8 @@ def print_summary(s: dict, out, level: bool = False) -> None:
         print("note: " + checks_only_words(s["utility_only_checks"], s["utility"]))
     if s["iterations"] == 0 and s["termination"] in ("no_valid_viewpoint", "no_reachable_view"):
         print("note: " + NOTHING_FLOWN)
+    if s.get("refused_views"):
+        print("note: the last plan's candidates were refused: " + refusal_words(s["refused_views"]))
     print("coverage  " + "  ".join(f"@{k} m {v:6.1%}" for k, v in cov.items()))
     print("area cov. " + "  ".join(f"@{k} m {v:6.1%}" for k, v in s["area_coverage"].items()))
     if "coverage_observable" in s:

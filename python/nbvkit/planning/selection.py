@@ -20,10 +20,29 @@ from __future__ import annotations
 
 import heapq
 import math
+from collections import Counter
 
 import numpy as np
 
+from .. import _core
 from .parts import Choice, threshold_scale
+
+#: Why a candidate was not chosen (`Selector.refused`, a summary's `refused_views`): the core's
+#: view status (VIEW_STATUS_NAMES) and the selection's own two causes, in the console's words.
+REFUSALS = {
+    "out_of_bounds": "outside the workspace",
+    "collision": "within vehicle.collision_radius of occupied or unknown space",
+    "path_blocked": "a straight leg through occupied or unknown space",
+    "sees_no_occupied": "seeing no occupied cell",
+    "below_min_gain": "worth less than planner.min_gain",
+    "no_path": "no way there through known free space",
+}
+
+
+def refusal_words(refused: dict) -> str:
+    """The console's words for a plan's refused candidates (`refused_views`), most first."""
+    most = sorted(((n, k) for k, n in refused.items() if n > 0), key=lambda nk: -nk[0])
+    return ", ".join(f"{n:,} {REFUSALS.get(k, k)}" for n, k in most)
 
 
 class Selector:
@@ -36,10 +55,12 @@ class Selector:
         self.plan_paths = context.vehicle.blocked_path == "plan"
         self.radius = context.vehicle.collision_radius
         self.component = None  # the vehicle's free component, once a search has failed
+        self.refused = Counter()  # the candidates not chosen this planning step, by REFUSALS
 
     def begin(self) -> None:
         """A new planning step: the map may have changed since the last."""
         self.component = None
+        self.refused = Counter()
 
     def _reachable(self, world, pose) -> bool:
         return self.component is None or bool(self.component.contains(world.map, pose[None, :3])[0])
@@ -51,6 +72,7 @@ class Selector:
             min_gain *= threshold_scale(world.map, self.reference_area)
         ok = np.flatnonzero((scores["status"] == 0) & (scores["gain"] >= min_gain))
         if len(ok) == 0:
+            self._tally(scores, min_gain)
             return None
         straight = np.linalg.norm(poses[ok, :3] - here, axis=1)
         value = scores["utility"][ok] * np.exp(-self.travel_lambda * straight)
@@ -84,4 +106,14 @@ class Selector:
             paths[k] = path
             v = float(scores["utility"][k]) * math.exp(-self.travel_lambda * length)
             heapq.heappush(heap, (-v, k, length, True))
+        self._tally(scores, min_gain, no_path=len(ok))
         return None
+
+    def _tally(self, scores: dict, min_gain: float, no_path: int = 0) -> None:
+        """Counts a proposal none of whose views was chosen into `refused`: its invalid views by
+        status, those valid but worth less than min_gain, and `no_path` with no way there."""
+        status = scores["status"]
+        below = int(((status == 0) & (scores["gain"] < min_gain)).sum())
+        codes, n = np.unique(status[status != 0], return_counts=True)
+        counts = {_core.VIEW_STATUS_NAMES[c]: int(k) for c, k in zip(codes, n)}
+        self.refused.update({**counts, "below_min_gain": below, "no_path": no_path})
