@@ -108,6 +108,38 @@ def test_a_changed_plugin_file_flies_its_runs_again(tmp_path):
     assert kept == kept[:1] * 3  # nbvkit's own scenario 1: flown once, kept since
 
 
+def test_a_part_whose_code_another_plugin_file_holds_flies_again_when_that_file_changes(
+    tmp_path,
+):
+    """One plugin file registers a class another plugin file defines (`from orbit_a import
+    Orbit`, as docs/PLUGINS.md shows): editing the file that holds the code flies the run again,
+    though the run's part came from the other file."""
+    _plugin(tmp_path / "orbit_a.py", name="orbit_a", scenario=False)
+    (tmp_path / "orbit_b.py").write_text(
+        "import nbvkit\nfrom orbit_a import Orbit\n\n"
+        "nbvkit.register_generator('orbit_b', Orbit)\n"
+        "nbvkit.register_scenario('orbit_b', 'B', {'planner.generators': ['orbit_b']})\n"
+    )
+    out = tmp_path / "cmp"
+    argv = ["compare", "--plugin", tmp_path / "orbit_a.py", "--plugin", tmp_path / "orbit_b.py",
+            "--planners", "orbit_b", "--starts", "1", "--workers", "1", "--mesh", CUBE,
+            "--out", out, "--set", *SMALL]  # fmt: skip
+
+    def fly():
+        p = _nbvkit(*argv)
+        assert p.returncode == 0, p.stderr
+        (run,) = (out / "runs").iterdir()
+        return (run / "summary.json").stat().st_mtime_ns, json.loads(
+            (run / "summary.json").read_text()
+        )["distance_m"]
+
+    first = fly()
+    assert fly() == first  # unchanged: kept
+    _plugin(tmp_path / "orbit_a.py", name="orbit_a", radius=4.0, scenario=False)
+    again = fly()
+    assert again[0] != first[0] and again[1] != first[1]  # the wider orbit, flown anew
+
+
 BROKEN = """
 import nbvkit
 

@@ -107,8 +107,8 @@ def _run_one(spec: RunSpec, root: Path, threads: int) -> dict:
             # one observable-surface cache for the whole experiment: once per structure
             summary = mission.run()
             mission.recorder.write(folder.tmp, summary, finish=True, cache_dir=root / "cache")
-            # the plugin files of its parts (their content's SHA-256): only when there are, so
-            # that a run without them keeps the spec.json (and resumes) as before
+            # the plugin files loaded (their content's SHA-256) where it flies a part of the
+            # user's: none for nbvkit's own, which keep their spec.json (and resume) as before
             plugins = {"plugins": files} if (files := flown_files(cfg)) else {}
             _write_json_atomic(
                 folder.tmp / "spec.json", {**_spec_dict(spec), "mesh_sha1": mesh_sha1, **plugins}
@@ -158,9 +158,9 @@ def _finished_rows(specs: list[RunSpec], root: Path, rows: list) -> None:
 
 def _finished_with(run_dir: Path, cfg, mesh_sha1: str | None) -> bool:
     """Whether run_dir holds a finished run of exactly this resolved configuration on the mesh
-    file whose content has this SHA-1 (_mesh_digest), with the plugin files its parts came from
-    of the same content as loaded in this process (plugins.flown_files; none for a run of
-    nbvkit's own parts, which a changed plugin file leaves kept). The
+    file whose content has this SHA-1 (_mesh_digest), with the plugin files loaded in this
+    process of the same content where it flies a part of the user's (plugins.flown_files; none
+    for a run of nbvkit's own parts, which a changed plugin file leaves kept). The
     run id hashes the mesh flown (path, scale, up of the resolved configuration), the overrides
     and the config file's name, not the other defaults it resolves to, the config file's content,
     the mesh file's nor the plugin files': a run kept from before one of them changed is flown

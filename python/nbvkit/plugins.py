@@ -299,17 +299,13 @@ def loaded_files() -> list[dict]:
 
 
 def flown_files(config) -> list[dict]:
-    """The loaded plugin files (loaded_files) a run of `config` depends on: those that registered
-    the parts it flies that are not nbvkit's own (registry.part_sources); [] when it flies only
-    nbvkit's own, so that a built-in run is kept while a plugin file changes. Every loaded file
-    where a part came from elsewhere (a script, a module a plugin file imported)."""
+    """The loaded plugin files (loaded_files) a run of `config` depends on: every one where it
+    flies a part that is not nbvkit's own (registry.part_sources; a part's code may come from
+    any of them: one plugin file imports another's), none where it flies only nbvkit's own, so
+    that such a run is kept while a plugin file changes."""
     from .planning.registry import part_sources
 
-    sources = set(part_sources(config).values())
-    files = loaded_files()
-    if not sources <= {f["path"] for f in files}:
-        return files if sources else []
-    return [f for f in files if f["path"] in sources]
+    return loaded_files() if part_sources(config) else []
 
 
 def plugin_frame(e: BaseException) -> str | None:
