@@ -12,10 +12,10 @@ saved copy of a built package), each in a process of its own, alternating: the l
 each, their ratio, and whether both found the same observable samples bit for bit.
 
 The default configuration's camera, workspace and vehicle; ground truth at the default density.
-Measured (2026-12-05, 2 cores, nothing beside it, the default gimbal; the fine lattice searched
-beside a coarse one since 2026-12-04): 8 / 4 / 2 / 1 / 0.5 m give 89.73 / 91.46 / 91.78 / 91.80 /
-91.81 % of the area (1.2 / 1.0 / 1.6 / 8.9 / 61.1 s); on 2026-12-01, before the fine lattice,
-8 and 4 m gave 56.81 and 91.25 %.
+Measured (2026-12-07, 2 cores, a mission beside it; the lattice reaching the box's faces):
+8 / 4 / 2 / 1 / 0.5 m give 91.79 / 91.79 / 91.81 / 91.81 / 91.81 % of the area (2.4 / 2.0 / 3.8 /
+20.7 / 121.8 s). With the lattice about the box's centre (2026-12-05): 89.73 / 91.46 / 91.78 /
+91.80 / 91.81 %; on 2026-12-01, before the fine lattice, 8 and 4 m gave 56.81 and 91.25 %.
 Compare the time at the default spacing (observability.pose_spacing, 2 m) with a Scenario 5
 mission's wall time (``nbvkit run``): the budget is a tenth of it.
 """

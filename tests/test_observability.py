@@ -139,6 +139,31 @@ def test_an_open_mesh_works_and_the_range_limits_apply():
     assert not near.observable.any()
 
 
+def test_the_lattice_reaches_the_navigation_boxs_faces():
+    """A slab's underside 0.8 m above the navigation box's floor, seen only from below: the
+    lattice's lowest level lies on the floor (the box split evenly, faces included). A lattice
+    about the box's centre (levels 1.05, 3.05, ... m for a floor at 0.2 m) flew none below the
+    slab and counted its underside unseeable. One sample per 0.2 m of the underside's rim."""
+    slab = box_mesh((-2.0, -2.0, 1.0), (2.0, 2.0, 1.3))
+    scene = _core.RaycastScene(slab)
+    cam = _core.DepthCamera(scene)
+    x = np.arange(-1.9, 1.95, 0.2)
+    rim = np.c_[
+        np.r_[x, x, np.full_like(x, 1.9)], np.r_[np.zeros_like(x), x, x], np.ones(3 * len(x))
+    ]
+    down = np.tile([0.0, 0.0, -1.0], (len(rim), 1))
+    r = _core.observable_samples(
+        scene, rim, down, cam, [-6, -6, 0.2], [6, 6, 9.9], pose_spacing=2.0, collision_radius=0.3
+    )
+    assert np.isclose(r.poses[:, 2].min(), 0.2) and np.isclose(r.poses[:, 2].max(), 9.9)
+    assert r.lattice_points == 7 * 7 * 6  # 12 m in 6 steps of 2, 9.7 m in 5 of 1.94
+    assert np.asarray(r.observable).any()  # the rim near the box's sides, from below
+    centred = _core.observable_samples(  # the levels a lattice about the centre had
+        scene, rim, down, cam, [-6, -6, 1.05], [6, 6, 9.05], pose_spacing=2.0, collision_radius=0.3
+    )
+    assert np.isclose(centred.poses[:, 2].min(), 1.05) and not np.asarray(centred.observable).any()
+
+
 def test_bad_arguments_raise_value_errors():
     mesh = box_mesh((0, 0, 0), (1, 1, 1))
     scene = _core.RaycastScene(mesh)
@@ -382,9 +407,10 @@ def test_sample_normals_are_their_triangles_unit_normals_with_few_or_many_sample
 def test_a_small_structure_gets_a_lattice_fine_enough_to_see_its_top(monkeypatch):
     """A small structure's lattice is finer than observability.pose_spacing (its box's diagonal
     / 16, not under 0.5 m): a 7 x 7 x 2 m block's top is seen from above, every sample of it
-    observable, where the 2 m lattice holds one level of positions, 0.3 m above the top, and
-    counts the top's middle unseeable (seen only at grazing incidence). A large structure's
-    spacing is the configured one."""
+    observable. The 2 m lattice, split evenly between the box's floor and top, sees it too (a
+    lattice about the box's centre held one level, 0.3 m above the top, and counted the top's
+    middle unseeable: seen only at grazing incidence). A large structure's spacing is the
+    configured one."""
     from nbvkit.observability import pose_spacing
 
     block = box_mesh((-3.5, -3.5, 0.0), (3.5, 3.5, 2.0))
@@ -406,7 +432,7 @@ def test_a_small_structure_gets_a_lattice_fine_enough_to_see_its_top(monkeypatch
     monkeypatch.setattr(limits, "MIN_POSE_SPACING", 2.0)  # the 2 m lattice as it was
     coarse = observable_surface(block, c, points=p, face_ids=fid)
     assert coarse.stats["settings"]["fine_pose_spacing"] == 2.0
-    assert coarse.observable[top].mean() < 0.9
+    assert coarse.observable[top].all()
     assert not (coarse.observable & ~r.observable).any()  # the fine search only adds
 
 
@@ -435,7 +461,7 @@ def test_no_fine_lattice_of_nearly_the_configured_spacing():
 
     ws = make_workspace(wide.bounds, c)  # one lattice searched: the 2 m one's positions alone
     nav = ws.nav_max - ws.nav_min
-    assert r.stats["lattice_points"] == np.prod([2 * np.floor(s / 4 + 1e-9) + 1 for s in nav])
+    assert r.stats["lattice_points"] == np.prod([np.ceil(s / 2 - 1e-9) + 1 for s in nav])
 
 
 def test_the_fine_lattice_adds_to_the_configured_one_and_keeps_within_the_limits():
@@ -463,7 +489,7 @@ def test_the_fine_lattice_adds_to_the_configured_one_and_keeps_within_the_limits
     assert nav[0] > 118
     step = pose_spacing(wide, mesh.bounds, nav, 1000)
     assert 0.5 < step < 2.0
-    n = np.prod([2 * np.floor(s / 2 / step + 1e-9) + 1 for s in nav])
+    n = np.prod([np.ceil(s / step - 1e-9) + 1 for s in nav])
     assert MAX_OBSERVABILITY_POSES / 1.2 < n <= MAX_OBSERVABILITY_POSES
     check_work(wide, mesh, ws)  # the configured 2 m lattice fits; the fine one is kept to fit
 

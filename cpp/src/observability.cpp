@@ -146,30 +146,33 @@ ObservabilityResult observable_samples(const RaycastScene& scene, const PointsRe
   res.observable.assign(n, 0);
   const double s = options.pose_spacing;
 
-  // ---- the lattice of candidate positions: centre + k * spacing inside the box (so halving the
-  // spacing keeps every position and adds more: the observable set can only grow)
-  std::array<double, 3> kmax{};  // positions each side of the centre, per axis
-  double lattice = 1.0;          // counted in floating point first: no integer overflows
+  // ---- the lattice of candidate positions: each axis of the box split evenly into the fewest
+  // steps of at most the spacing, both faces included (a lattice about the centre left up to a
+  // spacing of the box unflown at each face: the air just above a roof, the band under a wing);
+  // an axis shorter than half the spacing holds one level, at its middle
+  std::array<double, 3> step{};  // the spacing along each axis, from half the spacing up to it
+  std::array<std::int64_t, 3> dim{};
+  Eigen::Vector3d origin;
+  double lattice = 1.0;  // counted in floating point first: no integer overflows
   for (int a = 0; a < 3; ++a) {
-    kmax[a] = std::floor(0.5 * (nav_max[a] - nav_min[a]) / s + 1e-9);
-    lattice *= 2.0 * kmax[a] + 1.0;
+    const double extent = nav_max[a] - nav_min[a];
+    const double steps = extent < 0.5 * s ? 0.0 : std::ceil(extent / s - 1e-9);
+    step[a] = steps > 0.0 ? extent / steps : s;
+    origin[a] = steps > 0.0 ? nav_min[a] : 0.5 * (nav_min[a] + nav_max[a]);
+    lattice *= steps + 1.0;
+    dim[a] = static_cast<std::int64_t>(std::min(steps, 2e8)) + 1;
   }
   if (!(lattice <= 2e8))
     throw std::invalid_argument("pose_spacing " + fmt(s) + " m gives " + fmt(lattice) +
                                 " candidate positions (at most 2e8): use a coarser spacing");
-  std::array<std::int64_t, 3> dim{};
-  Eigen::Vector3d origin;
-  for (int a = 0; a < 3; ++a) {
-    dim[a] = 2 * static_cast<std::int64_t>(kmax[a]) + 1;
-    origin[a] = 0.5 * (nav_min[a] + nav_max[a]) - kmax[a] * s;
-  }
   const std::int64_t total = dim[0] * dim[1] * dim[2];
   res.lattice_points = total;
   auto flat = [&](std::int64_t i, std::int64_t j, std::int64_t k) {
     return (k * dim[1] + j) * dim[0] + i;
   };
   auto pos = [&](std::int64_t i, std::int64_t j, std::int64_t k) {
-    return Eigen::Vector3d(origin.x() + i * s, origin.y() + j * s, origin.z() + k * s);
+    return Eigen::Vector3d(origin.x() + i * step[0], origin.y() + j * step[1],
+                           origin.z() + k * step[2]);
   };
 
   auto t0 = clock::now();
@@ -187,7 +190,9 @@ ObservabilityResult observable_samples(const RaycastScene& scene, const PointsRe
   // along it at most half a radius apart (their union holds a capsule of 0.97 x the radius), so
   // an opening narrower than the vehicle does not connect the positions either side of it
   const double r = options.collision_radius;
-  const int steps = r > 0.0 ? static_cast<int>(std::ceil(s / (0.5 * r) - 1e-9)) : 1;
+  std::array<int, 3> checks{};  // points checked along an edge of each axis
+  for (int a = 0; a < 3; ++a)
+    checks[a] = r > 0.0 ? static_cast<int>(std::ceil(step[a] / (0.5 * r) - 1e-9)) : 1;
   parallel_chunks(static_cast<std::size_t>(total), 256, [&](std::size_t b, std::size_t e) {
     for (std::size_t f = b; f < e; ++f) {
       if (!free[f]) continue;
@@ -202,10 +207,10 @@ ObservabilityResult observable_samples(const RaycastScene& scene, const PointsRe
         ++q[a];
         if (!free[static_cast<std::size_t>(flat(q[0], q[1], q[2]))]) continue;
         const Eigen::Vector3d d = Eigen::Vector3d::Unit(a);
-        if (occluded(scene, p, d, 0.0, s)) continue;
+        if (occluded(scene, p, d, 0.0, step[a])) continue;
         bool fits = true;
-        for (int t = 1; t < steps && fits; ++t)
-          fits = !mesh_within(scene, p + d * (s * t / steps), r);
+        for (int t = 1; t < checks[a] && fits; ++t)
+          fits = !mesh_within(scene, p + d * (step[a] * t / checks[a]), r);
         if (fits) bits |= std::uint8_t(1u << a);
       }
       edges[f] = bits;
@@ -307,15 +312,18 @@ ObservabilityResult observable_samples(const RaycastScene& scene, const PointsRe
   const double cos_inc = std::cos(options.max_incidence_deg * M_PI / 180.0);
 
   // lattice offsets within r_max (+ the half diagonal of a cell), nearest first
-  const double reach_r = r_max + s * std::sqrt(3.0) * 0.5;
-  const auto m = static_cast<std::int64_t>(std::ceil(reach_r / s));
+  const double reach_r =
+      r_max + 0.5 * std::sqrt(step[0] * step[0] + step[1] * step[1] + step[2] * step[2]);
+  std::array<std::int64_t, 3> m{};
+  for (int a = 0; a < 3; ++a) m[a] = static_cast<std::int64_t>(std::ceil(reach_r / step[a]));
   std::vector<std::array<std::int32_t, 3>> offsets;
   {
     std::vector<std::pair<double, std::array<std::int32_t, 3>>> tmp;
-    for (std::int64_t dk = -m; dk <= m; ++dk)
-      for (std::int64_t dj = -m; dj <= m; ++dj)
-        for (std::int64_t di = -m; di <= m; ++di) {
-          const double d2 = static_cast<double>(di * di + dj * dj + dk * dk) * s * s;
+    for (std::int64_t dk = -m[2]; dk <= m[2]; ++dk)
+      for (std::int64_t dj = -m[1]; dj <= m[1]; ++dj)
+        for (std::int64_t di = -m[0]; di <= m[0]; ++di) {
+          const double x = di * step[0], y = dj * step[1], z = dk * step[2];
+          const double d2 = x * x + y * y + z * z;
           if (d2 <= reach_r * reach_r)
             tmp.push_back({d2,
                            {static_cast<std::int32_t>(di), static_cast<std::int32_t>(dj),
@@ -443,7 +451,7 @@ ObservabilityResult observable_samples(const RaycastScene& scene, const PointsRe
         std::array<std::int64_t, 3> base{};
         for (int a = 0; a < 3; ++a) {
           const double c = (a == 2 ? x[a] - mount_z : x[a]) - origin[a];
-          base[a] = static_cast<std::int64_t>(std::llround(c / s));
+          base[a] = static_cast<std::int64_t>(std::llround(c / step[a]));
         }
         for (const auto& o : offsets) {
           const std::int64_t i = base[0] + o[0], j = base[1] + o[1], k = base[2] + o[2];

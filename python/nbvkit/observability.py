@@ -28,10 +28,12 @@ Method (C++ calls, ``nbvkit._core.observable_samples``, Embree):
    camera hits nothing. The pixel grid is not simulated (at 640 x 480 a pixel spans 1.4 cm at
    8 m, finer than the finest 5 cm coverage cell).
 
-The lattice is the only approximation that a finer setting removes. It holds the box's centre
-plus every multiple of the spacing, so halving the spacing keeps every position and adds more:
-the observable set can only grow, and it converges; ``bench/bench_observable.py`` measures it
-and draws ``docs/figures/observable_convergence.png``.
+The lattice is the only approximation that a finer setting removes. Each side of the box is
+split evenly into the fewest steps of at most the spacing, both faces included: the air just
+above a roof and the band under a wing are flown (a lattice about the box's centre left up to a
+spacing unflown at each face: the twinjet's undersides, 10 % of its area, counted unobservable).
+At 2 m the observable share is within 0.6 points of 0.5 m's on six structures;
+``bench/bench_observable.py`` measures it and draws ``docs/figures/observable_convergence.png``.
 Results are cached on disk per (mesh, samples, camera, navigation space, options) in a
 ``cache_dir`` (a run's or a sweep's folder), so a 30-run table computes it once per structure.
 """

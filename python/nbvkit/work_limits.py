@@ -248,8 +248,9 @@ FINE_LATTICE_GAIN = 2.0
 
 
 def _lattice_positions(size, step: float) -> int:
-    """Positions of the lattice of spacing `step` over a box of `size` (centre + multiples)."""
-    return math.prod(2 * math.floor(s / 2 / step + 1e-9) + 1 for s in size)
+    """Positions of the lattice of spacing at most `step` over a box of `size`: each side split
+    evenly, both faces included; a side under half the step holds one (_core.observable_samples)."""
+    return math.prod(1 if s < step / 2 else math.ceil(s / step - 1e-9) + 1 for s in size)
 
 
 def _lattice_fit(size, samples: float) -> tuple[float, float]:

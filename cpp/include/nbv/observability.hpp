@@ -17,8 +17,8 @@ namespace nbv {
 
 #define NBV_OBSERVABILITY_OPTIONS(X)                                                           \
   X(double, pose_spacing, 2.0,                                                                 \
-    "m; lattice of candidate vehicle positions filling the navigation box (the airliner's "    \
-    "observable share moves by 0.01 points from 2 m to 1 m: bench/bench_observable.py)")       \
+    "m; the largest spacing of the lattice of candidate vehicle positions filling the "        \
+    "navigation box, faces included (bench/bench_observable.py measures its convergence)")     \
   X(double, collision_radius, 0.8, "m; a candidate position nearer the mesh is in collision")  \
   X(double, max_incidence_deg, 85.0,                                                           \
     "largest angle between the line of sight and the surface normal (either side) at which a " \
@@ -49,8 +49,9 @@ struct ObservabilityResult {
 /// mount's pitch and roll matter, its yaw does not, the vehicle's yaw is free) carried by a
 /// vehicle whose position stays in the box [nav_min, nav_max].
 ///
-/// Poses: the box centre plus every multiple of options.pose_spacing along each axis, inside the
-/// box (halving the spacing keeps every position: the result only grows); a lattice point is kept
+/// Poses: each axis of the box split evenly into the fewest steps of at most
+/// options.pose_spacing, both faces included (a lattice about the box's centre left up to a
+/// spacing unflown at each face: the air above a roof, the band under a wing); a point is kept
 /// if the mesh is farther than collision_radius from it (an Embree point query) and the vehicle
 /// can fly there from outside: it is connected (a flood fill) through lattice edges that the
 /// mesh does not cross and along which the collision sphere fits (checked at points at most half
