@@ -589,3 +589,18 @@ def test_documented_ranges_of_cpp_sections_are_the_ranges_the_core_enforces(sect
             assert (core_ok, py_ok) == (ok, ok), (key, value, b.describe())
             checked += 1
     assert checked >= (20 if section == "utility" else 2)
+
+
+def test_the_observable_lattices_would_fit_fits_a_thin_box():
+    """A thin navigation box (120 x 120 x 6 m, 2e7 samples): each side's faces add a level, so
+    the spacing said to fit is counted on the lattice itself (0.591 m, counted as a lattice
+    about the centre, was refused in turn at 504,300 positions)."""
+    from types import SimpleNamespace
+
+    from nbvkit.work_limits import check_observability
+
+    ws = SimpleNamespace(nav_min=np.zeros(3), nav_max=np.array([120.0, 120.0, 6.0]))
+    with pytest.raises(ValueError, match="would fit") as e:
+        check_observability(load_config(None, ["observability.pose_spacing=0.05"]), ws, 2e7)
+    fit = re.search(r"pose_spacing >= ([0-9.e+-]+) would fit", str(e.value)).group(1)
+    check_observability(load_config(None, [f"observability.pose_spacing={fit}"]), ws, 2e7)

@@ -155,7 +155,11 @@ def test_the_lattice_reaches_the_navigation_boxs_faces():
     r = _core.observable_samples(
         scene, rim, down, cam, [-6, -6, 0.2], [6, 6, 9.9], pose_spacing=2.0, collision_radius=0.3
     )
-    assert np.isclose(r.poses[:, 2].min(), 0.2) and np.isclose(r.poses[:, 2].max(), 9.9)
+    assert r.poses[:, 2].min() == 0.2 and r.poses[:, 2].max() == 9.9  # on the faces, exactly
+    odd = _core.observable_samples(  # a side whose steps do not add up to it exactly in floats
+        scene, rim, down, cam, [-6, -6, 0.3], [6, 6, 0.3 + 6.000000000000001], pose_spacing=2.0
+    )
+    assert odd.poses[:, 2].max() == 0.3 + 6.000000000000001  # within the box, not an ulp past it
     assert r.lattice_points == 7 * 7 * 6  # 12 m in 6 steps of 2, 9.7 m in 5 of 1.94
     assert np.asarray(r.observable).any()  # the rim near the box's sides, from below
     centred = _core.observable_samples(  # the levels a lattice about the centre had

@@ -170,9 +170,12 @@ ObservabilityResult observable_samples(const RaycastScene& scene, const PointsRe
   auto flat = [&](std::int64_t i, std::int64_t j, std::int64_t k) {
     return (k * dim[1] + j) * dim[0] + i;
   };
-  auto pos = [&](std::int64_t i, std::int64_t j, std::int64_t k) {
-    return Eigen::Vector3d(origin.x() + i * step[0], origin.y() + j * step[1],
-                           origin.z() + k * step[2]);
+  auto pos = [&](std::int64_t i, std::int64_t j, std::int64_t k) {  // the last level on the face
+    const std::array<std::int64_t, 3> ijk{i, j, k};
+    Eigen::Vector3d p;
+    for (int a = 0; a < 3; ++a)
+      p[a] = ijk[a] == dim[a] - 1 && dim[a] > 1 ? nav_max[a] : origin[a] + ijk[a] * step[a];
+    return p;
   };
 
   auto t0 = clock::now();

@@ -246,7 +246,7 @@ class Recorder:
             "c_view": m.planner.c_view,
             "seed": cfg.seed,
         }
-        if termination == "no_valid_viewpoint":  # the last plan's candidates, why each refused
+        if termination in ("no_valid_viewpoint", "no_reachable_view"):  # why, by cause
             out["refused_views"] = dict(+m.planner.selector.refused)
         out.update(_gain_accounting(self.records))
         for k in SUMMARY_KEYS:

@@ -255,9 +255,13 @@ def _lattice_positions(size, step: float) -> int:
 
 def _lattice_fit(size, samples: float) -> tuple[float, float]:
     """(positions, spacing): the most lattice positions the limits allow with `samples` tested
-    from each, and about the spacing over a box of `size` that keeps within them."""
+    from each, and a spacing over a box of `size` whose lattice keeps within them (counted: a
+    thin side's faces add a level each)."""
     fit = min(MAX_OBSERVABILITY_POSES, MAX_OBSERVABILITY_PAIRS / max(samples, 1))
-    return fit, (math.prod(size) / fit) ** (1 / 3) * 1.05
+    spacing = max((math.prod(size) / fit) ** (1 / 3), 1e-6)
+    while _lattice_positions(size, spacing) > fit:
+        spacing *= 1.02
+    return fit, spacing
 
 
 def pose_spacing(config, mesh_bounds, nav_size=None, samples: float = 1) -> float:

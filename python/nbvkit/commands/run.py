@@ -226,7 +226,10 @@ def print_summary(s: dict, out, level: bool = False) -> None:
     if s["iterations"] == 0 and s["termination"] in ("no_valid_viewpoint", "no_reachable_view"):
         print("note: " + NOTHING_FLOWN)
     if s.get("refused_views"):
-        print("note: the last plan's candidates were refused: " + refusal_words(s["refused_views"]))
+        print(
+            "note: refusals of candidates in the last planning step: "
+            + refusal_words(s["refused_views"])
+        )
     print("coverage  " + "  ".join(f"@{k} m {v:6.1%}" for k, v in cov.items()))
     print("area cov. " + "  ".join(f"@{k} m {v:6.1%}" for k, v in s["area_coverage"].items()))
     if "coverage_observable" in s:

@@ -29,6 +29,7 @@ from .parts import Choice, threshold_scale
 
 #: Why a candidate was not chosen (`Selector.refused`, a summary's `refused_views`): the core's
 #: view status (VIEW_STATUS_NAMES) and the selection's own two causes, in the console's words.
+#: Counted per refusal: a view proposed again in the same planning step counts again.
 REFUSALS = {
     "out_of_bounds": "outside the workspace",
     "collision": "within vehicle.collision_radius of occupied or unknown space",
