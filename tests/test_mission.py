@@ -452,3 +452,23 @@ def test_each_rows_entropy_change_is_the_maps_since_the_row_before(tmp_path):
     np.testing.assert_allclose(change[1:], np.diff(entropy), rtol=0, atol=1e-6 * entropy[0])
     c_view = float(rows[0]["entropy_change"]) / -float(rows[0]["delta_ev"])
     assert [float(r["delta_ev"]) for r in rows] == pytest.approx(-change / c_view)
+
+
+def test_a_start_near_the_structure_moves_to_the_clearance_it_needs_to_fly():
+    """A start on the ellipse 1.0 m from a face, out of collision (0.8 m) but under the starts'
+    clearance (collision radius + 1 m), moves away until it has it: there, the take-off sphere
+    (cleared to a cell short of the surface) left no neighbouring view free of unknown space and
+    the paper's Scenario 1 turned on the spot for its whole run (the airliner's start 4)."""
+    from conftest import box_mesh
+    from nbvkit.world import World
+
+    mesh = box_mesh([-5, -5, 0], [5, 5, 10])
+    # margin 1.9: the navigation bounds start 0.9 m inside the workspace, 1.0 m from the cube
+    c = Config().with_overrides(FAST + ["workspace.margin_xy=1.9", "workspace.margin_z=3.0"])
+    world = World(c, mesh=mesh)
+    assert world.workspace.nav_min[1] == pytest.approx(-6.0)  # the case this guards against
+    need = c.vehicle.collision_radius + 1.0
+    for k, s in enumerate(world.starts):
+        outside = np.maximum(np.abs(s[:2]) - 5, 0)
+        d = np.linalg.norm([*outside, max(s[2] - 10, 0)])  # its distance to the cube
+        assert world.workspace.contains(s) and d >= need - 0.15, (k, s, d)  # (surface samples)

@@ -262,11 +262,13 @@ def start_poses(
     surface point is farther than `reach` — or, given `sees(pose) -> bool`, from which the sensor
     facing the centre does not see the structure — moves inward along its bearing until both hold
     (but not nearer than `clearance`). A start in the structure on the ellipse (one that fills
-    its workspace; `collides(point) -> bool` says, in collision or inside, default: nearer than
-    `clearance`) moves outward along its bearing to the bounds, then to other heights, until it is
-    clear and `clearance` away. On the diagonals of a cross-shaped structure (an aircraft in a
-    square workspace) the boundary is farther than the camera sees. Start 0 is on the -y
-    side facing +y (the authors' (0, -20, 5), yaw 90 deg on their workspace)."""
+    its workspace; `collides(point) -> bool` says, in collision or inside) or nearer than
+    `clearance` to it moves outward along its bearing to the bounds, then to other heights, until
+    it is clear and `clearance` away (a start 1 m from a tailplane, its take-off sphere cleared only
+    to 0.8 m, could not move: Scenario 1 turned on the spot there). On the diagonals of a
+    cross-shaped structure (an aircraft in a square workspace) the boundary is farther than the
+    camera sees. Start 0 is on the -y side facing +y (the authors' (0, -20, 5), yaw 90 deg on
+    their workspace)."""
     c = (ws.nav_min + ws.nav_max) / 2
     h = (ws.nav_max - ws.nav_min) / 2
     tree = None
@@ -279,7 +281,8 @@ def start_poses(
         th = -math.pi / 2 + 2 * math.pi * k / n
         p = np.array([c[0] + h[0] * math.cos(th), c[1] + h[1] * math.sin(th), c[2]])
         p = np.clip(p, ws.nav_min, ws.nav_max)  # c - h can round to just outside the bounds
-        if tree is not None and (collides(p) if collides else tree.query(p)[0] < clearance):
+        near = tree is not None and tree.query(p)[0] < clearance  # (airliner start 4: 1.0 m)
+        if tree is not None and (near or (collides is not None and collides(p))):
             p = _clear_start(
                 ws, c, p, lambda q: tree.query(q)[0] >= clearance and not (collides and collides(q))
             )
