@@ -413,6 +413,25 @@ def test_the_value_that_would_fit_fits(override, key, mesh_scale):
         assert f"{key} = " not in str(e), str(e)
 
 
+def test_every_limit_a_structure_exceeds_is_named_at_once():
+    """A workspace too wide for both the map and the observable surface's lattice: one error
+    names both, each with the value that would fit (one at a time, the user who followed the
+    map's hint met the lattice's next), and the two values given back are accepted."""
+    from nbvkit.work_limits import check_work
+    from nbvkit.workspace import make_workspace
+
+    wide = ["map.resolution=0.2", "workspace.margin_xy=600"]
+    msg = _mission_error(wide)
+    assert msg.startswith("2 limits exceeded: "), msg
+    fits = {
+        key: re.search(rf"{re.escape(key)} >= ([0-9.e+-]+) would fit", msg).group(1)
+        for key in ("map.resolution", "observability.pose_spacing")
+    }
+    cfg = load_config(overrides=[*wide, *(f"{k}={v}" for k, v in fits.items())])
+    mesh = nbvkit.load_mesh(CUBE)
+    check_work(cfg, mesh, make_workspace(mesh.bounds, cfg))  # raises nothing
+
+
 def _obj_mesh(tmp_path, verts, faces):
     p = tmp_path / "m.obj"
     p.write_text(obj_text(verts, faces))

@@ -315,10 +315,16 @@ def check_map(cfg, ws) -> bool:
     if any(abs(float(x)) > reach for x in (*ws.bounds_min, *ws.bounds_max)):
         return False
     size = [float(b - a) for a, b in zip(ws.bounds_min, ws.bounds_max)]
-    cells = math.prod(max(math.ceil(s / r), 1) for s in size)
+
+    def count(res):  # the workspace grid's cells at resolution res
+        return math.prod(max(math.ceil(s / res), 1) for s in size)
+
+    cells = count(r)
     limit = MAX_MAP_BYTES // MAP_BYTES_PER_CELL
     if cells > limit:
         need = r * (cells / limit) ** (1 / 3)
+        while count(float(at_least(need))) > limit:  # counted: a thin side's cells round up
+            need *= 1.01
         fit = min(float(at_least(need)), MAX_RESOLUTION)  # (the key's largest, where it fits)
         coarser = f"map.resolution >= {fit:g} would fit, or " if need <= MAX_RESOLUTION else ""
         raise ValueError(
@@ -337,9 +343,23 @@ def check_map(cfg, ws) -> bool:
 
 def check_work(cfg, mesh, ws) -> None:
     """Every work check of a mission on `mesh` (an nbvkit.Mesh) in workspace `ws`: the map's
-    memory, the profile flight, the ground-truth samples and the observable-surface lattice."""
-    if not check_map(cfg, ws):
+    memory, the profile flight, the ground-truth samples and the observable-surface lattice.
+    One ValueError names every limit exceeded, each with what would fit (one at a time, a user
+    who followed the first hint met the next)."""
+    problems = []
+
+    def attempt(check, *args):
+        try:
+            return check(*args)
+        except ValueError as e:
+            problems.append(str(e))
+
+    if attempt(check_map, cfg, ws) is False:
         return  # beyond OctoMap's range: the map names it (and the shift that brings it near)
-    check_profile(cfg, mesh.bounds, ws)
-    samples = check_gt_samples(cfg, float(mesh.area))
-    check_observability(cfg, ws, samples)
+    attempt(check_profile, cfg, mesh.bounds, ws)
+    samples = attempt(check_gt_samples, cfg, float(mesh.area))
+    attempt(check_observability, cfg, ws, MAX_GT_SAMPLES if samples is None else samples)
+    if len(problems) > 1:
+        raise ValueError(f"{len(problems)} limits exceeded: " + "; ".join(problems))
+    if problems:
+        raise ValueError(problems[0])
