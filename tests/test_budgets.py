@@ -67,7 +67,7 @@ def test_a_budget_that_ended_the_mission_is_said_on_the_console_and_in_the_files
     out = tmp_path / "run"
     # without saturation the tour plans a view the cap of 1 stops (with it the cube's profile and
     # first view leave nothing to plan)
-    over = [*TINY_RUN, "report.enabled=false", "max_iterations=1", "utility.saturation_hits=0"]
+    over = [*TINY_RUN, "max_iterations=1", "utility.saturation_hits=0"]
     assert (
         cli.main(["run", "--mesh", str(cube), "--no-progress", "--out", str(out), "--set", *over])
         == 0
@@ -76,6 +76,7 @@ def test_a_budget_that_ended_the_mission_is_said_on_the_console_and_in_the_files
     assert "termination: max_iterations" in text
     said = "stopped by the view cap (1 planned view after the first), not because the structure"
     assert f"{said} is covered" in text
+    assert f"{said} is covered" in (out / "report.html").read_text()  # the report says it too
     with open(out / "iterations.csv") as f:
         rows = list(csv.DictReader(f))
     assert rows and all(float(r["expected_m2"]) >= float(r["realized_m2"]) >= 0 for r in rows)

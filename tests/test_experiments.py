@@ -634,3 +634,31 @@ def test_a_workers_warnings_print_in_one_line_as_the_commands(tmp_path, capfd):
     assert all(ln.split(": ", 3)[3].startswith("the structure's") for ln in lines), err
     assert all(ln.startswith("nbvkit compare: warning: run ") for ln in lines), err
     assert "RuntimeWarning" not in err and ".py:" not in err, err
+
+
+def test_a_script_calling_compare_at_its_top_level_is_told_to_guard_it(tmp_path):
+    """Python's spawned workers import the calling script again: one that calls nbvkit at its
+    top level breaks the pool, which used to say only "BrokenProcessPool"; the error names the
+    script and the `if __name__ == "__main__":` guard. Guarded, the same script flies."""
+    import subprocess
+    import sys
+
+    cube = ROOT / "meshes" / "fixtures" / "cube.obj"
+    call = (
+        f"nbvkit.compare(['1', '2'], {str(tmp_path / 'cmp')!r}, mesh={str(cube)!r}, starts=1,"
+        f" workers=2, overrides={TINY!r}, progress=False)"
+    )
+    for guarded in (False, True):
+        script = tmp_path / f"mine_{guarded}.py"
+        body = f"if __name__ == '__main__':\n    {call}\n" if guarded else call + "\n"
+        script.write_text("import nbvkit\n" + body)
+        p = subprocess.run(
+            [sys.executable, str(script)], cwd=tmp_path, capture_output=True, text=True, timeout=600
+        )
+        if guarded:
+            assert p.returncode == 0, p.stderr[-2000:]
+        else:
+            last = p.stderr.strip().splitlines()[-1]
+            assert p.returncode != 0 and last.startswith("nbvkit.experiments.RunsFailed"), last
+            assert f"if {script.name} calls nbvkit at its top level" in last
+            assert 'put the calls under `if __name__ == "__main__":`' in last

@@ -759,7 +759,10 @@ def test_a_flight_planned_closer_than_gnss_error_is_warned_of(run_dir, tmp_path,
     s = json.loads((tmp_path / "a" / "export.json").read_text())
     assert s["clearance"] == {"structure_m": 0.8, "ground_m": 0.9}
     assert s["mesh_shift"] == [0.0, 0.0, 0.0]
-    assert "warning: the run was planned 0.8 m from the structure" in err and "RTK" in err
+    assert (
+        "nbvkit export: warning: the run was planned 0.8 m from the structure" in err
+        and "RTK" in err
+    )
     far = Mission(
         Config().with_overrides([*FAST, "vehicle.collision_radius=2", "mesh.shift=[40,-25,0]"])
     )

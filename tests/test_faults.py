@@ -868,9 +868,15 @@ def test_a_run_stopped_over_a_complete_run_keeps_it(tmp_path, stopping_part):
     plugin = ["--plugin", str(stopping_part)]
     ex = ["--origin", "47.4", "8.5", "400", "--out", str(beside.parent / "ex")]
     p = _nbvkit_cli("export", str(beside), *plugin, *ex)
-    assert p.returncode == 0 and "warning: the run was stopped after 3 views" in p.stderr
+    assert (
+        p.returncode == 0
+        and "nbvkit export: warning: the run was stopped after 3 views" in p.stderr
+    )
     p = _nbvkit_cli("evaluate", str(beside), *plugin, "--mesh", s["mesh"], "--gt-density", "50")
-    assert p.returncode == 0 and "warning: the run was stopped after 3 views" in p.stderr
+    assert (
+        p.returncode == 0
+        and "nbvkit evaluate: warning: the run was stopped after 3 views" in p.stderr
+    )
     assert _nbvkit_cli(*base[:-1], "--overwrite", "--set", *whole).returncode == 0
     assert (out / "summary.json").read_bytes() != old and is_complete_run(beside)
 

@@ -255,6 +255,21 @@ def _worker_init(prog=None) -> None:
         os._exit(1)  # the parent died while this worker was starting
 
 
+def _unguarded_script_hint() -> str:
+    """For a pool whose workers died: where the program is a script run by its path (`python
+    my.py`), the likely cause, which Python's spawned workers print only on their own stderr."""
+    import sys
+
+    main = sys.modules.get("__main__")
+    script = getattr(main, "__file__", None) if getattr(main, "__spec__", None) is None else None
+    if not script:
+        return ""
+    return (
+        f" (if {Path(script).name} calls nbvkit at its top level: each worker process imports the"
+        ' script again, so put the calls under `if __name__ == "__main__":`)'
+    )
+
+
 def _worker_count(workers) -> int:
     """run_specs' `workers` as an int; ValueError unless it is a count >= 0."""
     try:
@@ -413,7 +428,9 @@ def _run_pool(specs, root, n, ncpu, rows, failures, progress) -> None:
             i = futs[f]
             try:
                 rows[i] = f.result()
-            except Exception as e:  # noqa: BLE001 (a run's own error, or its worker killed)
+            except cf.process.BrokenProcessPool as e:  # its worker died, or never started
+                failures[i] = error_line(e) + _unguarded_script_hint()
+            except Exception as e:  # noqa: BLE001 (a run's own error)
                 failures[i] = error_line(e)
             if progress:
                 done = f"{rows[i]['wall_time_s']:.1f} s" if rows[i] else failures[i]

@@ -14,6 +14,7 @@ import numpy as np
 from .coverage_view import CLASS_COLOURS, CLASS_NAMES
 from .htmlpage import img, page, plot_div, rounded, table, write_text
 from .locks import folder_lock
+from .planning.terminations.budget import budget_note
 from .runfolder import mark_incomplete, run_name, write_manifest
 
 __all__ = [
@@ -44,6 +45,9 @@ def write_run_report(out, summary: dict, points, classes, records=None, flight=N
     name = run_name(out)  # the folder's name once in place (not its temporary name)
     body = [f"<h1>nbvkit run: {html.escape(name)}</h1>"]
     body.append(table(_summary_rows(summary)))
+    note = budget_note(summary)  # the console's note: a budget, not coverage, ended the run
+    if note:
+        body.append(f"<p><b>note:</b> {html.escape(note)}</p>")
     body.append(_per_res_table(summary))
     body.append(flight_section(flight))
     body.extend(_mesh_section(summary.get("reconstructed_mesh")))

@@ -202,10 +202,10 @@ def run(args) -> int:
     print(f"ground-truth file: {next(iter(gt_desc.values()))}")
     apart = _frames_apart(np.asarray(cloud), ev.gt_points, max(args.taus))
     if apart:
-        print(f"warning: {apart}", file=sys.stderr)
+        print(f"nbvkit evaluate: warning: {apart}", file=sys.stderr)
     stopped = stopped_note_of(cloud_path.parent)
     if stopped:
-        print(f"warning: {stopped}", file=sys.stderr)
+        print(f"nbvkit evaluate: warning: {stopped}", file=sys.stderr)
     print(format_report(result))
     if args.json:
         out = dict(result)

@@ -188,6 +188,6 @@ def run(args) -> int:
         if len(s["unreachable"]) > SHOWN:
             print(f"not flown: {len(s['unreachable']) - SHOWN:,} more (export.json: unreachable)")
     for w in s["warnings"]:
-        print(f"warning: {w}", file=sys.stderr)
+        print(f"nbvkit export: warning: {w}", file=sys.stderr)
     print(f"{len(s['files'])} files -> {s['out']}/")
     return 0

@@ -168,8 +168,9 @@ def flown(s: dict) -> str:
 NOTHING_FLOWN = (
     "no planned view was flown: every candidate was invalid (in occupied or unknown space, "
     "within vehicle.collision_radius of it, outside the workspace, or not reachable: with "
-    "vehicle.blocked_path=reject a straight leg must cross known free space) or worth less than "
-    "planner.min_gain (in the utility's own units)"
+    "vehicle.blocked_path=reject a straight leg must cross known free space, or seeing no "
+    "occupied cell: utility.require_occupied) or worth less than planner.min_gain (in the "
+    "utility's own units)"
 )
 
 
