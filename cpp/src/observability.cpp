@@ -170,12 +170,18 @@ ObservabilityResult observable_samples(const RaycastScene& scene, const PointsRe
   auto flat = [&](std::int64_t i, std::int64_t j, std::int64_t k) {
     return (k * dim[1] + j) * dim[0] + i;
   };
-  auto pos = [&](std::int64_t i, std::int64_t j, std::int64_t k) {  // the last level on the face
-    const std::array<std::int64_t, 3> ijk{i, j, k};
-    Eigen::Vector3d p;
-    for (int a = 0; a < 3; ++a)
-      p[a] = ijk[a] == dim[a] - 1 && dim[a] > 1 ? nav_max[a] : origin[a] + ijk[a] * step[a];
-    return p;
+  // each axis's levels, computed once (the last one exactly on the face)
+  std::array<std::vector<double>, 3> level;
+  for (int a = 0; a < 3; ++a) {
+    level[a].resize(static_cast<std::size_t>(dim[a]));
+    for (std::int64_t l = 0; l < dim[a]; ++l)
+      level[a][static_cast<std::size_t>(l)] = origin[a] + static_cast<double>(l) * step[a];
+    if (dim[a] > 1) level[a].back() = nav_max[a];
+  }
+  auto pos = [&](std::int64_t i, std::int64_t j, std::int64_t k) {
+    return Eigen::Vector3d(level[0][static_cast<std::size_t>(i)],
+                           level[1][static_cast<std::size_t>(j)],
+                           level[2][static_cast<std::size_t>(k)]);
   };
 
   auto t0 = clock::now();

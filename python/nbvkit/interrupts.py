@@ -18,6 +18,29 @@ STOPPING_SIGNALS = {
 
 
 @contextlib.contextmanager
+def _handlers_installed(names, handler, keep):
+    """Within it, `handler` handles each signal of `names` that this platform has and whose
+    handler on entry `keep` does not keep; the handlers there were are put back on leaving. Main
+    thread only, where Python's handlers run: elsewhere it does nothing."""
+    import signal
+    import threading
+
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    previous = {}
+    for name in names:
+        signum = getattr(signal, name, None)  # (no SIGHUP on Windows)
+        if signum is not None and not keep(signal.getsignal(signum)):
+            previous[signum] = signal.signal(signum, handler)
+    try:
+        yield
+    finally:
+        for signum, before in previous.items():
+            signal.signal(signum, before)
+
+
+@contextlib.contextmanager
 def terminate_as_interrupt(only_default: bool = False):
     """Within it, a `kill` (SIGTERM: also what batch schedulers send at a time limit) or a
     hang-up (SIGHUP: the terminal or ssh session closed) raises Terminated, a
@@ -27,30 +50,16 @@ def terminate_as_interrupt(only_default: bool = False):
     ignored; with only_default, so does one with a handler of its own (a script's). (Main
     thread only: signals go there; elsewhere it does nothing.)"""
     import signal
-    import threading
-
-    if threading.current_thread() is not threading.main_thread():
-        yield
-        return
 
     def interrupt(signum, frame):
         name = signal.Signals(signum).name
         raise Terminated(f"{name} ({STOPPING_SIGNALS[name]})")
 
-    previous = {}
-    for name in STOPPING_SIGNALS:
-        signum = getattr(signal, name, None)  # (no SIGHUP on Windows)
-        if signum is None:
-            continue
-        now = signal.getsignal(signum)
-        if now is signal.SIG_IGN or (only_default and now is not signal.SIG_DFL):
-            continue
-        previous[signum] = signal.signal(signum, interrupt)
-    try:
+    def keep(now):
+        return now is signal.SIG_IGN or (only_default and now is not signal.SIG_DFL)
+
+    with _handlers_installed(STOPPING_SIGNALS, interrupt, keep):
         yield
-    finally:
-        for signum, handler in previous.items():
-            signal.signal(signum, handler)
 
 
 @contextlib.contextmanager
@@ -61,21 +70,13 @@ def signals_held():
     process there, leaving them in the temporary folder, which the next run on the target
     removes. (Main thread only, where Python's handlers run; a signal ignored stays ignored.)"""
     import signal
-    import threading
 
-    if threading.current_thread() is not threading.main_thread():
-        yield
-        return
     pending = []
-    before = {}
-    for name in ("SIGINT", "SIGTERM", "SIGHUP"):
-        signum = getattr(signal, name, None)
-        if signum is not None and signal.getsignal(signum) not in (signal.SIG_IGN, None):
-            before[signum] = signal.signal(signum, lambda s, frame: pending.append(s))
-    try:
+    with _handlers_installed(
+        ("SIGINT", "SIGTERM", "SIGHUP"),
+        lambda signum, frame: pending.append(signum),
+        lambda now: now in (signal.SIG_IGN, None),
+    ):
         yield
-    finally:
-        for signum, handler in before.items():
-            signal.signal(signum, handler)
-        for signum in dict.fromkeys(pending):
-            signal.raise_signal(signum)
+    for signum in dict.fromkeys(pending):
+        signal.raise_signal(signum)

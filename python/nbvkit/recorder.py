@@ -258,12 +258,13 @@ class Recorder:
         if tour is not None:
             out["tours"] = tour.plans
         from .planning.registry import part_sources
-        from .plugins import flown_files
+        from .plugins import loaded_files
 
-        if files := flown_files(cfg):  # the plugin files of its parts, each one's SHA-256
-            out["plugins"] = files
         if parts := part_sources(cfg):  # where the parts flown that are not nbvkit's came from
             out["parts_from"] = parts
+            # every plugin file loaded, each one's SHA-256 (one file may hold another's code)
+            if files := loaded_files():
+                out["plugins"] = files
         return out
 
     def write(self, out: Path, summary: dict, finish: bool = False, cache_dir=None) -> dict:

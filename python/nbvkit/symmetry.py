@@ -299,6 +299,22 @@ def run_symmetry_prediction(mission, write_map: bool = True) -> dict:
     return summary
 
 
+def summary_line(sym: dict) -> str:
+    """The console's line for a run's symmetry step (its summary's `symmetry`): the mirror plane
+    and the cells it predicted, or why no plane was accepted (then nothing was predicted)."""
+    if not sym.get("accepted"):
+        why = re.sub(r"\d+\.\d{3,}", lambda m: f"{float(m.group()):.2f}", sym.get("reason") or "")
+        return f"symmetry: no mirror plane accepted ({why or 'none found'}): nothing predicted"
+    a, b, c, d = (round(v, n) + 0.0 for v, n in zip(sym["plane"], (3, 3, 3, 2)))  # no "-0.00"
+    said = f"{sym['cells_set']:,} cells predicted" if sym.get("written") else "nothing written"
+    if sym.get("refreshed_cells"):
+        said += f", {sym['refreshed_cells']:,} more from the camera's views"
+    return (
+        f"symmetry: mirror plane {a:.3f} x {b:+.3f} y {c:+.3f} z {d:+.2f} = 0 "
+        f"(confidence {sym['confidence']:.2f}, {sym['support']} pairs), {said}"
+    )
+
+
 __all__ = [
     "detect_symmetry",
     "predict_symmetric",
@@ -321,20 +337,5 @@ __all__ = [
     "compute_fpfh",
     "detection_options",
     "prediction_options",
+    "summary_line",
 ]
-
-
-def summary_line(sym: dict) -> str:
-    """The console's line for a run's symmetry step (its summary's `symmetry`): the mirror plane
-    and the cells it predicted, or why no plane was accepted (then nothing was predicted)."""
-    if not sym.get("accepted"):
-        why = re.sub(r"\d+\.\d{3,}", lambda m: f"{float(m.group()):.2f}", sym.get("reason") or "")
-        return f"symmetry: no mirror plane accepted ({why or 'none found'}): nothing predicted"
-    a, b, c, d = (round(v, n) + 0.0 for v, n in zip(sym["plane"], (3, 3, 3, 2)))  # no "-0.00"
-    said = f"{sym['cells_set']:,} cells predicted" if sym.get("written") else "nothing written"
-    if sym.get("refreshed_cells"):
-        said += f", {sym['refreshed_cells']:,} more from the camera's views"
-    return (
-        f"symmetry: mirror plane {a:.3f} x {b:+.3f} y {c:+.3f} z {d:+.2f} = 0 "
-        f"(confidence {sym['confidence']:.2f}, {sym['support']} pairs), {said}"
-    )
