@@ -432,6 +432,27 @@ def test_every_limit_a_structure_exceeds_is_named_at_once():
     check_work(cfg, mesh, make_workspace(mesh.bounds, cfg))  # raises nothing
 
 
+def test_a_map_resolution_offered_at_the_keys_largest_fits():
+    """Workspaces whose map needs just under the largest map.resolution (10 m): the value
+    offered, capped at 10, was refused in turn (a 5,050 m cube); it is offered only where it
+    fits."""
+    import types
+
+    from nbvkit.work_limits import check_map
+
+    for side in np.arange(5040.0, 5056.0, 0.5):
+        ws = types.SimpleNamespace(
+            bounds_min=np.full(3, -side / 2), bounds_max=np.full(3, side / 2)
+        )
+        try:
+            check_map(load_config(overrides=["map.resolution=0.2"]), ws)
+            continue
+        except ValueError as e:
+            offered = re.search(r"map.resolution >= ([0-9.e+-]+) would fit", str(e))
+        if offered:
+            check_map(load_config(overrides=[f"map.resolution={offered.group(1)}"]), ws)
+
+
 def _obj_mesh(tmp_path, verts, faces):
     p = tmp_path / "m.obj"
     p.write_text(obj_text(verts, faces))

@@ -662,3 +662,18 @@ def test_a_script_calling_compare_at_its_top_level_is_told_to_guard_it(tmp_path)
             assert p.returncode != 0 and last.startswith("nbvkit.experiments.RunsFailed"), last
             assert f"if {script.name} calls nbvkit at its top level" in last
             assert 'put the calls under `if __name__ == "__main__":`' in last
+
+
+def test_the_guard_hint_is_not_given_to_the_nbvkit_command(monkeypatch):
+    """The `nbvkit` command runs as a script too (its entry point): a worker that died under it
+    (out of memory, a crash) is not blamed on a missing guard."""
+    import sys
+    import types
+
+    from nbvkit import cli, experiments
+
+    for entry, said in ((cli.main, False), (lambda: 0, True)):
+        main = types.ModuleType("__main__")
+        main.__file__, main.__spec__, main.main = "/somewhere/bin/nbvkit", None, entry
+        monkeypatch.setitem(sys.modules, "__main__", main)
+        assert bool(experiments._unguarded_script_hint()) is said

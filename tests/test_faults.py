@@ -793,6 +793,28 @@ def test_a_kill_while_a_run_is_put_in_place_comes_after_it(tmp_path):
     assert is_complete_run(out) and not list(tmp_path.glob(".run.tmp*"))
 
 
+def test_a_kill_held_while_placing_a_run_fails_still_ends_the_process():
+    """A kill held by signals_held is raised again however its body ends: an OSError while the
+    run is put in place (a full disk) dropped it, and the killed process flew on."""
+    import subprocess
+
+    script = textwrap.dedent(
+        """
+        import os, signal
+        from nbvkit.interrupts import signals_held
+        try:
+            with signals_held():
+                os.kill(os.getpid(), signal.SIGTERM)
+                raise OSError("disk full while placing the run")
+        except OSError:
+            pass
+        print("not reached")
+        """
+    )
+    p = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True, timeout=60)
+    assert p.returncode == -signal.SIGTERM and "not reached" not in p.stdout, p.stderr[-2000:]
+
+
 def _nbvkit_cli(*argv):
     """`python -m nbvkit.cli ARGV` in its own process (a signal there is not this one's)."""
     import subprocess

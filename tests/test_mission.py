@@ -472,3 +472,20 @@ def test_a_start_near_the_structure_moves_to_the_clearance_it_needs_to_fly():
         outside = np.maximum(np.abs(s[:2]) - 5, 0)
         d = np.linalg.norm([*outside, max(s[2] - 10, 0)])  # its distance to the cube
         assert world.workspace.contains(s) and d >= need - 0.15, (k, s, d)  # (surface samples)
+    # a workspace too tight to keep the clearance on most bearings (1.1 m round a round tower,
+    # 1.1 m above it): those starts stay where they were, out of collision (they were refused)
+    a = np.linspace(0, 2 * np.pi, 48, endpoint=False)
+    ring = np.c_[5 * np.cos(a), 5 * np.sin(a)]
+    n = len(a)
+    v = np.r_[np.c_[ring, np.zeros(n)], np.c_[ring, np.full(n, 20.0)], [[0, 0, 0], [0, 0, 20]]]
+    f = [
+        t
+        for i, j in ((i, (i + 1) % n) for i in range(n))
+        for t in ([i, j, n + j], [i, n + j, n + i], [2 * n, j, i], [2 * n + 1, n + i, n + j])
+    ]
+    tower = nbvkit.Mesh(v, np.array(f, np.int32))
+    tight = ["workspace.bounds_min=[-7,-7,0]", "workspace.bounds_max=[7,7,22]"]
+    world = World(Config().with_overrides(FAST + tight), mesh=tower)
+    for k, s in enumerate(world.starts):
+        assert world.workspace.contains(s) and not world._collides(s), (k, s)
+        assert np.hypot(*s[:2]) - 5 >= 1.05, (k, s)  # where they were, or farther out

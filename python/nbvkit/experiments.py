@@ -262,7 +262,8 @@ def _unguarded_script_hint() -> str:
 
     main = sys.modules.get("__main__")
     script = getattr(main, "__file__", None) if getattr(main, "__spec__", None) is None else None
-    if not script:
+    command = getattr(getattr(main, "main", None), "__module__", None) == f"{__package__}.cli"
+    if not script or command:  # (the nbvkit command's script imports it, and is guarded)
         return ""
     return (
         f" (if {Path(script).name} calls nbvkit at its top level: each worker process imports the"
@@ -429,7 +430,8 @@ def _run_pool(specs, root, n, ncpu, rows, failures, progress) -> None:
             try:
                 rows[i] = f.result()
             except cf.process.BrokenProcessPool as e:  # its worker died, or never started
-                failures[i] = error_line(e) + _unguarded_script_hint()
+                started = any(r is not None for r in rows)  # (then the pool's workers did)
+                failures[i] = error_line(e) + ("" if started else _unguarded_script_hint())
             except Exception as e:  # noqa: BLE001 (a run's own error)
                 failures[i] = error_line(e)
             if progress:

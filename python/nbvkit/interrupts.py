@@ -72,11 +72,13 @@ def signals_held():
     import signal
 
     pending = []
-    with _handlers_installed(
-        ("SIGINT", "SIGTERM", "SIGHUP"),
-        lambda signum, frame: pending.append(signum),
-        lambda now: now in (signal.SIG_IGN, None),
-    ):
-        yield
-    for signum in dict.fromkeys(pending):
-        signal.raise_signal(signum)
+    try:
+        with _handlers_installed(
+            ("SIGINT", "SIGTERM", "SIGHUP"),
+            lambda signum, frame: pending.append(signum),
+            lambda now: now in (signal.SIG_IGN, None),
+        ):
+            yield
+    finally:  # raised again whatever ended the body (an OSError placing the run too)
+        for signum in dict.fromkeys(pending):
+            signal.raise_signal(signum)

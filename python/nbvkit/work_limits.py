@@ -326,7 +326,7 @@ def check_map(cfg, ws) -> bool:
         while count(float(at_least(need))) > limit:  # counted: a thin side's cells round up
             need *= 1.01
         fit = min(float(at_least(need)), MAX_RESOLUTION)  # (the key's largest, where it fits)
-        coarser = f"map.resolution >= {fit:g} would fit, or " if need <= MAX_RESOLUTION else ""
+        coarser = f"map.resolution >= {fit:g} would fit, or " if count(fit) <= limit else ""
         raise ValueError(
             f"the map: workspace {[round(s, 3) for s in size]} m at map.resolution = {r:g} m "
             f"holds {cells:,} cells (~{cells * MAP_BYTES_PER_CELL / 2**30:.1f} GiB), more than "

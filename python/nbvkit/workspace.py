@@ -262,10 +262,10 @@ def start_poses(
     surface point is farther than `reach` — or, given `sees(pose) -> bool`, from which the sensor
     facing the centre does not see the structure — moves inward along its bearing until both hold
     (but not nearer than `clearance`). A start in the structure on the ellipse (one that fills
-    its workspace; `collides(point) -> bool` says, in collision or inside) or nearer than
-    `clearance` to it moves outward along its bearing to the bounds, then to other heights, until
-    it is clear and `clearance` away (a start 1 m from a tailplane, its take-off sphere cleared only
-    to 0.8 m, could not move: Scenario 1 turned on the spot there). On the diagonals of a
+    its workspace; `collides(point) -> bool` says, in collision or inside, default: nearer than
+    `clearance`) moves outward along its bearing to the bounds, then to other heights, until it is
+    clear and `clearance` away; one out of collision but nearer than `clearance` moves likewise
+    where a place also sees the structure, else stays (_kept_clear). On the diagonals of a
     cross-shaped structure (an aircraft in a square workspace) the boundary is farther than the
     camera sees. Start 0 is on the -y side facing +y (the authors' (0, -20, 5), yaw 90 deg on
     their workspace)."""
@@ -281,17 +281,43 @@ def start_poses(
         th = -math.pi / 2 + 2 * math.pi * k / n
         p = np.array([c[0] + h[0] * math.cos(th), c[1] + h[1] * math.sin(th), c[2]])
         p = np.clip(p, ws.nav_min, ws.nav_max)  # c - h can round to just outside the bounds
-        near = tree is not None and tree.query(p)[0] < clearance  # (airliner start 4: 1.0 m)
-        if tree is not None and (near or (collides is not None and collides(p))):
+        hit = tree is not None and (collides(p) if collides else tree.query(p)[0] < clearance)
+        if hit:
             p = _clear_start(
                 ws, c, p, lambda q: tree.query(q)[0] >= clearance and not (collides and collides(q))
             )
+        elif tree is not None and tree.query(p)[0] < clearance:  # near (airliner start 4: 1.0 m)
+            p, yaw = _kept_clear(ws, c, p, tree, reach, clearance, sees, collides)
+            out[k] = [p[0], p[1], p[2], yaw]
+            continue
         elif tree is not None:
             p, yaw = _inward_start(p, c, tree, reach, clearance, sees)
             out[k] = [p[0], p[1], p[2], yaw]
             continue
         out[k] = [p[0], p[1], p[2], math.atan2(c[1] - p[1], c[0] - p[0])]
     return out
+
+
+def _kept_clear(ws, c, p, tree, reach: float, clearance: float, sees, collides):
+    """(position, yaw) of a start on the ellipse out of collision but nearer than `clearance` to
+    the structure: the first place on its bearing, outward then at other heights
+    (_clear_start), that keeps the clearance and, facing the centre, still sees the structure;
+    where none does (a pillar in a tight workspace), the place itself, as an inward start. There
+    the take-off sphere, cleared to a cell short of the surface, left no neighbouring view free
+    of unknown space: the paper's Scenario 1 turned on the spot (the airliner's start 4, 1.0 m
+    from the tailplane)."""
+
+    def fine(q):
+        yaw = math.atan2(c[1] - q[1], c[0] - q[0])
+        if tree.query(q)[0] < clearance or (collides is not None and collides(q)):
+            return False
+        return sees is None or bool(sees(np.array([*q, yaw])))
+
+    try:
+        q = _clear_start(ws, c, p, fine)
+    except ValueError:  # nowhere on its bearing: as before, from where it is
+        return _inward_start(p, c, tree, reach, clearance, sees)
+    return q, math.atan2(c[1] - q[1], c[0] - q[0])
 
 
 def _inward_start(p, c, tree, reach: float, clearance: float, sees):

@@ -71,10 +71,10 @@ def budget_note(summary: dict) -> str | None:
     raise it; when the sensors saw nothing (NOTHING_SEEN); or when the coverage tours ended with
     views left that each add tour.min_gain but did not pay for their flight (the last plan's
     unpaid views), naming the rate and tour.final_rate. None otherwise."""
-    if summary["termination"] == "nothing_seen":
+    if summary.get("termination") == "nothing_seen":
         return NOTHING_SEEN
     last = (summary.get("tours") or [{}])[-1]
-    if summary["termination"] == "coverage_complete" and last.get("unpaid"):
+    if summary.get("termination") == "coverage_complete" and last.get("unpaid"):
         rate = "tour.final_rate" if last.get("final") else "tour.rate"
         n, m2 = last["unpaid"], last["unpaid_m2"]
         how = " (--set tour.final_rate=R flies them at R m2 a metre; docs/USAGE.md)"
@@ -84,7 +84,7 @@ def budget_note(summary: dict) -> str | None:
             f"({last['min_gain_m2']:.2f} m2 each at least) did not pay {rate} for their flight "
             f"and were not flown{how}"
         )
-    key = BUDGET_KEYS.get(summary["termination"])
+    key = BUDGET_KEYS.get(summary.get("termination"))
     if key is None:
         return None
     if key == "max_iterations":
