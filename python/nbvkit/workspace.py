@@ -276,29 +276,36 @@ def start_poses(
         from scipy.spatial import cKDTree
 
         tree = cKDTree(np.asarray(surface, float))
+
+    def clear(q):  # out of collision and `clearance` from the surface
+        return tree.query(q)[0] >= clearance and not (collides is not None and collides(q))
+
     out = np.empty((n, 4))
     for k in range(n):
         th = -math.pi / 2 + 2 * math.pi * k / n
         p = np.array([c[0] + h[0] * math.cos(th), c[1] + h[1] * math.sin(th), c[2]])
         p = np.clip(p, ws.nav_min, ws.nav_max)  # c - h can round to just outside the bounds
-        hit = tree is not None and (collides(p) if collides else tree.query(p)[0] < clearance)
-        if hit:
-            p = _clear_start(
-                ws, c, p, lambda q: tree.query(q)[0] >= clearance and not (collides and collides(q))
-            )
-        elif tree is not None and tree.query(p)[0] < clearance:  # near (airliner start 4: 1.0 m)
-            p, yaw = _kept_clear(ws, c, p, tree, reach, clearance, sees, collides)
-            out[k] = [p[0], p[1], p[2], yaw]
+        if tree is None:
+            out[k] = [*p, _facing(c, p)]
             continue
-        elif tree is not None:
+        near = tree.query(p)[0] < clearance
+        if collides(p) if collides else near:
+            p = _clear_start(ws, c, p, clear)
+            yaw = _facing(c, p)
+        elif near:  # out of collision, too near to fly from (airliner start 4: 1.0 m)
+            p, yaw = _kept_clear(ws, c, p, tree, reach, clearance, sees, clear)
+        else:
             p, yaw = _inward_start(p, c, tree, reach, clearance, sees)
-            out[k] = [p[0], p[1], p[2], yaw]
-            continue
-        out[k] = [p[0], p[1], p[2], math.atan2(c[1] - p[1], c[0] - p[0])]
+        out[k] = [*p, yaw]
     return out
 
 
-def _kept_clear(ws, c, p, tree, reach: float, clearance: float, sees, collides):
+def _facing(c, q) -> float:
+    """The yaw (rad) from `q` towards `c`, in the horizontal plane."""
+    return math.atan2(c[1] - q[1], c[0] - q[0])
+
+
+def _kept_clear(ws, c, p, tree, reach: float, clearance: float, sees, clear):
     """(position, yaw) of a start on the ellipse out of collision but nearer than `clearance` to
     the structure: the first place on its bearing, outward then at other heights
     (_clear_start), that keeps the clearance and, facing the centre, still sees the structure;
@@ -307,17 +314,14 @@ def _kept_clear(ws, c, p, tree, reach: float, clearance: float, sees, collides):
     of unknown space: the paper's Scenario 1 turned on the spot (the airliner's start 4, 1.0 m
     from the tailplane)."""
 
-    def fine(q):
-        yaw = math.atan2(c[1] - q[1], c[0] - q[0])
-        if tree.query(q)[0] < clearance or (collides is not None and collides(q)):
-            return False
-        return sees is None or bool(sees(np.array([*q, yaw])))
+    def fine(q):  # clear, and seeing the structure facing the centre
+        return clear(q) and (sees is None or bool(sees(np.array([*q, _facing(c, q)]))))
 
     try:
         q = _clear_start(ws, c, p, fine)
     except ValueError:  # nowhere on its bearing: as before, from where it is
         return _inward_start(p, c, tree, reach, clearance, sees)
-    return q, math.atan2(c[1] - q[1], c[0] - q[0])
+    return q, _facing(c, q)
 
 
 def _inward_start(p, c, tree, reach: float, clearance: float, sees):
@@ -329,12 +333,12 @@ def _inward_start(p, c, tree, reach: float, clearance: float, sees):
     def walk(p, goal):
         step = (goal - p) / max(np.linalg.norm(goal - p), 1e-9) * 0.25
         for _ in range(int(np.linalg.norm(goal - p) / 0.25)):
-            yaw = math.atan2(goal[1] - p[1], goal[0] - p[0])
+            yaw = _facing(goal, p)
             ok = tree.query(p)[0] <= reach and (sees is None or sees(np.array([*p, yaw])))
             if ok or tree.query(p + step)[0] < clearance:
                 return p, yaw, ok
             p = p + step
-        return p, math.atan2(goal[1] - p[1], goal[0] - p[0]), False
+        return p, _facing(goal, p), False
 
     q, yaw, ok = walk(p, c)
     if ok:
