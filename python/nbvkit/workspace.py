@@ -264,40 +264,68 @@ def start_poses(
     (but not nearer than `clearance`). A start in the structure on the ellipse (one that fills
     its workspace; `collides(point) -> bool` says, in collision or inside, default: nearer than
     `clearance`) moves outward along its bearing to the bounds, then to other heights, until it is
-    clear and `clearance` away; one out of collision but nearer than `clearance` moves likewise
-    where a place also sees the structure, else stays (_kept_clear). On the diagonals of a
-    cross-shaped structure (an aircraft in a square workspace) the boundary is farther than the
-    camera sees. Start 0 is on the -y side facing +y (the authors' (0, -20, 5), yaw 90 deg on
-    their workspace)."""
+    clear and `clearance` away (a row of NaN where no place is); one out of collision but nearer
+    than `clearance` moves likewise where a place also sees the structure, else stays
+    (_kept_clear). A start that sees the structure from nowhere on its bearing at the mid height
+    (a navigation box reaching far above or below the structure) is placed so at the structure's
+    mid height instead, where one there does. On the diagonals of a cross-shaped structure (an
+    aircraft in a square workspace) the boundary is farther than the camera sees. Start 0 is on
+    the -y side facing +y (the authors' (0, -20, 5), yaw 90 deg on their workspace)."""
     c = (ws.nav_min + ws.nav_max) / 2
     h = (ws.nav_max - ws.nav_min) / 2
-    tree = None
+    tree = z_mid = None
     if surface is not None and reach is not None and len(surface):
         from scipy.spatial import cKDTree
 
         tree = cKDTree(np.asarray(surface, float))
+        z = tree.data[:, 2]
+        z_mid = float(np.clip((z.min() + z.max()) / 2, ws.nav_min[2], ws.nav_max[2]))
 
     def clear(q):  # out of collision and `clearance` from the surface
         return tree.query(q)[0] >= clearance and not (collides is not None and collides(q))
 
-    out = np.empty((n, 4))
-    for k in range(n):
-        th = -math.pi / 2 + 2 * math.pi * k / n
-        p = np.array([c[0] + h[0] * math.cos(th), c[1] + h[1] * math.sin(th), c[2]])
+    def place(th, z):  # ((x, y, z, yaw), whether it sees the structure) on bearing th
+        cz = np.array([c[0], c[1], z])
+        p = np.array([c[0] + h[0] * math.cos(th), c[1] + h[1] * math.sin(th), z])
         p = np.clip(p, ws.nav_min, ws.nav_max)  # c - h can round to just outside the bounds
         if tree is None:
-            out[k] = [*p, _facing(c, p)]
-            continue
+            return [*p, _facing(c, p)], True
         near = tree.query(p)[0] < clearance
         if collides(p) if collides else near:
-            p = _clear_start(ws, c, p, clear)
-            yaw = _facing(c, p)
-        elif near:  # out of collision, too near to fly from (airliner start 4: 1.0 m)
-            p, yaw = _kept_clear(ws, c, p, tree, reach, clearance, sees, clear)
+            p = _clear_start(ws, cz, p, clear)
+            return [*p, _facing(c, p)], True
+        if near:  # out of collision, too near to fly from (airliner start 4: 1.0 m)
+            p, yaw, ok = _kept_clear(ws, cz, p, tree, reach, clearance, sees, clear)
         else:
-            p, yaw = _inward_start(p, c, tree, reach, clearance, sees)
-        out[k] = [*p, yaw]
+            p, yaw, ok = _inward_start(p, cz, tree, reach, clearance, sees)
+        return [*p, yaw], ok
+
+    out = np.full((n, 4), np.nan)
+    for k in range(n):
+        th = -math.pi / 2 + 2 * math.pi * k / n
+        try:
+            out[k], ok = place(th, c[2])
+            if not ok and z_mid is not None and z_mid != c[2]:
+                pose, ok = place(th, z_mid)  # (a flight envelope far above the structure)
+                if ok:
+                    out[k] = pose
+        except ValueError:  # nowhere clear on its bearing: NaN (World names it if it is flown)
+            pass
     return out
+
+
+def unplaced_start(k: int, ws: Workspace, w: WorkspaceConfig) -> str:
+    """Why predefined start `k` could not be placed (start_poses gave it NaN)."""
+    keys = (
+        "the workspace margin (workspace.margin_xy, workspace.margin_z)"
+        if w.bounds_min is None
+        else "the workspace bounds (workspace.bounds_min, workspace.bounds_max)"
+    )
+    return (
+        f"start {k}: no place on its bearing from the workspace centre is clear of the "
+        f"structure inside the navigation bounds {ws.nav_min.round(3).tolist()} - "
+        f"{ws.nav_max.round(3).tolist()}: enlarge {keys}, or give start_pose"
+    )
 
 
 def _facing(c, q) -> float:
@@ -306,10 +334,11 @@ def _facing(c, q) -> float:
 
 
 def _kept_clear(ws, c, p, tree, reach: float, clearance: float, sees, clear):
-    """(position, yaw) of a start on the ellipse out of collision but nearer than `clearance` to
-    the structure: the first place on its bearing, outward then at other heights
-    (_clear_start), that keeps the clearance and, facing the centre, still sees the structure;
-    where none does (a pillar in a tight workspace), the place itself, as an inward start. There
+    """(position, yaw, whether it sees) of a start on the ellipse out of collision but nearer
+    than `clearance` to the structure: the first place on its bearing, outward then at other
+    heights (_clear_start), that keeps the clearance and, facing the centre, still sees the
+    structure; where none does (a pillar in a tight workspace), the place itself, as an inward
+    start. There
     the take-off sphere, cleared to a cell short of the surface, left no neighbouring view free
     of unknown space: the paper's Scenario 1 turned on the spot (the airliner's start 4, 1.0 m
     from the tailplane)."""
@@ -321,14 +350,15 @@ def _kept_clear(ws, c, p, tree, reach: float, clearance: float, sees, clear):
         q = _clear_start(ws, c, p, fine)
     except ValueError:  # nowhere on its bearing: as before, from where it is
         return _inward_start(p, c, tree, reach, clearance, sees)
-    return q, _facing(c, q)
+    return q, _facing(c, q), True
 
 
 def _inward_start(p, c, tree, reach: float, clearance: float, sees):
-    """(position, yaw) of a start that sees the structure: from `p` inward towards the centre
-    `c`, facing it, the first place within `reach` of the surface (and, given `sees`, seeing
-    it). Where the centre holds no structure (structures far apart) no place on that bearing may
-    be: then from `p` towards the nearest surface sample, facing it."""
+    """(position, yaw, whether it sees) of a start that sees the structure: from `p` inward
+    towards the centre `c`, facing it, the first place within `reach` of the surface (and, given
+    `sees`, seeing it). Where the centre holds no structure (structures far apart) no place on
+    that bearing may be: then from `p` towards the nearest surface sample, facing it; where
+    neither walk finds one, the first walk's end, not seeing."""
 
     def walk(p, goal):
         step = (goal - p) / max(np.linalg.norm(goal - p), 1e-9) * 0.25
@@ -342,11 +372,11 @@ def _inward_start(p, c, tree, reach: float, clearance: float, sees):
 
     q, yaw, ok = walk(p, c)
     if ok:
-        return q, yaw
+        return q, yaw, True
     nearest = tree.data[tree.query(p)[1]]
     goal = np.array([nearest[0], nearest[1], p[2]])
     q2, yaw2, ok2 = walk(p, goal)
-    return (q2, yaw2) if ok2 else (q, yaw)
+    return (q2, yaw2, True) if ok2 else (q, yaw, False)
 
 
 def _clear_start(ws: Workspace, c, p, clear) -> np.ndarray:

@@ -29,16 +29,8 @@ from .sensors import (
 )
 from .settings import cpp_section
 from .vehicle import FLIGHT_COLUMNS, VehicleState, as_positions, as_view, check_stage  # noqa: F401
-from .workspace import (
-    is_large,
-    Workspace,
-    ground_height,
-    make_workspace,
-    start_poses,
-    structure_hint,
-    warn_coarse,
-    warn_floating,
-)
+from .workspace import Workspace, ground_height, is_large, make_workspace, start_poses
+from .workspace import structure_hint, unplaced_start, warn_coarse, warn_floating
 
 
 VehicleConfig = cpp_section(
@@ -185,6 +177,8 @@ class World:
         self.starts = self._start_poses()
         start = np.array(cfg.start_pose, float) if cfg.start_pose is not None else None
         self.start_pose = start if start is not None else self.starts[cfg.start]
+        if not np.all(np.isfinite(self.start_pose)):  # (another start's failing is no matter)
+            raise MissionError(unplaced_start(cfg.start, self.workspace, cfg.workspace))
         self._check_start(self.start_pose)
         large = is_large(self.workspace, cfg.camera)
         self.camera_cloud, self.laser_cloud = surface_clouds(cfg, mesh.bounds, large)
