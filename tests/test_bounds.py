@@ -432,6 +432,57 @@ def test_every_limit_a_structure_exceeds_is_named_at_once():
     check_work(cfg, mesh, make_workspace(mesh.bounds, cfg))  # raises nothing
 
 
+def test_a_map_too_large_names_the_keys_that_made_its_workspace():
+    """Explicit workspace bounds too wide for OctoMap were blamed on workspace.margin_xy and
+    margin_z, which the user never gave."""
+    wide = ["workspace.bounds_min=[-1e9,-1e9,0]", "workspace.bounds_max=[1e9,1e9,10]"]
+    msg = _mission_error(wide)
+    assert "too large for the map" in msg and "workspace.bounds_min = [-1e+09" in msg, msg
+    assert "margin_xy" not in msg, msg
+    assert "workspace.margin_xy = 1e+06" in _mission_error(["workspace.margin_xy=1e6"])
+    # within OctoMap's range but over the map's memory at any resolution: the bounds given, not
+    # the structure's scale, make the workspace
+    box = ["workspace.bounds_min=[-6000,-6000,0]", "workspace.bounds_max=[6000,6000,6000]"]
+    msg = _mission_error(box)
+    assert "a smaller workspace" in msg and "mesh.scale" not in msg, msg
+
+
+def test_a_structure_of_almost_no_area_names_the_ground_truth_density():
+    """A cube at mesh.scale 1e-9 was refused by the evaluator's "gt_density 1000 points/m^2
+    over the mesh's 6e-18 m^2 gives no ground-truth samples", naming no key: it is refused
+    before any work, naming evaluation.gt_density and the density that makes a sample."""
+    tiny = nbvkit.load_mesh(CUBE, scale=1e-9)
+    for given, default in (([], True), (["evaluation.gt_density=5"], False)):
+        msg = _mission_error(given, mesh=tiny)
+        assert "evaluation.gt_density = " in msg and "makes no sample" in msg, msg
+        assert ("(the default)" in msg) == default, msg
+
+
+def test_every_limit_of_the_profile_flight_is_named_at_once():
+    """The profile flight's checks stopped at the first: its laser rays named, its camera
+    frames only once those were mended. Both are named now, with what would fit, and the
+    values given back are accepted. (Its rays and legs grow with its scans: named once those
+    fit.)"""
+    from nbvkit.work_limits import check_work
+    from nbvkit.workspace import make_workspace
+
+    keys = [
+        "profiling.sweep_step=0.0001",
+        "laser.resolution_deg=0.001",
+        "profiling.camera_step=0.0001",
+    ]
+    msg = _mission_error(keys)
+    assert msg.startswith("2 limits exceeded: "), msg
+    fits = {
+        key: re.search(rf"{re.escape(key)} >= ([0-9.e+-]+) .*?would fit", msg).group(1)
+        for key in ("laser.resolution_deg", "profiling.camera_step")
+    }
+    given = ["map.resolution=0.4", keys[0], *(f"{k}={v}" for k, v in fits.items())]
+    cfg = load_config(overrides=given)
+    mesh = nbvkit.load_mesh(CUBE)
+    check_work(cfg, mesh, make_workspace(mesh.bounds, cfg))  # raises nothing
+
+
 def test_a_map_resolution_offered_at_the_keys_largest_fits():
     """Workspaces whose map needs just under the largest map.resolution (10 m): the value
     offered, capped at 10, was refused in turn (a 5,050 m cube); it is offered only where it

@@ -69,11 +69,16 @@ def new_map(cfg, mesh_bounds, ws) -> OccupancyMap:
         if "addressable range" not in str(e):
             raise
         if np.any(ws.bounds_max - ws.bounds_min > 32767 * m.resolution):  # OctoMap's keys
+            w = cfg.workspace
+            given = (
+                f"workspace.margin_xy = {w.margin_xy:g}, margin_z = {w.margin_z} m"
+                if w.bounds_min is None
+                else f"workspace.bounds_min = [{', '.join(f'{x:g}' for x in w.bounds_min)}], "
+                f"bounds_max = [{', '.join(f'{x:g}' for x in w.bounds_max)}]"
+            )
             raise MissionError(  # too large, wherever it lies
                 f"{e}: the structure (mesh.scale = {cfg.mesh.scale:g}) and its workspace "
-                f"(workspace.margin_xy = {cfg.workspace.margin_xy:g}, margin_z = "
-                f"{cfg.workspace.margin_z} m) are too large for the map at map.resolution = "
-                f"{m.resolution:g} m"
+                f"({given}) are too large for the map at map.resolution = {m.resolution:g} m"
             ) from None
         # the centre to the origin, and a floating or sunken structure onto the ground
         c = np.round(-(np.asarray(mesh_bounds[0]) + np.asarray(mesh_bounds[1])) / 2)

@@ -150,46 +150,64 @@ def _rounded(v: float, digits: int, direction) -> str:
 
 
 def check_profile(cfg, mesh_bounds, ws) -> None:
-    """ValueError naming the key when the profile flight of `cfg` round a structure with
+    """ValueError naming every key by which the profile flight of `cfg` round a structure with
     bounds `mesh_bounds` in workspace `ws` would take more scans, rays, legs or frames than the
-    limits (MAX_PROFILE_*), with the value of that key that would fit."""
+    limits (MAX_PROFILE_*), each with the value of that key that would fit."""
     p = cfg.profiling
     if not p.enabled:
         return
     w = _profile_plan(cfg, mesh_bounds, ws)
-    what = "the profile flight"
     if not w["z_max"] > w["z_min"]:
         raise ValueError(
             f"config keys 'profiling.z_min' / 'profiling.z_max': the sweeps need z_max > z_min "
             f"(null: the navigation box's {float(ws.nav_min[2]):g} / {float(ws.nav_max[2]):g} m), "
             f"got {w['z_min']:g}..{w['z_max']:g}"
         )
-    if w["scans"] > MAX_PROFILE_SCANS:
-        fit_per_sweep = MAX_PROFILE_SCANS / w["sweeps"] - 1  # scans per sweep that would fit
-        nav_height = float(ws.nav_max[2] - ws.nav_min[2])
-        zkeys = [k for k in ("z_max", "z_min") if getattr(p, k) is not None]
-        if zkeys and w["height"] > nav_height:
-            key = zkeys[0]
-            fits = (
-                f"a sweep of at most {at_most(fit_per_sweep * p.sweep_step)} m (z_max - z_min, now "
-                f"{w['height']:.4g} m; the navigation box is {nav_height:.4g} m tall) would fit"
-            )
-            value = getattr(p, key)
-        elif p.waypoints > 64:
-            key, value = "waypoints", p.waypoints
-            fits = f"profiling.waypoints <= {max(int(MAX_PROFILE_SCANS / w['per_sweep']) - 1, 1)}"
-            fits += " would fit"
-        else:
-            key, value = "sweep_step", p.sweep_step
-            fits = f"profiling.sweep_step >= {at_least(w['height'] / fit_per_sweep)} would fit"
-        _refuse(what, "laser scans", w["scans"], MAX_PROFILE_SCANS, "profiling." + key, value, fits)
+    problems: list[str] = []
+    _collect(problems, _profile_scans, cfg, w, ws)
+    if not problems:  # the rays and legs grow with the scans: named once those fit
+        _collect(problems, _profile_rays, cfg, w, ws)
+        _collect(problems, _profile_legs, cfg, w, ws)
+    _collect(problems, _profile_frames, cfg, w, ws)
+    _raise_all(problems)
+
+
+def _profile_scans(cfg, w: dict, ws) -> None:
+    p = cfg.profiling
+    if w["scans"] <= MAX_PROFILE_SCANS:
+        return
+    fit_per_sweep = MAX_PROFILE_SCANS / w["sweeps"] - 1  # scans per sweep that would fit
+    nav_height = float(ws.nav_max[2] - ws.nav_min[2])
+    zkeys = [k for k in ("z_max", "z_min") if getattr(p, k) is not None]
+    if zkeys and w["height"] > nav_height:
+        key = zkeys[0]
+        fits = (
+            f"a sweep of at most {at_most(fit_per_sweep * p.sweep_step)} m (z_max - z_min, now "
+            f"{w['height']:.4g} m; the navigation box is {nav_height:.4g} m tall) would fit"
+        )
+        value = getattr(p, key)
+    elif p.waypoints > 64:
+        key, value = "waypoints", p.waypoints
+        fits = f"profiling.waypoints <= {max(int(MAX_PROFILE_SCANS / w['per_sweep']) - 1, 1)}"
+        fits += " would fit"
+    else:
+        key, value = "sweep_step", p.sweep_step
+        fits = f"profiling.sweep_step >= {at_least(w['height'] / fit_per_sweep)} would fit"
+    _refuse(_PROFILE, "laser scans", w["scans"], MAX_PROFILE_SCANS, "profiling." + key, value, fits)
+
+
+def _profile_rays(cfg, w: dict, ws) -> None:
     rays = w["scans"] * w["beams"]
     if rays > MAX_PROFILE_LASER_RAYS:
         res = cfg.laser.fov_deg / (MAX_PROFILE_LASER_RAYS / w["scans"] - 1)
         _refuse(
-            what, "laser rays", rays, MAX_PROFILE_LASER_RAYS, "laser.resolution_deg",
+            _PROFILE, "laser rays", rays, MAX_PROFILE_LASER_RAYS, "laser.resolution_deg",
             cfg.laser.resolution_deg, f"laser.resolution_deg >= {at_least(res)} would fit",
         )  # fmt: skip
+
+
+def _profile_legs(cfg, w: dict, ws) -> None:
+    p = cfg.profiling
     if w["legs"] > MAX_PROFILE_LEGS:
         chords = MAX_PROFILE_LEGS / 2  # chords of the curve that would fit
         if p.method != "circular" and p.margin / 2 < p.max_segment:
@@ -198,13 +216,42 @@ def check_profile(cfg, mesh_bounds, ws) -> None:
         else:
             key, value = "profiling.max_segment", p.max_segment
             fits = f"profiling.max_segment >= {at_least(w['perimeter'] / chords)} would fit"
-        _refuse(what, "legs", w["legs"], MAX_PROFILE_LEGS, key, value, fits)
+        _refuse(_PROFILE, "legs", w["legs"], MAX_PROFILE_LEGS, key, value, fits)
+
+
+def _profile_frames(cfg, w: dict, ws) -> None:
     if w["frames"] > MAX_PROFILE_FRAMES:
         step = w["length"] / MAX_PROFILE_FRAMES
         _refuse(
-            what, "camera frames", w["frames"], MAX_PROFILE_FRAMES, "profiling.camera_step",
-            p.camera_step, f"profiling.camera_step >= {at_least(step)} (or 0: none) would fit",
+            _PROFILE, "camera frames", w["frames"], MAX_PROFILE_FRAMES, "profiling.camera_step",
+            cfg.profiling.camera_step,
+            f"profiling.camera_step >= {at_least(step)} (or 0: none) would fit",
         )  # fmt: skip
+
+
+_PROFILE = "the profile flight"
+
+
+class _Limits(ValueError):
+    """Several limits exceeded: `problems`, one message each; its text names them all."""
+
+    def __init__(self, problems: list[str]):
+        self.problems = problems
+        n = len(problems)
+        super().__init__(problems[0] if n == 1 else f"{n} limits exceeded: " + "; ".join(problems))
+
+
+def _collect(problems: list[str], check, *args):
+    """check(*args)'s result, or None with its refusals added to `problems`."""
+    try:
+        return check(*args)
+    except ValueError as e:
+        problems.extend(getattr(e, "problems", [str(e)]))
+
+
+def _raise_all(problems: list[str]) -> None:
+    if problems:
+        raise _Limits(problems)
 
 
 def check_samples(area: float, density: float, key: str, shown=None) -> None:
@@ -228,8 +275,16 @@ def check_gt_samples(cfg, area: float) -> float:
     from ._core import EvaluationOptions  # nbvkit.evaluation.DEFAULT_GT_DENSITY's source
 
     density = cfg.evaluation.gt_density
+    used = EvaluationOptions().gt_density if density is None else density
+    if area * used < 0.5:  # (the evaluator rounds the count) a structure of almost no area
+        raise ValueError(
+            f"the ground-truth samples: evaluation.gt_density = {fmt_number(used)} points/m^2 "
+            f"{'(the default) ' if density is None else ''}on the structure's {area:.3g} m^2 "
+            f"makes no sample to score against; evaluation.gt_density >= "
+            f"{at_least(0.5 / area) if area > 0 else 'inf'} would make one"
+        )
     if density is None:  # the default adapts: capped at MAX_GT_SAMPLES (the evaluator warns)
-        return min(area * EvaluationOptions().gt_density, MAX_GT_SAMPLES)
+        return min(area * used, MAX_GT_SAMPLES)
     check_samples(area, density, "evaluation.gt_density")
     return area * density
 
@@ -334,7 +389,7 @@ def check_map(cfg, ws) -> bool:
             "(workspace.bounds_min / bounds_max, workspace.square=false for a long structure)"
             + (
                 ""
-                if coarser
+                if coarser or cfg.workspace.bounds_min is not None  # (bounds given: not the scale)
                 else f", or a smaller mesh.scale (map.resolution <= {MAX_RESOLUTION:g})"
             )
         )
@@ -346,20 +401,10 @@ def check_work(cfg, mesh, ws) -> None:
     memory, the profile flight, the ground-truth samples and the observable-surface lattice.
     One ValueError names every limit exceeded, each with what would fit (one at a time, a user
     who followed the first hint met the next)."""
-    problems = []
-
-    def attempt(check, *args):
-        try:
-            return check(*args)
-        except ValueError as e:
-            problems.append(str(e))
-
-    if attempt(check_map, cfg, ws) is False:
+    problems: list[str] = []
+    if _collect(problems, check_map, cfg, ws) is False:
         return  # beyond OctoMap's range: the map names it (and the shift that brings it near)
-    attempt(check_profile, cfg, mesh.bounds, ws)
-    samples = attempt(check_gt_samples, cfg, float(mesh.area))
-    attempt(check_observability, cfg, ws, MAX_GT_SAMPLES if samples is None else samples)
-    if len(problems) > 1:
-        raise ValueError(f"{len(problems)} limits exceeded: " + "; ".join(problems))
-    if problems:
-        raise ValueError(problems[0])
+    _collect(problems, check_profile, cfg, mesh.bounds, ws)
+    samples = _collect(problems, check_gt_samples, cfg, float(mesh.area))
+    _collect(problems, check_observability, cfg, ws, MAX_GT_SAMPLES if samples is None else samples)
+    _raise_all(problems)
