@@ -2,6 +2,7 @@
 from __future__ import annotations
 
 import math
+import re
 import subprocess
 import sys
 
@@ -188,6 +189,12 @@ def test_overrides_and_rejections(tmp_path):
         Config.from_yaml(bad)
     with pytest.raises(FileNotFoundError):
         Config.from_yaml(tmp_path / "missing.yaml")
+    # a key or value wrong in a file names the file (a run folder's config.yaml among many)
+    for text, what in [("sxxd: 0\n", "unknown config key 'sxxd'"), ("start: 9\n", "start")]:
+        bad.write_text(text)
+        with pytest.raises((KeyError, ValueError)) as e:
+            Config.from_yaml(bad)
+        assert re.match(f"{re.escape(str(bad))}: .*{what}", e.value.args[0]), e.value.args[0]
     yaml.safe_load(c.to_yaml())  # serialisable
 
 

@@ -67,6 +67,14 @@ def test_incomplete_folders_are_refused_with_the_reason(tmp_path, finished_run):
     (out / "iterations.csv").write_text("iteration\n")  # changed since the run wrote it
     with pytest.raises(IncompleteRunError, match="damaged iterations.csv"):
         require_complete_run(out)
+    # a manifest vouching for a file outside the folder (another run's): no run writes one
+    other = tmp_path / "other"
+    shutil.copytree(finished_run[0], other)
+    manifest = json.loads((other / MANIFEST).read_text())
+    manifest["files"] = {"../r/summary.json": (out / "summary.json").stat().st_size}
+    (other / MANIFEST).write_text(json.dumps(manifest))
+    with pytest.raises(IncompleteRunError, match=r"listing \.\./r/summary.json, outside"):
+        require_complete_run(other)
     (out / MANIFEST).unlink()
     with pytest.raises(ValueError, match="has no manifest.json"):
         require_complete_run(out)

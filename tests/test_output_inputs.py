@@ -172,3 +172,12 @@ def test_evaluate_refuses_a_run_whose_mesh_file_changed_since(tmp_path, capsys):
     err = capsys.readouterr().err
     assert str(mesh) in err and "changed since" in err and "Traceback" not in err, err
     assert main(["evaluate", str(run), "--mesh", str(mesh)]) == 0
+    # a run that records no SHA-1 (older runs): scored, with a word that the file is unchecked
+    summary = json.loads((run / "summary.json").read_text())
+    del summary["mesh_sha1"]
+    (run / "summary.json").write_text(json.dumps(summary))
+    write_manifest(run)
+    capsys.readouterr()
+    assert main(["evaluate", str(run)]) == 0
+    err = capsys.readouterr().err
+    assert "records no SHA-1 of its mesh" in err and str(mesh) in err, err

@@ -70,7 +70,7 @@ class Config:
     # surface, at least 1000
     max_iterations: Optional[int] = within(None, 0, 10**6)
     progress: bool = True  # progress bar on stderr
-    # minutes between checkpoints of the run folder (what a kill loses at most); 0: none
+    # wall-clock minutes between checkpoints of the run folder (what a kill loses at most); 0: none
     checkpoint_minutes: float = within(10.0, 0.0, 1e6)
     mesh: MeshConfig = field(default_factory=MeshConfig)
     workspace: WorkspaceConfig = field(default_factory=WorkspaceConfig)
@@ -171,8 +171,9 @@ class Config:
 
     @classmethod
     def from_yaml(cls, path: str | Path) -> "Config":
-        """A run folder's config.yaml names in its errors the plugin files the run was flown
-        with (its summary.json's `plugins`) that this process has not loaded."""
+        """Its errors name the file; a run folder's config.yaml names in its errors the plugin
+        files the run was flown with (its summary.json's `plugins`) that this process has not
+        loaded."""
         data = read_yaml_mapping(path, "config file", "for the defaults write {} in it")
         p = Path(os.fsdecode(path))
         try:
@@ -181,10 +182,9 @@ class Config:
             from .plugins import run_plugins_hint
 
             hint = run_plugins_hint(p.parent)
-            if not hint:
-                raise
             msg = e.args[0] if isinstance(e, KeyError) and e.args else str(e)
-            raise (KeyError if isinstance(e, KeyError) else ValueError)(f"{msg}; {hint}") from e
+            msg = f"{p}: {msg}" + (f"; {hint}" if hint else "")
+            raise (KeyError if isinstance(e, KeyError) else ValueError)(msg) from e
 
     def with_overrides(self, overrides: list[str] | dict | None) -> "Config":
         """Apply ``key=value`` strings (dotted keys for nested sections; values parsed as YAML)

@@ -99,6 +99,8 @@ def _problem(path: Path, check_lock: bool = True) -> str | None:
         return f"has an unreadable {MANIFEST}; run it again"
     for rel, size in files.items():
         f = path / rel
+        if Path(rel).is_absolute() or ".." in Path(rel).parts:  # (a run writes only in itself)
+            return f"has a {MANIFEST} listing {rel}, outside the folder; run it again"
         try:
             actual = f.stat().st_size
         except OSError:

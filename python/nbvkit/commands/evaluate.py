@@ -293,7 +293,14 @@ def _settings_of_run(args, folder: Path) -> None:
             f"here ({Path.cwd()}): give the mesh with --mesh"
         )
     flown = summary.get("mesh_sha1")  # (runs before it was recorded: none)
-    if flown is not None and mesh_file_sha1(path) != flown:
+    if flown is None and mesh.path is not None:
+        print(
+            f"nbvkit evaluate: warning: the run {folder} records no SHA-1 of its mesh "
+            f"(summary.json's mesh_sha1): its cloud is scored against '{path}' as found from here, "
+            "which may not be the file it flew (give it with --mesh to be sure)",
+            file=sys.stderr,
+        )
+    elif flown is not None and mesh_file_sha1(path) != flown:
         raise ValueError(
             f"the mesh file '{path}' the run {folder} flew has changed since (its SHA-1 is not "
             "the one summary.json records): the run's cloud would be scored against another "
