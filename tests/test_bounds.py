@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import math
 import os
+import pickle
 import re
 import subprocess
 import sys
@@ -481,6 +482,11 @@ def test_every_limit_of_the_profile_flight_is_named_at_once():
     cfg = load_config(overrides=given)
     mesh = nbvkit.load_mesh(CUBE)
     check_work(cfg, mesh, make_workspace(mesh.bounds, cfg))  # raises nothing
+    # the error crosses from a worker process whole (pickled: rebuilt from its problems)
+    cfg = load_config(overrides=["map.resolution=0.4", *keys])
+    with pytest.raises(ValueError) as e:
+        check_work(cfg, mesh, make_workspace(mesh.bounds, cfg))
+    assert str(pickle.loads(pickle.dumps(e.value))) == str(e.value) == msg
 
 
 def test_a_map_resolution_offered_at_the_keys_largest_fits():

@@ -240,6 +240,9 @@ class _Limits(ValueError):
         n = len(problems)
         super().__init__(problems[0] if n == 1 else f"{n} limits exceeded: " + "; ".join(problems))
 
+    def __reduce__(self):  # (from a worker process: rebuilt from its problems, not its text)
+        return type(self), (self.problems,)
+
 
 def _collect(problems: list[str], check, *args):
     """check(*args)'s result, or None with its refusals added to `problems`."""
