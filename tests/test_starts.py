@@ -70,6 +70,14 @@ def test_a_start_that_cannot_be_placed_does_not_stop_another_or_a_given_pose():
         assert np.allclose(w.start_pose, world.starts[k])
     with pytest.raises(MissionError, match=rf"start {unplaced[0]}: .*workspace\.margin_xy"):
         World(Config().with_overrides(tight + [f"start={unplaced[0]}"]), mesh=ring)
+    # a flight envelope above the structure (margin_z null): the starts keep below its top,
+    # and the message gives those bounds and the one key that moves them
+    with pytest.raises(MissionError) as e:
+        World(Config().with_overrides(tight + ["workspace.margin_z=null", "start=0"]), mesh=ring)
+    msg = str(e.value)
+    assert "(workspace.margin_xy)" in msg and "margin_z" not in msg, msg
+    top = float(msg.split("] - [")[1].split("]")[0].split(",")[2])
+    assert top < 8.5, msg  # the starts' box, not the envelope's
     explicit = ["workspace.bounds_min=[0,0,0]", "workspace.bounds_max=[30,30,8.5]"]
     with pytest.raises(MissionError, match=r"workspace\.bounds_min, workspace\.bounds_max"):
         World(Config().with_overrides(FAST + explicit + [f"start={unplaced[0]}"]), mesh=ring)

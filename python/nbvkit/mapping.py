@@ -76,9 +76,13 @@ def new_map(cfg, mesh_bounds, ws) -> OccupancyMap:
                 else f"workspace.bounds_min = [{', '.join(f'{x:g}' for x in w.bounds_min)}], "
                 f"bounds_max = [{', '.join(f'{x:g}' for x in w.bounds_max)}]"
             )
+            what = (
+                f"the structure (mesh.scale = {cfg.mesh.scale:g}) and its workspace ({given}) are"
+                if w.bounds_min is None
+                else f"the workspace ({given}) is"
+            )
             raise MissionError(  # too large, wherever it lies
-                f"{e}: the structure (mesh.scale = {cfg.mesh.scale:g}) and its workspace "
-                f"({given}) are too large for the map at map.resolution = {m.resolution:g} m"
+                f"{e}: {what} too large for the map at map.resolution = {m.resolution:g} m"
             ) from None
         # the centre to the origin, and a floating or sunken structure onto the ground
         c = np.round(-(np.asarray(mesh_bounds[0]) + np.asarray(mesh_bounds[1])) / 2)

@@ -152,7 +152,8 @@ def _rounded(v: float, digits: int, direction) -> str:
 def check_profile(cfg, mesh_bounds, ws) -> None:
     """ValueError naming every key by which the profile flight of `cfg` round a structure with
     bounds `mesh_bounds` in workspace `ws` would take more scans, rays, legs or frames than the
-    limits (MAX_PROFILE_*), each with the value of that key that would fit."""
+    limits (MAX_PROFILE_*), each with the value of that key that would fit; the rays and legs,
+    which grow with the scans, only once the scans fit."""
     p = cfg.profiling
     if not p.enabled:
         return
@@ -166,9 +167,9 @@ def check_profile(cfg, mesh_bounds, ws) -> None:
     problems: list[str] = []
     _collect(problems, _profile_scans, cfg, w, ws)
     if not problems:  # the rays and legs grow with the scans: named once those fit
-        _collect(problems, _profile_rays, cfg, w, ws)
-        _collect(problems, _profile_legs, cfg, w, ws)
-    _collect(problems, _profile_frames, cfg, w, ws)
+        _collect(problems, _profile_rays, cfg, w)
+        _collect(problems, _profile_legs, cfg, w)
+    _collect(problems, _profile_frames, cfg, w)
     _raise_all(problems)
 
 
@@ -196,7 +197,7 @@ def _profile_scans(cfg, w: dict, ws) -> None:
     _refuse(_PROFILE, "laser scans", w["scans"], MAX_PROFILE_SCANS, "profiling." + key, value, fits)
 
 
-def _profile_rays(cfg, w: dict, ws) -> None:
+def _profile_rays(cfg, w: dict) -> None:
     rays = w["scans"] * w["beams"]
     if rays > MAX_PROFILE_LASER_RAYS:
         res = cfg.laser.fov_deg / (MAX_PROFILE_LASER_RAYS / w["scans"] - 1)
@@ -206,7 +207,7 @@ def _profile_rays(cfg, w: dict, ws) -> None:
         )  # fmt: skip
 
 
-def _profile_legs(cfg, w: dict, ws) -> None:
+def _profile_legs(cfg, w: dict) -> None:
     p = cfg.profiling
     if w["legs"] > MAX_PROFILE_LEGS:
         chords = MAX_PROFILE_LEGS / 2  # chords of the curve that would fit
@@ -219,7 +220,7 @@ def _profile_legs(cfg, w: dict, ws) -> None:
         _refuse(_PROFILE, "legs", w["legs"], MAX_PROFILE_LEGS, key, value, fits)
 
 
-def _profile_frames(cfg, w: dict, ws) -> None:
+def _profile_frames(cfg, w: dict) -> None:
     if w["frames"] > MAX_PROFILE_FRAMES:
         step = w["length"] / MAX_PROFILE_FRAMES
         _refuse(
@@ -232,7 +233,7 @@ def _profile_frames(cfg, w: dict, ws) -> None:
 _PROFILE = "the profile flight"
 
 
-class _Limits(ValueError):
+class LimitsExceeded(ValueError):
     """Several limits exceeded: `problems`, one message each; its text names them all."""
 
     def __init__(self, problems: list[str]):
@@ -254,7 +255,7 @@ def _collect(problems: list[str], check, *args):
 
 def _raise_all(problems: list[str]) -> None:
     if problems:
-        raise _Limits(problems)
+        raise LimitsExceeded(problems)
 
 
 def check_samples(area: float, density: float, key: str, shown=None) -> None:
@@ -389,7 +390,11 @@ def check_map(cfg, ws) -> bool:
             f"the map: workspace {[round(s, 3) for s in size]} m at map.resolution = {r:g} m "
             f"holds {cells:,} cells (~{cells * MAP_BYTES_PER_CELL / 2**30:.1f} GiB), more than "
             f"the limit {limit:,} cells (checked before any work); {coarser}a smaller workspace "
-            "(workspace.bounds_min / bounds_max, workspace.square=false for a long structure)"
+            + (
+                "(workspace.bounds_min / bounds_max, workspace.square=false for a long structure)"
+                if cfg.workspace.bounds_min is None
+                else "(workspace.bounds_min / bounds_max)"
+            )
             + (
                 ""
                 if coarser or cfg.workspace.bounds_min is not None  # (bounds given: not the scale)

@@ -284,7 +284,7 @@ def start_poses(
     def clear(q):  # out of collision and `clearance` from the surface
         return tree.query(q)[0] >= clearance and not (collides is not None and collides(q))
 
-    def place(th, z):  # ((x, y, z, yaw), whether it sees the structure) on bearing th
+    def place(th, z):  # ((x, y, z, yaw) or None, whether it sees the structure) on bearing th
         cz = np.array([c[0], c[1], z])
         p = np.array([c[0] + h[0] * math.cos(th), c[1] + h[1] * math.sin(th), z])
         p = np.clip(p, ws.nav_min, ws.nav_max)  # c - h can round to just outside the bounds
@@ -293,37 +293,37 @@ def start_poses(
         near = tree.query(p)[0] < clearance
         if collides(p) if collides else near:
             p = _clear_start(ws, cz, p, clear)
-            return [*p, _facing(c, p)], True
+            return (None, False) if p is None else ([*p, _facing(c, p)], True)
         if near:  # out of collision, too near to fly from (airliner start 4: 1.0 m)
             p, yaw, ok = _kept_clear(ws, cz, p, tree, reach, clearance, sees, clear)
         else:
             p, yaw, ok = _inward_start(p, cz, tree, reach, clearance, sees)
         return [*p, yaw], ok
 
-    out = np.full((n, 4), np.nan)
+    out = np.full((n, 4), np.nan)  # NaN: nowhere clear on its bearing (World names it if flown)
     for k in range(n):
         th = -math.pi / 2 + 2 * math.pi * k / n
-        try:
-            out[k], ok = place(th, c[2])
-            if not ok and z_mid is not None and z_mid != c[2]:
-                pose, ok = place(th, z_mid)  # (a flight envelope far above the structure)
-                if ok:
-                    out[k] = pose
-        except ValueError:  # nowhere clear on its bearing: NaN (World names it if it is flown)
-            pass
+        pose, ok = place(th, c[2])
+        if pose is not None and not ok and z_mid is not None and z_mid != c[2]:
+            retry, ok = place(th, z_mid)  # (a flight envelope far above the structure)
+            pose = retry if ok else pose
+        if pose is not None:
+            out[k] = pose
     return out
 
 
 def unplaced_start(k: int, ws: Workspace, w: WorkspaceConfig) -> str:
-    """Why predefined start `k` could not be placed (start_poses gave it NaN)."""
-    keys = (
-        "the workspace margin (workspace.margin_xy, workspace.margin_z)"
-        if w.bounds_min is None
-        else "the workspace bounds (workspace.bounds_min, workspace.bounds_max)"
-    )
+    """Why predefined start `k` could not be placed (start_poses gave it NaN) in `ws`, the
+    navigation box the starts keep to (Workspace.structure_nav_max)."""
+    if w.bounds_min is not None:
+        keys = "the workspace bounds (workspace.bounds_min, workspace.bounds_max)"
+    elif w.margin_z is None:  # (the starts keep to the structure's height)
+        keys = "the workspace margin (workspace.margin_xy)"
+    else:
+        keys = "the workspace margin (workspace.margin_xy, workspace.margin_z)"
     return (
         f"start {k}: no place on its bearing from the workspace centre is clear of the "
-        f"structure inside the navigation bounds {ws.nav_min.round(3).tolist()} - "
+        f"structure inside the starts' navigation bounds {ws.nav_min.round(3).tolist()} - "
         f"{ws.nav_max.round(3).tolist()}: enlarge {keys}, or give start_pose"
     )
 
@@ -338,17 +338,15 @@ def _kept_clear(ws, c, p, tree, reach: float, clearance: float, sees, clear):
     than `clearance` to the structure: the first place on its bearing, outward then at other
     heights (_clear_start), that keeps the clearance and, facing the centre, still sees the
     structure; where none does (a pillar in a tight workspace), the place itself, as an inward
-    start. There
-    the take-off sphere, cleared to a cell short of the surface, left no neighbouring view free
-    of unknown space: the paper's Scenario 1 turned on the spot (the airliner's start 4, 1.0 m
-    from the tailplane)."""
+    start. There the take-off sphere, cleared to a cell short of the surface, left no
+    neighbouring view free of unknown space: the paper's Scenario 1 turned on the spot (the
+    airliner's start 4, 1.0 m from the tailplane)."""
 
     def fine(q):  # clear, and seeing the structure facing the centre
         return clear(q) and (sees is None or bool(sees(np.array([*q, _facing(c, q)]))))
 
-    try:
-        q = _clear_start(ws, c, p, fine)
-    except ValueError:  # nowhere on its bearing: as before, from where it is
+    q = _clear_start(ws, c, p, fine)
+    if q is None:  # nowhere on its bearing: as before, from where it is
         return _inward_start(p, c, tree, reach, clearance, sees)
     return q, _facing(c, q), True
 
@@ -379,10 +377,10 @@ def _inward_start(p, c, tree, reach: float, clearance: float, sees):
     return (q2, yaw2, True) if ok2 else (q, yaw, False)
 
 
-def _clear_start(ws: Workspace, c, p, clear) -> np.ndarray:
+def _clear_start(ws: Workspace, c, p, clear) -> np.ndarray | None:
     """The first point where `clear(point)` holds on the bearing from `c` through `p`,
     outward from `p` to the navigation bounds, at `p`'s height and then at the other heights of
-    the navigation bounds (nearest first)."""
+    the navigation bounds (nearest first); None where there is none."""
     d = np.array([p[0] - c[0], p[1] - c[1], 0.0])
     d /= max(np.linalg.norm(d), 1e-9)
     with np.errstate(divide="ignore", invalid="ignore"):
@@ -394,7 +392,4 @@ def _clear_start(ws: Workspace, c, p, clear) -> np.ndarray:
             q = np.array([p[0] + t * d[0], p[1] + t * d[1], z])
             if clear(q):
                 return q
-    raise ValueError(
-        f"no start on the bearing through {np.round(p, 3).tolist()} is clear of the structure "
-        "inside the navigation bounds: enlarge the workspace margin"
-    )
+    return None

@@ -178,7 +178,7 @@ class World:
         start = np.array(cfg.start_pose, float) if cfg.start_pose is not None else None
         self.start_pose = start if start is not None else self.starts[cfg.start]
         if not np.all(np.isfinite(self.start_pose)):  # (another start's failing is no matter)
-            raise MissionError(unplaced_start(cfg.start, self.workspace, cfg.workspace))
+            raise MissionError(unplaced_start(cfg.start, self._start_space(), cfg.workspace))
         self._check_start(self.start_pose)
         large = is_large(self.workspace, cfg.camera)
         self.camera_cloud, self.laser_cloud = surface_clouds(cfg, mesh.bounds, large)
@@ -206,20 +206,23 @@ class World:
     # ------------------------------------------------------------------ starts
     def _start_poses(self) -> np.ndarray:
         """The five predefined starts (see workspace.start_poses): within 3/4 of the camera's
-        range of the structure, seeing it."""
+        range of the structure, seeing it; a row of NaN for one with no clear place."""
         c, v = self.config.camera, self.config.vehicle
         # a coarse, noise-free copy of the camera
         probe = build_camera(c, self.scene, self.config.seed, width=32, height=24, noise_k=0.0)
-        # the starts keep to the structure's height, whatever the flight envelope above it
-        ws = self.workspace
         return start_poses(
-            dataclasses.replace(ws, nav_max=ws.structure_nav_max),
+            self._start_space(),
             surface=self.mesh.sample_surface(20000, seed=0),
             reach=0.75 * c.max_range,
             clearance=v.collision_radius + 1.0,
             sees=lambda pose: len(probe.scan_pose(pose).hits) >= 0.05 * 32 * 24,
             collides=self._collides,
         )
+
+    def _start_space(self) -> Workspace:
+        """The workspace the starts keep to: the structure's height, whatever the flight
+        envelope above it."""
+        return dataclasses.replace(self.workspace, nav_max=self.workspace.structure_nav_max)
 
     def _collides(self, point) -> bool:
         """Whether a vehicle at `point` would be in collision with or inside the structure."""
