@@ -448,6 +448,35 @@ def test_a_map_too_large_names_the_keys_that_made_its_workspace():
     assert "a smaller workspace" in msg and "mesh.scale" not in msg, msg
 
 
+def test_given_bounds_far_from_the_origin_are_told_to_move_with_the_structure(tmp_path):
+    """A structure 100 km out in bounds given around it: the error's mesh.shift alone moved the
+    structure out of the bounds (then refused as holding no part of it); it says the bounds move
+    by the same, and following it flies."""
+    from nbvkit.world import World
+
+    box = tmp_path / "far.obj"
+    box.write_text(
+        "".join(f"v {x + 1e5} {y + 1e5} {z}\n" for z in (0, 5) for y in (0, 20) for x in (0, 20))
+        + "f 1 3 2\nf 2 3 4\nf 5 6 7\nf 6 8 7\nf 1 2 5\nf 2 6 5\n"
+        + "f 3 7 4\nf 4 7 8\nf 1 5 3\nf 3 5 7\nf 2 4 6\nf 4 8 6\n"
+    )
+    lo, hi = np.array([99990.0, 99990, 0]), np.array([100030.0, 100030, 10])
+    given = [f"mesh.path={box}", "map.resolution=0.4", "progress=false"]
+    bounds = [f"workspace.bounds_min={lo.tolist()}", f"workspace.bounds_max={hi.tolist()}"]
+    with pytest.raises(ValueError) as e:
+        World(load_config(overrides=given + bounds))
+    msg = str(e.value)
+    shift = re.search(r"mesh.shift=\[([-0-9,]+)\]", msg).group(1)
+    by = re.search(r"moved by the same \[([-0-9, ]+)\]", msg).group(1)
+    by = np.array([float(x) for x in by.split(",")])
+    moved = [
+        f"workspace.bounds_min={(lo + by).tolist()}",
+        f"workspace.bounds_max={(hi + by).tolist()}",
+    ]
+    world = World(load_config(overrides=given + moved + [f"mesh.shift=[{shift}]"]))
+    assert np.all(np.isfinite(world.start_pose))
+
+
 def test_a_structure_of_almost_no_area_names_the_ground_truth_density():
     """A cube at mesh.scale 1e-9 was refused by the evaluator's "gt_density 1000 points/m^2
     over the mesh's 6e-18 m^2 gives no ground-truth samples", naming no key: it is refused

@@ -87,10 +87,15 @@ def new_map(cfg, mesh_bounds, ws) -> OccupancyMap:
         # the centre to the origin, and a floating or sunken structure onto the ground
         c = np.round(-(np.asarray(mesh_bounds[0]) + np.asarray(mesh_bounds[1])) / 2)
         c[2] = 0.0
-        shift = np.round(grounding_shift(mesh_bounds, np.asarray(cfg.mesh.shift, float) + c))
+        old = np.asarray(cfg.mesh.shift, float)
+        shift = np.round(grounding_shift(mesh_bounds, old + c))
+        bounds = ""
+        if cfg.workspace.bounds_min is not None:  # given bounds do not move with the structure
+            by = ", ".join(f"{x:.0f}" for x in shift - old)
+            bounds = f", and workspace.bounds_min / bounds_max moved by the same [{by}]"
         shift = ",".join(f"{x:.0f}" for x in shift)
         raise MissionError(
             f"{e}: the structure lies too far from the origin for the map; fly it in a frame "
-            f"near the origin with mesh.shift (e.g. --set mesh.shift=[{shift}]: its "
+            f"near the origin with mesh.shift (e.g. --set mesh.shift=[{shift}]{bounds}: its "
             "results are then in that frame)"
         ) from None
