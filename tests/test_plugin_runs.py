@@ -211,6 +211,8 @@ def test_a_plugins_error_shows_its_frames_and_a_builtin_error_its_line(tmp_path)
     assert err[-1].startswith("nbvkit run: error: all the input array dimensions")
     s = json.loads((out / "summary.json").read_text())
     assert f"plugin file {plugin.resolve()}, line {FAIL_LINE}, in propose" in s["stopped_by"]
+    # the note names the plugin file it came from (it said "a script")
+    assert f"generator 'orbit' (registered from {plugin.resolve()}) in propose()" in s["stopped_by"]
     # the console counts the views as the summary does (the first, before any planning, too)
     assert s["iterations"] == 2 and s["views"] == 3
     assert "the flight stopped after 2 iterations (3 views: the first" in p.stderr

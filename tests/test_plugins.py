@@ -505,7 +505,7 @@ def test_a_termination_returns_a_reason_or_none(reason):
     with pytest.raises(KeyError) as e:  # the part's own exception, as it raised it
         _fly(termination=raising)
     if sys.version_info >= (3, 11):
-        assert "by the termination 'hostile_stop' (registered from a script) in check()" in (
+        assert f"by the termination 'hostile_stop' (registered from {__file__}) in check()" in (
             _said(e.value)
         )
 
@@ -518,14 +518,14 @@ def test_a_part_failing_mid_mission_keeps_the_flight(tmp_path):
     with pytest.raises(ZeroDivisionError) as e:
         _fly(tmp_path / "run", generator=late)
     if sys.version_info >= (3, 11):
-        assert "by the generator 'hostile' (registered from a script) in propose()" in (
+        assert f"by the generator 'hostile' (registered from {__file__}) in propose()" in (
             _said(e.value)
         )
     s = json.loads((tmp_path / "run" / "summary.json").read_text())
     assert s["termination"] == "failed" and s["iterations"] == 2
     assert s["stopped_by"].startswith("ZeroDivisionError: division by zero")
     if sys.version_info >= (3, 11):  # the note names the part in the summary too
-        assert "the generator 'hostile' (registered from a script)" in s["stopped_by"]
+        assert f"the generator 'hostile' (registered from {__file__})" in s["stopped_by"]
     rows = (tmp_path / "run" / "iterations.csv").read_text().splitlines()
     assert len(rows) == 3  # header + the two views flown
     assert (tmp_path / "run" / "cloud.ply").stat().st_size > 0

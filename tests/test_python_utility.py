@@ -358,7 +358,7 @@ def test_a_registered_utility_is_free_on_invalid_candidates_and_named_when_it_ra
         with pytest.raises(KeyError, match="cell") as e:
             scorer(world, poses)
         if sys.version_info >= (3, 11):
-            assert "by the utility 'raising' (registered from a script)" in e.value.__notes__[0]
+            assert f"by the utility 'raising' (registered from {__file__})" in e.value.__notes__[0]
     finally:
         registry.UTILITIES.pop("nan_invalid")
         registry.UTILITIES.pop("raising")

@@ -226,15 +226,20 @@ def raised_by_a_part(e: BaseException) -> bool:
 
 
 def _named(kind: str, name: str, call: str, fn, *args):
-    """fn(*args) of the part `name` registered from a script. An exception of its own propagates
-    as it is (a script may catch its own types; a mission that raises it after its views started
-    keeps what it flew, recorder.fly_into), with a note naming the part and the call (Python
+    """fn(*args) of the part `name` registered from a script or a plugin file. An exception of
+    its own propagates as it is (a script may catch its own types; a mission that raises it after
+    its views started keeps what it flew, recorder.fly_into), with a note naming the part, where
+    it was registered (origins.source: the plugin file, or "a script") and the call (Python
     3.11+: printed under the traceback's last line, in ``e.__notes__``)."""
     try:
         return fn(*args)
     except Exception as e:
         if hasattr(e, "add_note"):
-            e.add_note(f"{_RAISED_BY}{kind} {name!r} (registered from a script) in {call}")
+            from ..origins import source
+
+            e.add_note(
+                f"{_RAISED_BY}{kind} {name!r} (registered from {source(kind, name)}) in {call}"
+            )
         raise
 
 
