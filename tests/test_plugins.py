@@ -1296,8 +1296,10 @@ def test_a_failed_load_forgets_the_helper_modules_it_imported(plugin_dir):
     )
     f = plugin_dir / "uses_helper.py"
     f.write_text("import ring_helper\nraise RuntimeError('a bug after the import')\n")
-    with pytest.raises(RuntimeError, match="a bug after the import"):
+    with pytest.raises(RuntimeError, match="a bug after the import") as e:
         nbvkit.load_plugin(f)
+    # its own type, with a note naming the file (a ModuleNotFoundError named only the module)
+    assert f"raised while loading the plugin file {f}" in getattr(e.value, "__notes__", []), e
     assert "helper_gen" not in registry.GENERATORS and "ring_helper" not in sys.modules
     assert "uses_helper" not in sys.modules and "numpy" in sys.modules  # installed ones stay
     f.write_text("import ring_helper\n")
