@@ -241,6 +241,15 @@ def test_a_failed_runs_record_names_the_plugin_file_and_line(tmp_path, buggy, wo
         run_specs(specs, tmp_path / "out", workers=workers, progress=False)
     for _, error in e.value.failures:
         assert f"plugin file {buggy.resolve()}, line {FAIL_LINE}, in propose" in error, error
+    # what each flew is kept beside the runs, not in runs/ (the next start flies them again)
+    for s, (run_id, error) in zip(specs, e.value.failures):
+        kept = tmp_path / "out" / "failed" / s.run_id
+        assert run_id == s.run_id and f"what was flown is saved in {kept}" in error, error
+        summary = json.loads((kept / "summary.json").read_text())
+        assert summary["termination"] == "failed" and "in propose" in summary["stopped_by"]
+        assert (kept / "flight.csv").is_file() and not (
+            tmp_path / "out" / "runs" / s.run_id
+        ).exists()
 
 
 def test_a_part_registered_from_no_file_is_refused_by_worker_processes(tmp_path):

@@ -104,8 +104,12 @@ def _run_one(spec: RunSpec, root: Path, threads: int) -> dict:
         else:
             set_num_threads(threads)
             mission = Mission(cfg)
+            try:
+                summary = mission.run()
+            except Exception as e:
+                _keep_failed(mission, e, root / "failed" / spec.run_id)
+                raise
             # one observable-surface cache for the whole experiment: once per structure
-            summary = mission.run()
             mission.recorder.write(folder.tmp, summary, finish=True, cache_dir=root / "cache")
             # the plugin files loaded (their content's SHA-256) where it flies a part of the
             # user's: none for nbvkit's own, which keep their spec.json (and resume) as before
@@ -114,6 +118,29 @@ def _run_one(spec: RunSpec, root: Path, threads: int) -> dict:
                 folder.tmp / "spec.json", {**_spec_dict(spec), "mesh_sha1": mesh_sha1, **plugins}
             )
     return row_of(final)
+
+
+def _keep_failed(mission, e: Exception, path: Path) -> None:
+    """What a run that raised once its views started had flown, written to `path` (termination
+    "failed", stopped_by the error, without the end-of-run outputs, as Mission.run(out_dir)
+    keeps it) and named in a note on `e`. Not in runs/: the next start flies the run again."""
+    import time
+
+    from .recorder import error_line
+    from .runfolder import RunFolder
+
+    rec = getattr(mission, "recorder", None)
+    if rec is None or rec.flying_since is None:  # stopped before its views: nothing flown
+        return
+    try:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        with RunFolder(path, overwrite=True, own=True) as folder:
+            wall = time.perf_counter() - rec.flying_since
+            rec.write(folder.tmp, rec.kept_flight("failed", error_line(e), wall))
+    except Exception as why:  # (a full disk): the run's own error is the one raised
+        e.add_note(f"what was flown could not be saved in {path}: {why}")
+        return
+    e.add_note(f"what was flown is saved in {path}")
 
 
 def _kept_row(run_dir: Path, cfg, mesh_sha1: str | None) -> dict | None:
@@ -202,7 +229,9 @@ class Interrupted(Exception):
 class RunsFailed(Exception):
     """Some runs of run_specs raised; every other run was flown to its end. ``rows`` holds the
     finished runs' rows (in spec order), ``failures`` a (run id, error) pair per failed run,
-    ``total`` the number of specs. A failed run leaves no folder: the next start flies it."""
+    ``total`` the number of specs. A failed run leaves no folder in runs/ (the next start flies
+    it); what it flew, once its views started, is kept in failed/<run id> (termination "failed"),
+    which its error's note names."""
 
     def __init__(self, rows: list[dict], failures: list[tuple[str, str]], total: int):
         first = f"{failures[0][0]}: {failures[0][1]}" if failures else ""
