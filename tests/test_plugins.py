@@ -1068,7 +1068,7 @@ def test_a_scenario_preset_may_not_set_the_scenario():
     assert "my5" not in SCENARIOS
 
 
-def test_a_scenario_naming_an_unknown_part_is_an_error_naming_it():
+def test_a_scenario_naming_an_unknown_part_is_an_error_naming_it(tmp_path):
     # a registered scenario's preset was not checked as a key the user sets: the mission raised
     # a bare KeyError: 'nonexistent'; its sections are now checked when it is loaded
     from nbvkit.scenarios import SCENARIOS
@@ -1087,6 +1087,11 @@ def test_a_scenario_naming_an_unknown_part_is_an_error_naming_it():
             load_config(overrides=[*QUICK, "scenario=audit_unknown"])
         with pytest.raises(ValueError, match="unknown planner termination 'nonexistent_stop'"):
             load_config(overrides=[*QUICK, "scenario=audit_unknown", "planner.generators=[]"])
+        # compared, it is refused before any folder or run (each run failed in turn)
+        out = tmp_path / "cmp"
+        with pytest.raises(ValueError, match="unknown planner generator 'nonexistent'"):
+            nbvkit.compare(["audit_unknown"], out, starts=1, overrides=QUICK, progress=False)
+        assert not out.exists()
         # a part gone since the configuration was loaded: named when the planner is built
         nbvkit.register_generator("audit_gone", RingGenerator)
         cfg = load_config(overrides=[*QUICK, "planner.generators=[audit_gone]"])

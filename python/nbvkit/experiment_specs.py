@@ -470,12 +470,15 @@ def override_strings(overrides) -> list[str]:
 
 def validate_specs(specs: list[RunSpec]) -> None:
     """Builds each distinct configuration once, so that a bad key or value (or a mesh key given
-    twice) fails before any run."""
-    for s in {
-        (sp.scenario, sp.mesh, sp.mesh_scale, sp.mesh_up, tuple(sp.overrides), sp.config_file)
-        for sp in specs
-    }:
+    twice, or a registered scenario's preset naming a key or part that does not exist) fails
+    before any run."""
+    distinct = {}
+    for sp in specs:
+        key = (sp.scenario, sp.mesh, sp.mesh_scale, sp.mesh_up, tuple(sp.overrides), sp.config_file)
+        distinct.setdefault(key, sp)
+    for s, sp in distinct.items():
         _flown_mesh(*s)
+        sp.config()  # (the scenario's own preset: _flown_mesh resolves a shipped one's mesh)
 
 
 def compare_specs(planners, mesh=None, mesh_scale=None, mesh_up=None, starts=5, overrides=()):
