@@ -532,6 +532,15 @@ def test_a_part_failing_mid_mission_keeps_the_flight(tmp_path):
 
 
 def test_a_plugin_part_reads_as_its_own_object():
+    # a plain check(world, step) function registered is taken as a builder (two arguments):
+    # built, it returned None, and the error said only "(NoneType) has no method check()"
+    def check(world, step):
+        return None
+
+    with pytest.raises(TypeError, match=r"\(NoneType\) has no method check\(\): registered "
+                       r"'hostile_stop' is called as f\(settings, context\) to build the part, "
+                       r"and returned NoneType; register a class with check\(\)"):  # fmt: skip
+        _fly(termination=check)
     # the planner holds a plugin's part checked; its attributes are still the part's
     m, s = _fly(generator=RingGenerator)
     g = m.planner.generators[0]

@@ -324,9 +324,17 @@ class PluginPart:
         needs = ("propose", "feedback") if kind == "generator" else ("check",)
         missing = [m for m in needs if not callable(getattr(part, m, None))]
         if missing:
+            built = (  # a plain function registered: called as a builder, it returned its result
+                f": registered {name!r} is called as f(settings, context) to build the part, "
+                f"and returned {type(part).__name__}; register a class with "
+                + " and ".join(f"{m}()" for m in needs)
+                if part is None or isinstance(part, (bool, int, float, str, tuple, list, dict))
+                else ""
+            )
             raise TypeError(
                 f"{kind} {name!r} ({type(part).__name__}) has no method "
                 + " or ".join(f"{m}()" for m in missing)
+                + built
             )
         self.__dict__.update(kind=kind, name=name, part=part, _rejected=None)
 
