@@ -387,7 +387,13 @@ def _set_dotted(data: dict, key: str, value: Any) -> None:
             )
         node = node[part]
     if parts[-1] not in node:
-        raise KeyError(f"unknown config key {shorten(key)}")
+        import difflib
+
+        near = difflib.get_close_matches(parts[-1], list(node), n=1)
+        hint = f" (did you mean {'.'.join([*parts[:-1], near[0]])!r}?)" if near else ""
+        where = f" of {'.'.join(parts[:-1])}" if len(parts) > 1 else ""
+        known = ", ".join(sorted(map(str, node)))
+        raise KeyError(f"unknown config key {shorten(key)}{hint}; known keys{where}: {known}")
     node[parts[-1]] = value
 
 
