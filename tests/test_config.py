@@ -159,7 +159,7 @@ def test_overrides_and_rejections(tmp_path):
     with pytest.raises(KeyError, match="map.resolutionn") as e:
         c.with_overrides(["map.resolutionn=0.1"])
     # the key meant, and the section's keys (it named the typo alone)
-    assert "(did you mean 'map.resolution'?); known keys of map: " in e.value.args[0], e.value
+    assert "(did you mean 'map.resolution'?); known keys here: " in e.value.args[0], e.value
     assert "prob_hit" in e.value.args[0]
     with pytest.raises(KeyError, match="nope"):
         Config.from_dict({"nope": 1})

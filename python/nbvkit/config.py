@@ -40,7 +40,8 @@ from .report import ReportConfig
 from .scenarios import DEFAULT as DEFAULT_SCENARIO
 from .scenarios import SCENARIOS
 from .sensors import CAMERA_PRESETS, CameraConfig, LaserConfig, check_view_camera
-from .settings import build, choice, coerce, field_bound, type_hints, validate, within
+from .settings import build, choice, coerce, field_bound, type_hints, unknown_key, validate
+from .settings import PLUGIN_SECTIONS, within
 from .symmetry import SymmetryConfig
 from .workspace import WorkspaceConfig
 from .world import VehicleConfig
@@ -326,11 +327,7 @@ def _build_config(data: dict) -> Config:
     parts = part_settings()
     for k in data:
         if k not in static and k not in parts:
-            raise KeyError(
-                f"unknown config key {shorten(str(k))}; known keys here: "
-                f"{', '.join(sorted(static | set(parts)))} (a section of your own planner "
-                "part is known once its plugin is loaded: --plugin FILE, nbvkit.load_plugin)"
-            )
+            raise unknown_key(str(k), static | set(parts), PLUGIN_SECTIONS)
     kwargs = {k: coerce(hints[k], v, k) for k, v in data.items() if k in static}
     sections = {k: build(cls, _or_empty(data.get(k)), k + ".") for k, cls in parts.items()}
     return Config(**kwargs, _parts=sections, _user=_deep_copy(data))
@@ -387,13 +384,7 @@ def _set_dotted(data: dict, key: str, value: Any) -> None:
             )
         node = node[part]
     if parts[-1] not in node:
-        import difflib
-
-        near = difflib.get_close_matches(parts[-1], list(node), n=1)
-        hint = f" (did you mean {'.'.join([*parts[:-1], near[0]])!r}?)" if near else ""
-        where = f" of {'.'.join(parts[:-1])}" if len(parts) > 1 else ""
-        known = ", ".join(sorted(map(str, node)))
-        raise KeyError(f"unknown config key {shorten(key)}{hint}; known keys{where}: {known}")
+        raise unknown_key(key, node, "" if len(parts) > 1 else PLUGIN_SECTIONS)
     node[parts[-1]] = value
 
 

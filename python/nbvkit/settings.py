@@ -165,6 +165,27 @@ def cpp_section(
     )
 
 
+#: what an unknown top-level key's error adds
+PLUGIN_SECTIONS = (
+    " (a section of your own planner part is known once its plugin is loaded: --plugin FILE, "
+    "nbvkit.load_plugin)"
+)
+
+
+def unknown_key(key: str, known, note: str = "") -> KeyError:
+    """KeyError "unknown config key KEY (did you mean K?); known keys here: ..." for the dotted
+    `key` whose last part is none of `known`, its section's keys."""
+    import difflib
+
+    last = key.rsplit(".", 1)[-1]
+    near = difflib.get_close_matches(last, sorted(map(str, known)), n=1)
+    meant = f" (did you mean {key[: len(key) - len(last)] + near[0]!r}?)" if near else ""
+    return KeyError(
+        f"unknown config key {shorten(key)}{meant}; known keys here: "
+        f"{', '.join(sorted(map(str, known)))}{note}"
+    )
+
+
 def build(cls, data, prefix: str):
     """A section `cls` from a mapping of the keys to set (the rest keep their defaults), each
     value coerced to its field's type and checked; KeyError names an unknown key with its full
@@ -178,10 +199,7 @@ def build(cls, data, prefix: str):
     known = {f.name for f in fields(cls) if not f.name.startswith("_")}
     for k in data:
         if k not in known:
-            raise KeyError(
-                f"unknown config key {shorten(prefix + str(k))}; known keys here: "
-                f"{', '.join(sorted(known))}"
-            )
+            raise unknown_key(prefix + str(k), known)
     values = {name: coerce(hints[name], value, prefix + name) for name, value in data.items()}
     try:
         obj = cls(**values)
