@@ -1049,13 +1049,17 @@ def test_a_plugin_file_imports_its_neighbours_and_loads_once_imported(tmp_path, 
 def test_plan_tour_names_a_wrong_memo_or_utility():
     # a dict as memo was pybind11's page of signatures, a camera section as utility an
     # AttributeError about .options
-    said = []
+    said, shapes = [], []
 
     def wrong(s, world, p):
         for kw in ({"memo": {}}, {"utility": s.ctx.camera}):
             with pytest.raises(TypeError) as e:
                 nbvkit.plan_tour(world, p.poses, **kw)
             said.append(str(e.value))
+        for views, got in ((p.poses[:, :3], f"({len(p.poses)}, 3)"), (p.poses[0], "(4,)")):
+            with pytest.raises(ValueError) as e:  # the shape it got (it said the shape wanted)
+                nbvkit.plan_tour(world, views)
+            shapes.append((str(e.value).split("; ")[-1], f"got shape {got}"))
 
     _fly(generator=_proposing(wrong))
     assert said == [
@@ -1063,6 +1067,7 @@ def test_plan_tour_names_a_wrong_memo_or_utility():
         "plan_tour: utility is the configuration's utility section (context.utility) or None, "
         "not CameraConfig",
     ]
+    assert shapes and all(got == want for got, want in shapes), shapes
 
 
 def test_a_scenario_preset_may_not_set_the_scenario():

@@ -76,10 +76,19 @@ Pose pose_arg(const py::handle& obj, const char* what) {
 
 ViewPosesArg view_poses_arg(const py::handle& obj, const char* what) {
   DoubleArray a = double_array(obj, what);
-  if (!a || a.ndim() != 2 || (a.shape(1) != 4 && a.shape(1) != 5))
+  if (!a || a.ndim() != 2 || (a.shape(1) != 4 && a.shape(1) != 5)) {
+    std::string got = "not an array of numbers";
+    if (a) {
+      got = "shape (";
+      for (py::ssize_t i = 0; i < a.ndim(); ++i)
+        got += (i ? ", " : "") + std::to_string(a.shape(i));
+      got += a.ndim() == 1 ? ",)" : ")";
+    }
     throw py::value_error(std::string(what) +
                           " must have shape (K, 4): rows x, y, z, yaw, or (K, 5): rows x, y, z, "
-                          "yaw, pitch");
+                          "yaw, pitch; got " +
+                          got);
+  }
   ViewPosesArg out{a};
   if (!out.map().leftCols(4).allFinite())
     throw py::value_error(std::string(what) + " contain NaN or infinite values");
