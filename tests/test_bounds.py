@@ -516,6 +516,8 @@ def test_every_limit_of_the_profile_flight_is_named_at_once():
     with pytest.raises(ValueError) as e:
         check_work(cfg, mesh, make_workspace(mesh.bounds, cfg))
     assert str(pickle.loads(pickle.dumps(e.value))) == str(e.value) == msg
+    e.value.add_note("a worker's note")  # (a plugin frame, a part's name)
+    assert pickle.loads(pickle.dumps(e.value)).__notes__ == ["a worker's note"]
 
 
 def test_a_map_resolution_offered_at_the_keys_largest_fits():

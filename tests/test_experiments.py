@@ -677,3 +677,30 @@ def test_the_guard_hint_is_not_given_to_the_nbvkit_command(monkeypatch):
         main.__file__, main.__spec__, main.main = "/somewhere/bin/nbvkit", None, entry
         monkeypatch.setitem(sys.modules, "__main__", main)
         assert bool(experiments._unguarded_script_hint()) is said
+
+
+def test_a_run_whose_end_of_run_outputs_fail_keeps_its_flight_beside_the_runs(
+    tmp_path, monkeypatch
+):
+    """A whole flight whose end-of-run outputs failed (the Poisson mesh out of memory) was lost
+    with its runs/ folder: it is kept in failed/RUN (stopped during saving) and the error names
+    it; runs/ stays without it, and once the run is flown the failed record goes."""
+    import nbvkit.report
+    from nbvkit.experiments import RunsFailed
+
+    def out_of_memory(*args, **kwargs):
+        raise MemoryError("the Poisson mesh ran out of memory")
+
+    spec = RunSpec("1", 0, overrides=TINY)
+    monkeypatch.setattr(nbvkit.report, "finish_run", out_of_memory)
+    with pytest.raises(RunsFailed) as e:
+        run_specs([spec], tmp_path, workers=1, progress=False)
+    kept = tmp_path / "failed" / spec.run_id
+    summary = json.loads((kept / "summary.json").read_text())
+    assert summary["stopped_during"] == "saving" and "MemoryError" in summary["stopped_by"]
+    assert summary["iterations"] == 2 and (kept / "cloud.ply").stat().st_size > 0
+    assert f"what was flown is saved in {kept}" in e.value.failures[0][1]
+    assert not (tmp_path / "runs" / spec.run_id).exists()
+    monkeypatch.undo()
+    run_specs([spec], tmp_path, workers=1, progress=False)
+    assert (tmp_path / "runs" / spec.run_id / "manifest.json").is_file() and not kept.exists()

@@ -469,16 +469,17 @@ def override_strings(overrides) -> list[str]:
 
 
 def validate_specs(specs: list[RunSpec]) -> None:
-    """Builds each distinct configuration once, so that a bad key or value (or a mesh key given
-    twice, or a registered scenario's preset naming a key or part that does not exist) fails
-    before any run."""
-    distinct = {}
-    for sp in specs:
-        key = (sp.scenario, sp.mesh, sp.mesh_scale, sp.mesh_up, tuple(sp.overrides), sp.config_file)
-        distinct.setdefault(key, sp)
-    for s, sp in distinct.items():
-        _flown_mesh(*s)
-        sp.config()  # (the scenario's own preset: _flown_mesh resolves a shipped one's mesh)
+    """Builds each distinct configuration once, so that a bad key or value (a mesh key given
+    twice, a registered scenario's preset naming a missing key or part) fails before any run."""
+    from .scenarios import BUILT_IN
+
+    for s in {
+        (sp.scenario, sp.mesh, sp.mesh_scale, sp.mesh_up, tuple(sp.overrides), sp.config_file)
+        for sp in specs
+    }:
+        _flown_mesh(*s)  # (which builds a scenario without mesh keys as Scenario 1)
+    for sp in {sp.scenario: sp for sp in specs if sp.scenario not in BUILT_IN}.values():
+        sp.config()  # a scenario of the user's: its preset, once (nbvkit's own are checked)
 
 
 def compare_specs(planners, mesh=None, mesh_scale=None, mesh_up=None, starts=5, overrides=()):

@@ -104,28 +104,34 @@ def _run_one(spec: RunSpec, root: Path, threads: int) -> dict:
         else:
             set_num_threads(threads)
             mission = Mission(cfg)
+            failed = root / "failed" / spec.run_id
             try:
                 summary = mission.run()
             except Exception as e:
-                _keep_failed(mission, e, root / "failed" / spec.run_id)
+                _keep_failed(mission, e, failed)
                 raise
             # one observable-surface cache for the whole experiment: once per structure
-            mission.recorder.write(folder.tmp, summary, finish=True, cache_dir=root / "cache")
+            rec = mission.recorder
+            summary, stop = rec.write_keeping(folder.tmp, summary, True, root / "cache")
+            if stop is not None:  # the whole flight, its end-of-run outputs stopped
+                if isinstance(stop, Exception):
+                    _keep_failed(mission, stop, failed, summary)
+                raise stop
             # the plugin files loaded (their content's SHA-256) where it flies a part of the
             # user's: none for nbvkit's own, which keep their spec.json (and resume) as before
             plugins = {"plugins": files} if (files := flown_files(cfg)) else {}
             _write_json_atomic(
                 folder.tmp / "spec.json", {**_spec_dict(spec), "mesh_sha1": mesh_sha1, **plugins}
             )
+    shutil.rmtree(root / "failed" / spec.run_id, ignore_errors=True)  # (an earlier failure's)
     return row_of(final)
 
 
-def _keep_failed(mission, e: Exception, path: Path) -> None:
+def _keep_failed(mission, e: Exception, path: Path, summary: dict | None = None) -> None:
     """What a run that raised once its views started had flown, written to `path` (termination
     "failed", stopped_by the error, without the end-of-run outputs, as Mission.run(out_dir)
-    keeps it) and named in a note on `e`. Not in runs/: the next start flies the run again."""
-    import time
-
+    keeps it; `summary`: the whole flight's, its end-of-run outputs stopped) and named in a note
+    on `e`. Not in runs/: the next start flies the run again (and removes it once flown)."""
     from .recorder import error_line
     from .runfolder import RunFolder
 
@@ -136,11 +142,17 @@ def _keep_failed(mission, e: Exception, path: Path) -> None:
         path.parent.mkdir(parents=True, exist_ok=True)
         with RunFolder(path, overwrite=True, own=True) as folder:
             wall = time.perf_counter() - rec.flying_since
-            rec.write(folder.tmp, rec.kept_flight("failed", error_line(e), wall))
+            rec.write(folder.tmp, summary or rec.kept_flight("failed", error_line(e), wall))
+            path = folder.path
     except Exception as why:  # (a full disk): the run's own error is the one raised
-        e.add_note(f"what was flown could not be saved in {path}: {why}")
+        _note(e, f"what was flown could not be saved in {path}: {why}")
         return
-    e.add_note(f"what was flown is saved in {path}")
+    _note(e, f"what was flown is saved in {path}")
+
+
+def _note(e: BaseException, text: str) -> None:
+    if hasattr(e, "add_note"):  # (Python 3.11+)
+        e.add_note(text)
 
 
 def _kept_row(run_dir: Path, cfg, mesh_sha1: str | None) -> dict | None:
@@ -242,13 +254,13 @@ class RunsFailed(Exception):
 
 
 def clean_stale_tmp(root: str | os.PathLike) -> int:
-    """Removes ``runs/.<id>.tmp<pid>`` folders left by runs that were killed (their process is
-    gone); returns how many."""
+    """Removes the ``runs/.<id>.tmp<pid>`` folders (and failed/'s) left by runs that were killed
+    (their process is gone); returns how many."""
     from .locks import lock_holder, pid_alive
     from .runfolder import run_name
 
     n = 0
-    for d in (Path(root) / "runs").glob(".*.tmp*"):
+    for d in [*(Path(root) / "runs").glob(".*.tmp*"), *(Path(root) / "failed").glob(".*.tmp*")]:
         pid = d.name.rsplit(".tmp", 1)[-1]
         if lock_holder(d.parent / run_name(d)) is not None:
             continue  # its run is being written (by a process this one cannot see, too)

@@ -130,8 +130,9 @@ def _run_file(p: Path, source: bytes, digest: str, wrap: bool = False) -> None:
         if isinstance(e, PluginLoadError) or not (
             isinstance(e, SystemExit) or (wrap and isinstance(e, Exception))
         ):
-            if isinstance(e, Exception) and not isinstance(e, PluginLoadError):
-                e.add_note(f"raised while loading the plugin file {p}")  # (its own type kept)
+            own = isinstance(e, Exception) and not isinstance(e, PluginLoadError)
+            if own and hasattr(e, "add_note"):  # (its own type kept)
+                e.add_note(f"raised while loading the plugin file {p}")
             raise
         raise PluginLoadError(p, e) from e
     if key in GUESSED:  # what an imported module only held, it did not register: kept

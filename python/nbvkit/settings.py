@@ -180,10 +180,8 @@ def unknown_key(key: str, known, note: str = "") -> KeyError:
     last = key.rsplit(".", 1)[-1]
     near = difflib.get_close_matches(last, sorted(map(str, known)), n=1)
     meant = f" (did you mean {key[: len(key) - len(last)] + near[0]!r}?)" if near else ""
-    return KeyError(
-        f"unknown config key {shorten(key)}{meant}; known keys here: "
-        f"{', '.join(sorted(map(str, known)))}{note}"
-    )
+    keys = ", ".join(sorted(map(str, known))) or "none (this section has no keys)"
+    return KeyError(f"unknown config key {shorten(key)}{meant}; known keys here: {keys}{note}")
 
 
 def build(cls, data, prefix: str):

@@ -242,7 +242,7 @@ class LimitsExceeded(ValueError):
         super().__init__(problems[0] if n == 1 else f"{n} limits exceeded: " + "; ".join(problems))
 
     def __reduce__(self):  # (from a worker process: rebuilt from its problems, not its text)
-        return type(self), (self.problems,)
+        return type(self), (self.problems,), self.__dict__  # (its notes too)
 
 
 def _collect(problems: list[str], check, *args):
