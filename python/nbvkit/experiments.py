@@ -132,7 +132,6 @@ def _keep_failed(mission, e: Exception, path: Path, summary: dict | None = None)
     "failed", stopped_by the error, without the end-of-run outputs, as Mission.run(out_dir)
     keeps it; `summary`: the whole flight's, its end-of-run outputs stopped) and named in a note
     on `e`. Not in runs/: the next start flies the run again (and removes it once flown)."""
-    from .recorder import error_line
     from .runfolder import RunFolder
 
     rec = getattr(mission, "recorder", None)
@@ -141,8 +140,7 @@ def _keep_failed(mission, e: Exception, path: Path, summary: dict | None = None)
     try:
         path.parent.mkdir(parents=True, exist_ok=True)
         with RunFolder(path, overwrite=True, own=True) as folder:
-            wall = time.perf_counter() - rec.flying_since
-            rec.write(folder.tmp, summary or rec.kept_flight("failed", error_line(e), wall))
+            rec.write(folder.tmp, summary or rec.stopped_flight(e))
             path = folder.path
     except Exception as why:  # (a full disk): the run's own error is the one raised
         _note(e, f"what was flown could not be saved in {path}: {why}")

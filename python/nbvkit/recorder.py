@@ -186,6 +186,11 @@ class Recorder:
         """The summary of a flight kept before it ended (`why`: its termination)."""
         return {**self.summary(why, wall), "stopped_by": stopped_by, "stopped_during": "flight"}
 
+    def stopped_flight(self, e: BaseException) -> dict:
+        """kept_flight of a flight `e` (one of STOPS) stopped once its views started."""
+        wall = time.perf_counter() - self.flying_since
+        return self.kept_flight(stop_kind(e), error_line(e), wall)
+
     def summary(self, termination: str, wall: float) -> dict:
         m = self.mission
         cfg, world = m.config, m.world
@@ -436,7 +441,7 @@ def _fly_into(mission, folder: RunFolder, finish: bool) -> tuple[dict, BaseExcep
             raise
         why = stop_kind(e)
         rec._say(why, e, "saving what was flown")
-        summary = rec.kept_flight(why, error_line(e), time.perf_counter() - rec.flying_since)
+        summary = rec.stopped_flight(e)
         folder.partial = True  # (beside a complete run an overwrite keeps)
         return rec.write(out, summary), e
     finally:
