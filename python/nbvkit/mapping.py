@@ -70,14 +70,12 @@ def new_map(cfg, mesh_bounds, ws) -> OccupancyMap:
             raise
         if np.any(ws.bounds_max - ws.bounds_min > 32767 * m.resolution):  # OctoMap's keys
             w = cfg.workspace
-            if w.bounds_min is None:
-                what = (
-                    f"the structure (mesh.scale = {cfg.mesh.scale:g}) and its workspace "
-                    f"(workspace.margin_xy = {w.margin_xy:g}, margin_z = {w.margin_z} m) are"
-                )
-            else:  # the bounds given, not the structure, make the workspace
-                lo, hi = (", ".join(f"{x:g}" for x in b) for b in (w.bounds_min, w.bounds_max))
-                what = f"the workspace (workspace.bounds_min = [{lo}], bounds_max = [{hi}]) is"
+            what = f"the workspace ({w.made_by(values=True)})"
+            what = (  # the bounds given, or the structure and its margins, make the workspace
+                f"{what} is"
+                if w.bounds_min is not None
+                else f"the structure (mesh.scale = {cfg.mesh.scale:g}) and {what} are"
+            )
             raise MissionError(  # too large, wherever it lies
                 f"{e}: {what} too large for the map at map.resolution = {m.resolution:g} m"
             ) from None

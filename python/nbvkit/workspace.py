@@ -36,6 +36,22 @@ class WorkspaceConfig:
         if (self.bounds_min is None) != (self.bounds_max is None):
             raise ValueError(f"config keys '{key}.bounds_min' and '{key}.bounds_max' go together")
 
+    def made_by(self, values: bool = False) -> str:
+        """The keys that make the workspace (the bounds given, or the margins: only margin_xy
+        under a flight envelope), with their values when `values`."""
+        if self.bounds_min is not None:
+            lo, hi = (", ".join(f"{x:g}" for x in b) for b in (self.bounds_min, self.bounds_max))
+            if values:
+                return f"workspace.bounds_min = [{lo}], bounds_max = [{hi}]"
+            return "workspace.bounds_min, workspace.bounds_max"
+        if self.margin_z is None:  # (the starts keep to the structure's height)
+            return (
+                f"workspace.margin_xy = {self.margin_xy:g} m" if values else "workspace.margin_xy"
+            )
+        if values:
+            return f"workspace.margin_xy = {self.margin_xy:g}, margin_z = {self.margin_z:g} m"
+        return "workspace.margin_xy, workspace.margin_z"
+
 
 @dataclass(frozen=True)
 class Workspace:
@@ -315,16 +331,11 @@ def start_poses(
 def unplaced_start(k: int, ws: Workspace, w: WorkspaceConfig) -> str:
     """Why predefined start `k` could not be placed (start_poses gave it NaN) in `ws`, the
     navigation box the starts keep to (Workspace.structure_nav_max)."""
-    if w.bounds_min is not None:
-        keys = "the workspace bounds (workspace.bounds_min, workspace.bounds_max)"
-    elif w.margin_z is None:  # (the starts keep to the structure's height)
-        keys = "the workspace margin (workspace.margin_xy)"
-    else:
-        keys = "the workspace margin (workspace.margin_xy, workspace.margin_z)"
     return (
         f"start {k}: no place on its bearing from the workspace centre is clear of the "
         f"structure inside the starts' navigation bounds {ws.nav_min.round(3).tolist()} - "
-        f"{ws.nav_max.round(3).tolist()}: enlarge {keys}, or give start_pose"
+        f"{ws.nav_max.round(3).tolist()}: enlarge the workspace ({w.made_by()}), or give "
+        "start_pose"
     )
 
 
