@@ -48,6 +48,7 @@ from .experiment_tables import (  # noqa: F401  (re-exported: the tables)
     write_table2,
 )
 from . import console
+from .limits import add_note
 from .recorder import error_line
 from .plugins import (
     check_unchanged,
@@ -82,8 +83,8 @@ def _note_plugin_frame(e: BaseException) -> None:
     """Notes on `e` where in a plugin file it was raised (recorder.error_line then names it in
     the failed run's record, in whichever process it is read)."""
     where = plugin_frame(e)
-    if where is not None and hasattr(e, "add_note") and where not in getattr(e, "__notes__", ()):
-        e.add_note(where)
+    if where is not None:
+        add_note(e, where)
 
 
 def _run_one(spec: RunSpec, root: Path, threads: int) -> dict:
@@ -143,14 +144,9 @@ def _keep_failed(mission, e: Exception, path: Path, summary: dict | None = None)
             rec.write(folder.tmp, summary or rec.stopped_flight(e))
             path = folder.path
     except Exception as why:  # (a full disk): the run's own error is the one raised
-        _note(e, f"what was flown could not be saved in {path}: {why}")
+        add_note(e, f"what was flown could not be saved in {path}: {why}")
         return
-    _note(e, f"what was flown is saved in {path}")
-
-
-def _note(e: BaseException, text: str) -> None:
-    if hasattr(e, "add_note"):  # (Python 3.11+)
-        e.add_note(text)
+    add_note(e, f"what was flown is saved in {path}")
 
 
 def _kept_row(run_dir: Path, cfg, mesh_sha1: str | None) -> dict | None:

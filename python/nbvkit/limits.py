@@ -50,6 +50,13 @@ MAX_YAML_NODES = 100_000
 MAX_INT = 2**31 - 1
 
 
+def add_note(e: BaseException, text: str) -> None:
+    """Notes `text` on `e` once (printed under the traceback's last line; Python 3.11+, where
+    notes exist: nothing before)."""
+    if hasattr(e, "add_note") and text not in getattr(e, "__notes__", ()):
+        e.add_note(text)
+
+
 def shorten(value, limit: int = 120) -> str:
     """repr(value), cut to about `limit` characters (messages quote what they were given, and a
     hostile value may be gigabytes long)."""

@@ -12,7 +12,7 @@ import threading
 import traceback
 from pathlib import Path
 
-from .limits import check_input_file, shorten
+from .limits import add_note, check_input_file, shorten
 from .scenarios import BUILT_IN as BUILT_IN_SCENARIOS
 from .scenarios import SCENARIOS as _SCENARIOS
 
@@ -131,8 +131,8 @@ def _run_file(p: Path, source: bytes, digest: str, wrap: bool = False) -> None:
             isinstance(e, SystemExit) or (wrap and isinstance(e, Exception))
         ):
             own = isinstance(e, Exception) and not isinstance(e, PluginLoadError)
-            if own and hasattr(e, "add_note"):  # (its own type kept)
-                e.add_note(f"raised while loading the plugin file {p}")
+            if own:  # (its own type kept)
+                add_note(e, f"raised while loading the plugin file {p}")
             raise
         raise PluginLoadError(p, e) from e
     if key in GUESSED:  # what an imported module only held, it did not register: kept

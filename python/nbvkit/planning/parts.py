@@ -18,6 +18,8 @@ from typing import Optional, Protocol
 
 import numpy as np
 
+from ..limits import add_note
+
 
 @dataclass(frozen=True)
 class PlanningContext:
@@ -234,12 +236,9 @@ def _named(kind: str, name: str, call: str, fn, *args):
     try:
         return fn(*args)
     except Exception as e:
-        if hasattr(e, "add_note"):
-            from ..origins import source
+        from ..origins import source
 
-            e.add_note(
-                f"{_RAISED_BY}{kind} {name!r} (registered from {source(kind, name)}) in {call}"
-            )
+        add_note(e, f"{_RAISED_BY}{kind} {name!r} (registered from {source(kind, name)}) in {call}")
         raise
 
 
