@@ -318,6 +318,8 @@ def test_a_run_that_raises_fails_alone_and_the_sweep_says_which(
     assert finished == sorted(rows["run_id"])
     assert "2 of 4 runs failed" in err and "the failing part failed, as asked" in err
     assert "RuntimeError" in err and "2 finished" in err and "fly the failed ones again" in err
+    # the command to copy keeps the options given (it dropped --workers: one per core then)
+    assert f"again with the same command: nbvkit sweep {' '.join(argv[1:])} (" in err, err
     assert main(argv) == 1  # resumed: the finished runs kept, the failed ones flown again
     assert "2 of 4 runs failed" in capsys.readouterr().err
     assert sorted(pd.read_csv(out / "results.csv")["run_id"]) == finished

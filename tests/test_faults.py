@@ -81,6 +81,10 @@ def test_incomplete_folders_are_refused_with_the_reason(tmp_path, finished_run):
     with pytest.raises(ValueError, match="does not exist"):
         require_complete_run(tmp_path / "nope")
     assert not is_complete_run(out)
+    # an experiment's folder given for one of its runs (it said "did not finish ... run it again")
+    (tmp_path / "cmp" / "runs").mkdir(parents=True)
+    with pytest.raises(IncompleteRunError, match=r"an experiment's folder .* give one of them"):
+        require_complete_run(tmp_path / "cmp")
     from nbvkit.paths import require_complete_run as public
 
     assert public is require_complete_run
@@ -681,6 +685,10 @@ def test_a_flight_stopped_by_ctrl_c_or_a_part_keeps_what_it_flew(
     rows = (out / "iterations.csv").read_text().strip().splitlines()
     assert len(rows) - 1 == s["iterations"]
     assert (out / "cloud.ply").stat().st_size > 0 and (out / "trajectory.csv").exists()
+    # a rerun into it says what it holds (it said "a complete run")
+    said = rf"already holds a run that was stopped \(termination {s['termination']}: what it flew"
+    with pytest.raises(ValueError, match=said):
+        RunFolder(out).__enter__()
     # stopped during the profile, before the views: nothing is written
     early = tmp_path / "early"
 
@@ -909,6 +917,41 @@ def test_a_run_stopped_over_a_complete_run_keeps_it(tmp_path, stopping_part):
     )
     assert _nbvkit_cli(*base[:-1], "--overwrite", "--set", *whole).returncode == 0
     assert (out / "summary.json").read_bytes() != old and is_complete_run(beside)
+
+
+@pytest.mark.skipif(sys.version_info < (3, 11), reason="exception notes: Python 3.11+")
+@pytest.mark.parametrize("how", ["full_disk", "second_ctrl_c"])
+def test_a_flight_that_could_not_be_saved_says_so_and_what_its_folder_holds(
+    tmp_path, monkeypatch, capsys, stopping_part, how
+):
+    """The run's own save failing (a full disk) or stopped (a second Ctrl-C while what a first
+    one stopped is saved) after checkpoints: the error says the flight was not saved and that
+    the folder holds its last checkpoint, which reads as killed (it said only "No space left on
+    device", or "interrupted"); the command line prints that under the error."""
+    from nbvkit.cli import main
+    from nbvkit.recorder import Recorder
+
+    def stopped(self, *args, **kwargs):
+        if how == "full_disk":
+            raise OSError(28, "No space left on device")
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(Recorder, "write_keeping" if how == "full_disk" else "write", stopped)
+    out = tmp_path / "run"
+    stop = "error" if how == "full_disk" else "interrupt"  # (error: past the 3 views)
+    over = [*_stopping(stop, 100 if how == "full_disk" else 4), "checkpoint_minutes=1e-9"]
+    over = [*over, "max_iterations=3"] if how == "full_disk" else over
+    rc = main(["run", "--plugin", str(stopping_part), "--out", str(out), "--set", *over])
+    assert rc == (2 if how == "full_disk" else 130)
+    s = json.loads((out / "summary.json").read_text())
+    assert s["checkpoint"] is True
+    err = capsys.readouterr().err
+    said = re.search(
+        rf"the flight \((\d+) iterations?\) was not saved; {re.escape(str(out))} holds its last "
+        rf"checkpoint \({s['iterations']} iterations?, its summary saying a kill ended it\)",
+        err,
+    )
+    assert said and int(said.group(1)) >= s["iterations"] >= 1, err
 
 
 @pytest.mark.parametrize("cause", [KeyboardInterrupt, ZeroDivisionError])

@@ -9,6 +9,7 @@ import math
 import subprocess
 import sys
 import textwrap
+import warnings
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -392,20 +393,23 @@ def _ring_poses(p):
 
 
 def test_a_mission_whose_candidates_are_all_refused_says_why_nothing_was_flown(capsys):
-    """Every view inside the box: no view is valid, the mission ends at 0 iterations and the
-    console says what refuses a candidate (it ended silently, exit 0), and how many candidates
-    each cause refused (summary: refused_views)."""
-    from nbvkit.commands.run import NOTHING_FLOWN, print_summary
+    """Every view inside the box: no view is valid, the mission ends at 0 iterations and says
+    what refuses a candidate, and how many candidates each cause refused (summary:
+    refused_views), in a warning a script sees too (it ended silently, exit 0; then only the
+    console said it)."""
+    from nbvkit.commands.run import print_summary
+    from nbvkit.planning.selection import NOTHING_FLOWN
 
     inside = _proposing(lambda self, world, p: Proposal(np.array([[0.0, 0.0, 1.5, 0.0]]), "ring"))
-    _, s = _fly(generator=inside)
+    with pytest.warns(RuntimeWarning, match="planning step: 1 within vehicle.collision_radius"):
+        _, s = _fly(generator=inside)
     assert s["iterations"] == 0 and s["termination"] == "no_valid_viewpoint"
     assert s["refused_views"] == {"collision": 1}
     print_summary(s, "out")
-    out = capsys.readouterr().out
-    assert "note: " + NOTHING_FLOWN in out
-    assert "planning step: 1 within vehicle.collision_radius of occupied" in out
-    _, s = _fly(generator=RingGenerator)  # views round it are flown: no such note
+    assert "refusals" not in capsys.readouterr().out  # (said once, by the warning)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", RuntimeWarning)  # views round it are flown: no warning
+        _, s = _fly(generator=RingGenerator)
     print_summary(s, "out")
     out = capsys.readouterr().out
     assert s["iterations"] > 0 and NOTHING_FLOWN not in out
@@ -469,10 +473,12 @@ def test_a_generators_views_the_vehicle_cannot_take_are_masked_not_flown():
     # outside the workspace, or inside the structure's known occupied cells: invalid candidates,
     # masked like any (the mission ends no_valid_viewpoint); a list of numbers is an array
     outside = _proposing(lambda s, w, p: Proposal(p.poses + [500, 0, 0, 0], "x"))
-    m, s = _fly(generator=outside)
+    with pytest.warns(RuntimeWarning, match="step: 8 outside the workspace"):
+        m, s = _fly(generator=outside)
     assert s["termination"] == "no_valid_viewpoint" and s["iterations"] == 0
     inside = _proposing(lambda s, w, p: Proposal([[0.0, 0.0, 1.5, 0.0]], "x"))
-    m, s = _fly(generator=inside, extra=["vehicle.start_clear_radius=3"])
+    with pytest.warns(RuntimeWarning, match="no planned view was flown"):
+        m, s = _fly(generator=inside, extra=["vehicle.start_clear_radius=3"])
     assert s["termination"] == "no_valid_viewpoint" and s["iterations"] == 0
     listed = _proposing(lambda s, w, p: Proposal(p.poses.tolist(), "x"))
     m, s = _fly(generator=listed)

@@ -88,6 +88,7 @@ def main(argv: list[str] | None = None) -> int:
     except KeyboardInterrupt as e:
         by = f" by {e}" if isinstance(e, Terminated) else ""
         print(f"nbvkit {args.command}: interrupted{by}", file=sys.stderr)
+        _notes(e)
         return 130
     except Exception as e:
         from .planning.parts import PartContractError, raised_by_a_part
@@ -98,8 +99,10 @@ def main(argv: list[str] | None = None) -> int:
         msg = e.args[0] if isinstance(e, KeyError) and e.args else e
         if own and (isinstance(e, KeyError) or not isinstance(e, _CLEAN)):
             msg = f"{type(e).__name__}: {msg}"  # its type is part of the news ("foo": a key)
-        _plugin_traceback(e)
+        plugin = _plugin_traceback(e)  # (with its notes)
         print(f"nbvkit {args.command}: error: {msg}", file=sys.stderr)
+        if not plugin:
+            _notes(e)  # (what was lost and kept: recorder._saving, experiments._keep_failed)
         return 2
 
 
@@ -108,18 +111,24 @@ def main(argv: list[str] | None = None) -> int:
 _CLEAN = (FileNotFoundError, ValueError, KeyError, RuntimeError, OSError)
 
 
-def _plugin_traceback(e: BaseException) -> None:
+def _plugin_traceback(e: BaseException) -> bool:
     """For an error a plugin's part raised: the traceback's frames in the plugin files (or the
-    whole traceback, for a part from another file) and its notes, before the one-line error.
-    nbvkit's own errors (a bad key, a missing file) print nothing here."""
+    whole traceback, for a part from another file) and its notes, before the one-line error
+    (True). nbvkit's own errors (a bad key, a missing file) print nothing here (False)."""
     from .plugins import plugin_traceback
 
     lines = plugin_traceback(e)
     if lines:
         print("Traceback (the plugin's frames, most recent call last):", file=sys.stderr)
         print("".join(lines).rstrip("\n"), file=sys.stderr)
-        for note in getattr(e, "__notes__", ()):
-            print(note, file=sys.stderr)
+        _notes(e)
+    return bool(lines)
+
+
+def _notes(e: BaseException) -> None:
+    """An exception's notes (Python 3.11+), a line each."""
+    for note in getattr(e, "__notes__", ()):
+        print(note, file=sys.stderr)
 
 
 if __name__ == "__main__":

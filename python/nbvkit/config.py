@@ -71,7 +71,8 @@ class Config:
     # surface, at least 1000
     max_iterations: Optional[int] = within(None, 0, 10**6)
     progress: bool = True  # progress bar on stderr
-    # wall-clock minutes between checkpoints of the run folder (what a kill loses at most); 0: none
+    # wall-clock minutes between checkpoints of a run's folder (what a kill loses at most; compare,
+    # table and sweep fly a run that did not finish again instead); 0: none
     checkpoint_minutes: float = within(10.0, 0.0, 1e6)
     mesh: MeshConfig = field(default_factory=MeshConfig)
     workspace: WorkspaceConfig = field(default_factory=WorkspaceConfig)

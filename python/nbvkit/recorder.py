@@ -3,6 +3,7 @@ planner's steps), the summary, and the run folder's files, each written once (su
 last, after the end-of-run outputs of nbvkit.report when asked for)."""
 from __future__ import annotations
 
+import contextlib
 import contextvars
 import csv
 import resource
@@ -14,8 +15,9 @@ from pathlib import Path
 
 from . import _core
 from .evaluation import SUMMARY_KEYS
-from .limits import require_bool, require_type
+from .limits import add_note, require_bool, require_type
 from .planning.registry import utility_only_checks
+from .planning.selection import nothing_flown
 from .planning.terminations.budget import BUDGET_REASONS
 from .output_paths import atomic_open, write_text_atomic
 from .runfolder import RunFolder, write_json_atomic
@@ -102,6 +104,7 @@ class Recorder:
         self.bar = None
         self.flying_since = None  # the mission's start, once its views started (open_progress)
         self.checkpoints, self.checkpoint_time_s = 0, 0.0  # checkpoints put in place, their time
+        self.checkpoint_iterations = 0  # the last one's
         self._last_checkpoint = None
 
     def open_progress(self, total: int, enabled: bool, since: float | None = None) -> None:
@@ -172,6 +175,7 @@ class Recorder:
         try:
             flying[1].checkpoint(lambda out: self._write_checkpoint(out, now - self.flying_since))
             self.checkpoints += 1
+            self.checkpoint_iterations = len(self.records)
         except OSError as e:
             warnings.warn(f"checkpoint not saved, the flight goes on: {e}", RuntimeWarning)
         self._last_checkpoint = time.perf_counter()
@@ -252,7 +256,9 @@ class Recorder:
             "seed": cfg.seed,
         }
         if termination in ("no_valid_viewpoint", "no_reachable_view"):  # why, by cause
-            out["refused_views"] = dict(+m.planner.selector.refused)
+            out["refused_views"] = refused = dict(+m.planner.selector.refused)
+            if not n_it:  # (a script reads no console note; as ended_by warns NOTHING_SEEN)
+                warnings.warn(nothing_flown(refused), RuntimeWarning, stacklevel=3)
         out.update(_gain_accounting(self.records))
         for k in SUMMARY_KEYS:
             out[k] = ev[k]
@@ -443,13 +449,35 @@ def _fly_into(mission, folder: RunFolder, finish: bool) -> tuple[dict, BaseExcep
         rec._say(why, e, "saving what was flown")
         summary = rec.stopped_flight(e)
         folder.partial = True  # (beside a complete run an overwrite keeps)
-        return rec.write(out, summary), e
+        with _saving(rec, folder):
+            return rec.write(out, summary), e
     finally:
         _CHECKPOINTS.reset(token)
     # stopped during the end-of-run outputs, the whole flight is kept without them
-    summary, e = mission.recorder.write_keeping(out, summary, finish=finish)
+    with _saving(mission.recorder, folder):
+        summary, e = mission.recorder.write_keeping(out, summary, finish=finish)
     folder.partial = e is not None
     return summary, e
+
+
+@contextlib.contextmanager
+def _saving(rec: Recorder, folder: RunFolder):
+    """Within it the flight `rec` recorded is saved into `folder`: an error (a full disk) or an
+    interrupt that stops that notes the flight lost, and what the folder holds instead (its
+    last checkpoint, whose summary reads as killed)."""
+    try:
+        yield
+    except (OSError, KeyboardInterrupt) as e:
+        n = len(rec.records)
+        text = f"the flight ({n} iteration{'' if n == 1 else 's'}) was not saved"
+        if rec.checkpoints and folder.placed is not None:
+            k = rec.checkpoint_iterations
+            text += (
+                f"; {folder.placed} holds its last checkpoint ({k} iteration{'' if k == 1 else 's'}"
+                ", its summary saying a kill ended it)"
+            )
+        add_note(e, text)
+        raise
 
 
 def raise_stop(summary: dict, stop: BaseException | None, folder: RunFolder | None = None):
@@ -458,7 +486,7 @@ def raise_stop(summary: dict, stop: BaseException | None, folder: RunFolder | No
     saved when that is not the target (RunFolder.placed: beside a complete run kept)."""
     if stop is not None:
         if folder is not None and folder.placed not in (None, folder.path):
-            stop.add_note(f"what was flown is saved in {folder.placed} ({folder.path} kept)")
+            add_note(stop, f"what was flown is saved in {folder.placed} ({folder.path} kept)")
         raise stop
     return summary
 

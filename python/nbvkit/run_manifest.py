@@ -65,12 +65,18 @@ def _stale_export(name: str) -> bool:
     return m is not None and not pid_alive(int(m.group(1)))
 
 
-def _is_checkpoint(folder: Path) -> bool:
-    """Whether complete run folder `folder` is a checkpoint a killed run left."""
+def _kept_state(folder: Path) -> str:
+    """What complete run folder `folder` holds, in words: a checkpoint a killed run left, what a
+    stopped run flew (interrupted or failed), or a complete run."""
     try:
-        return read_summary(folder).get("checkpoint") is True
+        s = read_summary(folder)
     except (OSError, ValueError):
-        return False
+        return "a complete run"
+    if s.get("checkpoint") is True:
+        return "a checkpoint of a run that was killed (what it flew until then)"
+    if "stopped_by" in s:
+        return f"a run that was stopped (termination {s.get('termination')}: what it flew)"
+    return "a complete run"
 
 
 def _problem(path: Path, check_lock: bool = True) -> str | None:
@@ -84,6 +90,11 @@ def _problem(path: Path, check_lock: bool = True) -> str | None:
     if not path.is_dir():
         return "is not a folder"
     m = path / MANIFEST
+    if not m.exists() and (path / "runs").is_dir():  # (compare, table and sweep: runs/RUN)
+        return (
+            f"has no {MANIFEST}: it is an experiment's folder (compare, table or sweep), whose "
+            f"runs are its runs/ folders: give one of them, {path / 'runs' / 'RUN'}"
+        )
     if not m.exists():
         return (
             f"has no {MANIFEST}: the run that wrote it did not finish (interrupted, killed or "

@@ -45,14 +45,14 @@ from pathlib import Path
 
 import numpy as np
 
-from .limits import require_bool
+from .limits import add_note, require_bool
 from .locks import RunLock
 from .output_paths import MANIFEST, check_output_dir, write_text_atomic
 from .interrupts import signals_held
 from .run_manifest import (  # noqa: F401  (re-exported: the readers import them from here)
     IncompleteRunError,
     _fsync_path,
-    _is_checkpoint,
+    _kept_state,
     _problem,
     _stale_export,
     _unlisted_files,
@@ -208,9 +208,7 @@ class RunFolder:
             return
         if not self.overwrite:
             complete = _problem(p, check_lock=False) is None
-            state = "a complete run" if complete else "files (an unfinished run?)"
-            if complete and _is_checkpoint(p):
-                state = "a checkpoint of a run that was killed (what it flew until then)"
+            state = _kept_state(p) if complete else "files (an unfinished run?)"
             raise ValueError(
                 f"{self.what} {p} already holds {state}: pass --overwrite (Python: "
                 "overwrite=True) to replace it, or choose another folder"
@@ -316,9 +314,10 @@ class RunFolder:
         (a reader would look for it there)."""
         names = [getattr(exc, a, None) for a in ("filename", "filename2")]
         if any(isinstance(n, str) and n.startswith(os.fspath(self.tmp)) for n in names):
-            exc.add_note(
+            add_note(
+                exc,
                 f"(a file of the results being written in {self.tmp.name}, beside {self.path}, "
-                f"which was removed; {self.path} is as it was)"
+                f"which was removed; {self.path} is as it was)",
             )
 
     def _discard(self) -> None:

@@ -164,16 +164,6 @@ def flown(s: dict) -> str:
     return text
 
 
-#: why a mission may plan no view at all (its generators' candidates all refused)
-NOTHING_FLOWN = (
-    "no planned view was flown: every candidate was invalid (in occupied or unknown space, "
-    "within vehicle.collision_radius of it, outside the workspace, or not reachable: with "
-    "vehicle.blocked_path=reject a straight leg must cross known free space, or seeing no "
-    "occupied cell: utility.require_occupied) or worth less than planner.min_gain (in the "
-    "utility's own units)"
-)
-
-
 #: below this share of the observable area at 0.05 m, a run its planner ended as complete is
 #: told what it missed (missed_note): the recommended planner covers 93-98 % on most structures
 COMPLETE_BELOW = 0.9
@@ -224,9 +214,9 @@ def print_summary(s: dict, out, level: bool = False) -> None:
         print("note: " + note)
     if s.get("utility_only_checks"):
         print("note: " + checks_only_words(s["utility_only_checks"], s["utility"]))
-    if s["iterations"] == 0 and s["termination"] in ("no_valid_viewpoint", "no_reachable_view"):
-        print("note: " + NOTHING_FLOWN)
-    if s.get("refused_views"):
+    if (
+        s.get("refused_views") and s["iterations"]
+    ):  # (none flown: the mission warned, nothing_flown)
         print(
             "note: refusals of candidates in the last planning step: "
             + refusal_words(s["refused_views"])

@@ -2,6 +2,7 @@
 from __future__ import annotations
 
 import argparse
+import shlex
 import os
 from pathlib import Path
 
@@ -96,9 +97,13 @@ def run(args) -> int:
             f"sweep 'workers' must be a count >= 1 (1 = serial; leave it out for one per core), "
             f"got {shorten(workers)}"
         )
-    resume = f"the same command: nbvkit sweep {args.config}" + (
-        f" --out {args.out}" if args.out else ""
-    )
+    given = [  # (the options given: its workers, which a copy of the line without them lost)
+        *(["--out", str(args.out)] if args.out else []),
+        *(["--workers", str(args.workers)] if args.workers is not None else []),
+        *(["--scheduler", args.scheduler] if args.scheduler else []),
+        *(a for f in getattr(args, "plugin", []) for a in ("--plugin", str(f))),
+    ]
+    resume = "the same command: " + shlex.join(["nbvkit", "sweep", str(args.config), *given])
     return fly_experiment(
         "sweep",
         specs,

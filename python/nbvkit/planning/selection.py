@@ -46,6 +46,21 @@ def refusal_words(refused: dict) -> str:
     return ", ".join(f"{n:,} {REFUSALS.get(k, k)}" for n, k in most)
 
 
+#: why a mission may plan no view at all (its generators' candidates all refused)
+NOTHING_FLOWN = (
+    "no planned view was flown: every candidate was invalid (in occupied or unknown space, "
+    "within vehicle.collision_radius of it, outside the workspace, or not reachable: with "
+    "vehicle.blocked_path=reject a straight leg must cross known free space, or seeing no "
+    "occupied cell: utility.require_occupied) or worth less than planner.min_gain (in the "
+    "utility's own units)"
+)
+
+
+def nothing_flown(refused: dict) -> str:
+    """Why a mission flew no planned view, with its refusals by cause (`refused_views`)."""
+    return f"{NOTHING_FLOWN}; refused in the last planning step: {refusal_words(refused)}"
+
+
 class Selector:
     def __init__(self, context):
         p, resolution = context.planner, context.resolution
