@@ -459,7 +459,13 @@ def test_run_symmetry_prediction_writes_the_map(airliner, tmp_path):
     np.testing.assert_array_equal(mission.symmetry_profile, cloud.points)
     line = sym.summary_line(summary)  # the console's: the plane, as the summary gives it
     a, b, c, d = (round(v, n) + 0.0 for v, n in zip(summary["plane"], (3, 3, 3, 2)))
-    assert line.startswith(f"symmetry: mirror plane {a:.3f} x {b:+.3f} y {c:+.3f} z {d:+.2f} = 0")
+    assert line.startswith(f"symmetry: mirror plane {a:.3f} x {b:+.3f} y {c:+.3f} z = {d:.2f}")
+    # the equation holds on the plane (n . p = d): it said "... z +4001.98 = 0" for y = 4001.98
+    eq = re.search(
+        r"plane (\S+) x (\S+) y (\S+) z = (\S+) \(",
+        sym.summary_line({**summary, "plane": [0.0, 1.0, 0.0, 4001.98]}),
+    )
+    assert [float(v) for v in eq.groups()] == [0.0, 1.0, 0.0, 4001.98]
     assert line.endswith(f"{summary['support']} pairs), {summary['cells_set']:,} cells predicted")
     assert sym.summary_line({**summary, "written": False}).endswith("pairs), nothing written")
     assert "-0.00" not in sym.summary_line({**summary, "plane": [-1e-9, 1.0, -1e-9, -0.004]})

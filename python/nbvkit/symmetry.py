@@ -310,7 +310,7 @@ def summary_line(sym: dict) -> str:
     if sym.get("refreshed_cells"):
         said += f", {sym['refreshed_cells']:,} more from the camera's views"
     return (
-        f"symmetry: mirror plane {a:.3f} x {b:+.3f} y {c:+.3f} z {d:+.2f} = 0 "
+        f"symmetry: mirror plane {a:.3f} x {b:+.3f} y {c:+.3f} z = {d:.2f} "
         f"(confidence {sym['confidence']:.2f}, {sym['support']} pairs), {said}"
     )
 
