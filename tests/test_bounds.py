@@ -441,6 +441,9 @@ def test_a_map_too_large_names_the_keys_that_made_its_workspace():
     assert "too large for the map" in msg and "workspace.bounds_min = [-1e+09" in msg, msg
     assert "margin_xy" not in msg, msg
     assert "workspace.margin_xy = 1e+06" in _mission_error(["workspace.margin_xy=1e6"])
+    # under a flight envelope its height above the top is named too (it named margin_xy alone)
+    msg = _mission_error(["workspace.margin_xy=1e6", "workspace.margin_z=null"])
+    assert "margin_z = null: the camera's far stand-off above the top" in msg, msg
     # within OctoMap's range but over the map's memory at any resolution: the bounds given, not
     # the structure's scale, make the workspace
     box = ["workspace.bounds_min=[-6000,-6000,0]", "workspace.bounds_max=[6000,6000,6000]"]

@@ -2,6 +2,7 @@
 from __future__ import annotations
 
 import json
+import shutil
 from pathlib import Path
 
 import pandas as pd
@@ -706,3 +707,14 @@ def test_a_run_whose_end_of_run_outputs_fail_keeps_its_flight_beside_the_runs(
     monkeypatch.undo()
     run_specs([spec], tmp_path, workers=1, progress=False)
     assert (tmp_path / "runs" / spec.run_id / "manifest.json").is_file() and not kept.exists()
+
+
+def test_the_table_notebook_refuses_a_folder_that_is_not_a_table(tmp_path, tiny_table):
+    """Given a compare's folder it showed one planner's rows alone, dropping the others without
+    a word, and wrote its figures over the compare's own figures/."""
+    other = tmp_path / "cmp"
+    other.mkdir()
+    shutil.copy(tiny_table / "runs.csv", other / "runs.csv")  # a table's rows, no table2.csv
+    with pytest.raises(Exception, match="holds no table2.csv: this notebook reads a finished"):
+        execute_notebook("table2.ipynb", {"NBVKIT_EXPERIMENT": str(other)})
+    assert not (other / "figures").exists()

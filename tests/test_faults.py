@@ -920,29 +920,45 @@ def test_a_run_stopped_over_a_complete_run_keeps_it(tmp_path, stopping_part):
 
 
 @pytest.mark.skipif(sys.version_info < (3, 11), reason="exception notes: Python 3.11+")
-@pytest.mark.parametrize("how", ["full_disk", "second_ctrl_c"])
+@pytest.mark.parametrize(
+    "how", ["full_disk", "full_disk_at_the_manifest", "second_ctrl_c", "second_ctrl_c_scoring"]
+)
 def test_a_flight_that_could_not_be_saved_says_so_and_what_its_folder_holds(
     tmp_path, monkeypatch, capsys, stopping_part, how
 ):
-    """The run's own save failing (a full disk) or stopped (a second Ctrl-C while what a first
-    one stopped is saved) after checkpoints: the error says the flight was not saved and that
-    the folder holds its last checkpoint, which reads as killed (it said only "No space left on
-    device", or "interrupted"); the command line prints that under the error."""
+    """The run's own save failing (a full disk: writing its files, or its manifest as it is put
+    in place) or stopped (a second Ctrl-C while what a first one stopped is scored or saved)
+    after checkpoints: the error says the flight was not saved and that the folder holds its last
+    checkpoint, which reads as killed (it said only "No space left on device", or
+    "interrupted"); the command line prints that under the error."""
+    import nbvkit.runfolder
     from nbvkit.cli import main
     from nbvkit.recorder import Recorder
 
     def stopped(self, *args, **kwargs):
-        if how == "full_disk":
+        if how.startswith("full_disk"):
             raise OSError(28, "No space left on device")
         raise KeyboardInterrupt
 
-    monkeypatch.setattr(Recorder, "write_keeping" if how == "full_disk" else "write", stopped)
+    real_manifest = nbvkit.runfolder.write_manifest
+
+    def manifest(folder, *args, **kwargs):  # the run's own (its checkpoints' are written)
+        if ".tmp" in Path(folder).name:
+            stopped(None)
+        return real_manifest(folder, *args, **kwargs)
+
+    if how == "full_disk_at_the_manifest":
+        monkeypatch.setattr(nbvkit.runfolder, "write_manifest", manifest)
+    else:
+        patched = {"full_disk": "write_keeping", "second_ctrl_c": "write"}
+        monkeypatch.setattr(Recorder, patched.get(how, "stopped_flight"), stopped)
     out = tmp_path / "run"
-    stop = "error" if how == "full_disk" else "interrupt"  # (error: past the 3 views)
-    over = [*_stopping(stop, 100 if how == "full_disk" else 4), "checkpoint_minutes=1e-9"]
-    over = [*over, "max_iterations=3"] if how == "full_disk" else over
+    full = how.startswith("full_disk")
+    stop = "error" if full else "interrupt"  # (error: past the 3 views)
+    over = [*_stopping(stop, 100 if full else 4), "checkpoint_minutes=1e-9"]
+    over = [*over, "max_iterations=3"] if full else over
     rc = main(["run", "--plugin", str(stopping_part), "--out", str(out), "--set", *over])
-    assert rc == (2 if how == "full_disk" else 130)
+    assert rc == (2 if full else 130)
     s = json.loads((out / "summary.json").read_text())
     assert s["checkpoint"] is True
     err = capsys.readouterr().err
@@ -980,6 +996,8 @@ def test_a_flight_stopped_while_saving_keeps_the_whole_flight(tmp_path, monkeypa
     assert not (out / "report.html").exists() and not (out / "mesh.ply").exists()
     rows = (out / "iterations.csv").read_text().strip().splitlines()
     assert len(rows) - 1 == s["iterations"] and (out / "cloud.ply").stat().st_size > 0
+    with pytest.raises(ValueError, match="holds a run whose saving was stopped .its whole flight"):
+        RunFolder(out).__enter__()
 
 
 @pytest.mark.parametrize("signum", ["SIGINT", "SIGTERM"])

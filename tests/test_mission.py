@@ -489,3 +489,24 @@ def test_a_start_near_the_structure_moves_to_the_clearance_it_needs_to_fly():
     for k, s in enumerate(world.starts):
         assert world.workspace.contains(s) and not world._collides(s), (k, s)
         assert np.hypot(*s[:2]) - 5 >= 1.05, (k, s)  # where they were, or farther out
+
+
+@pytest.mark.parametrize("every", [50, 0])
+def test_the_coverage_curve_ends_at_the_runs_coverage(tmp_path, every):
+    """A run of fewer views than evaluation.coverage_every had no coverage in iterations.csv, so
+    its progress figure, report and notebook drew no curve: the last row now holds the run's
+    own coverage (the summary's); coverage_every=0 (no curve) leaves the rows empty."""
+    from conftest import TINY_RUN
+
+    over = [*TINY_RUN, "max_iterations=3", "progress=false", f"evaluation.coverage_every={every}"]
+    s = Mission(Config().with_overrides(over)).run(tmp_path / "run")
+    with open(tmp_path / "run" / "iterations.csv", newline="") as f:
+        rows = list(csv.DictReader(f))
+    assert len(rows) == s["iterations"] >= 2
+    assert all(r["coverage_005"] == "" for r in rows[:-1])
+    last = [rows[-1][c] for c in ("coverage_005", "coverage_01", "coverage_05")]
+    if every:
+        want = [s["coverage"][k] for k in ("0.05", "0.1", "0.5")]
+        assert [float(v) for v in last] == pytest.approx(want, rel=1e-12) and want[0] > 0
+    else:
+        assert last == ["", "", ""]

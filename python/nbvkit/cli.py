@@ -51,8 +51,9 @@ def build_parser() -> argparse.ArgumentParser:
                 action="append",
                 default=[],
                 metavar="FILE",
-                help="a Python file that registers your own planner parts "
-                "(nbvkit.register_generator / register_termination / register_utility) before "
+                help="a Python file that registers your own planner parts and scenarios "
+                "(nbvkit.register_generator / register_termination / register_utility / "
+                "register_scenario) before "
                 "the configuration is read (a run flown with it: to read its config.yaml); "
                 "repeatable (docs/PLUGINS.md)",
             )
@@ -87,8 +88,8 @@ def main(argv: list[str] | None = None) -> int:
             return int(args._run(args) or 0)
     except KeyboardInterrupt as e:
         by = f" by {e}" if isinstance(e, Terminated) else ""
-        print(f"nbvkit {args.command}: interrupted{by}", file=sys.stderr)
         _notes(e)
+        print(f"nbvkit {args.command}: interrupted{by}", file=sys.stderr)
         return 130
     except Exception as e:
         from .planning.parts import PartContractError, raised_by_a_part
@@ -99,10 +100,9 @@ def main(argv: list[str] | None = None) -> int:
         msg = e.args[0] if isinstance(e, KeyError) and e.args else e
         if own and (isinstance(e, KeyError) or not isinstance(e, _CLEAN)):
             msg = f"{type(e).__name__}: {msg}"  # its type is part of the news ("foo": a key)
-        plugin = _plugin_traceback(e)  # (with its notes)
-        print(f"nbvkit {args.command}: error: {msg}", file=sys.stderr)
-        if not plugin:
-            _notes(e)  # (what was lost and kept: recorder._saving, experiments._keep_failed)
+        _plugin_traceback(e)
+        _notes(e)  # (the part that raised it; what was lost and kept: runfolder.saving, ...)
+        print(f"nbvkit {args.command}: error: {msg}", file=sys.stderr)  # the last line
         return 2
 
 
@@ -111,22 +111,20 @@ def main(argv: list[str] | None = None) -> int:
 _CLEAN = (FileNotFoundError, ValueError, KeyError, RuntimeError, OSError)
 
 
-def _plugin_traceback(e: BaseException) -> bool:
+def _plugin_traceback(e: BaseException) -> None:
     """For an error a plugin's part raised: the traceback's frames in the plugin files (or the
-    whole traceback, for a part from another file) and its notes, before the one-line error
-    (True). nbvkit's own errors (a bad key, a missing file) print nothing here (False)."""
+    whole traceback, for a part from another file), before its notes and the one-line error.
+    nbvkit's own errors (a bad key, a missing file) print nothing here."""
     from .plugins import plugin_traceback
 
     lines = plugin_traceback(e)
     if lines:
         print("Traceback (the plugin's frames, most recent call last):", file=sys.stderr)
         print("".join(lines).rstrip("\n"), file=sys.stderr)
-        _notes(e)
-    return bool(lines)
 
 
 def _notes(e: BaseException) -> None:
-    """An exception's notes (Python 3.11+), a line each."""
+    """An exception's notes (Python 3.11+), a line each, before the one-line error (the last)."""
     for note in getattr(e, "__notes__", ()):
         print(note, file=sys.stderr)
 

@@ -86,7 +86,9 @@ class EvaluationConfig:
     """Scoring against the ground truth."""
 
     gt_density: Optional[float] = positive(None)  # points per m^2; None: nbvkit.evaluate's default
-    coverage_every: int = nonneg(25)  # iterations between coverage refreshes in the progress/CSV
+    # iterations between coverage refreshes in the progress and iterations.csv, whose last row
+    # then holds the run's coverage (a checkpoint's: as refreshed); 0: none
+    coverage_every: int = nonneg(25)
 
 
 def _key(v: float) -> str:

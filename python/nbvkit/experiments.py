@@ -49,9 +49,9 @@ from .experiment_tables import (  # noqa: F401  (re-exported: the tables)
 )
 from . import console
 from .limits import add_note
-from .recorder import error_line
 from .plugins import (
     check_unchanged,
+    error_line,
     flown_files,
     load_plugins,
     loaded_files,
@@ -80,7 +80,7 @@ def run_one(spec: RunSpec, root: str | os.PathLike, threads: int = 0, plugins=()
 
 
 def _note_plugin_frame(e: BaseException) -> None:
-    """Notes on `e` where in a plugin file it was raised (recorder.error_line then names it in
+    """Notes on `e` where in a plugin file it was raised (plugins.error_line then names it in
     the failed run's record, in whichever process it is read)."""
     where = plugin_frame(e)
     if where is not None:

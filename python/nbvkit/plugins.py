@@ -357,3 +357,16 @@ def load_plugins(files, wrap: bool = False) -> None:
             load_plugin(f["path"], f["sha256"], wrap)
         else:
             load_plugin(f, wrap=wrap)
+
+
+def error_line(e: BaseException) -> str:
+    """An exception as one line for a reader: its type, and its message when it has one, its
+    notes (the plugin part that raised it), and where in a plugin file it was raised (the
+    innermost frame there: plugin_frame)."""
+    message = " ".join(str(e).split())
+    line = f"{type(e).__name__}: {message}" if message else type(e).__name__
+    notes = [" ".join(str(n).split()) for n in getattr(e, "__notes__", ())]
+    where = plugin_frame(e)
+    if where is not None and where not in notes:
+        notes.append(where)
+    return "; ".join([line, *notes])

@@ -3,7 +3,6 @@ planner's steps), the summary, and the run folder's files, each written once (su
 last, after the end-of-run outputs of nbvkit.report when asked for)."""
 from __future__ import annotations
 
-import contextlib
 import contextvars
 import csv
 import resource
@@ -20,7 +19,8 @@ from .planning.registry import utility_only_checks
 from .planning.selection import nothing_flown
 from .planning.terminations.budget import BUDGET_REASONS
 from .output_paths import atomic_open, write_text_atomic
-from .runfolder import RunFolder, write_json_atomic
+from .plugins import error_line
+from .runfolder import RunFolder, saving, write_json_atomic
 from .vehicle import FLIGHT_COLUMNS
 from .interrupts import terminate_as_interrupt
 
@@ -45,6 +45,23 @@ def stop_kind(e: BaseException) -> str:
 
 #: The per-view stages timed in every iteration (ms_per_stage in the summary).
 STAGES = ("sampling", "evaluation", "selection", "motion", "sensing", "mapping")
+
+
+def _stage_times(timers, n_it: int) -> tuple[dict, float]:
+    """Per flown view, every ms the per-view stages took: the rows of iterations.csv and the plan
+    that ended the mission, which flew no view and so has no row (the second, in ms)."""
+    per_stage = {s: timers.total.get(s, 0.0) * 1e3 / n_it if n_it else 0.0 for s in STAGES}
+    return per_stage, sum(timers.pending().get(s, 0.0) for s in STAGES) * 1e3
+
+
+def _refusals(selector, n_it: int) -> dict:
+    """The candidates refused in the last planning step, by cause; with no planned view flown
+    (n_it 0) a RuntimeWarning says so (a script reads no console note; as ended_by warns
+    NOTHING_SEEN)."""
+    refused = dict(+selector.refused)
+    if not n_it:
+        warnings.warn(nothing_flown(refused), RuntimeWarning, stacklevel=5)  # Mission.run's caller
+    return refused
 
 
 def _drop_memos(planner) -> None:
@@ -182,20 +199,35 @@ class Recorder:
         self.checkpoint_time_s += self._last_checkpoint - now
 
     def _write_checkpoint(self, out: Path, wall: float) -> None:
-        summary = {**self.kept_flight("interrupted", CHECKPOINT_STOP, wall), "checkpoint": True}
+        summary = {
+            **self.kept_flight("interrupted", CHECKPOINT_STOP, wall, True),
+            "checkpoint": True,
+        }
         self._write_flight(out)
         _write_summary(out, summary)
 
-    def kept_flight(self, why: str, stopped_by: str, wall: float) -> dict:
+    def kept_flight(self, why: str, stopped_by: str, wall: float, checkpoint=False) -> dict:
         """The summary of a flight kept before it ended (`why`: its termination)."""
-        return {**self.summary(why, wall), "stopped_by": stopped_by, "stopped_during": "flight"}
+        s = self.summary(why, wall, checkpoint)
+        return {**s, "stopped_by": stopped_by, "stopped_during": "flight"}
+
+    def _end_curve(self, coverage: dict) -> None:
+        """The last row's coverage columns left empty by evaluation.coverage_every: the run's own
+        `coverage` (the summary's), where curves of coverage end (fewer views: they had none)."""
+        last = self.records[-1] if self.records else None
+        every = self.mission.config.evaluation.coverage_every
+        if last is not None and last.coverage_005 is None and every:
+            c = {float(k): float(v) for k, v in coverage.items()}
+            last.coverage_005, last.coverage_01, last.coverage_05 = c[0.05], c[0.1], c[0.5]
 
     def stopped_flight(self, e: BaseException) -> dict:
         """kept_flight of a flight `e` (one of STOPS) stopped once its views started."""
         wall = time.perf_counter() - self.flying_since
         return self.kept_flight(stop_kind(e), error_line(e), wall)
 
-    def summary(self, termination: str, wall: float) -> dict:
+    def summary(self, termination: str, wall: float, checkpoint: bool = False) -> dict:
+        """The summary of the flight so far, ended by `termination` after `wall` s; but for a
+        `checkpoint`, the last row of iterations.csv gets the run's coverage (_end_curve)."""
         m = self.mission
         cfg, world = m.config, m.world
         m.evaluator.forget_clouds()  # the progress refreshes' state: not needed from here
@@ -203,12 +235,10 @@ class Recorder:
         _core.release_free_memory()  # the flight's freed heap, before the cloud is scored
         ev = m.evaluator(world.clouds)  # read in place: no stacked copy held while scoring
         n_it = len(self.records)
+        if not checkpoint:
+            self._end_curve(ev["coverage"])
         e_final = world.map.total_entropy()
-        # Per flown view, every second the per-view stages took: the rows of iterations.csv and
-        # the plan that ended the mission, which flew no view and so has no row (final_plan_ms).
-        timers = m.planner.timers
-        per_stage = {s: timers.total.get(s, 0.0) * 1e3 / n_it if n_it else 0.0 for s in STAGES}
-        final_plan_ms = sum(timers.pending().get(s, 0.0) for s in STAGES) * 1e3
+        per_stage, final_plan_ms = _stage_times(m.planner.timers, n_it)
         tour = next((g for g in m.planner.generators if hasattr(g, "plans")), None)
         out = {
             "scenario": cfg.scenario,
@@ -256,9 +286,7 @@ class Recorder:
             "seed": cfg.seed,
         }
         if termination in ("no_valid_viewpoint", "no_reachable_view"):  # why, by cause
-            out["refused_views"] = refused = dict(+m.planner.selector.refused)
-            if not n_it:  # (a script reads no console note; as ended_by warns NOTHING_SEEN)
-                warnings.warn(nothing_flown(refused), RuntimeWarning, stacklevel=3)
+            out["refused_views"] = _refusals(m.planner.selector, n_it)
         out.update(_gain_accounting(self.records))
         for k in SUMMARY_KEYS:
             out[k] = ev[k]
@@ -447,37 +475,17 @@ def _fly_into(mission, folder: RunFolder, finish: bool) -> tuple[dict, BaseExcep
             raise
         why = stop_kind(e)
         rec._say(why, e, "saving what was flown")
-        summary = rec.stopped_flight(e)
         folder.partial = True  # (beside a complete run an overwrite keeps)
-        with _saving(rec, folder):
-            return rec.write(out, summary), e
+        with saving(folder, rec.records, rec.checkpoint_iterations if rec.checkpoints else None):
+            return rec.write(out, rec.stopped_flight(e)), e
     finally:
         _CHECKPOINTS.reset(token)
     # stopped during the end-of-run outputs, the whole flight is kept without them
-    with _saving(mission.recorder, folder):
-        summary, e = mission.recorder.write_keeping(out, summary, finish=finish)
+    rec = mission.recorder
+    with saving(folder, rec.records, rec.checkpoint_iterations if rec.checkpoints else None):
+        summary, e = rec.write_keeping(out, summary, finish=finish)
     folder.partial = e is not None
     return summary, e
-
-
-@contextlib.contextmanager
-def _saving(rec: Recorder, folder: RunFolder):
-    """Within it the flight `rec` recorded is saved into `folder`: an error (a full disk) or an
-    interrupt that stops that notes the flight lost, and what the folder holds instead (its
-    last checkpoint, whose summary reads as killed)."""
-    try:
-        yield
-    except (OSError, KeyboardInterrupt) as e:
-        n = len(rec.records)
-        text = f"the flight ({n} iteration{'' if n == 1 else 's'}) was not saved"
-        if rec.checkpoints and folder.placed is not None:
-            k = rec.checkpoint_iterations
-            text += (
-                f"; {folder.placed} holds its last checkpoint ({k} iteration{'' if k == 1 else 's'}"
-                ", its summary saying a kill ended it)"
-            )
-        add_note(e, text)
-        raise
 
 
 def raise_stop(summary: dict, stop: BaseException | None, folder: RunFolder | None = None):
@@ -489,18 +497,3 @@ def raise_stop(summary: dict, stop: BaseException | None, folder: RunFolder | No
             add_note(stop, f"what was flown is saved in {folder.placed} ({folder.path} kept)")
         raise stop
     return summary
-
-
-def error_line(e: BaseException) -> str:
-    """An exception as one line for a reader: its type, and its message when it has one, its
-    notes (the plugin part that raised it), and where in a plugin file it was raised (the
-    innermost frame there: plugins.plugin_frame)."""
-    from .plugins import plugin_frame
-
-    message = " ".join(str(e).split())
-    line = f"{type(e).__name__}: {message}" if message else type(e).__name__
-    notes = [" ".join(str(n).split()) for n in getattr(e, "__notes__", ())]
-    where = plugin_frame(e)
-    if where is not None and where not in notes:
-        notes.append(where)
-    return "; ".join([line, *notes])

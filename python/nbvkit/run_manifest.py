@@ -74,6 +74,8 @@ def _kept_state(folder: Path) -> str:
         return "a complete run"
     if s.get("checkpoint") is True:
         return "a checkpoint of a run that was killed (what it flew until then)"
+    if s.get("stopped_during") == "saving":
+        return "a run whose saving was stopped (its whole flight, without the end-of-run outputs)"
     if "stopped_by" in s:
         return f"a run that was stopped (termination {s.get('termination')}: what it flew)"
     return "a complete run"

@@ -34,6 +34,7 @@ inside it).
 """
 from __future__ import annotations
 
+import contextlib
 import ctypes
 import glob
 import json
@@ -163,6 +164,8 @@ class RunFolder:
         self.partial = False
         #: where the results were put (the target, or beside a complete run it kept)
         self.placed: Path | None = None
+        #: while a flight is saved into it (`saving`): what a failure to put it in place loses
+        self.unsaved: str | None = None
         self._keep_old = False
         self._beside: Path | None = None  # the folder beside a kept run this run put in place
         self._carried: list = []
@@ -305,6 +308,8 @@ class RunFolder:
             except BaseException as e:
                 self._discard()
                 self._note_discarded(e)
+                if self.unsaved:  # (the flight's files were whole in self.tmp)
+                    add_note(e, self.unsaved)
                 raise
         finally:
             self._lock.release()
@@ -391,3 +396,24 @@ def _jsonable(x):
     if isinstance(x, np.ndarray):
         return _jsonable(x.tolist())
     return x
+
+
+@contextlib.contextmanager
+def saving(folder: RunFolder, records: list, checkpoint: int | None):
+    """Within it, and as `folder` puts it in place, a flight of `records` (its views) is saved:
+    an error (a full disk), an interrupt or an exit that stops that notes the flight lost, and
+    what the folder holds instead (`checkpoint`: its last checkpoint's views; None: none), whose
+    summary reads as killed."""
+    n = len(records)
+    text = f"the flight ({n} iteration{'' if n == 1 else 's'}) was not saved"
+    if checkpoint is not None and folder.placed is not None:
+        text += (
+            f"; {folder.placed} holds its last checkpoint ({checkpoint} "
+            f"iteration{'' if checkpoint == 1 else 's'}, its summary saying a kill ended it)"
+        )
+    folder.unsaved = text
+    try:
+        yield
+    except BaseException as e:
+        add_note(e, text)
+        raise

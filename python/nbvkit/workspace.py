@@ -37,17 +37,21 @@ class WorkspaceConfig:
             raise ValueError(f"config keys '{key}.bounds_min' and '{key}.bounds_max' go together")
 
     def made_by(self, values: bool = False) -> str:
-        """The keys that make the workspace (the bounds given, or the margins: only margin_xy
-        under a flight envelope), with their values when `values`."""
+        """The keys that make the workspace (the bounds given, or the margins), with their values
+        when `values`. Under a flight envelope (margin_z null) only margin_xy: the starts keep to
+        the structure's height; with `values`, the envelope above the top is named too."""
         if self.bounds_min is not None:
             lo, hi = (", ".join(f"{x:g}" for x in b) for b in (self.bounds_min, self.bounds_max))
             if values:
                 return f"workspace.bounds_min = [{lo}], bounds_max = [{hi}]"
             return "workspace.bounds_min, workspace.bounds_max"
         if self.margin_z is None:  # (the starts keep to the structure's height)
-            return (
-                f"workspace.margin_xy = {self.margin_xy:g} m" if values else "workspace.margin_xy"
-            )
+            if values:
+                return (
+                    f"workspace.margin_xy = {self.margin_xy:g} m, margin_z = null: the camera's "
+                    "far stand-off above the top, placement.standoffs x camera.max_range"
+                )
+            return "workspace.margin_xy"
         if values:
             return f"workspace.margin_xy = {self.margin_xy:g}, margin_z = {self.margin_z:g} m"
         return "workspace.margin_xy, workspace.margin_z"

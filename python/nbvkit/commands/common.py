@@ -14,8 +14,8 @@ def add_mesh_options(p: argparse.ArgumentParser, required: bool = False) -> None
         metavar="PATH",
         type=mesh_path,
         required=required,
-        help="structure mesh (PLY and OBJ read by nbvkit's own readers in double precision; "
-        "STL, DAE, glTF, ... with assimp); default: the shipped generated airliner",
+        help="structure mesh (PLY, OBJ and STL read by nbvkit's own readers in double "
+        "precision; DAE, glTF, ... with assimp); default: the shipped generated airliner",
     )
     p.add_argument(
         "--mesh-scale",

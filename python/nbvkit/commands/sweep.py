@@ -2,8 +2,8 @@
 from __future__ import annotations
 
 import argparse
-import shlex
 import os
+import shlex
 from pathlib import Path
 
 from ..yamlio import read_yaml_mapping

@@ -58,7 +58,10 @@ NOTHING_FLOWN = (
 
 def nothing_flown(refused: dict) -> str:
     """Why a mission flew no planned view, with its refusals by cause (`refused_views`)."""
-    return f"{NOTHING_FLOWN}; refused in the last planning step: {refusal_words(refused)}"
+    words = refusal_words(refused)
+    return (
+        f"{NOTHING_FLOWN}; refused in the last planning step: {words}" if words else NOTHING_FLOWN
+    )
 
 
 class Selector:
