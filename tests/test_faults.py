@@ -1134,3 +1134,35 @@ def test_an_error_naming_a_removed_temporary_file_says_so(tmp_path, finished_run
         with RunFolder(out, overwrite=True):
             raise OSError(28, "No space left on device", str(tmp_path / "elsewhere"))
     assert not getattr(e.value, "__notes__", ())
+
+
+def test_a_run_in_place_whose_folder_cannot_be_synced_is_kept_with_a_warning(tmp_path, monkeypatch):
+    """The rename put the run in place; a failing sync of its folder (EIO, a file system that
+    cannot) discarded it as if lost, with a note that the flight was not saved."""
+    import nbvkit.runfolder
+    from conftest import TINY_RUN
+    from nbvkit.config import load_config
+
+    def eio(path):
+        raise OSError(5, "Input/output error")
+
+    monkeypatch.setattr(nbvkit.runfolder, "_fsync_path", eio)
+    out = tmp_path / "run"
+    with pytest.warns(RuntimeWarning, match="is in place, but syncing its folder to disk failed"):
+        nbvkit.Mission(load_config(overrides=[*TINY_RUN, "progress=false"])).run(out)
+    assert is_complete_run(out)
+
+
+@pytest.mark.skipif(sys.version_info < (3, 11), reason="exception notes: Python 3.11+")
+def test_an_interrupt_after_the_flight_was_written_says_it_was_not_saved(tmp_path):
+    """A Ctrl-C or a kill between the flight's files written whole and the run folder put in
+    place drops them, as it must (the run did not finish): the exception now says so."""
+    from nbvkit.runfolder import saving
+
+    with pytest.raises(KeyboardInterrupt) as e:
+        with RunFolder(tmp_path / "run") as folder:
+            with saving(folder, [1, 2], None):
+                (folder.tmp / "summary.json").write_text("{}")
+            raise KeyboardInterrupt
+    assert "the flight (2 iterations) was not saved" in e.value.__notes__
+    assert not (tmp_path / "run").exists()

@@ -212,11 +212,11 @@ class Recorder:
         return {**s, "stopped_by": stopped_by, "stopped_during": "flight"}
 
     def _end_curve(self, coverage: dict) -> None:
-        """The last row's coverage columns left empty by evaluation.coverage_every: the run's own
-        `coverage` (the summary's), where curves of coverage end (fewer views: they had none)."""
+        """The last row's coverage columns (with evaluation.coverage_every): the run's own
+        `coverage` (the summary's), where curves of coverage end (fewer views: they had none;
+        a flight stopped on a leg: its frames since counted)."""
         last = self.records[-1] if self.records else None
-        every = self.mission.config.evaluation.coverage_every
-        if last is not None and last.coverage_005 is None and every:
+        if last is not None and self.mission.config.evaluation.coverage_every:
             c = {float(k): float(v) for k, v in coverage.items()}
             last.coverage_005, last.coverage_01, last.coverage_05 = c[0.05], c[0.1], c[0.5]
 
@@ -226,8 +226,8 @@ class Recorder:
         return self.kept_flight(stop_kind(e), error_line(e), wall)
 
     def summary(self, termination: str, wall: float, checkpoint: bool = False) -> dict:
-        """The summary of the flight so far, ended by `termination` after `wall` s; but for a
-        `checkpoint`, the last row of iterations.csv gets the run's coverage (_end_curve)."""
+        """The summary of the flight so far, ended by `termination` after `wall` s; the last row
+        of iterations.csv then gets the run's coverage (_end_curve), but at a `checkpoint`."""
         m = self.mission
         cfg, world = m.config, m.world
         m.evaluator.forget_clouds()  # the progress refreshes' state: not needed from here

@@ -42,6 +42,7 @@ import math
 import os
 import re
 import shutil
+import warnings
 from pathlib import Path
 
 import numpy as np
@@ -293,6 +294,8 @@ class RunFolder:
             if exc_type is not None or self._cancelled:
                 self._discard()
                 self._note_discarded(exc)
+                if exc is not None and self.unsaved:  # (a flight whole in self.tmp, dropped)
+                    add_note(exc, self.unsaved)
                 return
             try:
                 write_manifest(self.tmp)
@@ -357,7 +360,7 @@ class RunFolder:
         if p.exists() and os.listdir(p):
             if _exchange(src, p):  # src now holds the old run
                 shutil.rmtree(src, ignore_errors=True)
-                _fsync_path(p.parent)
+                _synced(p)
                 return
             old = p.parent / f".{p.name}.old{os.getpid()}"
             os.rename(p, old)
@@ -369,7 +372,18 @@ class RunFolder:
             shutil.rmtree(old, ignore_errors=True)
         else:
             os.rename(src, p)  # onto an absent or empty folder
+        _synced(p)
+
+
+def _synced(p: Path) -> None:
+    """The rename that put `p` in place made durable (its folder synced); a failure to sync it
+    (EIO, or a file system that cannot) is a warning: the run is in place, not lost."""
+    try:
         _fsync_path(p.parent)
+    except OSError as e:
+        warnings.warn(
+            f"{p} is in place, but syncing its folder to disk failed: {e}", RuntimeWarning
+        )
 
 
 def run_name(folder) -> str:
