@@ -1157,12 +1157,10 @@ def test_a_run_in_place_whose_folder_cannot_be_synced_is_kept_with_a_warning(tmp
 def test_an_interrupt_after_the_flight_was_written_says_it_was_not_saved(tmp_path):
     """A Ctrl-C or a kill between the flight's files written whole and the run folder put in
     place drops them, as it must (the run did not finish): the exception now says so."""
-    from nbvkit.runfolder import saving
-
     with pytest.raises(KeyboardInterrupt) as e:
         with RunFolder(tmp_path / "run") as folder:
-            with saving(folder, [1, 2], None):
-                (folder.tmp / "summary.json").write_text("{}")
+            folder.saving([1, 2], None)
+            (folder.tmp / "summary.json").write_text("{}")
             raise KeyboardInterrupt
     assert "the flight (2 iterations) was not saved" in e.value.__notes__
     assert not (tmp_path / "run").exists()

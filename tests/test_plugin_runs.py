@@ -216,6 +216,8 @@ def test_a_plugins_error_shows_its_frames_and_a_builtin_error_its_line(tmp_path)
     # the console counts the views as the summary does (the first, before any planning, too)
     assert s["iterations"] == 2 and s["views"] == 3
     assert "the flight stopped after 2 iterations (3 views: the first" in p.stderr
+    # the part's note and where it raised are printed once, above the error line
+    assert p.stderr.count(f"generator 'orbit' (registered from {plugin.resolve()})") == 1
     bad = _nbvkit("run", "--plugin", plugin, "--mesh", CUBE, "--out", tmp_path / "bad", "--set",
                   "map.nope=1")  # fmt: skip
     assert bad.returncode == 2 and "Traceback" not in bad.stderr

@@ -101,7 +101,7 @@ def main(argv: list[str] | None = None) -> int:
         if own and (isinstance(e, KeyError) or not isinstance(e, _CLEAN)):
             msg = f"{type(e).__name__}: {msg}"  # its type is part of the news ("foo": a key)
         _plugin_traceback(e)
-        _notes(e)  # (the part that raised it; what was lost and kept: runfolder.saving, ...)
+        _notes(e)  # (the part that raised it; what was lost and kept: RunFolder.saving, ...)
         print(f"nbvkit {args.command}: error: {msg}", file=sys.stderr)  # the last line
         return 2
 

@@ -20,7 +20,7 @@ from .planning.selection import nothing_flown
 from .planning.terminations.budget import BUDGET_REASONS
 from .output_paths import atomic_open, write_text_atomic
 from .plugins import error_line
-from .runfolder import RunFolder, saving, write_json_atomic
+from .runfolder import RunFolder, write_json_atomic
 from .vehicle import FLIGHT_COLUMNS
 from .interrupts import terminate_as_interrupt
 
@@ -121,7 +121,7 @@ class Recorder:
         self.bar = None
         self.flying_since = None  # the mission's start, once its views started (open_progress)
         self.checkpoints, self.checkpoint_time_s = 0, 0.0  # checkpoints put in place, their time
-        self.checkpoint_iterations = 0  # the last one's
+        self.checkpoint_iterations: int | None = None  # the last one's views (None: none)
         self._last_checkpoint = None
 
     def open_progress(self, total: int, enabled: bool, since: float | None = None) -> None:
@@ -476,14 +476,14 @@ def _fly_into(mission, folder: RunFolder, finish: bool) -> tuple[dict, BaseExcep
         why = stop_kind(e)
         rec._say(why, e, "saving what was flown")
         folder.partial = True  # (beside a complete run an overwrite keeps)
-        with saving(folder, rec.records, rec.checkpoint_iterations if rec.checkpoints else None):
-            return rec.write(out, rec.stopped_flight(e)), e
+        folder.saving(rec.records, rec.checkpoint_iterations)
+        return rec.write(out, rec.stopped_flight(e)), e
     finally:
         _CHECKPOINTS.reset(token)
     # stopped during the end-of-run outputs, the whole flight is kept without them
     rec = mission.recorder
-    with saving(folder, rec.records, rec.checkpoint_iterations if rec.checkpoints else None):
-        summary, e = rec.write_keeping(out, summary, finish=finish)
+    folder.saving(rec.records, rec.checkpoint_iterations)
+    summary, e = rec.write_keeping(out, summary, finish=finish)
     folder.partial = e is not None
     return summary, e
 

@@ -34,7 +34,6 @@ inside it).
 """
 from __future__ import annotations
 
-import contextlib
 import ctypes
 import glob
 import json
@@ -317,6 +316,20 @@ class RunFolder:
         finally:
             self._lock.release()
 
+    def saving(self, records: list, checkpoint: int | None) -> None:
+        """A flight of `records` (its views) is being saved into this folder: an error (a full
+        disk), an interrupt or an exit that stops it from here until the folder is in place
+        notes the flight lost (__exit__), and what the folder holds instead (`checkpoint`: its
+        last checkpoint's views; None: none), whose summary reads as killed."""
+        n = len(records)
+        text = f"the flight ({n} iteration{'' if n == 1 else 's'}) was not saved"
+        if checkpoint is not None and self.placed is not None:
+            text += (
+                f"; {self.placed} holds its last checkpoint ({checkpoint} "
+                f"iteration{'' if checkpoint == 1 else 's'}, its summary saying a kill ended it)"
+            )
+        self.unsaved = text
+
     def _note_discarded(self, exc) -> None:
         """An error naming a file of the temporary folder, which _discard removed, says so
         (a reader would look for it there)."""
@@ -410,24 +423,3 @@ def _jsonable(x):
     if isinstance(x, np.ndarray):
         return _jsonable(x.tolist())
     return x
-
-
-@contextlib.contextmanager
-def saving(folder: RunFolder, records: list, checkpoint: int | None):
-    """Within it, and as `folder` puts it in place, a flight of `records` (its views) is saved:
-    an error (a full disk), an interrupt or an exit that stops that notes the flight lost, and
-    what the folder holds instead (`checkpoint`: its last checkpoint's views; None: none), whose
-    summary reads as killed."""
-    n = len(records)
-    text = f"the flight ({n} iteration{'' if n == 1 else 's'}) was not saved"
-    if checkpoint is not None and folder.placed is not None:
-        text += (
-            f"; {folder.placed} holds its last checkpoint ({checkpoint} "
-            f"iteration{'' if checkpoint == 1 else 's'}, its summary saying a kill ended it)"
-        )
-    folder.unsaved = text
-    try:
-        yield
-    except BaseException as e:
-        add_note(e, text)
-        raise

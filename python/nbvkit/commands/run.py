@@ -144,7 +144,7 @@ def run(args) -> int:
     elif stop is not None:
         print(
             f"nbvkit run: the flight stopped after {flown(s)}, {s['distance_m']:.1f} m "
-            f"({s['stopped_by']}); what it flew is saved in {out}/",
+            f"(by the {type(stop).__name__} below); what it flew is saved in {out}/",
             file=sys.stderr,
         )
     raise_stop(s, stop)
