@@ -72,6 +72,7 @@ def test_compare_command_writes_its_table_from_the_runs(tmp_path, capsys):
         assert 0 < got["Observable area cov. @0.05 m"] <= 1
     md = (out / "compare.md").read_text()
     assert "Observable area cov. @0.05 m" in md.splitlines()[0]
+    assert "standard deviation over the runs (population, ddof 0" in md  # what its ± is
     assert (out / "figures" / "coverage_vs_distance.png").stat().st_size > 0
 
 
@@ -79,6 +80,7 @@ def test_table_command_writes_the_papers_layout(tiny_table):
     md = (tiny_table / "table2.md").read_text()
     rows = [ln for ln in md.splitlines() if ln.startswith("| ") and not ln.startswith("| Scenario")]
     assert [r.split("|")[1].strip() for r in rows] == ["Profile", "1", "2", "3", "4", "5"]
+    assert "standard deviation over the runs (population, ddof 0" in md  # what its ± is
     t = pd.read_csv(tiny_table / "table2.csv")
     assert list(t["Scenario"].astype(str)) == ["Profile", "1", "2", "3", "4", "5"]
     for col in (

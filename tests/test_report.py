@@ -176,6 +176,9 @@ def test_a_run_writes_mesh_figures_and_report(tiny_run):
     text = (tiny_run / "report.html").read_text()
     assert "Plotly.newPlot('view3d'" in text and "covered" in text
     assert "<script src=" not in text  # self-contained
+    # the mesh's scores in % as the coverage rows beside them (they were bare fractions)
+    c = m["mesh_completeness"]["0.1"]
+    assert f"<td>mesh completeness @ 0.1 m</td><td>{100 * c:.2f} %</td>" in text
     assert s["finish_s"]["total"] > 0
     assert list((tiny_run / "cache").glob("observable-*.npz"))
 

@@ -164,6 +164,10 @@ def table2(df):
     return pd.DataFrame(out)
 
 
+#: what a table's "±" is (the spread columns: pandas' std(ddof=0))
+SPREAD = "mean ± standard deviation over the runs (population, ddof 0: one run gives ± 0)"
+
+
 def table2_markdown(t) -> str:
     """Table 2 as Markdown, mean ± spread over the starts."""
 
@@ -195,7 +199,7 @@ def table2_markdown(t) -> str:
         cells = [str(r["Scenario"]), r["Profiling"], r["Symmetry"], r["Sampling"]]
         cells += [fmt(c, r[c], r[c + " sd"]) for c in cols] + [str(int(r["runs"]))]
         lines.append("| " + " | ".join(cells) + " |")
-    return "\n".join(lines) + "\n"
+    return "\n".join([*lines, "", SPREAD]) + "\n"
 
 
 def write_table2(df, out: Path) -> None:
@@ -305,7 +309,7 @@ def compare_markdown(t) -> str:
     for _, r in t.iterrows():
         cells = [fmt(n, r[n], r[n + " sd"]) for n in names]
         lines.append(f"| {r['Planner']} | " + " | ".join(cells) + f" | {int(r['runs'])} |")
-    return "\n".join(lines) + "\n"
+    return "\n".join([*lines, "", SPREAD]) + "\n"
 
 
 def write_compare(out: Path, df) -> str:

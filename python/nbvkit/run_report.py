@@ -181,8 +181,8 @@ def _mesh_section(m) -> list[str]:
     if not m.get("written"):
         return [f"<p>No mesh.ply: {html.escape(m.get('message', ''))}</p>"]
     rows = [("triangles", m["triangles"]), ("area (m²)", m["area_m2"])]
-    rows += [(f"mesh accuracy @ {t} m", v) for t, v in m["mesh_accuracy"].items()]
-    rows += [(f"mesh completeness @ {t} m", v) for t, v in m["mesh_completeness"].items()]
+    for key, label in (("mesh_accuracy", "accuracy"), ("mesh_completeness", "completeness")):
+        rows += [(f"mesh {label} @ {t} m", f"{100 * v:.2f} %") for t, v in m[key].items()]
     rows += [("Hausdorff 95th percentile (m)", m["hausdorff95_m"])]
     return ["<h2>Reconstructed mesh (mesh.ply)</h2>", table(rows)]
 
