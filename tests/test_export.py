@@ -657,6 +657,11 @@ def test_captures_left_unreachable_take_no_photo_number_and_no_colmap_image(run_
         run_dir, "qgc,csv,colmap", ORIGIN, HEADING, out, flight_time_min=minutes, reserve_pct=20
     )
     assert s["unreachable"]
+    # a warning (it was a line on stdout alone, exit 0 and export.json's warnings silent)
+    n = len(s["unreachable"])
+    assert any(
+        w.startswith(f"{n} point") and "left out of every sortie" in w for w in s["warnings"]
+    )
     fired, rows = [], []
     for srt in s["sorties"]:
         plan = json.loads((out / f"sortie_{srt['sortie']:02d}.plan").read_text())["mission"]
@@ -1785,6 +1790,26 @@ def test_an_export_again_into_a_relative_folder_removes_the_previous_files(
     assert left == ["export.json", "mission.csv"], left
 
 
+def test_an_export_removes_only_the_files_an_export_writes(run_dir, tmp_path):
+    """The previous export's list (export.json's files) is trusted only for the names an export
+    writes: a list naming the user's own files (a forged or foreign export.json) removed them.
+    A colmap/ folder emptied by an export without colmap is removed too (it was left)."""
+    out = tmp_path / "mine"
+    export_mission(run_dir, "csv,colmap", ORIGIN, HEADING, out)
+    (out / "notes.txt").write_text("precious")
+    (out / "sub").mkdir()
+    (out / "sub" / "data.csv").write_text("precious")
+    s = json.loads((out / "export.json").read_text())
+    s["files"] += ["notes.txt", "sub/data.csv", "../outside.txt"]
+    (out / "export.json").write_text(json.dumps(s))
+    (tmp_path / "outside.txt").write_text("precious")
+    export_mission(run_dir, "qgc", ORIGIN, HEADING, out)
+    assert (out / "notes.txt").read_text() == (out / "sub" / "data.csv").read_text() == "precious"
+    assert (tmp_path / "outside.txt").exists()
+    assert not (out / "mission.csv").exists() and not (out / "colmap").exists()
+    assert (out / "mission.plan").exists()
+
+
 def test_dji_headings_turn_the_camera_of_a_yawed_mount_where_the_run_looked(tmp_path):
     """A camera yawed 45 deg on its mount: the DJI aircraft, whose camera faces forward, faces
     where the run's camera looked (waypointHeadingAngle and aircraftHeading), from the run's
@@ -2216,3 +2241,35 @@ def test_the_way_out_and_back_is_flown_in_few_items(run_dir, tmp_path):
                 a, b, c = p[j - 1], p[j], p[j + 1]
                 t = np.clip((b - a) @ (c - a) / max((c - a) @ (c - a), 1e-18), 0.0, 1.0)
                 assert np.linalg.norm(a + t * (c - a) - b) > 5e-4, (k, j)
+
+
+def test_the_cli_refuses_a_reserve_without_a_battery_and_counts_the_photos(run_dir, tmp_path):
+    """--reserve without --flight-time was ignored without a word (no budget, exit 0); the
+    console's mission line and sortie table count the frames in flight, which take photos too
+    (a sortie of 0 views read as empty)."""
+    import subprocess
+    import sys
+
+    argv = [
+        sys.executable,
+        "-m",
+        "nbvkit.cli",
+        "export",
+        str(run_dir),
+        "--origin",
+        *map(str, ORIGIN),
+    ]
+    p = subprocess.run([*argv, "--reserve", "50", "--out", str(tmp_path / "a")],
+                       capture_output=True, text=True, timeout=120)  # fmt: skip
+    assert p.returncode == 2 and "--reserve" in p.stderr and "--flight-time" in p.stderr
+    assert not (tmp_path / "a").exists()
+    b = ["--format", "csv", "--flight-time", "1.5", "--out", str(tmp_path / "b")]
+    p = subprocess.run([*argv, *b], capture_output=True, text=True, timeout=120)
+    assert p.returncode == 0, p.stderr
+    s = json.loads((tmp_path / "b" / "export.json").read_text())
+    m = s["mission"]
+    assert f"mission: {m['views']} views and {m['frames']} frames in flight" in p.stdout
+    rows = p.stdout.split("time_min\n", 1)[1].splitlines()[: len(s["sorties"])]
+    assert [ln.split()[:3] for ln in rows] == [
+        [str(r["sortie"]), str(r["views"]), str(r["frames"])] for r in s["sorties"]
+    ]

@@ -124,7 +124,7 @@ def _add_split_options(p) -> None:
     p.add_argument(
         "--reserve",
         type=float,
-        default=20.0,
+        default=None,
         metavar="PCT",
         help="battery reserve kept unused, percent of --flight-time (default 20)",
     )
@@ -141,6 +141,8 @@ def _add_split_options(p) -> None:
 def run(args) -> int:
     from ..export import export_mission
 
+    if args.reserve is not None and args.flight_time is None:
+        raise ValueError("--reserve is a share of --flight-time's battery: give --flight-time too")
     s = export_mission(
         args.run_dir,
         formats=args.format,
@@ -151,7 +153,7 @@ def run(args) -> int:
         climb_rate=args.climb_rate,
         hover_s=args.hover,
         flight_time_min=args.flight_time,
-        reserve_pct=args.reserve,
+        reserve_pct=20.0 if args.reserve is None else args.reserve,
         max_items=args.max_items,
         altitude_ref=args.altitude_ref,
         photo_names=args.photo_names,
@@ -159,7 +161,8 @@ def run(args) -> int:
     )
     m = s["mission"]
     print(
-        f"mission: {m['views']} views, {m['distance_m']:.0f} m, {m['time_min']:.1f} min "
+        f"mission: {m['views']} views and {m['frames']} frames in flight (photos), "
+        f"{m['distance_m']:.0f} m, {m['time_min']:.1f} min "
         f"(speed {args.speed:g} m/s, climb {args.climb_rate:g} m/s, hover {args.hover:g} s)"
     )
     by = [
@@ -170,10 +173,11 @@ def run(args) -> int:
     if by:  # the files wait differently: the longest is the mission's (and a sortie's) time
         print("  time by file: " + ", ".join(by))
     if s["budget"] is not None:
-        print(f"{'sortie':>6} {'views':>6} {'distance_m':>11} {'time_min':>9}")
+        print(f"{'sortie':>6} {'views':>6} {'frames':>6} {'distance_m':>11} {'time_min':>9}")
         for r in s["sorties"]:
             print(
-                f"{r['sortie']:>6} {r['views']:>6} {r['distance_m']:>11.1f} {r['time_min']:>9.2f}"
+                f"{r['sortie']:>6} {r['views']:>6} {r['frames']:>6} {r['distance_m']:>11.1f} "
+                f"{r['time_min']:>9.2f}"
             )
         for u in s["unreachable"][:SHOWN]:
             what = u["capture"] or f"{u['stage']} point"

@@ -344,6 +344,7 @@ def _write_into(out: Path, summary: dict, fl, sorties, frame, model, dji, budget
         summary["clearance"] = cautions.clearance(fl.config)
         summary["warnings"] = [w for w in [stopped_note_of(fl.run_dir)] if w]
         summary["warnings"] += cautions.clearance_warnings(summary["clearance"])
+        summary["warnings"] += cautions.left_out_warnings(summary["unreachable"])
         summary["warnings"] += items.item_warnings(summary["mission_items"])
         summary["out"] = str(out)
         (tmp / "export.json").write_text(json.dumps(summary, indent=2, allow_nan=False) + "\n")
@@ -475,9 +476,8 @@ def _write_sortie_table(path: Path, summary: dict) -> None:
 
 
 def _move_into_place(tmp: Path, out: Path, files: list) -> None:
-    """Moves the finished export from tmp to out: a rename when out does not exist; else the
-    files of the previous export there (its export.json's list) are removed and the new ones
-    moved in one by one."""
+    """Moves the finished export from tmp to out: a rename, or the previous export's files there
+    (export.json's list, of plan.EXPORT_FILE's names) removed and the new ones moved in."""
     if not out.exists():
         out.parent.mkdir(parents=True, exist_ok=True)
         os.rename(tmp, out)
@@ -488,10 +488,11 @@ def _move_into_place(tmp: Path, out: Path, files: list) -> None:
             previous = json.loads(old.read_text()).get("files", [])
         except (ValueError, OSError):
             previous = []
-        for name in previous:
-            p = out / name
-            if name not in files and p.is_file() and out.resolve() in p.resolve().parents:
-                p.unlink()
+        for name in previous:  # (not a file of the user's a list of any export.json names)
+            if name not in files and plan.EXPORT_FILE.fullmatch(str(name)):
+                (out / name).unlink(missing_ok=True)
+        if (out / "colmap").is_dir() and not any((out / "colmap").iterdir()):
+            (out / "colmap").rmdir()  # (colmap not exported again)
     for name in files:
         dst = out / name
         dst.parent.mkdir(parents=True, exist_ok=True)

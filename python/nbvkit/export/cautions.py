@@ -33,3 +33,16 @@ def clearance_warnings(c: dict) -> list:
         f"run again with --set vehicle.collision_radius={GNSS_ERROR_M:g} (and "
         f"vehicle.min_altitude) for a flight that keeps clear"
     ]
+
+
+def left_out_warnings(unreachable: list) -> list:
+    """The captures a sortie split left out (export_mission's unreachable): a warning, for a
+    mission that does not take every photo the run planned is not the run's coverage."""
+    if not unreachable:
+        return []
+    n, views = len(unreachable), sum(u["capture"] == "view" for u in unreachable)
+    return [
+        f"{n} point{'s' if n > 1 else ''} of the flight ({views} view{'' if views == 1 else 's'})"
+        " left out of every sortie: a battery (--flight-time) or --max-items too small for them"
+        " (export.json: unreachable)"
+    ]

@@ -5,6 +5,7 @@ and the sorties of nbvkit.flight (whose names are importable from here too).
 from __future__ import annotations
 
 import csv
+import re
 from pathlib import Path
 
 from ..flight import Sortie, SortiePlanner, Waypoint, simplify, sortie_planner  # noqa: F401
@@ -50,6 +51,14 @@ def read_run(run_dir) -> RunFlight:
     cfg = load_config(run / "config.yaml")
     map_path = run / "map.ot"
     return run_flight(run, rows, ws, cfg, map_path if map_path.is_file() else None, arrays)
+
+
+#: the names of the files an export writes (sortie_names), which the next export into its
+#: folder replaces: nothing else is removed there
+EXPORT_FILE = re.compile(
+    r"(mission|sortie_\d{2,})\.(plan|waypoints|kmz|kml|geojson|csv)|sorties\.csv"
+    r"|colmap/(cameras|images|points3D)\.txt"
+)
 
 
 def sortie_names(numbers) -> list:
