@@ -640,3 +640,48 @@ def test_api_arguments_of_a_wrong_type_are_named_not_read(cube_obj):
         nbvkit.observable_surface(mesh, {"camera": {}})
     with pytest.raises(TypeError, match="world must be an nbvkit.World"):
         nbvkit.plan_tour(None, np.zeros((1, 4)))
+
+
+@pytest.mark.parametrize(
+    "pose, said",
+    [
+        ([1.0, 2.0, 3.0, 1j], "real numbers"),  # kept its real part (a ComplexWarning alone)
+        ([[1.0, 2.0], [3.0, 0.5]], "shape (2, 2)"),  # flattened and flown
+        ([True, False, True, True], "real numbers"),  # a mask taken for a pose
+        (["1", 2.0, 3.0, 0.0], "real numbers"),  # a string as a coordinate
+        ([1.0, 2.0, 3.0], "shape (3,)"),
+    ],
+)
+def test_a_pose_not_four_or_five_real_numbers_is_refused(pose, said):
+    """World.fly_to, scan and sense read their poses through vehicle.as_view, which changed
+    what it could not use (np.asarray(pose, float).reshape(-1)) instead of refusing it."""
+    from nbvkit.vehicle import as_view
+
+    with pytest.raises(ValueError, match=said.replace("(", r"\(").replace(")", r"\)")):
+        as_view(pose)
+    assert as_view([1, 2, 3, 0]).tolist() == [1.0, 2.0, 3.0, 0.0, 0.0]  # whole numbers are fine
+
+
+def test_the_workspace_and_the_vehicles_pose_cannot_be_written_in_place():
+    """A plugin's part is given the world: writing into its workspace's boxes or the vehicle's
+    pose changed the mission's state (a summary whose bounds_min lay above bounds_max, a vehicle
+    moved with no flight), and a NaN distance was saved as null. Now a clear error."""
+    import numpy as np
+    from nbvkit.vehicle import VehicleState
+    from nbvkit.workspace import Workspace
+
+    given = np.zeros(3)
+    ws = Workspace(given, np.ones(3), np.zeros(3), np.ones(3))
+    given[:] = 5.0  # its own copies: the caller's array is not the workspace's
+    assert ws.bounds_min.tolist() == [0.0, 0.0, 0.0]
+    for name in ("bounds_min", "bounds_max", "nav_min", "nav_max"):
+        with pytest.raises(ValueError, match="read-only"):
+            getattr(ws, name)[:] = 99.0
+    s = VehicleState(pose=np.zeros(5))
+    with pytest.raises(ValueError, match="read-only"):
+        s.pose[:3] = 1.0
+    s.pose = np.ones(5)  # moved by assignment (World.fly_to), as before
+    assert s.pose.tolist() == [1.0] * 5
+    for bad in (float("nan"), float("inf"), "3"):
+        with pytest.raises(ValueError, match="distance_m must be a finite number"):
+            s.distance_m = bad

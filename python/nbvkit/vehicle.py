@@ -2,9 +2,12 @@
 its flight (the trajectory's legs and every point flown, with the captures taken there)."""
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
 
 import numpy as np
+
+from .limits import is_number
 
 
 #: The columns of VehicleState.flight (and of a run's flight.csv).
@@ -37,14 +40,15 @@ def as_view(pose) -> np.ndarray:
     """A pose (x, y, z, yaw) or view (x, y, z, yaw, pitch) as a view (5,) float64: 4 numbers
     mean the level camera (pitch 0). The pitch is the camera gimbal's, radians, > 0 looks
     down (camera.gimbal_pitch_deg)."""
-    p = np.asarray(pose, float).reshape(-1)
-    if len(p) == 4:
-        return np.append(p, 0.0)
-    if len(p) != 5:
+    a = np.asarray(pose)
+    if a.ndim != 1 or len(a) not in (4, 5):
         raise ValueError(
-            f"a pose must be 4 numbers (x, y, z, yaw) or 5 (x, y, z, yaw, pitch), got {len(p)}"
+            "a pose must be 4 numbers (x, y, z, yaw) or 5 (x, y, z, yaw, pitch), got an array "
+            f"of shape {a.shape}"
         )
-    return p.copy()
+    if a.dtype.kind not in "iuf":  # (a complex part, a bool or a string is not a coordinate)
+        raise ValueError(f"a pose must be real numbers, got {a.dtype} values: {a.tolist()}")
+    return np.append(a, 0.0) if len(a) == 4 else a.astype(float)
 
 
 @dataclass
@@ -62,6 +66,16 @@ class VehicleState:
     frames_skipped: int = 0  # leg frames not taken: their previews found too little new
     trajectory: list = field(default_factory=list)
     flight: list = field(default_factory=list)
+
+    def __setattr__(self, name, value) -> None:
+        """The pose is kept read-only (a part that wrote into it moved the vehicle without a
+        flight; World.fly_to moves it) and the distance a finite number of metres."""
+        if name == "pose":
+            value = np.array(value, float)
+            value.flags.writeable = False
+        elif name == "distance_m" and not (is_number(value) and math.isfinite(value)):
+            raise ValueError(f"distance_m must be a finite number of metres, got {value!r}")
+        super().__setattr__(name, value)
 
     def record_leg(self, stage: str, pts: np.ndarray, d0: float) -> None:
         """Flight rows of a leg flown along `pts` (P, 3; first = where it started) from the

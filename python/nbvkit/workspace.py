@@ -69,6 +69,15 @@ class Workspace:
     nav_max: np.ndarray
     sweep_top: float | None = None  # None: nav_max's
 
+    def __post_init__(self) -> None:
+        """Its boxes as read-only float copies: a part that wrote into them (a plugin's
+        generator) moved the workspace under the mission, whose summary then held a box
+        nbvkit's own reader refuses."""
+        for name in ("bounds_min", "bounds_max", "nav_min", "nav_max"):
+            a = np.array(getattr(self, name), float)
+            a.flags.writeable = False
+            object.__setattr__(self, name, a)
+
     @property
     def structure_nav_max(self) -> np.ndarray:
         """nav_max with its z at sweep_top: the navigation box of the profile and the starts."""
