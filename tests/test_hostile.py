@@ -538,14 +538,16 @@ def test_case9_negative_seed_is_named(tmp_path, cube_obj):
         nbvkit.load_mesh(cube_obj).sample_surface(10, seed=-1)
 
 
-def test_a_sample_count_past_the_int32_face_ids_is_refused(cube_obj):
-    """sample_surface(10**12) raised MemoryError (std::bad_alloc) after trying; its face ids
-    are int32: a count past them is refused by name before any work."""
+def test_a_sample_count_past_the_memory_limit_is_refused(cube_obj):
+    """sample_surface(10**12) raised MemoryError (std::bad_alloc) after trying, and 2e9 (within
+    its int32 face ids) asked for 48 GB, for the OOM killer to stop: a count past 2e8 (4.8 GB)
+    is refused by name before any work."""
     mesh = nbvkit.load_mesh(cube_obj)
-    with pytest.raises(ValueError, match="number of samples must be at most 2147483647"):
+    with pytest.raises(ValueError, match="number of samples must be at most 200,000,000"):
         mesh.sample_surface(10**12)
-    with pytest.raises(ValueError, match="at most 2147483647"):
-        mesh.sample_surface(2**31, return_faces=True)
+    for n in (2**31, 2 * 10**9, 200_000_001):
+        with pytest.raises(ValueError, match="at most 200,000,000 .4.8 GB"):
+            mesh.sample_surface(n, return_faces=True)
     assert len(mesh.sample_surface(5, return_faces=True)[1]) == 5
 
 
@@ -685,3 +687,11 @@ def test_the_workspace_and_the_vehicles_pose_cannot_be_written_in_place():
     for bad in (float("nan"), float("inf"), "3"):
         with pytest.raises(ValueError, match="distance_m must be a finite number"):
             s.distance_m = bad
+
+
+def test_a_laser_beam_count_past_its_limit_shows_the_numbers_given(cube_obj):
+    """std::to_string printed resolution_deg = 1e-9 as 0.000000 (the value refused looked like
+    0) and the map's cell limit as 1000000000.000000: numbers show in their short form."""
+    scene = nbvkit.RaycastScene(nbvkit.load_mesh(cube_obj))
+    with pytest.raises(ValueError, match=r"resolution_deg = 1e-09 gives more than 1000000 beams"):
+        nbvkit.LaserScanner(scene, resolution_deg=1e-9)

@@ -328,6 +328,15 @@ def test_a_frame_any_part_would_refuse_changes_nothing():
         w.integrate(scan, "frame", ("laser", w.state.pose))
     with pytest.raises(ValueError, match="camera and a pose"):
         _core.integrate_frame(w.map, w.camera_cloud, w.surface, scan, next_camera=w.camera)
+    # observations of another map's grid: its hits outside that grid were dropped unsaid
+    other = _core.SurfaceObservations(_core.OccupancyMap(0.2, (-1, -1, -1), (1, 1, 1)))
+    with pytest.raises(ValueError, match="another map's grid"):
+        _core.integrate_frame(w.map, w.camera_cloud, other, scan)
+    for cone in (float("nan"), -1.0, 181.0):  # a NaN cone counted every hit novel, or none
+        with pytest.raises(ValueError, match="cone_deg must be in .0, 180. degrees"):
+            w.surface.novel_hits(scan.origin, scan.hits, cone)
+        with pytest.raises(ValueError, match="cone_deg must be in"):
+            _core.bin_cone(0, cone)
     assert (w.map.total_entropy(), len(w.camera_cloud), w.surface.seen_cells()) == (
         entropy,
         points,

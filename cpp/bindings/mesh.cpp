@@ -57,9 +57,12 @@ Mesh(vertices, faces) or Mesh.from_open3d(o3d_mesh).)doc")
           [](const Mesh& s, long long n, const py::object& seed_obj,
              bool return_faces) -> py::object {
             if (n < 0) throw py::value_error("number of samples must be >= 0");
-            if (n > std::numeric_limits<int>::max())  // (face ids are int32)
-              throw py::value_error("number of samples must be at most 2147483647, got " +
-                                    std::to_string(n));
+            constexpr long long kMaxSamples = 200'000'000;  // 4.8 GB of points (int32 ids)
+            if (n > kMaxSamples)  // (it asked for 48 GB at 2e9, the OOM killer's to stop)
+              throw py::value_error(
+                  "number of samples must be at most 200,000,000 (4.8 GB of "
+                  "points), got " +
+                  std::to_string(n));
             const std::uint64_t seed = seed_arg(seed_obj);
             Eigen::VectorXi fid;
             Points p;

@@ -75,7 +75,7 @@ struct CoverageArg {
                               std::to_string(ref->elements[i]));
       const float w = ref->weights[i];
       if (!(std::isfinite(w) && w >= 0.0f))
-        throw py::value_error("coverage weights must be finite and >= 0, got " + std::to_string(w) +
+        throw py::value_error("coverage weights must be finite and >= 0, got " + fmt(w) +
                               " at element " + std::to_string(i));
     }
   }

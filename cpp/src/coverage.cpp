@@ -359,7 +359,7 @@ std::vector<std::uint8_t> near_points(const PointsRef& solid, const PointsRef& p
     throw std::invalid_argument("within must be a finite distance > 0 metres, got " +
                                 std::to_string(within));
   if (!(std::isfinite(resolution) && resolution > 0))
-    throw std::invalid_argument("resolution must be > 0 metres, got " + std::to_string(resolution));
+    throw std::invalid_argument("resolution must be > 0 metres, got " + fmt(resolution));
   require_finite(solid, "solid points");
   require_finite(points, "points");
   const Eigen::Index n = points.rows();

@@ -20,6 +20,8 @@ FrameIntegration integrate_frame(OccupancyMap& map, SurfaceCloud& cloud,
   // the hits; the observations need finite hits and origin), and the next frame's pose as the
   // camera's scan checks it.
   map.check_scan(scan.origin, scan.hits, scan.free_ends, max_range);
+  if (!surface.matches(map))  // (its hits outside the other grid were dropped without a word)
+    throw std::invalid_argument("surface observations were made for another map's grid");
   if (bool(next_camera) != bool(next_pose))
     throw std::invalid_argument("integrate_frame: a next frame needs both a camera and a pose");
   Eigen::Isometry3d next_T = Eigen::Isometry3d::Identity();

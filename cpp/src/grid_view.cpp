@@ -500,6 +500,8 @@ std::array<std::uint32_t, 26> bin_cones(double cone_deg) {
 }
 
 std::uint32_t bin_cone(int b, double cone_deg) {
+  if (!(cone_deg >= 0 && cone_deg <= 180))  // (a NaN cone took every bin or none)
+    throw std::invalid_argument("cone_deg must be in [0, 180] degrees, got " + fmt(cone_deg));
   const double c = std::cos(cone_deg * M_PI / 180.0) - 1e-12;
   const Eigen::Vector3d d = bin_direction(b);
   std::uint32_t mask = 0;

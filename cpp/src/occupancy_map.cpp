@@ -151,7 +151,7 @@ void OccupancyMap::init_geometry(const Eigen::Vector3d& bmin, const Eigen::Vecto
   const double cells = double(nx) * double(ny) * double(nz);
   if (cells > double(kMaxCells))
     throw std::invalid_argument("workspace " + fmt_vec(bmin) + " - " + fmt_vec(bmax) + " at " +
-                                std::to_string(res_) + " m holds " + std::to_string(cells) +
+                                fmt(res_) + " m holds " + fmt(cells) +
                                 " cells, more than the limit " + std::to_string(kMaxCells) +
                                 " (coarser resolution or smaller bounds)");
   for (int a = 0; a < 3; ++a) min_key_[a] = octomap::key_type(kmin[a] + kTreeMaxVal);
@@ -870,7 +870,7 @@ std::size_t OccupancyMap::mark_free_segment(const Eigen::Vector3d& a, const Eige
   if (!a.allFinite() || !b.allFinite())
     throw std::invalid_argument("segment ends contain NaN or infinite values");
   if (!std::isfinite(radius) || radius < 0)
-    throw std::invalid_argument("radius must be finite and >= 0, got " + std::to_string(radius));
+    throw std::invalid_argument("radius must be finite and >= 0, got " + fmt(radius));
   Key ka, kb;
   if (!coord_to_key(a, ka) || !coord_to_key(b, kb))
     throw std::invalid_argument("segment ends outside OctoMap's addressable range");
@@ -912,8 +912,7 @@ std::size_t OccupancyMap::mark_free_segment(const Eigen::Vector3d& a, const Eige
 std::size_t OccupancyMap::set_unknown_cells(const PointsRef& points, double probability) {
   require_finite(points, "predicted points");
   if (!std::isfinite(probability) || !(probability > 0.0) || !(probability < 1.0))
-    throw std::invalid_argument("probability must be in (0, 1), got " +
-                                std::to_string(probability));
+    throw std::invalid_argument("probability must be in (0, 1), got " + fmt(probability));
   const float l = std::min(std::max(octomap::logodds(probability), clamp_min_log_), clamp_max_log_);
   std::size_t set = 0;
   for (Eigen::Index r = 0; r < points.rows(); ++r) {

@@ -285,9 +285,9 @@ Scan DepthCamera::scan(const Eigen::Isometry3d& T) const {
 int LaserScannerOptions::num_beams() const {
   const double n = std::floor(fov_deg / resolution_deg + 1e-9) + 1;
   if (!(n <= kMaxLaserBeams))
-    throw std::invalid_argument("laser resolution_deg = " + std::to_string(resolution_deg) +
+    throw std::invalid_argument("laser resolution_deg = " + fmt(resolution_deg) +
                                 " gives more than " + std::to_string(kMaxLaserBeams) +
-                                " beams over fov_deg = " + std::to_string(fov_deg));
+                                " beams over fov_deg = " + fmt(fov_deg));
   return static_cast<int>(n);
 }
 

@@ -753,8 +753,7 @@ SymmetryResult detect_symmetry(const PointsRef& points, const SymmetryOptions& o
     res.reason = "support " + std::to_string(res.support) + " < min_support " +
                  std::to_string(o.min_support);
   else if (res.confidence < o.min_confidence)
-    res.reason = "confidence " + std::to_string(res.confidence) + " < min_confidence " +
-                 std::to_string(o.min_confidence);
+    res.reason = "confidence " + fmt(res.confidence) + " < min_confidence " + fmt(o.min_confidence);
   res.accepted = res.reason.empty();
   to_world(res, pc.c0);
   return res;

@@ -6,10 +6,13 @@
 #include "view_kernel.hpp"
 
 #include <algorithm>
+#include <atomic>
 #include <cmath>
 #include <cstring>
 #include <limits>
 #include <sstream>
+#include <stdexcept>
+#include <string>
 
 namespace nbv {
 namespace {
@@ -427,6 +430,7 @@ CandidateRays candidate_rays(const GridView& g, const Candidates& cand, const Po
   const Eigen::Vector3d here(current.x, current.y, current.z);
   const bool check_segment = validity.blocked_path == "reject";
   std::vector<std::vector<Reached>> reached(static_cast<std::size_t>(K));
+  std::atomic<std::size_t> total{0};  // cells reached so far: kMaxCandidateCells at most
 
   // The walks: every ray of each valid view, as evaluate_views walks them (walk_ray<false>
   // visits the cells the ig utility's four-lane walk marks, in order).
@@ -443,6 +447,13 @@ CandidateRays candidate_rays(const GridView& g, const Candidates& cand, const Po
       if (st != ViewStatus::Valid) continue;
       const Eigen::Isometry3d T = gimbal_sensor_transform(pose, camera.mount);
       const int occ = walk_view(g, dirs, T, camera.max_range, occ_req, slots, rec);
+      if (total.fetch_add(rec.size()) + rec.size() > kMaxCandidateCells)
+        throw std::length_error(
+            "candidate_rays: the " + std::to_string(K) + " candidates' rays reach more than " +
+            std::to_string(kMaxCandidateCells) + " cells (about " +
+            fmt(std::round(double(kMaxCandidateCells * kCandidateCellBytes) / (1 << 30) * 10) /
+                10) +
+            " GiB): give fewer candidates at a time (or a coarser map or camera)");
       reached[kk].assign(rec.begin(), rec.end());
       out.occupied_seen[k] = occ;
       if (utility.require_occupied && occ == 0)
