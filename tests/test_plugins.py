@@ -441,6 +441,8 @@ def test_a_mission_whose_candidates_are_all_refused_says_why_nothing_was_flown(c
         (lambda s, w, p: 1 / 0, ZeroDivisionError, "division by zero"),
         # complex poses were cut to their real part (a NumPy warning), aims never checked
         (lambda s, w, p: Proposal(p.poses + 1j, "x"), TypeError, r"poses are not numbers \(comp"),
+        # a mask flew 0 and 1 m
+        (lambda s, w, p: Proposal(p.poses > 0, "x"), TypeError, r"poses are not numbers \(bool"),
         (
             lambda s, w, p: Proposal(p.poses, "x", aims=np.full((8, 3), np.nan)),
             ValueError,
@@ -455,8 +457,8 @@ def test_a_mission_whose_candidates_are_all_refused_says_why_nothing_was_flown(c
         ),
     ],
     ids=["empty", "empty-exclusive", "nan", "k3", "1d", "array", "strings", "pitch", "source",
-         "source-lines", "source-empty", "aims", "raises", "complex", "aims-nan", "aims-strings",
-         "gimbal"],
+         "source-lines", "source-empty", "aims", "raises", "complex", "bool", "aims-nan",
+         "aims-strings", "gimbal"],
 )  # fmt: skip
 def test_a_hostile_generator_is_an_exception_naming_it(fn, error, match):
     with pytest.raises(error, match=match) as e:

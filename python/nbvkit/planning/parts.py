@@ -306,6 +306,8 @@ def _numbers(a, who: str, what: str) -> np.ndarray:
         arr = np.asarray(a)
         if arr.dtype.kind == "c" or (arr.dtype == object and any(map(np.iscomplexobj, arr.flat))):
             raise TypeError("complex numbers")
+        if arr.dtype.kind == "b":  # (a mask is not coordinates: it flew 0 and 1 m)
+            raise TypeError("booleans")
         return np.ascontiguousarray(arr, dtype=np.float64)
     except (TypeError, ValueError) as e:
         raise PartContractError(
