@@ -6,29 +6,50 @@ barometer place it within about 1-2 m; a flight planned closer than that is a si
 real one's."""
 from __future__ import annotations
 
+import numpy as np
+
 #: m: the position error of a drone without RTK (GNSS horizontally, the barometer vertically)
 #: below which a planned stand-off is warned of
 GNSS_ERROR_M = 2.0
 
 
-def clearance(config) -> dict:
-    """{"structure_m", "ground_m"}: the least distance the run's flight keeps from the structure
-    (its collision radius) and its centre's least height above the ground (workspace.py)."""
-    radius = float(config.vehicle.collision_radius)
-    ground = radius + 0.1
-    if config.vehicle.min_altitude is not None:
-        ground = max(ground, float(config.vehicle.min_altitude))
-    return {"structure_m": round(radius, 3), "ground_m": round(ground, 3)}
+def clearance(fl) -> dict:
+    """{"structure_m", "ground_m", "min_altitude_m", "lowest_row"} of a RunFlight `fl`: the least
+    distance its flight keeps from the structure (its collision radius), the least height above
+    the ground (the workspace's floor) of the points it flew, measured, at flight row
+    `lowest_row`, and the height its views keep (vehicle.min_altitude, the radius + 0.1 m by
+    default; the A* paths between them keep only the collision radius off the ground)."""
+    radius = float(fl.config.vehicle.collision_radius)
+    planned = radius + 0.1
+    if fl.config.vehicle.min_altitude is not None:
+        planned = max(planned, float(fl.config.vehicle.min_altitude))
+    heights = fl.xyz[:, 2] - float(fl.workspace["bounds_min"][2])
+    low = int(np.argmin(heights))
+    return {
+        "structure_m": round(radius, 3),
+        "ground_m": round(float(heights[low]), 3),
+        "min_altitude_m": round(planned, 3),
+        "lowest_row": low,  # (flight.csv's data rows from 0, as a CSV's flight_row)
+    }
 
 
 def clearance_warnings(c: dict) -> list:
-    """The export's warning where clearance `c` is within GNSS_ERROR_M."""
+    """The export's warnings where clearance `c` is within GNSS_ERROR_M, and where the flight
+    passed below the height its views keep."""
+    out = []
+    if c["ground_m"] < c["min_altitude_m"] - 0.005:
+        out.append(
+            f"the flight passes {c['ground_m']:g} m above the ground (at flight row "
+            f"{c['lowest_row']}), below the {c['min_altitude_m']:g} m its views keep "
+            "(vehicle.min_altitude): a path between views keeps only the collision radius off "
+            "the ground"
+        )
     if min(c["structure_m"], c["ground_m"]) >= GNSS_ERROR_M:
-        return []
-    return [
+        return out
+    return out + [
         f"the run was planned {c['structure_m']:g} m from the structure "
-        f"(vehicle.collision_radius) and {c['ground_m']:g} m above the ground "
-        f"(vehicle.min_altitude): a drone without RTK is placed within about "
+        f"(vehicle.collision_radius) and flies {c['ground_m']:g} m above the ground at its "
+        f"lowest: a drone without RTK is placed within about "
         f"{GNSS_ERROR_M:g} m. Fly it with RTK positioning and obstacle sensing on, or fly the "
         f"run again with --set vehicle.collision_radius={GNSS_ERROR_M:g} (and "
         f"vehicle.min_altitude) for a flight that keeps clear"
