@@ -1434,6 +1434,23 @@ def test_no_sortie_file_waits_past_the_battery(run_dir, tmp_path):
     assert set(s["mission"]["time_s_by_file"]) == {"px4", "ardupilot", "dji"}
 
 
+def test_a_dji_export_is_timed_and_split_by_its_own_file(run_dir, tmp_path):
+    """A .kmz alone was timed and split by the slowest mission file, the ArduPilot one it does
+    not write: its headline time was that file's and it flew more batteries than needed. Each
+    sortie's .kmz, read back, fits; its time is the .kmz's."""
+    both = export_mission(run_dir, "qgc,wpml", ORIGIN, HEADING, tmp_path / "a",
+                          flight_time_min=43 / 60, reserve_pct=0)  # fmt: skip
+    dji = export_mission(run_dir, "wpml", ORIGIN, HEADING, tmp_path / "b",
+                         flight_time_min=43 / 60, reserve_pct=0)  # fmt: skip
+    assert set(dji["mission"]["time_s_by_file"]) == {"dji"}
+    assert dji["mission"]["time_s"] == dji["mission"]["time_s_by_file"]["dji"]
+    assert dji["mission"]["time_s"] < both["mission"]["time_s"]  # ArduPilot's holds not counted
+    assert len(dji["sorties"]) <= len(both["sorties"])
+    for srt in dji["sorties"]:
+        t = _kmz_time(tmp_path / "b" / f"sortie_{srt['sortie']:02d}.kmz")
+        assert t <= srt["time_s"] + 0.05 and srt["time_s"] <= 43.0
+
+
 def test_ardupilot_file_sets_the_speed_after_the_first_waypoint_and_no_nan(exported):
     """ArduCopter before 4.5 drops a DO_CHANGE_SPEED run during the take-off (issue #21080): the
     speed is set again after the first NAV_WAYPOINT. Every parameter is a number (AP_Mission's

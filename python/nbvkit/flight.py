@@ -154,8 +154,9 @@ class Sortie:
 class SortiePlanner:
     """Builds sorties over a RunFlight with a FlightModel and return paths (ReturnPaths)."""
 
-    def __init__(self, fl: RunFlight, model: FlightModel, returns: ReturnPaths):
+    def __init__(self, fl: RunFlight, model: FlightModel, returns: ReturnPaths, files=TARGETS):
         self.fl, self.model, self.returns = fl, model, returns
+        self.files = tuple(files)  # the mission files (TARGETS) timed: the slowest is the time
         self.cum = np.cumsum(returns.leg)  # s from row 0 along the flight (an estimate: sortie())
         # an estimate of each capture's longest wait (capture_waits over the flight's rows: the
         # turn from the previous row), and first: the same after a transit leg (a sortie's first
@@ -175,14 +176,13 @@ class SortiePlanner:
         self.ends = model.ends_s(float(fl.launch[2] - fl.home[2]))
         #: seconds from the ground to the start (climb, then the way over) and back, the
         #: longest file's
-        self.ends_total_s = max(up + down for up, down in self.ends.values())
+        self.ends_total_s = max(sum(self.ends[t]) for t in self.files)
         self.ends_total_s += 2 * model.path_time(fl.launch_path)
         self.work = self.work_rows(fl)
 
-    @staticmethod
-    def _longest(waits: dict) -> np.ndarray:
-        """(N,) the longest of the mission files' waits at each waypoint."""
-        return np.max([sum(waits[t]) for t in TARGETS], axis=0)
+    def _longest(self, waits: dict) -> np.ndarray:
+        """(N,) the longest of the timed mission files' waits at each waypoint."""
+        return np.max([sum(waits[t]) for t in self.files], axis=0)
 
     @staticmethod
     def work_rows(fl: RunFlight) -> np.ndarray:
@@ -249,9 +249,9 @@ class SortiePlanner:
         leg[0] = leg[-1] = 0.0
         rows = [k for k, w in enumerate(wps) if w.row >= 0] or [len(wps) - 1]
         a, b = rows[0] + 1, rows[-1] + 1  # the first and last flight rows' legs end there
-        s.times = {t: float(leg.sum()) + sum(self.ends[t]) + waits[t] for t in TARGETS}
+        s.times = {t: float(leg.sum()) + sum(self.ends[t]) + waits[t] for t in self.files}
         s.time_s = max(s.times.values())
-        longest = max(TARGETS, key=s.times.get)
+        longest = max(self.files, key=s.times.get)
         s.legs = {
             "out_s": float(leg[:a].sum()) + self.ends[longest][0],
             "along_s": float(leg[a:b].sum()) + waits[longest],
@@ -324,10 +324,11 @@ class SortiePlanner:
         return lo, s
 
 
-def sortie_planner(fl: RunFlight, model: FlightModel, need_all_returns: bool, occ_map=None):
+def sortie_planner(fl: RunFlight, model, need_all_returns: bool, occ_map=None, files=TARGETS):
     """A SortiePlanner over the flight fl (its launch point found): occ_map, the run's final
     OccupancyMap (default: read from its map.ot); with need_all_returns the ways back from every
-    capture a sortie may end at (a battery budget), else from the last row only."""
+    capture a sortie may end at (a battery budget), else from the last row only; `files`: the
+    mission files timed (flight_time.timed_files)."""
     occ = load_map(fl) if occ_map is None else occ_map
     find_launch(fl, occ, model)
     # A* ways back from the captures a sortie may end at (the profile's other points go back
@@ -336,7 +337,7 @@ def sortie_planner(fl: RunFlight, model: FlightModel, need_all_returns: bool, oc
     caps = [i for i in work if fl.capture[i]]
     targets = [*caps, work[-1]] if need_all_returns else work[-1:]
     returns = ReturnPaths(fl, model, occ, targets)
-    return SortiePlanner(fl, model, returns)
+    return SortiePlanner(fl, model, returns, files)
 
 
 def estimate(fl: RunFlight, model: FlightModel, occ_map=None) -> dict:

@@ -47,6 +47,17 @@ MAX_HOVER_S = 3600.0
 #: the mission files whose waits capture_waits models: the .plan (PX4), the .waypoints
 #: (ArduPilot) and the DJI .kmz
 TARGETS = ("px4", "ardupilot", "dji")
+#: the mission files each export format writes
+FORMAT_FILES = {"qgc": ("px4", "ardupilot"), "wpml": ("dji",)}
+
+
+def timed_files(formats) -> tuple:
+    """The mission files (TARGETS) an export of `formats` writes, whose times it gives (a DJI
+    export was timed and split by the ArduPilot file it did not write); all of them where it
+    writes none (KML, GeoJSON, CSV, COLMAP alone: the slowest file's time)."""
+    files = {t for f in formats for t in FORMAT_FILES.get(f, ())}
+    return tuple(t for t in TARGETS if t in files) or TARGETS
+
 
 #: the .plan's acceptance radius at a capture, at most (NAV_WAYPOINT p2, m; capture_radii): PX4
 #: counts a waypoint reached within p2 (NAV_ACC_RAD, 2 m, where p2 is 0), then runs its photo

@@ -17,7 +17,7 @@ import numpy as np
 
 from .georef import ALTITUDE_REFS, GeoFrame  # noqa: F401
 from ..flight import estimate, sortie_planner
-from ..flight_time import VIEW, FlightModel
+from ..flight_time import TARGETS, VIEW, FlightModel, timed_files
 from ..run_report import update_flight_section
 from ..limits import is_number
 from ..locks import pid_alive
@@ -133,10 +133,10 @@ def _check_speed(v: float, climb: float) -> None:
         )
 
 
-def _planner(run_dir, model: FlightModel, need_all_returns: bool, occ_map=None):
+def _planner(run_dir, model: FlightModel, need_all_returns: bool, occ_map=None, files=TARGETS):
     """The flight of a run folder and its SortiePlanner (nbvkit.flight.sortie_planner)."""
     fl = read_run(run_dir)
-    return fl, sortie_planner(fl, model, need_all_returns, occ_map)
+    return fl, sortie_planner(fl, model, need_all_returns, occ_map, files)
 
 
 def estimate_flight(run_dir, speed=5.0, climb_rate=2.0, hover_s=2.0, occ_map=None) -> dict:
@@ -273,7 +273,7 @@ def export_mission(
     check_output_dir(out, "output folder", whole_folder=True)  # before the work (a file, a mount)
     check_export_dir(out)  # not among a run's files (--overwrite then refused the run)
 
-    fl, sp = _planner(run, model, need_all_returns=split)
+    fl, sp = _planner(run, model, split, files=timed_files(fmts))
     whole = sp.whole()
     sorties, unreachable, budget = [whole], [], None
     if split:
