@@ -344,3 +344,15 @@ def test_a_scenarios_preset_is_checked_naming_the_scenario_and_key(monkeypatch, 
         default = default[part]
     fix = f"{key}={3 if default is None else default}"
     assert load_config(overrides=["scenario=audit_bad", fix]).scenario == "audit_bad"
+
+
+def test_a_path_object_is_taken_for_a_path_key(tmp_path):
+    """load_config takes a pathlib.Path, but mesh.path refused one ("must be a string, got
+    PosixPath"): a path object is its text; anything else not a string is still refused."""
+    from pathlib import Path
+
+    mesh = tmp_path / "m.obj"
+    assert Config.from_dict({"mesh": {"path": mesh}}).mesh.path == str(mesh)
+    assert Config().with_overrides([f"mesh.path={mesh}"]).mesh.path == str(Path(mesh))
+    with pytest.raises(ValueError, match="'mesh.path' must be a string, got"):
+        Config.from_dict({"mesh": {"path": [str(mesh)]}})

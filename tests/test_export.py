@@ -1850,6 +1850,28 @@ def test_an_export_removes_only_the_files_an_export_writes(run_dir, tmp_path):
     assert (out / "mission.plan").exists()
 
 
+def test_an_export_keeps_files_behind_a_link_and_reads_no_list_from_a_foreign_json(
+    run_dir, tmp_path
+):
+    """A listed name reached through a link out of the folder (colmap/ a link to the user's
+    folder) was removed there, then the export failed; an export.json that is not an object
+    with a list of files (a list, "files": 5) made the export fail after its files were made."""
+    out, mine = tmp_path / "ex", tmp_path / "mine"
+    export_mission(run_dir, "csv,colmap", ORIGIN, HEADING, out)
+    mine.mkdir()
+    (mine / "images.txt").write_text("precious")
+    for f in (out / "colmap").iterdir():
+        f.unlink()
+    (out / "colmap").rmdir()
+    (out / "colmap").symlink_to(mine, target_is_directory=True)
+    export_mission(run_dir, "csv", ORIGIN, HEADING, out)
+    assert (mine / "images.txt").read_text() == "precious" and (out / "colmap").is_symlink()
+    for foreign in ("[1, 2]", '{"files": 5}', '{"files": ["mission.csv", 7]}'):
+        (out / "export.json").write_text(foreign)
+        s = export_mission(run_dir, "qgc", ORIGIN, HEADING, out)
+        assert "mission.plan" in s["files"] and (out / "mission.plan").exists()
+
+
 def test_dji_headings_turn_the_camera_of_a_yawed_mount_where_the_run_looked(tmp_path):
     """A camera yawed 45 deg on its mount: the DJI aircraft, whose camera faces forward, faces
     where the run's camera looked (waypointHeadingAngle and aircraftHeading), from the run's

@@ -756,6 +756,22 @@ def test_nbvkit_run_stopped_says_where_what_it_flew_is(tmp_path, stopping_part, 
     assert s["stopped_by"].startswith(named)  # a kill is not recorded as a Ctrl-C
 
 
+def test_nbvkit_run_stopped_by_a_parts_exit_names_it(tmp_path, stopping_part):
+    """A part's sys.exit(3) during `nbvkit run`: the console's "flight stopped" line names it
+    (the command prints no error line below for an exit: a line pointing "below" left the
+    cause unsaid), what was flown is saved, and the process exits 3."""
+    import subprocess
+
+    out = tmp_path / "run"
+    argv = ["run", "--plugin", str(stopping_part), "--out", str(out), "--set", *_stopping("exit")]
+    p = subprocess.run([sys.executable, "-m", "nbvkit.cli", *argv], capture_output=True,
+                       text=True, timeout=300, env=dict(os.environ, MPLBACKEND="Agg"))  # fmt: skip
+    assert p.returncode == 3, (p.returncode, p.stderr)
+    assert re.search(r"the flight stopped after .*\(SystemExit: 3; plugin file .*stopping_part",
+                     p.stderr), p.stderr  # fmt: skip
+    assert is_complete_run(out)
+
+
 def test_a_script_killed_keeps_what_it_flew(tmp_path, stopping_part):
     """A script's Mission.run(out) stopped by a `kill` (SIGTERM: a batch scheduler's time
     limit) keeps what was flown, as `nbvkit run` does (it lost the whole flight: the default

@@ -695,3 +695,34 @@ def test_a_laser_beam_count_past_its_limit_shows_the_numbers_given(cube_obj):
     scene = nbvkit.RaycastScene(nbvkit.load_mesh(cube_obj))
     with pytest.raises(ValueError, match=r"resolution_deg = 1e-09 gives more than 1000000 beams"):
         nbvkit.LaserScanner(scene, resolution_deg=1e-9)
+
+
+def test_candidate_rays_past_half_the_memory_it_may_use_is_refused():
+    """candidate_rays (what a Python utility scores) laid out every cell of every candidate
+    without a bound: 12,000 views of a 0.1 m map passed 4 GB. Past half the memory the process
+    may use (here a 1.5 GiB address-space limit: 8.8 M cells at 91 bytes) it is refused with
+    the count; just below it, it is laid out whole."""
+    script = textwrap.dedent(
+        """
+        import resource, sys
+        resource.setrlimit(resource.RLIMIT_AS, (3 << 29, 3 << 29))
+        import numpy as np
+        from conftest import seen_box_world
+        from nbvkit import _core
+        w = seen_box_world()
+        p = w.state.pose
+        each = _core.candidate_rays(w.map, p[None, :], p, camera=w.view_camera).num_cells
+        cap = (3 << 29) // 2 // 91
+        fits = _core.candidate_rays(w.map, np.tile(p, (cap // each, 1)), p, camera=w.view_camera)
+        assert fits.num_cells == each * (cap // each) <= cap
+        try:
+            _core.candidate_rays(w.map, np.tile(p, (cap // each + 1, 1)), p, camera=w.view_camera)
+        except ValueError as e:
+            print(e)
+        """
+    )
+    tests = str(Path(__file__).parent)
+    p = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True,
+                       timeout=120, env=dict(os.environ, PYTHONPATH=tests))  # fmt: skip
+    assert p.returncode == 0, p.stderr
+    assert "rays reach more than 8849520 cells (0.7 GiB, half the memory" in p.stdout, p.stdout

@@ -101,6 +101,10 @@ def test_prize_collecting_drops_views_that_do_not_pay_for_their_detour():
         prize_collect(start, far, g[:3], [0, 1, 2], rate=1.0)
     with pytest.raises(ValueError, match="order indexes past"):
         prize_collect(start, far, g, [0, 5], rate=1.0)
+    with pytest.raises(ValueError, match="order lists point 0 twice"):  # it kept [0, 0]
+        prize_collect(start, far, g, [0, 0], rate=1.0)
+    with pytest.raises(ValueError, match="zero vector"):  # a direction bin of no direction
+        _core.direction_bin([0.0, 0.0, 0.0])
     with pytest.raises(ValueError, match="gains must be finite"):
         prize_collect(start, far, [5.0, np.nan, 4, 4, 4], [0, 1], rate=1.0)
     with pytest.raises(ValueError, match="rate must be finite"):

@@ -286,8 +286,14 @@ surface utility credits no view for a saturated cell and surface_targets leaves 
           "16 a + 4 u + v for the square (u, v) of the cell seen along axis a (quarters of the "
           "cell along the other two axes, in increasing order).");
   m.def(
-      "direction_bin", [](const py::handle& d) { return direction_bin(vec3_arg(d, "direction")); },
-      py::arg("direction"), "The direction bin (0..25) of a vector.");
+      "direction_bin",
+      [](const py::handle& d) {
+        const Eigen::Vector3d v = vec3_arg(d, "direction");
+        if (v.isZero(0.0))  // (it has none: it was given bin 12)
+          throw py::value_error("direction must not be the zero vector");
+        return direction_bin(v);
+      },
+      py::arg("direction"), "The direction bin (0..25) of a nonzero vector.");
   m.def("bin_direction", &bin_direction, py::arg("bin"), "Unit vector of a direction bin.");
   m.def("bin_cone", &bin_cone, py::arg("bin"), py::arg("cone_deg"),
         "Bitmask of the bins within cone_deg of a bin.");

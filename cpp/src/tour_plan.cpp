@@ -123,9 +123,14 @@ std::vector<int> prize_collect(const Eigen::Vector3d& start, const PointsRef& po
                                double rate) {
   if (gains.size() != static_cast<std::size_t>(points.rows()))
     throw std::invalid_argument("prize_collect: one gain per point");
-  for (int k : order)
+  std::vector<char> listed(static_cast<std::size_t>(points.rows()), 0);
+  for (int k : order) {
     if (k < 0 || k >= points.rows())
       throw std::invalid_argument("prize_collect: order indexes past the points");
+    if (listed[std::size_t(k)]++)  // (a tour visits a point once: [0, 0] was kept twice)
+      throw std::invalid_argument("prize_collect: order lists point " + std::to_string(k) +
+                                  " twice");
+  }
   for (double g : gains)
     if (!std::isfinite(g)) throw std::invalid_argument("prize_collect: gains must be finite");
   if (!(rate > 0)) return order;

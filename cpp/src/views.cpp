@@ -5,6 +5,9 @@
 #include "nbv/parallel.hpp"
 #include "view_kernel.hpp"
 
+#include <sys/resource.h>
+#include <unistd.h>
+
 #include <algorithm>
 #include <atomic>
 #include <cmath>
@@ -415,6 +418,14 @@ int entry_axis(const GridView& g, const Eigen::Vector3d& o, const Eigen::Vector3
 
 }  // namespace
 
+std::size_t max_candidate_cells() {
+  double bytes = double(sysconf(_SC_PHYS_PAGES)) * double(sysconf(_SC_PAGESIZE));
+  rlimit limit{};
+  if (getrlimit(RLIMIT_AS, &limit) == 0 && limit.rlim_cur != RLIM_INFINITY)
+    bytes = std::min(bytes, double(limit.rlim_cur));
+  return std::size_t(std::max(bytes, 0.0) / 2 / kCandidateCellBytes);
+}
+
 CandidateRays candidate_rays(const GridView& g, const Candidates& cand, const Pose& current,
                              const ViewCameraModel& camera, const UtilityOptions& utility,
                              const ValidityOptions& validity) {
@@ -430,7 +441,8 @@ CandidateRays candidate_rays(const GridView& g, const Candidates& cand, const Po
   const Eigen::Vector3d here(current.x, current.y, current.z);
   const bool check_segment = validity.blocked_path == "reject";
   std::vector<std::vector<Reached>> reached(static_cast<std::size_t>(K));
-  std::atomic<std::size_t> total{0};  // cells reached so far: kMaxCandidateCells at most
+  std::atomic<std::size_t> total{0};  // cells reached so far: max_cells at most
+  const std::size_t max_cells = max_candidate_cells();
 
   // The walks: every ray of each valid view, as evaluate_views walks them (walk_ray<false>
   // visits the cells the ig utility's four-lane walk marks, in order).
@@ -447,13 +459,13 @@ CandidateRays candidate_rays(const GridView& g, const Candidates& cand, const Po
       if (st != ViewStatus::Valid) continue;
       const Eigen::Isometry3d T = gimbal_sensor_transform(pose, camera.mount);
       const int occ = walk_view(g, dirs, T, camera.max_range, occ_req, slots, rec);
-      if (total.fetch_add(rec.size()) + rec.size() > kMaxCandidateCells)
+      if (total.fetch_add(rec.size()) + rec.size() > max_cells)
         throw std::length_error(
             "candidate_rays: the " + std::to_string(K) + " candidates' rays reach more than " +
-            std::to_string(kMaxCandidateCells) + " cells (about " +
-            fmt(std::round(double(kMaxCandidateCells * kCandidateCellBytes) / (1 << 30) * 10) /
-                10) +
-            " GiB): give fewer candidates at a time (or a coarser map or camera)");
+            std::to_string(max_cells) + " cells (" +
+            fmt(std::round(double(max_cells * kCandidateCellBytes) / (1 << 30) * 10) / 10) +
+            " GiB, half the memory this process may use): give fewer candidates at a time (or "
+            "a coarser map or camera)");
       reached[kk].assign(rec.begin(), rec.end());
       out.occupied_seen[k] = occ;
       if (utility.require_occupied && occ == 0)

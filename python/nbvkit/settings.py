@@ -15,6 +15,7 @@ from __future__ import annotations
 import functools
 import math
 import numbers
+import os
 import sys
 import types
 import typing
@@ -239,6 +240,8 @@ def coerce(tp, value, key):
     if tp is str:
         if is_number(value):
             return str(value)  # e.g. scenario: 5
+        if isinstance(value, os.PathLike):  # a pathlib.Path (mesh.path), as load_config takes
+            value = os.fspath(value)
         if not isinstance(value, str):
             raise ValueError(f"config key {key!r} must be a string, got {shorten(value)}")
         return value

@@ -296,10 +296,11 @@ struct CandidateRays {
   }
 };
 
-/// The most cells candidate_rays returns in one call, and the bytes each takes (its arrays
-/// and the walk's record): 32 M cells, about 2.8 GiB (12,000 views of a 0.1 m map asked for
-/// over 4 GB without a word).
-constexpr std::size_t kMaxCandidateCells = std::size_t(32) << 20, kCandidateCellBytes = 91;
+/// The most cells candidate_rays returns in one call: half the memory this process may use (the
+/// machine's, or its address-space limit where lower), at kCandidateCellBytes a cell (its arrays
+/// and the walk's record). 12,000 views of a 0.1 m map, 0.33 MB each, had no bound.
+std::size_t max_candidate_cells();
+constexpr std::size_t kCandidateCellBytes = 91;
 
 /// Walks the camera rays of K candidate views (rows as evaluate_views' candidates) exactly as
 /// evaluate_views does - the same rays (camera.directions() on the gimbal), each ending at its
@@ -309,7 +310,7 @@ constexpr std::size_t kMaxCandidateCells = std::size_t(32) << 20, kCandidateCell
 /// threads. Validity and status as evaluate_views's; of `utility` only require_occupied and
 /// require_occupied_probability are read (they decide SeesNoOccupied and occupied_seen).
 /// Throws std::invalid_argument for non-finite candidates, a pitch beyond +-pi/2, or bad
-/// options; std::length_error once their cells pass kMaxCandidateCells (its memory bound).
+/// options; std::length_error once their cells pass max_candidate_cells() (a memory bound).
 CandidateRays candidate_rays(const GridView& grid, const ViewPosesRef& candidates,
                              const Pose& current, const ViewCameraModel& camera,
                              const UtilityOptions& utility, const ValidityOptions& validity);

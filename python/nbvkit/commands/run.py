@@ -141,10 +141,12 @@ def run(args) -> int:
             "the end-of-run outputs (mesh.ply, report.html)",
             file=sys.stderr,
         )
-    elif stop is not None:
+    elif stop is not None:  # the error line (with its notes) follows: a SystemExit's does not
+        shown = isinstance(stop, (Exception, KeyboardInterrupt))
+        why = f"by the {type(stop).__name__} below" if shown else s["stopped_by"]
         print(
             f"nbvkit run: the flight stopped after {flown(s)}, {s['distance_m']:.1f} m "
-            f"(by the {type(stop).__name__} below); what it flew is saved in {out}/",
+            f"({why}); what it flew is saved in {out}/",
             file=sys.stderr,
         )
     raise_stop(s, stop)

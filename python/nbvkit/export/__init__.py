@@ -348,7 +348,7 @@ def _write_into(out: Path, summary: dict, fl, sorties, frame, model, dji, budget
         summary["warnings"] += items.item_warnings(summary["mission_items"])
         summary["out"] = str(out)
         (tmp / "export.json").write_text(json.dumps(summary, indent=2, allow_nan=False) + "\n")
-        _move_into_place(tmp, out, files)
+        plan.move_into_place(tmp, out, files)
     except BaseException:
         shutil.rmtree(tmp, ignore_errors=True)
         raise
@@ -473,28 +473,3 @@ def _write_sortie_table(path: Path, summary: dict) -> None:
         w.writerow(cols)
         for s in summary["sorties"]:
             w.writerow([s[c] for c in cols])
-
-
-def _move_into_place(tmp: Path, out: Path, files: list) -> None:
-    """Moves the finished export from tmp to out: a rename, or the previous export's files there
-    (export.json's list, of plan.EXPORT_FILE's names) removed and the new ones moved in."""
-    if not out.exists():
-        out.parent.mkdir(parents=True, exist_ok=True)
-        os.rename(tmp, out)
-        return
-    old = out / "export.json"
-    if old.is_file():
-        try:
-            previous = json.loads(old.read_text()).get("files", [])
-        except (ValueError, OSError):
-            previous = []
-        for name in previous:  # (not a file of the user's a list of any export.json names)
-            if name not in files and plan.EXPORT_FILE.fullmatch(str(name)):
-                (out / name).unlink(missing_ok=True)
-        if (out / "colmap").is_dir() and not any((out / "colmap").iterdir()):
-            (out / "colmap").rmdir()  # (colmap not exported again)
-    for name in files:
-        dst = out / name
-        dst.parent.mkdir(parents=True, exist_ok=True)
-        os.replace(tmp / name, dst)
-    shutil.rmtree(tmp, ignore_errors=True)

@@ -61,9 +61,10 @@ def left_out_warnings(unreachable: list) -> list:
     mission that does not take every photo the run planned is not the run's coverage."""
     if not unreachable:
         return []
-    n, views = len(unreachable), sum(u["capture"] == "view" for u in unreachable)
+    n = len(unreachable)
+    views, frames = (sum(u["capture"] == c for u in unreachable) for c in ("view", "frame"))
     return [
-        f"{n} point{'s' if n > 1 else ''} of the flight ({views} view{'' if views == 1 else 's'})"
-        " left out of every sortie: a battery (--flight-time) or --max-items too small for them"
-        " (export.json: unreachable)"
+        f"{n} point{'s' if n > 1 else ''} of the flight ({views} view{'' if views == 1 else 's'}"
+        f", {frames} frame{'' if frames == 1 else 's'} in flight) left out of every sortie: a "
+        "battery (--flight-time) or --max-items too small for them (export.json: unreachable)"
     ]

@@ -1,11 +1,15 @@
 """A run folder's flight (read_run: flight.csv, summary.json, config.yaml, map.ot), for the
 flight-time model of nbvkit.flight_time, the launch point and ways home of nbvkit.flight_home
-and the sorties of nbvkit.flight (whose names are importable from here too).
+and the sorties of nbvkit.flight (whose names are importable from here too); the names of the
+files an export writes, and how it puts them in place (move_into_place).
 """
 from __future__ import annotations
 
 import csv
+import json
+import os
 import re
+import shutil
 from pathlib import Path
 
 from ..flight import Sortie, SortiePlanner, Waypoint, simplify, sortie_planner  # noqa: F401
@@ -67,3 +71,31 @@ def sortie_names(numbers) -> list:
     flight order (sortie_100 came between sortie_10 and sortie_11)."""
     width = max(2, len(str(max(numbers, default=0))))
     return [f"sortie_{n:0{width}d}" for n in numbers]
+
+
+def move_into_place(tmp: Path, out: Path, files: list) -> None:
+    """Moves the finished export from tmp to out: a rename, or the previous export's files there
+    (export.json's list, of EXPORT_FILE's names) removed and the new ones moved in."""
+    if not out.exists():
+        out.parent.mkdir(parents=True, exist_ok=True)
+        os.rename(tmp, out)
+        return
+    old = out / "export.json"
+    if old.is_file():
+        try:
+            previous = json.loads(old.read_text()).get("files", [])
+        except (ValueError, OSError, AttributeError):  # (not an export's: no list)
+            previous = []
+        for name in previous if isinstance(previous, list) else []:
+            p = out / str(name)  # an export's own name, a file within out: not the user's
+            if name not in files and EXPORT_FILE.fullmatch(str(name)) and p.is_file():
+                if out.resolve() in p.resolve().parents:  # (not through a link out of it)
+                    p.unlink()
+        if (out / "colmap").is_dir() and not (out / "colmap").is_symlink():
+            if not any((out / "colmap").iterdir()):
+                (out / "colmap").rmdir()  # (colmap not exported again)
+    for name in files:
+        dst = out / name
+        dst.parent.mkdir(parents=True, exist_ok=True)
+        os.replace(tmp / name, dst)
+    shutil.rmtree(tmp, ignore_errors=True)
