@@ -2335,3 +2335,19 @@ def test_the_cli_refuses_a_reserve_without_a_battery_and_counts_the_photos(run_d
     assert [ln.split()[:3] for ln in rows] == [
         [str(r["sortie"]), str(r["views"]), str(r["frames"])] for r in s["sorties"]
     ]
+
+
+def test_the_export_commands_defaults_are_export_missions():
+    """`nbvkit export`'s options default to export_mission's own values (they had been said a
+    second time in the command, where one could drift from the other)."""
+    import inspect
+
+    from nbvkit.cli import build_parser
+    from nbvkit.export import export_mission
+
+    args = build_parser().parse_args(["export", "RUN", "--origin", "47", "8", "400"])
+    d = {k: v.default for k, v in inspect.signature(export_mission).parameters.items()}
+    assert args.format.split(",") == list(d["formats"])
+    got = (args.altitude_ref, args.heading, args.speed, args.climb_rate, args.hover)
+    assert got == (d["altitude_ref"], d["heading_deg"], d["speed"], d["climb_rate"], d["hover_s"])
+    assert args.photo_first == d["photo_first"] and args.reserve is None  # (d's when flown)

@@ -1175,7 +1175,7 @@ def test_an_interrupt_after_the_flight_was_written_says_it_was_not_saved(tmp_pat
     place drops them, as it must (the run did not finish): the exception now says so."""
     with pytest.raises(KeyboardInterrupt) as e:
         with RunFolder(tmp_path / "run") as folder:
-            folder.saving([1, 2], None)
+            folder.saving(2, None)
             (folder.tmp / "summary.json").write_text("{}")
             raise KeyboardInterrupt
     assert "the flight (2 iterations) was not saved" in e.value.__notes__

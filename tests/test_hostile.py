@@ -687,6 +687,10 @@ def test_the_workspace_and_the_vehicles_pose_cannot_be_written_in_place():
     for bad in (float("nan"), float("inf"), "3"):
         with pytest.raises(ValueError, match="distance_m must be a finite number"):
             s.distance_m = bad
+    with pytest.raises(ValueError, match="real numbers, got complex"):  # (not its real part)
+        s.pose = np.ones(5) + 1j
+    with pytest.raises(ValueError, match="real numbers, got complex"):
+        Workspace(np.zeros(3) + 2j, np.ones(3), np.zeros(3), np.ones(3))
 
 
 def test_a_laser_beam_count_past_its_limit_shows_the_numbers_given(cube_obj):

@@ -106,6 +106,9 @@ def main(argv: list[str] | None = None) -> int:
         return 2
 
 
+#: What main prints after a command's own lines (the except clauses above; a SystemExit's code is
+#: printed by no one): a command's line about its stop points at it, or else says the stop itself.
+PRINTED = (KeyboardInterrupt, Exception)
 #: the errors a command reports in one line (bad input, a missing file, a failed write); also
 #: a planner part's broken contract (PartContractError) and any exception a part raised
 _CLEAN = (FileNotFoundError, ValueError, KeyError, RuntimeError, OSError)

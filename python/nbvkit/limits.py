@@ -29,6 +29,7 @@ __all__ = [
     "fmt_number",
     "is_bool",
     "is_number",
+    "read_only",
     "require_bool",
     "require_config",
     "require_type",
@@ -107,6 +108,17 @@ def is_number(x) -> bool:
     """Whether x is a real number: an int or a float, numpy's too; not a bool (True is no 1 in
     a file or an argument; numpy's bool is no number either), not a string."""
     return isinstance(x, numbers.Real) and not isinstance(x, bool)
+
+
+def read_only(values, dtype=float) -> np.ndarray:
+    """A read-only copy of `values` as a C-ordered array of `dtype`: state nbvkit hands to parts
+    (a plugin's generator, a caller's points) that they must not write into. A complex array is
+    refused, not cut to its real part (NumPy keeps the real part with only a warning)."""
+    if np.iscomplexobj(values):
+        raise ValueError("the values must be real numbers, got complex")
+    a = np.array(values, dtype, order="C")
+    a.flags.writeable = False
+    return a
 
 
 def fmt_number(x) -> str:

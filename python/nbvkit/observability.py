@@ -51,7 +51,7 @@ import numpy as np
 
 from . import _core
 from .output_paths import check_output_dir
-from .limits import Bound, require_config, require_type
+from .limits import Bound, read_only, require_config, require_type
 from .work_limits import pose_spacing
 from .locks import FileLock
 from .sensors import build_camera
@@ -245,8 +245,7 @@ def observable_surface(
     else:  # a copy: the result must not change with the caller's array
         if np.iscomplexobj(points):  # (the real parts were kept, with only a warning)
             raise ValueError("points must be real numbers, got complex")
-        points = np.array(points, np.float64, order="C")
-        points.flags.writeable = False
+        points = read_only(points, np.float64)
     if points.ndim != 2 or points.shape[1] != 3:
         raise ValueError(f"points must be (N, 3), got {points.shape}")
     if face_ids is not None:

@@ -476,13 +476,13 @@ def _fly_into(mission, folder: RunFolder, finish: bool) -> tuple[dict, BaseExcep
         why = stop_kind(e)
         rec._say(why, e, "saving what was flown")
         folder.partial = True  # (beside a complete run an overwrite keeps)
-        folder.saving(rec.records, rec.checkpoint_iterations)
+        folder.saving(len(rec.records), rec.checkpoint_iterations)
         return rec.write(out, rec.stopped_flight(e)), e
     finally:
         _CHECKPOINTS.reset(token)
     # stopped during the end-of-run outputs, the whole flight is kept without them
     rec = mission.recorder
-    folder.saving(rec.records, rec.checkpoint_iterations)
+    folder.saving(len(rec.records), rec.checkpoint_iterations)
     summary, e = rec.write_keeping(out, summary, finish=finish)
     folder.partial = e is not None
     return summary, e

@@ -316,12 +316,11 @@ class RunFolder:
         finally:
             self._lock.release()
 
-    def saving(self, records: list, checkpoint: int | None) -> None:
-        """A flight of `records` (its views) is being saved into this folder: an error (a full
-        disk), an interrupt or an exit that stops it from here until the folder is in place
+    def saving(self, n: int, checkpoint: int | None) -> None:
+        """A flight of `n` iterations (its views) is being saved into this folder: an error (a
+        full disk), an interrupt or an exit that stops it from here until the folder is in place
         notes the flight lost (__exit__), and what the folder holds instead (`checkpoint`: its
         last checkpoint's views; None: none), whose summary reads as killed."""
-        n = len(records)
         text = f"the flight ({n} iteration{'' if n == 1 else 's'}) was not saved"
         if checkpoint is not None and self.placed is not None:
             text += (

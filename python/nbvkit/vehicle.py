@@ -7,7 +7,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .limits import is_number
+from .limits import is_number, read_only
 
 
 #: The columns of VehicleState.flight (and of a run's flight.csv).
@@ -71,8 +71,7 @@ class VehicleState:
         """The pose is kept read-only (a part that wrote into it moved the vehicle without a
         flight; World.fly_to moves it) and the distance a finite number of metres."""
         if name == "pose":
-            value = np.array(value, float)
-            value.flags.writeable = False
+            value = read_only(value)
         elif name == "distance_m" and not (is_number(value) and math.isfinite(value)):
             raise ValueError(f"distance_m must be a finite number of metres, got {value!r}")
         super().__setattr__(name, value)

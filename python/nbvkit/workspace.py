@@ -8,6 +8,7 @@ from typing import Optional
 
 import numpy as np
 
+from .limits import read_only
 from .settings import nonneg, triple
 from .work_limits import units_hint
 
@@ -74,9 +75,7 @@ class Workspace:
         generator) moved the workspace under the mission, whose summary then held a box
         nbvkit's own reader refuses."""
         for name in ("bounds_min", "bounds_max", "nav_min", "nav_max"):
-            a = np.array(getattr(self, name), float)
-            a.flags.writeable = False
-            object.__setattr__(self, name, a)
+            object.__setattr__(self, name, read_only(getattr(self, name)))
 
     @property
     def structure_nav_max(self) -> np.ndarray:

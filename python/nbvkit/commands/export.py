@@ -16,9 +16,19 @@ FIRMWARE_FILES = {
 }
 
 
+def defaults() -> dict:
+    """export_mission's defaults by parameter: the options' defaults, said once."""
+    import inspect
+
+    from ..export import export_mission
+
+    return {k: v.default for k, v in inspect.signature(export_mission).parameters.items()}
+
+
 def register(sub) -> argparse.ArgumentParser:
     from ..export import FORMATS
 
+    d = defaults()
     p = sub.add_parser(
         "export",
         help="write a run's flight as QGroundControl/ArduPilot/DJI missions, KML, GeoJSON, CSV "
@@ -34,9 +44,10 @@ def register(sub) -> argparse.ArgumentParser:
     p.add_argument("run_dir", metavar="RUN_DIR", help="a run folder of `nbvkit run`")
     p.add_argument(
         "--format",
-        default="qgc",
+        default=",".join(d["formats"]),
         metavar="FORMAT[,FORMAT...]",
-        help=f"any of {', '.join(FORMATS)} (default qgc: a .plan for PX4 and a QGC WPL 110 "
+        help=f"any of {', '.join(FORMATS)} (default {','.join(d['formats'])}; qgc: a .plan for "
+        "PX4 and a QGC WPL 110 "
         ".waypoints for ArduPilot 4.4 or later, which runs IMAGE_START_CAPTURE in missions; "
         "wpml: a DJI .kmz route)",
     )
@@ -52,48 +63,51 @@ def register(sub) -> argparse.ArgumentParser:
     p.add_argument(
         "--altitude-ref",
         choices=("amsl", "ellipsoid"),
-        default="amsl",
-        help="what ALT is measured from: mean sea level or the WGS84 ellipsoid (default amsl)",
+        default=d["altitude_ref"],
+        help="what ALT is measured from: mean sea level or the WGS84 ellipsoid (default "
+        f"{d['altitude_ref']})",
     )
     p.add_argument(
         "--heading",
         type=float,
-        default=0.0,
+        default=d["heading_deg"],
         metavar="DEG",
         help="bearing of the mesh's +x axis, degrees clockwise from true north, within "
-        "[-360, 360] (default 0: +x north, +y west; 90 for a mesh in East-North-Up, +x east)",
+        f"[-360, 360] (default {d['heading_deg']:g}; 0: +x north, +y west; 90 for a mesh in "
+        "East-North-Up, +x east)",
     )
     p.add_argument(
         "--speed",
         type=float,
-        default=5.0,
+        default=d["speed"],
         metavar="M_S",
-        help="cruise speed (default 5, at most 15: DJI WPML's limit, see docs/EXPORT.md)",
+        help=f"cruise speed (default {d['speed']:g}, at most 15: DJI WPML's limit, see "
+        "docs/EXPORT.md)",
     )
     p.add_argument(
         "--climb-rate",
         type=float,
-        default=2.0,
+        default=d["climb_rate"],
         metavar="M_S",
-        help="climb rate (default 2, at most 10); descents at most 1.5",
+        help=f"climb rate (default {d['climb_rate']:g}, at most 10); descents at most 1.5",
     )
     p.add_argument(
         "--hover",
         type=float,
-        default=2.0,
+        default=d["hover_s"],
         metavar="S",
         help="hover per view: a settle of 1 s (always, even with --hover 0), the photo, the "
-        "rest (default 2 s)",
+        f"rest (default {d['hover_s']:g} s)",
     )
-    _add_split_options(p)
-    _add_photo_options(p)
+    _add_split_options(p, d)
+    _add_photo_options(p, d)
     p.add_argument(
         "--out", metavar="DIR", type=path_arg, default=None, help="output folder (RUN_DIR/export)"
     )
     return p
 
 
-def _add_photo_options(p) -> None:
+def _add_photo_options(p, d: dict) -> None:
     """The options that name the flight's photos (the COLMAP images)."""
     p.add_argument(
         "--photo-names",
@@ -106,13 +120,14 @@ def _add_photo_options(p) -> None:
     p.add_argument(
         "--photo-first",
         type=int,
-        default=1,
+        default=d["photo_first"],
         metavar="N",
-        help="the number of the flight's first photo in --photo-names (default 1)",
+        help="the number of the flight's first photo in --photo-names (default "
+        f"{d['photo_first']})",
     )
 
 
-def _add_split_options(p) -> None:
+def _add_split_options(p, d: dict) -> None:
     """The options that split the flight into sorties: a battery, a mission size."""
     p.add_argument(
         "--flight-time",
@@ -126,7 +141,8 @@ def _add_split_options(p) -> None:
         type=float,
         default=None,
         metavar="PCT",
-        help="battery reserve kept unused, percent of --flight-time (default 20)",
+        help="battery reserve kept unused, percent of --flight-time (default "
+        f"{d['reserve_pct']:g})",
     )
     p.add_argument(
         "--max-items",
@@ -153,7 +169,7 @@ def run(args) -> int:
         climb_rate=args.climb_rate,
         hover_s=args.hover,
         flight_time_min=args.flight_time,
-        reserve_pct=20.0 if args.reserve is None else args.reserve,
+        reserve_pct=defaults()["reserve_pct"] if args.reserve is None else args.reserve,
         max_items=args.max_items,
         altitude_ref=args.altitude_ref,
         photo_names=args.photo_names,

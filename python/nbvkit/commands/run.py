@@ -142,7 +142,9 @@ def run(args) -> int:
             file=sys.stderr,
         )
     elif stop is not None:  # the error line (with its notes) follows: a SystemExit's does not
-        shown = isinstance(stop, (Exception, KeyboardInterrupt))
+        from ..cli import PRINTED
+
+        shown = isinstance(stop, PRINTED)
         why = f"by the {type(stop).__name__} below" if shown else s["stopped_by"]
         print(
             f"nbvkit run: the flight stopped after {flown(s)}, {s['distance_m']:.1f} m "
