@@ -1,6 +1,7 @@
 """PointCloud (incremental voxel-grid filter, ground removal, crop) and PLY / PCD / NPY files."""
 from __future__ import annotations
 
+import os
 import struct
 
 import numpy as np
@@ -289,6 +290,15 @@ def test_round_trip(tmp_path, name, kw, exact):
     else:  # float32: ~1e-4 m at 2 km from the origin
         np.testing.assert_allclose(back, pts, rtol=1e-7, atol=0)
     assert [p.name for p in tmp_path.iterdir()] == [name]
+
+
+def test_a_path_as_bytes_is_written_and_read_as_load_mesh_takes_it(tmp_path):
+    """Paths as bytes (os.fsencode's, not UTF-8 too) are taken by load_mesh and read_points;
+    write_points had refused them with a TypeError."""
+    pts = sample_points()
+    path = os.fsencode(tmp_path / "z.ply")
+    write_points(path, pts)
+    np.testing.assert_array_equal(read_points(path), pts)
 
 
 @pytest.mark.parametrize("name", ["e.ply", "e.pcd", "e.npy"])

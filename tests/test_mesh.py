@@ -393,7 +393,7 @@ def test_bad_arrays_and_arguments(tmp_path):
     p.write_text("v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n")
     with pytest.raises(ValueError, match="up axis"):
         nbvkit.load_mesh(p, up="x")
-    for s in (0, -1, float("nan"), float("inf")):
+    for s in (0, -1, float("nan"), float("inf"), "2", True):  # (a string's '2' was read as 2)
         with pytest.raises(ValueError, match="scale"):
             nbvkit.load_mesh(p, scale=s)
     with pytest.raises(ValueError, match=">= 0"):

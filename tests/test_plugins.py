@@ -136,6 +136,11 @@ def test_registering_checks_the_name(parts):
     with pytest.raises(ValueError, match="a generator named 'ring' is registered") as e:
         registry.register_termination("ring", DistanceCap)
     assert "replace=True" not in str(e.value)
+    # a name that differs from a registered one only in case ("IG" beside the C++ "ig")
+    with pytest.raises(ValueError, match="'IG' differs only in case from 'ig'"):
+        registry.register_utility("IG", lambda rays: np.zeros(rays.num_candidates))
+    with pytest.raises(ValueError, match="'Ring' differs only in case from 'ring'"):
+        registry.register_termination("Ring", DistanceCap)
 
 
 def test_the_configuration_module_names_no_part():
@@ -503,7 +508,7 @@ class _Stop:
 
 @pytest.mark.parametrize(
     "reason",
-    [True, False, 1, np.bool_(True), {"a": 1}, "", "  ", "stop\n| injected | row |"],
+    [True, False, 1, np.bool_(True), {"a": 1}, "", "  ", "stop\n| injected | row |", "x" * 201],
     ids=repr,
 )
 def test_a_termination_returns_a_reason_or_none(reason):
@@ -921,6 +926,8 @@ def test_a_stop_reason_is_a_str_or_none():
     done = type("Done", (RingGenerator,), {"propose": lambda self, w: None})
     with pytest.raises(TypeError, match="generator 'hostile': its stop_reason is True"):
         _fly(generator=type("G", (done,), {"stop_reason": True}))
+    with pytest.raises(TypeError, match=r"its stop_reason is 'xxx.*at most 200 characters"):
+        _fly(generator=type("G", (done,), {"stop_reason": "x" * 10**7}))  # (quoted short)
     m, s = _fly(generator=type("G", (done,), {"stop_reason": "ring_unreachable"}))
     assert s["termination"] == "ring_unreachable"
 

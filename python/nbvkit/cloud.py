@@ -183,7 +183,7 @@ def write_points(path, points, ascii: bool = False, dtype=None) -> None:
 
     Raises ValueError for a bad shape, NaN/inf points or an unknown extension.
     """
-    path = Path(os.fspath(path)).expanduser()
+    path = Path(os.fsdecode(path)).expanduser()
     suffix = path.suffix.lower()
     if suffix not in _SUFFIXES:
         raise ValueError(

@@ -16,7 +16,7 @@ import numpy as np
 from . import _core
 from ._core import Mesh
 from ._open3d import open3d
-from .limits import MAX_DATA_FILE_BYTES, check_input_file, require_type
+from .limits import MAX_DATA_FILE_BYTES, check_input_file, is_number, require_type
 from .settings import choice, positive, triple
 
 _UP = {"z": "z", "y": "y", "Z": "z", "Y": "y", "auto": "auto"}
@@ -78,10 +78,9 @@ def load_mesh(path: str | os.PathLike, scale: float = 1.0, up: str = "auto", shi
     """
     if up not in _UP:
         raise ValueError(f"mesh up axis must be 'auto', 'y' or 'z', got {up!r}")
-    try:
-        scale = float(scale)
-    except (TypeError, ValueError):
-        raise ValueError(f"mesh scale must be a number, got {scale!r}") from None
+    if not is_number(scale):  # (a string's '2' was read as 2)
+        raise ValueError(f"mesh scale must be a number, got {scale!r}")
+    scale = float(scale)
     if shift is not None:
         try:
             shift = np.asarray(shift, dtype=float).reshape(3)

@@ -18,7 +18,7 @@ from typing import Optional, Protocol
 
 import numpy as np
 
-from ..limits import add_note
+from ..limits import add_note, shorten
 
 
 @dataclass(frozen=True)
@@ -378,14 +378,14 @@ class PluginPart:
         """The part's own stop_reason (optional): None, or why it proposes nothing, a
         non-empty str (TypeError otherwise)."""
         reason = getattr(self.part, "stop_reason", None)
-        if reason is not None and not (isinstance(reason, str) and reason.strip()):
-            raise PartContractError(
-                f"generator {self.name!r}: its stop_reason is {reason!r}; it is None or why it "
-                "proposes nothing, a non-empty str (e.g. 'no_reachable_view')"
-            )
-        if reason is not None:
-            _not_reserved(f"generator {self.name!r}: its stop_reason is", reason)
-        return reason
+        if reason is None:
+            return None
+        return _checked_reason(
+            f"generator {self.name!r}: its stop_reason is",
+            reason,
+            "it is None or why it proposes nothing, "
+            + REASON_WORDS.format(example="'no_reachable_view'"),
+        )
 
     def feedback(self, world, proposal, step):
         # (proposals rejected in a row are bounded by Planner.next_view)
@@ -399,13 +399,36 @@ class PluginPart:
         reason = _named(self.kind, self.name, "check()", self.part.check, world, step)
         if reason is None:
             return None
-        if not isinstance(reason, str) or not reason.strip() or not reason.isprintable():
-            raise PartContractError(  # (a summary field, a console line, a table's cell)
-                f"termination {self.name!r}: check returned {reason!r}; it returns the reason "
-                "to stop (a non-empty str on one line, e.g. 'distance_cap') or None to go on"
-            )
-        _not_reserved(f"termination {self.name!r}: check returned", reason)
-        return reason
+        return _checked_reason(
+            f"termination {self.name!r}: check returned",
+            reason,
+            "it returns the reason to stop, "
+            + REASON_WORDS.format(example="'distance_cap'")
+            + ", or None to go on",
+        )
+
+
+#: The longest reason to stop a part may give (a summary field, a console line, a table's cell;
+#: a 10 MB one had been kept as given).
+MAX_REASON_CHARS = 200
+REASON_WORDS = (
+    f"a non-empty str on one line of at most {MAX_REASON_CHARS} characters (e.g. {{example}})"
+)
+
+
+def _checked_reason(said: str, reason, expected: str) -> str:
+    """`reason` when it is a part's reason to stop: a non-empty str on one line of at most
+    MAX_REASON_CHARS characters, not one nbvkit keeps for itself (_not_reserved);
+    PartContractError (`said` REASON; `expected`) otherwise."""
+    if not (
+        isinstance(reason, str)
+        and reason.strip()
+        and reason.isprintable()
+        and len(reason) <= MAX_REASON_CHARS
+    ):
+        raise PartContractError(f"{said} {shorten(reason)}; {expected}")
+    _not_reserved(said, reason)
+    return reason
 
 
 def _not_reserved(said: str, reason: str) -> None:

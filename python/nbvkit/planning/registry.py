@@ -105,6 +105,12 @@ def _check_new(name: str, kind: str, taken, replace: bool = False, table=None) -
             f"{kind} name {name!r} is a section of the configuration (or one of its keys or "
             "methods); choose another"
         )
+    twin = next((t for t in taken if t != name and t.lower() == name.lower()), None)
+    if twin is not None:  # (a configuration naming one reads as the other)
+        raise ValueError(
+            f"{kind} name {name!r} differs only in case from {twin!r}, registered already; "
+            "choose another name"
+        )
     if name not in taken:
         return
     own = name in BUILT_IN or name in _core_utilities()
