@@ -356,3 +356,17 @@ def test_a_path_object_is_taken_for_a_path_key(tmp_path):
     assert Config().with_overrides([f"mesh.path={mesh}"]).mesh.path == str(Path(mesh))
     with pytest.raises(ValueError, match="'mesh.path' must be a string, got"):
         Config.from_dict({"mesh": {"path": [str(mesh)]}})
+
+
+def test_an_override_of_an_unknown_section_names_the_sections_and_the_plugin_hint():
+    """`--set rings.count=16` without the plugin that registers `ring` (or misspelt) said only
+    "unknown config key 'rings'"; a key set inside a plain value said the value was unknown."""
+    with pytest.raises(KeyError) as e:
+        load_config(overrides=["rings.count=16"])
+    said = e.value.args[0]
+    assert "unknown config key 'rings'; known keys here: budget, camera" in said
+    assert "--plugin FILE" in said and said.endswith("(in override 'rings.count')")
+    with pytest.raises(KeyError, match=r"'camera.heigth' \(did you mean 'camera.height'\?\)"):
+        load_config(overrides=["camera.heigth.x=1"])
+    with pytest.raises(KeyError, match="config key 'seed' is a value, not a section"):
+        load_config(overrides=["seed.x=1"])

@@ -565,6 +565,9 @@ def test_a_plugin_part_reads_as_its_own_object():
 def test_registering_checks_the_part():
     with pytest.raises(TypeError, match="'x' must be a class"):
         registry.register_generator("x", 3)
+    # a utility built like a generator, cls(settings, context), had failed only in flight
+    with pytest.raises(TypeError, match="utility 'x' is the class G: a utility is a function"):
+        registry.register_utility("x", type("G", (RingGenerator,), {}))
     with pytest.raises(TypeError, match=r"has no method feedback\(\)"):
         registry.register_generator("x", type("G", (), {"propose": lambda self, w: None}))
     with pytest.raises(TypeError, match=r"termination 'x': T has no method check\(\)"):
@@ -1383,3 +1386,22 @@ def test_what_a_generator_sets_on_its_step_does_not_change_the_record():
         assert math.isfinite(r.gain) and r.new_surface_m2 >= 0 and r.distance_m < 1e3
         assert max(abs(r.x), abs(r.y), abs(r.z)) > 0
     assert s["distance_m"] < 1e3
+
+
+def test_a_plugin_file_that_registers_nothing_is_warned_of(plugin_dir):
+    """A --plugin file without its register_* call loaded without a word; the configuration
+    naming its parts then said only "unknown config key"."""
+    f = plugin_dir / "helpers_only.py"
+    f.write_text("class Orbits:\n    pass\n")
+    with pytest.warns(UserWarning, match=f"plugin file {f} registered no part or scenario"):
+        nbvkit.load_plugin(f)
+
+
+def test_a_planner_of_a_plugin_not_loaded_is_hinted(capsys):
+    from nbvkit.cli import main
+
+    with pytest.raises(SystemExit) as e:
+        main(["run", "--planner", "ring"])
+    assert e.value.code == 2
+    err = capsys.readouterr().err
+    assert "invalid choice: 'ring'" in err and "once its plugin is loaded: --plugin FILE" in err

@@ -33,6 +33,11 @@ class _Parser(argparse.ArgumentParser):
         super().__init__(*args, **kwargs)
         self._negative_number_matcher = re.compile(r"^-(\d+\.?\d*|\.\d+)([eE][-+]?\d+)?$")
 
+    def error(self, message: str):
+        if "--planner: invalid choice" in message:  # (the planners a plugin registers)
+            message += "; a scenario of your own is known once its plugin is loaded: --plugin FILE"
+        super().error(message)
+
 
 def build_parser() -> argparse.ArgumentParser:
     parser = _Parser(
@@ -73,7 +78,8 @@ def main(argv: list[str] | None = None) -> int:
     first = next((a for a in argv if not a.startswith("-")), None)
     prog = f"nbvkit {first}" if first in COMMANDS else "nbvkit"
     try:  # a plugin file's own errors (and its exit) are PluginLoadError, naming it
-        load_plugins(_plugin_files(argv), wrap=True)
+        with own_warnings(prog):
+            load_plugins(_plugin_files(argv), wrap=True)
     except KeyboardInterrupt:
         print(f"{prog}: interrupted", file=sys.stderr)
         return 130

@@ -378,11 +378,11 @@ def _set_dotted(data: dict, key: str, value: Any) -> None:
     parts = key.split(".")
     node = data
     for i, part in enumerate(parts[:-1]):
-        if part not in node or not isinstance(node[part], dict):
-            raise KeyError(
-                f"unknown config key {shorten('.'.join(parts[:i + 1]))} "
-                f"(in override {shorten(key)})"
-            )
+        here, where = ".".join(parts[: i + 1]), f" (in override {shorten(key)})"
+        if part not in node:  # (a part's section unknown: its plugin not loaded, or misspelt)
+            raise unknown_key(here, node, (PLUGIN_SECTIONS if i == 0 else "") + where)
+        if not isinstance(node[part], dict):
+            raise KeyError(f"config key {shorten(here)} is a value, not a section{where}")
         node = node[part]
     if parts[-1] not in node:
         raise unknown_key(key, node, "" if len(parts) > 1 else PLUGIN_SECTIONS)

@@ -10,6 +10,7 @@ import importlib.util
 import sys
 import threading
 import traceback
+import warnings
 from pathlib import Path
 
 from .limits import add_note, check_input_file, shorten
@@ -151,6 +152,13 @@ def _run_file(p: Path, source: bytes, digest: str, wrap: bool = False) -> None:
         for k, v in t.items()
         if k not in was or was[k] is not v
     }
+    if not REGISTERED[key]:  # (a configuration naming its parts would say only "unknown")
+        warnings.warn(
+            f"plugin file {p} registered no part or scenario: its parts are known once it calls "
+            "nbvkit.register_generator, register_termination, register_utility or "
+            "register_scenario (docs/PLUGINS.md)",
+            stacklevel=3,  # (the caller of load_plugin),
+        )
 
 
 def _module_name(p: Path) -> str:

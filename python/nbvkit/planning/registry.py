@@ -234,6 +234,11 @@ def register_utility(name: str, fn, *, replace: bool = False) -> None:
     `replace` as for a generator (the C++ utilities are nbvkit's own)."""
     if not callable(fn):
         raise TypeError(f"utility {name!r} must be callable, got {type(fn).__name__}")
+    if isinstance(fn, type):  # (it failed only in flight, built with the candidates' rays)
+        raise TypeError(
+            f"utility {name!r} is the class {fn.__name__}: a utility is a function of the "
+            "candidates' rays (nbvkit.CandidateRays) returning their gains, registered as itself"
+        )
     _check_new(
         name, "utility", {**UTILITIES, **dict.fromkeys(_core_utilities())}, replace, UTILITIES
     )
