@@ -664,6 +664,23 @@ def test_a_pose_not_four_or_five_real_numbers_is_refused(pose, said):
     assert as_view([1, 2, 3, 0]).tolist() == [1.0, 2.0, 3.0, 0.0, 0.0]  # whole numbers are fine
 
 
+def test_a_bool_is_no_resolution_and_no_update_is_made_of_none():
+    """pybind took True as 1.0 (OccupancyMap(True) was a map of 1 m cells) and None as False
+    (update_cells(occupied=None) a miss): both are refused; numbers of any kind are taken."""
+    import numpy as np
+
+    for bad in (True, np.bool_(True), "0.2", None):
+        with pytest.raises(TypeError, match="resolution must be a number, got"):
+            nbvkit.OccupancyMap(bad)
+    assert nbvkit.OccupancyMap(np.float32(0.5)).resolution == 0.5
+    assert nbvkit.OccupancyMap(1).resolution == 1.0
+    m = nbvkit.OccupancyMap(0.5)
+    for bad in (None, 1, "yes"):
+        with pytest.raises(TypeError):
+            m.update_cells(np.zeros((1, 3)), occupied=bad)
+    assert m.update_cells(np.zeros((1, 3)), occupied=np.bool_(True)) == 1
+
+
 def test_the_workspace_and_the_vehicles_pose_cannot_be_written_in_place():
     """A plugin's part is given the world: writing into its workspace's boxes or the vehicle's
     pose changed the mission's state (a summary whose bounds_min lay above bounds_max, a vehicle

@@ -238,6 +238,9 @@ def test_bad_input_is_rejected():
     ):  # TBB's arena crashed at 10**7
         with pytest.raises(ValueError, match="number of threads must be in"):
             nbvkit.set_num_threads(n)
+    for n in (True, 2.0, "2", None):  # (True was taken as 1)
+        with pytest.raises(TypeError, match="number of threads must be a whole number"):
+            nbvkit.set_num_threads(n)
 
 
 def test_sensor_ranges_noises_and_mounts_a_units_mistake_gives_are_refused_by_name():

@@ -157,6 +157,14 @@ ViewPosesArg view_poses_arg(const py::handle& obj, const char* what = "candidate
 /// A random seed: a Python int in [0, 2^64) (ValueError naming `what` otherwise).
 std::uint64_t seed_arg(const py::handle& obj, const char* what = "seed");
 
+/// A real number (int, float, NumPy's) as a double; TypeError naming `what` for anything else,
+/// a bool included (pybind's double took True as 1: OccupancyMap(True) was a 1 m map).
+double real_arg(const py::handle& obj, const char* what);
+
+/// A whole number in [lo, hi] as an int; TypeError naming `what` for anything else (a bool
+/// included), ValueError naming the range for one outside it.
+int int_arg(const py::handle& obj, const char* what, long long lo, long long hi);
+
 /// ValueError if a list of SurfaceClouds from Python holds None.
 void check_clouds(const std::vector<const SurfaceCloud*>& clouds);
 

@@ -111,6 +111,27 @@ std::uint64_t seed_arg(const py::handle& obj, const char* what) {
   return v.cast<std::uint64_t>();
 }
 
+double real_arg(const py::handle& obj, const char* what) {
+  // (bool is an Integral; NumPy's bool_ is no numbers.Real)
+  if (py::isinstance<py::bool_>(obj) ||
+      !py::isinstance(obj, py::module_::import("numbers").attr("Real")))
+    throw py::type_error(std::string(what) + " must be a number, got " +
+                         std::string(py::repr(obj)));
+  return obj.cast<double>();
+}
+
+int int_arg(const py::handle& obj, const char* what, long long lo, long long hi) {
+  if (py::isinstance<py::bool_>(obj) ||
+      !py::isinstance(obj, py::module_::import("numbers").attr("Integral")))
+    throw py::type_error(std::string(what) + " must be a whole number, got " +
+                         std::string(py::repr(obj)));
+  const py::int_ v = py::module_::import("operator").attr("index")(obj);
+  if (v < py::int_(lo) || v > py::int_(hi))
+    throw py::value_error(std::string(what) + " must be in [" + std::to_string(lo) + ", " +
+                          std::to_string(hi) + "], got " + std::string(py::repr(obj)));
+  return static_cast<int>(v.cast<long long>());
+}
+
 void check_clouds(const std::vector<const SurfaceCloud*>& clouds) {
   for (const SurfaceCloud* c : clouds)
     if (!c) throw py::value_error("clouds must be SurfaceCloud objects, not None");
@@ -142,11 +163,14 @@ void init_common(py::module_& m) {
   });
   m.attr("MAX_COORDINATE") = kMaxCoordinate;
   m.attr("MAX_THREADS") = kMaxThreads;
-  m.def("set_num_threads", &set_num_threads, py::arg("n"),
-        "Worker threads of the core's parallel loops (0 = all hardware threads; at most\n"
-        "MAX_THREADS, else ValueError). Process-wide;\n"
-        "safe to call while other threads scan or score views: their running calls finish on\n"
-        "the threads they started with, later calls use the new count.");
+  m.def(
+      "set_num_threads",
+      [](const py::handle& n) { set_num_threads(int_arg(n, "number of threads", 0, kMaxThreads)); },
+      py::arg("n"),
+      "Worker threads of the core's parallel loops (0 = all hardware threads; at most\n"
+      "MAX_THREADS, else ValueError). Process-wide;\n"
+      "safe to call while other threads scan or score views: their running calls finish on\n"
+      "the threads they started with, later calls use the new count.");
   m.def("get_num_threads", &get_num_threads);
   m.def("release_free_memory", &release_free_memory,
         "Hands the heap's free pages back to the OS (glibc malloc_trim): after a plan on a large\n"

@@ -219,8 +219,9 @@ plan_path and the collision checks read a map under the same lock.)doc");
   const auto& dmax = OccupancyMap::kDefaultBoundsMax;
   cls.attr("DEFAULT_BOUNDS_MIN") = py::make_tuple(dmin[0], dmin[1], dmin[2]);
   cls.attr("DEFAULT_BOUNDS_MAX") = py::make_tuple(dmax[0], dmax[1], dmax[2]);
-  cls.def(py::init([](double resolution, const py::handle& bmin, const py::handle& bmax,
+  cls.def(py::init([](const py::handle& res, const py::handle& bmin, const py::handle& bmax,
                       const py::object& options, const py::kwargs& kw) {
+            const double resolution = real_arg(res, "resolution");
             const OccupancyMapOptions o = options_with_keywords<OccupancyMapOptions>(options, kw);
             const Eigen::Vector3d lo = vec3_arg(bmin, "bounds_min"),
                                   hi = vec3_arg(bmax, "bounds_max");
@@ -258,7 +259,7 @@ plan_path and the collision checks read a map under the same lock.)doc");
             Writing lock(m);
             return m.update_cells(pm, occupied);
           },
-          py::arg("points"), py::arg("occupied") = false,
+          py::arg("points"), py::arg("occupied").noconvert() = false,
           "One miss (or hit, occupied=True) update of every distinct cell holding one of points "
           "(N, 3),\n"
           "e.g. to clear the space a vehicle has flown through. Predictions are discarded first, "
