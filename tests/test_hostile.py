@@ -672,8 +672,16 @@ def test_a_bool_is_no_resolution_and_no_update_is_made_of_none():
     for bad in (True, np.bool_(True), "0.2", None):
         with pytest.raises(TypeError, match="resolution must be a number, got"):
             nbvkit.OccupancyMap(bad)
-    assert nbvkit.OccupancyMap(np.float32(0.5)).resolution == 0.5
-    assert nbvkit.OccupancyMap(1).resolution == 1.0
+    for bad in (np.array([0.5, 0.5]), np.array(0.5j), np.complex64(0.5), list(range(10**5))):
+        with pytest.raises(TypeError, match="resolution must be a number, got") as e:
+            nbvkit.OccupancyMap(bad)
+        assert len(str(e.value)) < 200  # (quoted short: a list had been 1.5 MB)
+    with pytest.raises(ValueError, match="resolution must be a number a double holds, got ~1e400"):
+        nbvkit.OccupancyMap(10**400)  # (pybind's "Unable to cast" RuntimeError)
+    for good in (np.float32(0.5), np.array(0.5), 1, np.int16(1)):
+        assert nbvkit.OccupancyMap(good).resolution == float(good)
+    with pytest.raises(ValueError, match=r"number of threads must be in \[0, \d+\], got ~1e5000"):
+        nbvkit.set_num_threads(10**5000)
     m = nbvkit.OccupancyMap(0.5)
     for bad in (None, 1, "yes"):
         with pytest.raises(TypeError):

@@ -552,12 +552,19 @@ def test_patches_group_targets_by_cell_and_side():
         (dict(positions=[[0, 0, np.inf], [0, 0, 0]]), "positions"),
         (dict(kind=[0, 4]), "kind 4 is not 0-3"),
         (dict(kind=[0]), "kind must be"),
+        (dict(normals=[[1.0, 0, 0], [0, 0, 0]]), "normal 1 is zero"),  # (no direction)
     ],
 )
 def test_script_built_targets_are_checked(change, message):
     args = dict(positions=np.zeros((2, 3)), normals=[[1.0, 0, 0]] * 2, weight=[1.0, 0.5])
     with pytest.raises(ValueError, match=message):
         _core.SurfaceTargets(**{**args, **change})
+
+
+def test_script_built_targets_normals_are_unit_as_the_planners_own():
+    """A script's normal of length 3 was kept as given, where the placement reads a unit one."""
+    t = _core.SurfaceTargets(np.zeros((2, 3)), [[3.0, 0, 0], [0, 1e-3, 1e-3]], [1.0, 1.0])
+    np.testing.assert_allclose(t.normals, [[1, 0, 0], [0, 0.5**0.5, 0.5**0.5]])
 
 
 def test_surface_targets_of_a_wall_seen_from_the_front_are_on_its_back():

@@ -141,6 +141,8 @@ def test_registering_checks_the_name(parts):
         registry.register_utility("IG", lambda rays: np.zeros(rays.num_candidates))
     with pytest.raises(ValueError, match="'Ring' differs only in case from 'ring'"):
         registry.register_termination("Ring", DistanceCap)
+    with pytest.raises(ValueError, match="scenario 'Surface' differs only in case from 'surface'"):
+        nbvkit.register_scenario("Surface", "a second surface", {})
 
 
 def test_the_configuration_module_names_no_part():
@@ -1388,13 +1390,33 @@ def test_what_a_generator_sets_on_its_step_does_not_change_the_record():
     assert s["distance_m"] < 1e3
 
 
-def test_a_plugin_file_that_registers_nothing_is_warned_of(plugin_dir):
-    """A --plugin file without its register_* call loaded without a word; the configuration
-    naming its parts then said only "unknown config key"."""
+def test_a_plugin_file_edited_twice_registering_an_imported_part_loads_each_time(plugin_dir):
+    """A file registering a part it imports from a module of its own registers the same object
+    when edited and loaded again: it was not counted as the file's, so the third load said
+    "a utility named 'near_x' is registered already"."""
+    (plugin_dir / "near_lib.py").write_text(
+        "import numpy as np\n\n\ndef near(rays):\n    return np.zeros(len(rays))\n"
+    )
+    f = plugin_dir / "near_plug.py"
+    text = "import nbvkit\nfrom near_lib import near\nnbvkit.register_utility('near_x', near)\n"
+    for edit in ("", "# 1\n", "# 2\n"):
+        f.write_text(text + edit)
+        nbvkit.load_plugin(f)
+    assert registry.UTILITIES["near_x"] is sys.modules["near_lib"].near
+
+
+def test_plugin_files_that_register_nothing_are_warned_of(plugin_dir, capsys):
+    """`--plugin` files without a register_* call loaded without a word; the configuration
+    naming their parts then said only "unknown config key"."""
+    from nbvkit.cli import main
+
     f = plugin_dir / "helpers_only.py"
     f.write_text("class Orbits:\n    pass\n")
-    with pytest.warns(UserWarning, match=f"plugin file {f} registered no part or scenario"):
-        nbvkit.load_plugin(f)
+    with pytest.raises(SystemExit):  # (argparse: no such planner)
+        main(["run", "--plugin", str(f), "--planner", "orbits"])
+    err = capsys.readouterr().err
+    assert f"nbvkit run: warning: the plugin files ({f}) registered no part or scenario" in err
+    assert "invalid choice: 'orbits'" in err
 
 
 def test_a_planner_of_a_plugin_not_loaded_is_hinted(capsys):

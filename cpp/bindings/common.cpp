@@ -100,35 +100,52 @@ ViewPosesArg view_poses_arg(const py::handle& obj, const char* what) {
   return out;
 }
 
+std::string short_repr(const py::handle& obj) {
+  return py::module_::import("nbvkit.limits").attr("shorten")(obj).cast<std::string>();
+}
+
 std::uint64_t seed_arg(const py::handle& obj, const char* what) {
   if (py::isinstance<py::bool_>(obj) || !py::isinstance<py::int_>(obj))
-    throw py::value_error(std::string(what) + " must be an integer >= 0, got " +
-                          std::string(py::repr(obj)));
+    throw py::value_error(std::string(what) + " must be an integer >= 0, got " + short_repr(obj));
   const py::int_ v = py::reinterpret_borrow<py::int_>(obj);
   if (v < py::int_(0) || v >= py::int_(py::module_::import("builtins").attr("pow")(2, 64)))
     throw py::value_error(std::string(what) + " must be an integer in [0, 2**64), got " +
-                          std::string(py::repr(obj)));
+                          short_repr(obj));
   return v.cast<std::uint64_t>();
 }
 
 double real_arg(const py::handle& obj, const char* what) {
-  // (bool is an Integral; NumPy's bool_ is no numbers.Real)
-  if (py::isinstance<py::bool_>(obj) ||
-      !py::isinstance(obj, py::module_::import("numbers").attr("Real")))
-    throw py::type_error(std::string(what) + " must be a number, got " +
-                         std::string(py::repr(obj)));
-  return obj.cast<double>();
+  // a real number: not a bool (True read as 1), a string (float('0.2') parses it), a complex
+  // (its imaginary part dropped) or an array of another kind or size
+  const py::module_ np = py::module_::import("numpy");
+  bool real = PyNumber_Check(obj.ptr()) && !py::isinstance<py::bool_>(obj) &&
+              !py::isinstance(obj, np.attr("bool_")) && !PyComplex_Check(obj.ptr()) &&
+              !py::isinstance(obj, np.attr("complexfloating"));
+  if (real && py::isinstance<py::array>(obj)) {
+    const py::array a = py::reinterpret_borrow<py::array>(obj);
+    const char kind = a.dtype().kind();
+    real = a.ndim() == 0 && (kind == 'i' || kind == 'u' || kind == 'f');
+  }
+  if (!real) throw py::type_error(std::string(what) + " must be a number, got " + short_repr(obj));
+  PyObject* f = PyNumber_Float(obj.ptr());
+  if (!f) {  // (an int past a double's range, a number type of its own that fails)
+    PyErr_Clear();
+    throw py::value_error(std::string(what) + " must be a number a double holds, got " +
+                          short_repr(obj));
+  }
+  const double v = PyFloat_AS_DOUBLE(f);
+  Py_DECREF(f);
+  return v;
 }
 
 int int_arg(const py::handle& obj, const char* what, long long lo, long long hi) {
   if (py::isinstance<py::bool_>(obj) ||
       !py::isinstance(obj, py::module_::import("numbers").attr("Integral")))
-    throw py::type_error(std::string(what) + " must be a whole number, got " +
-                         std::string(py::repr(obj)));
+    throw py::type_error(std::string(what) + " must be a whole number, got " + short_repr(obj));
   const py::int_ v = py::module_::import("operator").attr("index")(obj);
   if (v < py::int_(lo) || v > py::int_(hi))
     throw py::value_error(std::string(what) + " must be in [" + std::to_string(lo) + ", " +
-                          std::to_string(hi) + "], got " + std::string(py::repr(obj)));
+                          std::to_string(hi) + "], got " + short_repr(obj));
   return static_cast<int>(v.cast<long long>());
 }
 

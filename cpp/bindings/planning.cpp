@@ -218,7 +218,8 @@ unknown between known free space and surface, 3 exploration: unknown space on th
 free space, away from the surface) and weight (T,) (1, the predicted probability, or
 frontier_weight). The arrays are read-only views into this object (no copy); len() is T. Built
 from arrays (a script's own targets): SurfaceTargets(positions, normals, weight[, kind]),
-copied and checked (finite, weights >= 0, kind 0-3, default 0).)doc");
+copied and checked (finite, normals not zero and scaled to unit length, weights >= 0, kind 0-3,
+default 0).)doc");
   targets
       .def(py::init([](const py::handle& positions, const py::handle& normals,
                        const py::handle& weight, const py::object& kind) {
@@ -229,6 +230,13 @@ copied and checked (finite, weights >= 0, kind 0-3, default 0).)doc");
              if (t->normals.rows() != n)
                throw py::value_error("SurfaceTargets: " + std::to_string(n) + " positions but " +
                                      std::to_string(t->normals.rows()) + " normals");
+             for (Eigen::Index i = 0; i < n; ++i) {  // unit, as the planner's own
+               const double len = t->normals.row(i).norm();
+               if (!(len > 1e-9))
+                 throw py::value_error("SurfaceTargets: normal " + std::to_string(i) +
+                                       " is zero: each is the direction its cell is seen from");
+               t->normals.row(i) /= len;
+             }
              const auto w = Array<double>::ensure(weight);
              if (!w || w.ndim() != 1 || w.shape(0) != n)
                throw py::value_error("SurfaceTargets: weight must be (" + std::to_string(n) +

@@ -73,13 +73,34 @@ def _plugin_files(argv) -> list:
     return pre.parse_known_args(argv)[0].plugin
 
 
+def _load_plugins(prog: str, files: list) -> None:
+    """Loads the --plugin `files`; a line on stderr when together they registered nothing (a
+    file without its register_* call: the configuration naming its parts would only say
+    "unknown"). Counted over all the files: one may load or import another's parts."""
+    from .planning import registry
+    from .scenarios import SCENARIOS
+
+    def names():
+        tables = (registry.GENERATORS, registry.TERMINATIONS, registry.UTILITIES, SCENARIOS)
+        return [dict(t) for t in tables]
+
+    before = names()
+    load_plugins(files, wrap=True)
+    if files and names() == before:
+        print(
+            f"{prog}: warning: the plugin files ({', '.join(map(str, files))}) registered no "
+            "part or scenario: a part is known once its file calls nbvkit.register_generator, "
+            "register_termination, register_utility or register_scenario (docs/PLUGINS.md)",
+            file=sys.stderr,
+        )
+
+
 def main(argv: list[str] | None = None) -> int:
     argv = sys.argv[1:] if argv is None else list(argv)
     first = next((a for a in argv if not a.startswith("-")), None)
     prog = f"nbvkit {first}" if first in COMMANDS else "nbvkit"
     try:  # a plugin file's own errors (and its exit) are PluginLoadError, naming it
-        with own_warnings(prog):
-            load_plugins(_plugin_files(argv), wrap=True)
+        _load_plugins(prog, _plugin_files(argv))
     except KeyboardInterrupt:
         print(f"{prog}: interrupted", file=sys.stderr)
         return 130

@@ -63,6 +63,8 @@ def shorten(value, limit: int = 120) -> str:
     hostile value may be gigabytes long)."""
     import reprlib
 
+    if isinstance(value, int) and not isinstance(value, bool) and value.bit_length() > 100:
+        return fmt_number(value)  # (repr fails past 4,300 digits)
     r = reprlib.Repr()
     r.maxstring = r.maxother = limit
     r.maxlist = r.maxtuple = r.maxdict = r.maxset = 8

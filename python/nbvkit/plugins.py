@@ -10,7 +10,6 @@ import importlib.util
 import sys
 import threading
 import traceback
-import warnings
 from pathlib import Path
 
 from .limits import add_note, check_input_file, shorten
@@ -136,6 +135,15 @@ def _run_file(p: Path, source: bytes, digest: str, wrap: bool = False) -> None:
                 add_note(e, f"raised while loading the plugin file {p}")
             raise
         raise PluginLoadError(p, e) from e
+    # what it registered: new names, names it took over (replace=True) from a script, and its
+    # own names of the last load registered again (the same object: a part imported from a
+    # module of its own is not built anew)
+    registered = {
+        k
+        for t, was in zip(tables, objects)
+        for k, v in t.items()
+        if k in mine or k not in was or was[k] is not v
+    }
     if key in GUESSED:  # what an imported module only held, it did not register: kept
         for t, was in zip(tables, objects):
             for n in mine:
@@ -145,20 +153,7 @@ def _run_file(p: Path, source: bytes, digest: str, wrap: bool = False) -> None:
     if not again:
         LOADED.append(key)
     DIGESTS[key] = digest
-    # what it registered: new names, and names it took over (replace=True) from a script
-    REGISTERED[key] = {
-        k
-        for t, was in zip(tables, objects)
-        for k, v in t.items()
-        if k not in was or was[k] is not v
-    }
-    if not REGISTERED[key]:  # (a configuration naming its parts would say only "unknown")
-        warnings.warn(
-            f"plugin file {p} registered no part or scenario: its parts are known once it calls "
-            "nbvkit.register_generator, register_termination, register_utility or "
-            "register_scenario (docs/PLUGINS.md)",
-            stacklevel=3,  # (the caller of load_plugin),
-        )
+    REGISTERED[key] = registered
 
 
 def _module_name(p: Path) -> str:

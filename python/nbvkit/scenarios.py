@@ -173,6 +173,12 @@ def register_scenario(name: str, description: str, settings: dict, *, replace=Fa
             f"scenario {name!r} is registered already{clash(SCENARIOS[name].origin)}; choose "
             "another name, or replace=True to replace it"
         )
+    twin = next((t for t in SCENARIOS if t != name and t.lower() == name.lower()), None)
+    if twin is not None:  # (two names a reader takes for one: 'Surface' beside 'surface')
+        raise ValueError(
+            f"scenario {name!r} differs only in case from {twin!r}, registered already; choose "
+            "another name"
+        )
     from collections.abc import Mapping
 
     if not isinstance(settings, Mapping) or not all(isinstance(k, str) for k in settings):

@@ -89,7 +89,7 @@ class Step:
     entropy_before: float
     entropy_after: float
     delta_ev: float  # (E_before - E_after) / C_view, the paper's Eq. 4
-    new_surface_m2: float  # surface cells the camera saw for the first time (from any side)
+    new_surface_m2: float  # m^2 of surface first seen (from any side), the leg's frames included
     distance_m: float  # total flown so far
     extra: dict = field(default_factory=dict)  # generator-specific columns (e.g. AGVS alpha)
     expected_m2: Optional[float] = None  # new surface the surface utility expected of it, m^2

@@ -106,7 +106,7 @@ def _check_new(name: str, kind: str, taken, replace: bool = False, table=None) -
             "methods); choose another"
         )
     twin = next((t for t in taken if t != name and t.lower() == name.lower()), None)
-    if twin is not None:  # (a configuration naming one reads as the other)
+    if twin is not None:  # (two names a reader takes for one: 'IG' beside 'ig')
         raise ValueError(
             f"{kind} name {name!r} differs only in case from {twin!r}, registered already; "
             "choose another name"
