@@ -712,9 +712,9 @@ def test_the_workspace_and_the_vehicles_pose_cannot_be_written_in_place():
     for bad in (float("nan"), float("inf"), "3"):
         with pytest.raises(ValueError, match="distance_m must be a finite number"):
             s.distance_m = bad
-    with pytest.raises(ValueError, match="real numbers, got complex"):  # (not its real part)
+    with pytest.raises(ValueError, match="pose must be real numbers, got complex"):  # (not cut)
         s.pose = np.ones(5) + 1j
-    with pytest.raises(ValueError, match="real numbers, got complex"):
+    with pytest.raises(ValueError, match="bounds_min must be real numbers, got complex"):
         Workspace(np.zeros(3) + 2j, np.ones(3), np.zeros(3), np.ones(3))
 
 

@@ -112,12 +112,13 @@ def is_number(x) -> bool:
     return isinstance(x, numbers.Real) and not isinstance(x, bool)
 
 
-def read_only(values, dtype=float) -> np.ndarray:
-    """A read-only copy of `values` as a C-ordered array of `dtype`: state nbvkit hands to parts
-    (a plugin's generator, a caller's points) that they must not write into. A complex array is
-    refused, not cut to its real part (NumPy keeps the real part with only a warning)."""
+def read_only(values, name: str, dtype=float) -> np.ndarray:
+    """A read-only copy of `values` (named `name` in a message) as a C-ordered array of `dtype`:
+    state nbvkit hands to parts (a plugin's generator, a caller's points) that they must not
+    write into. A complex array is refused, not cut to its real part (NumPy keeps the real part
+    with only a warning)."""
     if np.iscomplexobj(values):
-        raise ValueError("the values must be real numbers, got complex")
+        raise ValueError(f"{name} must be real numbers, got complex")
     a = np.array(values, dtype, order="C")
     a.flags.writeable = False
     return a

@@ -243,9 +243,7 @@ def observable_surface(
         ev = evaluator or Evaluator(mesh, gt_density=cfg.evaluation.gt_density, seed=cfg.seed)
         points = ev.gt_points
     else:  # a copy: the result must not change with the caller's array
-        if np.iscomplexobj(points):  # (the real parts were kept, with only a warning)
-            raise ValueError("points must be real numbers, got complex")
-        points = read_only(points, np.float64)
+        points = read_only(points, "points", np.float64)  # (complex refused, not cut)
     if points.ndim != 2 or points.shape[1] != 3:
         raise ValueError(f"points must be (N, 3), got {points.shape}")
     if face_ids is not None:

@@ -71,7 +71,7 @@ class VehicleState:
         """The pose is kept read-only (a part that wrote into it moved the vehicle without a
         flight; World.fly_to moves it) and the distance a finite number of metres."""
         if name == "pose":
-            value = read_only(value)
+            value = read_only(value, "pose")
         elif name == "distance_m" and not (is_number(value) and math.isfinite(value)):
             raise ValueError(f"distance_m must be a finite number of metres, got {value!r}")
         super().__setattr__(name, value)

@@ -75,7 +75,7 @@ class Workspace:
         generator) moved the workspace under the mission, whose summary then held a box
         nbvkit's own reader refuses."""
         for name in ("bounds_min", "bounds_max", "nav_min", "nav_max"):
-            object.__setattr__(self, name, read_only(getattr(self, name)))
+            object.__setattr__(self, name, read_only(getattr(self, name), name))
 
     @property
     def structure_nav_max(self) -> np.ndarray:
