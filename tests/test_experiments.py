@@ -154,6 +154,29 @@ def test_table2_means_and_spread():
     assert "| 1 | no | no | CGVS | 15 ± 5 |" in table2_markdown(t)
 
 
+def test_tables_warn_when_they_pool_configurations_and_say_when_partial(tmp_path):
+    """A sweep's results.csv over two map resolutions, given to compare_table or table2, was
+    averaged per scenario as if the runs were starts ("runs 2", a ± across resolutions); the
+    tables of a stopped compare read as whole."""
+    import warnings
+
+    from nbvkit.experiments import compare_table, write_compare
+
+    row = {"scenario": "5", "start": 0, "mesh": "airliner", "distance_m": 5.0, "views": 3}
+    df = pd.DataFrame([{**row, "overrides": f"map.resolution={r}"} for r in (0.2, 0.4)])
+    for f in (compare_table, table2):
+        with pytest.warns(UserWarning, match="pools runs of different configurations.*overrides"):
+            f(df)
+    same = pd.DataFrame([{**row, "start": k, "overrides": "map.resolution=0.2"} for k in (0, 1)])
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")  # one configuration: no word
+        assert compare_table(same).iloc[0]["runs"] == 2
+    same.attrs["runs_planned"] = 4
+    write_compare(tmp_path, same)
+    md = (tmp_path / "compare.md").read_text()
+    assert "Partial: 2 of 4 runs finished" in md
+
+
 def test_sweep_is_resumable_and_rejects_bad_keys(tmp_path):
     sweep = {
         "scenarios": ["1"],

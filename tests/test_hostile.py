@@ -399,6 +399,8 @@ def test_case6_ctrl_c_stops_a_table_and_writes_the_partial_table(tmp_path):
     assert "resume" in err
     assert (out / "runs.csv").exists() and (out / "table2.md").exists()
     assert len(_finished(out)) < 6
+    rows = len((out / "runs.csv").read_text().splitlines()) - 1  # the table says it is partial
+    assert f"Partial: {rows} of 6 runs finished" in (out / "table2.md").read_text()
 
 
 def _children(pid: int) -> list[int]:

@@ -56,7 +56,7 @@ def compare(
         rows = run_specs(specs, out, workers=workers, scheduler=scheduler, progress=progress)
     except (Interrupted, RunsFailed) as e:
         if e.rows:
-            write_results(out, e.rows, "", tables=write_compare, report=False)
+            write_results(out, e.rows, "", tables=write_compare, report=False, planned=len(specs))
         raise
     write_results(out, rows, f"nbvkit compare: {', '.join(names)}", tables=write_compare,
                   plot=plot_compare)  # fmt: skip

@@ -4,6 +4,7 @@ and the planner comparison. Re-exported by nbvkit.experiments."""
 from __future__ import annotations
 
 import os
+import warnings
 from pathlib import Path
 
 import numpy as np
@@ -121,6 +122,7 @@ def table2(df):
     """The paper's Table 2 from a tidy table of runs: means over starts, with the spread (std)."""
     import pandas as pd
 
+    _warn_pooled(df, "table2")
     out = []
     for label, prof, sym, samp in TABLE2_ROWS:
         sub = (
@@ -167,6 +169,39 @@ def table2(df):
 #: what a table's "±" is (the spread columns: pandas' std(ddof=0))
 SPREAD = "mean ± standard deviation over the runs (population, ddof 0: one run gives ± 0)"
 
+#: The columns of a runs table that tell one configuration from another (a sweep's grid values
+#: are among its overrides): a table's ± is a spread over starts only within one.
+CONFIG_COLUMNS = ("mesh", "mesh_scale", "mesh_up", "overrides")
+
+
+def _warn_pooled(df, what: str) -> None:
+    """A warning when a scenario's runs in `df` differ in a CONFIG_COLUMNS column (a sweep's
+    results.csv given whole): `what` averages them as one."""
+    cols = [
+        c
+        for c in CONFIG_COLUMNS
+        if c in df and (df.groupby(df["scenario"].astype(str))[c].nunique(dropna=False) > 1).any()
+    ]
+    if cols:
+        warnings.warn(
+            f"{what} pools runs of different configurations under one scenario (they differ in "
+            f"{', '.join(cols)}): its ± is not a spread over starts; select one configuration "
+            "first (e.g. df[df['overrides'] == ...])",
+            stacklevel=3,
+        )
+
+
+def _partial_note(df) -> str:
+    """The line a table of an experiment stopped early ends with (df.attrs["runs_planned"]: the
+    runs it was to fly; write_results sets it)."""
+    planned = df.attrs.get("runs_planned")
+    if not planned or planned <= len(df):
+        return ""
+    return (
+        f"\nPartial: {len(df)} of {planned} runs finished (the experiment stopped early): a "
+        "planner without a finished run is missing, and each ± is over the runs that finished.\n"
+    )
+
 
 def table2_markdown(t) -> str:
     """Table 2 as Markdown, mean ± spread over the starts."""
@@ -207,7 +242,7 @@ def write_table2(df, out: Path) -> None:
     with naming_the_file(out / "table2.csv"):
         t.to_csv(out / "table2.csv", index=False)
     with naming_the_file(out / "table2.md"):
-        (out / "table2.md").write_text(table2_markdown(t))
+        (out / "table2.md").write_text(table2_markdown(t) + _partial_note(df))
 
 
 def compare_with_paper(t, paper_csv) -> str:
@@ -282,6 +317,7 @@ def compare_table(df):
     COMPARE_COLUMNS, and the number of runs."""
     import pandas as pd
 
+    _warn_pooled(df, "compare_table")
     out = []
     for planner in dict.fromkeys(df["scenario"].astype(str)):
         sub = df[df["scenario"].astype(str) == planner]
@@ -316,7 +352,7 @@ def write_compare(out: Path, df) -> str:
     """compare.csv and compare.md (compare_table of the runs table `df`) into the folder `out`;
     returns the markdown."""
     t = compare_table(df)
-    md = compare_markdown(t)
+    md = compare_markdown(t) + _partial_note(df)
     with naming_the_file(Path(out) / "compare.csv"):
         t.to_csv(Path(out) / "compare.csv", index=False)
     with naming_the_file(Path(out) / "compare.md"):
@@ -325,18 +361,20 @@ def write_compare(out: Path, df) -> str:
 
 
 def write_results(
-    root, rows, title: str, rows_file="runs.csv", tables=None, plot=None, report=True
+    root, rows, title: str, rows_file="runs.csv", tables=None, plot=None, report=True, planned=None
 ):
     """An experiment's results into the folder `root`: its rows (one per run) in root/rows_file,
     then `tables(root, df)` (its summary tables; returns their markdown), `plot(root, df,
     root/figures)` and, with `report`, root/report.html titled `title`. Returns the tables'
-    markdown (or None). Of an unfinished experiment: its rows and tables (report=False)."""
+    markdown (or None). Of an unfinished experiment: its rows and tables (report=False), which
+    say how many of the `planned` runs finished."""
     import pandas as pd
 
     from .experiment_report import write_experiment_report
 
     root = Path(root)
     df = pd.DataFrame(rows)
+    df.attrs["runs_planned"] = planned
     write_table(rows, root / rows_file)
     markdown = tables(root, df) if tables is not None else None
     if plot is not None:

@@ -205,7 +205,7 @@ def fly_experiment(
         rows = run_specs(specs, out, workers=workers, scheduler=scheduler)
     except (Interrupted, RunsFailed) as e:
         if e.rows:
-            write_results(out, e.rows, title, rows_file, tables, report=False)
+            write_results(out, e.rows, title, rows_file, tables, report=False, planned=len(specs))
         if isinstance(e, RunsFailed):
             return report_failed(command, e, partial, resume)
         return report_interrupted(command, e, partial, resume)
