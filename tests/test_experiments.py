@@ -176,6 +176,12 @@ def test_tables_warn_when_they_pool_configurations_and_say_when_partial(tmp_path
     md = (tmp_path / "compare.md").read_text()
     assert "Partial: 2 of 4 runs finished" in md
 
+    # the profile's row has no iterations, so no time an iteration (it read 0.0 ± 0.0)
+    cols = {"profile_distance_m": 80.0, "profile_entropy_reduction": 9.0, "ms_per_iteration": 0.0}
+    cov = {f"profile_coverage_{r}": 0.1 for r in ("0.05", "0.1", "0.5")}
+    prof = table2(pd.DataFrame([{**row, "scenario": "profile", **cols, **cov}])).iloc[0]
+    assert prof["Scenario"] == "Profile" and prof["ms/iteration"] != prof["ms/iteration"]  # NaN
+
 
 def test_sweep_is_resumable_and_rejects_bad_keys(tmp_path):
     sweep = {
