@@ -926,11 +926,14 @@ def test_a_run_stopped_over_a_complete_run_keeps_it(tmp_path, stopping_part):
         p.returncode == 0
         and "nbvkit export: warning: the run was stopped after 3 views" in p.stderr
     )
-    p = _nbvkit_cli("evaluate", str(beside), *plugin, "--mesh", s["mesh"], "--gt-density", "50")
+    ev = ["--mesh", s["mesh"], "--gt-density", "50", "--json", str(tmp_path / "ev.json")]
+    p = _nbvkit_cli("evaluate", str(beside), *plugin, *ev)
     assert (
         p.returncode == 0
         and "nbvkit evaluate: warning: the run was stopped after 3 views" in p.stderr
     )
+    said = json.loads((tmp_path / "ev.json").read_text())["warnings"]  # the file says so too
+    assert len(said) == 1 and said[0].startswith("the run was stopped after 3 views")
     assert _nbvkit_cli(*base[:-1], "--overwrite", "--set", *whole).returncode == 0
     assert (out / "summary.json").read_bytes() != old and is_complete_run(beside)
 

@@ -127,6 +127,8 @@ def test_registering_checks_the_name(parts):
         registry.register_generator("ring", RingGenerator)
     with pytest.raises(ValueError, match="section of the configuration"):
         registry.register_generator("camera", RingGenerator)
+    with pytest.raises(ValueError, match="'Camera' is a section .* only in case"):
+        registry.register_generator("Camera", RingGenerator)
     with pytest.raises(ValueError, match="identifier"):
         registry.register_termination("two words", DistanceCap)
     with pytest.raises(ValueError, match="unknown planner generator 'rings'"):

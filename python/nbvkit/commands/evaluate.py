@@ -211,6 +211,7 @@ def run(args) -> int:
         out = dict(result)
         out["cloud_path"] = str(cloud_path)
         out["reconstruction"] = cloud_kind
+        out["warnings"] = [w for w in (apart, stopped) if w]  # (the console's, for the file alone)
         if obs_stats is not None:
             out["observability"] = obs_stats
         out.update(gt_desc)

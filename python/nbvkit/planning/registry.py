@@ -100,10 +100,10 @@ def _check_new(name: str, kind: str, taken, replace: bool = False, table=None) -
     parts of that kind in `table` (never nbvkit's own, nor a part of another kind)."""
     if not isinstance(name, str) or not name.isidentifier() or name.startswith("_"):
         raise ValueError(f"a {kind} name must be an identifier not starting with _, got {name!r}")
-    if name in RESERVED:
+    if name.lower() in RESERVED:  # ('Camera' too: two names a reader takes for one)
         raise ValueError(
             f"{kind} name {name!r} is a section of the configuration (or one of its keys or "
-            "methods); choose another"
+            "methods), or differs from one only in case; choose another"
         )
     twin = next((t for t in taken if t != name and t.lower() == name.lower()), None)
     if twin is not None:  # (two names a reader takes for one: 'IG' beside 'ig')
