@@ -30,6 +30,7 @@ __all__ = [
     "is_bool",
     "is_number",
     "read_only",
+    "refuse_case_twin",
     "require_bool",
     "require_config",
     "require_type",
@@ -122,6 +123,17 @@ def read_only(values, name: str, dtype=float) -> np.ndarray:
     a = np.array(values, dtype, order="C")
     a.flags.writeable = False
     return a
+
+
+def refuse_case_twin(name: str, names, what: str) -> None:
+    """ValueError when `name` differs only in case from one of `names` (registered parts or
+    scenarios: 'IG' beside 'ig', two names a reader takes for one); `what` names it."""
+    twin = next((t for t in names if t != name and t.lower() == name.lower()), None)
+    if twin is not None:
+        raise ValueError(
+            f"{what} {name!r} differs only in case from {twin!r}, registered already; choose "
+            "another name"
+        )
 
 
 def fmt_number(x) -> str:

@@ -12,6 +12,7 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 from .cloud import DEFAULT_MIN_Z, DEFAULT_VOXEL_SIZE
+from .limits import refuse_case_twin
 from .origins import caller, clash, note
 
 
@@ -173,12 +174,7 @@ def register_scenario(name: str, description: str, settings: dict, *, replace=Fa
             f"scenario {name!r} is registered already{clash(SCENARIOS[name].origin)}; choose "
             "another name, or replace=True to replace it"
         )
-    twin = next((t for t in SCENARIOS if t != name and t.lower() == name.lower()), None)
-    if twin is not None:  # (two names a reader takes for one: 'Surface' beside 'surface')
-        raise ValueError(
-            f"scenario {name!r} differs only in case from {twin!r}, registered already; choose "
-            "another name"
-        )
+    refuse_case_twin(name, SCENARIOS, "scenario")
     from collections.abc import Mapping
 
     if not isinstance(settings, Mapping) or not all(isinstance(k, str) for k in settings):

@@ -14,6 +14,7 @@ from .generators.tour import CoverageTour
 from .terminations.budget import Budget
 from .terminations.entropy import EntropyChange
 from .terminations.stall import SurfaceStall
+from ..limits import refuse_case_twin
 from ..origins import note, source
 from ..settings import REGISTER_FIRST, check_defaults, check_field_types, validate
 
@@ -105,12 +106,7 @@ def _check_new(name: str, kind: str, taken, replace: bool = False, table=None) -
             f"{kind} name {name!r} is a section of the configuration (or one of its keys or "
             "methods), or differs from one only in case; choose another"
         )
-    twin = next((t for t in taken if t != name and t.lower() == name.lower()), None)
-    if twin is not None:  # (two names a reader takes for one: 'IG' beside 'ig')
-        raise ValueError(
-            f"{kind} name {name!r} differs only in case from {twin!r}, registered already; "
-            "choose another name"
-        )
+    refuse_case_twin(name, taken, f"{kind} name")
     if name not in taken:
         return
     own = name in BUILT_IN or name in _core_utilities()
