@@ -58,6 +58,13 @@ class WorkspaceConfig:
         return "workspace.margin_xy, workspace.margin_z"
 
 
+def ground_clearance(vehicle) -> float:
+    """The least height above the workspace floor (the ground) the vehicle's centre keeps at its
+    views: `vehicle`'s min_altitude, at least its collision radius + 0.1 m (the default)."""
+    shrink = vehicle.collision_radius + 0.1
+    return shrink if vehicle.min_altitude is None else max(shrink, vehicle.min_altitude)
+
+
 @dataclass(frozen=True)
 class Workspace:
     """The NBV workspace box (map bounds) and the navigation bounds (vehicle positions);
@@ -259,8 +266,7 @@ def make_workspace(mesh_bounds, cfg) -> Workspace:
         bmax = np.array([c[0] + half[0], c[1] + half[1], hi[2] + margin_z])
     shrink = cfg.vehicle.collision_radius + 0.1
     nav_min, nav_max = bmin + shrink, bmax - shrink
-    if cfg.vehicle.min_altitude is not None:  # the ground clearance, above the workspace floor
-        nav_min[2] = bmin[2] + max(shrink, cfg.vehicle.min_altitude)
+    nav_min[2] = bmin[2] + ground_clearance(cfg.vehicle)  # above the workspace floor
     if not np.all(nav_max > nav_min):
         raise ValueError(
             f"the workspace {(bmax - bmin).round(3).tolist()} m is too small for the vehicle's "

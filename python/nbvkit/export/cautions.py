@@ -8,6 +8,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..workspace import ground_clearance
+
 #: m: the position error of a drone without RTK (GNSS horizontally, the barometer vertically)
 #: below which a planned stand-off is warned of
 GNSS_ERROR_M = 2.0
@@ -20,9 +22,7 @@ def clearance(fl) -> dict:
     `lowest_row`, and the height its views keep (vehicle.min_altitude, the radius + 0.1 m by
     default; the A* paths between them keep only the collision radius off the ground)."""
     radius = float(fl.config.vehicle.collision_radius)
-    planned = radius + 0.1
-    if fl.config.vehicle.min_altitude is not None:
-        planned = max(planned, float(fl.config.vehicle.min_altitude))
+    planned = float(ground_clearance(fl.config.vehicle))
     heights = fl.xyz[:, 2] - float(fl.workspace["bounds_min"][2])
     low = int(np.argmin(heights))
     return {
