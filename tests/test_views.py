@@ -130,6 +130,52 @@ def test_the_free_component_answers_what_a_search_would_and_the_reference_agrees
         _core.FreeComponent(m, start, -1.0)
 
 
+def test_a_path_floor_keeps_every_search_above_the_height_the_views_keep():
+    """Two ways join a and b (both 2.5 m up): a short one down through a tunnel 1 m above the
+    ground and a long one over the top at 6 m. Without a floor every search takes the tunnel;
+    with the views' floor at 2 m (vehicle.min_altitude) plan_path, its reference, search_path,
+    plan_paths_to and FreeComponent all keep above it (cell tops; the waypoints within half a
+    cell), and a target in the tunnel is out of reach."""
+    m = nbvkit.OccupancyMap(0.2, (0, 0, 0), (12, 12, 8))
+    for seg in [((2, 6, 2.5), (2, 6, 1)), ((2, 6, 1), (10, 6, 1)), ((10, 6, 1), (10, 6, 2.5))]:
+        m.mark_free_segment(*seg, 0.8)  # the tunnel
+    for seg in [((2, 6, 2.5), (1, 6, 6)), ((1, 6, 6), (11, 6, 6)), ((11, 6, 6), (10, 6, 2.5))]:
+        m.mark_free_segment(*seg, 0.8)  # the way over the top
+    a, b, r, low = (2, 6, 2.5), (10, 6, 2.5), 0.5, (6, 6, 1)
+
+    def lowest(path):
+        assert len(path) >= 3
+        np.testing.assert_allclose([path[0], path[-1]], [a, b])
+        for p, q in zip(path[:-1], path[1:]):
+            assert _core.segment_is_free(m, p, q, r)
+        return float(np.min(path[:, 2]))
+
+    assert lowest(_core.plan_path(m, a, b, r)) < 1.2  # through the tunnel
+    paths = [
+        _core.plan_path(m, a, b, r, floor=2.0),
+        _core.plan_path(m, a, b, r, reference=True, floor=2.0),
+        _core.search_path(m, a, b, r, floor=2.0).path,
+        _core.plan_paths_to(m, [a], b, r, floor=2.0).paths[0],
+    ]
+    np.testing.assert_array_equal(paths[0], paths[1])  # the first implementation agrees
+    for path in paths:
+        assert lowest(path) >= 2.0 - 0.1 - 1e-9  # over the top
+        assert path_length(path) > 12
+    assert _core.FreeComponent(m, a, r).contains(m, [low, b]).tolist() == [True, True]
+    assert _core.FreeComponent(m, a, r, floor=2.0).contains(m, [low, b]).tolist() == [False, True]
+    assert len(_core.plan_path(m, a, low, r, floor=2.0)) == 0
+    assert len(_core.plan_path(m, a, b, r, floor=7.9)) == 0  # a floor above the ways: none
+    assert len(_core.plan_path(m, a, b, r, floor=-100.0)) > 0  # one below the grid: none
+    with pytest.raises(ValueError, match="path floor must be finite"):
+        _core.plan_path(m, a, b, r, floor=float("nan"))
+    with pytest.raises(TypeError, match="path floor must be a number"):
+        _core.FreeComponent(m, a, r, floor=True)
+
+
+def path_length(path) -> float:
+    return float(np.linalg.norm(np.diff(path, axis=0), axis=1).sum())
+
+
 def test_grid_and_octree_backends_agree():
     mesh = box_mesh((10, -2, 0), (14, 2, 8))
     m = nbvkit.OccupancyMap(0.2, (0, -10, 0), (20, 10, 10))

@@ -8,6 +8,7 @@
 #include "nbv/surface_observations.hpp"
 #include "options.hpp"
 
+#include <cmath>
 #include <limits>
 #include <mutex>
 #include <optional>
@@ -24,6 +25,23 @@ struct BoundComponent {
   FreeComponent component;
   SurfacePtr surface;
 };
+
+/// An A* search's path floor (GridView::path_floor): None for none, else a finite height.
+double floor_arg(const py::handle& floor) {
+  if (floor.is_none()) return -std::numeric_limits<double>::infinity();
+  const double z = real_arg(floor, "path floor");
+  if (!std::isfinite(z))
+    throw py::value_error("path floor must be finite, got " + std::to_string(z));
+  return z;
+}
+
+/// The grid view an A* search reads: the map's (with the camera observations, when given) and
+/// the path floor.
+GridView path_grid(const OccupancyMap& map, const SurfaceObservations* surface, double floor) {
+  GridView g = grid_view(map, surface);
+  g.path_floor = floor;
+  return g;
+}
 
 /// An (nx, ny, nz) Fortran-ordered copy of a per-cell value, get(grid id), of a grid layout.
 template <typename T, typename Get>
@@ -580,13 +598,15 @@ ValueError for a bad shape, non-finite values or bad options.)doc");
   m.def(
       "plan_path",
       [](const OccupancyMap& map, const py::handle& a, const py::handle& b, double r,
-         std::size_t max_expansions, bool reference, const SurfacePtr& surface) {
+         std::size_t max_expansions, bool reference, const SurfacePtr& surface,
+         const py::handle& floor) {
         const Eigen::Vector3d pa = vec3_arg(a, "path start"), pb = vec3_arg(b, "path end");
         check_radius(r);
+        const double fz = floor_arg(floor);
         std::vector<Eigen::Vector3d> path;
         {
           Reading2 lock(map, surface.get());
-          const GridView g = grid_view(map, surface.get());
+          const GridView g = path_grid(map, surface.get(), fz);
           path = reference ? plan_path_reference(g, pa, pb, r, max_expansions)
                            : plan_path(g, pa, pb, r, max_expansions);
         }
@@ -594,10 +614,11 @@ ValueError for a bad shape, non-finite values or bad options.)doc");
       },
       py::arg("map"), py::arg("a"), py::arg("b"), py::arg("radius"),
       py::arg("max_expansions") = kDefaultPathExpansions, py::arg("reference") = false,
-      py::arg("surface") = nullptr,
+      py::arg("surface") = nullptr, py::arg("floor") = py::none(),
       "A* through known free space; (P, 3) waypoints from a to b, or (0, 3) when there is none.\n"
-      "reference=True runs the first implementation (the same path, slower), for tests and\n"
-      "benchmarks.");
+      "floor: a height its cells keep above (their tops; the waypoints within half a cell), the\n"
+      "views' ground clearance; None: none. reference=True runs the first implementation (the\n"
+      "same path, slower), for tests and benchmarks.");
   struct PathSearch {
     Points path;
     PathSearchStats stats;
@@ -631,20 +652,23 @@ One A* search of search_path: its path, and why it found none (read `capped`).)d
   m.def(
       "search_path",
       [](const OccupancyMap& map, const py::handle& a, const py::handle& b, double r,
-         std::size_t max_expansions, const SurfacePtr& surface) {
+         std::size_t max_expansions, const SurfacePtr& surface, const py::handle& floor) {
         const Eigen::Vector3d pa = vec3_arg(a, "path start"), pb = vec3_arg(b, "path end");
         check_radius(r);
+        const double fz = floor_arg(floor);
         PathSearch out;
         std::vector<Eigen::Vector3d> path;
         {
           Reading2 lock(map, surface.get());
-          path = plan_path(grid_view(map, surface.get()), pa, pb, r, max_expansions, &out.stats);
+          path =
+              plan_path(path_grid(map, surface.get(), fz), pa, pb, r, max_expansions, &out.stats);
         }
         out.path = path_rows(path);
         return out;
       },
       py::arg("map"), py::arg("a"), py::arg("b"), py::arg("radius"),
       py::arg("max_expansions") = kDefaultPathExpansions, py::arg("surface") = nullptr,
+      py::arg("floor") = py::none(),
       "plan_path's search with what it did: a PathSearch (path, expansions, flood_ended,\n"
       "capped). A failed search that is not capped is final: no path exists.");
   struct PathsTo {
@@ -674,14 +698,15 @@ The paths of plan_paths_to: one per start, from one search.)doc")
   m.def(
       "plan_paths_to",
       [](const OccupancyMap& map, const py::handle& starts, const py::handle& goal, double r,
-         std::size_t max_expansions, const SurfacePtr& surface) {
+         std::size_t max_expansions, const SurfacePtr& surface, const py::handle& floor) {
         const PointsArg a = points_arg(starts, "starts");
         const Eigen::Vector3d pb = vec3_arg(goal, "goal");
         check_radius(r);
+        const double fz = floor_arg(floor);
         PathsToGoal found;
         {
           Reading2 lock(map, surface.get());
-          found = plan_paths_to(grid_view(map, surface.get()), a.map(), pb, r, max_expansions);
+          found = plan_paths_to(path_grid(map, surface.get(), fz), a.map(), pb, r, max_expansions);
         }
         PathsTo out;
         for (const auto& p : found.paths) out.paths.push_back(path_rows(p));
@@ -692,24 +717,28 @@ The paths of plan_paths_to: one per start, from one search.)doc")
         return out;
       },
       py::arg("map"), py::arg("starts"), py::arg("goal"), py::arg("radius"),
-      py::arg("max_expansions") = 0, py::arg("surface") = nullptr,
+      py::arg("max_expansions") = 0, py::arg("surface") = nullptr, py::arg("floor") = py::none(),
       "What plan_path finds from each start (N, 3) to `goal` with no cap, by one search from the\n"
       "goal (a cheapest path where several tie may differ from plan_path's): a PathsToGoal.\n"
       "max_expansions: cells the search expands at most (0: until every start is reached or\n"
       "none is left to reach).");
   py::class_<BoundComponent>(m, "FreeComponent", R"doc(
 The cells plan_path can reach from `start` through known free space (collision sphere of
-`radius`; with the camera observations `surface`, off every cell the camera has hit), found by
+`radius`; with the camera observations `surface`, off every cell the camera has hit; above
+plan_path's `floor`), found by
 one flood. Valid while `map` and `surface` are unchanged: ask it about many targets of one
 planning step instead of searching a path to each.)doc")
-      .def(py::init([](const OccupancyMap& map, const py::handle& a, double r,
-                       const SurfacePtr& surface) {
-             const Eigen::Vector3d pa = vec3_arg(a, "start");
-             check_radius(r);
-             Reading2 lock(map, surface.get());
-             return BoundComponent{FreeComponent(grid_view(map, surface.get()), pa, r), surface};
-           }),
-           py::arg("map"), py::arg("start"), py::arg("radius"), py::arg("surface") = nullptr)
+      .def(
+          py::init([](const OccupancyMap& map, const py::handle& a, double r,
+                      const SurfacePtr& surface, const py::handle& floor) {
+            const Eigen::Vector3d pa = vec3_arg(a, "start");
+            check_radius(r);
+            const double fz = floor_arg(floor);
+            Reading2 lock(map, surface.get());
+            return BoundComponent{FreeComponent(path_grid(map, surface.get(), fz), pa, r), surface};
+          }),
+          py::arg("map"), py::arg("start"), py::arg("radius"), py::arg("surface") = nullptr,
+          py::arg("floor") = py::none())
       .def(
           "contains",
           [](const BoundComponent& c, const OccupancyMap& map, const py::handle& targets) {

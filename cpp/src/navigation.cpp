@@ -94,9 +94,11 @@ struct SearchScratch {
   std::vector<std::uint64_t> blocked_bits, trav_bits;
   std::vector<std::uint64_t> column_bits;  // per word, H words: the OR within 1 .. H rows
   int height = 0;                          // H: the levels column_bits holds per word
+  int lowest_layer = 0;                    // this call's grid's lowest_path_layer()
   std::uint32_t stamp = 0;
 
   void begin(const GridView& g) {
+    lowest_layer = g.lowest_path_layer();
     const std::size_t bricks = g.storage_size() >> 6;
     words = (g.nx + 63) / 64;
     const std::size_t nw = std::size_t(words) * std::size_t(g.ny) * std::size_t(g.nz);
@@ -187,14 +189,17 @@ struct SearchScratch {
     if (s == 0) return lo;
     return lo >> s | column(g, w + 1, j, k, h) << (64 - s);
   }
-  /// Word w of row (j, k) of cells whose collision sphere (radius) is free.
+  /// Word w of row (j, k) of cells whose collision sphere (radius) is free, at or above the
+  /// grid's lowest path layer.
   std::uint64_t traversable(const GridView& g, const SphereStencil& st, double radius, int w, int j,
                             int k) {
     const std::size_t at = word_at(words, g.ny, w, j, k);
     if (trav_stamp[at] != stamp) {
       trav_stamp[at] = stamp;
       std::uint64_t free = 0;
-      if (st.exact) {
+      if (k < lowest_layer) {
+        // below the path floor: no cell of the word is traversable
+      } else if (st.exact) {
         std::uint64_t any = 0;
         for (const SphereStencil::Column& c : st.columns) {
           any |= column_from(g, 64 * w + c.dx, j + c.dy, k, c.h);
@@ -341,7 +346,9 @@ std::vector<Eigen::Vector3d> plan_path_reference(const GridView& g, const Eigen:
     return Eigen::Vector3d(g.origin + (c.cast<double>().array() + 0.5).matrix() * g.resolution);
   };
   std::unordered_map<std::size_t, std::int8_t> free_cache;  // 1 free, 0 blocked
+  const int lowest_layer = g.lowest_path_layer();
   auto traversable = [&](const Eigen::Vector3i& c) {
+    if (c.z() < lowest_layer) return false;
     const std::size_t idx = g.index(c);
     auto it = free_cache.find(idx);
     if (it != free_cache.end()) return it->second == 1;
@@ -524,6 +531,7 @@ FreeComponent::FreeComponent(const GridView& g, const Eigen::Vector3d& a, double
   s.columns_up_to(stencil.height());
   words_ = s.words;
   ny_ = g.ny;
+  lowest_layer_ = g.lowest_path_layer();
   auto at = [&](int w, int j, int k) { return word_at(words_, ny_, w, j, k); };
   reached_.assign(std::size_t(words_) * std::size_t(g.ny) * std::size_t(g.nz), 0);
   std::vector<std::array<int, 3>> queue;
@@ -588,8 +596,8 @@ std::vector<std::uint8_t> FreeComponent::contains(const GridView& g,
     const std::uint64_t bit = std::uint64_t(1) << (cb.x() & 63);
     // a reached cell is traversable; the start's own cell is reached only if it is
     const bool in =
-        (reached_[i] & bit) ||
-        (cb == start_cell_ && sphere_is_free(g, g.center(cb.x(), cb.y(), cb.z()), radius_));
+        (reached_[i] & bit) || (cb == start_cell_ && cb.z() >= lowest_layer_ &&
+                                sphere_is_free(g, g.center(cb.x(), cb.y(), cb.z()), radius_));
     out[std::size_t(n)] = in && segment_is_free(g, g.center(cb.x(), cb.y(), cb.z()), b, radius_);
   }
   return out;

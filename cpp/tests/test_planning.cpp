@@ -670,7 +670,8 @@ TEST(Navigation, FastSearchGivesTheReferencePathOnRandomScenes) {
   // search must return plan_path_reference's path exactly, reachable or not (and FreeComponent
   // must tell which), for collision
   // radii whose sphere stencil is exact (0.8, 0.35 m) and one on a cell boundary (0.5 m: every
-  // cell through sphere_is_free), and with the expansion cap biting.
+  // cell through sphere_is_free), with the expansion cap biting, and with a path floor (its
+  // waypoints between the ends within half a cell of it or above).
   std::mt19937 rng(5);
   std::uniform_real_distribution<double> ux(0.5, 15.5), uy(0.5, 7.5), uz(0.5, 4.5), ur(0.6, 1.6);
   int found = 0, unreachable = 0, compared = 0;
@@ -689,7 +690,8 @@ TEST(Navigation, FastSearchGivesTheReferencePathOnRandomScenes) {
     for (std::size_t n = 0; n < nodes.size(); ++n)
       camera_hits.row(Eigen::Index(n)) = (nodes[n] + Eigen::Vector3d(0.5, 0.4, 0.3)).transpose();
     seen.add_scan(nodes[0], camera_hits);
-    const GridView g = scene % 2 ? grid_view(m, &seen) : grid_view(m);
+    GridView g = scene % 2 ? grid_view(m, &seen) : grid_view(m);
+    if (scene >= 4) g.path_floor = 1.3;
     for (double radius : {0.8, 0.35, 0.5})
       for (std::size_t cap : {std::size_t(200000), std::size_t(300)})
         for (int q = 0; q < 12; ++q) {
@@ -700,6 +702,8 @@ TEST(Navigation, FastSearchGivesTheReferencePathOnRandomScenes) {
           const auto fast = plan_path(g, a, b, radius, cap);
           ASSERT_EQ(fast.size(), ref.size()) << "scene " << scene << " radius " << radius;
           for (std::size_t i = 0; i < ref.size(); ++i) EXPECT_EQ(fast[i], ref[i]);
+          for (std::size_t i = 1; i + 1 < ref.size(); ++i)
+            EXPECT_GE(ref[i].z(), g.path_floor - 0.1 - 1e-9) << "scene " << scene;
           (ref.empty() ? unreachable : found) += 1;
           ++compared;
           if (cap == 200000) {  // the scenes have fewer cells: the cap never bites
@@ -733,7 +737,8 @@ TEST(Navigation, PathsToOneGoalAreWhatASearchFromEachStartFinds) {
     Points blobs(12, 3);
     for (Eigen::Index k = 0; k < blobs.rows(); ++k) blobs.row(k) << ux(rng), uy(rng), uz(rng);
     m.update_cells(blobs, true);
-    const GridView g = grid_view(m);
+    GridView g = grid_view(m);
+    if (scene == 5) g.path_floor = 1.3;  // (both searches read it)
     for (double radius : {0.8, 0.35, 0.5}) {
       const Eigen::Vector3d goal = nodes[rng() % nodes.size()];
       Points starts(30, 3);  // near the nodes (some blocked cells among them), and anywhere

@@ -3,10 +3,11 @@
 The simulated vehicle starts in the air at the start pose; the real one takes off from the
 launch point (home) on the ground below it (the workspace floor, summary.json), climbs straight
 up to it, and lands there again (find_launch). The way back from a point of the flight is the
-cheapest of (a) an A* path (nbvkit's ``plan_path``, the vehicle's collision radius) through the
-known free space of the run's final map (map.ot) between the point and the start pose, and (b)
-the flight itself flown backwards to an earlier point and (a) or (b) from there: both stay in
-space the simulation flew or knew free (ReturnPaths). The sorties of nbvkit.flight fly them.
+cheapest of (a) an A* path (nbvkit's ``plan_path``, the vehicle's collision radius, above the
+height the views keep) through the known free space of the run's final map (map.ot) between the
+point and the start pose, and (b) the flight itself flown backwards to an earlier point and (a)
+or (b) from there: both stay in space the simulation flew or knew free (ReturnPaths). The
+sorties of nbvkit.flight fly them.
 """
 from __future__ import annotations
 
@@ -28,6 +29,13 @@ def load_map(fl: RunFlight):
     return _core.OccupancyMap.load(
         str(fl.map_path), ws["bounds_min"], ws["bounds_max"], options=fl.config.map.options()
     )
+
+
+def path_floor(fl: RunFlight):
+    """The height the run's A* paths kept above (Workspace.path_floor: the navigation space's
+    floor), or None for a run folder whose summary has no navigation space."""
+    nav_min = fl.workspace.get("nav_min")
+    return None if nav_min is None else float(nav_min[2])
 
 
 def _column_clear(fl: RunFlight, occ_map, x: float, y: float, top: float) -> bool:
@@ -76,7 +84,7 @@ def find_launch(fl: RunFlight, occ_map, model: FlightModel) -> None:
                 continue
             if not _column_clear(fl, occ_map, q[0], q[1], q[2]):
                 continue
-            path = _core.plan_path(occ_map, q, s, fl.radius)
+            path = _core.plan_path(occ_map, q, s, fl.radius, floor=path_floor(fl))
             if len(path) >= 2:
                 fl.launch, fl.launch_path = q, np.asarray(path, float)
                 fl.home = np.array([q[0], q[1], fl.home[2]])
@@ -156,11 +164,14 @@ def _searches(occ_map, fl: RunFlight, points: list) -> list:
     out = [fl.start[None, :] if s else np.zeros((0, 3)) for s in at_start]
     if len(ask):
         each = int(fl.config.vehicle.path_expansions)
+        floor = path_floor(fl)
         found = _core.plan_paths_to(
-            occ_map, xyz[ask], fl.start, fl.radius, max_expansions=each * len(ask)
+            occ_map, xyz[ask], fl.start, fl.radius, max_expansions=each * len(ask), floor=floor
         )
         for k, path in zip(ask, found.paths):
             if len(path) < 2 and found.capped:  # the search out ran out: A* from the point
-                path = _core.plan_path(occ_map, xyz[k], fl.start, fl.radius, max_expansions=each)
+                path = _core.plan_path(
+                    occ_map, xyz[k], fl.start, fl.radius, max_expansions=each, floor=floor
+                )
             out[k] = np.asarray(path, float) if len(path) >= 2 else np.zeros((0, 3))
     return out

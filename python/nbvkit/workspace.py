@@ -107,6 +107,13 @@ class Workspace:
         p = np.asarray(points, float).reshape(-1, 3)
         return np.all((p >= self.nav_min) & (p <= self.nav_max), axis=1)
 
+    @property
+    def path_floor(self) -> float:
+        """The height A* paths between views keep above (their cells' tops; the waypoints to
+        within half a map cell): the navigation space's floor, ground_clearance above the
+        ground, as the views."""
+        return float(self.nav_min[2])
+
     def to_dict(self) -> dict:
         return {
             k: [float(x) for x in getattr(self, k)]

@@ -18,8 +18,7 @@ from .limits import Bound, require_config, require_type
 from .work_limits import MissionError, check_work
 from .mapping import new_map
 from .mesh import check_path_clear, default_mesh_path, fibonacci_sphere, load_mesh
-from .mesh import mesh_file_sha1
-from .mesh import surface_crossings
+from .mesh import mesh_file_sha1, surface_crossings
 from .sensors import (
     build_camera,
     build_frame_camera,
@@ -76,7 +75,8 @@ VehicleConfig = cpp_section(
             Optional[float],
             None,
             "m; the ground clearance: the lowest the vehicle's centre flies above the workspace "
-            "floor (the ground); null: its collision radius + 0.1 m",
+            "floor (the ground; its A* paths between views to within half a map cell); null: "
+            "its collision radius + 0.1 m",
         ),
     ],
     choices={"blocked_path": ("reject", "plan")},
@@ -457,7 +457,8 @@ class World:
         checks' rule of spheres_are_free), valid until the map or the observations change."""
         radius = self.config.vehicle.collision_radius
         start = self.state.pose[:3]
-        return _core.FreeComponent(self.map, start, radius, surface=self.hits_to_avoid)
+        floor = self.workspace.path_floor
+        return _core.FreeComponent(self.map, start, radius, self.hits_to_avoid, floor)
 
     @property
     def hits_to_avoid(self):
@@ -484,6 +485,7 @@ class World:
             self.config.vehicle.collision_radius,
             max_expansions=max_expansions,
             surface=self.hits_to_avoid,
+            floor=self.workspace.path_floor,
         )
 
     def enter_navigation_space(self, stage: str) -> float:

@@ -48,6 +48,10 @@ struct GridView {
   const std::uint32_t* seen_stamps = nullptr;
   std::uint32_t grid_epoch = 0, seen_epoch = 0;
   std::uint64_t grid_id = 0, seen_id = 0;
+  /// Navigation only: the height A* paths keep above (plan_path, plan_paths_to, FreeComponent
+  /// pass only through cells whose top is above it, so their waypoints keep it to within half a
+  /// cell): the views' ground clearance (vehicle.min_altitude). -inf: no floor but the grid's.
+  double path_floor = -std::numeric_limits<double>::infinity();
 
   /// Size of the cell id space (padded to whole bricks).
   std::size_t storage_size() const { return layout.storage_size(); }
@@ -55,6 +59,12 @@ struct GridView {
   std::size_t index(const Eigen::Vector3i& c) const { return index(c.x(), c.y(), c.z()); }
   bool contains(int i, int j, int k) const {
     return unsigned(i) < unsigned(nx) && unsigned(j) < unsigned(ny) && unsigned(k) < unsigned(nz);
+  }
+  /// The lowest layer k of cells whose top is above path_floor (0 without a floor; nz when the
+  /// floor is above the grid).
+  int lowest_path_layer() const {
+    const double k = std::floor((path_floor - origin.z()) / resolution + 1e-9);
+    return k <= 0.0 ? 0 : k >= double(nz) ? nz : int(k);
   }
   /// The cell holding p; false when p is outside the grid.
   bool cell_of(const Eigen::Vector3d& p, Eigen::Vector3i& c) const;

@@ -33,7 +33,8 @@ struct PathSearchStats {
 /// nbvkit._core.DEFAULT_PATH_EXPANSIONS).
 inline constexpr std::size_t kDefaultPathExpansions = 200000;
 
-/// A* through known free space (26-connected cells whose collision sphere is free). Returns the
+/// A* through known free space (26-connected cells whose collision sphere is free, none below
+/// the grid's path_floor: GridView::lowest_path_layer). Returns the
 /// waypoints from a to b (a first, b last), shortened greedily by line of sight, or an empty
 /// list if there is none within max_expansions. The path's length is the sum of its segments.
 /// Beside the search, once it has expanded 1,024 cells, a flood from b steps once per
@@ -84,6 +85,7 @@ class FreeComponent {
   Eigen::Vector3i start_cell_{0, 0, 0};
   bool start_in_grid_ = false;
   int words_ = 0, ny_ = 0;              // words of 64 cells per row along x; rows along y
+  int lowest_layer_ = 0;                // the flooded grid's lowest_path_layer()
   std::vector<std::uint64_t> reached_;  // per word: the component's cells
 };
 

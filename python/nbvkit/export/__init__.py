@@ -343,7 +343,8 @@ def _write_into(out: Path, summary: dict, fl, sorties, frame, model, dji, budget
         summary["mission_items"] = items.mission_items(tmp, files)
         summary["clearance"] = cautions.clearance(fl)
         summary["warnings"] = [w for w in [stopped_note_of(fl.run_dir)] if w]
-        summary["warnings"] += cautions.clearance_warnings(summary["clearance"])
+        cell = float(fl.config.map.resolution)
+        summary["warnings"] += cautions.clearance_warnings(summary["clearance"], cell)
         summary["warnings"] += cautions.left_out_warnings(summary["unreachable"])
         summary["warnings"] += items.item_warnings(summary["mission_items"])
         summary["out"] = str(out)

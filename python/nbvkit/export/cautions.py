@@ -1,9 +1,9 @@
 """The stand-off a run's flight keeps from the structure and the ground, as the export states it:
 the planner keeps the vehicle's collision sphere (vehicle.collision_radius) off every occupied or
 unknown cell, and its centre vehicle.min_altitude (the radius + 0.1 m by default) above the
-ground, so a flown point may lie that close to the surface. Without RTK, a drone's GNSS and
-barometer place it within about 1-2 m; a flight planned closer than that is a simulation's, not a
-real one's."""
+ground (its paths between views to within half a map cell), so a flown point may lie that close
+to the surface. Without RTK, a drone's GNSS and barometer place it within about 1-2 m; a flight
+planned closer than that is a simulation's, not a real one's."""
 from __future__ import annotations
 
 import numpy as np
@@ -20,7 +20,7 @@ def clearance(fl) -> dict:
     distance its flight keeps from the structure (its collision radius), the least height above
     the ground (the workspace's floor) of the points it flew, measured, at flight row
     `lowest_row`, and the height its views keep (vehicle.min_altitude, the radius + 0.1 m by
-    default; the A* paths between them keep only the collision radius off the ground)."""
+    default; the A* paths between them keep it to within half a map cell)."""
     radius = float(fl.config.vehicle.collision_radius)
     planned = float(ground_clearance(fl.config.vehicle))
     heights = fl.xyz[:, 2] - float(fl.workspace["bounds_min"][2])
@@ -33,16 +33,16 @@ def clearance(fl) -> dict:
     }
 
 
-def clearance_warnings(c: dict) -> list:
+def clearance_warnings(c: dict, cell: float) -> list:
     """The export's warnings where clearance `c` is within GNSS_ERROR_M, and where the flight
-    passed below the height its views keep."""
+    passed below the height its views keep by more than half a map cell of `cell` m (what the
+    A* paths between views may: they keep the height with their cells' tops)."""
     out = []
-    if c["ground_m"] < c["min_altitude_m"] - 0.005:
+    if c["ground_m"] < c["min_altitude_m"] - cell / 2 - 0.005:
         out.append(
             f"the flight passes {c['ground_m']:g} m above the ground (at flight row "
             f"{c['lowest_row']}), below the {c['min_altitude_m']:g} m its views keep "
-            "(vehicle.min_altitude): a path between views keeps only the collision radius off "
-            "the ground"
+            "(vehicle.min_altitude; its paths between views keep it to within half a map cell)"
         )
     if min(c["structure_m"], c["ground_m"]) >= GNSS_ERROR_M:
         return out
