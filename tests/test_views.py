@@ -172,6 +172,25 @@ def test_a_path_floor_keeps_every_search_above_the_height_the_views_keep():
         _core.FreeComponent(m, a, r, floor=True)
 
 
+def test_a_view_placed_at_the_path_floor_is_reached_whatever_the_rounding():
+    """Views are clipped to the navigation floor (placement.into_bounds), so a view at the floor
+    must be in a traversable cell: 0.6 / 0.2 rounds to 2.9999999999999996, and a floor layer
+    taken with a tolerance left the view's cell (layer 2) below it. A wall up to 2.8 m stands
+    between the vehicle and the view: the way is over it and down to the floor."""
+    m = nbvkit.OccupancyMap(0.2, (0, 0, 0), (6, 3, 4))
+    ii = np.stack(np.meshgrid(*[np.arange(k) for k in m.shape], indexing="ij"), -1).reshape(-1, 3)
+    wall = (ii[:, 0] == 15) & (ii[:, 2] < 14)
+    m.update_cells((ii[~wall] + 0.5) * 0.2, occupied=False)
+    m.update_cells((ii[wall] + 0.5) * 0.2, occupied=True)
+    a, b, r, floor = (1.5, 1.5, 1.7), (4.5, 1.5, 0.6), 0.5, 0.6
+    assert not _core.segment_is_free(m, a, b, r)
+    path = _core.plan_path(m, a, b, r, floor=floor)
+    assert len(path) >= 3 and np.min(path[:, 2]) >= floor - 0.1 - 1e-9
+    assert len(_core.plan_path(m, a, b, r, reference=True, floor=floor)) == len(path)
+    assert len(_core.plan_paths_to(m, [a], b, r, floor=floor).paths[0]) >= 3
+    assert _core.FreeComponent(m, a, r, floor=floor).contains(m, [b]).tolist() == [True]
+
+
 def path_length(path) -> float:
     return float(np.linalg.norm(np.diff(path, axis=0), axis=1).sum())
 

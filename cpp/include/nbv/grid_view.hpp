@@ -60,10 +60,11 @@ struct GridView {
   bool contains(int i, int j, int k) const {
     return unsigned(i) < unsigned(nx) && unsigned(j) < unsigned(ny) && unsigned(k) < unsigned(nz);
   }
-  /// The lowest layer k of cells whose top is above path_floor (0 without a floor; nz when the
-  /// floor is above the grid).
+  /// The lowest layer k of cells whose top is above path_floor: the layer cell_of gives a point
+  /// at the floor, by the same arithmetic (a view placed at the floor is in a traversable cell
+  /// whatever the rounding); 0 without a floor, nz when the floor is above the grid.
   int lowest_path_layer() const {
-    const double k = std::floor((path_floor - origin.z()) / resolution + 1e-9);
+    const double k = std::floor((path_floor - origin.z()) / resolution);
     return k <= 0.0 ? 0 : k >= double(nz) ? nz : int(k);
   }
   /// The cell holding p; false when p is outside the grid.
