@@ -264,3 +264,27 @@ def test_a_profile_started_in_a_courtyard_goes_over_the_wall():
     assert np.all(np.abs(wps[1:]).max(axis=1) > 10 + m.config.vehicle.collision_radius)
     assert min(np.linalg.norm(a - b) for i, a in enumerate(wps) for b in wps[i + 1 :]) > 5
     assert s["blocked_steps"] > 0  # the walls did stand in the way
+
+
+def test_the_range_check_keeps_the_collision_radius_off_a_part_thinner_than_its_rays():
+    # A 0.2 m blade 1.4 m beside a 7 m step, between the rays along the step (its centre and a
+    # ring at the 2 m radius) and the 32 directions round its ends: the rays pass it by, and a
+    # profile flew 1.6 m from a turned Cessna's wing with a 2 m radius. Sensing the structure
+    # within the radius along the step blocks it; a vehicle already that near may move away.
+    import nbvkit
+    from conftest import box_mesh
+
+    box = box_mesh((-2, -2, 0), (2, 2, 4))
+    c = np.array([10.5, -1.4 * math.cos(math.pi / 8), 5 - 1.4 * math.sin(math.pi / 8)])
+    blade = c + np.array([[0.0, 0, 0], [0.2, 0, 0], [0, 0.1, 0.1]])
+    mesh = nbvkit.Mesh(np.vstack([box.vertices, blade]), np.vstack([box.faces, [[8, 9, 10]]]))
+    cfg = Config().with_overrides(FAST + ["vehicle.collision_radius=2", "max_iterations=0"])
+    p = Profiler(Mission(cfg, mesh=mesh).world)
+    a, b = np.array([7.0, 0, 5]), np.array([14.0, 0, 5])
+    t, _ = p.m.scene.intersect(np.vstack([a, b]), np.array([[1.0, 0, 0], [-1, 0, 0]]), 0, 7)
+    assert np.isinf(t).all()  # (the blade is beside the step, not on it)
+    assert p.m.scene.within(c[None], 0.01).tolist() == [True]
+    assert not p.clear(a, b)  # within 2 m of the blade on the way
+    assert p.clear(a + [0, 5, 0], b + [0, 5, 0])  # 5 m off: clear
+    near = c + [0, 0.5, 0.5]  # already within the radius: moving away is let through
+    assert p.clear(near, near + [0, 1, 1])

@@ -262,3 +262,19 @@ def test_sensor_ranges_noises_and_mounts_a_units_mistake_gives_are_refused_by_na
             sensor(mesh, mount=far)
     with pytest.raises(ValueError, match=r"mount_transform: xyz \(1e\+308, 0, 0\)"):
         nbvkit.mount_transform([1e308, 0, 0])
+
+
+def test_a_scene_tells_which_points_lie_within_a_distance_of_its_mesh():
+    # one triangle in z = 0 over x, y in [0, 10] (x + y <= 10), far from the origin too
+    for o in (np.zeros(3), np.array([1e5, -2e5, 50.0])):
+        mesh = nbvkit.Mesh(o + [[0.0, 0, 0], [10, 0, 0], [0, 10, 0]], [[0, 1, 2]])
+        scene = nbvkit.RaycastScene(mesh)
+        pts = o + np.array([[2.0, 2, 0.5], [2, 2, -0.5], [8, 8, 0.0], [-1, 0, 0]])
+        # above, below, beside the hypotenuse (its nearest point (5, 5, 0): 4.24 m), 1 m off x = 0
+        assert scene.within(pts, 0.6).tolist() == [True, True, False, False]
+        assert scene.within(pts, 4.3).tolist() == [True, True, True, True]
+        assert scene.within(pts, 0.4).tolist() == [False, False, False, False]
+    with pytest.raises(ValueError, match="radius must be a finite number"):
+        scene.within(pts, float("nan"))
+    with pytest.raises(ValueError, match="points"):
+        scene.within(np.zeros((2, 2)), 1.0)

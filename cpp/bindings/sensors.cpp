@@ -1,5 +1,6 @@
 #include "nbv/sensors.hpp"
 #include "bindings.hpp"
+#include "nbv/observability.hpp"
 #include "options.hpp"
 
 namespace nbv::bind {
@@ -64,7 +65,26 @@ Embree ray-casting scene over a mesh (build once, share between sensors); `optio
           "Cast rays o + t d. origins (1, 3) or (N, 3), directions (N, 3) float64 (unit for t in "
           "metres).\n"
           "Returns (t (N,) float64, inf = no hit in [t_near, t_far]; triangle (N,) int32, -1 = no "
-          "hit).");
+          "hit).")
+      .def(
+          "within",
+          [](const RaycastScene& s, const py::handle& points, double radius) {
+            if (!(std::isfinite(radius) && radius >= 0))
+              throw py::value_error("within: radius must be a finite number >= 0 m, got " +
+                                    std::to_string(radius));
+            auto p = points_arg(points, "points");
+            py::array_t<bool> out(static_cast<py::ssize_t>(p.map().rows()));
+            bool* o = out.mutable_data();
+            {
+              py::gil_scoped_release release;
+              for (Eigen::Index i = 0; i < p.map().rows(); ++i)
+                o[i] = mesh_within(s, p.map().row(i).transpose(), radius);
+            }
+            return out;
+          },
+          py::arg("points"), py::arg("radius"),
+          "(N,) bool per point (N, 3): some triangle of the mesh lies within `radius` (m) of it "
+          "(an Embree point query: a proximity sensor of that range).");
 
   py::class_<Scan>(m, "Scan", R"doc(
 One sensor reading, world frame. origin (3,); hits (N, 3) surface points within range; free_ends

@@ -27,12 +27,14 @@ x and y); it is not confined to the NBV workspace (a circle around a 35 x 30 m a
 than 40 x 40 m). The curve encloses what the laser has seen, and a part it has not seen yet
 (beyond its range, or hidden behind or below other parts) can stand across it: before every
 step the vehicle checks its way with range rays (an obstacle sensor: along the step, and round its
-end: nearer than the collision radius, and nearer than before, is blocked). A sweep blocked on
-its way to its first end sweeps from there to the other, and ends where it is blocked on that
-way; on a blocked move the vehicle scans with its laser where it stands, the curve is recomputed
-with that scan, and the vehicle goes out along its bearing onto the new curve and on along it (up
-to 3 times: at its height, then over the top of the flight volume, then along its bottom; then
-the loop goes on from where it stands). `profile.blocked_steps` counts the steps stopped.
+end: nearer than the collision radius, and nearer than before, is blocked) and with proximity
+sensing along the step (a part within the collision radius blocks it, as one the rays pass by).
+A sweep blocked on its way to its first end sweeps from there to the other, and ends where it is
+blocked on that way; on a blocked move the vehicle scans with its laser where it stands, the
+curve is recomputed with that scan, and the vehicle goes out along its bearing onto the new curve
+and on along it (up to 3 times: at its height, then over the top of the flight volume, then along
+its bottom; then the loop goes on from where it stands). `profile.blocked_steps` counts the steps
+stopped.
 
 After the survey the vehicle returns to its start pose for the camera stage
 (profiling.return_to_start, the paper's scenarios) or, without returning, climbs or descends its
@@ -111,6 +113,7 @@ class Profiler:
         self.z_max = self.cfg.z_max if self.cfg.z_max is not None else ws.structure_nav_max[2]
         if not self.z_max > self.z_min:
             raise ValueError(f"profiling sweep needs z_max > z_min, got {self.z_min}..{self.z_max}")
+
         fm = self.cfg.flight_margin
         self.fly_min = np.array([ws.bounds_min[0] - fm, ws.bounds_min[1] - fm, ws.nav_min[2]])
         self.fly_max = np.array([ws.bounds_max[0] + fm, ws.bounds_max[1] + fm, ws.nav_max[2]])
@@ -161,9 +164,10 @@ class Profiler:
         motion from its centre (to the step's end plus the collision radius) and from eight
         points of a ring of that radius about it (to the step's end), and rays in 32 directions
         about a and b (b nearer the structure than the collision radius, and nearer than a, is
-        blocked). True where one meets the structure: the profile flies round what its laser has
-        seen, and a part it has not seen yet (beyond the laser's range, or behind other parts)
-        can stand across the curve."""
+        blocked); then points every quarter radius along the step, each blocked within the
+        radius of the structure (unless a is already). True where one meets the structure: the
+        profile flies round what its laser has seen, and a part it has not seen yet (beyond the
+        laser's range, or behind other parts) can stand across the curve."""
         a, b = np.asarray(a, float), np.asarray(b, float)
         d = b - a
         length = float(np.linalg.norm(d))
@@ -185,7 +189,16 @@ class Profiler:
         ahead = np.any(t[:9] <= np.r_[length + r, np.full(8, length)])
         # nearer than the radius only blocks a step that goes nearer still: a vehicle that got
         # close (beside a part the rays along its way passed) may always move away
-        return bool(ahead or (clear_b < r and clear_b < clear_a))
+        if ahead or (clear_b < r and clear_b < clear_a):
+            return True
+        # and its proximity sensing along the step: the rays pass beside a part thinner than
+        # their spacing (a wing's edge between the ring's rays 1.5 m apart at a 2 m radius)
+        if r <= 0:
+            return False
+        near = self.m.scene.within(
+            a + np.outer(np.linspace(0, 1, math.ceil(4 * length / r) + 1), d), r
+        )
+        return bool(near[1:].any() and not near[0])
 
     def _face(self, p, c):
         return math.atan2(c[1] - p[1], c[0] - p[0])
