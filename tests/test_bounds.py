@@ -619,6 +619,10 @@ def test_view_camera_rays_are_bounded_with_the_range_that_fits():
 def test_an_empty_sweep_range_names_the_profiling_keys():
     msg = _mission_error(["profiling.z_max=0"])
     assert "'profiling.z_max'" in msg and "z_max > z_min" in msg
+    # sweeps below the height the vehicle keeps above the ground (the profile flew 0.3 m up)
+    msg = _mission_error(["profiling.z_min=0.3"])
+    assert "'profiling.z_min' = 0.3 m lies below the navigation floor, z = 0.9 m" in msg
+    assert "vehicle.min_altitude" in _mission_error(["vehicle.min_altitude=3", "profiling.z_min=2"])
 
 
 def test_the_core_refuses_sizes_no_structure_has_naming_them():

@@ -164,6 +164,12 @@ def check_profile(cfg, mesh_bounds, ws) -> None:
             f"(null: the navigation box's {float(ws.nav_min[2]):g} / {float(ws.nav_max[2]):g} m), "
             f"got {w['z_min']:g}..{w['z_max']:g}"
         )
+    if w["z_min"] < float(ws.nav_min[2]) - 1e-9:  # (the sweeps fly down to it)
+        raise ValueError(
+            f"config key 'profiling.z_min' = {w['z_min']:g} m lies below the navigation floor, "
+            f"z = {float(ws.nav_min[2]):g} m: the height the vehicle keeps above the ground "
+            "(vehicle.min_altitude, at least its collision radius + 0.1 m)"
+        )
     problems: list[str] = []
     _collect(problems, _profile_scans, cfg, w, ws)
     if not problems:  # the rays and legs grow with the scans: named once those fit
