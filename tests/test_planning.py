@@ -704,6 +704,15 @@ def test_a_tour_that_flew_nothing_is_replanned_over_reachable_views_then_the_pla
     assert tour.stop_reason is None
     tour.next = len(tour.views)  # and it flew nothing either
     assert m.planner.next_view(w) == "no_reachable_view" and tour.stop_reason == "no_reachable_view"
+    # a tour that flew nothing, then no view reachable at all (the plan over reachable views has
+    # no candidate): the same reason, not coverage_complete
+    tour.stop_reason = None
+    tour.plans = [{**a, "kept": len(every), "flown": 0}]
+    tour.views, tour.next = every, len(every)
+    nowhere = type("Nowhere", (), {"contains": lambda self, m, p: np.zeros(len(p), bool)})()
+    w.free_component = lambda: nowhere
+    assert tour.propose(w) is None and tour.stop_reason == "no_reachable_view"
+    assert tour.plans[-1]["reachable_only"] and tour.plans[-1]["candidates"] == 0
 
 
 @pytest.mark.slow

@@ -371,6 +371,8 @@ class CoverageTour:
                 self.final = True  # what is left, at the lower rate
                 self.views = self.plan(world, reach, self.exploring)
             if len(self.views) == 0:
+                if reach:  # the last tour's views could not be flown, and no view can be now
+                    self.stop_reason = "no_reachable_view"
                 return None
         k = slice(self.next, self.next + 1)
         return Proposal(self.views[k], "tour", exclusive=True, aims=self.aims[k])
