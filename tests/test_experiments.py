@@ -749,3 +749,18 @@ def test_the_table_notebook_refuses_a_folder_that_is_not_a_table(tmp_path, tiny_
     with pytest.raises(Exception, match="holds no table2.csv: this notebook reads a finished"):
         execute_notebook("table2.ipynb", {"NBVKIT_EXPERIMENT": str(other)})
     assert not (other / "figures").exists()
+
+
+def test_an_experiment_over_a_missing_mesh_is_refused_before_any_run(tmp_path, capsys):
+    """Every run would fail on it (and the console advised flying them again): the command
+    names the file and writes nothing."""
+    from nbvkit.cli import main
+    from nbvkit.experiments import compare_specs, run_specs
+
+    specs = compare_specs(["surface"], str(tmp_path / "none.obj"), starts=2)
+    with pytest.raises(FileNotFoundError, match="No such mesh file"):
+        run_specs(specs, tmp_path / "out", workers=1, progress=False)
+    args = ["--mesh", str(tmp_path / "none.obj"), "--starts", "1", "--out", str(tmp_path / "c")]
+    assert main(["compare", "--planners", "surface", *args]) == 2  # (as run's: bad input)
+    assert "No such mesh file" in capsys.readouterr().err
+    assert not (tmp_path / "out").exists() and not (tmp_path / "c").exists()

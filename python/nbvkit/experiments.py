@@ -48,7 +48,7 @@ from .experiment_tables import (  # noqa: F401  (re-exported: the tables)
     write_table2,
 )
 from . import console
-from .limits import add_note
+from .limits import add_note, check_input_file
 from .plugins import (
     check_unchanged,
     error_line,
@@ -336,6 +336,9 @@ def run_specs(
     if scheduler or not (workers == 1 or len(specs) <= 1):
         refuse_script_parts(specs)
     check_unchanged()  # a plugin file edited since it was loaded: load it again first
+    if not scheduler:  # (a cluster's workers may hold files this machine does not)
+        for path in {sp.flown_mesh[0] for sp in specs} - {None}:
+            check_input_file(path, "mesh file")  # before any run: each would fail on it
     (root / "runs").mkdir(parents=True, exist_ok=True)
     clean_stale_tmp(root)
     rows: list = [None] * len(specs)
