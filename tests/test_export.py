@@ -850,6 +850,27 @@ def test_a_view_beyond_one_battery_is_reported_not_dropped(run_dir, tmp_path):
     assert all(s.time_s <= usable for s in sorties)
 
 
+def test_each_sortie_flies_as_far_as_its_battery_allows(run_dir):
+    """The split's estimate of a way back along the flight stops at each capture and turn on
+    it, the sortie's own transit does not: the estimate said a row did not fit where it did, and
+    a 3.7-minute flight took 11 batteries of 4 minutes, most flying one frame. Each sortie but
+    the last now cannot take its next row (and stay within the battery)."""
+    from nbvkit.export.plan import FlightModel, ReturnPaths, SortiePlanner
+
+    fl = read_run(run_dir)
+    model = FlightModel()
+    sp = SortiePlanner(fl, model, ReturnPaths(fl, model, None, []))  # retrace only
+    whole = sp.whole().time_s
+    work = list(sp.work)
+    for share in (0.7, 0.8):
+        usable = share * whole
+        sorties, unreachable = sp.split(usable)
+        assert not unreachable and sorties[-1].last_row == work[-1] and len(sorties) >= 2
+        for s in sorties[:-1]:
+            more = sp.sortie(s.number, s.first_row, work[work.index(s.last_row) + 1])
+            assert s.time_s <= usable < more.time_s
+
+
 # ------------------------------------------------------------------ bad input
 @pytest.mark.parametrize(
     "kwargs, exc, words",
