@@ -400,8 +400,15 @@ def test_sweep_command(tmp_path):
 
 
 def test_notebook_executes_headless(tiny_table):
+    figures = {f: f.stat().st_mtime_ns for f in (tiny_table / "figures").iterdir()}
     text = execute_notebook("table2.ipynb", {"NBVKIT_EXPERIMENT": str(tiny_table)})
     assert "6 runs" in text and "skipping the interactive 3D view" in text
+    # its 3D view is the figures' run (scenario 5, first start), not the profile's ("profile"
+    # sorts after "5"), and the experiment's own figures are left as they were
+    runs = pd.read_csv(tiny_table / "runs.csv")
+    five = runs[runs["scenario"].astype(str) == "5"].sort_values("start").iloc[0]["run_id"]
+    assert five in text
+    assert {f: f.stat().st_mtime_ns for f in (tiny_table / "figures").iterdir()} == figures
 
 
 def test_comparison_with_the_papers_table(tmp_path):

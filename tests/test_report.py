@@ -325,3 +325,22 @@ def test_a_plots_strings_cannot_end_its_script_element():
     (script,) = page.scripts
     data = script.split("Plotly.newPlot('d', ", 1)[1].rsplit(", {}, {responsive", 1)[0]
     assert json.loads(data) == [{"type": "scatter", "text": [hostile], "name": hostile}]
+
+
+def test_a_run_view_keeps_its_cache_in_the_run_not_two_folders_above(tiny_run, tmp_path):
+    """A run of its own without a cache (observability off) had the observable surface cached
+    in the folder two above it (a user's runs/myrun: the repository's root); a run inside an
+    experiment (DIR/runs/RUN) uses the experiment's cache (DIR/cache)."""
+    import shutil
+
+    from nbvkit.runview import run_view
+
+    run = tmp_path / "a" / "r"
+    shutil.copytree(tiny_run, run, ignore=shutil.ignore_patterns("cache"))
+    run_view(run, view_points=500)
+    assert (run / "cache").is_dir() and not (tmp_path / "cache").exists()
+    inside = tmp_path / "exp" / "runs" / "r"
+    shutil.copytree(tiny_run, inside, ignore=shutil.ignore_patterns("cache"))
+    (tmp_path / "exp" / "cache").mkdir()
+    run_view(inside, view_points=500)
+    assert any((tmp_path / "exp" / "cache").iterdir()) and not (inside / "cache").exists()

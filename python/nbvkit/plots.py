@@ -184,6 +184,7 @@ def _coverage_of_scenarios(root: Path, df, scen, xkey, xlabel, path: Path) -> Pa
                     c=SCENARIO_COLORS[sc],
                     alpha=0.7,
                     lw=1,
+                    marker=".",  # (a table samples coverage every 5 views: a short run's is one)
                     label=f"scenario {sc}" if k == 0 else None,
                 )
     for ax, res in zip(axes, ("0.05", "0.10", "0.50")):

@@ -24,7 +24,13 @@ def run_view(run_dir, view_points: int = 60000):
     m = cfg.mesh
     mesh = load_mesh(m.path or default_mesh_path(), scale=m.scale, up=m.up, shift=m.shift)
     ev = Evaluator(mesh, gt_density=cfg.evaluation.gt_density, seed=cfg.seed)
-    cache = run_dir / "cache" if (run_dir / "cache").exists() else run_dir.parent.parent / "cache"
+    # the run's cache, or an experiment's (DIR/runs/RUN: DIR/cache) where there is one; else the
+    # run's own folder, not whatever lies two folders above a run of its own
+    shared = run_dir.parent.parent / "cache"
+    own = run_dir / "cache"
+    cache = (
+        shared if not own.exists() and run_dir.parent.name == "runs" and shared.exists() else own
+    )
     mask = observable_surface(mesh, cfg, evaluator=ev, cache_dir=cache).observable
     classes, pts = view_classes(ev, read_points(run_dir / "cloud.ply"), mask, view_points, cfg.seed)
     summary = read_summary(run_dir)
