@@ -713,6 +713,8 @@ def test_a_tour_that_flew_nothing_is_replanned_over_reachable_views_then_the_pla
     w.free_component = lambda: nowhere
     assert tour.propose(w) is None and tour.stop_reason == "no_reachable_view"
     assert tour.plans[-1]["reachable_only"] and tour.plans[-1]["candidates"] == 0
+    del w.free_component  # asked again, a plan flies: the reason given before is not kept
+    assert tour.propose(w) is not None and tour.stop_reason is None
 
 
 @pytest.mark.slow

@@ -288,3 +288,11 @@ def test_the_range_check_keeps_the_collision_radius_off_a_part_thinner_than_its_
     assert p.clear(a + [0, 5, 0], b + [0, 5, 0])  # 5 m off: clear
     near = c + [0, 0.5, 0.5]  # already within the radius: moving away is let through
     assert p.clear(near, near + [0, 1, 1])
+    # ... but not on into the radius of another part: from 1.6 m beside a blade behind it, out
+    # of its radius, then 1.4 m past the first blade (the rays miss both)
+    behind = c + np.array([[-4.5, 1.6, 0.0], [-4.3, 1.6, 0.0], [-4.5, 1.7, 0.1]])
+    mesh2 = nbvkit.Mesh(np.vstack([mesh.vertices, behind]), np.vstack([mesh.faces, [[11, 12, 13]]]))
+    p2 = Profiler(Mission(cfg, mesh=mesh2).world)
+    start = np.array([6.0, 0, 5])
+    assert p2.m.scene.within(start[None], 2.0).tolist() == [True]
+    assert not p.clear(start, b) and not p2.clear(start, b)

@@ -286,12 +286,11 @@ class SortiePlanner:
         """(j, sortie `number` flying work[k..j]): the longest from work[k] within usable_s (and
         fits); or (None, the shortest one, what it needs) when none fits."""
         work, r = self.work, int(self.work[k])
-        best, limit = k, len(work)
+        best = k
         for j in range(k, len(work)):
             e = int(work[j])
             if self.fly_s(r, e, back=False) > usable_s:
-                limit = j
-                break  # the way along alone is too long from here on
+                break  # the estimated way along alone is too long from here on
             if self.cost(r, e) <= usable_s:
                 best = j
 
@@ -302,13 +301,14 @@ class SortiePlanner:
         # the sortie's own waits (its waypoints' turns) may pass the estimate: fly less, one
         # row at a time; with fits, from work[k]. The estimate's ways out and back (ReturnPaths:
         # a way back along the flight stops at each of its captures and turns, which the
-        # sortie's transit does not) may be longer than the sortie's own: then fly more while it
-        # fits, up to the rows the way along alone rules out. Gallop (each try costs about what
-        # the sortie found will), then halve.
+        # sortie's transit does not) may be longer than the sortie's own, its way out too: then
+        # fly more while it fits. Gallop (each try costs about what the sortie found will), then
+        # halve.
+        hi = len(work)  # lo fits; hi does not, or is past the last row
         if fits is None:
             good, s = ok(best)
             while not good and best > k:
-                best -= 1
+                hi, best = best, best - 1
                 good, s = ok(best)
             if not good:
                 return None, s
@@ -318,7 +318,7 @@ class SortiePlanner:
             if not good:
                 return None, s
             lo = k
-        hi, step = limit, 1  # lo fits; hi does not, or is past the rows the way along allows
+        step = 1
         while lo + step < hi:
             g, s_next = ok(lo + step)
             if not g:

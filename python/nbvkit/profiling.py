@@ -82,8 +82,9 @@ class ProfilingConfig:
     margin: float = positive(4.0, 1e4)  # d: margin added to the bounding radius, m (authors: 4)
     sweep_step: float = positive(0.025)  # m between laser scans: a 40 Hz scanner at 1 m/s (authors)
     camera_step: float = nonneg(1.0)  # m between profile camera frames; 0: none (paper)
-    # sweep bounds; None: the navigation floor, and the structure's top + 2.5 m less the
-    # vehicle's clearance (the paper's sweep, whatever the flight envelope above the top)
+    # sweep bounds; None: the navigation floor (z_min may not lie below it), and the
+    # structure's top + 2.5 m less the vehicle's clearance (the paper's sweep, whatever the
+    # flight envelope above the top)
     z_min: Optional[float] = None
     z_max: Optional[float] = None  # the sweeps' top, m (null: as above)
     max_segment: float = positive(7.0)  # arcs are flown as straight segments of at most this, m
@@ -164,8 +165,9 @@ class Profiler:
         motion from its centre (to the step's end plus the collision radius) and from eight
         points of a ring of that radius about it (to the step's end), and rays in 32 directions
         about a and b (b nearer the structure than the collision radius, and nearer than a, is
-        blocked); then points every quarter radius along the step, each blocked within the
-        radius of the structure (unless a is already). True where one meets the structure: the
+        blocked); then points every quarter radius along the step, blocked where one within the
+        radius of the structure follows one clear of it (a vehicle already that near may move
+        away). True where one meets the structure: the
         profile flies round what its laser has seen, and a part it has not seen yet (beyond the
         laser's range, or behind other parts) can stand across the curve."""
         a, b = np.asarray(a, float), np.asarray(b, float)
@@ -195,10 +197,12 @@ class Profiler:
         # their spacing (a wing's edge between the ring's rays 1.5 m apart at a 2 m radius)
         if r <= 0:
             return False
-        near = self.m.scene.within(
-            a + np.outer(np.linspace(0, 1, math.ceil(4 * length / r) + 1), d), r
-        )
-        return bool(near[1:].any() and not near[0])
+        n = math.ceil(length / max(r / 4, 0.01)) + 1  # (every quarter radius, 1 cm at least)
+        near = self.m.scene.within(a + np.outer(np.linspace(0, 1, n), d), r)
+        # a vehicle already within the radius may move away: the near points the step starts
+        # with are let through, not a part it comes within the radius of after them
+        first_clear = int(np.argmin(near))
+        return bool(near[first_clear] == 0 and near[first_clear:].any())
 
     def _face(self, p, c):
         return math.atan2(c[1] - p[1], c[0] - p[0])

@@ -375,6 +375,7 @@ class CoverageTour:
                     self.stop_reason = "no_reachable_view"
                 return None
         k = slice(self.next, self.next + 1)
+        self.stop_reason = None  # (a reason given before is not this step's)
         return Proposal(self.views[k], "tour", exclusive=True, aims=self.aims[k])
 
     def _replan_due(self) -> bool:
