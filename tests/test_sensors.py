@@ -274,7 +274,7 @@ def test_a_scene_tells_which_points_lie_within_a_distance_of_its_mesh():
         assert scene.within(pts, 0.6).tolist() == [True, True, False, False]
         assert scene.within(pts, 4.3).tolist() == [True, True, True, True]
         assert scene.within(pts, 0.4).tolist() == [False, False, False, False]
-    with pytest.raises(ValueError, match="radius must be a finite number"):
+    with pytest.raises(ValueError, match="radius must be finite and >= 0"):
         scene.within(pts, float("nan"))
     with pytest.raises(ValueError, match="points"):
         scene.within(np.zeros((2, 2)), 1.0)

@@ -157,6 +157,9 @@ ViewPosesArg view_poses_arg(const py::handle& obj, const char* what = "candidate
 /// A random seed: a Python int in [0, 2^64) (ValueError naming `what` otherwise).
 std::uint64_t seed_arg(const py::handle& obj, const char* what = "seed");
 
+/// A radius as the navigation and proximity calls take it: ValueError unless finite, >= 0.
+void check_radius(double r);
+
 /// A real number (int, float, NumPy's) as a double; TypeError naming `what` for anything else,
 /// a bool included (pybind's double took True as 1: OccupancyMap(True) was a 1 m map).
 double real_arg(const py::handle& obj, const char* what);

@@ -114,6 +114,10 @@ std::uint64_t seed_arg(const py::handle& obj, const char* what) {
   return v.cast<std::uint64_t>();
 }
 
+void check_radius(double r) {
+  if (!(r >= 0) || !std::isfinite(r)) throw py::value_error("radius must be finite and >= 0");
+}
+
 double real_arg(const py::handle& obj, const char* what) {
   // a real number: not a bool (True read as 1), a string (float('0.2') parses it), a complex
   // (its imaginary part dropped) or an array of another kind or size

@@ -69,9 +69,7 @@ Embree ray-casting scene over a mesh (build once, share between sensors); `optio
       .def(
           "within",
           [](const RaycastScene& s, const py::handle& points, double radius) {
-            if (!(std::isfinite(radius) && radius >= 0))
-              throw py::value_error("within: radius must be a finite number >= 0 m, got " +
-                                    std::to_string(radius));
+            check_radius(radius);
             auto p = points_arg(points, "points");
             py::array_t<bool> out(static_cast<py::ssize_t>(p.map().rows()));
             bool* o = out.mutable_data();

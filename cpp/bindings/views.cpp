@@ -148,11 +148,6 @@ void def_cell_arrays(Class& cls, Get get) {
           "(N,) uint16 camera hits in each cell (surface= given), else None");
 }
 
-/// A collision sphere's radius as the navigation calls take it: ValueError unless finite, >= 0.
-void check_radius(double r) {
-  if (!(r >= 0) || !std::isfinite(r)) throw py::value_error("radius must be finite and >= 0");
-}
-
 /// A path's waypoints as (P, 3) rows.
 Points path_rows(const std::vector<Eigen::Vector3d>& path) {
   Points out(static_cast<Eigen::Index>(path.size()), 3);

@@ -74,7 +74,7 @@ def find_launch(fl: RunFlight, occ_map, model: FlightModel) -> None:
         return
     nav_lo = np.asarray(fl.workspace.get("nav_min", fl.workspace["bounds_min"]), float)
     nav_hi = np.asarray(fl.workspace.get("nav_max", fl.workspace["bounds_max"]), float)
-    step = max(occ_map.resolution, 0.5)
+    step, floor = max(occ_map.resolution, 0.5), path_floor(fl)
     reach = float(np.max(nav_hi[:2] - nav_lo[:2]))
     for r in np.arange(step, reach + step, step):
         n = max(8, int(math.ceil(2 * math.pi * r / step)))
@@ -84,7 +84,7 @@ def find_launch(fl: RunFlight, occ_map, model: FlightModel) -> None:
                 continue
             if not _column_clear(fl, occ_map, q[0], q[1], q[2]):
                 continue
-            path = _core.plan_path(occ_map, q, s, fl.radius, floor=path_floor(fl))
+            path = _core.plan_path(occ_map, q, s, fl.radius, floor=floor)
             if len(path) >= 2:
                 fl.launch, fl.launch_path = q, np.asarray(path, float)
                 fl.home = np.array([q[0], q[1], fl.home[2]])

@@ -114,7 +114,6 @@ class Profiler:
         self.z_max = self.cfg.z_max if self.cfg.z_max is not None else ws.structure_nav_max[2]
         if not self.z_max > self.z_min:
             raise ValueError(f"profiling sweep needs z_max > z_min, got {self.z_min}..{self.z_max}")
-
         fm = self.cfg.flight_margin
         self.fly_min = np.array([ws.bounds_min[0] - fm, ws.bounds_min[1] - fm, ws.nav_min[2]])
         self.fly_max = np.array([ws.bounds_max[0] + fm, ws.bounds_max[1] + fm, ws.nav_max[2]])
@@ -167,9 +166,9 @@ class Profiler:
         about a and b (b nearer the structure than the collision radius, and nearer than a, is
         blocked); then points every quarter radius along the step, blocked where one within the
         radius of the structure follows one clear of it (a vehicle already that near may move
-        away). True where one meets the structure: the
-        profile flies round what its laser has seen, and a part it has not seen yet (beyond the
-        laser's range, or behind other parts) can stand across the curve."""
+        away). True where one meets the structure: the profile flies round what its laser has
+        seen, and a part it has not seen yet (beyond the laser's range, or behind other parts)
+        can stand across the curve."""
         a, b = np.asarray(a, float), np.asarray(b, float)
         d = b - a
         length = float(np.linalg.norm(d))
@@ -195,8 +194,6 @@ class Profiler:
             return True
         # and its proximity sensing along the step: the rays pass beside a part thinner than
         # their spacing (a wing's edge between the ring's rays 1.5 m apart at a 2 m radius)
-        if r <= 0:
-            return False
         n = math.ceil(length / max(r / 4, 0.01)) + 1  # (every quarter radius, 1 cm at least)
         near = self.m.scene.within(a + np.outer(np.linspace(0, 1, n), d), r)
         # a vehicle already within the radius may move away: the near points the step starts
