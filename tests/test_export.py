@@ -13,6 +13,7 @@ import numpy as np
 import pytest
 
 import nbvkit
+from conftest import ROOT
 from nbvkit import _core
 from nbvkit.config import Config
 from nbvkit.sensors import camera_kwargs
@@ -762,11 +763,14 @@ def test_a_flight_planned_closer_than_gnss_error_is_warned_of(run_dir, tmp_path,
     assert main(args) == 0
     err = capsys.readouterr().err
     s = json.loads((tmp_path / "a" / "export.json").read_text())
-    assert _clearance_flown(run_dir) == s["clearance"]
-    assert s["clearance"]["structure_m"] == 0.8 and s["clearance"]["min_altitude_m"] == 0.9
+    c = s["clearance"]
+    assert _clearance_flown(run_dir) == {k: c[k] for k in _clearance_flown(run_dir)}
+    assert c["collision_radius_m"] == 0.8 and c["min_altitude_m"] == 0.9
+    _check_structure_distance(run_dir, c, cell=0.4)
     assert s["mesh_shift"] == [0.0, 0.0, 0.0]
     assert (
-        "nbvkit export: warning: the run was planned 0.8 m from the structure" in err
+        f"nbvkit export: warning: the flight passes {c['structure_m']:g} m from the structure "
+        "at its nearest (vehicle.collision_radius 0.8 m)" in err
         and "RTK" in err
     )
     far = Mission(
@@ -777,9 +781,11 @@ def test_a_flight_planned_closer_than_gnss_error_is_warned_of(run_dir, tmp_path,
     assert main(["export", str(tmp_path / "far"), *args[2:-2], "--out", str(far_ex)]) == 0
     s = json.loads((far_ex / "export.json").read_text())
     c = s["clearance"]
-    assert _clearance_flown(tmp_path / "far") == c and c["min_altitude_m"] == 2.1
+    assert _clearance_flown(tmp_path / "far") == {k: c[k] for k in _clearance_flown(run_dir)}
+    assert c["min_altitude_m"] == 2.1 and c["collision_radius_m"] == 2.0
     # A* paths between views keep the views' height to within half a (0.4 m) cell
-    assert c["structure_m"] == 2.0 and c["ground_m"] >= 2.1 - 0.2 - 1e-9
+    assert c["ground_m"] >= 2.1 - 0.2 - 1e-9
+    _check_structure_distance(tmp_path / "far", c, cell=0.4)
     assert s["mesh_shift"] == [40.0, -25.0, 0.0]
     if c["ground_m"] >= 2.0:
         assert s["warnings"] == [] and "warning" not in capsys.readouterr().err
@@ -789,10 +795,85 @@ def test_a_flight_below_its_views_height_by_more_than_half_a_cell_is_warned_of()
     from nbvkit.export.cautions import clearance_warnings
 
     c = {"structure_m": 3.0, "ground_m": 2.95, "min_altitude_m": 3.1, "lowest_row": 7}
+    c.update(structure_measured=True, structure_point_mesh=[1, 2, 3], collision_radius_m=3.0)
     assert clearance_warnings(c, 0.4) == []  # within half a cell: as planned
     (w,) = clearance_warnings(c, 0.2)
     assert "passes 2.95 m above the ground (at flight row 7), below the 3.1 m" in w
     assert clearance_warnings({**c, "ground_m": 3.1}, 0.0) == []
+
+
+def test_a_flight_nearer_the_structure_than_its_radius_by_more_than_a_cell_is_warned_of():
+    """The planner keeps the collision sphere off the map's cells: the surface in a cell may lie
+    up to half its diagonal nearer than the cell's centre, and no more is warned of."""
+    from nbvkit.export.cautions import clearance_warnings
+
+    c = {"structure_m": 2.7, "ground_m": 3.2, "min_altitude_m": 3.1, "lowest_row": 7}
+    c.update(structure_measured=True, structure_point_mesh=[1, 2, 3], collision_radius_m=3.0)
+    assert clearance_warnings(c, 0.4) == []  # 0.3 m < 0.4 * sqrt(3) / 2
+    (w,) = clearance_warnings(c, 0.2)
+    assert w == (
+        "the flight passes 2.7 m from the structure (at [1, 2, 3] in the mesh's frame), nearer "
+        "than its 3 m collision radius"
+    )
+
+
+def test_the_structure_distance_is_not_measured_without_the_mesh_the_run_flew(tmp_path, capsys):
+    """A run whose mesh is not found from here, or has changed since (summary.json's
+    mesh_sha1), is exported with the planned radius, saying it was not measured and why."""
+    import shutil
+
+    from nbvkit.cli import main
+
+    mesh = tmp_path / "structure.obj"
+    shutil.copyfile(ROOT / "meshes" / "fixtures" / "cube.obj", mesh)
+    over = [*FAST, "max_iterations=2", f"mesh.path={mesh}", "mesh.scale=4"]
+    Mission(Config().with_overrides(over)).run(tmp_path / "run")
+    args = ["export", str(tmp_path / "run"), "--origin", *map(str, ORIGIN), "--format", "csv"]
+    assert main([*args, "--out", str(tmp_path / "a")]) == 0  # the same file: measured
+    c = json.loads((tmp_path / "a" / "export.json").read_text())["clearance"]
+    assert c["structure_measured"] and c["structure_m"] >= 0.8 - 0.4 * 0.866
+    with open(mesh, "a") as f:
+        f.write("v 100 100 100\n")
+    assert main([*args, "--out", str(tmp_path / "b")]) == 0
+    mesh.unlink()
+    assert main([*args, "--out", str(tmp_path / "c")]) == 0
+    for out, why in (("b", "has changed since the run"), ("c", "is not found from here")):
+        c = json.loads((tmp_path / out / "export.json").read_text())["clearance"]
+        assert not c["structure_measured"] and c["structure_point_mesh"] is None
+        assert c["structure_m"] == 0.8 and why in c["structure_note"]
+    err = capsys.readouterr().err
+    assert err.count("the flight's distance from the structure was not measured: its mesh") == 2
+
+
+def yaml_config(run) -> dict:
+    import yaml
+
+    return yaml.safe_load((run / "config.yaml").read_text())
+
+
+def _check_structure_distance(run, c: dict, cell: float) -> None:
+    """export.json's distance from the structure, checked with open3d's distance query: at
+    its point it is that point's distance from the mesh; no point of the run's own flight (a
+    part of what the export flies) is nearer; and it keeps the collision radius to within half a
+    map cell's diagonal."""
+    o3d = pytest.importorskip("open3d")
+    mesh = nbvkit.load_mesh(nbvkit.default_mesh_path())
+    scene = o3d.t.geometry.RaycastingScene()
+    scene.add_triangles(
+        o3d.core.Tensor(np.asarray(mesh.vertices, np.float32)),
+        o3d.core.Tensor(np.asarray(mesh.faces, np.uint32)),
+    )
+    shift = np.array(yaml_config(run)["mesh"]["shift"], float)
+
+    def dist(p):
+        return scene.compute_distance(o3d.core.Tensor((p - shift).astype(np.float32))).numpy()
+
+    assert c["structure_measured"]
+    at = np.array(c["structure_point_mesh"], float)[None]
+    assert abs(float(dist(at)[0]) - c["structure_m"]) < 2e-3
+    xyz = np.array([[float(r[k]) for k in "xyz"] for r in _csv(run / "flight.csv")])
+    assert float(dist(xyz).min()) >= c["structure_m"] - 2e-3
+    assert c["structure_m"] >= c["collision_radius_m"] - cell * 0.866
 
 
 def _clearance_flown(run) -> dict:
@@ -805,7 +886,7 @@ def _clearance_flown(run) -> dict:
     z = np.array([float(r["z"]) for r in _csv(run / "flight.csv")])
     h = z - summary["workspace"]["bounds_min"][2]
     return {
-        "structure_m": round(radius, 3),
+        "collision_radius_m": round(radius, 3),
         "ground_m": round(float(h.min()), 3),
         "min_altitude_m": round(radius + 0.1, 3),
         "lowest_row": int(np.argmin(h)),

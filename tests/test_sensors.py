@@ -264,7 +264,7 @@ def test_sensor_ranges_noises_and_mounts_a_units_mistake_gives_are_refused_by_na
         nbvkit.mount_transform([1e308, 0, 0])
 
 
-def test_a_scene_tells_which_points_lie_within_a_distance_of_its_mesh():
+def test_a_scene_tells_which_points_lie_within_a_distance_of_its_mesh_and_how_far():
     # one triangle in z = 0 over x, y in [0, 10] (x + y <= 10), far from the origin too
     for o in (np.zeros(3), np.array([1e5, -2e5, 50.0])):
         mesh = nbvkit.Mesh(o + [[0.0, 0, 0], [10, 0, 0], [0, 10, 0]], [[0, 1, 2]])
@@ -274,6 +274,13 @@ def test_a_scene_tells_which_points_lie_within_a_distance_of_its_mesh():
         assert scene.within(pts, 0.6).tolist() == [True, True, False, False]
         assert scene.within(pts, 4.3).tolist() == [True, True, True, True]
         assert scene.within(pts, 0.4).tolist() == [False, False, False, False]
+        # the distances themselves, and none beyond a bound
+        np.testing.assert_allclose(scene.distances(pts), [0.5, 0.5, 18**0.5, 1], atol=1e-9)
+        assert scene.distances(pts, 1.0).tolist() == [0.5, 0.5, np.inf, 1.0]
+    with pytest.raises(ValueError, match=r"max_distance must be >= 0 m \(or infinity\), got nan"):
+        scene.distances(pts, float("nan"))
+    with pytest.raises(ValueError, match="max_distance must be >= 0 m"):
+        scene.distances(pts, -1.0)
     with pytest.raises(ValueError, match="radius must be finite and >= 0"):
         scene.within(pts, float("nan"))
     with pytest.raises(ValueError, match="points"):

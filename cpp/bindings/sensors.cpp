@@ -1,6 +1,7 @@
 #include "nbv/sensors.hpp"
 #include "bindings.hpp"
 #include "nbv/observability.hpp"
+#include "nbv/parallel.hpp"
 #include "options.hpp"
 
 namespace nbv::bind {
@@ -82,7 +83,29 @@ Embree ray-casting scene over a mesh (build once, share between sensors); `optio
           },
           py::arg("points"), py::arg("radius"),
           "(N,) bool per point (N, 3): some triangle of the mesh lies within `radius` (m) of it "
-          "(an Embree point query: a proximity sensor of that range).");
+          "(an Embree point query: a proximity sensor of that range).")
+      .def(
+          "distances",
+          [](const RaycastScene& s, const py::handle& points, double max_distance) {
+            if (!(max_distance >= 0))  // (NaN too; infinity: every point's nearest triangle)
+              throw py::value_error("max_distance must be >= 0 m (or infinity), got " +
+                                    fmt(max_distance));
+            auto p = points_arg(points, "points");
+            const auto P = p.map();
+            py::array_t<double> out(static_cast<py::ssize_t>(P.rows()));
+            double* o = out.mutable_data();
+            {
+              py::gil_scoped_release release;
+              parallel_chunks(std::size_t(P.rows()), 256, [&](std::size_t b, std::size_t e) {
+                for (std::size_t i = b; i < e; ++i)
+                  o[i] = mesh_distance(s, P.row(Eigen::Index(i)).transpose(), max_distance);
+              });
+            }
+            return out;
+          },
+          py::arg("points"), py::arg("max_distance") = std::numeric_limits<double>::infinity(),
+          "(N,) float64 per point (N, 3): the distance (m) to the mesh's nearest triangle, inf "
+          "where none lies within max_distance (an Embree point query).");
 
   py::class_<Scan>(m, "Scan", R"doc(
 One sensor reading, world frame. origin (3,); hits (N, 3) surface points within range; free_ends

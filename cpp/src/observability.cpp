@@ -84,6 +84,29 @@ bool occluded(const RaycastScene& scene, const Eigen::Vector3d& o, const Eigen::
   return ray.tfar < 0.0f;  // -inf when something was hit
 }
 
+struct NearestQuery {
+  const Mesh* mesh;
+  Eigen::Vector3d p;
+  double d2;  // the least squared distance found so far (the query's radius squared at first)
+  bool found = false;
+};
+
+bool nearest_callback(RTCPointQueryFunctionArguments* args) {
+  auto* q = static_cast<NearestQuery*>(args->userPtr);
+  const Mesh& m = *q->mesh;
+  const auto f = static_cast<Eigen::Index>(args->primID);
+  const Eigen::Vector3d a = m.vertices.row(m.faces(f, 0));
+  const Eigen::Vector3d b = m.vertices.row(m.faces(f, 1));
+  const Eigen::Vector3d c = m.vertices.row(m.faces(f, 2));
+  const double d2 = (closest_on_triangle(q->p, a, b, c) - q->p).squaredNorm();
+  if (d2 > q->d2) return false;
+  q->d2 = d2;
+  q->found = true;
+  // the search goes on only where a nearer triangle may lie (a little beyond: float32 bounds)
+  args->query->radius = static_cast<float>(std::sqrt(d2)) * 1.0001f + 1e-6f;
+  return true;
+}
+
 // m: occlusion rays start and end this far from their ends (float precision of the BVH is ~4e-6 m
 // at 40 m from the origin); a sample closer than this to an edge may see past the edge
 constexpr double kSurfaceEps = 5e-4;
@@ -105,6 +128,23 @@ void ObservabilityOptions::validate() const {
     throw std::invalid_argument(
         "gimbal_min_deg <= gimbal_max_deg within [-90, 90] required, got [" +
         std::to_string(gimbal_min_deg) + ", " + std::to_string(gimbal_max_deg) + "]");
+}
+
+double mesh_distance(const RaycastScene& scene, const Eigen::Vector3d& p, double max_distance) {
+  NearestQuery q{&scene.mesh(), p,
+                 std::isinf(max_distance) ? max_distance : max_distance * max_distance};
+  RTCPointQuery pq;
+  const Eigen::Vector3d local = p - scene.origin();  // Embree's coordinates
+  pq.x = static_cast<float>(local.x());
+  pq.y = static_cast<float>(local.y());
+  pq.z = static_cast<float>(local.z());
+  pq.time = 0.0f;
+  pq.radius = std::isinf(max_distance) ? std::numeric_limits<float>::infinity()
+                                       : static_cast<float>(max_distance) * 1.0001f + 1e-6f;
+  RTCPointQueryContext ctx;
+  rtcInitPointQueryContext(&ctx);
+  rtcPointQuery(scene.handle(), &pq, &ctx, nearest_callback, &q);
+  return q.found ? std::sqrt(q.d2) : std::numeric_limits<double>::infinity();
 }
 
 bool mesh_within(const RaycastScene& scene, const Eigen::Vector3d& p, double radius) {

@@ -4,6 +4,7 @@
 
 #include <gtest/gtest.h>
 
+#include <limits>
 #include <memory>
 
 using nbv::Mesh;
@@ -52,6 +53,22 @@ TEST(Observability, PointQueryFindsTrianglesWithinTheRadius) {
   EXPECT_FALSE(nbv::mesh_within(scene, {0.7, 0, 2}, 0.6));
   EXPECT_TRUE(nbv::mesh_within(scene, {0.0, 1.3, 3.3}, 0.5));  // near the corner (1, 3)
   EXPECT_FALSE(nbv::mesh_within(scene, {0.0, 1.4, 3.4}, 0.5));
+}
+
+TEST(Observability, PointQueryMeasuresTheDistanceToTheNearestTriangle) {
+  // a wall at x = 0 (y in [-1, 1], z in [1, 3]) and a box [4, 5]^3: each point's nearest
+  // triangle by hand, none beyond max_distance
+  const nbv::RaycastScene scene(
+      merge(wall(0.0), box(Eigen::Vector3d(4, 4, 4), Eigen::Vector3d(5, 5, 5))));
+  constexpr double inf = std::numeric_limits<double>::infinity();
+  EXPECT_NEAR(nbv::mesh_distance(scene, {0.5, 0, 2}, inf), 0.5, 1e-12);      // the wall's face
+  EXPECT_NEAR(nbv::mesh_distance(scene, {0.0, 4, 3}, inf), 3.0, 1e-12);      // its edge y = 1
+  EXPECT_NEAR(nbv::mesh_distance(scene, {-3, -5, 1}, inf), 5.0, 1e-12);      // its corner
+  EXPECT_NEAR(nbv::mesh_distance(scene, {4.5, 4.5, 4.6}, inf), 0.4, 1e-12);  // inside the box
+  EXPECT_NEAR(nbv::mesh_distance(scene, {3.5, 4.5, 4.5}, inf), 0.5, 1e-12);  // beside it
+  EXPECT_NEAR(nbv::mesh_distance(scene, {3.5, 4.5, 4.5}, 0.5), 0.5, 1e-12);  // at the limit
+  EXPECT_EQ(nbv::mesh_distance(scene, {3.5, 4.5, 4.5}, 0.49), inf);          // beyond it
+  EXPECT_EQ(nbv::mesh_distance(scene, {0.5, 0, 2}, 0.0), inf);
 }
 
 TEST(Observability, AWallIsSeenFromBothSidesAndFrustumLimitsApply) {

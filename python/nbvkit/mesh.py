@@ -257,6 +257,32 @@ def mesh_file_sha1(path) -> str | None:
         return None
 
 
+#: World.mesh_path (and a summary's "mesh") of a mesh given in memory, not read from a file
+IN_MEMORY_MESH = "<in-memory mesh>"
+
+
+def flown_mesh(config, summary: dict):
+    """(the Mesh a run flew, as it flew it, or None; why not) from its config and summary.json:
+    the config's mesh.path (the default airliner where none), scale, up and shift, where the file
+    is found from here and is the one flown (summary.json's mesh_sha1, where recorded)."""
+    if summary.get("mesh") == IN_MEMORY_MESH:
+        return None, "the run flew a mesh given in memory, which its folder does not hold"
+    m = config.mesh
+    try:
+        path = default_mesh_path() if m.path is None else Path(os.fspath(m.path)).expanduser()
+    except OSError as e:  # (the default airliner not installed)
+        return None, e.strerror or str(e)
+    if not path.is_file():
+        return None, f"its mesh '{path}' is not found from here ({Path.cwd()})"
+    flown = summary.get("mesh_sha1")
+    if flown is not None and mesh_file_sha1(path) != flown:
+        return None, f"its mesh '{path}' has changed since the run (summary.json's mesh_sha1)"
+    try:
+        return load_mesh(path, scale=m.scale, up=m.up, shift=m.shift), ""
+    except (OSError, ValueError) as e:
+        return None, f"its mesh '{path}' could not be read: {e}"
+
+
 def default_mesh_path() -> Path:
     """Path of the shipped default structure: the generated airliner (meshes/airliner.obj)."""
     here = Path(__file__).resolve().parent

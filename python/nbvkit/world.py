@@ -18,7 +18,7 @@ from .limits import Bound, require_config, require_type
 from .work_limits import MissionError, check_work
 from .mapping import new_map
 from .mesh import check_path_clear, default_mesh_path, fibonacci_sphere, load_mesh
-from .mesh import mesh_file_sha1, surface_crossings
+from .mesh import IN_MEMORY_MESH, mesh_file_sha1, surface_crossings
 from .sensors import (
     build_camera,
     build_frame_camera,
@@ -87,10 +87,6 @@ VehicleConfig = cpp_section(
         "min_altitude": Bound(lo=0, hi=10_000),
     },
 )
-
-
-#: World.mesh_path (and a summary's "mesh") of a mesh given in memory, not read from a file
-IN_MEMORY_MESH = "<in-memory mesh>"
 
 
 def cloud_floor(config, mesh_bounds) -> float:

@@ -83,4 +83,8 @@ ObservabilityResult observable_samples(const RaycastScene& scene, const PointsRe
 /// True if some mesh triangle is within `radius` of `p` (Embree point query).
 bool mesh_within(const RaycastScene& scene, const Eigen::Vector3d& p, double radius);
 
+/// The distance from `p` to the mesh's nearest triangle where it is at most `max_distance` (may
+/// be infinite), else infinity (an Embree point query whose radius shrinks to the nearest found).
+double mesh_distance(const RaycastScene& scene, const Eigen::Vector3d& p, double max_distance);
+
 }  // namespace nbv

@@ -262,7 +262,7 @@ def _settings_of_run(args, folder: Path) -> None:
     file that cannot be found from here."""
     from ..config import load_config
     from ..runfolder import looks_like_run, read_summary
-    from ..world import IN_MEMORY_MESH
+    from ..mesh import IN_MEMORY_MESH
 
     run = looks_like_run(folder) and (folder / "config.yaml").is_file()
     summary = read_summary(folder) if run else {}

@@ -341,7 +341,7 @@ def _write_into(out: Path, summary: dict, fl, sorties, frame, model, dji, budget
         files.append("export.json")
         summary["files"] = files
         summary["mission_items"] = items.mission_items(tmp, files)
-        summary["clearance"] = cautions.clearance(fl)
+        summary["clearance"] = cautions.clearance(fl, sorties)
         summary["warnings"] = [w for w in [stopped_note_of(fl.run_dir)] if w]
         cell = float(fl.config.map.resolution)
         summary["warnings"] += cautions.clearance_warnings(summary["clearance"], cell)
