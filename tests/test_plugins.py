@@ -96,7 +96,7 @@ def parts():
     registry.TERMINATIONS.pop("distance_cap")
 
 
-def test_a_part_from_a_script_is_configured_and_flown(parts, tmp_path):
+def test_a_part_from_a_script_is_configured_and_flown(parts, tmp_path, capsys):
     f = tmp_path / "mine.yaml"
     f.write_text(
         "planner: {generators: [ring], terminations: [distance_cap]}\n"
@@ -114,12 +114,21 @@ def test_a_part_from_a_script_is_configured_and_flown(parts, tmp_path):
     m = nbvkit.Mission(cfg, mesh=mesh)
     s = m.run(tmp_path / "run")
     assert s["generators"] == ["ring"] and s["termination"] == "coverage_complete"
+    assert s["terminations"] == ["distance_cap"] and s["termination_part"] is None
     assert {r.source for r in m.records} == {"ring"}
     assert len(m.records) == 6  # every view of the ring, once
     assert s["coverage"]["0.1"] > 0.1  # the ring's views saw the box
     # a part ends the mission with its own reason
     s = nbvkit.Mission(cfg.with_overrides(["distance_cap.max_m=1"]), mesh=mesh).run()
     assert s["termination"] == "distance_cap" and s["iterations"] == 1
+    assert s["termination_part"] == "distance_cap"  # the part whose reason it is
+    from nbvkit.commands.run import print_summary
+
+    print_summary(s, "out")  # the parts flown, whatever the scenario's name (surface)
+    assert (
+        "planner: generators ring; utility surface; terminations distance_cap (distance_cap "
+        "ended the run)\n" in capsys.readouterr().out
+    )
 
 
 def test_registering_checks_the_name(parts):

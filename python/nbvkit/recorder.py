@@ -249,6 +249,7 @@ class Recorder:
             "profiling": cfg.profiling.enabled,
             "symmetry_prediction": cfg.symmetry.mode == "predict",
             "generators": list(cfg.planner.generators),
+            "terminations": list(cfg.planner.terminations),
             "utility": cfg.utility.name,
             # generators whose views the utility only checks (valid, worth min_gain), not ranks
             "utility_only_checks": utility_only_checks(cfg),
@@ -265,8 +266,8 @@ class Recorder:
             "entropy_reduction": m.entropy_initial - e_final,
             "entropy_unit": cfg.map.entropy_unit,
             "termination": termination,
-            # a budget (view cap, distance, views, time) ended it, not the planner's coverage
-            "stopped_by_budget": termination in BUDGET_REASONS,
+            "termination_part": m.planner.ended_by,  # the termination whose reason it is, or null
+            "stopped_by_budget": termination in BUDGET_REASONS,  # a budget, not coverage, ended it
             "max_views": m.max_views,
             "wall_time_s": wall,
             "ms_per_iteration": sum(per_stage.values()),
@@ -276,9 +277,8 @@ class Recorder:
             # checkpoints of the run folder put in place while it flew, and the seconds they took
             "checkpoints": self.checkpoints,
             "checkpoint_s": self.checkpoint_time_s,
-            # the process's peak resident memory (Linux ru_maxrss), taken again as summary.json
-            # is written, end-of-run outputs included (_write_summary); in a sweep worker that has
-            # flown several runs, the largest of them
+            # the process's peak resident memory (ru_maxrss), taken again as summary.json is written
+            # (end-of-run outputs included); in a sweep worker, the largest of its runs
             "peak_memory_mb": _peak_mb(),
             "cloud_points": int(ev["n_points"]),
             "workspace": world.workspace.to_dict(),

@@ -14,6 +14,7 @@ import numpy as np
 from .coverage_view import CLASS_COLOURS, CLASS_NAMES
 from .htmlpage import img, page, plot_div, rounded, table, write_text
 from .locks import folder_lock
+from .planning.registry import parts_words
 from .planning.terminations.budget import budget_note
 from .runfolder import mark_incomplete, run_name, write_manifest
 
@@ -162,6 +163,7 @@ def _summary_rows(summary: dict) -> list[tuple]:
         ("iterations", summary.get("iterations")),
         ("distance flown (m)", summary.get("distance_m")),
         ("termination", summary.get("termination")),
+        ("planner", parts_words(summary)),
         ("wall time (s)", summary.get("wall_time_s")),
         ("cloud points", summary.get("cloud_points")),
         ("Chamfer distance (m)", summary.get("chamfer_m")),

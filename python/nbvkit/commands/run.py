@@ -11,7 +11,7 @@ from ..evaluation import unobservable_note
 from ..interrupts import terminate_as_interrupt
 from ..experiment_specs import mesh_overrides_once, with_mesh_shift
 from ..mission import Mission
-from ..planning.registry import checks_only_words
+from ..planning.registry import checks_only_words, parts_words
 from ..planning.selection import refusal_words
 from ..planning.terminations.budget import budget_note
 from ..recorder import fly_into, raise_stop
@@ -211,6 +211,7 @@ def print_summary(s: dict, out, level: bool = False) -> None:
         f"{s['entropy_reduction']:,.0f} {s['entropy_unit']}, "
         f"termination: {s['termination']}"
     )
+    print("planner: " + parts_words(s))
     if s.get("symmetry"):
         print(symmetry.summary_line(s["symmetry"]))
     note = budget_note(s)

@@ -44,15 +44,16 @@ class Planner:
     mission adds its own (symmetry, recorder). ``timers``: each stage's time round the parts."""
 
     def __init__(self, config):
-        ctx = PlanningContext.of(config)
-        self.generators = [get_generator(n, config, ctx) for n in config.planner.generators]
-        self.terminations = [get_termination(n, config, ctx) for n in config.planner.terminations]
+        ctx, p = PlanningContext.of(config), config.planner
+        self.generators = [get_generator(n, config, ctx) for n in p.generators]
+        self.terminations = {n: get_termination(n, config, ctx) for n in p.terminations}
+        self.ended_by = None  # the termination whose reason ended the mission
         self.selector = Selector(ctx)
         self.score = Scorer(config.utility)
         c = config.camera
         fov = (c.hfov_deg, c.vfov_deg, c.min_range, c.max_range, ctx.resolution)
         self.c_view = viewable_cells(*fov, config.entropy.count_partial_cells)
-        self.frames = (config.planner.frame_step, config.planner.frame_novelty)
+        self.frames = (p.frame_step, p.frame_novelty)
         # legs through known free space: a vehicle a scan closed in on flies back out (retreat)
         self.radius = config.vehicle.collision_radius * (config.vehicle.blocked_path == "plan")
         self.timers = StageTimers()
@@ -75,9 +76,9 @@ class Planner:
             entropy_before = step.entropy_after  # the next row's change: all since this one's
             step.extra.update(leg_m=back + leg, scan=scan)
             run_hooks(self.hooks, world, step)  # all of them, then a part's error
-            for term in self.terminations:
-                reason = term.check(world, step)
-                if reason:
+            for name, term in self.terminations.items():
+                if reason := term.check(world, step):
+                    self.ended_by = name
                     return reason
         return "max_iterations"
 

@@ -82,6 +82,18 @@ def checks_only_words(gens, utility: str, more: str = "") -> str:
     )
 
 
+def parts_words(summary: dict) -> str:
+    """The planner's parts a run flew, from its summary.json (the console's and the report's
+    words; its scenario's name stays the same where --set replaced them): generators, utility,
+    terminations, and the termination whose reason ended it."""
+    words = (
+        f"generators {', '.join(summary.get('generators') or ['none'])}; utility "
+        f"{summary.get('utility')}; terminations {', '.join(summary.get('terminations') or [])}"
+    )
+    part = summary.get("termination_part")
+    return words + (f" ({part} ended the run)" if part else "")
+
+
 #: Utilities written in Python (name -> function of nbvkit.CandidateRays, see
 #: planning/utilities.py); the C++ core's are nbvkit._core.utility_names().
 UTILITIES: dict = {}
