@@ -2464,3 +2464,132 @@ def test_the_export_commands_defaults_are_export_missions():
     got = (args.altitude_ref, args.heading, args.speed, args.climb_rate, args.hover)
     assert got == (d["altitude_ref"], d["heading_deg"], d["speed"], d["climb_rate"], d["hover_s"])
     assert args.photo_first == d["photo_first"] and args.reserve is None  # (d's when flown)
+
+
+def _copy_run(run_dir, to):
+    import shutil
+
+    shutil.copytree(run_dir, to)
+    return to
+
+
+def test_a_fifo_in_place_of_a_runs_manifest_or_lock_file_is_refused_not_waited_on(
+    run_dir, tmp_path
+):
+    """Every reader of a run folder checks it first (require_complete_run): a FIFO as its
+    manifest.json, or as the lock file beside it, blocked that check forever."""
+    import threading
+
+    from nbvkit.runfolder import require_complete_run
+
+    def check(run) -> str:
+        out = []
+
+        def go():
+            try:
+                require_complete_run(run)
+                out.append("complete")
+            except ValueError as e:
+                out.append(str(e))
+
+        t = threading.Thread(target=go, daemon=True)
+        t.start()
+        t.join(30)
+        assert not t.is_alive(), f"the check of {run} blocked"
+        return out[0]
+
+    a = _copy_run(run_dir, tmp_path / "a")
+    (a / "manifest.json").unlink()
+    os.mkfifo(a / "manifest.json")
+    assert "has an unreadable manifest.json" in check(a)
+    b = _copy_run(run_dir, tmp_path / "b")
+    os.mkfifo(tmp_path / ".b.lock")
+    assert f"the lock file {tmp_path / '.b.lock'} is not a regular file" in check(b)
+
+
+def test_an_export_leaves_a_users_files_in_its_folder_alone(run_dir, tmp_path, capsys):
+    """--out a folder holding a user's mission.csv or export.json: refused, both kept, before
+    any is replaced; an earlier export's files there are replaced."""
+    from nbvkit.cli import main
+
+    args = ["export", str(run_dir), "--origin", *map(str, ORIGIN), "--format", "csv", "--out"]
+    mine = tmp_path / "mine"
+    mine.mkdir()
+    (mine / "mission.csv").write_text("data\n")
+    (mine / "export.json").write_text('{"mine": 1}\n')
+    assert main([*args, str(mine)]) == 2
+    err = capsys.readouterr().err
+    assert f"{mine} holds mission.csv, export.json, which no earlier export wrote there" in err
+    assert (mine / "mission.csv").read_text() == "data\n"
+    assert (mine / "export.json").read_text() == '{"mine": 1}\n'
+    assert not list(tmp_path.glob(".nbvkit-export-*"))
+    ours = tmp_path / "ours"
+    assert main([*args, str(ours)]) == 0 and main([*args, str(ours)]) == 0  # its own: replaced
+
+
+def test_a_damaged_report_or_a_users_file_in_the_run_leave_the_export_and_the_run_whole(
+    run_dir, tmp_path
+):
+    """report.html damaged in place (same size: the manifest passes) is a warning naming it,
+    the export written; a user's notes.txt in the run folder stays out of the manifest an
+    export rewrites with the report (changing it later made the run refused as damaged)."""
+    from nbvkit.export import estimate_flight
+    from nbvkit.report import flight_section
+    from nbvkit.runfolder import is_complete_run, write_manifest
+
+    run = _copy_run(run_dir, tmp_path / "run")
+    report = run / "report.html"
+    report.write_text(f"<html><body>{flight_section(estimate_flight(run))}</body></html>")
+    write_manifest(run)
+    (run / "notes.txt").write_text("mine\n")
+    s = export_mission(run, "csv", ORIGIN, HEADING, tmp_path / "x")
+    assert s["report_updated"] and is_complete_run(run)
+    (run / "notes.txt").write_text("mine, changed\n")
+    assert is_complete_run(run)  # the user's file is not the run's
+    listed = json.loads((run / "manifest.json").read_text())["files"]
+    assert "notes.txt" not in listed and listed["report.html"] == report.stat().st_size
+    damaged = bytearray(report.read_bytes())
+    damaged[20:22] = b"\xff\xfe"
+    report.write_bytes(bytes(damaged))
+    s = export_mission(run, "csv", ORIGIN, HEADING, tmp_path / "y")
+    assert not s["report_updated"] and (tmp_path / "y" / "export.json").is_file()
+    (w,) = [w for w in s["warnings"] if "report.html" in w]
+    assert f"{report} is damaged, not a report nbvkit wrote" in w
+    assert report.read_bytes() == bytes(damaged) and is_complete_run(run)
+
+
+def test_a_run_view_refuses_a_mesh_changed_since_the_run(run_dir, tmp_path):
+    """run_view coloured a run's cloud against whatever mesh its config names now (the file
+    changed, or another put in its place): refused as evaluate refuses it."""
+    from nbvkit.runview import run_view
+
+    run = _copy_run(run_dir, tmp_path / "run")
+    text = (run / "summary.json").read_text()
+    sha = json.loads(text)["mesh_sha1"]
+    other = "".join("0" if c != "0" else "1" for c in sha)  # the same size: the manifest passes
+    (run / "summary.json").write_text(text.replace(sha, other))
+    with pytest.raises(ValueError, match="cannot be coloured: its mesh .* has changed since"):
+        run_view(run, view_points=100)
+
+
+def test_a_runs_files_that_are_no_regular_files_or_positions_beyond_reach_are_named(
+    run_dir, tmp_path
+):
+    """A FIFO as flight.csv was "not found (a run made before ...)", one as map.ot planned
+    without the map, saying nothing; a flight row 1e308 m away was refused naming no file."""
+    from nbvkit.export.plan import read_run
+
+    for name in ("flight.csv", "summary.json", "config.yaml", "map.ot"):
+        run = _copy_run(run_dir, tmp_path / name)
+        (run / name).unlink()
+        os.mkfifo(run / name)
+        with pytest.raises(ValueError, match=f"the run's {name} .* is a FIFO"):
+            read_run(run)
+    run = _copy_run(run_dir, tmp_path / "far")
+    rows = (run / "flight.csv").read_text().splitlines()
+    head = rows[0].split(",")
+    cells = rows[3].split(",")
+    cells[head.index("z")] = "1e308"
+    (run / "flight.csv").write_text("\n".join([*rows[:3], ",".join(cells), *rows[4:]]) + "\n")
+    with pytest.raises(ValueError, match=r"flight.csv: row 2 \(line 4\): column z is 1e\+308 m"):
+        read_run(run)

@@ -17,6 +17,7 @@ from pathlib import Path
 
 import numpy as np
 
+from . import _core
 from .flight_time import FRAME, VIEW
 from .vehicle import STAGES
 
@@ -47,6 +48,11 @@ def _row_values(i: int, row) -> list:
             expected = ", ".join(repr(v) for v in legal)
             raise ValueError(f"{where}: column {col} is {row[col]!r}, expected one of {expected}")
     out = [_number(where, row, col) for col in ("x", "y", "z", "yaw")]
+    for col, v in zip("xyz", out):
+        if abs(v) > _core.MAX_COORDINATE:  # (where the ray caster and the map can place it)
+            raise ValueError(
+                f"{where}: column {col} is {v:g} m, beyond +-{_core.MAX_COORDINATE:g} m"
+            )
     pitch = _number(where, row, "pitch") if row.get("pitch") not in (None, "") else 0.0
     if abs(pitch) > math.pi / 2:
         raise ValueError(

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import errno
 import os
+import stat
 from pathlib import Path
 
 
@@ -17,13 +18,23 @@ def _holder_named(pid: bytes) -> str:
     return f"pid {text}" if text.isdigit() else "another process"
 
 
+def _open_lock(lp: Path, flags: int) -> int:
+    """os.open of the lock file `lp`, without blocking: ValueError naming it where it is not a
+    regular file (a FIFO in its place would block the open, and every reader, forever)."""
+    fd = os.open(lp, flags | os.O_NONBLOCK, 0o644)
+    if not stat.S_ISREG(os.fstat(fd).st_mode):
+        os.close(fd)
+        raise ValueError(f"the lock file {lp} is not a regular file (nbvkit writes one): remove it")
+    return fd
+
+
 def lock_holder(path: Path) -> str | None:
     """'pid N' of the live process holding path's run lock, or None."""
     import fcntl
 
     lp = _lock_path(path)
     try:
-        fd = os.open(lp, os.O_RDONLY)
+        fd = _open_lock(lp, os.O_RDONLY)
     except OSError:
         return None
     try:
@@ -53,7 +64,7 @@ class FileLock:
         import fcntl
 
         while True:
-            fd = os.open(self.path, os.O_RDWR | os.O_CREAT, 0o644)
+            fd = _open_lock(self.path, os.O_RDWR | os.O_CREAT)
             try:
                 fcntl.flock(fd, fcntl.LOCK_EX | (0 if wait else fcntl.LOCK_NB))
             except OSError as e:

@@ -104,7 +104,7 @@ def _problem(path: Path, check_lock: bool = True) -> str | None:
             "run it again"
         )
     try:
-        manifest = json.loads(m.read_text())
+        manifest = json.loads(check_input_file(m, MANIFEST, MAX_TEXT_FILE_BYTES).read_text())
         files = manifest["files"]
         if not isinstance(files, dict):
             raise TypeError
@@ -197,11 +197,14 @@ def require_complete_run(path, what: str = "run folder") -> Path:
     return p
 
 
-def write_manifest(folder) -> Path:
-    """Writes ``folder/manifest.json`` (every file's size), flushed to disk, as the last file of
-    a run. Raises OSError if it cannot be written whole."""
+def write_manifest(folder, only=None) -> Path:
+    """Writes ``folder/manifest.json`` (every file's size; `only`: of those of these relative
+    paths, what a manifest listed, not a user's files added since), flushed to disk, as the last
+    file of a run. Raises OSError if it cannot be written whole."""
     folder = Path(folder)
     files = _listed_files(folder)
+    if only is not None:
+        files = {rel: size for rel, size in files.items() if rel in only}
     for rel in files:  # the outputs reach the disk before the marker that vouches for them
         _fsync_path(folder / rel)
     data = {"nbvkit": __version__, "written": time.time(), "files": files}
@@ -215,16 +218,21 @@ def write_manifest(folder) -> Path:
     return folder / MANIFEST
 
 
-def mark_incomplete(folder) -> bool:
+def mark_incomplete(folder) -> list | None:
     """Removes ``folder/manifest.json`` before a run folder is changed in place (finish_run on a
-    finished Mission's folder); returns whether there was one (write_manifest again after)."""
+    finished Mission's folder); returns the files it listed (write_manifest(folder, only=them)
+    after), or None where there was none or none readable (not a complete run: left so)."""
     m = Path(folder) / MANIFEST
+    try:
+        listed = list(read_json_object(m, "manifest").get("files") or [])
+    except (FileNotFoundError, ValueError):
+        return None
     try:
         m.unlink()
     except FileNotFoundError:
-        return False
+        return None
     _fsync_path(Path(folder))
-    return True
+    return listed
 
 
 def _fsync_path(p: Path) -> None:

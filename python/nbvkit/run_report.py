@@ -340,12 +340,15 @@ def flight_section(flight=None, export: dict | None = None, paths=None) -> str:
 def update_flight_section(out, export: dict, paths=None) -> bool:
     """Replaces the flight section of ``out/report.html`` (if there) with one for ``export``;
     True if the report was updated. Raises OSError if the new report cannot be written, with
-    the folder (report and manifest) left as it was."""
+    the folder (report and manifest) left as it was, ValueError naming it where it is not text."""
     path = Path(out) / "report.html"
     if not path.is_file():
         return False
     with folder_lock(out):  # another export of the run waits (its report.html.tmp is ours)
-        text = path.read_text()
+        try:
+            text = path.read_text(encoding="utf-8")
+        except UnicodeDecodeError as e:
+            raise ValueError(f"{path} is damaged, not a report nbvkit wrote ({e})") from None
         a, b = text.find(FLIGHT_BEGIN), text.find(FLIGHT_END)
         if a < 0 or b < a:
             return False
@@ -356,13 +359,13 @@ def update_flight_section(out, export: dict, paths=None) -> bool:
         except BaseException:
             tmp.unlink(missing_ok=True)
             raise
-        was_complete = mark_incomplete(out)  # the manifest lists report.html's size
+        listed = mark_incomplete(out)  # the manifest lists report.html's size
         try:
             tmp.replace(path)
-        finally:  # the manifest written again, the report replaced or not (an interrupt)
-            tmp.unlink(missing_ok=True)
-            if was_complete:
-                write_manifest(out)
+        finally:  # the manifest written again, the report replaced or not (an interrupt), of
+            tmp.unlink(missing_ok=True)  # the files it listed (not a user's added since)
+            if listed is not None:
+                write_manifest(out, only=listed)
     return True
 
 

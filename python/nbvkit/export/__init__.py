@@ -290,7 +290,7 @@ def export_mission(
     paths = [np.array([fl.home, *[w.xyz for w in s.waypoints], fl.home]) for s in sorties]
     try:
         summary["report_updated"] = update_flight_section(run, summary, paths)
-    except OSError as e:  # the export is written; the run folder is left as it was
+    except (OSError, ValueError) as e:  # the export is written; the run folder left as it was
         summary["report_updated"] = False
         summary["warnings"].append(f"{run}/report.html not updated with the flight: {e}")
     return summary

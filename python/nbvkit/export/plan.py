@@ -16,6 +16,7 @@ from ..flight import Sortie, SortiePlanner, Waypoint, simplify, sortie_planner  
 from ..flight_home import ReturnPaths, find_launch, load_map  # noqa: F401  (re-exported)
 from ..flight_rows import RunFlight, flight_arrays, run_flight
 from ..flight_time import FRAME, VIEW, FlightModel  # noqa: F401  (re-exported)
+from ..limits import check_input_file
 from ..runfolder import read_summary, run_workspace
 
 
@@ -27,6 +28,9 @@ def read_run(run_dir) -> RunFlight:
     run = Path(run_dir).expanduser()
     if not run.is_dir():
         raise FileNotFoundError(f"run folder {run} does not exist")
+    for name in ("flight.csv", "summary.json", "config.yaml", "map.ot"):
+        if os.path.lexists(run / name):  # a FIFO, a device, a folder: said so, not "not found"
+            check_input_file(run / name, f"the run's {name}")
     flight = run / "flight.csv"
     if not flight.is_file():
         extra = (
@@ -80,13 +84,21 @@ def move_into_place(tmp: Path, out: Path, files: list) -> None:
         out.parent.mkdir(parents=True, exist_ok=True)
         os.rename(tmp, out)
         return
-    old = out / "export.json"
+    old, previous = out / "export.json", []
     if old.is_file():
         try:
             previous = json.loads(old.read_text()).get("files", [])
         except (ValueError, OSError, AttributeError):  # (not an export's: no list)
             previous = []
-        for name in previous if isinstance(previous, list) else []:
+        previous = previous if isinstance(previous, list) else []
+    taken = [n for n in files if os.path.lexists(out / n) and n not in previous]
+    if taken:  # a file there that no export wrote (export.json lists an export's): the user's
+        raise FileExistsError(
+            f"{out} holds {', '.join(taken[:3])}{' ...' if len(taken) > 3 else ''}, which no "
+            "earlier export wrote there: give another --out, or move them"
+        )
+    if old.is_file():
+        for name in previous:
             p = out / str(name)  # an export's own name, a file within out: not the user's
             if name not in files and EXPORT_FILE.fullmatch(str(name)) and p.is_file():
                 if out.resolve() in p.resolve().parents:  # (not through a link out of it)
