@@ -1979,10 +1979,42 @@ def test_an_export_keeps_files_behind_a_link_and_reads_no_list_from_a_foreign_js
     (out / "colmap").symlink_to(mine, target_is_directory=True)
     export_mission(run_dir, "csv", ORIGIN, HEADING, out)
     assert (mine / "images.txt").read_text() == "precious" and (out / "colmap").is_symlink()
-    for foreign in ("[1, 2]", '{"files": 5}', '{"files": ["mission.csv", 7]}'):
+    # an export.json no export wrote (not an object listing its files and itself, names only):
+    # the user's, refused before anything is touched, not replaced
+    for foreign in ("[1, 2]", '{"files": 5}', '{"files": ["mission.csv", 7, "export.json"]}'):
         (out / "export.json").write_text(foreign)
-        s = export_mission(run_dir, "qgc", ORIGIN, HEADING, out)
-        assert "mission.plan" in s["files"] and (out / "mission.plan").exists()
+        with pytest.raises(FileExistsError, match="holds export.json, which no earlier export"):
+            export_mission(run_dir, "qgc", ORIGIN, HEADING, out)
+        assert (out / "export.json").read_text() == foreign
+        assert not (out / "mission.plan").exists() and (out / "mission.csv").exists()
+
+
+def test_an_export_stopped_while_it_moved_its_files_in_is_replaced_by_the_next(run_dir, tmp_path):
+    """An export stopped half-way through moving its files in leaves new names beside the old
+    export.json (sortie_01.plan beside a list of mission.plan): the next export replaces them,
+    as an export's, not as a user's."""
+    out = tmp_path / "ex"
+    export_mission(run_dir, "qgc", ORIGIN, HEADING, out)
+    (out / "sortie_01.plan").write_text("half an export")
+    s = export_mission(run_dir, "qgc", ORIGIN, HEADING, out, flight_time_min=3.0)
+    assert "sortie_01.plan" in s["files"]
+    assert json.loads((out / "sortie_01.plan").read_text())["fileType"] == "Plan"
+
+
+def test_the_structure_distance_of_a_far_off_line_is_measured_at_a_wider_spacing(run_dir):
+    """A row 3e8 m away (a same-size edit of flight.csv passes the manifest) asked for 15e9
+    points 2 cm apart (224 GiB): lines longer than MAX_SAMPLES points allow are measured at a
+    spacing as much wider."""
+    from nbvkit.export import cautions
+
+    fl = read_run(run_dir)
+    line = np.array([[0.0, -20.0, 5.0], [3e8, -20.0, 5.0]])
+    near = float(
+        _core.RaycastScene(nbvkit.load_mesh(nbvkit.default_mesh_path())).distances(line[:1])[0]
+    )
+    c = cautions.structure_distance(fl, [line])
+    assert c["structure_measured"] and c["structure_m"] <= round(near, 3)
+    assert len(cautions._along(line, 3e8 / cautions.MAX_SAMPLES)) == cautions.MAX_SAMPLES
 
 
 def test_dji_headings_turn_the_camera_of_a_yawed_mount_where_the_run_looked(tmp_path):
@@ -2583,7 +2615,7 @@ def test_a_runs_files_that_are_no_regular_files_or_positions_beyond_reach_are_na
         run = _copy_run(run_dir, tmp_path / name)
         (run / name).unlink()
         os.mkfifo(run / name)
-        with pytest.raises(ValueError, match=f"the run's {name} .* is a FIFO"):
+        with pytest.raises(ValueError, match=f"run file {name} .* is a FIFO"):
             read_run(run)
     run = _copy_run(run_dir, tmp_path / "far")
     rows = (run / "flight.csv").read_text().splitlines()
@@ -2593,3 +2625,10 @@ def test_a_runs_files_that_are_no_regular_files_or_positions_beyond_reach_are_na
     (run / "flight.csv").write_text("\n".join([*rows[:3], ",".join(cells), *rows[4:]]) + "\n")
     with pytest.raises(ValueError, match=r"flight.csv: row 2 \(line 4\): column z is 1e\+308 m"):
         read_run(run)
+
+
+def test_the_planners_parts_are_said_even_where_a_run_had_none_of_a_kind():
+    from nbvkit.planning.registry import parts_words
+
+    s = {"generators": [], "utility": "surface", "terminations": [], "termination_part": None}
+    assert parts_words(s) == "generators none; utility surface; terminations none"

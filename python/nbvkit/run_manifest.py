@@ -7,6 +7,7 @@ import json
 import math
 import os
 import re
+import stat
 import time
 from pathlib import Path
 
@@ -115,9 +116,12 @@ def _problem(path: Path, check_lock: bool = True) -> str | None:
         if Path(rel).is_absolute() or ".." in Path(rel).parts:  # (a run writes only in itself)
             return f"has a {MANIFEST} listing {rel}, outside the folder; run it again"
         try:
-            actual = f.stat().st_size
+            st = f.stat()
         except OSError:
             return f"lacks {rel}, which its run wrote; run it again"
+        if not stat.S_ISREG(st.st_mode):  # (a FIFO in its place would block its reader)
+            return f"holds {rel}, which is not a regular file (its run wrote one); run it again"
+        actual = st.st_size
         if actual != size:
             return (
                 f"holds a damaged {rel} ({actual} bytes; its run wrote {size}): truncated or "
@@ -225,7 +229,7 @@ def mark_incomplete(folder) -> list | None:
     m = Path(folder) / MANIFEST
     try:
         listed = list(read_json_object(m, "manifest").get("files") or [])
-    except (FileNotFoundError, ValueError):
+    except (FileNotFoundError, ValueError, TypeError):
         return None
     try:
         m.unlink()

@@ -19,8 +19,10 @@ from ..workspace import ground_clearance
 #: below which a planned stand-off is warned of
 GNSS_ERROR_M = 2.0
 #: m: the spacing of the points along the waypoints' lines whose distance from the structure is
-#: measured (the least found is within half of it of the lines' least)
+#: measured (the least found is within half of it of the lines' least), and the most points: lines
+#: longer than their spacing allows (80 km) are measured at a spacing as much wider
 SAMPLE_M = 0.02
+MAX_SAMPLES = 4_000_000
 
 
 def clearance(fl, sorties) -> dict:
@@ -63,7 +65,9 @@ def structure_distance(fl, lines) -> dict:
     scene = _core.RaycastScene(mesh)
     corners = np.vstack(lines)
     bound = float(scene.distances(corners).min())  # the lines' least is at most their corners'
-    pts = np.vstack([corners, *(_along(p) for p in lines)])
+    length = sum(float(np.linalg.norm(np.diff(p, axis=0), axis=1).sum()) for p in lines)
+    spacing = max(SAMPLE_M, length / MAX_SAMPLES)  # (a far-off row: not 1e10 points)
+    pts = np.vstack([corners, *(_along(p, spacing) for p in lines)])
     d = scene.distances(pts, bound)
     i = int(np.argmin(d))
     return {
@@ -73,10 +77,10 @@ def structure_distance(fl, lines) -> dict:
     }
 
 
-def _along(line) -> np.ndarray:
-    """Points SAMPLE_M apart at most along the polyline `line` (P, 3), its corners among them."""
+def _along(line, spacing: float) -> np.ndarray:
+    """Points `spacing` apart at most along the polyline `line` (P, 3), its corners among them."""
     a, b = line[:-1], line[1:]
-    n = np.maximum(1, np.ceil(np.linalg.norm(b - a, axis=1) / SAMPLE_M)).astype(int)
+    n = np.maximum(1, np.ceil(np.linalg.norm(b - a, axis=1) / spacing)).astype(int)
     seg = np.repeat(np.arange(len(a)), n)
     t = (np.arange(int(n.sum())) - np.repeat(np.cumsum(n) - n, n)) / np.repeat(n, n)
     return a[seg] + (b - a)[seg] * t[:, None]
@@ -109,8 +113,10 @@ def clearance_warnings(c: dict, cell: float) -> list:
             f"{c['lowest_row']}), below the {c['min_altitude_m']:g} m its views keep "
             "(vehicle.min_altitude; its paths between views keep it to within half a map cell)"
         )
-    # (the planned radius: a flight planned 2 m off passes the structure at 1.999 m at its nearest)
-    if min(c["collision_radius_m"], c["ground_m"]) >= GNSS_ERROR_M:
+    # measured: with the map's allowance (a flight planned 2 m off passes 1.999 m off at its
+    # nearest: as planned); else the radius planned
+    near = c["structure_m"] + (cell * 0.866 + 0.005 if c["structure_measured"] else 0.0)
+    if min(near, c["ground_m"]) >= GNSS_ERROR_M:
         return out
     near = "passes" if c["structure_measured"] else "was planned"
     return out + [

@@ -30,7 +30,7 @@ def read_run(run_dir) -> RunFlight:
         raise FileNotFoundError(f"run folder {run} does not exist")
     for name in ("flight.csv", "summary.json", "config.yaml", "map.ot"):
         if os.path.lexists(run / name):  # a FIFO, a device, a folder: said so, not "not found"
-            check_input_file(run / name, f"the run's {name}")
+            check_input_file(run / name, f"run file {name}")
     flight = run / "flight.csv"
     if not flight.is_file():
         extra = (
@@ -90,9 +90,20 @@ def move_into_place(tmp: Path, out: Path, files: list) -> None:
             previous = json.loads(old.read_text()).get("files", [])
         except (ValueError, OSError, AttributeError):  # (not an export's: no list)
             previous = []
-        previous = previous if isinstance(previous, list) else []
-    taken = [n for n in files if os.path.lexists(out / n) and n not in previous]
-    if taken:  # a file there that no export wrote (export.json lists an export's): the user's
+        if not (isinstance(previous, list) and all(isinstance(n, str) for n in previous)):
+            previous = []  # (names only)
+    # a folder an export wrote (its export.json lists itself): the export's names there are an
+    # export's, whichever it wrote (one stopped while it moved its files in left new names
+    # beside the old list); elsewhere a file of one of them is the user's
+    ours = "export.json" in previous
+    taken = [
+        n
+        for n in files
+        if os.path.lexists(out / n)
+        and n not in previous
+        and not (ours and (n == "export.json" or EXPORT_FILE.fullmatch(n)))
+    ]
+    if taken:
         raise FileExistsError(
             f"{out} holds {', '.join(taken[:3])}{' ...' if len(taken) > 3 else ''}, which no "
             "earlier export wrote there: give another --out, or move them"

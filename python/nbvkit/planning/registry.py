@@ -88,7 +88,8 @@ def parts_words(summary: dict) -> str:
     terminations, and the termination whose reason ended it."""
     words = (
         f"generators {', '.join(summary.get('generators') or ['none'])}; utility "
-        f"{summary.get('utility')}; terminations {', '.join(summary.get('terminations') or [])}"
+        f"{summary.get('utility')}; terminations "
+        f"{', '.join(summary.get('terminations') or ['none'])}"
     )
     part = summary.get("termination_part")
     return words + (f" ({part} ended the run)" if part else "")
