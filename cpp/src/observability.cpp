@@ -107,6 +107,22 @@ bool nearest_callback(RTCPointQueryFunctionArguments* args) {
   return true;
 }
 
+// An Embree point query round p (world coordinates) of `radius` m (a little beyond: float32
+// bounds; infinity: every triangle until the callback shrinks it), calling `callback` with `user`.
+void point_query(const RaycastScene& scene, const Eigen::Vector3d& p, float radius,
+                 RTCPointQueryFunction callback, void* user) {
+  RTCPointQuery pq;
+  const Eigen::Vector3d local = p - scene.origin();  // Embree's coordinates
+  pq.x = static_cast<float>(local.x());
+  pq.y = static_cast<float>(local.y());
+  pq.z = static_cast<float>(local.z());
+  pq.time = 0.0f;
+  pq.radius = radius * 1.0001f + 1e-6f;
+  RTCPointQueryContext ctx;
+  rtcInitPointQueryContext(&ctx);
+  rtcPointQuery(scene.handle(), &pq, &ctx, callback, user);
+}
+
 // m: occlusion rays start and end this far from their ends (float precision of the BVH is ~4e-6 m
 // at 40 m from the origin); a sample closer than this to an edge may see past the edge
 constexpr double kSurfaceEps = 5e-4;
@@ -131,34 +147,16 @@ void ObservabilityOptions::validate() const {
 }
 
 double mesh_distance(const RaycastScene& scene, const Eigen::Vector3d& p, double max_distance) {
-  NearestQuery q{&scene.mesh(), p,
-                 std::isinf(max_distance) ? max_distance : max_distance * max_distance};
-  RTCPointQuery pq;
-  const Eigen::Vector3d local = p - scene.origin();  // Embree's coordinates
-  pq.x = static_cast<float>(local.x());
-  pq.y = static_cast<float>(local.y());
-  pq.z = static_cast<float>(local.z());
-  pq.time = 0.0f;
-  pq.radius = std::isinf(max_distance) ? std::numeric_limits<float>::infinity()
-                                       : static_cast<float>(max_distance) * 1.0001f + 1e-6f;
-  RTCPointQueryContext ctx;
-  rtcInitPointQueryContext(&ctx);
-  rtcPointQuery(scene.handle(), &pq, &ctx, nearest_callback, &q);
+  const bool unbounded = std::isinf(max_distance);
+  NearestQuery q{&scene.mesh(), p, unbounded ? max_distance : max_distance * max_distance};
+  point_query(scene, p, unbounded ? std::numeric_limits<float>::infinity() : float(max_distance),
+              nearest_callback, &q);
   return q.found ? std::sqrt(q.d2) : std::numeric_limits<double>::infinity();
 }
 
 bool mesh_within(const RaycastScene& scene, const Eigen::Vector3d& p, double radius) {
   WithinQuery q{&scene.mesh(), p, radius * radius};
-  RTCPointQuery pq;
-  const Eigen::Vector3d local = p - scene.origin();  // Embree's coordinates
-  pq.x = static_cast<float>(local.x());
-  pq.y = static_cast<float>(local.y());
-  pq.z = static_cast<float>(local.z());
-  pq.time = 0.0f;
-  pq.radius = static_cast<float>(radius) * 1.0001f + 1e-6f;
-  RTCPointQueryContext ctx;
-  rtcInitPointQueryContext(&ctx);
-  rtcPointQuery(scene.handle(), &pq, &ctx, within_callback, &q);
+  point_query(scene, p, float(radius), within_callback, &q);
   return q.found;
 }
 

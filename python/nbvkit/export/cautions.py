@@ -118,9 +118,9 @@ def clearance_warnings(c: dict, cell: float) -> list:
     near = c["structure_m"] + (cell * 0.866 + 0.005 if c["structure_measured"] else 0.0)
     if min(near, c["ground_m"]) >= GNSS_ERROR_M:
         return out
-    near = "passes" if c["structure_measured"] else "was planned"
+    verb = "passes" if c["structure_measured"] else "was planned"
     return out + [
-        f"the flight {near} {c['structure_m']:g} m from the structure at its nearest "
+        f"the flight {verb} {c['structure_m']:g} m from the structure at its nearest "
         f"(vehicle.collision_radius {c['collision_radius_m']:g} m) and flies {c['ground_m']:g} m "
         f"above the ground at its lowest: a drone without RTK is placed within about "
         f"{GNSS_ERROR_M:g} m. Fly it with RTK positioning and obstacle sensing on, or fly the "
