@@ -108,8 +108,9 @@ bool nearest_callback(RTCPointQueryFunctionArguments* args) {
 }
 
 // An Embree point query round p (world coordinates) of `radius` m (a little beyond: float32
-// bounds; infinity: every triangle until the callback shrinks it), calling `callback` with `user`.
-void point_query(const RaycastScene& scene, const Eigen::Vector3d& p, float radius,
+// bounds; one past a float's range, infinity, is every triangle until the callback shrinks it;
+// converted without overflow), calling `callback` with `user`.
+void point_query(const RaycastScene& scene, const Eigen::Vector3d& p, double radius,
                  RTCPointQueryFunction callback, void* user) {
   RTCPointQuery pq;
   const Eigen::Vector3d local = p - scene.origin();  // Embree's coordinates
@@ -117,7 +118,8 @@ void point_query(const RaycastScene& scene, const Eigen::Vector3d& p, float radi
   pq.y = static_cast<float>(local.y());
   pq.z = static_cast<float>(local.z());
   pq.time = 0.0f;
-  pq.radius = radius * 1.0001f + 1e-6f;
+  const double most = std::numeric_limits<float>::max();  // (times 1.0001f: infinity)
+  pq.radius = static_cast<float>(std::min(radius, most)) * 1.0001f + 1e-6f;
   RTCPointQueryContext ctx;
   rtcInitPointQueryContext(&ctx);
   rtcPointQuery(scene.handle(), &pq, &ctx, callback, user);
@@ -147,16 +149,14 @@ void ObservabilityOptions::validate() const {
 }
 
 double mesh_distance(const RaycastScene& scene, const Eigen::Vector3d& p, double max_distance) {
-  const bool unbounded = std::isinf(max_distance);
-  NearestQuery q{&scene.mesh(), p, unbounded ? max_distance : max_distance * max_distance};
-  point_query(scene, p, unbounded ? std::numeric_limits<float>::infinity() : float(max_distance),
-              nearest_callback, &q);
+  NearestQuery q{&scene.mesh(), p, max_distance * max_distance};  // (infinity stays infinite)
+  point_query(scene, p, max_distance, nearest_callback, &q);
   return q.found ? std::sqrt(q.d2) : std::numeric_limits<double>::infinity();
 }
 
 bool mesh_within(const RaycastScene& scene, const Eigen::Vector3d& p, double radius) {
   WithinQuery q{&scene.mesh(), p, radius * radius};
-  point_query(scene, p, float(radius), within_callback, &q);
+  point_query(scene, p, radius, within_callback, &q);
   return q.found;
 }
 

@@ -105,7 +105,7 @@ def _problem(path: Path, check_lock: bool = True) -> str | None:
             "run it again"
         )
     try:
-        manifest = json.loads(check_input_file(m, MANIFEST, MAX_TEXT_FILE_BYTES).read_text())
+        manifest = read_json_object(m, MANIFEST)
         files = manifest["files"]
         if not isinstance(files, dict):
             raise TypeError
